@@ -1,0 +1,115 @@
+"""Environment throughput: steps per second of the single env and the native vector env.
+
+Usage::
+
+    python bench/env_throughput.py [--seconds 3] [--json out.json]
+
+Prints steps/s for ``gym.make`` (3 robots, random actions in the actuation limits, auto reset),
+the vector env at 1, 64 and 1024 envs (env-steps/s), and, when ``mpe2`` is installed,
+PettingZoo MPE2 ``simple_spread_v3`` (3 agents, continuous random actions) in the same run.
+Random actions are drawn before timing for every contender alike, so only environment time is
+measured.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import koopman_envs
+
+
+def _timed(step, reset, seconds: float) -> float:
+    """Steps per second of ``step(i)`` over at least ``seconds`` (after a short warm-up)."""
+    reset()
+    for i in range(50):
+        step(i)
+    count, start = 0, time.perf_counter()
+    while True:
+        for i in range(500):
+            step(count + i)
+        count += 500
+        elapsed = time.perf_counter() - start
+        if elapsed >= seconds:
+            return count / elapsed
+
+
+def bench_single(env_id: str, seconds: float) -> float:
+    env = gym.make(env_id)
+    actions = np.random.default_rng(0).uniform(-1, 1, (4096, 6)).astype(np.float32) * env.action_space.high
+
+    def step(i: int) -> None:
+        _, _, terminated, truncated, _ = env.step(actions[i & 4095])
+        if terminated or truncated:
+            env.reset()
+
+    return _timed(step, lambda: env.reset(seed=0), seconds)
+
+
+def bench_vector(env_id: str, num_envs: int, seconds: float) -> float:
+    venv = gym.make_vec(env_id, num_envs=num_envs)
+    high = venv.single_action_space.high
+    actions = np.random.default_rng(0).uniform(-1, 1, (64, num_envs, 6)).astype(np.float32) * high
+
+    def step(i: int) -> None:
+        venv.step(actions[i & 63])
+
+    return _timed(step, lambda: venv.reset(seed=0), seconds) * num_envs
+
+
+def bench_mpe2(seconds: float) -> float | None:
+    try:
+        from mpe2 import simple_spread_v3
+    except ImportError:
+        return None
+    env = simple_spread_v3.parallel_env(N=3, continuous_actions=True, max_cycles=10**9)
+    env.reset(seed=0)
+    space = env.action_space(env.agents[0])
+    rng = np.random.default_rng(0)
+    table = rng.uniform(space.low, space.high, (4096, len(env.agents), space.shape[0])).astype(np.float32)
+    agents = list(env.agents)
+
+    def step(i: int) -> None:
+        row = table[i & 4095]
+        env.step({a: row[k] for k, a in enumerate(agents)})
+        if not env.agents:
+            env.reset()
+
+    return _timed(step, lambda: env.reset(seed=0), seconds)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seconds", type=float, default=3.0, help="timing window per figure")
+    parser.add_argument("--json", help="also write the figures to this JSON file")
+    args = parser.parse_args()
+    results: dict[str, float | None] = {}
+    print(f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}")
+    for env_id in koopman_envs.ENV_IDS:
+        rate = bench_single(env_id, args.seconds)
+        results[f"{env_id} single"] = rate
+        print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
+        for k in (1, 64, 1024):
+            rate = bench_vector(env_id, k, args.seconds)
+            results[f"{env_id} vector {k}"] = rate
+            print(f"{env_id:28s} make_vec num_envs={k:<5d}   {rate:12,.0f} env-steps/s")
+    mpe = bench_mpe2(args.seconds)
+    results["mpe2 simple_spread_v3"] = mpe
+    if mpe is None:
+        print("mpe2 not installed: `pip install mpe2` to compare against simple_spread_v3")
+    else:
+        ours = results[f"{koopman_envs.ENV_IDS[0]} single"]
+        print(f"{'mpe2 simple_spread_v3 (3 agents)':52s} {mpe:12,.0f} steps/s")
+        print(f"ratio KoopNav single / simple_spread: {ours / mpe:.2f}x")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump(results, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,65 @@
+"""Run one short episode and print what happened (a smoke test of an install).
+
+``python -m koopman_envs.demo [--env ID] [--map NAME] [--slip NAME] [--gif PATH]``
+
+The robots are driven by a deliberately naive go-to-target rule (turn toward the target, drive
+when roughly facing it), which ignores obstacles and other robots: it shows the environment,
+not a controller worth comparing. The controllers live in the ``controllers`` package.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import gymnasium as gym
+import numpy as np
+
+import koopman_envs
+from koopman_envs.params import PARAMS
+
+
+def naive_command(poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Turn toward each target and drive when facing it; (N, 2) commands."""
+    delta = targets[:, :2] - poses[:, :2]
+    bearing = np.arctan2(delta[:, 1], delta[:, 0]) - poses[:, 2]
+    bearing = (bearing + np.pi) % (2 * np.pi) - np.pi
+    distance = np.linalg.norm(delta, axis=1)
+    v = np.clip(0.8 * distance, 0, PARAMS.v_max) * np.maximum(np.cos(bearing), 0.0)
+    return np.column_stack([v, 2.0 * bearing])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--env", default="KoopNav-TargetReaching-v0", choices=koopman_envs.ENV_IDS)
+    parser.add_argument("--map", default=None, help="map1..map4, random, or a .json file")
+    parser.add_argument("--slip", default="nominal", help="nominal, low or high")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--gif", help="save the episode as an animated GIF")
+    args = parser.parse_args(argv)
+    env = gym.make(args.env, map=args.map, slip=args.slip, render_mode="rgb_array" if args.gif else None)
+    _, info = env.reset(seed=args.seed)
+    frames = [env.render()] if args.gif else []
+    steps, total = 0, 0.0
+    while True:
+        action = naive_command(info["poses"], info["targets"]).reshape(-1)
+        _, reward, terminated, truncated, info = env.step(action)
+        steps += 1
+        total += reward
+        if args.gif:
+            frames.append(env.render())
+        if terminated or truncated:
+            break
+    scenario = env.unwrapped.scenario
+    outcome = "success" if info["is_success"] else f"collision ({info['collision_kind']})" if info["collision"] else "time limit"
+    print(f"{args.env} map={scenario.map_name} slip={args.slip} seed={args.seed}")
+    print(f"  {steps} steps ({steps * scenario.dt:.1f} s), return {total:.2f}, outcome: {outcome}")
+    print("  final distance to target [cm]: " + ", ".join(f"{100 * d:.1f}" for d in info["distances"]))
+    if args.gif:
+        from koopman_envs.rendering import save_episode
+
+        print(f"  saved {save_episode(frames, args.gif)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,331 @@
+"""The batched navigation engine under every front.
+
+It owns K environments of N robots: their poses, maps, targets, slip generators and episode
+counters, and advances all of them with array maths. The Gymnasium env is this engine with
+K = 1, the vector env is the engine with K = num_envs, and the PettingZoo env reads per-agent
+blocks of the same observation features. Because all fronts run this one code path,
+sub-environment i of a batch seeded with s + i reproduces a lone environment seeded s + i.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.params import PARAMS, slip_lambdas
+from koopman_envs.scenario import Scenario
+from koopman_envs.sim.collision import CollisionKind, collision_flags
+from koopman_envs.sim.dynamics import rk4_step, wrap_angle
+from koopman_envs.sim.maps import MapSpec, RandomMapConfig, generate_random_map, load_map
+from koopman_envs.sim.geometry import TeamGeometry
+from koopman_envs.sim.slip import SlipSampler
+from koopman_envs.tasks.base import TASKS, TaskSpec
+from koopman_envs.tasks.observation import FeatureBuilder
+
+__all__ = ["EngineConfig", "NavigationEngine", "StepResult"]
+
+
+def _check_positive(name: str, value: Any, integer: bool = False) -> None:
+    ok = isinstance(value, (int, np.integer)) if integer else isinstance(value, (int, float, np.number))
+    if not ok or isinstance(value, bool) or not np.isfinite(value) or value <= 0:
+        kind = "an integer >= 1" if integer else "a finite number > 0"
+        raise ValueError(f"{name}={value!r} must be {kind}")
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """Everything that defines an environment, resolved and validated.
+
+    Build it with :meth:`EngineConfig.create`, which accepts the user-facing keyword arguments.
+    """
+
+    task: TaskSpec
+    map_spec: MapSpec | None  # None means a random map per reset
+    random_map: RandomMapConfig
+    lambdas: NDArray[np.float64]
+    slip_label: str
+    n_robots: int
+    goal_tolerance: float
+    robot_radius: NDArray[np.float64]
+    n_obstacle_obs: int
+    max_episode_steps: int | None
+
+    @classmethod
+    def create(
+        cls,
+        task: str,
+        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
+        slip: str | Sequence[float] = "nominal",
+        n_robots: int = PARAMS.n_robots,
+        goal_tolerance: float = PARAMS.goal_tolerance,
+        robot_radius: float = PARAMS.robot_radius,
+        n_obstacle_obs: int = 4,
+        max_episode_steps: int | None = None,
+        random_map: RandomMapConfig | None = None,
+    ) -> EngineConfig:
+        """Validate user arguments (see the env docstrings) into a config."""
+        if task not in TASKS:
+            raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
+        spec = TASKS[task]
+        _check_positive("n_robots", n_robots, integer=True)
+        _check_positive("goal_tolerance", goal_tolerance)
+        _check_positive("robot_radius", robot_radius)
+        if not isinstance(n_obstacle_obs, (int, np.integer)) or n_obstacle_obs < 0:
+            raise ValueError(f"n_obstacle_obs={n_obstacle_obs!r} must be an integer >= 0")
+        if max_episode_steps is not None:
+            _check_positive("max_episode_steps", max_episode_steps, integer=True)
+        map_arg = spec.default_map if map is None else map
+        if isinstance(map_arg, str) and map_arg == "random":
+            map_spec = None
+        else:
+            map_spec = load_map(map_arg)
+            map_spec.validate(int(n_robots), float(robot_radius))
+        lambdas = slip_lambdas(slip, int(n_robots))
+        label = slip if isinstance(slip, str) else "custom"
+        return cls(
+            task=spec,
+            map_spec=map_spec,
+            random_map=random_map or RandomMapConfig(),
+            lambdas=lambdas,
+            slip_label=label,
+            n_robots=int(n_robots),
+            goal_tolerance=float(goal_tolerance),
+            robot_radius=np.full(int(n_robots), float(robot_radius)),
+            n_obstacle_obs=int(n_obstacle_obs),
+            max_episode_steps=None if max_episode_steps is None else int(max_episode_steps),
+        )
+
+    @property
+    def map_name(self) -> str:
+        """Name of the fixed map, or ``"random"``."""
+        return "random" if self.map_spec is None else self.map_spec.name
+
+    @property
+    def n_obstacles(self) -> int:
+        """Obstacles per environment (fixed for a config)."""
+        return self.random_map.n_obstacles if self.map_spec is None else self.map_spec.obstacles.shape[0]
+
+
+@dataclass
+class StepResult:
+    """Arrays produced by one batched step (K environments, N robots, F features)."""
+
+    features: NDArray[np.float64]  # (K, N, F)
+    robot_reward: NDArray[np.float64]  # (K, N)
+    team_reward: NDArray[np.float64]  # (K,)
+    terminated: NDArray[np.bool_]  # (K,)
+    truncated: NDArray[np.bool_]  # (K,)
+
+
+class NavigationEngine:
+    """K navigation environments advanced together.
+
+    Parameters
+    ----------
+    config : EngineConfig
+        The validated environment definition.
+    num_envs : int
+        Batch size K.
+    """
+
+    def __init__(self, config: EngineConfig, num_envs: int = 1) -> None:
+        self.config = config
+        self.num_envs = int(num_envs)
+        k, n, m = self.num_envs, config.n_robots, config.n_obstacles
+        self.poses = np.zeros((k, n, 3))
+        self.targets = np.zeros((k, n, 3))
+        self.offsets = np.zeros((k, n, 2))
+        self.obstacles = np.zeros((k, m, 3))
+        self.maps: list[MapSpec | None] = [None] * k
+        self.distances = np.zeros((k, n))
+        self.settled = np.zeros(k, dtype=np.int64)
+        self.elapsed = np.zeros(k, dtype=np.int64)
+        self.collision = np.zeros(k, dtype=np.int64)
+        self.success = np.zeros(k, dtype=bool)
+        self.last_command = np.zeros((k, n, 2))
+        self.slip = SlipSampler(k, n)
+        self.geometry = TeamGeometry(k, config.robot_radius, m)
+        self.builder = FeatureBuilder(k, n, m, config.n_obstacle_obs, config.task.formation)
+        self.feature_size = self.builder.shape[-1]
+        self.feature_low, self.feature_high = self.builder.low, self.builder.high
+        self.command_low = np.array([-PARAMS.v_max, -PARAMS.omega_max])
+        self.command_high = np.array([PARAMS.v_max, PARAMS.omega_max])
+        self._command_scale = 1.0 / self.command_high**2
+        self._settle_steps = PARAMS.settle_steps
+        if config.map_spec is not None:
+            self._set_map_all(config.map_spec)
+
+    # ------------------------------------------------------------------ reset
+    def _set_map_all(self, spec: MapSpec) -> None:
+        n = self.config.n_robots
+        self.obstacles[:] = spec.obstacles
+        for index in range(self.num_envs):
+            self.geometry.set_obstacles(index, spec.obstacles)
+        self.targets[:] = spec.targets[:n]
+        self.offsets[:] = spec.formation_offsets[:n]
+        self.maps = [spec] * self.num_envs
+
+    def reset_env(self, index: int, rng: np.random.Generator) -> None:
+        """Start a new episode in environment ``index``, drawing only from ``rng``."""
+        cfg = self.config
+        n = cfg.n_robots
+        if cfg.map_spec is None:
+            spec = generate_random_map(rng, n, cfg.random_map, float(cfg.robot_radius[0]))
+            self.obstacles[index] = spec.obstacles
+            self.geometry.set_obstacles(index, spec.obstacles)
+            self.targets[index] = spec.targets[:n]
+            self.offsets[index] = spec.formation_offsets[:n]
+            self.maps[index] = spec
+        else:
+            spec = cfg.map_spec
+        self.poses[index] = spec.starts[:n]
+        self.settled[index] = 0
+        self.elapsed[index] = 0
+        self.collision[index] = 0
+        self.success[index] = False
+        self.last_command[index] = 0.0
+        diff = self.targets[index, :, :2] - self.poses[index, :, :2]
+        self.distances[index] = np.hypot(diff[:, 0], diff[:, 1])  # the formula of FeatureBuilder
+        self.slip.reset_env(index, rng, cfg.lambdas)
+
+    def features(self) -> NDArray[np.float64]:
+        """Observation blocks of every robot, shape (K, N, F)."""
+        geometry = self.geometry.compute(self.poses[..., :2])
+        features, _ = self.builder.build(
+            self.poses, self.targets, geometry, self.offsets if self.config.task.formation else None
+        )
+        return features
+
+    # ------------------------------------------------------------------- step
+    def validate_commands(self, commands: Any) -> NDArray[np.float64]:
+        """Check a batch of joint commands and return it as float64 (K, N, 2).
+
+        Raises
+        ------
+        ValueError
+            Wrong shape, or NaN/inf entries.
+        """
+        k, n = self.num_envs, self.config.n_robots
+        arr = np.asarray(commands, dtype=np.float64)
+        if arr.shape != (k, n, 2):
+            if arr.size == k * n * 2 and arr.shape in ((k, 2 * n), (2 * n,), (n, 2)):
+                arr = arr.reshape(k, n, 2)
+            else:
+                allowed = f"({2 * n},) or ({n}, 2)" if k == 1 else f"({k}, {2 * n}) or ({k}, {n}, 2)"
+                raise ValueError(
+                    f"action has shape {arr.shape}; expected {allowed}: (v [m/s], omega [rad/s]) "
+                    "per robot"
+                )
+        if not np.isfinite(arr).all():
+            bad = np.argwhere(~np.isfinite(arr))[0].tolist()
+            raise ValueError(
+                f"action contains a non-finite value at index {bad} ({arr[tuple(bad)]}); "
+                "allowed: finite (v, omega), saturated to the actuation limits"
+            )
+        return arr
+
+    def step(self, commands: NDArray[np.float64], active: NDArray[np.bool_] | None = None) -> StepResult:
+        """Advance every (active) environment by one control period.
+
+        Parameters
+        ----------
+        commands : ndarray, shape (K, N, 2)
+            Validated commands (v [m/s], omega [rad/s]); saturated here to the limits.
+        active : ndarray of bool, shape (K,), optional
+            Environments to advance; the others keep their state and consume no randomness.
+
+        Returns
+        -------
+        StepResult
+        """
+        cfg = self.config
+        weights = cfg.task.reward
+        command = np.minimum(np.maximum(commands, self.command_low), self.command_high)
+        slip = self.slip.draw(active)
+        new = rk4_step(self.poses, command, slip)
+        new[..., 2] = wrap_angle(new[..., 2])
+        if active is not None:
+            new = np.where(active[:, None, None], new, self.poses)
+            command = command * active[:, None, None]
+        self.poses = new
+        self.last_command = command
+        positions = new[..., :2]
+        geometry = self.geometry.compute(positions)
+        collision = collision_flags(geometry, positions, PARAMS.workspace)
+        features, distances = self.builder.build(
+            new, self.targets, geometry, self.offsets if cfg.task.formation else None
+        )
+        progress = self.distances - distances
+        self.distances = distances
+        within = (distances <= cfg.goal_tolerance).all(-1)
+        self.settled = (self.settled + 1) * within
+        hit = collision != 0
+        success = (self.settled >= self._settle_steps) & ~hit
+        terminated = hit | success
+        self.collision = collision
+        self.success = success
+        self.elapsed += 1 if active is None else active
+        if cfg.max_episode_steps is None:
+            truncated = np.zeros(self.num_envs, dtype=bool)
+        else:
+            truncated = self.elapsed >= cfg.max_episode_steps  # as gymnasium.wrappers.TimeLimit
+
+        effort = command * command
+        effort *= self._command_scale
+        robot_reward = weights.progress * progress - weights.effort * effort.sum(-1)
+        if cfg.task.formation:
+            robot_reward -= weights.formation * np.hypot(features[..., -2], features[..., -1])
+        team_reward = weights.success * success - weights.collision * hit
+        if active is not None:
+            robot_reward = robot_reward * active[:, None]
+            team_reward = team_reward * active
+            terminated &= active
+            truncated &= active
+        return StepResult(features, robot_reward, team_reward, terminated, truncated)
+
+    # ------------------------------------------------------------------- info
+    def scenario(self, index: int = 0) -> Scenario:
+        """The scenario a model-based controller may use for environment ``index``."""
+        cfg = self.config
+        spec = self.maps[index]
+        if spec is None:
+            raise RuntimeError("call reset() before reading the scenario")
+        n = cfg.n_robots
+        return Scenario(
+            task=cfg.task.name,
+            map_name=spec.name,
+            n_robots=n,
+            obstacles=self.obstacles[index].copy(),
+            robot_radius=cfg.robot_radius.copy(),
+            starts=spec.starts[:n].copy(),
+            targets=self.targets[index].copy(),
+            formation_offsets=self.offsets[index].copy(),
+            leader=0,
+            v_max=PARAMS.v_max,
+            omega_max=PARAMS.omega_max,
+            workspace=PARAMS.workspace,
+            dt=PARAMS.dt,
+            goal_tolerance=cfg.goal_tolerance,
+            settle_steps=self._settle_steps,
+        )
+
+    def info(self, index: int = 0) -> dict[str, Any]:
+        """The true structured state of environment ``index`` (copies)."""
+        info = {
+            "poses": self.poses[index].copy(),
+            "targets": self.targets[index].copy(),
+            "distances": self.distances[index].copy(),
+            "collision": bool(self.collision[index]),
+            "collision_kind": CollisionKind.describe(self.collision[index]) if self.collision[index] else "none",
+            "is_success": bool(self.success[index]),
+            "settled_steps": int(self.settled[index]),
+        }
+        if self.config.task.formation:
+            err = self.poses[index, :, :2] - self.poses[index, :1, :2] - self.offsets[index]
+            info["formation_error"] = np.sqrt((err * err).sum(-1))
+        return info
+

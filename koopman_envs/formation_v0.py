@@ -1,0 +1,24 @@
+"""PettingZoo KoopNav leader-follower formation, version 0.
+
+| Import             | ``from koopman_envs import formation_v0``                  |
+|--------------------|------------------------------------------------------------|
+| Actions            | Continuous, per agent ``(v [m/s], omega [rad/s])``          |
+| Parallel API       | Yes (native); AEC through ``env()``                         |
+| Agents             | ``robot_0`` (leader) .. ``robot_{N-1}`` (followers)        |
+| Action shape       | (2,), within (+-0.6 m/s, +-pi/4 rad/s), saturated           |
+| Observation shape  | (11 + 3 (N - 1) + 3 n_obstacle_obs,) = (29,) by default      |
+| State shape        | (N * 29,)                                                  |
+
+```python
+formation_v0.parallel_env(map="map3", slip="nominal", n_robots=3, goal_tolerance=0.1,
+                          max_episode_steps=600, render_mode=None, robot_radius=0.2,
+                          n_obstacle_obs=4)
+```
+History: v0 initial release.
+"""
+
+from koopman_envs.fronts.parallel_env import make_constructors
+
+parallel_env, env, raw_env = make_constructors("formation")
+
+__all__ = ["env", "parallel_env", "raw_env"]

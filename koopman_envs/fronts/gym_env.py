@@ -1,0 +1,242 @@
+"""Centralized Gymnasium environments: one agent commands the whole team."""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.params import PARAMS
+from koopman_envs.scenario import Scenario
+from koopman_envs.sim.maps import MapSpec
+from koopman_envs.tasks.base import RewardWeights
+
+__all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
+
+
+class KoopNavEnv(gym.Env):
+    """Shared implementation of the two centralized tasks; use a subclass or ``gym.make``."""
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": int(round(1 / PARAMS.dt))}
+    task_name = ""
+
+    def __init__(
+        self,
+        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
+        slip: str | Sequence[float] = "nominal",
+        n_robots: int = PARAMS.n_robots,
+        goal_tolerance: float = PARAMS.goal_tolerance,
+        render_mode: str | None = None,
+        robot_radius: float = PARAMS.robot_radius,
+        n_obstacle_obs: int = 4,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
+            )
+        self.config = EngineConfig.create(
+            self.task_name,
+            map=map,
+            slip=slip,
+            n_robots=n_robots,
+            goal_tolerance=goal_tolerance,
+            robot_radius=robot_radius,
+            n_obstacle_obs=n_obstacle_obs,
+        )
+        self.engine = NavigationEngine(self.config, num_envs=1)
+        n = self.config.n_robots
+        low = np.tile(self.engine.command_low, n).astype(np.float32)
+        high = np.tile(self.engine.command_high, n).astype(np.float32)
+        self.action_space = spaces.Box(low, high, dtype=np.float32)
+        flow, fhigh = self.engine.feature_low, self.engine.feature_high
+        self.observation_space = spaces.Box(
+            np.tile(flow, n).astype(np.float32), np.tile(fhigh, n).astype(np.float32), dtype=np.float32
+        )
+        self.render_mode = render_mode
+        self._renderer = None
+        self._trail: list[NDArray[np.float64]] = []
+
+    # --------------------------------------------------------------- Gym API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed)
+        # ``options`` is accepted for API compatibility; no reset option is defined yet
+        self.engine.reset_env(0, self.np_random)
+        if self.render_mode is not None:
+            self._trail = [self.engine.poses[0].copy()]
+        obs = self.engine.features()[0].reshape(-1).astype(np.float32)
+        if self.render_mode == "human":
+            self.render()
+        return obs, self.engine.info(0)
+
+    def step(
+        self, action: NDArray
+    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+        engine = self.engine
+        if engine.maps[0] is None:
+            raise RuntimeError("call reset() before step()")
+        result = engine.step(engine.validate_commands(action))
+        reward = float(result.robot_reward[0].sum() + result.team_reward[0])
+        obs = result.features[0].reshape(-1).astype(np.float32)
+        if self.render_mode is not None:
+            self._trail.append(engine.poses[0].copy())
+            if self.render_mode == "human":
+                self.render()
+        return obs, reward, bool(result.terminated[0]), False, engine.info(0)
+
+    def render(self) -> NDArray[np.uint8] | None:
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
+                "to gym.make"
+            )
+            return None
+        from koopman_envs.rendering import Renderer
+
+        if self._renderer is None:
+            self._renderer = Renderer(human=self.render_mode == "human")
+        return self._renderer.draw(self.scenario, np.asarray(self._trail), title=self._title())
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ---------------------------------------------------------- for models
+    @property
+    def scenario(self) -> Scenario:
+        """Obstacles, radii, starts, targets, formation offsets, limits and dt of this episode."""
+        return self.engine.scenario(0)
+
+    @property
+    def lambdas(self) -> NDArray[np.float64]:
+        """Per-robot slip means of this env (ground truth; controllers must not read it)."""
+        return self.config.lambdas.copy()
+
+    def _title(self) -> str:
+        cfg = self.config
+        return (
+            f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label} | "
+            f"t = {self.engine.elapsed[0] * PARAMS.dt:.1f} s"
+        )
+
+
+_W = RewardWeights()
+
+_SLIP_TABLE = """
+    ======== ========= ========= =========
+    setting  lambda_1  lambda_2  lambda_3
+    ======== ========= ========= =========
+    nominal  0         0         0
+    low      0         0.05      0.1
+    high     0         0.1       0.2
+    ======== ========= ========= =========
+
+    For other team sizes robot 1 stays slip-free and the others are spaced linearly up to the
+    setting's largest lambda. A sequence of per-robot lambda >= 0 is accepted too.
+"""
+
+_COMMON_DOC = """
+    ## Action Space
+    ``Box(shape=(2N,), float32)``: the command of every robot in order,
+    ``[v_0, omega_0, v_1, omega_1, ...]``. An array of shape ``(N, 2)`` is accepted too.
+
+    | Num    | Action                 | Min      | Max     | Unit  |
+    |--------|------------------------|----------|---------|-------|
+    | 2i     | forward speed v_i      | -{p.v_max:g}     | {p.v_max:g}     | m/s   |
+    | 2i + 1 | turn rate omega_i      | -pi/4    | pi/4    | rad/s |
+
+    Values beyond the limits saturate (as real actuators do); a wrong shape or a NaN/inf entry
+    raises ``ValueError``.
+
+    ## Observation Space
+    ``Box(shape=(N * F,), float32)``: one block of F entries per robot, robot 0 first, as listed
+    in :mod:`koopman_envs.tasks.observation` (pose, target in the body frame, the other robots,
+    the nearest obstacles, and for formation the formation error). With the defaults (3 robots,
+    4 obstacles listed) F = 27 for target reaching and 29 for formation.
+
+    ``info`` always carries the true structured state: ``poses`` (N, 3), ``targets`` (N, 3),
+    ``distances`` (N,) to the targets [m], ``collision`` (bool), ``collision_kind``
+    (``"none"``, ``"obstacle"``, ``"robot"``, ``"workspace"`` or a ``+`` combination),
+    ``is_success`` (bool) and ``settled_steps``; formation adds ``formation_error`` (N,) [m].
+
+    ## Dynamics and Slip
+    Unicycle kinematics with slip (paper eq. 15), RK4 at 0.1 s. Each period, per robot,
+    alpha, beta, gamma ~ Exponential(mean lambda_i) from the env's own ``np_random``:
+{slip_table}
+    ## Rewards
+    Per robot: ``{w.progress:g} * progress [m] - {w.effort:g} * ((v/v_max)^2 + (omega/omega_max)^2)``
+    ``{formation_term}``; once for the team: ``-{w.collision:g}`` on a collision, ``+{w.success:g}`` on success. See
+    :class:`koopman_envs.tasks.base.RewardWeights`.
+
+    ## Starting State
+    The map's start poses (a new seeded random layout per reset with ``map="random"``).
+
+    ## Episode End
+    1. Termination: any collision (robot-obstacle, robot-robot, or a centre leaving the
+       20 x 20 m workspace).
+    2. Termination (success): every robot has stayed within ``goal_tolerance`` of its target
+       for 2 s (20 periods); ``info["distances"]`` is then the settled distance.
+    3. Truncation: ``max_episode_steps`` ({p.max_episode_steps} periods by default).
+
+    ## Arguments
+    | Parameter        | Type                  | Default     | Description                              |
+    |------------------|-----------------------|-------------|------------------------------------------|
+    | map              | str, path or MapSpec  | {default_map}      | "map1".."map4", "random", a JSON file, a map |
+    | slip             | str or sequence       | "nominal"   | "nominal", "low", "high" or lambda_i >= 0 |
+    | n_robots         | int                   | 3           | team size (<= the map's starts)          |
+    | goal_tolerance   | float                 | 0.1         | success tolerance [m]                    |
+    | max_episode_steps| int                   | {p.max_episode_steps}         | time limit (a ``gym.make`` argument)      |
+    | render_mode      | str or None           | None        | "rgb_array" or "human" (matplotlib)     |
+    | robot_radius     | float                 | 0.2         | disc radius of every robot [m]           |
+    | n_obstacle_obs   | int                   | 4           | nearest obstacles in each robot's block  |
+
+    ## Vectorized environment
+    ``gym.make_vec(id, num_envs=K)`` returns :class:`koopman_envs.fronts.vector_env.KoopNavVectorEnv`,
+    which steps all K copies with array maths; sub-env i seeded ``s + i`` equals the single env
+    seeded ``s + i``.
+
+    ## Version History
+    * v0: initial release.
+"""
+
+
+class TargetReachingEnv(KoopNavEnv):
+    __doc__ = (
+        """## Description
+    N differential-drive robots (default 3) each drive to their own target pose on a map of
+    circular obstacles while their wheels slip at random (Zhang & Karydis, target reaching).
+
+    >>> import gymnasium as gym, koopman_envs
+    >>> env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high")
+"""
+        + _COMMON_DOC.format(slip_table=_SLIP_TABLE, formation_term="", default_map='"map1"', w=_W, p=PARAMS)
+    )
+    task_name = "target_reaching"
+
+
+class FormationEnv(KoopNavEnv):
+    __doc__ = (
+        """## Description
+    Leader-follower formation: robot 0 leads to its target and every follower's target is the
+    leader's target plus the map's formation offset; the reward also charges the formation error
+    ``e_i = (p_i - p_0) - offset_i``.
+
+    >>> import gymnasium as gym, koopman_envs
+    >>> env = gym.make("KoopNav-Formation-v0", map="map3", slip="low")
+"""
+        + _COMMON_DOC.format(
+            slip_table=_SLIP_TABLE,
+            formation_term=f"- {_W.formation:g} * ||e_i|| [m]",
+            default_map='"map3"',
+            w=_W,
+            p=PARAMS,
+        )
+    )
+    task_name = "formation"

@@ -1,0 +1,203 @@
+"""PettingZoo front: every robot is an agent acting at the same time (``ParallelEnv``)."""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Sequence
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle, seeding
+from numpy.typing import NDArray
+from pettingzoo import ParallelEnv
+from pettingzoo.utils import OrderEnforcingWrapper
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.params import PARAMS
+from koopman_envs.scenario import Scenario
+from koopman_envs.sim.maps import MapSpec
+
+__all__ = ["KoopNavParallelEnv", "make_constructors"]
+
+
+class KoopNavParallelEnv(ParallelEnv, EzPickle):
+    """N robots as N agents ``robot_0 .. robot_{N-1}`` on the shared simulator core.
+
+    Each agent observes its own block of :mod:`koopman_envs.tasks.observation` (own pose and
+    target, the other robots and the nearest obstacles relative to itself, and for formation its
+    formation error) and sends ``(v [m/s], omega [rad/s])``, saturated to the actuation limits.
+    Its reward is its own progress / effort (/ formation) terms plus the shared team terms
+    (collision penalty, success bonus); the episode ends for all agents together. ``state()``
+    returns the centralized observation of the Gymnasium env.
+
+    Parameters
+    ----------
+    task : str
+        ``"target_reaching"`` or ``"formation"``.
+    map, slip, n_robots, goal_tolerance, robot_radius, n_obstacle_obs, render_mode
+        As for the Gymnasium env.
+    max_episode_steps : int
+        Time limit in control periods.
+    """
+
+    metadata = {
+        "render_modes": ["human", "rgb_array"],
+        "render_fps": int(round(1 / PARAMS.dt)),
+        "is_parallelizable": True,
+        "name": "koopnav_v0",
+    }
+
+    def __init__(
+        self,
+        task: str = "target_reaching",
+        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
+        slip: str | Sequence[float] = "nominal",
+        n_robots: int = PARAMS.n_robots,
+        goal_tolerance: float = PARAMS.goal_tolerance,
+        max_episode_steps: int = PARAMS.max_episode_steps,
+        render_mode: str | None = None,
+        robot_radius: float = PARAMS.robot_radius,
+        n_obstacle_obs: int = 4,
+    ) -> None:
+        EzPickle.__init__(
+            self, task, map, slip, n_robots, goal_tolerance, max_episode_steps, render_mode,
+            robot_radius, n_obstacle_obs,
+        )  # fmt: skip
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
+            )
+        self.config = EngineConfig.create(
+            task,
+            map=map,
+            slip=slip,
+            n_robots=n_robots,
+            goal_tolerance=goal_tolerance,
+            robot_radius=robot_radius,
+            n_obstacle_obs=n_obstacle_obs,
+            max_episode_steps=max_episode_steps,
+        )
+        self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}
+        self.engine = NavigationEngine(self.config, num_envs=1)
+        n = self.config.n_robots
+        self.possible_agents = [f"robot_{i}" for i in range(n)]
+        self.agents: list[str] = []
+        self._index = {name: i for i, name in enumerate(self.possible_agents)}
+        low = self.engine.command_low.astype(np.float32)
+        high = self.engine.command_high.astype(np.float32)
+        flow = self.engine.feature_low.astype(np.float32)
+        fhigh = self.engine.feature_high.astype(np.float32)
+        self.observation_spaces = {a: spaces.Box(flow, fhigh, dtype=np.float32) for a in self.possible_agents}
+        self.action_spaces = {a: spaces.Box(low, high, dtype=np.float32) for a in self.possible_agents}
+        self.state_space = spaces.Box(np.tile(flow, n), np.tile(fhigh, n), dtype=np.float32)
+        self.render_mode = render_mode
+        self._rng: np.random.Generator | None = None
+        self._features: NDArray[np.float64] | None = None
+        self._renderer = None
+        self._trail: list[NDArray[np.float64]] = []
+
+    def observation_space(self, agent: str) -> spaces.Box:
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent: str) -> spaces.Box:
+        return self.action_spaces[agent]
+
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, NDArray[np.float32]], dict[str, dict[str, Any]]]:
+        # ``options`` is accepted for API compatibility; no reset option is defined yet
+        if seed is not None or self._rng is None:
+            self._rng = seeding.np_random(seed)[0]
+        self.engine.reset_env(0, self._rng)
+        self.agents = list(self.possible_agents)
+        self._features = self.engine.features()[0]
+        if self.render_mode is not None:
+            self._trail = [self.engine.poses[0].copy()]
+        return self._observations(), self._infos()
+
+    def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.agents:
+            raise RuntimeError("the episode is over: call reset() before step()")
+        missing = [a for a in self.agents if a not in actions]
+        unknown = [a for a in actions if a not in self._index]
+        if missing or unknown:
+            raise ValueError(
+                f"actions must have one entry per live agent {self.agents}; "
+                f"missing {missing}, unknown {unknown}"
+            )
+        joint = np.zeros((1, len(self.possible_agents), 2))
+        for agent, act in actions.items():
+            arr = np.asarray(act, dtype=np.float64)
+            if arr.shape != (2,):
+                raise ValueError(
+                    f"action of {agent} has shape {arr.shape}; expected (2,): (v [m/s], omega [rad/s])"
+                )
+            joint[0, self._index[agent]] = arr
+        result = self.engine.step(self.engine.validate_commands(joint))
+        self._features = result.features[0]
+        team = float(result.team_reward[0])
+        rewards = {a: float(result.robot_reward[0, self._index[a]]) + team for a in self.agents}
+        term, trunc = bool(result.terminated[0]), bool(result.truncated[0])
+        terminations = {a: term for a in self.agents}
+        truncations = {a: trunc for a in self.agents}
+        observations, infos = self._observations(), self._infos()
+        if self.render_mode is not None:
+            self._trail.append(self.engine.poses[0].copy())
+            if self.render_mode == "human":
+                self.render()
+        if term or trunc:
+            self.agents = []
+        return observations, rewards, terminations, truncations, infos
+
+    def _observations(self) -> dict[str, NDArray[np.float32]]:
+        feats = self._features.astype(np.float32)
+        return {a: feats[self._index[a]] for a in self.agents}
+
+    def _infos(self) -> dict[str, dict[str, Any]]:
+        shared = self.engine.info(0)
+        return {a: {**shared, "robot": self._index[a]} for a in self.agents}
+
+    def state(self) -> NDArray[np.float32]:
+        """Centralized observation (all agents' blocks, robot 0 first)."""
+        if self._features is None:
+            raise RuntimeError("call reset() before state()")
+        return self._features.reshape(-1).astype(np.float32)
+
+    @property
+    def scenario(self) -> Scenario:
+        """Geometry and limits of this episode, as in the Gymnasium env."""
+        return self.engine.scenario(0)
+
+    def render(self) -> NDArray[np.uint8] | None:
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() called without a render_mode")
+            return None
+        from koopman_envs.rendering import Renderer
+
+        if self._renderer is None:
+            self._renderer = Renderer(human=self.render_mode == "human")
+        return self._renderer.draw(self.scenario, np.asarray(self._trail), title=self.metadata["name"])
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+def make_constructors(task: str):
+    """The three PettingZoo constructors of one task: ``parallel_env``, ``env``, ``raw_env``."""
+
+    def parallel_env(**kwargs: Any) -> KoopNavParallelEnv:
+        return KoopNavParallelEnv(task, **kwargs)
+
+    def raw_env(**kwargs: Any):
+        return parallel_to_aec(KoopNavParallelEnv(task, **kwargs))
+
+    def env(**kwargs: Any):
+        return OrderEnforcingWrapper(raw_env(**kwargs))
+
+    for fn, what in ((parallel_env, "parallel"), (raw_env, "unwrapped turn-based"), (env, "turn-based")):
+        fn.__doc__ = f"Create the {what} KoopNav {task} environment (keywords of KoopNavParallelEnv)."
+    return parallel_env, env, raw_env

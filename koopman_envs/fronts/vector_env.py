@@ -1,0 +1,217 @@
+"""Native Gymnasium vector env: K copies stepped together by the batched engine."""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.params import PARAMS
+from koopman_envs.scenario import Scenario
+from koopman_envs.sim.maps import MapSpec
+
+__all__ = ["KoopNavVectorEnv"]
+
+
+class KoopNavVectorEnv(VectorEnv):
+    """K KoopNav environments in one batched simulator (``gym.make_vec`` entry point).
+
+    Observations, rewards and flags are batched along the first axis. ``info`` holds the same
+    keys as the single env, batched (``poses`` (K, N, 3), ``targets`` (K, N, 3), ``distances``
+    (K, N), ``collision`` (K,), ``is_success`` (K,)), each with its ``_key`` mask.
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of environments K.
+    task : str
+        ``"target_reaching"`` or ``"formation"`` (set by the registration).
+    max_episode_steps : int, optional
+        Time limit; passed by ``gym.make_vec`` from the registration.
+    autoreset_mode : str or AutoresetMode
+        ``"NextStep"`` (Gymnasium's default) or ``"SameStep"`` (final observation and info in
+        ``info["final_obs"]`` / ``info["final_info"]``, as SB3 expects).
+    **kwargs
+        The single env's keyword arguments (``map``, ``slip``, ``n_robots``, ...).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(
+        self,
+        num_envs: int,
+        task: str,
+        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
+        slip: str | Sequence[float] = "nominal",
+        n_robots: int = PARAMS.n_robots,
+        goal_tolerance: float = PARAMS.goal_tolerance,
+        max_episode_steps: int | None = PARAMS.max_episode_steps,
+        robot_radius: float = PARAMS.robot_radius,
+        n_obstacle_obs: int = 4,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        render_mode: str | None = None,
+    ) -> None:
+        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
+        if render_mode is not None:
+            raise ValueError(
+                f"render_mode={render_mode!r}: the vector env does not render; render a single env"
+            )
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError as exc:
+            allowed = [AutoresetMode.NEXT_STEP.value, AutoresetMode.SAME_STEP.value]
+            raise ValueError(f"autoreset_mode={autoreset_mode!r} is not one of {allowed}") from exc
+        if mode == AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode='Disabled' is not supported; use NextStep or SameStep")
+        self.metadata = {**self.metadata, "autoreset_mode": mode}
+        self.config = EngineConfig.create(
+            task,
+            map=map,
+            slip=slip,
+            n_robots=n_robots,
+            goal_tolerance=goal_tolerance,
+            robot_radius=robot_radius,
+            n_obstacle_obs=n_obstacle_obs,
+            max_episode_steps=max_episode_steps,
+        )
+        self.num_envs = int(num_envs)
+        self.engine = NavigationEngine(self.config, num_envs=self.num_envs)
+        n = self.config.n_robots
+        self.single_action_space = spaces.Box(
+            np.tile(self.engine.command_low, n).astype(np.float32),
+            np.tile(self.engine.command_high, n).astype(np.float32),
+            dtype=np.float32,
+        )
+        self.single_observation_space = spaces.Box(
+            np.tile(self.engine.feature_low, n).astype(np.float32),
+            np.tile(self.engine.feature_high, n).astype(np.float32),
+            dtype=np.float32,
+        )
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.render_mode = None
+        self._rngs: list[np.random.Generator] | None = None
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._all = np.ones(self.num_envs, dtype=bool)
+
+    # --------------------------------------------------------------- API
+    def reset(
+        self,
+        *,
+        seed: int | Sequence[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        # ``options`` is accepted for API compatibility; no reset option is defined yet
+        if seed is None:
+            seeds: Sequence[int | None] = [None] * self.num_envs
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(
+                    f"seed has {len(seeds)} entries; expected one per environment ({self.num_envs})"
+                )
+        if self._rngs is None:
+            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        else:
+            for i, s in enumerate(seeds):
+                if s is not None:
+                    self._rngs[i] = seeding.np_random(s)[0]
+        for i in range(self.num_envs):
+            self.engine.reset_env(i, self._rngs[i])
+        self._autoreset[:] = False
+        return self._observations(self.engine.features()), self._info()
+
+    def step(
+        self, actions: NDArray
+    ) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        engine = self.engine
+        if self._rngs is None:
+            raise RuntimeError("call reset() before step()")
+        commands = engine.validate_commands(actions)
+        if self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP:
+            return self._step_next(commands)
+        return self._step_same(commands)
+
+    def _step_next(self, commands: NDArray) -> tuple:
+        engine = self.engine
+        pending = np.flatnonzero(self._autoreset)
+        if pending.size:
+            for i in pending:
+                engine.reset_env(int(i), self._rngs[i])
+            result = engine.step(commands, active=~self._autoreset)
+        else:
+            result = engine.step(commands)
+        reward = result.robot_reward.sum(-1) + result.team_reward
+        self._autoreset = result.terminated | result.truncated
+        return (
+            self._observations(result.features),
+            reward,
+            result.terminated,
+            result.truncated,
+            self._info(),
+        )
+
+    def _step_same(self, commands: NDArray) -> tuple:
+        engine = self.engine
+        result = engine.step(commands)
+        reward = result.robot_reward.sum(-1) + result.team_reward
+        done = result.terminated | result.truncated
+        obs = self._observations(result.features)
+        info = self._info()
+        if done.any():
+            final_obs = obs.copy()
+            final_info = info
+            for i in np.flatnonzero(done):
+                engine.reset_env(int(i), self._rngs[i])
+            fresh = self._observations(engine.features())
+            obs = np.where(done[:, None], fresh, obs)
+            info = self._info()
+            info["final_obs"] = final_obs
+            info["_final_obs"] = done.copy()
+            info["final_info"] = final_info
+            info["_final_info"] = done.copy()
+        return obs, reward, result.terminated, result.truncated, info
+
+    def _observations(self, features: NDArray) -> NDArray[np.float32]:
+        return features.reshape(self.num_envs, -1).astype(np.float32)
+
+    def _info(self) -> dict[str, Any]:
+        engine = self.engine
+        info: dict[str, Any] = {
+            "poses": engine.poses.copy(),
+            "targets": engine.targets.copy(),
+            "distances": engine.distances.copy(),
+            "collision": engine.collision != 0,
+            "is_success": engine.success.copy(),
+        }
+        for key in list(info):
+            info["_" + key] = self._all
+        return info
+
+    def scenario(self, index: int) -> Scenario:
+        """Scenario of sub-environment ``index`` (see :class:`koopman_envs.scenario.Scenario`)."""
+        return self.engine.scenario(index)
+
+
+def make_target_reaching_vec(num_envs: int = 1, **kwargs: Any) -> KoopNavVectorEnv:
+    """``vector_entry_point`` of ``KoopNav-TargetReaching-v0``."""
+    return KoopNavVectorEnv(num_envs, "target_reaching", **kwargs)
+
+
+def make_formation_vec(num_envs: int = 1, **kwargs: Any) -> KoopNavVectorEnv:
+    """``vector_entry_point`` of ``KoopNav-Formation-v0``."""
+    return KoopNavVectorEnv(num_envs, "formation", **kwargs)
+
+
+__all__ += ["make_target_reaching_vec", "make_formation_vec"]

@@ -1,0 +1,72 @@
+"""What a model-based controller may know about an episode: geometry, goals, limits, timing.
+
+The scenario deliberately carries no slip parameters: a controller that needs a model of the
+slipping robots has to learn it from data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Scenario"]
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """Geometry and limits of the current episode (``env.unwrapped.scenario``).
+
+    Attributes
+    ----------
+    task : str
+        ``"target_reaching"`` or ``"formation"``.
+    map_name : str
+        Name of the map in use.
+    n_robots : int
+        Team size N.
+    obstacles : ndarray, shape (M, 3)
+        Obstacle centre x, y and radius [m].
+    robot_radius : ndarray, shape (N,)
+        Robot radii [m].
+    starts : ndarray, shape (N, 3)
+        Start poses (x [m], y [m], theta [rad]).
+    targets : ndarray, shape (N, 3)
+        Target poses.
+    formation_offsets : ndarray, shape (N, 2)
+        Target position of each robot relative to the leader's (robot 0) [m].
+    leader : int
+        Index of the leader robot (0).
+    v_max, omega_max : float
+        Actuation limits [m/s], [rad/s].
+    workspace : tuple of float
+        (x_min, x_max, y_min, y_max) [m].
+    dt : float
+        Control period [s].
+    goal_tolerance : float
+        Success tolerance on each robot's distance to its target [m].
+    settle_steps : int
+        Periods every robot must stay within tolerance for success.
+    """
+
+    task: str
+    map_name: str
+    n_robots: int
+    obstacles: NDArray[np.float64]
+    robot_radius: NDArray[np.float64]
+    starts: NDArray[np.float64]
+    targets: NDArray[np.float64]
+    formation_offsets: NDArray[np.float64]
+    leader: int
+    v_max: float
+    omega_max: float
+    workspace: tuple[float, float, float, float]
+    dt: float
+    goal_tolerance: float
+    settle_steps: int
+
+    @property
+    def is_formation(self) -> bool:
+        """True for the leader-follower formation task."""
+        return self.task == "formation"

@@ -1,0 +1,102 @@
+"""Collision checks between disc robots, circular obstacles and the workspace box, batched."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.sim.geometry import Geometry, TeamGeometry
+
+__all__ = ["CollisionKind", "check_collisions", "collision_flags"]
+
+
+class CollisionKind:
+    """Bit flags of the collision kinds a step can report (they can combine)."""
+
+    NONE = 0
+    OBSTACLE = 1
+    ROBOT = 2
+    WORKSPACE = 4
+
+    NAMES = {OBSTACLE: "obstacle", ROBOT: "robot", WORKSPACE: "workspace"}
+
+    @classmethod
+    def describe(cls, flags: int) -> str:
+        """Human-readable name of a flag combination, e.g. ``"obstacle+robot"`` or ``"none"``."""
+        names = [name for bit, name in cls.NAMES.items() if int(flags) & bit]
+        return "+".join(names) if names else "none"
+
+
+def collision_flags(
+    geometry: Geometry, positions: NDArray, workspace: tuple[float, float, float, float]
+) -> NDArray[np.int64]:
+    """Collision flags from precomputed geometry.
+
+    Parameters
+    ----------
+    geometry : Geometry
+        Pairwise geometry of the same positions.
+    positions : ndarray, shape (K, N, 2)
+        Robot centres [m].
+    workspace : tuple of float
+        (x_min, x_max, y_min, y_max) [m]; a centre outside it is a workspace exit, as in the
+        paper's state constraint.
+
+    Returns
+    -------
+    ndarray of int, shape (K,)
+        Bitwise OR of :class:`CollisionKind` flags per environment (0 = no collision).
+    """
+    n = positions.shape[1]
+    overlap = geometry.clearance < 0.0
+    robot_hit = overlap[:, :, :n].any(axis=(1, 2))
+    obstacle_hit = overlap[:, :, n:].any(axis=(1, 2))
+    low, high = _bounds(workspace)
+    outside = ((positions < low) | (positions > high)).any(axis=(1, 2))
+    return (
+        obstacle_hit * CollisionKind.OBSTACLE
+        + robot_hit * CollisionKind.ROBOT
+        + outside * CollisionKind.WORKSPACE
+    )
+
+
+_BOUNDS_CACHE: dict[tuple[float, ...], tuple[NDArray, NDArray]] = {}
+
+
+def _bounds(workspace: tuple[float, float, float, float]) -> tuple[NDArray, NDArray]:
+    """(x_min, y_min) and (x_max, y_max) as arrays, cached per workspace."""
+    key = tuple(workspace)
+    if key not in _BOUNDS_CACHE:
+        _BOUNDS_CACHE[key] = (np.array([key[0], key[2]]), np.array([key[1], key[3]]))
+    return _BOUNDS_CACHE[key]
+
+
+def check_collisions(
+    positions: NDArray,
+    obstacles: NDArray,
+    robot_radius: NDArray,
+    workspace: tuple[float, float, float, float],
+) -> int:
+    """Collision flags of one team: a convenience wrapper of :func:`collision_flags`.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, 2)
+        Robot centres [m].
+    obstacles : ndarray, shape (M, 3)
+        Obstacles (x, y, radius) [m].
+    robot_radius : ndarray, shape (N,)
+        Robot radii [m].
+    workspace : tuple of float
+        (x_min, x_max, y_min, y_max) [m].
+
+    Returns
+    -------
+    int
+        Bitwise OR of :class:`CollisionKind` flags.
+    """
+    positions = np.asarray(positions, dtype=np.float64)[None]
+    obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+    geo = TeamGeometry(1, np.asarray(robot_radius, dtype=np.float64), obstacles.shape[0])
+    geo.set_obstacles(0, obstacles)
+    return int(collision_flags(geo.compute(positions), positions, workspace)[0])

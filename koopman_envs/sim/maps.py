@@ -1,0 +1,382 @@
+"""Obstacle maps: the shipped data files, user map files, and the seeded random-map generator.
+
+A map holds circular obstacles and, per robot, a start pose and a target pose. Formation maps
+are written as a leader target plus follower offsets; both forms load into the same
+:class:`MapSpec`, whose ``formation_offsets`` are the targets relative to robot 0's target.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.params import PARAMS
+from koopman_envs.sim.geometry import TeamGeometry
+
+__all__ = [
+    "BUILTIN_MAPS",
+    "MAP_NAMES",
+    "MapSpec",
+    "RandomMapConfig",
+    "generate_random_map",
+    "load_map",
+]
+
+BUILTIN_MAPS = ("map1", "map2", "map3", "map4")
+MAP_NAMES = (*BUILTIN_MAPS, "random")
+
+
+def _as_array(value: Any, name: str, columns: int, map_name: str) -> NDArray[np.float64]:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"map {map_name!r}: {name}={value!r} is not a list of numbers") from exc
+    if arr.size == 0:
+        arr = arr.reshape(0, columns)
+    if arr.ndim != 2 or arr.shape[1] != columns:
+        raise ValueError(
+            f"map {map_name!r}: {name} has shape {arr.shape}; expected (k, {columns}) rows"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"map {map_name!r}: {name} contains NaN or inf")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class MapSpec:
+    """One navigation scenario layout.
+
+    Attributes
+    ----------
+    name : str
+        Identifier shown in reports.
+    obstacles : ndarray, shape (M, 3)
+        Circular obstacles: centre x, y and radius [m].
+    starts : ndarray, shape (S, 3)
+        Start pose (x [m], y [m], theta [rad]) of each robot the map supports.
+    targets : ndarray, shape (S, 3)
+        Target pose of each robot. For formation, row 0 is the leader's target and row i its
+        target plus the formation offset of follower i.
+    description : str
+        Free text.
+    """
+
+    name: str
+    obstacles: NDArray[np.float64]
+    starts: NDArray[np.float64]
+    targets: NDArray[np.float64]
+    description: str = ""
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        obstacles = _as_array(self.obstacles, "obstacles", 3, self.name)
+        starts = _as_array(self.starts, "starts", 3, self.name)
+        targets = _as_array(self.targets, "targets", 3, self.name)
+        if starts.shape[0] < 1:
+            raise ValueError(f"map {self.name!r}: needs at least one start pose")
+        if targets.shape != starts.shape:
+            raise ValueError(
+                f"map {self.name!r}: {starts.shape[0]} starts but {targets.shape[0]} targets; "
+                "each robot needs one of each"
+            )
+        if np.any(obstacles[:, 2] <= 0):
+            raise ValueError(f"map {self.name!r}: obstacle radii must be > 0, got {obstacles[:, 2]}")
+        for arr in (obstacles, starts, targets):
+            arr.setflags(write=False)
+        object.__setattr__(self, "obstacles", obstacles)
+        object.__setattr__(self, "starts", starts)
+        object.__setattr__(self, "targets", targets)
+
+    @property
+    def max_robots(self) -> int:
+        """How many robots the map has starts and targets for."""
+        return int(self.starts.shape[0])
+
+    @property
+    def formation_offsets(self) -> NDArray[np.float64]:
+        """Target position of each robot relative to the leader's (robot 0), shape (S, 2) [m]."""
+        return self.targets[:, :2] - self.targets[0, :2]
+
+    def validate(
+        self,
+        n_robots: int,
+        robot_radius: float = PARAMS.robot_radius,
+        workspace: tuple[float, float, float, float] = PARAMS.workspace,
+    ) -> None:
+        """Check that the first ``n_robots`` starts and targets form a valid scenario.
+
+        Raises
+        ------
+        ValueError
+            Naming the first problem: too many robots, a pose outside the workspace,
+            overlapping starts or targets, a start or target inside an obstacle.
+        """
+        if not isinstance(n_robots, (int, np.integer)) or n_robots < 1:
+            raise ValueError(f"n_robots={n_robots!r} must be an integer >= 1")
+        if n_robots > self.max_robots:
+            raise ValueError(
+                f"n_robots={n_robots} is larger than map {self.name!r} supports "
+                f"(1..{self.max_robots}); use map='random' for larger teams"
+            )
+        radii = np.full(n_robots, float(robot_radius))
+        geometry = TeamGeometry(1, radii, self.obstacles.shape[0])
+        geometry.set_obstacles(0, self.obstacles)
+        x0, x1, y0, y1 = workspace
+        for label, poses in (("start", self.starts[:n_robots]), ("target", self.targets[:n_robots])):
+            inside = (
+                (poses[:, 0] - robot_radius >= x0)
+                & (poses[:, 0] + robot_radius <= x1)
+                & (poses[:, 1] - robot_radius >= y0)
+                & (poses[:, 1] + robot_radius <= y1)
+            )
+            if not inside.all():
+                i = int(np.argmin(inside))
+                raise ValueError(
+                    f"map {self.name!r}: {label} of robot {i} at {poses[i, :2].tolist()} is not "
+                    f"inside the workspace {workspace} with radius {robot_radius}"
+                )
+            clearance = geometry.compute(poses[None, :, :2]).clearance[0]
+            robots, obstacles = clearance[:, :n_robots], clearance[:, n_robots:]
+            if robots.min() < 0:
+                i, j = np.unravel_index(np.argmin(robots), robots.shape)
+                raise ValueError(
+                    f"map {self.name!r}: overlapping {label}s of robots {i} and {j} "
+                    f"({poses[i, :2].tolist()} and {poses[j, :2].tolist()}); centres must be at "
+                    f"least {2 * robot_radius} m apart"
+                )
+            if obstacles.size and obstacles.min() < 0:
+                i, k = np.unravel_index(np.argmin(obstacles), obstacles.shape)
+                raise ValueError(
+                    f"map {self.name!r}: {label} of robot {i} at {poses[i, :2].tolist()} "
+                    f"overlaps obstacle {k} {self.obstacles[k].tolist()}"
+                )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form, readable by :func:`load_map`."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "obstacles": self.obstacles.tolist(),
+            "starts": self.starts.tolist(),
+            "targets": self.targets.tolist(),
+            **({"metadata": self.metadata} if self.metadata else {}),
+        }
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the map as a JSON file."""
+        with open(path, "w", encoding="utf-8") as fh:
+            json.dump(self.to_dict(), fh, indent=1)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], default_name: str = "custom") -> MapSpec:
+        """Build a map from its JSON form.
+
+        Either ``targets`` (one pose per robot) or ``leader_target`` plus ``formation_offsets``
+        (one (dx, dy) per robot, the leader's being (0, 0); every target takes the leader's
+        heading) must be given.
+        """
+        if not isinstance(data, dict):
+            raise ValueError(f"map {default_name!r}: must be a JSON object, got {type(data).__name__}")
+        name = str(data.get("name", default_name))
+        missing = [key for key in ("obstacles", "starts") if key not in data]
+        if missing:
+            raise ValueError(f"map {name!r}: missing keys {missing}")
+        if "targets" in data:
+            targets = data["targets"]
+        elif "leader_target" in data and "formation_offsets" in data:
+            leader = _as_array([data["leader_target"]], "leader_target", 3, name)[0]
+            offsets = _as_array(data["formation_offsets"], "formation_offsets", 2, name)
+            targets = np.column_stack(
+                [leader[0] + offsets[:, 0], leader[1] + offsets[:, 1], np.full(len(offsets), leader[2])]
+            )
+        else:
+            raise ValueError(
+                f"map {name!r}: give either 'targets' or 'leader_target' and 'formation_offsets'"
+            )
+        return cls(
+            name=name,
+            obstacles=data["obstacles"],
+            starts=data["starts"],
+            targets=targets,
+            description=str(data.get("description", "")),
+            metadata=dict(data.get("metadata", {})),
+        )
+
+
+def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
+    """Resolve a map argument to a :class:`MapSpec`.
+
+    Parameters
+    ----------
+    spec : str, path or MapSpec
+        A shipped map name (``"map1"`` .. ``"map4"``), a path to a JSON map file, or a map.
+        ``"random"`` is handled by the environment, which draws a new map per reset.
+
+    Raises
+    ------
+    ValueError
+        Unknown name, unreadable or malformed file.
+    """
+    if isinstance(spec, MapSpec):
+        return spec
+    if isinstance(spec, (str, os.PathLike)):
+        text = os.fspath(spec)
+        if text in BUILTIN_MAPS:
+            raw = resources.files("koopman_envs.maps").joinpath(f"{text}.json").read_text("utf-8")
+            return MapSpec.from_dict(json.loads(raw), default_name=text)
+        if text.endswith(".json") or os.path.sep in text:
+            try:
+                with open(text, encoding="utf-8") as fh:
+                    data = json.load(fh)
+            except OSError as exc:
+                raise ValueError(f"map file {text!r} cannot be read: {exc}") from exc
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"map file {text!r} is not valid JSON: {exc}") from exc
+            stem = os.path.splitext(os.path.basename(text))[0]
+            return MapSpec.from_dict(data, default_name=stem)
+    raise ValueError(
+        f"map={spec!r} is not one of {list(MAP_NAMES)}, a path to a .json map file, or a MapSpec"
+    )
+
+
+@dataclass(frozen=True)
+class RandomMapConfig:
+    """Parameters of the random-map generator (all ours).
+
+    The layout mirrors the paper's maps: a team in formation travels ``travel`` metres in a
+    random direction, and isolated circular obstacles sit in the corridor between starts and
+    targets.
+    """
+
+    n_obstacles: int = 4
+    travel: tuple[float, float] = (3.0, 6.5)
+    obstacle_radius: tuple[float, float] = (0.3, 0.6)
+    spacing: float = 0.9  # distance between neighbouring robots in the formation [m]
+    clearance: float = 0.3  # free space around every start and target [m]
+    gap: float = 0.6  # free space between two obstacles, > one robot diameter [m]
+    border: float = 1.0  # free space between any start/target and the workspace edge [m]
+    max_attempts: int = 10_000
+
+
+def _wedge_offsets(n_robots: int, spacing: float) -> NDArray[np.float64]:
+    """Leader at the tip, followers alternating left and right behind it (in the travel frame)."""
+    offsets = np.zeros((n_robots, 2))
+    for k in range(1, n_robots):
+        rank = (k + 1) // 2
+        side = 1.0 if k % 2 else -1.0
+        offsets[k] = (-spacing * rank, side * spacing * rank)
+    return offsets
+
+
+def generate_random_map(
+    rng: np.random.Generator,
+    n_robots: int,
+    config: RandomMapConfig = RandomMapConfig(),
+    robot_radius: float = PARAMS.robot_radius,
+    workspace: tuple[float, float, float, float] = PARAMS.workspace,
+) -> MapSpec:
+    """Draw a valid random map from ``rng`` (reproducible: same generator state, same map).
+
+    Every returned map passes :meth:`MapSpec.validate` and keeps, in addition, ``config.clearance``
+    between starts/targets and obstacles and ``config.gap`` between obstacles.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The only source of randomness.
+    n_robots : int
+        Team size (the formation wedge grows with it).
+    config : RandomMapConfig
+        Generator parameters.
+    robot_radius : float
+        Robot radius [m].
+    workspace : tuple of float
+        (x_min, x_max, y_min, y_max) [m].
+
+    Returns
+    -------
+    MapSpec
+        Named ``"random"``.
+    """
+    if n_robots < 1:
+        raise ValueError(f"n_robots={n_robots!r} must be >= 1")
+    local = _wedge_offsets(n_robots, config.spacing)
+    x0, x1, y0, y1 = workspace
+    margin = config.border + robot_radius
+    for _ in range(config.max_attempts):
+        heading = rng.uniform(-math.pi, math.pi)
+        rot = np.array([[math.cos(heading), -math.sin(heading)], [math.sin(heading), math.cos(heading)]])
+        offsets = local @ rot.T
+        travel = rng.uniform(*config.travel) * np.array([math.cos(heading), math.sin(heading)])
+        lead = rng.uniform([x0 + margin, y0 + margin], [x1 - margin, y1 - margin])
+        start_xy = lead + offsets
+        target_xy = start_xy + travel
+        both = np.vstack([start_xy, target_xy])
+        if (
+            both[:, 0].min() < x0 + margin
+            or both[:, 0].max() > x1 - margin
+            or both[:, 1].min() < y0 + margin
+            or both[:, 1].max() > y1 - margin
+        ):
+            continue
+        start_theta = heading + rng.uniform(-math.pi / 2, math.pi / 2, size=n_robots)
+        obstacles = _place_obstacles(rng, start_xy, target_xy, config, robot_radius, workspace)
+        if obstacles is None:
+            continue
+        starts = np.column_stack([start_xy, (start_theta + math.pi) % (2 * math.pi) - math.pi])
+        targets = np.column_stack([target_xy, np.full(n_robots, heading)])
+        spec = MapSpec("random", obstacles, starts, targets, "seeded random layout")
+        return spec
+    raise RuntimeError(  # pragma: no cover - the default config succeeds within a few attempts
+        f"no valid random map in {config.max_attempts} attempts for n_robots={n_robots}"
+    )
+
+
+def _place_obstacles(
+    rng: np.random.Generator,
+    start_xy: NDArray,
+    target_xy: NDArray,
+    config: RandomMapConfig,
+    robot_radius: float,
+    workspace: tuple[float, float, float, float],
+) -> NDArray | None:
+    """Obstacles along the corridor between the start and target centroids, or None if stuck."""
+    a, b = start_xy.mean(axis=0), target_xy.mean(axis=0)
+    direction = (b - a) / np.linalg.norm(b - a)
+    normal = np.array([-direction[1], direction[0]])
+    half_width = np.abs((start_xy - a) @ normal).max() + 1.0
+    keep_clear = np.vstack([start_xy, target_xy])
+    placed: list[NDArray] = []
+    for _ in range(config.n_obstacles):
+        for _attempt in range(100):
+            along = rng.uniform(0.25, 0.75)
+            across = rng.uniform(-half_width, half_width)
+            radius = rng.uniform(*config.obstacle_radius)
+            centre = a + along * (b - a) + across * normal
+            if (
+                centre[0] - radius < workspace[0]
+                or centre[0] + radius > workspace[1]
+                or centre[1] - radius < workspace[2]
+                or centre[1] + radius > workspace[3]
+            ):
+                continue
+            to_poses = np.linalg.norm(keep_clear - centre, axis=1) - radius - robot_radius
+            if to_poses.min() < config.clearance:
+                continue
+            if placed:
+                others = np.asarray(placed)
+                gaps = np.linalg.norm(others[:, :2] - centre, axis=1) - others[:, 2] - radius
+                if gaps.min() < config.gap:
+                    continue
+            placed.append(np.array([centre[0], centre[1], radius]))
+            break
+        else:
+            return None
+    return np.asarray(placed).reshape(-1, 3)

@@ -1,0 +1,100 @@
+"""Same seed, same result, bit for bit: repeated runs, other processes, vector vs single env."""
+
+from __future__ import annotations
+
+import hashlib
+import multiprocessing as mp
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import koopman_envs  # noqa: F401 - registers the ids
+
+
+def rollout_digest(env_id: str, map_name: str, slip: str, seed: int, steps: int = 400) -> str:
+    """SHA-256 of every observation, reward and pose of a seeded random-action rollout."""
+    env = gym.make(env_id, map=map_name, slip=slip)
+    actions = np.random.default_rng(seed).uniform(-1, 1, (steps, 6)).astype(np.float32)
+    digest = hashlib.sha256()
+    obs, info = env.reset(seed=seed)
+    for action in actions:
+        digest.update(obs.tobytes())
+        digest.update(info["poses"].tobytes())
+        obs, reward, terminated, truncated, info = env.step(action * env.action_space.high)
+        digest.update(np.float64(reward).tobytes())
+        if terminated or truncated:
+            obs, info = env.reset()
+    return digest.hexdigest()
+
+
+CASES = [
+    ("KoopNav-TargetReaching-v0", "map1", "high", 7),
+    ("KoopNav-Formation-v0", "random", "low", 11),
+]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_same_seed_same_rollout(case) -> None:
+    assert rollout_digest(*case) == rollout_digest(*case)
+
+
+def test_different_seed_different_slip() -> None:
+    a = rollout_digest("KoopNav-TargetReaching-v0", "map1", "high", 1)
+    b = rollout_digest("KoopNav-TargetReaching-v0", "map1", "high", 2)
+    assert a != b
+
+
+def test_same_rollout_in_other_processes() -> None:
+    here = [rollout_digest(*case) for case in CASES]
+    with mp.get_context("spawn").Pool(2) as pool:
+        there = pool.starmap(rollout_digest, CASES)
+    assert here == there
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
+def test_vector_env_matches_single_envs(env_id: str, mode: str) -> None:
+    num_envs, seed = 4, 100
+    kwargs = dict(map="random", slip="high", max_episode_steps=120)
+    venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode=mode, **kwargs)
+    assert type(venv.unwrapped).__name__ == "KoopNavVectorEnv"  # the native batched env
+    envs = [gym.make(env_id, **kwargs) for _ in range(num_envs)]
+    vobs, vinfo = venv.reset(seed=seed)
+    for i, env in enumerate(envs):
+        obs, info = env.reset(seed=seed + i)
+        np.testing.assert_array_equal(obs, vobs[i])
+    pending = [False] * num_envs
+    rng = np.random.default_rng(0)
+    episodes = 0
+    for _ in range(600):
+        actions = rng.uniform(-0.7, 0.7, (num_envs, 6)).astype(np.float32)
+        vobs, vrew, vterm, vtrunc, vinfo = venv.step(actions)
+        for i, env in enumerate(envs):
+            if mode == "NextStep" and pending[i]:
+                obs, info = env.reset()
+                reward, done = 0.0, False
+            else:
+                obs, reward, term, trunc, info = env.step(actions[i])
+                done = term or trunc
+                assert (term, trunc) == (vterm[i], vtrunc[i])
+                if done and mode == "SameStep":
+                    np.testing.assert_array_equal(obs, vinfo["final_obs"][i])
+                    obs, info = env.reset()
+            pending[i] = done
+            episodes += done
+            np.testing.assert_array_equal(obs, vobs[i])
+            np.testing.assert_array_equal(info["poses"], vinfo["poses"][i])
+            assert reward == vrew[i]
+    assert episodes >= 10  # autoreset was exercised many times
+
+
+def test_vector_env_seed_list_and_spaces() -> None:
+    venv = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=3)
+    obs, info = venv.reset(seed=[1, 2, 3])
+    assert obs.shape == (3, 81) and venv.observation_space.contains(obs)
+    assert info["poses"].shape == (3, 3, 3) and info["_poses"].all()
+    with pytest.raises(ValueError, match="one per environment"):
+        venv.reset(seed=[1, 2])
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, autoreset_mode="Sometimes")

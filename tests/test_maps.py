@@ -1,0 +1,97 @@
+"""Shipped maps, map files and the seeded random-map generator."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from koopman_envs.sim.maps import BUILTIN_MAPS, MapSpec, RandomMapConfig, generate_random_map, load_map
+
+
+@pytest.mark.parametrize("name", BUILTIN_MAPS)
+def test_shipped_maps_are_valid_and_not_trivial(name: str) -> None:
+    spec = load_map(name)
+    spec.validate(3)
+    travel = np.linalg.norm(spec.targets[:, :2] - spec.starts[:, :2], axis=1)
+    assert np.all((travel > 3.0) & (travel < 8.0))  # paths of a few metres
+    # at least one obstacle blocks some robot's straight path from start to target
+    blocked = 0
+    for start, target in zip(spec.starts[:, :2], spec.targets[:, :2]):
+        seg = target - start
+        t = np.clip(((spec.obstacles[:, :2] - start) @ seg) / (seg @ seg), 0, 1)
+        closest = start + t[:, None] * seg
+        gap = np.linalg.norm(spec.obstacles[:, :2] - closest, axis=1) - spec.obstacles[:, 2] - 0.2
+        blocked += int((gap < 0).any())
+    assert blocked >= 2
+
+
+def test_formation_maps_have_equal_travel() -> None:
+    for name in ("map3", "map4"):
+        spec = load_map(name)
+        travel = spec.targets[:, :2] - spec.starts[:, :2]
+        np.testing.assert_allclose(travel, np.broadcast_to(travel[0], travel.shape), atol=1e-9)
+
+
+def test_map3_reuses_map1_obstacles() -> None:
+    np.testing.assert_array_equal(load_map("map3").obstacles, load_map("map1").obstacles)
+
+
+def test_random_maps_are_valid_for_1000_seeds() -> None:
+    cfg = RandomMapConfig()
+    for seed in range(1000):
+        spec = generate_random_map(np.random.default_rng(seed), 3)
+        spec.validate(3)
+        poses = np.vstack([spec.starts[:, :2], spec.targets[:, :2]])
+        obs = spec.obstacles
+        assert obs.shape == (cfg.n_obstacles, 3)
+        gaps = np.linalg.norm(poses[:, None] - obs[None, :, :2], axis=-1) - obs[:, 2] - 0.2
+        assert gaps.min() >= cfg.clearance - 1e-12
+        pair = np.linalg.norm(obs[:, None, :2] - obs[None, :, :2], axis=-1) - obs[:, None, 2] - obs[None, :, 2]
+        np.fill_diagonal(pair, np.inf)
+        assert pair.min() >= cfg.gap - 1e-12
+        travel = np.linalg.norm(spec.targets[0, :2] - spec.starts[0, :2])
+        assert cfg.travel[0] <= travel <= cfg.travel[1]
+
+
+@pytest.mark.parametrize("n_robots", [1, 2, 5, 8])
+def test_random_maps_scale_to_other_team_sizes(n_robots: int) -> None:
+    for seed in range(50):
+        generate_random_map(np.random.default_rng(seed), n_robots).validate(n_robots)
+
+
+def test_random_map_is_reproducible_and_new_per_reset() -> None:
+    env = gym.make("KoopNav-Formation-v0", map="random")
+    env.reset(seed=4)
+    first = env.unwrapped.scenario
+    env.reset()
+    second = env.unwrapped.scenario
+    env.reset(seed=4)
+    again = env.unwrapped.scenario
+    np.testing.assert_array_equal(first.obstacles, again.obstacles)
+    np.testing.assert_array_equal(first.starts, again.starts)
+    assert not np.array_equal(first.obstacles, second.obstacles)
+
+
+def test_map_file_round_trip(tmp_path) -> None:
+    path = tmp_path / "mine.json"
+    load_map("map4").save(path)
+    loaded = load_map(str(path))
+    np.testing.assert_array_equal(loaded.targets, load_map("map4").targets)
+    env = gym.make("KoopNav-Formation-v0", map=str(path))
+    _, info = env.reset(seed=0)
+    np.testing.assert_array_equal(info["targets"], loaded.targets)
+
+
+def test_leader_target_form(tmp_path) -> None:
+    data = {
+        "obstacles": [[0.0, 0.0, 0.5]],
+        "starts": [[-3, 0, 0], [-4, 1, 0]],
+        "leader_target": [3, 0, 0.5],
+        "formation_offsets": [[0, 0], [-1, 1]],
+    }
+    spec = MapSpec.from_dict(data)
+    np.testing.assert_allclose(spec.targets, [[3, 0, 0.5], [2, 1, 0.5]])
+    np.testing.assert_allclose(spec.formation_offsets, [[0, 0], [-1, 1]])
