@@ -28,7 +28,7 @@ class CollisionKind:
 
 
 def collision_flags(
-    geometry: Geometry, positions: NDArray, workspace: tuple[float, float, float, float]
+    geometry: Geometry, x: NDArray, y: NDArray, workspace: tuple[float, float, float, float]
 ) -> NDArray[np.int64]:
     """Collision flags from precomputed geometry.
 
@@ -36,7 +36,7 @@ def collision_flags(
     ----------
     geometry : Geometry
         Pairwise geometry of the same positions.
-    positions : ndarray, shape (K, N, 2)
+    x, y : ndarray, shape (K, N)
         Robot centres [m].
     workspace : tuple of float
         (x_min, x_max, y_min, y_max) [m]; a centre outside it is a workspace exit, as in the
@@ -47,28 +47,19 @@ def collision_flags(
     ndarray of int, shape (K,)
         Bitwise OR of :class:`CollisionKind` flags per environment (0 = no collision).
     """
-    n = positions.shape[1]
-    overlap = geometry.clearance < 0.0
-    robot_hit = overlap[:, :, :n].any(axis=(1, 2))
-    obstacle_hit = overlap[:, :, n:].any(axis=(1, 2))
-    low, high = _bounds(workspace)
-    outside = ((positions < low) | (positions > high)).any(axis=(1, 2))
-    return (
-        obstacle_hit * CollisionKind.OBSTACLE
-        + robot_hit * CollisionKind.ROBOT
-        + outside * CollisionKind.WORKSPACE
-    )
-
-
-_BOUNDS_CACHE: dict[tuple[float, ...], tuple[NDArray, NDArray]] = {}
-
-
-def _bounds(workspace: tuple[float, float, float, float]) -> tuple[NDArray, NDArray]:
-    """(x_min, y_min) and (x_max, y_max) as arrays, cached per workspace."""
-    key = tuple(workspace)
-    if key not in _BOUNDS_CACHE:
-        _BOUNDS_CACHE[key] = (np.array([key[0], key[2]]), np.array([key[1], key[3]]))
-    return _BOUNDS_CACHE[key]
+    n = x.shape[1]
+    # per entity: does any robot overlap it?  then robots' and obstacles' segments separately
+    touched = (geometry.clearance < 0.0).any(axis=1)
+    robot_hit = touched[:, :n].any(axis=1)
+    flags = robot_hit * CollisionKind.ROBOT
+    if touched.shape[1] > n:
+        flags += touched[:, n:].any(axis=1) * CollisionKind.OBSTACLE
+    outside = x < workspace[0]
+    outside |= x > workspace[1]
+    outside |= y < workspace[2]
+    outside |= y > workspace[3]
+    flags += outside.any(axis=1) * CollisionKind.WORKSPACE
+    return flags
 
 
 def check_collisions(
@@ -95,8 +86,9 @@ def check_collisions(
     int
         Bitwise OR of :class:`CollisionKind` flags.
     """
-    positions = np.asarray(positions, dtype=np.float64)[None]
+    positions = np.asarray(positions, dtype=np.float64)
+    x, y = positions[None, :, 0].copy(), positions[None, :, 1].copy()
     obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
     geo = TeamGeometry(1, np.asarray(robot_radius, dtype=np.float64), obstacles.shape[0])
     geo.set_obstacles(0, obstacles)
-    return int(collision_flags(geo.compute(positions), positions, workspace)[0])
+    return int(collision_flags(geo.compute(x, y), x, y, workspace)[0])

@@ -50,7 +50,8 @@ class TeamGeometry:
         self.n_robots = n
         self.n_obstacles = int(n_obstacles)
         self.robot_radius = np.asarray(robot_radius, dtype=np.float64)
-        self._xy = np.zeros((num_envs, n + self.n_obstacles, 2))
+        self._ex = np.zeros((num_envs, n + self.n_obstacles))
+        self._ey = np.zeros((num_envs, n + self.n_obstacles))
         self._radius_sum = np.zeros((num_envs, n, n + self.n_obstacles))
         pair = self.robot_radius[:, None] + self.robot_radius[None, :]
         # -inf on the diagonal turns a robot's clearance to itself into +inf without a mask
@@ -60,13 +61,20 @@ class TeamGeometry:
     def set_obstacles(self, index: int, obstacles: NDArray) -> None:
         """Install the (M, 3) obstacles (x, y, radius) of environment ``index``."""
         n = self.n_robots
-        self._xy[index, n:] = obstacles[:, :2]
+        self._ex[index, n:] = obstacles[:, 0]
+        self._ey[index, n:] = obstacles[:, 1]
         self._radius_sum[index, :, n:] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
-    def compute(self, positions: NDArray) -> Geometry:
-        """Geometry for robot centres ``positions`` of shape (K, N, 2) [m]."""
-        xy = self._xy
-        xy[:, : self.n_robots] = positions
-        dx = xy[:, None, :, 0] - positions[:, :, None, 0]
-        dy = xy[:, None, :, 1] - positions[:, :, None, 1]
-        return Geometry(dx, dy, np.hypot(dx, dy) - self._radius_sum)
+    def compute(self, x: NDArray, y: NDArray) -> Geometry:
+        """Geometry for robot centres ``x``, ``y`` of shape (K, N) [m]."""
+        n = self.n_robots
+        self._ex[:, :n] = x
+        self._ey[:, :n] = y
+        dx = self._ex[:, None, :] - x[:, :, None]
+        dy = self._ey[:, None, :] - y[:, :, None]
+        # sqrt of squares rather than hypot: the values are metres, and hypot is ~10x slower
+        clearance = dx * dx
+        clearance += dy * dy
+        np.sqrt(clearance, out=clearance)
+        clearance -= self._radius_sum
+        return Geometry(dx, dy, clearance)

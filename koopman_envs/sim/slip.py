@@ -32,18 +32,25 @@ class SlipSampler:
         self.n_robots = int(n_robots)
         self.rngs: list[np.random.Generator | None] = [None] * num_envs
         self.lambdas = np.zeros((num_envs, n_robots))
-        self._unit = np.zeros((num_envs, self.block, n_robots, 3))
+        # (K, block, 3, N): one period of env k is a contiguous (3, N) slab: alpha, beta, gamma rows
+        self._unit = np.zeros((num_envs, self.block, 3, n_robots))
         self._cursor = np.full(num_envs, self.block, dtype=np.int64)
-        self._rows = np.arange(num_envs)
+        self._flat = self._unit.reshape(num_envs * self.block, 3, n_robots)
+        self._row_start = np.arange(num_envs) * self.block
         # periods every env can still draw from its buffer; 0 forces the refill check
         self._headroom = 0
 
     def reset_env(self, index: int, rng: np.random.Generator, lambdas: NDArray) -> None:
-        """Attach env ``index`` to its generator and slip means; drop any buffered draws."""
-        self.rngs[index] = rng
+        """Attach env ``index`` to its generator and slip means.
+
+        Draws already buffered from the same generator carry over into the next episode (an
+        auto-reset wastes nothing); a new generator, as after ``reset(seed=...)``, drops them.
+        """
+        if self.rngs[index] is not rng:
+            self.rngs[index] = rng
+            self._cursor[index] = self.block
+            self._headroom = 0
         self.lambdas[index] = lambdas
-        self._cursor[index] = self.block
-        self._headroom = 0
 
     def draw(self, active: NDArray | None = None) -> NDArray[np.float64]:
         """Slip of the next period for every environment.
@@ -55,14 +62,14 @@ class SlipSampler:
 
         Returns
         -------
-        ndarray, shape (K, N, 3)
-            alpha, beta, gamma per robot (dimensionless, >= 0).
+        ndarray, shape (K, 3, N)
+            Rows alpha, beta, gamma; one column per robot (dimensionless, >= 0).
         """
         if active is None and self._headroom > 0:
-            unit = self._unit[self._rows, self._cursor]
+            unit = self._flat.take(self._row_start + self._cursor, axis=0)
             self._cursor += 1
             self._headroom -= 1
-            return unit * self.lambdas[:, :, None]
+            return unit * self.lambdas[:, None, :]
         need = self._cursor >= self.block
         if active is not None:
             need &= active
@@ -73,11 +80,11 @@ class SlipSampler:
             rng.standard_exponential(out=self._unit[k])
             self._cursor[k] = 0
         if active is None:
-            unit = self._unit[self._rows, self._cursor]
+            unit = self._flat.take(self._row_start + self._cursor, axis=0)
             self._cursor += 1
         else:
             # inactive envs read a harmless row and do not advance
-            unit = self._unit[self._rows, np.minimum(self._cursor, self.block - 1)]
+            unit = self._flat.take(self._row_start + np.minimum(self._cursor, self.block - 1), axis=0)
             self._cursor += active
         self._headroom = int(self.block - self._cursor.max())
-        return unit * self.lambdas[:, :, None]
+        return unit * self.lambdas[:, None, :]

@@ -87,17 +87,20 @@ class FeatureBuilder:
         self.listed = min(n_obstacles, n_obstacle_obs)
         # fancy-index helpers: row i lists every robot but i; env and robot index grids
         self._others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.intp)
-        self._robot_rows = np.arange(n)[:, None]
-        self._env_grid = np.arange(k)[:, None, None]
-        self._robot_grid = np.arange(n)[None, :, None]
+        # flat row index of (env k, robot i, entity 0) in a (K * N * E, 3) view of the entities
+        n_entities = n + n_obstacles
+        row_base = (np.arange(k)[:, None] * n + np.arange(n)[None, :]) * n_entities
+        self._others_flat = (row_base[:, :, None] + self._others[None]).astype(np.intp)
+        self._obstacle_base = (row_base[:, :, None] + n).astype(np.intp)
         self._others_at = 9
         self._obstacles_at = 9 + 3 * (n - 1)
         self._formation_at = self._obstacles_at + 3 * n_obstacle_obs
+        self._padding = np.tile([0.0, 0.0, FAR], max(n_obstacle_obs - self.listed, 0))
 
     def build(
         self,
-        poses: NDArray,
-        targets: NDArray,
+        state: NDArray,
+        target: NDArray,
         geometry: Geometry,
         formation_offsets: NDArray | None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -105,12 +108,12 @@ class FeatureBuilder:
 
         Parameters
         ----------
-        poses, targets : ndarray, shape (K, N, 3)
-            Current and target poses.
+        state, target : ndarray, shape (K, 3, N)
+            Current and target poses as rows x [m], y [m], theta [rad].
         geometry : Geometry
-            Pairwise geometry of ``poses`` (robots first, then obstacles).
-        formation_offsets : ndarray, shape (K, N, 2), optional
-            Used when the builder was made with ``formation=True``.
+            Pairwise geometry of ``state`` (robots first, then obstacles).
+        formation_offsets : ndarray, shape (K, 2, N), optional
+            Rows dx, dy [m]; used when the builder was made with ``formation=True``.
 
         Returns
         -------
@@ -121,43 +124,59 @@ class FeatureBuilder:
         """
         n = self.n_robots
         out = np.empty(self.shape)
-        x, y, th = poses[..., 0], poses[..., 1], poses[..., 2]
+        x, y, th = state[:, 0], state[:, 1], state[:, 2]
         c, s = np.cos(th), np.sin(th)
         out[..., 0] = x
         out[..., 1] = y
         out[..., 2] = c
         out[..., 3] = s
-        tdx = targets[..., 0] - x
-        tdy = targets[..., 1] - y
-        out[..., 4] = c * tdx + s * tdy
-        out[..., 5] = c * tdy - s * tdx
-        distances = np.hypot(tdx, tdy)
+        tdx = target[:, 0] - x
+        tdy = target[:, 1] - y
+        body = c * tdx
+        body += s * tdy
+        out[..., 4] = body
+        body = c * tdy
+        body -= s * tdx
+        out[..., 5] = body
+        distances = tdx * tdx
+        distances += tdy * tdy
+        np.sqrt(distances, out=distances)
         out[..., 6] = distances
-        dth = targets[..., 2] - th
+        dth = target[:, 2] - th
         out[..., 7] = np.cos(dth)
         out[..., 8] = np.sin(dth)
         if n > 1 or self.listed:
             # body-frame offsets and clearance to every entity, then pick the wanted ones
             c3, s3 = c[..., None], s[..., None]
             rel = np.empty(geometry.dx.shape + (3,))
-            rel[..., 0] = c3 * geometry.dx + s3 * geometry.dy
-            rel[..., 1] = c3 * geometry.dy - s3 * geometry.dx
+            body = c3 * geometry.dx
+            body += s3 * geometry.dy
+            rel[..., 0] = body
+            body = c3 * geometry.dy
+            body -= s3 * geometry.dx
+            rel[..., 1] = body
             rel[..., 2] = geometry.clearance
+            flat = rel.reshape(-1, 3)
             if n > 1:
-                others = rel[:, self._robot_rows, self._others]
+                others = flat.take(self._others_flat, axis=0)
                 out[..., self._others_at : self._obstacles_at] = others.reshape(self.shape[0], n, -1)
             if self.n_obstacle_obs:
                 block = out[..., self._obstacles_at : self._formation_at]
                 if self.listed:
                     order = np.argsort(geometry.clearance[..., n:], axis=-1)
-                    nearest = rel[self._env_grid, self._robot_grid, n + order[..., : self.listed]]
+                    if self.listed < self.n_obstacles:
+                        order = order[..., : self.listed]
+                    order += self._obstacle_base
+                    nearest = flat.take(order, axis=0)
                     block[..., : 3 * self.listed] = nearest.reshape(self.shape[0], n, -1)
                 if self.listed < self.n_obstacle_obs:
-                    pad = np.tile([0.0, 0.0, FAR], self.n_obstacle_obs - self.listed)
-                    block[..., 3 * self.listed :] = pad
+                    block[..., 3 * self.listed :] = self._padding
         if self.formation:
-            out[..., -2] = x - x[:, :1] - formation_offsets[..., 0]
-            out[..., -1] = y - y[:, :1] - formation_offsets[..., 1]
-        np.maximum(out, self.low, out=out)
-        np.minimum(out, self.high, out=out)
+            ex = x - x[:, :1]
+            ex -= formation_offsets[:, 0]
+            out[..., -2] = ex
+            ey = y - y[:, :1]
+            ey -= formation_offsets[:, 1]
+            out[..., -1] = ey
+        np.clip(out, self.low, self.high, out=out)
         return out, distances
