@@ -291,7 +291,7 @@ class NavigationEngine:
         )
         progress = self.distances - distances
         self.distances = distances
-        within = distances.max(axis=1) <= cfg.goal_tolerance
+        within = np.maximum.reduce(distances, axis=1) <= cfg.goal_tolerance
         self.settled += 1 if active is None else active
         self.settled *= within
         hit = collision != 0

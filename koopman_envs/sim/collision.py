@@ -47,19 +47,26 @@ def collision_flags(
     ndarray of int, shape (K,)
         Bitwise OR of :class:`CollisionKind` flags per environment (0 = no collision).
     """
-    n = x.shape[1]
-    # per entity: does any robot overlap it?  then robots' and obstacles' segments separately
-    touched = (geometry.clearance < 0.0).any(axis=1)
-    robot_hit = touched[:, :n].any(axis=1)
-    flags = robot_hit * CollisionKind.ROBOT
-    if touched.shape[1] > n:
-        flags += touched[:, n:].any(axis=1) * CollisionKind.OBSTACLE
+    k, n = x.shape
+    n_entities = geometry.clearance.shape[2]
+    # one column per entity (any robot overlapping it) plus one for "some robot is outside"
+    touched = np.empty((k, n_entities + 1), dtype=bool)
+    np.logical_or.reduce(geometry.clearance < 0.0, axis=1, out=touched[:, :n_entities])
     outside = x < workspace[0]
     outside |= x > workspace[1]
     outside |= y < workspace[2]
     outside |= y > workspace[3]
-    flags += outside.any(axis=1) * CollisionKind.WORKSPACE
-    return flags
+    np.logical_or.reduce(outside, axis=1, out=touched[:, n_entities])
+    # segments: robots [0, n), obstacles [n, E), workspace [E]
+    if n_entities > n:
+        kinds = np.logical_or.reduceat(touched, [0, n, n_entities], axis=1)
+        return kinds.dot(_CODES_WITH_OBSTACLES)
+    kinds = np.logical_or.reduceat(touched, [0, n_entities], axis=1)
+    return kinds.dot(_CODES_WITHOUT_OBSTACLES)
+
+
+_CODES_WITH_OBSTACLES = np.array([CollisionKind.ROBOT, CollisionKind.OBSTACLE, CollisionKind.WORKSPACE])
+_CODES_WITHOUT_OBSTACLES = np.array([CollisionKind.ROBOT, CollisionKind.WORKSPACE])
 
 
 def check_collisions(

@@ -8,6 +8,8 @@ operations several times cheaper, which is most of a single environment's step t
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -44,16 +46,11 @@ def slip_velocity(pose: NDArray, command: NDArray, slip: NDArray) -> NDArray:
     )
 
 
-_WEIGHT_CACHE: dict[tuple[float, int], NDArray] = {}
-
-
+@lru_cache(maxsize=16)
 def _rk4_weights(dt: float, ndim: int) -> NDArray:
     """(dt/6, 4 dt/6, dt/6) shaped to broadcast over a (3, ...) stack with ``ndim`` trailing axes."""
-    key = (dt, ndim)
-    weights = _WEIGHT_CACHE.get(key)
-    if weights is None:
-        weights = (np.array([1.0, 4.0, 1.0]) * (dt / 6.0)).reshape((3,) + (1,) * ndim)
-        _WEIGHT_CACHE[key] = weights
+    weights = (np.array([1.0, 4.0, 1.0]) * (dt / 6.0)).reshape((3,) + (1,) * ndim)
+    weights.setflags(write=False)
     return weights
 
 
