@@ -1,0 +1,144 @@
+"""Koopman learning speed: data generation and fit of 1M transitions, peak memory.
+
+Usage::
+
+    python bench/koopman_fit.py [--slip high] [--pykoopman-python /path/to/venv/bin/python]
+
+Prints the wall time of generating 1000 trajectories x 1000 periods on the simulator core, of
+the bilinear fit (SPEC eq. 9) on them, the peak memory of both (traced numpy allocations and
+the process high-water mark), and the circle-test RMSE of the fitted model. With
+``--pykoopman-python`` it also runs pykoopman's (linear) EDMDc on the same data in that
+interpreter (a virtual environment with ``pykoopman`` installed) and prints both fit times and
+both RMSEs side by side.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+
+import numpy as np
+
+from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts, circle_test, rmse_percent
+from controllers.koopman.data import DataSpec, collect_data
+from controllers.koopman.dictionary import get_dictionary
+from controllers.koopman.fit import fit_bilinear
+from controllers.koopman.model import KoopmanModel
+from koopman_envs.params import slip_lambdas
+from koopman_envs.sim.rollout import rollout
+
+PYKOOPMAN_SCRIPT = r"""
+import json, sys, time
+import numpy as np
+import pykoopman as pk
+from pykoopman.regression import EDMDc
+from pykoopman.observables import CustomObservables
+
+data = np.load(sys.argv[1])
+X, U, Y = data["X"], data["U"], data["Y"]          # (S, 3N) poses, (S, 2N), next poses
+n = X.shape[1] // 3
+idx = [[3 * i, 3 * i + 1] for i in range(n)]
+def lift(x):                                        # the same 1 + 4N observables
+    cols = [np.ones((x.shape[0], 1))]
+    for i in range(n):
+        th = x[:, 3 * i + 2]
+        cols += [x[:, 3 * i : 3 * i + 2], np.cos(th)[:, None], np.sin(th)[:, None]]
+    return np.hstack(cols)
+Z, Zn = lift(X), lift(Y)
+start = time.perf_counter()
+model = pk.Koopman(observables=pk.observables.Identity(), regressor=EDMDc())
+model.fit(Z, y=Zn, u=U)
+fit_seconds = time.perf_counter() - start
+A = model.A if hasattr(model, "A") else model.ur @ model._regressor_A  # noqa
+B = model.B
+# circle test with re-lifting through the position / heading rows
+c = data["circle_commands"]; truth = data["circle_truth"]
+state = truth[0].copy()
+pred = [state.copy()]
+for t in range(c.shape[0]):
+    z = lift(state.reshape(1, -1))
+    zn = (z @ np.asarray(A).T + c[t].reshape(1, -1) @ np.asarray(B).T)[0]
+    new = []
+    for i in range(n):
+        base = 1 + 4 * i
+        new += [zn[base], zn[base + 1], np.arctan2(zn[base + 3], zn[base + 2])]
+    state = np.array(new)
+    pred.append(state.copy())
+pred = np.array(pred).reshape(len(pred), n, 3)
+truth = truth.reshape(len(truth), n, 3)
+d = truth[1:, :, :2] - pred[1:, :, :2]
+rmse = (100 * np.sqrt((d * d).sum(-1).mean(0))).tolist()
+print(json.dumps({"fit_seconds": fit_seconds, "rmse": rmse, "version": pk.__version__}))
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--slip", default="nominal")
+    parser.add_argument("--dictionary", default="minimal")
+    parser.add_argument("--pykoopman-python", help="python of a venv with pykoopman installed")
+    args = parser.parse_args()
+    lambdas = slip_lambdas(args.slip, 3)
+    spec = DataSpec(tuple(float(v) for v in lambdas))
+    dic = get_dictionary(args.dictionary)
+    collect_data(DataSpec(spec.lambdas, trajectories=10, steps=10))  # warm-up (imports, caches)
+
+    tracemalloc.start()
+    start = time.perf_counter()
+    data = collect_data(spec)
+    gen_seconds = time.perf_counter() - start
+    gen_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.reset_peak()
+    start = time.perf_counter()
+    fit = fit_bilinear(data.states, data.commands, dic)
+    fit_seconds = time.perf_counter() - start
+    fit_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB -> MiB on Linux
+    model = KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, 3, spec.dt)
+    report, _, _ = circle_test(model, lambdas, repetitions=30)
+    print(f"{spec.transitions:,} transitions ({spec.trajectories} x {spec.steps}), slip {args.slip}, "
+          f"{args.dictionary} dictionary ({dic.size(3)} observables), {os.cpu_count()} cores")  # fmt: skip
+    print(f"data generation   {gen_seconds:6.3f} s   peak traced memory {gen_peak / 2**20:7.1f} MiB")
+    print(f"bilinear fit      {fit_seconds:6.3f} s   peak traced memory {fit_peak / 2**20:7.1f} MiB "
+          f"(data included)")  # fmt: skip
+    print(f"process peak RSS  {rss:7.1f} MiB")
+    print("circle RMSE %     " + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed))
+
+    if args.pykoopman_python:
+        start_poses = circle_starts(3)
+        commands = np.tile([CIRCLE_V, CIRCLE_OMEGA], (CIRCLE_STEPS, 3, 1))
+        truth = rollout(start_poses[None], commands[:, None], lambdas, np.random.default_rng(0))[:, 0]
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "data.npz")
+            states = data.states
+            np.savez(
+                path,
+                X=states[:-1].reshape(-1, 9), Y=states[1:].reshape(-1, 9),
+                U=data.commands.reshape(-1, 6),
+                circle_commands=commands.reshape(CIRCLE_STEPS, 6), circle_truth=truth.reshape(-1, 9),
+            )  # fmt: skip
+            script = os.path.join(tmp, "run_pykoopman.py")
+            with open(script, "w") as fh:
+                fh.write(PYKOOPMAN_SCRIPT)
+            out = subprocess.run([args.pykoopman_python, script, path], capture_output=True, text=True)
+        if out.returncode != 0:
+            print("pykoopman run failed:\n" + out.stderr[-2000:])
+            return
+        other = json.loads(out.stdout.strip().splitlines()[-1])
+        print(f"\n{'':24s} {'fit [s]':>8s}  circle RMSE % (robots 1..3)")
+        print(f"{'KoopNav bilinear EDMDc':24s} {fit_seconds:8.3f}  " + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed))
+        print(f"{'pykoopman ' + other['version'] + ' EDMDc':24s} {other['fit_seconds']:8.3f}  "
+              + ", ".join(f"{v:.2f}" for v in other["rmse"]))  # fmt: skip
+        print(f"fit-time ratio pykoopman / KoopNav: {other['fit_seconds'] / fit_seconds:.2f}x")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

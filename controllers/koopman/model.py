@@ -1,0 +1,221 @@
+"""The learned bilinear Koopman model of a robot team: prediction, CasADi export, files."""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.koopman.dictionary import Dictionary, get_dictionary
+
+__all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 1
+
+
+class ModelFileError(ValueError):
+    """A model file is missing, corrupt, truncated or does not match what was asked for."""
+
+
+@dataclass(eq=False)
+class KoopmanModel:
+    """z+ = A z + N (u kron z) + B u on z = phi(x); the state is read back through C.
+
+    C projects onto (x, y, cos theta, sin theta) of every robot and the heading is recovered as
+    atan2(sin, cos). Predicting several steps re-lifts the projected state every step, as the
+    NMPC does (SPEC section 2): lift, advance, project, re-lift.
+
+    Attributes
+    ----------
+    A, N, B, C : ndarray
+        Shapes (D, D), (D, 2N D), (D, 2N), (4N, D).
+    dictionary : Dictionary
+        Observables phi.
+    n_robots : int
+        Team size N.
+    dt : float
+        Sampling period of the data [s].
+    metadata : dict
+        Provenance: data spec (slip setting, size, seed), fit residual, package version.
+    """
+
+    A: NDArray[np.float64]
+    N: NDArray[np.float64]
+    B: NDArray[np.float64]
+    C: NDArray[np.float64]
+    dictionary: Dictionary
+    n_robots: int
+    dt: float
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        d = self.dictionary.size(self.n_robots)
+        m = 2 * self.n_robots
+        expected = {"A": (d, d), "N": (d, m * d), "B": (d, m), "C": (4 * self.n_robots, d)}
+        for name, shape in expected.items():
+            value = np.asarray(getattr(self, name), dtype=np.float64)
+            if value.shape != shape:
+                raise ModelFileError(
+                    f"{name} has shape {value.shape}; a {self.dictionary.name!r} model of "
+                    f"{self.n_robots} robots needs {shape}"
+                )
+            if not np.all(np.isfinite(value)):
+                raise ModelFileError(f"{name} contains NaN or inf")
+            setattr(self, name, value)
+        # N reshaped so that N (u kron z) = sum_i u_i N_i z is one einsum
+        self._n_blocks = self.N.reshape(d, m, d).transpose(1, 0, 2)  # (m, D, D)
+
+    # ------------------------------------------------------------ prediction
+    def lift(self, poses: NDArray) -> NDArray[np.float64]:
+        """phi(x) for poses (..., N, 3) -> (..., D)."""
+        return self.dictionary.lift(poses)
+
+    def advance(self, z: NDArray, commands: NDArray) -> NDArray[np.float64]:
+        """One step in the lifted space: (..., D) and commands (..., N, 2) -> (..., D)."""
+        u = np.asarray(commands, dtype=np.float64).reshape(z.shape[:-1] + (2 * self.n_robots,))
+        bilinear = np.einsum("...i,idk,...k->...d", u, self._n_blocks, z)
+        return z @ self.A.T + bilinear + u @ self.B.T
+
+    def project(self, z: NDArray) -> NDArray[np.float64]:
+        """Poses (..., N, 3) read from lifted states (..., D)."""
+        xycs = (z @ self.C.T).reshape(z.shape[:-1] + (self.n_robots, 4))
+        theta = np.arctan2(xycs[..., 3], xycs[..., 2])
+        return np.concatenate([xycs[..., :2], theta[..., None]], axis=-1)
+
+    def step(self, poses: NDArray, commands: NDArray) -> NDArray[np.float64]:
+        """f_b(x, u): predicted poses one period later, batched over leading axes.
+
+        Parameters
+        ----------
+        poses : ndarray, shape (..., N, 3)
+        commands : ndarray, shape (..., N, 2)
+
+        Returns
+        -------
+        ndarray, shape (..., N, 3)
+        """
+        return self.project(self.advance(self.lift(poses), commands))
+
+    def rollout(self, start: NDArray, commands: NDArray) -> NDArray[np.float64]:
+        """Open-loop prediction with re-lifting every step.
+
+        Parameters
+        ----------
+        start : ndarray, shape (..., N, 3)
+            Initial poses.
+        commands : ndarray, shape (T, ..., N, 2)
+            Command sequence.
+
+        Returns
+        -------
+        ndarray, shape (T + 1, ..., N, 3)
+            Predicted poses including the start.
+        """
+        commands = np.asarray(commands, dtype=np.float64)
+        out = np.empty((commands.shape[0] + 1,) + np.shape(start))
+        out[0] = start
+        for t in range(commands.shape[0]):
+            out[t + 1] = self.step(out[t], commands[t])
+        return out
+
+    def casadi_step(self, name: str = "koopman_step") -> ca.Function:
+        """f_b as a CasADi SX function ``x+ = f(x, u)`` on stacked vectors.
+
+        Inputs ``x`` (3N: x_1, y_1, theta_1, x_2, ...) and ``u`` (2N: v_1, omega_1, ...),
+        output ``x_next`` (3N).
+        """
+        n = self.n_robots
+        x = ca.SX.sym("x", 3 * n)
+        u = ca.SX.sym("u", 2 * n)
+        z = self.dictionary.lift_casadi(x)
+        d = self.dictionary.size(n)
+        z_next = ca.mtimes(ca.DM(self.A), z) + ca.mtimes(ca.DM(self.B), u)
+        for i in range(2 * n):
+            z_next += u[i] * ca.mtimes(ca.DM(self.N[:, i * d : (i + 1) * d]), z)
+        xycs = ca.mtimes(ca.DM(self.C), z_next)
+        parts = []
+        for i in range(n):
+            parts += [xycs[4 * i], xycs[4 * i + 1], ca.atan2(xycs[4 * i + 3], xycs[4 * i + 2])]
+        return ca.Function(name, [x, u], [ca.vertcat(*parts)], ["x", "u"], ["x_next"])
+
+    # ----------------------------------------------------------------- files
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the model to a small ``.npz`` (matrices plus JSON metadata)."""
+        meta = {
+            "format_version": FORMAT_VERSION,
+            "dictionary": self.dictionary.name,
+            "n_robots": self.n_robots,
+            "dt": self.dt,
+            **self.metadata,
+        }
+        arrays = {"A": self.A, "N": self.N, "B": self.B, "C": self.C,
+                  "metadata": np.array(json.dumps(meta, sort_keys=True))}  # fmt: skip
+        # np.savez stamps the current time into the archive; fixed timestamps make the file a
+        # pure function of its content, so a refit can be compared byte for byte
+        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+            for key, value in arrays.items():
+                info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                with archive.open(info, "w") as fh:
+                    np.lib.format.write_array(fh, np.asarray(value), allow_pickle=False)
+
+    @classmethod
+    def load(
+        cls,
+        path: str | os.PathLike,
+        n_robots: int | None = None,
+        dt: float | None = None,
+    ) -> KoopmanModel:
+        """Read a model written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or path
+            The ``.npz`` file.
+        n_robots, dt : optional
+            When given, the file must match them.
+
+        Raises
+        ------
+        ModelFileError
+            Missing, truncated or corrupt file, unknown format, or a mismatch with ``n_robots``
+            or ``dt``. The message says how to regenerate the file.
+        """
+        path = os.fspath(path)
+        hint = "regenerate it with `python -m controllers.koopman fit --slip SETTING --out PATH`"
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {key: data[key] for key in ("A", "N", "B", "C")}
+                meta = json.loads(str(data["metadata"]))
+        except FileNotFoundError:
+            raise ModelFileError(f"Koopman model file {path!r} does not exist; {hint}") from None
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
+            raise ModelFileError(
+                f"Koopman model file {path!r} is corrupt or truncated ({type(exc).__name__}: {exc}); {hint}"
+            ) from exc
+        if meta.get("format_version") != FORMAT_VERSION:
+            raise ModelFileError(
+                f"Koopman model file {path!r} has format_version={meta.get('format_version')!r}; "
+                f"this package reads {FORMAT_VERSION}; {hint}"
+            )
+        try:
+            dictionary = get_dictionary(meta["dictionary"])
+            model_robots = int(meta["n_robots"])
+            model_dt = float(meta["dt"])
+        except (KeyError, ValueError) as exc:
+            raise ModelFileError(f"Koopman model file {path!r} has bad metadata ({exc}); {hint}") from exc
+        if n_robots is not None and model_robots != n_robots:
+            raise ModelFileError(
+                f"Koopman model file {path!r} models {model_robots} robots, but {n_robots} were "
+                f"asked for; fit a model for this team size ({hint})"
+            )
+        if dt is not None and not np.isclose(model_dt, dt):
+            raise ModelFileError(f"Koopman model file {path!r} was fitted at dt={model_dt}, not dt={dt}")
+        extra = {k: v for k, v in meta.items() if k not in ("format_version", "dictionary", "n_robots", "dt")}
+        return cls(dictionary=dictionary, n_robots=model_robots, dt=model_dt, metadata=extra, **arrays)
