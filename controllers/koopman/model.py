@@ -124,6 +124,37 @@ class KoopmanModel:
             out[t + 1] = self.step(out[t], commands[t])
         return out
 
+    coding = "cs"  # the NMPC state of this model: (x, y, cos theta, sin theta) per robot
+
+    def casadi_nlp_step(self, name: str = "koopman_cs_step") -> ca.Function:
+        """f_b on the (x, y, cos theta, sin theta) coding used inside the NMPC.
+
+        Input ``s`` (4N) and ``u`` (2N), output ``s_next`` (4N) = C (A phi + N (u kron phi) + B u)
+        with phi evaluated from (x, y) and the normalized (cos, sin). This is the same
+        lift-advance-project map as :meth:`casadi_step` without the atan2 round trip: re-lifting
+        through the heading only renormalizes (cos, sin), and the normalization matters. Without
+        it a bilinear model lets the heading vector grow under alternating turn commands and
+        with it the predicted speed, which an optimizer exploits with bang-bang steering.
+        """
+        n = self.n_robots
+        state = ca.SX.sym("s", 4 * n)
+        u = ca.SX.sym("u", 2 * n)
+        terms: list = [1]
+        for i in range(n):
+            c, s = state[4 * i + 2], state[4 * i + 3]
+            norm = ca.sqrt(c * c + s * s)
+            terms += self.dictionary._robot_terms_casadi(state[4 * i], state[4 * i + 1], c / norm, s / norm)
+        z = ca.vertcat(*terms)
+        z_next = self._casadi_advance(z, u)
+        return ca.Function(name, [state, u], [ca.mtimes(ca.DM(self.C), z_next)], ["s", "u"], ["s_next"])
+
+    def _casadi_advance(self, z, u):
+        d = self.dictionary.size(self.n_robots)
+        z_next = ca.mtimes(ca.DM(self.A), z) + ca.mtimes(ca.DM(self.B), u)
+        for i in range(2 * self.n_robots):
+            z_next += u[i] * ca.mtimes(ca.DM(self.N[:, i * d : (i + 1) * d]), z)
+        return z_next
+
     def casadi_step(self, name: str = "koopman_step") -> ca.Function:
         """f_b as a CasADi SX function ``x+ = f(x, u)`` on stacked vectors.
 
@@ -133,11 +164,7 @@ class KoopmanModel:
         n = self.n_robots
         x = ca.SX.sym("x", 3 * n)
         u = ca.SX.sym("u", 2 * n)
-        z = self.dictionary.lift_casadi(x)
-        d = self.dictionary.size(n)
-        z_next = ca.mtimes(ca.DM(self.A), z) + ca.mtimes(ca.DM(self.B), u)
-        for i in range(2 * n):
-            z_next += u[i] * ca.mtimes(ca.DM(self.N[:, i * d : (i + 1) * d]), z)
+        z_next = self._casadi_advance(self.dictionary.lift_casadi(x), u)
         xycs = ca.mtimes(ca.DM(self.C), z_next)
         parts = []
         for i in range(n):

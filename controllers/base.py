@@ -1,0 +1,114 @@
+"""The controller contract: one protocol for every controller, plus per-episode statistics.
+
+Any object with ``reset(scenario, seed=...)``, ``act(observation, info)`` and ``stats()`` is a
+controller: the model-based ones read the structured state in ``info`` and the geometry in the
+scenario, a learned policy reads the observation. Solver status and timing go into
+:class:`ControllerStats`, never onto stdout.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.scenario import Scenario
+
+__all__ = ["BaseController", "Controller", "ControllerStats"]
+
+
+@dataclass
+class ControllerStats:
+    """What a controller did during one episode.
+
+    Attributes
+    ----------
+    solve_times : list of float
+        Wall time of each control decision [s].
+    iterations : list of int
+        Solver iterations per decision (empty for controllers without a solver).
+    failures : int
+        Decisions where the solver failed and a fallback command was used.
+    statuses : Counter
+        Solver return statuses by name.
+    """
+
+    solve_times: list[float] = field(default_factory=list)
+    iterations: list[int] = field(default_factory=list)
+    failures: int = 0
+    statuses: Counter = field(default_factory=Counter)
+
+    @property
+    def steps(self) -> int:
+        """Number of decisions recorded."""
+        return len(self.solve_times)
+
+    def percentile(self, q: float) -> float:
+        """q-th percentile of the solve time [s] (NaN when nothing was recorded)."""
+        return float(np.percentile(self.solve_times, q)) if self.solve_times else float("nan")
+
+    def summary(self) -> dict[str, Any]:
+        """Plain-JSON summary: steps, median/p95/max solve time [ms], iterations, failures."""
+        return {
+            "steps": self.steps,
+            "solve_ms_median": 1e3 * self.percentile(50),
+            "solve_ms_p95": 1e3 * self.percentile(95),
+            "solve_ms_max": 1e3 * max(self.solve_times) if self.solve_times else float("nan"),
+            "iterations_mean": float(np.mean(self.iterations)) if self.iterations else float("nan"),
+            "failures": self.failures,
+            "statuses": dict(self.statuses),
+        }
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """Anything that can drive a KoopNav team through an episode."""
+
+    name: str
+
+    def reset(self, scenario: Scenario, *, seed: int | None = None) -> None:
+        """Prepare for a new episode on ``scenario`` (geometry, targets, limits, dt)."""
+
+    def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
+        """Joint command, shape (2N,): (v [m/s], omega [rad/s]) per robot."""
+
+    def stats(self) -> ControllerStats:
+        """Statistics of the current episode."""
+
+
+class BaseController(ABC):
+    """Convenience base: keeps the scenario and the statistics; subclasses implement ``_act``."""
+
+    name = "base"
+
+    def __init__(self) -> None:
+        self.scenario: Scenario | None = None
+        self._stats = ControllerStats()
+
+    def reset(self, scenario: Scenario, *, seed: int | None = None) -> None:
+        if not isinstance(scenario, Scenario):
+            raise TypeError(
+                f"reset() needs a koopman_envs.Scenario (env.unwrapped.scenario), got {type(scenario).__name__}"
+            )
+        self.scenario = scenario
+        self._stats = ControllerStats()
+        self._reset(scenario, seed)
+
+    def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
+        if self.scenario is None:
+            raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
+        return self._act(observation, info)
+
+    def stats(self) -> ControllerStats:
+        return self._stats
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:  # noqa: B027 - optional hook
+        """Subclass hook called by :meth:`reset`."""
+
+    @abstractmethod
+    def _act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
+        """Compute the joint command."""

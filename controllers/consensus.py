@@ -1,0 +1,134 @@
+"""Leader-follower consensus formation control for nonholonomic robots (SPEC section 4).
+
+After the consensus-based formation law of Liu et al. (2020) that the paper compares against:
+each robot controls a "hand" point a distance ``hand`` ahead of its axle, which turns the
+unicycle into a fully actuated point (feedback linearization). The leader drives its hand to its
+target; every follower runs a consensus protocol on the formation-corrected positions
+(h_i - delta_i) with the leader and the other followers, plus the leader's velocity as
+feed-forward. With ``collision_avoidance=True`` a repulsive velocity pushes each robot away from
+obstacles and other robots inside an influence distance; this is what keeps the followers from
+reaching their slots in cluttered maps. On the target-reaching task every robot runs the
+leader's law toward its own target.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.base import BaseController
+from koopman_envs.scenario import Scenario
+
+__all__ = ["ConsensusController"]
+
+
+class ConsensusController(BaseController):
+    """Consensus-based leader-follower formation control.
+
+    Parameters
+    ----------
+    collision_avoidance : bool
+        Add the repulsive term near obstacles and robots (the variant the paper tabulates).
+    goal_gain : float
+        Gain of the leader's (and target-reaching robots') hand toward the target [1/s].
+    consensus_gain : float
+        Gain of the consensus term among followers and leader [1/s].
+    hand : float
+        Distance of the controlled point ahead of the axle [m].
+    influence : float
+        Clearance below which the repulsion acts [m].
+    repulsion_gain : float
+        Strength of the repulsion [m^2/s].
+    """
+
+    name = "consensus"
+
+    def __init__(
+        self,
+        collision_avoidance: bool = True,
+        goal_gain: float = 0.8,
+        consensus_gain: float = 1.5,
+        hand: float = 0.05,
+        influence: float = 0.25,
+        repulsion_gain: float = 0.05,
+    ) -> None:
+        super().__init__()
+        for key, value in dict(goal_gain=goal_gain, consensus_gain=consensus_gain, hand=hand,
+                               influence=influence, repulsion_gain=repulsion_gain).items():  # fmt: skip
+            if not np.isfinite(value) or value <= 0:
+                raise ValueError(f"{key}={value!r} must be a finite number > 0")
+        self.collision_avoidance = bool(collision_avoidance)
+        self.goal_gain, self.consensus_gain = goal_gain, consensus_gain
+        self.hand, self.influence, self.repulsion_gain = hand, influence, repulsion_gain
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        heading = np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])])
+        # hand-point targets: the axle then rests on the target when the heading matches
+        self._hand_targets = scenario.targets[:, :2] + self.hand * heading
+
+    def _hand_velocity_to_target(self, hands: NDArray, targets: NDArray, v_max: float) -> NDArray:
+        velocity = -self.goal_gain * (hands - targets)
+        speed = np.linalg.norm(velocity, axis=-1, keepdims=True)
+        return velocity * np.minimum(1.0, v_max / np.maximum(speed, 1e-12))
+
+    def _repulsion(self, positions: NDArray, goal_velocity: NDArray) -> NDArray:
+        """Velocity away from obstacles and robots closer than ``influence`` (clearance).
+
+        Besides the radial push, the avoidance slides along the obstacle (the tangent on the
+        side of the goal direction), the usual cure for a robot stalling where attraction and
+        repulsion cancel in front of a disc.
+        """
+        sc = self.scenario
+        push = np.zeros_like(positions)
+        centres = np.vstack([sc.obstacles[:, :2], positions])
+        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius])
+        for i, p in enumerate(positions):
+            delta = p - centres
+            dist = np.linalg.norm(delta, axis=1)
+            clearance = dist - radii - sc.robot_radius[i]
+            near = (clearance < self.influence) & (dist > 1e-9)
+            near[len(sc.obstacles) + i] = False  # not itself
+            if near.any():
+                c = np.maximum(clearance[near], 0.02)
+                strength = self.repulsion_gain * (1.0 / c - 1.0 / self.influence) / c**2
+                normal = delta[near] / dist[near, None]
+                tangent = np.column_stack([-normal[:, 1], normal[:, 0]])
+                side = np.sign(tangent @ goal_velocity[i])
+                side[side == 0] = 1.0
+                speed = np.linalg.norm(goal_velocity[i])
+                push[i] = (strength[:, None] * normal).sum(axis=0) + speed * (side[:, None] * tangent).sum(axis=0)
+        return push
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        start = time.perf_counter()
+        sc = self.scenario
+        poses = np.asarray(info["poses"], dtype=np.float64)
+        theta = poses[:, 2]
+        heading = np.column_stack([np.cos(theta), np.sin(theta)])
+        hands = poses[:, :2] + self.hand * heading
+        if sc.is_formation:
+            lead = sc.leader
+            offsets = sc.formation_offsets
+            lead_velocity = self._hand_velocity_to_target(hands[lead], self._hand_targets[lead], sc.v_max)
+            corrected = hands - offsets  # where each robot "thinks" the leader's hand should be
+            velocity = np.empty_like(hands)
+            velocity[lead] = lead_velocity
+            for i in range(sc.n_robots):
+                if i == lead:
+                    continue
+                # consensus with every other robot (complete graph) plus leader feed-forward
+                disagreement = (corrected[i] - corrected).sum(axis=0)
+                velocity[i] = lead_velocity - self.consensus_gain * disagreement
+        else:
+            velocity = self._hand_velocity_to_target(hands, self._hand_targets, sc.v_max)
+        if self.collision_avoidance:
+            velocity = velocity + self._repulsion(poses[:, :2], velocity)
+        # hand-point feedback linearization: [v, omega] = [[c, s], [-s/l, c/l]] hand velocity
+        v = heading[:, 0] * velocity[:, 0] + heading[:, 1] * velocity[:, 1]
+        omega = (-heading[:, 1] * velocity[:, 0] + heading[:, 0] * velocity[:, 1]) / self.hand
+        command = np.column_stack([np.clip(v, -sc.v_max, sc.v_max), np.clip(omega, -sc.omega_max, sc.omega_max)])
+        self._stats.solve_times.append(time.perf_counter() - start)
+        return command.reshape(-1)

@@ -1,0 +1,355 @@
+"""Nonlinear MPC of the robot team in CasADi (SPEC section 3), with a pluggable prediction model.
+
+The problem is posed once per problem structure (team size, obstacle count, task, model) by
+multiple shooting over the horizon and handed to ``nlpsol``; the measured state, the targets
+and the obstacles are parameters, so a new episode or a new step only changes numbers. Every
+step is warm-started from the previous solution shifted by one period. When the solver fails
+(infeasible, iteration limit, NaN) the controller falls back to the rest of its last plan, then
+to a safe stop, counts the failure, and the episode goes on.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.base import BaseController
+from koopman_envs.params import PARAMS
+from koopman_envs.scenario import Scenario
+
+__all__ = ["IPOPT_OPTIONS", "NMPCConfig", "NMPCController", "PredictionModel", "decode_state", "encode_state"]
+
+#: IPOPT settings (ours): quiet, warm-startable, bounded effort per control period.
+IPOPT_OPTIONS: dict[str, Any] = {
+    "ipopt.print_level": 0,
+    "ipopt.sb": "yes",
+    "print_time": False,
+    "ipopt.max_iter": 100,
+    "ipopt.tol": 1e-6,
+    "ipopt.acceptable_tol": 1e-4,
+    "ipopt.acceptable_iter": 5,
+    "ipopt.warm_start_init_point": "yes",
+    "ipopt.warm_start_bound_push": 1e-6,
+    "ipopt.warm_start_mult_bound_push": 1e-6,
+    "ipopt.mu_init": 1e-3,
+    "ipopt.linear_solver": "mumps",
+}
+
+
+class PredictionModel(Protocol):
+    """What the NMPC needs of a model: team size, period, and a CasADi step function.
+
+    ``coding`` names the per-robot NLP state: ``"pose"`` = (x, y, theta) or ``"cs"`` =
+    (x, y, cos theta, sin theta); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
+    """
+
+    n_robots: int
+    dt: float
+    coding: str
+
+    def casadi_nlp_step(self) -> ca.Function: ...
+
+
+_CODING_SIZE = {"pose": 3, "cs": 4}
+
+
+def encode_state(poses: NDArray, coding: str) -> NDArray[np.float64]:
+    """Stacked NLP state of poses (N, 3) in a model's coding."""
+    poses = np.asarray(poses, dtype=np.float64)
+    if coding == "pose":
+        return poses.reshape(-1)
+    return np.column_stack([poses[:, :2], np.cos(poses[:, 2]), np.sin(poses[:, 2])]).reshape(-1)
+
+
+def decode_state(states: NDArray, coding: str) -> NDArray[np.float64]:
+    """Poses (..., N, 3) from NLP states (..., N * size) in a coding."""
+    size = _CODING_SIZE[coding]
+    s = np.asarray(states).reshape(states.shape[:-1] + (-1, size))
+    if coding == "pose":
+        return s.copy()
+    return np.concatenate([s[..., :2], np.arctan2(s[..., 3], s[..., 2])[..., None]], axis=-1)
+
+
+@dataclass(frozen=True)
+class NMPCConfig:
+    """NMPC options; the paper's values come from :mod:`koopman_envs.params`.
+
+    Attributes
+    ----------
+    horizon : int
+        Prediction horizon T in periods (paper: 20).
+    q_leader, q_follower : tuple of float
+        Stage weights on (x, y, cos theta, sin theta) errors. Target reaching uses
+        ``q_leader`` for every robot (paper: diag(4, 4, 0.1, 0.1)); formation uses
+        ``q_follower`` (paper: diag(1, 1, 0.1, 0.1)) for the followers.
+    r_input : tuple of float
+        Weights on (v, omega) (paper: diag(0.1, 0.1)).
+    obstacle_offset : float
+        Safety distance added to robot + obstacle radii [m] (paper: 0.015).
+    formation_bound : float
+        |lb| = |ub| of the formation constraint, per period and axis [m] (ours: the paper gives
+        no number; 0.03 m is half a period's travel at full speed, enough to skirt obstacles).
+    soft_constraints : bool
+        (ours) Give the collision constraints (obstacles, robots) and the formation constraints
+        of each stage a slack s_t >= 0 each, with the exact penalty
+        ``slack_penalty * (s_t + s_t^2)``. Whenever the hard
+        problem is feasible its solution is unchanged; when model error or slip has already
+        pushed a robot inside a safety margin, the problem stays solvable and the controller
+        steers back out instead of failing. ``False`` gives the paper's hard constraints.
+    slack_penalty : float
+        Weight of the slack penalty.
+    solver : str
+        CasADi ``nlpsol`` plugin.
+    solver_options : dict
+        Options passed to ``nlpsol`` (defaults: :data:`IPOPT_OPTIONS`).
+    """
+
+    horizon: int = PARAMS.horizon
+    q_leader: tuple[float, ...] = PARAMS.q_leader
+    q_follower: tuple[float, ...] = PARAMS.q_follower
+    r_input: tuple[float, ...] = PARAMS.r_input
+    obstacle_offset: float = PARAMS.obstacle_offset
+    formation_bound: float = 0.03
+    soft_constraints: bool = True
+    slack_penalty: float = 1e4
+    solver: str = "ipopt"
+    solver_options: dict[str, Any] = field(default_factory=lambda: dict(IPOPT_OPTIONS))
+
+    def with_options(self, **changes: Any) -> NMPCConfig:
+        """A copy with some fields changed; unknown names raise ``TypeError``."""
+        return replace(self, **changes)
+
+
+class _Problem:
+    """One built NLP: the solver and the index maps of its decision vector."""
+
+    def __init__(self, model: PredictionModel, scenario: Scenario, config: NMPCConfig) -> None:
+        n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
+        coding = model.coding
+        if coding not in _CODING_SIZE:
+            raise ValueError(f"model coding={coding!r} is not one of {sorted(_CODING_SIZE)}")
+        size = _CODING_SIZE[coding]
+        nx, nu = size * n, 2 * n
+        f = model.casadi_nlp_step()
+        x0 = ca.SX.sym("x0", nx)
+        goal_xy = ca.SX.sym("goal_xy", 2 * n)
+        goal_cs = ca.SX.sym("goal_cs", 2 * n)
+        obstacles = ca.SX.sym("obstacles", 3 * m_obs)
+        params = ca.vertcat(x0, goal_xy, goal_cs, obstacles)
+
+        formation = scenario.is_formation
+        weights = [config.q_follower if formation and i != scenario.leader else config.q_leader for i in range(n)]
+        r_weights = np.tile(np.asarray(config.r_input, dtype=float), n)
+        x0_w, x1_w, y0_w, y1_w = scenario.workspace
+        radius = scenario.robot_radius
+
+        w, lbw, ubw, g, lbg, ubg = [], [], [], [], [], []
+        cost = 0
+        x_prev = x0
+        u_low = np.tile([-scenario.v_max, -scenario.omega_max], n)
+        x_low = np.tile([x0_w, y0_w] + [-np.inf] * (size - 2), n)
+        x_high = np.tile([x1_w, y1_w] + [np.inf] * (size - 2), n)
+        soft = config.soft_constraints
+        for _ in range(horizon):
+            u = ca.SX.sym("u", nu)
+            x = ca.SX.sym("x", nx)
+            w += [u, x]
+            lbw += [u_low, x_low]
+            ubw += [-u_low, x_high]
+            if soft:
+                # separate slacks: collision constraints are in m^2, formation ones in m, and
+                # a formation deviation must never buy permission to touch
+                slacks = ca.SX.sym("slack", 2)
+                w.append(slacks)
+                lbw.append([0.0, 0.0])
+                ubw.append([np.inf, np.inf])
+                cost += config.slack_penalty * (ca.sum1(slacks) + ca.sumsqr(slacks))
+                slack, formation_slack = slacks[0], slacks[1]
+            else:
+                slack = formation_slack = 0
+            g.append(x - f(x_prev, u))
+            lbg.append(np.zeros(nx))
+            ubg.append(np.zeros(nx))
+            for i in range(n):
+                px, py = x[size * i], x[size * i + 1]
+                if coding == "pose":
+                    cos_th, sin_th = ca.cos(x[size * i + 2]), ca.sin(x[size * i + 2])
+                else:
+                    cos_th, sin_th = x[size * i + 2], x[size * i + 3]
+                qx, qy, qc, qs = weights[i]
+                cost += (
+                    qx * (px - goal_xy[2 * i]) ** 2
+                    + qy * (py - goal_xy[2 * i + 1]) ** 2
+                    + qc * (cos_th - goal_cs[2 * i]) ** 2
+                    + qs * (sin_th - goal_cs[2 * i + 1]) ** 2
+                )
+                for k in range(m_obs):
+                    ox, oy, orad = obstacles[3 * k], obstacles[3 * k + 1], obstacles[3 * k + 2]
+                    g.append((px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + config.obstacle_offset) ** 2 + slack)
+                    lbg.append([0.0])
+                    ubg.append([np.inf])
+                for j in range(i + 1, n):
+                    g.append((px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (radius[i] + radius[j]) ** 2 + slack)
+                    lbg.append([0.0])
+                    ubg.append([np.inf])
+            cost += ca.dot(r_weights, u * u)
+            if formation:
+                lead = size * scenario.leader
+                for i in range(n):
+                    if i == scenario.leader:
+                        continue
+                    for axis in range(2):
+                        a, b = size * i + axis, lead + axis
+                        deviation = (x[a] - x_prev[a]) - (x[b] - x_prev[b])
+                        g += [deviation + formation_slack, deviation - formation_slack]
+                        lbg += [[-config.formation_bound], [-np.inf]]
+                        ubg += [[np.inf], [config.formation_bound]]
+            x_prev = x
+        nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g), "p": params}
+        options = dict(config.solver_options)
+        options.setdefault("expand", True)
+        self.solver = ca.nlpsol("nmpc", config.solver, nlp, options)
+        self.lbw, self.ubw = np.concatenate(lbw), np.concatenate(ubw)
+        self.lbg, self.ubg = np.concatenate([np.ravel(v) for v in lbg]), np.concatenate([np.ravel(v) for v in ubg])
+        self.n_vars, self.n_cons = self.lbw.size, self.lbg.size
+        self.nx, self.nu, self.horizon, self.coding = nx, nu, horizon, coding
+        stage = nu + nx + (2 if soft else 0)
+        self.stage_size = stage
+        self.u_index = np.concatenate([np.arange(t * stage, t * stage + nu) for t in range(horizon)])
+        self.x_index = np.concatenate([np.arange(t * stage + nu, t * stage + nu + nx) for t in range(horizon)])
+
+    def plan(self, w: NDArray) -> tuple[NDArray, NDArray]:
+        """Split a decision vector into commands (T, N, 2) and predicted poses (T, N, 3)."""
+        states = w[self.x_index].reshape(self.horizon, -1)
+        return w[self.u_index].reshape(self.horizon, -1, 2), decode_state(states, self.coding)
+
+
+class NMPCController(BaseController):
+    """NMPC with a given prediction model (see :mod:`controllers.koopman_nmpc`,
+    :mod:`controllers.nominal_nmpc`).
+
+    Parameters
+    ----------
+    model : PredictionModel, optional
+        Prediction model; subclasses may provide it at reset instead.
+    config : NMPCConfig, optional
+        Options (paper defaults).
+    **options
+        Shorthand for fields of :class:`NMPCConfig` (``horizon=10``, ``solver="fatrop"``...).
+    """
+
+    name = "nmpc"
+
+    def __init__(self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any):
+        super().__init__()
+        base = config or NMPCConfig()
+        try:
+            self.config = base.with_options(**options) if options else base
+        except TypeError as exc:
+            raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
+        if not isinstance(self.config.horizon, int) or self.config.horizon < 1:
+            raise ValueError(f"horizon={self.config.horizon!r} must be an integer >= 1")
+        self.model = model
+        self._problem: _Problem | None = None
+        self._key: tuple | None = None
+        self._warm: dict[str, NDArray] | None = None
+        self._fallback: NDArray | None = None
+        self._fallback_used = 0
+        self.last_plan: tuple[NDArray, NDArray] | None = None
+
+    # ------------------------------------------------------------------ setup
+    def _model_for(self, scenario: Scenario) -> PredictionModel:
+        if self.model is None:
+            raise ValueError(f"{self.name}: no prediction model was given")
+        return self.model
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        model = self._model_for(scenario)
+        if model.n_robots != scenario.n_robots:
+            raise ValueError(
+                f"{self.name}: the prediction model has {model.n_robots} robots, the scenario {scenario.n_robots}"
+            )
+        key = (id(model), scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
+               tuple(scenario.robot_radius), scenario.workspace, scenario.v_max, scenario.omega_max)  # fmt: skip
+        if key != self._key:
+            self._problem = _Problem(model, scenario, self.config)
+            self._key = key
+        self._params_tail = np.concatenate(
+            [
+                scenario.targets[:, :2].reshape(-1),
+                np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])]).reshape(-1),
+                scenario.obstacles.reshape(-1),
+            ]
+        )
+        self._warm = None
+        self._fallback = None
+        self._fallback_used = 0
+        self.last_plan = None
+
+    # -------------------------------------------------------------------- act
+    def _initial_guess(self, state: NDArray) -> NDArray:
+        """Hold the current state with zero commands (the first step of an episode)."""
+        prob = self._problem
+        w = np.zeros(prob.n_vars)
+        w[prob.x_index] = np.tile(state, prob.horizon)
+        return w
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        prob = self._problem
+        state = encode_state(info["poses"], prob.coding)
+        params = np.concatenate([state, self._params_tail])
+        if self._warm is None:
+            args = {"x0": self._initial_guess(state), "lam_x0": np.zeros(prob.n_vars), "lam_g0": np.zeros(prob.n_cons)}
+        else:
+            args = {"x0": self._warm["x"], "lam_x0": self._warm["lam_x"], "lam_g0": self._warm["lam_g"]}
+        start = time.perf_counter()
+        try:
+            sol = prob.solver(p=params, lbx=prob.lbw, ubx=prob.ubw, lbg=prob.lbg, ubg=prob.ubg, **args)
+            solver_stats = prob.solver.stats()
+            status = str(solver_stats.get("return_status", "unknown"))
+            success = bool(solver_stats.get("success", False))
+            w = np.asarray(sol["x"]).reshape(-1)
+            if not np.all(np.isfinite(w)):
+                success, status = False, "non_finite_solution"
+        except RuntimeError as exc:  # CasADi raises on evaluation errors (e.g. NaN in a function)
+            success, status, w, solver_stats = False, f"error: {exc}".splitlines()[0][:80], None, {}
+        self._stats.solve_times.append(time.perf_counter() - start)
+        self._stats.iterations.append(int(solver_stats.get("iter_count", 0)))
+        self._stats.statuses[status] += 1
+        if success:
+            commands, poses = prob.plan(w)
+            self.last_plan = (commands, poses)
+            self._warm = self._shifted(w, np.asarray(sol["lam_x"]).reshape(-1), np.asarray(sol["lam_g"]).reshape(-1))
+            self._fallback = commands
+            self._fallback_used = 0
+            return commands[0].reshape(-1).copy()
+        self._stats.failures += 1
+        self._warm = None  # a failed iterate is a poor starting point: restart cold next step
+        return self._fallback_command()
+
+    def _fallback_command(self) -> NDArray[np.float64]:
+        """Next command of the last successful plan, or a stop when that plan is used up."""
+        n = self.scenario.n_robots
+        self._fallback_used += 1
+        if self._fallback is not None and self._fallback_used < self._fallback.shape[0]:
+            return self._fallback[self._fallback_used].reshape(-1).copy()
+        return np.zeros(2 * n)
+
+    def _shifted(self, w: NDArray, lam_x: NDArray, lam_g: NDArray) -> dict[str, NDArray]:
+        """Shift the solution one period forward (repeat the last stage) for the warm start."""
+        prob = self._problem
+        stage = prob.stage_size
+        cons_per_stage = prob.n_cons // prob.horizon
+
+        def shift(v: NDArray, size: int) -> NDArray:
+            out = np.empty_like(v)
+            out[: -size] = v[size:]
+            out[-size:] = v[-size:]
+            return out
+
+        return {"x": shift(w, stage), "lam_x": shift(lam_x, stage), "lam_g": shift(lam_g, cons_per_stage)}
