@@ -19,6 +19,17 @@ __all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
 FORMAT_VERSION = 1
 
 
+def _sparse_dm(matrix: NDArray) -> ca.DM:
+    """A CasADi matrix without the entries that are zero up to rounding.
+
+    The projection C is a selector up to ~1e-16 noise, for instance; keeping such entries would
+    make every symbolic product dense and the NMPC's derivatives several times costlier.
+    """
+    matrix = np.asarray(matrix, dtype=np.float64)
+    scale = np.abs(matrix).max() if matrix.size else 0.0
+    return ca.sparsify(ca.DM(np.where(np.abs(matrix) > 1e-13 * scale, matrix, 0.0)))
+
+
 class ModelFileError(ValueError):
     """A model file is missing, corrupt, truncated or does not match what was asked for."""
 
@@ -146,13 +157,13 @@ class KoopmanModel:
             terms += self.dictionary._robot_terms_casadi(state[4 * i], state[4 * i + 1], c / norm, s / norm)
         z = ca.vertcat(*terms)
         z_next = self._casadi_advance(z, u)
-        return ca.Function(name, [state, u], [ca.mtimes(ca.DM(self.C), z_next)], ["s", "u"], ["s_next"])
+        return ca.Function(name, [state, u], [ca.mtimes(_sparse_dm(self.C), z_next)], ["s", "u"], ["s_next"])
 
     def _casadi_advance(self, z, u):
         d = self.dictionary.size(self.n_robots)
-        z_next = ca.mtimes(ca.DM(self.A), z) + ca.mtimes(ca.DM(self.B), u)
+        z_next = ca.mtimes(_sparse_dm(self.A), z) + ca.mtimes(_sparse_dm(self.B), u)
         for i in range(2 * self.n_robots):
-            z_next += u[i] * ca.mtimes(ca.DM(self.N[:, i * d : (i + 1) * d]), z)
+            z_next += u[i] * ca.mtimes(_sparse_dm(self.N[:, i * d : (i + 1) * d]), z)
         return z_next
 
     def casadi_step(self, name: str = "koopman_step") -> ca.Function:
@@ -165,7 +176,7 @@ class KoopmanModel:
         x = ca.SX.sym("x", 3 * n)
         u = ca.SX.sym("u", 2 * n)
         z_next = self._casadi_advance(self.dictionary.lift_casadi(x), u)
-        xycs = ca.mtimes(ca.DM(self.C), z_next)
+        xycs = ca.mtimes(_sparse_dm(self.C), z_next)
         parts = []
         for i in range(n):
             parts += [xycs[4 * i], xycs[4 * i + 1], ca.atan2(xycs[4 * i + 3], xycs[4 * i + 2])]

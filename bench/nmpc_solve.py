@@ -1,0 +1,152 @@
+"""NMPC solve time per control step over a closed-loop episode (Map 1, 3 robots, horizon 20).
+
+Usage::
+
+    python bench/nmpc_solve.py [--slip nominal] [--map map1] [--jit] [--no-do-mpc]
+
+For Koopman-NMPC and nominal NMPC it prints median / p95 / max solve time per step with IPOPT
+(warm-started, the default) and with fatrop (the structure-exploiting interior-point solver
+shipped with CasADi), plus each episode's outcome so that "same closed-loop result" can be read
+off. ``--jit`` adds fatrop with the NLP compiled to C (needs gcc; the compilation takes 30-60 s
+per problem and is not included in the per-step times). When ``do-mpc`` is installed it also solves the same nominal problem (same model, horizon,
+weights, hard obstacle and inter-robot constraints, IPOPT) with do-mpc in the same run and
+prints the ratio of medians.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+import gymnasium as gym
+import numpy as np
+
+import controllers
+import koopman_envs  # noqa: F401
+from controllers.nmpc import IPOPT_OPTIONS, NMPCConfig
+from controllers.unicycle import UnicycleModel
+
+
+
+def closed_loop(env_id: str, map_name: str, slip: str, make_controller) -> dict:
+    """Run one episode; returns outcome and per-step solve times [s]."""
+    env = gym.make(env_id, map=map_name, slip=slip)
+    ctrl = make_controller()
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env.unwrapped.scenario, seed=0)
+    while True:
+        obs, _, terminated, truncated, info = env.step(ctrl.act(obs, info))
+        if terminated or truncated:
+            break
+    stats = ctrl.stats()
+    return {"times": np.asarray(stats.solve_times), "info": info, "failures": stats.failures}
+
+
+def do_mpc_closed_loop(env_id: str, map_name: str, slip: str, horizon: int) -> dict | None:
+    """The nominal problem in do-mpc: discrete RK4 unicycle model, hard constraints, IPOPT."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            import do_mpc
+    except ImportError:
+        return None
+    import casadi as ca
+
+    if hasattr(ca.GlobalOptions, "setNumpyMode"):
+        ca.GlobalOptions.setNumpyMode(-1)  # do-mpc calls numpy on casadi values; keep it quiet
+    env = gym.make(env_id, map=map_name, slip=slip)
+    obs, info = env.reset(seed=0)
+    sc = env.unwrapped.scenario
+    n = sc.n_robots
+    model = do_mpc.model.Model("discrete")
+    x = model.set_variable("_x", "x", (3 * n, 1))
+    u = model.set_variable("_u", "u", (2 * n, 1))
+    model.set_rhs("x", UnicycleModel(n, sc.dt).casadi_step()(x, u))
+    model.setup()
+    mpc = do_mpc.controller.MPC(model)
+    mpc.settings.n_horizon = horizon
+    mpc.settings.t_step = sc.dt
+    mpc.settings.store_full_solution = False
+    mpc.settings.nlpsol_opts = {k: v for k, v in IPOPT_OPTIONS.items() if not k.startswith("ipopt.warm")}
+    cfg = NMPCConfig()
+    cost = 0
+    for i in range(n):
+        tx, ty, tth = sc.targets[i]
+        qx, qy, qc, qs = cfg.q_leader
+        th = x[3 * i + 2]
+        cost += qx * (x[3 * i] - tx) ** 2 + qy * (x[3 * i + 1] - ty) ** 2
+        cost += qc * (ca.cos(th) - np.cos(tth)) ** 2 + qs * (ca.sin(th) - np.sin(tth)) ** 2
+    r = np.tile(cfg.r_input, n)
+    mpc.set_objective(lterm=cost + ca.dot(r, u * u), mterm=cost)
+    mpc.set_rterm(u=np.zeros(2 * n))
+    lower = np.tile([-sc.v_max, -sc.omega_max], n)
+    mpc.bounds["lower", "_u", "u"] = lower
+    mpc.bounds["upper", "_u", "u"] = -lower
+    mpc.bounds["lower", "_x", "x"] = np.tile([sc.workspace[0], sc.workspace[2], -np.inf], n)
+    mpc.bounds["upper", "_x", "x"] = np.tile([sc.workspace[1], sc.workspace[3], np.inf], n)
+    for i in range(n):
+        px, py = x[3 * i], x[3 * i + 1]
+        for k, (ox, oy, orad) in enumerate(sc.obstacles):
+            gap = (sc.robot_radius[i] + orad + cfg.obstacle_offset) ** 2 - (px - ox) ** 2 - (py - oy) ** 2
+            mpc.set_nl_cons(f"obs_{i}_{k}", gap, ub=0.0)
+        for j in range(i + 1, n):
+            gap = (sc.robot_radius[i] + sc.robot_radius[j]) ** 2 - (px - x[3 * j]) ** 2 - (py - x[3 * j + 1]) ** 2
+            mpc.set_nl_cons(f"rob_{i}_{j}", gap, ub=0.0)
+    mpc.setup()
+    mpc.x0 = info["poses"].reshape(-1, 1)
+    mpc.set_initial_guess()
+    times = []
+    while True:
+        start = time.perf_counter()
+        action = np.asarray(mpc.make_step(info["poses"].reshape(-1, 1))).reshape(-1)
+        times.append(time.perf_counter() - start)
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    return {"times": np.asarray(times), "info": info, "failures": 0}
+
+
+def line(label: str, result: dict) -> str:
+    t = 1e3 * result["times"]
+    info = result["info"]
+    outcome = "success" if info["is_success"] else info["collision_kind"] if info["collision"] else "time limit"
+    dist = ", ".join(f"{100 * d:.1f}" for d in info["distances"])
+    return (f"{label:34s} median {np.median(t):6.1f} ms  p95 {np.percentile(t, 95):6.1f} ms  max {t.max():6.1f} ms  "
+            f"steps {len(t):3d}  failures {result['failures']:2d}  {outcome:9s} final [{dist}] cm")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--map", default="map1")
+    parser.add_argument("--slip", default="nominal")
+    parser.add_argument("--jit", action="store_true", help="also time fatrop with compiled functions")
+    parser.add_argument("--no-do-mpc", action="store_true")
+    args = parser.parse_args()
+    env_id = "KoopNav-Formation-v0" if args.map in ("map3", "map4") else "KoopNav-TargetReaching-v0"
+    print(f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop episode")
+    results = {}
+    for name in ("nominal-nmpc", "koopman-nmpc"):
+        extra = {"slip": args.slip} if name == "koopman-nmpc" else {}
+        setups = [("ipopt", {"solver": "ipopt"}), ("fatrop", {"solver": "fatrop"})]
+        if args.jit:
+            setups.append(("fatrop + jit", {"solver": "fatrop", "jit": True}))
+        for label, setup in setups:
+            kwargs = dict(extra, **setup)
+            result = closed_loop(env_id, args.map, args.slip, lambda: controllers.make(name, **kwargs))
+            results[(name, label)] = result
+            print(line(f"{name} / {label}", result), flush=True)
+    if not args.no_do_mpc:
+        reference = do_mpc_closed_loop(env_id, args.map, args.slip, NMPCConfig().horizon)
+        if reference is None:
+            print("do-mpc not installed: `pip install do-mpc` to compare on the same nominal problem")
+        else:
+            print(line("do-mpc 5 (nominal, IPOPT)", reference))
+            ours = results[("nominal-nmpc", "ipopt")]["times"]
+            print(f"median ratio do-mpc / nominal-nmpc (IPOPT): {np.median(reference['times']) / np.median(ours):.2f}x")
+            fastest = min(np.median(r["times"]) for (n, _), r in results.items() if n == "nominal-nmpc")
+            print(f"median ratio do-mpc / fastest nominal-nmpc setup: {np.median(reference['times']) / fastest:.2f}x")
+
+
+if __name__ == "__main__":
+    main()

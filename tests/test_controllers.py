@@ -1,0 +1,212 @@
+"""Controllers: reaching targets, constraint satisfaction, failure handling, registry."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import controllers
+from controllers.base import Controller
+from controllers.nmpc import NMPCController
+from controllers.pettingzoo_adapter import ParallelAdapter
+from koopman_envs import formation_v0
+from koopman_envs.sim.maps import MapSpec
+
+OPEN = MapSpec(
+    "open",
+    obstacles=[[8.0, 8.0, 0.5]],
+    starts=[[-2.0, -1.0, 0.0], [-2.0, 0.0, 0.0], [-2.0, 1.0, 0.0]],
+    targets=[[0.5, -1.0, 0.0], [0.5, 0.0, 0.0], [0.5, 1.0, 0.0]],
+)
+
+
+def run(env_id: str, controller: Controller, seed: int = 0, **env_kwargs) -> tuple[dict, Controller]:
+    env = gym.make(env_id, **env_kwargs)
+    obs, info = env.reset(seed=seed)
+    controller.reset(env.unwrapped.scenario, seed=seed)
+    while True:
+        obs, _, terminated, truncated, info = env.step(controller.act(obs, info))
+        if terminated or truncated:
+            return info, controller
+
+
+@pytest.mark.parametrize("name", ["koopman-nmpc", "nominal-nmpc", "consensus", "consensus-free"])
+@pytest.mark.parametrize("env_id", ["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"])
+def test_reaches_the_targets_of_an_obstacle_free_map(name: str, env_id: str) -> None:
+    info, ctrl = run(env_id, controllers.make(name), map=OPEN, slip="nominal")
+    assert info["is_success"], (name, env_id, info["distances"], info["collision_kind"])
+    assert np.all(info["distances"] < 0.1)
+    assert ctrl.stats().steps > 0 and ctrl.stats().failures == 0
+
+
+def test_koopman_nmpc_beats_nominal_nmpc_under_high_slip() -> None:
+    """The paper's headline on one episode: the learned model keeps the team collision-free."""
+    info, _ = run("KoopNav-Formation-v0", controllers.make("koopman-nmpc", slip="high"), map="map4", slip="high")
+    assert info["is_success"] and np.all(info["distances"] < 0.1)
+    info, _ = run("KoopNav-Formation-v0", controllers.make("nominal-nmpc"), map="map4", slip="high")
+    assert not info["is_success"]
+
+
+@pytest.mark.parametrize("name", ["koopman-nmpc", "nominal-nmpc"])
+def test_nmpc_never_plans_through_an_obstacle(name: str) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map2", slip="nominal")
+    ctrl = controllers.make(name)
+    obs, info = env.reset(seed=0)
+    scenario = env.unwrapped.scenario
+    ctrl.reset(scenario)
+    checked = 0
+    for _ in range(60):
+        obs, _, terminated, truncated, info = env.step(ctrl.act(obs, info))
+        _, predicted = ctrl.last_plan  # (T, N, 3)
+        centres, radii = scenario.obstacles[:, :2], scenario.obstacles[:, 2]
+        gap = np.linalg.norm(predicted[:, :, None, :2] - centres, axis=-1) - radii - scenario.robot_radius[:, None]
+        assert gap.min() >= -1e-6, f"planned clearance {gap.min():.4f} m"
+        checked += 1
+        if terminated or truncated:
+            break
+    assert checked >= 30
+
+
+class _FailingSolver:
+    """Stands in for the CasADi solver: raises like a NaN evaluation inside IPOPT."""
+
+    def __call__(self, **_):
+        raise RuntimeError("Error in Function::call for 'nmpc': NaN detected")
+
+    def stats(self):
+        return {}
+
+
+def test_solver_failure_falls_back_and_is_counted() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map=OPEN)
+    ctrl = controllers.make("nominal-nmpc")
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env.unwrapped.scenario)
+    first = ctrl.act(obs, info)  # a real solve: leaves a plan to fall back on
+    _, planned = ctrl.last_plan
+    ctrl._problem.solver = _FailingSolver()
+    commands = [ctrl.act(obs, info) for _ in range(25)]
+    stats = ctrl.stats()
+    assert stats.failures == 25 and stats.steps == 26
+    assert any(key.startswith("error") for key in stats.statuses)
+    fallback_plan, _ = ctrl.last_plan
+    np.testing.assert_allclose(commands[0], fallback_plan[1].reshape(-1))  # the shifted plan
+    np.testing.assert_array_equal(commands[-1], np.zeros(6))  # then a safe stop
+    assert first.shape == (6,)
+
+
+def test_infeasible_hard_problem_is_handled() -> None:
+    """Hard constraints with a start inside the safety margin: the solver fails, the episode goes on."""
+    spec = MapSpec("tight", obstacles=[[0.0, 0.0, 0.5]], starts=[[0.705, 0.0, 0.0]], targets=[[3.0, 0.0, 0.0]])
+    env = gym.make("KoopNav-TargetReaching-v0", map=spec, n_robots=1, max_episode_steps=5)
+    ctrl = controllers.make("nominal-nmpc", soft_constraints=False, obstacle_offset=0.2)
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env.unwrapped.scenario)
+    for _ in range(5):
+        command = ctrl.act(obs, info)
+        assert command.shape == (2,) and np.all(np.isfinite(command))
+        obs, _, terminated, truncated, info = env.step(command)
+        if terminated or truncated:
+            break
+    assert ctrl.stats().failures >= 1
+
+
+def test_registry_lists_names_and_rejects_unknown() -> None:
+    names = controllers.available()
+    for name in ("koopman-nmpc", "nominal-nmpc", "consensus"):
+        assert name in names
+    with pytest.raises(ValueError, match=r"controller 'mpc' is not one of \[.*'koopman-nmpc'.*\]"):
+        controllers.make("mpc")
+    with pytest.raises(ValueError, match="unknown option"):
+        controllers.make("nominal-nmpc", horizont=10)
+
+
+PLUGIN_MODULE = """
+import numpy as np
+from controllers.base import BaseController
+
+
+class StopController(BaseController):
+    name = "test-stop"
+
+    def _act(self, observation, info):
+        return np.zeros(2 * self.scenario.n_robots)
+"""
+
+
+def test_controller_registered_by_entry_point_is_found(tmp_path) -> None:
+    """A third-party distribution declaring a `koopnav.controllers` entry point is found.
+
+    The distribution is laid out as an installer would leave it (module + .dist-info with
+    entry_points.txt) so discovery goes through importlib.metadata, as for a pip install.
+    """
+    site = tmp_path / "site"
+    (site / "koopnav_test_plugin").mkdir(parents=True)
+    (site / "koopnav_test_plugin" / "__init__.py").write_text(PLUGIN_MODULE)
+    info_dir = site / "koopnav_test_plugin-0.0.1.dist-info"
+    info_dir.mkdir()
+    (info_dir / "METADATA").write_text("Metadata-Version: 2.1\nName: koopnav-test-plugin\nVersion: 0.0.1\n")
+    (info_dir / "entry_points.txt").write_text(
+        "[koopnav.controllers]\ntest-stop = koopnav_test_plugin:StopController\n"
+    )
+    code = (
+        "import controllers, gymnasium as gym, koopman_envs; "
+        "assert 'test-stop' in controllers.available(), controllers.available(); "
+        "c = controllers.make('test-stop'); env = gym.make('KoopNav-Formation-v0'); "
+        "obs, info = env.reset(seed=0); c.reset(env.unwrapped.scenario); print(c.act(obs, info).tolist())"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(Path(controllers.__file__).parents[1])])}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == str([0.0] * 6)
+
+
+def test_every_builtin_satisfies_the_protocol() -> None:
+    for name in ("koopman-nmpc", "nominal-nmpc", "consensus"):
+        assert isinstance(controllers.make(name), Controller)
+
+
+def test_act_before_reset_and_bad_scenario() -> None:
+    ctrl = controllers.make("consensus")
+    with pytest.raises(RuntimeError, match="call reset"):
+        ctrl.act(np.zeros(3), {})
+    with pytest.raises(TypeError, match="Scenario"):
+        ctrl.reset("map1")
+
+
+def test_koopman_nmpc_uses_a_model_file(tmp_path) -> None:
+    from controllers.koopman import get_model
+
+    path = tmp_path / "m.npz"
+    get_model("low").save(path)
+    ctrl = controllers.make("koopman-nmpc", model=str(path))
+    info, _ = run("KoopNav-TargetReaching-v0", ctrl, map=OPEN, slip="low")
+    assert info["is_success"]
+    with pytest.raises(ValueError, match="does not exist"):
+        controllers.make("koopman-nmpc", model=str(tmp_path / "missing.npz"))
+
+
+def test_pettingzoo_env_driven_through_the_adapter() -> None:
+    env = formation_v0.parallel_env(map=OPEN)
+    adapter = ParallelAdapter(controllers.make("nominal-nmpc"))
+    observations, infos = env.reset(seed=0)
+    adapter.reset(env)
+    while env.agents:
+        observations, _, _, _, infos = env.step(adapter.act(observations, infos))
+    assert infos["robot_0"]["is_success"]
+
+
+def test_nmpc_rejects_a_model_of_another_team_size() -> None:
+    from controllers.unicycle import UnicycleModel
+
+    ctrl = NMPCController(UnicycleModel(2))
+    env = gym.make("KoopNav-TargetReaching-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="model has 2 robots, the scenario 3"):
+        ctrl.reset(env.unwrapped.scenario)
