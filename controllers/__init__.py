@@ -12,12 +12,12 @@ own through the ``koopnav.controllers`` entry-point group (see :mod:`controllers
 """
 
 from controllers.base import BaseController, Controller, ControllerStats
-from controllers.registry import ENTRY_POINT_GROUP, available, make, register
+from controllers.registry import ENTRY_POINT_GROUP, accepts_option, available, make, register
 
 register("koopman-nmpc", "controllers.koopman_nmpc:KoopmanNMPC")
 register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
 register("consensus", "controllers.consensus:ConsensusController")
-register("consensus-free", lambda **kw: _consensus_without_avoidance(**kw))
+register("consensus-free", "controllers:_consensus_without_avoidance")
 
 
 def _consensus_without_avoidance(**options):
@@ -33,6 +33,7 @@ __all__ = [
     "Controller",
     "ControllerStats",
     "ENTRY_POINT_GROUP",
+    "accepts_option",
     "available",
     "make",
     "register",

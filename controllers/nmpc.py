@@ -103,6 +103,10 @@ class NMPCConfig:
         Weights on (v, omega) (paper: diag(0.1, 0.1)).
     obstacle_offset : float
         Safety distance added to robot + obstacle radii [m] (paper: 0.015).
+    robot_offset : float
+        (ours) Safety distance added to the sum of two robots' radii [m]. The paper adds its
+        0.015 m margin to obstacles only; the reason it gives (prediction error near a
+        constraint) holds as much between robots, whose paths cross on Map 2.
     formation_bound : float
         |lb| = |ub| of the formation constraint, per period and axis [m] (ours: the paper gives
         no number; 0.03 m is half a period's travel at full speed, enough to skirt obstacles).
@@ -134,6 +138,7 @@ class NMPCConfig:
     q_follower: tuple[float, ...] = PARAMS.q_follower
     r_input: tuple[float, ...] = PARAMS.r_input
     obstacle_offset: float = PARAMS.obstacle_offset
+    robot_offset: float = PARAMS.obstacle_offset
     formation_bound: float = 0.03
     soft_constraints: bool = True
     slack_penalty: float = 1e4
@@ -217,7 +222,9 @@ class _Problem:
                     clear = (px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + config.obstacle_offset) ** 2
                     constrain(clear + slack, 0.0, np.inf)
                 for j in range(i + 1, n):
-                    clear = (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (radius[i] + radius[j]) ** 2
+                    clear = (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (
+                        radius[i] + radius[j] + config.robot_offset
+                    ) ** 2
                     constrain(clear + slack, 0.0, np.inf)
 
         def tracking_cost(x):

@@ -18,7 +18,7 @@ from typing import Any, Callable
 
 from controllers.base import Controller
 
-__all__ = ["ENTRY_POINT_GROUP", "available", "make", "register"]
+__all__ = ["ENTRY_POINT_GROUP", "accepts_option", "available", "factory", "make", "register"]
 
 ENTRY_POINT_GROUP = "koopnav.controllers"
 
@@ -48,6 +48,27 @@ def _resolve(factory: Callable[..., Controller] | str) -> Callable[..., Controll
     return getattr(importlib.import_module(module), attribute)
 
 
+def factory(name: str) -> Callable[..., Controller]:
+    """The callable that builds controller ``name`` (raises ``ValueError`` for unknown names)."""
+    if name in _REGISTRY:
+        return _resolve(_REGISTRY[name])
+    points = _entry_points()
+    if name not in points:
+        raise ValueError(f"controller {name!r} is not one of {available()}")
+    return points[name].load()
+
+
+def accepts_option(name: str, option: str) -> bool:
+    """Whether controller ``name`` takes the keyword ``option`` (e.g. ``slip``)."""
+    import inspect
+
+    try:
+        params = inspect.signature(factory(name)).parameters
+    except (TypeError, ValueError):
+        return False
+    return option in params
+
+
 def make(name: str, **options: Any) -> Controller:
     """Build a controller by name.
 
@@ -56,11 +77,4 @@ def make(name: str, **options: Any) -> Controller:
     ValueError
         Unknown name (the message lists the available ones).
     """
-    if name in _REGISTRY:
-        factory = _resolve(_REGISTRY[name])
-    else:
-        points = _entry_points()
-        if name not in points:
-            raise ValueError(f"controller {name!r} is not one of {available()}")
-        factory = points[name].load()
-    return factory(**options)
+    return factory(name)(**options)

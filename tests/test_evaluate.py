@@ -1,0 +1,167 @@
+"""The evaluator: schema, consistency, worker-count invariance, resume, failures, checks."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import controllers
+import evaluate as ev
+from controllers.base import BaseController
+
+SMALL = dict(
+    env_ids=["KoopNav-TargetReaching-v0"],
+    controller_names=["consensus", "nominal-nmpc"],
+    maps=["map1"],
+    slips=["nominal", "high"],
+    episodes=2,
+    seed=3,
+    max_episode_steps=150,
+)
+
+
+@pytest.fixture(scope="module")
+def small_results(tmp_path_factory) -> ev.Results:
+    return ev.evaluate(**SMALL, workers=2, out=tmp_path_factory.mktemp("run"))
+
+
+def test_json_validates_against_its_schema(small_results: ev.Results) -> None:
+    jsonschema = pytest.importorskip("jsonschema")
+    schema = json.loads((Path(ev.__file__).parent / "docs" / "results.schema.json").read_text())
+    doc = json.loads(small_results.to_json())
+    jsonschema.validate(doc, schema)
+    assert doc["schema_version"] == ev.SCHEMA_VERSION and len(doc["episodes"]) == 8
+
+
+def test_report_distances_equal_recomputed_ones(small_results: ev.Results) -> None:
+    for rec in small_results.records:
+        poses, targets = np.asarray(rec["final_poses"]), np.asarray(rec["targets"])
+        np.testing.assert_allclose(rec["final_distance"], np.linalg.norm(poses[:, :2] - targets[:, :2], axis=1))
+    for cell in small_results.cells:
+        won = [r for r in small_results.records if r["success"] and
+               (r["controller"], r["map"], r["slip"]) == (cell.controller, cell.map, cell.slip)]  # fmt: skip
+        for i, (mean, _) in enumerate(cell.final_distance_cm):
+            expected = np.mean([100 * r["final_distance"][i] for r in won]) if won else float("nan")
+            assert (math.isnan(mean) and math.isnan(expected)) or mean == pytest.approx(expected)
+
+
+def test_one_and_two_workers_give_identical_results(small_results: ev.Results) -> None:
+    serial = ev.evaluate(**SMALL, workers=1)
+    strip = lambda recs: [{k: v for k, v in r.items() if k not in ("wall_seconds", "solve_ms_median", "solve_ms_p95")}
+                          for r in recs]  # noqa: E731
+    assert strip(serial.records) == strip(json.loads(json.dumps(small_results.records)))
+
+
+def test_killed_run_resumes_to_the_same_result(tmp_path, small_results: ev.Results) -> None:
+    out = tmp_path / "run"
+    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus",
+           "nominal-nmpc", "--maps", "map1", "--slips", "nominal", "high", "--episodes", "2", "--seed", "3",
+           "--max-episode-steps", "150", "--workers", "1", "--out", str(out), "--quiet"]  # fmt: skip
+    root = Path(ev.__file__).parent
+    proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    log = out / "episodes.jsonl"
+    import time
+
+    deadline = time.time() + 120
+    while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < 3):
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    partial = len(log.read_text().splitlines()) - 1
+    assert 1 <= partial < 8, partial
+    with pytest.raises(ValueError, match="pass --resume"):
+        ev.evaluate(**SMALL, workers=1, out=out)
+    resumed = ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+    assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
+    assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
+
+
+def test_resume_log_from_another_configuration_is_refused(tmp_path) -> None:
+    out = tmp_path / "run"
+    ev.evaluate(**{**SMALL, "controller_names": ["consensus"], "slips": ["nominal"], "episodes": 1}, workers=1, out=out)
+    before = (out / "episodes.jsonl").read_text()
+    with pytest.raises(ValueError, match="another configuration"):
+        ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+    assert (out / "episodes.jsonl").read_text() == before  # nothing overwritten
+
+
+class ExplodingController(BaseController):
+    """Raises on the second trial (seed 1) only."""
+
+    name = "exploding"
+
+    def _reset(self, scenario, seed):
+        self.seed = seed
+
+    def _act(self, observation, info):
+        if self.seed == 1:
+            raise RuntimeError("boom")
+        return np.zeros(2 * self.scenario.n_robots)
+
+
+def test_an_episode_that_raises_does_not_stop_the_others() -> None:
+    controllers.register("exploding", ExplodingController, overwrite=True)
+    results = ev.evaluate("KoopNav-TargetReaching-v0", ["exploding"], ["map1"], ["nominal"], episodes=3,
+                          seed=0, workers=1, max_episode_steps=20)  # fmt: skip
+    statuses = [r["status"] for r in results.records]
+    assert statuses == ["ok", "error", "ok"]
+    assert "RuntimeError: boom" in results.records[1]["error"]
+    assert results.cells[0].errors == 1 and "boom" in results.to_markdown()
+
+
+def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
+    passing = tmp_path / "ok.toml"
+    passing.write_text('[[cell]]\ncontroller = "nominal-nmpc"\nslip = "nominal"\nmin_success_rate = 0.5\n'
+                       'max_final_distance_cm = 10.0\n')  # fmt: skip
+    assert ev.check_thresholds(small_results, passing) == []
+    failing = tmp_path / "bad.toml"
+    failing.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
+    problems = ev.check_thresholds(small_results, failing)
+    assert len(problems) == 2 and all("consensus / map1" in p and "< 1.01" in p for p in problems)
+    with pytest.raises(ValueError, match="cannot be read"):
+        ev.check_thresholds(small_results, tmp_path / "missing.toml")
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[[cell]\n")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        ev.check_thresholds(small_results, broken)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"env_ids": ["KoopNav-Nope-v0"]}, "env 'KoopNav-Nope-v0' is not one of"),
+        ({"maps": ["map7"]}, "map 'map7'"),
+        ({"slips": ["extreme"]}, "slip 'extreme'"),
+        ({"controller_names": ["magic"]}, r"controller 'magic' is not one of \["),
+        ({"episodes": 0}, "episodes=0 must be an integer >= 1"),
+    ],
+)
+def test_bad_input(kwargs, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        ev.evaluate(**{**SMALL, **kwargs}, workers=1)
+    with pytest.raises(ValueError, match="workers=0"):
+        ev.evaluate(**SMALL, workers=0)
+
+
+def test_cli_writes_outputs_and_checks(tmp_path) -> None:
+    thresholds = tmp_path / "t.toml"
+    thresholds.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
+    out = tmp_path / "cli"
+    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-Formation-v0", "--controllers", "consensus",
+           "--maps", "map4", "--slips", "nominal", "--episodes", "1", "--out", str(out), "--quiet",
+           "--check", str(thresholds)]  # fmt: skip
+    proc = subprocess.run(cmd, cwd=Path(ev.__file__).parent, capture_output=True, text=True)
+    assert proc.returncode == ev.FAILED_CHECK_EXIT, proc.stderr
+    assert "consensus / map4 / nominal: success rate" in proc.stderr
+    for name in ("results.md", "results.json", "results.csv", "episodes.jsonl"):
+        assert (out / name).stat().st_size > 0
+    assert list((out / "figures").glob("*.png"))
+    bad = subprocess.run([sys.executable, "evaluate.py", "--controllers", "nope", "--out", str(tmp_path / "x")],
+                         cwd=Path(ev.__file__).parent, capture_output=True, text=True)  # fmt: skip
+    assert bad.returncode == 2 and "controller 'nope' is not one of" in bad.stderr
