@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
+from gymnasium import spaces
 from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS, slip_lambdas
@@ -165,6 +166,24 @@ class NavigationEngine:
         if config.map_spec is not None:
             for index in range(k):
                 self._set_map(index, config.map_spec)
+
+    # ----------------------------------------------------------------- spaces
+    def robot_spaces(self) -> tuple[spaces.Box, spaces.Box]:
+        """(action, observation) spaces of one robot: (v, omega) and its feature block."""
+        action = spaces.Box(self.command_low.astype(np.float32), self.command_high.astype(np.float32), dtype=np.float32)
+        observation = spaces.Box(
+            self.feature_low.astype(np.float32), self.feature_high.astype(np.float32), dtype=np.float32
+        )
+        return action, observation
+
+    def team_spaces(self) -> tuple[spaces.Box, spaces.Box]:
+        """(action, observation) spaces of the whole team of one environment (flat, robot 0 first)."""
+        n = self.config.n_robots
+        action, observation = self.robot_spaces()
+        return (
+            spaces.Box(np.tile(action.low, n), np.tile(action.high, n), dtype=np.float32),
+            spaces.Box(np.tile(observation.low, n), np.tile(observation.high, n), dtype=np.float32),
+        )
 
     # ------------------------------------------------------------------ views
     @property

@@ -7,7 +7,6 @@ from typing import Any, Sequence
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import NDArray
 
 from koopman_envs.engine import EngineConfig, NavigationEngine
@@ -49,14 +48,7 @@ class KoopNavEnv(gym.Env):
             n_obstacle_obs=n_obstacle_obs,
         )
         self.engine = NavigationEngine(self.config, num_envs=1)
-        n = self.config.n_robots
-        low = np.tile(self.engine.command_low, n).astype(np.float32)
-        high = np.tile(self.engine.command_high, n).astype(np.float32)
-        self.action_space = spaces.Box(low, high, dtype=np.float32)
-        flow, fhigh = self.engine.feature_low, self.engine.feature_high
-        self.observation_space = spaces.Box(
-            np.tile(flow, n).astype(np.float32), np.tile(fhigh, n).astype(np.float32), dtype=np.float32
-        )
+        self.action_space, self.observation_space = self.engine.team_spaces()
         self.render_mode = render_mode
         self._renderer = None
         self._trail: list[NDArray[np.float64]] = []

@@ -85,13 +85,11 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self.agents: list[str] = []
         self._index = {name: i for i, name in enumerate(self.possible_agents)}
-        low = self.engine.command_low.astype(np.float32)
-        high = self.engine.command_high.astype(np.float32)
-        flow = self.engine.feature_low.astype(np.float32)
-        fhigh = self.engine.feature_high.astype(np.float32)
-        self.observation_spaces = {a: spaces.Box(flow, fhigh, dtype=np.float32) for a in self.possible_agents}
-        self.action_spaces = {a: spaces.Box(low, high, dtype=np.float32) for a in self.possible_agents}
-        self.state_space = spaces.Box(np.tile(flow, n), np.tile(fhigh, n), dtype=np.float32)
+        # one space object per agent: spaces carry their own sampling generator
+        per_agent = {a: self.engine.robot_spaces() for a in self.possible_agents}
+        self.action_spaces = {a: pair[0] for a, pair in per_agent.items()}
+        self.observation_spaces = {a: pair[1] for a, pair in per_agent.items()}
+        self.state_space = self.engine.team_spaces()[1]
         self.render_mode = render_mode
         self._rng: np.random.Generator | None = None
         self._features: NDArray[np.float64] | None = None

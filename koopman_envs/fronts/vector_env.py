@@ -7,7 +7,6 @@ from typing import Any, Sequence
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -85,17 +84,7 @@ class KoopNavVectorEnv(VectorEnv):
         )
         self.num_envs = int(num_envs)
         self.engine = NavigationEngine(self.config, num_envs=self.num_envs)
-        n = self.config.n_robots
-        self.single_action_space = spaces.Box(
-            np.tile(self.engine.command_low, n).astype(np.float32),
-            np.tile(self.engine.command_high, n).astype(np.float32),
-            dtype=np.float32,
-        )
-        self.single_observation_space = spaces.Box(
-            np.tile(self.engine.feature_low, n).astype(np.float32),
-            np.tile(self.engine.feature_high, n).astype(np.float32),
-            dtype=np.float32,
-        )
+        self.single_action_space, self.single_observation_space = self.engine.team_spaces()
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.render_mode = None
