@@ -187,7 +187,11 @@ class _Problem:
         goal_xy = ca.SX.sym("goal_xy", 2 * n)
         goal_cs = ca.SX.sym("goal_cs", 2 * n)
         obstacles = ca.SX.sym("obstacles", 3 * m_obs)
-        params = ca.vertcat(x_meas, goal_xy, goal_cs, obstacles)
+        # safety margins are parameters: per robot toward obstacles, per pair between robots
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        obstacle_margin = ca.SX.sym("obstacle_margin", n)
+        pair_margin = ca.SX.sym("pair_margin", len(pairs))
+        params = ca.vertcat(x_meas, goal_xy, goal_cs, obstacles, obstacle_margin, pair_margin)
 
         formation = scenario.is_formation
         weights = [config.q_follower if formation and i != scenario.leader else config.q_leader for i in range(n)]
@@ -219,12 +223,11 @@ class _Problem:
                 px, py = x[size * i], x[size * i + 1]
                 for k in range(m_obs):
                     ox, oy, orad = obstacles[3 * k], obstacles[3 * k + 1], obstacles[3 * k + 2]
-                    clear = (px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + config.obstacle_offset) ** 2
+                    clear = (px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + obstacle_margin[i]) ** 2
                     constrain(clear + slack, 0.0, np.inf)
                 for j in range(i + 1, n):
-                    clear = (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (
-                        radius[i] + radius[j] + config.robot_offset
-                    ) ** 2
+                    margin = pair_margin[pairs.index((i, j))]
+                    clear = (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (radius[i] + radius[j] + margin) ** 2
                     constrain(clear + slack, 0.0, np.inf)
 
         def tracking_cost(x):
@@ -384,17 +387,30 @@ class NMPCController(BaseController):
         if key != self._key:
             self._problem = _Problem(model, scenario, self.config)
             self._key = key
+        obstacle_margin, pair_margin = self.safety_margins(scenario)
         self._params_tail = np.concatenate(
             [
                 scenario.targets[:, :2].reshape(-1),
                 np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])]).reshape(-1),
                 scenario.obstacles.reshape(-1),
+                obstacle_margin,
+                pair_margin,
             ]
         )
         self._warm = None
         self._fallback = None
         self._fallback_used = 0
         self.last_plan = None
+
+    def safety_margins(self, scenario: Scenario) -> tuple[NDArray, NDArray]:
+        """Margins added to the radii: per robot toward obstacles (N,), per robot pair (i < j).
+
+        The base NMPC uses ``obstacle_offset`` and ``robot_offset`` for everyone; a controller
+        whose model knows its own prediction error can widen them (see Koopman-NMPC).
+        """
+        n = scenario.n_robots
+        pairs = n * (n - 1) // 2
+        return np.full(n, self.config.obstacle_offset), np.full(pairs, self.config.robot_offset)
 
     # -------------------------------------------------------------------- act
     def _initial_guess(self, state: NDArray) -> NDArray:

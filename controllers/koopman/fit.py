@@ -39,6 +39,8 @@ class BilinearFit:
         RMS one-step residual in the lifted space over the training data.
     rank : int
         Numerical rank of the regression matrix.
+    coordinate_residual : ndarray, shape (D,)
+        RMS one-step residual of each lifted coordinate over the training data.
     """
 
     A: NDArray[np.float64]
@@ -47,6 +49,7 @@ class BilinearFit:
     C: NDArray[np.float64]
     residual: float
     rank: int
+    coordinate_residual: NDArray[np.float64]
 
 
 def regressors(z: NDArray, u: NDArray, extra: int = 0) -> NDArray[np.float64]:
@@ -143,8 +146,9 @@ class MomentAccumulator:
 
     def solve(
         self, state_rows: NDArray, ridge: float = 0.0, rcond: float = 1e-12
-    ) -> tuple[NDArray, NDArray, NDArray, NDArray, float, int]:
-        """Least-squares [A, N, B] and C = X Z^+ (X = the ``state_rows`` of Z), residual, rank."""
+    ) -> tuple[NDArray, NDArray, NDArray, NDArray, float, int, NDArray]:
+        """Least-squares [A, N, B], C = X Z^+ (X = the ``state_rows`` of Z), residual, rank and
+        per-coordinate residual."""
         d, m, p = self.d, self.m, self.p
         gram, rhs = self.moments[:p, :p], self.moments[:p, p:]
         target_sq = np.diag(self.moments[p:, p:])
@@ -162,13 +166,14 @@ class MomentAccumulator:
         fitted = np.einsum("ij,jk->ik", gram, solution)
         sq = target_sq - 2 * np.einsum("ij,ij->j", solution, rhs) + np.einsum("ij,ij->j", solution, fitted)
         residual = float(np.sqrt(max(sq.sum(), 0.0) / (max(self.count, 1) * d)))
+        coordinate_residual = np.sqrt(np.maximum(sq, 0.0) / max(self.count, 1))
         weights = solution.T  # (d, p)
         # C = X Z^+ with X = rows of Z: the Z-block of the same Gram matrix
         c_matrix = _cholesky_solve(gram[:d, :d], gram[:d, :d][:, state_rows], 0.0, rcond)
         a_matrix = weights[:, :d].copy()
         n_matrix = weights[:, d : d + m * d].copy()
         b_matrix = weights[:, d + m * d :].copy()
-        return a_matrix, n_matrix, b_matrix, c_matrix.T.copy(), residual, p - m
+        return a_matrix, n_matrix, b_matrix, c_matrix.T.copy(), residual, p - m, coordinate_residual
 
 
 def fit_lifted(

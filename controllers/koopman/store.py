@@ -17,6 +17,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from controllers.koopman.data import DataSpec, collect_data
 from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import fit_bilinear
@@ -34,10 +36,15 @@ def fit_model(spec: DataSpec, dictionary: str = "minimal", ridge: float = 0.0) -
     dic = get_dictionary(dictionary)
     data = collect_data(spec)
     fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge)
+    rows = dic.state_rows(spec.n_robots)  # (N, 4): x, y, cos, sin
+    position_residual = np.hypot(fit.coordinate_residual[rows[:, 0]], fit.coordinate_residual[rows[:, 1]])
     meta = {
         "data": spec.to_dict(),
         "ridge": ridge,
         "fit_residual": fit.residual,
+        # RMS one-step position error of each robot on the training data [m]: the model's own
+        # estimate of how far reality strays from a prediction (used for safety margins)
+        "position_residual": [float(v) for v in position_residual],
         "rank": fit.rank,
         "transitions": spec.transitions,
         "package_version": envs_version,
