@@ -560,18 +560,25 @@ def _read_log(log: Path, config: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 def _run_ray(todo: list[EpisodeSpec], workers: int):
+    """Episodes as Ray tasks: on a local Ray instance, or on the cluster at ``RAY_ADDRESS``."""
     try:
         import ray
     except ImportError:
         raise ValueError("--backend ray needs Ray: pip install -e '.[ray]'") from None
-    if not ray.is_initialized():
-        ray.init(address=os.environ.get("RAY_ADDRESS"), num_cpus=None if os.environ.get("RAY_ADDRESS") else workers,
-                 include_dashboard=False, log_to_driver=False)  # fmt: skip
-    remote = ray.remote(num_cpus=1)(run_episode)
-    pending = [remote.remote(spec) for spec in todo]
-    while pending:
-        ready, pending = ray.wait(pending, num_returns=1)
-        yield ray.get(ready[0])
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = os.environ.get("RAY_ADDRESS")
+        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
+                 log_to_driver=False)  # fmt: skip
+    try:
+        remote = ray.remote(num_cpus=1)(run_episode)
+        pending = [remote.remote(spec) for spec in todo]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(ready[0])
+    finally:
+        if started_here:
+            ray.shutdown()
 
 
 def evaluate(

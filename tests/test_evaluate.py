@@ -165,3 +165,12 @@ def test_cli_writes_outputs_and_checks(tmp_path) -> None:
     bad = subprocess.run([sys.executable, "evaluate.py", "--controllers", "nope", "--out", str(tmp_path / "x")],
                          cwd=Path(ev.__file__).parent, capture_output=True, text=True)  # fmt: skip
     assert bad.returncode == 2 and "controller 'nope' is not one of" in bad.stderr
+
+
+def test_ray_backend_matches_the_process_backend(small_results: ev.Results) -> None:
+    """The same episodes as Ray tasks on a local Ray instance give the same results."""
+    pytest.importorskip("ray")
+    with_ray = ev.evaluate(**SMALL, workers=2, backend="ray")
+    assert [r["key"] for r in with_ray.records] == [r["key"] for r in small_results.records]
+    assert [r["final_distance"] for r in with_ray.records] == [r["final_distance"] for r in small_results.records]
+    assert [r["success"] for r in with_ray.records] == [r["success"] for r in small_results.records]
