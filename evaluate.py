@@ -136,6 +136,24 @@ def validate_arguments(
         raise ValueError(f"workers={workers!r} must be an integer >= 1")
 
 
+def usable_controllers(verbose: bool = True) -> list[str]:
+    """Registered controllers that can be built here; the others are named on stderr.
+
+    An optional controller (``rl-ppo`` without the ``[rl]`` extra or without trained policies)
+    is skipped by the default run instead of failing every episode.
+    """
+    usable = []
+    for name in controllers.available():
+        try:
+            controllers.make(name)
+        except (ImportError, ValueError) as exc:
+            if verbose:
+                print(f"note: controller {name!r} skipped ({exc})", file=sys.stderr)
+            continue
+        usable.append(name)
+    return usable
+
+
 # --------------------------------------------------------------------------- one episode
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
 
@@ -632,7 +650,7 @@ def evaluate(
     Results
     """
     env_ids = [env_ids] if isinstance(env_ids, str) else list(env_ids)
-    names = list(controller_names) if controller_names else controllers.available()
+    names = list(controller_names) if controller_names else usable_controllers(progress)
     if maps is None:
         map_table = {e: list(TASK_MAPS.get(e, BUILTIN_MAPS)) for e in env_ids}
     elif isinstance(maps, dict):

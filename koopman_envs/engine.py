@@ -27,7 +27,12 @@ from koopman_envs.sim.slip import SlipSampler
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.tasks.observation import FeatureBuilder
 
-__all__ = ["EngineConfig", "NavigationEngine", "StepResult"]
+__all__ = ["EngineConfig", "NavigationEngine", "RANDOM_SLIP", "StepResult"]
+
+#: ``slip="random"``: each reset draws the largest lambda uniformly on [0, RANDOM_SLIP_MAX] and
+#: spaces the others linearly from robot 1's 0 (ours: covers and exceeds the "high" setting).
+RANDOM_SLIP = "random"
+RANDOM_SLIP_MAX = 0.25
 
 
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
@@ -85,7 +90,10 @@ class EngineConfig:
         else:
             map_spec = load_map(map_arg)
             map_spec.validate(int(n_robots), float(robot_radius))
-        lambdas = slip_lambdas(slip, int(n_robots))
+        if isinstance(slip, str) and slip == RANDOM_SLIP:
+            lambdas = np.full(int(n_robots), np.nan)  # drawn per reset
+        else:
+            lambdas = slip_lambdas(slip, int(n_robots))
         label = slip if isinstance(slip, str) else "custom"
         return cls(
             task=spec,
@@ -99,6 +107,11 @@ class EngineConfig:
             n_obstacle_obs=int(n_obstacle_obs),
             max_episode_steps=None if max_episode_steps is None else int(max_episode_steps),
         )
+
+    @property
+    def random_slip(self) -> bool:
+        """True when every episode draws its own slip level (``slip="random"``)."""
+        return bool(np.isnan(self.lambdas).any())
 
     @property
     def map_name(self) -> str:
@@ -229,7 +242,13 @@ class NavigationEngine:
         dx = self.target[index, 0] - self.state[index, 0]
         dy = self.target[index, 1] - self.state[index, 1]
         self.distances[index] = np.sqrt(dx * dx + dy * dy)  # the formula of FeatureBuilder
-        self.slip.reset_env(index, rng, cfg.lambdas)
+        self.slip.reset_env(index, rng, self._draw_lambdas(rng) if cfg.random_slip else cfg.lambdas)
+
+    def _draw_lambdas(self, rng: np.random.Generator) -> NDArray[np.float64]:
+        """``slip="random"``: a new slip level per episode, robot 1 slip-free (ours; for training)."""
+        top = rng.uniform(0.0, RANDOM_SLIP_MAX)
+        n = self.config.n_robots
+        return np.zeros(1) if n == 1 else np.linspace(0.0, top, n)
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""

@@ -126,7 +126,7 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
         if slip not in SLIP_MAX_LAMBDA:
             raise ValueError(
                 f"slip={slip!r} is not one of {list(SLIP_SETTINGS)} "
-                "(or pass a sequence of per-robot lambda >= 0)"
+                "(or 'random' for a new level per episode, or a sequence of per-robot lambda >= 0)"
             )
         if n_robots == 1:
             return np.zeros(1)

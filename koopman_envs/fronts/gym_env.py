@@ -108,8 +108,8 @@ class KoopNavEnv(gym.Env):
 
     @property
     def lambdas(self) -> NDArray[np.float64]:
-        """Per-robot slip means of this env (ground truth; controllers must not read it)."""
-        return self.config.lambdas.copy()
+        """Per-robot slip means of the current episode (ground truth; controllers must not read it)."""
+        return self.engine.slip.lambdas[0].copy()
 
     def _title(self) -> str:
         cfg = self.config
@@ -131,7 +131,8 @@ _SLIP_TABLE = """
     ======== ========= ========= =========
 
     For other team sizes robot 1 stays slip-free and the others are spaced linearly up to the
-    setting's largest lambda. A sequence of per-robot lambda >= 0 is accepted too.
+    setting's largest lambda. A sequence of per-robot lambda >= 0 is accepted too, and
+    ``"random"`` draws a new level per episode (largest lambda uniform on [0, 0.25]; for training).
 """
 
 _COMMON_DOC = """

@@ -1,0 +1,109 @@
+"""A trained stable-baselines3 policy behind the common controller protocol (``rl-ppo``)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.base import BaseController
+from koopman_envs.scenario import Scenario
+
+__all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_dir"]
+
+SHIPPED = Path(__file__).resolve().parent / "policies"
+REGENERATE = "python -m baselines.train --env {env_id} --algo {algo} --out baselines/policies/{task}"
+TASK_ENV = {"target_reaching": "KoopNav-TargetReaching-v0", "formation": "KoopNav-Formation-v0"}
+
+
+def policy_dir(task: str, root: str | os.PathLike | None = None) -> Path:
+    """Directory of the policy of a task (``root``, default the shipped ``baselines/policies``)."""
+    return Path(root or SHIPPED) / task
+
+
+class PolicyFiles:
+    """The files of one trained policy: ``policy.zip`` (SB3), ``obs_norm.npz``, ``metadata.json``."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = Path(directory)
+        self.model = self.directory / "policy.zip"
+        self.norm = self.directory / "obs_norm.npz"
+        self.metadata = self.directory / "metadata.json"
+
+
+def load_policy(directory: str | os.PathLike, task: str = "formation", algo: str = "ppo") -> tuple[Any, dict, dict]:
+    """Load (model, observation normalization, metadata); clear errors for missing or corrupt files."""
+    files = PolicyFiles(Path(directory))
+    hint = REGENERATE.format(env_id=TASK_ENV.get(task, task), algo=algo, task=task)
+    missing = [p.name for p in (files.model, files.norm, files.metadata) if not p.exists()]
+    if missing:
+        raise ValueError(f"policy files {missing} are missing in {files.directory}; regenerate with `{hint}`")
+    try:
+        from stable_baselines3 import PPO, SAC
+    except ImportError:
+        raise ValueError("the RL baseline needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
+    try:
+        metadata = json.loads(files.metadata.read_text(encoding="utf-8"))
+        with np.load(files.norm, allow_pickle=False) as data:
+            norm = {k: data[k] for k in ("mean", "var", "clip", "epsilon")}
+        cls = {"ppo": PPO, "sac": SAC}[metadata.get("algo", algo)]
+        model = cls.load(files.model, device="cpu")
+    except Exception as exc:  # noqa: BLE001 - any failure here means a broken file set
+        raise ValueError(
+            f"policy in {files.directory} is corrupt or unreadable ({type(exc).__name__}: {exc}); regenerate with `{hint}`"
+        ) from exc
+    return model, norm, metadata
+
+
+class RLPolicyController(BaseController):
+    """Plays a trained policy deterministically: normalized observation in, physical command out.
+
+    Parameters
+    ----------
+    policy_root : path, optional
+        Directory holding one sub-directory per task (default: the shipped policies).
+    algo : str
+        ``"ppo"`` or ``"sac"`` (recorded in the metadata of each policy).
+    """
+
+    name = "rl-ppo"
+
+    def __init__(self, policy_root: str | os.PathLike | None = None, algo: str = "ppo") -> None:
+        super().__init__()
+        self.policy_root = Path(policy_root) if policy_root else SHIPPED
+        self.algo = algo
+        import importlib.util
+
+        if importlib.util.find_spec("stable_baselines3") is None:
+            raise ValueError("rl-ppo needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'")
+        if not any(policy_dir(task, self.policy_root).exists() for task in TASK_ENV):
+            raise ValueError(
+                f"no trained policy in {self.policy_root}; train one with "
+                f"`{REGENERATE.format(env_id=TASK_ENV['formation'], algo=algo, task='formation')}`"
+            )
+        self._loaded: dict[str, tuple[Any, dict, dict]] = {}
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        if scenario.task not in self._loaded:
+            self._loaded[scenario.task] = load_policy(policy_dir(scenario.task, self.policy_root), scenario.task, self.algo)
+        self._model, self._norm, self.metadata = self._loaded[scenario.task]
+        self._low = np.tile([-scenario.v_max, -scenario.omega_max], scenario.n_robots)
+        self._high = -self._low
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        import time
+
+        from baselines.vec_env import scale_action
+
+        start = time.perf_counter()
+        norm = self._norm
+        obs = (np.asarray(observation, dtype=np.float64) - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
+        obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
+        action, _ = self._model.predict(obs, deterministic=True)
+        command = scale_action(np.asarray(action, dtype=np.float64), self._low, self._high)
+        self._stats.solve_times.append(time.perf_counter() - start)
+        return command
