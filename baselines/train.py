@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         from stable_baselines3 import PPO, SAC
         from stable_baselines3.common.callbacks import BaseCallback
         from stable_baselines3.common.logger import configure
-        from stable_baselines3.common.vec_env import VecNormalize
+        from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
     except ImportError:
         print("error: training needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'",
               file=sys.stderr)  # fmt: skip
@@ -92,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
     venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, map="random", slip="random",
                             max_episode_steps=args.max_episode_steps)  # fmt: skip
+    venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
     venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
     policy_kwargs = {"net_arch": [256, 256]}
     if args.algo == "ppo":
