@@ -349,6 +349,7 @@ class NavigationEngine:
         effort = command[:, 0] + command[:, 1]
         robot_reward = progress * weights.progress
         robot_reward -= effort * weights.effort
+        robot_reward += (distances <= cfg.goal_tolerance) * weights.settle
         if cfg.task.formation:
             robot_reward -= weights.formation * np.hypot(features[..., -2], features[..., -1])
         team_reward = success * weights.success

@@ -165,7 +165,7 @@ _COMMON_DOC = """
 {slip_table}
     ## Rewards
     Per robot: ``{w.progress:g} * progress [m] - {w.effort:g} * ((v/v_max)^2 + (omega/omega_max)^2)``
-    ``{formation_term}``; once for the team: ``-{w.collision:g}`` on a collision, ``+{w.success:g}`` on success. See
+    ``{formation_term} + {w.settle:g} * [within goal_tolerance]``; once for the team: ``-{w.collision:g}`` on a collision, ``+{w.success:g}`` on success. See
     :class:`koopman_envs.tasks.base.RewardWeights`.
 
     ## Starting State
