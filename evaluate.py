@@ -683,7 +683,10 @@ def evaluate(
             log_file = open(log, "w", encoding="utf-8")  # noqa: SIM115
             log_file.write(json.dumps({"kind": "koopnav-run", "config": _config_signature(config)}) + "\n")
             log_file.flush()
-    todo = [spec for spec in plan if spec.key not in done]
+    # longest episodes first (the learned-model NMPC, then the other optimizers) so that no worker
+    # idles at the end of the run; records are put back in plan order below
+    cost = {"koopman-nmpc": 0, "nominal-nmpc": 1}
+    todo = sorted((spec for spec in plan if spec.key not in done), key=lambda spec: cost.get(spec.controller, 2))
     bar = _Progress(len(todo), progress)
     records = dict(done)
     try:
