@@ -7,11 +7,9 @@ from __future__ import annotations
 
 import argparse
 
-import gymnasium as gym
-import numpy as np
+from nmpc_solve import closed_loop, line  # the same closed-loop runner and report line
 
 import controllers
-import koopman_envs  # noqa: F401
 
 
 def main() -> None:
@@ -27,16 +25,7 @@ def main() -> None:
         except (ImportError, ValueError) as exc:
             print(f"{name:14s} skipped: {exc}")
             continue
-        env = gym.make(env_id, map=args.map, slip=args.slip)
-        obs, info = env.reset(seed=0)
-        ctrl.reset(env.unwrapped.scenario, seed=0)
-        while True:
-            obs, _, terminated, truncated, info = env.step(ctrl.act(obs, info))
-            if terminated or truncated:
-                break
-        t = 1e3 * np.asarray(ctrl.stats().solve_times)
-        outcome = "success" if info["is_success"] else info["collision_kind"] if info["collision"] else "time limit"
-        print(f"{name:14s} median {np.median(t):8.3f} ms  p95 {np.percentile(t, 95):8.3f} ms  steps {len(t):4d}  {outcome}")
+        print(line(name, closed_loop(env_id, args.map, args.slip, lambda c=ctrl: c)))
 
 
 if __name__ == "__main__":
