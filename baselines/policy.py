@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
 
-__all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_dir"]
+__all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir"]
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
 REGENERATE = "python -m baselines.train --env {env_id} --algo {algo} --out baselines/policies/{task}"
@@ -59,6 +59,39 @@ def load_policy(directory: str | os.PathLike, task: str = "formation", algo: str
     return model, norm, metadata
 
 
+def policy_command(
+    model: Any, norm: dict, layout: str, observation: NDArray, n_robots: int, v_max: float, omega_max: float
+) -> NDArray[np.float64]:
+    """Deterministic joint command (v, omega per robot, flat) of a trained policy.
+
+    Parameters
+    ----------
+    model : stable_baselines3 model
+    norm : dict
+        Observation normalization (``mean``, ``var``, ``clip``, ``epsilon``) saved with the model.
+    layout : str
+        ``"robot"``: the shared policy sees each robot's block and commands that robot;
+        ``"team"``: it sees the flat team observation and commands everybody.
+    observation : ndarray, shape (N * F,)
+        The centralized observation of the Gymnasium env.
+    n_robots : int
+    v_max, omega_max : float
+        Actuation limits: the policy acts in [-1, 1].
+    """
+    from baselines.vec_env import scale_action
+
+    obs = np.asarray(observation, dtype=np.float64)
+    if layout == "robot":
+        obs = obs.reshape(n_robots, -1)
+    obs = (obs - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
+    obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
+    action, _ = model.predict(obs, deterministic=True)
+    high = np.array([v_max, omega_max])
+    if layout == "team":
+        high = np.tile(high, n_robots)
+    return scale_action(np.asarray(action, dtype=np.float64), -high, high).reshape(-1)
+
+
 class RLPolicyController(BaseController):
     """Plays a trained policy deterministically: normalized observation in, physical command out.
 
@@ -91,19 +124,16 @@ class RLPolicyController(BaseController):
         if scenario.task not in self._loaded:
             self._loaded[scenario.task] = load_policy(policy_dir(scenario.task, self.policy_root), scenario.task, self.algo)
         self._model, self._norm, self.metadata = self._loaded[scenario.task]
-        self._low = np.tile([-scenario.v_max, -scenario.omega_max], scenario.n_robots)
-        self._high = -self._low
+        self._layout = self.metadata.get("layout", "team")
+        self._scenario = scenario
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         import time
 
-        from baselines.vec_env import scale_action
-
         start = time.perf_counter()
-        norm = self._norm
-        obs = (np.asarray(observation, dtype=np.float64) - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
-        obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
-        action, _ = self._model.predict(obs, deterministic=True)
-        command = scale_action(np.asarray(action, dtype=np.float64), self._low, self._high)
+        sc = self._scenario
+        command = policy_command(
+            self._model, self._norm, self._layout, observation, sc.n_robots, sc.v_max, sc.omega_max
+        )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command

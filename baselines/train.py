@@ -23,25 +23,26 @@ import gymnasium as gym
 import numpy as np
 
 import koopman_envs
-from baselines.policy import PolicyFiles
-from baselines.vec_env import KoopNavSB3VecEnv, scale_action
+from baselines.policy import PolicyFiles, policy_command
+from baselines.vec_env import LAYOUTS, KoopNavSB3VecEnv
 
 TASK_OF = {"KoopNav-TargetReaching-v0": "target_reaching", "KoopNav-Formation-v0": "formation"}
 EVAL_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v0": ("map3", "map4")}
 
 
-def evaluate_policy_on_maps(model, norm, env_id: str, episodes_per_map: int = 2, slip: str = "nominal") -> float:
+def evaluate_policy_on_maps(
+    model, norm, env_id: str, layout: str, episodes_per_map: int = 2, slip: str = "nominal"
+) -> float:
     """Success rate of the deterministic policy on the task's paper maps."""
     successes = total = 0
     for map_name in EVAL_MAPS[env_id]:
         for seed in range(episodes_per_map):
             env = gym.make(env_id, map=map_name, slip=slip)
             obs, info = env.reset(seed=seed)
-            low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
+            sc = env.unwrapped.scenario
             while True:
-                x = np.clip((obs - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"]), -norm["clip"], norm["clip"])
-                action, _ = model.predict(x.astype(np.float32), deterministic=True)
-                obs, _, terminated, truncated, info = env.step(scale_action(action, low, high))
+                command = policy_command(model, norm, layout, obs, sc.n_robots, sc.v_max, sc.omega_max)
+                obs, _, terminated, truncated, info = env.step(command)
                 if terminated or truncated:
                     break
             successes += int(info["is_success"])
@@ -69,7 +70,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=list(TASK_OF))
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
     parser.add_argument("--timesteps", type=lambda s: int(s.replace("_", "")), default=2_000_000)
-    parser.add_argument("--n-envs", type=int, default=64, help="vector env size (PPO)")
+    parser.add_argument("--n-envs", type=int, default=64, help="simulated environments (PPO)")
+    parser.add_argument("--layout", default="robot", choices=LAYOUTS,
+                        help="robot: one policy shared by every robot (default); team: centralized")
+    parser.add_argument("--collision-penalty", type=float, default=10.0,
+                        help="robot layout: extra penalty for the robot that collides")
+    parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
+    parser.add_argument("--threads", type=int, default=2, help="torch threads")
+    parser.add_argument("--net", type=lambda s: [int(w) for w in s.split(",")], default=[128, 128],
+                        help="hidden layer widths of actor and critic, e.g. 128,128")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-freq", type=lambda s: int(s.replace("_", "")), default=200_000)
     parser.add_argument("--max-episode-steps", type=int, default=400)
@@ -88,20 +97,25 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(1)
+    # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
+    torch.set_num_threads(args.threads)
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
-    venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, map="random", slip="random",
+    venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, layout=args.layout,
+                            collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
+                            map="random", slip="random",
                             max_episode_steps=args.max_episode_steps)  # fmt: skip
     venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
     venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
-    policy_kwargs = {"net_arch": [256, 256]}
+    # a narrow initial action noise: the goal tolerance (0.1 m) asks for fine control, and wide
+    # noise mostly produces early collisions
+    policy_kwargs = {"net_arch": args.net, "log_std_init": args.log_std_init}
     if args.algo == "ppo":
         model = PPO("MlpPolicy", venv, n_steps=128, batch_size=2048, n_epochs=5, learning_rate=3e-4, gamma=0.99,
                     gae_lambda=0.95, clip_range=0.2, ent_coef=0.0, policy_kwargs=policy_kwargs, seed=args.seed,
                     device="cpu", verbose=0)  # fmt: skip
     else:
         model = SAC("MlpPolicy", venv, learning_rate=3e-4, buffer_size=500_000, batch_size=256, train_freq=1,
-                    gradient_steps=1, policy_kwargs=policy_kwargs, seed=args.seed, device="cpu", verbose=0)  # fmt: skip
+                    gradient_steps=1, policy_kwargs={"net_arch": args.net}, seed=args.seed, device="cpu", verbose=0)  # fmt: skip
     model.set_logger(configure(str(out), ["csv"]))
     history: list[dict] = []
 
@@ -115,26 +129,29 @@ def main(argv: list[str] | None = None) -> int:
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next_at:
                 self.next_at += args.eval_freq
-                rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env)
+                rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout)
                 history.append({"timesteps": self.num_timesteps, "success_rate_nominal": rate})
                 self.logger.record("eval/success_rate_nominal", rate)
                 save_policy(out / "checkpoints" / f"step_{self.num_timesteps}", model, venv,
-                            {"algo": args.algo, "timesteps": self.num_timesteps})  # fmt: skip
+                            {"algo": args.algo, "layout": args.layout, "timesteps": self.num_timesteps})  # fmt: skip
                 print(f"{self.num_timesteps:>10,d} steps  eval success (nominal, paper maps) {rate:.2f}", flush=True)
             return True
 
     start = time.perf_counter()
     model.learn(total_timesteps=args.timesteps, callback=Periodic())
     wall = time.perf_counter() - start
-    final_rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, episodes_per_map=5)
+    final_rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, episodes_per_map=5)
     metadata = {
         "algo": args.algo,
+        "layout": args.layout,
+        "collision_penalty": args.collision_penalty,
         "env_id": args.env,
         "task": TASK_OF[args.env],
         "command": "python -m baselines.train " + " ".join(argv if argv is not None else sys.argv[1:]),
         "seed": args.seed,
         "timesteps": args.timesteps,
         "n_envs": n_envs,
+        "net_arch": args.net,
         "wall_seconds": round(wall, 1),
         "eval_success_rate_nominal_paper_maps": final_rate,
         "eval_history": history,

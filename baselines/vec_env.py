@@ -4,6 +4,18 @@ SB3 expects same-step auto reset (the final observation in ``infos[i]["terminal_
 and, as its documentation recommends, actions normalized to [-1, 1]; this adapter provides both
 on top of :class:`koopman_envs.fronts.vector_env.KoopNavVectorEnv`, so training runs on the
 batched simulator rather than on a list of single envs.
+
+Two layouts:
+
+``"robot"`` (default; parameter sharing)
+    Every robot of every environment is one SB3 sub-env: K environments of N robots appear as
+    K * N sub-envs, each observing its own feature block (see
+    :mod:`koopman_envs.tasks.observation`) and commanding its own (v, omega), rewarded with its
+    own reward (``info["robot_rewards"]``). One small policy then drives every robot, as in
+    decentralized multi-robot RL; it sees N times the samples of a centralized policy and its
+    input does not grow with the team.
+``"team"``
+    One sub-env per environment: the flat team observation and joint action (centralized).
 """
 
 from __future__ import annotations
@@ -16,8 +28,11 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 import koopman_envs  # noqa: F401 - registers the ids
+from koopman_envs.params import PARAMS
 
-__all__ = ["KoopNavSB3VecEnv", "scale_action"]
+__all__ = ["LAYOUTS", "KoopNavSB3VecEnv", "scale_action"]
+
+LAYOUTS = ("robot", "team")
 
 
 def scale_action(normalized: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -34,43 +49,104 @@ class KoopNavSB3VecEnv(VecEnv):
     env_id : str
         A KoopNav id.
     num_envs : int
-        Batch size.
+        Number of simulated environments K (SB3 sees K * N sub-envs in the ``"robot"`` layout).
     seed : int, optional
-        Seed of the first reset (sub-env i gets ``seed + i``).
+        Seed of the first reset (environment i gets ``seed + i``).
+    layout : str
+        ``"robot"`` (one shared policy per robot) or ``"team"`` (centralized).
+    collision_penalty : float
+        ``"robot"`` layout only: extra penalty for a robot that collides, beyond the env's team
+        term (training-side shaping, recorded in the policy's metadata).
     **env_kwargs
         Environment keywords (``map="random"``, ``slip="random"``, ...).
     """
 
-    def __init__(self, env_id: str, num_envs: int, seed: int | None = None, **env_kwargs: Any) -> None:
+    def __init__(
+        self,
+        env_id: str,
+        num_envs: int,
+        seed: int | None = None,
+        layout: str = "robot",
+        collision_penalty: float = 0.0,
+        **env_kwargs: Any,
+    ) -> None:
+        if layout not in LAYOUTS:
+            raise ValueError(f"layout={layout!r} is not one of {list(LAYOUTS)}")
+        self.layout = layout
         self.venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
-        physical = self.venv.single_action_space
+        engine = self.venv.unwrapped.engine
+        self.n_envs, self.n_robots = num_envs, engine.config.n_robots
+        if not np.isfinite(collision_penalty) or collision_penalty < 0:
+            raise ValueError(f"collision_penalty={collision_penalty!r} must be finite and >= 0")
+        self.collision_penalty = float(collision_penalty)
+        self._team_collision = engine.config.task.reward.collision
+        self._clearance_index = engine.builder.clearance_index
+        if layout == "robot":
+            physical, observation = engine.robot_spaces()
+            width = num_envs * self.n_robots
+        else:
+            physical, observation = self.venv.single_action_space, self.venv.single_observation_space
+            width = num_envs
         self._low = physical.low.astype(np.float64)
         self._high = physical.high.astype(np.float64)
         action_space = spaces.Box(-1.0, 1.0, shape=physical.shape, dtype=np.float32)
-        super().__init__(num_envs, self.venv.single_observation_space, action_space)
+        super().__init__(width, observation, action_space)
         self._seed = seed
         self._actions: np.ndarray | None = None
+
+    def _split(self, team_obs: np.ndarray) -> np.ndarray:
+        """Team observations (K, N*F) in the adapter's layout."""
+        return team_obs.reshape(self.num_envs, -1) if self.layout == "robot" else team_obs
 
     def reset(self) -> np.ndarray:
         obs, _ = self.venv.reset(seed=self._seed)
         self._seed = None  # later resets continue the generators
-        return obs
+        return self._split(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = scale_action(np.asarray(actions, dtype=np.float64), self._low, self._high)
+        command = scale_action(np.asarray(actions, dtype=np.float64), self._low, self._high)
+        self._actions = command.reshape(self.n_envs, -1)
 
     def step_wait(self):
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
+        if self.layout == "robot":
+            rewards = info["robot_rewards"]
+            per_env = self.n_robots
+        else:
+            per_env = 1
+        # per sub-env: did its episode end by its own doing (terminal) or not (bootstrapped)
+        own_end = np.repeat(terminated, per_env).reshape(self.n_envs, per_env)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         if "final_obs" in info:
-            final_obs = info["final_obs"]
+            final_obs = self._split(info["final_obs"]).reshape(self.n_envs, per_env, -1)
             final_info = info["final_info"]
-            for i in np.flatnonzero(info["_final_obs"]):
-                infos[i]["terminal_observation"] = final_obs[i]
-                infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-                infos[i]["is_success"] = bool(final_info["is_success"][i])
-        return obs, rewards.astype(np.float32), dones, infos
+            ended = info["_final_obs"]
+            if self.layout == "robot":
+                crashed = ended & final_info["collision"]
+                if crashed.any():
+                    # credit assignment: only the robots that touched something are terminal and
+                    # penalized; a crash of a team-mate merely cuts the others' episodes short
+                    involved = self.involved(final_obs)
+                    own_end[crashed] = involved[crashed]
+                    rewards = rewards.copy()
+                    rewards[crashed] += np.where(involved[crashed], -self.collision_penalty, self._team_collision)
+            for i in np.flatnonzero(ended):
+                for r in range(per_env):
+                    entry = infos[i * per_env + r]
+                    entry["terminal_observation"] = final_obs[i, r]
+                    entry["TimeLimit.truncated"] = bool(not own_end[i, r])
+                    entry["is_success"] = bool(final_info["is_success"][i])
+        rewards = np.asarray(rewards).reshape(-1)
+        dones = np.repeat(dones, per_env)
+        return self._split(obs), rewards.astype(np.float32), dones, infos
+
+    def involved(self, features: np.ndarray) -> np.ndarray:
+        """Robots in collision, shape (K, N), from their (unnormalized) feature blocks (K, N, F)."""
+        touching = (features[..., self._clearance_index] < 0.0).any(axis=-1)
+        x_min, x_max, y_min, y_max = PARAMS.workspace
+        x, y = features[..., 0], features[..., 1]
+        return touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
 
     def seed(self, seed: int | None = None) -> Sequence[None]:
         self._seed = seed

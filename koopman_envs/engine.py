@@ -9,6 +9,7 @@ sub-environment i of a batch seeded with s + i reproduces a lone environment see
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 from typing import Any, Sequence
@@ -33,6 +34,19 @@ __all__ = ["EngineConfig", "NavigationEngine", "RANDOM_SLIP", "StepResult"]
 #: spaces the others linearly from robot 1's 0 (ours: covers and exceeds the "high" setting).
 RANDOM_SLIP = "random"
 RANDOM_SLIP_MAX = 0.25
+
+
+def _random_map_config(value: RandomMapConfig | dict | None) -> RandomMapConfig:
+    """``random_map`` keyword: a :class:`RandomMapConfig`, a dict of its fields, or None."""
+    if value is None or isinstance(value, RandomMapConfig):
+        return value or RandomMapConfig()
+    if isinstance(value, dict):
+        allowed = [f.name for f in dataclasses.fields(RandomMapConfig)]
+        unknown = sorted(set(value) - set(allowed))
+        if unknown:
+            raise ValueError(f"random_map has unknown fields {unknown}; allowed: {allowed}")
+        return RandomMapConfig(**value)
+    raise ValueError(f"random_map={value!r} must be a RandomMapConfig, a dict of its fields or None")
 
 
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
@@ -71,9 +85,10 @@ class EngineConfig:
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
         max_episode_steps: int | None = None,
-        random_map: RandomMapConfig | None = None,
+        random_map: RandomMapConfig | dict | None = None,
     ) -> EngineConfig:
         """Validate user arguments (see the env docstrings) into a config."""
+        random_map = _random_map_config(random_map)
         if task not in TASKS:
             raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
         spec = TASKS[task]
@@ -98,7 +113,7 @@ class EngineConfig:
         return cls(
             task=spec,
             map_spec=map_spec,
-            random_map=random_map or RandomMapConfig(),
+            random_map=random_map,
             lambdas=lambdas,
             slip_label=label,
             n_robots=int(n_robots),

@@ -27,6 +27,8 @@ ENV = "KoopNav-TargetReaching-v0"
         ({"n_robots": 4}, r"n_robots=4 is larger than map 'map1' supports \(1..3\)"),
         ({"goal_tolerance": -0.1}, r"goal_tolerance=-0.1 must be a finite number > 0"),
         ({"render_mode": "ascii"}, r"render_mode='ascii' is not one of \['human', 'rgb_array'\]"),
+        ({"map": "random", "random_map": {"obstacles": 2}}, r"random_map has unknown fields \['obstacles'\]; allowed"),
+        ({"map": "random", "random_map": 3}, r"random_map=3 must be a RandomMapConfig, a dict"),
     ],
 )
 def test_bad_constructor_arguments(kwargs, message) -> None:

@@ -11,6 +11,16 @@ pytest.importorskip("stable_baselines3")
 import controllers  # noqa: E402
 from baselines.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
 from baselines.train import main as train_main  # noqa: E402
+from baselines.vec_env import KoopNavSB3VecEnv  # noqa: E402
+from koopman_envs.sim.maps import MapSpec  # noqa: E402
+
+# robot 0 starts 5 cm from an obstacle's surface: driving forward hits it on the first step
+CRASH = MapSpec(
+    "crash",
+    obstacles=[[0.75, 0.0, 0.5]],
+    starts=[[0.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, -2.0, 0.0]],
+    targets=[[3.0, 0.0, 0.0], [3.0, 2.0, 0.0], [3.0, -2.0, 0.0]],
+)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +49,8 @@ def test_short_training_saves_a_loadable_policy(trained_root) -> None:
     model, norm, metadata = load_policy(trained_root / "formation")
     assert metadata["timesteps"] == 4096 and metadata["algo"] == "ppo"
     assert {"stable_baselines3", "torch"} <= set(metadata["versions"])
-    assert norm["mean"].shape == (87,)
+    assert metadata["layout"] == "robot"
+    assert norm["mean"].shape == (29,)  # one robot's block: the policy is shared by the robots
     info, actions = play(RLPolicyController(policy_root=trained_root))
     assert len(actions) > 0 and all(a.shape == (6,) for a in actions)
     assert all(np.all(np.abs(a[0::2]) <= 0.6 + 1e-9) for a in actions)
@@ -79,3 +90,43 @@ def test_shipped_policies_play_an_episode(env_id: str) -> None:
     ctrl.reset(env.unwrapped.scenario, seed=0)
     obs, *_ = env.step(ctrl.act(obs, info))
     assert env.observation_space.contains(obs)
+
+
+def test_robot_layout_assigns_the_crash_to_the_robot_that_crashed() -> None:
+    venv = KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 2, seed=0, layout="robot", collision_penalty=5.0, map=CRASH)
+    assert venv.num_envs == 6 and venv.observation_space.shape == (27,)
+    obs = venv.reset()
+    assert obs.shape == (6, 27)
+    forward = np.tile([1.0, 0.0], (6, 1)).astype(np.float32)  # full speed ahead, no turn
+    obs, rewards, dones, infos = venv.step(forward)
+    assert dones.all()
+    truncated = [info["TimeLimit.truncated"] for info in infos]
+    assert truncated == [False, True, True] * 2  # robot 0 terminal, its team-mates bootstrapped
+    progress = 10.0 * 0.06  # the env's progress term for 6 cm straight ahead
+    effort = 0.01 * 1.0
+    np.testing.assert_allclose(rewards[1:3], progress - effort, atol=1e-4)  # no team penalty
+    np.testing.assert_allclose(rewards[0], progress - effort - 10.0 - 5.0, atol=1e-4)
+    np.testing.assert_array_equal(infos[0]["terminal_observation"], infos[3]["terminal_observation"])
+    assert obs.shape == (6, 27)  # already the next episode's first observation
+
+
+def test_vector_env_robot_rewards_match_the_pettingzoo_rewards() -> None:
+    from koopman_envs import formation_v0
+
+    vec = gym.make_vec("KoopNav-Formation-v0", num_envs=1, map="random", slip="random")
+    par = formation_v0.parallel_env(map="random", slip="random")
+    vec.reset(seed=4)
+    par.reset(seed=4)
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        action = rng.uniform(-0.6, 0.6, (3, 2))
+        _, reward, *_, info = vec.step(action[None])
+        _, rewards, *_ = par.step({f"robot_{i}": action[i] for i in range(3)})
+        np.testing.assert_array_equal(info["robot_rewards"][0], [rewards[f"robot_{i}"] for i in range(3)])
+
+
+def test_bad_layout_and_penalty_are_rejected() -> None:
+    with pytest.raises(ValueError, match="layout='agents' is not one of"):
+        KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, layout="agents")
+    with pytest.raises(ValueError, match="collision_penalty=-1.0"):
+        KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, collision_penalty=-1.0)

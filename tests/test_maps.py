@@ -8,6 +8,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+import koopman_envs  # noqa: F401 - registers the ids
+from koopman_envs import target_reaching_v0
 from koopman_envs.sim.maps import BUILTIN_MAPS, MapSpec, RandomMapConfig, generate_random_map, load_map
 
 
@@ -73,6 +75,26 @@ def test_random_map_is_reproducible_and_new_per_reset() -> None:
     np.testing.assert_array_equal(first.obstacles, again.obstacles)
     np.testing.assert_array_equal(first.starts, again.starts)
     assert not np.array_equal(first.obstacles, second.obstacles)
+
+
+@pytest.mark.parametrize("front", ["gym", "vector", "parallel"])
+def test_random_map_settings_reach_every_front(front: str) -> None:
+    settings = {"n_obstacles": 2, "travel": (1.0, 1.5)}
+    if front == "gym":
+        env = gym.make("KoopNav-TargetReaching-v0", map="random", random_map=settings)
+        env.reset(seed=0)
+        scenario = env.unwrapped.scenario
+    elif front == "vector":
+        env = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, map="random", random_map=settings)
+        env.reset(seed=0)
+        scenario = env.unwrapped.scenario(1)
+    else:
+        env = target_reaching_v0.parallel_env(map="random", random_map=settings)
+        env.reset(seed=0)
+        scenario = env.unwrapped.scenario
+    assert scenario.obstacles.shape == (2, 3)
+    travel = np.hypot(*(scenario.targets[0, :2] - scenario.starts[0, :2]))
+    assert 1.0 <= travel <= 1.5 + 1e-9
 
 
 def test_map_file_round_trip(tmp_path) -> None:

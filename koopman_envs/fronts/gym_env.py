@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from koopman_envs.engine import EngineConfig, NavigationEngine
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 from koopman_envs.tasks.base import RewardWeights
 
 __all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
@@ -33,6 +33,7 @@ class KoopNavEnv(gym.Env):
         render_mode: str | None = None,
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
+        random_map: RandomMapConfig | dict | None = None,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -46,6 +47,7 @@ class KoopNavEnv(gym.Env):
             goal_tolerance=goal_tolerance,
             robot_radius=robot_radius,
             n_obstacle_obs=n_obstacle_obs,
+            random_map=random_map,
         )
         self.engine = NavigationEngine(self.config, num_envs=1)
         self.action_space, self.observation_space = self.engine.team_spaces()
@@ -189,6 +191,7 @@ _COMMON_DOC = """
     | render_mode      | str or None           | None        | "rgb_array" or "human" (matplotlib)     |
     | robot_radius     | float                 | 0.2         | disc radius of every robot [m]           |
     | n_obstacle_obs   | int                   | 4           | nearest obstacles in each robot's block  |
+    | random_map       | RandomMapConfig, dict | None        | generator settings for map="random"      |
 
     ## Vectorized environment
     ``gym.make_vec(id, num_envs=K)`` returns :class:`koopman_envs.fronts.vector_env.KoopNavVectorEnv`,

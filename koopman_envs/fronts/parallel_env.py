@@ -17,7 +17,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from koopman_envs.engine import EngineConfig, NavigationEngine
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 
 __all__ = ["KoopNavParallelEnv", "make_constructors"]
 
@@ -36,7 +36,7 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
     ----------
     task : str
         ``"target_reaching"`` or ``"formation"``.
-    map, slip, n_robots, goal_tolerance, robot_radius, n_obstacle_obs, render_mode
+    map, slip, n_robots, goal_tolerance, robot_radius, n_obstacle_obs, random_map, render_mode
         As for the Gymnasium env.
     max_episode_steps : int
         Time limit in control periods.
@@ -60,10 +60,11 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
         render_mode: str | None = None,
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
+        random_map: RandomMapConfig | dict | None = None,
     ) -> None:
         EzPickle.__init__(
             self, task, map, slip, n_robots, goal_tolerance, max_episode_steps, render_mode,
-            robot_radius, n_obstacle_obs,
+            robot_radius, n_obstacle_obs, random_map,
         )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -77,6 +78,7 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
             goal_tolerance=goal_tolerance,
             robot_radius=robot_radius,
             n_obstacle_obs=n_obstacle_obs,
+            random_map=random_map,
             max_episode_steps=max_episode_steps,
         )
         self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from koopman_envs.engine import EngineConfig, NavigationEngine
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 
 __all__ = ["KoopNavVectorEnv"]
 
@@ -25,7 +25,9 @@ class KoopNavVectorEnv(VectorEnv):
 
     Observations, rewards and flags are batched along the first axis. ``info`` holds the same
     keys as the single env, batched (``poses`` (K, N, 3), ``targets`` (K, N, 3), ``distances``
-    (K, N), ``collision`` (K,), ``is_success`` (K,)), each with its ``_key`` mask.
+    (K, N), ``collision`` (K,), ``is_success`` (K,)), each with its ``_key`` mask. After a step,
+    ``info["robot_rewards"]`` (K, N) also holds every robot's own reward as the PettingZoo front
+    gives it: its own progress/effort/formation terms plus the team terms.
 
     Parameters
     ----------
@@ -55,6 +57,7 @@ class KoopNavVectorEnv(VectorEnv):
         max_episode_steps: int | None = PARAMS.max_episode_steps,
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
+        random_map: RandomMapConfig | dict | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
     ) -> None:
@@ -80,6 +83,7 @@ class KoopNavVectorEnv(VectorEnv):
             goal_tolerance=goal_tolerance,
             robot_radius=robot_radius,
             n_obstacle_obs=n_obstacle_obs,
+            random_map=random_map,
             max_episode_steps=max_episode_steps,
         )
         self.num_envs = int(num_envs)
@@ -143,12 +147,15 @@ class KoopNavVectorEnv(VectorEnv):
             result = engine.step(commands)
         reward = result.robot_reward.sum(-1) + result.team_reward
         self._autoreset = result.terminated | result.truncated
+        info = self._info()
+        info["robot_rewards"] = result.robot_reward + result.team_reward[:, None]
+        info["_robot_rewards"] = self._all
         return (
             self._observations(result.features),
             reward,
             result.terminated,
             result.truncated,
-            self._info(),
+            info,
         )
 
     def _step_same(self, commands: NDArray) -> tuple:
@@ -170,6 +177,8 @@ class KoopNavVectorEnv(VectorEnv):
             info["_final_obs"] = done.copy()
             info["final_info"] = final_info
             info["_final_info"] = done.copy()
+        info["robot_rewards"] = result.robot_reward + result.team_reward[:, None]
+        info["_robot_rewards"] = self._all
         return obs, reward, result.terminated, result.truncated, info
 
     def _observations(self, features: NDArray) -> NDArray[np.float32]:

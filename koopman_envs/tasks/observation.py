@@ -96,6 +96,8 @@ class FeatureBuilder:
         self._obstacles_at = 9 + 3 * (n - 1)
         self._formation_at = self._obstacles_at + 3 * n_obstacle_obs
         self._padding = np.tile([0.0, 0.0, FAR], max(n_obstacle_obs - self.listed, 0))
+        #: positions in a block of the surface clearances (other robots, then listed obstacles)
+        self.clearance_index = np.arange(self._others_at + 2, self._formation_at, 3)
 
     def build(
         self,
