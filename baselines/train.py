@@ -75,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="robot: one policy shared by every robot (default); team: centralized")
     parser.add_argument("--collision-penalty", type=float, default=10.0,
                         help="robot layout: extra penalty for the robot that collides")
+    parser.add_argument("--precision-shaping", type=float, default=5.0,
+                        help="robot layout: weight of the log-distance potential term")
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
     parser.add_argument("--net", type=lambda s: [int(w) for w in s.split(",")], default=[128, 128],
@@ -102,6 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
     venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, layout=args.layout,
                             collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
+                            precision_shaping=args.precision_shaping if args.layout == "robot" else 0.0,
                             map="random", slip="random",
                             max_episode_steps=args.max_episode_steps)  # fmt: skip
     venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
@@ -145,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         "algo": args.algo,
         "layout": args.layout,
         "collision_penalty": args.collision_penalty,
+        "precision_shaping": args.precision_shaping,
         "env_id": args.env,
         "task": TASK_OF[args.env],
         "command": "python -m baselines.train " + " ".join(argv if argv is not None else sys.argv[1:]),

@@ -125,8 +125,24 @@ def test_vector_env_robot_rewards_match_the_pettingzoo_rewards() -> None:
         np.testing.assert_array_equal(info["robot_rewards"][0], [rewards[f"robot_{i}"] for i in range(3)])
 
 
+def test_precision_shaping_is_the_log_distance_potential_difference() -> None:
+    free = MapSpec("free", obstacles=[[8.0, 8.0, 0.5]], starts=CRASH.starts, targets=[[0.5, 0.0, 0.0], [3.0, 2.0, 0.0], [3.0, -2.0, 0.0]])
+    forward = np.tile([1.0, 0.0], (3, 1)).astype(np.float32)
+    rewards = {}
+    for weight in (0.0, 5.0):
+        venv = KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 1, seed=0, precision_shaping=weight, map=free)
+        venv.reset()
+        rewards[weight] = np.array([venv.step(forward)[1] for _ in range(12)])  # robot 0 overshoots
+    d0 = np.array([0.5, 3.0, 3.0])
+    distances = np.abs(d0[None] - 0.06 * np.arange(13)[:, None])
+    potential = 5.0 * np.log(distances + 0.05)
+    np.testing.assert_allclose(rewards[5.0] - rewards[0.0], potential[:-1] - potential[1:], atol=1e-4)
+
+
 def test_bad_layout_and_penalty_are_rejected() -> None:
     with pytest.raises(ValueError, match="layout='agents' is not one of"):
         KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, layout="agents")
     with pytest.raises(ValueError, match="collision_penalty=-1.0"):
         KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, collision_penalty=-1.0)
+    with pytest.raises(ValueError, match="precision_shaping=nan"):
+        KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, precision_shaping=float("nan"))
