@@ -70,7 +70,8 @@ def policy_command(
     norm : dict
         Observation normalization (``mean``, ``var``, ``clip``, ``epsilon``) saved with the model.
     layout : str
-        ``"robot"``: the shared policy sees each robot's block and commands that robot;
+        ``"robot"``: the shared policy sees each robot's block (plus
+        :func:`baselines.vec_env.robot_features`) and commands that robot;
         ``"team"``: it sees the flat team observation and commands everybody.
     observation : ndarray, shape (N * F,)
         The centralized observation of the Gymnasium env.
@@ -78,11 +79,11 @@ def policy_command(
     v_max, omega_max : float
         Actuation limits: the policy acts in [-1, 1].
     """
-    from baselines.vec_env import scale_action
+    from baselines.vec_env import robot_features, scale_action
 
     obs = np.asarray(observation, dtype=np.float64)
     if layout == "robot":
-        obs = obs.reshape(n_robots, -1)
+        obs = robot_features(obs.reshape(n_robots, -1)).astype(np.float64)
     obs = (obs - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
     obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
     action, _ = model.predict(obs, deterministic=True)

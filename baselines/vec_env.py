@@ -30,10 +30,35 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs.params import PARAMS
 
-__all__ = ["LAYOUTS", "KoopNavSB3VecEnv", "scale_action"]
+__all__ = ["LAYOUTS", "KoopNavSB3VecEnv", "robot_features", "scale_action"]
 
 LAYOUTS = ("robot", "team")
 _PRECISION_EPS = 0.05  # [m]: half the default goal tolerance
+
+
+def robot_features(blocks: np.ndarray) -> np.ndarray:
+    """A robot's feature block plus three entries that resolve the last decimetres.
+
+    Appends the unit bearing of the target in the body frame (body x, y divided by the
+    distance) and ``log(distance + 5 cm)``. Observation normalization scales the raw body-frame
+    offsets by their spread over whole episodes (metres), which leaves a 10 cm offset at a few
+    hundredths of a unit; the bearing and the log distance keep their resolution near the goal,
+    where a unicycle must turn before it can close the gap.
+
+    Parameters
+    ----------
+    blocks : ndarray, shape (..., F)
+        Feature blocks (:mod:`koopman_envs.tasks.observation`: entries 4, 5 are the target in the
+        body frame, entry 6 its distance).
+
+    Returns
+    -------
+    ndarray, shape (..., F + 3), float32
+    """
+    blocks = np.asarray(blocks, dtype=np.float64)
+    distance = blocks[..., 6:7]
+    bearing = blocks[..., 4:6] / np.maximum(distance, 1e-6)
+    return np.concatenate([blocks, bearing, np.log(distance + _PRECISION_EPS)], axis=-1).astype(np.float32)
 
 
 def scale_action(normalized: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -95,7 +120,10 @@ class KoopNavSB3VecEnv(VecEnv):
         self._team_collision = engine.config.task.reward.collision
         self._clearance_index = engine.builder.clearance_index
         if layout == "robot":
-            physical, observation = engine.robot_spaces()
+            physical, block = engine.robot_spaces()
+            low = np.concatenate([block.low, [-1.0, -1.0, np.log(_PRECISION_EPS)]])
+            high = np.concatenate([block.high, [1.0, 1.0, np.log(float(block.high[6]) + _PRECISION_EPS)]])
+            observation = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
             width = num_envs * self.n_robots
         else:
             physical, observation = self.venv.single_action_space, self.venv.single_observation_space
@@ -109,7 +137,9 @@ class KoopNavSB3VecEnv(VecEnv):
 
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
-        return team_obs.reshape(self.num_envs, -1) if self.layout == "robot" else team_obs
+        if self.layout == "robot":
+            return robot_features(team_obs.reshape(self.n_envs * self.n_robots, -1))
+        return team_obs
 
     def reset(self) -> np.ndarray:
         obs, info = self.venv.reset(seed=self._seed)
@@ -145,6 +175,7 @@ class KoopNavSB3VecEnv(VecEnv):
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         if "final_obs" in info:
             final_obs = self._split(info["final_obs"]).reshape(self.n_envs, per_env, -1)
+            raw_final = info["final_obs"].reshape(self.n_envs, per_env, -1)
             final_info = info["final_info"]
             ended = info["_final_obs"]
             if self.layout == "robot":
@@ -152,7 +183,7 @@ class KoopNavSB3VecEnv(VecEnv):
                 if crashed.any():
                     # credit assignment: only the robots that touched something are terminal and
                     # penalized; a crash of a team-mate merely cuts the others' episodes short
-                    involved = self.involved(final_obs)
+                    involved = self.involved(raw_final.reshape(self.n_envs, self.n_robots, -1))
                     own_end[crashed] = involved[crashed]
                     rewards = rewards.copy()
                     rewards[crashed] += np.where(involved[crashed], -self.collision_penalty, self._team_collision)

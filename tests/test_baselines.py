@@ -50,7 +50,7 @@ def test_short_training_saves_a_loadable_policy(trained_root) -> None:
     assert metadata["timesteps"] == 4096 and metadata["algo"] == "ppo"
     assert {"stable_baselines3", "torch"} <= set(metadata["versions"])
     assert metadata["layout"] == "robot"
-    assert norm["mean"].shape == (29,)  # one robot's block: the policy is shared by the robots
+    assert norm["mean"].shape == (32,)  # one robot's block + 3: the policy is shared by the robots
     info, actions = play(RLPolicyController(policy_root=trained_root))
     assert len(actions) > 0 and all(a.shape == (6,) for a in actions)
     assert all(np.all(np.abs(a[0::2]) <= 0.6 + 1e-9) for a in actions)
@@ -94,9 +94,9 @@ def test_shipped_policies_play_an_episode(env_id: str) -> None:
 
 def test_robot_layout_assigns_the_crash_to_the_robot_that_crashed() -> None:
     venv = KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 2, seed=0, layout="robot", collision_penalty=5.0, map=CRASH)
-    assert venv.num_envs == 6 and venv.observation_space.shape == (27,)
+    assert venv.num_envs == 6 and venv.observation_space.shape == (30,)
     obs = venv.reset()
-    assert obs.shape == (6, 27)
+    assert obs.shape == (6, 30)
     forward = np.tile([1.0, 0.0], (6, 1)).astype(np.float32)  # full speed ahead, no turn
     obs, rewards, dones, infos = venv.step(forward)
     assert dones.all()
@@ -107,7 +107,7 @@ def test_robot_layout_assigns_the_crash_to_the_robot_that_crashed() -> None:
     np.testing.assert_allclose(rewards[1:3], progress - effort, atol=1e-4)  # no team penalty
     np.testing.assert_allclose(rewards[0], progress - effort - 10.0 - 5.0, atol=1e-4)
     np.testing.assert_array_equal(infos[0]["terminal_observation"], infos[3]["terminal_observation"])
-    assert obs.shape == (6, 27)  # already the next episode's first observation
+    assert obs.shape == (6, 30)  # already the next episode's first observation
 
 
 def test_vector_env_robot_rewards_match_the_pettingzoo_rewards() -> None:
