@@ -27,6 +27,12 @@ from baselines.policy import PolicyFiles, policy_command
 from baselines.vec_env import LAYOUTS, KoopNavSB3VecEnv
 
 TASK_OF = {"KoopNav-TargetReaching-v0": "target_reaching", "KoopNav-Formation-v0": "formation"}
+# training layouts (map="random"): target reaching also sees crossing paths and Map 2's obstacle
+# count, so that the policy meets both evaluation maps' situations in training
+TRAIN_MAPS = {
+    "KoopNav-TargetReaching-v0": {"n_obstacles": 5, "swap_targets": 0.5},
+    "KoopNav-Formation-v0": {},
+}
 EVAL_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v0": ("map3", "map4")}
 
 
@@ -81,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
     parser.add_argument("--net", type=lambda s: [int(w) for w in s.split(",")], default=[128, 128],
                         help="hidden layer widths of actor and critic, e.g. 128,128")
+    parser.add_argument("--random-map", type=json.loads, default=None,
+                        help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-freq", type=lambda s: int(s.replace("_", "")), default=200_000)
     parser.add_argument("--max-episode-steps", type=int, default=400)
@@ -99,13 +107,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    random_map = TRAIN_MAPS[args.env] if args.random_map is None else args.random_map
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
     venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, layout=args.layout,
                             collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
                             precision_shaping=args.precision_shaping if args.layout == "robot" else 0.0,
-                            map="random", slip="random",
+                            map="random", slip="random", random_map=random_map,
                             max_episode_steps=args.max_episode_steps)  # fmt: skip
     venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
     venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
@@ -149,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         "layout": args.layout,
         "collision_penalty": args.collision_penalty,
         "precision_shaping": args.precision_shaping,
+        "random_map": random_map,
         "env_id": args.env,
         "task": TASK_OF[args.env],
         "command": "python -m baselines.train " + " ".join(argv if argv is not None else sys.argv[1:]),

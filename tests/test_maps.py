@@ -97,6 +97,24 @@ def test_random_map_settings_reach_every_front(front: str) -> None:
     assert 1.0 <= travel <= 1.5 + 1e-9
 
 
+def test_swapped_targets_cross_and_stay_valid() -> None:
+    config = RandomMapConfig(swap_targets=1.0, n_obstacles=5)
+    plain = [generate_random_map(np.random.default_rng(seed), 3) for seed in range(40)]
+    swapped = [generate_random_map(np.random.default_rng(seed), 3, config) for seed in range(40)]
+    for spec in swapped:
+        spec.validate(3)
+        assert spec.obstacles.shape == (5, 3)
+    # targets keep the formation's shape as a set but some robots get another robot's target
+    reordered = 0
+    for spec in swapped:
+        travel = spec.targets[:, :2] - spec.starts[:, :2]
+        reordered += not np.allclose(travel, travel[0])
+    assert reordered >= 25  # 5 of 6 permutations of 3 robots are not the identity
+    assert all(np.allclose(np.diff(p.targets[:, :2] - p.starts[:, :2], axis=0), 0) for p in plain)
+    with pytest.raises(ValueError, match="swap_targets=1.5 must be a probability"):
+        RandomMapConfig(swap_targets=1.5)
+
+
 def test_map_file_round_trip(tmp_path) -> None:
     path = tmp_path / "mine.json"
     load_map("map4").save(path)

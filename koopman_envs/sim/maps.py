@@ -263,6 +263,13 @@ class RandomMapConfig:
     gap: float = 0.6  # free space between two obstacles, > one robot diameter [m]
     border: float = 1.0  # free space between any start/target and the workspace edge [m]
     max_attempts: int = 10_000
+    #: probability that the targets go to the robots in a random order, so that paths cross as
+    #: in Map 2 (target reaching; for formation it reshapes the formation itself)
+    swap_targets: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.swap_targets <= 1.0:
+            raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
 
 
 def _wedge_offsets(n_robots: int, spacing: float) -> NDArray[np.float64]:
@@ -318,6 +325,8 @@ def generate_random_map(
         lead = rng.uniform([x0 + margin, y0 + margin], [x1 - margin, y1 - margin])
         start_xy = lead + offsets
         target_xy = start_xy + travel
+        if config.swap_targets and rng.uniform() < config.swap_targets:
+            target_xy = target_xy[rng.permutation(n_robots)]
         both = np.vstack([start_xy, target_xy])
         if (
             both[:, 0].min() < x0 + margin
