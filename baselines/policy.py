@@ -60,7 +60,14 @@ def load_policy(directory: str | os.PathLike, task: str = "formation", algo: str
 
 
 def policy_command(
-    model: Any, norm: dict, layout: str, observation: NDArray, n_robots: int, v_max: float, omega_max: float
+    model: Any,
+    norm: dict,
+    layout: str,
+    observation: NDArray,
+    n_robots: int,
+    v_max: float,
+    omega_max: float,
+    features: str = "bearing",
 ) -> NDArray[np.float64]:
     """Deterministic joint command (v, omega per robot, flat) of a trained policy.
 
@@ -78,12 +85,14 @@ def policy_command(
     n_robots : int
     v_max, omega_max : float
         Actuation limits: the policy acts in [-1, 1].
+    features : str
+        ``"robot"`` layout: the feature set the policy was trained with (its metadata).
     """
     from baselines.vec_env import robot_features, scale_action
 
     obs = np.asarray(observation, dtype=np.float64)
     if layout == "robot":
-        obs = robot_features(obs.reshape(n_robots, -1)).astype(np.float64)
+        obs = robot_features(obs.reshape(n_robots, -1), features).astype(np.float64)
     obs = (obs - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
     obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
     action, _ = model.predict(obs, deterministic=True)
@@ -126,6 +135,7 @@ class RLPolicyController(BaseController):
             self._loaded[scenario.task] = load_policy(policy_dir(scenario.task, self.policy_root), scenario.task, self.algo)
         self._model, self._norm, self.metadata = self._loaded[scenario.task]
         self._layout = self.metadata.get("layout", "team")
+        self._features = self.metadata.get("features", "bearing")
         self._scenario = scenario
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -134,7 +144,8 @@ class RLPolicyController(BaseController):
         start = time.perf_counter()
         sc = self._scenario
         command = policy_command(
-            self._model, self._norm, self._layout, observation, sc.n_robots, sc.v_max, sc.omega_max
+            self._model, self._norm, self._layout, observation, sc.n_robots, sc.v_max, sc.omega_max,
+            self._features,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command

@@ -24,7 +24,7 @@ import numpy as np
 
 import koopman_envs
 from baselines.policy import PolicyFiles, policy_command
-from baselines.vec_env import LAYOUTS, KoopNavSB3VecEnv
+from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv
 
 TASK_OF = {"KoopNav-TargetReaching-v0": "target_reaching", "KoopNav-Formation-v0": "formation"}
 # training layouts (map="random"): target reaching also sees crossing paths and Map 2's obstacle
@@ -37,7 +37,7 @@ EVAL_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v
 
 
 def evaluate_policy_on_maps(
-    model, norm, env_id: str, layout: str, episodes_per_map: int = 2, slip: str = "nominal"
+    model, norm, env_id: str, layout: str, features: str, episodes_per_map: int = 2, slip: str = "nominal"
 ) -> float:
     """Success rate of the deterministic policy on the task's paper maps."""
     successes = total = 0
@@ -47,7 +47,7 @@ def evaluate_policy_on_maps(
             obs, info = env.reset(seed=seed)
             sc = env.unwrapped.scenario
             while True:
-                command = policy_command(model, norm, layout, obs, sc.n_robots, sc.v_max, sc.omega_max)
+                command = policy_command(model, norm, layout, obs, sc.n_robots, sc.v_max, sc.omega_max, features)
                 obs, _, terminated, truncated, info = env.step(command)
                 if terminated or truncated:
                     break
@@ -81,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="robot: one policy shared by every robot (default); team: centralized")
     parser.add_argument("--collision-penalty", type=float, default=10.0,
                         help="robot layout: extra penalty for the robot that collides")
+    parser.add_argument("--features", default="bearing+headings", choices=FEATURE_SETS,
+                        help="robot layout: what the shared policy sees beside its block")
     parser.add_argument("--precision-shaping", type=float, default=5.0,
                         help="robot layout: weight of the log-distance potential term")
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
@@ -114,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, layout=args.layout,
                             collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
                             precision_shaping=args.precision_shaping if args.layout == "robot" else 0.0,
+                            features=args.features,
                             map="random", slip="random", random_map=random_map,
                             max_episode_steps=args.max_episode_steps)  # fmt: skip
     venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
@@ -141,23 +144,26 @@ def main(argv: list[str] | None = None) -> int:
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next_at:
                 self.next_at += args.eval_freq
-                rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout)
+                rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, args.features)
                 history.append({"timesteps": self.num_timesteps, "success_rate_nominal": rate})
                 self.logger.record("eval/success_rate_nominal", rate)
                 save_policy(out / "checkpoints" / f"step_{self.num_timesteps}", model, venv,
-                            {"algo": args.algo, "layout": args.layout, "timesteps": self.num_timesteps})  # fmt: skip
+                            {"algo": args.algo, "layout": args.layout, "features": args.features,
+                             "timesteps": self.num_timesteps})  # fmt: skip
                 print(f"{self.num_timesteps:>10,d} steps  eval success (nominal, paper maps) {rate:.2f}", flush=True)
             return True
 
     start = time.perf_counter()
     model.learn(total_timesteps=args.timesteps, callback=Periodic())
     wall = time.perf_counter() - start
-    final_rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, episodes_per_map=5)
+    final_rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, args.features,
+                                         episodes_per_map=5)
     metadata = {
         "algo": args.algo,
         "layout": args.layout,
         "collision_penalty": args.collision_penalty,
         "precision_shaping": args.precision_shaping,
+        "features": args.features,
         "random_map": random_map,
         "env_id": args.env,
         "task": TASK_OF[args.env],

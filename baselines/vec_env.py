@@ -30,35 +30,59 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs.params import PARAMS
 
-__all__ = ["LAYOUTS", "KoopNavSB3VecEnv", "robot_features", "scale_action"]
+__all__ = ["FEATURE_SETS", "LAYOUTS", "KoopNavSB3VecEnv", "feature_count", "robot_features", "scale_action"]
 
 LAYOUTS = ("robot", "team")
+#: what a shared (``"robot"`` layout) policy sees beside its block; see :func:`robot_features`
+FEATURE_SETS = ("bearing", "bearing+headings")
 _PRECISION_EPS = 0.05  # [m]: half the default goal tolerance
 
 
-def robot_features(blocks: np.ndarray) -> np.ndarray:
-    """A robot's feature block plus three entries that resolve the last decimetres.
+def robot_features(team_blocks: np.ndarray, features: str = "bearing") -> np.ndarray:
+    """Every robot's feature block plus entries that a shared policy learns from more easily.
 
-    Appends the unit bearing of the target in the body frame (body x, y divided by the
-    distance) and ``log(distance + 5 cm)``. Observation normalization scales the raw body-frame
-    offsets by their spread over whole episodes (metres), which leaves a 10 cm offset at a few
-    hundredths of a unit; the bearing and the log distance keep their resolution near the goal,
-    where a unicycle must turn before it can close the gap.
+    ``"bearing"`` appends the unit bearing of the target in the body frame (body x, y divided by
+    the distance) and ``log(distance + 5 cm)``. Observation normalization scales the raw
+    body-frame offsets by their spread over whole episodes (metres), which leaves a 10 cm offset
+    at a few hundredths of a unit; the bearing and the log distance keep their resolution near
+    the goal, where a unicycle must turn before it can close the gap.
+    ``"bearing+headings"`` also appends, for every other robot (in the block's order), the cos
+    and sin of its heading relative to this robot's: where a team-mate is going, which a robot's
+    own block does not say and which crossing paths (Map 2) need.
 
     Parameters
     ----------
-    blocks : ndarray, shape (..., F)
-        Feature blocks (:mod:`koopman_envs.tasks.observation`: entries 4, 5 are the target in the
-        body frame, entry 6 its distance).
+    team_blocks : ndarray, shape (..., N, F)
+        The team's feature blocks (:mod:`koopman_envs.tasks.observation`: entries 2, 3 are
+        cos/sin of the heading, 4, 5 the target in the body frame, 6 its distance).
+    features : str
+        One of :data:`FEATURE_SETS`.
 
     Returns
     -------
-    ndarray, shape (..., F + 3), float32
+    ndarray, shape (..., N, F + 3) or (..., N, F + 3 + 2 (N - 1)), float32
     """
-    blocks = np.asarray(blocks, dtype=np.float64)
+    if features not in FEATURE_SETS:
+        raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
+    blocks = np.asarray(team_blocks, dtype=np.float64)
     distance = blocks[..., 6:7]
     bearing = blocks[..., 4:6] / np.maximum(distance, 1e-6)
-    return np.concatenate([blocks, bearing, np.log(distance + _PRECISION_EPS)], axis=-1).astype(np.float32)
+    parts = [blocks, bearing, np.log(distance + _PRECISION_EPS)]
+    n = blocks.shape[-2]
+    if features == "bearing+headings" and n > 1:
+        c, s = blocks[..., 2], blocks[..., 3]  # (..., N)
+        others = np.array([[j for j in range(n) if j != i] for i in range(n)])
+        c_o, s_o = c[..., others], s[..., others]  # (..., N, N - 1)
+        ci, si = c[..., None], s[..., None]
+        relative = np.stack([c_o * ci + s_o * si, s_o * ci - c_o * si], axis=-1)
+        parts.append(relative.reshape(relative.shape[:-2] + (-1,)))
+    return np.concatenate(parts, axis=-1).astype(np.float32)
+
+
+def feature_count(block_size: int, n_robots: int, features: str) -> int:
+    """Length of one robot's policy input for a feature set."""
+    extra = 2 * (n_robots - 1) if features == "bearing+headings" else 0
+    return block_size + 3 + extra
 
 
 def scale_action(normalized: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -90,6 +114,8 @@ class KoopNavSB3VecEnv(VecEnv):
         goal tolerance asks for are worth little; this term pays per halving of the distance.
         Being potential-based (Ng et al., 1999), it speeds up learning without rewarding any
         behaviour but getting closer (exactly policy-invariant as the discount tends to 1).
+    features : str
+        ``"robot"`` layout: the feature set of :func:`robot_features`.
     **env_kwargs
         Environment keywords (``map="random"``, ``slip="random"``, ...).
     """
@@ -102,6 +128,7 @@ class KoopNavSB3VecEnv(VecEnv):
         layout: str = "robot",
         collision_penalty: float = 0.0,
         precision_shaping: float = 0.0,
+        features: str = "bearing",
         **env_kwargs: Any,
     ) -> None:
         if layout not in LAYOUTS:
@@ -119,10 +146,16 @@ class KoopNavSB3VecEnv(VecEnv):
         self._potential: np.ndarray | None = None
         self._team_collision = engine.config.task.reward.collision
         self._clearance_index = engine.builder.clearance_index
+        if features not in FEATURE_SETS:
+            raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
+        self.features = features
         if layout == "robot":
             physical, block = engine.robot_spaces()
-            low = np.concatenate([block.low, [-1.0, -1.0, np.log(_PRECISION_EPS)]])
-            high = np.concatenate([block.high, [1.0, 1.0, np.log(float(block.high[6]) + _PRECISION_EPS)]])
+            extra = feature_count(0, self.n_robots, features) - 3
+            low = np.concatenate([block.low, [-1.0, -1.0, np.log(_PRECISION_EPS)], -np.ones(extra)])
+            high = np.concatenate(
+                [block.high, [1.0, 1.0, np.log(float(block.high[6]) + _PRECISION_EPS)], np.ones(extra)]
+            )
             observation = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
             width = num_envs * self.n_robots
         else:
@@ -138,7 +171,8 @@ class KoopNavSB3VecEnv(VecEnv):
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
         if self.layout == "robot":
-            return robot_features(team_obs.reshape(self.n_envs * self.n_robots, -1))
+            blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)
+            return robot_features(blocks, self.features).reshape(self.n_envs * self.n_robots, -1)
         return team_obs
 
     def reset(self) -> np.ndarray:

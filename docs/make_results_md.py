@@ -29,6 +29,8 @@ TABLES = [
     ("Table 4: nominal NMPC, formation", "KoopNav-Formation-v0", "nominal-nmpc"),
     ("Table 5: consensus (collision avoidance on), formation", "KoopNav-Formation-v0", "consensus"),
     ("Not in the paper: consensus, target reaching", "KoopNav-TargetReaching-v0", "consensus"),
+    ("Not in the paper: RL baseline (rl-ppo), target reaching", "KoopNav-TargetReaching-v0", "rl-ppo"),
+    ("Not in the paper: RL baseline (rl-ppo), formation", "KoopNav-Formation-v0", "rl-ppo"),
 ]
 
 

@@ -11,7 +11,7 @@ pytest.importorskip("stable_baselines3")
 import controllers  # noqa: E402
 from baselines.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
 from baselines.train import main as train_main  # noqa: E402
-from baselines.vec_env import KoopNavSB3VecEnv  # noqa: E402
+from baselines.vec_env import KoopNavSB3VecEnv, robot_features  # noqa: E402
 from koopman_envs.sim.maps import MapSpec  # noqa: E402
 
 # robot 0 starts 5 cm from an obstacle's surface: driving forward hits it on the first step
@@ -50,7 +50,8 @@ def test_short_training_saves_a_loadable_policy(trained_root) -> None:
     assert metadata["timesteps"] == 4096 and metadata["algo"] == "ppo"
     assert {"stable_baselines3", "torch"} <= set(metadata["versions"])
     assert metadata["layout"] == "robot"
-    assert norm["mean"].shape == (32,)  # one robot's block + 3: the policy is shared by the robots
+    assert metadata["features"] == "bearing+headings"
+    assert norm["mean"].shape == (36,)  # one robot's block + 3 + 2 x 2: the policy is shared by the robots
     info, actions = play(RLPolicyController(policy_root=trained_root))
     assert len(actions) > 0 and all(a.shape == (6,) for a in actions)
     assert all(np.all(np.abs(a[0::2]) <= 0.6 + 1e-9) for a in actions)
@@ -137,6 +138,26 @@ def test_precision_shaping_is_the_log_distance_potential_difference() -> None:
     distances = np.abs(d0[None] - 0.06 * np.arange(13)[:, None])
     potential = 5.0 * np.log(distances + 0.05)
     np.testing.assert_allclose(rewards[5.0] - rewards[0.0], potential[:-1] - potential[1:], atol=1e-4)
+
+
+def test_neighbour_headings_are_relative_and_match_what_the_controller_sees() -> None:
+    blocks = np.zeros((3, 27))
+    blocks[:, 6] = 1.0  # distances
+    blocks[:, 2:4] = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]  # headings 0, pi/2, pi
+    out = robot_features(blocks, "bearing+headings")
+    assert out.shape == (3, 27 + 3 + 4)
+    np.testing.assert_allclose(out[0, 30:], [0, 1, -1, 0], atol=1e-7)  # robots 1, 2 seen by robot 0
+    np.testing.assert_allclose(out[1, 30:], [0, -1, 0, 1], atol=1e-7)  # robots 0, 2 seen by robot 1
+    np.testing.assert_allclose(out[2, 30:], [-1, 0, 0, -1], atol=1e-7)  # robots 0, 1 seen by robot 2
+    # the training adapter and the controller build the same inputs from the same state
+    venv = KoopNavSB3VecEnv("KoopNav-Formation-v0", 1, seed=2, features="bearing+headings", map="map4")
+    adapter_obs = venv.reset()
+    env = gym.make("KoopNav-Formation-v0", map="map4")
+    obs, _ = env.reset(seed=2)
+    np.testing.assert_array_equal(adapter_obs, robot_features(obs.reshape(3, -1), "bearing+headings"))
+    assert venv.observation_space.contains(adapter_obs[0])
+    with pytest.raises(ValueError, match="features='all' is not one of"):
+        robot_features(blocks, "all")
 
 
 def test_bad_layout_and_penalty_are_rejected() -> None:
