@@ -16,7 +16,7 @@ from koopman_envs.scenario import Scenario
 __all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir"]
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
-REGENERATE = "python -m baselines.train --env {env_id} --algo {algo} --out baselines/policies/{task}"
+REGENERATE = "python -m baselines.train --env {env_id} --algo {algo} --out runs/{task}` and copy policy.zip, obs_norm.npz, metadata.json to `baselines/policies/{task}/"
 TASK_ENV = {"target_reaching": "KoopNav-TargetReaching-v0", "formation": "KoopNav-Formation-v0"}
 
 
@@ -69,7 +69,7 @@ def policy_command(
     omega_max: float,
     features: str = "bearing",
 ) -> NDArray[np.float64]:
-    """Deterministic joint command (v, omega per robot, flat) of a trained policy.
+    """Deterministic joint command (v, omega per robot, flat; batched like the input) of a policy.
 
     Parameters
     ----------
@@ -80,8 +80,8 @@ def policy_command(
         ``"robot"``: the shared policy sees each robot's block (plus
         :func:`baselines.vec_env.robot_features`) and commands that robot;
         ``"team"``: it sees the flat team observation and commands everybody.
-    observation : ndarray, shape (N * F,)
-        The centralized observation of the Gymnasium env.
+    observation : ndarray, shape (N * F,) or (K, N * F)
+        The centralized observation of the Gymnasium env (or a batch of them).
     n_robots : int
     v_max, omega_max : float
         Actuation limits: the policy acts in [-1, 1].
@@ -91,15 +91,18 @@ def policy_command(
     from baselines.vec_env import robot_features, scale_action
 
     obs = np.asarray(observation, dtype=np.float64)
+    batch_shape = obs.shape[:-1]
     if layout == "robot":
-        obs = robot_features(obs.reshape(n_robots, -1), features).astype(np.float64)
+        blocks = obs.reshape(batch_shape + (n_robots, -1))
+        obs = robot_features(blocks, features).astype(np.float64)
+        obs = obs.reshape(-1, obs.shape[-1])
     obs = (obs - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
     obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
     action, _ = model.predict(obs, deterministic=True)
     high = np.array([v_max, omega_max])
     if layout == "team":
         high = np.tile(high, n_robots)
-    return scale_action(np.asarray(action, dtype=np.float64), -high, high).reshape(-1)
+    return scale_action(np.asarray(action, dtype=np.float64), -high, high).reshape(batch_shape + (-1,))
 
 
 class RLPolicyController(BaseController):

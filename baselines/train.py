@@ -1,13 +1,16 @@
 """Train a stable-baselines3 policy on a KoopNav task.
 
-``python -m baselines.train --env KoopNav-Formation-v0 --algo ppo --timesteps 2_000_000 --out runs/formation``
+``python -m baselines.train --env KoopNav-Formation-v0 --out runs/formation``
 
-Trains on the native vector env with random maps and random slip levels per episode (so that
-the policy generalizes to the evaluation maps instead of memorizing them), with normalized
-observations and rewards (SB3's ``VecNormalize``) and actions in [-1, 1]. Logs go to
-``OUT/progress.csv`` (no TensorBoard); checkpoints to ``OUT/checkpoints``; every ``--eval-freq``
-steps the deterministic policy is evaluated on the task's paper maps at nominal slip. The final
-``OUT`` holds ``policy.zip``, ``obs_norm.npz`` and ``metadata.json`` (the files ``rl-ppo`` loads).
+Trains PPO on the native vector env with random maps and random slip levels per episode (so
+that the policy generalizes to the evaluation maps instead of memorizing them), with normalized
+observations and rewards (SB3's ``VecNormalize``) and actions in [-1, 1]. By default one policy
+is shared by every robot (``--layout robot``, see :mod:`baselines.vec_env`), with training-side
+shaping (per-robot collision credit, a log-distance potential) recorded in the metadata. Logs go
+to ``OUT/progress.csv`` (no TensorBoard); checkpoints to ``OUT/checkpoints``; every
+``--eval-freq`` steps the deterministic policy is evaluated on the task's paper maps at nominal
+slip. The final ``OUT`` holds ``policy.zip``, ``obs_norm.npz`` and ``metadata.json`` (the files
+``rl-ppo`` loads).
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ TRAIN_MAPS = {
     "KoopNav-TargetReaching-v0": {"n_obstacles": 5, "swap_targets": 0.5},
     "KoopNav-Formation-v0": {},
 }
+# the budgets of the shipped policies (robot-steps; ~20-25 min each on 2 cores)
+TIMESTEPS = {"KoopNav-TargetReaching-v0": 14_000_000, "KoopNav-Formation-v0": 12_000_000}
 EVAL_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v0": ("map3", "map4")}
 
 
@@ -75,8 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m baselines.train", description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=list(TASK_OF))
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
-    parser.add_argument("--timesteps", type=lambda s: int(s.replace("_", "")), default=2_000_000)
-    parser.add_argument("--n-envs", type=int, default=64, help="simulated environments (PPO)")
+    parser.add_argument("--timesteps", type=lambda s: int(s.replace("_", "")), default=None,
+                        help="robot-steps in the robot layout (default: the task's TIMESTEPS entry)")
+    parser.add_argument("--n-envs", type=int, default=128, help="simulated environments (PPO)")
     parser.add_argument("--layout", default="robot", choices=LAYOUTS,
                         help="robot: one policy shared by every robot (default); team: centralized")
     parser.add_argument("--collision-penalty", type=float, default=10.0,
@@ -110,6 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     random_map = TRAIN_MAPS[args.env] if args.random_map is None else args.random_map
+    if args.timesteps is None:
+        args.timesteps = TIMESTEPS[args.env]
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)

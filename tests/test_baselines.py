@@ -57,6 +57,31 @@ def test_short_training_saves_a_loadable_policy(trained_root) -> None:
     assert all(np.all(np.abs(a[0::2]) <= 0.6 + 1e-9) for a in actions)
 
 
+def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_policy(trained_root, tmp_path) -> None:
+    from baselines.select import main as select_main
+
+    assert select_main(["--run", str(trained_root / "formation"), "--out", str(tmp_path / "formation"), "--episodes", "3"]) == 0
+    _, _, metadata = load_policy(tmp_path / "formation")
+    selection = metadata["selection"]
+    assert selection["selected_timesteps"] == 4096 and len(selection["validation"]) == 1
+    assert 0.0 <= selection["validation"][0]["validation_success_rate"] <= 1.0
+    assert metadata["env_id"] == "KoopNav-Formation-v0"
+    assert select_main(["--run", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
+
+
+def test_batched_commands_equal_single_commands(trained_root) -> None:
+    from baselines.policy import policy_command
+
+    model, norm, metadata = load_policy(trained_root / "formation")
+    env = gym.make_vec("KoopNav-Formation-v0", num_envs=3, map="random")
+    obs, _ = env.reset(seed=0)
+    args = (model, norm, "robot", obs, 3, 0.6, 0.785, metadata["features"])
+    batch = policy_command(*args)
+    assert batch.shape == (3, 6)
+    for k in range(3):
+        np.testing.assert_allclose(policy_command(model, norm, "robot", obs[k], 3, 0.6, 0.785, metadata["features"]), batch[k], atol=1e-6)
+
+
 def test_inference_is_deterministic(trained_root) -> None:
     _, first = play(RLPolicyController(policy_root=trained_root), seed=3)
     _, second = play(RLPolicyController(policy_root=trained_root), seed=3)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from controllers.koopman.dictionary import Dictionary
 
-__all__ = ["BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted", "regressors"]
+__all__ = ["BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted"]
 
 
 @dataclass(frozen=True)
@@ -50,29 +50,6 @@ class BilinearFit:
     residual: float
     rank: int
     coordinate_residual: NDArray[np.float64]
-
-
-def regressors(z: NDArray, u: NDArray, extra: int = 0) -> NDArray[np.float64]:
-    """Rows of the regression matrix: ``[z, kron(u, z), u]`` for each sample.
-
-    Parameters
-    ----------
-    z : ndarray, shape (S, D)
-    u : ndarray, shape (S, m)
-    extra : int
-        Uninitialized columns appended on the right (for the caller to fill).
-
-    Returns
-    -------
-    ndarray, shape (S, D + m D + m + extra)
-    """
-    s, d = z.shape
-    m = u.shape[1]
-    out = np.empty((s, d + m * d + m + extra))
-    out[:, :d] = z
-    np.multiply(u[:, :, None], z[:, None, :], out=out[:, d : d + m * d].reshape(s, m, d))
-    out[:, d + m * d : d + m * d + m] = u
-    return out
 
 
 def _cholesky_solve(gram: NDArray, rhs: NDArray, ridge: float, rcond: float) -> NDArray:
@@ -118,7 +95,10 @@ def _cholesky_solve(gram: NDArray, rhs: NDArray, ridge: float, rcond: float) -> 
 
 
 class MomentAccumulator:
-    """Running moments of the augmented regression rows ``[z, kron(u, z), u, z_next]``.
+    """Running moments of the augmented regression rows ``[z, kron(u, z), z_next]``.
+
+    The ``u`` block of the regression rows is not accumulated: with the constant observable
+    first, ``kron(u, z)`` already holds it (columns ``d + i d``), and :meth:`solve` restores it.
 
     Parameters
     ----------
@@ -130,49 +110,53 @@ class MomentAccumulator:
 
     def __init__(self, d: int, m: int) -> None:
         self.d, self.m = d, m
-        self.p = d + m * d + m
-        self.moments = np.zeros((self.p + d, self.p + d))
+        self.p = d + m * d + m  # regressors of the full problem [z, kron(u, z), u]
+        self.q = d + m * d  # regressors accumulated
+        self.moments = np.zeros((self.q + d, self.q + d))
         self.count = 0
 
     def add(self, z: NDArray, u: NDArray, z_next: NDArray) -> None:
         """Accumulate samples: z, z_next of shape (S, D) and u of shape (S, m)."""
-        rows = regressors(z, u, extra=self.d)
-        rows[:, self.p :] = z_next
+        s, d, q = z.shape[0], self.d, self.q
+        rows = np.empty((s, q + d))
+        rows[:, :d] = z
+        np.multiply(u[:, :, None], z[:, None, :], out=rows[:, d:q].reshape(s, self.m, d))
+        rows[:, q:] = z_next
         # one symmetric rank-k update (BLAS syrk) gives the Gram matrix, the right-hand sides
         # and |z_next|^2 together, and unlike a general product it is bit-identical for any
         # number of BLAS threads
         self.moments += rows.T @ rows
-        self.count += z.shape[0]
+        self.count += s
 
     def solve(
         self, state_rows: NDArray, ridge: float = 0.0, rcond: float = 1e-12
     ) -> tuple[NDArray, NDArray, NDArray, NDArray, float, int, NDArray]:
         """Least-squares [A, N, B], C = X Z^+ (X = the ``state_rows`` of Z), residual, rank and
         per-coordinate residual."""
-        d, m, p = self.d, self.m, self.p
-        gram, rhs = self.moments[:p, :p], self.moments[:p, p:]
-        target_sq = np.diag(self.moments[p:, p:])
+        d, m, p, q = self.d, self.m, self.p, self.q
+        gram, rhs = self.moments[:q, :q], self.moments[:q, q:]
+        target_sq = np.diag(self.moments[q:, q:])
         # The columns u_i kron 1 (index d + i d: the constant is observable 0) equal the columns
         # of U: solve without the U block, then split each duplicated coefficient evenly between
         # N and B, which is exactly the minimum-norm (Moore-Penrose) solution of the full problem.
-        keep = np.arange(d + m * d)
-        reduced = _cholesky_solve(gram[np.ix_(keep, keep)], rhs[keep], ridge, rcond)
-        solution = np.zeros((p, d))
-        solution[keep] = reduced
-        shared = d + d * np.arange(m)
-        solution[shared] *= 0.5
-        solution[d + m * d :] = solution[shared]
-        # residual from the moments: ||Z' - Phi W||^2 = |Z'|^2 - 2 W.H + W.G W
-        fitted = np.einsum("ij,jk->ik", gram, solution)
-        sq = target_sq - 2 * np.einsum("ij,ij->j", solution, rhs) + np.einsum("ij,ij->j", solution, fitted)
+        reduced = _cholesky_solve(gram, rhs, ridge, rcond)
+        # residual from the moments: ||Z' - Phi W||^2 = |Z'|^2 - 2 W.H + W.G W; the split
+        # below leaves the fitted values Phi W unchanged, so the reduced system gives it
+        fitted = np.einsum("ij,jk->ik", gram, reduced)
+        sq = target_sq - 2 * np.einsum("ij,ij->j", reduced, rhs) + np.einsum("ij,ij->j", reduced, fitted)
         residual = float(np.sqrt(max(sq.sum(), 0.0) / (max(self.count, 1) * d)))
         coordinate_residual = np.sqrt(np.maximum(sq, 0.0) / max(self.count, 1))
+        solution = np.zeros((p, d))
+        solution[:q] = reduced
+        shared = d + d * np.arange(m)
+        solution[shared] *= 0.5
+        solution[q:] = solution[shared]
         weights = solution.T  # (d, p)
         # C = X Z^+ with X = rows of Z: the Z-block of the same Gram matrix
         c_matrix = _cholesky_solve(gram[:d, :d], gram[:d, :d][:, state_rows], 0.0, rcond)
         a_matrix = weights[:, :d].copy()
-        n_matrix = weights[:, d : d + m * d].copy()
-        b_matrix = weights[:, d + m * d :].copy()
+        n_matrix = weights[:, d:q].copy()
+        b_matrix = weights[:, q:].copy()
         return a_matrix, n_matrix, b_matrix, c_matrix.T.copy(), residual, p - m, coordinate_residual
 
 
@@ -218,7 +202,7 @@ def fit_bilinear(
     rcond : float
         Relative pivot tolerance that flags a rank-deficient problem.
     chunk : int
-        Transitions per accumulation chunk (memory ~ chunk x 110 x 8 bytes).
+        Transitions per accumulation chunk (memory ~ chunk x 104 x 8 bytes for 3 robots).
 
     Returns
     -------

@@ -1,0 +1,105 @@
+"""Pick the policy of a training run by its success on held-out random maps.
+
+``python -m baselines.select --run runs/formation --out baselines/policies/formation``
+
+PPO's deterministic policy swings from one checkpoint to the next, so the last one is not
+necessarily the best. This command scores the final policy and every checkpoint of a run
+(``baselines.train`` writes them) on a fixed validation set: ``--episodes`` random layouts of
+the run's training distribution (same generator settings, random slip) with seeds far from any
+training seed, never the paper maps that the evaluator reports on. The best (ties: the later
+one) is written to ``--out`` with the run's metadata plus the whole validation table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from baselines.policy import PolicyFiles, load_policy, policy_command
+
+__all__ = ["VALIDATION_SEED", "candidates", "main", "validation_success"]
+
+#: first seed of the validation layouts (training seeds run from ``--seed`` upward, by ones)
+VALIDATION_SEED = 1_000_000
+
+
+def validation_success(directory: Path, metadata: dict, episodes: int, seed: int = VALIDATION_SEED) -> float:
+    """Success rate of the policy in ``directory`` on ``episodes`` held-out random layouts."""
+    env_id = metadata["env_id"]
+    model, norm, own = load_policy(directory, metadata["task"], metadata["algo"])
+    layout, features = metadata["layout"], metadata.get("features", "bearing")
+    venv = gym.make_vec(
+        env_id, num_envs=episodes, map="random", slip="random", random_map=metadata.get("random_map") or None
+    )
+    obs, _ = venv.reset(seed=seed)
+    engine = venv.unwrapped.engine
+    n_robots = engine.config.n_robots
+    v_max, omega_max = float(engine.command_high[0]), float(engine.command_high[1])
+    done = np.zeros(episodes, dtype=bool)
+    success = np.zeros(episodes, dtype=bool)
+    while not done.all():
+        action = policy_command(model, norm, layout, obs, n_robots, v_max, omega_max, features)
+        obs, _, terminated, truncated, info = venv.step(action)
+        ended = (terminated | truncated) & ~done
+        success[ended] = info["is_success"][ended]
+        done |= ended
+    venv.close()
+    return float(success.mean())
+
+
+def candidates(run: Path) -> list[tuple[int, Path]]:
+    """(timesteps, directory) of every checkpoint of a run and of its final policy, in order."""
+    found = []
+    for path in (run / "checkpoints").glob("step_*"):
+        if PolicyFiles(path).model.exists():
+            found.append((int(path.name.split("_")[1]), path))
+    final = json.loads(PolicyFiles(run).metadata.read_text(encoding="utf-8"))
+    found.append((int(final["timesteps"]), run))
+    return sorted(found, key=lambda item: item[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m baselines.select", description=__doc__.split("\n")[0])
+    parser.add_argument("--run", required=True, help="output directory of python -m baselines.train")
+    parser.add_argument("--out", required=True, help="where to write the selected policy")
+    parser.add_argument("--episodes", type=int, default=100, help="validation layouts")
+    args = parser.parse_args(argv)
+    run = Path(args.run)
+    if not PolicyFiles(run).metadata.exists():
+        print(f"error: {run} holds no finished training run (metadata.json missing)", file=sys.stderr)
+        return 2
+    metadata = json.loads(PolicyFiles(run).metadata.read_text(encoding="utf-8"))
+    table = []
+    for steps, directory in candidates(run):
+        rate = validation_success(directory, metadata, args.episodes)
+        table.append({"timesteps": steps, "validation_success_rate": rate})
+        print(f"{steps:>12,d} steps  validation success {rate:.2f}", flush=True)
+    best = max(range(len(table)), key=lambda i: (table[i]["validation_success_rate"], i))
+    chosen = candidates(run)[best][1]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    source, target = PolicyFiles(chosen), PolicyFiles(out)
+    shutil.copyfile(source.model, target.model)
+    shutil.copyfile(source.norm, target.norm)
+    selected = dict(metadata)
+    selected["selection"] = {
+        "command": "python -m baselines.select " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "rule": f"best success on {args.episodes} held-out random layouts (seeds {VALIDATION_SEED}+, "
+        "random slip, the training generator settings); ties go to the later policy",
+        "selected_timesteps": table[best]["timesteps"],
+        "validation": table,
+    }
+    target.metadata.write_text(json.dumps(selected, indent=1) + "\n", encoding="utf-8")
+    print(f"selected the policy after {table[best]['timesteps']:,} steps "
+          f"(validation success {table[best]['validation_success_rate']:.2f}); wrote {out}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
