@@ -114,14 +114,21 @@ class RLPolicyController(BaseController):
         Directory holding one sub-directory per task (default: the shipped policies).
     algo : str
         ``"ppo"`` or ``"sac"`` (recorded in the metadata of each policy).
+    threads : int, optional
+        torch intra-op threads for inference (default 1: a 128-wide MLP gains nothing from more,
+        and evaluator workers running side by side would oversubscribe the cores); None leaves
+        torch's setting alone.
     """
 
     name = "rl-ppo"
 
-    def __init__(self, policy_root: str | os.PathLike | None = None, algo: str = "ppo") -> None:
+    def __init__(
+        self, policy_root: str | os.PathLike | None = None, algo: str = "ppo", threads: int | None = 1
+    ) -> None:
         super().__init__()
         self.policy_root = Path(policy_root) if policy_root else SHIPPED
         self.algo = algo
+        self.threads = threads
         import importlib.util
 
         if importlib.util.find_spec("stable_baselines3") is None:
@@ -134,6 +141,10 @@ class RLPolicyController(BaseController):
         self._loaded: dict[str, tuple[Any, dict, dict]] = {}
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        if self.threads is not None:
+            import torch
+
+            torch.set_num_threads(self.threads)
         if scenario.task not in self._loaded:
             self._loaded[scenario.task] = load_policy(policy_dir(scenario.task, self.policy_root), scenario.task, self.algo)
         self._model, self._norm, self.metadata = self._loaded[scenario.task]

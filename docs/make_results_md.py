@@ -1,6 +1,7 @@
 """Write docs/results.md from a ``python evaluate.py --paper`` run, beside the paper's tables.
 
-Usage: ``python docs/make_results_md.py results_paper/results.json [--wall SECONDS]``
+Usage: ``python docs/make_results_md.py results_paper/results.json [more results.json ...] [--wall SECONDS]``
+(cells of later files are added to those of the first, e.g. a separate ``--controllers rl-ppo`` run).
 """
 
 from __future__ import annotations
@@ -47,16 +48,19 @@ def fmt(cell: dict) -> tuple[str, str, str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("results")
+    parser.add_argument("results", nargs="+")
     parser.add_argument("--wall", type=float, help="wall time of the run [s]")
     parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
     args = parser.parse_args()
-    doc = json.loads(Path(args.results).read_text())
-    cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for c in doc["cells"]}
+    docs = [json.loads(Path(path).read_text()) for path in args.results]
+    doc = docs[0]
+    cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for d in docs for c in d["cells"]}
     lines = ["# Paper protocol results", "",
              "Produced by `python evaluate.py --paper --out results_paper` (SPEC section 5: 3 robots, 10 trials per "
-             "cell, trial i seeded i, the same slip draws for every controller) and "
-             f"`python docs/make_results_md.py results_paper/results.json`; package {doc['package_version']}.",
+             "cell, trial i seeded i, the same slip draws for every controller), "
+             "`python evaluate.py --paper --controllers rl-ppo --out results_rl` and "
+             "`python docs/make_results_md.py results_paper/results.json results_rl/results.json`; "
+             f"package {doc['package_version']}.",
              ""]  # fmt: skip
     if args.wall:
         lines += [f"Wall time of the run on the 2-core project machine: {args.wall:.0f} s ({args.wall / 60:.1f} min).", ""]
