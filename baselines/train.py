@@ -98,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--random-map", type=json.loads, default=None,
                         help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--eval-freq", type=lambda s: int(s.replace("_", "")), default=200_000)
+    parser.add_argument("--eval-freq", type=lambda s: int(s.replace("_", "")), default=2_000_000,
+                        help="steps between checkpoints (each also evaluated on the paper maps)")
     parser.add_argument("--max-episode-steps", type=int, default=400)
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
