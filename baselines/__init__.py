@@ -1,6 +1,8 @@
 """Learned baselines: stable-baselines3 policies for the KoopNav environments (extra ``[rl]``).
 
-``python -m baselines.train --env KoopNav-Formation-v0 --algo ppo --timesteps 2_000_000 --out runs/f``
-trains on random maps and random slip levels with the native vector env; ``rl-ppo`` (registered in
-:mod:`controllers`) plays a trained policy through the common controller protocol.
+``python -m baselines.train --env KoopNav-Formation-v0 --out runs/formation`` trains PPO (one
+policy shared by the robots) on random maps and random slip levels with the native vector env;
+``python -m baselines.select`` keeps the best checkpoint on held-out random layouts; ``rl-ppo``
+(registered through the ``koopnav.controllers`` entry point) plays a policy through the common
+controller protocol. Policies for both tasks ship in ``baselines/policies/``.
 """
