@@ -198,7 +198,8 @@ class KoopNavSB3VecEnv(VecEnv):
                 # potential at the step's end state: the final one for episodes that just ended
                 end_distances = info["distances"]
                 if "final_info" in info:
-                    end_distances = np.where(info["_final_info"][:, None], info["final_info"]["distances"], end_distances)
+                    ended_now = info["_final_info"][:, None]
+                    end_distances = np.where(ended_now, info["final_info"]["distances"], end_distances)
                 end_potential = self._precision_potential(end_distances)
                 rewards = rewards + (self._potential - end_potential)
                 self._potential = self._precision_potential(info["distances"])
@@ -220,7 +221,8 @@ class KoopNavSB3VecEnv(VecEnv):
                     involved = self.involved(raw_final.reshape(self.n_envs, self.n_robots, -1))
                     own_end[crashed] = involved[crashed]
                     rewards = rewards.copy()
-                    rewards[crashed] += np.where(involved[crashed], -self.collision_penalty, self._team_collision)
+                    bystander_refund = self._team_collision  # the env's team penalty, undone
+                    rewards[crashed] += np.where(involved[crashed], -self.collision_penalty, bystander_refund)
             for i in np.flatnonzero(ended):
                 for r in range(per_env):
                     entry = infos[i * per_env + r]
