@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
 
-__all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir"]
+__all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir", "success_rate"]
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
 REGENERATE = "python -m baselines.train --env {env_id} --algo {algo} --out runs/{task}` and copy policy.zip, obs_norm.npz, metadata.json to `baselines/policies/{task}/"
@@ -103,6 +103,33 @@ def policy_command(
     if layout == "team":
         high = np.tile(high, n_robots)
     return scale_action(np.asarray(action, dtype=np.float64), -high, high).reshape(batch_shape + (-1,))
+
+
+def success_rate(
+    model: Any, norm: dict, layout: str, features: str, env_id: str, episodes: int, seed: int, **env_kwargs: Any
+) -> float:
+    """Success rate of the deterministic policy over ``episodes`` episodes, played as one batch.
+
+    Episode i runs in sub-env i of ``gym.make_vec(env_id, num_envs=episodes, **env_kwargs)``
+    reset with ``seed``, i.e. seeded ``seed + i`` like the single env.
+    """
+    import gymnasium as gym
+
+    venv = gym.make_vec(env_id, num_envs=episodes, **env_kwargs)
+    obs, _ = venv.reset(seed=seed)
+    engine = venv.unwrapped.engine
+    n_robots = engine.config.n_robots
+    v_max, omega_max = float(engine.command_high[0]), float(engine.command_high[1])
+    done = np.zeros(episodes, dtype=bool)
+    success = np.zeros(episodes, dtype=bool)
+    while not done.all():
+        action = policy_command(model, norm, layout, obs, n_robots, v_max, omega_max, features)
+        obs, _, terminated, truncated, info = venv.step(action)
+        ended = (terminated | truncated) & ~done
+        success[ended] = info["is_success"][ended]
+        done |= ended
+    venv.close()
+    return float(success.mean())
 
 
 class RLPolicyController(BaseController):

@@ -18,10 +18,7 @@ import shutil
 import sys
 from pathlib import Path
 
-import gymnasium as gym
-import numpy as np
-
-from baselines.policy import PolicyFiles, load_policy, policy_command
+from baselines.policy import PolicyFiles, load_policy, success_rate
 
 __all__ = ["VALIDATION_SEED", "candidates", "main", "validation_success"]
 
@@ -31,26 +28,11 @@ VALIDATION_SEED = 1_000_000
 
 def validation_success(directory: Path, metadata: dict, episodes: int, seed: int = VALIDATION_SEED) -> float:
     """Success rate of the policy in ``directory`` on ``episodes`` held-out random layouts."""
-    env_id = metadata["env_id"]
-    model, norm, own = load_policy(directory, metadata["task"], metadata["algo"])
-    layout, features = metadata["layout"], metadata.get("features", "bearing")
-    venv = gym.make_vec(
-        env_id, num_envs=episodes, map="random", slip="random", random_map=metadata.get("random_map") or None
-    )
-    obs, _ = venv.reset(seed=seed)
-    engine = venv.unwrapped.engine
-    n_robots = engine.config.n_robots
-    v_max, omega_max = float(engine.command_high[0]), float(engine.command_high[1])
-    done = np.zeros(episodes, dtype=bool)
-    success = np.zeros(episodes, dtype=bool)
-    while not done.all():
-        action = policy_command(model, norm, layout, obs, n_robots, v_max, omega_max, features)
-        obs, _, terminated, truncated, info = venv.step(action)
-        ended = (terminated | truncated) & ~done
-        success[ended] = info["is_success"][ended]
-        done |= ended
-    venv.close()
-    return float(success.mean())
+    model, norm, _ = load_policy(directory, metadata["task"], metadata["algo"])
+    return success_rate(
+        model, norm, metadata["layout"], metadata.get("features", "bearing"), metadata["env_id"], episodes, seed,
+        map="random", slip="random", random_map=metadata.get("random_map") or None,
+    )  # fmt: skip
 
 
 def candidates(run: Path) -> list[tuple[int, Path]]:

@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import koopman_envs
-from baselines.policy import PolicyFiles, policy_command
+from baselines.policy import PolicyFiles, success_rate
 from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv
 
 TASK_OF = {"KoopNav-TargetReaching-v0": "target_reaching", "KoopNav-Formation-v0": "formation"}
@@ -44,21 +44,12 @@ EVAL_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v
 def evaluate_policy_on_maps(
     model, norm, env_id: str, layout: str, features: str, episodes_per_map: int = 2, slip: str = "nominal"
 ) -> float:
-    """Success rate of the deterministic policy on the task's paper maps."""
-    successes = total = 0
-    for map_name in EVAL_MAPS[env_id]:
-        for seed in range(episodes_per_map):
-            env = gym.make(env_id, map=map_name, slip=slip)
-            obs, info = env.reset(seed=seed)
-            sc = env.unwrapped.scenario
-            while True:
-                command = policy_command(model, norm, layout, obs, sc.n_robots, sc.v_max, sc.omega_max, features)
-                obs, _, terminated, truncated, info = env.step(command)
-                if terminated or truncated:
-                    break
-            successes += int(info["is_success"])
-            total += 1
-    return successes / total
+    """Success rate of the deterministic policy on the task's paper maps (seeds 0, 1, ...)."""
+    rates = [
+        success_rate(model, norm, layout, features, env_id, episodes_per_map, 0, map=map_name, slip=slip)
+        for map_name in EVAL_MAPS[env_id]
+    ]
+    return float(np.mean(rates))
 
 
 def _norm_of(vec_normalize) -> dict[str, np.ndarray]:
