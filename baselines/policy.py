@@ -16,7 +16,10 @@ from koopman_envs.scenario import Scenario
 __all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir", "success_rate"]
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
-REGENERATE = "python -m baselines.train --env {env_id} --algo {algo} --out runs/{task}` and copy policy.zip, obs_norm.npz, metadata.json to `baselines/policies/{task}/"
+REGENERATE = (
+    "python -m baselines.train --env {env_id} --algo {algo} --out runs/{task}` then "
+    "`python -m baselines.select --run runs/{task} --out baselines/policies/{task}"
+)
 TASK_ENV = {"target_reaching": "KoopNav-TargetReaching-v0", "formation": "KoopNav-Formation-v0"}
 
 

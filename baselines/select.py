@@ -42,7 +42,7 @@ def candidates(run: Path) -> list[tuple[int, Path]]:
         if PolicyFiles(path).model.exists():
             found.append((int(path.name.split("_")[1]), path))
     final = json.loads(PolicyFiles(run).metadata.read_text(encoding="utf-8"))
-    found.append((int(final["timesteps"]), run))
+    found.append((int(final.get("trained_timesteps", final["timesteps"])), run))
     return sorted(found, key=lambda item: item[0])
 
 

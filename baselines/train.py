@@ -170,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         "command": "python -m baselines.train " + " ".join(argv if argv is not None else sys.argv[1:]),
         "seed": args.seed,
         "timesteps": args.timesteps,
+        "trained_timesteps": int(model.num_timesteps),  # whole rollouts: a little over the request
         "n_envs": n_envs,
         "net_arch": args.net,
         "wall_seconds": round(wall, 1),

@@ -63,7 +63,9 @@ def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_poli
     assert select_main(["--run", str(trained_root / "formation"), "--out", str(tmp_path / "formation"), "--episodes", "3"]) == 0
     _, _, metadata = load_policy(tmp_path / "formation")
     selection = metadata["selection"]
-    assert selection["selected_timesteps"] == 4096 and len(selection["validation"]) == 1
+    # the only candidate, the final policy, after whole rollouts: 2 x (8 envs x 3 robots x 128 steps)
+    assert selection["selected_timesteps"] == metadata["trained_timesteps"] == 6144
+    assert len(selection["validation"]) == 1
     assert 0.0 <= selection["validation"][0]["validation_success_rate"] <= 1.0
     assert metadata["env_id"] == "KoopNav-Formation-v0"
     assert select_main(["--run", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
