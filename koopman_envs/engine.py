@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from koopman_envs.params import PARAMS, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind, collision_flags
-from koopman_envs.sim.dynamics import rk4_channels, wrap_angle
+from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig, generate_random_map, load_map
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import SlipSampler
@@ -153,10 +153,10 @@ class StepResult:
 class NavigationEngine:
     """K navigation environments advanced together.
 
-    The state is kept channel-first, ``state[k] = [x; y; theta]`` of shape (3, N), so each
-    coordinate of a lone environment is one contiguous array: numpy's per-call overhead, not
-    arithmetic, dominates small steps, and contiguous operands make each call several times
-    cheaper. :attr:`poses` gives the familiar (K, N, 3) view.
+    The state is kept channel-first, ``state[k] = [x; y; theta]`` of shape (3, N);
+    :attr:`poses` gives the familiar (K, N, 3) view. A step is three compiled passes (physics,
+    collisions, observation features; see :mod:`koopman_envs.sim.dynamics`) and a few array
+    operations for rewards and episode ends.
 
     Parameters
     ----------
@@ -187,8 +187,10 @@ class NavigationEngine:
         self.feature_low, self.feature_high = self.builder.low, self.builder.high
         self.command_low = np.array([-PARAMS.v_max, -PARAMS.omega_max])
         self.command_high = np.array([PARAMS.v_max, PARAMS.omega_max])
-        # effort weight per command channel: (1 / v_max^2, 1 / omega_max^2) as a (2, 1) column
-        self._effort_scale = (1.0 / self.command_high**2)[:, None]
+        # effort weight per command channel: (1 / v_max^2, 1 / omega_max^2)
+        self._effort_scale = 1.0 / self.command_high**2
+        self._workspace = np.asarray(PARAMS.workspace, dtype=np.float64)
+        self._all_active = np.ones(k, dtype=bool)
         self._settle_steps = PARAMS.settle_steps
         self._no_truncation = np.zeros(k, dtype=bool)
         if config.map_spec is not None:
@@ -267,9 +269,8 @@ class NavigationEngine:
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""
-        geometry = self.geometry.compute(self.state[:, 0], self.state[:, 1])
         features, _ = self.builder.build(
-            self.state, self.target, geometry, self.offset if self.config.task.formation else None
+            self.state, self.target, self.geometry, self.offset if self.config.task.formation else None
         )
         return features
 
@@ -317,28 +318,17 @@ class NavigationEngine:
         """
         cfg = self.config
         weights = cfg.task.reward
-        # saturate, then go channel-first: rows v and omega, contiguous per environment
-        command = np.maximum(commands, self.command_low)
-        np.minimum(command, self.command_high, out=command)
-        command = command.transpose(0, 2, 1).copy()
-        if active is not None:
-            command *= active[:, None, None]
         slip = self.slip.draw(active)
-        state = self.state
-        x, y, th = rk4_channels(
-            state[:, 0], state[:, 1], state[:, 2], command[:, 0], command[:, 1],
-            slip[:, 0], slip[:, 1], slip[:, 2],
+        new = np.empty_like(self.state)
+        effort = np.empty(self.distances.shape)
+        advance_teams(
+            self.state, commands, slip, self._all_active if active is None else active,
+            self.command_low, self.command_high, self._effort_scale, PARAMS.dt, new, effort,
         )  # fmt: skip
-        new = np.empty_like(state)
-        new[:, 0] = x
-        new[:, 1] = y
-        new[:, 2] = wrap_angle(th)
-        if active is not None:
-            new = np.where(active[:, None, None], new, state)
         self.state = new
-        x, y = new[:, 0], new[:, 1]
-        geometry = self.geometry.compute(x, y)
-        collision = collision_flags(geometry, x, y, PARAMS.workspace)
+        geometry = self.geometry
+        collision = np.empty(self.num_envs, dtype=np.int64)
+        collision_flags(new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision)
         features, distances = self.builder.build(
             new, self.target, geometry, self.offset if cfg.task.formation else None
         )
@@ -359,9 +349,6 @@ class NavigationEngine:
         else:
             truncated = self.elapsed >= cfg.max_episode_steps  # as gymnasium.wrappers.TimeLimit
 
-        command *= command
-        command *= self._effort_scale
-        effort = command[:, 0] + command[:, 1]
         robot_reward = progress * weights.progress
         robot_reward -= effort * weights.effort
         robot_reward += (distances <= cfg.goal_tolerance) * weights.settle

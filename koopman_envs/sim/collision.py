@@ -1,11 +1,13 @@
-"""Collision checks between disc robots, circular obstacles and the workspace box, batched."""
+"""Collision checks between disc robots, circular obstacles and the workspace box, batched and compiled."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.sim.geometry import Geometry, TeamGeometry
+from numba import njit
+
+from koopman_envs.sim.geometry import TeamGeometry, clearance
 
 __all__ = ["CollisionKind", "check_collisions", "collision_flags"]
 
@@ -27,46 +29,49 @@ class CollisionKind:
         return "+".join(names) if names else "none"
 
 
+_ROBOT, _OBSTACLE, _WORKSPACE = CollisionKind.ROBOT, CollisionKind.OBSTACLE, CollisionKind.WORKSPACE
+
+
+@njit(cache=True)
 def collision_flags(
-    geometry: Geometry, x: NDArray, y: NDArray, workspace: tuple[float, float, float, float]
-) -> NDArray[np.int64]:
-    """Collision flags from precomputed geometry.
+    state: NDArray,
+    obstacle_x: NDArray,
+    obstacle_y: NDArray,
+    radius_sum: NDArray,
+    workspace: NDArray,
+    out: NDArray,
+) -> None:  # pragma: no cover - compiled
+    """Collision flags of K teams (compiled).
 
     Parameters
     ----------
-    geometry : Geometry
-        Pairwise geometry of the same positions.
-    x, y : ndarray, shape (K, N)
-        Robot centres [m].
-    workspace : tuple of float
+    state : ndarray, shape (K, 3, N)
+        Rows x [m], y [m], theta [rad].
+    obstacle_x, obstacle_y : ndarray, shape (K, M)
+        Obstacle centres [m].
+    radius_sum : ndarray, shape (K, N, N + M)
+        Radius sums, robots first (see :class:`~koopman_envs.sim.geometry.TeamGeometry`).
+    workspace : ndarray, shape (4,)
         (x_min, x_max, y_min, y_max) [m]; a centre outside it is a workspace exit, as in the
         paper's state constraint.
-
-    Returns
-    -------
-    ndarray of int, shape (K,)
+    out : ndarray of int, shape (K,)
         Bitwise OR of :class:`CollisionKind` flags per environment (0 = no collision).
     """
-    k, n = x.shape
-    n_entities = geometry.clearance.shape[2]
-    # one column per entity (any robot overlapping it) plus one for "some robot is outside"
-    touched = np.empty((k, n_entities + 1), dtype=bool)
-    np.logical_or.reduce(geometry.clearance < 0.0, axis=1, out=touched[:, :n_entities])
-    outside = x < workspace[0]
-    outside |= x > workspace[1]
-    outside |= y < workspace[2]
-    outside |= y > workspace[3]
-    np.logical_or.reduce(outside, axis=1, out=touched[:, n_entities])
-    # segments: robots [0, n), obstacles [n, E), workspace [E]
-    if n_entities > n:
-        kinds = np.logical_or.reduceat(touched, [0, n, n_entities], axis=1)
-        return kinds.dot(_CODES_WITH_OBSTACLES)
-    kinds = np.logical_or.reduceat(touched, [0, n_entities], axis=1)
-    return kinds.dot(_CODES_WITHOUT_OBSTACLES)
-
-
-_CODES_WITH_OBSTACLES = np.array([CollisionKind.ROBOT, CollisionKind.OBSTACLE, CollisionKind.WORKSPACE])
-_CODES_WITHOUT_OBSTACLES = np.array([CollisionKind.ROBOT, CollisionKind.WORKSPACE])
+    n_envs, _, n_robots = state.shape
+    n_obstacles = obstacle_x.shape[1]
+    for k in range(n_envs):
+        flags = 0
+        for i in range(n_robots):
+            x, y = state[k, 0, i], state[k, 1, i]
+            if x < workspace[0] or x > workspace[1] or y < workspace[2] or y > workspace[3]:
+                flags |= _WORKSPACE
+            for j in range(i + 1, n_robots):
+                if clearance(x, y, state[k, 0, j], state[k, 1, j], radius_sum[k, i, j]) < 0.0:
+                    flags |= _ROBOT
+            for m in range(n_obstacles):
+                if clearance(x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]) < 0.0:
+                    flags |= _OBSTACLE
+        out[k] = flags
 
 
 def check_collisions(
@@ -94,8 +99,12 @@ def check_collisions(
         Bitwise OR of :class:`CollisionKind` flags.
     """
     positions = np.asarray(positions, dtype=np.float64)
-    x, y = positions[None, :, 0].copy(), positions[None, :, 1].copy()
+    state = np.zeros((1, 3, positions.shape[0]))
+    state[0, :2] = positions.T
     obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
     geo = TeamGeometry(1, np.asarray(robot_radius, dtype=np.float64), obstacles.shape[0])
     geo.set_obstacles(0, obstacles)
-    return int(collision_flags(geo.compute(x, y), x, y, workspace)[0])
+    out = np.zeros(1, dtype=np.int64)
+    bounds = np.asarray(workspace, dtype=np.float64)
+    collision_flags(state, geo.obstacle_x, geo.obstacle_y, geo.radius_sum, bounds, out)
+    return int(out[0])

@@ -1,18 +1,44 @@
-"""Relative geometry of a batch of teams: one pass serves collisions and observations.
+"""Relative geometry of robot teams: the clearance formula and the per-environment layout data.
 
-For every robot i the offsets, distances and surface clearances to every "entity" (all robots,
-then all obstacles) are computed once per step. Collision checks and observation features both
-read this result, so the step does the pairwise work a single time.
+:func:`clearance` is the one definition of surface-to-surface distance; the collision checks
+(:mod:`koopman_envs.sim.collision`) and the observation features
+(:mod:`koopman_envs.tasks.observation`) both call it from their compiled kernels, so a robot
+that "touches" an obstacle in the collision check reads a negative clearance in its features.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["Geometry", "TeamGeometry"]
+__all__ = ["Geometry", "TeamGeometry", "clearance"]
+
+
+@njit(cache=True)
+def clearance(x: float, y: float, other_x: float, other_y: float, radius_sum: float) -> float:
+    """Surface-to-surface distance of two discs [m] (negative on overlap).
+
+    ``sqrt`` of squares rather than ``hypot``: the values are metres, and hypot is much slower.
+    """
+    dx = other_x - x
+    dy = other_y - y
+    return math.sqrt(dx * dx + dy * dy) - radius_sum
+
+
+@njit(cache=True)
+def _pairwise(x, y, entity_x, entity_y, radius_sum, dx, dy, out):  # pragma: no cover - compiled
+    n_envs, n_robots = x.shape
+    n_entities = entity_x.shape[1]
+    for k in range(n_envs):
+        for i in range(n_robots):
+            for e in range(n_entities):
+                dx[k, i, e] = entity_x[k, e] - x[k, i]
+                dy[k, i, e] = entity_y[k, e] - y[k, i]
+                out[k, i, e] = clearance(x[k, i], y[k, i], entity_x[k, e], entity_y[k, e], radius_sum[k, i, e])
 
 
 @dataclass
@@ -33,7 +59,7 @@ class Geometry:
 
 
 class TeamGeometry:
-    """Holds obstacle layouts and radius sums of K environments and computes :class:`Geometry`.
+    """Obstacle layouts and radius sums of K environments (the inputs of the compiled kernels).
 
     Parameters
     ----------
@@ -43,6 +69,14 @@ class TeamGeometry:
         Robot radii [m].
     n_obstacles : int
         Obstacles per environment M.
+
+    Attributes
+    ----------
+    obstacle_x, obstacle_y : ndarray, shape (K, M)
+        Obstacle centres [m].
+    radius_sum : ndarray, shape (K, N, N + M)
+        Robot i's radius plus entity e's (robots first, then obstacles); -inf from a robot to
+        itself, which makes its clearance to itself +inf without a mask.
     """
 
     def __init__(self, num_envs: int, robot_radius: NDArray, n_obstacles: int) -> None:
@@ -50,31 +84,26 @@ class TeamGeometry:
         self.n_robots = n
         self.n_obstacles = int(n_obstacles)
         self.robot_radius = np.asarray(robot_radius, dtype=np.float64)
-        self._ex = np.zeros((num_envs, n + self.n_obstacles))
-        self._ey = np.zeros((num_envs, n + self.n_obstacles))
-        self._radius_sum = np.zeros((num_envs, n, n + self.n_obstacles))
+        self.obstacle_x = np.zeros((num_envs, self.n_obstacles))
+        self.obstacle_y = np.zeros((num_envs, self.n_obstacles))
+        self.radius_sum = np.zeros((num_envs, n, n + self.n_obstacles))
         pair = self.robot_radius[:, None] + self.robot_radius[None, :]
-        # -inf on the diagonal turns a robot's clearance to itself into +inf without a mask
         pair[np.arange(n), np.arange(n)] = -np.inf
-        self._radius_sum[:, :, :n] = pair
+        self.radius_sum[:, :, :n] = pair
 
     def set_obstacles(self, index: int, obstacles: NDArray) -> None:
         """Install the (M, 3) obstacles (x, y, radius) of environment ``index``."""
-        n = self.n_robots
-        self._ex[index, n:] = obstacles[:, 0]
-        self._ey[index, n:] = obstacles[:, 1]
-        self._radius_sum[index, :, n:] = obstacles[None, :, 2] + self.robot_radius[:, None]
+        self.obstacle_x[index] = obstacles[:, 0]
+        self.obstacle_y[index] = obstacles[:, 1]
+        self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
     def compute(self, x: NDArray, y: NDArray) -> Geometry:
-        """Geometry for robot centres ``x``, ``y`` of shape (K, N) [m]."""
-        n = self.n_robots
-        self._ex[:, :n] = x
-        self._ey[:, :n] = y
-        dx = self._ex[:, None, :] - x[:, :, None]
-        dy = self._ey[:, None, :] - y[:, :, None]
-        # sqrt of squares rather than hypot: the values are metres, and hypot is ~10x slower
-        clearance = dx * dx
-        clearance += dy * dy
-        np.sqrt(clearance, out=clearance)
-        clearance -= self._radius_sum
-        return Geometry(dx, dy, clearance)
+        """Offsets and clearances to every entity for robot centres ``x``, ``y`` of shape (K, N) [m]."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        entity_x = np.concatenate([x, self.obstacle_x], axis=1)
+        entity_y = np.concatenate([y, self.obstacle_y], axis=1)
+        shape = self.radius_sum.shape
+        dx, dy, out = np.empty(shape), np.empty(shape), np.empty(shape)
+        _pairwise(x, y, entity_x, entity_y, self.radius_sum, dx, dy, out)
+        return Geometry(dx, dy, out)

@@ -25,10 +25,13 @@ the observation space even after a robot has left the workspace.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.sim.geometry import Geometry
+from koopman_envs.sim.geometry import TeamGeometry, clearance
 
 __all__ = ["FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
 
@@ -59,7 +62,7 @@ def feature_bounds(
 
 
 class FeatureBuilder:
-    """Assembles the observation blocks of K environments from the step's geometry.
+    """Assembles the observation blocks of K environments (one compiled pass over robots and obstacles).
 
     Parameters
     ----------
@@ -85,25 +88,15 @@ class FeatureBuilder:
         self.n_obstacle_obs = n_obstacle_obs
         self.formation = formation
         self.listed = min(n_obstacles, n_obstacle_obs)
-        # fancy-index helpers: row i lists every robot but i; env and robot index grids
-        self._others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.intp)
-        # flat row index of (env k, robot i, entity 0) in a (K * N * E, 3) view of the entities
-        n_entities = n + n_obstacles
-        row_base = (np.arange(k)[:, None] * n + np.arange(n)[None, :]) * n_entities
-        self._others_flat = (row_base[:, :, None] + self._others[None]).astype(np.intp)
-        self._obstacle_base = (row_base[:, :, None] + n).astype(np.intp)
-        self._others_at = 9
-        self._obstacles_at = 9 + 3 * (n - 1)
-        self._formation_at = self._obstacles_at + 3 * n_obstacle_obs
-        self._padding = np.tile([0.0, 0.0, FAR], max(n_obstacle_obs - self.listed, 0))
+        self._no_offsets = np.zeros((k, 2, n))  # the kernel's formation input when unused
         #: positions in a block of the surface clearances (other robots, then listed obstacles)
-        self.clearance_index = np.arange(self._others_at + 2, self._formation_at, 3)
+        self.clearance_index = np.arange(9 + 2, 9 + 3 * (n - 1 + n_obstacle_obs), 3)
 
     def build(
         self,
         state: NDArray,
         target: NDArray,
-        geometry: Geometry,
+        geometry: TeamGeometry,
         formation_offsets: NDArray | None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Observation blocks and target distances.
@@ -112,8 +105,8 @@ class FeatureBuilder:
         ----------
         state, target : ndarray, shape (K, 3, N)
             Current and target poses as rows x [m], y [m], theta [rad].
-        geometry : Geometry
-            Pairwise geometry of ``state`` (robots first, then obstacles).
+        geometry : TeamGeometry
+            Obstacle layouts and radius sums of the K environments.
         formation_offsets : ndarray, shape (K, 2, N), optional
             Rows dx, dy [m]; used when the builder was made with ``formation=True``.
 
@@ -124,62 +117,80 @@ class FeatureBuilder:
         distances : ndarray, shape (K, N)
             Distance of every robot to its target [m] (unclipped).
         """
-        n = self.n_robots
         out = np.empty(self.shape)
-        x, y, th = state[:, 0], state[:, 1], state[:, 2]
-        c, s = np.cos(th), np.sin(th)
-        out[..., 0] = x
-        out[..., 1] = y
-        out[..., 2] = c
-        out[..., 3] = s
-        tdx = target[:, 0] - x
-        tdy = target[:, 1] - y
-        body = c * tdx
-        body += s * tdy
-        out[..., 4] = body
-        body = c * tdy
-        body -= s * tdx
-        out[..., 5] = body
-        distances = tdx * tdx
-        distances += tdy * tdy
-        np.sqrt(distances, out=distances)
-        out[..., 6] = distances
-        dth = target[:, 2] - th
-        out[..., 7] = np.cos(dth)
-        out[..., 8] = np.sin(dth)
-        if n > 1 or self.listed:
-            # body-frame offsets and clearance to every entity, then pick the wanted ones
-            c3, s3 = c[..., None], s[..., None]
-            rel = np.empty(geometry.dx.shape + (3,))
-            body = c3 * geometry.dx
-            body += s3 * geometry.dy
-            rel[..., 0] = body
-            body = c3 * geometry.dy
-            body -= s3 * geometry.dx
-            rel[..., 1] = body
-            rel[..., 2] = geometry.clearance
-            flat = rel.reshape(-1, 3)
-            if n > 1:
-                others = flat.take(self._others_flat, axis=0)
-                out[..., self._others_at : self._obstacles_at] = others.reshape(self.shape[0], n, -1)
-            if self.n_obstacle_obs:
-                block = out[..., self._obstacles_at : self._formation_at]
-                if self.listed:
-                    order = geometry.clearance[..., n:].argsort(axis=-1)
-                    if self.listed < self.n_obstacles:
-                        order = order[..., : self.listed]
-                    order += self._obstacle_base
-                    nearest = flat.take(order, axis=0)
-                    block[..., : 3 * self.listed] = nearest.reshape(self.shape[0], n, -1)
-                if self.listed < self.n_obstacle_obs:
-                    block[..., 3 * self.listed :] = self._padding
-        if self.formation:
-            ex = x - x[:, :1]
-            ex -= formation_offsets[:, 0]
-            out[..., -2] = ex
-            ey = y - y[:, :1]
-            ey -= formation_offsets[:, 1]
-            out[..., -1] = ey
-        np.maximum(out, self.low, out=out)  # two ufuncs: cheaper than np.clip on small arrays
-        np.minimum(out, self.high, out=out)
+        distances = np.empty(self.shape[:2])
+        offsets = self._no_offsets if formation_offsets is None else formation_offsets
+        _build_features(
+            state, target, offsets, self.formation, geometry.obstacle_x, geometry.obstacle_y,
+            geometry.radius_sum, self.n_obstacle_obs, self.low, self.high, out, distances,
+        )  # fmt: skip
         return out, distances
+
+
+@njit(cache=True)
+def _build_features(
+    state, target, offsets, formation, obstacle_x, obstacle_y, radius_sum, n_obstacle_obs, low, high, out, distances
+):  # pragma: no cover - compiled
+    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring."""
+    n_envs, _, n_robots = state.shape
+    n_obstacles = obstacle_x.shape[1]
+    n_features = out.shape[2]
+    listed = min(n_obstacles, n_obstacle_obs)
+    obstacles_at = 9 + 3 * (n_robots - 1)
+    formation_at = obstacles_at + 3 * n_obstacle_obs
+    gap = np.empty(n_obstacles)
+    order = np.empty(n_obstacles, dtype=np.int64)
+    for k in range(n_envs):
+        for i in range(n_robots):
+            row = out[k, i]
+            x, y, theta = state[k, 0, i], state[k, 1, i], state[k, 2, i]
+            c, s = math.cos(theta), math.sin(theta)
+            row[0], row[1], row[2], row[3] = x, y, c, s
+            tdx = target[k, 0, i] - x
+            tdy = target[k, 1, i] - y
+            row[4] = c * tdx + s * tdy
+            row[5] = c * tdy - s * tdx
+            distance = math.sqrt(tdx * tdx + tdy * tdy)
+            row[6] = distance
+            distances[k, i] = distance
+            dtheta = target[k, 2, i] - theta
+            row[7], row[8] = math.cos(dtheta), math.sin(dtheta)
+            at = 9
+            for j in range(n_robots):
+                if j != i:
+                    ox, oy = state[k, 0, j], state[k, 1, j]
+                    dx, dy = ox - x, oy - y
+                    row[at] = c * dx + s * dy
+                    row[at + 1] = c * dy - s * dx
+                    row[at + 2] = clearance(x, y, ox, oy, radius_sum[k, i, j])
+                    at += 3
+            if n_obstacle_obs:
+                # nearest first; insertion sort is stable, so equal clearances keep index order
+                for m in range(n_obstacles):
+                    gap[m] = clearance(x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m])
+                    order[m] = m
+                    q = m
+                    while q > 0 and gap[order[q - 1]] > gap[m]:
+                        order[q] = order[q - 1]
+                        q -= 1
+                    order[q] = m
+                for q in range(listed):
+                    m = order[q]
+                    dx, dy = obstacle_x[k, m] - x, obstacle_y[k, m] - y
+                    row[at] = c * dx + s * dy
+                    row[at + 1] = c * dy - s * dx
+                    row[at + 2] = gap[m]
+                    at += 3
+                for _ in range(listed, n_obstacle_obs):
+                    row[at], row[at + 1], row[at + 2] = 0.0, 0.0, FAR
+                    at += 3
+            if formation:
+                row[formation_at] = (x - state[k, 0, 0]) - offsets[k, 0, i]
+                row[formation_at + 1] = (y - state[k, 1, 0]) - offsets[k, 1, i]
+            for f in range(n_features):
+                value = row[f]
+                if value < low[f]:
+                    value = low[f]
+                if value > high[f]:
+                    value = high[f]
+                row[f] = value
