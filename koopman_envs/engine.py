@@ -27,6 +27,7 @@ from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import SlipSampler
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.tasks.observation import FeatureBuilder
+from koopman_envs.tasks.reward import score_step
 
 __all__ = ["EngineConfig", "NavigationEngine", "RANDOM_SLIP", "StepResult"]
 
@@ -192,7 +193,6 @@ class NavigationEngine:
         self._workspace = np.asarray(PARAMS.workspace, dtype=np.float64)
         self._all_active = np.ones(k, dtype=bool)
         self._settle_steps = PARAMS.settle_steps
-        self._no_truncation = np.zeros(k, dtype=bool)
         if config.map_spec is not None:
             for index in range(k):
                 self._set_map(index, config.map_spec)
@@ -318,11 +318,12 @@ class NavigationEngine:
         """
         cfg = self.config
         weights = cfg.task.reward
-        slip = self.slip.draw(active)
+        slip = self.slip
+        slip.prepare(active)
         new = np.empty_like(self.state)
         effort = np.empty(self.distances.shape)
         advance_teams(
-            self.state, commands, slip, self._all_active if active is None else active,
+            self.state, commands, slip.unit, slip.cursor, slip.lambdas, self._all_active if active is None else active,
             self.command_low, self.command_high, self._effort_scale, PARAMS.dt, new, effort,
         )  # fmt: skip
         self.state = new
@@ -332,35 +333,18 @@ class NavigationEngine:
         features, distances = self.builder.build(
             new, self.target, geometry, self.offset if cfg.task.formation else None
         )
-        progress = self.distances - distances
+        k, n = distances.shape
+        robot_reward, team_reward = np.empty((k, n)), np.empty(k)
+        success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
+        score_step(
+            weights, cfg.task.formation, cfg.goal_tolerance, self._settle_steps, cfg.max_episode_steps,
+            self.distances, distances, effort, features, collision,
+            self._all_active if active is None else active, self.settled, self.elapsed,
+            robot_reward, team_reward, success, terminated, truncated,
+        )  # fmt: skip
         self.distances = distances
-        within = np.maximum.reduce(distances, axis=1) <= cfg.goal_tolerance
-        self.settled += 1 if active is None else active
-        self.settled *= within
-        hit = collision != 0
-        success = self.settled >= self._settle_steps
-        success &= ~hit
-        terminated = hit | success
         self.collision = collision
         self.success = success
-        self.elapsed += 1 if active is None else active
-        if cfg.max_episode_steps is None:
-            truncated = self._no_truncation
-        else:
-            truncated = self.elapsed >= cfg.max_episode_steps  # as gymnasium.wrappers.TimeLimit
-
-        robot_reward = progress * weights.progress
-        robot_reward -= effort * weights.effort
-        robot_reward += (distances <= cfg.goal_tolerance) * weights.settle
-        if cfg.task.formation:
-            robot_reward -= weights.formation * np.hypot(features[..., -2], features[..., -1])
-        team_reward = success * weights.success
-        team_reward -= hit * weights.collision
-        if active is not None:
-            robot_reward *= active[:, None]
-            team_reward *= active
-            terminated &= active
-            truncated = truncated & active
         return StepResult(features, robot_reward, team_reward, terminated, truncated)
 
     # ------------------------------------------------------------------- info

@@ -163,7 +163,9 @@ def wrap_angle(angle: NDArray) -> NDArray:
 def advance_teams(
     state: NDArray,
     commands: NDArray,
-    slip: NDArray,
+    slip_unit: NDArray,
+    slip_cursor: NDArray,
+    lambdas: NDArray,
     active: NDArray,
     command_low: NDArray,
     command_high: NDArray,
@@ -180,10 +182,15 @@ def advance_teams(
         Rows x [m], y [m], theta [rad].
     commands : ndarray, shape (K, N, 2)
         Requested (v [m/s], omega [rad/s]); saturated here to ``command_low``/``command_high``.
-    slip : ndarray, shape (K, 3, N)
-        Rows alpha, beta, gamma of this period.
+    slip_unit : ndarray, shape (K, B, 3, N)
+        Unit-mean Exponential draws (:class:`~koopman_envs.sim.slip.SlipSampler`); environment k
+        uses row ``slip_cursor[k]`` (rows alpha, beta, gamma) scaled by ``lambdas[k]``.
+    slip_cursor : ndarray of int, shape (K,)
+        Next unread row per environment; advanced here for active environments.
+    lambdas : ndarray, shape (K, N)
+        Slip means per robot.
     active : ndarray of bool, shape (K,)
-        Inactive environments keep their state and report zero effort.
+        Inactive environments keep their state, consume no slip and report zero effort.
     command_low, command_high, effort_scale : ndarray, shape (2,)
         Actuation limits and the effort weight of each channel.
     dt : float
@@ -199,12 +206,14 @@ def advance_teams(
             new_state[k] = state[k]
             effort[k] = 0.0
             continue
+        slip = slip_unit[k, slip_cursor[k]]
+        slip_cursor[k] += 1
         for i in range(n_robots):
             v = min(max(commands[k, i, 0], command_low[0]), command_high[0])
             omega = min(max(commands[k, i, 1], command_low[1]), command_high[1])
             x, y, theta = rk4_pose(
                 state[k, 0, i], state[k, 1, i], state[k, 2, i], v, omega,
-                slip[k, 0, i], slip[k, 1, i], slip[k, 2, i], dt,
+                slip[0, i] * lambdas[k, i], slip[1, i] * lambdas[k, i], slip[2, i] * lambdas[k, i], dt,
             )  # fmt: skip
             new_state[k, 0, i] = x
             new_state[k, 1, i] = y

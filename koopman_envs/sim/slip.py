@@ -32,11 +32,10 @@ class SlipSampler:
         self.n_robots = int(n_robots)
         self.rngs: list[np.random.Generator | None] = [None] * num_envs
         self.lambdas = np.zeros((num_envs, n_robots))
-        # (K, block, 3, N): one period of env k is a contiguous (3, N) slab: alpha, beta, gamma rows
-        self._unit = np.zeros((num_envs, self.block, 3, n_robots))
-        self._cursor = np.full(num_envs, self.block, dtype=np.int64)
-        self._flat = self._unit.reshape(num_envs * self.block, 3, n_robots)
-        self._row_start = np.arange(num_envs) * self.block
+        #: (K, block, 3, N) unit-mean draws; one period of env k is a (3, N) slab: alpha, beta, gamma rows
+        self.unit = np.zeros((num_envs, self.block, 3, n_robots))
+        #: (K,) next unread period of each environment's block
+        self.cursor = np.full(num_envs, self.block, dtype=np.int64)
         # periods every env can still draw from its buffer; 0 forces the refill check
         self._headroom = 0
 
@@ -48,43 +47,33 @@ class SlipSampler:
         """
         if self.rngs[index] is not rng:
             self.rngs[index] = rng
-            self._cursor[index] = self.block
+            self.cursor[index] = self.block
             self._headroom = 0
         self.lambdas[index] = lambdas
 
-    def draw(self, active: NDArray | None = None) -> NDArray[np.float64]:
-        """Slip of the next period for every environment.
+    def prepare(self, active: NDArray | None = None) -> None:
+        """Refill the block of every environment about to step past its buffer.
+
+        Call once before each step; the step itself then reads row ``cursor[k]`` of
+        :attr:`unit` for every active environment k, scales it by ``lambdas[k]`` and advances
+        ``cursor[k]`` (see :func:`koopman_envs.sim.dynamics.advance_teams`).
 
         Parameters
         ----------
         active : ndarray of bool, shape (K,), optional
             Environments that actually step; the others consume nothing.
-
-        Returns
-        -------
-        ndarray, shape (K, 3, N)
-            Rows alpha, beta, gamma; one column per robot (dimensionless, >= 0).
         """
         if active is None and self._headroom > 0:
-            unit = self._flat.take(self._row_start + self._cursor, axis=0)
-            self._cursor += 1
             self._headroom -= 1
-            return unit * self.lambdas[:, None, :]
-        need = self._cursor >= self.block
+            return
+        need = self.cursor >= self.block
         if active is not None:
             need &= active
         for k in np.flatnonzero(need):
             rng = self.rngs[k]
             if rng is None:
                 raise RuntimeError(f"environment {k} was stepped before reset()")
-            rng.standard_exponential(out=self._unit[k])
-            self._cursor[k] = 0
-        if active is None:
-            unit = self._flat.take(self._row_start + self._cursor, axis=0)
-            self._cursor += 1
-        else:
-            # inactive envs read a harmless row and do not advance
-            unit = self._flat.take(self._row_start + np.minimum(self._cursor, self.block - 1), axis=0)
-            self._cursor += active
-        self._headroom = int(self.block - self._cursor.max())
-        return unit * self.lambdas[:, None, :]
+            rng.standard_exponential(out=self.unit[k])
+            self.cursor[k] = 0
+        # rows every environment can still read after this step, counted conservatively
+        self._headroom = int(self.block - self.cursor.max()) - 1
