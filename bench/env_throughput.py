@@ -2,13 +2,13 @@
 
 Usage::
 
-    python bench/env_throughput.py [--seconds 3] [--json out.json]
+    python bench/env_throughput.py [--seconds 1] [--repeats 3] [--json out.json]
 
 Prints steps/s for ``gym.make`` (3 robots, random actions in the actuation limits, auto reset),
 the vector env at 1, 64 and 1024 envs (env-steps/s), and, when ``mpe2`` is installed,
 PettingZoo MPE2 ``simple_spread_v3`` (3 agents, continuous random actions) in the same run.
 Random actions are drawn before timing for every contender alike, so only environment time is
-measured.
+measured. Each figure is the best of ``--repeats`` timing windows.
 """
 
 from __future__ import annotations
@@ -23,23 +23,34 @@ import numpy as np
 
 import koopman_envs
 
+REPEATS = 3  # timing windows per figure; the best is reported
 
-def _timed(step, reset, seconds: float) -> float:
-    """Steps per second of ``step(i)`` over at least ``seconds`` (after a short warm-up)."""
+
+def _timed(step, reset, seconds: float, repeats: int = REPEATS) -> float:
+    """Best steps per second of ``step(i)`` over ``repeats`` windows of ``seconds`` each.
+
+    The best window, not the mean: on a shared machine, other tenants only ever slow a window
+    down, so the fastest one is the closest to what the code itself costs.
+    """
     reset()
     for i in range(50):
         step(i)
-    count, start = 0, time.perf_counter()
-    while True:
-        for i in range(500):
-            step(count + i)
-        count += 500
-        elapsed = time.perf_counter() - start
-        if elapsed >= seconds:
-            return count / elapsed
+    best, count = 0.0, 0
+    for _ in range(repeats):
+        done, start = 0, time.perf_counter()
+        while True:
+            for i in range(500):
+                step(count + i)
+            count += 500
+            done += 500
+            elapsed = time.perf_counter() - start
+            if elapsed >= seconds:
+                best = max(best, done / elapsed)
+                break
+    return best
 
 
-def bench_single(env_id: str, seconds: float) -> float:
+def bench_single(env_id: str, seconds: float, repeats: int = REPEATS) -> float:
     env = gym.make(env_id)
     actions = np.random.default_rng(0).uniform(-1, 1, (4096, 6)).astype(np.float32) * env.action_space.high
 
@@ -48,10 +59,10 @@ def bench_single(env_id: str, seconds: float) -> float:
         if terminated or truncated:
             env.reset()
 
-    return _timed(step, lambda: env.reset(seed=0), seconds)
+    return _timed(step, lambda: env.reset(seed=0), seconds, repeats)
 
 
-def bench_vector(env_id: str, num_envs: int, seconds: float) -> float:
+def bench_vector(env_id: str, num_envs: int, seconds: float, repeats: int = REPEATS) -> float:
     venv = gym.make_vec(env_id, num_envs=num_envs)
     high = venv.single_action_space.high
     actions = np.random.default_rng(0).uniform(-1, 1, (64, num_envs, 6)).astype(np.float32) * high
@@ -59,10 +70,10 @@ def bench_vector(env_id: str, num_envs: int, seconds: float) -> float:
     def step(i: int) -> None:
         venv.step(actions[i & 63])
 
-    return _timed(step, lambda: venv.reset(seed=0), seconds) * num_envs
+    return _timed(step, lambda: venv.reset(seed=0), seconds, repeats) * num_envs
 
 
-def bench_mpe2(seconds: float) -> float | None:
+def bench_mpe2(seconds: float, repeats: int = REPEATS) -> float | None:
     try:
         from mpe2 import simple_spread_v3
     except ImportError:
@@ -80,25 +91,26 @@ def bench_mpe2(seconds: float) -> float | None:
         if not env.agents:
             env.reset()
 
-    return _timed(step, lambda: env.reset(seed=0), seconds)
+    return _timed(step, lambda: env.reset(seed=0), seconds, repeats)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seconds", type=float, default=3.0, help="timing window per figure")
+    parser.add_argument("--seconds", type=float, default=1.0, help="length of one timing window")
+    parser.add_argument("--repeats", type=int, default=REPEATS, help="windows per figure (best reported)")
     parser.add_argument("--json", help="also write the figures to this JSON file")
     args = parser.parse_args()
     results: dict[str, float | None] = {}
     print(f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}")
     for env_id in koopman_envs.ENV_IDS:
-        rate = bench_single(env_id, args.seconds)
+        rate = bench_single(env_id, args.seconds, args.repeats)
         results[f"{env_id} single"] = rate
         print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
         for k in (1, 64, 1024):
-            rate = bench_vector(env_id, k, args.seconds)
+            rate = bench_vector(env_id, k, args.seconds, args.repeats)
             results[f"{env_id} vector {k}"] = rate
             print(f"{env_id:28s} make_vec num_envs={k:<5d}   {rate:12,.0f} env-steps/s")
-    mpe = bench_mpe2(args.seconds)
+    mpe = bench_mpe2(args.seconds, args.repeats)
     results["mpe2 simple_spread_v3"] = mpe
     if mpe is None:
         print("mpe2 not installed: `pip install mpe2` to compare against simple_spread_v3")

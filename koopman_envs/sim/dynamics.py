@@ -78,7 +78,11 @@ def rk4_pose(
 @njit(cache=True)
 def wrap_scalar(angle: float) -> float:
     """Wrap one angle to [-pi, pi) [rad]; the same arithmetic as :func:`wrap_angle`."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+    shifted = angle + math.pi
+    if 0.0 <= shifted < 2.0 * math.pi:
+        # the remainder would return ``shifted`` itself; skipping it saves an fmod per robot
+        return shifted - math.pi
+    return shifted % (2.0 * math.pi) - math.pi
 
 
 @njit(cache=True)
