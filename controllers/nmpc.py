@@ -43,10 +43,16 @@ IPOPT_OPTIONS: dict[str, Any] = {
 }
 
 #: fatrop settings (ours): the structure-exploiting interior-point solver shipped with CasADi.
+#: ``bound_push`` 1e-6 (fatrop's default 1e-2) keeps the shifted warm start where it is, as
+#: IPOPT's ``warm_start_bound_push`` does, and a small initial barrier (``mu_init`` 1e-5) suits
+#: a start that is already near the optimum: on the Map 1 benchmark episode the median went from
+#: 13 to 8 iterations with the same closed loop (and the same outcomes on Map 4 and Map 2, high
+#: slip, 3 seeds each, Koopman-NMPC).
 FATROP_OPTIONS: dict[str, Any] = {
     "print_time": False,
     "fatrop.print_level": 0,
-    "fatrop.mu_init": 1e-3,
+    "fatrop.mu_init": 1e-5,
+    "fatrop.bound_push": 1e-6,
     "fatrop.max_iter": 100,
 }
 
