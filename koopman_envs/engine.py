@@ -1,7 +1,7 @@
 """The batched navigation engine under every front.
 
 It owns K environments of N robots: their poses, maps, targets, slip generators and episode
-counters, and advances all of them with array maths. The Gymnasium env is this engine with
+counters, and advances all of them in compiled batch loops (numba). The Gymnasium env is this engine with
 K = 1, the vector env is the engine with K = num_envs, and the PettingZoo env reads per-agent
 blocks of the same observation features. Because all fronts run this one code path,
 sub-environment i of a batch seeded with s + i reproduces a lone environment seeded s + i.

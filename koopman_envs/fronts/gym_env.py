@@ -195,7 +195,7 @@ _COMMON_DOC = """
 
     ## Vectorized environment
     ``gym.make_vec(id, num_envs=K)`` returns :class:`koopman_envs.fronts.vector_env.KoopNavVectorEnv`,
-    which steps all K copies with array maths; sub-env i seeded ``s + i`` equals the single env
+    which steps all K copies in one compiled pass; sub-env i seeded ``s + i`` equals the single env
     seeded ``s + i``.
 
     ## Version History
