@@ -300,6 +300,8 @@ class _Problem:
         self.lbg = np.concatenate(lbg).astype(float)
         self.ubg = np.concatenate(ubg).astype(float)
         self.n_vars, self.n_cons = self.lbw.size, self.lbg.size
+        # the bounds never change: convert them to CasADi once, not at every solver call (~0.2 ms)
+        self.bounds = {name: ca.DM(v) for name, v in (("lbx", self.lbw), ("ubx", self.ubw), ("lbg", self.lbg), ("ubg", self.ubg))}
         self.nx, self.nu, self.ns, self.horizon, self.coding = nx, nu, ns, horizon, coding
         self.stage_size = nx + nu + ns
         stage = self.stage_size
@@ -461,7 +463,7 @@ class NMPCController(BaseController):
         """One solver call: (success, status, solution vector, raw solution, iterations)."""
         prob = self._problem
         try:
-            sol = solver(p=params, lbx=prob.lbw, ubx=prob.ubw, lbg=prob.lbg, ubg=prob.ubg, **args)
+            sol = solver(p=params, **prob.bounds, **args)
         except RuntimeError as exc:  # CasADi raises on evaluation errors (e.g. NaN in a function)
             return False, f"error: {exc}".splitlines()[0][:80], None, None, 0
         stats = solver.stats()
