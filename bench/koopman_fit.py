@@ -26,7 +26,7 @@ import tracemalloc
 
 import numpy as np
 
-from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts, circle_test, rmse_percent
+from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts, circle_test
 from controllers.koopman.data import DataSpec, collect_data
 from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import fit_bilinear
@@ -122,7 +122,7 @@ def main() -> None:
           f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in gen_times) + ")")  # fmt: skip
     print(f"bilinear fit      {fit_seconds:6.3f} s   peak traced memory {fit_peak / 2**20:7.1f} MiB  "
           f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in fit_times) + ") "
-          f"(data included)")  # fmt: skip
+          "(data included)")  # fmt: skip
     print(f"process peak RSS  {rss:7.1f} MiB")
     print("circle RMSE %     " + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed))
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 from typing import Any, Sequence
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
