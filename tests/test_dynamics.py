@@ -135,3 +135,22 @@ def test_env_terminates_on_each_collision_kind(starts, command, kind) -> None:
     assert terminated and not truncated
     assert info["collision"] and info["collision_kind"] == kind and not info["is_success"]
     assert reward < -5  # the collision penalty
+
+
+def test_compiled_rk4_matches_numpy_arithmetic_bit_for_bit() -> None:
+    """The compiled kernel does numpy's operations in numpy's order (no fused multiply-add)."""
+    rng = np.random.default_rng(3)
+    pose = rng.uniform([-9, -9, -np.pi], [9, 9, np.pi], (4000, 3))
+    command = rng.uniform([-0.5, -0.8], [0.5, 0.8], (4000, 2))
+    slip = rng.exponential(0.2, (4000, 3))
+    dt = 0.1
+    x, y, th = pose.T
+    forward = (slip[:, 1] + 1.0) * command[:, 0]
+    side = slip[:, 0] * command[:, 0]
+    turn = (slip[:, 2] + 1.0) * command[:, 1]
+    stages = np.stack([th, turn * (0.5 * dt) + th, turn * dt + th])
+    weights = (np.array([1.0, 4.0, 1.0]) * (dt / 6.0))[:, None]
+    cw = (np.cos(stages[0]) * weights[0] + np.cos(stages[1]) * weights[1]) + np.cos(stages[2]) * weights[2]
+    sw = (np.sin(stages[0]) * weights[0] + np.sin(stages[1]) * weights[1]) + np.sin(stages[2]) * weights[2]
+    expected = np.stack([forward * cw + side * sw + x, forward * sw - side * cw + y, stages[2]], axis=-1)
+    np.testing.assert_array_equal(rk4_step(pose, command, slip, dt), expected)
