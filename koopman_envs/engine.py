@@ -1,8 +1,8 @@
 """The batched navigation engine under every front.
 
 It owns K environments of N robots: their poses, maps, targets, slip generators and episode
-counters, and advances all of them in compiled batch loops (numba). The Gymnasium env is this engine with
-K = 1, the vector env is the engine with K = num_envs, and the PettingZoo env reads per-agent
+counters, and advances all of them in compiled batch loops (numba). The Gymnasium env is this
+engine with K = 1, the vector env is the engine with K = num_envs, and the PettingZoo env reads per-agent
 blocks of the same observation features. Because all fronts run this one code path,
 sub-environment i of a batch seeded with s + i reproduces a lone environment seeded s + i.
 """
@@ -155,9 +155,9 @@ class NavigationEngine:
     """K navigation environments advanced together.
 
     The state is kept channel-first, ``state[k] = [x; y; theta]`` of shape (3, N);
-    :attr:`poses` gives the familiar (K, N, 3) view. A step is three compiled passes (physics,
-    collisions, observation features; see :mod:`koopman_envs.sim.dynamics`) and a few array
-    operations for rewards and episode ends.
+    :attr:`poses` gives the familiar (K, N, 3) view. A step is four compiled passes over the
+    batch: physics (:func:`~koopman_envs.sim.dynamics.advance_teams`), collision flags,
+    observation features, and rewards with episode ends (:mod:`koopman_envs.tasks.reward`).
 
     Parameters
     ----------
@@ -317,19 +317,21 @@ class NavigationEngine:
         StepResult
         """
         cfg = self.config
-        weights = cfg.task.reward
         slip = self.slip
         slip.prepare(active)
+        stepping = self._all_active if active is None else active
         new = np.empty_like(self.state)
         effort = np.empty(self.distances.shape)
         advance_teams(
-            self.state, commands, slip.unit, slip.cursor, slip.lambdas, self._all_active if active is None else active,
+            self.state, commands, slip.unit, slip.cursor, slip.lambdas, stepping,
             self.command_low, self.command_high, self._effort_scale, PARAMS.dt, new, effort,
         )  # fmt: skip
         self.state = new
         geometry = self.geometry
         collision = np.empty(self.num_envs, dtype=np.int64)
-        collision_flags(new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision)
+        collision_flags(
+            new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
+        )
         features, distances = self.builder.build(
             new, self.target, geometry, self.offset if cfg.task.formation else None
         )
@@ -337,9 +339,9 @@ class NavigationEngine:
         robot_reward, team_reward = np.empty((k, n)), np.empty(k)
         success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
         score_step(
-            weights, cfg.task.formation, cfg.goal_tolerance, self._settle_steps, cfg.max_episode_steps,
-            self.distances, distances, effort, features, collision,
-            self._all_active if active is None else active, self.settled, self.elapsed,
+            cfg.task.reward, cfg.task.formation, cfg.goal_tolerance, self._settle_steps,
+            cfg.max_episode_steps,
+            self.distances, distances, effort, features, collision, stepping, self.settled, self.elapsed,
             robot_reward, team_reward, success, terminated, truncated,
         )  # fmt: skip
         self.distances = distances

@@ -19,7 +19,9 @@ from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
 
-__all__ = ["advance_teams", "rk4_channels", "rk4_pose", "rk4_step", "slip_velocity", "wrap_angle", "wrap_scalar"]
+__all__ = [
+    "advance_teams", "rk4_channels", "rk4_pose", "rk4_step", "slip_velocity", "wrap_angle", "wrap_scalar",
+]
 
 
 def slip_velocity(pose: NDArray, command: NDArray, slip: NDArray) -> NDArray:
@@ -52,7 +54,8 @@ def slip_velocity(pose: NDArray, command: NDArray, slip: NDArray) -> NDArray:
 
 @njit(cache=True)
 def rk4_pose(
-    x: float, y: float, theta: float, v: float, omega: float, alpha: float, beta: float, gamma: float, dt: float
+    x: float, y: float, theta: float, v: float, omega: float,
+    alpha: float, beta: float, gamma: float, dt: float,
 ) -> tuple[float, float, float]:
     """One RK4 period of one robot (scalars; compiled, callable from Python and from kernels).
 
@@ -88,7 +91,9 @@ def wrap_scalar(angle: float) -> float:
 @njit(cache=True)
 def _rk4_flat(x, y, theta, v, omega, alpha, beta, gamma, dt, out_x, out_y, out_theta):  # pragma: no cover
     for i in range(x.shape[0]):
-        out_x[i], out_y[i], out_theta[i] = rk4_pose(x[i], y[i], theta[i], v[i], omega[i], alpha[i], beta[i], gamma[i], dt)
+        out_x[i], out_y[i], out_theta[i] = rk4_pose(
+            x[i], y[i], theta[i], v[i], omega[i], alpha[i], beta[i], gamma[i], dt
+        )
 
 
 def rk4_channels(

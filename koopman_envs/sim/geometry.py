@@ -9,13 +9,11 @@ that "touches" an obstacle in the collision check reads a negative clearance in 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["Geometry", "TeamGeometry", "clearance"]
+__all__ = ["TeamGeometry", "clearance"]
 
 
 @njit(cache=True)
@@ -30,32 +28,14 @@ def clearance(x: float, y: float, other_x: float, other_y: float, radius_sum: fl
 
 
 @njit(cache=True)
-def _pairwise(x, y, entity_x, entity_y, radius_sum, dx, dy, out):  # pragma: no cover - compiled
+def _clearances(x, y, entity_x, entity_y, radius_sum, out):  # pragma: no cover - compiled
     n_envs, n_robots = x.shape
-    n_entities = entity_x.shape[1]
     for k in range(n_envs):
         for i in range(n_robots):
-            for e in range(n_entities):
-                dx[k, i, e] = entity_x[k, e] - x[k, i]
-                dy[k, i, e] = entity_y[k, e] - y[k, i]
-                out[k, i, e] = clearance(x[k, i], y[k, i], entity_x[k, e], entity_y[k, e], radius_sum[k, i, e])
-
-
-@dataclass
-class Geometry:
-    """Pairwise geometry of K environments of N robots and M obstacles (E = N + M entities).
-
-    Attributes
-    ----------
-    dx, dy : ndarray, shape (K, N, E)
-        World-frame offset from robot i to entity e [m].
-    clearance : ndarray, shape (K, N, E)
-        Surface-to-surface distance [m]; +inf from a robot to itself, negative on overlap.
-    """
-
-    dx: NDArray[np.float64]
-    dy: NDArray[np.float64]
-    clearance: NDArray[np.float64]
+            for e in range(entity_x.shape[1]):
+                out[k, i, e] = clearance(
+                    x[k, i], y[k, i], entity_x[k, e], entity_y[k, e], radius_sum[k, i, e]
+                )
 
 
 class TeamGeometry:
@@ -97,13 +77,13 @@ class TeamGeometry:
         self.obstacle_y[index] = obstacles[:, 1]
         self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
-    def compute(self, x: NDArray, y: NDArray) -> Geometry:
-        """Offsets and clearances to every entity for robot centres ``x``, ``y`` of shape (K, N) [m]."""
+    def clearances(self, x: NDArray, y: NDArray) -> NDArray[np.float64]:
+        """Clearance of every robot to every entity, shape (K, N, N + M) [m], for centres ``x``, ``y``
+        of shape (K, N) [m]; +inf from a robot to itself, negative on overlap."""
         x = np.ascontiguousarray(x, dtype=np.float64)
         y = np.ascontiguousarray(y, dtype=np.float64)
         entity_x = np.concatenate([x, self.obstacle_x], axis=1)
         entity_y = np.concatenate([y, self.obstacle_y], axis=1)
-        shape = self.radius_sum.shape
-        dx, dy, out = np.empty(shape), np.empty(shape), np.empty(shape)
-        _pairwise(x, y, entity_x, entity_y, self.radius_sum, dx, dy, out)
-        return Geometry(dx, dy, out)
+        out = np.empty(self.radius_sum.shape)
+        _clearances(x, y, entity_x, entity_y, self.radius_sum, out)
+        return out

@@ -142,7 +142,7 @@ class MapSpec:
                     f"map {self.name!r}: {label} of robot {i} at {poses[i, :2].tolist()} is not "
                     f"inside the workspace {workspace} with radius {robot_radius}"
                 )
-            clearance = geometry.compute(poses[None, :, 0].copy(), poses[None, :, 1].copy()).clearance[0]
+            clearance = geometry.clearances(poses[None, :, 0], poses[None, :, 1])[0]
             robots, obstacles = clearance[:, :n_robots], clearance[:, n_robots:]
             if robots.min() < 0:
                 i, j = np.unravel_index(np.argmin(robots), robots.shape)

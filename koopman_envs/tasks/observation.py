@@ -87,7 +87,6 @@ class FeatureBuilder:
         self.n_robots, self.n_obstacles = n, n_obstacles
         self.n_obstacle_obs = n_obstacle_obs
         self.formation = formation
-        self.listed = min(n_obstacles, n_obstacle_obs)
         self._no_offsets = np.zeros((k, 2, n))  # the kernel's formation input when unused
         #: positions in a block of the surface clearances (other robots, then listed obstacles)
         self.clearance_index = np.arange(9 + 2, 9 + 3 * (n - 1 + n_obstacle_obs), 3)
@@ -129,7 +128,8 @@ class FeatureBuilder:
 
 @njit(cache=True)
 def _build_features(
-    state, target, offsets, formation, obstacle_x, obstacle_y, radius_sum, n_obstacle_obs, low, high, out, distances
+    state, target, offsets, formation, obstacle_x, obstacle_y, radius_sum, n_obstacle_obs,
+    low, high, out, distances,
 ):  # pragma: no cover - compiled
     """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring."""
     n_envs, _, n_robots = state.shape
@@ -167,7 +167,9 @@ def _build_features(
             if n_obstacle_obs:
                 # nearest first; insertion sort is stable, so equal clearances keep index order
                 for m in range(n_obstacles):
-                    gap[m] = clearance(x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m])
+                    gap[m] = clearance(
+                        x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]
+                    )
                     order[m] = m
                     q = m
                     while q > 0 and gap[order[q - 1]] > gap[m]:

@@ -68,7 +68,8 @@ def score_step(
     _score(
         prev_distances, distances, effort, features, collision, active, settled, elapsed,
         goal_tolerance, settle_steps, -1 if max_episode_steps is None else max_episode_steps, formation,
-        weights.progress, weights.effort, weights.settle, weights.formation, weights.success, weights.collision,
+        weights.progress, weights.effort, weights.settle, weights.formation,
+        weights.success, weights.collision,
         robot_reward, team_reward, success, terminated, truncated,
     )  # fmt: skip
 
