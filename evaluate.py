@@ -20,8 +20,6 @@ number of failed episodes (capped at 100); a failed ``--check`` exits with 101.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import math
 import multiprocessing as mp
@@ -29,25 +27,27 @@ import os
 import sys
 import time
 import traceback
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 import controllers
 import koopman_envs
+from controllers.calibration import calibrate_controller, data_spec_for
+from evaluation.ablation import ablation_configs, ablation_markdown, check_factors
+from evaluation.configs import ControllerConfig, parse_controller
+from evaluation.aggregate import Cell
+from evaluation.results import SCHEMA_VERSION, Results, json_safe
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
+from koopman_envs.plant import make_plant
 from koopman_envs.sim.maps import BUILTIN_MAPS, load_map
+from koopman_envs.tasks.base import TASKS
 
-__all__ = ["Cell", "EpisodeSpec", "Results", "evaluate", "main", "paper_protocol", "quick_protocol"]
+__all__ = ["Cell", "EpisodeSpec", "Results", "SCHEMA_VERSION", "evaluate", "main", "paper_protocol", "quick_protocol"]
 
-SCHEMA_VERSION = 1
-TASK_MAPS = {
-    "KoopNav-TargetReaching-v0": ("map1", "map2"),
-    "KoopNav-Formation-v0": ("map3", "map4"),
-}
-TASK_LABEL = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0": "formation"}
+TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 FAILED_CHECK_EXIT = 101
 
 
@@ -57,13 +57,17 @@ class EpisodeSpec:
     """One episode to run: a cell plus the trial index (which fixes the seed)."""
 
     env_id: str
-    controller: str
+    controller: str  # the configuration's label (its row in the reports)
     map: str
     slip: str  # a setting name, or comma-separated lambdas
     trial: int
     seed: int
     tolerance: float
     max_episode_steps: int
+    controller_name: str = ""  # registered name (default: the label)
+    controller_options: str = "{}"  # JSON object of factory options
+    calibration_budget: int = PARAMS.calibration_budget
+    calibration_seed: int = 0
 
     @property
     def key(self) -> str:
@@ -75,6 +79,12 @@ class EpisodeSpec:
         """(env, controller, map, slip)."""
         return (self.env_id, self.controller, self.map, self.slip)
 
+    @property
+    def config(self) -> ControllerConfig:
+        """The controller configuration of this episode."""
+        options = json.loads(self.controller_options)
+        return ControllerConfig(self.controller, self.controller_name or self.controller, tuple(sorted(options.items())))
+
 
 def _slip_value(slip: str) -> str | list[float]:
     return slip if slip in SLIP_SETTINGS else [float(v) for v in slip.split(",")]
@@ -82,34 +92,39 @@ def _slip_value(slip: str) -> str | list[float]:
 
 def plan_episodes(
     env_ids: Sequence[str],
-    controller_names: Sequence[str],
+    configs: Sequence[ControllerConfig],
     maps: dict[str, Sequence[str]],
     slips: Sequence[str],
     episodes: int,
     seed: int,
     tolerance: float,
     max_episode_steps: int,
+    calibration_budget: int = PARAMS.calibration_budget,
+    calibration_seed: int = 0,
 ) -> list[EpisodeSpec]:
     """Every episode of a run, in a fixed order. Trial i of every cell uses seed ``seed + i``,
     so all controllers face the same slip draws on the same map (paired comparison)."""
     plan = []
     for env_id in env_ids:
-        for name in controller_names:
+        for cfg in configs:
+            options = json.dumps(dict(cfg.options), sort_keys=True)
             for map_name in maps[env_id]:
                 for slip in slips:
                     for trial in range(episodes):
-                        plan.append(EpisodeSpec(env_id, name, map_name, slip, trial, seed + trial,
-                                                tolerance, max_episode_steps))  # fmt: skip
+                        plan.append(EpisodeSpec(env_id, cfg.label, map_name, slip, trial, seed + trial,
+                                                tolerance, max_episode_steps, cfg.name, options,
+                                                calibration_budget, calibration_seed))  # fmt: skip
     return plan
 
 
 def validate_arguments(
     env_ids: Sequence[str],
-    controller_names: Sequence[str],
+    configs: Sequence[ControllerConfig],
     maps: dict[str, Sequence[str]],
     slips: Sequence[str],
     episodes: int,
     workers: int,
+    calibration_budget: int = PARAMS.calibration_budget,
 ) -> None:
     """Raise ``ValueError`` naming the bad value and what exists."""
     for env_id in env_ids:
@@ -121,10 +136,13 @@ def validate_arguments(
                     load_map(map_name)
                 except ValueError as exc:
                     raise ValueError(f"map {map_name!r}: {exc}") from None
-    available = controllers.available()
-    for name in controller_names:
-        if name not in available:
-            raise ValueError(f"controller {name!r} is not one of {available}")
+    labels = [cfg.label for cfg in configs]
+    duplicated = sorted({label for label in labels if labels.count(label) > 1})
+    if duplicated:
+        raise ValueError(f"controller labels {duplicated} appear twice; give each configuration its own label=")
+    for cfg in configs:
+        cfg.validate()
+    data_spec_for(calibration_budget)  # raises for a budget that is not an integer >= 1
     for slip in slips:
         try:
             slip_lambdas(_slip_value(slip), PARAMS.n_robots)
@@ -158,16 +176,34 @@ def usable_controllers(verbose: bool = True) -> list[str]:
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
 
 
-def _controller_for(spec: EpisodeSpec):
-    """Controllers are reused within a worker (their NLPs are built once per structure)."""
-    options: dict[str, Any] = {}
-    if controllers.accepts_option(spec.controller, "slip"):
-        # the deployment setting selects the data a learned model comes from, never lambda itself
-        options["slip"] = _slip_value(spec.slip)
-    key = (spec.controller, json.dumps(options, sort_keys=True))
+def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
+    """The calibrated controller of a cell and its calibration summary.
+
+    Controllers are reused within a worker (their NLPs are built once per structure). A
+    controller that calibrates gets the cell's calibration plant (the env's robots in an open
+    field, slip means hidden), the run's budget and seed, once per worker and plant; the evaluator
+    hands it nothing else about the env. A calibration that raises is remembered and re-raised
+    for every episode of its cell, which are recorded as errors; other cells go on.
+    """
+    cfg = spec.config
+    plant = make_plant(spec.env_id, slip=_slip_value(spec.slip), budget=spec.calibration_budget,
+                       seed=spec.calibration_seed)  # fmt: skip
+    key = (cfg.label, cfg.name, spec.controller_options, plant.signature, spec.calibration_budget,
+           spec.calibration_seed)  # fmt: skip
     if key not in _CONTROLLER_CACHE:
-        _CONTROLLER_CACHE[key] = controllers.make(spec.controller, **options)
-    return _CONTROLLER_CACHE[key]
+        ctrl = cfg.build()
+        try:
+            _CONTROLLER_CACHE[key] = (ctrl, calibrate_controller(ctrl, plant, seed=spec.calibration_seed))
+        except Exception as exc:  # noqa: BLE001 - recorded for the cell, the run goes on
+            _CONTROLLER_CACHE[key] = CalibrationError(f"calibration of {cfg.label!r} failed: {type(exc).__name__}: {exc}")
+    entry = _CONTROLLER_CACHE[key]
+    if isinstance(entry, CalibrationError):
+        raise entry
+    return entry
+
+
+class CalibrationError(RuntimeError):
+    """A controller's calibration raised (recorded for every episode of its cell)."""
 
 
 def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
@@ -184,7 +220,8 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             goal_tolerance=spec.tolerance,
             max_episode_steps=spec.max_episode_steps,
         )
-        ctrl = _controller_for(spec)
+        ctrl, calibration = _controller_for(spec)
+        record["calibration"] = calibration
         obs, info = env.reset(seed=spec.seed)
         scenario = env.unwrapped.scenario
         ctrl.reset(scenario, seed=spec.seed)
@@ -233,296 +270,6 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
     return record
 
 
-# --------------------------------------------------------------------------- aggregation
-def _nan_reduce(reduce, values: list[float]) -> float:
-    """``reduce`` over the finite values, NaN when there are none (without numpy's warning)."""
-    finite = [v for v in values if v is not None and math.isfinite(v)]
-    return float(reduce(finite)) if finite else float("nan")
-
-
-def _mean_sd(values: list[float]) -> tuple[float, float]:
-    if not values:
-        return float("nan"), float("nan")
-    arr = np.asarray(values, dtype=float)
-    return float(arr.mean()), float(arr.std(ddof=1)) if len(arr) > 1 else 0.0
-
-
-@dataclass
-class Cell:
-    """Aggregated metrics of one (env, controller, map, slip) cell."""
-
-    env_id: str
-    controller: str
-    map: str
-    slip: str
-    episodes: int
-    successes: int
-    collision_free: int
-    errors: int
-    final_distance_cm: list[tuple[float, float]]  # per robot (mean, SD) over successful runs
-    time_to_goal_s: float
-    path_length_m: float
-    control_effort: float
-    formation_rms_cm: float
-    solve_ms_median: float
-    solve_ms_p95: float
-    solver_failures: int
-
-    @property
-    def success_rate(self) -> float:
-        """Fraction of episodes that ended in success."""
-        valid = self.episodes - self.errors
-        return self.successes / valid if valid else float("nan")
-
-    @property
-    def collision_free_rate(self) -> float:
-        """The paper's SR: fraction of episodes without collision."""
-        valid = self.episodes - self.errors
-        return self.collision_free / valid if valid else float("nan")
-
-
-def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
-    """Cells from episode records, in the order they first appear."""
-    by_cell: dict[tuple, list[dict]] = {}
-    for rec in records:
-        by_cell.setdefault((rec["env_id"], rec["controller"], rec["map"], rec["slip"]), []).append(rec)
-    cells = []
-    for (env_id, name, map_name, slip), recs in by_cell.items():
-        ok = [r for r in recs if r["status"] == "ok"]
-        won = [r for r in ok if r["success"]]
-        n_robots = len(ok[0]["final_distance"]) if ok else 0
-        distances = [_mean_sd([100 * r["final_distance"][i] for r in won]) for i in range(n_robots)]
-        cells.append(
-            Cell(
-                env_id=env_id,
-                controller=name,
-                map=map_name,
-                slip=slip,
-                episodes=len(recs),
-                successes=len(won),
-                collision_free=sum(1 for r in ok if r["collision"] is None),
-                errors=len(recs) - len(ok),
-                final_distance_cm=distances,
-                time_to_goal_s=_mean_sd([r["time_to_goal"] for r in won])[0],
-                path_length_m=_mean_sd([float(np.mean(r["path_length"])) for r in ok])[0],
-                control_effort=_mean_sd([float(np.mean(r["control_effort"])) for r in ok])[0],
-                formation_rms_cm=_mean_sd([100 * r["formation_rms"] for r in ok if r["formation_rms"] is not None])[0],
-                solve_ms_median=_nan_reduce(np.median, [r["solve_ms_median"] for r in ok]),
-                solve_ms_p95=_nan_reduce(np.max, [r["solve_ms_p95"] for r in ok]),
-                solver_failures=sum(r["solver_failures"] for r in ok),
-            )
-        )
-    return cells
-
-
-def _fmt_distance(mean: float, sd: float, successes: int) -> str:
-    if successes == 0 or math.isnan(mean):
-        return "-"
-    return f"{mean:.1f}" if successes == 1 else f"{mean:.1f}+-{sd:.1f}"
-
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    return value
-
-
-@dataclass
-class Results:
-    """Everything a run produced: episode records, cells, and the run configuration."""
-
-    records: list[dict[str, Any]]
-    config: dict[str, Any]
-    cells: list[Cell] = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        if not self.cells:
-            self.cells = aggregate(self.records)
-
-    @property
-    def failed_episodes(self) -> list[dict[str, Any]]:
-        """Records of episodes that raised."""
-        return [r for r in self.records if r["status"] != "ok"]
-
-    def cell(self, env_id: str, controller: str, map_name: str, slip: str) -> Cell:
-        """One cell by its coordinates."""
-        for c in self.cells:
-            if (c.env_id, c.controller, c.map, c.slip) == (env_id, controller, map_name, slip):
-                return c
-        raise KeyError((env_id, controller, map_name, slip))
-
-    # ------------------------------------------------------------------ tables
-    def paper_table(self, env_id: str, controller: str) -> str:
-        """The paper-style table (Map, Slip, SR, Robot 1..N final distance in cm)."""
-        cells = [c for c in self.cells if c.env_id == env_id and c.controller == controller]
-        if not cells:
-            return ""
-        n = max(len(c.final_distance_cm) for c in cells)
-        head = "| Map | Slip | Success | SR (collision-free) | " + " | ".join(f"Robot {i + 1} [cm]" for i in range(n)) + " |"
-        lines = [f"**{controller}, {TASK_LABEL.get(env_id, env_id)}**", "", head,
-                 "|" + "---|" * (4 + n)]  # fmt: skip
-        for c in cells:
-            valid = c.episodes - c.errors
-            dists = " | ".join(_fmt_distance(m, s, c.successes) for m, s in c.final_distance_cm)
-            lines.append(f"| {c.map} | {c.slip} | {c.successes}/{valid} | {c.collision_free}/{valid} | {dists} |")
-        return "\n".join(lines)
-
-    def leaderboard(self) -> list[dict[str, Any]]:
-        """One row per (task, controller), ranked by success rate, then mean final distance."""
-        rows = []
-        for env_id in dict.fromkeys(c.env_id for c in self.cells):
-            for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id):
-                cells = [c for c in self.cells if c.env_id == env_id and c.controller == name]
-                episodes = sum(c.episodes - c.errors for c in cells)
-                successes = sum(c.successes for c in cells)
-                free = sum(c.collision_free for c in cells)
-                dists = [m for c in cells for m, _ in c.final_distance_cm if not math.isnan(m)]
-                rows.append({
-                    "env_id": env_id,
-                    "controller": name,
-                    "episodes": episodes,
-                    "success_rate": successes / episodes if episodes else float("nan"),
-                    "collision_free_rate": free / episodes if episodes else float("nan"),
-                    "final_distance_cm": float(np.mean(dists)) if dists else float("nan"),
-                    "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in cells]),
-                    "solver_failures": sum(c.solver_failures for c in cells),
-                    "errors": sum(c.errors for c in cells),
-                })  # fmt: skip
-        def rank_key(row):
-            dist = row["final_distance_cm"]
-            return (row["env_id"], -row["success_rate"], dist if not math.isnan(dist) else 1e9)
-
-        return sorted(rows, key=rank_key)
-
-    def to_markdown(self) -> str:
-        """Leaderboard plus every paper-style table, as Markdown."""
-        out = ["## Leaderboard", ""]
-        out.append("| Rank | Task | Controller | Episodes | Success | Collision-free | Final dist. [cm] | Solve median [ms] | Solver failures |")
-        out.append("|---|---|---|---|---|---|---|---|---|")
-        rank, last_env = 0, None
-        for row in self.leaderboard():
-            rank = 1 if row["env_id"] != last_env else rank + 1
-            last_env = row["env_id"]
-            dist = "-" if math.isnan(row["final_distance_cm"]) else f"{row['final_distance_cm']:.1f}"
-            solve = "-" if math.isnan(row["solve_ms_median"]) else f"{row['solve_ms_median']:.1f}"
-            out.append(
-                f"| {rank} | {TASK_LABEL.get(row['env_id'], row['env_id'])} | {row['controller']} | {row['episodes']} | "
-                f"{100 * row['success_rate']:.0f}% | {100 * row['collision_free_rate']:.0f}% | {dist} | {solve} | "
-                f"{row['solver_failures']} |"
-            )
-        out += ["", "## Per-controller tables", "",
-                "Success: every robot settled within tolerance without collision. SR: the paper's success rate "
-                "(no collision). Distances: mean+-SD over successful runs.", ""]  # fmt: skip
-        for env_id in dict.fromkeys(c.env_id for c in self.cells):
-            for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id):
-                out += [self.paper_table(env_id, name), ""]
-        if self.failed_episodes:
-            out += ["## Episodes that raised", ""]
-            out += [f"- `{r['key']}`: {r['error']}" for r in self.failed_episodes]
-        return "\n".join(out)
-
-    def to_json(self) -> str:
-        """Versioned JSON document (see ``docs/results.schema.json``)."""
-        doc = {
-            "schema_version": SCHEMA_VERSION,
-            "package_version": koopman_envs.__version__,
-            "config": self.config,
-            "leaderboard": self.leaderboard(),
-            "cells": [
-                {**asdict(c), "success_rate": c.success_rate, "collision_free_rate": c.collision_free_rate}
-                for c in self.cells
-            ],
-            "episodes": [
-                {k: v for k, v in r.items() if k not in ("trajectory", "obstacles", "traceback")} for r in self.records
-            ],
-        }
-        return json.dumps(_json_safe(doc), indent=1)
-
-    def to_csv(self) -> str:
-        """One row per episode."""
-        buffer = io.StringIO()
-        fields = ["key", "env_id", "controller", "map", "slip", "trial", "seed", "status", "success", "collision",
-                  "steps", "time_to_goal", "final_distance", "path_length", "control_effort", "formation_rms",
-                  "solve_ms_median", "solve_ms_p95", "solver_failures", "error"]  # fmt: skip
-        writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore")
-        writer.writeheader()
-        for rec in self.records:
-            row = dict(rec)
-            for key in ("final_distance", "path_length", "control_effort"):
-                if isinstance(row.get(key), list):
-                    row[key] = ";".join(f"{v:.5f}" for v in row[key])
-            writer.writerow(row)
-        return buffer.getvalue()
-
-    # ------------------------------------------------------------------ figures
-    def save_figures(self, out_dir: Path) -> list[Path]:
-        """One sample trajectory per cell and success rate by slip level per controller."""
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-        from matplotlib.patches import Circle
-
-        out_dir.mkdir(parents=True, exist_ok=True)
-        written = []
-        samples = [r for r in self.records if r["status"] == "ok" and r.get("trajectory")]
-        for rec in samples:
-            fig = Figure(figsize=(4, 4), dpi=100)
-            FigureCanvasAgg(fig)
-            ax = fig.add_subplot(1, 1, 1)
-            for x, y, rad in rec["obstacles"]:
-                ax.add_patch(Circle((x, y), rad, color="0.5"))
-            traj = np.asarray(rec["trajectory"])
-            for i in range(traj.shape[1]):
-                line = ax.plot(traj[:, i, 0], traj[:, i, 1], lw=1.5)[0]
-                ax.plot(*rec["targets"][i][:2], "x", color=line.get_color(), ms=8)
-                ax.plot(*traj[0, i], "s", color=line.get_color(), ms=4)
-            ax.set_aspect("equal")
-            ax.grid(alpha=0.3)
-            outcome = "success" if rec["success"] else (rec["collision"] or "time limit")
-            ax.set_title(f"{rec['controller']} | {rec['map']} | {rec['slip']} | {outcome}", fontsize=8)
-            path = out_dir / f"traj_{rec['controller']}_{rec['map']}_{rec['slip'].replace(',', '-')}.png"
-            fig.tight_layout()
-            fig.savefig(path)
-            written.append(path)
-        for env_id in dict.fromkeys(c.env_id for c in self.cells):
-            fig = Figure(figsize=(5, 3.5), dpi=100)
-            FigureCanvasAgg(fig)
-            ax = fig.add_subplot(1, 1, 1)
-            slips = list(dict.fromkeys(c.slip for c in self.cells if c.env_id == env_id))
-            for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id):
-                rates = []
-                for slip in slips:
-                    cells = [c for c in self.cells if (c.env_id, c.controller, c.slip) == (env_id, name, slip)]
-                    total = sum(c.episodes - c.errors for c in cells)
-                    rates.append(100 * sum(c.successes for c in cells) / total if total else float("nan"))
-                ax.plot(slips, rates, marker="o", label=name)
-            ax.set_ylim(-5, 105)
-            ax.set_ylabel("success rate [%]")
-            ax.set_xlabel("slip setting")
-            ax.set_title(TASK_LABEL.get(env_id, env_id), fontsize=9)
-            ax.legend(fontsize=7)
-            ax.grid(alpha=0.3)
-            fig.tight_layout()
-            path = out_dir / f"success_by_slip_{env_id}.png"
-            fig.savefig(path)
-            written.append(path)
-        return written
-
-    def write(self, out_dir: str | os.PathLike) -> dict[str, Path]:
-        """Write results.md, results.json, results.csv and figures/ under ``out_dir``."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"markdown": out / "results.md", "json": out / "results.json", "csv": out / "results.csv"}
-        paths["markdown"].write_text(self.to_markdown() + "\n", encoding="utf-8")
-        paths["json"].write_text(self.to_json() + "\n", encoding="utf-8")
-        paths["csv"].write_text(self.to_csv(), encoding="utf-8")
-        self.save_figures(out / "figures")
-        return paths
-
-
 # --------------------------------------------------------------------------- running
 class _Progress:
     """A one-line progress bar on stderr (no dependency)."""
@@ -549,7 +296,8 @@ class _Progress:
 
 def _config_signature(config: dict[str, Any]) -> dict[str, Any]:
     """The parts of a configuration that must match for a resume."""
-    keys = ("env_ids", "controllers", "maps", "slips", "episodes", "seed", "tolerance", "max_episode_steps")
+    keys = ("env_ids", "controller_configs", "maps", "slips", "episodes", "seed", "tolerance", "max_episode_steps",
+            "calibration")  # fmt: skip
     return {k: config[k] for k in keys}
 
 
@@ -613,6 +361,8 @@ def evaluate(
     tolerance: float = PARAMS.goal_tolerance,
     max_episode_steps: int = PARAMS.max_episode_steps,
     progress: bool = False,
+    calibration_budget: int = PARAMS.calibration_budget,
+    calibration_seed: int = 0,
 ) -> Results:
     """Run every controller on every (env, map, slip) cell.
 
@@ -620,8 +370,9 @@ def evaluate(
     ----------
     env_ids : str or sequence of str
         Environment ids.
-    controller_names : sequence of str, optional
-        Registered controller names (default: all of :func:`controllers.available`).
+    controller_names : sequence of str or ControllerConfig, optional
+        Controller configurations: registered names, ``"name:key=value,..."`` texts or
+        :class:`~evaluation.configs.ControllerConfig` (default: every usable registered one).
     maps : sequence or dict, optional
         Maps for every env, or a dict env id -> maps (default: each task's paper maps).
     slips : sequence of str
@@ -644,13 +395,18 @@ def evaluate(
         Time limit [periods].
     progress : bool
         Show a progress bar on stderr.
+    calibration_budget : int
+        Team-transitions every controller may simulate on the cell's calibration plant before
+        its episodes (the same for all; default the paper's 1000 x 1000).
+    calibration_seed : int
+        Seed of the calibration plant and data (never one of the episode seeds' streams).
 
     Returns
     -------
     Results
     """
     env_ids = [env_ids] if isinstance(env_ids, str) else list(env_ids)
-    names = list(controller_names) if controller_names else usable_controllers(progress)
+    configs = [parse_controller(c) for c in (controller_names or usable_controllers(progress))]
     if maps is None:
         map_table = {e: list(TASK_MAPS.get(e, BUILTIN_MAPS)) for e in env_ids}
     elif isinstance(maps, dict):
@@ -661,13 +417,18 @@ def evaluate(
     workers = (os.cpu_count() or 1) if workers is None else workers
     if backend not in ("process", "ray"):
         raise ValueError(f"backend={backend!r} is not one of ['process', 'ray']")
-    validate_arguments(env_ids, names, map_table, slips, episodes, workers)
+    validate_arguments(env_ids, configs, map_table, slips, episodes, workers, calibration_budget)
     config = {
-        "env_ids": env_ids, "controllers": names, "maps": map_table, "slips": slips, "episodes": episodes,
+        "env_ids": env_ids, "controllers": [c.label for c in configs],
+        "controller_configs": [c.to_dict() for c in configs],
+        "calibration": {"budget": calibration_budget, "seed": calibration_seed,
+                        "unit": "team-transitions, offered to every controller alike"},
+        "maps": map_table, "slips": slips, "episodes": episodes,
         "seed": seed, "tolerance": tolerance, "max_episode_steps": max_episode_steps, "workers": workers,
         "backend": backend,
     }  # fmt: skip
-    plan = plan_episodes(env_ids, names, map_table, slips, episodes, seed, tolerance, max_episode_steps)
+    plan = plan_episodes(env_ids, configs, map_table, slips, episodes, seed, tolerance, max_episode_steps,
+                         calibration_budget, calibration_seed)  # fmt: skip
     done: dict[str, dict[str, Any]] = {}
     log_file = None
     if out is not None:
@@ -686,7 +447,8 @@ def evaluate(
     # longest episodes first (the learned-model NMPC, then the other optimizers) so that no worker
     # idles at the end of the run; records are put back in plan order below
     cost = {"koopman-nmpc": 0, "nominal-nmpc": 1}
-    todo = sorted((spec for spec in plan if spec.key not in done), key=lambda spec: cost.get(spec.controller, 2))
+    todo = sorted((spec for spec in plan if spec.key not in done),
+                  key=lambda spec: cost.get(spec.controller_name, 2))  # fmt: skip
     bar = _Progress(len(todo), progress)
     records = dict(done)
     try:
@@ -700,7 +462,7 @@ def evaluate(
         for record in stream:
             records[record["key"]] = record
             if log_file is not None:
-                log_file.write(json.dumps(_json_safe(record)) + "\n")
+                log_file.write(json.dumps(json_safe(record)) + "\n")
                 log_file.flush()
             bar.update(record)
         if backend == "process" and workers > 1 and len(todo) > 1:
@@ -719,14 +481,36 @@ def quick_protocol() -> dict[str, Any]:
     return {"env_ids": list(TASK_MAPS), "maps": {e: list(m) for e, m in TASK_MAPS.items()}, "episodes": 2}
 
 
-def paper_protocol() -> dict[str, Any]:
+def paper_protocol(strict: bool = False) -> dict[str, Any]:
     """SPEC section 5: maps 1-2 (target reaching), 3-4 (formation), 3 slips, 10 trials per cell,
-    Koopman-NMPC, nominal NMPC and (formation) consensus with collision avoidance."""
+    Koopman-NMPC, nominal NMPC and (formation) consensus with collision avoidance.
+
+    ``strict=True`` (``--paper-strict``) runs the NMPCs in the paper's exact formulation: hard
+    collision and formation constraints and the paper's 0.015 m margins (our default softens the
+    constraints with exact-penalty slacks; see :class:`controllers.nmpc.NMPCConfig`).
+    """
+    names = ["koopman-nmpc", "nominal-nmpc", "consensus"]
+    if strict:
+        paper = (("soft_constraints", False), ("uncertainty_margin", 0.0))
+        configs = [ControllerConfig(n, n, paper if n.endswith("nmpc") else ()) for n in names]
+    else:
+        configs = [parse_controller(n) for n in names]
     return {
         "env_ids": list(TASK_MAPS),
         "maps": {e: list(m) for e, m in TASK_MAPS.items()},
         "episodes": 10,
-        "controllers": ["koopman-nmpc", "nominal-nmpc", "consensus"],
+        "controllers": configs,
+    }
+
+
+def ablation_protocol(factors: Sequence[str] | None = None) -> dict[str, Any]:
+    """The ablation (:mod:`evaluation.ablation`): the paper maps under high slip, 20 trials per cell."""
+    return {
+        "env_ids": list(TASK_MAPS),
+        "maps": {e: list(m) for e, m in TASK_MAPS.items()},
+        "episodes": 20,
+        "slips": ["high"],
+        "controllers": ablation_configs(factors),
     }
 
 
@@ -767,8 +551,8 @@ def check_thresholds(results: Results, path: str | os.PathLike) -> list[str]:
             if "min_success_rate" in rule and not c.success_rate >= rule["min_success_rate"]:
                 problems.append(f"{name}: success rate {c.success_rate:.2f} < {rule['min_success_rate']:.2f}")
             if "max_final_distance_cm" in rule:
-                dists = [m for m, _ in c.final_distance_cm if not math.isnan(m)]
-                mean = float(np.mean(dists)) if dists else float("inf")
+                mean = c.distance_settled.team_mean
+                mean = float("inf") if math.isnan(mean) else mean
                 if not mean <= rule["max_final_distance_cm"]:
                     problems.append(f"{name}: final distance {mean:.1f} cm > {rule['max_final_distance_cm']:.1f} cm")
     return problems
@@ -780,8 +564,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--env", nargs="+", help=f"environment ids (default: {list(TASK_MAPS)})")
     parser.add_argument("--maps", nargs="+", help="maps (default: each task's: map1 map2 / map3 map4)")
     parser.add_argument("--slips", nargs="+", help="nominal low high, or per-robot lambdas like 0,0.1,0.2")
-    parser.add_argument("--controllers", nargs="+", help=f"default: every registered one ({controllers.available()})")
-    parser.add_argument("--episodes", type=int, help="trials per cell (default 2; 10 with --paper)")
+    parser.add_argument("--controllers", nargs="+", metavar="NAME[:KEY=VALUE,...]",
+                        help=f"controller configurations (default: every registered one: {controllers.available()})")
+    parser.add_argument("--episodes", type=int, help="trials per cell (default 2; 10 with --paper, 20 with --ablation)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, help="worker processes (default: all cores)")
     parser.add_argument("--backend", choices=["process", "ray"], default="process")
@@ -789,7 +574,19 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--resume", action="store_true", help="continue the run logged in --out")
     parser.add_argument("--tolerance", type=float, default=PARAMS.goal_tolerance, help="goal tolerance [m]")
     parser.add_argument("--max-episode-steps", type=int, default=PARAMS.max_episode_steps)
-    parser.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5)")
+    parser.add_argument("--calibration-budget", type=int, default=PARAMS.calibration_budget,
+                        help="team-transitions every controller may simulate to calibrate (default: the paper's "
+                             "1000 x 1000)")  # fmt: skip
+    parser.add_argument("--calibration-seed", type=int, default=0, help="seed of the calibration plant and data")
+    protocol = parser.add_mutually_exclusive_group()
+    protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5)")
+    protocol.add_argument("--paper-strict", action="store_true",
+                          help="the paper's protocol with its exact NMPC: hard constraints, 0.015 m margins")
+    protocol.add_argument("--ablation", nargs="*", metavar="FACTOR",
+                          help="ablation of the NMPC's design factors (default all: model margins constraints) on the "
+                               "paper maps under high slip; writes docs/ablation.md")  # fmt: skip
+    parser.add_argument("--ablation-out", default=str(Path(__file__).parent / "docs" / "ablation.md"),
+                        help="where --ablation writes its report (default: docs/ablation.md)")
     parser.add_argument("--check", metavar="THRESHOLDS", help="TOML thresholds; exit 101 if a cell falls below")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -797,19 +594,24 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    protocol = paper_protocol() if args.paper else quick_protocol()
-    env_ids = args.env or protocol["env_ids"]
-    if args.maps:
-        maps: dict[str, list[str]] = {e: args.maps for e in env_ids}
-    else:
-        maps = {e: protocol["maps"].get(e, list(BUILTIN_MAPS)) for e in env_ids}
     try:
+        if args.ablation is not None:
+            protocol = ablation_protocol(check_factors(args.ablation))
+        elif args.paper or args.paper_strict:
+            protocol = paper_protocol(strict=args.paper_strict)
+        else:
+            protocol = quick_protocol()
+        env_ids = args.env or protocol["env_ids"]
+        if args.maps:
+            maps: dict[str, list[str]] = {e: args.maps for e in env_ids}
+        else:
+            maps = {e: protocol["maps"].get(e, list(BUILTIN_MAPS)) for e in env_ids}
         start = time.perf_counter()
         results = evaluate(
             env_ids,
             args.controllers or protocol.get("controllers"),
             maps,
-            args.slips or list(SLIP_SETTINGS),
+            args.slips or protocol.get("slips") or list(SLIP_SETTINGS),
             args.episodes or protocol["episodes"],
             args.seed,
             args.workers,
@@ -819,9 +621,20 @@ def main(argv: list[str] | None = None) -> int:
             args.tolerance,
             args.max_episode_steps,
             progress=not args.quiet,
+            calibration_budget=args.calibration_budget,
+            calibration_seed=args.calibration_seed,
         )
         wall = time.perf_counter() - start
+        results.config["wall_seconds"] = wall
         paths = results.write(args.out)
+        if args.ablation is not None:
+            command = "python evaluate.py --ablation " + " ".join(args.ablation) if args.ablation else ""
+            command = (command or "python evaluate.py --ablation") + (f" --episodes {args.episodes}" if args.episodes else "")
+            report = ablation_markdown(results, args.ablation, command=command.strip())
+            report += f"\n{len(results.records)} episodes in {wall:.0f} s on {results.config['workers']} workers.\n"
+            Path(args.ablation_out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.ablation_out).write_text(report, encoding="utf-8")
+            paths["ablation"] = Path(args.ablation_out)
         problems = check_thresholds(results, args.check) if args.check else []
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import controllers
+from controllers.calibration import calibrate_controller
 import koopman_envs  # noqa: F401
 from controllers.nmpc import IPOPT_OPTIONS, NMPCConfig
 from controllers.unicycle import UnicycleModel
@@ -33,6 +34,7 @@ def closed_loop(env_id: str, map_name: str, slip: str, make_controller) -> dict:
     """Run one episode; returns outcome and per-step solve times [s]."""
     env = gym.make(env_id, map=map_name, slip=slip)
     ctrl = make_controller()
+    calibrate_controller(ctrl, env)
     obs, info = env.reset(seed=0)
     ctrl.reset(env.unwrapped.scenario, seed=0)
     while True:
@@ -127,12 +129,11 @@ def main() -> None:
     print(f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop episode")
     results = {}
     for name in ("nominal-nmpc", "koopman-nmpc"):
-        extra = {"slip": args.slip} if name == "koopman-nmpc" else {}
         setups = [("ipopt", {"solver": "ipopt"}), ("fatrop", {"solver": "fatrop"})]
         if args.jit:
             setups.append(("fatrop + jit", {"solver": "fatrop", "jit": True}))
         for label, setup in setups:
-            kwargs = dict(extra, **setup)
+            kwargs = dict(setup)
             result = closed_loop(env_id, args.map, args.slip, lambda: controllers.make(name, **kwargs))
             results[(name, label)] = result
             print(line(f"{name} / {label}", result), flush=True)

@@ -21,7 +21,7 @@ def main() -> None:
     print(f"{env_id} {args.map} slip={args.slip}: wall time of act() per control step")
     for name in ("rl-ppo", "koopman-nmpc", "nominal-nmpc", "consensus"):
         try:
-            ctrl = controllers.make(name, **({"slip": args.slip} if controllers.accepts_option(name, "slip") else {}))
+            ctrl = controllers.make(name)
         except (ImportError, ValueError) as exc:
             print(f"{name:14s} skipped: {exc}")
             continue

@@ -2,8 +2,9 @@
 
 >>> import controllers
 >>> controllers.available()
-['consensus', 'consensus-free', 'koopman-nmpc', 'nominal-nmpc']
->>> ctrl = controllers.make("koopman-nmpc", slip="high")
+['consensus', 'consensus-free', 'koopman-nmpc', 'koopman-nmpc-robust', 'nominal-nmpc', 'nominal-nmpc-robust']
+>>> ctrl = controllers.make("koopman-nmpc")
+>>> ctrl.calibrate(koopman_envs.make_plant(env), seed=0)   # learns from the env's robots (cached)
 >>> ctrl.reset(env.unwrapped.scenario, seed=0)
 >>> action = ctrl.act(obs, info)
 
@@ -12,10 +13,12 @@ own through the ``koopnav.controllers`` entry-point group (see :mod:`controllers
 """
 
 from controllers.base import BaseController, Controller, ControllerStats
-from controllers.registry import ENTRY_POINT_GROUP, accepts_option, available, make, register
+from controllers.registry import ENTRY_POINT_GROUP, available, make, register
 
 register("koopman-nmpc", "controllers.koopman_nmpc:KoopmanNMPC")
+register("koopman-nmpc-robust", "controllers:_koopman_nmpc_robust")
 register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
+register("nominal-nmpc-robust", "controllers:_nominal_nmpc_robust")
 register("consensus", "controllers.consensus:ConsensusController")
 register("consensus-free", "controllers:_consensus_without_avoidance")
 
@@ -25,7 +28,31 @@ def _consensus_without_avoidance(**options):
     from controllers.consensus import ConsensusController
 
     options.setdefault("collision_avoidance", False)
-    return ConsensusController(**options)
+    ctrl = ConsensusController(**options)
+    ctrl.name = "consensus-free"
+    return ctrl
+
+
+def _koopman_nmpc_robust(**options):
+    """Koopman-NMPC with margins widened by its calibrated residual (``uncertainty_margin``)."""
+    from controllers.koopman_nmpc import KoopmanNMPC
+    from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
+
+    options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
+    ctrl = KoopmanNMPC(**options)
+    ctrl.name = "koopman-nmpc-robust"
+    return ctrl
+
+
+def _nominal_nmpc_robust(**options):
+    """Nominal NMPC with margins widened by its calibrated residual, like koopman-nmpc-robust."""
+    from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
+    from controllers.nominal_nmpc import NominalNMPC
+
+    options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
+    ctrl = NominalNMPC(**options)
+    ctrl.name = "nominal-nmpc-robust"
+    return ctrl
 
 
 __all__ = [
@@ -33,7 +60,6 @@ __all__ = [
     "Controller",
     "ControllerStats",
     "ENTRY_POINT_GROUP",
-    "accepts_option",
     "available",
     "make",
     "register",

@@ -13,14 +13,15 @@ import gymnasium as gym
 import numpy as np
 
 import controllers
+from controllers.calibration import calibrate_controller
 import koopman_envs
 
 
 def run_episode(env_id: str, map_name: str | None, slip: str, controller: str, seed: int, gif: str | None) -> dict:
     """One closed-loop episode; returns a summary dict (and writes ``gif`` if given)."""
     env = gym.make(env_id, map=map_name, slip=slip, render_mode="rgb_array" if gif else None)
-    options = {"slip": slip} if controller == "koopman-nmpc" else {}
-    ctrl = controllers.make(controller, **options)
+    ctrl = controllers.make(controller)
+    calibrate_controller(ctrl, env)  # learns from the env's robots (slip hidden), cached on disk
     obs, info = env.reset(seed=seed)
     ctrl.reset(env.unwrapped.scenario, seed=seed)
     frames = [env.render()] if gif else []

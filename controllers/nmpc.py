@@ -24,7 +24,20 @@ from controllers.base import BaseController
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
-__all__ = ["FATROP_OPTIONS", "IPOPT_OPTIONS", "NMPCConfig", "NMPCController", "PredictionModel", "decode_state", "encode_state"]
+__all__ = [
+    "FATROP_OPTIONS",
+    "IPOPT_OPTIONS",
+    "NMPCConfig",
+    "NMPCController",
+    "PredictionModel",
+    "ROBUST_UNCERTAINTY_MARGIN",
+    "decode_state",
+    "encode_state",
+]
+
+#: ``uncertainty_margin`` of the ``*-robust`` NMPC variants (ours): margins of 3 RMS one-step
+#: residuals, i.e. a prediction error that large is three standard deviations out for Gaussian errors.
+ROBUST_UNCERTAINTY_MARGIN = 3.0
 
 #: IPOPT settings (ours): quiet, warm-startable, bounded effort per control period.
 IPOPT_OPTIONS: dict[str, Any] = {
@@ -113,6 +126,12 @@ class NMPCConfig:
         (ours) Safety distance added to the sum of two robots' radii [m]. The paper adds its
         0.015 m margin to obstacles only; the reason it gives (prediction error near a
         constraint) holds as much between robots, whose paths cross on Map 2.
+    uncertainty_margin : float
+        (ours) k >= 0: widen the margins to k times each robot's RMS one-step position residual
+        of the controller's own prediction model, measured on its calibration data (see
+        :meth:`NMPCController.calibrate`), never below ``obstacle_offset`` / ``robot_offset``
+        (pairs: k (r_i + r_j)). 0 keeps the paper's margins; the ``*-robust`` variants use
+        :data:`ROBUST_UNCERTAINTY_MARGIN`. The same option means the same thing for every NMPC.
     formation_bound : float
         |lb| = |ub| of the formation constraint, per period and axis [m] (ours: the paper gives
         no number; 0.03 m is half a period's travel at full speed, enough to skirt obstacles).
@@ -145,6 +164,7 @@ class NMPCConfig:
     r_input: tuple[float, ...] = PARAMS.r_input
     obstacle_offset: float = PARAMS.obstacle_offset
     robot_offset: float = PARAMS.obstacle_offset
+    uncertainty_margin: float = 0.0
     formation_bound: float = 0.03
     soft_constraints: bool = True
     slack_penalty: float = 1e4
@@ -370,7 +390,12 @@ class NMPCController(BaseController):
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
         if not isinstance(self.config.horizon, int) or self.config.horizon < 1:
             raise ValueError(f"horizon={self.config.horizon!r} must be an integer >= 1")
+        k = self.config.uncertainty_margin
+        if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
+            raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")
         self.model = model
+        #: RMS one-step position residual of the prediction model per robot [m], from calibration
+        self.position_residual: NDArray[np.float64] | None = None
         self._problem: _Problem | None = None
         self._key: tuple | None = None
         self._warm: dict[str, NDArray] | None = None
@@ -413,12 +438,24 @@ class NMPCController(BaseController):
     def safety_margins(self, scenario: Scenario) -> tuple[NDArray, NDArray]:
         """Margins added to the radii: per robot toward obstacles (N,), per robot pair (i < j).
 
-        The base NMPC uses ``obstacle_offset`` and ``robot_offset`` for everyone; a controller
-        whose model knows its own prediction error can widen them (see Koopman-NMPC).
+        ``obstacle_offset`` and ``robot_offset``, widened to ``uncertainty_margin`` times the
+        prediction model's calibrated residual when that is larger.
         """
         n = scenario.n_robots
-        pairs = n * (n - 1) // 2
-        return np.full(n, self.config.obstacle_offset), np.full(pairs, self.config.robot_offset)
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        obstacle = np.full(n, self.config.obstacle_offset)
+        pair = np.full(len(pairs), self.config.robot_offset)
+        k = self.config.uncertainty_margin
+        if k > 0:
+            if self.position_residual is None or len(self.position_residual) != n:
+                raise ValueError(
+                    f"{self.name}: uncertainty_margin={k} needs the prediction model's residual for "
+                    f"{n} robots; call calibrate(plant) first (the evaluator does)"
+                )
+            spread = k * np.asarray(self.position_residual, dtype=float)
+            obstacle = np.maximum(obstacle, spread)
+            pair = np.maximum(pair, np.array([spread[i] + spread[j] for i, j in pairs]))
+        return obstacle, pair
 
     # -------------------------------------------------------------------- act
     def _initial_guess(self, state: NDArray) -> NDArray:

@@ -18,7 +18,7 @@ from typing import Any, Callable
 
 from controllers.base import Controller
 
-__all__ = ["ENTRY_POINT_GROUP", "accepts_option", "available", "factory", "make", "register"]
+__all__ = ["ENTRY_POINT_GROUP", "available", "factory", "make", "register"]
 
 ENTRY_POINT_GROUP = "koopnav.controllers"
 
@@ -56,17 +56,6 @@ def factory(name: str) -> Callable[..., Controller]:
     if name not in points:
         raise ValueError(f"controller {name!r} is not one of {available()}")
     return points[name].load()
-
-
-def accepts_option(name: str, option: str) -> bool:
-    """Whether controller ``name`` takes the keyword ``option`` (e.g. ``slip``)."""
-    import inspect
-
-    try:
-        params = inspect.signature(factory(name)).parameters
-    except (TypeError, ValueError):
-        return False
-    return option in params
 
 
 def make(name: str, **options: Any) -> Controller:

@@ -12,21 +12,22 @@ from gymnasium.envs.registration import register, registry
 
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
+from koopman_envs.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, generate_random_map, load_map
+from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, task_for_env
 
 __version__ = "0.1.0"
 
-ENV_IDS = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
-
-_REGISTRATIONS = {
-    "KoopNav-TargetReaching-v0": ("TargetReachingEnv", "make_target_reaching_vec"),
-    "KoopNav-Formation-v0": ("FormationEnv", "make_formation_vec"),
+# front classes per task; ids, labels and maps come from the one task table (tasks/base.py)
+_FRONTS = {
+    "target_reaching": ("TargetReachingEnv", "make_target_reaching_vec"),
+    "formation": ("FormationEnv", "make_formation_vec"),
 }
 
-for _env_id, (_cls, _vec) in _REGISTRATIONS.items():
-    if _env_id not in registry:
+for _task, (_cls, _vec) in _FRONTS.items():
+    if TASKS[_task].env_id not in registry:
         register(
-            id=_env_id,
+            id=TASKS[_task].env_id,
             entry_point=f"koopman_envs.fronts.gym_env:{_cls}",
             vector_entry_point=f"koopman_envs.fronts.vector_env:{_vec}",
             max_episode_steps=PARAMS.max_episode_steps,
@@ -34,6 +35,8 @@ for _env_id, (_cls, _vec) in _REGISTRATIONS.items():
 
 __all__ = [
     "BUILTIN_MAPS",
+    "BudgetExceeded",
+    "CalibrationPlant",
     "ENV_IDS",
     "MAP_NAMES",
     "MapSpec",
@@ -41,7 +44,11 @@ __all__ = [
     "PaperParams",
     "SLIP_SETTINGS",
     "Scenario",
+    "TASKS",
+    "TaskSpec",
     "generate_random_map",
     "load_map",
+    "make_plant",
     "slip_lambdas",
+    "task_for_env",
 ]

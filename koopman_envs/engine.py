@@ -21,20 +21,19 @@ from numpy.typing import NDArray
 from koopman_envs.params import PARAMS, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind, collision_flags
-from koopman_envs.sim.dynamics import advance_teams
+from koopman_envs.sim.dynamics import advance_teams, wrap_angle
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig, generate_random_map, load_map
 from koopman_envs.sim.geometry import TeamGeometry
-from koopman_envs.sim.slip import SlipSampler
+from koopman_envs.sim.slip import RANDOM_SLIP, SlipSampler, draw_random_lambdas
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import score_step
 
 __all__ = ["EngineConfig", "NavigationEngine", "RANDOM_SLIP", "StepResult"]
 
-#: ``slip="random"``: each reset draws the largest lambda uniformly on [0, RANDOM_SLIP_MAX] and
-#: spaces the others linearly from robot 1's 0 (ours: covers and exceeds the "high" setting).
-RANDOM_SLIP = "random"
-RANDOM_SLIP_MAX = 0.25
+#: ``start_noise``: draws of a whole team's start perturbation before a reset gives up (ours).
+START_NOISE_ATTEMPTS = 100
+
 
 
 def _random_map_config(value: RandomMapConfig | dict | None) -> RandomMapConfig:
@@ -57,6 +56,13 @@ def _check_positive(name: str, value: Any, integer: bool = False) -> None:
         raise ValueError(f"{name}={value!r} must be {kind}")
 
 
+def _check_non_negative(name: str, value: Any) -> None:
+    # np.floating rather than np.number: a complex scalar is a number but has no order
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if not ok or not np.isfinite(value) or value < 0:
+        raise ValueError(f"{name}={value!r} must be a finite number >= 0")
+
+
 @dataclass(frozen=True)
 class EngineConfig:
     """Everything that defines an environment, resolved and validated.
@@ -74,6 +80,8 @@ class EngineConfig:
     robot_radius: NDArray[np.float64]
     n_obstacle_obs: int
     max_episode_steps: int | None
+    #: radius [m] of the start-position disc and bound [rad] of the heading turn drawn per reset
+    start_noise: float = 0.0
 
     @classmethod
     def create(
@@ -87,6 +95,7 @@ class EngineConfig:
         n_obstacle_obs: int = 4,
         max_episode_steps: int | None = None,
         random_map: RandomMapConfig | dict | None = None,
+        start_noise: float = 0.0,
     ) -> EngineConfig:
         """Validate user arguments (see the env docstrings) into a config."""
         random_map = _random_map_config(random_map)
@@ -100,6 +109,7 @@ class EngineConfig:
             raise ValueError(f"n_obstacle_obs={n_obstacle_obs!r} must be an integer >= 0")
         if max_episode_steps is not None:
             _check_positive("max_episode_steps", max_episode_steps, integer=True)
+        _check_non_negative("start_noise", start_noise)
         map_arg = spec.default_map if map is None else map
         if isinstance(map_arg, str) and map_arg == "random":
             map_spec = None
@@ -122,6 +132,7 @@ class EngineConfig:
             robot_radius=np.full(int(n_robots), float(robot_radius)),
             n_obstacle_obs=int(n_obstacle_obs),
             max_episode_steps=None if max_episode_steps is None else int(max_episode_steps),
+            start_noise=float(start_noise),
         )
 
     @property
@@ -174,6 +185,8 @@ class NavigationEngine:
         self.state = np.zeros((k, 3, n))
         self.target = np.zeros((k, 3, n))
         self.offset = np.zeros((k, 2, n))
+        #: start poses of the current episodes, (K, N, 3): the map's, perturbed by ``start_noise``
+        self.starts = np.zeros((k, n, 3))
         self.obstacles = np.zeros((k, m, 3))
         self.maps: list[MapSpec | None] = [None] * k
         self.distances = np.zeros((k, n))
@@ -243,6 +256,7 @@ class NavigationEngine:
         self.geometry.set_obstacles(index, spec.obstacles)
         self.target[index] = spec.targets[:n].T
         self.offset[index] = spec.formation_offsets[:n].T
+        self.starts[index] = spec.starts[:n]
 
     def reset_env(self, index: int, rng: np.random.Generator) -> None:
         """Start a new episode in environment ``index``, drawing only from ``rng``."""
@@ -251,7 +265,12 @@ class NavigationEngine:
         if cfg.map_spec is None:
             self._set_map(index, generate_random_map(rng, n, cfg.random_map, float(cfg.robot_radius[0])))
         spec = self.maps[index]
-        self.state[index] = spec.starts[:n].T
+        # the noise is drawn after the map and before the slip level, and only when asked for,
+        # so that start_noise=0 consumes nothing and replays every earlier rollout bit for bit
+        self.starts[index] = spec.starts[:n]
+        if cfg.start_noise > 0:
+            self.starts[index] = self._perturbed_starts(spec, rng)
+        self.state[index] = self.starts[index].T
         self.settled[index] = 0
         self.elapsed[index] = 0
         self.collision[index] = 0
@@ -259,13 +278,41 @@ class NavigationEngine:
         dx = self.target[index, 0] - self.state[index, 0]
         dy = self.target[index, 1] - self.state[index, 1]
         self.distances[index] = np.sqrt(dx * dx + dy * dy)  # the formula of FeatureBuilder
-        self.slip.reset_env(index, rng, self._draw_lambdas(rng) if cfg.random_slip else cfg.lambdas)
+        self.slip.reset_env(index, rng, draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas)
 
-    def _draw_lambdas(self, rng: np.random.Generator) -> NDArray[np.float64]:
-        """``slip="random"``: a new slip level per episode, robot 1 slip-free (ours; for training)."""
-        top = rng.uniform(0.0, RANDOM_SLIP_MAX)
-        n = self.config.n_robots
-        return np.zeros(1) if n == 1 else np.linspace(0.0, top, n)
+    def _perturbed_starts(self, spec: MapSpec, rng: np.random.Generator) -> NDArray[np.float64]:
+        """The map's starts, each displaced uniformly in a disc of radius ``start_noise`` [m] and
+        turned uniformly within +-``start_noise`` [rad], redrawn for the whole team until the
+        placement passes :meth:`MapSpec.pose_problem` (the check every map passes).
+
+        Raises
+        ------
+        RuntimeError
+            No valid draw in :data:`START_NOISE_ATTEMPTS` attempts.
+        """
+        cfg = self.config
+        n, noise = cfg.n_robots, cfg.start_noise
+        base = spec.starts[:n]
+        radius = float(cfg.robot_radius[0])
+        for _ in range(START_NOISE_ATTEMPTS):
+            # sqrt of a uniform radius fraction makes the displacement uniform over the disc's area
+            distance = noise * np.sqrt(rng.uniform(size=n))
+            bearing = rng.uniform(-np.pi, np.pi, size=n)
+            turn = rng.uniform(-noise, noise, size=n)
+            starts = np.column_stack(
+                [
+                    base[:, 0] + distance * np.cos(bearing),
+                    base[:, 1] + distance * np.sin(bearing),
+                    wrap_angle(base[:, 2] + turn),
+                ]
+            )
+            problem = spec.pose_problem(starts, radius, PARAMS.workspace, "start")
+            if problem is None:
+                return starts
+        raise RuntimeError(
+            f"start_noise={noise!r}: no valid start poses on map {spec.name!r} in "
+            f"{START_NOISE_ATTEMPTS} draws of the whole team (last: {problem}); use a smaller start_noise"
+        )
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""
@@ -363,7 +410,7 @@ class NavigationEngine:
             n_robots=n,
             obstacles=self.obstacles[index].copy(),
             robot_radius=cfg.robot_radius.copy(),
-            starts=spec.starts[:n].copy(),
+            starts=self.starts[index].copy(),
             targets=self.target[index].T.copy(),
             formation_offsets=self.offset[index].T.copy(),
             leader=0,

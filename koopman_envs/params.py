@@ -83,6 +83,11 @@ class PaperParams:
         return int(round(self.settle_time / self.dt))
 
     @property
+    def calibration_budget(self) -> int:
+        """Team-transitions a controller may simulate to calibrate: the paper's data set size."""
+        return self.koopman_trajectories * self.koopman_steps
+
+    @property
     def action_low(self) -> NDArray[np.float64]:
         """Lower actuation limit of one robot, ``(-v_max, -omega_max)``."""
         return np.array([-self.v_max, -self.omega_max])

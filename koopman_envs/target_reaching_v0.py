@@ -12,7 +12,7 @@
 ```python
 target_reaching_v0.parallel_env(map="map1", slip="nominal", n_robots=3, goal_tolerance=0.1,
                                 max_episode_steps=600, render_mode=None, robot_radius=0.2,
-                                n_obstacle_obs=4)
+                                n_obstacle_obs=4, random_map=None, start_noise=0.0)
 ```
 History: v0 initial release.
 """

@@ -29,6 +29,14 @@ ENV = "KoopNav-TargetReaching-v0"
         ({"render_mode": "ascii"}, r"render_mode='ascii' is not one of \['human', 'rgb_array'\]"),
         ({"map": "random", "random_map": {"obstacles": 2}}, r"random_map has unknown fields \['obstacles'\]; allowed"),
         ({"map": "random", "random_map": 3}, r"random_map=3 must be a RandomMapConfig, a dict"),
+        ({"start_noise": -0.1}, r"start_noise=-0.1 must be a finite number >= 0"),
+        ({"start_noise": -1}, r"start_noise=-1 must be a finite number >= 0"),
+        ({"start_noise": float("nan")}, r"start_noise=nan must be a finite number >= 0"),
+        ({"start_noise": float("inf")}, r"start_noise=inf must be a finite number >= 0"),
+        ({"start_noise": "0.1"}, r"start_noise='0.1' must be a finite number >= 0"),
+        ({"start_noise": None}, r"start_noise=None must be a finite number >= 0"),
+        ({"start_noise": True}, r"start_noise=True must be a finite number >= 0"),
+        ({"start_noise": [0.1, 0.2]}, r"start_noise=\[0.1, 0.2\] must be a finite number >= 0"),
     ],
 )
 def test_bad_constructor_arguments(kwargs, message) -> None:
@@ -41,6 +49,10 @@ def test_bad_arguments_in_every_front() -> None:
         formation_v0.parallel_env(slip="extreme")
     with pytest.raises(ValueError, match="map='nowhere'"):
         gym.make_vec(ENV, num_envs=2, map="nowhere")
+    with pytest.raises(ValueError, match="start_noise=-0.5 must be a finite number >= 0"):
+        formation_v0.parallel_env(start_noise=-0.5)
+    with pytest.raises(ValueError, match="start_noise=False must be a finite number >= 0"):
+        gym.make_vec(ENV, num_envs=2, start_noise=False)
 
 
 def test_overlapping_starts_in_a_map_file(tmp_path) -> None:

@@ -12,9 +12,11 @@ import pytest
 import koopman_envs  # noqa: F401 - registers the ids
 
 
-def rollout_digest(env_id: str, map_name: str, slip: str, seed: int, steps: int = 400) -> str:
+def rollout_digest(
+    env_id: str, map_name: str, slip: str, seed: int, steps: int = 400, start_noise: float = 0.0
+) -> str:
     """SHA-256 of every observation, reward and pose of a seeded random-action rollout."""
-    env = gym.make(env_id, map=map_name, slip=slip)
+    env = gym.make(env_id, map=map_name, slip=slip, start_noise=start_noise)
     actions = np.random.default_rng(seed).uniform(-1, 1, (steps, 6)).astype(np.float32)
     digest = hashlib.sha256()
     obs, info = env.reset(seed=seed)
@@ -31,6 +33,7 @@ def rollout_digest(env_id: str, map_name: str, slip: str, seed: int, steps: int 
 CASES = [
     ("KoopNav-TargetReaching-v0", "map1", "high", 7),
     ("KoopNav-Formation-v0", "random", "low", 11),
+    ("KoopNav-Formation-v0", "map4", "high", 5, 400, 0.2),  # start_noise draws from the same generator
 ]
 
 
@@ -98,3 +101,10 @@ def test_vector_env_seed_list_and_spaces() -> None:
         venv.reset(seed=[1, 2])
     with pytest.raises(ValueError, match="autoreset_mode"):
         gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, autoreset_mode="Sometimes")
+
+
+def test_zero_start_noise_is_the_default_rollout() -> None:
+    """start_noise=0 draws nothing, so it replays the rollout of an env built without the option."""
+    for case in CASES[:2]:
+        assert rollout_digest(*case, start_noise=0.0) == rollout_digest(*case)
+    assert rollout_digest(*CASES[2]) != rollout_digest(*CASES[2][:5])

@@ -46,7 +46,7 @@ def test_report_distances_equal_recomputed_ones(small_results: ev.Results) -> No
     for cell in small_results.cells:
         won = [r for r in small_results.records if r["success"] and
                (r["controller"], r["map"], r["slip"]) == (cell.controller, cell.map, cell.slip)]  # fmt: skip
-        for i, (mean, _) in enumerate(cell.final_distance_cm):
+        for i, (mean, _) in enumerate(cell.distance_settled.per_robot):
             expected = np.mean([100 * r["final_distance"][i] for r in won]) if won else float("nan")
             assert (math.isnan(mean) and math.isnan(expected)) or mean == pytest.approx(expected)
 
@@ -140,6 +140,11 @@ def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
         ({"slips": ["extreme"]}, "slip 'extreme'"),
         ({"controller_names": ["magic"]}, r"controller 'magic' is not one of \["),
         ({"episodes": 0}, "episodes=0 must be an integer >= 1"),
+        ({"calibration_budget": 0}, "budget=0 must be an integer >= 1"),
+        ({"calibration_budget": -5}, "budget=-5 must be an integer >= 1"),
+        ({"controller_names": ["nominal-nmpc:horizont=5"]}, "unknown option"),
+        ({"controller_names": ["nominal-nmpc:horizon"]}, "is not key=value"),
+        ({"controller_names": ["consensus", "consensus"]}, "appear twice"),
     ],
 )
 def test_bad_input(kwargs, message) -> None:

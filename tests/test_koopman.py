@@ -9,18 +9,33 @@ import sys
 import numpy as np
 import pytest
 
+from controllers.calibration import DataSpec, collect_data
 from controllers.koopman import (
-    DataSpec,
     KoopmanModel,
     ModelFileError,
+    calibrated_model,
     circle_test,
-    collect_data,
     fit_bilinear,
+    fit_for_env,
     get_dictionary,
-    get_model,
 )
 from controllers.koopman.fit import fit_lifted
-from controllers.koopman.store import SHIPPED, fit_model, shipped_path
+from controllers.koopman.store import SHIPPED, shipped_path
+from koopman_envs import make_plant
+
+ENV = "KoopNav-TargetReaching-v0"
+
+
+def _data(lambdas, trajectories, steps, seed=0):
+    """Identification data of a plant with these slip means (the test knows them, the learner not)."""
+    spec = DataSpec(trajectories, steps, seed=seed)
+    plant = make_plant(ENV, slip=list(lambdas), n_robots=len(lambdas), budget=spec.transitions, seed=seed)
+    return collect_data(plant, spec)
+
+
+def get_model(setting):
+    """The model the evaluator's calibration gives Koopman-NMPC for a named slip setting."""
+    return fit_for_env(ENV, slip=setting)
 
 
 def test_fit_recovers_a_known_bilinear_system() -> None:
@@ -48,7 +63,7 @@ def test_fit_recovers_a_known_bilinear_system() -> None:
 
 def test_matches_pseudoinverse_solution() -> None:
     """The chunked, structured solver returns the Moore-Penrose solution of SPEC eq. 9."""
-    data = collect_data(DataSpec(lambdas=(0.0, 0.1), trajectories=40, steps=60, seed=5))
+    data = _data((0.0, 0.1), trajectories=40, steps=60, seed=5)
     dic = get_dictionary("minimal")
     fit = fit_bilinear(data.states, data.commands, dic, chunk=500)
     z = dic.lift(data.states)
@@ -101,8 +116,21 @@ def test_shipped_high_model_is_what_the_documented_command_makes(tmp_path) -> No
 @pytest.mark.parametrize("setting", ["nominal", "low"])
 def test_other_shipped_models_regenerate(tmp_path, setting: str) -> None:
     out = tmp_path / f"{setting}.npz"
-    fit_model(DataSpec(lambdas=tuple(get_model(setting).metadata["data"]["lambdas"]))).save(out)
+    subprocess.run(
+        [sys.executable, "-m", "controllers.koopman", "fit", "--slip", setting, "--out", str(out)],
+        check=True, capture_output=True,
+    )  # fmt: skip
     assert out.read_bytes() == shipped_path(setting).read_bytes()
+
+
+def test_shipped_models_are_the_calibration_cache_entries_of_the_paper_settings(tmp_path, monkeypatch) -> None:
+    """The evaluator's default calibration of each paper setting loads the shipped file, not a fit."""
+    monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path))
+    for setting in SHIPPED:
+        model, summary = calibrated_model(make_plant("KoopNav-Formation-v0", slip=setting))
+        assert summary["source"] == "shipped" and summary["transitions"] == 1_000_000
+        np.testing.assert_array_equal(model.A, KoopmanModel.load(shipped_path(setting)).A)
+    assert not list(tmp_path.rglob("*.npz"))
 
 
 def test_shipped_models_record_their_provenance() -> None:
@@ -140,7 +168,7 @@ def test_wrong_matrix_shapes_are_rejected(nominal_model: KoopmanModel) -> None:
 
 @pytest.mark.parametrize("dictionary", ["minimal", "extended"])
 def test_casadi_function_agrees_with_numpy(dictionary: str) -> None:
-    data = collect_data(DataSpec(lambdas=(0.0, 0.05, 0.1), trajectories=30, steps=100))
+    data = _data((0.0, 0.05, 0.1), trajectories=30, steps=100)
     dic = get_dictionary(dictionary)
     fit = fit_bilinear(data.states, data.commands, dic)
     model = KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, 3, 0.1)
@@ -162,21 +190,39 @@ def test_richer_dictionary_is_selectable() -> None:
         get_dictionary("hermite")
 
 
-def test_on_demand_models_are_cached(tmp_path, monkeypatch) -> None:
+def test_calibrated_models_are_deterministic_and_cached(tmp_path, monkeypatch) -> None:
+    """Same plant, budget and seed: the second calibration loads the first's file (no data drawn)."""
     monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path))
-    first = get_model([0.0, 0.03, 0.07], trajectories=20, steps=50)
-    files = list((tmp_path / "models").glob("*.npz"))
+
+    def plant(seed=0, budget=1000):
+        return make_plant(ENV, slip=[0.0, 0.03, 0.07], budget=budget, seed=seed)
+
+    first, info = calibrated_model(plant())
+    assert info["source"] == "fitted" and info["transitions"] == 1000
+    files = list(tmp_path.rglob("*.npz"))
     assert len(files) == 1
-    again = get_model([0.0, 0.03, 0.07], trajectories=20, steps=50)
+    second_plant = plant()
+    again, info = calibrated_model(second_plant)
+    assert info["source"] == "cache" and second_plant.used == 0
     np.testing.assert_array_equal(first.A, again.A)
-    other = get_model([0.0, 0.03, 0.07], trajectories=20, steps=50, seed=1)
-    assert not np.array_equal(first.A, other.A)
-    assert len(list((tmp_path / "models").glob("*.npz"))) == 2
+    # a fresh fit in another cache directory is bit-identical
+    monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path / "other"))
+    refit, info = calibrated_model(plant())
+    assert info["source"] == "fitted"
+    np.testing.assert_array_equal(first.A, refit.A)
+    monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path))
+    assert not np.array_equal(first.A, calibrated_model(plant(seed=1))[0].A)
+    assert not np.array_equal(first.A, calibrated_model(plant(budget=2000))[0].A)
+    assert len(list(tmp_path.glob("calibration/*.npz"))) == 3
+    # a corrupt cache entry is refitted, not loaded
+    files[0].write_bytes(b"garbage")
+    repaired, info = calibrated_model(plant())
+    assert info["source"] == "fitted"
+    np.testing.assert_array_equal(first.A, repaired.A)
 
 
 def test_data_collection_is_seeded() -> None:
-    spec = DataSpec(lambdas=(0.0, 0.2), trajectories=5, steps=10, seed=9)
-    a, b = collect_data(spec), collect_data(spec)
+    a, b = _data((0.0, 0.2), trajectories=5, steps=10, seed=9), _data((0.0, 0.2), trajectories=5, steps=10, seed=9)
     np.testing.assert_array_equal(a.states, b.states)
     assert a.states.shape == (11, 5, 2, 3) and a.commands.shape == (10, 5, 2, 2)
     assert np.abs(a.commands).max() <= 1.0 and np.abs(a.states[0]).max() <= 10.0

@@ -13,12 +13,13 @@ import time
 
 import numpy as np
 
+from controllers.calibration import DataSpec
 from controllers.koopman.accuracy import circle_test
-from controllers.koopman.data import DataSpec
 from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
-from controllers.koopman.store import fit_model, get_model
+from controllers.koopman.store import calibrated_model, fit_on_plant
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
+from koopman_envs.plant import make_plant
 
 
 def _slip_arg(text: str) -> str | list[float]:
@@ -37,19 +38,26 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--slip", type=_slip_arg, default="nominal", help="nominal, low, high or 0,0.1,0.2")
     parser.add_argument("--n-robots", type=int, default=PARAMS.n_robots)
     parser.add_argument("--dictionary", choices=sorted(DICTIONARIES), default="minimal")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the training data")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the calibration data (inputs and slip)")
     parser.add_argument("--trajectories", type=int, default=PARAMS.koopman_trajectories)
     parser.add_argument("--steps", type=int, default=PARAMS.koopman_steps)
 
 
+def _plant_and_spec(args: argparse.Namespace):
+    """The calibration plant of the setting (its budget = the data set) and the data set."""
+    spec = DataSpec(args.trajectories, args.steps, seed=args.seed)
+    plant = make_plant("KoopNav-TargetReaching-v0", slip=args.slip, n_robots=args.n_robots,
+                       budget=spec.transitions, seed=args.seed)  # fmt: skip
+    return plant, spec
+
+
 def cmd_fit(args: argparse.Namespace) -> int:
-    lambdas = slip_lambdas(args.slip, args.n_robots)
-    spec = DataSpec(tuple(float(v) for v in lambdas), args.trajectories, args.steps, seed=args.seed)
+    plant, spec = _plant_and_spec(args)
     start = time.perf_counter()
-    model = fit_model(spec, args.dictionary, ridge=args.ridge)
+    model = fit_on_plant(plant, spec, args.dictionary, ridge=args.ridge)
     model.save(args.out)
     print(
-        f"fitted {args.dictionary} model: {args.n_robots} robots, lambda={list(spec.lambdas)}, "
+        f"fitted {args.dictionary} model: {args.n_robots} robots, slip {args.slip}, "
         f"{spec.transitions:,} transitions, residual {model.metadata['fit_residual']:.3e}, "
         f"rank {model.metadata['rank']}, {time.perf_counter() - start:.2f} s -> {args.out}"
     )
@@ -57,11 +65,13 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 def cmd_accuracy(args: argparse.Namespace) -> int:
+    # the test compares the model with the simulator it was calibrated on: it knows lambda, the model does not
     lambdas = slip_lambdas(args.slip, args.n_robots)
     if args.model:
         model = KoopmanModel.load(args.model, n_robots=args.n_robots)
     else:
-        model = get_model(args.slip, args.n_robots, args.dictionary, args.seed, args.trajectories, args.steps)
+        plant, spec = _plant_and_spec(args)
+        model = calibrated_model(plant, args.seed, args.dictionary, spec)[0]
     report, prediction, truths = circle_test(model, lambdas, args.repetitions, args.truth_seed)
     if args.json:
         print(json.dumps({"dictionary": model.dictionary.name, **report.to_dict()}, indent=1))
@@ -111,7 +121,7 @@ def _plot(path: str, prediction: np.ndarray, truths: np.ndarray, report, name: s
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m controllers.koopman", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    fit = sub.add_parser("fit", help="collect simulator data and fit a model")
+    fit = sub.add_parser("fit", help="collect data on the calibration plant of a slip setting and fit a model")
     _common(fit)
     fit.add_argument("--ridge", type=float, default=0.0, help="Tikhonov term (0 = least squares)")
     fit.add_argument("--out", required=True, help="output .npz")

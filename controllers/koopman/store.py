@@ -1,55 +1,79 @@
-"""Where models come from: shipped files for the paper's settings, a user cache for the rest.
+"""Where models come from: fitted on a calibration plant, cached on disk, shipped for the paper.
 
-``get_model(slip, n_robots)`` returns the shipped model for ``"nominal"``, ``"low"`` and ``"high"``
-with 3 robots (files in ``controllers/koopman/models``, regenerated bit for bit by
-``python -m controllers.koopman fit --slip SETTING --out controllers/koopman/models/SETTING.npz``)
-and fits any other setting on demand, caching it under ``$KOOPNAV_CACHE`` (default
-``~/.cache/koopnav/models``) keyed by everything that determines the data and the fit.
+:func:`calibrated_model` is what Koopman-NMPC's ``calibrate`` calls: it draws the identification
+set from the plant (the paper's protocol, :func:`controllers.calibration.collect_data`), fits
+the bilinear model and caches it keyed by the plant's signature, the budget, the seed and the
+dictionary, so a rerun loads instead of refitting. The shipped files
+``controllers/koopman/models/{nominal,low,high}.npz`` are the cache entries of the paper's three
+slip settings (3 robots, default budget, seed 0, minimal dictionary) and are regenerated bit for
+bit by ``python -m controllers.koopman fit --slip SETTING --out controllers/koopman/models/SETTING.npz``.
+
+:func:`fit_for_env` fits a model for any env id and keyword arguments::
+
+    from controllers.koopman import fit_for_env
+    model = fit_for_env("KoopNav-Formation-v0", slip="high")
+    ctrl = KoopmanNMPC(model=model)
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
-import tempfile
+import time
 from importlib import resources
 from pathlib import Path
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 
-from controllers.koopman.data import DataSpec, collect_data
+from controllers.calibration import (
+    DataSpec,
+    cache_key,
+    cache_path,
+    collect_data,
+    data_spec_for,
+    write_atomic,
+)
 from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import fit_bilinear
-from controllers.koopman.model import KoopmanModel
+from controllers.koopman.model import KoopmanModel, ModelFileError
 from koopman_envs import __version__ as envs_version
-from koopman_envs.params import PARAMS, slip_lambdas
+from koopman_envs.params import PARAMS
+from koopman_envs.plant import CalibrationPlant, make_plant
 
-__all__ = ["SHIPPED", "cache_dir", "fit_model", "get_model", "shipped_path"]
+__all__ = ["SHIPPED", "calibrated_model", "fit_for_env", "fit_on_plant", "shipped_path"]
 
+#: Slip settings whose models ship with the package (3 robots, default budget, seed 0, minimal).
 SHIPPED = ("nominal", "low", "high")
+_SHIPPED_ENV = "KoopNav-TargetReaching-v0"  # the plant does not depend on the task
 
 
-def fit_model(spec: DataSpec, dictionary: str = "minimal", ridge: float = 0.0) -> KoopmanModel:
-    """Collect data for ``spec`` and fit a model; metadata records the provenance."""
+def fit_on_plant(
+    plant: CalibrationPlant, spec: DataSpec, dictionary: str = "minimal", ridge: float = 0.0
+) -> KoopmanModel:
+    """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance."""
     dic = get_dictionary(dictionary)
-    data = collect_data(spec)
+    data = collect_data(plant, spec)
     fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge)
-    rows = dic.state_rows(spec.n_robots)  # (N, 4): x, y, cos, sin
+    rows = dic.state_rows(plant.n_robots)  # (N, 4): x, y, cos, sin
     position_residual = np.hypot(fit.coordinate_residual[rows[:, 0]], fit.coordinate_residual[rows[:, 1]])
     meta = {
+        "plant": plant.signature,
+        "budget": plant.budget,
         "data": spec.to_dict(),
         "ridge": ridge,
         "fit_residual": fit.residual,
-        # RMS one-step position error of each robot on the training data [m]: the model's own
-        # estimate of how far reality strays from a prediction (used for safety margins)
+        # RMS one-step position error of each robot on the calibration data [m]: the model's
+        # own measure of how far the robots stray from its prediction (uncertainty_margin)
         "position_residual": [float(v) for v in position_residual],
         "rank": fit.rank,
         "transitions": spec.transitions,
+        "cache_key": _model_key(plant, spec, dictionary, ridge),
         "package_version": envs_version,
     }
-    return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, spec.n_robots, spec.dt, meta)
+    return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta)
+
+
+def _model_key(plant: CalibrationPlant, spec: DataSpec, dictionary: str, ridge: float) -> str:
+    return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge)
 
 
 def shipped_path(setting: str) -> Path:
@@ -59,48 +83,82 @@ def shipped_path(setting: str) -> Path:
     return Path(str(resources.files("controllers.koopman").joinpath("models", f"{setting}.npz")))
 
 
-def cache_dir() -> Path:
-    """User cache directory for fitted models (``$KOOPNAV_CACHE`` overrides)."""
-    root = os.environ.get("KOOPNAV_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "koopnav")
-    return Path(root) / "models"
+def _shipped_for(key: str) -> Path | None:
+    """The shipped file whose calibration has cache key ``key``, if any."""
+    spec = data_spec_for(PARAMS.calibration_budget, 0)
+    for setting in SHIPPED:
+        plant = make_plant(_SHIPPED_ENV, slip=setting, budget=PARAMS.calibration_budget, seed=0)
+        if _model_key(plant, spec, "minimal", 0.0) == key:
+            return shipped_path(setting)
+    return None
 
 
-def _cache_key(spec: DataSpec, dictionary: str, ridge: float) -> str:
-    blob = json.dumps({"data": spec.to_dict(), "dictionary": dictionary, "ridge": ridge, "v": envs_version},
-                      sort_keys=True)  # fmt: skip
-    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+def calibrated_model(
+    plant: CalibrationPlant, seed: int = 0, dictionary: str = "minimal", spec: DataSpec | None = None
+) -> tuple[KoopmanModel, dict[str, Any]]:
+    """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached).
 
+    Parameters
+    ----------
+    plant : CalibrationPlant
+        The deployment env's robots; its budget bounds the data set.
+    seed : int
+        Seed of the identification inputs.
+    dictionary : str
+        Observables (``"minimal"``: the paper's).
+    spec : DataSpec, optional
+        The data set (default: what the plant's budget buys, :func:`data_spec_for`).
 
-def get_model(
-    slip: str | Sequence[float] = "nominal",
-    n_robots: int = PARAMS.n_robots,
-    dictionary: str = "minimal",
-    seed: int = 0,
-    trajectories: int = PARAMS.koopman_trajectories,
-    steps: int = PARAMS.koopman_steps,
-) -> KoopmanModel:
-    """The Koopman model of a slip setting, learned from simulator data of that setting only.
-
-    The slip setting selects which simulator produces the training data (as a real deployment
-    would collect data on its own robots); the fitted model never contains lambda.
+    Returns
+    -------
+    model : KoopmanModel
+    summary : dict
+        ``transitions`` (data behind the model), ``source`` (``"shipped"``, ``"cache"`` or
+        ``"fitted"``), ``seconds`` and the cache ``key``.
     """
-    lambdas = slip_lambdas(slip, n_robots)
-    spec = DataSpec(tuple(float(v) for v in lambdas), trajectories, steps, seed=seed)
-    default_protocol = (
-        dictionary == "minimal" and seed == 0 and n_robots == PARAMS.n_robots
-        and trajectories == PARAMS.koopman_trajectories and steps == PARAMS.koopman_steps
-    )  # fmt: skip
-    if isinstance(slip, str) and slip in SHIPPED and default_protocol:
-        return KoopmanModel.load(shipped_path(slip), n_robots=n_robots)
-    path = cache_dir() / f"{_cache_key(spec, dictionary, 0.0)}.npz"
+    start = time.perf_counter()
+    spec = data_spec_for(plant.budget, seed) if spec is None else spec
+    key = _model_key(plant, spec, dictionary, 0.0)
+    summary = {"transitions": spec.transitions, "key": key}
+    shipped = _shipped_for(key)
+    path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
     if path.exists():
-        return KoopmanModel.load(path, n_robots=n_robots)
-    model = fit_model(spec, dictionary)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # write then rename, so a concurrent reader never sees half a file
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-    os.close(fd)
-    model.save(tmp)
-    os.replace(tmp, path)
-    return model
+        try:
+            model = KoopmanModel.load(path, n_robots=plant.n_robots)
+            if model.metadata.get("cache_key") == key:
+                return model, {**summary, "source": "shipped" if shipped else "cache",
+                               "seconds": time.perf_counter() - start}  # fmt: skip
+        except ModelFileError:
+            if shipped is not None:
+                raise
+        # a corrupt or stale cache entry is refitted and replaced, never used
+    model = fit_on_plant(plant, spec, dictionary)
+    if shipped is None:
+        write_atomic(path, model.save, ".npz")
+    return model, {**summary, "source": "fitted", "seconds": time.perf_counter() - start}
 
+
+def fit_for_env(
+    env: Any,
+    *,
+    budget: int = PARAMS.calibration_budget,
+    seed: int = 0,
+    dictionary: str = "minimal",
+    **env_kwargs: Any,
+) -> KoopmanModel:
+    """Fit (or load from the cache) the Koopman model of an environment's robots.
+
+    Parameters
+    ----------
+    env : str or env
+        A registered env id with its keyword arguments in ``env_kwargs`` (``slip="high"``,
+        ``n_robots=5``, ...), or an env instance.
+    budget : int
+        Team-transitions of identification data (default: the paper's 1000 x 1000).
+    seed : int
+        Seed of the plant's slip and of the identification inputs.
+    dictionary : str
+        ``"minimal"`` (the paper's) or ``"extended"``.
+    """
+    plant = make_plant(env, budget=budget, seed=seed, **env_kwargs)
+    return calibrated_model(plant, seed, dictionary)[0]

@@ -34,6 +34,7 @@ class KoopNavEnv(gym.Env):
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
         random_map: RandomMapConfig | dict | None = None,
+        start_noise: float = 0.0,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -48,6 +49,7 @@ class KoopNavEnv(gym.Env):
             robot_radius=robot_radius,
             n_obstacle_obs=n_obstacle_obs,
             random_map=random_map,
+            start_noise=start_noise,
         )
         self.engine = NavigationEngine(self.config, num_envs=1)
         self.action_space, self.observation_space = self.engine.team_spaces()
@@ -171,7 +173,12 @@ _COMMON_DOC = """
     :class:`koopman_envs.tasks.base.RewardWeights`.
 
     ## Starting State
-    The map's start poses (a new seeded random layout per reset with ``map="random"``).
+    The map's start poses (a new seeded random layout per reset with ``map="random"``). With
+    ``start_noise`` = s > 0, every reset moves each robot's start position by a point drawn
+    uniformly in a disc of radius s [m] and turns its heading by an angle uniform in [-s, s]
+    [rad] (wrapped to [-pi, pi)), from the env's own ``np_random``; a draw that leaves the
+    workspace or overlaps an obstacle or another robot is redrawn for the whole team (100 tries,
+    then ``RuntimeError``). ``env.unwrapped.scenario.starts`` holds the starts actually used.
 
     ## Episode End
     1. Termination: any collision (robot-obstacle, robot-robot, or a centre leaving the
@@ -192,6 +199,7 @@ _COMMON_DOC = """
     | robot_radius     | float                 | 0.2         | disc radius of every robot [m]           |
     | n_obstacle_obs   | int                   | 4           | nearest obstacles in each robot's block  |
     | random_map       | RandomMapConfig, dict | None        | generator settings for map="random"      |
+    | start_noise      | float                 | 0.0         | per-reset start jitter [m] and [rad]     |
 
     ## Vectorized environment
     ``gym.make_vec(id, num_envs=K)`` returns :class:`koopman_envs.fronts.vector_env.KoopNavVectorEnv`,

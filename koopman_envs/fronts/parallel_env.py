@@ -38,6 +38,9 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
         ``"target_reaching"`` or ``"formation"``.
     map, slip, n_robots, goal_tolerance, robot_radius, n_obstacle_obs, random_map, render_mode
         As for the Gymnasium env.
+    start_noise : float
+        As for the Gymnasium env: per reset, each start position moves uniformly within a disc of
+        this radius [m] and each heading turns uniformly within +-start_noise [rad] (default 0).
     max_episode_steps : int
         Time limit in control periods.
     """
@@ -61,10 +64,11 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
         random_map: RandomMapConfig | dict | None = None,
+        start_noise: float = 0.0,
     ) -> None:
         EzPickle.__init__(
             self, task, map, slip, n_robots, goal_tolerance, max_episode_steps, render_mode,
-            robot_radius, n_obstacle_obs, random_map,
+            robot_radius, n_obstacle_obs, random_map, start_noise,
         )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -79,6 +83,7 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
             robot_radius=robot_radius,
             n_obstacle_obs=n_obstacle_obs,
             random_map=random_map,
+            start_noise=start_noise,
             max_episode_steps=max_episode_steps,
         )
         self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}

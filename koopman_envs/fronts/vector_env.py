@@ -40,7 +40,9 @@ class KoopNavVectorEnv(VectorEnv):
         ``"NextStep"`` (Gymnasium's default) or ``"SameStep"`` (final observation and info in
         ``info["final_obs"]`` / ``info["final_info"]``, as SB3 expects).
     **kwargs
-        The single env's keyword arguments (``map``, ``slip``, ``n_robots``, ...).
+        The single env's keyword arguments (``map``, ``slip``, ``n_robots``, ``start_noise``, ...).
+        Sub-env i draws its map, start noise and slip from its own generator, so it stays equal
+        to the single env seeded ``s + i``.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -59,6 +61,7 @@ class KoopNavVectorEnv(VectorEnv):
         random_map: RandomMapConfig | dict | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
+        start_noise: float = 0.0,
     ) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
@@ -83,6 +86,7 @@ class KoopNavVectorEnv(VectorEnv):
             robot_radius=robot_radius,
             n_obstacle_obs=n_obstacle_obs,
             random_map=random_map,
+            start_noise=start_noise,
             max_episode_steps=max_episode_steps,
         )
         self.num_envs = int(num_envs)

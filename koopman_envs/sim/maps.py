@@ -125,38 +125,74 @@ class MapSpec:
                 f"n_robots={n_robots} is larger than map {self.name!r} supports "
                 f"(1..{self.max_robots}); use map='random' for larger teams"
             )
+        for label, poses in (("start", self.starts[:n_robots]), ("target", self.targets[:n_robots])):
+            problem = self.pose_problem(poses, robot_radius, workspace, label)
+            if problem is not None:
+                raise ValueError(f"map {self.name!r}: {problem}")
+
+    def pose_problem(
+        self,
+        poses: NDArray,
+        robot_radius: float = PARAMS.robot_radius,
+        workspace: tuple[float, float, float, float] = PARAMS.workspace,
+        label: str = "start",
+    ) -> str | None:
+        """The first reason why a team at ``poses`` cannot stand on this map, or None if it can.
+
+        The one placement check of the package: :meth:`validate` runs it on the map's own starts
+        and targets, and the engine on the perturbed starts of ``start_noise``.
+
+        Parameters
+        ----------
+        poses : ndarray, shape (N, 2) or (N, 3)
+            Robot centres x, y [m] (a heading column is ignored).
+        robot_radius : float
+            Disc radius of every robot [m].
+        workspace : tuple of float
+            (x_min, x_max, y_min, y_max) [m]; every disc must lie inside it.
+        label : str
+            What the poses are (``"start"``, ``"target"``), used in the message.
+
+        Returns
+        -------
+        str or None
+            The problem (a disc outside the workspace, two robots overlapping, a robot
+            overlapping an obstacle), or None.
+        """
+        poses = np.asarray(poses, dtype=np.float64)
+        n_robots = poses.shape[0]
         radii = np.full(n_robots, float(robot_radius))
         geometry = TeamGeometry(1, radii, self.obstacles.shape[0])
         geometry.set_obstacles(0, self.obstacles)
         x0, x1, y0, y1 = workspace
-        for label, poses in (("start", self.starts[:n_robots]), ("target", self.targets[:n_robots])):
-            inside = (
-                (poses[:, 0] - robot_radius >= x0)
-                & (poses[:, 0] + robot_radius <= x1)
-                & (poses[:, 1] - robot_radius >= y0)
-                & (poses[:, 1] + robot_radius <= y1)
+        inside = (
+            (poses[:, 0] - robot_radius >= x0)
+            & (poses[:, 0] + robot_radius <= x1)
+            & (poses[:, 1] - robot_radius >= y0)
+            & (poses[:, 1] + robot_radius <= y1)
+        )
+        if not inside.all():
+            i = int(np.argmin(inside))
+            return (
+                f"{label} of robot {i} at {poses[i, :2].tolist()} is not "
+                f"inside the workspace {workspace} with radius {robot_radius}"
             )
-            if not inside.all():
-                i = int(np.argmin(inside))
-                raise ValueError(
-                    f"map {self.name!r}: {label} of robot {i} at {poses[i, :2].tolist()} is not "
-                    f"inside the workspace {workspace} with radius {robot_radius}"
-                )
-            clearance = geometry.clearances(poses[None, :, 0], poses[None, :, 1])[0]
-            robots, obstacles = clearance[:, :n_robots], clearance[:, n_robots:]
-            if robots.min() < 0:
-                i, j = np.unravel_index(np.argmin(robots), robots.shape)
-                raise ValueError(
-                    f"map {self.name!r}: overlapping {label}s of robots {i} and {j} "
-                    f"({poses[i, :2].tolist()} and {poses[j, :2].tolist()}); centres must be at "
-                    f"least {2 * robot_radius} m apart"
-                )
-            if obstacles.size and obstacles.min() < 0:
-                i, k = np.unravel_index(np.argmin(obstacles), obstacles.shape)
-                raise ValueError(
-                    f"map {self.name!r}: {label} of robot {i} at {poses[i, :2].tolist()} "
-                    f"overlaps obstacle {k} {self.obstacles[k].tolist()}"
-                )
+        clearance = geometry.clearances(poses[None, :, 0], poses[None, :, 1])[0]
+        robots, obstacles = clearance[:, :n_robots], clearance[:, n_robots:]
+        if robots.min() < 0:
+            i, j = np.unravel_index(np.argmin(robots), robots.shape)
+            return (
+                f"overlapping {label}s of robots {i} and {j} "
+                f"({poses[i, :2].tolist()} and {poses[j, :2].tolist()}); centres must be at "
+                f"least {2 * robot_radius} m apart"
+            )
+        if obstacles.size and obstacles.min() < 0:
+            i, k = np.unravel_index(np.argmin(obstacles), obstacles.shape)
+            return (
+                f"{label} of robot {i} at {poses[i, :2].tolist()} "
+                f"overlaps obstacle {k} {self.obstacles[k].tolist()}"
+            )
+        return None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form, readable by :func:`load_map`."""

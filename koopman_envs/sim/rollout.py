@@ -31,8 +31,8 @@ def rollout(
     commands : ndarray, shape (T, B, N, 2)
         Commands (v [m/s], omega [rad/s]) per period, applied as given (no saturation: data
         collection may excite the model beyond the actuation limits, as the paper does).
-    lambdas : ndarray, shape (N,)
-        Slip means lambda_i >= 0.
+    lambdas : ndarray, shape (N,) or (B, N)
+        Slip means lambda_i >= 0, shared by every team or one row per team.
     rng : numpy.random.Generator
         Source of the slip draws (alpha, beta, gamma per robot per period, in that order).
     dt : float
@@ -49,8 +49,8 @@ def rollout(
     steps, batch, n = commands.shape[:3]
     if start.shape != (batch, n, 3):
         raise ValueError(f"start has shape {start.shape}; expected ({batch}, {n}, 3) to match commands")
-    if lambdas.shape != (n,):
-        raise ValueError(f"lambdas has shape {lambdas.shape}; expected ({n},)")
+    if lambdas.shape not in ((n,), (batch, n)):
+        raise ValueError(f"lambdas has shape {lambdas.shape}; expected ({n},) or ({batch}, {n})")
     out = np.empty((steps + 1, batch, n, 3))
     out[0] = start
     x, y, th = start[..., 0].copy(), start[..., 1].copy(), start[..., 2].copy()

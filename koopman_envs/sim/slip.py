@@ -11,7 +11,21 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SlipSampler"]
+__all__ = ["RANDOM_SLIP", "RANDOM_SLIP_MAX", "SlipSampler", "draw_random_lambdas"]
+
+#: ``slip="random"``: each episode draws the largest lambda uniformly on [0, RANDOM_SLIP_MAX] and
+#: spaces the others linearly from robot 1's 0 (ours: covers and exceeds the "high" setting).
+RANDOM_SLIP = "random"
+RANDOM_SLIP_MAX = 0.25
+
+
+def draw_random_lambdas(rng: np.random.Generator, n_robots: int) -> NDArray[np.float64]:
+    """One episode's slip means under ``slip="random"``: robot 1 slip-free, the others spaced linearly.
+
+    Draws exactly one uniform number from ``rng`` (none for a single robot).
+    """
+    top = rng.uniform(0.0, RANDOM_SLIP_MAX)
+    return np.zeros(1) if n_robots == 1 else np.linspace(0.0, top, n_robots)
 
 
 class SlipSampler:

@@ -1,10 +1,10 @@
-"""The two navigation tasks: which targets, which reward terms, which default map."""
+"""The two navigation tasks: the one table of task name, env id, label, maps and reward terms."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["RewardWeights", "TaskSpec", "TASKS"]
+__all__ = ["ENV_IDS", "RewardWeights", "TASKS", "TaskSpec", "task_for_env"]
 
 
 @dataclass(frozen=True)
@@ -29,15 +29,51 @@ class RewardWeights:
 
 @dataclass(frozen=True)
 class TaskSpec:
-    """A task: its name, default map and whether formation terms apply."""
+    """A task: its name, registered env id, label, maps and whether formation terms apply.
+
+    Attributes
+    ----------
+    name : str
+        Task name used by the engine (``"target_reaching"``, ``"formation"``).
+    env_id : str
+        Registered Gymnasium id.
+    label : str
+        Human-readable name for reports.
+    paper_maps : tuple of str
+        The paper's maps of this task (SPEC section 5); the first is the default map.
+    formation : bool
+        Whether formation terms (offsets, formation error) apply.
+    reward : RewardWeights
+        Weights of the shaped reward.
+    """
 
     name: str
-    default_map: str
+    env_id: str
+    label: str
+    paper_maps: tuple[str, ...]
     formation: bool
     reward: RewardWeights = RewardWeights()
 
+    @property
+    def default_map(self) -> str:
+        """The map an env of this task uses when none is given."""
+        return self.paper_maps[0]
+
 
 TASKS: dict[str, TaskSpec] = {
-    "target_reaching": TaskSpec("target_reaching", default_map="map1", formation=False),
-    "formation": TaskSpec("formation", default_map="map3", formation=True),
+    "target_reaching": TaskSpec(
+        "target_reaching", "KoopNav-TargetReaching-v0", "target reaching", ("map1", "map2"), formation=False
+    ),
+    "formation": TaskSpec("formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True),
 }
+
+#: Registered env ids, in task order.
+ENV_IDS: tuple[str, ...] = tuple(spec.env_id for spec in TASKS.values())
+
+
+def task_for_env(env_id: str) -> TaskSpec:
+    """The task of a registered env id (``ValueError`` naming the known ids otherwise)."""
+    for spec in TASKS.values():
+        if spec.env_id == env_id:
+            return spec
+    raise ValueError(f"env id {env_id!r} is not one of {list(ENV_IDS)}")

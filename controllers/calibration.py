@@ -1,0 +1,210 @@
+"""Calibration: what a controller may learn about the robots before it is evaluated.
+
+Every controller gets the same offer: a :class:`koopman_envs.CalibrationPlant` (the deployment
+env's robots in an open field, slip included, slip means hidden) with the same budget of
+team-transitions and the same seed. A controller that wants data implements
+``calibrate(plant, *, seed)``; the Koopman-NMPC fits its model there, the NMPCs with an
+``uncertainty_margin`` measure their own prediction error there.
+
+This module holds the pieces they share: the identification data set (the paper's random
+inputs and random initial states, one fixed function of plant, budget and seed, so two
+controllers calibrated on the same plant see the same data), the RMS one-step position
+residual, and an on-disk cache keyed by plant signature, budget and seed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.params import PARAMS
+from koopman_envs.plant import CalibrationPlant, make_plant
+
+__all__ = [
+    "Calibratable",
+    "DataSpec",
+    "TrajectoryData",
+    "cache_dir",
+    "cache_path",
+    "calibrate_controller",
+    "collect_data",
+    "data_spec_for",
+    "position_residual",
+    "write_atomic",
+]
+
+# the identification inputs come from their own stream of the seed (the plant draws its slip from another)
+_INPUT_STREAM = 0x494E5055  # "INPU"
+
+
+@runtime_checkable
+class Calibratable(Protocol):
+    """A controller that learns from the calibration plant before its episodes."""
+
+    def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
+        """Learn what it needs from ``plant`` (within its budget); return a plain-JSON summary
+        with at least ``transitions`` (team-transitions of data behind the calibration)."""
+
+
+@dataclass(frozen=True)
+class DataSpec:
+    """How an identification data set is drawn (the paper's protocol, SPEC section 2).
+
+    Attributes
+    ----------
+    trajectories, steps : int
+        Teams and periods per team; ``trajectories * steps`` team-transitions.
+    input_bound : float
+        Commands uniform on [-b, b]^2 per robot and period (beyond the actuation limits, as the paper).
+    state_bound : float
+        Initial poses uniform on [-b, b]^3 per robot.
+    seed : int
+        Seed of the inputs and initial states.
+    """
+
+    trajectories: int
+    steps: int
+    input_bound: float = PARAMS.koopman_input_bound
+    state_bound: float = PARAMS.koopman_state_bound
+    seed: int = 0
+
+    @property
+    def transitions(self) -> int:
+        """Team-transitions in the set."""
+        return self.trajectories * self.steps
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form."""
+        return asdict(self)
+
+
+def data_spec_for(budget: int, seed: int = 0) -> DataSpec:
+    """The identification set a budget buys: trajectories of the paper's length (1000 periods),
+    as many as fit (one shorter trajectory when the budget is below one paper trajectory)."""
+    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
+        raise ValueError(f"calibration budget={budget!r} must be an integer >= 1 (team-transitions)")
+    steps = min(PARAMS.koopman_steps, int(budget))
+    return DataSpec(trajectories=int(budget) // steps, steps=steps, seed=seed)
+
+
+@dataclass(frozen=True)
+class TrajectoryData:
+    """Identification trajectories.
+
+    Attributes
+    ----------
+    states : ndarray, shape (T + 1, B, N, 3)
+        Poses; ``states[t, b]`` is team b at period t.
+    commands : ndarray, shape (T, B, N, 2)
+        Commands applied between periods t and t + 1.
+    spec : DataSpec
+        How they were drawn.
+    """
+
+    states: NDArray[np.float64]
+    commands: NDArray[np.float64]
+    spec: DataSpec
+
+
+def collect_data(plant: CalibrationPlant, spec: DataSpec) -> TrajectoryData:
+    """Drive the plant's teams with the random inputs of ``spec`` (spends ``spec.transitions``)."""
+    if spec.trajectories < 1 or spec.steps < 1:
+        raise ValueError(f"trajectories={spec.trajectories} and steps={spec.steps} must be >= 1")
+    rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(_INPUT_STREAM,)))
+    n, b = plant.n_robots, spec.state_bound
+    start = rng.uniform(-b, b, size=(spec.trajectories, n, 3))
+    commands = rng.uniform(-spec.input_bound, spec.input_bound, size=(spec.steps, spec.trajectories, n, 2))
+    return TrajectoryData(plant.rollout(start, commands), commands, spec)
+
+
+def position_residual(
+    predict: Callable[[NDArray, NDArray], NDArray], data: TrajectoryData, chunk: int = 100
+) -> NDArray[np.float64]:
+    """RMS one-step position error of a prediction model on a data set, per robot [m].
+
+    Parameters
+    ----------
+    predict : callable
+        ``predict(poses (..., N, 3), commands (..., N, 2)) -> poses (..., N, 3)``.
+    data : TrajectoryData
+    chunk : int
+        Periods evaluated at once (bounds memory).
+    """
+    total = np.zeros(data.states.shape[2])
+    steps = data.commands.shape[0]
+    for t0 in range(0, steps, chunk):
+        t1 = min(steps, t0 + chunk)
+        predicted = predict(data.states[t0:t1], data.commands[t0:t1])
+        err = predicted[..., :2] - data.states[t0 + 1 : t1 + 1, ..., :2]
+        total += (err**2).sum(axis=-1).sum(axis=(0, 1))
+    return np.sqrt(total / (steps * data.states.shape[1]))
+
+
+def cache_dir() -> Path:
+    """User cache directory of calibrations (``$KOOPNAV_CACHE``, default ``~/.cache/koopnav``)."""
+    root = os.environ.get("KOOPNAV_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "koopnav")
+    return Path(root) / "calibration"
+
+
+def cache_key(kind: str, plant: CalibrationPlant, spec: DataSpec, **extra: Any) -> str:
+    """Hash of what determines a calibration: its kind, the plant, the data set, and ``extra``."""
+    blob = {"kind": kind, "plant": plant.signature, "plant_seed": plant.seed, "budget": plant.budget,
+            "data": spec.to_dict(), **extra}  # fmt: skip
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:20]
+
+
+def cache_path(kind: str, key: str, suffix: str) -> Path:
+    """Where a cached calibration of ``kind`` with ``key`` lives."""
+    return cache_dir() / f"{kind}-{key}{suffix}"
+
+
+def write_atomic(path: Path, write: Callable[[str], None], suffix: str) -> None:
+    """Write through a temporary file and rename, so that concurrent workers never read half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def calibrate_controller(
+    controller: Any, env: Any, *, budget: int = PARAMS.calibration_budget, seed: int = 0
+) -> dict[str, Any] | None:
+    """Offer ``controller`` the calibration plant of ``env``, as the evaluator does.
+
+    Parameters
+    ----------
+    controller : Controller
+        Any controller; one without a ``calibrate`` method is left alone.
+    env : env, env id or CalibrationPlant
+        The deployment env (any front, wrapped or not), or a ready plant.
+    budget : int
+        Team-transitions the controller may use (ignored for a ready plant).
+    seed : int
+        Calibration seed.
+
+    Returns
+    -------
+    dict or None
+        The controller's calibration summary plus ``budget``, or None when it does not calibrate.
+    """
+    calibrate = getattr(controller, "calibrate", None)
+    if not callable(calibrate):
+        return None
+    plant = env if isinstance(env, CalibrationPlant) else make_plant(env, budget=budget, seed=seed)
+    summary = dict(calibrate(plant, seed=seed) or {})
+    summary.setdefault("transitions", plant.used)
+    summary["budget"] = plant.budget
+    return summary

@@ -1,0 +1,1 @@
+"""The evaluator's parts: controller configurations, statistics, ablations (``evaluate.py`` is the entry point)."""

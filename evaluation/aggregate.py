@@ -1,0 +1,245 @@
+"""From episode records to cells, leaderboard rows and paired comparisons, each with its interval.
+
+Conventions (the same in every report):
+
+- **success**: every robot settled within tolerance without collision; **SR**: the paper's
+  success rate, no collision. Both with 95% Wilson intervals over the cell's valid episodes.
+- **final distances** in two labelled conventions: over *collision-free* runs (the paper's, so
+  a run that ends 80 cm off its slot counts) and over *settled* (successful) runs. Per robot:
+  mean and SD; for the team (mean over robots per run): mean with a 95% bootstrap interval.
+- **paired comparisons**: two controllers on the same cells meet the same seeds, so their
+  outcomes pair up episode by episode; the difference in success rate gets Newcombe's paired
+  interval and an exact McNemar p-value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+import numpy as np
+
+from evaluation.statistics import bootstrap_mean_interval, paired_comparison, wilson_interval
+
+__all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons"]
+
+
+def _finite(values: Iterable[Any]) -> list[float]:
+    return [float(v) for v in values if v is not None and math.isfinite(v)]
+
+
+def _nan_reduce(reduce, values: Iterable[Any]) -> float:
+    """``reduce`` over the finite values, NaN when there are none (without numpy's warning)."""
+    finite = _finite(values)
+    return float(reduce(finite)) if finite else float("nan")
+
+
+@dataclass
+class DistanceSummary:
+    """Final distances [cm] of one cell under one convention.
+
+    Attributes
+    ----------
+    runs : int
+        Runs the convention counts.
+    per_robot : list of (mean, SD)
+        Per robot over those runs (NaN when there are none).
+    team_mean, team_low, team_high : float
+        Mean over runs of the per-run mean over robots, with its 95% bootstrap interval.
+    """
+
+    runs: int
+    per_robot: list[tuple[float, float]]
+    team_mean: float
+    team_low: float
+    team_high: float
+
+    @classmethod
+    def of(cls, records: list[dict[str, Any]], n_robots: int) -> DistanceSummary:
+        """Summary of the final distances of ``records`` (metres in, centimetres out)."""
+        per_robot = []
+        for i in range(n_robots):
+            values = np.array([100 * r["final_distance"][i] for r in records], dtype=float)
+            if values.size == 0:
+                per_robot.append((float("nan"), float("nan")))
+            else:
+                per_robot.append((float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0))
+        team = [100 * float(np.mean(r["final_distance"])) for r in records]
+        low, high = bootstrap_mean_interval(team)
+        return cls(len(records), per_robot, float(np.mean(team)) if team else float("nan"), low, high)
+
+
+@dataclass
+class Cell:
+    """Aggregated metrics of one (env, controller, map, slip) cell."""
+
+    env_id: str
+    controller: str
+    map: str
+    slip: str
+    episodes: int
+    successes: int
+    collision_free: int
+    errors: int
+    distance_collision_free: DistanceSummary
+    distance_settled: DistanceSummary
+    time_to_goal_s: float
+    path_length_m: float
+    control_effort: float
+    formation_rms_cm: float
+    solve_ms_median: float
+    solve_ms_p95: float
+    solver_failures: int
+    calibration_transitions: int | None = None
+    error_messages: list[str] = field(default_factory=list)
+
+    @property
+    def valid(self) -> int:
+        """Episodes that ran (did not raise)."""
+        return self.episodes - self.errors
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of valid episodes that ended in success."""
+        return self.successes / self.valid if self.valid else float("nan")
+
+    @property
+    def success_ci(self) -> tuple[float, float]:
+        """95% Wilson interval of the success rate."""
+        return wilson_interval(self.successes, self.valid)
+
+    @property
+    def collision_free_rate(self) -> float:
+        """The paper's SR: fraction of valid episodes without collision."""
+        return self.collision_free / self.valid if self.valid else float("nan")
+
+    @property
+    def collision_free_ci(self) -> tuple[float, float]:
+        """95% Wilson interval of the SR."""
+        return wilson_interval(self.collision_free, self.valid)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form with the rates and intervals spelled out."""
+        out = {k: v for k, v in self.__dict__.items() if k not in ("distance_collision_free", "distance_settled")}
+        out.update(
+            success_rate=self.success_rate,
+            success_ci=list(self.success_ci),
+            collision_free_rate=self.collision_free_rate,
+            collision_free_ci=list(self.collision_free_ci),
+            final_distance_cm={
+                "collision_free": self.distance_collision_free.__dict__,
+                "settled": self.distance_settled.__dict__,
+            },
+        )
+        return out
+
+
+def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
+    """Cells from episode records, in the order they first appear."""
+    by_cell: dict[tuple, list[dict]] = {}
+    for rec in records:
+        by_cell.setdefault((rec["env_id"], rec["controller"], rec["map"], rec["slip"]), []).append(rec)
+    cells = []
+    for (env_id, name, map_name, slip), recs in by_cell.items():
+        ok = [r for r in recs if r["status"] == "ok"]
+        won = [r for r in ok if r["success"]]
+        free = [r for r in ok if r["collision"] is None]
+        n_robots = len(ok[0]["final_distance"]) if ok else 0
+        calibrations = [r.get("calibration") for r in ok if r.get("calibration")]
+        cells.append(
+            Cell(
+                env_id=env_id,
+                controller=name,
+                map=map_name,
+                slip=slip,
+                episodes=len(recs),
+                successes=len(won),
+                collision_free=len(free),
+                errors=len(recs) - len(ok),
+                distance_collision_free=DistanceSummary.of(free, n_robots),
+                distance_settled=DistanceSummary.of(won, n_robots),
+                time_to_goal_s=_nan_reduce(np.mean, [r["time_to_goal"] for r in won]),
+                path_length_m=_nan_reduce(np.mean, [float(np.mean(r["path_length"])) for r in ok]),
+                control_effort=_nan_reduce(np.mean, [float(np.mean(r["control_effort"])) for r in ok]),
+                formation_rms_cm=_nan_reduce(np.mean, [100 * r["formation_rms"] for r in ok
+                                                       if r["formation_rms"] is not None]),  # fmt: skip
+                solve_ms_median=_nan_reduce(np.median, [r["solve_ms_median"] for r in ok]),
+                solve_ms_p95=_nan_reduce(np.max, [r["solve_ms_p95"] for r in ok]),
+                solver_failures=sum(r["solver_failures"] for r in ok),
+                calibration_transitions=max((int(c.get("transitions", 0)) for c in calibrations), default=None),
+                error_messages=sorted({r["error"] for r in recs if r["status"] != "ok"}),
+            )
+        )
+    return cells
+
+
+def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (task, controller), ranked by success rate, then mean final distance.
+
+    Rates pool the controller's cells (Wilson intervals over all its valid episodes); the final
+    distance is the team mean over its settled runs with a bootstrap interval over those runs.
+    """
+    rows = []
+    for env_id in dict.fromkeys(c.env_id for c in cells):
+        for name in dict.fromkeys(c.controller for c in cells if c.env_id == env_id):
+            own = [c for c in cells if c.env_id == env_id and c.controller == name]
+            valid = sum(c.valid for c in own)
+            successes = sum(c.successes for c in own)
+            free = sum(c.collision_free for c in own)
+            recs = [r for r in records if r["env_id"] == env_id and r["controller"] == name and r["status"] == "ok"]
+            settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
+            free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
+            d_low, d_high = bootstrap_mean_interval(settled)
+            f_low, f_high = bootstrap_mean_interval(free_runs)
+            rows.append({
+                "env_id": env_id,
+                "controller": name,
+                "episodes": valid,
+                "success_rate": successes / valid if valid else float("nan"),
+                "success_ci": list(wilson_interval(successes, valid)),
+                "collision_free_rate": free / valid if valid else float("nan"),
+                "collision_free_ci": list(wilson_interval(free, valid)),
+                "final_distance_cm": float(np.mean(settled)) if settled else float("nan"),
+                "final_distance_ci": [d_low, d_high],
+                "final_distance_collision_free_cm": float(np.mean(free_runs)) if free_runs else float("nan"),
+                "final_distance_collision_free_ci": [f_low, f_high],
+                "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in own]),
+                "solver_failures": sum(c.solver_failures for c in own),
+                "errors": sum(c.errors for c in own),
+            })  # fmt: skip
+
+    def rank_key(row: dict[str, Any]) -> tuple:
+        dist = row["final_distance_cm"]
+        rate = row["success_rate"]
+        return (row["env_id"], -rate if not math.isnan(rate) else 1.0, dist if not math.isnan(dist) else 1e9)
+
+    return sorted(rows, key=rank_key)
+
+
+def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Every pair of controllers of a task, paired on their shared (map, slip, seed) episodes.
+
+    Only episodes that ran for both controllers count. Returns one plain-JSON row per pair with
+    ``a``, ``b``, the cells they share and :class:`~evaluation.statistics.PairedComparison` fields.
+    """
+    outcomes: dict[tuple[str, str], dict[tuple, bool]] = {}
+    for r in records:
+        if r["status"] == "ok":
+            outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = bool(r["success"])
+    rows = []
+    env_ids = list(dict.fromkeys(env for env, _ in outcomes))
+    for env_id in env_ids:
+        names = [name for env, name in outcomes if env == env_id]
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                shared = sorted(set(outcomes[(env_id, a)]) & set(outcomes[(env_id, b)]))
+                if not shared:
+                    continue
+                comparison = paired_comparison(
+                    [outcomes[(env_id, a)][k] for k in shared], [outcomes[(env_id, b)][k] for k in shared]
+                )
+                cells = sorted({(m, s) for m, s, _ in shared})
+                rows.append({"env_id": env_id, "a": a, "b": b, "cells": [list(c) for c in cells],
+                             **comparison.to_dict()})  # fmt: skip
+    return rows

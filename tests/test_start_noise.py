@@ -1,0 +1,196 @@
+"""``start_noise``: seeded, bounded, valid perturbations of the start poses on every front."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+import koopman_envs
+from koopman_envs import formation_v0, load_map, target_reaching_v0
+from koopman_envs.fronts import gym_env, parallel_env as parallel_front, vector_env
+from koopman_envs.params import PARAMS
+from koopman_envs.sim.collision import check_collisions
+from koopman_envs.sim.dynamics import wrap_angle
+from koopman_envs.sim.maps import MapSpec
+
+TR, FO = koopman_envs.ENV_IDS
+FIXED = [(TR, "map1"), (TR, "map2"), (FO, "map3"), (FO, "map4")]
+
+
+def reset_starts(env_id: str, seed: int, **kwargs) -> np.ndarray:
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=seed)
+    return env.unwrapped.scenario.starts
+
+
+@pytest.mark.parametrize("env_id, map_name", FIXED)
+@pytest.mark.parametrize("noise", [None, 0.0, 0])
+def test_zero_noise_keeps_the_map_starts(env_id: str, map_name: str, noise) -> None:
+    kwargs = {} if noise is None else {"start_noise": noise}
+    env = gym.make(env_id, map=map_name, **kwargs)
+    _, info = env.reset(seed=4)
+    expected = load_map(map_name).starts[:3]
+    np.testing.assert_array_equal(env.unwrapped.scenario.starts, expected)
+    np.testing.assert_array_equal(info["poses"], expected)
+    assert env.unwrapped.config.start_noise == 0.0
+
+
+@pytest.mark.parametrize("map_name", ["map1", "random"])
+def test_zero_noise_draws_nothing(map_name: str) -> None:
+    """No draw at start_noise=0: the generator is where it was before the option existed."""
+    plain = gym.make(TR, map=map_name, slip="random")
+    zero = gym.make(TR, map=map_name, slip="random", start_noise=0.0)
+    noisy = gym.make(TR, map=map_name, slip="random", start_noise=0.1)
+    for env in (plain, zero, noisy):
+        env.reset(seed=8)
+    state = plain.unwrapped.np_random.bit_generator.state
+    assert zero.unwrapped.np_random.bit_generator.state == state
+    assert noisy.unwrapped.np_random.bit_generator.state != state
+    np.testing.assert_array_equal(plain.unwrapped.scenario.starts, zero.unwrapped.scenario.starts)
+    np.testing.assert_array_equal(plain.unwrapped.lambdas, zero.unwrapped.lambdas)
+
+
+@pytest.mark.parametrize("env_id, map_name", [(TR, "map1"), (FO, "map4"), (FO, "random")])
+def test_seeded_noise(env_id: str, map_name: str) -> None:
+    a = reset_starts(env_id, 1, map=map_name, start_noise=0.3)
+    b = reset_starts(env_id, 1, map=map_name, start_noise=0.3)
+    c = reset_starts(env_id, 2, map=map_name, start_noise=0.3)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a[:, :2], c[:, :2]) and not np.array_equal(a[:, 2], c[:, 2])
+    if map_name != "random":
+        assert not np.array_equal(a, load_map(map_name).starts[:3])
+
+
+@pytest.mark.parametrize("env_id, map_name", [*FIXED, (TR, "random"), (FO, "random")])
+def test_noise_within_bounds_and_valid(env_id: str, map_name: str) -> None:
+    noise = 0.4
+    env = gym.make(env_id, map=map_name, start_noise=noise)
+    env.reset(seed=0)
+    shifts, turns = [], []
+    for _ in range(60):
+        _, info = env.reset()
+        engine = env.unwrapped.engine
+        spec = engine.maps[0]
+        base = spec.starts[:3]
+        starts = env.unwrapped.scenario.starts
+        np.testing.assert_array_equal(starts, info["poses"])  # the scenario reports the starts used
+        shifts.append(np.hypot(*(starts[:, :2] - base[:, :2]).T))
+        turns.append(wrap_angle(starts[:, 2] - base[:, 2]))
+        assert np.all((starts[:, 2] >= -np.pi) & (starts[:, 2] < np.pi))
+        assert spec.pose_problem(starts, PARAMS.robot_radius) is None
+        assert check_collisions(starts[:, :2], spec.obstacles, np.full(3, 0.2), PARAMS.workspace) == 0
+        assert not info["collision"]
+    shifts, turns = np.concatenate(shifts), np.concatenate(turns)
+    assert shifts.max() <= noise and np.abs(turns).max() <= noise + 1e-12
+    # the draws fill the disc and the heading interval rather than sitting at the map's start
+    assert shifts.max() > 0.9 * noise and turns.min() < -0.9 * noise and turns.max() > 0.9 * noise
+    assert np.mean(shifts < noise / np.sqrt(2)) == pytest.approx(0.5, abs=0.15)  # uniform in area
+
+
+def tight_map() -> MapSpec:
+    """Robots 0.45 m apart (0.4 m needed) and robot 2 0.05 m from an obstacle: most draws overlap."""
+    return MapSpec(
+        "tight",
+        obstacles=[[3.0, 0.0, 0.5]],
+        starts=[[0.0, 0.0, 0.0], [0.45, 0.0, 3.1], [2.25, 0.0, -3.1]],
+        targets=[[0.0, 5.0, 0.0], [1.0, 5.0, 0.0], [2.0, 5.0, 0.0]],
+    )
+
+
+def test_invalid_draws_are_redrawn() -> None:
+    spec = tight_map()
+    env = gym.make(TR, map=spec, start_noise=0.3)
+    env.reset(seed=0)
+    for _ in range(100):
+        _, info = env.reset()
+        starts = env.unwrapped.scenario.starts
+        assert spec.pose_problem(starts, PARAMS.robot_radius) is None
+        assert not info["collision"]
+        # headings near +-pi wrap into [-pi, pi) like the simulator's
+        assert np.all((starts[:, 2] >= -np.pi) & (starts[:, 2] < np.pi))
+        assert np.all(np.abs(wrap_angle(starts[:, 2] - spec.starts[:, 2])) <= 0.3 + 1e-12)
+
+
+def test_no_valid_draw_raises() -> None:
+    env = gym.make(TR, map="map1", start_noise=50.0)
+    with pytest.raises(RuntimeError, match=r"start_noise=50\.0: no valid start poses on map 'map1' in 100"):
+        env.reset(seed=0)
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id, map_name", [(TR, "map1"), (FO, "random")])
+def test_vector_env_matches_single_envs(env_id: str, map_name: str, mode: str) -> None:
+    """Sub-env i seeded s + i is the single env seeded s + i, across many noisy auto-resets."""
+    num_envs, seed = 3, 40
+    kwargs = dict(map=map_name, slip="random", max_episode_steps=25, start_noise=0.3)
+    venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode=mode, **kwargs)
+    envs = [gym.make(env_id, **kwargs) for _ in range(num_envs)]
+    vobs, _ = venv.reset(seed=seed)
+    for i, env in enumerate(envs):
+        obs, _ = env.reset(seed=seed + i)
+        np.testing.assert_array_equal(obs, vobs[i])
+        np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
+    pending = [False] * num_envs
+    rng = np.random.default_rng(0)
+    episodes = 0
+    for _ in range(150):
+        actions = rng.uniform(-0.6, 0.6, (num_envs, 6)).astype(np.float32)
+        vobs, vrew, vterm, vtrunc, vinfo = venv.step(actions)
+        for i, env in enumerate(envs):
+            if mode == "NextStep" and pending[i]:
+                obs, info = env.reset()
+                reward, done = 0.0, False
+            else:
+                obs, reward, term, trunc, info = env.step(actions[i])
+                done = term or trunc
+                assert (term, trunc) == (vterm[i], vtrunc[i])
+                if done and mode == "SameStep":
+                    obs, info = env.reset()
+            pending[i] = done
+            episodes += done
+            np.testing.assert_array_equal(obs, vobs[i])
+            np.testing.assert_array_equal(info["poses"], vinfo["poses"][i])
+            np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
+            assert reward == vrew[i]
+    assert episodes >= 10  # many noisy resets were compared
+    assert venv.unwrapped.config.start_noise == 0.3
+
+
+@pytest.mark.parametrize("module, env_id", [(target_reaching_v0, TR), (formation_v0, FO)])
+def test_pettingzoo_front(module, env_id: str) -> None:
+    par = module.parallel_env(slip="high", start_noise=0.25)
+    single = gym.make(env_id, slip="high", start_noise=0.25)
+    observations, _ = par.reset(seed=6)
+    obs, _ = single.reset(seed=6)
+    np.testing.assert_array_equal(par.scenario.starts, single.unwrapped.scenario.starts)
+    np.testing.assert_array_equal(np.concatenate([observations[a] for a in par.possible_agents]), obs)
+    assert not np.array_equal(par.scenario.starts, load_map(par.config.map_name).starts[:3])
+    clone = pickle.loads(pickle.dumps(par))  # EzPickle rebuilds from the constructor arguments
+    assert clone.config.start_noise == 0.25
+
+
+@pytest.mark.parametrize("module", [target_reaching_v0, formation_v0])
+def test_pettingzoo_api_with_noise(module) -> None:
+    parallel_api_test(module.parallel_env(map="random", start_noise=0.3), num_cycles=100)
+    parallel_seed_test(lambda: module.parallel_env(slip="high", start_noise=0.3))
+
+
+@pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
+@pytest.mark.parametrize("map_name", [None, "random"])
+def test_check_env_with_noise(env_id: str, map_name) -> None:
+    kwargs = {} if map_name is None else {"map": map_name}
+    env = gym.make(env_id, start_noise=0.3, **kwargs)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_documented() -> None:
+    for cls in (gym_env.TargetReachingEnv, gym_env.FormationEnv):
+        assert "| start_noise" in cls.__doc__ and "start_noise" in cls.__doc__.split("## Starting State")[1]
+    assert "start_noise" in parallel_front.KoopNavParallelEnv.__doc__
+    assert "start_noise" in vector_env.KoopNavVectorEnv.__doc__
