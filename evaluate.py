@@ -43,7 +43,8 @@ from evaluation.results import SCHEMA_VERSION, Results, json_safe
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 from koopman_envs.plant import make_plant
 from koopman_envs.sim.maps import BUILTIN_MAPS, load_map
-from koopman_envs.tasks.base import TASKS
+from koopman_envs.engine import EngineConfig
+from koopman_envs.tasks.base import TASKS, task_for_env
 
 __all__ = ["Cell", "EpisodeSpec", "Results", "SCHEMA_VERSION", "evaluate", "main", "paper_protocol", "quick_protocol"]
 
@@ -68,6 +69,7 @@ class EpisodeSpec:
     controller_options: str = "{}"  # JSON object of factory options
     calibration_budget: int = PARAMS.calibration_budget
     calibration_seed: int = 0
+    start_noise: float = 0.0
 
     @property
     def key(self) -> str:
@@ -101,6 +103,7 @@ def plan_episodes(
     max_episode_steps: int,
     calibration_budget: int = PARAMS.calibration_budget,
     calibration_seed: int = 0,
+    start_noise: float = 0.0,
 ) -> list[EpisodeSpec]:
     """Every episode of a run, in a fixed order. Trial i of every cell uses seed ``seed + i``,
     so all controllers face the same slip draws on the same map (paired comparison)."""
@@ -113,7 +116,7 @@ def plan_episodes(
                     for trial in range(episodes):
                         plan.append(EpisodeSpec(env_id, cfg.label, map_name, slip, trial, seed + trial,
                                                 tolerance, max_episode_steps, cfg.name, options,
-                                                calibration_budget, calibration_seed))  # fmt: skip
+                                                calibration_budget, calibration_seed, start_noise))  # fmt: skip
     return plan
 
 
@@ -125,6 +128,7 @@ def validate_arguments(
     episodes: int,
     workers: int,
     calibration_budget: int = PARAMS.calibration_budget,
+    start_noise: float = 0.0,
 ) -> None:
     """Raise ``ValueError`` naming the bad value and what exists."""
     for env_id in env_ids:
@@ -143,6 +147,8 @@ def validate_arguments(
     for cfg in configs:
         cfg.validate()
     data_spec_for(calibration_budget)  # raises for a budget that is not an integer >= 1
+    for env_id in env_ids:  # env options the env itself rejects (e.g. a negative start_noise)
+        EngineConfig.create(task_for_env(env_id).name, map="random", start_noise=start_noise)
     for slip in slips:
         try:
             slip_lambdas(_slip_value(slip), PARAMS.n_robots)
@@ -219,6 +225,7 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             slip=_slip_value(spec.slip),
             goal_tolerance=spec.tolerance,
             max_episode_steps=spec.max_episode_steps,
+            start_noise=spec.start_noise,
         )
         ctrl, calibration = _controller_for(spec)
         record["calibration"] = calibration
@@ -297,7 +304,7 @@ class _Progress:
 def _config_signature(config: dict[str, Any]) -> dict[str, Any]:
     """The parts of a configuration that must match for a resume."""
     keys = ("env_ids", "controller_configs", "maps", "slips", "episodes", "seed", "tolerance", "max_episode_steps",
-            "calibration")  # fmt: skip
+            "calibration", "start_noise")  # fmt: skip
     return {k: config[k] for k in keys}
 
 
@@ -363,6 +370,7 @@ def evaluate(
     progress: bool = False,
     calibration_budget: int = PARAMS.calibration_budget,
     calibration_seed: int = 0,
+    start_noise: float = 0.0,
 ) -> Results:
     """Run every controller on every (env, map, slip) cell.
 
@@ -400,6 +408,9 @@ def evaluate(
         its episodes (the same for all; default the paper's 1000 x 1000).
     calibration_seed : int
         Seed of the calibration plant and data (never one of the episode seeds' streams).
+    start_noise : float
+        Env option: seeded perturbation of the start poses [m and rad] so that trials differ
+        even without slip (0: the map's starts, as the paper).
 
     Returns
     -------
@@ -417,18 +428,18 @@ def evaluate(
     workers = (os.cpu_count() or 1) if workers is None else workers
     if backend not in ("process", "ray"):
         raise ValueError(f"backend={backend!r} is not one of ['process', 'ray']")
-    validate_arguments(env_ids, configs, map_table, slips, episodes, workers, calibration_budget)
+    validate_arguments(env_ids, configs, map_table, slips, episodes, workers, calibration_budget, start_noise)
     config = {
         "env_ids": env_ids, "controllers": [c.label for c in configs],
         "controller_configs": [c.to_dict() for c in configs],
         "calibration": {"budget": calibration_budget, "seed": calibration_seed,
                         "unit": "team-transitions, offered to every controller alike"},
-        "maps": map_table, "slips": slips, "episodes": episodes,
+        "maps": map_table, "slips": slips, "episodes": episodes, "start_noise": start_noise,
         "seed": seed, "tolerance": tolerance, "max_episode_steps": max_episode_steps, "workers": workers,
         "backend": backend,
     }  # fmt: skip
     plan = plan_episodes(env_ids, configs, map_table, slips, episodes, seed, tolerance, max_episode_steps,
-                         calibration_budget, calibration_seed)  # fmt: skip
+                         calibration_budget, calibration_seed, start_noise)  # fmt: skip
     done: dict[str, dict[str, Any]] = {}
     log_file = None
     if out is not None:
@@ -476,9 +487,15 @@ def evaluate(
 
 
 # --------------------------------------------------------------------------- protocols
+#: ``start_noise`` of the default leaderboard (ours): starts moved within 5 cm and turned within
+#: 0.05 rad, so that trials differ even without slip (the paper protocol keeps the exact starts)
+QUICK_START_NOISE = 0.05
+
+
 def quick_protocol() -> dict[str, Any]:
-    """The default leaderboard: both tasks, their maps, three slips, 2 episodes per cell."""
-    return {"env_ids": list(TASK_MAPS), "maps": {e: list(m) for e, m in TASK_MAPS.items()}, "episodes": 2}
+    """The default leaderboard: both tasks, their maps, three slips, 2 episodes per cell, perturbed starts."""
+    return {"env_ids": list(TASK_MAPS), "maps": {e: list(m) for e, m in TASK_MAPS.items()}, "episodes": 2,
+            "start_noise": QUICK_START_NOISE}  # fmt: skip
 
 
 def paper_protocol(strict: bool = False) -> dict[str, Any]:
@@ -578,6 +595,9 @@ def _parser() -> argparse.ArgumentParser:
                         help="team-transitions every controller may simulate to calibrate (default: the paper's "
                              "1000 x 1000)")  # fmt: skip
     parser.add_argument("--calibration-seed", type=int, default=0, help="seed of the calibration plant and data")
+    parser.add_argument("--start-noise", type=float,
+                        help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE}; 0 with --paper and "
+                             "--ablation, which keep the maps' starts)")  # fmt: skip
     protocol = parser.add_mutually_exclusive_group()
     protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5)")
     protocol.add_argument("--paper-strict", action="store_true",
@@ -623,6 +643,7 @@ def main(argv: list[str] | None = None) -> int:
             progress=not args.quiet,
             calibration_budget=args.calibration_budget,
             calibration_seed=args.calibration_seed,
+            start_noise=protocol.get("start_noise", 0.0) if args.start_noise is None else args.start_noise,
         )
         wall = time.perf_counter() - start
         results.config["wall_seconds"] = wall

@@ -71,6 +71,17 @@ FATROP_OPTIONS: dict[str, Any] = {
 
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
 
+#: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
+#: episode, or after a failure, with zero multipliers) drops them and uses the solver's own
+#: initialization. With them, IPOPT starts from multipliers pushed to 1e-6 and a barrier of 1e-3:
+#: a badly centred point from which feasible problems ran into the 100-iteration limit
+#: (Koopman-NMPC, Map 1, high slip, hard constraints) that the default start solves in ~45.
+WARM_START_OPTIONS: dict[str, tuple[str, ...]] = {
+    "ipopt": ("ipopt.warm_start_init_point", "ipopt.warm_start_bound_push", "ipopt.warm_start_mult_bound_push",
+              "ipopt.mu_init"),
+    "fatrop": ("fatrop.mu_init", "fatrop.bound_push"),
+}
+
 
 class PredictionModel(Protocol):
     """What the NMPC needs of a model: team size, period, and a CasADi step function.
@@ -328,19 +339,28 @@ class _Problem:
         self.u_index = np.concatenate([np.arange(t * stage + nx, t * stage + nx + nu) for t in range(horizon)])
         self.x_index = np.concatenate([np.arange(t * stage, t * stage + nx) for t in range(1, horizon + 1)])
         self.stage_cons = stage_cons
+        self.step = f
 
-    def solver_for(self, name: str) -> ca.Function:
-        """The ``nlpsol`` of this problem for a solver plugin, built on first use."""
-        if name not in self._solvers:
+    def solver_for(self, name: str, cold: bool = False) -> ca.Function:
+        """The ``nlpsol`` of this problem for a solver plugin, built on first use.
+
+        ``cold=True``: the variant for a start without a previous solution (no warm-start
+        options, see :data:`WARM_START_OPTIONS`).
+        """
+        if (name, cold) not in self._solvers:
             options = self._config.options_for(name)
+            if cold:
+                for key in WARM_START_OPTIONS.get(name, ()):
+                    options.pop(key, None)
             options.setdefault("expand", True)
             if name == "fatrop":
                 options.setdefault("structure_detection", "auto")
                 options.setdefault("equality", self._equality)
             if options.get("jit") and shutil.which(os.environ.get("CC", "gcc")) is None:
                 raise ValueError("jit=True needs a C compiler (gcc) on PATH; install one or use jit=False")
-            self._solvers[name] = ca.nlpsol(f"nmpc_{name}", name, self._nlp, options)
-        return self._solvers[name]
+            label = f"nmpc_{name}_cold" if cold else f"nmpc_{name}"
+            self._solvers[(name, cold)] = ca.nlpsol(label, name, self._nlp, options)
+        return self._solvers[(name, cold)]
 
     def plan(self, w: NDArray) -> tuple[NDArray, NDArray]:
         """Split a decision vector into commands (T, N, 2) and predicted poses (T, N, 3)."""
@@ -350,19 +370,26 @@ class _Problem:
     def shift(self, w: NDArray, lam_x: NDArray, lam_g: NDArray) -> dict[str, NDArray]:
         """Primal-dual guess for the next period: every stage moves one step earlier.
 
-        The last stage repeats; stage 0's constraint multipliers (its shape differs) are kept.
+        The last stage's command repeats from the old terminal state, and the new terminal state
+        is its prediction, so the guess has no dynamics gap; stage 0's constraint multipliers
+        (its shape differs) are kept.
         """
-        stage = self.stage_size
+        stage, nx, nu = self.stage_size, self.nx, self.nu
 
         def shift_primal(v: NDArray) -> NDArray:
             out = v.copy()
-            out[: -stage - self.nx] = v[stage:-self.nx]
+            out[: -stage - nx] = v[stage:-nx]
             return out
+
+        x = shift_primal(w)
+        last = (self.horizon - 1) * stage  # the new last stage: (x_T-1, u_T-1, s_T-1), then x_T
+        x[last : last + nx] = w[-nx:]
+        x[-nx:] = np.asarray(self.step(w[-nx:], x[last + nx : last + nx + nu])).reshape(-1)
 
         lam = lam_g.copy()
         for k in range(1, self.horizon - 1):
             lam[self.stage_cons[k]] = lam_g[self.stage_cons[k + 1]]
-        return {"x": shift_primal(w), "lam_x": shift_primal(lam_x), "lam_g": lam}
+        return {"x": x, "lam_x": shift_primal(lam_x), "lam_g": lam}
 
 
 class NMPCController(BaseController):
@@ -470,16 +497,17 @@ class NMPCController(BaseController):
         prob = self._problem
         state = encode_state(info["poses"], prob.coding)
         params = np.concatenate([state, self._params_tail])
-        if self._warm is None:
+        cold = self._warm is None
+        if cold:
             args = {"x0": self._initial_guess(state), "lam_x0": np.zeros(prob.n_vars), "lam_g0": np.zeros(prob.n_cons)}
         else:
             args = {"x0": self._warm["x"], "lam_x0": self._warm["lam_x"], "lam_g0": self._warm["lam_g"]}
         start = time.perf_counter()
-        success, status, w, sol, iterations = self._solve(prob.solver, params, args)
+        success, status, w, sol, iterations = self._solve(prob.solver_for(self.config.solver, cold), params, args)
         fallback = self.config.fallback_solver
         if not success and fallback and fallback != self.config.solver:
             first_status = status
-            success, status, w, sol, more = self._solve(prob.solver_for(fallback), params, args)
+            success, status, w, sol, more = self._solve(prob.solver_for(fallback, cold), params, args)
             iterations += more
             status = f"{self.config.solver}:{first_status} -> {fallback}:{status}"
         self._stats.solve_times.append(time.perf_counter() - start)

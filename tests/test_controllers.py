@@ -92,7 +92,7 @@ def test_solver_failure_falls_back_and_is_counted() -> None:
     ctrl.reset(env.unwrapped.scenario)
     first = ctrl.act(obs, info)  # a real solve: leaves a plan to fall back on
     _, planned = ctrl.last_plan
-    ctrl._problem.solver = _FailingSolver()
+    ctrl._problem.solver_for = lambda *_, **__: _FailingSolver()  # warm and cold starts alike
     commands = [ctrl.act(obs, info) for _ in range(25)]
     stats = ctrl.stats()
     assert stats.failures == 25 and stats.steps == 26

@@ -55,11 +55,13 @@ def test_same_rollout_in_other_processes() -> None:
     assert here == there
 
 
+@pytest.mark.parametrize("start_noise", [0.0, 0.3])
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
 @pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
-def test_vector_env_matches_single_envs(env_id: str, mode: str) -> None:
+def test_vector_env_matches_single_envs(env_id: str, mode: str, start_noise: float) -> None:
+    """Sub-env i seeded s + i is the single env seeded s + i, across auto-resets (with perturbed starts too)."""
     num_envs, seed = 4, 100
-    kwargs = dict(map="random", slip="high", max_episode_steps=120)
+    kwargs = dict(map="random", slip="high", max_episode_steps=120, start_noise=start_noise)
     venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode=mode, **kwargs)
     assert type(venv.unwrapped).__name__ == "KoopNavVectorEnv"  # the native batched env
     envs = [gym.make(env_id, **kwargs) for _ in range(num_envs)]
@@ -88,6 +90,7 @@ def test_vector_env_matches_single_envs(env_id: str, mode: str) -> None:
             episodes += done
             np.testing.assert_array_equal(obs, vobs[i])
             np.testing.assert_array_equal(info["poses"], vinfo["poses"][i])
+            np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
             assert reward == vrew[i]
     assert episodes >= 10  # autoreset was exercised many times
 

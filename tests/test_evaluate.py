@@ -62,7 +62,7 @@ def test_killed_run_resumes_to_the_same_result(tmp_path, small_results: ev.Resul
     out = tmp_path / "run"
     cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus",
            "nominal-nmpc", "--maps", "map1", "--slips", "nominal", "high", "--episodes", "2", "--seed", "3",
-           "--max-episode-steps", "150", "--workers", "1", "--out", str(out), "--quiet"]  # fmt: skip
+           "--max-episode-steps", "150", "--workers", "1", "--out", str(out), "--quiet", "--start-noise", "0"]  # fmt: skip
     root = Path(ev.__file__).parent
     proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     log = out / "episodes.jsonl"
@@ -145,6 +145,7 @@ def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
         ({"controller_names": ["nominal-nmpc:horizont=5"]}, "unknown option"),
         ({"controller_names": ["nominal-nmpc:horizon"]}, "is not key=value"),
         ({"controller_names": ["consensus", "consensus"]}, "appear twice"),
+        ({"start_noise": -0.1}, r"start_noise=-0.1 must be a finite number >= 0"),
     ],
 )
 def test_bad_input(kwargs, message) -> None:

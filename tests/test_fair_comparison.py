@@ -231,3 +231,15 @@ def test_ablation_report_states_main_effects() -> None:
     text = ablation_markdown(results, ["margins"])
     assert "paper vs widened" in text and "lowers success by 83 percentage points" in text
     assert not math.isnan(results.cells[0].success_rate)
+
+
+def test_start_noise_makes_nominal_trials_differ() -> None:
+    """The default leaderboard perturbs starts: nominal-slip trials are no longer copies of each other."""
+    assert ev.quick_protocol()["start_noise"] > 0 and "start_noise" not in ev.paper_protocol()
+    common = dict(env_ids="KoopNav-Formation-v0", controller_names=["consensus"], maps=["map4"], slips=["nominal"],
+                  episodes=2, workers=1, max_episode_steps=30)  # fmt: skip
+    exact = ev.evaluate(**common)
+    assert exact.records[0]["final_poses"] == exact.records[1]["final_poses"]
+    noisy = ev.evaluate(**common, start_noise=0.05)
+    assert noisy.records[0]["final_poses"] != noisy.records[1]["final_poses"]
+    assert noisy.config["start_noise"] == 0.05

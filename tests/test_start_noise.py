@@ -122,45 +122,6 @@ def test_no_valid_draw_raises() -> None:
         env.reset(seed=0)
 
 
-@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id, map_name", [(TR, "map1"), (FO, "random")])
-def test_vector_env_matches_single_envs(env_id: str, map_name: str, mode: str) -> None:
-    """Sub-env i seeded s + i is the single env seeded s + i, across many noisy auto-resets."""
-    num_envs, seed = 3, 40
-    kwargs = dict(map=map_name, slip="random", max_episode_steps=25, start_noise=0.3)
-    venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode=mode, **kwargs)
-    envs = [gym.make(env_id, **kwargs) for _ in range(num_envs)]
-    vobs, _ = venv.reset(seed=seed)
-    for i, env in enumerate(envs):
-        obs, _ = env.reset(seed=seed + i)
-        np.testing.assert_array_equal(obs, vobs[i])
-        np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
-    pending = [False] * num_envs
-    rng = np.random.default_rng(0)
-    episodes = 0
-    for _ in range(150):
-        actions = rng.uniform(-0.6, 0.6, (num_envs, 6)).astype(np.float32)
-        vobs, vrew, vterm, vtrunc, vinfo = venv.step(actions)
-        for i, env in enumerate(envs):
-            if mode == "NextStep" and pending[i]:
-                obs, info = env.reset()
-                reward, done = 0.0, False
-            else:
-                obs, reward, term, trunc, info = env.step(actions[i])
-                done = term or trunc
-                assert (term, trunc) == (vterm[i], vtrunc[i])
-                if done and mode == "SameStep":
-                    obs, info = env.reset()
-            pending[i] = done
-            episodes += done
-            np.testing.assert_array_equal(obs, vobs[i])
-            np.testing.assert_array_equal(info["poses"], vinfo["poses"][i])
-            np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
-            assert reward == vrew[i]
-    assert episodes >= 10  # many noisy resets were compared
-    assert venv.unwrapped.config.start_noise == 0.3
-
-
 @pytest.mark.parametrize("module, env_id", [(target_reaching_v0, TR), (formation_v0, FO)])
 def test_pettingzoo_front(module, env_id: str) -> None:
     par = module.parallel_env(slip="high", start_noise=0.25)
