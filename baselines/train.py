@@ -28,6 +28,7 @@ import numpy as np
 import koopman_envs
 from baselines.policy import PolicyFiles, success_rate
 from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv
+from koopman_envs.tasks.base import TASKS
 
 TASK_OF = {"KoopNav-TargetReaching-v0": "target_reaching", "KoopNav-Formation-v0": "formation"}
 # training layouts (map="random"): target reaching also sees crossing paths and Map 2's obstacle
@@ -38,7 +39,7 @@ TRAIN_MAPS = {
 }
 # the budgets of the shipped policies (robot-steps; ~20-25 min each on 2 cores)
 TIMESTEPS = {"KoopNav-TargetReaching-v0": 14_000_000, "KoopNav-Formation-v0": 12_000_000}
-EVAL_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v0": ("map3", "map4")}
+EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 
 
 def evaluate_policy_on_maps(

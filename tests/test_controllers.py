@@ -212,3 +212,20 @@ def test_nmpc_rejects_a_model_of_another_team_size() -> None:
     env.reset(seed=0)
     with pytest.raises(ValueError, match="model has 2 robots, the scenario 3"):
         ctrl.reset(env.unwrapped.scenario)
+
+
+def test_warm_start_shift_has_no_dynamics_gap_and_cold_starts_drop_warm_options() -> None:
+    """The shifted guess ends in the model's prediction of its last command (not a repeated state),
+    and a start without a previous solution uses the solver's own initialization."""
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    ctrl = controllers.make("nominal-nmpc")
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env.unwrapped.scenario)
+    ctrl.act(obs, info)
+    prob, guess = ctrl._problem, ctrl._warm["x"]
+    stage, nx, nu = prob.stage_size, prob.nx, prob.nu
+    last = (prob.horizon - 1) * stage
+    predicted = np.asarray(prob.step(guess[last : last + nx], guess[last + nx : last + nx + nu])).reshape(-1)
+    np.testing.assert_allclose(guess[-nx:], predicted, atol=1e-12)
+    warm, cold = prob.solver_for("ipopt"), prob.solver_for("ipopt", cold=True)
+    assert warm is not cold and "cold" in cold.name()
