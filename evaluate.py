@@ -44,6 +44,7 @@ from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 from koopman_envs.plant import make_plant
 from koopman_envs.sim.maps import BUILTIN_MAPS, load_map
 from koopman_envs.engine import EngineConfig
+from koopman_envs.episode import run_episode as run_controller_episode
 from koopman_envs.tasks.base import TASKS, task_for_env
 
 __all__ = ["Cell", "EpisodeSpec", "Results", "SCHEMA_VERSION", "evaluate", "main", "paper_protocol", "quick_protocol"]
@@ -229,47 +230,29 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
         )
         ctrl, calibration = _controller_for(spec)
         record["calibration"] = calibration
-        obs, info = env.reset(seed=spec.seed)
-        scenario = env.unwrapped.scenario
-        ctrl.reset(scenario, seed=spec.seed)
-        poses = [info["poses"].copy()]
-        effort = np.zeros(scenario.n_robots)
-        formation_sq, steps = [], 0
-        first_within: int | None = None
-        while True:
-            action = np.asarray(ctrl.act(obs, info), dtype=np.float64).reshape(-1, 2)
-            obs, _, terminated, truncated, info = env.step(action.reshape(-1))
-            steps += 1
-            applied = np.clip(action, [-scenario.v_max, -scenario.omega_max], [scenario.v_max, scenario.omega_max])
-            effort += (applied**2).sum(axis=1) * scenario.dt
-            poses.append(info["poses"].copy())
-            if "formation_error" in info:
-                formation_sq.append(info["formation_error"][1:] ** 2)
-            if first_within is None and np.all(info["distances"] <= spec.tolerance):
-                first_within = steps
-            if terminated or truncated:
-                break
-        trajectory = np.asarray(poses)
-        path = np.linalg.norm(np.diff(trajectory[:, :, :2], axis=0), axis=2).sum(axis=0)
-        stats = ctrl.stats().summary()
+        result = run_controller_episode(env, ctrl, seed=spec.seed)
+        stats = ctrl.stats()
+        summary = stats.summary()
         record.update(
             status="ok",
-            success=bool(info["is_success"]),
-            collision=info["collision_kind"] if info["collision"] else None,
-            truncated=bool(truncated and not terminated),
-            steps=steps,
-            time_to_goal=(first_within * scenario.dt) if info["is_success"] else None,
-            final_poses=info["poses"].tolist(),
-            targets=info["targets"].tolist(),
-            final_distance=info["distances"].tolist(),
-            path_length=path.tolist(),
-            control_effort=effort.tolist(),
-            formation_rms=float(np.sqrt(np.mean(formation_sq))) if formation_sq else None,
-            solve_ms_median=stats["solve_ms_median"],
-            solve_ms_p95=stats["solve_ms_p95"],
-            solver_failures=stats["failures"],
-            trajectory=np.round(trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
-            obstacles=scenario.obstacles.tolist() if spec.trial == 0 else None,
+            success=result.success,
+            collision=result.collision,
+            truncated=result.truncated,
+            steps=result.steps,
+            time_to_goal=result.time_to_goal,
+            final_poses=result.final_poses.tolist(),
+            targets=result.targets.tolist(),
+            final_distance=result.final_distance.tolist(),
+            path_length=result.path_length.tolist(),
+            control_effort=result.control_effort.tolist(),
+            formation_rms=result.formation_rms,
+            solve_ms_median=summary["solve_ms_median"],
+            solve_ms_p95=summary["solve_ms_p95"],
+            # every step's decision time, so that a cell's p95 is taken over its steps
+            solve_ms=[round(1e3 * t, 3) for t in stats.solve_times],
+            solver_failures=summary["failures"],
+            trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
+            obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,
         )
     except Exception as exc:  # noqa: BLE001 - one bad episode must not lose the others
         record.update(status="error", error=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc())

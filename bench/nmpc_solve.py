@@ -23,10 +23,11 @@ import gymnasium as gym
 import numpy as np
 
 import controllers
-from controllers.calibration import calibrate_controller
 import koopman_envs  # noqa: F401
+from controllers.calibration import calibrate_controller
 from controllers.nmpc import IPOPT_OPTIONS, NMPCConfig
 from controllers.unicycle import UnicycleModel
+from koopman_envs.episode import run_episode
 
 
 
@@ -35,14 +36,9 @@ def closed_loop(env_id: str, map_name: str, slip: str, make_controller) -> dict:
     env = gym.make(env_id, map=map_name, slip=slip)
     ctrl = make_controller()
     calibrate_controller(ctrl, env)
-    obs, info = env.reset(seed=0)
-    ctrl.reset(env.unwrapped.scenario, seed=0)
-    while True:
-        obs, _, terminated, truncated, info = env.step(ctrl.act(obs, info))
-        if terminated or truncated:
-            break
+    result = run_episode(env, ctrl, seed=0)
     stats = ctrl.stats()
-    return {"times": np.asarray(stats.solve_times), "info": info, "failures": stats.failures}
+    return {"times": np.asarray(stats.solve_times), "result": result, "failures": stats.failures}
 
 
 def do_mpc_closed_loop(env_id: str, map_name: str, slip: str, horizon: int) -> dict | None:
@@ -98,22 +94,28 @@ def do_mpc_closed_loop(env_id: str, map_name: str, slip: str, horizon: int) -> d
     mpc.setup()
     mpc.x0 = info["poses"].reshape(-1, 1)
     mpc.set_initial_guess()
-    times = []
-    while True:
-        start = time.perf_counter()
-        action = np.asarray(mpc.make_step(info["poses"].reshape(-1, 1))).reshape(-1)
-        times.append(time.perf_counter() - start)
-        obs, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            break
-    return {"times": np.asarray(times), "info": info, "failures": 0}
+
+    class DoMPCPolicy:
+        """do-mpc behind the runner's act(), timed per step."""
+
+        times: list[float] = []
+
+        def act(self, observation, step_info):
+            start = time.perf_counter()
+            action = np.asarray(mpc.make_step(step_info["poses"].reshape(-1, 1))).reshape(-1)
+            self.times.append(time.perf_counter() - start)
+            return action
+
+    policy = DoMPCPolicy()
+    result = run_episode(env, policy, seed=0)
+    return {"times": np.asarray(policy.times), "result": result, "failures": 0}
 
 
 def line(label: str, result: dict) -> str:
     t = 1e3 * result["times"]
-    info = result["info"]
-    outcome = "success" if info["is_success"] else info["collision_kind"] if info["collision"] else "time limit"
-    dist = ", ".join(f"{100 * d:.1f}" for d in info["distances"])
+    episode = result["result"]
+    outcome = episode.outcome
+    dist = ", ".join(f"{100 * d:.1f}" for d in episode.final_distance)
     return (f"{label:34s} median {np.median(t):6.1f} ms  p95 {np.percentile(t, 95):6.1f} ms  max {t.max():6.1f} ms  "
             f"steps {len(t):3d}  failures {result['failures']:2d}  {outcome:9s} final [{dist}] cm")  # fmt: skip
 

@@ -16,7 +16,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.scenario import Scenario
+from koopman_envs.scenario import Scenario, scenario_of
 
 __all__ = ["BaseController", "Controller", "ControllerStats"]
 
@@ -70,8 +70,9 @@ class Controller(Protocol):
 
     name: str
 
-    def reset(self, scenario: Scenario, *, seed: int | None = None) -> None:
-        """Prepare for a new episode on ``scenario`` (geometry, targets, limits, dt)."""
+    def reset(self, scenario: Scenario | Any, *, seed: int | None = None) -> None:
+        """Prepare for a new episode on ``scenario`` (geometry, targets, limits, dt), given as
+        the :class:`Scenario` or as the env it comes from (any front, after ``env.reset``)."""
 
     def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
         """Joint command, shape (2N,): (v [m/s], omega [rad/s]) per robot."""
@@ -89,11 +90,13 @@ class BaseController(ABC):
         self.scenario: Scenario | None = None
         self._stats = ControllerStats()
 
-    def reset(self, scenario: Scenario, *, seed: int | None = None) -> None:
-        if not isinstance(scenario, Scenario):
-            raise TypeError(
-                f"reset() needs a koopman_envs.Scenario (env.unwrapped.scenario), got {type(scenario).__name__}"
-            )
+    def reset(self, scenario: Scenario | Any, *, seed: int | None = None) -> None:
+        """Prepare for an episode: ``scenario`` is the env (any front, wrapped or not, after its
+        ``reset``) or its :class:`~koopman_envs.scenario.Scenario`."""
+        try:
+            scenario = scenario_of(scenario)
+        except TypeError as exc:
+            raise TypeError(f"{self.name}: reset() {exc}") from None
         self.scenario = scenario
         self._stats = ControllerStats()
         self._reset(scenario, seed)

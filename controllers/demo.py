@@ -15,40 +15,31 @@ import numpy as np
 import controllers
 from controllers.calibration import calibrate_controller
 import koopman_envs
+from koopman_envs.episode import run_episode
 
 
-def run_episode(env_id: str, map_name: str | None, slip: str, controller: str, seed: int, gif: str | None) -> dict:
+def run_demo(env_id: str, map_name: str | None, slip: str, controller: str, seed: int, gif: str | None) -> dict:
     """One closed-loop episode; returns a summary dict (and writes ``gif`` if given)."""
     env = gym.make(env_id, map=map_name, slip=slip, render_mode="rgb_array" if gif else None)
     ctrl = controllers.make(controller)
     calibrate_controller(ctrl, env)  # learns from the env's robots (slip hidden), cached on disk
-    obs, info = env.reset(seed=seed)
-    ctrl.reset(env.unwrapped.scenario, seed=seed)
-    frames = [env.render()] if gif else []
-    steps = 0
-    while True:
-        obs, _, terminated, truncated, info = env.step(ctrl.act(obs, info))
-        steps += 1
-        if gif:
-            frames.append(env.render())
-        if terminated or truncated:
-            break
+    result = run_episode(env, ctrl, seed=seed, render=bool(gif))
     summary = {
         "env": env_id,
         "map": env.unwrapped.scenario.map_name,
         "slip": slip,
         "controller": controller,
         "seed": seed,
-        "steps": steps,
-        "success": info["is_success"],
-        "collision": info["collision_kind"],
-        "final_distance_cm": [round(100 * d, 2) for d in info["distances"]],
+        "steps": result.steps,
+        "success": result.success,
+        "collision": result.collision or "none",
+        "final_distance_cm": [round(100 * d, 2) for d in result.final_distance],
         **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in ctrl.stats().summary().items()},
     }
     if gif:
         from koopman_envs.rendering import save_episode
 
-        summary["gif"] = save_episode(frames, gif)
+        summary["gif"] = save_episode(result.frames, gif)
     return summary
 
 
@@ -61,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="save the episode as an animated GIF")
     args = parser.parse_args(argv)
-    summary = run_episode(args.env, args.map, args.slip, args.controller, args.seed, args.gif)
+    summary = run_demo(args.env, args.map, args.slip, args.controller, args.seed, args.gif)
     print(json.dumps(summary, indent=1, default=lambda v: float(v) if isinstance(v, np.floating) else str(v)))
     return 0
 

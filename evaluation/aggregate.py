@@ -35,6 +35,17 @@ def _nan_reduce(reduce, values: Iterable[Any]) -> float:
     return float(reduce(finite)) if finite else float("nan")
 
 
+def _cell_p95(records: list[dict[str, Any]]) -> float:
+    """95th percentile of the decision time over every step of the cell's episodes [ms].
+
+    Records written before per-step times were kept fall back to the largest per-episode p95.
+    """
+    steps = [t for r in records for t in (r.get("solve_ms") or [])]
+    if steps:
+        return float(np.percentile(steps, 95))
+    return _nan_reduce(np.max, [r.get("solve_ms_p95") for r in records])
+
+
 @dataclass
 class DistanceSummary:
     """Final distances [cm] of one cell under one convention.
@@ -165,7 +176,7 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
                 formation_rms_cm=_nan_reduce(np.mean, [100 * r["formation_rms"] for r in ok
                                                        if r["formation_rms"] is not None]),  # fmt: skip
                 solve_ms_median=_nan_reduce(np.median, [r["solve_ms_median"] for r in ok]),
-                solve_ms_p95=_nan_reduce(np.max, [r["solve_ms_p95"] for r in ok]),
+                solve_ms_p95=_cell_p95(ok),
                 solver_failures=sum(r["solver_failures"] for r in ok),
                 calibration_transitions=max((int(c.get("transitions", 0)) for c in calibrations), default=None),
                 error_messages=sorted({r["error"] for r in recs if r["status"] != "ok"}),

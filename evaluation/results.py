@@ -202,7 +202,8 @@ class Results:
             "paired_comparisons": self.paired(),
             "cells": [c.to_dict() for c in self.cells],
             "episodes": [
-                {k: v for k, v in r.items() if k not in ("trajectory", "obstacles", "traceback")} for r in self.records
+                {k: v for k, v in r.items() if k not in ("trajectory", "obstacles", "traceback", "solve_ms")}
+                for r in self.records
             ],
         }
         return json.dumps(json_safe(doc), indent=1)

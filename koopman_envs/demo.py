@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 import koopman_envs
+from koopman_envs.episode import run_episode
 from koopman_envs.params import PARAMS
 
 
@@ -28,6 +29,13 @@ def naive_command(poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return np.column_stack([v, 2.0 * bearing])
 
 
+class NaiveGoToTarget:
+    """The demo's policy: :func:`naive_command` on the true poses in ``info``."""
+
+    def act(self, observation: np.ndarray, info: dict) -> np.ndarray:
+        return naive_command(info["poses"], info["targets"]).reshape(-1)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-TargetReaching-v0", choices=koopman_envs.ENV_IDS)
@@ -37,27 +45,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--gif", help="save the episode as an animated GIF")
     args = parser.parse_args(argv)
     env = gym.make(args.env, map=args.map, slip=args.slip, render_mode="rgb_array" if args.gif else None)
-    _, info = env.reset(seed=args.seed)
-    frames = [env.render()] if args.gif else []
-    steps, total = 0, 0.0
-    while True:
-        action = naive_command(info["poses"], info["targets"]).reshape(-1)
-        _, reward, terminated, truncated, info = env.step(action)
-        steps += 1
-        total += reward
-        if args.gif:
-            frames.append(env.render())
-        if terminated or truncated:
-            break
+    result = run_episode(env, NaiveGoToTarget(), seed=args.seed, render=bool(args.gif))
     scenario = env.unwrapped.scenario
-    outcome = "success" if info["is_success"] else f"collision ({info['collision_kind']})" if info["collision"] else "time limit"
+    outcome = f"collision ({result.collision})" if result.collision else result.outcome
     print(f"{args.env} map={scenario.map_name} slip={args.slip} seed={args.seed}")
-    print(f"  {steps} steps ({steps * scenario.dt:.1f} s), return {total:.2f}, outcome: {outcome}")
-    print("  final distance to target [cm]: " + ", ".join(f"{100 * d:.1f}" for d in info["distances"]))
+    print(f"  {result.steps} steps ({result.steps * scenario.dt:.1f} s), return {result.total_reward:.2f}, "
+          f"outcome: {outcome}")  # fmt: skip
+    print("  final distance to target [cm]: " + ", ".join(f"{100 * d:.1f}" for d in result.final_distance))
     if args.gif:
         from koopman_envs.rendering import save_episode
 
-        print(f"  saved {save_episode(frames, args.gif)}")
+        print(f"  saved {save_episode(result.frames, args.gif)}")
     return 0
 
 

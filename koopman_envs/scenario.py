@@ -7,11 +7,12 @@ slipping robots has to learn it from data.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Scenario"]
+__all__ = ["Scenario", "scenario_of"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,3 +71,23 @@ class Scenario:
     def is_formation(self) -> bool:
         """True for the leader-follower formation task."""
         return self.task == "formation"
+
+
+def scenario_of(source: Any) -> Scenario:
+    """The scenario of ``source``: a :class:`Scenario` itself, or any KoopNav env (Gymnasium,
+    wrapped or not, or PettingZoo) after its ``reset``.
+
+    Raises
+    ------
+    TypeError
+        ``source`` is neither (the message names its type).
+    """
+    if isinstance(source, Scenario):
+        return source
+    for candidate in (getattr(source, "unwrapped", None), source):
+        scenario = getattr(candidate, "scenario", None) if candidate is not None else None
+        if isinstance(scenario, Scenario):
+            return scenario
+    raise TypeError(
+        f"expected a koopman_envs.Scenario or a KoopNav env (after reset), got {type(source).__name__}"
+    )

@@ -17,6 +17,7 @@ from controllers.calibration import calibrate_controller
 from controllers.nmpc import NMPCController
 from controllers.pettingzoo_adapter import ParallelAdapter
 from koopman_envs import formation_v0
+from koopman_envs.episode import EpisodeResult, run_episode
 from koopman_envs.sim.maps import MapSpec
 
 OPEN = MapSpec(
@@ -27,30 +28,25 @@ OPEN = MapSpec(
 )
 
 
-def run(env_id: str, controller: Controller, seed: int = 0, **env_kwargs) -> tuple[dict, Controller]:
+def run(env_id: str, controller: Controller, seed: int = 0, **env_kwargs) -> tuple[EpisodeResult, Controller]:
     env = gym.make(env_id, **env_kwargs)
     calibrate_controller(controller, env)  # as the evaluator does: the env's robots, slip hidden
-    obs, info = env.reset(seed=seed)
-    controller.reset(env.unwrapped.scenario, seed=seed)
-    while True:
-        obs, _, terminated, truncated, info = env.step(controller.act(obs, info))
-        if terminated or truncated:
-            return info, controller
+    return run_episode(env, controller, seed=seed), controller
 
 
 @pytest.mark.parametrize("name", ["koopman-nmpc", "nominal-nmpc", "consensus", "consensus-free"])
 @pytest.mark.parametrize("env_id", ["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"])
 def test_reaches_the_targets_of_an_obstacle_free_map(name: str, env_id: str) -> None:
-    info, ctrl = run(env_id, controllers.make(name), map=OPEN, slip="nominal")
-    assert info["is_success"], (name, env_id, info["distances"], info["collision_kind"])
-    assert np.all(info["distances"] < 0.1)
+    result, ctrl = run(env_id, controllers.make(name), map=OPEN, slip="nominal")
+    assert result.success, (name, env_id, result.final_distance, result.outcome)
+    assert np.all(result.final_distance < 0.1)
     assert ctrl.stats().steps > 0 and ctrl.stats().failures == 0
 
 
 def test_koopman_nmpc_holds_the_formation_under_high_slip() -> None:
     """End to end: learned model, obstacles, formation constraint, high slip, settled targets."""
-    info, ctrl = run("KoopNav-Formation-v0", controllers.make("koopman-nmpc"), map="map4", slip="high")
-    assert info["is_success"] and np.all(info["distances"] < 0.1)
+    result, ctrl = run("KoopNav-Formation-v0", controllers.make("koopman-nmpc"), map="map4", slip="high")
+    assert result.success and np.all(result.final_distance < 0.1)
     assert ctrl.stats().failures == 0
 
 
@@ -188,8 +184,8 @@ def test_koopman_nmpc_uses_a_model_file(tmp_path) -> None:
     path = tmp_path / "m.npz"
     fit_for_env("KoopNav-TargetReaching-v0", slip="low").save(path)
     ctrl = controllers.make("koopman-nmpc", model=str(path))
-    info, _ = run("KoopNav-TargetReaching-v0", ctrl, map=OPEN, slip="low")
-    assert info["is_success"]
+    result, _ = run("KoopNav-TargetReaching-v0", ctrl, map=OPEN, slip="low")
+    assert result.success
     with pytest.raises(ValueError, match="does not exist"):
         controllers.make("koopman-nmpc", model=str(tmp_path / "missing.npz"))
 
@@ -229,3 +225,25 @@ def test_warm_start_shift_has_no_dynamics_gap_and_cold_starts_drop_warm_options(
     np.testing.assert_allclose(guess[-nx:], predicted, atol=1e-12)
     warm, cold = prob.solver_for("ipopt"), prob.solver_for("ipopt", cold=True)
     assert warm is not cold and "cold" in cold.name()
+
+
+@pytest.mark.parametrize("name", sorted(set(controllers.available()) - {"rl-ppo"}) + ["rl-ppo"])
+def test_every_controller_resets_from_the_env_or_its_scenario(name: str) -> None:
+    """``reset`` takes the env (any front, wrapped or not) as well as its scenario, with the same effect."""
+    try:
+        ctrl = controllers.make(name)
+    except (ImportError, ValueError) as exc:
+        pytest.skip(f"{name} is not usable here: {exc}")
+    env = gym.make("KoopNav-Formation-v0", map=OPEN)
+    calibrate_controller(ctrl, env, budget=2000)
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env, seed=0)  # the wrapped Gymnasium env
+    from_env = ctrl.act(obs, info)
+    ctrl.reset(env.unwrapped.scenario, seed=0)
+    np.testing.assert_allclose(ctrl.act(obs, info), from_env, atol=1e-6)
+    par = formation_v0.parallel_env(map=OPEN)
+    par.reset(seed=0)
+    ctrl.reset(par, seed=0)  # the PettingZoo env
+    assert ctrl.scenario.n_robots == 3
+    with pytest.raises(TypeError, match="expected a koopman_envs.Scenario or a KoopNav env"):
+        ctrl.reset("map1")

@@ -1,0 +1,156 @@
+"""The one episode runner: reset, the act/step loop and the per-episode metrics.
+
+The evaluator, both demos, the benchmark scripts and the tests all run episodes through
+:func:`run_episode`, so an outcome means the same thing everywhere. It needs nothing of a
+controller but ``act(observation, info)`` (and calls ``reset(env, seed=...)`` when the object
+has one), so it lives beside the environments and imports no controller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.scenario import scenario_of
+
+__all__ = ["EpisodeResult", "Policy", "run_episode"]
+
+
+class Policy(Protocol):
+    """Anything that maps (observation, info) to a joint command (2N,)."""
+
+    def act(self, observation: NDArray, info: dict[str, Any]) -> NDArray: ...
+
+
+@dataclass
+class EpisodeResult:
+    """What one episode did (metres, seconds; arrays per robot).
+
+    Attributes
+    ----------
+    success : bool
+        Every robot settled within tolerance without collision.
+    collision : str or None
+        Kind of the collision that ended the episode.
+    truncated : bool
+        Ended by the time limit.
+    steps : int
+        Control periods taken.
+    total_reward : float
+        Sum of the env's rewards.
+    time_to_goal : float or None
+        Start of the final settled stretch [s] (the team's last entry into tolerance, not its
+        first visit), for successful episodes.
+    final_poses, targets : ndarray, shape (N, 3)
+    final_distance, path_length, control_effort : ndarray, shape (N,)
+        Distance to target at the end [m]; distance driven [m]; sum of v^2 + omega^2 over the
+        saturated commands times dt.
+    formation_rms : float or None
+        RMS follower formation error over the episode [m] (formation task).
+    trajectory : ndarray, shape (T + 1, N, 3)
+        Poses from the start.
+    frames : list of ndarray
+        ``rgb_array`` frames when ``render=True``.
+    """
+
+    success: bool
+    collision: str | None
+    truncated: bool
+    steps: int
+    total_reward: float
+    time_to_goal: float | None
+    final_poses: NDArray[np.float64]
+    targets: NDArray[np.float64]
+    final_distance: NDArray[np.float64]
+    path_length: NDArray[np.float64]
+    control_effort: NDArray[np.float64]
+    formation_rms: float | None
+    trajectory: NDArray[np.float64]
+    frames: list[NDArray[np.uint8]] = field(default_factory=list)
+
+    @property
+    def outcome(self) -> str:
+        """``"success"``, the collision kind, or ``"time limit"``."""
+        return "success" if self.success else (self.collision or "time limit")
+
+
+def run_episode(
+    env: Any,
+    policy: Policy,
+    *,
+    seed: int | None = None,
+    options: dict[str, Any] | None = None,
+    render: bool = False,
+    on_step: Callable[[int, NDArray, dict[str, Any]], None] | None = None,
+) -> EpisodeResult:
+    """Reset ``env``, drive it with ``policy`` until the episode ends, and measure it.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        A KoopNav Gymnasium env (wrapped or not).
+    policy : Policy
+        Its ``reset(env, seed=seed)`` is called after ``env.reset`` when it has one.
+    seed : int, optional
+        Seed of ``env.reset`` (and handed to the policy).
+    options : dict, optional
+        ``env.reset`` options.
+    render : bool
+        Collect ``env.render()`` frames (the env needs ``render_mode="rgb_array"``).
+    on_step : callable, optional
+        ``on_step(step, action, info)`` after every step (for logging or recording).
+    """
+    obs, info = env.reset(seed=seed, options=options)
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset(env, seed=seed)
+    scenario = scenario_of(env)
+    low = np.array([-scenario.v_max, -scenario.omega_max])
+    high = np.array([scenario.v_max, scenario.omega_max])
+    n = scenario.n_robots
+    poses = [np.array(info["poses"], dtype=np.float64)]
+    effort = np.zeros(n)
+    formation_sq: list[NDArray] = []
+    frames = [env.render()] if render else []
+    steps, total = 0, 0.0
+    stretch_start: int | None = None  # first step of the current stretch with every robot within tolerance
+    while True:
+        action = np.asarray(policy.act(obs, info), dtype=np.float64).reshape(n, 2)
+        obs, reward, terminated, truncated, info = env.step(action.reshape(-1))
+        steps += 1
+        total += float(reward)
+        effort += (np.clip(action, low, high) ** 2).sum(axis=1) * scenario.dt
+        poses.append(np.array(info["poses"], dtype=np.float64))
+        if "formation_error" in info:
+            formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
+        if np.all(info["distances"] <= scenario.goal_tolerance):
+            stretch_start = steps if stretch_start is None else stretch_start
+        else:
+            stretch_start = None
+        if render:
+            frames.append(env.render())
+        if on_step is not None:
+            on_step(steps, action, info)
+        if terminated or truncated:
+            break
+    trajectory = np.asarray(poses)
+    success = bool(info["is_success"])
+    return EpisodeResult(
+        success=success,
+        collision=info["collision_kind"] if info["collision"] else None,
+        truncated=bool(truncated and not terminated),
+        steps=steps,
+        total_reward=total,
+        time_to_goal=stretch_start * scenario.dt if success and stretch_start is not None else None,
+        final_poses=np.array(info["poses"], dtype=np.float64),
+        targets=np.array(info["targets"], dtype=np.float64),
+        final_distance=np.array(info["distances"], dtype=np.float64),
+        path_length=np.linalg.norm(np.diff(trajectory[:, :, :2], axis=0), axis=2).sum(axis=0),
+        control_effort=effort,
+        formation_rms=float(np.sqrt(np.mean(formation_sq))) if formation_sq else None,
+        trajectory=trajectory,
+        frames=frames,
+    )
