@@ -20,10 +20,12 @@ number of failed episodes (capped at 100); a failed ``--check`` exits with 101.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import multiprocessing as mp
 import os
+import signal
 import sys
 import time
 import traceback
@@ -51,6 +53,7 @@ __all__ = ["Cell", "EpisodeSpec", "Results", "SCHEMA_VERSION", "evaluate", "main
 
 TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 FAILED_CHECK_EXIT = 101
+INTERRUPTED_EXIT = 130  # the shell's code for a run stopped by Ctrl-C (128 + SIGINT)
 
 
 # --------------------------------------------------------------------------- the plan
@@ -262,26 +265,47 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
 
 # --------------------------------------------------------------------------- running
 class _Progress:
-    """A one-line progress bar on stderr (no dependency)."""
+    """Progress on stderr: a tqdm bar on a terminal, one line per episode otherwise (CI logs)."""
 
     def __init__(self, total: int, enabled: bool) -> None:
         self.total, self.done, self.enabled = total, 0, enabled
         self.start = time.perf_counter()
+        self.bar = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, file=sys.stderr, unit="episode", dynamic_ncols=True)
 
     def update(self, record: dict[str, Any]) -> None:
         self.done += 1
         if not self.enabled:
             return
-        width = 30
-        filled = int(width * self.done / max(self.total, 1))
-        elapsed = time.perf_counter() - self.start
         mark = "ok" if record["status"] == "ok" and record.get("success") else record.get("collision") or (
             "error" if record["status"] != "ok" else "fail")  # fmt: skip
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
-                         f"{elapsed:5.0f}s  {record['controller']:<14s} {record['map']:<6s} {record['slip']:<8s} {mark:<10s}")  # fmt: skip
-        if self.done == self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+        what = f"{record['controller']} {record['map']} {record['slip']} #{record['trial']}: {mark}"
+        if self.bar is not None:
+            self.bar.set_postfix_str(what, refresh=False)
+            self.bar.update()
+        else:
+            elapsed = time.perf_counter() - self.start
+            print(f"[{self.done}/{self.total} {elapsed:.0f}s] {what}", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a run: the episodes finished so far are in the log; ``--resume`` continues."""
+
+    def __init__(self, finished: int, total: int) -> None:
+        super().__init__(f"interrupted after {finished}/{total} episodes")
+        self.finished, self.total = finished, total
+
+
+def _ignore_sigint() -> None:
+    """Worker initializer: Ctrl-C is the main process's to handle (it stops the pool cleanly)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _config_signature(config: dict[str, Any]) -> dict[str, Any]:
@@ -446,23 +470,26 @@ def evaluate(
     bar = _Progress(len(todo), progress)
     records = dict(done)
     try:
-        if backend == "ray":
-            stream = _run_ray(todo, workers)
-        elif workers == 1 or len(todo) <= 1:
-            stream = (run_episode(spec) for spec in todo)
-        else:
-            pool = mp.get_context("spawn").Pool(min(workers, len(todo)), maxtasksperchild=None)
-            stream = pool.imap_unordered(run_episode, todo, chunksize=1)
-        for record in stream:
-            records[record["key"]] = record
-            if log_file is not None:
-                log_file.write(json.dumps(json_safe(record)) + "\n")
-                log_file.flush()
-            bar.update(record)
-        if backend == "process" and workers > 1 and len(todo) > 1:
-            pool.close()
-            pool.join()
+        with contextlib.ExitStack() as stack:
+            if backend == "ray":
+                stream = _run_ray(todo, workers)
+            elif workers == 1 or len(todo) <= 1:
+                stream = (run_episode(spec) for spec in todo)
+            else:
+                # the context manager terminates the workers on every exit: success, error or Ctrl-C
+                pool = stack.enter_context(mp.get_context("spawn").Pool(min(workers, len(todo)),
+                                                                        initializer=_ignore_sigint))  # fmt: skip
+                stream = pool.imap_unordered(run_episode, todo, chunksize=1)
+            for record in stream:
+                records[record["key"]] = record
+                if log_file is not None:
+                    log_file.write(json.dumps(json_safe(record)) + "\n")
+                    log_file.flush()
+                bar.update(record)
+    except KeyboardInterrupt:
+        raise RunInterrupted(len(records), len(plan)) from None
     finally:
+        bar.close()
         if log_file is not None:
             log_file.close()
     ordered = [records[spec.key] for spec in plan]
@@ -522,7 +549,10 @@ def check_thresholds(results: Results, path: str | os.PathLike) -> list[str]:
     ``slip`` (omitted = any) and limits ``min_success_rate`` (0-1) and/or
     ``max_final_distance_cm`` (mean over robots and successful runs).
     """
-    import tomllib
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli backport
+        import tomli as tomllib
 
     try:
         with open(path, "rb") as fh:
@@ -643,6 +673,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except RunInterrupted as exc:
+        words = list(sys.argv[1:] if argv is None else argv)
+        again = " ".join(["python evaluate.py", *words, *([] if "--resume" in words else ["--resume"])])
+        print(f"\n{exc}; continue with: {again}", file=sys.stderr)
+        return INTERRUPTED_EXIT
     print(results.to_markdown())
     print(f"\n{len(results.records)} episodes in {wall:.1f} s; wrote {', '.join(str(p) for p in paths.values())} "
           f"and {Path(args.out) / 'figures'}/")  # fmt: skip

@@ -442,7 +442,9 @@ class NMPCController(BaseController):
             raise ValueError(
                 f"{self.name}: the prediction model has {model.n_robots} robots, the scenario {scenario.n_robots}"
             )
-        key = (id(model), scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
+        # the model itself, not id(model): Python reuses the id of a collected object, and a new
+        # model at an old address would silently inherit the old model's NLP
+        key = (model, scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
                tuple(scenario.robot_radius), scenario.workspace, scenario.v_max, scenario.omega_max)  # fmt: skip
         if key != self._key:
             self._problem = _Problem(model, scenario, self.config)

@@ -247,3 +247,18 @@ def test_every_controller_resets_from_the_env_or_its_scenario(name: str) -> None
     assert ctrl.scenario.n_robots == 3
     with pytest.raises(TypeError, match="expected a koopman_envs.Scenario or a KoopNav env"):
         ctrl.reset("map1")
+
+
+def test_nlp_cache_is_keyed_by_the_model_not_its_id() -> None:
+    """A new model object gets its own NLP, even at a recycled address."""
+    from controllers.koopman import fit_for_env
+
+    env = gym.make("KoopNav-TargetReaching-v0", map=OPEN)
+    env.reset(seed=0)
+    ctrl = controllers.make("koopman-nmpc", model=fit_for_env("KoopNav-TargetReaching-v0", slip="low"))
+    ctrl.reset(env)
+    first = ctrl._problem
+    assert ctrl._key[0] is ctrl.model  # the key keeps the model alive, so its id cannot be recycled
+    ctrl._use(fit_for_env("KoopNav-TargetReaching-v0", slip="high"))
+    ctrl.reset(env)
+    assert ctrl._problem is not first

@@ -180,3 +180,29 @@ def test_ray_backend_matches_the_process_backend(small_results: ev.Results) -> N
     assert [r["key"] for r in with_ray.records] == [r["key"] for r in small_results.records]
     assert [r["final_distance"] for r in with_ray.records] == [r["final_distance"] for r in small_results.records]
     assert [r["success"] for r in with_ray.records] == [r["success"] for r in small_results.records]
+
+
+def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_results: ev.Results) -> None:
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) stops the workers cleanly."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus",
+           "nominal-nmpc", "--maps", "map1", "--slips", "nominal", "high", "--episodes", "2", "--seed", "3",
+           "--max-episode-steps", "150", "--workers", "2", "--out", str(out), "--start-noise", "0"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=Path(ev.__file__).parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)  # fmt: skip
+    log = out / "episodes.jsonl"
+    deadline = time.time() + 180
+    while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < 3):
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    assert "interrupted after" in stderr and "--resume" in stderr
+    resumed = ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+    assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
+    assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
