@@ -28,7 +28,6 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.params import PARAMS
 
 __all__ = ["FEATURE_SETS", "LAYOUTS", "KoopNavSB3VecEnv", "feature_count", "robot_features", "scale_action"]
 
@@ -145,7 +144,6 @@ class KoopNavSB3VecEnv(VecEnv):
         self.precision_shaping = float(precision_shaping)
         self._potential: np.ndarray | None = None
         self._team_collision = engine.config.task.reward.collision
-        self._clearance_index = engine.builder.clearance_index
         if features not in FEATURE_SETS:
             raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
         self.features = features
@@ -210,7 +208,6 @@ class KoopNavSB3VecEnv(VecEnv):
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         if "final_obs" in info:
             final_obs = self._split(info["final_obs"]).reshape(self.n_envs, per_env, -1)
-            raw_final = info["final_obs"].reshape(self.n_envs, per_env, -1)
             final_info = info["final_info"]
             ended = info["_final_obs"]
             if self.layout == "robot":
@@ -218,7 +215,7 @@ class KoopNavSB3VecEnv(VecEnv):
                 if crashed.any():
                     # credit assignment: only the robots that touched something are terminal and
                     # penalized; a crash of a team-mate merely cuts the others' episodes short
-                    involved = self.involved(raw_final.reshape(self.n_envs, self.n_robots, -1))
+                    involved = final_info["robot_collision"]  # the engine's own per-robot collision flags
                     own_end[crashed] = involved[crashed]
                     rewards = rewards.copy()
                     bystander_refund = self._team_collision  # the env's team penalty, undone
@@ -232,13 +229,6 @@ class KoopNavSB3VecEnv(VecEnv):
         rewards = np.asarray(rewards).reshape(-1)
         dones = np.repeat(dones, per_env)
         return self._split(obs), rewards.astype(np.float32), dones, infos
-
-    def involved(self, features: np.ndarray) -> np.ndarray:
-        """Robots in collision, shape (K, N), from their (unnormalized) feature blocks (K, N, F)."""
-        touching = (features[..., self._clearance_index] < 0.0).any(axis=-1)
-        x_min, x_max, y_min, y_max = PARAMS.workspace
-        x, y = features[..., 0], features[..., 1]
-        return touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
 
     def seed(self, seed: int | None = None) -> Sequence[None]:
         self._seed = seed

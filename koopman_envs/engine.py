@@ -31,6 +31,9 @@ from koopman_envs.tasks.reward import score_step
 
 __all__ = ["EngineConfig", "NavigationEngine", "RANDOM_SLIP", "StepResult"]
 
+# every combination of the three collision flag bits, by value, for vectorized naming
+_COLLISION_NAMES = np.array([CollisionKind.describe(flags) for flags in range(8)], dtype=object)
+
 #: ``start_noise``: draws of a whole team's start perturbation before a reset gives up (ours).
 START_NOISE_ATTEMPTS = 100
 
@@ -205,6 +208,7 @@ class NavigationEngine:
         self._effort_scale = 1.0 / self.command_high**2
         self._workspace = np.asarray(PARAMS.workspace, dtype=np.float64)
         self._all_active = np.ones(k, dtype=bool)
+        self._no_formation = np.zeros((k, n))
         self._settle_steps = PARAMS.settle_steps
         if config.map_spec is not None:
             for index in range(k):
@@ -388,7 +392,8 @@ class NavigationEngine:
         score_step(
             cfg.task.reward, cfg.task.formation, cfg.goal_tolerance, self._settle_steps,
             cfg.max_episode_steps,
-            self.distances, distances, effort, features, collision, stepping, self.settled, self.elapsed,
+            self.distances, distances, effort, self._formation_error(), collision, stepping, self.settled,
+            self.elapsed,
             robot_reward, team_reward, success, terminated, truncated,
         )  # fmt: skip
         self.distances = distances
@@ -422,21 +427,66 @@ class NavigationEngine:
             settle_steps=self._settle_steps,
         )
 
+    def _formation_error(self) -> NDArray[np.float64]:
+        """What the reward charges: the slot errors for formation, a placeholder otherwise."""
+        return self.formation_errors() if self.config.task.formation else self._no_formation
+
+    def formation_errors(self) -> NDArray[np.float64]:
+        """Distance of every robot from its formation slot relative to the leader [m], (K, N)
+        (the leader's is 0), from the engine's state, not from the clipped observation."""
+        ex = self.state[:, 0] - self.state[:, 0, :1] - self.offset[:, 0]
+        ey = self.state[:, 1] - self.state[:, 1, :1] - self.offset[:, 1]
+        return np.hypot(ex, ey)
+
+    def robot_collisions(self) -> NDArray[np.bool_]:
+        """Which robots are in collision, (K, N): overlapping an obstacle or another robot, or with
+        the centre outside the workspace (the per-robot view of the collision flags)."""
+        out = np.zeros(self.distances.shape, dtype=bool)
+        if self.collision.any():
+            x, y = self.state[:, 0], self.state[:, 1]
+            touching = (self.geometry.clearances(x, y) < 0.0).any(axis=-1)
+            x_min, x_max, y_min, y_max = PARAMS.workspace
+            outside = (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
+            out = (touching | outside) & (self.collision != 0)[:, None]
+        return out
+
+    def batch_info(self) -> dict[str, Any]:
+        """The true structured state of every environment, one array per key (copies).
+
+        Keys: ``poses`` (K, N, 3), ``targets`` (K, N, 3), ``distances`` (K, N), ``collision``
+        (K,) bool, ``collision_kind`` (K,) str (``"none"``, ``"obstacle"``, ``"robot+workspace"``...),
+        ``robot_collision`` (K, N) bool (which robots collided), ``is_success`` (K,),
+        ``settled_steps`` (K,), and ``formation_error`` (K, N) for formation.
+        :meth:`info` is row ``index`` of this, so every front reports the same keys.
+        """
+        info = {
+            "poses": self.poses.copy(),
+            "targets": self.targets.copy(),
+            "distances": self.distances.copy(),
+            "collision": self.collision != 0,
+            "collision_kind": _COLLISION_NAMES[self.collision],
+            "robot_collision": self.robot_collisions(),
+            "is_success": self.success.copy(),
+            "settled_steps": self.settled.copy(),
+        }
+        if self.config.task.formation:
+            info["formation_error"] = self.formation_errors()
+        return info
+
     def info(self, index: int = 0) -> dict[str, Any]:
-        """The true structured state of environment ``index`` (copies)."""
+        """The true structured state of environment ``index`` (copies; see :meth:`batch_info`)."""
         collision = int(self.collision[index])
         info = {
             "poses": self.state[index].T.copy(),
             "targets": self.target[index].T.copy(),
             "distances": self.distances[index].copy(),
             "collision": collision != 0,
-            "collision_kind": CollisionKind.describe(collision) if collision else "none",
+            "collision_kind": str(_COLLISION_NAMES[collision]),
+            "robot_collision": (self.robot_collisions()[index] if collision
+                                else np.zeros(self.config.n_robots, dtype=bool)),  # fmt: skip
             "is_success": bool(self.success[index]),
             "settled_steps": int(self.settled[index]),
         }
         if self.config.task.formation:
-            state = self.state[index]
-            ex = state[0] - state[0, 0] - self.offset[index, 0]
-            ey = state[1] - state[1, 0] - self.offset[index, 1]
-            info["formation_error"] = np.hypot(ex, ey)
+            info["formation_error"] = self.formation_errors()[index]
         return info

@@ -91,6 +91,8 @@ def test_vector_env_matches_single_envs(env_id: str, mode: str, start_noise: flo
             np.testing.assert_array_equal(obs, vobs[i])
             np.testing.assert_array_equal(info["poses"], vinfo["poses"][i])
             np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
+            for key, value in info.items():  # every key of the single env's info, same value
+                np.testing.assert_array_equal(np.asarray(value), np.asarray(vinfo[key][i]), err_msg=key)
             assert reward == vrew[i]
     assert episodes >= 10  # autoreset was exercised many times
 

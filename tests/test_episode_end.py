@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 from koopman_envs.params import PARAMS
 
@@ -65,3 +66,32 @@ def test_progress_reward_sign(open_map) -> None:
     forward = env.step(np.array([0.6, 0.0] * 3))[1]
     backward = env.step(np.array([-0.6, 0.0] * 3))[1]
     assert forward > 0 > backward
+
+
+def test_formation_reward_charges_the_true_slot_error() -> None:
+    """With zero commands and no slip nothing moves: the reward is the progress and formation
+    terms of the engine's state (the error ``info`` reports), not a copy read from the observation."""
+    env = gym.make("KoopNav-Formation-v0", map="map4")
+    env.reset(seed=0)
+    engine = env.unwrapped.engine
+    poses = engine.poses.copy()
+    poses[0, 2, :2] += [0.5, -0.3]  # robot 3 out of its slot
+    engine.poses = poses
+    before = engine.distances[0].copy()
+    _, reward, _, _, info = env.step(np.zeros(6))
+    weights = env.unwrapped.config.task.reward
+    assert info["formation_error"][2] == pytest.approx(np.hypot(0.5, 0.3))
+    expected = weights.progress * (before - info["distances"]).sum() - weights.formation * info["formation_error"].sum()
+    assert reward == pytest.approx(expected, rel=1e-12)
+
+
+def test_robot_collision_names_the_robots_that_collided() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    env.reset(seed=0)
+    engine = env.unwrapped.engine
+    poses = engine.poses.copy()
+    poses[0, 1, :2] = engine.obstacles[0, 0, :2]  # robot 1 onto the first obstacle's centre
+    engine.poses = poses
+    _, _, terminated, _, info = env.step(np.zeros(6))
+    assert terminated and "obstacle" in info["collision_kind"]
+    assert info["robot_collision"].tolist() == [False, True, False]

@@ -188,14 +188,7 @@ class KoopNavVectorEnv(VectorEnv):
         return features.reshape(self.num_envs, -1).astype(np.float32)
 
     def _info(self) -> dict[str, Any]:
-        engine = self.engine
-        info: dict[str, Any] = {
-            "poses": engine.poses.copy(),
-            "targets": engine.targets.copy(),
-            "distances": engine.distances.copy(),
-            "collision": engine.collision != 0,
-            "is_success": engine.success.copy(),
-        }
+        info: dict[str, Any] = self.engine.batch_info()
         for key in list(info):
             info["_" + key] = self._all
         return info

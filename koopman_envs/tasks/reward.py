@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 
 from numba import njit
 from numpy.typing import NDArray
@@ -21,7 +20,7 @@ def score_step(
     prev_distances: NDArray,
     distances: NDArray,
     effort: NDArray,
-    features: NDArray,
+    formation_error: NDArray,
     collision: NDArray,
     active: NDArray,
     settled: NDArray,
@@ -35,7 +34,8 @@ def score_step(
     """Update the settle and time counters and score one step of K environments.
 
     Per robot: ``progress * (d_prev - d) - effort * e + settle * [d <= goal_tolerance]``
-    ``- formation * ||e_i||`` (formation task; the error is the block's last two entries);
+    ``- formation * ||e_i||`` (formation task; the true slot error of the engine's state, not the
+    observation's clipped copy);
     per team: ``success * [success] - collision * [collision]``. Success: every robot within
     ``goal_tolerance`` for ``settle_steps`` consecutive periods and no collision. Inactive
     environments score zero and neither terminate nor truncate.
@@ -54,8 +54,9 @@ def score_step(
         Time limit in periods (None: no truncation).
     prev_distances, distances, effort : ndarray, shape (K, N)
         Target distances [m] before and after the step and the command effort.
-    features : ndarray, shape (K, N, F)
-        Observation blocks after the step.
+    formation_error : ndarray, shape (K, N)
+        Distance of each robot from its formation slot after the step [m] (ignored unless
+        ``formation``).
     collision : ndarray of int, shape (K,)
         Collision flags after the step.
     active : ndarray of bool, shape (K,)
@@ -66,7 +67,7 @@ def score_step(
         Outputs, shapes (K, N), (K,), (K,), (K,), (K,).
     """
     _score(
-        prev_distances, distances, effort, features, collision, active, settled, elapsed,
+        prev_distances, distances, effort, formation_error, collision, active, settled, elapsed,
         goal_tolerance, settle_steps, -1 if max_episode_steps is None else max_episode_steps, formation,
         weights.progress, weights.effort, weights.settle, weights.formation,
         weights.success, weights.collision,
@@ -76,13 +77,12 @@ def score_step(
 
 @njit(cache=True)
 def _score(
-    prev_distances, distances, effort, features, collision, active, settled, elapsed,
+    prev_distances, distances, effort, formation_error, collision, active, settled, elapsed,
     goal_tolerance, settle_steps, max_episode_steps, formation,
     w_progress, w_effort, w_settle, w_formation, w_success, w_collision,
     robot_reward, team_reward, success, terminated, truncated,
 ):  # pragma: no cover - compiled  # fmt: skip
     n_envs, n_robots = distances.shape
-    last = features.shape[2] - 1
     for k in range(n_envs):
         stepped = 1 if active[k] else 0
         mask = 1.0 if active[k] else 0.0
@@ -101,7 +101,7 @@ def _score(
             reward -= effort[k, i] * w_effort
             reward += w_settle if distances[k, i] <= goal_tolerance else 0.0
             if formation:
-                reward -= w_formation * math.hypot(features[k, i, last - 1], features[k, i, last])
+                reward -= w_formation * formation_error[k, i]
             robot_reward[k, i] = reward * mask
         team = (1.0 if done else 0.0) * w_success
         team -= (1.0 if hit else 0.0) * w_collision
