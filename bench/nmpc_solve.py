@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import controllers
+from koopman_envs.tasks.base import env_id_for_map
 import koopman_envs  # noqa: F401
 from controllers.calibration import calibrate_controller
 from controllers.nmpc import IPOPT_OPTIONS, NMPCConfig
@@ -127,7 +128,7 @@ def main() -> None:
     parser.add_argument("--jit", action="store_true", help="also time fatrop with compiled functions")
     parser.add_argument("--no-do-mpc", action="store_true")
     args = parser.parse_args()
-    env_id = "KoopNav-Formation-v0" if args.map in ("map3", "map4") else "KoopNav-TargetReaching-v0"
+    env_id = env_id_for_map(args.map)
     print(f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop episode")
     results = {}
     for name in ("nominal-nmpc", "koopman-nmpc"):

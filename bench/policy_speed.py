@@ -10,6 +10,7 @@ import argparse
 from nmpc_solve import closed_loop, line  # the same closed-loop runner and report line
 
 import controllers
+from koopman_envs.tasks.base import env_id_for_map
 
 
 def main() -> None:
@@ -17,7 +18,7 @@ def main() -> None:
     parser.add_argument("--map", default="map3")
     parser.add_argument("--slip", default="nominal")
     args = parser.parse_args()
-    env_id = "KoopNav-Formation-v0" if args.map in ("map3", "map4") else "KoopNav-TargetReaching-v0"
+    env_id = env_id_for_map(args.map)
     print(f"{env_id} {args.map} slip={args.slip}: wall time of act() per control step")
     for name in ("rl-ppo", "koopman-nmpc", "nominal-nmpc", "consensus"):
         try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["ENV_IDS", "RewardWeights", "TASKS", "TaskSpec", "task_for_env"]
+__all__ = ["ENV_IDS", "RewardWeights", "TASKS", "TaskSpec", "env_id_for_map", "task_for_env"]
 
 
 @dataclass(frozen=True)
@@ -77,3 +77,11 @@ def task_for_env(env_id: str) -> TaskSpec:
         if spec.env_id == env_id:
             return spec
     raise ValueError(f"env id {env_id!r} is not one of {list(ENV_IDS)}")
+
+
+def env_id_for_map(map_name: str, default: str = ENV_IDS[0]) -> str:
+    """The env id whose paper maps include ``map_name`` (``default`` for any other map)."""
+    for spec in TASKS.values():
+        if map_name in spec.paper_maps:
+            return spec.env_id
+    return default
