@@ -442,12 +442,12 @@ class NavigationEngine:
         """Which robots are in collision, (K, N): overlapping an obstacle or another robot, or with
         the centre outside the workspace (the per-robot view of the collision flags)."""
         out = np.zeros(self.distances.shape, dtype=bool)
-        if self.collision.any():
-            x, y = self.state[:, 0], self.state[:, 1]
-            touching = (self.geometry.clearances(x, y) < 0.0).any(axis=-1)
+        hit = np.flatnonzero(self.collision)
+        if hit.size:  # only the environments that collided: this runs on every vector step
+            x, y = self.state[hit, 0], self.state[hit, 1]
+            touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
             x_min, x_max, y_min, y_max = PARAMS.workspace
-            outside = (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
-            out = (touching | outside) & (self.collision != 0)[:, None]
+            out[hit] = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
         return out
 
     def batch_info(self) -> dict[str, Any]:

@@ -77,13 +77,17 @@ class TeamGeometry:
         self.obstacle_y[index] = obstacles[:, 1]
         self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
-    def clearances(self, x: NDArray, y: NDArray) -> NDArray[np.float64]:
+    def clearances(self, x: NDArray, y: NDArray, rows: NDArray | None = None) -> NDArray[np.float64]:
         """Clearance of every robot to every entity, shape (K, N, N + M) [m], for centres ``x``, ``y``
-        of shape (K, N) [m]; +inf from a robot to itself, negative on overlap."""
+        of shape (K, N) [m]; +inf from a robot to itself, negative on overlap. With ``rows`` (indices
+        of environments), ``x`` and ``y`` hold only those environments and so does the result."""
         x = np.ascontiguousarray(x, dtype=np.float64)
         y = np.ascontiguousarray(y, dtype=np.float64)
-        entity_x = np.concatenate([x, self.obstacle_x], axis=1)
-        entity_y = np.concatenate([y, self.obstacle_y], axis=1)
-        out = np.empty(self.radius_sum.shape)
-        _clearances(x, y, entity_x, entity_y, self.radius_sum, out)
+        obstacle_x, obstacle_y, radius_sum = self.obstacle_x, self.obstacle_y, self.radius_sum
+        if rows is not None:
+            obstacle_x, obstacle_y, radius_sum = obstacle_x[rows], obstacle_y[rows], radius_sum[rows]
+        entity_x = np.concatenate([x, obstacle_x], axis=1)
+        entity_y = np.concatenate([y, obstacle_y], axis=1)
+        out = np.empty(radius_sum.shape)
+        _clearances(x, y, entity_x, entity_y, np.ascontiguousarray(radius_sum), out)
         return out
