@@ -4,17 +4,26 @@ On the command line a configuration is ``name`` or ``name:key=value,key=value`` 
 as JSON scalars, else kept as text; ``label=...`` names the row, by default the text itself)::
 
     nominal-nmpc   nominal-nmpc:solver=fatrop   koopman-nmpc:uncertainty_margin=0,horizon=30
+
+Several configurations may also be given comma-separated in one word
+(``nominal-nmpc,koopman-nmpc:horizon=30,consensus``): a piece with ``=`` and no ``:`` continues
+the options of the configuration before it.
+
+From Python, :func:`controller_configs` also takes a mapping from label to a registered name, a
+``(name or factory, options)`` pair, or a factory / controller class of the user's own script,
+which is then ranked beside the registered ones without packaging it.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
-from typing import Any
+import pickle
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Mapping
 
 import controllers
 
-__all__ = ["ControllerConfig", "parse_controller"]
+__all__ = ["ControllerConfig", "controller_configs", "parse_controller", "split_controller_list"]
 
 
 @dataclass(frozen=True)
@@ -28,23 +37,42 @@ class ControllerConfig:
     name : str
         Registered controller name.
     options : tuple of (str, value)
-        Keyword options of the factory, sorted by key (plain JSON scalars).
+        Keyword options of the factory, sorted by key (plain JSON values).
+    factory : callable, optional
+        A factory or controller class not in the registry (Python API); ``name`` is then its
+        ``module.qualname``, recorded in the results.
     """
 
     label: str
     name: str
     options: tuple[tuple[str, Any], ...] = ()
+    factory: Callable[..., Any] | None = field(default=None, compare=False)
 
     def build(self) -> Any:
         """A fresh controller instance."""
-        ctrl = controllers.make(self.name, **dict(self.options))
-        return ctrl
+        if self.factory is not None:
+            return self.factory(**dict(self.options))
+        return controllers.make(self.name, **dict(self.options))
 
-    def validate(self) -> None:
-        """Build once to reject unknown names and options before any episode starts."""
-        available = controllers.available()
-        if self.name not in available:
-            raise ValueError(f"controller {self.name!r} is not one of {available}")
+    def validate(self, across_processes: bool = False) -> None:
+        """Build once to reject unknown names and options before any episode starts.
+
+        ``across_processes``: the factory must also reach worker processes (by reference: a
+        module-level function or class).
+        """
+        if self.factory is not None:
+            if across_processes:
+                try:
+                    pickle.loads(pickle.dumps(self.factory))
+                except Exception as exc:  # noqa: BLE001 - any pickling problem has the same remedy
+                    raise ValueError(
+                        f"controller {self.label!r}: factory {self.name} cannot be sent to worker processes "
+                        f"({type(exc).__name__}: {exc}); define it at module level or run with workers=1"
+                    ) from None
+        else:
+            available = controllers.available()
+            if self.name not in available:
+                raise ValueError(f"controller {self.name!r} is not one of {available}")
         try:
             self.build()
         except TypeError as exc:
@@ -89,3 +117,89 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
             else:
                 options[key] = _scalar(value.strip())
     return ControllerConfig(label, name.strip(), tuple(sorted(options.items())))
+
+
+def split_controller_list(words: Iterable[str]) -> list[str]:
+    """Command-line words -> configuration texts, also splitting comma-separated lists.
+
+    ``["nominal-nmpc,koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]`` ->
+    ``["nominal-nmpc", "koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]``: a piece
+    with ``=`` and without ``:`` continues the options of the configuration before it.
+    """
+    texts: list[str] = []
+    for word in words:
+        for piece in word.split(","):
+            piece = piece.strip()
+            if not piece:
+                continue
+            continues = "=" in piece and ":" not in piece.partition("=")[0]
+            if continues and texts and ":" in texts[-1]:
+                texts[-1] += "," + piece
+            elif continues:
+                raise ValueError(f"controller list {word!r}: option {piece!r} follows no 'name:' configuration")
+            else:
+                texts.append(piece)
+    return texts
+
+
+def _qualified_name(factory: Callable[..., Any]) -> str:
+    return f"{getattr(factory, '__module__', '?')}.{getattr(factory, '__qualname__', repr(factory))}"
+
+
+def _from_entry(label: str, entry: Any) -> ControllerConfig:
+    """One mapping entry -> configuration (``label`` names the row)."""
+    if isinstance(entry, ControllerConfig):
+        return ControllerConfig(label, entry.name, entry.options, entry.factory)
+    if isinstance(entry, str):
+        parsed = parse_controller(entry)
+        return ControllerConfig(label, parsed.name, parsed.options)
+    if callable(entry):
+        return ControllerConfig(label, _qualified_name(entry), (), entry)
+    if isinstance(entry, tuple) and len(entry) == 2 and isinstance(entry[1], Mapping):
+        target, options = entry
+        for key, value in options.items():
+            if not isinstance(key, str) or not key.isidentifier():
+                raise ValueError(f"controller {label!r}: option name {key!r} is not a Python identifier")
+            try:
+                json.dumps(value, allow_nan=False)
+            except (TypeError, ValueError):
+                raise ValueError(f"controller {label!r}: option {key}={value!r} must be plain JSON "
+                                 "(it is recorded in the results)") from None  # fmt: skip
+        ordered = tuple(sorted(options.items()))
+        if isinstance(target, str):
+            return ControllerConfig(label, target, ordered)
+        if callable(target):
+            return ControllerConfig(label, _qualified_name(target), ordered, target)
+    raise ValueError(
+        f"controller {label!r}: {entry!r} is not a registered name, 'name:key=value,...', a (name or factory, "
+        "options dict) pair, or a factory / controller class"
+    )
+
+
+def controller_configs(spec: Any) -> list[ControllerConfig]:
+    """Any accepted form of a run's controllers -> configurations (``ValueError`` when malformed).
+
+    Parameters
+    ----------
+    spec : mapping or sequence
+        A mapping ``{label: entry}`` where an entry is a registered name, a ``"name:key=value"``
+        text, a ``(name or factory, {options})`` pair or a factory / controller class; or a
+        sequence of texts, :class:`ControllerConfig` or factories (labelled by their text or
+        ``module.qualname``).
+    """
+    if isinstance(spec, Mapping):
+        for label in spec:
+            if not isinstance(label, str) or not label.strip():
+                raise ValueError(f"controller label {label!r} must be non-empty text")
+        return [_from_entry(label, entry) for label, entry in spec.items()]
+    if isinstance(spec, (str, bytes)) or not isinstance(spec, Iterable):
+        raise ValueError(f"controllers={spec!r} must be a list of configurations or a mapping label -> controller")
+    configs = []
+    for entry in spec:
+        if isinstance(entry, (str, ControllerConfig)):
+            configs.append(parse_controller(entry))
+        elif callable(entry):
+            configs.append(ControllerConfig(_qualified_name(entry), _qualified_name(entry), (), entry))
+        else:
+            raise ValueError(f"controller {entry!r} is not a configuration text, ControllerConfig or factory")
+    return configs

@@ -86,8 +86,12 @@ def test_resume_log_from_another_configuration_is_refused(tmp_path) -> None:
     out = tmp_path / "run"
     ev.evaluate(**{**SMALL, "controller_names": ["consensus"], "slips": ["nominal"], "episodes": 1}, workers=1, out=out)
     before = (out / "episodes.jsonl").read_text()
-    with pytest.raises(ValueError, match="another configuration"):
+    with pytest.raises(ValueError, match="other settings.*episodes: logged 1, now 2"):
         ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+    # an env setting differs: named in the error
+    with pytest.raises(ValueError, match="env_settings: logged .*'max_episode_steps': 150.*now .*'max_episode_steps': 120"):
+        ev.evaluate(**{**SMALL, "controller_names": ["consensus"], "slips": ["nominal"], "episodes": 1,
+                       "max_episode_steps": 120}, workers=1, out=out, resume=True)  # fmt: skip
     assert (out / "episodes.jsonl").read_text() == before  # nothing overwritten
 
 

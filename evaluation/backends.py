@@ -1,0 +1,105 @@
+"""Where episodes run: in this process, a pool of worker processes, or Ray; plus progress display
+and clean interruption."""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing as mp
+import os
+import signal
+import sys
+import time
+from typing import Any, Iterator, Sequence
+
+from evaluation.plan import EpisodeSpec
+from evaluation.worker import run_episode
+
+__all__ = ["BACKENDS", "Progress", "RunInterrupted", "run_episodes"]
+
+BACKENDS = ("process", "ray")
+
+
+class Progress:
+    """Progress on stderr: a tqdm bar on a terminal, one line per episode otherwise (CI logs)."""
+
+    def __init__(self, total: int, enabled: bool) -> None:
+        self.total, self.done, self.enabled = total, 0, enabled
+        self.start = time.perf_counter()
+        self.bar = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, file=sys.stderr, unit="episode", dynamic_ncols=True)
+
+    def update(self, record: dict[str, Any]) -> None:
+        """Count one finished episode and show its outcome."""
+        self.done += 1
+        if not self.enabled:
+            return
+        mark = "ok" if record["status"] == "ok" and record.get("success") else record.get("collision") or (
+            "error" if record["status"] != "ok" else "fail")  # fmt: skip
+        what = f"{record['controller']} {record['map']} {record['slip']} #{record['trial']}: {mark}"
+        if self.bar is not None:
+            self.bar.set_postfix_str(what, refresh=False)
+            self.bar.update()
+        else:
+            elapsed = time.perf_counter() - self.start
+            print(f"[{self.done}/{self.total} {elapsed:.0f}s] {what}", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        """Finish the bar (if any)."""
+        if self.bar is not None:
+            self.bar.close()
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a run: the episodes finished so far are in the log; ``--resume`` continues."""
+
+    def __init__(self, finished: int, total: int) -> None:
+        super().__init__(f"interrupted after {finished}/{total} episodes")
+        self.finished, self.total = finished, total
+
+
+def _ignore_sigint() -> None:
+    """Worker initializer: Ctrl-C is the main process's to handle (it stops the pool cleanly)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_ray(todo: Sequence[EpisodeSpec], workers: int) -> Iterator[dict[str, Any]]:
+    """Episodes as Ray tasks: on a local Ray instance, or on the cluster at ``RAY_ADDRESS``."""
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--backend ray needs Ray: pip install -e '.[ray]'") from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = os.environ.get("RAY_ADDRESS")
+        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
+                 log_to_driver=False)  # fmt: skip
+    try:
+        remote = ray.remote(num_cpus=1)(run_episode)
+        pending = [remote.remote(spec) for spec in todo]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(ready[0])
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+@contextlib.contextmanager
+def run_episodes(todo: Sequence[EpisodeSpec], workers: int, backend: str = "process") -> Iterator[Iterator[dict[str, Any]]]:
+    """Context manager yielding the episodes' records as they finish (in any order).
+
+    The worker pool is terminated on every exit: success, error or Ctrl-C. Workers ignore
+    SIGINT, so Ctrl-C reaches only this process, which stops the pool without tracebacks.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r} is not one of {list(BACKENDS)}")
+    if backend == "ray":
+        yield _run_ray(todo, workers)
+    elif workers == 1 or len(todo) <= 1:
+        yield (run_episode(spec) for spec in todo)
+    else:
+        with mp.get_context("spawn").Pool(min(workers, len(todo)), initializer=_ignore_sigint) as pool:
+            yield pool.imap_unordered(run_episode, todo, chunksize=1)

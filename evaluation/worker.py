@@ -1,0 +1,98 @@
+"""One episode of a run, as a worker process runs it: build the env and the calibrated controller,
+run the episode, return its record. Never raises: an error becomes the episode's record."""
+
+from __future__ import annotations
+
+import json
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controllers.calibration import calibrate_controller
+from evaluation.plan import EpisodeSpec, slip_value
+from koopman_envs.episode import run_episode as run_controller_episode
+from koopman_envs.plant import make_plant
+
+__all__ = ["CalibrationError", "run_episode"]
+
+_CONTROLLER_CACHE: dict[tuple, Any] = {}
+
+
+class CalibrationError(RuntimeError):
+    """A controller's calibration raised (recorded for every episode of its cell)."""
+
+
+def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
+    """The calibrated controller of a cell and its calibration summary.
+
+    Controllers are reused within a worker (their NLPs are built once per structure). A
+    controller that calibrates gets the cell's calibration plant (the env's robots in an open
+    field, slip means hidden), the run's budget and seed, once per worker and plant; the evaluator
+    hands it nothing else about the env. A calibration that raises is remembered and re-raised
+    for every episode of its cell, which are recorded as errors; other cells go on.
+    """
+    cfg = spec.config
+    plant = make_plant(spec.env_id, slip=slip_value(spec.slip), budget=spec.calibration_budget,
+                       seed=spec.calibration_seed, **json.loads(spec.env_kwargs))  # fmt: skip
+    key = (cfg.label, cfg.name, spec.controller_options, plant.signature, spec.calibration_budget,
+           spec.calibration_seed)  # fmt: skip
+    if key not in _CONTROLLER_CACHE:
+        ctrl = cfg.build()
+        try:
+            _CONTROLLER_CACHE[key] = (ctrl, calibrate_controller(ctrl, plant, seed=spec.calibration_seed))
+        except Exception as exc:  # noqa: BLE001 - recorded for the cell, the run goes on
+            _CONTROLLER_CACHE[key] = CalibrationError(f"calibration of {cfg.label!r} failed: {type(exc).__name__}: {exc}")
+    entry = _CONTROLLER_CACHE[key]
+    if isinstance(entry, CalibrationError):
+        raise entry
+    return entry
+
+
+def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
+    """Run one episode and return its record (never raises: errors are recorded)."""
+    import gymnasium as gym
+
+    start = time.perf_counter()
+    record: dict[str, Any] = spec.record_fields()
+    try:
+        env = gym.make(spec.env_id, render_mode="rgb_array" if spec.animation else None, **spec.make_kwargs())
+        ctrl, calibration = _controller_for(spec)
+        record["calibration"] = calibration
+        result = run_controller_episode(env, ctrl, seed=spec.seed, render=bool(spec.animation))
+        stats = ctrl.stats()
+        summary = stats.summary()
+        record.update(
+            status="ok",
+            success=result.success,
+            collision=result.collision,
+            truncated=result.truncated,
+            steps=result.steps,
+            time_to_goal=result.time_to_goal,
+            final_poses=result.final_poses.tolist(),
+            targets=result.targets.tolist(),
+            final_distance=result.final_distance.tolist(),
+            path_length=result.path_length.tolist(),
+            control_effort=result.control_effort.tolist(),
+            formation_rms=result.formation_rms,
+            solve_ms_median=summary["solve_ms_median"],
+            solve_ms_p95=summary["solve_ms_p95"],
+            # every step's decision time, so that a cell's p95 is taken over its steps
+            solve_ms=[round(1e3 * t, 3) for t in stats.solve_times],
+            solver_failures=summary["failures"],
+            trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
+            obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,
+        )
+        if spec.animation:
+            from koopman_envs.rendering import save_episode
+
+            path = Path(spec.run_dir) / spec.animation
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_episode(result.frames, path)
+        env.close()
+    except Exception as exc:  # noqa: BLE001 - one bad episode must not lose the others
+        record.update(status="error", error=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc())
+    record["wall_seconds"] = time.perf_counter() - start
+    return record

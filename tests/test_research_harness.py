@@ -1,0 +1,162 @@
+"""The evaluator as a research harness: configurations, user controllers, env settings, lists."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import evaluate as ev
+from controllers.base import BaseController
+from controllers.consensus import ConsensusController
+from evaluation.configs import controller_configs, split_controller_list
+
+TARGET = "KoopNav-TargetReaching-v0"
+
+
+class StandStill(BaseController):
+    """A controller of the user's own script: never moves (module level, so workers can import it)."""
+
+    name = "stand-still"
+
+    def __init__(self, speed: float = 0.0) -> None:
+        super().__init__()
+        self.speed = speed
+
+    def _reset(self, scenario, seed):
+        pass
+
+    def _act(self, observation, info):
+        return np.tile([self.speed, 0.0], self.scenario.n_robots)
+
+
+def test_options_and_a_script_local_class_are_their_own_rows() -> None:
+    results = ev.evaluate(
+        TARGET,
+        {"mine": StandStill, "mine-moving": (StandStill, {"speed": 0.05}), "gentle": ("consensus", {"goal_gain": 0.01}),
+         "default": "consensus", "text": "consensus:goal_gain=2.0"},
+        maps=["map1"], slips=["nominal"], episodes=1, workers=2, max_episode_steps=40,
+    )  # fmt: skip
+    rows = {row["controller"] for row in results.leaderboard()}
+    assert rows == {"mine", "mine-moving", "gentle", "default", "text"}
+    by_label = {r["controller"]: r for r in results.records}
+    assert all(r["status"] == "ok" for r in results.records), [r.get("error") for r in results.records]
+    assert by_label["mine"]["controller_name"].endswith("test_research_harness.StandStill")
+    # the options reached the controllers: different configurations, different motion
+    still = np.asarray(by_label["mine"]["path_length"])
+    moving = np.asarray(by_label["mine-moving"]["path_length"])
+    assert np.all(still == 0) and np.all(moving > 0.05)
+    assert by_label["gentle"]["final_poses"] != by_label["default"]["final_poses"]
+    assert json.loads(by_label["gentle"]["controller_options"]) == {"goal_gain": 0.01}
+    configs = {c["label"]: c for c in results.config["controller_configs"]}
+    assert configs["text"] == {"label": "text", "name": "consensus", "options": {"goal_gain": 2.0}}
+
+
+def test_env_kwargs_reach_the_env_and_the_record() -> None:
+    results = ev.evaluate(TARGET, ["consensus"], maps=["random"], slips=["high"], episodes=1, workers=1,
+                          max_episode_steps=30, env_kwargs={"n_robots": 5, "goal_tolerance": 0.08})  # fmt: skip
+    (rec,) = results.records
+    assert rec["status"] == "ok", rec.get("error")
+    assert np.asarray(rec["final_poses"]).shape == (5, 3)
+    assert results.config["env_settings"]["n_robots"] == 5
+    assert results.config["env_settings"]["goal_tolerance"] == 0.08 and rec["tolerance"] == 0.08
+
+
+def test_random_maps_are_one_row_of_k_shared_layouts() -> None:
+    results = ev.evaluate(TARGET, ["consensus", "consensus-free"], maps=["map1"], slips=["nominal"], episodes=1,
+                          random_maps=3, workers=1, max_episode_steps=20)  # fmt: skip
+    random_cells = [c for c in results.cells if c.map == "random"]
+    assert len(random_cells) == 2 and all(c.episodes == 3 for c in random_cells)
+    first = [r for r in results.records if r["map"] == "random" and r["trial"] == 0]
+    # trial 0 of both controllers drove on one layout; the three trials have three layouts
+    assert first[0]["obstacles"] == first[1]["obstacles"]
+    targets = {json.dumps(r["targets"]) for r in results.records if r["map"] == "random" and r["controller"] == "consensus"}
+    assert len(targets) == 3
+
+
+def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> None:
+    from koopman_envs.sim.maps import load_map
+
+    path = tmp_path / "mine.json"
+    load_map("map1").save(path)
+    out = tmp_path / "run"
+    kwargs = dict(env_ids=TARGET, controller_names=["consensus"], maps=[str(path)], slips=["nominal"], episodes=1,
+                  workers=1, max_episode_steps=20, out=out)  # fmt: skip
+    results = ev.evaluate(**kwargs)
+    assert results.records[0]["status"] == "ok" and results.records[0]["map"] == str(path)
+    assert str(path) in results.config["map_files"]
+    spec = json.loads(path.read_text())
+    spec["obstacles"][0][2] += 0.01  # the file changes between the run and its resume
+    path.write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="map_files"):
+        ev.evaluate(**kwargs, resume=True)
+
+
+def test_gifs_record_one_animation_per_cell(tmp_path) -> None:
+    results = ev.evaluate(TARGET, ["consensus"], maps=["map1"], slips=["nominal"], episodes=2, workers=1,
+                          max_episode_steps=5, out=tmp_path, gifs=True)  # fmt: skip
+    first, second = results.records
+    assert first["animation"] and not second["animation"]
+    gif = tmp_path / first["animation"]
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+
+
+def test_comma_separated_lists_work_like_spaced_ones() -> None:
+    assert split_controller_list(["nominal-nmpc,koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]) == [
+        "nominal-nmpc", "koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]  # fmt: skip
+    assert ev.split_slips(["nominal,high", "0,0.1,0.2", "low,0,0,0.3"]) == ["nominal", "high", "0,0.1,0.2", "low",
+                                                                          "0,0,0.3"]  # fmt: skip
+    assert ev.split_words(["map1,map2", "map3"]) == ["map1", "map2", "map3"]
+    assert ev.parse_env_kwargs(["n_robots=5", "random_map={\"n_obstacles\": 2}", "x=text"]) == {
+        "n_robots": 5, "random_map": {"n_obstacles": 2}, "x": "text"}  # fmt: skip
+
+
+def test_cli_runs_comma_lists_env_kwargs_and_random_maps(tmp_path) -> None:
+    cmd = [sys.executable, "evaluate.py", "--env", TARGET, "--controllers", "consensus,consensus:goal_gain=0.5",
+           "--maps", "random", "--random-maps", "2", "--slips", "nominal,high", "--env-kwargs", "n_robots=4",
+           "--max-episode-steps", "20", "--workers", "1", "--out", str(tmp_path), "--quiet"]  # fmt: skip
+    proc = subprocess.run(cmd, cwd=Path(ev.__file__).parent, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "results.json").read_text())
+    assert doc["config"]["controllers"] == ["consensus", "consensus:goal_gain=0.5"]
+    assert doc["config"]["slips"] == ["nominal", "high"] and doc["config"]["env_settings"]["n_robots"] == 4
+    assert len(doc["episodes"]) == 2 * 2 * 2
+
+
+def _lambda_factory_config():
+    return {"inline": lambda: ConsensusController()}
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(env_kwargs={"n_robotz": 5}), "env kwarg 'n_robotz' is not one the environments take; allowed: .*n_robots"),
+        (dict(env_kwargs={"map": "map2"}), "env kwarg 'map' is a cell axis"),
+        (dict(env_kwargs={"n_robots": 5}), "map 'map1'.*n_robots"),
+        (dict(env_kwargs={"goal_tolerance": -1}), "goal_tolerance=-1"),
+        (dict(controller_names=["consensus:goal_gain=-1"]), "goal_gain=-1"),
+        (dict(controller_names=["consensus:gain"]), "'gain' is not key=value"),
+        (dict(controller_names=["consensus:nope=1"]), "bad option"),
+        (dict(controller_names={"x": 42}), "'x': 42 is not a registered name"),
+        (dict(controller_names={"x": ("consensus", {"goal_gain": object()})}), "must be plain JSON"),
+        (dict(controller_names=_lambda_factory_config(), workers=2), "cannot be sent to worker processes"),
+        (dict(random_maps=0), "random_maps=0 must be an integer >= 1"),
+        (dict(gifs=True), "gifs=True needs an output directory"),
+    ],
+)
+def test_bad_research_input_is_named_before_any_episode(kwargs, message) -> None:
+    base = dict(env_ids=TARGET, controller_names=["consensus"], maps=["map1"], slips=["nominal"], episodes=1,
+                workers=1, max_episode_steps=10)  # fmt: skip
+    with pytest.raises(ValueError, match=message):
+        ev.evaluate(**{**base, **kwargs})
+
+
+def test_mapping_forms_give_the_same_configuration() -> None:
+    a, b, c = controller_configs({"g": "consensus:goal_gain=0.4", "h": ("consensus", {"goal_gain": 0.4}),
+                                  "k": ConsensusController})  # fmt: skip
+    assert (a.name, a.options) == (b.name, b.options) == ("consensus", (("goal_gain", 0.4),))
+    assert c.factory is ConsensusController and c.name == "controllers.consensus.ConsensusController"
