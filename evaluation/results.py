@@ -336,12 +336,19 @@ class Results:
         return written
 
     def write(self, out_dir: str | os.PathLike) -> dict[str, Path]:
-        """Write results.md, results.json, results.csv and figures/ under ``out_dir``."""
+        """Write results.md, results.json, results.csv, figures/ and index.html under ``out_dir``.
+
+        ``index.html`` is one self-contained page with every table and figure
+        (see :func:`evaluation.html.write_html`).
+        """
+        from evaluation.html import write_html  # it imports this module
+
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"markdown": out / "results.md", "json": out / "results.json", "csv": out / "results.csv"}
         paths["markdown"].write_text(self.to_markdown() + "\n", encoding="utf-8")
         paths["json"].write_text(self.to_json() + "\n", encoding="utf-8")
         paths["csv"].write_text(self.to_csv(), encoding="utf-8")
-        self.save_figures(out / "figures")
+        figures = self.save_figures(out / "figures")
+        paths["html"] = write_html(self, out, figures)
         return paths
