@@ -187,9 +187,11 @@ def _config_section(results: Results) -> str:
     if calibration:
         budget = calibration.get("budget")
         budget_text = f"{budget:,}" if isinstance(budget, int) else _text(budget)
-        items.append(("Calibration budget", f"{budget_text} team-transitions (seed {_text(calibration.get('seed'))})"))
-    for key, name in (("start_noise", "Start noise"), ("tolerance", "Tolerance"),
-                      ("max_episode_steps", "Max. episode steps"), ("workers", "Workers"), ("backend", "Backend")):
+        seed = _text(calibration.get("seed"))
+        items.append(("Calibration budget", f"{budget_text} team-transitions (seed {seed})"))
+    settings = {"start_noise": "Start noise", "tolerance": "Tolerance",
+                "max_episode_steps": "Max. episode steps", "workers": "Workers", "backend": "Backend"}
+    for key, name in settings.items():
         if key in config:
             items.append((name, _text(config[key])))
     if isinstance(config.get("wall_seconds"), (int, float)):
@@ -209,12 +211,14 @@ def _animations(results: Results, out_dir: Path) -> list[str]:
     """One embedded animation per cell whose records name one (trial 0's first)."""
     out = []
     for cell in results.cells:
-        recs = [r for r in results.records if r.get("animation") and
-                (r["env_id"], r["controller"], r["map"], r["slip"]) == (cell.env_id, cell.controller, cell.map, cell.slip)]  # fmt: skip
+        where = (cell.env_id, cell.controller, cell.map, cell.slip)
+        recs = [r for r in results.records if r.get("animation")
+                and (r["env_id"], r["controller"], r["map"], r["slip"]) == where]  # fmt: skip
         if not recs:
             continue
         rec = min(recs, key=lambda r: (r.get("trial") != 0, r.get("trial") or 0))
-        caption = f"{cell.controller} | {task_label(cell.env_id)} | {cell.map} | {cell.slip} | trial {rec.get('trial', 0)}"
+        caption = (f"{cell.controller} | {task_label(cell.env_id)} | {cell.map} | {cell.slip} | "
+                   f"trial {rec.get('trial', 0)}")  # fmt: skip
         path = out_dir / str(rec["animation"])
         if path.is_file():
             out.append(_figure(path, caption))
@@ -223,7 +227,8 @@ def _animations(results: Results, out_dir: Path) -> list[str]:
     return out
 
 
-def render_html(results: Results, out_dir: str | os.PathLike, figures: Iterable[str | os.PathLike] | None = None) -> str:
+def render_html(results: Results, out_dir: str | os.PathLike,
+                figures: Iterable[str | os.PathLike] | None = None) -> str:  # fmt: skip
     """The report page of a run, as one self-contained HTML document.
 
     Parameters
@@ -260,7 +265,8 @@ def render_html(results: Results, out_dir: str | os.PathLike, figures: Iterable[
         parts.append(f'<p class="note">{_e(results.calibration_note())}</p>')
     paired = results.paired_rows()
     if paired[1]:
-        parts += ['<h2 id="paired">Paired comparisons</h2>', f'<p class="note">{_e(PAIRED_NOTE)}</p>', _table(paired)]
+        parts += ['<h2 id="paired">Paired comparisons</h2>', f'<p class="note">{_e(PAIRED_NOTE)}</p>',
+                  _table(paired)]  # fmt: skip
     parts += ['<h2 id="tables">Per-controller tables</h2>', f'<p class="note">{_e(TABLES_NOTE)}</p>']
     for env_id, name in results.table_keys():
         table = results.paper_rows(env_id, name)
@@ -270,7 +276,8 @@ def render_html(results: Results, out_dir: str | os.PathLike, figures: Iterable[
         parts.append(f'<p class="note">{_e(results.calibration_used())}</p>')
     if results.failed_episodes:
         parts += ['<h2 id="failed">Episodes that raised</h2>', "<ul>"]
-        parts += [f"<li><code>{_e(r['key'])}</code>: {_e(r.get('error'))}</li>" for r in results.failed_episodes]
+        parts += [f"<li><code>{_e(r['key'])}</code>: {_e(r.get('error'))}</li>"
+                  for r in results.failed_episodes]  # fmt: skip
         parts.append("</ul>")
     if figure_paths:
         parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']

@@ -121,10 +121,10 @@ def test_labels_are_escaped(run, page) -> None:
     assert render_html(run[0], run[1]).count("<script") == 1
 
 
-def test_config_summary(run, page) -> None:
-    results, _ = run
+def test_config_summary(page) -> None:
+    command = "Regenerate with <code>python evaluate.py --controllers consensus --episodes 2</code>"
     for text in ("KoopNav-TargetReaching-v0", "map1", "nominal, high", "Episodes per cell", "1,000,000",
-                 "Regenerate with <code>python evaluate.py --controllers consensus --episodes 2</code>"):  # fmt: skip
+                 command):  # fmt: skip
         assert text in page, text
     assert "consensus, goal_gain: 2" in page  # the options of the labelled configuration
 
@@ -151,7 +151,8 @@ def browser(tmp_path_factory):
     if not (CHROMIUM.is_file() and CHROMEDRIVER.is_file()):
         pytest.skip("no headless Chromium: apt install chromium chromium-driver")
     options = webdriver.ChromeOptions()
-    options.binary_location = str(CHROMIUM)  # with the driver's path below, selenium-manager downloads nothing
+    # both paths given: selenium-manager is not asked to find (or download) anything
+    options.binary_location = str(CHROMIUM)
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
                 "--no-first-run", "--window-size=1280,1600",
@@ -238,7 +239,8 @@ def test_click_on_a_header_sorts_and_a_second_click_reverses(browser, run) -> No
     slip = [th.text for th in headers].index("Slip")
     headers[slip].click()
     assert [row[slip] for row in _rows(table)] == ["high", "nominal"]
-    assert headers[slip].get_attribute("aria-sort") == "ascending" and headers[col].get_attribute("aria-sort") is None
+    assert headers[slip].get_attribute("aria-sort") == "ascending"
+    assert headers[col].get_attribute("aria-sort") is None
     headers[slip].click()
     assert [row[slip] for row in _rows(table)] == ["nominal", "high"]
 
