@@ -70,6 +70,32 @@ def _p_value(p: float) -> str:
     return "<0.001" if p < 1e-3 else f"{p:.3f}"
 
 
+#: A report table: its header and its rows, every cell already formatted as text.
+Table = tuple[list[str], list[list[str]]]
+
+LEADERBOARD_NOTE = (
+    "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
+    "Intervals: 95% Wilson for rates, 95% bootstrap for mean final distances (team mean per run). "
+    "Final distances over settled runs and over collision-free runs (the paper's convention)."
+)
+PAIRED_NOTE = (
+    "Success of a minus success of b on the episodes both ran (same map, slip and seed): "
+    "Newcombe's 95% interval for paired proportions and the exact McNemar test on the discordant pairs."
+)
+TABLES_NOTE = (
+    "Success and SR: k/n [95% Wilson interval]. Robots: mean+-SD over collision-free runs (the paper's "
+    "convention). Team: mean over robots per run, mean [95% bootstrap interval]."
+)
+
+
+def _markdown(table: Table) -> str:
+    """A :data:`Table` as a Markdown table."""
+    header, rows = table
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
 @dataclass
 class Results:
     """Everything a run produced: episode records, cells, and the run configuration."""
@@ -102,91 +128,112 @@ class Results:
         """Paired comparisons of every two controllers of a task on their shared seeds."""
         return paired_comparisons(self.records)
 
+    def table_keys(self) -> list[tuple[str, str]]:
+        """(env id, controller) of every per-controller table, in report order."""
+        return [(env_id, name) for env_id in dict.fromkeys(c.env_id for c in self.cells)
+                for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id)]  # fmt: skip
+
     # ------------------------------------------------------------------ tables
-    def paper_table(self, env_id: str, controller: str) -> str:
-        """The paper-style table of one controller: rates with intervals, distances in both conventions."""
+    def paper_rows(self, env_id: str, controller: str) -> Table:
+        """Header and formatted rows of one controller's paper-style table (one row per map and slip)."""
         cells = [c for c in self.cells if c.env_id == env_id and c.controller == controller]
-        if not cells:
-            return ""
-        n = max(len(c.distance_collision_free.per_robot) for c in cells)
-        robots = " | ".join(f"Robot {i + 1} [cm]" for i in range(n))
-        head = (f"| Map | Slip | Success | SR (collision-free) | {robots} | team, collision-free [cm] | "
-                "team, settled [cm] |")  # fmt: skip
-        lines = [f"**{controller}, {task_label(env_id)}**", "", head, "|" + "---|" * (6 + n)]
+        n = max((len(c.distance_collision_free.per_robot) for c in cells), default=0)
+        header = ["Map", "Slip", "Success", "SR (collision-free)", *(f"Robot {i + 1} [cm]" for i in range(n)),
+                  "team, collision-free [cm]", "team, settled [cm]"]  # fmt: skip
+        rows = []
         for c in cells:
             free = c.distance_collision_free
-            dists = " | ".join(_mean_sd(m, s, free.runs) for m, s in free.per_robot)
             settled = c.distance_settled
-            lines.append(
-                f"| {c.map} | {c.slip} | {_count(c.successes, c.valid, c.success_ci)} | "
-                f"{_count(c.collision_free, c.valid, c.collision_free_ci)} | {dists} | "
-                f"{_mean_ci(free.team_mean, free.team_low, free.team_high)} | "
-                f"{_mean_ci(settled.team_mean, settled.team_low, settled.team_high)} |"
-            )
-        return "\n".join(lines)
+            rows.append([
+                c.map, c.slip, _count(c.successes, c.valid, c.success_ci),
+                _count(c.collision_free, c.valid, c.collision_free_ci),
+                *(_mean_sd(m, s, free.runs) for m, s in free.per_robot),
+                _mean_ci(free.team_mean, free.team_low, free.team_high),
+                _mean_ci(settled.team_mean, settled.team_low, settled.team_high),
+            ])  # fmt: skip
+        return header, rows
+
+    def paper_table(self, env_id: str, controller: str) -> str:
+        """The paper-style table of one controller: rates with intervals, distances in both conventions."""
+        table = self.paper_rows(env_id, controller)
+        if not table[1]:
+            return ""
+        return f"**{controller}, {task_label(env_id)}**\n\n" + _markdown(table)
+
+    def paired_rows(self) -> Table:
+        """Header and formatted rows of the paired comparisons (success rate of a minus b)."""
+        header = ["Task", "a", "b", "Pairs", "Success a", "Success b", "a - b [95% CI]", "only a / only b",
+                  "McNemar p"]  # fmt: skip
+        rows = []
+        for r in self.paired():
+            rows.append([
+                task_label(r["env_id"]), r["a"], r["b"], str(r["n"]), f"{100 * r['rate_a']:.0f}%",
+                f"{100 * r['rate_b']:.0f}%",
+                f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]",
+                f"{r['only_a']} / {r['only_b']}", _p_value(r["p_value"]),
+            ])  # fmt: skip
+        return header, rows
 
     def paired_table(self) -> str:
         """Markdown table of the paired comparisons (success rate of a minus b)."""
-        rows = self.paired()
-        if not rows:
-            return ""
-        lines = ["| Task | a | b | Pairs | Success a | Success b | a - b [95% CI] | only a / only b | McNemar p |",
-                 "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
-        for r in rows:
-            lines.append(
-                f"| {task_label(r['env_id'])} | {r['a']} | {r['b']} | {r['n']} | {100 * r['rate_a']:.0f}% | "
-                f"{100 * r['rate_b']:.0f}% | {100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}] | "
-                f"{r['only_a']} / {r['only_b']} | {_p_value(r['p_value'])} |"
-            )
-        return "\n".join(lines)
+        table = self.paired_rows()
+        return _markdown(table) if table[1] else ""
 
-    def leaderboard_table(self) -> str:
-        """Markdown leaderboard with intervals."""
-        out = ["| Rank | Task | Controller | Episodes | Success [95% CI] | Collision-free [95% CI] | "
-               "Final dist., settled [cm] | Final dist., collision-free [cm] | Solve median [ms] | Solver failures |",
-               "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    def leaderboard_rows(self) -> Table:
+        """Header and formatted rows of the leaderboard (ranked within each task)."""
+        header = ["Rank", "Task", "Controller", "Episodes", "Success [95% CI]", "Collision-free [95% CI]",
+                  "Final dist., settled [cm]", "Final dist., collision-free [cm]", "Solve median [ms]",
+                  "Solver failures"]  # fmt: skip
+        rows = []
         rank, last_env = 0, None
         for row in self.leaderboard():
             rank = 1 if row["env_id"] != last_env else rank + 1
             last_env = row["env_id"]
             solve = "-" if math.isnan(row["solve_ms_median"]) else f"{row['solve_ms_median']:.1f}"
-            out.append(
-                f"| {rank} | {task_label(row['env_id'])} | {row['controller']} | {row['episodes']} | "
-                f"{_pct(row['success_rate'], row['success_ci'])} | "
-                f"{_pct(row['collision_free_rate'], row['collision_free_ci'])} | "
-                f"{_mean_ci(row['final_distance_cm'], *row['final_distance_ci'])} | "
-                f"{_mean_ci(row['final_distance_collision_free_cm'], *row['final_distance_collision_free_ci'])} | "
-                f"{solve} | {row['solver_failures']} |"
-            )
-        return "\n".join(out)
+            rows.append([
+                str(rank), task_label(row["env_id"]), row["controller"], str(row["episodes"]),
+                _pct(row["success_rate"], row["success_ci"]),
+                _pct(row["collision_free_rate"], row["collision_free_ci"]),
+                _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
+                _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
+                solve, str(row["solver_failures"]),
+            ])  # fmt: skip
+        return header, rows
+
+    def leaderboard_table(self) -> str:
+        """Markdown leaderboard with intervals."""
+        return _markdown(self.leaderboard_rows())
+
+    def calibration_note(self) -> str:
+        """The sentence on the calibration budget every controller was offered ("" when the config has none)."""
+        calibration = self.config.get("calibration", {})
+        if not calibration:
+            return ""
+        return (f"Calibration: every controller was offered the same plant (the env's robots in an open field, "
+                f"slip means hidden) with a budget of {calibration.get('budget'):,} team-transitions, seed "
+                f"{calibration.get('seed')}; the per-cell tables list what each used.")  # fmt: skip
+
+    def calibration_used(self) -> str:
+        """Calibration data each controller used ("" when none did)."""
+        used = [c for c in self.cells if c.calibration_transitions is not None]
+        if not used:
+            return ""
+        return "Calibration data used (team-transitions): " + ", ".join(
+            sorted({f"{c.controller} {c.calibration_transitions:,}" for c in used}))  # fmt: skip
 
     def to_markdown(self) -> str:
         """Leaderboard, paired comparisons and every paper-style table, as Markdown."""
-        calibration = self.config.get("calibration", {})
-        out = ["## Leaderboard", "", self.leaderboard_table(), "",
-               "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
-               "Intervals: 95% Wilson for rates, 95% bootstrap for mean final distances (team mean per run). "
-               "Final distances over settled runs and over collision-free runs (the paper's convention)."]  # fmt: skip
-        if calibration:
-            out += ["", f"Calibration: every controller was offered the same plant (the env's robots in an open field, "
-                        f"slip means hidden) with a budget of {calibration.get('budget'):,} team-transitions, seed "
-                        f"{calibration.get('seed')}; the per-cell tables list what each used."]  # fmt: skip
+        out = ["## Leaderboard", "", self.leaderboard_table(), "", LEADERBOARD_NOTE]
+        if self.calibration_note():
+            out += ["", self.calibration_note()]
         paired = self.paired_table()
         if paired:
-            out += ["", "## Paired comparisons", "",
-                    "Success of a minus success of b on the episodes both ran (same map, slip and seed): "
-                    "Newcombe's 95% interval for paired proportions and the exact McNemar test on the "
-                    "discordant pairs.", "", paired]  # fmt: skip
-        out += ["", "## Per-controller tables", "",
-                "Success and SR: k/n [95% Wilson interval]. Robots: mean+-SD over collision-free runs (the paper's "
-                "convention). Team: mean over robots per run, mean [95% bootstrap interval].", ""]  # fmt: skip
-        for env_id in dict.fromkeys(c.env_id for c in self.cells):
-            for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id):
-                out += [self.paper_table(env_id, name), ""]
-        used = [c for c in self.cells if c.calibration_transitions is not None]
-        if used:
-            out += ["Calibration data used (team-transitions): " + ", ".join(
-                sorted({f"{c.controller} {c.calibration_transitions:,}" for c in used}))]  # fmt: skip
+            out += ["", "## Paired comparisons", "", PAIRED_NOTE, "", paired]
+        out += ["", "## Per-controller tables", "", TABLES_NOTE, ""]
+        for env_id, name in self.table_keys():
+            out += [self.paper_table(env_id, name), ""]
+        if self.calibration_used():
+            out += [self.calibration_used()]
         if self.failed_episodes:
             out += ["", "## Episodes that raised", ""]
             out += [f"- `{r['key']}`: {r['error']}" for r in self.failed_episodes]
@@ -289,12 +336,19 @@ class Results:
         return written
 
     def write(self, out_dir: str | os.PathLike) -> dict[str, Path]:
-        """Write results.md, results.json, results.csv and figures/ under ``out_dir``."""
+        """Write results.md, results.json, results.csv, figures/ and index.html under ``out_dir``.
+
+        ``index.html`` is one self-contained page with every table and figure
+        (see :func:`evaluation.html.write_html`).
+        """
+        from evaluation.html import write_html  # it imports this module
+
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"markdown": out / "results.md", "json": out / "results.json", "csv": out / "results.csv"}
         paths["markdown"].write_text(self.to_markdown() + "\n", encoding="utf-8")
         paths["json"].write_text(self.to_json() + "\n", encoding="utf-8")
         paths["csv"].write_text(self.to_csv(), encoding="utf-8")
-        self.save_figures(out / "figures")
+        figures = self.save_figures(out / "figures")
+        paths["html"] = write_html(self, out, figures)
         return paths
