@@ -97,7 +97,9 @@ class KoopNavEnv(gym.Env):
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
-        return self._renderer.draw(self.scenario, np.asarray(self._trail), title=self._title())
+        return self._renderer.draw(
+            self.scenario, np.asarray(self._trail), title=self._title(), elapsed=self.engine.elapsed[0] * PARAMS.dt
+        )
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -116,11 +118,9 @@ class KoopNavEnv(gym.Env):
         return self.engine.slip.lambdas[0].copy()
 
     def _title(self) -> str:
+        """Fixed part of the rendered title (the renderer appends the episode time)."""
         cfg = self.config
-        return (
-            f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label} | "
-            f"t = {self.engine.elapsed[0] * PARAMS.dt:.1f} s"
-        )
+        return f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label}"
 
 
 _W = RewardWeights()
