@@ -185,14 +185,28 @@ class Renderer:
         self.blit = blit and not human
         self._reset_figure()
 
+    @staticmethod
+    def _no_figure() -> dict[str, Any]:
+        """The attributes that hold the figure and what is drawn on it, all unset."""
+        return {
+            "figure": None,
+            "ax": None,
+            "_scene": None,  # the artists of the episode drawn last
+            "_scene_key": None,  # the geometry they show
+            "_background": None,  # bitmap of the static artists
+            "_title_layout": None,  # the title head and clock length the background was laid out for
+            "_head": None,
+            "_clock": None,
+        }
+
     def _reset_figure(self) -> None:
-        self.figure = None
-        self.ax = None
-        self._scene: _Scene | None = None
-        self._scene_key: tuple | None = None
-        self._background = None
-        self._title_layout: tuple[str, int] | None = None
-        self._head = self._clock = None
+        self.__dict__.update(self._no_figure())
+
+    def __getstate__(self) -> dict[str, Any]:
+        # a pickled figure comes back with a bare canvas that cannot draw off-screen (no
+        # buffer_rgba), and a copy must not share the original's window: copies (pickle and
+        # copy.deepcopy alike) drop the figure, and their first draw builds a new one
+        return {**self.__dict__, **self._no_figure()}
 
     def _open(self) -> None:
         if self.human:

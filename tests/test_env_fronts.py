@@ -1,0 +1,114 @@
+"""Behaviour every front shares: copies (copy.deepcopy, pickle) that keep their state and render."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+from typing import Any, Callable
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from koopman_envs import formation_v0
+
+ID = "KoopNav-Formation-v0"
+N = 3
+
+COPIES: dict[str, Callable[[Any], Any]] = {
+    "deepcopy": copy.deepcopy,
+    "pickle": lambda env: pickle.loads(pickle.dumps(env)),
+}
+
+
+class Front:
+    """One front driven through one interface: ``step(action)`` with the flat team action
+    (2N,) returns the team's observation (the vector env: the batch of two)."""
+
+    def __init__(self, name: str, **kwargs: Any) -> None:
+        self.name = name
+        if name == "gym":
+            self.env = gym.make(ID, **kwargs)
+        elif name == "vector":
+            self.env = gym.make_vec(ID, num_envs=2, **kwargs)
+        elif name == "parallel":
+            self.env = formation_v0.parallel_env(**kwargs)
+        else:
+            self.env = formation_v0.env(**kwargs)
+
+    def reset(self, seed: int, options: dict | None = None) -> np.ndarray:
+        out = self.env.reset(seed=seed, options=options)
+        if self.name == "aec":
+            return self.team_observation(self.env)
+        observation = out[0]
+        if self.name == "parallel":
+            return np.concatenate([observation[a] for a in self.env.possible_agents])
+        return observation
+
+    @staticmethod
+    def team_observation(env: Any) -> np.ndarray:
+        return np.concatenate([env.observe(a) for a in env.possible_agents])
+
+    def step(self, env: Any, action: np.ndarray) -> np.ndarray:
+        """Step ``env`` (this front's env or a copy of it) with the team action."""
+        if self.name == "gym":
+            return env.step(action)[0]
+        if self.name == "vector":
+            return env.step(np.stack([action, action[::-1]]))[0]
+        blocks = {f"robot_{i}": action[2 * i : 2 * i + 2] for i in range(N)}
+        if self.name == "parallel":
+            observations = env.step(blocks)[0]
+            return np.concatenate([observations[a] for a in env.possible_agents])
+        for _ in range(N):
+            env.step(blocks[env.agent_selection])
+        return self.team_observation(env)
+
+    def poses(self, env: Any) -> np.ndarray:
+        return env.unwrapped.engine.poses.copy()
+
+
+FRONTS = ["gym", "vector"]
+RENDERING_FRONTS = ["gym"]  # the vector env does not render
+
+
+@pytest.mark.parametrize("how", COPIES)
+@pytest.mark.parametrize("name", RENDERING_FRONTS)
+def test_a_rendered_env_copies_and_the_copy_renders(name: str, how: str) -> None:
+    front = Front(name, render_mode="rgb_array", slip="high")
+    env = front.env
+    front.reset(seed=0)
+    for _ in range(3):
+        front.step(env, np.full(2 * N, 0.3))
+    first = env.render()
+    clone = COPIES[how](env)
+    frame = clone.render()
+    assert isinstance(frame, np.ndarray) and frame.shape == first.shape and frame.dtype == np.uint8
+    np.testing.assert_array_equal(frame, first)  # same trail, same clock, same picture
+    np.testing.assert_array_equal(env.render(), first)  # the original still draws
+    action = np.full(2 * N, 0.2)
+    front.step(env, action)
+    front.step(clone, action)
+    np.testing.assert_array_equal(clone.render(), env.render())
+    clone.close()
+    env.close()
+
+
+@pytest.mark.parametrize("how", COPIES)
+@pytest.mark.parametrize("name", FRONTS)
+def test_a_copy_keeps_the_state_and_replays_the_original(name: str, how: str) -> None:
+    """Poses, step count and random generators are copied: with the same actions the copy and
+    the original produce the same observations (slip draws included), and not a fresh episode."""
+    front = Front(name, slip="high", map="random")
+    env = front.env
+    front.reset(seed=4)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-0.6, 0.6, (40, 2 * N))
+    for action in actions[:10]:
+        front.step(env, action)
+    clone = COPIES[how](env)
+    np.testing.assert_array_equal(front.poses(clone), front.poses(env))
+    np.testing.assert_array_equal(clone.unwrapped.engine.elapsed, env.unwrapped.engine.elapsed)
+    assert clone.unwrapped.engine.elapsed[0] == 10
+    for action in actions[10:]:
+        np.testing.assert_array_equal(front.step(clone, action), front.step(env, action))
+    np.testing.assert_array_equal(front.poses(clone), front.poses(env))
