@@ -67,8 +67,8 @@ class Front:
         return env.unwrapped.engine.poses.copy()
 
 
-FRONTS = ["gym", "vector"]
-RENDERING_FRONTS = ["gym"]  # the vector env does not render
+FRONTS = ["gym", "vector", "parallel", "aec"]
+RENDERING_FRONTS = ["gym", "parallel", "aec"]  # the vector env does not render
 
 
 @pytest.mark.parametrize("how", COPIES)

@@ -8,7 +8,7 @@ from typing import Any, Sequence
 import gymnasium
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import EzPickle, seeding
+from gymnasium.utils import seeding
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
@@ -22,7 +22,7 @@ from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 __all__ = ["KoopNavParallelEnv", "make_constructors"]
 
 
-class KoopNavParallelEnv(ParallelEnv, EzPickle):
+class KoopNavParallelEnv(ParallelEnv):
     """N robots as N agents ``robot_0 .. robot_{N-1}`` on the shared simulator core.
 
     Each agent observes its own block of :mod:`koopman_envs.tasks.observation` (own pose and
@@ -31,6 +31,11 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
     Its reward is its own progress / effort (/ formation) terms plus the shared team terms
     (collision penalty, success bonus); the episode ends for all agents together. ``state()``
     returns the centralized observation of the Gymnasium env.
+
+    ``copy.deepcopy`` and pickling copy the whole state, as for the Gymnasium env: poses, step
+    count, live agents and random generators, so that the copy and the original, stepped with
+    the same actions, stay equal (the AEC form from ``env()`` too). A rendered env's figure is
+    not copied; the copy draws a new one.
 
     Parameters
     ----------
@@ -66,10 +71,6 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
         random_map: RandomMapConfig | dict | None = None,
         start_noise: float = 0.0,
     ) -> None:
-        EzPickle.__init__(
-            self, task, map, slip, n_robots, goal_tolerance, max_episode_steps, render_mode,
-            robot_radius, n_obstacle_obs, random_map, start_noise,
-        )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
