@@ -99,8 +99,13 @@ class EngineConfig:
         max_episode_steps: int | None = None,
         random_map: RandomMapConfig | dict | None = None,
         start_noise: float = 0.0,
+        max_cycles: int | None = None,
     ) -> EngineConfig:
-        """Validate user arguments (see the env docstrings) into a config."""
+        """Validate user arguments (see the env docstrings) into a config.
+
+        ``max_cycles`` is another name for ``max_episode_steps``, the one of PettingZoo's MPE
+        environments; giving both with different values is a ``ValueError``.
+        """
         random_map = _random_map_config(random_map)
         if task not in TASKS:
             raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
@@ -110,6 +115,15 @@ class EngineConfig:
         _check_positive("robot_radius", robot_radius)
         if not isinstance(n_obstacle_obs, (int, np.integer)) or n_obstacle_obs < 0:
             raise ValueError(f"n_obstacle_obs={n_obstacle_obs!r} must be an integer >= 0")
+        if max_cycles is not None:
+            _check_positive("max_cycles", max_cycles, integer=True)
+            if max_episode_steps is not None and max_episode_steps != max_cycles:
+                raise ValueError(
+                    f"max_cycles={max_cycles!r} and max_episode_steps={max_episode_steps!r} differ: "
+                    "they are two names of the one episode limit (max_cycles as in PettingZoo's MPE); "
+                    "give one of them, or the same value to both"
+                )
+            max_episode_steps = max_cycles
         if max_episode_steps is not None:
             _check_positive("max_episode_steps", max_episode_steps, integer=True)
         _check_non_negative("start_noise", start_noise)

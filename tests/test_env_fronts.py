@@ -1,4 +1,5 @@
-"""Behaviour every front shares: copies (copy.deepcopy, pickle) that keep their state and render."""
+"""Behaviour the fronts share: copies (copy.deepcopy, pickle) that keep their state and render,
+and PettingZoo's ``max_cycles`` name of the episode limit."""
 
 from __future__ import annotations
 
@@ -9,8 +10,10 @@ from typing import Any, Callable
 import gymnasium as gym
 import numpy as np
 import pytest
+from pettingzoo.test import max_cycles_test
 
-from koopman_envs import formation_v0
+from koopman_envs import formation_v0, target_reaching_v0
+from koopman_envs.params import PARAMS
 
 ID = "KoopNav-Formation-v0"
 N = 3
@@ -112,3 +115,29 @@ def test_a_copy_keeps_the_state_and_replays_the_original(name: str, how: str) ->
     for action in actions[10:]:
         np.testing.assert_array_equal(front.step(clone, action), front.step(env, action))
     np.testing.assert_array_equal(front.poses(clone), front.poses(env))
+
+
+@pytest.mark.parametrize("module", [formation_v0, target_reaching_v0])
+def test_pettingzoo_max_cycles_test(module) -> None:
+    max_cycles_test(module)
+
+
+def test_max_cycles_is_the_episode_limit() -> None:
+    for kwargs in ({"max_cycles": 7}, {"max_episode_steps": 7}, {"max_cycles": 7, "max_episode_steps": 7}):
+        for env in (formation_v0.parallel_env(**kwargs), formation_v0.raw_env(**kwargs).unwrapped):
+            assert env.config.max_episode_steps == 7, kwargs
+    assert formation_v0.parallel_env().config.max_episode_steps == PARAMS.max_episode_steps
+    env = formation_v0.parallel_env(max_cycles=5)
+    env.reset(seed=0)
+    for step in range(5):
+        _, _, terminations, truncations, _ = env.step({a: np.zeros(2) for a in env.agents})
+    assert all(truncations.values()) and not any(terminations.values()) and env.agents == []
+
+
+@pytest.mark.parametrize("factory", ["parallel_env", "env", "raw_env"])
+def test_max_cycles_and_max_episode_steps_must_agree(factory: str) -> None:
+    make = getattr(formation_v0, factory)
+    with pytest.raises(ValueError, match=r"max_cycles=5 and max_episode_steps=9 differ"):
+        make(max_cycles=5, max_episode_steps=9)
+    with pytest.raises(ValueError, match=r"max_cycles=0 must be an integer >= 1"):
+        make(max_cycles=0)

@@ -46,8 +46,12 @@ class KoopNavParallelEnv(ParallelEnv):
     start_noise : float
         As for the Gymnasium env: per reset, each start position moves uniformly within a disc of
         this radius [m] and each heading turns uniformly within +-start_noise [rad] (default 0).
-    max_episode_steps : int
-        Time limit in control periods.
+    max_episode_steps : int, optional
+        Time limit in control periods (default: ``PARAMS.max_episode_steps``).
+    max_cycles : int, optional
+        The same limit under the name PettingZoo's MPE environments give it (what
+        ``pettingzoo.test.max_cycles_test`` passes); giving both names with different values is
+        a ``ValueError``.
     """
 
     metadata = {
@@ -64,12 +68,13 @@ class KoopNavParallelEnv(ParallelEnv):
         slip: str | Sequence[float] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
-        max_episode_steps: int = PARAMS.max_episode_steps,
+        max_episode_steps: int | None = None,
         render_mode: str | None = None,
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
         random_map: RandomMapConfig | dict | None = None,
         start_noise: float = 0.0,
+        max_cycles: int | None = None,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -85,7 +90,11 @@ class KoopNavParallelEnv(ParallelEnv):
             n_obstacle_obs=n_obstacle_obs,
             random_map=random_map,
             start_noise=start_noise,
-            max_episode_steps=max_episode_steps,
+            # a PettingZoo env truncates by itself: without either name, the default limit
+            max_episode_steps=(
+                PARAMS.max_episode_steps if max_episode_steps is None and max_cycles is None else max_episode_steps
+            ),
+            max_cycles=max_cycles,
         )
         self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}
         self.engine = NavigationEngine(self.config, num_envs=1)
