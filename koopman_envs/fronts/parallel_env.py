@@ -14,12 +14,17 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 
 __all__ = ["KoopNavParallelEnv", "make_constructors"]
+
+#: ``pettingzoo.test.api_test`` and ``parallel_api_test`` check that reset takes ``options`` by
+#: passing ``{"options": 1}``: that key is accepted without effect so that they pass, while any
+#: other unknown key is still a ValueError
+_API_TEST_OPTIONS = ("options",)
 
 
 class KoopNavParallelEnv(ParallelEnv):
@@ -122,10 +127,28 @@ class KoopNavParallelEnv(ParallelEnv):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[np.float32]], dict[str, dict[str, Any]]]:
-        # ``options`` is accepted for API compatibility; no reset option is defined yet
+        """Start a new episode for every agent.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Reseeds the env's generator (map draws, start noise, slip).
+        options : dict, optional
+            As for the Gymnasium env: ``start_poses`` (N, 3) and/or ``targets`` (N, 3) replace
+            the map's for this episode, robot i being ``robot_i``; an unknown key or an invalid
+            pose is a ``ValueError`` (:func:`koopman_envs.engine.parse_reset_options`,
+            docs/reset_options.md). The key ``"options"`` is ignored: PettingZoo's API tests
+            pass ``{"options": 1}`` to check that ``reset`` takes the keyword.
+
+        Returns
+        -------
+        observations, infos : dict
+            Per agent.
+        """
+        overrides = parse_reset_options(options, self.config.n_robots, ignored=_API_TEST_OPTIONS)[0]
         if seed is not None or self._rng is None:
             self._rng = seeding.np_random(seed)[0]
-        self.engine.reset_env(0, self._rng)
+        self.engine.reset_env(0, self._rng, overrides)
         self.agents = list(self.possible_agents)
         self._features = self.engine.features()[0]
         if self.render_mode is not None:
