@@ -60,7 +60,7 @@ class _Scene:
     headings 5, above the spines' 2.5), so drawing them over a bitmap of the static artists gives
     the same picture as drawing everything at once. The axes title always holds the whole title
     (it places the layout); with ``animated`` it is left out of the drawing, because the
-    :class:`Renderer` draws it in two parts.
+    :class:`Renderer` draws it in parts.
     """
 
     def __init__(self, ax: Any, scenario: Scenario, animated: bool) -> None:
@@ -72,7 +72,7 @@ class _Scene:
         for x, y, r in scenario.obstacles:
             ax.add_patch(Circle((x, y), r, color="0.45", zorder=1))
         radius = scenario.robot_radius
-        self.trails, self.bodies, self.headings = [], [], []
+        self.trails, self.bodies = [], []
         # per robot in this order, so that artists of equal zorder stack as they always have
         for i in range(scenario.n_robots):
             color = _COLORS[i % len(_COLORS)]
@@ -81,14 +81,17 @@ class _Scene:
             ax.plot(*scenario.starts[i, :2], marker="s", ms=4, color=color, alpha=0.6, zorder=2)
             self.trails.append(ax.plot([], [], color=color, lw=1.5, zorder=3)[0])
             self.bodies.append(ax.add_patch(Circle((0.0, 0.0), radius[i], color=color, alpha=0.85, zorder=4)))
-            self.headings.append(ax.plot([], [], color="k", lw=1.5, zorder=5)[0])
+        # one black stroke per robot, all in one line broken by NaN rows: one artist to draw
+        # (the same pixels unless two strokes come within a pixel of each other)
+        self.headings = ax.plot([], [], color="k", lw=1.5, zorder=5)[0]
+        self._stroke = np.full((3 * scenario.n_robots, 2), np.nan)
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.grid(alpha=0.3)
         self.title = ax.set_title("", fontsize=9)
         #: artists that change from frame to frame, in drawing (zorder) order
-        self.dynamic = [*self.trails, *self.bodies, *self.headings]
+        self.dynamic = [*self.trails, *self.bodies, self.headings]
         for artist in (*self.dynamic, self.title):
             artist.set_animated(animated)
         self.limits: tuple[float, float, float, float] | None = None
@@ -98,13 +101,14 @@ class _Scene:
         (then the static background is stale)."""
         scenario = self.scenario
         poses = scenario.starts[None] if trail is None or len(trail) == 0 else np.asarray(trail)
-        radius = scenario.robot_radius
         for i in range(scenario.n_robots):
             self.trails[i].set_data(poses[:, i, 0], poses[:, i, 1])
-            x, y, th = poses[-1, i]
-            self.bodies[i].set_center((x, y))
-            reach = _HEADING_LENGTH * radius[i]
-            self.headings[i].set_data([x, x + reach * np.cos(th)], [y, y + reach * np.sin(th)])
+            self.bodies[i].set_center(poses[-1, i, :2])
+        x, y, th = poses[-1].T
+        reach = _HEADING_LENGTH * scenario.robot_radius
+        self._stroke[0::3, 0], self._stroke[0::3, 1] = x, y
+        self._stroke[1::3, 0], self._stroke[1::3, 1] = x + reach * np.cos(th), y + reach * np.sin(th)
+        self.headings.set_data(self._stroke[:, 0].copy(), self._stroke[:, 1].copy())
         self.title.set_text(title)
         limits = _view_limits(scenario, poses[-1])
         if limits == self.limits:
@@ -140,15 +144,15 @@ def draw_scenario(ax: Any, scenario: Scenario, trail: NDArray | None = None, tit
     _Scene(ax, scenario, animated=False).update(trail, title)
 
 
-def title_parts(title: str, elapsed: float | None) -> tuple[str, str]:
-    """The displayed title as (head, clock): ``"<title> | "`` and ``"t = 1.2 s"``.
+def title_parts(title: str, elapsed: float | None) -> tuple[str, str, str]:
+    """The displayed title as (head, clock, tail), e.g. ``"<title> | t = "``, ``"1.2"``, ``" s"``.
 
-    The head is fixed for an episode and the clock changes every frame; the whole title is
-    ``head + clock`` (just ``title`` when ``elapsed`` is None).
+    Only the clock changes from frame to frame; the whole title is ``head + clock + tail`` (just
+    ``title`` when ``elapsed`` is None).
     """
     if elapsed is None:
-        return title, ""
-    return (f"{title} | " if title else ""), f"t = {elapsed:.1f} s"
+        return title, "", ""
+    return (f"{title} | t = " if title else "t = "), f"{elapsed:.1f}", " s"
 
 
 def _rgb(canvas: Any) -> NDArray[np.uint8]:
@@ -197,6 +201,7 @@ class Renderer:
             "_title_layout": None,  # the title head and clock length the background was laid out for
             "_head": None,
             "_clock": None,
+            "_tail": None,
         }
 
     def _reset_figure(self) -> None:
@@ -224,15 +229,13 @@ class Renderer:
         if self.blit:
             from matplotlib.transforms import IdentityTransform
 
-            # the title in two parts at pixel positions: the fixed head goes into the background,
-            # so that a frame lays out and rasterizes only the few glyphs of the clock (text is
-            # by far the most expensive artist: ~10 ms for a whole title)
-            self._head, self._clock = (
-                self.figure.text(0, 0, "", ha=ha, va="baseline", transform=IdentityTransform())
-                for ha in ("left", "right")
-            )
-            self._head.set_animated(True)  # drawn into the background once it is placed
-            self._clock.set_animated(True)
+            # the title in three parts at pixel positions: the fixed head and tail go into the
+            # background, so that a frame lays out and rasterizes only the few glyphs of the clock
+            # (text is by far the most expensive artist: ~10 ms for a whole title)
+            self._head, self._clock, self._tail = (
+                self.figure.text(0, 0, "", va="baseline", transform=IdentityTransform(), animated=True)
+                for _ in range(3)
+            )  # animated: head and tail are drawn into the background once they are placed
 
     def draw(
         self, scenario: Scenario, trail: NDArray, title: str = "", elapsed: float | None = None
@@ -263,8 +266,8 @@ class Renderer:
             self._scene = _Scene(self.ax, scenario, animated=self.blit)
             self._scene_key = key
             stale = True
-        head, clock = title_parts(title, elapsed)
-        stale = self._scene.update(trail, head + clock) or stale
+        head, clock, tail = title_parts(title, elapsed)
+        stale = self._scene.update(trail, head + clock + tail) or stale
         canvas = self.figure.canvas
         if self.human:
             if stale:
@@ -278,14 +281,15 @@ class Renderer:
             self._lay_out()
             canvas.draw()
             return _rgb(canvas)
-        # the head's position depends on the whole title's width, which changes only with the
+        # the parts' positions depend on the whole title's width, which changes only with the
         # clock's length (the default font's digits all have the same width)
-        layout = (head, len(clock))
+        layout = (head, len(clock), tail)
         if stale or layout != self._title_layout or self._background is None:
             self._lay_out()
             canvas.draw()  # everything but the animated artists; places the axes and their title
-            self._place_title(head)
+            self._place_title(head, clock, tail)
             self.figure.draw_artist(self._head)
+            self.figure.draw_artist(self._tail)
             self._title_layout = layout
             self._background = canvas.copy_from_bbox(self.figure.bbox)
         else:
@@ -306,17 +310,27 @@ class Renderer:
             if np.allclose(self.ax.get_position(original=True).bounds, before, rtol=0.0, atol=1e-9):
                 break
 
-    def _place_title(self, head: str) -> None:
-        """Put the head and the clock where the axes title (which holds both) would draw them."""
+    def _place_title(self, head: str, clock: str, tail: str) -> None:
+        """Put the parts where the axes title, which holds all of them, draws their glyphs (the
+        pixels come out the same: text widths are sums of glyph advances)."""
         title = self.ax.title
-        box = title.get_window_extent(self.figure.canvas.get_renderer())
+        renderer = self.figure.canvas.get_renderer()
+        prop = title.get_fontproperties()
+
+        def width(text: str) -> float:
+            return renderer.get_text_width_height_descent(text, prop, ismath=False)[0]
+
+        x = title.get_window_extent(renderer).x0
         baseline = title.get_transform().transform(title.get_position())[1]
-        for part in (self._head, self._clock):
-            part.set_fontproperties(title.get_fontproperties())
+        for part, text, offset in (
+            (self._head, head, 0.0),
+            (self._clock, clock, width(head) if clock else 0.0),
+            (self._tail, tail, width(head + clock) if tail else 0.0),
+        ):
+            part.set_fontproperties(prop)
             part.set_color(title.get_color())
-        self._head.set_text(head)
-        self._head.set_position((box.x0, baseline))
-        self._clock.set_position((box.x1, baseline))
+            part.set_text(text)
+            part.set_position((x + offset, baseline))
 
     def close(self) -> None:
         """Release the figure."""

@@ -116,19 +116,23 @@ def test_blitting_matches_a_full_redraw_every_frame(open_map) -> None:
 
 def test_a_frame_takes_at_most_10_ms() -> None:
     """Only the robots, trails and clock are drawn per frame (the static background is kept as a
-    bitmap): >= 100 frames/s, where redrawing the whole figure took ~100 ms a frame."""
+    bitmap): >= 100 frames/s, where redrawing the whole figure took ~100 ms a frame.
+
+    Measured in CPU time of this process, the best of 5 windows: on the shared 2-core machine
+    wall time also counts the waits for a core that other jobs take (bench/render_speed.py
+    reports wall-clock frames/s)."""
     env = gym.make("KoopNav-Formation-v0", render_mode="rgb_array")
     env.reset(seed=0)
     env.render()
     action = np.array([0.3, 0.05] * 3)
     best = np.inf
-    for _ in range(5):  # the best of 5 windows: other tenants of the machine only slow one down
+    for _ in range(5):
         spent = 0.0
         for _ in range(10):
             env.step(action)
-            start = time.perf_counter()
+            start = time.process_time()
             env.render()
-            spent += time.perf_counter() - start
+            spent += time.process_time() - start
         best = min(best, spent / 10)
     assert best <= 0.010, f"{best * 1e3:.1f} ms a frame"
     env.close()
