@@ -22,14 +22,22 @@ from koopman_envs.params import PARAMS, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind, collision_flags
 from koopman_envs.sim.dynamics import advance_teams, wrap_angle
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig, generate_random_map, load_map
+from koopman_envs.sim.maps import MapSpec, RandomMapConfig, formation_offsets, generate_random_map, load_map
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import RANDOM_SLIP, SlipSampler, draw_random_lambdas
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import score_step
 
-__all__ = ["EngineConfig", "NavigationEngine", "RANDOM_SLIP", "StepResult"]
+__all__ = [
+    "EngineConfig",
+    "NavigationEngine",
+    "RANDOM_SLIP",
+    "RESET_OPTIONS",
+    "ResetOptions",
+    "StepResult",
+    "parse_reset_options",
+]
 
 # every combination of the three collision flag bits, by value, for vectorized naming
 _COLLISION_NAMES = np.array([CollisionKind.describe(flags) for flags in range(8)], dtype=object)
@@ -99,8 +107,13 @@ class EngineConfig:
         max_episode_steps: int | None = None,
         random_map: RandomMapConfig | dict | None = None,
         start_noise: float = 0.0,
+        max_cycles: int | None = None,
     ) -> EngineConfig:
-        """Validate user arguments (see the env docstrings) into a config."""
+        """Validate user arguments (see the env docstrings) into a config.
+
+        ``max_cycles`` is another name for ``max_episode_steps``, the one of PettingZoo's MPE
+        environments; giving both with different values is a ``ValueError``.
+        """
         random_map = _random_map_config(random_map)
         if task not in TASKS:
             raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
@@ -110,6 +123,15 @@ class EngineConfig:
         _check_positive("robot_radius", robot_radius)
         if not isinstance(n_obstacle_obs, (int, np.integer)) or n_obstacle_obs < 0:
             raise ValueError(f"n_obstacle_obs={n_obstacle_obs!r} must be an integer >= 0")
+        if max_cycles is not None:
+            _check_positive("max_cycles", max_cycles, integer=True)
+            if max_episode_steps is not None and max_episode_steps != max_cycles:
+                raise ValueError(
+                    f"max_cycles={max_cycles!r} and max_episode_steps={max_episode_steps!r} differ: "
+                    "they are two names of the one episode limit (max_cycles as in PettingZoo's MPE); "
+                    "give one of them, or the same value to both"
+                )
+            max_episode_steps = max_cycles
         if max_episode_steps is not None:
             _check_positive("max_episode_steps", max_episode_steps, integer=True)
         _check_non_negative("start_noise", start_noise)
@@ -152,6 +174,108 @@ class EngineConfig:
     def n_obstacles(self) -> int:
         """Obstacles per environment (fixed for a config)."""
         return self.random_map.n_obstacles if self.map_spec is None else self.map_spec.obstacles.shape[0]
+
+
+#: the keys of ``reset(options=...)``, on every front (docs/reset_options.md)
+RESET_OPTIONS = ("start_poses", "targets")
+
+
+@dataclass(frozen=True)
+class ResetOptions:
+    """Per-episode replacements of one environment's map data (None: the map's).
+
+    Attributes
+    ----------
+    start_poses : ndarray, shape (N, 3), optional
+        Start pose (x [m], y [m], heading [rad]) of every robot, used as given (no
+        ``start_noise``).
+    targets : ndarray, shape (N, 3), optional
+        Target pose of every robot; for formation, the formation offsets are these targets
+        relative to robot 0's.
+    """
+
+    start_poses: NDArray[np.float64] | None = None
+    targets: NDArray[np.float64] | None = None
+
+
+def parse_reset_options(
+    options: dict[str, Any] | None,
+    n_robots: int,
+    num_envs: int | None = None,
+    ignored: Sequence[str] = (),
+) -> list[ResetOptions]:
+    """Check the ``options`` of a ``reset`` and split them per environment.
+
+    The one check of every front's reset options. Keys (see docs/reset_options.md):
+
+    ``start_poses``
+        (N, 3) array of x [m], y [m], heading [rad] per robot that replaces the map's starts
+        for this episode (``start_noise`` is not applied to it).
+    ``targets``
+        (N, 3) array of target poses that replaces the map's targets for this episode.
+
+    A value of None means the map's. Here only the keys, shapes and finiteness are checked; the
+    engine checks the placement (inside the workspace, clear of obstacles and of each other)
+    against the episode's map, which with ``map="random"`` is drawn by the reset itself.
+
+    Parameters
+    ----------
+    options : dict or None
+        What the user passed to ``reset``.
+    n_robots : int
+        Team size N.
+    num_envs : int, optional
+        None for a single environment; K for the vector env, where an (N, 3) array applies to
+        every sub-environment and a (K, N, 3) array gives sub-environment i its row i.
+    ignored : sequence of str
+        Keys to accept without effect (the PettingZoo fronts: the probe of ``pettingzoo.test``).
+
+    Returns
+    -------
+    list of ResetOptions
+        One per environment (one for a single environment).
+
+    Raises
+    ------
+    ValueError
+        ``options`` is not a dict, has an unknown key (the message lists the allowed ones), or a
+        value of the wrong shape or with NaN/inf entries.
+    """
+    count = 1 if num_envs is None else int(num_envs)
+    if options is None:
+        return [ResetOptions()] * count
+    if not isinstance(options, dict):
+        raise ValueError(f"options={options!r} must be a dict or None; allowed keys: {list(RESET_OPTIONS)}")
+    unknown = [key for key in options if key not in RESET_OPTIONS and key not in ignored]
+    if unknown:
+        raise ValueError(
+            f"reset options {unknown} are not supported; allowed keys: {list(RESET_OPTIONS)} "
+            "(see docs/reset_options.md)"
+        )
+    shapes = [(n_robots, 3)] if num_envs is None else [(n_robots, 3), (count, n_robots, 3)]
+    per_env: dict[str, list[NDArray[np.float64] | None]] = {}
+    for key in RESET_OPTIONS:
+        value = options.get(key)
+        if value is None:
+            per_env[key] = [None] * count
+            continue
+        try:
+            arr = np.array(value, dtype=np.float64)  # a copy: later changes by the caller do not leak in
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"options[{key!r}]={value!r} is not an array of numbers") from exc
+        if arr.shape not in shapes:
+            allowed = " or ".join(str(shape) for shape in shapes)
+            raise ValueError(
+                f"options[{key!r}] has shape {arr.shape}; allowed: {allowed}, rows of (x [m], y [m], heading [rad])"
+            )
+        if not np.isfinite(arr).all():
+            bad = np.argwhere(~np.isfinite(arr))[0].tolist()
+            raise ValueError(
+                f"options[{key!r}] has a non-finite entry at index {bad} ({arr[tuple(bad)]}); allowed: finite numbers"
+            )
+        arr.setflags(write=False)
+        per_env[key] = [arr if arr.ndim == 2 else arr[i] for i in range(count)]
+    return [ResetOptions(**{key: per_env[key][i] for key in RESET_OPTIONS}) for i in range(count)]
 
 
 @dataclass
@@ -259,22 +383,46 @@ class NavigationEngine:
         self.obstacles[index] = spec.obstacles
         self.geometry.set_obstacles(index, spec.obstacles)
         self.target[index] = spec.targets[:n].T
-        self.offset[index] = spec.formation_offsets[:n].T
+        self.offset[index] = formation_offsets(spec.targets[:n]).T
         self.starts[index] = spec.starts[:n]
 
-    def reset_env(self, index: int, rng: np.random.Generator) -> None:
-        """Start a new episode in environment ``index``, drawing only from ``rng``."""
+    def reset_env(self, index: int, rng: np.random.Generator, options: ResetOptions | None = None) -> None:
+        """Start a new episode in environment ``index``, drawing only from ``rng``.
+
+        ``options`` (from :func:`parse_reset_options`) replace the map's start poses and/or
+        targets for this episode; they are checked against the episode's map (a new one per
+        reset with ``map="random"``) before anything changes.
+
+        Raises
+        ------
+        ValueError
+            A start pose or target of ``options`` that is outside the workspace, overlaps an
+            obstacle or another robot's (the environment keeps its previous episode).
+        """
         cfg = self.config
         n = cfg.n_robots
-        if cfg.map_spec is None:
-            self._set_map(index, generate_random_map(rng, n, cfg.random_map, float(cfg.robot_radius[0])))
+        options = options or ResetOptions()
         spec = self.maps[index]
-        # the noise is drawn after the map and before the slip level, and only when asked for,
-        # so that start_noise=0 consumes nothing and replays every earlier rollout bit for bit
-        self.starts[index] = spec.starts[:n]
-        if cfg.start_noise > 0:
-            self.starts[index] = self._perturbed_starts(spec, rng)
-        self.state[index] = self.starts[index].T
+        if cfg.map_spec is None:
+            spec = generate_random_map(rng, n, cfg.random_map, float(cfg.robot_radius[0]))
+        targets = spec.targets[:n] if options.targets is None else options.targets
+        if options.targets is not None:
+            self._check_placement(spec, targets, "targets")
+        if options.start_poses is not None:
+            self._check_placement(spec, options.start_poses, "start_poses")
+            starts = options.start_poses
+        elif cfg.start_noise > 0:
+            # the noise is drawn after the map and before the slip level, and only when asked
+            # for, so that start_noise=0 consumes nothing and replays earlier rollouts bit for bit
+            starts = self._perturbed_starts(spec, rng)
+        else:
+            starts = spec.starts[:n]
+        if spec is not self.maps[index]:
+            self._set_map(index, spec)
+        self.target[index] = targets.T
+        self.offset[index] = formation_offsets(targets).T
+        self.starts[index] = starts
+        self.state[index] = starts.T
         self.settled[index] = 0
         self.elapsed[index] = 0
         self.collision[index] = 0
@@ -283,6 +431,18 @@ class NavigationEngine:
         dy = self.target[index, 1] - self.state[index, 1]
         self.distances[index] = np.sqrt(dx * dx + dy * dy)  # the formula of FeatureBuilder
         self.slip.reset_env(index, rng, draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas)
+
+    def _check_placement(self, spec: MapSpec, poses: NDArray, key: str) -> None:
+        """Raise ValueError naming ``options[key]`` if the team cannot stand at ``poses`` on ``spec``."""
+        radius = float(self.config.robot_radius[0])
+        label = "start" if key == "start_poses" else "target"
+        problem = spec.pose_problem(poses, radius, PARAMS.workspace, label)
+        if problem is not None:
+            raise ValueError(
+                f"options[{key!r}]: {problem} (map {spec.name!r}); allowed: (x, y, heading) rows whose "
+                f"robot discs of radius {radius} lie inside the workspace {PARAMS.workspace}, clear of "
+                "every obstacle and of each other"
+            )
 
     def _perturbed_starts(self, spec: MapSpec, rng: np.random.Generator) -> NDArray[np.float64]:
         """The map's starts, each displaced uniformly in a disc of radius ``start_noise`` [m] and

@@ -131,7 +131,7 @@ def test_pettingzoo_front(module, env_id: str) -> None:
     np.testing.assert_array_equal(par.scenario.starts, single.unwrapped.scenario.starts)
     np.testing.assert_array_equal(np.concatenate([observations[a] for a in par.possible_agents]), obs)
     assert not np.array_equal(par.scenario.starts, load_map(par.config.map_name).starts[:3])
-    clone = pickle.loads(pickle.dumps(par))  # EzPickle rebuilds from the constructor arguments
+    clone = pickle.loads(pickle.dumps(par))  # copies the config with the state
     assert clone.config.start_noise == 0.25
 
 

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig
@@ -61,9 +61,28 @@ class KoopNavEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Start a new episode.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Reseeds the env's generator (map draws, start noise, slip).
+        options : dict, optional
+            Replacements for this episode only: ``start_poses`` (N, 3) of x [m], y [m],
+            heading [rad] instead of the map's starts (no ``start_noise``), and ``targets``
+            (N, 3) instead of the map's targets. Each is checked (shape, finite, inside the
+            workspace, clear of obstacles and of each other) and an unknown key is a
+            ``ValueError``; see :func:`koopman_envs.engine.parse_reset_options` and
+            docs/reset_options.md.
+
+        Returns
+        -------
+        observation : ndarray of float32
+        info : dict
+        """
+        overrides = parse_reset_options(options, self.config.n_robots)[0]  # before any change
         super().reset(seed=seed)
-        # ``options`` is accepted for API compatibility; no reset option is defined yet
-        self.engine.reset_env(0, self.np_random)
+        self.engine.reset_env(0, self.np_random, overrides)
         if self.render_mode is not None:
             self._trail = [self.engine.poses[0].copy()]
         obs = self.engine.features()[0].reshape(-1).astype(np.float32)
@@ -97,7 +116,9 @@ class KoopNavEnv(gym.Env):
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
-        return self._renderer.draw(self.scenario, np.asarray(self._trail), title=self._title())
+        return self._renderer.draw(
+            self.scenario, np.asarray(self._trail), title=self._title(), elapsed=self.engine.elapsed[0] * PARAMS.dt
+        )
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -116,11 +137,9 @@ class KoopNavEnv(gym.Env):
         return self.engine.slip.lambdas[0].copy()
 
     def _title(self) -> str:
+        """Fixed part of the rendered title (the renderer appends the episode time)."""
         cfg = self.config
-        return (
-            f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label} | "
-            f"t = {self.engine.elapsed[0] * PARAMS.dt:.1f} s"
-        )
+        return f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label}"
 
 
 _W = RewardWeights()
@@ -179,6 +198,8 @@ _COMMON_DOC = """
     [rad] (wrapped to [-pi, pi)), from the env's own ``np_random``; a draw that leaves the
     workspace or overlaps an obstacle or another robot is redrawn for the whole team (100 tries,
     then ``RuntimeError``). ``env.unwrapped.scenario.starts`` holds the starts actually used.
+    ``reset(options={{"start_poses": poses}})`` starts one episode at the given (N, 3) poses
+    instead, and ``options={{"targets": targets}}`` replaces the targets (docs/reset_options.md).
 
     ## Episode End
     1. Termination: any collision (robot-obstacle, robot-robot, or a centre leaving the

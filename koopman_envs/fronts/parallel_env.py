@@ -8,21 +8,26 @@ from typing import Any, Sequence
 import gymnasium
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import EzPickle, seeding
+from gymnasium.utils import seeding
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 
 __all__ = ["KoopNavParallelEnv", "make_constructors"]
 
+#: ``pettingzoo.test.api_test`` and ``parallel_api_test`` check that reset takes ``options`` by
+#: passing ``{"options": 1}``: that key is accepted without effect so that they pass, while any
+#: other unknown key is still a ValueError
+_API_TEST_OPTIONS = ("options",)
 
-class KoopNavParallelEnv(ParallelEnv, EzPickle):
+
+class KoopNavParallelEnv(ParallelEnv):
     """N robots as N agents ``robot_0 .. robot_{N-1}`` on the shared simulator core.
 
     Each agent observes its own block of :mod:`koopman_envs.tasks.observation` (own pose and
@@ -31,6 +36,11 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
     Its reward is its own progress / effort (/ formation) terms plus the shared team terms
     (collision penalty, success bonus); the episode ends for all agents together. ``state()``
     returns the centralized observation of the Gymnasium env.
+
+    ``copy.deepcopy`` and pickling copy the whole state, as for the Gymnasium env: poses, step
+    count, live agents and random generators, so that the copy and the original, stepped with
+    the same actions, stay equal (the AEC form from ``env()`` too). A rendered env's figure is
+    not copied; the copy draws a new one.
 
     Parameters
     ----------
@@ -41,8 +51,12 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
     start_noise : float
         As for the Gymnasium env: per reset, each start position moves uniformly within a disc of
         this radius [m] and each heading turns uniformly within +-start_noise [rad] (default 0).
-    max_episode_steps : int
-        Time limit in control periods.
+    max_episode_steps : int, optional
+        Time limit in control periods (default: ``PARAMS.max_episode_steps``).
+    max_cycles : int, optional
+        The same limit under the name PettingZoo's MPE environments give it (what
+        ``pettingzoo.test.max_cycles_test`` passes); giving both names with different values is
+        a ``ValueError``.
     """
 
     metadata = {
@@ -59,17 +73,14 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
         slip: str | Sequence[float] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
-        max_episode_steps: int = PARAMS.max_episode_steps,
+        max_episode_steps: int | None = None,
         render_mode: str | None = None,
         robot_radius: float = PARAMS.robot_radius,
         n_obstacle_obs: int = 4,
         random_map: RandomMapConfig | dict | None = None,
         start_noise: float = 0.0,
+        max_cycles: int | None = None,
     ) -> None:
-        EzPickle.__init__(
-            self, task, map, slip, n_robots, goal_tolerance, max_episode_steps, render_mode,
-            robot_radius, n_obstacle_obs, random_map, start_noise,
-        )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
@@ -84,7 +95,11 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
             n_obstacle_obs=n_obstacle_obs,
             random_map=random_map,
             start_noise=start_noise,
-            max_episode_steps=max_episode_steps,
+            # a PettingZoo env truncates by itself: without either name, the default limit
+            max_episode_steps=(
+                PARAMS.max_episode_steps if max_episode_steps is None and max_cycles is None else max_episode_steps
+            ),
+            max_cycles=max_cycles,
         )
         self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}
         self.engine = NavigationEngine(self.config, num_envs=1)
@@ -112,10 +127,28 @@ class KoopNavParallelEnv(ParallelEnv, EzPickle):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[np.float32]], dict[str, dict[str, Any]]]:
-        # ``options`` is accepted for API compatibility; no reset option is defined yet
+        """Start a new episode for every agent.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Reseeds the env's generator (map draws, start noise, slip).
+        options : dict, optional
+            As for the Gymnasium env: ``start_poses`` (N, 3) and/or ``targets`` (N, 3) replace
+            the map's for this episode, robot i being ``robot_i``; an unknown key or an invalid
+            pose is a ``ValueError`` (:func:`koopman_envs.engine.parse_reset_options`,
+            docs/reset_options.md). The key ``"options"`` is ignored: PettingZoo's API tests
+            pass ``{"options": 1}`` to check that ``reset`` takes the keyword.
+
+        Returns
+        -------
+        observations, infos : dict
+            Per agent.
+        """
+        overrides = parse_reset_options(options, self.config.n_robots, ignored=_API_TEST_OPTIONS)[0]
         if seed is not None or self._rng is None:
             self._rng = seeding.np_random(seed)[0]
-        self.engine.reset_env(0, self._rng)
+        self.engine.reset_env(0, self._rng, overrides)
         self.agents = list(self.possible_agents)
         self._features = self.engine.features()[0]
         if self.render_mode is not None:

@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig
@@ -106,7 +106,26 @@ class KoopNavVectorEnv(VectorEnv):
         seed: int | Sequence[int | None] | None = None,
         options: dict[str, Any] | None = None,
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        # ``options`` is accepted for API compatibility; no reset option is defined yet
+        """Start a new episode in every sub-environment.
+
+        Parameters
+        ----------
+        seed : int or sequence of int, optional
+            An int s seeds sub-env i with s + i; a sequence gives one seed (or None) per sub-env.
+        options : dict, optional
+            ``start_poses`` and/or ``targets`` as for the single env, for this episode only
+            (auto-resets use the map's): an (N, 3) array applies to every sub-env, a (K, N, 3)
+            array gives sub-env i its row i. An unknown key or an invalid pose is a
+            ``ValueError`` (:func:`koopman_envs.engine.parse_reset_options`,
+            docs/reset_options.md); a pose rejected on sub-env i's map leaves the sub-envs
+            before i already reset, so reset again.
+
+        Returns
+        -------
+        observations : ndarray of float32, shape (K, N * F)
+        info : dict
+        """
+        overrides = parse_reset_options(options, self.config.n_robots, self.num_envs)  # before any change
         if seed is None:
             seeds: Sequence[int | None] = [None] * self.num_envs
         elif isinstance(seed, (int, np.integer)):
@@ -124,7 +143,7 @@ class KoopNavVectorEnv(VectorEnv):
                 if s is not None:
                     self._rngs[i] = seeding.np_random(s)[0]
         for i in range(self.num_envs):
-            self.engine.reset_env(i, self._rngs[i])
+            self.engine.reset_env(i, self._rngs[i], overrides[i])
         self._autoreset[:] = False
         return self._observations(self.engine.features()), self._info()
 

@@ -25,12 +25,19 @@ __all__ = [
     "MAP_NAMES",
     "MapSpec",
     "RandomMapConfig",
+    "formation_offsets",
     "generate_random_map",
     "load_map",
 ]
 
 BUILTIN_MAPS = ("map1", "map2", "map3", "map4")
 MAP_NAMES = (*BUILTIN_MAPS, "random")
+
+
+def formation_offsets(targets: NDArray) -> NDArray[np.float64]:
+    """Target position of each robot relative to the leader's (robot 0), shape (N, 2) [m], from
+    the target poses (N, 3)."""
+    return targets[:, :2] - targets[0, :2]
 
 
 def _as_array(value: Any, name: str, columns: int, map_name: str) -> NDArray[np.float64]:
@@ -102,7 +109,7 @@ class MapSpec:
     @property
     def formation_offsets(self) -> NDArray[np.float64]:
         """Target position of each robot relative to the leader's (robot 0), shape (S, 2) [m]."""
-        return self.targets[:, :2] - self.targets[0, :2]
+        return formation_offsets(self.targets)
 
     def validate(
         self,
