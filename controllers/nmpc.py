@@ -11,7 +11,6 @@ to a safe stop, counts the failure, and the episode goes on.
 from __future__ import annotations
 
 import os
-import shutil
 import time
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
@@ -21,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.solver_cache import jit_options
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -68,6 +68,9 @@ FATROP_OPTIONS: dict[str, Any] = {
     "fatrop.bound_push": 1e-6,
     "fatrop.max_iter": 100,
 }
+
+#: environment variable that turns the default compilation off (``KOOPNAV_NMPC_JIT=0``)
+JIT_ENV = "KOOPNAV_NMPC_JIT"
 
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
 
@@ -156,17 +159,22 @@ class NMPCConfig:
     slack_penalty : float
         Weight of the slack penalty.
     solver : str
-        CasADi ``nlpsol`` plugin: ``"ipopt"`` (the paper's) or ``"fatrop"`` (about twice as fast
-        here, same closed-loop result on the benchmark episode; see ``bench/nmpc_solve.py``).
+        CasADi ``nlpsol`` plugin: ``"fatrop"`` (default: the structure-exploiting interior-point
+        solver shipped with CasADi, several times faster here; see ``bench/nmpc_solve.py`` and
+        the closed-loop comparison in docs/results.md) or ``"ipopt"`` (the paper's).
     solver_options : dict, optional
         Options passed to ``nlpsol`` for ``solver`` (default: :data:`IPOPT_OPTIONS` or
         :data:`FATROP_OPTIONS`).
     fallback_solver : str or None
         Solver tried on the same problem when ``solver`` fails, before the plan fallback
         (ignored when it equals ``solver``).
-    jit : bool
-        Compile the NLP's functions to C at build time (needs a C compiler on PATH; a few
-        seconds per problem structure, then several times faster derivative evaluations).
+    jit : bool or None
+        Compile the NLP's functions to C (several times faster derivative evaluations). The
+        compiled objects are cached on disk (:mod:`controllers.solver_cache`), so a problem
+        structure is compiled once per machine, not per process; without a C compiler the solver
+        runs uncompiled, with one warning. None (default): compiled unless the environment
+        variable ``KOOPNAV_NMPC_JIT`` is ``0`` (the test suite sets it, to skip compiling its
+        many one-off problem structures).
     """
 
     horizon: int = PARAMS.horizon
@@ -179,10 +187,17 @@ class NMPCConfig:
     formation_bound: float = 0.03
     soft_constraints: bool = True
     slack_penalty: float = 1e4
-    solver: str = "ipopt"
+    solver: str = "fatrop"
     solver_options: dict[str, Any] | None = None
     fallback_solver: str | None = "ipopt"
-    jit: bool = False
+    jit: bool | None = None
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the solvers are compiled: ``jit``, or when None, unless ``$KOOPNAV_NMPC_JIT`` is 0."""
+        if self.jit is not None:
+            return bool(self.jit)
+        return os.environ.get(JIT_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
 
     def options_for(self, solver: str) -> dict[str, Any]:
         """nlpsol options of ``solver``: ``solver_options`` for the main solver, else defaults."""
@@ -190,10 +205,10 @@ class NMPCConfig:
             options = dict(self.solver_options)
         else:
             options = dict(DEFAULT_SOLVER_OPTIONS.get(solver, {}))
-        if self.jit:
-            options.setdefault("jit", True)
-            options.setdefault("compiler", "shell")
-            options.setdefault("jit_options", {"flags": ["-O2"], "verbose": False})
+        if self.compiled:
+            # compiled once per machine (controllers.solver_cache); {} without a C compiler
+            for key, value in jit_options().items():
+                options.setdefault(key, value)
         return options
 
     def with_options(self, **changes: Any) -> NMPCConfig:
@@ -356,8 +371,6 @@ class _Problem:
             if name == "fatrop":
                 options.setdefault("structure_detection", "auto")
                 options.setdefault("equality", self._equality)
-            if options.get("jit") and shutil.which(os.environ.get("CC", "gcc")) is None:
-                raise ValueError("jit=True needs a C compiler (gcc) on PATH; install one or use jit=False")
             label = f"nmpc_{name}_cold" if cold else f"nmpc_{name}"
             self._solvers[(name, cold)] = ca.nlpsol(label, name, self._nlp, options)
         return self._solvers[(name, cold)]
