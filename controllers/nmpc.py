@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.solver_cache import jit_options
+from controllers.solver_cache import jit_options, nlpsol
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -372,7 +372,7 @@ class _Problem:
                 options.setdefault("structure_detection", "auto")
                 options.setdefault("equality", self._equality)
             label = f"nmpc_{name}_cold" if cold else f"nmpc_{name}"
-            self._solvers[(name, cold)] = ca.nlpsol(label, name, self._nlp, options)
+            self._solvers[(name, cold)] = nlpsol(label, name, self._nlp, options)
         return self._solvers[(name, cold)]
 
     def plan(self, w: NDArray) -> tuple[NDArray, NDArray]:

@@ -12,6 +12,7 @@ uncompiled, with one warning.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import functools
 import hashlib
 import os
@@ -21,13 +22,13 @@ import sys
 import tempfile
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import casadi as ca
 
 from controllers.cache import cache_root
 
-__all__ = ["COMPILER_FLAGS", "compiler", "jit_options", "solver_cache_dir"]
+__all__ = ["COMPILER_FLAGS", "compiler", "jit_options", "nlpsol", "solver_cache_dir"]
 
 #: flags of the compiled NLP functions (-O2: -O3 compiles far longer for no measurable gain here)
 COMPILER_FLAGS = ("-O2",)
@@ -88,6 +89,9 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS) -> dict[str, Any]:
     return {
         "jit": True,
         "compiler": "shell",
+        # fixed names keep the generated text the same in every process (a temporary suffix also
+        # renames symbols inside it, which defeats the cache); :func:`nlpsol` writes the source
+        # into the build directory, not the working directory that worker processes share
         "jit_temp_suffix": False,
         # the build directory is removed as a whole at exit (CasADi's own cleanup would run after
         # it, during interpreter teardown, and warn about every file already gone)
@@ -95,3 +99,23 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS) -> dict[str, Any]:
         "jit_options": {"compiler": command, "flags": list(flags), "directory": build + os.sep,
                         "temp_suffix": False, "name": "nlp", "verbose": False, "cleanup": False},  # fmt: skip
     }
+
+
+@contextlib.contextmanager
+def _working_directory(path: str) -> Iterator[None]:
+    previous = os.getcwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(previous)
+
+
+def nlpsol(label: str, plugin: str, nlp: dict[str, Any], options: dict[str, Any]) -> ca.Function:
+    """``casadi.nlpsol``; with :func:`jit_options` the generated source is written into the
+    build's own directory (CasADi writes it to the working directory, under a fixed name)."""
+    directory = options.get("jit_options", {}).get("directory") if options.get("jit") else None
+    if not directory:
+        return ca.nlpsol(label, plugin, nlp, options)
+    with _working_directory(directory):
+        return ca.nlpsol(label, plugin, nlp, options)

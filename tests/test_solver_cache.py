@@ -9,7 +9,6 @@ import sys
 import warnings
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 import pytest
 
@@ -25,11 +24,13 @@ exec gcc "$@"
 """
 
 BUILD = """
+import sys
 import casadi as ca
-from controllers.solver_cache import jit_options
+from controllers.solver_cache import jit_options, nlpsol
+target = float(sys.argv[1]) if len(sys.argv) > 1 else 1.0  # another target, another problem
 x = ca.SX.sym("x", 3)
-nlp = {"x": x, "f": ca.sumsqr(x - 1) + x[0] * x[1], "g": x[0] + x[1]}
-solver = ca.nlpsol("s", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, **jit_options()})
+nlp = {"x": x, "f": ca.sumsqr(x - target) + x[0] * x[1], "g": x[0] + x[1]}
+solver = nlpsol("s", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, **jit_options()})
 print(float(solver(x0=0, lbg=0, ubg=1)["x"][2]))
 """
 
@@ -46,10 +47,10 @@ def counting_compiler(tmp_path, monkeypatch):
     return lambda: len(calls.read_text().splitlines()) if calls.exists() else 0
 
 
-def _build_in_subprocess() -> subprocess.Popen:
+def _build_in_subprocess(target: float = 1.0, cwd: Path | None = None) -> subprocess.Popen:
     root = Path(solver_cache.__file__).resolve().parents[1]
     env = {**os.environ, "PYTHONPATH": str(root)}
-    return subprocess.Popen([sys.executable, "-c", BUILD], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-c", BUILD, str(target)], env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)  # fmt: skip
 
 
@@ -78,6 +79,16 @@ def test_two_processes_building_at_once(counting_compiler) -> None:
     assert not list(solver_cache_dir().glob("*.part"))
     assert _run(_build_in_subprocess()) == pytest.approx(1.0, abs=1e-6)
     assert counting_compiler() <= 2  # both may have compiled; the third did not
+
+
+def test_two_problems_built_at_once_in_one_directory_stay_apart(counting_compiler, tmp_path) -> None:
+    """Workers share a working directory: each build's generated source must stay its own."""
+    procs = [_build_in_subprocess(target, cwd=tmp_path) for target in (1.0, 3.0)]
+    assert [_run(p) for p in procs] == pytest.approx([1.0, 3.0], abs=1e-6)
+    assert len(list(solver_cache_dir().glob("*.o"))) == 2
+    assert not list(tmp_path.glob("*.c"))  # nothing generated into the working directory
+    assert [_run(_build_in_subprocess(t)) for t in (3.0, 1.0)] == pytest.approx([3.0, 1.0], abs=1e-6)
+    assert counting_compiler() == 2
 
 
 def test_a_corrupt_entry_is_rebuilt_not_loaded(counting_compiler) -> None:
