@@ -2,13 +2,14 @@
 
 Usage::
 
-    python bench/nmpc_solve.py [--slip nominal] [--map map1] [--jit] [--no-do-mpc]
+    python bench/nmpc_solve.py [--slip nominal] [--map map1] [--cache-timing] [--no-do-mpc]
 
-For Koopman-NMPC and nominal NMPC it prints median / p95 / max solve time per step with IPOPT
-(warm-started, the default) and with fatrop (the structure-exploiting interior-point solver
-shipped with CasADi), plus each episode's outcome so that "same closed-loop result" can be read
-off. ``--jit`` adds fatrop with the NLP compiled to C (needs gcc; the compilation takes 30-60 s
-per problem and is not included in the per-step times). When ``do-mpc`` is installed it also solves the same nominal problem (same model, horizon,
+For Koopman-NMPC and nominal NMPC it prints median / p95 / max solve time per step with the
+default setup (fatrop with the NLP compiled to C, the compiled code cached on disk by
+:mod:`controllers.solver_cache`), fatrop uncompiled and IPOPT uncompiled (the paper's solver),
+plus each episode's outcome so that "same closed-loop result" can be read off. The first run on a
+machine compiles (30-60 s per problem structure, not in the per-step times); ``--cache-timing``
+prints the build time to the first command in fresh processes with an empty and a filled cache. When ``do-mpc`` is installed it also solves the same nominal problem (same model, horizon,
 weights, hard obstacle and inter-robot constraints, IPOPT) with do-mpc in the same run and
 prints the ratio of medians.
 """
@@ -121,20 +122,58 @@ def line(label: str, result: dict) -> str:
             f"steps {len(t):3d}  failures {result['failures']:2d}  {outcome:9s} final [{dist}] cm")  # fmt: skip
 
 
+BUILD = """
+import time, gymnasium as gym, koopman_envs, controllers
+env = gym.make("{env_id}", map="{map}")
+start = time.perf_counter()
+ctrl = controllers.make("{name}")
+controllers.calibration.calibrate_controller(ctrl, env)
+obs, info = env.reset(seed=0); ctrl.reset(env); ctrl.act(obs, info)
+print(time.perf_counter() - start)
+"""
+
+
+def build_seconds(env_id: str, map_name: str, name: str, cache: str) -> float:
+    """Seconds from ``controllers.make`` to the first command, in a fresh process with cache ``cache``."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "KOOPNAV_CACHE": cache, "PYTHONPATH": str(root)}
+    env.pop("KOOPNAV_NMPC_JIT", None)
+    code = "import controllers.calibration\n" + BUILD.format(env_id=env_id, map=map_name, name=name)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    return float(out.strip().splitlines()[-1])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--map", default="map1")
     parser.add_argument("--slip", default="nominal")
-    parser.add_argument("--jit", action="store_true", help="also time fatrop with compiled functions")
+    parser.add_argument("--cache-timing", action="store_true",
+                        help="also time building the default solvers with an empty and a filled cache")
     parser.add_argument("--no-do-mpc", action="store_true")
     args = parser.parse_args()
     env_id = env_id_for_map(args.map)
     print(f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop episode")
+    if args.cache_timing:
+        import shutil
+        import tempfile
+
+        for name in ("nominal-nmpc", "koopman-nmpc"):
+            cache = tempfile.mkdtemp(prefix="koopnav-bench-cache-")
+            try:
+                cold = build_seconds(env_id, args.map, name, cache)
+                warm = build_seconds(env_id, args.map, name, cache)
+            finally:
+                shutil.rmtree(cache, ignore_errors=True)
+            print(f"{name:14s} build to first command: empty cache {cold:6.1f} s, filled cache {warm:5.1f} s")
     results = {}
+    setups = [("default: fatrop, compiled", {"jit": True}), ("fatrop, uncompiled", {"solver": "fatrop", "jit": False}),
+              ("ipopt (paper), uncompiled", {"solver": "ipopt", "jit": False})]  # fmt: skip
     for name in ("nominal-nmpc", "koopman-nmpc"):
-        setups = [("ipopt", {"solver": "ipopt"}), ("fatrop", {"solver": "fatrop"})]
-        if args.jit:
-            setups.append(("fatrop + jit", {"solver": "fatrop", "jit": True}))
         for label, setup in setups:
             kwargs = dict(setup)
             result = closed_loop(env_id, args.map, args.slip, lambda: controllers.make(name, **kwargs))
@@ -145,11 +184,10 @@ def main() -> None:
         if reference is None:
             print("do-mpc not installed: `pip install do-mpc` to compare on the same nominal problem")
         else:
-            print(line("do-mpc 5 (nominal, IPOPT)", reference))
-            ours = results[("nominal-nmpc", "ipopt")]["times"]
-            print(f"median ratio do-mpc / nominal-nmpc (IPOPT): {np.median(reference['times']) / np.median(ours):.2f}x")
-            fastest = min(np.median(r["times"]) for (n, _), r in results.items() if n == "nominal-nmpc")
-            print(f"median ratio do-mpc / fastest nominal-nmpc setup: {np.median(reference['times']) / fastest:.2f}x")
+            print(line("do-mpc (nominal, IPOPT)", reference))
+            for label, _ in setups:
+                ours = results[("nominal-nmpc", label)]["times"]
+                print(f"median ratio do-mpc / nominal-nmpc {label}: {np.median(reference['times']) / np.median(ours):.1f}x")
 
 
 if __name__ == "__main__":

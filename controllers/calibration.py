@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable, Protocol, runtime_checkable
@@ -25,6 +23,7 @@ from typing import Any, Callable, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.cache import cache_root, write_atomic
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
 
@@ -149,9 +148,8 @@ def position_residual(
 
 
 def cache_dir() -> Path:
-    """User cache directory of calibrations (``$KOOPNAV_CACHE``, default ``~/.cache/koopnav``)."""
-    root = os.environ.get("KOOPNAV_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "koopnav")
-    return Path(root) / "calibration"
+    """User cache directory of calibrations (``<cache root>/calibration``, see :mod:`controllers.cache`)."""
+    return cache_root() / "calibration"
 
 
 def cache_key(kind: str, plant: CalibrationPlant, spec: DataSpec, **extra: Any) -> str:
@@ -164,19 +162,6 @@ def cache_key(kind: str, plant: CalibrationPlant, spec: DataSpec, **extra: Any) 
 def cache_path(kind: str, key: str, suffix: str) -> Path:
     """Where a cached calibration of ``kind`` with ``key`` lives."""
     return cache_dir() / f"{kind}-{key}{suffix}"
-
-
-def write_atomic(path: Path, write: Callable[[str], None], suffix: str) -> None:
-    """Write through a temporary file and rename, so that concurrent workers never read half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 def calibrate_controller(

@@ -11,7 +11,6 @@ to a safe stop, counts the failure, and the episode goes on.
 from __future__ import annotations
 
 import os
-import shutil
 import time
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
@@ -21,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.solver_cache import jit_options, nlpsol
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -69,6 +69,9 @@ FATROP_OPTIONS: dict[str, Any] = {
     "fatrop.max_iter": 100,
 }
 
+#: environment variable that turns the default compilation off (``KOOPNAV_NMPC_JIT=0``)
+JIT_ENV = "KOOPNAV_NMPC_JIT"
+
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
 
 #: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
@@ -95,6 +98,26 @@ class PredictionModel(Protocol):
     coding: str
 
     def casadi_nlp_step(self) -> ca.Function: ...
+
+
+def model_step(model: PredictionModel) -> tuple[ca.Function, NDArray[np.float64], Any]:
+    """(step function (s, u, theta) -> s_next, theta's values, structure key) of a model.
+
+    A model may offer its coefficients as NLP parameters (``casadi_nlp_step_parametric``,
+    ``nlp_parameters``, ``nlp_structure``): the NMPC's problem then depends on its structure
+    only, and models of the same structure share one built (and compiled) problem. Otherwise
+    the coefficients are constants and the model itself is the key.
+    """
+    if all(hasattr(model, a) for a in ("casadi_nlp_step_parametric", "nlp_parameters", "nlp_structure")):
+        return model.casadi_nlp_step_parametric(), np.asarray(model.nlp_parameters(), dtype=float), model.nlp_structure()
+    fixed = model.casadi_nlp_step()
+    s = ca.SX.sym("s", fixed.size1_in(0))
+    u = ca.SX.sym("u", fixed.size1_in(1))
+    theta = ca.SX.sym("theta", 0)
+    step = ca.Function("step", [s, u, theta], [fixed(s, u)], ["s", "u", "theta"], ["s_next"])
+    # the model itself, not id(model): Python reuses the id of a collected object, and a new
+    # model at an old address would silently inherit the old model's NLP
+    return step, np.zeros(0), model
 
 
 _CODING_SIZE = {"pose": 3, "cs": 4}
@@ -156,17 +179,22 @@ class NMPCConfig:
     slack_penalty : float
         Weight of the slack penalty.
     solver : str
-        CasADi ``nlpsol`` plugin: ``"ipopt"`` (the paper's) or ``"fatrop"`` (about twice as fast
-        here, same closed-loop result on the benchmark episode; see ``bench/nmpc_solve.py``).
+        CasADi ``nlpsol`` plugin: ``"fatrop"`` (default: the structure-exploiting interior-point
+        solver shipped with CasADi, several times faster here; see ``bench/nmpc_solve.py`` and
+        the closed-loop comparison in docs/results.md) or ``"ipopt"`` (the paper's).
     solver_options : dict, optional
         Options passed to ``nlpsol`` for ``solver`` (default: :data:`IPOPT_OPTIONS` or
         :data:`FATROP_OPTIONS`).
     fallback_solver : str or None
         Solver tried on the same problem when ``solver`` fails, before the plan fallback
         (ignored when it equals ``solver``).
-    jit : bool
-        Compile the NLP's functions to C at build time (needs a C compiler on PATH; a few
-        seconds per problem structure, then several times faster derivative evaluations).
+    jit : bool or None
+        Compile the NLP's functions to C (several times faster derivative evaluations). The
+        compiled objects are cached on disk (:mod:`controllers.solver_cache`), so a problem
+        structure is compiled once per machine, not per process; without a C compiler the solver
+        runs uncompiled, with one warning. None (default): compiled unless the environment
+        variable ``KOOPNAV_NMPC_JIT`` is ``0`` (the test suite sets it, to skip compiling its
+        many one-off problem structures).
     """
 
     horizon: int = PARAMS.horizon
@@ -179,10 +207,17 @@ class NMPCConfig:
     formation_bound: float = 0.03
     soft_constraints: bool = True
     slack_penalty: float = 1e4
-    solver: str = "ipopt"
+    solver: str = "fatrop"
     solver_options: dict[str, Any] | None = None
     fallback_solver: str | None = "ipopt"
-    jit: bool = False
+    jit: bool | None = None
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the solvers are compiled: ``jit``, or when None, unless ``$KOOPNAV_NMPC_JIT`` is 0."""
+        if self.jit is not None:
+            return bool(self.jit)
+        return os.environ.get(JIT_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
 
     def options_for(self, solver: str) -> dict[str, Any]:
         """nlpsol options of ``solver``: ``solver_options`` for the main solver, else defaults."""
@@ -190,10 +225,10 @@ class NMPCConfig:
             options = dict(self.solver_options)
         else:
             options = dict(DEFAULT_SOLVER_OPTIONS.get(solver, {}))
-        if self.jit:
-            options.setdefault("jit", True)
-            options.setdefault("compiler", "shell")
-            options.setdefault("jit_options", {"flags": ["-O2"], "verbose": False})
+        if self.compiled:
+            # compiled once per machine (controllers.solver_cache); {} without a C compiler
+            for key, value in jit_options().items():
+                options.setdefault(key, value)
         return options
 
     def with_options(self, **changes: Any) -> NMPCConfig:
@@ -210,7 +245,8 @@ class _Problem:
     detection of the fatrop solver needs, and IPOPT solves it the same way.
     """
 
-    def __init__(self, model: PredictionModel, scenario: Scenario, config: NMPCConfig) -> None:
+    def __init__(self, model: PredictionModel, scenario: Scenario, config: NMPCConfig,
+                 step: tuple[ca.Function, NDArray, Any] | None = None) -> None:  # fmt: skip
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         coding = model.coding
         if coding not in _CODING_SIZE:
@@ -219,7 +255,12 @@ class _Problem:
         nx, nu = size * n, 2 * n
         soft = config.soft_constraints
         ns = 2 if soft else 0
-        f = model.casadi_nlp_step()
+        step_function, theta_values, _ = model_step(model) if step is None else step
+        theta = ca.SX.sym("model", theta_values.size)
+
+        def f(x, u):
+            return step_function(x, u, theta)
+
         x_meas = ca.SX.sym("x_meas", nx)
         goal_xy = ca.SX.sym("goal_xy", 2 * n)
         goal_cs = ca.SX.sym("goal_cs", 2 * n)
@@ -228,7 +269,7 @@ class _Problem:
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
         obstacle_margin = ca.SX.sym("obstacle_margin", n)
         pair_margin = ca.SX.sym("pair_margin", len(pairs))
-        params = ca.vertcat(x_meas, goal_xy, goal_cs, obstacles, obstacle_margin, pair_margin)
+        params = ca.vertcat(x_meas, goal_xy, goal_cs, obstacles, obstacle_margin, pair_margin, theta)
 
         formation = scenario.is_formation
         weights = [config.q_follower if formation and i != scenario.leader else config.q_leader for i in range(n)]
@@ -339,7 +380,7 @@ class _Problem:
         self.u_index = np.concatenate([np.arange(t * stage + nx, t * stage + nx + nu) for t in range(horizon)])
         self.x_index = np.concatenate([np.arange(t * stage, t * stage + nx) for t in range(1, horizon + 1)])
         self.stage_cons = stage_cons
-        self.step = f
+        self.step = step_function  # (s, u, theta) -> s_next, for the shifted warm start
 
     def solver_for(self, name: str, cold: bool = False) -> ca.Function:
         """The ``nlpsol`` of this problem for a solver plugin, built on first use.
@@ -356,10 +397,8 @@ class _Problem:
             if name == "fatrop":
                 options.setdefault("structure_detection", "auto")
                 options.setdefault("equality", self._equality)
-            if options.get("jit") and shutil.which(os.environ.get("CC", "gcc")) is None:
-                raise ValueError("jit=True needs a C compiler (gcc) on PATH; install one or use jit=False")
             label = f"nmpc_{name}_cold" if cold else f"nmpc_{name}"
-            self._solvers[(name, cold)] = ca.nlpsol(label, name, self._nlp, options)
+            self._solvers[(name, cold)] = nlpsol(label, name, self._nlp, options)
         return self._solvers[(name, cold)]
 
     def plan(self, w: NDArray) -> tuple[NDArray, NDArray]:
@@ -367,8 +406,10 @@ class _Problem:
         states = w[self.x_index].reshape(self.horizon, -1)
         return w[self.u_index].reshape(self.horizon, -1, 2), decode_state(states, self.coding)
 
-    def shift(self, w: NDArray, lam_x: NDArray, lam_g: NDArray) -> dict[str, NDArray]:
+    def shift(self, w: NDArray, lam_x: NDArray, lam_g: NDArray, theta: NDArray) -> dict[str, NDArray]:
         """Primal-dual guess for the next period: every stage moves one step earlier.
+
+        ``theta``: the model's coefficients (its NLP parameters; empty for constants).
 
         The last stage's command repeats from the old terminal state, and the new terminal state
         is its prediction, so the guess has no dynamics gap; stage 0's constraint multipliers
@@ -384,7 +425,7 @@ class _Problem:
         x = shift_primal(w)
         last = (self.horizon - 1) * stage  # the new last stage: (x_T-1, u_T-1, s_T-1), then x_T
         x[last : last + nx] = w[-nx:]
-        x[-nx:] = np.asarray(self.step(w[-nx:], x[last + nx : last + nx + nu])).reshape(-1)
+        x[-nx:] = np.asarray(self.step(w[-nx:], x[last + nx : last + nx + nu], theta)).reshape(-1)
 
         lam = lam_g.copy()
         for k in range(1, self.horizon - 1):
@@ -425,6 +466,7 @@ class NMPCController(BaseController):
         self.position_residual: NDArray[np.float64] | None = None
         self._problem: _Problem | None = None
         self._key: tuple | None = None
+        self._model_step: tuple[Any, tuple[ca.Function, NDArray, Any]] | None = None
         self._warm: dict[str, NDArray] | None = None
         self._fallback: NDArray | None = None
         self._fallback_used = 0
@@ -442,12 +484,14 @@ class NMPCController(BaseController):
             raise ValueError(
                 f"{self.name}: the prediction model has {model.n_robots} robots, the scenario {scenario.n_robots}"
             )
-        # the model itself, not id(model): Python reuses the id of a collected object, and a new
-        # model at an old address would silently inherit the old model's NLP
-        key = (model, scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
+        if self._model_step is None or self._model_step[0] is not model:
+            self._model_step = (model, model_step(model))  # built once per model, not per episode
+        step = self._model_step[1]
+        _, theta_values, structure = step
+        key = (structure, scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
                tuple(scenario.robot_radius), scenario.workspace, scenario.v_max, scenario.omega_max)  # fmt: skip
         if key != self._key:
-            self._problem = _Problem(model, scenario, self.config)
+            self._problem = _Problem(model, scenario, self.config, step)
             self._key = key
         obstacle_margin, pair_margin = self.safety_margins(scenario)
         self._params_tail = np.concatenate(
@@ -457,6 +501,7 @@ class NMPCController(BaseController):
                 scenario.obstacles.reshape(-1),
                 obstacle_margin,
                 pair_margin,
+                theta_values,  # the model's coefficients (empty for a model with constants)
             ]
         )
         self._warm = None
@@ -518,7 +563,8 @@ class NMPCController(BaseController):
         if success:
             commands, poses = prob.plan(w)
             self.last_plan = (commands, poses)
-            self._warm = prob.shift(w, np.asarray(sol["lam_x"]).reshape(-1), np.asarray(sol["lam_g"]).reshape(-1))
+            self._warm = prob.shift(w, np.asarray(sol["lam_x"]).reshape(-1), np.asarray(sol["lam_g"]).reshape(-1),
+                                    self._model_step[1][1])  # fmt: skip
             self._fallback = commands
             self._fallback_used = 0
             return commands[0].reshape(-1).copy()

@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
+
+# NMPC solvers run uncompiled in the tests: the suite builds dozens of one-off problem structures,
+# and compiling each once (30-60 s on a fresh machine) would dominate its run time. The compiled
+# path and its cache have their own tests (tests/test_solver_cache.py), which set jit explicitly.
+# Set before any controller is built; worker processes and subprocesses inherit it.
+os.environ.setdefault("KOOPNAV_NMPC_JIT", "0")
 
 from koopman_envs.sim.maps import MapSpec
 

@@ -246,3 +246,17 @@ def test_cli_reports_bad_input() -> None:
         capture_output=True, text=True,
     )  # fmt: skip
     assert out.returncode == 2 and "does not exist" in out.stderr
+
+
+def test_parametric_nlp_step_equals_the_constant_one() -> None:
+    """The NMPC's parametric form (coefficients as NLP parameters) is the same map."""
+    from controllers.koopman import fit_for_env
+
+    model = fit_for_env("KoopNav-Formation-v0", slip="high")
+    rng = np.random.default_rng(0)
+    poses = rng.uniform(-1, 1, (3, 3))
+    state = np.column_stack([poses[:, :2], np.cos(poses[:, 2]), np.sin(poses[:, 2])]).reshape(-1)
+    u = rng.uniform(-0.2, 0.2, 6)
+    constant = np.asarray(model.casadi_nlp_step()(state, u)).reshape(-1)
+    parametric = np.asarray(model.casadi_nlp_step_parametric()(state, u, model.nlp_parameters())).reshape(-1)
+    np.testing.assert_allclose(parametric, constant, rtol=0, atol=1e-12)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import zipfile
@@ -147,6 +148,60 @@ class KoopmanModel:
         it a bilinear model lets the heading vector grow under alternating turn commands and
         with it the predicted speed, which an optimizer exploits with bang-bang steering.
         """
+        state, u, z = self._nlp_lift()
+        z_next = self._casadi_advance(z, u)
+        return ca.Function(name, [state, u], [ca.mtimes(_sparse_dm(self.C), z_next)], ["s", "u"], ["s_next"])
+
+    def _casadi_advance(self, z, u, matrices=None):
+        """A z + B u + sum_i u_i N_i z, with the model's matrices as constants or as given."""
+        A, B, N_blocks, _ = matrices if matrices is not None else self._constant_matrices()
+        z_next = ca.mtimes(A, z) + ca.mtimes(B, u)
+        for i in range(2 * self.n_robots):
+            z_next += u[i] * ca.mtimes(N_blocks[i], z)
+        return z_next
+
+    def _constant_matrices(self) -> tuple:
+        d = self.dictionary.size(self.n_robots)
+        blocks = [_sparse_dm(self.N[:, i * d : (i + 1) * d]) for i in range(2 * self.n_robots)]
+        return _sparse_dm(self.A), _sparse_dm(self.B), blocks, _sparse_dm(self.C)
+
+    # ------------------------------------------------------- the NMPC's parametric form
+    # The NMPC takes the model's coefficients as NLP parameters, not constants: its problem (and
+    # the compiled solver, cached on disk) then depends only on the structure below, so a model
+    # fitted for another slip setting or calibration reuses it instead of compiling anew.
+    def nlp_structure(self) -> tuple:
+        """What fixes the NMPC's problem: dictionary, team size and the matrices' sparsity."""
+        patterns = hashlib.sha256()
+        for dm in self._flat_constants():
+            patterns.update(np.asarray(dm.sparsity().get_triplet(), dtype=np.int64).tobytes())
+            patterns.update(np.asarray(dm.shape, dtype=np.int64).tobytes())
+        return ("koopman", self.dictionary.name, self.n_robots, patterns.hexdigest())
+
+    def _flat_constants(self) -> list:
+        A, B, blocks, C = self._constant_matrices()
+        return [A, B, *blocks, C]
+
+    def nlp_parameters(self) -> NDArray[np.float64]:
+        """The coefficients that :meth:`casadi_nlp_step_parametric` takes, in its order."""
+        return np.concatenate([np.asarray(dm.nonzeros(), dtype=np.float64) for dm in self._flat_constants()])
+
+    def casadi_nlp_step_parametric(self, name: str = "koopman_cs_step") -> ca.Function:
+        """:meth:`casadi_nlp_step` with the coefficients as a third input ``theta``
+        (:meth:`nlp_parameters`); structural zeros stay zeros."""
+        constants = self._flat_constants()
+        theta = ca.SX.sym("theta", sum(dm.nnz() for dm in constants))
+        symbolic, offset = [], 0
+        for dm in constants:
+            symbolic.append(ca.SX(dm.sparsity(), theta[offset : offset + dm.nnz()]))
+            offset += dm.nnz()
+        A, B, C = symbolic[0], symbolic[1], symbolic[-1]
+        matrices = (A, B, symbolic[2:-1], C)
+        state, u, z = self._nlp_lift()
+        z_next = self._casadi_advance(z, u, matrices)
+        return ca.Function(name, [state, u, theta], [ca.mtimes(C, z_next)], ["s", "u", "theta"], ["s_next"])
+
+    def _nlp_lift(self) -> tuple:
+        """Symbols (s, u) of the NLP coding and the lifted z of s with normalized (cos, sin)."""
         n = self.n_robots
         state = ca.SX.sym("s", 4 * n)
         u = ca.SX.sym("u", 2 * n)
@@ -155,16 +210,7 @@ class KoopmanModel:
             c, s = state[4 * i + 2], state[4 * i + 3]
             norm = ca.sqrt(c * c + s * s)
             terms += self.dictionary._robot_terms_casadi(state[4 * i], state[4 * i + 1], c / norm, s / norm)
-        z = ca.vertcat(*terms)
-        z_next = self._casadi_advance(z, u)
-        return ca.Function(name, [state, u], [ca.mtimes(_sparse_dm(self.C), z_next)], ["s", "u"], ["s_next"])
-
-    def _casadi_advance(self, z, u):
-        d = self.dictionary.size(self.n_robots)
-        z_next = ca.mtimes(_sparse_dm(self.A), z) + ca.mtimes(_sparse_dm(self.B), u)
-        for i in range(2 * self.n_robots):
-            z_next += u[i] * ca.mtimes(_sparse_dm(self.N[:, i * d : (i + 1) * d]), z)
-        return z_next
+        return state, u, ca.vertcat(*terms)
 
     def casadi_step(self, name: str = "koopman_step") -> ca.Function:
         """f_b as a CasADi SX function ``x+ = f(x, u)`` on stacked vectors.

@@ -1,0 +1,86 @@
+"""A C compiler command that caches object files by content (run as a script by CasADi's JIT).
+
+CasADi's ``shell`` JIT compiler calls ``<compiler> <flags> -c SOURCE.c -o OUT.o``. This script
+stands in for ``<compiler>``::
+
+    python _cached_cc.py --cache DIR --cc gcc --tag TAG <flags> -c SOURCE.c -o OUT.o
+
+The object of a source is stored as ``DIR/<key>.o`` with its SHA-256 in ``DIR/<key>.o.sha256``,
+where the key hashes the tag (CasADi version, compiler identity), the flags and the source text.
+A hit copies the object (no compiler call); an entry whose checksum does not match is compiled
+again and replaced. Entries are written to a temporary file and renamed, so concurrent
+processes never read half an object. Standalone on purpose: it runs once per compile in a fresh
+interpreter and must not import the package (and CasADi) to do so.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+
+def _digest(path: str) -> str:
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
+
+
+def _store(directory: str, src: str, dst: str, text: str | None = None) -> None:
+    """Copy ``src`` (or write ``text``) to ``dst`` atomically (temporary file + rename)."""
+    fd, tmp = tempfile.mkstemp(dir=directory, suffix=".part")
+    os.close(fd)
+    try:
+        if text is None:
+            shutil.copyfile(src, tmp)
+        else:
+            with open(tmp, "w", encoding="ascii") as fh:
+                fh.write(text)
+        os.replace(tmp, dst)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def main(argv: list[str]) -> int:
+    settings = {}
+    while argv and argv[0] in ("--cache", "--cc", "--tag"):
+        settings[argv[0][2:]] = argv[1]
+        argv = argv[2:]
+    args = argv
+    source = next((a for a in args if a.endswith(".c")), None)
+    out = args[args.index("-o") + 1] if "-o" in args and args.index("-o") + 1 < len(args) else None
+    compile_cmd = [*settings["cc"].split(), *args]
+    if source is None or out is None or "-c" not in args:
+        return subprocess.call(compile_cmd)  # not a compile step we know: just run the compiler
+    flags = [a for a in args if a not in (source, out)]
+    key = hashlib.sha256()
+    for part in (settings.get("tag", ""), "\0".join(flags)):
+        key.update(part.encode() + b"\0")
+    with open(source, "rb") as fh:
+        key.update(fh.read())
+    directory = settings["cache"]
+    os.makedirs(directory, exist_ok=True)
+    entry = os.path.join(directory, key.hexdigest()[:32] + ".o")
+    checksum = entry + ".sha256"
+    try:
+        with open(checksum, encoding="ascii") as fh:
+            expected = fh.read().strip()
+        if _digest(entry) == expected:
+            shutil.copyfile(entry, out)
+            return 0
+    except OSError:
+        pass  # no entry (or half of one): compile
+    code = subprocess.call(compile_cmd)
+    if code == 0 and os.path.exists(out):
+        # the object first, then its checksum: a reader that sees the object without a matching
+        # checksum compiles again instead of trusting it
+        _store(directory, out, entry)
+        _store(directory, "", checksum, text=_digest(entry))
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,121 @@
+"""Compiled NMPC solvers, compiled once per machine.
+
+CasADi's JIT turns an NLP's functions into C and compiles them in every process (30-60 s per
+problem structure), which made compiled solvers impractical. :func:`jit_options` gives ``nlpsol``
+options whose compiler command is :mod:`controllers._cached_cc`: the object file of each
+generated source is kept under ``<cache root>/solvers/`` keyed by the source text, the compiler
+flags, the compiler's identity and CasADi's version, so the second process (or worker) that
+builds the same problem copies it instead of compiling. Without a C compiler the solver stays
+uncompiled, with one warning.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any, Iterator
+
+import casadi as ca
+
+from controllers.cache import cache_root
+
+__all__ = ["COMPILER_FLAGS", "compiler", "jit_options", "nlpsol", "solver_cache_dir"]
+
+#: flags of the compiled NLP functions (-O2: -O3 compiles far longer for no measurable gain here)
+COMPILER_FLAGS = ("-O2",)
+_WRAPPER = Path(__file__).with_name("_cached_cc.py")
+_BUILD_DIRS: list[str] = []
+
+
+def solver_cache_dir() -> Path:
+    """Where compiled solver objects are kept (``<cache root>/solvers``)."""
+    return cache_root() / "solvers"
+
+
+def compiler() -> str | None:
+    """The C compiler (``$CC``, default ``gcc``) as an absolute path, or None if there is none."""
+    return shutil.which(os.environ.get("CC", "gcc"))
+
+
+@functools.lru_cache(maxsize=None)
+def _identity(cc: str) -> str:
+    """The compiler's own version text (part of every cache key)."""
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30).stdout
+    except (OSError, subprocess.SubprocessError):
+        out = ""
+    return f"{cc}|{out.strip()}"
+
+
+@functools.lru_cache(maxsize=1)
+def _warn_no_compiler() -> None:
+    warnings.warn(
+        f"no C compiler found (CC={os.environ.get('CC', 'gcc')!r}): NMPC solvers run uncompiled, several times "
+        "slower; install gcc for compiled solvers", RuntimeWarning, stacklevel=3)  # fmt: skip
+
+
+def _cleanup() -> None:
+    for directory in _BUILD_DIRS:
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+atexit.register(_cleanup)
+
+
+def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS) -> dict[str, Any]:
+    """``nlpsol`` options for a compiled solver with the on-disk cache ({} without a compiler).
+
+    Each call gets its own build directory (fixed file names inside it, so that the generated
+    source is the same text in every process and the cache can match it).
+    """
+    cc = compiler()
+    if cc is None:
+        _warn_no_compiler()
+        return {}
+    build = tempfile.mkdtemp(prefix="koopnav-jit-")
+    _BUILD_DIRS.append(build)
+    tag = hashlib.sha256(f"casadi {ca.__version__}|{_identity(cc)}".encode()).hexdigest()[:16]
+    command = (f'"{sys.executable}" -S "{_WRAPPER}" --cache "{solver_cache_dir()}" --cc "{cc}" '
+               f'--tag {tag}')  # fmt: skip
+    return {
+        "jit": True,
+        "compiler": "shell",
+        # fixed names keep the generated text the same in every process (a temporary suffix also
+        # renames symbols inside it, which defeats the cache); :func:`nlpsol` writes the source
+        # into the build directory, not the working directory that worker processes share
+        "jit_temp_suffix": False,
+        # the build directory is removed as a whole at exit (CasADi's own cleanup would run after
+        # it, during interpreter teardown, and warn about every file already gone)
+        "jit_cleanup": False,
+        "jit_options": {"compiler": command, "flags": list(flags), "directory": build + os.sep,
+                        "temp_suffix": False, "name": "nlp", "verbose": False, "cleanup": False},  # fmt: skip
+    }
+
+
+@contextlib.contextmanager
+def _working_directory(path: str) -> Iterator[None]:
+    previous = os.getcwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(previous)
+
+
+def nlpsol(label: str, plugin: str, nlp: dict[str, Any], options: dict[str, Any]) -> ca.Function:
+    """``casadi.nlpsol``; with :func:`jit_options` the generated source is written into the
+    build's own directory (CasADi writes it to the working directory, under a fixed name)."""
+    directory = options.get("jit_options", {}).get("directory") if options.get("jit") else None
+    if not directory:
+        return ca.nlpsol(label, plugin, nlp, options)
+    with _working_directory(directory):
+        return ca.nlpsol(label, plugin, nlp, options)

@@ -1,0 +1,147 @@
+"""Compiled solvers cached on disk: hit without a compiler call, concurrent builds, corrupt entries,
+no compiler."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controllers import solver_cache
+from controllers.solver_cache import jit_options, solver_cache_dir
+
+pytestmark = pytest.mark.skipif(solver_cache.compiler() is None, reason="no C compiler (gcc) on this machine")
+
+# counts compile steps only (``-c``); CasADi links with the same command
+COUNTING_CC = """#!/bin/sh
+case " $* " in *" -c "*) echo x >> '{calls}';; esac
+exec gcc "$@"
+"""
+
+BUILD = """
+import sys
+import casadi as ca
+from controllers.solver_cache import jit_options, nlpsol
+target = float(sys.argv[1]) if len(sys.argv) > 1 else 1.0  # another target, another problem
+x = ca.SX.sym("x", 3)
+nlp = {"x": x, "f": ca.sumsqr(x - target) + x[0] * x[1], "g": x[0] + x[1]}
+solver = nlpsol("s", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, **jit_options()})
+print(float(solver(x0=0, lbg=0, ubg=1)["x"][2]))
+"""
+
+
+@pytest.fixture
+def counting_compiler(tmp_path, monkeypatch):
+    """$CC is a script that counts its calls, then runs gcc; the cache lives in tmp_path."""
+    calls = tmp_path / "calls.txt"
+    script = tmp_path / "cc"
+    script.write_text(COUNTING_CC.format(calls=calls))
+    script.chmod(0o755)
+    monkeypatch.setenv("CC", str(script))
+    monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path / "cache"))
+    return lambda: len(calls.read_text().splitlines()) if calls.exists() else 0
+
+
+def _build_in_subprocess(target: float = 1.0, cwd: Path | None = None) -> subprocess.Popen:
+    root = Path(solver_cache.__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    return subprocess.Popen([sys.executable, "-c", BUILD, str(target)], env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)  # fmt: skip
+
+
+def _run(proc: subprocess.Popen) -> float:
+    out, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    return float(out.strip().splitlines()[-1])
+
+
+def test_second_build_hits_the_cache_without_calling_the_compiler(counting_compiler) -> None:
+    assert _run(_build_in_subprocess()) == pytest.approx(1.0, abs=1e-6)
+    assert counting_compiler() == 1
+    entries = list(solver_cache_dir().glob("*.o"))
+    assert len(entries) == 1
+    assert _run(_build_in_subprocess()) == pytest.approx(1.0, abs=1e-6)  # another process: a hit
+    assert counting_compiler() == 1
+
+
+def test_two_processes_building_at_once(counting_compiler) -> None:
+    procs = [_build_in_subprocess() for _ in range(2)]
+    assert [_run(p) for p in procs] == pytest.approx([1.0, 1.0], abs=1e-6)
+    (entry,) = solver_cache_dir().glob("*.o")  # one entry, whole: its checksum matches
+    import hashlib
+
+    assert hashlib.sha256(entry.read_bytes()).hexdigest() == Path(f"{entry}.sha256").read_text().strip()
+    assert not list(solver_cache_dir().glob("*.part"))
+    assert _run(_build_in_subprocess()) == pytest.approx(1.0, abs=1e-6)
+    assert counting_compiler() <= 2  # both may have compiled; the third did not
+
+
+def test_two_problems_built_at_once_in_one_directory_stay_apart(counting_compiler, tmp_path) -> None:
+    """Workers share a working directory: each build's generated source must stay its own."""
+    procs = [_build_in_subprocess(target, cwd=tmp_path) for target in (1.0, 3.0)]
+    assert [_run(p) for p in procs] == pytest.approx([1.0, 3.0], abs=1e-6)
+    assert len(list(solver_cache_dir().glob("*.o"))) == 2
+    assert not list(tmp_path.glob("*.c"))  # nothing generated into the working directory
+    assert [_run(_build_in_subprocess(t)) for t in (3.0, 1.0)] == pytest.approx([3.0, 1.0], abs=1e-6)
+    assert counting_compiler() == 2
+
+
+def test_a_corrupt_entry_is_rebuilt_not_loaded(counting_compiler) -> None:
+    _run(_build_in_subprocess())
+    (entry,) = solver_cache_dir().glob("*.o")
+    entry.write_bytes(b"\x7fELF garbage")
+    assert _run(_build_in_subprocess()) == pytest.approx(1.0, abs=1e-6)
+    assert counting_compiler() == 2
+    import hashlib
+
+    assert hashlib.sha256(entry.read_bytes()).hexdigest() == Path(f"{entry}.sha256").read_text().strip()
+
+
+def test_without_a_compiler_the_solver_runs_uncompiled_with_one_warning(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    solver_cache._warn_no_compiler.cache_clear()
+    with pytest.warns(RuntimeWarning, match="no C compiler"):
+        assert jit_options() == {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert jit_options() == {}  # warned once only
+    import gymnasium as gym
+
+    import controllers
+    import koopman_envs  # noqa: F401
+
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    ctrl = controllers.make("nominal-nmpc", jit=True, horizon=5)
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env)
+    assert np.all(np.isfinite(ctrl.act(obs, info)))
+
+
+@pytest.mark.slow
+def test_the_default_nmpc_is_compiled_once_per_machine(tmp_path) -> None:
+    """Two processes build the default nominal NMPC: the second compiles nothing and acts alike."""
+    script = tmp_path / "cc"
+    calls = tmp_path / "calls.txt"
+    script.write_text(COUNTING_CC.format(calls=calls))
+    script.chmod(0o755)
+    code = ("import gymnasium as gym, koopman_envs, controllers\n"
+            "env = gym.make('KoopNav-TargetReaching-v0', map='map1')\n"
+            "c = controllers.make('nominal-nmpc'); obs, info = env.reset(seed=0); c.reset(env)\n"
+            "print(c.act(obs, info).tolist())\n")  # fmt: skip
+    root = Path(solver_cache.__file__).resolve().parents[1]
+    env = {**os.environ, "CC": str(script), "KOOPNAV_CACHE": str(tmp_path / "cache"), "PYTHONPATH": str(root),
+           "KOOPNAV_NMPC_JIT": "1"}  # fmt: skip
+    outputs = []
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=1200)
+        assert proc.returncode == 0, proc.stderr
+        outputs.append(proc.stdout.strip().splitlines()[-1])
+        if _ == 0:
+            compiled = len(calls.read_text().splitlines())
+    assert compiled >= 1 and len(calls.read_text().splitlines()) == compiled
+    assert outputs[0] == outputs[1]
