@@ -65,21 +65,43 @@ def main(argv: list[str]) -> int:
     os.makedirs(directory, exist_ok=True)
     entry = os.path.join(directory, key.hexdigest()[:32] + ".o")
     checksum = entry + ".sha256"
+    if _copy_if_valid(entry, checksum, out):
+        return 0
+    # one compiler per source at a time: worker processes that build the same problem together
+    # wait for the first one's object instead of compiling it again (minutes for a large NLP)
+    with open(entry + ".lock", "a") as lock:
+        _lock(lock)
+        if _copy_if_valid(entry, checksum, out):
+            return 0
+        code = subprocess.call(compile_cmd)
+        if code == 0 and os.path.exists(out):
+            # the object first, then its checksum: a reader that sees the object without a
+            # matching checksum compiles again instead of trusting it
+            _store(directory, out, entry)
+            _store(directory, "", checksum, text=_digest(entry))
+    return code
+
+
+def _copy_if_valid(entry: str, checksum: str, out: str) -> bool:
+    """Copy a cached object whose checksum matches to ``out``; False if there is none."""
     try:
         with open(checksum, encoding="ascii") as fh:
             expected = fh.read().strip()
         if _digest(entry) == expected:
             shutil.copyfile(entry, out)
-            return 0
+            return True
     except OSError:
-        pass  # no entry (or half of one): compile
-    code = subprocess.call(compile_cmd)
-    if code == 0 and os.path.exists(out):
-        # the object first, then its checksum: a reader that sees the object without a matching
-        # checksum compiles again instead of trusting it
-        _store(directory, out, entry)
-        _store(directory, "", checksum, text=_digest(entry))
-    return code
+        pass  # no entry (or half of one)
+    return False
+
+
+def _lock(handle) -> None:
+    """Exclusive advisory lock, released when the file closes (no-op where fcntl is missing)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: concurrent builds compile twice, still correct
+        return
+    fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
 
 
 if __name__ == "__main__":

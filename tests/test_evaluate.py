@@ -210,3 +210,33 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_result
     resumed = ev.evaluate(**SMALL, workers=1, out=out, resume=True)
     assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
     assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
+
+
+def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path) -> None:
+    """``kill`` (SIGTERM to the main process alone) must not leave orphan workers computing."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "nominal-nmpc",
+           "--maps", "map1", "--slips", "nominal", "high", "--episodes", "3", "--max-episode-steps", "150",
+           "--workers", "2", "--out", str(out), "--quiet"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=Path(ev.__file__).parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)  # fmt: skip
+    log = out / "episodes.jsonl"
+    deadline = time.time() + 180
+    while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < 2):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "--resume" in stderr
+    deadline = time.time() + 10
+    left = ["?"]
+    while time.time() < deadline and left:
+        ps = subprocess.run(["ps", "-o", "pid=", "-s", str(proc.pid)], capture_output=True, text=True)
+        left = ps.stdout.split()
+        time.sleep(0.2)
+    assert not left, f"worker processes still running: {left}"
+    assert len(log.read_text().splitlines()) >= 2  # the finished episodes are kept for --resume

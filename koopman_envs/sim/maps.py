@@ -15,6 +15,7 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
@@ -404,31 +405,48 @@ def _place_obstacles(
     direction = (b - a) / np.linalg.norm(b - a)
     normal = np.array([-direction[1], direction[0]])
     half_width = np.abs((start_xy - a) @ normal).max() + 1.0
-    keep_clear = np.vstack([start_xy, target_xy])
-    placed: list[NDArray] = []
-    for _ in range(config.n_obstacles):
+    keep_clear = np.ascontiguousarray(np.vstack([start_xy, target_xy]))
+    placed, ok = _place_obstacles_kernel(
+        rng, a, b, normal, float(half_width), keep_clear, int(config.n_obstacles),
+        float(config.obstacle_radius[0]), float(config.obstacle_radius[1]), float(robot_radius),
+        float(config.clearance), float(config.gap), np.asarray(workspace, dtype=np.float64),
+    )  # fmt: skip
+    return placed if ok else None
+
+
+@njit(cache=True)
+def _place_obstacles_kernel(rng, a, b, normal, half_width, keep_clear, n_obstacles, r_low, r_high, robot_radius,
+                            clearance, gap, workspace):  # fmt: skip
+    """The rejection sampler of :func:`_place_obstacles`, compiled: a reset of a vector env with
+    ``map="random"`` spent ~3 ms here in Python. It draws from ``rng`` exactly as the Python
+    version did (numba's Generator shares NumPy's bit stream and algorithms), so the same seed
+    gives the same layout (tests/data/random_layouts.json)."""
+    placed = np.zeros((n_obstacles, 3))
+    for k in range(n_obstacles):
+        found = False
         for _attempt in range(100):
             along = rng.uniform(0.25, 0.75)
             across = rng.uniform(-half_width, half_width)
-            radius = rng.uniform(*config.obstacle_radius)
-            centre = a + along * (b - a) + across * normal
-            if (
-                centre[0] - radius < workspace[0]
-                or centre[0] + radius > workspace[1]
-                or centre[1] - radius < workspace[2]
-                or centre[1] + radius > workspace[3]
-            ):
+            radius = rng.uniform(r_low, r_high)
+            cx = a[0] + along * (b[0] - a[0]) + across * normal[0]
+            cy = a[1] + along * (b[1] - a[1]) + across * normal[1]
+            if cx - radius < workspace[0] or cx + radius > workspace[1] or cy - radius < workspace[2] or cy + radius > workspace[3]:  # fmt: skip  # noqa: E501
                 continue
-            to_poses = np.linalg.norm(keep_clear - centre, axis=1) - radius - robot_radius
-            if to_poses.min() < config.clearance:
+            clear = np.inf
+            for i in range(keep_clear.shape[0]):
+                d = math.hypot(keep_clear[i, 0] - cx, keep_clear[i, 1] - cy) - radius - robot_radius
+                clear = min(clear, d)
+            if clear < clearance:
                 continue
-            if placed:
-                others = np.asarray(placed)
-                gaps = np.linalg.norm(others[:, :2] - centre, axis=1) - others[:, 2] - radius
-                if gaps.min() < config.gap:
-                    continue
-            placed.append(np.array([centre[0], centre[1], radius]))
+            spacing = np.inf
+            for j in range(k):
+                d = math.hypot(placed[j, 0] - cx, placed[j, 1] - cy) - placed[j, 2] - radius
+                spacing = min(spacing, d)
+            if k > 0 and spacing < gap:
+                continue
+            placed[k, 0], placed[k, 1], placed[k, 2] = cx, cy, radius
+            found = True
             break
-        else:
-            return None
-    return np.asarray(placed).reshape(-1, 3)
+        if not found:
+            return placed, False
+    return placed, True
