@@ -361,23 +361,19 @@ def generate_random_map(
     local = _wedge_offsets(n_robots, config.spacing)
     x0, x1, y0, y1 = workspace
     margin = config.border + robot_radius
+    low, high = [x0 + margin, y0 + margin], [x1 - margin, y1 - margin]
+    inner = np.array([x0 + margin, x1 - margin, y0 + margin, y1 - margin])
     for _ in range(config.max_attempts):
+        # the draws, in this order, define the layout of a seed (tests/data/random_layouts.json)
         heading = rng.uniform(-math.pi, math.pi)
-        rot = np.array([[math.cos(heading), -math.sin(heading)], [math.sin(heading), math.cos(heading)]])
-        offsets = local @ rot.T
-        travel = rng.uniform(*config.travel) * np.array([math.cos(heading), math.sin(heading)])
-        lead = rng.uniform([x0 + margin, y0 + margin], [x1 - margin, y1 - margin])
-        start_xy = lead + offsets
-        target_xy = start_xy + travel
+        cos_h, sin_h = math.cos(heading), math.sin(heading)
+        offsets = local @ np.array([[cos_h, sin_h], [-sin_h, cos_h]])  # local @ rot.T
+        travel = rng.uniform(*config.travel) * np.array([cos_h, sin_h])
+        lead = rng.uniform(low, high)
+        start_xy, target_xy, inside = _team_placement(offsets, travel, lead, inner)
         if config.swap_targets and rng.uniform() < config.swap_targets:
-            target_xy = target_xy[rng.permutation(n_robots)]
-        both = np.vstack([start_xy, target_xy])
-        if (
-            both[:, 0].min() < x0 + margin
-            or both[:, 0].max() > x1 - margin
-            or both[:, 1].min() < y0 + margin
-            or both[:, 1].max() > y1 - margin
-        ):
+            target_xy = target_xy[rng.permutation(n_robots)]  # the same points: ``inside`` holds
+        if not inside:
             continue
         start_theta = heading + rng.uniform(-math.pi / 2, math.pi / 2, size=n_robots)
         obstacles = _place_obstacles(rng, start_xy, target_xy, config, robot_radius, workspace)
@@ -390,6 +386,25 @@ def generate_random_map(
     raise RuntimeError(  # pragma: no cover - the default config succeeds within a few attempts
         f"no valid random map in {config.max_attempts} attempts for n_robots={n_robots}"
     )
+
+
+@njit(cache=True)
+def _team_placement(offsets, travel, lead, inner):
+    """Starts (lead + offsets) and targets (starts + travel) of a team, and whether all of them
+    lie inside ``inner`` (x0, x1, y0, y1); compiled because a random-map reset tries several
+    placements and each took ~20 small numpy calls."""
+    n = offsets.shape[0]
+    start = np.empty((n, 2))
+    target = np.empty((n, 2))
+    inside = True
+    for i in range(n):
+        for axis in range(2):
+            start[i, axis] = lead[axis] + offsets[i, axis]
+            target[i, axis] = start[i, axis] + travel[axis]
+        for point in (start[i], target[i]):
+            if point[0] < inner[0] or point[0] > inner[1] or point[1] < inner[2] or point[1] > inner[3]:
+                inside = False
+    return start, target, inside
 
 
 def _place_obstacles(
