@@ -225,8 +225,10 @@ class NMPCConfig:
             options = dict(self.solver_options)
         else:
             options = dict(DEFAULT_SOLVER_OPTIONS.get(solver, {}))
-        if self.compiled:
-            # compiled once per machine (controllers.solver_cache); {} without a C compiler
+        if self.compiled and solver == self.solver:
+            # compiled once per machine (controllers.solver_cache); {} without a C compiler. The
+            # fallback solver runs rarely: compiling it (minutes for a large NLP) would stall the
+            # first episode that needs it
             for key, value in jit_options().items():
                 options.setdefault(key, value)
         return options
