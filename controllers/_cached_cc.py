@@ -3,13 +3,16 @@
 CasADi's ``shell`` JIT compiler calls ``<compiler> <flags> -c SOURCE.c -o OUT.o``. This script
 stands in for ``<compiler>``::
 
-    python _cached_cc.py --cache DIR --cc gcc --tag TAG <flags> -c SOURCE.c -o OUT.o
+    python _cached_cc.py --cache DIR --cc gcc --tag TAG [--background] <flags> -c SOURCE.c -o OUT.o
 
 The object of a source is stored as ``DIR/<key>.o`` with its SHA-256 in ``DIR/<key>.o.sha256``,
 where the key hashes the tag (CasADi version, compiler identity), the flags and the source text.
 A hit copies the object (no compiler call); an entry whose checksum does not match is compiled
 again and replaced. Entries are written to a temporary file and renamed, so concurrent
-processes never read half an object. Standalone on purpose: it runs once per compile in a fresh
+processes never read half an object; one process compiles a given source while the others wait.
+With ``--background`` a miss does not compile in the caller's time: the source is handed to a
+detached compile into the cache and the script exits with :data:`MISS_COMPILING_IN_BACKGROUND`,
+so that the caller builds its solver uncompiled this once. Standalone on purpose: it runs once per compile in a fresh
 interpreter and must not import the package (and CasADi) to do so.
 """
 
@@ -21,6 +24,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 
 def _digest(path: str) -> str:
@@ -44,9 +48,17 @@ def _store(directory: str, src: str, dst: str, text: str | None = None) -> None:
             os.remove(tmp)
 
 
+#: exit code of a miss in background mode: the caller builds its solver uncompiled this time
+MISS_COMPILING_IN_BACKGROUND = 75
+
+
 def main(argv: list[str]) -> int:
     settings = {}
-    while argv and argv[0] in ("--cache", "--cc", "--tag"):
+    while argv and argv[0] in ("--cache", "--cc", "--tag", "--background", "--into-cache"):
+        if argv[0] in ("--background", "--into-cache"):
+            settings[argv[0][2:]] = "1"
+            argv = argv[1:]
+            continue
         settings[argv[0][2:]] = argv[1]
         argv = argv[2:]
     args = argv
@@ -67,6 +79,20 @@ def main(argv: list[str]) -> int:
     checksum = entry + ".sha256"
     if _copy_if_valid(entry, checksum, out):
         return 0
+    if settings.get("background"):
+        # a miss: compile into the cache in a detached process (minutes for a large NLP) and
+        # tell the caller to go on uncompiled; the next process that builds the problem hits
+        pending = entry[: -len(".o")] + ".c"
+        # a pending source older than an hour belongs to a compile that died: start it again
+        if not os.path.exists(pending) or time.time() - os.path.getmtime(pending) > 3600:
+            _store(directory, source, pending)
+            # the same arguments with the pending source and a scratch output: the same key
+            same = [pending if a == source else (entry + ".build" if a == out else a) for a in args]
+            detached = [sys.executable, "-S", os.path.abspath(__file__), "--cache", directory, "--cc",
+                        settings["cc"], "--tag", settings.get("tag", ""), "--into-cache", *same]  # fmt: skip
+            subprocess.Popen(detached, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, start_new_session=True, cwd=directory)  # fmt: skip
+        return MISS_COMPILING_IN_BACKGROUND
     # one compiler per source at a time: worker processes that build the same problem together
     # wait for the first one's object instead of compiling it again (minutes for a large NLP)
     with open(entry + ".lock", "a") as lock:
@@ -79,6 +105,10 @@ def main(argv: list[str]) -> int:
             # matching checksum compiles again instead of trusting it
             _store(directory, out, entry)
             _store(directory, "", checksum, text=_digest(entry))
+    if settings.get("into-cache"):  # a background compile: its source and output were scratch
+        for scratch in (source, out):
+            if os.path.exists(scratch):
+                os.remove(scratch)
     return code
 
 

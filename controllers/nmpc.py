@@ -229,7 +229,7 @@ class NMPCConfig:
             # compiled once per machine (controllers.solver_cache); {} without a C compiler. The
             # fallback solver runs rarely: compiling it (minutes for a large NLP) would stall the
             # first episode that needs it
-            for key, value in jit_options().items():
+            for key, value in jit_options(background=True).items():
                 options.setdefault(key, value)
         return options
 

@@ -71,11 +71,14 @@ def _cleanup() -> None:
 atexit.register(_cleanup)
 
 
-def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS) -> dict[str, Any]:
+def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS, background: bool = False) -> dict[str, Any]:
     """``nlpsol`` options for a compiled solver with the on-disk cache ({} without a compiler).
 
     Each call gets its own build directory (fixed file names inside it, so that the generated
-    source is the same text in every process and the cache can match it).
+    source is the same text in every process and the cache can match it). ``background=True``:
+    a cache miss compiles in a detached process and the build raises, so that :func:`nlpsol`
+    returns the uncompiled solver at once (the NMPC default: a first run on a machine is never
+    held up for minutes; the next process gets the compiled solver).
     """
     cc = compiler()
     if cc is None:
@@ -85,7 +88,7 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS) -> dict[str, Any]:
     _BUILD_DIRS.append(build)
     tag = hashlib.sha256(f"casadi {ca.__version__}|{_identity(cc)}".encode()).hexdigest()[:16]
     command = (f'"{sys.executable}" -S "{_WRAPPER}" --cache "{solver_cache_dir()}" --cc "{cc}" '
-               f'--tag {tag}')  # fmt: skip
+               f'--tag {tag}' + (" --background" if background else ""))  # fmt: skip
     return {
         "jit": True,
         "compiler": "shell",
@@ -117,5 +120,23 @@ def nlpsol(label: str, plugin: str, nlp: dict[str, Any], options: dict[str, Any]
     directory = options.get("jit_options", {}).get("directory") if options.get("jit") else None
     if not directory:
         return ca.nlpsol(label, plugin, nlp, options)
-    with _working_directory(directory):
-        return ca.nlpsol(label, plugin, nlp, options)
+    try:
+        with _working_directory(directory):
+            return ca.nlpsol(label, plugin, nlp, options)
+    except RuntimeError:
+        if "--background" not in options["jit_options"].get("compiler", ""):
+            raise
+    # not in the cache yet: compiling in the background; this solver runs uncompiled
+    _note_background_compile()
+    plain = {k: v for k, v in options.items() if k not in _JIT_KEYS}
+    return ca.nlpsol(label, plugin, nlp, plain)
+
+
+_JIT_KEYS = ("jit", "compiler", "jit_options", "jit_temp_suffix", "jit_cleanup")
+
+
+@functools.lru_cache(maxsize=1)
+def _note_background_compile() -> None:
+    warnings.warn(
+        f"compiling an NMPC solver into {solver_cache_dir()} in the background (minutes, once per machine and "
+        "problem structure); until it is there, solvers run uncompiled", RuntimeWarning, stacklevel=3)  # fmt: skip

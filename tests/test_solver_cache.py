@@ -162,3 +162,29 @@ def test_compiled_and_uncompiled_solvers_give_the_same_closed_loop(tmp_path, mon
         ctrl = controllers.make("nominal-nmpc", horizon=4, jit=jit)
         runs.append(run_episode(env, ctrl, seed=0).trajectory)
     np.testing.assert_allclose(runs[1], runs[0], rtol=0, atol=1e-7)
+
+
+def test_a_miss_in_background_mode_runs_uncompiled_and_fills_the_cache(counting_compiler, tmp_path) -> None:
+    """The NMPC default: a first build is not held up by the compiler; a later one is compiled."""
+    import time
+
+    code = BUILD.replace("**jit_options()", "**jit_options(background=True)")
+    root = Path(solver_cache.__file__).resolve().parents[1]
+
+    def build() -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", code],
+                              env={**os.environ, "PYTHONPATH": str(root)}, cwd=tmp_path, capture_output=True,
+                              text=True, timeout=600)  # fmt: skip
+
+    first = build()
+    assert first.returncode == 0, first.stderr
+    assert "compiling an NMPC solver" in first.stderr and "in the background" in first.stderr
+    assert float(first.stdout.split()[-1]) == pytest.approx(1.0, abs=1e-6)  # solved, uncompiled
+    deadline = time.time() + 300
+    while time.time() < deadline and not list(solver_cache_dir().glob("*.o.sha256")):
+        time.sleep(0.2)
+    (entry,) = solver_cache_dir().glob("*.o")
+    assert not list(solver_cache_dir().glob("*.c")) and not list(solver_cache_dir().glob("*.build"))
+    second = build()
+    assert second.returncode == 0 and "in the background" not in second.stderr, second.stderr
+    assert counting_compiler() == 1
