@@ -92,7 +92,7 @@ def test_solver_failure_falls_back_and_is_counted() -> None:
     commands = [ctrl.act(obs, info) for _ in range(25)]
     stats = ctrl.stats()
     assert stats.failures == 25 and stats.steps == 26
-    assert any("error" in key for key in stats.statuses)  # "fatrop:error... -> ipopt:error..."
+    assert any("error" in key for key in stats.statuses)  # also "fatrop:error... -> ipopt:error..."
     fallback_plan, _ = ctrl.last_plan
     np.testing.assert_allclose(commands[0], fallback_plan[1].reshape(-1))  # the shifted plan
     np.testing.assert_array_equal(commands[-1], np.zeros(6))  # then a safe stop
