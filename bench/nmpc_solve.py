@@ -164,13 +164,21 @@ def main() -> None:
         import tempfile
 
         for name in ("nominal-nmpc", "koopman-nmpc"):
+            import time
+            from pathlib import Path
+
             cache = tempfile.mkdtemp(prefix="koopnav-bench-cache-")
             try:
-                cold = build_seconds(env_id, args.map, name, cache)
+                start = time.perf_counter()
+                cold = build_seconds(env_id, args.map, name, cache)  # uncompiled; compiles in the background
+                while list(Path(cache, "solvers").glob("*.c")):
+                    time.sleep(0.5)
+                compile_s = time.perf_counter() - start
                 warm = build_seconds(env_id, args.map, name, cache)
             finally:
                 shutil.rmtree(cache, ignore_errors=True)
-            print(f"{name:14s} build to first command: empty cache {cold:6.1f} s, filled cache {warm:5.1f} s")
+            print(f"{name:14s} build to first command: empty cache {cold:5.1f} s (uncompiled; the background "
+                  f"compile took {compile_s:5.0f} s), filled cache {warm:5.1f} s")  # fmt: skip
     results = {}
     setups = [("default: IPOPT, compiled", {"jit": True}), ("IPOPT, uncompiled", {"solver": "ipopt", "jit": False}),
               ("fatrop, compiled", {"solver": "fatrop", "jit": True})]  # fmt: skip
