@@ -30,6 +30,7 @@ __all__ = [
     "env_settings",
     "map_fingerprints",
     "plan_episodes",
+    "safe_file_name",
     "slip_value",
     "validate_plan",
 ]
@@ -156,7 +157,8 @@ class EpisodeSpec:
         return {"key": self.key, **fields}
 
 
-def _safe_name(*parts: str) -> str:
+def safe_file_name(*parts: str) -> str:
+    """Cell coordinates joined into a file-name stem (``,:=/`` and the path separator become ``-``)."""
     return "_".join(str(p).replace(",", "-").replace(":", "-").replace("=", "-").replace("/", "-")
                     .replace(os.sep, "-") for p in parts)  # fmt: skip
 
@@ -192,7 +194,7 @@ def plan_episodes(
                 trials = random_maps if (map_name == RANDOM_MAP and random_maps) else episodes
                 for slip in slips:
                     for trial in range(trials):
-                        animation = f"animations/{_safe_name(env_id, cfg.label, map_name, slip)}.gif" \
+                        animation = f"animations/{safe_file_name(env_id, cfg.label, map_name, slip)}.gif" \
                             if gifs and trial == 0 else ""  # fmt: skip
                         plan.append(EpisodeSpec(env_id, cfg.label, map_name, slip, trial, seed + trial, tolerance,
                                                 steps, cfg.name, options, calibration_budget, calibration_seed,

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 import koopman_envs
+from evaluation.plan import safe_file_name
 from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
 from evaluation.statistics import wilson_interval
 from koopman_envs.tasks.base import TASKS
@@ -296,8 +297,7 @@ class Results:
             ax.grid(alpha=0.3)
             outcome = "success" if rec["success"] else (rec["collision"] or "time limit")
             ax.set_title(f"{rec['controller']} | {rec['map']} | {rec['slip']} | {outcome}", fontsize=8)
-            name = "_".join(str(p).replace(",", "-").replace(":", "-").replace("=", "-").replace("/", "-")
-                            for p in (rec["env_id"], rec["controller"], rec["map"], rec["slip"]))  # fmt: skip
+            name = safe_file_name(rec["env_id"], rec["controller"], rec["map"], rec["slip"])
             path = out_dir / f"traj_{name}.png"
             fig.tight_layout()
             fig.savefig(path)

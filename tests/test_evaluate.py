@@ -186,22 +186,29 @@ def test_ray_backend_matches_the_process_backend(small_results: ev.Results) -> N
     assert [r["success"] for r in with_ray.records] == [r["success"] for r in small_results.records]
 
 
+def _start_run(cmd: list[str], out: Path, lines: int) -> tuple[subprocess.Popen, Path]:
+    """Start an evaluator run in its own session; return once its log has ``lines`` lines."""
+    import time
+
+    proc = subprocess.Popen(cmd, cwd=Path(ev.__file__).parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)  # fmt: skip
+    log = out / "episodes.jsonl"
+    deadline = time.time() + 180
+    while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < lines):
+        time.sleep(0.05)
+    return proc, log
+
+
 def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_results: ev.Results) -> None:
     """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) stops the workers cleanly."""
     import os
     import signal
-    import time
 
     out = tmp_path / "run"
     cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus",
            "nominal-nmpc", "--maps", "map1", "--slips", "nominal", "high", "--episodes", "2", "--seed", "3",
            "--max-episode-steps", "150", "--workers", "2", "--out", str(out), "--start-noise", "0"]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=Path(ev.__file__).parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)  # fmt: skip
-    log = out / "episodes.jsonl"
-    deadline = time.time() + 180
-    while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < 3):
-        time.sleep(0.05)
+    proc, log = _start_run(cmd, out, lines=3)
     os.killpg(proc.pid, signal.SIGINT)
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
@@ -214,7 +221,6 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_result
 
 def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path) -> None:
     """``kill`` (SIGTERM to the main process alone) must not leave orphan workers computing."""
-    import os
     import signal
     import time
 
@@ -222,12 +228,7 @@ def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path) -> None:
     cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "nominal-nmpc",
            "--maps", "map1", "--slips", "nominal", "high", "--episodes", "3", "--max-episode-steps", "150",
            "--workers", "2", "--out", str(out), "--quiet"]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=Path(ev.__file__).parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)  # fmt: skip
-    log = out / "episodes.jsonl"
-    deadline = time.time() + 180
-    while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < 2):
-        time.sleep(0.05)
+    proc, log = _start_run(cmd, out, lines=2)
     proc.send_signal(signal.SIGTERM)
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
