@@ -2,7 +2,7 @@
 
 >>> import controllers
 >>> controllers.available()
-['consensus', 'consensus-free', 'koopman-nmpc', 'koopman-nmpc-robust', 'nominal-nmpc', 'nominal-nmpc-robust']
+['adaptive-koopman-nmpc', 'consensus', 'consensus-free', 'koopman-nmpc', 'koopman-nmpc-robust', 'nominal-nmpc', 'nominal-nmpc-robust']
 >>> ctrl = controllers.make("koopman-nmpc")
 >>> ctrl.calibrate(koopman_envs.make_plant(env), seed=0)   # learns from the env's robots (cached)
 >>> ctrl.reset(env.unwrapped.scenario, seed=0)
@@ -17,6 +17,7 @@ from controllers.registry import ENTRY_POINT_GROUP, available, make, register
 
 register("koopman-nmpc", "controllers.koopman_nmpc:KoopmanNMPC")
 register("koopman-nmpc-robust", "controllers:_koopman_nmpc_robust")
+register("adaptive-koopman-nmpc", "controllers.adaptive_koopman_nmpc:AdaptiveKoopmanNMPC")
 register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
 register("nominal-nmpc-robust", "controllers:_nominal_nmpc_robust")
 register("consensus", "controllers.consensus:ConsensusController")

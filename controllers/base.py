@@ -35,12 +35,19 @@ class ControllerStats:
         Decisions where the solver failed and a fallback command was used.
     statuses : Counter
         Solver return statuses by name.
+    extra_times : dict of str to list of float
+        Wall times [s] of other per-step work by name (an online model update, a filter...),
+        summarized as ``<name>_ms_median`` / ``<name>_ms_p95``.
+    counts : Counter
+        Other per-episode counts by name (reported as they are).
     """
 
     solve_times: list[float] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
     failures: int = 0
     statuses: Counter = field(default_factory=Counter)
+    extra_times: dict[str, list[float]] = field(default_factory=dict)
+    counts: Counter = field(default_factory=Counter)
 
     @property
     def steps(self) -> int:
@@ -61,6 +68,9 @@ class ControllerStats:
             "iterations_mean": float(np.mean(self.iterations)) if self.iterations else float("nan"),
             "failures": self.failures,
             "statuses": dict(self.statuses),
+            **{f"{name}_ms_{label}": 1e3 * float(np.percentile(times, q)) if times else float("nan")
+               for name, times in self.extra_times.items() for label, q in (("median", 50), ("p95", 95))},
+            **{name: int(value) for name, value in self.counts.items()},
         }
 
 

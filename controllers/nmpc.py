@@ -497,20 +497,33 @@ class NMPCController(BaseController):
             self._problem = _Problem(model, scenario, self.config, step)
             self._key = key
         obstacle_margin, pair_margin = self.safety_margins(scenario)
-        self._params_tail = np.concatenate(
+        fixed = np.concatenate(
             [
                 scenario.targets[:, :2].reshape(-1),
                 np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])]).reshape(-1),
                 scenario.obstacles.reshape(-1),
-                obstacle_margin,
-                pair_margin,
-                theta_values,  # the model's coefficients (empty for a model with constants)
             ]
         )
+        # the parameters after the measured state; margins and model coefficients may change
+        # during an episode (see set_margins, set_model_parameters)
+        self._params_tail = np.concatenate([fixed, obstacle_margin, pair_margin, theta_values])
+        start = fixed.size
+        self._margin_slices = (slice(start, start + obstacle_margin.size),
+                               slice(start + obstacle_margin.size, start + obstacle_margin.size + pair_margin.size))
+        self._theta_slice = slice(self._params_tail.size - theta_values.size, self._params_tail.size)
         self._warm = None
         self._fallback = None
         self._fallback_used = 0
         self.last_plan = None
+
+    def set_margins(self, obstacle: NDArray, pair: NDArray) -> None:
+        """Use these safety margins from the next solve on (shapes as :meth:`safety_margins`)."""
+        self._params_tail[self._margin_slices[0]] = obstacle
+        self._params_tail[self._margin_slices[1]] = pair
+
+    def set_model_parameters(self, theta: NDArray) -> None:
+        """Use these model coefficients (the model's ``nlp_parameters`` layout) from the next solve on."""
+        self._params_tail[self._theta_slice] = theta
 
     def safety_margins(self, scenario: Scenario) -> tuple[NDArray, NDArray]:
         """Margins added to the radii: per robot toward obstacles (N,), per robot pair (i < j).
@@ -519,17 +532,23 @@ class NMPCController(BaseController):
         prediction model's calibrated residual when that is larger.
         """
         n = scenario.n_robots
+        k = self.config.uncertainty_margin
+        if k > 0 and (self.position_residual is None or len(self.position_residual) != n):
+            raise ValueError(
+                f"{self.name}: uncertainty_margin={k} needs the prediction model's residual for "
+                f"{n} robots; call calibrate(plant) first (the evaluator does)"
+            )
+        return self.margins_for(n, self.position_residual)
+
+    def margins_for(self, n_robots: int, residual: NDArray | None) -> tuple[NDArray, NDArray]:
+        """:meth:`safety_margins` for a given per-robot RMS position residual [m] (None: offsets only)."""
+        n = n_robots
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
         obstacle = np.full(n, self.config.obstacle_offset)
         pair = np.full(len(pairs), self.config.robot_offset)
         k = self.config.uncertainty_margin
-        if k > 0:
-            if self.position_residual is None or len(self.position_residual) != n:
-                raise ValueError(
-                    f"{self.name}: uncertainty_margin={k} needs the prediction model's residual for "
-                    f"{n} robots; call calibrate(plant) first (the evaluator does)"
-                )
-            spread = k * np.asarray(self.position_residual, dtype=float)
+        if k > 0 and residual is not None:
+            spread = k * np.asarray(residual, dtype=float)
             obstacle = np.maximum(obstacle, spread)
             pair = np.maximum(pair, np.array([spread[i] + spread[j] for i, j in pairs]))
         return obstacle, pair
@@ -567,7 +586,7 @@ class NMPCController(BaseController):
             commands, poses = prob.plan(w)
             self.last_plan = (commands, poses)
             self._warm = prob.shift(w, np.asarray(sol["lam_x"]).reshape(-1), np.asarray(sol["lam_g"]).reshape(-1),
-                                    self._model_step[1][1])  # fmt: skip
+                                    self._params_tail[self._theta_slice])  # fmt: skip
             self._fallback = commands
             self._fallback_used = 0
             return commands[0].reshape(-1).copy()

@@ -82,6 +82,7 @@ class KoopmanModel:
             setattr(self, name, value)
         # N reshaped so that N (u kron z) = sum_i u_i N_i z is one einsum
         self._n_blocks = self.N.reshape(d, m, d).transpose(1, 0, 2)  # (m, D, D)
+        self._nlp_index: list | None = None  # (rows, cols) of each NLP constant's nonzeros
 
     # ------------------------------------------------------------ prediction
     def lift(self, poses: NDArray) -> NDArray[np.float64]:
@@ -184,6 +185,19 @@ class KoopmanModel:
     def nlp_parameters(self) -> NDArray[np.float64]:
         """The coefficients that :meth:`casadi_nlp_step_parametric` takes, in its order."""
         return np.concatenate([np.asarray(dm.nonzeros(), dtype=np.float64) for dm in self._flat_constants()])
+
+    def nlp_parameters_of(self, A: NDArray, N: NDArray, B: NDArray) -> NDArray[np.float64]:
+        """:meth:`nlp_parameters` of other matrices (same shapes) on this model's sparsity pattern.
+
+        What an online update passes to the NMPC's problem, which was built for this model's
+        structure: entries outside the pattern are dropped (keep them zero).
+        """
+        if self._nlp_index is None:
+            self._nlp_index = [dm.sparsity().get_triplet() for dm in self._flat_constants()]
+        d = A.shape[0]
+        sources = [A, B, *(N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)), self.C]
+        return np.concatenate([np.asarray(m, dtype=np.float64)[rows, cols]
+                               for m, (rows, cols) in zip(sources, self._nlp_index)])  # fmt: skip
 
     def casadi_nlp_step_parametric(self, name: str = "koopman_cs_step") -> ca.Function:
         """:meth:`casadi_nlp_step` with the coefficients as a third input ``theta``
