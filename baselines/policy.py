@@ -71,6 +71,7 @@ def policy_command(
     v_max: float,
     omega_max: float,
     features: str = "bearing",
+    neighbours: int | None = None,
 ) -> NDArray[np.float64]:
     """Deterministic joint command (v, omega per robot, flat; batched like the input) of a policy.
 
@@ -90,6 +91,10 @@ def policy_command(
         Actuation limits: the policy acts in [-1, 1].
     features : str
         ``"robot"`` layout: the feature set the policy was trained with (its metadata).
+    neighbours : int, optional
+        ``"robot"`` layout: team-mates per block the policy was trained with (N_train - 1); a
+        team of another size then shows each robot its nearest ones (see
+        :func:`baselines.vec_env.robot_features`). Default: all.
     """
     from baselines.vec_env import robot_features, scale_action
 
@@ -97,8 +102,14 @@ def policy_command(
     batch_shape = obs.shape[:-1]
     if layout == "robot":
         blocks = obs.reshape(batch_shape + (n_robots, -1))
-        obs = robot_features(blocks, features).astype(np.float64)
+        obs = robot_features(blocks, features, neighbours).astype(np.float64)
         obs = obs.reshape(-1, obs.shape[-1])
+    if obs.shape[-1] != norm["mean"].shape[-1]:
+        raise ValueError(
+            f"the policy takes {norm['mean'].shape[-1]} inputs per {'robot' if layout == 'robot' else 'team'}, "
+            f"this env gives {obs.shape[-1]}: a {layout!r}-layout policy runs only with the env settings "
+            "it was trained on (n_obstacle_obs; for the 'team' layout also n_robots)"
+        )
     obs = (obs - norm["mean"]) / np.sqrt(norm["var"] + norm["epsilon"])
     obs = np.clip(obs, -norm["clip"], norm["clip"]).astype(np.float32)
     action, _ = model.predict(obs, deterministic=True)
@@ -180,6 +191,8 @@ class RLPolicyController(BaseController):
         self._model, self._norm, self.metadata = self._loaded[scenario.task]
         self._layout = self.metadata.get("layout", "team")
         self._features = self.metadata.get("features", "bearing")
+        # policies trained before the team size was recorded were all trained with the paper's 3
+        self._neighbours = int(self.metadata.get("n_robots", 3)) - 1
         self._scenario = scenario
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -189,7 +202,7 @@ class RLPolicyController(BaseController):
         sc = self._scenario
         command = policy_command(
             self._model, self._norm, self._layout, observation, sc.n_robots, sc.v_max, sc.omega_max,
-            self._features,
+            self._features, self._neighbours,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command

@@ -120,6 +120,7 @@ def main(argv: list[str] | None = None) -> int:
                             features=args.features,
                             map="random", slip="random", random_map=random_map,
                             max_episode_steps=args.max_episode_steps)  # fmt: skip
+    team_size = venv.n_robots
     venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
     venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
     # a narrow initial action noise: the goal tolerance (0.1 m) asks for fine control, and wide
@@ -165,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         "collision_penalty": args.collision_penalty,
         "precision_shaping": args.precision_shaping,
         "features": args.features,
+        "n_robots": int(team_size),
         "random_map": random_map,
         "env_id": args.env,
         "task": TASK_OF[args.env],

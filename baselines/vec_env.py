@@ -37,7 +37,35 @@ FEATURE_SETS = ("bearing", "bearing+headings")
 _PRECISION_EPS = 0.05  # [m]: half the default goal tolerance
 
 
-def robot_features(team_blocks: np.ndarray, features: str = "bearing") -> np.ndarray:
+def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray, np.ndarray]:
+    """Blocks that list only ``neighbours`` other robots, and those robots' team indices.
+
+    Each robot keeps the ``neighbours`` others with the smallest surface clearance, listed in
+    team-index order as the full block lists them (so with N - 1 == ``neighbours`` nothing
+    changes); with fewer others than that, the missing slots read like absent obstacles
+    (0, 0, FAR) and point at the robot itself.
+    """
+    from koopman_envs.tasks.observation import FAR
+
+    n = blocks.shape[-2]
+    others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
+    listed = min(neighbours, n - 1)
+    clearance = blocks[..., 9 + 2 : 9 + 3 * (n - 1) : 3]  # (..., N, N - 1)
+    # the nearest ``listed`` slots, then back into index order (a stable sort keeps ties in order)
+    slots = np.sort(np.argsort(clearance, axis=-1, kind="stable")[..., :listed], axis=-1)
+    entries = 9 + 3 * slots[..., None] + np.arange(3)  # (..., N, listed, 3)
+    chosen = np.take_along_axis(blocks, entries.reshape(entries.shape[:-2] + (-1,)), axis=-1)
+    pad = np.tile([0.0, 0.0, FAR], neighbours - listed)
+    chosen = np.concatenate([chosen, np.broadcast_to(pad, chosen.shape[:-1] + pad.shape)], axis=-1)
+    index = np.broadcast_to(others, slots.shape[:-2] + others.shape)
+    robots = np.take_along_axis(index, slots, axis=-1)
+    robots = np.concatenate([robots, np.broadcast_to(np.arange(n)[:, None], robots.shape[:-1] + (neighbours - listed,))],
+                            axis=-1)  # fmt: skip
+    rest = blocks[..., 9 + 3 * (n - 1) :]
+    return np.concatenate([blocks[..., :9], chosen, rest], axis=-1), robots
+
+
+def robot_features(team_blocks: np.ndarray, features: str = "bearing", neighbours: int | None = None) -> np.ndarray:
     """Every robot's feature block plus entries that a shared policy learns from more easily.
 
     ``"bearing"`` appends the unit bearing of the target in the body frame (body x, y divided by
@@ -56,6 +84,10 @@ def robot_features(team_blocks: np.ndarray, features: str = "bearing") -> np.nda
         cos/sin of the heading, 4, 5 the target in the body frame, 6 its distance).
     features : str
         One of :data:`FEATURE_SETS`.
+    neighbours : int, optional
+        Other robots a block lists (default: all N - 1). A policy trained with N robots runs any
+        team size with ``neighbours=N - 1``: each robot then sees its nearest team-mates, in the
+        layout it was trained on.
 
     Returns
     -------
@@ -64,14 +96,22 @@ def robot_features(team_blocks: np.ndarray, features: str = "bearing") -> np.nda
     if features not in FEATURE_SETS:
         raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
     blocks = np.asarray(team_blocks, dtype=np.float64)
+    n = blocks.shape[-2]
+    if neighbours is not None and (isinstance(neighbours, bool) or not isinstance(neighbours, (int, np.integer))
+                                   or neighbours < 0):  # fmt: skip
+        raise ValueError(f"neighbours={neighbours!r} must be an integer >= 0")
+    if neighbours is None or neighbours == n - 1:
+        others = np.broadcast_to(np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64)
+                                 .reshape(n, n - 1), blocks.shape[:-1] + (n - 1,))  # fmt: skip
+    else:
+        blocks, others = _nearest_neighbours(blocks, int(neighbours))
     distance = blocks[..., 6:7]
     bearing = blocks[..., 4:6] / np.maximum(distance, 1e-6)
     parts = [blocks, bearing, np.log(distance + _PRECISION_EPS)]
-    n = blocks.shape[-2]
-    if features == "bearing+headings" and n > 1:
+    if features == "bearing+headings" and others.shape[-1] > 0:
         c, s = blocks[..., 2], blocks[..., 3]  # (..., N)
-        others = np.array([[j for j in range(n) if j != i] for i in range(n)])
-        c_o, s_o = c[..., others], s[..., others]  # (..., N, N - 1)
+        c_o = np.take_along_axis(c[..., None, :], others, axis=-1)  # (..., N, listed others)
+        s_o = np.take_along_axis(s[..., None, :], others, axis=-1)
         ci, si = c[..., None], s[..., None]
         relative = np.stack([c_o * ci + s_o * si, s_o * ci - c_o * si], axis=-1)
         parts.append(relative.reshape(relative.shape[:-2] + (-1,)))

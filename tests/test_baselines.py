@@ -187,6 +187,45 @@ def test_neighbour_headings_are_relative_and_match_what_the_controller_sees() ->
         robot_features(blocks, "all")
 
 
+def test_a_three_robot_policy_sees_the_nearest_two_teammates_of_a_larger_team() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="random", n_robots=6)
+    obs, info = env.reset(seed=3)
+    blocks = obs.reshape(6, -1)
+    full = robot_features(blocks, "bearing+headings")
+    assert np.array_equal(robot_features(blocks, "bearing+headings", neighbours=5), full)
+    small = robot_features(blocks, "bearing+headings", neighbours=2)
+    n_obs_entries = blocks.shape[1] - 9 - 3 * 5
+    assert small.shape == (6, 9 + 3 * 2 + n_obs_entries + 3 + 2 * 2)
+    poses = info["poses"]
+    for i in range(6):
+        others = [j for j in range(6) if j != i]
+        gaps = [np.hypot(*(poses[j, :2] - poses[i, :2])) for j in others]
+        nearest = sorted(others[k] for k in np.argsort(gaps, kind="stable")[:2])  # radii are equal
+        slots = [others.index(j) for j in nearest]
+        expected = np.concatenate([blocks[i, 9 + 3 * k : 12 + 3 * k] for k in slots])
+        np.testing.assert_allclose(small[i, 9:15], expected, rtol=1e-6)
+        first = full.shape[1] - 2 * 5  # the relative headings of the five others
+        heading = {j: full[i, first + 2 * others.index(j) : first + 2 * others.index(j) + 2] for j in nearest}
+        np.testing.assert_allclose(small[i, -4:], np.concatenate([heading[j] for j in nearest]), rtol=1e-6)
+    # a team of two: the missing team-mate reads like an absent obstacle
+    two = robot_features(obs.reshape(6, -1)[:2, : 9 + 3], "bearing", neighbours=2)
+    assert two.shape == (2, 9 + 6 + 3) and np.all(two[:, 12:15] == [0.0, 0.0, 30.0])
+
+
+def test_shipped_policy_drives_a_six_robot_team() -> None:
+    env = gym.make("KoopNav-Formation-v0", map="random", n_robots=6, max_episode_steps=20)
+    ctrl = controllers.make("rl-ppo")
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env, seed=0)
+    for _ in range(20):
+        action = ctrl.act(obs, info)
+        assert action.shape == (12,) and np.all(np.isfinite(action))
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    assert ctrl.stats().steps >= 1
+
+
 def test_bad_layout_and_penalty_are_rejected() -> None:
     with pytest.raises(ValueError, match="layout='agents' is not one of"):
         KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, layout="agents")
