@@ -40,7 +40,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
 
     Parameters
     ----------
-    model, dictionary
+    model, dictionary, structure
         As :class:`controllers.koopman_nmpc.KoopmanNMPC` (the starting model).
     forgetting : float
         RLS forgetting factor in (0, 1] (0.98: ~5 s of memory at the paper's 0.1 s period).
@@ -71,6 +71,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         residual_window: int = 20,
         adapt: bool = True,
         config: NMPCConfig | None = None,
+        structure: str = "auto",
         **options: Any,
     ) -> None:
         options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
@@ -86,7 +87,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         self.residual_window = residual_window
         self.adapt = bool(adapt)
         self._estimator: RecursiveBilinearFit | None = None
-        super().__init__(model, dictionary, config, **options)
+        super().__init__(model, dictionary, config, structure, **options)
 
     def _use(self, model: KoopmanModel) -> None:
         super()._use(model)

@@ -8,7 +8,9 @@ from typing import Any
 import numpy as np
 
 from controllers.koopman import KoopmanModel, calibrated_model
+from controllers.koopman.store import check_structure
 from controllers.nmpc import NMPCConfig, NMPCController
+from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 
@@ -29,6 +31,11 @@ class KoopmanNMPC(NMPCController):
         ``controllers.koopman.fit_for_env(env_id, **env_kwargs)`` fits one for any env.
     dictionary : str
         Dictionary of the model that :meth:`calibrate` fits (``"minimal"``: the paper's).
+    structure : str
+        How the fitted model couples the robots: ``"stacked"`` (the paper's one team
+        regression), ``"per-robot"`` (each robot's own block; the fit and the NMPC problem grow
+        linearly with N instead of quadratically) or ``"auto"`` (default: stacked up to the
+        paper's 3 robots, per-robot beyond).
     config, **options
         NMPC options, see :class:`controllers.nmpc.NMPCConfig` (``uncertainty_margin`` uses the
         model's RMS one-step position residual on its calibration data).
@@ -41,8 +48,12 @@ class KoopmanNMPC(NMPCController):
         model: KoopmanModel | str | os.PathLike | None = None,
         dictionary: str = "minimal",
         config: NMPCConfig | None = None,
+        structure: str = "auto",
         **options: Any,
     ) -> None:
+        if structure != "auto":
+            check_structure(structure)
+        self.structure = structure
         if model is not None and not isinstance(model, KoopmanModel):
             model = KoopmanModel.load(model)
         super().__init__(model, config, **options)
@@ -60,7 +71,11 @@ class KoopmanNMPC(NMPCController):
         """Fit the model of ``plant``'s robots (or load it from the cache); see the class docstring."""
         if self._fixed_model:
             return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
-        model, summary = calibrated_model(plant, seed, self.dictionary)
+        structure = self.structure
+        if structure == "auto":
+            structure = "stacked" if plant.n_robots <= PARAMS.n_robots else "per-robot"
+        model, summary = calibrated_model(plant, seed, self.dictionary, structure=structure)
+        summary["structure"] = structure
         self._use(model)
         return summary
 

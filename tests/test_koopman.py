@@ -260,3 +260,37 @@ def test_parametric_nlp_step_equals_the_constant_one() -> None:
     constant = np.asarray(model.casadi_nlp_step()(state, u)).reshape(-1)
     parametric = np.asarray(model.casadi_nlp_step_parametric()(state, u, model.nlp_parameters())).reshape(-1)
     np.testing.assert_allclose(parametric, constant, rtol=0, atol=1e-12)
+
+
+def test_per_robot_structure_matches_the_stacked_fit_with_far_fewer_coefficients():
+    from controllers.calibration import collect_data, data_spec_for
+    from controllers.koopman.fit import fit_per_robot
+    from controllers.koopman.store import calibrated_model
+    from koopman_envs.plant import make_plant
+
+    dic = get_dictionary("minimal")
+    plant = make_plant("KoopNav-TargetReaching-v0", slip="high", budget=20_000, seed=3)
+    data = collect_data(plant, data_spec_for(20_000, seed=3))
+    stacked = fit_bilinear(data.states, data.commands, dic)
+    per_robot = fit_per_robot(data.states, data.commands, dic)
+    # the robots do not interact, so both structures predict alike (the stacked fit adds only
+    # estimation noise in its cross-robot coefficients)
+    rng = np.random.default_rng(0)
+    z = dic.lift(rng.uniform(-3, 3, (200, 3, 3)))
+    u = rng.uniform(-0.5, 0.5, (200, 6))
+    uz = (u[:, :, None] * z[:, None, :]).reshape(200, -1)
+
+    def predict(fit):
+        return (z @ fit.A.T + uz @ fit.N.T + u @ fit.B.T) @ fit.C.T
+
+    assert np.abs(predict(stacked) - predict(per_robot)).max() < 2e-3
+    assert np.allclose(per_robot.coordinate_residual[1:], stacked.coordinate_residual[1:], rtol=0.05)
+    # robot 1's rows use nothing of robots 0 and 2
+    rows = dic.state_rows(3)[1]
+    assert not np.any(per_robot.A[np.ix_(rows, dic.state_rows(3)[[0, 2]].reshape(-1))])
+    assert np.count_nonzero(per_robot.N) < np.count_nonzero(stacked.N) / 2
+    model, summary = calibrated_model(make_plant("KoopNav-TargetReaching-v0", n_robots=5, budget=5_000),
+                                      structure="per-robot")  # fmt: skip
+    assert model.n_robots == 5 and model.metadata["structure"] == "per-robot"
+    with pytest.raises(ValueError, match=r"structure='team' is not one of \['stacked', 'per-robot'\]"):
+        calibrated_model(plant, structure="team")

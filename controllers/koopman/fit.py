@@ -20,7 +20,12 @@ from numpy.typing import NDArray
 
 from controllers.koopman.dictionary import Dictionary
 
-__all__ = ["BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted"]
+__all__ = ["STRUCTURES", "BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted", "fit_per_robot"]
+
+#: how a team model couples its robots: ``"stacked"`` (the paper's: one regression over the whole
+#: team, every robot's next observables may depend on every robot's) or ``"per-robot"`` (each
+#: robot's observables depend on its own state and commands only, fitted robot by robot)
+STRUCTURES = ("stacked", "per-robot")
 
 
 @dataclass(frozen=True)
@@ -222,3 +227,40 @@ def fit_bilinear(
         z_all = dictionary.lift(states[t0 : t1 + 1])  # (t1 - t0 + 1, batch, d)
         acc.add(z_all[:-1].reshape(-1, d), flat_u[t0 * batch : t1 * batch], z_all[1:].reshape(-1, d))
     return BilinearFit(*acc.solve(dictionary.state_rows(n).reshape(-1), ridge, rcond))
+
+
+def fit_per_robot(
+    states: NDArray, commands: NDArray, dictionary: Dictionary, ridge: float = 0.0, rcond: float = 1e-12
+) -> BilinearFit:
+    """The team model with the ``"per-robot"`` structure: robot r's rows from its own data only.
+
+    The robots' kinematics do not couple (slip is drawn per robot), so the stacked model's
+    cross-robot coefficients are zero up to estimation noise; fitting each robot's one-robot
+    model and placing it block-diagonally keeps that structure exactly. Regressors per robot:
+    1 + p + 2 (1 + p) (p observables per robot) instead of (1 + pN)(1 + 2N) for the team, so the
+    fit and the NMPC's problem grow linearly with N. Arguments as :func:`fit_bilinear`; the
+    residuals are per lifted coordinate of the team, ``residual`` their RMS.
+    """
+    n = commands.shape[2]
+    p = dictionary.per_robot
+    d, d1, m = dictionary.size(n), 1 + p, 2 * n
+    a, b = np.zeros((d, d)), np.zeros((d, m))
+    bilinear = np.zeros((d, m * d))
+    a[0, 0] = 1.0  # the constant stays 1
+    coordinate = np.zeros(d)
+    rank = 0
+    for r in range(n):
+        one = fit_bilinear(states[:, :, r : r + 1], commands[:, :, r : r + 1], dictionary, ridge, rcond)
+        index = np.concatenate([[0], 1 + p * r + np.arange(p)])  # robot r's observables in the team's z
+        rows = index[1:]
+        a[np.ix_(rows, index)] = one.A[1:]
+        for k in range(2):  # v_r, omega_r
+            column = (2 * r + k) * d + index
+            bilinear[np.ix_(rows, column)] = one.N[1:, k * d1 : (k + 1) * d1]
+            b[rows, 2 * r + k] = one.B[1:, k]
+        coordinate[rows] = one.coordinate_residual[1:]
+        rank += one.rank
+    c = np.zeros((4 * n, d))
+    c[np.arange(4 * n), dictionary.state_rows(n).reshape(-1)] = 1.0
+    residual = float(np.sqrt(np.mean(coordinate[1:] ** 2)))
+    return BilinearFit(a, bilinear, b, c, residual, rank, coordinate)

@@ -33,7 +33,7 @@ from controllers.calibration import (
     write_atomic,
 )
 from controllers.koopman.dictionary import get_dictionary
-from controllers.koopman.fit import fit_bilinear
+from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
 from koopman_envs import __version__ as envs_version
 from koopman_envs.params import PARAMS
@@ -46,13 +46,27 @@ SHIPPED = ("nominal", "low", "high")
 _SHIPPED_ENV = "KoopNav-TargetReaching-v0"  # the plant does not depend on the task
 
 
+def check_structure(structure: str) -> str:
+    """``structure`` if it is one of :data:`controllers.koopman.fit.STRUCTURES`, else ValueError."""
+    if structure not in STRUCTURES:
+        raise ValueError(f"structure={structure!r} is not one of {list(STRUCTURES)}")
+    return structure
+
+
 def fit_on_plant(
-    plant: CalibrationPlant, spec: DataSpec, dictionary: str = "minimal", ridge: float = 0.0
-) -> KoopmanModel:
-    """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance."""
+    plant: CalibrationPlant, spec: DataSpec, dictionary: str = "minimal", ridge: float = 0.0,
+    structure: str = "stacked",
+) -> KoopmanModel:  # fmt: skip
+    """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance.
+
+    ``structure``: ``"stacked"`` (the paper's) or ``"per-robot"``
+    (:func:`controllers.koopman.fit.fit_per_robot`).
+    """
     dic = get_dictionary(dictionary)
+    check_structure(structure)
     data = collect_data(plant, spec)
-    fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge)
+    fitter = fit_bilinear if structure == "stacked" else fit_per_robot
+    fit = fitter(data.states, data.commands, dic, ridge=ridge)
     rows = dic.state_rows(plant.n_robots)  # (N, 4): x, y, cos, sin
     position_residual = np.hypot(fit.coordinate_residual[rows[:, 0]], fit.coordinate_residual[rows[:, 1]])
     meta = {
@@ -66,14 +80,17 @@ def fit_on_plant(
         "position_residual": [float(v) for v in position_residual],
         "rank": fit.rank,
         "transitions": spec.transitions,
-        "cache_key": _model_key(plant, spec, dictionary, ridge),
+        "cache_key": _model_key(plant, spec, dictionary, ridge, structure),
+        "structure": structure,
         "package_version": envs_version,
     }
     return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta)
 
 
-def _model_key(plant: CalibrationPlant, spec: DataSpec, dictionary: str, ridge: float) -> str:
-    return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge)
+def _model_key(plant: CalibrationPlant, spec: DataSpec, dictionary: str, ridge: float, structure: str = "stacked") -> str:
+    # the stacked structure keeps the key it had before structures existed (shipped files, caches)
+    extra = {} if structure == "stacked" else {"structure": structure}
+    return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge, **extra)
 
 
 def shipped_path(setting: str) -> Path:
@@ -94,8 +111,9 @@ def _shipped_for(key: str) -> Path | None:
 
 
 def calibrated_model(
-    plant: CalibrationPlant, seed: int = 0, dictionary: str = "minimal", spec: DataSpec | None = None
-) -> tuple[KoopmanModel, dict[str, Any]]:
+    plant: CalibrationPlant, seed: int = 0, dictionary: str = "minimal", spec: DataSpec | None = None,
+    structure: str = "stacked",
+) -> tuple[KoopmanModel, dict[str, Any]]:  # fmt: skip
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached).
 
     Parameters
@@ -108,6 +126,8 @@ def calibrated_model(
         Observables (``"minimal"``: the paper's).
     spec : DataSpec, optional
         The data set (default: what the plant's budget buys, :func:`data_spec_for`).
+    structure : str
+        ``"stacked"`` (the paper's team regression) or ``"per-robot"``.
 
     Returns
     -------
@@ -118,7 +138,7 @@ def calibrated_model(
     """
     start = time.perf_counter()
     spec = data_spec_for(plant.budget, seed) if spec is None else spec
-    key = _model_key(plant, spec, dictionary, 0.0)
+    key = _model_key(plant, spec, dictionary, 0.0, check_structure(structure))
     summary = {"transitions": spec.transitions, "key": key}
     shipped = _shipped_for(key)
     path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
@@ -132,7 +152,7 @@ def calibrated_model(
             if shipped is not None:
                 raise
         # a corrupt or stale cache entry is refitted and replaced, never used
-    model = fit_on_plant(plant, spec, dictionary)
+    model = fit_on_plant(plant, spec, dictionary, structure=structure)
     if shipped is None:
         write_atomic(path, model.save, ".npz")
     return model, {**summary, "source": "fitted", "seconds": time.perf_counter() - start}
