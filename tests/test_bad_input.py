@@ -17,7 +17,7 @@ ENV = "KoopNav-TargetReaching-v0"
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"map": "map9"}, r"map='map9' is not one of \['map1', 'map2', 'map3', 'map4', 'random'\]"),
+        ({"map": "map9"}, r"map='map9' is not one of \['map1', 'map2', 'map3', 'map4', 'map5', 'map6', 'random'\]"),
         ({"slip": "extreme"}, r"slip='extreme' is not one of \['nominal', 'low', 'high'\]"),
         ({"slip": [0.0, -0.1, 0.2]}, r"negative lambda; allowed: lambda >= 0"),
         ({"slip": [0.0, float("nan"), 0.2]}, r"non-finite lambda"),

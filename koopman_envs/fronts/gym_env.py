@@ -133,8 +133,10 @@ class KoopNavEnv(gym.Env):
 
     @property
     def lambdas(self) -> NDArray[np.float64]:
-        """Per-robot slip means of the current episode (ground truth; controllers must not read it)."""
-        return self.engine.slip.lambdas[0].copy()
+        """Per-robot slip means of the period that starts now: the episode's level, or the
+        schedule's at the current time, with the slip zones the robots stand in applied
+        (ground truth; controllers must not read it)."""
+        return self.engine.slip_means()[0]
 
     def _title(self) -> str:
         """Fixed part of the rendered title (the renderer appends the episode time)."""
