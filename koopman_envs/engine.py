@@ -566,7 +566,9 @@ class NavigationEngine:
         new = np.empty_like(self.state)
         effort = np.empty(self.distances.shape)
         # one branch per step: maps without zones scale the draws by the base levels directly
-        means = slip.lambdas if self.zones is None else self.zones.slip_means(self.state, slip.lambdas, self._means)
+        means = slip.lambdas
+        if self.zones is not None:
+            means = self.zones.slip_means(self.state, slip.lambdas, self._means)
         advance_teams(
             self.state, commands, slip.unit, slip.cursor, means, stepping,
             self.command_low, self.command_high, self._effort_scale, PARAMS.dt, new, effort,

@@ -117,7 +117,11 @@ class KoopNavEnv(gym.Env):
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
         return self._renderer.draw(
-            self.scenario, np.asarray(self._trail), title=self._title(), elapsed=self.engine.elapsed[0] * PARAMS.dt
+            self.scenario,
+            np.asarray(self._trail),
+            title=self._title(),
+            elapsed=self.engine.elapsed[0] * PARAMS.dt,
+            slip_zones=self.engine.maps[0].slip_zones,
         )
 
     def close(self) -> None:

@@ -216,7 +216,12 @@ class KoopNavParallelEnv(ParallelEnv):
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
-        return self._renderer.draw(self.scenario, np.asarray(self._trail), title=self.metadata["name"])
+        return self._renderer.draw(
+            self.scenario,
+            np.asarray(self._trail),
+            title=self.metadata["name"],
+            slip_zones=self.engine.maps[0].slip_zones,
+        )
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -346,7 +346,7 @@ class RandomMapConfig:
     swap_targets: float = 0.0
     #: circular slip zones per map, centred in the corridor like the obstacles
     n_slip_zones: int = 0
-    slip_zone_radius: tuple[float, float] = (1.0, 2.0)  # zone radius range [m]
+    slip_zone_radius: tuple[float, float] = (0.6, 1.5)  # zone radius range [m]
     slip_zone_lambda: tuple[float, float] = (0.2, 0.5)  # range of the zone's slip mean
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
@@ -364,7 +364,9 @@ class RandomMapConfig:
                 raise ValueError(f"{name}={pair!r} must be a (low, high) pair of numbers") from None
             positive = low > 0 if name == "slip_zone_radius" else low >= 0
             if not (math.isfinite(low) and math.isfinite(high) and positive and low <= high):
-                raise ValueError(f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and low <= high")
+                raise ValueError(
+                    f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and low <= high"
+                )
         if self.slip_zone_mode not in SLIP_ZONE_MODES:
             raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
 

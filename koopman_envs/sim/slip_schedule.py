@@ -76,7 +76,9 @@ class SlipSchedule:
         """
         if isinstance(slip, str):
             if slip != DRIFT_SLIP:
-                raise ValueError(f"slip={slip!r} is not a schedule; allowed: {DRIFT_SLIP!r} or (time, lambdas) pairs")
+                raise ValueError(
+                    f"slip={slip!r} is not a schedule; allowed: {DRIFT_SLIP!r} or (time, lambdas) pairs"
+                )
             return cls(True, np.zeros(0), np.zeros((0, n_robots)))
         times, levels = [], []
         for j, entry in enumerate(slip):

@@ -86,7 +86,9 @@ class SlipZone:
         if bounds is None or bounds.shape != (size,) or not np.isfinite(bounds).all():
             raise ValueError(f"{self.shape}={self.bounds!r} must be {size} finite numbers {form}")
         if self.shape == "circle" and bounds[2] <= 0:
-            raise ValueError(f"circle={bounds.tolist()} has radius {bounds[2]:g}; allowed: radius > 0 in {form}")
+            raise ValueError(
+                f"circle={bounds.tolist()} has radius {bounds[2]:g}; allowed: radius > 0 in {form}"
+            )
         if self.shape == "rect" and not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
             raise ValueError(
                 f"rect={bounds.tolist()} is empty; allowed: {form} with xmin < xmax and ymin < ymax"
@@ -190,7 +192,9 @@ class ZoneTable:
     def set_env(self, index: int, zones: Sequence[SlipZone]) -> None:
         """Load the zones of environment ``index`` (exactly Z of them)."""
         if len(zones) != self.kind.shape[1]:
-            raise ValueError(f"{len(zones)} slip zones for environment {index}; the table holds {self.kind.shape[1]}")
+            raise ValueError(
+                f"{len(zones)} slip zones for environment {index}; the table holds {self.kind.shape[1]}"
+            )
         for j, zone in enumerate(zones):
             self.kind[index, j] = _CIRCLE if zone.shape == "circle" else _RECT
             self.geometry[index, j] = 0.0

@@ -75,7 +75,8 @@ TASKS: dict[str, TaskSpec] = {
         extra_maps=("map5",),
     ),
     "formation": TaskSpec(
-        "formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True, extra_maps=("map6",)
+        "formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True,
+        extra_maps=("map6",),
     ),
 }
 
