@@ -70,7 +70,7 @@ class KoopNavParallelEnv(ParallelEnv):
         self,
         task: str = "target_reaching",
         map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[float] = "nominal",
+        slip: str | Sequence[Any] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
         max_episode_steps: int | None = None,

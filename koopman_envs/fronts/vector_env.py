@@ -52,7 +52,7 @@ class KoopNavVectorEnv(VectorEnv):
         num_envs: int,
         task: str,
         map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[float] = "nominal",
+        slip: str | Sequence[Any] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
         max_episode_steps: int | None = PARAMS.max_episode_steps,

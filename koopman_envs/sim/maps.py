@@ -431,14 +431,15 @@ def generate_random_map(
         if not inside:
             continue
         start_theta = heading + rng.uniform(-math.pi / 2, math.pi / 2, size=n_robots)
-        obstacles = _place_obstacles(rng, start_xy, target_xy, config, robot_radius, workspace)
+        corridor = _corridor(start_xy, target_xy)
+        obstacles = _place_obstacles(rng, corridor, start_xy, target_xy, config, robot_radius, workspace)
         if obstacles is None:
             continue
         starts = np.column_stack([start_xy, (start_theta + math.pi) % (2 * math.pi) - math.pi])
         targets = np.column_stack([target_xy, np.full(n_robots, heading)])
         # after every draw of the layout and only when asked for: without zones a seed consumes
         # the generator as before and gives the same layout (tests/data/random_layouts.json)
-        zones = _place_slip_zones(rng, start_xy, target_xy, config) if config.n_slip_zones else ()
+        zones = _place_slip_zones(rng, corridor, config) if config.n_slip_zones else ()
         return MapSpec("random", obstacles, starts, targets, "seeded random layout", slip_zones=zones)
     raise RuntimeError(  # pragma: no cover - the default config succeeds within a few attempts
         f"no valid random map in {config.max_attempts} attempts for n_robots={n_robots}"
@@ -475,38 +476,41 @@ def _corridor(start_xy: NDArray, target_xy: NDArray) -> tuple[NDArray, NDArray, 
 
 
 def _place_slip_zones(
-    rng: np.random.Generator, start_xy: NDArray, target_xy: NDArray, config: RandomMapConfig
+    rng: np.random.Generator, corridor: tuple[NDArray, NDArray, NDArray, float], config: RandomMapConfig
 ) -> tuple[SlipZone, ...]:
-    """``config.n_slip_zones`` circles in the corridor, overlapping anything (slip is no obstacle).
+    """``config.n_slip_zones`` circles in the corridor (:func:`_corridor`), overlapping anything
+    (slip is no obstacle).
 
-    Per zone, four uniform draws in this order: position along a -> b in [0.25, 0.75], offset
-    across in [-half_width, half_width], radius and lambda in their configured ranges.
+    One ``rng.uniform(size=(n_slip_zones, 4))`` call; row j places zone j: position along a -> b
+    in [0.25, 0.75], offset across in [-half_width, half_width], radius and lambda in their
+    configured ranges, each linear in its uniform number. Python floats: this runs every reset.
     """
-    a, b, normal, half_width = _corridor(start_xy, target_xy)
-    u = rng.uniform(size=(config.n_slip_zones, 4))
-    along = 0.25 + 0.5 * u[:, 0]
-    across = half_width * (2.0 * u[:, 1] - 1.0)
+    (ax, ay), (bx, by), (nx, ny), half_width = corridor
     r_low, r_high = config.slip_zone_radius
     l_low, l_high = config.slip_zone_lambda
-    radius = r_low + (r_high - r_low) * u[:, 2]
-    lam = l_low + (l_high - l_low) * u[:, 3]
-    centre = a + along[:, None] * (b - a) + across[:, None] * normal
-    return tuple(
-        SlipZone("circle", (centre[j, 0], centre[j, 1], radius[j]), lam[j], config.slip_zone_mode)
-        for j in range(config.n_slip_zones)
-    )
+    zones = []
+    for u_along, u_across, u_radius, u_lambda in rng.uniform(size=(config.n_slip_zones, 4)).tolist():
+        along = 0.25 + 0.5 * u_along
+        across = half_width * (2.0 * u_across - 1.0)
+        centre = (ax + along * (bx - ax) + across * nx, ay + along * (by - ay) + across * ny)
+        radius = r_low + (r_high - r_low) * u_radius
+        lam = l_low + (l_high - l_low) * u_lambda
+        zones.append(SlipZone("circle", (*centre, radius), lam, config.slip_zone_mode))
+    return tuple(zones)
 
 
 def _place_obstacles(
     rng: np.random.Generator,
+    corridor: tuple[NDArray, NDArray, NDArray, float],
     start_xy: NDArray,
     target_xy: NDArray,
     config: RandomMapConfig,
     robot_radius: float,
     workspace: tuple[float, float, float, float],
 ) -> NDArray | None:
-    """Obstacles along the corridor between the start and target centroids, or None if stuck."""
-    a, b, normal, half_width = _corridor(start_xy, target_xy)
+    """Obstacles along the corridor (:func:`_corridor`) between the start and target centroids,
+    or None if stuck."""
+    a, b, normal, half_width = corridor
     keep_clear = np.ascontiguousarray(np.vstack([start_xy, target_xy]))
     placed, ok = _place_obstacles_kernel(
         rng, a, b, normal, float(half_width), keep_clear, int(config.n_obstacles),

@@ -21,6 +21,7 @@ zone slips exactly (bit for bit) as it would on the map without zones.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -40,13 +41,21 @@ _ZONE_KEYS = (*SLIP_ZONE_SHAPES, "lambda", "mode")
 _CIRCLE, _RECT = 0, 1
 
 
-def _finite_numbers(value: Any) -> NDArray[np.float64] | None:
-    """``value`` as a float array, or None when it is not numbers (bools are not numbers)."""
-    items = value if isinstance(value, (list, tuple, np.ndarray)) else [value]
-    if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating))
-           for v in np.asarray(items, dtype=object).reshape(-1)):  # fmt: skip
-        return None
-    return np.asarray(value, dtype=np.float64)
+def _is_number(value: Any) -> bool:
+    numeric = isinstance(value, (int, float, np.integer, np.floating))
+    return numeric and not isinstance(value, (bool, np.bool_))
+
+
+def _floats(value: Any) -> float | tuple[float, ...] | None:
+    """A number as a float, a flat list/tuple/array of numbers as a tuple of floats, anything
+    else None (bools are not numbers). Plain Python: a random map builds its zones every reset."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "iuf" or value.ndim > 1:
+            return None
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return tuple(float(v) for v in value) if all(_is_number(v) for v in value) else None
+    return float(value) if _is_number(value) else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,27 +90,28 @@ class SlipZone:
         if self.shape not in SLIP_ZONE_SHAPES:
             raise ValueError(f"shape={self.shape!r} is not one of {list(SLIP_ZONE_SHAPES)}")
         form = SLIP_ZONE_SHAPES[self.shape]
-        bounds = _finite_numbers(self.bounds)
+        bounds = _floats(self.bounds)
         size = 3 if self.shape == "circle" else 4
-        if bounds is None or bounds.shape != (size,) or not np.isfinite(bounds).all():
+        if not isinstance(bounds, tuple) or len(bounds) != size or not all(map(math.isfinite, bounds)):
             raise ValueError(f"{self.shape}={self.bounds!r} must be {size} finite numbers {form}")
         if self.shape == "circle" and bounds[2] <= 0:
             raise ValueError(
-                f"circle={bounds.tolist()} has radius {bounds[2]:g}; allowed: radius > 0 in {form}"
+                f"circle={list(bounds)} has radius {bounds[2]:g}; allowed: radius > 0 in {form}"
             )
         if self.shape == "rect" and not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
             raise ValueError(
-                f"rect={bounds.tolist()} is empty; allowed: {form} with xmin < xmax and ymin < ymax"
+                f"rect={list(bounds)} is empty; allowed: {form} with xmin < xmax and ymin < ymax"
             )
-        lam = _finite_numbers(self.lam)
-        if lam is None or lam.ndim > 1 or lam.size == 0 or not np.isfinite(lam).all() or (lam < 0).any():
+        lam = _floats(self.lam)
+        values = lam if isinstance(lam, tuple) else (lam,)
+        if lam is None or not values or not all(math.isfinite(v) and v >= 0 for v in values):
             raise ValueError(
                 f"lambda={self.lam!r} must be a finite number >= 0 or a list of them (one per robot)"
             )
         if self.mode not in SLIP_ZONE_MODES:
             raise ValueError(f"mode={self.mode!r} is not one of {list(SLIP_ZONE_MODES)}")
-        object.__setattr__(self, "bounds", tuple(float(b) for b in bounds))
-        object.__setattr__(self, "lam", float(lam) if lam.ndim == 0 else tuple(float(v) for v in lam))
+        object.__setattr__(self, "bounds", bounds)
+        object.__setattr__(self, "lam", lam)
 
     @property
     def per_robot(self) -> bool:
