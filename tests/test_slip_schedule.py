@@ -125,3 +125,22 @@ def test_drift_is_an_evaluator_cell() -> None:
     results = ev.evaluate(FO, ["consensus"], ["map6"], ["drift"], episodes=2, workers=1, max_episode_steps=20)
     assert [r["slip"] for r in results.records] == ["drift", "drift"]
     assert all(r["status"] == "ok" for r in results.records)
+
+
+def test_a_copy_keeps_the_drift_clock_and_the_zones() -> None:
+    import copy
+    import pickle
+
+    env = gym.make(TR, map="map5", slip="drift")
+    env.reset(seed=1)
+    commands = np.random.default_rng(0).uniform(-0.6, 0.6, (120, 6))
+    for command in commands[:40]:
+        env.step(command)
+    for clone in (copy.deepcopy(env), pickle.loads(pickle.dumps(env))):
+        for command in commands[40:]:
+            a, b = env.step(command)[4]["poses"], clone.step(command)[4]["poses"]
+            np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(env.unwrapped.lambdas, clone.unwrapped.lambdas)
+        env.reset(seed=1)
+        for command in commands[:40]:
+            env.step(command)
