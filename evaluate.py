@@ -118,7 +118,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--random-maps", type=int, metavar="K",
                         help="add a 'random' map row with K seeded layouts per cell (the same for every controller)")
     parser.add_argument("--slips", nargs="+",
-                        help="nominal low high random, or per-robot lambdas like 0,0.1,0.2 (one setting per word)")
+                        help="nominal low high random drift, or per-robot lambdas like 0,0.1,0.2 "
+                             "(one setting per word)")
     parser.add_argument("--controllers", nargs="+", metavar="NAME[:KEY=VALUE,...]",
                         help=f"controller configurations (default: every registered one: {controllers.available()})")
     parser.add_argument("--env-kwargs", nargs="+", metavar="KEY=VALUE",

@@ -7,6 +7,9 @@ Usage::
 Prints steps/s for ``gym.make`` (3 robots, random actions in the actuation limits, auto reset),
 the vector env at 1, 64 and 1024 envs (env-steps/s), and, when ``mpe2`` is installed,
 PettingZoo MPE2 ``simple_spread_v3`` (3 agents, continuous random actions) in the same run.
+Beside the fixed map (the task's default) it times the same map with two slip zones added (a
+``replace`` circle and an ``add`` rectangle on the route, single env and 1024 envs), random maps
+(1024 envs, a new layout per reset) and random maps with two slip zones each.
 Random actions are drawn before timing for every contender alike, so only environment time is
 measured. Each figure is the best of ``--repeats`` timing windows.
 """
@@ -22,8 +25,24 @@ import gymnasium as gym
 import numpy as np
 
 import koopman_envs
+from koopman_envs.sim.maps import MapSpec, load_map
+from koopman_envs.tasks.base import task_for_env
 
 REPEATS = 3  # timing windows per figure; the best is reported
+
+
+def two_zone_map(env_id: str) -> MapSpec:
+    """The task's default map with two slip zones across its route: a circle that replaces the
+    slip mean midway and a rectangle that adds to it near the starts."""
+    spec = load_map(task_for_env(env_id).default_map)
+    mid = (spec.starts[:, :2].mean(axis=0) + spec.targets[:, :2].mean(axis=0)) / 2
+    x0, y0 = spec.starts[:, :2].min(axis=0) - 0.5
+    x1, y1 = spec.starts[:, :2].max(axis=0) + 0.5
+    zones = [
+        {"circle": [float(mid[0]), float(mid[1]), 1.5], "lambda": 0.3, "mode": "replace"},
+        {"rect": [float(x0), float(y0), float(x1) + 1.0, float(y1)], "lambda": 0.1, "mode": "add"},
+    ]
+    return MapSpec(f"{spec.name}+2 zones", spec.obstacles, spec.starts, spec.targets, slip_zones=zones)
 
 
 def _timed(step, reset, seconds: float, repeats: int = REPEATS) -> float:
@@ -50,8 +69,8 @@ def _timed(step, reset, seconds: float, repeats: int = REPEATS) -> float:
     return best
 
 
-def bench_single(env_id: str, seconds: float, repeats: int = REPEATS) -> float:
-    env = gym.make(env_id)
+def bench_single(env_id: str, seconds: float, repeats: int = REPEATS, **kwargs) -> float:
+    env = gym.make(env_id, **kwargs)
     actions = np.random.default_rng(0).uniform(-1, 1, (4096, 6)).astype(np.float32) * env.action_space.high
 
     def step(i: int) -> None:
@@ -62,11 +81,9 @@ def bench_single(env_id: str, seconds: float, repeats: int = REPEATS) -> float:
     return _timed(step, lambda: env.reset(seed=0), seconds, repeats)
 
 
-def bench_vector(
-    env_id: str, num_envs: int, seconds: float, repeats: int = REPEATS, map_name: str | None = None
-) -> float:
-    """Env-steps/s of the native vector env (``map_name="random"``: a new seeded layout per reset)."""
-    venv = gym.make_vec(env_id, num_envs=num_envs, **({} if map_name is None else {"map": map_name}))
+def bench_vector(env_id: str, num_envs: int, seconds: float, repeats: int = REPEATS, **kwargs) -> float:
+    """Env-steps/s of the native vector env (``map="random"``: a new seeded layout per reset)."""
+    venv = gym.make_vec(env_id, num_envs=num_envs, **kwargs)
     high = venv.single_action_space.high
     actions = np.random.default_rng(0).uniform(-1, 1, (64, num_envs, 6)).astype(np.float32) * high
 
@@ -106,19 +123,33 @@ def main() -> None:
     results: dict[str, float | None] = {}
     print(f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}")
     for env_id in koopman_envs.ENV_IDS:
+        zoned = two_zone_map(env_id)
         rate = bench_single(env_id, args.seconds, args.repeats)
         results[f"{env_id} single"] = rate
         print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
+        rate = bench_single(env_id, args.seconds, args.repeats, map=zoned)
+        results[f"{env_id} single two slip zones"] = rate
+        print(f"{env_id:28s} single, two slip zones   {rate:12,.0f} steps/s "
+              f"({rate / results[f'{env_id} single']:.2f}x the fixed map)")  # fmt: skip
         for k in (1, 64, 1024):
             rate = bench_vector(env_id, k, args.seconds, args.repeats)
             results[f"{env_id} vector {k}"] = rate
             print(f"{env_id:28s} make_vec num_envs={k:<5d}   {rate:12,.0f} env-steps/s")
-        # the setting RL training uses: a new random layout at every reset
-        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map_name="random")
-        results[f"{env_id} vector 1024 random maps"] = rate
         fixed = results[f"{env_id} vector 1024"]
+        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map=zoned)
+        results[f"{env_id} vector 1024 two slip zones"] = rate
+        print(f"{env_id:28s} make_vec 1024, two zones {rate:12,.0f} env-steps/s "
+              f"({rate / fixed:.2f}x the fixed map)")  # fmt: skip
+        # the setting RL training uses: a new random layout at every reset
+        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map="random")
+        results[f"{env_id} vector 1024 random maps"] = rate
         print(f"{env_id:28s} make_vec 1024, map=random {rate:12,.0f} env-steps/s "
               f"({rate / fixed:.2f}x the fixed map)")  # fmt: skip
+        random_map = results[f"{env_id} vector 1024 random maps"]
+        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map="random", random_map={"n_slip_zones": 2})
+        results[f"{env_id} vector 1024 random maps two slip zones"] = rate
+        print(f"{env_id:28s} 1024, random + 2 zones   {rate:12,.0f} env-steps/s "
+              f"({rate / random_map:.2f}x random maps without zones)")  # fmt: skip
     mpe = bench_mpe2(args.seconds, args.repeats)
     results["mpe2 simple_spread_v3"] = mpe
     if mpe is None:

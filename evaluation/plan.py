@@ -20,6 +20,7 @@ from koopman_envs.engine import EngineConfig
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.sim.slip import RANDOM_SLIP
+from koopman_envs.sim.slip_schedule import DRIFT_SLIP
 from koopman_envs.tasks.base import ENV_IDS, task_for_env
 
 __all__ = [
@@ -43,10 +44,17 @@ _NOT_ENV_KWARGS = (*CELL_AXES, "render_mode")
 
 
 def slip_value(slip: str) -> str | list[float]:
-    """A slip cell name as the env takes it: a setting name, ``"random"`` or per-robot lambdas."""
-    if slip in SLIP_SETTINGS or slip == RANDOM_SLIP:
+    """A slip cell name as the env takes it: a setting name, ``"random"``, ``"drift"`` or per-robot
+    lambdas (a listed schedule of levels over time is an env keyword only, not a cell)."""
+    if slip in SLIP_SETTINGS or slip in (RANDOM_SLIP, DRIFT_SLIP):
         return slip
-    return [float(v) for v in slip.split(",")]
+    try:
+        return [float(v) for v in slip.split(",")]
+    except ValueError:
+        raise ValueError(
+            f"slip={slip!r} is not one of {[*SLIP_SETTINGS, RANDOM_SLIP, DRIFT_SLIP]} "
+            "nor comma-separated per-robot lambdas"
+        ) from None
 
 
 @dataclass(frozen=True)
@@ -235,7 +243,9 @@ def validate_plan(
     if not configs:
         raise ValueError("no controller to evaluate")
     if not slips:
-        raise ValueError("no slip setting to evaluate; allowed: nominal, low, high, random or per-robot lambdas")
+        raise ValueError(
+            "no slip setting to evaluate; allowed: nominal, low, high, random, drift or per-robot lambdas"
+        )
     for cfg in configs:
         cfg.validate(across_processes=workers > 1)
     data_spec_for(calibration_budget)  # raises for a budget that is not an integer >= 1
@@ -249,7 +259,7 @@ def validate_plan(
     for slip in slips:
         try:
             value = slip_value(slip)
-            if value != RANDOM_SLIP:
+            if value not in (RANDOM_SLIP, DRIFT_SLIP):
                 slip_lambdas(value, settings.n_robots)
         except ValueError as exc:
             raise ValueError(f"slip {slip!r}: {exc}") from None

@@ -97,7 +97,8 @@ def evaluate(
         Maps for every env (shipped names, ``"random"``, or paths of JSON map files), or a
         mapping env id -> maps (default: each task's paper maps).
     slips : sequence of str
-        Setting names (``nominal``, ``low``, ``high``, ``random``) or comma-separated lambdas.
+        Setting names (``nominal``, ``low``, ``high``, ``random``, ``drift``) or comma-separated
+        lambdas.
     episodes : int
         Trials per cell (trial i uses seed ``seed + i``).
     seed : int

@@ -14,6 +14,7 @@ from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, generate_random_map, load_map
+from koopman_envs.sim.zones import SlipZone
 from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, task_for_env
 
 __version__ = "0.1.0"
@@ -44,6 +45,7 @@ __all__ = [
     "PaperParams",
     "SLIP_SETTINGS",
     "Scenario",
+    "SlipZone",
     "TASKS",
     "TaskSpec",
     "generate_random_map",

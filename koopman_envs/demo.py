@@ -39,8 +39,8 @@ class NaiveGoToTarget:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-TargetReaching-v0", choices=koopman_envs.ENV_IDS)
-    parser.add_argument("--map", default=None, help="map1..map4, random, or a .json file")
-    parser.add_argument("--slip", default="nominal", help="nominal, low or high")
+    parser.add_argument("--map", default=None, help="map1..map6, random, or a .json file")
+    parser.add_argument("--slip", default="nominal", help="nominal, low, high, random or drift")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="save the episode as an animated GIF")
     args = parser.parse_args(argv)

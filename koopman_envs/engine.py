@@ -25,6 +25,8 @@ from koopman_envs.sim.dynamics import advance_teams, wrap_angle
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig, formation_offsets, generate_random_map, load_map
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import RANDOM_SLIP, SlipSampler, draw_random_lambdas
+from koopman_envs.sim.slip_schedule import DRIFT_SLIP, SlipClock, SlipSchedule, is_schedule
+from koopman_envs.sim.zones import ZoneTable
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import score_step
@@ -32,6 +34,7 @@ from koopman_envs.tasks.reward import score_step
 __all__ = [
     "EngineConfig",
     "NavigationEngine",
+    "DRIFT_SLIP",
     "RANDOM_SLIP",
     "RESET_OPTIONS",
     "ResetOptions",
@@ -84,6 +87,7 @@ class EngineConfig:
     task: TaskSpec
     map_spec: MapSpec | None  # None means a random map per reset
     random_map: RandomMapConfig
+    #: per-robot base slip means; NaN when drawn per reset ("random", "drift")
     lambdas: NDArray[np.float64]
     slip_label: str
     n_robots: int
@@ -93,13 +97,15 @@ class EngineConfig:
     max_episode_steps: int | None
     #: radius [m] of the start-position disc and bound [rad] of the heading turn drawn per reset
     start_noise: float = 0.0
+    #: base levels that change within an episode ("drift" or a list schedule), else None
+    slip_schedule: SlipSchedule | None = None
 
     @classmethod
     def create(
         cls,
         task: str,
         map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[float] = "nominal",
+        slip: str | Sequence[Any] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
         robot_radius: float = PARAMS.robot_radius,
@@ -141,11 +147,15 @@ class EngineConfig:
         else:
             map_spec = load_map(map_arg)
             map_spec.validate(int(n_robots), float(robot_radius))
+        schedule = None
         if isinstance(slip, str) and slip == RANDOM_SLIP:
             lambdas = np.full(int(n_robots), np.nan)  # drawn per reset
+        elif is_schedule(slip):
+            schedule = SlipSchedule.parse(slip, int(n_robots))
+            lambdas = np.full(int(n_robots), np.nan) if schedule.drift else schedule.levels[0].copy()
         else:
             lambdas = slip_lambdas(slip, int(n_robots))
-        label = slip if isinstance(slip, str) else "custom"
+        label = slip if isinstance(slip, str) else ("schedule" if schedule is not None else "custom")
         return cls(
             task=spec,
             map_spec=map_spec,
@@ -158,12 +168,18 @@ class EngineConfig:
             n_obstacle_obs=int(n_obstacle_obs),
             max_episode_steps=None if max_episode_steps is None else int(max_episode_steps),
             start_noise=float(start_noise),
+            slip_schedule=schedule,
         )
 
     @property
     def random_slip(self) -> bool:
-        """True when every episode draws its own slip level (``slip="random"``)."""
-        return bool(np.isnan(self.lambdas).any())
+        """True when every episode draws its own constant slip level (``slip="random"``)."""
+        return self.slip_schedule is None and bool(np.isnan(self.lambdas).any())
+
+    @property
+    def n_slip_zones(self) -> int:
+        """Slip zones per environment (fixed for a config)."""
+        return self.random_map.n_slip_zones if self.map_spec is None else len(self.map_spec.slip_zones)
 
     @property
     def map_name(self) -> str:
@@ -296,6 +312,10 @@ class NavigationEngine:
     :attr:`poses` gives the familiar (K, N, 3) view. A step is four compiled passes over the
     batch: physics (:func:`~koopman_envs.sim.dynamics.advance_teams`), collision flags,
     observation features, and rewards with episode ends (:mod:`koopman_envs.tasks.reward`).
+    Maps with slip zones add a fifth before the physics
+    (:func:`~koopman_envs.sim.zones.zone_slip_means`: every robot's slip mean where it stands),
+    and a slip schedule updates the base levels after the step
+    (:class:`~koopman_envs.sim.slip_schedule.SlipClock`); without them neither runs.
 
     Parameters
     ----------
@@ -322,6 +342,11 @@ class NavigationEngine:
         self.collision = np.zeros(k, dtype=np.int64)
         self.success = np.zeros(k, dtype=bool)
         self.slip = SlipSampler(k, n)
+        #: slip zones of every environment, None on maps without zones (then no zone pass runs)
+        self.zones = ZoneTable(k, config.n_slip_zones, n) if config.n_slip_zones else None
+        self._means = np.zeros((k, n))  # the zone pass's output
+        #: scheduled base levels, None for a slip level that is constant through an episode
+        self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
         self.builder = FeatureBuilder(k, n, m, config.n_obstacle_obs, config.task.formation)
         self.feature_size = self.builder.shape[-1]
@@ -385,6 +410,8 @@ class NavigationEngine:
         self.target[index] = spec.targets[:n].T
         self.offset[index] = formation_offsets(spec.targets[:n]).T
         self.starts[index] = spec.starts[:n]
+        if self.zones is not None:
+            self.zones.set_env(index, spec.slip_zones)
 
     def reset_env(self, index: int, rng: np.random.Generator, options: ResetOptions | None = None) -> None:
         """Start a new episode in environment ``index``, drawing only from ``rng``.
@@ -430,7 +457,12 @@ class NavigationEngine:
         dx = self.target[index, 0] - self.state[index, 0]
         dy = self.target[index, 1] - self.state[index, 1]
         self.distances[index] = np.sqrt(dx * dx + dy * dy)  # the formula of FeatureBuilder
-        self.slip.reset_env(index, rng, draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas)
+        if self.slip_clock is not None:
+            # the last draws of a reset (drift only), so that every other setting draws as before
+            lambdas = self.slip_clock.reset_env(index, rng)
+        else:
+            lambdas = draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas
+        self.slip.reset_env(index, rng, lambdas)
 
     def _check_placement(self, spec: MapSpec, poses: NDArray, key: str) -> None:
         """Raise ValueError naming ``options[key]`` if the team cannot stand at ``poses`` on ``spec``."""
@@ -533,8 +565,12 @@ class NavigationEngine:
         stepping = self._all_active if active is None else active
         new = np.empty_like(self.state)
         effort = np.empty(self.distances.shape)
+        # one branch per step: maps without zones scale the draws by the base levels directly
+        means = slip.lambdas
+        if self.zones is not None:
+            means = self.zones.slip_means(self.state, slip.lambdas, self._means)
         advance_teams(
-            self.state, commands, slip.unit, slip.cursor, slip.lambdas, stepping,
+            self.state, commands, slip.unit, slip.cursor, means, stepping,
             self.command_low, self.command_high, self._effort_scale, PARAMS.dt, new, effort,
         )  # fmt: skip
         self.state = new
@@ -559,7 +595,21 @@ class NavigationEngine:
         self.distances = distances
         self.collision = collision
         self.success = success
+        if self.slip_clock is not None:
+            self.slip_clock.advance(self.elapsed, active, slip.rngs, slip.lambdas)
         return StepResult(features, robot_reward, team_reward, terminated, truncated)
+
+    def slip_means(self) -> NDArray[np.float64]:
+        """Slip mean lambda of every robot for the period that starts now, shape (K, N).
+
+        The base level (the slip setting, this episode's draw, or the schedule's level at the
+        current time) with the slip zones that contain the robot's centre applied: exactly the
+        scale the next :meth:`step` gives the robot's Exponential draws. Ground truth, for tests
+        and analysis; controllers must not read it.
+        """
+        if self.zones is None:
+            return self.slip.lambdas.copy()
+        return self.zones.slip_means(self.state, self.slip.lambdas, np.empty_like(self.slip.lambdas))
 
     # ------------------------------------------------------------------- info
     def scenario(self, index: int = 0) -> Scenario:

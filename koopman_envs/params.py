@@ -14,8 +14,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "DRIFT_MEAN_INTERVAL",
     "PARAMS",
     "PaperParams",
+    "RANDOM_SLIP_MAX",
     "SLIP_SETTINGS",
     "SLIP_MAX_LAMBDA",
     "slip_lambdas",
@@ -106,6 +108,20 @@ PARAMS = PaperParams()
 SLIP_MAX_LAMBDA: dict[str, float] = {"nominal": 0.0, "low": 0.1, "high": 0.2}
 SLIP_SETTINGS = tuple(SLIP_MAX_LAMBDA)
 
+#: Largest slip mean of the settings that draw their levels (ours: covers and exceeds "high").
+#: ``slip="random"`` draws the most-slipping robot's lambda uniformly on [0, RANDOM_SLIP_MAX] once
+#: per episode (the others spaced linearly from robot 1's 0); ``slip="drift"`` draws every level
+#: of every robot uniformly on [0, RANDOM_SLIP_MAX].
+RANDOM_SLIP_MAX = 0.25
+
+#: ``slip="drift"`` (ours): every robot's slip mean is piecewise constant in time and changes at
+#: the events of its own Poisson process, i.e. after holding times ~ Exponential with this mean
+#: [s], independent across robots. At each event (and at reset) the new level is uniform on
+#: [0, RANDOM_SLIP_MAX], independent of the old one. A change at time t applies from the first
+#: control period that starts at or after t, so the level of a period is the one drawn last up to
+#: the period's start. Exact draw order: koopman_envs.sim.slip_schedule.SlipClock.
+DRIFT_MEAN_INTERVAL = 5.0
+
 
 def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
     """Resolve a slip setting to per-robot Exponential means lambda_i.
@@ -131,7 +147,8 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
         if slip not in SLIP_MAX_LAMBDA:
             raise ValueError(
                 f"slip={slip!r} is not one of {list(SLIP_SETTINGS)} "
-                "(or 'random' for a new level per episode, or a sequence of per-robot lambda >= 0)"
+                "(or 'random' for a new level per episode, 'drift' for levels that change within an "
+                "episode, a sequence of per-robot lambda >= 0, or a list of (time [s], lambdas) pairs)"
             )
         if n_robots == 1:
             return np.zeros(1)

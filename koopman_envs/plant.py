@@ -5,6 +5,10 @@ measured prediction error) gets it here, as it would on real robots: it puts tea
 its choosing, sends commands of its choosing and observes the poses that result. The plant is an
 open field (no obstacles, targets, collisions or episode ends) with the same unicycle kinematics,
 RK4 period and slip process as the environment it twins; it never reveals the slip means.
+The slip process is the environment's base level over time: its setting, one random level per
+team (``slip="random"``), a listed schedule counted from each :meth:`CalibrationPlant.reset` or
+:meth:`CalibrationPlant.rollout`, or drift (``slip="drift"``, the same law, drawn per team). Slip
+zones are features of a map, and the plant has no map: it does not model them.
 
 Every simulated period of every team counts against a budget of team-transitions, the same for
 every controller (default: the paper's 1000 trajectories x 1000 periods), so a comparison can
@@ -21,13 +25,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.engine import EngineConfig
-from koopman_envs.params import PARAMS
+from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS
 from koopman_envs.sim.rollout import rollout
 from koopman_envs.sim.slip import RANDOM_SLIP_MAX, draw_random_lambdas
 from koopman_envs.tasks.base import task_for_env
@@ -89,11 +94,16 @@ class CalibrationPlant:
         self.v_max, self.omega_max = PARAMS.v_max, PARAMS.omega_max
         self.used = 0
         self._random_slip = config.random_slip
-        self._lambdas = None if config.random_slip else config.lambdas.copy()
+        self._schedule = config.slip_schedule
+        self._lambdas = None if config.random_slip or self._schedule is not None else config.lambdas.copy()
         self._rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(_SLIP_STREAM,)))
         self._poses: NDArray[np.float64] | None = None
+        #: slip means of the next period, (N,) or (B, N)
         self._team_lambdas: NDArray[np.float64] | None = None
+        self._clock = 0  # periods since the teams' reset (slip schedules)
         slip: Any = "random" if config.random_slip else [float(v) for v in config.lambdas]
+        if self._schedule is not None:
+            slip = self._schedule.describe()
         blob = {"n_robots": self.n_robots, "dt": self.dt, "slip": slip, "dynamics": DYNAMICS_VERSION}
         if config.random_slip:
             blob["random_slip_max"] = RANDOM_SLIP_MAX
@@ -121,15 +131,37 @@ class CalibrationPlant:
         return arr
 
     def _slip_for(self, batch: int) -> NDArray[np.float64]:
-        """Slip means of ``batch`` new teams: fixed, or one random level per team."""
+        """Slip means of the first period of ``batch`` new teams: fixed, one random level per
+        team, the schedule's first levels or a drift draw per team."""
+        schedule = self._schedule
+        if schedule is not None:
+            if schedule.drift:
+                return self._rng.uniform(0.0, RANDOM_SLIP_MAX, (batch, self.n_robots))
+            return np.broadcast_to(schedule.levels[0], (batch, self.n_robots)).copy()
         if not self._random_slip:
             return self._lambdas
         return np.stack([draw_random_lambdas(self._rng, self.n_robots) for _ in range(batch)])
+
+    def _next_levels(self, levels: NDArray[np.float64], clock: int) -> NDArray[np.float64]:
+        """Slip means (B, N) of the period ``clock`` after a reset, from those of the one before.
+
+        Drift: every robot's level is redrawn with probability 1 - exp(-dt / mean interval) per
+        period, which is the environment's Poisson process of changes seen at the periods'
+        starts (the number of changes in one period is Poisson, and only the last one counts).
+        """
+        schedule = self._schedule
+        if schedule is None:
+            return levels
+        if not schedule.drift:
+            return np.broadcast_to(schedule.levels_at(clock * self.dt), levels.shape).copy()
+        switch = self._rng.uniform(size=levels.shape) < -math.expm1(-self.dt / DRIFT_MEAN_INTERVAL)
+        return np.where(switch, self._rng.uniform(0.0, RANDOM_SLIP_MAX, levels.shape), levels)
 
     def reset(self, poses: NDArray) -> None:
         """Put B teams at the given poses, shape (B, N, 3); costs no budget."""
         self._poses = self._check_poses(poses, "poses").copy()
         self._team_lambdas = self._slip_for(self._poses.shape[0])
+        self._clock = 0
 
     def step(self, commands: NDArray) -> NDArray[np.float64]:
         """Apply one period of commands (B, N, 2) to the teams of the last :meth:`reset`.
@@ -143,6 +175,8 @@ class CalibrationPlant:
         if commands.shape != self._poses.shape[:2] + (2,):
             raise ValueError(f"commands has shape {commands.shape}; expected {self._poses.shape[:2] + (2,)}")
         self._poses = self._simulate(self._poses, commands[None], self._team_lambdas)[1]
+        self._clock += 1
+        self._team_lambdas = self._next_levels(self._team_lambdas, self._clock)
         return self._poses.copy()
 
     def rollout(self, start: NDArray, commands: NDArray) -> NDArray[np.float64]:
@@ -155,14 +189,28 @@ class CalibrationPlant:
         if commands.ndim != 4 or commands.shape[1:] != start.shape[:2] + (2,):
             raise ValueError(f"commands has shape {commands.shape}; expected (T,) + {start.shape[:2] + (2,)}")
         lambdas = self._slip_for(start.shape[0])
-        states = self._simulate(start, commands, lambdas)
-        self._poses, self._team_lambdas = states[-1].copy(), lambdas
+        steps = commands.shape[0]
+        if self._schedule is None:
+            states = self._simulate(start, commands, lambdas)
+        else:
+            # period by period, drawing as a sequence of step() calls does: the period's slip,
+            # then the next period's levels
+            self._check_and_spend(commands)
+            states = np.empty((steps + 1, *start.shape))
+            states[0] = start
+            for t in range(steps):
+                states[t + 1] = rollout(states[t], commands[t : t + 1], lambdas, self._rng, dt=self.dt)[1]
+                lambdas = self._next_levels(lambdas, t + 1)
+        self._poses, self._team_lambdas, self._clock = states[-1].copy(), lambdas, steps
         return states
 
-    def _simulate(self, start: NDArray, commands: NDArray, lambdas: NDArray) -> NDArray[np.float64]:
+    def _check_and_spend(self, commands: NDArray) -> None:
         if not np.isfinite(commands).all():
             raise ValueError("commands contain NaN or inf")
         self._spend(commands.shape[0] * commands.shape[1])
+
+    def _simulate(self, start: NDArray, commands: NDArray, lambdas: NDArray) -> NDArray[np.float64]:
+        self._check_and_spend(commands)
         return rollout(start, commands, lambdas, self._rng, dt=self.dt)
 
 

@@ -3,8 +3,8 @@
 Only matplotlib (and Pillow, which matplotlib already requires) is used; ``rgb_array`` renders
 off-screen through the Agg canvas, ``human`` opens a pyplot window.
 
-A frame is cheap because the figure is built once per episode: obstacles, targets, start
-markers, axes and grid form a static background that is drawn once and kept as a bitmap, and
+A frame is cheap because the figure is built once per episode: slip zones, obstacles, targets,
+start markers, axes and grid form a static background that is drawn once and kept as a bitmap, and
 each frame only restores that bitmap and draws the moving artists (trails, robot bodies,
 headings, the clock in the title) on top of it (blitting). A robot that leaves the map's view
 widens it in 1 m steps, and a frame in which the axis limits change redraws the background.
@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.scenario import Scenario
+from koopman_envs.sim.zones import SlipZone
 
 __all__ = ["Renderer", "draw_scenario", "save_episode", "title_parts"]
 
@@ -33,16 +34,26 @@ _VIEW_STEP = 1.0
 _LAYOUT_PASSES = 4
 #: length of a robot's heading stroke, in robot radii
 _HEADING_LENGTH = 1.6
+#: slip zones: fill colour, and the opacity of a zone whose largest lambda is 0 and of one whose
+#: largest lambda is _ZONE_FULL_LAMBDA or more (linear in between), so that slipperier looks darker
+_ZONE_COLOR = "tab:cyan"
+_ZONE_ALPHA = (0.08, 0.45)
+_ZONE_FULL_LAMBDA = 0.5
 
 
-def _view_limits(scenario: Scenario, current: NDArray) -> tuple[float, float, float, float]:
-    """(x_min, x_max, y_min, y_max) [m] of the view: the starts, targets and obstacles with a
-    margin, widened in whole steps to show the robots at ``current`` (N, 3) with the same
+def _view_limits(
+    scenario: Scenario, current: NDArray, slip_zones: Sequence[SlipZone] = ()
+) -> tuple[float, float, float, float]:
+    """(x_min, x_max, y_min, y_max) [m] of the view: the starts, targets, obstacles and slip zones
+    with a margin, widened in whole steps to show the robots at ``current`` (N, 3) with the same
     margin, and clipped to the workspace."""
     fixed = np.vstack([scenario.starts[:, :2], scenario.targets[:, :2]])
     if len(scenario.obstacles):
         obs = scenario.obstacles
         fixed = np.vstack([fixed, obs[:, :2] - obs[:, 2:], obs[:, :2] + obs[:, 2:]])
+    if len(slip_zones):
+        boxes = np.array([zone.extent() for zone in slip_zones])
+        fixed = np.vstack([fixed, boxes[:, :2], boxes[:, 2:]])
     lo, hi = fixed.min(axis=0) - _VIEW_MARGIN, fixed.max(axis=0) + _VIEW_MARGIN
     robots_lo = current[:, :2].min(axis=0) - _VIEW_MARGIN
     robots_hi = current[:, :2].max(axis=0) + _VIEW_MARGIN
@@ -63,12 +74,28 @@ class _Scene:
     :class:`Renderer` draws it in parts.
     """
 
-    def __init__(self, ax: Any, scenario: Scenario, animated: bool) -> None:
-        from matplotlib.patches import Circle
+    def __init__(
+        self, ax: Any, scenario: Scenario, animated: bool, slip_zones: Sequence[SlipZone] = ()
+    ) -> None:
+        from matplotlib.patches import Circle, Rectangle
 
         ax.clear()
         self.ax = ax
         self.scenario = scenario
+        self.slip_zones = tuple(slip_zones)
+        low, high = _ZONE_ALPHA
+        style = {"color": _ZONE_COLOR, "lw": 0, "zorder": 0.8}
+        for zone in self.slip_zones:
+            # beneath the obstacles (zorder 1); static, so drawn into the background bitmap once
+            largest = float(zone.lambdas_for(scenario.n_robots).max())
+            alpha = low + (high - low) * min(largest / _ZONE_FULL_LAMBDA, 1.0)
+            if zone.shape == "circle":
+                x, y, r = zone.bounds
+                patch = Circle((x, y), r, alpha=alpha, **style)
+            else:
+                x0, y0, x1, y1 = zone.bounds
+                patch = Rectangle((x0, y0), x1 - x0, y1 - y0, alpha=alpha, **style)
+            ax.add_patch(patch)
         for x, y, r in scenario.obstacles:
             ax.add_patch(Circle((x, y), r, color="0.45", zorder=1))
         radius = scenario.robot_radius
@@ -110,7 +137,7 @@ class _Scene:
         self._stroke[1::3, 0], self._stroke[1::3, 1] = x + reach * np.cos(th), y + reach * np.sin(th)
         self.headings.set_data(self._stroke[:, 0].copy(), self._stroke[:, 1].copy())
         self.title.set_text(title)
-        limits = _view_limits(scenario, poses[-1])
+        limits = _view_limits(scenario, poses[-1], self.slip_zones)
         if limits == self.limits:
             return False
         self.ax.set_xlim(limits[0], limits[1])
@@ -119,16 +146,22 @@ class _Scene:
         return True
 
 
-def _static_key(scenario: Scenario) -> tuple[bytes, ...]:
+def _static_key(scenario: Scenario, slip_zones: Sequence[SlipZone] = ()) -> tuple[Any, ...]:
     """What the static background depends on: a new episode with other geometry rebuilds it."""
     return tuple(
         np.ascontiguousarray(a).tobytes()
         for a in (scenario.obstacles, scenario.starts, scenario.targets, scenario.robot_radius)
-    ) + (scenario.workspace,)
+    ) + (scenario.workspace, tuple((z.shape, z.bounds, z.lam, z.mode) for z in slip_zones))
 
 
-def draw_scenario(ax: Any, scenario: Scenario, trail: NDArray | None = None, title: str = "") -> None:
-    """Draw obstacles, targets, trails and robots (with heading) on a matplotlib axes.
+def draw_scenario(
+    ax: Any,
+    scenario: Scenario,
+    trail: NDArray | None = None,
+    title: str = "",
+    slip_zones: Sequence[SlipZone] = (),
+) -> None:
+    """Draw slip zones, obstacles, targets, trails and robots (with heading) on a matplotlib axes.
 
     Parameters
     ----------
@@ -140,8 +173,11 @@ def draw_scenario(ax: Any, scenario: Scenario, trail: NDArray | None = None, tit
         Poses so far; the last row is drawn as the robots.
     title : str
         Axes title.
+    slip_zones : sequence of SlipZone
+        The map's slip zones (``MapSpec.slip_zones``), shaded beneath the obstacles, darker the
+        larger their lambda. Passed apart from the scenario, which carries no slip parameters.
     """
-    _Scene(ax, scenario, animated=False).update(trail, title)
+    _Scene(ax, scenario, animated=False, slip_zones=slip_zones).update(trail, title)
 
 
 def title_parts(title: str, elapsed: float | None) -> tuple[str, str, str]:
@@ -238,7 +274,12 @@ class Renderer:
             )  # animated: head and tail are drawn into the background once they are placed
 
     def draw(
-        self, scenario: Scenario, trail: NDArray, title: str = "", elapsed: float | None = None
+        self,
+        scenario: Scenario,
+        trail: NDArray,
+        title: str = "",
+        elapsed: float | None = None,
+        slip_zones: Sequence[SlipZone] = (),
     ) -> NDArray[np.uint8] | None:
         """Draw one frame.
 
@@ -252,6 +293,8 @@ class Renderer:
             Fixed part of the title.
         elapsed : float, optional
             Episode time [s], shown after the title as ``t = 1.2 s``.
+        slip_zones : sequence of SlipZone
+            The map's slip zones, shaded in the static background (see :func:`draw_scenario`).
 
         Returns
         -------
@@ -260,10 +303,10 @@ class Renderer:
         """
         if self.figure is None:
             self._open()
-        key = _static_key(scenario)
+        key = _static_key(scenario, slip_zones)
         stale = False
         if self._scene is None or key != self._scene_key:
-            self._scene = _Scene(self.ax, scenario, animated=self.blit)
+            self._scene = _Scene(self.ax, scenario, animated=self.blit, slip_zones=slip_zones)
             self._scene_key = key
             stale = True
         head, clock, tail = title_parts(title, elapsed)

@@ -1,7 +1,8 @@
 """What a model-based controller may know about an episode: geometry, goals, limits, timing.
 
 The scenario deliberately carries no slip parameters: a controller that needs a model of the
-slipping robots has to learn it from data.
+slipping robots has to learn it from data. Slip zones are map data (``MapSpec.slip_zones``, with
+their lambdas), not part of the scenario either.
 """
 
 from __future__ import annotations

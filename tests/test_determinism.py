@@ -60,8 +60,30 @@ def test_same_rollout_in_other_processes() -> None:
 @pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
 def test_vector_env_matches_single_envs(env_id: str, mode: str, start_noise: float) -> None:
     """Sub-env i seeded s + i is the single env seeded s + i, across auto-resets (with perturbed starts too)."""
+    vector_matches_single_envs(
+        env_id, mode, dict(map="random", slip="high", max_episode_steps=120, start_noise=start_noise)
+    )
+
+
+ZONES_AND_SCHEDULES = {
+    "random zones, drift": dict(map="random", random_map={"n_slip_zones": 2}, slip="drift", start_noise=0.1),
+    "zone map, listed schedule": dict(slip=[(0.0, "low"), (2.0, [0.3, 0.0, 0.1]), (5.0, "high")]),
+}
+
+
+@pytest.mark.parametrize("variant", ZONES_AND_SCHEDULES)
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
+def test_vector_env_matches_single_envs_with_zones_and_drift(env_id: str, mode: str, variant: str) -> None:
+    """The same with slip zones (per sub-env on random maps; map5 / map6) and changing slip."""
+    kwargs = dict(ZONES_AND_SCHEDULES[variant], max_episode_steps=120)
+    kwargs.setdefault("map", "map5" if "Target" in env_id else "map6")
+    vector_matches_single_envs(env_id, mode, kwargs)
+
+
+def vector_matches_single_envs(env_id: str, mode: str, kwargs: dict) -> None:
+    """Step a vector env of 4 and 4 single envs with the same random actions; compare everything."""
     num_envs, seed = 4, 100
-    kwargs = dict(map="random", slip="high", max_episode_steps=120, start_noise=start_noise)
     venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode=mode, **kwargs)
     assert type(venv.unwrapped).__name__ == "KoopNavVectorEnv"  # the native batched env
     envs = [gym.make(env_id, **kwargs) for _ in range(num_envs)]
@@ -93,6 +115,7 @@ def test_vector_env_matches_single_envs(env_id: str, mode: str, start_noise: flo
             np.testing.assert_array_equal(env.unwrapped.scenario.starts, venv.unwrapped.scenario(i).starts)
             for key, value in info.items():  # every key of the single env's info, same value
                 np.testing.assert_array_equal(np.asarray(value), np.asarray(vinfo[key][i]), err_msg=key)
+            np.testing.assert_array_equal(env.unwrapped.lambdas, venv.unwrapped.engine.slip_means()[i])
             assert reward == vrew[i]
     assert episodes >= 10  # autoreset was exercised many times
 

@@ -11,11 +11,25 @@ import koopman_envs
 
 
 @pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
-@pytest.mark.parametrize("map_name", ["map1", "map2", "map3", "map4", "random"])
+@pytest.mark.parametrize("map_name", [*koopman_envs.BUILTIN_MAPS, "random"])
 @pytest.mark.parametrize("slip", ["nominal", "high", [0.0, 0.3, 0.05]])
 def test_check_env(env_id: str, map_name: str, slip) -> None:
     env = gym.make(env_id, map=map_name, slip=slip)
     check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    [
+        ("KoopNav-TargetReaching-v0", {"map": "map5", "slip": "drift"}),
+        ("KoopNav-Formation-v0", {"map": "map6", "slip": [(0.0, "low"), (0.5, 0.3)]}),
+        ("KoopNav-Formation-v0", {"map": "random", "random_map": {"n_slip_zones": 2}, "slip": "drift"}),
+    ],
+)
+def test_check_env_with_zones_and_schedules(env_id: str, kwargs: dict) -> None:
+    env = gym.make(env_id, render_mode="rgb_array", **kwargs)
+    check_env(env.unwrapped)
     env.close()
 
 

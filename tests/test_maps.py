@@ -30,10 +30,22 @@ def test_shipped_maps_are_valid_and_not_trivial(name: str) -> None:
 
 
 def test_formation_maps_have_equal_travel() -> None:
-    for name in ("map3", "map4"):
+    for name in ("map3", "map4", "map6"):
         spec = load_map(name)
         travel = spec.targets[:, :2] - spec.starts[:, :2]
         np.testing.assert_allclose(travel, np.broadcast_to(travel[0], travel.shape), atol=1e-9)
+
+
+def test_the_task_table_lists_every_shipped_map_once() -> None:
+    """map5 and map6 belong to their tasks but not to the paper's map lists (SPEC section 5)."""
+    from koopman_envs.tasks.base import TASKS, env_id_for_map
+
+    listed = [name for spec in TASKS.values() for name in spec.maps]
+    assert sorted(listed) == sorted(BUILTIN_MAPS)
+    assert TASKS["target_reaching"].paper_maps == ("map1", "map2")
+    assert TASKS["formation"].paper_maps == ("map3", "map4")
+    assert env_id_for_map("map5") == "KoopNav-TargetReaching-v0"
+    assert env_id_for_map("map6") == "KoopNav-Formation-v0"
 
 
 def test_map3_reuses_map1_obstacles() -> None:

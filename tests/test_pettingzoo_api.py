@@ -18,6 +18,18 @@ def test_parallel_api(module, map_name) -> None:
     parallel_api_test(module.parallel_env(slip="high", **kwargs), num_cycles=300)
 
 
+@pytest.mark.parametrize("module, map_name", [(target_reaching_v0, "map5"), (formation_v0, "map6")])
+@pytest.mark.parametrize("slip", ["high", "drift"])
+def test_parallel_api_on_the_slip_zone_maps(module, map_name: str, slip: str) -> None:
+    parallel_api_test(module.parallel_env(map=map_name, slip=slip), num_cycles=300)
+
+
+@pytest.mark.parametrize("module", MODULES)
+def test_parallel_seed_with_zones_and_drift(module) -> None:
+    zones = {"n_slip_zones": 2}
+    parallel_seed_test(lambda: module.parallel_env(map="random", random_map=zones, slip="drift"))
+
+
 @pytest.mark.parametrize("module", MODULES)
 def test_parallel_seed(module) -> None:
     parallel_seed_test(lambda: module.parallel_env(map="random", slip="high"))

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
-from koopman_envs.params import PARAMS
+from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 from koopman_envs.tasks.base import RewardWeights
@@ -27,7 +27,7 @@ class KoopNavEnv(gym.Env):
     def __init__(
         self,
         map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[float] = "nominal",
+        slip: str | Sequence[Any] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
         render_mode: str | None = None,
@@ -117,7 +117,11 @@ class KoopNavEnv(gym.Env):
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
         return self._renderer.draw(
-            self.scenario, np.asarray(self._trail), title=self._title(), elapsed=self.engine.elapsed[0] * PARAMS.dt
+            self.scenario,
+            np.asarray(self._trail),
+            title=self._title(),
+            elapsed=self.engine.elapsed[0] * PARAMS.dt,
+            slip_zones=self.engine.maps[0].slip_zones,
         )
 
     def close(self) -> None:
@@ -133,8 +137,10 @@ class KoopNavEnv(gym.Env):
 
     @property
     def lambdas(self) -> NDArray[np.float64]:
-        """Per-robot slip means of the current episode (ground truth; controllers must not read it)."""
-        return self.engine.slip.lambdas[0].copy()
+        """Per-robot slip means of the period that starts now: the episode's level, or the
+        schedule's at the current time, with the slip zones the robots stand in applied
+        (ground truth; controllers must not read it)."""
+        return self.engine.slip_means()[0]
 
     def _title(self) -> str:
         """Fixed part of the rendered title (the renderer appends the episode time)."""
@@ -155,8 +161,31 @@ _SLIP_TABLE = """
 
     For other team sizes robot 1 stays slip-free and the others are spaced linearly up to the
     setting's largest lambda. A sequence of per-robot lambda >= 0 is accepted too, and
-    ``"random"`` draws a new level per episode (largest lambda uniform on [0, 0.25]; for training).
+    ``"random"`` draws a new level per episode (largest lambda uniform on [0, {max:g}]; for training).
+
+    Levels that change within an episode (``params.py`` documents the law):
+
+    * ``slip="drift"``: every robot's level is redrawn uniformly on [0, {max:g}] at the events of
+      its own Poisson process (holding times Exponential with mean {interval:g} s). The draws come
+      from the env's ``np_random``: the first levels and holding times at reset, after every other
+      reset draw, the later ones at the end of the step that reaches them; the other settings
+      draw nothing of this, so their rollouts are unchanged.
+    * ``slip=[(0.0, [0, 0.1, 0.2]), (5.0, [0.3, 0.3, 0.3])]``: (time [s], lambdas) pairs, times
+      from 0 and strictly increasing; ``lambdas`` is anything ``slip`` takes as a level (a name,
+      one number, one per robot). Each level holds from its time until the next.
+
+    A change at time t applies from the first period that starts at or after t.
+
+    Slip zones of the map (``MapSpec.slip_zones``, docs in README "Maps"): inside a ``"replace"``
+    zone a robot's mean is the zone's lambda, inside an ``"add"`` zone the zone's lambda is added;
+    overlapping zones: the last listed ``replace`` zone wins, ``add`` zones sum on top. The mean of
+    a period is taken where the robot is at the period's start; only the scale of the draws
+    changes, so an env with zones consumes its generator exactly as one without.
+    ``env.unwrapped.lambdas`` holds every robot's mean for the period that starts now (ground
+    truth; ``info`` carries no slip data, as controllers must not read it).
 """
+
+_SLIP_DOC = _SLIP_TABLE.format(max=RANDOM_SLIP_MAX, interval=DRIFT_MEAN_INTERVAL)
 
 _COMMON_DOC = """
     ## Action Space
@@ -211,8 +240,8 @@ _COMMON_DOC = """
     ## Arguments
     | Parameter        | Type                  | Default     | Description                              |
     |------------------|-----------------------|-------------|------------------------------------------|
-    | map              | str, path or MapSpec  | {default_map}      | "map1".."map4", "random", a JSON file, a map |
-    | slip             | str or sequence       | "nominal"   | "nominal", "low", "high" or lambda_i >= 0 |
+    | map              | str, path or MapSpec  | {default_map}      | "map1".."map6", "random", a JSON file, a map |
+    | slip             | str or sequence       | "nominal"   | "nominal", "low", "high", "random", "drift", lambda_i >= 0 or (time, lambdas) pairs |
     | n_robots         | int                   | 3           | team size (<= the map's starts)          |
     | goal_tolerance   | float                 | 0.1         | success tolerance [m]                    |
     | max_episode_steps| int                   | {p.max_episode_steps}         | time limit (a ``gym.make`` argument)      |
@@ -241,7 +270,7 @@ class TargetReachingEnv(KoopNavEnv):
     >>> import gymnasium as gym, koopman_envs
     >>> env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high")
 """
-        + _COMMON_DOC.format(slip_table=_SLIP_TABLE, formation_term="", default_map='"map1"', w=_W, p=PARAMS)
+        + _COMMON_DOC.format(slip_table=_SLIP_DOC, formation_term="", default_map='"map1"', w=_W, p=PARAMS)
     )
     task_name = "target_reaching"
 
@@ -257,7 +286,7 @@ class FormationEnv(KoopNavEnv):
     >>> env = gym.make("KoopNav-Formation-v0", map="map3", slip="low")
 """
         + _COMMON_DOC.format(
-            slip_table=_SLIP_TABLE,
+            slip_table=_SLIP_DOC,
             formation_term=f"- {_W.formation:g} * ||e_i|| [m]",
             default_map='"map3"',
             w=_W,

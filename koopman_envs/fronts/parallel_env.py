@@ -70,7 +70,7 @@ class KoopNavParallelEnv(ParallelEnv):
         self,
         task: str = "target_reaching",
         map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[float] = "nominal",
+        slip: str | Sequence[Any] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
         max_episode_steps: int | None = None,
@@ -216,7 +216,12 @@ class KoopNavParallelEnv(ParallelEnv):
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
-        return self._renderer.draw(self.scenario, np.asarray(self._trail), title=self.metadata["name"])
+        return self._renderer.draw(
+            self.scenario,
+            np.asarray(self._trail),
+            title=self.metadata["name"],
+            slip_zones=self.engine.maps[0].slip_zones,
+        )
 
     def close(self) -> None:
         if self._renderer is not None:

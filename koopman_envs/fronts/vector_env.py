@@ -41,8 +41,8 @@ class KoopNavVectorEnv(VectorEnv):
         ``info["final_obs"]`` / ``info["final_info"]``, as SB3 expects).
     **kwargs
         The single env's keyword arguments (``map``, ``slip``, ``n_robots``, ``start_noise``, ...).
-        Sub-env i draws its map, start noise and slip from its own generator, so it stays equal
-        to the single env seeded ``s + i``.
+        Sub-env i draws its map, start noise and slip (drift included) from its own generator and
+        has its own slip zones on random maps, so it stays equal to the single env seeded ``s + i``.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -52,7 +52,7 @@ class KoopNavVectorEnv(VectorEnv):
         num_envs: int,
         task: str,
         map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[float] = "nominal",
+        slip: str | Sequence[Any] = "nominal",
         n_robots: int = PARAMS.n_robots,
         goal_tolerance: float = PARAMS.goal_tolerance,
         max_episode_steps: int | None = PARAMS.max_episode_steps,

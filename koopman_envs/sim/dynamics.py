@@ -197,7 +197,8 @@ def advance_teams(
     slip_cursor : ndarray of int, shape (K,)
         Next unread row per environment; advanced here for active environments.
     lambdas : ndarray, shape (K, N)
-        Slip means per robot.
+        Slip means per robot for this period (the base levels, or where slip zones apply, the
+        output of :func:`koopman_envs.sim.zones.zone_slip_means`).
     active : ndarray of bool, shape (K,)
         Inactive environments keep their state, consume no slip and report zero effort.
     command_low, command_high, effort_scale : ndarray, shape (2,)

@@ -1,8 +1,9 @@
 """Obstacle maps: the shipped data files, user map files, and the seeded random-map generator.
 
-A map holds circular obstacles and, per robot, a start pose and a target pose. Formation maps
-are written as a leader target plus follower offsets; both forms load into the same
-:class:`MapSpec`, whose ``formation_offsets`` are the targets relative to robot 0's target.
+A map holds circular obstacles, optional slip zones (:mod:`koopman_envs.sim.zones`) and, per
+robot, a start pose and a target pose. Formation maps are written as a leader target plus
+follower offsets; both forms load into the same :class:`MapSpec`, whose ``formation_offsets``
+are the targets relative to robot 0's target.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.geometry import TeamGeometry
+from koopman_envs.sim.zones import SLIP_ZONE_MODES, SlipZone, check_zone_robots
 
 __all__ = [
     "BUILTIN_MAPS",
@@ -31,7 +33,9 @@ __all__ = [
     "load_map",
 ]
 
-BUILTIN_MAPS = ("map1", "map2", "map3", "map4")
+#: the shipped maps: map1-map4 are the paper's (SPEC section 5), map5 (target reaching) and map6
+#: (formation) add a high-slip zone across the shortest route (ours)
+BUILTIN_MAPS = ("map1", "map2", "map3", "map4", "map5", "map6")
 MAP_NAMES = (*BUILTIN_MAPS, "random")
 
 
@@ -74,6 +78,12 @@ class MapSpec:
         target plus the formation offset of follower i.
     description : str
         Free text.
+    metadata : dict
+        Free JSON data kept with the map.
+    slip_zones : tuple of SlipZone
+        Regions with their own slip mean (:mod:`koopman_envs.sim.zones`); a sequence of
+        :class:`~koopman_envs.sim.zones.SlipZone` or of their map-file dicts. A per-robot zone
+        lambda lists one value per start of the map.
     """
 
     name: str
@@ -82,6 +92,7 @@ class MapSpec:
     targets: NDArray[np.float64]
     description: str = ""
     metadata: dict[str, Any] = field(default_factory=dict)
+    slip_zones: tuple[SlipZone, ...] = ()
 
     def __post_init__(self) -> None:
         obstacles = _as_array(self.obstacles, "obstacles", 3, self.name)
@@ -98,9 +109,26 @@ class MapSpec:
             raise ValueError(f"map {self.name!r}: obstacle radii must be > 0, got {obstacles[:, 2]}")
         for arr in (obstacles, starts, targets):
             arr.setflags(write=False)
+        object.__setattr__(self, "slip_zones", self._zones(self.slip_zones, starts.shape[0]))
         object.__setattr__(self, "obstacles", obstacles)
         object.__setattr__(self, "starts", starts)
         object.__setattr__(self, "targets", targets)
+
+    def _zones(self, value: Any, n_robots: int) -> tuple[SlipZone, ...]:
+        """``slip_zones`` checked and converted (dicts of the map-file form become zones)."""
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(f"map {self.name!r}: slip_zones={value!r} must be a list of zones")
+        zones = []
+        for j, item in enumerate(value):
+            try:
+                zones.append(item if isinstance(item, SlipZone) else SlipZone.from_dict(item))
+            except ValueError as exc:
+                raise ValueError(f"map {self.name!r}: slip zone {j}: {exc}") from None
+        try:
+            check_zone_robots(zones, n_robots)
+        except ValueError as exc:
+            raise ValueError(f"map {self.name!r}: {exc}") from None
+        return tuple(zones)
 
     @property
     def max_robots(self) -> int:
@@ -211,6 +239,7 @@ class MapSpec:
             "starts": self.starts.tolist(),
             "targets": self.targets.tolist(),
             **({"metadata": self.metadata} if self.metadata else {}),
+            **({"slip_zones": [zone.to_dict() for zone in self.slip_zones]} if self.slip_zones else {}),
         }
 
     def save(self, path: str | os.PathLike) -> None:
@@ -224,7 +253,9 @@ class MapSpec:
 
         Either ``targets`` (one pose per robot) or ``leader_target`` plus ``formation_offsets``
         (one (dx, dy) per robot, the leader's being (0, 0); every target takes the leader's
-        heading) must be given.
+        heading) must be given. ``slip_zones`` is optional: a list of
+        ``{"circle": [x, y, r], "lambda": l, "mode": "replace"}`` or
+        ``{"rect": [xmin, ymin, xmax, ymax], ...}`` objects (:meth:`SlipZone.from_dict`).
         """
         if not isinstance(data, dict):
             raise ValueError(f"map {default_name!r}: must be a JSON object, got {type(data).__name__}")
@@ -251,6 +282,7 @@ class MapSpec:
             targets=targets,
             description=str(data.get("description", "")),
             metadata=dict(data.get("metadata", {})),
+            slip_zones=data.get("slip_zones", ()),
         )
 
 
@@ -260,7 +292,7 @@ def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
     Parameters
     ----------
     spec : str, path or MapSpec
-        A shipped map name (``"map1"`` .. ``"map4"``), a path to a JSON map file, or a map.
+        A shipped map name (``"map1"`` .. ``"map6"``), a path to a JSON map file, or a map.
         ``"random"`` is handled by the environment, which draws a new map per reset.
 
     Raises
@@ -296,7 +328,9 @@ class RandomMapConfig:
 
     The layout mirrors the paper's maps: a team in formation travels ``travel`` metres in a
     random direction, and isolated circular obstacles sit in the corridor between starts and
-    targets.
+    targets. With ``n_slip_zones`` > 0, circular slip zones (one lambda for every robot) are
+    placed in the same corridor after the rest of the layout is drawn, so the obstacles, starts
+    and targets of a seed do not depend on them.
     """
 
     n_obstacles: int = 4
@@ -310,10 +344,31 @@ class RandomMapConfig:
     #: probability that the targets go to the robots in a random order, so that paths cross as
     #: in Map 2 (target reaching; for formation it reshapes the formation itself)
     swap_targets: float = 0.0
+    #: circular slip zones per map, centred in the corridor like the obstacles
+    n_slip_zones: int = 0
+    slip_zone_radius: tuple[float, float] = (0.6, 1.5)  # zone radius range [m]
+    slip_zone_lambda: tuple[float, float] = (0.2, 0.5)  # range of the zone's slip mean
+    slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.swap_targets <= 1.0:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
+        n = self.n_slip_zones
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise ValueError(f"n_slip_zones={n!r} must be an integer >= 0")
+        for name, low_allowed in (("slip_zone_radius", "> 0"), ("slip_zone_lambda", ">= 0")):
+            pair = getattr(self, name)
+            try:
+                low, high = (float(v) for v in pair)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name}={pair!r} must be a (low, high) pair of numbers") from None
+            positive = low > 0 if name == "slip_zone_radius" else low >= 0
+            if not (math.isfinite(low) and math.isfinite(high) and positive and low <= high):
+                raise ValueError(
+                    f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and low <= high"
+                )
+        if self.slip_zone_mode not in SLIP_ZONE_MODES:
+            raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
 
 
 def _wedge_offsets(n_robots: int, spacing: float) -> NDArray[np.float64]:
@@ -376,13 +431,16 @@ def generate_random_map(
         if not inside:
             continue
         start_theta = heading + rng.uniform(-math.pi / 2, math.pi / 2, size=n_robots)
-        obstacles = _place_obstacles(rng, start_xy, target_xy, config, robot_radius, workspace)
+        corridor = _corridor(start_xy, target_xy)
+        obstacles = _place_obstacles(rng, corridor, start_xy, target_xy, config, robot_radius, workspace)
         if obstacles is None:
             continue
         starts = np.column_stack([start_xy, (start_theta + math.pi) % (2 * math.pi) - math.pi])
         targets = np.column_stack([target_xy, np.full(n_robots, heading)])
-        spec = MapSpec("random", obstacles, starts, targets, "seeded random layout")
-        return spec
+        # after every draw of the layout and only when asked for: without zones a seed consumes
+        # the generator as before and gives the same layout (tests/data/random_layouts.json)
+        zones = _place_slip_zones(rng, corridor, config) if config.n_slip_zones else ()
+        return MapSpec("random", obstacles, starts, targets, "seeded random layout", slip_zones=zones)
     raise RuntimeError(  # pragma: no cover - the default config succeeds within a few attempts
         f"no valid random map in {config.max_attempts} attempts for n_robots={n_robots}"
     )
@@ -407,19 +465,52 @@ def _team_placement(offsets, travel, lead, inner):
     return start, target, inside
 
 
+def _corridor(start_xy: NDArray, target_xy: NDArray) -> tuple[NDArray, NDArray, NDArray, float]:
+    """The corridor of a random layout: start centroid a, target centroid b, unit normal of a -> b
+    and half width [m] (the team's spread across the travel direction plus 1 m)."""
+    a, b = start_xy.mean(axis=0), target_xy.mean(axis=0)
+    direction = (b - a) / np.linalg.norm(b - a)
+    normal = np.array([-direction[1], direction[0]])
+    half_width = np.abs((start_xy - a) @ normal).max() + 1.0
+    return a, b, normal, float(half_width)
+
+
+def _place_slip_zones(
+    rng: np.random.Generator, corridor: tuple[NDArray, NDArray, NDArray, float], config: RandomMapConfig
+) -> tuple[SlipZone, ...]:
+    """``config.n_slip_zones`` circles in the corridor (:func:`_corridor`), overlapping anything
+    (slip is no obstacle).
+
+    One ``rng.uniform(size=(n_slip_zones, 4))`` call; row j places zone j: position along a -> b
+    in [0.25, 0.75], offset across in [-half_width, half_width], radius and lambda in their
+    configured ranges, each linear in its uniform number. Python floats: this runs every reset.
+    """
+    (ax, ay), (bx, by), (nx, ny), half_width = corridor
+    r_low, r_high = config.slip_zone_radius
+    l_low, l_high = config.slip_zone_lambda
+    zones = []
+    for u_along, u_across, u_radius, u_lambda in rng.uniform(size=(config.n_slip_zones, 4)).tolist():
+        along = 0.25 + 0.5 * u_along
+        across = half_width * (2.0 * u_across - 1.0)
+        centre = (ax + along * (bx - ax) + across * nx, ay + along * (by - ay) + across * ny)
+        radius = r_low + (r_high - r_low) * u_radius
+        lam = l_low + (l_high - l_low) * u_lambda
+        zones.append(SlipZone("circle", (*centre, radius), lam, config.slip_zone_mode))
+    return tuple(zones)
+
+
 def _place_obstacles(
     rng: np.random.Generator,
+    corridor: tuple[NDArray, NDArray, NDArray, float],
     start_xy: NDArray,
     target_xy: NDArray,
     config: RandomMapConfig,
     robot_radius: float,
     workspace: tuple[float, float, float, float],
 ) -> NDArray | None:
-    """Obstacles along the corridor between the start and target centroids, or None if stuck."""
-    a, b = start_xy.mean(axis=0), target_xy.mean(axis=0)
-    direction = (b - a) / np.linalg.norm(b - a)
-    normal = np.array([-direction[1], direction[0]])
-    half_width = np.abs((start_xy - a) @ normal).max() + 1.0
+    """Obstacles along the corridor (:func:`_corridor`) between the start and target centroids,
+    or None if stuck."""
+    a, b, normal, half_width = corridor
     keep_clear = np.ascontiguousarray(np.vstack([start_xy, target_xy]))
     placed, ok = _place_obstacles_kernel(
         rng, a, b, normal, float(half_width), keep_clear, int(config.n_obstacles),

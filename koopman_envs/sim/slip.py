@@ -4,6 +4,11 @@ Each environment owns one ``numpy.random.Generator``; slip coefficients are draw
 Drawing a block of periods at once is what makes 1024 environments cheap to step, and because a
 single environment uses exactly the same block logic, sub-environment ``i`` of a batch consumes
 its generator exactly as a lone environment with the same seed does.
+
+The blocks hold unit-mean draws; the step scales them by each robot's slip mean of the period.
+That mean may come from slip zones (:mod:`koopman_envs.sim.zones`) or change with a schedule
+(:mod:`koopman_envs.sim.slip_schedule`), but the unit draws are the same stream whatever the
+means are: zones never change what is drawn, only how it is scaled.
 """
 
 from __future__ import annotations
@@ -11,12 +16,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.params import RANDOM_SLIP_MAX
+
 __all__ = ["RANDOM_SLIP", "RANDOM_SLIP_MAX", "SlipSampler", "draw_random_lambdas"]
 
 #: ``slip="random"``: each episode draws the largest lambda uniformly on [0, RANDOM_SLIP_MAX] and
 #: spaces the others linearly from robot 1's 0 (ours: covers and exceeds the "high" setting).
 RANDOM_SLIP = "random"
-RANDOM_SLIP_MAX = 0.25
 
 
 def draw_random_lambdas(rng: np.random.Generator, n_robots: int) -> NDArray[np.float64]:
@@ -45,6 +51,8 @@ class SlipSampler:
         self.block = int(block)
         self.n_robots = int(n_robots)
         self.rngs: list[np.random.Generator | None] = [None] * num_envs
+        #: (K, N) base slip mean of every robot: the setting, the episode's draw or the schedule's
+        #: level of the coming period (slip zones act on top of it)
         self.lambdas = np.zeros((num_envs, n_robots))
         #: (K, block, 3, N) unit-mean draws; one period of env k is a (3, N) slab: alpha, beta, gamma rows
         self.unit = np.zeros((num_envs, self.block, 3, n_robots))
@@ -69,7 +77,8 @@ class SlipSampler:
         """Refill the block of every environment about to step past its buffer.
 
         Call once before each step; the step itself then reads row ``cursor[k]`` of
-        :attr:`unit` for every active environment k, scales it by ``lambdas[k]`` and advances
+        :attr:`unit` for every active environment k, scales it by the robots' slip means
+        (:attr:`lambdas`, the base levels, or what the slip zones make of them) and advances
         ``cursor[k]`` (see :func:`koopman_envs.sim.dynamics.advance_teams`).
 
         Parameters

@@ -40,11 +40,14 @@ class TaskSpec:
     label : str
         Human-readable name for reports.
     paper_maps : tuple of str
-        The paper's maps of this task (SPEC section 5); the first is the default map.
+        The paper's maps of this task (SPEC section 5); the first is the default map. The paper
+        protocols evaluate exactly these.
     formation : bool
         Whether formation terms (offsets, formation error) apply.
     reward : RewardWeights
         Weights of the shaped reward.
+    extra_maps : tuple of str
+        Further shipped maps of this task that are not the paper's (ours: with slip zones).
     """
 
     name: str
@@ -53,6 +56,12 @@ class TaskSpec:
     paper_maps: tuple[str, ...]
     formation: bool
     reward: RewardWeights = RewardWeights()
+    extra_maps: tuple[str, ...] = ()
+
+    @property
+    def maps(self) -> tuple[str, ...]:
+        """Every shipped map of this task: the paper's, then the extra ones."""
+        return self.paper_maps + self.extra_maps
 
     @property
     def default_map(self) -> str:
@@ -62,9 +71,13 @@ class TaskSpec:
 
 TASKS: dict[str, TaskSpec] = {
     "target_reaching": TaskSpec(
-        "target_reaching", "KoopNav-TargetReaching-v0", "target reaching", ("map1", "map2"), formation=False
+        "target_reaching", "KoopNav-TargetReaching-v0", "target reaching", ("map1", "map2"), formation=False,
+        extra_maps=("map5",),
     ),
-    "formation": TaskSpec("formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True),
+    "formation": TaskSpec(
+        "formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True,
+        extra_maps=("map6",),
+    ),
 }
 
 #: Registered env ids, in task order.
@@ -80,8 +93,8 @@ def task_for_env(env_id: str) -> TaskSpec:
 
 
 def env_id_for_map(map_name: str, default: str = ENV_IDS[0]) -> str:
-    """The env id whose paper maps include ``map_name`` (``default`` for any other map)."""
+    """The env id whose shipped maps include ``map_name`` (``default`` for any other map)."""
     for spec in TASKS.values():
-        if map_name in spec.paper_maps:
+        if map_name in spec.maps:
             return spec.env_id
     return default
