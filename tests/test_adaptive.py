@@ -82,11 +82,11 @@ def test_rls_parameters_match_the_model_layout_and_reset_restores_the_prior(ship
 
 def test_rls_guards_keep_the_covariance_bounded_and_reject_non_finite_data(shipped):
     fit = RecursiveBilinearFit(shipped, forgetting=0.5, prior_weight=10.0)
-    bound = np.trace(fit.covariance)
+    bounds = [np.trace(c) for c in fit.covariances]
     still = np.zeros((3, 3))
     for _ in range(200):  # no excitation at all: plain forgetting would blow P up by 2**200
         fit.update(still, np.zeros((3, 2)), still)
-    assert np.trace(fit.covariance) <= bound * (1 + 1e-9)
+    assert all(np.trace(c) <= b * (1 + 1e-9) for c, b in zip(fit.covariances, bounds))
     assert np.all(np.isfinite(fit.weights))
     weights = fit.weights.copy()
     fit.update(still, np.zeros((3, 2)), np.full((3, 3), np.nan))
@@ -136,3 +136,24 @@ def test_frozen_adaptive_controller_is_koopman_nmpc_with_residual_margins():
     _, a = _episode(frozen, map="map1", slip="nominal", max_episode_steps=15)
     _, b = _episode(plain, map="map1", slip="nominal", max_episode_steps=15)
     assert np.array_equal(a, b)
+
+
+def test_per_robot_models_adapt_robot_by_robot(shipped):
+    """A per-robot (block-diagonal) model gets one small RLS per robot, and learns as the stacked one."""
+    from controllers.koopman.fit import fit_per_robot
+    from controllers.koopman.dictionary import get_dictionary
+
+    poses, commands = _trajectory(shipped, 400, seed=4)  # data of the shipped model's own dynamics
+    fit = fit_per_robot(poses[:, None], commands[:, None], get_dictionary("minimal"))
+    block = dataclasses.replace(shipped, A=fit.A, N=fit.N, B=fit.B, C=fit.C, metadata={})
+    online = RecursiveBilinearFit(block, forgetting=1.0, prior_weight=1.0)
+    assert len(online._groups) == 3 and all(len(outs) == 4 for _, outs in online._groups)
+    assert all(regressors.size == 15 for regressors, _ in online._groups)  # 1 + 4 + 2 x 5
+    true = _faster(block, 1.5)
+    poses, commands = _trajectory(true, 1000, seed=0)
+    errors = [online.update(poses[t], commands[t], poses[t + 1]).reshape(-1, 4)[:, :2] for t in range(1000)]
+    prior = [block.step(poses[t], commands[t])[:, :2] - poses[t + 1][:, :2] for t in range(800, 1000)]
+    assert np.sqrt(np.mean(np.square(errors[800:]))) < 0.2 * np.sqrt(np.mean(np.square(prior)))
+    # still block-diagonal: robot 0's rows use nothing of robot 1
+    a, n, _ = online.matrices()
+    assert not np.any(a[1:5, 5:9]) and np.array_equal(online.nlp_parameters().size, block.nlp_parameters().size)

@@ -111,25 +111,36 @@ class RecursiveBilinearFit:
         free[d:] = model.N[rows].T != 0
         free[merged] |= model.B[rows].T != 0
         self._free = free
-        self._prior_covariance = self._prior_covariance_of(model)
-        self._trace_bound = float(np.trace(self._prior_covariance))
+        # outputs whose free regressors coincide share one covariance: one group for the paper's
+        # stacked model, one per robot for the per-robot structure (whose RLS then costs
+        # N small updates instead of one of size (D + m D)^2)
+        groups: dict[bytes, list[int]] = {}
+        for j in range(rows.size):
+            groups.setdefault(np.packbits(free[:, j]).tobytes(), []).append(j)
+        self._groups = [(np.flatnonzero(free[:, outs[0]]), np.asarray(outs)) for outs in groups.values()]
+        self._prior_covariances = self._prior_covariances_of(model)
+        self._trace_bounds = [float(np.trace(p0)) for p0 in self._prior_covariances]
         self._base_theta = model.nlp_parameters()
         self._selection: tuple[NDArray, NDArray] | None = None
         self.reset()
 
-    def _prior_covariance_of(self, model: KoopmanModel) -> NDArray[np.float64]:
+    def _prior_covariances_of(self, model: KoopmanModel) -> list[NDArray[np.float64]]:
         rng = np.random.default_rng(_PRIOR_SAMPLE_SEED)
         n, b, ib = model.n_robots, PARAMS.koopman_state_bound, PARAMS.koopman_input_bound
         poses = rng.uniform(-b, b, size=(_PRIOR_SAMPLES, n, 3))
         commands = rng.uniform(-ib, ib, size=(_PRIOR_SAMPLES, n, 2))
         psi = _lifted_regressors(model, poses, commands)
-        information = self.prior_weight * np.einsum("si,sj->ij", psi, psi) / _PRIOR_SAMPLES
-        return _cholesky_solve(information, np.eye(information.shape[0]), 0.0, 1e-14)
+        covariances = []
+        for regressors, _ in self._groups:
+            sample = psi[:, regressors]
+            information = self.prior_weight * np.einsum("si,sj->ij", sample, sample) / _PRIOR_SAMPLES
+            covariances.append(_cholesky_solve(information, np.eye(regressors.size), 0.0, 1e-14))
+        return covariances
 
     def reset(self) -> None:
         """Back to the calibrated model and the prior covariance (every episode starts here)."""
         self.weights = self._prior_weights.copy()
-        self.covariance = self._prior_covariance.copy()
+        self.covariances = [p0.copy() for p0 in self._prior_covariances]
         self.updates = 0
         self.rejected = 0
 
@@ -151,23 +162,29 @@ class RecursiveBilinearFit:
         psi = _lifted_regressors(self.model, np.asarray(poses)[None], np.asarray(commands)[None])[0]
         target = self.model.lift(np.asarray(next_poses)[None])[0][self.outputs]
         error = target - np.einsum("qj,q->j", self.weights, psi)
-        p_psi = np.einsum("ij,j->i", self.covariance, psi)
-        denominator = self.forgetting + float(np.einsum("i,i->", psi, p_psi))
-        if not (np.isfinite(denominator) and denominator > 0 and np.all(np.isfinite(error))):
+        if not np.all(np.isfinite(error)):
             self.rejected += 1
             return error
-        gain = p_psi / denominator
-        weights = self.weights + np.where(self._free, gain[:, None] * error[None, :], 0.0)
-        covariance = self.covariance - gain[:, None] * p_psi[None, :]
-        covariance = 0.5 * (covariance + covariance.T)
-        forgotten = covariance / self.forgetting
-        # bounded trace: forget only while the covariance stays within the prior's
-        if np.trace(forgotten) <= self._trace_bound:
-            covariance = forgotten
-        if not (np.all(np.isfinite(weights)) and np.all(np.isfinite(covariance))):
+        weights = self.weights.copy()
+        covariances = []
+        for (regressors, outs), covariance, bound in zip(self._groups, self.covariances, self._trace_bounds):
+            x = psi[regressors]
+            p_x = np.einsum("ij,j->i", covariance, x)
+            denominator = self.forgetting + float(np.einsum("i,i->", x, p_x))
+            if not (np.isfinite(denominator) and denominator > 0):
+                self.rejected += 1
+                return error
+            gain = p_x / denominator
+            weights[np.ix_(regressors, outs)] += gain[:, None] * error[None, outs]
+            covariance = covariance - gain[:, None] * p_x[None, :]
+            covariance = 0.5 * (covariance + covariance.T)
+            forgotten = covariance / self.forgetting
+            # bounded trace: forget only while the covariance stays within the prior's
+            covariances.append(forgotten if np.trace(forgotten) <= bound else covariance)
+        if not (np.all(np.isfinite(weights)) and all(np.all(np.isfinite(c)) for c in covariances)):
             self.rejected += 1
             return error
-        self.weights, self.covariance = weights, covariance
+        self.weights, self.covariances = weights, covariances
         self.updates += 1
         return error
 
