@@ -6,10 +6,11 @@ Usage::
 
 For each team size N, target reaching on the seeded random map of seed 0 (4 obstacles, the
 random-map generator's defaults) runs ``--steps`` control periods with each controller in its
-default setup (NMPCs: fatrop, compiled, cached; the first run on a machine compiles each
-structure, which is not timed) and prints the median and p95 decision time per step, how they
-grow from the smallest N, and the outcome so far. Koopman-NMPC is calibrated for N on the
-env's calibration plant first (the fit is cached on disk).
+default setup (NMPCs: IPOPT, compiled and cached unless ``KOOPNAV_NMPC_JIT=0``; a structure not
+yet compiled runs uncompiled while it compiles in the background, so run twice for the compiled
+figures) and prints the median and p95 decision time per step, how they grow from the smallest
+N, and the outcome so far. Koopman-NMPC is calibrated for N on the env's calibration plant first
+(the fit is cached on disk; beyond 3 robots it fits the per-robot structure).
 """
 
 from __future__ import annotations
