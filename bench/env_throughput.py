@@ -45,31 +45,52 @@ def two_zone_map(env_id: str) -> MapSpec:
     return MapSpec(f"{spec.name}+2 zones", spec.obstacles, spec.starts, spec.targets, slip_zones=zones)
 
 
+class _Contender:
+    """One thing to time: ``step(i)`` and its ``reset()``, with the best rate seen so far."""
+
+    def __init__(self, step, reset) -> None:
+        self.step, self.count, self.best = step, 0, 0.0
+        reset()
+        for i in range(50):
+            step(i)
+
+    def window(self, seconds: float) -> None:
+        done, start = 0, time.perf_counter()
+        while True:
+            for i in range(500):
+                self.step(self.count + i)
+            self.count += 500
+            done += 500
+            elapsed = time.perf_counter() - start
+            if elapsed >= seconds:
+                self.best = max(self.best, done / elapsed)
+                return
+
+
 def _timed(step, reset, seconds: float, repeats: int = REPEATS) -> float:
     """Best steps per second of ``step(i)`` over ``repeats`` windows of ``seconds`` each.
 
     The best window, not the mean: on a shared machine, other tenants only ever slow a window
     down, so the fastest one is the closest to what the code itself costs.
     """
-    reset()
-    for i in range(50):
-        step(i)
-    best, count = 0.0, 0
+    contender = _Contender(step, reset)
     for _ in range(repeats):
-        done, start = 0, time.perf_counter()
-        while True:
-            for i in range(500):
-                step(count + i)
-            count += 500
-            done += 500
-            elapsed = time.perf_counter() - start
-            if elapsed >= seconds:
-                best = max(best, done / elapsed)
-                break
-    return best
+        contender.window(seconds)
+    return contender.best
 
 
-def bench_single(env_id: str, seconds: float, repeats: int = REPEATS, **kwargs) -> float:
+def _timed_pair(a: tuple, b: tuple, seconds: float, repeats: int = REPEATS) -> tuple[float, float]:
+    """Best steps per second of two ``(step, reset)`` contenders, their windows alternating, so
+    that a change of the machine's load during the run slows both alike and their ratio holds."""
+    first, second = _Contender(*a), _Contender(*b)
+    for _ in range(repeats):
+        first.window(seconds)
+        second.window(seconds)
+    return first.best, second.best
+
+
+def single_runner(env_id: str, **kwargs) -> tuple:
+    """``(step, reset)`` of ``gym.make(env_id, **kwargs)`` with random actions and auto reset."""
     env = gym.make(env_id, **kwargs)
     actions = np.random.default_rng(0).uniform(-1, 1, (4096, 6)).astype(np.float32) * env.action_space.high
 
@@ -78,11 +99,11 @@ def bench_single(env_id: str, seconds: float, repeats: int = REPEATS, **kwargs) 
         if terminated or truncated:
             env.reset()
 
-    return _timed(step, lambda: env.reset(seed=0), seconds, repeats)
+    return step, lambda: env.reset(seed=0)
 
 
-def bench_vector(env_id: str, num_envs: int, seconds: float, repeats: int = REPEATS, **kwargs) -> float:
-    """Env-steps/s of the native vector env (``map="random"``: a new seeded layout per reset)."""
+def vector_runner(env_id: str, num_envs: int, **kwargs) -> tuple:
+    """``(step, reset)`` of the native vector env (``map="random"``: a new seeded layout per reset)."""
     venv = gym.make_vec(env_id, num_envs=num_envs, **kwargs)
     high = venv.single_action_space.high
     actions = np.random.default_rng(0).uniform(-1, 1, (64, num_envs, 6)).astype(np.float32) * high
@@ -90,7 +111,17 @@ def bench_vector(env_id: str, num_envs: int, seconds: float, repeats: int = REPE
     def step(i: int) -> None:
         venv.step(actions[i & 63])
 
-    return _timed(step, lambda: venv.reset(seed=0), seconds, repeats) * num_envs
+    return step, lambda: venv.reset(seed=0)
+
+
+def bench_single(env_id: str, seconds: float, repeats: int = REPEATS, **kwargs) -> float:
+    """Steps/s of the single env."""
+    return _timed(*single_runner(env_id, **kwargs), seconds, repeats)
+
+
+def bench_vector(env_id: str, num_envs: int, seconds: float, repeats: int = REPEATS, **kwargs) -> float:
+    """Env-steps/s of the native vector env."""
+    return _timed(*vector_runner(env_id, num_envs, **kwargs), seconds, repeats) * num_envs
 
 
 def bench_mpe2(seconds: float, repeats: int = REPEATS) -> float | None:
@@ -124,32 +155,35 @@ def main() -> None:
     print(f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}")
     for env_id in koopman_envs.ENV_IDS:
         zoned = two_zone_map(env_id)
-        rate = bench_single(env_id, args.seconds, args.repeats)
+        timing = (args.seconds, args.repeats)
+        rate, zones = _timed_pair(single_runner(env_id), single_runner(env_id, map=zoned), *timing)
         results[f"{env_id} single"] = rate
+        results[f"{env_id} single two slip zones"] = zones
         print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
-        rate = bench_single(env_id, args.seconds, args.repeats, map=zoned)
-        results[f"{env_id} single two slip zones"] = rate
-        print(f"{env_id:28s} single, two slip zones   {rate:12,.0f} steps/s "
-              f"({rate / results[f'{env_id} single']:.2f}x the fixed map)")  # fmt: skip
-        for k in (1, 64, 1024):
+        print(f"{env_id:28s} single, two slip zones   {zones:12,.0f} steps/s "
+              f"({zones / rate:.2f}x the fixed map)")  # fmt: skip
+        for k in (1, 64):
             rate = bench_vector(env_id, k, args.seconds, args.repeats)
             results[f"{env_id} vector {k}"] = rate
             print(f"{env_id:28s} make_vec num_envs={k:<5d}   {rate:12,.0f} env-steps/s")
-        fixed = results[f"{env_id} vector 1024"]
-        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map=zoned)
-        results[f"{env_id} vector 1024 two slip zones"] = rate
-        print(f"{env_id:28s} make_vec 1024, two zones {rate:12,.0f} env-steps/s "
-              f"({rate / fixed:.2f}x the fixed map)")  # fmt: skip
-        # the setting RL training uses: a new random layout at every reset
-        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map="random")
+        # each comparison alternates its two contenders' windows (see _timed_pair)
+        pair = _timed_pair(vector_runner(env_id, 1024), vector_runner(env_id, 1024, map=zoned), *timing)
+        fixed, zones = (1024 * r for r in pair)
+        results[f"{env_id} vector 1024"] = fixed
+        results[f"{env_id} vector 1024 two slip zones"] = zones
+        print(f"{env_id:28s} make_vec num_envs=1024    {fixed:12,.0f} env-steps/s")
+        print(f"{env_id:28s} make_vec 1024, two zones {zones:12,.0f} env-steps/s "
+              f"({zones / fixed:.2f}x the fixed map)")  # fmt: skip
+        # the setting RL training uses: a new random layout at every reset, without and with zones
+        plain = vector_runner(env_id, 1024, map="random")
+        with_zones = vector_runner(env_id, 1024, map="random", random_map={"n_slip_zones": 2})
+        rate, zones = (1024 * r for r in _timed_pair(plain, with_zones, *timing))
         results[f"{env_id} vector 1024 random maps"] = rate
+        results[f"{env_id} vector 1024 random maps two slip zones"] = zones
         print(f"{env_id:28s} make_vec 1024, map=random {rate:12,.0f} env-steps/s "
               f"({rate / fixed:.2f}x the fixed map)")  # fmt: skip
-        random_map = results[f"{env_id} vector 1024 random maps"]
-        rate = bench_vector(env_id, 1024, args.seconds, args.repeats, map="random", random_map={"n_slip_zones": 2})
-        results[f"{env_id} vector 1024 random maps two slip zones"] = rate
-        print(f"{env_id:28s} 1024, random + 2 zones   {rate:12,.0f} env-steps/s "
-              f"({rate / random_map:.2f}x random maps without zones)")  # fmt: skip
+        print(f"{env_id:28s} 1024, random + 2 zones   {zones:12,.0f} env-steps/s "
+              f"({zones / rate:.2f}x random maps without zones)")  # fmt: skip
     mpe = bench_mpe2(args.seconds, args.repeats)
     results["mpe2 simple_spread_v3"] = mpe
     if mpe is None:

@@ -248,13 +248,14 @@ def zone_slip_means(state, base, kind, geometry, add, zone_lambdas, out):  # pra
             level = base[k, i]
             extra = 0.0
             for z in range(n_zones):
-                g = geometry[k, z]
+                # scalar reads: a per-zone array view (geometry[k, z]) costs more than the test
+                a0, a1, a2 = geometry[k, z, 0], geometry[k, z, 1], geometry[k, z, 2]
                 if kind[k, z] == 0:
-                    dx = x - g[0]
-                    dy = y - g[1]
-                    inside = dx * dx + dy * dy <= g[2] * g[2]
+                    dx = x - a0
+                    dy = y - a1
+                    inside = dx * dx + dy * dy <= a2 * a2
                 else:
-                    inside = g[0] <= x <= g[2] and g[1] <= y <= g[3]
+                    inside = a0 <= x <= a2 and a1 <= y <= geometry[k, z, 3]
                 if inside:
                     if add[k, z]:
                         extra += zone_lambdas[k, z, i]
