@@ -3,7 +3,8 @@
 Usage::
 
     python docs/make_results_md.py results_paper/results.json [more results.json ...] \
-        [--ablation docs/ablation.md] [--strict results_strict/results.json]
+        [--ablation docs/ablation.md] [--strict results_strict/results.json] \
+        [--uncertainty results_zones_tr/results.json results_zones_fm/results.json ...]
 
 Cells of later files are added to those of the first (e.g. a separate ``--controllers rl-ppo``
 run). Every rate carries its 95% Wilson interval, every mean distance its 95% bootstrap
@@ -85,11 +86,56 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
     return lines
 
 
+def uncertainty_section(docs: list[dict]) -> list[str]:
+    """The changing-uncertainty results (not in the paper): pooled leaderboard, paired comparisons
+    and per-cell tables of the runs on slip-zone maps and with drifting or random slip."""
+    pooled = Results([r for d in docs for r in d["episodes"]], docs[0]["config"])
+    cells = sorted({(c.env_id, c.map, c.slip, c.episodes) for c in pooled.cells})
+    grid = "; ".join(f"{task_label_of(env_id)} {m} slip {slip} ({n} seeds)" for env_id, m, slip, n in cells)
+    lines = ["## Changing uncertainty: slip zones, drifting and random slip (not in the paper)", "",
+             "Cells: " + grid + ". Maps 5 and 6 put a high-slip zone across the shortest route; `drift` "
+             "redraws every robot's slip level at random times within the episode, `random` draws one level "
+             "per episode (README, *Maps* and *Environments*). Same seeds for every controller, so the "
+             "comparisons are paired; same calibration offer as above; no controller is told the slip.", "",
+             "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in docs)
+             + ", then this script with `--uncertainty` and those runs' results.json.", "",
+             "### Leaderboard", "", pooled.leaderboard_table(), "",
+             "### Paired comparisons", "",
+             "Difference of success rates on shared episodes (map, slip, seed), Newcombe's 95% interval, "
+             "exact McNemar test.", "", pooled.paired_table(), "", "### Per-controller tables", ""]  # fmt: skip
+    for env_id, name in pooled.table_keys():
+        lines += [pooled.paper_table(env_id, name), ""]
+    return lines
+
+
+def _command(config: dict) -> str:
+    """The evaluate.py command line of a run, from its recorded configuration."""
+    maps = sorted({m for names in config["maps"].values() for m in names})
+    controllers = []
+    for c in config["controller_configs"]:
+        options = dict(c["options"])
+        if c["label"] != c["name"]:
+            options["label"] = c["label"]
+        controllers.append(c["name"] + (":" + ",".join(f"{k}={v}" for k, v in options.items()) if options else ""))
+    return (f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
+            f"--slips {' '.join(config['slips'])} --episodes {config['episodes']} "
+            f"--controllers {' '.join(controllers)}")  # fmt: skip
+
+
+def task_label_of(env_id: str) -> str:
+    """'target reaching' / 'formation' for an env id."""
+    from evaluation.results import task_label
+
+    return task_label(env_id)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("results", nargs="+")
     parser.add_argument("--strict", help="results.json of `python evaluate.py --paper-strict`")
     parser.add_argument("--ablation", help="docs/ablation.md to link")
+    parser.add_argument("--uncertainty", nargs="+", default=[],
+                        help="results.json of the changing-uncertainty runs (slip zones, drift, random slip)")
     parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
     args = parser.parse_args()
     docs = [json.loads(Path(path).read_text()) for path in args.results]
@@ -164,6 +210,8 @@ def main() -> None:
     if args.ablation:
         lines += ["## Ablation", "", f"See [ablation.md]({Path(args.ablation).name}): which of learned model, "
                   "widened margins and soft constraints decides the outcome under high slip.", ""]  # fmt: skip
+    if args.uncertainty:
+        lines += uncertainty_section([json.loads(Path(path).read_text()) for path in args.uncertainty])
     Path(args.out).write_text("\n".join(lines) + "\n")
     print(f"wrote {args.out}")
 
