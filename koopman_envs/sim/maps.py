@@ -35,8 +35,9 @@ __all__ = [
 ]
 
 #: the shipped maps: map1-map4 are the paper's (SPEC section 5), map5 (target reaching) and map6
-#: (formation) add a high-slip zone across the shortest route (ours)
-BUILTIN_MAPS = ("map1", "map2", "map3", "map4", "map5", "map6")
+#: (formation) add a high-slip zone across the shortest route, map7 (target reaching) and map8
+#: (formation) hold six robots (ours)
+BUILTIN_MAPS = ("map1", "map2", "map3", "map4", "map5", "map6", "map7", "map8")
 MAP_NAMES = (*BUILTIN_MAPS, "random")
 
 
@@ -344,7 +345,7 @@ def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
     Parameters
     ----------
     spec : str, path or MapSpec
-        A shipped map name (``"map1"`` .. ``"map6"``), a path to a JSON map file, or a map.
+        A shipped map name (``"map1"`` .. ``"map8"``), a path to a JSON map file, or a map.
         ``"random"`` is handled by the environment, which draws a new map per reset.
 
     Raises
