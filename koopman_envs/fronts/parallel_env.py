@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+import textwrap
 from typing import Any
 
 import gymnasium
@@ -18,7 +19,7 @@ from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_opti
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
-__all__ = ["KoopNavParallelEnv", "make_constructors"]
+__all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
 
 #: ``pettingzoo.test.api_test`` and ``parallel_api_test`` check that reset takes ``options`` by
 #: passing ``{"options": 1}``: that key is accepted without effect so that they pass, while any
@@ -219,3 +220,17 @@ def make_constructors(task: str):
         fn.__doc__ = f"Create the {what} KoopNav {task} environment (keywords of KoopNavParallelEnv)."
         fn.__signature__ = signature  # type: ignore[attr-defined]
     return parallel_env, env, raw_env
+
+
+
+def make_call(task: str) -> str:
+    """``<task>_v0.parallel_env(...)`` with every keyword at its default, for the module docstrings
+    (generated from the constructor's signature, itself generated from the keyword table)."""
+    from koopman_envs.tasks.base import TASKS
+
+    head = f"{task}_v0.parallel_env("
+    defaults = {"map": TASKS[task].default_map, "max_episode_steps": PARAMS.max_episode_steps}
+    parameters = inspect.signature(KoopNavParallelEnv).parameters.values()
+    words = " ".join(f"{p.name}={defaults.get(p.name, p.default)!r}," for p in parameters if p.name != "task")
+    lines = textwrap.wrap(words[:-1] + ")", width=100 - len(head), break_long_words=False, break_on_hyphens=False)
+    return head + ("\n" + " " * len(head)).join(lines)
