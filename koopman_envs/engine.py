@@ -13,9 +13,9 @@ import dataclasses
 import difflib
 import functools
 import inspect
-import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces

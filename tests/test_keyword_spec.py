@@ -4,8 +4,9 @@ EngineConfig.create validates them, and every front takes, shows and forwards ex
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np

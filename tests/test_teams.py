@@ -9,7 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 from pettingzoo.test import parallel_api_test
 
-import koopman_envs  # noqa: F401 - registers the ids
+import koopman_envs
 from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
@@ -84,7 +84,7 @@ def test_no_formation_keeps_every_map_and_seed_as_before(env_id: str, map_name: 
 
 @pytest.mark.parametrize("front", ["gym", "vector", "parallel"])
 def test_the_formation_keyword_reaches_every_front(front: str) -> None:
-    kwargs = dict(map="random", n_robots=6, formation="circle")
+    kwargs = {"map": "random", "n_robots": 6, "formation": "circle"}
     if front == "gym":
         env = gym.make(FO, **kwargs)
         targets = env.reset(seed=2)[1]["targets"]
@@ -168,7 +168,10 @@ def _free_path(spec, start: np.ndarray, target: np.ndarray, radius: float, cell:
     free = np.ones(gx.shape, dtype=bool)
     for ox, oy, r in spec.obstacles:
         free &= np.hypot(gx - ox, gy - oy) > r + radius + cell
-    index = lambda p: (int(round((p[0] - xs[0]) / cell)), int(round((p[1] - ys[0]) / cell)))  # noqa: E731
+
+    def index(point: np.ndarray) -> tuple[int, int]:
+        return round((point[0] - xs[0]) / cell), round((point[1] - ys[0]) / cell)
+
     reached = np.zeros_like(free)
     reached[index(start)] = free[index(start)]
     while True:
@@ -202,15 +205,15 @@ def test_every_robot_of_a_shipped_map_has_a_path_to_its_target(name: str) -> Non
          r"formation='diamond' is not one of \['wedge', 'line', 'column', 'circle', 'grid'\] or None"),
         (FO, {"formation": 3}, r"formation=3 is not one of \['wedge'"),
         (TR, {"map": "map1", "formation": "line"},
-         r"formation='line' applies to formation maps \(KoopNav-Formation-v0\) or to map='random'; "
-         r"map 'map1' of target reaching keeps its own targets"),
+         (r"formation='line' applies to formation maps \(KoopNav-Formation-v0\) or to map='random'; "
+          r"map 'map1' of target reaching keeps its own targets")),
         (TR, {"map": "map7", "n_robots": 6, "formation": "circle"}, r"formation='circle' applies to formation maps"),
         (FO, {"map": "map4", "formation": "wedge"},
-         r"formation='wedge' does not fit map 'map4' with n_robots=3 \(spacing 0.9 m\): target of robot 1 at "
-         r"\[.*\] overlaps obstacle 3 \[0.2, 1.2, 0.3\]; allowed: .*try another of \['wedge'"),
+         (r"formation='wedge' does not fit map 'map4' with n_robots=3 \(spacing 0.9 m\): target of robot 1 at "
+          r"\[.*\] overlaps obstacle 3 \[0.2, 1.2, 0.3\]; allowed: .*try another of \['wedge'")),
         (TR, {"n_robots": 4},
-         r"n_robots=4 is larger than map 'map1' supports \(1..3\): it holds 3 robots; allowed: n_robots <= 3, "
-         r"or map='random' \(any team size\) or a map with more starts"),
+         (r"n_robots=4 is larger than map 'map1' supports \(1..3\): it holds 3 robots; allowed: n_robots <= 3, "
+          r"or map='random' \(any team size\) or a map with more starts")),
         (FO, {"map": "map8", "n_robots": 7}, r"n_robots=7 is larger than map 'map8' supports \(1..6\): it holds 6"),
         (FO, {"map": "random", "formation": "line", "random_map": {"formation": "grid"}},
          r"formation='line' and random_map's formation='grid' differ"),

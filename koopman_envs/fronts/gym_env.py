@@ -9,7 +9,13 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig, NavigationEngine, keyword_table, parse_reset_options, takes_env_keywords
+from koopman_envs.engine import (
+    EngineConfig,
+    NavigationEngine,
+    keyword_table,
+    parse_reset_options,
+    takes_env_keywords,
+)
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
