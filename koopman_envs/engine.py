@@ -210,15 +210,14 @@ def takes_env_keywords(front: str) -> Callable[[Callable[..., None]], Callable[.
     return decorate
 
 
-def keyword_table(front: str, extra: Sequence[tuple[str, str, str, str]] = (), default_map: str = "None") -> str:
+def keyword_table(front: str, extra: Sequence[tuple[str, str, str, str]] = (), task: str | None = None) -> str:
     """The env keywords of ``front`` as a Markdown table (Parameter, Type, Default, Description).
 
     ``extra`` rows (name, type, default, description) of the front's own parameters come first;
-    ``default_map`` is shown as the default of ``map``.
+    with a ``task``, the default of ``map`` shown is that task's default map.
     """
-    rows = list(extra) + [
-        (k.name, k.annotation, default_map if k.name == "map" else repr(k.default), k.doc) for k in env_keywords(front)
-    ]
+    shown = {"map": TASKS[task].default_map} if task is not None else {}
+    rows = list(extra) + [(k.name, k.annotation, repr(shown.get(k.name, k.default)), k.doc) for k in env_keywords(front)]
     lines = ["| Parameter | Type | Default | Description |", "|---|---|---|---|"]
     lines += [f"| {name} | {kind.replace('|', 'or')} | {default} | {doc} |" for name, kind, default, doc in rows]
     return "\n".join(lines)

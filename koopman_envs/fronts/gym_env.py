@@ -178,12 +178,10 @@ _SLIP_DOC = _SLIP_TABLE.format(max=RANDOM_SLIP_MAX, interval=DRIFT_MEAN_INTERVAL
 _SHAPES = ", ".join(FORMATION_SHAPES)
 
 
-def _arguments(default_map: str) -> str:
+def _arguments(task: str) -> str:
     """The Arguments table of the env docstrings, from the one keyword table (ENV_KEYWORDS)."""
-    own = [
-        ("render_mode", "str or None", "None", '"rgb_array" or "human" (matplotlib)'),
-    ]
-    table = keyword_table("gym", own, default_map=default_map)
+    own = [("render_mode", "str or None", "None", "'rgb_array' or 'human' (matplotlib)")]
+    table = keyword_table("gym", own, task=task)
     table = table.replace("{", "{{").replace("}", "}}")  # _COMMON_DOC is formatted once more
     return textwrap.indent(table, "    ") + "\n\n    ``max_episode_steps`` is usually given to ``gym.make``, which applies it with its ``TimeLimit``."
 
@@ -272,7 +270,12 @@ class TargetReachingEnv(KoopNavEnv):
     >>> env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high")
 """
         + _COMMON_DOC.format(
-            slip_table=_SLIP_DOC, formation_term="", arguments=_arguments('"map1"'), shapes=_SHAPES, w=_W, p=PARAMS
+            slip_table=_SLIP_DOC,
+            formation_term="",
+            arguments=_arguments("target_reaching"),
+            shapes=_SHAPES,
+            w=_W,
+            p=PARAMS,
         )
     )
     task_name = "target_reaching"
@@ -291,7 +294,7 @@ class FormationEnv(KoopNavEnv):
         + _COMMON_DOC.format(
             slip_table=_SLIP_DOC,
             formation_term=f"- {_W.formation:g} * ||e_i|| [m]",
-            arguments=_arguments('"map3"'),
+            arguments=_arguments("formation"),
             shapes=_SHAPES,
             w=_W,
             p=PARAMS,
