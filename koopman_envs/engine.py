@@ -25,7 +25,14 @@ from koopman_envs.params import PARAMS, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind, collision_flags
 from koopman_envs.sim.dynamics import advance_teams, wrap_angle
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig, formation_offsets, generate_random_map, load_map
+from koopman_envs.sim.maps import (
+    BUILTIN_MAPS,
+    MapSpec,
+    RandomMapConfig,
+    formation_offsets,
+    generate_random_map,
+    load_map,
+)
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import RANDOM_SLIP, SlipSampler, draw_random_lambdas
@@ -134,8 +141,8 @@ class EnvKeyword:
 #: :func:`keyword_table`), and tests/test_keyword_spec.py holds the fronts and the README to it.
 ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
     EnvKeyword("map", None, "str | os.PathLike | MapSpec | None",
-               '"map1".."map8", "random" (a new seeded layout per reset), a JSON map file or a '
-               "MapSpec; None: the task's first map"),
+               f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '
+               "map file or a MapSpec; None: the task's first map"),
     EnvKeyword("slip", "nominal", "str | Sequence[Any]",
                '"nominal", "low", "high", "random", "drift", one lambda >= 0 per robot, or '
                "(time [s], lambdas) pairs"),
@@ -158,9 +165,6 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
     EnvKeyword("max_cycles", None, "int | None", "PettingZoo MPE's name of max_episode_steps",
                fronts=("parallel",)),
 )  # fmt: skip
-
-_KEYWORDS = {keyword.name: keyword for keyword in ENV_KEYWORDS}
-
 
 def env_keywords(front: str | None = None) -> tuple[EnvKeyword, ...]:
     """The rows of :data:`ENV_KEYWORDS` that ``front`` takes (None: every row)."""

@@ -133,7 +133,8 @@ class KoopNavEnv(gym.Env):
     def _title(self) -> str:
         """Fixed part of the rendered title (the renderer appends the episode time)."""
         cfg = self.config
-        return f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label}"
+        shape = f" | {cfg.formation}" if cfg.formation else ""
+        return f"{self.task_name} | {cfg.map_name}{shape} | slip {cfg.slip_label}"
 
 
 _W = RewardWeights()
