@@ -46,7 +46,7 @@ def run_demo(env_id: str, map_name: str | None, slip: str, controller: str, seed
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=koopman_envs.ENV_IDS)
-    parser.add_argument("--map", default=None, help="map1..map6, random or a .json file")
+    parser.add_argument("--map", default=None, help="map1..map8, random or a .json file")
     parser.add_argument("--slip", default="nominal", choices=list(koopman_envs.SLIP_SETTINGS))
     parser.add_argument("--controller", default="koopman-nmpc", choices=controllers.available())
     parser.add_argument("--seed", type=int, default=0)

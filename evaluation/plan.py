@@ -8,7 +8,6 @@ perturbations and (on ``map="random"``) the same layouts: comparisons are paired
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import os
 from dataclasses import dataclass, field
@@ -16,7 +15,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from controllers.calibration import data_spec_for
 from evaluation.configs import ControllerConfig
-from koopman_envs.engine import EngineConfig
+from koopman_envs.engine import ENV_KEYWORDS, EngineConfig
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.sim.slip import RANDOM_SLIP
@@ -97,8 +96,7 @@ def env_settings(
     merged: dict[str, Any] = {"goal_tolerance": tolerance, "max_episode_steps": max_episode_steps,
                               "start_noise": start_noise}  # fmt: skip
     env_kwargs = dict(env_kwargs or {})
-    allowed = sorted(p for p in inspect.signature(EngineConfig.create).parameters
-                     if p not in ("cls", "task", *_NOT_ENV_KWARGS))  # fmt: skip
+    allowed = sorted(k.name for k in ENV_KEYWORDS if k.name not in _NOT_ENV_KWARGS)
     for key, value in env_kwargs.items():
         if key in CELL_AXES:
             raise ValueError(f"env kwarg {key!r} is a cell axis: give it with --{key}s / {key}s=, not as an env kwarg")

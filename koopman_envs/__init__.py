@@ -13,6 +13,8 @@ from gymnasium.envs.registration import register, registry
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.plant import BudgetExceeded, CalibrationPlant, make_plant
+from koopman_envs.engine import ENV_KEYWORDS
+from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, generate_random_map, load_map
 from koopman_envs.sim.zones import SlipZone
 from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, task_for_env
@@ -39,6 +41,8 @@ __all__ = [
     "BudgetExceeded",
     "CalibrationPlant",
     "ENV_IDS",
+    "ENV_KEYWORDS",
+    "FORMATION_SHAPES",
     "MAP_NAMES",
     "MapSpec",
     "PARAMS",

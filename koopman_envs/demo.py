@@ -1,6 +1,6 @@
 """Run one short episode and print what happened (a smoke test of an install).
 
-``python -m koopman_envs.demo [--env ID] [--map NAME] [--slip NAME] [--gif PATH]``
+``python -m koopman_envs.demo [--env ID] [--map NAME] [--slip NAME] [--n-robots N] [--formation SHAPE] [--gif PATH]``
 
 The robots are driven by a deliberately naive go-to-target rule (turn toward the target, drive
 when roughly facing it), which ignores obstacles and other robots: it shows the environment,
@@ -17,6 +17,7 @@ import numpy as np
 import koopman_envs
 from koopman_envs.episode import run_episode
 from koopman_envs.params import PARAMS
+from koopman_envs.sim.formations import FORMATION_SHAPES
 
 
 def naive_command(poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -39,12 +40,15 @@ class NaiveGoToTarget:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-TargetReaching-v0", choices=koopman_envs.ENV_IDS)
-    parser.add_argument("--map", default=None, help="map1..map6, random, or a .json file")
+    parser.add_argument("--map", default=None, help="map1..map8, random, or a .json file")
     parser.add_argument("--slip", default="nominal", help="nominal, low, high, random or drift")
+    parser.add_argument("--n-robots", type=int, default=PARAMS.n_robots, help="team size (6 for map7 and map8)")
+    parser.add_argument("--formation", default=None, choices=FORMATION_SHAPES, help="formation shape of the team")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="save the episode as an animated GIF")
     args = parser.parse_args(argv)
-    env = gym.make(args.env, map=args.map, slip=args.slip, render_mode="rgb_array" if args.gif else None)
+    env = gym.make(args.env, map=args.map, slip=args.slip, n_robots=args.n_robots, formation=args.formation,
+                   render_mode="rgb_array" if args.gif else None)  # fmt: skip
     result = run_episode(env, NaiveGoToTarget(), seed=args.seed, render=bool(args.gif))
     scenario = env.unwrapped.scenario
     outcome = f"collision ({result.collision})" if result.collision else result.outcome

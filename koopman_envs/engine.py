@@ -10,9 +10,12 @@ sub-environment i of a batch seeded with s + i reproduces a lone environment see
 from __future__ import annotations
 
 import dataclasses
-import os
+import difflib
+import functools
+import inspect
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -22,7 +25,15 @@ from koopman_envs.params import PARAMS, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind, collision_flags
 from koopman_envs.sim.dynamics import advance_teams, wrap_angle
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig, formation_offsets, generate_random_map, load_map
+from koopman_envs.sim.maps import (
+    BUILTIN_MAPS,
+    MapSpec,
+    RandomMapConfig,
+    formation_offsets,
+    generate_random_map,
+    load_map,
+)
+from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import RANDOM_SLIP, SlipSampler, draw_random_lambdas
 from koopman_envs.sim.slip_schedule import DRIFT_SLIP, SlipClock, SlipSchedule, is_schedule
@@ -32,14 +43,20 @@ from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import score_step
 
 __all__ = [
+    "ENV_KEYWORDS",
     "EngineConfig",
+    "EnvKeyword",
+    "FRONTS",
     "NavigationEngine",
     "DRIFT_SLIP",
     "RANDOM_SLIP",
     "RESET_OPTIONS",
     "ResetOptions",
     "StepResult",
+    "env_keywords",
+    "keyword_table",
     "parse_reset_options",
+    "takes_env_keywords",
 ]
 
 # every combination of the three collision flag bits, by value, for vectorized naming
@@ -63,6 +80,17 @@ def _random_map_config(value: RandomMapConfig | dict | None) -> RandomMapConfig:
     raise ValueError(f"random_map={value!r} must be a RandomMapConfig, a dict of its fields or None")
 
 
+def _random_map_formation(config: RandomMapConfig, formation: str) -> RandomMapConfig:
+    """``random_map`` with the ``formation`` keyword's shape; a different shape set in both is an error."""
+    default = RandomMapConfig.formation
+    if config.formation not in (default, formation):
+        raise ValueError(
+            f"formation={formation!r} and random_map's formation={config.formation!r} differ: "
+            "give the shape once (the formation keyword or the random_map field)"
+        )
+    return dataclasses.replace(config, formation=formation)
+
+
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
     ok = isinstance(value, (int, np.integer)) if integer else isinstance(value, (int, float, np.number))
     if not ok or isinstance(value, bool) or not np.isfinite(value) or value <= 0:
@@ -77,11 +105,134 @@ def _check_non_negative(name: str, value: Any) -> None:
         raise ValueError(f"{name}={value!r} must be a finite number >= 0")
 
 
+#: the fronts, by the names :class:`EnvKeyword` uses
+FRONTS = ("gym", "vector", "parallel")
+
+
+@dataclass(frozen=True)
+class EnvKeyword:
+    """One keyword argument of the environments: a row of :data:`ENV_KEYWORDS`.
+
+    Attributes
+    ----------
+    name : str
+        The keyword.
+    default : Any
+        Its value when not given.
+    annotation : str
+        Its type, as the fronts' signatures and docs show it.
+    doc : str
+        One line for the docs of every front (the Gymnasium env docstring's Arguments table,
+        the PettingZoo modules' ``make`` call, the README's keyword list).
+    fronts : tuple of str
+        The fronts that take it (:data:`FRONTS`).
+    """
+
+    name: str
+    default: Any
+    annotation: str
+    doc: str
+    fronts: tuple[str, ...] = FRONTS
+
+
+#: The env keywords: the one place where they are declared and defaulted. Every front forwards
+#: its keywords to :meth:`EngineConfig.create`, which validates them; the fronts' signatures and
+#: argument tables are generated from this table (:func:`takes_env_keywords`,
+#: :func:`keyword_table`), and tests/test_keyword_spec.py holds the fronts and the README to it.
+ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
+    EnvKeyword("map", None, "str | os.PathLike | MapSpec | None",
+               f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '
+               "map file or a MapSpec; None: the task's first map"),
+    EnvKeyword("slip", "nominal", "str | Sequence[Any]",
+               '"nominal", "low", "high", "random", "drift", one lambda >= 0 per robot, or '
+               "(time [s], lambdas) pairs"),
+    EnvKeyword("n_robots", PARAMS.n_robots, "int",
+               "team size N: at most the map's starts (a smaller team takes the first N), any N "
+               'with map="random"'),
+    EnvKeyword("goal_tolerance", PARAMS.goal_tolerance, "float", "success tolerance [m]"),
+    EnvKeyword("robot_radius", PARAMS.robot_radius, "float", "disc radius of every robot [m]"),
+    EnvKeyword("n_obstacle_obs", 4, "int", "nearest obstacles listed in each robot's block"),
+    EnvKeyword("random_map", None, "RandomMapConfig | dict | None",
+               'generator settings for map="random" (a RandomMapConfig or a dict of its fields)'),
+    EnvKeyword("start_noise", 0.0, "float", "per-reset start jitter: disc radius [m] and heading bound [rad]"),
+    EnvKeyword("formation", None, "str | None",
+               f"formation shape of the team, one of {list(FORMATION_SHAPES)} (spacing "
+               f"{PARAMS.formation_spacing:g} m): follower targets on formation maps, starts and targets "
+               'with map="random"; None: the map\'s own'),
+    EnvKeyword("max_episode_steps", None, "int | None",
+               f"time limit in control periods; None: {PARAMS.max_episode_steps} (the Gymnasium env leaves "
+               "it to gym.make's TimeLimit)"),
+    EnvKeyword("max_cycles", None, "int | None", "PettingZoo MPE's name of max_episode_steps",
+               fronts=("parallel",)),
+)  # fmt: skip
+
+def env_keywords(front: str | None = None) -> tuple[EnvKeyword, ...]:
+    """The rows of :data:`ENV_KEYWORDS` that ``front`` takes (None: every row)."""
+    if front is not None and front not in FRONTS:
+        raise ValueError(f"front={front!r} is not one of {list(FRONTS)} or None")
+    return tuple(k for k in ENV_KEYWORDS if front is None or front in k.fronts)
+
+
+def _unknown_keywords(given: Any, allowed: Sequence[str], owner: str) -> TypeError | None:
+    """A TypeError naming the keywords of ``given`` outside ``allowed`` (and close matches), or None."""
+    unknown = [name for name in given if name not in allowed]
+    if not unknown:
+        return None
+    hints = [f"{close[0]!r} for {name!r}" for name in unknown if (close := difflib.get_close_matches(name, allowed, 1))]
+    hint = f" (did you mean {', '.join(hints)}?)" if hints else ""
+    return TypeError(f"{owner} got unknown keyword arguments {unknown}{hint}; allowed: {list(allowed)}")
+
+
+def takes_env_keywords(front: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Decorate a front's ``__init__(self, <own parameters>, **keywords)``.
+
+    The decorated ``__init__`` shows the signature of its own parameters plus, keyword-only
+    with the table's defaults, the env keywords ``front`` takes (so ``help()`` and
+    ``inspect.signature`` list them), and raises ``TypeError`` naming any other keyword and the
+    allowed ones before the front runs. The keywords go on to :meth:`EngineConfig.create`.
+    """
+    rows = env_keywords(front)
+
+    def decorate(init: Callable[..., None]) -> Callable[..., None]:
+        own = [p for p in inspect.signature(init).parameters.values() if p.kind is not p.VAR_KEYWORD]
+        names = [p.name for p in own if p.kind is not p.VAR_POSITIONAL] + [k.name for k in rows]
+        keyword_only = inspect.Parameter.KEYWORD_ONLY
+        signature = inspect.Signature(
+            own + [inspect.Parameter(k.name, keyword_only, default=k.default, annotation=k.annotation) for k in rows]
+        )
+
+        @functools.wraps(init)
+        def wrapper(self: Any, *args: Any, **kwargs: Any) -> None:
+            error = _unknown_keywords(kwargs, names[1:], type(self).__name__)
+            if error is not None:
+                raise error
+            init(self, *args, **kwargs)
+
+        wrapper.__signature__ = signature  # type: ignore[attr-defined]
+        return wrapper
+
+    return decorate
+
+
+def keyword_table(front: str, extra: Sequence[tuple[str, str, str, str]] = (), task: str | None = None) -> str:
+    """The env keywords of ``front`` as a Markdown table (Parameter, Type, Default, Description).
+
+    ``extra`` rows (name, type, default, description) of the front's own parameters come first;
+    with a ``task``, the default of ``map`` shown is that task's default map.
+    """
+    shown = {"map": TASKS[task].default_map} if task is not None else {}
+    rows = list(extra) + [(k.name, k.annotation, repr(shown.get(k.name, k.default)), k.doc) for k in env_keywords(front)]
+    lines = ["| Parameter | Type | Default | Description |", "|---|---|---|---|"]
+    lines += [f"| {name} | {kind.replace('|', 'or')} | {default} | {doc} |" for name, kind, default, doc in rows]
+    return "\n".join(lines)
+
+
 @dataclass(frozen=True)
 class EngineConfig:
     """Everything that defines an environment, resolved and validated.
 
-    Build it with :meth:`EngineConfig.create`, which accepts the user-facing keyword arguments.
+    Build it with :meth:`EngineConfig.create`, which accepts the env keywords
+    (:data:`ENV_KEYWORDS`).
     """
 
     task: TaskSpec
@@ -99,35 +250,49 @@ class EngineConfig:
     start_noise: float = 0.0
     #: base levels that change within an episode ("drift" or a list schedule), else None
     slip_schedule: SlipSchedule | None = None
+    #: the formation shape asked for (``formation`` keyword), None for the map's own layout
+    formation: str | None = None
 
     @classmethod
-    def create(
-        cls,
-        task: str,
-        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[Any] = "nominal",
-        n_robots: int = PARAMS.n_robots,
-        goal_tolerance: float = PARAMS.goal_tolerance,
-        robot_radius: float = PARAMS.robot_radius,
-        n_obstacle_obs: int = 4,
-        max_episode_steps: int | None = None,
-        random_map: RandomMapConfig | dict | None = None,
-        start_noise: float = 0.0,
-        max_cycles: int | None = None,
-    ) -> EngineConfig:
-        """Validate user arguments (see the env docstrings) into a config.
+    def create(cls, task: str, *, front: str | None = None, **keywords: Any) -> EngineConfig:
+        """Validate the env keywords into a config; a keyword not given takes its default.
 
-        ``max_cycles`` is another name for ``max_episode_steps``, the one of PettingZoo's MPE
-        environments; giving both with different values is a ``ValueError``.
+        Parameters
+        ----------
+        task : str
+            ``"target_reaching"`` or ``"formation"``.
+        front : str, optional
+            The front that forwards the keywords (:data:`FRONTS`): which keywords it takes, and
+            the vector and PettingZoo fronts' default time limit (they truncate by themselves).
+            None (the calibration plant, tests): every keyword, no default limit.
+        **keywords
+            The env keywords of :data:`ENV_KEYWORDS` (documented there and in the env docstrings).
+            ``max_cycles`` is another name of ``max_episode_steps``, the one of PettingZoo's MPE
+            environments; giving both with different values is a ``ValueError``.
+
+        Raises
+        ------
+        TypeError
+            An unknown keyword (named, with the allowed ones).
+        ValueError
+            A bad value (named, with what is allowed).
         """
-        random_map = _random_map_config(random_map)
+        rows = env_keywords(front)
+        error = _unknown_keywords(keywords, [k.name for k in rows], f"the {front or 'KoopNav'} env")
+        if error is not None:
+            raise error
+        kw = {k.name: keywords.get(k.name, k.default) for k in rows}
+        n_robots, robot_radius, slip = kw["n_robots"], kw["robot_radius"], kw["slip"]
+        max_episode_steps, max_cycles = kw["max_episode_steps"], kw.get("max_cycles")
+        random_map = _random_map_config(kw["random_map"])
         if task not in TASKS:
             raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
         spec = TASKS[task]
         _check_positive("n_robots", n_robots, integer=True)
-        _check_positive("goal_tolerance", goal_tolerance)
+        _check_positive("goal_tolerance", kw["goal_tolerance"])
         _check_positive("robot_radius", robot_radius)
-        if not isinstance(n_obstacle_obs, (int, np.integer)) or n_obstacle_obs < 0:
+        n_obstacle_obs = kw["n_obstacle_obs"]
+        if isinstance(n_obstacle_obs, bool) or not isinstance(n_obstacle_obs, (int, np.integer)) or n_obstacle_obs < 0:
             raise ValueError(f"n_obstacle_obs={n_obstacle_obs!r} must be an integer >= 0")
         if max_cycles is not None:
             _check_positive("max_cycles", max_cycles, integer=True)
@@ -140,13 +305,29 @@ class EngineConfig:
             max_episode_steps = max_cycles
         if max_episode_steps is not None:
             _check_positive("max_episode_steps", max_episode_steps, integer=True)
-        _check_non_negative("start_noise", start_noise)
-        map_arg = spec.default_map if map is None else map
+        elif front in ("vector", "parallel"):
+            max_episode_steps = PARAMS.max_episode_steps  # these fronts truncate by themselves
+        _check_non_negative("start_noise", kw["start_noise"])
+        formation = kw["formation"]
+        if formation is not None and (not isinstance(formation, str) or formation not in FORMATION_SHAPES):
+            raise ValueError(
+                f"formation={formation!r} is not one of {list(FORMATION_SHAPES)} or None (the map's own layout)"
+            )
+        map_arg = spec.default_map if kw["map"] is None else kw["map"]
         if isinstance(map_arg, str) and map_arg == "random":
             map_spec = None
+            if formation is not None:
+                random_map = _random_map_formation(random_map, formation)
         else:
             map_spec = load_map(map_arg)
             map_spec.validate(int(n_robots), float(robot_radius))
+            if formation is not None:
+                if not spec.formation:
+                    raise ValueError(
+                        f"formation={formation!r} applies to formation maps ({TASKS['formation'].env_id}) or to "
+                        f"map='random'; map {map_spec.name!r} of {spec.label} keeps its own targets"
+                    )
+                map_spec = map_spec.with_formation(formation, int(n_robots), PARAMS.formation_spacing, float(robot_radius))
         schedule = None
         if isinstance(slip, str) and slip == RANDOM_SLIP:
             lambdas = np.full(int(n_robots), np.nan)  # drawn per reset
@@ -163,12 +344,13 @@ class EngineConfig:
             lambdas=lambdas,
             slip_label=label,
             n_robots=int(n_robots),
-            goal_tolerance=float(goal_tolerance),
+            goal_tolerance=float(kw["goal_tolerance"]),
             robot_radius=np.full(int(n_robots), float(robot_radius)),
             n_obstacle_obs=int(n_obstacle_obs),
             max_episode_steps=None if max_episode_steps is None else int(max_episode_steps),
-            start_noise=float(start_noise),
+            start_noise=float(kw["start_noise"]),
             slip_schedule=schedule,
+            formation=formation,
         )
 
     @property

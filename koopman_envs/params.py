@@ -48,6 +48,9 @@ class PaperParams:
         How long every robot must stay within tolerance for success [s] (ours: 2 s).
     max_episode_steps : int
         Time limit of an episode in control periods (ours: 60 s of simulated time).
+    formation_spacing : float
+        Distance between neighbouring robots of a named formation shape [m] (ours: the ``formation``
+        env keyword and the random maps' layouts, :mod:`koopman_envs.sim.formations`).
     horizon : int
         NMPC prediction horizon in steps (the paper's "T = 20", read as steps).
     q_leader, q_follower, r_input : tuple of float
@@ -69,6 +72,7 @@ class PaperParams:
     goal_tolerance: float = 0.1  # (ours, issue 3)
     settle_time: float = 2.0  # (ours, issue 3)
     max_episode_steps: int = 600  # (ours) 60 s: paths are a few metres at <= 0.6 m/s
+    formation_spacing: float = 0.9  # (ours) two robot diameters plus 0.5 m
     horizon: int = 20
     q_leader: tuple[float, float, float, float] = (4.0, 4.0, 0.1, 0.1)
     q_follower: tuple[float, float, float, float] = (1.0, 1.0, 0.1, 0.1)

@@ -10,15 +10,16 @@
 | State shape        | (N * 27,)                                                  |
 
 ```python
-target_reaching_v0.parallel_env(map="map1", slip="nominal", n_robots=3, goal_tolerance=0.1,
-                                max_episode_steps=600, render_mode=None, robot_radius=0.2,
-                                n_obstacle_obs=4, random_map=None, start_noise=0.0)
+{make_call}
 ```
-``max_cycles`` (PettingZoo MPE's name) is accepted for ``max_episode_steps``.
+``max_cycles`` (PettingZoo MPE's name) is accepted for ``max_episode_steps``; the keywords are
+those of :data:`koopman_envs.engine.ENV_KEYWORDS` (see the Gymnasium env's Arguments table).
 History: v0 initial release.
 """
 
-from koopman_envs.fronts.parallel_env import make_constructors
+from koopman_envs.fronts.parallel_env import make_call, make_constructors
+
+__doc__ = __doc__.replace("{make_call}", make_call("target_reaching"))  # the keywords, from the one table
 
 parallel_env, env, raw_env = make_constructors("target_reaching")
 

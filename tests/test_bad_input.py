@@ -18,7 +18,7 @@ ENV = "KoopNav-TargetReaching-v0"
     "kwargs, message",
     [
         ({"map": "map9"},
-         r"map='map9' is not one of \['map1', 'map2', 'map3', 'map4', 'map5', 'map6', 'random'\]"),
+         r"map='map9' is not one of \['map1', 'map2', 'map3', 'map4', 'map5', 'map6', 'map7', 'map8', 'random'\]"),
         ({"slip": "extreme"}, r"slip='extreme' is not one of \['nominal', 'low', 'high'\]"),
         ({"slip": [0.0, -0.1, 0.2]}, r"negative lambda; allowed: lambda >= 0"),
         ({"slip": [0.0, float("nan"), 0.2]}, r"non-finite lambda"),

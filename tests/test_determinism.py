@@ -81,6 +81,15 @@ def test_vector_env_matches_single_envs_with_zones_and_drift(env_id: str, mode: 
     vector_matches_single_envs(env_id, mode, kwargs)
 
 
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id, shape", [("KoopNav-TargetReaching-v0", "line"), ("KoopNav-Formation-v0", "circle")])
+def test_vector_env_matches_single_envs_with_a_formation_shape(env_id: str, shape: str, mode: str) -> None:
+    """The same for six robots laid out in a formation shape on random maps."""
+    kwargs = {"map": "random", "n_robots": 6, "formation": shape, "slip": "high", "max_episode_steps": 120,
+              "start_noise": 0.1}
+    vector_matches_single_envs(env_id, mode, kwargs)
+
+
 def vector_matches_single_envs(env_id: str, mode: str, kwargs: dict) -> None:
     """Step a vector env of 4 and 4 single envs with the same random actions; compare everything."""
     num_envs, seed = 4, 100
@@ -95,7 +104,7 @@ def vector_matches_single_envs(env_id: str, mode: str, kwargs: dict) -> None:
     rng = np.random.default_rng(0)
     episodes = 0
     for _ in range(600):
-        actions = rng.uniform(-0.7, 0.7, (num_envs, 6)).astype(np.float32)
+        actions = rng.uniform(-0.7, 0.7, (num_envs, *venv.single_action_space.shape)).astype(np.float32)
         vobs, vrew, vterm, vtrunc, vinfo = venv.step(actions)
         for i, env in enumerate(envs):
             if mode == "NextStep" and pending[i]:

@@ -140,7 +140,7 @@ def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
     "kwargs, message",
     [
         ({"env_ids": ["KoopNav-Nope-v0"]}, "env 'KoopNav-Nope-v0' is not one of"),
-        ({"maps": ["map7"]}, "map 'map7'"),
+        ({"maps": ["map9"]}, "map 'map9'"),
         ({"slips": ["extreme"]}, "slip 'extreme'"),
         ({"controller_names": ["magic"]}, r"controller 'magic' is not one of \["),
         ({"episodes": 0}, "episodes=0 must be an integer >= 1"),

@@ -15,7 +15,7 @@ from koopman_envs.sim.maps import BUILTIN_MAPS, MapSpec, RandomMapConfig, genera
 @pytest.mark.parametrize("name", BUILTIN_MAPS)
 def test_shipped_maps_are_valid_and_not_trivial(name: str) -> None:
     spec = load_map(name)
-    spec.validate(3)
+    spec.validate(spec.max_robots)
     travel = np.linalg.norm(spec.targets[:, :2] - spec.starts[:, :2], axis=1)
     assert np.all((travel > 3.0) & (travel < 8.0))  # paths of a few metres
     # at least one obstacle blocks some robot's straight path from start to target
@@ -30,14 +30,14 @@ def test_shipped_maps_are_valid_and_not_trivial(name: str) -> None:
 
 
 def test_formation_maps_have_equal_travel() -> None:
-    for name in ("map3", "map4", "map6"):
+    for name in ("map3", "map4", "map6", "map8"):
         spec = load_map(name)
         travel = spec.targets[:, :2] - spec.starts[:, :2]
         np.testing.assert_allclose(travel, np.broadcast_to(travel[0], travel.shape), atol=1e-9)
 
 
 def test_the_task_table_lists_every_shipped_map_once() -> None:
-    """map5 and map6 belong to their tasks but not to the paper's map lists (SPEC section 5)."""
+    """map5 to map8 belong to their tasks but not to the paper's map lists (SPEC section 5)."""
     from koopman_envs.tasks.base import TASKS, env_id_for_map
 
     listed = [name for spec in TASKS.values() for name in spec.maps]
@@ -46,6 +46,8 @@ def test_the_task_table_lists_every_shipped_map_once() -> None:
     assert TASKS["formation"].paper_maps == ("map3", "map4")
     assert env_id_for_map("map5") == "KoopNav-TargetReaching-v0"
     assert env_id_for_map("map6") == "KoopNav-Formation-v0"
+    assert env_id_for_map("map7") == "KoopNav-TargetReaching-v0"
+    assert env_id_for_map("map8") == "KoopNav-Formation-v0"
 
 
 def test_map3_reuses_map1_obstacles() -> None:

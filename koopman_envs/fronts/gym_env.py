@@ -2,17 +2,23 @@
 
 from __future__ import annotations
 
-import os
-from typing import Any, Sequence
+import textwrap
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
+from koopman_envs.engine import (
+    EngineConfig,
+    NavigationEngine,
+    keyword_table,
+    parse_reset_options,
+    takes_env_keywords,
+)
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig
+from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import RewardWeights
 
 __all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
@@ -24,33 +30,13 @@ class KoopNavEnv(gym.Env):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": int(round(1 / PARAMS.dt))}
     task_name = ""
 
-    def __init__(
-        self,
-        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[Any] = "nominal",
-        n_robots: int = PARAMS.n_robots,
-        goal_tolerance: float = PARAMS.goal_tolerance,
-        render_mode: str | None = None,
-        robot_radius: float = PARAMS.robot_radius,
-        n_obstacle_obs: int = 4,
-        random_map: RandomMapConfig | dict | None = None,
-        start_noise: float = 0.0,
-    ) -> None:
+    @takes_env_keywords("gym")
+    def __init__(self, render_mode: str | None = None, **keywords: Any) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
             )
-        self.config = EngineConfig.create(
-            self.task_name,
-            map=map,
-            slip=slip,
-            n_robots=n_robots,
-            goal_tolerance=goal_tolerance,
-            robot_radius=robot_radius,
-            n_obstacle_obs=n_obstacle_obs,
-            random_map=random_map,
-            start_noise=start_noise,
-        )
+        self.config = EngineConfig.create(self.task_name, front="gym", **keywords)
         self.engine = NavigationEngine(self.config, num_envs=1)
         self.action_space, self.observation_space = self.engine.team_spaces()
         self.render_mode = render_mode
@@ -103,7 +89,9 @@ class KoopNavEnv(gym.Env):
             self._trail.append(engine.poses[0].copy())
             if self.render_mode == "human":
                 self.render()
-        return obs, reward, bool(result.terminated[0]), False, engine.info(0)
+        # truncated only with max_episode_steps given to the class itself: gym.make keeps the limit
+        # in its TimeLimit wrapper and gives the env none
+        return obs, reward, bool(result.terminated[0]), bool(result.truncated[0]), engine.info(0)
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:
@@ -145,7 +133,8 @@ class KoopNavEnv(gym.Env):
     def _title(self) -> str:
         """Fixed part of the rendered title (the renderer appends the episode time)."""
         cfg = self.config
-        return f"{self.task_name} | {cfg.map_name} | slip {cfg.slip_label}"
+        shape = f" | {cfg.formation}" if cfg.formation else ""
+        return f"{self.task_name} | {cfg.map_name}{shape} | slip {cfg.slip_label}"
 
 
 _W = RewardWeights()
@@ -186,6 +175,17 @@ _SLIP_TABLE = """
 """
 
 _SLIP_DOC = _SLIP_TABLE.format(max=RANDOM_SLIP_MAX, interval=DRIFT_MEAN_INTERVAL)
+
+_SHAPES = ", ".join(FORMATION_SHAPES)
+
+
+def _arguments(task: str) -> str:
+    """The Arguments table of the env docstrings, from the one keyword table (ENV_KEYWORDS)."""
+    own = [("render_mode", "str or None", "None", "'rgb_array' or 'human' (matplotlib)")]
+    table = keyword_table("gym", own, task=task)
+    table = table.replace("{", "{{").replace("}", "}}")  # _COMMON_DOC is formatted once more
+    return textwrap.indent(table, "    ") + "\n\n    ``max_episode_steps`` is usually given to ``gym.make``, which applies it with its ``TimeLimit``."
+
 
 _COMMON_DOC = """
     ## Action Space
@@ -230,6 +230,17 @@ _COMMON_DOC = """
     ``reset(options={{"start_poses": poses}})`` starts one episode at the given (N, 3) poses
     instead, and ``options={{"targets": targets}}`` replaces the targets (docs/reset_options.md).
 
+    ## Teams and formation shapes
+    ``n_robots`` may be at most the map's starts: 3 on map1..map6, 6 on map7 and map8 (a smaller
+    team takes the first ``n_robots`` starts and targets); ``map="random"`` takes any team size.
+    ``formation`` names a shape of :mod:`koopman_envs.sim.formations`:
+    {shapes}, neighbours {p.formation_spacing:g} m apart (``params.formation_spacing``). On a
+    formation map the leader's target stays and follower i's target becomes the leader's target
+    plus offset i of the shape, turned to the leader target's heading; with ``map="random"`` the
+    team starts and ends in the shape (target reaching too). Shaped targets that leave the workspace, overlap an
+    obstacle or each other are a ``ValueError`` at construction; ``formation`` on a fixed
+    target-reaching map is one too.
+
     ## Episode End
     1. Termination: any collision (robot-obstacle, robot-robot, or a centre leaving the
        20 x 20 m workspace).
@@ -238,18 +249,7 @@ _COMMON_DOC = """
     3. Truncation: ``max_episode_steps`` ({p.max_episode_steps} periods by default).
 
     ## Arguments
-    | Parameter        | Type                  | Default     | Description                              |
-    |------------------|-----------------------|-------------|------------------------------------------|
-    | map              | str, path or MapSpec  | {default_map}      | "map1".."map6", "random", a JSON file, a map |
-    | slip             | str or sequence       | "nominal"   | "nominal", "low", "high", "random", "drift", lambda_i >= 0 or (time, lambdas) pairs |
-    | n_robots         | int                   | 3           | team size (<= the map's starts)          |
-    | goal_tolerance   | float                 | 0.1         | success tolerance [m]                    |
-    | max_episode_steps| int                   | {p.max_episode_steps}         | time limit (a ``gym.make`` argument)      |
-    | render_mode      | str or None           | None        | "rgb_array" or "human" (matplotlib)     |
-    | robot_radius     | float                 | 0.2         | disc radius of every robot [m]           |
-    | n_obstacle_obs   | int                   | 4           | nearest obstacles in each robot's block  |
-    | random_map       | RandomMapConfig, dict | None        | generator settings for map="random"      |
-    | start_noise      | float                 | 0.0         | per-reset start jitter [m] and [rad]     |
+{arguments}
 
     ## Vectorized environment
     ``gym.make_vec(id, num_envs=K)`` returns :class:`koopman_envs.fronts.vector_env.KoopNavVectorEnv`,
@@ -270,7 +270,14 @@ class TargetReachingEnv(KoopNavEnv):
     >>> import gymnasium as gym, koopman_envs
     >>> env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high")
 """
-        + _COMMON_DOC.format(slip_table=_SLIP_DOC, formation_term="", default_map='"map1"', w=_W, p=PARAMS)
+        + _COMMON_DOC.format(
+            slip_table=_SLIP_DOC,
+            formation_term="",
+            arguments=_arguments("target_reaching"),
+            shapes=_SHAPES,
+            w=_W,
+            p=PARAMS,
+        )
     )
     task_name = "target_reaching"
 
@@ -288,7 +295,8 @@ class FormationEnv(KoopNavEnv):
         + _COMMON_DOC.format(
             slip_table=_SLIP_DOC,
             formation_term=f"- {_W.formation:g} * ||e_i|| [m]",
-            default_map='"map3"',
+            arguments=_arguments("formation"),
+            shapes=_SHAPES,
             w=_W,
             p=PARAMS,
         )

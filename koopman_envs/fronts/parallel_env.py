@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import os
-from typing import Any, Sequence
+import inspect
+import textwrap
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -14,12 +15,11 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
+from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options, takes_env_keywords
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 
-__all__ = ["KoopNavParallelEnv", "make_constructors"]
+__all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
 
 #: ``pettingzoo.test.api_test`` and ``parallel_api_test`` check that reset takes ``options`` by
 #: passing ``{"options": 1}``: that key is accepted without effect so that they pass, while any
@@ -46,15 +46,14 @@ class KoopNavParallelEnv(ParallelEnv):
     ----------
     task : str
         ``"target_reaching"`` or ``"formation"``.
-    map, slip, n_robots, goal_tolerance, robot_radius, n_obstacle_obs, random_map, render_mode
-        As for the Gymnasium env.
-    start_noise : float
-        As for the Gymnasium env: per reset, each start position moves uniformly within a disc of
-        this radius [m] and each heading turns uniformly within +-start_noise [rad] (default 0).
-    max_episode_steps : int, optional
-        Time limit in control periods (default: ``PARAMS.max_episode_steps``).
-    max_cycles : int, optional
-        The same limit under the name PettingZoo's MPE environments give it (what
+    render_mode : str, optional
+        ``"rgb_array"`` or ``"human"`` (matplotlib), as for the Gymnasium env.
+    **keywords
+        The env keywords of :data:`koopman_envs.engine.ENV_KEYWORDS`, as for the Gymnasium env
+        (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...), plus
+        ``max_episode_steps``: the time limit in control periods (default
+        ``PARAMS.max_episode_steps``; this env truncates by itself), and ``max_cycles``, the same
+        limit under the name PettingZoo's MPE environments give it (what
         ``pettingzoo.test.max_cycles_test`` passes); giving both names with different values is
         a ``ValueError``.
     """
@@ -66,41 +65,14 @@ class KoopNavParallelEnv(ParallelEnv):
         "name": "koopnav_v0",
     }
 
-    def __init__(
-        self,
-        task: str = "target_reaching",
-        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[Any] = "nominal",
-        n_robots: int = PARAMS.n_robots,
-        goal_tolerance: float = PARAMS.goal_tolerance,
-        max_episode_steps: int | None = None,
-        render_mode: str | None = None,
-        robot_radius: float = PARAMS.robot_radius,
-        n_obstacle_obs: int = 4,
-        random_map: RandomMapConfig | dict | None = None,
-        start_noise: float = 0.0,
-        max_cycles: int | None = None,
-    ) -> None:
+    @takes_env_keywords("parallel")
+    def __init__(self, task: str = "target_reaching", render_mode: str | None = None, **keywords: Any) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
             )
-        self.config = EngineConfig.create(
-            task,
-            map=map,
-            slip=slip,
-            n_robots=n_robots,
-            goal_tolerance=goal_tolerance,
-            robot_radius=robot_radius,
-            n_obstacle_obs=n_obstacle_obs,
-            random_map=random_map,
-            start_noise=start_noise,
-            # a PettingZoo env truncates by itself: without either name, the default limit
-            max_episode_steps=(
-                PARAMS.max_episode_steps if max_episode_steps is None and max_cycles is None else max_episode_steps
-            ),
-            max_cycles=max_cycles,
-        )
+        # a PettingZoo env truncates by itself: without max_episode_steps / max_cycles, the default limit
+        self.config = EngineConfig.create(task, front="parallel", **keywords)
         self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}
         self.engine = NavigationEngine(self.config, num_envs=1)
         n = self.config.n_robots
@@ -241,6 +213,24 @@ def make_constructors(task: str):
     def env(**kwargs: Any):
         return OrderEnforcingWrapper(raw_env(**kwargs))
 
+    # the keywords of KoopNavParallelEnv, without ``task`` (fixed here)
+    parameters = list(inspect.signature(KoopNavParallelEnv).parameters.values())
+    signature = inspect.Signature([p.replace(kind=p.KEYWORD_ONLY) for p in parameters if p.name != "task"])
     for fn, what in ((parallel_env, "parallel"), (raw_env, "unwrapped turn-based"), (env, "turn-based")):
         fn.__doc__ = f"Create the {what} KoopNav {task} environment (keywords of KoopNavParallelEnv)."
+        fn.__signature__ = signature  # type: ignore[attr-defined]
     return parallel_env, env, raw_env
+
+
+
+def make_call(task: str) -> str:
+    """``<task>_v0.parallel_env(...)`` with every keyword at its default, for the module docstrings
+    (generated from the constructor's signature, itself generated from the keyword table)."""
+    from koopman_envs.tasks.base import TASKS
+
+    head = f"{task}_v0.parallel_env("
+    defaults = {"map": TASKS[task].default_map, "max_episode_steps": PARAMS.max_episode_steps}
+    parameters = inspect.signature(KoopNavParallelEnv).parameters.values()
+    words = " ".join(f"{p.name}={defaults.get(p.name, p.default)!r}," for p in parameters if p.name != "task")
+    lines = textwrap.wrap(words[:-1] + ")", width=100 - len(head), break_long_words=False, break_on_hyphens=False)
+    return head + ("\n" + " " * len(head)).join(lines)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from typing import Any, Sequence
 
 import numpy as np
@@ -11,10 +10,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options
-from koopman_envs.params import PARAMS
+from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options, takes_env_keywords
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig
 
 __all__ = ["KoopNavVectorEnv"]
 
@@ -34,34 +31,30 @@ class KoopNavVectorEnv(VectorEnv):
         Number of environments K.
     task : str
         ``"target_reaching"`` or ``"formation"`` (set by the registration).
-    max_episode_steps : int, optional
-        Time limit; passed by ``gym.make_vec`` from the registration.
     autoreset_mode : str or AutoresetMode
         ``"NextStep"`` (Gymnasium's default) or ``"SameStep"`` (final observation and info in
         ``info["final_obs"]`` / ``info["final_info"]``, as SB3 expects).
-    **kwargs
-        The single env's keyword arguments (``map``, ``slip``, ``n_robots``, ``start_noise``, ...).
-        Sub-env i draws its map, start noise and slip (drift included) from its own generator and
-        has its own slip zones on random maps, so it stays equal to the single env seeded ``s + i``.
+    render_mode : None
+        The vector env does not render (anything else is a ``ValueError``).
+    **keywords
+        The env keywords of :data:`koopman_envs.engine.ENV_KEYWORDS`, as for the single env
+        (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...);
+        ``max_episode_steps`` (default ``PARAMS.max_episode_steps``) comes from the registration,
+        and this env truncates by itself. Sub-env i draws its map, start noise and slip (drift
+        included) from its own generator and has its own slip zones on random maps, so it stays
+        equal to the single env seeded ``s + i``.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
+    @takes_env_keywords("vector")
     def __init__(
         self,
         num_envs: int,
         task: str,
-        map: str | os.PathLike | MapSpec | None = None,  # noqa: A002 - the public keyword
-        slip: str | Sequence[Any] = "nominal",
-        n_robots: int = PARAMS.n_robots,
-        goal_tolerance: float = PARAMS.goal_tolerance,
-        max_episode_steps: int | None = PARAMS.max_episode_steps,
-        robot_radius: float = PARAMS.robot_radius,
-        n_obstacle_obs: int = 4,
-        random_map: RandomMapConfig | dict | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
-        start_noise: float = 0.0,
+        **keywords: Any,
     ) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
@@ -77,18 +70,7 @@ class KoopNavVectorEnv(VectorEnv):
         if mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode='Disabled' is not supported; use NextStep or SameStep")
         self.metadata = {**self.metadata, "autoreset_mode": mode}
-        self.config = EngineConfig.create(
-            task,
-            map=map,
-            slip=slip,
-            n_robots=n_robots,
-            goal_tolerance=goal_tolerance,
-            robot_radius=robot_radius,
-            n_obstacle_obs=n_obstacle_obs,
-            random_map=random_map,
-            start_noise=start_noise,
-            max_episode_steps=max_episode_steps,
-        )
+        self.config = EngineConfig.create(task, front="vector", **keywords)
         self.num_envs = int(num_envs)
         self.engine = NavigationEngine(self.config, num_envs=self.num_envs)
         self.single_action_space, self.single_observation_space = self.engine.team_spaces()

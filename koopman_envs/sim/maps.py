@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from typing import Any
 
@@ -20,6 +20,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
+from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for, formation_shape
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.zones import SLIP_ZONE_MODES, SlipZone, check_zone_robots
 
@@ -34,8 +35,9 @@ __all__ = [
 ]
 
 #: the shipped maps: map1-map4 are the paper's (SPEC section 5), map5 (target reaching) and map6
-#: (formation) add a high-slip zone across the shortest route (ours)
-BUILTIN_MAPS = ("map1", "map2", "map3", "map4", "map5", "map6")
+#: (formation) add a high-slip zone across the shortest route, map7 (target reaching) and map8
+#: (formation) hold six robots (ours)
+BUILTIN_MAPS = ("map1", "map2", "map3", "map4", "map5", "map6", "map7", "map8")
 MAP_NAMES = (*BUILTIN_MAPS, "random")
 
 
@@ -159,12 +161,63 @@ class MapSpec:
         if n_robots > self.max_robots:
             raise ValueError(
                 f"n_robots={n_robots} is larger than map {self.name!r} supports "
-                f"(1..{self.max_robots}); use map='random' for larger teams"
+                f"(1..{self.max_robots}): it holds {self.max_robots} robots; allowed: n_robots <= "
+                f"{self.max_robots}, or map='random' (any team size) or a map with more starts"
             )
         for label, poses in (("start", self.starts[:n_robots]), ("target", self.targets[:n_robots])):
             problem = self.pose_problem(poses, robot_radius, workspace, label)
             if problem is not None:
                 raise ValueError(f"map {self.name!r}: {problem}")
+
+    def with_formation(
+        self,
+        shape: str,
+        n_robots: int,
+        spacing: float = PARAMS.formation_spacing,
+        robot_radius: float = PARAMS.robot_radius,
+        workspace: tuple[float, float, float, float] = PARAMS.workspace,
+    ) -> MapSpec:
+        """This map with the first ``n_robots`` targets set by a formation shape.
+
+        The leader's (robot 0's) target stays; follower i's target becomes the leader's target
+        plus offset i of :func:`~koopman_envs.sim.formations.formation_offsets_for` for the
+        leader target's heading, with the leader's heading. Starts, obstacles, zones and the
+        targets of robots beyond ``n_robots`` are the map's.
+
+        Parameters
+        ----------
+        shape : str
+            One of :data:`~koopman_envs.sim.formations.FORMATION_SHAPES`.
+        n_robots : int
+            Team size N (at most :attr:`max_robots`).
+        spacing : float
+            Distance between neighbouring robots of the shape [m].
+        robot_radius : float
+            Disc radius of every robot [m], for the placement check.
+        workspace : tuple of float
+            (x_min, x_max, y_min, y_max) [m].
+
+        Raises
+        ------
+        ValueError
+            The shape is unknown, or its targets leave the workspace, overlap an obstacle or
+            each other on this map (the message names the shape, the map and the collision).
+        """
+        self.validate(n_robots, robot_radius, workspace)
+        leader = self.targets[0]
+        offsets = formation_offsets_for(shape, int(n_robots), float(spacing), float(leader[2]))
+        targets = np.array(self.targets)
+        targets[:n_robots, :2] = leader[:2] + offsets
+        targets[:n_robots, 2] = leader[2]
+        problem = self.pose_problem(targets[:n_robots], robot_radius, workspace, "target")
+        if problem is not None:
+            raise ValueError(
+                f"formation={shape!r} does not fit map {self.name!r} with n_robots={n_robots} "
+                f"(spacing {spacing} m): {problem}; allowed: a shape whose targets around the leader's "
+                f"{leader.tolist()} lie inside the workspace {workspace}, clear of every obstacle and of "
+                f"each other; try another of {list(FORMATION_SHAPES)} or formation=None (the map's own)"
+            )
+        return replace(self, targets=targets)
 
     def pose_problem(
         self,
@@ -292,7 +345,7 @@ def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
     Parameters
     ----------
     spec : str, path or MapSpec
-        A shipped map name (``"map1"`` .. ``"map6"``), a path to a JSON map file, or a map.
+        A shipped map name (``"map1"`` .. ``"map8"``), a path to a JSON map file, or a map.
         ``"random"`` is handled by the environment, which draws a new map per reset.
 
     Raises
@@ -326,8 +379,9 @@ def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
 class RandomMapConfig:
     """Parameters of the random-map generator (all ours).
 
-    The layout mirrors the paper's maps: a team in formation travels ``travel`` metres in a
-    random direction, and isolated circular obstacles sit in the corridor between starts and
+    The layout mirrors the paper's maps: a team in formation (``formation``, a shape of
+    :mod:`koopman_envs.sim.formations` with neighbours ``spacing`` apart; the wedge by default)
+    travels ``travel`` metres in a random direction, and isolated circular obstacles sit in the corridor between starts and
     targets. With ``n_slip_zones`` > 0, circular slip zones (one lambda for every robot) are
     placed in the same corridor after the rest of the layout is drawn, so the obstacles, starts
     and targets of a seed do not depend on them.
@@ -336,7 +390,9 @@ class RandomMapConfig:
     n_obstacles: int = 4
     travel: tuple[float, float] = (3.0, 6.5)
     obstacle_radius: tuple[float, float] = (0.3, 0.6)
-    spacing: float = 0.9  # distance between neighbouring robots in the formation [m]
+    spacing: float = PARAMS.formation_spacing  # distance between neighbouring robots in the formation [m]
+    #: the team's shape at its starts and targets, one of FORMATION_SHAPES (koopman_envs.sim.formations)
+    formation: str = "wedge"
     clearance: float = 0.3  # free space around every start and target [m]
     gap: float = 0.6  # free space between two obstacles, > one robot diameter [m]
     border: float = 1.0  # free space between any start/target and the workspace edge [m]
@@ -351,6 +407,12 @@ class RandomMapConfig:
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
+        if self.formation not in FORMATION_SHAPES:
+            raise ValueError(f"formation={self.formation!r} is not one of {list(FORMATION_SHAPES)}")
+        if isinstance(self.spacing, bool) or not isinstance(self.spacing, (int, float)) or not (
+            math.isfinite(self.spacing) and self.spacing > 0
+        ):
+            raise ValueError(f"spacing={self.spacing!r} must be a finite number > 0 [m]")
         if not 0.0 <= self.swap_targets <= 1.0:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
@@ -371,16 +433,6 @@ class RandomMapConfig:
             raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
 
 
-def _wedge_offsets(n_robots: int, spacing: float) -> NDArray[np.float64]:
-    """Leader at the tip, followers alternating left and right behind it (in the travel frame)."""
-    offsets = np.zeros((n_robots, 2))
-    for k in range(1, n_robots):
-        rank = (k + 1) // 2
-        side = 1.0 if k % 2 else -1.0
-        offsets[k] = (-spacing * rank, side * spacing * rank)
-    return offsets
-
-
 def generate_random_map(
     rng: np.random.Generator,
     n_robots: int,
@@ -398,7 +450,7 @@ def generate_random_map(
     rng : numpy.random.Generator
         The only source of randomness.
     n_robots : int
-        Team size (the formation wedge grows with it).
+        Team size (the formation ``config.formation`` grows with it).
     config : RandomMapConfig
         Generator parameters.
     robot_radius : float
@@ -413,7 +465,7 @@ def generate_random_map(
     """
     if n_robots < 1:
         raise ValueError(f"n_robots={n_robots!r} must be >= 1")
-    local = _wedge_offsets(n_robots, config.spacing)
+    local = formation_shape(config.formation, n_robots, config.spacing)
     x0, x1, y0, y1 = workspace
     margin = config.border + robot_radius
     low, high = [x0 + margin, y0 + margin], [x1 - margin, y1 - margin]

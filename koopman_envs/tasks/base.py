@@ -47,7 +47,8 @@ class TaskSpec:
     reward : RewardWeights
         Weights of the shaped reward.
     extra_maps : tuple of str
-        Further shipped maps of this task that are not the paper's (ours: with slip zones).
+        Further shipped maps of this task that are not the paper's (ours: with slip zones, or
+        for six robots).
     """
 
     name: str
@@ -72,11 +73,11 @@ class TaskSpec:
 TASKS: dict[str, TaskSpec] = {
     "target_reaching": TaskSpec(
         "target_reaching", "KoopNav-TargetReaching-v0", "target reaching", ("map1", "map2"), formation=False,
-        extra_maps=("map5",),
+        extra_maps=("map5", "map7"),
     ),
     "formation": TaskSpec(
         "formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True,
-        extra_maps=("map6",),
+        extra_maps=("map6", "map8"),
     ),
 }
 
