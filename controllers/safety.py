@@ -33,20 +33,38 @@ never yields more than half a pair's barrier, even when its partner could not yi
 From continuous to sampled time (why the guarantee is exact for the nominal robots)
 ------------------------------------------------------------------------------------
 The command is held for a period ``dt``. Every barrier is convex in the look-ahead points (a norm
-minus a constant, or affine), so ``h(t + dt) >= h(t) + grad h . delta_p``; and holding (v, omega)
-moves p by ``dt dp/dt(t)`` up to an error of at most ``|omega| s dt^2 / 2`` with
-``s = sqrt(v_max^2 + l^2 omega_max^2)`` (the look-ahead velocity turns at rate omega). So each
-row is imposed as ``grad h . dp/dt - (s dt / 2) |omega| >= -gamma h`` (two linear rows, one per
-sign of omega), which gives ``h(t + dt) >= (1 - gamma dt) h(t)``: with ``0 < gamma dt <= 1`` the
-safe set ``h >= 0`` is invariant for the nominal (slip-free) kinematics, not only in the limit
-dt -> 0. The command (0, 0) satisfies every row whenever every h >= 0, so each robot's QP is
-feasible until a barrier is already negative.
+minus a constant, or affine), so ``h(t + dt) >= h(t) + n . delta_p`` with n its gradient at t.
+Holding (v, omega), ``f(t) = n . dp/dt`` drifts from its initial value as the heading turns:
+``|f'| <= |omega| (|v| k_s + l |omega| k_c)`` with ``k_s = min(1, |n . e_perp| + omega_max dt)``,
+``k_c = min(1, |n . e| + omega_max dt)``, so ``n . delta_p >= dt f(0) - dt^2/2 sup |f'|``. With
+``|v||omega| <= lam omega_max |v| + (1 - lam) v_max |omega|`` (true for every lam in [0, 1]; lam is
+taken from the inner command, for which it is tightest) and ``omega^2 <= omega_max |omega|``,
+each barrier becomes four linear rows (one per sign of v and of omega) of
 
-Only constraints that can bind are built: a row can be violated inside the command box only if
-``gamma h < |a_v| v_max + (|a_omega| + s dt / 2) omega_max`` (with ``dh/dt = a_v v + a_omega omega``;
-its "sensing radius": with the defaults at most 0.35 m of clearance to obstacles and walls and
-0.7 m between robots), so each QP grows with the number of nearby objects only; the distance
+    n . dp/dt - c_v |v| - c_omega |omega| >= -gamma h,
+    c_v = dt/2 k_s lam omega_max,   c_omega = dt/2 (k_s (1 - lam) v_max + l omega_max k_c),
+
+which gives ``h(t + dt) >= (1 - gamma dt) h(t)``: with ``0 < gamma dt <= 1`` the safe set
+``h >= 0`` is invariant for the nominal (slip-free) kinematics, not only in the limit dt -> 0.
+The command (0, 0) satisfies every row whenever every h >= 0, so each robot's QP is feasible
+until a barrier is already negative.
+
+Only barriers that can bind are built: the rows can be violated inside the command box only if
+``gamma h < (|a_v| + c_v) v_max + (|a_omega| + c_omega) omega_max`` (``dh/dt = a_v v + a_omega omega``;
+the "sensing radius": with the defaults at most 0.34 m of clearance to obstacles and walls and
+0.69 m between robots), so each QP grows with the number of nearby objects only; the distance
 check itself visits every obstacle and pair, a few floating-point operations each.
+
+Deadlocks
+---------
+A filter only removes the unsafe part of a command; it does not plan. A controller that drives
+straight at an obstacle (``consensus-free``) is stopped in front of it, and one that plans with
+smaller clearances than the filter keeps (the NMPCs' 0.015 m against the filter's
+``l + margin``) can push two robots into a corner of the safe set where the only safe motion is
+backwards, which the QP, staying near the command, does not choose. Giving the inner controller
+margins at least as wide as the filter's (``safe:nominal-nmpc:obstacle_offset=0.08,robot_offset=0.13``)
+avoids most of these. ``omega_weight`` is small by default so that the filter steers away from a
+barrier rather than brakes in front of it.
 
 Slip and infeasibility
 ----------------------
@@ -94,6 +112,10 @@ _BISECTION_STEPS = 12
 class SafetyOptions:
     """Options of the CBF safety filter (all ours; ranges checked on construction).
 
+    The defaults keep the narrowest passage of the paper maps open (0.56 m between two obstacles
+    of Map 1 and Map 3; a robot needs ``2 (r + lookahead + margin)`` = 0.54 m), so that the
+    filter does not close a way the inner controller may take.
+
     Attributes
     ----------
     gamma : float
@@ -112,9 +134,9 @@ class SafetyOptions:
     """
 
     gamma: float = 2.0
-    margin: float = 0.05
-    lookahead: float = 0.1
-    omega_weight: float = 0.1
+    margin: float = 0.02
+    lookahead: float = 0.05
+    omega_weight: float = 0.01
 
     #: allowed range per option: (low, high, low included, description)
     RANGES: ClassVar[dict[str, tuple[float, float, bool, str]]] = {
@@ -168,7 +190,7 @@ class FilterStep:
     barrier_min : float
         Smallest barrier value of the team before the step [m] (negative: inside a margin).
     constraints : int
-        Constraint pairs built (rows that can bind), over the team.
+        Barriers built (those that can bind), over the team.
     """
 
     command: NDArray[np.float64]
@@ -180,33 +202,45 @@ class FilterStep:
 
 
 @njit(cache=True)
-def _add_row(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, turn):  # pragma: no cover
-    """Append the two rows of one barrier (normal n, value h) of a robot with heading (hx, hy) when
-    some command within the limits could violate them; return the new row count."""
-    a_v = nx * hx + ny * hy
-    a_w = lookahead * (-nx * hy + ny * hx)
+def _add_barrier(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam):  # pragma: no cover
+    """Append the four rows of one barrier (unit gradient n, value h) of a robot with heading
+    (hx, hy) when some command within the limits could violate them; return the new row count."""
+    a_v = nx * hx + ny * hy  # n . e
+    cross = -nx * hy + ny * hx  # n . e_perp
+    a_w = lookahead * cross
+    # bound on the drift of n . dp/dt over a held period (module docstring), per |v| and per |omega|
+    k_s = min(1.0, abs(cross) + omega_max * dt)
+    k_c = min(1.0, abs(a_v) + omega_max * dt)
+    c_v = 0.5 * dt * k_s * lam * omega_max
+    c_w = 0.5 * dt * (k_s * (1.0 - lam) * v_max + lookahead * omega_max * k_c)
     rhs = -gamma * share * h
-    if -rhs >= abs(a_v) * v_max + (abs(a_w) + turn) * omega_max:
+    if -rhs >= (abs(a_v) + c_v) * v_max + (abs(a_w) + c_w) * omega_max:
         return row  # no command within the limits can violate it: leave it out (exact pruning)
-    A[row, 0], A[row, 1], b[row] = a_v, a_w - turn, rhs
-    A[row + 1, 0], A[row + 1, 1], b[row + 1] = a_v, a_w + turn, rhs
-    return row + 2
+    for s_v in (-1.0, 1.0):  # a_v v + a_w omega - c_v |v| - c_w |omega| >= rhs, one row per sign pair
+        for s_w in (-1.0, 1.0):
+            A[row, 0], A[row, 1], b[row] = a_v - s_v * c_v, a_w - s_w * c_w, rhs
+            row += 1
+    return row
 
 
 @njit(cache=True)
 def _filter_team(poses, wanted, centres, obstacle_reach, robot_reach, walls, lookahead, gamma, v_max, omega_max,
-                 turn, omega_weight, out, infeasible, relaxation):  # pragma: no cover - compiled  # fmt: skip
-    """Filter every robot's command (see the module docstring); returns (barrier minimum, rows built)."""
+                 dt, omega_weight, out, infeasible, relaxation):  # pragma: no cover - compiled  # fmt: skip
+    """Filter every robot's command (see the module docstring); returns (barrier minimum, barriers built)."""
     n, n_obs = poses.shape[0], centres.shape[0]
     px, py = np.empty(n), np.empty(n)
     for i in range(n):
         px[i] = poses[i, 0] + lookahead * math.cos(poses[i, 2])
         py[i] = poses[i, 1] + lookahead * math.sin(poses[i, 2])
-    size = 2 * (n_obs + n - 1 + 4) + 4
+    size = 4 * (n_obs + n - 1 + 4) + 4
     A, b, relaxed = np.empty((size, 2)), np.empty(size), np.empty(size)
     h_min, built = math.inf, 0
     for i in range(n):
         hx, hy = math.cos(poses[i, 2]), math.sin(poses[i, 2])
+        # split of |v||omega| <= lam omega_max |v| + (1 - lam) v_max |omega| (valid for any lam in
+        # [0, 1]); taken from the inner command, for which it is tightest
+        r_v, r_w = abs(wanted[i, 0]) / v_max, abs(wanted[i, 1]) / omega_max
+        lam = r_w / (r_v + r_w) if r_v + r_w > 0.0 else 0.5
         row = 0
         for k in range(n_obs + n):
             if k == n_obs + i:
@@ -223,13 +257,13 @@ def _filter_team(poses, wanted, centres, obstacle_reach, robot_reach, walls, loo
                 nx, ny = dx / dist, dy / dist
             else:  # coincident points (deep in collision) have no direction: push straight back
                 nx, ny = -hx, -hy
-            row = _add_row(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, turn)
+            row = _add_barrier(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam)
         for w in range(4):  # left, right, bottom, top
             h = (px[i] - walls[0], walls[1] - px[i], py[i] - walls[2], walls[3] - py[i])[w]
             nx, ny = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[w]
             h_min = min(h_min, h)
-            row = _add_row(A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, turn)
-        built += row // 2
+            row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam)
+        built += row // 4
         for sign in range(4):  # the command box
             A[row, 0], A[row, 1] = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[sign]
             b[row] = -v_max if sign < 2 else -omega_max
@@ -290,9 +324,7 @@ class BarrierFilter:
         x0, x1, y0, y1 = scenario.workspace
         self._walls = np.array([x0, x1, y0, y1], dtype=np.float64) + np.array([1, -1, 1, -1]) * (l + margin)
         self.v_max, self.omega_max = float(scenario.v_max), float(scenario.omega_max)
-        #: bound on the drift of the look-ahead point from its initial velocity over a held period,
-        #: per unit |omega| [m/rad]: |omega| sqrt(v_max^2 + l^2 omega_max^2) dt^2 / 2, divided by dt
-        self.turn_term = math.hypot(self.v_max, l * self.omega_max) * scenario.dt / 2
+        self.dt = float(scenario.dt)
         self._limits = np.array([self.v_max, self.omega_max])
         # compile (or load the compiled kernel) here, not inside the first timed step
         self.filter(np.asarray(scenario.starts, dtype=np.float64), np.zeros((self.n, 2)))
@@ -300,7 +332,10 @@ class BarrierFilter:
     @property
     def sensing_radius(self) -> tuple[float, float]:
         """Clearance beyond which no obstacle or wall, and no other robot, can constrain a robot [m]."""
-        reach = (self.v_max + (self.options.lookahead + self.turn_term) * self.omega_max) / self.options.gamma
+        l, dt = self.options.lookahead, self.dt
+        # the largest |a_v| + c_v and |a_omega| + c_omega a row can have (see _add_barrier)
+        speed = self.v_max * (1 + dt * self.omega_max / 2) + (l + dt * (self.v_max + l * self.omega_max) / 2) * self.omega_max
+        reach = speed / self.options.gamma
         return reach, 2 * reach
 
     def filter(self, poses: NDArray, command: NDArray) -> FilterStep:
@@ -327,7 +362,7 @@ class BarrierFilter:
         relaxation = np.empty(n)
         opt = self.options
         h_min, built = _filter_team(poses, wanted, self._centres, self._obstacle_reach, self._robot_reach, self._walls,
-                                    opt.lookahead, opt.gamma, self.v_max, self.omega_max, self.turn_term,
+                                    opt.lookahead, opt.gamma, self.v_max, self.omega_max, self.dt,
                                     opt.omega_weight, out, infeasible, relaxation)  # fmt: skip
         return FilterStep(
             command=out,
