@@ -30,7 +30,7 @@ import numpy as np
 
 import controllers
 import koopman_envs  # noqa: F401  (registers the envs)
-from evaluation.configs import split_controller_list
+from evaluation.configs import parse_controller, split_controller_list
 from evaluation.runner import evaluate
 from evaluation.statistics import wilson_interval
 from koopman_envs.episode import run_episode
@@ -60,13 +60,15 @@ def _rate(k: int, n: int) -> str:
 
 
 def collision_table(names: list[str], filter_options: list[str], episodes: int, workers: int) -> None:
-    """Run each controller with and without the filter on the paper maps under high slip and print
-    collisions and successes, pooled over maps and tasks."""
-    suffix = (":" + ",".join(filter_options)) if filter_options else ""
-    configs = {}
-    for name in names:
-        configs[name] = name
-        configs[f"safe:{name}"] = f"safe:{name}{suffix}"
+    """Run each controller configuration (``name`` or ``name:key=value,...``) with and without the
+    filter on the paper maps under high slip and print collisions and successes, pooled over maps
+    and tasks."""
+    extra = parse_controller("filter:" + ",".join(filter_options)).options if filter_options else ()  # key=value parsing
+    configs: dict[str, Any] = {}
+    for text in names:
+        config = parse_controller(text)
+        configs[text] = (config.name, dict(config.options))
+        configs[f"safe:{text}"] = (f"safe:{config.name}", {**dict(config.options), **dict(extra)})
     results = evaluate(list(TASKS), configs, slips=["high"], episodes=episodes, workers=workers, progress=True)
     by_label: dict[str, list[dict[str, Any]]] = {}
     for rec in results.records:
@@ -135,8 +137,8 @@ def main() -> None:
         usable = []
         for name in names:
             try:
-                controllers.make(name)
-            except (ImportError, ValueError) as exc:
+                parse_controller(name).build()
+            except (ImportError, ValueError, TypeError) as exc:
                 print(f"note: {name} skipped ({exc})", file=sys.stderr)
                 continue
             usable.append(name)

@@ -61,10 +61,11 @@ A filter only removes the unsafe part of a command; it does not plan. A controll
 straight at an obstacle (``consensus-free``) is stopped in front of it, and one that plans with
 smaller clearances than the filter keeps (the NMPCs' 0.015 m against the filter's
 ``l + margin``) can push two robots into a corner of the safe set where the only safe motion is
-backwards, which the QP, staying near the command, does not choose. Giving the inner controller
-margins at least as wide as the filter's (``safe:nominal-nmpc:obstacle_offset=0.08,robot_offset=0.13``)
-avoids most of these. ``omega_weight`` is small by default so that the filter steers away from a
-barrier rather than brakes in front of it.
+backwards, which the QP, staying near the command, does not choose. For a controller that takes
+margins, widening them to the filter's (``nominal-nmpc:obstacle_offset=0.08,robot_offset=0.13``) is
+the better cure (``bench/safety_filter.py``); the filter is for controllers that cannot.
+``omega_weight`` is small by default so that the filter steers away from a barrier rather than
+brakes in front of it.
 
 Slip and infeasibility
 ----------------------
