@@ -10,10 +10,11 @@
 
 Every controller follows :class:`controllers.base.Controller`; other packages register their
 own through the ``koopnav.controllers`` entry-point group (see :mod:`controllers.registry`).
+Any of them runs behind the CBF safety filter of :mod:`controllers.safety` as ``safe:<name>``.
 """
 
 from controllers.base import BaseController, Controller, ControllerStats
-from controllers.registry import ENTRY_POINT_GROUP, available, make, register
+from controllers.registry import ENTRY_POINT_GROUP, available, make, register, register_wrapper, split_name
 
 register("koopman-nmpc", "controllers.koopman_nmpc:KoopmanNMPC")
 register("koopman-nmpc-robust", "controllers:_koopman_nmpc_robust")
@@ -22,6 +23,8 @@ register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
 register("nominal-nmpc-robust", "controllers:_nominal_nmpc_robust")
 register("consensus", "controllers.consensus:ConsensusController")
 register("consensus-free", "controllers:_consensus_without_avoidance")
+# any controller behind the CBF safety filter: "safe:<name>", filter options prefixed "safety_"
+register_wrapper("safe", "controllers.safety:wrap")
 
 
 def _consensus_without_avoidance(**options):
@@ -64,4 +67,6 @@ __all__ = [
     "available",
     "make",
     "register",
+    "register_wrapper",
+    "split_name",
 ]

@@ -8,21 +8,28 @@ for example in their ``pyproject.toml``::
     my-controller = "my_package.control:MyController"
 
 so that ``controllers.make("my-controller")`` and the evaluator find them without code changes.
+
+A *wrapper prefix* builds a controller around any other: ``make("safe:consensus")`` is the
+``consensus`` controller behind the wrapper registered as ``safe`` (:func:`register_wrapper`);
+the wrapper receives the inner controller's factory and every option, and passes on those that
+are not its own.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 from importlib import metadata
 from typing import Any, Callable
 
 from controllers.base import Controller
 
-__all__ = ["ENTRY_POINT_GROUP", "available", "factory", "make", "register"]
+__all__ = ["ENTRY_POINT_GROUP", "available", "factory", "make", "register", "register_wrapper", "split_name"]
 
 ENTRY_POINT_GROUP = "koopnav.controllers"
 
 _REGISTRY: dict[str, Callable[..., Controller] | str] = {}
+_WRAPPERS: dict[str, Callable[..., Controller] | str] = {}
 
 
 def register(name: str, factory: Callable[..., Controller] | str, *, overwrite: bool = False) -> None:
@@ -30,6 +37,28 @@ def register(name: str, factory: Callable[..., Controller] | str, *, overwrite: 
     if not overwrite and name in _REGISTRY:
         raise ValueError(f"controller {name!r} is already registered")
     _REGISTRY[name] = factory
+
+
+def register_wrapper(prefix: str, wrapper: Callable[..., Controller] | str, *, overwrite: bool = False) -> None:
+    """Register a wrapper prefix: ``make(f"{prefix}:{name}", **options)`` calls
+    ``wrapper(factory(name), **options)`` (a callable or a ``"module:attribute"`` string)."""
+    if not prefix or ":" in prefix:
+        raise ValueError(f"wrapper prefix {prefix!r} must be non-empty and contain no ':'")
+    if not overwrite and prefix in _WRAPPERS:
+        raise ValueError(f"wrapper prefix {prefix!r} is already registered")
+    _WRAPPERS[prefix] = wrapper
+
+
+def split_name(name: str) -> tuple[tuple[str, ...], str]:
+    """``"safe:consensus"`` -> ``(("safe",), "consensus")``: the leading wrapper prefixes and the
+    rest (which is not checked)."""
+    prefixes = []
+    head, sep, tail = name.partition(":")
+    while sep and head in _WRAPPERS:
+        prefixes.append(head)
+        name = tail
+        head, sep, tail = name.partition(":")
+    return tuple(prefixes), name
 
 
 def _entry_points() -> dict[str, metadata.EntryPoint]:
@@ -49,7 +78,14 @@ def _resolve(factory: Callable[..., Controller] | str) -> Callable[..., Controll
 
 
 def factory(name: str) -> Callable[..., Controller]:
-    """The callable that builds controller ``name`` (raises ``ValueError`` for unknown names)."""
+    """The callable that builds controller ``name``, wrapper prefixes included (raises
+    ``ValueError`` for unknown names, naming the unknown controller without its prefixes)."""
+    prefixes, base = split_name(name)
+    if prefixes:
+        build = factory(base)
+        for prefix in reversed(prefixes):
+            build = functools.partial(_resolve(_WRAPPERS[prefix]), build)
+        return build
     if name in _REGISTRY:
         return _resolve(_REGISTRY[name])
     points = _entry_points()
@@ -59,7 +95,7 @@ def factory(name: str) -> Callable[..., Controller]:
 
 
 def make(name: str, **options: Any) -> Controller:
-    """Build a controller by name.
+    """Build a controller by name (``"name"`` or ``"prefix:name"`` for a wrapped one).
 
     Raises
     ------

@@ -5,6 +5,10 @@ as JSON scalars, else kept as text; ``label=...`` names the row, by default the 
 
     nominal-nmpc   nominal-nmpc:solver=fatrop   koopman-nmpc:uncertainty_margin=0,horizon=30
 
+A registered wrapper prefix comes first: ``safe:consensus-free`` is ``consensus-free`` behind the
+CBF safety filter, and in ``safe:nominal-nmpc:horizon=10,safety_gamma=1`` the options prefixed
+``safety_`` go to the filter, the others to ``nominal-nmpc`` (see :mod:`controllers.safety`).
+
 Several configurations may also be given comma-separated in one word
 (``nominal-nmpc,koopman-nmpc:horizon=30,consensus``): a piece with ``=`` and no ``:`` continues
 the options of the configuration before it.
@@ -22,6 +26,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Mapping
 
 import controllers
+from controllers.registry import factory as registered_factory
+from controllers.registry import split_name
 
 __all__ = ["ControllerConfig", "controller_configs", "parse_controller", "split_controller_list"]
 
@@ -70,9 +76,7 @@ class ControllerConfig:
                         f"({type(exc).__name__}: {exc}); define it at module level or run with workers=1"
                     ) from None
         else:
-            available = controllers.available()
-            if self.name not in available:
-                raise ValueError(f"controller {self.name!r} is not one of {available}")
+            registered_factory(self.name)  # unknown names (also behind a wrapper prefix) raise ValueError
         try:
             self.build()
         except TypeError as exc:
@@ -96,12 +100,15 @@ def _scalar(text: str) -> Any:
 
 
 def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
-    """``name`` or ``name:key=value,...`` -> :class:`ControllerConfig` (``ValueError`` when malformed)."""
+    """``name`` or ``name:key=value,...`` -> :class:`ControllerConfig` (``ValueError`` when malformed);
+    ``name`` may start with wrapper prefixes (``safe:name:key=value``)."""
     if isinstance(text, ControllerConfig):
         return text
     if not isinstance(text, str) or not text.strip():
         raise ValueError(f"controller {text!r} must be a non-empty 'name' or 'name:key=value,...'")
-    name, sep, rest = text.strip().partition(":")
+    prefixes, base = split_name(text.strip())
+    name, sep, rest = base.partition(":")
+    name = ":".join([*prefixes, name.strip()])
     options: dict[str, Any] = {}
     label = text.strip()
     if sep:
@@ -133,7 +140,7 @@ def split_controller_list(words: Iterable[str]) -> list[str]:
             if not piece:
                 continue
             continues = "=" in piece and ":" not in piece.partition("=")[0]
-            if continues and texts and ":" in texts[-1]:
+            if continues and texts and ":" in split_name(texts[-1])[1]:
                 texts[-1] += "," + piece
             elif continues:
                 raise ValueError(f"controller list {word!r}: option {piece!r} follows no 'name:' configuration")

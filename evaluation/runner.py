@@ -19,8 +19,8 @@ from koopman_envs.sim.maps import BUILTIN_MAPS
 
 __all__ = ["evaluate", "usable_controllers"]
 
-#: longest episodes first (the learned-model NMPC, then the other optimizers) so that no worker
-#: idles at the end of a run; records are put back in plan order
+#: longest episodes first (the learned-model NMPC, then the other optimizers, wrapped or not) so
+#: that no worker idles at the end of a run; records are put back in plan order
 _COST = {"koopman-nmpc": 0, "koopman-nmpc-robust": 0, "nominal-nmpc": 1, "nominal-nmpc-robust": 1}
 
 
@@ -173,7 +173,8 @@ def evaluate(
     plan = plan_episodes(env_ids, configs, map_table, slips, episodes, seed, settings, calibration_budget,
                          calibration_seed, random_maps, gifs, os.fspath(out) if out is not None else "")  # fmt: skip
     log_file, done = open_log(out, config, resume) if out is not None else (None, {})
-    todo = sorted((spec for spec in plan if spec.key not in done), key=lambda s: _COST.get(s.controller_name, 2))
+    todo = sorted((spec for spec in plan if spec.key not in done),
+                  key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2))  # fmt: skip
     bar = Progress(len(todo), progress)
     records = dict(done)
     try:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from controllers.base import ControllerStats
 from controllers.calibration import calibrate_controller
 from evaluation.plan import EpisodeSpec, slip_value
 from koopman_envs.episode import run_episode as run_controller_episode
@@ -19,6 +20,7 @@ from koopman_envs.plant import make_plant
 __all__ = ["CalibrationError", "run_episode"]
 
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
+_COMMON_SUMMARY = frozenset(ControllerStats().summary())
 
 
 class CalibrationError(RuntimeError):
@@ -82,6 +84,8 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             # every step's decision time, so that a cell's p95 is taken over its steps
             solve_ms=[round(1e3 * t, 3) for t in stats.solve_times],
             solver_failures=summary["failures"],
+            # what a controller reports beyond the common summary (e.g. the safety filter's counts)
+            controller_extra={k: v for k, v in summary.items() if k not in _COMMON_SUMMARY} or None,
             trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
             obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,
         )
