@@ -87,24 +87,28 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
 
 
 def uncertainty_section(docs: list[dict]) -> list[str]:
-    """The changing-uncertainty results (not in the paper): pooled leaderboard, paired comparisons
-    and per-cell tables of the runs on slip-zone maps and with drifting or random slip."""
-    pooled = Results([r for d in docs for r in d["episodes"]], docs[0]["config"])
-    cells = sorted({(c.env_id, c.map, c.slip, c.episodes) for c in pooled.cells})
-    grid = "; ".join(f"{task_label_of(env_id)} {m} slip {slip} ({n} seeds)" for env_id, m, slip, n in cells)
+    """The changing-uncertainty results (not in the paper): per group of runs over the same cells
+    (a run and its ablation run, say), a leaderboard, paired comparisons and per-cell tables."""
     lines = ["## Changing uncertainty: slip zones, drifting and random slip (not in the paper)", "",
-             "Cells: " + grid + ". Maps 5 and 6 put a high-slip zone across the shortest route; `drift` "
-             "redraws every robot's slip level at random times within the episode, `random` draws one level "
-             "per episode (README, *Maps* and *Environments*). Same seeds for every controller, so the "
-             "comparisons are paired; same calibration offer as above; no controller is told the slip.", "",
-             "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in docs)
-             + ", then this script with `--uncertainty` and those runs' results.json.", "",
-             "### Leaderboard", "", pooled.leaderboard_table(), "",
-             "### Paired comparisons", "",
-             "Difference of success rates on shared episodes (map, slip, seed), Newcombe's 95% interval, "
-             "exact McNemar test.", "", pooled.paired_table(), "", "### Per-controller tables", ""]  # fmt: skip
-    for env_id, name in pooled.table_keys():
-        lines += [pooled.paper_table(env_id, name), ""]
+             "Maps 5 and 6 put a high-slip zone across the shortest route; `drift` redraws every robot's slip "
+             "level at random times within the episode, `random` draws one level per episode (README, *Maps* "
+             "and *Environments*). Same seeds for every controller in a group of cells, so the comparisons are "
+             "paired; same calibration offer as above; no controller is told the slip, the zones or the "
+             "schedule.", ""]  # fmt: skip
+    groups: dict[tuple, list[dict]] = {}
+    for d in docs:
+        key = tuple(sorted({(c["env_id"], c["map"], c["slip"]) for c in d["cells"]}))
+        groups.setdefault(key, []).append(d)
+    for key, members in groups.items():
+        pooled = Results([r for d in members for r in d["episodes"]], members[0]["config"])
+        seeds = max(c.episodes for c in pooled.cells)
+        title = "; ".join(f"{task_label_of(env_id)} {m}, slip {slip}" for env_id, m, slip in key)
+        lines += [f"### {title} ({seeds} seeds per cell)", "",
+                  "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in members) + ".", "",
+                  pooled.leaderboard_table(), "", "Paired comparisons (shared map, slip and seed; Newcombe's 95% "
+                  "interval, exact McNemar test):", "", pooled.paired_table(), ""]  # fmt: skip
+        for env_id, name in pooled.table_keys():
+            lines += [pooled.paper_table(env_id, name), ""]
     return lines
 
 
