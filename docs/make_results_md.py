@@ -120,7 +120,9 @@ def _command(config: dict) -> str:
         options = dict(c["options"])
         if c["label"] != c["name"]:
             options["label"] = c["label"]
-        controllers.append(c["name"] + (":" + ",".join(f"{k}={v}" for k, v in options.items()) if options else ""))
+        # values as the CLI parses them (JSON scalars; text as is)
+        text = {k: v if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
+        controllers.append(c["name"] + (":" + ",".join(f"{k}={v}" for k, v in text.items()) if options else ""))
     return (f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
             f"--slips {' '.join(config['slips'])} --episodes {config['episodes']} "
             f"--controllers {' '.join(controllers)}")  # fmt: skip
