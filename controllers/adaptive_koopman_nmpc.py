@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.koopman import KoopmanModel
-from controllers.koopman.online import RecursiveBilinearFit, check_forgetting
+from controllers.koopman.online import RecursiveBilinearFit, check_forgetting, check_prior_weight
 from controllers.koopman_nmpc import KoopmanNMPC
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from koopman_envs.scenario import Scenario
@@ -76,10 +76,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
     ) -> None:
         options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
         check_forgetting(forgetting)
-        if isinstance(prior_weight, bool) or not isinstance(prior_weight, (int, float)) or not (
-            np.isfinite(prior_weight) and prior_weight > 0
-        ):
-            raise ValueError(f"prior_weight={prior_weight!r} must be a finite number > 0 (calibration transitions)")
+        check_prior_weight(prior_weight)
         if isinstance(residual_window, bool) or not isinstance(residual_window, int) or residual_window < 1:
             raise ValueError(f"residual_window={residual_window!r} must be an integer >= 1 (periods)")
         self.forgetting = float(forgetting)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.results import Results  # noqa: E402
+from evaluation.results import Results, task_label  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
 PAPER = {
@@ -102,7 +102,7 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
     for key, members in groups.items():
         pooled = Results([r for d in members for r in d["episodes"]], members[0]["config"])
         seeds = max(c.episodes for c in pooled.cells)
-        title = "; ".join(f"{task_label_of(env_id)} {m}, slip {slip}" for env_id, m, slip in key)
+        title = "; ".join(f"{task_label(env_id)} {m}, slip {slip}" for env_id, m, slip in key)
         lines += [f"### {title} ({seeds} seeds per cell)", "",
                   "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in members) + ".", "",
                   pooled.leaderboard_table(), "", "Paired comparisons (shared map, slip and seed; Newcombe's 95% "
@@ -126,13 +126,6 @@ def _command(config: dict) -> str:
     return (f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
             f"--slips {' '.join(config['slips'])} --episodes {config['episodes']} "
             f"--controllers {' '.join(controllers)}")  # fmt: skip
-
-
-def task_label_of(env_id: str) -> str:
-    """'target reaching' / 'formation' for an env id."""
-    from evaluation.results import task_label
-
-    return task_label(env_id)
 
 
 def main() -> None:

@@ -213,17 +213,13 @@ def test_a_three_robot_policy_sees_the_nearest_two_teammates_of_a_larger_team() 
 
 
 def test_shipped_policy_drives_a_six_robot_team() -> None:
+    from koopman_envs.episode import run_episode
+
     env = gym.make("KoopNav-Formation-v0", map="random", n_robots=6, max_episode_steps=20)
-    ctrl = controllers.make("rl-ppo")
-    obs, info = env.reset(seed=0)
-    ctrl.reset(env, seed=0)
-    for _ in range(20):
-        action = ctrl.act(obs, info)
-        assert action.shape == (12,) and np.all(np.isfinite(action))
-        obs, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            break
-    assert ctrl.stats().steps >= 1
+    actions: list[np.ndarray] = []
+    result = run_episode(env, controllers.make("rl-ppo"), seed=0, on_step=lambda step, action, info: actions.append(action))
+    assert result.steps >= 1 and len(actions) == result.steps
+    assert all(a.shape == (6, 2) and np.all(np.isfinite(a)) for a in actions)
 
 
 def test_bad_layout_and_penalty_are_rejected() -> None:

@@ -39,7 +39,7 @@ from controllers.koopman.fit import _cholesky_solve
 from controllers.koopman.model import KoopmanModel
 from koopman_envs.params import PARAMS
 
-__all__ = ["RecursiveBilinearFit", "check_forgetting"]
+__all__ = ["RecursiveBilinearFit", "check_forgetting", "check_prior_weight"]
 
 # a fixed seed: the prior's information matrix must not depend on anything but the model
 _PRIOR_SAMPLE_SEED = 0x52_4C_53  # "RLS"
@@ -50,6 +50,15 @@ def check_forgetting(value: float) -> float:
     """``value`` as a forgetting factor, or ValueError naming it and the allowed range (0, 1]."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not 0.0 < value <= 1.0:
         raise ValueError(f"forgetting={value!r} must be a number in (0, 1] (1: no forgetting)")
+    return float(value)
+
+
+def check_prior_weight(value: float) -> float:
+    """``value`` as a prior weight, or ValueError naming it and the allowed range (> 0, finite)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not (
+        np.isfinite(value) and value > 0
+    ):
+        raise ValueError(f"prior_weight={value!r} must be a finite number > 0 (calibration transitions)")
     return float(value)
 
 
@@ -87,11 +96,7 @@ class RecursiveBilinearFit:
 
     def __init__(self, model: KoopmanModel, forgetting: float = 0.98, prior_weight: float = 200.0) -> None:
         self.forgetting = check_forgetting(forgetting)
-        if isinstance(prior_weight, bool) or not isinstance(prior_weight, (int, float)) or not (
-            np.isfinite(prior_weight) and prior_weight > 0
-        ):
-            raise ValueError(f"prior_weight={prior_weight!r} must be a finite number > 0 (calibration transitions)")
-        self.prior_weight = float(prior_weight)
+        self.prior_weight = check_prior_weight(prior_weight)
         self.model = model
         d, m = model.A.shape[0], 2 * model.n_robots
         self.d, self.m = d, m
