@@ -366,6 +366,7 @@ class _Problem:
                         constrain(deviation + formation_slack, -config.formation_bound, np.inf)
                         constrain(deviation - formation_slack, -np.inf, config.formation_bound)
             stage_cons.append(np.arange(first, len(equality)))
+        self.n_robots = n
         self._nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g), "p": params}
         self._equality = equality
         self._config = config
@@ -397,6 +398,11 @@ class _Problem:
                 for key in WARM_START_OPTIONS.get(name, ()):
                     options.pop(key, None)
             options.setdefault("expand", True)
+            if name == "ipopt":
+                # the paper's (monotone) barrier update up to its 3 robots; beyond, the adaptive one:
+                # with monotone, 8 robots on a random map hit the 100-iteration limit at every step
+                # (3 s per step), adaptive converges in ~10 iterations (bench/scaling.py)
+                options.setdefault("ipopt.mu_strategy", "monotone" if self.n_robots <= PARAMS.n_robots else "adaptive")
             if name == "fatrop":
                 options.setdefault("structure_detection", "auto")
                 options.setdefault("equality", self._equality)
