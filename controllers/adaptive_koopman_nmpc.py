@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.koopman import KoopmanModel
-from controllers.koopman.online import RecursiveBilinearFit, check_forgetting, check_prior_weight
+from controllers.koopman.online import RecursiveBilinearFit, check_adapted, check_forgetting, check_prior_weight
 from controllers.koopman_nmpc import KoopmanNMPC
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from koopman_envs.scenario import Scenario
@@ -50,6 +50,10 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         Periods of recent one-step residuals behind the margins (>= 1).
     adapt : bool
         False freezes the model (margins still follow the residuals): an ablation switch.
+    adapted : {"all", "input"}
+        Which coefficients the update changes: every free one (default), or only those of the
+        command terms (A, the motion without commands, stays calibrated); see
+        :class:`controllers.koopman.online.RecursiveBilinearFit`.
     config, **options
         NMPC options (:class:`controllers.nmpc.NMPCConfig`); ``uncertainty_margin`` defaults
         to :data:`controllers.nmpc.ROBUST_UNCERTAINTY_MARGIN` here (3 recent RMS residuals).
@@ -70,6 +74,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         prior_weight: float = 200.0,
         residual_window: int = 20,
         adapt: bool = True,
+        adapted: str = "all",
         config: NMPCConfig | None = None,
         structure: str = "auto",
         **options: Any,
@@ -83,6 +88,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         self.prior_weight = float(prior_weight)
         self.residual_window = residual_window
         self.adapt = bool(adapt)
+        self.adapted = check_adapted(adapted)
         self._estimator: RecursiveBilinearFit | None = None
         super().__init__(model, dictionary, config, structure, **options)
 
@@ -93,7 +99,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         super()._reset(scenario, seed)
         if self._estimator is None or self._estimator.model is not self.model:
-            self._estimator = RecursiveBilinearFit(self.model, self.forgetting, self.prior_weight)
+            self._estimator = RecursiveBilinearFit(self.model, self.forgetting, self.prior_weight, self.adapted)
         self._estimator.reset()
         self._residuals: deque[NDArray] = deque(maxlen=self.residual_window)
         self._previous: tuple[NDArray, NDArray] | None = None

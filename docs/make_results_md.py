@@ -4,7 +4,8 @@ Usage::
 
     python docs/make_results_md.py results_paper/results.json [more results.json ...] \
         [--ablation docs/ablation.md] [--strict results_strict/results.json] \
-        [--uncertainty results_zones_tr/results.json results_zones_fm/results.json ...]
+        [--uncertainty results_zones_tr/results.json results_zones_fm/results.json ...] \
+        [--scaling results_n3/results.json results_n6/results.json ...]
 
 Cells of later files are added to those of the first (e.g. a separate ``--controllers rl-ppo``
 run). Every rate carries its 95% Wilson interval, every mean distance its 95% bootstrap
@@ -112,6 +113,36 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
     return lines
 
 
+def scaling_section(docs: list[dict]) -> list[str]:
+    """Success, distances and decision time as the team grows: one run per team size N (its
+    ``--env-kwargs n_robots=N``), one row per controller and N."""
+    lines = ["## Scaling with the team size (not in the paper)", "",
+             "Target reaching on seeded random maps (a new layout per seed: 4 obstacles, the team in a wedge "
+             "and its targets the same wedge elsewhere; the generator's defaults), nominal slip, the same seeds "
+             "for every controller at a given N. Solvers uncompiled (`KOOPNAV_NMPC_JIT=0`) at every N, so the "
+             "times compare across N: a 16-robot problem takes gcc more than 7 minutes and 4 GB to compile. "
+             "Solve times are each controller's decision time per control step (median and 95th percentile "
+             "over every step of the cell) against the 100 ms control period; the machine has 2 cores, and a "
+             "second evaluation ran beside these ones.", ""]  # fmt: skip
+    lines += ["| N | Controller | Success [95% CI] | Collision-free [95% CI] | Team final dist., settled [cm] | "
+              "Time to goal [s] | Decision median / p95 [ms] | Solver failures | Errors |",
+              "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    commands = []
+    for d in sorted(docs, key=lambda d: d["config"]["env_settings"].get("n_robots", 3)):
+        n = d["config"]["env_settings"].get("n_robots", 3)
+        commands.append(f"`KOOPNAV_NMPC_JIT=0 {_command(d['config'])}`")
+        for c in d["cells"]:
+            valid = c["episodes"] - c["errors"]
+            settled = c["final_distance_cm"]["settled"]
+            ttg = "-" if c.get("time_to_goal_s") is None else f"{c['time_to_goal_s']:.1f}"
+            solve = "-" if c["solve_ms_median"] is None else f"{c['solve_ms_median']:.1f} / {c['solve_ms_p95']:.1f}"
+            lines.append(f"| {n} | {c['controller']} | {c['successes']}/{valid} {_ci(c['success_ci'])} | "
+                         f"{c['collision_free']}/{valid} {_ci(c['collision_free_ci'])} | {_team(settled)} | {ttg} | "
+                         f"{solve} | {c['solver_failures']} | {c['errors']} |")  # fmt: skip
+    lines += ["", "Regenerate: " + "; ".join(commands) + ".", ""]
+    return lines
+
+
 def _command(config: dict) -> str:
     """The evaluate.py command line of a run, from its recorded configuration."""
     maps = sorted({m for names in config["maps"].values() for m in names})
@@ -123,8 +154,12 @@ def _command(config: dict) -> str:
         # values as the CLI parses them (JSON scalars; text as is)
         text = {k: v if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
         controllers.append(c["name"] + (":" + ",".join(f"{k}={v}" for k, v in text.items()) if options else ""))
+    # env keywords beyond those with their own flags (goal tolerance, time limit, start noise)
+    own_flags = ("goal_tolerance", "max_episode_steps", "start_noise")
+    extra = {k: v for k, v in config.get("env_settings", {}).items() if k not in own_flags}
+    env_kwargs = (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
     return (f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
-            f"--slips {' '.join(config['slips'])} --episodes {config['episodes']} "
+            f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "
             f"--controllers {' '.join(controllers)}")  # fmt: skip
 
 
@@ -135,6 +170,8 @@ def main() -> None:
     parser.add_argument("--ablation", help="docs/ablation.md to link")
     parser.add_argument("--uncertainty", nargs="+", default=[],
                         help="results.json of the changing-uncertainty runs (slip zones, drift, random slip)")
+    parser.add_argument("--scaling", nargs="+", default=[],
+                        help="results.json of the team-size runs (one per --env-kwargs n_robots=N)")
     parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
     args = parser.parse_args()
     docs = [json.loads(Path(path).read_text()) for path in args.results]
@@ -211,6 +248,8 @@ def main() -> None:
                   "widened margins and soft constraints decides the outcome under high slip.", ""]  # fmt: skip
     if args.uncertainty:
         lines += uncertainty_section([json.loads(Path(path).read_text()) for path in args.uncertainty])
+    if args.scaling:
+        lines += scaling_section([json.loads(Path(path).read_text()) for path in args.scaling])
     Path(args.out).write_text("\n".join(lines) + "\n")
     print(f"wrote {args.out}")
 

@@ -93,6 +93,34 @@ def test_rls_guards_keep_the_covariance_bounded_and_reject_non_finite_data(shipp
     assert fit.rejected == 1 and np.array_equal(fit.weights, weights)
 
 
+def test_input_only_update_keeps_the_uncommanded_motion_and_still_learns_the_gains(shipped):
+    true = _faster(shipped, 1.5)  # only the command terms differ, as with traction slip
+    fit = RecursiveBilinearFit(shipped, forgetting=1.0, prior_weight=1.0, adapted="input")
+    poses, commands = _trajectory(true, 600, seed=1)
+    for t in range(600):
+        fit.update(poses[t], commands[t], poses[t + 1])
+    a_matrix, n_matrix, _ = fit.matrices()
+    rows = fit.outputs
+    assert np.array_equal(a_matrix[rows], shipped.A[rows])  # A untouched, bit for bit
+    d = shipped.A.shape[0]
+    for r in range(3):
+        column = (2 * r) * d + 3 + 4 * r  # v_r times cos(theta_r) in robot r's lifted x
+        assert n_matrix[rows[4 * r], column] == pytest.approx(true.N[rows[4 * r], column], rel=0.05)
+    # the unrestricted update moves A too (on the same data)
+    free = RecursiveBilinearFit(shipped, forgetting=1.0, prior_weight=1.0)
+    for t in range(600):
+        free.update(poses[t], commands[t], poses[t + 1])
+    assert not np.array_equal(free.matrices()[0][rows], shipped.A[rows])
+
+
+@pytest.mark.parametrize("value", ["inputs", "", None, "A"])
+def test_adapted_terms_outside_the_choices_are_rejected(value, shipped):
+    with pytest.raises(ValueError, match=r"adapted=.*'all', 'input'"):
+        RecursiveBilinearFit(shipped, adapted=value)
+    with pytest.raises(ValueError, match=r"adapted=.*'all', 'input'"):
+        AdaptiveKoopmanNMPC(adapted=value)
+
+
 @pytest.mark.parametrize("value", [0.0, -0.1, 1.5, float("nan"), True, "0.9"])
 def test_forgetting_factor_out_of_range_is_rejected(value, shipped):
     with pytest.raises(ValueError, match=r"forgetting=.*\(0, 1\]"):

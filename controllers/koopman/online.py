@@ -39,7 +39,7 @@ from controllers.koopman.fit import _cholesky_solve
 from controllers.koopman.model import KoopmanModel
 from koopman_envs.params import PARAMS
 
-__all__ = ["RecursiveBilinearFit", "check_forgetting", "check_prior_weight"]
+__all__ = ["ADAPTED_TERMS", "RecursiveBilinearFit", "check_adapted", "check_forgetting", "check_prior_weight"]
 
 # a fixed seed: the prior's information matrix must not depend on anything but the model
 _PRIOR_SAMPLE_SEED = 0x52_4C_53  # "RLS"
@@ -51,6 +51,18 @@ def check_forgetting(value: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not 0.0 < value <= 1.0:
         raise ValueError(f"forgetting={value!r} must be a number in (0, 1] (1: no forgetting)")
     return float(value)
+
+
+#: which coefficients the online update may change: every free one, or only those multiplied by
+#: a command (N and B: how commands move the robots; A, the motion without commands, stays calibrated)
+ADAPTED_TERMS = ("all", "input")
+
+
+def check_adapted(value: str) -> str:
+    """``value`` as a choice of adapted coefficients, or ValueError naming it and the choices."""
+    if value not in ADAPTED_TERMS:
+        raise ValueError(f"adapted={value!r} is not one of {list(ADAPTED_TERMS)}")
+    return value
 
 
 def check_prior_weight(value: float) -> float:
@@ -87,6 +99,10 @@ class RecursiveBilinearFit:
     prior_weight : float
         How many calibration-like transitions the prior model is worth (> 0). Small values adapt
         fast and trust the episode's few, correlated closed-loop transitions more.
+    adapted : {"all", "input"}
+        ``"all"``: every free coefficient of the projected rows; ``"input"``: only those of the
+        command terms ``N (u kron z) + B u``. Slip changes how commands move a robot, never how it
+        moves without one, so ``"input"`` keeps A (and the estimate's behaviour at rest) calibrated.
 
     Attributes
     ----------
@@ -94,9 +110,11 @@ class RecursiveBilinearFit:
         Transitions used and transitions rejected by the guards since :meth:`reset`.
     """
 
-    def __init__(self, model: KoopmanModel, forgetting: float = 0.98, prior_weight: float = 200.0) -> None:
+    def __init__(self, model: KoopmanModel, forgetting: float = 0.98, prior_weight: float = 200.0,
+                 adapted: str = "all") -> None:  # fmt: skip
         self.forgetting = check_forgetting(forgetting)
         self.prior_weight = check_prior_weight(prior_weight)
+        self.adapted = check_adapted(adapted)
         self.model = model
         d, m = model.A.shape[0], 2 * model.n_robots
         self.d, self.m = d, m
@@ -115,6 +133,8 @@ class RecursiveBilinearFit:
         free[:d] = model.A[rows].T != 0
         free[d:] = model.N[rows].T != 0
         free[merged] |= model.B[rows].T != 0
+        if adapted == "input":
+            free[:d] = False
         self._free = free
         # outputs whose free regressors coincide share one covariance: one group for the paper's
         # stacked model, one per robot for the per-robot structure (whose RLS then costs
