@@ -95,7 +95,9 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
              "level at random times within the episode, `random` draws one level per episode (README, *Maps* "
              "and *Environments*). Same seeds for every controller in a group of cells, so the comparisons are "
              "paired; same calibration offer as above; no controller is told the slip, the zones or the "
-             "schedule.", ""]  # fmt: skip
+             "schedule. Solve times come from runs made at different times on a shared 2-core machine (some "
+             "beside other evaluations): compare them within one run, not across the rows of a pooled table.",
+             ""]  # fmt: skip
     groups: dict[tuple, list[dict]] = {}
     for d in docs:
         key = tuple(sorted({(c["env_id"], c["map"], c["slip"]) for c in d["cells"]}))
