@@ -186,7 +186,8 @@ def main() -> None:
              "`python evaluate.py --paper-strict --out results_strict`, `python evaluate.py --ablation`, then "
              "`python docs/make_results_md.py results_paper/results.json results_rl/results.json "
              "--strict results_strict/results.json --ablation docs/ablation.md` "
-             f"(package {doc['package_version']}).", "",
+             f"(package {doc['package_version']}). This page was written by `python docs/make_results_md.py "
+             f"{' '.join(sys.argv[1:])}`.", "",
              "Protocol (SPEC section 5): 3 robots, 10 trials per cell, trial i seeded i: the same slip draws and "
              "starts for every controller, so comparisons are paired. Every controller was offered the same "
              f"calibration: the env's robots in an open field (slip means hidden), {budget:,} team-transitions, "
