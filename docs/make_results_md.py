@@ -22,6 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 from evaluation.results import Results, task_label  # noqa: E402
+from koopman_envs.params import PARAMS  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
 PAPER = {
@@ -160,6 +161,8 @@ def _command(config: dict) -> str:
     own_flags = ("goal_tolerance", "max_episode_steps", "start_noise")
     extra = {k: v for k, v in config.get("env_settings", {}).items() if k not in own_flags}
     env_kwargs = (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
+    if config.get("max_episode_steps") not in (None, PARAMS.max_episode_steps):
+        env_kwargs += f" --max-episode-steps {config['max_episode_steps']}"
     return (f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
             f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "
             f"--controllers {' '.join(controllers)}")  # fmt: skip
