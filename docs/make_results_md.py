@@ -126,7 +126,9 @@ def scaling_section(docs: list[dict]) -> list[str]:
              "times compare across N: a 16-robot problem takes gcc more than 7 minutes and 4 GB to compile. "
              "Solve times are each controller's decision time per control step (median and 95th percentile "
              "over every step of the cell) against the 100 ms control period; the machine has 2 cores, and a "
-             "second evaluation ran beside these ones.", ""]  # fmt: skip
+             "second evaluation ran beside these ones. Seeds per N and the time limit of each run (600 periods unless "
+             "the command says otherwise) are in the commands below; a collision or the time limit ends an episode "
+             "as a failure.", ""]  # fmt: skip
     lines += ["| N | Controller | Success [95% CI] | Collision-free [95% CI] | Team final dist., settled [cm] | "
               "Time to goal [s] | Decision median / p95 [ms] | Solver failures | Errors |",
               "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
