@@ -185,7 +185,9 @@ class NMPCConfig:
         every trial and succeeds with IPOPT; see ``bench/nmpc_solve.py``).
     solver_options : dict, optional
         Options passed to ``nlpsol`` for ``solver`` (default: :data:`IPOPT_OPTIONS` or
-        :data:`FATROP_OPTIONS`).
+        :data:`FATROP_OPTIONS`). Unless they set ``ipopt.mu_strategy``, IPOPT updates its barrier
+        the paper's way (``monotone``) for up to 3 robots and ``adaptive`` beyond, where the
+        monotone update hits the iteration limit on most steps.
     fallback_solver : str or None
         Solver tried on the same problem when ``solver`` fails, before the plan fallback
         (ignored when it equals ``solver``).
