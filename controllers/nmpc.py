@@ -395,22 +395,27 @@ class _Problem:
         options, see :data:`WARM_START_OPTIONS`).
         """
         if (name, cold) not in self._solvers:
-            options = self._config.options_for(name)
-            if cold:
-                for key in WARM_START_OPTIONS.get(name, ()):
-                    options.pop(key, None)
-            options.setdefault("expand", True)
-            if name == "ipopt":
-                # the paper's (monotone) barrier update up to its 3 robots; beyond, the adaptive one:
-                # with monotone, 8 robots on a random map hit the 100-iteration limit at every step
-                # (3 s per step), adaptive converges in ~10 iterations (bench/scaling.py)
-                options.setdefault("ipopt.mu_strategy", "monotone" if self.n_robots <= PARAMS.n_robots else "adaptive")
-            if name == "fatrop":
-                options.setdefault("structure_detection", "auto")
-                options.setdefault("equality", self._equality)
+            options = self.solver_options(name, cold)
             label = f"nmpc_{name}_cold" if cold else f"nmpc_{name}"
             self._solvers[(name, cold)] = nlpsol(label, name, self._nlp, options)
         return self._solvers[(name, cold)]
+
+    def solver_options(self, name: str, cold: bool = False) -> dict[str, Any]:
+        """The ``nlpsol`` options :meth:`solver_for` builds ``name``'s solver with."""
+        options = self._config.options_for(name)
+        if cold:
+            for key in WARM_START_OPTIONS.get(name, ()):
+                options.pop(key, None)
+        options.setdefault("expand", True)
+        if name == "ipopt":
+            # the paper's (monotone) barrier update up to its 3 robots; beyond, the adaptive one:
+            # with monotone, 8 robots on a random map hit the 100-iteration limit at every step
+            # (3 s per step), adaptive converges in ~10 iterations (bench/scaling.py)
+            options.setdefault("ipopt.mu_strategy", "monotone" if self.n_robots <= PARAMS.n_robots else "adaptive")
+        if name == "fatrop":
+            options.setdefault("structure_detection", "auto")
+            options.setdefault("equality", self._equality)
+        return options
 
     def plan(self, w: NDArray) -> tuple[NDArray, NDArray]:
         """Split a decision vector into commands (T, N, 2) and predicted poses (T, N, 3)."""

@@ -63,3 +63,21 @@ def test_nominal_nmpc_solves_the_six_robot_maps(env_id: str, map_name: str) -> N
     result = run_episode(env, ctrl, seed=0)
     assert result.success, (result.outcome, result.final_distance)
     assert ctrl.stats().failures == 0
+
+
+@pytest.mark.parametrize(("n_robots", "options", "expected"), [
+    (3, {}, "monotone"),                                       # the paper's team: the paper's barrier update
+    (6, {}, "adaptive"),                                       # larger teams: monotone stalls at the iteration limit
+    (6, {"ipopt.mu_strategy": "monotone"}, "monotone"),        # a user's choice wins
+])  # fmt: skip
+def test_ipopt_barrier_update_follows_the_team_size_unless_set(n_robots, options, expected) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map7", n_robots=n_robots, max_episode_steps=1)
+    solver_options = None
+    if options:
+        from controllers.nmpc import IPOPT_OPTIONS
+
+        solver_options = {**IPOPT_OPTIONS, **options}
+    ctrl = controllers.make("nominal-nmpc", solver_options=solver_options)
+    run_episode(env, ctrl, seed=0)
+    assert ctrl._problem.solver_options("ipopt")["ipopt.mu_strategy"] == expected
+    assert ctrl._problem.solver_options("ipopt", cold=True)["ipopt.mu_strategy"] == expected
