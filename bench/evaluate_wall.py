@@ -53,7 +53,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"python evaluate.py {'--paper' if args.protocol == 'paper' else ''} on {os.cpu_count()} cores")
     wall, episodes = timed_run(args.protocol, args.workers)
-    print(f"default (fatrop, compiled, cached): {wall:7.1f} s wall, {episodes} episodes, {episodes / wall:.2f} episodes/s")
+    print(f"default (IPOPT, compiled, cached): {wall:7.1f} s wall, {episodes} episodes, {episodes / wall:.2f} episodes/s")
     if args.previous_default and args.protocol == "paper":
         wall, episodes = timed_run(args.protocol, args.workers, PREVIOUS)
         print(f"previous default (IPOPT, uncompiled): {wall:7.1f} s wall, {episodes} episodes, "
