@@ -22,16 +22,15 @@ import time
 import numpy as np
 
 from controllers.koopman import calibrated_model
+from controllers.koopman.store import default_structure
 from controllers.koopman.fit import fit_lifted
 from controllers.koopman.online import RecursiveBilinearFit
 from koopman_envs.plant import make_plant
 
 
 def _trajectory(n_robots: int, steps: int) -> tuple[np.ndarray, np.ndarray, object]:
-    # the structure koopman-nmpc's "auto" picks: the paper's stacked model up to 3 robots, per-robot beyond
-    structure = "stacked" if n_robots <= 3 else "per-robot"
     model, _ = calibrated_model(make_plant("KoopNav-TargetReaching-v0", n_robots=n_robots, slip="high"), seed=0,
-                                structure=structure)  # fmt: skip
+                                structure=default_structure(n_robots))  # koopman-nmpc's "auto"  # fmt: skip
     plant = make_plant("KoopNav-TargetReaching-v0", n_robots=n_robots, slip="high", seed=1)
     rng = np.random.default_rng(1)
     start = rng.uniform(-1, 1, size=(1, n_robots, 3))

@@ -8,9 +8,8 @@ from typing import Any
 import numpy as np
 
 from controllers.koopman import KoopmanModel, calibrated_model
-from controllers.koopman.store import check_structure
+from controllers.koopman.store import check_structure, default_structure
 from controllers.nmpc import NMPCConfig, NMPCController
-from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 
@@ -73,7 +72,7 @@ class KoopmanNMPC(NMPCController):
             return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
         structure = self.structure
         if structure == "auto":
-            structure = "stacked" if plant.n_robots <= PARAMS.n_robots else "per-robot"
+            structure = default_structure(plant.n_robots)
         model, summary = calibrated_model(plant, seed, self.dictionary, structure=structure)
         summary["structure"] = structure
         self._use(model)

@@ -39,7 +39,7 @@ from koopman_envs import __version__ as envs_version
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
 
-__all__ = ["SHIPPED", "calibrated_model", "fit_for_env", "fit_on_plant", "shipped_path"]
+__all__ = ["SHIPPED", "calibrated_model", "default_structure", "fit_for_env", "fit_on_plant", "shipped_path"]
 
 #: Slip settings whose models ship with the package (3 robots, default budget, seed 0, minimal).
 SHIPPED = ("nominal", "low", "high")
@@ -51,6 +51,12 @@ def check_structure(structure: str) -> str:
     if structure not in STRUCTURES:
         raise ValueError(f"structure={structure!r} is not one of {list(STRUCTURES)}")
     return structure
+
+
+def default_structure(n_robots: int) -> str:
+    """The structure ``structure="auto"`` picks: the paper's stacked model up to its 3 robots,
+    per-robot beyond (the fit and the NMPC problem then grow linearly with N)."""
+    return "stacked" if n_robots <= PARAMS.n_robots else "per-robot"
 
 
 def fit_on_plant(
