@@ -153,6 +153,9 @@ class SlipClock:
         self.next_time = np.full((num_envs, n_robots), np.inf)
         #: (K,) index of the next listed change of every environment
         self.next_index = np.zeros(num_envs, dtype=np.int64)
+        # a lower bound of next_time.min(): lets advance() skip its array work on the (usual)
+        # steps where no change is due (it runs every step)
+        self._earliest = np.inf
 
     def reset_env(self, index: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """Restart the schedule of environment ``index``; returns the levels of its first period."""
@@ -161,10 +164,12 @@ class SlipClock:
         if schedule.drift:
             levels = rng.uniform(0.0, RANDOM_SLIP_MAX, n)
             self.next_time[index] = rng.exponential(DRIFT_MEAN_INTERVAL, n)
-            return levels
-        self.next_index[index] = 1
-        self.next_time[index] = schedule.times[1] if len(schedule.times) > 1 else np.inf
-        return schedule.levels[0].copy()
+        else:
+            self.next_index[index] = 1
+            self.next_time[index] = schedule.times[1] if len(schedule.times) > 1 else np.inf
+            levels = schedule.levels[0].copy()
+        self._earliest = min(self._earliest, float(self.next_time[index].min()))
+        return levels
 
     def advance(
         self,
@@ -189,6 +194,10 @@ class SlipClock:
         dt : float
             Control period [s].
         """
+        # elapsed * dt + TIME_SLACK rounds monotonically in elapsed, so when its largest value is
+        # below every next change time no entry of ``due`` below could be True
+        if float(elapsed.max()) * dt + TIME_SLACK < self._earliest:
+            return
         now = elapsed * dt + TIME_SLACK
         due = self.next_time <= now[:, None]
         if active is not None:
@@ -211,3 +220,4 @@ class SlipClock:
             lambdas[k] = schedule.levels[j - 1]
             self.next_index[k] = j
             self.next_time[k] = times[j] if j < len(times) else np.inf
+        self._earliest = float(self.next_time.min())
