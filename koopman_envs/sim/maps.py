@@ -407,12 +407,7 @@ class RandomMapConfig:
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
-        if self.formation not in FORMATION_SHAPES:
-            raise ValueError(f"formation={self.formation!r} is not one of {list(FORMATION_SHAPES)}")
-        if isinstance(self.spacing, bool) or not isinstance(self.spacing, (int, float)) or not (
-            math.isfinite(self.spacing) and self.spacing > 0
-        ):
-            raise ValueError(f"spacing={self.spacing!r} must be a finite number > 0 [m]")
+        formation_shape(self.formation, 1, self.spacing)  # the shape's own checks: name, spacing
         if not 0.0 <= self.swap_targets <= 1.0:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
