@@ -516,5 +516,5 @@ def wrap(inner_factory: Callable[..., Controller], **options: Any) -> SafetyFilt
     """
     mine = {k[len(FILTER_OPTION_PREFIX):]: v for k, v in options.items() if k.startswith(FILTER_OPTION_PREFIX)}
     theirs = {k: v for k, v in options.items() if not k.startswith(FILTER_OPTION_PREFIX)}
-    checked = SafetyOptions.from_options(FILTER_OPTION_PREFIX, **mine)
-    return SafetyFilter(inner_factory(**theirs), **{f.name: getattr(checked, f.name) for f in fields(SafetyOptions)})
+    SafetyOptions.from_options(FILTER_OPTION_PREFIX, **mine)  # errors name the prefixed option the user wrote
+    return SafetyFilter(inner_factory(**theirs), **mine)
