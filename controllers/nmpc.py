@@ -20,11 +20,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.rti import HESSIANS, QP_SOLVERS, RealTimeIteration
 from controllers.solver_cache import jit_options, nlpsol
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
 __all__ = [
+    "SOLVERS",
     "FATROP_OPTIONS",
     "IPOPT_OPTIONS",
     "NMPCConfig",
@@ -69,10 +71,13 @@ FATROP_OPTIONS: dict[str, Any] = {
     "fatrop.max_iter": 100,
 }
 
-#: environment variable that turns the default compilation off (``KOOPNAV_NMPC_JIT=0``)
+#: environment variable that turns compiled ``nlpsol`` solvers on (``KOOPNAV_NMPC_JIT=1``)
 JIT_ENV = "KOOPNAV_NMPC_JIT"
 
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
+
+#: NMPC solvers: the real-time iteration and the ``nlpsol`` plugins solved to convergence
+SOLVERS = ("rti", "ipopt", "fatrop")
 
 #: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
 #: episode, or after a failure, with zero multipliers) drops them and uses the solver's own
@@ -179,25 +184,41 @@ class NMPCConfig:
     slack_penalty : float
         Weight of the slack penalty.
     solver : str
-        CasADi ``nlpsol`` plugin: ``"ipopt"`` (default, the paper's) or ``"fatrop"`` (the
-        structure-exploiting interior-point solver shipped with CasADi: faster per step, but not
-        the same closed loop: Koopman-NMPC deadlocks on Map 2 at nominal slip with fatrop in
-        every trial and succeeds with IPOPT; see ``bench/nmpc_solve.py``).
+        ``"rti"``: the real-time iteration (:mod:`controllers.rti`): one structured QP per
+        control period from the previous plan shifted by one step (``rti_iterations`` QPs), no
+        compiler. Or a CasADi ``nlpsol`` plugin solved to convergence at every period:
+        ``"ipopt"`` (the paper's) or ``"fatrop"`` (the structure-exploiting interior-point
+        solver shipped with CasADi: faster per step, but not the same closed loop:
+        Koopman-NMPC deadlocks on Map 2 at nominal slip with fatrop in every trial and succeeds
+        with IPOPT; see ``bench/nmpc_solve.py``). See :data:`SOLVERS`.
     solver_options : dict, optional
         Options passed to ``nlpsol`` for ``solver`` (default: :data:`IPOPT_OPTIONS` or
         :data:`FATROP_OPTIONS`). Unless they set ``ipopt.mu_strategy``, IPOPT updates its barrier
         the paper's way (``monotone``) for up to 3 robots and ``adaptive`` beyond, where the
         monotone update hits the iteration limit on most steps.
     fallback_solver : str or None
-        Solver tried on the same problem when ``solver`` fails, before the plan fallback
-        (ignored when it equals ``solver``).
+        ``nlpsol`` plugin tried on the same problem when ``solver`` fails (for ``"rti"``: a
+        failed QP, or a plan whose largest slack exceeds ``slack_tolerance``), before the plan
+        fallback (ignored when it equals ``solver``).
+    qp_solver : str
+        QP solver of the real-time iteration, one of :data:`controllers.rti.QP_SOLVERS`
+        (``"hpipm"``: structure-exploiting interior point).
+    rti_iterations : int
+        QPs per control period of the real-time iteration (>= 1).
+    hessian : str
+        QP Hessian of the real-time iteration: ``"exact"`` (the Lagrangian's, made convex
+        stage by stage) or ``"gauss-newton"`` (see :data:`controllers.rti.HESSIANS`).
+    slack_tolerance : float
+        Largest slack of a real-time-iteration plan accepted without the fallback solver
+        (slacks are in the constraints' units: squared metres for collision rows).
     jit : bool or None
         Compile the NLP's functions to C (several times faster derivative evaluations). The
         compiled objects are cached on disk (:mod:`controllers.solver_cache`), so a problem
         structure is compiled once per machine, not per process; without a C compiler the solver
-        runs uncompiled, with one warning. None (default): compiled unless the environment
-        variable ``KOOPNAV_NMPC_JIT`` is ``0`` (the test suite sets it, to skip compiling its
-        many one-off problem structures).
+        runs uncompiled, with one warning. None (default): compiled only when the environment
+        variable ``KOOPNAV_NMPC_JIT`` is ``1``: a compiler running beside the workers of an
+        evaluation slowed every first run on a machine, and the real-time iteration never
+        compiles. Only ``nlpsol`` solvers (``"ipopt"``, ``"fatrop"``) are compiled.
     """
 
     horizon: int = PARAMS.horizon
@@ -213,14 +234,18 @@ class NMPCConfig:
     solver: str = "ipopt"
     solver_options: dict[str, Any] | None = None
     fallback_solver: str | None = "ipopt"
+    qp_solver: str = "hpipm"
+    rti_iterations: int = 1
+    hessian: str = "exact"
+    slack_tolerance: float = 1e-2
     jit: bool | None = None
 
     @property
     def compiled(self) -> bool:
-        """Whether the solvers are compiled: ``jit``, or when None, unless ``$KOOPNAV_NMPC_JIT`` is 0."""
+        """Whether the ``nlpsol`` solvers are compiled: ``jit``, or when None, if ``$KOOPNAV_NMPC_JIT`` is 1."""
         if self.jit is not None:
             return bool(self.jit)
-        return os.environ.get(JIT_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
+        return os.environ.get(JIT_ENV, "0").strip().lower() in ("1", "true", "yes", "on")
 
     def options_for(self, solver: str) -> dict[str, Any]:
         """nlpsol options of ``solver``: ``solver_options`` for the main solver, else defaults."""
@@ -251,7 +276,7 @@ class _Problem:
     """
 
     def __init__(self, model: PredictionModel, scenario: Scenario, config: NMPCConfig,
-                 step: tuple[ca.Function, NDArray, Any] | None = None) -> None:  # fmt: skip
+                 step: tuple[ca.Function, NDArray, Any] | None = None, *, terminal_slack: bool = False) -> None:  # fmt: skip
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         coding = model.coding
         if coding not in _CODING_SIZE:
@@ -313,6 +338,11 @@ class _Problem:
                     clear = (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (radius[i] + radius[j] + margin) ** 2
                     constrain(clear + slack, 0.0, np.inf)
 
+        # least-squares form of the cost, for the real-time iteration's Gauss-Newton Hessian:
+        # cost = sum of squared residuals + linear_cost (the slacks' exact-penalty term)
+        residuals: list = []
+        linear_cost = 0
+
         def tracking_cost(x):
             total = 0
             for i in range(n):
@@ -322,6 +352,8 @@ class _Problem:
                 else:
                     cos_th, sin_th = x[size * i + 2], x[size * i + 3]
                 qx, qy, qc, qs = weights[i]
+                residuals.extend([np.sqrt(qx) * (px - goal_xy[2 * i]), np.sqrt(qy) * (py - goal_xy[2 * i + 1]),
+                                  np.sqrt(qc) * (cos_th - goal_cs[2 * i]), np.sqrt(qs) * (sin_th - goal_cs[2 * i + 1])])
                 total += (
                     qx * (px - goal_xy[2 * i]) ** 2
                     + qy * (py - goal_xy[2 * i + 1]) ** 2
@@ -342,8 +374,11 @@ class _Problem:
                 lbw += [-u_high, np.zeros(ns)]
                 ubw += [u_high, np.full(ns, np.inf)]
                 cost += ca.dot(r_weights, u * u)
+                residuals.append(np.sqrt(r_weights) * u)
                 if soft:
                     cost += config.slack_penalty * (ca.sum1(slack_vars) + ca.sumsqr(slack_vars))
+                    residuals.append(np.sqrt(config.slack_penalty) * slack_vars)
+                    linear_cost += config.slack_penalty * ca.sum1(slack_vars)
                     slack, formation_slack = slack_vars[0], slack_vars[1]
                 else:
                     slack = formation_slack = 0
@@ -355,7 +390,13 @@ class _Problem:
                 constrain(x - x_meas, 0.0, 0.0)
             else:
                 cost += tracking_cost(x)
-                collision_constraints(x, slack)
+                if not (terminal_slack and k == horizon):
+                    collision_constraints(x, slack)
+            if terminal_slack and soft and k == horizon - 1:
+                # the terminal state's collision rows, written on this stage's f(x, u) so that
+                # they share its slack: every row of the real-time iteration's QP stays soft (the
+                # structured QP solvers take no variables at the terminal stage)
+                collision_constraints(x_next, slack)
             if formation and k < horizon:
                 # lb <= (x_f,k+1 - x_f,k) - (x_l,k+1 - x_l,k) <= ub, written with f(x_k, u_k)
                 lead = size * scenario.leader
@@ -370,10 +411,14 @@ class _Problem:
             stage_cons.append(np.arange(first, len(equality)))
         self.n_robots = n
         self._nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g), "p": params}
+        #: the cost as ``sumsqr(residuals) + linear_cost`` (same value as ``f``)
+        self.least_squares = (ca.vertcat(*residuals), linear_cost)
+        #: constraint rows per stage, stage 0 first (for the structured QP solvers)
+        self.stage_rows = [int(c.size) for c in stage_cons]
         self._equality = equality
         self._config = config
-        self._solvers: dict[str, ca.Function] = {}
-        self.solver = self.solver_for(config.solver)
+        self._solvers: dict[tuple[str, bool], ca.Function] = {}
+        self._rti: RealTimeIteration | None = None
         self.lbw, self.ubw = np.concatenate(lbw).astype(float), np.concatenate(ubw).astype(float)
         self.lbg = np.concatenate(lbg).astype(float)
         self.ubg = np.concatenate(ubg).astype(float)
@@ -387,6 +432,7 @@ class _Problem:
         self.x_index = np.concatenate([np.arange(t * stage, t * stage + nx) for t in range(1, horizon + 1)])
         self.stage_cons = stage_cons
         self.step = step_function  # (s, u, theta) -> s_next, for the shifted warm start
+        self._step_call: tuple[Any, Any, list[NDArray], NDArray] | None = None
 
     def solver_for(self, name: str, cold: bool = False) -> ca.Function:
         """The ``nlpsol`` of this problem for a solver plugin, built on first use.
@@ -417,10 +463,35 @@ class _Problem:
             options.setdefault("equality", self._equality)
         return options
 
+    def real_time_iteration(self) -> RealTimeIteration:
+        """The real-time iteration of this problem (its QP solver built on first use)."""
+        if self._rti is None:
+            config = self._config
+            self._rti = RealTimeIteration(self, config.qp_solver, config.rti_iterations, config.hessian)
+        return self._rti
+
     def plan(self, w: NDArray) -> tuple[NDArray, NDArray]:
         """Split a decision vector into commands (T, N, 2) and predicted poses (T, N, 3)."""
         states = w[self.x_index].reshape(self.horizon, -1)
         return w[self.u_index].reshape(self.horizon, -1, 2), decode_state(states, self.coding)
+
+    def _predict(self, state: NDArray, command: NDArray, theta: NDArray) -> NDArray:
+        """The model's next NLP state, through a CasADi buffer on preallocated arrays (a plain
+        call converts the model's coefficients element by element: 0.3 ms for a Koopman model)."""
+        if self._step_call is None:
+            step = self.step
+            inputs = [np.zeros(step.nnz_in(i)) for i in range(step.n_in())]
+            output = np.zeros(step.nnz_out(0))
+            buffer, evaluate = step.buffer()
+            for i, array in enumerate(inputs):
+                buffer.set_arg(i, memoryview(array))
+            buffer.set_res(0, memoryview(output))
+            self._step_call = (buffer, evaluate, inputs, output)
+        _, evaluate, inputs, output = self._step_call
+        for array, value in zip(inputs, (state, command, theta)):
+            array[:] = value
+        evaluate()
+        return output.copy()
 
     def shift(self, w: NDArray, lam_x: NDArray, lam_g: NDArray, theta: NDArray) -> dict[str, NDArray]:
         """Primal-dual guess for the next period: every stage moves one step earlier.
@@ -441,12 +512,43 @@ class _Problem:
         x = shift_primal(w)
         last = (self.horizon - 1) * stage  # the new last stage: (x_T-1, u_T-1, s_T-1), then x_T
         x[last : last + nx] = w[-nx:]
-        x[-nx:] = np.asarray(self.step(w[-nx:], x[last + nx : last + nx + nu], theta)).reshape(-1)
+        x[-nx:] = self._predict(w[-nx:], x[last + nx : last + nx + nu], theta)
 
         lam = lam_g.copy()
         for k in range(1, self.horizon - 1):
-            lam[self.stage_cons[k]] = lam_g[self.stage_cons[k + 1]]
+            if self.stage_cons[k].size == self.stage_cons[k + 1].size:  # the last may hold the terminal rows
+                lam[self.stage_cons[k]] = lam_g[self.stage_cons[k + 1]]
         return {"x": x, "lam_x": shift_primal(lam_x), "lam_g": lam}
+
+
+def check_solver_options(config: NMPCConfig) -> None:
+    """Raise ``ValueError`` naming a bad solver option of ``config`` and what is allowed."""
+    if config.solver not in SOLVERS:
+        raise ValueError(f"solver={config.solver!r} is not one of {list(SOLVERS)}")
+    if config.fallback_solver is not None and config.fallback_solver not in SOLVERS[1:]:
+        raise ValueError(f"fallback_solver={config.fallback_solver!r} is not one of {list(SOLVERS[1:])} or None")
+    if config.qp_solver not in QP_SOLVERS:
+        raise ValueError(f"qp_solver={config.qp_solver!r} is not one of {sorted(QP_SOLVERS)}")
+    k = config.rti_iterations
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ValueError(f"rti_iterations={k!r} must be an integer >= 1")
+    if config.hessian not in HESSIANS:
+        raise ValueError(f"hessian={config.hessian!r} is not one of {list(HESSIANS)}")
+    tol = config.slack_tolerance
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
+        raise ValueError(f"slack_tolerance={tol!r} must be a number > 0")
+
+
+@dataclass
+class _SolveOutcome:
+    """One attempt at the period's problem: (success, status, plan, multipliers, iterations)."""
+
+    success: bool
+    status: str
+    w: NDArray | None = None
+    lam_x: NDArray | None = None
+    lam_g: NDArray | None = None
+    iterations: int = 0
 
 
 class NMPCController(BaseController):
@@ -477,6 +579,7 @@ class NMPCController(BaseController):
         k = self.config.uncertainty_margin
         if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
             raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")
+        check_solver_options(self.config)
         self.model = model
         #: RMS one-step position residual of the prediction model per robot [m], from calibration
         self.position_residual: NDArray[np.float64] | None = None
@@ -507,7 +610,7 @@ class NMPCController(BaseController):
         key = (structure, scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
                tuple(scenario.robot_radius), scenario.workspace, scenario.v_max, scenario.omega_max)  # fmt: skip
         if key != self._key:
-            self._problem = _Problem(model, scenario, self.config, step)
+            self._problem = _Problem(model, scenario, self.config, step, terminal_slack=self.config.solver == "rti")
             self._key = key
         obstacle_margin, pair_margin = self.safety_margins(scenario)
         fixed = np.concatenate(
@@ -581,25 +684,29 @@ class NMPCController(BaseController):
         params = np.concatenate([state, self._params_tail])
         cold = self._warm is None
         if cold:
-            args = {"x0": self._initial_guess(state), "lam_x0": np.zeros(prob.n_vars), "lam_g0": np.zeros(prob.n_cons)}
+            guess = {"x0": self._initial_guess(state), "lam_x0": np.zeros(prob.n_vars), "lam_g0": np.zeros(prob.n_cons)}
         else:
-            args = {"x0": self._warm["x"], "lam_x0": self._warm["lam_x"], "lam_g0": self._warm["lam_g"]}
+            guess = {"x0": self._warm["x"], "lam_x0": self._warm["lam_x"], "lam_g0": self._warm["lam_g"]}
         start = time.perf_counter()
-        success, status, w, sol, iterations = self._solve(prob.solver_for(self.config.solver, cold), params, args)
+        main = self.config.solver
+        if main == "rti":
+            outcome = self._solve_rti(params, guess)
+        else:
+            outcome = self._solve_nlp(main, params, guess, cold)
         fallback = self.config.fallback_solver
-        if not success and fallback and fallback != self.config.solver:
-            first_status = status
-            success, status, w, sol, more = self._solve(prob.solver_for(fallback, cold), params, args)
-            iterations += more
-            status = f"{self.config.solver}:{first_status} -> {fallback}:{status}"
+        if not outcome.success and fallback and fallback != main:
+            first = outcome
+            outcome = self._solve_nlp(fallback, params, guess, cold)
+            outcome.iterations += first.iterations
+            outcome.status = f"{main}:{first.status} -> {fallback}:{outcome.status}"
+            self._stats.counts[f"fallback_{fallback}"] += 1
         self._stats.solve_times.append(time.perf_counter() - start)
-        self._stats.iterations.append(iterations)
-        self._stats.statuses[status] += 1
-        if success:
-            commands, poses = prob.plan(w)
+        self._stats.iterations.append(outcome.iterations)
+        self._stats.statuses[outcome.status] += 1
+        if outcome.success:
+            commands, poses = prob.plan(outcome.w)
             self.last_plan = (commands, poses)
-            self._warm = prob.shift(w, np.asarray(sol["lam_x"]).reshape(-1), np.asarray(sol["lam_g"]).reshape(-1),
-                                    self._params_tail[self._theta_slice])  # fmt: skip
+            self._warm = prob.shift(outcome.w, outcome.lam_x, outcome.lam_g, self._params_tail[self._theta_slice])
             self._fallback = commands
             self._fallback_used = 0
             return commands[0].reshape(-1).copy()
@@ -607,20 +714,31 @@ class NMPCController(BaseController):
         self._warm = None  # a failed iterate is a poor starting point: restart cold next step
         return self._fallback_command()
 
-    def _solve(self, solver: ca.Function, params: NDArray, args: dict) -> tuple[bool, str, Any, Any, int]:
-        """One solver call: (success, status, solution vector, raw solution, iterations)."""
+    def _solve_rti(self, params: NDArray, guess: dict[str, NDArray]) -> _SolveOutcome:
+        """The real-time iteration's QP(s); a failed QP or a plan with a large slack fails."""
+        step = self._problem.real_time_iteration().solve(guess["x0"], guess["lam_x0"], guess["lam_g0"], params)
+        if not step.success:
+            return _SolveOutcome(False, f"qp_failed({step.status})", iterations=step.iterations)
+        if step.max_slack > self.config.slack_tolerance:
+            return _SolveOutcome(False, "large_slack", iterations=step.iterations)
+        return _SolveOutcome(True, "rti", step.w, step.lam_x, step.lam_g, step.iterations)
+
+    def _solve_nlp(self, name: str, params: NDArray, guess: dict[str, NDArray], cold: bool) -> _SolveOutcome:
+        """One ``nlpsol`` call of plugin ``name`` to convergence."""
         prob = self._problem
+        solver = prob.solver_for(name, cold)
         try:
-            sol = solver(p=params, **prob.bounds, **args)
+            sol = solver(p=params, **prob.bounds, **guess)
         except RuntimeError as exc:  # CasADi raises on evaluation errors (e.g. NaN in a function)
-            return False, f"error: {exc}".splitlines()[0][:80], None, None, 0
+            return _SolveOutcome(False, f"error: {exc}".splitlines()[0][:80])
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
         w = np.asarray(sol["x"]).reshape(-1)
         success = bool(stats.get("success", False)) and bool(np.all(np.isfinite(w)))
         if not np.all(np.isfinite(w)):
             status = "non_finite_solution"
-        return success, status, w, sol, int(stats.get("iter_count", 0))
+        return _SolveOutcome(success, status, w, np.asarray(sol["lam_x"]).reshape(-1),
+                             np.asarray(sol["lam_g"]).reshape(-1), int(stats.get("iter_count", 0)))  # fmt: skip
 
     def _fallback_command(self) -> NDArray[np.float64]:
         """Next command of the last successful plan, or a stop when that plan is used up."""

@@ -1,0 +1,189 @@
+"""The real-time iteration (controllers/rti.py): same KKT point as IPOPT when iterated, the
+fallback chain, option checks, and determinism across processes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import casadi as ca
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import controllers
+import koopman_envs  # noqa: F401
+from controllers.calibration import calibrate_controller
+from controllers.nmpc import IPOPT_OPTIONS, encode_state
+from controllers.rti import QP_SOLVERS, RTIStep
+from koopman_envs.sim.maps import MapSpec
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _problem_after(name: str, env_id: str, map_name: str, steps: int, **options):
+    """A controller with the real-time iteration after ``steps`` closed-loop steps, and its data."""
+    env = gym.make(env_id, map=map_name)
+    obs, info = env.reset(seed=0)
+    ctrl = controllers.make(name, solver="rti", **options)
+    calibrate_controller(ctrl, env)
+    ctrl.reset(env)
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(ctrl.act(obs, info))
+    prob = ctrl._problem
+    state = encode_state(info["poses"], prob.coding)
+    return ctrl, prob, state, np.concatenate([state, ctrl._params_tail])
+
+
+def _tight_ipopt(prob, params, guess):
+    options = {k: v for k, v in IPOPT_OPTIONS.items() if "warm" not in k and k != "ipopt.mu_init"}
+    solver = ca.nlpsol("tight", "ipopt", prob._nlp, {**options, "ipopt.tol": 1e-12, "ipopt.acceptable_iter": 0,
+                                                     "ipopt.max_iter": 500})  # fmt: skip
+    sol = solver(x0=guess, p=params, **prob.bounds)
+    assert solver.stats()["success"], solver.stats()["return_status"]
+    return np.asarray(sol["x"]).ravel(), np.asarray(sol["lam_g"]).ravel()
+
+
+@pytest.mark.parametrize(
+    "name, env_id, map_name, steps",
+    [("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0), ("koopman-nmpc", "KoopNav-Formation-v0", "map4", 30)],
+)
+def test_iterated_to_convergence_it_reaches_ipopts_kkt_point(name, env_id, map_name, steps) -> None:
+    ctrl, prob, state, params = _problem_after(name, env_id, map_name, steps)
+    w_ipopt, lam_ipopt = _tight_ipopt(prob, params, ctrl._initial_guess(state))
+    rti = prob.real_time_iteration()
+    w, lam_x, lam_g = ctrl._initial_guess(state), np.zeros(prob.n_vars), np.zeros(prob.n_cons)  # a cold start
+    for _ in range(40):
+        step = rti.solve(w, lam_x, lam_g, params)
+        assert step.success, step.status
+        change = np.max(np.abs(step.w - w))
+        w, lam_x, lam_g = step.w, step.lam_x, step.lam_g
+        if change < 1e-10:
+            break
+    assert change < 1e-10  # converged (full steps, exact Hessian: a few iterations)
+    np.testing.assert_allclose(w, w_ipopt, atol=1e-5)
+    np.testing.assert_allclose(lam_g, lam_ipopt, atol=1e-6 * max(1.0, np.max(np.abs(lam_ipopt))) * 100)
+
+
+def _failed_step(self, w, lam_x, lam_g, params) -> RTIStep:
+    return RTIStep(False, "1", w, lam_x, lam_g, 1, np.inf)
+
+
+def test_a_failed_qp_falls_back_to_ipopt_and_is_counted(monkeypatch) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1", max_episode_steps=4)
+    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env)
+    ctrl.act(obs, info)  # a real QP
+    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
+    command = ctrl.act(obs, info)
+    stats = ctrl.stats()
+    assert np.all(np.isfinite(command))
+    assert stats.counts["fallback_ipopt"] == 1 and stats.failures == 0
+    assert stats.statuses["rti"] == 1
+    assert any(key.startswith("rti:qp_failed(1) -> ipopt:") for key in stats.statuses)
+
+
+def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env)
+    ctrl.act(obs, info)
+    plan, _ = ctrl.last_plan
+    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
+    ctrl.config = ctrl.config.with_options(fallback_solver=None)
+    commands = [ctrl.act(obs, info) for _ in range(ctrl.config.horizon + 2)]
+    stats = ctrl.stats()
+    assert stats.statuses["qp_failed(1)"] == len(commands)
+    np.testing.assert_allclose(commands[0], plan[1].reshape(-1))
+    np.testing.assert_array_equal(commands[-1], np.zeros(6))
+    assert stats.failures == len(commands)
+
+
+def test_a_plan_with_a_large_slack_goes_to_ipopt(monkeypatch) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    ctrl = controllers.make("nominal-nmpc", solver="rti", slack_tolerance=1e-300)
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env)
+    real = type(ctrl._problem.real_time_iteration()).solve
+
+    def slack(self, *args):
+        step = real(self, *args)
+        step.max_slack = 1.0
+        return step
+
+    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", slack)
+    ctrl.act(obs, info)
+    assert ctrl.stats().counts["fallback_ipopt"] == 1
+    assert any(key.startswith("rti:large_slack -> ipopt:") for key in ctrl.stats().statuses)
+
+
+def test_a_start_inside_the_margin_never_raises() -> None:
+    """Hard constraints violated at the start (no QP can satisfy them): fallbacks, no exception."""
+    spec = MapSpec("tight", obstacles=[[0.0, 0.0, 0.5]], starts=[[0.705, 0.0, 0.0]], targets=[[3.0, 0.0, 0.0]])
+    for soft in (True, False):
+        env = gym.make("KoopNav-TargetReaching-v0", map=spec, n_robots=1, max_episode_steps=5)
+        ctrl = controllers.make("nominal-nmpc", solver="rti", soft_constraints=soft, obstacle_offset=0.2)
+        obs, info = env.reset(seed=0)
+        ctrl.reset(env)
+        for _ in range(5):
+            command = ctrl.act(obs, info)
+            assert command.shape == (2,) and np.all(np.isfinite(command))
+            obs, _, terminated, truncated, info = env.step(command)
+            if terminated or truncated:
+                break
+        stats = ctrl.stats()
+        assert stats.steps >= 1
+        if not soft:
+            assert stats.failures + stats.counts["fallback_ipopt"] >= 1
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"solver": "sqp"}, "solver='sqp' is not one of"),
+        ({"qp_solver": "gurobi"}, "qp_solver='gurobi' is not one of"),
+        ({"rti_iterations": 0}, "rti_iterations=0 must be an integer >= 1"),
+        ({"rti_iterations": 1.5}, "rti_iterations=1.5 must be an integer >= 1"),
+        ({"hessian": "bfgs"}, "hessian='bfgs' is not one of"),
+        ({"slack_tolerance": -1}, "slack_tolerance=-1 must be a number > 0"),
+        ({"fallback_solver": "rti"}, "fallback_solver='rti' is not one of"),
+    ],
+)
+def test_bad_solver_options_name_the_value(options, message) -> None:
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace("[", r"\[")):
+        controllers.make("koopman-nmpc", **options)
+
+
+def test_every_qp_solver_of_the_table_builds_and_solves() -> None:
+    ctrl, prob, state, params = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 3, horizon=5)
+    reference = None
+    for name in ("hpipm", "piqp", "osqp"):
+        assert name in QP_SOLVERS
+        ctrl_q, prob_q, state_q, params_q = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 3,
+                                                           horizon=5, qp_solver=name)  # fmt: skip
+        step = prob_q.real_time_iteration().solve(ctrl_q._warm["x"], ctrl_q._warm["lam_x"], ctrl_q._warm["lam_g"],
+                                                  params_q)  # fmt: skip
+        assert step.success, (name, step.status)
+        reference = step.w if reference is None else reference
+        np.testing.assert_allclose(step.w, reference, atol=1e-4)
+
+
+_EPISODE = """
+import gymnasium as gym, koopman_envs, controllers, numpy as np
+from koopman_envs.episode import run_episode
+env = gym.make('KoopNav-Formation-v0', map='map3', slip='high', max_episode_steps=60)
+ctrl = controllers.make('nominal-nmpc', solver='rti')
+result = run_episode(env, ctrl, seed=3)
+print(result.trajectory.tobytes().hex(), result.steps)
+"""
+
+
+def test_same_seed_same_closed_loop_in_two_processes() -> None:
+    runs = [subprocess.run([sys.executable, "-c", _EPISODE], capture_output=True, text=True, cwd=ROOT, timeout=300)
+            for _ in range(2)]  # fmt: skip
+    for run in runs:
+        assert run.returncode == 0, run.stderr
+    assert runs[0].stdout.strip() and runs[0].stdout == runs[1].stdout
