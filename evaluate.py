@@ -39,12 +39,13 @@ import controllers
 from evaluation.ablation import ablation_markdown, check_factors
 from evaluation.aggregate import Cell
 from evaluation.backends import RunInterrupted
-from evaluation.configs import split_controller_list
+from evaluation.configs import controller_configs, split_controller_list, with_solver
 from evaluation.plan import EpisodeSpec
 from evaluation.protocols import QUICK_START_NOISE, TASK_MAPS, ablation_protocol, paper_protocol, quick_protocol
 from evaluation.results import SCHEMA_VERSION, Results
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.thresholds import check_thresholds
+from controllers.nmpc import SOLVERS
 from koopman_envs.params import PARAMS, SLIP_SETTINGS
 from koopman_envs.sim.maps import BUILTIN_MAPS
 
@@ -122,6 +123,10 @@ def _parser() -> argparse.ArgumentParser:
                              "(one setting per word)")
     parser.add_argument("--controllers", nargs="+", metavar="NAME[:KEY=VALUE,...]",
                         help=f"controller configurations (default: every registered one: {controllers.available()})")
+    parser.add_argument("--solver", choices=list(SOLVERS),
+                        help="optimizer of every NMPC configuration that does not name its own: rti (real-time "
+                             "iteration, one structured QP per period), ipopt (the paper's: solved to convergence) or "
+                             "fatrop (default: each controller's own; ipopt with --paper, --paper-strict, --ablation)")
     parser.add_argument("--env-kwargs", nargs="+", metavar="KEY=VALUE",
                         help="further env keywords for every episode, e.g. n_robots=5 goal_tolerance=0.05 "
                              "(values parsed as JSON)")  # fmt: skip
@@ -152,6 +157,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--gifs", action="store_true", help="record trial 0 of every cell as OUT/animations/*.gif")
     parser.add_argument("--check", metavar="THRESHOLDS", help="TOML thresholds; exit 101 if a cell falls below")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--full-report", action="store_true",
+                        help="print the whole Markdown report (paired comparisons, per-cell tables) instead of the "
+                             "compact leaderboard; the files always hold it")  # fmt: skip
     return parser
 
 
@@ -178,6 +186,10 @@ def main(argv: list[str] | None = None) -> int:
         else:
             maps = {e: protocol["maps"].get(e, list(BUILTIN_MAPS)) for e in env_ids}
         configs = split_controller_list(args.controllers) if args.controllers else protocol.get("controllers")
+        solver = args.solver or protocol.get("solver")
+        if solver is not None:
+            configs = with_solver(controller_configs(usable_controllers(not args.quiet) if configs is None else configs),
+                                  solver)  # fmt: skip
         start = time.perf_counter()
         results = evaluate(
             env_ids,
@@ -220,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
         again = " ".join(["python evaluate.py", *words, *([] if "--resume" in words else ["--resume"])])
         print(f"\n{exc}; continue with: {again}", file=sys.stderr)
         return INTERRUPTED_EXIT
-    print(results.to_markdown())
+    print(results.to_markdown() if args.full_report else results.terminal_summary(paths))
     print(f"\n{len(results.records)} episodes in {wall:.1f} s; wrote {', '.join(str(p) for p in paths.values())} "
           f"and {Path(args.out) / 'figures'}/")  # fmt: skip
     failed = results.failed_episodes

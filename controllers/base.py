@@ -40,6 +40,9 @@ class ControllerStats:
         summarized as ``<name>_ms_median`` / ``<name>_ms_p95``.
     counts : Counter
         Other per-episode counts by name (reported as they are).
+    solver : str or None
+        The optimizer behind the decisions (e.g. ``"rti/hpipm"``, ``"ipopt"``), reported as
+        ``solver`` in the summary when set.
     """
 
     solve_times: list[float] = field(default_factory=list)
@@ -48,6 +51,7 @@ class ControllerStats:
     statuses: Counter = field(default_factory=Counter)
     extra_times: dict[str, list[float]] = field(default_factory=dict)
     counts: Counter = field(default_factory=Counter)
+    solver: str | None = None
 
     @property
     def steps(self) -> int:
@@ -71,6 +75,7 @@ class ControllerStats:
             **{f"{name}_ms_{label}": 1e3 * float(np.percentile(times, q)) if times else float("nan")
                for name, times in self.extra_times.items() for label, q in (("median", 50), ("p95", 95))},
             **{name: int(value) for name, value in self.counts.items()},
+            **({"solver": self.solver} if self.solver is not None else {}),
         }
 
 

@@ -631,6 +631,13 @@ class NMPCController(BaseController):
         self._fallback = None
         self._fallback_used = 0
         self.last_plan = None
+        self._stats.solver = self.solver_label
+
+    @property
+    def solver_label(self) -> str:
+        """The optimizer as reports name it: ``"rti/<qp solver>"`` or the ``nlpsol`` plugin."""
+        config = self.config
+        return f"rti/{config.qp_solver}" if config.solver == "rti" else config.solver
 
     def set_margins(self, obstacle: NDArray, pair: NDArray) -> None:
         """Use these safety margins from the next solve on (shapes as :meth:`safety_margins`)."""

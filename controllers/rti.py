@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:  # pragma: no cover - typing only (nmpc imports this module)
     from controllers.nmpc import _Problem
 
-__all__ = ["QP_SOLVERS", "RealTimeIteration", "RTIStep"]
+__all__ = ["HESSIANS", "QP_SOLVERS", "RTIStep", "RealTimeIteration"]
 
 #: QP solvers of the CasADi wheel the real-time iteration can use, with their options (quiet).
 #: ``hpipm`` gets the OCP structure of the problem (stage sizes) on top of these.
@@ -39,9 +39,9 @@ QP_SOLVERS: dict[str, dict[str, Any]] = {
     # (Map 1, 3 robots); residual tolerances 1e-7 (1e-8 is out of reach at the scale of the slack
     # penalty: a cold start's QP was solved to 1e-10 of PIQP's solution and still ran out of iterations)
     "hpipm": {"hpipm": {"mode": "speed", "iter_max": 100, "res_g_max": 1e-7, "res_b_max": 1e-7,
-                        "res_d_max": 1e-7, "res_m_max": 1e-7}},  # fmt: skip
+                        "res_d_max": 1e-7, "res_m_max": 1e-7}},
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "max_iter": 20000, "polish": True},
-             "warm_start_primal": True},  # fmt: skip
+             "warm_start_primal": True},
     "piqp": {"piqp": {"verbose": False}},
     "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
     "daqp": {},

@@ -422,6 +422,7 @@ class SafetyStats(ControllerStats):
             "filter_infeasible": self.infeasible,
             "filter_barrier_min": self.barrier_min,
             "inner_ms_median": inner.get("solve_ms_median", float("nan")),
+            **({"solver": inner["solver"]} if "solver" in inner else {}),
         }
 
 

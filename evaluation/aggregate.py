@@ -216,6 +216,9 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                 "final_distance_collision_free_cm": float(np.mean(free_runs)) if free_runs else float("nan"),
                 "final_distance_collision_free_ci": [f_low, f_high],
                 "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in own]),
+                # the optimizer(s) behind the row's decisions, as the controllers reported them
+                "solver": ", ".join(sorted({str(r["controller_extra"]["solver"]) for r in recs
+                                            if (r.get("controller_extra") or {}).get("solver")})) or None,  # fmt: skip
                 "solver_failures": sum(c.solver_failures for c in own),
                 "errors": sum(c.errors for c in own),
             })  # fmt: skip

@@ -29,7 +29,7 @@ import controllers
 from controllers.registry import factory as registered_factory
 from controllers.registry import split_name
 
-__all__ = ["ControllerConfig", "controller_configs", "parse_controller", "split_controller_list"]
+__all__ = ["ControllerConfig", "controller_configs", "parse_controller", "split_controller_list", "with_solver"]
 
 
 @dataclass(frozen=True)
@@ -210,3 +210,35 @@ def controller_configs(spec: Any) -> list[ControllerConfig]:
         else:
             raise ValueError(f"controller {entry!r} is not a configuration text, ControllerConfig or factory")
     return configs
+
+
+def _optimizes_with_nmpc(config: ControllerConfig) -> bool:
+    """Whether ``config`` builds an NMPC (or a wrapper around one) that takes a ``solver`` option."""
+    from controllers.nmpc import NMPCController
+
+    controller = config.build()
+    while controller is not None and not isinstance(controller, NMPCController):
+        controller = getattr(controller, "inner", None)
+    return controller is not None
+
+
+def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list[ControllerConfig]:
+    """``configs`` with ``solver=`` set on every NMPC configuration that does not set it itself.
+
+    ``solver=None`` changes nothing. A name outside :data:`controllers.nmpc.SOLVERS` raises
+    ``ValueError`` naming it and the allowed ones.
+    """
+    configs = list(configs)
+    if solver is None:
+        return configs
+    from controllers.nmpc import SOLVERS
+
+    if solver not in SOLVERS:
+        raise ValueError(f"--solver {solver!r} is not one of {list(SOLVERS)}")
+    out = []
+    for config in configs:
+        if "solver" not in dict(config.options) and _optimizes_with_nmpc(config):
+            options = tuple(sorted((*config.options, ("solver", solver))))
+            config = ControllerConfig(config.label, config.name, options, config.factory)
+        out.append(config)
+    return out

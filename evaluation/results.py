@@ -183,7 +183,7 @@ class Results:
     def leaderboard_rows(self) -> Table:
         """Header and formatted rows of the leaderboard (ranked within each task)."""
         header = ["Rank", "Task", "Controller", "Episodes", "Success [95% CI]", "Collision-free [95% CI]",
-                  "Final dist., settled [cm]", "Final dist., collision-free [cm]", "Solve median [ms]",
+                  "Final dist., settled [cm]", "Final dist., collision-free [cm]", "Solver", "Solve median [ms]",
                   "Solver failures"]  # fmt: skip
         rows = []
         rank, last_env = 0, None
@@ -197,13 +197,32 @@ class Results:
                 _pct(row["collision_free_rate"], row["collision_free_ci"]),
                 _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
                 _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
-                solve, str(row["solver_failures"]),
+                row.get("solver") or "-", solve, str(row["solver_failures"]),
             ])  # fmt: skip
         return header, rows
 
     def leaderboard_table(self) -> str:
         """Markdown leaderboard with intervals."""
         return _markdown(self.leaderboard_rows())
+
+    def terminal_summary(self, paths: dict[str, Path]) -> str:
+        """The compact leaderboard a terminal gets (rank, controller, episodes, success with its
+        interval, settled final distance, solver and its median time) and where the full report is."""
+        header, rows = self.leaderboard_rows()
+        keep = [header.index(name) for name in ("Rank", "Task", "Controller", "Episodes", "Success [95% CI]",
+                                                "Final dist., settled [cm]", "Solver", "Solve median [ms]")]  # fmt: skip
+        table = _markdown(([header[i] for i in keep], [[row[i] for i in keep] for row in rows]))
+        cells = sorted({(c.map, c.slip) for c in self.cells})
+        note = (f"{len(self.records)} episodes over {len(cells)} map/slip cells "
+                f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
+                "without collision; 95% Wilson intervals. Few episodes per controller give wide intervals: "
+                "a smoke test, not a ranking.")  # fmt: skip
+        lines = [table, "", note]
+        report = paths.get("html") or paths.get("markdown")
+        if report is not None:
+            lines.append(f"Full report (paired comparisons on shared seeds, per-cell tables, figures): "
+                         f"{paths['markdown']}, {report}")  # fmt: skip
+        return "\n".join(lines)
 
     def calibration_note(self) -> str:
         """The sentence on the calibration budget every controller was offered ("" when the config has none)."""
