@@ -186,7 +186,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             maps = {e: protocol["maps"].get(e, list(BUILTIN_MAPS)) for e in env_ids}
         configs = split_controller_list(args.controllers) if args.controllers else protocol.get("controllers")
-        solver = args.solver or protocol.get("solver")
+        # a protocol's solver goes with its own controller list; controllers named on the command
+        # line keep their own defaults unless --solver says otherwise
+        solver = args.solver or (None if args.controllers else protocol.get("solver"))
         if solver is not None:
             configs = with_solver(controller_configs(usable_controllers(not args.quiet) if configs is None else configs),
                                   solver)  # fmt: skip
