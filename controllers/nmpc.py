@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.rti import HESSIANS, QP_SOLVERS, RealTimeIteration
+from controllers.rti import RealTimeIteration, bind_buffer, check_rti_options
 from controllers.solver_cache import jit_options, nlpsol
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
@@ -273,6 +273,13 @@ class _Problem:
     slacks), and constraints likewise (stage k: dynamics gap x_k+1 - f(x_k, u_k), then the path
     constraints of stage k; x_0 = measured state at stage 0). That is the layout the structure
     detection of the fatrop solver needs, and IPOPT solves it the same way.
+
+    ``terminal_slack=True`` (the real-time iteration's problem) writes the terminal state's
+    collision rows on the last stage, on ``f(x_T-1, u_T-1)``, with a third slack per stage that
+    only the last stage may use: the structured QP solvers take no variables at the terminal
+    stage, and every row of the QP then has a slack. The NLP is the same problem (its optimum is
+    unchanged whenever the hard one is feasible), written differently; IPOPT's closed loop on it
+    is not bit-identical to the paper formulation's (see docs/results.md).
     """
 
     def __init__(self, model: PredictionModel, scenario: Scenario, config: NMPCConfig,
@@ -284,7 +291,9 @@ class _Problem:
         size = _CODING_SIZE[coding]
         nx, nu = size * n, 2 * n
         soft = config.soft_constraints
-        ns = 2 if soft else 0
+        # slacks per stage: collision rows, formation rows and (terminal_slack) the terminal
+        # state's collision rows, which only the last stage uses
+        ns = (3 if terminal_slack else 2) if soft else 0
         step_function, theta_values, _ = model_step(model) if step is None else step
         theta = ca.SX.sym("model", theta_values.size)
 
@@ -316,6 +325,7 @@ class _Problem:
         w, lbw, ubw = [], [], []
         g, lbg, ubg, equality = [], [], [], []
         stage_cons: list[NDArray] = []
+        terminal_rows = np.zeros(0, dtype=int)  # rows of the terminal state written on the last stage
         cost = 0
 
         def constrain(expr, low, high) -> None:
@@ -372,7 +382,10 @@ class _Problem:
                 u, slack_vars = us[k], ss[k]
                 w += [u, slack_vars]
                 lbw += [-u_high, np.zeros(ns)]
-                ubw += [u_high, np.full(ns, np.inf)]
+                slack_high = np.full(ns, np.inf)
+                if terminal_slack and soft and k < horizon - 1:
+                    slack_high[2] = 0.0  # the terminal rows' slack exists on the last stage only
+                ubw += [u_high, slack_high]
                 cost += ca.dot(r_weights, u * u)
                 residuals.append(np.sqrt(r_weights) * u)
                 if soft:
@@ -385,18 +398,22 @@ class _Problem:
                 x_next = f(x, u)
                 constrain(xs[k + 1] - x_next, 0.0, 0.0)
             else:
-                slack = 0  # the terminal stage has no slack: its collision constraints are hard
+                slack = 0  # the terminal stage has no slack (below: terminal_slack)
             if k == 0:
                 constrain(x - x_meas, 0.0, 0.0)
             else:
                 cost += tracking_cost(x)
                 if not (terminal_slack and k == horizon):
                     collision_constraints(x, slack)
-            if terminal_slack and soft and k == horizon - 1:
-                # the terminal state's collision rows, written on this stage's f(x, u) so that
-                # they share its slack: every row of the real-time iteration's QP stays soft (the
-                # structured QP solvers take no variables at the terminal stage)
-                collision_constraints(x_next, slack)
+            if terminal_slack and k == horizon - 1:
+                # the terminal state's collision rows, written on the last stage's f(x, u) with
+                # a slack of their own: the structured QP solvers take no variables at the
+                # terminal stage, and every row of the real-time iteration's QP stays soft. A
+                # slack shared with the stage's own rows changed the closed loop (the Map 2
+                # crossing deadlocked, with IPOPT as well)
+                terminal_first = len(equality)
+                collision_constraints(x_next, slack_vars[2] if soft else 0)
+                terminal_rows = np.arange(terminal_first, len(equality))
             if formation and k < horizon:
                 # lb <= (x_f,k+1 - x_f,k) - (x_l,k+1 - x_l,k) <= ub, written with f(x_k, u_k)
                 lead = size * scenario.leader
@@ -415,6 +432,7 @@ class _Problem:
         self.least_squares = (ca.vertcat(*residuals), linear_cost)
         #: constraint rows per stage, stage 0 first (for the structured QP solvers)
         self.stage_rows = [int(c.size) for c in stage_cons]
+        self.terminal_rows = terminal_rows
         self._equality = equality
         self._config = config
         self._solvers: dict[tuple[str, bool], ca.Function] = {}
@@ -482,10 +500,7 @@ class _Problem:
             step = self.step
             inputs = [np.zeros(step.nnz_in(i)) for i in range(step.n_in())]
             output = np.zeros(step.nnz_out(0))
-            buffer, evaluate = step.buffer()
-            for i, array in enumerate(inputs):
-                buffer.set_arg(i, memoryview(array))
-            buffer.set_res(0, memoryview(output))
+            buffer, evaluate = bind_buffer(step, inputs, [output])
             self._step_call = (buffer, evaluate, inputs, output)
         _, evaluate, inputs, output = self._step_call
         for array, value in zip(inputs, (state, command, theta)):
@@ -516,8 +531,11 @@ class _Problem:
 
         lam = lam_g.copy()
         for k in range(1, self.horizon - 1):
-            if self.stage_cons[k].size == self.stage_cons[k + 1].size:  # the last may hold the terminal rows
-                lam[self.stage_cons[k]] = lam_g[self.stage_cons[k + 1]]
+            source = self.stage_cons[k + 1]
+            if k + 1 == self.horizon - 1 and self.terminal_rows.size:
+                # the last stage also holds the terminal state's rows (kept where they are)
+                source = source[~np.isin(source, self.terminal_rows)]
+            lam[self.stage_cons[k]] = lam_g[source]
         return {"x": x, "lam_x": shift_primal(lam_x), "lam_g": lam}
 
 
@@ -527,13 +545,7 @@ def check_solver_options(config: NMPCConfig) -> None:
         raise ValueError(f"solver={config.solver!r} is not one of {list(SOLVERS)}")
     if config.fallback_solver is not None and config.fallback_solver not in SOLVERS[1:]:
         raise ValueError(f"fallback_solver={config.fallback_solver!r} is not one of {list(SOLVERS[1:])} or None")
-    if config.qp_solver not in QP_SOLVERS:
-        raise ValueError(f"qp_solver={config.qp_solver!r} is not one of {sorted(QP_SOLVERS)}")
-    k = config.rti_iterations
-    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
-        raise ValueError(f"rti_iterations={k!r} must be an integer >= 1")
-    if config.hessian not in HESSIANS:
-        raise ValueError(f"hessian={config.hessian!r} is not one of {list(HESSIANS)}")
+    check_rti_options(config.qp_solver, config.rti_iterations, config.hessian)
     tol = config.slack_tolerance
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
         raise ValueError(f"slack_tolerance={tol!r} must be a number > 0")
@@ -708,7 +720,7 @@ class NMPCController(BaseController):
             outcome.status = f"{main}:{first.status} -> {fallback}:{outcome.status}"
             self._stats.counts[f"fallback_{fallback}"] += 1
         self._stats.solve_times.append(time.perf_counter() - start)
-        self._stats.iterations.append(outcome.iterations)
+        self._stats.iterations.append(outcome.iterations)  # QPs, plus IPOPT's iterations on a fallback
         self._stats.statuses[outcome.status] += 1
         if outcome.success:
             commands, poses = prob.plan(outcome.w)

@@ -1,4 +1,4 @@
-"""Real-time iteration (RTI) of the NMPC: one Gauss-Newton SQP step per control period.
+"""Real-time iteration (RTI) of the NMPC: one SQP step per control period.
 
 At every period the NLP of :class:`controllers.nmpc._Problem` is linearized at the previous
 plan shifted by one step, and the quadratic program
@@ -7,12 +7,15 @@ plan shifted by one step, and the quadratic program
     s.t.    lbg - g(w) <= J_g(w) d <= ubg - g(w),   lbw - w <= d <= ubw - w
 
 is solved by a QP solver shipped in the CasADi wheel (HPIPM by default, which exploits the
-stage-wise block structure; OSQP, PIQP, qrqp, DAQP, proxQP generically). ``H`` is the Gauss-Newton
-Hessian ``2 J_r' J_r`` of the cost written as a sum of squared residuals (plus a small
-regularization that does not move the fixed point): positive semidefinite by construction, no
-second derivatives of the model. The new plan is ``w + d``; the QP's multipliers are the new
+stage-wise block structure; OSQP, PIQP, DAQP, proxQP generically). ``H`` is, by default, the
+exact Hessian of the Lagrangian at the current multipliers with every stage block's
+eigenvalues clipped at :data:`REGULARIZATION` (the Hessian is block diagonal by stage), or the
+Gauss-Newton Hessian ``2 J_r' J_r`` of the cost written as a sum of squared residuals
+(``hessian="gauss-newton"``; it diverged on the NMPC problems: along the headings its curvature
+is about ten times too small). The new plan is ``w + d``; the QP's multipliers are the new
 multiplier estimates. Iterated, the steps converge to a KKT point of the same NLP (the gradient
-and the constraints are exact), which is what the tests check against IPOPT.
+and the constraints are exact, the Hessian only shapes the path), which is what the tests check
+against IPOPT.
 
 Nothing here is compiled: the linearization is one CasADi SX function evaluated by CasADi's
 virtual machine, built in a fraction of a second for every problem structure.
@@ -30,7 +33,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:  # pragma: no cover - typing only (nmpc imports this module)
     from controllers.nmpc import _Problem
 
-__all__ = ["HESSIANS", "QP_SOLVERS", "RTIStep", "RealTimeIteration"]
+__all__ = ["HESSIANS", "QP_SOLVERS", "RTIStep", "RealTimeIteration", "bind_buffer", "check_rti_options"]
 
 #: QP solvers of the CasADi wheel the real-time iteration can use, with their options (quiet).
 #: ``hpipm`` gets the OCP structure of the problem (stage sizes) on top of these.
@@ -43,7 +46,6 @@ QP_SOLVERS: dict[str, dict[str, Any]] = {
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "max_iter": 20000, "polish": True},
              "warm_start_primal": True},
     "piqp": {"piqp": {"verbose": False}},
-    "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
     "daqp": {},
     "proxqp": {"proxqp": {"verbose": False}},
 }
@@ -84,8 +86,32 @@ class RTIStep:
     max_slack: float
 
 
+def check_rti_options(qp_solver: str, iterations: int, hessian: str) -> None:
+    """Raise ``ValueError`` naming a bad real-time-iteration option and what is allowed."""
+    if qp_solver not in QP_SOLVERS:
+        raise ValueError(f"qp_solver={qp_solver!r} is not one of {sorted(QP_SOLVERS)}")
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+        raise ValueError(f"rti_iterations={iterations!r} must be an integer >= 1")
+    if hessian not in HESSIANS:
+        raise ValueError(f"hessian={hessian!r} is not one of {list(HESSIANS)}")
+
+
+def bind_buffer(function: ca.Function, inputs: list[NDArray], outputs: list[NDArray]) -> tuple[Any, Any]:
+    """``function.buffer()`` bound to the arrays (in input and output order): ``(buffer, evaluate)``.
+
+    CasADi converts a numpy argument element by element (~0.1 us each); a buffer reads and
+    writes the arrays in place. Keep the buffer alive as long as ``evaluate`` is used.
+    """
+    buffer, evaluate = function.buffer()
+    for i, array in enumerate(inputs):
+        buffer.set_arg(i, memoryview(array))
+    for i, array in enumerate(outputs):
+        buffer.set_res(i, memoryview(array))
+    return buffer, evaluate
+
+
 class RealTimeIteration:
-    """Gauss-Newton SQP on a built NMPC problem, ``iterations`` QPs per call.
+    """SQP on a built NMPC problem, ``iterations`` QPs per call (see the module docstring).
 
     Parameters
     ----------
@@ -95,19 +121,16 @@ class RealTimeIteration:
         One of :data:`QP_SOLVERS`.
     iterations : int
         QPs per control period (1: the classic real-time iteration).
+    hessian : str
+        One of :data:`HESSIANS`.
     """
 
     def __init__(self, problem: _Problem, qp_solver: str = "hpipm", iterations: int = 1,
                  hessian: str = "exact") -> None:  # fmt: skip
-        if qp_solver not in QP_SOLVERS:
-            raise ValueError(f"qp_solver={qp_solver!r} is not one of {sorted(QP_SOLVERS)}")
-        if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
-            raise ValueError(f"rti_iterations={iterations!r} must be an integer >= 1")
+        check_rti_options(qp_solver, iterations, hessian)
         self.problem = problem
         self.qp_solver = qp_solver
         self.iterations = iterations
-        if hessian not in HESSIANS:
-            raise ValueError(f"hessian={hessian!r} is not one of {list(HESSIANS)}")
         self.hessian = hessian
         nlp = problem._nlp
         w, p, g, f = nlp["x"], nlp["p"], nlp["g"], nlp["f"]
@@ -140,42 +163,30 @@ class RealTimeIteration:
                             # rows besides the dynamics gaps (which lead every stage but the last)
                             "ng": [rows - problem.nx for rows in problem.stage_rows[:-1]] + problem.stage_rows[-1:]})
         self._qp = ca.conic("rti_qp", qp_solver, structure, options)
-        stage = problem.stage_size
         self._slack_index = np.concatenate(
             [np.arange(t * stage + problem.nx + problem.nu, (t + 1) * stage) for t in range(problem.horizon)]
         ) if problem.ns else np.zeros(0, dtype=int)  # fmt: skip
         self._bind_buffers()
 
     def _bind_buffers(self) -> None:
-        """Call both functions through CasADi's buffer interface on preallocated arrays.
+        """Preallocated arrays for both functions; the linearization is bound to a buffer once.
 
-        CasADi converts a numpy argument element by element (~0.1 us each: ~1 ms for the 8,000
-        Hessian entries of a 3-robot Koopman problem, more than the QP takes); a buffer reads and
-        writes the arrays in place. The linearization's gradient and Jacobian arrays are the QP's
-        inputs directly.
+        The linearization's gradient and Jacobian arrays are the QP's inputs directly. The QP
+        gets a new buffer at every solve (see :meth:`solve`).
         """
         lin, qp = self._linearize, self._qp
-
-        def arrays(function: ca.Function, names: list[str], size: Any) -> dict[str, NDArray]:
-            return {name: np.zeros(size(i)) for i, name in enumerate(names)}
-
-        self._lin_in = arrays(lin, lin.name_in(), lin.nnz_in)
-        self._lin_out = arrays(lin, lin.name_out(), lin.nnz_out)
-        self._qp_in = arrays(qp, qp.name_in(), qp.nnz_in)
+        self._lin_in = {name: np.zeros(lin.nnz_in(i)) for i, name in enumerate(lin.name_in())}
+        self._lin_out = {name: np.zeros(lin.nnz_out(i)) for i, name in enumerate(lin.name_out())}
+        self._qp_in = {name: np.zeros(qp.nnz_in(i)) for i, name in enumerate(qp.name_in())}
         self._qp_in["g"] = self._lin_out["grad"]
         self._qp_in["a"] = self._lin_out["a"]
-        self._qp_out = arrays(qp, qp.name_out(), qp.nnz_out)
+        self._qp_out = {name: np.zeros(qp.nnz_out(i)) for i, name in enumerate(qp.name_out())}
         self._lin_buffer, self._lin_eval = self._buffer(lin, self._lin_in, self._lin_out)
 
     @staticmethod
     def _buffer(function: ca.Function, inputs: dict[str, NDArray], outputs: dict[str, NDArray]) -> tuple[Any, Any]:
-        """A CasADi buffer of ``function`` bound to the arrays (by input and output name)."""
-        buffer, evaluate = function.buffer()
-        for i, name in enumerate(function.name_in()):
-            buffer.set_arg(i, memoryview(inputs[name]))
-        for i, name in enumerate(function.name_out()):
-            buffer.set_res(i, memoryview(outputs[name]))
-        return buffer, evaluate
+        """:func:`bind_buffer` with the arrays given by input and output name."""
+        return bind_buffer(function, [inputs[n] for n in function.name_in()], [outputs[n] for n in function.name_out()])
 
     def solve(self, w: NDArray, lam_x: NDArray, lam_g: NDArray, params: NDArray) -> RTIStep:
         """``iterations`` SQP steps from the guess ``(w, lam_x, lam_g)`` (arrays are not modified)."""

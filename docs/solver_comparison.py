@@ -4,11 +4,12 @@ Usage::
 
     python docs/solver_comparison.py RESULTS_JSON [RESULTS_JSON ...] [--a rti] [--b ipopt]
 
-Each run evaluates controllers labelled ``<controller>@<solver>`` (e.g. ``koopman-nmpc@rti`` and
-``koopman-nmpc@ipopt``, see the command in docs/results.md). For every task and controller the
-table gives both success rates, the paired difference ``a - b`` on the episodes both solvers ran
-(same map, slip and seed) with Newcombe's 95% interval, the discordant pairs, the exact McNemar
-p-value (all from the run's own ``paired_comparisons``) and both median decision times, then the
+The runs evaluate controllers labelled ``<controller>@<solver>`` (e.g. ``koopman-nmpc@rti`` and
+``koopman-nmpc@ipopt``, in one run or in two runs of the same protocol; see the commands in
+docs/results.md). For every task and controller the table gives both success rates, the paired
+difference ``a - b`` on the episodes both solvers ran (same map, slip and seed) with Newcombe's
+95% interval, the discordant pairs, the exact McNemar p-value and both median decision times
+(median over the paired episodes of each episode's median), then the
 verdict of the rule that picks the default solver: ``a`` may replace ``b`` when no task loses
 significantly (p < 0.05) and the interval's lower end is above -5 points.
 """
@@ -20,36 +21,45 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from evaluation.statistics import paired_comparison
+
 #: the rule of the default solver: no significant loss, and the interval's lower end above this
 LOWER_END_LIMIT = -0.05
 ALPHA = 0.05
 
 
 def comparison_rows(documents: list[dict[str, Any]], a: str, b: str) -> list[dict[str, Any]]:
-    """One row per (run, task, controller) that ran with both solvers ``a`` and ``b``."""
-    rows = []
+    """One row per (task, controller) that ran as ``<controller>@a`` and ``<controller>@b``.
+
+    Episodes are paired on (task, map, slip, seed) across all ``documents``, so the two solvers
+    may come from separate runs of the same protocol (the seeds depend only on the base seed and
+    an episode's index in its cell).
+    """
+    outcomes: dict[tuple[str, str, str], dict[tuple, dict[str, Any]]] = {}
     for doc in documents:
-        board = {(r["env_id"], r["controller"]): r for r in doc["leaderboard"]}
-        for pair in doc["paired_comparisons"]:
-            labels = {pair["a"], pair["b"]}
-            bases = {label.rsplit("@", 1)[0] for label in labels}
-            solvers = {label.rsplit("@", 1)[-1] for label in labels}
-            if len(bases) != 1 or solvers != {a, b}:
+        for r in doc["episodes"]:
+            if r.get("status") != "ok" or "@" not in r["controller"]:
                 continue
-            base = bases.pop()
-            flip = pair["a"] != f"{base}@{a}"  # report a - b whatever order the run paired them in
-            sign = -1 if flip else 1
-            low, high = (-pair["high"], -pair["low"]) if flip else (pair["low"], pair["high"])
-            rows.append({
-                "env_id": pair["env_id"], "controller": base, "cells": pair["cells"], "n": pair["n"],
-                "rate_a": pair["rate_b"] if flip else pair["rate_a"], "rate_b": pair["rate_a"] if flip else pair["rate_b"],
-                "difference": sign * pair["difference"], "low": low, "high": high,
-                "only_a": pair["only_b"] if flip else pair["only_a"], "only_b": pair["only_a"] if flip else pair["only_b"],
-                "p_value": pair["p_value"],
-                "ms_a": board[(pair["env_id"], f"{base}@{a}")]["solve_ms_median"],
-                "ms_b": board[(pair["env_id"], f"{base}@{b}")]["solve_ms_median"],
-            })  # fmt: skip
-    return rows
+            base, solver = r["controller"].rsplit("@", 1)
+            outcomes.setdefault((r["env_id"], base, solver), {})[(r["map"], r["slip"], r["seed"])] = r
+    rows = []
+    for (env_id, base, solver), mine in outcomes.items():
+        other = outcomes.get((env_id, base, b))
+        if solver != a or other is None:
+            continue
+        shared = sorted(set(mine) & set(other))
+        if not shared:
+            continue
+        pair = paired_comparison([bool(mine[k]["success"]) for k in shared], [bool(other[k]["success"]) for k in shared])
+        rows.append({
+            "env_id": env_id, "controller": base, "cells": sorted({(m, s) for m, s, _ in shared}),
+            **pair.to_dict(),
+            "ms_a": float(np.median([mine[k]["solve_ms_median"] for k in shared])),
+            "ms_b": float(np.median([other[k]["solve_ms_median"] for k in shared])),
+        })  # fmt: skip
+    return sorted(rows, key=lambda r: (r["env_id"], r["controller"]))
 
 
 def loses(row: dict[str, Any]) -> bool:
@@ -65,7 +75,7 @@ def markdown(rows: list[dict[str, Any]], a: str, b: str) -> str:
              "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
         task = "formation" if "Formation" in r["env_id"] else "target reaching"
-        cells = ", ".join(f"{m} {s}" for m, s in r["cells"])
+        cells = ", ".join(f"{m} {s}" for m, s in r["cells"]) if len(r["cells"]) <= 6 else f"{len(r['cells'])} cells"
         p = "<0.001" if r["p_value"] < 0.001 else f"{r['p_value']:.3f}"
         lines.append(
             f"| {task} | {r['controller']} | {cells} | {r['n']} | {100 * r['rate_a']:.0f}% | {100 * r['rate_b']:.0f}% | "

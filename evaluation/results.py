@@ -218,10 +218,10 @@ class Results:
                 "without collision; 95% Wilson intervals. Few episodes per controller give wide intervals: "
                 "a smoke test, not a ranking.")  # fmt: skip
         lines = [table, "", note]
-        report = paths.get("html") or paths.get("markdown")
-        if report is not None:
+        reports = [str(paths[k]) for k in ("markdown", "html") if k in paths]
+        if reports:
             lines.append(f"Full report (paired comparisons on shared seeds, per-cell tables, figures): "
-                         f"{paths['markdown']}, {report}")  # fmt: skip
+                         f"{', '.join(reports)}")  # fmt: skip
         return "\n".join(lines)
 
     def calibration_note(self) -> str:

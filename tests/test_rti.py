@@ -86,6 +86,8 @@ def test_a_failed_qp_falls_back_to_ipopt_and_is_counted(monkeypatch) -> None:
 
 
 def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
+    from controllers.nmpc import NMPCController, _SolveOutcome
+
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
     ctrl = controllers.make("nominal-nmpc", solver="rti")
     obs, info = env.reset(seed=0)
@@ -93,13 +95,40 @@ def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
     ctrl.act(obs, info)
     plan, _ = ctrl.last_plan
     monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
-    ctrl.config = ctrl.config.with_options(fallback_solver=None)
+    monkeypatch.setattr(NMPCController, "_solve_nlp", lambda *_: _SolveOutcome(False, "Infeasible_Problem_Detected"))
     commands = [ctrl.act(obs, info) for _ in range(ctrl.config.horizon + 2)]
     stats = ctrl.stats()
-    assert stats.statuses["qp_failed(1)"] == len(commands)
-    np.testing.assert_allclose(commands[0], plan[1].reshape(-1))
-    np.testing.assert_array_equal(commands[-1], np.zeros(6))
-    assert stats.failures == len(commands)
+    assert stats.statuses["rti:qp_failed(1) -> ipopt:Infeasible_Problem_Detected"] == len(commands)
+    assert stats.counts["fallback_ipopt"] == len(commands) and stats.failures == len(commands)
+    np.testing.assert_allclose(commands[0], plan[1].reshape(-1))  # the rest of the last plan
+    np.testing.assert_array_equal(commands[-1], np.zeros(6))  # then a stop
+
+
+def test_without_a_fallback_solver_a_failed_qp_goes_to_the_last_plan(monkeypatch) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env)
+    ctrl.act(obs, info)
+    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
+    ctrl.act(obs, info)
+    assert ctrl.stats().statuses["qp_failed(1)"] == 1 and ctrl.stats().failures == 1
+
+
+@pytest.mark.parametrize("soft", [True, False])
+def test_the_real_time_iterations_problem_keeps_every_collision_row(soft: bool) -> None:
+    """The terminal rows move to the last stage (with a slack of their own when soft); none is lost."""
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    env.reset(seed=0)
+    counts = {}
+    for solver in ("ipopt", "rti"):
+        ctrl = controllers.make("nominal-nmpc", solver=solver, soft_constraints=soft, horizon=4)
+        ctrl.reset(env)
+        counts[solver] = ctrl._problem.n_cons
+        if solver == "rti":
+            prob = ctrl._problem
+            assert prob.stage_rows[-1] == 0 and prob.terminal_rows.size == prob.stage_rows[1] - prob.nx
+    assert counts["rti"] == counts["ipopt"]
 
 
 def test_a_plan_with_a_large_slack_goes_to_ipopt(monkeypatch) -> None:
@@ -157,17 +186,17 @@ def test_bad_solver_options_name_the_value(options, message) -> None:
         controllers.make("koopman-nmpc", **options)
 
 
-def test_every_qp_solver_of_the_table_builds_and_solves() -> None:
-    reference = None
-    for name in ("hpipm", "piqp", "osqp"):
-        assert name in QP_SOLVERS
-        ctrl_q, prob_q, _, params_q = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 3,
-                                                     horizon=5, qp_solver=name)  # fmt: skip
-        step = prob_q.real_time_iteration().solve(ctrl_q._warm["x"], ctrl_q._warm["lam_x"], ctrl_q._warm["lam_g"],
-                                                  params_q)  # fmt: skip
-        assert step.success, (name, step.status)
-        reference = step.w if reference is None else reference
-        np.testing.assert_allclose(step.w, reference, atol=1e-4)
+@pytest.mark.parametrize("name", sorted(QP_SOLVERS))
+def test_every_qp_solver_of_the_table_gives_the_same_step(name: str) -> None:
+    ctrl, prob, _, params = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 3, horizon=5)
+    guess = (ctrl._warm["x"], ctrl._warm["lam_x"], ctrl._warm["lam_g"])
+    reference = prob.real_time_iteration().solve(*guess, params)
+    # the same problem structure with another QP solver, solved at the first one's data
+    _, prob_q, _, _ = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0, horizon=5,
+                                     qp_solver=name)  # fmt: skip
+    step = prob_q.real_time_iteration().solve(*guess, params)
+    assert step.success, (name, step.status)
+    np.testing.assert_allclose(step.w, reference.w, atol=1e-4)
 
 
 _EPISODE = """
