@@ -8,6 +8,7 @@ for minutes, a fragment that is only a signature). ```bash blocks are not run.
 
 from __future__ import annotations
 
+import importlib.util
 import re
 import traceback
 from pathlib import Path
@@ -20,6 +21,7 @@ PAGES = [p for p in PAGES if "_build" not in p.parts]
 
 FENCE = re.compile(r"^(?P<indent> *)(?P<fence>```+)(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.S | re.M)
 SKIP = re.compile(r"<!--\s*no-test:\s*(?P<why>\S[^>]*?)\s*-->\s*$")
+REQUIRES = re.compile(r"<!--\s*requires:\s*(?P<module>[\w.]+)\s*-->\s*$")
 #: at most this many skipped blocks over all pages: a skip needs a reason, and the docs should run
 MAX_SKIPS = 4
 
@@ -32,10 +34,13 @@ def python_blocks(text: str) -> list[tuple[int, str, str | None]]:
             continue
         line = text.count("\n", 0, m.start()) + 1
         before = text[: m.start()].rstrip("\n").rsplit("\n", 1)[-1]
-        skip = SKIP.search(before)
+        skip, needs = SKIP.search(before), REQUIRES.search(before)
+        why = skip["why"] if skip else None
+        if needs and importlib.util.find_spec(needs["module"]) is None:
+            why = f"needs {needs['module']}, not installed"
         indent = len(m["indent"])
         code = "\n".join(row[indent:] for row in m["body"].split("\n"))
-        blocks.append((line, code, skip["why"] if skip else None))
+        blocks.append((line, code, why))
     return blocks
 
 
@@ -62,12 +67,14 @@ def test_the_python_blocks_of_a_page_run(page: Path, tmp_path: Path, monkeypatch
 
 
 def test_skipped_blocks_are_rare_and_say_why() -> None:
-    skipped = [(p, line, why) for p in PAGES for line, _, why in python_blocks(p.read_text()) if why]
+    skipped = [(p, line, why) for p in PAGES for line, _, why in python_blocks(p.read_text())
+               if why and not why.startswith("needs ")]
     assert len(skipped) <= MAX_SKIPS, skipped
     assert all(len(why) >= 10 for _, _, why in skipped), skipped
     for page in PAGES:  # a marker that does not sit right before a python block is a mistake
         text = page.read_text()
-        assert text.count("no-test") == sum(1 for _, _, why in python_blocks(text) if why), _rel(page)
+        assert text.count("no-test") == len(SKIP.findall(text)), _rel(page)
+        assert text.count("requires:") == len(REQUIRES.findall(text)), _rel(page)
 
 
 def test_the_readme_and_the_docs_have_snippets() -> None:
