@@ -99,7 +99,7 @@ def _is_markdown(lines: list[str]) -> bool:
                or line.lstrip().startswith("|--") for line in lines)
 
 
-def _docstring_markdown(app, what, name, obj, options, lines):  # noqa: ARG001 - Sphinx's signature
+def _docstring_markdown(app, what, name, obj, options, lines):  # Sphinx calls it with these
     if _is_markdown(lines):
         lines[:] = _markdown_to_rst(lines)
 

@@ -19,9 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 PAGES = [p for p in PAGES if "_build" not in p.parts]
 
-FENCE = re.compile(r"^(?P<indent> *)(?P<fence>```+)(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.S | re.M)
-SKIP = re.compile(r"<!--\s*no-test:\s*(?P<why>\S[^>]*?)\s*-->\s*$")
-REQUIRES = re.compile(r"<!--\s*requires:\s*(?P<module>[\w.]+)\s*-->\s*$")
+FENCE = re.compile(r"^(?P<indent> *)(?P<fence>```+)(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.DOTALL | re.MULTILINE)
+SKIP = re.compile(r"<!--\s*no-test:\s*(?P<why>\S[^>]*?)\s*-->[ \t]*$", re.MULTILINE)
+REQUIRES = re.compile(r"<!--\s*requires:\s*(?P<module>[\w.]+)\s*-->[ \t]*$", re.MULTILINE)
 #: at most this many skipped blocks over all pages: a skip needs a reason, and the docs should run
 MAX_SKIPS = 4
 
@@ -57,7 +57,7 @@ def test_the_python_blocks_of_a_page_run(page: Path, tmp_path: Path, monkeypatch
         if skip:
             continue
         try:
-            exec(compile(code, f"{_rel(page)}:{line}", "exec"), namespace)
+            exec(compile(code, f"{_rel(page)}:{line}", "exec"), namespace)  # noqa: S102 - running the docs is the test
         except Exception:  # noqa: BLE001 - name the block, then fail
             pytest.fail(f"{_rel(page)}, the python block at line {line} raised:\n{traceback.format_exc()}")
     for value in namespace.values():  # close what the page opened (envs with figures)
@@ -85,7 +85,7 @@ def test_the_readme_and_the_docs_have_snippets() -> None:
 # --- links ----------------------------------------------------------------------------------------
 
 LINK = re.compile(r"(?<!!)\[[^\]]*\]\((?P<target>[^)\s]+)\)|!\[[^\]]*\]\((?P<image>[^)\s]+)\)")
-HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$", re.M)
+HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$", re.MULTILINE)
 
 
 def slug(title: str) -> str:
@@ -97,7 +97,7 @@ def slug(title: str) -> str:
 
 def anchors(page: Path) -> set[str]:
     text = FENCE.sub("", page.read_text())
-    return {slug(m[2]) for m in HEADING.finditer(text)} | set(re.findall(r'\(([\w-]+)\)=\s*$', text, re.M))
+    return {slug(m[2]) for m in HEADING.finditer(text)} | set(re.findall(r'\(([\w-]+)\)=\s*$', text, re.MULTILINE))
 
 
 def broken_links(page: Path) -> list[str]:
