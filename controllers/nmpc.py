@@ -172,7 +172,7 @@ class NMPCConfig:
         (pairs: k (r_i + r_j)). 0 keeps the paper's margins; the ``*-robust`` variants use
         :data:`ROBUST_UNCERTAINTY_MARGIN`. The same option means the same thing for every NMPC.
     formation_bound : float
-        |lb| = |ub| of the formation constraint, per period and axis [m] (ours: the paper gives
+        ``|lb| = |ub|`` of the formation constraint, per period and axis [m] (ours: the paper gives
         no number; 0.03 m is half a period's travel at full speed, enough to skirt obstacles).
     soft_constraints : bool
         (ours) Give the collision constraints (obstacles, robots) and the formation constraints

@@ -39,7 +39,7 @@ Holding (v, omega), ``f(t) = n . dp/dt`` drifts from its initial value as the he
 ``k_c = min(1, |n . e| + omega_max dt)``, so ``n . delta_p >= dt f(0) - dt^2/2 sup |f'|``. With
 ``|v||omega| <= lam omega_max |v| + (1 - lam) v_max |omega|`` (true for every lam in [0, 1]; lam is
 taken from the inner command, for which it is tightest) and ``omega^2 <= omega_max |omega|``,
-each barrier becomes four linear rows (one per sign of v and of omega) of
+each barrier becomes four linear rows (one per sign of v and of omega) of::
 
     n . dp/dt - c_v |v| - c_omega |omega| >= -gamma h,
     c_v = dt/2 k_s lam omega_max,   c_omega = dt/2 (k_s (1 - lam) v_max + l omega_max k_c),

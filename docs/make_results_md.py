@@ -93,9 +93,10 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
     (a run and its ablation run, say), a leaderboard, paired comparisons and per-cell tables."""
     lines = ["## Changing uncertainty: slip zones, drifting and random slip (not in the paper)", "",
              "Maps 5 and 6 put a high-slip zone across the shortest route; `drift` redraws every robot's slip "
-             "level at random times within the episode, `random` draws one level per episode (README, *Maps* "
-             "and *Environments*). Same seeds for every controller in a group of cells, so the comparisons are "
-             "paired; same calibration offer as above; no controller is told the slip, the zones or the "
+             "level at random times within the episode, `random` draws one level per episode "
+             "([Slip](environments.md#slip), [Maps](environments.md#maps)). Same seeds for every controller "
+             "in a group of cells, so the comparisons are paired; same calibration offer as above; no controller "
+             "is told the slip, the zones or the "
              "schedule. Solve times come from runs made at different times on a shared 2-core machine (some "
              "beside other evaluations): compare them within one run, not across the rows of a pooled table.",
              ""]  # fmt: skip
@@ -151,8 +152,8 @@ def scaling_section(docs: list[dict]) -> list[str]:
     lines.append("")
     for n, names in sorted(ran.items()):
         if everyone - names:
-            lines.append(f"Not in this table at N = {n}: {', '.join(sorted(everyone - names))} (README, *Results with "
-                         "larger teams*, says why).")  # fmt: skip
+            lines.append(f"Not in this table at N = {n}: {', '.join(sorted(everyone - names))} "
+                         "([Results with larger teams](paper.md#results-with-larger-teams) says why).")  # fmt: skip
     lines += ["", "Regenerate: " + "; ".join(commands) + ".", ""]
     return lines
 

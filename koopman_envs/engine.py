@@ -123,7 +123,7 @@ class EnvKeyword:
         Its type, as the fronts' signatures and docs show it.
     doc : str
         One line for the docs of every front (the Gymnasium env docstring's Arguments table,
-        the PettingZoo modules' ``make`` call, the README's keyword list).
+        the PettingZoo modules' ``make`` call, the keyword list of docs/environments.md).
     fronts : tuple of str
         The fronts that take it (:data:`FRONTS`).
     """
@@ -138,7 +138,7 @@ class EnvKeyword:
 #: The env keywords: the one place where they are declared and defaulted. Every front forwards
 #: its keywords to :meth:`EngineConfig.create`, which validates them; the fronts' signatures and
 #: argument tables are generated from this table (:func:`takes_env_keywords`,
-#: :func:`keyword_table`), and tests/test_keyword_spec.py holds the fronts and the README to it.
+#: :func:`keyword_table`), and tests/test_keyword_spec.py holds the fronts and docs/environments.md to it.
 ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
     EnvKeyword("map", None, "str | os.PathLike | MapSpec | None",
                f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '

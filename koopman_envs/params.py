@@ -33,9 +33,9 @@ class PaperParams:
     dt : float
         Control / integration period T_s [s].
     v_max : float
-        Forward speed limit |v| <= v_max [m/s].
+        Forward speed limit ``|v| <= v_max`` [m/s].
     omega_max : float
-        Turn-rate limit |omega| <= omega_max [rad/s].
+        Turn-rate limit ``|omega| <= omega_max`` [rad/s].
     workspace : tuple of float
         (x_min, x_max, y_min, y_max) [m]; a robot centre outside it has left the workspace.
     robot_radius : float

@@ -165,7 +165,7 @@ _SLIP_TABLE = """
 
     A change at time t applies from the first period that starts at or after t.
 
-    Slip zones of the map (``MapSpec.slip_zones``, docs in README "Maps"): inside a ``"replace"``
+    Slip zones of the map (``MapSpec.slip_zones``, docs/environments.md, "Maps"): inside a ``"replace"``
     zone a robot's mean is the zone's lambda, inside an ``"add"`` zone the zone's lambda is added;
     overlapping zones: the last listed ``replace`` zone wins, ``add`` zones sum on top. The mean of
     a period is taken where the robot is at the period's start; only the scale of the draws
