@@ -1,8 +1,9 @@
 """KoopNav evaluator: run every controller on every cell, report success rates and final distances.
 
-``python evaluate.py`` runs the quick default leaderboard (both tasks, their maps, three slip
-settings, every registered controller, a few episodes each), prints the tables and writes
-Markdown, JSON, CSV and figures to ``results/``. ``python evaluate.py --paper`` runs the paper's
+``python evaluate.py`` runs the quick default leaderboard (both tasks, their paper maps under
+high slip, every registered controller, 2 episodes per cell from perturbed starts, the NMPCs on
+the real-time iteration), prints a compact leaderboard and writes the full report (Markdown,
+JSON, CSV, HTML, figures) to ``results/``. ``python evaluate.py --paper`` runs the paper's
 protocol (SPEC section 5: 10 trials per cell) and prints tables 1-5. From Python::
 
     from evaluate import evaluate

@@ -4,6 +4,9 @@ Usage::
 
     python docs/solver_comparison.py RESULTS_JSON [RESULTS_JSON ...] [--a rti] [--b ipopt]
 
+(a label's episodes in a later file replace the same label's episodes of the same cell and seed
+in an earlier one, so a rerun of one arm is given after the run it updates)
+
 The runs evaluate controllers labelled ``<controller>@<solver>`` (e.g. ``koopman-nmpc@rti`` and
 ``koopman-nmpc@ipopt``, in one run or in two runs of the same protocol; see the commands in
 docs/results.md). For every task and controller the table gives both success rates, the paired
@@ -35,7 +38,8 @@ def comparison_rows(documents: list[dict[str, Any]], a: str, b: str) -> list[dic
 
     Episodes are paired on (task, map, slip, seed) across all ``documents``, so the two solvers
     may come from separate runs of the same protocol (the seeds depend only on the base seed and
-    an episode's index in its cell).
+    an episode's index in its cell). An episode of a label in a later document replaces the one
+    of the same label, cell and seed in an earlier document (a rerun of one arm).
     """
     outcomes: dict[tuple[str, str, str], dict[tuple, dict[str, Any]]] = {}
     for doc in documents:
@@ -70,9 +74,11 @@ def loses(row: dict[str, Any]) -> bool:
 
 def markdown(rows: list[dict[str, Any]], a: str, b: str) -> str:
     """The table and the verdict."""
-    lines = [f"| Task | Controller | Cells | Pairs | Success {a} | Success {b} | {a} - {b} [95% CI] | "
-             f"only {a} / only {b} | McNemar p | Median [ms] {a} / {b} | Rule |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        f"| Task | Controller | Cells | Pairs | Success {a} | Success {b} | {a} - {b} [95% CI] | "
+        f"only {a} / only {b} | McNemar p | Median [ms] {a} / {b} | Rule |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         task = "formation" if "Formation" in r["env_id"] else "target reaching"
         cells = ", ".join(f"{m} {s}" for m, s in r["cells"]) if len(r["cells"]) <= 6 else f"{len(r['cells'])} cells"
