@@ -3,7 +3,7 @@
 Usage::
 
     python bench/nmpc_solve.py [--map map1] [--slip nominal] [--compiled] [--cache-timing] [--no-do-mpc]
-                               [--qp-solvers hpipm osqp piqp qrqp]
+                               [--qp-solvers hpipm osqp piqp daqp]
 
 For Koopman-NMPC and nominal NMPC it runs the same closed-loop episode (seed 0) once per
 optimizer and prints one row each, side by side:
@@ -11,7 +11,7 @@ optimizer and prints one row each, side by side:
 ``RTI <qp solver>``
     The real-time iteration (``solver="rti"``): one structured QP per control period, linearized
     at the previous plan shifted by one period, i.e. warm-started as in any closed loop, with
-    each QP solver ``hpipm`` (the default), ``osqp``, ``piqp`` and ``qrqp``. A QP solver whose
+    each QP solver ``hpipm`` (the default), ``osqp``, ``piqp`` and ``daqp``. A QP solver whose
     median exceeds 50 ms (checked from the 20th step on) or whose steps add up to more than
     30 s is stopped mid-episode and dropped, with a printed note saying why.
 ``IPOPT uncompiled``
@@ -71,13 +71,13 @@ from koopman_envs.tasks.base import env_id_for_map
 
 #: QP solvers of the real-time iteration compared by default (``--qp-solvers`` picks others of
 #: :data:`controllers.rti.QP_SOLVERS`, e.g. DAQP or proxQP)
-QP_ROWS = ("hpipm", "osqp", "piqp", "qrqp")
+QP_ROWS = ("hpipm", "osqp", "piqp", "daqp")
 #: a QP solver slower than this per step (median) is dropped: it is no real-time option
 MEDIAN_LIMIT = 0.050
 #: steps before the median is judged (the first steps, near the start, are not typical)
 MEDIAN_FROM = 20
-#: total solve time [s] after which a QP solver is dropped: qrqp's steps that hit its iteration
-#: limit take ~10 s each before the IPOPT fallback, which would hold the run up for minutes
+#: total solve time [s] after which a QP solver is dropped: a solver whose QPs hit their iteration
+#: limit (qrqp did: ~10 s each, before the IPOPT fallback; it left the table) would hold the run up
 TOTAL_LIMIT = 30.0
 #: resets behind the ``cold`` column
 COLD_RESETS = 5
