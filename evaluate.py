@@ -111,56 +111,96 @@ def parse_env_kwargs(words: list[str] | None) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------- CLI
+#: exit codes of the command line, as ``--help`` lists them
+EXIT_CODES = (
+    ("0", "every episode ran (and --check, if given, passed)"),
+    ("1-100", "that many episodes raised (capped at 100); the others' results are written"),
+    ("2", "bad input (named on stderr) before any episode ran"),
+    (str(FAILED_CHECK_EXIT), "a --check threshold failed"),
+    (str(INTERRUPTED_EXIT), "interrupted (Ctrl-C or SIGTERM); continue with --resume"),
+)
+
+
+def program_name() -> str:
+    """How the user called the evaluator: ``koopnav-evaluate`` (the installed script) or
+    ``python evaluate.py``, for usage lines and resume hints."""
+    invoked = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
+    return "koopnav-evaluate" if invoked.startswith("koopnav-evaluate") else "python evaluate.py"
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.split("\n")[0])
-    parser.add_argument("--env", nargs="+", help=f"environment ids (default: {list(TASK_MAPS)})")
-    parser.add_argument("--maps", nargs="+", metavar="MAP",
-                        help="maps: shipped names, random, or paths of JSON map files (default: each task's: "
-                             "map1 map2 / map3 map4)")  # fmt: skip
-    parser.add_argument("--random-maps", type=int, metavar="K",
-                        help="add a 'random' map row with K seeded layouts per cell (the same for every controller)")
-    parser.add_argument("--slips", nargs="+",
-                        help="nominal low high random drift, or per-robot lambdas like 0,0.1,0.2 "
-                             "(one setting per word)")
-    parser.add_argument("--controllers", nargs="+", metavar="NAME[:KEY=VALUE,...]",
-                        help=f"controller configurations (default: every registered one: {controllers.available()})")
-    parser.add_argument("--solver", choices=list(SOLVERS),
-                        help="optimizer of every NMPC configuration that does not name its own: rti (real-time "
-                             "iteration, one structured QP per period), ipopt (the paper's: solved to convergence) or "
-                             "fatrop (default: each controller's own; ipopt with --paper, --paper-strict, --ablation)")
-    parser.add_argument("--env-kwargs", nargs="+", metavar="KEY=VALUE",
-                        help="further env keywords for every episode, e.g. n_robots=5 goal_tolerance=0.05 "
-                             "(values parsed as JSON)")  # fmt: skip
-    parser.add_argument("--episodes", type=int, help="trials per cell (default 2; 10 with --paper, 20 with --ablation)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--workers", type=int, help="worker processes (default: all cores)")
-    parser.add_argument("--backend", choices=["process", "ray"], default="process")
-    parser.add_argument("--out", default="results", help="output directory (default: results)")
-    parser.add_argument("--resume", action="store_true", help="continue the run logged in --out")
-    parser.add_argument("--tolerance", type=float, default=PARAMS.goal_tolerance, help="goal tolerance [m]")
-    parser.add_argument("--max-episode-steps", type=int, default=PARAMS.max_episode_steps)
-    parser.add_argument("--calibration-budget", type=int, default=PARAMS.calibration_budget,
-                        help="team-transitions every controller may simulate to calibrate (default: the paper's "
-                             "1000 x 1000)")  # fmt: skip
-    parser.add_argument("--calibration-seed", type=int, default=0, help="seed of the calibration plant and data")
-    parser.add_argument("--start-noise", type=float,
-                        help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE}; 0 with --paper and "
-                             "--ablation, which keep the maps' starts)")  # fmt: skip
-    protocol = parser.add_mutually_exclusive_group()
-    protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5)")
+    epilog = "exit codes:\n" + "\n".join(f"  {code:<6} {meaning}" for code, meaning in EXIT_CODES)
+    parser = argparse.ArgumentParser(prog=program_name(), description=__doc__.split("\n")[0], epilog=epilog,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    what = parser.add_argument_group("what to run")
+    what.add_argument("--env", "--envs", dest="env", nargs="+", metavar="ENV_ID",
+                      help=f"environment ids (default: {' '.join(TASK_MAPS)})")
+    what.add_argument("--maps", nargs="+", metavar="MAP",
+                      help="maps: shipped names, random, or paths of JSON map files (default: each task's paper "
+                           "maps: map1 map2 / map3 map4)")  # fmt: skip
+    what.add_argument("--random-maps", type=int, metavar="K",
+                      help="add a 'random' map row with K seeded layouts per cell, the same for every controller "
+                           "(default: none)")  # fmt: skip
+    what.add_argument("--slips", nargs="+", metavar="SLIP",
+                      help="nominal low high random drift, or per-robot lambdas like 0,0.1,0.2, one setting per word "
+                           "(default: high; all three levels with --paper)")  # fmt: skip
+    what.add_argument("--episodes", type=int, metavar="N",
+                      help="trials per cell (default 2; 10 with --paper, 20 with --ablation)")
+    what.add_argument("--seed", type=int, default=0, help="base seed; trial i of a cell uses seed + i (default 0)")
+    protocol = what.add_mutually_exclusive_group()
+    protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5), IPOPT")
     protocol.add_argument("--paper-strict", action="store_true",
                           help="the paper's protocol with its exact NMPC: hard constraints, 0.015 m margins")
     protocol.add_argument("--ablation", nargs="*", metavar="FACTOR",
                           help="ablation of the NMPC's design factors (default all: model margins constraints) on the "
-                               "paper maps under high slip; writes docs/ablation.md")  # fmt: skip
-    parser.add_argument("--ablation-out", default=str(Path(__file__).parent / "docs" / "ablation.md"),
-                        help="where --ablation writes its report (default: docs/ablation.md)")
-    parser.add_argument("--gifs", action="store_true", help="record trial 0 of every cell as OUT/animations/*.gif")
-    parser.add_argument("--check", metavar="THRESHOLDS", help="TOML thresholds; exit 101 if a cell falls below")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--full-report", action="store_true",
+                               "paper maps under high slip; writes --ablation-out")  # fmt: skip
+
+    env = parser.add_argument_group("env settings")
+    env.add_argument("--tolerance", type=float, default=PARAMS.goal_tolerance, metavar="M",
+                     help=f"goal tolerance [m] (default {PARAMS.goal_tolerance})")
+    env.add_argument("--max-episode-steps", type=int, default=PARAMS.max_episode_steps, metavar="T",
+                     help=f"time limit [control periods] (default {PARAMS.max_episode_steps})")
+    env.add_argument("--start-noise", type=float, metavar="R",
+                     help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE}; 0 with --paper and "
+                          "--ablation, which keep the maps' starts)")  # fmt: skip
+    env.add_argument("--env-kwargs", nargs="+", metavar="KEY=VALUE",
+                     help="further env keywords for every episode, e.g. n_robots=5 goal_tolerance=0.05 (values "
+                          "parsed as JSON; default: none)")  # fmt: skip
+
+    ctrl = parser.add_argument_group("controllers")
+    ctrl.add_argument("--controllers", nargs="+", metavar="NAME[:KEY=VALUE,...]",
+                      help=f"controller configurations (default: every registered one: "
+                           f"{' '.join(controllers.available())})")  # fmt: skip
+    ctrl.add_argument("--solver", choices=list(SOLVERS),
+                      help="optimizer of every NMPC configuration that does not name its own: rti (real-time "
+                           "iteration, one structured QP per period), ipopt (the paper's, solved to convergence) or "
+                           "fatrop (default: rti for the quick leaderboard's own controllers, ipopt with --paper, "
+                           "--paper-strict, --ablation, else each controller's own: ipopt)")  # fmt: skip
+    ctrl.add_argument("--calibration-budget", type=int, default=PARAMS.calibration_budget, metavar="N",
+                      help=f"team-transitions every controller may simulate to calibrate (default: the paper's "
+                           f"{PARAMS.calibration_budget:,})")  # fmt: skip
+    ctrl.add_argument("--calibration-seed", type=int, default=0, metavar="S",
+                      help="seed of the calibration plant and data (default 0)")
+
+    output = parser.add_argument_group("output")
+    output.add_argument("--out", default="results", help="output directory (default: results)")
+    output.add_argument("--full-report", action="store_true",
                         help="print the whole Markdown report (paired comparisons, per-cell tables) instead of the "
                              "compact leaderboard; the files always hold it")  # fmt: skip
+    output.add_argument("--gifs", action="store_true", help="record trial 0 of every cell as OUT/animations/*.gif")
+    output.add_argument("--ablation-out", default=str(Path(__file__).parent / "docs" / "ablation.md"),
+                        help="where --ablation writes its report (default: docs/ablation.md)")
+    output.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    run = parser.add_argument_group("execution")
+    run.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")
+    run.add_argument("--backend", choices=["process", "ray"], default="process",
+                     help="process pool or a Ray cluster (default: process)")
+    run.add_argument("--resume", action="store_true", help="continue the run logged in --out")
+
+    ci = parser.add_argument_group("CI")
+    ci.add_argument("--check", metavar="THRESHOLDS",
+                    help=f"TOML thresholds; exit {FAILED_CHECK_EXIT} if a cell falls below (default: no check)")
     return parser
 
 
@@ -232,7 +272,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except RunInterrupted as exc:
         words = list(sys.argv[1:] if argv is None else argv)
-        again = " ".join(["python evaluate.py", *words, *([] if "--resume" in words else ["--resume"])])
+        again = " ".join([program_name(), *words, *([] if "--resume" in words else ["--resume"])])
         print(f"\n{exc}; continue with: {again}", file=sys.stderr)
         return INTERRUPTED_EXIT
     print(results.to_markdown() if args.full_report else results.terminal_summary(paths))

@@ -23,6 +23,7 @@ from importlib import metadata
 from typing import Any, Callable
 
 from controllers.base import Controller
+from koopman_envs.suggest import did_you_mean
 
 __all__ = ["ENTRY_POINT_GROUP", "available", "factory", "make", "register", "register_wrapper", "split_name"]
 
@@ -90,7 +91,7 @@ def factory(name: str) -> Callable[..., Controller]:
         return _resolve(_REGISTRY[name])
     points = _entry_points()
     if name not in points:
-        raise ValueError(f"controller {name!r} is not one of {available()}")
+        raise ValueError(f"controller {name!r} is not one of {available()}{did_you_mean(name, available())}")
     return points[name].load()
 
 

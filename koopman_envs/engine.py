@@ -59,9 +59,6 @@ __all__ = [
     "takes_env_keywords",
 ]
 
-# every combination of the three collision flag bits, by value, for vectorized naming
-_COLLISION_NAMES = np.array([CollisionKind.describe(flags) for flags in range(8)], dtype=object)
-
 #: ``start_noise``: draws of a whole team's start perturbation before a reset gives up (ours).
 START_NOISE_ATTEMPTS = 100
 
@@ -180,7 +177,10 @@ def _unknown_keywords(given: Any, allowed: Sequence[str], owner: str) -> TypeErr
         return None
     hints = [f"{close[0]!r} for {name!r}" for name in unknown if (close := difflib.get_close_matches(name, allowed, 1))]
     hint = f" (did you mean {', '.join(hints)}?)" if hints else ""
-    return TypeError(f"{owner} got unknown keyword arguments {unknown}{hint}; allowed: {list(allowed)}")
+    # Python's own phrase first: wrappers such as TorchRL's GymEnv retry without a keyword (e.g.
+    # frameskip) when the error reads "unexpected keyword argument '<name>'"
+    return TypeError(f"{owner} got an unexpected keyword argument {unknown[0]!r}; unknown keyword arguments "
+                     f"{unknown}{hint}; allowed: {list(allowed)}")  # fmt: skip
 
 
 def takes_env_keywords(front: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
@@ -846,7 +846,10 @@ class NavigationEngine:
         """The true structured state of every environment, one array per key (copies).
 
         Keys: ``poses`` (K, N, 3), ``targets`` (K, N, 3), ``distances`` (K, N), ``collision``
-        (K,) bool, ``collision_kind`` (K,) str (``"none"``, ``"obstacle"``, ``"robot+workspace"``...),
+        (K,) bool, ``collision_code`` (K,) int (bit flags of
+        :class:`~koopman_envs.sim.collision.CollisionKind`: 1 obstacle, 2 robot, 4 workspace;
+        ``CollisionKind.describe(code)`` names them, e.g. ``"robot+workspace"``; every value of
+        an info is a number or an array, which RL libraries stack into tensors),
         ``robot_collision`` (K, N) bool (which robots collided), ``is_success`` (K,),
         ``settled_steps`` (K,), and ``formation_error`` (K, N) for formation.
         :meth:`info` is row ``index`` of this, so every front reports the same keys.
@@ -856,7 +859,7 @@ class NavigationEngine:
             "targets": self.targets.copy(),
             "distances": self.distances.copy(),
             "collision": self.collision != 0,
-            "collision_kind": _COLLISION_NAMES[self.collision],
+            "collision_code": self.collision.astype(np.int64),
             "robot_collision": self.robot_collisions(),
             "is_success": self.success.copy(),
             "settled_steps": self.settled.copy(),
@@ -873,7 +876,7 @@ class NavigationEngine:
             "targets": self.target[index].T.copy(),
             "distances": self.distances[index].copy(),
             "collision": collision != 0,
-            "collision_kind": str(_COLLISION_NAMES[collision]),
+            "collision_code": collision,
             "robot_collision": (self.robot_collisions()[index] if collision
                                 else np.zeros(self.config.n_robots, dtype=bool)),  # fmt: skip
             "is_success": bool(self.success[index]),

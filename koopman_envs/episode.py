@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.scenario import scenario_of
+from koopman_envs.sim.collision import CollisionKind
 
 __all__ = ["EpisodeResult", "Policy", "run_episode"]
 
@@ -140,7 +141,7 @@ def run_episode(
     success = bool(info["is_success"])
     return EpisodeResult(
         success=success,
-        collision=info["collision_kind"] if info["collision"] else None,
+        collision=CollisionKind.describe(info["collision_code"]) if info["collision"] else None,
         truncated=bool(truncated and not terminated),
         steps=steps,
         total_reward=total,

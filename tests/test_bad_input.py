@@ -213,3 +213,23 @@ def test_bad_slip_schedules(slip, message) -> None:
 def test_bad_random_zone_settings(settings, message) -> None:
     with pytest.raises(ValueError, match=message):
         gym.make(ENV, map="random", random_map=settings)
+
+
+def test_unknown_keyword_error_carries_pythons_phrase() -> None:
+    """Wrappers such as TorchRL's GymEnv drop a keyword (frameskip) when the error says so."""
+    import gymnasium as gym
+
+    with pytest.raises(TypeError) as info:
+        gym.make("KoopNav-Formation-v0", frameskip=1)
+    assert "unexpected keyword argument 'frameskip'" in str(info.value)
+
+
+def test_misspelt_controller_and_map_names_get_a_suggestion() -> None:
+    import gymnasium as gym
+
+    import controllers
+
+    with pytest.raises(ValueError, match=r"controller 'koopman-nmcp' is not one of .* \(did you mean 'koopman-nmpc'\?\)"):
+        controllers.make("koopman-nmcp")
+    with pytest.raises(ValueError, match=r"map='mpa3' is not one of .* \(did you mean 'map3'\?\)"):
+        gym.make("KoopNav-Formation-v0", map="mpa3")

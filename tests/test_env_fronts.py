@@ -238,3 +238,34 @@ def test_only_pettingzoos_api_probe_is_ignored() -> None:
         par.reset(seed=0, options={"options": 1, "seed": 2})
     with pytest.raises(ValueError, match=r"reset options \['options'\] are not supported"):
         gym.make(ID).reset(seed=0, options={"options": 1})
+
+
+def _numeric(value) -> bool:
+    return isinstance(value, (bool, int, float, np.ndarray, np.generic))
+
+
+def test_every_info_value_is_a_number_or_an_array() -> None:
+    """RL libraries (TorchRL, Gymnasium's vector envs) stack infos into tensors: no text."""
+    from koopman_envs import formation_v0
+
+    env = gym.make("KoopNav-Formation-v0", map="map3")
+    _, info = env.reset(seed=0)
+    _, _, _, _, step_info = env.step(env.action_space.sample())
+    for values in (info, step_info):
+        assert all(_numeric(v) for v in values.values()), {k: type(v) for k, v in values.items()}
+    vec = gym.make_vec("KoopNav-Formation-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    _, infos = vec.reset(seed=0)
+    assert all(_numeric(v) for k, v in infos.items() if not k.startswith("_")), {k: type(v) for k, v in infos.items()}
+    par = formation_v0.parallel_env()
+    _, agent_infos = par.reset(seed=0)
+    for values in agent_infos.values():
+        assert all(_numeric(v) for v in values.values()), {k: type(v) for k, v in values.items()}
+
+
+def test_the_vector_env_exposes_its_autoreset_mode() -> None:
+    from gymnasium.vector import AutoresetMode
+
+    for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        vec = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                           autoreset_mode=mode)  # fmt: skip
+        assert vec.unwrapped.autoreset_mode == mode == vec.unwrapped.metadata["autoreset_mode"]

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from koopman_envs.params import PARAMS
+from koopman_envs.sim.collision import CollisionKind
 
 
 def test_success_after_two_seconds_of_settling(parked_map) -> None:
@@ -93,5 +94,5 @@ def test_robot_collision_names_the_robots_that_collided() -> None:
     poses[0, 1, :2] = engine.obstacles[0, 0, :2]  # robot 1 onto the first obstacle's centre
     engine.poses = poses
     _, _, terminated, _, info = env.step(np.zeros(6))
-    assert terminated and "obstacle" in info["collision_kind"]
+    assert terminated and "obstacle" in CollisionKind.describe(info["collision_code"])
     assert info["robot_collision"].tolist() == [False, True, False]

@@ -25,7 +25,7 @@ class ScriptedEnv:
         d = self.script[self.k]
         done = self.k == len(self.script) - 1
         return {"poses": np.zeros((3, 3)), "targets": np.zeros((3, 3)), "distances": np.full(3, d),
-                "collision": False, "collision_kind": "none", "is_success": done}  # fmt: skip
+                "collision": False, "collision_code": 0, "is_success": done}  # fmt: skip
 
     def reset(self, *, seed=None, options=None):
         self.k = 0

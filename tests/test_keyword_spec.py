@@ -99,7 +99,7 @@ def test_every_keyword_reaches_the_one_check(builder: str) -> None:
 @pytest.mark.parametrize("builder", BUILDERS)
 def test_unknown_keywords_are_named_with_the_allowed_ones(builder: str) -> None:
     front, make = BUILDERS[builder]
-    with pytest.raises(TypeError, match=r"got unknown keyword arguments \['n_robot'\] \(did you mean 'n_robots' "
+    with pytest.raises(TypeError, match=r"got an unexpected keyword argument 'n_robot'; unknown keyword arguments \['n_robot'\] \(did you mean 'n_robots' "
                                         r"for 'n_robot'\?\); allowed: \[.*'render_mode'.*'formation'"):  # fmt: skip
         make(n_robot=4)
     if front != "parallel":
@@ -114,9 +114,9 @@ def test_engine_config_create_takes_the_table_and_nothing_else() -> None:
     assert defaults.map_name == "map3" and defaults.n_robots == 3 and defaults.formation is None
     assert defaults.max_episode_steps is None  # no front: no default limit
     assert EngineConfig.create("formation", front="vector").max_episode_steps == 600
-    with pytest.raises(TypeError, match=r"the KoopNav env got unknown keyword arguments \['colour'\]"):
+    with pytest.raises(TypeError, match=r"the KoopNav env got an unexpected keyword argument 'colour'; unknown keyword arguments \['colour'\]"):
         EngineConfig.create("formation", colour="red")
-    with pytest.raises(TypeError, match=r"the gym env got unknown keyword arguments \['max_cycles'\]"):
+    with pytest.raises(TypeError, match=r"the gym env got an unexpected keyword argument 'max_cycles'; unknown keyword arguments \['max_cycles'\]"):
         EngineConfig.create("formation", front="gym", max_cycles=3)
 
 

@@ -118,7 +118,7 @@ def test_random_teams_start_and_end_clear_for_200_seeds(n: int, shape: str) -> N
             clear = np.linalg.norm(xy[:, None] - obstacles[None, :, :2], axis=-1) - obstacles[:, 2] - radius
             assert clear.min() >= RandomMapConfig.clearance - 1e-9, (seed, clear.min())
         _, _, terminated, _, info = env.step(np.zeros(2 * n))
-        assert not info["collision"] and not terminated, (seed, info["collision_kind"])
+        assert not info["collision"] and not terminated, (seed, info["collision_code"])
 
 
 # ------------------------------------------------------------------ team size and the maps

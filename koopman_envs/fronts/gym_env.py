@@ -207,9 +207,10 @@ _COMMON_DOC = """
     4 obstacles listed) F = 27 for target reaching and 29 for formation.
 
     ``info`` always carries the true structured state: ``poses`` (N, 3), ``targets`` (N, 3),
-    ``distances`` (N,) to the targets [m], ``collision`` (bool), ``collision_kind``
-    (``"none"``, ``"obstacle"``, ``"robot"``, ``"workspace"`` or a ``+`` combination),
-    ``is_success`` (bool) and ``settled_steps``; formation adds ``formation_error`` (N,) [m].
+    ``distances`` (N,) to the targets [m], ``collision`` (bool), ``collision_code`` (int bit
+    flags: 1 obstacle, 2 robot, 4 workspace; ``CollisionKind.describe(code)`` names them),
+    ``robot_collision`` (N,), ``is_success`` (bool) and ``settled_steps``; formation adds
+    ``formation_error`` (N,) [m]. Every value is a number or an array.
 
     ## Dynamics and Slip
     Unicycle kinematics with slip (paper eq. 15), RK4 at 0.1 s. Each period, per robot,

@@ -70,6 +70,8 @@ class KoopNavVectorEnv(VectorEnv):
         if mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode='Disabled' is not supported; use NextStep or SameStep")
         self.metadata = {**self.metadata, "autoreset_mode": mode}
+        #: the same mode as an attribute, where TorchRL's GymWrapper and others look for it
+        self.autoreset_mode = mode
         self.config = EngineConfig.create(task, front="vector", **keywords)
         self.num_envs = int(num_envs)
         self.engine = NavigationEngine(self.config, num_envs=self.num_envs)

@@ -23,6 +23,7 @@ from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for, formation_shape
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.zones import SLIP_ZONE_MODES, SlipZone, check_zone_robots
+from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "BUILTIN_MAPS",
@@ -372,6 +373,7 @@ def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
             return MapSpec.from_dict(data, default_name=stem)
     raise ValueError(
         f"map={spec!r} is not one of {list(MAP_NAMES)}, a path to a .json map file, or a MapSpec"
+        f"{did_you_mean(spec, MAP_NAMES)}"
     )
 
 
