@@ -238,6 +238,7 @@ class Renderer:
             "_head": None,
             "_clock": None,
             "_tail": None,
+            "_initial_subplotpars": None,  # the new figure's subplot parameters, where every layout starts
         }
 
     def _reset_figure(self) -> None:
@@ -262,6 +263,8 @@ class Renderer:
             self.figure = Figure(figsize=self.size, dpi=100)
             FigureCanvasAgg(self.figure)
         self.ax = self.figure.add_subplot(1, 1, 1)
+        params = self.figure.subplotpars
+        self._initial_subplotpars = {k: getattr(params, k) for k in ("left", "right", "bottom", "top", "wspace", "hspace")}
         if self.blit:
             from matplotlib.transforms import IdentityTransform
 
@@ -347,6 +350,10 @@ class Renderer:
     def _lay_out(self) -> None:
         """``tight_layout`` until the axes stop moving: with the equal aspect, one pass from
         another layout can leave them up to ~15 px off where the next pass puts them."""
+        # always from the figure's initial layout: tight_layout's result depends on where the
+        # axes are, so a figure laid out before would differ by a few pixels from a copy's new
+        # one, and a frame would depend on the drawing history instead of the state alone
+        self.figure.subplots_adjust(**self._initial_subplotpars)
         for _ in range(_LAYOUT_PASSES):
             before = self.ax.get_position(original=True).bounds
             self.figure.tight_layout()

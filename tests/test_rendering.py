@@ -136,3 +136,30 @@ def test_a_frame_takes_at_most_10_ms() -> None:
         best = min(best, spent / 10)
     assert best <= 0.010, f"{best * 1e3:.1f} ms a frame"
     env.close()
+
+
+def test_a_copy_renders_what_the_original_renders_over_a_whole_episode() -> None:
+    """A frame depends on the state only: copies made after the original has drawn (at several
+    points, one just before the clock reaches 10 s and the title is laid out again) draw every
+    later frame pixel for pixel as the original, to the end of the episode."""
+    import copy
+
+    env = gym.make("KoopNav-Formation-v0", map="random", n_robots=5, render_mode="rgb_array", max_episode_steps=130)
+    env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    copies = {}
+    done = False
+    step = 0
+    while not done:
+        frame = env.render()
+        for made_at, clone in copies.items():
+            assert np.array_equal(clone.render(), frame), f"copy made at step {made_at} differs at step {step}"
+        if step in (0, 37, 99):
+            copies[step] = copy.deepcopy(env)
+        action = rng.uniform(-0.3, 0.3, env.action_space.shape)
+        _, _, terminated, truncated, _ = env.step(action)
+        for clone in copies.values():
+            clone.step(action)
+        done = terminated or truncated
+        step += 1
+    assert step == 130 and len(copies) == 3
