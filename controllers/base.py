@@ -11,14 +11,17 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.scenario import Scenario, scenario_of
 
-__all__ = ["BaseController", "Controller", "ControllerStats"]
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.plant import CalibrationPlant
+
+__all__ = ["BaseController", "Calibratable", "Controller", "ControllerStats", "calibratable"]
 
 
 @dataclass
@@ -94,6 +97,29 @@ class Controller(Protocol):
 
     def stats(self) -> ControllerStats:
         """Statistics of the current episode."""
+
+
+@runtime_checkable
+class Calibratable(Protocol):
+    """The optional capability of a controller that learns from the calibration plant before
+    its episodes (the evaluator offers every controller the same plant and budget)."""
+
+    def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
+        """Learn what it needs from ``plant`` (within its budget); return a plain-JSON summary
+        with at least ``transitions`` (team-transitions of data behind the calibration)."""
+
+
+def calibratable(controller: Any) -> Calibratable | None:
+    """The object that calibrates for ``controller``: the controller itself when it is
+    :class:`Calibratable`, else the first calibratable one down its wrappers' ``.inner`` chain
+    (a wrapper such as ``safe:`` calibrates as the controller it wraps), or None."""
+    seen = 0
+    while controller is not None and seen < 16:  # a wrapper chain, not a cycle
+        if isinstance(controller, Calibratable):
+            return controller
+        controller = getattr(controller, "inner", None)
+        seen += 1
+    return None
 
 
 class BaseController(ABC):

@@ -18,11 +18,12 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable, Protocol, runtime_checkable
+from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.base import Calibratable, calibratable
 from controllers.cache import cache_root, write_atomic
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
@@ -42,15 +43,6 @@ __all__ = [
 
 # the identification inputs come from their own stream of the seed (the plant draws its slip from another)
 _INPUT_STREAM = 0x494E5055  # "INPU"
-
-
-@runtime_checkable
-class Calibratable(Protocol):
-    """A controller that learns from the calibration plant before its episodes."""
-
-    def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
-        """Learn what it needs from ``plant`` (within its budget); return a plain-JSON summary
-        with at least ``transitions`` (team-transitions of data behind the calibration)."""
 
 
 @dataclass(frozen=True)
@@ -172,7 +164,8 @@ def calibrate_controller(
     Parameters
     ----------
     controller : Controller
-        Any controller; one without a ``calibrate`` method is left alone.
+        Any controller; one that is not :class:`~controllers.base.Calibratable` (itself or down
+        its wrappers' ``inner`` chain, see :func:`~controllers.base.calibratable`) is left alone.
     env : env, env id or CalibrationPlant
         The deployment env (any front, wrapped or not), or a ready plant.
     budget : int
@@ -185,11 +178,11 @@ def calibrate_controller(
     dict or None
         The controller's calibration summary plus ``budget``, or None when it does not calibrate.
     """
-    calibrate = getattr(controller, "calibrate", None)
-    if not callable(calibrate):
+    learner = calibratable(controller)
+    if learner is None:
         return None
     plant = env if isinstance(env, CalibrationPlant) else make_plant(env, budget=budget, seed=seed)
-    summary = dict(calibrate(plant, seed=seed) or {})
+    summary = dict(learner.calibrate(plant, seed=seed) or {})
     summary.setdefault("transitions", plant.used)
     summary["budget"] = plant.budget
     return summary

@@ -432,8 +432,8 @@ class SafetyFilter(BaseController):
     Parameters
     ----------
     inner : Controller
-        The controller whose commands are filtered. Its ``calibrate`` (if any) is offered
-        through the wrapper unchanged, so the evaluator calibrates it as it would alone.
+        The controller whose commands are filtered (``.inner``). The evaluator calibrates it
+        as it would alone (:func:`controllers.base.calibratable` looks down ``.inner``).
     **options
         Fields of :class:`SafetyOptions`: ``gamma``, ``margin``, ``lookahead``, ``omega_weight``.
 
@@ -460,16 +460,6 @@ class SafetyFilter(BaseController):
         self.name = f"safe:{getattr(inner, 'name', type(inner).__name__)}"
         self._filter: BarrierFilter | None = None
         self._stats = SafetyStats()
-
-    @property
-    def calibrate(self) -> Callable[..., dict[str, Any]]:
-        """The inner controller's ``calibrate``; absent (AttributeError) when it has none, so that
-        ``getattr(ctrl, "calibrate", None)`` treats the pair as the inner controller alone."""
-        method = getattr(self.inner, "calibrate", None)
-        if not callable(method):
-            # AttributeError, not TypeError: getattr(ctrl, "calibrate", None) must then see none
-            raise AttributeError(f"{getattr(self.inner, 'name', 'the inner controller')!r} does not calibrate")  # noqa: TRY004
-        return method
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         self.inner.reset(scenario, seed=seed)

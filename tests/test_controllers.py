@@ -271,3 +271,13 @@ def test_models_of_one_structure_share_a_problem_with_their_own_coefficients() -
     alone.reset(env)
     np.testing.assert_allclose(with_high, alone.act(obs, info), atol=1e-9)
     assert not np.allclose(with_high, with_low)
+
+
+def test_calibratable_is_a_declared_capability_found_down_wrappers() -> None:
+    from controllers.base import Calibratable, calibratable
+
+    assert isinstance(controllers.make("koopman-nmpc"), Calibratable)
+    assert isinstance(controllers.make("nominal-nmpc-robust"), Calibratable)
+    assert not isinstance(controllers.make("consensus"), Calibratable) and calibratable(controllers.make("consensus")) is None
+    wrapped = controllers.make("safe:koopman-nmpc")
+    assert not isinstance(wrapped, Calibratable) and calibratable(wrapped) is wrapped.inner

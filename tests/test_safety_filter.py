@@ -247,8 +247,10 @@ def test_names_options_and_calibration_through_the_registry() -> None:
     ctrl = controllers.make("safe:nominal-nmpc-robust", horizon=10, safety_gamma=1.5, safety_margin=0.1)
     assert isinstance(ctrl, SafetyFilter) and ctrl.name == "safe:nominal-nmpc-robust"
     assert ctrl.inner.config.horizon == 10 and ctrl.options.gamma == 1.5 and ctrl.options.margin == 0.1
-    assert callable(getattr(ctrl, "calibrate", None))  # the inner NMPC calibrates: passed through
-    assert getattr(controllers.make("safe:consensus"), "calibrate", None) is None
+    from controllers.base import calibratable
+
+    assert calibratable(ctrl) is ctrl.inner  # the inner NMPC calibrates, found down .inner
+    assert calibratable(controllers.make("safe:consensus")) is None
     with pytest.raises(ValueError, match=r"controller 'mpc' is not one of \[.*'consensus'.*\]"):
         controllers.make("safe:mpc")
     with pytest.raises(ValueError, match=r"option safety_gamma=20 is out of range"):
