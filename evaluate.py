@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import sys
 import threading
@@ -40,10 +41,11 @@ import controllers
 from evaluation.ablation import ablation_markdown, check_factors
 from evaluation.aggregate import Cell
 from evaluation.backends import RunInterrupted
+from evaluation.baseline import GateOptions, compare_runs, comparison_markdown, gate_failures, load_baseline, refuse_incomparable
 from evaluation.configs import controller_configs, split_controller_list, with_solver
 from evaluation.plan import EpisodeSpec
 from evaluation.protocols import QUICK_START_NOISE, TASK_MAPS, ablation_protocol, paper_protocol, quick_protocol
-from evaluation.results import SCHEMA_VERSION, Results
+from evaluation.results import SCHEMA_VERSION, Results, json_safe
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.thresholds import check_thresholds
 from controllers.nmpc import SOLVERS
@@ -54,6 +56,7 @@ __all__ = ["Cell", "EpisodeSpec", "Results", "RunInterrupted", "SCHEMA_VERSION",
            "main", "paper_protocol", "quick_protocol", "usable_controllers"]  # fmt: skip
 
 FAILED_CHECK_EXIT = 101
+FAILED_GATE_EXIT = 102  # --fail-if-worse: a controller significantly worse than the baseline
 INTERRUPTED_EXIT = 130  # the shell's code for a run stopped by Ctrl-C (128 + SIGINT)
 
 
@@ -117,6 +120,7 @@ EXIT_CODES = (
     ("1-100", "that many episodes raised (capped at 100); the others' results are written"),
     ("2", "bad input (named on stderr) before any episode ran"),
     (str(FAILED_CHECK_EXIT), "a --check threshold failed"),
+    (str(FAILED_GATE_EXIT), "--fail-if-worse: a controller is significantly worse than the --baseline"),
     (str(INTERRUPTED_EXIT), "interrupted (Ctrl-C or SIGTERM); continue with --resume"),
 )
 
@@ -201,6 +205,21 @@ def _parser() -> argparse.ArgumentParser:
     ci = parser.add_argument_group("CI")
     ci.add_argument("--check", metavar="THRESHOLDS",
                     help=f"TOML thresholds; exit {FAILED_CHECK_EXIT} if a cell falls below (default: no check)")
+    ci.add_argument("--baseline", metavar="BASE",
+                    help="results.json (or run directory) of an earlier run: pair every episode with its episode "
+                         "of the same env, controller, map, slip and seed and report the differences (default: none)")
+    ci.add_argument("--fail-if-worse", action="store_true",
+                    help=f"with --baseline: exit {FAILED_GATE_EXIT} when a controller's success drops by more than "
+                         "--delta with McNemar p < --alpha, or its final distance grows by more than --delta-cm "
+                         "with a bootstrap interval above 0")  # fmt: skip
+    defaults = GateOptions()
+    ci.add_argument("--alpha", type=float, default=defaults.alpha,
+                    help=f"significance level of the gate, in (0, 1) (default {defaults.alpha})")
+    ci.add_argument("--delta", type=float, default=defaults.delta,
+                    help=f"success-rate drop the gate cares about, >= 0 (default {defaults.delta}: "
+                         f"{100 * defaults.delta:.0f} points)")  # fmt: skip
+    ci.add_argument("--delta-cm", type=float, default=defaults.delta_cm,
+                    help=f"final-distance increase the gate cares about [cm], >= 0 (default {defaults.delta_cm})")
     return parser
 
 
@@ -233,6 +252,17 @@ def main(argv: list[str] | None = None) -> int:
         if solver is not None:
             configs = with_solver(controller_configs(usable_controllers(not args.quiet) if configs is None else configs),
                                   solver)  # fmt: skip
+        baseline = load_baseline(args.baseline) if args.baseline else None
+        gate = GateOptions(args.alpha, args.delta, args.delta_cm)
+        if args.fail_if_worse and baseline is None:
+            raise ValueError("--fail-if-worse needs --baseline BASE (an earlier run's results.json or directory)")
+        config_check = None
+        if baseline is not None:
+            import koopman_envs
+
+            def config_check(config: dict[str, Any]) -> None:
+                refuse_incomparable(config, koopman_envs.__version__, baseline)
+
         start = time.perf_counter()
         results = evaluate(
             env_ids,
@@ -254,6 +284,7 @@ def main(argv: list[str] | None = None) -> int:
             env_kwargs=parse_env_kwargs(args.env_kwargs),
             random_maps=args.random_maps,
             gifs=args.gifs,
+            config_check=config_check,
         )
         wall = time.perf_counter() - start
         results.config["wall_seconds"] = wall
@@ -267,6 +298,14 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.ablation_out).write_text(report, encoding="utf-8")
             paths["ablation"] = Path(args.ablation_out)
         problems = check_thresholds(results, args.check) if args.check else []
+        comparison_text, worse = "", []
+        if baseline is not None:
+            comparison = compare_runs(results.records, baseline["episodes"])
+            comparison_text = comparison_markdown(comparison, args.baseline)
+            Path(args.out, "baseline_comparison.md").write_text(comparison_text + "\n", encoding="utf-8")
+            Path(args.out, "baseline_comparison.json").write_text(json.dumps(json_safe(comparison), indent=1) + "\n",
+                                                                  encoding="utf-8")  # fmt: skip
+            worse = gate_failures(comparison, gate) if args.fail_if_worse else []
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -276,6 +315,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n{exc}; continue with: {again}", file=sys.stderr)
         return INTERRUPTED_EXIT
     print(results.to_markdown() if args.full_report else results.terminal_summary(paths))
+    if comparison_text:
+        print("\n" + comparison_text)
+    summary_file = os.environ.get("GITHUB_STEP_SUMMARY")
+    if summary_file:  # a GitHub Actions job summary: appended, never overwritten
+        with open(summary_file, "a", encoding="utf-8") as handle:
+            handle.write("## KoopNav leaderboard\n\n" + results.leaderboard_table() + "\n\n"
+                         + (comparison_text + "\n\n" if comparison_text else ""))  # fmt: skip
     print(f"\n{len(results.records)} episodes in {wall:.1f} s; wrote {', '.join(str(p) for p in paths.values())} "
           f"and {Path(args.out) / 'figures'}/")  # fmt: skip
     failed = results.failed_episodes
@@ -284,6 +330,11 @@ def main(argv: list[str] | None = None) -> int:
     if problems:
         print("threshold check failed:\n" + "\n".join(f"  - {p}" for p in problems), file=sys.stderr)
         return FAILED_CHECK_EXIT
+    if worse:
+        print("worse than the baseline:\n" + "\n".join(f"  - {w}" for w in worse), file=sys.stderr)
+        return FAILED_GATE_EXIT
+    if args.fail_if_worse:
+        print(f"baseline gate passed ({args.baseline}: no significant loss at alpha {args.alpha})")
     if args.check:
         print(f"threshold check passed ({args.check})")
     return min(len(failed), 100)

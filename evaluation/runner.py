@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 import sys
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import controllers as registry
 from evaluation.backends import BACKENDS, Progress, RunInterrupted, run_episodes
@@ -80,6 +80,7 @@ def evaluate(
     env_kwargs: Mapping[str, Any] | None = None,
     random_maps: int | None = None,
     gifs: bool = False,
+    config_check: Callable[[dict[str, Any]], None] | None = None,
 ) -> Results:
     """Run every controller configuration on every (env, map, slip) cell.
 
@@ -134,6 +135,10 @@ def evaluate(
         the same layouts for every controller).
     gifs : bool
         Record trial 0 of every cell as ``OUT/animations/*.gif`` (needs ``out``).
+    config_check : callable, optional
+        Called with the run's configuration (what results.json records under ``config``)
+        before any episode; raising ``ValueError`` stops the run there (``--baseline`` refuses
+        a baseline of other settings this way).
 
     Returns
     -------
@@ -172,6 +177,8 @@ def evaluate(
     }  # fmt: skip
     plan = plan_episodes(env_ids, configs, map_table, slips, episodes, seed, settings, calibration_budget,
                          calibration_seed, random_maps, gifs, os.fspath(out) if out is not None else "")  # fmt: skip
+    if config_check is not None:
+        config_check(config)
     log_file, done = open_log(out, config, resume) if out is not None else (None, {})
     todo = sorted((spec for spec in plan if spec.key not in done),
                   key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2))  # fmt: skip

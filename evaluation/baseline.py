@@ -1,0 +1,204 @@
+"""Compare a run with an earlier one (``--baseline``) and gate on a significant loss (``--fail-if-worse``).
+
+Every episode of the run is paired with the baseline's episode of the same env, controller label,
+map, slip and seed (the seeds depend only on the base seed and an episode's index in its cell,
+so two runs of the same protocol share them). Per task and controller the comparison gives both
+success rates, the paired difference (run minus baseline) with Newcombe's 95% interval and the
+exact McNemar p-value, and the mean paired difference of the team's final distance [cm] with a
+bootstrap interval. Cells or controllers on one side only are listed, never dropped silently.
+
+A baseline whose settings differ in anything that changes outcomes (env settings, calibration,
+map files, the package version that holds the dynamics) is refused with the differing keys
+named, as ``--resume`` refuses a log of another run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evaluation.statistics import bootstrap_mean_interval, paired_comparison
+
+__all__ = ["GateOptions", "compare_runs", "comparison_markdown", "gate_failures", "load_baseline", "refuse_incomparable"]
+
+#: schema versions of results.json this module reads
+READABLE_SCHEMAS = (2,)
+
+#: config keys whose difference changes outcomes: a baseline must match them
+OUTCOME_KEYS = ("env_settings", "calibration", "map_files", "random_maps")
+
+
+def load_baseline(path: str | Path) -> dict[str, Any]:
+    """The results document of ``path`` (a results.json, or a run directory holding one).
+
+    Raises ``ValueError`` naming the file when it is missing, not JSON, not a KoopNav results
+    document, or of a schema version this package cannot read.
+    """
+    path = Path(path)
+    file = path / "results.json" if path.is_dir() else path
+    try:
+        text = file.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"baseline {str(file)!r} cannot be read ({exc.strerror or exc})") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"baseline {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
+    if not isinstance(doc, dict) or not {"schema_version", "config", "episodes"} <= set(doc):
+        raise ValueError(f"baseline {str(file)!r} is not a KoopNav results document (no schema_version, config, "
+                         "episodes)")  # fmt: skip
+    if doc["schema_version"] not in READABLE_SCHEMAS:
+        raise ValueError(f"baseline {str(file)!r} has schema_version={doc['schema_version']!r}; this version reads "
+                         f"{list(READABLE_SCHEMAS)}")  # fmt: skip
+    return doc
+
+
+def refuse_incomparable(config: dict[str, Any], package_version: str, baseline: dict[str, Any]) -> None:
+    """Raise ``ValueError`` naming every outcome-changing setting in which the run and the baseline differ."""
+    theirs = baseline["config"]
+    differing = [key for key in OUTCOME_KEYS if json.dumps(config.get(key), sort_keys=True, default=str)
+                 != json.dumps(theirs.get(key), sort_keys=True, default=str)]  # fmt: skip
+    if baseline.get("package_version") != package_version:
+        differing.append("package_version")
+    if differing:
+        details = "; ".join(
+            f"{key}: baseline {baseline.get(key) if key == 'package_version' else theirs.get(key)!r}, "
+            f"now {package_version if key == 'package_version' else config.get(key)!r}"
+            for key in differing
+        )
+        raise ValueError(f"the baseline was run with other settings ({details}); its episodes cannot be paired "
+                         "with these")  # fmt: skip
+
+
+def _outcomes(records: list[dict[str, Any]]) -> dict[tuple[str, str], dict[tuple, dict[str, Any]]]:
+    table: dict[tuple[str, str], dict[tuple, dict[str, Any]]] = {}
+    for r in records:
+        if r.get("status") == "ok":
+            table.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = r
+    return table
+
+
+def _team_cm(record: dict[str, Any]) -> float:
+    return 100.0 * float(np.mean(record["final_distance"]))
+
+
+def compare_runs(records: list[dict[str, Any]], baseline_records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Paired comparison of a run's episode records with a baseline's.
+
+    Returns
+    -------
+    dict
+        ``rows``: one per (env id, controller) present on both sides, with ``n`` pairs, the
+        :class:`~evaluation.statistics.PairedComparison` fields (``a`` = this run, ``b`` = the
+        baseline), ``distance_cm_difference`` (mean of run minus baseline team final distance
+        [cm] over the pairs) and its bootstrap ``distance_cm_low`` / ``distance_cm_high``;
+        ``only_run`` / ``only_baseline``: ``[env id, controller, map, slip]`` cells without a
+        partner on the other side.
+    """
+    mine, theirs = _outcomes(records), _outcomes(baseline_records)
+    rows = []
+    for key in sorted(set(mine) & set(theirs)):
+        shared = sorted(set(mine[key]) & set(theirs[key]))
+        if not shared:
+            continue
+        pair = paired_comparison([bool(mine[key][k]["success"]) for k in shared],
+                                 [bool(theirs[key][k]["success"]) for k in shared])  # fmt: skip
+        differences = [_team_cm(mine[key][k]) - _team_cm(theirs[key][k]) for k in shared]
+        low, high = bootstrap_mean_interval(differences)
+        rows.append({"env_id": key[0], "controller": key[1], **pair.to_dict(),
+                     "distance_cm_difference": float(np.mean(differences)), "distance_cm_low": low,
+                     "distance_cm_high": high})  # fmt: skip
+
+    def cells(table: dict, other: dict) -> list[list[str]]:
+        out = set()
+        for key, episodes in table.items():
+            for map_name, slip, seed in episodes:
+                if (map_name, slip, seed) not in other.get(key, {}):
+                    out.add((key[0], key[1], map_name, slip))
+        return [list(c) for c in sorted(out)]
+
+    return {"rows": rows, "only_run": cells(mine, theirs), "only_baseline": cells(theirs, mine)}
+
+
+@dataclass(frozen=True)
+class GateOptions:
+    """When ``--fail-if-worse`` fails a run.
+
+    Attributes
+    ----------
+    alpha : float
+        Significance level of McNemar's test, 0 < alpha < 1 (default 0.05).
+    delta : float
+        Success-rate drop that matters, >= 0 (default 0.10 = 10 points): a drop fails when it
+        is larger than ``delta`` and significant (McNemar p < ``alpha``).
+    delta_cm : float
+        Final-distance increase that matters [cm], >= 0 (default 1.0): fails when the mean
+        paired increase exceeds it and its interval lies above 0.
+    """
+
+    alpha: float = 0.05
+    delta: float = 0.10
+    delta_cm: float = 1.0
+
+    def __post_init__(self) -> None:
+        a = self.alpha
+        if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0.0 < a < 1.0:
+            raise ValueError(f"alpha={a!r} must lie in (0, 1)")
+        for name in ("delta", "delta_cm"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name}={value!r} must be a finite number >= 0")
+
+
+def gate_failures(comparison: dict[str, Any], options: GateOptions) -> list[str]:
+    """Controllers significantly worse than the baseline (empty list = pass).
+
+    Success: the drop is significant (McNemar p < ``alpha``) and larger than ``delta``.
+    Final distance: the mean paired increase is larger than ``delta_cm`` and its interval lies
+    above 0.
+    """
+    failures = []
+    for r in comparison["rows"]:
+        where = f"{r['controller']} on {r['env_id']} ({r['n']} paired episodes)"
+        if r["difference"] < -options.delta and r["p_value"] < options.alpha:
+            failures.append(f"{where}: success {100 * r['rate_b']:.0f}% -> {100 * r['rate_a']:.0f}%, "
+                            f"{100 * r['difference']:+.0f} points [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}], "
+                            f"McNemar p = {r['p_value']:.3g}")  # fmt: skip
+        increase = r["distance_cm_difference"]
+        if increase > options.delta_cm and r["distance_cm_low"] > 0:
+            failures.append(f"{where}: final distance {increase:+.2f} cm [{r['distance_cm_low']:+.2f}, "
+                            f"{r['distance_cm_high']:+.2f}]")  # fmt: skip
+    return failures
+
+
+def comparison_markdown(comparison: dict[str, Any], baseline_label: str) -> str:
+    """The comparison as a Markdown section (table, then the one-sided cells)."""
+    lines = [
+        f"## Compared with the baseline ({baseline_label})",
+        "",
+        "Run minus baseline on the episodes both ran (same env, controller, map, slip and seed): success with "
+        "Newcombe's 95% interval and the exact McNemar p-value; team final distance with a 95% bootstrap interval.",
+        "",
+        "| Task | Controller | Pairs | Success baseline | Success run | Run - baseline [95% CI] | only run / only "
+        "baseline | McNemar p | Final distance, run - baseline [cm] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in comparison["rows"]:
+        task = "formation" if "Formation" in r["env_id"] else "target reaching"
+        p = "<0.001" if r["p_value"] < 0.001 else f"{r['p_value']:.3f}"
+        lines.append(
+            f"| {task} | {r['controller']} | {r['n']} | {100 * r['rate_b']:.0f}% | {100 * r['rate_a']:.0f}% | "
+            f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}] | {r['only_a']} / "
+            f"{r['only_b']} | {p} | {r['distance_cm_difference']:+.2f} [{r['distance_cm_low']:+.2f}, "
+            f"{r['distance_cm_high']:+.2f}] |"
+        )
+    for side, label in (("only_run", "in this run only"), ("only_baseline", "in the baseline only")):
+        if comparison[side]:
+            lines += ["", f"Cells {label} (not compared): "
+                      + ", ".join(f"{c[1]} {c[2]} {c[3]} ({c[0]})" for c in comparison[side])]  # fmt: skip
+    return "\n".join(lines)
