@@ -205,6 +205,9 @@ def _parser() -> argparse.ArgumentParser:
     ci = parser.add_argument_group("CI")
     ci.add_argument("--check", metavar="THRESHOLDS",
                     help=f"TOML thresholds; exit {FAILED_CHECK_EXIT} if a cell falls below (default: no check)")
+    ci.add_argument("--strict", action="store_true",
+                    help="with --check: a rule whose controller cannot be built here (an optional extra not "
+                         "installed) fails instead of being skipped")  # fmt: skip
     ci.add_argument("--baseline", metavar="BASE",
                     help="results.json (or run directory) of an earlier run: pair every episode with its episode "
                          "of the same env, controller, map, slip and seed and report the differences (default: none)")
@@ -297,7 +300,8 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.ablation_out).parent.mkdir(parents=True, exist_ok=True)
             Path(args.ablation_out).write_text(report, encoding="utf-8")
             paths["ablation"] = Path(args.ablation_out)
-        problems = check_thresholds(results, args.check) if args.check else []
+        threshold_check = check_thresholds(results, args.check, strict=args.strict) if args.check else None
+        problems = threshold_check.problems if threshold_check else []
         comparison_text, worse = "", []
         if baseline is not None:
             comparison = compare_runs(results.records, baseline["episodes"])
@@ -335,8 +339,10 @@ def main(argv: list[str] | None = None) -> int:
         return FAILED_GATE_EXIT
     if args.fail_if_worse:
         print(f"baseline gate passed ({args.baseline}: no significant loss at alpha {args.alpha})")
-    if args.check:
-        print(f"threshold check passed ({args.check})")
+    if threshold_check is not None:
+        for line in threshold_check.skipped:
+            print(f"threshold rule {line}", file=sys.stderr)
+        print(f"threshold check passed ({args.check}, floors read as {threshold_check.reading})")
     return min(len(failed), 100)
 
 

@@ -123,10 +123,10 @@ def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
     passing = tmp_path / "ok.toml"
     passing.write_text('[[cell]]\ncontroller = "nominal-nmpc"\nslip = "nominal"\nmin_success_rate = 0.5\n'
                        'max_final_distance_cm = 10.0\n')  # fmt: skip
-    assert ev.check_thresholds(small_results, passing) == []
+    assert ev.check_thresholds(small_results, passing).problems == []
     failing = tmp_path / "bad.toml"
-    failing.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
-    problems = ev.check_thresholds(small_results, failing)
+    failing.write_text('reading = "point"\n[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
+    problems = ev.check_thresholds(small_results, failing).problems
     assert len(problems) == 2 and all("consensus / map1" in p and "< 1.01" in p for p in problems)
     with pytest.raises(ValueError, match="cannot be read"):
         ev.check_thresholds(small_results, tmp_path / "missing.toml")
