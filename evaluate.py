@@ -41,6 +41,8 @@ import controllers
 from evaluation.ablation import ablation_markdown, check_factors
 from evaluation.aggregate import Cell
 from evaluation.backends import RunInterrupted
+from evaluation.badge import write_badge
+from koopman_envs.suggest import did_you_mean
 from evaluation.baseline import GateOptions, compare_runs, comparison_markdown, gate_failures, load_baseline, refuse_incomparable
 from evaluation.configs import controller_configs, split_controller_list, with_solver
 from evaluation.plan import EpisodeSpec
@@ -195,6 +197,9 @@ def _parser() -> argparse.ArgumentParser:
     output.add_argument("--ablation-out", default=str(Path(__file__).parent / "docs" / "ablation.md"),
                         help="where --ablation writes its report (default: docs/ablation.md)")
     output.add_argument("--quiet", action="store_true", help="no progress bar")
+    output.add_argument("--badge", metavar="CONTROLLER",
+                        help="write OUT/badge.svg: CONTROLLER's success rate over the run with its 95%% interval, "
+                             "for a README (default: no badge)")  # fmt: skip
 
     run = parser.add_argument_group("execution")
     run.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")
@@ -259,12 +264,15 @@ def main(argv: list[str] | None = None) -> int:
         gate = GateOptions(args.alpha, args.delta, args.delta_cm)
         if args.fail_if_worse and baseline is None:
             raise ValueError("--fail-if-worse needs --baseline BASE (an earlier run's results.json or directory)")
-        config_check = None
-        if baseline is not None:
+        def config_check(config: dict[str, Any]) -> None:
+            """What needs the run's configuration, checked before any episode."""
             import koopman_envs
 
-            def config_check(config: dict[str, Any]) -> None:
+            if baseline is not None:
                 refuse_incomparable(config, koopman_envs.__version__, baseline)
+            if args.badge and args.badge not in config["controllers"]:
+                raise ValueError(f"--badge {args.badge!r} is not a controller of this run; it runs "
+                                 f"{config['controllers']}{did_you_mean(args.badge, config['controllers'])}")  # fmt: skip
 
         start = time.perf_counter()
         results = evaluate(
@@ -292,6 +300,8 @@ def main(argv: list[str] | None = None) -> int:
         wall = time.perf_counter() - start
         results.config["wall_seconds"] = wall
         paths = results.write(args.out)
+        if args.badge:
+            paths["badge"] = write_badge(results, args.badge, Path(args.out) / "badge.svg")
         if args.ablation is not None:
             command = "python evaluate.py --ablation " + " ".join(args.ablation) if args.ablation else ""
             command = (command or "python evaluate.py --ablation") + (f" --episodes {args.episodes}" if args.episodes else "")

@@ -119,3 +119,20 @@ def test_the_github_step_summary_is_appended(base, tmp_path, monkeypatch) -> Non
     assert ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path / "run"), "--baseline", str(base)]) == 0
     text = summary.read_text()
     assert text.startswith("earlier step\n") and "## KoopNav leaderboard" in text and "Compared with the baseline" in text
+
+
+def test_the_badge_is_valid_svg_with_the_rate_and_its_interval(base, tmp_path) -> None:
+    import xml.etree.ElementTree as ET
+
+    assert ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--badge", "nmpc"]) == 0
+    root = ET.fromstring((tmp_path / "badge.svg").read_text())
+    assert root.tag == "{http://www.w3.org/2000/svg}svg"
+    texts = [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
+    assert texts == ["nmpc success", "100% [68-100], n=8"]
+
+
+def test_a_badge_of_a_controller_not_in_the_run_is_refused_first(tmp_path, capsys) -> None:
+    assert ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--badge", "nmcp"]) == 2
+    assert "--badge 'nmcp' is not a controller of this run; it runs ['nmpc'] (did you mean 'nmpc'?)" in (
+        capsys.readouterr().err)
+    assert not (tmp_path / "episodes.jsonl").exists()
