@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
+from koopman_envs.tasks.base import TASKS
 
 __all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir", "success_rate"]
 
@@ -20,7 +21,7 @@ REGENERATE = (
     "python -m baselines.train --env {env_id} --algo {algo} --out runs/{task}` then "
     "`python -m baselines.select --run runs/{task} --out baselines/policies/{task}"
 )
-TASK_ENV = {"target_reaching": "KoopNav-TargetReaching-v0", "formation": "KoopNav-Formation-v0"}
+TASK_ENV = {name: spec.env_id for name, spec in TASKS.items()}  # the task table's ids
 
 
 def policy_dir(task: str, root: str | os.PathLike | None = None) -> Path:

@@ -30,7 +30,7 @@ from baselines.policy import PolicyFiles, success_rate
 from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv
 from koopman_envs.tasks.base import TASKS
 
-TASK_OF = {"KoopNav-TargetReaching-v0": "target_reaching", "KoopNav-Formation-v0": "formation"}
+TASK_OF = {spec.env_id: name for name, spec in TASKS.items()}  # the task table's names
 # training layouts (map="random"): target reaching also sees crossing paths and Map 2's obstacle
 # count, so that the policy meets both evaluation maps' situations in training
 TRAIN_MAPS = {

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.results import task_label
 from evaluation.statistics import paired_comparison
 
 #: the rule of the default solver: no significant loss, and the interval's lower end above this
@@ -80,7 +81,7 @@ def markdown(rows: list[dict[str, Any]], a: str, b: str) -> str:
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        task = "formation" if "Formation" in r["env_id"] else "target reaching"
+        task = task_label(r["env_id"])
         cells = ", ".join(f"{m} {s}" for m, s in r["cells"]) if len(r["cells"]) <= 6 else f"{len(r['cells'])} cells"
         p = "<0.001" if r["p_value"] < 0.001 else f"{r['p_value']:.3f}"
         lines.append(

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.results import task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
 __all__ = ["GateOptions", "compare_runs", "comparison_markdown", "gate_failures", "load_baseline", "refuse_incomparable"]
@@ -189,7 +190,7 @@ def comparison_markdown(comparison: dict[str, Any], baseline_label: str) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in comparison["rows"]:
-        task = "formation" if "Formation" in r["env_id"] else "target reaching"
+        task = task_label(r["env_id"])
         p = "<0.001" if r["p_value"] < 0.001 else f"{r['p_value']:.3f}"
         lines.append(
             f"| {task} | {r['controller']} | {r['n']} | {100 * r['rate_b']:.0f}% | {100 * r['rate_a']:.0f}% | "
