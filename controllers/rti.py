@@ -161,7 +161,7 @@ class RealTimeIteration:
             horizon = problem.horizon
             options.update({"N": horizon, "nx": [problem.nx] * (horizon + 1), "nu": [problem.nu + problem.ns] * horizon + [0],
                             # rows besides the dynamics gaps (which lead every stage but the last)
-                            "ng": [rows - problem.nx for rows in problem.stage_rows[:-1]] + problem.stage_rows[-1:]})
+                            "ng": [count - problem.nx for count in problem.stage_rows[:-1]] + problem.stage_rows[-1:]})
         self._qp = ca.conic("rti_qp", qp_solver, structure, options)
         self._slack_index = np.concatenate(
             [np.arange(t * stage + problem.nx + problem.nu, (t + 1) * stage) for t in range(problem.horizon)]

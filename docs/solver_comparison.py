@@ -14,7 +14,8 @@ difference ``a - b`` on the episodes both solvers ran (same map, slip and seed) 
 95% interval, the discordant pairs, the exact McNemar p-value and both median decision times
 (median over the paired episodes of each episode's median), then the
 verdict of the rule that picks the default solver: ``a`` may replace ``b`` when no task loses
-significantly (p < 0.05) and the interval's lower end is above -5 points.
+significantly (p < 0.05) and the interval's lower end is above -5 points. Then the successes of
+every cell for both solvers (a later file's episodes replace the same label's, cell's and seed's).
 """
 
 from __future__ import annotations
@@ -67,6 +68,29 @@ def comparison_rows(documents: list[dict[str, Any]], a: str, b: str) -> list[dic
     return sorted(rows, key=lambda r: (r["env_id"], r["controller"]))
 
 
+def per_cell_markdown(documents: list[dict[str, Any]], a: str, b: str) -> str:
+    """Successes per (task, map, slip) cell and controller for both solvers, e.g. ``9/10``."""
+    counts: dict[tuple, list[int]] = {}
+    for doc in documents:
+        latest = {}
+        for r in doc["episodes"]:
+            if r.get("status") == "ok" and "@" in r["controller"]:
+                latest[(r["env_id"], r["map"], r["slip"], r["controller"], r["seed"])] = bool(r["success"])
+        for key, success in latest.items():
+            counts.setdefault(key[:4], {})[key[4]] = success
+    bases = sorted({k[3].rsplit("@", 1)[0] for k in counts})
+    header = "| Task | Map | Slip | " + " | ".join(f"{c} {s}" for c in bases for s in (b, a)) + " |"
+    lines = [header, "|" + "---|" * (3 + 2 * len(bases))]
+    for env_id, map_name, slip in sorted({k[:3] for k in counts}, key=lambda k: (task_label(k[0]), k[1], k[2])):
+        cells = []
+        for c in bases:
+            for solver in (b, a):
+                seeds = counts.get((env_id, map_name, slip, f"{c}@{solver}"), {})
+                cells.append(f"{sum(seeds.values())}/{len(seeds)}" if seeds else "-")
+        lines.append(f"| {task_label(env_id)} | {map_name} | {slip} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def loses(row: dict[str, Any]) -> bool:
     """Whether ``a`` fails the default rule on this row."""
     significant_loss = row["difference"] < 0 and row["p_value"] < ALPHA
@@ -106,6 +130,8 @@ def main() -> None:
     if not rows:
         raise SystemExit(f"no controller ran as both <name>@{args.a} and <name>@{args.b} in {args.results}")
     print(markdown(rows, args.a, args.b))
+    print()
+    print(per_cell_markdown(documents, args.a, args.b))
 
 
 if __name__ == "__main__":

@@ -136,3 +136,21 @@ def test_a_badge_of_a_controller_not_in_the_run_is_refused_first(tmp_path, capsy
     assert "--badge 'nmcp' is not a controller of this run; it runs ['nmpc'] (did you mean 'nmpc'?)" in (
         capsys.readouterr().err)
     assert not (tmp_path / "episodes.jsonl").exists()
+
+
+def test_the_solver_comparison_page_pairs_across_files_and_counts_cells() -> None:
+    """docs/solver_comparison.py: a later file's episodes replace an earlier one's (a rerun arm)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("solver_comparison", Path(ev.__file__).parent / "docs" / "solver_comparison.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    for_doc = [_record(s, True, controller="c@ipopt") for s in range(6)] + [_record(s, True, controller="c@rti") for s in range(6)]
+    rerun = [_record(s, False, controller="c@rti") for s in range(6)]
+    for r in for_doc + rerun:
+        r["solve_ms_median"] = 1.0
+    documents = [{"episodes": for_doc}, {"episodes": rerun}]
+    (row,) = module.comparison_rows(documents, "rti", "ipopt")
+    assert row["n"] == 6 and row["only_b"] == 6 and row["p_value"] == pytest.approx(0.03125) and module.loses(row)
+    table = module.per_cell_markdown(documents, "rti", "ipopt")
+    assert "| target reaching | map1 | nominal | 6/6 | 0/6 |" in table
