@@ -6,13 +6,13 @@ the real-time iteration), prints a compact leaderboard and writes the full repor
 JSON, CSV, HTML, figures) to ``results/``. ``python evaluate.py --paper`` runs the paper's
 protocol (SPEC section 5: 10 trials per cell) and prints tables 1-5. From Python::
 
-    from evaluate import evaluate
-    results = evaluate("KoopNav-Formation-v0", ["koopman-nmpc", "consensus"], maps=["map3"],
-                       slips=["nominal", "high"], episodes=5, seed=0)
-    print(results.to_markdown())
+    from evaluation import RunSpec, evaluate
+    spec = RunSpec(envs="KoopNav-Formation-v0", controllers=["koopman-nmpc", "consensus"], maps=["map3"],
+                   slips=["nominal", "high"], episodes=5, seed=0)
+    print(evaluate(spec).to_markdown())
 
 This file is the command line; the work is done by the ``evaluation`` package, one job per
-module: ``plan`` (the episodes and their checks), ``worker`` (one episode), ``backends``
+module: ``spec`` (``RunSpec``: the run, its checks and its episodes), ``plan`` (one episode), ``worker`` (one episode), ``backends``
 (process pool, Ray, progress, Ctrl-C), ``runlog`` (the resumable log), ``runner``
 (``evaluate``), ``aggregate`` and ``statistics`` (cells, intervals, paired comparisons),
 ``results`` and ``html`` (reports, figures, the leaderboard page), ``protocols``,
@@ -44,17 +44,17 @@ from evaluation.backends import RunInterrupted
 from evaluation.badge import write_badge
 from koopman_envs.suggest import did_you_mean
 from evaluation.baseline import GateOptions, compare_runs, comparison_markdown, gate_failures, load_baseline, refuse_incomparable
-from evaluation.configs import controller_configs, split_controller_list, with_solver
+from evaluation.configs import split_controller_list
 from evaluation.plan import EpisodeSpec
 from evaluation.protocols import QUICK_START_NOISE, TASK_MAPS, ablation_protocol, paper_protocol, quick_protocol
+from evaluation.spec import RunSpec
 from evaluation.results import SCHEMA_VERSION, Results, json_safe
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.thresholds import check_thresholds
 from controllers.nmpc import SOLVERS
-from koopman_envs.params import PARAMS, SLIP_SETTINGS
-from koopman_envs.sim.maps import BUILTIN_MAPS
+from koopman_envs.params import PARAMS
 
-__all__ = ["Cell", "EpisodeSpec", "Results", "RunInterrupted", "SCHEMA_VERSION", "check_thresholds", "evaluate",
+__all__ = ["Cell", "EpisodeSpec", "Results", "RunInterrupted", "RunSpec", "SCHEMA_VERSION", "check_thresholds", "evaluate",
            "main", "paper_protocol", "quick_protocol", "usable_controllers"]  # fmt: skip
 
 FAILED_CHECK_EXIT = 101
@@ -162,9 +162,9 @@ def _parser() -> argparse.ArgumentParser:
                                "paper maps under high slip; writes --ablation-out")  # fmt: skip
 
     env = parser.add_argument_group("env settings")
-    env.add_argument("--tolerance", type=float, default=PARAMS.goal_tolerance, metavar="M",
+    env.add_argument("--tolerance", type=float, metavar="M",
                      help=f"goal tolerance [m] (default {PARAMS.goal_tolerance})")
-    env.add_argument("--max-episode-steps", type=int, default=PARAMS.max_episode_steps, metavar="T",
+    env.add_argument("--max-episode-steps", type=int, metavar="T",
                      help=f"time limit [control periods] (default {PARAMS.max_episode_steps})")
     env.add_argument("--start-noise", type=float, metavar="R",
                      help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE}; 0 with --paper and "
@@ -237,29 +237,46 @@ def _stop_on_sigterm(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
+def _spec_from_args(args: argparse.Namespace) -> RunSpec:
+    """The run the command line asks for: a protocol preset with the given options replacing its fields."""
+    if args.ablation is not None:
+        spec = ablation_protocol(check_factors(args.ablation))
+    elif args.paper or args.paper_strict:
+        spec = paper_protocol(strict=args.paper_strict)
+    else:
+        spec = quick_protocol()
+    changes: dict[str, Any] = {}
+    if args.env:
+        changes["envs"] = split_words(args.env)
+    if args.maps:
+        changes["maps"] = split_words(args.maps)
+    if args.controllers:
+        # a protocol's solver goes with its own controller list; controllers named on the command
+        # line keep their own defaults unless --solver says otherwise
+        changes.update(controllers=split_controller_list(args.controllers), solver=None)
+    if args.solver:
+        changes["solver"] = args.solver
+    if args.slips:
+        changes["slips"] = split_slips(args.slips)
+    if args.episodes is not None:
+        changes["episodes"] = args.episodes
+    # the env settings: the preset's, then the dedicated options, then --env-kwargs (which win)
+    env_kwargs = dict(spec.env_kwargs)
+    for option, keyword in (("tolerance", "goal_tolerance"), ("max_episode_steps", "max_episode_steps"),
+                            ("start_noise", "start_noise")):  # fmt: skip
+        if getattr(args, option) is not None:
+            env_kwargs[keyword] = getattr(args, option)
+    env_kwargs.update(parse_env_kwargs(args.env_kwargs))
+    return spec.replace(**changes, env_kwargs=env_kwargs, seed=args.seed, calibration_budget=args.calibration_budget,
+                        calibration_seed=args.calibration_seed, random_maps=args.random_maps, gifs=args.gifs)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _stop_on_sigterm)
     try:
-        if args.ablation is not None:
-            protocol = ablation_protocol(check_factors(args.ablation))
-        elif args.paper or args.paper_strict:
-            protocol = paper_protocol(strict=args.paper_strict)
-        else:
-            protocol = quick_protocol()
-        env_ids = split_words(args.env) or protocol["env_ids"]
-        if args.maps:
-            maps: dict[str, list[str]] = {e: split_words(args.maps) for e in env_ids}
-        else:
-            maps = {e: protocol["maps"].get(e, list(BUILTIN_MAPS)) for e in env_ids}
-        configs = split_controller_list(args.controllers) if args.controllers else protocol.get("controllers")
-        # a protocol's solver goes with its own controller list; controllers named on the command
-        # line keep their own defaults unless --solver says otherwise
-        solver = args.solver or (None if args.controllers else protocol.get("solver"))
-        if solver is not None:
-            configs = with_solver(controller_configs(usable_controllers(not args.quiet) if configs is None else configs),
-                                  solver)  # fmt: skip
+        spec = _spec_from_args(args)
         baseline = load_baseline(args.baseline) if args.baseline else None
         gate = GateOptions(args.alpha, args.delta, args.delta_cm)
         if args.fail_if_worse and baseline is None:
@@ -275,28 +292,8 @@ def main(argv: list[str] | None = None) -> int:
                                  f"{config['controllers']}{did_you_mean(args.badge, config['controllers'])}")  # fmt: skip
 
         start = time.perf_counter()
-        results = evaluate(
-            env_ids,
-            configs,
-            maps,
-            split_slips(args.slips) or protocol.get("slips") or list(SLIP_SETTINGS),
-            args.episodes or protocol["episodes"],
-            args.seed,
-            args.workers,
-            args.backend,
-            args.out,
-            args.resume,
-            args.tolerance,
-            args.max_episode_steps,
-            progress=not args.quiet,
-            calibration_budget=args.calibration_budget,
-            calibration_seed=args.calibration_seed,
-            start_noise=protocol.get("start_noise", 0.0) if args.start_noise is None else args.start_noise,
-            env_kwargs=parse_env_kwargs(args.env_kwargs),
-            random_maps=args.random_maps,
-            gifs=args.gifs,
-            config_check=config_check,
-        )
+        results = evaluate(spec, workers=args.workers, backend=args.backend, out=args.out, resume=args.resume,
+                           progress=not args.quiet, config_check=config_check)  # fmt: skip
         wall = time.perf_counter() - start
         results.config["wall_seconds"] = wall
         paths = results.write(args.out)

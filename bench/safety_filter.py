@@ -31,7 +31,7 @@ import numpy as np
 import controllers
 import koopman_envs  # noqa: F401  (registers the envs)
 from evaluation.configs import parse_controller, split_controller_list
-from evaluation.runner import evaluate
+from evaluation import RunSpec, evaluate
 from evaluation.statistics import wilson_interval
 from koopman_envs.episode import run_episode
 
@@ -69,7 +69,8 @@ def collision_table(names: list[str], filter_options: list[str], episodes: int, 
         config = parse_controller(text)
         configs[text] = (config.name, dict(config.options))
         configs[f"safe:{text}"] = (f"safe:{config.name}", {**dict(config.options), **dict(extra)})
-    results = evaluate(list(TASKS), configs, slips=["high"], episodes=episodes, workers=workers, progress=True)
+    # both tasks on their paper maps (RunSpec's defaults)
+    results = evaluate(RunSpec(controllers=configs, slips=["high"], episodes=episodes), workers=workers, progress=True)
     by_label: dict[str, list[dict[str, Any]]] = {}
     for rec in results.records:
         by_label.setdefault(rec["controller"], []).append(rec)

@@ -1,43 +1,52 @@
-"""Named protocols: the quick default leaderboard, the paper's (SPEC section 5), its strict
-variant and the ablation. Each is a dict of :func:`evaluation.runner.evaluate` arguments."""
+"""Named protocols, as :class:`~evaluation.spec.RunSpec` presets: the quick default leaderboard,
+the paper's (SPEC section 5), its strict variant and the ablation.
+
+A preset is a starting point: change any field with :meth:`RunSpec.replace`, e.g.
+``protocol("paper").replace(episodes=3)``.
+"""
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Callable, Sequence
 
 from evaluation.ablation import ablation_configs
 from evaluation.configs import ControllerConfig, parse_controller
-from koopman_envs.tasks.base import TASKS
+from evaluation.spec import TASK_MAPS, RunSpec
+from koopman_envs.params import SLIP_SETTINGS
+from koopman_envs.suggest import did_you_mean
 
-__all__ = ["QUICK_START_NOISE", "TASK_MAPS", "ablation_protocol", "paper_protocol", "quick_protocol"]
-
-TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
+__all__ = [
+    "PROTOCOLS",
+    "QUICK_SLIPS",
+    "QUICK_START_NOISE",
+    "TASK_MAPS",
+    "ablation_protocol",
+    "paper_protocol",
+    "protocol",
+    "quick_protocol",
+]
 
 #: ``start_noise`` of the default leaderboard (ours): starts moved within 5 cm and turned within
 #: 0.05 rad, so that trials differ even without slip (the paper protocol keeps the exact starts)
 QUICK_START_NOISE = 0.05
 
-
-def _paper_maps() -> dict[str, list[str]]:
-    return {e: list(m) for e, m in TASK_MAPS.items()}
-
-
 #: slip settings of the default leaderboard: the paper's hardest (the other two triple its cost)
 QUICK_SLIPS = ("high",)
 
 
-def quick_protocol() -> dict[str, Any]:
+def quick_protocol() -> RunSpec:
     """The default leaderboard: both tasks, their paper maps under high slip, 2 episodes per
     cell from perturbed starts (4 per controller and task), the NMPCs solved by the real-time
-    iteration (``--solver ipopt`` for the NMPCs' default, IPOPT): every registered controller
+    iteration (``solver="ipopt"`` for the NMPCs' default, IPOPT): every registered controller
     ranked in about a minute on 2 cores, with intervals as wide as 4 episodes make them."""
-    return {"env_ids": list(TASK_MAPS), "maps": _paper_maps(), "slips": list(QUICK_SLIPS), "episodes": 2,
-            "start_noise": QUICK_START_NOISE, "solver": "rti"}  # fmt: skip
+    return RunSpec(envs=tuple(TASK_MAPS), maps=TASK_MAPS, slips=QUICK_SLIPS, episodes=2,
+                   env_kwargs={"start_noise": QUICK_START_NOISE}, solver="rti")  # fmt: skip
 
 
-def paper_protocol(strict: bool = False) -> dict[str, Any]:
+def paper_protocol(strict: bool = False) -> RunSpec:
     """SPEC section 5: maps 1-2 (target reaching), 3-4 (formation), 3 slips, 10 trials per cell,
-    Koopman-NMPC, nominal NMPC and (formation) consensus with collision avoidance.
+    Koopman-NMPC, nominal NMPC and (formation) consensus with collision avoidance, solved by
+    the paper's solver (IPOPT, to convergence at every period).
 
     ``strict=True`` (``--paper-strict``) runs the NMPCs in the paper's exact formulation: hard
     collision and formation constraints and the paper's 0.015 m margins (our default softens the
@@ -49,13 +58,27 @@ def paper_protocol(strict: bool = False) -> dict[str, Any]:
         configs = [ControllerConfig(n, n, paper if n.endswith("nmpc") else ()) for n in names]
     else:
         configs = [parse_controller(n) for n in names]
-    # the paper's solver (IPOPT, solved to convergence at every period) keeps these the
-    # paper-fidelity tables; --solver overrides it
-    return {"env_ids": list(TASK_MAPS), "maps": _paper_maps(), "episodes": 10, "controllers": configs,
-            "solver": "ipopt"}  # fmt: skip
+    return RunSpec(envs=tuple(TASK_MAPS), maps=TASK_MAPS, slips=SLIP_SETTINGS, episodes=10, controllers=configs,
+                   solver="ipopt")  # fmt: skip
 
 
-def ablation_protocol(factors: Sequence[str] | None = None) -> dict[str, Any]:
+def ablation_protocol(factors: Sequence[str] | None = None) -> RunSpec:
     """The ablation (:mod:`evaluation.ablation`): the paper maps under high slip, 20 trials per cell."""
-    return {"env_ids": list(TASK_MAPS), "maps": _paper_maps(), "episodes": 20, "slips": ["high"],
-            "controllers": ablation_configs(factors), "solver": "ipopt"}  # fmt: skip
+    return RunSpec(envs=tuple(TASK_MAPS), maps=TASK_MAPS, slips=("high",), episodes=20,
+                   controllers=ablation_configs(factors), solver="ipopt")  # fmt: skip
+
+
+#: every named protocol: name -> preset factory
+PROTOCOLS: dict[str, Callable[[], RunSpec]] = {
+    "quick": quick_protocol,
+    "paper": paper_protocol,
+    "paper-strict": lambda: paper_protocol(strict=True),
+    "ablation": ablation_protocol,
+}
+
+
+def protocol(name: str) -> RunSpec:
+    """The preset called ``name`` (one of :data:`PROTOCOLS`); ``ValueError`` with a suggestion otherwise."""
+    if name not in PROTOCOLS:
+        raise ValueError(f"protocol {name!r} is not one of {list(PROTOCOLS)}{did_you_mean(name, PROTOCOLS)}")
+    return PROTOCOLS[name]()

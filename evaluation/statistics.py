@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from koopman_envs.checks import check_int
+
 __all__ = ["PairedComparison", "bootstrap_mean_interval", "paired_comparison", "wilson_interval"]
 
 #: Upper bound on the number of indices drawn at once by :func:`bootstrap_mean_interval`
@@ -26,18 +28,8 @@ _BOOTSTRAP_CHUNK = 1 << 20
 
 def _check_confidence(confidence: float) -> float:
     if isinstance(confidence, bool) or not isinstance(confidence, Real) or not 0.0 < confidence < 1.0:
-        raise ValueError(
-            f"confidence={confidence!r} is not allowed; it must be a number with 0 < confidence < 1"
-        )
+        raise ValueError(f"confidence={confidence!r} must be a number with 0 < confidence < 1")
     return float(confidence)
-
-
-def _check_int(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, Integral):
-        raise ValueError(f"{name}={value!r} is not allowed; it must be an integer >= {minimum}")
-    if value < minimum:
-        raise ValueError(f"{name}={value!r} is not allowed; it must be an integer >= {minimum}")
-    return int(value)
 
 
 def _z(confidence: float) -> float:
@@ -75,8 +67,8 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     J. Amer. Statist. Assoc. 22, 209-212.
     """
     confidence = _check_confidence(confidence)
-    n = _check_int("n", n, 0)
-    successes = _check_int("successes", successes, 0)
+    n = check_int("n", n, 0)
+    successes = check_int("successes", successes, 0)
     if successes > n:
         raise ValueError(f"successes={successes} is not allowed; it must satisfy 0 <= successes <= n={n}")
     if n == 0:
@@ -130,8 +122,8 @@ def bootstrap_mean_interval(
         ``resamples`` or ``seed`` is out of range.
     """
     confidence = _check_confidence(confidence)
-    resamples = _check_int("resamples", resamples, 1)
-    seed = _check_int("seed", seed, 0)
+    resamples = check_int("resamples", resamples, 1)
+    seed = check_int("seed", seed, 0)
     items = values if isinstance(values, np.ndarray) else list(values)
     try:
         x = np.asarray(items, dtype=float)

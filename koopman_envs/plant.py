@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig
+from koopman_envs.checks import check_int
+from koopman_envs.config import EngineConfig
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS
 from koopman_envs.sim.rollout import rollout
 from koopman_envs.sim.slip import RANDOM_SLIP_MAX, draw_random_lambdas
@@ -50,12 +51,6 @@ _SLIP_STREAM = 0x534C4950  # "SLIP"
 
 class BudgetExceeded(RuntimeError):
     """A request would spend more team-transitions than the plant's budget has left."""
-
-
-def _check_int(name: str, value: Any, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name}={value!r} must be an integer >= {low}")
-    return int(value)
 
 
 class CalibrationPlant:
@@ -87,8 +82,8 @@ class CalibrationPlant:
     """
 
     def __init__(self, config: EngineConfig, budget: int, seed: int = 0) -> None:
-        self.budget = _check_int("budget", budget, 1)
-        self.seed = _check_int("seed", seed, 0)
+        self.budget = check_int("budget", budget, 1)
+        self.seed = check_int("seed", seed, 0)
         self.n_robots = config.n_robots
         self.dt = PARAMS.dt
         self.v_max, self.omega_max = PARAMS.v_max, PARAMS.omega_max

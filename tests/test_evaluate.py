@@ -15,20 +15,20 @@ import controllers
 import evaluate as ev
 from controllers.base import BaseController
 
-SMALL = dict(
-    env_ids=["KoopNav-TargetReaching-v0"],
-    controller_names=["consensus", "nominal-nmpc"],
+SMALL = ev.RunSpec(
+    envs=["KoopNav-TargetReaching-v0"],
+    controllers=["consensus", "nominal-nmpc"],
     maps=["map1"],
     slips=["nominal", "high"],
     episodes=2,
     seed=3,
-    max_episode_steps=150,
+    env_kwargs={"max_episode_steps": 150},
 )
 
 
 @pytest.fixture(scope="module")
 def small_results(tmp_path_factory) -> ev.Results:
-    return ev.evaluate(**SMALL, workers=2, out=tmp_path_factory.mktemp("run"))
+    return ev.evaluate(SMALL, workers=2, out=tmp_path_factory.mktemp("run"))
 
 
 def test_json_validates_against_its_schema(small_results: ev.Results) -> None:
@@ -52,7 +52,7 @@ def test_report_distances_equal_recomputed_ones(small_results: ev.Results) -> No
 
 
 def test_one_and_two_workers_give_identical_results(small_results: ev.Results) -> None:
-    serial = ev.evaluate(**SMALL, workers=1)
+    serial = ev.evaluate(SMALL, workers=1)
     timing = ("wall_seconds", "solve_ms_median", "solve_ms_p95", "solve_ms")
     strip = lambda recs: [{k: v for k, v in r.items() if k not in timing} for r in recs]  # noqa: E731
     assert strip(serial.records) == strip(json.loads(json.dumps(small_results.records)))
@@ -76,22 +76,22 @@ def test_killed_run_resumes_to_the_same_result(tmp_path, small_results: ev.Resul
     partial = len(log.read_text().splitlines()) - 1
     assert 1 <= partial < 8, partial
     with pytest.raises(ValueError, match="pass --resume"):
-        ev.evaluate(**SMALL, workers=1, out=out)
-    resumed = ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+        ev.evaluate(SMALL, workers=1, out=out)
+    resumed = ev.evaluate(SMALL, workers=1, out=out, resume=True)
     assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
     assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
 
 
 def test_resume_log_from_another_configuration_is_refused(tmp_path) -> None:
     out = tmp_path / "run"
-    ev.evaluate(**{**SMALL, "controller_names": ["consensus"], "slips": ["nominal"], "episodes": 1}, workers=1, out=out)
+    ev.evaluate(SMALL.replace(controllers=["consensus"], slips=["nominal"], episodes=1), workers=1, out=out)
     before = (out / "episodes.jsonl").read_text()
     with pytest.raises(ValueError, match="other settings.*episodes: logged 1, now 2"):
-        ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+        ev.evaluate(SMALL, workers=1, out=out, resume=True)
     # an env setting differs: named in the error
     with pytest.raises(ValueError, match="env_settings: logged .*'max_episode_steps': 150.*now .*'max_episode_steps': 120"):
-        ev.evaluate(**{**SMALL, "controller_names": ["consensus"], "slips": ["nominal"], "episodes": 1,
-                       "max_episode_steps": 120}, workers=1, out=out, resume=True)  # fmt: skip
+        ev.evaluate(SMALL.replace(controllers=["consensus"], slips=["nominal"], episodes=1,
+                                  env_kwargs={"max_episode_steps": 120}), workers=1, out=out, resume=True)  # fmt: skip
     assert (out / "episodes.jsonl").read_text() == before  # nothing overwritten
 
 
@@ -111,8 +111,8 @@ class ExplodingController(BaseController):
 
 def test_an_episode_that_raises_does_not_stop_the_others() -> None:
     controllers.register("exploding", ExplodingController, overwrite=True)
-    results = ev.evaluate("KoopNav-TargetReaching-v0", ["exploding"], ["map1"], ["nominal"], episodes=3,
-                          seed=0, workers=1, max_episode_steps=20)  # fmt: skip
+    results = ev.evaluate(ev.RunSpec("KoopNav-TargetReaching-v0", ["exploding"], ["map1"], ["nominal"], episodes=3,
+                                     seed=0, env_kwargs={"max_episode_steps": 20}), workers=1)  # fmt: skip
     statuses = [r["status"] for r in results.records]
     assert statuses == ["ok", "error", "ok"]
     assert "RuntimeError: boom" in results.records[1]["error"]
@@ -139,24 +139,24 @@ def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"env_ids": ["KoopNav-Nope-v0"]}, "env 'KoopNav-Nope-v0' is not one of"),
+        ({"envs": ["KoopNav-Nope-v0"]}, "envs: 'KoopNav-Nope-v0' is not one of"),
         ({"maps": ["map9"]}, "map 'map9'"),
-        ({"slips": ["extreme"]}, "slip 'extreme'"),
-        ({"controller_names": ["magic"]}, r"controller 'magic' is not one of \["),
+        ({"slips": ["extreme"]}, "slips: 'extreme'"),
+        ({"controllers": ["magic"]}, r"controller 'magic' is not one of \["),
         ({"episodes": 0}, "episodes=0 must be an integer >= 1"),
         ({"calibration_budget": 0}, "budget=0 must be an integer >= 1"),
         ({"calibration_budget": -5}, "budget=-5 must be an integer >= 1"),
-        ({"controller_names": ["nominal-nmpc:horizont=5"]}, "unknown option"),
-        ({"controller_names": ["nominal-nmpc:horizon"]}, "is not key=value"),
-        ({"controller_names": ["consensus", "consensus"]}, "appear twice"),
-        ({"start_noise": -0.1}, r"start_noise=-0.1 must be a finite number >= 0"),
+        ({"controllers": ["nominal-nmpc:horizont=5"]}, "unknown option"),
+        ({"controllers": ["nominal-nmpc:horizon"]}, "is not key=value"),
+        ({"controllers": ["consensus", "consensus"]}, "appear twice"),
+        ({"env_kwargs": {"start_noise": -0.1}}, r"start_noise=-0.1 must be a finite number >= 0"),
     ],
 )
 def test_bad_input(kwargs, message) -> None:
     with pytest.raises(ValueError, match=message):
-        ev.evaluate(**{**SMALL, **kwargs}, workers=1)
+        ev.evaluate(SMALL.replace(**kwargs), workers=1)
     with pytest.raises(ValueError, match="workers=0"):
-        ev.evaluate(**SMALL, workers=0)
+        ev.evaluate(SMALL, workers=0)
 
 
 def test_cli_writes_outputs_and_checks(tmp_path) -> None:
@@ -180,7 +180,7 @@ def test_cli_writes_outputs_and_checks(tmp_path) -> None:
 def test_ray_backend_matches_the_process_backend(small_results: ev.Results) -> None:
     """The same episodes as Ray tasks on a local Ray instance give the same results."""
     pytest.importorskip("ray")
-    with_ray = ev.evaluate(**SMALL, workers=2, backend="ray")
+    with_ray = ev.evaluate(SMALL, workers=2, backend="ray")
     assert [r["key"] for r in with_ray.records] == [r["key"] for r in small_results.records]
     assert [r["final_distance"] for r in with_ray.records] == [r["final_distance"] for r in small_results.records]
     assert [r["success"] for r in with_ray.records] == [r["success"] for r in small_results.records]
@@ -214,7 +214,7 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_result
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr
     assert "interrupted after" in stderr and "--resume" in stderr
-    resumed = ev.evaluate(**SMALL, workers=1, out=out, resume=True)
+    resumed = ev.evaluate(SMALL, workers=1, out=out, resume=True)
     assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
     assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
 

@@ -67,8 +67,9 @@ def test_no_controller_receives_a_slip_value() -> None:
     """A recording controller sees no slip keyword, setting name or lambda, only plant data."""
     controllers.register("recording", RecordingController, overwrite=True)
     SEEN.clear()
-    results = ev.evaluate("KoopNav-Formation-v0", ["recording"], ["map3"], ["high", "0.0,0.13,0.29"],
-                          episodes=1, workers=1, max_episode_steps=5, calibration_budget=100)  # fmt: skip
+    results = ev.evaluate(ev.RunSpec("KoopNav-Formation-v0", ["recording"], ["map3"], ["high", "0.0,0.13,0.29"],
+                                     episodes=1, env_kwargs={"max_episode_steps": 5}, calibration_budget=100),
+                          workers=1)  # fmt: skip
     assert all(r["status"] == "ok" for r in results.records)
     assert {e["where"] for e in SEEN} == {"init", "calibrate", "reset", "act"}
     assert all(e["options"] == {} for e in SEEN if e["where"] == "init")
@@ -119,8 +120,8 @@ class FailingCalibration(BaseController):
 
 def test_a_failing_calibration_is_recorded_for_its_cell_only() -> None:
     controllers.register("failing-calibration", FailingCalibration, overwrite=True)
-    results = ev.evaluate("KoopNav-TargetReaching-v0", ["failing-calibration", "consensus"], ["map1"], ["nominal"],
-                          episodes=2, workers=1, max_episode_steps=10)  # fmt: skip
+    results = ev.evaluate(ev.RunSpec("KoopNav-TargetReaching-v0", ["failing-calibration", "consensus"], ["map1"],
+                                     ["nominal"], episodes=2, env_kwargs={"max_episode_steps": 10}), workers=1)  # fmt: skip
     failed = results.cell("KoopNav-TargetReaching-v0", "failing-calibration", "map1", "nominal")
     assert failed.errors == 2 and "calibration of 'failing-calibration' failed" in failed.error_messages[0]
     assert "no data for you" in failed.error_messages[0]
@@ -191,7 +192,7 @@ def test_reports_carry_intervals_and_paired_comparisons() -> None:
 
 def test_paper_strict_builds_hard_constraints() -> None:
     protocol = ev.paper_protocol(strict=True)
-    nmpcs = [cfg for cfg in protocol["controllers"] if cfg.name.endswith("nmpc")]
+    nmpcs = [cfg for cfg in protocol.controllers if cfg.name.endswith("nmpc")]
     assert [cfg.label for cfg in nmpcs] == ["koopman-nmpc", "nominal-nmpc"]
     env = __import__("gymnasium").make("KoopNav-TargetReaching-v0", map="map1")
     env.reset(seed=0)
@@ -202,7 +203,7 @@ def test_paper_strict_builds_hard_constraints() -> None:
             ctrl.calibrate(make_plant("KoopNav-TargetReaching-v0", slip="nominal"), seed=0)  # the shipped model
         ctrl.reset(env.unwrapped.scenario, seed=0)
         assert ctrl._problem.ns == 0  # no slack variables: the paper's hard constraints
-    default = ev.paper_protocol()["controllers"][0].build()
+    default = ev.paper_protocol().controllers[0].build()
     assert default.config.soft_constraints is True
 
 
@@ -235,11 +236,11 @@ def test_ablation_report_states_main_effects() -> None:
 
 def test_start_noise_makes_nominal_trials_differ() -> None:
     """The default leaderboard perturbs starts: nominal-slip trials are no longer copies of each other."""
-    assert ev.quick_protocol()["start_noise"] > 0 and "start_noise" not in ev.paper_protocol()
-    common = dict(env_ids="KoopNav-Formation-v0", controller_names=["consensus"], maps=["map4"], slips=["nominal"],
-                  episodes=2, workers=1, max_episode_steps=30)  # fmt: skip
-    exact = ev.evaluate(**common)
+    assert ev.quick_protocol().env_kwargs["start_noise"] > 0 and "start_noise" not in ev.paper_protocol().env_kwargs
+    common = ev.RunSpec("KoopNav-Formation-v0", ["consensus"], maps=["map4"], slips=["nominal"], episodes=2,
+                        env_kwargs={"max_episode_steps": 30})  # fmt: skip
+    exact = ev.evaluate(common, workers=1)
     assert exact.records[0]["final_poses"] == exact.records[1]["final_poses"]
-    noisy = ev.evaluate(**common, start_noise=0.05)
+    noisy = ev.evaluate(common.replace(env_kwargs={"max_episode_steps": 30, "start_noise": 0.05}), workers=1)
     assert noisy.records[0]["final_poses"] != noisy.records[1]["final_poses"]
     assert noisy.config["start_noise"] == 0.05

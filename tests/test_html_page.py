@@ -23,12 +23,12 @@ TINY_GIF = base64.b64decode("R0lGODlhAQABAIAAAP///wAAACH5BAEAAAAALAAAAAABAAEAAAI
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> tuple[ev.Results, Path]:
     """Two consensus configurations (one labelled with markup), one map, two slips, short episodes."""
-    results = ev.evaluate(
-        env_ids=["KoopNav-TargetReaching-v0"],
-        controller_names=["consensus", f"consensus:goal_gain=2.0,label={XSS_LABEL}"],
-        maps=["map1"], slips=["nominal", "high"], episodes=2, seed=3, max_episode_steps=30, workers=1,
-        progress=False,
+    spec = ev.RunSpec(
+        envs=["KoopNav-TargetReaching-v0"],
+        controllers=["consensus", f"consensus:goal_gain=2.0,label={XSS_LABEL}"],
+        maps=["map1"], slips=["nominal", "high"], episodes=2, seed=3, env_kwargs={"max_episode_steps": 30},
     )  # fmt: skip
+    results = ev.evaluate(spec, workers=1, progress=False)
     out = tmp_path_factory.mktemp("run")
     (out / "animations").mkdir()
     (out / "animations" / "consensus_map1_high.gif").write_bytes(TINY_GIF)

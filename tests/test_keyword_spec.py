@@ -14,7 +14,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
-from koopman_envs.engine import ENV_KEYWORDS, FRONTS, EngineConfig, env_keywords
+from koopman_envs.config import EngineConfig
+from koopman_envs.keywords import ENV_KEYWORDS, FRONTS, env_keywords
 from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
 from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -140,8 +141,10 @@ def test_the_docs_list_every_keyword() -> None:
 
 
 def test_the_evaluator_takes_the_table_as_env_kwargs() -> None:
-    from evaluation.plan import env_settings
+    from evaluation.spec import RunSpec
 
-    assert env_settings({"formation": "line", "n_robots": 6}).as_dict()["formation"] == "line"
-    with pytest.raises(ValueError, match=r"env kwarg 'colour' is not one the environments take; allowed: .*'formation'"):
-        env_settings({"colour": "red"})
+    spec = RunSpec("KoopNav-Formation-v0", ["consensus"], maps=["random"], env_kwargs={"formation": "line", "n_robots": 6})
+    spec.validate()
+    assert spec.env_settings()["formation"] == "line"
+    with pytest.raises(ValueError, match=r"env_kwargs: 'colour' is not one the environments take; allowed: .*'formation'"):
+        spec.replace(env_kwargs={"colour": "red"}).validate()

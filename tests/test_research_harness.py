@@ -35,12 +35,13 @@ class StandStill(BaseController):
 
 
 def test_options_and_a_script_local_class_are_their_own_rows() -> None:
-    results = ev.evaluate(
+    spec = ev.RunSpec(
         TARGET,
         {"mine": StandStill, "mine-moving": (StandStill, {"speed": 0.05}), "gentle": ("consensus", {"goal_gain": 0.01}),
          "default": "consensus", "text": "consensus:goal_gain=2.0"},
-        maps=["map1"], slips=["nominal"], episodes=1, workers=2, max_episode_steps=40,
+        maps=["map1"], slips=["nominal"], episodes=1, env_kwargs={"max_episode_steps": 40},
     )  # fmt: skip
+    results = ev.evaluate(spec, workers=2)
     rows = {row["controller"] for row in results.leaderboard()}
     assert rows == {"mine", "mine-moving", "gentle", "default", "text"}
     by_label = {r["controller"]: r for r in results.records}
@@ -57,8 +58,9 @@ def test_options_and_a_script_local_class_are_their_own_rows() -> None:
 
 
 def test_env_kwargs_reach_the_env_and_the_record() -> None:
-    results = ev.evaluate(TARGET, ["consensus"], maps=["random"], slips=["high"], episodes=1, workers=1,
-                          max_episode_steps=30, env_kwargs={"n_robots": 5, "goal_tolerance": 0.08})  # fmt: skip
+    spec = ev.RunSpec(TARGET, ["consensus"], maps=["random"], slips=["high"], episodes=1,
+                      env_kwargs={"max_episode_steps": 30, "n_robots": 5, "goal_tolerance": 0.08})  # fmt: skip
+    results = ev.evaluate(spec, workers=1)
     (rec,) = results.records
     assert rec["status"] == "ok", rec.get("error")
     assert np.asarray(rec["final_poses"]).shape == (5, 3)
@@ -67,8 +69,9 @@ def test_env_kwargs_reach_the_env_and_the_record() -> None:
 
 
 def test_random_maps_are_one_row_of_k_shared_layouts() -> None:
-    results = ev.evaluate(TARGET, ["consensus", "consensus-free"], maps=["map1"], slips=["nominal"], episodes=1,
-                          random_maps=3, workers=1, max_episode_steps=20)  # fmt: skip
+    spec = ev.RunSpec(TARGET, ["consensus", "consensus-free"], maps=["map1"], slips=["nominal"], episodes=1,
+                      random_maps=3, env_kwargs={"max_episode_steps": 20})  # fmt: skip
+    results = ev.evaluate(spec, workers=1)
     random_cells = [c for c in results.cells if c.map == "random"]
     assert len(random_cells) == 2 and all(c.episodes == 3 for c in random_cells)
     first = [r for r in results.records if r["map"] == "random" and r["trial"] == 0]
@@ -84,21 +87,22 @@ def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> Non
     path = tmp_path / "mine.json"
     load_map("map1").save(path)
     out = tmp_path / "run"
-    kwargs = dict(env_ids=TARGET, controller_names=["consensus"], maps=[str(path)], slips=["nominal"], episodes=1,
-                  workers=1, max_episode_steps=20, out=out)  # fmt: skip
-    results = ev.evaluate(**kwargs)
+    spec = ev.RunSpec(TARGET, ["consensus"], maps=[str(path)], slips=["nominal"], episodes=1,
+                      env_kwargs={"max_episode_steps": 20})  # fmt: skip
+    results = ev.evaluate(spec, workers=1, out=out)
     assert results.records[0]["status"] == "ok" and results.records[0]["map"] == str(path)
     assert str(path) in results.config["map_files"]
-    spec = json.loads(path.read_text())
-    spec["obstacles"][0][2] += 0.01  # the file changes between the run and its resume
-    path.write_text(json.dumps(spec))
+    layout = json.loads(path.read_text())
+    layout["obstacles"][0][2] += 0.01  # the file changes between the run and its resume
+    path.write_text(json.dumps(layout))
     with pytest.raises(ValueError, match="map_files"):
-        ev.evaluate(**kwargs, resume=True)
+        ev.evaluate(spec, workers=1, out=out, resume=True)
 
 
 def test_gifs_record_one_animation_per_cell(tmp_path) -> None:
-    results = ev.evaluate(TARGET, ["consensus"], maps=["map1"], slips=["nominal"], episodes=2, workers=1,
-                          max_episode_steps=5, out=tmp_path, gifs=True)  # fmt: skip
+    spec = ev.RunSpec(TARGET, ["consensus"], maps=["map1"], slips=["nominal"], episodes=2, gifs=True,
+                      env_kwargs={"max_episode_steps": 5})  # fmt: skip
+    results = ev.evaluate(spec, workers=1, out=tmp_path)
     first, second = results.records
     assert first["animation"] and not second["animation"]
     gif = tmp_path / first["animation"]
@@ -134,25 +138,27 @@ def _lambda_factory_config():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(env_kwargs={"n_robotz": 5}), "env kwarg 'n_robotz' is not one the environments take; allowed: .*n_robots"),
-        (dict(env_kwargs={"map": "map2"}), "env kwarg 'map' is a cell axis"),
+        (dict(env_kwargs={"n_robotz": 5}), "env_kwargs: 'n_robotz' is not one the environments take .did you mean "
+                                           "'n_robots'.*; allowed: .*n_robots"),
+        (dict(env_kwargs={"map": "map2"}), "env_kwargs: 'map' is a cell axis"),
         (dict(env_kwargs={"n_robots": 5}), "map 'map1'.*n_robots"),
         (dict(env_kwargs={"goal_tolerance": -1}), "goal_tolerance=-1"),
-        (dict(controller_names=["consensus:goal_gain=-1"]), "goal_gain=-1"),
-        (dict(controller_names=["consensus:gain"]), "'gain' is not key=value"),
-        (dict(controller_names=["consensus:nope=1"]), "bad option"),
-        (dict(controller_names={"x": 42}), "'x': 42 is not a registered name"),
-        (dict(controller_names={"x": ("consensus", {"goal_gain": object()})}), "must be plain JSON"),
-        (dict(controller_names=_lambda_factory_config(), workers=2), "cannot be sent to worker processes"),
+        (dict(controllers=["consensus:goal_gain=-1"]), "goal_gain=-1"),
+        (dict(controllers=["consensus:gain"]), "'gain' is not key=value"),
+        (dict(controllers=["consensus:nope=1"]), "bad option"),
+        (dict(controllers={"x": 42}), "'x': 42 is not a registered name"),
+        (dict(controllers={"x": ("consensus", {"goal_gain": object()})}), "must be plain JSON"),
+        (dict(controllers=_lambda_factory_config(), workers=2), "cannot be sent to worker processes"),
         (dict(random_maps=0), "random_maps=0 must be an integer >= 1"),
         (dict(gifs=True), "gifs=True needs an output directory"),
     ],
 )
 def test_bad_research_input_is_named_before_any_episode(kwargs, message) -> None:
-    base = dict(env_ids=TARGET, controller_names=["consensus"], maps=["map1"], slips=["nominal"], episodes=1,
-                workers=1, max_episode_steps=10)  # fmt: skip
+    base = dict(envs=TARGET, controllers=["consensus"], maps=["map1"], slips=["nominal"], episodes=1,
+                env_kwargs={"max_episode_steps": 10})  # fmt: skip
+    options = {"workers": kwargs.pop("workers", 1)}
     with pytest.raises(ValueError, match=message):
-        ev.evaluate(**{**base, **kwargs})
+        ev.evaluate(ev.RunSpec(**{**base, **kwargs}), **options)
 
 
 def test_mapping_forms_give_the_same_configuration() -> None:

@@ -215,8 +215,9 @@ def test_with_solver_sets_every_nmpc_that_names_none() -> None:
 def test_the_report_names_each_rows_solver_and_the_terminal_gets_a_compact_board(tmp_path) -> None:
     import evaluate as ev
 
-    results = ev.evaluate("KoopNav-TargetReaching-v0", ["nominal-nmpc:solver=rti,horizon=5", "consensus"],
-                          maps=["map1"], slips=["nominal"], episodes=1, workers=1, max_episode_steps=20)  # fmt: skip
+    spec = ev.RunSpec("KoopNav-TargetReaching-v0", ["nominal-nmpc:solver=rti,horizon=5", "consensus"],
+                      maps=["map1"], slips=["nominal"], episodes=1, env_kwargs={"max_episode_steps": 20})  # fmt: skip
+    results = ev.evaluate(spec, workers=1)
     rows = {row["controller"]: row for row in results.leaderboard()}
     assert rows["nominal-nmpc:solver=rti,horizon=5"]["solver"] == "rti/hpipm"
     assert rows["consensus"]["solver"] is None
@@ -240,9 +241,9 @@ def test_cli_rejects_an_unknown_solver_before_any_episode(tmp_path, capsys) -> N
 def test_paper_protocol_keeps_ipopt_and_the_quick_board_runs_the_real_time_iteration() -> None:
     from evaluation.protocols import ablation_protocol, paper_protocol, quick_protocol
 
-    assert paper_protocol()["solver"] == "ipopt" and paper_protocol(strict=True)["solver"] == "ipopt"
-    assert ablation_protocol()["solver"] == "ipopt"
-    assert quick_protocol()["solver"] == "rti"
+    assert paper_protocol().solver == "ipopt" and paper_protocol(strict=True).solver == "ipopt"
+    assert ablation_protocol().solver == "ipopt"
+    assert quick_protocol().solver == "rti"
     from controllers.nmpc import NMPCConfig
 
     assert NMPCConfig().solver == "ipopt"  # the default until the real-time iteration loses nothing

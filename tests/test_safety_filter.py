@@ -280,10 +280,11 @@ def test_safe_controller_runs_a_real_episode() -> None:
 
 
 def test_evaluator_ranks_a_safe_controller_beside_its_inner_one() -> None:
-    from evaluation.runner import evaluate
+    from evaluation import RunSpec, evaluate
 
-    results = evaluate("KoopNav-TargetReaching-v0", ["safe:consensus-free", "consensus-free"], maps=["map1"],
-                       slips=["high"], episodes=1, workers=1, max_episode_steps=200)  # fmt: skip
+    spec = RunSpec("KoopNav-TargetReaching-v0", ["safe:consensus-free", "consensus-free"], maps=["map1"],
+                   slips=["high"], episodes=1, env_kwargs={"max_episode_steps": 200})  # fmt: skip
+    results = evaluate(spec, workers=1)
     rows = {row["controller"]: row for row in results.leaderboard()}
     assert set(rows) == {"safe:consensus-free", "consensus-free"}
     outcomes = {r["controller"]: r for r in results.records}

@@ -11,7 +11,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import make_plant
-from koopman_envs.engine import EngineConfig, NavigationEngine
+from koopman_envs.config import EngineConfig
+from koopman_envs.engine import NavigationEngine
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.sim.maps import MapSpec
 
@@ -122,7 +123,8 @@ def test_the_plant_follows_the_schedule(slip) -> None:
 def test_drift_is_an_evaluator_cell() -> None:
     import evaluate as ev
 
-    results = ev.evaluate(FO, ["consensus"], ["map6"], ["drift"], episodes=2, workers=1, max_episode_steps=20)
+    results = ev.evaluate(ev.RunSpec(FO, ["consensus"], ["map6"], ["drift"], episodes=2,
+                                     env_kwargs={"max_episode_steps": 20}), workers=1)
     assert [r["slip"] for r in results.records] == ["drift", "drift"]
     assert all(r["status"] == "ok" for r in results.records)
 

@@ -15,8 +15,8 @@ from evaluation.results import Results
 @pytest.fixture(scope="module")
 def three_of_four() -> Results:
     """Four episodes of one cell, three successes (rate 0.75, Wilson 95% [0.30, 0.95])."""
-    run = ev.evaluate("KoopNav-TargetReaching-v0", ["consensus"], maps=["map1"], slips=["nominal"], episodes=1,
-                      workers=1, max_episode_steps=30)  # fmt: skip
+    run = ev.evaluate(ev.RunSpec("KoopNav-TargetReaching-v0", ["consensus"], maps=["map1"], slips=["nominal"],
+                                 episodes=1, env_kwargs={"max_episode_steps": 30}), workers=1)  # fmt: skip
     (template,) = run.records
     records = []
     for trial, success in enumerate([True, True, False, True]):

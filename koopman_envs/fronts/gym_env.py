@@ -9,13 +9,10 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.engine import (
-    EngineConfig,
-    NavigationEngine,
-    keyword_table,
-    parse_reset_options,
-    takes_env_keywords,
-)
+from koopman_envs.config import EngineConfig
+from koopman_envs.engine import NavigationEngine
+from koopman_envs.keywords import keyword_table, takes_env_keywords
+from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
@@ -58,7 +55,7 @@ class KoopNavEnv(gym.Env):
             heading [rad] instead of the map's starts (no ``start_noise``), and ``targets``
             (N, 3) instead of the map's targets. Each is checked (shape, finite, inside the
             workspace, clear of obstacles and of each other) and an unknown key is a
-            ``ValueError``; see :func:`koopman_envs.engine.parse_reset_options` and
+            ``ValueError``; see :func:`koopman_envs.reset_options.parse_reset_options` and
             docs/reset_options.md.
 
         Returns

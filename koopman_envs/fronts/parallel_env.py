@@ -15,7 +15,10 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options, takes_env_keywords
+from koopman_envs.config import EngineConfig
+from koopman_envs.engine import NavigationEngine
+from koopman_envs.keywords import takes_env_keywords
+from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -49,7 +52,7 @@ class KoopNavParallelEnv(ParallelEnv):
     render_mode : str, optional
         ``"rgb_array"`` or ``"human"`` (matplotlib), as for the Gymnasium env.
     **keywords
-        The env keywords of :data:`koopman_envs.engine.ENV_KEYWORDS`, as for the Gymnasium env
+        The env keywords of :data:`koopman_envs.keywords.ENV_KEYWORDS`, as for the Gymnasium env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...), plus
         ``max_episode_steps``: the time limit in control periods (default
         ``PARAMS.max_episode_steps``; this env truncates by itself), and ``max_cycles``, the same
@@ -108,7 +111,7 @@ class KoopNavParallelEnv(ParallelEnv):
         options : dict, optional
             As for the Gymnasium env: ``start_poses`` (N, 3) and/or ``targets`` (N, 3) replace
             the map's for this episode, robot i being ``robot_i``; an unknown key or an invalid
-            pose is a ``ValueError`` (:func:`koopman_envs.engine.parse_reset_options`,
+            pose is a ``ValueError`` (:func:`koopman_envs.reset_options.parse_reset_options`,
             docs/reset_options.md). The key ``"options"`` is ignored: PettingZoo's API tests
             pass ``{"options": 1}`` to check that ``reset`` takes the keyword.
 

@@ -10,7 +10,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from koopman_envs.engine import EngineConfig, NavigationEngine, parse_reset_options, takes_env_keywords
+from koopman_envs.config import EngineConfig
+from koopman_envs.engine import NavigationEngine
+from koopman_envs.keywords import takes_env_keywords
+from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 
 __all__ = ["KoopNavVectorEnv"]
@@ -37,7 +40,7 @@ class KoopNavVectorEnv(VectorEnv):
     render_mode : None
         The vector env does not render (anything else is a ``ValueError``).
     **keywords
-        The env keywords of :data:`koopman_envs.engine.ENV_KEYWORDS`, as for the single env
+        The env keywords of :data:`koopman_envs.keywords.ENV_KEYWORDS`, as for the single env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...);
         ``max_episode_steps`` (default ``PARAMS.max_episode_steps``) comes from the registration,
         and this env truncates by itself. Sub-env i draws its map, start noise and slip (drift
@@ -100,7 +103,7 @@ class KoopNavVectorEnv(VectorEnv):
             ``start_poses`` and/or ``targets`` as for the single env, for this episode only
             (auto-resets use the map's): an (N, 3) array applies to every sub-env, a (K, N, 3)
             array gives sub-env i its row i. An unknown key or an invalid pose is a
-            ``ValueError`` (:func:`koopman_envs.engine.parse_reset_options`,
+            ``ValueError`` (:func:`koopman_envs.reset_options.parse_reset_options`,
             docs/reset_options.md); a pose rejected on sub-env i's map leaves the sub-envs
             before i already reset, so reset again.
 

@@ -1,0 +1,301 @@
+"""``RunSpec``: what a run is (envs, controllers, maps, slips, trials, env settings), checked
+before any episode starts, planned into episodes, and signed for ``--resume``.
+
+A run is a grid of cells (env, controller configuration, map, slip) times trials. Trial ``i``
+of every cell uses seed ``seed + i``, so all controllers face the same slip draws, start
+perturbations and (on ``map="random"``) the same layouts: comparisons are paired.
+
+The env settings of a run are its ``env_kwargs``, the ``gym.make`` keywords every episode and
+calibration plant gets (``goal_tolerance``, ``max_episode_steps``, ``start_noise``, ``n_robots``,
+...). They live only there; the named protocols (:mod:`evaluation.protocols`) are presets of
+this class.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from controllers.calibration import data_spec_for
+from evaluation.configs import controller_configs, with_solver
+from evaluation.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
+from koopman_envs.checks import check_int
+from koopman_envs.config import EngineConfig
+from koopman_envs.keywords import ENV_KEYWORDS
+from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
+from koopman_envs.sim.maps import BUILTIN_MAPS
+from koopman_envs.sim.slip import RANDOM_SLIP
+from koopman_envs.sim.slip_schedule import DRIFT_SLIP
+from koopman_envs.suggest import did_you_mean
+from koopman_envs.tasks.base import ENV_IDS, TASKS, task_for_env
+
+__all__ = ["CELL_AXES", "RECORDED_ENV_SETTINGS", "RunSpec"]
+
+#: env keywords that are axes of the grid (set through ``maps`` and ``slips``, never env kwargs)
+CELL_AXES = ("map", "slip")
+#: env keywords the evaluator owns: rendering is its business (``gifs``)
+_NOT_ENV_KWARGS = (*CELL_AXES, "render_mode")
+#: env settings every run records, with the env's defaults when the run does not set them
+RECORDED_ENV_SETTINGS = ("goal_tolerance", "max_episode_steps", "start_noise")
+#: each task's paper maps
+TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
+
+
+def _env_default(name: str) -> Any:
+    (keyword,) = [k for k in ENV_KEYWORDS if k.name == name]
+    return keyword.default
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One evaluation run, as data: what :func:`evaluation.runner.evaluate` runs.
+
+    Lists are stored as tuples and ``maps`` as a table env id -> maps, so that two specs of the
+    same run compare equal whichever form they were written in.
+
+    Attributes
+    ----------
+    envs : str or sequence of str
+        Environment ids (default: both tasks).
+    controllers : sequence or mapping, optional
+        Controller configurations (default: every usable registered controller): registered
+        names, ``"name:key=value,..."`` texts, :class:`~evaluation.configs.ControllerConfig`,
+        factories / controller classes, or a mapping ``{label: entry}`` where an entry is any
+        of those or a ``(name or factory, {options})`` pair. Each configuration is one row; a
+        factory must be defined at module level to reach worker processes.
+    maps : sequence or mapping, optional
+        Maps for every env (shipped names, ``"random"``, or paths of JSON map files), or a
+        mapping env id -> maps (default: each task's paper maps).
+    slips : sequence of str
+        Setting names (``nominal``, ``low``, ``high``, ``random``, ``drift``) or per-robot
+        lambdas (``"0,0.1,0.2"`` or a list of numbers).
+    episodes : int
+        Trials per cell (trial i uses seed ``seed + i``).
+    seed : int
+        Base seed.
+    env_kwargs : mapping
+        ``gym.make`` keywords of every episode and calibration plant, e.g. ``{"n_robots": 5,
+        "max_episode_steps": 150, "start_noise": 0.05}`` (plain JSON; ``map`` and ``slip`` are
+        the grid's axes, not env kwargs). Recorded in the results and checked on resume.
+    calibration_budget : int
+        Team-transitions every controller may simulate on the cell's calibration plant before
+        its episodes (the same for all; default the paper's 1000 x 1000).
+    calibration_seed : int
+        Seed of the calibration plant and data (never one of the episode seeds' streams).
+    random_maps : int, optional
+        Add a ``random`` map row to every env with this many seeded layouts (one per trial;
+        the same layouts for every controller).
+    gifs : bool
+        Record trial 0 of every cell as ``OUT/animations/*.gif`` (needs an output directory).
+    solver : str, optional
+        Optimizer (``rti``, ``ipopt``, ``fatrop``) of every NMPC configuration that names none
+        (default: each controller's own).
+    """
+
+    envs: str | Sequence[str] = tuple(TASK_MAPS)
+    controllers: Any = None
+    maps: Any = None
+    slips: Sequence[Any] = SLIP_SETTINGS
+    episodes: int = 2
+    seed: int = 0
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    calibration_budget: int = PARAMS.calibration_budget
+    calibration_seed: int = 0
+    random_maps: int | None = None
+    gifs: bool = False
+    solver: str | None = None
+
+    def __post_init__(self) -> None:
+        # normal forms only (nothing here can fail on a value: validate() names bad ones)
+        envs = (self.envs,) if isinstance(self.envs, str) else tuple(self.envs)
+        set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 - frozen dataclass
+        set_("envs", envs)
+        if self.controllers is not None:
+            try:
+                set_("controllers", tuple(controller_configs(self.controllers)))
+            except ValueError as exc:
+                raise ValueError(f"controllers: {exc}") from None
+        set_("maps", self._map_table(envs, self.maps, self.random_maps))
+        set_("slips", tuple(s if isinstance(s, str) else ",".join(str(v) for v in s) for s in self.slips))
+        set_("env_kwargs", dict(self.env_kwargs or {}))
+
+    @staticmethod
+    def _map_table(envs: tuple[str, ...], maps: Any, random_maps: Any) -> dict[str, tuple[str, ...]]:
+        if maps is None:
+            table = {e: tuple(TASK_MAPS.get(e, BUILTIN_MAPS)) for e in envs}
+        elif isinstance(maps, Mapping):
+            missing = [e for e in envs if e not in maps]
+            if missing:
+                raise ValueError(f"maps has no entry for env {missing[0]!r}; it has {sorted(maps)}")
+            table = {e: tuple(os.fspath(m) for m in ([maps[e]] if isinstance(maps[e], str) else maps[e]))
+                     for e in envs}  # fmt: skip
+        else:
+            if isinstance(maps, (str, os.PathLike)):
+                maps = [maps]
+            table = {e: tuple(os.fspath(m) for m in maps) for e in envs}
+        if random_maps:  # the seeded random layouts are one more map row
+            table = {e: m if RANDOM_MAP in m else (*m, RANDOM_MAP) for e, m in table.items()}
+        return table
+
+    # ------------------------------------------------------------------ derived views
+    def replace(self, **changes: Any) -> RunSpec:
+        """A copy with some fields changed (``maps`` recomputed when ``envs`` change and
+        ``maps`` is not given)."""
+        if "envs" in changes and "maps" not in changes:
+            old = self.maps
+            envs = (changes["envs"],) if isinstance(changes["envs"], str) else tuple(changes["envs"])
+            changes["maps"] = {e: old.get(e, TASK_MAPS.get(e, BUILTIN_MAPS)) for e in envs}
+        return dataclasses.replace(self, **changes)
+
+    def env_settings(self) -> dict[str, Any]:
+        """The env keywords every episode runs with: ``env_kwargs`` plus the env's defaults of
+        :data:`RECORDED_ENV_SETTINGS` (so two runs that differ only in spelling a default out
+        record the same settings)."""
+        settings = {name: _env_default(name) for name in RECORDED_ENV_SETTINGS}
+        settings.update(self.env_kwargs)
+        return json.loads(json.dumps(dict(sorted(settings.items()))))
+
+    @property
+    def n_robots(self) -> int:
+        """Team size of the run's envs."""
+        return int(self.env_kwargs.get("n_robots", PARAMS.n_robots))
+
+    def resolved(self, controllers: Sequence[Any] | None = None) -> RunSpec:
+        """This spec with its controller list explicit and ``solver`` applied to it.
+
+        ``controllers`` fills in a spec without controllers (the evaluator passes every usable
+        registered controller).
+        """
+        configs = self.controllers if self.controllers is not None else controllers
+        if configs is None:
+            raise ValueError("RunSpec.controllers is empty: name the controllers to evaluate")
+        configs = with_solver(controller_configs(configs), self.solver)
+        return dataclasses.replace(self, controllers=tuple(configs), solver=None)
+
+    # ------------------------------------------------------------------ checks
+    def validate(self, workers: int = 1) -> None:
+        """Raise ``ValueError`` naming the bad field, its value and what is allowed.
+
+        Called by :func:`~evaluation.runner.evaluate` before any episode starts; every
+        (env, map) is built with the run's env settings as the episodes will build it, so an
+        env kwarg the env rejects (or a map with too few starts for ``n_robots``) fails here.
+        """
+        for env_id in self.envs:
+            if env_id not in ENV_IDS:
+                raise ValueError(f"envs: {env_id!r} is not one of {list(ENV_IDS)}{did_you_mean(env_id, ENV_IDS)}")
+        configs = self.controllers
+        if configs is not None:
+            if not configs:
+                raise ValueError("controllers: no controller to evaluate")
+            labels = [cfg.label for cfg in configs]
+            duplicated = sorted({label for label in labels if labels.count(label) > 1})
+            if duplicated:
+                raise ValueError(f"controllers: labels {duplicated} appear twice; give each configuration its own label=")
+            for cfg in configs:
+                cfg.validate(across_processes=workers > 1)
+        if self.solver is not None:
+            with_solver([], self.solver)  # names the bad solver and the allowed ones
+        data_spec_for(self.calibration_budget)  # raises for a budget that is not an integer >= 1
+        check_int("calibration_seed", self.calibration_seed, 0)
+        check_int("episodes", self.episodes, 1)
+        check_int("seed", self.seed, 0)
+        if self.random_maps is not None:
+            check_int("random_maps", self.random_maps, 1, note="layouts per cell")
+        if not isinstance(self.gifs, bool):
+            raise ValueError(f"gifs={self.gifs!r} must be True or False")
+        check_int("workers", workers, 1)
+        self._validate_env_kwargs()
+        if not self.slips:
+            raise ValueError("slips: no slip setting to evaluate; allowed: nominal, low, high, random, drift or "
+                             "per-robot lambdas")  # fmt: skip
+        for slip in self.slips:
+            try:
+                value = slip_value(slip)
+                if value not in (RANDOM_SLIP, DRIFT_SLIP):
+                    slip_lambdas(value, self.n_robots)
+            except ValueError as exc:
+                raise ValueError(f"slips: {slip!r}: {exc}") from None
+        settings = self.env_settings()
+        for env_id in self.envs:
+            for map_name in self.maps[env_id]:
+                try:
+                    EngineConfig.create(task_for_env(env_id).name, map=map_name, slip=slip_value(self.slips[0]),
+                                        **settings)  # fmt: skip
+                except (TypeError, ValueError) as exc:
+                    raise ValueError(f"{env_id} on map {map_name!r} with env settings {settings}: {exc}") from None
+
+    def _validate_env_kwargs(self) -> None:
+        allowed = sorted(k.name for k in ENV_KEYWORDS if k.name not in _NOT_ENV_KWARGS)
+        for key, value in self.env_kwargs.items():
+            if key in CELL_AXES:
+                raise ValueError(f"env_kwargs: {key!r} is a cell axis: give it with --{key}s / {key}s=, not as an "
+                                 "env kwarg")  # fmt: skip
+            if key not in allowed:
+                raise ValueError(f"env_kwargs: {key!r} is not one the environments take"
+                                 f"{did_you_mean(key, allowed)}; allowed: {allowed}")  # fmt: skip
+            try:
+                json.dumps(value, allow_nan=False)
+            except (TypeError, ValueError):
+                raise ValueError(f"env_kwargs: {key}={value!r} must be plain JSON (a number, text, list or "
+                                 "dict)") from None  # fmt: skip
+
+    # ------------------------------------------------------------------ the run
+    def episodes_plan(self, run_dir: str = "") -> list[EpisodeSpec]:
+        """Every episode of the run, in a fixed order (needs explicit controllers: see :meth:`resolved`).
+
+        Trial i of every cell uses seed ``seed + i``. The ``random`` map row runs
+        ``random_maps`` trials when given (one seeded layout each), the other maps
+        ``episodes``. With ``gifs``, trial 0 of every cell records an animation under
+        ``animations/`` of ``run_dir``.
+        """
+        if self.controllers is None:
+            raise ValueError("RunSpec.episodes_plan() needs explicit controllers; call resolved() first")
+        env_json = json.dumps(self.env_settings(), sort_keys=True)
+        plan = []
+        for env_id in self.envs:
+            for cfg in self.controllers:
+                options = json.dumps(dict(cfg.options), sort_keys=True)
+                for map_name in self.maps[env_id]:
+                    trials = self.random_maps if (map_name == RANDOM_MAP and self.random_maps) else self.episodes
+                    for slip in self.slips:
+                        for trial in range(trials):
+                            animation = ""
+                            if self.gifs and trial == 0:
+                                animation = f"animations/{safe_file_name(env_id, cfg.label, map_name, slip)}.gif"
+                            plan.append(EpisodeSpec(
+                                env_id=env_id, controller=cfg.label, map=map_name, slip=slip, trial=trial,
+                                seed=self.seed + trial, controller_name=cfg.name, controller_options=options,
+                                calibration_budget=self.calibration_budget, calibration_seed=self.calibration_seed,
+                                env_kwargs=env_json, animation=animation, run_dir=run_dir,
+                                controller_factory=cfg.factory,
+                            ))  # fmt: skip
+        return plan
+
+    def config(self, workers: int, backend: str) -> dict[str, Any]:
+        """The run's configuration as ``results.json`` records it (plain JSON; explicit controllers)."""
+        if self.controllers is None:
+            raise ValueError("RunSpec.config() needs explicit controllers; call resolved() first")
+        settings = self.env_settings()
+        return {
+            "env_ids": list(self.envs), "controllers": [c.label for c in self.controllers],
+            "controller_configs": [c.to_dict() for c in self.controllers],
+            "calibration": {"budget": self.calibration_budget, "seed": self.calibration_seed,
+                            "unit": "team-transitions, offered to every controller alike"},
+            "maps": {e: list(m) for e, m in self.maps.items()}, "map_files": map_fingerprints(self.maps),
+            "slips": list(self.slips), "episodes": self.episodes, "random_maps": self.random_maps,
+            "env_settings": settings, "gifs": bool(self.gifs),
+            # the recorded settings also at the top level (schema v2 readers)
+            "start_noise": settings["start_noise"], "tolerance": settings["goal_tolerance"],
+            "max_episode_steps": settings["max_episode_steps"],
+            "seed": self.seed, "workers": workers, "backend": backend,
+        }  # fmt: skip
+
+    def signature(self) -> dict[str, Any]:
+        """What ``--resume`` checks: the settings that change what an episode does."""
+        from evaluation.runlog import run_signature
+
+        return run_signature(self.config(workers=1, backend="process"))

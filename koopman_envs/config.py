@@ -1,0 +1,164 @@
+"""``EngineConfig``: the env keywords resolved and validated into the definition of an environment
+(task, map, slip, team, limits): each keyword's own check from its row of
+:data:`~koopman_envs.keywords.ENV_KEYWORDS`, then the rules that involve several keywords."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.keywords import env_keywords, unknown_keywords
+from koopman_envs.params import PARAMS, slip_lambdas
+from koopman_envs.sim.maps import MapSpec, RandomMapConfig, load_map
+from koopman_envs.sim.slip import RANDOM_SLIP
+from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
+from koopman_envs.tasks.base import TASKS, TaskSpec
+
+__all__ = ["EngineConfig"]
+
+
+def _random_map_formation(config: RandomMapConfig, formation: str) -> RandomMapConfig:
+    """``random_map`` with the ``formation`` keyword's shape; a different shape set in both is an error."""
+    default = RandomMapConfig.formation
+    if config.formation not in (default, formation):
+        raise ValueError(
+            f"formation={formation!r} and random_map's formation={config.formation!r} differ: "
+            "give the shape once (the formation keyword or the random_map field)"
+        )
+    return dataclasses.replace(config, formation=formation)
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """Everything that defines an environment, resolved and validated.
+
+    Build it with :meth:`EngineConfig.create`, which accepts the env keywords
+    (:data:`~koopman_envs.keywords.ENV_KEYWORDS`).
+    """
+
+    task: TaskSpec
+    map_spec: MapSpec | None  # None means a random map per reset
+    random_map: RandomMapConfig
+    #: per-robot base slip means; NaN when drawn per reset ("random", "drift")
+    lambdas: NDArray[np.float64]
+    slip_label: str
+    n_robots: int
+    goal_tolerance: float
+    robot_radius: NDArray[np.float64]
+    n_obstacle_obs: int
+    max_episode_steps: int | None
+    #: radius [m] of the start-position disc and bound [rad] of the heading turn drawn per reset
+    start_noise: float = 0.0
+    #: base levels that change within an episode ("drift" or a list schedule), else None
+    slip_schedule: SlipSchedule | None = None
+    #: the formation shape asked for (``formation`` keyword), None for the map's own layout
+    formation: str | None = None
+
+    @classmethod
+    def create(cls, task: str, *, front: str | None = None, **keywords: Any) -> EngineConfig:
+        """Validate the env keywords into a config; a keyword not given takes its default.
+
+        Parameters
+        ----------
+        task : str
+            ``"target_reaching"`` or ``"formation"``.
+        front : str, optional
+            The front that forwards the keywords (:data:`FRONTS`): which keywords it takes, and
+            the vector and PettingZoo fronts' default time limit (they truncate by themselves).
+            None (the calibration plant, tests): every keyword, no default limit.
+        **keywords
+            The env keywords of :data:`~koopman_envs.keywords.ENV_KEYWORDS` (documented there and in the env docstrings).
+            ``max_cycles`` is another name of ``max_episode_steps``, the one of PettingZoo's MPE
+            environments; giving both with different values is a ``ValueError``.
+
+        Raises
+        ------
+        TypeError
+            An unknown keyword (named, with the allowed ones).
+        ValueError
+            A bad value (named, with what is allowed).
+        """
+        rows = env_keywords(front)
+        error = unknown_keywords(keywords, [k.name for k in rows], f"the {front or 'KoopNav'} env")
+        if error is not None:
+            raise error
+        if task not in TASKS:
+            raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
+        spec = TASKS[task]
+        # each keyword's own check (its row), then the rules between keywords
+        kw = {k.name: k.resolve(keywords.get(k.name, k.default)) for k in rows}
+        n_robots, robot_radius, slip, formation = kw["n_robots"], kw["robot_radius"], kw["slip"], kw["formation"]
+        random_map, max_episode_steps, max_cycles = kw["random_map"], kw["max_episode_steps"], kw.get("max_cycles")
+        if max_cycles is not None:
+            if max_episode_steps is not None and max_episode_steps != max_cycles:
+                raise ValueError(
+                    f"max_cycles={max_cycles!r} and max_episode_steps={max_episode_steps!r} differ: "
+                    "they are two names of the one episode limit (max_cycles as in PettingZoo's MPE); "
+                    "give one of them, or the same value to both"
+                )
+            max_episode_steps = max_cycles
+        if max_episode_steps is None and front in ("vector", "parallel"):
+            max_episode_steps = PARAMS.max_episode_steps  # these fronts truncate by themselves
+        map_arg = spec.default_map if kw["map"] is None else kw["map"]
+        if isinstance(map_arg, str) and map_arg == "random":
+            map_spec = None
+            if formation is not None:
+                random_map = _random_map_formation(random_map, formation)
+        else:
+            map_spec = load_map(map_arg)
+            map_spec.validate(n_robots, robot_radius)
+            if formation is not None:
+                if not spec.formation:
+                    raise ValueError(
+                        f"formation={formation!r} applies to formation maps ({TASKS['formation'].env_id}) or to "
+                        f"map='random'; map {map_spec.name!r} of {spec.label} keeps its own targets"
+                    )
+                map_spec = map_spec.with_formation(formation, n_robots, PARAMS.formation_spacing, robot_radius)
+        schedule = None
+        if isinstance(slip, str) and slip == RANDOM_SLIP:
+            lambdas = np.full(n_robots, np.nan)  # drawn per reset
+        elif is_schedule(slip):
+            schedule = SlipSchedule.parse(slip, n_robots)
+            lambdas = np.full(n_robots, np.nan) if schedule.drift else schedule.levels[0].copy()
+        else:
+            lambdas = slip_lambdas(slip, n_robots)
+        label = slip if isinstance(slip, str) else ("schedule" if schedule is not None else "custom")
+        return cls(
+            task=spec,
+            map_spec=map_spec,
+            random_map=random_map,
+            lambdas=lambdas,
+            slip_label=label,
+            n_robots=n_robots,
+            goal_tolerance=kw["goal_tolerance"],
+            robot_radius=np.full(n_robots, robot_radius),
+            n_obstacle_obs=kw["n_obstacle_obs"],
+            max_episode_steps=max_episode_steps,
+            start_noise=kw["start_noise"],
+            slip_schedule=schedule,
+            formation=formation,
+        )
+
+    @property
+    def random_slip(self) -> bool:
+        """True when every episode draws its own constant slip level (``slip="random"``)."""
+        return self.slip_schedule is None and bool(np.isnan(self.lambdas).any())
+
+    @property
+    def n_slip_zones(self) -> int:
+        """Slip zones per environment (fixed for a config)."""
+        return self.random_map.n_slip_zones if self.map_spec is None else len(self.map_spec.slip_zones)
+
+    @property
+    def map_name(self) -> str:
+        """Name of the fixed map, or ``"random"``."""
+        return "random" if self.map_spec is None else self.map_spec.name
+
+    @property
+    def n_obstacles(self) -> int:
+        """Obstacles per environment (fixed for a config)."""
+        return self.random_map.n_obstacles if self.map_spec is None else self.map_spec.obstacles.shape[0]
