@@ -52,7 +52,7 @@ from evaluation.results import SCHEMA_VERSION, Results, json_safe
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.thresholds import check_thresholds
 from controllers.nmpc import SOLVERS
-from koopman_envs.params import PARAMS
+from koopman_envs.params import PARAMS, SLIP_NAMES
 
 __all__ = ["Cell", "EpisodeSpec", "Results", "RunInterrupted", "RunSpec", "SCHEMA_VERSION", "check_thresholds", "evaluate",
            "main", "paper_protocol", "quick_protocol", "usable_controllers"]  # fmt: skip
@@ -148,7 +148,7 @@ def _parser() -> argparse.ArgumentParser:
                       help="add a 'random' map row with K seeded layouts per cell, the same for every controller "
                            "(default: none)")  # fmt: skip
     what.add_argument("--slips", nargs="+", metavar="SLIP",
-                      help="nominal low high random drift, or per-robot lambdas like 0,0.1,0.2, one setting per word "
+                      help=f"{' '.join(SLIP_NAMES)}, or per-robot lambdas like 0,0.1,0.2, one setting per word "
                            "(default: high; all three levels with --paper)")  # fmt: skip
     what.add_argument("--episodes", type=int, metavar="N",
                       help="trials per cell (default 2; 10 with --paper, 20 with --ablation)")

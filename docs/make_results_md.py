@@ -21,7 +21,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.results import Results, task_label  # noqa: E402
+from evaluation.report import controller_tables, markdown_table, paired_rows, task_label
+from evaluation.results import Results  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
@@ -111,9 +112,9 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
         lines += [f"### {title} ({seeds} seeds per cell)", "",
                   "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in members) + ".", "",
                   pooled.leaderboard_table(), "", "Paired comparisons (shared map, slip and seed; Newcombe's 95% "
-                  "interval, exact McNemar test):", "", pooled.paired_table(), ""]  # fmt: skip
-        for env_id, name in pooled.table_keys():
-            lines += [pooled.paper_table(env_id, name), ""]
+                  "interval, exact McNemar test):", "", markdown_table(paired_rows(pooled)), ""]  # fmt: skip
+        for caption, table in controller_tables(pooled):
+            lines += [f"**{caption}**", "", markdown_table(table), ""]
     return lines
 
 
@@ -240,7 +241,7 @@ def main() -> None:
     lines += ["## Paired comparisons (paper protocol)", "",
               "Pooled over each task's maps and slip levels; pairs share map, slip and seed. Difference of "
               "success rates with Newcombe's 95% interval for paired proportions; exact McNemar test.", "",
-              pooled.paired_table(), ""]  # fmt: skip
+              markdown_table(paired_rows(pooled)), ""]  # fmt: skip
     if args.strict:
         strict = json.loads(Path(args.strict).read_text())
         scells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for c in strict["cells"]}

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from evaluation.results import task_label
+from evaluation.report import task_label
 from evaluation.statistics import paired_comparison
 
 #: the rule of the default solver: no significant loss, and the interval's lower end above this

@@ -23,7 +23,8 @@ from typing import Any, Sequence
 
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
 from evaluation.configs import ControllerConfig
-from evaluation.results import Results, task_label
+from evaluation.report import task_label
+from evaluation.results import Results
 from evaluation.statistics import paired_comparison, wilson_interval
 
 __all__ = ["DEFAULT_LEVELS", "FACTORS", "ablation_configs", "ablation_markdown", "check_factors"]

@@ -22,7 +22,7 @@ import numpy as np
 
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison, wilson_interval
 
-__all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons"]
+__all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons", "pooled_rate"]
 
 
 def _finite(values: Iterable[Any]) -> list[float]:
@@ -185,6 +185,18 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
     return cells
 
 
+def pooled_rate(cells: Iterable[Cell], outcome: str = "successes") -> tuple[float, list[float], int]:
+    """A rate pooled over cells: (rate, 95% Wilson interval, valid episodes).
+
+    ``outcome`` is the count pooled: ``"successes"`` or ``"collision_free"``. The rate is NaN
+    without valid episodes.
+    """
+    cells = list(cells)
+    valid = sum(c.valid for c in cells)
+    count = sum(getattr(c, outcome) for c in cells)
+    return (count / valid if valid else float("nan")), list(wilson_interval(count, valid)), valid
+
+
 def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (task, controller), ranked by success rate, then mean final distance.
 
@@ -195,9 +207,8 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
     for env_id in dict.fromkeys(c.env_id for c in cells):
         for name in dict.fromkeys(c.controller for c in cells if c.env_id == env_id):
             own = [c for c in cells if c.env_id == env_id and c.controller == name]
-            valid = sum(c.valid for c in own)
-            successes = sum(c.successes for c in own)
-            free = sum(c.collision_free for c in own)
+            success_rate, success_ci, valid = pooled_rate(own, "successes")
+            free_rate, free_ci, _ = pooled_rate(own, "collision_free")
             recs = [r for r in records if r["env_id"] == env_id and r["controller"] == name and r["status"] == "ok"]
             settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
             free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
@@ -207,10 +218,10 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                 "env_id": env_id,
                 "controller": name,
                 "episodes": valid,
-                "success_rate": successes / valid if valid else float("nan"),
-                "success_ci": list(wilson_interval(successes, valid)),
-                "collision_free_rate": free / valid if valid else float("nan"),
-                "collision_free_ci": list(wilson_interval(free, valid)),
+                "success_rate": success_rate,
+                "success_ci": success_ci,
+                "collision_free_rate": free_rate,
+                "collision_free_ci": free_ci,
                 "final_distance_cm": float(np.mean(settled)) if settled else float("nan"),
                 "final_distance_ci": [d_low, d_high],
                 "final_distance_collision_free_cm": float(np.mean(free_runs)) if free_runs else float("nan"),

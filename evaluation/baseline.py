@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from evaluation.results import task_label
+from evaluation.report import task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
 __all__ = ["GateOptions", "compare_runs", "comparison_markdown", "gate_failures", "load_baseline", "refuse_incomparable"]

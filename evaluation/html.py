@@ -1,9 +1,8 @@
 """A run's report as one self-contained HTML page (``OUT/index.html``).
 
 The page holds the run configuration, the leaderboard, the paired comparisons and the
-per-controller tables of :meth:`Results.to_markdown <evaluation.results.Results.to_markdown>`
-(the same formatted cells, taken from the ``*_rows`` methods of
-:class:`~evaluation.results.Results`), every figure as an embedded PNG and, for each cell whose
+per-controller tables: the sections of :func:`evaluation.report.sections`, which the Markdown
+report renders too (the same formatted cells), every figure as an embedded PNG and, for each cell whose
 episode record names an ``animation`` (a path relative to the output directory), that animation.
 
 Nothing is loaded from anywhere: CSS and JavaScript are inline, images are ``data:`` URIs, and
@@ -24,7 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import koopman_envs
-from evaluation.results import LEADERBOARD_NOTE, PAIRED_NOTE, TABLES_NOTE, Table, task_label
+from evaluation.report import Items, Note, Section, Table, TableBlock, sections, task_label
 
 if TYPE_CHECKING:
     from evaluation.results import Results
@@ -137,6 +136,21 @@ def _text(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)
+
+
+def _section(section: Section) -> str:
+    """One report section (:func:`evaluation.report.sections`) as HTML."""
+    out = [f'<h2 id="{_e(section.anchor)}">{_e(section.title)}</h2>']
+    for block in section.blocks:
+        if isinstance(block, Note):
+            out.append(f'<p class="note">{_e(block.text)}</p>')
+        elif isinstance(block, TableBlock):
+            if block.caption:
+                out.append(f"<h3>{_e(block.caption)}</h3>")
+            out.append(_table(block.table))
+        elif isinstance(block, Items):
+            out += ["<ul>", *(f"<li><code>{_e(code)}</code>: {_e(text)}</li>" for code, text in block.entries), "</ul>"]
+    return "\n".join(out)
 
 
 def _table(table: Table, caption: str = "") -> str:
@@ -258,27 +272,8 @@ def render_html(results: Results, out_dir: str | os.PathLike,
         "<h1>KoopNav results</h1>",
         '<p class="note">Click a column header to sort a table; click again to reverse.</p>',
         _config_section(results),
-        '<h2 id="leaderboard">Leaderboard</h2>', _table(results.leaderboard_rows()),
-        f'<p class="note">{_e(LEADERBOARD_NOTE)}</p>',
     ]  # fmt: skip
-    if results.calibration_note():
-        parts.append(f'<p class="note">{_e(results.calibration_note())}</p>')
-    paired = results.paired_rows()
-    if paired[1]:
-        parts += ['<h2 id="paired">Paired comparisons</h2>', f'<p class="note">{_e(PAIRED_NOTE)}</p>',
-                  _table(paired)]  # fmt: skip
-    parts += ['<h2 id="tables">Per-controller tables</h2>', f'<p class="note">{_e(TABLES_NOTE)}</p>']
-    for env_id, name in results.table_keys():
-        table = results.paper_rows(env_id, name)
-        if table[1]:
-            parts += [f"<h3>{_e(name)}, {_e(task_label(env_id))}</h3>", _table(table)]
-    if results.calibration_used():
-        parts.append(f'<p class="note">{_e(results.calibration_used())}</p>')
-    if results.failed_episodes:
-        parts += ['<h2 id="failed">Episodes that raised</h2>', "<ul>"]
-        parts += [f"<li><code>{_e(r['key'])}</code>: {_e(r.get('error'))}</li>"
-                  for r in results.failed_episodes]  # fmt: skip
-        parts.append("</ul>")
+    parts += [_section(section) for section in sections(results)]
     if figure_paths:
         parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']
         parts += [_figure(p, p.name) for p in figure_paths]

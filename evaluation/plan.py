@@ -13,10 +13,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 from evaluation.configs import ControllerConfig
-from koopman_envs.params import PARAMS, SLIP_SETTINGS
+from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.maps import BUILTIN_MAPS
-from koopman_envs.sim.slip import RANDOM_SLIP
-from koopman_envs.sim.slip_schedule import DRIFT_SLIP
 
 __all__ = ["EpisodeSpec", "RANDOM_MAP", "map_fingerprints", "safe_file_name", "slip_value"]
 
@@ -26,13 +24,13 @@ RANDOM_MAP = "random"
 def slip_value(slip: str) -> str | list[float]:
     """A slip cell name as the env takes it: a setting name, ``"random"``, ``"drift"`` or per-robot
     lambdas (a listed schedule of levels over time is an env keyword only, not a cell)."""
-    if slip in SLIP_SETTINGS or slip in (RANDOM_SLIP, DRIFT_SLIP):
+    if slip in SLIP_NAMES:
         return slip
     try:
         return [float(v) for v in slip.split(",")]
     except ValueError:
         raise ValueError(
-            f"slip={slip!r} is not one of {[*SLIP_SETTINGS, RANDOM_SLIP, DRIFT_SLIP]} "
+            f"slip={slip!r} is not one of {list(SLIP_NAMES)} "
             "nor comma-separated per-robot lambdas"
         ) from None
 

@@ -23,13 +23,12 @@ from typing import Any
 from controllers.calibration import data_spec_for
 from evaluation.configs import controller_configs, with_solver
 from evaluation.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
+from evaluation.runlog import run_signature
 from koopman_envs.checks import check_int
 from koopman_envs.config import EngineConfig
 from koopman_envs.keywords import ENV_KEYWORDS
-from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
+from koopman_envs.params import DRIFT_SLIP, PARAMS, RANDOM_SLIP, SLIP_NAMES, SLIP_SETTINGS, slip_lambdas
 from koopman_envs.sim.maps import BUILTIN_MAPS
-from koopman_envs.sim.slip import RANDOM_SLIP
-from koopman_envs.sim.slip_schedule import DRIFT_SLIP
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import ENV_IDS, TASKS, task_for_env
 
@@ -39,15 +38,12 @@ __all__ = ["CELL_AXES", "RECORDED_ENV_SETTINGS", "RunSpec"]
 CELL_AXES = ("map", "slip")
 #: env keywords the evaluator owns: rendering is its business (``gifs``)
 _NOT_ENV_KWARGS = (*CELL_AXES, "render_mode")
-#: env settings every run records, with the env's defaults when the run does not set them
-RECORDED_ENV_SETTINGS = ("goal_tolerance", "max_episode_steps", "start_noise")
+#: env settings every run records, with these values when the run does not set them (the envs'
+#: defaults, with the time limit spelled out: the Gymnasium env leaves it to gym.make's TimeLimit)
+RECORDED_ENV_SETTINGS = {"goal_tolerance": PARAMS.goal_tolerance, "max_episode_steps": PARAMS.max_episode_steps,
+                         "start_noise": 0.0}  # fmt: skip
 #: each task's paper maps
 TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
-
-
-def _env_default(name: str) -> Any:
-    (keyword,) = [k for k in ENV_KEYWORDS if k.name == name]
-    return keyword.default
 
 
 @dataclass(frozen=True)
@@ -152,10 +148,10 @@ class RunSpec:
         return dataclasses.replace(self, **changes)
 
     def env_settings(self) -> dict[str, Any]:
-        """The env keywords every episode runs with: ``env_kwargs`` plus the env's defaults of
+        """The env keywords every episode runs with: ``env_kwargs`` over the defaults of
         :data:`RECORDED_ENV_SETTINGS` (so two runs that differ only in spelling a default out
         record the same settings)."""
-        settings = {name: _env_default(name) for name in RECORDED_ENV_SETTINGS}
+        settings = dict(RECORDED_ENV_SETTINGS)
         settings.update(self.env_kwargs)
         return json.loads(json.dumps(dict(sorted(settings.items()))))
 
@@ -210,8 +206,8 @@ class RunSpec:
         check_int("workers", workers, 1)
         self._validate_env_kwargs()
         if not self.slips:
-            raise ValueError("slips: no slip setting to evaluate; allowed: nominal, low, high, random, drift or "
-                             "per-robot lambdas")  # fmt: skip
+            raise ValueError(f"slips: no slip setting to evaluate; allowed: {', '.join(SLIP_NAMES)} or per-robot "
+                             "lambdas")  # fmt: skip
         for slip in self.slips:
             try:
                 value = slip_value(slip)
@@ -296,6 +292,4 @@ class RunSpec:
 
     def signature(self) -> dict[str, Any]:
         """What ``--resume`` checks: the settings that change what an episode does."""
-        from evaluation.runlog import run_signature
-
         return run_signature(self.config(workers=1, backend="process"))

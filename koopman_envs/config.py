@@ -12,9 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.keywords import env_keywords, unknown_keywords
-from koopman_envs.params import PARAMS, slip_lambdas
+from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
 from koopman_envs.sim.maps import MapSpec, RandomMapConfig, load_map
-from koopman_envs.sim.slip import RANDOM_SLIP
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.tasks.base import TASKS, TaskSpec
 

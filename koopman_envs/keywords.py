@@ -8,12 +8,13 @@ import dataclasses
 import difflib
 import functools
 import inspect
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from koopman_envs.checks import check_int, check_number
-from koopman_envs.params import PARAMS
+from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS, RandomMapConfig
 from koopman_envs.tasks.base import TASKS
@@ -100,8 +101,8 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
                f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '
                "map file or a MapSpec; None: the task's first map"),
     EnvKeyword("slip", "nominal", "str | Sequence[Any]",
-               '"nominal", "low", "high", "random", "drift", one lambda >= 0 per robot, or '
-               "(time [s], lambdas) pairs"),
+               f"{', '.join(map(json.dumps, SLIP_NAMES))}, one lambda >= 0 per robot, "
+               "or (time [s], lambdas) pairs"),
     EnvKeyword("n_robots", PARAMS.n_robots, "int",
                "team size N: at most the map's starts (a smaller team takes the first N), any N "
                'with map="random"', check=lambda name, v: check_int(name, v, 1)),

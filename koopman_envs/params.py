@@ -111,6 +111,10 @@ PARAMS = PaperParams()
 #: nominal (0, 0, 0), low (0, 0.05, 0.1), high (0, 0.1, 0.2). The spacing rule is (ours).
 SLIP_MAX_LAMBDA: dict[str, float] = {"nominal": 0.0, "low": 0.1, "high": 0.2}
 SLIP_SETTINGS = tuple(SLIP_MAX_LAMBDA)
+#: ``slip="random"``: each episode draws its own constant levels (see RANDOM_SLIP_MAX)
+RANDOM_SLIP = "random"
+#: ``slip="drift"``: every robot's level is redrawn at random times (see DRIFT_MEAN_INTERVAL)
+DRIFT_SLIP = "drift"
 
 #: Largest slip mean of the settings that draw their levels (ours: covers and exceeds "high").
 #: ``slip="random"`` draws the most-slipping robot's lambda uniformly on [0, RANDOM_SLIP_MAX] once
@@ -125,6 +129,16 @@ RANDOM_SLIP_MAX = 0.25
 #: control period that starts at or after t, so the level of a period is the one drawn last up to
 #: the period's start. Exact draw order: koopman_envs.sim.slip_schedule.SlipClock.
 DRIFT_MEAN_INTERVAL = 5.0
+
+#: Every named slip setting and what it means: the one table the env docs, the CLI help and the
+#: errors read (per-robot lambdas and (time, lambdas) schedules are the unnamed forms).
+SLIP_NAMES: dict[str, str] = {
+    **{name: f"constant levels, robot 1 slip-free, the others spaced linearly up to lambda = {top:g}"
+       for name, top in SLIP_MAX_LAMBDA.items()},
+    RANDOM_SLIP: f"constant levels drawn per episode (largest lambda uniform on [0, {RANDOM_SLIP_MAX:g}])",
+    DRIFT_SLIP: f"every robot's level redrawn on [0, {RANDOM_SLIP_MAX:g}] at random times "
+                f"(mean interval {DRIFT_MEAN_INTERVAL:g} s)",
+}  # fmt: skip
 
 
 def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:

@@ -33,9 +33,9 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
 from koopman_envs.config import EngineConfig
-from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS
+from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.sim.rollout import rollout
-from koopman_envs.sim.slip import RANDOM_SLIP_MAX, draw_random_lambdas
+from koopman_envs.sim.slip import draw_random_lambdas
 from koopman_envs.tasks.base import task_for_env
 
 __all__ = ["BudgetExceeded", "CalibrationPlant", "DYNAMICS_VERSION", "make_plant"]

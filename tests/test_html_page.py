@@ -86,10 +86,12 @@ class _Tables(HTMLParser):
 
 
 def _expected_tables(results: ev.Results) -> list:
-    tables = [results.leaderboard_rows()]
-    if results.paired_rows()[1]:
-        tables.append(results.paired_rows())
-    tables += [results.paper_rows(env_id, name) for env_id, name in results.table_keys()]
+    from evaluation.report import controller_tables, leaderboard_rows, paired_rows
+
+    tables = [leaderboard_rows(results)]
+    if paired_rows(results)[1]:
+        tables.append(paired_rows(results))
+    tables += [table for _, table in controller_tables(results)]
     return [(list(h), [list(r) for r in rows]) for h, rows in tables]
 
 

@@ -18,11 +18,8 @@ from numpy.typing import NDArray
 
 from koopman_envs.params import RANDOM_SLIP_MAX
 
-__all__ = ["RANDOM_SLIP", "RANDOM_SLIP_MAX", "SlipSampler", "draw_random_lambdas"]
+__all__ = ["SlipSampler", "draw_random_lambdas"]
 
-#: ``slip="random"``: each episode draws the largest lambda uniformly on [0, RANDOM_SLIP_MAX] and
-#: spaces the others linearly from robot 1's 0 (ours: covers and exceeds the "high" setting).
-RANDOM_SLIP = "random"
 
 
 def draw_random_lambdas(rng: np.random.Generator, n_robots: int) -> NDArray[np.float64]:

@@ -19,12 +19,10 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX, slip_lambdas
+from koopman_envs.params import DRIFT_MEAN_INTERVAL, DRIFT_SLIP, PARAMS, RANDOM_SLIP_MAX, slip_lambdas
 
-__all__ = ["DRIFT_SLIP", "SlipClock", "SlipSchedule", "TIME_SLACK", "is_schedule"]
+__all__ = ["SlipClock", "SlipSchedule", "TIME_SLACK", "is_schedule"]
 
-#: ``slip="drift"``: every robot's level is redrawn at random times (params.DRIFT_MEAN_INTERVAL)
-DRIFT_SLIP = "drift"
 #: a change time within this much [s] of a period's start counts as at the start (``0.3 / 0.1``
 #: is 2.9999999999999996 periods in floating point)
 TIME_SLACK = 1e-9

@@ -1,0 +1,276 @@
+"""A run's report, built once as sections (title, notes, tables, lists) that Markdown
+(``results.md``, the terminal) and HTML (``index.html``) render alike.
+
+Every table is a :data:`Table`: a header and rows of cells already formatted as text (rates
+with their Wilson intervals, means with their bootstrap intervals), so that every format shows
+the same numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from koopman_envs.tasks.base import TASKS
+
+if TYPE_CHECKING:  # the report reads a Results; results.py writes the report
+    from evaluation.results import Results
+
+__all__ = [
+    "LEADERBOARD_NOTE",
+    "Note",
+    "PAIRED_NOTE",
+    "Items",
+    "Section",
+    "TABLES_NOTE",
+    "Table",
+    "TableBlock",
+    "controller_tables",
+    "leaderboard_rows",
+    "markdown",
+    "markdown_table",
+    "paired_rows",
+    "paper_rows",
+    "sections",
+    "task_label",
+    "terminal_summary",
+]
+
+_LABELS = {spec.env_id: spec.label for spec in TASKS.values()}
+
+
+def task_label(env_id: str) -> str:
+    """Report name of a task ("formation"), or the id itself for an unknown one."""
+    return _LABELS.get(env_id, env_id)
+
+
+#: A report table: its header and its rows, every cell already formatted as text.
+Table = tuple[list[str], list[list[str]]]
+
+LEADERBOARD_NOTE = (
+    "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
+    "Intervals: 95% Wilson for rates, 95% bootstrap for mean final distances (team mean per run). "
+    "Final distances over settled runs and over collision-free runs (the paper's convention)."
+)
+PAIRED_NOTE = (
+    "Success of a minus success of b on the episodes both ran (same map, slip and seed): "
+    "Newcombe's 95% interval for paired proportions and the exact McNemar test on the discordant pairs."
+)
+TABLES_NOTE = (
+    "Success and SR: k/n [95% Wilson interval]. Robots: mean+-SD over collision-free runs (the paper's "
+    "convention). Team: mean over robots per run, mean [95% bootstrap interval]."
+)
+
+
+# --------------------------------------------------------------------------- cell formats
+def _pct(rate: float, ci: tuple[float, float] | list[float]) -> str:
+    """``80% [49-94]``: a rate with its interval, in percent."""
+    if rate is None or math.isnan(rate):
+        return "-"
+    return f"{100 * rate:.0f}% [{100 * ci[0]:.0f}-{100 * ci[1]:.0f}]"
+
+
+def _count(k: int, n: int, ci: tuple[float, float]) -> str:
+    """``8/10 [49-94%]``."""
+    if n == 0:
+        return "-"
+    return f"{k}/{n} [{100 * ci[0]:.0f}-{100 * ci[1]:.0f}%]"
+
+
+def _mean_ci(mean: float, low: float, high: float) -> str:
+    if mean is None or math.isnan(mean):
+        return "-"
+    return f"{mean:.1f} [{low:.1f}-{high:.1f}]"
+
+
+def _mean_sd(mean: float, sd: float, runs: int) -> str:
+    if runs == 0 or math.isnan(mean):
+        return "-"
+    return f"{mean:.1f}" if runs == 1 else f"{mean:.1f}+-{sd:.1f}"
+
+
+def _p_value(p: float) -> str:
+    return "<0.001" if p < 1e-3 else f"{p:.3f}"
+
+
+# --------------------------------------------------------------------------- tables
+def leaderboard_rows(results: Results) -> Table:
+    """The leaderboard (ranked within each task): one row per (task, controller)."""
+    header = ["Rank", "Task", "Controller", "Episodes", "Success [95% CI]", "Collision-free [95% CI]",
+              "Final dist., settled [cm]", "Final dist., collision-free [cm]", "Solver", "Solve median [ms]",
+              "Solver failures"]  # fmt: skip
+    rows = []
+    rank, last_env = 0, None
+    for row in results.leaderboard():
+        rank = 1 if row["env_id"] != last_env else rank + 1
+        last_env = row["env_id"]
+        solve = "-" if math.isnan(row["solve_ms_median"]) else f"{row['solve_ms_median']:.1f}"
+        rows.append([
+            str(rank), task_label(row["env_id"]), row["controller"], str(row["episodes"]),
+            _pct(row["success_rate"], row["success_ci"]),
+            _pct(row["collision_free_rate"], row["collision_free_ci"]),
+            _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
+            _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
+            row.get("solver") or "-", solve, str(row["solver_failures"]),
+        ])  # fmt: skip
+    return header, rows
+
+
+def paired_rows(results: Results) -> Table:
+    """The paired comparisons (success rate of a minus b on shared seeds)."""
+    header = ["Task", "a", "b", "Pairs", "Success a", "Success b", "a - b [95% CI]", "only a / only b",
+              "McNemar p"]  # fmt: skip
+    rows = []
+    for r in results.paired():
+        rows.append([
+            task_label(r["env_id"]), r["a"], r["b"], str(r["n"]), f"{100 * r['rate_a']:.0f}%",
+            f"{100 * r['rate_b']:.0f}%",
+            f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]",
+            f"{r['only_a']} / {r['only_b']}", _p_value(r["p_value"]),
+        ])  # fmt: skip
+    return header, rows
+
+
+def paper_rows(results: Results, env_id: str, controller: str) -> Table:
+    """One controller's paper-style table: one row per map and slip."""
+    cells = [c for c in results.cells if c.env_id == env_id and c.controller == controller]
+    n = max((len(c.distance_collision_free.per_robot) for c in cells), default=0)
+    header = ["Map", "Slip", "Success", "SR (collision-free)", *(f"Robot {i + 1} [cm]" for i in range(n)),
+              "team, collision-free [cm]", "team, settled [cm]"]  # fmt: skip
+    rows = []
+    for c in cells:
+        free = c.distance_collision_free
+        settled = c.distance_settled
+        rows.append([
+            c.map, c.slip, _count(c.successes, c.valid, c.success_ci),
+            _count(c.collision_free, c.valid, c.collision_free_ci),
+            *(_mean_sd(m, s, free.runs) for m, s in free.per_robot),
+            _mean_ci(free.team_mean, free.team_low, free.team_high),
+            _mean_ci(settled.team_mean, settled.team_low, settled.team_high),
+        ])  # fmt: skip
+    return header, rows
+
+
+def controller_tables(results: Results) -> list[tuple[str, Table]]:
+    """(caption, paper-style table) of every (task, controller), in report order."""
+    keys = [(env_id, name) for env_id in dict.fromkeys(c.env_id for c in results.cells)
+            for name in dict.fromkeys(c.controller for c in results.cells if c.env_id == env_id)]  # fmt: skip
+    return [(f"{name}, {task_label(env_id)}", paper_rows(results, env_id, name)) for env_id, name in keys]
+
+
+def _calibration_note(config: Mapping[str, Any]) -> str:
+    calibration = config.get("calibration", {})
+    if not calibration:
+        return ""
+    return (f"Calibration: every controller was offered the same plant (the env's robots in an open field, "
+            f"slip means hidden) with a budget of {calibration.get('budget'):,} team-transitions, seed "
+            f"{calibration.get('seed')}; the per-cell tables list what each used.")  # fmt: skip
+
+
+def _calibration_used(results: Results) -> str:
+    used = [c for c in results.cells if c.calibration_transitions is not None]
+    if not used:
+        return ""
+    return "Calibration data used (team-transitions): " + ", ".join(
+        sorted({f"{c.controller} {c.calibration_transitions:,}" for c in used}))  # fmt: skip
+
+
+# --------------------------------------------------------------------------- sections
+@dataclass(frozen=True)
+class Note:
+    """A paragraph of explanation."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class TableBlock:
+    """A table with an optional caption."""
+
+    table: Table
+    caption: str = ""
+
+
+@dataclass(frozen=True)
+class Items:
+    """A list of (code, text) entries, e.g. the episodes that raised and their errors."""
+
+    entries: tuple[tuple[str, str], ...]
+
+
+Block = Note | TableBlock | Items
+
+
+@dataclass(frozen=True)
+class Section:
+    """One part of the report: an anchor (the HTML id), a title and its blocks in order."""
+
+    anchor: str
+    title: str
+    blocks: tuple[Block, ...]
+
+
+def sections(results: Results) -> list[Section]:
+    """The report of a run, in order: leaderboard, paired comparisons (when any two controllers
+    share episodes), per-controller tables, and the episodes that raised (when any did)."""
+    lead: list[Block] = [TableBlock(leaderboard_rows(results)), Note(LEADERBOARD_NOTE)]
+    if _calibration_note(results.config):
+        lead.append(Note(_calibration_note(results.config)))
+    out = [Section("leaderboard", "Leaderboard", tuple(lead))]
+    paired = paired_rows(results)
+    if paired[1]:
+        out.append(Section("paired", "Paired comparisons", (Note(PAIRED_NOTE), TableBlock(paired))))
+    tables: list[Block] = [Note(TABLES_NOTE)]
+    tables += [TableBlock(table, caption) for caption, table in controller_tables(results) if table[1]]
+    if _calibration_used(results):
+        tables.append(Note(_calibration_used(results)))
+    out.append(Section("tables", "Per-controller tables", tuple(tables)))
+    if results.failed_episodes:
+        entries = tuple((str(r["key"]), str(r.get("error"))) for r in results.failed_episodes)
+        out.append(Section("failed", "Episodes that raised", (Items(entries),)))
+    return out
+
+
+# --------------------------------------------------------------------------- Markdown
+def markdown_table(table: Table) -> str:
+    """A :data:`Table` as a Markdown table."""
+    header, rows = table
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _markdown_block(block: Block) -> str:
+    if isinstance(block, Note):
+        return block.text
+    if isinstance(block, TableBlock):
+        return (f"**{block.caption}**\n\n" if block.caption else "") + markdown_table(block.table)
+    return "\n".join(f"- `{code}`: {text}" for code, text in block.entries)
+
+
+def markdown(report: Sequence[Section]) -> str:
+    """The sections as one Markdown document (``## title`` per section)."""
+    return "\n\n".join(f"## {s.title}\n\n" + "\n\n".join(_markdown_block(b) for b in s.blocks) for s in report)
+
+
+def terminal_summary(results: Results, paths: Mapping[str, Path]) -> str:
+    """The compact leaderboard a terminal gets (rank, controller, episodes, success with its
+    interval, settled final distance, solver and its median time) and where the full report is."""
+    header, rows = leaderboard_rows(results)
+    keep = [header.index(name) for name in ("Rank", "Task", "Controller", "Episodes", "Success [95% CI]",
+                                            "Final dist., settled [cm]", "Solver", "Solve median [ms]")]  # fmt: skip
+    table = markdown_table(([header[i] for i in keep], [[row[i] for i in keep] for row in rows]))
+    cells = sorted({(c.map, c.slip) for c in results.cells})
+    note = (f"{len(results.records)} episodes over {len(cells)} map/slip cells "
+            f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
+            "without collision; 95% Wilson intervals. Few episodes per controller give wide intervals: "
+            "a smoke test, not a ranking.")  # fmt: skip
+    lines = [table, "", note]
+    reports = [str(paths[k]) for k in ("markdown", "html") if k in paths]
+    if reports:
+        lines.append(f"Full report (paired comparisons on shared seeds, per-cell tables, figures): "
+                     f"{', '.join(reports)}")  # fmt: skip
+    return "\n".join(lines)
