@@ -39,7 +39,9 @@ class PolicyFiles:
         self.metadata = self.directory / "metadata.json"
 
 
-def load_policy(directory: str | os.PathLike, task: str = "formation", algo: str = "ppo") -> tuple[Any, dict, dict]:
+def load_policy(
+    directory: str | os.PathLike, task: str = "formation", algo: str = "ppo"
+) -> tuple[Any, dict, dict]:
     """Load (model, observation normalization, metadata); clear errors for missing or corrupt files."""
     files = PolicyFiles(Path(directory))
     hint = REGENERATE.format(env_id=TASK_ENV.get(task, task), algo=algo, task=task)
@@ -49,7 +51,9 @@ def load_policy(directory: str | os.PathLike, task: str = "formation", algo: str
     try:
         from stable_baselines3 import PPO, SAC
     except ImportError:
-        raise ValueError("the RL baseline needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
+        raise ValueError(
+            "the RL baseline needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'"
+        ) from None
     try:
         metadata = json.loads(files.metadata.read_text(encoding="utf-8"))
         with np.load(files.norm, allow_pickle=False) as data:
@@ -121,7 +125,14 @@ def policy_command(
 
 
 def success_rate(
-    model: Any, norm: dict, layout: str, features: str, env_id: str, episodes: int, seed: int, **env_kwargs: Any
+    model: Any,
+    norm: dict,
+    layout: str,
+    features: str,
+    env_id: str,
+    episodes: int,
+    seed: int,
+    **env_kwargs: Any,
 ) -> float:
     """Success rate of the deterministic policy over ``episodes`` episodes, played as one batch.
 
@@ -174,7 +185,9 @@ class RLPolicyController(BaseController):
         import importlib.util
 
         if importlib.util.find_spec("stable_baselines3") is None:
-            raise ValueError("rl-ppo needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'")
+            raise ValueError(
+                "rl-ppo needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'"
+            )
         if not any(policy_dir(task, self.policy_root).exists() for task in TASK_ENV):
             raise ValueError(
                 f"no trained policy in {self.policy_root}; train one with "
@@ -188,7 +201,9 @@ class RLPolicyController(BaseController):
 
             torch.set_num_threads(self.threads)
         if scenario.task not in self._loaded:
-            self._loaded[scenario.task] = load_policy(policy_dir(scenario.task, self.policy_root), scenario.task, self.algo)
+            self._loaded[scenario.task] = load_policy(
+                policy_dir(scenario.task, self.policy_root), scenario.task, self.algo
+            )
         self._model, self._norm, self.metadata = self._loaded[scenario.task]
         self._layout = self.metadata.get("layout", "team")
         self._features = self.metadata.get("features", "bearing")
@@ -202,8 +217,15 @@ class RLPolicyController(BaseController):
         start = time.perf_counter()
         sc = self._scenario
         command = policy_command(
-            self._model, self._norm, self._layout, observation, sc.n_robots, sc.v_max, sc.omega_max,
-            self._features, self._neighbours,
+            self._model,
+            self._norm,
+            self._layout,
+            observation,
+            sc.n_robots,
+            sc.v_max,
+            sc.omega_max,
+            self._features,
+            self._neighbours,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command

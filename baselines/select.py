@@ -30,9 +30,17 @@ def validation_success(directory: Path, metadata: dict, episodes: int, seed: int
     """Success rate of the policy in ``directory`` on ``episodes`` held-out random layouts."""
     model, norm, _ = load_policy(directory, metadata["task"], metadata["algo"])
     return success_rate(
-        model, norm, metadata["layout"], metadata.get("features", "bearing"), metadata["env_id"], episodes, seed,
-        map="random", slip="random", random_map=metadata.get("random_map") or None,
-    )  # fmt: skip
+        model,
+        norm,
+        metadata["layout"],
+        metadata.get("features", "bearing"),
+        metadata["env_id"],
+        episodes,
+        seed,
+        map="random",
+        slip="random",
+        random_map=metadata.get("random_map") or None,
+    )
 
 
 def candidates(run: Path) -> list[tuple[int, Path]]:
@@ -78,8 +86,10 @@ def main(argv: list[str] | None = None) -> int:
         "validation": table,
     }
     target.metadata.write_text(json.dumps(selected, indent=1) + "\n", encoding="utf-8")
-    print(f"selected the policy after {table[best]['timesteps']:,} steps "
-          f"(validation success {table[best]['validation_success_rate']:.2f}); wrote {out}")  # fmt: skip
+    print(
+        f"selected the policy after {table[best]['timesteps']:,} steps "
+        f"(validation success {table[best]['validation_success_rate']:.2f}); wrote {out}"
+    )
     return 0
 
 

@@ -55,8 +55,12 @@ def evaluate_policy_on_maps(
 
 def _norm_of(vec_normalize) -> dict[str, np.ndarray]:
     rms = vec_normalize.obs_rms
-    return {"mean": rms.mean.astype(np.float64), "var": rms.var.astype(np.float64),
-            "clip": np.float64(vec_normalize.clip_obs), "epsilon": np.float64(vec_normalize.epsilon)}  # fmt: skip
+    return {
+        "mean": rms.mean.astype(np.float64),
+        "var": rms.var.astype(np.float64),
+        "clip": np.float64(vec_normalize.clip_obs),
+        "epsilon": np.float64(vec_normalize.epsilon),
+    }
 
 
 def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
@@ -72,26 +76,58 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m baselines.train", description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=list(TASK_OF))
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
-    parser.add_argument("--timesteps", type=lambda s: int(s.replace("_", "")), default=None,
-                        help="robot-steps in the robot layout (default: the task's TIMESTEPS entry)")
+    parser.add_argument(
+        "--timesteps",
+        type=lambda s: int(s.replace("_", "")),
+        default=None,
+        help="robot-steps in the robot layout (default: the task's TIMESTEPS entry)",
+    )
     parser.add_argument("--n-envs", type=int, default=128, help="simulated environments (PPO)")
-    parser.add_argument("--layout", default="robot", choices=LAYOUTS,
-                        help="robot: one policy shared by every robot (default); team: centralized")
-    parser.add_argument("--collision-penalty", type=float, default=10.0,
-                        help="robot layout: extra penalty for the robot that collides")
-    parser.add_argument("--features", default="bearing+headings", choices=FEATURE_SETS,
-                        help="robot layout: what the shared policy sees beside its block")
-    parser.add_argument("--precision-shaping", type=float, default=5.0,
-                        help="robot layout: weight of the log-distance potential term")
+    parser.add_argument(
+        "--layout",
+        default="robot",
+        choices=LAYOUTS,
+        help="robot: one policy shared by every robot (default); team: centralized",
+    )
+    parser.add_argument(
+        "--collision-penalty",
+        type=float,
+        default=10.0,
+        help="robot layout: extra penalty for the robot that collides",
+    )
+    parser.add_argument(
+        "--features",
+        default="bearing+headings",
+        choices=FEATURE_SETS,
+        help="robot layout: what the shared policy sees beside its block",
+    )
+    parser.add_argument(
+        "--precision-shaping",
+        type=float,
+        default=5.0,
+        help="robot layout: weight of the log-distance potential term",
+    )
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
-    parser.add_argument("--net", type=lambda s: [int(w) for w in s.split(",")], default=[128, 128],
-                        help="hidden layer widths of actor and critic, e.g. 128,128")
-    parser.add_argument("--random-map", type=json.loads, default=None,
-                        help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)")
+    parser.add_argument(
+        "--net",
+        type=lambda s: [int(w) for w in s.split(",")],
+        default=[128, 128],
+        help="hidden layer widths of actor and critic, e.g. 128,128",
+    )
+    parser.add_argument(
+        "--random-map",
+        type=json.loads,
+        default=None,
+        help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)",
+    )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--eval-freq", type=lambda s: int(s.replace("_", "")), default=2_000_000,
-                        help="steps between checkpoints (each also evaluated on the paper maps)")
+    parser.add_argument(
+        "--eval-freq",
+        type=lambda s: int(s.replace("_", "")),
+        default=2_000_000,
+        help="steps between checkpoints (each also evaluated on the paper maps)",
+    )
     parser.add_argument("--max-episode-steps", type=int, default=400)
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
@@ -103,8 +139,10 @@ def main(argv: list[str] | None = None) -> int:
         from stable_baselines3.common.logger import configure
         from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
     except ImportError:
-        print("error: training needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'",
-              file=sys.stderr)  # fmt: skip
+        print(
+            "error: training needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'",
+            file=sys.stderr,
+        )
         return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -114,12 +152,19 @@ def main(argv: list[str] | None = None) -> int:
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
-    venv = KoopNavSB3VecEnv(args.env, n_envs, seed=args.seed, layout=args.layout,
-                            collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
-                            precision_shaping=args.precision_shaping if args.layout == "robot" else 0.0,
-                            features=args.features,
-                            map="random", slip="random", random_map=random_map,
-                            max_episode_steps=args.max_episode_steps)  # fmt: skip
+    venv = KoopNavSB3VecEnv(
+        args.env,
+        n_envs,
+        seed=args.seed,
+        layout=args.layout,
+        collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
+        precision_shaping=args.precision_shaping if args.layout == "robot" else 0.0,
+        features=args.features,
+        map="random",
+        slip="random",
+        random_map=random_map,
+        max_episode_steps=args.max_episode_steps,
+    )
     team_size = venv.n_robots
     venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
     venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
@@ -127,12 +172,36 @@ def main(argv: list[str] | None = None) -> int:
     # noise mostly produces early collisions
     policy_kwargs = {"net_arch": args.net, "log_std_init": args.log_std_init}
     if args.algo == "ppo":
-        model = PPO("MlpPolicy", venv, n_steps=128, batch_size=2048, n_epochs=5, learning_rate=3e-4, gamma=0.99,
-                    gae_lambda=0.95, clip_range=0.2, ent_coef=0.0, policy_kwargs=policy_kwargs, seed=args.seed,
-                    device="cpu", verbose=0)  # fmt: skip
+        model = PPO(
+            "MlpPolicy",
+            venv,
+            n_steps=128,
+            batch_size=2048,
+            n_epochs=5,
+            learning_rate=3e-4,
+            gamma=0.99,
+            gae_lambda=0.95,
+            clip_range=0.2,
+            ent_coef=0.0,
+            policy_kwargs=policy_kwargs,
+            seed=args.seed,
+            device="cpu",
+            verbose=0,
+        )
     else:
-        model = SAC("MlpPolicy", venv, learning_rate=3e-4, buffer_size=500_000, batch_size=256, train_freq=1,
-                    gradient_steps=1, policy_kwargs={"net_arch": args.net}, seed=args.seed, device="cpu", verbose=0)  # fmt: skip
+        model = SAC(
+            "MlpPolicy",
+            venv,
+            learning_rate=3e-4,
+            buffer_size=500_000,
+            batch_size=256,
+            train_freq=1,
+            gradient_steps=1,
+            policy_kwargs={"net_arch": args.net},
+            seed=args.seed,
+            device="cpu",
+            verbose=0,
+        )
     model.set_logger(configure(str(out), ["csv"]))
     history: list[dict] = []
 
@@ -149,17 +218,29 @@ def main(argv: list[str] | None = None) -> int:
                 rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, args.features)
                 history.append({"timesteps": self.num_timesteps, "success_rate_nominal": rate})
                 self.logger.record("eval/success_rate_nominal", rate)
-                save_policy(out / "checkpoints" / f"step_{self.num_timesteps}", model, venv,
-                            {"algo": args.algo, "layout": args.layout, "features": args.features,
-                             "timesteps": self.num_timesteps})  # fmt: skip
-                print(f"{self.num_timesteps:>10,d} steps  eval success (nominal, paper maps) {rate:.2f}", flush=True)
+                save_policy(
+                    out / "checkpoints" / f"step_{self.num_timesteps}",
+                    model,
+                    venv,
+                    {
+                        "algo": args.algo,
+                        "layout": args.layout,
+                        "features": args.features,
+                        "timesteps": self.num_timesteps,
+                    },
+                )
+                print(
+                    f"{self.num_timesteps:>10,d} steps  eval success (nominal, paper maps) {rate:.2f}",
+                    flush=True,
+                )
             return True
 
     start = time.perf_counter()
     model.learn(total_timesteps=args.timesteps, callback=Periodic())
     wall = time.perf_counter() - start
-    final_rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, args.features,
-                                         episodes_per_map=5)
+    final_rate = evaluate_policy_on_maps(
+        model, _norm_of(venv), args.env, args.layout, args.features, episodes_per_map=5
+    )
     metadata = {
         "algo": args.algo,
         "layout": args.layout,
@@ -180,14 +261,19 @@ def main(argv: list[str] | None = None) -> int:
         "eval_success_rate_nominal_paper_maps": final_rate,
         "eval_history": history,
         "versions": {
-            "koopnav": koopman_envs.__version__, "stable_baselines3": stable_baselines3.__version__,
-            "torch": torch.__version__, "numpy": np.__version__, "gymnasium": gym.__version__,
+            "koopnav": koopman_envs.__version__,
+            "stable_baselines3": stable_baselines3.__version__,
+            "torch": torch.__version__,
+            "numpy": np.__version__,
+            "gymnasium": gym.__version__,
             "python": platform.python_version(),
         },
-    }  # fmt: skip
+    }
     save_policy(out, model, venv, metadata)
-    print(f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
-          f"eval success {final_rate:.2f}; wrote {out}")  # fmt: skip
+    print(
+        f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
+        f"eval success {final_rate:.2f}; wrote {out}"
+    )
     return 0
 
 

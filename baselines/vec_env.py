@@ -20,7 +20,8 @@ Two layouts:
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -59,13 +60,16 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     chosen = np.concatenate([chosen, np.broadcast_to(pad, chosen.shape[:-1] + pad.shape)], axis=-1)
     index = np.broadcast_to(others, slots.shape[:-2] + others.shape)
     robots = np.take_along_axis(index, slots, axis=-1)
-    robots = np.concatenate([robots, np.broadcast_to(np.arange(n)[:, None], robots.shape[:-1] + (neighbours - listed,))],
-                            axis=-1)  # fmt: skip
+    robots = np.concatenate(
+        [robots, np.broadcast_to(np.arange(n)[:, None], robots.shape[:-1] + (neighbours - listed,))], axis=-1
+    )
     rest = blocks[..., 9 + 3 * (n - 1) :]
     return np.concatenate([blocks[..., :9], chosen, rest], axis=-1), robots
 
 
-def robot_features(team_blocks: np.ndarray, features: str = "bearing", neighbours: int | None = None) -> np.ndarray:
+def robot_features(
+    team_blocks: np.ndarray, features: str = "bearing", neighbours: int | None = None
+) -> np.ndarray:
     """Every robot's feature block plus entries that a shared policy learns from more easily.
 
     ``"bearing"`` appends the unit bearing of the target in the body frame (body x, y divided by
@@ -97,12 +101,15 @@ def robot_features(team_blocks: np.ndarray, features: str = "bearing", neighbour
         raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
     blocks = np.asarray(team_blocks, dtype=np.float64)
     n = blocks.shape[-2]
-    if neighbours is not None and (isinstance(neighbours, bool) or not isinstance(neighbours, (int, np.integer))
-                                   or neighbours < 0):  # fmt: skip
+    if neighbours is not None and (
+        isinstance(neighbours, bool) or not isinstance(neighbours, (int, np.integer)) or neighbours < 0
+    ):
         raise ValueError(f"neighbours={neighbours!r} must be an integer >= 0")
     if neighbours is None or neighbours == n - 1:
-        others = np.broadcast_to(np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64)
-                                 .reshape(n, n - 1), blocks.shape[:-1] + (n - 1,))  # fmt: skip
+        others = np.broadcast_to(
+            np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1),
+            blocks.shape[:-1] + (n - 1,),
+        )
     else:
         blocks, others = _nearest_neighbours(blocks, int(neighbours))
     distance = blocks[..., 6:7]

@@ -152,7 +152,9 @@ def main() -> None:
     parser.add_argument("--json", help="also write the figures to this JSON file")
     args = parser.parse_args()
     results: dict[str, float | None] = {}
-    print(f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}")
+    print(
+        f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}"
+    )
     for env_id in koopman_envs.ENV_IDS:
         zoned = two_zone_map(env_id)
         timing = (args.seconds, args.repeats)
@@ -160,8 +162,10 @@ def main() -> None:
         results[f"{env_id} single"] = rate
         results[f"{env_id} single two slip zones"] = zones
         print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
-        print(f"{env_id:28s} single, two slip zones   {zones:12,.0f} steps/s "
-              f"({zones / rate:.2f}x the fixed map)")  # fmt: skip
+        print(
+            f"{env_id:28s} single, two slip zones   {zones:12,.0f} steps/s "
+            f"({zones / rate:.2f}x the fixed map)"
+        )
         for k in (1, 64):
             rate = bench_vector(env_id, k, args.seconds, args.repeats)
             results[f"{env_id} vector {k}"] = rate
@@ -172,18 +176,24 @@ def main() -> None:
         results[f"{env_id} vector 1024"] = fixed
         results[f"{env_id} vector 1024 two slip zones"] = zones
         print(f"{env_id:28s} make_vec num_envs=1024    {fixed:12,.0f} env-steps/s")
-        print(f"{env_id:28s} make_vec 1024, two zones {zones:12,.0f} env-steps/s "
-              f"({zones / fixed:.2f}x the fixed map)")  # fmt: skip
+        print(
+            f"{env_id:28s} make_vec 1024, two zones {zones:12,.0f} env-steps/s "
+            f"({zones / fixed:.2f}x the fixed map)"
+        )
         # the setting RL training uses: a new random layout at every reset, without and with zones
         plain = vector_runner(env_id, 1024, map="random")
         with_zones = vector_runner(env_id, 1024, map="random", random_map={"n_slip_zones": 2})
         rate, zones = (1024 * r for r in _timed_pair(plain, with_zones, *timing))
         results[f"{env_id} vector 1024 random maps"] = rate
         results[f"{env_id} vector 1024 random maps two slip zones"] = zones
-        print(f"{env_id:28s} make_vec 1024, map=random {rate:12,.0f} env-steps/s "
-              f"({rate / fixed:.2f}x the fixed map)")  # fmt: skip
-        print(f"{env_id:28s} 1024, random + 2 zones   {zones:12,.0f} env-steps/s "
-              f"({zones / rate:.2f}x random maps without zones)")  # fmt: skip
+        print(
+            f"{env_id:28s} make_vec 1024, map=random {rate:12,.0f} env-steps/s "
+            f"({rate / fixed:.2f}x the fixed map)"
+        )
+        print(
+            f"{env_id:28s} 1024, random + 2 zones   {zones:12,.0f} env-steps/s "
+            f"({zones / rate:.2f}x random maps without zones)"
+        )
     mpe = bench_mpe2(args.seconds, args.repeats)
     results["mpe2 simple_spread_v3"] = mpe
     if mpe is None:

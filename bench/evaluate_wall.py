@@ -25,12 +25,16 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PREVIOUS = ["koopman-nmpc:solver=ipopt,jit=false,label=koopman-nmpc",
-            "nominal-nmpc:solver=ipopt,jit=false,label=nominal-nmpc", "consensus"]  # fmt: skip
+PREVIOUS = [
+    "koopman-nmpc:solver=ipopt,jit=false,label=koopman-nmpc",
+    "nominal-nmpc:solver=ipopt,jit=false,label=nominal-nmpc",
+    "consensus",
+]
 
 
-def timed_run(protocol: str, workers: int | None, controllers: list[str] | None = None,
-              cold: bool = True) -> tuple[float, int]:  # fmt: skip
+def timed_run(
+    protocol: str, workers: int | None, controllers: list[str] | None = None, cold: bool = True
+) -> tuple[float, int]:
     """(wall seconds, episodes) of one evaluator run in a fresh process (``cold``: empty caches)."""
     with tempfile.TemporaryDirectory(prefix="koopnav-wall-") as out:
         cmd = [sys.executable, "evaluate.py", "--out", out, "--quiet"]
@@ -40,8 +44,11 @@ def timed_run(protocol: str, workers: int | None, controllers: list[str] | None 
         env = {k: v for k, v in os.environ.items() if k != "KOOPNAV_NMPC_JIT"}
         if cold:
             home = Path(out) / "home"
-            env.update(KOOPNAV_CACHE=str(home / "koopnav-cache"), HOME=str(home),
-                       NUMBA_CACHE_DIR=str(home / "numba-cache"))  # fmt: skip
+            env.update(
+                KOOPNAV_CACHE=str(home / "koopnav-cache"),
+                HOME=str(home),
+                NUMBA_CACHE_DIR=str(home / "numba-cache"),
+            )
         start = time.perf_counter()
         proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, check=False)
         wall = time.perf_counter() - start
@@ -56,18 +63,25 @@ def main() -> None:
     parser.add_argument("--protocol", choices=["paper", "quick"], default="quick")
     parser.add_argument("--warm", action="store_true", help="keep the machine's caches (default: all empty)")
     parser.add_argument("--workers", type=int)
-    parser.add_argument("--previous-default", action="store_true",
-                        help="also run the NMPCs as IPOPT, uncompiled (the default before the solver cache)")
+    parser.add_argument(
+        "--previous-default",
+        action="store_true",
+        help="also run the NMPCs as IPOPT, uncompiled (the default before the solver cache)",
+    )
     args = parser.parse_args()
     print(f"python evaluate.py {'--paper' if args.protocol == 'paper' else ''} on {os.cpu_count()} cores")
     wall, episodes = timed_run(args.protocol, args.workers, cold=not args.warm)
     caches = "warm caches" if args.warm else "empty caches"
-    print(f"python evaluate.py{' --paper' if args.protocol == 'paper' else ''} ({caches}): {wall:7.1f} s wall, "
-          f"{episodes} episodes, {episodes / wall:.2f} episodes/s")  # fmt: skip
+    print(
+        f"python evaluate.py{' --paper' if args.protocol == 'paper' else ''} ({caches}): {wall:7.1f} s wall, "
+        f"{episodes} episodes, {episodes / wall:.2f} episodes/s"
+    )
     if args.previous_default and args.protocol == "paper":
         wall, episodes = timed_run(args.protocol, args.workers, PREVIOUS, cold=not args.warm)
-        print(f"previous default (IPOPT, uncompiled): {wall:7.1f} s wall, {episodes} episodes, "
-              f"{episodes / wall:.2f} episodes/s")  # fmt: skip
+        print(
+            f"previous default (IPOPT, uncompiled): {wall:7.1f} s wall, {episodes} episodes, "
+            f"{episodes / wall:.2f} episodes/s"
+        )
 
 
 if __name__ == "__main__":

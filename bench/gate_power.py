@@ -30,7 +30,9 @@ from evaluation.baseline import GateOptions
 from evaluation.statistics import paired_comparison
 
 
-def power(n: int, base: float, drop: float, mode: str, gate: GateOptions, trials: int, rng: np.random.Generator) -> float:
+def power(
+    n: int, base: float, drop: float, mode: str, gate: GateOptions, trials: int, rng: np.random.Generator
+) -> float:
     """Fraction of simulated run pairs of ``n`` episodes that the gate fails."""
     fails = 0
     for _ in range(trials):
@@ -54,8 +56,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     gate = GateOptions(alpha=args.alpha, delta=args.delta)
-    print(f"gate: drop > {args.delta:.2f} and McNemar p < {args.alpha}; baseline success {args.base:.2f}, "
-          f"true drop {args.drop:.2f}; {args.trials} simulated run pairs per n")
+    print(
+        f"gate: drop > {args.delta:.2f} and McNemar p < {args.alpha}; baseline success {args.base:.2f}, "
+        f"true drop {args.drop:.2f}; {args.trials} simulated run pairs per n"
+    )
     for mode in ("nested", "independent"):
         rng = np.random.default_rng(args.seed)
         found = None
@@ -65,8 +69,11 @@ def main() -> None:
             if p >= 0.8 and found is None:
                 found = n
                 break
-        print(f"  {mode}: power >= 80% from n = {found} episodes per controller and task" if found else
-              f"  {mode}: power < 80% up to 150 episodes")
+        print(
+            f"  {mode}: power >= 80% from n = {found} episodes per controller and task"
+            if found
+            else f"  {mode}: power < 80% up to 150 episodes"
+        )
 
 
 if __name__ == "__main__":

@@ -116,13 +116,19 @@ def main() -> None:
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB -> MiB on Linux
     model = KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, 3, spec.dt)
     report, _, _ = circle_test(model, lambdas, repetitions=30)
-    print(f"{spec.transitions:,} transitions ({spec.trajectories} x {spec.steps}), slip {args.slip}, "
-          f"{args.dictionary} dictionary ({dic.size(3)} observables), {os.cpu_count()} cores")  # fmt: skip
-    print(f"data generation   {gen_seconds:6.3f} s   peak traced memory {gen_peak / 2**20:7.1f} MiB  "
-          f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in gen_times) + ")")  # fmt: skip
-    print(f"bilinear fit      {fit_seconds:6.3f} s   peak traced memory {fit_peak / 2**20:7.1f} MiB  "
-          f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in fit_times) + ") "
-          "(data included)")  # fmt: skip
+    print(
+        f"{spec.transitions:,} transitions ({spec.trajectories} x {spec.steps}), slip {args.slip}, "
+        f"{args.dictionary} dictionary ({dic.size(3)} observables), {os.cpu_count()} cores"
+    )
+    print(
+        f"data generation   {gen_seconds:6.3f} s   peak traced memory {gen_peak / 2**20:7.1f} MiB  "
+        f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in gen_times) + ")"
+    )
+    print(
+        f"bilinear fit      {fit_seconds:6.3f} s   peak traced memory {fit_peak / 2**20:7.1f} MiB  "
+        f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in fit_times) + ") "
+        "(data included)"
+    )
     print(f"process peak RSS  {rss:7.1f} MiB")
     print("circle RMSE %     " + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed))
 
@@ -135,22 +141,31 @@ def main() -> None:
             states = data.states
             np.savez(
                 path,
-                X=states[:-1].reshape(-1, 9), Y=states[1:].reshape(-1, 9),
+                X=states[:-1].reshape(-1, 9),
+                Y=states[1:].reshape(-1, 9),
                 U=data.commands.reshape(-1, 6),
-                circle_commands=commands.reshape(CIRCLE_STEPS, 6), circle_truth=truth.reshape(-1, 9),
-            )  # fmt: skip
+                circle_commands=commands.reshape(CIRCLE_STEPS, 6),
+                circle_truth=truth.reshape(-1, 9),
+            )
             script = os.path.join(tmp, "run_pykoopman.py")
             with open(script, "w") as fh:
                 fh.write(PYKOOPMAN_SCRIPT)
-            out = subprocess.run([args.pykoopman_python, script, path, str(args.repeats)], capture_output=True, text=True)
+            out = subprocess.run(
+                [args.pykoopman_python, script, path, str(args.repeats)], capture_output=True, text=True
+            )
         if out.returncode != 0:
             print("pykoopman run failed:\n" + out.stderr[-2000:])
             return
         other = json.loads(out.stdout.strip().splitlines()[-1])
         print(f"\n{'':24s} {'fit [s]':>8s}  circle RMSE % (robots 1..3)")
-        print(f"{'KoopNav bilinear EDMDc':24s} {fit_seconds:8.3f}  " + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed))
-        print(f"{'pykoopman ' + other['version'] + ' EDMDc':24s} {other['fit_seconds']:8.3f}  "
-              + ", ".join(f"{v:.2f}" for v in other["rmse"]))  # fmt: skip
+        print(
+            f"{'KoopNav bilinear EDMDc':24s} {fit_seconds:8.3f}  "
+            + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed)
+        )
+        print(
+            f"{'pykoopman ' + other['version'] + ' EDMDc':24s} {other['fit_seconds']:8.3f}  "
+            + ", ".join(f"{v:.2f}" for v in other["rmse"])
+        )
         print(f"fit-time ratio pykoopman / KoopNav: {other['fit_seconds'] / fit_seconds:.2f}x")
 
 

@@ -148,8 +148,16 @@ def wait_for_compiles(poll: float = 1.0) -> float:
     return time.perf_counter() - start
 
 
-def closed_loop(env_id: str, map_name: str, slip: str, make_controller: Callable[[], Any], *,
-                limit: bool = False, compiled: bool = False, cold_resets: int = COLD_RESETS) -> Row:  # fmt: skip
+def closed_loop(
+    env_id: str,
+    map_name: str,
+    slip: str,
+    make_controller: Callable[[], Any],
+    *,
+    limit: bool = False,
+    compiled: bool = False,
+    cold_resets: int = COLD_RESETS,
+) -> Row:
     """Warm up, run one timed episode (seed 0), then time ``cold_resets`` cold first steps.
 
     Parameters
@@ -184,8 +192,10 @@ def closed_loop(env_id: str, map_name: str, slip: str, make_controller: Callable
         total = sum(times)
         if total > TOTAL_LIMIT:
             median = 1e3 * np.median(times)
-            raise TooSlow(f"{total:.0f} s of solving in {step} steps (limit {TOTAL_LIMIT:.0f} s), median "
-                          f"{median:.{1 if median < 100 else 0}f} ms, slowest step {max(times):.1f} s")  # fmt: skip
+            raise TooSlow(
+                f"{total:.0f} s of solving in {step} steps (limit {TOTAL_LIMIT:.0f} s), median "
+                f"{median:.{1 if median < 100 else 0}f} ms, slowest step {max(times):.1f} s"
+            )
         if step >= MEDIAN_FROM and np.median(times) > MEDIAN_LIMIT:
             median = 1e3 * np.median(times)
             raise TooSlow(f"median {median:.0f} ms over {step} steps (limit {1e3 * MEDIAN_LIMIT:.0f} ms)")
@@ -205,8 +215,14 @@ def closed_loop(env_id: str, map_name: str, slip: str, make_controller: Callable
         cold.append(ctrl.stats().solve_times[0])
     has_fallback = getattr(getattr(ctrl, "config", None), "fallback_solver", None) is not None
     fallbacks = sum(v for k, v in stats.counts.items() if k.startswith("fallback_")) if has_fallback else None
-    return Row(np.asarray(stats.solve_times), result, stats.failures, list(stats.iterations), fallbacks,
-               np.asarray(cold))  # fmt: skip
+    return Row(
+        np.asarray(stats.solve_times),
+        result,
+        stats.failures,
+        list(stats.iterations),
+        fallbacks,
+        np.asarray(cold),
+    )
 
 
 def do_mpc_closed_loop(env_id: str, map_name: str, slip: str, horizon: int) -> Row | None:
@@ -257,7 +273,11 @@ def do_mpc_closed_loop(env_id: str, map_name: str, slip: str, horizon: int) -> R
             gap = (sc.robot_radius[i] + orad + cfg.obstacle_offset) ** 2 - (px - ox) ** 2 - (py - oy) ** 2
             mpc.set_nl_cons(f"obs_{i}_{k}", gap, ub=0.0)
         for j in range(i + 1, n):
-            gap = (sc.robot_radius[i] + sc.robot_radius[j]) ** 2 - (px - x[3 * j]) ** 2 - (py - x[3 * j + 1]) ** 2
+            gap = (
+                (sc.robot_radius[i] + sc.robot_radius[j]) ** 2
+                - (px - x[3 * j]) ** 2
+                - (py - x[3 * j + 1]) ** 2
+            )
             mpc.set_nl_cons(f"rob_{i}_{j}", gap, ub=0.0)
     mpc.setup()  # builds the NLP: before the timed episode, as the warm-up does for ours
     mpc.x0 = info["poses"].reshape(-1, 1)
@@ -293,9 +313,11 @@ def line(label: str, row: Row) -> str:
     cold = f"{1e3 * np.median(row.cold):6.1f}" if row.cold is not None and row.cold.size else f"{'-':>6s}"
     iters = f"{np.mean(row.iterations):5.1f}" if row.iterations else f"{'-':>5s}"
     fallbacks = f"{row.fallbacks:3d}" if row.fallbacks is not None else f"{'-':>3s}"
-    return (f"{label:20s} median {np.median(t):6.1f}  p95 {np.percentile(t, 95):6.1f}  max {t.max():6.1f}  "
-            f"cold {cold} ms  iter {iters}  fallbacks {fallbacks}  failures {row.failures:2d}  "
-            f"{episode.outcome:10s} {episode.steps:3d} steps  final {100 * np.mean(episode.final_distance):4.1f} cm")  # fmt: skip
+    return (
+        f"{label:20s} median {np.median(t):6.1f}  p95 {np.percentile(t, 95):6.1f}  max {t.max():6.1f}  "
+        f"cold {cold} ms  iter {iters}  fallbacks {fallbacks}  failures {row.failures:2d}  "
+        f"{episode.outcome:10s} {episode.steps:3d} steps  final {100 * np.mean(episode.final_distance):4.1f} cm"
+    )
 
 
 BUILD = """
@@ -309,8 +331,9 @@ print(time.perf_counter() - start)
 """
 
 
-def build_seconds(env_id: str, map_name: str, name: str, cache: str, options: dict[str, Any],
-                  jit: bool) -> float:  # fmt: skip
+def build_seconds(
+    env_id: str, map_name: str, name: str, cache: str, options: dict[str, Any], jit: bool
+) -> float:
     """Seconds from ``controllers.make(name, **options)`` to the first command, in a fresh process
     with cache ``cache`` and compiled ``nlpsol`` solvers on (``jit``) or off."""
     import os
@@ -322,8 +345,12 @@ def build_seconds(env_id: str, map_name: str, name: str, cache: str, options: di
 
     root = Path(__file__).resolve().parents[1]
     env = {**os.environ, "KOOPNAV_CACHE": cache, "PYTHONPATH": str(root), JIT_ENV: "1" if jit else "0"}
-    code = "import controllers.calibration\n" + BUILD.format(env_id=env_id, map=map_name, name=name, options=options)
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    code = "import controllers.calibration\n" + BUILD.format(
+        env_id=env_id, map=map_name, name=name, options=options
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout
     return float(out.strip().splitlines()[-1])
 
 
@@ -346,28 +373,44 @@ def cache_timing(env_id: str, map_name: str) -> None:
             rti = build_seconds(env_id, map_name, name, cache, {"solver": "rti"}, jit=False)
         finally:
             shutil.rmtree(cache, ignore_errors=True)
-        print(f"{name:14s} build to first command: IPOPT compiled, empty cache {cold:5.1f} s (uncompiled; the "
-              f"background compile took {compile_s:5.0f} s), filled cache {warm:5.1f} s; RTI {rti:5.1f} s")  # fmt: skip
+        print(
+            f"{name:14s} build to first command: IPOPT compiled, empty cache {cold:5.1f} s (uncompiled; the "
+            f"background compile took {compile_s:5.0f} s), filled cache {warm:5.1f} s; RTI {rti:5.1f} s"
+        )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--map", default="map1")
     parser.add_argument("--slip", default="nominal")
-    parser.add_argument("--compiled", action="store_true",
-                        help="add IPOPT and fatrop compiled to C (the first run on a machine waits for the compile)")
-    parser.add_argument("--cache-timing", action="store_true",
-                        help="also time building compiled IPOPT with an empty and a filled cache, and the RTI")
+    parser.add_argument(
+        "--compiled",
+        action="store_true",
+        help="add IPOPT and fatrop compiled to C (the first run on a machine waits for the compile)",
+    )
+    parser.add_argument(
+        "--cache-timing",
+        action="store_true",
+        help="also time building compiled IPOPT with an empty and a filled cache, and the RTI",
+    )
     parser.add_argument("--no-do-mpc", action="store_true")
-    parser.add_argument("--qp-solvers", nargs="+", default=list(QP_ROWS), choices=sorted(QP_SOLVERS), metavar="QP",
-                        help=f"QP solvers of the RTI rows (default: {' '.join(QP_ROWS)}; the first is the one "
-                        "the speed-ups are given for)")
+    parser.add_argument(
+        "--qp-solvers",
+        nargs="+",
+        default=list(QP_ROWS),
+        choices=sorted(QP_SOLVERS),
+        metavar="QP",
+        help=f"QP solvers of the RTI rows (default: {' '.join(QP_ROWS)}; the first is the one "
+        "the speed-ups are given for)",
+    )
     args = parser.parse_args()
     env_id = env_id_for_map(args.map)
-    print(f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop "
-          f"episode per row; solve time per step [ms], building excluded\n"
-          f"cold: first step after a reset (median of {COLD_RESETS}); iter: per step, QPs (RTI) or interior-point "
-          f"iterations; fallbacks: RTI steps solved by IPOPT; final: mean distance to target")  # fmt: skip
+    print(
+        f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop "
+        f"episode per row; solve time per step [ms], building excluded\n"
+        f"cold: first step after a reset (median of {COLD_RESETS}); iter: per step, QPs (RTI) or interior-point "
+        f"iterations; fallbacks: RTI steps solved by IPOPT; final: mean distance to target"
+    )
     if args.cache_timing:
         cache_timing(env_id, args.map)
     # (label, options, compiled, subject to the real-time limits)
@@ -376,15 +419,23 @@ def main() -> None:
     ]
     setups.append(("IPOPT uncompiled", {"solver": "ipopt", "jit": False}, False, False))
     if args.compiled:
-        setups += [("IPOPT compiled", {"solver": "ipopt", "jit": True}, True, False),
-                   ("fatrop compiled", {"solver": "fatrop", "jit": True}, True, False)]  # fmt: skip
+        setups += [
+            ("IPOPT compiled", {"solver": "ipopt", "jit": True}, True, False),
+            ("fatrop compiled", {"solver": "fatrop", "jit": True}, True, False),
+        ]
     results: dict[tuple[str, str], Row] = {}
     for name in ("nominal-nmpc", "koopman-nmpc"):
         print(name)
         for label, options, compiled, limit in setups:
             try:
-                row = closed_loop(env_id, args.map, args.slip, lambda n=name, o=options: controllers.make(n, **o),
-                                  limit=limit, compiled=compiled)  # fmt: skip
+                row = closed_loop(
+                    env_id,
+                    args.map,
+                    args.slip,
+                    lambda n=name, o=options: controllers.make(n, **o),
+                    limit=limit,
+                    compiled=compiled,
+                )
             except TooSlow as exc:
                 print(f"  note: {label} dropped, stopped mid-episode: {exc}", flush=True)
                 continue
@@ -404,8 +455,11 @@ def main() -> None:
             print(f"  {name}: {default} was dropped")
             continue
         ours = results[(name, default)].median
-        others = [(label, results[(name, label)]) for label in ("IPOPT uncompiled", "IPOPT compiled", "do-mpc")
-                  if (name, label) in results]  # fmt: skip
+        others = [
+            (label, results[(name, label)])
+            for label in ("IPOPT uncompiled", "IPOPT compiled", "do-mpc")
+            if (name, label) in results
+        ]
         ratios = ", ".join(f"{row.median / ours:.1f}x vs {label}" for label, row in others)
         print(f"  {name}: {ratios}")
 

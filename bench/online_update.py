@@ -22,15 +22,18 @@ import time
 import numpy as np
 
 from controllers.koopman import calibrated_model
-from controllers.koopman.store import default_structure
 from controllers.koopman.fit import fit_lifted
 from controllers.koopman.online import RecursiveBilinearFit
+from controllers.koopman.store import default_structure
 from koopman_envs.plant import make_plant
 
 
 def _trajectory(n_robots: int, steps: int) -> tuple[np.ndarray, np.ndarray, object]:
-    model, _ = calibrated_model(make_plant("KoopNav-TargetReaching-v0", n_robots=n_robots, slip="high"), seed=0,
-                                structure=default_structure(n_robots))  # koopman-nmpc's "auto"  # fmt: skip
+    model, _ = calibrated_model(
+        make_plant("KoopNav-TargetReaching-v0", n_robots=n_robots, slip="high"),
+        seed=0,
+        structure=default_structure(n_robots),
+    )  # koopman-nmpc's "auto"
     plant = make_plant("KoopNav-TargetReaching-v0", n_robots=n_robots, slip="high", seed=1)
     rng = np.random.default_rng(1)
     start = rng.uniform(-1, 1, size=(1, n_robots, 3))
@@ -58,13 +61,22 @@ def time_updates(n_robots: int, steps: int, window: int) -> None:
     rows = fit.outputs
     for t in range(window, steps):
         start = time.perf_counter()
-        refit = fit_lifted(z_all[t - window : t], commands[t - window : t].reshape(window, -1),
-                           z_all[t - window + 1 : t + 1], rows, ridge=1e-3)  # fmt: skip
+        refit = fit_lifted(
+            z_all[t - window : t],
+            commands[t - window : t].reshape(window, -1),
+            z_all[t - window + 1 : t + 1],
+            rows,
+            ridge=1e-3,
+        )
         model.nlp_parameters_of(refit.A, refit.N, refit.B)
         batch.append(time.perf_counter() - start)
-    print(f"N={n_robots:<3d} RLS update                {_percentiles(rls)}   ({fit.updates} updates, {fit.rejected} rejected; "
-          f"{model.metadata.get('structure', 'stacked')} model, {len(fit._groups)} covariance group(s))")  # fmt: skip
-    print(f"      stacked batch refit ({window:3d}){_percentiles(batch)}   ratio of medians {np.median(batch) / np.median(rls):5.1f}x")
+    print(
+        f"N={n_robots:<3d} RLS update                {_percentiles(rls)}   ({fit.updates} updates, {fit.rejected} rejected; "
+        f"{model.metadata.get('structure', 'stacked')} model, {len(fit._groups)} covariance group(s))"
+    )
+    print(
+        f"      stacked batch refit ({window:3d}){_percentiles(batch)}   ratio of medians {np.median(batch) / np.median(rls):5.1f}x"
+    )
 
 
 def time_episode() -> None:
@@ -81,8 +93,10 @@ def time_episode() -> None:
     result = run_episode(env, ctrl, seed=0)
     s = ctrl.stats().summary()
     print(f"closed loop, Map 1 high slip, N=3 ({result.steps} steps, {result.outcome}):")
-    print(f"  online update median {s['online_update_ms_median']:.3f} ms, p95 {s['online_update_ms_p95']:.3f} ms; "
-          f"NMPC solve median {s['solve_ms_median']:.1f} ms, p95 {s['solve_ms_p95']:.1f} ms")  # fmt: skip
+    print(
+        f"  online update median {s['online_update_ms_median']:.3f} ms, p95 {s['online_update_ms_p95']:.3f} ms; "
+        f"NMPC solve median {s['solve_ms_median']:.1f} ms, p95 {s['solve_ms_p95']:.1f} ms"
+    )
 
 
 def main() -> None:

@@ -29,7 +29,7 @@ import argparse
 import json
 import platform
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import gymnasium as gym
 import matplotlib
@@ -62,7 +62,9 @@ def record_episode(env_id: str, map_name: str, steps: int = 300) -> tuple[gym.En
     return env, np.asarray(actions), poses
 
 
-def best_rate(frame: Callable[[int], object], frames: int, seconds: float, repeats: int) -> tuple[float, float]:
+def best_rate(
+    frame: Callable[[int], object], frames: int, seconds: float, repeats: int
+) -> tuple[float, float]:
     """Best frames per second (wall clock) of ``frame(t)`` for t = 1, 2, ... (cycling through
     ``frames``), and the best CPU time of this process per frame [ms], which waits for a core
     on a shared machine do not inflate."""

@@ -30,15 +30,17 @@ import numpy as np
 
 import controllers
 import koopman_envs  # noqa: F401  (registers the envs)
-from evaluation.configs import parse_controller, split_controller_list
 from evaluation import RunSpec, evaluate
+from evaluation.configs import parse_controller, split_controller_list
 from evaluation.statistics import wilson_interval
 from koopman_envs.episode import run_episode
 
 TASKS = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
 
 
-def filter_step_times(n_robots: int, episodes: int, inner: str = "consensus-free") -> tuple[np.ndarray, float, str]:
+def filter_step_times(
+    n_robots: int, episodes: int, inner: str = "consensus-free"
+) -> tuple[np.ndarray, float, str]:
     """Filter time per step [ms] over ``episodes`` random-map episodes, the share of robot-steps
     it changed, and the outcomes."""
     env = gym.make(TASKS[0], map="random", n_robots=n_robots, slip="high")
@@ -63,21 +65,29 @@ def collision_table(names: list[str], filter_options: list[str], episodes: int, 
     """Run each controller configuration (``name`` or ``name:key=value,...``) with and without the
     filter on the paper maps under high slip and print collisions and successes, pooled over maps
     and tasks."""
-    extra = parse_controller("filter:" + ",".join(filter_options)).options if filter_options else ()  # key=value parsing
+    extra = (
+        parse_controller("filter:" + ",".join(filter_options)).options if filter_options else ()
+    )  # key=value parsing
     configs: dict[str, Any] = {}
     for text in names:
         config = parse_controller(text)
         configs[text] = (config.name, dict(config.options))
         configs[f"safe:{text}"] = (f"safe:{config.name}", {**dict(config.options), **dict(extra)})
     # both tasks on their paper maps (RunSpec's defaults)
-    results = evaluate(RunSpec(controllers=configs, slips=["high"], episodes=episodes), workers=workers, progress=True)
+    results = evaluate(
+        RunSpec(controllers=configs, slips=["high"], episodes=episodes), workers=workers, progress=True
+    )
     by_label: dict[str, list[dict[str, Any]]] = {}
     for rec in results.records:
         by_label.setdefault(rec["controller"], []).append(rec)
-    print(f"\nPaper maps (map1, map2 target reaching; map3, map4 formation), high slip, {episodes} trials per cell"
-          f"{'; filter options ' + ','.join(filter_options) if filter_options else ''}")  # fmt: skip
-    print("| controller | episodes | collisions [95% CI] | success [95% CI] | kinds | changed steps | "
-          "infeasible steps | filter ms median / p95 |")  # fmt: skip
+    print(
+        f"\nPaper maps (map1, map2 target reaching; map3, map4 formation), high slip, {episodes} trials per cell"
+        f"{'; filter options ' + ','.join(filter_options) if filter_options else ''}"
+    )
+    print(
+        "| controller | episodes | collisions [95% CI] | success [95% CI] | kinds | changed steps | "
+        "infeasible steps | filter ms median / p95 |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     counts = {}
     for label in configs:
@@ -93,31 +103,44 @@ def collision_table(names: list[str], filter_options: list[str], episodes: int, 
         if label.startswith("safe:") and extra:
             changed = f"{100 * sum(e['filter_changed'] for e in extra) / max(steps, 1):.0f}%"
             infeasible = str(sum(e["filter_infeasible"] for e in extra))
-            timing = f"{np.median([e['filter_ms_median'] for e in extra]):.3f} / " \
-                     f"{np.median([e['filter_ms_p95'] for e in extra]):.3f}"  # fmt: skip
+            timing = (
+                f"{np.median([e['filter_ms_median'] for e in extra]):.3f} / "
+                f"{np.median([e['filter_ms_p95'] for e in extra]):.3f}"
+            )
         else:
             changed = infeasible = timing = "-"
         note = f" ({errors} errors)" if errors else ""
-        print(f"| {label} | {n}{note} | {_rate(len(collided), n)} | {_rate(successes, n)} | {kinds} | {changed} | "
-              f"{infeasible} | {timing} |")  # fmt: skip
+        print(
+            f"| {label} | {n}{note} | {_rate(len(collided), n)} | {_rate(successes, n)} | {kinds} | {changed} | "
+            f"{infeasible} | {timing} |"
+        )
     print()
     for name in names:
         (raw, n_raw), (safe, n_safe) = counts[name], counts[f"safe:{name}"]
         if raw and n_raw and n_safe:
             reduction = 1 - (safe / n_safe) / (raw / n_raw)
-            print(f"{name}: collisions {raw}/{n_raw} -> {safe}/{n_safe} with the filter ({100 * reduction:.0f}% fewer)")
+            print(
+                f"{name}: collisions {raw}/{n_raw} -> {safe}/{n_safe} with the filter ({100 * reduction:.0f}% fewer)"
+            )
         else:
             print(f"{name}: collisions {raw}/{n_raw} -> {safe}/{n_safe} with the filter")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--episodes", type=int, default=5, help="trials per (map, controller) cell (default 5)")
+    parser.add_argument(
+        "--episodes", type=int, default=5, help="trials per (map, controller) cell (default 5)"
+    )
     parser.add_argument("--controllers", nargs="+", default=["consensus-free", "rl-ppo", "nominal-nmpc"])
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--timing-episodes", type=int, default=3, help="random-map episodes per team size")
-    parser.add_argument("--filter", nargs="+", default=[], metavar="safety_KEY=VALUE",
-                        help="filter options for every safe: configuration, e.g. safety_margin=0.1")
+    parser.add_argument(
+        "--filter",
+        nargs="+",
+        default=[],
+        metavar="safety_KEY=VALUE",
+        help="filter options for every safe: configuration, e.g. safety_margin=0.1",
+    )
     parser.add_argument("--skip-timing", action="store_true")
     parser.add_argument("--skip-collisions", action="store_true")
     args = parser.parse_args()
@@ -125,14 +148,19 @@ def main() -> None:
         if not option.startswith("safety_") or "=" not in option:
             parser.error(f"--filter {option!r} is not safety_KEY=VALUE")
     if not args.skip_timing:
-        print("Filter time per step (the filter alone), target reaching on seeded random maps, high slip, "
-              f"around consensus-free, {args.timing_episodes} episodes per team size")  # fmt: skip
+        print(
+            "Filter time per step (the filter alone), target reaching on seeded random maps, high slip, "
+            f"around consensus-free, {args.timing_episodes} episodes per team size"
+        )
         print("| robots | steps | median [ms] | p95 [ms] | max [ms] | robot-commands changed | outcomes |")
         print("|---|---|---|---|---|---|---|")
         for n in (3, 16):
             times, changed, outcomes = filter_step_times(n, args.timing_episodes)
-            print(f"| {n} | {times.size} | {np.median(times):.3f} | {np.percentile(times, 95):.3f} | "
-                  f"{times.max():.3f} | {100 * changed:.0f}% | {outcomes} |", flush=True)  # fmt: skip
+            print(
+                f"| {n} | {times.size} | {np.median(times):.3f} | {np.percentile(times, 95):.3f} | "
+                f"{times.max():.3f} | {100 * changed:.0f}% | {outcomes} |",
+                flush=True,
+            )
     if not args.skip_collisions:
         names = split_controller_list(args.controllers)
         usable = []

@@ -51,15 +51,19 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{ENV_ID}, random map of seed 0, {args.steps} steps per run; decision time per step [ms]")
     width = max(14, *(len(name) for name in args.controllers))
-    print(f"{'controller':{width}s} {'N':>3s} {'median':>8s} {'p95':>8s} {'x median':>9s} {'x p95':>7s}  outcome")
+    print(
+        f"{'controller':{width}s} {'N':>3s} {'median':>8s} {'p95':>8s} {'x median':>9s} {'x p95':>7s}  outcome"
+    )
     for name in args.controllers:
         base = None
         for n in args.robots:
             times, outcome = step_times(name, n, args.steps)
             median, p95 = float(np.median(times)), float(np.percentile(times, 95))
             base = base or (median, p95)
-            print(f"{name:{width}s} {n:3d} {median:8.2f} {p95:8.2f} {median / base[0]:9.1f} {p95 / base[1]:7.1f}  {outcome}",
-                  flush=True)  # fmt: skip
+            print(
+                f"{name:{width}s} {n:3d} {median:8.2f} {p95:8.2f} {median / base[0]:9.1f} {p95 / base[1]:7.1f}  {outcome}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -88,10 +88,27 @@ def main(argv: list[str]) -> int:
             _store(directory, source, pending)
             # the same arguments with the pending source and a scratch output: the same key
             same = [pending if a == source else (entry + ".build" if a == out else a) for a in args]
-            detached = [sys.executable, "-S", os.path.abspath(__file__), "--cache", directory, "--cc",
-                        settings["cc"], "--tag", settings.get("tag", ""), "--into-cache", *same]  # fmt: skip
-            subprocess.Popen(detached, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, start_new_session=True, cwd=directory)  # fmt: skip
+            detached = [
+                sys.executable,
+                "-S",
+                os.path.abspath(__file__),
+                "--cache",
+                directory,
+                "--cc",
+                settings["cc"],
+                "--tag",
+                settings.get("tag", ""),
+                "--into-cache",
+                *same,
+            ]
+            subprocess.Popen(
+                detached,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                start_new_session=True,
+                cwd=directory,
+            )
         return MISS_COMPILING_IN_BACKGROUND
     # one compiler per source at a time: worker processes that build the same problem together
     # wait for the first one's object instead of compiling it again (minutes for a large NLP)

@@ -24,7 +24,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.koopman import KoopmanModel
-from controllers.koopman.online import RecursiveBilinearFit, check_adapted, check_forgetting, check_prior_weight
+from controllers.koopman.online import (
+    RecursiveBilinearFit,
+    check_adapted,
+    check_forgetting,
+    check_prior_weight,
+)
 from controllers.koopman_nmpc import KoopmanNMPC
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from koopman_envs.scenario import Scenario
@@ -99,7 +104,9 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         super()._reset(scenario, seed)
         if self._estimator is None or self._estimator.model is not self.model:
-            self._estimator = RecursiveBilinearFit(self.model, self.forgetting, self.prior_weight, self.adapted)
+            self._estimator = RecursiveBilinearFit(
+                self.model, self.forgetting, self.prior_weight, self.adapted
+            )
         self._estimator.reset()
         self._residuals: deque[NDArray] = deque(maxlen=self.residual_window)
         self._previous: tuple[NDArray, NDArray] | None = None
@@ -126,11 +133,12 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
             self._stats.counts["online_updates_rejected"] += estimator.rejected - rejected
             self.set_model_parameters(estimator.nlp_parameters())
         else:
-            error = estimator.model.lift(next_poses[None])[0][estimator.outputs] - estimator.predict(poses, commands)
+            error = estimator.model.lift(next_poses[None])[0][estimator.outputs] - estimator.predict(
+                poses, commands
+            )
         # a-priori position error per robot: rows 4i, 4i + 1 of C are robot i's x, y
         xy = error.reshape(-1, 4)[:, :2]
         self._residuals.append(np.einsum("ij,ij->i", xy, xy))
         if self.config.uncertainty_margin > 0 and len(self._residuals) >= _MIN_RESIDUALS:
             recent = np.sqrt(np.mean(np.asarray(self._residuals), axis=0))
             self.set_margins(*self.margins_for(poses.shape[0], recent))
-

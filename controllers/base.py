@@ -75,8 +75,11 @@ class ControllerStats:
             "iterations_mean": float(np.mean(self.iterations)) if self.iterations else float("nan"),
             "failures": self.failures,
             "statuses": dict(self.statuses),
-            **{f"{name}_ms_{label}": 1e3 * float(np.percentile(times, q)) if times else float("nan")
-               for name, times in self.extra_times.items() for label, q in (("median", 50), ("p95", 95))},
+            **{
+                f"{name}_ms_{label}": 1e3 * float(np.percentile(times, q)) if times else float("nan")
+                for name, times in self.extra_times.items()
+                for label, q in (("median", 50), ("p95", 95))
+            },
             **{name: int(value) for name, value in self.counts.items()},
             **({"solver": self.solver} if self.solver is not None else {}),
         }

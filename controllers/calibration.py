@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -146,8 +147,14 @@ def cache_dir() -> Path:
 
 def cache_key(kind: str, plant: CalibrationPlant, spec: DataSpec, **extra: Any) -> str:
     """Hash of what determines a calibration: its kind, the plant, the data set, and ``extra``."""
-    blob = {"kind": kind, "plant": plant.signature, "plant_seed": plant.seed, "budget": plant.budget,
-            "data": spec.to_dict(), **extra}  # fmt: skip
+    blob = {
+        "kind": kind,
+        "plant": plant.signature,
+        "plant_seed": plant.seed,
+        "budget": plant.budget,
+        "data": spec.to_dict(),
+        **extra,
+    }
     return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:20]
 
 

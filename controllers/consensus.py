@@ -56,8 +56,13 @@ class ConsensusController(BaseController):
         repulsion_gain: float = 0.05,
     ) -> None:
         super().__init__()
-        for key, value in dict(goal_gain=goal_gain, consensus_gain=consensus_gain, hand=hand,
-                               influence=influence, repulsion_gain=repulsion_gain).items():  # fmt: skip
+        for key, value in dict(
+            goal_gain=goal_gain,
+            consensus_gain=consensus_gain,
+            hand=hand,
+            influence=influence,
+            repulsion_gain=repulsion_gain,
+        ).items():
             if not np.isfinite(value) or value <= 0:
                 raise ValueError(f"{key}={value!r} must be a finite number > 0")
         self.collision_avoidance = bool(collision_avoidance)
@@ -99,7 +104,9 @@ class ConsensusController(BaseController):
                 side = np.sign(tangent @ goal_velocity[i])
                 side[side == 0] = 1.0
                 speed = np.linalg.norm(goal_velocity[i])
-                push[i] = (strength[:, None] * normal).sum(axis=0) + speed * (side[:, None] * tangent).sum(axis=0)
+                push[i] = (strength[:, None] * normal).sum(axis=0) + speed * (side[:, None] * tangent).sum(
+                    axis=0
+                )
         return push
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -129,6 +136,8 @@ class ConsensusController(BaseController):
         # hand-point feedback linearization: [v, omega] = [[c, s], [-s/l, c/l]] hand velocity
         v = heading[:, 0] * velocity[:, 0] + heading[:, 1] * velocity[:, 1]
         omega = (-heading[:, 1] * velocity[:, 0] + heading[:, 0] * velocity[:, 1]) / self.hand
-        command = np.column_stack([np.clip(v, -sc.v_max, sc.v_max), np.clip(omega, -sc.omega_max, sc.omega_max)])
+        command = np.column_stack(
+            [np.clip(v, -sc.v_max, sc.v_max), np.clip(omega, -sc.omega_max, sc.omega_max)]
+        )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command.reshape(-1)

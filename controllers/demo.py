@@ -13,12 +13,14 @@ import gymnasium as gym
 import numpy as np
 
 import controllers
-from controllers.calibration import calibrate_controller
 import koopman_envs
+from controllers.calibration import calibrate_controller
 from koopman_envs.episode import run_episode
 
 
-def run_demo(env_id: str, map_name: str | None, slip: str, controller: str, seed: int, gif: str | None) -> dict:
+def run_demo(
+    env_id: str, map_name: str | None, slip: str, controller: str, seed: int, gif: str | None
+) -> dict:
     """One closed-loop episode; returns a summary dict (and writes ``gif`` if given)."""
     env = gym.make(env_id, map=map_name, slip=slip, render_mode="rgb_array" if gif else None)
     ctrl = controllers.make(controller)

@@ -85,8 +85,12 @@ SOLVERS = ("rti", "ipopt", "fatrop")
 #: a badly centred point from which feasible problems ran into the 100-iteration limit
 #: (Koopman-NMPC, Map 1, high slip, hard constraints) that the default start solves in ~45.
 WARM_START_OPTIONS: dict[str, tuple[str, ...]] = {
-    "ipopt": ("ipopt.warm_start_init_point", "ipopt.warm_start_bound_push", "ipopt.warm_start_mult_bound_push",
-              "ipopt.mu_init"),
+    "ipopt": (
+        "ipopt.warm_start_init_point",
+        "ipopt.warm_start_bound_push",
+        "ipopt.warm_start_mult_bound_push",
+        "ipopt.mu_init",
+    ),
     "fatrop": ("fatrop.mu_init", "fatrop.bound_push"),
 }
 
@@ -114,7 +118,11 @@ def model_step(model: PredictionModel) -> tuple[ca.Function, NDArray[np.float64]
     the coefficients are constants and the model itself is the key.
     """
     if all(hasattr(model, a) for a in ("casadi_nlp_step_parametric", "nlp_parameters", "nlp_structure")):
-        return model.casadi_nlp_step_parametric(), np.asarray(model.nlp_parameters(), dtype=float), model.nlp_structure()
+        return (
+            model.casadi_nlp_step_parametric(),
+            np.asarray(model.nlp_parameters(), dtype=float),
+            model.nlp_structure(),
+        )
     fixed = model.casadi_nlp_step()
     s = ca.SX.sym("s", fixed.size1_in(0))
     u = ca.SX.sym("u", fixed.size1_in(1))
@@ -282,8 +290,15 @@ class _Problem:
     is not bit-identical to the paper formulation's (see docs/results.md).
     """
 
-    def __init__(self, model: PredictionModel, scenario: Scenario, config: NMPCConfig,
-                 step: tuple[ca.Function, NDArray, Any] | None = None, *, terminal_slack: bool = False) -> None:  # fmt: skip
+    def __init__(
+        self,
+        model: PredictionModel,
+        scenario: Scenario,
+        config: NMPCConfig,
+        step: tuple[ca.Function, NDArray, Any] | None = None,
+        *,
+        terminal_slack: bool = False,
+    ) -> None:
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         coding = model.coding
         if coding not in _CODING_SIZE:
@@ -311,7 +326,9 @@ class _Problem:
         params = ca.vertcat(x_meas, goal_xy, goal_cs, obstacles, obstacle_margin, pair_margin, theta)
 
         formation = scenario.is_formation
-        weights = [config.q_follower if formation and i != scenario.leader else config.q_leader for i in range(n)]
+        weights = [
+            config.q_follower if formation and i != scenario.leader else config.q_leader for i in range(n)
+        ]
         r_weights = np.tile(np.asarray(config.r_input, dtype=float), n)
         x0_w, x1_w, y0_w, y1_w = scenario.workspace
         radius = scenario.robot_radius
@@ -345,7 +362,11 @@ class _Problem:
                     constrain(clear + slack, 0.0, np.inf)
                 for j in range(i + 1, n):
                     margin = pair_margin[pairs.index((i, j))]
-                    clear = (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (radius[i] + radius[j] + margin) ** 2
+                    clear = (
+                        (px - x[size * j]) ** 2
+                        + (py - x[size * j + 1]) ** 2
+                        - (radius[i] + radius[j] + margin) ** 2
+                    )
                     constrain(clear + slack, 0.0, np.inf)
 
         # least-squares form of the cost, for the real-time iteration's Gauss-Newton Hessian:
@@ -362,8 +383,14 @@ class _Problem:
                 else:
                     cos_th, sin_th = x[size * i + 2], x[size * i + 3]
                 qx, qy, qc, qs = weights[i]
-                residuals.extend([np.sqrt(qx) * (px - goal_xy[2 * i]), np.sqrt(qy) * (py - goal_xy[2 * i + 1]),
-                                  np.sqrt(qc) * (cos_th - goal_cs[2 * i]), np.sqrt(qs) * (sin_th - goal_cs[2 * i + 1])])
+                residuals.extend(
+                    [
+                        np.sqrt(qx) * (px - goal_xy[2 * i]),
+                        np.sqrt(qy) * (py - goal_xy[2 * i + 1]),
+                        np.sqrt(qc) * (cos_th - goal_cs[2 * i]),
+                        np.sqrt(qs) * (sin_th - goal_cs[2 * i + 1]),
+                    ]
+                )
                 total += (
                     qx * (px - goal_xy[2 * i]) ** 2
                     + qy * (py - goal_xy[2 * i + 1]) ** 2
@@ -442,11 +469,16 @@ class _Problem:
         self.ubg = np.concatenate(ubg).astype(float)
         self.n_vars, self.n_cons = self.lbw.size, self.lbg.size
         # the bounds never change: convert them to CasADi once, not at every solver call (~0.2 ms)
-        self.bounds = {name: ca.DM(v) for name, v in (("lbx", self.lbw), ("ubx", self.ubw), ("lbg", self.lbg), ("ubg", self.ubg))}
+        self.bounds = {
+            name: ca.DM(v)
+            for name, v in (("lbx", self.lbw), ("ubx", self.ubw), ("lbg", self.lbg), ("ubg", self.ubg))
+        }
         self.nx, self.nu, self.ns, self.horizon, self.coding = nx, nu, ns, horizon, coding
         self.stage_size = nx + nu + ns
         stage = self.stage_size
-        self.u_index = np.concatenate([np.arange(t * stage + nx, t * stage + nx + nu) for t in range(horizon)])
+        self.u_index = np.concatenate(
+            [np.arange(t * stage + nx, t * stage + nx + nu) for t in range(horizon)]
+        )
         self.x_index = np.concatenate([np.arange(t * stage, t * stage + nx) for t in range(1, horizon + 1)])
         self.stage_cons = stage_cons
         self.step = step_function  # (s, u, theta) -> s_next, for the shifted warm start
@@ -475,7 +507,9 @@ class _Problem:
             # the paper's (monotone) barrier update up to its 3 robots; beyond, the adaptive one:
             # with monotone, 8 robots on a random map hit the 100-iteration limit at every step
             # (3 s per step), adaptive converges in ~10 iterations (bench/scaling.py)
-            options.setdefault("ipopt.mu_strategy", "monotone" if self.n_robots <= PARAMS.n_robots else "adaptive")
+            options.setdefault(
+                "ipopt.mu_strategy", "monotone" if self.n_robots <= PARAMS.n_robots else "adaptive"
+            )
         if name == "fatrop":
             options.setdefault("structure_detection", "auto")
             options.setdefault("equality", self._equality)
@@ -544,7 +578,9 @@ def check_solver_options(config: NMPCConfig) -> None:
     if config.solver not in SOLVERS:
         raise ValueError(f"solver={config.solver!r} is not one of {list(SOLVERS)}")
     if config.fallback_solver is not None and config.fallback_solver not in SOLVERS[1:]:
-        raise ValueError(f"fallback_solver={config.fallback_solver!r} is not one of {list(SOLVERS[1:])} or None")
+        raise ValueError(
+            f"fallback_solver={config.fallback_solver!r} is not one of {list(SOLVERS[1:])} or None"
+        )
     check_rti_options(config.qp_solver, config.rti_iterations, config.hessian)
     tol = config.slack_tolerance
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
@@ -579,7 +615,9 @@ class NMPCController(BaseController):
 
     name = "nmpc"
 
-    def __init__(self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any):
+    def __init__(
+        self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any
+    ):
         super().__init__()
         base = config or NMPCConfig()
         try:
@@ -619,10 +657,20 @@ class NMPCController(BaseController):
             self._model_step = (model, model_step(model))  # built once per model, not per episode
         step = self._model_step[1]
         _, theta_values, structure = step
-        key = (structure, scenario.n_robots, scenario.obstacles.shape[0], scenario.task,
-               tuple(scenario.robot_radius), scenario.workspace, scenario.v_max, scenario.omega_max)  # fmt: skip
+        key = (
+            structure,
+            scenario.n_robots,
+            scenario.obstacles.shape[0],
+            scenario.task,
+            tuple(scenario.robot_radius),
+            scenario.workspace,
+            scenario.v_max,
+            scenario.omega_max,
+        )
         if key != self._key:
-            self._problem = _Problem(model, scenario, self.config, step, terminal_slack=self.config.solver == "rti")
+            self._problem = _Problem(
+                model, scenario, self.config, step, terminal_slack=self.config.solver == "rti"
+            )
             self._key = key
         obstacle_margin, pair_margin = self.safety_margins(scenario)
         fixed = np.concatenate(
@@ -636,8 +684,10 @@ class NMPCController(BaseController):
         # during an episode (see set_margins, set_model_parameters)
         self._params_tail = np.concatenate([fixed, obstacle_margin, pair_margin, theta_values])
         start = fixed.size
-        self._margin_slices = (slice(start, start + obstacle_margin.size),
-                               slice(start + obstacle_margin.size, start + obstacle_margin.size + pair_margin.size))
+        self._margin_slices = (
+            slice(start, start + obstacle_margin.size),
+            slice(start + obstacle_margin.size, start + obstacle_margin.size + pair_margin.size),
+        )
         self._theta_slice = slice(self._params_tail.size - theta_values.size, self._params_tail.size)
         self._warm = None
         self._fallback = None
@@ -703,7 +753,11 @@ class NMPCController(BaseController):
         params = np.concatenate([state, self._params_tail])
         cold = self._warm is None
         if cold:
-            guess = {"x0": self._initial_guess(state), "lam_x0": np.zeros(prob.n_vars), "lam_g0": np.zeros(prob.n_cons)}
+            guess = {
+                "x0": self._initial_guess(state),
+                "lam_x0": np.zeros(prob.n_vars),
+                "lam_g0": np.zeros(prob.n_cons),
+            }
         else:
             guess = {"x0": self._warm["x"], "lam_x0": self._warm["lam_x"], "lam_g0": self._warm["lam_g"]}
         start = time.perf_counter()
@@ -725,7 +779,9 @@ class NMPCController(BaseController):
         if outcome.success:
             commands, poses = prob.plan(outcome.w)
             self.last_plan = (commands, poses)
-            self._warm = prob.shift(outcome.w, outcome.lam_x, outcome.lam_g, self._params_tail[self._theta_slice])
+            self._warm = prob.shift(
+                outcome.w, outcome.lam_x, outcome.lam_g, self._params_tail[self._theta_slice]
+            )
             self._fallback = commands
             self._fallback_used = 0
             return commands[0].reshape(-1).copy()
@@ -735,7 +791,9 @@ class NMPCController(BaseController):
 
     def _solve_rti(self, params: NDArray, guess: dict[str, NDArray]) -> _SolveOutcome:
         """The real-time iteration's QP(s); a failed QP or a plan with a large slack fails."""
-        step = self._problem.real_time_iteration().solve(guess["x0"], guess["lam_x0"], guess["lam_g0"], params)
+        step = self._problem.real_time_iteration().solve(
+            guess["x0"], guess["lam_x0"], guess["lam_g0"], params
+        )
         if not step.success:
             return _SolveOutcome(False, f"qp_failed({step.status})", iterations=step.iterations)
         if step.max_slack > self.config.slack_tolerance:
@@ -756,8 +814,14 @@ class NMPCController(BaseController):
         success = bool(stats.get("success", False)) and bool(np.all(np.isfinite(w)))
         if not np.all(np.isfinite(w)):
             status = "non_finite_solution"
-        return _SolveOutcome(success, status, w, np.asarray(sol["lam_x"]).reshape(-1),
-                             np.asarray(sol["lam_g"]).reshape(-1), int(stats.get("iter_count", 0)))  # fmt: skip
+        return _SolveOutcome(
+            success,
+            status,
+            w,
+            np.asarray(sol["lam_x"]).reshape(-1),
+            np.asarray(sol["lam_g"]).reshape(-1),
+            int(stats.get("iter_count", 0)),
+        )
 
     def _fallback_command(self) -> NDArray[np.float64]:
         """Next command of the last successful plan, or a stop when that plan is used up."""

@@ -46,8 +46,9 @@ def _feasible(G: NDArray, c: NDArray, m: int, zx: float, zy: float, tol: float) 
 
 
 @njit(cache=True)
-def qp2_kernel(tx: float, ty: float, wx: float, wy: float, A: NDArray, b: NDArray, m: int, tol: float,
-               out: NDArray) -> bool:  # pragma: no cover - compiled  # fmt: skip
+def qp2_kernel(
+    tx: float, ty: float, wx: float, wy: float, A: NDArray, b: NDArray, m: int, tol: float, out: NDArray
+) -> bool:  # pragma: no cover - compiled
     """Solve one problem over the first ``m`` rows of ``A`` (m', 2) and ``b`` (m',).
 
     Writes the solution into ``out`` (2,) and returns True, or returns False (``out`` untouched)
@@ -95,8 +96,9 @@ def qp2_kernel(tx: float, ty: float, wx: float, wy: float, A: NDArray, b: NDArra
 @njit(cache=True)
 def _solve_batch(target, weight, A, b, counts, tol, out, feasible):  # pragma: no cover - compiled
     for i in range(target.shape[0]):
-        feasible[i] = qp2_kernel(target[i, 0], target[i, 1], weight[i, 0], weight[i, 1], A[i], b[i], counts[i],
-                                 tol, out[i])  # fmt: skip
+        feasible[i] = qp2_kernel(
+            target[i, 0], target[i, 1], weight[i, 0], weight[i, 1], A[i], b[i], counts[i], tol, out[i]
+        )
         if not feasible[i]:
             out[i, 0], out[i, 1] = target[i, 0], target[i, 1]
 
@@ -138,8 +140,14 @@ def solve_qp2(
     target = np.ascontiguousarray(target, dtype=np.float64)
     A = np.ascontiguousarray(A, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
-    if target.ndim != 2 or target.shape[1] != 2 or A.ndim != 3 or A.shape[0] != target.shape[0] \
-            or A.shape[2] != 2 or b.shape != A.shape[:2]:  # fmt: skip
+    if (
+        target.ndim != 2
+        or target.shape[1] != 2
+        or A.ndim != 3
+        or A.shape[0] != target.shape[0]
+        or A.shape[2] != 2
+        or b.shape != A.shape[:2]
+    ):
         raise ValueError(
             f"shapes target {target.shape}, A {A.shape}, b {b.shape} do not match; expected (B, 2), (B, m, 2), (B, m)"
         )

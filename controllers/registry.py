@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import functools
 import importlib
+from collections.abc import Callable
 from importlib import metadata
-from typing import Any, Callable
+from typing import Any
 
 from controllers.base import Controller
 from koopman_envs.suggest import did_you_mean
@@ -40,7 +41,9 @@ def register(name: str, factory: Callable[..., Controller] | str, *, overwrite: 
     _REGISTRY[name] = factory
 
 
-def register_wrapper(prefix: str, wrapper: Callable[..., Controller] | str, *, overwrite: bool = False) -> None:
+def register_wrapper(
+    prefix: str, wrapper: Callable[..., Controller] | str, *, overwrite: bool = False
+) -> None:
     """Register a wrapper prefix: ``make(f"{prefix}:{name}", **options)`` calls
     ``wrapper(factory(name), **options)`` (a callable or a ``"module:attribute"`` string)."""
     if not prefix or ":" in prefix:

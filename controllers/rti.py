@@ -41,10 +41,20 @@ QP_SOLVERS: dict[str, dict[str, Any]] = {
     # "speed": 5 interior-point iterations where "balance" takes 7, plans within 1e-7 of its
     # (Map 1, 3 robots); residual tolerances 1e-7 (1e-8 is out of reach at the scale of the slack
     # penalty: a cold start's QP was solved to 1e-10 of PIQP's solution and still ran out of iterations)
-    "hpipm": {"hpipm": {"mode": "speed", "iter_max": 100, "res_g_max": 1e-7, "res_b_max": 1e-7,
-                        "res_d_max": 1e-7, "res_m_max": 1e-7}},
-    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "max_iter": 20000, "polish": True},
-             "warm_start_primal": True},
+    "hpipm": {
+        "hpipm": {
+            "mode": "speed",
+            "iter_max": 100,
+            "res_g_max": 1e-7,
+            "res_b_max": 1e-7,
+            "res_d_max": 1e-7,
+            "res_m_max": 1e-7,
+        }
+    },
+    "osqp": {
+        "osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "max_iter": 20000, "polish": True},
+        "warm_start_primal": True,
+    },
     "piqp": {"piqp": {"verbose": False}},
     "daqp": {},
     "proxqp": {"proxqp": {"verbose": False}},
@@ -125,8 +135,9 @@ class RealTimeIteration:
         One of :data:`HESSIANS`.
     """
 
-    def __init__(self, problem: _Problem, qp_solver: str = "hpipm", iterations: int = 1,
-                 hessian: str = "exact") -> None:  # fmt: skip
+    def __init__(
+        self, problem: _Problem, qp_solver: str = "hpipm", iterations: int = 1, hessian: str = "exact"
+    ) -> None:
         check_rti_options(qp_solver, iterations, hessian)
         self.problem = problem
         self.qp_solver = qp_solver
@@ -138,7 +149,9 @@ class RealTimeIteration:
         jac_g = ca.jacobian(g, w)
         # the Hessian is block diagonal by stage, [x_k, u_k, s_k] (x_T alone): its blocks, dense
         stage = problem.stage_size
-        self._blocks = [np.arange(t * stage, min((t + 1) * stage, problem.n_vars)) for t in range(problem.horizon + 1)]
+        self._blocks = [
+            np.arange(t * stage, min((t + 1) * stage, problem.n_vars)) for t in range(problem.horizon + 1)
+        ]
         if hessian == "gauss-newton":
             residuals, _ = problem.least_squares
             jac_r = ca.jacobian(residuals, w)
@@ -147,8 +160,12 @@ class RealTimeIteration:
             full = ca.hessian(f + ca.dot(lam_g, g), w)[0]
         blocks = [ca.densify(full[idx.tolist(), idx.tolist()]) for idx in self._blocks]
         self._linearize = ca.Function(
-            "rti_linearize", [w, p, lam_g], [ca.vertcat(*[ca.vec(b) for b in blocks]), ca.densify(ca.gradient(f, w)), ca.densify(g), jac_g],
-            ["w", "p", "lam_g"], ["blocks", "grad", "g", "a"])  # fmt: skip
+            "rti_linearize",
+            [w, p, lam_g],
+            [ca.vertcat(*[ca.vec(b) for b in blocks]), ca.densify(ca.gradient(f, w)), ca.densify(g), jac_g],
+            ["w", "p", "lam_g"],
+            ["blocks", "grad", "g", "a"],
+        )
         # block-diagonal sparsity of the QP Hessian; the blocks are contiguous, so CasADi's
         # column-major nonzeros are the blocks' column-major entries one block after another
         self._block_groups = [(stage, problem.horizon), (problem.nx, 1)]
@@ -159,13 +176,26 @@ class RealTimeIteration:
         options: dict[str, Any] = {"error_on_fail": False, **QP_SOLVERS[qp_solver]}
         if qp_solver == "hpipm":
             horizon = problem.horizon
-            options.update({"N": horizon, "nx": [problem.nx] * (horizon + 1), "nu": [problem.nu + problem.ns] * horizon + [0],
-                            # rows besides the dynamics gaps (which lead every stage but the last)
-                            "ng": [count - problem.nx for count in problem.stage_rows[:-1]] + problem.stage_rows[-1:]})
+            options.update(
+                {
+                    "N": horizon,
+                    "nx": [problem.nx] * (horizon + 1),
+                    "nu": [problem.nu + problem.ns] * horizon + [0],
+                    # rows besides the dynamics gaps (which lead every stage but the last)
+                    "ng": [count - problem.nx for count in problem.stage_rows[:-1]] + problem.stage_rows[-1:],
+                }
+            )
         self._qp = ca.conic("rti_qp", qp_solver, structure, options)
-        self._slack_index = np.concatenate(
-            [np.arange(t * stage + problem.nx + problem.nu, (t + 1) * stage) for t in range(problem.horizon)]
-        ) if problem.ns else np.zeros(0, dtype=int)  # fmt: skip
+        self._slack_index = (
+            np.concatenate(
+                [
+                    np.arange(t * stage + problem.nx + problem.nu, (t + 1) * stage)
+                    for t in range(problem.horizon)
+                ]
+            )
+            if problem.ns
+            else np.zeros(0, dtype=int)
+        )
         self._bind_buffers()
 
     def _bind_buffers(self) -> None:
@@ -184,9 +214,13 @@ class RealTimeIteration:
         self._lin_buffer, self._lin_eval = self._buffer(lin, self._lin_in, self._lin_out)
 
     @staticmethod
-    def _buffer(function: ca.Function, inputs: dict[str, NDArray], outputs: dict[str, NDArray]) -> tuple[Any, Any]:
+    def _buffer(
+        function: ca.Function, inputs: dict[str, NDArray], outputs: dict[str, NDArray]
+    ) -> tuple[Any, Any]:
         """:func:`bind_buffer` with the arrays given by input and output name."""
-        return bind_buffer(function, [inputs[n] for n in function.name_in()], [outputs[n] for n in function.name_out()])
+        return bind_buffer(
+            function, [inputs[n] for n in function.name_in()], [outputs[n] for n in function.name_out()]
+        )
 
     def solve(self, w: NDArray, lam_x: NDArray, lam_g: NDArray, params: NDArray) -> RTIStep:
         """``iterations`` SQP steps from the guess ``(w, lam_x, lam_g)`` (arrays are not modified)."""

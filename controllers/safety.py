@@ -98,7 +98,15 @@ from controllers.qp2 import qp2_kernel
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
-__all__ = ["FILTER_OPTION_PREFIX", "BarrierFilter", "FilterStep", "SafetyFilter", "SafetyOptions", "SafetyStats", "wrap"]
+__all__ = [
+    "FILTER_OPTION_PREFIX",
+    "BarrierFilter",
+    "FilterStep",
+    "SafetyFilter",
+    "SafetyOptions",
+    "SafetyStats",
+    "wrap",
+]
 
 #: in ``safe:<name>`` configurations, options with this prefix go to the filter, the others to ``<name>``
 FILTER_OPTION_PREFIX = "safety_"
@@ -157,7 +165,9 @@ class SafetyOptions:
         low, high, closed, text = cls.RANGES[name]
         number = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
         if not number or value > high or value < low or (value == low and not closed):
-            raise ValueError(f"safety filter option {prefix}{name}={value!r} is out of range; allowed: {text}")
+            raise ValueError(
+                f"safety filter option {prefix}{name}={value!r} is out of range; allowed: {text}"
+            )
 
     @classmethod
     def from_options(cls, prefix: str = "", **options: Any) -> SafetyOptions:
@@ -168,8 +178,10 @@ class SafetyOptions:
             if key not in allowed:
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f" (did you mean {prefix + close[0]!r}?)" if close else ""
-                raise ValueError(f"unknown safety filter option {prefix + key!r}{hint}; "
-                                 f"allowed: {[prefix + a for a in allowed]}")  # fmt: skip
+                raise ValueError(
+                    f"unknown safety filter option {prefix + key!r}{hint}; "
+                    f"allowed: {[prefix + a for a in allowed]}"
+                )
             cls.check(key, value, prefix)
         return cls(**options)
 
@@ -203,7 +215,9 @@ class FilterStep:
 
 
 @njit(cache=True)
-def _add_barrier(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam):  # pragma: no cover
+def _add_barrier(
+    A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam
+):  # pragma: no cover
     """Append the four rows of one barrier (unit gradient n, value h) of a robot with heading
     (hx, hy) when some command within the limits could violate them; return the new row count."""
     a_v = nx * hx + ny * hy  # n . e
@@ -225,8 +239,23 @@ def _add_barrier(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, o
 
 
 @njit(cache=True)
-def _filter_team(poses, wanted, centres, obstacle_reach, robot_reach, walls, lookahead, gamma, v_max, omega_max,
-                 dt, omega_weight, out, infeasible, relaxation):  # pragma: no cover - compiled  # fmt: skip
+def _filter_team(
+    poses,
+    wanted,
+    centres,
+    obstacle_reach,
+    robot_reach,
+    walls,
+    lookahead,
+    gamma,
+    v_max,
+    omega_max,
+    dt,
+    omega_weight,
+    out,
+    infeasible,
+    relaxation,
+):  # pragma: no cover - compiled
     """Filter every robot's command (see the module docstring); returns (barrier minimum, barriers built)."""
     n, n_obs = poses.shape[0], centres.shape[0]
     px, py = np.empty(n), np.empty(n)
@@ -250,7 +279,12 @@ def _filter_team(poses, wanted, centres, obstacle_reach, robot_reach, walls, loo
                 dx, dy, reach, share = px[i] - centres[k, 0], py[i] - centres[k, 1], obstacle_reach[i, k], 1.0
             else:
                 j = k - n_obs
-                dx, dy, reach, share = px[i] - px[j], py[i] - py[j], robot_reach[i, j], 0.5  # half of the pair's
+                dx, dy, reach, share = (
+                    px[i] - px[j],
+                    py[i] - py[j],
+                    robot_reach[i, j],
+                    0.5,
+                )  # half of the pair's
             dist = math.hypot(dx, dy)
             h = dist - reach
             h_min = min(h_min, h)
@@ -258,7 +292,9 @@ def _filter_team(poses, wanted, centres, obstacle_reach, robot_reach, walls, loo
                 nx, ny = dx / dist, dy / dist
             else:  # coincident points (deep in collision) have no direction: push straight back
                 nx, ny = -hx, -hy
-            row = _add_barrier(A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam)
+            row = _add_barrier(
+                A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam
+            )
         for w in range(4):  # left, right, bottom, top
             h = (px[i] - walls[0], walls[1] - px[i], py[i] - walls[2], walls[3] - py[i])[w]
             nx, ny = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[w]
@@ -286,7 +322,10 @@ def _filter_team(poses, wanted, centres, obstacle_reach, robot_reach, walls, loo
             for r in range(row):
                 relaxed[r] = low * b[r] if b[r] > 0.0 else b[r]
             if not qp2_kernel(wanted[i, 0], wanted[i, 1], 1.0, omega_weight, A, relaxed, row, 1e-9, out[i]):
-                out[i, 0], out[i, 1] = 0.0, 0.0  # unreachable in exact arithmetic; a stop, never the raw command
+                out[i, 0], out[i, 1] = (
+                    0.0,
+                    0.0,
+                )  # unreachable in exact arithmetic; a stop, never the raw command
             relaxation[i] = low
     return h_min, built
 
@@ -335,7 +374,10 @@ class BarrierFilter:
         """Clearance beyond which no obstacle or wall, and no other robot, can constrain a robot [m]."""
         l, dt = self.options.lookahead, self.dt
         # the largest |a_v| + c_v and |a_omega| + c_omega a row can have (see _add_barrier)
-        speed = self.v_max * (1 + dt * self.omega_max / 2) + (l + dt * (self.v_max + l * self.omega_max) / 2) * self.omega_max
+        speed = (
+            self.v_max * (1 + dt * self.omega_max / 2)
+            + (l + dt * (self.v_max + l * self.omega_max) / 2) * self.omega_max
+        )
         reach = speed / self.options.gamma
         return reach, 2 * reach
 
@@ -362,9 +404,23 @@ class BarrierFilter:
         infeasible = np.empty(n, dtype=np.bool_)
         relaxation = np.empty(n)
         opt = self.options
-        h_min, built = _filter_team(poses, wanted, self._centres, self._obstacle_reach, self._robot_reach, self._walls,
-                                    opt.lookahead, opt.gamma, self.v_max, self.omega_max, self.dt,
-                                    opt.omega_weight, out, infeasible, relaxation)  # fmt: skip
+        h_min, built = _filter_team(
+            poses,
+            wanted,
+            self._centres,
+            self._obstacle_reach,
+            self._robot_reach,
+            self._walls,
+            opt.lookahead,
+            opt.gamma,
+            self.v_max,
+            self.omega_max,
+            self.dt,
+            opt.omega_weight,
+            out,
+            infeasible,
+            relaxation,
+        )
         return FilterStep(
             command=out,
             changed=np.abs(out - wanted).max(axis=1) > _CHANGED,
@@ -454,7 +510,9 @@ class SafetyFilter(BaseController):
         super().__init__()
         for method in ("reset", "act"):
             if not callable(getattr(inner, method, None)):
-                raise TypeError(f"SafetyFilter needs a controller with {method}(); got {type(inner).__name__}")
+                raise TypeError(
+                    f"SafetyFilter needs a controller with {method}(); got {type(inner).__name__}"
+                )
         self.inner = inner
         self.options = SafetyOptions.from_options(**options)
         self.name = f"safe:{getattr(inner, 'name', type(inner).__name__)}"
@@ -505,7 +563,9 @@ def wrap(inner_factory: Callable[..., Controller], **options: Any) -> SafetyFilt
 
     >>> wrap(factory("nominal-nmpc"), horizon=10, safety_gamma=1.0)   # = make("safe:nominal-nmpc", ...)
     """
-    mine = {k[len(FILTER_OPTION_PREFIX):]: v for k, v in options.items() if k.startswith(FILTER_OPTION_PREFIX)}
+    mine = {
+        k[len(FILTER_OPTION_PREFIX) :]: v for k, v in options.items() if k.startswith(FILTER_OPTION_PREFIX)
+    }
     theirs = {k: v for k, v in options.items() if not k.startswith(FILTER_OPTION_PREFIX)}
     SafetyOptions.from_options(FILTER_OPTION_PREFIX, **mine)  # errors name the prefixed option the user wrote
     return SafetyFilter(inner_factory(**theirs), **mine)

@@ -21,8 +21,9 @@ import subprocess
 import sys
 import tempfile
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import casadi as ca
 
@@ -46,7 +47,7 @@ def compiler() -> str | None:
     return shutil.which(os.environ.get("CC", "gcc"))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _identity(cc: str) -> str:
     """The compiler's own version text (part of every cache key)."""
     try:
@@ -60,7 +61,10 @@ def _identity(cc: str) -> str:
 def _warn_no_compiler() -> None:
     warnings.warn(
         f"no C compiler found (CC={os.environ.get('CC', 'gcc')!r}): NMPC solvers run uncompiled, several times "
-        "slower; install gcc for compiled solvers", RuntimeWarning, stacklevel=3)  # fmt: skip
+        "slower; install gcc for compiled solvers",
+        RuntimeWarning,
+        stacklevel=3,
+    )
 
 
 def _cleanup() -> None:
@@ -87,8 +91,9 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS, background: bool = Fals
     build = tempfile.mkdtemp(prefix="koopnav-jit-")
     _BUILD_DIRS.append(build)
     tag = hashlib.sha256(f"casadi {ca.__version__}|{_identity(cc)}".encode()).hexdigest()[:16]
-    command = (f'"{sys.executable}" -S "{_WRAPPER}" --cache "{solver_cache_dir()}" --cc "{cc}" '
-               f'--tag {tag}' + (" --background" if background else ""))  # fmt: skip
+    command = f'"{sys.executable}" -S "{_WRAPPER}" --cache "{solver_cache_dir()}" --cc "{cc}" --tag {tag}' + (
+        " --background" if background else ""
+    )
     return {
         "jit": True,
         "compiler": "shell",
@@ -99,8 +104,15 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS, background: bool = Fals
         # the build directory is removed as a whole at exit (CasADi's own cleanup would run after
         # it, during interpreter teardown, and warn about every file already gone)
         "jit_cleanup": False,
-        "jit_options": {"compiler": command, "flags": list(flags), "directory": build + os.sep,
-                        "temp_suffix": False, "name": "nlp", "verbose": False, "cleanup": False},  # fmt: skip
+        "jit_options": {
+            "compiler": command,
+            "flags": list(flags),
+            "directory": build + os.sep,
+            "temp_suffix": False,
+            "name": "nlp",
+            "verbose": False,
+            "cleanup": False,
+        },
     }
 
 
@@ -149,4 +161,7 @@ _JIT_KEYS = ("jit", "compiler", "jit_options", "jit_temp_suffix", "jit_cleanup")
 def _note_background_compile() -> None:
     warnings.warn(
         f"compiling an NMPC solver into {solver_cache_dir()} in the background (minutes, once per machine and "
-        "problem structure); until it is there, solvers run uncompiled", RuntimeWarning, stacklevel=3)  # fmt: skip
+        "problem structure); until it is there, solvers run uncompiled",
+        RuntimeWarning,
+        stacklevel=3,
+    )

@@ -52,13 +52,19 @@ def broken_links(out: Path) -> list[str]:
             if target.is_dir():
                 target = target / "index.html"
             if not target.exists():
-                bad.append(f"{html.relative_to(out)}: {href} (no file {target.relative_to(out.resolve()) if target.is_relative_to(out.resolve()) else target})")
+                bad.append(
+                    f"{html.relative_to(out)}: {href} (no file {target.relative_to(out.resolve()) if target.is_relative_to(out.resolve()) else target})"
+                )
             elif "_modules" in target.parts:
                 # viewcode's highlighted sources: generated, and their anchors follow the import
                 # state of the build (an anchor of a function once went missing in one build of
                 # three); the file's existence is what a reader needs
                 continue
-            elif parts.fragment and target.suffix == ".html" and unquote(parts.fragment) not in _parse(target, cache).ids:
+            elif (
+                parts.fragment
+                and target.suffix == ".html"
+                and unquote(parts.fragment) not in _parse(target, cache).ids
+            ):
                 bad.append(f"{html.relative_to(out)}: {href} (no anchor #{parts.fragment})")
     return bad
 

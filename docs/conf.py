@@ -95,8 +95,13 @@ def _markdown_to_rst(lines: list[str]) -> list[str]:
 
 
 def _is_markdown(lines: list[str]) -> bool:
-    return any(line.startswith("## ") or line.lstrip().startswith("|---") or line.lstrip().startswith("| ---")
-               or line.lstrip().startswith("|--") for line in lines)
+    return any(
+        line.startswith("## ")
+        or line.lstrip().startswith("|---")
+        or line.lstrip().startswith("| ---")
+        or line.lstrip().startswith("|--")
+        for line in lines
+    )
 
 
 def _docstring_markdown(app, what, name, obj, options, lines):  # Sphinx calls it with these

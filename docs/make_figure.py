@@ -24,7 +24,9 @@ from controllers.calibration import calibrate_controller
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--steps", type=int, default=300, help="at most this many control periods (the episode may end first)")
+    parser.add_argument(
+        "--steps", type=int, default=300, help="at most this many control periods (the episode may end first)"
+    )
     parser.add_argument("--controller", default="koopman-nmpc-robust")
     parser.add_argument("--out", default="docs/_static/formation_map3.png")
     args = parser.parse_args(argv)

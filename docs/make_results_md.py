@@ -27,17 +27,49 @@ from koopman_envs.params import PARAMS  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
 PAPER = {
-    ("koopman-nmpc", "map1"): {"nominal": "10/10 (0.9, 1.9, 1.9)", "low": "9/10 (3.1, 2.7, 6.6)", "high": "8/10 (1.9, 2.7, 6.6)"},
-    ("koopman-nmpc", "map2"): {"nominal": "10/10 (2.8, 1.8, 2.3)", "low": "9/10 (5.0, 2.4, 6.4)", "high": "6/10 (4.9, 2.6, 4.8)"},
-    ("nominal-nmpc", "map1"): {"nominal": "10/10 (1.8, 1.5, 15.6)", "low": "8/10 (1.3, 1.8, 3.5)", "high": "3/10 (1.1, 2.4, 4.0)"},
+    ("koopman-nmpc", "map1"): {
+        "nominal": "10/10 (0.9, 1.9, 1.9)",
+        "low": "9/10 (3.1, 2.7, 6.6)",
+        "high": "8/10 (1.9, 2.7, 6.6)",
+    },
+    ("koopman-nmpc", "map2"): {
+        "nominal": "10/10 (2.8, 1.8, 2.3)",
+        "low": "9/10 (5.0, 2.4, 6.4)",
+        "high": "6/10 (4.9, 2.6, 4.8)",
+    },
+    ("nominal-nmpc", "map1"): {
+        "nominal": "10/10 (1.8, 1.5, 15.6)",
+        "low": "8/10 (1.3, 1.8, 3.5)",
+        "high": "3/10 (1.1, 2.4, 4.0)",
+    },
     ("nominal-nmpc", "map2"): {"nominal": "0/10", "low": "1/10 (2.4, 0.5, 3.4)", "high": "0/10"},
-    ("koopman-nmpc", "map3"): {"nominal": "10/10 (0.9, 1.9, 1.9)", "low": "9/10 (1.7, 4.5, 3.9)", "high": "8/10 (1.7, 2.4, 1.1)"},
-    ("koopman-nmpc", "map4"): {"nominal": "10/10 (2.5, 7.0, 7.5)", "low": "8/10 (2.6, 8.4, 9.6)", "high": "8/10 (3.0, 6.6, 13.5)"},
+    ("koopman-nmpc", "map3"): {
+        "nominal": "10/10 (0.9, 1.9, 1.9)",
+        "low": "9/10 (1.7, 4.5, 3.9)",
+        "high": "8/10 (1.7, 2.4, 1.1)",
+    },
+    ("koopman-nmpc", "map4"): {
+        "nominal": "10/10 (2.5, 7.0, 7.5)",
+        "low": "8/10 (2.6, 8.4, 9.6)",
+        "high": "8/10 (3.0, 6.6, 13.5)",
+    },
     ("nominal-nmpc", "map3"): {"nominal": "10/10 (0.5, 1.0, 1.1)", "low": "0/10", "high": "0/10"},
-    ("nominal-nmpc", "map4"): {"nominal": "10/10 (1.7, 4.1, 3.8)", "low": "4/10 (2.0, 3.7, 8.6)", "high": "0/10"},
-    ("consensus", "map3"): {"nominal": "10/10 (4.1, 76.3, 45.1)", "low": "9/10 (4.1, 148.3, 50.3)", "high": "9/10 (4.1, 158.3, 51.0)"},
-    ("consensus", "map4"): {"nominal": "10/10 (7.4, 71.4, 82.6)", "low": "10/10 (7.4, 69.5, 113.2)", "high": "7/10 (7.4, 69.8, 90.9)"},
-}  # fmt: skip
+    ("nominal-nmpc", "map4"): {
+        "nominal": "10/10 (1.7, 4.1, 3.8)",
+        "low": "4/10 (2.0, 3.7, 8.6)",
+        "high": "0/10",
+    },
+    ("consensus", "map3"): {
+        "nominal": "10/10 (4.1, 76.3, 45.1)",
+        "low": "9/10 (4.1, 148.3, 50.3)",
+        "high": "9/10 (4.1, 158.3, 51.0)",
+    },
+    ("consensus", "map4"): {
+        "nominal": "10/10 (7.4, 71.4, 82.6)",
+        "low": "10/10 (7.4, 69.5, 113.2)",
+        "high": "7/10 (7.4, 69.8, 90.9)",
+    },
+}
 TABLES = [
     ("Table 1: Koopman-NMPC, target reaching", "KoopNav-TargetReaching-v0", "koopman-nmpc"),
     ("Table 2: nominal NMPC, target reaching", "KoopNav-TargetReaching-v0", "nominal-nmpc"),
@@ -59,7 +91,9 @@ def _dist(summary: dict) -> str:
         return "-"
     parts = []
     for mean, sd in summary["per_robot"]:
-        parts.append("-" if mean is None else (f"{mean:.1f}" if summary["runs"] == 1 else f"{mean:.1f}+-{sd:.1f}"))
+        parts.append(
+            "-" if mean is None else (f"{mean:.1f}" if summary["runs"] == 1 else f"{mean:.1f}+-{sd:.1f}")
+        )
     return ", ".join(parts)
 
 
@@ -73,9 +107,11 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
     rows = [k for k in cells if k[0] == env_id and k[1] == controller]
     if not rows:
         return []
-    lines = ["| Map | Slip | Success [95% CI] | SR [95% CI] | Robots 1-3, collision-free runs [cm] | "
-             "Team, collision-free [cm] | Team, settled [cm] | Paper: SR (distances) |",
-             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "| Map | Slip | Success [95% CI] | SR [95% CI] | Robots 1-3, collision-free runs [cm] | "
+        "Team, collision-free [cm] | Team, settled [cm] | Paper: SR (distances) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for key in rows:
         c = cells[key]
         valid = c["episodes"] - c["errors"]
@@ -92,15 +128,18 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
 def uncertainty_section(docs: list[dict]) -> list[str]:
     """The changing-uncertainty results (not in the paper): per group of runs over the same cells
     (a run and its ablation run, say), a leaderboard, paired comparisons and per-cell tables."""
-    lines = ["## Changing uncertainty: slip zones, drifting and random slip (not in the paper)", "",
-             "Maps 5 and 6 put a high-slip zone across the shortest route; `drift` redraws every robot's slip "
-             "level at random times within the episode, `random` draws one level per episode "
-             "([Slip](environments.md#slip), [Maps](environments.md#maps)). Same seeds for every controller "
-             "in a group of cells, so the comparisons are paired; same calibration offer as above; no controller "
-             "is told the slip, the zones or the "
-             "schedule. Solve times come from runs made at different times on a shared 2-core machine (some "
-             "beside other evaluations): compare them within one run, not across the rows of a pooled table.",
-             ""]  # fmt: skip
+    lines = [
+        "## Changing uncertainty: slip zones, drifting and random slip (not in the paper)",
+        "",
+        "Maps 5 and 6 put a high-slip zone across the shortest route; `drift` redraws every robot's slip "
+        "level at random times within the episode, `random` draws one level per episode "
+        "([Slip](environments.md#slip), [Maps](environments.md#maps)). Same seeds for every controller "
+        "in a group of cells, so the comparisons are paired; same calibration offer as above; no controller "
+        "is told the slip, the zones or the "
+        "schedule. Solve times come from runs made at different times on a shared 2-core machine (some "
+        "beside other evaluations): compare them within one run, not across the rows of a pooled table.",
+        "",
+    ]
     groups: dict[tuple, list[dict]] = {}
     for d in docs:
         key = tuple(sorted({(c["env_id"], c["map"], c["slip"]) for c in d["cells"]}))
@@ -109,10 +148,18 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
         pooled = Results([r for d in members for r in d["episodes"]], members[0]["config"])
         seeds = max(c.episodes for c in pooled.cells)
         title = "; ".join(f"{task_label(env_id)} {m}, slip {slip}" for env_id, m, slip in key)
-        lines += [f"### {title} ({seeds} seeds per cell)", "",
-                  "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in members) + ".", "",
-                  pooled.leaderboard_table(), "", "Paired comparisons (shared map, slip and seed; Newcombe's 95% "
-                  "interval, exact McNemar test):", "", markdown_table(paired_rows(pooled)), ""]  # fmt: skip
+        lines += [
+            f"### {title} ({seeds} seeds per cell)",
+            "",
+            "Regenerate: " + "; ".join(f"`{_command(d['config'])}`" for d in members) + ".",
+            "",
+            pooled.leaderboard_table(),
+            "",
+            "Paired comparisons (shared map, slip and seed; Newcombe's 95% interval, exact McNemar test):",
+            "",
+            markdown_table(paired_rows(pooled)),
+            "",
+        ]
         for caption, table in controller_tables(pooled):
             lines += [f"**{caption}**", "", markdown_table(table), ""]
     return lines
@@ -121,23 +168,31 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
 def scaling_section(docs: list[dict]) -> list[str]:
     """Success, distances and decision time as the team grows: one run per team size N (its
     ``--env-kwargs n_robots=N``), one row per controller and N."""
-    lines = ["## Scaling with the team size (not in the paper)", "",
-             "Target reaching on seeded random maps (a new layout per seed: 4 obstacles, the team in a wedge "
-             "and its targets the same wedge elsewhere; the generator's defaults), nominal slip, the same seeds "
-             "for every controller at a given N. Solvers uncompiled (`KOOPNAV_NMPC_JIT=0`) at every N, so the "
-             "times compare across N: a 16-robot problem takes gcc more than 7 minutes and 4 GB to compile. "
-             "Solve times are each controller's decision time per control step (median and 95th percentile "
-             "over every step of the cell) against the 100 ms control period; the machine has 2 cores, and a "
-             "second evaluation ran beside these ones. Seeds per N and the time limit of each run (600 periods unless "
-             "the command says otherwise) are in the commands below; a collision or the time limit ends an episode "
-             "as a failure.", ""]  # fmt: skip
-    lines += ["| N | Controller | Success [95% CI] | Collision-free [95% CI] | Team final dist., settled [cm] | "
-              "Time to goal [s] | Decision median / p95 [ms] | Solver failures | Errors |",
-              "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "## Scaling with the team size (not in the paper)",
+        "",
+        "Target reaching on seeded random maps (a new layout per seed: 4 obstacles, the team in a wedge "
+        "and its targets the same wedge elsewhere; the generator's defaults), nominal slip, the same seeds "
+        "for every controller at a given N. Solvers uncompiled (`KOOPNAV_NMPC_JIT=0`) at every N, so the "
+        "times compare across N: a 16-robot problem takes gcc more than 7 minutes and 4 GB to compile. "
+        "Solve times are each controller's decision time per control step (median and 95th percentile "
+        "over every step of the cell) against the 100 ms control period; the machine has 2 cores, and a "
+        "second evaluation ran beside these ones. Seeds per N and the time limit of each run (600 periods unless "
+        "the command says otherwise) are in the commands below; a collision or the time limit ends an episode "
+        "as a failure.",
+        "",
+    ]
+    lines += [
+        "| N | Controller | Success [95% CI] | Collision-free [95% CI] | Team final dist., settled [cm] | "
+        "Time to goal [s] | Decision median / p95 [ms] | Solver failures | Errors |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     commands = []
     ran: dict[int, set[str]] = {}
     for d in docs:
-        ran.setdefault(d["config"]["env_settings"].get("n_robots", 3), set()).update(c["controller"] for c in d["cells"])
+        ran.setdefault(d["config"]["env_settings"].get("n_robots", 3), set()).update(
+            c["controller"] for c in d["cells"]
+        )
     everyone = set().union(*ran.values())
     for d in sorted(docs, key=lambda d: d["config"]["env_settings"].get("n_robots", 3)):
         n = d["config"]["env_settings"].get("n_robots", 3)
@@ -146,15 +201,23 @@ def scaling_section(docs: list[dict]) -> list[str]:
             valid = c["episodes"] - c["errors"]
             settled = c["final_distance_cm"]["settled"]
             ttg = "-" if c.get("time_to_goal_s") is None else f"{c['time_to_goal_s']:.1f}"
-            solve = "-" if c["solve_ms_median"] is None else f"{c['solve_ms_median']:.1f} / {c['solve_ms_p95']:.1f}"
-            lines.append(f"| {n} | {c['controller']} | {c['successes']}/{valid} {_ci(c['success_ci'])} | "
-                         f"{c['collision_free']}/{valid} {_ci(c['collision_free_ci'])} | {_team(settled)} | {ttg} | "
-                         f"{solve} | {c['solver_failures']} | {c['errors']} |")  # fmt: skip
+            solve = (
+                "-"
+                if c["solve_ms_median"] is None
+                else f"{c['solve_ms_median']:.1f} / {c['solve_ms_p95']:.1f}"
+            )
+            lines.append(
+                f"| {n} | {c['controller']} | {c['successes']}/{valid} {_ci(c['success_ci'])} | "
+                f"{c['collision_free']}/{valid} {_ci(c['collision_free_ci'])} | {_team(settled)} | {ttg} | "
+                f"{solve} | {c['solver_failures']} | {c['errors']} |"
+            )
     lines.append("")
     for n, names in sorted(ran.items()):
         if everyone - names:
-            lines.append(f"Not in this table at N = {n}: {', '.join(sorted(everyone - names))} "
-                         "([Results with larger teams](paper.md#results-with-larger-teams) says why).")  # fmt: skip
+            lines.append(
+                f"Not in this table at N = {n}: {', '.join(sorted(everyone - names))} "
+                "([Results with larger teams](paper.md#results-with-larger-teams) says why)."
+            )
     lines += ["", "Regenerate: " + "; ".join(commands) + ".", ""]
     return lines
 
@@ -169,16 +232,22 @@ def _command(config: dict) -> str:
             options["label"] = c["label"]
         # values as the CLI parses them (JSON scalars; text as is)
         text = {k: v if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
-        controllers.append(c["name"] + (":" + ",".join(f"{k}={v}" for k, v in text.items()) if options else ""))
+        controllers.append(
+            c["name"] + (":" + ",".join(f"{k}={v}" for k, v in text.items()) if options else "")
+        )
     # env keywords beyond those with their own flags (goal tolerance, time limit, start noise)
     own_flags = ("goal_tolerance", "max_episode_steps", "start_noise")
     extra = {k: v for k, v in config.get("env_settings", {}).items() if k not in own_flags}
-    env_kwargs = (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
+    env_kwargs = (
+        (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
+    )
     if config.get("max_episode_steps") not in (None, PARAMS.max_episode_steps):
         env_kwargs += f" --max-episode-steps {config['max_episode_steps']}"
-    return (f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
-            f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "
-            f"--controllers {' '.join(controllers)}")  # fmt: skip
+    return (
+        f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
+        f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "
+        f"--controllers {' '.join(controllers)}"
+    )
 
 
 def main() -> None:
@@ -186,35 +255,51 @@ def main() -> None:
     parser.add_argument("results", nargs="+")
     parser.add_argument("--strict", help="results.json of `python evaluate.py --paper-strict`")
     parser.add_argument("--ablation", help="docs/ablation.md to link")
-    parser.add_argument("--uncertainty", nargs="+", default=[],
-                        help="results.json of the changing-uncertainty runs (slip zones, drift, random slip)")
-    parser.add_argument("--scaling", nargs="+", default=[],
-                        help="results.json of the team-size runs (one per --env-kwargs n_robots=N)")
+    parser.add_argument(
+        "--uncertainty",
+        nargs="+",
+        default=[],
+        help="results.json of the changing-uncertainty runs (slip zones, drift, random slip)",
+    )
+    parser.add_argument(
+        "--scaling",
+        nargs="+",
+        default=[],
+        help="results.json of the team-size runs (one per --env-kwargs n_robots=N)",
+    )
     parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
     args = parser.parse_args()
     docs = [json.loads(Path(path).read_text()) for path in args.results]
     doc = docs[0]
     cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for d in docs for c in d["cells"]}
     budget = doc["config"]["calibration"]["budget"]
-    lines = ["# Paper protocol results", "",
-             "Regenerate: `python evaluate.py --paper --out results_paper`, "
-             "`python evaluate.py --paper --controllers rl-ppo --out results_rl`, "
-             "`python evaluate.py --paper-strict --out results_strict`, `python evaluate.py --ablation`, then "
-             "`python docs/make_results_md.py results_paper/results.json results_rl/results.json "
-             "--strict results_strict/results.json --ablation docs/ablation.md` "
-             f"(package {doc['package_version']}). This page was written by `python docs/make_results_md.py "
-             f"{' '.join(sys.argv[1:])}`.", "",
-             "Protocol (SPEC section 5): 3 robots, 10 trials per cell, trial i seeded i: the same slip draws and "
-             "starts for every controller, so comparisons are paired. Every controller was offered the same "
-             f"calibration: the env's robots in an open field (slip means hidden), {budget:,} team-transitions, "
-             "seed 0. The evaluator hands no controller the slip setting.", ""]  # fmt: skip
-    lines += ["*Success*: every robot settled within 0.1 m of its target for 2 s without collision. *SR*: the "
-              "paper's success rate (runs without collision). k/n with the 95% Wilson interval. Final distances "
-              "per robot [cm], mean+-SD over the collision-free runs (the paper's convention, comparable with its "
-              "column); *team*: mean over robots per run, then mean over runs with its 95% bootstrap interval, "
-              "over collision-free runs and over settled runs. Ten trials per cell give wide intervals: a "
-              "10/10 cell is compatible with a true rate of 72%. The paper's maps are not published, so ours are "
-              "our own designs (SPEC section 5) and only the shape of the results is comparable.", ""]  # fmt: skip
+    lines = [
+        "# Paper protocol results",
+        "",
+        "Regenerate: `python evaluate.py --paper --out results_paper`, "
+        "`python evaluate.py --paper --controllers rl-ppo --out results_rl`, "
+        "`python evaluate.py --paper-strict --out results_strict`, `python evaluate.py --ablation`, then "
+        "`python docs/make_results_md.py results_paper/results.json results_rl/results.json "
+        "--strict results_strict/results.json --ablation docs/ablation.md` "
+        f"(package {doc['package_version']}). This page was written by `python docs/make_results_md.py "
+        f"{' '.join(sys.argv[1:])}`.",
+        "",
+        "Protocol (SPEC section 5): 3 robots, 10 trials per cell, trial i seeded i: the same slip draws and "
+        "starts for every controller, so comparisons are paired. Every controller was offered the same "
+        f"calibration: the env's robots in an open field (slip means hidden), {budget:,} team-transitions, "
+        "seed 0. The evaluator hands no controller the slip setting.",
+        "",
+    ]
+    lines += [
+        "*Success*: every robot settled within 0.1 m of its target for 2 s without collision. *SR*: the "
+        "paper's success rate (runs without collision). k/n with the 95% Wilson interval. Final distances "
+        "per robot [cm], mean+-SD over the collision-free runs (the paper's convention, comparable with its "
+        "column); *team*: mean over robots per run, then mean over runs with its 95% bootstrap interval, "
+        "over collision-free runs and over settled runs. Ten trials per cell give wide intervals: a "
+        "10/10 cell is compatible with a true rate of 72%. The paper's maps are not published, so ours are "
+        "our own designs (SPEC section 5) and only the shape of the results is comparable.",
+        "",
+    ]
     if any(d["config"]["controllers"] == ["rl-ppo"] or "rl-ppo" in d["config"]["controllers"] for d in docs):
         budgets, steps = [], []
         for task in ("target_reaching", "formation"):
@@ -222,12 +307,14 @@ def main() -> None:
             if meta.exists():
                 steps.append(json.loads(meta.read_text())["timesteps"])
                 budgets.append(f"{task.replace('_', ' ')} {steps[-1]:,}")
-        lines += ["**Unequal data, disclosed.** `rl-ppo` does not calibrate: its policies were trained beforehand on "
-                  "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
-                  "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
-                  f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions the calibrating controllers may use. Its rows "
-                  "compare a trained policy with model-based controllers; they are not an equal-data comparison.",
-                  ""]  # fmt: skip
+        lines += [
+            "**Unequal data, disclosed.** `rl-ppo` does not calibrate: its policies were trained beforehand on "
+            "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
+            "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
+            f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions the calibrating controllers may use. Its rows "
+            "compare a trained policy with model-based controllers; they are not an equal-data comparison.",
+            "",
+        ]
     for title, env_id, controller in TABLES:
         rows = table(cells, env_id, controller)
         if rows:
@@ -235,17 +322,31 @@ def main() -> None:
     # all files' episodes in one Results: every controller is paired with every other on the
     # shared (map, slip, seed) episodes, also across separate runs of the same protocol
     pooled = Results([r for d in docs for r in d["episodes"]], doc["config"])
-    lines += ["## Leaderboard (paper protocol, pooled over maps and slip levels)", "",
-              "Ranked by success rate; 95% Wilson intervals; final distance: team mean over settled runs with "
-              "its 95% bootstrap interval.", "", pooled.leaderboard_table(), ""]  # fmt: skip
-    lines += ["## Paired comparisons (paper protocol)", "",
-              "Pooled over each task's maps and slip levels; pairs share map, slip and seed. Difference of "
-              "success rates with Newcombe's 95% interval for paired proportions; exact McNemar test.", "",
-              markdown_table(paired_rows(pooled)), ""]  # fmt: skip
+    lines += [
+        "## Leaderboard (paper protocol, pooled over maps and slip levels)",
+        "",
+        "Ranked by success rate; 95% Wilson intervals; final distance: team mean over settled runs with "
+        "its 95% bootstrap interval.",
+        "",
+        pooled.leaderboard_table(),
+        "",
+    ]
+    lines += [
+        "## Paired comparisons (paper protocol)",
+        "",
+        "Pooled over each task's maps and slip levels; pairs share map, slip and seed. Difference of "
+        "success rates with Newcombe's 95% interval for paired proportions; exact McNemar test.",
+        "",
+        markdown_table(paired_rows(pooled)),
+        "",
+    ]
     if args.strict:
         strict = json.loads(Path(args.strict).read_text())
         scells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for c in strict["cells"]}
-        lines += ["## The paper's exact formulation (`--paper-strict`: hard constraints, 0.015 m margins)", ""]
+        lines += [
+            "## The paper's exact formulation (`--paper-strict`: hard constraints, 0.015 m margins)",
+            "",
+        ]
         for title, env_id, controller in TABLES[:4]:
             rows = table(scells, env_id, controller)
             if rows:
@@ -253,18 +354,30 @@ def main() -> None:
         failures = {}
         for c in strict["cells"]:
             failures[c["controller"]] = failures.get(c["controller"], 0) + c["solver_failures"]
-        lines += ["Solver failures over the strict run: " + ", ".join(f"{k} {v}" for k, v in failures.items()), ""]
+        lines += [
+            "Solver failures over the strict run: " + ", ".join(f"{k} {v}" for k, v in failures.items()),
+            "",
+        ]
     if not args.strict:
-        lines += ["## The paper's exact formulation", "",
-                  "Not run for this page: with hard constraints and the paper's margins the NMPCs hit IPOPT's "
-                  "iteration limit at many steps (about 0.4 s median per step and 162 solver failures in one "
-                  "Map 1 nominal episode of Koopman-NMPC on the 2-core machine, about 3 minutes per episode), so "
-                  "the full 360-episode `--paper-strict` protocol takes hours. Its high-slip cells are in the "
-                  "ablation (row *paper margins, hard constraints*, 20 seeds per map); why it fails: "
-                  "[hard_constraints.md](hard_constraints.md).", ""]  # fmt: skip
+        lines += [
+            "## The paper's exact formulation",
+            "",
+            "Not run for this page: with hard constraints and the paper's margins the NMPCs hit IPOPT's "
+            "iteration limit at many steps (about 0.4 s median per step and 162 solver failures in one "
+            "Map 1 nominal episode of Koopman-NMPC on the 2-core machine, about 3 minutes per episode), so "
+            "the full 360-episode `--paper-strict` protocol takes hours. Its high-slip cells are in the "
+            "ablation (row *paper margins, hard constraints*, 20 seeds per map); why it fails: "
+            "[hard_constraints.md](hard_constraints.md).",
+            "",
+        ]
     if args.ablation:
-        lines += ["## Ablation", "", f"See [ablation.md]({Path(args.ablation).name}): which of learned model, "
-                  "widened margins and soft constraints decides the outcome under high slip.", ""]  # fmt: skip
+        lines += [
+            "## Ablation",
+            "",
+            f"See [ablation.md]({Path(args.ablation).name}): which of learned model, "
+            "widened margins and soft constraints decides the outcome under high slip.",
+            "",
+        ]
     if args.uncertainty:
         lines += uncertainty_section([json.loads(Path(path).read_text()) for path in args.uncertainty])
     if args.scaling:

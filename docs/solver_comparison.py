@@ -58,13 +58,19 @@ def comparison_rows(documents: list[dict[str, Any]], a: str, b: str) -> list[dic
         shared = sorted(set(mine) & set(other))
         if not shared:
             continue
-        pair = paired_comparison([bool(mine[k]["success"]) for k in shared], [bool(other[k]["success"]) for k in shared])
-        rows.append({
-            "env_id": env_id, "controller": base, "cells": sorted({(m, s) for m, s, _ in shared}),
-            **pair.to_dict(),
-            "ms_a": float(np.median([mine[k]["solve_ms_median"] for k in shared])),
-            "ms_b": float(np.median([other[k]["solve_ms_median"] for k in shared])),
-        })  # fmt: skip
+        pair = paired_comparison(
+            [bool(mine[k]["success"]) for k in shared], [bool(other[k]["success"]) for k in shared]
+        )
+        rows.append(
+            {
+                "env_id": env_id,
+                "controller": base,
+                "cells": sorted({(m, s) for m, s, _ in shared}),
+                **pair.to_dict(),
+                "ms_a": float(np.median([mine[k]["solve_ms_median"] for k in shared])),
+                "ms_b": float(np.median([other[k]["solve_ms_median"] for k in shared])),
+            }
+        )
     return sorted(rows, key=lambda r: (r["env_id"], r["controller"]))
 
 
@@ -81,7 +87,9 @@ def per_cell_markdown(documents: list[dict[str, Any]], a: str, b: str) -> str:
     bases = sorted({k[3].rsplit("@", 1)[0] for k in counts})
     header = "| Task | Map | Slip | " + " | ".join(f"{c} {s}" for c in bases for s in (b, a)) + " |"
     lines = [header, "|" + "---|" * (3 + 2 * len(bases))]
-    for env_id, map_name, slip in sorted({k[:3] for k in counts}, key=lambda k: (task_label(k[0]), k[1], k[2])):
+    for env_id, map_name, slip in sorted(
+        {k[:3] for k in counts}, key=lambda k: (task_label(k[0]), k[1], k[2])
+    ):
         cells = []
         for c in bases:
             for solver in (b, a):
@@ -106,16 +114,23 @@ def markdown(rows: list[dict[str, Any]], a: str, b: str) -> str:
     ]
     for r in rows:
         task = task_label(r["env_id"])
-        cells = ", ".join(f"{m} {s}" for m, s in r["cells"]) if len(r["cells"]) <= 6 else f"{len(r['cells'])} cells"
+        cells = (
+            ", ".join(f"{m} {s}" for m, s in r["cells"])
+            if len(r["cells"]) <= 6
+            else f"{len(r['cells'])} cells"
+        )
         p = "<0.001" if r["p_value"] < 0.001 else f"{r['p_value']:.3f}"
         lines.append(
             f"| {task} | {r['controller']} | {cells} | {r['n']} | {100 * r['rate_a']:.0f}% | {100 * r['rate_b']:.0f}% | "
             f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}] | {r['only_a']} / {r['only_b']} "
             f"| {p} | {r['ms_a']:.1f} / {r['ms_b']:.1f} | {'fails' if loses(r) else 'passes'} |"
-        )  # fmt: skip
+        )
     verdict = "passes" if rows and not any(loses(r) for r in rows) else "fails"
-    lines += ["", f"Rule (no significant loss at p < {ALPHA}, interval's lower end above {100 * LOWER_END_LIMIT:+.0f} "
-              f"points, on every row): **{verdict}**."]  # fmt: skip
+    lines += [
+        "",
+        f"Rule (no significant loss at p < {ALPHA}, interval's lower end above {100 * LOWER_END_LIMIT:+.0f} "
+        f"points, on every row): **{verdict}**.",
+    ]
     return "\n".join(lines)
 
 

@@ -19,7 +19,8 @@ effect as a paired comparison (configurations that differ only in that factor, s
 from __future__ import annotations
 
 import itertools
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
 from evaluation.configs import ControllerConfig
@@ -32,10 +33,12 @@ __all__ = ["DEFAULT_LEVELS", "FACTORS", "ablation_configs", "ablation_markdown",
 #: factor -> level -> (controller name or None, options)
 FACTORS: dict[str, dict[str, tuple[str | None, dict[str, Any]]]] = {
     "model": {"learned": ("koopman-nmpc", {}), "nominal": ("nominal-nmpc", {})},
-    "margins": {"paper": (None, {"uncertainty_margin": 0.0}),
-                "widened": (None, {"uncertainty_margin": ROBUST_UNCERTAINTY_MARGIN})},
+    "margins": {
+        "paper": (None, {"uncertainty_margin": 0.0}),
+        "widened": (None, {"uncertainty_margin": ROBUST_UNCERTAINTY_MARGIN}),
+    },
     "constraints": {"soft": (None, {"soft_constraints": True}), "hard": (None, {"soft_constraints": False})},
-}  # fmt: skip
+}
 #: the level of a factor that is not varied
 DEFAULT_LEVELS = {"model": "learned", "margins": "paper", "constraints": "soft"}
 
@@ -101,12 +104,19 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
     lines = ["# Ablation: what decides the NMPC's outcome under slip", ""]
     if command:
         lines += [f"Regenerate with `{command}`.", ""]
-    lines += [f"Paper maps, slip {', '.join(slips)}, {episodes} seeded episodes per cell (seed i for trial i, the "
-              "same slip draws and starts for every configuration). Success: every robot settled within "
-              "tolerance without collision; k/n with the 95% Wilson interval. Every configuration was calibrated "
-              f"on the same plant and budget ({results.config.get('calibration', {}).get('budget', 0):,} "
-              "team-transitions).", ""]  # fmt: skip
-    head = "| Configuration | " + " | ".join(f"{task_label(e)} {m}" for e, m in maps) + " | All maps | Solver failures |"
+    lines += [
+        f"Paper maps, slip {', '.join(slips)}, {episodes} seeded episodes per cell (seed i for trial i, the "
+        "same slip draws and starts for every configuration). Success: every robot settled within "
+        "tolerance without collision; k/n with the 95% Wilson interval. Every configuration was calibrated "
+        f"on the same plant and budget ({results.config.get('calibration', {}).get('budget', 0):,} "
+        "team-transitions).",
+        "",
+    ]
+    head = (
+        "| Configuration | "
+        + " | ".join(f"{task_label(e)} {m}" for e, m in maps)
+        + " | All maps | Solver failures |"
+    )
     lines += [head, "|" + "---|" * (len(maps) + 3)]
     for label in labels:
         row, total_k, total_n, failures = [], 0, 0, 0
@@ -122,12 +132,17 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
         lines.append(f"| {label} | " + " | ".join(row) + f" | {overall} | {failures} |")
     effects = [e for e in (_main_effect(results, f) for f in chosen) if e is not None]
     if effects:
-        lines += ["", "## Main effects (paired)", "",
-                  "Each row pairs every episode of a configuration at the first level with the same episode "
-                  "(same map, seed, and other factors) at the second level: difference in success rate with "
-                  "Newcombe's 95% interval and the exact McNemar p-value.", "",
-                  "| Factor | Levels (a vs b) | Pairs | Success a | Success b | a - b [95% CI] | only a / only b | p |",
-                  "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        lines += [
+            "",
+            "## Main effects (paired)",
+            "",
+            "Each row pairs every episode of a configuration at the first level with the same episode "
+            "(same map, seed, and other factors) at the second level: difference in success rate with "
+            "Newcombe's 95% interval and the exact McNemar p-value.",
+            "",
+            "| Factor | Levels (a vs b) | Pairs | Success a | Success b | a - b [95% CI] | only a / only b | p |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for e in effects:
             lines.append(
                 f"| {e['factor']} | {e['a']} vs {e['b']} | {e['n']} | {100 * e['rate_a']:.0f}% | {100 * e['rate_b']:.0f}% | "
@@ -138,10 +153,14 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
         for e in sorted(effects, key=lambda e: -abs(e["difference"])):
             significant = e["low"] > 0 or e["high"] < 0
             direction = "raises" if e["difference"] > 0 else "lowers"
-            verdict = (f"{direction} success by {100 * abs(e['difference']):.0f} percentage points "
-                       f"(95% CI {100 * e['low']:+.0f} to {100 * e['high']:+.0f}; McNemar p = {e['p_value']:.3g})"
-                       if significant else
-                       f"makes no difference we can distinguish from chance ({100 * e['difference']:+.0f} pp, "
-                       f"95% CI {100 * e['low']:+.0f} to {100 * e['high']:+.0f}; p = {e['p_value']:.3g})")  # fmt: skip
-            lines.append(f"- **{e['factor']}**: {e['a']} instead of {e['b']} {verdict}, averaged over the other factors.")
+            verdict = (
+                f"{direction} success by {100 * abs(e['difference']):.0f} percentage points "
+                f"(95% CI {100 * e['low']:+.0f} to {100 * e['high']:+.0f}; McNemar p = {e['p_value']:.3g})"
+                if significant
+                else f"makes no difference we can distinguish from chance ({100 * e['difference']:+.0f} pp, "
+                f"95% CI {100 * e['low']:+.0f} to {100 * e['high']:+.0f}; p = {e['p_value']:.3g})"
+            )
+            lines.append(
+                f"- **{e['factor']}**: {e['a']} instead of {e['b']} {verdict}, averaged over the other factors."
+            )
     return "\n".join(lines) + "\n"

@@ -15,8 +15,9 @@ Conventions (the same in every report):
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,9 @@ class DistanceSummary:
             if values.size == 0:
                 per_robot.append((float("nan"), float("nan")))
             else:
-                per_robot.append((float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0))
+                per_robot.append(
+                    (float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0)
+                )
         team = [100 * float(np.mean(r["final_distance"])) for r in records]
         low, high = bootstrap_mean_interval(team)
         return cls(len(records), per_robot, float(np.mean(team)) if team else float("nan"), low, high)
@@ -132,7 +135,9 @@ class Cell:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form with the rates and intervals spelled out."""
-        out = {k: v for k, v in self.__dict__.items() if k not in ("distance_collision_free", "distance_settled")}
+        out = {
+            k: v for k, v in self.__dict__.items() if k not in ("distance_collision_free", "distance_settled")
+        }
         out.update(
             success_rate=self.success_rate,
             success_ci=list(self.success_ci),
@@ -173,12 +178,15 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
                 time_to_goal_s=_nan_reduce(np.mean, [r["time_to_goal"] for r in won]),
                 path_length_m=_nan_reduce(np.mean, [float(np.mean(r["path_length"])) for r in ok]),
                 control_effort=_nan_reduce(np.mean, [float(np.mean(r["control_effort"])) for r in ok]),
-                formation_rms_cm=_nan_reduce(np.mean, [100 * r["formation_rms"] for r in ok
-                                                       if r["formation_rms"] is not None]),  # fmt: skip
+                formation_rms_cm=_nan_reduce(
+                    np.mean, [100 * r["formation_rms"] for r in ok if r["formation_rms"] is not None]
+                ),
                 solve_ms_median=_nan_reduce(np.median, [r["solve_ms_median"] for r in ok]),
                 solve_ms_p95=_cell_p95(ok),
                 solver_failures=sum(r["solver_failures"] for r in ok),
-                calibration_transitions=max((int(c.get("transitions", 0)) for c in calibrations), default=None),
+                calibration_transitions=max(
+                    (int(c.get("transitions", 0)) for c in calibrations), default=None
+                ),
                 error_messages=sorted({r["error"] for r in recs if r["status"] != "ok"}),
             )
         )
@@ -209,30 +217,46 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
             own = [c for c in cells if c.env_id == env_id and c.controller == name]
             success_rate, success_ci, valid = pooled_rate(own, "successes")
             free_rate, free_ci, _ = pooled_rate(own, "collision_free")
-            recs = [r for r in records if r["env_id"] == env_id and r["controller"] == name and r["status"] == "ok"]
+            recs = [
+                r
+                for r in records
+                if r["env_id"] == env_id and r["controller"] == name and r["status"] == "ok"
+            ]
             settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
             free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
             d_low, d_high = bootstrap_mean_interval(settled)
             f_low, f_high = bootstrap_mean_interval(free_runs)
-            rows.append({
-                "env_id": env_id,
-                "controller": name,
-                "episodes": valid,
-                "success_rate": success_rate,
-                "success_ci": success_ci,
-                "collision_free_rate": free_rate,
-                "collision_free_ci": free_ci,
-                "final_distance_cm": float(np.mean(settled)) if settled else float("nan"),
-                "final_distance_ci": [d_low, d_high],
-                "final_distance_collision_free_cm": float(np.mean(free_runs)) if free_runs else float("nan"),
-                "final_distance_collision_free_ci": [f_low, f_high],
-                "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in own]),
-                # the optimizer(s) behind the row's decisions, as the controllers reported them
-                "solver": ", ".join(sorted({str(r["controller_extra"]["solver"]) for r in recs
-                                            if (r.get("controller_extra") or {}).get("solver")})) or None,  # fmt: skip
-                "solver_failures": sum(c.solver_failures for c in own),
-                "errors": sum(c.errors for c in own),
-            })  # fmt: skip
+            rows.append(
+                {
+                    "env_id": env_id,
+                    "controller": name,
+                    "episodes": valid,
+                    "success_rate": success_rate,
+                    "success_ci": success_ci,
+                    "collision_free_rate": free_rate,
+                    "collision_free_ci": free_ci,
+                    "final_distance_cm": float(np.mean(settled)) if settled else float("nan"),
+                    "final_distance_ci": [d_low, d_high],
+                    "final_distance_collision_free_cm": float(np.mean(free_runs))
+                    if free_runs
+                    else float("nan"),
+                    "final_distance_collision_free_ci": [f_low, f_high],
+                    "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in own]),
+                    # the optimizer(s) behind the row's decisions, as the controllers reported them
+                    "solver": ", ".join(
+                        sorted(
+                            {
+                                str(r["controller_extra"]["solver"])
+                                for r in recs
+                                if (r.get("controller_extra") or {}).get("solver")
+                            }
+                        )
+                    )
+                    or None,
+                    "solver_failures": sum(c.solver_failures for c in own),
+                    "errors": sum(c.errors for c in own),
+                }
+            )
 
     def rank_key(row: dict[str, Any]) -> tuple:
         dist = row["final_distance_cm"]
@@ -251,7 +275,9 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     outcomes: dict[tuple[str, str], dict[tuple, bool]] = {}
     for r in records:
         if r["status"] == "ok":
-            outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = bool(r["success"])
+            outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = bool(
+                r["success"]
+            )
     rows = []
     env_ids = list(dict.fromkeys(env for env, _ in outcomes))
     for env_id in env_ids:
@@ -265,6 +291,13 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                     [outcomes[(env_id, a)][k] for k in shared], [outcomes[(env_id, b)][k] for k in shared]
                 )
                 cells = sorted({(m, s) for m, s, _ in shared})
-                rows.append({"env_id": env_id, "a": a, "b": b, "cells": [list(c) for c in cells],
-                             **comparison.to_dict()})  # fmt: skip
+                rows.append(
+                    {
+                        "env_id": env_id,
+                        "a": a,
+                        "b": b,
+                        "cells": [list(c) for c in cells],
+                        **comparison.to_dict(),
+                    }
+                )
     return rows

@@ -9,7 +9,8 @@ import os
 import signal
 import sys
 import time
-from typing import Any, Iterator, Sequence
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 from evaluation.plan import EpisodeSpec
 from evaluation.worker import run_episode
@@ -36,8 +37,11 @@ class Progress:
         self.done += 1
         if not self.enabled:
             return
-        mark = "ok" if record["status"] == "ok" and record.get("success") else record.get("collision") or (
-            "error" if record["status"] != "ok" else "fail")  # fmt: skip
+        mark = (
+            "ok"
+            if record["status"] == "ok" and record.get("success")
+            else record.get("collision") or ("error" if record["status"] != "ok" else "fail")
+        )
         what = f"{record['controller']} {record['map']} {record['slip']} #{record['trial']}: {mark}"
         if self.bar is not None:
             self.bar.set_postfix_str(what, refresh=False)
@@ -74,8 +78,12 @@ def _run_ray(todo: Sequence[EpisodeSpec], workers: int) -> Iterator[dict[str, An
     started_here = not ray.is_initialized()
     if started_here:
         address = os.environ.get("RAY_ADDRESS")
-        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
-                 log_to_driver=False)  # fmt: skip
+        ray.init(
+            address=address,
+            num_cpus=None if address else workers,
+            include_dashboard=False,
+            log_to_driver=False,
+        )
     try:
         remote = ray.remote(num_cpus=1)(run_episode)
         pending = [remote.remote(spec) for spec in todo]
@@ -88,7 +96,9 @@ def _run_ray(todo: Sequence[EpisodeSpec], workers: int) -> Iterator[dict[str, An
 
 
 @contextlib.contextmanager
-def run_episodes(todo: Sequence[EpisodeSpec], workers: int, backend: str = "process") -> Iterator[Iterator[dict[str, Any]]]:
+def run_episodes(
+    todo: Sequence[EpisodeSpec], workers: int, backend: str = "process"
+) -> Iterator[Iterator[dict[str, Any]]]:
     """Context manager yielding the episodes' records as they finish (in any order).
 
     The worker pool is terminated on every exit: success, error or Ctrl-C. Workers ignore

@@ -25,7 +25,14 @@ import numpy as np
 from evaluation.report import task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
-__all__ = ["GateOptions", "compare_runs", "comparison_markdown", "gate_failures", "load_baseline", "refuse_incomparable"]
+__all__ = [
+    "GateOptions",
+    "compare_runs",
+    "comparison_markdown",
+    "gate_failures",
+    "load_baseline",
+    "refuse_incomparable",
+]
 
 #: schema versions of results.json this module reads
 READABLE_SCHEMAS = (2,)
@@ -51,19 +58,26 @@ def load_baseline(path: str | Path) -> dict[str, Any]:
     except json.JSONDecodeError as exc:
         raise ValueError(f"baseline {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
     if not isinstance(doc, dict) or not {"schema_version", "config", "episodes"} <= set(doc):
-        raise ValueError(f"baseline {str(file)!r} is not a KoopNav results document (no schema_version, config, "
-                         "episodes)")  # fmt: skip
+        raise ValueError(
+            f"baseline {str(file)!r} is not a KoopNav results document (no schema_version, config, episodes)"
+        )
     if doc["schema_version"] not in READABLE_SCHEMAS:
-        raise ValueError(f"baseline {str(file)!r} has schema_version={doc['schema_version']!r}; this version reads "
-                         f"{list(READABLE_SCHEMAS)}")  # fmt: skip
+        raise ValueError(
+            f"baseline {str(file)!r} has schema_version={doc['schema_version']!r}; this version reads "
+            f"{list(READABLE_SCHEMAS)}"
+        )
     return doc
 
 
 def refuse_incomparable(config: dict[str, Any], package_version: str, baseline: dict[str, Any]) -> None:
     """Raise ``ValueError`` naming every outcome-changing setting in which the run and the baseline differ."""
     theirs = baseline["config"]
-    differing = [key for key in OUTCOME_KEYS if json.dumps(config.get(key), sort_keys=True, default=str)
-                 != json.dumps(theirs.get(key), sort_keys=True, default=str)]  # fmt: skip
+    differing = [
+        key
+        for key in OUTCOME_KEYS
+        if json.dumps(config.get(key), sort_keys=True, default=str)
+        != json.dumps(theirs.get(key), sort_keys=True, default=str)
+    ]
     if baseline.get("package_version") != package_version:
         differing.append("package_version")
     if differing:
@@ -72,8 +86,9 @@ def refuse_incomparable(config: dict[str, Any], package_version: str, baseline: 
             f"now {package_version if key == 'package_version' else config.get(key)!r}"
             for key in differing
         )
-        raise ValueError(f"the baseline was run with other settings ({details}); its episodes cannot be paired "
-                         "with these")  # fmt: skip
+        raise ValueError(
+            f"the baseline was run with other settings ({details}); its episodes cannot be paired with these"
+        )
 
 
 def _outcomes(records: list[dict[str, Any]]) -> dict[tuple[str, str], dict[tuple, dict[str, Any]]]:
@@ -107,13 +122,21 @@ def compare_runs(records: list[dict[str, Any]], baseline_records: list[dict[str,
         shared = sorted(set(mine[key]) & set(theirs[key]))
         if not shared:
             continue
-        pair = paired_comparison([bool(mine[key][k]["success"]) for k in shared],
-                                 [bool(theirs[key][k]["success"]) for k in shared])  # fmt: skip
+        pair = paired_comparison(
+            [bool(mine[key][k]["success"]) for k in shared], [bool(theirs[key][k]["success"]) for k in shared]
+        )
         differences = [_team_cm(mine[key][k]) - _team_cm(theirs[key][k]) for k in shared]
         low, high = bootstrap_mean_interval(differences)
-        rows.append({"env_id": key[0], "controller": key[1], **pair.to_dict(),
-                     "distance_cm_difference": float(np.mean(differences)), "distance_cm_low": low,
-                     "distance_cm_high": high})  # fmt: skip
+        rows.append(
+            {
+                "env_id": key[0],
+                "controller": key[1],
+                **pair.to_dict(),
+                "distance_cm_difference": float(np.mean(differences)),
+                "distance_cm_low": low,
+                "distance_cm_high": high,
+            }
+        )
 
     def cells(table: dict, other: dict) -> list[list[str]]:
         out = set()
@@ -152,7 +175,12 @@ class GateOptions:
             raise ValueError(f"alpha={a!r} must lie in (0, 1)")
         for name in ("delta", "delta_cm"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+                or value < 0
+            ):
                 raise ValueError(f"{name}={value!r} must be a finite number >= 0")
 
 
@@ -167,13 +195,17 @@ def gate_failures(comparison: dict[str, Any], options: GateOptions) -> list[str]
     for r in comparison["rows"]:
         where = f"{r['controller']} on {r['env_id']} ({r['n']} paired episodes)"
         if r["difference"] < -options.delta and r["p_value"] < options.alpha:
-            failures.append(f"{where}: success {100 * r['rate_b']:.0f}% -> {100 * r['rate_a']:.0f}%, "
-                            f"{100 * r['difference']:+.0f} points [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}], "
-                            f"McNemar p = {r['p_value']:.3g}")  # fmt: skip
+            failures.append(
+                f"{where}: success {100 * r['rate_b']:.0f}% -> {100 * r['rate_a']:.0f}%, "
+                f"{100 * r['difference']:+.0f} points [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}], "
+                f"McNemar p = {r['p_value']:.3g}"
+            )
         increase = r["distance_cm_difference"]
         if increase > options.delta_cm and r["distance_cm_low"] > 0:
-            failures.append(f"{where}: final distance {increase:+.2f} cm [{r['distance_cm_low']:+.2f}, "
-                            f"{r['distance_cm_high']:+.2f}]")  # fmt: skip
+            failures.append(
+                f"{where}: final distance {increase:+.2f} cm [{r['distance_cm_low']:+.2f}, "
+                f"{r['distance_cm_high']:+.2f}]"
+            )
     return failures
 
 
@@ -200,6 +232,9 @@ def comparison_markdown(comparison: dict[str, Any], baseline_label: str) -> str:
         )
     for side, label in (("only_run", "in this run only"), ("only_baseline", "in the baseline only")):
         if comparison[side]:
-            lines += ["", f"Cells {label} (not compared): "
-                      + ", ".join(f"{c[1]} {c[2]} {c[3]} ({c[0]})" for c in comparison[side])]  # fmt: skip
+            lines += [
+                "",
+                f"Cells {label} (not compared): "
+                + ", ".join(f"{c[1]} {c[2]} {c[3]} ({c[0]})" for c in comparison[side]),
+            ]
     return "\n".join(lines)

@@ -22,14 +22,21 @@ from __future__ import annotations
 
 import json
 import pickle
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 import controllers
 from controllers.registry import factory as registered_factory
 from controllers.registry import split_name
 
-__all__ = ["ControllerConfig", "controller_configs", "parse_controller", "split_controller_list", "with_solver"]
+__all__ = [
+    "ControllerConfig",
+    "controller_configs",
+    "parse_controller",
+    "split_controller_list",
+    "with_solver",
+]
 
 
 @dataclass(frozen=True)
@@ -80,7 +87,9 @@ class ControllerConfig:
         try:
             self.build()
         except TypeError as exc:
-            raise ValueError(f"controller {self.label!r}: bad option in {dict(self.options)} ({exc})") from None
+            raise ValueError(
+                f"controller {self.label!r}: bad option in {dict(self.options)} ({exc})"
+            ) from None
         except ValueError as exc:
             raise ValueError(f"controller {self.label!r}: {exc}") from None
 
@@ -118,7 +127,9 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
             key, eq, value = item.partition("=")
             key = key.strip()
             if not eq or not key.isidentifier():
-                raise ValueError(f"controller {text!r}: {item!r} is not key=value (a Python identifier as key)")
+                raise ValueError(
+                    f"controller {text!r}: {item!r} is not key=value (a Python identifier as key)"
+                )
             if key == "label":
                 label = value.strip()
             else:
@@ -143,7 +154,9 @@ def split_controller_list(words: Iterable[str]) -> list[str]:
             if continues and texts and ":" in split_name(texts[-1])[1]:
                 texts[-1] += "," + piece
             elif continues:
-                raise ValueError(f"controller list {word!r}: option {piece!r} follows no 'name:' configuration")
+                raise ValueError(
+                    f"controller list {word!r}: option {piece!r} follows no 'name:' configuration"
+                )
             else:
                 texts.append(piece)
     return texts
@@ -170,8 +183,10 @@ def _from_entry(label: str, entry: Any) -> ControllerConfig:
             try:
                 json.dumps(value, allow_nan=False)
             except (TypeError, ValueError):
-                raise ValueError(f"controller {label!r}: option {key}={value!r} must be plain JSON "
-                                 "(it is recorded in the results)") from None  # fmt: skip
+                raise ValueError(
+                    f"controller {label!r}: option {key}={value!r} must be plain JSON "
+                    "(it is recorded in the results)"
+                ) from None
         ordered = tuple(sorted(options.items()))
         if isinstance(target, str):
             return ControllerConfig(label, target, ordered)
@@ -200,7 +215,9 @@ def controller_configs(spec: Any) -> list[ControllerConfig]:
                 raise ValueError(f"controller label {label!r} must be non-empty text")
         return [_from_entry(label, entry) for label, entry in spec.items()]
     if isinstance(spec, (str, bytes)) or not isinstance(spec, Iterable):
-        raise ValueError(f"controllers={spec!r} must be a list of configurations or a mapping label -> controller")
+        raise ValueError(
+            f"controllers={spec!r} must be a list of configurations or a mapping label -> controller"
+        )
     configs = []
     for entry in spec:
         if isinstance(entry, (str, ControllerConfig)):

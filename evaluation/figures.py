@@ -63,7 +63,8 @@ def save_figures(results: Results, out_dir: Path) -> list[Path]:
             rates, lows, highs = [], [], []
             for slip in slips:
                 rate, (low, high), valid = pooled_rate(
-                    c for c in cells if (c.env_id, c.controller, c.slip) == (env_id, name, slip))
+                    c for c in cells if (c.env_id, c.controller, c.slip) == (env_id, name, slip)
+                )
                 rates.append(100 * rate)
                 lows.append(100 * (rate - low) if valid else 0.0)
                 highs.append(100 * (high - rate) if valid else 0.0)

@@ -149,7 +149,11 @@ def _section(section: Section) -> str:
                 out.append(f"<h3>{_e(block.caption)}</h3>")
             out.append(_table(block.table))
         elif isinstance(block, Items):
-            out += ["<ul>", *(f"<li><code>{_e(code)}</code>: {_e(text)}</li>" for code, text in block.entries), "</ul>"]
+            out += [
+                "<ul>",
+                *(f"<li><code>{_e(code)}</code>: {_e(text)}</li>" for code, text in block.entries),
+                "</ul>",
+            ]
     return "\n".join(out)
 
 
@@ -159,8 +163,10 @@ def _table(table: Table, caption: str = "") -> str:
     head = "".join(f'<th scope="col"><button type="button">{_e(h)}</button></th>' for h in header)
     body = "\n".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in row) + "</tr>" for row in rows)
     cap = f"<caption>{_e(caption)}</caption>" if caption else ""
-    return (f'<div class="scroll"><table class="sortable">{cap}<thead><tr>{head}</tr></thead>\n'
-            f"<tbody>\n{body}\n</tbody></table></div>")  # fmt: skip
+    return (
+        f'<div class="scroll"><table class="sortable">{cap}<thead><tr>{head}</tr></thead>\n'
+        f"<tbody>\n{body}\n</tbody></table></div>"
+    )
 
 
 def _data_uri(path: Path) -> str | None:
@@ -175,8 +181,7 @@ def _figure(path: Path, caption: str) -> str:
     uri = _data_uri(path)
     if uri is None:
         return f'<p class="note">{_e(path.name)}: not an image, not embedded.</p>'
-    return (f'<figure><img src="{uri}" alt="{_e(caption)}">'
-            f"<figcaption>{_e(caption)}</figcaption></figure>")  # fmt: skip
+    return f'<figure><img src="{uri}" alt="{_e(caption)}"><figcaption>{_e(caption)}</figcaption></figure>'
 
 
 def _config_section(results: Results) -> str:
@@ -203,8 +208,13 @@ def _config_section(results: Results) -> str:
         budget_text = f"{budget:,}" if isinstance(budget, int) else _text(budget)
         seed = _text(calibration.get("seed"))
         items.append(("Calibration budget", f"{budget_text} team-transitions (seed {seed})"))
-    settings = {"start_noise": "Start noise", "tolerance": "Tolerance",
-                "max_episode_steps": "Max. episode steps", "workers": "Workers", "backend": "Backend"}
+    settings = {
+        "start_noise": "Start noise",
+        "tolerance": "Tolerance",
+        "max_episode_steps": "Max. episode steps",
+        "workers": "Workers",
+        "backend": "Backend",
+    }
     for key, name in settings.items():
         if key in config:
             items.append((name, _text(config[key])))
@@ -226,13 +236,18 @@ def _animations(results: Results, out_dir: Path) -> list[str]:
     out = []
     for cell in results.cells:
         where = (cell.env_id, cell.controller, cell.map, cell.slip)
-        recs = [r for r in results.records if r.get("animation")
-                and (r["env_id"], r["controller"], r["map"], r["slip"]) == where]  # fmt: skip
+        recs = [
+            r
+            for r in results.records
+            if r.get("animation") and (r["env_id"], r["controller"], r["map"], r["slip"]) == where
+        ]
         if not recs:
             continue
         rec = min(recs, key=lambda r: (r.get("trial") != 0, r.get("trial") or 0))
-        caption = (f"{cell.controller} | {task_label(cell.env_id)} | {cell.map} | {cell.slip} | "
-                   f"trial {rec.get('trial', 0)}")  # fmt: skip
+        caption = (
+            f"{cell.controller} | {task_label(cell.env_id)} | {cell.map} | {cell.slip} | "
+            f"trial {rec.get('trial', 0)}"
+        )
         path = out_dir / str(rec["animation"])
         if path.is_file():
             out.append(_figure(path, caption))
@@ -241,8 +256,9 @@ def _animations(results: Results, out_dir: Path) -> list[str]:
     return out
 
 
-def render_html(results: Results, out_dir: str | os.PathLike,
-                figures: Iterable[str | os.PathLike] | None = None) -> str:  # fmt: skip
+def render_html(
+    results: Results, out_dir: str | os.PathLike, figures: Iterable[str | os.PathLike] | None = None
+) -> str:
     """The report page of a run, as one self-contained HTML document.
 
     Parameters
@@ -265,14 +281,20 @@ def render_html(results: Results, out_dir: str | os.PathLike,
         figures = sorted((out / "figures").glob("*.png")) if (out / "figures").is_dir() else []
     figure_paths = sorted((Path(f) for f in figures), key=lambda p: p.name)
     parts = [
-        "<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
         f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        "<title>KoopNav results</title>", f"<style>{_CSS}</style>", "</head>", "<body>",
+        "<title>KoopNav results</title>",
+        f"<style>{_CSS}</style>",
+        "</head>",
+        "<body>",
         "<h1>KoopNav results</h1>",
         '<p class="note">Click a column header to sort a table; click again to reverse.</p>',
         _config_section(results),
-    ]  # fmt: skip
+    ]
     parts += [_section(section) for section in sections(results)]
     if figure_paths:
         parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']
@@ -285,8 +307,9 @@ def render_html(results: Results, out_dir: str | os.PathLike,
     return "\n".join(parts)
 
 
-def write_html(results: Results, out_dir: str | os.PathLike,
-               figures: Sequence[str | os.PathLike] | None = None) -> Path:  # fmt: skip
+def write_html(
+    results: Results, out_dir: str | os.PathLike, figures: Sequence[str | os.PathLike] | None = None
+) -> Path:
     """Write ``out_dir/index.html``, the self-contained report page (see :func:`render_html`).
 
     Parameters

@@ -9,8 +9,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 from evaluation.configs import ControllerConfig
 from koopman_envs.params import PARAMS, SLIP_NAMES
@@ -30,8 +31,7 @@ def slip_value(slip: str) -> str | list[float]:
         return [float(v) for v in slip.split(",")]
     except ValueError:
         raise ValueError(
-            f"slip={slip!r} is not one of {list(SLIP_NAMES)} "
-            "nor comma-separated per-robot lambdas"
+            f"slip={slip!r} is not one of {list(SLIP_NAMES)} nor comma-separated per-robot lambdas"
         ) from None
 
 
@@ -69,8 +69,12 @@ class EpisodeSpec:
     def config(self) -> ControllerConfig:
         """The controller configuration of this episode."""
         options = json.loads(self.controller_options)
-        return ControllerConfig(self.controller, self.controller_name or self.controller,
-                                tuple(sorted(options.items())), self.controller_factory)  # fmt: skip
+        return ControllerConfig(
+            self.controller,
+            self.controller_name or self.controller,
+            tuple(sorted(options.items())),
+            self.controller_factory,
+        )
 
     def make_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``gym.make`` for this episode (without ``render_mode``)."""
@@ -78,19 +82,27 @@ class EpisodeSpec:
 
     def record_fields(self) -> dict[str, Any]:
         """The plain-JSON fields of the spec, as every episode record starts."""
-        fields = {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("controller_factory", "run_dir")}
+        fields = {
+            k: getattr(self, k)
+            for k in self.__dataclass_fields__
+            if k not in ("controller_factory", "run_dir")
+        }
         # the recorded env settings also as fields of their own (results schema v2 readers)
         env = json.loads(self.env_kwargs)
-        recorded = {"tolerance": env.get("goal_tolerance", PARAMS.goal_tolerance),
-                    "max_episode_steps": env.get("max_episode_steps", PARAMS.max_episode_steps),
-                    "start_noise": env.get("start_noise", 0.0)}  # fmt: skip
+        recorded = {
+            "tolerance": env.get("goal_tolerance", PARAMS.goal_tolerance),
+            "max_episode_steps": env.get("max_episode_steps", PARAMS.max_episode_steps),
+            "start_noise": env.get("start_noise", 0.0),
+        }
         return {"key": self.key, **fields, **recorded}
 
 
 def safe_file_name(*parts: str) -> str:
     """Cell coordinates joined into a file-name stem (``,:=/`` and the path separator become ``-``)."""
-    return "_".join(str(p).replace(",", "-").replace(":", "-").replace("=", "-").replace("/", "-")
-                    .replace(os.sep, "-") for p in parts)  # fmt: skip
+    return "_".join(
+        str(p).replace(",", "-").replace(":", "-").replace("=", "-").replace("/", "-").replace(os.sep, "-")
+        for p in parts
+    )
 
 
 def map_fingerprints(maps: Mapping[str, Sequence[str]]) -> dict[str, str]:

@@ -7,7 +7,7 @@ A preset is a starting point: change any field with :meth:`RunSpec.replace`, e.g
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from evaluation.ablation import ablation_configs
 from evaluation.configs import ControllerConfig, parse_controller
@@ -39,8 +39,14 @@ def quick_protocol() -> RunSpec:
     cell from perturbed starts (4 per controller and task), the NMPCs solved by the real-time
     iteration (``solver="ipopt"`` for the NMPCs' default, IPOPT): every registered controller
     ranked in about a minute on 2 cores, with intervals as wide as 4 episodes make them."""
-    return RunSpec(envs=tuple(TASK_MAPS), maps=TASK_MAPS, slips=QUICK_SLIPS, episodes=2,
-                   env_kwargs={"start_noise": QUICK_START_NOISE}, solver="rti")  # fmt: skip
+    return RunSpec(
+        envs=tuple(TASK_MAPS),
+        maps=TASK_MAPS,
+        slips=QUICK_SLIPS,
+        episodes=2,
+        env_kwargs={"start_noise": QUICK_START_NOISE},
+        solver="rti",
+    )
 
 
 def paper_protocol(strict: bool = False) -> RunSpec:
@@ -58,14 +64,26 @@ def paper_protocol(strict: bool = False) -> RunSpec:
         configs = [ControllerConfig(n, n, paper if n.endswith("nmpc") else ()) for n in names]
     else:
         configs = [parse_controller(n) for n in names]
-    return RunSpec(envs=tuple(TASK_MAPS), maps=TASK_MAPS, slips=SLIP_SETTINGS, episodes=10, controllers=configs,
-                   solver="ipopt")  # fmt: skip
+    return RunSpec(
+        envs=tuple(TASK_MAPS),
+        maps=TASK_MAPS,
+        slips=SLIP_SETTINGS,
+        episodes=10,
+        controllers=configs,
+        solver="ipopt",
+    )
 
 
 def ablation_protocol(factors: Sequence[str] | None = None) -> RunSpec:
     """The ablation (:mod:`evaluation.ablation`): the paper maps under high slip, 20 trials per cell."""
-    return RunSpec(envs=tuple(TASK_MAPS), maps=TASK_MAPS, slips=("high",), episodes=20,
-                   controllers=ablation_configs(factors), solver="ipopt")  # fmt: skip
+    return RunSpec(
+        envs=tuple(TASK_MAPS),
+        maps=TASK_MAPS,
+        slips=("high",),
+        episodes=20,
+        controllers=ablation_configs(factors),
+        solver="ipopt",
+    )
 
 
 #: every named protocol: name -> preset factory

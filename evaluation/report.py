@@ -99,38 +99,71 @@ def _p_value(p: float) -> str:
 # --------------------------------------------------------------------------- tables
 def leaderboard_rows(results: Results) -> Table:
     """The leaderboard (ranked within each task): one row per (task, controller)."""
-    header = ["Rank", "Task", "Controller", "Episodes", "Success [95% CI]", "Collision-free [95% CI]",
-              "Final dist., settled [cm]", "Final dist., collision-free [cm]", "Solver", "Solve median [ms]",
-              "Solver failures"]  # fmt: skip
+    header = [
+        "Rank",
+        "Task",
+        "Controller",
+        "Episodes",
+        "Success [95% CI]",
+        "Collision-free [95% CI]",
+        "Final dist., settled [cm]",
+        "Final dist., collision-free [cm]",
+        "Solver",
+        "Solve median [ms]",
+        "Solver failures",
+    ]
     rows = []
     rank, last_env = 0, None
     for row in results.leaderboard():
         rank = 1 if row["env_id"] != last_env else rank + 1
         last_env = row["env_id"]
         solve = "-" if math.isnan(row["solve_ms_median"]) else f"{row['solve_ms_median']:.1f}"
-        rows.append([
-            str(rank), task_label(row["env_id"]), row["controller"], str(row["episodes"]),
-            _pct(row["success_rate"], row["success_ci"]),
-            _pct(row["collision_free_rate"], row["collision_free_ci"]),
-            _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
-            _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
-            row.get("solver") or "-", solve, str(row["solver_failures"]),
-        ])  # fmt: skip
+        rows.append(
+            [
+                str(rank),
+                task_label(row["env_id"]),
+                row["controller"],
+                str(row["episodes"]),
+                _pct(row["success_rate"], row["success_ci"]),
+                _pct(row["collision_free_rate"], row["collision_free_ci"]),
+                _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
+                _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
+                row.get("solver") or "-",
+                solve,
+                str(row["solver_failures"]),
+            ]
+        )
     return header, rows
 
 
 def paired_rows(results: Results) -> Table:
     """The paired comparisons (success rate of a minus b on shared seeds)."""
-    header = ["Task", "a", "b", "Pairs", "Success a", "Success b", "a - b [95% CI]", "only a / only b",
-              "McNemar p"]  # fmt: skip
+    header = [
+        "Task",
+        "a",
+        "b",
+        "Pairs",
+        "Success a",
+        "Success b",
+        "a - b [95% CI]",
+        "only a / only b",
+        "McNemar p",
+    ]
     rows = []
     for r in results.paired():
-        rows.append([
-            task_label(r["env_id"]), r["a"], r["b"], str(r["n"]), f"{100 * r['rate_a']:.0f}%",
-            f"{100 * r['rate_b']:.0f}%",
-            f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]",
-            f"{r['only_a']} / {r['only_b']}", _p_value(r["p_value"]),
-        ])  # fmt: skip
+        rows.append(
+            [
+                task_label(r["env_id"]),
+                r["a"],
+                r["b"],
+                str(r["n"]),
+                f"{100 * r['rate_a']:.0f}%",
+                f"{100 * r['rate_b']:.0f}%",
+                f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]",
+                f"{r['only_a']} / {r['only_b']}",
+                _p_value(r["p_value"]),
+            ]
+        )
     return header, rows
 
 
@@ -138,26 +171,40 @@ def paper_rows(results: Results, env_id: str, controller: str) -> Table:
     """One controller's paper-style table: one row per map and slip."""
     cells = [c for c in results.cells if c.env_id == env_id and c.controller == controller]
     n = max((len(c.distance_collision_free.per_robot) for c in cells), default=0)
-    header = ["Map", "Slip", "Success", "SR (collision-free)", *(f"Robot {i + 1} [cm]" for i in range(n)),
-              "team, collision-free [cm]", "team, settled [cm]"]  # fmt: skip
+    header = [
+        "Map",
+        "Slip",
+        "Success",
+        "SR (collision-free)",
+        *(f"Robot {i + 1} [cm]" for i in range(n)),
+        "team, collision-free [cm]",
+        "team, settled [cm]",
+    ]
     rows = []
     for c in cells:
         free = c.distance_collision_free
         settled = c.distance_settled
-        rows.append([
-            c.map, c.slip, _count(c.successes, c.valid, c.success_ci),
-            _count(c.collision_free, c.valid, c.collision_free_ci),
-            *(_mean_sd(m, s, free.runs) for m, s in free.per_robot),
-            _mean_ci(free.team_mean, free.team_low, free.team_high),
-            _mean_ci(settled.team_mean, settled.team_low, settled.team_high),
-        ])  # fmt: skip
+        rows.append(
+            [
+                c.map,
+                c.slip,
+                _count(c.successes, c.valid, c.success_ci),
+                _count(c.collision_free, c.valid, c.collision_free_ci),
+                *(_mean_sd(m, s, free.runs) for m, s in free.per_robot),
+                _mean_ci(free.team_mean, free.team_low, free.team_high),
+                _mean_ci(settled.team_mean, settled.team_low, settled.team_high),
+            ]
+        )
     return header, rows
 
 
 def controller_tables(results: Results) -> list[tuple[str, Table]]:
     """(caption, paper-style table) of every (task, controller), in report order."""
-    keys = [(env_id, name) for env_id in dict.fromkeys(c.env_id for c in results.cells)
-            for name in dict.fromkeys(c.controller for c in results.cells if c.env_id == env_id)]  # fmt: skip
+    keys = [
+        (env_id, name)
+        for env_id in dict.fromkeys(c.env_id for c in results.cells)
+        for name in dict.fromkeys(c.controller for c in results.cells if c.env_id == env_id)
+    ]
     return [(f"{name}, {task_label(env_id)}", paper_rows(results, env_id, name)) for env_id, name in keys]
 
 
@@ -165,9 +212,11 @@ def _calibration_note(config: Mapping[str, Any]) -> str:
     calibration = config.get("calibration", {})
     if not calibration:
         return ""
-    return (f"Calibration: every controller was offered the same plant (the env's robots in an open field, "
-            f"slip means hidden) with a budget of {calibration.get('budget'):,} team-transitions, seed "
-            f"{calibration.get('seed')}; the per-cell tables list what each used.")  # fmt: skip
+    return (
+        f"Calibration: every controller was offered the same plant (the env's robots in an open field, "
+        f"slip means hidden) with a budget of {calibration.get('budget'):,} team-transitions, seed "
+        f"{calibration.get('seed')}; the per-cell tables list what each used."
+    )
 
 
 def _calibration_used(results: Results) -> str:
@@ -175,7 +224,8 @@ def _calibration_used(results: Results) -> str:
     if not used:
         return ""
     return "Calibration data used (team-transitions): " + ", ".join(
-        sorted({f"{c.controller} {c.calibration_transitions:,}" for c in used}))  # fmt: skip
+        sorted({f"{c.controller} {c.calibration_transitions:,}" for c in used})
+    )
 
 
 # --------------------------------------------------------------------------- sections
@@ -253,24 +303,41 @@ def _markdown_block(block: Block) -> str:
 
 def markdown(report: Sequence[Section]) -> str:
     """The sections as one Markdown document (``## title`` per section)."""
-    return "\n\n".join(f"## {s.title}\n\n" + "\n\n".join(_markdown_block(b) for b in s.blocks) for s in report)
+    return "\n\n".join(
+        f"## {s.title}\n\n" + "\n\n".join(_markdown_block(b) for b in s.blocks) for s in report
+    )
 
 
 def terminal_summary(results: Results, paths: Mapping[str, Path]) -> str:
     """The compact leaderboard a terminal gets (rank, controller, episodes, success with its
     interval, settled final distance, solver and its median time) and where the full report is."""
     header, rows = leaderboard_rows(results)
-    keep = [header.index(name) for name in ("Rank", "Task", "Controller", "Episodes", "Success [95% CI]",
-                                            "Final dist., settled [cm]", "Solver", "Solve median [ms]")]  # fmt: skip
+    keep = [
+        header.index(name)
+        for name in (
+            "Rank",
+            "Task",
+            "Controller",
+            "Episodes",
+            "Success [95% CI]",
+            "Final dist., settled [cm]",
+            "Solver",
+            "Solve median [ms]",
+        )
+    ]
     table = markdown_table(([header[i] for i in keep], [[row[i] for i in keep] for row in rows]))
     cells = sorted({(c.map, c.slip) for c in results.cells})
-    note = (f"{len(results.records)} episodes over {len(cells)} map/slip cells "
-            f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
-            "without collision; 95% Wilson intervals. Few episodes per controller give wide intervals: "
-            "a smoke test, not a ranking.")  # fmt: skip
+    note = (
+        f"{len(results.records)} episodes over {len(cells)} map/slip cells "
+        f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
+        "without collision; 95% Wilson intervals. Few episodes per controller give wide intervals: "
+        "a smoke test, not a ranking."
+    )
     lines = [table, "", note]
     reports = [str(paths[k]) for k in ("markdown", "html") if k in paths]
     if reports:
-        lines.append(f"Full report (paired comparisons on shared seeds, per-cell tables, figures): "
-                     f"{', '.join(reports)}")  # fmt: skip
+        lines.append(
+            f"Full report (paired comparisons on shared seeds, per-cell tables, figures): "
+            f"{', '.join(reports)}"
+        )
     return "\n".join(lines)

@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-
 import koopman_envs
 from evaluation import report
 from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
@@ -70,8 +69,11 @@ class Results:
 
     def table_keys(self) -> list[tuple[str, str]]:
         """(env id, controller) of every per-controller table, in report order."""
-        return [(env_id, name) for env_id in dict.fromkeys(c.env_id for c in self.cells)
-                for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id)]  # fmt: skip
+        return [
+            (env_id, name)
+            for env_id in dict.fromkeys(c.env_id for c in self.cells)
+            for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id)
+        ]
 
     # ------------------------------------------------------------------ Markdown views
     def leaderboard_table(self) -> str:
@@ -105,9 +107,28 @@ class Results:
     def to_csv(self) -> str:
         """One row per episode."""
         buffer = io.StringIO()
-        fields = ["key", "env_id", "controller", "map", "slip", "trial", "seed", "status", "success", "collision",
-                  "steps", "time_to_goal", "final_distance", "path_length", "control_effort", "formation_rms",
-                  "solve_ms_median", "solve_ms_p95", "solver_failures", "error"]  # fmt: skip
+        fields = [
+            "key",
+            "env_id",
+            "controller",
+            "map",
+            "slip",
+            "trial",
+            "seed",
+            "status",
+            "success",
+            "collision",
+            "steps",
+            "time_to_goal",
+            "final_distance",
+            "path_length",
+            "control_effort",
+            "formation_rms",
+            "solve_ms_median",
+            "solve_ms_p95",
+            "solver_failures",
+            "error",
+        ]
         writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore")
         writer.writeheader()
         for rec in self.records:

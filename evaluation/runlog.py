@@ -12,8 +12,19 @@ from evaluation.results import json_safe
 __all__ = ["RESUME_KEYS", "open_log", "run_signature"]
 
 #: settings that must match for a resume (everything that changes what an episode does)
-RESUME_KEYS = ("env_ids", "controller_configs", "maps", "map_files", "slips", "episodes", "random_maps", "seed",
-               "env_settings", "calibration", "gifs")  # fmt: skip
+RESUME_KEYS = (
+    "env_ids",
+    "controller_configs",
+    "maps",
+    "map_files",
+    "slips",
+    "episodes",
+    "random_maps",
+    "seed",
+    "env_settings",
+    "calibration",
+    "gifs",
+)
 
 
 def run_signature(config: dict[str, Any]) -> dict[str, Any]:
@@ -27,7 +38,9 @@ def _read(log: Path, config: dict[str, Any]) -> dict[str, dict[str, Any]]:
     try:
         header = json.loads(lines[0])
     except json.JSONDecodeError:
-        raise ValueError(f"{log} is not a KoopNav episode log (bad first line); nothing was overwritten") from None
+        raise ValueError(
+            f"{log} is not a KoopNav episode log (bad first line); nothing was overwritten"
+        ) from None
     ours = run_signature(config)
     theirs = header.get("config") if header.get("kind") == "koopnav-run" else None
     if theirs != ours:
@@ -36,8 +49,10 @@ def _read(log: Path, config: dict[str, Any]) -> dict[str, dict[str, Any]]:
             what = "; ".join(f"{k}: logged {theirs.get(k)!r}, now {ours.get(k)!r}" for k in differ)
         else:
             what = "not a KoopNav run header"
-        raise ValueError(f"{log} belongs to a run with other settings ({what}); use the same options to resume, "
-                         "or another --out directory; nothing was overwritten")  # fmt: skip
+        raise ValueError(
+            f"{log} belongs to a run with other settings ({what}); use the same options to resume, "
+            "or another --out directory; nothing was overwritten"
+        )
     done = {}
     for line in lines[1:]:
         try:
@@ -48,7 +63,9 @@ def _read(log: Path, config: dict[str, Any]) -> dict[str, dict[str, Any]]:
     return done
 
 
-def open_log(out: str | Path, config: dict[str, Any], resume: bool) -> tuple[IO[str], dict[str, dict[str, Any]]]:
+def open_log(
+    out: str | Path, config: dict[str, Any], resume: bool
+) -> tuple[IO[str], dict[str, dict[str, Any]]]:
     """Open the run's log for appending; return it with the episodes a previous run finished.
 
     Raises

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import os
 import sys
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import controllers as registry
 from evaluation.backends import BACKENDS, Progress, RunInterrupted, run_episodes
@@ -90,8 +91,10 @@ def evaluate(
     'consensus'
     """
     if not isinstance(spec, RunSpec):
-        raise TypeError(f"evaluate() takes a RunSpec, got {type(spec).__name__}; build one with "
-                        "RunSpec(envs=..., controllers=..., ...) or take a preset from evaluation.protocols")  # fmt: skip
+        raise TypeError(
+            f"evaluate() takes a RunSpec, got {type(spec).__name__}; build one with "
+            "RunSpec(envs=..., controllers=..., ...) or take a preset from evaluation.protocols"
+        )
     workers = (os.cpu_count() or 1) if workers is None else workers
     if backend not in BACKENDS:
         raise ValueError(f"backend={backend!r} is not one of {list(BACKENDS)}")
@@ -108,8 +111,10 @@ def evaluate(
     if config_check is not None:
         config_check(config)
     log_file, done = open_log(out, config, resume) if out is not None else (None, {})
-    todo = sorted((episode for episode in plan if episode.key not in done),
-                  key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2))  # fmt: skip
+    todo = sorted(
+        (episode for episode in plan if episode.key not in done),
+        key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2),
+    )
     bar = Progress(len(todo), progress)
     records = dict(done)
     try:

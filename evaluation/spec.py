@@ -40,8 +40,11 @@ CELL_AXES = ("map", "slip")
 _NOT_ENV_KWARGS = (*CELL_AXES, "render_mode")
 #: env settings every run records, with these values when the run does not set them (the envs'
 #: defaults, with the time limit spelled out: the Gymnasium env leaves it to gym.make's TimeLimit)
-RECORDED_ENV_SETTINGS = {"goal_tolerance": PARAMS.goal_tolerance, "max_episode_steps": PARAMS.max_episode_steps,
-                         "start_noise": 0.0}  # fmt: skip
+RECORDED_ENV_SETTINGS = {
+    "goal_tolerance": PARAMS.goal_tolerance,
+    "max_episode_steps": PARAMS.max_episode_steps,
+    "start_noise": 0.0,
+}
 #: each task's paper maps
 TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 
@@ -127,8 +130,10 @@ class RunSpec:
             missing = [e for e in envs if e not in maps]
             if missing:
                 raise ValueError(f"maps has no entry for env {missing[0]!r}; it has {sorted(maps)}")
-            table = {e: tuple(os.fspath(m) for m in ([maps[e]] if isinstance(maps[e], str) else maps[e]))
-                     for e in envs}  # fmt: skip
+            table = {
+                e: tuple(os.fspath(m) for m in ([maps[e]] if isinstance(maps[e], str) else maps[e]))
+                for e in envs
+            }
         else:
             if isinstance(maps, (str, os.PathLike)):
                 maps = [maps]
@@ -182,7 +187,9 @@ class RunSpec:
         """
         for env_id in self.envs:
             if env_id not in ENV_IDS:
-                raise ValueError(f"envs: {env_id!r} is not one of {list(ENV_IDS)}{did_you_mean(env_id, ENV_IDS)}")
+                raise ValueError(
+                    f"envs: {env_id!r} is not one of {list(ENV_IDS)}{did_you_mean(env_id, ENV_IDS)}"
+                )
         configs = self.controllers
         if configs is not None:
             if not configs:
@@ -190,7 +197,9 @@ class RunSpec:
             labels = [cfg.label for cfg in configs]
             duplicated = sorted({label for label in labels if labels.count(label) > 1})
             if duplicated:
-                raise ValueError(f"controllers: labels {duplicated} appear twice; give each configuration its own label=")
+                raise ValueError(
+                    f"controllers: labels {duplicated} appear twice; give each configuration its own label="
+                )
             for cfg in configs:
                 cfg.validate(across_processes=workers > 1)
         if self.solver is not None:
@@ -206,8 +215,9 @@ class RunSpec:
         check_int("workers", workers, 1)
         self._validate_env_kwargs()
         if not self.slips:
-            raise ValueError(f"slips: no slip setting to evaluate; allowed: {', '.join(SLIP_NAMES)} or per-robot "
-                             "lambdas")  # fmt: skip
+            raise ValueError(
+                f"slips: no slip setting to evaluate; allowed: {', '.join(SLIP_NAMES)} or per-robot lambdas"
+            )
         for slip in self.slips:
             try:
                 value = slip_value(slip)
@@ -219,25 +229,33 @@ class RunSpec:
         for env_id in self.envs:
             for map_name in self.maps[env_id]:
                 try:
-                    EngineConfig.create(task_for_env(env_id).name, map=map_name, slip=slip_value(self.slips[0]),
-                                        **settings)  # fmt: skip
+                    EngineConfig.create(
+                        task_for_env(env_id).name, map=map_name, slip=slip_value(self.slips[0]), **settings
+                    )
                 except (TypeError, ValueError) as exc:
-                    raise ValueError(f"{env_id} on map {map_name!r} with env settings {settings}: {exc}") from None
+                    raise ValueError(
+                        f"{env_id} on map {map_name!r} with env settings {settings}: {exc}"
+                    ) from None
 
     def _validate_env_kwargs(self) -> None:
         allowed = sorted(k.name for k in ENV_KEYWORDS if k.name not in _NOT_ENV_KWARGS)
         for key, value in self.env_kwargs.items():
             if key in CELL_AXES:
-                raise ValueError(f"env_kwargs: {key!r} is a cell axis: give it with --{key}s / {key}s=, not as an "
-                                 "env kwarg")  # fmt: skip
+                raise ValueError(
+                    f"env_kwargs: {key!r} is a cell axis: give it with --{key}s / {key}s=, not as an "
+                    "env kwarg"
+                )
             if key not in allowed:
-                raise ValueError(f"env_kwargs: {key!r} is not one the environments take"
-                                 f"{did_you_mean(key, allowed)}; allowed: {allowed}")  # fmt: skip
+                raise ValueError(
+                    f"env_kwargs: {key!r} is not one the environments take"
+                    f"{did_you_mean(key, allowed)}; allowed: {allowed}"
+                )
             try:
                 json.dumps(value, allow_nan=False)
             except (TypeError, ValueError):
-                raise ValueError(f"env_kwargs: {key}={value!r} must be plain JSON (a number, text, list or "
-                                 "dict)") from None  # fmt: skip
+                raise ValueError(
+                    f"env_kwargs: {key}={value!r} must be plain JSON (a number, text, list or dict)"
+                ) from None
 
     # ------------------------------------------------------------------ the run
     def episodes_plan(self, run_dir: str = "") -> list[EpisodeSpec]:
@@ -256,19 +274,34 @@ class RunSpec:
             for cfg in self.controllers:
                 options = json.dumps(dict(cfg.options), sort_keys=True)
                 for map_name in self.maps[env_id]:
-                    trials = self.random_maps if (map_name == RANDOM_MAP and self.random_maps) else self.episodes
+                    trials = (
+                        self.random_maps if (map_name == RANDOM_MAP and self.random_maps) else self.episodes
+                    )
                     for slip in self.slips:
                         for trial in range(trials):
                             animation = ""
                             if self.gifs and trial == 0:
-                                animation = f"animations/{safe_file_name(env_id, cfg.label, map_name, slip)}.gif"
-                            plan.append(EpisodeSpec(
-                                env_id=env_id, controller=cfg.label, map=map_name, slip=slip, trial=trial,
-                                seed=self.seed + trial, controller_name=cfg.name, controller_options=options,
-                                calibration_budget=self.calibration_budget, calibration_seed=self.calibration_seed,
-                                env_kwargs=env_json, animation=animation, run_dir=run_dir,
-                                controller_factory=cfg.factory,
-                            ))  # fmt: skip
+                                animation = (
+                                    f"animations/{safe_file_name(env_id, cfg.label, map_name, slip)}.gif"
+                                )
+                            plan.append(
+                                EpisodeSpec(
+                                    env_id=env_id,
+                                    controller=cfg.label,
+                                    map=map_name,
+                                    slip=slip,
+                                    trial=trial,
+                                    seed=self.seed + trial,
+                                    controller_name=cfg.name,
+                                    controller_options=options,
+                                    calibration_budget=self.calibration_budget,
+                                    calibration_seed=self.calibration_seed,
+                                    env_kwargs=env_json,
+                                    animation=animation,
+                                    run_dir=run_dir,
+                                    controller_factory=cfg.factory,
+                                )
+                            )
         return plan
 
     def config(self, workers: int, backend: str) -> dict[str, Any]:
@@ -277,18 +310,29 @@ class RunSpec:
             raise ValueError("RunSpec.config() needs explicit controllers; call resolved() first")
         settings = self.env_settings()
         return {
-            "env_ids": list(self.envs), "controllers": [c.label for c in self.controllers],
+            "env_ids": list(self.envs),
+            "controllers": [c.label for c in self.controllers],
             "controller_configs": [c.to_dict() for c in self.controllers],
-            "calibration": {"budget": self.calibration_budget, "seed": self.calibration_seed,
-                            "unit": "team-transitions, offered to every controller alike"},
-            "maps": {e: list(m) for e, m in self.maps.items()}, "map_files": map_fingerprints(self.maps),
-            "slips": list(self.slips), "episodes": self.episodes, "random_maps": self.random_maps,
-            "env_settings": settings, "gifs": bool(self.gifs),
+            "calibration": {
+                "budget": self.calibration_budget,
+                "seed": self.calibration_seed,
+                "unit": "team-transitions, offered to every controller alike",
+            },
+            "maps": {e: list(m) for e, m in self.maps.items()},
+            "map_files": map_fingerprints(self.maps),
+            "slips": list(self.slips),
+            "episodes": self.episodes,
+            "random_maps": self.random_maps,
+            "env_settings": settings,
+            "gifs": bool(self.gifs),
             # the recorded settings also at the top level (schema v2 readers)
-            "start_noise": settings["start_noise"], "tolerance": settings["goal_tolerance"],
+            "start_noise": settings["start_noise"],
+            "tolerance": settings["goal_tolerance"],
             "max_episode_steps": settings["max_episode_steps"],
-            "seed": self.seed, "workers": workers, "backend": backend,
-        }  # fmt: skip
+            "seed": self.seed,
+            "workers": workers,
+            "backend": backend,
+        }
 
     def signature(self) -> dict[str, Any]:
         """What ``--resume`` checks: the settings that change what an episode does."""

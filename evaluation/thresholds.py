@@ -83,21 +83,35 @@ def check_thresholds(results: Results, path: str | os.PathLike, *, strict: bool 
         raise ValueError(f"thresholds file {os.fspath(path)!r} has no [[cell]] tables")
     reading = spec.get("reading", "interval")
     if reading not in READINGS:
-        raise ValueError(f"thresholds file {os.fspath(path)!r}: reading={reading!r} is not one of {list(READINGS)}")
+        raise ValueError(
+            f"thresholds file {os.fspath(path)!r}: reading={reading!r} is not one of {list(READINGS)}"
+        )
     unknown_top = set(spec) - {"cell", "reading"}
     if unknown_top:
-        raise ValueError(f"thresholds file {os.fspath(path)!r}: unknown top-level keys {sorted(unknown_top)}; "
-                         "allowed: ['cell', 'reading']")  # fmt: skip
+        raise ValueError(
+            f"thresholds file {os.fspath(path)!r}: unknown top-level keys {sorted(unknown_top)}; "
+            "allowed: ['cell', 'reading']"
+        )
     check = ThresholdCheck(reading=reading)
     for rule in rules:
         unknown = set(rule) - _KEYS
         if unknown:
-            raise ValueError(f"thresholds file {os.fspath(path)!r}: unknown keys {sorted(unknown)}; allowed: {sorted(_KEYS)}")
+            raise ValueError(
+                f"thresholds file {os.fspath(path)!r}: unknown keys {sorted(unknown)}; allowed: {sorted(_KEYS)}"
+            )
         matched = [
-            c for c in results.cells
-            if all(rule.get(k) in (None, v) for k, v in (("env", c.env_id), ("controller", c.controller),
-                                                          ("map", c.map), ("slip", c.slip)))
-        ]  # fmt: skip
+            c
+            for c in results.cells
+            if all(
+                rule.get(k) in (None, v)
+                for k, v in (
+                    ("env", c.env_id),
+                    ("controller", c.controller),
+                    ("map", c.map),
+                    ("slip", c.slip),
+                )
+            )
+        ]
         if not matched:
             reason = _unusable(rule.get("controller"))
             if reason is None:
@@ -112,13 +126,17 @@ def check_thresholds(results: Results, path: str | os.PathLike, *, strict: bool 
             if floor is not None:
                 low, high = c.success_ci
                 if reading == "interval" and not high >= floor:
-                    check.problems.append(f"{name}: success rate {c.success_rate:.2f}, 95% interval "
-                                          f"[{low:.2f}, {high:.2f}] entirely below {floor:.2f}")  # fmt: skip
+                    check.problems.append(
+                        f"{name}: success rate {c.success_rate:.2f}, 95% interval "
+                        f"[{low:.2f}, {high:.2f}] entirely below {floor:.2f}"
+                    )
                 elif reading == "point" and not c.success_rate >= floor:
                     check.problems.append(f"{name}: success rate {c.success_rate:.2f} < {floor:.2f}")
             if "max_final_distance_cm" in rule:
                 mean = c.distance_settled.team_mean
                 mean = float("inf") if math.isnan(mean) else mean
                 if not mean <= rule["max_final_distance_cm"]:
-                    check.problems.append(f"{name}: final distance {mean:.1f} cm > {rule['max_final_distance_cm']:.1f} cm")
+                    check.problems.append(
+                        f"{name}: final distance {mean:.1f} cm > {rule['max_final_distance_cm']:.1f} cm"
+                    )
     return check

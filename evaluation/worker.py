@@ -37,16 +37,29 @@ def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
     for every episode of its cell, which are recorded as errors; other cells go on.
     """
     cfg = spec.config
-    plant = make_plant(spec.env_id, slip=slip_value(spec.slip), budget=spec.calibration_budget,
-                       seed=spec.calibration_seed, **json.loads(spec.env_kwargs))  # fmt: skip
-    key = (cfg.label, cfg.name, spec.controller_options, plant.signature, spec.calibration_budget,
-           spec.calibration_seed)  # fmt: skip
+    plant = make_plant(
+        spec.env_id,
+        slip=slip_value(spec.slip),
+        budget=spec.calibration_budget,
+        seed=spec.calibration_seed,
+        **json.loads(spec.env_kwargs),
+    )
+    key = (
+        cfg.label,
+        cfg.name,
+        spec.controller_options,
+        plant.signature,
+        spec.calibration_budget,
+        spec.calibration_seed,
+    )
     if key not in _CONTROLLER_CACHE:
         ctrl = cfg.build()
         try:
             _CONTROLLER_CACHE[key] = (ctrl, calibrate_controller(ctrl, plant, seed=spec.calibration_seed))
         except Exception as exc:  # noqa: BLE001 - recorded for the cell, the run goes on
-            _CONTROLLER_CACHE[key] = CalibrationError(f"calibration of {cfg.label!r} failed: {type(exc).__name__}: {exc}")
+            _CONTROLLER_CACHE[key] = CalibrationError(
+                f"calibration of {cfg.label!r} failed: {type(exc).__name__}: {exc}"
+            )
     entry = _CONTROLLER_CACHE[key]
     if isinstance(entry, CalibrationError):
         raise entry

@@ -57,13 +57,19 @@ def check_number(
     note : str
         Appended to the message in parentheses (e.g. the unit).
     """
-    bounds = [f"> {above}" if above is not None else "", f">= {at_least}" if at_least is not None else "",
-              f"<= {at_most}" if at_most is not None else ""]  # fmt: skip
+    bounds = [
+        f"> {above}" if above is not None else "",
+        f">= {at_least}" if at_least is not None else "",
+        f"<= {at_most}" if at_most is not None else "",
+    ]
     allowed = "a finite number" + "".join(f" {b}" for b in bounds if b)
     ok = isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
     if ok:
-        ok = not ((above is not None and value <= above) or (at_least is not None and value < at_least)
-                  or (at_most is not None and value > at_most))  # fmt: skip
+        ok = not (
+            (above is not None and value <= above)
+            or (at_least is not None and value < at_least)
+            or (at_most is not None and value > at_most)
+        )
     if not ok:
         raise ValueError(f"{name}={value!r} must be {allowed}" + (f" ({note})" if note else ""))
     return float(value)

@@ -90,8 +90,17 @@ class EngineConfig:
         spec = TASKS[task]
         # each keyword's own check (its row), then the rules between keywords
         kw = {k.name: k.resolve(keywords.get(k.name, k.default)) for k in rows}
-        n_robots, robot_radius, slip, formation = kw["n_robots"], kw["robot_radius"], kw["slip"], kw["formation"]
-        random_map, max_episode_steps, max_cycles = kw["random_map"], kw["max_episode_steps"], kw.get("max_cycles")
+        n_robots, robot_radius, slip, formation = (
+            kw["n_robots"],
+            kw["robot_radius"],
+            kw["slip"],
+            kw["formation"],
+        )
+        random_map, max_episode_steps, max_cycles = (
+            kw["random_map"],
+            kw["max_episode_steps"],
+            kw.get("max_cycles"),
+        )
         if max_cycles is not None:
             if max_episode_steps is not None and max_episode_steps != max_cycles:
                 raise ValueError(
@@ -116,7 +125,9 @@ class EngineConfig:
                         f"formation={formation!r} applies to formation maps ({TASKS['formation'].env_id}) or to "
                         f"map='random'; map {map_spec.name!r} of {spec.label} keeps its own targets"
                     )
-                map_spec = map_spec.with_formation(formation, n_robots, PARAMS.formation_spacing, robot_radius)
+                map_spec = map_spec.with_formation(
+                    formation, n_robots, PARAMS.formation_spacing, robot_radius
+                )
         schedule = None
         if isinstance(slip, str) and slip == RANDOM_SLIP:
             lambdas = np.full(n_robots, np.nan)  # drawn per reset

@@ -42,19 +42,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--env", default="KoopNav-TargetReaching-v0", choices=koopman_envs.ENV_IDS)
     parser.add_argument("--map", default=None, help="map1..map8, random, or a .json file")
     parser.add_argument("--slip", default="nominal", help="nominal, low, high, random or drift")
-    parser.add_argument("--n-robots", type=int, default=PARAMS.n_robots, help="team size (6 for map7 and map8)")
-    parser.add_argument("--formation", default=None, choices=FORMATION_SHAPES, help="formation shape of the team")
+    parser.add_argument(
+        "--n-robots", type=int, default=PARAMS.n_robots, help="team size (6 for map7 and map8)"
+    )
+    parser.add_argument(
+        "--formation", default=None, choices=FORMATION_SHAPES, help="formation shape of the team"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="save the episode as an animated GIF")
     args = parser.parse_args(argv)
-    env = gym.make(args.env, map=args.map, slip=args.slip, n_robots=args.n_robots, formation=args.formation,
-                   render_mode="rgb_array" if args.gif else None)  # fmt: skip
+    env = gym.make(
+        args.env,
+        map=args.map,
+        slip=args.slip,
+        n_robots=args.n_robots,
+        formation=args.formation,
+        render_mode="rgb_array" if args.gif else None,
+    )
     result = run_episode(env, NaiveGoToTarget(), seed=args.seed, render=bool(args.gif))
     scenario = env.unwrapped.scenario
     outcome = f"collision ({result.collision})" if result.collision else result.outcome
     print(f"{args.env} map={scenario.map_name} slip={args.slip} seed={args.seed}")
-    print(f"  {result.steps} steps ({result.steps * scenario.dt:.1f} s), return {result.total_reward:.2f}, "
-          f"outcome: {outcome}")  # fmt: skip
+    print(
+        f"  {result.steps} steps ({result.steps * scenario.dt:.1f} s), return {result.total_reward:.2f}, "
+        f"outcome: {outcome}"
+    )
     print("  final distance to target [cm]: " + ", ".join(f"{100 * d:.1f}" for d in result.final_distance))
     if args.gif:
         from koopman_envs.rendering import save_episode

@@ -22,12 +22,12 @@ from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import collision_flags
 from koopman_envs.sim.dynamics import advance_teams, wrap_angle
+from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import (
     MapSpec,
     formation_offsets,
     generate_random_map,
 )
-from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
 from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.zones import ZoneTable
@@ -112,7 +112,9 @@ class NavigationEngine:
     # ----------------------------------------------------------------- spaces
     def robot_spaces(self) -> tuple[spaces.Box, spaces.Box]:
         """(action, observation) spaces of one robot: (v, omega) and its feature block."""
-        action = spaces.Box(self.command_low.astype(np.float32), self.command_high.astype(np.float32), dtype=np.float32)
+        action = spaces.Box(
+            self.command_low.astype(np.float32), self.command_high.astype(np.float32), dtype=np.float32
+        )
         observation = spaces.Box(
             self.feature_low.astype(np.float32), self.feature_high.astype(np.float32), dtype=np.float32
         )
@@ -280,8 +282,7 @@ class NavigationEngine:
             else:
                 allowed = f"({2 * n},) or ({n}, 2)" if k == 1 else f"({k}, {2 * n}) or ({k}, {n}, 2)"
                 raise ValueError(
-                    f"action has shape {arr.shape}; expected {allowed}: (v [m/s], omega [rad/s]) "
-                    "per robot"
+                    f"action has shape {arr.shape}; expected {allowed}: (v [m/s], omega [rad/s]) per robot"
                 )
         if not np.isfinite(arr).all():
             bad = np.argwhere(~np.isfinite(arr))[0].tolist()
@@ -316,9 +317,19 @@ class NavigationEngine:
         if self.zones is not None:
             means = self.zones.slip_means(self.state, slip.lambdas, self._means)
         advance_teams(
-            self.state, commands, slip.unit, slip.cursor, means, stepping,
-            self.command_low, self.command_high, self._effort_scale, PARAMS.dt, new, effort,
-        )  # fmt: skip
+            self.state,
+            commands,
+            slip.unit,
+            slip.cursor,
+            means,
+            stepping,
+            self.command_low,
+            self.command_high,
+            self._effort_scale,
+            PARAMS.dt,
+            new,
+            effort,
+        )
         self.state = new
         geometry = self.geometry
         collision = np.empty(self.num_envs, dtype=np.int64)
@@ -332,12 +343,25 @@ class NavigationEngine:
         robot_reward, team_reward = np.empty((k, n)), np.empty(k)
         success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
         score_step(
-            cfg.task.reward, cfg.task.formation, cfg.goal_tolerance, self._settle_steps,
+            cfg.task.reward,
+            cfg.task.formation,
+            cfg.goal_tolerance,
+            self._settle_steps,
             cfg.max_episode_steps,
-            self.distances, distances, effort, self._formation_error(), collision, stepping, self.settled,
+            self.distances,
+            distances,
+            effort,
+            self._formation_error(),
+            collision,
+            stepping,
+            self.settled,
             self.elapsed,
-            robot_reward, team_reward, success, terminated, truncated,
-        )  # fmt: skip
+            robot_reward,
+            team_reward,
+            success,
+            terminated,
+            truncated,
+        )
         self.distances = distances
         self.collision = collision
         self.success = success
@@ -435,4 +459,7 @@ class NavigationEngine:
     def info(self, index: int = 0) -> dict[str, Any]:
         """The true structured state of environment ``index``: row ``index`` of :meth:`batch_info`
         (per-env flags and counters as Python scalars)."""
-        return {key: value[index].item() if value.ndim == 1 else value[index] for key, value in self.batch_info().items()}
+        return {
+            key: value[index].item() if value.ndim == 1 else value[index]
+            for key, value in self.batch_info().items()
+        }

@@ -45,7 +45,9 @@ def _random_map_config(name: str, value: RandomMapConfig | dict | None) -> Rando
 
 def _formation(name: str, value: Any) -> str | None:
     if value is not None and (not isinstance(value, str) or value not in FORMATION_SHAPES):
-        raise ValueError(f"{name}={value!r} is not one of {list(FORMATION_SHAPES)} or None (the map's own layout)")
+        raise ValueError(
+            f"{name}={value!r} is not one of {list(FORMATION_SHAPES)} or None (the map's own layout)"
+        )
     return value
 
 
@@ -97,36 +99,88 @@ class EnvKeyword:
 #: argument tables are generated from this table (:func:`takes_env_keywords`,
 #: :func:`keyword_table`), and tests/test_keyword_spec.py holds the fronts and docs/environments.md to it.
 ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
-    EnvKeyword("map", None, "str | os.PathLike | MapSpec | None",
-               f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '
-               "map file or a MapSpec; None: the task's first map"),
-    EnvKeyword("slip", "nominal", "str | Sequence[Any]",
-               f"{', '.join(map(json.dumps, SLIP_NAMES))}, one lambda >= 0 per robot, "
-               "or (time [s], lambdas) pairs"),
-    EnvKeyword("n_robots", PARAMS.n_robots, "int",
-               "team size N: at most the map's starts (a smaller team takes the first N), any N "
-               'with map="random"', check=lambda name, v: check_int(name, v, 1)),
-    EnvKeyword("goal_tolerance", PARAMS.goal_tolerance, "float", "success tolerance [m]",
-               check=lambda name, v: check_number(name, v, above=0)),
-    EnvKeyword("robot_radius", PARAMS.robot_radius, "float", "disc radius of every robot [m]",
-               check=lambda name, v: check_number(name, v, above=0)),
-    EnvKeyword("n_obstacle_obs", 4, "int", "nearest obstacles listed in each robot's block",
-               check=lambda name, v: check_int(name, v, 0)),
-    EnvKeyword("random_map", None, "RandomMapConfig | dict | None",
-               'generator settings for map="random" (a RandomMapConfig or a dict of its fields)',
-               check=_random_map_config),
-    EnvKeyword("start_noise", 0.0, "float", "per-reset start jitter: disc radius [m] and heading bound [rad]",
-               check=lambda name, v: check_number(name, v, at_least=0)),
-    EnvKeyword("formation", None, "str | None",
-               f"formation shape of the team, one of {list(FORMATION_SHAPES)} (spacing "
-               f"{PARAMS.formation_spacing:g} m): follower targets on formation maps, starts and targets "
-               'with map="random"; None: the map\'s own', check=_formation),
-    EnvKeyword("max_episode_steps", None, "int | None",
-               f"time limit in control periods; None: {PARAMS.max_episode_steps} (the Gymnasium env leaves "
-               "it to gym.make's TimeLimit)", check=_optional_count),
-    EnvKeyword("max_cycles", None, "int | None", "PettingZoo MPE's name of max_episode_steps",
-               fronts=("parallel",), check=_optional_count),
-)  # fmt: skip
+    EnvKeyword(
+        "map",
+        None,
+        "str | os.PathLike | MapSpec | None",
+        f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '
+        "map file or a MapSpec; None: the task's first map",
+    ),
+    EnvKeyword(
+        "slip",
+        "nominal",
+        "str | Sequence[Any]",
+        f"{', '.join(map(json.dumps, SLIP_NAMES))}, one lambda >= 0 per robot, or (time [s], lambdas) pairs",
+    ),
+    EnvKeyword(
+        "n_robots",
+        PARAMS.n_robots,
+        "int",
+        'team size N: at most the map\'s starts (a smaller team takes the first N), any N with map="random"',
+        check=lambda name, v: check_int(name, v, 1),
+    ),
+    EnvKeyword(
+        "goal_tolerance",
+        PARAMS.goal_tolerance,
+        "float",
+        "success tolerance [m]",
+        check=lambda name, v: check_number(name, v, above=0),
+    ),
+    EnvKeyword(
+        "robot_radius",
+        PARAMS.robot_radius,
+        "float",
+        "disc radius of every robot [m]",
+        check=lambda name, v: check_number(name, v, above=0),
+    ),
+    EnvKeyword(
+        "n_obstacle_obs",
+        4,
+        "int",
+        "nearest obstacles listed in each robot's block",
+        check=lambda name, v: check_int(name, v, 0),
+    ),
+    EnvKeyword(
+        "random_map",
+        None,
+        "RandomMapConfig | dict | None",
+        'generator settings for map="random" (a RandomMapConfig or a dict of its fields)',
+        check=_random_map_config,
+    ),
+    EnvKeyword(
+        "start_noise",
+        0.0,
+        "float",
+        "per-reset start jitter: disc radius [m] and heading bound [rad]",
+        check=lambda name, v: check_number(name, v, at_least=0),
+    ),
+    EnvKeyword(
+        "formation",
+        None,
+        "str | None",
+        f"formation shape of the team, one of {list(FORMATION_SHAPES)} (spacing "
+        f"{PARAMS.formation_spacing:g} m): follower targets on formation maps, starts and targets "
+        'with map="random"; None: the map\'s own',
+        check=_formation,
+    ),
+    EnvKeyword(
+        "max_episode_steps",
+        None,
+        "int | None",
+        f"time limit in control periods; None: {PARAMS.max_episode_steps} (the Gymnasium env leaves "
+        "it to gym.make's TimeLimit)",
+        check=_optional_count,
+    ),
+    EnvKeyword(
+        "max_cycles",
+        None,
+        "int | None",
+        "PettingZoo MPE's name of max_episode_steps",
+        fronts=("parallel",),
+        check=_optional_count,
+    ),
+)
+
 
 def env_keywords(front: str | None = None) -> tuple[EnvKeyword, ...]:
     """The rows of :data:`ENV_KEYWORDS` that ``front`` takes (None: every row)."""
@@ -140,12 +194,18 @@ def unknown_keywords(given: Any, allowed: Sequence[str], owner: str) -> TypeErro
     unknown = [name for name in given if name not in allowed]
     if not unknown:
         return None
-    hints = [f"{close[0]!r} for {name!r}" for name in unknown if (close := difflib.get_close_matches(name, allowed, 1))]
+    hints = [
+        f"{close[0]!r} for {name!r}"
+        for name in unknown
+        if (close := difflib.get_close_matches(name, allowed, 1))
+    ]
     hint = f" (did you mean {', '.join(hints)}?)" if hints else ""
     # Python's own phrase first: wrappers such as TorchRL's GymEnv retry without a keyword (e.g.
     # frameskip) when the error reads "unexpected keyword argument '<name>'"
-    return TypeError(f"{owner} got an unexpected keyword argument {unknown[0]!r}; unknown keyword arguments "
-                     f"{unknown}{hint}; allowed: {list(allowed)}")  # fmt: skip
+    return TypeError(
+        f"{owner} got an unexpected keyword argument {unknown[0]!r}; unknown keyword arguments "
+        f"{unknown}{hint}; allowed: {list(allowed)}"
+    )
 
 
 def takes_env_keywords(front: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
@@ -163,7 +223,11 @@ def takes_env_keywords(front: str) -> Callable[[Callable[..., None]], Callable[.
         names = [p.name for p in own if p.kind is not p.VAR_POSITIONAL] + [k.name for k in rows]
         keyword_only = inspect.Parameter.KEYWORD_ONLY
         signature = inspect.Signature(
-            own + [inspect.Parameter(k.name, keyword_only, default=k.default, annotation=k.annotation) for k in rows]
+            own
+            + [
+                inspect.Parameter(k.name, keyword_only, default=k.default, annotation=k.annotation)
+                for k in rows
+            ]
         )
 
         @functools.wraps(init)
@@ -179,16 +243,20 @@ def takes_env_keywords(front: str) -> Callable[[Callable[..., None]], Callable[.
     return decorate
 
 
-def keyword_table(front: str, extra: Sequence[tuple[str, str, str, str]] = (), task: str | None = None) -> str:
+def keyword_table(
+    front: str, extra: Sequence[tuple[str, str, str, str]] = (), task: str | None = None
+) -> str:
     """The env keywords of ``front`` as a Markdown table (Parameter, Type, Default, Description).
 
     ``extra`` rows (name, type, default, description) of the front's own parameters come first;
     with a ``task``, the default of ``map`` shown is that task's default map.
     """
     shown = {"map": TASKS[task].default_map} if task is not None else {}
-    rows = list(extra) + [(k.name, k.annotation, repr(shown.get(k.name, k.default)), k.doc) for k in env_keywords(front)]
+    rows = list(extra) + [
+        (k.name, k.annotation, repr(shown.get(k.name, k.default)), k.doc) for k in env_keywords(front)
+    ]
     lines = ["| Parameter | Type | Default | Description |", "|---|---|---|---|"]
-    lines += [f"| {name} | {kind.replace('|', 'or')} | {default} | {doc} |" for name, kind, default, doc in rows]
+    lines += [
+        f"| {name} | {kind.replace('|', 'or')} | {default} | {doc} |" for name, kind, default, doc in rows
+    ]
     return "\n".join(lines)
-
-

@@ -133,12 +133,14 @@ DRIFT_MEAN_INTERVAL = 5.0
 #: Every named slip setting and what it means: the one table the env docs, the CLI help and the
 #: errors read (per-robot lambdas and (time, lambdas) schedules are the unnamed forms).
 SLIP_NAMES: dict[str, str] = {
-    **{name: f"constant levels, robot 1 slip-free, the others spaced linearly up to lambda = {top:g}"
-       for name, top in SLIP_MAX_LAMBDA.items()},
+    **{
+        name: f"constant levels, robot 1 slip-free, the others spaced linearly up to lambda = {top:g}"
+        for name, top in SLIP_MAX_LAMBDA.items()
+    },
     RANDOM_SLIP: f"constant levels drawn per episode (largest lambda uniform on [0, {RANDOM_SLIP_MAX:g}])",
     DRIFT_SLIP: f"every robot's level redrawn on [0, {RANDOM_SLIP_MAX:g}] at random times "
-                f"(mean interval {DRIFT_MEAN_INTERVAL:g} s)",
-}  # fmt: skip
+    f"(mean interval {DRIFT_MEAN_INTERVAL:g} s)",
+}
 
 
 def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
@@ -180,9 +182,7 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
     if lam.ndim == 0:
         lam = np.full(n_robots, float(lam))
     if lam.shape != (n_robots,):
-        raise ValueError(
-            f"slip={slip!r} has {lam.size} values; expected one lambda per robot ({n_robots})"
-        )
+        raise ValueError(f"slip={slip!r} has {lam.size} values; expected one lambda per robot ({n_robots})")
     if not np.all(np.isfinite(lam)):
         raise ValueError(f"slip={slip!r} contains a non-finite lambda; allowed: finite lambda >= 0")
     if np.any(lam < 0):

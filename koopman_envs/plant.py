@@ -209,7 +209,9 @@ class CalibrationPlant:
         return rollout(start, commands, lambdas, self._rng, dt=self.dt)
 
 
-def make_plant(env: Any, *, budget: int = PARAMS.calibration_budget, seed: int = 0, **env_kwargs: Any) -> CalibrationPlant:
+def make_plant(
+    env: Any, *, budget: int = PARAMS.calibration_budget, seed: int = 0, **env_kwargs: Any
+) -> CalibrationPlant:
     """The calibration plant of an environment.
 
     Parameters
@@ -229,7 +231,9 @@ def make_plant(env: Any, *, budget: int = PARAMS.calibration_budget, seed: int =
         config = EngineConfig.create(task_for_env(env).name, **kwargs)
     else:
         if env_kwargs:
-            raise ValueError(f"env keyword arguments {sorted(env_kwargs)} go with an env id, not an env instance")
+            raise ValueError(
+                f"env keyword arguments {sorted(env_kwargs)} go with an env id, not an env instance"
+            )
         config = getattr(getattr(env, "unwrapped", env), "config", None)
         if not isinstance(config, EngineConfig):
             raise ValueError(f"{type(env).__name__} is not a KoopNav environment (no EngineConfig)")

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import os
 import shutil
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -219,7 +220,9 @@ class Renderer:
         every frame (~10x slower); it exists as the reference the fast path is tested against.
     """
 
-    def __init__(self, human: bool = False, size: tuple[float, float] = (5.0, 5.0), blit: bool = True) -> None:
+    def __init__(
+        self, human: bool = False, size: tuple[float, float] = (5.0, 5.0), blit: bool = True
+    ) -> None:
         self.human = human
         self.size = size
         self.blit = blit and not human
@@ -264,7 +267,9 @@ class Renderer:
             FigureCanvasAgg(self.figure)
         self.ax = self.figure.add_subplot(1, 1, 1)
         params = self.figure.subplotpars
-        self._initial_subplotpars = {k: getattr(params, k) for k in ("left", "right", "bottom", "top", "wspace", "hspace")}
+        self._initial_subplotpars = {
+            k: getattr(params, k) for k in ("left", "right", "bottom", "top", "wspace", "hspace")
+        }
         if self.blit:
             from matplotlib.transforms import IdentityTransform
 

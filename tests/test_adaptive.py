@@ -129,8 +129,10 @@ def test_forgetting_factor_out_of_range_is_rejected(value, shipped):
         AdaptiveKoopmanNMPC(forgetting=value)
 
 
-@pytest.mark.parametrize(("option", "value"), [("prior_weight", 0.0), ("prior_weight", float("inf")),
-                                               ("residual_window", 0), ("residual_window", 2.5)])  # fmt: skip
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("prior_weight", 0.0), ("prior_weight", float("inf")), ("residual_window", 0), ("residual_window", 2.5)],
+)
 def test_adaptive_options_out_of_range_are_rejected(option, value):
     with pytest.raises(ValueError, match=option):
         AdaptiveKoopmanNMPC(**{option: value})
@@ -140,7 +142,9 @@ def _episode(controller, env_id="KoopNav-TargetReaching-v0", seed=0, **env_kwarg
     env = gym.make(env_id, **env_kwargs)
     calibrate_controller(controller, env, seed=0)
     actions: list[np.ndarray] = []
-    result = run_episode(env, controller, seed=seed, on_step=lambda step, action, info: actions.append(action))
+    result = run_episode(
+        env, controller, seed=seed, on_step=lambda step, action, info: actions.append(action)
+    )
     return result, np.asarray(actions)
 
 
@@ -168,8 +172,8 @@ def test_frozen_adaptive_controller_is_koopman_nmpc_with_residual_margins():
 
 def test_per_robot_models_adapt_robot_by_robot(shipped):
     """A per-robot (block-diagonal) model gets one small RLS per robot, and learns as the stacked one."""
-    from controllers.koopman.fit import fit_per_robot
     from controllers.koopman.dictionary import get_dictionary
+    from controllers.koopman.fit import fit_per_robot
 
     poses, commands = _trajectory(shipped, 400, seed=4)  # data of the shipped model's own dynamics
     fit = fit_per_robot(poses[:, None], commands[:, None], get_dictionary("minimal"))
@@ -184,4 +188,6 @@ def test_per_robot_models_adapt_robot_by_robot(shipped):
     assert np.sqrt(np.mean(np.square(errors[800:]))) < 0.2 * np.sqrt(np.mean(np.square(prior)))
     # still block-diagonal: robot 0's rows use nothing of robot 1
     a, n, _ = online.matrices()
-    assert not np.any(a[1:5, 5:9]) and np.array_equal(online.nlp_parameters().size, block.nlp_parameters().size)
+    assert not np.any(a[1:5, 5:9]) and np.array_equal(
+        online.nlp_parameters().size, block.nlp_parameters().size
+    )

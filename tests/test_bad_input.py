@@ -17,8 +17,10 @@ ENV = "KoopNav-TargetReaching-v0"
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"map": "map9"},
-         r"map='map9' is not one of \['map1', 'map2', 'map3', 'map4', 'map5', 'map6', 'map7', 'map8', 'random'\]"),
+        (
+            {"map": "map9"},
+            r"map='map9' is not one of \['map1', 'map2', 'map3', 'map4', 'map5', 'map6', 'map7', 'map8', 'random'\]",
+        ),
         ({"slip": "extreme"}, r"slip='extreme' is not one of \['nominal', 'low', 'high'\]"),
         ({"slip": [0.0, -0.1, 0.2]}, r"negative lambda; allowed: lambda >= 0"),
         ({"slip": [0.0, float("nan"), 0.2]}, r"non-finite lambda"),
@@ -28,7 +30,10 @@ ENV = "KoopNav-TargetReaching-v0"
         ({"n_robots": 4}, r"n_robots=4 is larger than map 'map1' supports \(1..3\)"),
         ({"goal_tolerance": -0.1}, r"goal_tolerance=-0.1 must be a finite number > 0"),
         ({"render_mode": "ascii"}, r"render_mode='ascii' is not one of \['human', 'rgb_array'\]"),
-        ({"map": "random", "random_map": {"obstacles": 2}}, r"random_map has unknown fields \['obstacles'\]; allowed"),
+        (
+            {"map": "random", "random_map": {"obstacles": 2}},
+            r"random_map has unknown fields \['obstacles'\]; allowed",
+        ),
         ({"map": "random", "random_map": 3}, r"random_map=3 must be a RandomMapConfig, a dict"),
         ({"start_noise": -0.1}, r"start_noise=-0.1 must be a finite number >= 0"),
         ({"start_noise": -1}, r"start_noise=-1 must be a finite number >= 0"),
@@ -129,7 +134,6 @@ def test_bad_vector_actions() -> None:
         venv.step(np.zeros((3, 6)))
 
 
-
 BASE_MAP = {
     "obstacles": [],
     "starts": [[0, 0, 0], [0, 1, 0], [0, 2, 0]],
@@ -144,19 +148,29 @@ C = [1, 1, 0.5]  # a valid circle
         ({"circle": C, "lambda": -0.1}, r"lambda=-0.1 must be a finite number >= 0"),
         ({"circle": C, "lambda": float("nan")}, r"lambda=nan must be a finite number >= 0"),
         ({"circle": C, "lambda": [0.1, -0.2, 0.3]}, r"lambda=\[0.1, -0.2, 0.3\] must be a finite"),
-        ({"circle": C, "lambda": [0.1, 0.2]},
-         r"has 2 values; allowed: one number for every robot or one per robot of the map \(3\)"),
-        ({"circle": [1, 1, 0.0], "lambda": 0.3},
-         r"circle=\[1.0, 1.0, 0.0\] has radius 0; allowed: radius > 0"),
+        (
+            {"circle": C, "lambda": [0.1, 0.2]},
+            r"has 2 values; allowed: one number for every robot or one per robot of the map \(3\)",
+        ),
+        (
+            {"circle": [1, 1, 0.0], "lambda": 0.3},
+            r"circle=\[1.0, 1.0, 0.0\] has radius 0; allowed: radius > 0",
+        ),
         ({"circle": [1, 1, -2], "lambda": 0.3}, r"has radius -2; allowed: radius > 0"),
         ({"circle": [1, 1], "lambda": 0.3}, r"circle=\[1, 1\] must be 3 finite numbers \[x, y, radius\]"),
-        ({"rect": [2, 0, 1, 1], "lambda": 0.3},
-         r"rect=\[2.0, 0.0, 1.0, 1.0\] is empty; allowed: .*xmin < xmax"),
+        (
+            {"rect": [2, 0, 1, 1], "lambda": 0.3},
+            r"rect=\[2.0, 0.0, 1.0, 1.0\] is empty; allowed: .*xmin < xmax",
+        ),
         ({"rect": [0, 1, 1, 1], "lambda": 0.3}, r"is empty; allowed: .* ymin < ymax"),
-        ({"circle": C, "lambda": 0.3, "mode": "multiply"},
-         r"mode='multiply' is not one of \['replace', 'add'\]"),
-        ({"disc": C, "lambda": 0.3},
-         r"unknown keys \['disc'\]; allowed: \['circle', 'rect', 'lambda', 'mode'\]"),
+        (
+            {"circle": C, "lambda": 0.3, "mode": "multiply"},
+            r"mode='multiply' is not one of \['replace', 'add'\]",
+        ),
+        (
+            {"disc": C, "lambda": 0.3},
+            r"unknown keys \['disc'\]; allowed: \['circle', 'rect', 'lambda', 'mode'\]",
+        ),
         ({"lambda": 0.3}, r"must have exactly one shape key, 'circle': \[x, y, radius\] or 'rect'"),
         ({"circle": C, "rect": [0, 0, 1, 1], "lambda": 0.3}, r"must have exactly one shape key"),
         ({"circle": C}, r"has no 'lambda'"),
@@ -175,15 +189,23 @@ def test_bad_slip_zones_in_a_map_file(tmp_path, zone, message) -> None:
 @pytest.mark.parametrize(
     "slip, message",
     [
-        ([(0.5, "low"), (1.0, "high")],
-         r"slip schedule entry 0: time=0.5; the schedule must start at time 0"),
-        ([(0.0, "low"), (2.0, "high"), (2.0, "nominal")],
-         r"entry 2: time=2.0 is not after the previous entry's 2.0; allowed: strictly increasing times"),
+        (
+            [(0.5, "low"), (1.0, "high")],
+            r"slip schedule entry 0: time=0.5; the schedule must start at time 0",
+        ),
+        (
+            [(0.0, "low"), (2.0, "high"), (2.0, "nominal")],
+            r"entry 2: time=2.0 is not after the previous entry's 2.0; allowed: strictly increasing times",
+        ),
         ([(0.0, "low"), (3.0, "high"), (1.0, "nominal")], r"entry 2: time=1.0 is not after"),
-        ([(0.0, [0.1, 0.2])],
-         r"entry 0 at time 0.0: slip=\[0.1, 0.2\] has 2 values; expected one lambda per robot"),
-        ([(0.0, "low"), (1.0, [0.1, -0.2, 0.0])],
-         r"entry 1 at time 1.0: .* negative lambda; allowed: lambda >= 0"),
+        (
+            [(0.0, [0.1, 0.2])],
+            r"entry 0 at time 0.0: slip=\[0.1, 0.2\] has 2 values; expected one lambda per robot",
+        ),
+        (
+            [(0.0, "low"), (1.0, [0.1, -0.2, 0.0])],
+            r"entry 1 at time 1.0: .* negative lambda; allowed: lambda >= 0",
+        ),
         ([(0.0, "low"), (float("nan"), "high")], r"entry 1: time=nan must be a finite number of seconds"),
         ([(0.0, "low", 3)], r"entry 0 \(0.0, 'low', 3\) is not a \(time \[s\], lambdas\) pair"),
         ([(0.0, "icy")], r"entry 0 at time 0.0: slip='icy' is not one of"),
@@ -201,11 +223,15 @@ def test_bad_slip_schedules(slip, message) -> None:
     [
         ({"n_slip_zones": -1}, r"n_slip_zones=-1 must be an integer >= 0"),
         ({"n_slip_zones": 1.5}, r"n_slip_zones=1.5 must be an integer >= 0"),
-        ({"slip_zone_radius": (0.0, 1.0)},
-         r"slip_zone_radius=\(0.0, 1.0\) must be a finite \(low, high\) pair with low > 0"),
+        (
+            {"slip_zone_radius": (0.0, 1.0)},
+            r"slip_zone_radius=\(0.0, 1.0\) must be a finite \(low, high\) pair with low > 0",
+        ),
         ({"slip_zone_radius": (2.0, 1.0)}, r"slip_zone_radius=\(2.0, 1.0\) .* and low <= high"),
-        ({"slip_zone_lambda": (-0.1, 0.3)},
-         r"slip_zone_lambda=\(-0.1, 0.3\) must be a finite \(low, high\) pair with low >= 0"),
+        (
+            {"slip_zone_lambda": (-0.1, 0.3)},
+            r"slip_zone_lambda=\(-0.1, 0.3\) must be a finite \(low, high\) pair with low >= 0",
+        ),
         ({"slip_zone_lambda": 0.3}, r"slip_zone_lambda=0.3 must be a \(low, high\) pair of numbers"),
         ({"slip_zone_mode": "max"}, r"slip_zone_mode='max' is not one of \['replace', 'add'\]"),
     ],
@@ -229,7 +255,9 @@ def test_misspelt_controller_and_map_names_get_a_suggestion() -> None:
 
     import controllers
 
-    with pytest.raises(ValueError, match=r"controller 'koopman-nmcp' is not one of .* \(did you mean 'koopman-nmpc'\?\)"):
+    with pytest.raises(
+        ValueError, match=r"controller 'koopman-nmcp' is not one of .* \(did you mean 'koopman-nmpc'\?\)"
+    ):
         controllers.make("koopman-nmcp")
     with pytest.raises(ValueError, match=r"map='mpa3' is not one of .* \(did you mean 'map3'\?\)"):
         gym.make("KoopNav-Formation-v0", map="mpa3")

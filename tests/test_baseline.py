@@ -11,14 +11,37 @@ import pytest
 import evaluate as ev
 from evaluation.baseline import GateOptions, compare_runs, gate_failures, load_baseline
 
-RUN = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--slips", "nominal", "--episodes", "8",
-       "--max-episode-steps", "300", "--quiet", "--workers", "1"]  # fmt: skip
+RUN = [
+    "--env",
+    "KoopNav-TargetReaching-v0",
+    "--maps",
+    "map1",
+    "--slips",
+    "nominal",
+    "--episodes",
+    "8",
+    "--max-episode-steps",
+    "300",
+    "--quiet",
+    "--workers",
+    "1",
+]
 NMPC = "nominal-nmpc:solver=rti,label=nmpc"
 
 
-def _record(seed: int, success: bool, distance: float = 0.05, controller: str = "c", map_name: str = "map1") -> dict:
-    return {"status": "ok", "env_id": "KoopNav-TargetReaching-v0", "controller": controller, "map": map_name,
-            "slip": "nominal", "seed": seed, "success": success, "final_distance": [distance] * 3}  # fmt: skip
+def _record(
+    seed: int, success: bool, distance: float = 0.05, controller: str = "c", map_name: str = "map1"
+) -> dict:
+    return {
+        "status": "ok",
+        "env_id": "KoopNav-TargetReaching-v0",
+        "controller": controller,
+        "map": map_name,
+        "slip": "nominal",
+        "seed": seed,
+        "success": success,
+        "final_distance": [distance] * 3,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +52,9 @@ def base(tmp_path_factory) -> Path:
 
 
 def test_an_identical_rerun_passes_the_gate(base, tmp_path, capsys) -> None:
-    code = ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base), "--fail-if-worse"])
+    code = ev.main(
+        [*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base), "--fail-if-worse"]
+    )
     assert code == 0
     assert "baseline gate passed" in capsys.readouterr().out
     comparison = json.loads((tmp_path / "baseline_comparison.json").read_text())
@@ -39,18 +64,24 @@ def test_an_identical_rerun_passes_the_gate(base, tmp_path, capsys) -> None:
 
 def test_a_degraded_controller_fails_the_gate(base, tmp_path, capsys) -> None:
     degraded = "nominal-nmpc:solver=rti,horizon=3,label=nmpc"
-    code = ev.main([*RUN, "--controllers", degraded, "--out", str(tmp_path), "--baseline", str(base),
-                    "--fail-if-worse"])  # fmt: skip
+    code = ev.main(
+        [*RUN, "--controllers", degraded, "--out", str(tmp_path), "--baseline", str(base), "--fail-if-worse"]
+    )
     assert code == ev.FAILED_GATE_EXIT
-    assert "nmpc on KoopNav-TargetReaching-v0 (8 paired episodes): success 100% -> 0%" in capsys.readouterr().err
+    assert (
+        "nmpc on KoopNav-TargetReaching-v0 (8 paired episodes): success 100% -> 0%" in capsys.readouterr().err
+    )
 
 
 def test_a_baseline_of_other_settings_is_refused_before_any_episode(base, tmp_path, capsys) -> None:
-    code = ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base),
-                    "--tolerance", "0.05"])  # fmt: skip
+    code = ev.main(
+        [*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base), "--tolerance", "0.05"]
+    )
     assert code == 2
     err = capsys.readouterr().err
-    assert "the baseline was run with other settings (env_settings:" in err and "'goal_tolerance': 0.05" in err
+    assert (
+        "the baseline was run with other settings (env_settings:" in err and "'goal_tolerance': 0.05" in err
+    )
     assert not (tmp_path / "episodes.jsonl").exists()
 
 
@@ -60,7 +91,10 @@ def test_a_baseline_of_other_settings_is_refused_before_any_episode(base, tmp_pa
         (None, "cannot be read"),
         ("{not json", "is not JSON"),
         ('{"a": 1}', "is not a KoopNav results document"),
-        ('{"schema_version": 99, "config": {}, "episodes": []}', r"has schema_version=99; this version reads \[2\]"),
+        (
+            '{"schema_version": 99, "config": {}, "episodes": []}',
+            r"has schema_version=99; this version reads \[2\]",
+        ),
     ],
 )
 def test_bad_baseline_files_are_named(tmp_path, capsys, content, message) -> None:
@@ -69,16 +103,23 @@ def test_bad_baseline_files_are_named(tmp_path, capsys, content, message) -> Non
         path.write_text(content)
     with pytest.raises(ValueError, match=message):
         load_baseline(path)
-    code = ev.main([*RUN, "--controllers", "consensus", "--out", str(tmp_path / "run"), "--baseline", str(path)])
+    code = ev.main(
+        [*RUN, "--controllers", "consensus", "--out", str(tmp_path / "run"), "--baseline", str(path)]
+    )
     assert code == 2 and str(path) in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize("args, message", [(["--alpha", "0"], "alpha=0.0 must lie in"),
-                                           (["--alpha", "1.5"], "alpha=1.5 must lie in"),
-                                           (["--delta", "-0.1"], "delta=-0.1 must be"),
-                                           (["--delta-cm", "-1"], "delta_cm=-1.0 must be"),
-                                           (["--fail-if-worse"], "--fail-if-worse needs --baseline")])  # fmt: skip
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--alpha", "0"], "alpha=0.0 must lie in"),
+        (["--alpha", "1.5"], "alpha=1.5 must lie in"),
+        (["--delta", "-0.1"], "delta=-0.1 must be"),
+        (["--delta-cm", "-1"], "delta_cm=-1.0 must be"),
+        (["--fail-if-worse"], "--fail-if-worse needs --baseline"),
+    ],
+)
 def test_bad_gate_options_exit_2(tmp_path, capsys, args, message) -> None:
     assert ev.main([*RUN, "--controllers", "consensus", "--out", str(tmp_path / "run"), *args]) == 2
     assert message in capsys.readouterr().err
@@ -98,7 +139,9 @@ def test_the_gates_decisions_on_known_tables() -> None:
     assert gate_failures(compare_runs([_record(s, s >= 5) for s in range(10)], base), GateOptions()) == []
     # distances: +2 cm on every pair fails a 1 cm tolerance, passes a 3 cm one
     farther = [_record(s, True, distance=0.07) for s in range(10)]
-    assert any("final distance +2.00 cm" in f for f in gate_failures(compare_runs(farther, base), GateOptions()))
+    assert any(
+        "final distance +2.00 cm" in f for f in gate_failures(compare_runs(farther, base), GateOptions())
+    )
     assert gate_failures(compare_runs(farther, base), GateOptions(delta_cm=3.0)) == []
 
 
@@ -108,17 +151,25 @@ def test_cells_on_one_side_only_are_listed_not_dropped() -> None:
     comparison = compare_runs(run, base)
     assert [r["controller"] for r in comparison["rows"]] == ["c"]
     assert comparison["only_run"] == [["KoopNav-TargetReaching-v0", "new", "map1", "nominal"]]
-    assert comparison["only_baseline"] == [["KoopNav-TargetReaching-v0", "c", "map2", "nominal"],
-                                           ["KoopNav-TargetReaching-v0", "gone", "map1", "nominal"]]  # fmt: skip
+    assert comparison["only_baseline"] == [
+        ["KoopNav-TargetReaching-v0", "c", "map2", "nominal"],
+        ["KoopNav-TargetReaching-v0", "gone", "map1", "nominal"],
+    ]
 
 
 def test_the_github_step_summary_is_appended(base, tmp_path, monkeypatch) -> None:
     summary = tmp_path / "summary.md"
     summary.write_text("earlier step\n")
     monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(summary))
-    assert ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path / "run"), "--baseline", str(base)]) == 0
+    assert (
+        ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path / "run"), "--baseline", str(base)]) == 0
+    )
     text = summary.read_text()
-    assert text.startswith("earlier step\n") and "## KoopNav leaderboard" in text and "Compared with the baseline" in text
+    assert (
+        text.startswith("earlier step\n")
+        and "## KoopNav leaderboard" in text
+        and "Compared with the baseline" in text
+    )
 
 
 def test_the_badge_is_valid_svg_with_the_rate_and_its_interval(base, tmp_path) -> None:
@@ -134,7 +185,8 @@ def test_the_badge_is_valid_svg_with_the_rate_and_its_interval(base, tmp_path) -
 def test_a_badge_of_a_controller_not_in_the_run_is_refused_first(tmp_path, capsys) -> None:
     assert ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--badge", "nmcp"]) == 2
     assert "--badge 'nmcp' is not a controller of this run; it runs ['nmpc'] (did you mean 'nmpc'?)" in (
-        capsys.readouterr().err)
+        capsys.readouterr().err
+    )
     assert not (tmp_path / "episodes.jsonl").exists()
 
 
@@ -142,15 +194,24 @@ def test_the_solver_comparison_page_pairs_across_files_and_counts_cells() -> Non
     """docs/solver_comparison.py: a later file's episodes replace an earlier one's (a rerun arm)."""
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("solver_comparison", Path(ev.__file__).parent / "docs" / "solver_comparison.py")
+    spec = importlib.util.spec_from_file_location(
+        "solver_comparison", Path(ev.__file__).parent / "docs" / "solver_comparison.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    for_doc = [_record(s, True, controller="c@ipopt") for s in range(6)] + [_record(s, True, controller="c@rti") for s in range(6)]
+    for_doc = [_record(s, True, controller="c@ipopt") for s in range(6)] + [
+        _record(s, True, controller="c@rti") for s in range(6)
+    ]
     rerun = [_record(s, False, controller="c@rti") for s in range(6)]
     for r in for_doc + rerun:
         r["solve_ms_median"] = 1.0
     documents = [{"episodes": for_doc}, {"episodes": rerun}]
     (row,) = module.comparison_rows(documents, "rti", "ipopt")
-    assert row["n"] == 6 and row["only_b"] == 6 and row["p_value"] == pytest.approx(0.03125) and module.loses(row)
+    assert (
+        row["n"] == 6
+        and row["only_b"] == 6
+        and row["p_value"] == pytest.approx(0.03125)
+        and module.loses(row)
+    )
     table = module.per_cell_markdown(documents, "rti", "ipopt")
     assert "| target reaching | map1 | nominal | 6/6 | 0/6 |" in table

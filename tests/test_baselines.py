@@ -26,8 +26,20 @@ CRASH = MapSpec(
 @pytest.fixture(scope="module")
 def trained_root(tmp_path_factory):
     root = tmp_path_factory.mktemp("policies")
-    code = train_main(["--env", "KoopNav-Formation-v0", "--timesteps", "4096", "--n-envs", "8",
-                       "--eval-freq", "100000", "--out", str(root / "formation")])  # fmt: skip
+    code = train_main(
+        [
+            "--env",
+            "KoopNav-Formation-v0",
+            "--timesteps",
+            "4096",
+            "--n-envs",
+            "8",
+            "--eval-freq",
+            "100000",
+            "--out",
+            str(root / "formation"),
+        ]
+    )
     assert code == 0
     return root
 
@@ -57,10 +69,24 @@ def test_short_training_saves_a_loadable_policy(trained_root) -> None:
     assert all(np.all(np.abs(a[0::2]) <= 0.6 + 1e-9) for a in actions)
 
 
-def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_policy(trained_root, tmp_path) -> None:
+def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_policy(
+    trained_root, tmp_path
+) -> None:
     from baselines.select import main as select_main
 
-    assert select_main(["--run", str(trained_root / "formation"), "--out", str(tmp_path / "formation"), "--episodes", "3"]) == 0
+    assert (
+        select_main(
+            [
+                "--run",
+                str(trained_root / "formation"),
+                "--out",
+                str(tmp_path / "formation"),
+                "--episodes",
+                "3",
+            ]
+        )
+        == 0
+    )
     _, _, metadata = load_policy(tmp_path / "formation")
     selection = metadata["selection"]
     # the only candidate, the final policy, after whole rollouts: 2 x (8 envs x 3 robots x 128 steps)
@@ -81,7 +107,11 @@ def test_batched_commands_equal_single_commands(trained_root) -> None:
     batch = policy_command(*args)
     assert batch.shape == (3, 6)
     for k in range(3):
-        np.testing.assert_allclose(policy_command(model, norm, "robot", obs[k], 3, 0.6, 0.785, metadata["features"]), batch[k], atol=1e-6)
+        np.testing.assert_allclose(
+            policy_command(model, norm, "robot", obs[k], 3, 0.6, 0.785, metadata["features"]),
+            batch[k],
+            atol=1e-6,
+        )
 
 
 def test_inference_is_deterministic(trained_root) -> None:
@@ -121,7 +151,9 @@ def test_shipped_policies_play_an_episode(env_id: str) -> None:
 
 
 def test_robot_layout_assigns_the_crash_to_the_robot_that_crashed() -> None:
-    venv = KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 2, seed=0, layout="robot", collision_penalty=5.0, map=CRASH)
+    venv = KoopNavSB3VecEnv(
+        "KoopNav-TargetReaching-v0", 2, seed=0, layout="robot", collision_penalty=5.0, map=CRASH
+    )
     assert venv.num_envs == 6 and venv.observation_space.shape == (30,)
     obs = venv.reset()
     assert obs.shape == (6, 30)
@@ -154,7 +186,12 @@ def test_vector_env_robot_rewards_match_the_pettingzoo_rewards() -> None:
 
 
 def test_precision_shaping_is_the_log_distance_potential_difference() -> None:
-    free = MapSpec("free", obstacles=[[8.0, 8.0, 0.5]], starts=CRASH.starts, targets=[[0.5, 0.0, 0.0], [3.0, 2.0, 0.0], [3.0, -2.0, 0.0]])
+    free = MapSpec(
+        "free",
+        obstacles=[[8.0, 8.0, 0.5]],
+        starts=CRASH.starts,
+        targets=[[0.5, 0.0, 0.0], [3.0, 2.0, 0.0], [3.0, -2.0, 0.0]],
+    )
     forward = np.tile([1.0, 0.0], (3, 1)).astype(np.float32)
     rewards = {}
     for weight in (0.0, 5.0):
@@ -217,7 +254,9 @@ def test_shipped_policy_drives_a_six_robot_team() -> None:
 
     env = gym.make("KoopNav-Formation-v0", map="random", n_robots=6, max_episode_steps=20)
     actions: list[np.ndarray] = []
-    result = run_episode(env, controllers.make("rl-ppo"), seed=0, on_step=lambda step, action, info: actions.append(action))
+    result = run_episode(
+        env, controllers.make("rl-ppo"), seed=0, on_step=lambda step, action, info: actions.append(action)
+    )
     assert result.steps >= 1 and len(actions) == result.steps
     assert all(a.shape == (6, 2) and np.all(np.isfinite(a)) for a in actions)
 

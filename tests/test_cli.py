@@ -18,8 +18,9 @@ def _help(monkeypatch, argv0: str, capsys) -> str:
     return capsys.readouterr().out
 
 
-@pytest.mark.parametrize("argv0, name", [("/venv/bin/koopnav-evaluate", "koopnav-evaluate"),
-                                         ("evaluate.py", "python evaluate.py")])  # fmt: skip
+@pytest.mark.parametrize(
+    "argv0, name", [("/venv/bin/koopnav-evaluate", "koopnav-evaluate"), ("evaluate.py", "python evaluate.py")]
+)
 def test_usage_names_the_program_as_it_was_called(monkeypatch, capsys, argv0: str, name: str) -> None:
     assert _help(monkeypatch, argv0, capsys).startswith(f"usage: {name} ")
     assert ev.program_name() == name
@@ -27,7 +28,15 @@ def test_usage_names_the_program_as_it_was_called(monkeypatch, capsys, argv0: st
 
 def test_help_groups_the_options_and_lists_the_exit_codes(monkeypatch, capsys) -> None:
     text = _help(monkeypatch, "evaluate.py", capsys)
-    for group in ("what to run:", "env settings:", "controllers:", "output:", "execution:", "CI:", "exit codes:"):
+    for group in (
+        "what to run:",
+        "env settings:",
+        "controllers:",
+        "output:",
+        "execution:",
+        "CI:",
+        "exit codes:",
+    ):
         assert group in text
     for code in ("  0 ", "  1-100 ", "  2 ", f"  {ev.FAILED_CHECK_EXIT} ", f"  {ev.INTERRUPTED_EXIT} "):
         assert code in text
@@ -40,7 +49,10 @@ def test_every_option_has_help_and_a_default_or_a_reason() -> None:
             continue
         assert action.help, action.option_strings
         flag_like = action.nargs == 0  # store_true: off unless given
-        assert flag_like or "default" in action.help or action.dest in ("resume",), (action.option_strings, action.help)
+        assert flag_like or "default" in action.help or action.dest in ("resume",), (
+            action.option_strings,
+            action.help,
+        )
 
 
 def test_envs_is_the_plural_of_env() -> None:

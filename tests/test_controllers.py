@@ -63,7 +63,11 @@ def test_nmpc_never_plans_through_an_obstacle(name: str) -> None:
         obs, _, terminated, truncated, info = env.step(ctrl.act(obs, info))
         _, predicted = ctrl.last_plan  # (T, N, 3)
         centres, radii = scenario.obstacles[:, :2], scenario.obstacles[:, 2]
-        gap = np.linalg.norm(predicted[:, :, None, :2] - centres, axis=-1) - radii - scenario.robot_radius[:, None]
+        gap = (
+            np.linalg.norm(predicted[:, :, None, :2] - centres, axis=-1)
+            - radii
+            - scenario.robot_radius[:, None]
+        )
         assert gap.min() >= -1e-6, f"planned clearance {gap.min():.4f} m"
         checked += 1
         if terminated or truncated:
@@ -104,7 +108,9 @@ def test_infeasible_hard_problem_is_handled(solver: str, soft: bool) -> None:
     """A start inside the safety margin: with hard constraints the solver fails (the real-time
     iteration's QP and then IPOPT), the fallback is counted and the episode goes on; soft
     constraints keep every step solvable. Never an exception."""
-    spec = MapSpec("tight", obstacles=[[0.0, 0.0, 0.5]], starts=[[0.705, 0.0, 0.0]], targets=[[3.0, 0.0, 0.0]])
+    spec = MapSpec(
+        "tight", obstacles=[[0.0, 0.0, 0.5]], starts=[[0.705, 0.0, 0.0]], targets=[[3.0, 0.0, 0.0]]
+    )
     env = gym.make("KoopNav-TargetReaching-v0", map=spec, n_robots=1, max_episode_steps=5)
     ctrl = controllers.make("nominal-nmpc", solver=solver, soft_constraints=soft, obstacle_offset=0.2)
     obs, info = env.reset(seed=0)
@@ -167,7 +173,10 @@ def test_controller_registered_by_entry_point_is_found(tmp_path) -> None:
         "c = controllers.make('test-stop'); env = gym.make('KoopNav-Formation-v0'); "
         "obs, info = env.reset(seed=0); c.reset(env.unwrapped.scenario); print(c.act(obs, info).tolist())"
     )
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(Path(controllers.__file__).parents[1])])}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(site), str(Path(controllers.__file__).parents[1])]),
+    }
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == str([0.0] * 6)
@@ -229,7 +238,9 @@ def test_warm_start_shift_has_no_dynamics_gap_and_cold_starts_drop_warm_options(
     prob, guess = ctrl._problem, ctrl._warm["x"]
     stage, nx, nu = prob.stage_size, prob.nx, prob.nu
     last = (prob.horizon - 1) * stage
-    predicted = np.asarray(prob.step(guess[last : last + nx], guess[last + nx : last + nx + nu], [])).reshape(-1)
+    predicted = np.asarray(prob.step(guess[last : last + nx], guess[last + nx : last + nx + nu], [])).reshape(
+        -1
+    )
     np.testing.assert_allclose(guess[-nx:], predicted, atol=1e-12)
     warm, cold = prob.solver_for("ipopt"), prob.solver_for("ipopt", cold=True)
     assert warm is not cold and "cold" in cold.name()
@@ -286,6 +297,9 @@ def test_calibratable_is_a_declared_capability_found_down_wrappers() -> None:
 
     assert isinstance(controllers.make("koopman-nmpc"), Calibratable)
     assert isinstance(controllers.make("nominal-nmpc-robust"), Calibratable)
-    assert not isinstance(controllers.make("consensus"), Calibratable) and calibratable(controllers.make("consensus")) is None
+    assert (
+        not isinstance(controllers.make("consensus"), Calibratable)
+        and calibratable(controllers.make("consensus")) is None
+    )
     wrapped = controllers.make("safe:koopman-nmpc")
     assert not isinstance(wrapped, Calibratable) and calibratable(wrapped) is wrapped.inner

@@ -82,11 +82,19 @@ def test_vector_env_matches_single_envs_with_zones_and_drift(env_id: str, mode: 
 
 
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id, shape", [("KoopNav-TargetReaching-v0", "line"), ("KoopNav-Formation-v0", "circle")])
+@pytest.mark.parametrize(
+    "env_id, shape", [("KoopNav-TargetReaching-v0", "line"), ("KoopNav-Formation-v0", "circle")]
+)
 def test_vector_env_matches_single_envs_with_a_formation_shape(env_id: str, shape: str, mode: str) -> None:
     """The same for six robots laid out in a formation shape on random maps."""
-    kwargs = {"map": "random", "n_robots": 6, "formation": shape, "slip": "high", "max_episode_steps": 120,
-              "start_noise": 0.1}
+    kwargs = {
+        "map": "random",
+        "n_robots": 6,
+        "formation": shape,
+        "slip": "high",
+        "max_episode_steps": 120,
+        "start_noise": 0.1,
+    }
     vector_matches_single_envs(env_id, mode, kwargs)
 
 

@@ -19,7 +19,10 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 PAGES = [p for p in PAGES if "_build" not in p.parts]
 
-FENCE = re.compile(r"^(?P<indent> *)(?P<fence>```+)(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.DOTALL | re.MULTILINE)
+FENCE = re.compile(
+    r"^(?P<indent> *)(?P<fence>```+)(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$",
+    re.DOTALL | re.MULTILINE,
+)
 SKIP = re.compile(r"<!--\s*no-test:\s*(?P<why>\S[^>]*?)\s*-->[ \t]*$", re.MULTILINE)
 REQUIRES = re.compile(r"<!--\s*requires:\s*(?P<module>[\w.]+)\s*-->[ \t]*$", re.MULTILINE)
 #: at most this many skipped blocks over all pages: a skip needs a reason, and the docs should run
@@ -67,8 +70,12 @@ def test_the_python_blocks_of_a_page_run(page: Path, tmp_path: Path, monkeypatch
 
 
 def test_skipped_blocks_are_rare_and_say_why() -> None:
-    skipped = [(p, line, why) for p in PAGES for line, _, why in python_blocks(p.read_text())
-               if why and not why.startswith("needs ")]
+    skipped = [
+        (p, line, why)
+        for p in PAGES
+        for line, _, why in python_blocks(p.read_text())
+        if why and not why.startswith("needs ")
+    ]
     assert len(skipped) <= MAX_SKIPS, skipped
     assert all(len(why) >= 10 for _, _, why in skipped), skipped
     for page in PAGES:  # a marker that does not sit right before a python block is a mistake
@@ -97,7 +104,9 @@ def slug(title: str) -> str:
 
 def anchors(page: Path) -> set[str]:
     text = FENCE.sub("", page.read_text())
-    return {slug(m[2]) for m in HEADING.finditer(text)} | set(re.findall(r'\(([\w-]+)\)=\s*$', text, re.MULTILINE))
+    return {slug(m[2]) for m in HEADING.finditer(text)} | set(
+        re.findall(r"\(([\w-]+)\)=\s*$", text, re.MULTILINE)
+    )
 
 
 def broken_links(page: Path) -> list[str]:

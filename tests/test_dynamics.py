@@ -134,7 +134,11 @@ def test_env_terminates_on_each_collision_kind(starts, command, kind) -> None:
         if terminated:
             break
     assert terminated and not truncated
-    assert info["collision"] and CollisionKind.describe(info["collision_code"]) == kind and not info["is_success"]
+    assert (
+        info["collision"]
+        and CollisionKind.describe(info["collision_code"]) == kind
+        and not info["is_success"]
+    )
     assert reward < -5  # the collision penalty
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import copy
 import pickle
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -129,7 +130,7 @@ def test_max_cycles_is_the_episode_limit() -> None:
     assert formation_v0.parallel_env().config.max_episode_steps == PARAMS.max_episode_steps
     env = formation_v0.parallel_env(max_cycles=5)
     env.reset(seed=0)
-    for step in range(5):
+    for _step in range(5):
         _, _, terminations, truncations, _ = env.step({a: np.zeros(2) for a in env.agents})
     assert all(truncations.values()) and not any(terminations.values()) and env.agents == []
 
@@ -187,19 +188,39 @@ def test_vector_options_per_sub_env() -> None:
     per_env = np.stack([START_POSES, START_POSES + [0.1, 0.0, 0.5]])
     venv.reset(seed=0, options={"start_poses": per_env})
     np.testing.assert_array_equal(venv.unwrapped.engine.poses, per_env)
-    with pytest.raises(ValueError, match=r"options\['start_poses'\] has shape \(3, 3, 3\); allowed: \(3, 3\) or \(2, 3, 3\)"):
+    with pytest.raises(
+        ValueError, match=r"options\['start_poses'\] has shape \(3, 3, 3\); allowed: \(3, 3\) or \(2, 3, 3\)"
+    ):
         venv.reset(options={"start_poses": np.stack([START_POSES] * 3)})
 
 
 BAD_OPTIONS = [
-    ({"start_pose": START_POSES}, r"reset options \['start_pose'\] are not supported; allowed keys: \['start_poses', 'targets'\]"),
+    (
+        {"start_pose": START_POSES},
+        r"reset options \['start_pose'\] are not supported; allowed keys: \['start_poses', 'targets'\]",
+    ),
     ({"start_poses": START_POSES[:2]}, r"options\['start_poses'\] has shape \(2, 3\); allowed: \(3, 3\)"),
     ({"targets": "north"}, r"options\['targets'\]='north' is not an array of numbers"),
-    ({"start_poses": np.where(np.eye(3) > 0, np.nan, START_POSES)}, r"options\['start_poses'\] has a non-finite entry at index \[0, 0\] \(nan\)"),
-    ({"start_poses": np.vstack([[9.9, 0.6, 0.0], START_POSES[1:]])}, r"options\['start_poses'\]: start of robot 0 at \[9.9, 0.6\] is not inside the workspace"),
-    ({"start_poses": np.vstack([[-0.6, 2.0, 0.0], START_POSES[1:]])}, r"options\['start_poses'\]: start of robot 0 at \[-0.6, 2.0\] overlaps obstacle 2 \[-0.6, 2.0, 0.4\] \(map 'map3'\)"),
-    ({"start_poses": START_POSES + [[0, 0, 0], [0.8, -0.8, 0], [0, 0, 0]]}, r"options\['start_poses'\]: overlapping starts of robots 0 and 1"),
-    ({"targets": TARGETS + [[-2.5, -2.8, 0], [0, 0, 0], [0, 0, 0]]}, r"options\['targets'\]: target of robot 0 at \[0.0, 0.0\] overlaps obstacle"),
+    (
+        {"start_poses": np.where(np.eye(3) > 0, np.nan, START_POSES)},
+        r"options\['start_poses'\] has a non-finite entry at index \[0, 0\] \(nan\)",
+    ),
+    (
+        {"start_poses": np.vstack([[9.9, 0.6, 0.0], START_POSES[1:]])},
+        r"options\['start_poses'\]: start of robot 0 at \[9.9, 0.6\] is not inside the workspace",
+    ),
+    (
+        {"start_poses": np.vstack([[-0.6, 2.0, 0.0], START_POSES[1:]])},
+        r"options\['start_poses'\]: start of robot 0 at \[-0.6, 2.0\] overlaps obstacle 2 \[-0.6, 2.0, 0.4\] \(map 'map3'\)",
+    ),
+    (
+        {"start_poses": START_POSES + [[0, 0, 0], [0.8, -0.8, 0], [0, 0, 0]]},
+        r"options\['start_poses'\]: overlapping starts of robots 0 and 1",
+    ),
+    (
+        {"targets": TARGETS + [[-2.5, -2.8, 0], [0, 0, 0], [0, 0, 0]]},
+        r"options\['targets'\]: target of robot 0 at \[0.0, 0.0\] overlaps obstacle",
+    ),
     (["start_poses"], r"options=\['start_poses'\] must be a dict or None"),
 ]
 
@@ -221,7 +242,9 @@ def test_invalid_reset_options_are_rejected_and_change_nothing(name: str, option
 
 def test_start_poses_are_checked_against_each_random_map() -> None:
     env = gym.make(ID, map="random")
-    with pytest.raises(ValueError, match=r"options\['start_poses'\]: .* \(map 'random'\); allowed: \(x, y, heading\) rows"):
+    with pytest.raises(
+        ValueError, match=r"options\['start_poses'\]: .* \(map 'random'\); allowed: \(x, y, heading\) rows"
+    ):
         env.reset(seed=0, options={"start_poses": np.zeros((3, 3))})
     obs, info = env.reset(seed=0)
     starts = info["poses"] + [0.05, 0.0, 0.0]  # this seed's map, its starts nudged
@@ -255,7 +278,9 @@ def test_every_info_value_is_a_number_or_an_array() -> None:
         assert all(_numeric(v) for v in values.values()), {k: type(v) for k, v in values.items()}
     vec = gym.make_vec("KoopNav-Formation-v0", num_envs=2, vectorization_mode="vector_entry_point")
     _, infos = vec.reset(seed=0)
-    assert all(_numeric(v) for k, v in infos.items() if not k.startswith("_")), {k: type(v) for k, v in infos.items()}
+    assert all(_numeric(v) for k, v in infos.items() if not k.startswith("_")), {
+        k: type(v) for k, v in infos.items()
+    }
     par = formation_v0.parallel_env()
     _, agent_infos = par.reset(seed=0)
     for values in agent_infos.values():
@@ -266,6 +291,10 @@ def test_the_vector_env_exposes_its_autoreset_mode() -> None:
     from gymnasium.vector import AutoresetMode
 
     for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-        vec = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                           autoreset_mode=mode)  # fmt: skip
+        vec = gym.make_vec(
+            "KoopNav-TargetReaching-v0",
+            num_envs=2,
+            vectorization_mode="vector_entry_point",
+            autoreset_mode=mode,
+        )
         assert vec.unwrapped.autoreset_mode == mode == vec.unwrapped.metadata["autoreset_mode"]

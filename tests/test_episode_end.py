@@ -82,7 +82,10 @@ def test_formation_reward_charges_the_true_slot_error() -> None:
     _, reward, _, _, info = env.step(np.zeros(6))
     weights = env.unwrapped.config.task.reward
     assert info["formation_error"][2] == pytest.approx(np.hypot(0.5, 0.3))
-    expected = weights.progress * (before - info["distances"]).sum() - weights.formation * info["formation_error"].sum()
+    expected = (
+        weights.progress * (before - info["distances"]).sum()
+        - weights.formation * info["formation_error"].sum()
+    )
     assert reward == pytest.approx(expected, rel=1e-12)
 
 

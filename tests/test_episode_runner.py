@@ -24,8 +24,14 @@ class ScriptedEnv:
     def _info(self) -> dict:
         d = self.script[self.k]
         done = self.k == len(self.script) - 1
-        return {"poses": np.zeros((3, 3)), "targets": np.zeros((3, 3)), "distances": np.full(3, d),
-                "collision": False, "collision_code": 0, "is_success": done}  # fmt: skip
+        return {
+            "poses": np.zeros((3, 3)),
+            "targets": np.zeros((3, 3)),
+            "distances": np.full(3, d),
+            "collision": False,
+            "collision_code": 0,
+            "is_success": done,
+        }
 
     def reset(self, *, seed=None, options=None):
         self.k = 0
@@ -59,13 +65,28 @@ def test_runner_on_a_real_env_matches_the_env() -> None:
 
 
 def test_cell_p95_is_taken_over_the_cells_steps() -> None:
-    base = {"env_id": "E", "controller": "c", "map": "m", "slip": "s", "status": "ok", "success": True,
-            "collision": None, "final_distance": [0.01], "time_to_goal": 1.0, "path_length": [1.0],
-            "control_effort": [1.0], "formation_rms": None, "solve_ms_median": 1.0, "solver_failures": 0}  # fmt: skip
+    base = {
+        "env_id": "E",
+        "controller": "c",
+        "map": "m",
+        "slip": "s",
+        "status": "ok",
+        "success": True,
+        "collision": None,
+        "final_distance": [0.01],
+        "time_to_goal": 1.0,
+        "path_length": [1.0],
+        "control_effort": [1.0],
+        "formation_rms": None,
+        "solve_ms_median": 1.0,
+        "solver_failures": 0,
+    }
     fast = [1.0] * 95 + [2.0] * 5
     slow = [100.0] * 3
-    records = [{**base, "seed": 0, "solve_ms": fast, "solve_ms_p95": float(np.percentile(fast, 95))},
-               {**base, "seed": 1, "solve_ms": slow, "solve_ms_p95": 100.0}]  # fmt: skip
+    records = [
+        {**base, "seed": 0, "solve_ms": fast, "solve_ms_p95": float(np.percentile(fast, 95))},
+        {**base, "seed": 1, "solve_ms": slow, "solve_ms_p95": 100.0},
+    ]
     (cell,) = aggregate(records)
     assert cell.solve_ms_p95 == pytest.approx(np.percentile(fast + slow, 95))
     assert cell.solve_ms_p95 != max(r["solve_ms_p95"] for r in records)

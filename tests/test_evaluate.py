@@ -42,10 +42,16 @@ def test_json_validates_against_its_schema(small_results: ev.Results) -> None:
 def test_report_distances_equal_recomputed_ones(small_results: ev.Results) -> None:
     for rec in small_results.records:
         poses, targets = np.asarray(rec["final_poses"]), np.asarray(rec["targets"])
-        np.testing.assert_allclose(rec["final_distance"], np.linalg.norm(poses[:, :2] - targets[:, :2], axis=1))
+        np.testing.assert_allclose(
+            rec["final_distance"], np.linalg.norm(poses[:, :2] - targets[:, :2], axis=1)
+        )
     for cell in small_results.cells:
-        won = [r for r in small_results.records if r["success"] and
-               (r["controller"], r["map"], r["slip"]) == (cell.controller, cell.map, cell.slip)]  # fmt: skip
+        won = [
+            r
+            for r in small_results.records
+            if r["success"]
+            and (r["controller"], r["map"], r["slip"]) == (cell.controller, cell.map, cell.slip)
+        ]
         for i, (mean, _) in enumerate(cell.distance_settled.per_robot):
             expected = np.mean([100 * r["final_distance"][i] for r in won]) if won else float("nan")
             assert (math.isnan(mean) and math.isnan(expected)) or mean == pytest.approx(expected)
@@ -60,9 +66,33 @@ def test_one_and_two_workers_give_identical_results(small_results: ev.Results) -
 
 def test_killed_run_resumes_to_the_same_result(tmp_path, small_results: ev.Results) -> None:
     out = tmp_path / "run"
-    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus",
-           "nominal-nmpc", "--maps", "map1", "--slips", "nominal", "high", "--episodes", "2", "--seed", "3",
-           "--max-episode-steps", "150", "--workers", "1", "--out", str(out), "--quiet", "--start-noise", "0"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "evaluate.py",
+        "--env",
+        "KoopNav-TargetReaching-v0",
+        "--controllers",
+        "consensus",
+        "nominal-nmpc",
+        "--maps",
+        "map1",
+        "--slips",
+        "nominal",
+        "high",
+        "--episodes",
+        "2",
+        "--seed",
+        "3",
+        "--max-episode-steps",
+        "150",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "--quiet",
+        "--start-noise",
+        "0",
+    ]
     root = Path(ev.__file__).parent
     proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     log = out / "episodes.jsonl"
@@ -78,7 +108,9 @@ def test_killed_run_resumes_to_the_same_result(tmp_path, small_results: ev.Resul
     with pytest.raises(ValueError, match="pass --resume"):
         ev.evaluate(SMALL, workers=1, out=out)
     resumed = ev.evaluate(SMALL, workers=1, out=out, resume=True)
-    assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
+    assert [r["final_distance"] for r in resumed.records] == [
+        r["final_distance"] for r in small_results.records
+    ]
     assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
 
 
@@ -89,9 +121,20 @@ def test_resume_log_from_another_configuration_is_refused(tmp_path) -> None:
     with pytest.raises(ValueError, match="other settings.*episodes: logged 1, now 2"):
         ev.evaluate(SMALL, workers=1, out=out, resume=True)
     # an env setting differs: named in the error
-    with pytest.raises(ValueError, match="env_settings: logged .*'max_episode_steps': 150.*now .*'max_episode_steps': 120"):
-        ev.evaluate(SMALL.replace(controllers=["consensus"], slips=["nominal"], episodes=1,
-                                  env_kwargs={"max_episode_steps": 120}), workers=1, out=out, resume=True)  # fmt: skip
+    with pytest.raises(
+        ValueError, match="env_settings: logged .*'max_episode_steps': 150.*now .*'max_episode_steps': 120"
+    ):
+        ev.evaluate(
+            SMALL.replace(
+                controllers=["consensus"],
+                slips=["nominal"],
+                episodes=1,
+                env_kwargs={"max_episode_steps": 120},
+            ),
+            workers=1,
+            out=out,
+            resume=True,
+        )
     assert (out / "episodes.jsonl").read_text() == before  # nothing overwritten
 
 
@@ -111,8 +154,18 @@ class ExplodingController(BaseController):
 
 def test_an_episode_that_raises_does_not_stop_the_others() -> None:
     controllers.register("exploding", ExplodingController, overwrite=True)
-    results = ev.evaluate(ev.RunSpec("KoopNav-TargetReaching-v0", ["exploding"], ["map1"], ["nominal"], episodes=3,
-                                     seed=0, env_kwargs={"max_episode_steps": 20}), workers=1)  # fmt: skip
+    results = ev.evaluate(
+        ev.RunSpec(
+            "KoopNav-TargetReaching-v0",
+            ["exploding"],
+            ["map1"],
+            ["nominal"],
+            episodes=3,
+            seed=0,
+            env_kwargs={"max_episode_steps": 20},
+        ),
+        workers=1,
+    )
     statuses = [r["status"] for r in results.records]
     assert statuses == ["ok", "error", "ok"]
     assert "RuntimeError: boom" in results.records[1]["error"]
@@ -121,8 +174,10 @@ def test_an_episode_that_raises_does_not_stop_the_others() -> None:
 
 def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
     passing = tmp_path / "ok.toml"
-    passing.write_text('[[cell]]\ncontroller = "nominal-nmpc"\nslip = "nominal"\nmin_success_rate = 0.5\n'
-                       'max_final_distance_cm = 10.0\n')  # fmt: skip
+    passing.write_text(
+        '[[cell]]\ncontroller = "nominal-nmpc"\nslip = "nominal"\nmin_success_rate = 0.5\n'
+        "max_final_distance_cm = 10.0\n"
+    )
     assert ev.check_thresholds(small_results, passing).problems == []
     failing = tmp_path / "bad.toml"
     failing.write_text('reading = "point"\n[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
@@ -163,17 +218,37 @@ def test_cli_writes_outputs_and_checks(tmp_path) -> None:
     thresholds = tmp_path / "t.toml"
     thresholds.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
     out = tmp_path / "cli"
-    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-Formation-v0", "--controllers", "consensus",
-           "--maps", "map4", "--slips", "nominal", "--episodes", "1", "--out", str(out), "--quiet",
-           "--check", str(thresholds)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "evaluate.py",
+        "--env",
+        "KoopNav-Formation-v0",
+        "--controllers",
+        "consensus",
+        "--maps",
+        "map4",
+        "--slips",
+        "nominal",
+        "--episodes",
+        "1",
+        "--out",
+        str(out),
+        "--quiet",
+        "--check",
+        str(thresholds),
+    ]
     proc = subprocess.run(cmd, cwd=Path(ev.__file__).parent, capture_output=True, text=True)
     assert proc.returncode == ev.FAILED_CHECK_EXIT, proc.stderr
     assert "consensus / map4 / nominal: success rate" in proc.stderr
     for name in ("results.md", "results.json", "results.csv", "episodes.jsonl"):
         assert (out / name).stat().st_size > 0
     assert list((out / "figures").glob("*.png"))
-    bad = subprocess.run([sys.executable, "evaluate.py", "--controllers", "nope", "--out", str(tmp_path / "x")],
-                         cwd=Path(ev.__file__).parent, capture_output=True, text=True)  # fmt: skip
+    bad = subprocess.run(
+        [sys.executable, "evaluate.py", "--controllers", "nope", "--out", str(tmp_path / "x")],
+        cwd=Path(ev.__file__).parent,
+        capture_output=True,
+        text=True,
+    )
     assert bad.returncode == 2 and "controller 'nope' is not one of" in bad.stderr
 
 
@@ -182,7 +257,9 @@ def test_ray_backend_matches_the_process_backend(small_results: ev.Results) -> N
     pytest.importorskip("ray")
     with_ray = ev.evaluate(SMALL, workers=2, backend="ray")
     assert [r["key"] for r in with_ray.records] == [r["key"] for r in small_results.records]
-    assert [r["final_distance"] for r in with_ray.records] == [r["final_distance"] for r in small_results.records]
+    assert [r["final_distance"] for r in with_ray.records] == [
+        r["final_distance"] for r in small_results.records
+    ]
     assert [r["success"] for r in with_ray.records] == [r["success"] for r in small_results.records]
 
 
@@ -190,8 +267,14 @@ def _start_run(cmd: list[str], out: Path, lines: int) -> tuple[subprocess.Popen,
     """Start an evaluator run in its own session; return once its log has ``lines`` lines."""
     import time
 
-    proc = subprocess.Popen(cmd, cwd=Path(ev.__file__).parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)  # fmt: skip
+    proc = subprocess.Popen(
+        cmd,
+        cwd=Path(ev.__file__).parent,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     log = out / "episodes.jsonl"
     deadline = time.time() + 180
     while time.time() < deadline and (not log.exists() or len(log.read_text().splitlines()) < lines):
@@ -205,9 +288,32 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_result
     import signal
 
     out = tmp_path / "run"
-    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus",
-           "nominal-nmpc", "--maps", "map1", "--slips", "nominal", "high", "--episodes", "2", "--seed", "3",
-           "--max-episode-steps", "150", "--workers", "2", "--out", str(out), "--start-noise", "0"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "evaluate.py",
+        "--env",
+        "KoopNav-TargetReaching-v0",
+        "--controllers",
+        "consensus",
+        "nominal-nmpc",
+        "--maps",
+        "map1",
+        "--slips",
+        "nominal",
+        "high",
+        "--episodes",
+        "2",
+        "--seed",
+        "3",
+        "--max-episode-steps",
+        "150",
+        "--workers",
+        "2",
+        "--out",
+        str(out),
+        "--start-noise",
+        "0",
+    ]
     proc, log = _start_run(cmd, out, lines=3)
     os.killpg(proc.pid, signal.SIGINT)
     _, stderr = proc.communicate(timeout=60)
@@ -215,7 +321,9 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_result
     assert "Traceback" not in stderr
     assert "interrupted after" in stderr and "--resume" in stderr
     resumed = ev.evaluate(SMALL, workers=1, out=out, resume=True)
-    assert [r["final_distance"] for r in resumed.records] == [r["final_distance"] for r in small_results.records]
+    assert [r["final_distance"] for r in resumed.records] == [
+        r["final_distance"] for r in small_results.records
+    ]
     assert [r["key"] for r in resumed.records] == [r["key"] for r in small_results.records]
 
 
@@ -225,9 +333,28 @@ def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path) -> None:
     import time
 
     out = tmp_path / "run"
-    cmd = [sys.executable, "evaluate.py", "--env", "KoopNav-TargetReaching-v0", "--controllers", "nominal-nmpc",
-           "--maps", "map1", "--slips", "nominal", "high", "--episodes", "3", "--max-episode-steps", "150",
-           "--workers", "2", "--out", str(out), "--quiet"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "evaluate.py",
+        "--env",
+        "KoopNav-TargetReaching-v0",
+        "--controllers",
+        "nominal-nmpc",
+        "--maps",
+        "map1",
+        "--slips",
+        "nominal",
+        "high",
+        "--episodes",
+        "3",
+        "--max-episode-steps",
+        "150",
+        "--workers",
+        "2",
+        "--out",
+        str(out),
+        "--quiet",
+    ]
     proc, log = _start_run(cmd, out, lines=2)
     proc.send_signal(signal.SIGTERM)
     _, stderr = proc.communicate(timeout=60)

@@ -42,7 +42,9 @@ class RecordingController(BaseController):
         return {"transitions": plant.used}
 
     def _reset(self, scenario, seed):
-        SEEN.append({"where": "reset", "scenario": {k: getattr(scenario, k) for k in vars(scenario)}, "seed": seed})
+        SEEN.append(
+            {"where": "reset", "scenario": {k: getattr(scenario, k) for k in vars(scenario)}, "seed": seed}
+        )
 
     def _act(self, observation, info):
         SEEN.append({"where": "act", "info": dict(info)})
@@ -56,7 +58,9 @@ def _strings_and_numbers(value: Any, out: list) -> list:
             out.append(str(k))
             _strings_and_numbers(v, out)
     elif isinstance(value, (list, tuple, np.ndarray)):
-        for v in np.asarray(value, dtype=object).reshape(-1).tolist() if isinstance(value, np.ndarray) else value:
+        for v in (
+            np.asarray(value, dtype=object).reshape(-1).tolist() if isinstance(value, np.ndarray) else value
+        ):
             _strings_and_numbers(v, out)
     else:
         out.append(value)
@@ -67,9 +71,18 @@ def test_no_controller_receives_a_slip_value() -> None:
     """A recording controller sees no slip keyword, setting name or lambda, only plant data."""
     controllers.register("recording", RecordingController, overwrite=True)
     SEEN.clear()
-    results = ev.evaluate(ev.RunSpec("KoopNav-Formation-v0", ["recording"], ["map3"], ["high", "0.0,0.13,0.29"],
-                                     episodes=1, env_kwargs={"max_episode_steps": 5}, calibration_budget=100),
-                          workers=1)  # fmt: skip
+    results = ev.evaluate(
+        ev.RunSpec(
+            "KoopNav-Formation-v0",
+            ["recording"],
+            ["map3"],
+            ["high", "0.0,0.13,0.29"],
+            episodes=1,
+            env_kwargs={"max_episode_steps": 5},
+            calibration_budget=100,
+        ),
+        workers=1,
+    )
     assert all(r["status"] == "ok" for r in results.records)
     assert {e["where"] for e in SEEN} == {"init", "calibrate", "reset", "act"}
     assert all(e["options"] == {} for e in SEEN if e["where"] == "init")
@@ -120,8 +133,17 @@ class FailingCalibration(BaseController):
 
 def test_a_failing_calibration_is_recorded_for_its_cell_only() -> None:
     controllers.register("failing-calibration", FailingCalibration, overwrite=True)
-    results = ev.evaluate(ev.RunSpec("KoopNav-TargetReaching-v0", ["failing-calibration", "consensus"], ["map1"],
-                                     ["nominal"], episodes=2, env_kwargs={"max_episode_steps": 10}), workers=1)  # fmt: skip
+    results = ev.evaluate(
+        ev.RunSpec(
+            "KoopNav-TargetReaching-v0",
+            ["failing-calibration", "consensus"],
+            ["map1"],
+            ["nominal"],
+            episodes=2,
+            env_kwargs={"max_episode_steps": 10},
+        ),
+        workers=1,
+    )
     failed = results.cell("KoopNav-TargetReaching-v0", "failing-calibration", "map1", "nominal")
     assert failed.errors == 2 and "calibration of 'failing-calibration' failed" in failed.error_messages[0]
     assert "no data for you" in failed.error_messages[0]
@@ -151,11 +173,27 @@ def test_robust_variants_share_one_margin_rule() -> None:
         controllers.make("nominal-nmpc-robust").safety_margins(scenario)
 
 
-def _record(success: bool, collision: str | None, distances: list[float], seed: int, controller: str = "c") -> dict:
-    return {"env_id": "E", "controller": controller, "map": "m", "slip": "s", "seed": seed, "status": "ok",
-            "success": success, "collision": collision, "final_distance": distances, "time_to_goal": 1.0,
-            "path_length": [1.0], "control_effort": [1.0], "formation_rms": None, "solve_ms_median": 1.0,
-            "solve_ms_p95": 2.0, "solver_failures": 0}  # fmt: skip
+def _record(
+    success: bool, collision: str | None, distances: list[float], seed: int, controller: str = "c"
+) -> dict:
+    return {
+        "env_id": "E",
+        "controller": controller,
+        "map": "m",
+        "slip": "s",
+        "seed": seed,
+        "status": "ok",
+        "success": success,
+        "collision": collision,
+        "final_distance": distances,
+        "time_to_goal": 1.0,
+        "path_length": [1.0],
+        "control_effort": [1.0],
+        "formation_rms": None,
+        "solve_ms_median": 1.0,
+        "solve_ms_p95": 2.0,
+        "solver_failures": 0,
+    }
 
 
 def test_both_distance_conventions_on_hand_made_records() -> None:
@@ -200,7 +238,9 @@ def test_paper_strict_builds_hard_constraints() -> None:
         ctrl = cfg.build()
         assert ctrl.config.soft_constraints is False and ctrl.config.uncertainty_margin == 0
         if cfg.name == "koopman-nmpc":
-            ctrl.calibrate(make_plant("KoopNav-TargetReaching-v0", slip="nominal"), seed=0)  # the shipped model
+            ctrl.calibrate(
+                make_plant("KoopNav-TargetReaching-v0", slip="nominal"), seed=0
+            )  # the shipped model
         ctrl.reset(env.unwrapped.scenario, seed=0)
         assert ctrl._problem.ns == 0  # no slack variables: the paper's hard constraints
     default = ev.paper_protocol().controllers[0].build()
@@ -213,10 +253,16 @@ def test_ablation_configurations_and_bad_factor(tmp_path) -> None:
     only_margins = ablation_configs(["margins"])
     assert [dict(c.options)["uncertainty_margin"] for c in only_margins] == [0.0, 3.0]
     assert {c.name for c in only_margins} == {"koopman-nmpc"}
-    with pytest.raises(ValueError, match=r"ablation factor 'slip' is not one of \['model', 'margins', 'constraints'\]"):
+    with pytest.raises(
+        ValueError, match=r"ablation factor 'slip' is not one of \['model', 'margins', 'constraints'\]"
+    ):
         ablation_configs(["slip"])
-    proc = subprocess.run([sys.executable, "evaluate.py", "--ablation", "slip", "--out", str(tmp_path / "x")],
-                          cwd=Path(ev.__file__).parent, capture_output=True, text=True)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "evaluate.py", "--ablation", "slip", "--out", str(tmp_path / "x")],
+        cwd=Path(ev.__file__).parent,
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2 and "ablation factor 'slip'" in proc.stderr
     assert set(FACTORS) == {"model", "margins", "constraints"}
 
@@ -227,7 +273,9 @@ def test_ablation_report_states_main_effects() -> None:
     for cfg in ablation_configs(["margins"]):
         widened = dict(cfg.options)["uncertainty_margin"] > 0
         for seed in range(12):
-            records.append({**_record(widened or seed < 2, None, [0.02, 0.02], seed), "controller": cfg.label})
+            records.append(
+                {**_record(widened or seed < 2, None, [0.02, 0.02], seed), "controller": cfg.label}
+            )
     results = ev.Results(records, {"episodes": 12, "calibration": {"budget": 100}})
     text = ablation_markdown(results, ["margins"])
     assert "paper vs widened" in text and "lowers success by 83 percentage points" in text
@@ -236,9 +284,18 @@ def test_ablation_report_states_main_effects() -> None:
 
 def test_start_noise_makes_nominal_trials_differ() -> None:
     """The default leaderboard perturbs starts: nominal-slip trials are no longer copies of each other."""
-    assert ev.quick_protocol().env_kwargs["start_noise"] > 0 and "start_noise" not in ev.paper_protocol().env_kwargs
-    common = ev.RunSpec("KoopNav-Formation-v0", ["consensus"], maps=["map4"], slips=["nominal"], episodes=2,
-                        env_kwargs={"max_episode_steps": 30})  # fmt: skip
+    assert (
+        ev.quick_protocol().env_kwargs["start_noise"] > 0
+        and "start_noise" not in ev.paper_protocol().env_kwargs
+    )
+    common = ev.RunSpec(
+        "KoopNav-Formation-v0",
+        ["consensus"],
+        maps=["map4"],
+        slips=["nominal"],
+        episodes=2,
+        env_kwargs={"max_episode_steps": 30},
+    )
     exact = ev.evaluate(common, workers=1)
     assert exact.records[0]["final_poses"] == exact.records[1]["final_poses"]
     noisy = ev.evaluate(common.replace(env_kwargs={"max_episode_steps": 30, "start_noise": 0.05}), workers=1)

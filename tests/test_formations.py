@@ -12,7 +12,9 @@ from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for,
 
 def test_documented_offsets_for_several_team_sizes():
     s = 0.9
-    np.testing.assert_allclose(formation_shape("wedge", 5, s), [[0, 0], [-s, s], [-s, -s], [-2 * s, 2 * s], [-2 * s, -2 * s]])
+    np.testing.assert_allclose(
+        formation_shape("wedge", 5, s), [[0, 0], [-s, s], [-s, -s], [-2 * s, 2 * s], [-2 * s, -2 * s]]
+    )
     np.testing.assert_allclose(formation_shape("line", 4, s), [[0, 0], [0, s], [0, -s], [0, 2 * s]])
     np.testing.assert_allclose(formation_shape("column", 3, s), [[0, 0], [-s, 0], [-2 * s, 0]])
     # circle: leader at the centre, the first follower straight behind, then counter-clockwise
@@ -46,12 +48,15 @@ def test_world_offsets_turn_with_the_leader_heading():
     np.testing.assert_allclose(formation_offsets_for("wedge", 3, 1.0, 0.0), local)
 
 
-@pytest.mark.parametrize(("kwargs", "message"), [
-    ({"name": "diamond", "n_robots": 3, "spacing": 1.0}, r"formation='diamond' is not one of \['wedge'"),
-    ({"name": "line", "n_robots": 0, "spacing": 1.0}, "n_robots=0 must be an integer >= 1"),
-    ({"name": "line", "n_robots": 3, "spacing": 0.0}, "spacing=0.0 must be a finite number > 0"),
-    ({"name": "line", "n_robots": 3, "spacing": float("nan")}, "spacing=nan"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"name": "diamond", "n_robots": 3, "spacing": 1.0}, r"formation='diamond' is not one of \['wedge'"),
+        ({"name": "line", "n_robots": 0, "spacing": 1.0}, "n_robots=0 must be an integer >= 1"),
+        ({"name": "line", "n_robots": 3, "spacing": 0.0}, "spacing=0.0 must be a finite number > 0"),
+        ({"name": "line", "n_robots": 3, "spacing": float("nan")}, "spacing=nan"),
+    ],
+)
 def test_bad_shapes_are_rejected(kwargs, message):
     with pytest.raises(ValueError, match=message):
         formation_shape(**kwargs)

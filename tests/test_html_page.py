@@ -26,8 +26,12 @@ def run(tmp_path_factory) -> tuple[ev.Results, Path]:
     spec = ev.RunSpec(
         envs=["KoopNav-TargetReaching-v0"],
         controllers=["consensus", f"consensus:goal_gain=2.0,label={XSS_LABEL}"],
-        maps=["map1"], slips=["nominal", "high"], episodes=2, seed=3, env_kwargs={"max_episode_steps": 30},
-    )  # fmt: skip
+        maps=["map1"],
+        slips=["nominal", "high"],
+        episodes=2,
+        seed=3,
+        env_kwargs={"max_episode_steps": 30},
+    )
     results = ev.evaluate(spec, workers=1, progress=False)
     out = tmp_path_factory.mktemp("run")
     (out / "animations").mkdir()
@@ -125,8 +129,14 @@ def test_labels_are_escaped(run, page) -> None:
 
 def test_config_summary(page) -> None:
     command = "Regenerate with <code>python evaluate.py --controllers consensus --episodes 2</code>"
-    for text in ("KoopNav-TargetReaching-v0", "map1", "nominal, high", "Episodes per cell", "1,000,000",
-                 command):  # fmt: skip
+    for text in (
+        "KoopNav-TargetReaching-v0",
+        "map1",
+        "nominal, high",
+        "Episodes per cell",
+        "1,000,000",
+        command,
+    ):
         assert text in page, text
     assert "consensus, goal_gain: 2" in page  # the options of the labelled configuration
 
@@ -155,10 +165,18 @@ def browser(tmp_path_factory):
     options = webdriver.ChromeOptions()
     # both paths given: selenium-manager is not asked to find (or download) anything
     options.binary_location = str(CHROMIUM)
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                "--no-first-run", "--window-size=1280,1600",
-                f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}"):  # fmt: skip
+    for arg in (
+        "--headless=new",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-dev-shm-usage",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        "--window-size=1280,1600",
+        f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}",
+    ):
         options.add_argument(arg)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
@@ -169,8 +187,10 @@ def browser(tmp_path_factory):
 def _rows(table) -> list[list[str]]:
     from selenium.webdriver.common.by import By
 
-    return [[td.text for td in tr.find_elements(By.TAG_NAME, "td")]
-            for tr in table.find_elements(By.CSS_SELECTOR, "tbody tr")]  # fmt: skip
+    return [
+        [td.text for td in tr.find_elements(By.TAG_NAME, "td")]
+        for tr in table.find_elements(By.CSS_SELECTOR, "tbody tr")
+    ]
 
 
 def _number(text: str) -> float:

@@ -15,10 +15,10 @@ import pytest
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.config import EngineConfig
-from koopman_envs.keywords import ENV_KEYWORDS, FRONTS, env_keywords
 from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
 from koopman_envs.fronts.vector_env import KoopNavVectorEnv
+from koopman_envs.keywords import ENV_KEYWORDS, FRONTS, env_keywords
 
 FO = "KoopNav-Formation-v0"
 
@@ -100,8 +100,11 @@ def test_every_keyword_reaches_the_one_check(builder: str) -> None:
 @pytest.mark.parametrize("builder", BUILDERS)
 def test_unknown_keywords_are_named_with_the_allowed_ones(builder: str) -> None:
     front, make = BUILDERS[builder]
-    with pytest.raises(TypeError, match=r"got an unexpected keyword argument 'n_robot'; unknown keyword arguments \['n_robot'\] \(did you mean 'n_robots' "
-                                        r"for 'n_robot'\?\); allowed: \[.*'render_mode'.*'formation'"):  # fmt: skip
+    with pytest.raises(
+        TypeError,
+        match=r"got an unexpected keyword argument 'n_robot'; unknown keyword arguments \['n_robot'\] \(did you mean 'n_robots' "
+        r"for 'n_robot'\?\); allowed: \[.*'render_mode'.*'formation'",
+    ):
         make(n_robot=4)
     if front != "parallel":
         with pytest.raises(TypeError, match=r"unknown keyword arguments \['max_cycles'\]"):
@@ -115,9 +118,15 @@ def test_engine_config_create_takes_the_table_and_nothing_else() -> None:
     assert defaults.map_name == "map3" and defaults.n_robots == 3 and defaults.formation is None
     assert defaults.max_episode_steps is None  # no front: no default limit
     assert EngineConfig.create("formation", front="vector").max_episode_steps == 600
-    with pytest.raises(TypeError, match=r"the KoopNav env got an unexpected keyword argument 'colour'; unknown keyword arguments \['colour'\]"):
+    with pytest.raises(
+        TypeError,
+        match=r"the KoopNav env got an unexpected keyword argument 'colour'; unknown keyword arguments \['colour'\]",
+    ):
         EngineConfig.create("formation", colour="red")
-    with pytest.raises(TypeError, match=r"the gym env got an unexpected keyword argument 'max_cycles'; unknown keyword arguments \['max_cycles'\]"):
+    with pytest.raises(
+        TypeError,
+        match=r"the gym env got an unexpected keyword argument 'max_cycles'; unknown keyword arguments \['max_cycles'\]",
+    ):
         EngineConfig.create("formation", front="gym", max_cycles=3)
 
 
@@ -143,8 +152,15 @@ def test_the_docs_list_every_keyword() -> None:
 def test_the_evaluator_takes_the_table_as_env_kwargs() -> None:
     from evaluation.spec import RunSpec
 
-    spec = RunSpec("KoopNav-Formation-v0", ["consensus"], maps=["random"], env_kwargs={"formation": "line", "n_robots": 6})
+    spec = RunSpec(
+        "KoopNav-Formation-v0",
+        ["consensus"],
+        maps=["random"],
+        env_kwargs={"formation": "line", "n_robots": 6},
+    )
     spec.validate()
     assert spec.env_settings()["formation"] == "line"
-    with pytest.raises(ValueError, match=r"env_kwargs: 'colour' is not one the environments take; allowed: .*'formation'"):
+    with pytest.raises(
+        ValueError, match=r"env_kwargs: 'colour' is not one the environments take; allowed: .*'formation'"
+    ):
         spec.replace(env_kwargs={"colour": "red"}).validate()

@@ -107,8 +107,9 @@ def test_shipped_high_model_is_what_the_documented_command_makes(tmp_path) -> No
     out = tmp_path / "high.npz"
     subprocess.run(
         [sys.executable, "-m", "controllers.koopman", "fit", "--slip", "high", "--out", str(out)],
-        check=True, capture_output=True,
-    )  # fmt: skip
+        check=True,
+        capture_output=True,
+    )
     assert out.read_bytes() == shipped_path("high").read_bytes()
 
 
@@ -118,12 +119,15 @@ def test_other_shipped_models_regenerate(tmp_path, setting: str) -> None:
     out = tmp_path / f"{setting}.npz"
     subprocess.run(
         [sys.executable, "-m", "controllers.koopman", "fit", "--slip", setting, "--out", str(out)],
-        check=True, capture_output=True,
-    )  # fmt: skip
+        check=True,
+        capture_output=True,
+    )
     assert out.read_bytes() == shipped_path(setting).read_bytes()
 
 
-def test_shipped_models_are_the_calibration_cache_entries_of_the_paper_settings(tmp_path, monkeypatch) -> None:
+def test_shipped_models_are_the_calibration_cache_entries_of_the_paper_settings(
+    tmp_path, monkeypatch
+) -> None:
     """The evaluator's default calibration of each paper setting loads the shipped file, not a fit."""
     monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path))
     for setting in SHIPPED:
@@ -163,7 +167,9 @@ def test_bad_model_files(tmp_path, nominal_model: KoopmanModel) -> None:
 
 def test_wrong_matrix_shapes_are_rejected(nominal_model: KoopmanModel) -> None:
     with pytest.raises(ModelFileError, match="A has shape"):
-        KoopmanModel(np.eye(3), nominal_model.N, nominal_model.B, nominal_model.C, nominal_model.dictionary, 3, 0.1)
+        KoopmanModel(
+            np.eye(3), nominal_model.N, nominal_model.B, nominal_model.C, nominal_model.dictionary, 3, 0.1
+        )
 
 
 @pytest.mark.parametrize("dictionary", ["minimal", "extended"])
@@ -222,7 +228,10 @@ def test_calibrated_models_are_deterministic_and_cached(tmp_path, monkeypatch) -
 
 
 def test_data_collection_is_seeded() -> None:
-    a, b = _data((0.0, 0.2), trajectories=5, steps=10, seed=9), _data((0.0, 0.2), trajectories=5, steps=10, seed=9)
+    a, b = (
+        _data((0.0, 0.2), trajectories=5, steps=10, seed=9),
+        _data((0.0, 0.2), trajectories=5, steps=10, seed=9),
+    )
     np.testing.assert_array_equal(a.states, b.states)
     assert a.states.shape == (11, 5, 2, 3) and a.commands.shape == (10, 5, 2, 2)
     assert np.abs(a.commands).max() <= 1.0 and np.abs(a.states[0]).max() <= 10.0
@@ -231,10 +240,23 @@ def test_data_collection_is_seeded() -> None:
 def test_cli_accuracy_json_and_plot(tmp_path) -> None:
     plot = tmp_path / "circle.png"
     out = subprocess.run(
-        [sys.executable, "-m", "controllers.koopman", "accuracy", "--slip", "low", "--json",
-         "--repetitions", "5", "--plot", str(plot)],
-        check=True, capture_output=True, text=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "controllers.koopman",
+            "accuracy",
+            "--slip",
+            "low",
+            "--json",
+            "--repetitions",
+            "5",
+            "--plot",
+            str(plot),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     report = json.loads(out.stdout)
     assert len(report["rmse_fixed_seed"]) == 3 and report["repetitions"] == 5
     assert plot.stat().st_size > 10_000
@@ -243,8 +265,9 @@ def test_cli_accuracy_json_and_plot(tmp_path) -> None:
 def test_cli_reports_bad_input() -> None:
     out = subprocess.run(
         [sys.executable, "-m", "controllers.koopman", "accuracy", "--model", "/no/such.npz"],
-        capture_output=True, text=True,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+    )
     assert out.returncode == 2 and "does not exist" in out.stderr
 
 
@@ -289,8 +312,9 @@ def test_per_robot_structure_matches_the_stacked_fit_with_far_fewer_coefficients
     rows = dic.state_rows(3)[1]
     assert not np.any(per_robot.A[np.ix_(rows, dic.state_rows(3)[[0, 2]].reshape(-1))])
     assert np.count_nonzero(per_robot.N) < np.count_nonzero(stacked.N) / 2
-    model, summary = calibrated_model(make_plant("KoopNav-TargetReaching-v0", n_robots=5, budget=5_000),
-                                      structure="per-robot")  # fmt: skip
+    model, summary = calibrated_model(
+        make_plant("KoopNav-TargetReaching-v0", n_robots=5, budget=5_000), structure="per-robot"
+    )
     assert model.n_robots == 5 and model.metadata["structure"] == "per-robot"
     with pytest.raises(ValueError, match=r"structure='team' is not one of \['stacked', 'per-robot'\]"):
         calibrated_model(plant, structure="team")

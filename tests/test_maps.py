@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -64,7 +63,9 @@ def test_random_maps_are_valid_for_1000_seeds() -> None:
         assert obs.shape == (cfg.n_obstacles, 3)
         gaps = np.linalg.norm(poses[:, None] - obs[None, :, :2], axis=-1) - obs[:, 2] - 0.2
         assert gaps.min() >= cfg.clearance - 1e-12
-        pair = np.linalg.norm(obs[:, None, :2] - obs[None, :, :2], axis=-1) - obs[:, None, 2] - obs[None, :, 2]
+        pair = (
+            np.linalg.norm(obs[:, None, :2] - obs[None, :, :2], axis=-1) - obs[:, None, 2] - obs[None, :, 2]
+        )
         np.fill_diagonal(pair, np.inf)
         assert pair.min() >= cfg.gap - 1e-12
         travel = np.linalg.norm(spec.targets[0, :2] - spec.starts[0, :2])

@@ -52,9 +52,15 @@ def test_features_follow_the_documented_layout(task: str, map_name: str, n_obsta
         scenario = engine.scenario(k)
         for i in range(config.n_robots):
             expected = _expected_block(
-                poses[k], scenario.targets, scenario.obstacles, 0.2, scenario.formation_offsets, i,
-                n_obstacle_obs, config.task.formation,
-            )  # fmt: skip
+                poses[k],
+                scenario.targets,
+                scenario.obstacles,
+                0.2,
+                scenario.formation_offsets,
+                i,
+                n_obstacle_obs,
+                config.task.formation,
+            )
             expected = np.clip(expected, engine.feature_low, engine.feature_high)
             np.testing.assert_allclose(features[k, i], expected, rtol=0, atol=1e-12)
     assert features[1, 0, 0] == 20.0 and features[1, 0, 1] == -20.0

@@ -144,7 +144,9 @@ def test_a_copy_renders_what_the_original_renders_over_a_whole_episode() -> None
     later frame pixel for pixel as the original, to the end of the episode."""
     import copy
 
-    env = gym.make("KoopNav-Formation-v0", map="random", n_robots=5, render_mode="rgb_array", max_episode_steps=130)
+    env = gym.make(
+        "KoopNav-Formation-v0", map="random", n_robots=5, render_mode="rgb_array", max_episode_steps=130
+    )
     env.reset(seed=3)
     rng = np.random.default_rng(0)
     copies = {}
@@ -153,7 +155,9 @@ def test_a_copy_renders_what_the_original_renders_over_a_whole_episode() -> None
     while not done:
         frame = env.render()
         for made_at, clone in copies.items():
-            assert np.array_equal(clone.render(), frame), f"copy made at step {made_at} differs at step {step}"
+            assert np.array_equal(clone.render(), frame), (
+                f"copy made at step {made_at} differs at step {step}"
+            )
         if step in (0, 37, 99):
             copies[step] = copy.deepcopy(env)
         action = rng.uniform(-0.3, 0.3, env.action_space.shape)

@@ -37,10 +37,18 @@ class StandStill(BaseController):
 def test_options_and_a_script_local_class_are_their_own_rows() -> None:
     spec = ev.RunSpec(
         TARGET,
-        {"mine": StandStill, "mine-moving": (StandStill, {"speed": 0.05}), "gentle": ("consensus", {"goal_gain": 0.01}),
-         "default": "consensus", "text": "consensus:goal_gain=2.0"},
-        maps=["map1"], slips=["nominal"], episodes=1, env_kwargs={"max_episode_steps": 40},
-    )  # fmt: skip
+        {
+            "mine": StandStill,
+            "mine-moving": (StandStill, {"speed": 0.05}),
+            "gentle": ("consensus", {"goal_gain": 0.01}),
+            "default": "consensus",
+            "text": "consensus:goal_gain=2.0",
+        },
+        maps=["map1"],
+        slips=["nominal"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 40},
+    )
     results = ev.evaluate(spec, workers=2)
     rows = {row["controller"] for row in results.leaderboard()}
     assert rows == {"mine", "mine-moving", "gentle", "default", "text"}
@@ -58,8 +66,14 @@ def test_options_and_a_script_local_class_are_their_own_rows() -> None:
 
 
 def test_env_kwargs_reach_the_env_and_the_record() -> None:
-    spec = ev.RunSpec(TARGET, ["consensus"], maps=["random"], slips=["high"], episodes=1,
-                      env_kwargs={"max_episode_steps": 30, "n_robots": 5, "goal_tolerance": 0.08})  # fmt: skip
+    spec = ev.RunSpec(
+        TARGET,
+        ["consensus"],
+        maps=["random"],
+        slips=["high"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 30, "n_robots": 5, "goal_tolerance": 0.08},
+    )
     results = ev.evaluate(spec, workers=1)
     (rec,) = results.records
     assert rec["status"] == "ok", rec.get("error")
@@ -69,15 +83,26 @@ def test_env_kwargs_reach_the_env_and_the_record() -> None:
 
 
 def test_random_maps_are_one_row_of_k_shared_layouts() -> None:
-    spec = ev.RunSpec(TARGET, ["consensus", "consensus-free"], maps=["map1"], slips=["nominal"], episodes=1,
-                      random_maps=3, env_kwargs={"max_episode_steps": 20})  # fmt: skip
+    spec = ev.RunSpec(
+        TARGET,
+        ["consensus", "consensus-free"],
+        maps=["map1"],
+        slips=["nominal"],
+        episodes=1,
+        random_maps=3,
+        env_kwargs={"max_episode_steps": 20},
+    )
     results = ev.evaluate(spec, workers=1)
     random_cells = [c for c in results.cells if c.map == "random"]
     assert len(random_cells) == 2 and all(c.episodes == 3 for c in random_cells)
     first = [r for r in results.records if r["map"] == "random" and r["trial"] == 0]
     # trial 0 of both controllers drove on one layout; the three trials have three layouts
     assert first[0]["obstacles"] == first[1]["obstacles"]
-    targets = {json.dumps(r["targets"]) for r in results.records if r["map"] == "random" and r["controller"] == "consensus"}
+    targets = {
+        json.dumps(r["targets"])
+        for r in results.records
+        if r["map"] == "random" and r["controller"] == "consensus"
+    }
     assert len(targets) == 3
 
 
@@ -87,8 +112,14 @@ def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> Non
     path = tmp_path / "mine.json"
     load_map("map1").save(path)
     out = tmp_path / "run"
-    spec = ev.RunSpec(TARGET, ["consensus"], maps=[str(path)], slips=["nominal"], episodes=1,
-                      env_kwargs={"max_episode_steps": 20})  # fmt: skip
+    spec = ev.RunSpec(
+        TARGET,
+        ["consensus"],
+        maps=[str(path)],
+        slips=["nominal"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 20},
+    )
     results = ev.evaluate(spec, workers=1, out=out)
     assert results.records[0]["status"] == "ok" and results.records[0]["map"] == str(path)
     assert str(path) in results.config["map_files"]
@@ -100,8 +131,15 @@ def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> Non
 
 
 def test_gifs_record_one_animation_per_cell(tmp_path) -> None:
-    spec = ev.RunSpec(TARGET, ["consensus"], maps=["map1"], slips=["nominal"], episodes=2, gifs=True,
-                      env_kwargs={"max_episode_steps": 5})  # fmt: skip
+    spec = ev.RunSpec(
+        TARGET,
+        ["consensus"],
+        maps=["map1"],
+        slips=["nominal"],
+        episodes=2,
+        gifs=True,
+        env_kwargs={"max_episode_steps": 5},
+    )
     results = ev.evaluate(spec, workers=1, out=tmp_path)
     first, second = results.records
     assert first["animation"] and not second["animation"]
@@ -110,19 +148,48 @@ def test_gifs_record_one_animation_per_cell(tmp_path) -> None:
 
 
 def test_comma_separated_lists_work_like_spaced_ones() -> None:
-    assert split_controller_list(["nominal-nmpc,koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]) == [
-        "nominal-nmpc", "koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]  # fmt: skip
-    assert ev.split_slips(["nominal,high", "0,0.1,0.2", "low,0,0,0.3"]) == ["nominal", "high", "0,0.1,0.2", "low",
-                                                                          "0,0,0.3"]  # fmt: skip
+    assert split_controller_list(
+        ["nominal-nmpc,koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]
+    ) == ["nominal-nmpc", "koopman-nmpc:horizon=30,uncertainty_margin=0", "consensus"]
+    assert ev.split_slips(["nominal,high", "0,0.1,0.2", "low,0,0,0.3"]) == [
+        "nominal",
+        "high",
+        "0,0.1,0.2",
+        "low",
+        "0,0,0.3",
+    ]
     assert ev.split_words(["map1,map2", "map3"]) == ["map1", "map2", "map3"]
-    assert ev.parse_env_kwargs(["n_robots=5", "random_map={\"n_obstacles\": 2}", "x=text"]) == {
-        "n_robots": 5, "random_map": {"n_obstacles": 2}, "x": "text"}  # fmt: skip
+    assert ev.parse_env_kwargs(["n_robots=5", 'random_map={"n_obstacles": 2}', "x=text"]) == {
+        "n_robots": 5,
+        "random_map": {"n_obstacles": 2},
+        "x": "text",
+    }
 
 
 def test_cli_runs_comma_lists_env_kwargs_and_random_maps(tmp_path) -> None:
-    cmd = [sys.executable, "evaluate.py", "--env", TARGET, "--controllers", "consensus,consensus:goal_gain=0.5",
-           "--maps", "random", "--random-maps", "2", "--slips", "nominal,high", "--env-kwargs", "n_robots=4",
-           "--max-episode-steps", "20", "--workers", "1", "--out", str(tmp_path), "--quiet"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "evaluate.py",
+        "--env",
+        TARGET,
+        "--controllers",
+        "consensus,consensus:goal_gain=0.5",
+        "--maps",
+        "random",
+        "--random-maps",
+        "2",
+        "--slips",
+        "nominal,high",
+        "--env-kwargs",
+        "n_robots=4",
+        "--max-episode-steps",
+        "20",
+        "--workers",
+        "1",
+        "--out",
+        str(tmp_path),
+        "--quiet",
+    ]
     proc = subprocess.run(cmd, cwd=Path(ev.__file__).parent, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     doc = json.loads((tmp_path / "results.json").read_text())
@@ -138,8 +205,11 @@ def _lambda_factory_config():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(env_kwargs={"n_robotz": 5}), "env_kwargs: 'n_robotz' is not one the environments take .did you mean "
-                                           "'n_robots'.*; allowed: .*n_robots"),
+        (
+            dict(env_kwargs={"n_robotz": 5}),
+            "env_kwargs: 'n_robotz' is not one the environments take .did you mean "
+            "'n_robots'.*; allowed: .*n_robots",
+        ),
         (dict(env_kwargs={"map": "map2"}), "env_kwargs: 'map' is a cell axis"),
         (dict(env_kwargs={"n_robots": 5}), "map 'map1'.*n_robots"),
         (dict(env_kwargs={"goal_tolerance": -1}), "goal_tolerance=-1"),
@@ -154,15 +224,22 @@ def _lambda_factory_config():
     ],
 )
 def test_bad_research_input_is_named_before_any_episode(kwargs, message) -> None:
-    base = dict(envs=TARGET, controllers=["consensus"], maps=["map1"], slips=["nominal"], episodes=1,
-                env_kwargs={"max_episode_steps": 10})  # fmt: skip
+    base = dict(
+        envs=TARGET,
+        controllers=["consensus"],
+        maps=["map1"],
+        slips=["nominal"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 10},
+    )
     options = {"workers": kwargs.pop("workers", 1)}
     with pytest.raises(ValueError, match=message):
         ev.evaluate(ev.RunSpec(**{**base, **kwargs}), **options)
 
 
 def test_mapping_forms_give_the_same_configuration() -> None:
-    a, b, c = controller_configs({"g": "consensus:goal_gain=0.4", "h": ("consensus", {"goal_gain": 0.4}),
-                                  "k": ConsensusController})  # fmt: skip
+    a, b, c = controller_configs(
+        {"g": "consensus:goal_gain=0.4", "h": ("consensus", {"goal_gain": 0.4}), "k": ConsensusController}
+    )
     assert (a.name, a.options) == (b.name, b.options) == ("consensus", (("goal_gain", 0.4),))
     assert c.factory is ConsensusController and c.name == "controllers.consensus.ConsensusController"

@@ -20,13 +20,22 @@ def page():
 
 def _config(n_robots: int, max_steps: int = 600) -> dict:
     return {
-        "env_ids": ["KoopNav-TargetReaching-v0"], "maps": {"KoopNav-TargetReaching-v0": ["random"]},
-        "slips": ["nominal"], "episodes": 3, "max_episode_steps": max_steps,
-        "env_settings": {"goal_tolerance": 0.1, "max_episode_steps": max_steps, "start_noise": 0.05,
-                         "n_robots": n_robots},
-        "controller_configs": [{"label": "fast", "name": "nominal-nmpc", "options": {"horizon": 10}},
-                               {"label": "consensus", "name": "consensus", "options": {}}],
-    }  # fmt: skip
+        "env_ids": ["KoopNav-TargetReaching-v0"],
+        "maps": {"KoopNav-TargetReaching-v0": ["random"]},
+        "slips": ["nominal"],
+        "episodes": 3,
+        "max_episode_steps": max_steps,
+        "env_settings": {
+            "goal_tolerance": 0.1,
+            "max_episode_steps": max_steps,
+            "start_noise": 0.05,
+            "n_robots": n_robots,
+        },
+        "controller_configs": [
+            {"label": "fast", "name": "nominal-nmpc", "options": {"horizon": 10}},
+            {"label": "consensus", "name": "consensus", "options": {}},
+        ],
+    }
 
 
 def test_regenerate_command_carries_env_keywords_time_limit_and_options(page):
@@ -41,9 +50,20 @@ def test_regenerate_command_carries_env_keywords_time_limit_and_options(page):
 
 def _cell(controller: str, successes: int) -> dict:
     summary = {"runs": successes, "team_mean": 1.0, "team_low": 0.5, "team_high": 1.5, "per_robot": []}
-    return {"controller": controller, "episodes": 3, "errors": 0, "successes": successes, "collision_free": 3,
-            "success_ci": [0.1, 0.9], "collision_free_ci": [0.4, 1.0], "final_distance_cm": {"settled": summary},
-            "time_to_goal_s": 9.0, "solve_ms_median": 40.0, "solve_ms_p95": 90.0, "solver_failures": 0}  # fmt: skip
+    return {
+        "controller": controller,
+        "episodes": 3,
+        "errors": 0,
+        "successes": successes,
+        "collision_free": 3,
+        "success_ci": [0.1, 0.9],
+        "collision_free_ci": [0.4, 1.0],
+        "final_distance_cm": {"settled": summary},
+        "time_to_goal_s": 9.0,
+        "solve_ms_median": 40.0,
+        "solve_ms_p95": 90.0,
+        "solver_failures": 0,
+    }
 
 
 def test_scaling_table_has_a_row_per_team_size_and_names_what_was_not_run(page):

@@ -37,8 +37,12 @@ def _problem_after(name: str, env_id: str, map_name: str, steps: int, **options)
 
 def _tight_ipopt(prob, params, guess):
     options = {k: v for k, v in IPOPT_OPTIONS.items() if "warm" not in k and k != "ipopt.mu_init"}
-    solver = ca.nlpsol("tight", "ipopt", prob._nlp, {**options, "ipopt.tol": 1e-12, "ipopt.acceptable_iter": 0,
-                                                     "ipopt.max_iter": 500})  # fmt: skip
+    solver = ca.nlpsol(
+        "tight",
+        "ipopt",
+        prob._nlp,
+        {**options, "ipopt.tol": 1e-12, "ipopt.acceptable_iter": 0, "ipopt.max_iter": 500},
+    )
     sol = solver(x0=guess, p=params, **prob.bounds)
     assert solver.stats()["success"], solver.stats()["return_status"]
     return np.asarray(sol["x"]).ravel(), np.asarray(sol["lam_g"]).ravel()
@@ -46,7 +50,10 @@ def _tight_ipopt(prob, params, guess):
 
 @pytest.mark.parametrize(
     "name, env_id, map_name, steps",
-    [("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0), ("koopman-nmpc", "KoopNav-Formation-v0", "map4", 30)],
+    [
+        ("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0),
+        ("koopman-nmpc", "KoopNav-Formation-v0", "map4", 30),
+    ],
 )
 def test_iterated_to_convergence_it_reaches_ipopts_kkt_point(name, env_id, map_name, steps) -> None:
     ctrl, prob, state, params = _problem_after(name, env_id, map_name, steps)
@@ -94,7 +101,9 @@ def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
     ctrl.act(obs, info)
     plan, _ = ctrl.last_plan
     monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
-    monkeypatch.setattr(NMPCController, "_solve_nlp", lambda *_: _SolveOutcome(False, "Infeasible_Problem_Detected"))
+    monkeypatch.setattr(
+        NMPCController, "_solve_nlp", lambda *_: _SolveOutcome(False, "Infeasible_Problem_Detected")
+    )
     commands = [ctrl.act(obs, info) for _ in range(ctrl.config.horizon + 2)]
     stats = ctrl.stats()
     assert stats.statuses["rti:qp_failed(1) -> ipopt:Infeasible_Problem_Detected"] == len(commands)
@@ -171,8 +180,9 @@ def test_every_qp_solver_of_the_table_gives_the_same_step(name: str) -> None:
     guess = (ctrl._warm["x"], ctrl._warm["lam_x"], ctrl._warm["lam_g"])
     reference = prob.real_time_iteration().solve(*guess, params)
     # the same problem structure with another QP solver, solved at the first one's data
-    _, prob_q, _, _ = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0, horizon=5,
-                                     qp_solver=name)  # fmt: skip
+    _, prob_q, _, _ = _problem_after(
+        "nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0, horizon=5, qp_solver=name
+    )
     step = prob_q.real_time_iteration().solve(*guess, params)
     assert step.success, (name, step.status)
     np.testing.assert_allclose(step.w, reference.w, atol=1e-4)
@@ -189,8 +199,17 @@ print(result.trajectory.tobytes().hex(), result.steps)
 
 
 def test_same_seed_same_closed_loop_in_two_processes() -> None:
-    runs = [subprocess.run([sys.executable, "-c", _EPISODE], capture_output=True, text=True, cwd=ROOT,
-                           timeout=300, check=False) for _ in range(2)]  # fmt: skip
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", _EPISODE],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=300,
+            check=False,
+        )
+        for _ in range(2)
+    ]
     for run in runs:
         assert run.returncode == 0, run.stderr
     assert runs[0].stdout.strip() and runs[0].stdout == runs[1].stdout
@@ -200,8 +219,10 @@ def test_same_seed_same_closed_loop_in_two_processes() -> None:
 def test_with_solver_sets_every_nmpc_that_names_none() -> None:
     from evaluation.configs import parse_controller, with_solver
 
-    configs = [parse_controller(t) for t in ("koopman-nmpc", "consensus", "safe:nominal-nmpc",
-                                             "nominal-nmpc:solver=fatrop,label=fixed")]  # fmt: skip
+    configs = [
+        parse_controller(t)
+        for t in ("koopman-nmpc", "consensus", "safe:nominal-nmpc", "nominal-nmpc:solver=fatrop,label=fixed")
+    ]
     out = with_solver(configs, "rti")
     assert dict(out[0].options)["solver"] == "rti" and out[0].label == "koopman-nmpc"
     assert out[1] == configs[1]  # consensus has no solver
@@ -215,8 +236,14 @@ def test_with_solver_sets_every_nmpc_that_names_none() -> None:
 def test_the_report_names_each_rows_solver_and_the_terminal_gets_a_compact_board(tmp_path) -> None:
     import evaluate as ev
 
-    spec = ev.RunSpec("KoopNav-TargetReaching-v0", ["nominal-nmpc:solver=rti,horizon=5", "consensus"],
-                      maps=["map1"], slips=["nominal"], episodes=1, env_kwargs={"max_episode_steps": 20})  # fmt: skip
+    spec = ev.RunSpec(
+        "KoopNav-TargetReaching-v0",
+        ["nominal-nmpc:solver=rti,horizon=5", "consensus"],
+        maps=["map1"],
+        slips=["nominal"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 20},
+    )
     results = ev.evaluate(spec, workers=1)
     rows = {row["controller"]: row for row in results.leaderboard()}
     assert rows["nominal-nmpc:solver=rti,horizon=5"]["solver"] == "rti/hpipm"

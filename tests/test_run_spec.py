@@ -18,7 +18,10 @@ BOTH = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"envs": ["KoopNav-Formaton-v0"]}, r"envs: 'KoopNav-Formaton-v0' is not one of .* \(did you mean 'KoopNav-Formation-v0'"),
+        (
+            {"envs": ["KoopNav-Formaton-v0"]},
+            r"envs: 'KoopNav-Formaton-v0' is not one of .* \(did you mean 'KoopNav-Formation-v0'",
+        ),
         ({"controllers": []}, "controllers: no controller to evaluate"),
         ({"controllers": ["consensus", "consensus"]}, r"controllers: labels \['consensus'\] appear twice"),
         ({"controllers": ["consensus:gain"]}, "controllers: .*'gain' is not key=value"),
@@ -31,7 +34,10 @@ BOTH = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
         ({"random_maps": 0}, r"random_maps=0 must be an integer >= 1 \(layouts per cell\)"),
         ({"gifs": "yes"}, "gifs='yes' must be True or False"),
         ({"solver": "sqp"}, r"'sqp' is not one of \['ipopt', 'fatrop', 'rti'\]|'sqp' is not one of"),
-        ({"env_kwargs": {"max_episode_step": 5}}, r"env_kwargs: 'max_episode_step' .*did you mean 'max_episode_steps'"),
+        (
+            {"env_kwargs": {"max_episode_step": 5}},
+            r"env_kwargs: 'max_episode_step' .*did you mean 'max_episode_steps'",
+        ),
         ({"env_kwargs": {"slip": "high"}}, "env_kwargs: 'slip' is a cell axis"),
         ({"env_kwargs": {"n_robots": float("nan")}}, "env_kwargs: n_robots=nan must be plain JSON"),
         ({"env_kwargs": {"goal_tolerance": 0}}, "goal_tolerance=0 must be a finite number > 0"),
@@ -56,17 +62,27 @@ def test_evaluate_takes_a_run_spec_only() -> None:
 
 
 def test_forms_of_a_field_normalize_to_one_spec() -> None:
-    a = RunSpec(envs="KoopNav-Formation-v0", controllers=["consensus"], maps=["map3"], slips=[[0.0, 0.1, 0.2]])
-    b = RunSpec(envs=["KoopNav-Formation-v0"], controllers=("consensus",), maps={"KoopNav-Formation-v0": "map3"},
-                slips=("0.0,0.1,0.2",))
+    a = RunSpec(
+        envs="KoopNav-Formation-v0", controllers=["consensus"], maps=["map3"], slips=[[0.0, 0.1, 0.2]]
+    )
+    b = RunSpec(
+        envs=["KoopNav-Formation-v0"],
+        controllers=("consensus",),
+        maps={"KoopNav-Formation-v0": "map3"},
+        slips=("0.0,0.1,0.2",),
+    )
     assert a == b
     assert a.maps == {"KoopNav-Formation-v0": ("map3",)} and a.slips == ("0.0,0.1,0.2",)
 
 
 def test_env_settings_live_in_the_env_kwargs_only() -> None:
     spec = RunSpec(controllers=["consensus"], env_kwargs={"max_episode_steps": 40, "n_robots": 3})
-    assert spec.env_settings() == {"goal_tolerance": PARAMS.goal_tolerance, "max_episode_steps": 40,
-                                   "n_robots": 3, "start_noise": 0.0}  # fmt: skip
+    assert spec.env_settings() == {
+        "goal_tolerance": PARAMS.goal_tolerance,
+        "max_episode_steps": 40,
+        "n_robots": 3,
+        "start_noise": 0.0,
+    }
     (episode, *_) = spec.episodes_plan()
     assert episode.make_kwargs() == {**spec.env_settings(), "map": "map1", "slip": "nominal"}
     config = spec.config(workers=1, backend="process")
@@ -86,23 +102,48 @@ def test_signature_changes_with_what_an_episode_does() -> None:
 def test_presets_equal_the_protocols_field_by_field() -> None:
     """The values of the protocol dicts they replace (evaluation/protocols.py before RunSpec)."""
     quick = protocol("quick")
-    assert (quick.envs, quick.maps, quick.slips, quick.episodes, quick.env_kwargs, quick.solver, quick.controllers) == (
-        BOTH, PAPER_MAPS, ("high",), 2, {"start_noise": 0.05}, "rti", None)
+    assert (
+        quick.envs,
+        quick.maps,
+        quick.slips,
+        quick.episodes,
+        quick.env_kwargs,
+        quick.solver,
+        quick.controllers,
+    ) == (BOTH, PAPER_MAPS, ("high",), 2, {"start_noise": 0.05}, "rti", None)
     for name, strict in (("paper", False), ("paper-strict", True)):
         paper = protocol(name)
         assert (paper.envs, paper.maps, paper.slips, paper.episodes, paper.env_kwargs, paper.solver) == (
-            BOTH, PAPER_MAPS, ("nominal", "low", "high"), 10, {}, "ipopt")
+            BOTH,
+            PAPER_MAPS,
+            ("nominal", "low", "high"),
+            10,
+            {},
+            "ipopt",
+        )
         hard = (("soft_constraints", False), ("uncertainty_margin", 0.0))
-        expected = [ControllerConfig(n, n, hard if strict and n.endswith("nmpc") else ())
-                    for n in ("koopman-nmpc", "nominal-nmpc", "consensus")]  # fmt: skip
+        expected = [
+            ControllerConfig(n, n, hard if strict and n.endswith("nmpc") else ())
+            for n in ("koopman-nmpc", "nominal-nmpc", "consensus")
+        ]
         assert list(paper.controllers) == expected
     ablation = protocol("ablation")
     assert (ablation.envs, ablation.maps, ablation.slips, ablation.episodes, ablation.solver) == (
-        BOTH, PAPER_MAPS, ("high",), 20, "ipopt")
+        BOTH,
+        PAPER_MAPS,
+        ("high",),
+        20,
+        "ipopt",
+    )
     assert len(ablation.controllers) > 1
     for spec in (protocol(name) for name in PROTOCOLS):
         assert (spec.seed, spec.calibration_budget, spec.calibration_seed, spec.random_maps, spec.gifs) == (
-            0, PARAMS.calibration_budget, 0, None, False)
+            0,
+            PARAMS.calibration_budget,
+            0,
+            None,
+            False,
+        )
 
 
 def test_an_unknown_protocol_gets_a_suggestion() -> None:
@@ -111,14 +152,39 @@ def test_an_unknown_protocol_gets_a_suggestion() -> None:
 
 
 def test_the_command_line_builds_the_spec_its_options_say() -> None:
-    args = ev._parser().parse_args(["--paper", "--episodes", "3", "--maps", "map1", "--env", "KoopNav-TargetReaching-v0",
-                                    "--max-episode-steps", "50", "--env-kwargs", "n_robots=3", "--seed", "4"])
+    args = ev._parser().parse_args(
+        [
+            "--paper",
+            "--episodes",
+            "3",
+            "--maps",
+            "map1",
+            "--env",
+            "KoopNav-TargetReaching-v0",
+            "--max-episode-steps",
+            "50",
+            "--env-kwargs",
+            "n_robots=3",
+            "--seed",
+            "4",
+        ]
+    )
     spec = ev._spec_from_args(args)
-    assert spec == protocol("paper").replace(envs=["KoopNav-TargetReaching-v0"], maps=["map1"], episodes=3, seed=4,
-                                             env_kwargs={"max_episode_steps": 50, "n_robots": 3})  # fmt: skip
+    assert spec == protocol("paper").replace(
+        envs=["KoopNav-TargetReaching-v0"],
+        maps=["map1"],
+        episodes=3,
+        seed=4,
+        env_kwargs={"max_episode_steps": 50, "n_robots": 3},
+    )
     # controllers named on the command line keep their own solver; --solver applies to them
     named = ev._spec_from_args(ev._parser().parse_args(["--controllers", "nominal-nmpc"]))
     assert named.solver is None and named.env_kwargs == {"start_noise": 0.05}
-    assert ev._spec_from_args(ev._parser().parse_args(["--controllers", "nominal-nmpc", "--solver", "rti"])).solver == "rti"
+    assert (
+        ev._spec_from_args(
+            ev._parser().parse_args(["--controllers", "nominal-nmpc", "--solver", "rti"])
+        ).solver
+        == "rti"
+    )
     # the quick board keeps its solver for its own (all registered) controllers
     assert ev._spec_from_args(ev._parser().parse_args([])) == protocol("quick")

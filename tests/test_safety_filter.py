@@ -27,11 +27,22 @@ def scenario(obstacles, starts) -> Scenario:
     starts = np.asarray(starts, dtype=float)
     n = len(starts)
     return Scenario(
-        task="target_reaching", map_name="test", n_robots=n, obstacles=np.asarray(obstacles, dtype=float).reshape(-1, 3),
-        robot_radius=np.full(n, PARAMS.robot_radius), starts=starts, targets=starts.copy(),
-        formation_offsets=np.zeros((n, 2)), leader=0, v_max=PARAMS.v_max, omega_max=PARAMS.omega_max,
-        workspace=PARAMS.workspace, dt=PARAMS.dt, goal_tolerance=PARAMS.goal_tolerance, settle_steps=PARAMS.settle_steps,
-    )  # fmt: skip
+        task="target_reaching",
+        map_name="test",
+        n_robots=n,
+        obstacles=np.asarray(obstacles, dtype=float).reshape(-1, 3),
+        robot_radius=np.full(n, PARAMS.robot_radius),
+        starts=starts,
+        targets=starts.copy(),
+        formation_offsets=np.zeros((n, 2)),
+        leader=0,
+        v_max=PARAMS.v_max,
+        omega_max=PARAMS.omega_max,
+        workspace=PARAMS.workspace,
+        dt=PARAMS.dt,
+        goal_tolerance=PARAMS.goal_tolerance,
+        settle_steps=PARAMS.settle_steps,
+    )
 
 
 def barriers(sc: Scenario, poses, options: SafetyOptions = OPTIONS) -> list[tuple[str, float, np.ndarray]]:
@@ -51,9 +62,20 @@ def barriers(sc: Scenario, poses, options: SafetyOptions = OPTIONS) -> list[tupl
             d = p[i] - p[j]
             grad = np.zeros((n, 2))
             grad[i], grad[j] = d / np.linalg.norm(d), -d / np.linalg.norm(d)
-            out.append(("robot", np.linalg.norm(d) - (sc.robot_radius[i] + sc.robot_radius[j] + 2 * l + margin), grad))
+            out.append(
+                (
+                    "robot",
+                    np.linalg.norm(d) - (sc.robot_radius[i] + sc.robot_radius[j] + 2 * l + margin),
+                    grad,
+                )
+            )
         x0, x1, y0, y1 = sc.workspace
-        for normal, h in (((1, 0), p[i, 0] - x0), ((-1, 0), x1 - p[i, 0]), ((0, 1), p[i, 1] - y0), ((0, -1), y1 - p[i, 1])):
+        for normal, h in (
+            ((1, 0), p[i, 0] - x0),
+            ((-1, 0), x1 - p[i, 0]),
+            ((0, 1), p[i, 1] - y0),
+            ((0, -1), y1 - p[i, 1]),
+        ):
             grad = np.zeros((n, 2))
             grad[i] = normal
             out.append(("wall", h - (l + margin), grad))
@@ -64,7 +86,9 @@ def lookahead_velocity(poses, command, l: float = OPTIONS.lookahead) -> np.ndarr
     """Velocity of each look-ahead point under the nominal kinematics, (N, 2)."""
     theta = np.asarray(poses, dtype=float)[:, 2]
     v, w = np.asarray(command, dtype=float).reshape(-1, 2).T
-    return np.column_stack([v * np.cos(theta) - l * w * np.sin(theta), v * np.sin(theta) + l * w * np.cos(theta)])
+    return np.column_stack(
+        [v * np.cos(theta) - l * w * np.sin(theta), v * np.sin(theta) + l * w * np.cos(theta)]
+    )
 
 
 def check_barrier_conditions(sc: Scenario, poses, command, options: SafetyOptions = OPTIONS) -> None:
@@ -73,7 +97,9 @@ def check_barrier_conditions(sc: Scenario, poses, command, options: SafetyOption
     before = barriers(sc, poses, options)
     assert min(h for _, h, _ in before) >= -1e-12
     rate = lookahead_velocity(poses, command, options.lookahead)
-    after = barriers(sc, rk4_step(poses, np.asarray(command).reshape(-1, 2), np.zeros((sc.n_robots, 3))), options)
+    after = barriers(
+        sc, rk4_step(poses, np.asarray(command).reshape(-1, 2), np.zeros((sc.n_robots, 3))), options
+    )
     for (kind, h, grad), (_, h_next, _) in zip(before, after):
         assert (grad * rate).sum() + options.gamma * h >= -1e-9, (kind, h, (grad * rate).sum())
         assert h_next >= (1 - options.gamma * sc.dt) * h - 1e-9, (kind, h, h_next)
@@ -88,12 +114,18 @@ def test_two_variable_qp_matches_qpoases_and_detects_infeasibility() -> None:
     rng = np.random.default_rng(1)
     n_problems, m = 300, 8
     box = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-    A = np.concatenate([rng.normal(size=(n_problems, m, 2)), np.broadcast_to(box, (n_problems, 4, 2))], axis=1)
+    A = np.concatenate(
+        [rng.normal(size=(n_problems, m, 2)), np.broadcast_to(box, (n_problems, 4, 2))], axis=1
+    )
     b = np.concatenate([rng.normal(size=(n_problems, m)) - 1.6, np.full((n_problems, 4), -1.0)], axis=1)
     target, weight = rng.normal(size=(n_problems, 2)), np.array([1.0, 0.3])
     u, feasible = solve_qp2(target, weight, A, b)
-    qp = ca.conic("qp", "qpoases", {"h": ca.DM.eye(2).sparsity(), "a": ca.DM.ones(m + 4, 2).sparsity()},
-                  {"printLevel": "none", "error_on_fail": False})  # fmt: skip
+    qp = ca.conic(
+        "qp",
+        "qpoases",
+        {"h": ca.DM.eye(2).sparsity(), "a": ca.DM.ones(m + 4, 2).sparsity()},
+        {"printLevel": "none", "error_on_fail": False},
+    )
     for k in range(n_problems):
         sol = qp(h=2 * np.diag(weight), g=-2 * weight * target[k], a=A[k], lba=b[k], uba=np.inf)
         assert bool(qp.stats()["success"]) == feasible[k], k
@@ -132,9 +164,14 @@ def test_full_speed_into_an_obstacle_a_robot_or_a_wall_is_made_safe(gap: float, 
     reach_pair = 2 * PARAMS.robot_radius + 2 * l + margin
     x_wall = PARAMS.workspace[1] - l - margin
     # look-ahead points at barrier value ``gap``, headings turned by ``heading`` off the threat
-    points = np.array([[-(reach_obstacle + gap), 0.0],   # robot 0 -> obstacle at the origin
-                       [0.0, 4.0], [reach_pair + gap, 4.0],  # robots 1 and 2 head-on
-                       [x_wall - gap, -4.0]])             # robot 3 -> right wall
+    points = np.array(
+        [
+            [-(reach_obstacle + gap), 0.0],  # robot 0 -> obstacle at the origin
+            [0.0, 4.0],
+            [reach_pair + gap, 4.0],  # robots 1 and 2 head-on
+            [x_wall - gap, -4.0],
+        ]
+    )  # robot 3 -> right wall
     theta = np.array([0.0, 0.0, math.pi, 0.0]) + heading * np.array([1, 1, -1, 1])
     poses = np.column_stack([points - l * np.column_stack([np.cos(theta), np.sin(theta)]), theta])
     sc = scenario([[0.0, 0.0, 0.5]], poses)
@@ -154,7 +191,9 @@ def test_random_states_and_commands_satisfy_the_barrier_conditions() -> None:
     obstacles = [[0.0, 0.0, 0.5], [1.6, 0.4, 0.3], [-1.2, 1.5, 0.4]]
     checked = changed = 0
     while checked < 150:
-        poses = np.column_stack([rng.uniform(-2.5, 2.5, 5), rng.uniform(-2.5, 2.5, 5), rng.uniform(-np.pi, np.pi, 5)])
+        poses = np.column_stack(
+            [rng.uniform(-2.5, 2.5, 5), rng.uniform(-2.5, 2.5, 5), rng.uniform(-np.pi, np.pi, 5)]
+        )
         if rng.random() < 0.3:  # some near the top-right corner of the workspace
             poses[:, :2] = rng.uniform(8.6, 9.7, (5, 2))
         sc = scenario(obstacles, poses)
@@ -255,7 +294,9 @@ def test_names_options_and_calibration_through_the_registry() -> None:
         controllers.make("safe:mpc")
     with pytest.raises(ValueError, match=r"option safety_gamma=20 is out of range"):
         controllers.make("safe:consensus", safety_gamma=20)
-    with pytest.raises(ValueError, match=r"unknown safety filter option 'safety_gama' \(did you mean 'safety_gamma'"):
+    with pytest.raises(
+        ValueError, match=r"unknown safety filter option 'safety_gama' \(did you mean 'safety_gamma'"
+    ):
         controllers.make("safe:consensus", safety_gama=1)
     # the evaluator's syntax: inner options as usual, filter options prefixed
     config = parse_controller("safe:nominal-nmpc:horizon=10,safety_gamma=1")
@@ -263,7 +304,9 @@ def test_names_options_and_calibration_through_the_registry() -> None:
     built = config.build()
     assert built.inner.config.horizon == 10 and built.options.gamma == 1
     assert split_controller_list(["safe:nominal-nmpc:horizon=10,safety_gamma=1,consensus"]) == [
-        "safe:nominal-nmpc:horizon=10,safety_gamma=1", "consensus"]  # fmt: skip
+        "safe:nominal-nmpc:horizon=10,safety_gamma=1",
+        "consensus",
+    ]
     with pytest.raises(ValueError, match="not one of"):
         parse_controller("safe:mpc").validate()
 
@@ -274,7 +317,13 @@ def test_safe_controller_runs_a_real_episode() -> None:
     result = run_episode(env, ctrl, seed=0)
     assert result.collision is None and result.steps == 120
     summary = ctrl.stats().summary()
-    for key in ("filter_ms_median", "filter_ms_p95", "filter_changed", "filter_infeasible", "inner_ms_median"):
+    for key in (
+        "filter_ms_median",
+        "filter_ms_p95",
+        "filter_changed",
+        "filter_infeasible",
+        "inner_ms_median",
+    ):
         assert key in summary
     assert summary["steps"] == 120 and summary["failures"] == 0
 
@@ -282,11 +331,20 @@ def test_safe_controller_runs_a_real_episode() -> None:
 def test_evaluator_ranks_a_safe_controller_beside_its_inner_one() -> None:
     from evaluation import RunSpec, evaluate
 
-    spec = RunSpec("KoopNav-TargetReaching-v0", ["safe:consensus-free", "consensus-free"], maps=["map1"],
-                   slips=["high"], episodes=1, env_kwargs={"max_episode_steps": 200})  # fmt: skip
+    spec = RunSpec(
+        "KoopNav-TargetReaching-v0",
+        ["safe:consensus-free", "consensus-free"],
+        maps=["map1"],
+        slips=["high"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 200},
+    )
     results = evaluate(spec, workers=1)
     rows = {row["controller"]: row for row in results.leaderboard()}
     assert set(rows) == {"safe:consensus-free", "consensus-free"}
     outcomes = {r["controller"]: r for r in results.records}
-    assert outcomes["consensus-free"]["collision"] == "obstacle" and outcomes["safe:consensus-free"]["collision"] is None
+    assert (
+        outcomes["consensus-free"]["collision"] == "obstacle"
+        and outcomes["safe:consensus-free"]["collision"] is None
+    )
     assert outcomes["safe:consensus-free"]["controller_extra"]["filter_changed"] > 0

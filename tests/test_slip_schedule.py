@@ -123,8 +123,10 @@ def test_the_plant_follows_the_schedule(slip) -> None:
 def test_drift_is_an_evaluator_cell() -> None:
     import evaluate as ev
 
-    results = ev.evaluate(ev.RunSpec(FO, ["consensus"], ["map6"], ["drift"], episodes=2,
-                                     env_kwargs={"max_episode_steps": 20}), workers=1)
+    results = ev.evaluate(
+        ev.RunSpec(FO, ["consensus"], ["map6"], ["drift"], episodes=2, env_kwargs={"max_episode_steps": 20}),
+        workers=1,
+    )
     assert [r["slip"] for r in results.records] == ["drift", "drift"]
     assert all(r["status"] == "ok" for r in results.records)
 

@@ -190,8 +190,11 @@ def _drive(spec: MapSpec, env_id: str, routes: list[list[tuple[float, float]]]) 
 
 DETOURS = {  # per robot: waypoints around the zone (then the target), found by hand
     "map5": [[(-1.0, -2.8), (1.1, -2.8)], [(-1.0, 2.8), (1.1, 2.8), (2.6, 1.9)], [(-1.0, 2.8), (1.1, 2.8)]],
-    "map6": [[(-3.0, 3.3), (-1.0, 3.3), (1.0, 3.0)], [(-3.8, 3.3), (-1.0, 3.3), (1.0, 3.0)],
-             [(-3.8, -2.1), (-1.0, -2.2), (0.6, -2.3), (1.9, -1.2)]],  # fmt: skip
+    "map6": [
+        [(-3.0, 3.3), (-1.0, 3.3), (1.0, 3.0)],
+        [(-3.8, 3.3), (-1.0, 3.3), (1.0, 3.0)],
+        [(-3.8, -2.1), (-1.0, -2.2), (0.6, -2.3), (1.9, -1.2)],
+    ],
 }
 
 
@@ -210,8 +213,9 @@ def test_the_zone_lies_across_the_straight_routes_and_a_detour_exists(name: str,
     assert info["is_success"] and slipped.all()
     # around the zone, every robot reaches its target on the real map without touching anything
     for i, waypoints in enumerate(DETOURS[name]):
-        alone = MapSpec(name, spec.obstacles, spec.starts[i : i + 1], spec.targets[i : i + 1],
-                        slip_zones=spec.slip_zones)  # fmt: skip
+        alone = MapSpec(
+            name, spec.obstacles, spec.starts[i : i + 1], spec.targets[i : i + 1], slip_zones=spec.slip_zones
+        )
         info, slipped = _drive(alone, env_id, [[*waypoints, tuple(spec.targets[i, :2])]])
         assert info["is_success"] and not info["collision"] and not slipped.any(), (name, i)
 

@@ -50,8 +50,14 @@ def counting_compiler(tmp_path, monkeypatch):
 def _build_in_subprocess(target: float = 1.0, cwd: Path | None = None) -> subprocess.Popen:
     root = Path(solver_cache.__file__).resolve().parents[1]
     env = {**os.environ, "PYTHONPATH": str(root)}
-    return subprocess.Popen([sys.executable, "-c", BUILD, str(target)], env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)  # fmt: skip
+    return subprocess.Popen(
+        [sys.executable, "-c", BUILD, str(target)],
+        env=env,
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _run(proc: subprocess.Popen) -> float:
@@ -129,16 +135,25 @@ def test_the_default_nmpc_is_compiled_once_per_machine(tmp_path) -> None:
     calls = tmp_path / "calls.txt"
     script.write_text(COUNTING_CC.format(calls=calls))
     script.chmod(0o755)
-    code = ("import gymnasium as gym, koopman_envs, controllers\n"
-            "env = gym.make('KoopNav-TargetReaching-v0', map='map1')\n"
-            "c = controllers.make('nominal-nmpc'); obs, info = env.reset(seed=0); c.reset(env)\n"
-            "print(c.act(obs, info).tolist())\n")  # fmt: skip
+    code = (
+        "import gymnasium as gym, koopman_envs, controllers\n"
+        "env = gym.make('KoopNav-TargetReaching-v0', map='map1')\n"
+        "c = controllers.make('nominal-nmpc'); obs, info = env.reset(seed=0); c.reset(env)\n"
+        "print(c.act(obs, info).tolist())\n"
+    )
     root = Path(solver_cache.__file__).resolve().parents[1]
-    env = {**os.environ, "CC": str(script), "KOOPNAV_CACHE": str(tmp_path / "cache"), "PYTHONPATH": str(root),
-           "KOOPNAV_NMPC_JIT": "1"}  # fmt: skip
+    env = {
+        **os.environ,
+        "CC": str(script),
+        "KOOPNAV_CACHE": str(tmp_path / "cache"),
+        "PYTHONPATH": str(root),
+        "KOOPNAV_NMPC_JIT": "1",
+    }
     outputs = []
     for _ in range(2):
-        proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=1200)
+        proc = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=1200
+        )
         assert proc.returncode == 0, proc.stderr
         outputs.append(proc.stdout.strip().splitlines()[-1])
         if _ == 0:  # the first process ran uncompiled; wait for its background compiles
@@ -177,9 +192,14 @@ def test_a_miss_in_background_mode_runs_uncompiled_and_fills_the_cache(counting_
     root = Path(solver_cache.__file__).resolve().parents[1]
 
     def build() -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-c", code],
-                              env={**os.environ, "PYTHONPATH": str(root)}, cwd=tmp_path, capture_output=True,
-                              text=True, timeout=600)  # fmt: skip
+        return subprocess.run(
+            [sys.executable, "-c", code],
+            env={**os.environ, "PYTHONPATH": str(root)},
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
 
     first = build()
     assert first.returncode == 0, first.stderr

@@ -12,7 +12,8 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import koopman_envs
 from koopman_envs import formation_v0, load_map, target_reaching_v0
-from koopman_envs.fronts import gym_env, parallel_env as parallel_front, vector_env
+from koopman_envs.fronts import gym_env, vector_env
+from koopman_envs.fronts import parallel_env as parallel_front
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.collision import check_collisions
 from koopman_envs.sim.dynamics import wrap_angle

@@ -285,12 +285,32 @@ def test_paired_comparison_accepts_numpy_and_integer_outcomes() -> None:
 def test_to_dict_is_plain_json() -> None:
     result = paired_comparison(np.array([True, True, False, True]), np.array([True, False, False, False]))
     d = result.to_dict()
-    assert list(d) == ["n", "rate_a", "rate_b", "difference", "low", "high",
-                       "both_success", "only_a", "only_b", "both_fail", "p_value"]  # fmt: skip
+    assert list(d) == [
+        "n",
+        "rate_a",
+        "rate_b",
+        "difference",
+        "low",
+        "high",
+        "both_success",
+        "only_a",
+        "only_b",
+        "both_fail",
+        "p_value",
+    ]
     assert {k: type(v) for k, v in d.items()} == {
-        "n": int, "rate_a": float, "rate_b": float, "difference": float, "low": float, "high": float,
-        "both_success": int, "only_a": int, "only_b": int, "both_fail": int, "p_value": float,
-    }  # fmt: skip
+        "n": int,
+        "rate_a": float,
+        "rate_b": float,
+        "difference": float,
+        "low": float,
+        "high": float,
+        "both_success": int,
+        "only_a": int,
+        "only_b": int,
+        "both_fail": int,
+        "p_value": float,
+    }
     assert json.loads(json.dumps(d)) == d
     assert (d["n"], d["both_success"], d["only_a"], d["only_b"], d["both_fail"]) == (4, 1, 2, 0, 1)
     assert d["p_value"] == 0.5  # 2 * P(X <= 0), X ~ Bin(2, 1/2)

@@ -16,7 +16,9 @@ from koopman_envs.episode import run_episode
 
 MAPS = [("KoopNav-TargetReaching-v0", "map7"), ("KoopNav-Formation-v0", "map8")]
 NMPC = ["koopman-nmpc", "nominal-nmpc", "adaptive-koopman-nmpc"]
-needs_sb3 = pytest.mark.skipif(importlib.util.find_spec("stable_baselines3") is None, reason="needs stable-baselines3")
+needs_sb3 = pytest.mark.skipif(
+    importlib.util.find_spec("stable_baselines3") is None, reason="needs stable-baselines3"
+)
 
 
 def run_short(name: str, env_id: str, map_name: str, steps: int = 5) -> float:
@@ -65,11 +67,14 @@ def test_nominal_nmpc_solves_the_six_robot_maps(env_id: str, map_name: str) -> N
     assert ctrl.stats().failures == 0
 
 
-@pytest.mark.parametrize(("n_robots", "options", "expected"), [
-    (3, {}, "monotone"),                                       # the paper's team: the paper's barrier update
-    (6, {}, "adaptive"),                                       # larger teams: monotone stalls at the iteration limit
-    (6, {"ipopt.mu_strategy": "monotone"}, "monotone"),        # a user's choice wins
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("n_robots", "options", "expected"),
+    [
+        (3, {}, "monotone"),  # the paper's team: the paper's barrier update
+        (6, {}, "adaptive"),  # larger teams: monotone stalls at the iteration limit
+        (6, {"ipopt.mu_strategy": "monotone"}, "monotone"),  # a user's choice wins
+    ],
+)
 def test_ipopt_barrier_update_follows_the_team_size_unless_set(n_robots, options, expected) -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map7", n_robots=n_robots, max_episode_steps=1)
     solver_options = None

@@ -64,7 +64,9 @@ def test_a_shape_on_a_formation_map_keeps_the_leader_target_and_the_starts(shape
     np.testing.assert_allclose(relative, expected, atol=1e-12)
 
 
-@pytest.mark.parametrize("env_id, map_name", [(FO, "map3"), (FO, "map4"), (FO, "map6"), (TR, "map1"), (FO, "random")])
+@pytest.mark.parametrize(
+    "env_id, map_name", [(FO, "map3"), (FO, "map4"), (FO, "map6"), (TR, "map1"), (FO, "random")]
+)
 def test_no_formation_keeps_every_map_and_seed_as_before(env_id: str, map_name: str) -> None:
     """formation=None is the default: the maps' own targets (the paper's offsets), and on random
     maps the wedge, drawn exactly as RandomMapConfig() draws it."""
@@ -155,7 +157,9 @@ def test_parallel_api_on_the_six_robot_maps(module, map_name: str) -> None:
 
 def test_check_env_and_parallel_api_with_a_shape() -> None:
     check_env(gym.make(FO, map="random", n_robots=10, formation="grid").unwrapped, skip_render_check=True)
-    parallel_api_test(target_reaching_v0.parallel_env(map="random", n_robots=6, formation="column"), num_cycles=100)
+    parallel_api_test(
+        target_reaching_v0.parallel_env(map="random", n_robots=6, formation="column"), num_cycles=100
+    )
 
 
 def _free_path(spec, start: np.ndarray, target: np.ndarray, radius: float, cell: float = 0.05) -> bool:
@@ -201,26 +205,58 @@ def test_every_robot_of_a_shipped_map_has_a_path_to_its_target(name: str) -> Non
 @pytest.mark.parametrize(
     "env_id, kwargs, message",
     [
-        (FO, {"formation": "diamond"},
-         r"formation='diamond' is not one of \['wedge', 'line', 'column', 'circle', 'grid'\] or None"),
+        (
+            FO,
+            {"formation": "diamond"},
+            r"formation='diamond' is not one of \['wedge', 'line', 'column', 'circle', 'grid'\] or None",
+        ),
         (FO, {"formation": 3}, r"formation=3 is not one of \['wedge'"),
-        (TR, {"map": "map1", "formation": "line"},
-         (r"formation='line' applies to formation maps \(KoopNav-Formation-v0\) or to map='random'; "
-          r"map 'map1' of target reaching keeps its own targets")),
-        (TR, {"map": "map7", "n_robots": 6, "formation": "circle"}, r"formation='circle' applies to formation maps"),
-        (FO, {"map": "map4", "formation": "wedge"},
-         (r"formation='wedge' does not fit map 'map4' with n_robots=3 \(spacing 0.9 m\): target of robot 1 at "
-          r"\[.*\] overlaps obstacle 3 \[0.2, 1.2, 0.3\]; allowed: .*try another of \['wedge'")),
-        (TR, {"n_robots": 4},
-         (r"n_robots=4 is larger than map 'map1' supports \(1..3\): it holds 3 robots; allowed: n_robots <= 3, "
-          r"or map='random' \(any team size\) or a map with more starts")),
-        (FO, {"map": "map8", "n_robots": 7}, r"n_robots=7 is larger than map 'map8' supports \(1..6\): it holds 6"),
-        (FO, {"map": "random", "formation": "line", "random_map": {"formation": "grid"}},
-         r"formation='line' and random_map's formation='grid' differ"),
-        (FO, {"map": "random", "random_map": {"formation": "ring"}},
-         r"formation='ring' is not one of \['wedge'"),
+        (
+            TR,
+            {"map": "map1", "formation": "line"},
+            (
+                r"formation='line' applies to formation maps \(KoopNav-Formation-v0\) or to map='random'; "
+                r"map 'map1' of target reaching keeps its own targets"
+            ),
+        ),
+        (
+            TR,
+            {"map": "map7", "n_robots": 6, "formation": "circle"},
+            r"formation='circle' applies to formation maps",
+        ),
+        (
+            FO,
+            {"map": "map4", "formation": "wedge"},
+            (
+                r"formation='wedge' does not fit map 'map4' with n_robots=3 \(spacing 0.9 m\): target of robot 1 at "
+                r"\[.*\] overlaps obstacle 3 \[0.2, 1.2, 0.3\]; allowed: .*try another of \['wedge'"
+            ),
+        ),
+        (
+            TR,
+            {"n_robots": 4},
+            (
+                r"n_robots=4 is larger than map 'map1' supports \(1..3\): it holds 3 robots; allowed: n_robots <= 3, "
+                r"or map='random' \(any team size\) or a map with more starts"
+            ),
+        ),
+        (
+            FO,
+            {"map": "map8", "n_robots": 7},
+            r"n_robots=7 is larger than map 'map8' supports \(1..6\): it holds 6",
+        ),
+        (
+            FO,
+            {"map": "random", "formation": "line", "random_map": {"formation": "grid"}},
+            r"formation='line' and random_map's formation='grid' differ",
+        ),
+        (
+            FO,
+            {"map": "random", "random_map": {"formation": "ring"}},
+            r"formation='ring' is not one of \['wedge'",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_team_input(env_id: str, kwargs: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         gym.make(env_id, **kwargs)
@@ -229,4 +265,3 @@ def test_bad_team_input(env_id: str, kwargs: dict, message: str) -> None:
     module = formation_v0 if env_id == FO else target_reaching_v0
     with pytest.raises(ValueError, match=message):
         module.parallel_env(**kwargs)
-

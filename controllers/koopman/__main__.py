@@ -46,8 +46,13 @@ def _common(parser: argparse.ArgumentParser) -> None:
 def _plant_and_spec(args: argparse.Namespace):
     """The calibration plant of the setting (its budget = the data set) and the data set."""
     spec = DataSpec(args.trajectories, args.steps, seed=args.seed)
-    plant = make_plant("KoopNav-TargetReaching-v0", slip=args.slip, n_robots=args.n_robots,
-                       budget=spec.transitions, seed=args.seed)  # fmt: skip
+    plant = make_plant(
+        "KoopNav-TargetReaching-v0",
+        slip=args.slip,
+        n_robots=args.n_robots,
+        budget=spec.transitions,
+        seed=args.seed,
+    )
     return plant, spec
 
 
@@ -76,10 +81,14 @@ def cmd_accuracy(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"dictionary": model.dictionary.name, **report.to_dict()}, indent=1))
     else:
-        print(f"circle test: {model.dictionary.name} model, lambda = {lambdas.tolist()}, "
-              f"{report.repetitions} slip realizations (seed {report.seed})")  # fmt: skip
-        print(f"{'robot':>5} {'RMSE % (seed)':>14} {'RMSE % mean+-SD':>17} {'Hausdorff [m]':>14} "
-              f"{'floor [m]':>10} {'RMSE % vs mean truth':>21}")  # fmt: skip
+        print(
+            f"circle test: {model.dictionary.name} model, lambda = {lambdas.tolist()}, "
+            f"{report.repetitions} slip realizations (seed {report.seed})"
+        )
+        print(
+            f"{'robot':>5} {'RMSE % (seed)':>14} {'RMSE % mean+-SD':>17} {'Hausdorff [m]':>14} "
+            f"{'floor [m]':>10} {'RMSE % vs mean truth':>21}"
+        )
         for i in range(model.n_robots):
             print(
                 f"{i + 1:>5} {report.rmse_fixed_seed[i]:>14.2f} "
@@ -104,9 +113,17 @@ def _plot(path: str, prediction: np.ndarray, truths: np.ndarray, report, name: s
         color = colors[i % len(colors)]
         for r in range(truths.shape[1]):
             ax.plot(truths[:, r, i, 0], truths[:, r, i, 1], color=color, alpha=0.12, lw=0.8)
-        ax.plot(truths[:, 0, i, 0], truths[:, 0, i, 1], color=color, lw=1.5, label=f"robot {i + 1} true (seed)")
-        ax.plot(prediction[:, i, 0], prediction[:, i, 1], "--", color="k", lw=1.2,
-                label="Koopman prediction" if i == 0 else None)  # fmt: skip
+        ax.plot(
+            truths[:, 0, i, 0], truths[:, 0, i, 1], color=color, lw=1.5, label=f"robot {i + 1} true (seed)"
+        )
+        ax.plot(
+            prediction[:, i, 0],
+            prediction[:, i, 1],
+            "--",
+            color="k",
+            lw=1.2,
+            label="Koopman prediction" if i == 0 else None,
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -121,7 +138,9 @@ def _plot(path: str, prediction: np.ndarray, truths: np.ndarray, report, name: s
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m controllers.koopman", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    fit = sub.add_parser("fit", help="collect data on the calibration plant of a slip setting and fit a model")
+    fit = sub.add_parser(
+        "fit", help="collect data on the calibration plant of a slip setting and fit a model"
+    )
     _common(fit)
     fit.add_argument("--ridge", type=float, default=0.0, help="Tikhonov term (0 = least squares)")
     fit.add_argument("--out", required=True, help="output .npz")

@@ -196,8 +196,9 @@ class KoopmanModel:
             self._nlp_index = [dm.sparsity().get_triplet() for dm in self._flat_constants()]
         d = A.shape[0]
         sources = [A, B, *(N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)), self.C]
-        return np.concatenate([np.asarray(m, dtype=np.float64)[rows, cols]
-                               for m, (rows, cols) in zip(sources, self._nlp_index)])  # fmt: skip
+        return np.concatenate(
+            [np.asarray(m, dtype=np.float64)[rows, cols] for m, (rows, cols) in zip(sources, self._nlp_index)]
+        )
 
     def casadi_nlp_step_parametric(self, name: str = "koopman_cs_step") -> ca.Function:
         """:meth:`casadi_nlp_step` with the coefficients as a third input ``theta``
@@ -252,8 +253,13 @@ class KoopmanModel:
             "dt": self.dt,
             **self.metadata,
         }
-        arrays = {"A": self.A, "N": self.N, "B": self.B, "C": self.C,
-                  "metadata": np.array(json.dumps(meta, sort_keys=True))}  # fmt: skip
+        arrays = {
+            "A": self.A,
+            "N": self.N,
+            "B": self.B,
+            "C": self.C,
+            "metadata": np.array(json.dumps(meta, sort_keys=True)),
+        }
         # np.savez stamps the current time into the archive; fixed timestamps make the file a
         # pure function of its content, so a refit can be compared byte for byte
         with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:

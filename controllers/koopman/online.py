@@ -67,8 +67,10 @@ def check_adapted(value: str) -> str:
 
 def check_prior_weight(value: float) -> float:
     """``value`` as a prior weight, or ValueError naming it and the allowed range (> 0, finite)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not (
-        np.isfinite(value) and value > 0
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.floating))
+        or not (np.isfinite(value) and value > 0)
     ):
         raise ValueError(f"prior_weight={value!r} must be a finite number > 0 (calibration transitions)")
     return float(value)
@@ -110,8 +112,9 @@ class RecursiveBilinearFit:
         Transitions used and transitions rejected by the guards since :meth:`reset`.
     """
 
-    def __init__(self, model: KoopmanModel, forgetting: float = 0.98, prior_weight: float = 200.0,
-                 adapted: str = "all") -> None:  # fmt: skip
+    def __init__(
+        self, model: KoopmanModel, forgetting: float = 0.98, prior_weight: float = 200.0, adapted: str = "all"
+    ) -> None:
         self.forgetting = check_forgetting(forgetting)
         self.prior_weight = check_prior_weight(prior_weight)
         self.adapted = check_adapted(adapted)
@@ -234,7 +237,9 @@ class RecursiveBilinearFit:
         codes = np.arange(1, saved.size + 1, dtype=np.float64).reshape(saved.shape)
         self.weights = self._prior_weights + np.where(self._free, codes, 0.0)
         try:
-            landed = np.rint(self.model.nlp_parameters_of(*self.matrices()) - self._base_theta).astype(np.int64)
+            landed = np.rint(self.model.nlp_parameters_of(*self.matrices()) - self._base_theta).astype(
+                np.int64
+            )
         finally:
             self.weights = saved
         theta_index = np.flatnonzero(landed)

@@ -60,9 +60,12 @@ def default_structure(n_robots: int) -> str:
 
 
 def fit_on_plant(
-    plant: CalibrationPlant, spec: DataSpec, dictionary: str = "minimal", ridge: float = 0.0,
+    plant: CalibrationPlant,
+    spec: DataSpec,
+    dictionary: str = "minimal",
+    ridge: float = 0.0,
     structure: str = "stacked",
-) -> KoopmanModel:  # fmt: skip
+) -> KoopmanModel:
     """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance.
 
     ``structure``: ``"stacked"`` (the paper's) or ``"per-robot"``
@@ -95,7 +98,9 @@ def fit_on_plant(
     return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta)
 
 
-def _model_key(plant: CalibrationPlant, spec: DataSpec, dictionary: str, ridge: float, structure: str = "stacked") -> str:
+def _model_key(
+    plant: CalibrationPlant, spec: DataSpec, dictionary: str, ridge: float, structure: str = "stacked"
+) -> str:
     # the stacked structure keeps the key it had before structures existed (shipped files, caches)
     extra = {} if structure == "stacked" else {"structure": structure}
     return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge, **extra)
@@ -119,9 +124,12 @@ def _shipped_for(key: str) -> Path | None:
 
 
 def calibrated_model(
-    plant: CalibrationPlant, seed: int = 0, dictionary: str = "minimal", spec: DataSpec | None = None,
+    plant: CalibrationPlant,
+    seed: int = 0,
+    dictionary: str = "minimal",
+    spec: DataSpec | None = None,
     structure: str = "stacked",
-) -> tuple[KoopmanModel, dict[str, Any]]:  # fmt: skip
+) -> tuple[KoopmanModel, dict[str, Any]]:
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached).
 
     Parameters
@@ -154,8 +162,11 @@ def calibrated_model(
         try:
             model = KoopmanModel.load(path, n_robots=plant.n_robots)
             if model.metadata.get("cache_key") == key:
-                return model, {**summary, "source": "shipped" if shipped else "cache",
-                               "seconds": time.perf_counter() - start}  # fmt: skip
+                return model, {
+                    **summary,
+                    "source": "shipped" if shipped else "cache",
+                    "seconds": time.perf_counter() - start,
+                }
         except ModelFileError:
             if shipped is not None:
                 raise

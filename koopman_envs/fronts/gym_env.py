@@ -12,8 +12,8 @@ from numpy.typing import NDArray
 from koopman_envs.config import EngineConfig
 from koopman_envs.engine import NavigationEngine
 from koopman_envs.keywords import keyword_table, takes_env_keywords
-from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
+from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import RewardWeights
@@ -73,9 +73,7 @@ class KoopNavEnv(gym.Env):
             self.render()
         return obs, self.engine.info(0)
 
-    def step(
-        self, action: NDArray
-    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+    def step(self, action: NDArray) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         engine = self.engine
         if engine.maps[0] is None:
             raise RuntimeError("call reset() before step()")
@@ -93,8 +91,7 @@ class KoopNavEnv(gym.Env):
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:
             gym.logger.warn(
-                "render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
-                "to gym.make"
+                "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gym.make"
             )
             return None
         from koopman_envs.rendering import Renderer
@@ -181,7 +178,10 @@ def _arguments(task: str) -> str:
     own = [("render_mode", "str or None", "None", "'rgb_array' or 'human' (matplotlib)")]
     table = keyword_table("gym", own, task=task)
     table = table.replace("{", "{{").replace("}", "}}")  # _COMMON_DOC is formatted once more
-    return textwrap.indent(table, "    ") + "\n\n    ``max_episode_steps`` is usually given to ``gym.make``, which applies it with its ``TimeLimit``."
+    return (
+        textwrap.indent(table, "    ")
+        + "\n\n    ``max_episode_steps`` is usually given to ``gym.make``, which applies it with its ``TimeLimit``."
+    )
 
 
 _COMMON_DOC = """
@@ -260,43 +260,37 @@ _COMMON_DOC = """
 
 
 class TargetReachingEnv(KoopNavEnv):
-    __doc__ = (
-        """## Description
+    __doc__ = """## Description
     N differential-drive robots (default 3) each drive to their own target pose on a map of
     circular obstacles while their wheels slip at random (Zhang & Karydis, target reaching).
 
     >>> import gymnasium as gym, koopman_envs
     >>> env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high")
-"""
-        + _COMMON_DOC.format(
-            slip_table=_SLIP_DOC,
-            formation_term="",
-            arguments=_arguments("target_reaching"),
-            shapes=_SHAPES,
-            w=_W,
-            p=PARAMS,
-        )
+""" + _COMMON_DOC.format(
+        slip_table=_SLIP_DOC,
+        formation_term="",
+        arguments=_arguments("target_reaching"),
+        shapes=_SHAPES,
+        w=_W,
+        p=PARAMS,
     )
     task_name = "target_reaching"
 
 
 class FormationEnv(KoopNavEnv):
-    __doc__ = (
-        """## Description
+    __doc__ = """## Description
     Leader-follower formation: robot 0 leads to its target and every follower's target is the
     leader's target plus the map's formation offset; the reward also charges the formation error
     ``e_i = (p_i - p_0) - offset_i``.
 
     >>> import gymnasium as gym, koopman_envs
     >>> env = gym.make("KoopNav-Formation-v0", map="map3", slip="low")
-"""
-        + _COMMON_DOC.format(
-            slip_table=_SLIP_DOC,
-            formation_term=f"- {_W.formation:g} * ||e_i|| [m]",
-            arguments=_arguments("formation"),
-            shapes=_SHAPES,
-            w=_W,
-            p=PARAMS,
-        )
+""" + _COMMON_DOC.format(
+        slip_table=_SLIP_DOC,
+        formation_term=f"- {_W.formation:g} * ||e_i|| [m]",
+        arguments=_arguments("formation"),
+        shapes=_SHAPES,
+        w=_W,
+        p=PARAMS,
     )
     task_name = "formation"

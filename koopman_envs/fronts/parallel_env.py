@@ -18,8 +18,8 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from koopman_envs.config import EngineConfig
 from koopman_envs.engine import NavigationEngine
 from koopman_envs.keywords import takes_env_keywords
-from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.params import PARAMS
+from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 
 __all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
@@ -69,7 +69,9 @@ class KoopNavParallelEnv(ParallelEnv):
     }
 
     @takes_env_keywords("parallel")
-    def __init__(self, task: str = "target_reaching", render_mode: str | None = None, **keywords: Any) -> None:
+    def __init__(
+        self, task: str = "target_reaching", render_mode: str | None = None, **keywords: Any
+    ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
@@ -225,7 +227,6 @@ def make_constructors(task: str):
     return parallel_env, env, raw_env
 
 
-
 def make_call(task: str) -> str:
     """``<task>_v0.parallel_env(...)`` with every keyword at its default, for the module docstrings
     (generated from the constructor's signature, itself generated from the keyword table)."""
@@ -235,5 +236,7 @@ def make_call(task: str) -> str:
     defaults = {"map": TASKS[task].default_map, "max_episode_steps": PARAMS.max_episode_steps}
     parameters = inspect.signature(KoopNavParallelEnv).parameters.values()
     words = " ".join(f"{p.name}={defaults.get(p.name, p.default)!r}," for p in parameters if p.name != "task")
-    lines = textwrap.wrap(words[:-1] + ")", width=100 - len(head), break_long_words=False, break_on_hyphens=False)
+    lines = textwrap.wrap(
+        words[:-1] + ")", width=100 - len(head), break_long_words=False, break_on_hyphens=False
+    )
     return head + ("\n" + " " * len(head)).join(lines)

@@ -20,7 +20,13 @@ from numpy.typing import NDArray
 from koopman_envs.params import PARAMS
 
 __all__ = [
-    "advance_teams", "rk4_channels", "rk4_pose", "rk4_step", "slip_velocity", "wrap_angle", "wrap_scalar",
+    "advance_teams",
+    "rk4_channels",
+    "rk4_pose",
+    "rk4_step",
+    "slip_velocity",
+    "wrap_angle",
+    "wrap_scalar",
 ]
 
 
@@ -54,8 +60,15 @@ def slip_velocity(pose: NDArray, command: NDArray, slip: NDArray) -> NDArray:
 
 @njit(cache=True)
 def rk4_pose(
-    x: float, y: float, theta: float, v: float, omega: float,
-    alpha: float, beta: float, gamma: float, dt: float,
+    x: float,
+    y: float,
+    theta: float,
+    v: float,
+    omega: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+    dt: float,
 ) -> tuple[float, float, float]:
     """One RK4 period of one robot (scalars; compiled, callable from Python and from kernels).
 
@@ -157,9 +170,16 @@ def rk4_step(pose: NDArray, command: NDArray, slip: NDArray, dt: float = PARAMS.
     command = np.asarray(command, dtype=np.float64)
     slip = np.asarray(slip, dtype=np.float64)
     x, y, th = rk4_channels(
-        pose[..., 0], pose[..., 1], pose[..., 2], command[..., 0], command[..., 1],
-        slip[..., 0], slip[..., 1], slip[..., 2], dt,
-    )  # fmt: skip
+        pose[..., 0],
+        pose[..., 1],
+        pose[..., 2],
+        command[..., 0],
+        command[..., 1],
+        slip[..., 0],
+        slip[..., 1],
+        slip[..., 2],
+        dt,
+    )
     return np.stack([x, y, th], axis=-1)
 
 
@@ -222,9 +242,16 @@ def advance_teams(
             v = min(max(commands[k, i, 0], command_low[0]), command_high[0])
             omega = min(max(commands[k, i, 1], command_low[1]), command_high[1])
             x, y, theta = rk4_pose(
-                state[k, 0, i], state[k, 1, i], state[k, 2, i], v, omega,
-                slip[0, i] * lambdas[k, i], slip[1, i] * lambdas[k, i], slip[2, i] * lambdas[k, i], dt,
-            )  # fmt: skip
+                state[k, 0, i],
+                state[k, 1, i],
+                state[k, 2, i],
+                v,
+                omega,
+                slip[0, i] * lambdas[k, i],
+                slip[1, i] * lambdas[k, i],
+                slip[2, i] * lambdas[k, i],
+                dt,
+            )
             new_state[k, 0, i] = x
             new_state[k, 1, i] = y
             new_state[k, 2, i] = wrap_scalar(theta)

@@ -59,7 +59,11 @@ def formation_shape(name: str, n_robots: int, spacing: float) -> NDArray[np.floa
         raise ValueError(f"formation={name!r} is not one of {list(FORMATION_SHAPES)}")
     if isinstance(n_robots, bool) or not isinstance(n_robots, (int, np.integer)) or n_robots < 1:
         raise ValueError(f"n_robots={n_robots!r} must be an integer >= 1")
-    if isinstance(spacing, bool) or not isinstance(spacing, (int, float)) or not (math.isfinite(spacing) and spacing > 0):
+    if (
+        isinstance(spacing, bool)
+        or not isinstance(spacing, (int, float))
+        or not (math.isfinite(spacing) and spacing > 0)
+    ):
         raise ValueError(f"spacing={spacing!r} must be a finite number > 0 [m]")
     n = int(n_robots)
     offsets = np.zeros((n, 2))

@@ -9,6 +9,7 @@ that "touches" an obstacle in the collision check reads a negative clearance in 
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray

@@ -56,9 +56,7 @@ def _as_array(value: Any, name: str, columns: int, map_name: str) -> NDArray[np.
     if arr.size == 0:
         arr = arr.reshape(0, columns)
     if arr.ndim != 2 or arr.shape[1] != columns:
-        raise ValueError(
-            f"map {map_name!r}: {name} has shape {arr.shape}; expected (k, {columns}) rows"
-        )
+        raise ValueError(f"map {map_name!r}: {name} has shape {arr.shape}; expected (k, {columns}) rows")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"map {map_name!r}: {name} contains NaN or inf")
     return arr
@@ -562,16 +560,39 @@ def _place_obstacles(
     a, b, normal, half_width = corridor
     keep_clear = np.ascontiguousarray(np.vstack([start_xy, target_xy]))
     placed, ok = _place_obstacles_kernel(
-        rng, a, b, normal, float(half_width), keep_clear, int(config.n_obstacles),
-        float(config.obstacle_radius[0]), float(config.obstacle_radius[1]), float(robot_radius),
-        float(config.clearance), float(config.gap), np.asarray(workspace, dtype=np.float64),
-    )  # fmt: skip
+        rng,
+        a,
+        b,
+        normal,
+        float(half_width),
+        keep_clear,
+        int(config.n_obstacles),
+        float(config.obstacle_radius[0]),
+        float(config.obstacle_radius[1]),
+        float(robot_radius),
+        float(config.clearance),
+        float(config.gap),
+        np.asarray(workspace, dtype=np.float64),
+    )
     return placed if ok else None
 
 
 @njit(cache=True)
-def _place_obstacles_kernel(rng, a, b, normal, half_width, keep_clear, n_obstacles, r_low, r_high, robot_radius,
-                            clearance, gap, workspace):  # fmt: skip
+def _place_obstacles_kernel(
+    rng,
+    a,
+    b,
+    normal,
+    half_width,
+    keep_clear,
+    n_obstacles,
+    r_low,
+    r_high,
+    robot_radius,
+    clearance,
+    gap,
+    workspace,
+):
     """The rejection sampler of :func:`_place_obstacles`, compiled: a reset of a vector env with
     ``map="random"`` spent ~3 ms here in Python. It draws from ``rng`` exactly as the Python
     version did (numba's Generator shares NumPy's bit stream and algorithms), so the same seed
@@ -585,7 +606,12 @@ def _place_obstacles_kernel(rng, a, b, normal, half_width, keep_clear, n_obstacl
             radius = rng.uniform(r_low, r_high)
             cx = a[0] + along * (b[0] - a[0]) + across * normal[0]
             cy = a[1] + along * (b[1] - a[1]) + across * normal[1]
-            if cx - radius < workspace[0] or cx + radius > workspace[1] or cy - radius < workspace[2] or cy + radius > workspace[3]:  # fmt: skip  # noqa: E501
+            if (
+                cx - radius < workspace[0]
+                or cx + radius > workspace[1]
+                or cy - radius < workspace[2]
+                or cy + radius > workspace[3]
+            ):  # noqa: E501
                 continue
             clear = np.inf
             for i in range(keep_clear.shape[0]):

@@ -21,7 +21,6 @@ from koopman_envs.params import RANDOM_SLIP_MAX
 __all__ = ["SlipSampler", "draw_random_lambdas"]
 
 
-
 def draw_random_lambdas(rng: np.random.Generator, n_robots: int) -> NDArray[np.float64]:
     """One episode's slip means under ``slip="random"``: robot 1 slip-free, the others spaced linearly.
 

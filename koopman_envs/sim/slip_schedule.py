@@ -13,8 +13,9 @@ period starting at ``elapsed * dt`` is the one of the last change at or before t
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -86,8 +87,11 @@ class SlipSchedule:
                     "allowed: e.g. slip=[(0.0, [0, 0.1, 0.2]), (5.0, [0.3, 0.3, 0.3])]"
                 )
             time, value = entry
-            if isinstance(time, bool) or not isinstance(time, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(time):  # fmt: skip
+            if (
+                isinstance(time, bool)
+                or not isinstance(time, (int, float, np.integer, np.floating))
+                or not math.isfinite(time)
+            ):
                 raise ValueError(f"slip schedule entry {j}: time={time!r} must be a finite number of seconds")
             previous = times[-1] if times else None
             if previous is None and time != 0:

@@ -22,15 +22,21 @@ zone slips exactly (bit for bit) as it would on the map without zones.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
 __all__ = [
-    "SLIP_ZONE_MODES", "SLIP_ZONE_SHAPES", "SlipZone", "ZoneTable", "check_zone_robots", "zone_slip_means",
+    "SLIP_ZONE_MODES",
+    "SLIP_ZONE_SHAPES",
+    "SlipZone",
+    "ZoneTable",
+    "check_zone_robots",
+    "zone_slip_means",
 ]
 
 #: zone shapes and the numbers their key holds in a map file
@@ -95,9 +101,7 @@ class SlipZone:
         if not isinstance(bounds, tuple) or len(bounds) != size or not all(map(math.isfinite, bounds)):
             raise ValueError(f"{self.shape}={self.bounds!r} must be {size} finite numbers {form}")
         if self.shape == "circle" and bounds[2] <= 0:
-            raise ValueError(
-                f"circle={list(bounds)} has radius {bounds[2]:g}; allowed: radius > 0 in {form}"
-            )
+            raise ValueError(f"circle={list(bounds)} has radius {bounds[2]:g}; allowed: radius > 0 in {form}")
         if self.shape == "rect" and not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
             raise ValueError(
                 f"rect={list(bounds)} is empty; allowed: {form} with xmin < xmax and ymin < ymax"
@@ -141,8 +145,11 @@ class SlipZone:
 
     def to_dict(self) -> dict[str, Any]:
         """Map-file form, readable by :meth:`from_dict`."""
-        return {self.shape: list(self.bounds), "lambda": list(self.lam) if self.per_robot else self.lam,
-                "mode": self.mode}  # fmt: skip
+        return {
+            self.shape: list(self.bounds),
+            "lambda": list(self.lam) if self.per_robot else self.lam,
+            "mode": self.mode,
+        }
 
     @classmethod
     def from_dict(cls, data: Any) -> SlipZone:
@@ -263,4 +270,3 @@ def zone_slip_means(state, base, kind, geometry, add, zone_lambdas, out):  # pra
                         level = zone_lambdas[k, z, i]
             # level + 0.0 is level itself: outside every zone the base level passes unchanged
             out[k, i] = level + extra
-

@@ -72,11 +72,19 @@ class TaskSpec:
 
 TASKS: dict[str, TaskSpec] = {
     "target_reaching": TaskSpec(
-        "target_reaching", "KoopNav-TargetReaching-v0", "target reaching", ("map1", "map2"), formation=False,
+        "target_reaching",
+        "KoopNav-TargetReaching-v0",
+        "target reaching",
+        ("map1", "map2"),
+        formation=False,
         extra_maps=("map5", "map7"),
     ),
     "formation": TaskSpec(
-        "formation", "KoopNav-Formation-v0", "formation", ("map3", "map4"), formation=True,
+        "formation",
+        "KoopNav-Formation-v0",
+        "formation",
+        ("map3", "map4"),
+        formation=True,
         extra_maps=("map6", "map8"),
     ),
 }

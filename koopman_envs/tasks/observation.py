@@ -120,16 +120,36 @@ class FeatureBuilder:
         distances = np.empty(self.shape[:2])
         offsets = self._no_offsets if formation_offsets is None else formation_offsets
         _build_features(
-            state, target, offsets, self.formation, geometry.obstacle_x, geometry.obstacle_y,
-            geometry.radius_sum, self.n_obstacle_obs, self.low, self.high, out, distances,
-        )  # fmt: skip
+            state,
+            target,
+            offsets,
+            self.formation,
+            geometry.obstacle_x,
+            geometry.obstacle_y,
+            geometry.radius_sum,
+            self.n_obstacle_obs,
+            self.low,
+            self.high,
+            out,
+            distances,
+        )
         return out, distances
 
 
 @njit(cache=True)
 def _build_features(
-    state, target, offsets, formation, obstacle_x, obstacle_y, radius_sum, n_obstacle_obs,
-    low, high, out, distances,
+    state,
+    target,
+    offsets,
+    formation,
+    obstacle_x,
+    obstacle_y,
+    radius_sum,
+    n_obstacle_obs,
+    low,
+    high,
+    out,
+    distances,
 ):  # pragma: no cover - compiled
     """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring."""
     n_envs, _, n_robots = state.shape

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from numba import njit
 from numpy.typing import NDArray
 
@@ -67,21 +66,58 @@ def score_step(
         Outputs, shapes (K, N), (K,), (K,), (K,), (K,).
     """
     _score(
-        prev_distances, distances, effort, formation_error, collision, active, settled, elapsed,
-        goal_tolerance, settle_steps, -1 if max_episode_steps is None else max_episode_steps, formation,
-        weights.progress, weights.effort, weights.settle, weights.formation,
-        weights.success, weights.collision,
-        robot_reward, team_reward, success, terminated, truncated,
-    )  # fmt: skip
+        prev_distances,
+        distances,
+        effort,
+        formation_error,
+        collision,
+        active,
+        settled,
+        elapsed,
+        goal_tolerance,
+        settle_steps,
+        -1 if max_episode_steps is None else max_episode_steps,
+        formation,
+        weights.progress,
+        weights.effort,
+        weights.settle,
+        weights.formation,
+        weights.success,
+        weights.collision,
+        robot_reward,
+        team_reward,
+        success,
+        terminated,
+        truncated,
+    )
 
 
 @njit(cache=True)
 def _score(
-    prev_distances, distances, effort, formation_error, collision, active, settled, elapsed,
-    goal_tolerance, settle_steps, max_episode_steps, formation,
-    w_progress, w_effort, w_settle, w_formation, w_success, w_collision,
-    robot_reward, team_reward, success, terminated, truncated,
-):  # pragma: no cover - compiled  # fmt: skip
+    prev_distances,
+    distances,
+    effort,
+    formation_error,
+    collision,
+    active,
+    settled,
+    elapsed,
+    goal_tolerance,
+    settle_steps,
+    max_episode_steps,
+    formation,
+    w_progress,
+    w_effort,
+    w_settle,
+    w_formation,
+    w_success,
+    w_collision,
+    robot_reward,
+    team_reward,
+    success,
+    terminated,
+    truncated,
+):  # pragma: no cover - compiled
     n_envs, n_robots = distances.shape
     for k in range(n_envs):
         stepped = 1 if active[k] else 0
