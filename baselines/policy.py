@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,6 +13,9 @@ from numpy.typing import NDArray
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
 from koopman_envs.tasks.base import TASKS
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.fronts.vector_env import KoopNavVectorEnv
 
 __all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir", "success_rate"]
 
@@ -58,7 +61,8 @@ def load_policy(
         metadata = json.loads(files.metadata.read_text(encoding="utf-8"))
         with np.load(files.norm, allow_pickle=False) as data:
             norm = {k: data[k] for k in ("mean", "var", "clip", "epsilon")}
-        cls = {"ppo": PPO, "sac": SAC}[metadata.get("algo", algo)]
+        algorithms: dict[str, type[PPO] | type[SAC]] = {"ppo": PPO, "sac": SAC}
+        cls = algorithms[metadata.get("algo", algo)]
         model = cls.load(files.model, device="cpu")
     except Exception as exc:  # noqa: BLE001 - any failure here means a broken file set
         raise ValueError(
@@ -143,7 +147,8 @@ def success_rate(
 
     venv = gym.make_vec(env_id, num_envs=episodes, **env_kwargs)
     obs, _ = venv.reset(seed=seed)
-    engine = venv.unwrapped.engine
+    # a KoopNav id's vector entry point is a KoopNavVectorEnv (make_vec types it as any VectorEnv)
+    engine = cast("KoopNavVectorEnv", venv.unwrapped).engine
     n_robots = engine.config.n_robots
     v_max, omega_max = float(engine.command_high[0]), float(engine.command_high[1])
     done = np.zeros(episodes, dtype=bool)

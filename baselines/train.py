@@ -21,6 +21,7 @@ import platform
 import sys
 import time
 from pathlib import Path
+from typing import TypedDict
 
 import gymnasium as gym
 import numpy as np
@@ -53,7 +54,16 @@ def evaluate_policy_on_maps(
     return float(np.mean(rates))
 
 
-def _norm_of(vec_normalize) -> dict[str, np.ndarray]:
+class _ObsNorm(TypedDict):
+    """The observation statistics of ``VecNormalize``, as saved in ``obs_norm.npz``."""
+
+    mean: np.ndarray
+    var: np.ndarray
+    clip: np.float64
+    epsilon: np.float64
+
+
+def _norm_of(vec_normalize) -> _ObsNorm:
     rms = vec_normalize.obs_rms
     return {
         "mean": rms.mean.astype(np.float64),
@@ -152,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
-    venv = KoopNavSB3VecEnv(
+    venv: KoopNavSB3VecEnv | VecMonitor | VecNormalize = KoopNavSB3VecEnv(
         args.env,
         n_envs,
         seed=args.seed,
@@ -171,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     # a narrow initial action noise: the goal tolerance (0.1 m) asks for fine control, and wide
     # noise mostly produces early collisions
     policy_kwargs = {"net_arch": args.net, "log_std_init": args.log_std_init}
+    model: PPO | SAC
     if args.algo == "ppo":
         model = PPO(
             "MlpPolicy",

@@ -21,14 +21,17 @@ Two layouts:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn
 
 import koopman_envs  # noqa: F401 - registers the ids
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.fronts.vector_env import KoopNavVectorEnv
 
 __all__ = ["FEATURE_SETS", "LAYOUTS", "KoopNavSB3VecEnv", "feature_count", "robot_features", "scale_action"]
 
@@ -181,7 +184,8 @@ class KoopNavSB3VecEnv(VecEnv):
             raise ValueError(f"layout={layout!r} is not one of {list(LAYOUTS)}")
         self.layout = layout
         self.venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
-        engine = self.venv.unwrapped.engine
+        # a KoopNav id's vector entry point is a KoopNavVectorEnv (make_vec types it as any VectorEnv)
+        engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
         self.n_envs, self.n_robots = num_envs, engine.config.n_robots
         if not np.isfinite(collision_penalty) or collision_penalty < 0:
             raise ValueError(f"collision_penalty={collision_penalty!r} must be finite and >= 0")
@@ -194,6 +198,7 @@ class KoopNavSB3VecEnv(VecEnv):
         if features not in FEATURE_SETS:
             raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
         self.features = features
+        observation: spaces.Space[Any]
         if layout == "robot":
             physical, block = engine.robot_spaces()
             extra = feature_count(0, self.n_robots, features) - 3
@@ -204,7 +209,9 @@ class KoopNavSB3VecEnv(VecEnv):
             observation = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
             width = num_envs * self.n_robots
         else:
-            physical, observation = self.venv.single_action_space, self.venv.single_observation_space
+            # the team spaces of a KoopNav vector env are Boxes (NavigationEngine.team_spaces)
+            physical = cast(spaces.Box, self.venv.single_action_space)
+            observation = self.venv.single_observation_space
             width = num_envs
         self._low = physical.low.astype(np.float64)
         self._high = physical.high.astype(np.float64)
@@ -233,7 +240,7 @@ class KoopNavSB3VecEnv(VecEnv):
         command = scale_action(np.asarray(actions, dtype=np.float64), self._low, self._high)
         self._actions = command.reshape(self.n_envs, -1)
 
-    def step_wait(self):
+    def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
         if self.layout == "robot":
@@ -285,7 +292,7 @@ class KoopNavSB3VecEnv(VecEnv):
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        return [getattr(self.venv.unwrapped, attr_name)] * len(self._get_indices(indices))
+        return [getattr(self.venv.unwrapped, attr_name)] * len(list(self._get_indices(indices)))
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         setattr(self.venv.unwrapped, attr_name, value)
@@ -295,4 +302,4 @@ class KoopNavSB3VecEnv(VecEnv):
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
-        return [False] * len(self._get_indices(indices))
+        return [False] * len(list(self._get_indices(indices)))

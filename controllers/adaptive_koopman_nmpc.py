@@ -103,6 +103,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         super()._reset(scenario, seed)
+        assert self.model is not None  # else super()._reset raised (_model_for)
         if self._estimator is None or self._estimator.model is not self.model:
             self._estimator = RecursiveBilinearFit(
                 self.model, self.forgetting, self.prior_weight, self.adapted
@@ -127,6 +128,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
 
     def _learn(self, poses: NDArray, commands: NDArray, next_poses: NDArray) -> None:
         estimator = self._estimator
+        assert estimator is not None  # built by _reset; _learn runs from the episode's second step
         if self.adapt:
             rejected = estimator.rejected
             error = estimator.update(poses, commands, next_poses)

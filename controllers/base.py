@@ -51,9 +51,9 @@ class ControllerStats:
     solve_times: list[float] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
     failures: int = 0
-    statuses: Counter = field(default_factory=Counter)
+    statuses: Counter[str] = field(default_factory=Counter)
     extra_times: dict[str, list[float]] = field(default_factory=dict)
-    counts: Counter = field(default_factory=Counter)
+    counts: Counter[str] = field(default_factory=Counter)
     solver: str | None = None
 
     @property

@@ -15,7 +15,7 @@ def cache_root() -> Path:
     return Path(os.environ.get("KOOPNAV_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "koopnav"))
 
 
-def write_atomic(path: Path, write: Callable[[str], None], suffix: str) -> None:
+def write_atomic(path: Path, write: Callable[[str], object], suffix: str) -> None:
     """Write through a temporary file and rename, so that concurrent workers never read half a file."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=suffix)

@@ -87,6 +87,7 @@ class ConsensusController(BaseController):
         repulsion cancel in front of a disc.
         """
         sc = self.scenario
+        assert sc is not None  # only called by _act, after act() checked it
         push = np.zeros_like(positions)
         centres = np.vstack([sc.obstacles[:, :2], positions])
         radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius])
@@ -112,6 +113,7 @@ class ConsensusController(BaseController):
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         start = time.perf_counter()
         sc = self.scenario
+        assert sc is not None  # act() checked it
         poses = np.asarray(info["poses"], dtype=np.float64)
         theta = poses[:, 2]
         heading = np.column_stack([np.cos(theta), np.sin(theta)])

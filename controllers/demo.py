@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import TYPE_CHECKING, cast
 
 import gymnasium as gym
 import numpy as np
@@ -16,6 +17,9 @@ import controllers
 import koopman_envs
 from controllers.calibration import calibrate_controller
 from koopman_envs.episode import run_episode
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.fronts.gym_env import KoopNavEnv
 
 
 def run_demo(
@@ -28,7 +32,8 @@ def run_demo(
     result = run_episode(env, ctrl, seed=seed, render=bool(gif))
     summary = {
         "env": env_id,
-        "map": env.unwrapped.scenario.map_name,
+        # a KoopNav id's entry point is a KoopNavEnv (gym.make types it as any Env)
+        "map": cast("KoopNavEnv", env.unwrapped).scenario.map_name,
         "slip": slip,
         "controller": controller,
         "seed": seed,

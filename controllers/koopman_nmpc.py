@@ -41,6 +41,7 @@ class KoopmanNMPC(NMPCController):
     """
 
     name = "koopman-nmpc"
+    model: KoopmanModel | None  # only ever a KoopmanModel here (__init__, _use)
 
     def __init__(
         self,
@@ -69,6 +70,7 @@ class KoopmanNMPC(NMPCController):
     def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
         """Fit the model of ``plant``'s robots (or load it from the cache); see the class docstring."""
         if self._fixed_model:
+            assert self.model is not None  # _fixed_model: __init__ was given a model
             return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
         structure = self.structure
         if structure == "auto":

@@ -102,9 +102,15 @@ class PredictionModel(Protocol):
     (x, y, cos theta, sin theta); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
     """
 
-    n_robots: int
-    dt: float
-    coding: str
+    # read-only members: a frozen dataclass (UnicycleModel) satisfies them, the NMPC only reads them
+    @property
+    def n_robots(self) -> int: ...
+
+    @property
+    def dt(self) -> float: ...
+
+    @property
+    def coding(self) -> str: ...
 
     def casadi_nlp_step(self) -> ca.Function: ...
 
@@ -117,7 +123,11 @@ def model_step(model: PredictionModel) -> tuple[ca.Function, NDArray[np.float64]
     only, and models of the same structure share one built (and compiled) problem. Otherwise
     the coefficients are constants and the model itself is the key.
     """
-    if all(hasattr(model, a) for a in ("casadi_nlp_step_parametric", "nlp_parameters", "nlp_structure")):
+    if (
+        hasattr(model, "casadi_nlp_step_parametric")
+        and hasattr(model, "nlp_parameters")
+        and hasattr(model, "nlp_structure")
+    ):
         return (
             model.casadi_nlp_step_parametric(),
             np.asarray(model.nlp_parameters(), dtype=float),
@@ -343,7 +353,7 @@ class _Problem:
         g, lbg, ubg, equality = [], [], [], []
         stage_cons: list[NDArray] = []
         terminal_rows = np.zeros(0, dtype=int)  # rows of the terminal state written on the last stage
-        cost = 0
+        cost: ca.SX | int = 0
 
         def constrain(expr, low, high) -> None:
             expr = ca.vertcat(expr)
@@ -372,7 +382,7 @@ class _Problem:
         # least-squares form of the cost, for the real-time iteration's Gauss-Newton Hessian:
         # cost = sum of squared residuals + linear_cost (the slacks' exact-penalty term)
         residuals: list = []
-        linear_cost = 0
+        linear_cost: ca.SX | int = 0
 
         def tracking_cost(x):
             total = 0
@@ -399,6 +409,8 @@ class _Problem:
                 )
             return total
 
+        slack: ca.SX | int  # a stage's slack variables, or 0 without soft constraints
+        formation_slack: ca.SX | int
         for k in range(horizon + 1):
             x = xs[k]
             first = len(equality)
@@ -742,6 +754,7 @@ class NMPCController(BaseController):
     def _initial_guess(self, state: NDArray) -> NDArray:
         """Hold the current state with zero commands (the first step of an episode)."""
         prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
         w = np.zeros(prob.n_vars)
         w[prob.x_index] = np.tile(state, prob.horizon)
         w[: prob.nx] = state
@@ -749,10 +762,11 @@ class NMPCController(BaseController):
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
         state = encode_state(info["poses"], prob.coding)
         params = np.concatenate([state, self._params_tail])
         cold = self._warm is None
-        if cold:
+        if self._warm is None:  # cold
             guess = {
                 "x0": self._initial_guess(state),
                 "lam_x0": np.zeros(prob.n_vars),
@@ -777,6 +791,8 @@ class NMPCController(BaseController):
         self._stats.iterations.append(outcome.iterations)  # QPs, plus IPOPT's iterations on a fallback
         self._stats.statuses[outcome.status] += 1
         if outcome.success:
+            # a successful outcome carries its plan and multipliers (_solve_rti, _solve_nlp)
+            assert outcome.w is not None and outcome.lam_x is not None and outcome.lam_g is not None
             commands, poses = prob.plan(outcome.w)
             self.last_plan = (commands, poses)
             self._warm = prob.shift(
@@ -791,6 +807,7 @@ class NMPCController(BaseController):
 
     def _solve_rti(self, params: NDArray, guess: dict[str, NDArray]) -> _SolveOutcome:
         """The real-time iteration's QP(s); a failed QP or a plan with a large slack fails."""
+        assert self._problem is not None  # built by _reset, which act() requires
         step = self._problem.real_time_iteration().solve(
             guess["x0"], guess["lam_x0"], guess["lam_g0"], params
         )
@@ -803,6 +820,7 @@ class NMPCController(BaseController):
     def _solve_nlp(self, name: str, params: NDArray, guess: dict[str, NDArray], cold: bool) -> _SolveOutcome:
         """One ``nlpsol`` call of plugin ``name`` to convergence."""
         prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
         solver = prob.solver_for(name, cold)
         try:
             sol = solver(p=params, **prob.bounds, **guess)
@@ -825,6 +843,7 @@ class NMPCController(BaseController):
 
     def _fallback_command(self) -> NDArray[np.float64]:
         """Next command of the last successful plan, or a stop when that plan is used up."""
+        assert self.scenario is not None  # act() checked it
         n = self.scenario.n_robots
         self._fallback_used += 1
         if self._fallback is not None and self._fallback_used < self._fallback.shape[0]:

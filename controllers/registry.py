@@ -8,6 +8,9 @@ for example in their ``pyproject.toml``::
     my-controller = "my_package.control:MyController"
 
 so that ``controllers.make("my-controller")`` and the evaluator find them without code changes.
+Without an entry point, a controller can be named by its import path:
+``make("my_package.control:MyController")`` (a name that is not registered and reads
+``module:Attribute``).
 
 A *wrapper prefix* builds a controller around any other: ``make("safe:consensus")`` is the
 ``consensus`` controller behind the wrapper registered as ``safe`` (:func:`register_wrapper`);
@@ -26,7 +29,16 @@ from typing import Any
 from controllers.base import Controller
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["ENTRY_POINT_GROUP", "available", "factory", "make", "register", "register_wrapper", "split_name"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "available",
+    "factory",
+    "is_import_path",
+    "make",
+    "register",
+    "register_wrapper",
+    "split_name",
+]
 
 ENTRY_POINT_GROUP = "koopnav.controllers"
 
@@ -65,6 +77,13 @@ def split_name(name: str) -> tuple[tuple[str, ...], str]:
     return tuple(prefixes), name
 
 
+def is_import_path(name: str) -> bool:
+    """True for ``"package.module:Attribute"``: a controller factory given by where it is defined
+    (the module part dotted Python identifiers, the attribute one identifier)."""
+    module, sep, attribute = name.partition(":")
+    return bool(sep) and all(part.isidentifier() for part in module.split(".")) and attribute.isidentifier()
+
+
 def _entry_points() -> dict[str, metadata.EntryPoint]:
     return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
 
@@ -78,7 +97,8 @@ def _resolve(factory: Callable[..., Controller] | str) -> Callable[..., Controll
     if callable(factory):
         return factory
     module, _, attribute = factory.partition(":")
-    return getattr(importlib.import_module(module), attribute)
+    resolved: Callable[..., Controller] = getattr(importlib.import_module(module), attribute)
+    return resolved
 
 
 def factory(name: str) -> Callable[..., Controller]:
@@ -92,10 +112,16 @@ def factory(name: str) -> Callable[..., Controller]:
         return build
     if name in _REGISTRY:
         return _resolve(_REGISTRY[name])
+    if is_import_path(name):
+        try:
+            return _resolve(name)
+        except (ImportError, AttributeError) as exc:
+            raise ValueError(f"controller {name!r} cannot be imported: {type(exc).__name__}: {exc}") from None
     points = _entry_points()
     if name not in points:
         raise ValueError(f"controller {name!r} is not one of {available()}{did_you_mean(name, available())}")
-    return points[name].load()
+    loaded: Callable[..., Controller] = points[name].load()
+    return loaded
 
 
 def make(name: str, **options: Any) -> Controller:

@@ -113,10 +113,13 @@ def bind_buffer(function: ca.Function, inputs: list[NDArray], outputs: list[NDAr
     writes the arrays in place. Keep the buffer alive as long as ``evaluate`` is used.
     """
     buffer, evaluate = function.buffer()
+    # two type stub gaps, not errors: casadi's stub requires set_arg/set_res's ``size``, which its
+    # runtime takes from the memoryview (the documented call is ``set_arg(0, memoryview(a))``);
+    # numpy's stub gives ndarray ``__buffer__`` (the Buffer protocol) only for Python >= 3.12
     for i, array in enumerate(inputs):
-        buffer.set_arg(i, memoryview(array))
+        buffer.set_arg(i, memoryview(array))  # type: ignore[call-arg, arg-type]
     for i, array in enumerate(outputs):
-        buffer.set_res(i, memoryview(array))
+        buffer.set_res(i, memoryview(array))  # type: ignore[call-arg, arg-type]
     return buffer, evaluate
 
 

@@ -506,6 +506,8 @@ class SafetyFilter(BaseController):
     >>> ctrl = controllers.make("safe:consensus-free", safety_margin=0.1)   # the same by name
     """
 
+    _stats: SafetyStats  # set in __init__, and by _reset over the plain one reset() starts with
+
     def __init__(self, inner: Controller, **options: Any) -> None:
         super().__init__()
         for method in ("reset", "act"):
@@ -536,6 +538,7 @@ class SafetyFilter(BaseController):
         start = time.perf_counter()
         command = self.inner.act(observation, info)
         middle = time.perf_counter()
+        assert self._filter is not None  # built by _reset, which act() requires
         step = self._filter.filter(np.asarray(info["poses"], dtype=np.float64), command)
         end = time.perf_counter()
         stats = self._stats

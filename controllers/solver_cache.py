@@ -90,7 +90,9 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS, background: bool = Fals
         return {}
     build = tempfile.mkdtemp(prefix="koopnav-jit-")
     _BUILD_DIRS.append(build)
-    tag = hashlib.sha256(f"casadi {ca.__version__}|{_identity(cc)}".encode()).hexdigest()[:16]
+    # casadi's bundled stubs omit the module's __version__, which it has at runtime
+    version: str = ca.__version__  # type: ignore[attr-defined]
+    tag = hashlib.sha256(f"casadi {version}|{_identity(cc)}".encode()).hexdigest()[:16]
     command = f'"{sys.executable}" -S "{_WRAPPER}" --cache "{solver_cache_dir()}" --cc "{cc}" --tag {tag}' + (
         " --background" if background else ""
     )

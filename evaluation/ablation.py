@@ -62,12 +62,14 @@ def ablation_configs(factors: Sequence[str] | None = None) -> list[ControllerCon
     configs = []
     for combo in itertools.product(*(FACTORS[f] for f in chosen)):
         levels = dict(DEFAULT_LEVELS, **dict(zip(chosen, combo)))
-        name, options = None, {}
+        name: str | None = None
+        options: dict[str, Any] = {}
         for factor in FACTORS:
             level_name, level_options = FACTORS[factor][levels[factor]]
             name = level_name or name
             options.update(level_options)
         label = " ".join(f"{factor}={levels[factor]}" for factor in FACTORS)
+        assert name is not None  # the model factor always names the controller (FACTORS["model"])
         configs.append(ControllerConfig(label, name, tuple(sorted(options.items()))))
     return configs
 

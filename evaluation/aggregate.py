@@ -162,7 +162,7 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
         won = [r for r in ok if r["success"]]
         free = [r for r in ok if r["collision"] is None]
         n_robots = len(ok[0]["final_distance"]) if ok else 0
-        calibrations = [r.get("calibration") for r in ok if r.get("calibration")]
+        calibrations = [r["calibration"] for r in ok if r.get("calibration")]
         cells.append(
             Cell(
                 env_id=env_id,

@@ -26,6 +26,7 @@ from evaluation.report import task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
 __all__ = [
+    "ALL_TASKS",
     "GateOptions",
     "compare_runs",
     "comparison_markdown",
@@ -36,6 +37,9 @@ __all__ = [
 
 #: schema versions of results.json this module reads
 READABLE_SCHEMAS = (2,)
+
+#: the env id of a comparison row that pools a controller's pairs over every task of the run
+ALL_TASKS = "all tasks"
 
 #: config keys whose difference changes outcomes: a baseline must match them
 OUTCOME_KEYS = ("env_settings", "calibration", "map_files", "random_maps")
@@ -103,13 +107,32 @@ def _team_cm(record: dict[str, Any]) -> float:
     return 100.0 * float(np.mean(record["final_distance"]))
 
 
+def _paired_row(
+    env_id: str, controller: str, run: list[dict[str, Any]], baseline: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """One comparison row from the paired episode records of both sides (same order)."""
+    pair = paired_comparison([bool(r["success"]) for r in run], [bool(r["success"]) for r in baseline])
+    differences = [_team_cm(a) - _team_cm(b) for a, b in zip(run, baseline)]
+    low, high = bootstrap_mean_interval(differences)
+    return {
+        "env_id": env_id,
+        "controller": controller,
+        **pair.to_dict(),
+        "distance_cm_difference": float(np.mean(differences)),
+        "distance_cm_low": low,
+        "distance_cm_high": high,
+    }
+
+
 def compare_runs(records: list[dict[str, Any]], baseline_records: list[dict[str, Any]]) -> dict[str, Any]:
     """Paired comparison of a run's episode records with a baseline's.
 
     Returns
     -------
     dict
-        ``rows``: one per (env id, controller) present on both sides, with ``n`` pairs, the
+        ``rows``: one per (env id, controller) present on both sides, then, for a controller
+        compared on several tasks, one pooling its pairs over all of them (env id
+        :data:`ALL_TASKS`); each with ``n`` pairs, the
         :class:`~evaluation.statistics.PairedComparison` fields (``a`` = this run, ``b`` = the
         baseline), ``distance_cm_difference`` (mean of run minus baseline team final distance
         [cm] over the pairs) and its bootstrap ``distance_cm_low`` / ``distance_cm_high``;
@@ -118,25 +141,19 @@ def compare_runs(records: list[dict[str, Any]], baseline_records: list[dict[str,
     """
     mine, theirs = _outcomes(records), _outcomes(baseline_records)
     rows = []
+    pooled: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {}
     for key in sorted(set(mine) & set(theirs)):
         shared = sorted(set(mine[key]) & set(theirs[key]))
         if not shared:
             continue
-        pair = paired_comparison(
-            [bool(mine[key][k]["success"]) for k in shared], [bool(theirs[key][k]["success"]) for k in shared]
-        )
-        differences = [_team_cm(mine[key][k]) - _team_cm(theirs[key][k]) for k in shared]
-        low, high = bootstrap_mean_interval(differences)
-        rows.append(
-            {
-                "env_id": key[0],
-                "controller": key[1],
-                **pair.to_dict(),
-                "distance_cm_difference": float(np.mean(differences)),
-                "distance_cm_low": low,
-                "distance_cm_high": high,
-            }
-        )
+        pairs = ([mine[key][k] for k in shared], [theirs[key][k] for k in shared])
+        rows.append(_paired_row(key[0], key[1], *pairs))
+        run_side, base_side = pooled.setdefault(key[1], ([], []))
+        run_side += pairs[0]
+        base_side += pairs[1]
+    # a controller's episodes over every task of the run: the gate's most sensitive test of it
+    tasks = {row["controller"]: sum(r["controller"] == row["controller"] for r in rows) for row in rows}
+    rows += [_paired_row(ALL_TASKS, name, *pooled[name]) for name in sorted(pooled) if tasks[name] > 1]
 
     def cells(table: dict, other: dict) -> list[list[str]]:
         out = set()

@@ -1,7 +1,9 @@
 """Controller configurations: a registered controller plus options, as one leaderboard row.
 
 On the command line a configuration is ``name`` or ``name:key=value,key=value`` (values parsed
-as JSON scalars, else kept as text; ``label=...`` names the row, by default the text itself)::
+as JSON scalars, else kept as text; ``label=...`` names the row, by default the text itself);
+``name`` is a registered controller or the import path of a factory or class,
+``package.module:Class``::
 
     nominal-nmpc   nominal-nmpc:solver=fatrop   koopman-nmpc:uncertainty_margin=0,horizon=30
 
@@ -28,7 +30,7 @@ from typing import Any
 
 import controllers
 from controllers.registry import factory as registered_factory
-from controllers.registry import split_name
+from controllers.registry import is_import_path, split_name
 
 __all__ = [
     "ControllerConfig",
@@ -116,7 +118,7 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
     if not isinstance(text, str) or not text.strip():
         raise ValueError(f"controller {text!r} must be a non-empty 'name' or 'name:key=value,...'")
     prefixes, base = split_name(text.strip())
-    name, sep, rest = base.partition(":")
+    name, sep, rest = _name_and_options(base)
     name = ":".join([*prefixes, name.strip()])
     options: dict[str, Any] = {}
     label = text.strip()
@@ -137,6 +139,20 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
     return ControllerConfig(label, name.strip(), tuple(sorted(options.items())))
 
 
+def _name_and_options(base: str) -> tuple[str, str, str]:
+    """``base`` (no wrapper prefix) -> (name, ":" or "", options text); the name may be an
+    import path ``package.module:Class``."""
+    name, sep, rest = base.partition(":")
+    attribute, attr_sep, after = rest.partition(":")
+    if name not in controllers.available() and is_import_path(f"{name}:{attribute}"):
+        return f"{name}:{attribute}", attr_sep, after
+    return name, sep, rest
+
+
+def _has_options(text: str) -> bool:
+    return bool(_name_and_options(split_name(text)[1])[1])
+
+
 def split_controller_list(words: Iterable[str]) -> list[str]:
     """Command-line words -> configuration texts, also splitting comma-separated lists.
 
@@ -151,7 +167,7 @@ def split_controller_list(words: Iterable[str]) -> list[str]:
             if not piece:
                 continue
             continues = "=" in piece and ":" not in piece.partition("=")[0]
-            if continues and texts and ":" in split_name(texts[-1])[1]:
+            if continues and texts and _has_options(texts[-1]):
                 texts[-1] += "," + piece
             elif continues:
                 raise ValueError(

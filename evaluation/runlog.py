@@ -4,6 +4,7 @@ JSON line per finished episode, flushed at once, so that an interrupted run can 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import IO, Any
 
@@ -64,7 +65,7 @@ def _read(log: Path, config: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 def open_log(
-    out: str | Path, config: dict[str, Any], resume: bool
+    out: str | os.PathLike[str], config: dict[str, Any], resume: bool
 ) -> tuple[IO[str], dict[str, dict[str, Any]]]:
     """Open the run's log for appending; return it with the episodes a previous run finished.
 

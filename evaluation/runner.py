@@ -44,7 +44,7 @@ def evaluate(
     *,
     workers: int | None = None,
     backend: str = "process",
-    out: str | os.PathLike | None = None,
+    out: str | os.PathLike[str] | None = None,
     resume: bool = False,
     progress: bool = False,
     config_check: Callable[[dict[str, Any]], None] | None = None,

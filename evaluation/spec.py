@@ -111,7 +111,10 @@ class RunSpec:
     def __post_init__(self) -> None:
         # normal forms only (nothing here can fail on a value: validate() names bad ones)
         envs = (self.envs,) if isinstance(self.envs, str) else tuple(self.envs)
-        set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731 - frozen dataclass
+
+        def set_(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)  # a frozen dataclass normalizing its own fields
+
         set_("envs", envs)
         if self.controllers is not None:
             try:
@@ -158,7 +161,8 @@ class RunSpec:
         record the same settings)."""
         settings = dict(RECORDED_ENV_SETTINGS)
         settings.update(self.env_kwargs)
-        return json.loads(json.dumps(dict(sorted(settings.items()))))
+        plain: dict[str, Any] = json.loads(json.dumps(dict(sorted(settings.items()))))
+        return plain
 
     @property
     def n_robots(self) -> int:

@@ -69,7 +69,7 @@ def check_thresholds(results: Results, path: str | os.PathLike, *, strict: bool 
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli backport
-        import tomli as tomllib
+        import tomli as tomllib  # type: ignore[no-redef]  # the same module, another name
 
     try:
         with open(path, "rb") as fh:

@@ -100,7 +100,7 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             # what a controller reports beyond the common summary (e.g. the safety filter's counts)
             controller_extra={k: v for k, v in summary.items() if k not in _COMMON_SUMMARY} or None,
             trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
-            obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,
+            obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,  # type: ignore[attr-defined]  # a KoopNav env
         )
         if spec.animation:
             from koopman_envs.rendering import save_episode

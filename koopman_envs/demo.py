@@ -10,17 +10,22 @@ not a controller worth comparing. The controllers live in the ``controllers`` pa
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
+from numpy.typing import NDArray
 
 import koopman_envs
 from koopman_envs.episode import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES
 
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.fronts.gym_env import KoopNavEnv
 
-def naive_command(poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
+
+def naive_command(poses: NDArray[np.float64], targets: NDArray[np.float64]) -> NDArray[np.float64]:
     """Turn toward each target and drive when facing it; (N, 2) commands."""
     delta = targets[:, :2] - poses[:, :2]
     bearing = np.arctan2(delta[:, 1], delta[:, 0]) - poses[:, 2]
@@ -33,7 +38,7 @@ def naive_command(poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
 class NaiveGoToTarget:
     """The demo's policy: :func:`naive_command` on the true poses in ``info``."""
 
-    def act(self, observation: np.ndarray, info: dict) -> np.ndarray:
+    def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
         return naive_command(info["poses"], info["targets"]).reshape(-1)
 
 
@@ -60,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         render_mode="rgb_array" if args.gif else None,
     )
     result = run_episode(env, NaiveGoToTarget(), seed=args.seed, render=bool(args.gif))
-    scenario = env.unwrapped.scenario
+    scenario = cast("KoopNavEnv", env.unwrapped).scenario  # an id of ENV_IDS makes a KoopNavEnv
     outcome = f"collision ({result.collision})" if result.collision else result.outcome
     print(f"{args.env} map={scenario.map_name} slip={args.slip} seed={args.seed}")
     print(

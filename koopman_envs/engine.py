@@ -136,7 +136,7 @@ class NavigationEngine:
         return self.state.transpose(0, 2, 1)
 
     @poses.setter
-    def poses(self, value: NDArray) -> None:
+    def poses(self, value: NDArray[np.float64]) -> None:
         self.state = np.ascontiguousarray(np.asarray(value, dtype=np.float64).transpose(0, 2, 1))
 
     @property
@@ -180,6 +180,8 @@ class NavigationEngine:
         spec = self.maps[index]
         if cfg.map_spec is None:
             spec = generate_random_map(rng, n, cfg.random_map, float(cfg.robot_radius[0]))
+        # with a fixed map, __init__ installed it in every environment (and nothing removes it)
+        assert spec is not None
         targets = spec.targets[:n] if options.targets is None else options.targets
         if options.targets is not None:
             self._check_placement(spec, targets, "targets")
@@ -212,7 +214,7 @@ class NavigationEngine:
             lambdas = draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas
         self.slip.reset_env(index, rng, lambdas)
 
-    def _check_placement(self, spec: MapSpec, poses: NDArray, key: str) -> None:
+    def _check_placement(self, spec: MapSpec, poses: NDArray[np.float64], key: str) -> None:
         """Raise ValueError naming ``options[key]`` if the team cannot stand at ``poses`` on ``spec``."""
         radius = float(self.config.robot_radius[0])
         label = "start" if key == "start_poses" else "target"

@@ -24,7 +24,7 @@ __all__ = ["EpisodeResult", "Policy", "run_episode"]
 class Policy(Protocol):
     """Anything that maps (observation, info) to a joint command (2N,)."""
 
-    def act(self, observation: NDArray, info: dict[str, Any]) -> NDArray: ...
+    def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]: ...
 
 
 @dataclass
@@ -86,7 +86,7 @@ def run_episode(
     seed: int | None = None,
     options: dict[str, Any] | None = None,
     render: bool = False,
-    on_step: Callable[[int, NDArray, dict[str, Any]], None] | None = None,
+    on_step: Callable[[int, NDArray[np.float64], dict[str, Any]], None] | None = None,
 ) -> EpisodeResult:
     """Reset ``env``, drive it with ``policy`` until the episode ends, and measure it.
 
@@ -115,7 +115,7 @@ def run_episode(
     n = scenario.n_robots
     poses = [np.array(info["poses"], dtype=np.float64)]
     effort = np.zeros(n)
-    formation_sq: list[NDArray] = []
+    formation_sq: list[NDArray[np.float64]] = []
     frames = [env.render()] if render else []
     steps, total = 0, 0.0
     stretch_start: int | None = None  # first step of the current stretch with every robot within tolerance

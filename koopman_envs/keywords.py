@@ -30,7 +30,7 @@ __all__ = [
 ]
 
 
-def _random_map_config(name: str, value: RandomMapConfig | dict | None) -> RandomMapConfig:
+def _random_map_config(name: str, value: RandomMapConfig | dict[str, Any] | None) -> RandomMapConfig:
     """``random_map`` keyword: a :class:`RandomMapConfig`, a dict of its fields, or None."""
     if value is None or isinstance(value, RandomMapConfig):
         return value or RandomMapConfig()
@@ -85,8 +85,8 @@ class EnvKeyword:
     annotation: str
     doc: str
     fronts: tuple[str, ...] = FRONTS
-    #: ``check(name, value)`` -> the value in normal form, or ``ValueError`` naming it; None for
-    #: the keywords checked together with others (``map``, ``slip``: they depend on ``n_robots``)
+    # ``check(name, value)`` -> the value in normal form, or ``ValueError`` naming it; None for
+    # the keywords checked together with others (``map``, ``slip``: they depend on ``n_robots``)
     check: Callable[[str, Any], Any] | None = None
 
     def resolve(self, value: Any) -> Any:

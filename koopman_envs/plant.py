@@ -134,6 +134,8 @@ class CalibrationPlant:
                 return self._rng.uniform(0.0, RANDOM_SLIP_MAX, (batch, self.n_robots))
             return np.broadcast_to(schedule.levels[0], (batch, self.n_robots)).copy()
         if not self._random_slip:
+            # __init__ keeps the lambdas exactly when the slip is neither random nor scheduled
+            assert self._lambdas is not None
             return self._lambdas
         return np.stack([draw_random_lambdas(self._rng, self.n_robots) for _ in range(batch)])
 
@@ -152,13 +154,13 @@ class CalibrationPlant:
         switch = self._rng.uniform(size=levels.shape) < -math.expm1(-self.dt / DRIFT_MEAN_INTERVAL)
         return np.where(switch, self._rng.uniform(0.0, RANDOM_SLIP_MAX, levels.shape), levels)
 
-    def reset(self, poses: NDArray) -> None:
+    def reset(self, poses: NDArray[np.float64]) -> None:
         """Put B teams at the given poses, shape (B, N, 3); costs no budget."""
         self._poses = self._check_poses(poses, "poses").copy()
         self._team_lambdas = self._slip_for(self._poses.shape[0])
         self._clock = 0
 
-    def step(self, commands: NDArray) -> NDArray[np.float64]:
+    def step(self, commands: NDArray[np.float64]) -> NDArray[np.float64]:
         """Apply one period of commands (B, N, 2) to the teams of the last :meth:`reset`.
 
         Returns the poses one period later, shape (B, N, 3); spends B team-transitions. A
@@ -166,6 +168,8 @@ class CalibrationPlant:
         """
         if self._poses is None:
             raise RuntimeError("call reset(poses) before step()")
+        # reset() and rollout(), which set the poses, set the teams' slip means with them
+        assert self._team_lambdas is not None
         commands = np.asarray(commands, dtype=np.float64)
         if commands.shape != self._poses.shape[:2] + (2,):
             raise ValueError(f"commands has shape {commands.shape}; expected {self._poses.shape[:2] + (2,)}")
@@ -174,7 +178,7 @@ class CalibrationPlant:
         self._team_lambdas = self._next_levels(self._team_lambdas, self._clock)
         return self._poses.copy()
 
-    def rollout(self, start: NDArray, commands: NDArray) -> NDArray[np.float64]:
+    def rollout(self, start: NDArray[np.float64], commands: NDArray[np.float64]) -> NDArray[np.float64]:
         """Reset B teams to ``start`` (B, N, 3) and apply ``commands`` (T, B, N, 2) open loop.
 
         Returns the poses at every period, shape (T + 1, B, N, 3); spends T * B team-transitions.
@@ -199,12 +203,14 @@ class CalibrationPlant:
         self._poses, self._team_lambdas, self._clock = states[-1].copy(), lambdas, steps
         return states
 
-    def _check_and_spend(self, commands: NDArray) -> None:
+    def _check_and_spend(self, commands: NDArray[np.float64]) -> None:
         if not np.isfinite(commands).all():
             raise ValueError("commands contain NaN or inf")
         self._spend(commands.shape[0] * commands.shape[1])
 
-    def _simulate(self, start: NDArray, commands: NDArray, lambdas: NDArray) -> NDArray[np.float64]:
+    def _simulate(
+        self, start: NDArray[np.float64], commands: NDArray[np.float64], lambdas: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
         self._check_and_spend(commands)
         return rollout(start, commands, lambdas, self._rng, dt=self.dt)
 
@@ -234,7 +240,8 @@ def make_plant(
             raise ValueError(
                 f"env keyword arguments {sorted(env_kwargs)} go with an env id, not an env instance"
             )
-        config = getattr(getattr(env, "unwrapped", env), "config", None)
-        if not isinstance(config, EngineConfig):
+        found = getattr(getattr(env, "unwrapped", env), "config", None)
+        if not isinstance(found, EngineConfig):
             raise ValueError(f"{type(env).__name__} is not a KoopNav environment (no EngineConfig)")
+        config = found
     return CalibrationPlant(config, budget, seed)

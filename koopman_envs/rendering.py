@@ -15,13 +15,20 @@ from __future__ import annotations
 import os
 import shutil
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.zones import SlipZone
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when first used)
+    from matplotlib.axes import Axes
+    from matplotlib.backend_bases import RendererBase
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.text import Text
 
 __all__ = ["Renderer", "draw_scenario", "save_episode", "title_parts"]
 
@@ -43,7 +50,7 @@ _ZONE_FULL_LAMBDA = 0.5
 
 
 def _view_limits(
-    scenario: Scenario, current: NDArray, slip_zones: Sequence[SlipZone] = ()
+    scenario: Scenario, current: NDArray[np.float64], slip_zones: Sequence[SlipZone] = ()
 ) -> tuple[float, float, float, float]:
     """(x_min, x_max, y_min, y_max) [m] of the view: the starts, targets, obstacles and slip zones
     with a margin, widened in whole steps to show the robots at ``current`` (N, 3) with the same
@@ -85,14 +92,14 @@ class _Scene:
         self.scenario = scenario
         self.slip_zones = tuple(slip_zones)
         low, high = _ZONE_ALPHA
-        style = {"color": _ZONE_COLOR, "lw": 0, "zorder": 0.8}
+        style: dict[str, Any] = {"color": _ZONE_COLOR, "lw": 0, "zorder": 0.8}
         for zone in self.slip_zones:
             # beneath the obstacles (zorder 1); static, so drawn into the background bitmap once
             largest = float(zone.lambdas_for(scenario.n_robots).max())
             alpha = low + (high - low) * min(largest / _ZONE_FULL_LAMBDA, 1.0)
             if zone.shape == "circle":
                 x, y, r = zone.bounds
-                patch = Circle((x, y), r, alpha=alpha, **style)
+                patch: Circle | Rectangle = Circle((x, y), r, alpha=alpha, **style)
             else:
                 x0, y0, x1, y1 = zone.bounds
                 patch = Rectangle((x0, y0), x1 - x0, y1 - y0, alpha=alpha, **style)
@@ -124,7 +131,7 @@ class _Scene:
             artist.set_animated(animated)
         self.limits: tuple[float, float, float, float] | None = None
 
-    def update(self, trail: NDArray | None, title: str) -> bool:
+    def update(self, trail: NDArray[np.float64] | None, title: str) -> bool:
         """Move the dynamic artists to ``trail`` (T, N, 3); True when the axis limits changed
         (then the static background is stale)."""
         scenario = self.scenario
@@ -158,7 +165,7 @@ def _static_key(scenario: Scenario, slip_zones: Sequence[SlipZone] = ()) -> tupl
 def draw_scenario(
     ax: Any,
     scenario: Scenario,
-    trail: NDArray | None = None,
+    trail: NDArray[np.float64] | None = None,
     title: str = "",
     slip_zones: Sequence[SlipZone] = (),
 ) -> None:
@@ -219,6 +226,18 @@ class Renderer:
         artists per frame (the default, a few ms a frame). ``False`` redraws the whole figure
         every frame (~10x slower); it exists as the reference the fast path is tested against.
     """
+
+    # the figure and what is drawn on it: None until the first draw (see _no_figure and _open)
+    figure: Figure | None
+    ax: Axes | None
+    _scene: _Scene | None
+    _scene_key: tuple[Any, ...] | None
+    _background: Any  # the Agg canvas's bitmap (matplotlib leaves its type unannotated)
+    _title_layout: tuple[str, int, str] | None
+    _head: Text | None
+    _clock: Text | None
+    _tail: Text | None
+    _initial_subplotpars: dict[str, float] | None
 
     def __init__(
         self, human: bool = False, size: tuple[float, float] = (5.0, 5.0), blit: bool = True
@@ -284,7 +303,7 @@ class Renderer:
     def draw(
         self,
         scenario: Scenario,
-        trail: NDArray,
+        trail: NDArray[np.float64],
         title: str = "",
         elapsed: float | None = None,
         slip_zones: Sequence[SlipZone] = (),
@@ -311,6 +330,7 @@ class Renderer:
         """
         if self.figure is None:
             self._open()
+        assert self.figure is not None and self.ax is not None  # made by _open()
         key = _static_key(scenario, slip_zones)
         stale = False
         if self._scene is None or key != self._scene_key:
@@ -332,6 +352,9 @@ class Renderer:
             self._lay_out()
             canvas.draw()
             return _rgb(canvas)
+        # blit is off-screen only: _open() made an Agg canvas and the three title parts
+        agg = cast("FigureCanvasAgg", canvas)
+        assert self._head is not None and self._clock is not None and self._tail is not None
         # the parts' positions depend on the whole title's width, which changes only with the
         # clock's length (the default font's digits all have the same width)
         layout = (head, len(clock), tail)
@@ -342,9 +365,10 @@ class Renderer:
             self.figure.draw_artist(self._head)
             self.figure.draw_artist(self._tail)
             self._title_layout = layout
-            self._background = canvas.copy_from_bbox(self.figure.bbox)
+            # matplotlib's backend_agg is unannotated: its methods are untyped to the type checker
+            self._background = agg.copy_from_bbox(self.figure.bbox)  # type: ignore[no-untyped-call]
         else:
-            canvas.restore_region(self._background)
+            agg.restore_region(self._background)  # type: ignore[no-untyped-call]
         for artist in self._scene.dynamic:
             self.ax.draw_artist(artist)
         if clock:
@@ -358,6 +382,8 @@ class Renderer:
         # always from the figure's initial layout: tight_layout's result depends on where the
         # axes are, so a figure laid out before would differ by a few pixels from a copy's new
         # one, and a frame would depend on the drawing history instead of the state alone
+        # (only draw() calls this, after _open() has set these)
+        assert self.figure is not None and self.ax is not None and self._initial_subplotpars is not None
         self.figure.subplots_adjust(**self._initial_subplotpars)
         for _ in range(_LAYOUT_PASSES):
             before = self.ax.get_position(original=True).bounds
@@ -368,8 +394,13 @@ class Renderer:
     def _place_title(self, head: str, clock: str, tail: str) -> None:
         """Put the parts where the axes title, which holds all of them, draws their glyphs (the
         pixels come out the same: text widths are sums of glyph advances)."""
+        # only draw() calls this, with blit set: _open() has made the figure, its Agg canvas and the parts
+        assert self.figure is not None and self.ax is not None
+        assert self._head is not None and self._clock is not None and self._tail is not None
         title = self.ax.title
-        renderer = self.figure.canvas.get_renderer()
+        canvas = cast("FigureCanvasAgg", self.figure.canvas)
+        # matplotlib's backend_agg is unannotated: get_renderer() is untyped to the type checker
+        renderer: RendererBase = canvas.get_renderer()  # type: ignore[no-untyped-call]
         prop = title.get_fontproperties()
 
         def width(text: str) -> float:
@@ -396,7 +427,7 @@ class Renderer:
         self._reset_figure()
 
 
-def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike, fps: int = 10) -> str:
+def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike[str], fps: int = 10) -> str:
     """Save rendered frames as an animated GIF or an MP4 file.
 
     Parameters
@@ -431,7 +462,7 @@ def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike, f
 
         h, w = np.asarray(frames[0]).shape[:2]
         fig = Figure(figsize=(w / 100, h / 100), dpi=100)
-        ax = fig.add_axes([0, 0, 1, 1])
+        ax = fig.add_axes((0, 0, 1, 1))
         ax.axis("off")
         image = ax.imshow(frames[0])
         writer = animation.FFMpegWriter(fps=fps)

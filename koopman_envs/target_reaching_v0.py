@@ -5,9 +5,9 @@
 | Actions            | Continuous, per agent ``(v [m/s], omega [rad/s])``          |
 | Parallel API       | Yes (native); AEC through ``env()``                         |
 | Agents             | ``robot_0 .. robot_{N-1}`` (N = 3 by default)              |
-| Action shape       | (2,), within (+-0.6 m/s, +-pi/4 rad/s), saturated           |
-| Observation shape  | (9 + 3 (N - 1) + 3 n_obstacle_obs,) = (27,) by default       |
-| State shape        | (N * 27,)                                                  |
+| Action shape       | (2,), within (+-{v_max} m/s, +-{omega_max} rad/s), saturated           |
+| Observation shape  | (9 + 3 (N - 1) + 3 n_obstacle_obs,) = ({features},) by default     |
+| State shape        | (N * {features},)                                               |
 
 ```python
 {make_call}
@@ -17,9 +17,9 @@ those of :data:`koopman_envs.keywords.ENV_KEYWORDS` (see the Gymnasium env's Arg
 History: v0 initial release.
 """
 
-from koopman_envs.fronts.parallel_env import make_call, make_constructors
+from koopman_envs.fronts.parallel_env import make_constructors, module_doc
 
-__doc__ = __doc__.replace("{make_call}", make_call("target_reaching"))  # the keywords, from the one table
+__doc__ = module_doc("target_reaching", __doc__)  # the keywords and values, from their one place
 
 parallel_env, env, raw_env = make_constructors("target_reaching")
 

@@ -215,3 +215,26 @@ def test_the_solver_comparison_page_pairs_across_files_and_counts_cells() -> Non
     )
     table = module.per_cell_markdown(documents, "rti", "ipopt")
     assert "| target reaching | map1 | nominal | 6/6 | 0/6 |" in table
+
+
+def test_a_controller_on_several_tasks_is_also_gated_over_all_of_them() -> None:
+    """4 of 12 pairs lost per task is not significant (p = 0.125); 8 of 24 over both tasks is (p = 0.008)."""
+    from evaluation.baseline import ALL_TASKS
+
+    def run(won: int) -> list[dict]:
+        records = []
+        for env in ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"):
+            records += [{**_record(seed, seed < won), "env_id": env} for seed in range(12)]
+        return records
+
+    comparison = compare_runs(run(won=8), run(won=12))
+    rows = {row["env_id"]: row for row in comparison["rows"]}
+    assert set(rows) == {"KoopNav-TargetReaching-v0", "KoopNav-Formation-v0", ALL_TASKS}
+    assert rows[ALL_TASKS]["n"] == 24 and rows[ALL_TASKS]["only_b"] == 8
+    assert rows["KoopNav-Formation-v0"]["p_value"] == pytest.approx(0.125)
+    assert rows[ALL_TASKS]["p_value"] == pytest.approx(2 * 0.5**8)
+    (failure,) = gate_failures(comparison, GateOptions())
+    assert failure.startswith(f"c on {ALL_TASKS} (24 paired episodes): success 100% -> 67%")
+    # one task only: no pooled row
+    single = compare_runs(run(won=8)[:12], run(won=12)[:12])
+    assert [row["env_id"] for row in single["rows"]] == ["KoopNav-TargetReaching-v0"]

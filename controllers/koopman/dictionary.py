@@ -8,12 +8,15 @@ sin(theta), so that the state can be read back from the lifted vector (see
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import TypeVar
 
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["DICTIONARIES", "Dictionary", "ExtendedDictionary", "MinimalDictionary", "get_dictionary"]
+
+_Symbolic = TypeVar("_Symbolic", ca.SX, ca.MX)  # lift_casadi returns the kind of expression it is given
 
 
 class Dictionary(ABC):
@@ -39,10 +42,10 @@ class Dictionary(ABC):
         ones = np.ones(poses.shape[:-2] + (1,))
         return np.concatenate([ones, blocks.reshape(poses.shape[:-2] + (-1,))], axis=-1)
 
-    def lift_casadi(self, state: ca.SX | ca.MX) -> ca.SX | ca.MX:
+    def lift_casadi(self, state: _Symbolic) -> _Symbolic:
         """Lift a symbolic stacked state (x_1, y_1, theta_1, x_2, ...) of length 3N to (D, 1)."""
         n = state.shape[0] // 3
-        terms = [1]
+        terms: list[_Symbolic | int] = [1]
         for i in range(n):
             x, y, th = state[3 * i], state[3 * i + 1], state[3 * i + 2]
             terms += self._robot_terms_casadi(x, y, ca.cos(th), ca.sin(th))

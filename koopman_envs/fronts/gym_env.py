@@ -3,20 +3,24 @@
 from __future__ import annotations
 
 import textwrap
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.config import EngineConfig
-from koopman_envs.engine import NavigationEngine
-from koopman_envs.keywords import keyword_table, takes_env_keywords
+from koopman_envs.engine import START_NOISE_ATTEMPTS, NavigationEngine
+from koopman_envs.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import RewardWeights
+from koopman_envs.tasks.observation import feature_size
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
+    from koopman_envs.rendering import Renderer
 
 __all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
 
@@ -37,7 +41,7 @@ class KoopNavEnv(gym.Env):
         self.engine = NavigationEngine(self.config, num_envs=1)
         self.action_space, self.observation_space = self.engine.team_spaces()
         self.render_mode = render_mode
-        self._renderer = None
+        self._renderer: Renderer | None = None
         self._trail: list[NDArray[np.float64]] = []
 
     # --------------------------------------------------------------- Gym API
@@ -73,7 +77,9 @@ class KoopNavEnv(gym.Env):
             self.render()
         return obs, self.engine.info(0)
 
-    def step(self, action: NDArray) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+    def step(
+        self, action: NDArray[np.floating[Any]]
+    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         engine = self.engine
         if engine.maps[0] is None:
             raise RuntimeError("call reset() before step()")
@@ -98,12 +104,15 @@ class KoopNavEnv(gym.Env):
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
+        scenario = self.scenario  # a RuntimeError before the first reset()
+        spec = self.engine.maps[0]
+        assert spec is not None  # the scenario exists, so reset() has installed a map
         return self._renderer.draw(
-            self.scenario,
+            scenario,
             np.asarray(self._trail),
             title=self._title(),
             elapsed=self.engine.elapsed[0] * PARAMS.dt,
-            slip_zones=self.engine.maps[0].slip_zones,
+            slip_zones=spec.slip_zones,
         )
 
     def close(self) -> None:
@@ -122,7 +131,7 @@ class KoopNavEnv(gym.Env):
         """Per-robot slip means of the period that starts now: the episode's level, or the
         schedule's at the current time, with the slip zones the robots stand in applied
         (ground truth; controllers must not read it)."""
-        return self.engine.slip_means()[0]
+        return cast("NDArray[np.float64]", self.engine.slip_means()[0])  # row 0 of (K, N)
 
     def _title(self) -> str:
         """Fixed part of the rendered title (the renderer appends the episode time)."""
@@ -184,6 +193,17 @@ def _arguments(task: str) -> str:
     )
 
 
+_X_MIN, _X_MAX, _Y_MIN, _Y_MAX = PARAMS.workspace
+_OBSTACLES_LISTED: int = next(k.default for k in ENV_KEYWORDS if k.name == "n_obstacle_obs")
+#: values of the docstrings that params.py, the keyword table and the engine own
+_DOC_VALUES = {
+    "n_obstacle_obs": _OBSTACLES_LISTED,
+    "features_target": feature_size(PARAMS.n_robots, _OBSTACLES_LISTED, formation=False),
+    "features_formation": feature_size(PARAMS.n_robots, _OBSTACLES_LISTED, formation=True),
+    "attempts": START_NOISE_ATTEMPTS,
+    "workspace": f"{_X_MAX - _X_MIN:g} x {_Y_MAX - _Y_MIN:g} m",
+}
+
 _COMMON_DOC = """
     ## Action Space
     ``Box(shape=(2N,), float32)``: the command of every robot in order,
@@ -192,7 +212,7 @@ _COMMON_DOC = """
     | Num    | Action                 | Min      | Max     | Unit  |
     |--------|------------------------|----------|---------|-------|
     | 2i     | forward speed v_i      | -{p.v_max:g}     | {p.v_max:g}     | m/s   |
-    | 2i + 1 | turn rate omega_i      | -pi/4    | pi/4    | rad/s |
+    | 2i + 1 | turn rate omega_i      | -{p.omega_max:.3f}   | {p.omega_max:.3f}   | rad/s |
 
     Values beyond the limits saturate (as real actuators do); a wrong shape or a NaN/inf entry
     raises ``ValueError``.
@@ -200,8 +220,8 @@ _COMMON_DOC = """
     ## Observation Space
     ``Box(shape=(N * F,), float32)``: one block of F entries per robot, robot 0 first, as listed
     in :mod:`koopman_envs.tasks.observation` (pose, target in the body frame, the other robots,
-    the nearest obstacles, and for formation the formation error). With the defaults (3 robots,
-    4 obstacles listed) F = 27 for target reaching and 29 for formation.
+    the nearest obstacles, and for formation the formation error). With the defaults ({p.n_robots} robots,
+    {n_obstacle_obs} obstacles listed) F = {features_target} for target reaching and {features_formation} for formation.
 
     ``info`` always carries the true structured state: ``poses`` (N, 3), ``targets`` (N, 3),
     ``distances`` (N,) to the targets [m], ``collision`` (bool), ``collision_code`` (int bit
@@ -210,7 +230,7 @@ _COMMON_DOC = """
     ``formation_error`` (N,) [m]. Every value is a number or an array.
 
     ## Dynamics and Slip
-    Unicycle kinematics with slip (paper eq. 15), RK4 at 0.1 s. Each period, per robot,
+    Unicycle kinematics with slip (paper eq. 15), RK4 at {p.dt:g} s. Each period, per robot,
     alpha, beta, gamma ~ Exponential(mean lambda_i) from the env's own ``np_random``:
 {slip_table}
     ## Rewards
@@ -223,7 +243,7 @@ _COMMON_DOC = """
     ``start_noise`` = s > 0, every reset moves each robot's start position by a point drawn
     uniformly in a disc of radius s [m] and turns its heading by an angle uniform in [-s, s]
     [rad] (wrapped to [-pi, pi)), from the env's own ``np_random``; a draw that leaves the
-    workspace or overlaps an obstacle or another robot is redrawn for the whole team (100 tries,
+    workspace or overlaps an obstacle or another robot is redrawn for the whole team ({attempts} tries,
     then ``RuntimeError``). ``env.unwrapped.scenario.starts`` holds the starts actually used.
     ``reset(options={{"start_poses": poses}})`` starts one episode at the given (N, 3) poses
     instead, and ``options={{"targets": targets}}`` replaces the targets (docs/reset_options.md).
@@ -241,9 +261,9 @@ _COMMON_DOC = """
 
     ## Episode End
     1. Termination: any collision (robot-obstacle, robot-robot, or a centre leaving the
-       20 x 20 m workspace).
+       {workspace} workspace).
     2. Termination (success): every robot has stayed within ``goal_tolerance`` of its target
-       for 2 s (20 periods); ``info["distances"]`` is then the settled distance.
+       for {p.settle_time:g} s ({p.settle_steps} periods); ``info["distances"]`` is then the settled distance.
     3. Truncation: ``max_episode_steps`` ({p.max_episode_steps} periods by default).
 
     ## Arguments
@@ -273,6 +293,7 @@ class TargetReachingEnv(KoopNavEnv):
         shapes=_SHAPES,
         w=_W,
         p=PARAMS,
+        **_DOC_VALUES,
     )
     task_name = "target_reaching"
 
@@ -292,5 +313,6 @@ class FormationEnv(KoopNavEnv):
         shapes=_SHAPES,
         w=_W,
         p=PARAMS,
+        **_DOC_VALUES,
     )
     task_name = "formation"

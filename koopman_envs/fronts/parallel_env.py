@@ -4,23 +4,27 @@ from __future__ import annotations
 
 import inspect
 import textwrap
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
-from pettingzoo import ParallelEnv
+from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from koopman_envs.config import EngineConfig
 from koopman_envs.engine import NavigationEngine
-from koopman_envs.keywords import takes_env_keywords
+from koopman_envs.keywords import ENV_KEYWORDS, takes_env_keywords
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
+    from koopman_envs.rendering import Renderer
 
 __all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
 
@@ -30,7 +34,8 @@ __all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
 _API_TEST_OPTIONS = ("options",)
 
 
-class KoopNavParallelEnv(ParallelEnv):
+# pettingzoo ships no type information (no py.typed), so to the type checker ParallelEnv is Any
+class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
     """N robots as N agents ``robot_0 .. robot_{N-1}`` on the shared simulator core.
 
     Each agent observes its own block of :mod:`koopman_envs.tasks.observation` (own pose and
@@ -61,7 +66,7 @@ class KoopNavParallelEnv(ParallelEnv):
         a ``ValueError``.
     """
 
-    metadata = {
+    metadata: dict[str, Any] = {
         "render_modes": ["human", "rgb_array"],
         "render_fps": int(round(1 / PARAMS.dt)),
         "is_parallelizable": True,
@@ -92,7 +97,7 @@ class KoopNavParallelEnv(ParallelEnv):
         self.render_mode = render_mode
         self._rng: np.random.Generator | None = None
         self._features: NDArray[np.float64] | None = None
-        self._renderer = None
+        self._renderer: Renderer | None = None
         self._trail: list[NDArray[np.float64]] = []
 
     def observation_space(self, agent: str) -> spaces.Box:
@@ -132,7 +137,15 @@ class KoopNavParallelEnv(ParallelEnv):
             self._trail = [self.engine.poses[0].copy()]
         return self._observations(), self._infos()
 
-    def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+    def step(
+        self, actions: dict[str, Any]
+    ) -> tuple[
+        dict[str, NDArray[np.float32]],
+        dict[str, float],
+        dict[str, bool],
+        dict[str, bool],
+        dict[str, dict[str, Any]],
+    ]:
         if not self.agents:
             raise RuntimeError("the episode is over: call reset() before step()")
         missing = [a for a in self.agents if a not in actions]
@@ -167,6 +180,7 @@ class KoopNavParallelEnv(ParallelEnv):
         return observations, rewards, terminations, truncations, infos
 
     def _observations(self) -> dict[str, NDArray[np.float32]]:
+        assert self._features is not None  # only reset() and step() call this, after setting them
         feats = self._features.astype(np.float32)
         return {a: feats[self._index[a]] for a in self.agents}
 
@@ -193,11 +207,14 @@ class KoopNavParallelEnv(ParallelEnv):
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
+        scenario = self.scenario  # a RuntimeError before the first reset()
+        spec = self.engine.maps[0]
+        assert spec is not None  # the scenario exists, so reset() has installed a map
         return self._renderer.draw(
-            self.scenario,
+            scenario,
             np.asarray(self._trail),
             title=self.metadata["name"],
-            slip_zones=self.engine.maps[0].slip_zones,
+            slip_zones=spec.slip_zones,
         )
 
     def close(self) -> None:
@@ -206,16 +223,18 @@ class KoopNavParallelEnv(ParallelEnv):
             self._renderer = None
 
 
-def make_constructors(task: str):
+def make_constructors(
+    task: str,
+) -> tuple[Callable[..., KoopNavParallelEnv], Callable[..., AECEnv], Callable[..., AECEnv]]:
     """The three PettingZoo constructors of one task: ``parallel_env``, ``env``, ``raw_env``."""
 
     def parallel_env(**kwargs: Any) -> KoopNavParallelEnv:
         return KoopNavParallelEnv(task, **kwargs)
 
-    def raw_env(**kwargs: Any):
+    def raw_env(**kwargs: Any) -> AECEnv:
         return parallel_to_aec(KoopNavParallelEnv(task, **kwargs))
 
-    def env(**kwargs: Any):
+    def env(**kwargs: Any) -> AECEnv:
         return OrderEnforcingWrapper(raw_env(**kwargs))
 
     # the keywords of KoopNavParallelEnv, without ``task`` (fixed here)
@@ -223,8 +242,28 @@ def make_constructors(task: str):
     signature = inspect.Signature([p.replace(kind=p.KEYWORD_ONLY) for p in parameters if p.name != "task"])
     for fn, what in ((parallel_env, "parallel"), (raw_env, "unwrapped turn-based"), (env, "turn-based")):
         fn.__doc__ = f"Create the {what} KoopNav {task} environment (keywords of KoopNavParallelEnv)."
-        fn.__signature__ = signature  # type: ignore[attr-defined]
+        # a function takes any attribute, but typeshed's function type declares no __signature__
+        # (the attribute inspect.signature reads first)
+        fn.__signature__ = signature  # type: ignore[union-attr]
     return parallel_env, env, raw_env
+
+
+def module_doc(task: str, doc: str) -> str:
+    """A PettingZoo module's docstring with its values filled in: ``{make_call}`` (:func:`make_call`),
+    ``{v_max}``, ``{omega_max}`` (params.py) and ``{features}`` (the default observation size)."""
+    from koopman_envs.tasks.base import TASKS
+    from koopman_envs.tasks.observation import feature_size
+
+    listed = next(k.default for k in ENV_KEYWORDS if k.name == "n_obstacle_obs")
+    values = {
+        "{make_call}": make_call(task),
+        "{v_max}": f"{PARAMS.v_max:g}",
+        "{omega_max}": f"{PARAMS.omega_max:.3f}",
+        "{features}": str(feature_size(PARAMS.n_robots, listed, formation=TASKS[task].formation)),
+    }
+    for key, value in values.items():
+        doc = doc.replace(key, value)
+    return doc
 
 
 def make_call(task: str) -> str:

@@ -136,7 +136,7 @@ class KoopNavVectorEnv(VectorEnv):
         return self._observations(self.engine.features()), self._info()
 
     def step(
-        self, actions: NDArray
+        self, actions: NDArray[np.floating[Any]]
     ) -> tuple[
         NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]
     ]:
@@ -148,8 +148,13 @@ class KoopNavVectorEnv(VectorEnv):
             return self._step_next(commands)
         return self._step_same(commands)
 
-    def _step_next(self, commands: NDArray) -> tuple:
+    def _step_next(
+        self, commands: NDArray[np.float64]
+    ) -> tuple[
+        NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]
+    ]:
         engine = self.engine
+        assert self._rngs is not None  # step() has checked that reset() made the generators
         pending = np.flatnonzero(self._autoreset)
         if pending.size:
             for i in pending:
@@ -170,8 +175,13 @@ class KoopNavVectorEnv(VectorEnv):
             info,
         )
 
-    def _step_same(self, commands: NDArray) -> tuple:
+    def _step_same(
+        self, commands: NDArray[np.float64]
+    ) -> tuple[
+        NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]
+    ]:
         engine = self.engine
+        assert self._rngs is not None  # step() has checked that reset() made the generators
         result = engine.step(commands)
         reward = result.robot_reward.sum(-1) + result.team_reward
         done = result.terminated | result.truncated
@@ -193,7 +203,7 @@ class KoopNavVectorEnv(VectorEnv):
         info["_robot_rewards"] = self._all
         return obs, reward, result.terminated, result.truncated, info
 
-    def _observations(self, features: NDArray) -> NDArray[np.float32]:
+    def _observations(self, features: NDArray[np.float64]) -> NDArray[np.float32]:
         return features.reshape(self.num_envs, -1).astype(np.float32)
 
     def _info(self) -> dict[str, Any]:

@@ -33,12 +33,12 @@ _ROBOT, _OBSTACLE, _WORKSPACE = CollisionKind.ROBOT, CollisionKind.OBSTACLE, Col
 
 @njit(cache=True)
 def collision_flags(
-    state: NDArray,
-    obstacle_x: NDArray,
-    obstacle_y: NDArray,
-    radius_sum: NDArray,
-    workspace: NDArray,
-    out: NDArray,
+    state: NDArray[np.float64],
+    obstacle_x: NDArray[np.float64],
+    obstacle_y: NDArray[np.float64],
+    radius_sum: NDArray[np.float64],
+    workspace: NDArray[np.float64],
+    out: NDArray[np.int64],
 ) -> None:  # pragma: no cover - compiled
     """Collision flags of K teams (compiled).
 
@@ -74,9 +74,9 @@ def collision_flags(
 
 
 def check_collisions(
-    positions: NDArray,
-    obstacles: NDArray,
-    robot_radius: NDArray,
+    positions: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    robot_radius: NDArray[np.float64],
     workspace: tuple[float, float, float, float],
 ) -> int:
     """Collision flags of one team: a convenience wrapper of :func:`collision_flags`.

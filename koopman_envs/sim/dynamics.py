@@ -30,7 +30,9 @@ __all__ = [
 ]
 
 
-def slip_velocity(pose: NDArray, command: NDArray, slip: NDArray) -> NDArray:
+def slip_velocity(
+    pose: NDArray[np.float64], command: NDArray[np.float64], slip: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Time derivative of the poses under slip (paper eq. 15).
 
     Parameters
@@ -102,7 +104,20 @@ def wrap_scalar(angle: float) -> float:
 
 
 @njit(cache=True)
-def _rk4_flat(x, y, theta, v, omega, alpha, beta, gamma, dt, out_x, out_y, out_theta):  # pragma: no cover
+def _rk4_flat(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    theta: NDArray[np.float64],
+    v: NDArray[np.float64],
+    omega: NDArray[np.float64],
+    alpha: NDArray[np.float64],
+    beta: NDArray[np.float64],
+    gamma: NDArray[np.float64],
+    dt: float,
+    out_x: NDArray[np.float64],
+    out_y: NDArray[np.float64],
+    out_theta: NDArray[np.float64],
+) -> None:  # pragma: no cover
     for i in range(x.shape[0]):
         out_x[i], out_y[i], out_theta[i] = rk4_pose(
             x[i], y[i], theta[i], v[i], omega[i], alpha[i], beta[i], gamma[i], dt
@@ -110,16 +125,16 @@ def _rk4_flat(x, y, theta, v, omega, alpha, beta, gamma, dt, out_x, out_y, out_t
 
 
 def rk4_channels(
-    x: NDArray,
-    y: NDArray,
-    theta: NDArray,
-    v: NDArray,
-    omega: NDArray,
-    alpha: NDArray,
-    beta: NDArray,
-    gamma: NDArray,
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    theta: NDArray[np.float64],
+    v: NDArray[np.float64],
+    omega: NDArray[np.float64],
+    alpha: NDArray[np.float64],
+    beta: NDArray[np.float64],
+    gamma: NDArray[np.float64],
     dt: float = PARAMS.dt,
-) -> tuple[NDArray, NDArray, NDArray]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """One RK4 period (:func:`rk4_pose`) of the slip kinematics on separate arrays.
 
     Parameters
@@ -143,11 +158,17 @@ def rk4_channels(
     flat = [np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in arrays]
     out = np.empty((3,) + shape)
     flat_out = out.reshape(3, -1)
-    _rk4_flat(*flat, float(dt), flat_out[0], flat_out[1], flat_out[2])
+    # named rather than splatted: a type checker cannot count a list's entries before ``dt``
+    fx, fy, ftheta, fv, fomega, falpha, fbeta, fgamma = flat
+    _rk4_flat(
+        fx, fy, ftheta, fv, fomega, falpha, fbeta, fgamma, float(dt), flat_out[0], flat_out[1], flat_out[2]
+    )
     return out[0], out[1], out[2]
 
 
-def rk4_step(pose: NDArray, command: NDArray, slip: NDArray, dt: float = PARAMS.dt) -> NDArray:
+def rk4_step(
+    pose: NDArray[np.float64], command: NDArray[np.float64], slip: NDArray[np.float64], dt: float = PARAMS.dt
+) -> NDArray[np.float64]:
     """Advance every robot by one control period with classical RK4 (see :func:`rk4_channels`).
 
     Parameters
@@ -183,25 +204,25 @@ def rk4_step(pose: NDArray, command: NDArray, slip: NDArray, dt: float = PARAMS.
     return np.stack([x, y, th], axis=-1)
 
 
-def wrap_angle(angle: NDArray) -> NDArray:
+def wrap_angle(angle: NDArray[np.float64]) -> NDArray[np.float64]:
     """Wrap angles to [-pi, pi) [rad]."""
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
 @njit(cache=True)
 def advance_teams(
-    state: NDArray,
-    commands: NDArray,
-    slip_unit: NDArray,
-    slip_cursor: NDArray,
-    lambdas: NDArray,
-    active: NDArray,
-    command_low: NDArray,
-    command_high: NDArray,
-    effort_scale: NDArray,
+    state: NDArray[np.float64],
+    commands: NDArray[np.float64],
+    slip_unit: NDArray[np.float64],
+    slip_cursor: NDArray[np.int64],
+    lambdas: NDArray[np.float64],
+    active: NDArray[np.bool_],
+    command_low: NDArray[np.float64],
+    command_high: NDArray[np.float64],
+    effort_scale: NDArray[np.float64],
     dt: float,
-    new_state: NDArray,
-    effort: NDArray,
+    new_state: NDArray[np.float64],
+    effort: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """Saturate the commands and advance K teams by one period (the engine's physics, compiled).
 

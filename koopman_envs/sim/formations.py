@@ -34,7 +34,7 @@ __all__ = ["FORMATION_SHAPES", "formation_offsets_for", "formation_shape"]
 FORMATION_SHAPES = ("wedge", "line", "column", "circle", "grid")
 
 
-def _alternating(n_robots: int) -> tuple[NDArray, NDArray]:
+def _alternating(n_robots: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Rank 1, 1, 2, 2, ... and side +1, -1, +1, ... of followers 1..N-1 (leader: rank 0)."""
     k = np.arange(n_robots)
     rank = (k + 1) // 2
@@ -100,4 +100,4 @@ def formation_offsets_for(name: str, n_robots: int, spacing: float, heading: flo
     """World-frame offsets (N, 2) of a shape for a leader travelling with ``heading`` [rad]."""
     local = formation_shape(name, n_robots, spacing)
     c, s = math.cos(heading), math.sin(heading)
-    return local @ np.array([[c, s], [-s, c]])  # local @ rot.T
+    return local @ np.array([[c, s], [-s, c]], dtype=np.float64)  # local @ rot.T

@@ -29,7 +29,14 @@ def clearance(x: float, y: float, other_x: float, other_y: float, radius_sum: fl
 
 
 @njit(cache=True)
-def _clearances(x, y, entity_x, entity_y, radius_sum, out):  # pragma: no cover - compiled
+def _clearances(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    entity_x: NDArray[np.float64],
+    entity_y: NDArray[np.float64],
+    radius_sum: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
     n_envs, n_robots = x.shape
     for k in range(n_envs):
         for i in range(n_robots):
@@ -60,7 +67,7 @@ class TeamGeometry:
         itself, which makes its clearance to itself +inf without a mask.
     """
 
-    def __init__(self, num_envs: int, robot_radius: NDArray, n_obstacles: int) -> None:
+    def __init__(self, num_envs: int, robot_radius: NDArray[np.float64], n_obstacles: int) -> None:
         n = robot_radius.shape[0]
         self.n_robots = n
         self.n_obstacles = int(n_obstacles)
@@ -72,13 +79,15 @@ class TeamGeometry:
         pair[np.arange(n), np.arange(n)] = -np.inf
         self.radius_sum[:, :, :n] = pair
 
-    def set_obstacles(self, index: int, obstacles: NDArray) -> None:
+    def set_obstacles(self, index: int, obstacles: NDArray[np.float64]) -> None:
         """Install the (M, 3) obstacles (x, y, radius) of environment ``index``."""
         self.obstacle_x[index] = obstacles[:, 0]
         self.obstacle_y[index] = obstacles[:, 1]
         self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
-    def clearances(self, x: NDArray, y: NDArray, rows: NDArray | None = None) -> NDArray[np.float64]:
+    def clearances(
+        self, x: NDArray[np.float64], y: NDArray[np.float64], rows: NDArray[np.intp] | None = None
+    ) -> NDArray[np.float64]:
         """Clearance of every robot to every entity, shape (K, N, N + M) [m], for centres ``x``, ``y``
         of shape (K, N) [m]; +inf from a robot to itself, negative on overlap. With ``rows`` (indices
         of environments), ``x`` and ``y`` hold only those environments and so does the result."""

@@ -42,7 +42,7 @@ BUILTIN_MAPS = ("map1", "map2", "map3", "map4", "map5", "map6", "map7", "map8")
 MAP_NAMES = (*BUILTIN_MAPS, "random")
 
 
-def formation_offsets(targets: NDArray) -> NDArray[np.float64]:
+def formation_offsets(targets: NDArray[np.float64]) -> NDArray[np.float64]:
     """Target position of each robot relative to the leader's (robot 0), shape (N, 2) [m], from
     the target poses (N, 3)."""
     return targets[:, :2] - targets[0, :2]
@@ -220,7 +220,7 @@ class MapSpec:
 
     def pose_problem(
         self,
-        poses: NDArray,
+        poses: NDArray[np.float64],
         robot_radius: float = PARAMS.robot_radius,
         workspace: tuple[float, float, float, float] = PARAMS.workspace,
         label: str = "start",
@@ -260,9 +260,9 @@ class MapSpec:
             & (poses[:, 1] + robot_radius <= y1)
         )
         if not inside.all():
-            i = int(np.argmin(inside))
+            robot = int(np.argmin(inside))
             return (
-                f"{label} of robot {i} at {poses[i, :2].tolist()} is not "
+                f"{label} of robot {robot} at {poses[robot, :2].tolist()} is not "
                 f"inside the workspace {workspace} with radius {robot_radius}"
             )
         clearance = geometry.clearances(poses[None, :, 0], poses[None, :, 1])[0]
@@ -294,7 +294,7 @@ class MapSpec:
             **({"slip_zones": [zone.to_dict() for zone in self.slip_zones]} if self.slip_zones else {}),
         }
 
-    def save(self, path: str | os.PathLike) -> None:
+    def save(self, path: str | os.PathLike[str]) -> None:
         """Write the map as a JSON file."""
         with open(path, "w", encoding="utf-8") as fh:
             json.dump(self.to_dict(), fh, indent=1)
@@ -338,7 +338,7 @@ class MapSpec:
         )
 
 
-def load_map(spec: str | os.PathLike | MapSpec) -> MapSpec:
+def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
     """Resolve a map argument to a :class:`MapSpec`.
 
     Parameters
@@ -494,7 +494,12 @@ def generate_random_map(
 
 
 @njit(cache=True)
-def _team_placement(offsets, travel, lead, inner):
+def _team_placement(
+    offsets: NDArray[np.float64],
+    travel: NDArray[np.float64],
+    lead: NDArray[np.float64],
+    inner: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
     """Starts (lead + offsets) and targets (starts + travel) of a team, and whether all of them
     lie inside ``inner`` (x0, x1, y0, y1); compiled because a random-map reset tries several
     placements and each took ~20 small numpy calls."""
@@ -512,7 +517,9 @@ def _team_placement(offsets, travel, lead, inner):
     return start, target, inside
 
 
-def _corridor(start_xy: NDArray, target_xy: NDArray) -> tuple[NDArray, NDArray, NDArray, float]:
+def _corridor(
+    start_xy: NDArray[np.float64], target_xy: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
     """The corridor of a random layout: start centroid a, target centroid b, unit normal of a -> b
     and half width [m] (the team's spread across the travel direction plus 1 m)."""
     a, b = start_xy.mean(axis=0), target_xy.mean(axis=0)
@@ -523,7 +530,9 @@ def _corridor(start_xy: NDArray, target_xy: NDArray) -> tuple[NDArray, NDArray, 
 
 
 def _place_slip_zones(
-    rng: np.random.Generator, corridor: tuple[NDArray, NDArray, NDArray, float], config: RandomMapConfig
+    rng: np.random.Generator,
+    corridor: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float],
+    config: RandomMapConfig,
 ) -> tuple[SlipZone, ...]:
     """``config.n_slip_zones`` circles in the corridor (:func:`_corridor`), overlapping anything
     (slip is no obstacle).
@@ -548,13 +557,13 @@ def _place_slip_zones(
 
 def _place_obstacles(
     rng: np.random.Generator,
-    corridor: tuple[NDArray, NDArray, NDArray, float],
-    start_xy: NDArray,
-    target_xy: NDArray,
+    corridor: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float],
+    start_xy: NDArray[np.float64],
+    target_xy: NDArray[np.float64],
     config: RandomMapConfig,
     robot_radius: float,
     workspace: tuple[float, float, float, float],
-) -> NDArray | None:
+) -> NDArray[np.float64] | None:
     """Obstacles along the corridor (:func:`_corridor`) between the start and target centroids,
     or None if stuck."""
     a, b, normal, half_width = corridor
@@ -579,20 +588,20 @@ def _place_obstacles(
 
 @njit(cache=True)
 def _place_obstacles_kernel(
-    rng,
-    a,
-    b,
-    normal,
-    half_width,
-    keep_clear,
-    n_obstacles,
-    r_low,
-    r_high,
-    robot_radius,
-    clearance,
-    gap,
-    workspace,
-):
+    rng: np.random.Generator,
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    normal: NDArray[np.float64],
+    half_width: float,
+    keep_clear: NDArray[np.float64],
+    n_obstacles: int,
+    r_low: float,
+    r_high: float,
+    robot_radius: float,
+    clearance: float,
+    gap: float,
+    workspace: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], bool]:
     """The rejection sampler of :func:`_place_obstacles`, compiled: a reset of a vector env with
     ``map="random"`` spent ~3 ms here in Python. It draws from ``rng`` exactly as the Python
     version did (numba's Generator shares NumPy's bit stream and algorithms), so the same seed

@@ -16,9 +16,9 @@ __all__ = ["rollout"]
 
 
 def rollout(
-    start: NDArray,
-    commands: NDArray,
-    lambdas: NDArray,
+    start: NDArray[np.float64],
+    commands: NDArray[np.float64],
+    lambdas: NDArray[np.float64],
     rng: np.random.Generator,
     dt: float = PARAMS.dt,
 ) -> NDArray[np.float64]:

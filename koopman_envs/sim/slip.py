@@ -57,7 +57,7 @@ class SlipSampler:
         # periods every env can still draw from its buffer; 0 forces the refill check
         self._headroom = 0
 
-    def reset_env(self, index: int, rng: np.random.Generator, lambdas: NDArray) -> None:
+    def reset_env(self, index: int, rng: np.random.Generator, lambdas: NDArray[np.float64]) -> None:
         """Attach env ``index`` to its generator and slip means.
 
         Draws already buffered from the same generator carry over into the next episode (an
@@ -69,7 +69,7 @@ class SlipSampler:
             self._headroom = 0
         self.lambdas[index] = lambdas
 
-    def prepare(self, active: NDArray | None = None) -> None:
+    def prepare(self, active: NDArray[np.bool_] | None = None) -> None:
         """Refill the block of every environment about to step past its buffer.
 
         Call once before each step; the step itself then reads row ``cursor[k]`` of

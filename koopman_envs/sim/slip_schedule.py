@@ -79,7 +79,8 @@ class SlipSchedule:
                     f"slip={slip!r} is not a schedule; allowed: {DRIFT_SLIP!r} or (time, lambdas) pairs"
                 )
             return cls(True, np.zeros(0), np.zeros((0, n_robots)))
-        times, levels = [], []
+        times: list[float] = []
+        levels: list[NDArray[np.float64]] = []
         for j, entry in enumerate(slip):
             if not isinstance(entry, (list, tuple)) or len(entry) != 2:
                 raise ValueError(
@@ -113,7 +114,7 @@ class SlipSchedule:
         levels_arr.setflags(write=False)
         return cls(False, times_arr, levels_arr)
 
-    def levels_at(self, time: NDArray | float) -> NDArray[np.float64]:
+    def levels_at(self, time: NDArray[np.float64] | float) -> NDArray[np.float64]:
         """Levels of the listed schedule in effect at ``time`` [s] (any shape S): (*S, N)."""
         if self.drift:
             raise ValueError("a drift schedule has no fixed levels; they are drawn per episode")
@@ -175,10 +176,10 @@ class SlipClock:
 
     def advance(
         self,
-        elapsed: NDArray,
-        active: NDArray | None,
+        elapsed: NDArray[np.int64],
+        active: NDArray[np.bool_] | None,
         rngs: Sequence[np.random.Generator | None],
-        lambdas: NDArray,
+        lambdas: NDArray[np.float64],
         dt: float = PARAMS.dt,
     ) -> None:
         """After a step: set ``lambdas`` (K, N) to the levels of every environment's next period.
@@ -209,7 +210,10 @@ class SlipClock:
         schedule = self.schedule
         for k in np.flatnonzero(due.any(axis=1)):
             if schedule.drift:
-                rng = rngs[k]
+                rng = rngs[int(k)]
+                # k is due, so reset_env() set its next_time, and the engine attached its
+                # generator to the slip sampler in the same reset
+                assert rng is not None
                 for i in np.flatnonzero(due[k]):
                     while self.next_time[k, i] <= now[k]:
                         lambdas[k, i] = rng.uniform(0.0, RANDOM_SLIP_MAX)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numba import njit
@@ -107,7 +107,8 @@ class SlipZone:
                 f"rect={list(bounds)} is empty; allowed: {form} with xmin < xmax and ymin < ymax"
             )
         lam = _floats(self.lam)
-        values = lam if isinstance(lam, tuple) else (lam,)
+        # a None ``lam`` is rejected below before ``values`` is read, so its entries are floats
+        values = cast("tuple[float, ...]", lam if isinstance(lam, tuple) else (lam,))
         if lam is None or not values or not all(math.isfinite(v) and v >= 0 for v in values):
             raise ValueError(
                 f"lambda={self.lam!r} must be a finite number >= 0 or a list of them (one per robot)"
@@ -124,7 +125,8 @@ class SlipZone:
 
     def lambdas_for(self, n_robots: int) -> NDArray[np.float64]:
         """The zone's lambda of robots 0 .. n_robots - 1, shape (n_robots,)."""
-        if self.per_robot:
+        # isinstance rather than self.per_robot (the same test) narrows lam for the type checker
+        if isinstance(self.lam, tuple):
             return np.asarray(self.lam[:n_robots], dtype=np.float64)
         return np.full(n_robots, self.lam)
 
@@ -147,7 +149,8 @@ class SlipZone:
         """Map-file form, readable by :meth:`from_dict`."""
         return {
             self.shape: list(self.bounds),
-            "lambda": list(self.lam) if self.per_robot else self.lam,
+            # isinstance rather than self.per_robot (the same test) narrows lam for the type checker
+            "lambda": list(self.lam) if isinstance(self.lam, tuple) else self.lam,
             "mode": self.mode,
         }
 
@@ -179,7 +182,8 @@ class SlipZone:
 def check_zone_robots(zones: Sequence[SlipZone], n_robots: int) -> None:
     """Raise ValueError when a per-robot zone lambda list does not have ``n_robots`` entries."""
     for j, zone in enumerate(zones):
-        if zone.per_robot and len(zone.lam) != n_robots:
+        # isinstance rather than zone.per_robot (the same test) narrows lam for the type checker
+        if isinstance(zone.lam, tuple) and len(zone.lam) != n_robots:
             raise ValueError(
                 f"slip zone {j}: lambda={list(zone.lam)} has {len(zone.lam)} values; allowed: one number "
                 f"for every robot or one per robot of the map ({n_robots})"
@@ -219,14 +223,24 @@ class ZoneTable:
             self.add[index, j] = zone.mode == "add"
             self.lambdas[index, j] = zone.lambdas_for(self.n_robots)
 
-    def slip_means(self, state: NDArray, base: NDArray, out: NDArray) -> NDArray:
+    def slip_means(
+        self, state: NDArray[np.float64], base: NDArray[np.float64], out: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
         """Slip mean of every robot at ``state`` (K, 3, N) given the base levels (K, N), into ``out``."""
         zone_slip_means(state, base, self.kind, self.geometry, self.add, self.lambdas, out)
         return out
 
 
 @njit(cache=True)
-def zone_slip_means(state, base, kind, geometry, add, zone_lambdas, out):  # pragma: no cover - compiled
+def zone_slip_means(
+    state: NDArray[np.float64],
+    base: NDArray[np.float64],
+    kind: NDArray[np.int64],
+    geometry: NDArray[np.float64],
+    add: NDArray[np.bool_],
+    zone_lambdas: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
     """Slip mean of every robot where it stands (compiled; the rules of the module docstring).
 
     Parameters

@@ -93,10 +93,10 @@ class FeatureBuilder:
 
     def build(
         self,
-        state: NDArray,
-        target: NDArray,
+        state: NDArray[np.float64],
+        target: NDArray[np.float64],
         geometry: TeamGeometry,
-        formation_offsets: NDArray | None,
+        formation_offsets: NDArray[np.float64] | None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Observation blocks and target distances.
 
@@ -138,19 +138,19 @@ class FeatureBuilder:
 
 @njit(cache=True)
 def _build_features(
-    state,
-    target,
-    offsets,
-    formation,
-    obstacle_x,
-    obstacle_y,
-    radius_sum,
-    n_obstacle_obs,
-    low,
-    high,
-    out,
-    distances,
-):  # pragma: no cover - compiled
+    state: NDArray[np.float64],
+    target: NDArray[np.float64],
+    offsets: NDArray[np.float64],
+    formation: bool,
+    obstacle_x: NDArray[np.float64],
+    obstacle_y: NDArray[np.float64],
+    radius_sum: NDArray[np.float64],
+    n_obstacle_obs: int,
+    low: NDArray[np.float64],
+    high: NDArray[np.float64],
+    out: NDArray[np.float64],
+    distances: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
     """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring."""
     n_envs, _, n_robots = state.shape
     n_obstacles = obstacle_x.shape[1]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
@@ -16,19 +17,19 @@ def score_step(
     goal_tolerance: float,
     settle_steps: int,
     max_episode_steps: int | None,
-    prev_distances: NDArray,
-    distances: NDArray,
-    effort: NDArray,
-    formation_error: NDArray,
-    collision: NDArray,
-    active: NDArray,
-    settled: NDArray,
-    elapsed: NDArray,
-    robot_reward: NDArray,
-    team_reward: NDArray,
-    success: NDArray,
-    terminated: NDArray,
-    truncated: NDArray,
+    prev_distances: NDArray[np.float64],
+    distances: NDArray[np.float64],
+    effort: NDArray[np.float64],
+    formation_error: NDArray[np.float64],
+    collision: NDArray[np.int64],
+    active: NDArray[np.bool_],
+    settled: NDArray[np.int64],
+    elapsed: NDArray[np.int64],
+    robot_reward: NDArray[np.float64],
+    team_reward: NDArray[np.float64],
+    success: NDArray[np.bool_],
+    terminated: NDArray[np.bool_],
+    truncated: NDArray[np.bool_],
 ) -> None:
     """Update the settle and time counters and score one step of K environments.
 
@@ -94,30 +95,30 @@ def score_step(
 
 @njit(cache=True)
 def _score(
-    prev_distances,
-    distances,
-    effort,
-    formation_error,
-    collision,
-    active,
-    settled,
-    elapsed,
-    goal_tolerance,
-    settle_steps,
-    max_episode_steps,
-    formation,
-    w_progress,
-    w_effort,
-    w_settle,
-    w_formation,
-    w_success,
-    w_collision,
-    robot_reward,
-    team_reward,
-    success,
-    terminated,
-    truncated,
-):  # pragma: no cover - compiled
+    prev_distances: NDArray[np.float64],
+    distances: NDArray[np.float64],
+    effort: NDArray[np.float64],
+    formation_error: NDArray[np.float64],
+    collision: NDArray[np.int64],
+    active: NDArray[np.bool_],
+    settled: NDArray[np.int64],
+    elapsed: NDArray[np.int64],
+    goal_tolerance: float,
+    settle_steps: int,
+    max_episode_steps: int,
+    formation: bool,
+    w_progress: float,
+    w_effort: float,
+    w_settle: float,
+    w_formation: float,
+    w_success: float,
+    w_collision: float,
+    robot_reward: NDArray[np.float64],
+    team_reward: NDArray[np.float64],
+    success: NDArray[np.bool_],
+    terminated: NDArray[np.bool_],
+    truncated: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
     n_envs, n_robots = distances.shape
     for k in range(n_envs):
         stepped = 1 if active[k] else 0

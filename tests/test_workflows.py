@@ -1,0 +1,176 @@
+"""The GitHub Action and the example workflows work by construction: their run steps are scripts
+under .ci/, which .ci/run (the repository's leaderboard gate) and these tests run.
+
+The action's script runs here in a fresh virtual environment (on top of this one's packages, so
+that nothing is downloaded) with a user's package that adds a controller by import path."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import venv
+from pathlib import Path
+
+import pytest
+
+yaml = pytest.importorskip("yaml")
+
+ROOT = Path(__file__).resolve().parents[1]
+WORKFLOWS = sorted(
+    [*(ROOT / ".github" / "workflows").glob("*.yml"), *(ROOT / "examples" / "workflows").glob("*.yml")]
+)
+
+
+def _steps(path: Path) -> list[dict]:
+    doc = yaml.safe_load(path.read_text())
+    return [step for job in doc["jobs"].values() for step in job["steps"]]
+
+
+def test_there_are_workflows_for_both_uses() -> None:
+    names = {p.name for p in WORKFLOWS}
+    assert {"leaderboard.yml", "my-controller-leaderboard.yml"} <= names
+
+
+@pytest.mark.parametrize("path", WORKFLOWS, ids=lambda p: p.name)
+def test_every_run_step_is_a_script_that_ci_runs(path: Path) -> None:
+    ci = (ROOT / ".ci" / "run").read_text()
+    for step in _steps(path):
+        if "run" in step:
+            command = step["run"].strip()
+            assert command.startswith("bash .ci/"), f"{path.name}: step {step.get('name')!r} runs {command!r}"
+            script = command.split()[1]
+            assert (ROOT / script).is_file()
+            assert f"bash {script}" in ci, f"{script} is not run by .ci/run"
+        else:
+            assert step["uses"].split("@")[0] in {
+                "actions/checkout",
+                "actions/setup-python",
+                "actions/upload-artifact",
+                "koopnav/koopnav",  # this repository's action.yml
+            }
+
+
+def test_the_user_workflow_passes_only_inputs_the_action_declares() -> None:
+    action = yaml.safe_load((ROOT / "action.yml").read_text())
+    (step,) = [
+        s
+        for s in _steps(ROOT / "examples" / "workflows" / "my-controller-leaderboard.yml")
+        if "koopnav" in s.get("uses", "")
+    ]
+    assert set(step["with"]) <= set(action["inputs"])
+    required = {name for name, spec in action["inputs"].items() if spec.get("required")}
+    assert required <= set(step["with"])
+    # the action's run step is the script tested below, with every input passed on
+    (run,) = [s for s in action["runs"]["steps"] if "run" in s]
+    assert run["run"].endswith('.ci/action.sh"')
+    assert {f"${{{{ inputs.{name} }}}}" for name in action["inputs"] if name != "python-version"} <= set(
+        run["env"].values()
+    )
+
+
+USER_CONTROLLER = '''
+import numpy as np
+from controllers.base import BaseController
+
+
+class Forward(BaseController):
+    """Drive straight at a constant speed: a user's controller, packaged outside KoopNav."""
+
+    def __init__(self, speed: float = 0.1) -> None:
+        super().__init__()
+        self.speed = speed
+
+    def _act(self, observation, info):
+        return np.tile([self.speed, 0.0], len(info["poses"]))
+'''
+
+
+@pytest.fixture(scope="module")
+def user_venv(tmp_path_factory) -> tuple[Path, Path]:
+    """A fresh venv (seeing this environment's packages) and a user's package beside it."""
+    root = tmp_path_factory.mktemp("user")
+    package = root / "my-controller"
+    (package / "my_package").mkdir(parents=True)
+    (package / "my_package" / "__init__.py").write_text("")
+    (package / "my_package" / "control.py").write_text(USER_CONTROLLER)
+    (package / "pyproject.toml").write_text(
+        '[build-system]\nrequires = ["setuptools>=61"]\nbuild-backend = "setuptools.build_meta"\n\n'
+        '[project]\nname = "my-package"\nversion = "0.0.1"\n'
+    )
+    env_dir = root / "venv"
+    # no pip of its own: this environment's pip and setuptools install into it (sys.prefix is the venv)
+    venv.create(env_dir, system_site_packages=True, with_pip=False)
+    return env_dir, package
+
+
+def _run_action(env_dir: Path, package: Path, out: Path, **inputs: str) -> subprocess.CompletedProcess:
+    environment = {
+        **os.environ,
+        "PATH": f"{env_dir / 'bin'}{os.pathsep}{os.environ['PATH']}",
+        "VIRTUAL_ENV": str(env_dir),
+        # installs from local sources only: no index (CI machines reach none), no build isolation
+        "PIP_NO_INDEX": "1",
+        "PIP_NO_BUILD_ISOLATION": "0",  # pip reads this negated: 0 turns isolation off
+        "PIP_NO_DEPS": "1",
+        "KOOPNAV_SOURCE": str(ROOT),
+        "KOOPNAV_PACKAGE": str(package),
+        "KOOPNAV_CONTROLLERS": "my_package.control:Forward:speed=0.2 consensus",
+        "KOOPNAV_EPISODES": "1",
+        "KOOPNAV_ARGS": "--env KoopNav-TargetReaching-v0 --maps map1 --slips nominal --max-episode-steps 20 --workers 1",
+        "KOOPNAV_OUT": str(out),
+        **inputs,
+    }
+    environment.pop("PYTHONPATH", None)
+    return subprocess.run(
+        ["bash", str(ROOT / ".ci" / "action.sh")],
+        env=environment,
+        capture_output=True,
+        text=True,
+        cwd=out.parent,
+    )
+
+
+def test_the_action_ranks_a_users_controller_and_gates_a_rerun(user_venv, tmp_path) -> None:
+    env_dir, package = user_venv
+    first = _run_action(env_dir, package, tmp_path / "base")
+    assert first.returncode == 0, first.stderr[-3000:]
+    results = json.loads((tmp_path / "base" / "results.json").read_text())
+    assert results["config"]["controllers"] == ["my_package.control:Forward:speed=0.2", "consensus"]
+    assert all(r["status"] == "ok" for r in results["episodes"]), [
+        r.get("error") for r in results["episodes"]
+    ]
+    badge = (tmp_path / "base" / "badge.svg").read_text()
+    assert badge.startswith("<svg") and "my_package.control:Forward:speed=0.2" in badge
+    # the rerun against the first run as baseline: the same seeds, the same outcomes, the gate passes
+    again = _run_action(env_dir, package, tmp_path / "again", KOOPNAV_BASELINE=str(tmp_path / "base"))
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "baseline gate passed" in again.stdout
+    assert (tmp_path / "again" / "baseline_comparison.md").is_file()
+
+
+def test_the_action_refuses_a_missing_controller_input(user_venv, tmp_path) -> None:
+    env_dir, package = user_venv
+    run = _run_action(env_dir, package, tmp_path / "out", KOOPNAV_CONTROLLERS="")
+    assert run.returncode != 0 and "at least one controller configuration" in run.stderr
+
+
+def test_the_repository_gate_passes_on_its_own_baseline(tmp_path) -> None:
+    """.ci/leaderboard.sh against the committed baseline, on a subset: seed 0 of every quick-board
+    cell for two controllers (the full gate is the last step of .ci/run)."""
+    environment = {
+        **os.environ,
+        "KOOPNAV_GATE_EPISODES": "1",
+        "KOOPNAV_GATE_ARGS": "--controllers consensus nominal-nmpc --solver rti",
+    }
+    run = subprocess.run(
+        ["bash", str(ROOT / ".ci" / "leaderboard.sh"), str(tmp_path / "gate")],
+        env=environment,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
+    assert "baseline gate passed" in run.stdout
+    comparison = json.loads((tmp_path / "gate" / "baseline_comparison.json").read_text())
+    assert {row["controller"] for row in comparison["rows"]} == {"consensus", "nominal-nmpc"}
+    assert all(row["only_a"] == row["only_b"] == 0 for row in comparison["rows"])
