@@ -29,6 +29,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn
 
 import koopman_envs  # noqa: F401 - registers the ids
+from koopman_envs.checks import check_int
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -104,10 +105,8 @@ def robot_features(
         raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
     blocks = np.asarray(team_blocks, dtype=np.float64)
     n = blocks.shape[-2]
-    if neighbours is not None and (
-        isinstance(neighbours, bool) or not isinstance(neighbours, (int, np.integer)) or neighbours < 0
-    ):
-        raise ValueError(f"neighbours={neighbours!r} must be an integer >= 0")
+    if neighbours is not None:
+        check_int("neighbours", neighbours, 0)
     if neighbours is None or neighbours == n - 1:
         others = np.broadcast_to(
             np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1),

@@ -32,6 +32,7 @@ from controllers.koopman.online import (
 )
 from controllers.koopman_nmpc import KoopmanNMPC
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
+from koopman_envs.checks import check_int
 from koopman_envs.scenario import Scenario
 
 __all__ = ["AdaptiveKoopmanNMPC"]
@@ -87,8 +88,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
         check_forgetting(forgetting)
         check_prior_weight(prior_weight)
-        if isinstance(residual_window, bool) or not isinstance(residual_window, int) or residual_window < 1:
-            raise ValueError(f"residual_window={residual_window!r} must be an integer >= 1 (periods)")
+        check_int("residual_window", residual_window, 1, note="periods")
         self.forgetting = float(forgetting)
         self.prior_weight = float(prior_weight)
         self.residual_window = residual_window

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from controllers.base import Calibratable, calibratable
 from controllers.cache import cache_root, write_atomic
+from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
 
@@ -81,8 +82,7 @@ class DataSpec:
 def data_spec_for(budget: int, seed: int = 0) -> DataSpec:
     """The identification set a budget buys: trajectories of the paper's length (1000 periods),
     as many as fit (one shorter trajectory when the budget is below one paper trajectory)."""
-    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
-        raise ValueError(f"calibration budget={budget!r} must be an integer >= 1 (team-transitions)")
+    check_int("calibration budget", budget, 1, note="team-transitions")
     steps = min(PARAMS.koopman_steps, int(budget))
     return DataSpec(trajectories=int(budget) // steps, steps=steps, seed=seed)
 

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from controllers.base import BaseController
 from controllers.rti import RealTimeIteration, bind_buffer, check_rti_options
 from controllers.solver_cache import jit_options, nlpsol
+from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -636,8 +637,7 @@ class NMPCController(BaseController):
             self.config = base.with_options(**options) if options else base
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
-        if not isinstance(self.config.horizon, int) or self.config.horizon < 1:
-            raise ValueError(f"horizon={self.config.horizon!r} must be an integer >= 1")
+        check_int("horizon", self.config.horizon, 1)
         k = self.config.uncertainty_margin
         if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
             raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")

@@ -30,6 +30,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_int
+
 if TYPE_CHECKING:  # pragma: no cover - typing only (nmpc imports this module)
     from controllers.nmpc import _Problem
 
@@ -100,8 +102,7 @@ def check_rti_options(qp_solver: str, iterations: int, hessian: str) -> None:
     """Raise ``ValueError`` naming a bad real-time-iteration option and what is allowed."""
     if qp_solver not in QP_SOLVERS:
         raise ValueError(f"qp_solver={qp_solver!r} is not one of {sorted(QP_SOLVERS)}")
-    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
-        raise ValueError(f"rti_iterations={iterations!r} must be an integer >= 1")
+    check_int("rti_iterations", iterations, 1)
     if hessian not in HESSIANS:
         raise ValueError(f"hessian={hessian!r} is not one of {list(HESSIANS)}")
 

@@ -26,6 +26,19 @@ SMALL = ev.RunSpec(
 )
 
 
+#: SMALL as command-line options
+SMALL_ARGS = [
+    "--env",
+    "KoopNav-TargetReaching-v0",
+    "--controllers",
+    "consensus",
+    "nominal-nmpc",
+    "--maps",
+    "map1",
+]
+SMALL_ARGS += ["--slips", "nominal", "high", "--episodes", "2", "--seed", "3", "--max-episode-steps", "150"]
+
+
 @pytest.fixture(scope="module")
 def small_results(tmp_path_factory) -> ev.Results:
     return ev.evaluate(SMALL, workers=2, out=tmp_path_factory.mktemp("run"))
@@ -69,22 +82,7 @@ def test_killed_run_resumes_to_the_same_result(tmp_path, small_results: ev.Resul
     cmd = [
         sys.executable,
         "evaluate.py",
-        "--env",
-        "KoopNav-TargetReaching-v0",
-        "--controllers",
-        "consensus",
-        "nominal-nmpc",
-        "--maps",
-        "map1",
-        "--slips",
-        "nominal",
-        "high",
-        "--episodes",
-        "2",
-        "--seed",
-        "3",
-        "--max-episode-steps",
-        "150",
+        *SMALL_ARGS,
         "--workers",
         "1",
         "--out",
@@ -291,22 +289,7 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, small_result
     cmd = [
         sys.executable,
         "evaluate.py",
-        "--env",
-        "KoopNav-TargetReaching-v0",
-        "--controllers",
-        "consensus",
-        "nominal-nmpc",
-        "--maps",
-        "map1",
-        "--slips",
-        "nominal",
-        "high",
-        "--episodes",
-        "2",
-        "--seed",
-        "3",
-        "--max-episode-steps",
-        "150",
+        *SMALL_ARGS,
         "--workers",
         "2",
         "--out",

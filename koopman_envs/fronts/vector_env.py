@@ -11,6 +11,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_int
 from koopman_envs.config import EngineConfig
 from koopman_envs.engine import NavigationEngine
 from koopman_envs.keywords import takes_env_keywords
@@ -60,8 +61,7 @@ class KoopNavVectorEnv(VectorEnv):
         render_mode: str | None = None,
         **keywords: Any,
     ) -> None:
-        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
+        check_int("num_envs", num_envs, 1)
         if render_mode is not None:
             raise ValueError(
                 f"render_mode={render_mode!r}: the vector env does not render; render a single env"

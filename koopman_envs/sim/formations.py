@@ -29,6 +29,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_int
+
 __all__ = ["FORMATION_SHAPES", "formation_offsets_for", "formation_shape"]
 
 FORMATION_SHAPES = ("wedge", "line", "column", "circle", "grid")
@@ -57,8 +59,7 @@ def formation_shape(name: str, n_robots: int, spacing: float) -> NDArray[np.floa
     """
     if name not in FORMATION_SHAPES:
         raise ValueError(f"formation={name!r} is not one of {list(FORMATION_SHAPES)}")
-    if isinstance(n_robots, bool) or not isinstance(n_robots, (int, np.integer)) or n_robots < 1:
-        raise ValueError(f"n_robots={n_robots!r} must be an integer >= 1")
+    check_int("n_robots", n_robots, 1)
     if (
         isinstance(spacing, bool)
         or not isinstance(spacing, (int, float))

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for, formation_shape
 from koopman_envs.sim.geometry import TeamGeometry
@@ -155,8 +156,7 @@ class MapSpec:
             Naming the first problem: too many robots, a pose outside the workspace,
             overlapping starts or targets, a start or target inside an obstacle.
         """
-        if not isinstance(n_robots, (int, np.integer)) or n_robots < 1:
-            raise ValueError(f"n_robots={n_robots!r} must be an integer >= 1")
+        check_int("n_robots", n_robots, 1)
         if n_robots > self.max_robots:
             raise ValueError(
                 f"n_robots={n_robots} is larger than map {self.name!r} supports "
@@ -411,8 +411,7 @@ class RandomMapConfig:
         if not 0.0 <= self.swap_targets <= 1.0:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-            raise ValueError(f"n_slip_zones={n!r} must be an integer >= 0")
+        check_int("n_slip_zones", n, 0)
         for name, low_allowed in (("slip_zone_radius", "> 0"), ("slip_zone_lambda", ">= 0")):
             pair = getattr(self, name)
             try:
