@@ -52,7 +52,7 @@ from evaluation.baseline import (
     refuse_incomparable,
 )
 from evaluation.configs import split_controller_list
-from evaluation.plan import EpisodeSpec
+from evaluation.plan import EpisodeSpec, is_lambda
 from evaluation.protocols import (
     QUICK_START_NOISE,
     TASK_MAPS,
@@ -88,14 +88,6 @@ INTERRUPTED_EXIT = 130  # the shell's code for a run stopped by Ctrl-C (128 + SI
 
 
 # --------------------------------------------------------------------------- list arguments
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 def split_words(words: list[str] | None) -> list[str] | None:
     """``["a,b", "c"]`` -> ``["a", "b", "c"]``: comma-separated lists work like spaced ones."""
     if words is None:
@@ -114,7 +106,7 @@ def split_slips(words: list[str] | None) -> list[str] | None:
     for word in words:
         numbers: list[str] = []
         for piece in [p.strip() for p in word.split(",") if p.strip()]:
-            if _is_number(piece):
+            if is_lambda(piece):
                 numbers.append(piece)
                 continue
             if numbers:

@@ -17,9 +17,19 @@ from evaluation.configs import ControllerConfig
 from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.maps import BUILTIN_MAPS
 
-__all__ = ["EpisodeSpec", "RANDOM_MAP", "map_fingerprints", "safe_file_name", "slip_value"]
+__all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
 
 RANDOM_MAP = "random"
+
+
+def is_lambda(text: str) -> bool:
+    """Whether one comma-separated piece of a slip text is a number (a per-robot lambda) rather
+    than a setting name: the one rule for reading ``"0,0.1,0.2"`` (cells and the CLI alike)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def slip_value(slip: str) -> str | list[float]:
@@ -27,12 +37,12 @@ def slip_value(slip: str) -> str | list[float]:
     lambdas (a listed schedule of levels over time is an env keyword only, not a cell)."""
     if slip in SLIP_NAMES:
         return slip
-    try:
-        return [float(v) for v in slip.split(",")]
-    except ValueError:
+    pieces = slip.split(",")
+    if not all(is_lambda(piece) for piece in pieces):
         raise ValueError(
             f"slip={slip!r} is not one of {list(SLIP_NAMES)} nor comma-separated per-robot lambdas"
-        ) from None
+        )
+    return [float(piece) for piece in pieces]
 
 
 @dataclass(frozen=True)

@@ -93,16 +93,6 @@ class PaperParams:
         """Team-transitions a controller may simulate to calibrate: the paper's data set size."""
         return self.koopman_trajectories * self.koopman_steps
 
-    @property
-    def action_low(self) -> NDArray[np.float64]:
-        """Lower actuation limit of one robot, ``(-v_max, -omega_max)``."""
-        return np.array([-self.v_max, -self.omega_max])
-
-    @property
-    def action_high(self) -> NDArray[np.float64]:
-        """Upper actuation limit of one robot, ``(v_max, omega_max)``."""
-        return np.array([self.v_max, self.omega_max])
-
 
 PARAMS = PaperParams()
 
