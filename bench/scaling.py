@@ -2,16 +2,16 @@
 
 Usage::
 
-    python bench/scaling.py [--robots 3 5 8 12] [--steps 60] [--controllers nominal-nmpc koopman-nmpc consensus]
-    python bench/scaling.py --controllers nominal-nmpc nominal-nmpc:solver=fatrop   # any evaluator configuration
+    python bench/scaling.py [--robots 3 6 10 16 24 32] [--seeds 20] [--controllers dmpc-nominal consensus]
+    python bench/scaling.py --robots 3 5 8 --seeds 5 --controllers nominal-nmpc dmpc-nominal   # any configuration
 
-For each team size N, target reaching on the seeded random map of seed 0 (4 obstacles, the
-random-map generator's defaults) runs ``--steps`` control periods with each controller in its
-default setup (NMPCs: IPOPT, compiled and cached unless ``KOOPNAV_NMPC_JIT=0``; a structure not
-yet compiled runs uncompiled while it compiles in the background, so run twice for the compiled
-figures) and prints the median and p95 decision time per step, how they grow from the smallest
-N, and the outcome so far. Koopman-NMPC is calibrated for N on the env's calibration plant first
-(the fit is cached on disk; beyond 3 robots it fits the per-robot structure).
+For each team size N and controller configuration, target reaching under nominal slip on the
+seeded random maps of seeds 0..SEEDS-1 (4 obstacles; 24 robots and more start and end in a grid,
+the default wedge does not fit them), whole episodes: success and collision-free counts with the
+95% Wilson interval of success, the median and p95 decision time per step (all robots, one
+core; the first step of each episode left out), and for the distributed NMPC the median solve
+time of one robot. Koopman-NMPC is calibrated for N on the env's calibration plant first (cached).
+The central NMPCs beyond ~8 robots take seconds per step: give them few seeds (``--seeds``).
 """
 
 from __future__ import annotations
@@ -24,44 +24,69 @@ import numpy as np
 import koopman_envs  # noqa: F401  (registers the envs)
 from controllers.calibration import calibrate_controller
 from evaluation.configs import parse_controller
+from evaluation.statistics import wilson_interval
 from koopman_envs.episode import run_episode
 
 ENV_ID = "KoopNav-TargetReaching-v0"
 
 
-def step_times(name: str, n_robots: int, steps: int, seed: int = 0) -> tuple[np.ndarray, str]:
-    """Decision times [ms] over one episode cut at ``steps`` periods, and its outcome.
+def run_cell(name: str, n_robots: int, steps: int, seeds: int) -> dict:
+    """``seeds`` episodes (seeds 0..seeds-1) of one controller configuration at team size N.
 
-    ``name``: a controller configuration as the evaluator takes it (``name:key=value,...``).
+    Returns successes, collision-free runs, the per-step decision times [ms] of all episodes
+    (the first step of each left out: it may build a solver's cold-start variant), the
+    per-robot solve times of the distributed NMPC (empty for the others) and the outcomes.
     """
-    env = gym.make(ENV_ID, map="random", n_robots=n_robots, max_episode_steps=steps)
+    # the default wedge formation of the random maps does not fit 24 or more robots in the
+    # 20 x 20 m workspace: larger teams start and end in a grid
+    layout = {"formation": "grid"} if n_robots >= 24 else None
+    env = gym.make(ENV_ID, map="random", n_robots=n_robots, max_episode_steps=steps, random_map=layout)
     ctrl = parse_controller(name).build()
     calibrate_controller(ctrl, env)
-    result = run_episode(env, ctrl, seed=seed)
-    # the first step may build the solver's cold-start variant: not a steady-state figure
-    times = 1e3 * np.asarray(ctrl.stats().solve_times[1:])
-    return times, result.outcome
+    won, free, times, robot, outcomes = 0, 0, [], [], []
+    for seed in range(seeds):
+        result = run_episode(env, ctrl, seed=seed)
+        stats = ctrl.stats()
+        won += bool(result.success)
+        free += result.collision is None
+        times += [1e3 * t for t in stats.solve_times[1:]]
+        robot += [1e3 * t for t in stats.extra_times.get("robot", [])]
+        outcomes.append(result.outcome)
+    return {
+        "won": won,
+        "free": free,
+        "times": np.asarray(times),
+        "robot": np.asarray(robot),
+        "outcomes": outcomes,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--robots", type=int, nargs="+", default=[3, 5, 8, 12])
-    parser.add_argument("--steps", type=int, default=60)
-    parser.add_argument("--controllers", nargs="+", default=["nominal-nmpc", "koopman-nmpc", "consensus"])
+    parser.add_argument("--robots", type=int, nargs="+", default=[3, 6, 10, 16, 24, 32])
+    parser.add_argument("--steps", type=int, default=600, help="time limit per episode (default: the env's)")
+    parser.add_argument("--seeds", type=int, default=20, help="episodes per cell (seeds 0..SEEDS-1)")
+    parser.add_argument("--controllers", nargs="+", default=["dmpc-nominal", "consensus"])
     args = parser.parse_args()
-    print(f"{ENV_ID}, random map of seed 0, {args.steps} steps per run; decision time per step [ms]")
+    print(
+        f"{ENV_ID}, nominal slip, seeded random maps (seeds 0..{args.seeds - 1}), time limit {args.steps} periods; "
+        "success k/n [95% Wilson]; decision time per step [ms] (all robots, one core)"
+    )
     width = max(14, *(len(name) for name in args.controllers))
     print(
-        f"{'controller':{width}s} {'N':>3s} {'median':>8s} {'p95':>8s} {'x median':>9s} {'x p95':>7s}  outcome"
+        f"{'controller':{width}s} {'N':>3s} {'success':>18s} {'collision-free':>16s} {'median':>8s} {'p95':>8s} "
+        f"{'per robot':>9s}"
     )
     for name in args.controllers:
-        base = None
         for n in args.robots:
-            times, outcome = step_times(name, n, args.steps)
-            median, p95 = float(np.median(times)), float(np.percentile(times, 95))
-            base = base or (median, p95)
+            cell = run_cell(name, n, args.steps, args.seeds)
+            times, robot = cell["times"], cell["robot"]
+            low, high = wilson_interval(cell["won"], args.seeds)
+            success = f"{cell['won']}/{args.seeds} [{100 * low:.0f}-{100 * high:.0f}%]"
+            per_robot = f"{np.median(robot):9.2f}" if robot.size else f"{'-':>9s}"
             print(
-                f"{name:{width}s} {n:3d} {median:8.2f} {p95:8.2f} {median / base[0]:9.1f} {p95 / base[1]:7.1f}  {outcome}",
+                f"{name:{width}s} {n:3d} {success:>18s} {cell['free']:>8d}/{args.seeds:<7d} "
+                f"{np.median(times):8.2f} {np.percentile(times, 95):8.2f} {per_robot}",
                 flush=True,
             )
 

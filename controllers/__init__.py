@@ -21,6 +21,8 @@ register("koopman-nmpc-robust", "controllers:_koopman_nmpc_robust")
 register("adaptive-koopman-nmpc", "controllers.adaptive_koopman_nmpc:AdaptiveKoopmanNMPC")
 register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
 register("nominal-nmpc-robust", "controllers:_nominal_nmpc_robust")
+# distributed: every robot its own small NMPC, neighbours' plans as moving obstacles (16-32 robots)
+register("dmpc-nominal", "controllers.distributed:DistributedNMPC")
 register("consensus", "controllers.consensus:ConsensusController")
 register("consensus-free", "controllers:_consensus_without_avoidance")
 # any controller behind the CBF safety filter: "safe:<name>", filter options prefixed "safety_"

@@ -75,6 +75,10 @@ FATROP_OPTIONS: dict[str, Any] = {
 #: environment variable that turns compiled ``nlpsol`` solvers on (``KOOPNAV_NMPC_JIT=1``)
 JIT_ENV = "KOOPNAV_NMPC_JIT"
 
+#: where an unused obstacle or neighbour slot waits [m]: far outside every workspace, so its
+#: collision row never binds (and its squared distance stays well inside double precision)
+PARKED = 1.0e3
+
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
 
 #: NMPC solvers: the real-time iteration and the ``nlpsol`` plugins solved to convergence
@@ -309,8 +313,10 @@ class _Problem:
         step: tuple[ca.Function, NDArray, Any] | None = None,
         *,
         terminal_slack: bool = False,
+        neighbour_slots: int = 0,
     ) -> None:
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
+        n_slots = neighbour_slots
         coding = model.coding
         if coding not in _CODING_SIZE:
             raise ValueError(f"model coding={coding!r} is not one of {sorted(_CODING_SIZE)}")
@@ -334,7 +340,21 @@ class _Problem:
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
         obstacle_margin = ca.SX.sym("obstacle_margin", n)
         pair_margin = ca.SX.sym("pair_margin", len(pairs))
-        params = ca.vertcat(x_meas, goal_xy, goal_cs, obstacles, obstacle_margin, pair_margin, theta)
+        # moving discs (the distributed NMPC's neighbours): a position per slot and stage 1..T, and
+        # per slot the radius plus margin to keep (no slots: the central problem, unchanged)
+        neighbour_xy = ca.SX.sym("neighbour_xy", 2 * n_slots * horizon)
+        neighbour_reach = ca.SX.sym("neighbour_reach", n_slots)
+        params = ca.vertcat(
+            x_meas,
+            goal_xy,
+            goal_cs,
+            obstacles,
+            obstacle_margin,
+            pair_margin,
+            neighbour_xy,
+            neighbour_reach,
+            theta,
+        )
 
         formation = scenario.is_formation
         weights = [
@@ -364,9 +384,14 @@ class _Problem:
             ubg.append(np.broadcast_to(high, count))
             equality.extend([bool(np.all(np.asarray(low) == np.asarray(high)))] * count)
 
-        def collision_constraints(x, slack) -> None:
+        def collision_constraints(x, slack, stage) -> None:
             for i in range(n):
                 px, py = x[size * i], x[size * i + 1]
+                for j in range(n_slots):
+                    at = 2 * (n_slots * (stage - 1) + j)
+                    reach = radius[i] + neighbour_reach[j]
+                    clear = (px - neighbour_xy[at]) ** 2 + (py - neighbour_xy[at + 1]) ** 2 - reach**2
+                    constrain(clear + slack, 0.0, np.inf)
                 for k in range(m_obs):
                     ox, oy, orad = obstacles[3 * k], obstacles[3 * k + 1], obstacles[3 * k + 2]
                     clear = (px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + obstacle_margin[i]) ** 2
@@ -444,7 +469,7 @@ class _Problem:
             else:
                 cost += tracking_cost(x)
                 if not (terminal_slack and k == horizon):
-                    collision_constraints(x, slack)
+                    collision_constraints(x, slack, k)
             if terminal_slack and k == horizon - 1:
                 # the terminal state's collision rows, written on the last stage's f(x, u) with
                 # a slack of their own: the structured QP solvers take no variables at the
@@ -452,7 +477,7 @@ class _Problem:
                 # slack shared with the stage's own rows changed the closed loop (the Map 2
                 # crossing deadlocked, with IPOPT as well)
                 terminal_first = len(equality)
-                collision_constraints(x_next, slack_vars[2] if soft else 0)
+                collision_constraints(x_next, slack_vars[2] if soft else 0, horizon)
                 terminal_rows = np.arange(terminal_first, len(equality))
             if formation and k < horizon:
                 # lb <= (x_f,k+1 - x_f,k) - (x_l,k+1 - x_l,k) <= ub, written with f(x_k, u_k)
@@ -467,6 +492,7 @@ class _Problem:
                         constrain(deviation - formation_slack, -np.inf, config.formation_bound)
             stage_cons.append(np.arange(first, len(equality)))
         self.n_robots = n
+        self.neighbour_slots = n_slots
         self._nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g), "p": params}
         #: the cost as ``sumsqr(residuals) + linear_cost`` (same value as ``f``)
         self.least_squares = (ca.vertcat(*residuals), linear_cost)
@@ -627,6 +653,8 @@ class NMPCController(BaseController):
     """
 
     name = "nmpc"
+    #: moving-disc slots of the built problem (the distributed NMPC's robots: their neighbours)
+    neighbour_slots = 0
 
     def __init__(
         self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any
@@ -678,10 +706,16 @@ class NMPCController(BaseController):
             scenario.workspace,
             scenario.v_max,
             scenario.omega_max,
+            self.neighbour_slots,
         )
         if key != self._key:
             self._problem = _Problem(
-                model, scenario, self.config, step, terminal_slack=self.config.solver == "rti"
+                model,
+                scenario,
+                self.config,
+                step,
+                terminal_slack=self.config.solver == "rti",
+                neighbour_slots=self.neighbour_slots,
             )
             self._key = key
         obstacle_margin, pair_margin = self.safety_margins(scenario)
@@ -694,12 +728,19 @@ class NMPCController(BaseController):
         )
         # the parameters after the measured state; margins and model coefficients may change
         # during an episode (see set_margins, set_model_parameters)
-        self._params_tail = np.concatenate([fixed, obstacle_margin, pair_margin, theta_values])
+        assert self._problem is not None  # built above
+        slots, horizon = self._problem.neighbour_slots, self._problem.horizon
+        # neighbour slots start parked (see set_neighbours)
+        neighbours = np.concatenate([np.full(2 * slots * horizon, PARKED), np.zeros(slots)])
+        self._params_tail = np.concatenate([fixed, obstacle_margin, pair_margin, neighbours, theta_values])
         start = fixed.size
         self._margin_slices = (
             slice(start, start + obstacle_margin.size),
             slice(start + obstacle_margin.size, start + obstacle_margin.size + pair_margin.size),
         )
+        after_margins = start + obstacle_margin.size + pair_margin.size
+        self._neighbour_slice = slice(after_margins, after_margins + neighbours.size)
+        self._obstacle_slice = slice(fixed.size - scenario.obstacles.size, fixed.size)
         self._theta_slice = slice(self._params_tail.size - theta_values.size, self._params_tail.size)
         self._warm = None
         self._fallback = None
@@ -717,6 +758,22 @@ class NMPCController(BaseController):
         """Use these safety margins from the next solve on (shapes as :meth:`safety_margins`)."""
         self._params_tail[self._margin_slices[0]] = obstacle
         self._params_tail[self._margin_slices[1]] = pair
+
+    def set_neighbours(self, positions: NDArray, reach: NDArray) -> None:
+        """Use these moving discs from the next solve on (a problem built with neighbour slots).
+
+        ``positions`` (T, K, 2): each slot's predicted position at stages 1..T; ``reach`` (K,):
+        the slot's radius plus the margin to keep. An unused slot is parked (:data:`PARKED`).
+        """
+        self._params_tail[self._neighbour_slice] = np.concatenate([np.ravel(positions), np.ravel(reach)])
+
+    def set_goal(self, index: int, xy: NDArray) -> None:
+        """Track ``xy`` instead of robot ``index``'s target position from the next solve on."""
+        self._params_tail[2 * index : 2 * index + 2] = xy
+
+    def set_obstacles(self, obstacles: NDArray) -> None:
+        """Use these obstacles (M, 3) from the next solve on (M as the problem was built for)."""
+        self._params_tail[self._obstacle_slice] = np.ravel(obstacles)
 
     def set_model_parameters(self, theta: NDArray) -> None:
         """Use these model coefficients (the model's ``nlp_parameters`` layout) from the next solve on."""

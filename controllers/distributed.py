@@ -1,0 +1,372 @@
+"""Distributed NMPC: every robot solves its own small NMPC, the others' plans as moving obstacles.
+
+The central NMPC (:mod:`controllers.nmpc`) optimizes the whole team at once: every pair of robots
+is a constraint at every stage, and its cost grows with N^2 rows and an N-robot KKT system. Here
+each robot optimizes only its own commands over the horizon, with
+
+- its own prediction model block (the slip-free unicycle of one robot),
+- its own goal (its target; a formation follower's target is the leader's target plus its
+  offset, as the env defines it),
+- the K nearest obstacles (fewer: the rest of the slots parked far away),
+- K *neighbour slots*: the robots that can come within reach over the horizon (centre distance
+  below ``2 v_max T dt`` plus both radii and the margins), each as a disc that moves along that
+  robot's latest predicted plan; unused slots are parked far away, so their rows never bind.
+
+One problem is built per structure (horizon, slots, radius, limits) and serves every robot and
+every step: its parameters carry the robot's state, goal, obstacles and neighbour plans.
+
+Coordination (``coordination=``):
+
+``"sequential"`` (default)
+    Gauss-Seidel by priority: within a period, robots solve in index order; robot i sees the
+    plans robots 0..i-1 made in this period and the others' plans of the previous period,
+    shifted by one step. A neighbour's plan is then at most one period old.
+``"jacobi"``
+    Every robot solves against the previous period's plans of all others (shifted by one step;
+    the solves are independent and could run in parallel). The one-period delay is covered by
+    widening every neighbour's disc by ``v_max dt`` (how far a robot can deviate from its plan
+    in one period).
+
+Each robot's problem is solved as the central NMPC's is (``solver``: the real-time iteration by
+default, IPOPT on failure, then the rest of the robot's last plan, then a stop), and every
+fallback is counted in :meth:`stats`. A robot without a plan yet (the first period, or after a
+failure) is predicted to hold its position.
+
+What is not distributed: the formation task's relative-motion rows (the central NMPC bounds how
+fast a follower's offset to the leader may change); here followers drive to their formation
+targets and keep clear of the leader's predicted plan.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.base import BaseController, ControllerStats
+from controllers.nmpc import PARKED, NMPCConfig, NMPCController, decode_state, encode_state
+from controllers.unicycle import UnicycleModel
+from koopman_envs.checks import check_int, check_number
+from koopman_envs.scenario import Scenario
+from koopman_envs.suggest import did_you_mean
+
+__all__ = ["COORDINATION", "DistributedNMPC"]
+
+#: coordination schemes (see the module docstring)
+COORDINATION = ("sequential", "jacobi")
+#: extra distance [m] a detour waypoint keeps from an obstacle's inflated disc (ours)
+DETOUR_CLEARANCE = 0.3
+#: how far [m] beyond the tangent point a detour waypoint lies (ours)
+DETOUR_LEAD = 1.0
+#: a robot that moved less than STALL_DISTANCE [m] in STALL_PERIODS periods while away from its
+#: target has stalled: its next solve starts cold (ours)
+STALL_PERIODS = 10
+STALL_DISTANCE = 0.02
+
+
+def _tangent_waypoint(
+    position: NDArray[np.float64], centre: NDArray[np.float64], radius: float, side: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """A point on the tangent from ``position`` to the circle (``centre``, ``radius``) that
+    touches it on ``side`` (a unit vector from the centre), ``DETOUR_LEAD`` beyond the tangent
+    point: the straight path to it clears the circle."""
+    to_robot = position - centre
+    distance = float(np.hypot(*to_robot))
+    # a robot already within the clearance ring (pressed against the obstacle) takes the tangent
+    # of a ring just inside its own distance: the waypoint then leads around the obstacle
+    radius = min(radius, 0.95 * distance)
+    # the tangent point seen from the centre: angle acos(r / d) from the robot's direction,
+    # turned toward ``side``
+    base = np.arctan2(to_robot[1], to_robot[0])
+    turn = np.arccos(radius / distance)
+    candidates = [base + turn, base - turn]
+    touch = max(
+        (centre + radius * np.array([np.cos(a), np.sin(a)]) for a in candidates),
+        key=lambda point: float(np.dot(point - centre, side)),
+    )
+    direction = (touch - position) / np.hypot(*(touch - position))
+    return touch + DETOUR_LEAD * direction
+
+
+class _RobotNMPC(NMPCController):
+    """One robot's NMPC: the central NMPC's solver chain on a one-robot problem with neighbour slots."""
+
+    name = "robot-nmpc"
+
+    def __init__(self, config: NMPCConfig, slots: int) -> None:
+        super().__init__(None, config)
+        self.neighbour_slots = slots
+
+    #: the point the robot drives to in this period (its target or a detour waypoint)
+    goal: NDArray[np.float64] | None = None
+
+    def _initial_guess(self, state: NDArray) -> NDArray:
+        """A cold start that already moves: turn toward the goal and drive (a pursuit rollout of
+        the unicycle). The central NMPC's guess holds the robot still; with zero speed along the
+        whole plan a position cost has no gradient in the heading, so a robot pressed against an
+        obstacle would never turn away from it."""
+        prob = self._problem
+        scenario = self.scenario
+        assert prob is not None and scenario is not None  # built by _reset
+        if self.goal is None:
+            return super()._initial_guess(state)
+        w = np.zeros(prob.n_vars)
+        w[: prob.nx] = state
+        x, y, theta = (float(v) for v in decode_state(state, prob.coding)[0])
+        commands, states = [], []
+        for _ in range(prob.horizon):
+            dx, dy = self.goal[0] - x, self.goal[1] - y
+            error = (np.arctan2(dy, dx) - theta + np.pi) % (2 * np.pi) - np.pi
+            omega = float(np.clip(2.0 * error, -scenario.omega_max, scenario.omega_max))
+            v = scenario.v_max * max(float(np.cos(error)), 0.0) * min(1.0, float(np.hypot(dx, dy)))
+            theta += omega * scenario.dt
+            x += v * np.cos(theta) * scenario.dt
+            y += v * np.sin(theta) * scenario.dt
+            commands.append([v, omega])
+            states.append(encode_state(np.array([[x, y, theta]]), prob.coding))
+        w[prob.u_index] = np.ravel(commands)
+        w[prob.x_index] = np.ravel(states)
+        return w
+
+    def restart(self) -> None:
+        """Start the next solve cold (from :meth:`_initial_guess`), not from the shifted plan."""
+        self._warm = None
+
+    def _model_for(self, scenario: Scenario) -> UnicycleModel:
+        if self.model is None:
+            self.model = UnicycleModel(1, scenario.dt)
+        assert isinstance(self.model, UnicycleModel)
+        return self.model
+
+
+class DistributedNMPC(BaseController):
+    """Distributed nominal NMPC (see the module docstring).
+
+    Parameters
+    ----------
+    neighbours : int
+        Neighbour slots K per robot (>= 1): the nearest robots within reach get one each.
+    obstacles : int
+        Obstacle slots per robot (>= 1): the nearest obstacles (by clearance) get one each.
+    reach : float, optional
+        Centre distance [m] within which another robot gets a slot (> 0; default
+        ``2 v_max T dt`` plus both radii and the margins: every robot that can meet this one
+        within the horizon).
+    coordination : str
+        ``"sequential"`` or ``"jacobi"``.
+    detour : bool
+        Steer around an obstacle that blocks the straight line to the target through a
+        waypoint beside it (see :meth:`_waypoint`; ours).
+    config : NMPCConfig, optional
+        Options of every robot's NMPC; ``**options`` are shorthand for its fields (``horizon``,
+        ``solver``, ``robot_offset``, ...). Default solver: the real-time iteration.
+    """
+
+    name = "dmpc-nominal"
+
+    def __init__(
+        self,
+        neighbours: int = 4,
+        obstacles: int = 4,
+        reach: float | None = None,
+        coordination: str = "sequential",
+        detour: bool = True,
+        config: NMPCConfig | None = None,
+        **options: Any,
+    ) -> None:
+        super().__init__()
+        self.neighbours = check_int("neighbours", neighbours, 1)
+        self.obstacle_slots = check_int("obstacles", obstacles, 1)
+        self.reach = None if reach is None else check_number("reach", reach, above=0, note="metres")
+        if coordination not in COORDINATION:
+            raise ValueError(
+                f"coordination={coordination!r} is not one of {list(COORDINATION)}"
+                f"{did_you_mean(coordination, COORDINATION)}"
+            )
+        self.coordination = coordination
+        self.detour = bool(detour)
+        base = config or NMPCConfig(solver="rti")
+        try:
+            self.config = dataclasses.replace(base, **options) if options else base
+        except TypeError as exc:
+            raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
+        if self.config.uncertainty_margin:
+            raise ValueError("uncertainty_margin: the distributed NMPC has no calibrated margins yet; use 0")
+        self._robot = _RobotNMPC(self.config, self.neighbours)  # validates the NMPC options
+        self._agents: list[_RobotNMPC] = []
+        self._plans: NDArray[np.float64] = np.zeros((0, 0, 2))
+        self._stats.solver = self._robot.solver_label
+
+    # ------------------------------------------------------------------ setup
+    def _robot_scenario(self, scenario: Scenario, i: int) -> Scenario:
+        """The one-robot scenario robot ``i``'s problem is built for (obstacle slots parked)."""
+        slots = np.tile([PARKED, PARKED, 0.0], (self.obstacle_slots, 1))
+        return dataclasses.replace(
+            scenario,
+            task="target_reaching",  # formation followers drive to their formation targets
+            n_robots=1,
+            obstacles=slots,
+            robot_radius=scenario.robot_radius[i : i + 1].copy(),
+            starts=scenario.starts[i : i + 1].copy(),
+            targets=scenario.targets[i : i + 1].copy(),
+            formation_offsets=np.zeros((1, 2)),
+            leader=0,
+        )
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        n = scenario.n_robots
+        while len(self._agents) < n:
+            self._agents.append(_RobotNMPC(self.config, self.neighbours))
+        first = self._agents[0]
+        first.reset(self._robot_scenario(scenario, 0), seed=seed)
+        for i in range(1, n):
+            agent = self._agents[i]
+            # one problem per structure: the first robot's model and problem serve every robot
+            # (a robot of another radius gets its own, built by its reset)
+            agent.model, agent._model_step = first.model, first._model_step
+            agent._problem, agent._key = first._problem, first._key
+            agent.reset(self._robot_scenario(scenario, i), seed=seed)
+        horizon = self.config.horizon
+        # every robot's predicted positions at its last solve's stages 1..T; no plan yet: its start
+        self._plans = np.repeat(scenario.starts[None, :, :2], horizon, axis=0)
+        radius = float(np.max(scenario.robot_radius))
+        delay = scenario.v_max * scenario.dt if self.coordination == "jacobi" else 0.0
+        self._delay = delay
+        self._reach = (
+            self.reach
+            if self.reach is not None
+            else 2 * scenario.v_max * horizon * scenario.dt
+            + 2 * radius
+            + 2 * self.config.robot_offset
+            + delay
+        )
+        self._per_robot_times: list[float] = []
+        self._history: list[list[NDArray[np.float64]]] = [[] for _ in range(n)]
+        self._stats.solver = self._robot.solver_label
+
+    def _waypoint(self, i: int, position: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Robot ``i``'s goal for this period: its target, or, when the straight line to it runs
+        through an obstacle (inflated by the robot's radius and a clearance), a point beside
+        that obstacle on the side the line passes (a distance-tracking cost has a local minimum
+        behind an obstacle straight ahead; the horizon is too short to see around it)."""
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        target = scenario.targets[i, :2]
+        line = target - position
+        length = float(np.hypot(*line))
+        if length < 1e-9:
+            return target
+        along = line / length
+        inflate = scenario.robot_radius[i] + self.config.obstacle_offset + DETOUR_CLEARANCE
+        best: tuple[float, NDArray[np.float64]] | None = None
+        for x, y, r in scenario.obstacles:
+            centre = np.array([x, y])
+            reach = r + inflate
+            t = float(np.clip(np.dot(centre - position, along), 0.0, length))
+            closest = position + t * along
+            offset = closest - centre
+            gap = float(np.hypot(*offset))
+            if gap >= reach or t <= 0.0 or np.hypot(*(target - centre)) <= reach:
+                continue  # clear of the line, behind the robot, or the target is beside it
+            if best is None or t < best[0]:
+                side = offset / gap if gap > 1e-9 else np.array([-along[1], along[0]])
+                best = (t, _tangent_waypoint(position, centre, reach, side))
+        return target if best is None else best[1]
+
+    # -------------------------------------------------------------------- act
+    def _surroundings(self, i: int, poses: NDArray[np.float64], fresh: NDArray[np.bool_]) -> None:
+        """Set robot ``i``'s nearest obstacles and neighbour slots for this period's solve."""
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        agent = self._agents[i]
+        position = poses[i, :2]
+        obstacles = scenario.obstacles
+        slots = np.tile([PARKED, PARKED, 0.0], (self.obstacle_slots, 1))
+        if obstacles.shape[0]:
+            clearance = np.hypot(*(obstacles[:, :2] - position).T) - obstacles[:, 2]
+            nearest = np.argsort(clearance, kind="stable")[: self.obstacle_slots]
+            slots[: nearest.size] = obstacles[nearest]
+        agent.set_obstacles(slots)
+        agent.goal = self._waypoint(i, position) if self.detour else scenario.targets[i, :2]
+        agent.set_goal(0, agent.goal)
+        horizon, k = self.config.horizon, self.neighbours
+        positions = np.full((horizon, k, 2), PARKED)
+        reach = np.zeros(k)
+        distance = np.hypot(*(poses[:, :2] - position).T)
+        distance[i] = np.inf
+        candidates = [j for j in np.argsort(distance, kind="stable") if distance[j] < self._reach][:k]
+        for slot, j in enumerate(candidates):
+            plan = self._plans[:, j]
+            if not fresh[j]:
+                # last period's plan, one step on: stage s of this solve is its step s (held at the end)
+                plan = np.concatenate([plan[1:], plan[-1:]])
+            positions[:, slot] = plan
+            reach[slot] = scenario.robot_radius[j] + self.config.robot_offset + self._delay
+        agent.set_neighbours(positions, reach)
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        n = scenario.n_robots
+        poses = np.asarray(info["poses"], dtype=float)
+        commands = np.zeros((n, 2))
+        fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
+        new_plans = self._plans.copy()
+        start = time.perf_counter()
+        for i in range(n):
+            robot_start = time.perf_counter()
+            agent = self._agents[i]
+            self._surroundings(i, poses, fresh)
+            if self._stalled(i, poses[i, :2]):
+                agent.restart()
+                self._stats.counts["restarts"] += 1
+            failures = agent._stats.failures
+            commands[i] = agent.act(observation, {"poses": poses[i : i + 1]})
+            if agent._stats.failures == failures and agent.last_plan is not None:
+                new_plans[:, i] = agent.last_plan[1][:, 0, :2]
+            else:  # no new plan: predicted to hold its position
+                new_plans[:, i] = poses[i, :2]
+            if self.coordination == "sequential":  # the robots after i see this plan at once
+                self._plans[:, i] = new_plans[:, i]
+                fresh[i] = True
+            self._per_robot_times.append(time.perf_counter() - robot_start)
+        self._plans = new_plans
+        self._stats.solve_times.append(time.perf_counter() - start)
+        return commands.reshape(-1)
+
+    def _stalled(self, i: int, position: NDArray[np.float64]) -> bool:
+        """Robot ``i`` has not moved for ``STALL_PERIODS`` periods while away from its target
+        (its history is kept here; a stall restarts its solver cold, once per stall)."""
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        history = self._history[i]
+        history.append(position.copy())
+        if len(history) <= STALL_PERIODS:
+            return False
+        history.pop(0)
+        away = np.hypot(*(position - scenario.targets[i, :2])) > 2 * scenario.goal_tolerance
+        if away and np.hypot(*(history[-1] - history[0])) < STALL_DISTANCE:
+            history.clear()  # give the restarted plan time before judging it
+            return True
+        return False
+
+    def stats(self) -> ControllerStats:
+        """The team's statistics: per-period solve time of all robots together (``robot`` in
+        ``extra_times``: one robot's solve), the robots' failures, fallbacks and statuses summed."""
+        own = self._stats
+        team = ControllerStats(
+            solve_times=list(own.solve_times),
+            extra_times={"robot": list(getattr(self, "_per_robot_times", []))},
+            solver=own.solver,
+        )
+        n = self.scenario.n_robots if self.scenario is not None else 0
+        for agent in self._agents[:n]:
+            robot = agent.stats()
+            team.failures += robot.failures
+            team.statuses.update(robot.statuses)
+            team.counts.update(robot.counts)
+            team.iterations.extend(robot.iterations)
+        return team

@@ -1,0 +1,151 @@
+"""The distributed NMPC (controllers/distributed.py): neighbour slots, parked slots, one problem
+per structure, fallbacks, whole episodes, bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import controllers
+from controllers.distributed import DistributedNMPC
+from controllers.nmpc import PARKED
+from koopman_envs.episode import run_episode
+
+
+def _reset(n: int = 3, map_name: str = "map1", **options) -> tuple[DistributedNMPC, gym.Env, dict]:
+    env = gym.make("KoopNav-TargetReaching-v0", map=map_name, n_robots=n)
+    _, info = env.reset(seed=0)
+    ctrl = DistributedNMPC(**options)
+    ctrl.reset(env)
+    return ctrl, env, info
+
+
+def _slots(ctrl: DistributedNMPC, i: int, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Robot i's neighbour slots as its problem's parameters hold them: positions (T, K, 2), reach (K,)."""
+    ctrl._surroundings(i, poses, np.zeros(len(poses), dtype=bool))
+    agent = ctrl._agents[i]
+    values = agent._params_tail[agent._neighbour_slice]
+    horizon, k = ctrl.config.horizon, ctrl.neighbours
+    return values[: 2 * horizon * k].reshape(horizon, k, 2), values[2 * horizon * k :]
+
+
+def test_only_robots_that_can_meet_within_the_horizon_get_a_slot() -> None:
+    ctrl, _, info = _reset()
+    poses = np.array(info["poses"], dtype=float)
+    reach = ctrl._reach  # 2 v_max T dt + radii + margins
+    poses[1, :2] = poses[0, :2] + [reach - 0.05, 0.0]  # can meet robot 0
+    poses[2, :2] = poses[0, :2] + [0.0, reach + 0.05]  # cannot
+    ctrl._plans = np.repeat(poses[None, :, :2], ctrl.config.horizon, axis=0)
+    positions, slot_reach = _slots(ctrl, 0, poses)
+    assert slot_reach[0] > 0 and np.allclose(positions[:, 0], poses[1, :2])
+    assert np.all(slot_reach[1:] == 0) and np.all(positions[:, 1:] == PARKED)
+
+
+def test_parked_slots_never_bind() -> None:
+    """A robot alone (every neighbour slot parked) plans as with no slots at all: the central
+    NMPC of a one-robot team on the same obstacles, from the same state."""
+    ctrl, env, info = _reset(n=3)
+    scenario = ctrl.scenario
+    far = np.array(info["poses"], dtype=float)
+    far[1:, :2] = [[9.5, 9.5], [-9.5, 9.5]]  # out of reach: both slots stay parked
+    ctrl._plans = np.repeat(far[None, :, :2], ctrl.config.horizon, axis=0)
+    ctrl._surroundings(0, far, np.zeros(3, dtype=bool))
+    agent = ctrl._agents[0]
+    agent.goal = None  # the central NMPC's cold start (hold still), for the comparison
+    distributed = agent.act(np.zeros(1), {"poses": far[:1]})
+    single = controllers.make("nominal-nmpc", solver="rti")
+    alone = ctrl._robot_scenario(scenario, 0)
+    alone = dataclasses.replace(alone, obstacles=agent._params_tail[agent._obstacle_slice].reshape(-1, 3))
+    single.reset(alone)
+    central = single.act(np.zeros(1), {"poses": far[:1]})
+    assert np.allclose(distributed, central, atol=1e-6)
+
+
+def test_one_problem_per_structure_for_any_team_size() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="random", n_robots=3)
+    env.reset(seed=0)
+    base = env.unwrapped.scenario
+    ctrl = DistributedNMPC()
+    for n in (2, 7, 32):
+        starts = np.column_stack([np.linspace(-8, 8, n), np.full(n, -8.0), np.zeros(n)])
+        targets = starts + [0.0, 16.0, 0.0]
+        scenario = dataclasses.replace(
+            base, n_robots=n, starts=starts, targets=targets, robot_radius=np.full(n, base.robot_radius[0]),
+            formation_offsets=np.zeros((n, 2)),
+        )  # fmt: skip
+        ctrl.reset(scenario)
+        problems = {id(agent._problem) for agent in ctrl._agents[:n]}
+        assert len(problems) == 1, f"N={n}: {len(problems)} problems built"
+        command = ctrl.act(np.zeros(1), {"poses": starts})
+        assert command.shape == (2 * n,) and np.all(np.isfinite(command))
+
+
+@pytest.mark.parametrize(
+    "env_id, map_name",
+    [
+        ("KoopNav-TargetReaching-v0", "map1"),
+        ("KoopNav-TargetReaching-v0", "map2"),
+        ("KoopNav-Formation-v0", "map3"),
+        ("KoopNav-Formation-v0", "map4"),
+    ],
+)
+def test_three_robots_run_a_whole_episode_on_every_paper_map(env_id: str, map_name: str) -> None:
+    env = gym.make(env_id, map=map_name, max_episode_steps=250)
+    ctrl = controllers.make("dmpc-nominal")
+    result = run_episode(env, ctrl, seed=0)
+    assert result.steps >= 1 and result.collision is None
+    summary = ctrl.stats().summary()
+    assert summary["steps"] == result.steps and summary["solver"] == "rti/hpipm"
+    assert summary["robot_ms_median"] < summary["solve_ms_median"]
+
+
+def test_the_crossing_map_is_solved() -> None:
+    """Map 2's crossing paths, where the central real-time iteration deadlocks (docs/results.md)."""
+    result = run_episode(gym.make("KoopNav-TargetReaching-v0", map="map2"), DistributedNMPC(), seed=0)
+    assert result.success
+
+
+def test_a_failed_robot_solve_falls_back_and_is_counted(monkeypatch) -> None:
+    ctrl, env, info = _reset()
+    from controllers.nmpc import _SolveOutcome
+
+    agent = ctrl._agents[1]
+    monkeypatch.setattr(agent, "_solve_rti", lambda params, guess: _SolveOutcome(False, "qp_failed(test)"))
+    obs = np.zeros(1)
+    for _ in range(3):
+        command = ctrl.act(obs, info)
+        obs, _, _, _, info = env.step(command)
+    stats = ctrl.stats()
+    assert stats.counts["fallback_ipopt"] == 3
+    assert any(status.startswith("rti:qp_failed(test) -> ipopt:") for status in stats.statuses)
+
+
+def test_jacobi_coordination_runs_and_widens_the_discs() -> None:
+    sequential, _, info = _reset()
+    jacobi, _, _ = _reset(coordination="jacobi")
+    assert jacobi._delay > 0 == sequential._delay
+    assert jacobi._reach > sequential._reach
+    command = jacobi.act(np.zeros(1), info)
+    assert np.all(np.isfinite(command))
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"neighbours": 0}, "neighbours=0 must be an integer >= 1"),
+        ({"obstacles": 0}, "obstacles=0 must be an integer >= 1"),
+        ({"reach": 0.0}, r"reach=0.0 must be a finite number > 0"),
+        ({"reach": -1}, r"reach=-1 must be a finite number > 0"),
+        (
+            {"coordination": "jacobian"},
+            r"coordination='jacobian' is not one of \['sequential', 'jacobi'\] \(did you mean 'jacobi'",
+        ),
+        ({"horizont": 5}, "unknown option"),
+    ],
+)
+def test_bad_options_are_named(options: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        DistributedNMPC(**options)
