@@ -23,10 +23,18 @@ register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
 register("nominal-nmpc-robust", "controllers:_nominal_nmpc_robust")
 # distributed: every robot its own small NMPC, neighbours' plans as moving obstacles (16-32 robots)
 register("dmpc-nominal", "controllers.distributed:DistributedNMPC")
+register("dmpc-koopman", "controllers:_dmpc_koopman")
 register("consensus", "controllers.consensus:ConsensusController")
 register("consensus-free", "controllers:_consensus_without_avoidance")
 # any controller behind the CBF safety filter: "safe:<name>", filter options prefixed "safety_"
 register_wrapper("safe", "controllers.safety:wrap")
+
+
+def _dmpc_koopman(**options):
+    """The distributed NMPC predicting with each robot's block of the per-robot Koopman model."""
+    from controllers.distributed import DistributedNMPC
+
+    return DistributedNMPC(model="koopman", **options)
 
 
 def _consensus_without_avoidance(**options):

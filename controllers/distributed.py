@@ -47,16 +47,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, ControllerStats
-from controllers.nmpc import PARKED, NMPCConfig, NMPCController, decode_state, encode_state
+from controllers.koopman.model import KoopmanModel
+from controllers.koopman.store import calibrated_model
+from controllers.nmpc import PARKED, NMPCConfig, NMPCController, PredictionModel, decode_state, encode_state
 from controllers.unicycle import UnicycleModel
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["COORDINATION", "DistributedNMPC"]
+__all__ = ["COORDINATION", "MODELS", "DistributedNMPC"]
 
 #: coordination schemes (see the module docstring)
 COORDINATION = ("sequential", "jacobi")
+#: prediction models: the slip-free unicycle, or each robot's block of the per-robot Koopman model
+MODELS = ("nominal", "koopman")
 #: extra distance [m] a detour waypoint keeps from an obstacle's inflated disc (ours)
 DETOUR_CLEARANCE = 0.3
 #: how far [m] beyond the tangent point a detour waypoint lies (ours)
@@ -135,10 +140,9 @@ class _RobotNMPC(NMPCController):
         """Start the next solve cold (from :meth:`_initial_guess`), not from the shifted plan."""
         self._warm = None
 
-    def _model_for(self, scenario: Scenario) -> UnicycleModel:
-        if self.model is None:
+    def _model_for(self, scenario: Scenario) -> PredictionModel:
+        if self.model is None:  # the nominal variant; the Koopman one is handed its robot's block
             self.model = UnicycleModel(1, scenario.dt)
-        assert isinstance(self.model, UnicycleModel)
         return self.model
 
 
@@ -157,6 +161,11 @@ class DistributedNMPC(BaseController):
         within the horizon).
     coordination : str
         ``"sequential"`` or ``"jacobi"``.
+    model : str
+        ``"nominal"`` (the slip-free unicycle) or ``"koopman"`` (each robot's own block of the
+        per-robot Koopman model that :meth:`calibrate` fits on the calibration plant).
+    dictionary : str
+        The Koopman model's dictionary (``"minimal"``: the paper's).
     detour : bool
         Steer around an obstacle that blocks the straight line to the target through a
         waypoint beside it (see :meth:`_waypoint`; ours).
@@ -174,6 +183,8 @@ class DistributedNMPC(BaseController):
         reach: float | None = None,
         coordination: str = "sequential",
         detour: bool = True,
+        model: str = "nominal",
+        dictionary: str = "minimal",
         config: NMPCConfig | None = None,
         **options: Any,
     ) -> None:
@@ -188,6 +199,13 @@ class DistributedNMPC(BaseController):
             )
         self.coordination = coordination
         self.detour = bool(detour)
+        if model not in MODELS:
+            raise ValueError(f"model={model!r} is not one of {list(MODELS)}{did_you_mean(model, MODELS)}")
+        self.model_kind = model
+        self.name = f"dmpc-{model}"
+        self.dictionary = dictionary
+        self._team_model: KoopmanModel | None = None
+        self._blocks: list[KoopmanModel] = []
         base = config or NMPCConfig(solver="rti")
         try:
             self.config = dataclasses.replace(base, **options) if options else base
@@ -216,17 +234,38 @@ class DistributedNMPC(BaseController):
             leader=0,
         )
 
+    def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
+        """The Koopman variant fits the team's per-robot model on ``plant`` (cached) and gives
+        each robot its own block; the nominal variant needs no data."""
+        if self.model_kind == "nominal":
+            return {"transitions": 0, "source": "not needed"}
+        model, summary = calibrated_model(plant, seed, self.dictionary, structure="per-robot")
+        self._team_model = model
+        self._blocks = [model.robot_block(r) for r in range(model.n_robots)]
+        return {**summary, "structure": "per-robot"}
+
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         n = scenario.n_robots
+        if self.model_kind == "koopman" and len(self._blocks) != n:
+            raise ValueError(
+                f"{self.name}: no Koopman model for {n} robots; call calibrate(plant) with a plant of this "
+                "team first (the evaluator does)"
+            )
         while len(self._agents) < n:
             self._agents.append(_RobotNMPC(self.config, self.neighbours))
         first = self._agents[0]
+        if self._blocks:
+            first.model = self._blocks[0]
         first.reset(self._robot_scenario(scenario, 0), seed=seed)
         for i in range(1, n):
             agent = self._agents[i]
-            # one problem per structure: the first robot's model and problem serve every robot
-            # (a robot of another radius gets its own, built by its reset)
-            agent.model, agent._model_step = first.model, first._model_step
+            # one problem per structure: the first robot's problem serves every robot whose model
+            # has the same structure (its own coefficients are parameters); the nominal variant
+            # shares the model too
+            if self._blocks:
+                agent.model = self._blocks[i]
+            else:
+                agent.model, agent._model_step = first.model, first._model_step
             agent._problem, agent._key = first._problem, first._key
             agent.reset(self._robot_scenario(scenario, i), seed=seed)
         horizon = self.config.horizon

@@ -149,3 +149,39 @@ def test_jacobi_coordination_runs_and_widens_the_discs() -> None:
 def test_bad_options_are_named(options: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         DistributedNMPC(**options)
+
+
+def test_a_robots_koopman_block_predicts_as_the_team_model() -> None:
+    from controllers.koopman.store import calibrated_model
+    from koopman_envs.plant import make_plant
+
+    plant = make_plant("KoopNav-TargetReaching-v0", slip="high", budget=20_000, seed=0)
+    team, _ = calibrated_model(plant, 0, "minimal", structure="per-robot")
+    poses = np.array([[0.0, 0.0, 0.1], [1.0, 1.0, 0.5], [2.0, -1.0, -0.3]])
+    commands = np.array([[0.5, 0.2], [0.3, -0.1], [0.6, 0.4]])
+    together = team.step(poses, commands)
+    for robot in range(3):
+        alone = team.robot_block(robot).step(poses[robot : robot + 1], commands[robot : robot + 1])
+        assert np.allclose(alone, together[robot : robot + 1], atol=1e-12)
+    stacked, _ = calibrated_model(plant, 0, "minimal", structure="stacked")
+    with pytest.raises(ValueError, match="without cross-robot terms"):
+        stacked.robot_block(0)
+    with pytest.raises(ValueError, match=r"robot=3 must be an integer in \[0, 2\]"):
+        team.robot_block(3)
+
+
+def test_the_koopman_variant_calibrates_then_runs_each_robot_on_its_block() -> None:
+    from controllers.calibration import calibrate_controller
+
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high", max_episode_steps=60)
+    ctrl = controllers.make("dmpc-koopman")
+    with pytest.raises(ValueError, match="no Koopman model for 3 robots; call calibrate"):
+        env.reset(seed=0)
+        ctrl.reset(env)
+    summary = calibrate_controller(ctrl, env)
+    assert summary["structure"] == "per-robot" and summary["transitions"] > 0
+    result = run_episode(env, ctrl, seed=0)
+    assert result.collision is None
+    agents = ctrl._agents[:3]
+    assert [agent.model.metadata["robot"] for agent in agents] == [0, 1, 2]
+    assert len({id(agent._problem) for agent in agents}) == 1  # the coefficients are parameters

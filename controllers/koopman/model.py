@@ -85,6 +85,47 @@ class KoopmanModel:
         self._nlp_index: list | None = None  # (rows, cols) of each NLP constant's nonzeros
 
     # ------------------------------------------------------------ prediction
+    def robot_block(self, robot: int) -> KoopmanModel:
+        """Robot ``robot``'s own one-robot model, cut out of a team model whose robots do not
+        couple (the ``"per-robot"`` structure: :func:`controllers.koopman.fit.fit_per_robot`
+        places each robot's fit block-diagonally; this takes it out again, exactly).
+
+        Raises
+        ------
+        ValueError
+            ``robot`` outside 0..N-1, or the team model couples robots (a stacked fit).
+        """
+        n, p = self.n_robots, self.dictionary.per_robot
+        if not 0 <= robot < n:
+            raise ValueError(f"robot={robot!r} must be an integer in [0, {n - 1}]")
+        d = self.dictionary.size(n)
+        index = np.concatenate([[0], 1 + p * robot + np.arange(p)])
+        others = np.setdiff1d(np.arange(1, d), index)
+        inputs = np.array([2 * robot, 2 * robot + 1])
+        coupled = np.abs(self.A[np.ix_(index[1:], others)]).max(initial=0.0) > 0 or any(
+            np.abs(self.N[np.ix_(index[1:], k * d + others)]).max(initial=0.0) > 0 for k in range(2 * n)
+        )
+        if coupled:
+            raise ValueError(
+                "robot_block needs a team model without cross-robot terms (structure='per-robot')"
+            )
+        d1 = 1 + p
+        bilinear = np.zeros((d1, 2 * d1))
+        for k, column in enumerate(inputs):
+            bilinear[:, k * d1 : (k + 1) * d1] = self.N[np.ix_(index, column * d + index)]
+        c = np.zeros((4, d1))
+        c[np.arange(4), self.dictionary.state_rows(1).reshape(-1)] = 1.0
+        return KoopmanModel(
+            A=self.A[np.ix_(index, index)].copy(),
+            N=bilinear,
+            B=self.B[np.ix_(index, inputs)].copy(),
+            C=c,
+            dictionary=self.dictionary,
+            n_robots=1,
+            dt=self.dt,
+            metadata={**self.metadata, "robot": robot},
+        )
+
     def lift(self, poses: NDArray) -> NDArray[np.float64]:
         """phi(x) for poses (..., N, 3) -> (..., D)."""
         return self.dictionary.lift(poses)
