@@ -23,7 +23,9 @@ register("nominal-nmpc", "controllers.nominal_nmpc:NominalNMPC")
 register("nominal-nmpc-robust", "controllers:_nominal_nmpc_robust")
 # distributed: every robot its own small NMPC, neighbours' plans as moving obstacles (16-32 robots)
 register("dmpc-nominal", "controllers.distributed:DistributedNMPC")
+register("dmpc-nominal-robust", "controllers:_dmpc_nominal_robust")
 register("dmpc-koopman", "controllers:_dmpc_koopman")
+register("dmpc-koopman-robust", "controllers:_dmpc_koopman_robust")
 register("consensus", "controllers.consensus:ConsensusController")
 register("consensus-free", "controllers:_consensus_without_avoidance")
 # any controller behind the CBF safety filter: "safe:<name>", filter options prefixed "safety_"
@@ -35,6 +37,23 @@ def _dmpc_koopman(**options):
     from controllers.distributed import DistributedNMPC
 
     return DistributedNMPC(model="koopman", **options)
+
+
+def _dmpc_nominal_robust(**options):
+    """The distributed nominal NMPC with margins widened by the unicycle's calibrated residual."""
+    from controllers.distributed import DistributedNMPC
+    from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
+
+    options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
+    return DistributedNMPC(**options)
+
+
+def _dmpc_koopman_robust(**options):
+    """The distributed Koopman NMPC with margins widened by each robot's calibrated residual."""
+    from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
+
+    options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
+    return _dmpc_koopman(**options)
 
 
 def _consensus_without_avoidance(**options):

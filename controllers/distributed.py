@@ -205,14 +205,14 @@ class DistributedNMPC(BaseController):
         self.name = f"dmpc-{model}"
         self.dictionary = dictionary
         self._team_model: KoopmanModel | None = None
+        self._residual: NDArray[np.float64] | None = None
+        self._spread: NDArray[np.float64] = np.zeros(0)
         self._blocks: list[KoopmanModel] = []
         base = config or NMPCConfig(solver="rti")
         try:
             self.config = dataclasses.replace(base, **options) if options else base
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
-        if self.config.uncertainty_margin:
-            raise ValueError("uncertainty_margin: the distributed NMPC has no calibrated margins yet; use 0")
         self._robot = _RobotNMPC(self.config, self.neighbours)  # validates the NMPC options
         self._agents: list[_RobotNMPC] = []
         self._plans: NDArray[np.float64] = np.zeros((0, 0, 2))
@@ -237,12 +237,37 @@ class DistributedNMPC(BaseController):
     def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
         """The Koopman variant fits the team's per-robot model on ``plant`` (cached) and gives
         each robot its own block; the nominal variant needs no data."""
+        margin = self.config.uncertainty_margin
         if self.model_kind == "nominal":
-            return {"transitions": 0, "source": "not needed"}
+            if margin == 0:
+                self._residual = None
+                return {"transitions": 0, "source": "not needed"}
+            # the unicycle's residual on the plant's data, as the central nominal NMPC measures it
+            from controllers.nominal_nmpc import NominalNMPC
+
+            measure = NominalNMPC(uncertainty_margin=margin)
+            summary = measure.calibrate(plant, seed=seed)
+            self._residual = measure.position_residual
+            return summary
         model, summary = calibrated_model(plant, seed, self.dictionary, structure="per-robot")
         self._team_model = model
         self._blocks = [model.robot_block(r) for r in range(model.n_robots)]
+        residual = model.metadata.get("position_residual")
+        self._residual = None if residual is None else np.asarray(residual, dtype=float)
         return {**summary, "structure": "per-robot"}
+
+    def _spreads(self, n: int) -> NDArray[np.float64]:
+        """Every robot's margin spread: ``uncertainty_margin`` times its calibrated RMS one-step
+        position residual [m] (zeros without the margin)."""
+        margin = self.config.uncertainty_margin
+        if margin == 0:
+            return np.zeros(n)
+        if self._residual is None or len(self._residual) != n:
+            raise ValueError(
+                f"{self.name}: uncertainty_margin={margin} needs the prediction model's residual for {n} "
+                "robots; call calibrate(plant) first (the evaluator does)"
+            )
+        return margin * np.asarray(self._residual, dtype=float)
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         n = scenario.n_robots
@@ -251,8 +276,13 @@ class DistributedNMPC(BaseController):
                 f"{self.name}: no Koopman model for {n} robots; call calibrate(plant) with a plant of this "
                 "team first (the evaluator does)"
             )
+        self._spread = self._spreads(n)
         while len(self._agents) < n:
             self._agents.append(_RobotNMPC(self.config, self.neighbours))
+        for i in range(n):  # each robot's obstacle margin widens by its own residual
+            self._agents[i].position_residual = (
+                None if self._residual is None else np.asarray(self._residual[i : i + 1], dtype=float)
+            )
         first = self._agents[0]
         if self._blocks:
             first.model = self._blocks[0]
@@ -279,7 +309,7 @@ class DistributedNMPC(BaseController):
             if self.reach is not None
             else 2 * scenario.v_max * horizon * scenario.dt
             + 2 * radius
-            + 2 * self.config.robot_offset
+            + 2 * max(self.config.robot_offset, 2 * float(np.max(self._spread)))
             + delay
         )
         self._per_robot_times: list[float] = []
@@ -343,7 +373,9 @@ class DistributedNMPC(BaseController):
                 # last period's plan, one step on: stage s of this solve is its step s (held at the end)
                 plan = np.concatenate([plan[1:], plan[-1:]])
             positions[:, slot] = plan
-            reach[slot] = scenario.robot_radius[j] + self.config.robot_offset + self._delay
+            # the central NMPC's pair margin: the offset, widened to both robots' spreads
+            margin = max(self.config.robot_offset, self._spread[i] + self._spread[j])
+            reach[slot] = scenario.robot_radius[j] + margin + self._delay
         agent.set_neighbours(positions, reach)
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:

@@ -185,3 +185,34 @@ def test_the_koopman_variant_calibrates_then_runs_each_robot_on_its_block() -> N
     agents = ctrl._agents[:3]
     assert [agent.model.metadata["robot"] for agent in agents] == [0, 1, 2]
     assert len({id(agent._problem) for agent in agents}) == 1  # the coefficients are parameters
+
+
+@pytest.mark.parametrize("name", ["dmpc-nominal-robust", "dmpc-koopman-robust"])
+def test_robust_variants_widen_margins_by_the_calibrated_residual(name: str) -> None:
+    from controllers.calibration import calibrate_controller
+
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high", max_episode_steps=40)
+    _, info = env.reset(seed=0)
+    ctrl = controllers.make(name)
+    with pytest.raises(
+        ValueError,
+        match=r"(no Koopman model|needs the prediction model.s residual) for 3 robots; call calibrate",
+    ):
+        ctrl.reset(env)
+    calibrate_controller(ctrl, env)
+    ctrl.reset(env)
+    k = ctrl.config.uncertainty_margin
+    assert k > 0 and np.allclose(ctrl._spread, k * ctrl._residual) and np.all(ctrl._spread >= 0)
+    # robot 2's obstacle margin is its own spread (when larger than the offset) ...
+    agent = ctrl._agents[2]
+    obstacle_margin = agent._params_tail[agent._margin_slices[0]]
+    assert obstacle_margin[0] == pytest.approx(max(ctrl.config.obstacle_offset, ctrl._spread[2]))
+    # ... and robot 1's disc, seen by robot 2, is widened by both spreads, as the central pair margin
+    poses = np.array(info["poses"], dtype=float)
+    poses[1, :2] = poses[2, :2] + [1.0, 0.0]
+    _, reach = _slots(ctrl, 2, poses)
+    expected = env.unwrapped.scenario.robot_radius[1] + max(
+        ctrl.config.robot_offset, ctrl._spread[1] + ctrl._spread[2]
+    )
+    assert expected in reach
+    assert run_episode(env, ctrl, seed=0).collision is None
