@@ -228,7 +228,8 @@ DISTRIBUTED_NOTE = (
     "The distributed NMPC (`dmpc-nominal`: every robot its own NMPC, the others' plans as moving "
     "obstacles) on the same kind of maps, 20 seeds per N: 20/20 successes at N = 3, 6, 10 and 16 "
     "(16 robots: 15.1 ms median, 17.9 ms p95 per step), 18/20 at 24 and 32 (grid layouts), about 1 ms "
-    "per robot at every N; at 8 robots paired with the central nominal NMPC on 20 layouts, 20/20 vs "
+    "per robot at every N (the Koopman variants: 20/20 up to 16 robots, 17/20 at 24, 18/20 at 32, "
+    "about 1.1 ms per robot); at 8 robots paired with the central nominal NMPC on 20 layouts, 20/20 vs "
     "15/20 (+25 points [+4, +47], McNemar p = 0.062). Table and commands: "
     "[Performance](performance.md#distributed-nmpc-3-to-32-robots)."
 )
