@@ -5,5 +5,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python -m pip install --upgrade pip >/dev/null
-case ",${1:-}," in *,rl,*) python -m pip install torch==2.13.0 ;; esac
+case ",${1:-}," in *,rl,* | *,torchrl,*) python -m pip install torch==2.13.0 ;; esac
 python -m pip install -e ".${1:+[$1]}"
