@@ -163,7 +163,10 @@ def test_a_robots_koopman_block_predicts_as_the_team_model() -> None:
     for robot in range(3):
         alone = team.robot_block(robot).step(poses[robot : robot + 1], commands[robot : robot + 1])
         assert np.allclose(alone, together[robot : robot + 1], atol=1e-12)
-    stacked, _ = calibrated_model(plant, 0, "minimal", structure="stacked")
+    fresh = make_plant(
+        "KoopNav-TargetReaching-v0", slip="high", budget=20_000, seed=0
+    )  # the first spent its budget
+    stacked, _ = calibrated_model(fresh, 0, "minimal", structure="stacked")
     with pytest.raises(ValueError, match="without cross-robot terms"):
         stacked.robot_block(0)
     with pytest.raises(ValueError, match=r"robot=3 must be an integer in \[0, 2\]"):
