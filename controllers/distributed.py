@@ -204,7 +204,6 @@ class DistributedNMPC(BaseController):
         self.model_kind = model
         self.name = f"dmpc-{model}"
         self.dictionary = dictionary
-        self._team_model: KoopmanModel | None = None
         self._residual: NDArray[np.float64] | None = None
         self._spread: NDArray[np.float64] = np.zeros(0)
         self._blocks: list[KoopmanModel] = []
@@ -250,7 +249,6 @@ class DistributedNMPC(BaseController):
             self._residual = measure.position_residual
             return summary
         model, summary = calibrated_model(plant, seed, self.dictionary, structure="per-robot")
-        self._team_model = model
         self._blocks = [model.robot_block(r) for r in range(model.n_robots)]
         residual = model.metadata.get("position_residual")
         self._residual = None if residual is None else np.asarray(residual, dtype=float)
