@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.set_features import MAX_TEAM, SetFeatureConfig, set_features
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
 from koopman_envs.tasks.base import TASKS
@@ -17,7 +18,15 @@ from koopman_envs.tasks.base import TASKS
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
 
-__all__ = ["PolicyFiles", "RLPolicyController", "load_policy", "policy_command", "policy_dir", "success_rate"]
+__all__ = [
+    "PolicyFiles",
+    "RLPolicyController",
+    "RLSetPolicyController",
+    "load_policy",
+    "policy_command",
+    "policy_dir",
+    "success_rate",
+]
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
 REGENERATE = (
@@ -81,6 +90,8 @@ def policy_command(
     omega_max: float,
     features: str = "bearing",
     neighbours: int | None = None,
+    set_config: SetFeatureConfig | None = None,
+    formation: bool = False,
 ) -> NDArray[np.float64]:
     """Deterministic joint command (v, omega per robot, flat; batched like the input) of a policy.
 
@@ -104,12 +115,23 @@ def policy_command(
         ``"robot"`` layout: team-mates per block the policy was trained with (N_train - 1); a
         team of another size then shows each robot its nearest ones (see
         :func:`baselines.vec_env.robot_features`). Default: all.
+    set_config : SetFeatureConfig, optional
+        A set policy's observation settings (its metadata): each robot then reads
+        :func:`baselines.set_features.set_features`, for any team size, and ``features`` and
+        ``neighbours`` are ignored.
+    formation : bool
+        Whether the observation is the formation task's (set policies only).
     """
     from baselines.vec_env import robot_features, scale_action
 
     obs = np.asarray(observation, dtype=np.float64)
     batch_shape = obs.shape[:-1]
-    if layout == "robot":
+    if set_config is not None:
+        blocks = obs.reshape(batch_shape + (n_robots, -1))
+        listed = obs.shape[-1] // n_robots - 9 - 3 * (n_robots - 1) - (2 if formation else 0)
+        obs = set_features(blocks, listed // 3, formation, set_config).astype(np.float64)
+        obs = obs.reshape(-1, obs.shape[-1])
+    elif layout == "robot":
         blocks = obs.reshape(batch_shape + (n_robots, -1))
         obs = robot_features(blocks, features, neighbours).astype(np.float64)
         obs = obs.reshape(-1, obs.shape[-1])
@@ -136,12 +158,15 @@ def success_rate(
     env_id: str,
     episodes: int,
     seed: int,
+    *,
+    set_config: SetFeatureConfig | None = None,
     **env_kwargs: Any,
 ) -> float:
     """Success rate of the deterministic policy over ``episodes`` episodes, played as one batch.
 
     Episode i runs in sub-env i of ``gym.make_vec(env_id, num_envs=episodes, **env_kwargs)``
-    reset with ``seed``, i.e. seeded ``seed + i`` like the single env.
+    reset with ``seed``, i.e. seeded ``seed + i`` like the single env. ``set_config``: a set
+    policy's observation settings (see :func:`policy_command`).
     """
     import gymnasium as gym
 
@@ -154,7 +179,18 @@ def success_rate(
     done = np.zeros(episodes, dtype=bool)
     success = np.zeros(episodes, dtype=bool)
     while not done.all():
-        action = policy_command(model, norm, layout, obs, n_robots, v_max, omega_max, features)
+        action = policy_command(
+            model,
+            norm,
+            layout,
+            obs,
+            n_robots,
+            v_max,
+            omega_max,
+            features,
+            set_config=set_config,
+            formation=engine.config.task.formation,
+        )
         obs, _, terminated, truncated, info = venv.step(action)
         ended = (terminated | truncated) & ~done
         success[ended] = info["is_success"][ended]
@@ -213,7 +249,14 @@ class RLPolicyController(BaseController):
         self._layout = self.metadata.get("layout", "team")
         self._features = self.metadata.get("features", "bearing")
         # policies trained before the team size was recorded were all trained with the paper's 3
-        self._neighbours = int(self.metadata.get("n_robots", 3)) - 1
+        self._neighbours = int(self.metadata.get("n_robots") or 3) - 1
+        set_fields = self.metadata.get("set_config")
+        self._set_config = SetFeatureConfig(**set_fields) if set_fields else None
+        if self._set_config is not None and not 1 <= scenario.n_robots <= MAX_TEAM:
+            raise ValueError(
+                f"a set policy runs teams of 1..{MAX_TEAM} robots, not n_robots={scenario.n_robots}"
+            )
+        self._formation = TASKS[scenario.task].formation
         self._scenario = scenario
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -231,6 +274,26 @@ class RLPolicyController(BaseController):
             sc.omega_max,
             self._features,
             self._neighbours,
+            set_config=self._set_config,
+            formation=self._formation,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command
+
+
+class RLSetPolicyController(RLPolicyController):
+    """The set-encoder PPO policies (``rl-ppo-set``): one network for any team size and layout.
+
+    Each robot reads its own state and goal and the sets of its nearest team-mates and obstacles
+    (:mod:`baselines.set_features`), encoded by :class:`baselines.set_encoder.SetEncoder`; the
+    policies were trained on the random-layout curriculum of :mod:`baselines.curriculum`.
+    Parameters as :class:`RLPolicyController`; the default ``policy_root`` is
+    ``baselines/policies/set``.
+    """
+
+    name = "rl-ppo-set"
+
+    def __init__(
+        self, policy_root: str | os.PathLike | None = None, algo: str = "ppo", threads: int | None = 1
+    ) -> None:
+        super().__init__(policy_root or SHIPPED / "set", algo, threads)

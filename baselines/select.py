@@ -17,18 +17,59 @@ import json
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from baselines.curriculum import VALIDATION
 from baselines.policy import PolicyFiles, load_policy, success_rate
+from baselines.set_features import SetFeatureConfig
 
-__all__ = ["VALIDATION_SEED", "candidates", "main", "validation_success"]
+__all__ = ["VALIDATION_SEED", "candidates", "main", "set_validation_success", "validation_success"]
 
 #: first seed of the validation layouts (training seeds run from ``--seed`` upward, by ones)
 VALIDATION_SEED = 1_000_000
 
 
+def set_validation_success(
+    model: Any, norm: dict, metadata: dict, episodes_per_cell: int, seed: int = VALIDATION_SEED
+) -> float:
+    """Mean success of a set policy over its task's validation cells (:data:`baselines.curriculum.VALIDATION`).
+
+    Cell c plays ``episodes_per_cell`` layouts seeded from ``seed + 1000 c``: held out, since
+    training seeds stay below 100_000.
+    """
+    config = SetFeatureConfig(**metadata["set_config"])
+    rates = [
+        success_rate(
+            model,
+            norm,
+            "robot",
+            "set",
+            metadata["env_id"],
+            episodes_per_cell,
+            seed + 1000 * cell,
+            set_config=config,
+            n_robots=n,
+            map="random",
+            slip=slip,
+            random_map=random_map,
+            max_episode_steps=400,
+        )
+        for cell, (n, random_map, slip) in enumerate(VALIDATION[metadata["task"]])
+    ]
+    return float(np.mean(rates))
+
+
 def validation_success(directory: Path, metadata: dict, episodes: int, seed: int = VALIDATION_SEED) -> float:
-    """Success rate of the policy in ``directory`` on ``episodes`` held-out random layouts."""
+    """Success rate of the policy in ``directory`` on ``episodes`` held-out random layouts.
+
+    A set policy plays its task's validation cells (``episodes`` split evenly between them).
+    """
     model, norm, _ = load_policy(directory, metadata["task"], metadata["algo"])
+    if "set_config" in metadata:
+        cells = len(VALIDATION[metadata["task"]])
+        return set_validation_success(model, norm, metadata, max(1, episodes // cells), seed)
     return success_rate(
         model,
         norm,
@@ -80,8 +121,13 @@ def main(argv: list[str] | None = None) -> int:
     selected = dict(metadata)
     selected["selection"] = {
         "command": "python -m baselines.select " + " ".join(argv if argv is not None else sys.argv[1:]),
-        "rule": f"best success on {args.episodes} held-out random layouts (seeds {VALIDATION_SEED}+, "
-        "random slip, the training generator settings); ties go to the later policy",
+        "rule": (
+            f"best mean success on {args.episodes} held-out random layouts split over the validation "
+            f"cells of baselines.curriculum.VALIDATION (seeds {VALIDATION_SEED}+); ties go to the later policy"
+            if "set_config" in metadata
+            else f"best success on {args.episodes} held-out random layouts (seeds {VALIDATION_SEED}+, "
+            "random slip, the training generator settings); ties go to the later policy"
+        ),
         "selected_timesteps": table[best]["timesteps"],
         "validation": table,
     }

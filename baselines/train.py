@@ -27,8 +27,10 @@ import gymnasium as gym
 import numpy as np
 
 import koopman_envs
+from baselines.curriculum import PARTS, STAGES, stage_parts
 from baselines.policy import PolicyFiles, success_rate
-from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv
+from baselines.set_features import SetFeatureConfig
+from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv, MixtureVecEnv
 from koopman_envs.tasks.base import TASKS
 
 TASK_OF = {spec.env_id: name for name, spec in TASKS.items()}  # the task table's names
@@ -40,6 +42,7 @@ TRAIN_MAPS = {
 }
 # the budgets of the shipped policies (robot-steps; ~20-25 min each on 2 cores)
 TIMESTEPS = {"KoopNav-TargetReaching-v0": 14_000_000, "KoopNav-Formation-v0": 12_000_000}
+POLICIES = ("mlp", "set")
 EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 
 
@@ -64,6 +67,15 @@ class _ObsNorm(TypedDict):
 
 
 def _norm_of(vec_normalize) -> _ObsNorm:
+    if not vec_normalize.norm_obs:
+        # set observations are scaled by hand: saved as the identity (mean 0, var 1, no clipping)
+        size = vec_normalize.observation_space.shape[0]
+        return {
+            "mean": np.zeros(size),
+            "var": np.ones(size),
+            "clip": np.float64(np.inf),
+            "epsilon": np.float64(0.0),
+        }
     rms = vec_normalize.obs_rms
     return {
         "mean": rms.mean.astype(np.float64),
@@ -87,12 +99,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=list(TASK_OF))
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
     parser.add_argument(
+        "--policy",
+        default="mlp",
+        choices=POLICIES,
+        help="mlp: the 3-robot MLP over a fixed team (rl-ppo); set: the set encoder for any team "
+        "size, trained on the curriculum of baselines.curriculum (rl-ppo-set)",
+    )
+    parser.add_argument("--neighbours", type=int, default=6, help="set policy: team-mate slots")
+    parser.add_argument("--obstacles", type=int, default=6, help="set policy: obstacle slots")
+    parser.add_argument("--sensing-radius", type=float, default=3.0, help="set policy: sensing radius [m]")
+    parser.add_argument("--set-width", type=int, default=64, help="set policy: encoder width")
+    parser.add_argument(
         "--timesteps",
         type=lambda s: int(s.replace("_", "")),
         default=None,
         help="robot-steps in the robot layout (default: the task's TIMESTEPS entry)",
     )
-    parser.add_argument("--n-envs", type=int, default=128, help="simulated environments (PPO)")
+    parser.add_argument("--n-envs", type=int, default=128, help="simulated environments (PPO; mlp policy)")
+    parser.add_argument("--n-steps", type=int, default=128, help="PPO rollout length per sub-env")
+    parser.add_argument("--batch-size", type=int, default=2048, help="PPO minibatch size")
+    parser.add_argument(
+        "--validation-episodes",
+        type=int,
+        default=8,
+        help="set policy: held-out layouts per validation cell when scoring a checkpoint",
+    )
     parser.add_argument(
         "--layout",
         default="robot",
@@ -162,32 +193,81 @@ def main(argv: list[str] | None = None) -> int:
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
     n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
-    venv: KoopNavSB3VecEnv | VecMonitor | VecNormalize = KoopNavSB3VecEnv(
-        args.env,
-        n_envs,
-        seed=args.seed,
-        layout=args.layout,
-        collision_penalty=args.collision_penalty if args.layout == "robot" else 0.0,
-        precision_shaping=args.precision_shaping if args.layout == "robot" else 0.0,
-        features=args.features,
-        map="random",
-        slip="random",
-        random_map=random_map,
-        max_episode_steps=args.max_episode_steps,
-    )
-    team_size = venv.n_robots
-    venv = VecMonitor(venv, info_keywords=("is_success",))  # episode return/length/success in the CSV log
-    venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=0.99)
+    task = TASK_OF[args.env]
+    set_config = None
+    if args.policy == "set":
+        if args.algo != "ppo" or args.layout != "robot":
+            parser.error("--policy set trains PPO in the robot layout")
+        try:
+            set_config = SetFeatureConfig(args.neighbours, args.obstacles, args.sensing_radius)
+        except ValueError as exc:
+            parser.error(str(exc))
+
+    def make_venv(stage: int) -> KoopNavSB3VecEnv | MixtureVecEnv:
+        """The training env: one vector env, or the curriculum stage's parts side by side."""
+        shared = {
+            "layout": args.layout,
+            "collision_penalty": args.collision_penalty if args.layout == "robot" else 0.0,
+            "precision_shaping": args.precision_shaping if args.layout == "robot" else 0.0,
+            "max_episode_steps": args.max_episode_steps,
+        }
+        if set_config is None:
+            return KoopNavSB3VecEnv(
+                args.env,
+                n_envs,
+                seed=args.seed,
+                features=args.features,
+                map="random",
+                slip="random",
+                random_map=random_map,
+                **shared,
+            )
+        # part i of stage s seeds its envs from seed + 10_000 s + 1_000 i: no layout repeats
+        return MixtureVecEnv(
+            [
+                KoopNavSB3VecEnv(
+                    args.env,
+                    k,
+                    seed=args.seed + 10_000 * stage + 1_000 * i,
+                    set_config=set_config,
+                    **shared,
+                    **kw,
+                )
+                for i, (_, k, kw) in enumerate(stage_parts(task, STAGES[task][stage]))
+            ]
+        )
+
+    raw = make_venv(0)
+    team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
+
+    def wrap(raw: KoopNavSB3VecEnv | MixtureVecEnv) -> VecNormalize:
+        monitored = VecMonitor(
+            raw, info_keywords=("is_success",)
+        )  # episode return/length/success in the CSV log
+        # set observations are scaled by hand (a running normalization would also move the masks)
+        return VecNormalize(
+            monitored, norm_obs=set_config is None, norm_reward=True, clip_obs=10.0, gamma=0.99
+        )
+
+    venv = wrap(raw)
     # a narrow initial action noise: the goal tolerance (0.1 m) asks for fine control, and wide
     # noise mostly produces early collisions
-    policy_kwargs = {"net_arch": args.net, "log_std_init": args.log_std_init}
+    policy_kwargs: dict = {"net_arch": args.net, "log_std_init": args.log_std_init}
+    if set_config is not None:
+        from baselines.set_encoder import SetEncoder
+
+        policy_kwargs["features_extractor_class"] = SetEncoder
+        policy_kwargs["features_extractor_kwargs"] = {
+            "set_config": set_config.as_dict(),
+            "width": args.set_width,
+        }
     model: PPO | SAC
     if args.algo == "ppo":
         model = PPO(
             "MlpPolicy",
             venv,
-            n_steps=128,
-            batch_size=2048,
+            n_steps=args.n_steps,
+            batch_size=args.batch_size,
             n_epochs=5,
             learning_rate=3e-4,
             gamma=0.99,
@@ -215,61 +295,85 @@ def main(argv: list[str] | None = None) -> int:
         )
     model.set_logger(configure(str(out), ["csv"]))
     history: list[dict] = []
+    # what every saved policy (checkpoint or final) records: enough to load and to validate it
+    identity = {
+        "algo": args.algo,
+        "layout": args.layout,
+        "features": "set" if set_config is not None else args.features,
+        "env_id": args.env,
+        "task": task,
+    }
+    if set_config is not None:
+        identity["set_config"] = set_config.as_dict()
+    else:
+        identity["random_map"] = random_map
+
+    def score(policy_norm: _ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
+        """What a checkpoint is scored on: the paper maps (mlp) or held-out layouts (set)."""
+        if set_config is None:
+            label = "eval success (nominal, paper maps)"
+            return label, evaluate_policy_on_maps(
+                model, policy_norm, args.env, args.layout, args.features, episodes_per_map
+            )
+        from baselines.select import set_validation_success
+
+        return "validation success (held-out random layouts)", set_validation_success(
+            model, dict(policy_norm), identity, episodes_per_cell=args.validation_episodes
+        )
 
     class Periodic(BaseCallback):
-        """Checkpoints and evaluation on the paper maps every ``eval_freq`` steps."""
+        """Checkpoints every ``eval_freq`` steps, each scored (see ``score``)."""
 
-        def __init__(self) -> None:
+        def __init__(self, next_at: int) -> None:
             super().__init__()
-            self.next_at = args.eval_freq
+            self.next_at = next_at
 
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next_at:
                 self.next_at += args.eval_freq
-                rate = evaluate_policy_on_maps(model, _norm_of(venv), args.env, args.layout, args.features)
-                history.append({"timesteps": self.num_timesteps, "success_rate_nominal": rate})
-                self.logger.record("eval/success_rate_nominal", rate)
+                label, rate = score(_norm_of(venv))
+                history.append({"timesteps": self.num_timesteps, "scored_on": label, "success_rate": rate})
+                self.logger.record("eval/success_rate", rate)
                 save_policy(
                     out / "checkpoints" / f"step_{self.num_timesteps}",
                     model,
                     venv,
-                    {
-                        "algo": args.algo,
-                        "layout": args.layout,
-                        "features": args.features,
-                        "timesteps": self.num_timesteps,
-                    },
+                    {**identity, "timesteps": self.num_timesteps},
                 )
-                print(
-                    f"{self.num_timesteps:>10,d} steps  eval success (nominal, paper maps) {rate:.2f}",
-                    flush=True,
-                )
+                print(f"{self.num_timesteps:>10,d} steps  {label} {rate:.2f}", flush=True)
             return True
 
     start = time.perf_counter()
-    model.learn(total_timesteps=args.timesteps, callback=Periodic())
+    stages = STAGES[task] if set_config is not None else ()
+    if not stages:
+        model.learn(total_timesteps=args.timesteps, callback=Periodic(args.eval_freq))
+    else:
+        callback = Periodic(args.eval_freq)
+        for index, stage in enumerate(stages):
+            if index:
+                # the next stage's layouts; the reward scale learnt so far carries over
+                returns = venv.ret_rms
+                venv = wrap(make_venv(index))
+                venv.ret_rms = returns
+                model.set_env(venv)  # forces a reset: every episode starts on the new stage
+            steps = round(stage.share * args.timesteps)
+            print(f"stage {stage.name}: {steps:,} robot-steps", flush=True)
+            model.learn(total_timesteps=steps, callback=callback, reset_num_timesteps=index == 0)
     wall = time.perf_counter() - start
-    final_rate = evaluate_policy_on_maps(
-        model, _norm_of(venv), args.env, args.layout, args.features, episodes_per_map=5
-    )
+    label, final_rate = score(_norm_of(venv), episodes_per_map=5)
     metadata = {
-        "algo": args.algo,
-        "layout": args.layout,
+        **identity,
         "collision_penalty": args.collision_penalty,
         "precision_shaping": args.precision_shaping,
-        "features": args.features,
-        "n_robots": int(team_size),
-        "random_map": random_map,
-        "env_id": args.env,
-        "task": TASK_OF[args.env],
+        "n_robots": team_size,
         "command": "python -m baselines.train " + " ".join(argv if argv is not None else sys.argv[1:]),
         "seed": args.seed,
         "timesteps": args.timesteps,
         "trained_timesteps": int(model.num_timesteps),  # whole rollouts: a little over the request
-        "n_envs": n_envs,
+        "n_envs": venv.num_envs if set_config is not None else n_envs,  # set: sub-envs = robots
         "net_arch": args.net,
         "wall_seconds": round(wall, 1),
-        "eval_success_rate_nominal_paper_maps": final_rate,
+        "robot_steps_per_second": round(model.num_timesteps / wall),
         "eval_history": history,
         "versions": {
             "koopnav": koopman_envs.__version__,
@@ -280,10 +384,19 @@ def main(argv: list[str] | None = None) -> int:
             "python": platform.python_version(),
         },
     }
+    if set_config is None:
+        metadata["eval_success_rate_nominal_paper_maps"] = final_rate
+    else:
+        metadata["set_width"] = args.set_width
+        metadata["curriculum"] = {
+            "parts": [list(p) for p in PARTS],
+            "stages": [stage.as_dict() for stage in stages],
+        }
+        metadata["validation_success_rate"] = final_rate
     save_policy(out, model, venv, metadata)
     print(
         f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
-        f"eval success {final_rate:.2f}; wrote {out}"
+        f"{label} {final_rate:.2f}; wrote {out}"
     )
     return 0
 

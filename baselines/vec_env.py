@@ -29,12 +29,21 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn
 
 import koopman_envs  # noqa: F401 - registers the ids
+from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features
 from koopman_envs.checks import check_int
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
 
-__all__ = ["FEATURE_SETS", "LAYOUTS", "KoopNavSB3VecEnv", "feature_count", "robot_features", "scale_action"]
+__all__ = [
+    "FEATURE_SETS",
+    "LAYOUTS",
+    "KoopNavSB3VecEnv",
+    "MixtureVecEnv",
+    "feature_count",
+    "robot_features",
+    "scale_action",
+]
 
 LAYOUTS = ("robot", "team")
 #: what a shared (``"robot"`` layout) policy sees beside its block; see :func:`robot_features`
@@ -164,6 +173,10 @@ class KoopNavSB3VecEnv(VecEnv):
         behaviour but getting closer (exactly policy-invariant as the discount tends to 1).
     features : str
         ``"robot"`` layout: the feature set of :func:`robot_features`.
+    set_config : SetFeatureConfig, optional
+        ``"robot"`` layout: observe sets of team-mates and obstacles
+        (:func:`baselines.set_features.set_features`) instead of ``features``; the observation
+        then has the same size for every team size.
     **env_kwargs
         Environment keywords (``map="random"``, ``slip="random"``, ...).
     """
@@ -177,15 +190,20 @@ class KoopNavSB3VecEnv(VecEnv):
         collision_penalty: float = 0.0,
         precision_shaping: float = 0.0,
         features: str = "bearing",
+        set_config: SetFeatureConfig | None = None,
         **env_kwargs: Any,
     ) -> None:
         if layout not in LAYOUTS:
             raise ValueError(f"layout={layout!r} is not one of {list(LAYOUTS)}")
+        if set_config is not None and layout != "robot":
+            raise ValueError(f"set observations need layout='robot', not {layout!r}")
+        self.set_config = set_config
         self.layout = layout
         self.venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
         # a KoopNav id's vector entry point is a KoopNavVectorEnv (make_vec types it as any VectorEnv)
         engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
         self.n_envs, self.n_robots = num_envs, engine.config.n_robots
+        self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
         if not np.isfinite(collision_penalty) or collision_penalty < 0:
             raise ValueError(f"collision_penalty={collision_penalty!r} must be finite and >= 0")
         self.collision_penalty = float(collision_penalty)
@@ -198,7 +216,12 @@ class KoopNavSB3VecEnv(VecEnv):
             raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
         self.features = features
         observation: spaces.Space[Any]
-        if layout == "robot":
+        if set_config is not None:
+            physical, _ = engine.robot_spaces()
+            bound = SET_FEATURE_BOUND
+            observation = spaces.Box(-bound, bound, shape=(set_config.size,), dtype=np.float32)
+            width = num_envs * self.n_robots
+        elif layout == "robot":
             physical, block = engine.robot_spaces()
             extra = feature_count(0, self.n_robots, features) - 3
             low = np.concatenate([block.low, [-1.0, -1.0, np.log(_PRECISION_EPS)], -np.ones(extra)])
@@ -221,6 +244,10 @@ class KoopNavSB3VecEnv(VecEnv):
 
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
+        if self.set_config is not None:
+            blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)
+            observed = set_features(blocks, self._n_obstacle_obs, self._formation, self.set_config)
+            return observed.reshape(self.n_envs * self.n_robots, -1)
         if self.layout == "robot":
             blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)
             return robot_features(blocks, self.features).reshape(self.n_envs * self.n_robots, -1)
@@ -299,6 +326,73 @@ class KoopNavSB3VecEnv(VecEnv):
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
         method = getattr(self.venv.unwrapped, method_name)
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False] * len(list(self._get_indices(indices)))
+
+
+class MixtureVecEnv(VecEnv):
+    """Several :class:`KoopNavSB3VecEnv` side by side, seen by SB3 as one ``VecEnv``.
+
+    Each part may have its own team size, map generator settings and slip, as long as all parts
+    give observations of one shape (set observations do, for any team size) and take the same
+    actions. Sub-envs are numbered part by part, in the order given.
+
+    Parameters
+    ----------
+    parts : sequence of KoopNavSB3VecEnv
+    """
+
+    def __init__(self, parts: Sequence[KoopNavSB3VecEnv]) -> None:
+        if not parts:
+            raise ValueError("a MixtureVecEnv needs at least one part")
+        first = parts[0]
+        for part in parts[1:]:
+            if part.observation_space != first.observation_space or part.action_space != first.action_space:
+                raise ValueError(
+                    f"every part needs the spaces of the first ({first.observation_space}, {first.action_space}); "
+                    f"got {part.observation_space}, {part.action_space}"
+                )
+        self.parts = list(parts)
+        self._bounds = np.cumsum([0] + [p.num_envs for p in self.parts])
+        super().__init__(int(self._bounds[-1]), first.observation_space, first.action_space)
+
+    def reset(self) -> np.ndarray:
+        return np.concatenate([p.reset() for p in self.parts])
+
+    def step_async(self, actions: np.ndarray) -> None:
+        for part, lo, hi in zip(self.parts, self._bounds[:-1], self._bounds[1:], strict=True):
+            part.step_async(actions[lo:hi])
+
+    def step_wait(self) -> VecEnvStepReturn:
+        results = [p.step_wait() for p in self.parts]
+        obs = np.concatenate([r[0] for r in results])
+        rewards = np.concatenate([r[1] for r in results])
+        dones = np.concatenate([r[2] for r in results])
+        infos = [info for r in results for info in r[3]]
+        return obs, rewards, dones, infos
+
+    def seed(self, seed: int | None = None) -> Sequence[None]:
+        for i, part in enumerate(self.parts):
+            part.seed(None if seed is None else seed + 1000 * i)
+        return [None] * self.num_envs
+
+    def close(self) -> None:
+        for part in self.parts:
+            part.close()
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        return [getattr(self.parts[0].venv.unwrapped, attr_name)] * len(list(self._get_indices(indices)))
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        for part in self.parts:
+            part.set_attr(attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        return [
+            getattr(self.parts[0].venv.unwrapped, method_name)(*method_args, **method_kwargs)
+            for _ in self._get_indices(indices)
+        ]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False] * len(list(self._get_indices(indices)))

@@ -1,0 +1,245 @@
+"""Per-robot observations as sets: what a policy for any team size and layout reads.
+
+A robot's block in the env's observation (:mod:`koopman_envs.tasks.observation`) lists every
+other robot in index order, so its length and meaning change with the team size. A set policy
+reads instead, for every robot i, a fixed-size vector built from the team's blocks:
+
+``ego`` (:data:`EGO_SIZE` entries)
+    target in the body frame (scaled and clipped), distance, unit bearing, log distance, cos and
+    sin of the target heading error, the formation error rotated into the body frame, and a
+    leader flag (formation task: robot 0 leads).
+``neighbours`` (``neighbours`` slots of :data:`NEIGHBOUR_SIZE` + 1 entries)
+    the team-mates within ``sensing_radius`` (surface clearance), nearest first, at most
+    ``neighbours`` of them: body-frame offset, clearance, relative heading (cos, sin), the
+    team-mate's own target offset seen in robot i's body frame (where it is going), its leader
+    flag, then a mask entry (1 present, 0 absent).
+``obstacles`` (``obstacles`` slots of :data:`OBSTACLE_SIZE` + 1 entries)
+    the listed obstacles of the block within ``sensing_radius``: body-frame offset of the centre,
+    clearance, then a mask entry.
+
+Absent slots hold zeros and mask 0; the set encoder (:mod:`baselines.set_encoder`) multiplies
+every slot's encoding by its mask before pooling, so an absent slot's values change nothing.
+Every entry is scaled by hand to order one, so the features need no running normalization
+(which would also move the masks).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.checks import check_int, check_number
+from koopman_envs.tasks.observation import FAR
+
+__all__ = [
+    "EGO_SIZE",
+    "MAX_TEAM",
+    "NEIGHBOUR_SIZE",
+    "OBSTACLE_SIZE",
+    "SetFeatureConfig",
+    "set_feature_size",
+    "set_features",
+]
+
+EGO_SIZE = 11
+NEIGHBOUR_SIZE = 8
+OBSTACLE_SIZE = 3
+#: largest team a set policy is run with (the evaluator's random maps place up to this many)
+MAX_TEAM = 64
+_TARGET_SCALE = 5.0  # [m]: target offsets enter as offset / 5, clipped to [-2, 2]
+_NEAR_SCALE = 3.0  # [m]: neighbour and obstacle offsets, clearances
+_FORMATION_SCALE = 2.0  # [m]
+_EPS = 0.05  # [m]: the log distance's floor, half the default goal tolerance
+
+
+@dataclass(frozen=True)
+class SetFeatureConfig:
+    """How many team-mates and obstacles a set policy reads, and within which radius.
+
+    Parameters
+    ----------
+    neighbours : int
+        Team-mate slots K >= 1 (the nearest K within ``sensing_radius``).
+    obstacles : int
+        Obstacle slots >= 1 (the block lists the env's ``n_obstacle_obs`` nearest; more slots
+        than that stay masked).
+    sensing_radius : float
+        Surface clearance [m] > 0 beyond which a team-mate or obstacle is not read.
+    """
+
+    neighbours: int = 6
+    obstacles: int = 6
+    sensing_radius: float = 3.0
+
+    def __post_init__(self) -> None:
+        check_int("neighbours", self.neighbours, 1)
+        check_int("obstacles", self.obstacles, 1)
+        check_number("sensing_radius", self.sensing_radius, above=0)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The fields, for a policy's metadata."""
+        return asdict(self)
+
+    @property
+    def size(self) -> int:
+        """Length of one robot's set observation."""
+        return set_feature_size(self)
+
+
+def set_feature_size(config: SetFeatureConfig) -> int:
+    """Length of one robot's set observation for ``config``."""
+    return EGO_SIZE + config.neighbours * (NEIGHBOUR_SIZE + 1) + config.obstacles * (OBSTACLE_SIZE + 1)
+
+
+def _rotate_into_body(c: NDArray, s: NDArray, x: NDArray, y: NDArray) -> tuple[NDArray, NDArray]:
+    """World-frame vector (x, y) in the body frame of a robot with heading (cos c, sin s)."""
+    return c * x + s * y, -s * x + c * y
+
+
+def set_features(
+    team_blocks: NDArray,
+    n_obstacle_obs: int,
+    formation: bool,
+    config: SetFeatureConfig = SetFeatureConfig(),
+) -> NDArray[np.float32]:
+    """Every robot's set observation, built from the team's observation blocks.
+
+    Parameters
+    ----------
+    team_blocks : ndarray, shape (..., N, F)
+        The team's blocks (:mod:`koopman_envs.tasks.observation`), N >= 1.
+    n_obstacle_obs : int
+        Obstacles listed per block (the env's ``n_obstacle_obs``).
+    formation : bool
+        Whether the blocks end with the formation error (the formation task).
+    config : SetFeatureConfig
+
+    Returns
+    -------
+    ndarray, shape (..., N, config.size), float32
+    """
+    blocks = np.asarray(team_blocks, dtype=np.float64)
+    n = blocks.shape[-2]
+    if not 1 <= n <= MAX_TEAM:
+        raise ValueError(f"a set policy runs teams of 1..{MAX_TEAM} robots; these blocks hold {n}")
+    expected = 9 + 3 * (n - 1) + 3 * n_obstacle_obs + (2 if formation else 0)
+    if blocks.shape[-1] != expected:
+        raise ValueError(
+            f"blocks of {blocks.shape[-1]} entries do not match N={n}, n_obstacle_obs={n_obstacle_obs}, "
+            f"formation={formation} (expected {expected})"
+        )
+    batch = blocks.shape[:-2]
+    c, s = blocks[..., 2], blocks[..., 3]  # (..., N)
+    target = blocks[..., 4:6]
+    distance = blocks[..., 6]
+    leader = np.zeros(batch + (n,))
+    if formation:
+        leader[..., 0] = 1.0
+        error = blocks[..., -2:]
+        ex, ey = _rotate_into_body(c, s, error[..., 0], error[..., 1])
+    else:
+        ex = ey = np.zeros(batch + (n,))
+    safe = np.maximum(distance, 1e-6)
+    ego = np.stack(
+        [
+            np.clip(target[..., 0] / _TARGET_SCALE, -2, 2),
+            np.clip(target[..., 1] / _TARGET_SCALE, -2, 2),
+            np.minimum(distance, 2 * _TARGET_SCALE) / _TARGET_SCALE,
+            target[..., 0] / safe,
+            target[..., 1] / safe,
+            np.log(distance + _EPS),
+            blocks[..., 7],
+            blocks[..., 8],
+            np.clip(ex / _FORMATION_SCALE, -2, 2),
+            np.clip(ey / _FORMATION_SCALE, -2, 2),
+            leader,
+        ],
+        axis=-1,
+    )
+    parts = [ego, _neighbour_slots(blocks, c, s, target, leader, config)]
+    parts.append(_obstacle_slots(blocks, n, n_obstacle_obs, config))
+    return np.concatenate(parts, axis=-1).astype(np.float32)
+
+
+def _neighbour_slots(
+    blocks: NDArray, c: NDArray, s: NDArray, target: NDArray, leader: NDArray, config: SetFeatureConfig
+) -> NDArray:
+    """The neighbour slots (..., N, K * (NEIGHBOUR_SIZE + 1)), nearest first."""
+    n = blocks.shape[-2]
+    batch = blocks.shape[:-2]
+    k = config.neighbours
+    out = np.zeros(batch + (n, k, NEIGHBOUR_SIZE + 1))
+    if n == 1:
+        return out.reshape(batch + (n, -1))
+    # others[i] = the team indices that robot i's block lists, in its order
+    others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64)
+    listed = blocks[..., 9 : 9 + 3 * (n - 1)].reshape(batch + (n, n - 1, 3))
+    dx, dy, gap = listed[..., 0], listed[..., 1], listed[..., 2]  # (..., N, N - 1)
+    # relative heading of j seen from i, and j's target offset rotated from j's frame into i's
+    c_j, s_j = c[..., others], s[..., others]
+    ci, si = c[..., None], s[..., None]
+    cr, sr = c_j * ci + s_j * si, s_j * ci - c_j * si
+    tx, ty = target[..., others, 0], target[..., others, 1]
+    gx, gy = cr * tx - sr * ty, sr * tx + cr * ty
+    features = np.stack(
+        [
+            np.clip(dx / _NEAR_SCALE, -3, 3),
+            np.clip(dy / _NEAR_SCALE, -3, 3),
+            np.clip(gap / _NEAR_SCALE, -1, 3),
+            cr,
+            sr,
+            np.clip(gx / _TARGET_SCALE, -2, 2),
+            np.clip(gy / _TARGET_SCALE, -2, 2),
+            leader[..., others],
+        ],
+        axis=-1,
+    )  # (..., N, N - 1, NEIGHBOUR_SIZE)
+    chosen = min(k, n - 1)
+    order = np.argsort(gap, axis=-1, kind="stable")[..., :chosen]  # nearest first
+    picked = np.take_along_axis(features, order[..., None], axis=-2)
+    present = np.take_along_axis(gap, order, axis=-1) <= config.sensing_radius
+    out[..., :chosen, :NEIGHBOUR_SIZE] = picked * present[..., None]
+    out[..., :chosen, NEIGHBOUR_SIZE] = present
+    return out.reshape(batch + (n, -1))
+
+
+def _obstacle_slots(blocks: NDArray, n: int, n_obstacle_obs: int, config: SetFeatureConfig) -> NDArray:
+    """The obstacle slots (..., N, slots * (OBSTACLE_SIZE + 1)), nearest first."""
+    batch = blocks.shape[:-2]
+    k = config.obstacles
+    out = np.zeros(batch + (n, k, OBSTACLE_SIZE + 1))
+    chosen = min(k, n_obstacle_obs)
+    if chosen:
+        start = 9 + 3 * (n - 1)
+        listed = blocks[..., start : start + 3 * chosen].reshape(batch + (n, chosen, 3))
+        gap = listed[..., 2]
+        # the env lists absent obstacles at clearance FAR
+        present = (gap < FAR - 1.0) & (gap <= config.sensing_radius)
+        features = np.stack(
+            [
+                np.clip(listed[..., 0] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., 1] / _NEAR_SCALE, -3, 3),
+                np.clip(gap / _NEAR_SCALE, -1, 3),
+            ],
+            axis=-1,
+        )
+        out[..., :chosen, :OBSTACLE_SIZE] = features * present[..., None]
+        out[..., :chosen, OBSTACLE_SIZE] = present
+    return out.reshape(batch + (n, -1))
+
+
+def split_set_observation(size: int, config: SetFeatureConfig) -> tuple[slice, slice, slice]:
+    """Slices of ego, neighbour slots and obstacle slots in an observation of ``size`` entries."""
+    if size != config.size:
+        raise ValueError(f"a set observation of {config} has {config.size} entries, not {size}")
+    a = EGO_SIZE
+    b = a + config.neighbours * (NEIGHBOUR_SIZE + 1)
+    return slice(0, a), slice(a, b), slice(b, size)
+
+
+# the largest value an entry can take (bounds of the observation space)
+SET_FEATURE_BOUND = float(max(3.0, abs(math.log(_EPS)), math.log(FAR + _EPS)))

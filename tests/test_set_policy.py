@@ -1,0 +1,265 @@
+"""The set policy (rl-ppo-set): order-free, mask-exact, any team size; a tiny real training run."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+import torch  # noqa: E402
+from gymnasium import spaces  # noqa: E402
+
+from baselines.curriculum import PARTS, STAGES, stage_parts  # noqa: E402
+from baselines.policy import RLSetPolicyController, load_policy, policy_command  # noqa: E402
+from baselines.select import main as select_main  # noqa: E402
+from baselines.set_encoder import SetEncoder  # noqa: E402
+from baselines.set_features import (  # noqa: E402
+    EGO_SIZE,
+    MAX_TEAM,
+    NEIGHBOUR_SIZE,
+    OBSTACLE_SIZE,
+    SetFeatureConfig,
+    set_features,
+)
+from baselines.train import main as train_main  # noqa: E402
+from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv  # noqa: E402
+
+CONFIG = SetFeatureConfig(neighbours=4, obstacles=3, sensing_radius=3.0)
+
+
+def large_team(n: int) -> dict:
+    """A wedge of more than 16 robots finds no room on a random map; a grid does (bench/scaling.py)."""
+    return {"formation": "grid"} if n > 16 else {}
+
+
+def team_blocks(env_id: str, n: int, seed: int = 0, **kwargs) -> tuple[np.ndarray, int, bool]:
+    env = gym.make(env_id, n_robots=n, map="random", **large_team(n), **kwargs)
+    obs, _ = env.reset(seed=seed)
+    config = env.unwrapped.engine.config
+    env.close()
+    return obs.reshape(n, -1), config.n_obstacle_obs, config.task.formation
+
+
+@pytest.fixture(scope="module")
+def encoder() -> SetEncoder:
+    torch.manual_seed(0)
+    space = spaces.Box(-5, 5, shape=(CONFIG.size,), dtype=np.float32)
+    return SetEncoder(space, CONFIG.as_dict(), width=16)
+
+
+def slots(observation: np.ndarray, config: SetFeatureConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    a = EGO_SIZE
+    b = a + config.neighbours * (NEIGHBOUR_SIZE + 1)
+    ego = observation[..., :a]
+    neighbours = observation[..., a:b].reshape(
+        observation.shape[:-1] + (config.neighbours, NEIGHBOUR_SIZE + 1)
+    )
+    obstacles = observation[..., b:].reshape(observation.shape[:-1] + (config.obstacles, OBSTACLE_SIZE + 1))
+    return ego, neighbours, obstacles
+
+
+def join(ego: np.ndarray, neighbours: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
+    lead = ego.shape[:-1]
+    return np.concatenate([ego, neighbours.reshape(lead + (-1,)), obstacles.reshape(lead + (-1,))], axis=-1)
+
+
+def rows_sorted(rows: np.ndarray) -> np.ndarray:
+    """The rows of a slot table in lexicographic order (its content as a set)."""
+    return rows[np.lexsort(np.round(rows, 6).T[::-1])]
+
+
+def encode(encoder: SetEncoder, observation: np.ndarray) -> np.ndarray:
+    with torch.no_grad():
+        return encoder(torch.as_tensor(observation, dtype=torch.float32)).numpy()
+
+
+@pytest.mark.parametrize("n", [2, 7, 32])
+def test_set_observations_have_one_size_for_every_team(n: int) -> None:
+    blocks, listed, formation = team_blocks("KoopNav-TargetReaching-v0", n)
+    observed = set_features(blocks, listed, formation, CONFIG)
+    assert observed.shape == (n, CONFIG.size)
+    assert np.isfinite(observed).all()
+    _, neighbours, _ = slots(observed, CONFIG)
+    present = neighbours[..., -1]
+    assert set(np.unique(present)) <= {0.0, 1.0}
+    # a robot reads at most K team-mates, and never more than there are
+    assert (present.sum(axis=1) <= min(CONFIG.neighbours, n - 1)).all()
+
+
+def test_neighbours_beyond_the_sensing_radius_are_masked() -> None:
+    blocks, listed, formation = team_blocks("KoopNav-TargetReaching-v0", 6)
+    near = set_features(blocks, listed, formation, SetFeatureConfig(5, 3, sensing_radius=0.05))
+    far = set_features(blocks, listed, formation, SetFeatureConfig(5, 3, sensing_radius=100.0))
+    config = SetFeatureConfig(5, 3)
+    assert slots(far, config)[1][..., -1].sum() == 6 * 5  # everybody within 100 m
+    # starts keep 0.3 m of clearance: nobody within 5 cm, and absent slots hold only zeros
+    assert not slots(near, config)[1].any()
+
+
+def test_the_encoder_ignores_the_order_of_neighbours_and_obstacles(encoder) -> None:
+    blocks, listed, formation = team_blocks("KoopNav-TargetReaching-v0", 7, n_obstacle_obs=3)
+    observed = set_features(blocks, listed, formation, CONFIG)
+    ego, neighbours, obstacles = slots(observed, CONFIG)
+    rng = np.random.default_rng(0)
+    shuffled = join(
+        ego,
+        neighbours[:, rng.permutation(CONFIG.neighbours)],
+        obstacles[:, rng.permutation(CONFIG.obstacles)],
+    )
+    assert not np.array_equal(shuffled, observed)
+    np.testing.assert_allclose(encode(encoder, shuffled), encode(encoder, observed), rtol=1e-5, atol=1e-6)
+
+
+def test_relabelling_the_team_leaves_each_robots_observation_unchanged() -> None:
+    n = 6
+    blocks, listed, formation = team_blocks("KoopNav-TargetReaching-v0", n, seed=3)
+    env = gym.make("KoopNav-TargetReaching-v0", n_robots=n, map="random")
+    env.reset(seed=3)
+    engine = env.unwrapped.engine
+    order = np.array([3, 0, 5, 1, 4, 2])
+    # the same scene with the robots numbered in another order: rebuild the blocks from the state
+    state, target = engine.state.copy(), engine.target.copy()
+    engine.state[:] = state[..., order]
+    engine.target[:] = target[..., order]
+    relabelled = engine.features()[0]
+    env.close()
+    # every team-mate read (K >= N - 1): the sets must agree, in whatever order ties were listed
+    config = SetFeatureConfig(neighbours=n - 1, obstacles=3)
+    before = set_features(blocks, listed, formation, config)[order]
+    after = set_features(relabelled, listed, formation, config)
+    for robot in range(n):
+        (ego_a, mates_a, obstacles_a), (ego_b, mates_b, obstacles_b) = (
+            slots(after[robot], config),
+            slots(before[robot], config),
+        )
+        np.testing.assert_allclose(ego_a, ego_b, atol=1e-6)
+        np.testing.assert_allclose(rows_sorted(mates_a), rows_sorted(mates_b), atol=1e-6)
+        np.testing.assert_allclose(obstacles_a, obstacles_b, atol=1e-6)
+
+
+def test_masked_slots_change_nothing(encoder) -> None:
+    blocks, listed, formation = team_blocks("KoopNav-TargetReaching-v0", 3, n_obstacle_obs=1)
+    observed = set_features(blocks, listed, formation, CONFIG)
+    ego, neighbours, obstacles = slots(observed, CONFIG)
+    assert (neighbours[:, 2:, -1] == 0).all() and (obstacles[:, 1:, -1] == 0).all()  # 2 mates, 1 obstacle
+    noisy_n, noisy_o = neighbours.copy(), obstacles.copy()
+    rng = np.random.default_rng(1)
+    noisy_n[:, 2:, :-1] = rng.normal(size=noisy_n[:, 2:, :-1].shape) * 5
+    noisy_o[:, 1:, :-1] = rng.normal(size=noisy_o[:, 1:, :-1].shape) * 5
+    np.testing.assert_array_equal(encode(encoder, join(ego, noisy_n, noisy_o)), encode(encoder, observed))
+    # an unmasked slot does matter
+    noisy_n[:, 0, 0] += 1.0
+    assert not np.array_equal(encode(encoder, join(ego, noisy_n, noisy_o)), encode(encoder, observed))
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"neighbours": 0}, "neighbours=0"),
+        ({"obstacles": 0}, "obstacles=0"),
+        ({"sensing_radius": 0.0}, "sensing_radius=0.0"),
+        ({"sensing_radius": -1.0}, "sensing_radius=-1.0"),
+    ],
+)
+def test_bad_set_settings_are_rejected_with_the_value(fields, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        SetFeatureConfig(**fields)
+
+
+def test_a_team_beyond_the_supported_size_is_rejected() -> None:
+    blocks = np.zeros((MAX_TEAM + 1, 9 + 3 * MAX_TEAM))
+    with pytest.raises(ValueError, match=f"1..{MAX_TEAM} robots; these blocks hold {MAX_TEAM + 1}"):
+        set_features(blocks, 0, False, CONFIG)
+
+
+def test_every_curriculum_stage_covers_its_budget_and_builds() -> None:
+    for task, stages in STAGES.items():
+        assert sum(stage.share for stage in stages) == pytest.approx(1.0)
+        for stage in stages:
+            parts = stage_parts(task, stage)
+            assert [(n, k) for n, k, _ in parts] == list(PARTS)
+    # one part of the hardest stage: a mixture of two team sizes gives one observation shape
+    task = "target_reaching"
+    (n1, _, kw1), (n2, _, kw2) = stage_parts(task, STAGES[task][-1])[:2]
+    mixture = MixtureVecEnv(
+        [
+            KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 2, seed=0, set_config=CONFIG, **kw1),
+            KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 2, seed=9, set_config=CONFIG, **kw2),
+        ]
+    )
+    assert mixture.num_envs == 2 * n1 + 2 * n2
+    assert mixture.reset().shape == (2 * n1 + 2 * n2, CONFIG.size)
+    mixture.close()
+
+
+@pytest.fixture(scope="module")
+def set_root(tmp_path_factory):
+    """A real (tiny) curriculum run of the training command, then the selection command."""
+    run = tmp_path_factory.mktemp("set_run")
+    code = train_main(
+        [
+            "--env",
+            "KoopNav-TargetReaching-v0",
+            "--policy",
+            "set",
+            "--timesteps",
+            "6000",
+            "--n-steps",
+            "4",
+            "--batch-size",
+            "576",
+            "--eval-freq",
+            "3000",
+            "--validation-episodes",
+            "2",
+            "--set-width",
+            "16",
+            "--out",
+            str(run),
+        ]
+    )
+    assert code == 0
+    root = tmp_path_factory.mktemp("set_policies")
+    assert select_main(["--run", str(run), "--out", str(root / "target_reaching"), "--episodes", "3"]) == 0
+    return root
+
+
+def test_the_training_command_runs_the_curriculum_and_records_it(set_root) -> None:
+    metadata = json.loads((set_root / "target_reaching" / "metadata.json").read_text())
+    assert metadata["set_config"] == SetFeatureConfig().as_dict()
+    assert [s["name"] for s in metadata["curriculum"]["stages"]] == ["basics", "crossing", "full"]
+    assert metadata["trained_timesteps"] >= 6000 and metadata["robot_steps_per_second"] > 0
+    assert metadata["selection"]["validation"], "the selection scored no candidate"
+    assert "paper" not in metadata["selection"]["rule"]
+
+
+@pytest.mark.parametrize("n", [2, 7, 32])
+def test_one_policy_drives_any_team_size(set_root, n: int) -> None:
+    ctrl = RLSetPolicyController(set_root)
+    env = gym.make(
+        "KoopNav-TargetReaching-v0", n_robots=n, map="random", max_episode_steps=5, **large_team(n)
+    )
+    obs, info = env.reset(seed=n)
+    ctrl.reset(env.unwrapped.scenario, seed=n)
+    for _ in range(5):
+        action = ctrl.act(obs, info)
+        assert action.shape == (2 * n,) and env.action_space.contains(action.astype(np.float32))
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    env.close()
+
+
+def test_batched_set_commands_equal_single_commands(set_root) -> None:
+    model, norm, metadata = load_policy(set_root / "target_reaching", "target_reaching")
+    config = SetFeatureConfig(**metadata["set_config"])
+    venv = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=3, n_robots=5, map="random")
+    obs, _ = venv.reset(seed=0)
+    batched = policy_command(model, norm, "robot", obs, 5, 0.6, 0.8, set_config=config)
+    single = np.stack([policy_command(model, norm, "robot", o, 5, 0.6, 0.8, set_config=config) for o in obs])
+    np.testing.assert_allclose(batched, single, atol=1e-6)
+    venv.close()
