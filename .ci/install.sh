@@ -5,5 +5,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python -m pip install --upgrade pip >/dev/null
-case ",${1:-}," in *,rl,* | *,torchrl,*) python -m pip install torch==2.13.0 ;; esac
-python -m pip install -e ".${1:+[$1]}"
+case ",${1:-}," in *,rl,* | *,torchrl,* | *,benchmarl,*) python -m pip install torch==2.13.0 ;; esac
+# the constraints keep that torch whatever an extra asks for (BenchMARL's torchvision would not)
+python -m pip install -c .ci/constraints.txt -e ".${1:+[$1]}"

@@ -1,0 +1,140 @@
+"""KoopNav's two tasks as BenchMARL tasks (the ``[benchmarl]`` extra).
+
+BenchMARL (MAPPO, IPPO, MADDPG, ... on TorchRL) runs a task through a :class:`TaskClass` that
+builds TorchRL envs; this one wraps KoopNav's PettingZoo parallel env in TorchRL's
+``PettingZooWrapper`` unchanged, one group ``"agents"`` holding every robot::
+
+    from benchmarl.algorithms import MappoConfig
+    from benchmarl.experiment import Experiment, ExperimentConfig
+    from benchmarl.models.mlp import MlpConfig
+    from baselines.benchmarl_task import KoopNavTask
+
+    task = KoopNavTask.FORMATION.get_task()          # the defaults of TASK_CONFIGS["formation"]
+    task.config.update({"n_robots": 5, "slip": "high"})  # any env keyword
+    experiment = Experiment(
+        task=task,
+        algorithm_config=MappoConfig.get_from_yaml(),
+        model_config=MlpConfig.get_from_yaml(),
+        critic_model_config=MlpConfig.get_from_yaml(),
+        seed=0,
+        config=ExperimentConfig.get_from_yaml(),
+    )
+    experiment.run()
+
+The task's config is the env keywords of :mod:`koopman_envs.keywords` (``map``, ``slip``,
+``n_robots``, ``max_cycles``, ...); unknown ones fail when the env is built, naming the
+allowed ones. ``TASK_CONFIGS`` holds the defaults (random maps, random slip, 100 cycles, like
+BenchMARL's MPE tasks) and :func:`write_task_yaml` writes them as BenchMARL's YAML files.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from benchmarl.environments.common import Task, TaskClass
+from torchrl.data import Composite
+from torchrl.envs import EnvBase, PettingZooWrapper
+
+from koopman_envs import formation_v0, target_reaching_v0
+
+__all__ = ["TASK_CONFIGS", "KoopNavTask", "KoopNavTaskClass", "write_task_yaml"]
+
+#: the default config of each task: env keywords of the PettingZoo parallel env
+TASK_CONFIGS: dict[str, dict[str, Any]] = {
+    "target_reaching": {"n_robots": 3, "map": "random", "slip": "random", "max_cycles": 100},
+    "formation": {"n_robots": 3, "map": "random", "slip": "random", "max_cycles": 100},
+}
+_MODULES = {"target_reaching": target_reaching_v0, "formation": formation_v0}
+
+
+class KoopNavTaskClass(TaskClass):
+    """Builds TorchRL envs of one KoopNav task from its config (env keywords)."""
+
+    def get_env_fun(
+        self, num_envs: int, continuous_actions: bool, seed: int | None, device: Any
+    ) -> Callable[[], EnvBase]:
+        config = copy.deepcopy(self.config)
+        module = _MODULES[self.name.lower()]
+        # one KoopNav env per TorchRL env: BenchMARL batches them with a SerialEnv / ParallelEnv
+        return lambda: PettingZooWrapper(
+            module.parallel_env(**config), use_mask=True, categorical_actions=True, device=device, seed=seed
+        )
+
+    def supports_continuous_actions(self) -> bool:
+        return True
+
+    def supports_discrete_actions(self) -> bool:
+        return False
+
+    def has_render(self, env: EnvBase) -> bool:
+        return False
+
+    def max_steps(self, env: EnvBase) -> int:
+        return int(self.config.get("max_cycles", 600))
+
+    def group_map(self, env: EnvBase) -> dict[str, list[str]]:
+        return env.group_map
+
+    def _group_entries(self, env: EnvBase, keep: str) -> Composite:
+        spec = env.observation_spec.clone()
+        for group in self.group_map(env):
+            for key in list(spec[group].keys()):
+                if key != keep:
+                    del spec[group][key]
+        return spec
+
+    def observation_spec(self, env: EnvBase) -> Composite:
+        return self._group_entries(env, "observation")
+
+    def info_spec(self, env: EnvBase) -> Composite | None:
+        return None
+
+    def state_spec(self, env: EnvBase) -> Composite | None:
+        return None
+
+    def action_spec(self, env: EnvBase) -> Composite:
+        return env.full_action_spec
+
+    def action_mask_spec(self, env: EnvBase) -> Composite | None:
+        return None
+
+    @staticmethod
+    def env_name() -> str:
+        return "koopnav"
+
+
+class KoopNavTask(Task):
+    """The KoopNav tasks for BenchMARL: ``KoopNavTask.FORMATION``, ``KoopNavTask.TARGET_REACHING``."""
+
+    TARGET_REACHING = None
+    FORMATION = None
+
+    @staticmethod
+    def associated_class() -> type[TaskClass]:
+        return KoopNavTaskClass
+
+    def get_from_yaml(self, path: str | None = None) -> TaskClass:
+        """The task with the config of ``path`` (a YAML file), default :data:`TASK_CONFIGS`."""
+        if path is None:
+            return self.get_task(config=copy.deepcopy(TASK_CONFIGS[self.name.lower()]))
+        import yaml
+
+        config = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+        config.pop("defaults", None)
+        return self.get_task(config=config)
+
+
+def write_task_yaml(directory: str | Path) -> list[Path]:
+    """Write ``koopnav/<task>.yaml`` under ``directory`` (BenchMARL's ``conf/task`` layout)."""
+    import yaml
+
+    written = []
+    for name, config in TASK_CONFIGS.items():
+        path = Path(directory) / "koopnav" / f"{name}.yaml"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
+        written.append(path)
+    return written
