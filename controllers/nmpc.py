@@ -234,6 +234,17 @@ class NMPCConfig:
     slack_tolerance : float
         Largest slack of a real-time-iteration plan accepted without the fallback solver
         (slacks are in the constraints' units: squared metres for collision rows).
+    pair_slots : int
+        (ours) 0 (default, the paper's problem): a collision row for every pair of robots at
+        every stage. P >= 1: P pair slots instead, filled before every solve with the pairs that
+        can meet within the horizon (centre distance below ``2 v_max T dt`` plus both radii and
+        the pair's margin), nearest first; a pair keeps its slot while it stays within reach,
+        and unused slots are parked far away (:data:`PARKED`). More pairs within reach than
+        slots: the farthest go unconstrained for that step, counted as ``pairs_dropped``.
+    obstacle_slots : int
+        (ours) 0 (default): every robot has a row for every obstacle. K >= 1: each robot's K
+        nearest obstacles (by surface clearance, refreshed before every solve); one built
+        problem then serves maps with any number of obstacles.
     jit : bool or None
         Compile the NLP's functions to C (several times faster derivative evaluations). The
         compiled objects are cached on disk (:mod:`controllers.solver_cache`), so a problem
@@ -261,6 +272,8 @@ class NMPCConfig:
     rti_iterations: int = 1
     hessian: str = "exact"
     slack_tolerance: float = 1e-2
+    pair_slots: int = 0
+    obstacle_slots: int = 0
     jit: bool | None = None
 
     @property
@@ -317,6 +330,7 @@ class _Problem:
     ) -> None:
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         n_slots = neighbour_slots
+        n_pair_slots, n_obstacle_slots = config.pair_slots, config.obstacle_slots
         coding = model.coding
         if coding not in _CODING_SIZE:
             raise ValueError(f"model coding={coding!r} is not one of {sorted(_CODING_SIZE)}")
@@ -335,7 +349,8 @@ class _Problem:
         x_meas = ca.SX.sym("x_meas", nx)
         goal_xy = ca.SX.sym("goal_xy", 2 * n)
         goal_cs = ca.SX.sym("goal_cs", 2 * n)
-        obstacles = ca.SX.sym("obstacles", 3 * m_obs)
+        # every obstacle (x, y, r), or with obstacle slots K nearest per robot (robot-major)
+        obstacles = ca.SX.sym("obstacles", 3 * (n * n_obstacle_slots if n_obstacle_slots else m_obs))
         # safety margins are parameters: per robot toward obstacles, per pair between robots
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
         obstacle_margin = ca.SX.sym("obstacle_margin", n)
@@ -344,6 +359,12 @@ class _Problem:
         # per slot the radius plus margin to keep (no slots: the central problem, unchanged)
         neighbour_xy = ca.SX.sym("neighbour_xy", 2 * n_slots * horizon)
         neighbour_reach = ca.SX.sym("neighbour_reach", n_slots)
+        # pair slots (config.pair_slots): slot p constrains the distance between
+        # sum_m select[p, m] p_m + offset_p and 0, i.e. p_i - p_j (select: +1 at i, -1 at j) or,
+        # parked, a point far away; reach: both radii plus the pair's margin
+        pair_select = ca.SX.sym("pair_select", n * n_pair_slots)
+        pair_offset = ca.SX.sym("pair_offset", 2 * n_pair_slots)
+        pair_reach = ca.SX.sym("pair_reach", n_pair_slots)
         params = ca.vertcat(
             x_meas,
             goal_xy,
@@ -353,6 +374,9 @@ class _Problem:
             pair_margin,
             neighbour_xy,
             neighbour_reach,
+            pair_select,
+            pair_offset,
+            pair_reach,
             theta,
         )
 
@@ -392,10 +416,13 @@ class _Problem:
                     reach = radius[i] + neighbour_reach[j]
                     clear = (px - neighbour_xy[at]) ** 2 + (py - neighbour_xy[at + 1]) ** 2 - reach**2
                     constrain(clear + slack, 0.0, np.inf)
-                for k in range(m_obs):
-                    ox, oy, orad = obstacles[3 * k], obstacles[3 * k + 1], obstacles[3 * k + 2]
+                for k in range(n_obstacle_slots or m_obs):
+                    at = 3 * (i * n_obstacle_slots + k) if n_obstacle_slots else 3 * k
+                    ox, oy, orad = obstacles[at], obstacles[at + 1], obstacles[at + 2]
                     clear = (px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + obstacle_margin[i]) ** 2
                     constrain(clear + slack, 0.0, np.inf)
+                if n_pair_slots:
+                    continue
                 for j in range(i + 1, n):
                     margin = pair_margin[pairs.index((i, j))]
                     clear = (
@@ -404,6 +431,13 @@ class _Problem:
                         - (radius[i] + radius[j] + margin) ** 2
                     )
                     constrain(clear + slack, 0.0, np.inf)
+            robot_x = ca.vertcat(*[x[size * m] for m in range(n)])
+            robot_y = ca.vertcat(*[x[size * m + 1] for m in range(n)])
+            for p in range(n_pair_slots):
+                select = pair_select[n * p : n * (p + 1)]
+                dx = ca.dot(select, robot_x) + pair_offset[2 * p]
+                dy = ca.dot(select, robot_y) + pair_offset[2 * p + 1]
+                constrain(dx**2 + dy**2 - pair_reach[p] ** 2 + slack, 0.0, np.inf)
 
         # least-squares form of the cost, for the real-time iteration's Gauss-Newton Hessian:
         # cost = sum of squared residuals + linear_cost (the slacks' exact-penalty term)
@@ -493,6 +527,7 @@ class _Problem:
             stage_cons.append(np.arange(first, len(equality)))
         self.n_robots = n
         self.neighbour_slots = n_slots
+        self.pair_slots, self.obstacle_slots = n_pair_slots, n_obstacle_slots
         self._nlp = {"x": ca.vertcat(*w), "f": cost, "g": ca.vertcat(*g), "p": params}
         #: the cost as ``sumsqr(residuals) + linear_cost`` (same value as ``f``)
         self.least_squares = (ca.vertcat(*residuals), linear_cost)
@@ -666,6 +701,8 @@ class NMPCController(BaseController):
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
         check_int("horizon", self.config.horizon, 1)
+        check_int("pair_slots", self.config.pair_slots, 0)
+        check_int("obstacle_slots", self.config.obstacle_slots, 0)
         k = self.config.uncertainty_margin
         if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
             raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")
@@ -700,7 +737,8 @@ class NMPCController(BaseController):
         key = (
             structure,
             scenario.n_robots,
-            scenario.obstacles.shape[0],
+            # with obstacle slots one problem serves any obstacle count
+            0 if self.config.obstacle_slots else scenario.obstacles.shape[0],
             scenario.task,
             tuple(scenario.robot_radius),
             scenario.workspace,
@@ -719,20 +757,33 @@ class NMPCController(BaseController):
             )
             self._key = key
         obstacle_margin, pair_margin = self.safety_margins(scenario)
+        self._scenario_obstacles = np.asarray(scenario.obstacles, dtype=float).reshape(-1, 3)
+        self._radius = np.asarray(scenario.robot_radius, dtype=float)
+        self._pair_reach = 2 * scenario.v_max * self.config.horizon * scenario.dt
+        obstacles = (
+            self._nearest_obstacles(scenario.starts[:, :2])
+            if self.config.obstacle_slots
+            else scenario.obstacles.reshape(-1)
+        )
         fixed = np.concatenate(
             [
                 scenario.targets[:, :2].reshape(-1),
                 np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])]).reshape(-1),
-                scenario.obstacles.reshape(-1),
+                obstacles,
             ]
         )
         # the parameters after the measured state; margins and model coefficients may change
         # during an episode (see set_margins, set_model_parameters)
         assert self._problem is not None  # built above
         slots, horizon = self._problem.neighbour_slots, self._problem.horizon
-        # neighbour slots start parked (see set_neighbours)
+        # neighbour slots start parked (see set_neighbours), pair slots too (see _assign_pairs)
         neighbours = np.concatenate([np.full(2 * slots * horizon, PARKED), np.zeros(slots)])
-        self._params_tail = np.concatenate([fixed, obstacle_margin, pair_margin, neighbours, theta_values])
+        n, p_slots = scenario.n_robots, self.config.pair_slots
+        pair_block = np.concatenate([np.zeros(n * p_slots), np.full(2 * p_slots, PARKED), np.zeros(p_slots)])
+        self._pairs_in_slots: list[tuple[int, int] | None] = [None] * p_slots
+        self._params_tail = np.concatenate(
+            [fixed, obstacle_margin, pair_margin, neighbours, pair_block, theta_values]
+        )
         start = fixed.size
         self._margin_slices = (
             slice(start, start + obstacle_margin.size),
@@ -740,7 +791,8 @@ class NMPCController(BaseController):
         )
         after_margins = start + obstacle_margin.size + pair_margin.size
         self._neighbour_slice = slice(after_margins, after_margins + neighbours.size)
-        self._obstacle_slice = slice(fixed.size - scenario.obstacles.size, fixed.size)
+        self._pair_slice = slice(self._neighbour_slice.stop, self._neighbour_slice.stop + pair_block.size)
+        self._obstacle_slice = slice(fixed.size - obstacles.size, fixed.size)
         self._theta_slice = slice(self._params_tail.size - theta_values.size, self._params_tail.size)
         self._warm = None
         self._fallback = None
@@ -774,6 +826,63 @@ class NMPCController(BaseController):
     def set_obstacles(self, obstacles: NDArray) -> None:
         """Use these obstacles (M, 3) from the next solve on (M as the problem was built for)."""
         self._params_tail[self._obstacle_slice] = np.ravel(obstacles)
+
+    def _nearest_obstacles(self, positions: NDArray) -> NDArray:
+        """Obstacle slot values: each robot's ``obstacle_slots`` nearest obstacles, robot-major, flat."""
+        k = self.config.obstacle_slots
+        n = positions.shape[0]
+        slots = np.tile([PARKED, PARKED, 0.0], (n, k, 1))
+        obstacles = self._scenario_obstacles
+        if obstacles.size:
+            gap = (
+                np.hypot(*(positions[:, None, :] - obstacles[None, :, :2]).transpose(2, 0, 1))
+                - obstacles[:, 2]
+            )
+            nearest = np.argsort(gap, axis=1, kind="stable")[:, :k]
+            count = nearest.shape[1]
+            slots[:, :count] = obstacles[nearest]
+        return slots.reshape(-1)
+
+    def _fill_slots(self, positions: NDArray) -> None:
+        """Refresh the obstacle slots and the pair slots from the robots' current positions."""
+        if self.config.obstacle_slots:
+            self._params_tail[self._obstacle_slice] = self._nearest_obstacles(positions)
+        p_slots = self.config.pair_slots
+        if not p_slots:
+            return
+        n = positions.shape[0]
+        pair_margin = self._params_tail[self._margin_slices[1]]
+        i_index, j_index = np.triu_indices(n, 1)  # the order of pair_margin
+        distance = np.hypot(*(positions[i_index] - positions[j_index]).T)
+        keep = self._radius[i_index] + self._radius[j_index] + pair_margin
+        within = distance < self._pair_reach + keep
+        candidates = [
+            (int(i_index[q]), int(j_index[q])) for q in np.flatnonzero(within)[np.argsort(distance[within])]
+        ]
+        active = set(candidates)
+        # a pair keeps its slot while it stays within reach (its multipliers stay meaningful)
+        slots = [pair if pair in active else None for pair in self._pairs_in_slots]
+        placed = {pair for pair in slots if pair is not None}
+        free = [s for s, pair in enumerate(slots) if pair is None]
+        waiting = [pair for pair in candidates if pair not in placed]
+        for slot, pair in zip(free, waiting, strict=False):
+            slots[slot] = pair
+        dropped = len(waiting) - min(len(waiting), len(free))
+        if dropped:
+            self._stats.counts["pairs_dropped"] += dropped
+        select = np.zeros((p_slots, n))
+        offset = np.full((p_slots, 2), PARKED)
+        reach = np.zeros(p_slots)
+        pair_index = {(int(a), int(b)): q for q, (a, b) in enumerate(zip(i_index, j_index, strict=True))}
+        for slot, pair in enumerate(slots):
+            if pair is None:
+                continue
+            i, j = pair
+            select[slot, i], select[slot, j] = 1.0, -1.0
+            offset[slot] = 0.0
+            reach[slot] = keep[pair_index[pair]]
+        self._pairs_in_slots = slots
+        self._params_tail[self._pair_slice] = np.concatenate([select.ravel(), offset.ravel(), reach])
 
     def set_model_parameters(self, theta: NDArray) -> None:
         """Use these model coefficients (the model's ``nlp_parameters`` layout) from the next solve on."""
@@ -821,6 +930,8 @@ class NMPCController(BaseController):
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
         state = encode_state(info["poses"], prob.coding)
+        if self.config.obstacle_slots or self.config.pair_slots:
+            self._fill_slots(np.asarray(info["poses"], dtype=float)[:, :2])
         params = np.concatenate([state, self._params_tail])
         cold = self._warm is None
         if self._warm is None:  # cold
