@@ -865,8 +865,8 @@ class NMPCController(BaseController):
         placed = {pair for pair in slots if pair is not None}
         free = [s for s, pair in enumerate(slots) if pair is None]
         waiting = [pair for pair in candidates if pair not in placed]
-        for slot, pair in zip(free, waiting, strict=False):
-            slots[slot] = pair
+        for slot, waiting_pair in zip(free, waiting, strict=False):
+            slots[slot] = waiting_pair
         dropped = len(waiting) - min(len(waiting), len(free))
         if dropped:
             self._stats.counts["pairs_dropped"] += dropped
@@ -874,13 +874,13 @@ class NMPCController(BaseController):
         offset = np.full((p_slots, 2), PARKED)
         reach = np.zeros(p_slots)
         pair_index = {(int(a), int(b)): q for q, (a, b) in enumerate(zip(i_index, j_index, strict=True))}
-        for slot, pair in enumerate(slots):
-            if pair is None:
+        for slot, held in enumerate(slots):
+            if held is None:
                 continue
-            i, j = pair
+            i, j = held
             select[slot, i], select[slot, j] = 1.0, -1.0
             offset[slot] = 0.0
-            reach[slot] = keep[pair_index[pair]]
+            reach[slot] = keep[pair_index[held]]
         self._pairs_in_slots = slots
         self._params_tail[self._pair_slice] = np.concatenate([select.ravel(), offset.ravel(), reach])
 
