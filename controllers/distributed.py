@@ -32,9 +32,12 @@ default, IPOPT on failure, then the rest of the robot's last plan, then a stop),
 fallback is counted in :meth:`stats`. A robot without a plan yet (the first period, or after a
 failure) is predicted to hold its position.
 
-What is not distributed: the formation task's relative-motion rows (the central NMPC bounds how
-fast a follower's offset to the leader may change); here followers drive to their formation
-targets and keep clear of the leader's predicted plan.
+Formation (``formation_goal=``): ``"target"`` (default), a follower drives to its formation
+target (the leader's target plus its offset) and keeps clear of the leader's predicted plan;
+``"leader-plan"``, a follower's goal in each period is the end of the leader's latest predicted
+plan plus its offset, so it tracks the leader on the way rather than the end point. What is not
+distributed: the central NMPC's relative-motion rows, which bound how fast a follower's offset
+to the leader may change.
 """
 
 from __future__ import annotations
@@ -56,12 +59,14 @@ from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["COORDINATION", "MODELS", "DistributedNMPC"]
+__all__ = ["COORDINATION", "FORMATION_GOALS", "MODELS", "DistributedNMPC"]
 
 #: coordination schemes (see the module docstring)
 COORDINATION = ("sequential", "jacobi")
 #: prediction models: the slip-free unicycle, or each robot's block of the per-robot Koopman model
 MODELS = ("nominal", "koopman")
+#: what a formation follower drives to (see the module docstring)
+FORMATION_GOALS = ("target", "leader-plan")
 #: extra distance [m] a detour waypoint keeps from an obstacle's inflated disc (ours)
 DETOUR_CLEARANCE = 0.3
 #: how far [m] beyond the tangent point a detour waypoint lies (ours)
@@ -169,6 +174,9 @@ class DistributedNMPC(BaseController):
     detour : bool
         Steer around an obstacle that blocks the straight line to the target through a
         waypoint beside it (see :meth:`_waypoint`; ours).
+    formation_goal : str
+        Formation task: what a follower drives to, one of :data:`FORMATION_GOALS` (see the
+        module docstring).
     config : NMPCConfig, optional
         Options of every robot's NMPC; ``**options`` are shorthand for its fields (``horizon``,
         ``solver``, ``robot_offset``, ...). Default solver: the real-time iteration.
@@ -183,6 +191,7 @@ class DistributedNMPC(BaseController):
         reach: float | None = None,
         coordination: str = "sequential",
         detour: bool = True,
+        formation_goal: str = "target",
         model: str = "nominal",
         dictionary: str = "minimal",
         config: NMPCConfig | None = None,
@@ -198,6 +207,12 @@ class DistributedNMPC(BaseController):
                 f"{did_you_mean(coordination, COORDINATION)}"
             )
         self.coordination = coordination
+        if formation_goal not in FORMATION_GOALS:
+            raise ValueError(
+                f"formation_goal={formation_goal!r} is not one of {list(FORMATION_GOALS)}"
+                f"{did_you_mean(formation_goal, FORMATION_GOALS)}"
+            )
+        self.formation_goal = formation_goal
         self.detour = bool(detour)
         if model not in MODELS:
             raise ValueError(f"model={model!r} is not one of {list(MODELS)}{did_you_mean(model, MODELS)}")
@@ -314,6 +329,15 @@ class DistributedNMPC(BaseController):
         self._history: list[list[NDArray[np.float64]]] = [[] for _ in range(n)]
         self._stats.solver = self._robot.solver_label
 
+    def _goal(self, i: int) -> NDArray[np.float64]:
+        """Robot ``i``'s goal before any detour: its target, or (``formation_goal="leader-plan"``,
+        a follower) the end of the leader's latest plan plus its formation offset."""
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        if self.formation_goal == "leader-plan" and scenario.is_formation and i != scenario.leader:
+            return self._plans[-1, scenario.leader] + scenario.formation_offsets[i]
+        return scenario.targets[i, :2]
+
     def _waypoint(self, i: int, position: NDArray[np.float64]) -> NDArray[np.float64]:
         """Robot ``i``'s goal for this period: its target, or, when the straight line to it runs
         through an obstacle (inflated by the robot's radius and a clearance), a point beside
@@ -321,7 +345,7 @@ class DistributedNMPC(BaseController):
         behind an obstacle straight ahead; the horizon is too short to see around it)."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
-        target = scenario.targets[i, :2]
+        target = self._goal(i)
         line = target - position
         length = float(np.hypot(*line))
         if length < 1e-9:
@@ -357,7 +381,7 @@ class DistributedNMPC(BaseController):
             nearest = np.argsort(clearance, kind="stable")[: self.obstacle_slots]
             slots[: nearest.size] = obstacles[nearest]
         agent.set_obstacles(slots)
-        agent.goal = self._waypoint(i, position) if self.detour else scenario.targets[i, :2]
+        agent.goal = self._waypoint(i, position) if self.detour else self._goal(i)
         agent.set_goal(0, agent.goal)
         horizon, k = self.config.horizon, self.neighbours
         positions = np.full((horizon, k, 2), PARKED)

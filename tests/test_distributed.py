@@ -144,11 +144,30 @@ def test_jacobi_coordination_runs_and_widens_the_discs() -> None:
             r"coordination='jacobian' is not one of \['sequential', 'jacobi'\] \(did you mean 'jacobi'",
         ),
         ({"horizont": 5}, "unknown option"),
+        ({"formation_goal": "leader"}, r"formation_goal='leader' is not one of \['target', 'leader-plan'\]"),
     ],
 )
 def test_bad_options_are_named(options: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         DistributedNMPC(**options)
+
+
+def test_followers_can_track_the_leaders_plan() -> None:
+    env = gym.make("KoopNav-Formation-v0", map="map3")
+    obs, info = env.reset(seed=0)
+    plan, target = DistributedNMPC(formation_goal="leader-plan"), DistributedNMPC()
+    for ctrl in (plan, target):
+        ctrl.reset(env)
+        ctrl.act(obs, info)
+    scenario = plan.scenario
+    leader_end = plan._plans[-1, scenario.leader]
+    assert not np.allclose(leader_end, scenario.targets[scenario.leader, :2])  # still on its way
+    for i in range(1, 3):
+        np.testing.assert_allclose(plan._goal(i), leader_end + scenario.formation_offsets[i])
+        np.testing.assert_allclose(target._goal(i), scenario.targets[i, :2])
+    np.testing.assert_allclose(plan._goal(scenario.leader), scenario.targets[scenario.leader, :2])
+    result = run_episode(env, plan, seed=0)
+    assert result.steps > 10 and plan.stats().steps == result.steps
 
 
 def test_a_robots_koopman_block_predicts_as_the_team_model() -> None:
