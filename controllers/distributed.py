@@ -32,12 +32,14 @@ default, IPOPT on failure, then the rest of the robot's last plan, then a stop),
 fallback is counted in :meth:`stats`. A robot without a plan yet (the first period, or after a
 failure) is predicted to hold its position.
 
-Formation (``formation_goal=``): ``"target"`` (default), a follower drives to its formation
-target (the leader's target plus its offset) and keeps clear of the leader's predicted plan;
-``"leader-plan"``, a follower's goal in each period is the end of the leader's latest predicted
-plan plus its offset, so it tracks the leader on the way rather than the end point. What is not
-distributed: the central NMPC's relative-motion rows, which bound how fast a follower's offset
-to the leader may change.
+Formation (``formation_goal=``): ``"leader-plan"`` (default), a follower's goal in each period
+is the end of the leader's latest predicted plan plus its offset, so it tracks the leader on the
+way; ``"target"``, it drives to its formation target (the leader's target plus its offset) and
+only keeps clear of the leader's plan. On the paper protocol's formation cells (60 paired
+episodes) both succeed equally often (68% vs 67%), and tracking the plan cuts the formation
+RMS error from 0.71 to 0.54 m (paired mean -0.17 m [-0.26, -0.07]). What is not distributed:
+the central NMPC's relative-motion rows, which bound how fast a follower's offset to the leader
+may change.
 """
 
 from __future__ import annotations
@@ -191,7 +193,7 @@ class DistributedNMPC(BaseController):
         reach: float | None = None,
         coordination: str = "sequential",
         detour: bool = True,
-        formation_goal: str = "target",
+        formation_goal: str = "leader-plan",
         model: str = "nominal",
         dictionary: str = "minimal",
         config: NMPCConfig | None = None,

@@ -155,7 +155,7 @@ def test_bad_options_are_named(options: dict, message: str) -> None:
 def test_followers_can_track_the_leaders_plan() -> None:
     env = gym.make("KoopNav-Formation-v0", map="map3")
     obs, info = env.reset(seed=0)
-    plan, target = DistributedNMPC(formation_goal="leader-plan"), DistributedNMPC()
+    plan, target = DistributedNMPC(), DistributedNMPC(formation_goal="target")
     for ctrl in (plan, target):
         ctrl.reset(env)
         ctrl.act(obs, info)
