@@ -9,7 +9,8 @@ stage      what the random layouts hold
 =========  ==================================================================================
 basics     few obstacles, targets in formation order, nominal or random constant slip
 crossing   more obstacles, crossing targets (target reaching) or other formation shapes,
-           random constant slip, slip zones in half the parts
+           random constant slip, slip zones in half the parts; formation: obstacles also
+           beside the targets
 full       2-8 obstacles by part, crossing targets, slip zones (0-2 per map), random and
            drifting slip; every formation shape (formation task)
 =========  ==================================================================================
@@ -46,6 +47,8 @@ class Stage:
     slip: tuple[str, ...]
     #: formation task only: the shape of each part
     formations: tuple[str, ...] = field(default=("wedge",) * len(PARTS))
+    #: where along the route obstacles are drawn (RandomMapConfig.obstacle_along)
+    obstacle_along: tuple[float, float] = (0.25, 0.75)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -68,7 +71,10 @@ STAGES: dict[str, tuple[Stage, ...]] = {
     ),
     "formation": (
         Stage("basics", 0.2, (2,) * 6, 0.0, (0,) * 6, ("nominal", "random") * 3),
-        Stage("crossing", 0.3, (4, 4, 4, 5, 5, 5), 0.0, (0, 1) * 3, ("random",) * 6, _CYCLE),
+        # obstacles also beside the targets from the second stage on: a follower settling onto
+        # its place must keep clear of an obstacle next to it (the first formation policy,
+        # trained without, grazed such obstacles)
+        Stage("crossing", 0.3, (4, 4, 4, 5, 5, 5), 0.0, (0, 1) * 3, ("random",) * 6, _CYCLE, (0.15, 0.95)),
         Stage(
             "full",
             0.5,
@@ -77,6 +83,7 @@ STAGES: dict[str, tuple[Stage, ...]] = {
             (1, 0, 2, 1, 0, 1),
             ("random", "drift", "random", "random", "drift", "random"),
             _CYCLE[::-1],
+            (0.15, 0.95),
         ),
     ),
 }
@@ -105,6 +112,7 @@ def stage_parts(task: str, stage: Stage) -> list[tuple[int, int, dict[str, Any]]
             "n_obstacles": stage.n_obstacles[i],
             "swap_targets": stage.swap_targets,
             "n_slip_zones": stage.n_slip_zones[i],
+            "obstacle_along": stage.obstacle_along,
         }
         if task == "formation":
             random_map["formation"] = stage.formations[i]

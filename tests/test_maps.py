@@ -166,3 +166,28 @@ def test_random_layouts_are_the_documented_ones_for_their_seeds() -> None:
         for key in ("obstacles", "starts", "targets"):
             expected = np.asarray(case[key], dtype=float).reshape(getattr(spec, key).shape)
             np.testing.assert_array_equal(getattr(spec, key), expected, err_msg=f"{case['seed']} {key}")
+
+
+def _route_fraction(spec: MapSpec) -> np.ndarray:
+    """Where each obstacle centre lies along the route from the starts' to the targets' centroid."""
+    a, b = spec.starts[:, :2].mean(axis=0), spec.targets[:, :2].mean(axis=0)
+    return (spec.obstacles[:, :2] - a) @ (b - a) / np.dot(b - a, b - a)
+
+
+def test_obstacles_can_be_drawn_beside_the_targets() -> None:
+    near_targets = RandomMapConfig(n_obstacles=2, obstacle_along=(0.75, 0.95))
+    default = RandomMapConfig(n_obstacles=2)
+    for seed in range(20):
+        beside = generate_random_map(np.random.default_rng(seed), 3, near_targets)
+        assert np.all(_route_fraction(beside) > 0.7)
+        assert np.all(_route_fraction(generate_random_map(np.random.default_rng(seed), 3, default)) < 0.8)
+        gap = np.hypot(*(beside.targets[:, None, :2] - beside.obstacles[None, :, :2]).transpose(2, 0, 1))
+        assert np.all(gap - beside.obstacles[:, 2] - 0.2 >= near_targets.clearance - 1e-9)
+
+
+@pytest.mark.parametrize("along", [(0.5, 1.2), (0.7, 0.2), (-0.1, 0.5)])
+def test_bad_obstacle_ranges_are_named(along) -> None:
+    with pytest.raises(
+        ValueError, match=r"obstacle_along=.* must be a \(low, high\) pair with 0 <= low <= high <= 1"
+    ):
+        RandomMapConfig(obstacle_along=along)

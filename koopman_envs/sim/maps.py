@@ -390,6 +390,10 @@ class RandomMapConfig:
     n_obstacles: int = 4
     travel: tuple[float, float] = (3.0, 6.5)
     obstacle_radius: tuple[float, float] = (0.3, 0.6)
+    #: where along the corridor (0: the starts' centroid, 1: the targets') obstacle centres are
+    #: drawn; the default keeps the last quarter of the route free, (0.15, 0.95) also puts
+    #: obstacles beside the targets (as Map 4 does), still ``clearance`` away from each one
+    obstacle_along: tuple[float, float] = (0.25, 0.75)
     spacing: float = PARAMS.formation_spacing  # distance between neighbouring robots in the formation [m]
     #: the team's shape at its starts and targets, one of FORMATION_SHAPES (koopman_envs.sim.formations)
     formation: str = "wedge"
@@ -412,6 +416,11 @@ class RandomMapConfig:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
         check_int("n_slip_zones", n, 0)
+        low, high = self.obstacle_along
+        if not (0.0 <= low <= high <= 1.0):
+            raise ValueError(
+                f"obstacle_along={self.obstacle_along!r} must be a (low, high) pair with 0 <= low <= high <= 1"
+            )
         for name, low_allowed in (("slip_zone_radius", "> 0"), ("slip_zone_lambda", ">= 0")):
             pair = getattr(self, name)
             try:
@@ -577,6 +586,8 @@ def _place_obstacles(
         int(config.n_obstacles),
         float(config.obstacle_radius[0]),
         float(config.obstacle_radius[1]),
+        float(config.obstacle_along[0]),
+        float(config.obstacle_along[1]),
         float(robot_radius),
         float(config.clearance),
         float(config.gap),
@@ -596,6 +607,8 @@ def _place_obstacles_kernel(
     n_obstacles: int,
     r_low: float,
     r_high: float,
+    along_low: float,
+    along_high: float,
     robot_radius: float,
     clearance: float,
     gap: float,
@@ -609,7 +622,7 @@ def _place_obstacles_kernel(
     for k in range(n_obstacles):
         found = False
         for _attempt in range(100):
-            along = rng.uniform(0.25, 0.75)
+            along = rng.uniform(along_low, along_high)
             across = rng.uniform(-half_width, half_width)
             radius = rng.uniform(r_low, r_high)
             cx = a[0] + along * (b[0] - a[0]) + across * normal[0]
