@@ -263,3 +263,17 @@ def test_batched_set_commands_equal_single_commands(set_root) -> None:
     single = np.stack([policy_command(model, norm, "robot", o, 5, 0.6, 0.8, set_config=config) for o in obs])
     np.testing.assert_allclose(batched, single, atol=1e-6)
     venv.close()
+
+
+def test_the_fast_deterministic_action_is_predicts_action(set_root) -> None:
+    """policy_command skips predict's overhead; the actions must stay bit-identical."""
+    from baselines.policy import SHIPPED, deterministic_action
+
+    directories = [set_root / "target_reaching"] + [p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()]
+    directories += [p for p in (SHIPPED / "set").glob("*") if (p / "policy.zip").exists()]
+    rng = np.random.default_rng(0)
+    for directory in directories:
+        model, _, _ = load_policy(directory)
+        obs = (2 * rng.normal(size=(64, model.observation_space.shape[0]))).astype(np.float32)
+        expected, _ = model.predict(obs, deterministic=True)
+        np.testing.assert_array_equal(deterministic_action(model, obs), expected)
