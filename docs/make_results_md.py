@@ -79,8 +79,16 @@ TABLES = [
     ("Not in the paper: consensus, target reaching", "KoopNav-TargetReaching-v0", "consensus"),
     ("Not in the paper: RL baseline (rl-ppo), target reaching", "KoopNav-TargetReaching-v0", "rl-ppo"),
     ("Not in the paper: RL baseline (rl-ppo), formation", "KoopNav-Formation-v0", "rl-ppo"),
-    ("Not in the paper: set-policy RL baseline (rl-ppo-set), target reaching", "KoopNav-TargetReaching-v0", "rl-ppo-set"),
-    ("Not in the paper: set-policy RL baseline (rl-ppo-set), formation", "KoopNav-Formation-v0", "rl-ppo-set"),
+    (
+        "Not in the paper: set-policy RL baseline (rl-ppo-set), target reaching",
+        "KoopNav-TargetReaching-v0",
+        "rl-ppo-set",
+    ),
+    (
+        "Not in the paper: set-policy RL baseline (rl-ppo-set), formation",
+        "KoopNav-Formation-v0",
+        "rl-ppo-set",
+    ),
 ]
 
 

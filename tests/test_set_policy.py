@@ -269,7 +269,9 @@ def test_the_fast_deterministic_action_is_predicts_action(set_root) -> None:
     """policy_command skips predict's overhead; the actions must stay bit-identical."""
     from baselines.policy import SHIPPED, deterministic_action
 
-    directories = [set_root / "target_reaching"] + [p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()]
+    directories = [set_root / "target_reaching"] + [
+        p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()
+    ]
     directories += [p for p in (SHIPPED / "set").glob("*") if (p / "policy.zip").exists()]
     rng = np.random.default_rng(0)
     for directory in directories:
