@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -165,6 +166,14 @@ def set_features(
     return np.concatenate(parts, axis=-1).astype(np.float32)
 
 
+@lru_cache(maxsize=64)
+def _others(n: int) -> NDArray[np.int64]:
+    """others[i]: the team indices that robot i's block lists, in its order (built once per N)."""
+    others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
+    others.setflags(write=False)
+    return others
+
+
 def _neighbour_slots(
     blocks: NDArray, c: NDArray, s: NDArray, target: NDArray, leader: NDArray, config: SetFeatureConfig
 ) -> NDArray:
@@ -175,8 +184,7 @@ def _neighbour_slots(
     out = np.zeros(batch + (n, k, NEIGHBOUR_SIZE + 1))
     if n == 1:
         return out.reshape(batch + (n, -1))
-    # others[i] = the team indices that robot i's block lists, in its order
-    others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64)
+    others = _others(n)
     listed = blocks[..., 9 : 9 + 3 * (n - 1)].reshape(batch + (n, n - 1, 3))
     dx, dy, gap = listed[..., 0], listed[..., 1], listed[..., 2]  # (..., N, N - 1)
     # relative heading of j seen from i, and j's target offset rotated from j's frame into i's

@@ -873,14 +873,14 @@ class NMPCController(BaseController):
         select = np.zeros((p_slots, n))
         offset = np.full((p_slots, 2), PARKED)
         reach = np.zeros(p_slots)
-        pair_index = {(int(a), int(b)): q for q, (a, b) in enumerate(zip(i_index, j_index, strict=True))}
         for slot, held in enumerate(slots):
             if held is None:
                 continue
             i, j = held
             select[slot, i], select[slot, j] = 1.0, -1.0
             offset[slot] = 0.0
-            reach[slot] = keep[pair_index[held]]
+            # position of pair (i, j), i < j, in the row-major upper triangle (pair_margin's order)
+            reach[slot] = keep[i * n - i * (i + 1) // 2 + (j - i - 1)]
         self._pairs_in_slots = slots
         self._params_tail[self._pair_slice] = np.concatenate([select.ravel(), offset.ravel(), reach])
 
