@@ -37,7 +37,8 @@ is the end of the leader's latest predicted plan plus its offset, so it tracks t
 way; ``"target"``, it drives to its formation target (the leader's target plus its offset) and
 only keeps clear of the leader's plan. On the paper protocol's formation cells (60 paired
 episodes) both succeed equally often (68% vs 67%), and tracking the plan cuts the formation
-RMS error from 0.71 to 0.54 m (paired mean -0.17 m [-0.26, -0.07]). What is not distributed:
+RMS error from 0.71 to 0.54 m (paired mean -0.17 m [-0.26, -0.07]), with 9 solver failures
+(recovered by the plan fallback) against none. What is not distributed:
 the central NMPC's relative-motion rows, which bound how fast a follower's offset to the leader
 may change.
 """
