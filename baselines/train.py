@@ -353,6 +353,7 @@ def main(argv: list[str] | None = None) -> int:
             if index:
                 # the next stage's layouts; the reward scale learnt so far carries over
                 returns = venv.ret_rms
+                venv.close()  # the finished stage's envs
                 venv = wrap(make_venv(index))
                 venv.ret_rms = returns
                 model.set_env(venv)  # forces a reset: every episode starts on the new stage
