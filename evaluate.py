@@ -60,6 +60,7 @@ from evaluation.protocols import (
     paper_protocol,
     quick_protocol,
 )
+from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
 from evaluation.results import SCHEMA_VERSION, Results, json_safe
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.spec import RunSpec
@@ -492,6 +493,13 @@ def main(argv: list[str] | None = None) -> int:
     failed = results.failed_episodes
     if failed:
         print(f"{len(failed)} episode(s) raised; see {paths['markdown']}", file=sys.stderr)
+    degraded = [r for r in results.records if is_degraded(r)]
+    if degraded:
+        print(
+            f"{len(degraded)} episode(s) degraded (solver failed in more than "
+            f"{DEGRADED_FAILURE_SHARE:.0%} of their periods); see {paths['markdown']}",
+            file=sys.stderr,
+        )
     if problems:
         print("threshold check failed:\n" + "\n".join(f"  - {p}" for p in problems), file=sys.stderr)
         return FAILED_CHECK_EXIT

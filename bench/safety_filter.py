@@ -32,6 +32,7 @@ import controllers
 import koopman_envs  # noqa: F401  (registers the envs)
 from evaluation import RunSpec, evaluate
 from evaluation.configs import parse_controller, split_controller_list
+from evaluation.records import ran
 from evaluation.statistics import wilson_interval
 from koopman_envs.episode import run_episode
 
@@ -91,7 +92,7 @@ def collision_table(names: list[str], filter_options: list[str], episodes: int, 
     print("|---|---|---|---|---|---|---|---|")
     counts = {}
     for label in configs:
-        recs = [r for r in by_label.get(label, []) if r["status"] == "ok"]
+        recs = [r for r in by_label.get(label, []) if ran(r)]
         errors = len(by_label.get(label, [])) - len(recs)
         n = len(recs)
         collided = [r["collision"] for r in recs if r["collision"]]

@@ -31,17 +31,69 @@ from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
 
 __all__ = [
+    "MAX_POSITION_RESIDUAL",
+    "CacheWarning",
     "Calibratable",
     "DataSpec",
     "TrajectoryData",
     "cache_dir",
     "cache_path",
     "calibrate_controller",
+    "check_position_residual",
     "collect_data",
     "data_spec_for",
     "position_residual",
     "write_atomic",
 ]
+
+#: Largest RMS one-step position residual a calibration may report [m]: ten times the longest
+#: step the identification inputs can make (|u| <= koopman_input_bound for one period). A cached
+#: value beyond it cannot come from a fit of these robots and is measured again.
+MAX_POSITION_RESIDUAL = 10.0 * PARAMS.koopman_input_bound * PARAMS.dt
+
+
+class CacheWarning(UserWarning):
+    """A cache entry failed its check on reading and is recomputed (the warning names the file)."""
+
+
+def check_position_residual(value: Any, n_robots: int, source: str = "") -> NDArray[np.float64]:
+    """A per-robot position residual read back from a file, checked.
+
+    Parameters
+    ----------
+    value : any
+        What the file holds: must be a list of ``n_robots`` finite numbers in
+        [0, :data:`MAX_POSITION_RESIDUAL`].
+    n_robots : int
+        Team size of the plant it belongs to.
+    source : str, optional
+        The file, for the message (its first words).
+
+    Returns
+    -------
+    ndarray, shape (n_robots,)
+
+    Raises
+    ------
+    ValueError
+        Naming ``source``, the bad value and what is allowed.
+    """
+    where = f"{source}: " if source else ""
+    try:
+        residual = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}position_residual={value!r} is not a list of numbers") from None
+    if residual.shape != (n_robots,):
+        raise ValueError(
+            f"{where}position_residual has shape {residual.shape}; expected one value per robot ({n_robots},)"
+        )
+    if not np.all(np.isfinite(residual)) or np.any(residual < 0) or np.any(residual > MAX_POSITION_RESIDUAL):
+        raise ValueError(
+            f"{where}position_residual={residual.tolist()} is not within [0, {MAX_POSITION_RESIDUAL:g}] m "
+            "(finite, one value per robot)"
+        )
+    return residual
+
 
 # the identification inputs come from their own stream of the seed (the plant draws its slip from another)
 _INPUT_STREAM = 0x494E5055  # "INPU"

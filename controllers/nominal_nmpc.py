@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from controllers.calibration import (
+    CacheWarning,
     cache_key,
     cache_path,
+    check_position_residual,
     collect_data,
     data_spec_for,
     position_residual,
@@ -50,9 +53,17 @@ class NominalNMPC(NMPCController):
         path = cache_path("unicycle-residual", key, ".json")
         summary = {"transitions": spec.transitions, "key": key}
         try:
-            residual = json.loads(path.read_text(encoding="utf-8"))["position_residual"]
+            residual = check_position_residual(
+                json.loads(path.read_text(encoding="utf-8"))["position_residual"], plant.n_robots
+            ).tolist()
             source = "cache"
-        except (OSError, ValueError, KeyError):  # missing or corrupt entry: measure again
+        except (OSError, ValueError, KeyError, TypeError) as exc:  # missing or bad entry: measure again
+            if path.exists():
+                warnings.warn(
+                    f"calibration cache entry {path}: {type(exc).__name__}: {exc}; measuring it again",
+                    CacheWarning,
+                    stacklevel=2,
+                )
             model = UnicycleModel(plant.n_robots, plant.dt)
             residual = position_residual(model.step, collect_data(plant, spec)).tolist()
             blob = json.dumps({"position_residual": residual})

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.statistics import paired_comparison
 
@@ -46,7 +47,7 @@ def comparison_rows(documents: list[dict[str, Any]], a: str, b: str) -> list[dic
     outcomes: dict[tuple[str, str, str], dict[tuple, dict[str, Any]]] = {}
     for doc in documents:
         for r in doc["episodes"]:
-            if r.get("status") != "ok" or "@" not in r["controller"]:
+            if not ran(r) or "@" not in r["controller"]:
                 continue
             base, solver = r["controller"].rsplit("@", 1)
             outcomes.setdefault((r["env_id"], base, solver), {})[(r["map"], r["slip"], r["seed"])] = r
@@ -80,7 +81,7 @@ def per_cell_markdown(documents: list[dict[str, Any]], a: str, b: str) -> str:
     for doc in documents:
         latest = {}
         for r in doc["episodes"]:
-            if r.get("status") == "ok" and "@" in r["controller"]:
+            if ran(r) and "@" in r["controller"]:
                 latest[(r["env_id"], r["map"], r["slip"], r["controller"], r["seed"])] = bool(r["success"])
         for key, success in latest.items():
             counts.setdefault(key[:4], {})[key[4]] = success

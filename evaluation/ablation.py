@@ -24,6 +24,7 @@ from typing import Any
 
 from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
 from evaluation.configs import ControllerConfig
+from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.results import Results
 from evaluation.statistics import paired_comparison, wilson_interval
@@ -79,7 +80,7 @@ def _main_effect(results: Results, factor: str) -> dict[str, Any] | None:
     first, second = list(FACTORS[factor])
     outcomes: dict[tuple, bool] = {}
     for r in results.records:
-        if r["status"] == "ok":
+        if ran(r):
             outcomes[(r["controller"], r["env_id"], r["map"], r["slip"], r["seed"])] = bool(r["success"])
     a, b = [], []
     for (label, env_id, map_name, slip, seed), won in outcomes.items():

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.records import is_degraded, ran
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison, wilson_interval
 
 __all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons", "pooled_rate"]
@@ -106,6 +107,7 @@ class Cell:
     solve_ms_p95: float
     solver_failures: int
     calibration_transitions: int | None = None
+    degraded: int = 0
     error_messages: list[str] = field(default_factory=list)
 
     @property
@@ -158,7 +160,7 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
         by_cell.setdefault((rec["env_id"], rec["controller"], rec["map"], rec["slip"]), []).append(rec)
     cells = []
     for (env_id, name, map_name, slip), recs in by_cell.items():
-        ok = [r for r in recs if r["status"] == "ok"]
+        ok = [r for r in recs if ran(r)]
         won = [r for r in ok if r["success"]]
         free = [r for r in ok if r["collision"] is None]
         n_robots = len(ok[0]["final_distance"]) if ok else 0
@@ -173,6 +175,7 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
                 successes=len(won),
                 collision_free=len(free),
                 errors=len(recs) - len(ok),
+                degraded=sum(is_degraded(r) for r in recs),
                 distance_collision_free=DistanceSummary.of(free, n_robots),
                 distance_settled=DistanceSummary.of(won, n_robots),
                 time_to_goal_s=_nan_reduce(np.mean, [r["time_to_goal"] for r in won]),
@@ -187,7 +190,7 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
                 calibration_transitions=max(
                     (int(c.get("transitions", 0)) for c in calibrations), default=None
                 ),
-                error_messages=sorted({r["error"] for r in recs if r["status"] != "ok"}),
+                error_messages=sorted({r["error"] for r in recs if not ran(r)}),
             )
         )
     return cells
@@ -217,11 +220,7 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
             own = [c for c in cells if c.env_id == env_id and c.controller == name]
             success_rate, success_ci, valid = pooled_rate(own, "successes")
             free_rate, free_ci, _ = pooled_rate(own, "collision_free")
-            recs = [
-                r
-                for r in records
-                if r["env_id"] == env_id and r["controller"] == name and r["status"] == "ok"
-            ]
+            recs = [r for r in records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
             settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
             free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
             d_low, d_high = bootstrap_mean_interval(settled)
@@ -255,6 +254,7 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                     or None,
                     "solver_failures": sum(c.solver_failures for c in own),
                     "errors": sum(c.errors for c in own),
+                    "degraded": sum(c.degraded for c in own),
                 }
             )
 
@@ -274,7 +274,7 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """
     outcomes: dict[tuple[str, str], dict[tuple, bool]] = {}
     for r in records:
-        if r["status"] == "ok":
+        if ran(r):
             outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = bool(
                 r["success"]
             )

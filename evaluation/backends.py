@@ -13,6 +13,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from evaluation.plan import EpisodeSpec
+from evaluation.records import is_degraded, ran
 from evaluation.worker import run_episode
 
 __all__ = ["BACKENDS", "Progress", "RunInterrupted", "run_episodes"]
@@ -39,9 +40,9 @@ class Progress:
             return
         mark = (
             "ok"
-            if record["status"] == "ok" and record.get("success")
-            else record.get("collision") or ("error" if record["status"] != "ok" else "fail")
-        )
+            if ran(record) and record.get("success")
+            else record.get("collision") or ("error" if not ran(record) else "fail")
+        ) + (" (degraded)" if is_degraded(record) else "")
         what = f"{record['controller']} {record['map']} {record['slip']} #{record['trial']}: {mark}"
         if self.bar is not None:
             self.bar.set_postfix_str(what, refresh=False)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
@@ -98,7 +99,7 @@ def refuse_incomparable(config: dict[str, Any], package_version: str, baseline: 
 def _outcomes(records: list[dict[str, Any]]) -> dict[tuple[str, str], dict[tuple, dict[str, Any]]]:
     table: dict[tuple[str, str], dict[tuple, dict[str, Any]]] = {}
     for r in records:
-        if r.get("status") == "ok":
+        if ran(r):
             table.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = r
     return table
 

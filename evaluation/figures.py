@@ -10,6 +10,7 @@ import numpy as np
 
 from evaluation.aggregate import pooled_rate
 from evaluation.plan import safe_file_name
+from evaluation.records import ran
 from evaluation.report import task_label
 
 if TYPE_CHECKING:
@@ -31,7 +32,7 @@ def save_figures(results: Results, out_dir: Path) -> list[Path]:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    samples = [r for r in results.records if r["status"] == "ok" and r.get("trajectory")]
+    samples = [r for r in results.records if ran(r) and r.get("trajectory")]
     for rec in samples:
         fig = Figure(figsize=(4, 4), dpi=100)
         FigureCanvasAgg(fig)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
 from koopman_envs.tasks.base import TASKS
 
 if TYPE_CHECKING:  # the report reads a Results; results.py writes the report
@@ -53,7 +54,14 @@ Table = tuple[list[str], list[list[str]]]
 LEADERBOARD_NOTE = (
     "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
     "Intervals: 95% Wilson for rates, 95% bootstrap for mean final distances (team mean per run). "
-    "Final distances over settled runs and over collision-free runs (the paper's convention)."
+    "Final distances over settled runs and over collision-free runs (the paper's convention). "
+    f"Degraded: episodes whose solver failed in more than {DEGRADED_FAILURE_SHARE:.0%} of its periods "
+    "(their outcomes count; see the list below the tables)."
+)
+DEGRADED_NOTE = (
+    f"These episodes ran to their end, but the controller's optimizer failed in more than "
+    f"{DEGRADED_FAILURE_SHARE:.0%} of its periods (each failure fell back to its previous plan): a broken "
+    "calibration, model or solver set-up rather than a hard scenario is the usual cause."
 )
 PAIRED_NOTE = (
     "Success of a minus success of b on the episodes both ran (same map, slip and seed): "
@@ -111,6 +119,7 @@ def leaderboard_rows(results: Results) -> Table:
         "Solver",
         "Solve median [ms]",
         "Solver failures",
+        "Degraded",
     ]
     rows = []
     rank, last_env = 0, None
@@ -131,6 +140,7 @@ def leaderboard_rows(results: Results) -> Table:
                 row.get("solver") or "-",
                 solve,
                 str(row["solver_failures"]),
+                str(row.get("degraded", 0)),
             ]
         )
     return header, rows
@@ -281,6 +291,13 @@ def sections(results: Results) -> list[Section]:
     if results.failed_episodes:
         entries = tuple((str(r["key"]), str(r.get("error"))) for r in results.failed_episodes)
         out.append(Section("failed", "Episodes that raised", (Items(entries),)))
+    degraded = [r for r in results.records if is_degraded(r)]
+    if degraded:
+        entries = tuple(
+            (str(r["key"]), f"solver failed in {r['solver_failures']} of {r['steps']} periods")
+            for r in degraded
+        )
+        out.append(Section("degraded", "Degraded episodes", (Note(DEGRADED_NOTE), Items(entries))))
     return out
 
 

@@ -18,6 +18,7 @@ from evaluation import report
 from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
 from evaluation.figures import save_figures
 from evaluation.html import write_html
+from evaluation.records import ran
 
 __all__ = ["Results", "SCHEMA_VERSION", "json_safe"]
 
@@ -50,7 +51,7 @@ class Results:
     @property
     def failed_episodes(self) -> list[dict[str, Any]]:
         """Records of episodes that raised."""
-        return [r for r in self.records if r["status"] != "ok"]
+        return [r for r in self.records if not ran(r)]
 
     def cell(self, env_id: str, controller: str, map_name: str, slip: str) -> Cell:
         """One cell by its coordinates."""

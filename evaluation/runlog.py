@@ -1,16 +1,24 @@
 """The episode log of a run (``OUT/episodes.jsonl``): a header naming the run's settings, then one
-JSON line per finished episode, flushed at once, so that an interrupted run can be resumed."""
+JSON line per finished episode, flushed at once, so that an interrupted run can be resumed.
+
+Reading a log back trusts nothing in it: a line cut by a kill is repaired (cut off, reported, its
+episode run again), and a line that cannot be read, or a record that is not an episode of this run,
+refuses the resume with its line number, so that no result is lost or taken on faith.
+"""
 
 from __future__ import annotations
 
 import json
 import os
+import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
+from evaluation.records import STATUSES
 from evaluation.results import json_safe
 
-__all__ = ["RESUME_KEYS", "open_log", "run_signature"]
+__all__ = ["RESUME_KEYS", "LogError", "open_log", "read_log", "run_signature"]
 
 #: settings that must match for a resume (everything that changes what an episode does)
 RESUME_KEYS = (
@@ -27,62 +35,190 @@ RESUME_KEYS = (
     "gifs",
 )
 
+#: what every episode record holds, whatever its status
+_RECORD_FIELDS = ("key", "status", "env_id", "controller", "map", "slip", "trial", "seed")
+#: what a finished (not raised) episode's record holds besides
+_OUTCOME_FIELDS = ("success", "collision", "steps", "final_distance", "solver_failures")
+
+
+class LogError(ValueError):
+    """An episode log that cannot be resumed as it is (named by file and line)."""
+
 
 def run_signature(config: dict[str, Any]) -> dict[str, Any]:
     """The parts of a run configuration that must match for a resume (plain JSON)."""
     return json.loads(json.dumps(json_safe({k: config.get(k) for k in RESUME_KEYS})))
 
 
-def _read(log: Path, config: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Finished episodes of a previous run with the same settings (key -> record)."""
-    lines = log.read_text(encoding="utf-8").splitlines()
+def _header_line(config: dict[str, Any]) -> bytes:
+    """The first line of a run's log, as written (with its newline)."""
+    return (json.dumps({"kind": "koopnav-run", "config": run_signature(config)}) + "\n").encode()
+
+
+def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> None:
+    """Refuse a log whose first line is not this run's header."""
     try:
-        header = json.loads(lines[0])
-    except json.JSONDecodeError:
-        raise ValueError(
-            f"{log} is not a KoopNav episode log (bad first line); nothing was overwritten"
+        header = json.loads(first)
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise LogError(
+            f"{log} is not a KoopNav episode log (line 1 is not JSON); nothing was overwritten"
         ) from None
     ours = run_signature(config)
-    theirs = header.get("config") if header.get("kind") == "koopnav-run" else None
+    theirs = (
+        header.get("config") if isinstance(header, dict) and header.get("kind") == "koopnav-run" else None
+    )
     if theirs != ours:
         if isinstance(theirs, dict):
             differ = sorted(k for k in set(ours) | set(theirs) if ours.get(k) != theirs.get(k))
             what = "; ".join(f"{k}: logged {theirs.get(k)!r}, now {ours.get(k)!r}" for k in differ)
         else:
-            what = "not a KoopNav run header"
-        raise ValueError(
+            what = "line 1 is not a KoopNav run header"
+        raise LogError(
             f"{log} belongs to a run with other settings ({what}); use the same options to resume, "
             "or another --out directory; nothing was overwritten"
         )
-    done = {}
-    for line in lines[1:]:
+
+
+def _record_problem(rec: Any, expected: Mapping[str, Mapping[str, Any]] | None) -> str | None:
+    """Why ``rec`` is not an episode record of this run (None when it is one)."""
+    if not isinstance(rec, dict):
+        return f"a JSON {type(rec).__name__}, not an episode record"
+    missing = [k for k in _RECORD_FIELDS if k not in rec]
+    if missing:
+        return f"an object without the episode fields {missing}"
+    if rec["status"] not in STATUSES:
+        return f"status {rec['status']!r} is not one of {list(STATUSES)}"
+    if rec["status"] != "error":
+        lacking = [k for k in _OUTCOME_FIELDS if k not in rec]
+        if lacking:
+            return f"a {rec['status']!r} record without {lacking}"
+    if expected is not None:
+        fields = expected.get(rec["key"]) if isinstance(rec["key"], str) else None
+        if fields is None:
+            return f"episode {rec['key']!r} is not one of this run's episodes"
+        differ = sorted(k for k, v in fields.items() if rec.get(k) != v)
+        if differ:
+            return f"episode {rec['key']!r} was run with other settings ({', '.join(differ)})"
+    return None
+
+
+def read_log(
+    log: str | os.PathLike[str],
+    config: dict[str, Any],
+    expected: Mapping[str, Mapping[str, Any]] | None = None,
+    *,
+    repair: bool = True,
+) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """Finished episodes of a previous run with the same settings, and notes on what was repaired.
+
+    Parameters
+    ----------
+    log : path
+        The run's ``episodes.jsonl``.
+    config : dict
+        The run's configuration; its resume signature must equal the log header's.
+    expected : mapping, optional
+        Episode key -> the fields its record must carry (:meth:`EpisodeSpec.record_fields`); a
+        record of another key or other fields is refused.
+    repair : bool
+        Cut a torn last line (one a kill left without its newline) off the file.
+
+    Returns
+    -------
+    done : dict
+        Episode key -> its record (a key logged twice keeps its last record).
+    notes : list of str
+        What was repaired, for the user (e.g. the dropped incomplete record).
+
+    Raises
+    ------
+    LogError
+        The header is not this run's, a complete line is not JSON, or a record is not an episode
+        of this run: each named by its line number. Nothing is changed in the file then.
+    """
+    path = Path(log)
+    data = path.read_bytes()
+    notes: list[str] = []
+    lines = data.split(b"\n")
+    # a file ends with a newline after every complete record, so the last piece is b"" unless a
+    # kill cut the final write short: that piece is torn, whatever it looks like
+    torn = lines.pop()
+    if not lines:  # the kill came while the header was written: nothing was finished
+        if not _header_line(config).startswith(torn):
+            raise LogError(f"{path} is not a KoopNav episode log (its only line is not a run header)")
+        if repair:
+            path.write_bytes(_header_line(config))
+        return {}, [f"{path}: the header line was cut by the interruption; it was written again"]
+    _check_header(path, lines[0], config)
+    done: dict[str, dict[str, Any]] = {}
+    bad: list[str] = []
+    duplicates = 0
+    for number, raw in enumerate(lines[1:], start=2):
         try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            continue  # a line cut by the interruption: that episode simply runs again
+            rec = json.loads(raw)
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            bad.append(f"line {number}: not JSON ({getattr(exc, 'msg', exc)})")
+            continue
+        problem = _record_problem(rec, expected)
+        if problem is not None:
+            bad.append(f"line {number}: {problem}")
+            continue
+        duplicates += rec["key"] in done
         done[rec["key"]] = rec
-    return done
+    if bad:
+        raise LogError(
+            f"{path} cannot be resumed: "
+            + "; ".join(bad[:10])
+            + (f"; and {len(bad) - 10} more" if len(bad) > 10 else "")
+            + ". It is not this run's log as KoopNav wrote it; resume into another --out, or move "
+            "the file aside to start afresh (nothing was changed)"
+        )
+    if duplicates:
+        notes.append(f"{path}: {duplicates} episode(s) logged twice; the last record of each is kept")
+    if torn:
+        if repair:
+            with open(path, "r+b") as handle:
+                handle.truncate(len(data) - len(torn))
+        notes.append(
+            f"{path}: dropped 1 incomplete record (line {len(lines) + 1}, {len(torn)} bytes cut by "
+            "the interruption); it will be run again"
+        )
+    return done, notes
 
 
 def open_log(
-    out: str | os.PathLike[str], config: dict[str, Any], resume: bool
+    out: str | os.PathLike[str],
+    config: dict[str, Any],
+    resume: bool,
+    expected: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> tuple[IO[str], dict[str, dict[str, Any]]]:
     """Open the run's log for appending; return it with the episodes a previous run finished.
+
+    A torn last line is cut off first (reported on stderr), so that the next record starts on a
+    line of its own.
 
     Raises
     ------
     ValueError
-        A log exists and ``resume`` is false, or it belongs to other settings.
+        ``out`` is not a directory that can be made, a log exists and ``resume`` is false, or it
+        cannot be resumed (:class:`LogError`).
     """
     out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"--out {os.fspath(out)!r} is a file; it must be a directory (or a new path)")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--out {os.fspath(out)!r} cannot be made a directory: {exc}") from None
     log = out_dir / "episodes.jsonl"
     if log.exists() and log.stat().st_size > 0:
         if not resume:
             raise ValueError(f"{log} exists: pass --resume to continue that run, or choose another --out")
-        done = _read(log, config)
+        done, notes = read_log(log, config, expected)
+        for note in notes:
+            print(f"note: {note}", file=sys.stderr)
         return open(log, "a", encoding="utf-8"), done  # noqa: SIM115 - the caller closes it
     handle = open(log, "w", encoding="utf-8")  # noqa: SIM115
-    handle.write(json.dumps({"kind": "koopnav-run", "config": run_signature(config)}) + "\n")
+    handle.write(_header_line(config).decode())
     handle.flush()
     return handle, {}

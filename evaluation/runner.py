@@ -110,7 +110,8 @@ def evaluate(
     plan = spec.episodes_plan(os.fspath(out) if out is not None else "")
     if config_check is not None:
         config_check(config)
-    log_file, done = open_log(out, config, resume) if out is not None else (None, {})
+    expected = {episode.key: episode.record_fields() for episode in plan}
+    log_file, done = open_log(out, config, resume, expected) if out is not None else (None, {})
     todo = sorted(
         (episode for episode in plan if episode.key not in done),
         key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2),

@@ -14,6 +14,7 @@ import numpy as np
 from controllers.base import ControllerStats
 from controllers.calibration import calibrate_controller
 from evaluation.plan import EpisodeSpec, slip_value
+from evaluation.records import finished_status
 from koopman_envs.episode import run_episode as run_controller_episode
 from koopman_envs.plant import make_plant
 
@@ -80,7 +81,7 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
         stats = ctrl.stats()
         summary = stats.summary()
         record.update(
-            status="ok",
+            status=finished_status(summary["failures"], len(stats.solve_times) or result.steps),
             success=result.success,
             collision=result.collision,
             truncated=result.truncated,

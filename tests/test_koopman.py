@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from controllers.calibration import DataSpec, collect_data
+from controllers.calibration import CacheWarning, DataSpec, collect_data
 from controllers.koopman import (
     KoopmanModel,
     ModelFileError,
@@ -220,9 +220,10 @@ def test_calibrated_models_are_deterministic_and_cached(tmp_path, monkeypatch) -
     assert not np.array_equal(first.A, calibrated_model(plant(seed=1))[0].A)
     assert not np.array_equal(first.A, calibrated_model(plant(budget=2000))[0].A)
     assert len(list(tmp_path.glob("calibration/*.npz"))) == 3
-    # a corrupt cache entry is refitted, not loaded
+    # a corrupt cache entry is refitted, not loaded, with a warning naming the file
     files[0].write_bytes(b"garbage")
-    repaired, info = calibrated_model(plant())
+    with pytest.warns(CacheWarning, match=str(files[0])):
+        repaired, info = calibrated_model(plant())
     assert info["source"] == "fitted"
     np.testing.assert_array_equal(first.A, repaired.A)
 

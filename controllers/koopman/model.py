@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.calibration import check_position_residual
 from controllers.koopman.dictionary import Dictionary, get_dictionary
 
 __all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
@@ -362,5 +363,18 @@ class KoopmanModel:
             )
         if dt is not None and not np.isclose(model_dt, dt):
             raise ModelFileError(f"Koopman model file {path!r} was fitted at dt={model_dt}, not dt={dt}")
+        bad = [key for key, value in arrays.items() if not np.all(np.isfinite(value))]
+        if bad:
+            raise ModelFileError(f"Koopman model file {path!r} has non-finite entries in {bad}; {hint}")
+        if "position_residual" in meta:
+            try:
+                check_position_residual(
+                    meta["position_residual"], model_robots, f"Koopman model file {path!r}"
+                )
+            except ValueError as exc:
+                raise ModelFileError(f"{exc}; {hint}") from None
         extra = {k: v for k, v in meta.items() if k not in ("format_version", "dictionary", "n_robots", "dt")}
-        return cls(dictionary=dictionary, n_robots=model_robots, dt=model_dt, metadata=extra, **arrays)
+        try:
+            return cls(dictionary=dictionary, n_robots=model_robots, dt=model_dt, metadata=extra, **arrays)
+        except ValueError as exc:  # shapes that do not fit the dictionary and team size
+            raise ModelFileError(f"Koopman model file {path!r}: {exc}; {hint}") from None

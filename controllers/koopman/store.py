@@ -18,6 +18,7 @@ bit by ``python -m controllers.koopman fit --slip SETTING --out controllers/koop
 from __future__ import annotations
 
 import time
+import warnings
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from controllers.calibration import (
+    CacheWarning,
     DataSpec,
     cache_key,
     cache_path,
@@ -167,9 +169,10 @@ def calibrated_model(
                     "source": "shipped" if shipped else "cache",
                     "seconds": time.perf_counter() - start,
                 }
-        except ModelFileError:
+        except ModelFileError as exc:
             if shipped is not None:
                 raise
+            warnings.warn(f"{exc}; fitting it again", CacheWarning, stacklevel=2)
         # a corrupt or stale cache entry is refitted and replaced, never used
     model = fit_on_plant(plant, spec, dictionary, structure=structure)
     if shipped is None:

@@ -1,0 +1,59 @@
+"""Controllers the tests name by import path (``plugin_controllers:Name``; tests/ is on the path of
+pytest and, through PYTHONPATH, of the evaluator subprocesses the tests start)."""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+from controllers.base import BaseController
+from controllers.consensus import ConsensusController
+
+#: the file whose existence lets :class:`GatedConsensus` episodes start
+GATE_VARIABLE = "KOOPNAV_TEST_GATE"
+
+
+class GatedConsensus(ConsensusController):
+    """Consensus whose episodes wait at reset until the file named by ``$KOOPNAV_TEST_GATE``
+    exists (at most 10 minutes): a run with it cannot finish before the test opens the gate, so an
+    interruption lands mid-run on a busy machine as on an idle one."""
+
+    name = "gated-consensus"
+
+    def _reset(self, scenario: Any, seed: int | None) -> None:
+        gate = os.environ.get(GATE_VARIABLE)
+        deadline = time.monotonic() + 600
+        while gate and not os.path.exists(gate) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        super()._reset(scenario, seed)
+
+
+class AlwaysFailing(BaseController):
+    """Stands still and reports a solver failure in every period (an episode that must be degraded)."""
+
+    name = "always-failing"
+
+    def _act(self, observation: Any, info: dict[str, Any]) -> Any:
+        assert self.scenario is not None
+        self._stats.failures += 1
+        return np.zeros(2 * self.scenario.n_robots)
+
+
+class PlainTimed(BaseController):
+    """A plugin that records no time of its own: the base class times its decisions."""
+
+    name = "plain-timed"
+
+    def _act(self, observation: Any, info: dict[str, Any]) -> Any:
+        assert self.scenario is not None
+        return np.zeros(2 * self.scenario.n_robots)
+
+
+class NotAController:
+    """Has ``act`` but neither ``reset`` nor ``stats``: ``controllers.make`` must refuse it."""
+
+    def act(self, observation: Any, info: dict[str, Any]) -> Any:
+        return observation

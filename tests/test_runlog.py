@@ -1,0 +1,279 @@
+"""The episode log read back: a torn tail is repaired, an unreadable or foreign line refuses the
+resume by its line number, and a resume after any kill point gives the uninterrupted results."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import evaluate as ev
+from evaluation.runlog import LogError, read_log
+
+ROOT = Path(ev.__file__).parent
+TESTS = Path(__file__).parent
+
+#: a fast run: consensus, short episodes (trial 2 is the log's last line and carries no trajectory)
+FAST = ev.RunSpec(
+    envs=["KoopNav-TargetReaching-v0"],
+    controllers=["consensus"],
+    maps=["map1"],
+    slips=["high"],
+    episodes=3,
+    seed=5,
+    env_kwargs={"max_episode_steps": 20},
+)
+#: the same with a second controller whose episodes wait for a gate file (tests/plugin_controllers.py)
+GATED = FAST.replace(controllers=["consensus", "plugin_controllers:GatedConsensus"], episodes=2)
+GATED_ARGS = [
+    "--env",
+    "KoopNav-TargetReaching-v0",
+    "--controllers",
+    "consensus",
+    "plugin_controllers:GatedConsensus",
+    "--maps",
+    "map1",
+    "--slips",
+    "high",
+    "--episodes",
+    "2",
+    "--seed",
+    "5",
+    "--max-episode-steps",
+    "20",
+    "--start-noise",
+    "0",
+]
+
+#: record fields that hold wall times (they differ between any two runs)
+_TIMING = {"wall_seconds", "solve_ms", "solve_ms_median", "solve_ms_p95", "controller_extra", "calibration"}
+
+
+def outcomes(records: list[dict]) -> list[dict]:
+    """Records without their wall times, in order."""
+    return [{k: v for k, v in r.items() if k not in _TIMING} for r in records]
+
+
+def _config(spec: ev.RunSpec) -> dict:
+    return spec.resolved().config(1, "process")
+
+
+def _expected(spec: ev.RunSpec) -> dict:
+    return {e.key: e.record_fields() for e in spec.resolved().episodes_plan()}
+
+
+@pytest.fixture(scope="module")
+def fast_run(tmp_path_factory) -> tuple[Path, ev.Results]:
+    out = tmp_path_factory.mktemp("fast")
+    return out / "episodes.jsonl", ev.evaluate(FAST, workers=1, out=out)
+
+
+def test_a_torn_last_line_is_cut_off_at_every_byte_offset(tmp_path, fast_run) -> None:
+    log, _ = fast_run
+    data = log.read_bytes()
+    lines = data.split(b"\n")[:-1]
+    head = b"\n".join(lines[:-1]) + b"\n"
+    last = lines[-1]
+    keys = [json.loads(line)["key"] for line in lines[1:-1]]
+    copy = tmp_path / "episodes.jsonl"
+    # every proper prefix of the last line, and the whole line without its newline: all torn
+    for cut in range(1, len(last) + 1):
+        copy.write_bytes(head + last[:cut])
+        done, notes = read_log(copy, _config(FAST), _expected(FAST))
+        assert sorted(done) == sorted(keys), cut
+        assert len(notes) == 1 and "dropped 1 incomplete record" in notes[0] and "run again" in notes[0]
+        assert f"line {len(lines)}" in notes[0]
+        assert copy.read_bytes() == head, cut  # repaired: the next record starts on its own line
+    copy.write_bytes(data)  # an intact log: nothing to say, nothing changed
+    done, notes = read_log(copy, _config(FAST), _expected(FAST))
+    assert len(done) == 3 and notes == [] and copy.read_bytes() == data
+
+
+@pytest.mark.parametrize("cut", [1, 40, -1, 0])
+def test_resume_after_a_torn_line_equals_the_uninterrupted_run(tmp_path, fast_run, cut, capsys) -> None:
+    log, reference = fast_run
+    out = tmp_path / "run"
+    out.mkdir()
+    data = log.read_bytes()
+    last_start = data.rstrip(b"\n").rfind(b"\n") + 1
+    end = len(data) - 1 if cut == 0 else last_start + cut if cut > 0 else len(data) + cut - 1
+    (out / "episodes.jsonl").write_bytes(data[:end])
+    resumed = ev.evaluate(FAST, workers=1, out=out, resume=True)
+    assert "dropped 1 incomplete record" in capsys.readouterr().err
+    assert outcomes(resumed.records) == outcomes(reference.records)
+    written = (out / "episodes.jsonl").read_text().splitlines()
+    assert len(written) == 4 and all(json.loads(line) for line in written)
+    again = ev.evaluate(FAST, workers=1, out=out, resume=True)  # nothing left to run, nothing to repair
+    assert outcomes(again.records) == outcomes(reference.records)
+    assert "dropped" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("line", "problem"),
+    [
+        (b"{}", "an object without the episode fields"),
+        (b"123", "a JSON int, not an episode record"),
+        (b"[]", "a JSON list, not an episode record"),
+        (b"not json at all", "not JSON"),
+        (b'{"key": "x", "status": "ok"}', "an object without the episode fields"),
+    ],
+)
+def test_an_unreadable_or_foreign_line_refuses_the_resume_by_number(
+    tmp_path, fast_run, line, problem
+) -> None:
+    log, _ = fast_run
+    lines = log.read_bytes().split(b"\n")
+    lines.insert(2, line)  # between the first and the second record: line 3
+    copy = tmp_path / "episodes.jsonl"
+    copy.write_bytes(b"\n".join(lines))
+    before = copy.read_bytes()
+    with pytest.raises(LogError, match=f"line 3: {problem}"):
+        read_log(copy, _config(FAST), _expected(FAST))
+    assert copy.read_bytes() == before  # refused: nothing changed
+
+
+def test_a_record_of_another_run_is_refused(tmp_path, fast_run) -> None:
+    log, _ = fast_run
+    lines = log.read_bytes().split(b"\n")
+    record = json.loads(lines[1])
+    other_seed = {**record, "seed": 999}
+    other_key = {**record, "key": record["key"].replace("|0", "|7")}
+    bad_status = {**record, "status": "fine"}
+    no_outcome = {k: v for k, v in record.items() if k != "final_distance"}
+    for rec, problem in [
+        (other_seed, "was run with other settings \\(seed\\)"),
+        (other_key, "is not one of this run's episodes"),
+        (bad_status, "status 'fine' is not one of"),
+        (no_outcome, "record without \\['final_distance'\\]"),
+    ]:
+        copy = tmp_path / "episodes.jsonl"
+        copy.write_bytes(b"\n".join([lines[0], json.dumps(rec).encode(), *lines[2:]]))
+        with pytest.raises(LogError, match=f"line 2: .*{problem}"):
+            read_log(copy, _config(FAST), _expected(FAST))
+
+
+def test_the_cli_refuses_a_foreign_log_with_exit_2(tmp_path, capsys) -> None:
+    out = tmp_path / "run"
+    args = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
+    args += ["--slips", "high", "--episodes", "2", "--max-episode-steps", "20", "--workers", "1", "--quiet"]
+    assert ev.main([*args, "--out", str(out)]) == 0
+    log = out / "episodes.jsonl"
+    lines = log.read_bytes().split(b"\n")
+    log.write_bytes(b"\n".join([lines[0], b"{}", *lines[1:]]))
+    capsys.readouterr()
+    code = ev.main([*args, "--out", str(out), "--resume"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "line 2: an object without the episode fields" in err and "Traceback" not in err
+
+
+def test_a_torn_header_is_written_again(tmp_path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    ev.evaluate(FAST.replace(episodes=1), workers=1, out=tmp_path / "whole")
+    header = (tmp_path / "whole" / "episodes.jsonl").read_bytes().split(b"\n")[0]
+    (out / "episodes.jsonl").write_bytes(header[:25])
+    results = ev.evaluate(FAST.replace(episodes=1), workers=1, out=out, resume=True)
+    assert len(results.records) == 1
+    assert (out / "episodes.jsonl").read_bytes().split(b"\n")[0] == header
+    (out / "episodes.jsonl").write_bytes(b'{"not": "a header')  # not a prefix of ours: refused
+    with pytest.raises(LogError, match="not a KoopNav episode log"):
+        ev.evaluate(FAST.replace(episodes=1), workers=1, out=out, resume=True)
+
+
+def test_out_pointing_at_a_file_exits_2_before_any_episode(tmp_path, capsys) -> None:
+    target = tmp_path / "results.txt"
+    target.write_text("mine")
+    args = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
+    code = ev.main([*args, "--episodes", "1", "--workers", "1", "--quiet", "--out", str(target)])
+    err = capsys.readouterr().err
+    assert code == 2 and "is a file; it must be a directory" in err and "Traceback" not in err
+    assert target.read_text() == "mine"
+    code = ev.main([*args, "--episodes", "1", "--workers", "1", "--quiet", "--out", str(target / "sub")])
+    assert code == 2 and "cannot be made a directory" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ kills and signals, gated
+def start_gated_run(tmp_path: Path, extra: list[str], lines: int) -> tuple[subprocess.Popen, Path, Path]:
+    """Start the CLI on :data:`GATED` in its own session with the gate closed; return once its log
+    has ``lines`` lines (the consensus episodes: the gated ones cannot start until the gate opens)."""
+    out, gate = tmp_path / "run", tmp_path / "gate"
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(TESTS), str(ROOT)]),
+        "KOOPNAV_TEST_GATE": str(gate),
+    }
+    proc = subprocess.Popen(
+        [sys.executable, "evaluate.py", *GATED_ARGS, "--out", str(out), *extra],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    log = out / "episodes.jsonl"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and (not log.exists() or len(log.read_text().splitlines()) < lines):
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    return proc, out, gate
+
+
+@pytest.fixture(scope="module")
+def gated_reference(tmp_path_factory) -> ev.Results:
+    return ev.evaluate(GATED, workers=1, out=tmp_path_factory.mktemp("gated"))  # no gate set: no wait
+
+
+@pytest.mark.parametrize("finished", [1, 2])
+def test_sigkill_at_any_point_then_resume_equals_the_uninterrupted_run(
+    tmp_path, gated_reference, finished
+) -> None:
+    proc, out, gate = start_gated_run(tmp_path, ["--workers", "1", "--quiet"], lines=1 + finished)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
+    logged = len((out / "episodes.jsonl").read_text().splitlines()) - 1
+    assert finished <= logged <= 2  # the gated episodes cannot have finished
+    gate.touch()
+    resumed = ev.evaluate(GATED, workers=1, out=out, resume=True)
+    assert outcomes(resumed.records) == outcomes(gated_reference.records)
+
+
+def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, gated_reference) -> None:
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) stops the workers cleanly."""
+    proc, out, gate = start_gated_run(tmp_path, ["--workers", "2"], lines=3)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    assert "interrupted after 2/4" in stderr and "--resume" in stderr
+    gate.touch()
+    resumed = ev.evaluate(GATED, workers=1, out=out, resume=True)
+    assert outcomes(resumed.records) == outcomes(gated_reference.records)
+
+
+def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path, gated_reference) -> None:
+    """``kill`` (SIGTERM to the main process alone) must not leave orphan workers computing."""
+    proc, out, gate = start_gated_run(tmp_path, ["--workers", "2", "--quiet"], lines=3)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "--resume" in stderr
+    deadline = time.monotonic() + 30
+    left = ["?"]
+    while time.monotonic() < deadline and left:
+        ps = subprocess.run(["ps", "-o", "pid=", "-s", str(proc.pid)], capture_output=True, text=True)
+        left = ps.stdout.split()
+        time.sleep(0.2)
+    assert not left, f"worker processes still running: {left}"
+    gate.touch()
+    resumed = ev.evaluate(GATED, workers=1, out=out, resume=True)
+    assert outcomes(resumed.records) == outcomes(gated_reference.records)
+    shutil.rmtree(out)
