@@ -182,3 +182,78 @@ def test_the_repository_gate_passes_on_its_own_baseline(tmp_path) -> None:
     comparison = json.loads((tmp_path / "gate" / "baseline_comparison.json").read_text())
     assert {row["controller"] for row in comparison["rows"]} == {"consensus", "nominal-nmpc"}
     assert all(row["only_a"] == row["only_b"] == 0 for row in comparison["rows"])
+
+
+def _action_words(cwd: Path, **inputs: str) -> subprocess.CompletedProcess:
+    """The action's checks and the evaluator words it would run (KOOPNAV_PRINT_ONLY: no install)."""
+    environment = {
+        **os.environ,
+        "KOOPNAV_SOURCE": str(ROOT),
+        "KOOPNAV_CONTROLLERS": "consensus",
+        "KOOPNAV_PRINT_ONLY": "true",
+        **inputs,
+    }
+    for name in ("KOOPNAV_BASELINE", "KOOPNAV_FAIL_IF_WORSE", "KOOPNAV_BASELINE_MAY_BE_ABSENT"):
+        if name not in inputs:
+            environment.pop(name, None)
+    return subprocess.run(
+        ["bash", str(ROOT / ".ci" / "action.sh")], env=environment, capture_output=True, text=True, cwd=cwd
+    )
+
+
+def test_the_action_fails_on_a_missing_baseline_unless_told_it_may_be_absent(tmp_path) -> None:
+    missing = _action_words(tmp_path, KOOPNAV_BASELINE="leaderboard/baseline.json")
+    assert missing.returncode == 2
+    assert "input baseline='leaderboard/baseline.json' does not exist" in missing.stderr
+    assert "baseline-may-be-absent: true" in missing.stderr
+    first = _action_words(
+        tmp_path, KOOPNAV_BASELINE="leaderboard/baseline.json", KOOPNAV_BASELINE_MAY_BE_ABSENT="True"
+    )
+    assert first.returncode == 0, first.stderr
+    assert "does not exist yet" in first.stderr and "--baseline" not in first.stdout.split()
+
+
+@pytest.mark.parametrize(
+    ("value", "gated"),
+    [("true", True), ("TRUE", True), ("True", True), ("", True), ("false", False), ("FALSE", False)],
+)
+def test_the_action_reads_fail_if_worse_in_any_case(tmp_path, value, gated) -> None:
+    (tmp_path / "base.json").write_text("{}")
+    run = _action_words(tmp_path, KOOPNAV_BASELINE="base.json", KOOPNAV_FAIL_IF_WORSE=value)
+    assert run.returncode == 0, run.stderr
+    words = run.stdout.split("\n")
+    assert words[words.index("--baseline") + 1] == "base.json"
+    assert ("--fail-if-worse" in words) is gated
+
+
+@pytest.mark.parametrize(
+    ("inputs", "message"),
+    [
+        ({"KOOPNAV_FAIL_IF_WORSE": "yes"}, "input fail-if-worse='yes' is not a boolean"),
+        ({"KOOPNAV_FAIL_IF_WORSE": "ture"}, "input fail-if-worse='ture' is not a boolean"),
+        ({"KOOPNAV_BASELINE_MAY_BE_ABSENT": "1"}, "input baseline-may-be-absent='1' is not a boolean"),
+        ({"KOOPNAV_EPISODES": "0"}, "input episodes='0' is not a whole number >= 1"),
+        ({"KOOPNAV_EPISODES": "ten"}, "input episodes='ten' is not a whole number >= 1"),
+        ({"KOOPNAV_CONTROLLERS": "  "}, "input controllers is empty"),
+    ],
+)
+def test_the_action_refuses_bad_inputs_before_installing(tmp_path, inputs, message) -> None:
+    (tmp_path / "base.json").write_text("{}")
+    run = _action_words(tmp_path, KOOPNAV_BASELINE="base.json", **inputs)
+    assert run.returncode == 2 and message in run.stderr and run.stdout == ""
+
+
+def test_the_action_never_expands_globs_against_workspace_files(tmp_path) -> None:
+    for name in ("consensus-notes.txt", "map1", "mapX", "ab"):
+        (tmp_path / name).write_text("")
+    run = _action_words(
+        tmp_path, KOOPNAV_CONTROLLERS="consensus consens* a[b]", KOOPNAV_ARGS="--maps map? --slips *"
+    )
+    assert run.returncode == 0, run.stderr
+    words = run.stdout.split("\n")
+    assert words[words.index("--controllers") + 1 : words.index("--controllers") + 4] == [
+        "consensus",
+        "consens*",
+        "a[b]",
+    ]
+    assert "map?" in words and "*" in words and "map1" not in words
