@@ -116,6 +116,8 @@ class EngineConfig:
             map_spec = None
             if formation is not None:
                 random_map = _random_map_formation(random_map, formation)
+            # a team whose shape cannot be placed fails here, not at a reset hours into training
+            random_map.shape_for(n_robots, float(np.max(robot_radius)))
         else:
             map_spec = load_map(map_arg)
             map_spec.validate(n_robots, robot_radius)

@@ -191,3 +191,57 @@ def test_bad_obstacle_ranges_are_named(along) -> None:
         ValueError, match=r"obstacle_along=.* must be a \(low, high\) pair with 0 <= low <= high <= 1"
     ):
         RandomMapConfig(obstacle_along=along)
+
+
+@pytest.mark.parametrize("env_id", ["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"])
+def test_every_team_size_up_to_64_resets_on_random_maps(env_id: str) -> None:
+    """The default layout (formation "auto": the wedge while it fits, the grid beyond) resets on
+    every seed for N = 2..64 (issue 31: the wedge alone failed from 23 robots on)."""
+    shapes = {}
+    for n in range(2, 65):
+        env = gym.make(env_id, map="random", n_robots=n)
+        for seed in range(20):
+            _, info = env.reset(seed=seed)
+            assert info["poses"].shape == (n, 3)
+        shapes[n] = env.unwrapped.engine.config.random_map.shape_for(n)
+        env.close()
+    assert {n for n, shape in shapes.items() if shape == "wedge"} == set(range(2, 21))
+    assert {n for n, shape in shapes.items() if shape == "grid"} == set(range(21, 65))
+
+
+def test_a_named_shape_that_does_not_fit_fails_at_construction() -> None:
+    with pytest.raises(ValueError, match=r"a wedge of n_robots=30 .* does not fit .* use formation='grid'"):
+        gym.make("KoopNav-TargetReaching-v0", map="random", n_robots=30, formation="wedge")
+    with pytest.raises(ValueError, match=r"a line of n_robots=24"):
+        gym.make("KoopNav-Formation-v0", map="random", n_robots=24, random_map={"formation": "line"})
+    with pytest.raises(
+        ValueError, match=r"formation='wedgee' is not one of \['auto', 'wedge'.*did you mean 'wedge'"
+    ):
+        RandomMapConfig(formation="wedgee")
+    # the wedge where it fits is the default's layout, draw for draw
+    for seed in range(3):
+        auto = generate_random_map(np.random.default_rng(seed), 12, RandomMapConfig())
+        wedge = generate_random_map(np.random.default_rng(seed), 12, RandomMapConfig(formation="wedge"))
+        np.testing.assert_array_equal(auto.targets, wedge.targets)
+
+
+def test_placement_share_matches_the_generators_acceptance() -> None:
+    """The fit rule's share equals the rejection loop's acceptance rate (within a binomial band)."""
+    from koopman_envs.sim.formations import formation_shape
+    from koopman_envs.sim.maps import placement_share
+
+    local = formation_shape("wedge", 16, 0.9)
+    share = placement_share(local, (3.0, 6.5), 17.6, 17.6)
+    rng = np.random.default_rng(0)
+    draws = 200_000
+    heading = rng.uniform(-np.pi, np.pi, draws)
+    travel = rng.uniform(3.0, 6.5, draws)
+    lead = rng.uniform(-8.8, 8.8, (draws, 2))
+    c, s = np.cos(heading), np.sin(heading)
+    x = lead[:, :1] + np.outer(c, local[:, 0]) - np.outer(s, local[:, 1])
+    y = lead[:, 1:] + np.outer(s, local[:, 0]) + np.outer(c, local[:, 1])
+    tx, ty = x + (travel * c)[:, None], y + (travel * s)[:, None]
+    inside = np.all((np.abs(np.hstack([x, tx])) <= 8.8) & (np.abs(np.hstack([y, ty])) <= 8.8), axis=1)
+    rate = inside.mean()
+    band = 4 * np.sqrt(share * (1 - share) / draws)
+    assert abs(rate - share) < band + 2e-3, (rate, share)

@@ -253,7 +253,7 @@ def test_every_robot_of_a_shipped_map_has_a_path_to_its_target(name: str) -> Non
         (
             FO,
             {"map": "random", "random_map": {"formation": "ring"}},
-            r"formation='ring' is not one of \['wedge'",
+            r"formation='ring' is not one of \['auto', 'wedge'",
         ),
     ],
 )

@@ -8,6 +8,7 @@ are the targets relative to robot 0's target.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -375,6 +376,53 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
     )
 
 
+#: ``RandomMapConfig.formation`` default: the wedge while it fits the workspace, the grid beyond
+AUTO_FORMATION = "auto"
+#: the share of the generator's draws (heading, travel, lead position) that must place a team's
+#: starts and targets inside the workspace for its shape to count as fitting (ours): the generator
+#: tries ``max_attempts`` = 10,000 draws, so a reset then fails with probability below
+#: (1 - 2e-3)^10000 ~ 2e-9. The wedge fits up to 20 robots at the default spacing (21: 1.3e-3).
+MIN_PLACEMENT_SHARE = 2e-3
+
+
+def placement_share(
+    local: NDArray[np.float64], travel: tuple[float, float], width: float, height: float
+) -> float:
+    """Share of the random generator's draws that put a team's starts and targets inside a box.
+
+    The generator draws a heading uniformly, a travel distance uniformly in ``travel`` and the
+    leader's start uniformly in the box; the layout is kept when every start and target lies
+    inside. For a heading and a travel the layout spans ``ptp(x) + travel |cos|`` by
+    ``ptp(y) + travel |sin|``, so the kept share of lead positions is the product of
+    ``max(0, 1 - span / side)`` over both axes; this averages it over 720 headings and 64 travels.
+
+    Parameters
+    ----------
+    local : ndarray, shape (N, 2)
+        The shape's offsets in the leader's travel frame.
+    travel : (float, float)
+        Range of the travel distance [m].
+    width, height : float
+        Sides of the box that leader starts are drawn in [m].
+    """
+    heading = np.linspace(-math.pi, math.pi, 720, endpoint=False)
+    cos_h, sin_h = np.cos(heading), np.sin(heading)
+    x = np.outer(cos_h, local[:, 0]) - np.outer(sin_h, local[:, 1])  # (headings, N)
+    y = np.outer(sin_h, local[:, 0]) + np.outer(cos_h, local[:, 1])
+    distance = np.linspace(travel[0], travel[1], 64)
+    span_x = np.ptp(x, axis=1)[:, None] + np.outer(np.abs(cos_h), distance)
+    span_y = np.ptp(y, axis=1)[:, None] + np.outer(np.abs(sin_h), distance)
+    share = np.clip(1.0 - span_x / width, 0.0, None) * np.clip(1.0 - span_y / height, 0.0, None)
+    return float(share.mean())
+
+
+@functools.lru_cache(maxsize=256)
+def _shape_share(
+    shape: str, n_robots: int, spacing: float, travel: tuple[float, float], width: float, height: float
+) -> float:
+    return placement_share(formation_shape(shape, n_robots, spacing), travel, width, height)
+
+
 @dataclass(frozen=True)
 class RandomMapConfig:
     """Parameters of the random-map generator (all ours).
@@ -395,8 +443,10 @@ class RandomMapConfig:
     #: obstacles beside the targets (as Map 4 does), still ``clearance`` away from each one
     obstacle_along: tuple[float, float] = (0.25, 0.75)
     spacing: float = PARAMS.formation_spacing  # distance between neighbouring robots in the formation [m]
-    #: the team's shape at its starts and targets, one of FORMATION_SHAPES (koopman_envs.sim.formations)
-    formation: str = "wedge"
+    #: the team's shape at its starts and targets, one of FORMATION_SHAPES (koopman_envs.sim.formations),
+    #: or "auto": the wedge while it fits the workspace (up to 20 robots at the default spacing),
+    #: the grid beyond (see :meth:`shape_for`)
+    formation: str = AUTO_FORMATION
     clearance: float = 0.3  # free space around every start and target [m]
     gap: float = 0.6  # free space between two obstacles, > one robot diameter [m]
     border: float = 1.0  # free space between any start/target and the workspace edge [m]
@@ -411,7 +461,18 @@ class RandomMapConfig:
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
-        formation_shape(self.formation, 1, self.spacing)  # the shape's own checks: name, spacing
+        if self.formation != AUTO_FORMATION:
+            try:
+                formation_shape(self.formation, 1, self.spacing)  # the shape's own checks: name, spacing
+            except ValueError as exc:
+                if "is not one of" not in str(exc):
+                    raise
+                raise ValueError(
+                    f"formation={self.formation!r} is not one of {[AUTO_FORMATION, *FORMATION_SHAPES]}"
+                    f"{did_you_mean(self.formation, [AUTO_FORMATION, *FORMATION_SHAPES])}"
+                ) from None
+        else:
+            formation_shape("grid", 1, self.spacing)  # the spacing's check
         if not 0.0 <= self.swap_targets <= 1.0:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
@@ -434,6 +495,55 @@ class RandomMapConfig:
                 )
         if self.slip_zone_mode not in SLIP_ZONE_MODES:
             raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
+
+    def shape_for(
+        self,
+        n_robots: int,
+        robot_radius: float = PARAMS.robot_radius,
+        workspace: tuple[float, float, float, float] = PARAMS.workspace,
+    ) -> str:
+        """The formation shape a team of ``n_robots`` starts and ends in on these random maps.
+
+        A shape fits when at least :data:`MIN_PLACEMENT_SHARE` of the generator's draws place the
+        team inside the workspace (:func:`placement_share`). ``"auto"`` is the wedge while it
+        fits and the grid beyond; a named shape is used as it is.
+
+        Raises
+        ------
+        ValueError
+            The shape (the grid, for ``"auto"``) does not fit: naming the team size, the shape
+            and what to change.
+        """
+        x0, x1, y0, y1 = workspace
+        margin = self.border + robot_radius
+        box = (x1 - x0 - 2 * margin, y1 - y0 - 2 * margin)
+        travel = (float(self.travel[0]), float(self.travel[1]))
+
+        def share(shape: str) -> float:
+            return _shape_share(shape, int(n_robots), float(self.spacing), travel, *box)
+
+        shape = self.formation
+        if shape == AUTO_FORMATION:
+            shape = "wedge" if share("wedge") >= MIN_PLACEMENT_SHARE else "grid"
+        fits = share(shape)
+        if fits < MIN_PLACEMENT_SHARE:
+            # the roomiest shapes first
+            roomy = sorted(
+                (name for name in FORMATION_SHAPES if share(name) >= MIN_PLACEMENT_SHARE),
+                key=lambda name: -share(name),
+            )
+            raise ValueError(
+                f"a {shape} of n_robots={n_robots} with spacing {self.spacing:g} m does not fit a random "
+                f"map's workspace {list(workspace)} (it is placed in {fits:.1e} of the draws; at least "
+                f"{MIN_PLACEMENT_SHARE:g} is needed); "
+                + (
+                    f"use formation={roomy[0]!r}" + (f" (or one of {roomy[1:]})" if roomy[1:] else "")
+                    if roomy
+                    else "use fewer robots"
+                )
+                + ", a smaller random_map spacing or shorter travel"
+            )
+        return shape
 
 
 def generate_random_map(
@@ -465,10 +575,15 @@ def generate_random_map(
     -------
     MapSpec
         Named ``"random"``.
+
+    Raises
+    ------
+    ValueError
+        The team's shape does not fit the workspace (:meth:`RandomMapConfig.shape_for`).
     """
     if n_robots < 1:
         raise ValueError(f"n_robots={n_robots!r} must be >= 1")
-    local = formation_shape(config.formation, n_robots, config.spacing)
+    local = formation_shape(config.shape_for(n_robots, robot_radius, workspace), n_robots, config.spacing)
     x0, x1, y0, y1 = workspace
     margin = config.border + robot_radius
     low, high = [x0 + margin, y0 + margin], [x1 - margin, y1 - margin]
