@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -33,11 +34,16 @@ PREVIOUS = [
 
 
 def timed_run(
-    protocol: str, workers: int | None, controllers: list[str] | None = None, cold: bool = True
+    protocol: str,
+    workers: int | None,
+    controllers: list[str] | None = None,
+    cold: bool = True,
+    extra: list[str] | None = None,
 ) -> tuple[float, int]:
-    """(wall seconds, episodes) of one evaluator run in a fresh process (``cold``: empty caches)."""
+    """(wall seconds, episodes) of one evaluator run in a fresh process (``cold``: empty caches;
+    ``extra``: further evaluator options)."""
     with tempfile.TemporaryDirectory(prefix="koopnav-wall-") as out:
-        cmd = [sys.executable, "evaluate.py", "--out", out, "--quiet"]
+        cmd = [sys.executable, "evaluate.py", "--out", out, "--quiet", *(extra or [])]
         cmd += ["--paper"] if protocol == "paper" else []
         cmd += ["--workers", str(workers)] if workers else []
         cmd += ["--controllers", *controllers] if controllers else []
@@ -68,16 +74,23 @@ def main() -> None:
         action="store_true",
         help="also run the NMPCs as IPOPT, uncompiled (the default before the solver cache)",
     )
+    parser.add_argument(
+        "--evaluator-args",
+        default="",
+        help='further evaluator options, one string (e.g. "--controllers consensus --max-episode-steps 20" '
+        "for a quick check of this script)",
+    )
     args = parser.parse_args()
+    extra = shlex.split(args.evaluator_args)
     print(f"python evaluate.py {'--paper' if args.protocol == 'paper' else ''} on {os.cpu_count()} cores")
-    wall, episodes = timed_run(args.protocol, args.workers, cold=not args.warm)
+    wall, episodes = timed_run(args.protocol, args.workers, cold=not args.warm, extra=extra)
     caches = "warm caches" if args.warm else "empty caches"
     print(
         f"python evaluate.py{' --paper' if args.protocol == 'paper' else ''} ({caches}): {wall:7.1f} s wall, "
         f"{episodes} episodes, {episodes / wall:.2f} episodes/s"
     )
     if args.previous_default and args.protocol == "paper":
-        wall, episodes = timed_run(args.protocol, args.workers, PREVIOUS, cold=not args.warm)
+        wall, episodes = timed_run(args.protocol, args.workers, PREVIOUS, cold=not args.warm, extra=extra)
         print(
             f"previous default (IPOPT, uncompiled): {wall:7.1f} s wall, {episodes} episodes, "
             f"{episodes / wall:.2f} episodes/s"

@@ -2,9 +2,11 @@
 
 Usage::
 
-    python bench/koopman_fit.py [--slip high] [--pykoopman-python /path/to/venv/bin/python]
+    python bench/koopman_fit.py [--slip high] [--budget 1000000] [--pykoopman-python /path/to/venv/bin/python]
 
-Prints the wall time of generating 1000 trajectories x 1000 periods on the simulator core, of
+Prints the wall time of generating the calibration data set (by default the paper's 1000
+trajectories x 1000 periods, drawn on the calibration plant as every controller's calibration
+draws it: :func:`controllers.calibration.collect_data`), of
 the bilinear fit (SPEC eq. 9) on them, the peak memory of both (traced numpy allocations and
 the process high-water mark), and the circle-test RMSE of the fitted model. With
 ``--pykoopman-python`` it also runs pykoopman's (linear) EDMDc on the same data in that
@@ -26,12 +28,13 @@ import tracemalloc
 
 import numpy as np
 
+from controllers.calibration import collect_data, data_spec_for
 from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts, circle_test
-from controllers.koopman.data import DataSpec, collect_data
 from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import fit_bilinear
 from controllers.koopman.model import KoopmanModel
-from koopman_envs.params import slip_lambdas
+from koopman_envs.params import PARAMS, slip_lambdas
+from koopman_envs.plant import make_plant
 from koopman_envs.sim.rollout import rollout
 
 PYKOOPMAN_SCRIPT = r"""
@@ -88,18 +91,25 @@ def main() -> None:
     parser.add_argument("--dictionary", default="minimal")
     parser.add_argument("--pykoopman-python", help="python of a venv with pykoopman installed")
     parser.add_argument("--repeats", type=int, default=3, help="timing runs (the best is printed)")
+    parser.add_argument(
+        "--budget",
+        type=int,
+        default=PARAMS.calibration_budget,
+        help="team-transitions of the data set (default: the paper's 1,000,000)",
+    )
     args = parser.parse_args()
     lambdas = slip_lambdas(args.slip, 3)
-    spec = DataSpec(tuple(float(v) for v in lambdas))
+    plant = make_plant("KoopNav-TargetReaching-v0", slip=args.slip, budget=10**12, seed=0)
+    spec = data_spec_for(args.budget)
     dic = get_dictionary(args.dictionary)
-    collect_data(DataSpec(spec.lambdas, trajectories=10, steps=10))  # warm-up (imports, caches)
+    collect_data(plant, data_spec_for(100))  # warm-up (imports, compiled kernels)
 
     # timing runs without tracemalloc (it hooks every allocation and inflates the times); the
     # best of --repeats, as timeit does, because shared machines only ever add time
     gen_times, fit_times = [], []
     for _ in range(args.repeats):
         start = time.perf_counter()
-        data = collect_data(spec)
+        data = collect_data(plant, spec)
         gen_times.append(time.perf_counter() - start)
         start = time.perf_counter()
         fit = fit_bilinear(data.states, data.commands, dic)
@@ -107,14 +117,14 @@ def main() -> None:
     gen_seconds, fit_seconds = min(gen_times), min(fit_times)
     # a separate pass measures peak memory
     tracemalloc.start()
-    data = collect_data(spec)
+    data = collect_data(plant, spec)
     gen_peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.reset_peak()
     fit = fit_bilinear(data.states, data.commands, dic)
     fit_peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB -> MiB on Linux
-    model = KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, 3, spec.dt)
+    model = KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, 3, plant.dt)
     report, _, _ = circle_test(model, lambdas, repetitions=30)
     print(
         f"{spec.transitions:,} transitions ({spec.trajectories} x {spec.steps}), slip {args.slip}, "

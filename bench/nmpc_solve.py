@@ -81,6 +81,14 @@ MEDIAN_FROM = 20
 TOTAL_LIMIT = 30.0
 #: resets behind the ``cold`` column
 COLD_RESETS = 5
+#: episode time limit of every row [control periods]; None: the env's (``--steps``, for quick checks)
+EPISODE_STEPS: int | None = None
+
+
+def make_env(env_id: str, map_name: str, slip: str) -> gym.Env:
+    """The env of every row (the time limit of ``--steps`` when given)."""
+    limit = {} if EPISODE_STEPS is None else {"max_episode_steps": EPISODE_STEPS}
+    return gym.make(env_id, map=map_name, slip=slip, **limit)
 
 
 @dataclass
@@ -178,7 +186,7 @@ def closed_loop(
     TooSlow
         With ``limit``; its message says why.
     """
-    env = gym.make(env_id, map=map_name, slip=slip)
+    env = make_env(env_id, map_name, slip)
     ctrl = make_controller()
     calibrate_controller(ctrl, env)
     warm_up(env, ctrl)
@@ -237,7 +245,7 @@ def do_mpc_closed_loop(env_id: str, map_name: str, slip: str, horizon: int) -> R
 
     if hasattr(ca.GlobalOptions, "setNumpyMode"):
         ca.GlobalOptions.setNumpyMode(-1)  # do-mpc calls numpy on casadi values; keep it quiet
-    env = gym.make(env_id, map=map_name, slip=slip)
+    env = make_env(env_id, map_name, slip)
     _, info = env.reset(seed=0)
     sc = env.unwrapped.scenario
     n = sc.n_robots
@@ -395,6 +403,11 @@ def main() -> None:
     )
     parser.add_argument("--no-do-mpc", action="store_true")
     parser.add_argument(
+        "--steps",
+        type=int,
+        help="episode time limit [control periods] (default: the env's; for quick checks)",
+    )
+    parser.add_argument(
         "--qp-solvers",
         nargs="+",
         default=list(QP_ROWS),
@@ -404,6 +417,8 @@ def main() -> None:
         "the speed-ups are given for)",
     )
     args = parser.parse_args()
+    global EPISODE_STEPS
+    EPISODE_STEPS = args.steps
     env_id = env_id_for_map(args.map)
     print(
         f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop "

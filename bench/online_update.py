@@ -106,6 +106,10 @@ def main() -> None:
     parser.add_argument("--window", type=int, default=50)
     parser.add_argument("--episode", action="store_true")
     args = parser.parse_args()
+    if not 1 <= args.window < args.steps:
+        parser.error(
+            f"--window {args.window} must be >= 1 and below --steps {args.steps} (the batch refit needs a full window)"
+        )
     print("per control step [ms]              median     p95")
     for n in args.robots:
         time_updates(n, args.steps, args.window)

@@ -16,6 +16,7 @@ BLAS libraries are held to one thread before they load.
 from __future__ import annotations
 
 import os
+import sys
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -23,6 +24,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+# the sibling scripts by this file's folder, whatever the working directory or how it is started
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from nmpc_solve import closed_loop, line  # noqa: E402  (the same closed-loop runner and report line)
 from scaling import run_cell  # noqa: E402  (the scaling table's cells)
 

@@ -496,6 +496,22 @@ class RandomMapConfig:
         if self.slip_zone_mode not in SLIP_ZONE_MODES:
             raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
 
+    def placement_share(
+        self,
+        shape: str,
+        n_robots: int,
+        robot_radius: float = PARAMS.robot_radius,
+        workspace: tuple[float, float, float, float] = PARAMS.workspace,
+    ) -> float:
+        """Share of this generator's draws that place a team of ``shape`` inside the workspace
+        (:func:`placement_share` on the box that leader starts are drawn in)."""
+        x0, x1, y0, y1 = workspace
+        margin = self.border + robot_radius
+        travel = (float(self.travel[0]), float(self.travel[1]))
+        return _shape_share(
+            shape, int(n_robots), float(self.spacing), travel, x1 - x0 - 2 * margin, y1 - y0 - 2 * margin
+        )
+
     def shape_for(
         self,
         n_robots: int,
@@ -514,13 +530,9 @@ class RandomMapConfig:
             The shape (the grid, for ``"auto"``) does not fit: naming the team size, the shape
             and what to change.
         """
-        x0, x1, y0, y1 = workspace
-        margin = self.border + robot_radius
-        box = (x1 - x0 - 2 * margin, y1 - y0 - 2 * margin)
-        travel = (float(self.travel[0]), float(self.travel[1]))
 
         def share(shape: str) -> float:
-            return _shape_share(shape, int(n_robots), float(self.spacing), travel, *box)
+            return self.placement_share(shape, n_robots, robot_radius, workspace)
 
         shape = self.formation
         if shape == AUTO_FORMATION:

@@ -1,0 +1,106 @@
+"""Every script under bench/ and docs/ starts and finishes on tiny arguments (seconds each), so
+that none can rot unseen: a script added without a row here fails the first test."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import evaluate as ev
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: script -> its tiny arguments ({tmp}: a fresh folder, {results}: a small evaluator run's results.json)
+SMOKE: dict[str, list[str]] = {
+    "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
+    "bench/evaluate_wall.py": [
+        "--warm",
+        "--workers",
+        "1",
+        "--evaluator-args",
+        "--controllers consensus --env KoopNav-TargetReaching-v0 --maps map1 --episodes 1 --max-episode-steps 20",
+    ],
+    "bench/gate_power.py": ["--trials", "50"],
+    "bench/koopman_fit.py": ["--budget", "2000", "--repeats", "1"],
+    "bench/nmpc_solve.py": ["--no-do-mpc", "--qp-solvers", "hpipm", "--steps", "5"],
+    "bench/online_update.py": ["--robots", "3", "--steps", "60"],
+    "bench/policy_speed.py": ["--robots", "3", "--seeds", "1", "--controllers", "consensus"],
+    "bench/random_map_resets.py": ["--robots", "2", "24", "--seeds", "2"],
+    "bench/render_speed.py": ["--seconds", "0.1", "--repeats", "1"],
+    "bench/safety_filter.py": [
+        "--episodes",
+        "1",
+        "--controllers",
+        "consensus",
+        "--workers",
+        "1",
+        "--skip-timing",
+    ],
+    "bench/scaling.py": ["--robots", "3", "--steps", "20", "--seeds", "1", "--controllers", "consensus"],
+    "docs/check_links.py": ["{tmp}"],
+    "docs/make_figure.py": ["--steps", "3", "--out", "{tmp}/figure.png"],
+    "docs/make_results_md.py": ["{results}", "--out", "{tmp}/results.md"],
+    "docs/solver_comparison.py": ["{results}"],
+}
+#: scripts run elsewhere, with the reason
+ELSEWHERE = {
+    "docs/conf.py": "Sphinx's configuration: .ci/run builds the site with it (bash docs/build.sh)",
+    "docs/build.sh": "the site build itself: the docs step of .ci/run",
+}
+
+
+def test_every_script_has_a_smoke_run() -> None:
+    scripts = {
+        str(path.relative_to(ROOT))
+        for folder in ("bench", "docs")
+        for path in (ROOT / folder).iterdir()
+        if path.suffix in (".py", ".sh")
+    }
+    assert scripts == set(SMOKE) | set(ELSEWHERE), (
+        f"without a smoke run: {sorted(scripts - set(SMOKE) - set(ELSEWHERE))}; "
+        f"listed but gone: {sorted((set(SMOKE) | set(ELSEWHERE)) - scripts)}"
+    )
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory) -> Path:
+    """A results.json with both tasks, consensus and an NMPC under two solver labels."""
+    out = tmp_path_factory.mktemp("run")
+    spec = ev.RunSpec(
+        envs=["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"],
+        controllers=[
+            "consensus",
+            "nominal-nmpc:solver=rti,label=nominal-nmpc@rti",
+            "nominal-nmpc:solver=ipopt,label=nominal-nmpc@ipopt",
+        ],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 20},
+    )
+    results = ev.evaluate(spec, workers=1)
+    return results.write(out)["json"]
+
+
+@pytest.mark.parametrize("script", sorted(SMOKE))
+def test_script_runs_on_tiny_arguments(script: str, small_run: Path, tmp_path: Path) -> None:
+    (tmp_path / "index.html").write_text('<html><body><a href="index.html">self</a></body></html>')
+    args = [a.format(tmp=tmp_path, results=small_run) for a in SMOKE[script]]
+    start = time.monotonic()
+    run = subprocess.run(
+        [sys.executable, script, *args],
+        cwd=ROOT,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    seconds = time.monotonic() - start
+    assert run.returncode == 0, (
+        f"{script} exited {run.returncode}:\n{run.stdout[-1500:]}\n{run.stderr[-3000:]}"
+    )
+    assert run.stdout.strip(), f"{script} printed nothing"
+    print(f"{script}: {seconds:.1f} s")
