@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.safe_load import UnsafePolicyFile, load_model
 from baselines.set_features import MAX_TEAM, SetFeatureConfig, set_features
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
@@ -52,9 +53,20 @@ class PolicyFiles:
 
 
 def load_policy(
-    directory: str | os.PathLike, task: str = "formation", algo: str = "ppo"
+    directory: str | os.PathLike, task: str = "formation", algo: str = "ppo", *, allow_pickle: bool = False
 ) -> tuple[Any, dict, dict]:
-    """Load (model, observation normalization, metadata); clear errors for missing or corrupt files."""
+    """Load (model, observation normalization, metadata); clear errors for missing or corrupt files.
+
+    The model is loaded without running any pickle stored in ``policy.zip``
+    (:func:`baselines.safe_load.load_model`); ``allow_pickle=True`` loads any SB3 zip the plain way,
+    which runs the code pickled in it: for files you trust only.
+
+    Raises
+    ------
+    ValueError
+        Missing or corrupt files; :class:`~baselines.safe_load.UnsafePolicyFile` for a zip that
+        cannot be loaded without running its pickles (and ``allow_pickle`` is false).
+    """
     files = PolicyFiles(Path(directory))
     hint = REGENERATE.format(env_id=TASK_ENV.get(task, task), algo=algo, task=task)
     missing = [p.name for p in (files.model, files.norm, files.metadata) if not p.exists()]
@@ -72,7 +84,9 @@ def load_policy(
             norm = {k: data[k] for k in ("mean", "var", "clip", "epsilon")}
         algorithms: dict[str, type[PPO] | type[SAC]] = {"ppo": PPO, "sac": SAC}
         cls = algorithms[metadata.get("algo", algo)]
-        model = cls.load(files.model, device="cpu")
+        model = load_model(files.model, cls, allow_pickle=allow_pickle)
+    except UnsafePolicyFile:
+        raise
     except Exception as exc:  # noqa: BLE001 - any failure here means a broken file set
         raise ValueError(
             f"policy in {files.directory} is corrupt or unreadable ({type(exc).__name__}: {exc}); regenerate with `{hint}`"
@@ -234,17 +248,26 @@ class RLPolicyController(BaseController):
         torch intra-op threads for inference (default 1: a 128-wide MLP gains nothing from more,
         and evaluator workers running side by side would oversubscribe the cores); None leaves
         torch's setting alone.
+    allow_pickle : bool
+        Load policy zips that only load by running the code pickled in them (another SB3
+        version's or a hand-made file): for files you trust only. The default loads KoopNav's
+        policies without running any (:mod:`baselines.safe_load`).
     """
 
     name = "rl-ppo"
 
     def __init__(
-        self, policy_root: str | os.PathLike | None = None, algo: str = "ppo", threads: int | None = 1
+        self,
+        policy_root: str | os.PathLike | None = None,
+        algo: str = "ppo",
+        threads: int | None = 1,
+        allow_pickle: bool = False,
     ) -> None:
         super().__init__()
         self.policy_root = Path(policy_root) if policy_root else SHIPPED
         self.algo = algo
         self.threads = threads
+        self.allow_pickle = bool(allow_pickle)
         import importlib.util
 
         if importlib.util.find_spec("stable_baselines3") is None:
@@ -265,7 +288,10 @@ class RLPolicyController(BaseController):
             torch.set_num_threads(self.threads)
         if scenario.task not in self._loaded:
             self._loaded[scenario.task] = load_policy(
-                policy_dir(scenario.task, self.policy_root), scenario.task, self.algo
+                policy_dir(scenario.task, self.policy_root),
+                scenario.task,
+                self.algo,
+                allow_pickle=self.allow_pickle,
             )
         self._model, self._norm, self.metadata = self._loaded[scenario.task]
         self._layout = self.metadata.get("layout", "team")
@@ -316,6 +342,10 @@ class RLSetPolicyController(RLPolicyController):
     name = "rl-ppo-set"
 
     def __init__(
-        self, policy_root: str | os.PathLike | None = None, algo: str = "ppo", threads: int | None = 1
+        self,
+        policy_root: str | os.PathLike | None = None,
+        algo: str = "ppo",
+        threads: int | None = 1,
+        allow_pickle: bool = False,
     ) -> None:
-        super().__init__(policy_root or SHIPPED / "set", algo, threads)
+        super().__init__(policy_root or SHIPPED / "set", algo, threads, allow_pickle)

@@ -45,7 +45,9 @@ def _dmpc_nominal_robust(**options):
     from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
 
     options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
-    return DistributedNMPC(**options)
+    ctrl = DistributedNMPC(**options)
+    ctrl.name = "dmpc-nominal-robust"
+    return ctrl
 
 
 def _dmpc_koopman_robust(**options):
@@ -53,7 +55,9 @@ def _dmpc_koopman_robust(**options):
     from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
 
     options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
-    return _dmpc_koopman(**options)
+    ctrl = _dmpc_koopman(**options)
+    ctrl.name = "dmpc-koopman-robust"
+    return ctrl
 
 
 def _consensus_without_avoidance(**options):

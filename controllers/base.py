@@ -8,6 +8,7 @@ scenario, a learned policy reads the observation. Solver status and timing go in
 
 from __future__ import annotations
 
+import time
 from abc import ABC, abstractmethod
 from collections import Counter
 from dataclasses import dataclass, field
@@ -146,9 +147,16 @@ class BaseController(ABC):
         self._reset(scenario, seed)
 
     def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
+        """The joint command; its wall time is recorded in :meth:`stats` unless ``_act`` records
+        its own (an optimizer timing only its solve)."""
         if self.scenario is None:
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
-        return self._act(observation, info)
+        recorded = len(self._stats.solve_times)
+        start = time.perf_counter()
+        command = self._act(observation, info)
+        if len(self._stats.solve_times) == recorded:
+            self._stats.solve_times.append(time.perf_counter() - start)
+        return command
 
     def stats(self) -> ControllerStats:
         return self._stats

@@ -130,6 +130,21 @@ def make(name: str, **options: Any) -> Controller:
     Raises
     ------
     ValueError
-        Unknown name (the message lists the available ones).
+        Unknown name (the message lists the available ones), or a factory (an import path, an
+        entry point) that builds something without the :class:`~controllers.base.Controller`
+        members (the message names the missing ones).
     """
-    return factory(name)(**options)
+    controller = factory(name)(**options)
+    missing = [
+        member
+        for member in ("name", "reset", "act", "stats")
+        if not hasattr(controller, member) or (member != "name" and not callable(getattr(controller, member)))
+    ]
+    if missing:
+        raise ValueError(
+            f"controller {name!r} built a {type(controller).__module__}.{type(controller).__qualname__}, "
+            f"which is not a controller: it lacks {missing} (a controller has a name and the methods "
+            "reset(scenario, seed=...), act(observation, info) and stats(); derive from "
+            "controllers.BaseController to get them)"
+        )
+    return controller

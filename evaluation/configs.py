@@ -245,18 +245,21 @@ def controller_configs(spec: Any) -> list[ControllerConfig]:
     return configs
 
 
-def _optimizes_with_nmpc(config: ControllerConfig) -> bool:
-    """Whether ``config`` builds an NMPC (or a wrapper around one) that takes a ``solver`` option."""
+def _nmpc_solver(config: ControllerConfig) -> str | None:
+    """The solver of the NMPC ``config`` builds (central or distributed, or one inside a wrapper
+    such as ``safe:``), or None when it builds no NMPC."""
+    from controllers.distributed import DistributedNMPC
     from controllers.nmpc import NMPCController
 
     controller = config.build()
-    while controller is not None and not isinstance(controller, NMPCController):
+    while controller is not None and not isinstance(controller, (NMPCController, DistributedNMPC)):
         controller = getattr(controller, "inner", None)
-    return controller is not None
+    return None if controller is None else str(controller.config.solver)
 
 
 def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list[ControllerConfig]:
-    """``configs`` with ``solver=`` set on every NMPC configuration that does not set it itself.
+    """``configs`` with ``solver=`` set on every NMPC configuration (central or distributed) that
+    does not set it itself and does not solve with it by default.
 
     ``solver=None`` changes nothing. A name outside :data:`controllers.nmpc.SOLVERS` raises
     ``ValueError`` naming it and the allowed ones.
@@ -270,7 +273,9 @@ def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list
         raise ValueError(f"--solver {solver!r} is not one of {list(SOLVERS)}")
     out = []
     for config in configs:
-        if "solver" not in dict(config.options) and _optimizes_with_nmpc(config):
+        # an NMPC that already solves with ``solver`` by default is left as it is (its
+        # configuration, and so a baseline's, does not change)
+        if "solver" not in dict(config.options) and _nmpc_solver(config) not in (None, solver):
             options = tuple(sorted((*config.options, ("solver", solver))))
             config = ControllerConfig(config.label, config.name, options, config.factory)
         out.append(config)

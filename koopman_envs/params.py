@@ -163,6 +163,13 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
         if n_robots == 1:
             return np.zeros(1)
         return np.linspace(0.0, SLIP_MAX_LAMBDA[slip], n_robots)
+    if isinstance(slip, (bool, np.bool_)) or (
+        isinstance(slip, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in slip)
+    ):
+        raise ValueError(
+            f"slip={slip!r} is a boolean; allowed: a name in {list(SLIP_SETTINGS)}, 'random', 'drift', "
+            "one lambda >= 0 per robot, or a list of (time [s], lambdas) pairs (slip-free: 'nominal')"
+        )
     try:
         lam = np.asarray(slip, dtype=np.float64)
     except (TypeError, ValueError) as exc:

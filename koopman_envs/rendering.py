@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.zones import SlipZone
 
@@ -472,3 +473,32 @@ def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike[st
                 writer.grab_frame()
         return path
     raise ValueError(f"path={path!r} must end in '.gif' or '.mp4'")
+
+
+def draw_engine_env(
+    renderer: Renderer, engine: Any, index: int, trail: Sequence[NDArray[np.float64]]
+) -> NDArray[np.uint8] | None:
+    """One frame of environment ``index`` of a :class:`~koopman_envs.engine.NavigationEngine`
+    (what the single env's and the vector env's ``render()`` draw).
+
+    Parameters
+    ----------
+    renderer : Renderer
+    engine : NavigationEngine
+        After a reset of ``index``.
+    index : int
+        The environment within the engine's batch.
+    trail : sequence of ndarray, shape (N, 3) each
+        Its poses since its episode started; the last is drawn as the robots.
+    """
+    cfg = engine.config
+    spec = engine.maps[index]
+    assert spec is not None  # the env was reset, so a map is installed
+    shape = f" | {cfg.formation}" if cfg.formation else ""
+    return renderer.draw(
+        engine.scenario(index),
+        np.asarray(trail),
+        title=f"{cfg.task.name} | {cfg.map_name}{shape} | slip {cfg.slip_label}",
+        elapsed=engine.elapsed[index] * PARAMS.dt,
+        slip_zones=spec.slip_zones,
+    )

@@ -43,6 +43,16 @@ ENV = "KoopNav-TargetReaching-v0"
         ({"start_noise": None}, r"start_noise=None must be a finite number >= 0"),
         ({"start_noise": True}, r"start_noise=True must be a finite number >= 0"),
         ({"start_noise": [0.1, 0.2]}, r"start_noise=\[0.1, 0.2\] must be a finite number >= 0"),
+        # issue 31: a boolean was read as lambda 1, a negative count reached numpy
+        ({"slip": True}, r"slip=True is a boolean; allowed: a name in \['nominal', 'low', 'high'\]"),
+        ({"slip": [0.0, True, 0.2]}, r"slip=\[0.0, True, 0.2\] is a boolean"),
+        ({"map": "random", "random_map": {"n_obstacles": -1}}, r"n_obstacles=-1 must be an integer >= 0"),
+        (
+            {"map": "random", "random_map": {"travel": (5, 2)}},
+            r"travel=\(5, 2\) must be a finite \(low, high\)",
+        ),
+        ({"map": "random", "random_map": {"gap": -1}}, r"gap=-1 must be a finite number >= 0"),
+        ({"map": "random", "random_map": {"obstacle_radius": (0, 1)}}, r"obstacle_radius=\(0, 1\) must be"),
     ],
 )
 def test_bad_constructor_arguments(kwargs, message) -> None:
@@ -261,3 +271,17 @@ def test_misspelt_controller_and_map_names_get_a_suggestion() -> None:
         controllers.make("koopman-nmcp")
     with pytest.raises(ValueError, match=r"map='mpa3' is not one of .* \(did you mean 'map3'\?\)"):
         gym.make("KoopNav-Formation-v0", map="mpa3")
+
+
+def test_a_map_file_with_an_unknown_key_is_refused_by_name(tmp_path) -> None:
+    """Issue 31: unknown keys of a map JSON were ignored (a typo lost the obstacles silently)."""
+    path = tmp_path / "mine.json"
+    path.write_text(
+        json.dumps(
+            {"obstacle": [[1, 1, 0.3]], "obstacles": [], "starts": [[0, 0, 0]], "targets": [[1, 0, 0]]}
+        )
+    )
+    with pytest.raises(
+        ValueError, match=r"map 'mine': unknown keys \['obstacle'\].*did you mean 'obstacles'"
+    ):
+        gym.make(ENV, map=str(path), n_robots=1)

@@ -268,3 +268,58 @@ def test_bad_layout_and_penalty_are_rejected() -> None:
         KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, collision_penalty=-1.0)
     with pytest.raises(ValueError, match="precision_shaping=nan"):
         KoopNavSB3VecEnv("KoopNav-Formation-v0", 2, precision_shaping=float("nan"))
+
+
+@pytest.mark.parametrize(
+    "path", sorted(SHIPPED.glob("**/policy.zip")), ids=lambda p: str(p.parent.relative_to(SHIPPED))
+)
+def test_shipped_policies_load_without_running_a_pickle(path, monkeypatch) -> None:
+    """Issue 31: a policy zip's pickles are code; the shipped ones load with none of them run,
+    and act bit for bit as the plain (pickled) load does."""
+    import cloudpickle
+    from stable_baselines3 import PPO
+    from stable_baselines3.common import save_util
+
+    from baselines.safe_load import load_model
+
+    plain = PPO.load(path, device="cpu")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a pickle was run")
+
+    monkeypatch.setattr(cloudpickle, "loads", refuse)
+    monkeypatch.setattr(save_util.cloudpickle, "loads", refuse)
+    safe = load_model(path, PPO)
+    assert safe.observation_space == plain.observation_space and safe.action_space == plain.action_space
+    obs = np.random.default_rng(0).normal(size=(256, *plain.observation_space.shape)).astype(np.float32)
+    np.testing.assert_array_equal(
+        safe.predict(obs, deterministic=True)[0], plain.predict(obs, deterministic=True)[0]
+    )
+
+
+def test_a_zip_with_a_foreign_pickle_is_refused_unless_trusted(tmp_path) -> None:
+    import json
+    import zipfile
+
+    from stable_baselines3 import PPO
+
+    from baselines.safe_load import UnsafePolicyFile, load_model
+
+    source = SHIPPED / "formation" / "policy.zip"
+    target = tmp_path / "policy.zip"
+    with zipfile.ZipFile(source) as old, zipfile.ZipFile(target, "w") as new:
+        for item in old.infolist():
+            payload = old.read(item.filename)
+            if item.filename == "data":
+                data = json.loads(payload)
+                data["surprise"] = {
+                    ":type:": "<class 'function'>",
+                    ":serialized:": data["clip_range"][":serialized:"],
+                }
+                payload = json.dumps(data).encode()
+            new.writestr(item, payload)
+    with pytest.raises(
+        UnsafePolicyFile, match=r"the pickled field 'surprise' cannot be rebuilt.*allow_pickle=True"
+    ):
+        load_model(target, PPO)
+    assert load_model(target, PPO, allow_pickle=True) is not None  # the user's explicit trust

@@ -303,3 +303,52 @@ def test_calibratable_is_a_declared_capability_found_down_wrappers() -> None:
     )
     wrapped = controllers.make("safe:koopman-nmpc")
     assert not isinstance(wrapped, Calibratable) and calibratable(wrapped) is wrapped.inner
+
+
+# ------------------------------------------------------------ issue 31, smaller faults
+def test_solver_reaches_the_distributed_nmpcs() -> None:
+    from evaluation.configs import controller_configs, with_solver
+
+    configs = with_solver(
+        controller_configs(["dmpc-nominal", "dmpc-koopman-robust", "safe:dmpc-nominal", "consensus"]), "ipopt"
+    )
+    assert [dict(c.options).get("solver") for c in configs] == ["ipopt", "ipopt", "ipopt", None]
+    assert all(c.build().config.solver == "ipopt" for c in configs[:2])
+    # their default already: the configuration (and a baseline's) stays as it was
+    same = with_solver(controller_configs(["dmpc-nominal", "nominal-nmpc"]), "rti")
+    assert [dict(c.options).get("solver") for c in same] == [None, "rti"]
+
+
+@pytest.mark.parametrize(
+    "name", ["dmpc-nominal", "dmpc-nominal-robust", "dmpc-koopman", "dmpc-koopman-robust", "consensus-free"]
+)
+def test_presets_report_their_own_name(name: str) -> None:
+    assert controllers.make(name).name == name
+
+
+def test_a_plugin_derived_from_base_controller_is_timed(tmp_path) -> None:
+    import evaluate as ev
+
+    results = ev.evaluate(
+        ev.RunSpec(
+            "KoopNav-TargetReaching-v0",
+            ["plugin_controllers:PlainTimed", "consensus"],
+            ["map1"],
+            ["nominal"],
+            episodes=1,
+            env_kwargs={"max_episode_steps": 15},
+        ),
+        workers=1,
+    )
+    plain = next(r for r in results.records if r["controller"] == "plugin_controllers:PlainTimed")
+    assert len(plain["solve_ms"]) == 15 and plain["solve_ms_median"] >= 0
+    # a controller that times itself is not timed twice
+    own = next(r for r in results.records if r["controller"] == "consensus")
+    assert len(own["solve_ms"]) == 15
+    row = next(r for r in results.leaderboard() if r["controller"] == "plugin_controllers:PlainTimed")
+    assert row["solve_ms_median"] == row["solve_ms_median"]  # not NaN: the report shows a time
+
+
+def test_make_refuses_an_import_path_that_is_not_a_controller() -> None:
+    with pytest.raises(ValueError, match=r"not a controller: it lacks \['name', 'reset', 'stats'\]"):
+        controllers.make("plugin_controllers:NotAController")

@@ -298,3 +298,58 @@ def test_the_vector_env_exposes_its_autoreset_mode() -> None:
             autoreset_mode=mode,
         )
         assert vec.unwrapped.autoreset_mode == mode == vec.unwrapped.metadata["autoreset_mode"]
+
+
+def _drive_one_into_the_wall(vec, steps: int = 120) -> list[tuple[dict, np.ndarray]]:
+    """Sub-env 0 drives its team straight ahead (it collides or leaves the map first); sub-env 1
+    stands still. Returns (info, done) of every step."""
+    out = []
+    forward = np.tile([0.6, 0.0], 3)
+    for _ in range(steps):
+        _, _, terminated, truncated, info = vec.step(np.stack([forward, np.zeros(6)]))
+        out.append((info, terminated | truncated))
+        if (terminated | truncated).any():
+            break
+    return out
+
+
+def test_same_step_final_info_masks_match_gymnasiums_sync_env() -> None:
+    """The finished sub-env's final_info entries, with each key's mask true for it alone, as
+    Gymnasium's SyncVectorEnv builds them (issue 31: every inner mask was true)."""
+    native = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, autoreset_mode="SameStep")
+    sync = gym.vector.SyncVectorEnv(
+        [lambda: gym.make("KoopNav-TargetReaching-v0")] * 2, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
+    )
+    native.reset(seed=4)
+    sync.reset(seed=4)
+    ours, theirs = _drive_one_into_the_wall(native), _drive_one_into_the_wall(sync)
+    assert len(ours) == len(theirs) and ours[-1][1].tolist() == [True, False]
+    mine, reference = ours[-1][0]["final_info"], theirs[-1][0]["final_info"]
+    for key in reference:
+        if key.startswith("_"):
+            np.testing.assert_array_equal(mine[key], reference[key], err_msg=key)
+    assert mine["_collision"].tolist() == [True, False]
+    np.testing.assert_allclose(mine["poses"][0], reference["poses"][0])
+
+
+def test_the_vector_env_renders_one_frame_per_sub_env_as_the_single_env_does() -> None:
+    vec = gym.make_vec("KoopNav-Formation-v0", num_envs=2, render_mode="rgb_array", map="random")
+    singles = [gym.make("KoopNav-Formation-v0", render_mode="rgb_array", map="random") for _ in range(2)]
+    vec.reset(seed=7)
+    for i, env in enumerate(singles):
+        env.reset(seed=7 + i)
+    action = np.tile([0.3, 0.1], 3)
+    for _ in range(5):
+        vec.step(np.stack([action, action]))
+        for env in singles:
+            env.step(action)
+    frames = vec.render()
+    assert isinstance(frames, tuple) and len(frames) == 2
+    for frame, env in zip(frames, singles):
+        expected = env.render()
+        assert frame.shape == expected.shape and frame.dtype == np.uint8
+        assert np.abs(frame.astype(float) - expected).mean() < 0.1
+    assert np.abs(frames[0].astype(float) - frames[1]).mean() > 0.5  # two different episodes
+    with pytest.raises(ValueError, match=r"render_mode='human' is not one of \[None, 'rgb_array'\]"):
+        gym.make_vec("KoopNav-Formation-v0", num_envs=2, render_mode="human")
+    vec.close()

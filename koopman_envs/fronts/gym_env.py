@@ -100,20 +100,12 @@ class KoopNavEnv(gym.Env):
                 "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gym.make"
             )
             return None
-        from koopman_envs.rendering import Renderer
+        from koopman_envs.rendering import Renderer, draw_engine_env
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
-        scenario = self.scenario  # a RuntimeError before the first reset()
-        spec = self.engine.maps[0]
-        assert spec is not None  # the scenario exists, so reset() has installed a map
-        return self._renderer.draw(
-            scenario,
-            np.asarray(self._trail),
-            title=self._title(),
-            elapsed=self.engine.elapsed[0] * PARAMS.dt,
-            slip_zones=spec.slip_zones,
-        )
+        self.scenario  # noqa: B018 - a RuntimeError before the first reset()
+        return draw_engine_env(self._renderer, self.engine, 0, self._trail)
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -132,12 +124,6 @@ class KoopNavEnv(gym.Env):
         schedule's at the current time, with the slip zones the robots stand in applied
         (ground truth; controllers must not read it)."""
         return cast("NDArray[np.float64]", self.engine.slip_means()[0])  # row 0 of (K, N)
-
-    def _title(self) -> str:
-        """Fixed part of the rendered title (the renderer appends the episode time)."""
-        cfg = self.config
-        shape = f" | {cfg.formation}" if cfg.formation else ""
-        return f"{self.task_name} | {cfg.map_name}{shape} | slip {cfg.slip_label}"
 
 
 _W = RewardWeights()

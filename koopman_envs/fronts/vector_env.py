@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
+import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -17,6 +18,9 @@ from koopman_envs.engine import NavigationEngine
 from koopman_envs.keywords import takes_env_keywords
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
+    from koopman_envs.rendering import Renderer
 
 __all__ = ["KoopNavVectorEnv"]
 
@@ -39,8 +43,11 @@ class KoopNavVectorEnv(VectorEnv):
     autoreset_mode : str or AutoresetMode
         ``"NextStep"`` (Gymnasium's default) or ``"SameStep"`` (final observation and info in
         ``info["final_obs"]`` / ``info["final_info"]``, as SB3 expects).
-    render_mode : None
-        The vector env does not render (anything else is a ``ValueError``).
+    render_mode : None or "rgb_array"
+        ``"rgb_array"``: :meth:`render` returns one frame per sub-env, as Gymnasium's
+        ``SyncVectorEnv`` does (its vector wrappers that tile or record frames work unchanged).
+        Trails are kept only then. ``"human"`` is a ``ValueError``: render a single env, or
+        tile these frames with ``gymnasium.wrappers.vector.HumanRendering``.
     **keywords
         The env keywords of :data:`koopman_envs.keywords.ENV_KEYWORDS`, as for the single env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...);
@@ -50,7 +57,7 @@ class KoopNavVectorEnv(VectorEnv):
         equal to the single env seeded ``s + i``.
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
 
     @takes_env_keywords("vector")
     def __init__(
@@ -62,9 +69,10 @@ class KoopNavVectorEnv(VectorEnv):
         **keywords: Any,
     ) -> None:
         check_int("num_envs", num_envs, 1)
-        if render_mode is not None:
+        if render_mode not in (None, "rgb_array"):
             raise ValueError(
-                f"render_mode={render_mode!r}: the vector env does not render; render a single env"
+                f"render_mode={render_mode!r} is not one of [None, 'rgb_array'] for the vector env; "
+                "'human': render a single env, or wrap this one in gymnasium.wrappers.vector.HumanRendering"
             )
         try:
             mode = AutoresetMode(autoreset_mode)
@@ -82,7 +90,10 @@ class KoopNavVectorEnv(VectorEnv):
         self.single_action_space, self.single_observation_space = self.engine.team_spaces()
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.render_mode = None
+        self.render_mode = render_mode
+        #: each sub-env's poses since its episode started (only with a render mode)
+        self._trails: list[list[NDArray[np.float64]]] = []
+        self._renderers: list[Renderer] = []
         self._rngs: list[np.random.Generator] | None = None
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._all = np.ones(self.num_envs, dtype=bool)
@@ -133,6 +144,7 @@ class KoopNavVectorEnv(VectorEnv):
         for i in range(self.num_envs):
             self.engine.reset_env(i, self._rngs[i], overrides[i])
         self._autoreset[:] = False
+        self._record(restarted=range(self.num_envs))
         return self._observations(self.engine.features()), self._info()
 
     def step(
@@ -159,9 +171,11 @@ class KoopNavVectorEnv(VectorEnv):
         if pending.size:
             for i in pending:
                 engine.reset_env(int(i), self._rngs[i])
+            self._record(restarted=pending)
             result = engine.step(commands, active=~self._autoreset)
         else:
             result = engine.step(commands)
+        self._record()
         reward = result.robot_reward.sum(-1) + result.team_reward
         self._autoreset = result.terminated | result.truncated
         info = self._info()
@@ -183,15 +197,19 @@ class KoopNavVectorEnv(VectorEnv):
         engine = self.engine
         assert self._rngs is not None  # step() has checked that reset() made the generators
         result = engine.step(commands)
+        self._record()
         reward = result.robot_reward.sum(-1) + result.team_reward
         done = result.terminated | result.truncated
         obs = self._observations(result.features)
         info = self._info()
         if done.any():
             final_obs = obs.copy()
-            final_info = info
+            # as Gymnasium's SyncVectorEnv builds it: the finished sub-envs' entries, each key's
+            # mask true for those sub-envs only
+            final_info = {key: (done.copy() if key.startswith("_") else value) for key, value in info.items()}
             for i in np.flatnonzero(done):
                 engine.reset_env(int(i), self._rngs[i])
+            self._record(restarted=np.flatnonzero(done))
             fresh = self._observations(engine.features())
             obs = np.where(done[:, None], fresh, obs)
             info = self._info()
@@ -211,6 +229,46 @@ class KoopNavVectorEnv(VectorEnv):
         for key in list(info):
             info["_" + key] = self._all
         return info
+
+    def _record(self, restarted: Iterable[int] | None = None) -> None:
+        """Keep the trails for :meth:`render`: start the ``restarted`` sub-envs' trails at their
+        current poses, or (None) add every sub-env's current poses. Nothing without a render mode."""
+        if self.render_mode is None:
+            return
+        poses = self.engine.poses
+        if restarted is None:
+            for trail, pose in zip(self._trails, poses):
+                trail.append(pose.copy())
+            return
+        if not self._trails:
+            self._trails = [[] for _ in range(self.num_envs)]
+        for i in restarted:
+            self._trails[int(i)] = [poses[int(i)].copy()]
+
+    def render(self) -> tuple[NDArray[np.uint8], ...] | None:
+        """One (H, W, 3) frame per sub-env, as ``SyncVectorEnv.render`` returns them (None without
+        a render mode)."""
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; pass render_mode='rgb_array' to gym.make_vec"
+            )
+            return None
+        if not self._trails:
+            raise RuntimeError("call reset() before render()")
+        from koopman_envs.rendering import Renderer, draw_engine_env
+
+        while len(self._renderers) < self.num_envs:
+            self._renderers.append(Renderer())
+        frames = [
+            draw_engine_env(self._renderers[i], self.engine, i, self._trails[i]) for i in range(self.num_envs)
+        ]
+        return tuple(frame for frame in frames if frame is not None)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Close the renderers' figures."""
+        for renderer in self._renderers:
+            renderer.close()
+        self._renderers = []
 
     def scenario(self, index: int) -> Scenario:
         """Scenario of sub-environment ``index`` (see :class:`koopman_envs.scenario.Scenario`)."""

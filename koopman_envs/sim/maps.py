@@ -64,6 +64,20 @@ def _as_array(value: Any, name: str, columns: int, map_name: str) -> NDArray[np.
     return arr
 
 
+#: the keys of a map's JSON form (:meth:`MapSpec.from_dict`); any other is refused by name
+MAP_KEYS = (
+    "name",
+    "description",
+    "obstacles",
+    "starts",
+    "targets",
+    "leader_target",
+    "formation_offsets",
+    "slip_zones",
+    "metadata",
+)
+
+
 @dataclass(frozen=True, eq=False)
 class MapSpec:
     """One navigation scenario layout.
@@ -313,6 +327,10 @@ class MapSpec:
         if not isinstance(data, dict):
             raise ValueError(f"map {default_name!r}: must be a JSON object, got {type(data).__name__}")
         name = str(data.get("name", default_name))
+        unknown = [key for key in data if key not in MAP_KEYS]
+        if unknown:
+            hints = "".join(did_you_mean(str(key), MAP_KEYS) for key in unknown)
+            raise ValueError(f"map {name!r}: unknown keys {unknown}; allowed: {list(MAP_KEYS)}{hints}")
         missing = [key for key in ("obstacles", "starts") if key not in data]
         if missing:
             raise ValueError(f"map {name!r}: missing keys {missing}")
@@ -461,6 +479,26 @@ class RandomMapConfig:
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
+        check_int("n_obstacles", self.n_obstacles, 0)
+        check_int("max_attempts", self.max_attempts, 1)
+        for name in ("clearance", "gap", "border"):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not (math.isfinite(value) and value >= 0)
+            ):
+                raise ValueError(f"{name}={value!r} must be a finite number >= 0 [m]")
+        for name in ("travel", "obstacle_radius"):
+            pair = getattr(self, name)
+            try:
+                low, high = (float(v) for v in pair)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name}={pair!r} must be a (low, high) pair of numbers [m]") from None
+            if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
+                raise ValueError(
+                    f"{name}={pair!r} must be a finite (low, high) pair with 0 < low <= high [m]"
+                )
         if self.formation != AUTO_FORMATION:
             try:
                 formation_shape(self.formation, 1, self.spacing)  # the shape's own checks: name, spacing
