@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 import koopman_envs
 from controllers.consensus import ConsensusController
 from koopman_envs.params import PARAMS
-from koopman_envs.rendering import Renderer, draw_scenario, title_parts
+from koopman_envs.rendering import Renderer, draw_scenario, frame_title, title_parts
 from koopman_envs.scenario import Scenario
 
 REPEATS = 3  # timing windows per figure; the best is reported
@@ -112,7 +112,7 @@ def main() -> None:
     args = parser.parse_args()
     env, actions, poses = record_episode(args.env, args.map)
     scenario = env.unwrapped.scenario
-    title = env.unwrapped._title()
+    title = frame_title(env.unwrapped.config)
     trail = np.asarray(poses)
     frames = len(trail)
     print(

@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when
     from matplotlib.figure import Figure
     from matplotlib.text import Text
 
-__all__ = ["Renderer", "draw_scenario", "save_episode", "title_parts"]
+__all__ = ["Renderer", "draw_engine_env", "draw_scenario", "frame_title", "save_episode", "title_parts"]
 
 _COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink")
 #: margin around everything drawn [m] (the view is also clipped to the workspace)
@@ -475,6 +475,13 @@ def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike[st
     raise ValueError(f"path={path!r} must end in '.gif' or '.mp4'")
 
 
+def frame_title(config: Any) -> str:
+    """The fixed part of a frame's title (the renderer appends the episode time): task, map, the
+    formation shape asked for, and the slip setting of an :class:`~koopman_envs.config.EngineConfig`."""
+    shape = f" | {config.formation}" if config.formation else ""
+    return f"{config.task.name} | {config.map_name}{shape} | slip {config.slip_label}"
+
+
 def draw_engine_env(
     renderer: Renderer, engine: Any, index: int, trail: Sequence[NDArray[np.float64]]
 ) -> NDArray[np.uint8] | None:
@@ -491,14 +498,12 @@ def draw_engine_env(
     trail : sequence of ndarray, shape (N, 3) each
         Its poses since its episode started; the last is drawn as the robots.
     """
-    cfg = engine.config
     spec = engine.maps[index]
     assert spec is not None  # the env was reset, so a map is installed
-    shape = f" | {cfg.formation}" if cfg.formation else ""
     return renderer.draw(
         engine.scenario(index),
         np.asarray(trail),
-        title=f"{cfg.task.name} | {cfg.map_name}{shape} | slip {cfg.slip_label}",
+        title=frame_title(engine.config),
         elapsed=engine.elapsed[index] * PARAMS.dt,
         slip_zones=spec.slip_zones,
     )

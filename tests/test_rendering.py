@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from koopman_envs import formation_v0
-from koopman_envs.rendering import Renderer, save_episode
+from koopman_envs.rendering import Renderer, frame_title, save_episode
 
 DATA = Path(__file__).parent / "data"
 
@@ -101,7 +101,7 @@ def test_blitting_matches_a_full_redraw_every_frame(open_map) -> None:
     for step in range(105):
         if step in shown:
             trail, scenario = np.asarray(base._trail), base.scenario
-            args = (scenario, trail, "target_reaching | open | slip nominal", step * 0.1)
+            args = (scenario, trail, frame_title(base.config), step * 0.1)
             assert _mean_abs_difference(fast.draw(*args), full.draw(*args)) < 0.1, step
             limits.add(fast._scene.limits)
         env.step(np.array([0.6, 0.0] * 3))

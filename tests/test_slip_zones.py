@@ -226,7 +226,7 @@ def test_map6_has_the_paper_formation_offsets() -> None:
 
 # ------------------------------------------------------------------ rendering
 def test_zones_are_shaded_beneath_the_obstacles_and_blitting_matches_a_full_redraw() -> None:
-    from koopman_envs.rendering import Renderer
+    from koopman_envs.rendering import Renderer, frame_title
 
     env = gym.make(TR, map="map5", render_mode="rgb_array")
     env.reset(seed=0)
@@ -239,7 +239,7 @@ def test_zones_are_shaded_beneath_the_obstacles_and_blitting_matches_a_full_redr
     assert difference.mean() > 0.02  # the band is drawn (the view also grows to show it)
     base = env.unwrapped
     for step in range(3):
-        args = (base.scenario, np.asarray(base._trail), base._title(), step * 0.1)
+        args = (base.scenario, np.asarray(base._trail), frame_title(base.config), step * 0.1)
         fast = Renderer().draw(*args, slip_zones=base.engine.maps[0].slip_zones)
         full = Renderer(blit=False).draw(*args, slip_zones=base.engine.maps[0].slip_zones)
         assert np.abs(fast.astype(int) - full.astype(int)).mean() < 0.1
