@@ -47,7 +47,7 @@ __all__ = [
 ]
 
 #: Largest RMS one-step position residual a calibration may report [m]: ten times the longest
-#: step the identification inputs can make (|u| <= koopman_input_bound for one period). A cached
+#: step the identification inputs can make (speed up to ``koopman_input_bound`` for one period). A cached
 #: value beyond it cannot come from a fit of these robots and is measured again.
 MAX_POSITION_RESIDUAL = 10.0 * PARAMS.koopman_input_bound * PARAMS.dt
 
