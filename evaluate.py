@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import controllers
-from controllers.nmpc import SOLVERS
+from controllers.mpc.config import SOLVERS
 from evaluation.ablation import ablation_markdown, check_factors
 from evaluation.aggregate import Cell
 from evaluation.backends import RunInterrupted
@@ -52,7 +52,7 @@ from evaluation.baseline import (
     refuse_incomparable,
 )
 from evaluation.configs import split_controller_list
-from evaluation.plan import EpisodeSpec, is_lambda
+from evaluation.plan import EpisodeSpec
 from evaluation.protocols import (
     QUICK_START_NOISE,
     TASK_MAPS,
@@ -60,9 +60,10 @@ from evaluation.protocols import (
     paper_protocol,
     quick_protocol,
 )
-from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
-from evaluation.results import SCHEMA_VERSION, Results, json_safe
+from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
+from evaluation.results import SCHEMA_VERSION, Results
 from evaluation.runner import evaluate, usable_controllers
+from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
 from evaluation.thresholds import check_thresholds
 from koopman_envs.params import PARAMS, SLIP_NAMES
@@ -94,29 +95,6 @@ def split_words(words: list[str] | None) -> list[str] | None:
     if words is None:
         return None
     return [piece.strip() for word in words for piece in word.split(",") if piece.strip()]
-
-
-def split_slips(words: list[str] | None) -> list[str] | None:
-    """Slip words -> settings: names split at commas, a run of numbers stays one lambda vector.
-
-    ``["nominal,high", "0,0.1,0.2"]`` -> ``["nominal", "high", "0,0.1,0.2"]``.
-    """
-    if words is None:
-        return None
-    slips: list[str] = []
-    for word in words:
-        numbers: list[str] = []
-        for piece in [p.strip() for p in word.split(",") if p.strip()]:
-            if is_lambda(piece):
-                numbers.append(piece)
-                continue
-            if numbers:
-                slips.append(",".join(numbers))
-                numbers = []
-            slips.append(piece)
-        if numbers:
-            slips.append(",".join(numbers))
-    return slips
 
 
 def parse_env_kwargs(words: list[str] | None) -> dict[str, Any]:

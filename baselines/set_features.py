@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.sim.nearest import nearest_order
 from koopman_envs.tasks.observation import FAR
 
 __all__ = [
@@ -207,7 +208,7 @@ def _neighbour_slots(
         axis=-1,
     )  # (..., N, N - 1, NEIGHBOUR_SIZE)
     chosen = min(k, n - 1)
-    order = np.argsort(gap, axis=-1, kind="stable")[..., :chosen]  # nearest first
+    order = nearest_order(gap, chosen)  # nearest first
     picked = np.take_along_axis(features, order[..., None], axis=-2)
     present = np.take_along_axis(gap, order, axis=-1) <= config.sensing_radius
     out[..., :chosen, :NEIGHBOUR_SIZE] = picked * present[..., None]

@@ -31,6 +31,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepRetu
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features
 from koopman_envs.checks import check_int
+from koopman_envs.sim.nearest import nearest_order
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -66,7 +67,7 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     listed = min(neighbours, n - 1)
     clearance = blocks[..., 9 + 2 : 9 + 3 * (n - 1) : 3]  # (..., N, N - 1)
     # the nearest ``listed`` slots, then back into index order (a stable sort keeps ties in order)
-    slots = np.sort(np.argsort(clearance, axis=-1, kind="stable")[..., :listed], axis=-1)
+    slots = np.sort(nearest_order(clearance, listed), axis=-1)
     entries = 9 + 3 * slots[..., None] + np.arange(3)  # (..., N, listed, 3)
     chosen = np.take_along_axis(blocks, entries.reshape(entries.shape[:-2] + (-1,)), axis=-1)
     pad = np.tile([0.0, 0.0, FAR], neighbours - listed)

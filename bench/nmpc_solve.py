@@ -17,7 +17,7 @@ optimizer and prints one row each, side by side:
 ``IPOPT uncompiled``
     ``nlpsol`` IPOPT solved to convergence at every period, uncompiled (the previous default).
 ``IPOPT compiled`` and ``fatrop compiled`` (only with ``--compiled``)
-    The NLP compiled to C, cached on disk by :mod:`controllers.solver_cache`. The first run on
+    The NLP compiled to C, cached on disk by :mod:`controllers.solvers.compiled`. The first run on
     a machine waits for the compile (minutes per problem structure on a loaded 2-core machine,
     not in the per-step times), which is why these rows are opt-in.
 ``do-mpc (IPOPT)``
@@ -62,15 +62,15 @@ from numpy.typing import NDArray
 import controllers
 import koopman_envs  # noqa: F401
 from controllers.calibration import calibrate_controller
-from controllers.nmpc import IPOPT_OPTIONS, NMPCConfig
-from controllers.rti import QP_SOLVERS
-from controllers.solver_cache import solver_cache_dir
-from controllers.unicycle import UnicycleModel
+from controllers.mpc.config import IPOPT_OPTIONS, NMPCConfig
+from controllers.mpc.models import UnicycleModel
+from controllers.mpc.rti import QP_SOLVERS
+from controllers.solvers.compiled import solver_cache_dir
 from koopman_envs.episode import EpisodeResult, run_episode
 from koopman_envs.tasks.base import env_id_for_map
 
 #: QP solvers of the real-time iteration compared by default (``--qp-solvers`` picks others of
-#: :data:`controllers.rti.QP_SOLVERS`, e.g. DAQP or proxQP)
+#: :data:`controllers.mpc.rti.QP_SOLVERS`, e.g. DAQP or proxQP)
 QP_ROWS = ("hpipm", "osqp", "piqp", "daqp")
 #: a QP solver slower than this per step (median) is dropped: it is no real-time option
 MEDIAN_LIMIT = 0.050
@@ -349,7 +349,7 @@ def build_seconds(
     import sys
     from pathlib import Path
 
-    from controllers.nmpc import JIT_ENV
+    from controllers.mpc.config import JIT_ENV
 
     root = Path(__file__).resolve().parents[1]
     env = {**os.environ, "KOOPNAV_CACHE": cache, "PYTHONPATH": str(root), JIT_ENV: "1" if jit else "0"}

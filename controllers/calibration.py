@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import Calibratable, calibratable
-from controllers.cache import cache_root, write_atomic
+from controllers.disk_cache import cache_root, write_atomic
 from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
@@ -193,7 +193,7 @@ def position_residual(
 
 
 def cache_dir() -> Path:
-    """User cache directory of calibrations (``<cache root>/calibration``, see :mod:`controllers.cache`)."""
+    """User cache directory of calibrations (``<cache root>/calibration``, see :mod:`controllers.disk_cache`)."""
     return cache_root() / "calibration"
 
 

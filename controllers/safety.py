@@ -23,7 +23,7 @@ The filter keeps ``dh/dt >= -gamma h`` for each of them (gamma: the class-K gain
 split decentrally: each robot of a pair takes half, ``n_ij . dp_i/dt >= -gamma h_ij / 2``, which
 adds up to the pair's condition. We chose the split over one joint QP for the team because (1)
 each robot's problem then has two variables and is solved exactly in closed form
-(:mod:`controllers.qp2`, compiled), in microseconds per robot (a joint QP
+(:mod:`controllers.solvers.two_variable_qp`, compiled), in microseconds per robot (a joint QP
 through CasADi's ``conic`` costs ~0.3 ms per call even for 2 variables and 1.3-6 ms for 32
 variables with daqp / qpOASES); (2) each robot's problem stays feasible on its own (see below),
 so one robot in trouble does not make the whole team's problem infeasible; (3) it is what robots
@@ -94,7 +94,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats
-from controllers.qp2 import qp2_kernel
+from controllers.solvers.two_variable_qp import qp2_kernel
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 

@@ -22,7 +22,7 @@ import itertools
 from collections.abc import Sequence
 from typing import Any
 
-from controllers.nmpc import ROBUST_UNCERTAINTY_MARGIN
+from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN
 from evaluation.configs import ControllerConfig
 from evaluation.records import ran
 from evaluation.report import task_label

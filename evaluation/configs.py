@@ -248,8 +248,8 @@ def controller_configs(spec: Any) -> list[ControllerConfig]:
 def _nmpc_solver(config: ControllerConfig) -> str | None:
     """The solver of the NMPC ``config`` builds (central or distributed, or one inside a wrapper
     such as ``safe:``), or None when it builds no NMPC."""
-    from controllers.distributed import DistributedNMPC
-    from controllers.nmpc import NMPCController
+    from controllers.mpc.controller import NMPCController
+    from controllers.mpc.distributed import DistributedNMPC
 
     controller = config.build()
     while controller is not None and not isinstance(controller, (NMPCController, DistributedNMPC)):
@@ -261,13 +261,13 @@ def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list
     """``configs`` with ``solver=`` set on every NMPC configuration (central or distributed) that
     does not set it itself and does not solve with it by default.
 
-    ``solver=None`` changes nothing. A name outside :data:`controllers.nmpc.SOLVERS` raises
+    ``solver=None`` changes nothing. A name outside :data:`controllers.mpc.config.SOLVERS` raises
     ``ValueError`` naming it and the allowed ones.
     """
     configs = list(configs)
     if solver is None:
         return configs
-    from controllers.nmpc import SOLVERS
+    from controllers.mpc.config import SOLVERS
 
     if solver not in SOLVERS:
         raise ValueError(f"--solver {solver!r} is not one of {list(SOLVERS)}")

@@ -4,7 +4,6 @@ slip setting with 95% Wilson bars per task."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,14 +11,12 @@ from evaluation.aggregate import pooled_rate
 from evaluation.plan import safe_file_name
 from evaluation.records import ran
 from evaluation.report import task_label
-
-if TYPE_CHECKING:
-    from evaluation.results import Results
+from evaluation.run_data import RunData
 
 __all__ = ["save_figures"]
 
 
-def save_figures(results: Results, out_dir: Path) -> list[Path]:
+def save_figures(results: RunData, out_dir: Path) -> list[Path]:
     """Write the figures of ``results`` under ``out_dir`` (created if missing); return their paths.
 
     ``traj_<cell>.png``: the recorded trajectory of each cell that has one (obstacles, paths,

@@ -20,13 +20,11 @@ import os
 from collections.abc import Iterable, Sequence
 from html import escape
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import koopman_envs
 from evaluation.report import Items, Note, Section, Table, TableBlock, sections, task_label
-
-if TYPE_CHECKING:
-    from evaluation.results import Results
+from evaluation.run_data import RunData
 
 __all__ = ["render_html", "write_html"]
 
@@ -184,7 +182,7 @@ def _figure(path: Path, caption: str) -> str:
     return f'<figure><img src="{uri}" alt="{_e(caption)}"><figcaption>{_e(caption)}</figcaption></figure>'
 
 
-def _config_section(results: Results) -> str:
+def _config_section(results: RunData) -> str:
     config = results.config
     items: list[tuple[str, str]] = []
     env_ids = config.get("env_ids") or list(dict.fromkeys(c.env_id for c in results.cells))
@@ -231,7 +229,7 @@ def _config_section(results: Results) -> str:
     return "\n".join(out)
 
 
-def _animations(results: Results, out_dir: Path) -> list[str]:
+def _animations(results: RunData, out_dir: Path) -> list[str]:
     """One embedded animation per cell whose records name one (trial 0's first)."""
     out = []
     for cell in results.cells:
@@ -257,13 +255,13 @@ def _animations(results: Results, out_dir: Path) -> list[str]:
 
 
 def render_html(
-    results: Results, out_dir: str | os.PathLike, figures: Iterable[str | os.PathLike] | None = None
+    results: RunData, out_dir: str | os.PathLike, figures: Iterable[str | os.PathLike] | None = None
 ) -> str:
     """The report page of a run, as one self-contained HTML document.
 
     Parameters
     ----------
-    results : Results
+    results : RunData
         The run.
     out_dir : str or path-like
         The run's output directory; ``animation`` paths of episode records are relative to it.
@@ -308,13 +306,13 @@ def render_html(
 
 
 def write_html(
-    results: Results, out_dir: str | os.PathLike, figures: Sequence[str | os.PathLike] | None = None
+    results: RunData, out_dir: str | os.PathLike, figures: Sequence[str | os.PathLike] | None = None
 ) -> Path:
     """Write ``out_dir/index.html``, the self-contained report page (see :func:`render_html`).
 
     Parameters
     ----------
-    results : Results
+    results : RunData
         The run.
     out_dir : str or path-like
         The run's output directory (created if missing).

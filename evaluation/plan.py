@@ -14,35 +14,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from evaluation.configs import ControllerConfig
-from koopman_envs.params import PARAMS, SLIP_NAMES
+from evaluation.slip_text import is_lambda, slip_value
+from koopman_envs.params import PARAMS
 from koopman_envs.sim.maps import BUILTIN_MAPS
 
 __all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
 
 RANDOM_MAP = "random"
-
-
-def is_lambda(text: str) -> bool:
-    """Whether one comma-separated piece of a slip text is a number (a per-robot lambda) rather
-    than a setting name: the one rule for reading ``"0,0.1,0.2"`` (cells and the CLI alike)."""
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def slip_value(slip: str) -> str | list[float]:
-    """A slip cell name as the env takes it: a setting name, ``"random"``, ``"drift"`` or per-robot
-    lambdas (a listed schedule of levels over time is an env keyword only, not a cell)."""
-    if slip in SLIP_NAMES:
-        return slip
-    pieces = slip.split(",")
-    if not all(is_lambda(piece) for piece in pieces):
-        raise ValueError(
-            f"slip={slip!r} is not one of {list(SLIP_NAMES)} nor comma-separated per-robot lambdas"
-        )
-    return [float(piece) for piece in pieces]
 
 
 @dataclass(frozen=True)

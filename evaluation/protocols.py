@@ -56,7 +56,7 @@ def paper_protocol(strict: bool = False) -> RunSpec:
 
     ``strict=True`` (``--paper-strict``) runs the NMPCs in the paper's exact formulation: hard
     collision and formation constraints and the paper's 0.015 m margins (our default softens the
-    constraints with exact-penalty slacks; see :class:`controllers.nmpc.NMPCConfig`).
+    constraints with exact-penalty slacks; see :class:`controllers.mpc.config.NMPCConfig`).
     """
     names = ["koopman-nmpc", "nominal-nmpc", "consensus"]
     if strict:

@@ -1,5 +1,6 @@
-"""What an episode record's ``status`` means: the statuses, which of them ran, and when a
-finished episode counts as degraded. Every reader of records asks here, so that the rule is one.
+"""Episode records: what a record's ``status`` means (the statuses, which of them ran, and when a
+finished episode counts as degraded) and the plain-JSON form records are written in. Every
+reader of records asks here, so that the rule is one.
 
 - ``"ok"``: the episode ran to its end and its controller decided normally.
 - ``"degraded"``: it ran to its end, but the controller's optimizer failed in more than
@@ -11,10 +12,11 @@ finished episode counts as degraded. Every reader of records asks here, so that 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["DEGRADED_FAILURE_SHARE", "RAN", "STATUSES", "finished_status", "is_degraded", "ran"]
+__all__ = ["DEGRADED_FAILURE_SHARE", "RAN", "STATUSES", "finished_status", "is_degraded", "json_safe", "ran"]
 
 STATUSES = ("ok", "degraded", "error")
 #: statuses of episodes that ran to their end (their outcome counts)
@@ -37,3 +39,15 @@ def is_degraded(record: Mapping[str, Any]) -> bool:
 def finished_status(failures: int, decisions: int) -> str:
     """``"degraded"`` when more than :data:`DEGRADED_FAILURE_SHARE` of ``decisions`` failed, else ``"ok"``."""
     return "degraded" if decisions > 0 and failures > DEGRADED_FAILURE_SHARE * decisions else "ok"
+
+
+def json_safe(value: Any) -> Any:
+    """A record (or any value) as plain JSON: NaN and inf become null (JSON has no such numbers),
+    tuples become lists."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value

@@ -12,13 +12,11 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
+from evaluation.run_data import RunData
 from koopman_envs.tasks.base import TASKS
-
-if TYPE_CHECKING:  # the report reads a Results; results.py writes the report
-    from evaluation.results import Results
 
 __all__ = [
     "LEADERBOARD_NOTE",
@@ -105,7 +103,7 @@ def _p_value(p: float) -> str:
 
 
 # --------------------------------------------------------------------------- tables
-def leaderboard_rows(results: Results) -> Table:
+def leaderboard_rows(results: RunData) -> Table:
     """The leaderboard (ranked within each task): one row per (task, controller)."""
     header = [
         "Rank",
@@ -146,7 +144,7 @@ def leaderboard_rows(results: Results) -> Table:
     return header, rows
 
 
-def paired_rows(results: Results) -> Table:
+def paired_rows(results: RunData) -> Table:
     """The paired comparisons (success rate of a minus b on shared seeds)."""
     header = [
         "Task",
@@ -177,7 +175,7 @@ def paired_rows(results: Results) -> Table:
     return header, rows
 
 
-def paper_rows(results: Results, env_id: str, controller: str) -> Table:
+def paper_rows(results: RunData, env_id: str, controller: str) -> Table:
     """One controller's paper-style table: one row per map and slip."""
     cells = [c for c in results.cells if c.env_id == env_id and c.controller == controller]
     n = max((len(c.distance_collision_free.per_robot) for c in cells), default=0)
@@ -208,7 +206,7 @@ def paper_rows(results: Results, env_id: str, controller: str) -> Table:
     return header, rows
 
 
-def controller_tables(results: Results) -> list[tuple[str, Table]]:
+def controller_tables(results: RunData) -> list[tuple[str, Table]]:
     """(caption, paper-style table) of every (task, controller), in report order."""
     keys = [
         (env_id, name)
@@ -229,7 +227,7 @@ def _calibration_note(config: Mapping[str, Any]) -> str:
     )
 
 
-def _calibration_used(results: Results) -> str:
+def _calibration_used(results: RunData) -> str:
     used = [c for c in results.cells if c.calibration_transitions is not None]
     if not used:
         return ""
@@ -273,7 +271,7 @@ class Section:
     blocks: tuple[Block, ...]
 
 
-def sections(results: Results) -> list[Section]:
+def sections(results: RunData) -> list[Section]:
     """The report of a run, in order: leaderboard, paired comparisons (when any two controllers
     share episodes), per-controller tables, and the episodes that raised (when any did)."""
     lead: list[Block] = [TableBlock(leaderboard_rows(results)), Note(LEADERBOARD_NOTE)]
@@ -325,7 +323,7 @@ def markdown(report: Sequence[Section]) -> str:
     )
 
 
-def terminal_summary(results: Results, paths: Mapping[str, Path]) -> str:
+def terminal_summary(results: RunData, paths: Mapping[str, Path]) -> str:
     """The compact leaderboard a terminal gets (rank, controller, episodes, success with its
     interval, settled final distance, solver and its median time) and where the full report is."""
     header, rows = leaderboard_rows(results)

@@ -1,80 +1,32 @@
-"""What a run produced (``Results``: episode records, cells, configuration) and its files:
-Markdown and HTML reports (:mod:`evaluation.report`, :mod:`evaluation.html`), JSON, CSV and
-figures (:mod:`evaluation.figures`)."""
+"""A run's results with their formats: :class:`Results` is the run's data
+(:class:`~evaluation.run_data.RunData`) plus its Markdown and HTML reports
+(:mod:`evaluation.report`, :mod:`evaluation.html`), JSON, CSV and figures
+(:mod:`evaluation.figures`), and the files they are written to. The renderers read the data
+class, not this one, so nothing imports back here."""
 
 from __future__ import annotations
 
 import csv
 import io
 import json
-import math
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
+import evaluation.report as report
 import koopman_envs
-from evaluation import report
-from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
 from evaluation.figures import save_figures
 from evaluation.html import write_html
-from evaluation.records import ran
+from evaluation.records import json_safe
+from evaluation.run_data import RunData
 
 __all__ = ["Results", "SCHEMA_VERSION", "json_safe"]
 
 SCHEMA_VERSION = 2
 
 
-def json_safe(value: Any) -> Any:
-    """NaN and inf become null (JSON has no such numbers); tuples become lists."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    return value
-
-
-@dataclass
-class Results:
-    """Everything a run produced: episode records, cells, and the run configuration."""
-
-    records: list[dict[str, Any]]
-    config: dict[str, Any]
-    cells: list[Cell] = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        if not self.cells:
-            self.cells = aggregate(self.records)
-
-    @property
-    def failed_episodes(self) -> list[dict[str, Any]]:
-        """Records of episodes that raised."""
-        return [r for r in self.records if not ran(r)]
-
-    def cell(self, env_id: str, controller: str, map_name: str, slip: str) -> Cell:
-        """One cell by its coordinates."""
-        for c in self.cells:
-            if (c.env_id, c.controller, c.map, c.slip) == (env_id, controller, map_name, slip):
-                return c
-        raise KeyError((env_id, controller, map_name, slip))
-
-    def leaderboard(self) -> list[dict[str, Any]]:
-        """One row per (task, controller), ranked; see :func:`evaluation.aggregate.leaderboard`."""
-        return leaderboard(self.cells, self.records)
-
-    def paired(self) -> list[dict[str, Any]]:
-        """Paired comparisons of every two controllers of a task on their shared seeds."""
-        return paired_comparisons(self.records)
-
-    def table_keys(self) -> list[tuple[str, str]]:
-        """(env id, controller) of every per-controller table, in report order."""
-        return [
-            (env_id, name)
-            for env_id in dict.fromkeys(c.env_id for c in self.cells)
-            for name in dict.fromkeys(c.controller for c in self.cells if c.env_id == env_id)
-        ]
+class Results(RunData):
+    """A run's records, cells and configuration (:class:`~evaluation.run_data.RunData`) with
+    their formats: Markdown, JSON, CSV and the report files."""
 
     # ------------------------------------------------------------------ Markdown views
     def leaderboard_table(self) -> str:

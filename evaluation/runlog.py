@@ -15,8 +15,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
-from evaluation.records import STATUSES
-from evaluation.results import json_safe
+from evaluation.records import STATUSES, json_safe
 
 __all__ = ["RESUME_KEYS", "LogError", "open_log", "read_log", "run_signature"]
 

@@ -10,7 +10,8 @@ from typing import Any
 
 import controllers as registry
 from evaluation.backends import BACKENDS, Progress, RunInterrupted, run_episodes
-from evaluation.results import Results, json_safe
+from evaluation.records import json_safe
+from evaluation.results import Results
 from evaluation.runlog import open_log
 from evaluation.spec import RunSpec
 

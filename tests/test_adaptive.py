@@ -10,10 +10,10 @@ import pytest
 
 import controllers
 import koopman_envs  # noqa: F401 - registers the envs
-from controllers.adaptive_koopman_nmpc import AdaptiveKoopmanNMPC
 from controllers.calibration import calibrate_controller
 from controllers.koopman import KoopmanModel
 from controllers.koopman.online import RecursiveBilinearFit
+from controllers.mpc.variants import AdaptiveKoopmanNMPC
 from koopman_envs.episode import run_episode
 
 SHIPPED = "controllers/koopman/models/nominal.npz"
@@ -156,7 +156,7 @@ def test_adaptive_controller_learns_during_a_real_episode_and_is_reproducible():
     assert ctrl._estimator.updates == 24  # one transition per period after the first
     assert summary["online_update_ms_median"] > 0 and summary["online_updates_rejected"] == 0
     # the model the NMPC now uses differs from the calibrated one it started from
-    assert not np.array_equal(ctrl._params_tail[ctrl._theta_slice], ctrl.model.nlp_parameters())
+    assert not np.array_equal(ctrl.parameter("model"), ctrl.model.nlp_parameters())
     # a new episode starts from the calibrated model again: same seed, same commands, bit for bit
     again, actions_again = _episode(ctrl, map="map1", slip="high", max_episode_steps=25)
     assert np.array_equal(actions, actions_again)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import controllers
-from controllers.nmpc import PARKED
+from controllers.mpc.config import PARKED
 from koopman_envs.episode import run_episode
 
 
@@ -21,19 +21,22 @@ def _reset(n: int = 3, map_name: str = "map1", **options):
 
 def _pair_slots(ctrl) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     p, n = ctrl.config.pair_slots, ctrl.scenario.n_robots
-    values = ctrl._params_tail[ctrl._pair_slice]
+    values = np.concatenate([ctrl.parameter(b) for b in ("pair_select", "pair_offset", "pair_reach")])
     return values[: n * p].reshape(p, n), values[n * p : n * p + 2 * p].reshape(p, 2), values[n * p + 2 * p :]
 
 
 def test_only_pairs_that_can_meet_within_the_horizon_get_a_slot() -> None:
     ctrl, _, _, info = _reset(pair_slots=3)
     poses = np.array(info["poses"], dtype=float)
-    reach = ctrl._pair_reach + 2 * 0.2 + ctrl.config.robot_offset  # 2 v_max T dt + radii + margin
+    sc = ctrl.scenario
+    reach = (
+        2 * sc.v_max * ctrl.config.horizon * sc.dt + 2 * 0.2 + ctrl.config.robot_offset
+    )  # + radii + margin
     poses[1, :2] = poses[0, :2] + [reach - 0.05, 0.0]  # pair (0, 1) can meet
     poses[2, :2] = poses[0, :2] + [0.0, -(reach + 1.0)]  # (0, 2) and (1, 2) cannot
     ctrl._fill_slots(poses[:, :2])
     select, offset, slot_reach = _pair_slots(ctrl)
-    assert ctrl._pairs_in_slots == [(0, 1), None, None]
+    assert ctrl.pairs_in_slots == [(0, 1), None, None]
     assert select[0].tolist() == [1.0, -1.0, 0.0] and np.all(offset[0] == 0) and slot_reach[0] > 0.4
     # unused slots are parked: zero selection, a point PARKED away, zero reach
     assert not select[1:].any() and np.all(offset[1:] == PARKED) and not slot_reach[1:].any()
@@ -44,11 +47,11 @@ def test_a_pair_keeps_its_slot_and_overflow_is_counted() -> None:
     poses = np.array(info["poses"], dtype=float)
     poses[:, :2] = [[0.0, 0.0], [0.6, 0.0], [0.0, 0.5]]  # every pair within reach, (0, 2) nearest
     ctrl._fill_slots(poses[:, :2])
-    assert ctrl._pairs_in_slots == [(0, 2)]
+    assert ctrl.pairs_in_slots == [(0, 2)]
     assert ctrl.stats().counts["pairs_dropped"] == 2
     poses[2, :2] = [0.0, 0.9]  # (0, 2) now farther than (0, 1), but still within reach: it stays
     ctrl._fill_slots(poses[:, :2])
-    assert ctrl._pairs_in_slots == [(0, 2)]
+    assert ctrl.pairs_in_slots == [(0, 2)]
 
 
 def test_each_robot_reads_its_nearest_obstacles() -> None:
@@ -57,7 +60,7 @@ def test_each_robot_reads_its_nearest_obstacles() -> None:
     assert obstacles.shape[0] > 2
     poses = np.array(info["poses"], dtype=float)
     ctrl._fill_slots(poses[:, :2])
-    slots = ctrl._params_tail[ctrl._obstacle_slice].reshape(3, 2, 3)
+    slots = ctrl.parameter("obstacles").reshape(3, 2, 3)
     for i in range(3):
         gap = np.hypot(*(poses[i, :2] - obstacles[:, :2]).T) - obstacles[:, 2]
         np.testing.assert_array_equal(slots[i], obstacles[np.argsort(gap, kind="stable")[:2]])

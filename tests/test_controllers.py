@@ -14,7 +14,7 @@ import pytest
 import controllers
 from controllers.base import Controller
 from controllers.calibration import calibrate_controller
-from controllers.nmpc import NMPCController
+from controllers.mpc.controller import NMPCController
 from controllers.pettingzoo_adapter import ParallelAdapter
 from koopman_envs import formation_v0
 from koopman_envs.episode import EpisodeResult, run_episode
@@ -92,7 +92,7 @@ def test_solver_failure_falls_back_and_is_counted() -> None:
     ctrl.reset(env.unwrapped.scenario)
     first = ctrl.act(obs, info)  # a real solve: leaves a plan to fall back on
     _, planned = ctrl.last_plan
-    ctrl._problem.solver_for = lambda *_, **__: _FailingSolver()  # warm and cold starts alike
+    ctrl.problem.solver_for = lambda *_, **__: _FailingSolver()  # warm and cold starts alike
     commands = [ctrl.act(obs, info) for _ in range(25)]
     stats = ctrl.stats()
     assert stats.failures == 25 and stats.steps == 26
@@ -218,7 +218,7 @@ def test_pettingzoo_env_driven_through_the_adapter() -> None:
 
 
 def test_nmpc_rejects_a_model_of_another_team_size() -> None:
-    from controllers.unicycle import UnicycleModel
+    from controllers.mpc.models import UnicycleModel
 
     ctrl = NMPCController(UnicycleModel(2))
     env = gym.make("KoopNav-TargetReaching-v0")
@@ -235,7 +235,7 @@ def test_warm_start_shift_has_no_dynamics_gap_and_cold_starts_drop_warm_options(
     obs, info = env.reset(seed=0)
     ctrl.reset(env.unwrapped.scenario)
     ctrl.act(obs, info)
-    prob, guess = ctrl._problem, ctrl._warm["x"]
+    prob, guess = ctrl.problem, ctrl._warm["x"]
     stage, nx, nu = prob.stage_size, prob.nx, prob.nu
     last = (prob.horizon - 1) * stage
     predicted = np.asarray(prob.step(guess[last : last + nx], guess[last + nx : last + nx + nu], [])).reshape(
@@ -280,11 +280,11 @@ def test_models_of_one_structure_share_a_problem_with_their_own_coefficients() -
     assert not np.array_equal(low.nlp_parameters(), high.nlp_parameters())
     ctrl = controllers.make("koopman-nmpc", model=low)
     ctrl.reset(env)
-    first, with_low = ctrl._problem, ctrl.act(obs, info)
+    first, with_low = ctrl.problem, ctrl.act(obs, info)
     ctrl._use(high)
     ctrl.reset(env)
-    assert ctrl._problem is first  # no rebuild
-    np.testing.assert_array_equal(ctrl._params_tail[-high.nlp_parameters().size :], high.nlp_parameters())
+    assert ctrl.problem is first  # no rebuild
+    np.testing.assert_array_equal(ctrl.parameter("model"), high.nlp_parameters())
     with_high = ctrl.act(obs, info)
     alone = controllers.make("koopman-nmpc", model=high)
     alone.reset(env)
@@ -352,3 +352,18 @@ def test_a_plugin_derived_from_base_controller_is_timed(tmp_path) -> None:
 def test_make_refuses_an_import_path_that_is_not_a_controller() -> None:
     with pytest.raises(ValueError, match=r"not a controller: it lacks \['name', 'reset', 'stats'\]"):
         controllers.make("plugin_controllers:NotAController")
+
+
+def test_presets_are_their_base_with_defaults_and_options_override() -> None:
+    from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN
+    from controllers.presets import _ROBUST, PRESETS
+
+    assert _ROBUST == ROBUST_UNCERTAINTY_MARGIN  # the presets' copy of the constant
+    for preset in PRESETS:
+        ctrl = controllers.make(preset.name)
+        assert ctrl.name == preset.name
+        for key, value in preset.defaults.items():
+            held = getattr(ctrl, "config", None)
+            if key == "uncertainty_margin":
+                assert held.uncertainty_margin == value
+    assert controllers.make("koopman-nmpc-robust", uncertainty_margin=1.0).config.uncertainty_margin == 1.0

@@ -1,4 +1,4 @@
-"""The distributed NMPC (controllers/distributed.py): neighbour slots, parked slots, one problem
+"""The distributed NMPC (controllers/mpc/distributed.py): neighbour slots, parked slots, one problem
 per structure, fallbacks, whole episodes, bad input."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import controllers
-from controllers.distributed import DistributedNMPC
-from controllers.nmpc import PARKED
+from controllers.mpc.config import PARKED
+from controllers.mpc.distributed import DistributedNMPC
 from koopman_envs.episode import run_episode
 
 
@@ -27,7 +27,7 @@ def _slots(ctrl: DistributedNMPC, i: int, poses: np.ndarray) -> tuple[np.ndarray
     """Robot i's neighbour slots as its problem's parameters hold them: positions (T, K, 2), reach (K,)."""
     ctrl._surroundings(i, poses, np.zeros(len(poses), dtype=bool))
     agent = ctrl._agents[i]
-    values = agent._params_tail[agent._neighbour_slice]
+    values = np.concatenate([agent.parameter("neighbour_xy"), agent.parameter("neighbour_reach")])
     horizon, k = ctrl.config.horizon, ctrl.neighbours
     return values[: 2 * horizon * k].reshape(horizon, k, 2), values[2 * horizon * k :]
 
@@ -58,7 +58,7 @@ def test_parked_slots_never_bind() -> None:
     distributed = agent.act(np.zeros(1), {"poses": far[:1]})
     single = controllers.make("nominal-nmpc", solver="rti")
     alone = ctrl._robot_scenario(scenario, 0)
-    alone = dataclasses.replace(alone, obstacles=agent._params_tail[agent._obstacle_slice].reshape(-1, 3))
+    alone = dataclasses.replace(alone, obstacles=agent.parameter("obstacles").reshape(-1, 3))
     single.reset(alone)
     central = single.act(np.zeros(1), {"poses": far[:1]})
     assert np.allclose(distributed, central, atol=1e-6)
@@ -77,7 +77,7 @@ def test_one_problem_per_structure_for_any_team_size() -> None:
             formation_offsets=np.zeros((n, 2)),
         )  # fmt: skip
         ctrl.reset(scenario)
-        problems = {id(agent._problem) for agent in ctrl._agents[:n]}
+        problems = {id(agent.problem) for agent in ctrl._agents[:n]}
         assert len(problems) == 1, f"N={n}: {len(problems)} problems built"
         command = ctrl.act(np.zeros(1), {"poses": starts})
         assert command.shape == (2 * n,) and np.all(np.isfinite(command))
@@ -110,7 +110,7 @@ def test_the_crossing_map_is_solved() -> None:
 
 def test_a_failed_robot_solve_falls_back_and_is_counted(monkeypatch) -> None:
     ctrl, env, info = _reset()
-    from controllers.nmpc import _SolveOutcome
+    from controllers.mpc.controller import SolveOutcome as _SolveOutcome
 
     agent = ctrl._agents[1]
     monkeypatch.setattr(agent, "_solve_rti", lambda params, guess: _SolveOutcome(False, "qp_failed(test)"))
@@ -206,7 +206,7 @@ def test_the_koopman_variant_calibrates_then_runs_each_robot_on_its_block() -> N
     assert result.collision is None
     agents = ctrl._agents[:3]
     assert [agent.model.metadata["robot"] for agent in agents] == [0, 1, 2]
-    assert len({id(agent._problem) for agent in agents}) == 1  # the coefficients are parameters
+    assert len({id(agent.problem) for agent in agents}) == 1  # the coefficients are parameters
 
 
 @pytest.mark.parametrize("name", ["dmpc-nominal-robust", "dmpc-koopman-robust"])
@@ -227,7 +227,7 @@ def test_robust_variants_widen_margins_by_the_calibrated_residual(name: str) -> 
     assert k > 0 and np.allclose(ctrl._spread, k * ctrl._residual) and np.all(ctrl._spread >= 0)
     # robot 2's obstacle margin is its own spread (when larger than the offset) ...
     agent = ctrl._agents[2]
-    obstacle_margin = agent._params_tail[agent._margin_slices[0]]
+    obstacle_margin = agent.parameter("obstacle_margin")
     assert obstacle_margin[0] == pytest.approx(max(ctrl.config.obstacle_offset, ctrl._spread[2]))
     # ... and robot 1's disc, seen by robot 2, is widened by both spreads, as the central pair margin
     poses = np.array(info["poses"], dtype=float)

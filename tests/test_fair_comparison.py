@@ -242,7 +242,7 @@ def test_paper_strict_builds_hard_constraints() -> None:
                 make_plant("KoopNav-TargetReaching-v0", slip="nominal"), seed=0
             )  # the shipped model
         ctrl.reset(env.unwrapped.scenario, seed=0)
-        assert ctrl._problem.ns == 0  # no slack variables: the paper's hard constraints
+        assert ctrl.problem.ns == 0  # no slack variables: the paper's hard constraints
     default = ev.paper_protocol().controllers[0].build()
     assert default.config.soft_constraints is True
 

@@ -1,4 +1,4 @@
-"""The real-time iteration (controllers/rti.py): same KKT point as IPOPT when iterated, the
+"""The real-time iteration (controllers/mpc/rti.py): same KKT point as IPOPT when iterated, the
 fallback chain, option checks, and determinism across processes."""
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ import pytest
 import controllers
 import koopman_envs  # noqa: F401
 from controllers.calibration import calibrate_controller
-from controllers.nmpc import IPOPT_OPTIONS, encode_state
-from controllers.rti import QP_SOLVERS, RTIStep
+from controllers.mpc.config import IPOPT_OPTIONS
+from controllers.mpc.models import encode_state
+from controllers.mpc.rti import QP_SOLVERS, RTIStep
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,9 +31,11 @@ def _problem_after(name: str, env_id: str, map_name: str, steps: int, **options)
     ctrl.reset(env)
     for _ in range(steps):
         obs, _, _, _, info = env.step(ctrl.act(obs, info))
-    prob = ctrl._problem
+    prob = ctrl.problem
     state = encode_state(info["poses"], prob.coding)
-    return ctrl, prob, state, np.concatenate([state, ctrl._params_tail])
+    params = ctrl.parameter_vector()
+    params[prob.layout["x_meas"]] = state
+    return ctrl, prob, state, params
 
 
 def _tight_ipopt(prob, params, guess):
@@ -40,7 +43,7 @@ def _tight_ipopt(prob, params, guess):
     solver = ca.nlpsol(
         "tight",
         "ipopt",
-        prob._nlp,
+        prob.nlp,
         {**options, "ipopt.tol": 1e-12, "ipopt.acceptable_iter": 0, "ipopt.max_iter": 500},
     )
     sol = solver(x0=guess, p=params, **prob.bounds)
@@ -82,7 +85,7 @@ def test_a_failed_qp_falls_back_to_ipopt_and_is_counted(monkeypatch) -> None:
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)  # a real QP
-    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
+    monkeypatch.setattr(type(ctrl.problem.real_time_iteration()), "solve", _failed_step)
     command = ctrl.act(obs, info)
     stats = ctrl.stats()
     assert np.all(np.isfinite(command))
@@ -92,7 +95,8 @@ def test_a_failed_qp_falls_back_to_ipopt_and_is_counted(monkeypatch) -> None:
 
 
 def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
-    from controllers.nmpc import NMPCController, _SolveOutcome
+    from controllers.mpc.controller import NMPCController
+    from controllers.mpc.controller import SolveOutcome as _SolveOutcome
 
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
     ctrl = controllers.make("nominal-nmpc", solver="rti")
@@ -100,7 +104,7 @@ def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
     ctrl.reset(env)
     ctrl.act(obs, info)
     plan, _ = ctrl.last_plan
-    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
+    monkeypatch.setattr(type(ctrl.problem.real_time_iteration()), "solve", _failed_step)
     monkeypatch.setattr(
         NMPCController, "_solve_nlp", lambda *_: _SolveOutcome(False, "Infeasible_Problem_Detected")
     )
@@ -118,7 +122,7 @@ def test_without_a_fallback_solver_a_failed_qp_goes_to_the_last_plan(monkeypatch
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)
-    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", _failed_step)
+    monkeypatch.setattr(type(ctrl.problem.real_time_iteration()), "solve", _failed_step)
     ctrl.act(obs, info)
     assert ctrl.stats().statuses["qp_failed(1)"] == 1 and ctrl.stats().failures == 1
 
@@ -132,9 +136,9 @@ def test_the_real_time_iterations_problem_keeps_every_collision_row(soft: bool) 
     for solver in ("ipopt", "rti"):
         ctrl = controllers.make("nominal-nmpc", solver=solver, soft_constraints=soft, horizon=4)
         ctrl.reset(env)
-        counts[solver] = ctrl._problem.n_cons
+        counts[solver] = ctrl.problem.n_cons
         if solver == "rti":
-            prob = ctrl._problem
+            prob = ctrl.problem
             assert prob.stage_rows[-1] == 0 and prob.terminal_rows.size == prob.stage_rows[1] - prob.nx
     assert counts["rti"] == counts["ipopt"]
 
@@ -144,14 +148,14 @@ def test_a_plan_with_a_large_slack_goes_to_ipopt(monkeypatch) -> None:
     ctrl = controllers.make("nominal-nmpc", solver="rti", slack_tolerance=1e-300)
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
-    real = type(ctrl._problem.real_time_iteration()).solve
+    real = type(ctrl.problem.real_time_iteration()).solve
 
     def slack(self, *args):
         step = real(self, *args)
         step.max_slack = 1.0
         return step
 
-    monkeypatch.setattr(type(ctrl._problem.real_time_iteration()), "solve", slack)
+    monkeypatch.setattr(type(ctrl.problem.real_time_iteration()), "solve", slack)
     ctrl.act(obs, info)
     assert ctrl.stats().counts["fallback_ipopt"] == 1
     assert any(key.startswith("rti:large_slack -> ipopt:") for key in ctrl.stats().statuses)
@@ -271,6 +275,6 @@ def test_paper_protocol_keeps_ipopt_and_the_quick_board_runs_the_real_time_itera
     assert paper_protocol().solver == "ipopt" and paper_protocol(strict=True).solver == "ipopt"
     assert ablation_protocol().solver == "ipopt"
     assert quick_protocol().solver == "rti"
-    from controllers.nmpc import NMPCConfig
+    from controllers.mpc.config import NMPCConfig
 
     assert NMPCConfig().solver == "ipopt"  # the default until the real-time iteration loses nothing

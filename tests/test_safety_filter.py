@@ -10,8 +10,8 @@ import pytest
 
 import controllers
 from controllers.base import BaseController
-from controllers.qp2 import solve_qp2
 from controllers.safety import BarrierFilter, SafetyFilter, SafetyOptions
+from controllers.solvers.two_variable_qp import solve_qp2
 from evaluation.configs import parse_controller, split_controller_list
 from koopman_envs.episode import run_episode
 from koopman_envs.params import PARAMS

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers import solver_cache
-from controllers.solver_cache import jit_options, solver_cache_dir
+from controllers.solvers import compiled as solver_cache
+from controllers.solvers.compiled import jit_options, solver_cache_dir
 
 pytestmark = pytest.mark.skipif(solver_cache.compiler() is None, reason="no C compiler (gcc) on this machine")
 
@@ -26,7 +26,7 @@ exec gcc "$@"
 BUILD = """
 import sys
 import casadi as ca
-from controllers.solver_cache import jit_options, nlpsol
+from controllers.solvers.compiled import jit_options, nlpsol
 target = float(sys.argv[1]) if len(sys.argv) > 1 else 1.0  # another target, another problem
 x = ca.SX.sym("x", 3)
 nlp = {"x": x, "f": ca.sumsqr(x - target) + x[0] * x[1], "g": x[0] + x[1]}

@@ -79,10 +79,10 @@ def test_ipopt_barrier_update_follows_the_team_size_unless_set(n_robots, options
     env = gym.make("KoopNav-TargetReaching-v0", map="map7", n_robots=n_robots, max_episode_steps=1)
     solver_options = None
     if options:
-        from controllers.nmpc import IPOPT_OPTIONS
+        from controllers.mpc.config import IPOPT_OPTIONS
 
         solver_options = {**IPOPT_OPTIONS, **options}
     ctrl = controllers.make("nominal-nmpc", solver_options=solver_options)
     run_episode(env, ctrl, seed=0)
-    assert ctrl._problem.solver_options("ipopt")["ipopt.mu_strategy"] == expected
-    assert ctrl._problem.solver_options("ipopt", cold=True)["ipopt.mu_strategy"] == expected
+    assert ctrl.problem.solver_options("ipopt")["ipopt.mu_strategy"] == expected
+    assert ctrl.problem.solver_options("ipopt", cold=True)["ipopt.mu_strategy"] == expected

@@ -32,6 +32,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.sim.geometry import TeamGeometry, clearance
+from koopman_envs.sim.nearest import nearest_first
 
 __all__ = ["FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
 
@@ -185,17 +186,11 @@ def _build_features(
                     row[at + 2] = clearance(x, y, ox, oy, radius_sum[k, i, j])
                     at += 3
             if n_obstacle_obs:
-                # nearest first; insertion sort is stable, so equal clearances keep index order
                 for m in range(n_obstacles):
                     gap[m] = clearance(
                         x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]
                     )
-                    order[m] = m
-                    q = m
-                    while q > 0 and gap[order[q - 1]] > gap[m]:
-                        order[q] = order[q - 1]
-                        q -= 1
-                    order[q] = m
+                nearest_first(gap, order, n_obstacles)  # equal clearances keep index order
                 for q in range(listed):
                     m = order[q]
                     dx, dy = obstacle_x[k, m] - x, obstacle_y[k, m] - y

@@ -1,6 +1,6 @@
 """Distributed NMPC: every robot solves its own small NMPC, the others' plans as moving obstacles.
 
-The central NMPC (:mod:`controllers.nmpc`) optimizes the whole team at once: every pair of robots
+The central NMPC (:mod:`controllers.mpc.controller`) optimizes the whole team at once: every pair of robots
 is a constraint at every stage, and its cost grows with N^2 rows and an N-robot KKT system. Here
 each robot optimizes only its own commands over the horizon, with
 
@@ -55,11 +55,13 @@ from numpy.typing import NDArray
 from controllers.base import BaseController, ControllerStats
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model
-from controllers.nmpc import PARKED, NMPCConfig, NMPCController, PredictionModel, decode_state, encode_state
-from controllers.unicycle import UnicycleModel
+from controllers.mpc.config import PARKED, NMPCConfig
+from controllers.mpc.controller import NMPCController, margin_spread
+from controllers.mpc.models import PredictionModel, UnicycleModel, decode_state, encode_state
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
+from koopman_envs.sim.nearest import nearest_by_clearance, nearest_order
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["COORDINATION", "FORMATION_GOALS", "MODELS", "DistributedNMPC"]
@@ -121,7 +123,7 @@ class _RobotNMPC(NMPCController):
         the unicycle). The central NMPC's guess holds the robot still; with zero speed along the
         whole plan a position cost has no gradient in the heading, so a robot pressed against an
         obstacle would never turn away from it."""
-        prob = self._problem
+        prob = self.problem
         scenario = self.scenario
         assert prob is not None and scenario is not None  # built by _reset
         if self.goal is None:
@@ -143,10 +145,6 @@ class _RobotNMPC(NMPCController):
         w[prob.u_index] = np.ravel(commands)
         w[prob.x_index] = np.ravel(states)
         return w
-
-    def restart(self) -> None:
-        """Start the next solve cold (from :meth:`_initial_guess`), not from the shifted plan."""
-        self._warm = None
 
     def _model_for(self, scenario: Scenario) -> PredictionModel:
         if self.model is None:  # the nominal variant; the Koopman one is handed its robot's block
@@ -233,6 +231,7 @@ class DistributedNMPC(BaseController):
         self._robot = _RobotNMPC(self.config, self.neighbours)  # validates the NMPC options
         self._agents: list[_RobotNMPC] = []
         self._plans: NDArray[np.float64] = np.zeros((0, 0, 2))
+        self._per_robot_times: list[float] = []
         self._stats.solver = self._robot.solver_label
 
     # ------------------------------------------------------------------ setup
@@ -260,7 +259,7 @@ class DistributedNMPC(BaseController):
                 self._residual = None
                 return {"transitions": 0, "source": "not needed"}
             # the unicycle's residual on the plant's data, as the central nominal NMPC measures it
-            from controllers.nominal_nmpc import NominalNMPC
+            from controllers.mpc.variants import NominalNMPC
 
             measure = NominalNMPC(uncertainty_margin=margin)
             summary = measure.calibrate(plant, seed=seed)
@@ -275,15 +274,8 @@ class DistributedNMPC(BaseController):
     def _spreads(self, n: int) -> NDArray[np.float64]:
         """Every robot's margin spread: ``uncertainty_margin`` times its calibrated RMS one-step
         position residual [m] (zeros without the margin)."""
-        margin = self.config.uncertainty_margin
-        if margin == 0:
-            return np.zeros(n)
-        if self._residual is None or len(self._residual) != n:
-            raise ValueError(
-                f"{self.name}: uncertainty_margin={margin} needs the prediction model's residual for {n} "
-                "robots; call calibrate(plant) first (the evaluator does)"
-            )
-        return margin * np.asarray(self._residual, dtype=float)
+        spread = margin_spread(self.name, self.config.uncertainty_margin, self._residual, n)
+        return np.zeros(n) if spread is None else spread
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         n = scenario.n_robots
@@ -310,9 +302,7 @@ class DistributedNMPC(BaseController):
             # shares the model too
             if self._blocks:
                 agent.model = self._blocks[i]
-            else:
-                agent.model, agent._model_step = first.model, first._model_step
-            agent._problem, agent._key = first._problem, first._key
+            agent.share_problem(first)
             agent.reset(self._robot_scenario(scenario, i), seed=seed)
         horizon = self.config.horizon
         # every robot's predicted positions at its last solve's stages 1..T; no plan yet: its start
@@ -328,7 +318,7 @@ class DistributedNMPC(BaseController):
             + 2 * max(self.config.robot_offset, 2 * float(np.max(self._spread)))
             + delay
         )
-        self._per_robot_times: list[float] = []
+        self._per_robot_times = []
         self._history: list[list[NDArray[np.float64]]] = [[] for _ in range(n)]
         self._stats.solver = self._robot.solver_label
 
@@ -380,8 +370,7 @@ class DistributedNMPC(BaseController):
         obstacles = scenario.obstacles
         slots = np.tile([PARKED, PARKED, 0.0], (self.obstacle_slots, 1))
         if obstacles.shape[0]:
-            clearance = np.hypot(*(obstacles[:, :2] - position).T) - obstacles[:, 2]
-            nearest = np.argsort(clearance, kind="stable")[: self.obstacle_slots]
+            nearest = nearest_by_clearance(position[None], obstacles, self.obstacle_slots)[0]
             slots[: nearest.size] = obstacles[nearest]
         agent.set_obstacles(slots)
         agent.goal = self._waypoint(i, position) if self.detour else self._goal(i)
@@ -391,7 +380,7 @@ class DistributedNMPC(BaseController):
         reach = np.zeros(k)
         distance = np.hypot(*(poses[:, :2] - position).T)
         distance[i] = np.inf
-        candidates = [j for j in np.argsort(distance, kind="stable") if distance[j] < self._reach][:k]
+        candidates = [j for j in nearest_order(distance, distance.size) if distance[j] < self._reach][:k]
         for slot, j in enumerate(candidates):
             plan = self._plans[:, j]
             if not fresh[j]:
@@ -419,9 +408,8 @@ class DistributedNMPC(BaseController):
             if self._stalled(i, poses[i, :2]):
                 agent.restart()
                 self._stats.counts["restarts"] += 1
-            failures = agent._stats.failures
             commands[i] = agent.act(observation, {"poses": poses[i : i + 1]})
-            if agent._stats.failures == failures and agent.last_plan is not None:
+            if not agent.solve_failed() and agent.last_plan is not None:
                 new_plans[:, i] = agent.last_plan[1][:, 0, :2]
             else:  # no new plan: predicted to hold its position
                 new_plans[:, i] = poses[i, :2]
@@ -455,7 +443,7 @@ class DistributedNMPC(BaseController):
         own = self._stats
         team = ControllerStats(
             solve_times=list(own.solve_times),
-            extra_times={"robot": list(getattr(self, "_per_robot_times", []))},
+            extra_times={"robot": list(self._per_robot_times)},
             solver=own.solver,
         )
         n = self.scenario.n_robots if self.scenario is not None else 0

@@ -1,6 +1,6 @@
 """Real-time iteration (RTI) of the NMPC: one SQP step per control period.
 
-At every period the NLP of :class:`controllers.nmpc._Problem` is linearized at the previous
+At every period the NLP of :class:`controllers.mpc.problem.Problem` is linearized at the previous
 plan shifted by one step, and the quadratic program
 
     min_d   1/2 d' H d + grad f(w)' d
@@ -24,7 +24,7 @@ virtual machine, built in a fraction of a second for every problem structure.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import casadi as ca
 import numpy as np
@@ -32,10 +32,35 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
 
-if TYPE_CHECKING:  # pragma: no cover - typing only (nmpc imports this module)
-    from controllers.nmpc import _Problem
+__all__ = [
+    "HESSIANS",
+    "QP_SOLVERS",
+    "RTIStep",
+    "RealTimeIteration",
+    "StagedNLP",
+    "bind_buffer",
+    "check_rti_options",
+]
 
-__all__ = ["HESSIANS", "QP_SOLVERS", "RTIStep", "RealTimeIteration", "bind_buffer", "check_rti_options"]
+
+class StagedNLP(Protocol):
+    """What the real-time iteration reads of a built problem (:class:`controllers.mpc.problem.Problem`):
+    the NLP, its bounds, and its stage structure (decision vector stage by stage)."""
+
+    nlp: dict[str, Any]  # "x", "f", "g", "p"
+    least_squares: tuple[Any, Any]  # (residuals, linear cost)
+    lbw: NDArray[np.float64]
+    ubw: NDArray[np.float64]
+    lbg: NDArray[np.float64]
+    ubg: NDArray[np.float64]
+    n_vars: int
+    horizon: int
+    nx: int
+    nu: int
+    ns: int
+    stage_size: int
+    stage_rows: list[int]
+
 
 #: QP solvers of the CasADi wheel the real-time iteration can use, with their options (quiet).
 #: ``hpipm`` gets the OCP structure of the problem (stage sizes) on top of these.
@@ -129,7 +154,7 @@ class RealTimeIteration:
 
     Parameters
     ----------
-    problem : controllers.nmpc._Problem
+    problem : StagedNLP
         The built NLP (its decision layout, bounds, least-squares cost and stage sizes).
     qp_solver : str
         One of :data:`QP_SOLVERS`.
@@ -140,14 +165,14 @@ class RealTimeIteration:
     """
 
     def __init__(
-        self, problem: _Problem, qp_solver: str = "hpipm", iterations: int = 1, hessian: str = "exact"
+        self, problem: StagedNLP, qp_solver: str = "hpipm", iterations: int = 1, hessian: str = "exact"
     ) -> None:
         check_rti_options(qp_solver, iterations, hessian)
         self.problem = problem
         self.qp_solver = qp_solver
         self.iterations = iterations
         self.hessian = hessian
-        nlp = problem._nlp
+        nlp = problem.nlp
         w, p, g, f = nlp["x"], nlp["p"], nlp["g"], nlp["f"]
         lam_g = ca.SX.sym("lam_g", g.shape[0])
         jac_g = ca.jacobian(g, w)

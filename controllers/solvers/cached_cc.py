@@ -3,7 +3,7 @@
 CasADi's ``shell`` JIT compiler calls ``<compiler> <flags> -c SOURCE.c -o OUT.o``. This script
 stands in for ``<compiler>``::
 
-    python _cached_cc.py --cache DIR --cc gcc --tag TAG [--background] <flags> -c SOURCE.c -o OUT.o
+    python cached_cc.py --cache DIR --cc gcc --tag TAG [--background] <flags> -c SOURCE.c -o OUT.o
 
 The object of a source is stored as ``DIR/<key>.o`` with its SHA-256 in ``DIR/<key>.o.sha256``,
 where the key hashes the tag (CasADi version, compiler identity), the flags and the source text.

@@ -1,4 +1,4 @@
-"""The package's on-disk cache: one root for calibrations and compiled solvers."""
+"""The package's on-disk cache: one root for calibrations and compiled solvers, and atomic writes into it."""
 
 from __future__ import annotations
 

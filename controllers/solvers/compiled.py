@@ -2,7 +2,7 @@
 
 CasADi's JIT turns an NLP's functions into C and compiles them in every process (30-60 s per
 problem structure), which made compiled solvers impractical. :func:`jit_options` gives ``nlpsol``
-options whose compiler command is :mod:`controllers._cached_cc`: the object file of each
+options whose compiler command is :mod:`controllers.solvers.cached_cc`: the object file of each
 generated source is kept under ``<cache root>/solvers/`` keyed by the source text, the compiler
 flags, the compiler's identity and CasADi's version, so the second process (or worker) that
 builds the same problem copies it instead of compiling. Without a C compiler the solver stays
@@ -27,13 +27,13 @@ from typing import Any
 
 import casadi as ca
 
-from controllers.cache import cache_root
+from controllers.disk_cache import cache_root
 
 __all__ = ["COMPILER_FLAGS", "compiler", "jit_options", "nlpsol", "solver_cache_dir"]
 
 #: flags of the compiled NLP functions (-O2: -O3 compiles far longer for no measurable gain here)
 COMPILER_FLAGS = ("-O2",)
-_WRAPPER = Path(__file__).with_name("_cached_cc.py")
+_WRAPPER = Path(__file__).with_name("cached_cc.py")
 _BUILD_DIRS: list[str] = []
 
 

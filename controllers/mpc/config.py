@@ -1,0 +1,249 @@
+"""The NMPC's options: :class:`NMPCConfig`, the solver option tables and their checks.
+
+Everything a user sets on an NMPC (central or distributed) is a field of :class:`NMPCConfig`;
+:meth:`NMPCConfig.validate` checks them all before any problem is built.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from controllers.mpc.rti import check_rti_options
+from controllers.solvers.compiled import jit_options
+from koopman_envs.checks import check_int
+from koopman_envs.params import PARAMS
+
+__all__ = [
+    "DEFAULT_SOLVER_OPTIONS",
+    "FATROP_OPTIONS",
+    "IPOPT_OPTIONS",
+    "JIT_ENV",
+    "NMPCConfig",
+    "PARKED",
+    "ROBUST_UNCERTAINTY_MARGIN",
+    "SOLVERS",
+    "WARM_START_OPTIONS",
+    "check_solver_options",
+]
+
+#: residuals, i.e. a prediction error that large is three standard deviations out for Gaussian errors.
+ROBUST_UNCERTAINTY_MARGIN = 3.0
+
+#: IPOPT settings (ours): quiet, warm-startable, bounded effort per control period.
+IPOPT_OPTIONS: dict[str, Any] = {
+    "ipopt.print_level": 0,
+    "ipopt.sb": "yes",
+    "print_time": False,
+    "ipopt.max_iter": 100,
+    "ipopt.tol": 1e-6,
+    "ipopt.acceptable_tol": 1e-4,
+    "ipopt.acceptable_iter": 5,
+    "ipopt.warm_start_init_point": "yes",
+    "ipopt.warm_start_bound_push": 1e-6,
+    "ipopt.warm_start_mult_bound_push": 1e-6,
+    "ipopt.mu_init": 1e-3,
+    "ipopt.linear_solver": "mumps",
+}
+
+#: fatrop settings (ours): the structure-exploiting interior-point solver shipped with CasADi.
+#: ``bound_push`` 1e-6 (fatrop's default 1e-2) keeps the shifted warm start where it is, as
+#: IPOPT's ``warm_start_bound_push`` does, and a small initial barrier (``mu_init`` 1e-5) suits
+#: a start that is already near the optimum: on the Map 1 benchmark episode the median went from
+#: 13 to 8 iterations with the same closed loop (and the same outcomes on Map 4 and Map 2, high
+#: slip, 3 seeds each, Koopman-NMPC).
+FATROP_OPTIONS: dict[str, Any] = {
+    "print_time": False,
+    "fatrop.print_level": 0,
+    "fatrop.mu_init": 1e-5,
+    "fatrop.bound_push": 1e-6,
+    "fatrop.max_iter": 100,
+}
+
+#: environment variable that turns compiled ``nlpsol`` solvers on (``KOOPNAV_NMPC_JIT=1``)
+JIT_ENV = "KOOPNAV_NMPC_JIT"
+
+#: where an unused obstacle or neighbour slot waits [m]: far outside every workspace, so its
+#: collision row never binds (and its squared distance stays well inside double precision)
+PARKED = 1.0e3
+
+DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
+
+#: NMPC solvers: the real-time iteration and the ``nlpsol`` plugins solved to convergence
+SOLVERS = ("rti", "ipopt", "fatrop")
+
+#: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
+#: episode, or after a failure, with zero multipliers) drops them and uses the solver's own
+#: initialization. With them, IPOPT starts from multipliers pushed to 1e-6 and a barrier of 1e-3:
+#: a badly centred point from which feasible problems ran into the 100-iteration limit
+#: (Koopman-NMPC, Map 1, high slip, hard constraints) that the default start solves in ~45.
+WARM_START_OPTIONS: dict[str, tuple[str, ...]] = {
+    "ipopt": (
+        "ipopt.warm_start_init_point",
+        "ipopt.warm_start_bound_push",
+        "ipopt.warm_start_mult_bound_push",
+        "ipopt.mu_init",
+    ),
+    "fatrop": ("fatrop.mu_init", "fatrop.bound_push"),
+}
+
+
+@dataclass(frozen=True)
+class NMPCConfig:
+    """NMPC options; the paper's values come from :mod:`koopman_envs.params`.
+
+    Attributes
+    ----------
+    horizon : int
+        Prediction horizon T in periods (paper: 20).
+    q_leader, q_follower : tuple of float
+        Stage weights on (x, y, cos theta, sin theta) errors. Target reaching uses
+        ``q_leader`` for every robot (paper: diag(4, 4, 0.1, 0.1)); formation uses
+        ``q_follower`` (paper: diag(1, 1, 0.1, 0.1)) for the followers.
+    r_input : tuple of float
+        Weights on (v, omega) (paper: diag(0.1, 0.1)).
+    obstacle_offset : float
+        Safety distance added to robot + obstacle radii [m] (paper: 0.015).
+    robot_offset : float
+        (ours) Safety distance added to the sum of two robots' radii [m]. The paper adds its
+        0.015 m margin to obstacles only; the reason it gives (prediction error near a
+        constraint) holds as much between robots, whose paths cross on Map 2.
+    uncertainty_margin : float
+        (ours) k >= 0: widen the margins to k times each robot's RMS one-step position residual
+        of the controller's own prediction model, measured on its calibration data (see
+        :meth:`NMPCController.calibrate`), never below ``obstacle_offset`` / ``robot_offset``
+        (pairs: k (r_i + r_j)). 0 keeps the paper's margins; the ``*-robust`` variants use
+        :data:`ROBUST_UNCERTAINTY_MARGIN`. The same option means the same thing for every NMPC.
+    formation_bound : float
+        ``|lb| = |ub|`` of the formation constraint, per period and axis [m] (ours: the paper gives
+        no number; 0.03 m is half a period's travel at full speed, enough to skirt obstacles).
+    soft_constraints : bool
+        (ours) Give the collision constraints (obstacles, robots) and the formation constraints
+        of each stage a slack s_t >= 0 each, with the exact penalty
+        ``slack_penalty * (s_t + s_t^2)``. Whenever the hard
+        problem is feasible its solution is unchanged; when model error or slip has already
+        pushed a robot inside a safety margin, the problem stays solvable and the controller
+        steers back out instead of failing. ``False`` gives the paper's hard constraints.
+    slack_penalty : float
+        Weight of the slack penalty.
+    solver : str
+        ``"rti"``: the real-time iteration (:mod:`controllers.mpc.rti`): one structured QP per
+        control period from the previous plan shifted by one step (``rti_iterations`` QPs), no
+        compiler. Or a CasADi ``nlpsol`` plugin solved to convergence at every period:
+        ``"ipopt"`` (the paper's) or ``"fatrop"`` (the structure-exploiting interior-point
+        solver shipped with CasADi: faster per step, but not the same closed loop:
+        Koopman-NMPC deadlocks on Map 2 at nominal slip with fatrop in every trial and succeeds
+        with IPOPT; see ``bench/nmpc_solve.py``). See :data:`SOLVERS`.
+    solver_options : dict, optional
+        Options passed to ``nlpsol`` for ``solver`` (default: :data:`IPOPT_OPTIONS` or
+        :data:`FATROP_OPTIONS`). Unless they set ``ipopt.mu_strategy``, IPOPT updates its barrier
+        the paper's way (``monotone``) for up to 3 robots and ``adaptive`` beyond, where the
+        monotone update hits the iteration limit on most steps.
+    fallback_solver : str or None
+        ``nlpsol`` plugin tried on the same problem when ``solver`` fails (for ``"rti"``: a
+        failed QP, or a plan whose largest slack exceeds ``slack_tolerance``), before the plan
+        fallback (ignored when it equals ``solver``).
+    qp_solver : str
+        QP solver of the real-time iteration, one of :data:`controllers.mpc.rti.QP_SOLVERS`
+        (``"hpipm"``: structure-exploiting interior point).
+    rti_iterations : int
+        QPs per control period of the real-time iteration (>= 1).
+    hessian : str
+        QP Hessian of the real-time iteration: ``"exact"`` (the Lagrangian's, made convex
+        stage by stage) or ``"gauss-newton"`` (see :data:`controllers.mpc.rti.HESSIANS`).
+    slack_tolerance : float
+        Largest slack of a real-time-iteration plan accepted without the fallback solver
+        (slacks are in the constraints' units: squared metres for collision rows).
+    pair_slots : int
+        (ours) 0 (default, the paper's problem): a collision row for every pair of robots at
+        every stage. P >= 1: P pair slots instead, filled before every solve with the pairs that
+        can meet within the horizon (centre distance below ``2 v_max T dt`` plus both radii and
+        the pair's margin), nearest first; a pair keeps its slot while it stays within reach,
+        and unused slots are parked far away (:data:`PARKED`). More pairs within reach than
+        slots: the farthest go unconstrained for that step, counted as ``pairs_dropped``.
+    obstacle_slots : int
+        (ours) 0 (default): every robot has a row for every obstacle. K >= 1: each robot's K
+        nearest obstacles (by surface clearance, refreshed before every solve); one built
+        problem then serves maps with any number of obstacles.
+    jit : bool or None
+        Compile the NLP's functions to C (several times faster derivative evaluations). The
+        compiled objects are cached on disk (:mod:`controllers.solvers.compiled`), so a problem
+        structure is compiled once per machine, not per process; without a C compiler the solver
+        runs uncompiled, with one warning. None (default): compiled only when the environment
+        variable ``KOOPNAV_NMPC_JIT`` is ``1``: a compiler running beside the workers of an
+        evaluation slowed every first run on a machine, and the real-time iteration never
+        compiles. Only ``nlpsol`` solvers (``"ipopt"``, ``"fatrop"``) are compiled.
+    """
+
+    horizon: int = PARAMS.horizon
+    q_leader: tuple[float, ...] = PARAMS.q_leader
+    q_follower: tuple[float, ...] = PARAMS.q_follower
+    r_input: tuple[float, ...] = PARAMS.r_input
+    obstacle_offset: float = PARAMS.obstacle_offset
+    robot_offset: float = PARAMS.obstacle_offset
+    uncertainty_margin: float = 0.0
+    formation_bound: float = 0.03
+    soft_constraints: bool = True
+    slack_penalty: float = 1e4
+    solver: str = "ipopt"
+    solver_options: dict[str, Any] | None = None
+    fallback_solver: str | None = "ipopt"
+    qp_solver: str = "hpipm"
+    rti_iterations: int = 1
+    hessian: str = "exact"
+    slack_tolerance: float = 1e-2
+    pair_slots: int = 0
+    obstacle_slots: int = 0
+    jit: bool | None = None
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the ``nlpsol`` solvers are compiled: ``jit``, or when None, if ``$KOOPNAV_NMPC_JIT`` is 1."""
+        if self.jit is not None:
+            return bool(self.jit)
+        return os.environ.get(JIT_ENV, "0").strip().lower() in ("1", "true", "yes", "on")
+
+    def options_for(self, solver: str) -> dict[str, Any]:
+        """nlpsol options of ``solver``: ``solver_options`` for the main solver, else defaults."""
+        if solver == self.solver and self.solver_options is not None:
+            options = dict(self.solver_options)
+        else:
+            options = dict(DEFAULT_SOLVER_OPTIONS.get(solver, {}))
+        if self.compiled and solver == self.solver:
+            # compiled once per machine (controllers.solvers.compiled); {} without a C compiler. The
+            # fallback solver runs rarely: compiling it (minutes for a large NLP) would stall the
+            # first episode that needs it
+            for key, value in jit_options(background=True).items():
+                options.setdefault(key, value)
+        return options
+
+    def with_options(self, **changes: Any) -> NMPCConfig:
+        """A copy with some fields changed; unknown names raise ``TypeError``."""
+        return replace(self, **changes)
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming a bad option and what is allowed (before any problem is built)."""
+        check_int("horizon", self.horizon, 1)
+        check_int("pair_slots", self.pair_slots, 0)
+        check_int("obstacle_slots", self.obstacle_slots, 0)
+        k = self.uncertainty_margin
+        if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
+            raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")
+        check_solver_options(self)
+
+
+def check_solver_options(config: NMPCConfig) -> None:
+    """Raise ``ValueError`` naming a bad solver option of ``config`` and what is allowed."""
+    if config.solver not in SOLVERS:
+        raise ValueError(f"solver={config.solver!r} is not one of {list(SOLVERS)}")
+    if config.fallback_solver is not None and config.fallback_solver not in SOLVERS[1:]:
+        raise ValueError(
+            f"fallback_solver={config.fallback_solver!r} is not one of {list(SOLVERS[1:])} or None"
+        )
+    check_rti_options(config.qp_solver, config.rti_iterations, config.hessian)
+    tol = config.slack_tolerance
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
+        raise ValueError(f"slack_tolerance={tol!r} must be a number > 0")

@@ -1,0 +1,413 @@
+"""The NMPC controller: build (or reuse) the problem at reset, solve it every period, fall back.
+
+The problem is posed once per problem structure (team size, obstacle count, task, model) by
+multiple shooting (:mod:`controllers.mpc.problem`); the measured state, the targets and the
+obstacles are parameters (:mod:`controllers.mpc.layout`), so a new episode or a new step only
+changes numbers. Every step is warm-started from the previous solution shifted by one period.
+When the solver fails (infeasible, iteration limit, NaN) the controller falls back to the rest
+of its last plan, then to a safe stop, counts the failure, and the episode goes on.
+
+The distributed NMPC (:mod:`controllers.mpc.distributed`) drives one of these per robot through
+its public hooks: :meth:`NMPCController.share_problem`, the ``set_*`` methods, :meth:`restart`,
+:attr:`last_plan` and :meth:`solve_failed`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.base import BaseController
+from controllers.mpc.config import PARKED, NMPCConfig
+from controllers.mpc.models import PredictionModel, encode_state, model_step
+from controllers.mpc.problem import Problem
+from controllers.mpc.slots import PairSlots, nearest_obstacle_slots
+from koopman_envs.scenario import Scenario
+
+__all__ = ["NMPCController", "SolveOutcome", "margin_spread"]
+
+
+def margin_spread(name: str, k: float, residual: NDArray | None, n_robots: int) -> NDArray[np.float64] | None:
+    """``k`` times each robot's calibrated RMS one-step position residual [m], the spread that
+    widens the margins (None for k = 0).
+
+    Raises
+    ------
+    ValueError
+        k > 0 without a residual for ``n_robots`` robots (calibration has not run).
+    """
+    if k == 0:
+        return None
+    if residual is None or len(residual) != n_robots:
+        raise ValueError(
+            f"{name}: uncertainty_margin={k} needs the prediction model's residual for "
+            f"{n_robots} robots; call calibrate(plant) first (the evaluator does)"
+        )
+    return k * np.asarray(residual, dtype=float)
+
+
+@dataclass
+class SolveOutcome:
+    """One attempt at the period's problem: (success, status, plan, multipliers, iterations)."""
+
+    success: bool
+    status: str
+    w: NDArray | None = None
+    lam_x: NDArray | None = None
+    lam_g: NDArray | None = None
+    iterations: int = 0
+
+
+class NMPCController(BaseController):
+    """NMPC with a given prediction model (see :mod:`controllers.mpc.variants`).
+
+    Parameters
+    ----------
+    model : PredictionModel, optional
+        Prediction model; subclasses may provide it at reset instead.
+    config : NMPCConfig, optional
+        Options (paper defaults).
+    **options
+        Shorthand for fields of :class:`NMPCConfig` (``horizon=10``, ``solver="fatrop"``...).
+    """
+
+    name = "nmpc"
+    #: moving-disc slots of the built problem (the distributed NMPC's robots: their neighbours)
+    neighbour_slots = 0
+
+    def __init__(
+        self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any
+    ):
+        super().__init__()
+        base = config or NMPCConfig()
+        try:
+            self.config = base.with_options(**options) if options else base
+        except TypeError as exc:
+            raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
+        self.config.validate()
+        self.model = model
+        #: RMS one-step position residual of the prediction model per robot [m], from calibration
+        self.position_residual: NDArray[np.float64] | None = None
+        self._problem: Problem | None = None
+        self._key: tuple | None = None
+        self._model_step: tuple[Any, tuple[ca.Function, NDArray, Any]] | None = None
+        self._warm: dict[str, NDArray] | None = None
+        self._fallback: NDArray | None = None
+        self._fallback_used = 0
+        self._failed = False
+        #: (commands (T, N, 2), predicted poses (T, N, 3)) of the last successful solve
+        self.last_plan: tuple[NDArray, NDArray] | None = None
+
+    # ------------------------------------------------------------------ setup
+    @property
+    def problem(self) -> Problem | None:
+        """The built problem (None before the first reset)."""
+        return self._problem
+
+    def share_problem(self, other: NMPCController) -> None:
+        """Use ``other``'s built problem (and its model, unless this controller has its own):
+        controllers of one problem structure then build and compile it once."""
+        if self.model is None or self.model is other.model:
+            self.model, self._model_step = other.model, other._model_step
+        self._problem, self._key = other._problem, other._key
+
+    def restart(self) -> None:
+        """Start the next solve cold (from :meth:`_initial_guess`), not from the shifted plan."""
+        self._warm = None
+
+    def _model_for(self, scenario: Scenario) -> PredictionModel:
+        if self.model is None:
+            raise ValueError(f"{self.name}: no prediction model was given")
+        return self.model
+
+    def _problem_key(self, scenario: Scenario, structure: Any) -> tuple:
+        """What the built problem depends on: one problem serves every scenario with this key."""
+        return (
+            structure,
+            scenario.n_robots,
+            # with obstacle slots one problem serves any obstacle count
+            0 if self.config.obstacle_slots else scenario.obstacles.shape[0],
+            scenario.task,
+            tuple(scenario.robot_radius),
+            scenario.workspace,
+            scenario.v_max,
+            scenario.omega_max,
+            self.neighbour_slots,
+        )
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        model = self._model_for(scenario)
+        if model.n_robots != scenario.n_robots:
+            raise ValueError(
+                f"{self.name}: the prediction model has {model.n_robots} robots, the scenario {scenario.n_robots}"
+            )
+        if self._model_step is None or self._model_step[0] is not model:
+            self._model_step = (model, model_step(model))  # built once per model, not per episode
+        step = self._model_step[1]
+        _, theta_values, structure = step
+        key = self._problem_key(scenario, structure)
+        if key != self._key:
+            self._problem = Problem(
+                model,
+                scenario,
+                self.config,
+                step,
+                terminal_slack=self.config.solver == "rti",
+                neighbour_slots=self.neighbour_slots,
+            )
+            self._key = key
+        assert self._problem is not None  # built above
+        self._fill_parameters(scenario, theta_values)
+        self._warm = None
+        self._fallback = None
+        self._fallback_used = 0
+        self._failed = False
+        self.last_plan = None
+        self._stats.solver = self.solver_label
+
+    def _fill_parameters(self, scenario: Scenario, theta_values: NDArray) -> None:
+        """The episode's parameter values: goals, obstacles, margins, parked slots, model coefficients.
+
+        Margins and model coefficients may change during an episode (:meth:`set_margins`,
+        :meth:`set_model_parameters`), slots and goals every period.
+        """
+        assert self._problem is not None  # built by _reset
+        layout = self._problem.layout
+        obstacle_margin, pair_margin = self.safety_margins(scenario)
+        self._scenario_obstacles = np.asarray(scenario.obstacles, dtype=float).reshape(-1, 3)
+        self._pair_slots = PairSlots(
+            self.config.pair_slots,
+            scenario.n_robots,
+            scenario.robot_radius,
+            2 * scenario.v_max * self.config.horizon * scenario.dt,
+        )
+        params = layout.zeros()
+        params[layout["goal_xy"]] = scenario.targets[:, :2].reshape(-1)
+        params[layout["goal_cs"]] = np.column_stack(
+            [np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])]
+        ).reshape(-1)
+        params[layout["obstacles"]] = (
+            nearest_obstacle_slots(
+                scenario.starts[:, :2], self._scenario_obstacles, self.config.obstacle_slots
+            )
+            if self.config.obstacle_slots
+            else scenario.obstacles.reshape(-1)
+        )
+        params[layout["obstacle_margin"]] = obstacle_margin
+        params[layout["pair_margin"]] = pair_margin
+        # neighbour slots start parked (see set_neighbours), pair slots too (see PairSlots)
+        params[layout["neighbour_xy"]] = PARKED
+        params[layout["neighbour_reach"]] = 0.0
+        pair = layout["pair_select"].start, layout["pair_reach"].stop
+        params[pair[0] : pair[1]] = self._pair_slots.parked()
+        params[layout["model"]] = theta_values
+        self._params = params
+
+    @property
+    def solver_label(self) -> str:
+        """The optimizer as reports name it: ``"rti/<qp solver>"`` or the ``nlpsol`` plugin."""
+        config = self.config
+        return f"rti/{config.qp_solver}" if config.solver == "rti" else config.solver
+
+    # -------------------------------------------------------------- parameters
+    def _block(self, name: str) -> slice:
+        assert self._problem is not None  # built by _reset
+        return self._problem.layout[name]
+
+    def parameter(self, name: str) -> NDArray[np.float64]:
+        """A copy of block ``name`` of the parameter values the next solve uses
+        (:data:`~controllers.mpc.layout.BLOCKS`; ``x_meas`` is written at every solve)."""
+        return self._params[self._block(name)].copy()
+
+    def parameter_vector(self) -> NDArray[np.float64]:
+        """A copy of the whole parameter vector the next solve uses (``x_meas`` not yet written)."""
+        return self._params.copy()
+
+    @property
+    def pairs_in_slots(self) -> list[tuple[int, int] | None]:
+        """The robot pair each pair slot holds (None: parked)."""
+        return list(self._pair_slots.held)
+
+    def set_margins(self, obstacle: NDArray, pair: NDArray) -> None:
+        """Use these safety margins from the next solve on (shapes as :meth:`safety_margins`)."""
+        self._params[self._block("obstacle_margin")] = obstacle
+        self._params[self._block("pair_margin")] = pair
+
+    def set_neighbours(self, positions: NDArray, reach: NDArray) -> None:
+        """Use these moving discs from the next solve on (a problem built with neighbour slots).
+
+        ``positions`` (T, K, 2): each slot's predicted position at stages 1..T; ``reach`` (K,):
+        the slot's radius plus the margin to keep. An unused slot is parked
+        (:data:`~controllers.mpc.config.PARKED`).
+        """
+        self._params[self._block("neighbour_xy")] = np.ravel(positions)
+        self._params[self._block("neighbour_reach")] = np.ravel(reach)
+
+    def set_goal(self, index: int, xy: NDArray) -> None:
+        """Track ``xy`` instead of robot ``index``'s target position from the next solve on."""
+        start = self._block("goal_xy").start
+        self._params[start + 2 * index : start + 2 * index + 2] = xy
+
+    def set_obstacles(self, obstacles: NDArray) -> None:
+        """Use these obstacles (M, 3) from the next solve on (M as the problem was built for)."""
+        self._params[self._block("obstacles")] = np.ravel(obstacles)
+
+    def set_model_parameters(self, theta: NDArray) -> None:
+        """Use these model coefficients (the model's ``nlp_parameters`` layout) from the next solve on."""
+        self._params[self._block("model")] = theta
+
+    def _fill_slots(self, positions: NDArray) -> None:
+        """Refresh the obstacle slots and the pair slots from the robots' current positions."""
+        if self.config.obstacle_slots:
+            self._params[self._block("obstacles")] = nearest_obstacle_slots(
+                positions, self._scenario_obstacles, self.config.obstacle_slots
+            )
+        if not self.config.pair_slots:
+            return
+        values, dropped = self._pair_slots.assign(positions, self._params[self._block("pair_margin")])
+        if dropped:
+            self._stats.counts["pairs_dropped"] += dropped
+        self._params[self._block("pair_select").start : self._block("pair_reach").stop] = values
+
+    def safety_margins(self, scenario: Scenario) -> tuple[NDArray, NDArray]:
+        """Margins added to the radii: per robot toward obstacles (N,), per robot pair (i < j).
+
+        ``obstacle_offset`` and ``robot_offset``, widened to ``uncertainty_margin`` times the
+        prediction model's calibrated residual when that is larger.
+        """
+        n = scenario.n_robots
+        margin_spread(self.name, self.config.uncertainty_margin, self.position_residual, n)  # checks it
+        return self.margins_for(n, self.position_residual)
+
+    def margins_for(self, n_robots: int, residual: NDArray | None) -> tuple[NDArray, NDArray]:
+        """:meth:`safety_margins` for a given per-robot RMS position residual [m] (None: offsets only)."""
+        n = n_robots
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        obstacle = np.full(n, self.config.obstacle_offset)
+        pair = np.full(len(pairs), self.config.robot_offset)
+        k = self.config.uncertainty_margin
+        if k > 0 and residual is not None:
+            spread = k * np.asarray(residual, dtype=float)
+            obstacle = np.maximum(obstacle, spread)
+            pair = np.maximum(pair, np.array([spread[i] + spread[j] for i, j in pairs]))
+        return obstacle, pair
+
+    # -------------------------------------------------------------------- act
+    def _initial_guess(self, state: NDArray) -> NDArray:
+        """Hold the current state with zero commands (the first step of an episode)."""
+        prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
+        w = np.zeros(prob.n_vars)
+        w[prob.x_index] = np.tile(state, prob.horizon)
+        w[: prob.nx] = state
+        return w
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
+        state = encode_state(info["poses"], prob.coding)
+        if self.config.obstacle_slots or self.config.pair_slots:
+            self._fill_slots(np.asarray(info["poses"], dtype=float)[:, :2])
+        params = self._params.copy()
+        params[prob.layout["x_meas"]] = state
+        cold = self._warm is None
+        if self._warm is None:  # cold
+            guess = {
+                "x0": self._initial_guess(state),
+                "lam_x0": np.zeros(prob.n_vars),
+                "lam_g0": np.zeros(prob.n_cons),
+            }
+        else:
+            guess = {"x0": self._warm["x"], "lam_x0": self._warm["lam_x"], "lam_g0": self._warm["lam_g"]}
+        start = time.perf_counter()
+        outcome = self._solve(params, guess, cold)
+        self._stats.solve_times.append(time.perf_counter() - start)
+        self._stats.iterations.append(outcome.iterations)  # QPs, plus IPOPT's iterations on a fallback
+        self._stats.statuses[outcome.status] += 1
+        if outcome.success:
+            # a successful outcome carries its plan and multipliers (_solve_rti, _solve_nlp)
+            assert outcome.w is not None and outcome.lam_x is not None and outcome.lam_g is not None
+            commands, poses = prob.plan(outcome.w)
+            self.last_plan = (commands, poses)
+            self._failed = False
+            self._warm = prob.shift(
+                outcome.w, outcome.lam_x, outcome.lam_g, self._params[prob.layout["model"]]
+            )
+            self._fallback = commands
+            self._fallback_used = 0
+            return commands[0].reshape(-1).copy()
+        self._stats.failures += 1
+        self._failed = True
+        self._warm = None  # a failed iterate is a poor starting point: restart cold next step
+        return self._fallback_command()
+
+    def _solve(self, params: NDArray, guess: dict[str, NDArray], cold: bool) -> SolveOutcome:
+        """The main solver, then the fallback solver on failure (both counted in the status)."""
+        main = self.config.solver
+        if main == "rti":
+            outcome = self._solve_rti(params, guess)
+        else:
+            outcome = self._solve_nlp(main, params, guess, cold)
+        fallback = self.config.fallback_solver
+        if not outcome.success and fallback and fallback != main:
+            first = outcome
+            outcome = self._solve_nlp(fallback, params, guess, cold)
+            outcome.iterations += first.iterations
+            outcome.status = f"{main}:{first.status} -> {fallback}:{outcome.status}"
+            self._stats.counts[f"fallback_{fallback}"] += 1
+        return outcome
+
+    def solve_failed(self) -> bool:
+        """Whether the last period's solve failed (its command came from the plan fallback;
+        :attr:`last_plan` is then the last successful one's)."""
+        return self._failed
+
+    def _solve_rti(self, params: NDArray, guess: dict[str, NDArray]) -> SolveOutcome:
+        """The real-time iteration's QP(s); a failed QP or a plan with a large slack fails."""
+        assert self._problem is not None  # built by _reset, which act() requires
+        step = self._problem.real_time_iteration().solve(
+            guess["x0"], guess["lam_x0"], guess["lam_g0"], params
+        )
+        if not step.success:
+            return SolveOutcome(False, f"qp_failed({step.status})", iterations=step.iterations)
+        if step.max_slack > self.config.slack_tolerance:
+            return SolveOutcome(False, "large_slack", iterations=step.iterations)
+        return SolveOutcome(True, "rti", step.w, step.lam_x, step.lam_g, step.iterations)
+
+    def _solve_nlp(self, name: str, params: NDArray, guess: dict[str, NDArray], cold: bool) -> SolveOutcome:
+        """One ``nlpsol`` call of plugin ``name`` to convergence."""
+        prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
+        solver = prob.solver_for(name, cold)
+        try:
+            sol = solver(p=params, **prob.bounds, **guess)
+        except RuntimeError as exc:  # CasADi raises on evaluation errors (e.g. NaN in a function)
+            return SolveOutcome(False, f"error: {exc}".splitlines()[0][:80])
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        w = np.asarray(sol["x"]).reshape(-1)
+        success = bool(stats.get("success", False)) and bool(np.all(np.isfinite(w)))
+        if not np.all(np.isfinite(w)):
+            status = "non_finite_solution"
+        return SolveOutcome(
+            success,
+            status,
+            w,
+            np.asarray(sol["lam_x"]).reshape(-1),
+            np.asarray(sol["lam_g"]).reshape(-1),
+            int(stats.get("iter_count", 0)),
+        )
+
+    def _fallback_command(self) -> NDArray[np.float64]:
+        """Next command of the last successful plan, or a stop when that plan is used up."""
+        assert self.scenario is not None  # act() checked it
+        n = self.scenario.n_robots
+        self._fallback_used += 1
+        if self._fallback is not None and self._fallback_used < self._fallback.shape[0]:
+            return self._fallback[self._fallback_used].reshape(-1).copy()
+        return np.zeros(2 * n)

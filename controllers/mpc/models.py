@@ -1,0 +1,124 @@
+"""Prediction models of the NMPC: what a model must offer (:class:`PredictionModel`), how the NLP
+state codes poses, and the nominal (slip-free) unicycle of the team. The Koopman model lives in
+:mod:`controllers.koopman`; it satisfies the same protocol."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.params import PARAMS
+from koopman_envs.sim.dynamics import rk4_step
+
+__all__ = ["CODING_SIZE", "PredictionModel", "UnicycleModel", "decode_state", "encode_state", "model_step"]
+
+
+class PredictionModel(Protocol):
+    """What the NMPC needs of a model: team size, period, and a CasADi step function.
+
+    ``coding`` names the per-robot NLP state: ``"pose"`` = (x, y, theta) or ``"cs"`` =
+    (x, y, cos theta, sin theta); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
+    """
+
+    # read-only members: a frozen dataclass (UnicycleModel) satisfies them, the NMPC only reads them
+    @property
+    def n_robots(self) -> int: ...
+
+    @property
+    def dt(self) -> float: ...
+
+    @property
+    def coding(self) -> str: ...
+
+    def casadi_nlp_step(self) -> ca.Function: ...
+
+
+def model_step(model: PredictionModel) -> tuple[ca.Function, NDArray[np.float64], Any]:
+    """(step function (s, u, theta) -> s_next, theta's values, structure key) of a model.
+
+    A model may offer its coefficients as NLP parameters (``casadi_nlp_step_parametric``,
+    ``nlp_parameters``, ``nlp_structure``): the NMPC's problem then depends on its structure
+    only, and models of the same structure share one built (and compiled) problem. Otherwise
+    the coefficients are constants and the model itself is the key.
+    """
+    if (
+        hasattr(model, "casadi_nlp_step_parametric")
+        and hasattr(model, "nlp_parameters")
+        and hasattr(model, "nlp_structure")
+    ):
+        return (
+            model.casadi_nlp_step_parametric(),
+            np.asarray(model.nlp_parameters(), dtype=float),
+            model.nlp_structure(),
+        )
+    fixed = model.casadi_nlp_step()
+    s = ca.SX.sym("s", fixed.size1_in(0))
+    u = ca.SX.sym("u", fixed.size1_in(1))
+    theta = ca.SX.sym("theta", 0)
+    step = ca.Function("step", [s, u, theta], [fixed(s, u)], ["s", "u", "theta"], ["s_next"])
+    # the model itself, not id(model): Python reuses the id of a collected object, and a new
+    # model at an old address would silently inherit the old model's NLP
+    return step, np.zeros(0), model
+
+
+CODING_SIZE = {"pose": 3, "cs": 4}
+
+
+def encode_state(poses: NDArray, coding: str) -> NDArray[np.float64]:
+    """Stacked NLP state of poses (N, 3) in a model's coding."""
+    poses = np.asarray(poses, dtype=np.float64)
+    if coding == "pose":
+        return poses.reshape(-1)
+    return np.column_stack([poses[:, :2], np.cos(poses[:, 2]), np.sin(poses[:, 2])]).reshape(-1)
+
+
+def decode_state(states: NDArray, coding: str) -> NDArray[np.float64]:
+    """Poses (..., N, 3) from NLP states (..., N * size) in a coding."""
+    size = CODING_SIZE[coding]
+    s = np.asarray(states).reshape(states.shape[:-1] + (-1, size))
+    if coding == "pose":
+        return s.copy()
+    return np.concatenate([s[..., :2], np.arctan2(s[..., 3], s[..., 2])[..., None]], axis=-1)
+
+
+@dataclass(frozen=True)
+class UnicycleModel:
+    """x+ = RK4 of the slip-free kinematics (SPEC eq. 15 with alpha = beta = gamma = 0)."""
+
+    n_robots: int
+    dt: float = PARAMS.dt
+
+    def step(self, poses: NDArray, commands: NDArray) -> NDArray[np.float64]:
+        """Predicted poses (..., N, 3) one period later."""
+        poses = np.asarray(poses, dtype=np.float64)
+        return rk4_step(poses, commands, np.zeros(poses.shape), self.dt)
+
+    coding = "pose"  # the NMPC state of this model: (x, y, theta) per robot
+
+    def casadi_nlp_step(self) -> ca.Function:
+        """The step in the NMPC's coding (poses): :meth:`casadi_step`."""
+        return self.casadi_step()
+
+    def casadi_step(self, name: str = "unicycle_step") -> ca.Function:
+        """The same RK4 map as a CasADi SX function ``x_next = f(x, u)`` on stacked vectors."""
+        n = self.n_robots
+        x = ca.SX.sym("x", 3 * n)
+        u = ca.SX.sym("u", 2 * n)
+
+        def rate(state: ca.SX) -> ca.SX:
+            parts = []
+            for i in range(n):
+                th = state[3 * i + 2]
+                parts += [u[2 * i] * ca.cos(th), u[2 * i] * ca.sin(th), u[2 * i + 1]]
+            return ca.vertcat(*parts)
+
+        h = self.dt
+        k1 = rate(x)
+        k2 = rate(x + h / 2 * k1)
+        k3 = rate(x + h / 2 * k2)
+        k4 = rate(x + h * k3)
+        return ca.Function(name, [x, u], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)], ["x", "u"], ["x_next"])

@@ -1,0 +1,294 @@
+"""The NMPCs by prediction model: nominal (the slip-free unicycle), Koopman (the learned bilinear
+model, SPEC section 3) and adaptive Koopman (the learned model updated online).
+
+Koopman-NMPC predicts with the model learned from data of the robots it drives. Nominal NMPC
+predicts with the slip-free unicycle; with ``uncertainty_margin > 0`` its :meth:`calibrate`
+measures the unicycle's RMS one-step position residual on the same calibration data and widens
+the margins by it, as Koopman-NMPC does with its own residual.
+
+Adaptive Koopman-NMPC is the Koopman-NMPC whose bilinear model learns online from its episode.
+The controller starts every episode from its calibrated model (so episodes stay independent and
+reproducible in any order or process) and, after every period, folds the observed transition
+into the model by recursive least squares (:class:`controllers.koopman.online.RecursiveBilinearFit`).
+It is told nothing about slip: a slip zone or a changing slip level shows up only as prediction
+error, which the update then absorbs. The coefficients enter the NMPC as NLP parameters, so an
+update costs no rebuild or recompilation.
+
+Its safety margins follow its own recent prediction error: ``uncertainty_margin`` (k) times the
+RMS one-step position residual of the last ``residual_window`` periods (per robot), never below
+the offsets, and the calibrated residual until the window has filled a little. With k = 0 the
+margins are the paper's offsets, as for koopman-nmpc.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+import warnings
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from controllers.calibration import (
+    CacheWarning,
+    cache_key,
+    cache_path,
+    check_position_residual,
+    collect_data,
+    data_spec_for,
+    position_residual,
+    write_atomic,
+)
+from controllers.koopman import KoopmanModel, calibrated_model
+from controllers.koopman.online import (
+    RecursiveBilinearFit,
+    check_adapted,
+    check_forgetting,
+    check_prior_weight,
+)
+from controllers.koopman.store import check_structure, default_structure
+from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
+from controllers.mpc.controller import NMPCController
+from controllers.mpc.models import UnicycleModel
+from koopman_envs.checks import check_int
+from koopman_envs.plant import CalibrationPlant
+from koopman_envs.scenario import Scenario
+
+__all__ = ["AdaptiveKoopmanNMPC", "KoopmanNMPC", "NominalNMPC"]
+
+
+#: periods of a-priori residuals before the recent residual replaces the calibrated one
+_MIN_RESIDUALS = 5
+
+
+class NominalNMPC(NMPCController):
+    """NMPC that predicts with the slip-free unicycle (no slip knowledge, no learning).
+
+    With ``uncertainty_margin > 0`` its :meth:`calibrate` measures the unicycle's RMS one-step
+    position residual on the same calibration data the Koopman-NMPC fits its model to, and
+    widens the margins by it, exactly as the Koopman-NMPC does with its own residual.
+    """
+
+    name = "nominal-nmpc"
+
+    def __init__(self, config: NMPCConfig | None = None, **options: Any) -> None:
+        super().__init__(None, config, **options)
+        self._models: dict[tuple[int, float], UnicycleModel] = {}
+
+    def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
+        """Measure the unicycle's residual on ``plant`` when the margins need it (else use no data)."""
+        if self.config.uncertainty_margin == 0:
+            self.position_residual = None
+            return {"transitions": 0, "source": "not needed"}
+        start = time.perf_counter()
+        spec = data_spec_for(plant.budget, seed)
+        key = cache_key("unicycle-residual", plant, spec, dt=plant.dt)
+        path = cache_path("unicycle-residual", key, ".json")
+        summary = {"transitions": spec.transitions, "key": key}
+        try:
+            residual = check_position_residual(
+                json.loads(path.read_text(encoding="utf-8"))["position_residual"], plant.n_robots
+            ).tolist()
+            source = "cache"
+        except (OSError, ValueError, KeyError, TypeError) as exc:  # missing or bad entry: measure again
+            if path.exists():
+                warnings.warn(
+                    f"calibration cache entry {path}: {type(exc).__name__}: {exc}; measuring it again",
+                    CacheWarning,
+                    stacklevel=2,
+                )
+            model = UnicycleModel(plant.n_robots, plant.dt)
+            residual = position_residual(model.step, collect_data(plant, spec)).tolist()
+            blob = json.dumps({"position_residual": residual})
+            write_atomic(path, lambda tmp: Path(tmp).write_text(blob, encoding="utf-8"), ".json")
+            source = "measured"
+        self.position_residual = np.asarray(residual, dtype=float)
+        return {**summary, "source": source, "seconds": time.perf_counter() - start}
+
+    def _model_for(self, scenario: Scenario) -> UnicycleModel:
+        key = (scenario.n_robots, scenario.dt)
+        if key not in self._models:
+            self._models[key] = UnicycleModel(scenario.n_robots, scenario.dt)
+        return self._models[key]
+
+
+class KoopmanNMPC(NMPCController):
+    """NMPC whose prediction model f_b is learned from data of the robots it drives.
+
+    The model comes from :meth:`calibrate` (the evaluator calls it with the deployment env's
+    calibration plant: the paper's 1000 x 1000 random-input transitions by default, fitted once
+    and cached on disk) or is given directly. The controller is never told the slip setting.
+
+    Parameters
+    ----------
+    model : KoopmanModel or path, optional
+        Use this model (then :meth:`calibrate` keeps it and only its recorded residual counts).
+        ``controllers.koopman.fit_for_env(env_id, **env_kwargs)`` fits one for any env.
+    dictionary : str
+        Dictionary of the model that :meth:`calibrate` fits (``"minimal"``: the paper's).
+    structure : str
+        How the fitted model couples the robots: ``"stacked"`` (the paper's one team
+        regression), ``"per-robot"`` (each robot's own block; the fit and the NMPC problem grow
+        linearly with N instead of quadratically) or ``"auto"`` (default: stacked up to the
+        paper's 3 robots, per-robot beyond).
+    config, **options
+        NMPC options, see :class:`controllers.mpc.config.NMPCConfig` (``uncertainty_margin`` uses the
+        model's RMS one-step position residual on its calibration data).
+    """
+
+    name = "koopman-nmpc"
+    model: KoopmanModel | None  # only ever a KoopmanModel here (__init__, _use)
+
+    def __init__(
+        self,
+        model: KoopmanModel | str | os.PathLike | None = None,
+        dictionary: str = "minimal",
+        config: NMPCConfig | None = None,
+        structure: str = "auto",
+        **options: Any,
+    ) -> None:
+        if structure != "auto":
+            check_structure(structure)
+        self.structure = structure
+        if model is not None and not isinstance(model, KoopmanModel):
+            model = KoopmanModel.load(model)
+        super().__init__(model, config, **options)
+        self.dictionary = dictionary
+        self._fixed_model = model is not None
+        if model is not None:
+            self._use(model)
+
+    def _use(self, model: KoopmanModel) -> None:
+        self.model = model
+        residual = model.metadata.get("position_residual")
+        self.position_residual = None if residual is None else np.asarray(residual, dtype=float)
+
+    def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
+        """Fit the model of ``plant``'s robots (or load it from the cache); see the class docstring."""
+        if self._fixed_model:
+            assert self.model is not None  # _fixed_model: __init__ was given a model
+            return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
+        structure = self.structure
+        if structure == "auto":
+            structure = default_structure(plant.n_robots)
+        model, summary = calibrated_model(plant, seed, self.dictionary, structure=structure)
+        summary["structure"] = structure
+        self._use(model)
+        return summary
+
+    def _model_for(self, scenario: Scenario) -> KoopmanModel:
+        if self.model is None:
+            raise ValueError(
+                "koopman-nmpc has no model: call calibrate(plant) first (the evaluator does), or pass "
+                "model=controllers.koopman.fit_for_env(env_id, **env_kwargs)"
+            )
+        return self.model
+
+
+class AdaptiveKoopmanNMPC(KoopmanNMPC):
+    """Koopman-NMPC with an online RLS update of its model and residual-driven margins.
+
+    Parameters
+    ----------
+    model, dictionary, structure
+        As :class:`KoopmanNMPC` (the starting model).
+    forgetting : float
+        RLS forgetting factor in (0, 1] (0.98: ~5 s of memory at the paper's 0.1 s period).
+    prior_weight : float
+        Calibration-like transitions the starting model is worth (> 0).
+    residual_window : int
+        Periods of recent one-step residuals behind the margins (>= 1).
+    adapt : bool
+        False freezes the model (margins still follow the residuals): an ablation switch.
+    adapted : {"all", "input"}
+        Which coefficients the update changes: every free one (default), or only those of the
+        command terms (A, the motion without commands, stays calibrated); see
+        :class:`controllers.koopman.online.RecursiveBilinearFit`.
+    config, **options
+        NMPC options (:class:`controllers.mpc.config.NMPCConfig`); ``uncertainty_margin`` defaults
+        to :data:`controllers.mpc.config.ROBUST_UNCERTAINTY_MARGIN` here (3 recent RMS residuals).
+
+    Notes
+    -----
+    Its :meth:`stats` add the online update's cost per step (``online_update_ms_median`` / ``_p95``:
+    RLS, new NLP parameters, margins) and ``online_updates_rejected`` (transitions the guards refused).
+    """
+
+    name = "adaptive-koopman-nmpc"
+
+    def __init__(
+        self,
+        model: KoopmanModel | str | os.PathLike | None = None,
+        dictionary: str = "minimal",
+        forgetting: float = 0.98,
+        prior_weight: float = 200.0,
+        residual_window: int = 20,
+        adapt: bool = True,
+        adapted: str = "all",
+        config: NMPCConfig | None = None,
+        structure: str = "auto",
+        **options: Any,
+    ) -> None:
+        options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
+        check_forgetting(forgetting)
+        check_prior_weight(prior_weight)
+        check_int("residual_window", residual_window, 1, note="periods")
+        self.forgetting = float(forgetting)
+        self.prior_weight = float(prior_weight)
+        self.residual_window = residual_window
+        self.adapt = bool(adapt)
+        self.adapted = check_adapted(adapted)
+        self._estimator: RecursiveBilinearFit | None = None
+        super().__init__(model, dictionary, config, structure, **options)
+
+    def _use(self, model: KoopmanModel) -> None:
+        super()._use(model)
+        self._estimator = None  # rebuilt for the new model at the next reset
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        super()._reset(scenario, seed)
+        assert self.model is not None  # else super()._reset raised (_model_for)
+        if self._estimator is None or self._estimator.model is not self.model:
+            self._estimator = RecursiveBilinearFit(
+                self.model, self.forgetting, self.prior_weight, self.adapted
+            )
+        self._estimator.reset()
+        self._residuals: deque[NDArray] = deque(maxlen=self.residual_window)
+        self._previous: tuple[NDArray, NDArray] | None = None
+        self._limits = np.array([scenario.v_max, scenario.omega_max])
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        poses = np.asarray(info["poses"], dtype=np.float64)
+        if self._previous is not None:
+            start = time.perf_counter()
+            self._learn(*self._previous, poses)
+            self._stats.extra_times.setdefault("online_update", []).append(time.perf_counter() - start)
+        command = super()._act(observation, info)
+        n = poses.shape[0]
+        # the env saturates commands to the limits; learn from what the robots actually received
+        applied = np.clip(command.reshape(n, 2), -self._limits, self._limits)
+        self._previous = (poses, applied)
+        return command
+
+    def _learn(self, poses: NDArray, commands: NDArray, next_poses: NDArray) -> None:
+        estimator = self._estimator
+        assert estimator is not None  # built by _reset; _learn runs from the episode's second step
+        if self.adapt:
+            rejected = estimator.rejected
+            error = estimator.update(poses, commands, next_poses)
+            self._stats.counts["online_updates_rejected"] += estimator.rejected - rejected
+            self.set_model_parameters(estimator.nlp_parameters())
+        else:
+            error = estimator.model.lift(next_poses[None])[0][estimator.outputs] - estimator.predict(
+                poses, commands
+            )
+        # a-priori position error per robot: rows 4i, 4i + 1 of C are robot i's x, y
+        xy = error.reshape(-1, 4)[:, :2]
+        self._residuals.append(np.einsum("ij,ij->i", xy, xy))
+        if self.config.uncertainty_margin > 0 and len(self._residuals) >= _MIN_RESIDUALS:
+            recent = np.sqrt(np.mean(np.asarray(self._residuals), axis=0))
+            self.set_margins(*self.margins_for(poses.shape[0], recent))

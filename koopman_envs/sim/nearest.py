@@ -1,0 +1,47 @@
+"""Nearest first: the one ordering of discs by clearance that the observations, the RL set
+features and the controllers' obstacle and neighbour slots all use.
+
+The order is the stable sort of the clearances: nearest first, equal clearances in index order.
+:func:`nearest_first` computes it inside compiled (numba) kernels, :func:`nearest_order` on numpy
+arrays; both give the same order for the same values (``tests/test_nearest.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = ["disc_clearance", "nearest_by_clearance", "nearest_first", "nearest_order"]
+
+
+@njit(cache=True)
+def nearest_first(gap: NDArray[np.float64], order: NDArray[np.int64], count: int) -> None:
+    """Write into ``order[:count]`` the indices 0..count-1 sorted by ``gap`` (stable insertion
+    sort: equal gaps keep index order). For compiled kernels; allocates nothing."""
+    for m in range(count):
+        order[m] = m
+        q = m
+        while q > 0 and gap[order[q - 1]] > gap[m]:
+            order[q] = order[q - 1]
+            q -= 1
+        order[q] = m
+
+
+def nearest_order(gap: NDArray[np.float64], k: int) -> NDArray[np.intp]:
+    """Indices of the ``k`` smallest gaps along the last axis, nearest first (stable: equal gaps
+    in index order), shape ``gap.shape[:-1] + (min(k, m),)``."""
+    return np.argsort(gap, axis=-1, kind="stable")[..., :k]
+
+
+def disc_clearance(points: NDArray[np.float64], discs: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Distance from each point (N, 2) to each disc's surface (M, 3: x, y, r), shape (N, M) [m]."""
+    clearance: NDArray[np.float64] = (
+        np.hypot(*(points[:, None, :] - discs[None, :, :2]).transpose(2, 0, 1)) - discs[:, 2]
+    )
+    return clearance
+
+
+def nearest_by_clearance(points: NDArray[np.float64], discs: NDArray[np.float64], k: int) -> NDArray[np.intp]:
+    """Each point's ``k`` nearest discs by surface clearance, nearest first, shape (N, min(k, M))."""
+    return nearest_order(disc_clearance(points, discs), k)
