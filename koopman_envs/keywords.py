@@ -5,7 +5,6 @@ tables are generated from the table."""
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import functools
 import inspect
 import json
@@ -17,6 +16,7 @@ from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS, RandomMapConfig
+from koopman_envs.suggest import closest
 from koopman_envs.tasks.base import TASKS
 
 __all__ = [
@@ -194,11 +194,7 @@ def unknown_keywords(given: Any, allowed: Sequence[str], owner: str) -> TypeErro
     unknown = [name for name in given if name not in allowed]
     if not unknown:
         return None
-    hints = [
-        f"{close[0]!r} for {name!r}"
-        for name in unknown
-        if (close := difflib.get_close_matches(name, allowed, 1))
-    ]
+    hints = [f"{match!r} for {name!r}" for name in unknown if (match := closest(name, allowed)) is not None]
     hint = f" (did you mean {', '.join(hints)}?)" if hints else ""
     # Python's own phrase first: wrappers such as TorchRL's GymEnv retry without a keyword (e.g.
     # frameskip) when the error reads "unexpected keyword argument '<name>'"

@@ -1,11 +1,20 @@
-"""Did-you-mean hints for names that are not among the allowed ones (as Gymnasium's registry gives)."""
+"""Did-you-mean hints for names that are not among the allowed ones (as Gymnasium's registry gives):
+the one helper every error message of the package uses."""
 
 from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable
 
-__all__ = ["did_you_mean"]
+__all__ = ["closest", "did_you_mean"]
+
+
+def closest(name: object, allowed: Iterable[str]) -> str | None:
+    """The allowed name closest to ``name`` (difflib's ratio, cut-off 0.6), or None."""
+    if not isinstance(name, str):
+        return None
+    close = difflib.get_close_matches(name, list(allowed), n=1)
+    return close[0] if close else None
 
 
 def did_you_mean(name: object, allowed: Iterable[str]) -> str:
@@ -18,7 +27,5 @@ def did_you_mean(name: object, allowed: Iterable[str]) -> str:
     allowed : iterable of str
         The allowed names.
     """
-    if not isinstance(name, str):
-        return ""
-    close = difflib.get_close_matches(name, list(allowed), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else ""
+    match = closest(name, allowed)
+    return f" (did you mean {match!r}?)" if match is not None else ""

@@ -1,0 +1,84 @@
+"""The safety filter's options: :class:`SafetyOptions`, their ranges and checks, and the prefix that
+routes ``safety_*`` options of a ``safe:<name>`` configuration to the filter."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar
+
+from koopman_envs.params import PARAMS
+from koopman_envs.suggest import did_you_mean
+
+__all__ = ["FILTER_OPTION_PREFIX", "SafetyOptions"]
+
+#: in ``safe:<name>`` configurations, options with this prefix go to the filter, the others to ``<name>``
+FILTER_OPTION_PREFIX = "safety_"
+
+
+@dataclass(frozen=True)
+class SafetyOptions:
+    """Options of the CBF safety filter (all ours; ranges checked on construction).
+
+    The defaults keep the narrowest passage of the paper maps open (0.56 m between two obstacles
+    of Map 1 and Map 3; a robot needs ``2 (r + lookahead + margin)`` = 0.54 m), so that the
+    filter does not close a way the inner controller may take.
+
+    Attributes
+    ----------
+    gamma : float
+        Class-K gain [1/s], ``0 < gamma <= 1 / dt`` (10 for the paper's dt): each barrier may
+        shrink by at most the fraction ``gamma dt`` per period. Small: brake early and gently;
+        large: late and hard.
+    margin : float
+        Extra clearance [m] beyond the robot and obstacle radii (and between robots), in
+        ``[0, 1]``: room for the slip the filter does not model.
+    lookahead : float
+        Distance of the controlled point ahead of the axle [m], in ``(0, 0.5]``. Larger lets a
+        turn move the point more (more steering authority) but inflates every radius by as much.
+    omega_weight : float
+        Weight of a change of omega relative to a change of v in the cost [m^2/rad^2], in
+        ``(0, 100]``: small prefers turning away, large prefers braking.
+    """
+
+    gamma: float = 2.0
+    margin: float = 0.02
+    lookahead: float = 0.05
+    omega_weight: float = 0.01
+
+    #: allowed range per option: (low, high, low included, description)
+    RANGES: ClassVar[dict[str, tuple[float, float, bool, str]]] = {
+        "gamma": (0.0, 1.0 / PARAMS.dt, False, f"(0, {1.0 / PARAMS.dt:g}] 1/s (gamma * dt <= 1)"),
+        "margin": (0.0, 1.0, True, "[0, 1] m"),
+        "lookahead": (0.0, 0.5, False, "(0, 0.5] m"),
+        "omega_weight": (0.0, 100.0, False, "(0, 100] m^2/rad^2"),
+    }
+
+    def __post_init__(self) -> None:
+        for name in self.RANGES:
+            self.check(name, getattr(self, name))
+
+    @classmethod
+    def check(cls, name: str, value: Any, prefix: str = "") -> None:
+        """Raise ``ValueError`` naming option ``prefix + name``, its value and its allowed range."""
+        low, high, closed, text = cls.RANGES[name]
+        number = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+        if not number or value > high or value < low or (value == low and not closed):
+            raise ValueError(
+                f"safety filter option {prefix}{name}={value!r} is out of range; allowed: {text}"
+            )
+
+    @classmethod
+    def from_options(cls, prefix: str = "", **options: Any) -> SafetyOptions:
+        """Build from keyword options; errors name the option as given (with ``prefix``), its value
+        and what is allowed."""
+        allowed = [f.name for f in fields(cls)]
+        for key, value in options.items():
+            if key not in allowed:
+                raise ValueError(
+                    f"unknown safety filter option {prefix + key!r}"
+                    f"{did_you_mean(prefix + key, [prefix + a for a in allowed])}; "
+                    f"allowed: {[prefix + a for a in allowed]}"
+                )
+            cls.check(key, value, prefix)
+        return cls(**options)
