@@ -15,6 +15,7 @@ Any of them runs behind the CBF safety filter of :mod:`controllers.safety` as ``
 
 from controllers.base import BaseController, Controller, ControllerStats
 from controllers.deprecated_paths import install_moved_paths
+from controllers.option_spec import options
 from controllers.presets import register_builtins
 from controllers.registry import ENTRY_POINT_GROUP, available, make, register, register_wrapper, split_name
 
@@ -31,6 +32,7 @@ __all__ = [
     "ENTRY_POINT_GROUP",
     "available",
     "make",
+    "options",
     "register",
     "register_wrapper",
     "split_name",

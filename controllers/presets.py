@@ -14,7 +14,7 @@ import importlib
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["CONTROLLERS", "PRESETS", "Preset", "build_preset", "register_builtins"]
+__all__ = ["CONTROLLERS", "PRESETS", "Preset", "build_preset", "builtin_names", "register_builtins"]
 
 #: the robust presets' ``uncertainty_margin`` (kept equal to controllers.mpc.config's, tested):
 #: written here so that listing the presets imports no solver
@@ -112,3 +112,8 @@ def register_builtins(register: Any) -> None:
         register(name, path)
     for preset in PRESETS:
         register(preset.name, functools.partial(build_preset, preset))
+
+
+def builtin_names() -> list[str]:
+    """The names of the built-in controllers and presets (not those registered at run time)."""
+    return sorted({*CONTROLLERS, *(preset.name for preset in PRESETS)})

@@ -86,6 +86,15 @@ class ControllerConfig:
                     ) from None
         else:
             registered_factory(self.name)  # unknown names (also behind a wrapper prefix) raise ValueError
+            # option names and text choices from the controller's spec, with did-you-mean; the
+            # build below then checks the values the constructors check (ranges, types)
+            from controllers.option_spec import options
+
+            try:
+                options(self.name).check(dict(self.options))
+            except ValueError as exc:
+                where = "" if self.label == self.name else f"controller {self.label!r}: "
+                raise ValueError(f"{where}{exc}") from None
         try:
             self.build()
         except TypeError as exc:
@@ -245,16 +254,18 @@ def controller_configs(spec: Any) -> list[ControllerConfig]:
     return configs
 
 
-def _nmpc_solver(config: ControllerConfig) -> str | None:
-    """The solver of the NMPC ``config`` builds (central or distributed, or one inside a wrapper
-    such as ``safe:``), or None when it builds no NMPC."""
-    from controllers.mpc.controller import NMPCController
-    from controllers.mpc.distributed import DistributedNMPC
+def _default_solver(config: ControllerConfig) -> str | None:
+    """The default ``solver`` of the controller ``config`` names (its option spec, nothing is
+    built), or None when it takes no ``solver`` option (a factory given as a callable: built)."""
+    from controllers.option_spec import options
 
-    controller = config.build()
-    while controller is not None and not isinstance(controller, (NMPCController, DistributedNMPC)):
-        controller = getattr(controller, "inner", None)
-    return None if controller is None else str(controller.config.solver)
+    if config.factory is not None:
+        from controllers.option_spec import spec_of
+
+        spec = spec_of(config.label, config.factory)
+    else:
+        spec = options(config.name)
+    return str(spec.default("solver")) if spec.takes("solver") else None
 
 
 def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list[ControllerConfig]:
@@ -275,7 +286,7 @@ def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list
     for config in configs:
         # an NMPC that already solves with ``solver`` by default is left as it is (its
         # configuration, and so a baseline's, does not change)
-        if "solver" not in dict(config.options) and _nmpc_solver(config) not in (None, solver):
+        if "solver" not in dict(config.options) and _default_solver(config) not in (None, solver):
             options = tuple(sorted((*config.options, ("solver", solver))))
             config = ControllerConfig(config.label, config.name, options, config.factory)
         out.append(config)

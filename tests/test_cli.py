@@ -43,7 +43,7 @@ def test_help_groups_the_options_and_lists_the_exit_codes(monkeypatch, capsys) -
 
 
 def test_every_option_has_help_and_a_default_or_a_reason() -> None:
-    parser = ev._parser()
+    parser = ev.build_parser()
     for action in parser._actions:
         if action.dest == "help":
             continue
@@ -56,7 +56,7 @@ def test_every_option_has_help_and_a_default_or_a_reason() -> None:
 
 
 def test_envs_is_the_plural_of_env() -> None:
-    assert ev._parser().parse_args(["--envs", "KoopNav-Formation-v0"]).env == ["KoopNav-Formation-v0"]
+    assert ev.build_parser().parse_args(["--envs", "KoopNav-Formation-v0"]).env == ["KoopNav-Formation-v0"]
 
 
 def test_the_resume_hint_uses_the_program_name(monkeypatch, tmp_path, capsys) -> None:

@@ -367,3 +367,67 @@ def test_presets_are_their_base_with_defaults_and_options_override() -> None:
             if key == "uncertainty_margin":
                 assert held.uncertainty_margin == value
     assert controllers.make("koopman-nmpc-robust", uncertainty_margin=1.0).config.uncertainty_margin == 1.0
+
+
+def test_every_controller_has_an_option_spec_read_from_its_code() -> None:
+    """controllers.options: names and defaults from the constructors (and NMPCConfig), choices
+    from the classes, docs from the docstrings; presets and wrappers included."""
+    from controllers.mpc.config import NMPCConfig
+    from controllers.option_spec import options
+    from controllers.presets import builtin_names
+
+    for name in builtin_names():
+        spec = controllers.options(name)
+        assert spec.options and spec.doc, name
+        assert all(o.doc for o in spec.options if o.name in {f for f in NMPCConfig.__dataclass_fields__}), (
+            name
+        )
+    nominal = options("nominal-nmpc")
+    assert nominal.default("solver") == NMPCConfig().solver == "ipopt"
+    assert nominal.option("solver").choices == ("rti", "ipopt", "fatrop")
+    assert (
+        options("dmpc-nominal").default("solver") == controllers.make("dmpc-nominal").config.solver == "rti"
+    )
+    assert options("adaptive-koopman-nmpc").default("uncertainty_margin") == 3.0
+    assert options("koopman-nmpc-robust").default("uncertainty_margin") == 3.0  # the preset's default
+    assert options("safe:consensus").takes("safety_gamma") and not options("consensus").takes("solver")
+    assert options("plugin_controllers:PlainTimed").options == ()  # an import path: its own signature
+    # every default the spec shows is the one the controller gets
+    for name in ("nominal-nmpc", "dmpc-nominal", "koopman-nmpc-robust", "consensus-free"):
+        built = controllers.make(name)
+        for option in options(name).options:
+            held = getattr(getattr(built, "config", None), option.name, getattr(built, option.name, None))
+            if option.name in ("model", "config") or held is None:
+                continue
+            assert held == option.default, (name, option.name, held, option.default)
+
+
+@pytest.mark.parametrize(
+    ("configuration", "message"),
+    [
+        ("nominal-nmpc:horizn=5", r"unknown option 'horizn' \(did you mean 'horizon'\?\)"),
+        ("dmpc-nominal:coordination=jacob", r"coordination='jacob' is not one of \['sequential', 'jacobi'\]"),
+        ("safe:consensus:safety_gama=1", r"unknown option 'safety_gama' \(did you mean 'safety_gamma'\?\)"),
+        (
+            "koopman-nmpc:structure=stack",
+            r"structure='stack' is not one of \['auto', 'stacked', 'per-robot'\]",
+        ),
+    ],
+)
+def test_option_names_and_choices_are_checked_from_the_spec(configuration: str, message: str) -> None:
+    import evaluate as ev
+
+    with pytest.raises(ValueError, match=message):
+        ev.evaluate(
+            ev.RunSpec("KoopNav-TargetReaching-v0", [configuration], ["map1"], ["nominal"], episodes=1)
+        )
+
+
+def test_the_cli_prints_a_controllers_options(capsys) -> None:
+    import evaluate as ev
+
+    assert ev.main(["--options", "consensus-free"]) == 0
+    out = capsys.readouterr().out
+    assert "| `collision_avoidance` | `bool` | `False` |" in out
+    assert ev.main(["--options", "consenus"]) == 2
+    assert "did you mean 'consensus'" in capsys.readouterr().err

@@ -129,3 +129,17 @@ def broken_links(page: Path) -> list[str]:
 @pytest.mark.parametrize("page", PAGES, ids=_rel)
 def test_relative_links_resolve(page: Path) -> None:
     assert broken_links(page) == []
+
+
+def test_the_controller_options_page_is_what_the_specs_generate() -> None:
+    """docs/controller_options.md is generated from controllers.options; regenerate it with
+    `python docs/make_options_md.py` after changing a controller's options."""
+    pytest.importorskip("stable_baselines3")  # the page lists the RL controllers' options too
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("make_options_md", root / "docs" / "make_options_md.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert (root / "docs" / "controller_options.md").read_text(encoding="utf-8") == module.page()

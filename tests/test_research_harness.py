@@ -215,7 +215,7 @@ def _lambda_factory_config():
         (dict(env_kwargs={"goal_tolerance": -1}), "goal_tolerance=-1"),
         (dict(controllers=["consensus:goal_gain=-1"]), "goal_gain=-1"),
         (dict(controllers=["consensus:gain"]), "'gain' is not key=value"),
-        (dict(controllers=["consensus:nope=1"]), "bad option"),
+        (dict(controllers=["consensus:nope=1"]), "unknown option .nope."),
         (dict(controllers={"x": 42}), "'x': 42 is not a registered name"),
         (dict(controllers={"x": ("consensus", {"goal_gain": object()})}), "must be plain JSON"),
         (dict(controllers=_lambda_factory_config(), workers=2), "cannot be sent to worker processes"),

@@ -152,7 +152,7 @@ def test_an_unknown_protocol_gets_a_suggestion() -> None:
 
 
 def test_the_command_line_builds_the_spec_its_options_say() -> None:
-    args = ev._parser().parse_args(
+    args = ev.build_parser().parse_args(
         [
             "--paper",
             "--episodes",
@@ -169,7 +169,7 @@ def test_the_command_line_builds_the_spec_its_options_say() -> None:
             "4",
         ]
     )
-    spec = ev._spec_from_args(args)
+    spec = ev.spec_from_args(args)
     assert spec == protocol("paper").replace(
         envs=["KoopNav-TargetReaching-v0"],
         maps=["map1"],
@@ -178,13 +178,13 @@ def test_the_command_line_builds_the_spec_its_options_say() -> None:
         env_kwargs={"max_episode_steps": 50, "n_robots": 3},
     )
     # controllers named on the command line keep their own solver; --solver applies to them
-    named = ev._spec_from_args(ev._parser().parse_args(["--controllers", "nominal-nmpc"]))
+    named = ev.spec_from_args(ev.build_parser().parse_args(["--controllers", "nominal-nmpc"]))
     assert named.solver is None and named.env_kwargs == {"start_noise": 0.05}
     assert (
-        ev._spec_from_args(
-            ev._parser().parse_args(["--controllers", "nominal-nmpc", "--solver", "rti"])
+        ev.spec_from_args(
+            ev.build_parser().parse_args(["--controllers", "nominal-nmpc", "--solver", "rti"])
         ).solver
         == "rti"
     )
     # the quick board keeps its solver for its own (all registered) controllers
-    assert ev._spec_from_args(ev._parser().parse_args([])) == protocol("quick")
+    assert ev.spec_from_args(ev.build_parser().parse_args([])) == protocol("quick")

@@ -44,6 +44,7 @@ SMOKE: dict[str, list[str]] = {
     "bench/scaling.py": ["--robots", "3", "--steps", "20", "--seeds", "1", "--controllers", "consensus"],
     "docs/check_links.py": ["{tmp}"],
     "docs/make_figure.py": ["--steps", "3", "--out", "{tmp}/figure.png"],
+    "docs/make_options_md.py": ["--out", "{tmp}/options.md"],
     "docs/make_results_md.py": ["{results}", "--out", "{tmp}/results.md"],
     "docs/solver_comparison.py": ["{results}"],
 }

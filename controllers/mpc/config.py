@@ -224,6 +224,18 @@ class NMPCConfig:
         """A copy with some fields changed; unknown names raise ``TypeError``."""
         return replace(self, **changes)
 
+    @staticmethod
+    def option_choices() -> dict[str, tuple[str, ...]]:
+        """The allowed values of the text options (for :mod:`controllers.option_spec`)."""
+        from controllers.mpc.rti import HESSIANS, QP_SOLVERS
+
+        return {
+            "solver": SOLVERS,
+            "fallback_solver": SOLVERS[1:],
+            "qp_solver": tuple(sorted(QP_SOLVERS)),
+            "hessian": HESSIANS,
+        }
+
     def validate(self) -> None:
         """Raise ``ValueError`` naming a bad option and what is allowed (before any problem is built)."""
         check_int("horizon", self.horizon, 1)

@@ -47,12 +47,13 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, ControllerStats
+from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model
 from controllers.mpc.config import PARKED, NMPCConfig
@@ -184,6 +185,15 @@ class DistributedNMPC(BaseController):
     """
 
     name = "dmpc-nominal"
+    #: NMPC options whose default differs from NMPCConfig's (controllers.options reads them too)
+    NMPC_DEFAULTS: ClassVar[dict[str, Any]] = {"solver": "rti"}
+    #: allowed values of the text options (controllers.option_spec)
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "coordination": COORDINATION,
+        "formation_goal": FORMATION_GOALS,
+        "model": MODELS,
+        "dictionary": tuple(DICTIONARIES),
+    }
 
     def __init__(
         self,
@@ -223,7 +233,7 @@ class DistributedNMPC(BaseController):
         self._residual: NDArray[np.float64] | None = None
         self._spread: NDArray[np.float64] = np.zeros(0)
         self._blocks: list[KoopmanModel] = []
-        base = config or NMPCConfig(solver="rti")
+        base = config or NMPCConfig(**self.NMPC_DEFAULTS)
         try:
             self.config = dataclasses.replace(base, **options) if options else base
         except TypeError as exc:

@@ -28,7 +28,7 @@ import time
 import warnings
 from collections import deque
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,7 +44,10 @@ from controllers.calibration import (
     write_atomic,
 )
 from controllers.koopman import KoopmanModel, calibrated_model
+from controllers.koopman.dictionary import DICTIONARIES
+from controllers.koopman.fit import STRUCTURES
 from controllers.koopman.online import (
+    ADAPTED_TERMS,
     RecursiveBilinearFit,
     check_adapted,
     check_forgetting,
@@ -141,6 +144,11 @@ class KoopmanNMPC(NMPCController):
     """
 
     name = "koopman-nmpc"
+    #: allowed values of the text options (controllers.option_spec)
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "dictionary": tuple(DICTIONARIES),
+        "structure": ("auto", *STRUCTURES),
+    }
     model: KoopmanModel | None  # only ever a KoopmanModel here (__init__, _use)
 
     def __init__(
@@ -219,6 +227,12 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
     """
 
     name = "adaptive-koopman-nmpc"
+    #: NMPC options whose default differs from NMPCConfig's (controllers.options reads them too)
+    NMPC_DEFAULTS: ClassVar[dict[str, Any]] = {"uncertainty_margin": ROBUST_UNCERTAINTY_MARGIN}
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        **KoopmanNMPC.OPTION_CHOICES,
+        "adapted": ADAPTED_TERMS,
+    }
 
     def __init__(
         self,
@@ -233,7 +247,8 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         structure: str = "auto",
         **options: Any,
     ) -> None:
-        options.setdefault("uncertainty_margin", ROBUST_UNCERTAINTY_MARGIN)
+        for key, value in self.NMPC_DEFAULTS.items():
+            options.setdefault(key, value)
         check_forgetting(forgetting)
         check_prior_weight(prior_weight)
         check_int("residual_window", residual_window, 1, note="periods")

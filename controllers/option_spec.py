@@ -1,0 +1,268 @@
+"""Every controller's options as one declarative spec: name, type, default, choices, doc.
+
+``controllers.options("nominal-nmpc")`` returns the :class:`ControllerSpec` of a registered
+controller, preset, wrapped configuration (``"safe:consensus"``) or import path. The spec is read
+from the controller itself, so it cannot drift from it:
+
+- names, defaults and types from the constructor's signature (and, for the NMPCs, from the
+  fields of :class:`~controllers.mpc.config.NMPCConfig`, which ``**options`` fill);
+- docs from the ``Parameters`` section of the class docstring (NMPCConfig: ``Attributes``);
+- the allowed names of a text option from the ``OPTION_CHOICES`` table of the class (and of
+  NMPCConfig);
+- a preset's defaults from :mod:`controllers.presets`, a ``safe:`` wrapper's options from
+  :class:`~controllers.safety.options.SafetyOptions`, prefixed ``safety_``.
+
+The evaluator asks the spec which configurations take ``solver`` and checks option names and
+choices before any controller is built; ``python evaluate.py --options NAME`` prints it; the docs
+page of controller options is generated from it (``docs/make_options_md.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from koopman_envs.suggest import did_you_mean
+
+__all__ = ["ControllerSpec", "Option", "options", "spec_of"]
+
+_EMPTY = inspect.Parameter.empty
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option of a controller.
+
+    Attributes
+    ----------
+    name : str
+        As passed to ``controllers.make`` or written in ``name:key=value``.
+    type : str
+        The annotation as written in the code.
+    default : object
+        The default (``inspect.Parameter.empty`` for a required option).
+    doc : str
+        The docstring's text for it (first paragraph).
+    choices : tuple of str, optional
+        The allowed values of a text option.
+    """
+
+    name: str
+    type: str
+    default: Any
+    doc: str = ""
+    choices: tuple[str, ...] | None = None
+
+    @property
+    def required(self) -> bool:
+        """No default: the option must be given."""
+        return self.default is _EMPTY
+
+    def check(self, value: Any, owner: str) -> None:
+        """Raise ``ValueError`` when ``value`` is not one of :attr:`choices` (naming them)."""
+        if self.choices is not None and value not in self.choices:
+            raise ValueError(
+                f"{owner}: {self.name}={value!r} is not one of {list(self.choices)}"
+                f"{did_you_mean(value, self.choices)}"
+            )
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """The options of one controller configuration.
+
+    Attributes
+    ----------
+    name : str
+        The configuration's name (registered name, preset, ``safe:<name>`` or import path).
+    doc : str
+        First line of the controller's docstring.
+    options : tuple of Option
+        Every option it takes, in signature order (NMPC options after the controller's own).
+    """
+
+    name: str
+    doc: str
+    options: tuple[Option, ...]
+
+    def names(self) -> list[str]:
+        """The option names."""
+        return [o.name for o in self.options]
+
+    def takes(self, name: str) -> bool:
+        """Whether the controller takes option ``name`` (e.g. ``"solver"``)."""
+        return name in self.names()
+
+    def option(self, name: str) -> Option:
+        """One option by name (``KeyError`` naming the allowed ones)."""
+        for o in self.options:
+            if o.name == name:
+                return o
+        raise KeyError(f"{self.name} has no option {name!r}; it takes {self.names()}")
+
+    def default(self, name: str) -> Any:
+        """The default of option ``name``."""
+        return self.option(name).default
+
+    def check(self, given: Mapping[str, Any]) -> None:
+        """Raise ``ValueError`` for an unknown option name (with did-you-mean) or a value outside
+        an option's choices, before anything is built."""
+        for key, value in given.items():
+            if not self.takes(key):
+                raise ValueError(
+                    f"controller {self.name!r}: unknown option {key!r}{did_you_mean(key, self.names())}; "
+                    f"it takes {self.names()}"
+                )
+            self.option(key).check(value, self.name)
+
+    def markdown(self) -> str:
+        """The options as a Markdown table (name, type, default, allowed, doc)."""
+
+        def cell(text: str) -> str:  # Markdown in a table cell: no pipes, no reST roles
+            text = re.sub(r":[a-z]+:`~?([^`]+)`", r"`\1`", " ".join(text.split()))
+            return text.replace("``", "`").replace("|", "\\|")
+
+        rows = ["| option | type | default | allowed | what it does |", "|---|---|---|---|---|"]
+        for o in self.options:
+            default = "(required)" if o.required else cell(f"`{o.default!r}`")
+            allowed = ", ".join(f"`{c}`" for c in o.choices) if o.choices else ""
+            rows.append(f"| `{o.name}` | {cell(f'`{o.type}`')} | {default} | {allowed} | {cell(o.doc)} |")
+        return "\n".join(rows)
+
+
+def _sections(doc: str | None, heading: str) -> dict[str, str]:
+    """name -> the first paragraph of its entry in section ``heading`` of a numpy-style docstring
+    (``a, b : float`` gives both names the entry)."""
+    lines = inspect.cleandoc(doc or "").splitlines()
+    starts = [
+        i for i in range(len(lines) - 1) if lines[i].strip() == heading and set(lines[i + 1].strip()) == {"-"}
+    ]
+    if not starts:
+        return {}
+    out: dict[str, str] = {}
+    names: list[str] = []
+    text: list[str] = []
+    i = starts[0] + 2
+    while i < len(lines):
+        line = lines[i]
+        if line and not line.startswith(" "):
+            if i + 1 < len(lines) and set(lines[i + 1].strip()) == {"-"}:
+                break  # the next section
+            for name in names:
+                out[name] = " ".join(text)
+            names, text = [n.strip(" *") for n in line.split(" : ")[0].split(",")], []
+        elif names and line.strip() and (not text or text[-1] != ""):
+            text.append(line.strip())
+        elif names and not line.strip() and text:
+            text.append("")  # the end of the first paragraph: nothing more is taken
+        i += 1
+    for name in names:
+        out[name] = " ".join(text)
+    return {k: " ".join(v.split()) for k, v in out.items()}
+
+
+def _from_signature(
+    target: Callable[..., Any], docs: Mapping[str, str], choices: Mapping[str, Any]
+) -> list[Option]:
+    out = []
+    for parameter in inspect.signature(target).parameters.values():
+        if parameter.name in ("self", "config") or parameter.kind in (
+            parameter.VAR_KEYWORD,
+            parameter.VAR_POSITIONAL,
+        ):
+            continue
+        annotation = parameter.annotation
+        text = annotation if isinstance(annotation, str) else getattr(annotation, "__name__", str(annotation))
+        allowed = choices.get(parameter.name)
+        out.append(
+            Option(
+                parameter.name,
+                "" if annotation is _EMPTY else text,
+                parameter.default,
+                docs.get(parameter.name, ""),
+                tuple(allowed) if allowed is not None else None,
+            )
+        )
+    return out
+
+
+def _nmpc_options(skip: set[str], defaults: Mapping[str, Any]) -> list[Option]:
+    """NMPCConfig's fields as options (``defaults``: the controller's own defaults for some)."""
+    from controllers.mpc.config import NMPCConfig
+
+    docs = _sections(NMPCConfig.__doc__, "Attributes")
+    choices = NMPCConfig.option_choices()
+    return [
+        Option(
+            f.name,
+            str(f.type),
+            defaults.get(f.name, f.default if f.default is not dataclasses.MISSING else None),
+            docs.get(f.name, ""),
+            tuple(choices[f.name]) if f.name in choices else None,
+        )
+        for f in dataclasses.fields(NMPCConfig)
+        if f.name not in skip
+    ]
+
+
+def spec_of(name: str, factory: Any) -> ControllerSpec:
+    """The spec of the controller ``factory`` builds, registered as ``name``."""
+    cls = factory if inspect.isclass(factory) else None
+    target = cls.__init__ if cls is not None else factory
+    doc_owner = cls if cls is not None else factory
+    docs = _sections(getattr(doc_owner, "__doc__", None), "Parameters")
+    choices = dict(getattr(cls, "OPTION_CHOICES", {}) or {})
+    found = _from_signature(target, docs, choices)
+    signature = inspect.signature(target).parameters
+    if "config" in signature and any(p.kind == p.VAR_KEYWORD for p in signature.values()):
+        # **options are NMPCConfig's fields
+        found += _nmpc_options({o.name for o in found}, getattr(cls, "NMPC_DEFAULTS", {}) or {})
+    summary = inspect.cleandoc(getattr(doc_owner, "__doc__", "") or "").split("\n")[0]
+    return ControllerSpec(name, summary, tuple(found))
+
+
+def _with_defaults(spec: ControllerSpec, name: str, defaults: Mapping[str, Any], doc: str) -> ControllerSpec:
+    changed = tuple(
+        dataclasses.replace(o, default=defaults[o.name]) if o.name in defaults else o for o in spec.options
+    )
+    return ControllerSpec(name, doc or spec.doc, changed)
+
+
+def options(name: str) -> ControllerSpec:
+    """The options of a controller configuration (see the module docstring).
+
+    Parameters
+    ----------
+    name : str
+        A registered controller or preset, ``safe:<name>``, or ``package.module:Class``.
+
+    Raises
+    ------
+    ValueError
+        An unknown name (listing the available ones).
+    """
+    from controllers.presets import CONTROLLERS, PRESETS, _resolve
+    from controllers.registry import factory, split_name
+
+    prefixes, base = split_name(name)
+    if prefixes:
+        inner = options(base)
+        from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
+
+        docs = _sections(SafetyOptions.__doc__, "Attributes")
+        mine = tuple(
+            Option(FILTER_OPTION_PREFIX + f.name, str(f.type), f.default, docs.get(f.name, ""))
+            for f in dataclasses.fields(SafetyOptions)
+        )
+        return ControllerSpec(name, f"{inner.doc} (behind the CBF safety filter)", inner.options + mine)
+    presets = {p.name: p for p in PRESETS}
+    if base in presets:
+        preset = presets[base]
+        return _with_defaults(options(preset.base), base, preset.defaults, preset.doc)
+    if base in CONTROLLERS:
+        return spec_of(base, _resolve(CONTROLLERS[base]))
+    return spec_of(base, factory(base))

@@ -1,0 +1,361 @@
+"""The evaluator's command line (``python evaluate.py``): its options, one function per group,
+the exit codes, and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
+with the given options replacing its fields). ``evaluate.py`` runs it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import controllers
+from controllers.mpc.config import SOLVERS
+from evaluation.ablation import check_factors
+from evaluation.baseline import GateOptions
+from evaluation.configs import split_controller_list
+from evaluation.protocols import (
+    QUICK_START_NOISE,
+    TASK_MAPS,
+    ablation_protocol,
+    paper_protocol,
+    quick_protocol,
+)
+from evaluation.slip_text import split_slips
+from evaluation.spec import RunSpec
+from koopman_envs.params import PARAMS, SLIP_NAMES
+
+__all__ = [
+    "EXIT_CODES",
+    "FAILED_CHECK_EXIT",
+    "FAILED_GATE_EXIT",
+    "INTERRUPTED_EXIT",
+    "build_parser",
+    "parse_env_kwargs",
+    "program_name",
+    "spec_from_args",
+    "split_words",
+    "stop_on_sigterm",
+]
+
+FAILED_CHECK_EXIT = 101
+FAILED_GATE_EXIT = 102  # --fail-if-worse: a controller significantly worse than the baseline
+INTERRUPTED_EXIT = 130  # the shell's code for a run stopped by Ctrl-C (128 + SIGINT)
+
+
+# --------------------------------------------------------------------------- list arguments
+def split_words(words: list[str] | None) -> list[str] | None:
+    """``["a,b", "c"]`` -> ``["a", "b", "c"]``: comma-separated lists work like spaced ones."""
+    if words is None:
+        return None
+    return [piece.strip() for word in words for piece in word.split(",") if piece.strip()]
+
+
+def parse_env_kwargs(words: list[str] | None) -> dict[str, Any]:
+    """``["n_robots=5", "goal_tolerance=0.05"]`` -> dict (values parsed as JSON, else text)."""
+    kwargs: dict[str, Any] = {}
+    for word in words or []:
+        key, eq, value = word.partition("=")
+        if not eq or not key.strip().isidentifier():
+            raise ValueError(f"--env-kwargs {word!r} is not key=value (a Python identifier as key)")
+        try:
+            kwargs[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            kwargs[key.strip()] = value
+    return kwargs
+
+
+# --------------------------------------------------------------------------- CLI
+#: exit codes of the command line, as ``--help`` lists them
+EXIT_CODES = (
+    ("0", "every episode ran (and --check, if given, passed)"),
+    ("1-100", "that many episodes raised (capped at 100); the others' results are written"),
+    ("2", "bad input (named on stderr) before any episode ran"),
+    (str(FAILED_CHECK_EXIT), "a --check threshold failed"),
+    (str(FAILED_GATE_EXIT), "--fail-if-worse: a controller is significantly worse than the --baseline"),
+    (str(INTERRUPTED_EXIT), "interrupted (Ctrl-C or SIGTERM); continue with --resume"),
+)
+
+
+def program_name() -> str:
+    """How the user called the evaluator: ``koopnav-evaluate`` (the installed script) or
+    ``python evaluate.py``, for usage lines and resume hints."""
+    invoked = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
+    return "koopnav-evaluate" if invoked.startswith("koopnav-evaluate") else "python evaluate.py"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The evaluator's command line, one argument group per function below."""
+    epilog = "exit codes:\n" + "\n".join(f"  {code:<6} {meaning}" for code, meaning in EXIT_CODES)
+    parser = argparse.ArgumentParser(
+        prog=program_name(),
+        description="KoopNav evaluator: run every controller on every cell, report success rates and final distances.",
+        epilog=epilog,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _what_to_run(parser.add_argument_group("what to run"))
+    _env_settings(parser.add_argument_group("env settings"))
+    _controller_options(parser.add_argument_group("controllers"))
+    _output_options(parser.add_argument_group("output"))
+    _execution_options(parser.add_argument_group("execution"))
+    _ci_options(parser.add_argument_group("CI"))
+    return parser
+
+
+def _what_to_run(what: argparse._ArgumentGroup) -> None:
+    """The "what to run" options."""
+    what.add_argument(
+        "--env",
+        "--envs",
+        dest="env",
+        nargs="+",
+        metavar="ENV_ID",
+        help=f"environment ids (default: {' '.join(TASK_MAPS)})",
+    )
+    what.add_argument(
+        "--maps",
+        nargs="+",
+        metavar="MAP",
+        help="maps: shipped names, random, or paths of JSON map files (default: each task's paper "
+        "maps: map1 map2 / map3 map4)",
+    )
+    what.add_argument(
+        "--random-maps",
+        type=int,
+        metavar="K",
+        help="add a 'random' map row with K seeded layouts per cell, the same for every controller "
+        "(default: none)",
+    )
+    what.add_argument(
+        "--slips",
+        nargs="+",
+        metavar="SLIP",
+        help=f"{' '.join(SLIP_NAMES)}, or per-robot lambdas like 0,0.1,0.2, one setting per word "
+        "(default: high; all three levels with --paper)",
+    )
+    what.add_argument(
+        "--episodes",
+        type=int,
+        metavar="N",
+        help="trials per cell (default 2; 10 with --paper, 20 with --ablation)",
+    )
+    what.add_argument(
+        "--seed", type=int, default=0, help="base seed; trial i of a cell uses seed + i (default 0)"
+    )
+    protocol = what.add_mutually_exclusive_group()
+    protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5), IPOPT")
+    protocol.add_argument(
+        "--paper-strict",
+        action="store_true",
+        help="the paper's protocol with its exact NMPC: hard constraints, 0.015 m margins",
+    )
+    protocol.add_argument(
+        "--ablation",
+        nargs="*",
+        metavar="FACTOR",
+        help="ablation of the NMPC's design factors (default all: model margins constraints) on the "
+        "paper maps under high slip; writes --ablation-out",
+    )
+
+
+def _env_settings(env: argparse._ArgumentGroup) -> None:
+    """The "env settings" options."""
+    env.add_argument(
+        "--tolerance", type=float, metavar="M", help=f"goal tolerance [m] (default {PARAMS.goal_tolerance})"
+    )
+    env.add_argument(
+        "--max-episode-steps",
+        type=int,
+        metavar="T",
+        help=f"time limit [control periods] (default {PARAMS.max_episode_steps})",
+    )
+    env.add_argument(
+        "--start-noise",
+        type=float,
+        metavar="R",
+        help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE}; 0 with --paper and "
+        "--ablation, which keep the maps' starts)",
+    )
+    env.add_argument(
+        "--env-kwargs",
+        nargs="+",
+        metavar="KEY=VALUE",
+        help="further env keywords for every episode, e.g. n_robots=5 goal_tolerance=0.05 (values "
+        "parsed as JSON; default: none)",
+    )
+
+
+def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
+    """The "controllers" options."""
+    ctrl.add_argument(
+        "--controllers",
+        nargs="+",
+        metavar="NAME[:KEY=VALUE,...]",
+        help=f"controller configurations (default: every registered one: "
+        f"{' '.join(controllers.available())})",
+    )
+    ctrl.add_argument(
+        "--solver",
+        choices=list(SOLVERS),
+        help="optimizer of every NMPC configuration that does not name its own: rti (real-time "
+        "iteration, one structured QP per period), ipopt (the paper's, solved to convergence) or "
+        "fatrop (default: rti for the quick leaderboard's own controllers, ipopt with --paper, "
+        "--paper-strict, --ablation, else each controller's own: ipopt)",
+    )
+    ctrl.add_argument(
+        "--calibration-budget",
+        type=int,
+        default=PARAMS.calibration_budget,
+        metavar="N",
+        help=f"team-transitions every controller may simulate to calibrate (default: the paper's "
+        f"{PARAMS.calibration_budget:,})",
+    )
+    ctrl.add_argument(
+        "--calibration-seed",
+        type=int,
+        default=0,
+        metavar="S",
+        help="seed of the calibration plant and data (default 0)",
+    )
+    ctrl.add_argument(
+        "--options",
+        metavar="NAME",
+        help="print the options of controller NAME (type, default, allowed values, what each does) and exit",
+    )
+
+
+def _output_options(output: argparse._ArgumentGroup) -> None:
+    """The "output" options."""
+    output.add_argument("--out", default="results", help="output directory (default: results)")
+    output.add_argument(
+        "--full-report",
+        action="store_true",
+        help="print the whole Markdown report (paired comparisons, per-cell tables) instead of the "
+        "compact leaderboard; the files always hold it",
+    )
+    output.add_argument(
+        "--gifs", action="store_true", help="record trial 0 of every cell as OUT/animations/*.gif"
+    )
+    output.add_argument(
+        "--ablation-out",
+        default=str(Path(__file__).resolve().parents[1] / "docs" / "ablation.md"),
+        help="where --ablation writes its report (default: docs/ablation.md)",
+    )
+    output.add_argument("--quiet", action="store_true", help="no progress bar")
+    output.add_argument(
+        "--badge",
+        metavar="CONTROLLER",
+        help="write OUT/badge.svg: CONTROLLER's success rate over the run with its 95%% interval, "
+        "for a README (default: no badge)",
+    )
+
+
+def _execution_options(run: argparse._ArgumentGroup) -> None:
+    """The "execution" options."""
+    run.add_argument("--workers", type=int, metavar="N", help="worker processes (default: all cores)")
+    run.add_argument(
+        "--backend",
+        choices=["process", "ray"],
+        default="process",
+        help="process pool or a Ray cluster (default: process)",
+    )
+    run.add_argument("--resume", action="store_true", help="continue the run logged in --out")
+
+
+def _ci_options(ci: argparse._ArgumentGroup) -> None:
+    """The "CI" options."""
+    ci.add_argument(
+        "--check",
+        metavar="THRESHOLDS",
+        help=f"TOML thresholds; exit {FAILED_CHECK_EXIT} if a cell falls below (default: no check)",
+    )
+    ci.add_argument(
+        "--strict",
+        action="store_true",
+        help="with --check: a rule whose controller cannot be built here (an optional extra not "
+        "installed) fails instead of being skipped",
+    )
+    ci.add_argument(
+        "--baseline",
+        metavar="BASE",
+        help="results.json (or run directory) of an earlier run: pair every episode with its episode "
+        "of the same env, controller, map, slip and seed and report the differences (default: none)",
+    )
+    ci.add_argument(
+        "--fail-if-worse",
+        action="store_true",
+        help=f"with --baseline: exit {FAILED_GATE_EXIT} when a controller's success drops by more than "
+        "--delta with McNemar p < --alpha, or its final distance grows by more than --delta-cm "
+        "with a bootstrap interval above 0",
+    )
+    defaults = GateOptions()
+    ci.add_argument(
+        "--alpha",
+        type=float,
+        default=defaults.alpha,
+        help=f"significance level of the gate, in (0, 1) (default {defaults.alpha})",
+    )
+    ci.add_argument(
+        "--delta",
+        type=float,
+        default=defaults.delta,
+        help=f"success-rate drop the gate cares about, >= 0 (default {defaults.delta}: "
+        f"{100 * defaults.delta:.0f} points)",
+    )
+    ci.add_argument(
+        "--delta-cm",
+        type=float,
+        default=defaults.delta_cm,
+        help=f"final-distance increase the gate cares about [cm], >= 0 (default {defaults.delta_cm})",
+    )
+
+
+def stop_on_sigterm(signum: int, frame: Any) -> None:
+    """SIGTERM (``kill``, a CI timeout) stops a run like Ctrl-C: the worker pool is terminated
+    (no orphan workers keep computing) and the log stays resumable."""
+    raise KeyboardInterrupt
+
+
+def spec_from_args(args: argparse.Namespace) -> RunSpec:
+    """The run the command line asks for: a protocol preset with the given options replacing its fields."""
+    if args.ablation is not None:
+        spec = ablation_protocol(check_factors(args.ablation))
+    elif args.paper or args.paper_strict:
+        spec = paper_protocol(strict=args.paper_strict)
+    else:
+        spec = quick_protocol()
+    changes: dict[str, Any] = {}
+    if args.env:
+        changes["envs"] = split_words(args.env)
+    if args.maps:
+        changes["maps"] = split_words(args.maps)
+    if args.controllers:
+        # a protocol's solver goes with its own controller list; controllers named on the command
+        # line keep their own defaults unless --solver says otherwise
+        changes.update(controllers=split_controller_list(args.controllers), solver=None)
+    if args.solver:
+        changes["solver"] = args.solver
+    if args.slips:
+        changes["slips"] = split_slips(args.slips)
+    if args.episodes is not None:
+        changes["episodes"] = args.episodes
+    # the env settings: the preset's, then the dedicated options, then --env-kwargs (which win)
+    env_kwargs = dict(spec.env_kwargs)
+    for option, keyword in (
+        ("tolerance", "goal_tolerance"),
+        ("max_episode_steps", "max_episode_steps"),
+        ("start_noise", "start_noise"),
+    ):
+        if getattr(args, option) is not None:
+            env_kwargs[keyword] = getattr(args, option)
+    env_kwargs.update(parse_env_kwargs(args.env_kwargs))
+    return spec.replace(
+        **changes,
+        env_kwargs=env_kwargs,
+        seed=args.seed,
+        calibration_budget=args.calibration_budget,
+        calibration_seed=args.calibration_seed,
+        random_maps=args.random_maps,
+        gifs=args.gifs,
+    )
