@@ -21,7 +21,7 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import TypedDict
+from typing import Any, TypedDict
 
 import gymnasium as gym
 import numpy as np
@@ -94,7 +94,8 @@ def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
     files.metadata.write_text(json.dumps(metadata, indent=1) + "\n", encoding="utf-8")
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The training command line (``python -m baselines.train``)."""
     parser = argparse.ArgumentParser(prog="python -m baselines.train", description=__doc__.split("\n")[0])
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=list(TASK_OF))
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
@@ -171,55 +172,51 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--max-episode-steps", type=int, default=400)
     parser.add_argument("--out", required=True)
-    args = parser.parse_args(argv)
-    try:
-        import stable_baselines3
-        import torch
-        from stable_baselines3 import PPO, SAC
-        from stable_baselines3.common.callbacks import BaseCallback
-        from stable_baselines3.common.logger import configure
-        from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
-    except ImportError:
-        print(
-            "error: training needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'",
-            file=sys.stderr,
-        )
-        return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    random_map = TRAIN_MAPS[args.env] if args.random_map is None else args.random_map
-    if args.timesteps is None:
-        args.timesteps = TIMESTEPS[args.env]
-    # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
-    torch.set_num_threads(args.threads)
-    n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
-    task = TASK_OF[args.env]
-    set_config = None
-    if args.policy == "set":
-        if args.algo != "ppo" or args.layout != "robot":
-            parser.error("--policy set trains PPO in the robot layout")
-        try:
-            set_config = SetFeatureConfig(args.neighbours, args.obstacles, args.sensing_radius)
-        except ValueError as exc:
-            parser.error(str(exc))
+    return parser
 
-    def make_venv(stage: int) -> KoopNavSB3VecEnv | MixtureVecEnv:
+
+class Trainer:
+    """One training run: its environments, model, checkpoint scoring and metadata, in the order
+    ``main`` calls them (the order fixes what the seed draws, so it does not change)."""
+
+    def __init__(
+        self, args: argparse.Namespace, parser: argparse.ArgumentParser, argv: list[str] | None
+    ) -> None:
+        self.args, self.argv = args, argv
+        self.out = Path(args.out)
+        self.random_map = TRAIN_MAPS[args.env] if args.random_map is None else args.random_map
+        if args.timesteps is None:
+            args.timesteps = TIMESTEPS[args.env]
+        self.n_envs = args.n_envs if args.algo == "ppo" else min(args.n_envs, 8)
+        self.task = TASK_OF[args.env]
+        self.set_config: SetFeatureConfig | None = None
+        if args.policy == "set":
+            if args.algo != "ppo" or args.layout != "robot":
+                parser.error("--policy set trains PPO in the robot layout")
+            try:
+                self.set_config = SetFeatureConfig(args.neighbours, args.obstacles, args.sensing_radius)
+            except ValueError as exc:
+                parser.error(str(exc))
+        self.history: list[dict] = []
+
+    def make_venv(self, stage: int) -> KoopNavSB3VecEnv | MixtureVecEnv:
         """The training env: one vector env, or the curriculum stage's parts side by side."""
+        args = self.args
         shared = {
             "layout": args.layout,
             "collision_penalty": args.collision_penalty if args.layout == "robot" else 0.0,
             "precision_shaping": args.precision_shaping if args.layout == "robot" else 0.0,
             "max_episode_steps": args.max_episode_steps,
         }
-        if set_config is None:
+        if self.set_config is None:
             return KoopNavSB3VecEnv(
                 args.env,
-                n_envs,
+                self.n_envs,
                 seed=args.seed,
                 features=args.features,
                 map="random",
                 slip="random",
-                random_map=random_map,
+                random_map=self.random_map,
                 **shared,
             )
         # part i of stage s seeds its envs from seed + 10_000 s + 1_000 i: no layout repeats
@@ -229,88 +226,97 @@ def main(argv: list[str] | None = None) -> int:
                     args.env,
                     k,
                     seed=args.seed + 10_000 * stage + 1_000 * i,
-                    set_config=set_config,
+                    set_config=self.set_config,
                     **shared,
                     **kw,
                 )
-                for i, (_, k, kw) in enumerate(stage_parts(task, STAGES[task][stage]))
+                for i, (_, k, kw) in enumerate(stage_parts(self.task, STAGES[self.task][stage]))
             ]
         )
 
-    raw = make_venv(0)
-    team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
+    def wrap(self, raw: KoopNavSB3VecEnv | MixtureVecEnv) -> Any:
+        """``raw`` monitored (episode return, length, success in the CSV log) and normalized."""
+        from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    def wrap(raw: KoopNavSB3VecEnv | MixtureVecEnv) -> VecNormalize:
-        monitored = VecMonitor(
-            raw, info_keywords=("is_success",)
-        )  # episode return/length/success in the CSV log
+        monitored = VecMonitor(raw, info_keywords=("is_success",))
         # set observations are scaled by hand (a running normalization would also move the masks)
         return VecNormalize(
-            monitored, norm_obs=set_config is None, norm_reward=True, clip_obs=10.0, gamma=0.99
+            monitored, norm_obs=self.set_config is None, norm_reward=True, clip_obs=10.0, gamma=0.99
         )
 
-    venv = wrap(raw)
-    # a narrow initial action noise: the goal tolerance (0.1 m) asks for fine control, and wide
-    # noise mostly produces early collisions
-    policy_kwargs: dict = {"net_arch": args.net, "log_std_init": args.log_std_init}
-    if set_config is not None:
-        from baselines.set_encoder import SetEncoder
+    def build_model(self, venv: Any) -> Any:
+        """PPO (or SAC) on ``venv``, logging CSV into the run's folder."""
+        from stable_baselines3 import PPO, SAC
+        from stable_baselines3.common.logger import configure
 
-        policy_kwargs["features_extractor_class"] = SetEncoder
-        policy_kwargs["features_extractor_kwargs"] = {
-            "set_config": set_config.as_dict(),
-            "width": args.set_width,
+        args = self.args
+        # a narrow initial action noise: the goal tolerance (0.1 m) asks for fine control, and wide
+        # noise mostly produces early collisions
+        policy_kwargs: dict = {"net_arch": args.net, "log_std_init": args.log_std_init}
+        if self.set_config is not None:
+            from baselines.set_encoder import SetEncoder
+
+            policy_kwargs["features_extractor_class"] = SetEncoder
+            policy_kwargs["features_extractor_kwargs"] = {
+                "set_config": self.set_config.as_dict(),
+                "width": args.set_width,
+            }
+        model: PPO | SAC
+        if args.algo == "ppo":
+            model = PPO(
+                "MlpPolicy",
+                venv,
+                n_steps=args.n_steps,
+                batch_size=args.batch_size,
+                n_epochs=5,
+                learning_rate=3e-4,
+                gamma=0.99,
+                gae_lambda=0.95,
+                clip_range=0.2,
+                ent_coef=0.0,
+                policy_kwargs=policy_kwargs,
+                seed=args.seed,
+                device="cpu",
+                verbose=0,
+            )
+        else:
+            model = SAC(
+                "MlpPolicy",
+                venv,
+                learning_rate=3e-4,
+                buffer_size=500_000,
+                batch_size=256,
+                train_freq=1,
+                gradient_steps=1,
+                policy_kwargs={"net_arch": args.net},
+                seed=args.seed,
+                device="cpu",
+                verbose=0,
+            )
+        model.set_logger(configure(str(self.out), ["csv"]))
+        return model
+
+    @property
+    def identity(self) -> dict[str, Any]:
+        """What every saved policy (checkpoint or final) records: enough to load and to validate it."""
+        args = self.args
+        identity = {
+            "algo": args.algo,
+            "layout": args.layout,
+            "features": "set" if self.set_config is not None else args.features,
+            "env_id": args.env,
+            "task": self.task,
         }
-    model: PPO | SAC
-    if args.algo == "ppo":
-        model = PPO(
-            "MlpPolicy",
-            venv,
-            n_steps=args.n_steps,
-            batch_size=args.batch_size,
-            n_epochs=5,
-            learning_rate=3e-4,
-            gamma=0.99,
-            gae_lambda=0.95,
-            clip_range=0.2,
-            ent_coef=0.0,
-            policy_kwargs=policy_kwargs,
-            seed=args.seed,
-            device="cpu",
-            verbose=0,
-        )
-    else:
-        model = SAC(
-            "MlpPolicy",
-            venv,
-            learning_rate=3e-4,
-            buffer_size=500_000,
-            batch_size=256,
-            train_freq=1,
-            gradient_steps=1,
-            policy_kwargs={"net_arch": args.net},
-            seed=args.seed,
-            device="cpu",
-            verbose=0,
-        )
-    model.set_logger(configure(str(out), ["csv"]))
-    history: list[dict] = []
-    # what every saved policy (checkpoint or final) records: enough to load and to validate it
-    identity = {
-        "algo": args.algo,
-        "layout": args.layout,
-        "features": "set" if set_config is not None else args.features,
-        "env_id": args.env,
-        "task": task,
-    }
-    if set_config is not None:
-        identity["set_config"] = set_config.as_dict()
-    else:
-        identity["random_map"] = random_map
+        if self.set_config is not None:
+            identity["set_config"] = self.set_config.as_dict()
+        else:
+            identity["random_map"] = self.random_map
+        return identity
 
-    def score(policy_norm: _ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
+    def score(self, model: Any, policy_norm: _ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
         """What a checkpoint is scored on: the paper maps (mlp) or held-out layouts (set)."""
-        if set_config is None:
+        args = self.args
+        if self.set_config is None:
             label = "eval success (nominal, paper maps)"
             return label, evaluate_policy_on_maps(
                 model, policy_norm, args.env, args.layout, args.features, episodes_per_map
@@ -318,86 +324,121 @@ def main(argv: list[str] | None = None) -> int:
         from baselines.select import set_validation_success
 
         return "validation success (held-out random layouts)", set_validation_success(
-            model, dict(policy_norm), identity, episodes_per_cell=args.validation_episodes
+            model, dict(policy_norm), self.identity, episodes_per_cell=args.validation_episodes
         )
 
-    class Periodic(BaseCallback):
-        """Checkpoints every ``eval_freq`` steps, each scored (see ``score``)."""
+    def checkpoint(self, model: Any, venv: Any, timesteps: int) -> str:
+        """Score the policy now, record it in the history and save it as a checkpoint; one line."""
+        label, rate = self.score(model, _norm_of(venv))
+        self.history.append({"timesteps": timesteps, "scored_on": label, "success_rate": rate})
+        model.logger.record("eval/success_rate", rate)
+        save_policy(
+            self.out / "checkpoints" / f"step_{timesteps}",
+            model,
+            venv,
+            {**self.identity, "timesteps": timesteps},
+        )
+        return f"{timesteps:>10,d} steps  {label} {rate:.2f}"
 
-        def __init__(self, next_at: int) -> None:
-            super().__init__()
-            self.next_at = next_at
+    def learn(self, model: Any, venv: Any) -> Any:
+        """Train (stage by stage on the curriculum for the set policy); returns the last env."""
+        from baselines.training_callbacks import PeriodicCheckpoints
 
-        def _on_step(self) -> bool:
-            if self.num_timesteps >= self.next_at:
-                self.next_at += args.eval_freq
-                label, rate = score(_norm_of(venv))
-                history.append({"timesteps": self.num_timesteps, "scored_on": label, "success_rate": rate})
-                self.logger.record("eval/success_rate", rate)
-                save_policy(
-                    out / "checkpoints" / f"step_{self.num_timesteps}",
-                    model,
-                    venv,
-                    {**identity, "timesteps": self.num_timesteps},
-                )
-                print(f"{self.num_timesteps:>10,d} steps  {label} {rate:.2f}", flush=True)
-            return True
-
-    start = time.perf_counter()
-    stages = STAGES[task] if set_config is not None else ()
-    if not stages:
-        model.learn(total_timesteps=args.timesteps, callback=Periodic(args.eval_freq))
-    else:
-        callback = Periodic(args.eval_freq)
+        args = self.args
+        callback = PeriodicCheckpoints(
+            args.eval_freq, lambda steps: self.checkpoint(model, venv_now[0], steps)
+        )
+        venv_now = [venv]
+        stages = STAGES[self.task] if self.set_config is not None else ()
+        if not stages:
+            model.learn(total_timesteps=args.timesteps, callback=callback)
+            return venv
         for index, stage in enumerate(stages):
             if index:
                 # the next stage's layouts; the reward scale learnt so far carries over
-                returns = venv.ret_rms
-                venv.close()  # the finished stage's envs
-                venv = wrap(make_venv(index))
-                venv.ret_rms = returns
-                model.set_env(venv)  # forces a reset: every episode starts on the new stage
+                returns = venv_now[0].ret_rms
+                venv_now[0].close()  # the finished stage's envs
+                venv_now[0] = self.wrap(self.make_venv(index))
+                venv_now[0].ret_rms = returns
+                model.set_env(venv_now[0])  # forces a reset: every episode starts on the new stage
             steps = round(stage.share * args.timesteps)
             print(f"stage {stage.name}: {steps:,} robot-steps", flush=True)
             model.learn(total_timesteps=steps, callback=callback, reset_num_timesteps=index == 0)
-    wall = time.perf_counter() - start
-    label, final_rate = score(_norm_of(venv), episodes_per_map=5)
-    metadata = {
-        **identity,
-        "collision_penalty": args.collision_penalty,
-        "precision_shaping": args.precision_shaping,
-        "n_robots": team_size,
-        "command": "python -m baselines.train " + " ".join(argv if argv is not None else sys.argv[1:]),
-        "seed": args.seed,
-        "timesteps": args.timesteps,
-        "trained_timesteps": int(model.num_timesteps),  # whole rollouts: a little over the request
-        "n_envs": venv.num_envs if set_config is not None else n_envs,  # set: sub-envs = robots
-        "net_arch": args.net,
-        "wall_seconds": round(wall, 1),
-        "robot_steps_per_second": round(model.num_timesteps / wall),
-        "eval_history": history,
-        "versions": {
-            "koopnav": koopman_envs.__version__,
-            "stable_baselines3": stable_baselines3.__version__,
-            "torch": torch.__version__,
-            "numpy": np.__version__,
-            "gymnasium": gym.__version__,
-            "python": platform.python_version(),
-        },
-    }
-    if set_config is None:
-        metadata["eval_success_rate_nominal_paper_maps"] = final_rate
-    else:
-        metadata["set_width"] = args.set_width
-        metadata["curriculum"] = {
-            "parts": [list(p) for p in PARTS],
-            "stages": [stage.as_dict() for stage in stages],
+        return venv_now[0]
+
+    def metadata(
+        self, model: Any, venv: Any, team_size: int | None, wall: float, final_rate: float
+    ) -> dict[str, Any]:
+        """What the final policy's ``metadata.json`` records."""
+        import stable_baselines3
+        import torch
+
+        args = self.args
+        metadata = {
+            **self.identity,
+            "collision_penalty": args.collision_penalty,
+            "precision_shaping": args.precision_shaping,
+            "n_robots": team_size,
+            "command": "python -m baselines.train "
+            + " ".join(self.argv if self.argv is not None else sys.argv[1:]),
+            "seed": args.seed,
+            "timesteps": args.timesteps,
+            "trained_timesteps": int(model.num_timesteps),  # whole rollouts: a little over the request
+            "n_envs": venv.num_envs if self.set_config is not None else self.n_envs,  # set: sub-envs = robots
+            "net_arch": args.net,
+            "wall_seconds": round(wall, 1),
+            "robot_steps_per_second": round(model.num_timesteps / wall),
+            "eval_history": self.history,
+            "versions": {
+                "koopnav": koopman_envs.__version__,
+                "stable_baselines3": stable_baselines3.__version__,
+                "torch": torch.__version__,
+                "numpy": np.__version__,
+                "gymnasium": gym.__version__,
+                "python": platform.python_version(),
+            },
         }
-        metadata["validation_success_rate"] = final_rate
-    save_policy(out, model, venv, metadata)
+        if self.set_config is None:
+            metadata["eval_success_rate_nominal_paper_maps"] = final_rate
+        else:
+            metadata["set_width"] = args.set_width
+            metadata["curriculum"] = {
+                "parts": [list(p) for p in PARTS],
+                "stages": [stage.as_dict() for stage in STAGES[self.task]],
+            }
+            metadata["validation_success_rate"] = final_rate
+        return metadata
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Train and save a policy (see the module docstring); exit 2 without stable-baselines3."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        import stable_baselines3  # noqa: F401 - only its presence is checked here
+        import torch
+    except ImportError:
+        print(
+            "error: training needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'",
+            file=sys.stderr,
+        )
+        return 2
+    run = Trainer(args, parser, argv)
+    run.out.mkdir(parents=True, exist_ok=True)
+    # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
+    torch.set_num_threads(args.threads)
+    raw = run.make_venv(0)
+    team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
+    venv = run.wrap(raw)
+    model = run.build_model(venv)
+    start = time.perf_counter()
+    venv = run.learn(model, venv)
+    wall = time.perf_counter() - start
+    label, final_rate = run.score(model, _norm_of(venv), episodes_per_map=5)
+    save_policy(run.out, model, venv, run.metadata(model, venv, team_size, wall, final_rate))
     print(
         f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
-        f"{label} {final_rate:.2f}; wrote {out}"
+        f"{label} {final_rate:.2f}; wrote {run.out}"
     )
     return 0
 

@@ -15,7 +15,8 @@ from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
-from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, generate_random_map, load_map
+from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
+from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.zones import SlipZone
 from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, task_for_env
 

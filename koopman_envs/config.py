@@ -13,7 +13,8 @@ from numpy.typing import NDArray
 
 from koopman_envs.keywords import env_keywords, unknown_keywords
 from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
-from koopman_envs.sim.maps import MapSpec, RandomMapConfig, load_map
+from koopman_envs.sim.maps import MapSpec, load_map
+from koopman_envs.sim.random_maps import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.tasks.base import TASKS, TaskSpec
 

@@ -23,11 +23,8 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import collision_flags
 from koopman_envs.sim.dynamics import advance_teams, wrap_angle
 from koopman_envs.sim.geometry import TeamGeometry
-from koopman_envs.sim.maps import (
-    MapSpec,
-    formation_offsets,
-    generate_random_map,
-)
+from koopman_envs.sim.maps import MapSpec, formation_offsets
+from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
 from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.zones import ZoneTable

@@ -15,7 +15,8 @@ from typing import Any
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
-from koopman_envs.sim.maps import BUILTIN_MAPS, RandomMapConfig
+from koopman_envs.sim.maps import BUILTIN_MAPS
+from koopman_envs.sim.random_maps import RandomMapConfig
 from koopman_envs.suggest import closest
 from koopman_envs.tasks.base import TASKS
 

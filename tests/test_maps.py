@@ -8,7 +8,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import target_reaching_v0
-from koopman_envs.sim.maps import BUILTIN_MAPS, MapSpec, RandomMapConfig, generate_random_map, load_map
+from koopman_envs.sim.maps import BUILTIN_MAPS, MapSpec, load_map
+from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
 
 
 @pytest.mark.parametrize("name", BUILTIN_MAPS)
@@ -157,7 +158,7 @@ def test_random_layouts_are_the_documented_ones_for_their_seeds() -> None:
     import json
     from pathlib import Path
 
-    from koopman_envs.sim.maps import RandomMapConfig, generate_random_map
+    from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
 
     reference = json.loads((Path(__file__).parent / "data" / "random_layouts.json").read_text())
     for case in reference:
@@ -228,7 +229,7 @@ def test_a_named_shape_that_does_not_fit_fails_at_construction() -> None:
 def test_placement_share_matches_the_generators_acceptance() -> None:
     """The fit rule's share equals the rejection loop's acceptance rate (within a binomial band)."""
     from koopman_envs.sim.formations import formation_shape
-    from koopman_envs.sim.maps import placement_share
+    from koopman_envs.sim.random_maps import placement_share
 
     local = formation_shape("wedge", 16, 0.9)
     share = placement_share(local, (3.0, 6.5), 17.6, 17.6)
@@ -245,3 +246,13 @@ def test_placement_share_matches_the_generators_acceptance() -> None:
     rate = inside.mean()
     band = 4 * np.sqrt(share * (1 - share) / draws)
     assert abs(rate - share) < band + 2e-3, (rate, share)
+
+
+def test_the_generator_s_previous_path_still_works_with_a_warning() -> None:
+    import koopman_envs.sim.maps as maps
+    import koopman_envs.sim.random_maps as random_maps
+
+    with pytest.warns(DeprecationWarning, match="import it from koopman_envs.sim.random_maps"):
+        assert maps.RandomMapConfig is random_maps.RandomMapConfig
+    with pytest.raises(AttributeError):
+        maps.no_such_name  # noqa: B018

@@ -1,4 +1,5 @@
-"""Obstacle maps: the shipped data files, user map files, and the seeded random-map generator.
+"""Obstacle maps: the shipped data files and user map files (the seeded random-map generator is
+:mod:`koopman_envs.sim.random_maps`).
 
 A map holds circular obstacles, optional slip zones (:mod:`koopman_envs.sim.zones`) and, per
 robot, a start pose and a target pose. Formation maps are written as a leader target plus
@@ -8,32 +9,28 @@ are the targets relative to robot 0's target.
 
 from __future__ import annotations
 
-import functools
 import json
-import math
 import os
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from typing import Any
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for, formation_shape
+from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
 from koopman_envs.sim.geometry import TeamGeometry
-from koopman_envs.sim.zones import SLIP_ZONE_MODES, SlipZone, check_zone_robots
+from koopman_envs.sim.zones import SlipZone, check_zone_robots
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "BUILTIN_MAPS",
     "MAP_NAMES",
+    "MAP_KEYS",
     "MapSpec",
-    "RandomMapConfig",
     "formation_offsets",
-    "generate_random_map",
     "load_map",
 ]
 
@@ -394,426 +391,25 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
     )
 
 
-#: ``RandomMapConfig.formation`` default: the wedge while it fits the workspace, the grid beyond
-AUTO_FORMATION = "auto"
-#: the share of the generator's draws (heading, travel, lead position) that must place a team's
-#: starts and targets inside the workspace for its shape to count as fitting (ours): the generator
-#: tries ``max_attempts`` = 10,000 draws, so a reset then fails with probability below
-#: (1 - 2e-3)^10000 ~ 2e-9. The wedge fits up to 20 robots at the default spacing (21: 1.3e-3).
-MIN_PLACEMENT_SHARE = 2e-3
+#: names that lived here before the generator got its own module (kept for one release)
+_MOVED = {
+    "RandomMapConfig",
+    "generate_random_map",
+    "placement_share",
+    "AUTO_FORMATION",
+    "MIN_PLACEMENT_SHARE",
+}
 
 
-def placement_share(
-    local: NDArray[np.float64], travel: tuple[float, float], width: float, height: float
-) -> float:
-    """Share of the random generator's draws that put a team's starts and targets inside a box.
+def __getattr__(name: str) -> Any:
+    if name in _MOVED:
+        import importlib
+        import warnings
 
-    The generator draws a heading uniformly, a travel distance uniformly in ``travel`` and the
-    leader's start uniformly in the box; the layout is kept when every start and target lies
-    inside. For a heading and a travel the layout spans ``ptp(x) + travel |cos|`` by
-    ``ptp(y) + travel |sin|``, so the kept share of lead positions is the product of
-    ``max(0, 1 - span / side)`` over both axes; this averages it over 720 headings and 64 travels.
-
-    Parameters
-    ----------
-    local : ndarray, shape (N, 2)
-        The shape's offsets in the leader's travel frame.
-    travel : (float, float)
-        Range of the travel distance [m].
-    width, height : float
-        Sides of the box that leader starts are drawn in [m].
-    """
-    heading = np.linspace(-math.pi, math.pi, 720, endpoint=False)
-    cos_h, sin_h = np.cos(heading), np.sin(heading)
-    x = np.outer(cos_h, local[:, 0]) - np.outer(sin_h, local[:, 1])  # (headings, N)
-    y = np.outer(sin_h, local[:, 0]) + np.outer(cos_h, local[:, 1])
-    distance = np.linspace(travel[0], travel[1], 64)
-    span_x = np.ptp(x, axis=1)[:, None] + np.outer(np.abs(cos_h), distance)
-    span_y = np.ptp(y, axis=1)[:, None] + np.outer(np.abs(sin_h), distance)
-    share = np.clip(1.0 - span_x / width, 0.0, None) * np.clip(1.0 - span_y / height, 0.0, None)
-    return float(share.mean())
-
-
-@functools.lru_cache(maxsize=256)
-def _shape_share(
-    shape: str, n_robots: int, spacing: float, travel: tuple[float, float], width: float, height: float
-) -> float:
-    return placement_share(formation_shape(shape, n_robots, spacing), travel, width, height)
-
-
-@dataclass(frozen=True)
-class RandomMapConfig:
-    """Parameters of the random-map generator (all ours).
-
-    The layout mirrors the paper's maps: a team in formation (``formation``, a shape of
-    :mod:`koopman_envs.sim.formations` with neighbours ``spacing`` apart; the wedge by default)
-    travels ``travel`` metres in a random direction, and isolated circular obstacles sit in the corridor between starts and
-    targets. With ``n_slip_zones`` > 0, circular slip zones (one lambda for every robot) are
-    placed in the same corridor after the rest of the layout is drawn, so the obstacles, starts
-    and targets of a seed do not depend on them.
-    """
-
-    n_obstacles: int = 4
-    travel: tuple[float, float] = (3.0, 6.5)
-    obstacle_radius: tuple[float, float] = (0.3, 0.6)
-    #: where along the corridor (0: the starts' centroid, 1: the targets') obstacle centres are
-    #: drawn; the default keeps the last quarter of the route free, (0.15, 0.95) also puts
-    #: obstacles beside the targets (as Map 4 does), still ``clearance`` away from each one
-    obstacle_along: tuple[float, float] = (0.25, 0.75)
-    spacing: float = PARAMS.formation_spacing  # distance between neighbouring robots in the formation [m]
-    #: the team's shape at its starts and targets, one of FORMATION_SHAPES (koopman_envs.sim.formations),
-    #: or "auto": the wedge while it fits the workspace (up to 20 robots at the default spacing),
-    #: the grid beyond (see :meth:`shape_for`)
-    formation: str = AUTO_FORMATION
-    clearance: float = 0.3  # free space around every start and target [m]
-    gap: float = 0.6  # free space between two obstacles, > one robot diameter [m]
-    border: float = 1.0  # free space between any start/target and the workspace edge [m]
-    max_attempts: int = 10_000
-    #: probability that the targets go to the robots in a random order, so that paths cross as
-    #: in Map 2 (target reaching; for formation it reshapes the formation itself)
-    swap_targets: float = 0.0
-    #: circular slip zones per map, centred in the corridor like the obstacles
-    n_slip_zones: int = 0
-    slip_zone_radius: tuple[float, float] = (0.6, 1.5)  # zone radius range [m]
-    slip_zone_lambda: tuple[float, float] = (0.2, 0.5)  # range of the zone's slip mean
-    slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
-
-    def __post_init__(self) -> None:
-        check_int("n_obstacles", self.n_obstacles, 0)
-        check_int("max_attempts", self.max_attempts, 1)
-        for name in ("clearance", "gap", "border"):
-            value = getattr(self, name)
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, (int, float))
-                or not (math.isfinite(value) and value >= 0)
-            ):
-                raise ValueError(f"{name}={value!r} must be a finite number >= 0 [m]")
-        for name in ("travel", "obstacle_radius"):
-            pair = getattr(self, name)
-            try:
-                low, high = (float(v) for v in pair)
-            except (TypeError, ValueError):
-                raise ValueError(f"{name}={pair!r} must be a (low, high) pair of numbers [m]") from None
-            if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
-                raise ValueError(
-                    f"{name}={pair!r} must be a finite (low, high) pair with 0 < low <= high [m]"
-                )
-        if self.formation != AUTO_FORMATION:
-            try:
-                formation_shape(self.formation, 1, self.spacing)  # the shape's own checks: name, spacing
-            except ValueError as exc:
-                if "is not one of" not in str(exc):
-                    raise
-                raise ValueError(
-                    f"formation={self.formation!r} is not one of {[AUTO_FORMATION, *FORMATION_SHAPES]}"
-                    f"{did_you_mean(self.formation, [AUTO_FORMATION, *FORMATION_SHAPES])}"
-                ) from None
-        else:
-            formation_shape("grid", 1, self.spacing)  # the spacing's check
-        if not 0.0 <= self.swap_targets <= 1.0:
-            raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
-        n = self.n_slip_zones
-        check_int("n_slip_zones", n, 0)
-        low, high = self.obstacle_along
-        if not (0.0 <= low <= high <= 1.0):
-            raise ValueError(
-                f"obstacle_along={self.obstacle_along!r} must be a (low, high) pair with 0 <= low <= high <= 1"
-            )
-        for name, low_allowed in (("slip_zone_radius", "> 0"), ("slip_zone_lambda", ">= 0")):
-            pair = getattr(self, name)
-            try:
-                low, high = (float(v) for v in pair)
-            except (TypeError, ValueError):
-                raise ValueError(f"{name}={pair!r} must be a (low, high) pair of numbers") from None
-            positive = low > 0 if name == "slip_zone_radius" else low >= 0
-            if not (math.isfinite(low) and math.isfinite(high) and positive and low <= high):
-                raise ValueError(
-                    f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and low <= high"
-                )
-        if self.slip_zone_mode not in SLIP_ZONE_MODES:
-            raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
-
-    def placement_share(
-        self,
-        shape: str,
-        n_robots: int,
-        robot_radius: float = PARAMS.robot_radius,
-        workspace: tuple[float, float, float, float] = PARAMS.workspace,
-    ) -> float:
-        """Share of this generator's draws that place a team of ``shape`` inside the workspace
-        (:func:`placement_share` on the box that leader starts are drawn in)."""
-        x0, x1, y0, y1 = workspace
-        margin = self.border + robot_radius
-        travel = (float(self.travel[0]), float(self.travel[1]))
-        return _shape_share(
-            shape, int(n_robots), float(self.spacing), travel, x1 - x0 - 2 * margin, y1 - y0 - 2 * margin
+        warnings.warn(
+            f"koopman_envs.sim.maps.{name} is deprecated; import it from koopman_envs.sim.random_maps",
+            DeprecationWarning,
+            stacklevel=2,
         )
-
-    def shape_for(
-        self,
-        n_robots: int,
-        robot_radius: float = PARAMS.robot_radius,
-        workspace: tuple[float, float, float, float] = PARAMS.workspace,
-    ) -> str:
-        """The formation shape a team of ``n_robots`` starts and ends in on these random maps.
-
-        A shape fits when at least :data:`MIN_PLACEMENT_SHARE` of the generator's draws place the
-        team inside the workspace (:func:`placement_share`). ``"auto"`` is the wedge while it
-        fits and the grid beyond; a named shape is used as it is.
-
-        Raises
-        ------
-        ValueError
-            The shape (the grid, for ``"auto"``) does not fit: naming the team size, the shape
-            and what to change.
-        """
-
-        def share(shape: str) -> float:
-            return self.placement_share(shape, n_robots, robot_radius, workspace)
-
-        shape = self.formation
-        if shape == AUTO_FORMATION:
-            shape = "wedge" if share("wedge") >= MIN_PLACEMENT_SHARE else "grid"
-        fits = share(shape)
-        if fits < MIN_PLACEMENT_SHARE:
-            # the roomiest shapes first
-            roomy = sorted(
-                (name for name in FORMATION_SHAPES if share(name) >= MIN_PLACEMENT_SHARE),
-                key=lambda name: -share(name),
-            )
-            raise ValueError(
-                f"a {shape} of n_robots={n_robots} with spacing {self.spacing:g} m does not fit a random "
-                f"map's workspace {list(workspace)} (it is placed in {fits:.1e} of the draws; at least "
-                f"{MIN_PLACEMENT_SHARE:g} is needed); "
-                + (
-                    f"use formation={roomy[0]!r}" + (f" (or one of {roomy[1:]})" if roomy[1:] else "")
-                    if roomy
-                    else "use fewer robots"
-                )
-                + ", a smaller random_map spacing or shorter travel"
-            )
-        return shape
-
-
-def generate_random_map(
-    rng: np.random.Generator,
-    n_robots: int,
-    config: RandomMapConfig = RandomMapConfig(),
-    robot_radius: float = PARAMS.robot_radius,
-    workspace: tuple[float, float, float, float] = PARAMS.workspace,
-) -> MapSpec:
-    """Draw a valid random map from ``rng`` (reproducible: same generator state, same map).
-
-    Every returned map passes :meth:`MapSpec.validate` and keeps, in addition, ``config.clearance``
-    between starts/targets and obstacles and ``config.gap`` between obstacles.
-
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        The only source of randomness.
-    n_robots : int
-        Team size (the formation ``config.formation`` grows with it).
-    config : RandomMapConfig
-        Generator parameters.
-    robot_radius : float
-        Robot radius [m].
-    workspace : tuple of float
-        (x_min, x_max, y_min, y_max) [m].
-
-    Returns
-    -------
-    MapSpec
-        Named ``"random"``.
-
-    Raises
-    ------
-    ValueError
-        The team's shape does not fit the workspace (:meth:`RandomMapConfig.shape_for`).
-    """
-    if n_robots < 1:
-        raise ValueError(f"n_robots={n_robots!r} must be >= 1")
-    local = formation_shape(config.shape_for(n_robots, robot_radius, workspace), n_robots, config.spacing)
-    x0, x1, y0, y1 = workspace
-    margin = config.border + robot_radius
-    low, high = [x0 + margin, y0 + margin], [x1 - margin, y1 - margin]
-    inner = np.array([x0 + margin, x1 - margin, y0 + margin, y1 - margin])
-    for _ in range(config.max_attempts):
-        # the draws, in this order, define the layout of a seed (tests/data/random_layouts.json)
-        heading = rng.uniform(-math.pi, math.pi)
-        cos_h, sin_h = math.cos(heading), math.sin(heading)
-        offsets = local @ np.array([[cos_h, sin_h], [-sin_h, cos_h]])  # local @ rot.T
-        travel = rng.uniform(*config.travel) * np.array([cos_h, sin_h])
-        lead = rng.uniform(low, high)
-        start_xy, target_xy, inside = _team_placement(offsets, travel, lead, inner)
-        if config.swap_targets and rng.uniform() < config.swap_targets:
-            target_xy = target_xy[rng.permutation(n_robots)]  # the same points: ``inside`` holds
-        if not inside:
-            continue
-        start_theta = heading + rng.uniform(-math.pi / 2, math.pi / 2, size=n_robots)
-        corridor = _corridor(start_xy, target_xy)
-        obstacles = _place_obstacles(rng, corridor, start_xy, target_xy, config, robot_radius, workspace)
-        if obstacles is None:
-            continue
-        starts = np.column_stack([start_xy, (start_theta + math.pi) % (2 * math.pi) - math.pi])
-        targets = np.column_stack([target_xy, np.full(n_robots, heading)])
-        # after every draw of the layout and only when asked for: without zones a seed consumes
-        # the generator as before and gives the same layout (tests/data/random_layouts.json)
-        zones = _place_slip_zones(rng, corridor, config) if config.n_slip_zones else ()
-        return MapSpec("random", obstacles, starts, targets, "seeded random layout", slip_zones=zones)
-    raise RuntimeError(  # pragma: no cover - the default config succeeds within a few attempts
-        f"no valid random map in {config.max_attempts} attempts for n_robots={n_robots}"
-    )
-
-
-@njit(cache=True)
-def _team_placement(
-    offsets: NDArray[np.float64],
-    travel: NDArray[np.float64],
-    lead: NDArray[np.float64],
-    inner: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
-    """Starts (lead + offsets) and targets (starts + travel) of a team, and whether all of them
-    lie inside ``inner`` (x0, x1, y0, y1); compiled because a random-map reset tries several
-    placements and each took ~20 small numpy calls."""
-    n = offsets.shape[0]
-    start = np.empty((n, 2))
-    target = np.empty((n, 2))
-    inside = True
-    for i in range(n):
-        for axis in range(2):
-            start[i, axis] = lead[axis] + offsets[i, axis]
-            target[i, axis] = start[i, axis] + travel[axis]
-        for point in (start[i], target[i]):
-            if point[0] < inner[0] or point[0] > inner[1] or point[1] < inner[2] or point[1] > inner[3]:
-                inside = False
-    return start, target, inside
-
-
-def _corridor(
-    start_xy: NDArray[np.float64], target_xy: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
-    """The corridor of a random layout: start centroid a, target centroid b, unit normal of a -> b
-    and half width [m] (the team's spread across the travel direction plus 1 m)."""
-    a, b = start_xy.mean(axis=0), target_xy.mean(axis=0)
-    direction = (b - a) / np.linalg.norm(b - a)
-    normal = np.array([-direction[1], direction[0]])
-    half_width = np.abs((start_xy - a) @ normal).max() + 1.0
-    return a, b, normal, float(half_width)
-
-
-def _place_slip_zones(
-    rng: np.random.Generator,
-    corridor: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float],
-    config: RandomMapConfig,
-) -> tuple[SlipZone, ...]:
-    """``config.n_slip_zones`` circles in the corridor (:func:`_corridor`), overlapping anything
-    (slip is no obstacle).
-
-    One ``rng.uniform(size=(n_slip_zones, 4))`` call; row j places zone j: position along a -> b
-    in [0.25, 0.75], offset across in [-half_width, half_width], radius and lambda in their
-    configured ranges, each linear in its uniform number. Python floats: this runs every reset.
-    """
-    (ax, ay), (bx, by), (nx, ny), half_width = corridor
-    r_low, r_high = config.slip_zone_radius
-    l_low, l_high = config.slip_zone_lambda
-    zones = []
-    for u_along, u_across, u_radius, u_lambda in rng.uniform(size=(config.n_slip_zones, 4)).tolist():
-        along = 0.25 + 0.5 * u_along
-        across = half_width * (2.0 * u_across - 1.0)
-        centre = (ax + along * (bx - ax) + across * nx, ay + along * (by - ay) + across * ny)
-        radius = r_low + (r_high - r_low) * u_radius
-        lam = l_low + (l_high - l_low) * u_lambda
-        zones.append(SlipZone("circle", (*centre, radius), lam, config.slip_zone_mode))
-    return tuple(zones)
-
-
-def _place_obstacles(
-    rng: np.random.Generator,
-    corridor: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float],
-    start_xy: NDArray[np.float64],
-    target_xy: NDArray[np.float64],
-    config: RandomMapConfig,
-    robot_radius: float,
-    workspace: tuple[float, float, float, float],
-) -> NDArray[np.float64] | None:
-    """Obstacles along the corridor (:func:`_corridor`) between the start and target centroids,
-    or None if stuck."""
-    a, b, normal, half_width = corridor
-    keep_clear = np.ascontiguousarray(np.vstack([start_xy, target_xy]))
-    placed, ok = _place_obstacles_kernel(
-        rng,
-        a,
-        b,
-        normal,
-        float(half_width),
-        keep_clear,
-        int(config.n_obstacles),
-        float(config.obstacle_radius[0]),
-        float(config.obstacle_radius[1]),
-        float(config.obstacle_along[0]),
-        float(config.obstacle_along[1]),
-        float(robot_radius),
-        float(config.clearance),
-        float(config.gap),
-        np.asarray(workspace, dtype=np.float64),
-    )
-    return placed if ok else None
-
-
-@njit(cache=True)
-def _place_obstacles_kernel(
-    rng: np.random.Generator,
-    a: NDArray[np.float64],
-    b: NDArray[np.float64],
-    normal: NDArray[np.float64],
-    half_width: float,
-    keep_clear: NDArray[np.float64],
-    n_obstacles: int,
-    r_low: float,
-    r_high: float,
-    along_low: float,
-    along_high: float,
-    robot_radius: float,
-    clearance: float,
-    gap: float,
-    workspace: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], bool]:
-    """The rejection sampler of :func:`_place_obstacles`, compiled: a reset of a vector env with
-    ``map="random"`` spent ~3 ms here in Python. It draws from ``rng`` exactly as the Python
-    version did (numba's Generator shares NumPy's bit stream and algorithms), so the same seed
-    gives the same layout (tests/data/random_layouts.json)."""
-    placed = np.zeros((n_obstacles, 3))
-    for k in range(n_obstacles):
-        found = False
-        for _attempt in range(100):
-            along = rng.uniform(along_low, along_high)
-            across = rng.uniform(-half_width, half_width)
-            radius = rng.uniform(r_low, r_high)
-            cx = a[0] + along * (b[0] - a[0]) + across * normal[0]
-            cy = a[1] + along * (b[1] - a[1]) + across * normal[1]
-            if (
-                cx - radius < workspace[0]
-                or cx + radius > workspace[1]
-                or cy - radius < workspace[2]
-                or cy + radius > workspace[3]
-            ):  # noqa: E501
-                continue
-            clear = np.inf
-            for i in range(keep_clear.shape[0]):
-                d = math.hypot(keep_clear[i, 0] - cx, keep_clear[i, 1] - cy) - radius - robot_radius
-                clear = min(clear, d)
-            if clear < clearance:
-                continue
-            spacing = np.inf
-            for j in range(k):
-                d = math.hypot(placed[j, 0] - cx, placed[j, 1] - cy) - placed[j, 2] - radius
-                spacing = min(spacing, d)
-            if k > 0 and spacing < gap:
-                continue
-            placed[k, 0], placed[k, 1], placed[k, 2] = cx, cy, radius
-            found = True
-            break
-        if not found:
-            return placed, False
-    return placed, True
+        return getattr(importlib.import_module("koopman_envs.sim.random_maps"), name)
+    raise AttributeError(f"module 'koopman_envs.sim.maps' has no attribute {name!r}")
