@@ -70,9 +70,11 @@ from evaluation.protocols import (
 )
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
 from evaluation.results import SCHEMA_VERSION, Results
+from evaluation.robustness import profiles, write_robustness
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
+from evaluation.sweep import parse_sweep, run_sweep
 from evaluation.thresholds import check_thresholds
 from koopman_envs.suggest import did_you_mean
 
@@ -191,6 +193,44 @@ def _print_summary(
         )
 
 
+def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) -> int:
+    """``--sweep``: every level's run in its own directory, then the robustness profiles."""
+    for option in ("baseline", "check", "badge", "ablation"):
+        if getattr(args, option):
+            raise ValueError(f"--sweep does not combine with --{option}; run them separately")
+    axes = [parse_sweep(text) for text in args.sweep]
+    labels = [c.label for c in spec.controllers] if spec.controllers is not None else None
+    if args.reference and labels is not None and args.reference not in labels:
+        raise ValueError(f"--reference {args.reference!r} is not one of the controllers {labels}")
+    if len({axis.key for axis in axes}) < len(axes):
+        raise ValueError(f"--sweep: an axis is given twice ({[a.key for a in axes]})")
+    if not args.resume:
+        existing = [
+            d for a in axes for v in a.levels if (d := a.level_dir(args.out, v) / "episodes.jsonl").exists()
+        ]
+        if existing:
+            raise ValueError(
+                f"{existing[0]} exists: pass --resume to continue that sweep, or choose another --out"
+            )
+    start = time.perf_counter()
+    done = run_sweep(
+        spec,
+        axes,
+        args.out,
+        workers=args.workers,
+        backend=args.backend,
+        resume=args.resume,
+        progress=not args.quiet,
+    )
+    words = list(sys.argv[1:] if argv is None else argv)
+    paths = write_robustness(profiles(done, args.reference), args.out, " ".join([program_name(), *words]))
+    episodes = sum(len(results.records) for levels in done.values() for _, results in levels)
+    print(
+        f"\n{episodes} episodes in {time.perf_counter() - start:.1f} s; wrote {', '.join(map(str, paths.values()))}"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit code (:data:`evaluation.cli.EXIT_CODES`)."""
     args = build_parser().parse_args(argv)
@@ -200,6 +240,8 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, stop_on_sigterm)
     try:
         spec = spec_from_args(args)
+        if args.sweep:
+            return _run_sweep(args, spec, argv)
         baseline = load_baseline(args.baseline) if args.baseline else None
         gate = GateOptions(args.alpha, args.delta, args.delta_cm)  # checked before any episode
         if args.fail_if_worse and baseline is None:

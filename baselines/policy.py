@@ -128,6 +128,7 @@ def policy_command(
     neighbours: int | None = None,
     set_config: SetFeatureConfig | None = None,
     formation: bool = False,
+    message_ages: bool = False,
 ) -> NDArray[np.float64]:
     """Deterministic joint command (v, omega per robot, flat; batched like the input) of a policy.
 
@@ -157,10 +158,15 @@ def policy_command(
         ``neighbours`` are ignored.
     formation : bool
         Whether the observation is the formation task's (set policies only).
+    message_ages : bool
+        Whether each robot's block ends with the team-mates' message ages and arrival flags (an
+        env with a ``comm`` setting); they are dropped before the network.
     """
-    from baselines.vec_env import robot_features, scale_action
+    from baselines.vec_env import robot_features, scale_action, without_message_ages
 
     obs = np.asarray(observation, dtype=np.float64)
+    if message_ages:
+        obs = without_message_ages(obs, n_robots)
     batch_shape = obs.shape[:-1]
     if set_config is not None:
         blocks = obs.reshape(batch_shape + (n_robots, -1))
@@ -226,6 +232,7 @@ def success_rate(
             features,
             set_config=set_config,
             formation=engine.config.task.formation,
+            message_ages=engine.builder.comm,
         )
         obs, _, terminated, truncated, info = venv.step(action)
         ended = (terminated | truncated) & ~done
@@ -305,6 +312,11 @@ class RLPolicyController(BaseController):
                 f"a set policy runs teams of 1..{MAX_TEAM} robots, not n_robots={scenario.n_robots}"
             )
         self._formation = TASKS[scenario.task].formation
+        if scenario.lidar_beams:
+            raise ValueError(
+                f"{self.name} reads the listed obstacles of sensing='state'; this env has sensing='lidar' "
+                f"({scenario.lidar_beams} beams)"
+            )
         self._scenario = scenario
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -324,6 +336,7 @@ class RLPolicyController(BaseController):
             self._neighbours,
             set_config=self._set_config,
             formation=self._formation,
+            message_ages=sc.message_ages,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command

@@ -55,6 +55,7 @@ def set_validation_success(
             slip=slip,
             random_map=random_map,
             max_episode_steps=400,
+            uncertainty=metadata.get("uncertainty", "nominal"),
         )
         for cell, (n, random_map, slip) in enumerate(VALIDATION[metadata["task"]])
     ]

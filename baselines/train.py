@@ -32,6 +32,7 @@ from baselines.policy import PolicyFiles, success_rate
 from baselines.set_features import SetFeatureConfig
 from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv, MixtureVecEnv
 from koopman_envs.tasks.base import TASKS
+from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 TASK_OF = {spec.env_id: name for name, spec in TASKS.items()}  # the task table's names
 # training layouts (map="random"): target reaching also sees crossing paths and Map 2's obstacle
@@ -171,6 +172,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="steps between checkpoints (each also evaluated on the paper maps)",
     )
     parser.add_argument("--max-episode-steps", type=int, default=400)
+    parser.add_argument(
+        "--uncertainty",
+        default="nominal",
+        choices=list(UNCERTAINTY_PRESETS),
+        help="runtime-uncertainty preset of every training and validation env (pose noise, radio, "
+        "actuation delay; the curriculum keeps its own slip) (default nominal)",
+    )
     parser.add_argument("--out", required=True)
     return parser
 
@@ -207,6 +215,7 @@ class Trainer:
             "collision_penalty": args.collision_penalty if args.layout == "robot" else 0.0,
             "precision_shaping": args.precision_shaping if args.layout == "robot" else 0.0,
             "max_episode_steps": args.max_episode_steps,
+            "uncertainty": args.uncertainty,
         }
         if self.set_config is None:
             return KoopNavSB3VecEnv(
@@ -306,6 +315,7 @@ class Trainer:
             "features": "set" if self.set_config is not None else args.features,
             "env_id": args.env,
             "task": self.task,
+            "uncertainty": args.uncertainty,
         }
         if self.set_config is not None:
             identity["set_config"] = self.set_config.as_dict()

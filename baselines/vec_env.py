@@ -42,6 +42,7 @@ __all__ = [
     "KoopNavSB3VecEnv",
     "MixtureVecEnv",
     "feature_count",
+    "without_message_ages",
     "robot_features",
     "scale_action",
 ]
@@ -79,6 +80,17 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     )
     rest = blocks[..., 9 + 3 * (n - 1) :]
     return np.concatenate([blocks[..., :9], chosen, rest], axis=-1), robots
+
+
+def without_message_ages(team_obs: np.ndarray, n_robots: int) -> np.ndarray:
+    """Team observations (..., N*F) without the message ages and arrival flags that end every
+    block of an env with a ``comm`` setting (2 (N - 1) entries per block)."""
+    tail = 2 * (n_robots - 1)
+    if tail == 0:
+        return team_obs
+    batch = team_obs.shape[:-1]
+    blocks = team_obs.reshape(batch + (n_robots, -1))
+    return blocks[..., :-tail].reshape(batch + (-1,))
 
 
 def robot_features(
@@ -205,6 +217,12 @@ class KoopNavSB3VecEnv(VecEnv):
         engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
         self.n_envs, self.n_robots = num_envs, engine.config.n_robots
         self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
+        # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
+        self._message_ages = engine.builder.comm
+        if engine.builder.beams:
+            raise ValueError(
+                "the SB3 adapter's policies read the listed obstacles; sensing='lidar' is not supported"
+            )
         if not np.isfinite(collision_penalty) or collision_penalty < 0:
             raise ValueError(f"collision_penalty={collision_penalty!r} must be finite and >= 0")
         self.collision_penalty = float(collision_penalty)
@@ -245,6 +263,8 @@ class KoopNavSB3VecEnv(VecEnv):
 
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
+        if self._message_ages:
+            team_obs = without_message_ages(team_obs, self.n_robots)
         if self.set_config is not None:
             blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)
             observed = set_features(blocks, self._n_obstacle_obs, self._formation, self.set_config)

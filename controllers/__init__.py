@@ -22,6 +22,8 @@ from controllers.registry import ENTRY_POINT_GROUP, available, make, register, r
 register_builtins(register)
 # any controller behind the CBF safety filter: "safe:<name>", filter options prefixed "safety_"
 register_wrapper("safe", "controllers.safety:wrap")
+# any controller reading an EKF estimate of every robot's pose: "ekf:<name>", options prefixed "ekf_"
+register_wrapper("ekf", "controllers.estimation:wrap")
 # the module paths of the previous release, importable with a DeprecationWarning
 install_moved_paths()
 

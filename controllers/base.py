@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.observed import observed_view
 from koopman_envs.scenario import Scenario, scenario_of
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -148,12 +149,16 @@ class BaseController(ABC):
 
     def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
         """The joint command; its wall time is recorded in :meth:`stats` unless ``_act`` records
-        its own (an optimizer timing only its solve)."""
+        its own (an optimizer timing only its solve).
+
+        ``_act`` receives only the observed part of ``info``
+        (:func:`koopman_envs.observed.observed_view`: pose estimates, messages and their ages,
+        lidar readings, targets), never the true state."""
         if self.scenario is None:
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
         recorded = len(self._stats.solve_times)
         start = time.perf_counter()
-        command = self._act(observation, info)
+        command = self._act(observation, observed_view(info))
         if len(self._stats.solve_times) == recorded:
             self._stats.solve_times.append(time.perf_counter() - start)
         return command

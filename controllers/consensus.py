@@ -79,7 +79,7 @@ class ConsensusController(BaseController):
         speed = np.linalg.norm(velocity, axis=-1, keepdims=True)
         return velocity * np.minimum(1.0, v_max / np.maximum(speed, 1e-12))
 
-    def _repulsion(self, positions: NDArray, goal_velocity: NDArray) -> NDArray:
+    def _repulsion(self, positions: NDArray, goal_velocity: NDArray, heard: NDArray | None = None) -> NDArray:
         """Velocity away from obstacles and robots closer than ``influence`` (clearance).
 
         Besides the radial push, the avoidance slides along the obstacle (the tangent on the
@@ -97,6 +97,8 @@ class ConsensusController(BaseController):
             clearance = dist - radii - sc.robot_radius[i]
             near = (clearance < self.influence) & (dist > 1e-9)
             near[len(sc.obstacles) + i] = False  # not itself
+            if heard is not None:  # nor a robot it has heard nothing of
+                near[len(sc.obstacles) :] &= heard
             if near.any():
                 c = np.maximum(clearance[near], 0.02)
                 strength = self.repulsion_gain * (1.0 / c - 1.0 / self.influence) / c**2
@@ -111,10 +113,24 @@ class ConsensusController(BaseController):
         return push
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        """Every robot's command from what it knows: its own pose estimate and its last messages
+        of the others (``known_poses`` row i; robots it has heard nothing of are left out). When
+        every robot knows the same (instant messages) one team computation serves all."""
         start = time.perf_counter()
+        known = np.asarray(info["known_poses"], dtype=np.float64)
+        ages = np.asarray(info["message_age"])
+        if (ages == 0).all() and (known == known[:1]).all():
+            command = self._team_command(known[0])
+        else:
+            command = np.stack([self._team_command(known[i], ages[i] >= 0)[i] for i in range(known.shape[0])])
+        self._stats.solve_times.append(time.perf_counter() - start)
+        return command.reshape(-1)
+
+    def _team_command(self, poses: NDArray, heard: NDArray | None = None) -> NDArray[np.float64]:
+        """(N, 2) commands from the team poses ``poses`` (N, 3) as one robot knows them; ``heard``
+        (N,) marks the robots it knows of (None: all)."""
         sc = self.scenario
         assert sc is not None  # act() checked it
-        poses = np.asarray(info["poses"], dtype=np.float64)
         theta = poses[:, 2]
         heading = np.column_stack([np.cos(theta), np.sin(theta)])
         hands = poses[:, :2] + self.hand * heading
@@ -122,6 +138,8 @@ class ConsensusController(BaseController):
             lead = sc.leader
             offsets = sc.formation_offsets
             lead_velocity = self._hand_velocity_to_target(hands[lead], self._hand_targets[lead], sc.v_max)
+            if heard is not None and not heard[lead]:
+                lead_velocity = np.zeros(2)  # no feed-forward from a leader not yet heard of
             corrected = hands - offsets  # where each robot "thinks" the leader's hand should be
             velocity = np.empty_like(hands)
             velocity[lead] = lead_velocity
@@ -129,17 +147,14 @@ class ConsensusController(BaseController):
                 if i == lead:
                     continue
                 # consensus with every other robot (complete graph) plus leader feed-forward
-                disagreement = (corrected[i] - corrected).sum(axis=0)
+                others = corrected if heard is None else corrected[heard]
+                disagreement = (corrected[i] - others).sum(axis=0)
                 velocity[i] = lead_velocity - self.consensus_gain * disagreement
         else:
             velocity = self._hand_velocity_to_target(hands, self._hand_targets, sc.v_max)
         if self.collision_avoidance:
-            velocity = velocity + self._repulsion(poses[:, :2], velocity)
+            velocity = velocity + self._repulsion(poses[:, :2], velocity, heard)
         # hand-point feedback linearization: [v, omega] = [[c, s], [-s/l, c/l]] hand velocity
         v = heading[:, 0] * velocity[:, 0] + heading[:, 1] * velocity[:, 1]
         omega = (-heading[:, 1] * velocity[:, 0] + heading[:, 0] * velocity[:, 1]) / self.hand
-        command = np.column_stack(
-            [np.clip(v, -sc.v_max, sc.v_max), np.clip(omega, -sc.omega_max, sc.omega_max)]
-        )
-        self._stats.solve_times.append(time.perf_counter() - start)
-        return command.reshape(-1)
+        return np.column_stack([np.clip(v, -sc.v_max, sc.v_max), np.clip(omega, -sc.omega_max, sc.omega_max)])

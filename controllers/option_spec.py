@@ -232,6 +232,17 @@ def _with_defaults(spec: ControllerSpec, name: str, defaults: Mapping[str, Any],
     return ControllerSpec(name, doc or spec.doc, changed)
 
 
+def _wrapper_options(prefix: str) -> tuple[type, str, str]:
+    """A wrapper prefix's option dataclass, the prefix of its options, and what it does."""
+    if prefix == "ekf":
+        from controllers.estimation import ESTIMATOR_OPTION_PREFIX, EstimatorOptions
+
+        return EstimatorOptions, ESTIMATOR_OPTION_PREFIX, "with an EKF on every robot's pose"
+    from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
+
+    return SafetyOptions, FILTER_OPTION_PREFIX, "behind the CBF safety filter"
+
+
 def options(name: str) -> ControllerSpec:
     """The options of a controller configuration (see the module docstring).
 
@@ -250,15 +261,14 @@ def options(name: str) -> ControllerSpec:
 
     prefixes, base = split_name(name)
     if prefixes:
-        inner = options(base)
-        from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
-
-        docs = _sections(SafetyOptions.__doc__, "Attributes")
+        inner = options(name.split(":", 1)[1])
+        table, prefix, role = _wrapper_options(prefixes[0])
+        docs = _sections(table.__doc__, "Attributes")
         mine = tuple(
-            Option(FILTER_OPTION_PREFIX + f.name, str(f.type), f.default, docs.get(f.name, ""))
-            for f in dataclasses.fields(SafetyOptions)
+            Option(prefix + f.name, str(f.type), f.default, docs.get(f.name, ""))
+            for f in dataclasses.fields(table)
         )
-        return ControllerSpec(name, f"{inner.doc} (behind the CBF safety filter)", inner.options + mine)
+        return ControllerSpec(name, f"{inner.doc} ({role})", inner.options + mine)
     presets = {p.name: p for p in PRESETS}
     if base in presets:
         preset = presets[base]

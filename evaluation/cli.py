@@ -143,6 +143,19 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
     what.add_argument(
         "--seed", type=int, default=0, help="base seed; trial i of a cell uses seed + i (default 0)"
     )
+    what.add_argument(
+        "--sweep",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        help="robustness profile: run everything at each level of an env setting (repeatable; nested "
+        "fields as comm.drop, pose_noise.xy), same seeds at every level; writes OUT/sweep/<KEY>-<level>/ "
+        "and OUT/robustness.{md,json,html} (docs/robustness.md; default: no sweep)",
+    )
+    what.add_argument(
+        "--reference",
+        metavar="CONTROLLER",
+        help="with --sweep: the controller every other is paired against (default: the first)",
+    )
     protocol = what.add_mutually_exclusive_group()
     protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5), IPOPT")
     protocol.add_argument(

@@ -305,6 +305,32 @@ def render_html(
     return "\n".join(parts)
 
 
+def render_page(title: str, report: Sequence[Section], figures: Iterable[str | os.PathLike] = ()) -> str:
+    """A self-contained page of report sections and embedded figures (the robustness page)."""
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{_e(title)}</title>",
+        f"<style>{_CSS}</style>",
+        "</head>",
+        "<body>",
+        f"<h1>{_e(title)}</h1>",
+        '<p class="note">Click a column header to sort a table; click again to reverse.</p>',
+    ]
+    paths = [Path(f) for f in figures]
+    if paths:
+        parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']
+        parts += [_figure(p, p.name) for p in paths]
+        parts.append("</div>")
+    parts += [_section(section) for section in report]
+    parts += [f"<script>{_JS}</script>", "</body>", "</html>", ""]
+    return "\n".join(parts)
+
+
 def write_html(
     results: RunData, out_dir: str | os.PathLike, figures: Sequence[str | os.PathLike] | None = None
 ) -> Path:

@@ -19,7 +19,14 @@ import numpy as np
 
 from koopman_envs.checks import check_int
 
-__all__ = ["PairedComparison", "bootstrap_mean_interval", "paired_comparison", "wilson_interval"]
+__all__ = [
+    "PairedComparison",
+    "bootstrap_mean_interval",
+    "bootstrap_tail_interval",
+    "paired_comparison",
+    "tail_mean",
+    "wilson_interval",
+]
 
 #: Upper bound on the number of indices drawn at once by :func:`bootstrap_mean_interval`
 #: (2**20 int64 indices = 8 MiB, plus as many gathered float64 values).
@@ -150,6 +157,42 @@ def bootstrap_mean_interval(
         means[start:stop] = x[idx].mean(axis=1)
     tail = (1.0 - confidence) / 2.0
     low, high = np.quantile(means, [tail, 1.0 - tail])
+    return (float(low), float(high))
+
+
+def tail_mean(values: Iterable[float], share: float = 0.1) -> float:
+    """Mean of the largest ``ceil(share * n)`` values (the worst episodes' final distance); NaN when empty."""
+    x = np.sort(np.asarray(list(values), dtype=float))
+    if x.size == 0:
+        return math.nan
+    return float(x[-math.ceil(share * x.size) :].mean())
+
+
+def bootstrap_tail_interval(
+    values: Iterable[float],
+    share: float = 0.1,
+    confidence: float = 0.95,
+    resamples: int = 2_000,
+    seed: int = 0,
+) -> tuple[float, float]:
+    """Percentile bootstrap interval of :func:`tail_mean` (resampling the values with
+    replacement from ``numpy.random.default_rng(seed)``); ``(nan, nan)`` when empty."""
+    confidence = _check_confidence(confidence)
+    x = np.asarray(list(values), dtype=float)
+    if x.size == 0:
+        return (math.nan, math.nan)
+    if not np.isfinite(x).all():
+        raise ValueError("values must be finite numbers")
+    rng = np.random.default_rng(seed)
+    top = math.ceil(share * x.size)
+    rows = max(1, _BOOTSTRAP_CHUNK // x.size)
+    tails = np.empty(resamples)
+    for start in range(0, resamples, rows):
+        stop = min(start + rows, resamples)
+        sample = np.sort(x[rng.integers(0, x.size, size=(stop - start, x.size))], axis=1)
+        tails[start:stop] = sample[:, -top:].mean(axis=1)
+    tail = (1.0 - confidence) / 2.0
+    low, high = np.quantile(tails, [tail, 1.0 - tail])
     return (float(low), float(high))
 
 

@@ -17,6 +17,7 @@ from koopman_envs.sim.maps import MapSpec, load_map
 from koopman_envs.sim.random_maps import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.tasks.base import TASKS, TaskSpec
+from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, CommConfig, LidarConfig, PoseNoise, parse_setting
 
 __all__ = ["EngineConfig"]
 
@@ -30,6 +31,26 @@ def _random_map_formation(config: RandomMapConfig, formation: str) -> RandomMapC
             "give the shape once (the formation keyword or the random_map field)"
         )
     return dataclasses.replace(config, formation=formation)
+
+
+def _uncertainty(kw: dict[str, Any]) -> dict[str, Any]:
+    """The uncertainty fields of :class:`EngineConfig` from the checked keywords ``kw``: the
+    ``uncertainty`` preset's settings, each replaced (or, for a dict, updated field by field) by
+    the keyword given beside it."""
+    preset = UNCERTAINTY_PRESETS[kw["uncertainty"]]
+    lidar = None
+    if kw["sensing"] == "lidar":
+        lidar = parse_setting("lidar", kw["lidar"], LidarConfig, preset.lidar)
+    elif kw["lidar"] is not None:
+        raise ValueError(f"lidar={kw['lidar']!r} is given with sensing='state'; add sensing='lidar'")
+    delay = kw["actuation_delay"]
+    return {
+        "uncertainty": kw["uncertainty"],
+        "pose_noise": parse_setting("pose_noise", kw["pose_noise"], PoseNoise, preset.pose_noise),
+        "lidar": lidar,
+        "comm": parse_setting("comm", kw["comm"], CommConfig, preset.comm),
+        "actuation_delay": preset.actuation_delay if delay is None else delay,
+    }
 
 
 @dataclass(frozen=True)
@@ -57,6 +78,27 @@ class EngineConfig:
     slip_schedule: SlipSchedule | None = None
     #: the formation shape asked for (``formation`` keyword), None for the map's own layout
     formation: str | None = None
+    #: the ``uncertainty`` preset the settings below start from
+    uncertainty: str = "nominal"
+    #: localization error of every robot's own pose estimate
+    pose_noise: PoseNoise = PoseNoise()
+    #: the lidar of ``sensing="lidar"``, None for ``sensing="state"``
+    lidar: LidarConfig | None = None
+    #: the team's radio
+    comm: CommConfig = CommConfig()
+    #: control periods between a command and its action
+    actuation_delay: int = 0
+
+    @property
+    def perceives(self) -> bool:
+        """True when robots observe anything but the exact state at once (then
+        :class:`~koopman_envs.sim.perception.Perception` runs)."""
+        return (
+            self.pose_noise.active
+            or not self.comm.perfect
+            or self.lidar is not None
+            or self.actuation_delay > 0
+        )
 
     @classmethod
     def create(cls, task: str, *, front: str | None = None, **keywords: Any) -> EngineConfig:
@@ -97,6 +139,8 @@ class EngineConfig:
             kw["slip"],
             kw["formation"],
         )
+        if "slip" not in keywords:  # the preset's slip; a slip given beside the preset wins
+            slip = UNCERTAINTY_PRESETS[kw["uncertainty"]].slip
         random_map, max_episode_steps, max_cycles = (
             kw["random_map"],
             kw["max_episode_steps"],
@@ -140,6 +184,7 @@ class EngineConfig:
         else:
             lambdas = slip_lambdas(slip, n_robots)
         label = slip if isinstance(slip, str) else ("schedule" if schedule is not None else "custom")
+
         return cls(
             task=spec,
             map_spec=map_spec,
@@ -154,6 +199,7 @@ class EngineConfig:
             start_noise=kw["start_noise"],
             slip_schedule=schedule,
             formation=formation,
+            **_uncertainty(kw),
         )
 
     @property

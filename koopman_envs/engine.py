@@ -21,20 +21,19 @@ from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import collision_flags
-from koopman_envs.sim.dynamics import advance_teams, wrap_angle
+from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
+from koopman_envs.sim.perception import Perception, observed_info
 from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
 from koopman_envs.sim.slip_schedule import SlipClock
+from koopman_envs.sim.starts import START_NOISE_ATTEMPTS, perturbed_starts
 from koopman_envs.sim.zones import ZoneTable
 from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import score_step
 
-__all__ = ["NavigationEngine", "StepResult"]
-
-#: ``start_noise``: draws of a whole team's start perturbation before a reset gives up (ours).
-START_NOISE_ATTEMPTS = 100
+__all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult"]
 
 
 @dataclass
@@ -91,7 +90,32 @@ class NavigationEngine:
         #: scheduled base levels, None for a slip level that is constant through an episode
         self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
-        self.builder = FeatureBuilder(k, n, m, config.n_obstacle_obs, config.task.formation)
+        #: what the robots believe (noise, radio, lidar, command queue); None when they know the truth
+        self.perception = (
+            Perception(
+                k,
+                n,
+                config.pose_noise,
+                config.comm,
+                config.lidar,
+                config.actuation_delay,
+                PARAMS.dt,
+                PARAMS.workspace,
+            )
+            if config.perceives
+            else None
+        )
+        self.builder = FeatureBuilder(
+            k,
+            n,
+            m,
+            config.n_obstacle_obs,
+            config.task.formation,
+            beams=0 if config.lidar is None else config.lidar.beams,
+            comm=not config.comm.perfect,
+            lidar_range=0.0 if config.lidar is None else config.lidar.range,
+        )
+        self._all_rows = np.arange(k, dtype=np.int64)
         self.feature_size = self.builder.shape[-1]
         self.feature_low, self.feature_high = self.builder.low, self.builder.high
         self.command_low = np.array([-PARAMS.v_max, -PARAMS.omega_max])
@@ -188,7 +212,7 @@ class NavigationEngine:
         elif cfg.start_noise > 0:
             # the noise is drawn after the map and before the slip level, and only when asked
             # for, so that start_noise=0 consumes nothing and replays earlier rollouts bit for bit
-            starts = self._perturbed_starts(spec, rng)
+            starts = perturbed_starts(spec, rng, cfg.n_robots, cfg.start_noise, float(cfg.robot_radius[0]))
         else:
             starts = spec.starts[:n]
         if spec is not self.maps[index]:
@@ -210,6 +234,17 @@ class NavigationEngine:
         else:
             lambdas = draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas
         self.slip.reset_env(index, rng, lambdas)
+        if self.perception is not None:  # draws from a child of rng: the env's own stream is untouched
+            self.perception.reset_env(index, rng)  # its first readings: at the next features() or step()
+
+    def _flush_perception(self) -> None:
+        """The first readings of the environments reset since the last step (one batched call)."""
+        if self.perception is not None:
+            self.perception.flush(self.state, self._obstacle_discs(), self.config.robot_radius)
+
+    def _obstacle_discs(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        geometry = self.geometry
+        return geometry.obstacle_x, geometry.obstacle_y, geometry.obstacle_r
 
     def _check_placement(self, spec: MapSpec, poses: NDArray[np.float64], key: str) -> None:
         """Raise ValueError naming ``options[key]`` if the team cannot stand at ``poses`` on ``spec``."""
@@ -223,44 +258,15 @@ class NavigationEngine:
                 "every obstacle and of each other"
             )
 
-    def _perturbed_starts(self, spec: MapSpec, rng: np.random.Generator) -> NDArray[np.float64]:
-        """The map's starts, each displaced uniformly in a disc of radius ``start_noise`` [m] and
-        turned uniformly within +-``start_noise`` [rad], redrawn for the whole team until the
-        placement passes :meth:`MapSpec.pose_problem` (the check every map passes).
-
-        Raises
-        ------
-        RuntimeError
-            No valid draw in :data:`START_NOISE_ATTEMPTS` attempts.
-        """
-        cfg = self.config
-        n, noise = cfg.n_robots, cfg.start_noise
-        base = spec.starts[:n]
-        radius = float(cfg.robot_radius[0])
-        for _ in range(START_NOISE_ATTEMPTS):
-            # sqrt of a uniform radius fraction makes the displacement uniform over the disc's area
-            distance = noise * np.sqrt(rng.uniform(size=n))
-            bearing = rng.uniform(-np.pi, np.pi, size=n)
-            turn = rng.uniform(-noise, noise, size=n)
-            starts = np.column_stack(
-                [
-                    base[:, 0] + distance * np.cos(bearing),
-                    base[:, 1] + distance * np.sin(bearing),
-                    wrap_angle(base[:, 2] + turn),
-                ]
-            )
-            problem = spec.pose_problem(starts, radius, PARAMS.workspace, "start")
-            if problem is None:
-                return starts
-        raise RuntimeError(
-            f"start_noise={noise!r}: no valid start poses on map {spec.name!r} in "
-            f"{START_NOISE_ATTEMPTS} draws of the whole team (last: {problem}); use a smaller start_noise"
-        )
-
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""
+        self._flush_perception()
         features, _ = self.builder.build(
-            self.state, self.target, self.geometry, self.offset if self.config.task.formation else None
+            self.state,
+            self.target,
+            self.geometry,
+            self.offset if self.config.task.formation else None,
+            self.perception,
         )
         return features
 
@@ -315,6 +321,10 @@ class NavigationEngine:
         means = slip.lambdas
         if self.zones is not None:
             means = self.zones.slip_means(self.state, slip.lambdas, self._means)
+        perception = self.perception
+        rows = self._all_rows if active is None else np.flatnonzero(active)
+        if perception is not None:
+            commands = perception.delayed(commands, rows)
         advance_teams(
             self.state,
             commands,
@@ -335,9 +345,15 @@ class NavigationEngine:
         collision_flags(
             new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
         )
+        if perception is not None:
+            perception.update(new, self._obstacle_discs(), cfg.robot_radius, rows)
         features, distances = self.builder.build(
-            new, self.target, geometry, self.offset if cfg.task.formation else None
+            new, self.target, geometry, self.offset if cfg.task.formation else None, perception
         )
+        if perception is not None:  # the builder measured what the robots believe; rewards need the truth
+            dx = self.target[:, 0] - new[:, 0]
+            dy = self.target[:, 1] - new[:, 1]
+            distances = np.sqrt(dx * dx + dy * dy)
         k, n = distances.shape
         robot_reward, team_reward = np.empty((k, n)), np.empty(k)
         success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
@@ -404,6 +420,8 @@ class NavigationEngine:
             dt=PARAMS.dt,
             goal_tolerance=cfg.goal_tolerance,
             settle_steps=self._settle_steps,
+            lidar_beams=self.builder.beams,
+            message_ages=self.builder.comm,
         )
 
     def _formation_error(self) -> NDArray[np.float64]:
@@ -442,6 +460,7 @@ class NavigationEngine:
         :meth:`info` is row ``index`` of this, so every front reports the same keys.
         """
         info = {
+            **self.observed_info(),
             "poses": self.poses.copy(),
             "targets": self.targets.copy(),
             "distances": self.distances.copy(),
@@ -454,6 +473,12 @@ class NavigationEngine:
         if self.config.task.formation:
             info["formation_error"] = self.formation_errors()
         return info
+
+    def observed_info(self) -> dict[str, Any]:
+        """What the robots believe, one array per key (copies): the part of an info a controller
+        may read (:func:`koopman_envs.sim.perception.observed_info` lists the keys)."""
+        self._flush_perception()
+        return observed_info(self.perception, self.poses)
 
     def info(self, index: int = 0) -> dict[str, Any]:
         """The true structured state of environment ``index``: row ``index`` of :meth:`batch_info`

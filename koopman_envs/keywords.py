@@ -17,8 +17,9 @@ from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.sim.random_maps import RandomMapConfig
-from koopman_envs.suggest import closest
+from koopman_envs.suggest import closest, did_you_mean
 from koopman_envs.tasks.base import TASKS
+from koopman_envs.uncertainty import SENSING_MODES, UNCERTAINTY_PRESETS
 
 __all__ = [
     "ENV_KEYWORDS",
@@ -50,6 +51,21 @@ def _formation(name: str, value: Any) -> str | None:
             f"{name}={value!r} is not one of {list(FORMATION_SHAPES)} or None (the map's own layout)"
         )
     return value
+
+
+def _choice(allowed: Sequence[str]) -> Callable[[str, Any], str]:
+    """A check that ``value`` is one of ``allowed`` (with did-you-mean)."""
+
+    def check(name: str, value: Any) -> str:
+        if not isinstance(value, str) or value not in allowed:
+            raise ValueError(f"{name}={value!r} is not one of {list(allowed)}{did_you_mean(value, allowed)}")
+        return value
+
+    return check
+
+
+def _optional_delay(name: str, value: Any) -> int | None:
+    return None if value is None else check_int(name, value, 0, note="control periods")
 
 
 def _optional_count(name: str, value: Any) -> int | None:
@@ -171,6 +187,49 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         f"time limit in control periods; None: {PARAMS.max_episode_steps} (the Gymnasium env leaves "
         "it to gym.make's TimeLimit)",
         check=_optional_count,
+    ),
+    EnvKeyword(
+        "uncertainty",
+        "nominal",
+        "str",
+        f"named runtime-uncertainty preset, one of {list(UNCERTAINTY_PRESETS)}: slip, pose_noise, comm, "
+        "actuation_delay (and lidar noise) together (docs/uncertainty.md); keywords given beside it win",
+        check=_choice(tuple(UNCERTAINTY_PRESETS)),
+    ),
+    EnvKeyword(
+        "pose_noise",
+        None,
+        "float | dict | PoseNoise | None",
+        "each robot's localization error: dict(xy [m], heading [rad], drift_xy [m/sqrt(s)], "
+        "drift_heading [rad/sqrt(s)]) (a number: the xy std); None: the preset's (none)",
+    ),
+    EnvKeyword(
+        "sensing",
+        "state",
+        "str",
+        f"how robots see obstacles, one of {list(SENSING_MODES)}: the known map, or lidar beams only",
+        check=_choice(SENSING_MODES),
+    ),
+    EnvKeyword(
+        "lidar",
+        None,
+        "dict | LidarConfig | None",
+        'with sensing="lidar": dict(beams, fov [rad], range [m], noise [m], dropout); None: 32 beams, '
+        "360 deg, 5 m, the preset's noise",
+    ),
+    EnvKeyword(
+        "comm",
+        None,
+        "dict | CommConfig | None",
+        "what robots hear of team-mates: dict(latency [periods], drop [0-1], range [m]); None: the "
+        "preset's (instant and lossless)",
+    ),
+    EnvKeyword(
+        "actuation_delay",
+        None,
+        "int | None",
+        "periods between a command and its action; None: the preset's (0)",
+        check=_optional_delay,
     ),
     EnvKeyword(
         "max_cycles",

@@ -50,6 +50,12 @@ class Scenario:
         Success tolerance on each robot's distance to its target [m].
     settle_steps : int
         Periods every robot must stay within tolerance for success.
+    lidar_beams : int
+        Lidar readings in each robot's observation block (``sensing="lidar"``; 0: the block lists
+        the nearest obstacles instead).
+    message_ages : bool
+        Whether each block ends with the team-mates' message ages and arrival flags (a ``comm``
+        setting): the observation layout a learned policy must expect.
     """
 
     task: str
@@ -67,6 +73,8 @@ class Scenario:
     dt: float
     goal_tolerance: float
     settle_steps: int
+    lidar_beams: int = 0
+    message_ages: bool = False
 
     @property
     def is_formation(self) -> bool:

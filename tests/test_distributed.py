@@ -25,7 +25,7 @@ def _reset(n: int = 3, map_name: str = "map1", **options) -> tuple[DistributedNM
 
 def _slots(ctrl: DistributedNMPC, i: int, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Robot i's neighbour slots as its problem's parameters hold them: positions (T, K, 2), reach (K,)."""
-    ctrl._surroundings(i, poses, np.zeros(len(poses), dtype=bool))
+    ctrl._surroundings(i, poses, np.zeros(len(poses), dtype=np.int64), np.zeros(len(poses), dtype=bool))
     agent = ctrl._agents[i]
     values = np.concatenate([agent.parameter("neighbour_xy"), agent.parameter("neighbour_reach")])
     horizon, k = ctrl.config.horizon, ctrl.neighbours
@@ -52,7 +52,7 @@ def test_parked_slots_never_bind() -> None:
     far = np.array(info["poses"], dtype=float)
     far[1:, :2] = [[9.5, 9.5], [-9.5, 9.5]]  # out of reach: both slots stay parked
     ctrl._plans = np.repeat(far[None, :, :2], ctrl.config.horizon, axis=0)
-    ctrl._surroundings(0, far, np.zeros(3, dtype=bool))
+    ctrl._surroundings(0, far, np.zeros(3, dtype=np.int64), np.zeros(3, dtype=bool))
     agent = ctrl._agents[0]
     agent.goal = None  # the central NMPC's cold start (hold still), for the comparison
     distributed = agent.act(np.zeros(1), {"poses": far[:1]})

@@ -45,6 +45,12 @@ BAD = {
     "formation": ("ring", "formation='ring' is not one of"),
     "max_episode_steps": (0, "max_episode_steps=0 must be an integer >= 1"),
     "max_cycles": (0, "max_cycles=0 must be an integer >= 1"),
+    "uncertainty": ("realstic", r"uncertainty='realstic' is not one of .* \(did you mean 'realistic'\?\)"),
+    "pose_noise": (-0.1, r"pose_noise=-0.1 must be a finite number >= 0"),
+    "sensing": ("lidars", r"sensing='lidars' is not one of \['state', 'lidar'\] \(did you mean 'lidar'\?\)"),
+    "lidar": ({"beams": 8}, r"lidar=\{'beams': 8\} is given with sensing='state'; add sensing='lidar'"),
+    "comm": ({"drop": 1.5}, r"comm.drop=1.5 must be a finite number >= 0 <= 1"),
+    "actuation_delay": (-1, r"actuation_delay=-1 must be an integer >= 0"),
 }
 
 

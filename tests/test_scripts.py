@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: script -> its tiny arguments ({tmp}: a fresh folder, {results}: a small evaluator run's results.json)
 SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
+    "bench/uncertainty_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16"],
     "bench/evaluate_wall.py": [
         "--warm",
         "--workers",

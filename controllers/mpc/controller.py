@@ -310,9 +310,9 @@ class NMPCController(BaseController):
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
-        state = encode_state(info["poses"], prob.coding)
+        state = encode_state(info["observed_poses"], prob.coding)
         if self.config.obstacle_slots or self.config.pair_slots:
-            self._fill_slots(np.asarray(info["poses"], dtype=float)[:, :2])
+            self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2])
         params = self._params.copy()
         params[prob.layout["x_meas"]] = state
         cold = self._warm is None

@@ -59,6 +59,7 @@ from controllers.koopman.store import calibrated_model
 from controllers.mpc.config import PARKED, NMPCConfig
 from controllers.mpc.controller import NMPCController, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel, decode_state, encode_state
+from controllers.mpc.plan_exchange import PlanLog
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
@@ -330,6 +331,9 @@ class DistributedNMPC(BaseController):
         )
         self._per_robot_times = []
         self._history: list[list[NDArray[np.float64]]] = [[] for _ in range(n)]
+        # the plans by period, for team-mates whose messages arrive late (controllers.mpc.plan_exchange)
+        self._plan_log = PlanLog(self.config.horizon)
+        self._leader_end: NDArray[np.float64] | None = None  # the leader's plan end as robot i heard it
         self._stats.solver = self._robot.solver_label
 
     def _goal(self, i: int) -> NDArray[np.float64]:
@@ -337,8 +341,10 @@ class DistributedNMPC(BaseController):
         a follower) the end of the leader's latest plan plus its formation offset."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
+        leader_end = self._leader_end
         if self.formation_goal == "leader-plan" and scenario.is_formation and i != scenario.leader:
-            return self._plans[-1, scenario.leader] + scenario.formation_offsets[i]
+            if leader_end is not None:  # nothing heard of the leader yet: the formation target
+                return leader_end + scenario.formation_offsets[i]
         return scenario.targets[i, :2]
 
     def _waypoint(self, i: int, position: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -371,12 +377,31 @@ class DistributedNMPC(BaseController):
         return target if best is None else best[1]
 
     # -------------------------------------------------------------------- act
-    def _surroundings(self, i: int, poses: NDArray[np.float64], fresh: NDArray[np.bool_]) -> None:
-        """Set robot ``i``'s nearest obstacles and neighbour slots for this period's solve."""
+    def _plan_heard(
+        self, j: int, age: int, fresh: bool, last_known: NDArray[np.float64], count: bool = True
+    ) -> NDArray[np.float64]:
+        """Robot j's plan as another robot has it (:meth:`PlanLog.heard`), counted in :meth:`stats`."""
+        plan, kind = self._plan_log.heard(self._plans, j, age, fresh, last_known)
+        if kind and count:
+            self._stats.counts[kind] += 1
+        return plan
+
+    def _surroundings(
+        self, i: int, poses: NDArray[np.float64], ages: NDArray[np.int64], fresh: NDArray[np.bool_]
+    ) -> None:
+        """Set robot ``i``'s nearest obstacles and neighbour slots for this period's solve from
+        what it knows: ``poses`` (N, 3), its own estimate and its last messages of the others,
+        ``ages`` (N,) their ages in periods (-1: nothing heard; such a robot gets no slot)."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         agent = self._agents[i]
         position = poses[i, :2]
+        leader = scenario.leader
+        self._leader_end = (
+            self._plan_heard(leader, int(ages[leader]), bool(fresh[leader]), poses[leader], count=False)[-1]
+            if ages[leader] >= 0
+            else None
+        )
         obstacles = scenario.obstacles
         slots = np.tile([PARKED, PARKED, 0.0], (self.obstacle_slots, 1))
         if obstacles.shape[0]:
@@ -390,13 +415,14 @@ class DistributedNMPC(BaseController):
         reach = np.zeros(k)
         distance = np.hypot(*(poses[:, :2] - position).T)
         distance[i] = np.inf
+        unheard = ages < 0
+        if unheard.any():
+            distance[unheard] = np.inf
+            self._stats.counts["neighbours_unheard"] += int(unheard.sum())
         candidates = [j for j in nearest_order(distance, distance.size) if distance[j] < self._reach][:k]
         for slot, j in enumerate(candidates):
-            plan = self._plans[:, j]
-            if not fresh[j]:
-                # last period's plan, one step on: stage s of this solve is its step s (held at the end)
-                plan = np.concatenate([plan[1:], plan[-1:]])
-            positions[:, slot] = plan
+            # stage s of this solve is step s of the plan as heard (see _plan_heard)
+            positions[:, slot] = self._plan_heard(j, int(ages[j]), bool(fresh[j]), poses[j])
             # the central NMPC's pair margin: the offset, widened to both robots' spreads
             margin = max(self.config.robot_offset, self._spread[i] + self._spread[j])
             reach[slot] = scenario.robot_radius[j] + margin + self._delay
@@ -406,7 +432,9 @@ class DistributedNMPC(BaseController):
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         n = scenario.n_robots
-        poses = np.asarray(info["poses"], dtype=float)
+        known = np.asarray(info["known_poses"], dtype=float)  # (N, N, 3): robot i's view in row i
+        ages = np.asarray(info["message_age"], dtype=np.int64)
+        poses = np.asarray(info["observed_poses"], dtype=float)  # every robot's own estimate
         commands = np.zeros((n, 2))
         fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
         new_plans = self._plans.copy()
@@ -414,11 +442,11 @@ class DistributedNMPC(BaseController):
         for i in range(n):
             robot_start = time.perf_counter()
             agent = self._agents[i]
-            self._surroundings(i, poses, fresh)
+            self._surroundings(i, known[i], ages[i], fresh)
             if self._stalled(i, poses[i, :2]):
                 agent.restart()
                 self._stats.counts["restarts"] += 1
-            commands[i] = agent.act(observation, {"poses": poses[i : i + 1]})
+            commands[i] = agent.act(observation, {"observed_poses": poses[i : i + 1]})
             if not agent.solve_failed() and agent.last_plan is not None:
                 new_plans[:, i] = agent.last_plan[1][:, 0, :2]
             else:  # no new plan: predicted to hold its position
@@ -428,6 +456,7 @@ class DistributedNMPC(BaseController):
                 fresh[i] = True
             self._per_robot_times.append(time.perf_counter() - robot_start)
         self._plans = new_plans
+        self._plan_log.record(new_plans)
         self._stats.solve_times.append(time.perf_counter() - start)
         return commands.reshape(-1)
 

@@ -277,7 +277,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         self._limits = np.array([scenario.v_max, scenario.omega_max])
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
-        poses = np.asarray(info["poses"], dtype=np.float64)
+        poses = np.asarray(info["observed_poses"], dtype=np.float64)
         if self._previous is not None:
             start = time.perf_counter()
             self._learn(*self._previous, poses)

@@ -126,7 +126,7 @@ class SafetyFilter(BaseController):
         command = self.inner.act(observation, info)
         middle = time.perf_counter()
         assert self._filter is not None  # built by _reset, which act() requires
-        step = self._filter.filter(np.asarray(info["poses"], dtype=np.float64), command)
+        step = self._filter.filter(np.asarray(info["observed_poses"], dtype=np.float64), command)
         end = time.perf_counter()
         stats = self._stats
         stats.solve_times.append(end - start)

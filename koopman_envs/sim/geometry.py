@@ -60,8 +60,8 @@ class TeamGeometry:
 
     Attributes
     ----------
-    obstacle_x, obstacle_y : ndarray, shape (K, M)
-        Obstacle centres [m].
+    obstacle_x, obstacle_y, obstacle_r : ndarray, shape (K, M)
+        Obstacle centres and radii [m].
     radius_sum : ndarray, shape (K, N, N + M)
         Robot i's radius plus entity e's (robots first, then obstacles); -inf from a robot to
         itself, which makes its clearance to itself +inf without a mask.
@@ -74,6 +74,7 @@ class TeamGeometry:
         self.robot_radius = np.asarray(robot_radius, dtype=np.float64)
         self.obstacle_x = np.zeros((num_envs, self.n_obstacles))
         self.obstacle_y = np.zeros((num_envs, self.n_obstacles))
+        self.obstacle_r = np.zeros((num_envs, self.n_obstacles))
         self.radius_sum = np.zeros((num_envs, n, n + self.n_obstacles))
         pair = self.robot_radius[:, None] + self.robot_radius[None, :]
         pair[np.arange(n), np.arange(n)] = -np.inf
@@ -83,6 +84,7 @@ class TeamGeometry:
         """Install the (M, 3) obstacles (x, y, radius) of environment ``index``."""
         self.obstacle_x[index] = obstacles[:, 0]
         self.obstacle_y[index] = obstacles[:, 1]
+        self.obstacle_r[index] = obstacles[:, 2]
         self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
     def clearances(

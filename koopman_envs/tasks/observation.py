@@ -14,18 +14,26 @@ entries     meaning                                                      unit
             surface clearance (3 entries per other robot)
 ..          the ``n_obstacle_obs`` nearest obstacles, nearest first:     m
             body-frame dx, dy to the centre, surface clearance;
-            missing ones read (0, 0, ``FAR``)
-last 2      formation error e_i = (p_i - p_0) - offset_i (world frame),  m
-            formation task only
+            missing ones read (0, 0, ``FAR``); with ``sensing="lidar"``
+            instead the B beam readings (no obstacle list)
+..          formation error e_i = (p_i - p_0) - offset_i (world frame),  m
+            formation task only (2 entries)
+last        with a ``comm`` setting: each other robot j (index order):   periods, -
+            age of its last message (clipped to ``AGE_MAX``) and 1 if
+            one has arrived, else 0 (2 entries per other robot)
 ==========  ==========================================================  ============
 
-Every entry is clipped into the bounds of :func:`feature_bounds`, so observations stay inside
-the observation space even after a robot has left the workspace.
+Everything a robot's block says is what that robot believes: its own pose is its localization
+estimate and a team-mate's is the last message it received (:mod:`koopman_envs.sim.perception`;
+without uncertainty settings both are the truth). A team-mate from whom no message has arrived
+reads (0, 0, ``FAR``). Every entry is clipped into the bounds of :func:`feature_bounds`, so
+observations stay inside the observation space even after a robot has left the workspace.
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -34,31 +42,52 @@ from numpy.typing import NDArray
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 from koopman_envs.sim.nearest import nearest_first
 
-__all__ = ["FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.sim.perception import Perception
+
+__all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
 
 #: Clearance reported for an absent obstacle [m]: farther than anything in a 20 m workspace.
 FAR = 30.0
 _POS = 20.0  # position bound [m]: twice the workspace half-width
 _REL = 40.0  # relative offsets [m]
 _DIST = 60.0  # distances and clearances [m]
+#: Largest message age an observation reports [control periods] (ours: 10 s; older reads this).
+AGE_MAX = 100
 
 
-def feature_size(n_robots: int, n_obstacle_obs: int, formation: bool) -> int:
-    """Length of one robot's observation block."""
-    return 9 + 3 * (n_robots - 1) + 3 * n_obstacle_obs + (2 if formation else 0)
+def feature_size(
+    n_robots: int, n_obstacle_obs: int, formation: bool, beams: int = 0, comm: bool = False
+) -> int:
+    """Length of one robot's observation block (``beams`` > 0: lidar readings replace the obstacle
+    list; ``comm``: the message ages and flags are appended)."""
+    obstacles = beams if beams else 3 * n_obstacle_obs
+    return 9 + 3 * (n_robots - 1) + obstacles + (2 if formation else 0) + (2 * (n_robots - 1) if comm else 0)
 
 
 def feature_bounds(
-    n_robots: int, n_obstacle_obs: int, formation: bool
+    n_robots: int,
+    n_obstacle_obs: int,
+    formation: bool,
+    beams: int = 0,
+    comm: bool = False,
+    lidar_range: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Lower and upper bounds of one robot's block, each shape (F,)."""
-    low = [-_POS, -_POS, -1, -1, -_REL, -_REL, 0, -1, -1]
-    high = [_POS, _POS, 1, 1, _REL, _REL, _DIST, 1, 1]
-    low += [-_REL, -_REL, -_DIST] * (n_robots - 1 + n_obstacle_obs)
-    high += [_REL, _REL, _DIST] * (n_robots - 1 + n_obstacle_obs)
+    """Lower and upper bounds of one robot's block, each shape (F,) (arguments as :func:`feature_size`)."""
+    low = [-_POS, -_POS, -1, -1, -_REL, -_REL, 0, -1, -1] + [-_REL, -_REL, -_DIST] * (n_robots - 1)
+    high = [_POS, _POS, 1, 1, _REL, _REL, _DIST, 1, 1] + [_REL, _REL, _DIST] * (n_robots - 1)
+    if beams:
+        low += [0.0] * beams
+        high += [lidar_range] * beams
+    else:
+        low += [-_REL, -_REL, -_DIST] * n_obstacle_obs
+        high += [_REL, _REL, _DIST] * n_obstacle_obs
     if formation:
         low += [-_REL, -_REL]
         high += [_REL, _REL]
+    if comm:
+        low += [0, 0] * (n_robots - 1)
+        high += [AGE_MAX, 1] * (n_robots - 1)
     return np.array(low, dtype=np.float64), np.array(high, dtype=np.float64)
 
 
@@ -77,20 +106,36 @@ class FeatureBuilder:
         Obstacles listed per robot (nearest first).
     formation : bool
         Append the formation error.
+    beams : int
+        Lidar beams replacing the obstacle list (0: the list).
+    comm : bool
+        Append each team-mate's message age and arrival flag.
+    lidar_range : float
+        Largest lidar reading [m] (the beams' upper bound).
     """
 
     def __init__(
-        self, num_envs: int, n_robots: int, n_obstacles: int, n_obstacle_obs: int, formation: bool
+        self,
+        num_envs: int,
+        n_robots: int,
+        n_obstacles: int,
+        n_obstacle_obs: int,
+        formation: bool,
+        beams: int = 0,
+        comm: bool = False,
+        lidar_range: float = 0.0,
     ) -> None:
         n, k = n_robots, num_envs
-        self.shape = (k, n, feature_size(n, n_obstacle_obs, formation))
-        self.low, self.high = feature_bounds(n, n_obstacle_obs, formation)
+        self.shape = (k, n, feature_size(n, n_obstacle_obs, formation, beams, comm))
+        self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range)
         self.n_robots, self.n_obstacles = n, n_obstacles
-        self.n_obstacle_obs = n_obstacle_obs
-        self.formation = formation
+        self.n_obstacle_obs = 0 if beams else n_obstacle_obs
+        self.formation, self.beams, self.comm = formation, beams, comm
         self._no_offsets = np.zeros((k, 2, n))  # the kernel's formation input when unused
+        self._no_ranges = np.zeros((k, n, 0))
+        self._same_age = np.zeros((k, n, n), dtype=np.int64)
         #: positions in a block of the surface clearances (other robots, then listed obstacles)
-        self.clearance_index = np.arange(9 + 2, 9 + 3 * (n - 1 + n_obstacle_obs), 3)
+        self.clearance_index = np.arange(9 + 2, 9 + 3 * (n - 1 + self.n_obstacle_obs), 3)
 
     def build(
         self,
@@ -98,30 +143,44 @@ class FeatureBuilder:
         target: NDArray[np.float64],
         geometry: TeamGeometry,
         formation_offsets: NDArray[np.float64] | None,
+        perception: Perception | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Observation blocks and target distances.
 
         Parameters
         ----------
         state, target : ndarray, shape (K, 3, N)
-            Current and target poses as rows x [m], y [m], theta [rad].
+            Current (true) and target poses as rows x [m], y [m], theta [rad].
         geometry : TeamGeometry
             Obstacle layouts and radius sums of the K environments.
         formation_offsets : ndarray, shape (K, 2, N), optional
             Rows dx, dy [m]; used when the builder was made with ``formation=True``.
+        perception : Perception, optional
+            What the robots believe (own estimates, messages, lidar); None: the truth.
 
         Returns
         -------
         features : ndarray, shape (K, N, F)
             Clipped into the bounds of :func:`feature_bounds`.
         distances : ndarray, shape (K, N)
-            Distance of every robot to its target [m] (unclipped).
+            Distance of every robot to its target [m] (unclipped), as the robot believes it
+            (the truth without ``perception``).
         """
         out = np.empty(self.shape)
         distances = np.empty(self.shape[:2])
         offsets = self._no_offsets if formation_offsets is None else formation_offsets
+        if perception is None:
+            k, _, n = state.shape
+            own, ranges, age = state, self._no_ranges, self._same_age
+            known = np.broadcast_to(state[:, None], (k, n, 3, n))  # everyone knows the truth
+        else:
+            own, known, age, ranges = perception.observed, perception.known, perception.age, perception.ranges
         _build_features(
-            state,
+            own,
+            known,
+            age,
+            self.comm,
+            ranges,
             target,
             offsets,
             self.formation,
@@ -139,7 +198,11 @@ class FeatureBuilder:
 
 @njit(cache=True)
 def _build_features(
-    state: NDArray[np.float64],
+    own: NDArray[np.float64],
+    known: NDArray[np.float64],
+    age: NDArray[np.int64],
+    comm: bool,
+    ranges: NDArray[np.float64],
     target: NDArray[np.float64],
     offsets: NDArray[np.float64],
     formation: bool,
@@ -152,19 +215,26 @@ def _build_features(
     out: NDArray[np.float64],
     distances: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring."""
-    n_envs, _, n_robots = state.shape
+    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring.
+
+    ``own`` (K, 3, N) holds every robot's pose estimate, ``known[k, i, :, j]`` (K, N, 3, N) what
+    robot i knows of robot j and ``age`` (K, N, N) how old that is (-1: nothing yet);
+    ``ranges`` (K, N, B) the lidar readings (B = 0: list the obstacles instead).
+    """
+    n_envs, _, n_robots = own.shape
     n_obstacles = obstacle_x.shape[1]
     n_features = out.shape[2]
+    beams = ranges.shape[2]
     listed = min(n_obstacles, n_obstacle_obs)
     obstacles_at = 9 + 3 * (n_robots - 1)
-    formation_at = obstacles_at + 3 * n_obstacle_obs
+    formation_at = obstacles_at + (beams if beams else 3 * n_obstacle_obs)
+    comm_at = formation_at + (2 if formation else 0)
     gap = np.empty(n_obstacles)
     order = np.empty(n_obstacles, dtype=np.int64)
     for k in range(n_envs):
         for i in range(n_robots):
             row = out[k, i]
-            x, y, theta = state[k, 0, i], state[k, 1, i], state[k, 2, i]
+            x, y, theta = own[k, 0, i], own[k, 1, i], own[k, 2, i]
             c, s = math.cos(theta), math.sin(theta)
             row[0], row[1], row[2], row[3] = x, y, c, s
             tdx = target[k, 0, i] - x
@@ -179,12 +249,18 @@ def _build_features(
             at = 9
             for j in range(n_robots):
                 if j != i:
-                    ox, oy = state[k, 0, j], state[k, 1, j]
-                    dx, dy = ox - x, oy - y
-                    row[at] = c * dx + s * dy
-                    row[at + 1] = c * dy - s * dx
-                    row[at + 2] = clearance(x, y, ox, oy, radius_sum[k, i, j])
+                    if age[k, i, j] < 0:  # no message from j yet
+                        row[at], row[at + 1], row[at + 2] = 0.0, 0.0, FAR
+                    else:
+                        ox, oy = known[k, i, 0, j], known[k, i, 1, j]
+                        dx, dy = ox - x, oy - y
+                        row[at] = c * dx + s * dy
+                        row[at + 1] = c * dy - s * dx
+                        row[at + 2] = clearance(x, y, ox, oy, radius_sum[k, i, j])
                     at += 3
+            for b in range(beams):
+                row[at] = ranges[k, i, b]
+                at += 1
             if n_obstacle_obs:
                 for m in range(n_obstacles):
                     gap[m] = clearance(
@@ -202,8 +278,20 @@ def _build_features(
                     row[at], row[at + 1], row[at + 2] = 0.0, 0.0, FAR
                     at += 3
             if formation:
-                row[formation_at] = (x - state[k, 0, 0]) - offsets[k, 0, i]
-                row[formation_at + 1] = (y - state[k, 1, 0]) - offsets[k, 1, i]
+                # the leader's position as this robot knows it (its own estimate for the leader)
+                if age[k, i, 0] < 0:  # nothing heard of the leader yet: no error to report
+                    row[formation_at], row[formation_at + 1] = 0.0, 0.0
+                else:
+                    row[formation_at] = (x - known[k, i, 0, 0]) - offsets[k, 0, i]
+                    row[formation_at + 1] = (y - known[k, i, 1, 0]) - offsets[k, 1, i]
+            if comm:
+                at = comm_at
+                for j in range(n_robots):
+                    if j != i:
+                        heard = age[k, i, j] >= 0
+                        row[at] = min(age[k, i, j], AGE_MAX) if heard else AGE_MAX
+                        row[at + 1] = 1.0 if heard else 0.0
+                        at += 2
             for f in range(n_features):
                 value = row[f]
                 if value < low[f]:

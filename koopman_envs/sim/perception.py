@@ -1,0 +1,375 @@
+"""What every robot believes: noisy localization, team-mates heard over a lossy radio, lidar readings.
+
+:class:`Perception` runs beside the physics of :class:`~koopman_envs.engine.NavigationEngine`
+when any uncertainty setting of :mod:`koopman_envs.uncertainty` is away from its perfect value.
+After each step (and at reset) one compiled pass updates, per environment:
+
+1. each robot's own pose estimate: truth + bias + white noise (the bias a random walk);
+2. the radio: each robot broadcasts its estimate; the message sent ``latency`` periods ago
+   reaches each team-mate unless lost (``drop``) or sent from beyond ``range``; a robot keeps
+   the last message it received from each team-mate and its age;
+3. the lidar readings' noise and dropouts (the exact ranges come from :mod:`koopman_envs.sim.lidar`).
+
+Random numbers come from a child of the env's generator (``Generator.spawn``), made when the
+env's generator changes (``reset(seed=...)``) and kept across episodes otherwise, and are drawn
+in blocks per environment, as the slip draws are. Spawning consumes nothing of the env's own
+stream, so the map, start and slip draws of a seed are the same at every uncertainty level (a
+sweep's curves are paired), and a sub-environment of a batch draws exactly as a lone env.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from koopman_envs.sim.dynamics import wrap_scalar
+from koopman_envs.sim.lidar import beam_angles, cast_beams
+from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
+
+__all__ = ["Perception", "child_generator", "observed_info"]
+
+#: random numbers drawn per environment and generator call, about (ours): a block of periods
+#: this large amortizes the generator calls (a few microseconds each) and keeps the buffer of
+#: 1024 environments at about 64 MiB
+BLOCK_NUMBERS = 8192
+
+
+def child_generator(rng: np.random.Generator) -> np.random.Generator:
+    """An independent generator derived from ``rng``'s seed sequence without consuming its stream.
+
+    Raises
+    ------
+    ValueError
+        ``rng`` has no seed sequence to spawn from (a generator built from a raw bit-generator
+        state); seed the env with ``reset(seed=...)`` instead.
+    """
+    try:
+        return rng.spawn(1)[0]
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            "the env's generator has no seed sequence to derive the sensor noise from; "
+            "call reset(seed=...) (or make the generator with numpy.random.default_rng)"
+        ) from exc
+
+
+class Perception:
+    """Sensor, radio and actuation state of K environments of N robots.
+
+    Parameters
+    ----------
+    num_envs, n_robots : int
+        Batch size K and team size N.
+    pose_noise : PoseNoise
+    comm : CommConfig
+    lidar : LidarConfig or None
+        None without lidar sensing.
+    actuation_delay : int
+        Periods between a command and its action.
+    dt : float
+        Control period [s] (the bias random walk's time step).
+    workspace : tuple of float
+        x_min, x_max, y_min, y_max [m] (the lidar's walls).
+
+    Attributes
+    ----------
+    observed : ndarray, shape (K, 3, N)
+        Every robot's estimate of its own pose (rows x, y, theta).
+    known : ndarray, shape (K, N, 3, N)
+        ``known[k, i, :, j]``: robot i's last received pose of robot j (its own estimate on the
+        diagonal; zeros before any message).
+    age : ndarray of int, shape (K, N, N)
+        Periods since that message was sent (0 on the diagonal, -1 while none has arrived).
+    ranges : ndarray, shape (K, N, B)
+        Lidar readings [m] (B = 0 without lidar).
+    """
+
+    def __init__(
+        self,
+        num_envs: int,
+        n_robots: int,
+        pose_noise: PoseNoise,
+        comm: CommConfig,
+        lidar: LidarConfig | None,
+        actuation_delay: int,
+        dt: float,
+        workspace: tuple[float, float, float, float],
+    ) -> None:
+        k, n = num_envs, n_robots
+        self.pose_noise, self.comm, self.lidar, self.delay = pose_noise, comm, lidar, int(actuation_delay)
+        self.dt = float(dt)
+        beams = 0 if lidar is None else lidar.beams
+        self.angles = np.zeros(0) if lidar is None else beam_angles(lidar.beams, lidar.fov)
+        self.max_range = 0.0 if lidar is None else float(lidar.range)
+        self.workspace = np.asarray(workspace, dtype=np.float64)
+        self.observed = np.zeros((k, 3, n))
+        self.bias = np.zeros((k, 3, n))
+        self.known = np.zeros((k, n, 3, n))
+        self.age = np.full((k, n, n), -1, dtype=np.int64)
+        self.ranges = np.zeros((k, n, beams))
+        self.clock = np.zeros(k, dtype=np.int64)
+        slots = comm.latency + 1
+        self.sent_poses = np.zeros((k, slots, 3, n))
+        self.sent_positions = np.zeros((k, slots, 2, n))
+        # random numbers per period: pose white noise and bias steps (6 N), then the lidar's
+        # reading noise (N B); uniforms: message losses (N (N - 1)), then beam dropouts (N B)
+        noisy_lidar = lidar is not None and lidar.noise > 0
+        lidar_dropout = lidar is not None and lidar.dropout > 0
+        self._normals = (6 * n if pose_noise.active else 0) + (n * beams if noisy_lidar else 0)
+        self._uniforms = (n * (n - 1) if comm.drop > 0 else 0) + (n * beams if lidar_dropout else 0)
+        #: periods per block: as many as BLOCK_NUMBERS random numbers allow, 8 to 256
+        self.block = int(np.clip(BLOCK_NUMBERS // max(1, self._normals + self._uniforms), 8, 256))
+        # single precision: half the generator's time, and ample for noise (7 significant digits)
+        self.normal = np.zeros((k, self.block, self._normals), dtype=np.float32)
+        self.uniform = np.zeros((k, self.block, self._uniforms), dtype=np.float32)
+        self.cursor = np.full(k, self.block, dtype=np.int64)
+        self.rngs: list[np.random.Generator | None] = [None] * k
+        self._parents: list[np.random.Generator | None] = [None] * k
+        self.queue = np.zeros((k, max(self.delay, 1), n, 2))
+        self._pending: list[int] = []  # environments reset since the last update
+
+    # ------------------------------------------------------------------ reset
+    def reset_env(self, index: int, rng: np.random.Generator) -> None:
+        """Start environment ``index``'s episode: zero bias, no messages, an idle command queue.
+
+        Its first readings are taken by the next :meth:`update` or :meth:`flush` (with every
+        other environment reset meanwhile: one compiled call for a batch of auto-resets).
+        """
+        if self._parents[index] is not rng:
+            self._parents[index] = rng
+            self.rngs[index] = child_generator(rng)
+            self.cursor[index] = self.block
+        self.clock[index] = 0
+        self.bias[index] = 0.0
+        self.known[index] = 0.0
+        self.age[index] = -1
+        self.queue[index] = 0.0
+        self._pending.append(index)
+
+    def flush(
+        self,
+        state: NDArray[np.float64],
+        obstacles: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        robot_radius: NDArray[np.float64],
+    ) -> None:
+        """Take the first readings of the environments reset since the last update."""
+        if self._pending:
+            self.update(state, obstacles, robot_radius, np.zeros(0, dtype=np.int64))
+
+    # ------------------------------------------------------------------- step
+    def delayed(self, commands: NDArray[np.float64], rows: NDArray[np.int64]) -> NDArray[np.float64]:
+        """The commands that act this period: those given ``actuation_delay`` periods ago
+        (zeros, standing still, at the start of an episode). ``commands`` (K, N, 2) are queued
+        for the environments in ``rows``; the others keep their queue."""
+        if self.delay == 0:
+            return commands
+        acting = commands.copy()
+        _delay(commands, self.queue, self.clock, rows, acting)
+        return acting
+
+    def update(
+        self,
+        state: NDArray[np.float64],
+        obstacles: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        robot_radius: NDArray[np.float64],
+        rows: NDArray[np.int64],
+    ) -> None:
+        """Read the sensors and the radio of environments ``rows`` (and of those reset since the
+        last update) at the true poses ``state`` (K, 3, N), then advance their clocks."""
+        if self._pending:
+            rows = np.union1d(rows, np.array(self._pending, dtype=np.int64))
+            self._pending.clear()
+        self._refill(rows)
+        if self.lidar is not None:
+            obstacle_x, obstacle_y, obstacle_r = obstacles
+            exact = np.empty((rows.shape[0],) + self.ranges.shape[1:])
+            cast_beams(
+                state[rows],
+                obstacle_x[rows],
+                obstacle_y[rows],
+                obstacle_r[rows],
+                robot_radius,
+                self.angles,
+                self.max_range,
+                self.workspace,
+                exact,
+            )
+            self.ranges[rows] = exact
+        noise, comm, lidar = self.pose_noise, self.comm, self.lidar
+        _perceive(
+            state,
+            rows,
+            self.clock,
+            self.cursor,
+            self.normal,
+            self.uniform,
+            np.array([noise.xy, noise.xy, noise.heading]),
+            np.array([noise.drift_xy, noise.drift_xy, noise.drift_heading]) * math.sqrt(self.dt),
+            noise.active,
+            self.bias,
+            self.observed,
+            comm.latency,
+            comm.drop,
+            comm.range * comm.range,
+            self.sent_poses,
+            self.sent_positions,
+            self.known,
+            self.age,
+            0.0 if lidar is None else lidar.noise,
+            0.0 if lidar is None else lidar.dropout,
+            self.max_range,
+            self.ranges,
+        )
+
+    def _refill(self, rows: NDArray[np.int64]) -> None:
+        """Draw a new block for every environment of ``rows`` that has used up its own."""
+        if self._normals == 0 and self._uniforms == 0:
+            return
+        for k in rows[self.cursor[rows] >= self.block]:
+            rng = self.rngs[k]
+            if rng is None:
+                raise RuntimeError(f"environment {k} was stepped before reset()")
+            if self._normals:
+                rng.standard_normal(dtype=np.float32, out=self.normal[k])
+            if self._uniforms:
+                rng.random(dtype=np.float32, out=self.uniform[k])
+            self.cursor[k] = 0
+
+
+@njit(cache=True)
+def _delay(
+    commands: NDArray[np.float64],
+    queue: NDArray[np.float64],
+    clock: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    acting: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """Swap the commands of environments ``rows`` with the queue's slot ``clock % delay``."""
+    delay = queue.shape[1]
+    for k in rows:
+        slot = clock[k] % delay
+        for i in range(commands.shape[1]):
+            for c in range(2):
+                acting[k, i, c] = queue[k, slot, i, c]
+                queue[k, slot, i, c] = commands[k, i, c]
+
+
+@njit(cache=True)
+def _perceive(
+    truth: NDArray[np.float64],
+    rows: NDArray[np.int64],
+    clock: NDArray[np.int64],
+    cursor: NDArray[np.int64],
+    normal: NDArray[np.float32],
+    uniform: NDArray[np.float32],
+    std: NDArray[np.float64],
+    drift: NDArray[np.float64],
+    noisy: bool,
+    bias: NDArray[np.float64],
+    observed: NDArray[np.float64],
+    latency: int,
+    drop: float,
+    range2: float,
+    sent_poses: NDArray[np.float64],
+    sent_positions: NDArray[np.float64],
+    known: NDArray[np.float64],
+    age: NDArray[np.int64],
+    lidar_noise: float,
+    lidar_dropout: float,
+    max_range: float,
+    ranges: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """One period of sensing and messaging for environments ``rows`` (see :class:`Perception`)."""
+    n = truth.shape[2]
+    beams = ranges.shape[2]
+    slots = sent_poses.shape[1]
+    for k in rows:
+        t = clock[k]
+        row = cursor[k]
+        at_normal, at_uniform = 0, 0
+        # 1. localization: the bias walks from its second period on (it is 0 at reset)
+        for i in range(n):
+            for c in range(3):
+                value = truth[k, c, i]
+                if noisy:
+                    if t > 0:
+                        bias[k, c, i] += drift[c] * normal[k, row, at_normal + 3 + c]
+                    value += bias[k, c, i] + std[c] * normal[k, row, at_normal + c]
+                observed[k, c, i] = wrap_scalar(value) if c == 2 else value
+            if noisy:
+                at_normal += 6
+        # 2. the radio: this period's broadcast is stored; the one sent `latency` ago is delivered
+        slot = t % slots
+        for c in range(3):
+            for j in range(n):
+                sent_poses[k, slot, c, j] = observed[k, c, j]
+        for j in range(n):
+            sent_positions[k, slot, 0, j] = truth[k, 0, j]
+            sent_positions[k, slot, 1, j] = truth[k, 1, j]
+        source = (t - latency) % slots
+        for i in range(n):
+            for j in range(n):
+                if j == i:
+                    for c in range(3):
+                        known[k, i, c, i] = observed[k, c, i]
+                    age[k, i, i] = 0
+                    continue
+                lost = False
+                if drop > 0.0:
+                    lost = uniform[k, row, at_uniform] < drop
+                    at_uniform += 1
+                delivered = False
+                if t >= latency and not lost:
+                    dx = sent_positions[k, source, 0, j] - sent_positions[k, source, 0, i]
+                    dy = sent_positions[k, source, 1, j] - sent_positions[k, source, 1, i]
+                    delivered = dx * dx + dy * dy <= range2
+                if delivered:
+                    for c in range(3):
+                        known[k, i, c, j] = sent_poses[k, source, c, j]
+                    age[k, i, j] = latency
+                elif age[k, i, j] >= 0:
+                    age[k, i, j] += 1
+        # 3. lidar readings: dropouts read the range, the others get Gaussian noise, clipped
+        for i in range(n):
+            for b in range(beams):
+                value = ranges[k, i, b]
+                if lidar_dropout > 0.0:
+                    if uniform[k, row, at_uniform] < lidar_dropout:
+                        value = max_range
+                    at_uniform += 1
+                if lidar_noise > 0.0:
+                    if value < max_range:
+                        value += lidar_noise * normal[k, row, at_normal]
+                    at_normal += 1
+                ranges[k, i, b] = min(max(value, 0.0), max_range)
+        cursor[k] = row + (1 if (at_normal or at_uniform) else 0)
+        clock[k] = t + 1
+
+
+def observed_info(perception: Perception | None, poses: NDArray[np.float64]) -> dict[str, NDArray]:
+    """What the robots believe, one array per key (copies), for K environments.
+
+    Keys: ``observed_poses`` (K, N, 3) every robot's estimate of its own pose; ``known_poses``
+    (K, N, N, 3), row i: robot i's last received pose of every robot (its own estimate at i,
+    zeros where nothing has arrived); ``message_age`` (K, N, N) in control periods (0 at i
+    itself, -1 where nothing has arrived); ``lidar_ranges`` (K, N, B) [m] with
+    ``sensing="lidar"``. Without a ``perception`` (no uncertainty settings) they are the true
+    ``poses`` (K, N, 3).
+    """
+    if perception is None:
+        k, n, _ = poses.shape
+        return {
+            "observed_poses": poses.copy(),
+            "known_poses": np.broadcast_to(poses[:, None], (k, n, n, 3)).copy(),
+            "message_age": np.zeros((k, n, n), dtype=np.int64),
+        }
+    info = {
+        "observed_poses": perception.observed.transpose(0, 2, 1).copy(),
+        "known_poses": perception.known.transpose(0, 1, 3, 2).copy(),
+        "message_age": perception.age.copy(),
+    }
+    if perception.lidar is not None:
+        info["lidar_ranges"] = perception.ranges.copy()
+    return info

@@ -1,0 +1,83 @@
+"""No built-in controller reads the true state: each is handed infos whose true fields are
+poisoned and must act exactly as with the real ones, under runtime uncertainty; and what they
+read (koopman_envs.observed) is what the robots believe, not the truth."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import controllers
+import koopman_envs  # noqa: F401 - registers the ids
+from controllers.calibration import calibrate_controller
+from koopman_envs.observed import OBSERVED_KEYS, observed_view
+from koopman_envs.plant import make_plant
+
+#: every built-in controller and preset (rl-ppo needs the [rl] extra, as everywhere)
+NAMES = list(controllers.available())
+STEPS = 4
+
+
+def _poisoned(info: dict[str, Any]) -> dict[str, Any]:
+    """``info`` with every field outside the observed view replaced by garbage."""
+    bad: dict[str, Any] = {}
+    for key, value in info.items():
+        if key in OBSERVED_KEYS:
+            bad[key] = value
+        elif isinstance(value, np.ndarray) and value.dtype.kind == "f":
+            bad[key] = np.full_like(value, np.nan)
+        elif isinstance(value, np.ndarray):
+            bad[key] = np.zeros_like(value)
+        else:
+            bad[key] = type(value)() if not isinstance(value, bool) else not value
+    return bad
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_poisoned_truth_changes_no_action(name: str, tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path))
+    if name.startswith("rl-"):
+        pytest.importorskip("stable_baselines3")
+    env_id = "KoopNav-Formation-v0"
+    env = gym.make(env_id, uncertainty="harsh")
+    honest, fooled = controllers.make(name), controllers.make(name)
+    for ctrl in (honest, fooled):  # a small calibration (the evaluator's step), in a private cache
+        calibrate_controller(ctrl, make_plant(env_id, slip="high", budget=2000, seed=0), seed=0)
+    obs, info = env.reset(seed=5)
+    honest.reset(env, seed=5)
+    fooled.reset(env, seed=5)
+    for _ in range(STEPS):
+        a = np.asarray(honest.act(obs, info))
+        b = np.asarray(fooled.act(obs, _poisoned(info)))
+        assert np.array_equal(a, b), name
+        obs, _, terminated, truncated, info = env.step(a)
+        if terminated or truncated:
+            break
+
+
+def test_the_view_is_what_the_robots_believe() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", uncertainty="harsh", sensing="lidar")
+    _, info = env.reset(seed=1)
+    for _ in range(5):
+        _, _, _, _, info = env.step(np.zeros(6))
+    view = observed_view(info)
+    assert set(view) == {*OBSERVED_KEYS, "poses", "distances"}
+    assert view["poses"] is view["observed_poses"] and not np.array_equal(view["distances"], info["distances"])
+    assert not np.array_equal(view["observed_poses"], info["poses"])  # noisy estimates
+    # harsh: 3 periods of latency, so a team-mate is never heard of fresher than that
+    heard = view["message_age"][~np.eye(3, dtype=bool)]
+    assert ((heard >= 3) | (heard == -1)).all() and (heard >= 3).any()
+    assert view["lidar_ranges"].shape == (3, 32)
+
+
+def test_without_uncertainty_the_view_is_the_truth() -> None:
+    env = gym.make("KoopNav-Formation-v0")
+    _, info = env.reset(seed=0)
+    assert np.array_equal(info["observed_poses"], info["poses"])
+    assert all(np.array_equal(info["known_poses"][i], info["poses"]) for i in range(3))
+    assert (info["message_age"] == 0).all() and "lidar_ranges" not in info
+    view = observed_view(info)  # the earlier API's keys, equal to the truth bit for bit
+    assert np.array_equal(view["poses"], info["poses"]) and np.array_equal(view["distances"], info["distances"])

@@ -1,0 +1,147 @@
+"""``--sweep`` and the robustness profiles: axes parsed and checked before any episode, every level a
+paired, resumable run, and the profile's statistics (Wilson, bootstrap, paired, AUC, tail)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import evaluate as ev
+from evaluation.spec import RunSpec
+from evaluation.statistics import bootstrap_tail_interval, tail_mean
+from evaluation.sweep import SweepAxis, parse_sweep
+
+TINY = [
+    "--env",
+    "KoopNav-TargetReaching-v0",
+    "--maps",
+    "map1",
+    "--episodes",
+    "2",
+    "--max-episode-steps",
+    "25",
+    "--workers",
+    "1",
+    "--quiet",
+]
+
+
+def test_axes_are_parsed_as_json_levels() -> None:
+    axis = parse_sweep("comm.drop=0,0.1,0.3")
+    assert axis == SweepAxis("comm.drop", (0, 0.1, 0.3))
+    assert parse_sweep("uncertainty=nominal,realistic,harsh").levels == ("nominal", "realistic", "harsh")
+    assert parse_sweep("actuation_delay=0, 1,2").levels == (0, 1, 2)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("comm.drop", r"is not KEY=v1,v2"),
+        ("comms.drop=0,1", r"'comms' is not an env keyword \(did you mean 'comm'\?\)"),
+        ("map=map1,map2", r"'map' is not an env keyword"),
+        ("actuation_delay=1", r"give at least two levels"),
+        ("actuation_delay=1,1", r"level '1' is given twice"),
+    ],
+)
+def test_bad_axes_are_refused_by_name(text: str, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        parse_sweep(text)
+
+
+def test_a_nested_level_goes_over_the_runs_own_settings() -> None:
+    spec = RunSpec(env_kwargs={"comm": {"latency": 2}, "start_noise": 0.05})
+    changed = parse_sweep("comm.drop=0,0.5").apply(spec, 0.5)
+    assert changed.env_kwargs == {"comm": {"latency": 2, "drop": 0.5}, "start_noise": 0.05}
+    assert spec.env_kwargs["comm"] == {"latency": 2}  # the spec itself is unchanged
+    assert parse_sweep("slip=low,high").apply(spec, "high").slips == ("high",)
+
+
+def test_a_bad_level_stops_the_sweep_before_any_episode(tmp_path, capsys) -> None:
+    code = ev.main(
+        [*TINY, "--controllers", "consensus", "--sweep", "comm.drop=0,2", "--out", str(tmp_path / "o")]
+    )
+    assert code == 2
+    assert "--sweep comm.drop=2: comm.drop=2 must be a finite number >= 0 <= 1" in capsys.readouterr().err
+    assert not (tmp_path / "o" / "sweep").exists()
+
+
+def test_a_sweep_writes_paired_profiles_and_level_zero_is_the_plain_run(tmp_path) -> None:
+    out = tmp_path / "sweep"
+    code = ev.main(
+        [
+            *TINY,
+            "--controllers",
+            "consensus",
+            "consensus-free",
+            "--sweep",
+            "pose_noise.xy=0,0.3",
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 0
+    profile = json.loads((out / "robustness.json").read_text())[0]
+    assert profile["key"] == "pose_noise.xy" and profile["levels"] == [0, 0.3]
+    assert profile["reference"] == "consensus"
+    rows = {(r["controller"], r["level"]): r for r in profile["rows"]}
+    assert rows[("consensus-free", 0.3)]["paired"]["pairs"] == 2
+    assert rows[("consensus", 0)]["paired"] is None
+    assert set(profile["summary"]) == {"consensus", "consensus-free"}
+    assert (out / "figures" / "robustness_pose_noise_xy.png").stat().st_size > 1000
+    html = (out / "robustness.html").read_text()
+    assert "Robustness: pose_noise.xy" in html and "data:image/png;base64" in html
+    # the level 0 run equals a run without the setting, outcome for outcome
+    plain = tmp_path / "plain"
+    assert ev.main([*TINY, "--controllers", "consensus", "consensus-free", "--out", str(plain)]) == 0
+    first = json.loads((out / "sweep" / "pose_noise.xy-0" / "results.json").read_text())["episodes"]
+    again = json.loads((plain / "results.json").read_text())["episodes"]
+    for a, b in zip(first, again):
+        assert a["final_distance"] == b["final_distance"] and a["success"] == b["success"]
+    # noise changes what the robots do, but not the episode units: same seeds, same starts
+    noisy = json.loads((out / "sweep" / "pose_noise.xy-0.3" / "results.json").read_text())["episodes"]
+    assert [r["seed"] for r in noisy] == [r["seed"] for r in first]
+    assert any(a["final_distance"] != b["final_distance"] for a, b in zip(noisy, first))
+    # a second call without --resume refuses to overwrite; with --resume it reruns nothing
+    assert (
+        ev.main(
+            [
+                *TINY,
+                "--controllers",
+                "consensus",
+                "consensus-free",
+                "--sweep",
+                "pose_noise.xy=0,0.3",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
+    again_code = ev.main(
+        [
+            *TINY,
+            "--controllers",
+            "consensus",
+            "consensus-free",
+            "--sweep",
+            "pose_noise.xy=0,0.3",
+            "--out",
+            str(out),
+            "--resume",
+        ]
+    )
+    assert again_code == 0
+    assert json.loads((out / "robustness.json").read_text())[0]["rows"] == profile["rows"]
+
+
+def test_the_tail_is_the_mean_of_the_worst_tenth() -> None:
+    values = list(range(1, 21))  # worst 10% of 20 values: 19 and 20
+    assert tail_mean(values, 0.1) == 19.5
+    assert tail_mean([3.0], 0.1) == 3.0 and math.isnan(tail_mean([], 0.1))
+    low, high = bootstrap_tail_interval(values, 0.1, resamples=500)
+    assert low <= 19.5 <= high <= 20
+    assert bootstrap_tail_interval(values, 0.1, resamples=500) == (low, high)  # seeded
+    assert np.isnan(bootstrap_tail_interval([], 0.1)).all()
