@@ -95,6 +95,31 @@ def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
     files.metadata.write_text(json.dumps(metadata, indent=1) + "\n", encoding="utf-8")
 
 
+def _env_options(parser: argparse.ArgumentParser) -> None:
+    """The training envs' options: layouts, seed, checkpoints, time limit, uncertainty."""
+    parser.add_argument(
+        "--random-map",
+        type=json.loads,
+        default=None,
+        help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)",
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--eval-freq",
+        type=lambda s: int(s.replace("_", "")),
+        default=2_000_000,
+        help="steps between checkpoints (each also evaluated on the paper maps)",
+    )
+    parser.add_argument("--max-episode-steps", type=int, default=400)
+    parser.add_argument(
+        "--uncertainty",
+        default="nominal",
+        choices=list(UNCERTAINTY_PRESETS),
+        help="runtime-uncertainty preset of every training and validation env (pose noise, radio, "
+        "actuation delay; the curriculum keeps its own slip) (default nominal)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The training command line (``python -m baselines.train``)."""
     parser = argparse.ArgumentParser(prog="python -m baselines.train", description=__doc__.split("\n")[0])
@@ -158,27 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=[128, 128],
         help="hidden layer widths of actor and critic, e.g. 128,128",
     )
-    parser.add_argument(
-        "--random-map",
-        type=json.loads,
-        default=None,
-        help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)",
-    )
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument(
-        "--eval-freq",
-        type=lambda s: int(s.replace("_", "")),
-        default=2_000_000,
-        help="steps between checkpoints (each also evaluated on the paper maps)",
-    )
-    parser.add_argument("--max-episode-steps", type=int, default=400)
-    parser.add_argument(
-        "--uncertainty",
-        default="nominal",
-        choices=list(UNCERTAINTY_PRESETS),
-        help="runtime-uncertainty preset of every training and validation env (pose noise, radio, "
-        "actuation delay; the curriculum keeps its own slip) (default nominal)",
-    )
+    _env_options(parser)
     parser.add_argument("--out", required=True)
     return parser
 

@@ -89,7 +89,7 @@ def _unicycle_ekf(pose: NDArray[np.float64], options: EstimatorOptions, dt: floa
         """filterpy's EKF with the unicycle's one-period prediction (explicit Euler, as its Jacobian)."""
 
         def predict_x(self, u: NDArray[np.float64] | None = None) -> None:
-            x, y, theta = self.x
+            x, y, theta = np.asarray(self.x, dtype=np.float64)  # type: ignore[has-type]
             v, omega = (0.0, 0.0) if u is None else u
             self.F = np.array(
                 [[1.0, 0.0, -v * dt * np.sin(theta)], [0.0, 1.0, v * dt * np.cos(theta)], [0.0, 0.0, 1.0]]

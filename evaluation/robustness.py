@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.records import json_safe, ran
-from evaluation.report import Note, Section, TableBlock, markdown
+from evaluation.report import Block, Note, Section, TableBlock, markdown
 from evaluation.results import Results
 from evaluation.statistics import (
     bootstrap_mean_interval,
@@ -252,7 +252,7 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
             "over the levels per unit, bootstrap over units; tail: the mean final distance of the worst "
             f"{TAIL_SHARE:.0%} of the sweep's episodes, bootstrap."
         )
-        blocks = [
+        blocks: list[Block] = [
             Note(note),
             TableBlock(summary, "Summary over the sweep"),
             TableBlock((header, rows), "Every level"),

@@ -65,7 +65,9 @@ def test_the_view_is_what_the_robots_believe() -> None:
         _, _, _, _, info = env.step(np.zeros(6))
     view = observed_view(info)
     assert set(view) == {*OBSERVED_KEYS, "poses", "distances"}
-    assert view["poses"] is view["observed_poses"] and not np.array_equal(view["distances"], info["distances"])
+    assert view["poses"] is view["observed_poses"] and not np.array_equal(
+        view["distances"], info["distances"]
+    )
     assert not np.array_equal(view["observed_poses"], info["poses"])  # noisy estimates
     # harsh: 3 periods of latency, so a team-mate is never heard of fresher than that
     heard = view["message_age"][~np.eye(3, dtype=bool)]
@@ -80,4 +82,6 @@ def test_without_uncertainty_the_view_is_the_truth() -> None:
     assert all(np.array_equal(info["known_poses"][i], info["poses"]) for i in range(3))
     assert (info["message_age"] == 0).all() and "lidar_ranges" not in info
     view = observed_view(info)  # the earlier API's keys, equal to the truth bit for bit
-    assert np.array_equal(view["poses"], info["poses"]) and np.array_equal(view["distances"], info["distances"])
+    assert np.array_equal(view["poses"], info["poses"]) and np.array_equal(
+        view["distances"], info["distances"]
+    )

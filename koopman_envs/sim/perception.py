@@ -20,6 +20,7 @@ sweep's curves are paired), and a sub-environment of a batch draws exactly as a 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -348,7 +349,7 @@ def _perceive(
         clock[k] = t + 1
 
 
-def observed_info(perception: Perception | None, poses: NDArray[np.float64]) -> dict[str, NDArray]:
+def observed_info(perception: Perception | None, poses: NDArray[np.float64]) -> dict[str, NDArray[Any]]:
     """What the robots believe, one array per key (copies), for K environments.
 
     Keys: ``observed_poses`` (K, N, 3) every robot's estimate of its own pose; ``known_poses``
