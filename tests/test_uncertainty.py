@@ -80,6 +80,35 @@ def test_a_robot_inside_an_obstacle_reads_zero() -> None:
     assert (_scan([(0.0, 0.0, 0.0)], [(0.1, 0.0, 0.5)], beam_angles(8, 2 * math.pi)) == 0).all()
 
 
+@pytest.mark.parametrize("beams, fov", [(32, 2 * math.pi), (7, 2.0), (1, 1.0), (90, 2 * math.pi)])
+def test_the_kernel_equals_a_beam_by_beam_search(beams: int, fov: float) -> None:
+    """The kernel tests only the beams within a disc's angular width: on random scenes it reads
+    what testing every beam against every disc and wall reads."""
+    rng = np.random.default_rng(beams)
+    angles = beam_angles(beams, fov)
+    for _ in range(40):
+        robots = np.column_stack([rng.uniform(-9.5, 9.5, 3), rng.uniform(-9.5, 9.5, 3), rng.uniform(-4, 4, 3)])
+        obstacles = np.column_stack([rng.uniform(-10, 10, 6), rng.uniform(-10, 10, 6), rng.uniform(0.1, 1.5, 6)])
+        ranges = _scan(robots, obstacles, angles, max_range=6.0)
+        for i, (x, y, theta) in enumerate(robots):
+            discs = [tuple(o) for o in obstacles] + [(rx, ry, 0.2) for j, (rx, ry, _) in enumerate(robots) if j != i]
+            if any(math.hypot(cx - x, cy - y) <= r for cx, cy, r in discs):
+                assert (ranges[i] == 0).all()
+                continue
+            for b, angle in enumerate(angles):
+                c, s = math.cos(theta + angle), math.sin(theta + angle)
+                best = 6.0
+                for wall, d in ((10 - x, c), (-10 - x, c), (10 - y, s), (-10 - y, s)):
+                    if d != 0 and wall / d > 0:
+                        best = min(best, wall / d)
+                for cx, cy, r in discs:
+                    along = (cx - x) * c + (cy - y) * s
+                    across2 = (cx - x) ** 2 + (cy - y) ** 2 - along**2
+                    if along > 0 and across2 < r * r:
+                        best = min(best, along - math.sqrt(r * r - across2))
+                assert ranges[i, b] == pytest.approx(best, abs=1e-9)
+
+
 def test_beam_angles_span_the_field_of_view() -> None:
     assert np.allclose(beam_angles(4, 2 * math.pi), [0, math.pi / 2, math.pi, 3 * math.pi / 2])
     assert np.allclose(beam_angles(3, math.pi), [-math.pi / 2, 0, math.pi / 2])

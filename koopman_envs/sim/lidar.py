@@ -73,6 +73,9 @@ def cast_beams(
     # each beam's direction is the heading's turned by its angle: two trig calls per beam here,
     # a rotation (4 products) per beam and robot below
     beam_cos, beam_sin = np.cos(angles), np.sin(angles)
+    # the beams are evenly spaced (beam_angles): angle b = first + b * spacing
+    first = angles[0]
+    spacing = angles[1] - angles[0] if n_beams > 1 else 1.0
     for k in range(n_envs):
         for i in range(n_robots):
             x, y, theta = state[k, 0, i], state[k, 1, i], state[k, 2, i]
@@ -98,30 +101,50 @@ def cast_beams(
                     disc_dx[count], disc_dy[count] = dx, dy
                     disc_r2[count], disc_d2[count] = r * r, d2
                     count += 1
-            for b in range(n_beams):
-                if inside:
+            if inside:
+                for b in range(n_beams):
                     out[k, i, b] = 0.0
-                    continue
-                c = heading_cos * beam_cos[b] - heading_sin * beam_sin[b]
-                s = heading_sin * beam_cos[b] + heading_cos * beam_sin[b]
-                best = max_range
-                # walls: the robot is inside the workspace, so the exit distance along the beam
-                if c > 0.0:
-                    best = min(best, (x_max - x) / c)
-                elif c < 0.0:
-                    best = min(best, (x_min - x) / c)
-                if s > 0.0:
-                    best = min(best, (y_max - y) / s)
-                elif s < 0.0:
-                    best = min(best, (y_min - y) / s)
-                for q in range(count):
-                    along = disc_dx[q] * c + disc_dy[q] * s
-                    if along <= 0.0:
-                        continue  # behind the robot (the robot is outside every disc)
-                    across2 = disc_d2[q] - along * along
-                    if across2 >= disc_r2[q]:
-                        continue
-                    hit = along - math.sqrt(disc_r2[q] - across2)
-                    if hit < best:
-                        best = hit
-                out[k, i, b] = best
+                continue
+            # pass 1, the walls within range (most robots see none: then every beam reads the range)
+            east, west = x_max - x < max_range, x - x_min < max_range
+            north, south = y_max - y < max_range, y - y_min < max_range
+            if east or west or north or south:
+                for b in range(n_beams):
+                    c = heading_cos * beam_cos[b] - heading_sin * beam_sin[b]
+                    s = heading_sin * beam_cos[b] + heading_cos * beam_sin[b]
+                    best = max_range
+                    # the robot is inside the workspace, so the exit distance along the beam
+                    if east and c > 0.0:
+                        best = min(best, (x_max - x) / c)
+                    elif west and c < 0.0:
+                        best = min(best, (x_min - x) / c)
+                    if north and s > 0.0:
+                        best = min(best, (y_max - y) / s)
+                    elif south and s < 0.0:
+                        best = min(best, (y_min - y) / s)
+                    out[k, i, b] = best
+            else:
+                for b in range(n_beams):
+                    out[k, i, b] = max_range
+            # pass 2, every visible disc: only the beams within its angular half-width can meet
+            # it (bounded above by tan, r / sqrt(d^2 - r^2) >= asin(r / d), so none is missed);
+            # each of those is tested exactly, as a beam-by-beam search would
+            for q in range(count):
+                dx, dy, r2, d2 = disc_dx[q], disc_dy[q], disc_r2[q], disc_d2[q]
+                bearing = math.atan2(dy * heading_cos - dx * heading_sin, dx * heading_cos + dy * heading_sin)
+                half = math.sqrt(r2 / (d2 - r2)) + 1e-9
+                for shift in (-2.0 * math.pi, 0.0, 2.0 * math.pi):
+                    low = max(0, math.ceil((bearing + shift - half - first) / spacing))
+                    high = min(n_beams - 1, math.floor((bearing + shift + half - first) / spacing))
+                    for b in range(low, high + 1):
+                        c = heading_cos * beam_cos[b] - heading_sin * beam_sin[b]
+                        s = heading_sin * beam_cos[b] + heading_cos * beam_sin[b]
+                        along = dx * c + dy * s
+                        if along <= 0.0:
+                            continue  # behind the robot (the robot is outside every disc)
+                        across2 = d2 - along * along
+                        if across2 >= r2:
+                            continue
+                        hit = along - math.sqrt(r2 - across2)
+                        if hit < out[k, i, b]:
+                            out[k, i, b] = hit

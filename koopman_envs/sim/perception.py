@@ -185,19 +185,32 @@ class Perception:
         self._refill(rows)
         if self.lidar is not None:
             obstacle_x, obstacle_y, obstacle_r = obstacles
-            exact = np.empty((rows.shape[0],) + self.ranges.shape[1:])
-            cast_beams(
-                state[rows],
-                obstacle_x[rows],
-                obstacle_y[rows],
-                obstacle_r[rows],
-                robot_radius,
-                self.angles,
-                self.max_range,
-                self.workspace,
-                exact,
-            )
-            self.ranges[rows] = exact
+            if rows.shape[0] == state.shape[0]:  # every environment (a plain step): no copies
+                cast_beams(
+                    state,
+                    obstacle_x,
+                    obstacle_y,
+                    obstacle_r,
+                    robot_radius,
+                    self.angles,
+                    self.max_range,
+                    self.workspace,
+                    self.ranges,
+                )
+            else:
+                exact = np.empty((rows.shape[0],) + self.ranges.shape[1:])
+                cast_beams(
+                    state[rows],
+                    obstacle_x[rows],
+                    obstacle_y[rows],
+                    obstacle_r[rows],
+                    robot_radius,
+                    self.angles,
+                    self.max_range,
+                    self.workspace,
+                    exact,
+                )
+                self.ranges[rows] = exact
         noise, comm, lidar = self.pose_noise, self.comm, self.lidar
         _perceive(
             state,
