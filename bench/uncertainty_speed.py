@@ -7,7 +7,8 @@ Usage::
 Target reaching on map1, 3 robots, random actions. Each setting is timed against the plain
 state observation with alternating windows (a change of the machine's load slows both alike):
 
-* ``sensing="lidar"`` with 32 beams (360 deg, 5 m), single env and vector env (target: >= 0.5x);
+* ``sensing="lidar"`` with 32 exact beams (360 deg, 5 m), single env and vector env (target:
+  >= 0.5x), and the same with reading noise and dropouts (2 cm, 2%: two random draws per beam);
 * ``pose_noise``, ``comm`` and ``actuation_delay`` at the ``harsh`` preset's values, with the
   slip unchanged (target: <= 10% of the step at 1024 envs, i.e. >= 0.9x);
 * when ``vmas`` is importable, VMAS 1.5.2's ``navigation`` scenario (3 agents, its lidar on,
@@ -35,7 +36,8 @@ import koopman_envs  # noqa: E402
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS  # noqa: E402
 
 ENV = "KoopNav-TargetReaching-v0"
-LIDAR = {"sensing": "lidar", "lidar": {"beams": 32, "range": 5.0, "noise": 0.02, "dropout": 0.02}}
+LIDAR = {"sensing": "lidar", "lidar": {"beams": 32, "range": 5.0}}
+NOISY_LIDAR = {"sensing": "lidar", "lidar": {"beams": 32, "range": 5.0, "noise": 0.02, "dropout": 0.02}}
 _HARSH = UNCERTAINTY_PRESETS["harsh"]
 FAULTS = {
     "pose_noise": _HARSH.pose_noise.__dict__,
@@ -89,6 +91,16 @@ def main() -> None:
     print(f"vector env {k}, state observation {state:12,.0f} env-steps/s")
     print(
         f"vector env {k}, lidar 32 beams    {lidar:12,.0f} env-steps/s ({lidar / state:.2f}x state; target >= 0.5x)"
+    )
+    exact, noisy = (
+        k * r
+        for r in _timed_pair(vector_runner(ENV, k, **LIDAR), vector_runner(ENV, k, **NOISY_LIDAR), *timing)
+    )
+    results.update(
+        {f"vector {k} lidar32 (paired with noisy)": exact, f"vector {k} lidar32 noise+dropout": noisy}
+    )
+    print(
+        f"vector env {k}, lidar, noise+dropout {noisy:12,.0f} env-steps/s ({noisy / exact:.2f}x exact lidar)"
     )
     plain, faults = (
         k * r for r in _timed_pair(vector_runner(ENV, k), vector_runner(ENV, k, **FAULTS), *timing)
