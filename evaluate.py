@@ -74,7 +74,7 @@ from evaluation.robustness import profiles, write_robustness
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
-from evaluation.sweep import parse_sweep, run_sweep
+from evaluation.sweep import check_levels, level_aliases, parse_sweep, run_sweep, write_manifest
 from evaluation.thresholds import check_thresholds
 from koopman_envs.suggest import did_you_mean
 
@@ -212,6 +212,10 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
             raise ValueError(
                 f"{existing[0]} exists: pass --resume to continue that sweep, or choose another --out"
             )
+    words = list(sys.argv[1:] if argv is None else argv)
+    check_levels(spec, axes)
+    aliases = level_aliases(spec, axes)
+    write_manifest(args.out, axes, args.reference, " ".join([program_name(), *words]), aliases)
     start = time.perf_counter()
     done = run_sweep(
         spec,
@@ -222,7 +226,6 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
         resume=args.resume,
         progress=not args.quiet,
     )
-    words = list(sys.argv[1:] if argv is None else argv)
     paths = write_robustness(profiles(done, args.reference), args.out, " ".join([program_name(), *words]))
     episodes = sum(len(results.records) for levels in done.values() for _, results in levels)
     print(

@@ -46,29 +46,30 @@ ALL_TASKS = "all tasks"
 OUTCOME_KEYS = ("env_settings", "calibration", "map_files", "random_maps")
 
 
-def load_baseline(path: str | Path) -> dict[str, Any]:
+def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
     """The results document of ``path`` (a results.json, or a run directory holding one).
 
-    Raises ``ValueError`` naming the file when it is missing, not JSON, not a KoopNav results
-    document, or of a schema version this package cannot read.
+    Raises ``ValueError`` naming the file (as ``what``: a baseline, a sweep level) when it is
+    missing, not JSON, not a KoopNav results document, or of a schema version this package
+    cannot read.
     """
     path = Path(path)
     file = path / "results.json" if path.is_dir() else path
     try:
         text = file.read_text(encoding="utf-8")
     except OSError as exc:
-        raise ValueError(f"baseline {str(file)!r} cannot be read ({exc.strerror or exc})") from None
+        raise ValueError(f"{what} {str(file)!r} cannot be read ({exc.strerror or exc})") from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"baseline {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
+        raise ValueError(f"{what} {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
     if not isinstance(doc, dict) or not {"schema_version", "config", "episodes"} <= set(doc):
         raise ValueError(
-            f"baseline {str(file)!r} is not a KoopNav results document (no schema_version, config, episodes)"
+            f"{what} {str(file)!r} is not a KoopNav results document (no schema_version, config, episodes)"
         )
     if doc["schema_version"] not in READABLE_SCHEMAS:
         raise ValueError(
-            f"baseline {str(file)!r} has schema_version={doc['schema_version']!r}; this version reads "
+            f"{what} {str(file)!r} has schema_version={doc['schema_version']!r}; this version reads "
             f"{list(READABLE_SCHEMAS)}"
         )
     return doc

@@ -27,7 +27,11 @@ from koopman_envs.keywords import ENV_KEYWORDS
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import task_for_env
 
-__all__ = ["SweepAxis", "parse_sweep", "run_sweep"]
+__all__ = ["MANIFEST", "SweepAxis", "load_sweep", "parse_sweep", "run_sweep", "write_manifest"]
+
+#: the sweep's axes and reference, written in OUT before the first level runs
+MANIFEST = "sweep.json"
+_MANIFEST_KIND = "koopnav-sweep"
 
 #: keywords a sweep cannot vary: the map is a cell axis, rendering is the evaluator's business,
 #: and the team size changes what a controller is (sweep it as separate runs)
@@ -129,6 +133,40 @@ def check_levels(spec: RunSpec, axes: list[SweepAxis]) -> None:
                     raise ValueError(f"--sweep {axis.key}={_text(level)}: {exc}") from None
 
 
+def _signature(spec: RunSpec) -> str:
+    """What makes two levels the same run: the slips and every env setting as the envs resolve
+    them (``comm.latency=0`` and ``pose_noise.xy=0`` both resolve to the perfect radio and
+    localization, so the sweep runs that configuration once)."""
+    settings = dict(spec.env_settings())
+    resolved = []
+    for env_id in spec.envs:
+        config = EngineConfig.create(task_for_env(env_id).name, map="random", **settings)
+        resolved.append(
+            [repr(config.pose_noise), repr(config.comm), repr(config.lidar), config.actuation_delay]
+        )
+    rest = {k: v for k, v in settings.items() if k not in _UNCERTAINTY_KEYWORDS}
+    return json.dumps([list(spec.slips), resolved, rest], sort_keys=True, default=str)
+
+
+#: the keywords whose resolved values _signature compares instead of their spelling
+_UNCERTAINTY_KEYWORDS = ("uncertainty", "pose_noise", "sensing", "lidar", "comm", "actuation_delay")
+
+
+def level_aliases(spec: RunSpec, axes: list[SweepAxis]) -> dict[str, str]:
+    """``{"KEY=level": "OTHER=level"}`` for every level that is the same run as an earlier one."""
+    first: dict[str, str] = {}
+    aliases = {}
+    for axis in axes:
+        for level in axis.levels:
+            name = f"{axis.key}={_text(level)}"
+            signature = _signature(axis.apply(spec, level))
+            if signature in first:
+                aliases[name] = first[signature]
+            else:
+                first[signature] = name
+    return aliases
+
+
 def _slip(slip: str) -> Any:
     from evaluation.plan import slip_value
 
@@ -162,14 +200,20 @@ def run_sweep(
     from evaluation.runner import evaluate
 
     check_levels(spec, axes)
+    aliases = level_aliases(spec, axes)
+    finished: dict[str, Results] = {}
     done: dict[str, list[tuple[Any, Results]]] = {}
     for axis in axes:
         done[axis.key] = []
         for level in axis.levels:
+            name = f"{axis.key}={_text(level)}"
+            if name in aliases:  # the same run as an earlier level: its episodes serve both
+                done[axis.key].append((level, finished[aliases[name]]))
+                continue
             level_dir = axis.level_dir(out, level)
             again = resume and (level_dir / "episodes.jsonl").exists()
             if progress:
-                print(f"sweep {axis.key}={_text(level)} -> {level_dir}", flush=True)
+                print(f"sweep {name} -> {level_dir}", flush=True)
             results = evaluate(
                 axis.apply(spec, level),
                 workers=workers,
@@ -179,5 +223,150 @@ def run_sweep(
                 progress=progress,
             )
             results.write(level_dir)
+            finished[name] = results
             done[axis.key].append((level, results))
     return done
+
+
+def write_manifest(
+    out: str | os.PathLike,
+    axes: list[SweepAxis],
+    reference: str | None,
+    command: str,
+    aliases: dict[str, str] | None = None,
+) -> Path:
+    """Record the sweep in ``OUT/sweep.json`` (what :func:`load_sweep` reads back); ``aliases``
+    are the levels run once for several axes (:func:`level_aliases`)."""
+    path = Path(out) / MANIFEST
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = {
+        "kind": _MANIFEST_KIND,
+        "axes": [{"key": a.key, "levels": list(a.levels)} for a in axes],
+        "reference": reference,
+        "command": command,
+        "aliases": aliases or {},
+    }
+    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    return path
+
+
+def _read_manifest(out: Path) -> dict[str, Any]:
+    path = out / MANIFEST
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ValueError(f"sweep manifest {str(path)!r} cannot be read ({exc.strerror or exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"sweep manifest {str(path)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
+    axes = doc.get("axes") if isinstance(doc, dict) else None
+    if (
+        not isinstance(doc, dict)
+        or doc.get("kind") != _MANIFEST_KIND
+        or not isinstance(axes, list)
+        or not all(
+            isinstance(a, dict) and isinstance(a.get("key"), str) and isinstance(a.get("levels"), list)
+            for a in axes
+        )
+    ):
+        raise ValueError(
+            f"sweep manifest {str(path)!r} is not a KoopNav sweep manifest (kind, axes of key and levels)"
+        )
+    return doc
+
+
+def _level_setting(config: dict[str, Any], key: str) -> Any:
+    """The value of axis ``key`` that a level's results record."""
+    if key == "slip":
+        return (config.get("slips") or [None])[0]
+    root, _, field = key.partition(".")
+    value = (config.get("env_settings") or {}).get(root)
+    return value.get(field) if field and isinstance(value, dict) else value
+
+
+def load_sweep(
+    out: str | os.PathLike,
+) -> tuple[dict[str, list[tuple[Any, Results]]], list[str], dict[str, Any]]:
+    """The finished levels of the sweep in ``out``, read back and checked.
+
+    Returns
+    -------
+    levels : dict
+        Axis key -> [(level, Results), ...] of the levels whose run wrote its results.json.
+    missing : list of str
+        ``KEY=level`` of the levels not (yet) finished, in order: reported, never dropped silently.
+    manifest : dict
+        The sweep's ``sweep.json``.
+
+    Raises
+    ------
+    ValueError
+        A manifest or a level's results.json that is torn, foreign, of an unreadable schema, or
+        recording another value of its axis than its directory's (each named).
+    """
+    from evaluation.baseline import load_baseline
+
+    out = Path(out)
+    manifest = _read_manifest(out)
+    done: dict[str, list[tuple[Any, Results]]] = {}
+    missing: list[str] = []
+    aliases = manifest.get("aliases") or {}
+    by_name: dict[str, tuple[SweepAxis, Any]] = {}
+    for entry in manifest["axes"]:
+        axis = SweepAxis(entry["key"], tuple(entry["levels"]))
+        for level in axis.levels:
+            by_name[f"{axis.key}={_text(level)}"] = (axis, level)
+    for entry in manifest["axes"]:
+        axis = SweepAxis(entry["key"], tuple(entry["levels"]))
+        done[axis.key] = []
+        for level in axis.levels:
+            name = f"{axis.key}={_text(level)}"
+            run_axis, run_level = by_name.get(aliases.get(name, name), (axis, level))
+            file = run_axis.level_dir(out, run_level) / "results.json"
+            if not file.exists():
+                missing.append(name)
+                continue
+            doc = load_baseline(file, what="sweep level")
+            recorded = _level_setting(doc["config"], run_axis.key)
+            if recorded != run_level:
+                raise ValueError(
+                    f"sweep level {str(file)!r} records {run_axis.key}={recorded!r}, not {run_level!r}: "
+                    "it belongs to another run"
+                )
+            done[axis.key].append((level, Results(doc["episodes"], doc["config"])))
+        if not done[axis.key]:
+            del done[axis.key]
+    return done, missing, manifest
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m evaluation.sweep OUT``: the robustness report of the finished levels of a sweep."""
+    import argparse
+    import sys
+
+    from evaluation.robustness import profiles, write_robustness
+
+    parser = argparse.ArgumentParser(prog="python -m evaluation.sweep", description=main.__doc__)
+    parser.add_argument("out", help="the sweep's output directory (holding sweep.json)")
+    parser.add_argument("--reference", help="controller every other is paired against (default: the sweep's)")
+    args = parser.parse_args(argv)
+    try:
+        done, missing, manifest = load_sweep(args.out)
+        if not done:
+            raise ValueError(f"no level of the sweep in {args.out!r} has finished yet")
+        note = f" (levels not finished: {', '.join(missing)})" if missing else ""
+        paths = write_robustness(
+            profiles(done, args.reference or manifest.get("reference")),
+            args.out,
+            manifest.get("command", "") + note,
+        )
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if missing:
+        print(f"levels not finished, left out: {', '.join(missing)}", file=sys.stderr)
+    print(f"wrote {', '.join(map(str, paths.values()))}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -60,8 +60,10 @@ class PoseNoise:
     drift_heading: float = 0.0
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            check_number(f"pose_noise.{f.name}", getattr(self, f.name), at_least=0)
+        for f in dataclasses.fields(self):  # checked, and stored as float (0 and 0.0 are one setting)
+            object.__setattr__(
+                self, f.name, check_number(f"pose_noise.{f.name}", getattr(self, f.name), at_least=0)
+            )
 
     @property
     def active(self) -> bool:
@@ -98,11 +100,15 @@ class LidarConfig:
     dropout: float = 0.0
 
     def __post_init__(self) -> None:
-        check_int("lidar.beams", self.beams, 1)
-        check_number("lidar.fov", self.fov, above=0, at_most=2 * math.pi, note="(0, 2 pi] rad")
-        check_number("lidar.range", self.range, above=0)
-        check_number("lidar.noise", self.noise, at_least=0)
-        check_number("lidar.dropout", self.dropout, at_least=0, at_most=1)
+        checked = {
+            "beams": check_int("lidar.beams", self.beams, 1),
+            "fov": check_number("lidar.fov", self.fov, above=0, at_most=2 * math.pi, note="(0, 2 pi] rad"),
+            "range": check_number("lidar.range", self.range, above=0),
+            "noise": check_number("lidar.noise", self.noise, at_least=0),
+            "dropout": check_number("lidar.dropout", self.dropout, at_least=0, at_most=1),
+        }
+        for name, value in checked.items():  # stored in normal form (0 and 0.0 are one setting)
+            object.__setattr__(self, name, value)
 
     @property
     def random(self) -> bool:
@@ -134,10 +140,16 @@ class CommConfig:
     range: float = math.inf
 
     def __post_init__(self) -> None:
-        check_int("comm.latency", self.latency, 0, note="control periods")
-        check_number("comm.drop", self.drop, at_least=0, at_most=1)
+        object.__setattr__(
+            self, "latency", check_int("comm.latency", self.latency, 0, note="control periods")
+        )
+        object.__setattr__(self, "drop", check_number("comm.drop", self.drop, at_least=0, at_most=1))
         if not (isinstance(self.range, (int, float)) and self.range == math.inf):
-            check_number("comm.range", self.range, above=0, note="metres, or inf")
+            object.__setattr__(
+                self, "range", check_number("comm.range", self.range, above=0, note="metres, or inf")
+            )
+        else:
+            object.__setattr__(self, "range", math.inf)
 
     @property
     def perfect(self) -> bool:

@@ -145,3 +145,60 @@ def test_the_tail_is_the_mean_of_the_worst_tenth() -> None:
     assert low <= 19.5 <= high <= 20
     assert bootstrap_tail_interval(values, 0.1, resamples=500) == (low, high)  # seeded
     assert np.isnan(bootstrap_tail_interval([], 0.1)).all()
+
+
+def test_a_level_that_is_the_same_run_as_another_runs_once(tmp_path) -> None:
+    from evaluation.sweep import level_aliases
+
+    axes = [
+        parse_sweep("pose_noise.xy=0,0.2"),
+        parse_sweep("comm.drop=0.0,0.5"),
+        parse_sweep("actuation_delay=0,1"),
+    ]
+    aliases = level_aliases(RunSpec(slips=["nominal"]), axes)
+    assert aliases == {"comm.drop=0.0": "pose_noise.xy=0", "actuation_delay=0": "pose_noise.xy=0"}
+    out = tmp_path / "o"
+    args = [
+        *TINY,
+        "--controllers",
+        "consensus-free",
+        "--sweep",
+        "pose_noise.xy=0,0.2",
+        "--sweep",
+        "comm.drop=0,0.5",
+    ]
+    assert ev.main([*args, "--out", str(out)]) == 0
+    assert sorted(p.name for p in (out / "sweep").iterdir()) == [
+        "comm.drop-0.5",
+        "pose_noise.xy-0",
+        "pose_noise.xy-0.2",
+    ]
+    profiles = {p["key"]: p for p in json.loads((out / "robustness.json").read_text())}
+    zero = {r["level"]: r for r in profiles["comm.drop"]["rows"]}[0]
+    assert zero == {**{r["level"]: r for r in profiles["pose_noise.xy"]["rows"]}[0], "level": 0}
+
+
+def test_the_report_of_a_sweep_is_read_back_checked(tmp_path, capsys) -> None:
+    from evaluation.sweep import main as report
+
+    out = tmp_path / "o"
+    args = [*TINY, "--controllers", "consensus-free", "--sweep", "actuation_delay=0,2"]
+    assert ev.main([*args, "--out", str(out)]) == 0
+    first = (out / "robustness.json").read_text()
+    assert report([str(out)]) == 0 and (out / "robustness.json").read_text() == first
+    # a level not finished is named and left out, never dropped silently
+    (out / "sweep" / "actuation_delay-2" / "results.json").unlink()
+    assert report([str(out)]) == 0
+    assert "levels not finished, left out: actuation_delay=2" in capsys.readouterr().err
+    # a level's results of another run, a torn one, a foreign manifest: refused by name
+    other = json.loads((out / "sweep" / "actuation_delay-0" / "results.json").read_text())
+    other["config"]["env_settings"]["actuation_delay"] = 3
+    (out / "sweep" / "actuation_delay-2" / "results.json").write_text(json.dumps(other))
+    assert report([str(out)]) == 2
+    assert "records actuation_delay=3, not 2: it belongs to another run" in capsys.readouterr().err
+    (out / "sweep" / "actuation_delay-2" / "results.json").write_text('{"schema_version": 3, "conf')
+    assert (
+        report([str(out)]) == 2 and "actuation_delay-2/results.json' is not JSON" in capsys.readouterr().err
+    )
+    (out / "sweep.json").write_text("[1, 2]")
+    assert report([str(out)]) == 2 and "is not a KoopNav sweep manifest" in capsys.readouterr().err

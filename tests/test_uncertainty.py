@@ -87,11 +87,17 @@ def test_the_kernel_equals_a_beam_by_beam_search(beams: int, fov: float) -> None
     rng = np.random.default_rng(beams)
     angles = beam_angles(beams, fov)
     for _ in range(40):
-        robots = np.column_stack([rng.uniform(-9.5, 9.5, 3), rng.uniform(-9.5, 9.5, 3), rng.uniform(-4, 4, 3)])
-        obstacles = np.column_stack([rng.uniform(-10, 10, 6), rng.uniform(-10, 10, 6), rng.uniform(0.1, 1.5, 6)])
+        robots = np.column_stack(
+            [rng.uniform(-9.5, 9.5, 3), rng.uniform(-9.5, 9.5, 3), rng.uniform(-4, 4, 3)]
+        )
+        obstacles = np.column_stack(
+            [rng.uniform(-10, 10, 6), rng.uniform(-10, 10, 6), rng.uniform(0.1, 1.5, 6)]
+        )
         ranges = _scan(robots, obstacles, angles, max_range=6.0)
         for i, (x, y, theta) in enumerate(robots):
-            discs = [tuple(o) for o in obstacles] + [(rx, ry, 0.2) for j, (rx, ry, _) in enumerate(robots) if j != i]
+            discs = [tuple(o) for o in obstacles] + [
+                (rx, ry, 0.2) for j, (rx, ry, _) in enumerate(robots) if j != i
+            ]
             if any(math.hypot(cx - x, cy - y) <= r for cx, cy, r in discs):
                 assert (ranges[i] == 0).all()
                 continue
