@@ -215,7 +215,8 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
     words = list(sys.argv[1:] if argv is None else argv)
     check_levels(spec, axes)
     aliases = level_aliases(spec, axes)
-    write_manifest(args.out, axes, args.reference, " ".join([program_name(), *words]), aliases)
+    command = " ".join([program_name(), *(w for w in words if w != "--resume")])
+    write_manifest(args.out, axes, args.reference, command, aliases)
     start = time.perf_counter()
     done = run_sweep(
         spec,
@@ -226,8 +227,9 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
         resume=args.resume,
         progress=not args.quiet,
     )
-    paths = write_robustness(profiles(done, args.reference), args.out, " ".join([program_name(), *words]))
-    episodes = sum(len(results.records) for levels in done.values() for _, results in levels)
+    paths = write_robustness(profiles(done, args.reference), args.out, command)
+    runs = {id(results): results for levels in done.values() for _, results in levels}  # aliases once
+    episodes = sum(len(results.records) for results in runs.values())
     print(
         f"\n{episodes} episodes in {time.perf_counter() - start:.1f} s; wrote {', '.join(map(str, paths.values()))}"
     )
