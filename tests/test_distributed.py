@@ -238,3 +238,41 @@ def test_robust_variants_widen_margins_by_the_calibrated_residual(name: str) -> 
     )
     assert expected in reach
     assert run_episode(env, ctrl, seed=0).collision is None
+
+
+def test_a_late_message_carries_a_plan_shifted_by_its_age() -> None:
+    from controllers.mpc.plan_exchange import PlanLog
+
+    horizon, n = 6, 2
+    log = PlanLog(horizon)
+    made = []
+    for period in range(4):  # plan value: 100 * period + stage, robot j offset by j
+        plans = np.zeros((horizon, n, 2))
+        plans[:, :, 0] = 100 * period + np.arange(horizon)[:, None] + np.arange(n)[None, :]
+        made.append(plans)
+        log.record(plans)
+    latest = made[-1]
+    # age 0: the previous period's plan shifted by one, or this period's as it is (fresh)
+    plan, kind = log.heard(latest, 1, 0, False, np.zeros(3))
+    assert kind == "" and plan[:, 0].tolist() == [302, 303, 304, 305, 306, 306]
+    assert log.heard(latest, 1, 0, True, np.zeros(3))[0][:, 0].tolist() == [301, 302, 303, 304, 305, 306]
+    # age 2 at period 4: the plan made at period 1, shifted by 3 steps, its end held
+    plan, kind = log.heard(latest, 1, 2, False, np.zeros(3))
+    assert kind == "plans_aged" and plan[:, 0].tolist() == [104, 105, 106, 106, 106, 106]
+    # a plan as old as the horizon, or made before the episode: the last known position held
+    plan, kind = log.heard(latest, 1, 5, False, np.array([7.0, 8.0, 0.0]))
+    assert kind == "plans_replaced" and (plan == [7.0, 8.0]).all()
+
+
+def test_the_distributed_nmpc_hears_its_team_over_the_radio() -> None:
+    import gymnasium as gym
+
+    import koopman_envs  # noqa: F401 - registers the ids
+
+    env = gym.make("KoopNav-Formation-v0", comm={"latency": 2, "drop": 0.3}, max_episode_steps=12)
+    ctrl = controllers.make("dmpc-nominal")
+    result = run_episode(env, ctrl, seed=1)
+    counts = ctrl.stats().counts
+    assert result.steps == 12
+    assert counts["neighbours_unheard"] > 0  # the first two periods: nothing heard yet
+    assert counts["plans_aged"] > 0  # afterwards: plans two or more periods old, shifted

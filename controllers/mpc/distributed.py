@@ -485,6 +485,7 @@ class DistributedNMPC(BaseController):
             extra_times={"robot": list(self._per_robot_times)},
             solver=own.solver,
         )
+        team.counts.update(own.counts)  # the team's own: restarts, plans aged or replaced, robots unheard
         n = self.scenario.n_robots if self.scenario is not None else 0
         for agent in self._agents[:n]:
             robot = agent.stats()
