@@ -254,6 +254,24 @@ def _animations(results: RunData, out_dir: Path) -> list[str]:
     return out
 
 
+def _page_head(title: str) -> list[str]:
+    """The opening lines of a report page: doctype, policy, style, title and the sorting hint."""
+    return [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{_e(title)}</title>",
+        f"<style>{_CSS}</style>",
+        "</head>",
+        "<body>",
+        f"<h1>{_e(title)}</h1>",
+        '<p class="note">Click a column header to sort a table; click again to reverse.</p>',
+    ]
+
+
 def render_html(
     results: RunData, out_dir: str | os.PathLike, figures: Iterable[str | os.PathLike] | None = None
 ) -> str:
@@ -278,21 +296,7 @@ def render_html(
     if figures is None:
         figures = sorted((out / "figures").glob("*.png")) if (out / "figures").is_dir() else []
     figure_paths = sorted((Path(f) for f in figures), key=lambda p: p.name)
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en">',
-        "<head>",
-        '<meta charset="utf-8">',
-        f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        "<title>KoopNav results</title>",
-        f"<style>{_CSS}</style>",
-        "</head>",
-        "<body>",
-        "<h1>KoopNav results</h1>",
-        '<p class="note">Click a column header to sort a table; click again to reverse.</p>',
-        _config_section(results),
-    ]
+    parts = [*_page_head("KoopNav results"), _config_section(results)]
     parts += [_section(section) for section in sections(results)]
     if figure_paths:
         parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']
@@ -307,20 +311,7 @@ def render_html(
 
 def render_page(title: str, report: Sequence[Section], figures: Iterable[str | os.PathLike] = ()) -> str:
     """A self-contained page of report sections and embedded figures (the robustness page)."""
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en">',
-        "<head>",
-        '<meta charset="utf-8">',
-        f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{_e(title)}</title>",
-        f"<style>{_CSS}</style>",
-        "</head>",
-        "<body>",
-        f"<h1>{_e(title)}</h1>",
-        '<p class="note">Click a column header to sort a table; click again to reverse.</p>',
-    ]
+    parts = _page_head(title)
     paths = [Path(f) for f in figures]
     if paths:
         parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']

@@ -15,7 +15,8 @@ import evaluate as ev
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: script -> its tiny arguments ({tmp}: a fresh folder, {results}: a small evaluator run's results.json)
+#: script -> its tiny arguments ({tmp}: a fresh folder, {results}: a small evaluator run's results.json,
+#: {sweep}: a small sweep's output directory)
 SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
     "bench/uncertainty_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16"],
@@ -47,6 +48,7 @@ SMOKE: dict[str, list[str]] = {
     "docs/make_figure.py": ["--steps", "3", "--out", "{tmp}/figure.png"],
     "docs/make_options_md.py": ["--out", "{tmp}/options.md"],
     "docs/make_results_md.py": ["{results}", "--out", "{tmp}/results.md"],
+    "docs/make_robustness_md.py": ["{sweep}", "--out", "{tmp}/robustness.md", "--figures", "{tmp}/figures"],
     "docs/solver_comparison.py": ["{results}"],
 }
 #: scripts run elsewhere, with the reason
@@ -70,6 +72,16 @@ def test_every_script_has_a_smoke_run() -> None:
 
 
 @pytest.fixture(scope="module")
+def small_sweep(tmp_path_factory) -> Path:
+    """A finished two-level sweep of one cheap controller."""
+    out = tmp_path_factory.mktemp("sweep") / "out"
+    args = ["--controllers", "consensus-free", "--env", "KoopNav-TargetReaching-v0", "--maps", "map1"]
+    args += ["--episodes", "1", "--max-episode-steps", "20", "--workers", "1", "--quiet"]
+    assert ev.main([*args, "--sweep", "actuation_delay=0,1", "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
 def small_run(tmp_path_factory) -> Path:
     """A results.json with both tasks, consensus and an NMPC under two solver labels."""
     out = tmp_path_factory.mktemp("run")
@@ -88,9 +100,11 @@ def small_run(tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("script", sorted(SMOKE))
-def test_script_runs_on_tiny_arguments(script: str, small_run: Path, tmp_path: Path) -> None:
+def test_script_runs_on_tiny_arguments(
+    script: str, small_run: Path, small_sweep: Path, tmp_path: Path
+) -> None:
     (tmp_path / "index.html").write_text('<html><body><a href="index.html">self</a></body></html>')
-    args = [a.format(tmp=tmp_path, results=small_run) for a in SMOKE[script]]
+    args = [a.format(tmp=tmp_path, results=small_run, sweep=small_sweep) for a in SMOKE[script]]
     start = time.monotonic()
     run = subprocess.run(
         [sys.executable, script, *args],

@@ -1,0 +1,74 @@
+"""Write docs/robustness_results.md from finished sweeps (``python evaluate.py --sweep ...``).
+
+Usage::
+
+    python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] [--out docs/robustness_results.md]
+        [--figures docs/_static] [--title TEXT]
+
+Each sweep directory (holding the sweep.json manifest) becomes one part: its command, the levels
+not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
+tail) and the table of every level, with the profile's figure copied under ``--figures``. Every
+level's results are read back checked (``evaluation.sweep.load_sweep``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+from evaluation.report import markdown  # noqa: E402
+from evaluation.robustness import profiles, robustness_sections, save_profile_figures  # noqa: E402
+from evaluation.sweep import load_sweep  # noqa: E402
+
+INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one
+runtime-uncertainty setting at a time, the others perfect, on the paper's maps with 3 robots.
+Trial i uses seed i at every level, so the maps, starts and slip draws are the same at every
+level and the curves are paired ([Robustness profiles](robustness.md),
+[Runtime uncertainty](uncertainty.md)). A level that resolves to the same settings as another
+(every axis at 0) is run once and serves every axis. Regenerate with the commands below, then
+`python docs/make_robustness_md.py SWEEP_DIR ...`."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("sweeps", nargs="+", help="sweep output directories")
+    parser.add_argument("--out", default=str(Path(__file__).with_name("robustness_results.md")))
+    parser.add_argument(
+        "--figures", default=str(Path(__file__).with_name("_static")), help="where figures go"
+    )
+    parser.add_argument("--title", default="Robustness results")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    figures = Path(args.figures)
+    parts = [f"# {args.title}", INTRO]
+    for index, directory in enumerate(args.sweeps):
+        try:
+            done, missing, manifest = load_sweep(directory)
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        if not done:
+            print(f"error: no level of the sweep in {directory!r} has finished", file=sys.stderr)
+            return 2
+        axes = profiles(done, manifest.get("reference"))
+        parts.append(f"## Sweep {index + 1}\n\nCommand: `{manifest.get('command', '')}`")
+        if missing:
+            parts.append(f"Levels not finished yet, left out: {', '.join(missing)}.")
+        paths = save_profile_figures(axes, figures)
+        for profile, path in zip(axes, paths):
+            target = path.with_name(f"sweep{index + 1}_{path.name}")
+            path.replace(target)
+            link = os.path.relpath(target, out.resolve().parent)
+            parts.append(f"![Robustness to {profile.key}]({link})")
+        parts.append(markdown(robustness_sections(axes)).replace("## Robustness", "### Robustness"))
+    out.write_text("\n\n".join(parts) + "\n", encoding="utf-8")
+    print(f"wrote {out} and {len(args.sweeps)} sweep(s) of figures in {figures}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
