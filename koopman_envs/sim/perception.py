@@ -123,8 +123,12 @@ class Perception:
         #: periods per block: as many as BLOCK_NUMBERS random numbers allow, 8 to 256
         self.block = int(np.clip(BLOCK_NUMBERS // max(1, self._normals + self._uniforms), 8, 256))
         # single precision: half the generator's time, and ample for noise (7 significant digits)
-        self.normal = np.zeros((k, self.block, self._normals), dtype=np.float32)
-        self.uniform = np.zeros((k, self.block, self._uniforms), dtype=np.float32)
+        # period-major (block, K, width): a step reads one row of every environment, and while
+        # their cursors agree (they do unless some skip a step) those rows are one contiguous run
+        self.normal = np.zeros((self.block, k, self._normals), dtype=np.float32)
+        self.uniform = np.zeros((self.block, k, self._uniforms), dtype=np.float32)
+        self._draw_normal = np.empty((self.block, self._normals), dtype=np.float32)
+        self._draw_uniform = np.empty((self.block, self._uniforms), dtype=np.float32)
         self.cursor = np.full(k, self.block, dtype=np.int64)
         self.rngs: list[np.random.Generator | None] = [None] * k
         self._parents: list[np.random.Generator | None] = [None] * k
@@ -179,8 +183,11 @@ class Perception:
     ) -> None:
         """Read the sensors and the radio of environments ``rows`` (and of those reset since the
         last update) at the true poses ``state`` (K, 3, N), then advance their clocks."""
-        if self._pending:
-            rows = np.union1d(rows, np.array(self._pending, dtype=np.int64))
+        if self._pending:  # a mask rather than a set union: O(K), and each environment once
+            chosen = np.zeros(self.clock.shape[0], dtype=bool)
+            chosen[rows] = True
+            chosen[self._pending] = True
+            rows = np.flatnonzero(chosen)
             self._pending.clear()
         self._refill(rows)
         if self.lidar is not None:
@@ -246,9 +253,11 @@ class Perception:
             if rng is None:
                 raise RuntimeError(f"environment {k} was stepped before reset()")
             if self._normals:
-                rng.standard_normal(dtype=np.float32, out=self.normal[k])
+                rng.standard_normal(dtype=np.float32, out=self._draw_normal)
+                self.normal[:, k] = self._draw_normal
             if self._uniforms:
-                rng.random(dtype=np.float32, out=self.uniform[k])
+                rng.random(dtype=np.float32, out=self._draw_uniform)
+                self.uniform[:, k] = self._draw_uniform
             self.cursor[k] = 0
 
 
@@ -309,8 +318,8 @@ def _perceive(
                 value = truth[k, c, i]
                 if noisy:
                     if t > 0:
-                        bias[k, c, i] += drift[c] * normal[k, row, at_normal + 3 + c]
-                    value += bias[k, c, i] + std[c] * normal[k, row, at_normal + c]
+                        bias[k, c, i] += drift[c] * normal[row, k, at_normal + 3 + c]
+                    value += bias[k, c, i] + std[c] * normal[row, k, at_normal + c]
                 observed[k, c, i] = wrap_scalar(value) if c == 2 else value
             if noisy:
                 at_normal += 6
@@ -332,7 +341,7 @@ def _perceive(
                     continue
                 lost = False
                 if drop > 0.0:
-                    lost = uniform[k, row, at_uniform] < drop
+                    lost = uniform[row, k, at_uniform] < drop
                     at_uniform += 1
                 delivered = False
                 if t >= latency and not lost:
@@ -350,12 +359,12 @@ def _perceive(
             for b in range(beams):
                 value = ranges[k, i, b]
                 if lidar_dropout > 0.0:
-                    if uniform[k, row, at_uniform] < lidar_dropout:
+                    if uniform[row, k, at_uniform] < lidar_dropout:
                         value = max_range
                     at_uniform += 1
                 if lidar_noise > 0.0:
                     if value < max_range:
-                        value += lidar_noise * normal[k, row, at_normal]
+                        value += lidar_noise * normal[row, k, at_normal]
                     at_normal += 1
                 ranges[k, i, b] = min(max(value, 0.0), max_range)
         cursor[k] = row + (1 if (at_normal or at_uniform) else 0)
