@@ -11,8 +11,8 @@ state observation with alternating windows (a change of the machine's load slows
   >= 0.5x), and the same with reading noise and dropouts (2 cm, 2%: two random draws per beam);
 * ``pose_noise``, ``comm`` and ``actuation_delay`` at the ``harsh`` preset's values, with the
   slip unchanged (target: <= 10% of the step at 1024 envs, i.e. >= 0.9x);
-* when ``vmas`` is importable, VMAS 1.5.2's ``navigation`` scenario (3 agents, its lidar on,
-  CPU, the same number of envs) in the same run. VMAS needs torch; keep it out of the project's
+* when ``vmas`` is importable, VMAS 1.5.2's ``navigation`` scenario (3 agents, its lidar with
+  32 rays like ours, CPU, the same number of envs) in the same run. VMAS needs torch; keep it out of the project's
   environment with ``python -m venv --system-site-packages /tmp/vmas && /tmp/vmas/bin/pip install
   vmas==1.5.2`` and run this script with ``/tmp/vmas/bin/python``.
 
@@ -55,7 +55,13 @@ def vmas_runner(num_envs: int) -> tuple | None:
         return None
     torch.set_num_threads(1)  # as KoopNav's compiled step: one core
     env = vmas.make_env(
-        "navigation", num_envs=num_envs, device="cpu", continuous_actions=True, n_agents=3, seed=0
+        "navigation",
+        num_envs=num_envs,
+        device="cpu",
+        continuous_actions=True,
+        n_agents=3,
+        n_lidar_rays=32,  # as KoopNav's (VMAS's default is 12)
+        seed=0,
     )
     generator = torch.Generator().manual_seed(0)
     table = [[torch.rand((num_envs, 2), generator=generator) * 2 - 1 for _ in range(3)] for _ in range(64)]
