@@ -202,3 +202,55 @@ def test_the_report_of_a_sweep_is_read_back_checked(tmp_path, capsys) -> None:
     )
     (out / "sweep.json").write_text("[1, 2]")
     assert report([str(out)]) == 2 and "is not a KoopNav sweep manifest" in capsys.readouterr().err
+
+
+def _records(controller: str, successes: list[bool], distances: list[float]) -> list[dict]:
+    return [
+        {
+            "key": f"e|{controller}|m|s|{t}",
+            "env_id": "e",
+            "controller": controller,
+            "map": "m",
+            "slip": "s",
+            "trial": t,
+            "status": "ok",
+            "success": ok,
+            "final_distance": [d, d],
+        }
+        for t, (ok, d) in enumerate(zip(successes, distances))
+    ]
+
+
+def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
+    from types import SimpleNamespace as Results  # profiles read a run's records and config only
+
+    from evaluation.robustness import profiles
+
+    config = {"controllers": ["ref", "other"]}
+    level_0 = Results(
+        records=_records("ref", [True] * 4, [0.01] * 4)
+        + _records("other", [True, True, False, True], [0.02, 0.02, 1.0, 0.02]),
+        config=config,
+    )
+    level_1 = Results(
+        records=_records("ref", [True, True, True, False], [0.01, 0.01, 0.01, 0.5])
+        + _records("other", [False, False, False, True], [0.3, 0.4, 2.0, 0.02]),
+        config=config,
+    )
+    (profile,) = profiles({"comm.drop": [(0, level_0), (0.5, level_1)]})
+    assert profile.reference == "ref" and profile.levels == [0, 0.5]
+    other = {row.level: row for row in profile.curve("other")}
+    assert (other[0].successes, other[0.5].successes) == (3, 1)
+    assert other[0.5].distance == pytest.approx(100 * np.mean([0.3, 0.4, 2.0, 0.02]))
+    paired = other[0.5].paired
+    assert paired["pairs"] == 4 and paired["success_difference"] == pytest.approx(1 / 4 - 3 / 4)
+    assert paired["distance_difference"] == pytest.approx(100 * np.mean([0.29, 0.39, 1.99, -0.48]))
+    # AUC: per unit (trial) the mean success over the levels, then the mean over units
+    assert profile.summary["other"]["auc"] == pytest.approx(np.mean([0.5, 0.5, 0.0, 1.0]))
+    assert profile.summary["ref"]["auc"] == pytest.approx(np.mean([1.0, 1.0, 1.0, 0.5]))
+    # tail: the worst ceil(10% of 8) = 1 episode of the sweep
+    assert profile.summary["other"]["tail"] == pytest.approx(200.0)
+    low, high = profile.summary["other"]["auc_low"], profile.summary["other"]["auc_high"]
+    assert 0.0 <= low <= profile.summary["other"]["auc"] <= high <= 1.0
+    with pytest.raises(ValueError, match=r"--reference 'nobody' is not one of the run's controllers"):
+        profiles({"comm.drop": [(0, level_0)]}, reference="nobody")
