@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -272,7 +273,8 @@ def _digest(kwargs: dict) -> str:
 
 
 def test_same_seed_same_result_across_processes() -> None:
-    code = "import sys; sys.path.insert(0, 'tests'); from test_uncertainty import _digest, HARSH; print(_digest(HARSH))"
+    here = str(Path(__file__).resolve().parent)
+    code = f"import sys; sys.path.insert(0, {here!r}); from test_uncertainty import _digest, HARSH; print(_digest(HARSH))"
     other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert other.stdout.strip() == _digest(HARSH)
 
