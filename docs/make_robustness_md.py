@@ -51,9 +51,12 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
-        if not done:
-            print(f"error: no level of the sweep in {directory!r} has finished", file=sys.stderr)
+        # an axis with one finished level (its 0, which every axis shares) has no profile yet
+        shown = {key: levels for key, levels in done.items() if len(levels) >= 2}
+        if not shown:
+            print(f"error: no axis of the sweep in {directory!r} has two finished levels", file=sys.stderr)
             return 2
+        done = shown
         axes = profiles(done, manifest.get("reference"))
         parts.append(f"## Sweep {index + 1}\n\nCommand: `{manifest.get('command', '')}`")
         if missing:

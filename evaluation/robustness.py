@@ -274,26 +274,19 @@ def save_profile_figures(axes: Sequence[AxisProfile], out_dir: Path) -> list[Pat
     paths = []
     for profile in axes:
         x = np.arange(len(profile.levels))
-        fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
-        for controller in profile.controllers:
+        fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.2))
+        palette = plt.get_cmap("tab20")  # one distinct colour per controller (tab10 repeats after 10)
+        for number, controller in enumerate(profile.controllers):
             curve = profile.curve(controller)
+            colour = palette(number % 20)
+            marker = "osD^v<>p*h"[number % 10]
             rate = [r.success * 100 for r in curve]
-            (line,) = left.plot(x, rate, marker="o", label=controller)
-            left.fill_between(
-                x,
-                [r.success_low * 100 for r in curve],
-                [r.success_high * 100 for r in curve],
-                alpha=0.15,
-                color=line.get_color(),
-            )
-            right.plot(x, [r.distance for r in curve], marker="o", color=line.get_color())
-            right.fill_between(
-                x,
-                [r.distance_low for r in curve],
-                [r.distance_high for r in curve],
-                alpha=0.15,
-                color=line.get_color(),
-            )
+            left.plot(x, rate, marker=marker, color=colour, label=controller)
+            low, high = [r.success_low * 100 for r in curve], [r.success_high * 100 for r in curve]
+            left.fill_between(x, low, high, alpha=0.12, color=colour)
+            right.plot(x, [r.distance for r in curve], marker=marker, color=colour)
+            low, high = [r.distance_low for r in curve], [r.distance_high for r in curve]
+            right.fill_between(x, low, high, alpha=0.12, color=colour)
         for axis, label in (
             (left, "success [%] (95% Wilson)"),
             (right, "final distance [cm] (95% bootstrap)"),
@@ -303,9 +296,9 @@ def save_profile_figures(axes: Sequence[AxisProfile], out_dir: Path) -> list[Pat
             axis.set_ylabel(label)
             axis.grid(alpha=0.3)
         left.set_ylim(-2, 102)
-        left.legend(fontsize=7, loc="best")
+        fig.legend(loc="center right", fontsize=7, frameon=False)
         fig.suptitle(f"Robustness to {profile.key}")
-        fig.tight_layout()
+        fig.tight_layout(rect=(0, 0, 0.84, 1))
         path = out_dir / f"robustness_{profile.key.replace('.', '_')}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
