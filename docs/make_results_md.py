@@ -147,7 +147,9 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
         "in a group of cells, so the comparisons are paired; same calibration offer as above; no controller "
         "is told the slip, the zones or the "
         "schedule. Solve times come from runs made at different times on a shared 2-core machine (some "
-        "beside other evaluations): compare them within one run, not across the rows of a pooled table.",
+        "beside other evaluations): compare them within one run, not across the rows of a pooled table. "
+        "Runtime uncertainty beyond slip (localization noise, a lossy and late radio, actuation delay, "
+        "lidar) has its own page: [Robustness results](robustness_results.md).",
         "",
     ]
     groups: dict[tuple, list[dict]] = {}
