@@ -78,8 +78,8 @@ class Perception:
     ----------
     observed : ndarray, shape (K, 3, N)
         Every robot's estimate of its own pose (rows x, y, theta).
-    known : ndarray, shape (K, N, 3, N)
-        ``known[k, i, :, j]``: robot i's last received pose of robot j (its own estimate on the
+    known : ndarray, shape (K, N, N, 3)
+        ``known[k, i, j]``: robot i's last received pose of robot j (its own estimate on the
         diagonal; zeros before any message).
     age : ndarray of int, shape (K, N, N)
         Periods since that message was sent (0 on the diagonal, -1 while none has arrived).
@@ -107,7 +107,7 @@ class Perception:
         self.workspace = np.asarray(workspace, dtype=np.float64)
         self.observed = np.zeros((k, 3, n))
         self.bias = np.zeros((k, 3, n))
-        self.known = np.zeros((k, n, 3, n))
+        self.known = np.zeros((k, n, n, 3))  # the info's layout: its copy is one memcpy
         self.age = np.full((k, n, n), -1, dtype=np.int64)
         self.ranges = np.zeros((k, n, beams))
         self.clock = np.zeros(k, dtype=np.int64)
@@ -336,7 +336,7 @@ def _perceive(
             for j in range(n):
                 if j == i:
                     for c in range(3):
-                        known[k, i, c, i] = observed[k, c, i]
+                        known[k, i, i, c] = observed[k, c, i]
                     age[k, i, i] = 0
                     continue
                 lost = False
@@ -350,7 +350,7 @@ def _perceive(
                     delivered = dx * dx + dy * dy <= range2
                 if delivered:
                     for c in range(3):
-                        known[k, i, c, j] = sent_poses[k, source, c, j]
+                        known[k, i, j, c] = sent_poses[k, source, c, j]
                     age[k, i, j] = latency
                 elif age[k, i, j] >= 0:
                     age[k, i, j] += 1
@@ -390,7 +390,7 @@ def observed_info(perception: Perception | None, poses: NDArray[np.float64]) -> 
         }
     info = {
         "observed_poses": perception.observed.transpose(0, 2, 1).copy(),
-        "known_poses": perception.known.transpose(0, 1, 3, 2).copy(),
+        "known_poses": perception.known.copy(),
         "message_age": perception.age.copy(),
     }
     if perception.lidar is not None:

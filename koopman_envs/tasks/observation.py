@@ -172,7 +172,8 @@ class FeatureBuilder:
         if perception is None:
             k, _, n = state.shape
             own, ranges, age = state, self._no_ranges, self._same_age
-            known = np.broadcast_to(state[:, None], (k, n, 3, n))  # everyone knows the truth
+            # everyone knows the truth: row i of robot i's view is every robot's true pose
+            known = np.broadcast_to(state.transpose(0, 2, 1)[:, None], (k, n, n, 3))
         else:
             own, known, age, ranges = perception.observed, perception.known, perception.age, perception.ranges
         _build_features(
@@ -217,7 +218,7 @@ def _build_features(
 ) -> None:  # pragma: no cover - compiled
     """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring.
 
-    ``own`` (K, 3, N) holds every robot's pose estimate, ``known[k, i, :, j]`` (K, N, 3, N) what
+    ``own`` (K, 3, N) holds every robot's pose estimate, ``known[k, i, j]`` (K, N, N, 3) what
     robot i knows of robot j and ``age`` (K, N, N) how old that is (-1: nothing yet);
     ``ranges`` (K, N, B) the lidar readings (B = 0: list the obstacles instead).
     """
@@ -252,7 +253,7 @@ def _build_features(
                     if age[k, i, j] < 0:  # no message from j yet
                         row[at], row[at + 1], row[at + 2] = 0.0, 0.0, FAR
                     else:
-                        ox, oy = known[k, i, 0, j], known[k, i, 1, j]
+                        ox, oy = known[k, i, j, 0], known[k, i, j, 1]
                         dx, dy = ox - x, oy - y
                         row[at] = c * dx + s * dy
                         row[at + 1] = c * dy - s * dx
@@ -283,7 +284,7 @@ def _build_features(
                     row[formation_at], row[formation_at + 1] = 0.0, 0.0
                 else:
                     row[formation_at] = (x - known[k, i, 0, 0]) - offsets[k, 0, i]
-                    row[formation_at + 1] = (y - known[k, i, 1, 0]) - offsets[k, 1, i]
+                    row[formation_at + 1] = (y - known[k, i, 0, 1]) - offsets[k, 1, i]
             if comm:
                 at = comm_at
                 for j in range(n_robots):
