@@ -178,6 +178,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
     parser.add_argument(
+        "--init-from",
+        default=None,
+        metavar="DIR",
+        help="start from the weights of a trained policy (a directory with policy.zip, obs_norm.npz "
+        "and metadata.json of the same task, policy kind and network) instead of random ones: "
+        "fine-tuning, e.g. under another --uncertainty",
+    )
+    parser.add_argument(
         "--net",
         type=lambda s: [int(w) for w in s.split(",")],
         default=[128, 128],
@@ -211,6 +219,8 @@ class Trainer:
             except ValueError as exc:
                 parser.error(str(exc))
         self.history: list[dict] = []
+        #: the policy this run was fine-tuned from (``--init-from``), recorded in the metadata
+        self.init_source: dict[str, Any] | None = None
 
     def make_venv(self, stage: int) -> KoopNavSB3VecEnv | MixtureVecEnv:
         """The training env: one vector env, or the curriculum stage's parts side by side."""
@@ -308,7 +318,46 @@ class Trainer:
                 verbose=0,
             )
         model.set_logger(configure(str(self.out), ["csv"]))
+        if self.args.init_from is not None:
+            self.initialize_from(model, Path(self.args.init_from))
         return model
+
+    def _init_requirements(self) -> dict[str, Any]:
+        """What a policy to fine-tune from must share with this run: metadata key -> this run's value."""
+        args = self.args
+        required = {key: self.identity[key] for key in ("algo", "layout", "features", "task")}
+        required["net_arch"] = args.net
+        if self.set_config is not None:
+            required["set_config"] = self.set_config.as_dict()
+            required["set_width"] = args.set_width
+        return required
+
+    def initialize_from(self, model: Any, directory: Path) -> None:
+        """Copy the weights of the policy in ``directory`` into ``model`` (fine-tuning).
+
+        The policy is loaded without running its pickles and must match this run's task, policy
+        kind, features and network; a mismatch is refused by name before any training.
+        """
+        from baselines.policy import load_policy
+
+        loaded, _, metadata = load_policy(directory, self.task, self.args.algo)
+        wrong = {
+            key: (metadata.get(key), wanted)
+            for key, wanted in self._init_requirements().items()
+            if metadata.get(key) != wanted
+        }
+        if wrong:
+            listed = "; ".join(
+                f"{key} is {got!r}, this run needs {want!r}" for key, (got, want) in wrong.items()
+            )
+            raise ValueError(f"--init-from {directory}: the policy does not fit this run ({listed})")
+        model.policy.load_state_dict(loaded.policy.state_dict())
+        self.init_source = {
+            "path": str(directory),
+            "uncertainty": metadata.get("uncertainty", "nominal"),
+            "trained_timesteps": metadata.get("trained_timesteps"),
+            "command": metadata.get("command"),
+        }
 
     @property
     def identity(self) -> dict[str, Any]:
@@ -404,6 +453,7 @@ class Trainer:
             "wall_seconds": round(wall, 1),
             "robot_steps_per_second": round(model.num_timesteps / wall),
             "eval_history": self.history,
+            "initialized_from": self.init_source,
             "versions": {
                 "koopnav": koopman_envs.__version__,
                 "stable_baselines3": stable_baselines3.__version__,
@@ -445,7 +495,11 @@ def main(argv: list[str] | None = None) -> int:
     raw = run.make_venv(0)
     team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
     venv = run.wrap(raw)
-    model = run.build_model(venv)
+    try:
+        model = run.build_model(venv)
+    except ValueError as exc:  # a policy given to --init-from that does not fit
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     start = time.perf_counter()
     venv = run.learn(model, venv)
     wall = time.perf_counter() - start
