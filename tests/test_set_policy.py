@@ -237,6 +237,48 @@ def test_the_training_command_runs_the_curriculum_and_records_it(set_root) -> No
     assert "paper" not in metadata["selection"]["rule"]
 
 
+def _tiny_run(out, *extra: str) -> list[str]:
+    """The arguments of a tiny set-policy training run (the fixture's settings) into ``out``."""
+    return [
+        "--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--timesteps", "600", "--n-steps", "1",
+        "--batch-size", "576", "--eval-freq", "100000", "--validation-episodes", "1", "--set-width", "16",
+        "--out", str(out), *extra,
+    ]  # fmt: skip
+
+
+def test_fine_tuning_starts_from_the_given_policy_and_records_it(set_root, tmp_path, monkeypatch) -> None:
+    import torch
+
+    from baselines import train
+
+    source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
+    started = {}
+
+    def learn_nothing(self, model, venv):  # capture the weights training starts from
+        started.update({k: v.clone() for k, v in model.policy.state_dict().items()})
+        return venv
+
+    monkeypatch.setattr(train.Trainer, "learn", learn_nothing)
+    args = _tiny_run(
+        tmp_path / "tuned", "--uncertainty", "realistic", "--init-from", str(set_root / "target_reaching")
+    )
+    assert train_main(args) == 0
+    expected = source.policy.state_dict()
+    assert started.keys() == expected.keys()
+    assert all(torch.equal(started[k], expected[k]) for k in expected)
+    metadata = json.loads((tmp_path / "tuned" / "metadata.json").read_text())
+    assert metadata["uncertainty"] == "realistic"
+    assert metadata["initialized_from"]["path"] == str(set_root / "target_reaching")
+    assert metadata["initialized_from"]["uncertainty"] == "nominal"
+
+
+def test_fine_tuning_from_a_policy_that_does_not_fit_is_refused_by_name(set_root, tmp_path, capsys) -> None:
+    args = _tiny_run(tmp_path / "bad", "--set-width", "32", "--init-from", str(set_root / "target_reaching"))
+    assert train_main(args) == 2
+    assert "set_width is 16, this run needs 32" in capsys.readouterr().err
+    assert not (tmp_path / "bad" / "policy.zip").exists()
+
+
 @pytest.mark.parametrize("n", [2, 7, 32])
 def test_one_policy_drives_any_team_size(set_root, n: int) -> None:
     ctrl = RLSetPolicyController(set_root)
