@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, TypedDict, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
 
 __all__ = [
+    "ObsNorm",
+    "norm_of",
+    "save_policy",
     "PolicyFiles",
     "RLPolicyController",
     "RLSetPolicyController",
@@ -50,6 +53,44 @@ class PolicyFiles:
         self.model = self.directory / "policy.zip"
         self.norm = self.directory / "obs_norm.npz"
         self.metadata = self.directory / "metadata.json"
+
+
+class ObsNorm(TypedDict):
+    """The observation statistics of ``VecNormalize``, as saved in ``obs_norm.npz``."""
+
+    mean: np.ndarray
+    var: np.ndarray
+    clip: np.float64
+    epsilon: np.float64
+
+
+def norm_of(vec_normalize: Any) -> ObsNorm:
+    """The observation statistics of a ``VecNormalize`` (the identity when it does not normalize)."""
+    if not vec_normalize.norm_obs:
+        # set observations are scaled by hand: saved as the identity (mean 0, var 1, no clipping)
+        size = vec_normalize.observation_space.shape[0]
+        return {
+            "mean": np.zeros(size),
+            "var": np.ones(size),
+            "clip": np.float64(np.inf),
+            "epsilon": np.float64(0.0),
+        }
+    rms = vec_normalize.obs_rms
+    return {
+        "mean": rms.mean.astype(np.float64),
+        "var": rms.var.astype(np.float64),
+        "clip": np.float64(vec_normalize.clip_obs),
+        "epsilon": np.float64(vec_normalize.epsilon),
+    }
+
+
+def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
+    """Write policy.zip, obs_norm.npz and metadata.json to ``out``."""
+    files = PolicyFiles(out)
+    out.mkdir(parents=True, exist_ok=True)
+    model.save(files.model)
+    np.savez(files.norm, **norm_of(vec_normalize))
+    files.metadata.write_text(json.dumps(metadata, indent=1) + "\n", encoding="utf-8")
 
 
 def load_policy(

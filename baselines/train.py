@@ -21,14 +21,14 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 import koopman_envs
 from baselines.curriculum import PARTS, STAGES, stage_parts
-from baselines.policy import PolicyFiles, success_rate
+from baselines.policy import ObsNorm, norm_of, save_policy, success_rate
 from baselines.set_features import SetFeatureConfig
 from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv, MixtureVecEnv
 from koopman_envs.tasks.base import TASKS
@@ -56,43 +56,6 @@ def evaluate_policy_on_maps(
         for map_name in EVAL_MAPS[env_id]
     ]
     return float(np.mean(rates))
-
-
-class _ObsNorm(TypedDict):
-    """The observation statistics of ``VecNormalize``, as saved in ``obs_norm.npz``."""
-
-    mean: np.ndarray
-    var: np.ndarray
-    clip: np.float64
-    epsilon: np.float64
-
-
-def _norm_of(vec_normalize) -> _ObsNorm:
-    if not vec_normalize.norm_obs:
-        # set observations are scaled by hand: saved as the identity (mean 0, var 1, no clipping)
-        size = vec_normalize.observation_space.shape[0]
-        return {
-            "mean": np.zeros(size),
-            "var": np.ones(size),
-            "clip": np.float64(np.inf),
-            "epsilon": np.float64(0.0),
-        }
-    rms = vec_normalize.obs_rms
-    return {
-        "mean": rms.mean.astype(np.float64),
-        "var": rms.var.astype(np.float64),
-        "clip": np.float64(vec_normalize.clip_obs),
-        "epsilon": np.float64(vec_normalize.epsilon),
-    }
-
-
-def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
-    """Write policy.zip, obs_norm.npz and metadata.json to ``out``."""
-    files = PolicyFiles(out)
-    out.mkdir(parents=True, exist_ok=True)
-    model.save(files.model)
-    np.savez(files.norm, **_norm_of(vec_normalize))
-    files.metadata.write_text(json.dumps(metadata, indent=1) + "\n", encoding="utf-8")
 
 
 def _env_options(parser: argparse.ArgumentParser) -> None:
@@ -377,7 +340,7 @@ class Trainer:
             identity["random_map"] = self.random_map
         return identity
 
-    def score(self, model: Any, policy_norm: _ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
+    def score(self, model: Any, policy_norm: ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
         """What a checkpoint is scored on: the paper maps (mlp) or held-out layouts (set)."""
         args = self.args
         if self.set_config is None:
@@ -393,7 +356,7 @@ class Trainer:
 
     def checkpoint(self, model: Any, venv: Any, timesteps: int) -> str:
         """Score the policy now, record it in the history and save it as a checkpoint; one line."""
-        label, rate = self.score(model, _norm_of(venv))
+        label, rate = self.score(model, norm_of(venv))
         self.history.append({"timesteps": timesteps, "scored_on": label, "success_rate": rate})
         model.logger.record("eval/success_rate", rate)
         save_policy(
@@ -503,7 +466,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     venv = run.learn(model, venv)
     wall = time.perf_counter() - start
-    label, final_rate = run.score(model, _norm_of(venv), episodes_per_map=5)
+    label, final_rate = run.score(model, norm_of(venv), episodes_per_map=5)
     save_policy(run.out, model, venv, run.metadata(model, venv, team_size, wall, final_rate))
     print(
         f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "

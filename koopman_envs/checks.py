@@ -1,4 +1,4 @@
-"""Number checks with one wording everywhere: ``name=value must be an integer >= 1``.
+"""Checks with one wording everywhere: ``name=value must be an integer >= 1``, and the commands.
 
 Every public function and keyword of KoopNav checks its numbers before any work starts; these
 helpers make the messages the same across the package, so that a user (and a test) reads the
@@ -11,7 +11,10 @@ import math
 from numbers import Integral, Real
 from typing import Any
 
-__all__ = ["check_int", "check_number"]
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["check_commands", "check_int", "check_number"]
 
 
 def check_int(name: str, value: Any, minimum: int | None = None, *, note: str = "") -> int:
@@ -73,3 +76,32 @@ def check_number(
     if not ok:
         raise ValueError(f"{name}={value!r} must be {allowed}" + (f" ({note})" if note else ""))
     return float(value)
+
+
+def check_commands(commands: Any, num_envs: int, n_robots: int) -> NDArray[np.float64]:
+    """A batch of joint commands as float64 (K, N, 2): (v [m/s], omega [rad/s]) per robot.
+
+    Also accepted: (K, 2N), and for K = 1 (2N,) or (N, 2).
+
+    Raises
+    ------
+    ValueError
+        Another shape, or a NaN or infinite entry (named by its index).
+    """
+    k, n = num_envs, n_robots
+    arr = np.asarray(commands, dtype=np.float64)
+    if arr.shape != (k, n, 2):
+        if arr.size == k * n * 2 and arr.shape in ((k, 2 * n), (2 * n,), (n, 2)):
+            arr = arr.reshape(k, n, 2)
+        else:
+            allowed = f"({2 * n},) or ({n}, 2)" if k == 1 else f"({k}, {2 * n}) or ({k}, {n}, 2)"
+            raise ValueError(
+                f"action has shape {arr.shape}; expected {allowed}: (v [m/s], omega [rad/s]) per robot"
+            )
+    if not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr))[0].tolist()
+        raise ValueError(
+            f"action contains a non-finite value at index {bad} ({arr[tuple(bad)]}); "
+            "allowed: finite (v, omega), saturated to the actuation limits"
+        )
+    return arr

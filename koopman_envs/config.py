@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.keywords import env_keywords, unknown_keywords
+from koopman_envs.movers import MoverConfig
 from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
 from koopman_envs.sim.maps import MapSpec, load_map
 from koopman_envs.sim.random_maps import RandomMapConfig
@@ -88,6 +89,8 @@ class EngineConfig:
     comm: CommConfig = CommConfig()
     #: control periods between a command and its action
     actuation_delay: int = 0
+    #: the moving obstacles
+    movers: MoverConfig = MoverConfig()
 
     @property
     def perceives(self) -> bool:
@@ -199,6 +202,7 @@ class EngineConfig:
             start_noise=kw["start_noise"],
             slip_schedule=schedule,
             formation=formation,
+            movers=kw["movers"],
             **_uncertainty(kw),
         )
 

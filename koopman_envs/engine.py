@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_commands
 from koopman_envs.config import EngineConfig
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
@@ -24,6 +25,7 @@ from koopman_envs.sim.collision import collision_flags
 from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
+from koopman_envs.sim.movers import MoverField
 from koopman_envs.sim.perception import Perception, observed_info
 from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
@@ -91,19 +93,13 @@ class NavigationEngine:
         self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
         #: what the robots believe (noise, radio, lidar, command queue); None when they know the truth
+        settings = (config.pose_noise, config.comm, config.lidar, config.actuation_delay)
         self.perception = (
-            Perception(
-                k,
-                n,
-                config.pose_noise,
-                config.comm,
-                config.lidar,
-                config.actuation_delay,
-                PARAMS.dt,
-                PARAMS.workspace,
-            )
-            if config.perceives
-            else None
+            Perception(k, n, *settings, PARAMS.dt, PARAMS.workspace) if config.perceives else None
+        )
+        #: the moving obstacles; None without any (then no mover pass runs)
+        self.movers = (
+            MoverField(k, config.movers, n, PARAMS.dt, PARAMS.workspace) if config.movers.active else None
         )
         self.builder = FeatureBuilder(
             k,
@@ -114,6 +110,8 @@ class NavigationEngine:
             beams=0 if config.lidar is None else config.lidar.beams,
             comm=not config.comm.perfect,
             lidar_range=0.0 if config.lidar is None else config.lidar.range,
+            # with lidar the beams hit the movers instead of a list
+            movers=config.movers.observed if config.movers.active and config.lidar is None else 0,
         )
         self._all_rows = np.arange(k, dtype=np.int64)
         self.feature_size = self.builder.shape[-1]
@@ -236,6 +234,8 @@ class NavigationEngine:
         self.slip.reset_env(index, rng, lambdas)
         if self.perception is not None:  # draws from a child of rng: the env's own stream is untouched
             self.perception.reset_env(index, rng)  # its first readings: at the next features() or step()
+        if self.movers is not None:  # another child of rng: placed clear of this episode's starts and targets
+            self.movers.reset_env(index, rng, spec.obstacles, starts, targets, float(cfg.robot_radius[0]))
 
     def _flush_perception(self) -> None:
         """The first readings of the environments reset since the last step (one batched call)."""
@@ -243,8 +243,16 @@ class NavigationEngine:
             self.perception.flush(self.state, self._obstacle_discs(), self.config.robot_radius)
 
     def _obstacle_discs(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """What the lidar's beams hit besides the robots: the static obstacles and the movers."""
         geometry = self.geometry
-        return geometry.obstacle_x, geometry.obstacle_y, geometry.obstacle_r
+        if self.movers is None:
+            return geometry.obstacle_x, geometry.obstacle_y, geometry.obstacle_r
+        mx, my, mr = self.movers.discs()
+        return (
+            np.concatenate([geometry.obstacle_x, mx], axis=1),
+            np.concatenate([geometry.obstacle_y, my], axis=1),
+            np.concatenate([geometry.obstacle_r, mr], axis=1),
+        )
 
     def _check_placement(self, spec: MapSpec, poses: NDArray[np.float64], key: str) -> None:
         """Raise ValueError naming ``options[key]`` if the team cannot stand at ``poses`` on ``spec``."""
@@ -267,35 +275,15 @@ class NavigationEngine:
             self.geometry,
             self.offset if self.config.task.formation else None,
             self.perception,
+            self.movers,
         )
         return features
 
     # ------------------------------------------------------------------- step
     def validate_commands(self, commands: Any) -> NDArray[np.float64]:
-        """Check a batch of joint commands and return it as float64 (K, N, 2).
-
-        Raises
-        ------
-        ValueError
-            Wrong shape, or NaN/inf entries.
-        """
-        k, n = self.num_envs, self.config.n_robots
-        arr = np.asarray(commands, dtype=np.float64)
-        if arr.shape != (k, n, 2):
-            if arr.size == k * n * 2 and arr.shape in ((k, 2 * n), (2 * n,), (n, 2)):
-                arr = arr.reshape(k, n, 2)
-            else:
-                allowed = f"({2 * n},) or ({n}, 2)" if k == 1 else f"({k}, {2 * n}) or ({k}, {n}, 2)"
-                raise ValueError(
-                    f"action has shape {arr.shape}; expected {allowed}: (v [m/s], omega [rad/s]) per robot"
-                )
-        if not np.isfinite(arr).all():
-            bad = np.argwhere(~np.isfinite(arr))[0].tolist()
-            raise ValueError(
-                f"action contains a non-finite value at index {bad} ({arr[tuple(bad)]}); "
-                "allowed: finite (v, omega), saturated to the actuation limits"
-            )
-        return arr
+        """Check a batch of joint commands and return it as float64 (K, N, 2)
+        (:func:`~koopman_envs.checks.check_commands`: ValueError naming a wrong shape or value)."""
+        return check_commands(commands, self.num_envs, self.config.n_robots)
 
     def step(self, commands: NDArray[np.float64], active: NDArray[np.bool_] | None = None) -> StepResult:
         """Advance every (active) environment by one control period.
@@ -339,16 +327,20 @@ class NavigationEngine:
             new,
             effort,
         )
-        self.state = new
+        before, self.state = self.state, new
         geometry = self.geometry
         collision = np.empty(self.num_envs, dtype=np.int64)
         collision_flags(
             new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
         )
+        movers = self.movers
+        if movers is not None:  # the movers move through the same period, then meet the team
+            movers.step(before, new, rows)
+            movers.meet(new, cfg.robot_radius, collision)
         if perception is not None:
             perception.update(new, self._obstacle_discs(), cfg.robot_radius, rows)
         features, distances = self.builder.build(
-            new, self.target, geometry, self.offset if cfg.task.formation else None, perception
+            new, self.target, geometry, self.offset if cfg.task.formation else None, perception, movers
         )
         if perception is not None:  # the builder measured what the robots believe; rewards need the truth
             dx = self.target[:, 0] - new[:, 0]
@@ -422,6 +414,9 @@ class NavigationEngine:
             settle_steps=self._settle_steps,
             lidar_beams=self.builder.beams,
             message_ages=self.builder.comm,
+            n_movers=0 if self.movers is None else self.movers.count,
+            mover_radius=self.config.movers.radius,
+            mover_slots=self.builder.mover_slots,
         )
 
     def _formation_error(self) -> NDArray[np.float64]:
@@ -445,6 +440,8 @@ class NavigationEngine:
             touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
             x_min, x_max, y_min, y_max = PARAMS.workspace
             out[hit] = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
+            if self.movers is not None:
+                out[hit] |= self.movers.hit[hit]
         return out
 
     def batch_info(self) -> dict[str, Any]:
@@ -452,11 +449,13 @@ class NavigationEngine:
 
         Keys: ``poses`` (K, N, 3), ``targets`` (K, N, 3), ``distances`` (K, N), ``collision``
         (K,) bool, ``collision_code`` (K,) int (bit flags of
-        :class:`~koopman_envs.sim.collision.CollisionKind`: 1 obstacle, 2 robot, 4 workspace;
+        :class:`~koopman_envs.sim.collision.CollisionKind`: 1 obstacle, 2 robot, 4 workspace,
+        8 mover;
         ``CollisionKind.describe(code)`` names them, e.g. ``"robot+workspace"``; every value of
         an info is a number or an array, which RL libraries stack into tensors),
         ``robot_collision`` (K, N) bool (which robots collided), ``is_success`` (K,),
-        ``settled_steps`` (K,), and ``formation_error`` (K, N) for formation.
+        ``settled_steps`` (K,), ``formation_error`` (K, N) for formation, and with ``movers``
+        ``movers`` (K, C, 4): every mover's true x, y [m], vx, vy [m/s].
         :meth:`info` is row ``index`` of this, so every front reports the same keys.
         """
         info = {
@@ -472,13 +471,19 @@ class NavigationEngine:
         }
         if self.config.task.formation:
             info["formation_error"] = self.formation_errors()
+        if self.movers is not None:
+            info["movers"] = self.movers.states()
         return info
 
     def observed_info(self) -> dict[str, Any]:
         """What the robots believe, one array per key (copies): the part of an info a controller
         may read (:func:`koopman_envs.sim.perception.observed_info` lists the keys)."""
         self._flush_perception()
-        return observed_info(self.perception, self.poses)
+        observed = observed_info(self.perception, self.poses)
+        if self.movers is not None and self.config.lidar is None:
+            # with sensing="state" the movers are tracked exactly, as the map's obstacles are known
+            observed["observed_movers"] = self.movers.states()
+        return observed
 
     def info(self, index: int = 0) -> dict[str, Any]:
         """The true structured state of environment ``index``: row ``index`` of :meth:`batch_info`

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.movers import MOVER_BEHAVIOURS, parse_movers
 from koopman_envs.params import PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS
@@ -230,6 +231,15 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "int | None",
         "periods between a command and its action; None: the preset's (0)",
         check=_optional_delay,
+    ),
+    EnvKeyword(
+        "movers",
+        None,
+        "int | dict | MoverConfig | None",
+        "moving obstacles: dict(count, radius [m], speed [m/s], behaviour, aware, observed, pause [s]), "
+        f"behaviour one of {list(MOVER_BEHAVIOURS)} (docs/movers.md); a number: that many constant "
+        "movers; None: none",
+        check=parse_movers,
     ),
     EnvKeyword(
         "max_cycles",

@@ -17,9 +17,9 @@ import numpy as np
 __all__ = ["OBSERVED_KEYS", "observed_view"]
 
 #: The info keys a controller may read: every robot's own pose estimate, what each robot has
-#: heard of its team-mates and how old it is, the lidar readings, and the targets (a robot's
-#: goal is given, not sensed).
-OBSERVED_KEYS = ("observed_poses", "known_poses", "message_age", "lidar_ranges", "targets")
+#: heard of its team-mates and how old it is, the lidar readings, the targets (a robot's goal is
+#: given, not sensed) and, with movers and ``sensing="state"``, the tracked movers (x, y, vx, vy).
+OBSERVED_KEYS = ("observed_poses", "known_poses", "message_age", "lidar_ranges", "targets", "observed_movers")
 
 
 def observed_view(info: dict[str, Any]) -> dict[str, Any]:

@@ -56,6 +56,12 @@ class Scenario:
     message_ages : bool
         Whether each block ends with the team-mates' message ages and arrival flags (a ``comm``
         setting): the observation layout a learned policy must expect.
+    n_movers : int
+        Moving obstacles per episode (``movers`` keyword; their states are in the info).
+    mover_radius : float
+        Their disc radius [m].
+    mover_slots : int
+        Movers listed at the end of each robot's observation block (0 with lidar).
     """
 
     task: str
@@ -75,6 +81,9 @@ class Scenario:
     settle_steps: int
     lidar_beams: int = 0
     message_ages: bool = False
+    n_movers: int = 0
+    mover_radius: float = 0.0
+    mover_slots: int = 0
 
     @property
     def is_formation(self) -> bool:

@@ -51,6 +51,7 @@ BAD = {
     "lidar": ({"beams": 8}, r"lidar=\{'beams': 8\} is given with sensing='state'; add sensing='lidar'"),
     "comm": ({"drop": 1.5}, r"comm.drop=1.5 must be a finite number >= 0 <= 1"),
     "actuation_delay": (-1, r"actuation_delay=-1 must be an integer >= 0"),
+    "movers": ({"behaviour": "crowds"}, r"movers.behaviour='crowds' is not one of .*did you mean 'crowd'"),
 }
 
 

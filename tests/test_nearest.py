@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from koopman_envs.sim.nearest import disc_clearance, nearest_by_clearance, nearest_first, nearest_order
+from koopman_envs.sim.nearest import (
+    disc_clearance,
+    nearest_by_clearance,
+    nearest_first,
+    nearest_first_by_rank,
+    nearest_order,
+)
 
 
 def test_compiled_and_numpy_orders_agree_with_ties() -> None:
@@ -15,6 +21,9 @@ def test_compiled_and_numpy_orders_agree_with_ties() -> None:
         order = np.empty(m, dtype=np.int64)
         nearest_first(gap, order, m)
         np.testing.assert_array_equal(order, nearest_order(gap, m))
+        by_rank = np.full(m, -1, dtype=np.int64)
+        nearest_first_by_rank(gap, by_rank, m)
+        np.testing.assert_array_equal(by_rank, order)
         for q in range(m - 1):  # nearest first; equal gaps in index order
             a, b = order[q], order[q + 1]
             assert gap[a] < gap[b] or (gap[a] == gap[b] and a < b)

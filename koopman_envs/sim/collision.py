@@ -18,8 +18,10 @@ class CollisionKind:
     OBSTACLE = 1
     ROBOT = 2
     WORKSPACE = 4
+    #: a moving obstacle (``movers`` keyword)
+    MOVER = 8
 
-    NAMES = {OBSTACLE: "obstacle", ROBOT: "robot", WORKSPACE: "workspace"}
+    NAMES = {OBSTACLE: "obstacle", ROBOT: "robot", WORKSPACE: "workspace", MOVER: "mover"}
 
     @classmethod
     def describe(cls, flags: int) -> str:

@@ -18,9 +18,14 @@ entries     meaning                                                      unit
             instead the B beam readings (no obstacle list)
 ..          formation error e_i = (p_i - p_0) - offset_i (world frame),  m
             formation task only (2 entries)
-last        with a ``comm`` setting: each other robot j (index order):   periods, -
+..          with a ``comm`` setting: each other robot j (index order):   periods, -
             age of its last message (clipped to ``AGE_MAX``) and 1 if
             one has arrived, else 0 (2 entries per other robot)
+last        with ``movers`` and ``sensing="state"``: the                 m, m/s
+            ``movers.observed`` nearest movers, nearest first:
+            body-frame dx, dy to the centre, body-frame velocity vx,
+            vy, surface clearance; missing ones read (0, 0, 0, 0,
+            ``FAR``) (:func:`koopman_envs.sim.movers.mover_features`)
 ==========  ==========================================================  ============
 
 Everything a robot's block says is what that robot believes: its own pose is its localization
@@ -40,9 +45,11 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.sim.geometry import TeamGeometry, clearance
+from koopman_envs.sim.movers import MOVER_FEATURES, mover_features
 from koopman_envs.sim.nearest import nearest_first
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    from koopman_envs.sim.movers import MoverField
     from koopman_envs.sim.perception import Perception
 
 __all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
@@ -52,17 +59,22 @@ FAR = 30.0
 _POS = 20.0  # position bound [m]: twice the workspace half-width
 _REL = 40.0  # relative offsets [m]
 _DIST = 60.0  # distances and clearances [m]
+_SPEED = 5.0  # mover velocities [m/s]: ten times a pedestrian's
 #: Largest message age an observation reports [control periods] (ours: 10 s; older reads this).
 AGE_MAX = 100
 
 
 def feature_size(
-    n_robots: int, n_obstacle_obs: int, formation: bool, beams: int = 0, comm: bool = False
+    n_robots: int, n_obstacle_obs: int, formation: bool, beams: int = 0, comm: bool = False, movers: int = 0
 ) -> int:
     """Length of one robot's observation block (``beams`` > 0: lidar readings replace the obstacle
-    list; ``comm``: the message ages and flags are appended)."""
+    list; ``comm``: the message ages and flags are appended; ``movers``: that many listed movers
+    after them)."""
     obstacles = beams if beams else 3 * n_obstacle_obs
-    return 9 + 3 * (n_robots - 1) + obstacles + (2 if formation else 0) + (2 * (n_robots - 1) if comm else 0)
+    comm_entries = 2 * (n_robots - 1) if comm else 0
+    return (
+        9 + 3 * (n_robots - 1) + obstacles + (2 if formation else 0) + comm_entries + MOVER_FEATURES * movers
+    )
 
 
 def feature_bounds(
@@ -72,6 +84,7 @@ def feature_bounds(
     beams: int = 0,
     comm: bool = False,
     lidar_range: float = 0.0,
+    movers: int = 0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Lower and upper bounds of one robot's block, each shape (F,) (arguments as :func:`feature_size`)."""
     low = [-_POS, -_POS, -1, -1, -_REL, -_REL, 0, -1, -1] + [-_REL, -_REL, -_DIST] * (n_robots - 1)
@@ -88,6 +101,8 @@ def feature_bounds(
     if comm:
         low += [0, 0] * (n_robots - 1)
         high += [AGE_MAX, 1] * (n_robots - 1)
+    low += [-_REL, -_REL, -_SPEED, -_SPEED, -_DIST] * movers
+    high += [_REL, _REL, _SPEED, _SPEED, _DIST] * movers
     return np.array(low, dtype=np.float64), np.array(high, dtype=np.float64)
 
 
@@ -112,6 +127,8 @@ class FeatureBuilder:
         Append each team-mate's message age and arrival flag.
     lidar_range : float
         Largest lidar reading [m] (the beams' upper bound).
+    movers : int
+        Nearest movers listed at the end of each block (0: none).
     """
 
     def __init__(
@@ -124,10 +141,13 @@ class FeatureBuilder:
         beams: int = 0,
         comm: bool = False,
         lidar_range: float = 0.0,
+        movers: int = 0,
     ) -> None:
         n, k = n_robots, num_envs
-        self.shape = (k, n, feature_size(n, n_obstacle_obs, formation, beams, comm))
-        self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range)
+        self.shape = (k, n, feature_size(n, n_obstacle_obs, formation, beams, comm, movers))
+        self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range, movers)
+        self.mover_slots = movers
+        self.movers_at = self.shape[-1] - MOVER_FEATURES * movers
         self.n_robots, self.n_obstacles = n, n_obstacles
         self.n_obstacle_obs = 0 if beams else n_obstacle_obs
         self.formation, self.beams, self.comm = formation, beams, comm
@@ -144,6 +164,7 @@ class FeatureBuilder:
         geometry: TeamGeometry,
         formation_offsets: NDArray[np.float64] | None,
         perception: Perception | None = None,
+        movers: MoverField | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Observation blocks and target distances.
 
@@ -157,6 +178,8 @@ class FeatureBuilder:
             Rows dx, dy [m]; used when the builder was made with ``formation=True``.
         perception : Perception, optional
             What the robots believe (own estimates, messages, lidar); None: the truth.
+        movers : MoverField, optional
+            The moving obstacles listed at the end of each block (when the builder has slots).
 
         Returns
         -------
@@ -194,6 +217,19 @@ class FeatureBuilder:
             out,
             distances,
         )
+        if self.mover_slots and movers is not None:
+            mover_features(
+                own,
+                geometry.robot_radius,
+                movers.position,
+                movers.velocity,
+                movers.config.radius,
+                self.mover_slots,
+                self.movers_at,
+                self.low,
+                self.high,
+                out,
+            )
         return out, distances
 
 

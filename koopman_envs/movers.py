@@ -1,0 +1,124 @@
+"""Moving obstacles and people: the setting of the env keyword ``movers``.
+
+Movers are discs that move on their own and do not cooperate with the team. Three behaviours:
+
+``"constant"``
+    Straight lines at ``speed``, reflecting off the workspace boundary and the static obstacles
+    (the classic "dynamic obstacle" of MPC benchmarks).
+``"waypoints"``
+    Each mover walks to a random waypoint (drawn so that the straight way there is clear of the
+    static obstacles) at a random speed between half and all of ``speed``, pauses there for up to
+    ``pause`` seconds, and draws the next one.
+``"crowd"``
+    Pedestrians with the waypoints' goals whose velocities come from ORCA (optimal reciprocal
+    collision avoidance, the RVO2 library through ``pyrvo``, the crowd model of IR-SIM and
+    CrowdNav): they avoid each other and the static obstacles and, with ``aware=True``, the
+    robots. ``pip install -e '.[crowd]'``; docs/movers.md says why this library.
+
+:mod:`koopman_envs.sim.movers` simulates them. A setting with ``count=0`` draws nothing from any
+generator, so it replays an env without the keyword bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from koopman_envs.checks import check_int, check_number
+from koopman_envs.suggest import did_you_mean
+
+__all__ = ["MOVER_BEHAVIOURS", "MoverConfig", "parse_movers"]
+
+#: the mover behaviours (module docstring)
+MOVER_BEHAVIOURS = ("constant", "waypoints", "crowd")
+
+
+@dataclass(frozen=True)
+class MoverConfig:
+    """The moving obstacles of every episode (``movers`` keyword).
+
+    Attributes
+    ----------
+    count : int
+        Movers per environment (>= 0; 0: none).
+    radius : float
+        Disc radius of every mover [m] (ours: 0.2, a person's shoulder half-width with margin).
+    speed : float
+        Speed [m/s]: every constant mover's, the largest of a waypoint leg or a pedestrian
+        (ours: 0.3, below the robots' 0.5 m/s limit, so that a robot can get out of the way).
+    behaviour : str
+        One of :data:`MOVER_BEHAVIOURS`.
+    aware : bool
+        ``"crowd"`` only: the pedestrians see the robots and avoid them too (True) or walk as if
+        the robots were not there (False: the robots must do all the avoiding).
+    observed : int
+        Nearest movers listed in each robot's observation block with ``sensing="state"``
+        (relative position and velocity, clearance; absent ones masked). With lidar the beams
+        hit the movers instead.
+    pause : float
+        ``"waypoints"`` and ``"crowd"``: longest pause at a waypoint [s] (drawn uniformly).
+    """
+
+    count: int = 0
+    radius: float = 0.2
+    speed: float = 0.3
+    behaviour: str = "constant"
+    aware: bool = False
+    observed: int = 4
+    pause: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.behaviour, str) or self.behaviour not in MOVER_BEHAVIOURS:
+            raise ValueError(
+                f"movers.behaviour={self.behaviour!r} is not one of {list(MOVER_BEHAVIOURS)}"
+                f"{did_you_mean(self.behaviour, MOVER_BEHAVIOURS)}"
+            )
+        if not isinstance(self.aware, bool):
+            raise ValueError(f"movers.aware={self.aware!r} must be True or False")
+        checked = {
+            "count": check_int("movers.count", self.count, 0),
+            "radius": check_number("movers.radius", self.radius, above=0, note="metres"),
+            "speed": check_number("movers.speed", self.speed, at_least=0, note="m/s"),
+            "observed": check_int("movers.observed", self.observed, 0),
+            "pause": check_number("movers.pause", self.pause, at_least=0, note="seconds"),
+        }
+        for name, value in checked.items():  # stored in normal form (0 and 0.0 are one setting)
+            object.__setattr__(self, name, value)
+        if self.aware and self.behaviour != "crowd":
+            raise ValueError(
+                f"movers.aware=True applies to behaviour='crowd' (a {self.behaviour!r} mover never reacts)"
+            )
+
+    @property
+    def active(self) -> bool:
+        """True when there are movers."""
+        return self.count > 0
+
+
+def parse_movers(name: str, value: Any) -> MoverConfig:
+    """The ``movers`` keyword as a :class:`MoverConfig`: an instance, a dict of its fields, a
+    number (that many ``"constant"`` movers) or None (no movers).
+
+    Raises
+    ------
+    ValueError
+        An unknown field (with did-you-mean), a bad value, or another type.
+    """
+    if value is None:
+        return MoverConfig()
+    if isinstance(value, MoverConfig):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool):
+        return MoverConfig(count=check_int(name, value, 0))
+    fields = [f.name for f in dataclasses.fields(MoverConfig)]
+    if isinstance(value, dict):
+        unknown = [key for key in value if key not in fields]
+        if unknown:
+            raise ValueError(
+                f"{name} has unknown field {unknown[0]!r}{did_you_mean(unknown[0], fields)}; allowed: {fields}"
+            )
+        return MoverConfig(**value)
+    raise ValueError(
+        f"{name}={value!r} must be a dict of {fields}, a MoverConfig, a count of constant movers, or None"
+    )

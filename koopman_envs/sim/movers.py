@@ -1,0 +1,472 @@
+"""Moving obstacles of K environments: placement at reset, motion per period, collisions, features.
+
+The behaviours and their parameters are defined in :mod:`koopman_envs.movers`. What this module
+adds:
+
+* **The arena.** Movers keep to the map's region: the bounding box of its starts, targets and
+  obstacles grown by :data:`ARENA_MARGIN` and clipped to the workspace (a mover anywhere in the
+  20 m workspace would seldom meet a team working in a 6 m patch of it).
+* **Placement.** At reset every mover is drawn uniformly in the arena, clear of the static
+  obstacles, of the other movers and, by :data:`START_CLEARANCE` (more at high speed), of every
+  start and target, so no episode starts with a mover on a robot or its goal.
+* **Randomness.** Each environment draws from a child of its generator
+  (:func:`~koopman_envs.sim.perception.child_generator`): the env's own stream (map, starts,
+  slip) is untouched, so an episode with movers pairs with the same episode without. The
+  waypoint draws come from a per-environment pool of uniforms refilled from that child, so a
+  sub-environment of a batch draws exactly as a lone environment does.
+* **Motion.** ``"constant"`` and ``"waypoints"`` run in compiled loops (numba, as the robots'
+  physics); ``"crowd"`` steps one ORCA simulator (RVO2 through ``pyrvo``) per environment with
+  the preferred velocities of the waypoint kernel, the static obstacles as polygons and, when
+  ``aware``, the robots as agents placed where they are each period.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from koopman_envs.movers import MoverConfig
+from koopman_envs.sim.collision import CollisionKind
+from koopman_envs.sim.crowd import orca_simulator, orca_step
+from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
+from koopman_envs.sim.nearest import nearest_first_by_rank
+from koopman_envs.sim.perception import child_generator
+
+__all__ = [
+    "ARENA_MARGIN",
+    "MOVER_FEATURES",
+    "START_CLEARANCE",
+    "MoverField",
+    "mover_arena",
+    "mover_collisions",
+    "mover_features",
+]
+
+#: how far the movers' arena reaches beyond the map's starts, targets and obstacles [m] (ours)
+ARENA_MARGIN = 1.5
+#: free space between a mover and any start or target at reset [m] (ours; at least one second
+#: of the mover's travel, so none reaches a robot before the robot can move)
+START_CLEARANCE = 0.5
+#: entries per listed mover in a robot's block: body-frame dx, dy, vx, vy, surface clearance
+MOVER_FEATURES = 5
+#: placement attempts per mover at reset
+PLACEMENT_ATTEMPTS = 2000
+#: clearance reported for an absent mover [m] (the observation's FAR)
+_FAR = 30.0
+#: gap kept between a mover and a static obstacle or another mover at placement [m]
+_PLACEMENT_GAP = 0.1
+
+
+def mover_arena(
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    workspace: tuple[float, float, float, float],
+) -> NDArray[np.float64]:
+    """(x_min, x_max, y_min, y_max) [m] of the region the movers keep to (module docstring)."""
+    arena = np.empty(4)
+    _arena_into(
+        np.asarray(starts, dtype=np.float64),
+        np.asarray(targets, dtype=np.float64),
+        np.asarray(obstacles, dtype=np.float64).reshape(-1, 3),
+        np.asarray(workspace, dtype=np.float64),
+        arena,
+    )
+    return arena
+
+
+@njit(cache=True)
+def _arena_into(
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    workspace: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled (called at every reset: numpy's small calls cost more)
+    x_min, y_min, x_max, y_max = np.inf, np.inf, -np.inf, -np.inf
+    for points in (starts, targets):
+        for j in range(points.shape[0]):
+            x_min, x_max = min(x_min, points[j, 0]), max(x_max, points[j, 0])
+            y_min, y_max = min(y_min, points[j, 1]), max(y_max, points[j, 1])
+    for j in range(obstacles.shape[0]):
+        r = obstacles[j, 2]
+        x_min, x_max = min(x_min, obstacles[j, 0] - r), max(x_max, obstacles[j, 0] + r)
+        y_min, y_max = min(y_min, obstacles[j, 1] - r), max(y_max, obstacles[j, 1] + r)
+    out[0] = max(x_min - ARENA_MARGIN, workspace[0])
+    out[1] = min(x_max + ARENA_MARGIN, workspace[1])
+    out[2] = max(y_min - ARENA_MARGIN, workspace[2])
+    out[3] = min(y_max + ARENA_MARGIN, workspace[3])
+
+
+class MoverField:
+    """The movers of K environments: state, random pools and (for ``"crowd"``) ORCA simulators.
+
+    Parameters
+    ----------
+    num_envs : int
+        Batch size K.
+    config : MoverConfig
+        The setting (``count`` > 0).
+    n_robots : int
+        Robots per environment (the aware crowd's extra agents).
+    dt : float
+        Control period [s].
+    workspace : tuple of float
+        (x_min, x_max, y_min, y_max) [m].
+
+    Attributes
+    ----------
+    position, velocity : ndarray, shape (K, C, 2)
+        True mover positions [m] and velocities [m/s] (world frame).
+    goal : ndarray, shape (K, C, 2)
+        Current waypoint of each mover (``"waypoints"``, ``"crowd"``).
+    arena : ndarray, shape (K, 4)
+        Each environment's arena (:func:`mover_arena`).
+    """
+
+    def __init__(
+        self,
+        num_envs: int,
+        config: MoverConfig,
+        n_robots: int,
+        dt: float,
+        workspace: tuple[float, float, float, float],
+    ) -> None:
+        k, c = num_envs, config.count
+        self.config, self.num_envs, self.count, self.n_robots = config, k, c, n_robots
+        self.dt = float(dt)
+        x_min, x_max, y_min, y_max = (float(v) for v in workspace)
+        self.workspace = (x_min, x_max, y_min, y_max)
+        self._workspace = np.array(self.workspace)
+        # one array (x, y, vx, vy) per mover, so that the info's copy is one memcpy; the kernels
+        # work on the two views
+        self._states = np.zeros((k, c, 4))
+        self.position = self._states[..., :2]
+        self.velocity = self._states[..., 2:]
+        self.goal = np.zeros((k, c, 2))
+        self.leg_speed = np.zeros((k, c))
+        self.waiting = np.zeros((k, c), dtype=np.int64)  # periods left to pause at a waypoint
+        self.arena = np.zeros((k, 4))
+        #: which robots touch a mover after the last step (K, N)
+        self.hit = np.zeros((k, n_robots), dtype=bool)
+        self.radius = np.full(c, config.radius)
+        self.pause_periods = int(round(config.pause / self.dt))
+        # the static obstacles as the kernels read them (set per reset: random maps change)
+        self.obstacles: list[NDArray[np.float64]] = [np.zeros((0, 3))] * k
+        self._obstacle_x = np.zeros((k, 0))
+        self._obstacle_y = np.zeros((k, 0))
+        self._obstacle_r = np.zeros((k, 0))
+        self.waypoints = config.behaviour in ("waypoints", "crowd")
+        self.pool_size = max(4096, 8 * c * DRAW_SIZE)
+        self.pool = np.zeros((k, self.pool_size))
+        self.cursor = np.full(k, self.pool_size, dtype=np.int64)
+        self.rngs: list[np.random.Generator | None] = [None] * k
+        self._all_rows = np.arange(k, dtype=np.int64)
+        self._parents: list[np.random.Generator | None] = [None] * k
+        self._orca: list[object | None] = [None] * k
+
+    # ------------------------------------------------------------------ reset
+    def reset_env(
+        self,
+        index: int,
+        rng: np.random.Generator,
+        obstacles: NDArray[np.float64],
+        starts: NDArray[np.float64],
+        targets: NDArray[np.float64],
+        robot_radius: float,
+    ) -> None:
+        """Place environment ``index``'s movers for a new episode (module docstring).
+
+        Raises
+        ------
+        ValueError
+            The movers do not fit in the arena clear of the map (too many or too large).
+        """
+        if self._parents[index] is not rng:
+            self._parents[index] = rng
+            self.rngs[index] = child_generator(rng)
+            self.cursor[index] = self.pool_size
+        child = self.rngs[index]
+        assert child is not None
+        cfg = self.config
+        obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        self._set_obstacles(index, obstacles)
+        arena = self.arena[index]
+        _arena_into(starts, targets, obstacles, self._workspace, arena)
+        placed = place_movers(
+            child, cfg.count, cfg.radius, arena, obstacles, (starts, targets),
+            robot_radius + max(START_CLEARANCE, cfg.speed * 1.0),
+        )  # fmt: skip
+        self.position[index] = placed
+        self.waiting[index] = 0
+        self.hit[index] = False
+        if cfg.behaviour == "constant":
+            heading = child.uniform(-math.pi, math.pi, cfg.count)
+            self.velocity[index, :, 0] = cfg.speed * np.cos(heading)
+            self.velocity[index, :, 1] = cfg.speed * np.sin(heading)
+        else:
+            self.velocity[index] = 0.0
+            self.pool[index] = child.random(self.pool_size)
+            self.cursor[index] = 0
+            first_goals(
+                self.position[index], self.goal[index], self.leg_speed[index], self.pool[index],
+                self.cursor[index:index + 1], arena, self._obstacle_x[index], self._obstacle_y[index],
+                self._obstacle_r[index], cfg.radius, cfg.speed,
+            )  # fmt: skip
+        if cfg.behaviour == "crowd":
+            self._orca[index] = orca_simulator(obstacles, placed, cfg, self.n_robots, robot_radius, self.dt)
+
+    def _set_obstacles(self, index: int, obstacles: NDArray[np.float64]) -> None:
+        m = obstacles.shape[0]
+        if m > self._obstacle_x.shape[1]:  # a map with more obstacles: widen (padding reads radius 0)
+            for name in ("_obstacle_x", "_obstacle_y", "_obstacle_r"):
+                wider = np.zeros((self.num_envs, m))
+                old = getattr(self, name)
+                wider[:, : old.shape[1]] = old
+                if name != "_obstacle_r":
+                    wider[:, old.shape[1] :] = 1e6  # far away: never met
+                setattr(self, name, wider)
+        self.obstacles[index] = obstacles
+        self._obstacle_x[index], self._obstacle_y[index], self._obstacle_r[index] = 1e6, 1e6, 0.0
+        self._obstacle_x[index, :m] = obstacles[:, 0]
+        self._obstacle_y[index, :m] = obstacles[:, 1]
+        self._obstacle_r[index, :m] = obstacles[:, 2]
+
+    # ------------------------------------------------------------------- step
+    def step(
+        self, robots_before: NDArray[np.float64], robots_after: NDArray[np.float64], rows: NDArray[np.int64]
+    ) -> None:
+        """Advance the movers of the environments in ``rows`` by one period.
+
+        ``robots_before`` and ``robots_after`` (K, 3, N) are the robots' true poses at the
+        start and the end of the period (the aware crowd sees where they are and how they move).
+        """
+        cfg = self.config
+        if cfg.behaviour == "constant":
+            move_constant(
+                self.position, self.velocity, rows, cfg.radius, self.arena, self._obstacle_x,
+                self._obstacle_y, self._obstacle_r, self.dt,
+            )  # fmt: skip
+            return
+        for k in rows:  # the few environments whose pools run low: a fresh block from their child
+            if self.cursor[k] + self.count * DRAW_SIZE > self.pool_size:
+                rng = self.rngs[k]
+                assert rng is not None
+                self.pool[k] = rng.random(self.pool_size)
+                self.cursor[k] = 0
+        crowd = cfg.behaviour == "crowd"
+        follow_waypoints(
+            self.position, self.velocity, self.goal, self.leg_speed, self.waiting, self.pool, self.cursor,
+            rows, cfg.radius, cfg.speed, self.pause_periods, self.arena, self._obstacle_x, self._obstacle_y,
+            self._obstacle_r, self.dt, not crowd,
+        )  # fmt: skip
+        if crowd:
+            for k in rows:
+                orca_step(
+                    self._orca[k], self.position[k], self.velocity[k], robots_before[k], robots_after[k],
+                    cfg.aware, self.dt,
+                )  # fmt: skip
+
+    def meet(
+        self, state: NDArray[np.float64], robot_radius: NDArray[np.float64], collision: NDArray[np.int64]
+    ) -> None:
+        """Mark in :attr:`hit` the robots of ``state`` (K, 3, N) that overlap a mover and OR
+        ``CollisionKind.MOVER`` into their environments' ``collision`` (K,): every environment,
+        as the other collision flags, so that a finished one keeps reporting its collision."""
+        self.hit[:] = False
+        mover_collisions(
+            state,
+            robot_radius,
+            self.position,
+            self.radius,
+            self._all_rows,
+            CollisionKind.MOVER,
+            collision,
+            self.hit,
+        )
+
+    # ------------------------------------------------------------------- read
+    def states(self) -> NDArray[np.float64]:
+        """Every mover's (x, y, vx, vy), shape (K, C, 4) (a copy)."""
+        return self._states.copy()
+
+    def discs(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The movers as discs (x, y, r), each (K, C): what the lidar's beams hit."""
+        k = self.num_envs
+        return (
+            np.ascontiguousarray(self.position[..., 0]),
+            np.ascontiguousarray(self.position[..., 1]),
+            np.broadcast_to(self.radius, (k, self.count)).copy(),
+        )
+
+    def __getstate__(self) -> dict[str, object]:
+        # ORCA simulators are C++ objects without pickling: a copied field rebuilds none, and a
+        # crowd step before the next reset says so
+        state = self.__dict__.copy()
+        state["_orca"] = [None] * self.num_envs
+        return state
+
+
+def place_movers(
+    rng: np.random.Generator,
+    count: int,
+    radius: float,
+    arena: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    keep_clear: tuple[NDArray[np.float64], NDArray[np.float64]],
+    clearance: float,
+) -> NDArray[np.float64]:
+    """``count`` mover centres (C, 2) drawn uniformly in ``arena``, clear of the obstacles, of each
+    other and by ``clearance`` + ``radius`` of every point of the two ``keep_clear`` arrays
+    (rows x, y, ...: the starts and the targets).
+
+    Candidates come in blocks of uniforms from ``rng`` and a compiled loop takes the first free
+    ones in order (a Python loop of scalar draws cost more than the rest of a reset).
+
+    Raises
+    ------
+    ValueError
+        A mover finds no free place in :data:`PLACEMENT_ATTEMPTS` draws.
+    """
+    placed = np.zeros((count, 2))
+    obstacles = np.ascontiguousarray(obstacles, dtype=np.float64).reshape(-1, 3)
+    starts, targets = (np.asarray(points, dtype=np.float64) for points in keep_clear)
+    block = 4 * count + 16
+    done = np.zeros(2, dtype=np.int64)  # movers placed, failed attempts at the current one
+    while done[0] < count:
+        _place_from(
+            rng.random((block, 2)), arena, radius, obstacles, starts, targets, clearance, placed, done
+        )
+        if done[1] >= PLACEMENT_ATTEMPTS:
+            raise ValueError(
+                f"movers: no free place for mover {done[0] + 1} of {count} (radius {radius} m) in the arena "
+                f"{np.round(arena, 2).tolist()} clear of the obstacles, the other movers and the starts "
+                "and targets; use fewer or smaller movers"
+            )
+    return placed
+
+
+@njit(cache=True)
+def _place_from(
+    candidates: NDArray[np.float64],
+    arena: NDArray[np.float64],
+    radius: float,
+    obstacles: NDArray[np.float64],
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    clearance: float,
+    placed: NDArray[np.float64],
+    done: NDArray[np.int64],
+) -> None:  # pragma: no cover - compiled
+    """Try ``candidates`` (B, 2) of uniforms in order for the movers from ``done[0]`` on (see
+    :func:`place_movers`); stops at :data:`PLACEMENT_ATTEMPTS` failures of one mover."""
+    lo_x, span_x = arena[0] + radius, arena[1] - arena[0] - 2.0 * radius
+    lo_y, span_y = arena[2] + radius, arena[3] - arena[2] - 2.0 * radius
+    for b in range(candidates.shape[0]):
+        c = done[0]
+        if c >= placed.shape[0] or done[1] >= PLACEMENT_ATTEMPTS:
+            return
+        x, y = lo_x + span_x * candidates[b, 0], lo_y + span_y * candidates[b, 1]
+        free = True
+        for m in range(obstacles.shape[0]):
+            reach = obstacles[m, 2] + radius + _PLACEMENT_GAP
+            if (obstacles[m, 0] - x) ** 2 + (obstacles[m, 1] - y) ** 2 < reach * reach:
+                free = False
+                break
+        reach = clearance + radius
+        for points in (starts, targets):
+            for m in range(points.shape[0]):
+                if free and (points[m, 0] - x) ** 2 + (points[m, 1] - y) ** 2 < reach * reach:
+                    free = False
+        if free:
+            reach = 2.0 * radius + _PLACEMENT_GAP
+            for m in range(c):
+                if (placed[m, 0] - x) ** 2 + (placed[m, 1] - y) ** 2 < reach * reach:
+                    free = False
+                    break
+        if free:
+            placed[c, 0], placed[c, 1] = x, y
+            done[0], done[1] = c + 1, 0
+        else:
+            done[1] += 1
+
+
+# ---------------------------------------------------------------------- kernels
+@njit(cache=True)
+def mover_collisions(
+    state: NDArray[np.float64],
+    robot_radius: NDArray[np.float64],
+    position: NDArray[np.float64],
+    mover_radius: NDArray[np.float64],
+    rows: NDArray[np.int64],
+    flag: int,
+    collision: NDArray[np.int64],
+    robot_hit: NDArray[np.bool_],
+) -> None:  # pragma: no cover - compiled
+    """OR ``flag`` into ``collision[k]`` for every environment of ``rows`` where a robot overlaps a
+    mover, and mark that robot in ``robot_hit`` (K, N)."""
+    for k in rows:
+        for i in range(state.shape[2]):
+            x, y = state[k, 0, i], state[k, 1, i]
+            for c in range(position.shape[1]):
+                dx, dy = position[k, c, 0] - x, position[k, c, 1] - y
+                reach = robot_radius[i] + mover_radius[c]
+                if dx * dx + dy * dy < reach * reach:
+                    collision[k] |= flag
+                    robot_hit[k, i] = True
+
+
+@njit(cache=True)
+def mover_features(
+    own: NDArray[np.float64],
+    robot_radius: NDArray[np.float64],
+    position: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    mover_radius: float,
+    slots: int,
+    at: int,
+    low: NDArray[np.float64],
+    high: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """Write the ``slots`` nearest movers into ``out[k, i, at:]`` (K, N, F), nearest first by
+    surface clearance: body-frame dx, dy to the centre, body-frame velocity vx, vy, clearance;
+    absent ones read (0, 0, 0, 0, FAR). ``own`` (K, 3, N) holds the robots' pose estimates.
+
+    Every mover has the one radius, so the order of the clearances is that of the squared
+    centre distances (ties in index order, as :func:`~koopman_envs.sim.nearest.nearest_first` orders): one root per listed
+    mover."""
+    n_envs, _, n_robots = own.shape
+    count = position.shape[1]
+    listed = min(count, slots)
+    distance2 = np.empty(count)
+    order = np.empty(count, dtype=np.int64)
+    for k in range(n_envs):
+        for i in range(n_robots):
+            x, y, theta = own[k, 0, i], own[k, 1, i], own[k, 2, i]
+            c, s = math.cos(theta), math.sin(theta)
+            for m in range(count):
+                dx, dy = position[k, m, 0] - x, position[k, m, 1] - y
+                distance2[m] = dx * dx + dy * dy
+            nearest_first_by_rank(distance2, order, count)
+            col = at
+            reach = robot_radius[i] + mover_radius
+            for q in range(listed):
+                m = order[q]
+                dx, dy = position[k, m, 0] - x, position[k, m, 1] - y
+                vx, vy = velocity[k, m, 0], velocity[k, m, 1]
+                gap = math.sqrt(distance2[m]) - reach
+                out[k, i, col] = min(max(c * dx + s * dy, low[col]), high[col])
+                out[k, i, col + 1] = min(max(c * dy - s * dx, low[col + 1]), high[col + 1])
+                out[k, i, col + 2] = min(max(c * vx + s * vy, low[col + 2]), high[col + 2])
+                out[k, i, col + 3] = min(max(c * vy - s * vx, low[col + 3]), high[col + 3])
+                out[k, i, col + 4] = min(max(gap, low[col + 4]), high[col + 4])
+                col += MOVER_FEATURES
+            for _ in range(listed, slots):
+                for f in range(MOVER_FEATURES - 1):
+                    out[k, i, col + f] = 0.0
+                out[k, i, col + MOVER_FEATURES - 1] = _FAR
+                col += MOVER_FEATURES
