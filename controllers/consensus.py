@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.movers import check_mover_prediction, observed_movers
 from koopman_envs.scenario import Scenario
 
 __all__ = ["ConsensusController"]
@@ -42,6 +43,13 @@ class ConsensusController(BaseController):
         Clearance below which the repulsion acts [m].
     repulsion_gain : float
         Strength of the repulsion [m^2/s].
+    mover_prediction : str
+        (ours) Where the repulsion sees a moving obstacle (``movers`` keyword), one of
+        :data:`controllers.movers.MOVER_PREDICTIONS`: ``"constant_velocity"`` (default) the
+        point of its path over the next ``mover_lookahead`` seconds nearest to the robot (so the
+        robot gives way before the mover arrives); ``"static"`` where it is seen now.
+    mover_lookahead : float
+        (ours) Seconds of a mover's path the constant-velocity repulsion looks ahead [s].
     """
 
     name = "consensus"
@@ -54,6 +62,8 @@ class ConsensusController(BaseController):
         hand: float = 0.05,
         influence: float = 0.25,
         repulsion_gain: float = 0.05,
+        mover_prediction: str = "constant_velocity",
+        mover_lookahead: float = 1.0,
     ) -> None:
         super().__init__()
         for key, value in dict(
@@ -62,12 +72,16 @@ class ConsensusController(BaseController):
             hand=hand,
             influence=influence,
             repulsion_gain=repulsion_gain,
+            mover_lookahead=mover_lookahead,
         ).items():
             if not np.isfinite(value) or value <= 0:
                 raise ValueError(f"{key}={value!r} must be a finite number > 0")
         self.collision_avoidance = bool(collision_avoidance)
         self.goal_gain, self.consensus_gain = goal_gain, consensus_gain
         self.hand, self.influence, self.repulsion_gain = hand, influence, repulsion_gain
+        self.mover_prediction = check_mover_prediction(mover_prediction)
+        self.mover_lookahead = mover_lookahead
+        self._movers = np.zeros((0, 4))
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         heading = np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])])
@@ -89,16 +103,20 @@ class ConsensusController(BaseController):
         sc = self.scenario
         assert sc is not None  # only called by _act, after act() checked it
         push = np.zeros_like(positions)
-        centres = np.vstack([sc.obstacles[:, :2], positions])
-        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius])
+        movers = self._movers
+        centres = np.vstack([sc.obstacles[:, :2], positions, movers[:, :2]])
+        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius, np.full(len(movers), sc.mover_radius)])
+        robots = slice(len(sc.obstacles), len(sc.obstacles) + len(positions))
         for i, p in enumerate(positions):
+            if len(movers) and self.mover_prediction == "constant_velocity":
+                centres[robots.stop :] = _nearest_on_path(p, movers, self.mover_lookahead)
             delta = p - centres
             dist = np.linalg.norm(delta, axis=1)
             clearance = dist - radii - sc.robot_radius[i]
             near = (clearance < self.influence) & (dist > 1e-9)
             near[len(sc.obstacles) + i] = False  # not itself
             if heard is not None:  # nor a robot it has heard nothing of
-                near[len(sc.obstacles) :] &= heard
+                near[robots] &= heard
             if near.any():
                 c = np.maximum(clearance[near], 0.02)
                 strength = self.repulsion_gain * (1.0 / c - 1.0 / self.influence) / c**2
@@ -117,6 +135,7 @@ class ConsensusController(BaseController):
         of the others (``known_poses`` row i; robots it has heard nothing of are left out). When
         every robot knows the same (instant messages) one team computation serves all."""
         start = time.perf_counter()
+        self._movers = observed_movers(info)
         known = np.asarray(info["known_poses"], dtype=np.float64)
         ages = np.asarray(info["message_age"])
         if (ages == 0).all() and (known == known[:1]).all():
@@ -158,3 +177,12 @@ class ConsensusController(BaseController):
         v = heading[:, 0] * velocity[:, 0] + heading[:, 1] * velocity[:, 1]
         omega = (-heading[:, 1] * velocity[:, 0] + heading[:, 0] * velocity[:, 1]) / self.hand
         return np.column_stack([np.clip(v, -sc.v_max, sc.v_max), np.clip(omega, -sc.omega_max, sc.omega_max)])
+
+
+def _nearest_on_path(point: NDArray, movers: NDArray, lookahead: float) -> NDArray[np.float64]:
+    """Per mover (C, 4: x, y, vx, vy), the point of its straight path over the next
+    ``lookahead`` seconds nearest to ``point`` (2,), shape (C, 2)."""
+    start, travel = movers[:, :2], lookahead * movers[:, 2:4]
+    length2 = (travel * travel).sum(axis=1)
+    along = np.where(length2 > 0, ((point - start) * travel).sum(axis=1) / np.maximum(length2, 1e-12), 0.0)
+    return start + np.clip(along, 0.0, 1.0)[:, None] * travel

@@ -20,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
     "bench/uncertainty_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16"],
+    "bench/movers_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16", "--crowd-envs", "4"],
     "bench/evaluate_wall.py": [
         "--warm",
         "--workers",

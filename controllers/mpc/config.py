@@ -12,9 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import PARAMS
 
 __all__ = [
@@ -168,6 +169,17 @@ class NMPCConfig:
         (ours) 0 (default): every robot has a row for every obstacle. K >= 1: each robot's K
         nearest obstacles (by surface clearance, refreshed before every solve); one built
         problem then serves maps with any number of obstacles.
+    mover_slots : int
+        (ours) Moving obstacles (``movers`` keyword) the NMPC constrains: the K nearest to the
+        team (to the robot, distributed), refreshed before every solve, each a disc whose centre
+        moves over the horizon as ``mover_prediction`` says (time-varying obstacle slots). 0:
+        movers are ignored. Only a problem of an env with movers has these rows.
+    mover_prediction : str
+        (ours) ``"constant_velocity"`` (default: the observed velocity held over the horizon) or
+        ``"static"`` (prediction off: each mover stays where it is seen);
+        :mod:`controllers.movers`.
+    mover_offset : float
+        (ours) Margin added to the radii toward a mover [m] (default: ``obstacle_offset``).
     jit : bool or None
         Compile the NLP's functions to C (several times faster derivative evaluations). The
         compiled objects are cached on disk (:mod:`controllers.solvers.compiled`), so a problem
@@ -197,6 +209,9 @@ class NMPCConfig:
     slack_tolerance: float = 1e-2
     pair_slots: int = 0
     obstacle_slots: int = 0
+    mover_slots: int = 4
+    mover_prediction: str = "constant_velocity"
+    mover_offset: float = PARAMS.obstacle_offset
     jit: bool | None = None
 
     @property
@@ -234,6 +249,7 @@ class NMPCConfig:
             "fallback_solver": SOLVERS[1:],
             "qp_solver": tuple(sorted(QP_SOLVERS)),
             "hessian": HESSIANS,
+            "mover_prediction": MOVER_PREDICTIONS,
         }
 
     def validate(self) -> None:
@@ -241,6 +257,9 @@ class NMPCConfig:
         check_int("horizon", self.horizon, 1)
         check_int("pair_slots", self.pair_slots, 0)
         check_int("obstacle_slots", self.obstacle_slots, 0)
+        check_int("mover_slots", self.mover_slots, 0)
+        check_number("mover_offset", self.mover_offset, at_least=0, note="metres")
+        check_mover_prediction(self.mover_prediction)
         k = self.uncertainty_margin
         if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
             raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")

@@ -23,10 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.movers import observed_movers
 from controllers.mpc.config import PARKED, NMPCConfig
 from controllers.mpc.models import PredictionModel, encode_state, model_step
 from controllers.mpc.problem import Problem
-from controllers.mpc.slots import PairSlots, nearest_obstacle_slots
+from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
 from koopman_envs.scenario import Scenario
 
 __all__ = ["NMPCController", "SolveOutcome", "margin_spread"]
@@ -79,6 +80,8 @@ class NMPCController(BaseController):
     name = "nmpc"
     #: moving-disc slots of the built problem (the distributed NMPC's robots: their neighbours)
     neighbour_slots = 0
+    #: mover slots of the built problem (set at reset from the scenario and ``mover_slots``)
+    _mover_slots = 0
 
     def __init__(
         self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any
@@ -115,6 +118,7 @@ class NMPCController(BaseController):
         if self.model is None or self.model is other.model:
             self.model, self._model_step = other.model, other._model_step
         self._problem, self._key = other._problem, other._key
+        self._mover_slots = other._mover_slots
 
     def restart(self) -> None:
         """Start the next solve cold (from :meth:`_initial_guess`), not from the shifted plan."""
@@ -138,7 +142,15 @@ class NMPCController(BaseController):
             scenario.v_max,
             scenario.omega_max,
             self.neighbour_slots,
+            self._mover_slots,
         )
+
+    def _movers_constrained(self, scenario: Scenario) -> int:
+        """Mover slots of this scenario's problem: ``mover_slots``, at most the movers, and none
+        when the robots do not track them (lidar)."""
+        if scenario.n_movers == 0 or scenario.lidar_beams:
+            return 0
+        return min(self.config.mover_slots, scenario.n_movers)
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         model = self._model_for(scenario)
@@ -150,6 +162,7 @@ class NMPCController(BaseController):
             self._model_step = (model, model_step(model))  # built once per model, not per episode
         step = self._model_step[1]
         _, theta_values, structure = step
+        self._mover_slots = self._movers_constrained(scenario)
         key = self._problem_key(scenario, structure)
         if key != self._key:
             self._problem = Problem(
@@ -158,7 +171,7 @@ class NMPCController(BaseController):
                 self.config,
                 step,
                 terminal_slack=self.config.solver == "rti",
-                neighbour_slots=self.neighbour_slots,
+                neighbour_slots=self.neighbour_slots + self._mover_slots,
             )
             self._key = key
         assert self._problem is not None  # built above
@@ -200,7 +213,11 @@ class NMPCController(BaseController):
         )
         params[layout["obstacle_margin"]] = obstacle_margin
         params[layout["pair_margin"]] = pair_margin
-        # neighbour slots start parked (see set_neighbours), pair slots too (see PairSlots)
+        # moving-disc slots (team-mates, then movers) start parked (see set_neighbours,
+        # set_movers), pair slots too (see PairSlots)
+        slots = self.neighbour_slots + self._mover_slots
+        self._moving_xy = np.full((self.config.horizon, slots, 2), PARKED)
+        self._moving_reach = np.zeros(slots)
         params[layout["neighbour_xy"]] = PARKED
         params[layout["neighbour_reach"]] = 0.0
         pair = layout["pair_select"].start, layout["pair_reach"].stop
@@ -245,8 +262,20 @@ class NMPCController(BaseController):
         the slot's radius plus the margin to keep. An unused slot is parked
         (:data:`~controllers.mpc.config.PARKED`).
         """
-        self._params[self._block("neighbour_xy")] = np.ravel(positions)
-        self._params[self._block("neighbour_reach")] = np.ravel(reach)
+        self._set_moving(0, positions, reach)
+
+    def set_movers(self, positions: NDArray, reach: NDArray) -> None:
+        """Use these predicted movers from the next solve on (:func:`controllers.movers.mover_slots`:
+        ``positions`` (T, M, 2), ``reach`` (M,), M the problem's mover slots)."""
+        self._set_moving(self.neighbour_slots, positions, reach)
+
+    def _set_moving(self, first: int, positions: NDArray, reach: NDArray) -> None:
+        # the block is stage-major over every moving slot: team-mates first, then movers
+        count = np.shape(reach)[0]
+        self._moving_xy[:, first : first + count] = positions
+        self._moving_reach[first : first + count] = reach
+        self._params[self._block("neighbour_xy")] = self._moving_xy.reshape(-1)
+        self._params[self._block("neighbour_reach")] = self._moving_reach
 
     def set_goal(self, index: int, xy: NDArray) -> None:
         """Track ``xy`` instead of robot ``index``'s target position from the next solve on."""
@@ -273,6 +302,21 @@ class NMPCController(BaseController):
         if dropped:
             self._stats.counts["pairs_dropped"] += dropped
         self._params[self._block("pair_select").start : self._block("pair_reach").stop] = values
+
+    def _fill_movers(self, points: NDArray, movers: NDArray) -> None:
+        """The movers nearest to ``points`` (N, 2), predicted over the horizon, into the mover slots."""
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        positions, reach = mover_slots(
+            points,
+            movers,
+            self._mover_slots,
+            self.config.horizon,
+            scenario.dt,
+            self.config.mover_prediction,
+            scenario.mover_radius + self.config.mover_offset,
+        )
+        self.set_movers(positions, reach)
 
     def safety_margins(self, scenario: Scenario) -> tuple[NDArray, NDArray]:
         """Margins added to the radii: per robot toward obstacles (N,), per robot pair (i < j).
@@ -313,6 +357,8 @@ class NMPCController(BaseController):
         state = encode_state(info["observed_poses"], prob.coding)
         if self.config.obstacle_slots or self.config.pair_slots:
             self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2])
+        if self._mover_slots:
+            self._fill_movers(np.asarray(info["observed_poses"], dtype=float)[:, :2], observed_movers(info))
         params = self._params.copy()
         params[prob.layout["x_meas"]] = state
         cold = self._warm is None

@@ -438,6 +438,7 @@ class DistributedNMPC(BaseController):
         commands = np.zeros((n, 2))
         fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
         new_plans = self._plans.copy()
+        movers = {"observed_movers": info["observed_movers"]} if "observed_movers" in info else {}
         start = time.perf_counter()
         for i in range(n):
             robot_start = time.perf_counter()
@@ -446,7 +447,8 @@ class DistributedNMPC(BaseController):
             if self._stalled(i, poses[i, :2]):
                 agent.restart()
                 self._stats.counts["restarts"] += 1
-            commands[i] = agent.act(observation, {"observed_poses": poses[i : i + 1]})
+            # the robot's own NMPC puts the movers nearest to it into its mover slots
+            commands[i] = agent.act(observation, {"observed_poses": poses[i : i + 1], **movers})
             if not agent.solve_failed() and agent.last_plan is not None:
                 new_plans[:, i] = agent.last_plan[1][:, 0, :2]
             else:  # no new plan: predicted to hold its position

@@ -1,9 +1,10 @@
-"""Slots of the central NMPC: the rows that are filled before every solve instead of written once.
+"""Slots of the NMPCs: the rows that are filled before every solve instead of written once.
 
 Obstacle slots give each robot its K nearest obstacles (one problem then serves maps with any
 obstacle count). Pair slots constrain only the robot pairs that can meet within the horizon,
 nearest first; a pair keeps its slot while it stays within reach, unused slots are parked far
 away (:data:`~controllers.mpc.config.PARKED`), and pairs beyond the slots are counted as dropped.
+Mover slots hold the movers nearest to the team (or to one robot), predicted over the horizon.
 """
 
 from __future__ import annotations
@@ -11,10 +12,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.movers import predict_movers
 from controllers.mpc.config import PARKED
 from koopman_envs.sim.nearest import nearest_by_clearance
 
-__all__ = ["PairSlots", "nearest_obstacle_slots"]
+__all__ = ["PairSlots", "mover_slots", "nearest_obstacle_slots"]
 
 
 def nearest_obstacle_slots(positions: NDArray, obstacles: NDArray, k: int) -> NDArray[np.float64]:
@@ -104,3 +106,33 @@ class PairSlots:
             reach[slot] = keep[i * n - i * (i + 1) // 2 + (j - i - 1)]
         self.held = slots
         return np.concatenate([select.ravel(), offset.ravel(), reach]), dropped
+
+
+def mover_slots(
+    points: NDArray[np.float64],
+    movers: NDArray[np.float64],
+    slots: int,
+    horizon: int,
+    dt: float,
+    prediction: str,
+    reach: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The ``slots`` movers nearest to any of ``points`` (P, 2), predicted over the horizon.
+
+    Returns
+    -------
+    positions : ndarray, shape (T, slots, 2)
+        Each slot's predicted centre at stages 1..T, nearest mover first; unused slots parked
+        (:data:`~controllers.mpc.config.PARKED`).
+    reaches : ndarray, shape (slots,)
+        ``reach`` (the mover's radius plus the margin to keep) per used slot, 0 when parked.
+    """
+    positions = np.full((horizon, slots, 2), PARKED)
+    reaches = np.zeros(slots)
+    if slots == 0 or movers.shape[0] == 0:
+        return positions, reaches
+    distance = np.hypot(*(points[:, None, :] - movers[None, :, :2]).transpose(2, 0, 1)).min(axis=0)
+    nearest = np.argsort(distance, kind="stable")[:slots]
+    positions[:, : nearest.size] = predict_movers(movers[nearest], horizon, dt, prediction)
+    reaches[: nearest.size] = reach
+    return positions, reaches

@@ -52,10 +52,13 @@ class FilterStep:
 
 @njit(cache=True)
 def _add_barrier(
-    A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam
+    A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam, approach=0.0
 ):  # pragma: no cover
     """Append the four rows of one barrier (unit gradient n, value h) of a robot with heading
-    (hx, hy) when some command within the limits could violate them; return the new row count."""
+    (hx, hy) when some command within the limits could violate them; return the new row count.
+
+    ``approach``: n . v of a moving obstacle (its velocity along the gradient, positive when it
+    comes toward the robot): dh/dt = n . dp/dt - n . v, so the robot must recede that much more."""
     a_v = nx * hx + ny * hy  # n . e
     cross = -nx * hy + ny * hx  # n . e_perp
     a_w = lookahead * cross
@@ -64,7 +67,7 @@ def _add_barrier(
     k_c = min(1.0, abs(a_v) + omega_max * dt)
     c_v = 0.5 * dt * k_s * lam * omega_max
     c_w = 0.5 * dt * (k_s * (1.0 - lam) * v_max + lookahead * omega_max * k_c)
-    rhs = -gamma * share * h
+    rhs = -gamma * share * h + approach
     if -rhs >= (abs(a_v) + c_v) * v_max + (abs(a_w) + c_w) * omega_max:
         return row  # no command within the limits can violate it: leave it out (exact pruning)
     for s_v in (-1.0, 1.0):  # a_v v + a_w omega - c_v |v| - c_w |omega| >= rhs, one row per sign pair
@@ -82,6 +85,9 @@ def _filter_team(
     obstacle_reach,
     robot_reach,
     walls,
+    mover_xy,
+    mover_velocity,
+    mover_reach,
     lookahead,
     gamma,
     v_max,
@@ -92,13 +98,16 @@ def _filter_team(
     infeasible,
     relaxation,
 ):  # pragma: no cover - compiled
-    """Filter every robot's command (see the module docstring); returns (barrier minimum, barriers built)."""
+    """Filter every robot's command (see the module docstring); returns (barrier minimum, barriers built).
+
+    ``mover_xy`` and ``mover_velocity`` (C, 2): the movers' observed centres and the velocities
+    their barriers assume; ``mover_reach`` (N,): the distance each robot's look-ahead point keeps."""
     n, n_obs = poses.shape[0], centres.shape[0]
     px, py = np.empty(n), np.empty(n)
     for i in range(n):
         px[i] = poses[i, 0] + lookahead * math.cos(poses[i, 2])
         py[i] = poses[i, 1] + lookahead * math.sin(poses[i, 2])
-    size = 4 * (n_obs + n - 1 + 4) + 4
+    size = 4 * (n_obs + n - 1 + mover_xy.shape[0] + 4) + 4
     A, b, relaxed = np.empty((size, 2)), np.empty(size), np.empty(size)
     h_min, built = math.inf, 0
     for i in range(n):
@@ -130,6 +139,19 @@ def _filter_team(
                 nx, ny = -hx, -hy
             row = _add_barrier(
                 A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam
+            )
+        for m in range(mover_xy.shape[0]):  # moving discs: their velocity along the gradient
+            dx, dy = px[i] - mover_xy[m, 0], py[i] - mover_xy[m, 1]
+            dist = math.hypot(dx, dy)
+            h = dist - mover_reach[i]
+            h_min = min(h_min, h)
+            if dist > 1e-12:
+                nx, ny = dx / dist, dy / dist
+            else:
+                nx, ny = -hx, -hy
+            approach = nx * mover_velocity[m, 0] + ny * mover_velocity[m, 1]
+            row = _add_barrier(
+                A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam, approach
             )
         for w in range(4):  # left, right, bottom, top
             h = (px[i] - walls[0], walls[1] - px[i], py[i] - walls[2], walls[3] - py[i])[w]
@@ -197,6 +219,7 @@ class BarrierFilter:
         # distances the look-ahead points must keep: obstacles (N, M), robots (N, N), walls (4,)
         self._obstacle_reach = np.ascontiguousarray(obstacles[None, :, 2] + radius[:, None] + l + margin)
         self._robot_reach = radius[:, None] + radius[None, :] + 2 * l + margin
+        self._mover_reach = radius + scenario.mover_radius + l + margin
         x0, x1, y0, y1 = scenario.workspace
         self._walls = np.array([x0, x1, y0, y1], dtype=np.float64) + np.array([1, -1, 1, -1]) * (l + margin)
         self.v_max, self.omega_max = float(scenario.v_max), float(scenario.omega_max)
@@ -217,7 +240,7 @@ class BarrierFilter:
         reach = speed / self.options.gamma
         return reach, 2 * reach
 
-    def filter(self, poses: NDArray, command: NDArray) -> FilterStep:
+    def filter(self, poses: NDArray, command: NDArray, movers: NDArray | None = None) -> FilterStep:
         """The safe command nearest to ``command``.
 
         Parameters
@@ -227,6 +250,9 @@ class BarrierFilter:
         command : ndarray, shape (N, 2) or (2N,)
             The inner controller's (v, omega) per robot; clipped to the limits first, non-finite
             entries replaced by 0 (a stop).
+        movers : ndarray, shape (C, 4), optional
+            Observed movers (x, y, vx, vy): each a moving barrier whose velocity counts with the
+            weight ``mover_velocity`` (0: a disc standing where it is seen).
 
         Returns
         -------
@@ -240,6 +266,7 @@ class BarrierFilter:
         infeasible = np.empty(n, dtype=np.bool_)
         relaxation = np.empty(n)
         opt = self.options
+        movers = np.zeros((0, 4)) if movers is None else np.asarray(movers, dtype=np.float64).reshape(-1, 4)
         h_min, built = _filter_team(
             poses,
             wanted,
@@ -247,6 +274,9 @@ class BarrierFilter:
             self._obstacle_reach,
             self._robot_reach,
             self._walls,
+            np.ascontiguousarray(movers[:, :2]),
+            np.ascontiguousarray(opt.mover_velocity * movers[:, 2:4]),
+            self._mover_reach,
             opt.lookahead,
             opt.gamma,
             self.v_max,

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats
+from controllers.movers import observed_movers
 from controllers.safety.barriers import BarrierFilter
 from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
 from koopman_envs.scenario import Scenario
@@ -78,7 +79,8 @@ class SafetyFilter(BaseController):
         The controller whose commands are filtered (``.inner``). The evaluator calibrates it
         as it would alone (:func:`controllers.base.calibratable` looks down ``.inner``).
     **options
-        Fields of :class:`SafetyOptions`: ``gamma``, ``margin``, ``lookahead``, ``omega_weight``.
+        Fields of :class:`SafetyOptions`: ``gamma``, ``margin``, ``lookahead``, ``omega_weight``,
+        ``mover_velocity``.
 
     Raises
     ------
@@ -126,7 +128,9 @@ class SafetyFilter(BaseController):
         command = self.inner.act(observation, info)
         middle = time.perf_counter()
         assert self._filter is not None  # built by _reset, which act() requires
-        step = self._filter.filter(np.asarray(info["observed_poses"], dtype=np.float64), command)
+        step = self._filter.filter(
+            np.asarray(info["observed_poses"], dtype=np.float64), command, observed_movers(info)
+        )
         end = time.perf_counter()
         stats = self._stats
         stats.solve_times.append(end - start)

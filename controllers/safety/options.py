@@ -39,12 +39,18 @@ class SafetyOptions:
     omega_weight : float
         Weight of a change of omega relative to a change of v in the cost [m^2/rad^2], in
         ``(0, 100]``: small prefers turning away, large prefers braking.
+    mover_velocity : float
+        Share of a mover's observed velocity its barrier accounts for, in ``[0, 1]``: 1
+        (default) a moving barrier (constant-velocity prediction: the robot recedes as fast as
+        the mover approaches, on top of the class-K rate); 0 the mover as a disc standing where
+        it is seen (prediction off).
     """
 
     gamma: float = 2.0
     margin: float = 0.02
     lookahead: float = 0.05
     omega_weight: float = 0.01
+    mover_velocity: float = 1.0
 
     #: allowed range per option: (low, high, low included, description)
     RANGES: ClassVar[dict[str, tuple[float, float, bool, str]]] = {
@@ -52,6 +58,7 @@ class SafetyOptions:
         "margin": (0.0, 1.0, True, "[0, 1] m"),
         "lookahead": (0.0, 0.5, False, "(0, 0.5] m"),
         "omega_weight": (0.0, 100.0, False, "(0, 100] m^2/rad^2"),
+        "mover_velocity": (0.0, 1.0, True, "[0, 1]"),
     }
 
     def __post_init__(self) -> None:

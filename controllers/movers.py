@@ -1,0 +1,56 @@
+"""What the controllers assume of the moving obstacles: which ones matter and where they will be.
+
+Every built-in controller reads the movers from the observed view (``info["observed_movers"]``:
+x, y, vx, vy per mover, tracked with ``sensing="state"``; with lidar the beams are all a robot
+has of them, and no controller here models a mover then). The prediction is one of
+:data:`MOVER_PREDICTIONS`:
+
+``"constant_velocity"``
+    Each mover keeps its observed velocity over the horizon: stage ``s`` at ``p + s dt v``. It
+    is exact for ``"constant"`` movers between reflections and the usual first guess for people
+    (the constant-velocity baseline of pedestrian prediction).
+``"static"``
+    Each mover stays where it is now: prediction off, the ablation the comparison pairs against.
+
+The NMPCs take the predicted discs as time-varying obstacle slots
+(:func:`controllers.mpc.slots.mover_slots`), the safety filter the
+observed velocity in its moving barrier, and consensus the current positions in its repulsion.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["MOVER_PREDICTIONS", "check_mover_prediction", "observed_movers", "predict_movers"]
+
+#: how a controller predicts a mover over its horizon (module docstring)
+MOVER_PREDICTIONS = ("constant_velocity", "static")
+
+
+def check_mover_prediction(value: Any) -> str:
+    """``value`` if it is one of :data:`MOVER_PREDICTIONS`, else ``ValueError`` naming it."""
+    if value not in MOVER_PREDICTIONS:
+        raise ValueError(f"mover_prediction={value!r} is not one of {list(MOVER_PREDICTIONS)}")
+    return str(value)
+
+
+def observed_movers(info: dict[str, Any]) -> NDArray[np.float64]:
+    """The tracked movers of an observed view, (C, 4): x, y, vx, vy (shape (0, 4) without any)."""
+    movers = info.get("observed_movers")
+    if movers is None:
+        return np.zeros((0, 4))
+    return np.asarray(movers, dtype=np.float64).reshape(-1, 4)
+
+
+def predict_movers(
+    movers: NDArray[np.float64], horizon: int, dt: float, prediction: str
+) -> NDArray[np.float64]:
+    """Predicted mover centres at stages 1..T, shape (T, C, 2) (module docstring)."""
+    stages = np.arange(1, horizon + 1, dtype=np.float64)[:, None, None]
+    position = movers[None, :, :2]
+    if prediction == "static":
+        return np.broadcast_to(position, (horizon, *movers[:, :2].shape)).copy()
+    return position + stages * dt * movers[None, :, 2:4]

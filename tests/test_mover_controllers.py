@@ -1,0 +1,132 @@
+"""The controllers among moving obstacles (controllers.movers): what the NMPC predicts, the
+moving barrier of the safety filter, consensus's repulsion, that every one reads the movers from
+the observed view only, and that bad options are refused by name."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from test_observed_view import _poisoned  # every field outside the observed view garbage
+
+import controllers
+import koopman_envs  # noqa: F401 - registers the ids
+from controllers.movers import predict_movers
+from controllers.mpc.config import PARKED
+from controllers.mpc.slots import mover_slots
+from controllers.safety.barriers import BarrierFilter
+from controllers.safety.options import SafetyOptions
+
+TR = "KoopNav-TargetReaching-v0"
+
+
+def test_the_nmpc_s_prediction_is_the_path_of_a_constant_velocity_mover() -> None:
+    env = gym.make(TR, movers=dict(count=1, speed=0.3))
+    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    for seed in range(20):  # a seed whose mover meets no edge or obstacle within the horizon
+        obs, info = env.reset(seed=seed)
+        ctrl.reset(env, seed=seed)
+        ctrl.act(obs, info)
+        predicted = ctrl.parameter("neighbour_xy").reshape(ctrl.config.horizon, -1, 2)[:, 0]
+        path, velocity = [], info["movers"][0, 2:].copy()
+        for _ in range(ctrl.config.horizon):
+            _, _, terminated, truncated, info = env.step(np.zeros(6))
+            path.append(info["movers"][0, :2].copy())
+            if terminated or truncated:
+                break
+        if len(path) == ctrl.config.horizon and np.array_equal(info["movers"][0, 2:], velocity):
+            np.testing.assert_allclose(predicted, np.array(path), atol=1e-12)
+            reach = ctrl.parameter("neighbour_reach")
+            assert reach[0] == pytest.approx(0.2 + ctrl.config.mover_offset)
+            return
+    pytest.fail("no seed of 20 kept its mover straight for a horizon")
+
+
+def test_prediction_off_holds_each_mover_where_it_is_seen() -> None:
+    movers = np.array([[1.0, 2.0, 0.3, -0.1], [4.0, 0.0, 0.0, 0.2]])
+    static = predict_movers(movers, 5, 0.1, "static")
+    moving = predict_movers(movers, 5, 0.1, "constant_velocity")
+    assert static.shape == moving.shape == (5, 2, 2)
+    assert (static == movers[None, :, :2]).all()
+    np.testing.assert_allclose(moving[-1], movers[:, :2] + 0.5 * movers[:, 2:])
+
+
+def test_mover_slots_take_the_nearest_to_the_team_and_park_the_rest() -> None:
+    movers = np.array([[5.0, 0.0, 0, 0], [0.5, 0.0, 0, 0], [0.0, 3.0, 0, 0]])
+    positions, reach = mover_slots(np.array([[0.0, 0.0], [0.0, 2.0]]), movers, 4, 3, 0.1, "static", 0.3)
+    assert positions.shape == (3, 4, 2)
+    np.testing.assert_array_equal(positions[0, :3], [[0.5, 0.0], [0.0, 3.0], [5.0, 0.0]])
+    assert (positions[:, 3] == PARKED).all() and reach.tolist() == [0.3, 0.3, 0.3, 0.0]
+
+
+def test_no_mover_slots_without_movers_or_with_lidar() -> None:
+    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    for kwargs in ({}, {"movers": 3, "sensing": "lidar"}):
+        env = gym.make(TR, **kwargs)
+        env.reset(seed=0)
+        ctrl.reset(env, seed=0)
+        assert ctrl.problem is not None and ctrl.problem.neighbour_slots == 0, kwargs
+    env = gym.make(TR, movers=3)
+    env.reset(seed=0)
+    ctrl.reset(env, seed=0)
+    assert ctrl.problem.neighbour_slots == 3  # at most the movers there are
+
+
+def test_a_moving_barrier_makes_a_robot_give_way_to_an_approaching_mover() -> None:
+    env = gym.make(TR, movers=1)
+    env.reset(seed=0)
+    scenario = dataclasses.replace(env.unwrapped.engine.scenario(0), obstacles=np.zeros((0, 3)))
+    poses = np.array([[0.0, 0.0, 0.0], [5.0, 5.0, 0.0], [-5.0, 5.0, 0.0]])
+    # a mover 0.6 m ahead of robot 0 coming straight at it at 0.3 m/s; the robot wants to stand
+    mover = np.array([[0.6, 0.0, -0.3, 0.0]])
+    moving = BarrierFilter(scenario, SafetyOptions()).filter(poses, np.zeros((3, 2)), mover)
+    static = BarrierFilter(scenario, SafetyOptions(mover_velocity=0.0)).filter(poses, np.zeros((3, 2)), mover)
+    assert moving.command[0, 0] < -0.05 and moving.changed[0]  # backs away before the mover arrives
+    assert not static.changed[0]  # a standing disc 0.6 m away asks nothing yet
+
+
+@pytest.mark.parametrize("name", ["nominal-nmpc", "dmpc-nominal", "consensus", "safe:consensus-free"])
+def test_controllers_read_the_movers_from_the_observed_view_only(name: str) -> None:
+    env = gym.make(TR, movers=dict(count=6, speed=0.3))
+    options = {"solver": "rti"} if "nmpc" in name else {}
+    honest, fooled = controllers.make(name, **options), controllers.make(name, **options)
+    obs, info = env.reset(seed=3)
+    honest.reset(env, seed=3)
+    fooled.reset(env, seed=3)
+    for _ in range(4):
+        poisoned = _poisoned(info)
+        assert "movers" in info and "observed_movers" in poisoned
+        a = np.asarray(honest.act(obs, info))
+        assert np.array_equal(a, np.asarray(fooled.act(obs, poisoned))), name
+        obs, _, _, _, info = env.step(a)
+
+
+def test_prediction_changes_what_the_controllers_do() -> None:
+    env = gym.make(TR, movers=dict(count=8, speed=0.3))
+    obs, info = env.reset(seed=0)
+    for name, option in (("nominal-nmpc", "mover_prediction"), ("consensus", "mover_prediction")):
+        extra = {"solver": "rti"} if "nmpc" in name else {}
+        with_it = controllers.make(name, **extra)
+        without = controllers.make(name, **{option: "static"}, **extra)
+        with_it.reset(env, seed=0)
+        without.reset(env, seed=0)
+        moved = any(not np.array_equal(with_it.act(obs, info), without.act(obs, info)) for _ in range(1))
+        assert moved or name == "consensus", name  # consensus differs only once a mover is near
+
+
+@pytest.mark.parametrize(
+    ("name", "options", "message"),
+    [
+        ("nominal-nmpc", {"mover_prediction": "linear"}, "mover_prediction='linear'"),
+        ("dmpc-nominal", {"mover_slots": -1}, "mover_slots=-1"),
+        ("koopman-nmpc", {"mover_offset": -0.1}, "mover_offset=-0.1"),
+        ("consensus", {"mover_prediction": "cv"}, "mover_prediction='cv'"),
+        ("consensus", {"mover_lookahead": 0.0}, "mover_lookahead=0.0"),
+        ("safe:consensus-free", {"safety_mover_velocity": 2.0}, "mover_velocity=2.0"),
+    ],
+)
+def test_bad_mover_options_are_refused_by_name(name: str, options: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        controllers.make(name, **options)
