@@ -40,6 +40,12 @@ _VIEW_MARGIN = 1.0
 _VIEW_STEP = 1.0
 #: most ``tight_layout`` passes per layout (two settle it in practice)
 _LAYOUT_PASSES = 4
+#: periods of a mover's trail that a frame shows (2 s at the paper's dt)
+MOVER_TRAIL = 20
+#: movers: body colour and the opacity of their trails (dark and hatched: not a robot, not a map obstacle)
+_MOVER_COLOR = "0.15"
+#: where a mover disc waits before its first position is known (outside every view)
+PARKED_VIEW = 1e3
 #: length of a robot's heading stroke, in robot radii
 _HEADING_LENGTH = 1.6
 #: slip zones: fill colour, and the opacity of a zone whose largest lambda is 0 and of one whose
@@ -119,6 +125,18 @@ class _Scene:
         # one black stroke per robot, all in one line broken by NaN rows: one artist to draw
         # (the same pixels unless two strokes come within a pixel of each other)
         self.headings = ax.plot([], [], color="k", lw=1.5, zorder=5)[0]
+        # movers: a dotted trail and a hatched dark disc each, above the robots' trails
+        self.mover_trails = [
+            ax.plot([], [], color=_MOVER_COLOR, lw=1.0, ls=":", zorder=3.5)[0]
+            for _ in range(scenario.n_movers)
+        ]
+        self.movers = [
+            ax.add_patch(
+                Circle((PARKED_VIEW, PARKED_VIEW), scenario.mover_radius, facecolor="0.75", edgecolor=_MOVER_COLOR,
+                       hatch="////", lw=1.0, zorder=4)
+            )
+            for _ in range(scenario.n_movers)
+        ]  # fmt: skip
         self._stroke = np.full((3 * scenario.n_robots, 2), np.nan)
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
@@ -126,15 +144,23 @@ class _Scene:
         ax.grid(alpha=0.3)
         self.title = ax.set_title("", fontsize=9)
         #: artists that change from frame to frame, in drawing (zorder) order
-        self.dynamic = [*self.trails, *self.bodies, self.headings]
+        self.dynamic = [*self.trails, *self.mover_trails, *self.bodies, *self.movers, self.headings]
         for artist in (*self.dynamic, self.title):
             artist.set_animated(animated)
         self.limits: tuple[float, float, float, float] | None = None
 
-    def update(self, trail: NDArray[np.float64] | None, title: str) -> bool:
-        """Move the dynamic artists to ``trail`` (T, N, 3); True when the axis limits changed
-        (then the static background is stale)."""
+    def update(
+        self, trail: NDArray[np.float64] | None, title: str, movers: NDArray[np.float64] | None = None
+    ) -> bool:
+        """Move the dynamic artists to ``trail`` (T, N, 3) and the movers to ``movers`` (T', C,
+        2: their recent positions, the last drawn as the discs); True when the axis limits
+        changed (then the static background is stale)."""
         scenario = self.scenario
+        if movers is not None and len(movers):
+            recent = np.asarray(movers)[-MOVER_TRAIL:]
+            for c, (line, disc) in enumerate(zip(self.mover_trails, self.movers, strict=True)):
+                line.set_data(recent[:, c, 0], recent[:, c, 1])
+                disc.set_center(recent[-1, c])
         poses = scenario.starts[None] if trail is None or len(trail) == 0 else np.asarray(trail)
         for i in range(scenario.n_robots):
             self.trails[i].set_data(poses[:, i, 0], poses[:, i, 1])
@@ -307,6 +333,7 @@ class Renderer:
         title: str = "",
         elapsed: float | None = None,
         slip_zones: Sequence[SlipZone] = (),
+        movers: NDArray[np.float64] | None = None,
     ) -> NDArray[np.uint8] | None:
         """Draw one frame.
 
@@ -322,6 +349,9 @@ class Renderer:
             Episode time [s], shown after the title as ``t = 1.2 s``.
         slip_zones : sequence of SlipZone
             The map's slip zones, shaded in the static background (see :func:`draw_scenario`).
+        movers : ndarray, shape (T, C, 2), optional
+            The movers' recent positions (``scenario.n_movers`` of them): the last
+            :data:`MOVER_TRAIL` as dotted trails, the last row as hatched discs.
 
         Returns
         -------
@@ -338,7 +368,7 @@ class Renderer:
             self._scene_key = key
             stale = True
         head, clock, tail = title_parts(title, elapsed)
-        stale = self._scene.update(trail, head + clock + tail) or stale
+        stale = self._scene.update(trail, head + clock + tail, movers) or stale
         canvas = self.figure.canvas
         if self.human:
             if stale:
@@ -452,10 +482,16 @@ def draw_engine_env(
     """
     spec = engine.maps[index]
     assert spec is not None  # the env was reset, so a map is installed
+    movers = None
+    if engine.movers is not None:
+        # the movers' trails are recorded from the first frame on (free until something draws)
+        engine.movers.keep_trail(MOVER_TRAIL)
+        movers = engine.movers.trail_of(index)
     return renderer.draw(
         engine.scenario(index),
         np.asarray(trail),
         title=frame_title(engine.config),
         elapsed=engine.elapsed[index] * PARAMS.dt,
         slip_zones=spec.slip_zones,
+        movers=movers,
     )

@@ -350,3 +350,31 @@ def test_bad_settings_are_refused_by_name(value, message: str) -> None:
 def test_a_count_is_that_many_constant_movers() -> None:
     assert parse_movers("movers", 5) == MoverConfig(count=5)
     assert parse_movers("movers", None) == MoverConfig() and not MoverConfig().active
+
+
+# --------------------------------------------------------------------------- rendering
+def test_movers_are_drawn_with_trails_and_blitting_matches_a_full_redraw() -> None:
+    from koopman_envs.rendering import MOVER_TRAIL, Renderer, frame_title
+
+    env = gym.make(FO, movers=dict(count=4, behaviour="waypoints", speed=0.4), render_mode="rgb_array")
+    env.reset(seed=2)
+    engine = env.unwrapped.engine
+    plain = gym.make(FO, render_mode="rgb_array")
+    plain.reset(seed=2)
+    history = []
+    for _ in range(30):
+        env.render()  # turns the trail on at the first frame
+        history.append(engine.movers.position[0].copy())
+        env.step(np.tile([0.3, 0.05], 3))
+        plain.step(np.tile([0.3, 0.05], 3))
+    history.append(engine.movers.position[0].copy())
+    trail = engine.movers.trail_of(0)
+    assert trail.shape == (MOVER_TRAIL, 4, 2)
+    np.testing.assert_array_equal(trail, np.array(history[-MOVER_TRAIL:]))
+    base = env.unwrapped
+    args = (base.scenario, np.asarray(base._trail), frame_title(base.config), 3.0)
+    fast = Renderer().draw(*args, movers=trail)
+    full = Renderer(blit=False).draw(*args, movers=trail)
+    assert np.abs(fast.astype(int) - full.astype(int)).mean() < 0.1
+    without = Renderer().draw(*args)
+    assert np.abs(fast.astype(int) - without.astype(int)).mean() > 0.1  # the movers show

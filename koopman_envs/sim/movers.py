@@ -167,6 +167,11 @@ class MoverField:
         self._all_rows = np.arange(k, dtype=np.int64)
         self._parents: list[np.random.Generator | None] = [None] * k
         self._orca: list[object | None] = [None] * k
+        #: the last :attr:`trail_length` positions of every mover, for drawing (a ring per
+        #: environment; off, and free, until :meth:`keep_trail` turns it on)
+        self.trail_length = 0
+        self._trail = np.zeros((k, 0, c, 2))
+        self._trail_count = np.zeros(k, dtype=np.int64)
 
     # ------------------------------------------------------------------ reset
     def reset_env(
@@ -203,6 +208,9 @@ class MoverField:
         self.position[index] = placed
         self.waiting[index] = 0
         self.hit[index] = False
+        if self.trail_length:
+            self._trail_count[index] = 0
+            self._record(np.array([index]))
         if cfg.behaviour == "constant":
             heading = child.uniform(-math.pi, math.pi, cfg.count)
             self.velocity[index, :, 0] = cfg.speed * np.cos(heading)
@@ -235,6 +243,30 @@ class MoverField:
         self._obstacle_y[index, :m] = obstacles[:, 1]
         self._obstacle_r[index, :m] = obstacles[:, 2]
 
+    def keep_trail(self, length: int) -> None:
+        """Record the last ``length`` positions of every mover from now on (:meth:`trail_of`)."""
+        if length != self.trail_length:
+            self.trail_length = length
+            self._trail = np.zeros((self.num_envs, length, self.count, 2))
+            self._trail_count[:] = 0
+            self._record(np.arange(self.num_envs))
+
+    def _record(self, rows: NDArray[np.int64]) -> None:
+        length = self.trail_length
+        self._trail[rows, self._trail_count[rows] % length] = self.position[rows]
+        self._trail_count[rows] += 1
+
+    def trail_of(self, index: int) -> NDArray[np.float64]:
+        """Environment ``index``'s recorded mover positions, oldest first, shape (T, C, 2)
+        (T <= :attr:`trail_length`; the current positions alone before :meth:`keep_trail`)."""
+        count, length = int(self._trail_count[index]), self.trail_length
+        if length == 0 or count == 0:
+            now: NDArray[np.float64] = self.position[index][None].copy()
+            return now
+        order = np.arange(count - min(count, length), count) % length
+        recorded: NDArray[np.float64] = self._trail[index, order]  # fancy indexing: a copy
+        return recorded
+
     # ------------------------------------------------------------------- step
     def step(
         self, robots_before: NDArray[np.float64], robots_after: NDArray[np.float64], rows: NDArray[np.int64]
@@ -244,13 +276,22 @@ class MoverField:
         ``robots_before`` and ``robots_after`` (K, 3, N) are the robots' true poses at the
         start and the end of the period (the aware crowd sees where they are and how they move).
         """
-        cfg = self.config
-        if cfg.behaviour == "constant":
+        if self.config.behaviour == "constant":
+            cfg = self.config
             move_constant(
                 self.position, self.velocity, rows, cfg.radius, self.arena, self._obstacle_x,
                 self._obstacle_y, self._obstacle_r, self.dt,
             )  # fmt: skip
-            return
+        else:
+            self._walk(robots_before, robots_after, rows)
+        if self.trail_length:
+            self._record(rows)
+
+    def _walk(
+        self, robots_before: NDArray[np.float64], robots_after: NDArray[np.float64], rows: NDArray[np.int64]
+    ) -> None:
+        """One period of the waypoint walkers, and of ORCA for a crowd."""
+        cfg = self.config
         for k in rows:  # the few environments whose pools run low: a fresh block from their child
             if self.cursor[k] + self.count * DRAW_SIZE > self.pool_size:
                 rng = self.rngs[k]
