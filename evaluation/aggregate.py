@@ -23,6 +23,7 @@ import numpy as np
 
 from evaluation.records import is_degraded, ran
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison, wilson_interval
+from koopman_envs.sim.collision import CollisionKind
 
 __all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons", "pooled_rate"]
 
@@ -196,6 +197,17 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
     return cells
 
 
+def collisions_by_kind(records: Iterable[dict[str, Any]]) -> dict[str, int]:
+    """Episodes that ended in a collision of each kind (``obstacle``, ``robot``, ``workspace``,
+    ``mover``; an episode whose collision combined kinds, ``"robot+mover"``, counts in each)."""
+    counts = dict.fromkeys(CollisionKind.NAMES.values(), 0)
+    for record in records:
+        for kind in (record.get("collision") or "").split("+"):
+            if kind in counts:
+                counts[kind] += 1
+    return counts
+
+
 def pooled_rate(cells: Iterable[Cell], outcome: str = "successes") -> tuple[float, list[float], int]:
     """A rate pooled over cells: (rate, 95% Wilson interval, valid episodes).
 
@@ -253,6 +265,7 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                     )
                     or None,
                     "solver_failures": sum(c.solver_failures for c in own),
+                    "collisions_by_kind": collisions_by_kind(recs),
                     "errors": sum(c.errors for c in own),
                     "degraded": sum(c.degraded for c in own),
                 }

@@ -121,6 +121,11 @@ def leaderboard_rows(results: RunData) -> Table:
     ]
     rows = []
     rank, last_env = 0, None
+    # the movers' own column only in runs where some episode met one (reports without movers
+    # keep their columns)
+    mover_hits = any((row.get("collisions_by_kind") or {}).get("mover", 0) for row in results.leaderboard())
+    if mover_hits:
+        header.insert(header.index("Solver"), "Mover collisions")
     for row in results.leaderboard():
         rank = 1 if row["env_id"] != last_env else rank + 1
         last_env = row["env_id"]
@@ -135,6 +140,7 @@ def leaderboard_rows(results: RunData) -> Table:
                 _pct(row["collision_free_rate"], row["collision_free_ci"]),
                 _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
                 _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
+                *([str((row.get("collisions_by_kind") or {}).get("mover", 0))] if mover_hits else []),
                 row.get("solver") or "-",
                 solve,
                 str(row["solver_failures"]),

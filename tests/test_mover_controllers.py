@@ -130,3 +130,27 @@ def test_prediction_changes_what_the_controllers_do() -> None:
 def test_bad_mover_options_are_refused_by_name(name: str, options: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         controllers.make(name, **options)
+
+
+def test_the_evaluator_counts_mover_collisions_apart(tmp_path) -> None:
+    """An evaluation with movers (``--env-kwargs movers=...``): the leaderboard counts each
+    collision kind, and the report gains its mover column."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "run"
+    cmd = [
+        sys.executable, "evaluate.py", "--env", TR, "--maps", "map1", "--slips", "nominal",
+        "--episodes", "2", "--controllers", "consensus-free", "--env-kwargs", 'movers={"count": 8, "speed": 0.4}',
+        "--out", str(out), "--quiet", "--workers", "1",
+    ]  # fmt: skip
+    subprocess.run(cmd, check=True, cwd=Path(__file__).resolve().parents[1], capture_output=True)
+    row = json.loads((out / "results.json").read_text())["leaderboard"][0]
+    episodes = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()[1:]]
+    hits = sum("mover" in (e.get("collision") or "") for e in episodes)
+    assert row["collisions_by_kind"]["mover"] == hits
+    assert set(row["collisions_by_kind"]) == {"obstacle", "robot", "workspace", "mover"}
+    if hits:
+        assert "Mover collisions" in (out / "results.md").read_text()

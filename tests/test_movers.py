@@ -378,3 +378,16 @@ def test_movers_are_drawn_with_trails_and_blitting_matches_a_full_redraw() -> No
     assert np.abs(fast.astype(int) - full.astype(int)).mean() < 0.1
     without = Renderer().draw(*args)
     assert np.abs(fast.astype(int) - without.astype(int)).mean() > 0.1  # the movers show
+
+
+def test_read_only_map_arrays_are_accepted() -> None:
+    """The evaluator's maps are frozen (read-only arrays): placement and the arena take them."""
+    starts = np.array([[-4.0, -4.0, 0.0], [4.0, 4.0, 0.0]])
+    targets = -starts
+    obstacles = np.array([[1.0, 0.0, 0.5]])
+    for array in (starts, targets, obstacles):
+        array.setflags(write=False)
+    field = _field("constant", 3)
+    field.reset_env(0, np.random.default_rng(0), obstacles, starts, targets, 0.2)
+    assert np.isfinite(field.position).all()
+    assert np.allclose(mover_arena(starts, targets, obstacles, WORKSPACE), (-5.5, 5.5, -5.5, 5.5))

@@ -69,8 +69,8 @@ def mover_arena(
     """(x_min, x_max, y_min, y_max) [m] of the region the movers keep to (module docstring)."""
     arena = np.empty(4)
     _arena_into(
-        np.asarray(starts, dtype=np.float64),
-        np.asarray(targets, dtype=np.float64),
+        np.array(starts, dtype=np.float64),
+        np.array(targets, dtype=np.float64),
         np.asarray(obstacles, dtype=np.float64).reshape(-1, 3),
         np.asarray(workspace, dtype=np.float64),
         arena,
@@ -198,6 +198,9 @@ class MoverField:
         assert child is not None
         cfg = self.config
         obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        # writable copies: the compiled loops take the two as one type, and a map's arrays
+        # may be read-only (frozen maps)
+        starts, targets = np.array(starts, dtype=np.float64), np.array(targets, dtype=np.float64)
         self._set_obstacles(index, obstacles)
         arena = self.arena[index]
         _arena_into(starts, targets, obstacles, self._workspace, arena)
@@ -374,7 +377,7 @@ def place_movers(
     """
     placed = np.zeros((count, 2))
     obstacles = np.ascontiguousarray(obstacles, dtype=np.float64).reshape(-1, 3)
-    starts, targets = (np.asarray(points, dtype=np.float64) for points in keep_clear)
+    starts, targets = (np.array(points, dtype=np.float64) for points in keep_clear)  # writable: one type
     block = 4 * count + 16
     done = np.zeros(2, dtype=np.int64)  # movers placed, failed attempts at the current one
     while done[0] < count:
