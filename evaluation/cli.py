@@ -16,9 +16,11 @@ from evaluation.ablation import check_factors
 from evaluation.baseline import GateOptions
 from evaluation.configs import split_controller_list
 from evaluation.protocols import (
+    CROWD_COUNTS,
     QUICK_START_NOISE,
     TASK_MAPS,
     ablation_protocol,
+    crowd_protocol,
     paper_protocol,
     quick_protocol,
 )
@@ -162,6 +164,13 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
         "--paper-strict",
         action="store_true",
         help="the paper's protocol with its exact NMPC: hard constraints, 0.015 m margins",
+    )
+    protocol.add_argument(
+        "--crowd",
+        metavar="BEHAVIOUR",
+        help="navigation among movers: every controller on the paper maps and 20 random layouts, 20 "
+        "trials per cell, swept over 0, 4, 8 and 16 movers of BEHAVIOUR (constant, waypoints or "
+        "crowd; docs/movers.md)",
     )
     protocol.add_argument(
         "--ablation",
@@ -336,6 +345,10 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         spec = ablation_protocol(check_factors(args.ablation))
     elif args.paper or args.paper_strict:
         spec = paper_protocol(strict=args.paper_strict)
+    elif args.crowd is not None:
+        spec = crowd_protocol(args.crowd)
+        if not args.sweep:  # the protocol's own axis: the mover count
+            args.sweep = ["movers.count=" + ",".join(str(c) for c in CROWD_COUNTS)]
     else:
         spec = quick_protocol()
     changes: dict[str, Any] = {}
@@ -369,6 +382,6 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         seed=args.seed,
         calibration_budget=args.calibration_budget,
         calibration_seed=args.calibration_seed,
-        random_maps=args.random_maps,
+        random_maps=args.random_maps if args.random_maps is not None else spec.random_maps,
         gifs=args.gifs,
     )

@@ -12,10 +12,13 @@ from collections.abc import Callable, Sequence
 from evaluation.ablation import ablation_configs
 from evaluation.configs import ControllerConfig, parse_controller
 from evaluation.spec import TASK_MAPS, RunSpec
+from koopman_envs.movers import MOVER_BEHAVIOURS
 from koopman_envs.params import SLIP_SETTINGS
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
+    "CROWD_COUNTS",
+    "crowd_protocol",
     "PROTOCOLS",
     "QUICK_SLIPS",
     "QUICK_START_NOISE",
@@ -86,12 +89,40 @@ def ablation_protocol(factors: Sequence[str] | None = None) -> RunSpec:
     )
 
 
+#: the mover counts of the crowd protocol's sweep (``--crowd``)
+CROWD_COUNTS = (0, 4, 8, 16)
+#: the mover speed of the crowd protocol [m/s] (the keyword's default, 0.6 of the robots' limit)
+CROWD_SPEED = 0.3
+
+
+def crowd_protocol(behaviour: str = "crowd") -> RunSpec:
+    """Navigation among movers (``--crowd BEHAVIOUR``): both tasks on their paper maps and 20
+    seeded random layouts, nominal slip, 20 trials per cell, every registered controller, the
+    NMPCs on the real-time iteration; swept over ``movers.count`` = :data:`CROWD_COUNTS` of
+    ``behaviour`` movers (:data:`koopman_envs.movers.MOVER_BEHAVIOURS`) at :data:`CROWD_SPEED`
+    (the sweep is added by the command line: ``--sweep movers.count=0,4,8,16``)."""
+    if behaviour not in MOVER_BEHAVIOURS:
+        raise ValueError(
+            f"--crowd {behaviour!r} is not one of {list(MOVER_BEHAVIOURS)}{did_you_mean(behaviour, MOVER_BEHAVIOURS)}"
+        )
+    return RunSpec(
+        envs=tuple(TASK_MAPS),
+        maps=TASK_MAPS,
+        slips=("nominal",),
+        episodes=20,
+        random_maps=20,
+        env_kwargs={"movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0}},
+        solver="rti",
+    )
+
+
 #: every named protocol: name -> preset factory
 PROTOCOLS: dict[str, Callable[[], RunSpec]] = {
     "quick": quick_protocol,
     "paper": paper_protocol,
     "paper-strict": lambda: paper_protocol(strict=True),
     "ablation": ablation_protocol,
+    "crowd": crowd_protocol,
 }
 
 

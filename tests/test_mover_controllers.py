@@ -154,3 +154,19 @@ def test_the_evaluator_counts_mover_collisions_apart(tmp_path) -> None:
     assert set(row["collisions_by_kind"]) == {"obstacle", "robot", "workspace", "mover"}
     if hits:
         assert "Mover collisions" in (out / "results.md").read_text()
+
+
+def test_the_crowd_protocol_sweeps_the_mover_count_of_one_behaviour() -> None:
+    from evaluation.cli import build_parser, spec_from_args
+    from evaluation.protocols import CROWD_COUNTS, crowd_protocol
+
+    args = build_parser().parse_args(["--crowd", "waypoints"])
+    spec = spec_from_args(args)
+    assert args.sweep == ["movers.count=" + ",".join(map(str, CROWD_COUNTS))]
+    assert (
+        spec.episodes == 20
+        and spec.random_maps == 20
+        and spec.env_kwargs["movers"]["behaviour"] == "waypoints"
+    )
+    with pytest.raises(ValueError, match="did you mean 'crowd'"):
+        crowd_protocol("crwod")
