@@ -170,7 +170,7 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
         metavar="BEHAVIOUR",
         help="navigation among movers: every controller on the paper maps and 20 random layouts, 20 "
         "trials per cell, swept over 0, 4, 8 and 16 movers of BEHAVIOUR (constant, waypoints or "
-        "crowd; docs/movers.md)",
+        "crowd; docs/movers.md) (default: no movers)",
     )
     protocol.add_argument(
         "--ablation",
