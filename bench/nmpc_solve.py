@@ -85,10 +85,10 @@ COLD_RESETS = 5
 EPISODE_STEPS: int | None = None
 
 
-def make_env(env_id: str, map_name: str, slip: str) -> gym.Env:
+def make_env(env_id: str, map_name: str, slip: str, **env_kwargs: Any) -> gym.Env:
     """The env of every row (the time limit of ``--steps`` when given)."""
     limit = {} if EPISODE_STEPS is None else {"max_episode_steps": EPISODE_STEPS}
-    return gym.make(env_id, map=map_name, slip=slip, **limit)
+    return gym.make(env_id, map=map_name, slip=slip, **limit, **env_kwargs)
 
 
 @dataclass
@@ -165,6 +165,7 @@ def closed_loop(
     limit: bool = False,
     compiled: bool = False,
     cold_resets: int = COLD_RESETS,
+    env_kwargs: dict[str, Any] | None = None,
 ) -> Row:
     """Warm up, run one timed episode (seed 0), then time ``cold_resets`` cold first steps.
 
@@ -180,13 +181,15 @@ def closed_loop(
         wait for it and use a new controller (which loads the compiled solver from the cache).
     cold_resets : int
         Resets behind :attr:`Row.cold` (0: none).
+    env_kwargs : dict, optional
+        Further env keywords (``movers``).
 
     Raises
     ------
     TooSlow
         With ``limit``; its message says why.
     """
-    env = make_env(env_id, map_name, slip)
+    env = make_env(env_id, map_name, slip, **(env_kwargs or {}))
     ctrl = make_controller()
     calibrate_controller(ctrl, env)
     warm_up(env, ctrl)
@@ -387,6 +390,29 @@ def cache_timing(env_id: str, map_name: str) -> None:
         )
 
 
+def mover_overhead(
+    env_id: str, map_name: str, slip: str, count: int, qp: str, results: dict[tuple[str, str], Row]
+) -> None:
+    """Per-step time of the default RTI with ``count`` constant movers beside the same rows
+    without (the rows above; run here when they were dropped), and their ratio."""
+    print(f"with {count} constant movers (0.3 m/s), RTI {qp}:")
+    for name in ("nominal-nmpc", "koopman-nmpc"):
+        options = {"solver": "rti", "qp_solver": qp}
+        without = results.get((name, f"RTI {qp}")) or closed_loop(
+            env_id, map_name, slip, lambda n=name, o=options: controllers.make(n, **o)
+        )
+        moving = closed_loop(
+            env_id, map_name, slip, lambda n=name, o=options: controllers.make(n, **o),
+            env_kwargs={"movers": {"count": count}},
+        )  # fmt: skip
+        print("  " + line(f"{name} movers", moving))
+        print(
+            f"  {name}: median {1e3 * moving.median:.1f} ms with movers vs {1e3 * without.median:.1f} ms "
+            f"without: {moving.median / without.median:.2f}x (target <= 1.5x)",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--map", default="map1")
@@ -402,6 +428,13 @@ def main() -> None:
         help="also time building compiled IPOPT with an empty and a filled cache, and the RTI",
     )
     parser.add_argument("--no-do-mpc", action="store_true")
+    parser.add_argument(
+        "--movers",
+        type=int,
+        default=8,
+        help="also time the default RTI with this many constant movers (its mover slots: the 4 "
+        "nearest, predicted over the horizon) against none; target <= 1.5x (default 8; 0: skip)",
+    )
     parser.add_argument(
         "--steps",
         type=int,
@@ -464,6 +497,8 @@ def main() -> None:
                 results[(name, "do-mpc")] = reference
                 print("  " + line("do-mpc (IPOPT)", reference), flush=True)
     default = f"RTI {args.qp_solvers[0]}"
+    if args.movers:
+        mover_overhead(env_id, args.map, args.slip, args.movers, args.qp_solvers[0], results)
     print(f"speed-up of {default} (ratio of medians):")
     for name in ("nominal-nmpc", "koopman-nmpc"):
         if (name, default) not in results:
