@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.safe_load import UnsafePolicyFile, load_model
-from baselines.set_features import MAX_TEAM, SetFeatureConfig, set_features
+from baselines.set_features import MAX_TEAM, SetFeatureConfig, set_features, split_movers
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
 from koopman_envs.tasks.base import TASKS
@@ -170,6 +170,7 @@ def policy_command(
     set_config: SetFeatureConfig | None = None,
     formation: bool = False,
     message_ages: bool = False,
+    mover_slots: int = 0,
 ) -> NDArray[np.float64]:
     """Deterministic joint command (v, omega per robot, flat; batched like the input) of a policy.
 
@@ -202,17 +203,22 @@ def policy_command(
     message_ages : bool
         Whether each robot's block ends with the team-mates' message ages and arrival flags (an
         env with a ``comm`` setting); they are dropped before the network.
+    mover_slots : int
+        Movers listed at the end of each robot's block (an env with ``movers``): a set policy with
+        mover slots reads them, every other policy has them dropped.
     """
     from baselines.vec_env import robot_features, scale_action, without_message_ages
 
     obs = np.asarray(observation, dtype=np.float64)
+    batch_shape = obs.shape[:-1]
+    blocks, movers = split_movers(obs.reshape(batch_shape + (n_robots, -1)), mover_slots)
+    obs = blocks.reshape(batch_shape + (-1,))
     if message_ages:
         obs = without_message_ages(obs, n_robots)
-    batch_shape = obs.shape[:-1]
     if set_config is not None:
         blocks = obs.reshape(batch_shape + (n_robots, -1))
         listed = obs.shape[-1] // n_robots - 9 - 3 * (n_robots - 1) - (2 if formation else 0)
-        obs = set_features(blocks, listed // 3, formation, set_config).astype(np.float64)
+        obs = set_features(blocks, listed // 3, formation, set_config, movers).astype(np.float64)
         obs = obs.reshape(-1, obs.shape[-1])
     elif layout == "robot":
         blocks = obs.reshape(batch_shape + (n_robots, -1))
@@ -274,6 +280,7 @@ def success_rate(
             set_config=set_config,
             formation=engine.config.task.formation,
             message_ages=engine.builder.comm,
+            mover_slots=engine.builder.mover_slots,
         )
         obs, _, terminated, truncated, info = venv.step(action)
         ended = (terminated | truncated) & ~done
@@ -378,6 +385,7 @@ class RLPolicyController(BaseController):
             set_config=self._set_config,
             formation=self._formation,
             message_ages=sc.message_ages,
+            mover_slots=sc.mover_slots,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command

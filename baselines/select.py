@@ -56,6 +56,7 @@ def set_validation_success(
             random_map=random_map,
             max_episode_steps=400,
             uncertainty=metadata.get("uncertainty", "nominal"),
+            **({"movers": metadata["movers"]} if metadata.get("movers") else {}),
         )
         for cell, (n, random_map, slip) in enumerate(VALIDATION[metadata["task"]])
     ]

@@ -1,7 +1,7 @@
 """A permutation-invariant set encoder as a stable-baselines3 features extractor (deep sets).
 
 Each robot's set observation (:mod:`baselines.set_features`) is split into its ego entries and
-two sets: team-mates and obstacles. Every element of a set goes through the same small MLP;
+two sets, team-mates and obstacles, and a third, movers, for a policy that reads them. Every element of a set goes through the same small MLP;
 the encodings are multiplied by the element's mask and pooled by their mean and their maximum
 (both ignore the order of the elements, and a masked element contributes zero to both since
 the encodings are non-negative after a ReLU), plus the fraction of occupied slots. The pooled
@@ -22,7 +22,13 @@ from gymnasium import spaces
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
-from baselines.set_features import NEIGHBOUR_SIZE, OBSTACLE_SIZE, SetFeatureConfig, split_set_observation
+from baselines.set_features import (
+    MOVER_SIZE,
+    NEIGHBOUR_SIZE,
+    OBSTACLE_SIZE,
+    SetFeatureConfig,
+    split_set_observation,
+)
 
 __all__ = ["SetEncoder"]
 
@@ -66,20 +72,23 @@ class SetEncoder(BaseFeaturesExtractor):
 
     def __init__(self, observation_space: spaces.Box, set_config: dict[str, Any], width: int = 64) -> None:
         config = SetFeatureConfig(**set_config)
-        ego, neighbours, obstacles = split_set_observation(int(observation_space.shape[0]), config)
-        super().__init__(observation_space, features_dim=width + 2 * (2 * width + 1))
-        self._slices = (ego, neighbours, obstacles)
+        ego, neighbours, obstacles, movers = split_set_observation(int(observation_space.shape[0]), config)
+        sets = 3 if config.movers else 2
+        super().__init__(observation_space, features_dim=width + sets * (2 * width + 1))
+        self._slices = (ego, neighbours, obstacles, movers)
         self.ego = nn.Sequential(nn.Linear(ego.stop - ego.start, width), nn.ReLU())
         self.neighbours = _SetPool(NEIGHBOUR_SIZE, width)
         self.obstacles = _SetPool(OBSTACLE_SIZE, width)
+        # the third set only for a policy with mover slots: the earlier policies' networks unchanged
+        self.movers = _SetPool(MOVER_SIZE, width) if config.movers else None
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
-        ego, neighbours, obstacles = self._slices
-        return torch.cat(
-            [
-                self.ego(observations[:, ego]),
-                self.neighbours(observations[:, neighbours]),
-                self.obstacles(observations[:, obstacles]),
-            ],
-            dim=1,
-        )
+        ego, neighbours, obstacles, movers = self._slices
+        parts = [
+            self.ego(observations[:, ego]),
+            self.neighbours(observations[:, neighbours]),
+            self.obstacles(observations[:, obstacles]),
+        ]
+        if self.movers is not None:  # appended last: a fine-tune from a policy without keeps its columns
+            parts.append(self.movers(observations[:, movers]))
+        return torch.cat(parts, dim=1)

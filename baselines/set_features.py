@@ -16,6 +16,10 @@ reads instead, for every robot i, a fixed-size vector built from the team's bloc
 ``obstacles`` (``obstacles`` slots of :data:`OBSTACLE_SIZE` + 1 entries)
     the listed obstacles of the block within ``sensing_radius``: body-frame offset of the centre,
     clearance, then a mask entry.
+``movers`` (``movers`` slots of :data:`MOVER_SIZE` + 1 entries; none unless ``movers`` > 0)
+    the listed moving obstacles (``movers`` keyword) within ``sensing_radius``: body-frame offset
+    of the centre, body-frame velocity, clearance, then a mask entry. A policy without mover
+    slots runs in an env with movers too: it does not see them.
 
 Absent slots hold zeros and mask 0; the set encoder (:mod:`baselines.set_encoder`) multiplies
 every slot's encoding by its mask before pooling, so an absent slot's values change nothing.
@@ -41,20 +45,24 @@ __all__ = [
     "EGO_SIZE",
     "MAX_TEAM",
     "NEIGHBOUR_SIZE",
+    "MOVER_SIZE",
     "OBSTACLE_SIZE",
     "SetFeatureConfig",
     "set_feature_size",
     "set_features",
+    "split_movers",
 ]
 
 EGO_SIZE = 11
 NEIGHBOUR_SIZE = 8
 OBSTACLE_SIZE = 3
+MOVER_SIZE = 5
 #: largest team a set policy is run with (the evaluator's random maps place up to this many)
 MAX_TEAM = 64
 _TARGET_SCALE = 5.0  # [m]: target offsets enter as offset / 5, clipped to [-2, 2]
 _NEAR_SCALE = 3.0  # [m]: neighbour and obstacle offsets, clearances
 _FORMATION_SCALE = 2.0  # [m]
+_SPEED_SCALE = 0.5  # [m/s]: mover velocities, the robots' speed limit
 _EPS = 0.05  # [m]: the log distance's floor, half the default goal tolerance
 
 
@@ -70,17 +78,21 @@ class SetFeatureConfig:
         Obstacle slots >= 1 (the block lists the env's ``n_obstacle_obs`` nearest; more slots
         than that stay masked).
     sensing_radius : float
-        Surface clearance [m] > 0 beyond which a team-mate or obstacle is not read.
+        Surface clearance [m] > 0 beyond which a team-mate, obstacle or mover is not read.
+    movers : int
+        Mover slots >= 0 (0: the policy does not see movers; the policies before movers).
     """
 
     neighbours: int = 6
     obstacles: int = 6
     sensing_radius: float = 3.0
+    movers: int = 0
 
     def __post_init__(self) -> None:
         check_int("neighbours", self.neighbours, 1)
         check_int("obstacles", self.obstacles, 1)
         check_number("sensing_radius", self.sensing_radius, above=0)
+        check_int("movers", self.movers, 0)
 
     def as_dict(self) -> dict[str, Any]:
         """The fields, for a policy's metadata."""
@@ -94,7 +106,12 @@ class SetFeatureConfig:
 
 def set_feature_size(config: SetFeatureConfig) -> int:
     """Length of one robot's set observation for ``config``."""
-    return EGO_SIZE + config.neighbours * (NEIGHBOUR_SIZE + 1) + config.obstacles * (OBSTACLE_SIZE + 1)
+    return (
+        EGO_SIZE
+        + config.neighbours * (NEIGHBOUR_SIZE + 1)
+        + config.obstacles * (OBSTACLE_SIZE + 1)
+        + config.movers * (MOVER_SIZE + 1)
+    )
 
 
 def _rotate_into_body(c: NDArray, s: NDArray, x: NDArray, y: NDArray) -> tuple[NDArray, NDArray]:
@@ -107,6 +124,7 @@ def set_features(
     n_obstacle_obs: int,
     formation: bool,
     config: SetFeatureConfig = SetFeatureConfig(),
+    movers: NDArray | None = None,
 ) -> NDArray[np.float32]:
     """Every robot's set observation, built from the team's observation blocks.
 
@@ -119,6 +137,9 @@ def set_features(
     formation : bool
         Whether the blocks end with the formation error (the formation task).
     config : SetFeatureConfig
+    movers : ndarray, shape (..., N, S, MOVER_SIZE), optional
+        The movers each block listed (:func:`split_movers`: taken off the blocks first); None:
+        none listed (every mover slot masked).
 
     Returns
     -------
@@ -164,7 +185,46 @@ def set_features(
     )
     parts = [ego, _neighbour_slots(blocks, c, s, target, leader, config)]
     parts.append(_obstacle_slots(blocks, n, n_obstacle_obs, config))
+    if config.movers:
+        parts.append(_mover_slots(movers, batch + (n,), config))
     return np.concatenate(parts, axis=-1).astype(np.float32)
+
+
+def split_movers(team_blocks: NDArray, mover_slots: int) -> tuple[NDArray, NDArray]:
+    """The blocks (..., N, F) without the movers they list at their end, and those movers
+    (..., N, S, MOVER_SIZE) (:mod:`koopman_envs.tasks.observation`: dx, dy, vx, vy, clearance,
+    nearest first); ``mover_slots`` = S, the env's ``movers.observed`` (0: nothing listed)."""
+    blocks = np.asarray(team_blocks, dtype=np.float64)
+    width = MOVER_SIZE * mover_slots
+    if width == 0:
+        return blocks, np.zeros(blocks.shape[:-1] + (0, MOVER_SIZE))
+    movers = blocks[..., -width:].reshape(blocks.shape[:-1] + (mover_slots, MOVER_SIZE))
+    return blocks[..., :-width], movers
+
+
+def _mover_slots(movers: NDArray | None, lead: tuple[int, ...], config: SetFeatureConfig) -> NDArray:
+    """The mover slots (..., N, slots * (MOVER_SIZE + 1)), nearest first (as listed)."""
+    k = config.movers
+    out = np.zeros(lead + (k, MOVER_SIZE + 1))
+    chosen = 0 if movers is None else min(k, movers.shape[-2])
+    if chosen:
+        assert movers is not None
+        listed = np.asarray(movers, dtype=np.float64)[..., :chosen, :]
+        gap = listed[..., 4]
+        present = (gap < FAR - 1.0) & (gap <= config.sensing_radius)  # absent ones read FAR
+        features = np.stack(
+            [
+                np.clip(listed[..., 0] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., 1] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., 2] / _SPEED_SCALE, -3, 3),
+                np.clip(listed[..., 3] / _SPEED_SCALE, -3, 3),
+                np.clip(gap / _NEAR_SCALE, -1, 3),
+            ],
+            axis=-1,
+        )
+        out[..., :chosen, :MOVER_SIZE] = features * present[..., None]
+        out[..., :chosen, MOVER_SIZE] = present
+    return out.reshape(lead + (-1,))
 
 
 @lru_cache(maxsize=64)
@@ -241,13 +301,15 @@ def _obstacle_slots(blocks: NDArray, n: int, n_obstacle_obs: int, config: SetFea
     return out.reshape(batch + (n, -1))
 
 
-def split_set_observation(size: int, config: SetFeatureConfig) -> tuple[slice, slice, slice]:
-    """Slices of ego, neighbour slots and obstacle slots in an observation of ``size`` entries."""
+def split_set_observation(size: int, config: SetFeatureConfig) -> tuple[slice, slice, slice, slice]:
+    """Slices of ego, neighbour slots, obstacle slots and mover slots (empty without) in an
+    observation of ``size`` entries."""
     if size != config.size:
         raise ValueError(f"a set observation of {config} has {config.size} entries, not {size}")
     a = EGO_SIZE
     b = a + config.neighbours * (NEIGHBOUR_SIZE + 1)
-    return slice(0, a), slice(a, b), slice(b, size)
+    c = b + config.obstacles * (OBSTACLE_SIZE + 1)
+    return slice(0, a), slice(a, b), slice(b, c), slice(c, size)
 
 
 # the largest value an entry can take (bounds of the observation space)

@@ -28,6 +28,7 @@ import numpy as np
 
 import koopman_envs
 from baselines.curriculum import PARTS, STAGES, stage_parts
+from baselines.fine_tune import copy_weights, mismatches
 from baselines.policy import ObsNorm, norm_of, save_policy, success_rate
 from baselines.set_features import SetFeatureConfig
 from baselines.vec_env import FEATURE_SETS, LAYOUTS, KoopNavSB3VecEnv, MixtureVecEnv
@@ -80,6 +81,16 @@ def _env_options(parser: argparse.ArgumentParser) -> None:
         choices=list(UNCERTAINTY_PRESETS),
         help="runtime-uncertainty preset of every training and validation env (pose noise, radio, "
         "actuation delay; the curriculum keeps its own slip) (default nominal)",
+    )
+    parser.add_argument(
+        "--movers",
+        type=json.loads,
+        default=None,
+        help="moving obstacles of every training and validation env: the movers keyword as JSON, "
+        'e.g. \'{"count": 6, "behaviour": "waypoints"}\' (set policies; default: none)',
+    )
+    parser.add_argument(
+        "--mover-slots", type=int, default=4, help="set policy with --movers: mover slots (default 4)"
     )
 
 
@@ -178,7 +189,10 @@ class Trainer:
             if args.algo != "ppo" or args.layout != "robot":
                 parser.error("--policy set trains PPO in the robot layout")
             try:
-                self.set_config = SetFeatureConfig(args.neighbours, args.obstacles, args.sensing_radius)
+                movers = args.mover_slots if args.movers else 0
+                self.set_config = SetFeatureConfig(
+                    args.neighbours, args.obstacles, args.sensing_radius, movers
+                )
             except ValueError as exc:
                 parser.error(str(exc))
         self.history: list[dict] = []
@@ -194,6 +208,7 @@ class Trainer:
             "precision_shaping": args.precision_shaping if args.layout == "robot" else 0.0,
             "max_episode_steps": args.max_episode_steps,
             "uncertainty": args.uncertainty,
+            **({"movers": args.movers} if args.movers else {}),
         }
         if self.set_config is None:
             return KoopNavSB3VecEnv(
@@ -299,23 +314,20 @@ class Trainer:
         """Copy the weights of the policy in ``directory`` into ``model`` (fine-tuning).
 
         The policy is loaded without running its pickles and must match this run's task, policy
-        kind, features and network; a mismatch is refused by name before any training.
+        kind, features and network (:mod:`baselines.fine_tune`: a set policy may grow mover
+        slots); a mismatch is refused by name before any training.
         """
         from baselines.policy import load_policy
 
         loaded, _, metadata = load_policy(directory, self.task, self.args.algo)
-        wrong = {
-            key: (metadata.get(key), wanted)
-            for key, wanted in self._init_requirements().items()
-            if metadata.get(key) != wanted
-        }
+        wrong = mismatches(metadata, self._init_requirements())
         if wrong:
-            listed = "; ".join(
-                f"{key} is {got!r}, this run needs {want!r}" for key, (got, want) in wrong.items()
+            raise ValueError(
+                f"--init-from {directory}: the policy does not fit this run ({'; '.join(wrong)})"
             )
-            raise ValueError(f"--init-from {directory}: the policy does not fit this run ({listed})")
-        model.policy.load_state_dict(loaded.policy.state_dict())
+        grown = copy_weights(model.policy, loaded.policy)
         self.init_source = {
+            "grown": grown,
             "path": str(directory),
             "uncertainty": metadata.get("uncertainty", "nominal"),
             "trained_timesteps": metadata.get("trained_timesteps"),
@@ -334,6 +346,8 @@ class Trainer:
             "task": self.task,
             "uncertainty": args.uncertainty,
         }
+        if args.movers:
+            identity["movers"] = args.movers
         if self.set_config is not None:
             identity["set_config"] = self.set_config.as_dict()
         else:

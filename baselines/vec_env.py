@@ -29,7 +29,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn
 
 import koopman_envs  # noqa: F401 - registers the ids
-from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features
+from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
 from koopman_envs.checks import check_int
 from koopman_envs.sim.nearest import nearest_order
 
@@ -219,6 +219,11 @@ class KoopNavSB3VecEnv(VecEnv):
         self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
         # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
         self._message_ages = engine.builder.comm
+        self._mover_slots = engine.builder.mover_slots  # listed movers: a set policy may read them
+        if self._mover_slots and set_config is None:
+            raise ValueError(
+                "an env with movers trains only set policies (--policy set: movers are their third set)"
+            )
         if engine.builder.beams:
             raise ValueError(
                 "the SB3 adapter's policies read the listed obstacles; sensing='lidar' is not supported"
@@ -263,11 +268,13 @@ class KoopNavSB3VecEnv(VecEnv):
 
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
+        blocks, movers = split_movers(team_obs.reshape(self.n_envs, self.n_robots, -1), self._mover_slots)
+        team_obs = blocks.reshape(self.n_envs, -1)
         if self._message_ages:
             team_obs = without_message_ages(team_obs, self.n_robots)
         if self.set_config is not None:
             blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)
-            observed = set_features(blocks, self._n_obstacle_obs, self._formation, self.set_config)
+            observed = set_features(blocks, self._n_obstacle_obs, self._formation, self.set_config, movers)
             return observed.reshape(self.n_envs * self.n_robots, -1)
         if self.layout == "robot":
             blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)

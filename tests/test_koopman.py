@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -103,6 +104,29 @@ def test_save_load_round_trip_is_bit_identical(tmp_path, nominal_model: KoopmanM
     assert (tmp_path / "again.npz").read_bytes() == path.read_bytes()
 
 
+def _assert_same_model(made: Path, shipped: Path) -> None:
+    """The same model up to the last bits: the fit is deterministic on one install (bit for bit,
+    tests/test_determinism.py), but a numba/LLVM or LAPACK release may round the data or the
+    least squares differently in the last place (seen: 4e-16 in A with numba 0.68)."""
+    import json
+
+    ours, theirs = np.load(made), np.load(shipped)
+    assert ours.files == theirs.files
+    for key in theirs.files:
+        if key == "metadata":
+            a, b = json.loads(str(ours[key])), json.loads(str(theirs[key]))
+            assert a.keys() == b.keys()
+            for field in b:
+                if isinstance(b[field], (float, list)):
+                    np.testing.assert_allclose(
+                        a[field], b[field], rtol=1e-6, err_msg=field
+                    )  # residuals: differences
+                else:
+                    assert a[field] == b[field], field
+        else:
+            np.testing.assert_allclose(ours[key], theirs[key], rtol=1e-9, atol=1e-15, err_msg=key)
+
+
 def test_shipped_high_model_is_what_the_documented_command_makes(tmp_path) -> None:
     out = tmp_path / "high.npz"
     subprocess.run(
@@ -110,7 +134,7 @@ def test_shipped_high_model_is_what_the_documented_command_makes(tmp_path) -> No
         check=True,
         capture_output=True,
     )
-    assert out.read_bytes() == shipped_path("high").read_bytes()
+    _assert_same_model(out, shipped_path("high"))
 
 
 @pytest.mark.slow
@@ -122,7 +146,7 @@ def test_other_shipped_models_regenerate(tmp_path, setting: str) -> None:
         check=True,
         capture_output=True,
     )
-    assert out.read_bytes() == shipped_path(setting).read_bytes()
+    _assert_same_model(out, shipped_path(setting))
 
 
 def test_shipped_models_are_the_calibration_cache_entries_of_the_paper_settings(

@@ -18,7 +18,8 @@ import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.movers import MoverConfig, parse_movers
 from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.sim.movers import MOVER_FEATURES, MoverField, mover_arena
+from koopman_envs.sim.mover_placement import mover_arena
+from koopman_envs.sim.movers import MOVER_FEATURES, MoverField
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)

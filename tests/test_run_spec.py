@@ -136,12 +136,23 @@ def test_presets_equal_the_protocols_field_by_field() -> None:
         "ipopt",
     )
     assert len(ablation.controllers) > 1
-    for spec in (protocol(name) for name in PROTOCOLS):
+    crowd = protocol("crowd")
+    with_random = {env: (*maps, "random") for env, maps in PAPER_MAPS.items()}  # the 20 layouts' row
+    assert (crowd.envs, crowd.maps, crowd.slips, crowd.episodes, crowd.solver, crowd.random_maps) == (
+        BOTH,
+        with_random,
+        ("nominal",),
+        20,
+        "rti",
+        20,
+    )
+    for name in PROTOCOLS:
+        spec = protocol(name)
         assert (spec.seed, spec.calibration_budget, spec.calibration_seed, spec.random_maps, spec.gifs) == (
             0,
             PARAMS.calibration_budget,
             0,
-            None,
+            20 if name == "crowd" else None,
             False,
         )
 

@@ -321,3 +321,58 @@ def test_the_fast_deterministic_action_is_predicts_action(set_root) -> None:
         obs = (2 * rng.normal(size=(64, model.observation_space.shape[0]))).astype(np.float32)
         expected, _ = model.predict(obs, deterministic=True)
         np.testing.assert_array_equal(deterministic_action(model, obs), expected)
+
+
+def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_path, monkeypatch) -> None:
+    """A set policy without movers seeds a run with mover slots: the grown policy acts exactly as
+    its source on observations with movers present (the movers' columns start at zero)."""
+    import torch
+
+    from baselines import train
+    from baselines.set_features import MOVER_SIZE, SetFeatureConfig
+
+    source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
+    started = {}
+
+    def learn_nothing(self, model, venv):
+        started["policy"] = model.policy
+        return venv
+
+    monkeypatch.setattr(train.Trainer, "learn", learn_nothing)
+    args = _tiny_run(
+        tmp_path / "grown", "--movers", '{"count": 4}', "--init-from", str(set_root / "target_reaching")
+    )
+    assert train_main(args) == 0
+    grown = started["policy"]
+    old = SetFeatureConfig(
+        **json.loads((set_root / "target_reaching" / "metadata.json").read_text())["set_config"]
+    )
+    rng = np.random.default_rng(0)
+    base = rng.uniform(-1, 1, (32, old.size)).astype(np.float32)
+    movers = rng.uniform(-1, 1, (32, 4, MOVER_SIZE + 1)).astype(np.float32)
+    movers[..., -1] = 1.0  # every mover slot present
+    with torch.no_grad():
+        theirs = source.policy.get_distribution(torch.as_tensor(base)).distribution.mean
+        mine = grown.get_distribution(
+            torch.as_tensor(np.hstack([base, movers.reshape(32, -1)]))
+        ).distribution.mean
+    torch.testing.assert_close(mine, theirs)
+    metadata = json.loads((tmp_path / "grown" / "metadata.json").read_text())
+    assert metadata["set_config"]["movers"] == 4 and metadata["movers"] == {"count": 4}
+    assert metadata["initialized_from"]["grown"]  # the heads' first layers grew
+
+
+def test_the_movers_set_reads_the_listed_movers() -> None:
+    from baselines.set_features import MOVER_SIZE, SetFeatureConfig, set_features, split_movers
+
+    env = gym.make("KoopNav-TargetReaching-v0", movers=dict(count=2, observed=3))
+    obs, info = env.reset(seed=1)
+    blocks, movers = split_movers(obs.reshape(3, -1), 3)
+    assert movers.shape == (3, 3, MOVER_SIZE) and (movers[:, 2, 4] == 30).all()  # the third absent
+    config = SetFeatureConfig(movers=3, sensing_radius=100.0)
+    features = set_features(blocks, (blocks.shape[-1] - 15) // 3, False, config, movers)
+    slots = features[:, -3 * (MOVER_SIZE + 1) :].reshape(3, 3, MOVER_SIZE + 1)
+    assert (slots[:, :2, -1] == 1).all() and (slots[:, 2] == 0).all()  # two present, one masked
+    np.testing.assert_allclose(slots[:, 0, 0], np.clip(movers[:, 0, 0] / 3.0, -3, 3), rtol=1e-6)
+    plain = set_features(blocks, (blocks.shape[-1] - 15) // 3, False, SetFeatureConfig(sensing_radius=100.0))
+    np.testing.assert_array_equal(features[:, : plain.shape[-1]], plain)  # appended after the others

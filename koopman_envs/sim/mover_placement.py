@@ -1,0 +1,148 @@
+"""Where the movers may go and where they start: the arena and the placement at reset.
+
+The arena is the bounding box of a map's starts, targets and obstacles grown by
+:data:`ARENA_MARGIN` and clipped to the workspace (a mover anywhere in the 20 m workspace would
+seldom meet a team working in a 6 m patch of it). At reset every mover is drawn uniformly in it,
+clear of the static obstacles, of the other movers and of every start and target
+(:func:`place_movers`). Both run at every reset of every environment, so both are compiled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = ["ARENA_MARGIN", "PLACEMENT_ATTEMPTS", "arena_into", "mover_arena", "place_movers"]
+
+#: how far the movers' arena reaches beyond the map's starts, targets and obstacles [m] (ours)
+ARENA_MARGIN = 1.5
+#: placement attempts per mover at reset
+PLACEMENT_ATTEMPTS = 2000
+#: gap kept between a mover and a static obstacle or another mover at placement [m]
+_PLACEMENT_GAP = 0.1
+
+
+def mover_arena(
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    workspace: tuple[float, float, float, float],
+) -> NDArray[np.float64]:
+    """(x_min, x_max, y_min, y_max) [m] of the region the movers keep to (module docstring)."""
+    arena = np.empty(4)
+    arena_into(
+        np.array(starts, dtype=np.float64),
+        np.array(targets, dtype=np.float64),
+        np.asarray(obstacles, dtype=np.float64).reshape(-1, 3),
+        np.asarray(workspace, dtype=np.float64),
+        arena,
+    )
+    return arena
+
+
+@njit(cache=True)
+def arena_into(
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    workspace: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled (called at every reset: numpy's small calls cost more)
+    x_min, y_min, x_max, y_max = np.inf, np.inf, -np.inf, -np.inf
+    for points in (starts, targets):
+        for j in range(points.shape[0]):
+            x_min, x_max = min(x_min, points[j, 0]), max(x_max, points[j, 0])
+            y_min, y_max = min(y_min, points[j, 1]), max(y_max, points[j, 1])
+    for j in range(obstacles.shape[0]):
+        r = obstacles[j, 2]
+        x_min, x_max = min(x_min, obstacles[j, 0] - r), max(x_max, obstacles[j, 0] + r)
+        y_min, y_max = min(y_min, obstacles[j, 1] - r), max(y_max, obstacles[j, 1] + r)
+    out[0] = max(x_min - ARENA_MARGIN, workspace[0])
+    out[1] = min(x_max + ARENA_MARGIN, workspace[1])
+    out[2] = max(y_min - ARENA_MARGIN, workspace[2])
+    out[3] = min(y_max + ARENA_MARGIN, workspace[3])
+
+
+def place_movers(
+    rng: np.random.Generator,
+    count: int,
+    radius: float,
+    arena: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    keep_clear: tuple[NDArray[np.float64], NDArray[np.float64]],
+    clearance: float,
+) -> NDArray[np.float64]:
+    """``count`` mover centres (C, 2) drawn uniformly in ``arena``, clear of the obstacles, of each
+    other and by ``clearance`` + ``radius`` of every point of the two ``keep_clear`` arrays
+    (rows x, y, ...: the starts and the targets).
+
+    Candidates come in blocks of uniforms from ``rng`` and a compiled loop takes the first free
+    ones in order (a Python loop of scalar draws cost more than the rest of a reset).
+
+    Raises
+    ------
+    ValueError
+        A mover finds no free place in :data:`PLACEMENT_ATTEMPTS` draws.
+    """
+    placed = np.zeros((count, 2))
+    obstacles = np.ascontiguousarray(obstacles, dtype=np.float64).reshape(-1, 3)
+    starts, targets = (np.array(points, dtype=np.float64) for points in keep_clear)  # writable: one type
+    block = 4 * count + 16
+    done = np.zeros(2, dtype=np.int64)  # movers placed, failed attempts at the current one
+    while done[0] < count:
+        _place_from(
+            rng.random((block, 2)), arena, radius, obstacles, starts, targets, clearance, placed, done
+        )
+        if done[1] >= PLACEMENT_ATTEMPTS:
+            raise ValueError(
+                f"movers: no free place for mover {done[0] + 1} of {count} (radius {radius} m) in the arena "
+                f"{np.round(arena, 2).tolist()} clear of the obstacles, the other movers and the starts "
+                "and targets; use fewer or smaller movers"
+            )
+    return placed
+
+
+@njit(cache=True)
+def _place_from(
+    candidates: NDArray[np.float64],
+    arena: NDArray[np.float64],
+    radius: float,
+    obstacles: NDArray[np.float64],
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    clearance: float,
+    placed: NDArray[np.float64],
+    done: NDArray[np.int64],
+) -> None:  # pragma: no cover - compiled
+    """Try ``candidates`` (B, 2) of uniforms in order for the movers from ``done[0]`` on (see
+    :func:`place_movers`); stops at :data:`PLACEMENT_ATTEMPTS` failures of one mover."""
+    lo_x, span_x = arena[0] + radius, arena[1] - arena[0] - 2.0 * radius
+    lo_y, span_y = arena[2] + radius, arena[3] - arena[2] - 2.0 * radius
+    for b in range(candidates.shape[0]):
+        c = done[0]
+        if c >= placed.shape[0] or done[1] >= PLACEMENT_ATTEMPTS:
+            return
+        x, y = lo_x + span_x * candidates[b, 0], lo_y + span_y * candidates[b, 1]
+        free = True
+        for m in range(obstacles.shape[0]):
+            reach = obstacles[m, 2] + radius + _PLACEMENT_GAP
+            if (obstacles[m, 0] - x) ** 2 + (obstacles[m, 1] - y) ** 2 < reach * reach:
+                free = False
+                break
+        reach = clearance + radius
+        for points in (starts, targets):
+            for m in range(points.shape[0]):
+                if free and (points[m, 0] - x) ** 2 + (points[m, 1] - y) ** 2 < reach * reach:
+                    free = False
+        if free:
+            reach = 2.0 * radius + _PLACEMENT_GAP
+            for m in range(c):
+                if (placed[m, 0] - x) ** 2 + (placed[m, 1] - y) ** 2 < reach * reach:
+                    free = False
+                    break
+        if free:
+            placed[c, 0], placed[c, 1] = x, y
+            done[0], done[1] = c + 1, 0
+        else:
+            done[1] += 1
