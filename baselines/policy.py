@@ -26,6 +26,7 @@ __all__ = [
     "PolicyFiles",
     "RLPolicyController",
     "RLSetPolicyController",
+    "RLSetRealisticPolicyController",
     "load_policy",
     "policy_command",
     "policy_dir",
@@ -402,6 +403,8 @@ class RLSetPolicyController(RLPolicyController):
     """
 
     name = "rl-ppo-set"
+    #: the folder under ``baselines/policies`` of the shipped policies this name loads
+    shipped = "set"
 
     def __init__(
         self,
@@ -410,4 +413,13 @@ class RLSetPolicyController(RLPolicyController):
         threads: int | None = 1,
         allow_pickle: bool = False,
     ) -> None:
-        super().__init__(policy_root or SHIPPED / "set", algo, threads, allow_pickle)
+        super().__init__(policy_root or SHIPPED / self.shipped, algo, threads, allow_pickle)
+
+
+class RLSetRealisticPolicyController(RLSetPolicyController):
+    """``rl-ppo-set-realistic``: the set policies fine-tuned under ``uncertainty="realistic"``
+    (pose noise, lossy and late messages, a period of actuation delay) from ``rl-ppo-set``'s
+    (``baselines/policies/set_realistic``; docs/rl.md)."""
+
+    name = "rl-ppo-set-realistic"
+    shipped = "set_realistic"
