@@ -69,6 +69,9 @@ def cast_beams(
     disc_dy = np.empty(n_discs)
     disc_r2 = np.empty(n_discs)
     disc_d2 = np.empty(n_discs)
+    # the robot's beam directions, computed once per robot (both passes read them)
+    ray_c = np.empty(n_beams)
+    ray_s = np.empty(n_beams)
     x_min, x_max, y_min, y_max = workspace[0], workspace[1], workspace[2], workspace[3]
     # each beam's direction is the heading's turned by its angle: two trig calls per beam here,
     # a rotation (4 products) per beam and robot below
@@ -105,13 +108,15 @@ def cast_beams(
                 for b in range(n_beams):
                     out[k, i, b] = 0.0
                 continue
+            for b in range(n_beams):
+                ray_c[b] = heading_cos * beam_cos[b] - heading_sin * beam_sin[b]
+                ray_s[b] = heading_sin * beam_cos[b] + heading_cos * beam_sin[b]
             # pass 1, the walls within range (most robots see none: then every beam reads the range)
             east, west = x_max - x < max_range, x - x_min < max_range
             north, south = y_max - y < max_range, y - y_min < max_range
             if east or west or north or south:
                 for b in range(n_beams):
-                    c = heading_cos * beam_cos[b] - heading_sin * beam_sin[b]
-                    s = heading_sin * beam_cos[b] + heading_cos * beam_sin[b]
+                    c, s = ray_c[b], ray_s[b]
                     best = max_range
                     # the robot is inside the workspace, so the exit distance along the beam
                     if east and c > 0.0:
@@ -137,9 +142,7 @@ def cast_beams(
                     low = max(0, math.ceil((bearing + shift - half - first) / spacing))
                     high = min(n_beams - 1, math.floor((bearing + shift + half - first) / spacing))
                     for b in range(low, high + 1):
-                        c = heading_cos * beam_cos[b] - heading_sin * beam_sin[b]
-                        s = heading_sin * beam_cos[b] + heading_cos * beam_sin[b]
-                        along = dx * c + dy * s
+                        along = dx * ray_c[b] + dy * ray_s[b]
                         if along <= 0.0:
                             continue  # behind the robot (the robot is outside every disc)
                         across2 = d2 - along * along
