@@ -128,7 +128,9 @@ def pysocialforce_runner(num_envs: int) -> tuple | None:
         return None
     import logging
 
-    logging.disable(logging.INFO)  # pysocialforce sets the root logger to DEBUG on import (and writes file.log)
+    logging.disable(
+        logging.INFO
+    )  # pysocialforce sets the root logger to DEBUG on import (and writes file.log)
     field = _crowd_field(num_envs)
     spec = load_map("map1")
     sides = 16
