@@ -64,6 +64,8 @@ class Option:
 
     def check(self, value: Any, owner: str) -> None:
         """Raise ``ValueError`` when ``value`` is not one of :attr:`choices` (naming them)."""
+        if value is None and "None" in self.type:  # an optional text option (e.g. no fallback solver)
+            return
         if self.choices is not None and value not in self.choices:
             raise ValueError(
                 f"{owner}: {self.name}={value!r} is not one of {list(self.choices)}"

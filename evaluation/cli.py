@@ -14,7 +14,7 @@ import controllers
 from controllers.mpc.config import SOLVERS
 from evaluation.ablation import check_factors
 from evaluation.baseline import GateOptions
-from evaluation.configs import split_controller_list
+from evaluation.configs import FALLBACK_NONE, split_controller_list
 from evaluation.protocols import (
     CROWD_COUNTS,
     QUICK_START_NOISE,
@@ -54,17 +54,32 @@ def split_words(words: list[str] | None) -> list[str] | None:
     return [piece.strip() for word in words for piece in word.split(",") if piece.strip()]
 
 
-def parse_env_kwargs(words: list[str] | None) -> dict[str, Any]:
-    """``["n_robots=5", "goal_tolerance=0.05"]`` -> dict (values parsed as JSON, else text)."""
-    kwargs: dict[str, Any] = {}
+def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None) -> dict[str, Any]:
+    """``["n_robots=5", "pose_noise.xy=0.1"]`` -> dict (values parsed as JSON, else text).
+
+    A dotted key sets one field of a dict keyword, over that keyword's fields in ``into`` (the
+    settings given before, which the result copies and overrides).
+    """
+    kwargs: dict[str, Any] = dict(into or {})
     for word in words or []:
         key, eq, value = word.partition("=")
-        if not eq or not key.strip().isidentifier():
-            raise ValueError(f"--env-kwargs {word!r} is not key=value (a Python identifier as key)")
+        root, dot, field = key.strip().partition(".")
+        if not eq or not root.isidentifier() or (dot and not field.isidentifier()):
+            raise ValueError(
+                f"--env-kwargs {word!r} is not key=value (a Python identifier as key, or "
+                "keyword.field for one field of a dict keyword, e.g. pose_noise.xy=0.1)"
+            )
         try:
-            kwargs[key.strip()] = json.loads(value)
+            parsed = json.loads(value)
         except json.JSONDecodeError:
-            kwargs[key.strip()] = value
+            parsed = value
+        if not dot:
+            kwargs[root] = parsed
+            continue
+        inner = kwargs.get(root) or {}
+        if not isinstance(inner, dict):
+            raise ValueError(f"--env-kwargs {word!r}: {root} is already {inner!r}, not a dict of fields")
+        kwargs[root] = {**inner, field: parsed}
     return kwargs
 
 
@@ -226,6 +241,15 @@ def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
         "--paper-strict, --ablation, else each controller's own: ipopt)",
     )
     ctrl.add_argument(
+        "--fallback-solver",
+        choices=[*SOLVERS[1:], FALLBACK_NONE],
+        help="NLP rescue of every NMPC configuration that names none, tried when its solver fails "
+        "(default: each controller's own, ipopt); none: no rescue, each period keeps its "
+        "real-time budget (a real-time iteration's plan with a large slack is used as it is, a "
+        "failed QP goes to the rest of the last plan). Under pose noise the rescue runs on up to "
+        "one period in three at 0.3-2 s each",
+    )
+    ctrl.add_argument(
         "--calibration-budget",
         type=int,
         default=PARAMS.calibration_budget,
@@ -362,6 +386,8 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         changes.update(controllers=split_controller_list(args.controllers), solver=None)
     if args.solver:
         changes["solver"] = args.solver
+    if args.fallback_solver:
+        changes["fallback_solver"] = args.fallback_solver
     if args.slips:
         changes["slips"] = split_slips(args.slips)
     if args.episodes is not None:
@@ -375,7 +401,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
     ):
         if getattr(args, option) is not None:
             env_kwargs[keyword] = getattr(args, option)
-    env_kwargs.update(parse_env_kwargs(args.env_kwargs))
+    env_kwargs = parse_env_kwargs(args.env_kwargs, into=env_kwargs)
     return spec.replace(
         **changes,
         env_kwargs=env_kwargs,

@@ -40,6 +40,9 @@ __all__ = [
     "with_solver",
 ]
 
+#: ``--fallback-solver`` value that turns every NMPC's NLP rescue off
+FALLBACK_NONE = "none"
+
 
 @dataclass(frozen=True)
 class ControllerConfig:
@@ -110,6 +113,8 @@ class ControllerConfig:
 
 
 def _scalar(text: str) -> Any:
+    if text.strip() == "None":  # Python's spelling of JSON's null
+        return None
     try:
         value = json.loads(text)
     except json.JSONDecodeError:
@@ -254,40 +259,63 @@ def controller_configs(spec: Any) -> list[ControllerConfig]:
     return configs
 
 
-def _default_solver(config: ControllerConfig) -> str | None:
-    """The default ``solver`` of the controller ``config`` names (its option spec, nothing is
-    built), or None when it takes no ``solver`` option (a factory given as a callable: built)."""
+def _spec(config: ControllerConfig) -> Any:
+    """The option spec of the controller ``config`` names (nothing is built)."""
     from controllers.option_spec import options
 
     if config.factory is not None:
         from controllers.option_spec import spec_of
 
-        spec = spec_of(config.label, config.factory)
-    else:
-        spec = options(config.name)
+        return spec_of(config.label, config.factory)
+    return options(config.name)
+
+
+def _takes(config: ControllerConfig, option: str) -> bool:
+    return bool(_spec(config).takes(option))
+
+
+def _default_solver(config: ControllerConfig) -> str | None:
+    """The default ``solver`` of the controller ``config`` names, or None when it takes no
+    ``solver`` option."""
+    spec = _spec(config)
     return str(spec.default("solver")) if spec.takes("solver") else None
 
 
-def with_solver(configs: Iterable[ControllerConfig], solver: str | None) -> list[ControllerConfig]:
+def with_solver(
+    configs: Iterable[ControllerConfig], solver: str | None, fallback_solver: str | None = None
+) -> list[ControllerConfig]:
     """``configs`` with ``solver=`` set on every NMPC configuration (central or distributed) that
-    does not set it itself and does not solve with it by default.
+    does not set it itself and does not solve with it by default, and ``fallback_solver=`` on
+    every one that does not set it itself.
 
-    ``solver=None`` changes nothing. A name outside :data:`controllers.mpc.config.SOLVERS` raises
-    ``ValueError`` naming it and the allowed ones.
+    ``solver=None`` and ``fallback_solver=None`` change nothing; ``fallback_solver="none"`` turns
+    the NLP rescue off (:class:`controllers.mpc.config.NMPCConfig`). A name outside
+    :data:`controllers.mpc.config.SOLVERS` raises ``ValueError`` naming it and the allowed ones.
     """
     configs = list(configs)
-    if solver is None:
-        return configs
     from controllers.mpc.config import SOLVERS
 
-    if solver not in SOLVERS:
+    if solver is not None and solver not in SOLVERS:
         raise ValueError(f"--solver {solver!r} is not one of {list(SOLVERS)}")
+    fallbacks = [*SOLVERS[1:], FALLBACK_NONE]
+    if fallback_solver is not None and fallback_solver not in fallbacks:
+        raise ValueError(f"--fallback-solver {fallback_solver!r} is not one of {fallbacks}")
     out = []
     for config in configs:
+        given = dict(config.options)
+        changes: dict[str, Any] = {}
         # an NMPC that already solves with ``solver`` by default is left as it is (its
         # configuration, and so a baseline's, does not change)
-        if "solver" not in dict(config.options) and _default_solver(config) not in (None, solver):
-            options = tuple(sorted((*config.options, ("solver", solver))))
+        if solver is not None and "solver" not in given and _default_solver(config) not in (None, solver):
+            changes["solver"] = solver
+        if (
+            fallback_solver is not None
+            and "fallback_solver" not in given
+            and _takes(config, "fallback_solver")
+        ):
+            changes["fallback_solver"] = None if fallback_solver == FALLBACK_NONE else fallback_solver
+        if changes:
+            options = tuple(sorted((*config.options, *changes.items())))
             config = ControllerConfig(config.label, config.name, options, config.factory)
         out.append(config)
     return out

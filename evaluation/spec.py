@@ -93,6 +93,9 @@ class RunSpec:
     solver : str, optional
         Optimizer (``rti``, ``ipopt``, ``fatrop``) of every NMPC configuration that names none
         (default: each controller's own).
+    fallback_solver : str, optional
+        NLP rescue (``ipopt``, ``fatrop``, or ``"none"`` for no rescue) of every NMPC
+        configuration that names none (default: each controller's own, IPOPT).
     """
 
     envs: str | Sequence[str] = tuple(TASK_MAPS)
@@ -107,6 +110,7 @@ class RunSpec:
     random_maps: int | None = None
     gifs: bool = False
     solver: str | None = None
+    fallback_solver: str | None = None
 
     def __post_init__(self) -> None:
         # normal forms only (nothing here can fail on a value: validate() names bad ones)
@@ -170,7 +174,8 @@ class RunSpec:
         return int(self.env_kwargs.get("n_robots", PARAMS.n_robots))
 
     def resolved(self, controllers: Sequence[Any] | None = None) -> RunSpec:
-        """This spec with its controller list explicit and ``solver`` applied to it.
+        """This spec with its controller list explicit and ``solver`` and ``fallback_solver``
+        applied to it.
 
         ``controllers`` fills in a spec without controllers (the evaluator passes every usable
         registered controller).
@@ -178,8 +183,8 @@ class RunSpec:
         configs = self.controllers if self.controllers is not None else controllers
         if configs is None:
             raise ValueError("RunSpec.controllers is empty: name the controllers to evaluate")
-        configs = with_solver(controller_configs(configs), self.solver)
-        return dataclasses.replace(self, controllers=tuple(configs), solver=None)
+        configs = with_solver(controller_configs(configs), self.solver, self.fallback_solver)
+        return dataclasses.replace(self, controllers=tuple(configs), solver=None, fallback_solver=None)
 
     # ------------------------------------------------------------------ checks
     def validate(self, workers: int = 1) -> None:
@@ -206,8 +211,8 @@ class RunSpec:
                 )
             for cfg in configs:
                 cfg.validate(across_processes=workers > 1)
-        if self.solver is not None:
-            with_solver([], self.solver)  # names the bad solver and the allowed ones
+        if self.solver is not None or self.fallback_solver is not None:
+            with_solver([], self.solver, self.fallback_solver)  # names a bad solver and the allowed ones
         data_spec_for(self.calibration_budget)  # raises for a budget that is not an integer >= 1
         check_int("calibration_seed", self.calibration_seed, 0)
         check_int("episodes", self.episodes, 1)

@@ -164,6 +164,17 @@ def test_comma_separated_lists_work_like_spaced_ones() -> None:
         "random_map": {"n_obstacles": 2},
         "x": "text",
     }
+    # a dotted key sets one field of a dict keyword, over the fields given before
+    given = {"pose_noise": {"xy": 0.5, "heading": 0.1}}
+    assert ev.parse_env_kwargs(["pose_noise.xy=0.1", "comm.drop=0.2"], into=given) == {
+        "pose_noise": {"xy": 0.1, "heading": 0.1},
+        "comm": {"drop": 0.2},
+    }
+    assert given == {"pose_noise": {"xy": 0.5, "heading": 0.1}}  # not changed
+    with pytest.raises(ValueError, match=r"n_robots is already 3, not a dict of fields"):
+        ev.parse_env_kwargs(["n_robots.x=1"], into={"n_robots": 3})
+    with pytest.raises(ValueError, match=r"keyword.field for one field of a dict keyword"):
+        ev.parse_env_kwargs(["pose_noise.=1"])
 
 
 def test_cli_runs_comma_lists_env_kwargs_and_random_maps(tmp_path) -> None:

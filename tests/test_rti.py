@@ -161,6 +161,32 @@ def test_a_plan_with_a_large_slack_goes_to_ipopt(monkeypatch) -> None:
     assert any(key.startswith("rti:large_slack -> ipopt:") for key in ctrl.stats().statuses)
 
 
+def test_without_a_fallback_solver_a_plan_with_a_large_slack_is_used_and_counted(monkeypatch) -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    obs, info = env.reset(seed=0)
+    commands = {}
+    for fallback in ("ipopt", None):
+        ctrl = controllers.make(
+            "nominal-nmpc", solver="rti", fallback_solver=fallback, slack_tolerance=1e-300
+        )
+        ctrl.reset(env)
+        real = type(ctrl.problem.real_time_iteration()).solve
+
+        def slack(self, *args, real=real):
+            step = real(self, *args)
+            step.max_slack = 1.0
+            return step
+
+        monkeypatch.setattr(type(ctrl.problem.real_time_iteration()), "solve", slack)
+        commands[fallback] = ctrl.act(obs, info)
+        monkeypatch.undo()
+    stats = ctrl.stats()
+    assert stats.counts["large_slack_accepted"] == 1 and stats.failures == 0
+    assert stats.statuses["rti_large_slack"] == 1 and "fallback_ipopt" not in stats.counts
+    # the QP's own plan, not IPOPT's and not a stop
+    assert not np.allclose(commands[None], commands["ipopt"]) and np.any(commands[None] != 0)
+
+
 @pytest.mark.parametrize(
     "options, message",
     [
@@ -235,6 +261,34 @@ def test_with_solver_sets_every_nmpc_that_names_none() -> None:
     assert with_solver(configs, None) == configs
     with pytest.raises(ValueError, match=r"--solver 'sqp' is not one of \['rti', 'ipopt', 'fatrop'\]"):
         with_solver(configs, "sqp")
+
+
+def test_with_solver_sets_or_turns_off_every_nmpcs_fallback_solver() -> None:
+    from evaluation.configs import parse_controller, with_solver
+
+    configs = [
+        parse_controller(t)
+        for t in (
+            "koopman-nmpc",
+            "consensus",
+            "dmpc-nominal",
+            "nominal-nmpc:fallback_solver=fatrop,label=own",
+        )
+    ]
+    out = with_solver(configs, "rti", "none")
+    assert dict(out[0].options) == {"solver": "rti", "fallback_solver": None}
+    assert out[1] == configs[1]  # consensus has no fallback solver
+    assert dict(out[2].options) == {"fallback_solver": None}  # solves with rti by default
+    assert dict(out[3].options)["fallback_solver"] == "fatrop"  # a configuration's own choice wins
+    assert out[0].build().config.fallback_solver is None and out[2].build().config.fallback_solver is None
+    assert dict(with_solver(configs, None, "fatrop")[0].options) == {"fallback_solver": "fatrop"}
+    with pytest.raises(
+        ValueError, match=r"--fallback-solver 'rti' is not one of \['ipopt', 'fatrop', 'none'\]"
+    ):
+        with_solver(configs, None, "rti")
+    # from the command line, JSON's null and Python's None both mean no fallback solver
+    for text in ("nominal-nmpc:fallback_solver=null", "nominal-nmpc:fallback_solver=None"):
+        assert parse_controller(text).build().config.fallback_solver is None
 
 
 def test_the_report_names_each_rows_solver_and_the_terminal_gets_a_compact_board(tmp_path) -> None:

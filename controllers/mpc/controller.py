@@ -422,7 +422,12 @@ class NMPCController(BaseController):
         if not step.success:
             return SolveOutcome(False, f"qp_failed({step.status})", iterations=step.iterations)
         if step.max_slack > self.config.slack_tolerance:
-            return SolveOutcome(False, "large_slack", iterations=step.iterations)
+            if self.config.fallback_solver is not None:
+                return SolveOutcome(False, "large_slack", iterations=step.iterations)
+            # no rescue to call: the soft plan is the best there is (it steers back out of the
+            # violated margins), better than replaying an older plan; counted, not failed
+            self._stats.counts["large_slack_accepted"] += 1
+            return SolveOutcome(True, "rti_large_slack", step.w, step.lam_x, step.lam_g, step.iterations)
         return SolveOutcome(True, "rti", step.w, step.lam_x, step.lam_g, step.iterations)
 
     def _solve_nlp(self, name: str, params: NDArray, guess: dict[str, NDArray], cold: bool) -> SolveOutcome:
