@@ -12,7 +12,7 @@ After each step (and at reset) one compiled pass updates, per environment:
 
 Random numbers come from a child of the env's generator (``Generator.spawn``), made when the
 env's generator changes (``reset(seed=...)``) and kept across episodes otherwise, and are drawn
-in blocks per environment, as the slip draws are. Spawning consumes nothing of the env's own
+in blocks per environment (each generator fills its own block in place), as the slip draws are. Spawning consumes nothing of the env's own
 stream, so the map, start and slip draws of a seed are the same at every uncertainty level (a
 sweep's curves are paired), and a sub-environment of a batch draws exactly as a lone env.
 """
@@ -123,12 +123,11 @@ class Perception:
         #: periods per block: as many as BLOCK_NUMBERS random numbers allow, 8 to 256
         self.block = int(np.clip(BLOCK_NUMBERS // max(1, self._normals + self._uniforms), 8, 256))
         # single precision: half the generator's time, and ample for noise (7 significant digits)
-        # period-major (block, K, width): a step reads one row of every environment, and while
-        # their cursors agree (they do unless some skip a step) those rows are one contiguous run
-        self.normal = np.zeros((self.block, k, self._normals), dtype=np.float32)
-        self.uniform = np.zeros((self.block, k, self._uniforms), dtype=np.float32)
-        self._draw_normal = np.empty((self.block, self._normals), dtype=np.float32)
-        self._draw_uniform = np.empty((self.block, self._uniforms), dtype=np.float32)
+        # environment-major (K, block, width): the generator fills an environment's block in
+        # place (no strided copy, no scratch buffer), and a step reads one contiguous row per
+        # environment
+        self.normal = np.zeros((k, self.block, self._normals), dtype=np.float32)
+        self.uniform = np.zeros((k, self.block, self._uniforms), dtype=np.float32)
         self.cursor = np.full(k, self.block, dtype=np.int64)
         self.rngs: list[np.random.Generator | None] = [None] * k
         self._parents: list[np.random.Generator | None] = [None] * k
@@ -253,11 +252,9 @@ class Perception:
             if rng is None:
                 raise RuntimeError(f"environment {k} was stepped before reset()")
             if self._normals:
-                rng.standard_normal(dtype=np.float32, out=self._draw_normal)
-                self.normal[:, k] = self._draw_normal
+                rng.standard_normal(dtype=np.float32, out=self.normal[k])
             if self._uniforms:
-                rng.random(dtype=np.float32, out=self._draw_uniform)
-                self.uniform[:, k] = self._draw_uniform
+                rng.random(dtype=np.float32, out=self.uniform[k])
             self.cursor[k] = 0
 
 
@@ -318,8 +315,8 @@ def _perceive(
                 value = truth[k, c, i]
                 if noisy:
                     if t > 0:
-                        bias[k, c, i] += drift[c] * normal[row, k, at_normal + 3 + c]
-                    value += bias[k, c, i] + std[c] * normal[row, k, at_normal + c]
+                        bias[k, c, i] += drift[c] * normal[k, row, at_normal + 3 + c]
+                    value += bias[k, c, i] + std[c] * normal[k, row, at_normal + c]
                 observed[k, c, i] = wrap_scalar(value) if c == 2 else value
             if noisy:
                 at_normal += 6
@@ -341,7 +338,7 @@ def _perceive(
                     continue
                 lost = False
                 if drop > 0.0:
-                    lost = uniform[row, k, at_uniform] < drop
+                    lost = uniform[k, row, at_uniform] < drop
                     at_uniform += 1
                 delivered = False
                 if t >= latency and not lost:
@@ -359,12 +356,12 @@ def _perceive(
             for b in range(beams):
                 value = ranges[k, i, b]
                 if lidar_dropout > 0.0:
-                    if uniform[row, k, at_uniform] < lidar_dropout:
+                    if uniform[k, row, at_uniform] < lidar_dropout:
                         value = max_range
                     at_uniform += 1
                 if lidar_noise > 0.0:
                     if value < max_range:
-                        value += lidar_noise * normal[row, k, at_normal]
+                        value += lidar_noise * normal[k, row, at_normal]
                     at_normal += 1
                 ranges[k, i, b] = min(max(value, 0.0), max_range)
         cursor[k] = row + (1 if (at_normal or at_uniform) else 0)
