@@ -149,6 +149,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=5.0,
         help="robot layout: weight of the log-distance potential term",
     )
+    parser.add_argument(
+        "--mover-shaping",
+        type=float,
+        default=0.0,
+        help="robot layout with --movers: weight of the per-step cost of coming within "
+        "0.5 m of a mover (baselines.vec_env.MOVER_SHAPING_BAND; default 0: none)",
+    )
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
     parser.add_argument("--threads", type=int, default=2, help="torch threads")
     parser.add_argument(
@@ -195,6 +202,12 @@ class Trainer:
                 )
             except ValueError as exc:
                 parser.error(str(exc))
+        if args.mover_shaping and not args.movers:
+            parser.error(
+                f"--mover-shaping {args.mover_shaping} needs --movers (there is no mover to keep clear of)"
+            )
+        if not np.isfinite(args.mover_shaping) or args.mover_shaping < 0:
+            parser.error(f"--mover-shaping {args.mover_shaping} must be a finite number >= 0")
         self.history: list[dict] = []
         #: the policy this run was fine-tuned from (``--init-from``), recorded in the metadata
         self.init_source: dict[str, Any] | None = None
@@ -206,6 +219,7 @@ class Trainer:
             "layout": args.layout,
             "collision_penalty": args.collision_penalty if args.layout == "robot" else 0.0,
             "precision_shaping": args.precision_shaping if args.layout == "robot" else 0.0,
+            "mover_shaping": args.mover_shaping if args.layout == "robot" else 0.0,
             "max_episode_steps": args.max_episode_steps,
             "uncertainty": args.uncertainty,
             **({"movers": args.movers} if args.movers else {}),
@@ -419,6 +433,7 @@ class Trainer:
             **self.identity,
             "collision_penalty": args.collision_penalty,
             "precision_shaping": args.precision_shaping,
+            "mover_shaping": args.mover_shaping,
             "n_robots": team_size,
             "command": "python -m baselines.train "
             + " ".join(self.argv if self.argv is not None else sys.argv[1:]),

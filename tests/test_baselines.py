@@ -204,6 +204,35 @@ def test_precision_shaping_is_the_log_distance_potential_difference() -> None:
     np.testing.assert_allclose(rewards[5.0] - rewards[0.0], potential[:-1] - potential[1:], atol=1e-4)
 
 
+def test_mover_shaping_charges_each_robot_its_nearest_movers_proximity() -> None:
+    from baselines.set_features import SetFeatureConfig
+    from baselines.vec_env import MOVER_SHAPING_BAND
+
+    movers = {"count": 6, "speed": 0.3, "radius": 0.2}
+    kwargs = {"set_config": SetFeatureConfig(movers=4), "map": "random", "movers": movers}
+    shaped = KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 4, seed=0, mover_shaping=0.3, **kwargs)
+    plain = KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 4, seed=0, **kwargs)
+    shaped.reset(), plain.reset()
+    still = np.zeros((12, 2), dtype=np.float32)
+    charged = 0
+    for _ in range(150):
+        rewards = [env.step(still)[1] for env in (shaped, plain)]
+        cost = rewards[1] - rewards[0]
+        assert np.all(cost >= -1e-6)
+        charged += int((cost > 1e-6).sum())
+    assert charged > 0  # robots standing among movers get charged
+    # the cost of one state, by hand: a robot 0.25 m (surface) from its nearest mover pays w * (1 - 0.25/0.5)
+    poses = np.zeros((1, 3, 3))
+    poses[0, :, 0] = [0.0, 5.0, 10.0]
+    mover_states = np.zeros((1, 6, 4))
+    mover_states[0, :, 0] = 20.0
+    mover_states[0, 0, 0] = 0.65  # 0.65 - 0.2 (robot) - 0.2 (mover) = 0.25 m from robot 0
+    cost = shaped._mover_cost({"poses": poses, "movers": mover_states})
+    np.testing.assert_allclose(cost, [[0.3 * (1 - 0.25 / MOVER_SHAPING_BAND), 0.0, 0.0]], atol=1e-12)
+    with pytest.raises(ValueError, match=r"mover_shaping=-1.0 must be finite and >= 0"):
+        KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 1, mover_shaping=-1.0, **kwargs)
+
+
 def test_neighbour_headings_are_relative_and_match_what_the_controller_sees() -> None:
     blocks = np.zeros((3, 27))
     blocks[:, 6] = 1.0  # distances
