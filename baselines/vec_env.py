@@ -316,6 +316,7 @@ class KoopNavSB3VecEnv(VecEnv):
             ended_now = info["_final_info"]
             poses = np.where(ended_now[:, None, None], info["final_info"]["poses"], poses)
             movers = np.where(ended_now[:, None, None], info["final_info"]["movers"], movers)
+        assert self._mover_reach is not None  # only called in an env with movers
         gap = poses[:, :, None, :2] - movers[:, None, :, :2]  # (K, N, M, 2)
         clearance = np.sqrt((gap**2).sum(-1)).min(-1) - self._mover_reach[:, 0]
         return self.mover_shaping * np.clip(1.0 - clearance / MOVER_SHAPING_BAND, 0.0, None)
@@ -419,17 +420,6 @@ class MixtureVecEnv(VecEnv):
 
     def reset(self) -> np.ndarray:
         return np.concatenate([p.reset() for p in self.parts])
-
-    def _mover_cost(self, info: dict[str, Any]) -> np.ndarray:
-        """(K, N) proximity cost of the step's end state (an ended episode's final state)."""
-        poses, movers = info["poses"], info["movers"]
-        if "final_info" in info:
-            ended_now = info["_final_info"]
-            poses = np.where(ended_now[:, None, None], info["final_info"]["poses"], poses)
-            movers = np.where(ended_now[:, None, None], info["final_info"]["movers"], movers)
-        gap = poses[:, :, None, :2] - movers[:, None, :, :2]  # (K, N, M, 2)
-        clearance = np.sqrt((gap**2).sum(-1)).min(-1) - self._mover_reach[:, 0]
-        return self.mover_shaping * np.clip(1.0 - clearance / MOVER_SHAPING_BAND, 0.0, None)
 
     def step_async(self, actions: np.ndarray) -> None:
         for part, lo, hi in zip(self.parts, self._bounds[:-1], self._bounds[1:], strict=True):
