@@ -197,5 +197,15 @@ def test_the_command_line_builds_the_spec_its_options_say() -> None:
         ).solver
         == "rti"
     )
+    # --fallback-solver none reaches every NMPC configuration as fallback_solver=None
+    rescue_off = ev.spec_from_args(
+        ev.build_parser().parse_args(
+            ["--controllers", "nominal-nmpc", "dmpc-nominal", "consensus", "--fallback-solver", "none"]
+        )
+    ).resolved()
+    options = [dict(config.options) for config in rescue_off.controllers]
+    assert options == [{"fallback_solver": None}, {"fallback_solver": None}, {}]
+    with pytest.raises(SystemExit):  # argparse names the allowed values
+        ev.build_parser().parse_args(["--fallback-solver", "rti"])
     # the quick board keeps its solver for its own (all registered) controllers
     assert ev.spec_from_args(ev.build_parser().parse_args([])) == protocol("quick")
