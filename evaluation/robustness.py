@@ -187,10 +187,51 @@ def _ci(value: float, low: float, high: float, scale: float = 1.0, digits: int =
     return f"{value * scale:.{digits}f} [{low * scale:.{digits}f}, {high * scale:.{digits}f}]"
 
 
+def overview_section(axes: Sequence[AxisProfile]) -> Section | None:
+    """Every controller against every axis at once (None for fewer than two axes): the success
+    over each axis's sweep (AUC, %), and the axis that costs it most, i.e. the largest drop in
+    success from the axis's first level to its last (ties: the earlier axis)."""
+    if len(axes) < 2:
+        return None
+    controllers = sorted({c for profile in axes for c in profile.summary})
+    header = [
+        "Controller",
+        *(f"{p.key} AUC [%]" for p in axes),
+        "Hurts most (success at first -> last level)",
+    ]
+    rows = []
+    for controller in controllers:
+        cells = [controller]
+        worst: tuple[float, str] | None = None
+        for profile in axes:
+            summary = profile.summary.get(controller)
+            cells.append(
+                "-" if summary is None else _ci(summary["auc"], summary["auc_low"], summary["auc_high"], 100)
+            )
+            curve = profile.curve(controller)
+            if len(curve) >= 2:
+                first, last = curve[0].success, curve[-1].success
+                text = f"{profile.key} ({first:.0%} -> {last:.0%} at {_level_text(curve[-1].level)})"
+                if worst is None or first - last > worst[0]:
+                    worst = (first - last, text)
+        cells.append(worst[1] if worst is not None else "-")
+        rows.append(cells)
+    rows.sort(key=lambda row: row[0])
+    note = (
+        "Each axis swept alone, the others at their perfect level. AUC: the mean success over the "
+        "axis's levels per episode unit, 95% bootstrap interval over units (as in each axis's "
+        "summary below). Hurts most: the axis with the largest drop in success from its first "
+        "level to its last."
+    )
+    return Section("sweep-overview", "Robustness overview", (Note(note), TableBlock((header, rows))))
+
+
 def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[Section]:
-    """The report: per axis, a summary table (area under the success curve, tail) and a table of
-    every level (success, final distance, paired difference to the reference)."""
-    out = []
+    """The report: an overview of every axis (two or more), then per axis a summary table (area
+    under the success curve, tail) and a table of every level (success, final distance, paired
+    difference to the reference)."""
+    overview = overview_section(axes)
+    out = [] if overview is None else [overview]
     for profile in axes:
         summary = (
             [

@@ -254,3 +254,18 @@ def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
     assert 0.0 <= low <= profile.summary["other"]["auc"] <= high <= 1.0
     with pytest.raises(ValueError, match=r"--reference 'nobody' is not one of the run's controllers"):
         profiles({"comm.drop": [(0, level_0)]}, reference="nobody")
+    # the overview: every axis's AUC per controller, and the axis with the largest drop
+    from evaluation.robustness import overview_section, robustness_sections
+
+    assert overview_section([profile]) is None  # one axis: its own summary says it all
+    both = profiles(
+        {"comm.drop": [(0, level_0), (0.5, level_1)], "pose_noise.xy": [(0, level_0), (0.1, level_0)]}
+    )
+    overview = overview_section(both)
+    assert overview is not None and robustness_sections(both)[0] == overview
+    header, rows = overview.blocks[1].table
+    assert header[1:3] == ["comm.drop AUC [%]", "pose_noise.xy AUC [%]"]
+    by_controller = {row[0]: row for row in rows}
+    assert by_controller["other"][1].startswith("50 [") and by_controller["other"][2].startswith("75 [")
+    assert by_controller["other"][3] == "comm.drop (75% -> 25% at 0.5)"
+    assert by_controller["ref"][3] == "comm.drop (100% -> 75% at 0.5)"
