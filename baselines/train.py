@@ -73,12 +73,13 @@ class Trainer:
                 )
             except ValueError as exc:
                 parser.error(str(exc))
-        if args.mover_shaping and not args.movers:
-            parser.error(
-                f"--mover-shaping {args.mover_shaping} needs --movers (there is no mover to keep clear of)"
-            )
         if not np.isfinite(args.mover_shaping) or args.mover_shaping < 0:
             parser.error(f"--mover-shaping {args.mover_shaping} must be a finite number >= 0")
+        if args.mover_shaping and (not args.movers or args.layout != "robot"):
+            parser.error(
+                f"--mover-shaping {args.mover_shaping} needs --movers and the robot layout "
+                f"(got {'no --movers' if not args.movers else '--layout ' + args.layout})"
+            )
         self.history: list[dict] = []
         #: the policy this run was fine-tuned from (``--init-from``), recorded in the metadata
         self.init_source: dict[str, Any] | None = None
@@ -90,7 +91,7 @@ class Trainer:
             "layout": args.layout,
             "collision_penalty": args.collision_penalty if args.layout == "robot" else 0.0,
             "precision_shaping": args.precision_shaping if args.layout == "robot" else 0.0,
-            "mover_shaping": args.mover_shaping if args.layout == "robot" else 0.0,
+            "mover_shaping": args.mover_shaping,
             "max_episode_steps": args.max_episode_steps,
             "uncertainty": args.uncertainty,
             **({"movers": args.movers} if args.movers else {}),

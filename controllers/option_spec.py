@@ -63,13 +63,15 @@ class Option:
         return self.default is _EMPTY
 
     def check(self, value: Any, owner: str) -> None:
-        """Raise ``ValueError`` when ``value`` is not one of :attr:`choices` (naming them)."""
-        if value is None and "None" in self.type:  # an optional text option (e.g. no fallback solver)
+        """Raise ``ValueError`` when ``value`` is not one of :attr:`choices` (naming them), nor
+        None for an optional option (type ``... | None``)."""
+        optional = "None" in self.type  # e.g. no fallback solver
+        if value is None and optional:
             return
         if self.choices is not None and value not in self.choices:
             raise ValueError(
                 f"{owner}: {self.name}={value!r} is not one of {list(self.choices)}"
-                f"{did_you_mean(value, self.choices)}"
+                f"{' or None (null)' if optional else ''}{did_you_mean(value, self.choices)}"
             )
 
 

@@ -76,7 +76,9 @@ def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None
         if not dot:
             kwargs[root] = parsed
             continue
-        inner = kwargs.get(root) or {}
+        inner = kwargs.get(root)
+        if inner is None:
+            inner = {}
         if not isinstance(inner, dict):
             raise ValueError(f"--env-kwargs {word!r}: {root} is already {inner!r}, not a dict of fields")
         kwargs[root] = {**inner, field: parsed}

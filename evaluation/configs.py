@@ -308,12 +308,15 @@ def with_solver(
         # configuration, and so a baseline's, does not change)
         if solver is not None and "solver" not in given and _default_solver(config) not in (None, solver):
             changes["solver"] = solver
+        rescue = None if fallback_solver == FALLBACK_NONE else fallback_solver
+        # as for the solver: a configuration whose default it already is stays as it is
         if (
             fallback_solver is not None
             and "fallback_solver" not in given
             and _takes(config, "fallback_solver")
+            and _spec(config).default("fallback_solver") != rescue
         ):
-            changes["fallback_solver"] = None if fallback_solver == FALLBACK_NONE else fallback_solver
+            changes["fallback_solver"] = rescue
         if changes:
             options = tuple(sorted((*config.options, *changes.items())))
             config = ControllerConfig(config.label, config.name, options, config.factory)

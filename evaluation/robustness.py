@@ -33,7 +33,14 @@ from evaluation.statistics import (
     wilson_interval,
 )
 
-__all__ = ["AxisProfile", "LevelRow", "profiles", "robustness_sections", "write_robustness"]
+__all__ = [
+    "AxisProfile",
+    "LevelRow",
+    "overview_section",
+    "profiles",
+    "robustness_sections",
+    "write_robustness",
+]
 
 #: share of the worst episodes the tail summary averages
 TAIL_SHARE = 0.1
@@ -214,9 +221,8 @@ def overview_section(axes: Sequence[AxisProfile]) -> Section | None:
                 text = f"{profile.key} ({first:.0%} -> {last:.0%} at {_level_text(curve[-1].level)})"
                 if worst is None or first - last > worst[0]:
                     worst = (first - last, text)
-        cells.append(worst[1] if worst is not None else "-")
+        cells.append(worst[1] if worst is not None and worst[0] > 0 else "-")
         rows.append(cells)
-    rows.sort(key=lambda row: row[0])
     note = (
         "Each axis swept alone, the others at their perfect level. AUC: the mean success over the "
         "axis's levels per episode unit, 95% bootstrap interval over units (as in each axis's "

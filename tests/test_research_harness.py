@@ -173,6 +173,8 @@ def test_comma_separated_lists_work_like_spaced_ones() -> None:
     assert given == {"pose_noise": {"xy": 0.5, "heading": 0.1}}  # not changed
     with pytest.raises(ValueError, match=r"n_robots is already 3, not a dict of fields"):
         ev.parse_env_kwargs(["n_robots.x=1"], into={"n_robots": 3})
+    with pytest.raises(ValueError, match=r"actuation_delay is already 0, not a dict of fields"):
+        ev.parse_env_kwargs(["actuation_delay=0", "actuation_delay.x=1"])
     with pytest.raises(ValueError, match=r"keyword.field for one field of a dict keyword"):
         ev.parse_env_kwargs(["pose_noise.=1"])
 

@@ -282,6 +282,8 @@ def test_with_solver_sets_or_turns_off_every_nmpcs_fallback_solver() -> None:
     assert dict(out[3].options)["fallback_solver"] == "fatrop"  # a configuration's own choice wins
     assert out[0].build().config.fallback_solver is None and out[2].build().config.fallback_solver is None
     assert dict(with_solver(configs, None, "fatrop")[0].options) == {"fallback_solver": "fatrop"}
+    # the default rescue changes no configuration (nor so a resumed run's signature)
+    assert with_solver(configs, None, "ipopt") == configs
     with pytest.raises(
         ValueError, match=r"--fallback-solver 'rti' is not one of \['ipopt', 'fatrop', 'none'\]"
     ):
@@ -289,6 +291,10 @@ def test_with_solver_sets_or_turns_off_every_nmpcs_fallback_solver() -> None:
     # from the command line, JSON's null and Python's None both mean no fallback solver
     for text in ("nominal-nmpc:fallback_solver=null", "nominal-nmpc:fallback_solver=None"):
         assert parse_controller(text).build().config.fallback_solver is None
+    with pytest.raises(
+        ValueError, match=r"fallback_solver='none' is not one of \['ipopt', 'fatrop'\] or None"
+    ):
+        parse_controller("nominal-nmpc:fallback_solver=none").validate()
 
 
 def test_the_report_names_each_rows_solver_and_the_terminal_gets_a_compact_board(tmp_path) -> None:

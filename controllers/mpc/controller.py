@@ -414,7 +414,8 @@ class NMPCController(BaseController):
         return self._failed
 
     def _solve_rti(self, params: NDArray, guess: dict[str, NDArray]) -> SolveOutcome:
-        """The real-time iteration's QP(s); a failed QP or a plan with a large slack fails."""
+        """The real-time iteration's QP(s): a failed QP fails, and so does a plan with a large slack
+        when there is a fallback solver to rescue it (without one the plan is used, counted)."""
         assert self._problem is not None  # built by _reset, which act() requires
         step = self._problem.real_time_iteration().solve(
             guess["x0"], guess["lam_x0"], guess["lam_g0"], params

@@ -28,7 +28,8 @@ Coordination (``coordination=``):
     in one period).
 
 Each robot's problem is solved as the central NMPC's is (``solver``: the real-time iteration by
-default, IPOPT on failure, then the rest of the robot's last plan, then a stop), and every
+default, ``fallback_solver`` (IPOPT, or none) on failure, then the rest of the robot's last plan,
+then a stop), and every
 fallback is counted in :meth:`stats`. A robot without a plan yet (the first period, or after a
 failure) is predicted to hold its position.
 

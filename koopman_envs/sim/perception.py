@@ -12,9 +12,10 @@ After each step (and at reset) one compiled pass updates, per environment:
 
 Random numbers come from a child of the env's generator (``Generator.spawn``), made when the
 env's generator changes (``reset(seed=...)``) and kept across episodes otherwise, and are drawn
-in blocks per environment (each generator fills its own block in place), as the slip draws are. Spawning consumes nothing of the env's own
-stream, so the map, start and slip draws of a seed are the same at every uncertainty level (a
-sweep's curves are paired), and a sub-environment of a batch draws exactly as a lone env.
+in blocks per environment (each generator fills its own block in place), as the slip draws
+are. Spawning consumes nothing of the env's own stream, so the map, start and slip draws of a
+seed are the same at every uncertainty level (a sweep's curves are paired), and a
+sub-environment of a batch draws exactly as a lone env.
 """
 
 from __future__ import annotations
