@@ -27,6 +27,7 @@ __all__ = [
     "RLPolicyController",
     "RLSetPolicyController",
     "RLSetRealisticPolicyController",
+    "RLSetMoversPolicyController",
     "load_policy",
     "policy_command",
     "policy_dir",
@@ -423,3 +424,14 @@ class RLSetRealisticPolicyController(RLSetPolicyController):
 
     name = "rl-ppo-set-realistic"
     shipped = "set_realistic"
+
+
+class RLSetMoversPolicyController(RLSetPolicyController):
+    """``rl-ppo-set-movers``: set policies trained from scratch with 4 constant-velocity movers
+    (0.3 m/s) in every stage of the curriculum, which they see as a third set (each mover's
+    body-frame offset, velocity and clearance), and a proximity cost within 0.5 m of a mover
+    (``baselines.train --movers ... --mover-shaping 0.3``; ``baselines/policies/set_movers``;
+    docs/rl.md). In an env without movers the mover set is empty (masked)."""
+
+    name = "rl-ppo-set-movers"
+    shipped = "set_movers"
