@@ -25,7 +25,7 @@ from evaluation.protocols import (
     quick_protocol,
 )
 from evaluation.slip_text import split_slips
-from evaluation.spec import RunSpec
+from evaluation.spec import RunSpec, with_env_setting
 from koopman_envs.params import PARAMS, SLIP_NAMES
 
 __all__ = [
@@ -73,15 +73,7 @@ def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None
             parsed = json.loads(value)
         except json.JSONDecodeError:
             parsed = value
-        if not dot:
-            kwargs[root] = parsed
-            continue
-        inner = kwargs.get(root)
-        if inner is None:
-            inner = {}
-        if not isinstance(inner, dict):
-            raise ValueError(f"--env-kwargs {word!r}: {root} is already {inner!r}, not a dict of fields")
-        kwargs[root] = {**inner, field: parsed}
+        kwargs = with_env_setting(kwargs, key.strip(), parsed, f"--env-kwargs {word!r}")
     return kwargs
 
 

@@ -13,6 +13,7 @@ this class.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import os
@@ -32,7 +33,7 @@ from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import ENV_IDS, TASKS, task_for_env
 
-__all__ = ["CELL_AXES", "RECORDED_ENV_SETTINGS", "RunSpec"]
+__all__ = ["CELL_AXES", "RECORDED_ENV_SETTINGS", "RunSpec", "with_env_setting"]
 
 #: env keywords that are axes of the grid (set through ``maps`` and ``slips``, never env kwargs)
 CELL_AXES = ("map", "slip")
@@ -47,6 +48,24 @@ RECORDED_ENV_SETTINGS = {
 }
 #: each task's paper maps
 TASK_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
+
+
+def with_env_setting(env_kwargs: Mapping[str, Any], key: str, value: Any, where: str) -> dict[str, Any]:
+    """A copy of ``env_kwargs`` with ``key`` set to ``value``; a dotted key ``keyword.field`` sets
+    one field of a dict keyword over its other fields (``pose_noise.xy``). ``where`` names the
+    option in the error raised when the keyword holds something other than a dict."""
+    out = copy.deepcopy(dict(env_kwargs))
+    root, _, field = key.partition(".")
+    if not field:
+        out[root] = value
+        return out
+    inner = out.get(root)
+    if inner is None:
+        inner = {}
+    if not isinstance(inner, dict):
+        raise ValueError(f"{where}: {root} is already {inner!r}, not a dict of fields")
+    out[root] = {**inner, field: value}
+    return out
 
 
 @dataclass(frozen=True)

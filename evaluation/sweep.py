@@ -12,7 +12,6 @@ level: the curves are paired. :mod:`evaluation.robustness` turns the levels into
 
 from __future__ import annotations
 
-import copy
 import json
 import os
 from dataclasses import dataclass
@@ -21,7 +20,7 @@ from typing import Any
 
 from evaluation.plan import safe_file_name
 from evaluation.results import Results
-from evaluation.spec import RunSpec
+from evaluation.spec import RunSpec, with_env_setting
 from koopman_envs.config import EngineConfig
 from koopman_envs.keywords import ENV_KEYWORDS
 from koopman_envs.suggest import did_you_mean
@@ -66,16 +65,9 @@ class SweepAxis:
         """``spec`` with this axis at ``level`` (over the spec's own env settings)."""
         if self.key == "slip":
             return spec.replace(slips=(level,))
-        env_kwargs = copy.deepcopy(dict(spec.env_kwargs))
-        root, _, field = self.key.partition(".")
-        if field:
-            inner = env_kwargs.get(root) or {}
-            if not isinstance(inner, dict):
-                raise ValueError(f"--sweep {self.key}: env_kwargs {root}={inner!r} is not a dict of fields")
-            env_kwargs[root] = {**inner, field: level}
-        else:
-            env_kwargs[root] = level
-        return spec.replace(env_kwargs=env_kwargs)
+        return spec.replace(
+            env_kwargs=with_env_setting(spec.env_kwargs, self.key, level, f"--sweep {self.key}")
+        )
 
 
 def _text(value: Any) -> str:
