@@ -3,12 +3,18 @@
 Usage::
 
     python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] [--out docs/robustness_results.md]
-        [--figures docs/_static] [--title TEXT]
+        [--figures docs/_static] [--title TEXT] [--intro FILE] [--names NAME ...]
+        [--figure-prefix sweep]
 
 Each sweep directory (holding the sweep.json manifest) becomes one part: its command, the levels
 not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
 tail) and the table of every level, with the profile's figure copied under ``--figures``. Every
 level's results are read back checked (``evaluation.sweep.load_sweep``).
+
+With ``--names`` (one per sweep) the parts are titled by them, and when the page has two or more
+axes in all, it opens with one overview of every controller over every part's axes: the same
+axis swept under different settings (e.g. ``movers.count`` for each mover behaviour of
+``--crowd``) side by side.
 """
 
 from __future__ import annotations
@@ -16,12 +22,19 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from evaluation.report import markdown  # noqa: E402
-from evaluation.robustness import profiles, robustness_sections, save_profile_figures  # noqa: E402
+from evaluation.robustness import (  # noqa: E402
+    AxisProfile,
+    overview_section,
+    profiles,
+    robustness_sections,
+    save_profile_figures,
+)
 from evaluation.sweep import load_sweep  # noqa: E402
 
 INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one
@@ -41,11 +54,32 @@ def main(argv: list[str] | None = None) -> int:
         "--figures", default=str(Path(__file__).with_name("_static")), help="where figures go"
     )
     parser.add_argument("--title", default="Robustness results")
+    parser.add_argument(
+        "--intro", type=Path, help="a Markdown file whose text opens the page (default: the sweeps' intro)"
+    )
+    parser.add_argument("--names", nargs="+", help="one title per sweep (default: Sweep 1, Sweep 2, ...)")
+    parser.add_argument(
+        "--figure-prefix",
+        default="sweep",
+        help="figure file names start with PREFIX<number>_ (default: sweep)",
+    )
     args = parser.parse_args(argv)
+    if args.names is not None and len(args.names) != len(args.sweeps):
+        print(
+            f"error: --names gives {len(args.names)} name(s) for {len(args.sweeps)} sweep(s); give one per sweep",
+            file=sys.stderr,
+        )
+        return 2
+    if args.intro is not None and not args.intro.is_file():
+        print(f"error: --intro {str(args.intro)!r} is not a file", file=sys.stderr)
+        return 2
     out = Path(args.out)
     figures = Path(args.figures)
-    parts = [f"# {args.title}", INTRO]
-    for index, directory in enumerate(args.sweeps):
+    intro = INTRO if args.intro is None else args.intro.read_text(encoding="utf-8").strip()
+    names = args.names or [f"Sweep {index + 1}" for index in range(len(args.sweeps))]
+    parts = [f"# {args.title}", intro]
+    named_axes: list[AxisProfile] = []
+    for index, (directory, name) in enumerate(zip(args.sweeps, names)):
         try:
             done, missing, manifest = load_sweep(directory)
         except ValueError as exc:
@@ -58,16 +92,25 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         done = shown
         axes = profiles(done, manifest.get("reference"))
-        parts.append(f"## Sweep {index + 1}\n\nCommand: `{manifest.get('command', '')}`")
+        named_axes += [replace(profile, key=f"{name}: {profile.key}") for profile in axes]
+        parts.append(f"## {name}\n\nCommand: `{manifest.get('command', '')}`")
         if missing:
             parts.append(f"Levels not finished yet, left out: {', '.join(missing)}.")
         paths = save_profile_figures(axes, figures)
         for profile, path in zip(axes, paths):
-            target = path.with_name(f"sweep{index + 1}_{path.name}")
+            target = path.with_name(f"{args.figure_prefix}{index + 1}_{path.name}")
             path.replace(target)
             link = os.path.relpath(target, out.resolve().parent)
             parts.append(f"![Robustness to {profile.key}]({link})")
         parts.append(markdown(robustness_sections(axes)).replace("## Robustness", "### Robustness"))
+    if args.names is not None:
+        scope = (
+            "Every part's axes side by side, named by part: each part is one sweep, its setting "
+            "varied alone under that part's other settings."
+        )
+        overview = overview_section(named_axes, scope, "Overview of every part")
+        if overview is not None:
+            parts.insert(2, markdown([overview]))
     out.write_text("\n\n".join(parts) + "\n", encoding="utf-8")
     print(f"wrote {out} and {len(args.sweeps)} sweep(s) of figures in {figures}")
     return 0

@@ -194,10 +194,24 @@ def _ci(value: float, low: float, high: float, scale: float = 1.0, digits: int =
     return f"{value * scale:.{digits}f} [{low * scale:.{digits}f}, {high * scale:.{digits}f}]"
 
 
-def overview_section(axes: Sequence[AxisProfile]) -> Section | None:
+def overview_section(
+    axes: Sequence[AxisProfile],
+    scope: str = "Each axis swept alone, the others at their perfect level.",
+    title: str = "Robustness overview",
+) -> Section | None:
     """Every controller against every axis at once (None for fewer than two axes): the success
     over each axis's sweep (AUC, %), and the axis that costs it most, i.e. the largest drop in
-    success from the axis's first level to its last (ties: the earlier axis)."""
+    success from the axis's first level to its last (ties: the earlier axis).
+
+    Parameters
+    ----------
+    axes
+        The profiles, one column each.
+    scope
+        The note's first sentence: what the axes are and what stayed fixed while each was swept.
+    title
+        The section's title.
+    """
     if len(axes) < 2:
         return None
     controllers = sorted({c for profile in axes for c in profile.summary})
@@ -224,12 +238,12 @@ def overview_section(axes: Sequence[AxisProfile]) -> Section | None:
         cells.append(worst[1] if worst is not None and worst[0] > 0 else "-")
         rows.append(cells)
     note = (
-        "Each axis swept alone, the others at their perfect level. AUC: the mean success over the "
+        f"{scope} AUC: the mean success over the "
         "axis's levels per episode unit, 95% bootstrap interval over units (as in each axis's "
         "summary below). Hurts most: the axis with the largest drop in success from its first "
         "level to its last."
     )
-    return Section("sweep-overview", "Robustness overview", (Note(note), TableBlock((header, rows))))
+    return Section("sweep-overview", title, (Note(note), TableBlock((header, rows))))
 
 
 def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[Section]:

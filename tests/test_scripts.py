@@ -121,3 +121,46 @@ def test_script_runs_on_tiny_arguments(
     )
     assert run.stdout.strip(), f"{script} printed nothing"
     print(f"{script}: {seconds:.1f} s")
+
+
+def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: Path, tmp_path: Path) -> None:
+    intro = tmp_path / "intro.md"
+    intro.write_text("Our own intro.\n")
+    out = tmp_path / "crowd.md"
+    args = [str(small_sweep), str(small_sweep), "--out", str(out), "--figures", str(tmp_path / "fig")]
+    args += ["--names", "First part", "Second part", "--intro", str(intro), "--figure-prefix", "crowd"]
+    run = subprocess.run(
+        [sys.executable, "docs/make_robustness_md.py", *args],
+        cwd=ROOT,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    page = out.read_text()
+    assert (
+        page.index("Our own intro.") < page.index("## Overview of every part") < page.index("## First part")
+    )
+    assert "| First part: actuation_delay AUC [%] | Second part: actuation_delay AUC [%] |" in page
+    assert sorted(p.name for p in (tmp_path / "fig").iterdir()) == [
+        "crowd1_robustness_actuation_delay.png",
+        "crowd2_robustness_actuation_delay.png",
+    ]
+    wrong = subprocess.run(
+        [
+            sys.executable,
+            "docs/make_robustness_md.py",
+            str(small_sweep),
+            "--names",
+            "a",
+            "b",
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert wrong.returncode == 2 and "--names gives 2 name(s) for 1 sweep(s)" in wrong.stderr
