@@ -4,7 +4,7 @@ Usage::
 
     python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] [--out docs/robustness_results.md]
         [--figures docs/_static] [--title TEXT] [--intro FILE] [--names NAME ...]
-        [--figure-prefix sweep]
+        [--figure-prefix sweep] [--reference CONTROLLER]
 
 Each sweep directory (holding the sweep.json manifest) becomes one part: its command, the levels
 not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
@@ -63,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
         default="sweep",
         help="figure file names start with PREFIX<number>_ (default: sweep)",
     )
+    parser.add_argument(
+        "--reference", help="the controller every other is paired against (default: each sweep's own)"
+    )
     args = parser.parse_args(argv)
     if args.names is not None and len(args.names) != len(args.sweeps):
         print(
@@ -91,7 +94,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: no axis of the sweep in {directory!r} has two finished levels", file=sys.stderr)
             return 2
         done = shown
-        axes = profiles(done, manifest.get("reference"))
+        try:
+            axes = profiles(done, args.reference or manifest.get("reference"))
+        except ValueError as exc:
+            print(f"error: {exc} (sweep {directory!r})", file=sys.stderr)
+            return 2
         named_axes += [replace(profile, key=f"{name}: {profile.key}") for profile in axes]
         parts.append(f"## {name}\n\nCommand: `{manifest.get('command', '')}`")
         if missing:

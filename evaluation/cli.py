@@ -17,6 +17,7 @@ from evaluation.baseline import GateOptions
 from evaluation.configs import FALLBACK_NONE, split_controller_list
 from evaluation.protocols import (
     CROWD_COUNTS,
+    CROWD_REFERENCE,
     QUICK_START_NOISE,
     TASK_MAPS,
     ablation_protocol,
@@ -165,7 +166,7 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
     what.add_argument(
         "--reference",
         metavar="CONTROLLER",
-        help="with --sweep: the controller every other is paired against (default: the first)",
+        help="with --sweep: the controller every other is paired against (default: the first; --crowd: koopman-nmpc)",
     )
     protocol = what.add_mutually_exclusive_group()
     protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5), IPOPT")
@@ -367,6 +368,8 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         spec = crowd_protocol(args.crowd)
         if not args.sweep:  # the protocol's own axis: the mover count
             args.sweep = ["movers.count=" + ",".join(str(c) for c in CROWD_COUNTS)]
+        if args.reference is None and not args.controllers:  # pair everyone against the paper's method
+            args.reference = CROWD_REFERENCE
     else:
         spec = quick_protocol()
     changes: dict[str, Any] = {}

@@ -18,6 +18,7 @@ from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "CROWD_COUNTS",
+    "CROWD_REFERENCE",
     "crowd_protocol",
     "PROTOCOLS",
     "QUICK_SLIPS",
@@ -91,6 +92,8 @@ def ablation_protocol(factors: Sequence[str] | None = None) -> RunSpec:
 
 #: the mover counts of the crowd protocol's sweep (``--crowd``)
 CROWD_COUNTS = (0, 4, 8, 16)
+#: the controller the crowd protocol pairs every other against (the paper's method)
+CROWD_REFERENCE = "koopman-nmpc"
 #: the mover speed of the crowd protocol [m/s] (the keyword's default, 0.6 of the robots' limit)
 CROWD_SPEED = 0.3
 

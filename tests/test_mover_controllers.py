@@ -163,6 +163,11 @@ def test_the_crowd_protocol_sweeps_the_mover_count_of_one_behaviour() -> None:
     args = build_parser().parse_args(["--crowd", "waypoints"])
     spec = spec_from_args(args)
     assert args.sweep == ["movers.count=" + ",".join(map(str, CROWD_COUNTS))]
+    assert args.reference == "koopman-nmpc"  # paired against the paper's method
+    # with a controller list of one's own, the default stays the first of them (it may lack koopman-nmpc)
+    own = build_parser().parse_args(["--crowd", "crowd", "--controllers", "consensus", "nominal-nmpc"])
+    spec_from_args(own)
+    assert own.reference is None
     assert (
         spec.episodes == 20
         and spec.random_maps == 20

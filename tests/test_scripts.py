@@ -164,3 +164,19 @@ def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: 
         timeout=600,
     )
     assert wrong.returncode == 2 and "--names gives 2 name(s) for 1 sweep(s)" in wrong.stderr
+    stranger = subprocess.run(
+        [
+            sys.executable,
+            "docs/make_robustness_md.py",
+            str(small_sweep),
+            "--reference",
+            "nobody",
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert stranger.returncode == 2 and "--reference 'nobody' is not one of" in stranger.stderr
