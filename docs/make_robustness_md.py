@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             target = path.with_name(f"{args.figure_prefix}{index + 1}_{path.name}")
             path.replace(target)
             link = os.path.relpath(target, out.resolve().parent)
-            parts.append(f"![Robustness to {profile.key}]({link})")
+            parts.append(f"![{name}: robustness to {profile.key}]({link})")
         parts.append(markdown(robustness_sections(axes)).replace("## Robustness", "### Robustness"))
     if args.names is not None:
         scope = (
