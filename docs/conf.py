@@ -33,11 +33,11 @@ source_suffix = {".md": "markdown"}
 root_doc = "index"
 exclude_patterns = [
     "_build",
-    "_intros",
+    "_intros",  # text the page scripts insert into pages, not a page itself
     "Thumbs.db",
     ".DS_Store",
     "**/__pycache__",
-]  # _intros: text the page scripts insert
+]
 
 # MyST: anchors for headings down to ###, so that [text](page.md#a-heading) links resolve
 myst_heading_anchors = 3
