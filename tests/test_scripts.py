@@ -123,13 +123,9 @@ def test_script_runs_on_tiny_arguments(
     print(f"{script}: {seconds:.1f} s")
 
 
-def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: Path, tmp_path: Path) -> None:
-    intro = tmp_path / "intro.md"
-    intro.write_text("Our own intro.\n")
-    out = tmp_path / "crowd.md"
-    args = [str(small_sweep), str(small_sweep), "--out", str(out), "--figures", str(tmp_path / "fig")]
-    args += ["--names", "First part", "Second part", "--intro", str(intro), "--figure-prefix", "crowd"]
-    run = subprocess.run(
+def _robustness_page(*args: str) -> subprocess.CompletedProcess:
+    """``python docs/make_robustness_md.py ARGS...`` from the checkout, output captured."""
+    return subprocess.run(
         [sys.executable, "docs/make_robustness_md.py", *args],
         cwd=ROOT,
         env={**os.environ, "MPLBACKEND": "Agg"},
@@ -137,6 +133,15 @@ def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: 
         text=True,
         timeout=600,
     )
+
+
+def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: Path, tmp_path: Path) -> None:
+    intro = tmp_path / "intro.md"
+    intro.write_text("Our own intro.\n")
+    out = tmp_path / "crowd.md"
+    args = [str(small_sweep), str(small_sweep), "--out", str(out), "--figures", str(tmp_path / "fig")]
+    args += ["--names", "First part", "Second part", "--intro", str(intro), "--figure-prefix", "crowd"]
+    run = _robustness_page(*args)
     assert run.returncode == 0, run.stderr[-3000:]
     page = out.read_text()
     assert (
@@ -147,36 +152,7 @@ def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: 
         "crowd1_robustness_actuation_delay.png",
         "crowd2_robustness_actuation_delay.png",
     ]
-    wrong = subprocess.run(
-        [
-            sys.executable,
-            "docs/make_robustness_md.py",
-            str(small_sweep),
-            "--names",
-            "a",
-            "b",
-            "--out",
-            str(out),
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    wrong = _robustness_page(str(small_sweep), "--names", "a", "b", "--out", str(out))
     assert wrong.returncode == 2 and "--names gives 2 name(s) for 1 sweep(s)" in wrong.stderr
-    stranger = subprocess.run(
-        [
-            sys.executable,
-            "docs/make_robustness_md.py",
-            str(small_sweep),
-            "--reference",
-            "nobody",
-            "--out",
-            str(out),
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    stranger = _robustness_page(str(small_sweep), "--reference", "nobody", "--out", str(out))
     assert stranger.returncode == 2 and "--reference 'nobody' is not one of" in stranger.stderr
