@@ -9,7 +9,10 @@ team-transitions and the same seed. A controller that wants data implements
 This module holds the pieces they share: the identification data set (the paper's random
 inputs and random initial states, one fixed function of plant, budget and seed, so two
 controllers calibrated on the same plant see the same data), the RMS one-step position
-residual, and an on-disk cache keyed by plant signature, budget and seed.
+residual, and an on-disk cache keyed by plant signature, budget and seed. The cache is optional:
+a write that fails warns once (:class:`~controllers.disk_cache.CacheWriteWarning`) and the
+calibration goes on with its in-memory result; a bad entry is refused on reading
+(:class:`CacheWarning`) and recomputed.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import Calibratable, calibratable
-from controllers.disk_cache import cache_root, write_atomic
+from controllers.disk_cache import CacheWriteWarning, cache_root, write_atomic
 from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
@@ -33,6 +36,7 @@ from koopman_envs.plant import CalibrationPlant, make_plant
 __all__ = [
     "MAX_POSITION_RESIDUAL",
     "CacheWarning",
+    "CacheWriteWarning",
     "Calibratable",
     "DataSpec",
     "TrajectoryData",
@@ -53,7 +57,11 @@ MAX_POSITION_RESIDUAL = 10.0 * PARAMS.koopman_input_bound * PARAMS.dt
 
 
 class CacheWarning(UserWarning):
-    """A cache entry failed its check on reading and is recomputed (the warning names the file)."""
+    """A cache entry failed its check on reading and is recomputed (the warning names the file).
+
+    A cache that cannot be written warns with :class:`~controllers.disk_cache.CacheWriteWarning`
+    instead (once per process).
+    """
 
 
 def check_position_residual(value: Any, n_robots: int, source: str = "") -> NDArray[np.float64]:

@@ -336,7 +336,8 @@ class KoopmanModel:
         path = os.fspath(path)
         hint = "regenerate it with `python -m controllers.koopman fit --slip SETTING --out PATH`"
         try:
-            with np.load(path, allow_pickle=False) as data:
+            # our own handle: np.load leaks the one it opens when a torn zip fails its header check
+            with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:
                 arrays = {key: data[key] for key in ("A", "N", "B", "C")}
                 meta = json.loads(str(data["metadata"]))
         except FileNotFoundError:

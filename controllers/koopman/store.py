@@ -125,6 +125,15 @@ def _shipped_for(key: str) -> Path | None:
     return None
 
 
+def _exists(path: Path) -> bool:
+    """``path.exists()``, False when it cannot even be looked at (a cache directory without
+    search permission raises ``PermissionError`` there): the model is then fitted again."""
+    try:
+        return path.exists()
+    except OSError:
+        return False
+
+
 def calibrated_model(
     plant: CalibrationPlant,
     seed: int = 0,
@@ -132,7 +141,8 @@ def calibrated_model(
     spec: DataSpec | None = None,
     structure: str = "stacked",
 ) -> tuple[KoopmanModel, dict[str, Any]]:
-    """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached).
+    """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached if the cache can be
+    written: a failed write warns once and the fitted model is returned all the same).
 
     Parameters
     ----------
@@ -160,7 +170,7 @@ def calibrated_model(
     summary = {"transitions": spec.transitions, "key": key}
     shipped = _shipped_for(key)
     path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
-    if path.exists():
+    if _exists(path):
         try:
             model = KoopmanModel.load(path, n_robots=plant.n_robots)
             if model.metadata.get("cache_key") == key:
@@ -176,6 +186,7 @@ def calibrated_model(
         # a corrupt or stale cache entry is refitted and replaced, never used
     model = fit_on_plant(plant, spec, dictionary, structure=structure)
     if shipped is None:
+        # best effort: a cache that cannot be written warns once and the fitted model is used
         write_atomic(path, model.save, ".npz")
     return model, {**summary, "source": "fitted", "seconds": time.perf_counter() - start}
 

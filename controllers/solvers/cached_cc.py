@@ -14,6 +14,10 @@ With ``--background`` a miss does not compile in the caller's time: the source i
 detached compile into the cache and the script exits with :data:`MISS_COMPILING_IN_BACKGROUND`,
 so that the caller builds its solver uncompiled this once. Standalone on purpose: it runs once per compile in a fresh
 interpreter and must not import the package (and CasADi) to do so.
+
+The cache is optional (:mod:`controllers.disk_cache`): when it cannot be written, a compile step
+still compiles (the object is only not kept) and a background miss still exits with
+:data:`MISS_COMPILING_IN_BACKGROUND`; the caller's process warns about the cache.
 """
 
 from __future__ import annotations
@@ -45,7 +49,10 @@ def _store(directory: str, src: str, dst: str, text: str | None = None) -> None:
         os.replace(tmp, dst)
     finally:
         if os.path.exists(tmp):
-            os.remove(tmp)
+            try:
+                os.remove(tmp)
+            except OSError:
+                pass  # the error that brought us here is the one to report
 
 
 #: exit code of a miss in background mode: the caller builds its solver uncompiled this time
@@ -74,7 +81,12 @@ def main(argv: list[str]) -> int:
     with open(source, "rb") as fh:
         key.update(fh.read())
     directory = settings["cache"]
-    os.makedirs(directory, exist_ok=True)
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError:
+        # no cache (a path through a file, a read-only file system): compile here, uncached; in
+        # background mode the caller goes on uncompiled, as on any miss
+        return MISS_COMPILING_IN_BACKGROUND if settings.get("background") else subprocess.call(compile_cmd)
     entry = os.path.join(directory, key.hexdigest()[:32] + ".o")
     checksum = entry + ".sha256"
     if _copy_if_valid(entry, checksum, out):
@@ -85,7 +97,10 @@ def main(argv: list[str]) -> int:
         pending = entry[: -len(".o")] + ".c"
         # a pending source older than an hour belongs to a compile that died: start it again
         if not os.path.exists(pending) or time.time() - os.path.getmtime(pending) > 3600:
-            _store(directory, source, pending)
+            try:
+                _store(directory, source, pending)
+            except OSError:
+                return MISS_COMPILING_IN_BACKGROUND  # the cache cannot take it: nothing to compile into
             # the same arguments with the pending source and a scratch output: the same key
             same = [pending if a == source else (entry + ".build" if a == out else a) for a in args]
             detached = [
@@ -112,7 +127,11 @@ def main(argv: list[str]) -> int:
         return MISS_COMPILING_IN_BACKGROUND
     # one compiler per source at a time: worker processes that build the same problem together
     # wait for the first one's object instead of compiling it again (minutes for a large NLP)
-    with open(entry + ".lock", "a") as lock:
+    try:
+        lock = open(entry + ".lock", "a")  # noqa: SIM115 - closed by the with below
+    except OSError:
+        return subprocess.call(compile_cmd)  # a read-only cache: compile, keep nothing
+    with lock:
         _lock(lock)
         if _copy_if_valid(entry, checksum, out):
             return 0
@@ -120,8 +139,11 @@ def main(argv: list[str]) -> int:
         if code == 0 and os.path.exists(out):
             # the object first, then its checksum: a reader that sees the object without a
             # matching checksum compiles again instead of trusting it
-            _store(directory, out, entry)
-            _store(directory, "", checksum, text=_digest(entry))
+            try:
+                _store(directory, out, entry)
+                _store(directory, "", checksum, text=_digest(entry))
+            except OSError:
+                pass  # a full disk: the object is compiled, only not kept
     if settings.get("into-cache"):  # a background compile: its source and output were scratch
         for scratch in (source, out):
             if os.path.exists(scratch):

@@ -6,7 +6,9 @@ options whose compiler command is :mod:`controllers.solvers.cached_cc`: the obje
 generated source is kept under ``<cache root>/solvers/`` keyed by the source text, the compiler
 flags, the compiler's identity and CasADi's version, so the second process (or worker) that
 builds the same problem copies it instead of compiling. Without a C compiler the solver stays
-uncompiled, with one warning.
+uncompiled, with one warning. The cache is optional: when it cannot be written (one
+:class:`~controllers.disk_cache.CacheWriteWarning` per process), a foreground build compiles
+without keeping the object and a background build stays uncompiled.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from typing import Any
 
 import casadi as ca
 
-from controllers.disk_cache import cache_root
+from controllers.disk_cache import cache_root, writable
 
 __all__ = ["COMPILER_FLAGS", "compiler", "jit_options", "nlpsol", "solver_cache_dir"]
 
@@ -83,10 +85,18 @@ def jit_options(flags: tuple[str, ...] = COMPILER_FLAGS, background: bool = Fals
     a cache miss compiles in a detached process and the build raises, so that :func:`nlpsol`
     returns the uncompiled solver at once (the NMPC default: a first run on a machine is never
     held up for minutes; the next process gets the compiled solver).
+
+    A cache directory that cannot be written warns once per process
+    (:func:`controllers.disk_cache.writable`); a foreground build then compiles in this process
+    without keeping the object, and ``background=True`` returns {} (uncompiled): a detached
+    compile would have nowhere to put its object.
     """
     cc = compiler()
     if cc is None:
         _warn_no_compiler()
+        return {}
+    # probed in both modes, for the one warning; only a background build cannot do without it
+    if not writable(solver_cache_dir()) and background:
         return {}
     build = tempfile.mkdtemp(prefix="koopnav-jit-")
     _BUILD_DIRS.append(build)
