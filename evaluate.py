@@ -34,7 +34,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -45,10 +45,13 @@ from evaluation.backends import RunInterrupted
 from evaluation.badge import write_badge
 from evaluation.baseline import (
     GateOptions,
+    PairKey,
     compare_runs,
     comparison_markdown,
+    coverage_failures,
     gate_failures,
     load_baseline,
+    pair_keys,
     refuse_incomparable,
 )
 from evaluation.cli import (
@@ -135,6 +138,33 @@ def _config_check(
     return check
 
 
+def _plan_check(
+    args: argparse.Namespace, baseline: dict[str, Any] | None, gate: GateOptions
+) -> Callable[[Sequence[EpisodeSpec]], None]:
+    """``--fail-if-worse``: refuse, before any episode, a run that too few episodes of the
+    baseline pair with (other seeds, cells or controllers: a stale baseline)."""
+
+    def check(plan: Sequence[EpisodeSpec]) -> None:
+        if baseline is None or not args.fail_if_worse:
+            return
+        planned: dict[str, set[PairKey]] = {}
+        for episode in plan:
+            planned.setdefault(episode.controller, set()).add(
+                (episode.env_id, episode.map, episode.slip, episode.seed)
+            )
+        failures = coverage_failures(
+            planned, baseline["episodes"], gate, run_names_its_controllers=bool(args.controllers)
+        )
+        if failures:
+            raise ValueError(
+                f"--fail-if-worse cannot judge this run against the baseline {args.baseline!r}: "
+                + "; ".join(failures)
+                + f" (no episode was run; --min-pairs sets the minimum, now {gate.min_pairs})"
+            )
+
+    return check
+
+
 def _write_ablation(args: argparse.Namespace, results: Results, wall: float) -> Path:
     """``--ablation``: the ablation report, written to ``--ablation-out``."""
     command = "python evaluate.py --ablation " + " ".join(args.ablation) if args.ablation else ""
@@ -160,6 +190,26 @@ def _compare(
         json.dumps(json_safe(comparison), indent=1) + "\n", encoding="utf-8"
     )
     return text, gate_failures(comparison, gate) if args.fail_if_worse else []
+
+
+def _uncovered(
+    args: argparse.Namespace, results: Results, baseline: dict[str, Any], gate: GateOptions
+) -> list[str]:
+    """``--fail-if-worse`` after the run: the controllers whose episodes that ran pair too few
+    times with the baseline (episodes that raised cannot pair)."""
+    errors: dict[str, int] = {}
+    for record in results.failed_episodes:
+        errors[record["controller"]] = errors.get(record["controller"], 0) + 1
+    run = pair_keys(results.records)
+    for label in [c["label"] for c in results.config["controller_configs"]]:
+        run.setdefault(label, set())  # a controller whose every episode raised
+    return coverage_failures(
+        run,
+        baseline["episodes"],
+        gate,
+        run_names_its_controllers=bool(args.controllers),
+        run_errors=errors,
+    )
 
 
 def _print_summary(
@@ -248,7 +298,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.sweep:
             return _run_sweep(args, spec, argv)
         baseline = load_baseline(args.baseline) if args.baseline else None
-        gate = GateOptions(args.alpha, args.delta, args.delta_cm)  # checked before any episode
+        gate = GateOptions(
+            args.alpha, args.delta, args.delta_cm, args.min_pairs
+        )  # checked before any episode
         if args.fail_if_worse and baseline is None:
             raise ValueError(
                 "--fail-if-worse needs --baseline BASE (an earlier run's results.json or directory)"
@@ -262,6 +314,7 @@ def main(argv: list[str] | None = None) -> int:
             resume=args.resume,
             progress=not args.quiet,
             config_check=_config_check(args, baseline),
+            plan_check=_plan_check(args, baseline, gate),
         )
         wall = time.perf_counter() - start
         results.config["wall_seconds"] = wall
@@ -272,6 +325,9 @@ def main(argv: list[str] | None = None) -> int:
             paths["ablation"] = _write_ablation(args, results, wall)
         threshold_check = check_thresholds(results, args.check, strict=args.strict) if args.check else None
         comparison, worse = _compare(args, results, baseline, gate) if baseline is not None else ("", [])
+        uncovered = (
+            _uncovered(args, results, baseline, gate) if baseline is not None and args.fail_if_worse else []
+        )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -285,9 +341,17 @@ def main(argv: list[str] | None = None) -> int:
     if problems:
         print("threshold check failed:\n" + "\n".join(f"  - {p}" for p in problems), file=sys.stderr)
         return FAILED_CHECK_EXIT
+    if uncovered:
+        print(
+            f"the baseline gate cannot judge this run ({args.baseline}):\n"
+            + "\n".join(f"  - {u}" for u in uncovered),
+            file=sys.stderr,
+        )
     if worse:
         print("worse than the baseline:\n" + "\n".join(f"  - {w}" for w in worse), file=sys.stderr)
         return FAILED_GATE_EXIT
+    if uncovered:
+        return 2
     if args.fail_if_worse:
         print(f"baseline gate passed ({args.baseline}: no significant loss at alpha {args.alpha})")
     if threshold_check is not None:

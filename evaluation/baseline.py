@@ -9,28 +9,40 @@ bootstrap interval. Cells or controllers on one side only are listed, never drop
 
 A baseline whose settings differ in anything that changes outcomes (env settings, calibration,
 map files, the package version that holds the dynamics) is refused with the differing keys
-named, as ``--resume`` refuses a log of another run.
+named, as ``--resume`` refuses a log of another run. Its episode records are checked field by
+field on reading (:func:`evaluation.records.record_problem`, the schema the resume log uses).
+
+The gate fails closed: a stale baseline must not turn it off. Before any episode runs, and again
+on the episodes that ran, every controller of the run must pair at least
+:attr:`GateOptions.min_pairs` episodes with the baseline, and (unless the run names its
+controllers) every controller of the baseline must be in the run; otherwise
+:func:`coverage_failures` says why (no episodes of that controller in the baseline, its
+episodes there all raised, other seeds or cells) and the evaluator exits 2.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from evaluation.records import ran
+from evaluation.records import ran, record_problem
 from evaluation.report import task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
 __all__ = [
     "ALL_TASKS",
     "GateOptions",
+    "PairKey",
+    "pair_keys",
     "compare_runs",
     "comparison_markdown",
+    "coverage_failures",
     "gate_failures",
     "load_baseline",
     "refuse_incomparable",
@@ -41,6 +53,9 @@ READABLE_SCHEMAS = (2,)
 
 #: the env id of a comparison row that pools a controller's pairs over every task of the run
 ALL_TASKS = "all tasks"
+
+#: what pairs an episode with its partner in the other run, per controller: (env id, map, slip, seed)
+PairKey = tuple[str, str, str, int]
 
 #: config keys whose difference changes outcomes: a baseline must match them
 OUTCOME_KEYS = ("env_settings", "calibration", "map_files", "random_maps")
@@ -72,7 +87,30 @@ def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
             f"{what} {str(file)!r} has schema_version={doc['schema_version']!r}; this version reads "
             f"{list(READABLE_SCHEMAS)}"
         )
+    problem = _document_problem(doc)
+    if problem is not None:
+        raise ValueError(
+            f"{what} {str(file)!r} is not a results document as KoopNav writes it: {problem}; "
+            "nothing was compared (rerun the baseline, or restore the file from version control)"
+        )
     return doc
+
+
+def _document_problem(doc: dict[str, Any]) -> str | None:
+    """Why the fields a comparison reads are not as KoopNav writes them (None when they are)."""
+    if not isinstance(doc["config"], dict):
+        return f"'config' is a JSON {type(doc['config']).__name__}, not an object"
+    if not isinstance(doc.get("package_version"), str):
+        return f"'package_version' is {doc.get('package_version')!r}, not a version string"
+    episodes = doc["episodes"]
+    if not isinstance(episodes, list):
+        return f"'episodes' is a JSON {type(episodes).__name__}, not a list of episode records"
+    for index, record in enumerate(episodes):
+        problem = record_problem(record)
+        if problem is not None:
+            key = record.get("key") if isinstance(record, dict) else None
+            return f"episodes[{index}]" + (f" ({key!r})" if isinstance(key, str) else "") + f": {problem}"
+    return None
 
 
 def refuse_incomparable(config: dict[str, Any], package_version: str, baseline: dict[str, Any]) -> None:
@@ -182,11 +220,16 @@ class GateOptions:
     delta_cm : float
         Final-distance increase that matters [cm], >= 0 (default 1.0): fails when the mean
         paired increase exceeds it and its interval lies above 0.
+    min_pairs : int
+        Episodes each controller of the run must pair with the baseline, >= 1 (default 10):
+        with fewer the gate cannot see a loss (McNemar's exact test needs at least 6 discordant
+        pairs, all one way, to reach p < 0.05), so the run fails instead of passing on nothing.
     """
 
     alpha: float = 0.05
     delta: float = 0.10
     delta_cm: float = 1.0
+    min_pairs: int = 10
 
     def __post_init__(self) -> None:
         a = self.alpha
@@ -201,6 +244,95 @@ class GateOptions:
                 or value < 0
             ):
                 raise ValueError(f"{name}={value!r} must be a finite number >= 0")
+        n = self.min_pairs
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ValueError(f"min_pairs={n!r} must be an integer >= 1")
+
+
+def pair_keys(records: Iterable[Mapping[str, Any]]) -> dict[str, set[PairKey]]:
+    """Controller label -> the pairing keys of its episodes that ran (errors cannot pair)."""
+    keys: dict[str, set[PairKey]] = {}
+    for r in records:
+        if ran(r):
+            keys.setdefault(r["controller"], set()).add((r["env_id"], r["map"], r["slip"], r["seed"]))
+    return keys
+
+
+def _span(keys: Iterable[PairKey]) -> str:
+    """The seeds and cells of a set of pairing keys, in a few words."""
+    keys = list(keys)
+    seeds = sorted({k[3] for k in keys})
+    cells = sorted({f"{k[1]}/{k[2]}" for k in keys})
+    seed_text = f"seeds {seeds[0]}-{seeds[-1]}" if len(seeds) > 1 else f"seed {seeds[0]}"
+    return f"{seed_text} on {', '.join(cells[:4])}" + (
+        f" and {len(cells) - 4} more cells" if len(cells) > 4 else ""
+    )
+
+
+def coverage_failures(
+    run: Mapping[str, set[PairKey]],
+    baseline_records: list[dict[str, Any]],
+    options: GateOptions,
+    *,
+    run_names_its_controllers: bool,
+    run_errors: Mapping[str, int] | None = None,
+) -> list[str]:
+    """Why the gate cannot judge this run against the baseline (empty list = it can).
+
+    Parameters
+    ----------
+    run : mapping
+        Controller label -> the pairing keys of the run's episodes (those planned, before the
+        run; those that ran, after it).
+    baseline_records : list of dict
+        The baseline's episode records.
+    options : GateOptions
+        ``min_pairs``: the pairs each controller of the run needs.
+    run_names_its_controllers : bool
+        The run was given its controllers (``--controllers``): the baseline's other
+        controllers are left out on purpose. Otherwise each of them must be in the run (a
+        controller that vanished from the registry or could not be built is a failure).
+    run_errors : mapping, optional
+        Controller label -> episodes of the run that raised, to explain a shortfall.
+    """
+    theirs = pair_keys(baseline_records)
+    failures = []
+    if not theirs:
+        errors = sum(not ran(r) for r in baseline_records)
+        return [
+            f"the baseline has no episode that ran ({len(baseline_records)} records, {errors} of them "
+            "errors): there is nothing to compare with; rerun it (bash .ci/leaderboard.sh --update)"
+        ]
+    for label in sorted(run):
+        pairs = len(run[label] & theirs.get(label, set()))
+        if pairs >= options.min_pairs:
+            continue
+        why = (
+            f"{label}: {pairs} episode(s) pair with the baseline, fewer than the minimum {options.min_pairs}"
+        )
+        baseline_errors = sum(r["controller"] == label and not ran(r) for r in baseline_records)
+        if label not in theirs:
+            reason = (
+                f"all {baseline_errors} of its baseline episodes raised"
+                if baseline_errors
+                else f"the baseline has no episodes of {label!r} (it has {sorted(theirs)})"
+            )
+        elif not run[label]:
+            reason = "none of its episodes in this run ran"
+        elif run[label] <= theirs[label]:
+            reason = f"this run has only {len(run[label])} episode(s) of it; run more per cell (--episodes)"
+        else:
+            reason = f"the baseline ran it with {_span(theirs[label])}, this run with {_span(run[label])}"
+        if run_errors and run_errors.get(label):
+            reason += f"; {run_errors[label]} of its episodes in this run raised"
+        failures.append(f"{why}: {reason}")
+    if not run_names_its_controllers:
+        failures += [
+            f"the baseline's controller {label!r} is not in this run (not registered, or it could not "
+            "be built here); name the controllers to gate with --controllers to leave it out"
+            for label in sorted(set(theirs) - set(run))
+        ]
+    return failures
 
 
 def gate_failures(comparison: dict[str, Any], options: GateOptions) -> list[str]:

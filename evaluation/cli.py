@@ -83,7 +83,11 @@ def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None
 EXIT_CODES = (
     ("0", "every episode ran (and --check, if given, passed)"),
     ("1-100", "that many episodes raised (capped at 100); the others' results are written"),
-    ("2", "bad input (named on stderr) before any episode ran"),
+    (
+        "2",
+        "bad input (named on stderr) before any episode ran, or --fail-if-worse could not pair "
+        "enough episodes with the --baseline to judge the run (a stale or empty baseline fails closed)",
+    ),
     (str(FAILED_CHECK_EXIT), "a --check threshold failed"),
     (str(FAILED_GATE_EXIT), "--fail-if-worse: a controller is significantly worse than the --baseline"),
     (str(INTERRUPTED_EXIT), "interrupted (Ctrl-C or SIGTERM); continue with --resume"),
@@ -343,6 +347,14 @@ def _ci_options(ci: argparse._ArgumentGroup) -> None:
         default=defaults.delta,
         help=f"success-rate drop the gate cares about, >= 0 (default {defaults.delta}: "
         f"{100 * defaults.delta:.0f} points)",
+    )
+    ci.add_argument(
+        "--min-pairs",
+        type=int,
+        default=defaults.min_pairs,
+        metavar="N",
+        help=f"with --fail-if-worse: episodes each controller must pair with the baseline, >= 1; fewer "
+        f"(other seeds, cells or controllers, or errors) exit 2 (default {defaults.min_pairs})",
     )
     ci.add_argument(
         "--delta-cm",

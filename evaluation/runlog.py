@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
-from evaluation.records import STATUSES, json_safe
+from evaluation.records import json_safe, record_problem
 
 __all__ = ["RESUME_KEYS", "LogError", "open_log", "read_log", "run_signature"]
 
@@ -33,11 +33,6 @@ RESUME_KEYS = (
     "calibration",
     "gifs",
 )
-
-#: what every episode record holds, whatever its status
-_RECORD_FIELDS = ("key", "status", "env_id", "controller", "map", "slip", "trial", "seed")
-#: what a finished (not raised) episode's record holds besides
-_OUTCOME_FIELDS = ("success", "collision", "steps", "final_distance", "solver_failures")
 
 
 class LogError(ValueError):
@@ -80,24 +75,15 @@ def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> None:
 
 def _record_problem(rec: Any, expected: Mapping[str, Mapping[str, Any]] | None) -> str | None:
     """Why ``rec`` is not an episode record of this run (None when it is one)."""
-    if not isinstance(rec, dict):
-        return f"a JSON {type(rec).__name__}, not an episode record"
-    missing = [k for k in _RECORD_FIELDS if k not in rec]
-    if missing:
-        return f"an object without the episode fields {missing}"
-    if rec["status"] not in STATUSES:
-        return f"status {rec['status']!r} is not one of {list(STATUSES)}"
-    if rec["status"] != "error":
-        lacking = [k for k in _OUTCOME_FIELDS if k not in rec]
-        if lacking:
-            return f"a {rec['status']!r} record without {lacking}"
-    if expected is not None:
-        fields = expected.get(rec["key"]) if isinstance(rec["key"], str) else None
-        if fields is None:
-            return f"episode {rec['key']!r} is not one of this run's episodes"
-        differ = sorted(k for k, v in fields.items() if rec.get(k) != v)
-        if differ:
-            return f"episode {rec['key']!r} was run with other settings ({', '.join(differ)})"
+    problem = record_problem(rec)
+    if problem is not None or expected is None:
+        return problem
+    fields = expected.get(rec["key"])
+    if fields is None:
+        return f"episode {rec['key']!r} is not one of this run's episodes"
+    differ = sorted(k for k, v in fields.items() if rec.get(k) != v)
+    if differ:
+        return f"episode {rec['key']!r} was run with other settings ({', '.join(differ)})"
     return None
 
 

@@ -5,11 +5,12 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import controllers as registry
 from evaluation.backends import BACKENDS, Progress, RunInterrupted, run_episodes
+from evaluation.plan import EpisodeSpec
 from evaluation.records import json_safe
 from evaluation.results import Results
 from evaluation.runlog import open_log
@@ -49,6 +50,7 @@ def evaluate(
     resume: bool = False,
     progress: bool = False,
     config_check: Callable[[dict[str, Any]], None] | None = None,
+    plan_check: Callable[[Sequence[EpisodeSpec]], None] | None = None,
 ) -> Results:
     """Run every controller configuration of ``spec`` on every (env, map, slip) cell.
 
@@ -71,6 +73,10 @@ def evaluate(
         Called with the run's configuration (what results.json records under ``config``)
         before any episode; raising ``ValueError`` stops the run there (``--baseline`` refuses
         a baseline of other settings this way).
+    plan_check : callable, optional
+        Called with the planned episodes after ``config_check``, before any episode; raising
+        ``ValueError`` stops the run there (``--fail-if-worse`` refuses a baseline that too few
+        of them pair with this way).
 
     Returns
     -------
@@ -111,6 +117,8 @@ def evaluate(
     plan = spec.episodes_plan(os.fspath(out) if out is not None else "")
     if config_check is not None:
         config_check(config)
+    if plan_check is not None:
+        plan_check(plan)
     expected = {episode.key: episode.record_fields() for episode in plan}
     log_file, done = open_log(out, config, resume, expected) if out is not None else (None, {})
     todo = sorted(

@@ -57,3 +57,12 @@ class NotAController:
 
     def act(self, observation: Any, info: dict[str, Any]) -> Any:
         return observation
+
+
+class AlwaysRaising(BaseController):
+    """Raises in every decision: every episode of it is an error record."""
+
+    name = "always-raising"
+
+    def _act(self, observation: Any, info: dict[str, Any]) -> Any:
+        raise RuntimeError("this controller always raises")

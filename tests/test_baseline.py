@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation.baseline import GateOptions, compare_runs, gate_failures, load_baseline
+from evaluation.baseline import GateOptions, compare_runs, coverage_failures, gate_failures, load_baseline
 
 RUN = [
     "--env",
@@ -51,10 +51,12 @@ def base(tmp_path_factory) -> Path:
     return out
 
 
+#: the gate's options for RUN's 8 episodes (the default minimum is 10 pairs per controller)
+GATE = ["--fail-if-worse", "--min-pairs", "8"]
+
+
 def test_an_identical_rerun_passes_the_gate(base, tmp_path, capsys) -> None:
-    code = ev.main(
-        [*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base), "--fail-if-worse"]
-    )
+    code = ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base), *GATE])
     assert code == 0
     assert "baseline gate passed" in capsys.readouterr().out
     comparison = json.loads((tmp_path / "baseline_comparison.json").read_text())
@@ -64,9 +66,7 @@ def test_an_identical_rerun_passes_the_gate(base, tmp_path, capsys) -> None:
 
 def test_a_degraded_controller_fails_the_gate(base, tmp_path, capsys) -> None:
     degraded = "nominal-nmpc:solver=rti,horizon=3,label=nmpc"
-    code = ev.main(
-        [*RUN, "--controllers", degraded, "--out", str(tmp_path), "--baseline", str(base), "--fail-if-worse"]
-    )
+    code = ev.main([*RUN, "--controllers", degraded, "--out", str(tmp_path), "--baseline", str(base), *GATE])
     assert code == ev.FAILED_GATE_EXIT
     assert (
         "nmpc on KoopNav-TargetReaching-v0 (8 paired episodes): success 100% -> 0%" in capsys.readouterr().err
@@ -238,3 +238,149 @@ def test_a_controller_on_several_tasks_is_also_gated_over_all_of_them() -> None:
     # one task only: no pooled row
     single = compare_runs(run(won=8)[:12], run(won=12)[:12])
     assert [row["env_id"] for row in single["rows"]] == ["KoopNav-TargetReaching-v0"]
+
+
+# --------------------------------------------------------------------------- the gate fails closed
+def _gate(base: Path, out: Path, *extra: str, controllers: str = NMPC) -> int:
+    return ev.main(
+        [*RUN, "--controllers", controllers, "--out", str(out), "--baseline", str(base), *GATE, *extra]
+    )
+
+
+def _edited(base: Path, tmp_path: Path, edit) -> Path:
+    """A copy of the baseline's results.json with ``edit(doc)`` applied."""
+    doc = json.loads((base / "results.json").read_text())
+    edit(doc)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.mark.parametrize(
+    "edit, extra, message",
+    [
+        (
+            lambda d: d.update(episodes=[]),
+            [],
+            "the baseline has no episode that ran (0 records, 0 of them errors)",
+        ),
+        (
+            lambda d: [r.update(status="error", error="RuntimeError: x") for r in d["episodes"]],
+            [],
+            "the baseline has no episode that ran (8 records, 8 of them errors)",
+        ),
+        (
+            lambda d: [r.update(controller="renamed") for r in d["episodes"]],
+            [],
+            "the baseline has no episodes of 'nmpc' (it has ['renamed'])",
+        ),
+        (
+            lambda d: None,
+            ["--seed", "100"],
+            "the baseline ran it with seeds 0-7 on map1/nominal, this run with seeds 100-107 on map1/nominal",
+        ),
+        (
+            lambda d: None,
+            ["--episodes", "4"],
+            "nmpc: 4 episode(s) pair with the baseline, fewer than the minimum 8",
+        ),
+    ],
+    ids=["empty", "all-errors", "renamed", "other-seeds", "too-few"],
+)
+def test_a_stale_baseline_fails_the_gate_before_any_episode(
+    base, tmp_path, capsys, edit, extra, message
+) -> None:
+    code = _gate(_edited(base, tmp_path, edit), tmp_path / "run", *extra)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "--fail-if-worse cannot judge this run against the baseline" in err and message in err
+    assert "baseline gate passed" not in err
+    assert not (tmp_path / "run" / "episodes.jsonl").exists()  # refused before any episode
+
+
+def test_without_the_gate_a_stale_baseline_is_only_compared(base, tmp_path) -> None:
+    """--baseline alone reports; only --fail-if-worse needs pairs."""
+    path = _edited(base, tmp_path, lambda d: d.update(episodes=[]))
+    code = ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path / "run"), "--baseline", str(path)])
+    assert code == 0
+    assert json.loads((tmp_path / "run" / "baseline_comparison.json").read_text())["rows"] == []
+
+
+def test_episodes_that_raise_in_the_run_fail_the_gate_after_it(base, tmp_path, capsys) -> None:
+    """The planned episodes pair, but those that raised cannot: exit 2 naming why, not a pass."""
+    code = _gate(base, tmp_path / "run", controllers="plugin_controllers:AlwaysRaising:label=nmpc")
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "the baseline gate cannot judge this run" in err
+    assert (
+        "nmpc: 0 episode(s) pair with the baseline" in err and "8 of its episodes in this run raised" in err
+    )
+    assert (tmp_path / "run" / "results.json").exists()  # the run's results are written all the same
+
+
+def test_coverage_failures_name_a_baseline_controller_missing_from_the_run() -> None:
+    base = [{**_record(s, True), "controller": name} for s in range(10) for name in ("c", "gone")]
+    run = {"c": {("KoopNav-TargetReaching-v0", "map1", "nominal", s) for s in range(10)}}
+    (failure,) = coverage_failures(run, base, GateOptions(), run_names_its_controllers=False)
+    assert failure.startswith("the baseline's controller 'gone' is not in this run")
+    assert coverage_failures(run, base, GateOptions(), run_names_its_controllers=True) == []
+    raised = [*base, *({**_record(s, True), "controller": "d", "status": "error"} for s in range(3))]
+    run["d"] = run["c"]
+    (failure,) = coverage_failures(run, raised, GateOptions(), run_names_its_controllers=True)
+    assert failure.endswith(
+        "d: 0 episode(s) pair with the baseline, fewer than the minimum 10: all 3 of its baseline episodes raised"
+    )
+    del run["d"]
+    assert coverage_failures(run, base, GateOptions(min_pairs=11), run_names_its_controllers=True) == [
+        "c: 10 episode(s) pair with the baseline, fewer than the minimum 11: the baseline ran it with "
+        "seeds 0-9 on map1/nominal, this run with seeds 0-9 on map1/nominal"
+    ]
+
+
+@pytest.mark.parametrize("value", [0, -3, 2.5, True])
+def test_min_pairs_must_be_a_whole_number_of_at_least_one(value) -> None:
+    with pytest.raises(ValueError, match=f"min_pairs={value!r} must be an integer >= 1"):
+        GateOptions(min_pairs=value)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda r: r.pop("success"), "a 'ok' record without ['success']"),
+        (lambda r: r.update(success="false"), "field 'success' is 'false'; allowed: true or false"),
+        (lambda r: r.update(success=None), "field 'success' is None; allowed: true or false"),
+        (lambda r: r.update(steps=-5), "field 'steps' is -5; allowed: an integer >= 0"),
+        (lambda r: r.update(collision=3), "field 'collision' is 3"),
+        (lambda r: r.update(final_distance=[]), "field 'final_distance' is []"),
+        (lambda r: r.update(final_distance=["0.1"]), "field 'final_distance' is ['0.1']"),
+        (lambda r: r.update(seed="0"), "field 'seed' is '0'; allowed: an integer >= 0"),
+        (lambda r: r.update(status="maybe"), "field 'status' is 'maybe'"),
+        (lambda r: r.update(collision="obstacle"), "field 'success' is true with collision 'obstacle'"),
+    ],
+)
+def test_a_baseline_record_is_validated_field_by_field(base, tmp_path, capsys, edit, message) -> None:
+    def corrupt(doc: dict) -> None:
+        edit(doc["episodes"][3])
+
+    path = _edited(base, tmp_path, corrupt)
+    with pytest.raises(ValueError) as error:
+        load_baseline(path)
+    text = str(error.value)
+    assert str(path) in text and "episodes[3] ('KoopNav-TargetReaching-v0|nmpc|map1|nominal|3')" in text
+    assert message in text
+    assert _gate(path, tmp_path / "run") == 2 and message in capsys.readouterr().err
+
+
+def test_the_ci_leaderboard_script_fails_closed_on_other_seeds(tmp_path) -> None:
+    """.ci/leaderboard.sh with a subset run on seeds the committed baseline never ran: exit 2 at once."""
+    import os
+    import subprocess
+
+    root = Path(ev.__file__).parent
+    env = {**os.environ, "KOOPNAV_GATE_ARGS": "--controllers consensus --seed 1000 --workers 1"}
+    done = subprocess.run(
+        ["bash", ".ci/leaderboard.sh", str(tmp_path)], cwd=root, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 2, done.stderr
+    assert "consensus: 0 episode(s) pair with the baseline" in done.stderr
+    assert "baseline gate passed" not in done.stdout + done.stderr

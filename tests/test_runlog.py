@@ -150,13 +150,40 @@ def test_a_record_of_another_run_is_refused(tmp_path, fast_run) -> None:
     for rec, problem in [
         (other_seed, "was run with other settings \\(seed\\)"),
         (other_key, "is not one of this run's episodes"),
-        (bad_status, "status 'fine' is not one of"),
+        (bad_status, "field 'status' is 'fine'; allowed: one of"),
         (no_outcome, "record without \\['final_distance'\\]"),
     ]:
         copy = tmp_path / "episodes.jsonl"
         copy.write_bytes(b"\n".join([lines[0], json.dumps(rec).encode(), *lines[2:]]))
         with pytest.raises(LogError, match=f"line 2: .*{problem}"):
             read_log(copy, _config(FAST), _expected(FAST))
+
+
+@pytest.mark.parametrize(
+    "change, problem",
+    [
+        ({"success": "maybe"}, "field 'success' is 'maybe'; allowed: true or false"),
+        ({"success": None}, "field 'success' is None; allowed: true or false"),
+        ({"steps": -5}, "field 'steps' is -5; allowed: an integer >= 0"),
+        ({"steps": 1.5}, "field 'steps' is 1.5; allowed: an integer >= 0"),
+        ({"collision": "x"}, "field 'collision' is 'x'; allowed: null or the collision's kinds"),
+        ({"final_distance": [0.1, "far", 0.2]}, "field 'final_distance' is \\[0.1, 'far', 0.2\\]"),
+        ({"solver_failures": -1}, "field 'solver_failures' is -1"),
+        ({"trial": "0"}, "field 'trial' is '0'"),
+        ({"time_to_goal": -3.0}, "field 'time_to_goal' is -3.0"),
+        ({"final_poses": [[0.0, 0.0]]}, "field 'final_poses' is \\[\\[0.0, 0.0\\]\\]"),
+    ],
+)
+def test_a_record_with_a_bad_value_is_refused_naming_file_line_and_field(
+    tmp_path, fast_run, change, problem
+) -> None:
+    log, _ = fast_run
+    lines = log.read_bytes().split(b"\n")
+    record = {**json.loads(lines[2]), **change}
+    copy = tmp_path / "episodes.jsonl"
+    copy.write_bytes(b"\n".join([lines[0], lines[1], json.dumps(record).encode(), *lines[3:]]))
+    with pytest.raises(LogError, match=f"{copy}.*line 3: {problem}"):
+        read_log(copy, _config(FAST), _expected(FAST))
 
 
 def test_the_cli_refuses_a_foreign_log_with_exit_2(tmp_path, capsys) -> None:

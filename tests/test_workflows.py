@@ -112,6 +112,10 @@ def user_venv(tmp_path_factory) -> tuple[Path, Path]:
     return env_dir, package
 
 
+#: the evaluator options of the action's test runs (one small cell)
+ACTION_ARGS = "--env KoopNav-TargetReaching-v0 --maps map1 --slips nominal --max-episode-steps 20 --workers 1"
+
+
 def _run_action(env_dir: Path, package: Path, out: Path, **inputs: str) -> subprocess.CompletedProcess:
     environment = {
         **os.environ,
@@ -125,7 +129,7 @@ def _run_action(env_dir: Path, package: Path, out: Path, **inputs: str) -> subpr
         "KOOPNAV_PACKAGE": str(package),
         "KOOPNAV_CONTROLLERS": "my_package.control:Forward:speed=0.2 consensus",
         "KOOPNAV_EPISODES": "1",
-        "KOOPNAV_ARGS": "--env KoopNav-TargetReaching-v0 --maps map1 --slips nominal --max-episode-steps 20 --workers 1",
+        "KOOPNAV_ARGS": ACTION_ARGS,
         "KOOPNAV_OUT": str(out),
         **inputs,
     }
@@ -150,8 +154,20 @@ def test_the_action_ranks_a_users_controller_and_gates_a_rerun(user_venv, tmp_pa
     ]
     badge = (tmp_path / "base" / "badge.svg").read_text()
     assert badge.startswith("<svg") and "my_package.control:Forward:speed=0.2" in badge
-    # the rerun against the first run as baseline: the same seeds, the same outcomes, the gate passes
-    again = _run_action(env_dir, package, tmp_path / "again", KOOPNAV_BASELINE=str(tmp_path / "base"))
+    # the rerun against the first run as baseline: one pair per controller is fewer than the gate's
+    # default minimum of 10, so the gate fails closed (exit 2, before any episode) ...
+    closed = _run_action(env_dir, package, tmp_path / "closed", KOOPNAV_BASELINE=str(tmp_path / "base"))
+    assert closed.returncode == 2, closed.stderr[-3000:]
+    assert "consensus: 1 episode(s) pair with the baseline, fewer than the minimum 10" in closed.stderr
+    assert "baseline gate passed" not in closed.stdout
+    # ... and with the minimum lowered: the same seeds, the same outcomes, the gate passes
+    again = _run_action(
+        env_dir,
+        package,
+        tmp_path / "again",
+        KOOPNAV_BASELINE=str(tmp_path / "base"),
+        KOOPNAV_ARGS=ACTION_ARGS + " --min-pairs 1",
+    )
     assert again.returncode == 0, again.stderr[-3000:]
     assert "baseline gate passed" in again.stdout
     assert (tmp_path / "again" / "baseline_comparison.md").is_file()
@@ -165,11 +181,11 @@ def test_the_action_refuses_a_missing_controller_input(user_venv, tmp_path) -> N
 
 def test_the_repository_gate_passes_on_its_own_baseline(tmp_path) -> None:
     """.ci/leaderboard.sh against the committed baseline, on a subset: seed 0 of every quick-board
-    cell for two controllers (the full gate is the last step of .ci/run)."""
+    cell for two controllers, 4 pairs each (the full gate is the last step of .ci/run)."""
     environment = {
         **os.environ,
         "KOOPNAV_GATE_EPISODES": "1",
-        "KOOPNAV_GATE_ARGS": "--controllers consensus nominal-nmpc --solver rti",
+        "KOOPNAV_GATE_ARGS": "--controllers consensus nominal-nmpc --solver rti --min-pairs 4",
     }
     run = subprocess.run(
         ["bash", str(ROOT / ".ci" / "leaderboard.sh"), str(tmp_path / "gate")],
