@@ -283,7 +283,19 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
     print(
         f"\n{episodes} episodes in {time.perf_counter() - start:.1f} s; wrote {', '.join(map(str, paths.values()))}"
     )
-    return 0
+    # as a run without --sweep: the exit code counts the episodes that raised, at every level
+    failed = 0
+    for axis in axes:
+        for level, results in done[axis.key]:
+            if id(results) in runs and results.failed_episodes:
+                runs.pop(id(results))
+                failed += len(results.failed_episodes)
+                print(
+                    f"{len(results.failed_episodes)} episode(s) raised at {axis.key}={level}; see "
+                    f"{axis.level_dir(args.out, level) / 'results.md'}",
+                    file=sys.stderr,
+                )
+    return min(failed, 100)
 
 
 def main(argv: list[str] | None = None) -> int:

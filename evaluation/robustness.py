@@ -63,6 +63,8 @@ class LevelRow:
     distance_high: float
     #: paired against the reference controller (None for the reference itself)
     paired: dict[str, float] | None = None
+    #: episodes of the controller at this level that raised (not in ``episodes``)
+    errors: int = 0
 
     @property
     def success(self) -> float:
@@ -161,10 +163,10 @@ def profiles(sweep: dict[str, list[tuple[Any, Results]]], reference: str | None 
         for controller in controllers:
             per_level = [_by_unit(results, controller, slip_axis) for _, results in levels]
             ref_level = [_by_unit(results, ref, slip_axis) for _, results in levels]
-            for (level, _), mine, theirs in zip(levels, per_level, ref_level):
-                profile.rows.append(
-                    _level_row(controller, level, mine, None if controller == ref else theirs)
-                )
+            for (level, results), mine, theirs in zip(levels, per_level, ref_level, strict=True):
+                row = _level_row(controller, level, mine, None if controller == ref else theirs)
+                row.errors = sum(r["controller"] == controller and not ran(r) for r in results.records)
+                profile.rows.append(row)
             units = sorted(set.intersection(*(set(m) for m in per_level)))
             scores = [float(np.mean([bool(m[u]["success"]) for m in per_level])) for u in units]
             distances = [_team_distance(r) for m in per_level for r in m.values()]
@@ -287,12 +289,12 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
                 [
                     row.controller,
                     _level_text(row.level),
-                    str(row.episodes),
+                    str(row.episodes) + (f" ({row.errors} raised)" if row.errors else ""),
                     _ci(row.success, row.success_low, row.success_high, 100),
                     _ci(row.distance, row.distance_low, row.distance_high, digits=1),
                     _ci(paired["success_difference"], paired["success_low"], paired["success_high"], 100)
                     if paired
-                    else "(reference)",
+                    else ("(reference)" if row.controller == profile.reference else "-"),
                     f"{paired['p_value']:.3g}" if paired else "",
                     _ci(
                         paired["distance_difference"],
@@ -313,6 +315,13 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
             "over the levels per unit, bootstrap over units; tail: the mean final distance of the worst "
             f"{TAIL_SHARE:.0%} of the sweep's episodes, bootstrap."
         )
+        raised = [r for r in profile.rows if r.errors]
+        if raised:
+            note += (
+                f" **{sum(r.errors for r in raised)} episode(s) raised and are not counted**: "
+                + ", ".join(f"{r.controller} at {_level_text(r.level)} ({r.errors})" for r in raised)
+                + "; each level's results.md names their errors."
+            )
         blocks: list[Block] = [
             Note(note),
             TableBlock(summary, "Summary over the sweep"),
