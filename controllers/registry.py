@@ -10,7 +10,11 @@ for example in their ``pyproject.toml``::
 so that ``controllers.make("my-controller")`` and the evaluator find them without code changes.
 Without an entry point, a controller can be named by its import path:
 ``make("my_package.control:MyController")`` (a name that is not registered and reads
-``module:Attribute``).
+``module:Attribute``). The attribute is checked before anything is called: it must be a class
+with the controller's methods (``reset``, ``act``, ``stats``; e.g. derived from
+:class:`~controllers.base.BaseController`) or a function annotated to return one, so that a
+command line such as ``--controllers os:system:command=...`` is refused, not run (importing the
+module does run its top level, as ``python -c "import module"`` would).
 
 A *wrapper prefix* builds a controller around any other: ``make("safe:consensus")`` is the
 ``consensus`` controller behind the wrapper registered as ``safe`` (:func:`register_wrapper`);
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import typing
 from collections.abc import Callable
 from importlib import metadata
 from typing import Any
@@ -101,6 +106,49 @@ def _resolve(factory: Callable[..., Controller] | str) -> Callable[..., Controll
     return resolved
 
 
+#: the methods a controller class has (:class:`~controllers.base.Controller`)
+_CONTROLLER_METHODS = ("reset", "act", "stats")
+
+
+def _is_controller_class(target: Any) -> bool:
+    return isinstance(target, type) and all(callable(getattr(target, m, None)) for m in _CONTROLLER_METHODS)
+
+
+def _declares_controller(target: Any) -> bool:
+    """Whether ``target`` declares the controller contract without being called: a controller
+    class, or a function whose return annotation is one (or the :class:`Controller` protocol)."""
+    if isinstance(target, type):
+        return _is_controller_class(target)
+    if not callable(target):
+        return False
+    try:
+        returns = typing.get_type_hints(target).get("return")
+    except Exception:  # noqa: BLE001 - an unresolvable annotation declares nothing
+        return False
+    return returns is Controller or _is_controller_class(returns)
+
+
+def _checked_import(name: str) -> Callable[..., Controller]:
+    """The factory an import path names, refused before any call unless it declares the contract."""
+    try:
+        target = _resolve(name)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"controller {name!r} cannot be imported: {type(exc).__name__}: {exc}") from None
+    if not _declares_controller(target):
+        if isinstance(target, type):
+            missing = [m for m in _CONTROLLER_METHODS if not callable(getattr(target, m, None))]
+            what = f"class {target.__qualname__!r}, which lacks {missing}"
+        else:
+            what = f"{type(target).__name__} {getattr(target, '__qualname__', target)!r}, which declares no controller"
+        raise ValueError(
+            f"controller {name!r} names {what}: it does not declare the controller contract, and nothing "
+            "was called. An import path must name "
+            f"a class with the methods {list(_CONTROLLER_METHODS)} (derive from controllers.BaseController) "
+            "or a function annotated to return one (-> controllers.base.Controller)"
+        )
+    return target
+
+
 def factory(name: str) -> Callable[..., Controller]:
     """The callable that builds controller ``name``, wrapper prefixes included (raises
     ``ValueError`` for unknown names, naming the unknown controller without its prefixes)."""
@@ -113,10 +161,7 @@ def factory(name: str) -> Callable[..., Controller]:
     if name in _REGISTRY:
         return _resolve(_REGISTRY[name])
     if is_import_path(name):
-        try:
-            return _resolve(name)
-        except (ImportError, AttributeError) as exc:
-            raise ValueError(f"controller {name!r} cannot be imported: {type(exc).__name__}: {exc}") from None
+        return _checked_import(name)
     points = _entry_points()
     if name not in points:
         raise ValueError(f"controller {name!r} is not one of {available()}{did_you_mean(name, available())}")

@@ -66,3 +66,13 @@ class AlwaysRaising(BaseController):
 
     def _act(self, observation: Any, info: dict[str, Any]) -> Any:
         raise RuntimeError("this controller always raises")
+
+
+def make_plain_timed() -> PlainTimed:
+    """A factory function that declares the contract by its return annotation."""
+    return PlainTimed()
+
+
+def make_anything():  # noqa: ANN201 - undeclared on purpose: must be refused without a call
+    """A factory without a return annotation: refused, never called."""
+    raise AssertionError("an undeclared factory was called")

@@ -350,7 +350,7 @@ def test_a_plugin_derived_from_base_controller_is_timed(tmp_path) -> None:
 
 
 def test_make_refuses_an_import_path_that_is_not_a_controller() -> None:
-    with pytest.raises(ValueError, match=r"not a controller: it lacks \['name', 'reset', 'stats'\]"):
+    with pytest.raises(ValueError, match=r"names class 'NotAController', which lacks \['reset', 'stats'\]"):
         controllers.make("plugin_controllers:NotAController")
 
 
