@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.records import ran, record_problem
-from evaluation.report import task_label
+from evaluation.report import markdown_cell, markdown_text, task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
 __all__ = [
@@ -363,7 +363,7 @@ def gate_failures(comparison: dict[str, Any], options: GateOptions) -> list[str]
 def comparison_markdown(comparison: dict[str, Any], baseline_label: str) -> str:
     """The comparison as a Markdown section (table, then the one-sided cells)."""
     lines = [
-        f"## Compared with the baseline ({baseline_label})",
+        f"## Compared with the baseline ({markdown_text(baseline_label)})",
         "",
         "Run minus baseline on the episodes both ran (same env, controller, map, slip and seed): success with "
         "Newcombe's 95% interval and the exact McNemar p-value; team final distance with a 95% bootstrap interval.",
@@ -376,7 +376,7 @@ def comparison_markdown(comparison: dict[str, Any], baseline_label: str) -> str:
         task = task_label(r["env_id"])
         p = "<0.001" if r["p_value"] < 0.001 else f"{r['p_value']:.3f}"
         lines.append(
-            f"| {task} | {r['controller']} | {r['n']} | {100 * r['rate_b']:.0f}% | {100 * r['rate_a']:.0f}% | "
+            f"| {task} | {markdown_cell(r['controller'])} | {r['n']} | {100 * r['rate_b']:.0f}% | {100 * r['rate_a']:.0f}% | "
             f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}] | {r['only_a']} / "
             f"{r['only_b']} | {p} | {r['distance_cm_difference']:+.2f} [{r['distance_cm_low']:+.2f}, "
             f"{r['distance_cm_high']:+.2f}] |"
@@ -386,6 +386,6 @@ def comparison_markdown(comparison: dict[str, Any], baseline_label: str) -> str:
             lines += [
                 "",
                 f"Cells {label} (not compared): "
-                + ", ".join(f"{c[1]} {c[2]} {c[3]} ({c[0]})" for c in comparison[side]),
+                + markdown_text(", ".join(f"{c[1]} {c[2]} {c[3]} ({c[0]})" for c in comparison[side])),
             ]
     return "\n".join(lines)

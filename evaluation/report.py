@@ -9,6 +9,7 @@ the same numbers.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +31,9 @@ __all__ = [
     "controller_tables",
     "leaderboard_rows",
     "markdown",
+    "markdown_cell",
     "markdown_table",
+    "markdown_text",
     "paired_rows",
     "paper_rows",
     "sections",
@@ -306,26 +309,50 @@ def sections(results: RunData) -> list[Section]:
 
 
 # --------------------------------------------------------------------------- Markdown
+#: what opens raw HTML in Markdown (CommonMark: "<" before a tag name, "/", "!" or "?"); "<0.001" does not
+_HTML_OPENING = re.compile(r"<(?=[A-Za-z/!?])")
+
+
+def markdown_text(text: str) -> str:
+    """``text`` safe in a Markdown document: every ``<`` that could open an HTML tag becomes
+    ``&lt;``, as the HTML report escapes it (controller labels and errors are user text: a label
+    ``<img onerror=...>`` must show as text, not run in a Markdown viewer)."""
+    return _HTML_OPENING.sub("&lt;", text)
+
+
+def markdown_cell(text: str) -> str:
+    """A table cell's text: escaped, and its ``|`` kept from splitting the row."""
+    return markdown_text(text).replace("|", "\\|")
+
+
+def _code(text: str) -> str:
+    """``text`` as a Markdown code span, fenced by more backticks than any run inside it."""
+    longest = max((len(run) for run in re.findall("`+", text)), default=0)
+    fence = "`" * (longest + 1)
+    return f"{fence} {text} {fence}" if longest else f"`{text}`"
+
+
 def markdown_table(table: Table) -> str:
-    """A :data:`Table` as a Markdown table."""
+    """A :data:`Table` as a Markdown table (every cell escaped: :func:`markdown_text`)."""
     header, rows = table
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    lines = ["| " + " | ".join(map(markdown_cell, header)) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(map(markdown_cell, row)) + " |" for row in rows]
     return "\n".join(lines)
 
 
 def _markdown_block(block: Block) -> str:
     if isinstance(block, Note):
-        return block.text
+        return markdown_text(block.text)
     if isinstance(block, TableBlock):
-        return (f"**{block.caption}**\n\n" if block.caption else "") + markdown_table(block.table)
-    return "\n".join(f"- `{code}`: {text}" for code, text in block.entries)
+        caption = f"**{markdown_text(block.caption)}**\n\n" if block.caption else ""
+        return caption + markdown_table(block.table)
+    return "\n".join(f"- {_code(code)}: {markdown_text(text)}" for code, text in block.entries)
 
 
 def markdown(report: Sequence[Section]) -> str:
     """The sections as one Markdown document (``## title`` per section)."""
     return "\n\n".join(
-        f"## {s.title}\n\n" + "\n\n".join(_markdown_block(b) for b in s.blocks) for s in report
+        f"## {markdown_text(s.title)}\n\n" + "\n\n".join(_markdown_block(b) for b in s.blocks) for s in report
     )
 
 

@@ -332,8 +332,8 @@ def test_coverage_failures_name_a_baseline_controller_missing_from_the_run() -> 
     )
     del run["d"]
     assert coverage_failures(run, base, GateOptions(min_pairs=11), run_names_its_controllers=True) == [
-        "c: 10 episode(s) pair with the baseline, fewer than the minimum 11: the baseline ran it with "
-        "seeds 0-9 on map1/nominal, this run with seeds 0-9 on map1/nominal"
+        "c: 10 episode(s) pair with the baseline, fewer than the minimum 11: this run has only 10 "
+        "episode(s) of it; run more per cell (--episodes)"
     ]
 
 
