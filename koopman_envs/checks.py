@@ -17,7 +17,9 @@ from numpy.typing import NDArray
 __all__ = ["check_commands", "check_int", "check_number"]
 
 
-def check_int(name: str, value: Any, minimum: int | None = None, *, note: str = "") -> int:
+def check_int(
+    name: str, value: Any, minimum: int | None = None, *, maximum: int | None = None, note: str = ""
+) -> int:
     """``value`` as an ``int``, or ``ValueError`` naming it and the allowed range.
 
     Parameters
@@ -28,12 +30,19 @@ def check_int(name: str, value: Any, minimum: int | None = None, *, note: str = 
         The value to check: an integer (Python or NumPy; ``bool`` is refused).
     minimum : int, optional
         Smallest allowed value.
+    maximum : int, optional
+        Largest allowed value (the sizes' bounds, :data:`koopman_envs.params.LIMITS`): checked
+        before the caller allocates anything of that size.
     note : str
         Appended to the message in parentheses (e.g. the unit).
     """
     ok = isinstance(value, Integral) and not isinstance(value, bool)
-    if not ok or (minimum is not None and value < minimum):
-        allowed = "an integer" + (f" >= {minimum}" if minimum is not None else "")
+    if not ok or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+        bounds = [
+            f">= {minimum}" if minimum is not None else "",
+            f"<= {maximum}" if maximum is not None else "",
+        ]
+        allowed = "an integer" + (" " if any(bounds) else "") + " and ".join(b for b in bounds if b)
         raise ValueError(f"{name}={value!r} must be {allowed}" + (f" ({note})" if note else ""))
     return int(value)
 

@@ -18,24 +18,64 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_commands
 from koopman_envs.config import EngineConfig
-from koopman_envs.params import PARAMS
+from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import collision_flags
 from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
+from koopman_envs.sim.mover_motion import DRAW_SIZE
 from koopman_envs.sim.movers import MoverField
-from koopman_envs.sim.perception import Perception, observed_info
+from koopman_envs.sim.perception import BLOCK_NUMBERS, Perception, observed_info
 from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
 from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.starts import START_NOISE_ATTEMPTS, perturbed_starts
 from koopman_envs.sim.zones import ZoneTable
-from koopman_envs.tasks.observation import FeatureBuilder
+from koopman_envs.tasks.observation import FeatureBuilder, feature_size
 from koopman_envs.tasks.reward import score_step
 
-__all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult"]
+__all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult", "engine_array_bytes"]
+
+
+def engine_array_bytes(config: EngineConfig, num_envs: int) -> int:
+    """An estimate from above of the bytes of the arrays a :class:`NavigationEngine` of
+    ``num_envs`` environments of ``config`` holds and builds in a step, computed before any is
+    allocated: every keyword is bounded on its own (:data:`~koopman_envs.params.LIMITS`), but
+    their product over a batch is bounded here (``LIMITS.engine_bytes``).
+
+    Each term is an array (or a step's copies of it) of the engine's parts, in 8-byte numbers
+    unless said; the exact allocations are those parts' constructors.
+    """
+    n, m, k = config.n_robots, config.n_obstacles, int(num_envs)
+    lidar, comm, movers = config.lidar, config.comm, config.movers
+    beams = 0 if lidar is None else lidar.beams
+    slots = movers.observed if movers.active and lidar is None else 0
+    width = feature_size(n, config.n_obstacle_obs, config.task.formation, beams, not comm.perfect, slots)
+    words = (
+        40 * n  # poses, targets, starts, offsets, distances and the step's copies of them
+        + 3 * 128 * n  # the slip draws' block (SlipSampler: 128 periods)
+        + n * (n + m)
+        + 3 * m  # radius sums, obstacle discs
+        + n * n  # the builder's message ages
+        + 4 * n * width  # the features, their clipped copy, the observation and the info's
+        + 6 * config.n_slip_zones * (n + 1)  # zone table
+    )
+    if config.perceives:
+        numbers = 6 * n + n * (n - 1) + 2 * n * beams  # per period at most (Perception.__init__)
+        block = int(np.clip(BLOCK_NUMBERS // max(1, numbers), 8, 256))
+        words += (
+            8 * n * n  # known poses, message ages, their info copies
+            + 4 * n * beams  # readings, the exact scan, the info's copy
+            + 5 * n * (comm.latency + 1)  # the radio's sent poses and positions
+            + 2 * n * max(config.actuation_delay, 1)  # the command queue
+            + block * numbers  # single-precision normals and uniforms: two halves of one block
+        )
+    if movers.active:
+        c = movers.count
+        words += max(4096, 8 * c * DRAW_SIZE) + 16 * c + 6 * n  # the uniforms' pool, states, goals, hits
+    return 8 * k * words
 
 
 @dataclass
@@ -72,6 +112,17 @@ class NavigationEngine:
     def __init__(self, config: EngineConfig, num_envs: int = 1) -> None:
         self.config = config
         self.num_envs = int(num_envs)
+        # every keyword is bounded by itself, their product over the batch here, before allocating
+        need = engine_array_bytes(config, self.num_envs)
+        if need > LIMITS.engine_bytes:
+            per_env = need / self.num_envs / 2**20
+            raise ValueError(
+                f"num_envs={self.num_envs} environments of n_robots={config.n_robots} (lidar.beams="
+                f"{0 if config.lidar is None else config.lidar.beams}, comm.latency={config.comm.latency}, "
+                f"movers.count={config.movers.count}) need about {need / 2**30:.1f} GiB of arrays "
+                f"({per_env:.1f} MiB each); the limit is {LIMITS.engine_bytes / 2**30:g} GiB "
+                "(koopman_envs.params.LIMITS): use fewer environments, robots or lidar beams"
+            )
         k, n, m = self.num_envs, config.n_robots, config.n_obstacles
         self.state = np.zeros((k, 3, n))
         self.target = np.zeros((k, 3, n))

@@ -14,7 +14,7 @@ from typing import Any
 
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.movers import MOVER_BEHAVIOURS, parse_movers
-from koopman_envs.params import PARAMS, SLIP_NAMES
+from koopman_envs.params import LIMITS, PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.sim.random_maps import RandomMapConfig
@@ -66,11 +66,14 @@ def _choice(allowed: Sequence[str]) -> Callable[[str, Any], str]:
 
 
 def _optional_delay(name: str, value: Any) -> int | None:
-    return None if value is None else check_int(name, value, 0, note="control periods")
+    if value is None:
+        return None
+    return check_int(name, value, 0, maximum=LIMITS.actuation_delay, note="control periods")
 
 
-def _optional_count(name: str, value: Any) -> int | None:
-    return None if value is None else check_int(name, value, 1)
+def _optional_steps(name: str, value: Any) -> int | None:
+    # bounded: the vector and PettingZoo fronts hand it to a compiled kernel as a 64-bit integer
+    return None if value is None else check_int(name, value, 1, maximum=LIMITS.episode_steps)
 
 
 #: the fronts, by the names :class:`EnvKeyword` uses
@@ -134,8 +137,9 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "n_robots",
         PARAMS.n_robots,
         "int",
-        'team size N: at most the map\'s starts (a smaller team takes the first N), any N with map="random"',
-        check=lambda name, v: check_int(name, v, 1),
+        f"team size N, 1 to {LIMITS.robots}: at most the map's starts (a smaller team takes the first N), "
+        'any N that fits with map="random"',
+        check=lambda name, v: check_int(name, v, 1, maximum=LIMITS.robots),
     ),
     EnvKeyword(
         "goal_tolerance",
@@ -155,14 +159,16 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "n_obstacle_obs",
         4,
         "int",
-        "nearest obstacles listed in each robot's block",
-        check=lambda name, v: check_int(name, v, 0),
+        f"nearest obstacles listed in each robot's block, 0 to {LIMITS.obstacle_obs}",
+        check=lambda name, v: check_int(name, v, 0, maximum=LIMITS.obstacle_obs),
     ),
     EnvKeyword(
         "random_map",
         None,
         "RandomMapConfig | dict | None",
-        'generator settings for map="random" (a RandomMapConfig or a dict of its fields)',
+        'generator settings for map="random" (a RandomMapConfig or a dict of its fields; '
+        f"n_obstacles and n_slip_zones at most {LIMITS.random_obstacles}, max_attempts at most "
+        f"{LIMITS.map_attempts:_})",
         check=_random_map_config,
     ),
     EnvKeyword(
@@ -185,9 +191,9 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "max_episode_steps",
         None,
         "int | None",
-        f"time limit in control periods; None: {PARAMS.max_episode_steps} (the Gymnasium env leaves "
-        "it to gym.make's TimeLimit)",
-        check=_optional_count,
+        f"time limit in control periods, 1 to {LIMITS.episode_steps:_}; None: {PARAMS.max_episode_steps} "
+        "(the Gymnasium env leaves it to gym.make's TimeLimit)",
+        check=_optional_steps,
     ),
     EnvKeyword(
         "uncertainty",
@@ -215,39 +221,39 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "lidar",
         None,
         "dict | LidarConfig | None",
-        'with sensing="lidar": dict(beams, fov [rad], range [m], noise [m], dropout); None: 32 beams, '
-        "360 deg, 5 m, the preset's noise",
+        f'with sensing="lidar": dict(beams (at most {LIMITS.lidar_beams}), fov [rad], range [m] (at most '
+        f"{LIMITS.lidar_range:g}), noise [m], dropout); None: 32 beams, 360 deg, 5 m, the preset's noise",
     ),
     EnvKeyword(
         "comm",
         None,
         "dict | CommConfig | None",
-        "what robots hear of team-mates: dict(latency [periods], drop [0-1], range [m]); None: the "
-        "preset's (instant and lossless)",
+        f"what robots hear of team-mates: dict(latency [periods, 0 to {LIMITS.latency}], drop [0-1], "
+        "range [m]); None: the preset's (instant and lossless)",
     ),
     EnvKeyword(
         "actuation_delay",
         None,
         "int | None",
-        "periods between a command and its action; None: the preset's (0)",
+        f"periods between a command and its action, 0 to {LIMITS.actuation_delay}; None: the preset's (0)",
         check=_optional_delay,
     ),
     EnvKeyword(
         "movers",
         None,
         "int | dict | MoverConfig | None",
-        "moving obstacles: dict(count, radius [m], speed [m/s], behaviour, aware, observed, pause [s]), "
-        f"behaviour one of {list(MOVER_BEHAVIOURS)} (docs/movers.md); a number: that many constant "
-        "movers; None: none",
+        f"moving obstacles: dict(count (at most {LIMITS.movers}), radius [m], speed [m/s] (at most "
+        f"{LIMITS.mover_speed:g} m/s), behaviour, aware, observed, pause [s]), behaviour one of "
+        f"{list(MOVER_BEHAVIOURS)} (docs/movers.md); a number: that many constant movers; None: none",
         check=parse_movers,
     ),
     EnvKeyword(
         "max_cycles",
         None,
         "int | None",
-        "PettingZoo MPE's name of max_episode_steps",
+        f"PettingZoo MPE's name of max_episode_steps (1 to {LIMITS.episode_steps:_})",
         fronts=("parallel",),
-        check=_optional_count,
+        check=_optional_steps,
     ),
 )
 

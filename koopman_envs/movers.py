@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["MOVER_BEHAVIOURS", "MoverConfig", "parse_movers"]
@@ -41,12 +42,15 @@ class MoverConfig:
     Attributes
     ----------
     count : int
-        Movers per environment (>= 0; 0: none).
+        Movers per environment, 0 (none) to ``LIMITS.movers`` (512;
+        :class:`~koopman_envs.params.SizeLimits` says why).
     radius : float
         Disc radius of every mover [m] (ours: 0.2, a person's shoulder half-width with margin).
     speed : float
         Speed [m/s]: every constant mover's, the largest of a waypoint leg or a pedestrian
-        (ours: 0.3, below the robots' 0.5 m/s limit, so that a robot can get out of the way).
+        (ours: 0.3, below the robots' 0.6 m/s limit, so that a robot can get out of the way); at
+        most ``LIMITS.mover_speed`` (2 m/s, a brisk walk). Movers are placed ``speed`` x 1 s
+        (at least 0.5 m) away from every start and target, so fast movers need room.
     behaviour : str
         One of :data:`MOVER_BEHAVIOURS`.
     aware : bool
@@ -54,10 +58,11 @@ class MoverConfig:
         the robots were not there (False: the robots must do all the avoiding).
     observed : int
         Nearest movers listed in each robot's observation block with ``sensing="state"``
-        (relative position and velocity, clearance; absent ones masked). With lidar the beams
-        hit the movers instead.
+        (relative position and velocity, clearance; absent ones masked), at most
+        ``LIMITS.movers``. With lidar the beams hit the movers instead.
     pause : float
-        ``"waypoints"`` and ``"crowd"``: longest pause at a waypoint [s] (drawn uniformly).
+        ``"waypoints"`` and ``"crowd"``: longest pause at a waypoint [s] (drawn uniformly), at
+        most ``LIMITS.mover_pause`` (an hour).
     """
 
     count: int = 0
@@ -77,11 +82,15 @@ class MoverConfig:
         if not isinstance(self.aware, bool):
             raise ValueError(f"movers.aware={self.aware!r} must be True or False")
         checked = {
-            "count": check_int("movers.count", self.count, 0),
+            "count": check_int("movers.count", self.count, 0, maximum=LIMITS.movers),
             "radius": check_number("movers.radius", self.radius, above=0, note="metres"),
-            "speed": check_number("movers.speed", self.speed, at_least=0, note="m/s"),
-            "observed": check_int("movers.observed", self.observed, 0),
-            "pause": check_number("movers.pause", self.pause, at_least=0, note="seconds"),
+            "speed": check_number(
+                "movers.speed", self.speed, at_least=0, at_most=LIMITS.mover_speed, note="m/s"
+            ),
+            "observed": check_int("movers.observed", self.observed, 0, maximum=LIMITS.movers),
+            "pause": check_number(
+                "movers.pause", self.pause, at_least=0, at_most=LIMITS.mover_pause, note="seconds"
+            ),
         }
         for name, value in checked.items():  # stored in normal form (0 and 0.0 are one setting)
             object.__setattr__(self, name, value)
@@ -110,7 +119,7 @@ def parse_movers(name: str, value: Any) -> MoverConfig:
     if isinstance(value, MoverConfig):
         return value
     if isinstance(value, int) and not isinstance(value, bool):
-        return MoverConfig(count=check_int(name, value, 0))
+        return MoverConfig(count=check_int(name, value, 0, maximum=LIMITS.movers))
     fields = [f.name for f in dataclasses.fields(MoverConfig)]
     if isinstance(value, dict):
         unknown = [key for key in value if key not in fields]

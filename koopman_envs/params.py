@@ -15,11 +15,15 @@ from numpy.typing import NDArray
 
 __all__ = [
     "DRIFT_MEAN_INTERVAL",
+    "LIMITS",
+    "MAX_EPISODES_PER_CELL",
+    "MAX_ROBOTS",
     "PARAMS",
     "PaperParams",
     "RANDOM_SLIP_MAX",
     "SLIP_SETTINGS",
     "SLIP_MAX_LAMBDA",
+    "SizeLimits",
     "slip_lambdas",
 ]
 
@@ -96,6 +100,108 @@ class PaperParams:
 
 PARAMS = PaperParams()
 
+
+@dataclass(frozen=True)
+class SizeLimits:
+    """Upper bounds on every size a user sets (ours): each refused, naming the keyword, the value
+    and the allowed range, before anything is allocated or planned.
+
+    Every array of an environment grows with one of these numbers, so an unbounded one lets a
+    typo (``comm=dict(latency=10**9)``) allocate tens of GiB. Each bound is far beyond real use
+    and its reason is given per attribute; the env keyword table
+    (:data:`koopman_envs.keywords.ENV_KEYWORDS`) states them, and the evaluator's CLI and CI
+    action read :data:`MAX_EPISODES_PER_CELL` and :data:`MAX_ROBOTS` from here.
+
+    Attributes
+    ----------
+    robots : int
+        ``n_robots``. The random maps' grid fits teams of up to 205 robots at the default spacing
+        and no built-in map has more than 6 starts; the per-environment arrays grow as N^2 (every
+        robot's block lists every team-mate), about 0.2 M features per step at 256.
+    obstacle_obs : int
+        ``n_obstacle_obs``: observation slots per robot (3 features each); 4 times the random
+        maps' largest obstacle count.
+    episode_steps : int
+        ``max_episode_steps`` / ``max_cycles``: 10^6 periods = 27.8 h of simulated time (the
+        paper's episodes are 600); the compiled kernels take it as a 64-bit integer.
+    latency : int
+        ``comm.latency`` [control periods]: the radio keeps latency + 1 periods of messages per
+        environment; 100 periods = 10 s, a hundred times indoor Wi-Fi's and 33 times the "harsh"
+        preset's (a pose 10 s old is 6 m stale at the robots' top speed).
+    actuation_delay : int
+        ``actuation_delay`` [control periods]: the command queue holds that many periods; 100
+        periods = 10 s, 50 times the "harsh" preset's command pipeline.
+    lidar_beams : int
+        ``lidar.beams``: the scan holds (robots x beams) readings and every beam is cast each
+        period; 4096 is above the densest planar lidars (0.1 deg resolution: 3600 beams).
+    lidar_range : float
+        ``lidar.range`` [m]: longer than any planar lidar (SICK LMS5xx: 80 m) and than the
+        workspace's diagonal (28.3 m: a longer range reads the same); the observation holds the
+        readings in single precision.
+    movers : int
+        ``movers.count`` and ``movers.observed``: placement is quadratic in the count, the
+        crowd's ORCA steps every mover and each environment keeps a pool of 272 uniforms per
+        mover. At the default radius the roomiest built-in map holds 206 movers (map7; map1
+        112), so 512 leaves room for smaller movers (16 is the largest count of the reported
+        experiments).
+    mover_speed : float
+        ``movers.speed`` [m/s]: a brisk walk, 3.3 times the robots' limit. A mover then moves
+        0.2 m per period, half a default mover's diameter, so the per-period collision check
+        sees every contact; and movers are placed ``speed`` x 1 s from every start and target,
+        which at 2 m/s still leaves room for movers on every built-in map (at 3 m/s not on
+        map1, map2, map5).
+    mover_pause : float
+        ``movers.pause`` [s]: one hour, the longest pause that is not "never moves again"; the
+        kernels count it in 64-bit periods.
+    random_obstacles : int
+        ``random_map.n_obstacles``: the generator places them in the corridor between starts and
+        targets, where more than a few dozen never fit (each failed layout retries every one).
+    slip_zones : int
+        ``random_map.n_slip_zones``: the zone table holds (zones x robots) per environment.
+    map_attempts : int
+        ``random_map.max_attempts``: layouts tried per reset (10 times the default); an
+        impossible setting then fails within seconds instead of spinning.
+    slip_lambda : float
+        Every slip mean lambda (``slip``, slip zones, schedules): 50 times the paper's "high"
+        level; the Exponential draws stay finite, so a step never turns the state into inf/NaN.
+    num_envs : int
+        ``num_envs`` of the vector env: every array is batched over it; beyond, the memory
+        estimate below is the binding limit anyway.
+    engine_bytes : int
+        The arrays of one batched engine [bytes], estimated from its settings before any is
+        allocated (:func:`koopman_envs.engine.engine_array_bytes`): 4 GiB.
+    episodes_per_cell : int
+        The evaluator's episodes per (controller, map, setting) cell: the 95% confidence
+        interval of a success rate is then +-1 percentage point, finer than any comparison
+        resolves, and planning lists every episode in memory.
+    """
+
+    robots: int = 256
+    obstacle_obs: int = 256
+    episode_steps: int = 1_000_000
+    latency: int = 100
+    actuation_delay: int = 100
+    lidar_beams: int = 4096
+    lidar_range: float = 100.0
+    movers: int = 512
+    mover_speed: float = 2.0
+    mover_pause: float = 3600.0
+    random_obstacles: int = 64
+    slip_zones: int = 64
+    map_attempts: int = 100_000
+    slip_lambda: float = 10.0
+    num_envs: int = 16_384
+    engine_bytes: int = 4 * 2**30
+    episodes_per_cell: int = 10_000
+
+
+#: the bounds of every user-set size (:class:`SizeLimits`), declared once
+LIMITS = SizeLimits()
+#: the evaluator's largest episode count per cell (``--episodes``, the CI action's ``episodes``)
+MAX_EPISODES_PER_CELL = LIMITS.episodes_per_cell
+#: the largest team (``n_robots``; the evaluator's ``--env-kwargs n_robots=``)
+MAX_ROBOTS = LIMITS.robots
+
 #: Named slip settings: lambda of the most-slipping robot. Robot 1 is always slip-free and the
 #: others are spaced linearly up to this value, which for 3 robots gives exactly SPEC's table:
 #: nominal (0, 0, 0), low (0, 0.05, 0.1), high (0, 0.1, 0.2). The spacing rule is (ours).
@@ -151,7 +257,7 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
     Raises
     ------
     ValueError
-        Unknown name, wrong length, negative or non-finite lambda.
+        Unknown name, wrong length, negative, non-finite or too large (``LIMITS.slip_lambda``) lambda.
     """
     if isinstance(slip, str):
         if slip not in SLIP_MAX_LAMBDA:
@@ -184,4 +290,9 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
         raise ValueError(f"slip={slip!r} contains a non-finite lambda; allowed: finite lambda >= 0")
     if np.any(lam < 0):
         raise ValueError(f"slip={slip!r} contains a negative lambda; allowed: lambda >= 0")
+    if np.any(lam > LIMITS.slip_lambda):
+        raise ValueError(
+            f"slip={slip!r} contains a lambda above {LIMITS.slip_lambda:g}; allowed: 0 <= lambda <= "
+            f"{LIMITS.slip_lambda:g} (LIMITS.slip_lambda: the draws it scales stay finite)"
+        )
     return lam

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
@@ -81,12 +82,12 @@ class LidarConfig:
     Attributes
     ----------
     beams : int
-        Beams per scan (>= 1).
+        Beams per scan, 1 to ``LIMITS.lidar_beams`` (4096; :class:`~koopman_envs.params.SizeLimits`).
     fov : float
         Field of view [rad], in (0, 2 pi]: the beams span it evenly, centred on the heading
         (a full circle spaces them 2 pi / beams apart, starting straight ahead).
     range : float
-        Largest reading [m]; a beam that meets nothing reads it.
+        Largest reading [m], at most ``LIMITS.lidar_range`` (100 m); a beam that meets nothing reads it.
     noise : float
         Standard deviation of the Gaussian error added to each reading [m] (clipped to [0, range]).
     dropout : float
@@ -101,9 +102,11 @@ class LidarConfig:
 
     def __post_init__(self) -> None:
         checked = {
-            "beams": check_int("lidar.beams", self.beams, 1),
+            "beams": check_int("lidar.beams", self.beams, 1, maximum=LIMITS.lidar_beams),
             "fov": check_number("lidar.fov", self.fov, above=0, at_most=2 * math.pi, note="(0, 2 pi] rad"),
-            "range": check_number("lidar.range", self.range, above=0),
+            "range": check_number(
+                "lidar.range", self.range, above=0, at_most=LIMITS.lidar_range, note="metres"
+            ),
             "noise": check_number("lidar.noise", self.noise, at_least=0),
             "dropout": check_number("lidar.dropout", self.dropout, at_least=0, at_most=1),
         }
@@ -128,7 +131,8 @@ class CommConfig:
     Attributes
     ----------
     latency : int
-        Delivery delay in control periods (>= 0).
+        Delivery delay in control periods, 0 to ``LIMITS.latency`` (100;
+        :class:`~koopman_envs.params.SizeLimits`).
     drop : float
         Loss probability of each message, in [0, 1].
     range : float
@@ -141,7 +145,9 @@ class CommConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(
-            self, "latency", check_int("comm.latency", self.latency, 0, note="control periods")
+            self,
+            "latency",
+            check_int("comm.latency", self.latency, 0, maximum=LIMITS.latency, note="control periods"),
         )
         object.__setattr__(self, "drop", check_number("comm.drop", self.drop, at_least=0, at_most=1))
         if not (isinstance(self.range, (int, float)) and self.range == math.inf):

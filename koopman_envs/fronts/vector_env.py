@@ -16,6 +16,7 @@ from koopman_envs.checks import check_int
 from koopman_envs.config import EngineConfig
 from koopman_envs.engine import NavigationEngine
 from koopman_envs.keywords import takes_env_keywords
+from koopman_envs.params import LIMITS
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 
@@ -68,7 +69,8 @@ class KoopNavVectorEnv(VectorEnv):
         render_mode: str | None = None,
         **keywords: Any,
     ) -> None:
-        check_int("num_envs", num_envs, 1)
+        # every array is batched over it (the engine also checks the batch's estimated memory)
+        check_int("num_envs", num_envs, 1, maximum=LIMITS.num_envs)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of [None, 'rgb_array'] for the vector env; "

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
+from koopman_envs.params import LIMITS
 
 __all__ = ["FORMATION_SHAPES", "formation_offsets_for", "formation_shape"]
 
@@ -59,7 +60,7 @@ def formation_shape(name: str, n_robots: int, spacing: float) -> NDArray[np.floa
     """
     if name not in FORMATION_SHAPES:
         raise ValueError(f"formation={name!r} is not one of {list(FORMATION_SHAPES)}")
-    check_int("n_robots", n_robots, 1)
+    check_int("n_robots", n_robots, 1, maximum=LIMITS.robots)  # (N, 2) offsets: bounded before allocating
     if (
         isinstance(spacing, bool)
         or not isinstance(spacing, (int, float))

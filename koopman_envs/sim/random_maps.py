@@ -18,7 +18,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
-from koopman_envs.params import PARAMS
+from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_shape
 from koopman_envs.sim.maps import MapSpec
 from koopman_envs.sim.zones import SLIP_ZONE_MODES, SlipZone
@@ -118,8 +118,10 @@ class RandomMapConfig:
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
-        check_int("n_obstacles", self.n_obstacles, 0)
-        check_int("max_attempts", self.max_attempts, 1)
+        # bounded (koopman_envs.params.LIMITS): obstacle arrays grow with the first, a reset's
+        # time with the last
+        check_int("n_obstacles", self.n_obstacles, 0, maximum=LIMITS.random_obstacles)
+        check_int("max_attempts", self.max_attempts, 1, maximum=LIMITS.map_attempts)
         for name in ("clearance", "gap", "border"):
             value = getattr(self, name)
             if (
@@ -153,7 +155,7 @@ class RandomMapConfig:
         if not 0.0 <= self.swap_targets <= 1.0:
             raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
-        check_int("n_slip_zones", n, 0)
+        check_int("n_slip_zones", n, 0, maximum=LIMITS.slip_zones)
         low, high = self.obstacle_along
         if not (0.0 <= low <= high <= 1.0):
             raise ValueError(
@@ -166,9 +168,13 @@ class RandomMapConfig:
             except (TypeError, ValueError):
                 raise ValueError(f"{name}={pair!r} must be a (low, high) pair of numbers") from None
             positive = low > 0 if name == "slip_zone_radius" else low >= 0
-            if not (math.isfinite(low) and math.isfinite(high) and positive and low <= high):
+            # a zone's slip mean has the bound of every slip mean (finite draws, finite states)
+            top = LIMITS.slip_lambda if name == "slip_zone_lambda" else math.inf
+            if not (math.isfinite(low) and math.isfinite(high) and positive and low <= high <= top):
+                bound = f" <= {top:g}" if name == "slip_zone_lambda" else ""
                 raise ValueError(
-                    f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and low <= high"
+                    f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and "
+                    f"low <= high{bound}"
                 )
         if self.slip_zone_mode not in SLIP_ZONE_MODES:
             raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")

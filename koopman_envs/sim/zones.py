@@ -30,6 +30,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.params import LIMITS
+
 __all__ = [
     "SLIP_ZONE_MODES",
     "SLIP_ZONE_SHAPES",
@@ -76,8 +78,8 @@ class SlipZone:
         Circle: centre x, y and radius [m] (radius > 0). Rectangle: xmin, ymin, xmax, ymax [m]
         (xmin < xmax, ymin < ymax).
     lam : float or tuple of float
-        Slip mean inside the zone (dimensionless, finite, >= 0): one value for every robot, or
-        one per robot of the map.
+        Slip mean inside the zone (dimensionless, finite, 0 to ``LIMITS.slip_lambda``): one value
+        for every robot, or one per robot of the map.
     mode : str
         ``"replace"`` (default) or ``"add"``.
 
@@ -109,9 +111,11 @@ class SlipZone:
         lam = _floats(self.lam)
         # a None ``lam`` is rejected below before ``values`` is read, so its entries are floats
         values = cast("tuple[float, ...]", lam if isinstance(lam, tuple) else (lam,))
-        if lam is None or not values or not all(math.isfinite(v) and v >= 0 for v in values):
+        # bounded as every slip mean (LIMITS.slip_lambda): the draws scaled by it stay finite
+        top = LIMITS.slip_lambda
+        if lam is None or not values or not all(math.isfinite(v) and 0 <= v <= top for v in values):
             raise ValueError(
-                f"lambda={self.lam!r} must be a finite number >= 0 or a list of them (one per robot)"
+                f"lambda={self.lam!r} must be a finite number >= 0 <= {top:g} or a list of them (one per robot)"
             )
         if self.mode not in SLIP_ZONE_MODES:
             raise ValueError(f"mode={self.mode!r} is not one of {list(SLIP_ZONE_MODES)}")
