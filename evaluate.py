@@ -59,6 +59,7 @@ from evaluation.cli import (
     FAILED_CHECK_EXIT,
     FAILED_GATE_EXIT,
     INTERRUPTED_EXIT,
+    UNWRITABLE_OUT_EXIT,
     build_parser,
     parse_env_kwargs,
     program_name,
@@ -74,6 +75,7 @@ from evaluation.protocols import (
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
 from evaluation.results import SCHEMA_VERSION, Results
 from evaluation.robustness import profiles, write_robustness
+from evaluation.runlog import ensure_output_dir
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
@@ -87,6 +89,7 @@ __all__ = [
     "FAILED_CHECK_EXIT",
     "FAILED_GATE_EXIT",
     "INTERRUPTED_EXIT",
+    "UNWRITABLE_OUT_EXIT",
     "EpisodeSpec",
     "Results",
     "RunInterrupted",
@@ -264,6 +267,7 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
             )
     words = list(sys.argv[1:] if argv is None else argv)
     check_levels(spec, axes)
+    ensure_output_dir(args.out)
     aliases = level_aliases(spec, axes)
     command = " ".join([program_name(), *(w for w in words if w != "--resume")])
     write_manifest(args.out, axes, args.reference, command, aliases)
@@ -310,9 +314,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.sweep:
             return _run_sweep(args, spec, argv)
         baseline = load_baseline(args.baseline) if args.baseline else None
-        gate = GateOptions(
-            args.alpha, args.delta, args.delta_cm, args.min_pairs
-        )  # checked before any episode
+        # checked before any episode
+        gate = GateOptions(args.alpha, args.delta, args.delta_cm, args.min_pairs)
         if args.fail_if_worse and baseline is None:
             raise ValueError(
                 "--fail-if-worse needs --baseline BASE (an earlier run's results.json or directory)"
@@ -343,6 +346,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # --out unwritable up front (OutputNotWritable), or a report write that failed
+        print(f"error: {exc}", file=sys.stderr)
+        return UNWRITABLE_OUT_EXIT
     except RunInterrupted as exc:
         words = list(sys.argv[1:] if argv is None else argv)
         again = " ".join([program_name(), *words, *([] if "--resume" in words else ["--resume"])])

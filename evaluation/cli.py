@@ -34,6 +34,7 @@ __all__ = [
     "FAILED_CHECK_EXIT",
     "FAILED_GATE_EXIT",
     "INTERRUPTED_EXIT",
+    "UNWRITABLE_OUT_EXIT",
     "build_parser",
     "parse_env_kwargs",
     "program_name",
@@ -45,6 +46,7 @@ __all__ = [
 FAILED_CHECK_EXIT = 101
 FAILED_GATE_EXIT = 102  # --fail-if-worse: a controller significantly worse than the baseline
 INTERRUPTED_EXIT = 130  # the shell's code for a run stopped by Ctrl-C (128 + SIGINT)
+UNWRITABLE_OUT_EXIT = 103  # --out cannot be made or written (refused before any episode)
 
 
 # --------------------------------------------------------------------------- list arguments
@@ -87,6 +89,11 @@ EXIT_CODES = (
         "2",
         "bad input (named on stderr) before any episode ran, or --fail-if-worse could not pair "
         "enough episodes with the --baseline to judge the run (a stale or empty baseline fails closed)",
+    ),
+    (
+        str(UNWRITABLE_OUT_EXIT),
+        "--out cannot be made or written (a file, read-only, no permission or space); before any "
+        "episode, or when a report could not be written",
     ),
     (str(FAILED_CHECK_EXIT), "a --check threshold failed"),
     (str(FAILED_GATE_EXIT), "--fail-if-worse: a controller is significantly worse than the --baseline"),

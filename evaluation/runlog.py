@@ -11,13 +11,23 @@ from __future__ import annotations
 import json
 import os
 import sys
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
 from evaluation.records import json_safe, record_problem
 
-__all__ = ["RESUME_KEYS", "LogError", "open_log", "read_log", "run_signature"]
+__all__ = [
+    "RESUME_KEYS",
+    "LogError",
+    "OutputNotWritable",
+    "RunLocked",
+    "ensure_output_dir",
+    "open_log",
+    "read_log",
+    "run_signature",
+]
 
 #: settings that must match for a resume (everything that changes what an episode does)
 RESUME_KEYS = (
@@ -37,6 +47,59 @@ RESUME_KEYS = (
 
 class LogError(ValueError):
     """An episode log that cannot be resumed as it is (named by file and line)."""
+
+
+class RunLocked(ValueError):
+    """Another run is writing the same episode log (two runs on one ``--out``)."""
+
+
+class OutputNotWritable(OSError):
+    """The output directory cannot be made or written (refused before any episode runs)."""
+
+
+def ensure_output_dir(out: str | os.PathLike[str]) -> Path:
+    """``out`` as a directory this process can write, made if missing.
+
+    Raises
+    ------
+    OutputNotWritable
+        ``out`` is a file, cannot be made, or a file cannot be created in it (read-only, no
+        permission, no space), with the reason.
+    """
+    out_dir = Path(out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputNotWritable(f"--out {os.fspath(out)!r} is a file; it must be a directory (or a new path)")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        # a real write: permission bits alone do not tell (root, read-only mounts, full disks)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as exc:
+        raise OutputNotWritable(
+            f"--out {os.fspath(out)!r} cannot be made a directory this run can write: "
+            f"{exc.strerror or exc}; choose another --out"
+        ) from None
+    return out_dir
+
+
+def _lock(handle: IO[str], log: Path) -> None:
+    """Hold an exclusive lock on the open log until ``handle`` closes (or the process ends), so
+    that a second run on the same ``--out`` is refused instead of running the same episodes."""
+    try:
+        if sys.platform == "win32":
+            import msvcrt
+
+            msvcrt.locking(handle.fileno(), msvcrt.LK_NBLCK, 1)
+        else:
+            import fcntl
+
+            fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.close()
+        raise RunLocked(
+            f"{log} is being written by another run (it holds the log's lock); wait for it to "
+            "finish or stop it, or choose another --out; nothing was changed"
+        ) from None
 
 
 def run_signature(config: dict[str, Any]) -> dict[str, Any]:
@@ -182,28 +245,35 @@ def open_log(
     A torn last line is cut off first (reported on stderr), so that the next record starts on a
     line of its own.
 
+    The log stays locked while it is open: a second run on the same ``out`` is refused
+    (:class:`RunLocked`) instead of running the same episodes.
+
     Raises
     ------
+    OutputNotWritable
+        ``out`` is not a directory this process can make and write.
     ValueError
-        ``out`` is not a directory that can be made, a log exists and ``resume`` is false, or it
+        A log exists and ``resume`` is false, another run holds it (:class:`RunLocked`), or it
         cannot be resumed (:class:`LogError`).
     """
-    out_dir = Path(out)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"--out {os.fspath(out)!r} is a file; it must be a directory (or a new path)")
+    log = ensure_output_dir(out) / "episodes.jsonl"
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
+        # append mode: opening never truncates a log another run may be writing
+        handle = open(log, "a", encoding="utf-8")  # noqa: SIM115 - the caller closes it
     except OSError as exc:
-        raise ValueError(f"--out {os.fspath(out)!r} cannot be made a directory: {exc}") from None
-    log = out_dir / "episodes.jsonl"
-    if log.exists() and log.stat().st_size > 0:
-        if not resume:
-            raise ValueError(f"{log} exists: pass --resume to continue that run, or choose another --out")
-        done, notes = read_log(log, config, expected)
-        for note in notes:
-            print(f"note: {note}", file=sys.stderr)
-        return open(log, "a", encoding="utf-8"), done  # noqa: SIM115 - the caller closes it
-    handle = open(log, "w", encoding="utf-8")  # noqa: SIM115
-    handle.write(_header_line(config).decode())
-    handle.flush()
+        raise OutputNotWritable(f"{log} cannot be opened for writing: {exc.strerror or exc}") from None
+    _lock(handle, log)
+    try:
+        if log.stat().st_size > 0:
+            if not resume:
+                raise ValueError(f"{log} exists: pass --resume to continue that run, or choose another --out")
+            done, notes = read_log(log, config, expected)
+            for note in notes:
+                print(f"note: {note}", file=sys.stderr)
+            return handle, done
+        handle.write(_header_line(config).decode())
+        handle.flush()
+    except BaseException:
+        handle.close()
+        raise
     return handle, {}

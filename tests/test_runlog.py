@@ -215,16 +215,20 @@ def test_a_torn_header_is_written_again(tmp_path) -> None:
         ev.evaluate(FAST.replace(episodes=1), workers=1, out=out, resume=True)
 
 
-def test_out_pointing_at_a_file_exits_2_before_any_episode(tmp_path, capsys) -> None:
+def test_out_pointing_at_a_file_is_refused_before_any_episode(tmp_path, capsys) -> None:
     target = tmp_path / "results.txt"
     target.write_text("mine")
     args = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
     code = ev.main([*args, "--episodes", "1", "--workers", "1", "--quiet", "--out", str(target)])
     err = capsys.readouterr().err
-    assert code == 2 and "is a file; it must be a directory" in err and "Traceback" not in err
+    assert (
+        code == ev.UNWRITABLE_OUT_EXIT
+        and "is a file; it must be a directory" in err
+        and "Traceback" not in err
+    )
     assert target.read_text() == "mine"
     code = ev.main([*args, "--episodes", "1", "--workers", "1", "--quiet", "--out", str(target / "sub")])
-    assert code == 2 and "cannot be made a directory" in capsys.readouterr().err
+    assert code == ev.UNWRITABLE_OUT_EXIT and "cannot be made a directory" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ kills and signals, gated
