@@ -38,7 +38,11 @@ boolean() {
 [ -n "${KOOPNAV_SOURCE:-}" ] || fail "KOOPNAV_SOURCE is empty: the path of KoopNav (the action sets it)"
 [ -n "${KOOPNAV_CONTROLLERS//[[:space:]]/}" ] || fail "input controllers is empty: give at least one controller configuration"
 episodes="${KOOPNAV_EPISODES:-10}"
-[[ "$episodes" =~ ^[1-9][0-9]*$ ]] || fail "input episodes='$episodes' is not a whole number >= 1"
+# the evaluator's bound (koopman_envs.params.MAX_EPISODES_PER_CELL; tests/test_workflows.py holds
+# the two equal), checked here too because this runs before KoopNav is installed
+max_episodes=10000
+[[ "$episodes" =~ ^[1-9][0-9]{0,5}$ ]] && ((episodes <= max_episodes)) ||
+    fail "input episodes='$episodes' is not a whole number from 1 to $max_episodes"
 fail_if_worse=$(boolean fail-if-worse "${KOOPNAV_FAIL_IF_WORSE:-}" true)
 may_be_absent=$(boolean baseline-may-be-absent "${KOOPNAV_BASELINE_MAY_BE_ABSENT:-}" false)
 print_only=$(boolean KOOPNAV_PRINT_ONLY "${KOOPNAV_PRINT_ONLY:-}" false)

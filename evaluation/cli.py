@@ -371,6 +371,14 @@ def _ci_options(ci: argparse._ArgumentGroup) -> None:
     )
 
 
+#: the env keywords with an option of their own: (argparse destination, keyword)
+_DEDICATED = (
+    ("tolerance", "goal_tolerance"),
+    ("max_episode_steps", "max_episode_steps"),
+    ("start_noise", "start_noise"),
+)
+
+
 def stop_on_sigterm(signum: int, frame: Any) -> None:
     """SIGTERM (``kill``, a CI timeout) stops a run like Ctrl-C: the worker pool is terminated
     (no orphan workers keep computing) and the log stays resumable."""
@@ -410,13 +418,18 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         changes["episodes"] = args.episodes
     # the env settings: the preset's, then the dedicated options, then --env-kwargs (which win)
     env_kwargs = dict(spec.env_kwargs)
-    for option, keyword in (
-        ("tolerance", "goal_tolerance"),
-        ("max_episode_steps", "max_episode_steps"),
-        ("start_noise", "start_noise"),
-    ):
+    dedicated: dict[str, Any] = {}
+    for option, keyword in _DEDICATED:
         if getattr(args, option) is not None:
-            env_kwargs[keyword] = getattr(args, option)
+            env_kwargs[keyword] = dedicated[keyword] = getattr(args, option)
+    given = parse_env_kwargs(args.env_kwargs)
+    for keyword, value in dedicated.items():
+        if keyword in given and given[keyword] != value:
+            option = "--" + next(o for o, k in _DEDICATED if k == keyword).replace("_", "-")
+            raise ValueError(
+                f"{option} {value} and --env-kwargs {keyword}={given[keyword]!r} set the same env "
+                "keyword to different values; give it once"
+            )
     env_kwargs = parse_env_kwargs(args.env_kwargs, into=env_kwargs)
     return spec.replace(
         **changes,

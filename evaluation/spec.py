@@ -28,7 +28,15 @@ from evaluation.runlog import run_signature
 from koopman_envs.checks import check_int
 from koopman_envs.config import EngineConfig
 from koopman_envs.keywords import ENV_KEYWORDS
-from koopman_envs.params import DRIFT_SLIP, PARAMS, RANDOM_SLIP, SLIP_NAMES, SLIP_SETTINGS, slip_lambdas
+from koopman_envs.params import (
+    DRIFT_SLIP,
+    MAX_EPISODES_PER_CELL,
+    PARAMS,
+    RANDOM_SLIP,
+    SLIP_NAMES,
+    SLIP_SETTINGS,
+    slip_lambdas,
+)
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import ENV_IDS, TASKS, task_for_env
@@ -234,10 +242,14 @@ class RunSpec:
             with_solver([], self.solver, self.fallback_solver)  # names a bad solver and the allowed ones
         data_spec_for(self.calibration_budget)  # raises for a budget that is not an integer >= 1
         check_int("calibration_seed", self.calibration_seed, 0)
-        check_int("episodes", self.episodes, 1)
+        # bounded before planning: a run plans every episode up front (--episodes 10**22 would
+        # fill the memory instead of failing)
+        check_int("episodes", self.episodes, 1, maximum=MAX_EPISODES_PER_CELL, note="trials per cell")
         check_int("seed", self.seed, 0)
         if self.random_maps is not None:
-            check_int("random_maps", self.random_maps, 1, note="layouts per cell")
+            check_int(
+                "random_maps", self.random_maps, 1, maximum=MAX_EPISODES_PER_CELL, note="layouts per cell"
+            )
         if not isinstance(self.gifs, bool):
             raise ValueError(f"gifs={self.gifs!r} must be True or False")
         check_int("workers", workers, 1)

@@ -94,8 +94,13 @@ def parse_sweep(text: str) -> SweepAxis:
             f"--sweep {key!r}: {root!r} is not an env keyword{did_you_mean(root, allowed)}; allowed: {allowed}"
         )
     levels: list[Any] = []
-    for word in values.split(","):
+    for position, word in enumerate(values.split(","), start=1):
         word = word.strip()
+        if not word:
+            raise ValueError(
+                f"--sweep {text!r}: level {position} is empty (two commas in a row, or a comma at an "
+                "end); give the levels as KEY=v1,v2,..."
+            )
         try:
             level = json.loads(word)
         except json.JSONDecodeError:
@@ -103,7 +108,7 @@ def parse_sweep(text: str) -> SweepAxis:
         if level in levels:
             raise ValueError(f"--sweep {key}: level {word!r} is given twice")
         levels.append(level)
-    if len(levels) < 2 or any(level == "" for level in levels):
+    if len(levels) < 2:
         raise ValueError(f"--sweep {text!r}: give at least two levels, separated by commas")
     return SweepAxis(key, tuple(levels))
 

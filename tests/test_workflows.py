@@ -248,8 +248,13 @@ def test_the_action_reads_fail_if_worse_in_any_case(tmp_path, value, gated) -> N
         ({"KOOPNAV_FAIL_IF_WORSE": "yes"}, "input fail-if-worse='yes' is not a boolean"),
         ({"KOOPNAV_FAIL_IF_WORSE": "ture"}, "input fail-if-worse='ture' is not a boolean"),
         ({"KOOPNAV_BASELINE_MAY_BE_ABSENT": "1"}, "input baseline-may-be-absent='1' is not a boolean"),
-        ({"KOOPNAV_EPISODES": "0"}, "input episodes='0' is not a whole number >= 1"),
-        ({"KOOPNAV_EPISODES": "ten"}, "input episodes='ten' is not a whole number >= 1"),
+        ({"KOOPNAV_EPISODES": "0"}, "input episodes='0' is not a whole number from 1 to 10000"),
+        ({"KOOPNAV_EPISODES": "ten"}, "input episodes='ten' is not a whole number from 1 to 10000"),
+        ({"KOOPNAV_EPISODES": "10001"}, "input episodes='10001' is not a whole number from 1 to 10000"),
+        (
+            {"KOOPNAV_EPISODES": "99999999999999999999999"},
+            "input episodes='99999999999999999999999' is not a whole number from 1 to 10000",
+        ),
         ({"KOOPNAV_CONTROLLERS": "  "}, "input controllers is empty"),
     ],
 )
@@ -257,6 +262,17 @@ def test_the_action_refuses_bad_inputs_before_installing(tmp_path, inputs, messa
     (tmp_path / "base.json").write_text("{}")
     run = _action_words(tmp_path, KOOPNAV_BASELINE="base.json", **inputs)
     assert run.returncode == 2 and message in run.stderr and run.stdout == ""
+
+
+def test_the_action_and_the_evaluator_share_the_episode_bound(tmp_path) -> None:
+    """The action checks its inputs before KoopNav is installed, so it states the bound itself:
+    the same number as koopman_envs.params.MAX_EPISODES_PER_CELL, and the largest value passes."""
+    from koopman_envs.params import MAX_EPISODES_PER_CELL
+
+    script = (ROOT / ".ci" / "action.sh").read_text()
+    assert f"max_episodes={MAX_EPISODES_PER_CELL}\n" in script
+    run = _action_words(tmp_path, KOOPNAV_EPISODES=str(MAX_EPISODES_PER_CELL))
+    assert run.returncode == 0, run.stderr
 
 
 def test_the_action_never_expands_globs_against_workspace_files(tmp_path) -> None:
