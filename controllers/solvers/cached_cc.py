@@ -92,39 +92,7 @@ def main(argv: list[str]) -> int:
     if _copy_if_valid(entry, checksum, out):
         return 0
     if settings.get("background"):
-        # a miss: compile into the cache in a detached process (minutes for a large NLP) and
-        # tell the caller to go on uncompiled; the next process that builds the problem hits
-        pending = entry[: -len(".o")] + ".c"
-        # a pending source older than an hour belongs to a compile that died: start it again
-        if not os.path.exists(pending) or time.time() - os.path.getmtime(pending) > 3600:
-            try:
-                _store(directory, source, pending)
-            except OSError:
-                return MISS_COMPILING_IN_BACKGROUND  # the cache cannot take it: nothing to compile into
-            # the same arguments with the pending source and a scratch output: the same key
-            same = [pending if a == source else (entry + ".build" if a == out else a) for a in args]
-            detached = [
-                sys.executable,
-                "-S",
-                os.path.abspath(__file__),
-                "--cache",
-                directory,
-                "--cc",
-                settings["cc"],
-                "--tag",
-                settings.get("tag", ""),
-                "--into-cache",
-                *same,
-            ]
-            subprocess.Popen(
-                detached,
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL,
-                start_new_session=True,
-                cwd=directory,
-            )
-        return MISS_COMPILING_IN_BACKGROUND
+        return _start_background_compile(settings, args, source, out, entry)
     # one compiler per source at a time: worker processes that build the same problem together
     # wait for the first one's object instead of compiling it again (minutes for a large NLP)
     try:
@@ -149,6 +117,45 @@ def main(argv: list[str]) -> int:
             if os.path.exists(scratch):
                 os.remove(scratch)
     return code
+
+
+def _start_background_compile(
+    settings: dict[str, str], args: list[str], source: str, out: str, entry: str
+) -> int:
+    """A miss in background mode: compile into the cache in a detached process (minutes for a large
+    NLP) and tell the caller to go on uncompiled; the next process that builds the problem hits."""
+    directory = settings["cache"]
+    pending = entry[: -len(".o")] + ".c"
+    # a pending source older than an hour belongs to a compile that died: start it again
+    if not os.path.exists(pending) or time.time() - os.path.getmtime(pending) > 3600:
+        try:
+            _store(directory, source, pending)
+        except OSError:
+            return MISS_COMPILING_IN_BACKGROUND  # the cache cannot take it: nothing to compile into
+        # the same arguments with the pending source and a scratch output: the same key
+        same = [pending if a == source else (entry + ".build" if a == out else a) for a in args]
+        detached = [
+            sys.executable,
+            "-S",
+            os.path.abspath(__file__),
+            "--cache",
+            directory,
+            "--cc",
+            settings["cc"],
+            "--tag",
+            settings.get("tag", ""),
+            "--into-cache",
+            *same,
+        ]
+        subprocess.Popen(
+            detached,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            cwd=directory,
+        )
+    return MISS_COMPILING_IN_BACKGROUND
 
 
 def _copy_if_valid(entry: str, checksum: str, out: str) -> bool:
