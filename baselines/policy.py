@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, TypedDict, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.safe_load import UnsafePolicyFile, load_model
+from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, load_npz, read_json
 from baselines.set_features import MAX_TEAM, SetFeatureConfig, set_features, split_movers
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
@@ -29,6 +29,7 @@ __all__ = [
     "RLSetRealisticPolicyController",
     "RLSetMoversPolicyController",
     "load_policy",
+    "PolicyLoadError",
     "policy_command",
     "policy_dir",
     "success_rate",
@@ -102,36 +103,49 @@ def load_policy(
 
     The model is loaded without running any pickle stored in ``policy.zip``
     (:func:`baselines.safe_load.load_model`); ``allow_pickle=True`` loads any SB3 zip the plain way,
-    which runs the code pickled in it: for files you trust only.
+    which runs the code pickled in it: for files you trust only. Both zips (``policy.zip`` and
+    ``obs_norm.npz``) and ``metadata.json`` are checked against the size limits of
+    :mod:`baselines.safe_load` before they are unpacked or parsed.
 
     Raises
     ------
-    ValueError
-        Missing or corrupt files; :class:`~baselines.safe_load.UnsafePolicyFile` for a zip that
+    PolicyLoadError
+        (a ``ValueError``) Missing or corrupt files, or files beyond the limits: the message names
+        the file, what is wrong and how to regenerate the policy;
+        :class:`~baselines.safe_load.UnsafePolicyFile` (a ``PolicyLoadError``) for a zip that
         cannot be loaded without running its pickles (and ``allow_pickle`` is false).
+    ValueError
+        stable-baselines3 is not installed.
     """
     files = PolicyFiles(Path(directory))
     hint = REGENERATE.format(env_id=TASK_ENV.get(task, task), algo=algo, task=task)
     missing = [p.name for p in (files.model, files.norm, files.metadata) if not p.exists()]
     if missing:
-        raise ValueError(f"policy files {missing} are missing in {files.directory}; regenerate with `{hint}`")
+        raise PolicyLoadError(
+            f"policy files {missing} are missing in {files.directory}; regenerate with `{hint}`"
+        )
     try:
         from stable_baselines3 import PPO, SAC
     except ImportError:
         raise ValueError(
             "the RL baseline needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'"
         ) from None
+    algorithms: dict[str, type[PPO] | type[SAC]] = {"ppo": PPO, "sac": SAC}
     try:
-        metadata = json.loads(files.metadata.read_text(encoding="utf-8"))
-        with np.load(files.norm, allow_pickle=False) as data:
-            norm = {k: data[k] for k in ("mean", "var", "clip", "epsilon")}
-        algorithms: dict[str, type[PPO] | type[SAC]] = {"ppo": PPO, "sac": SAC}
-        cls = algorithms[metadata.get("algo", algo)]
-        model = load_model(files.model, cls, allow_pickle=allow_pickle)
+        metadata = read_json(files.metadata)
+        norm = load_npz(files.norm, ("mean", "var", "clip", "epsilon"))
+        name = metadata.get("algo", algo)
+        if name not in algorithms:
+            raise PolicyLoadError(f"{files.metadata}: algo={name!r} is not one of {list(algorithms)}")
+        model = load_model(files.model, algorithms[name], allow_pickle=allow_pickle)
     except UnsafePolicyFile:
         raise
-    except Exception as exc:  # noqa: BLE001 - any failure here means a broken file set
-        raise ValueError(
+    except PolicyLoadError as exc:  # names the file and what is wrong
+        raise PolicyLoadError(
+            f"policy in {files.directory} is corrupt or unreadable: {exc}; regenerate with `{hint}`"
+        ) from exc
+    except Exception as exc:  # noqa: BLE001 - any other failure here still means a broken file set
+        raise PolicyLoadError(
             f"policy in {files.directory} is corrupt or unreadable ({type(exc).__name__}: {exc}); regenerate with `{hint}`"
         ) from exc
     return model, norm, metadata
