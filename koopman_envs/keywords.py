@@ -39,10 +39,15 @@ def _random_map_config(name: str, value: RandomMapConfig | dict[str, Any] | None
         return value or RandomMapConfig()
     if isinstance(value, dict):
         allowed = [f.name for f in dataclasses.fields(RandomMapConfig)]
-        unknown = sorted(set(value) - set(allowed))
+        # in the dict's order, not sorted: keys of mixed types do not sort
+        unknown = [key for key in value if key not in allowed]
         if unknown:
-            raise ValueError(f"{name} has unknown fields {unknown}; allowed: {allowed}")
-        return RandomMapConfig(**value)
+            hint = did_you_mean(unknown[0], allowed)
+            raise ValueError(f"{name} has unknown fields {unknown}{hint}; allowed: {allowed}")
+        try:
+            return RandomMapConfig(**value)
+        except ValueError as exc:  # the field's own message, said to come from this keyword
+            raise ValueError(f"{name}: {exc}") from None
     raise ValueError(f"{name}={value!r} must be a RandomMapConfig, a dict of its fields or None")
 
 
@@ -50,6 +55,7 @@ def _formation(name: str, value: Any) -> str | None:
     if value is not None and (not isinstance(value, str) or value not in FORMATION_SHAPES):
         raise ValueError(
             f"{name}={value!r} is not one of {list(FORMATION_SHAPES)} or None (the map's own layout)"
+            f"{did_you_mean(value, FORMATION_SHAPES)}"
         )
     return value
 

@@ -23,7 +23,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from numbers import Integral
 from typing import Any
+
+import numpy as np
 
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import LIMITS
@@ -79,8 +82,9 @@ class MoverConfig:
                 f"movers.behaviour={self.behaviour!r} is not one of {list(MOVER_BEHAVIOURS)}"
                 f"{did_you_mean(self.behaviour, MOVER_BEHAVIOURS)}"
             )
-        if not isinstance(self.aware, bool):
+        if not isinstance(self.aware, (bool, np.bool_)):
             raise ValueError(f"movers.aware={self.aware!r} must be True or False")
+        object.__setattr__(self, "aware", bool(self.aware))  # NumPy's booleans too, stored as bool
         checked = {
             "count": check_int("movers.count", self.count, 0, maximum=LIMITS.movers),
             "radius": check_number("movers.radius", self.radius, above=0, note="metres"),
@@ -118,7 +122,8 @@ def parse_movers(name: str, value: Any) -> MoverConfig:
         return MoverConfig()
     if isinstance(value, MoverConfig):
         return value
-    if isinstance(value, int) and not isinstance(value, bool):
+    # an integer of any kind, NumPy's included (movers=np.int64(3))
+    if isinstance(value, Integral) and not isinstance(value, bool):
         return MoverConfig(count=check_int(name, value, 0, maximum=LIMITS.movers))
     fields = [f.name for f in dataclasses.fields(MoverConfig)]
     if isinstance(value, dict):

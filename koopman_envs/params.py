@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.suggest import did_you_mean
+
 __all__ = [
     "DRIFT_MEAN_INTERVAL",
     "LIMITS",
@@ -262,7 +264,7 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
     if isinstance(slip, str):
         if slip not in SLIP_MAX_LAMBDA:
             raise ValueError(
-                f"slip={slip!r} is not one of {list(SLIP_SETTINGS)} "
+                f"slip={slip!r} is not one of {list(SLIP_SETTINGS)}{did_you_mean(slip, SLIP_NAMES)} "
                 "(or 'random' for a new level per episode, 'drift' for levels that change within an "
                 "episode, a sequence of per-robot lambda >= 0, or a list of (time [s], lambdas) pairs)"
             )

@@ -10,11 +10,23 @@ __all__ = ["closest", "did_you_mean"]
 
 
 def closest(name: object, allowed: Iterable[str]) -> str | None:
-    """The allowed name closest to ``name`` (difflib's ratio, cut-off 0.6), or None."""
+    """The allowed name closest to ``name``, or None.
+
+    The same name in another case first (``'HARSH'`` -> ``'harsh'``), then difflib's closest
+    match (ratio cut-off 0.6) compared without case: difflib's ratio alone is case-sensitive, so
+    an upper-case name matched nothing.
+    """
     if not isinstance(name, str):
         return None
-    close = difflib.get_close_matches(name, list(allowed), n=1)
-    return close[0] if close else None
+    folded: dict[str, str] = {}  # case-folded -> the first allowed name that folds to it
+    for choice in allowed:
+        if isinstance(choice, str):
+            folded.setdefault(choice.casefold(), choice)
+    key = name.casefold()
+    if key in folded:
+        return folded[key]
+    close = difflib.get_close_matches(key, list(folded), n=1)
+    return folded[close[0]] if close else None
 
 
 def did_you_mean(name: object, allowed: Iterable[str]) -> str:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from numbers import Real
 from typing import Any
 
 from koopman_envs.checks import check_int, check_number
@@ -150,7 +151,11 @@ class CommConfig:
             check_int("comm.latency", self.latency, 0, maximum=LIMITS.latency, note="control periods"),
         )
         object.__setattr__(self, "drop", check_number("comm.drop", self.drop, at_least=0, at_most=1))
-        if not (isinstance(self.range, (int, float)) and self.range == math.inf):
+        # any real number, NumPy's too: np.float32(np.inf) is the unlimited range as well
+        unlimited = (
+            isinstance(self.range, Real) and not isinstance(self.range, bool) and self.range == math.inf
+        )
+        if not unlimited:
             object.__setattr__(
                 self, "range", check_number("comm.range", self.range, above=0, note="metres, or inf")
             )
@@ -228,7 +233,8 @@ def parse_setting(name: str, value: Any, kind: type, base: Any = None) -> Any:
         return default
     if isinstance(value, kind):
         return value
-    if kind is PoseNoise and isinstance(value, (int, float)) and not isinstance(value, bool):
+    # one number of any kind, NumPy scalars included (as every numpy user passes them)
+    if kind is PoseNoise and isinstance(value, Real) and not isinstance(value, bool):
         return PoseNoise(xy=check_number(name, value, at_least=0))
     fields = [f.name for f in dataclasses.fields(kind)]
     if isinstance(value, dict):

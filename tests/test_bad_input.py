@@ -32,7 +32,7 @@ ENV = "KoopNav-TargetReaching-v0"
         ({"render_mode": "ascii"}, r"render_mode='ascii' is not one of \['human', 'rgb_array'\]"),
         (
             {"map": "random", "random_map": {"obstacles": 2}},
-            r"random_map has unknown fields \['obstacles'\]; allowed",
+            r"random_map has unknown fields \['obstacles'\] \(did you mean 'n_obstacles'\?\); allowed",
         ),
         ({"map": "random", "random_map": 3}, r"random_map=3 must be a RandomMapConfig, a dict"),
         ({"start_noise": -0.1}, r"start_noise=-0.1 must be a finite number >= 0"),
@@ -285,3 +285,113 @@ def test_a_map_file_with_an_unknown_key_is_refused_by_name(tmp_path) -> None:
         ValueError, match=r"map 'mine': unknown keys \['obstacle'\].*did you mean 'obstacles'"
     ):
         gym.make(ENV, map=str(path), n_robots=1)
+
+
+# ------------------------------------------------------------------ issue 41, item 9: the messages
+def test_fast_movers_are_refused_naming_the_speed() -> None:
+    """``movers=dict(count=2, speed=100.0)`` said "no free place for mover 1 ... use fewer or
+    smaller movers": the cause was the speed (movers keep speed x 1 s from every start and
+    target). The speed is bounded now, and a placement that fails only for the speed names it."""
+    from koopman_envs.params import LIMITS
+
+    with pytest.raises(
+        ValueError, match=rf"movers.speed=100.0 must be a finite number >= 0 <= {LIMITS.mover_speed}"
+    ):
+        gym.make(ENV, movers=dict(count=2, speed=100.0))
+    env = gym.make(ENV, movers=dict(count=30, speed=2.0))  # 30 fit map1 at 0.5 m/s, 21 at 2 m/s
+    with pytest.raises(
+        ValueError,
+        match=r"movers: no free place for mover \d+ of 30 .* movers.speed=2.0 m/s keeps them 2.2 m "
+        r"\(robot radius 0.2 m \+ speed x 1 s\) from every start and target; at movers.speed <= 0.5 "
+        r"they fit: use a lower speed",
+    ):
+        env.reset(seed=0)
+    gym.make(ENV, movers=dict(count=30, speed=0.5)).reset(seed=0)  # the same movers, slower: placed
+    with pytest.raises(ValueError, match=r"no free place for mover .* use fewer or smaller movers"):
+        gym.make(ENV, movers=dict(count=400, radius=0.5)).reset(seed=0)  # not the speed: not named
+
+
+#: numpy scalars, as every numpy user passes them, and the Python number they stand for
+NUMPY_SCALARS = [
+    ("movers", np.int64(3), 3),
+    ("movers", {"count": np.int32(2), "speed": np.float32(0.25), "aware": np.True_, "behaviour": "crowd"},
+     {"count": 2, "speed": float(np.float32(0.25)), "aware": True, "behaviour": "crowd"}),
+    ("pose_noise", np.float32(0.1), float(np.float32(0.1))),
+    ("pose_noise", {"xy": np.float64(0.05), "heading": np.float16(0.01)}, {"xy": 0.05, "heading": float(np.float16(0.01))}),
+    ("comm", {"latency": np.int16(2), "drop": np.float32(0.5), "range": np.float32(np.inf)}, {"latency": 2, "drop": 0.5, "range": float("inf")}),
+    ("comm", {"range": np.float64(4.0)}, {"range": 4.0}),
+    ("n_robots", np.int64(2), 2),
+    ("goal_tolerance", np.float32(0.2), float(np.float32(0.2))),
+    ("start_noise", np.float64(0.05), 0.05),
+    ("n_obstacle_obs", np.uint8(2), 2),
+    ("actuation_delay", np.int64(1), 1),
+    ("slip", [np.float32(0.0), np.float64(0.1), np.int64(0)], [0.0, 0.1, 0]),
+    ("max_episode_steps", np.int32(50), 50),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "name, value, python", NUMPY_SCALARS, ids=[f"{n}-{i}" for i, (n, *_) in enumerate(NUMPY_SCALARS)]
+)
+def test_numpy_scalars_are_taken_wherever_a_python_number_is(
+    name: str, value: object, python: object
+) -> None:
+    """``movers=np.int64(3)`` and ``pose_noise=np.float32(0.1)`` were refused; a numpy scalar now
+    gives the env of the Python number, step for step."""
+    from koopman_envs.fronts.gym_env import TargetReachingEnv
+
+    runs = []
+    for given in (value, python):
+        env = TargetReachingEnv(**{name: given})
+        observations = [env.reset(seed=3)[0]]
+        observations += [env.step(np.full(env.action_space.shape, 0.2))[0] for _ in range(5)]
+        runs.append(np.array(observations))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"map": "random", "random_map": {"spacing": np.float32(0.8), "gap": np.float32(0.5), "clearance": np.float64(0.3),
+                                          "border": np.int64(1), "swap_targets": np.float32(0.5), "n_obstacles": np.int8(3),
+                                          "travel": (np.float32(3), np.int64(5)), "obstacle_along": (np.float32(0.2), np.float64(0.7))}}, None),
+        ({"sensing": "lidar", "lidar": {"beams": np.int32(16), "fov": np.float32(3.0), "range": np.float16(4.0),
+                                         "noise": np.float64(0.01), "dropout": np.float32(0.1)}}, None),
+    ],
+)  # fmt: skip
+def test_numpy_scalars_in_the_settings_dicts(kwargs: dict, message: str | None) -> None:
+    from koopman_envs.fronts.gym_env import TargetReachingEnv
+
+    env = TargetReachingEnv(**kwargs)
+    env.reset(seed=0)
+    assert np.isfinite(env.step(np.zeros(6))[0]).all()
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"uncertainty": "HARSH"}, r"uncertainty='HARSH' is not one of \['nominal', 'realistic', 'harsh'\] \(did you mean 'harsh'\?\)"),
+        ({"uncertainty": "Realistic"}, r"\(did you mean 'realistic'\?\)"),
+        ({"sensing": "LIDAR"}, r"sensing='LIDAR' is not one of \['state', 'lidar'\] \(did you mean 'lidar'\?\)"),
+        ({"movers": {"count": 2, "behaviour": "Crowd"}}, r"movers.behaviour='Crowd' is not one of .*\(did you mean 'crowd'\?\)"),
+        ({"map": "MAP3"}, r"map='MAP3' is not one of .*\(did you mean 'map3'\?\)"),
+        ({"slip": "HIGH"}, r"slip='HIGH' is not one of .*\(did you mean 'high'\?\)"),
+        ({"formation": "Wedge", "map": "random"}, r"formation='Wedge' is not one of .*\(did you mean 'wedge'\?\)"),
+        ({"map": "random", "random_map": {"slip_zone_mode": "ADD"}}, r"slip_zone_mode='ADD' is not one of .*\(did you mean 'add'\?\)"),
+        ({"comm": {"Latency": 2}}, r"comm has unknown field 'Latency' \(did you mean 'latency'\?\)"),
+    ],
+)  # fmt: skip
+def test_a_name_in_another_case_gets_a_did_you_mean(kwargs: dict, message: str) -> None:
+    """``uncertainty='HARSH'`` got no suggestion: difflib's ratio is case-sensitive."""
+    with pytest.raises(ValueError, match=message):
+        gym.make(ENV, **kwargs)
+
+
+def test_the_suggestion_helper_prefers_the_same_name_in_another_case() -> None:
+    from koopman_envs.suggest import closest, did_you_mean
+
+    assert closest("HARSH", ["nominal", "realistic", "harsh"]) == "harsh"
+    assert closest("MaP3", ["map1", "map3", "Map3x"]) == "map3"
+    assert closest("realstic", ["nominal", "realistic"]) == "realistic"  # the old matches stay
+    assert closest("zzz", ["nominal"]) is None and closest(3, ["nominal"]) is None
+    assert did_you_mean("CROWDS", ["constant", "crowd"]) == " (did you mean 'crowd'?)"

@@ -25,6 +25,7 @@ the shipped maps keep their own offsets unless a shape is asked for.
 from __future__ import annotations
 
 import math
+from numbers import Real
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,12 +62,14 @@ def formation_shape(name: str, n_robots: int, spacing: float) -> NDArray[np.floa
     if name not in FORMATION_SHAPES:
         raise ValueError(f"formation={name!r} is not one of {list(FORMATION_SHAPES)}")
     check_int("n_robots", n_robots, 1, maximum=LIMITS.robots)  # (N, 2) offsets: bounded before allocating
+    # any real number, NumPy scalars included
     if (
         isinstance(spacing, bool)
-        or not isinstance(spacing, (int, float))
+        or not isinstance(spacing, Real)
         or not (math.isfinite(spacing) and spacing > 0)
     ):
         raise ValueError(f"spacing={spacing!r} must be a finite number > 0 [m]")
+    spacing = float(spacing)
     n = int(n_robots)
     offsets = np.zeros((n, 2))
     if n == 1:

@@ -140,7 +140,9 @@ class MoverField:
         Raises
         ------
         ValueError
-            The movers do not fit in the arena clear of the map (too many or too large).
+            The movers do not fit in the arena clear of the map (too many or too large; or too
+            fast, named when slower movers would fit: ``speed`` x 1 s is kept from every start and
+            target).
         """
         if self._parents[index] is not rng:
             self._parents[index] = rng
@@ -156,10 +158,14 @@ class MoverField:
         self._set_obstacles(index, obstacles)
         arena = self.arena[index]
         arena_into(starts, targets, obstacles, self._workspace, arena)
-        placed = place_movers(
-            child, cfg.count, cfg.radius, arena, obstacles, (starts, targets),
-            robot_radius + max(START_CLEARANCE, cfg.speed * 1.0),
-        )  # fmt: skip
+        clearance = robot_radius + max(START_CLEARANCE, cfg.speed * 1.0)
+        try:
+            placed = place_movers(
+                child, cfg.count, cfg.radius, arena, obstacles, (starts, targets), clearance
+            )
+        except ValueError as exc:
+            self._refuse_fast(exc, arena, obstacles, (starts, targets), robot_radius, clearance)
+            raise
         self.position[index] = placed
         self.waiting[index] = 0
         self.hit[index] = False
@@ -181,6 +187,35 @@ class MoverField:
             )  # fmt: skip
         if cfg.behaviour == "crowd":
             self._orca[index] = orca_simulator(obstacles, placed, cfg, self.n_robots, robot_radius, self.dt)
+
+    def _refuse_fast(
+        self,
+        exc: ValueError,
+        arena: NDArray[np.float64],
+        obstacles: NDArray[np.float64],
+        keep_clear: tuple[NDArray[np.float64], NDArray[np.float64]],
+        robot_radius: float,
+        clearance: float,
+    ) -> None:
+        """A placement that failed only for the speed's clearance says so (it said "use fewer or
+        smaller movers" for ``speed=100``): ``ValueError`` naming the speed when the same movers
+        fit at the slowest clearance; otherwise nothing (the caller re-raises ``exc``)."""
+        cfg = self.config
+        if cfg.speed <= START_CLEARANCE:
+            return
+        try:  # a private generator: the env's streams are untouched (and the episode fails anyway)
+            place_movers(
+                np.random.default_rng(0), cfg.count, cfg.radius, arena, obstacles, keep_clear,
+                robot_radius + START_CLEARANCE,
+            )  # fmt: skip
+        except ValueError:
+            return
+        head = str(exc).split(" clear of ")[0]
+        raise ValueError(
+            f"{head}: movers.speed={cfg.speed!r} m/s keeps them {clearance:g} m (robot radius "
+            f"{robot_radius:g} m + speed x 1 s) from every start and target; at movers.speed <= "
+            f"{START_CLEARANCE:g} they fit: use a lower speed (or fewer movers, or a roomier map)"
+        ) from None
 
     def _set_obstacles(self, index: int, obstacles: NDArray[np.float64]) -> None:
         m = obstacles.shape[0]

@@ -9,15 +9,17 @@ beyond, by the exact share of placements that fit, :func:`placement_share`);
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
+from numbers import Real
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_shape
 from koopman_envs.sim.maps import MapSpec
@@ -118,18 +120,23 @@ class RandomMapConfig:
     slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
 
     def __post_init__(self) -> None:
+        # NumPy scalars (np.int8(3), np.float32(0.5)) as the Python numbers they hold: the sizes
+        # feed array arithmetic that a small integer type would overflow; Python values are kept
+        # as given (a cache key reads them)
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, np.generic):
+                object.__setattr__(self, field.name, value.item())
+            elif isinstance(value, (list, tuple)) and any(isinstance(v, np.generic) for v in value):
+                object.__setattr__(
+                    self, field.name, tuple(v.item() if isinstance(v, np.generic) else v for v in value)
+                )
         # bounded (koopman_envs.params.LIMITS): obstacle arrays grow with the first, a reset's
         # time with the last
         check_int("n_obstacles", self.n_obstacles, 0, maximum=LIMITS.random_obstacles)
         check_int("max_attempts", self.max_attempts, 1, maximum=LIMITS.map_attempts)
-        for name in ("clearance", "gap", "border"):
-            value = getattr(self, name)
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, (int, float))
-                or not (math.isfinite(value) and value >= 0)
-            ):
-                raise ValueError(f"{name}={value!r} must be a finite number >= 0 [m]")
+        for name in ("clearance", "gap", "border"):  # any real number, NumPy scalars included
+            check_number(name, getattr(self, name), at_least=0, note="metres")
         for name in ("travel", "obstacle_radius"):
             pair = getattr(self, name)
             try:
@@ -152,11 +159,15 @@ class RandomMapConfig:
                 ) from None
         else:
             formation_shape("grid", 1, self.spacing)  # the spacing's check
-        if not 0.0 <= self.swap_targets <= 1.0:
-            raise ValueError(f"swap_targets={self.swap_targets!r} must be a probability in [0, 1]")
+        swap = self.swap_targets
+        if isinstance(swap, bool) or not isinstance(swap, Real) or not 0.0 <= swap <= 1.0:
+            raise ValueError(f"swap_targets={swap!r} must be a probability in [0, 1]")
         n = self.n_slip_zones
         check_int("n_slip_zones", n, 0, maximum=LIMITS.slip_zones)
-        low, high = self.obstacle_along
+        try:
+            low, high = (float(v) for v in self.obstacle_along)
+        except (TypeError, ValueError):
+            low, high = math.nan, math.nan  # refused below, with the one message
         if not (0.0 <= low <= high <= 1.0):
             raise ValueError(
                 f"obstacle_along={self.obstacle_along!r} must be a (low, high) pair with 0 <= low <= high <= 1"
@@ -177,7 +188,10 @@ class RandomMapConfig:
                     f"low <= high{bound}"
                 )
         if self.slip_zone_mode not in SLIP_ZONE_MODES:
-            raise ValueError(f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}")
+            raise ValueError(
+                f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}"
+                f"{did_you_mean(self.slip_zone_mode, SLIP_ZONE_MODES)}"
+            )
 
     def placement_share(
         self,
