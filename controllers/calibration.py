@@ -34,6 +34,7 @@ from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
 
 __all__ = [
+    "MAX_CALIBRATION_BUDGET",
     "MAX_POSITION_RESIDUAL",
     "CacheWarning",
     "CacheWriteWarning",
@@ -139,10 +140,22 @@ class DataSpec:
         return asdict(self)
 
 
+#: the largest calibration budget [team-transitions]: 10x the paper's 1,000,000. The identification
+#: data are held in memory (poses and commands, about 40 bytes per robot and transition: 1.2 GB
+#: for 3 robots at this bound), so a larger budget is refused before it fills the memory.
+MAX_CALIBRATION_BUDGET = 10_000_000
+
+
 def data_spec_for(budget: int, seed: int = 0) -> DataSpec:
     """The identification set a budget buys: trajectories of the paper's length (1000 periods),
     as many as fit (one shorter trajectory when the budget is below one paper trajectory)."""
-    check_int("calibration budget", budget, 1, note="team-transitions")
+    check_int(
+        "calibration budget",
+        budget,
+        1,
+        maximum=MAX_CALIBRATION_BUDGET,
+        note="team-transitions; the data take about 40 bytes per robot and transition",
+    )
     steps = min(PARAMS.koopman_steps, int(budget))
     return DataSpec(trajectories=int(budget) // steps, steps=steps, seed=seed)
 

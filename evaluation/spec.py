@@ -41,7 +41,7 @@ from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import ENV_IDS, TASKS, task_for_env
 
-__all__ = ["CELL_AXES", "RECORDED_ENV_SETTINGS", "RunSpec", "with_env_setting"]
+__all__ = ["CELL_AXES", "MAX_WORKERS", "RECORDED_ENV_SETTINGS", "RunSpec", "with_env_setting"]
 
 #: env keywords that are axes of the grid (set through ``maps`` and ``slips``, never env kwargs)
 CELL_AXES = ("map", "slip")
@@ -74,6 +74,11 @@ def with_env_setting(env_kwargs: Mapping[str, Any], key: str, value: Any, where:
         raise ValueError(f"{where}: {root} is already {inner!r}, not a dict of fields")
     out[root] = {**inner, field: value}
     return out
+
+
+#: the most worker processes (or Ray tasks at once) a run starts: far above any one machine's
+#: cores, and a bound on what a typo such as --workers 10000000 would fork
+MAX_WORKERS = 1024
 
 
 @dataclass(frozen=True)
@@ -252,7 +257,7 @@ class RunSpec:
             )
         if not isinstance(self.gifs, bool):
             raise ValueError(f"gifs={self.gifs!r} must be True or False")
-        check_int("workers", workers, 1)
+        check_int("workers", workers, 1, maximum=MAX_WORKERS, note="processes or Ray tasks at once")
         self._validate_env_kwargs()
         if not self.slips:
             raise ValueError(

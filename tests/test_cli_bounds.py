@@ -42,6 +42,11 @@ ARGS += ["--workers", "1", "--quiet"]
             "--sweep 'comm.drop=0,,0.5': level 2 is empty (two commas in a row, or a comma at an end)",
         ),
         (["--sweep", "comm.drop=0,0.5,"], "level 3 is empty"),
+        (["--workers", "10000000"], "workers=10000000 must be an integer >= 1 and <= 1024"),
+        (
+            ["--calibration-budget", "10000000000"],
+            "calibration budget=10000000000 must be an integer >= 1 and <= 10000000",
+        ),
         (["--sweep", "comm.drop=0"], "give at least two levels"),
         (["--env-kwargs", "comm.latency=1000000000"], "comm.latency=1000000000 must be an integer"),
         (["--env-kwargs", "actuation_delay=1000000000"], "actuation_delay=1000000000 must be an integer"),
