@@ -98,12 +98,14 @@ def test_a_sweep_writes_paired_profiles_and_level_zero_is_the_plain_run(tmp_path
     assert ev.main([*TINY, "--controllers", "consensus", "consensus-free", "--out", str(plain)]) == 0
     first = json.loads((out / "sweep" / "pose_noise.xy-0" / "results.json").read_text())["episodes"]
     again = json.loads((plain / "results.json").read_text())["episodes"]
-    for a, b in zip(first, again):
+    assert len(first) == len(again) > 0
+    for a, b in zip(first, again, strict=True):
+        assert (a["controller"], a["seed"]) == (b["controller"], b["seed"])
         assert a["final_distance"] == b["final_distance"] and a["success"] == b["success"]
     # noise changes what the robots do, but not the episode units: same seeds, same starts
     noisy = json.loads((out / "sweep" / "pose_noise.xy-0.3" / "results.json").read_text())["episodes"]
     assert [r["seed"] for r in noisy] == [r["seed"] for r in first]
-    assert any(a["final_distance"] != b["final_distance"] for a, b in zip(noisy, first))
+    assert any(a["final_distance"] != b["final_distance"] for a, b in zip(noisy, first, strict=True))
     # a second call without --resume refuses to overwrite; with --resume it reruns nothing
     assert (
         ev.main(
@@ -217,7 +219,7 @@ def _records(controller: str, successes: list[bool], distances: list[float]) -> 
             "success": ok,
             "final_distance": [d, d],
         }
-        for t, (ok, d) in enumerate(zip(successes, distances))
+        for t, (ok, d) in enumerate(zip(successes, distances, strict=True))
     ]
 
 
