@@ -17,7 +17,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["CacheWriteWarning", "cache_root", "writable", "write_atomic"]
+__all__ = ["CacheWriteWarning", "cache_root", "entry_exists", "writable", "write_atomic"]
 
 
 class CacheWriteWarning(UserWarning):
@@ -104,3 +104,12 @@ def write_atomic(path: Path, write: Callable[[str], object], suffix: str) -> boo
             with contextlib.suppress(OSError):
                 os.remove(tmp)
     return True
+
+
+def entry_exists(path: Path) -> bool:
+    """``path.exists()``, False when it cannot even be looked at (a cache directory without
+    search permission raises ``PermissionError`` there): the entry is then computed again."""
+    try:
+        return path.exists()
+    except OSError:
+        return False

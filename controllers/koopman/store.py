@@ -34,6 +34,7 @@ from controllers.calibration import (
     data_spec_for,
     write_atomic,
 )
+from controllers.disk_cache import entry_exists
 from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
@@ -125,15 +126,6 @@ def _shipped_for(key: str) -> Path | None:
     return None
 
 
-def _exists(path: Path) -> bool:
-    """``path.exists()``, False when it cannot even be looked at (a cache directory without
-    search permission raises ``PermissionError`` there): the model is then fitted again."""
-    try:
-        return path.exists()
-    except OSError:
-        return False
-
-
 def calibrated_model(
     plant: CalibrationPlant,
     seed: int = 0,
@@ -170,7 +162,7 @@ def calibrated_model(
     summary = {"transitions": spec.transitions, "key": key}
     shipped = _shipped_for(key)
     path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
-    if _exists(path):
+    if entry_exists(path):
         try:
             model = KoopmanModel.load(path, n_robots=plant.n_robots)
             if model.metadata.get("cache_key") == key:

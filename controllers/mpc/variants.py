@@ -43,6 +43,7 @@ from controllers.calibration import (
     position_residual,
     write_atomic,
 )
+from controllers.disk_cache import entry_exists
 from controllers.koopman import KoopmanModel, calibrated_model
 from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.fit import STRUCTURES
@@ -98,7 +99,7 @@ class NominalNMPC(NMPCController):
             ).tolist()
             source = "cache"
         except (OSError, ValueError, KeyError, TypeError) as exc:  # missing or bad entry: measure again
-            if path.exists():
+            if entry_exists(path):
                 warnings.warn(
                     f"calibration cache entry {path}: {type(exc).__name__}: {exc}; measuring it again",
                     CacheWarning,
