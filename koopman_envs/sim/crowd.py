@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.movers import MoverConfig
 
-__all__ = ["ORCA_KEEP_RIGHT", "ORCA_ROBOT_MARGIN", "orca_simulator", "orca_step"]
+__all__ = ["ORCA_KEEP_RIGHT", "ORCA_ROBOT_MARGIN", "orca_restore", "orca_simulator", "orca_step"]
 
 #: ORCA's settings (RVO2's example values scaled to a person): neighbour distance [m], the
 #: largest neighbour count, and the time horizons for agents and for obstacles [s]
@@ -85,6 +85,30 @@ def orca_simulator(
     return sim
 
 
+def orca_restore(
+    obstacles: NDArray[np.float64],
+    position: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    config: MoverConfig,
+    n_robots: int,
+    robot_radius: float,
+    dt: float,
+) -> object:
+    """The ORCA simulator of an environment between two periods, rebuilt from what the env stores
+    (a copied or unpickled env: the C++ simulator does not pickle).
+
+    Between periods ORCA's whole state is each pedestrian's position and velocity: every period
+    sets the preferred velocities and (aware) the robots' agents before it steps, and rebuilds
+    the neighbours, the ORCA lines and the agent tree from the positions. ``position`` and
+    ``velocity`` (C, 2) hold ORCA's own single-precision values (:func:`orca_step` copies them
+    out exactly), so the rebuilt simulator steps bit for bit as the original.
+    """
+    sim = orca_simulator(obstacles, position, config, n_robots, robot_radius, dt)
+    for c in range(position.shape[0]):
+        sim.set_agent_velocity(c, (float(velocity[c, 0]), float(velocity[c, 1])))  # type: ignore[attr-defined]
+    return sim
+
+
 def orca_step(
     sim: object | None,
     position: NDArray[np.float64],
@@ -97,7 +121,9 @@ def orca_step(
     """One ORCA period of one environment: the waypoint kernel's velocities are the preferred
     ones; ``position`` and ``velocity`` (C, 2) become ORCA's."""
     if sim is None:
-        raise RuntimeError("the crowd's ORCA simulator is gone (a copied env): reset the env before stepping")
+        raise RuntimeError(
+            "the crowd has no ORCA simulator before its first reset: reset the env before stepping"
+        )
     count = position.shape[0]
     turn_c, turn_s = math.cos(ORCA_KEEP_RIGHT), math.sin(ORCA_KEEP_RIGHT)
     for c in range(count):

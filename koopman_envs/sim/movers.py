@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.movers import MoverConfig
 from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.sim.crowd import orca_simulator, orca_step
+from koopman_envs.sim.crowd import orca_restore, orca_simulator, orca_step
 from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
 from koopman_envs.sim.mover_placement import arena_into, place_movers
 from koopman_envs.sim.nearest import nearest_first_by_rank
@@ -119,6 +119,8 @@ class MoverField:
         self._all_rows = np.arange(k, dtype=np.int64)
         self._parents: list[np.random.Generator | None] = [None] * k
         self._orca: list[object | None] = [None] * k
+        #: each environment's robot radius at its reset (a copy rebuilds ORCA's robot agents)
+        self._robot_radius = np.zeros(k)
         #: the last :attr:`trail_length` positions of every mover, for drawing (a ring per
         #: environment; off, and free, until :meth:`keep_trail` turns it on)
         self.trail_length = 0
@@ -186,6 +188,7 @@ class MoverField:
                 self._obstacle_r[index], cfg.radius, cfg.speed,
             )  # fmt: skip
         if cfg.behaviour == "crowd":
+            self._robot_radius[index] = robot_radius
             self._orca[index] = orca_simulator(obstacles, placed, cfg, self.n_robots, robot_radius, self.dt)
 
     def _refuse_fast(
@@ -334,11 +337,29 @@ class MoverField:
         )
 
     def __getstate__(self) -> dict[str, object]:
-        # ORCA simulators are C++ objects without pickling: a copied field rebuilds none, and a
-        # crowd step before the next reset says so
+        # ORCA simulators are C++ objects without pickling: the copy keeps which environments
+        # had one and rebuilds them from the stored positions and velocities (__setstate__)
         state = self.__dict__.copy()
         state["_orca"] = [None] * self.num_envs
+        state["_orca_live"] = [sim is not None for sim in self._orca]
+        # views of _states: a copy or a pickle would make them arrays of their own, which the
+        # kernels would move while the info's states() stood still; __setstate__ makes new views
+        del state["position"], state["velocity"]
         return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        live = state.pop("_orca_live", None)
+        self.__dict__.update(state)
+        self.position = self._states[..., :2]
+        self.velocity = self._states[..., 2:]
+        if not isinstance(live, list):
+            return
+        for k, had in enumerate(live):
+            if had:  # an episode under way: its simulator from the state (crowd.orca_restore)
+                self._orca[k] = orca_restore(
+                    self.obstacles[k], self.position[k], self.velocity[k], self.config, self.n_robots,
+                    float(self._robot_radius[k]), self.dt,
+                )  # fmt: skip
 
 
 # ---------------------------------------------------------------------- kernels
