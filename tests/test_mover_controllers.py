@@ -103,17 +103,123 @@ def test_controllers_read_the_movers_from_the_observed_view_only(name: str) -> N
         obs, _, _, _, info = env.step(a)
 
 
-def test_prediction_changes_what_the_controllers_do() -> None:
+def test_prediction_changes_what_the_nmpc_does() -> None:
     env = gym.make(TR, movers=dict(count=8, speed=0.3))
     obs, info = env.reset(seed=0)
-    for name, option in (("nominal-nmpc", "mover_prediction"), ("consensus", "mover_prediction")):
-        extra = {"solver": "rti"} if "nmpc" in name else {}
-        with_it = controllers.make(name, **extra)
-        without = controllers.make(name, **{option: "static"}, **extra)
-        with_it.reset(env, seed=0)
-        without.reset(env, seed=0)
-        moved = any(not np.array_equal(with_it.act(obs, info), without.act(obs, info)) for _ in range(1))
-        assert moved or name == "consensus", name  # consensus differs only once a mover is near
+    with_it = controllers.make("nominal-nmpc", solver="rti")
+    without = controllers.make("nominal-nmpc", solver="rti", mover_prediction="static")
+    with_it.reset(env, seed=0)
+    without.reset(env, seed=0)
+    # the NMPC plans around every mover in its slots, near or not: its first command differs
+    assert not np.array_equal(with_it.act(obs, info), without.act(obs, info))
+
+
+def _consensus_scene() -> tuple[object, np.ndarray]:
+    """Robot 0 at the origin bound for (3, 0) in an obstacle-free scene, the others far away."""
+    env = gym.make(TR, movers=1)
+    env.reset(seed=0)
+    targets = np.array([[3.0, 0.0, 0.0], [-5.0, 5.0, 0.0], [-5.0, -5.0, 0.0]])
+    scenario = dataclasses.replace(
+        env.unwrapped.engine.scenario(0), obstacles=np.zeros((0, 3)), targets=targets
+    )
+    return scenario, np.array([[0.0, 0.0, 0.0], [-5.0, 5.0, 0.0], [-5.0, -5.0, 0.0]])
+
+
+@pytest.mark.parametrize(
+    ("mover", "gives_way"),
+    [
+        ([0.5, 0.5, 0.0, -0.3], True),  # 0.31 m clear now, 0.14 m in 1 s on its way across
+        ([0.5, 0.5, 0.0, 0.3], False),  # as near, walking away
+        ([0.5, 0.5, 0.0, 0.0], False),  # standing 0.31 m clear, outside the influence (0.25 m)
+        ([3.0, 3.0, 0.3, 0.0], False),  # far
+    ],
+)
+def test_consensus_gives_way_to_a_mover_coming_at_it_and_to_no_other(mover: list, gives_way: bool) -> None:
+    scenario, poses = _consensus_scene()
+    commands = {}
+    for prediction in ("constant_velocity", "static"):
+        ctrl = controllers.make("consensus", mover_prediction=prediction)
+        ctrl.reset(scenario)
+        info = {"poses": poses, "targets": scenario.targets, "observed_movers": np.array([mover])}
+        commands[prediction] = np.asarray(ctrl.act(np.zeros(1), info)).reshape(3, 2)
+    blind = controllers.make("consensus")
+    blind.reset(scenario)
+    alone = np.asarray(blind.act(np.zeros(1), {"poses": poses, "targets": scenario.targets})).reshape(3, 2)
+    assert np.array_equal(commands["static"], alone)  # seen where it stands, no mover is near
+    assert alone[0].tolist() == [scenario.v_max, 0.0]  # straight for the target at full speed
+    if gives_way:  # it backs away from the path the mover is about to cross
+        assert commands["constant_velocity"][0, 0] < 0.0
+        assert np.array_equal(commands["constant_velocity"][1:], alone[1:])
+    else:
+        assert np.array_equal(commands["constant_velocity"], alone)
+
+
+def _nearest_on_path(point: np.ndarray, mover: np.ndarray, seconds: float) -> np.ndarray:
+    """The point of the mover's straight path over the next ``seconds`` nearest to ``point``."""
+    start, travel = mover[:2], seconds * mover[2:]
+    length2 = float(travel @ travel)
+    along = 0.0 if length2 == 0 else float(np.clip((point - start) @ travel / length2, 0.0, 1.0))
+    return start + along * travel
+
+
+def test_consensus_reacts_to_the_movers_within_its_influence_and_to_no_other() -> None:
+    """Whole episodes among 8 movers: every period, a robot's consensus command equals the one
+    computed without any mover unless a mover (its path over the look-ahead, or where it stands
+    with prediction off) is within the influence clearance; when one is, the command changes
+    unless it is saturated on both inputs. Movers come near, and some only by their predicted
+    path."""
+    env = gym.make(TR, movers=dict(count=8, speed=0.3), max_episode_steps=300)
+    predicting = controllers.make("consensus")
+    static = controllers.make("consensus", mover_prediction="static")
+    blind = controllers.make("consensus")  # handed no movers
+    reach = 0.2 + 0.2  # robot and mover radius
+    counts = {"path_near": 0, "path_only": 0, "reacted": 0, "static_near": 0, "static_reacted": 0}
+    periods, seed = 0, 0
+    while periods < 400:
+        obs, info = env.reset(seed=seed)
+        for ctrl in (predicting, static, blind):
+            ctrl.reset(env, seed=seed)
+        limits = np.array([env.unwrapped.scenario.v_max, env.unwrapped.scenario.omega_max])
+        while True:
+            without = {key: value for key, value in info.items() if key != "observed_movers"}
+            a, b, c = (
+                np.asarray(x.act(obs, i)).reshape(-1, 2)
+                for x, i in ((predicting, info), (static, info), (blind, without))
+            )
+            poses, movers = info["observed_poses"], info["observed_movers"]
+            for robot, (x, y, _) in enumerate(poses):
+                p = np.array([x, y])
+                static_near = any(np.linalg.norm(p - m[:2]) - reach < predicting.influence for m in movers)
+                path_near = any(
+                    np.linalg.norm(p - _nearest_on_path(p, m, predicting.mover_lookahead)) - reach
+                    < predicting.influence
+                    for m in movers
+                )
+                if not path_near:
+                    assert np.array_equal(a[robot], c[robot]), (seed, periods, robot)
+                else:
+                    counts["path_near"] += 1
+                    counts["path_only"] += not static_near
+                    if np.array_equal(a[robot], c[robot]):  # unchanged only when saturated
+                        assert (np.abs(a[robot]) == limits).all(), (seed, periods, robot)
+                    else:
+                        counts["reacted"] += 1
+                if not static_near:
+                    assert np.array_equal(b[robot], c[robot]), (seed, periods, robot)
+                else:
+                    counts["static_near"] += 1
+                    if np.array_equal(b[robot], c[robot]):
+                        assert (np.abs(b[robot]) == limits).all(), (seed, periods, robot)
+                    else:
+                        counts["static_reacted"] += 1
+            obs, _, terminated, truncated, info = env.step(a.reshape(-1))
+            periods += 1
+            if terminated or truncated:
+                break
+        seed += 1
+    assert counts["path_near"] >= 10 and counts["path_only"] >= 3 and counts["static_near"] >= 3, counts
+    assert counts["reacted"] >= 0.5 * counts["path_near"], counts
+    assert counts["static_reacted"] >= 0.5 * counts["static_near"], counts
 
 
 @pytest.mark.parametrize(
