@@ -168,7 +168,10 @@ class EngineConfig:
             random_map.shape_for(n_robots, float(np.max(robot_radius)))
         else:
             map_spec = load_map(map_arg)
-            map_spec.validate(n_robots, robot_radius)
+            try:
+                map_spec.validate(n_robots, robot_radius)
+            except ValueError as exc:  # a map that holds the default team may not hold this one
+                raise ValueError(f"{exc} (n_robots={n_robots}, robot_radius={robot_radius:g})") from None
             if formation is not None:
                 if not spec.formation:
                     raise ValueError(

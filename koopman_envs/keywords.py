@@ -181,8 +181,8 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "start_noise",
         0.0,
         "float",
-        "per-reset start jitter: disc radius [m] and heading bound [rad]",
-        check=lambda name, v: check_number(name, v, at_least=0),
+        f"per-reset start jitter: disc radius [m] and heading bound [rad], at most {LIMITS.start_noise:g}",
+        check=lambda name, v: check_number(name, v, at_least=0, at_most=LIMITS.start_noise),
     ),
     EnvKeyword(
         "formation",
@@ -214,7 +214,8 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         None,
         "float | dict | PoseNoise | None",
         "each robot's localization error: dict(xy [m], heading [rad], drift_xy [m/sqrt(s)], "
-        "drift_heading [rad/sqrt(s)]) (a number: the xy std); None: the preset's (none)",
+        f"drift_heading [rad/sqrt(s)]), each at most {LIMITS.pose_noise:g} (a number: the xy std); None: "
+        "the preset's (none)",
     ),
     EnvKeyword(
         "sensing",

@@ -161,11 +161,24 @@ class SizeLimits:
     slip_zones : int
         ``random_map.n_slip_zones``: the zone table holds (zones x robots) per environment.
     map_attempts : int
-        ``random_map.max_attempts``: layouts tried per reset (10 times the default); an
-        impossible setting then fails within seconds instead of spinning.
+        ``random_map.max_attempts``: layouts tried per reset (twice the default, which succeeds
+        within a few); an impossible setting then fails within seconds instead of spinning (64
+        obstacles that never fit: about 5 s).
+    start_noise : float
+        ``start_noise`` [m and rad]: five times the workspace's side (beyond its side a disc
+        already leaves the workspace from most starts, and the heading turn is a full one
+        beyond pi), so that the draw's range stays finite (``start_noise=9e307`` overflowed
+        numpy's uniform); a value too large for the map fails at reset, naming it.
+    pose_noise : float
+        Every field of ``pose_noise`` (std [m], [rad], random-walk rates per sqrt(s)): an error
+        the size of the workspace's side is no estimate at all, and the draws scaled by it stay
+        finite (``pose_noise=5e307`` made the observation infinite).
     slip_lambda : float
         Every slip mean lambda (``slip``, slip zones, schedules): 50 times the paper's "high"
         level; the Exponential draws stay finite, so a step never turns the state into inf/NaN.
+    map_file_bytes : int
+        A map file given to ``map`` [bytes], checked before it is read whole: the built-in maps
+        are under 1 KB, and 16 MiB lists some 300,000 obstacles (``map="/dev/zero"`` read forever).
     num_envs : int
         ``num_envs`` of the vector env: every array is batched over it; beyond, the memory
         estimate below is the binding limit anyway.
@@ -190,8 +203,11 @@ class SizeLimits:
     mover_pause: float = 3600.0
     random_obstacles: int = 64
     slip_zones: int = 64
-    map_attempts: int = 100_000
+    map_attempts: int = 20_000
+    start_noise: float = 100.0
+    pose_noise: float = 20.0
     slip_lambda: float = 10.0
+    map_file_bytes: int = 16 * 2**20
     num_envs: int = 16_384
     engine_bytes: int = 4 * 2**30
     episodes_per_cell: int = 10_000

@@ -34,6 +34,9 @@ __all__ = [
 
 #: observation of obstacles: from the known map ("state") or through range beams only ("lidar")
 SENSING_MODES = ("state", "lidar")
+#: narrowest lidar field of view [rad] (ours: a milliradian; the beam caster divides by the
+#: beams' spacing, which a denormal field of view rounds to 0)
+MIN_LIDAR_FOV = 1e-3
 
 
 @dataclass(frozen=True)
@@ -63,9 +66,10 @@ class PoseNoise:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):  # checked, and stored as float (0 and 0.0 are one setting)
-            object.__setattr__(
-                self, f.name, check_number(f"pose_noise.{f.name}", getattr(self, f.name), at_least=0)
+            value = check_number(
+                f"pose_noise.{f.name}", getattr(self, f.name), at_least=0, at_most=LIMITS.pose_noise
             )
+            object.__setattr__(self, f.name, value)
 
     @property
     def active(self) -> bool:
@@ -85,7 +89,7 @@ class LidarConfig:
     beams : int
         Beams per scan, 1 to ``LIMITS.lidar_beams`` (4096; :class:`~koopman_envs.params.SizeLimits`).
     fov : float
-        Field of view [rad], in (0, 2 pi]: the beams span it evenly, centred on the heading
+        Field of view [rad], in [:data:`MIN_LIDAR_FOV`, 2 pi]: the beams span it evenly, centred on the heading
         (a full circle spaces them 2 pi / beams apart, starting straight ahead).
     range : float
         Largest reading [m], at most ``LIMITS.lidar_range`` (100 m); a beam that meets nothing reads it.
@@ -111,6 +115,11 @@ class LidarConfig:
             "noise": check_number("lidar.noise", self.noise, at_least=0),
             "dropout": check_number("lidar.dropout", self.dropout, at_least=0, at_most=1),
         }
+        if checked["fov"] < MIN_LIDAR_FOV:  # the beams' spacing would round to 0 (a division by it)
+            raise ValueError(
+                f"lidar.fov={self.fov!r} is narrower than {MIN_LIDAR_FOV:g} rad; allowed: "
+                f"[{MIN_LIDAR_FOV:g}, 2 pi] rad"
+            )
         for name, value in checked.items():  # stored in normal form (0 and 0.0 are one setting)
             object.__setattr__(self, name, value)
 
@@ -235,7 +244,7 @@ def parse_setting(name: str, value: Any, kind: type, base: Any = None) -> Any:
         return value
     # one number of any kind, NumPy scalars included (as every numpy user passes them)
     if kind is PoseNoise and isinstance(value, Real) and not isinstance(value, bool):
-        return PoseNoise(xy=check_number(name, value, at_least=0))
+        return PoseNoise(xy=check_number(name, value, at_least=0, at_most=LIMITS.pose_noise))
     fields = [f.name for f in dataclasses.fields(kind)]
     if isinstance(value, dict):
         unknown = [key for key in value if key not in fields]

@@ -230,7 +230,8 @@ _COMMON_DOC = """
     uniformly in a disc of radius s [m] and turns its heading by an angle uniform in [-s, s]
     [rad] (wrapped to [-pi, pi)), from the env's own ``np_random``; a draw that leaves the
     workspace or overlaps an obstacle or another robot is redrawn for the whole team ({attempts} tries,
-    then ``RuntimeError``). ``env.unwrapped.scenario.starts`` holds the starts actually used.
+    then a ``ValueError`` naming ``start_noise``, also a ``RuntimeError``).
+    ``env.unwrapped.scenario.starts`` holds the starts actually used.
     ``reset(options={{"start_poses": poses}})`` starts one episode at the given (N, 3) poses
     instead, and ``options={{"targets": targets}}`` replaces the targets (docs/reset_options.md).
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from typing import Any
@@ -19,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
-from koopman_envs.params import PARAMS
+from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.zones import SlipZone, check_zone_robots
@@ -377,12 +378,23 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
             return MapSpec.from_dict(json.loads(raw), default_name=text)
         if text.endswith(".json") or os.path.sep in text:
             try:
+                # a regular file of bounded size before it is read whole (map="/dev/zero" read forever)
+                status = os.stat(text)
+                if not stat.S_ISREG(status.st_mode):
+                    raise ValueError(f"map file {text!r} is not a regular file")
+                if status.st_size > LIMITS.map_file_bytes:
+                    raise ValueError(
+                        f"map file {text!r} has {status.st_size} bytes; allowed: at most "
+                        f"{LIMITS.map_file_bytes} (koopman_envs.params.LIMITS.map_file_bytes)"
+                    )
                 with open(text, encoding="utf-8") as fh:
                     data = json.load(fh)
             except OSError as exc:
                 raise ValueError(f"map file {text!r} cannot be read: {exc}") from exc
             except json.JSONDecodeError as exc:
                 raise ValueError(f"map file {text!r} is not valid JSON: {exc}") from exc
+            except UnicodeDecodeError as exc:
+                raise ValueError(f"map file {text!r} is not UTF-8 text: {exc}") from exc
             stem = os.path.splitext(os.path.basename(text))[0]
             return MapSpec.from_dict(data, default_name=stem)
     raise ValueError(

@@ -83,8 +83,16 @@ def place_movers(
     Raises
     ------
     ValueError
-        A mover finds no free place in :data:`PLACEMENT_ATTEMPTS` draws.
+        A mover is wider than the arena, or finds no free place in :data:`PLACEMENT_ATTEMPTS`
+        draws.
     """
+    if not (arena[1] - arena[0] > 2.0 * radius and arena[3] - arena[2] > 2.0 * radius):
+        # the candidates would lie outside the arena (or be NaN for a huge radius: every test
+        # against a NaN passes, so they were "free")
+        raise ValueError(
+            f"movers: a mover of radius {radius!r} m (movers.radius) does not fit the arena "
+            f"{np.round(arena, 2).tolist()}; use smaller movers"
+        )
     placed = np.zeros((count, 2))
     obstacles = np.ascontiguousarray(obstacles, dtype=np.float64).reshape(-1, 3)
     starts, targets = (np.array(points, dtype=np.float64) for points in keep_clear)  # writable: one type

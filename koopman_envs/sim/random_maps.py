@@ -29,12 +29,16 @@ from koopman_envs.suggest import did_you_mean
 __all__ = [
     "AUTO_FORMATION",
     "MIN_PLACEMENT_SHARE",
+    "NoValidMap",
     "RandomMapConfig",
     "generate_random_map",
     "placement_share",
 ]
 
 
+#: shortest travel of a random layout [m] (ours): the corridor's direction is the travel over
+#: its length, which a denormal travel turns into NaN obstacles
+MIN_TRAVEL = 0.01
 #: ``RandomMapConfig.formation`` default: the wedge while it fits the workspace, the grid beyond
 AUTO_FORMATION = "auto"
 #: the share of the generator's draws (heading, travel, lead position) that must place a team's
@@ -42,6 +46,11 @@ AUTO_FORMATION = "auto"
 #: tries ``max_attempts`` = 10,000 draws, so a reset then fails with probability below
 #: (1 - 2e-3)^10000 ~ 2e-9. The wedge fits up to 20 robots at the default spacing (21: 1.3e-3).
 MIN_PLACEMENT_SHARE = 2e-3
+
+
+class NoValidMap(ValueError, RuntimeError):
+    """No layout in ``max_attempts`` draws: a ``ValueError`` naming the ``random_map`` settings
+    that cannot be met (as every bad keyword's), and the ``RuntimeError`` it was before."""
 
 
 def placement_share(
@@ -64,6 +73,8 @@ def placement_share(
     width, height : float
         Sides of the box that leader starts are drawn in [m].
     """
+    if not (width > 0 and height > 0):  # no room at all (the formula below would read |width|)
+        return 0.0
     heading = np.linspace(-math.pi, math.pi, 720, endpoint=False)
     cos_h, sin_h = np.cos(heading), np.sin(heading)
     x = np.outer(cos_h, local[:, 0]) - np.outer(sin_h, local[:, 1])  # (headings, N)
@@ -146,6 +157,10 @@ class RandomMapConfig:
             if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
                 raise ValueError(
                     f"{name}={pair!r} must be a finite (low, high) pair with 0 < low <= high [m]"
+                )
+            if name == "travel" and low < MIN_TRAVEL:  # the corridor's direction divides by it
+                raise ValueError(
+                    f"travel={pair!r} must have low >= {MIN_TRAVEL:g} [m] (a shorter trip is none)"
                 )
         if self.formation != AUTO_FORMATION:
             try:
@@ -231,6 +246,15 @@ class RandomMapConfig:
         def share(shape: str) -> float:
             return self.placement_share(shape, n_robots, robot_radius, workspace)
 
+        x0, x1, y0, y1 = workspace
+        margin = self.border + robot_radius
+        if not (x1 - x0 > 2 * margin and y1 - y0 > 2 * margin):
+            raise ValueError(
+                f"random_map border={self.border:g} m and robot_radius={robot_radius:g} m leave no room in the "
+                f"workspace {list(workspace)}: every start and target keeps border + robot_radius from its "
+                "edges; use a smaller border or robot_radius"
+            )
+
         shape = self.formation
         if shape == AUTO_FORMATION:
             shape = "wedge" if share("wedge") >= MIN_PLACEMENT_SHARE else "grid"
@@ -289,6 +313,8 @@ def generate_random_map(
     ------
     ValueError
         The team's shape does not fit the workspace (:meth:`RandomMapConfig.shape_for`).
+    NoValidMap
+        No layout in ``config.max_attempts`` draws (a ``ValueError`` naming the settings).
     """
     if n_robots < 1:
         raise ValueError(f"n_robots={n_robots!r} must be >= 1")
@@ -320,8 +346,13 @@ def generate_random_map(
         # the generator as before and gives the same layout (tests/data/random_layouts.json)
         zones = _place_slip_zones(rng, corridor, config) if config.n_slip_zones else ()
         return MapSpec("random", obstacles, starts, targets, "seeded random layout", slip_zones=zones)
-    raise RuntimeError(  # pragma: no cover - the default config succeeds within a few attempts
-        f"no valid random map in {config.max_attempts} attempts for n_robots={n_robots}"
+    raise NoValidMap(
+        f"random_map: no valid random map in max_attempts={config.max_attempts} attempts for "
+        f"n_robots={n_robots}: the team must fit the workspace, and n_obstacles={config.n_obstacles} "
+        f"obstacles of radius {tuple(config.obstacle_radius)} m the corridor between starts and targets "
+        f"(obstacle_along={tuple(config.obstacle_along)}) with clearance={config.clearance:g} m from every "
+        f"start and target and gap={config.gap:g} m between them; use fewer or smaller obstacles, a "
+        "smaller clearance or gap, or fewer robots"
     )
 
 

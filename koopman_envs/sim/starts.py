@@ -9,10 +9,16 @@ from koopman_envs.params import PARAMS
 from koopman_envs.sim.dynamics import wrap_angle
 from koopman_envs.sim.maps import MapSpec
 
-__all__ = ["START_NOISE_ATTEMPTS", "perturbed_starts"]
+__all__ = ["START_NOISE_ATTEMPTS", "NoValidStarts", "perturbed_starts"]
 
 #: ``start_noise``: draws of a whole team's start perturbation before a reset gives up (ours).
 START_NOISE_ATTEMPTS = 100
+
+
+class NoValidStarts(ValueError, RuntimeError):
+    """No valid start poses in :data:`START_NOISE_ATTEMPTS` draws: a ``ValueError`` (the
+    ``start_noise`` a user set is too large for the map, and the message names it, as every bad
+    keyword's), and the ``RuntimeError`` it was before, for the code that catches that."""
 
 
 def perturbed_starts(
@@ -24,8 +30,9 @@ def perturbed_starts(
 
     Raises
     ------
-    RuntimeError
-        No valid draw in :data:`START_NOISE_ATTEMPTS` attempts.
+    NoValidStarts
+        No valid draw in :data:`START_NOISE_ATTEMPTS` attempts (a ``ValueError`` and a
+        ``RuntimeError``).
     """
     n = n_robots
     base = spec.starts[:n]
@@ -44,7 +51,7 @@ def perturbed_starts(
         problem = spec.pose_problem(starts, radius, PARAMS.workspace, "start")
         if problem is None:
             return starts
-    raise RuntimeError(
+    raise NoValidStarts(
         f"start_noise={noise!r}: no valid start poses on map {spec.name!r} in "
         f"{START_NOISE_ATTEMPTS} draws of the whole team (last: {problem}); use a smaller start_noise"
     )
