@@ -21,12 +21,16 @@ import math
 import numpy as np
 import pytest
 
+from koopman_envs.sim import perception as perception_module
 from koopman_envs.sim.dynamics import wrap_scalar
 from koopman_envs.sim.lidar import beam_angles, cast_beams
 from koopman_envs.sim.perception import BLOCK_NUMBERS, Perception, child_generator, observed_info
 from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
 DT = 0.1
+#: the kernels compiled by numba, or run as Python (mutation testing strips @njit to mutate them): a
+#: Python float times a float32 is a float64 product in numba and a float32 one in NumPy (NEP 50)
+COMPILED = hasattr(perception_module._perceive, "py_func")
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)
 RADIUS = np.full(3, 0.2)
 #: two obstacle discs per environment (x, y, r), fixed
@@ -128,7 +132,10 @@ class Replay:
                     at_u += 1
                 if lidar.noise > 0:
                     if value < lidar.range:
-                        value += lidar.noise * normal[at_n]
+                        if COMPILED:
+                            value += lidar.noise * normal[at_n]
+                        else:
+                            value += float(np.float32(lidar.noise) * np.float32(normal[at_n]))
                     at_n += 1
                 ranges[i, b] = min(max(value, 0.0), lidar.range)
         self.t += 1
