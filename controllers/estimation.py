@@ -1,9 +1,20 @@
-"""State estimation in front of any controller: an EKF on every robot's pose (``ekf:`` prefix).
+"""State estimation in front of any controller: an EKF on every robot's pose, delay compensation
+and the estimate's covariance (``ekf:`` prefix).
 
 ``controllers.make("ekf:nominal-nmpc")`` is the nominal NMPC reading, instead of each robot's raw
-localization (``info["observed_poses"]``), the estimate of an extended Kalman filter per robot
-that fuses the commands (unicycle prediction over one period) with the noisy pose. It smooths the
-white part of the localization noise; a drifting bias it cannot see (nothing measures it).
+localization (``info["observed_poses"]``), what a deployed MPC reads:
+
+1. **the filtered pose**: an extended Kalman filter per robot fuses the commands it sent (the
+   unicycle's RK4 period, the env's integrator without slip) with the noisy pose. It smooths the
+   white part of the localization noise; a drifting bias it cannot see (nothing measures it);
+2. **delay compensation** (``delay`` periods of actuation delay, known or identified): the
+   commands already sent but not yet acting are run through the same prediction, so the inner
+   controller plans from the pose at which its new command will act. Without noise or slip this
+   prediction is exact (tests/test_estimation.py, k = 1..4);
+3. **the covariance** of that pose, ``info["pose_covariance"]`` (N, 3, 3), grown by the process
+   noise over the compensated periods: controllers with margins tighten them by it (the NMPCs'
+   ``chance_risk``).
+
 The estimate replaces the robot's own pose in ``observed_poses`` and on the diagonal of
 ``known_poses``; team-mates' messages are passed on as they are. Learned policies read the
 observation, which the filter does not change, so ``ekf:`` is for the model-based controllers.
@@ -19,6 +30,7 @@ are the fields of :class:`EstimatorOptions`.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections import deque
 from collections.abc import Callable
@@ -30,8 +42,9 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.dynamics import wrap_angle
+from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "wrap"]
@@ -57,6 +70,10 @@ class EstimatorOptions:
     delay : int
         Periods between a command and its action that the prediction assumes (the env's
         ``actuation_delay``, if known).
+    compensate_delay : bool
+        Hand the inner controller the pose predicted through the ``delay`` commands already sent
+        (where its new command will act) instead of the filtered pose now (default True; a no-op
+        at ``delay=0``).
     """
 
     position_std: float = 0.03
@@ -64,6 +81,7 @@ class EstimatorOptions:
     process_position_std: float = 0.01
     process_heading_std: float = 0.02
     delay: int = 0
+    compensate_delay: bool = True
 
     @classmethod
     def from_options(cls, prefix: str = "", **options: Any) -> EstimatorOptions:
@@ -76,39 +94,62 @@ class EstimatorOptions:
                     f"allowed: {[prefix + a for a in allowed]}"
                 )
             if key == "delay":
-                check_int(prefix + key, value, 0, note="control periods")
+                check_int(prefix + key, value, 0, maximum=LIMITS.actuation_delay, note="control periods")
+            elif key == "compensate_delay":
+                if not isinstance(value, (bool, np.bool_)):
+                    raise ValueError(f"{prefix + key}={value!r} must be True or False")
             else:
                 check_number(prefix + key, value, above=0)
         return cls(**options)
+
+
+def _predict_pose(pose: NDArray[np.float64], command: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
+    """One period of the unicycle under ``command`` (RK4, no slip: the env's integrator), heading wrapped."""
+    x, y, theta = rk4_pose(
+        float(pose[0]),
+        float(pose[1]),
+        float(pose[2]),
+        float(command[0]),
+        float(command[1]),
+        0.0,
+        0.0,
+        0.0,
+        dt,
+    )
+    return np.array([x, y, wrap_scalar(theta)])
+
+
+def _jacobian(pose: NDArray[np.float64], command: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
+    """d(next pose)/d(pose) of one period (explicit Euler's: the covariance needs no more)."""
+    v, theta = float(command[0]), float(pose[2])
+    return np.array(
+        [[1.0, 0.0, -v * dt * math.sin(theta)], [0.0, 1.0, v * dt * math.cos(theta)], [0.0, 0.0, 1.0]]
+    )
 
 
 def _unicycle_ekf(pose: NDArray[np.float64], options: EstimatorOptions, dt: float) -> Any:
     from filterpy.kalman import ExtendedKalmanFilter
 
     class UnicycleEKF(ExtendedKalmanFilter):  # type: ignore[misc]
-        """filterpy's EKF with the unicycle's one-period prediction (explicit Euler, as its Jacobian)."""
+        """filterpy's EKF with the unicycle's one-period prediction (RK4 mean, Euler Jacobian)."""
 
         def predict_x(self, u: NDArray[np.float64] | None = None) -> None:
-            x, y, theta = np.asarray(self.x, dtype=np.float64)  # type: ignore[has-type]
-            v, omega = (0.0, 0.0) if u is None else u
-            self.F = np.array(
-                [[1.0, 0.0, -v * dt * np.sin(theta)], [0.0, 1.0, v * dt * np.cos(theta)], [0.0, 0.0, 1.0]]
-            )
-            self.x = np.array(
-                [
-                    x + v * dt * np.cos(theta),
-                    y + v * dt * np.sin(theta),
-                    float(wrap_angle(theta + omega * dt)),
-                ]
-            )
+            command = np.zeros(2) if u is None else np.asarray(u, dtype=np.float64)
+            pose = np.asarray(self.x, dtype=np.float64)  # type: ignore[has-type]
+            self.F = _jacobian(pose, command, dt)
+            self.x = _predict_pose(pose, command, dt)
 
     ekf = UnicycleEKF(dim_x=3, dim_z=3, dim_u=2)
     ekf.x = np.array(pose, dtype=np.float64)
     measurement = np.array([options.position_std, options.position_std, options.heading_std]) ** 2
     ekf.R = np.diag(measurement)
     ekf.P = np.diag(measurement)
-    ekf.Q = np.diag(np.array([options.process_position_std] * 2 + [options.process_heading_std]) ** 2)
+    ekf.Q = _process_noise(options)
     return ekf
+
+
+def _process_noise(options: EstimatorOptions) -> NDArray[np.float64]:
+    return np.diag(np.array([options.process_position_std] * 2 + [options.process_heading_std]) ** 2)
 
 
 def _residual(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -121,7 +162,7 @@ _IDENTITY = np.eye(3)
 
 
 class PoseEstimator(BaseController):
-    """Any controller behind a per-robot pose EKF (see the module docstring).
+    """Any controller behind a per-robot pose EKF with delay compensation (see the module docstring).
 
     Parameters
     ----------
@@ -142,16 +183,19 @@ class PoseEstimator(BaseController):
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         self.inner.reset(scenario, seed=seed)
         self._filters = []
+        # the commands sent and not yet done: [acting in the period that just ended, then the
+        # delay ones still queued]; the env's queue starts with zero commands too
         self._commands = deque([np.zeros((scenario.n_robots, 2))] * (self.options.delay + 1))
         self._limits = np.array([scenario.v_max, scenario.omega_max])
 
-    def _estimate(self, observed: NDArray[np.float64]) -> NDArray[np.float64]:
-        """One predict (with the command acting in the period that just ended) and update per robot."""
+    def _estimate(self, observed: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """One predict (with the command acting in the period that just ended) and update per
+        robot: the filtered poses (N, 3) and their covariances (N, 3, 3)."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         if not self._filters:  # the first period: the measurement is the best there is
             self._filters = [_unicycle_ekf(pose, self.options, scenario.dt) for pose in observed]
-            return observed.copy()
+            return observed.copy(), np.stack([np.array(ekf.P, dtype=np.float64) for ekf in self._filters])
         acting = self._commands[0]
         estimate = np.empty_like(observed)
         for i, ekf in enumerate(self._filters):
@@ -159,12 +203,33 @@ class PoseEstimator(BaseController):
             ekf.update(observed[i], lambda _x: _IDENTITY, lambda x: x, residual=_residual)
             ekf.x[2] = wrap_angle(ekf.x[2])
             estimate[i] = ekf.x
-        return estimate
+        return estimate, np.stack([np.array(ekf.P, dtype=np.float64) for ekf in self._filters])
+
+    def _compensate(
+        self, poses: NDArray[np.float64], covariances: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The poses (and covariances) at which a command sent now will act: propagated through
+        the ``delay`` commands already sent (the unicycle, no slip; the covariance grows by the
+        process noise each period). The identity at ``delay=0`` or ``compensate_delay=False``."""
+        if self.options.delay == 0 or not self.options.compensate_delay:
+            return poses, covariances
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        poses, covariances = poses.copy(), covariances.copy()
+        q = _process_noise(self.options)
+        for queued in list(self._commands)[1:]:  # oldest first: the order they will act in
+            for i in range(poses.shape[0]):
+                f = _jacobian(poses[i], queued[i], scenario.dt)
+                poses[i] = _predict_pose(poses[i], queued[i], scenario.dt)
+                covariances[i] = f @ covariances[i] @ f.T + q
+        return poses, covariances
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         start = time.perf_counter()
-        estimate = self._estimate(np.asarray(info["observed_poses"], dtype=np.float64))
-        view = dict(info, observed_poses=estimate)
+        estimate, covariance = self._compensate(
+            *self._estimate(np.asarray(info["observed_poses"], dtype=np.float64))
+        )
+        view = dict(info, observed_poses=estimate, pose_covariance=covariance)
         if "known_poses" in info:
             known = np.array(info["known_poses"], dtype=np.float64)
             n = known.shape[0]

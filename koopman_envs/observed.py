@@ -19,7 +19,17 @@ __all__ = ["OBSERVED_KEYS", "observed_view"]
 #: The info keys a controller may read: every robot's own pose estimate, what each robot has
 #: heard of its team-mates and how old it is, the lidar readings, the targets (a robot's goal is
 #: given, not sensed) and, with movers and ``sensing="state"``, the tracked movers (x, y, vx, vy).
-OBSERVED_KEYS = ("observed_poses", "known_poses", "message_age", "lidar_ranges", "targets", "observed_movers")
+#: ``pose_covariance`` (N, 3, 3) is never written by an env: a controller's own estimator in front
+#: of another (``ekf:``) hands it on with its estimates.
+OBSERVED_KEYS = (
+    "observed_poses",
+    "known_poses",
+    "message_age",
+    "lidar_ranges",
+    "targets",
+    "observed_movers",
+    "pose_covariance",
+)
 
 
 def observed_view(info: dict[str, Any]) -> dict[str, Any]:

@@ -58,3 +58,84 @@ def test_the_prefix_builds_any_controller_and_checks_its_options() -> None:
         controllers.make("ekf:consensus", ekf_delay=-1)
     names = [o.name for o in controllers.options("ekf:nominal-nmpc").options]
     assert "ekf_position_std" in names and "horizon" in names
+
+
+# --------------------------------------------------------------------------- delay compensation
+class _Weaving(controllers.BaseController):
+    """Changes its command every period (so a stale command is not the current one) and keeps
+    what it was handed."""
+
+    name = "weaving"
+
+    def _reset(self, scenario, seed):
+        self.seen, self.covariances, self.t = [], [], 0
+
+    def _act(self, observation, info):
+        self.seen.append(np.array(info["observed_poses"]))
+        self.covariances.append(np.array(info["pose_covariance"]))
+        self.t += 1
+        n = len(info["observed_poses"])
+        return np.tile([0.2 + 0.3 * np.sin(0.3 * self.t), 0.6 * np.cos(0.2 * self.t)], n)
+
+
+@pytest.mark.parametrize("delay", [1, 2, 3, 4])
+def test_delay_compensation_is_exact_without_noise_or_slip(delay) -> None:
+    """The pose handed on at period t is the true pose at t + delay, when the new command acts."""
+    env = gym.make(
+        "KoopNav-TargetReaching-v0", map="map1", slip="nominal", actuation_delay=delay, max_episode_steps=100
+    )
+    inner = _Weaving()
+    ekf = PoseEstimator(inner, delay=delay)
+    obs, info = env.reset(seed=1)
+    ekf.reset(env, seed=1)
+    truth = []
+    for _ in range(40):
+        truth.append(np.array(info["poses"]))
+        obs, _, terminated, truncated, info = env.step(ekf.act(obs, info))
+        assert not (terminated or truncated)
+    truth.append(np.array(info["poses"]))
+    for t in range(len(inner.seen) - delay):
+        handed, actual = inner.seen[t], truth[t + delay]
+        assert np.allclose(handed[:, :2], actual[:, :2], atol=1e-9), (t, handed - actual)
+        assert np.allclose(np.cos(handed[:, 2] - actual[:, 2]), 1.0, atol=1e-12)
+    # the robots moved: the check compares poses that differ from the pose at t
+    assert np.linalg.norm(truth[-1][:, :2] - truth[0][:, :2]) > 0.5
+    # without compensation the inner controller is handed the pose now, `delay` periods stale
+    plain = _Weaving()
+    uncompensated = PoseEstimator(plain, delay=delay, compensate_delay=False)
+    obs, info = env.reset(seed=1)
+    uncompensated.reset(env, seed=1)
+    for _ in range(20):
+        obs, *_, info = env.step(uncompensated.act(obs, info))
+    assert np.allclose(plain.seen[10][:, :2], truth[10][:, :2], atol=1e-9)
+    assert not np.allclose(plain.seen[10][:, :2], truth[10 + delay][:, :2], atol=1e-3)
+
+
+def test_the_covariance_grows_with_each_compensated_period() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", pose_noise={"xy": 0.03, "heading": 0.02}, actuation_delay=3)
+    spreads = {}
+    for delay in (0, 1, 3):
+        inner = _Weaving()
+        ekf = PoseEstimator(inner, delay=delay, position_std=0.03, heading_std=0.02)
+        obs, info = env.reset(seed=2)
+        ekf.reset(env, seed=2)
+        for _ in range(30):
+            obs, *_, info = env.step(ekf.act(obs, info))
+        cov = inner.covariances[-1]
+        assert cov.shape == (3, 3, 3) and np.allclose(cov, np.swapaxes(cov, 1, 2))
+        assert np.all(np.linalg.eigvalsh(cov) > 0)
+        spreads[delay] = np.trace(cov[:, :2, :2], axis1=1, axis2=2)
+    assert np.all(spreads[0] < spreads[1]) and np.all(spreads[1] < spreads[3])
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"ekf_delay": 101}, r"ekf_delay=101 must be an integer >= 0 and <= 100"),
+        ({"ekf_compensate_delay": "yes"}, r"ekf_compensate_delay='yes' must be True or False"),
+        ({"ekf_position_std": 0}, r"ekf_position_std=0 must be a finite number > 0"),
+    ],
+)
+def test_bad_estimator_options_name_the_value(options, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        controllers.make("ekf:consensus", **options)

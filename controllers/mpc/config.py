@@ -183,6 +183,16 @@ class NMPCConfig:
         :mod:`controllers.movers`.
     mover_offset : float
         (ours) Margin added to the radii toward a mover [m] (default: ``obstacle_offset``).
+    chance_risk : float
+        (ours) Risk level of the chance constraints, in (0, 0.5): when an estimator in front
+        (``ekf:``) hands on its pose covariance (``info["pose_covariance"]``), every collision
+        margin is widened by z sigma, z the standard normal quantile of 1 - ``chance_risk``
+        (1.645 at the default 0.05) and sigma the position standard deviation along the worst
+        direction (the 2x2 block's largest eigenvalue, rooted): toward obstacles and movers
+        sigma_i, between robots sqrt(sigma_i^2 + sigma_j^2). The probability that the true
+        position is past a planned margin along any one separating direction is then at most
+        ``chance_risk``. Without a covariance (no estimator, or none of the uncertainty it
+        models) the margins are the paper's, bit for bit.
     jit : bool or None
         Compile the NLP's functions to C (several times faster derivative evaluations). The
         compiled objects are cached on disk (:mod:`controllers.solvers.compiled`), so a problem
@@ -215,6 +225,7 @@ class NMPCConfig:
     mover_slots: int = 4
     mover_prediction: str = "constant_velocity"
     mover_offset: float = PARAMS.obstacle_offset
+    chance_risk: float = 0.05
     jit: bool | None = None
 
     @property
@@ -262,6 +273,10 @@ class NMPCConfig:
         check_int("obstacle_slots", self.obstacle_slots, 0)
         check_int("mover_slots", self.mover_slots, 0)
         check_number("mover_offset", self.mover_offset, at_least=0, note="metres")
+        if check_number("chance_risk", self.chance_risk, above=0, note="a probability") >= 0.5:
+            raise ValueError(
+                f"chance_risk={self.chance_risk!r} must lie in (0, 0.5) (at 0.5 and above z <= 0 adds no margin)"
+            )
         check_mover_prediction(self.mover_prediction)
         k = self.uncertainty_margin
         if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:

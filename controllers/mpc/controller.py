@@ -14,6 +14,7 @@ its public hooks: :meth:`NMPCController.share_problem`, the ``set_*`` methods, :
 
 from __future__ import annotations
 
+import statistics
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -30,7 +31,7 @@ from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
 from koopman_envs.scenario import Scenario
 
-__all__ = ["NMPCController", "SolveOutcome", "margin_spread"]
+__all__ = ["NMPCController", "SolveOutcome", "chance_tightening", "margin_spread"]
 
 
 def margin_spread(name: str, k: float, residual: NDArray | None, n_robots: int) -> NDArray[np.float64] | None:
@@ -50,6 +51,45 @@ def margin_spread(name: str, k: float, residual: NDArray | None, n_robots: int) 
             f"{n_robots} robots; call calibrate(plant) first (the evaluator does)"
         )
     return k * np.asarray(residual, dtype=float)
+
+
+def chance_tightening(
+    covariance: NDArray | None, risk: float, n_robots: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """How much to widen the collision margins for the pose estimate's uncertainty.
+
+    Parameters
+    ----------
+    covariance : ndarray, shape (N, 3, 3), or None
+        Each robot's pose covariance (x, y, heading), as an estimator hands it on.
+    risk : float
+        Risk level in (0, 0.5): the margin is z sigma with z the standard normal quantile of
+        ``1 - risk``.
+    n_robots : int
+        N.
+
+    Returns
+    -------
+    per_robot : ndarray, shape (N,)
+        z sigma_i [m], sigma_i the position standard deviation along the worst direction (the
+        square root of the largest eigenvalue of the 2x2 position block): added toward obstacles
+        and movers. Zeros without a covariance.
+    per_pair : ndarray, shape (N (N - 1) / 2,)
+        z sqrt(sigma_i^2 + sigma_j^2) for each pair i < j (the difference of two independent
+        errors): added between robots.
+    """
+    pairs = [(i, j) for i in range(n_robots) for j in range(i + 1, n_robots)]
+    if covariance is None:
+        return np.zeros(n_robots), np.zeros(len(pairs))
+    cov = np.asarray(covariance, dtype=np.float64)
+    if cov.shape != (n_robots, 3, 3) or not np.all(np.isfinite(cov)):
+        raise ValueError(
+            f"pose_covariance has shape {cov.shape} or a non-finite entry; expected finite ({n_robots}, 3, 3)"
+        )
+    variance = np.maximum(np.linalg.eigvalsh(cov[:, :2, :2])[:, -1], 0.0)
+    z = statistics.NormalDist().inv_cdf(1.0 - risk)
+    per_pair = np.array([z * np.sqrt(variance[i] + variance[j]) for i, j in pairs])
+    return z * np.sqrt(variance), per_pair.reshape(len(pairs))
 
 
 @dataclass
@@ -290,15 +330,19 @@ class NMPCController(BaseController):
         """Use these model coefficients (the model's ``nlp_parameters`` layout) from the next solve on."""
         self._params[self._block("model")] = theta
 
-    def _fill_slots(self, positions: NDArray) -> None:
-        """Refresh the obstacle slots and the pair slots from the robots' current positions."""
+    def _fill_slots(self, positions: NDArray, pair_tightening: NDArray | None = None) -> None:
+        """Refresh the obstacle slots and the pair slots from the robots' current positions (the
+        pair margins widened by ``pair_tightening``, one per pair i < j, when given)."""
         if self.config.obstacle_slots:
             self._params[self._block("obstacles")] = nearest_obstacle_slots(
                 positions, self._scenario_obstacles, self.config.obstacle_slots
             )
         if not self.config.pair_slots:
             return
-        values, dropped = self._pair_slots.assign(positions, self._params[self._block("pair_margin")])
+        margins = self._params[self._block("pair_margin")]
+        if pair_tightening is not None:
+            margins = margins + pair_tightening
+        values, dropped = self._pair_slots.assign(positions, margins)
         if dropped:
             self._stats.counts["pairs_dropped"] += dropped
         self._params[self._block("pair_select").start : self._block("pair_reach").stop] = values
@@ -355,12 +399,18 @@ class NMPCController(BaseController):
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
         state = encode_state(info["observed_poses"], prob.coding)
+        assert self.scenario is not None  # act() checked it
+        # an estimator in front hands on its covariance: chance-constrained margins (none without)
+        covariance = info.get("pose_covariance")
+        per_robot, per_pair = chance_tightening(covariance, self.config.chance_risk, self.scenario.n_robots)
         if self.config.obstacle_slots or self.config.pair_slots:
-            self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2])
+            self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2], per_pair)
         if self._mover_slots:
             self._fill_movers(np.asarray(info["observed_poses"], dtype=float)[:, :2], observed_movers(info))
         params = self._params.copy()
         params[prob.layout["x_meas"]] = state
+        if covariance is not None:
+            self._tighten(params, per_robot, per_pair)
         cold = self._warm is None
         if self._warm is None:  # cold
             guess = {
@@ -391,6 +441,19 @@ class NMPCController(BaseController):
         self._failed = True
         self._warm = None  # a failed iterate is a poor starting point: restart cold next step
         return self._fallback_command()
+
+    def _tighten(self, params: NDArray, per_robot: NDArray, per_pair: NDArray) -> None:
+        """Widen this solve's collision margins (``params``, a copy) by :func:`chance_tightening`'s
+        amounts (the pair slots took theirs in :meth:`_fill_slots`)."""
+        prob = self._problem
+        assert prob is not None  # built by _reset, which act() requires
+        params[prob.layout["obstacle_margin"]] += per_robot
+        params[prob.layout["pair_margin"]] += per_pair
+        if self._mover_slots:  # a mover slot serves the whole team: the least certain robot's margin
+            reach = prob.layout["neighbour_reach"]
+            movers = slice(reach.start + self.neighbour_slots, reach.stop)
+            params[movers] += per_robot.max() * (params[movers] > 0)
+        self._stats.counts["tightened"] += 1
 
     def _solve(self, params: NDArray, guess: dict[str, NDArray], cold: bool) -> SolveOutcome:
         """The main solver, then the fallback solver on failure (both counted in the status)."""
