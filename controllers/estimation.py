@@ -47,10 +47,12 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "wrap"]
+__all__ = ["AUTO", "DelayIdentifier", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "wrap"]
 
 #: prefix of the estimator's options in a wrapped configuration's option list
 ESTIMATOR_OPTION_PREFIX = "ekf_"
+#: ``delay="auto"``: identify the actuation delay online
+AUTO = "auto"
 
 
 @dataclass(frozen=True)
@@ -67,9 +69,12 @@ class EstimatorOptions:
         Unmodelled motion per period (slip, delay) of x and y [m].
     process_heading_std : float
         Unmodelled turn per period [rad].
-    delay : int
-        Periods between a command and its action that the prediction assumes (the env's
-        ``actuation_delay``, if known).
+    delay : int or "auto"
+        Periods between a command and its action that the prediction assumes: the env's
+        ``actuation_delay`` if known (the datasheet), or ``"auto"``: identified online from how
+        the measured motion follows the commands (:class:`DelayIdentifier`; 0 until it is sure).
+    max_delay : int
+        With ``delay="auto"``: the largest delay considered [periods] (default 10).
     compensate_delay : bool
         Hand the inner controller the pose predicted through the ``delay`` commands already sent
         (where its new command will act) instead of the filtered pose now (default True; a no-op
@@ -80,7 +85,8 @@ class EstimatorOptions:
     heading_std: float = 0.02
     process_position_std: float = 0.01
     process_heading_std: float = 0.02
-    delay: int = 0
+    delay: int | str = 0
+    max_delay: int = 10
     compensate_delay: bool = True
 
     @classmethod
@@ -94,7 +100,16 @@ class EstimatorOptions:
                     f"allowed: {[prefix + a for a in allowed]}"
                 )
             if key == "delay":
-                check_int(prefix + key, value, 0, maximum=LIMITS.actuation_delay, note="control periods")
+                if value != AUTO:
+                    check_int(
+                        prefix + key,
+                        value,
+                        0,
+                        maximum=LIMITS.actuation_delay,
+                        note=f"control periods, or {AUTO!r}",
+                    )
+            elif key == "max_delay":
+                check_int(prefix + key, value, 1, maximum=LIMITS.actuation_delay, note="control periods")
             elif key == "compensate_delay":
                 if not isinstance(value, (bool, np.bool_)):
                     raise ValueError(f"{prefix + key}={value!r} must be True or False")
@@ -161,6 +176,89 @@ def _residual(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.floa
 _IDENTITY = np.eye(3)
 
 
+class DelayIdentifier:
+    """The actuation delay from how the measured motion follows the commands sent.
+
+    For every candidate delay d in 0..``max_delay`` it fits, per robot, the motion measured over
+    each period (the displacement along the measured heading, and the turn) to the command sent
+    d periods before that period, with one gain per robot and channel (slip scales a command, it
+    does not delay it), and keeps the least-squares residual. The delay is the candidate with the
+    smallest residual once the commands have moved the team enough to tell
+    (``min_excitation``, in metres of commanded travel summed over the robots, and
+    ``min_periods``). Sums only: constant memory and time per period.
+
+    Parameters
+    ----------
+    n_robots : int
+        N.
+    max_delay : int
+        Largest delay considered [periods].
+    dt : float
+        Control period [s].
+    min_periods : int
+        Periods observed before a delay is named.
+    min_excitation : float
+        Commanded travel [m], summed over robots and periods, before a delay is named.
+    """
+
+    #: the turn's weight in the residual [m/rad]: a robot radius, so that a turn counts as the
+    #: travel of its rim
+    TURN_SCALE = 0.2
+
+    def __init__(
+        self, n_robots: int, max_delay: int, dt: float, min_periods: int = 10, min_excitation: float = 1.0
+    ) -> None:
+        self.max_delay, self.dt = max_delay, dt
+        self.min_periods, self.min_excitation = min_periods, min_excitation
+        shape = (2, n_robots, max_delay + 1)  # channel (travel, turn), robot, candidate delay
+        self._sxy, self._syy = np.zeros(shape), np.zeros(shape)
+        self._sxx = np.zeros(shape[:2])
+        self._sent: deque[NDArray[np.float64]] = deque(
+            [np.zeros((n_robots, 2))] * (max_delay + 1), maxlen=max_delay + 1
+        )
+        self._last: NDArray[np.float64] | None = None
+        self.periods = 0
+        self.excitation = 0.0
+
+    def observe(self, measured: NDArray[np.float64]) -> None:
+        """The poses measured now (N, 3); call once per period, before :meth:`sent`."""
+        if self._last is not None:
+            step = measured[:, :2] - self._last[:, :2]
+            heading = self._last[:, 2]
+            motion = np.stack(
+                [
+                    step[:, 0] * np.cos(heading) + step[:, 1] * np.sin(heading),
+                    self.TURN_SCALE * wrap_angle(measured[:, 2] - self._last[:, 2]),
+                ]
+            )  # (2, N)
+            # candidate d: the command sent d periods before the last one acted in this period
+            sent = np.stack(list(self._sent)[::-1], axis=-1)  # (N, 2, D + 1): newest first
+            commanded = np.stack([sent[:, 0], self.TURN_SCALE * sent[:, 1]]) * self.dt  # (2, N, D + 1)
+            self._sxy += motion[..., None] * commanded
+            self._syy += commanded * commanded
+            self._sxx += motion * motion
+            self.periods += 1
+            self.excitation += float(np.abs(commanded[0, :, 0]).sum())
+        self._last = np.array(measured, dtype=np.float64)
+
+    def sent(self, command: NDArray[np.float64]) -> None:
+        """The command sent this period (N, 2), as it will act (clipped to the limits)."""
+        self._sent.append(np.array(command, dtype=np.float64))
+
+    def residuals(self) -> NDArray[np.float64]:
+        """The least-squares residual of each candidate delay (D + 1,), summed over robots and channels."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            explained = np.where(self._syy > 0, self._sxy**2 / self._syy, 0.0)
+        return (self._sxx[..., None] - explained).sum(axis=(0, 1))
+
+    @property
+    def delay(self) -> int | None:
+        """The identified delay [periods], or None while the data cannot tell yet."""
+        if self.periods < self.min_periods or self.excitation < self.min_excitation:
+            return None
+        return int(np.argmin(self.residuals()))
+
+
 class PoseEstimator(BaseController):
     """Any controller behind a per-robot pose EKF with delay compensation (see the module docstring).
 
@@ -178,15 +276,30 @@ class PoseEstimator(BaseController):
         self.options = EstimatorOptions.from_options(**options)
         self.name = f"ekf:{getattr(inner, 'name', type(inner).__name__)}"
         self._filters: list[Any] = []
-        self._commands: deque[NDArray[np.float64]] = deque()
+        self._sent: deque[NDArray[np.float64]] = deque()
+        self._identifier: DelayIdentifier | None = None
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         self.inner.reset(scenario, seed=seed)
         self._filters = []
-        # the commands sent and not yet done: [acting in the period that just ended, then the
-        # delay ones still queued]; the env's queue starts with zero commands too
-        self._commands = deque([np.zeros((scenario.n_robots, 2))] * (self.options.delay + 1))
+        options = self.options
+        longest = options.max_delay if options.delay == AUTO else int(options.delay)
+        # the commands sent, newest last; the env's queue starts with zero commands too
+        self._sent = deque([np.zeros((scenario.n_robots, 2))] * (longest + 1), maxlen=longest + 1)
+        self._identifier = (
+            DelayIdentifier(scenario.n_robots, options.max_delay, scenario.dt)
+            if options.delay == AUTO
+            else None
+        )
         self._limits = np.array([scenario.v_max, scenario.omega_max])
+
+    @property
+    def delay(self) -> int:
+        """The delay the prediction assumes now [periods]: the option, or the identified one
+        (0 while :class:`DelayIdentifier` cannot tell yet)."""
+        if self._identifier is None:
+            return int(self.options.delay)
+        return self._identifier.delay or 0
 
     def _estimate(self, observed: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """One predict (with the command acting in the period that just ended) and update per
@@ -196,7 +309,7 @@ class PoseEstimator(BaseController):
         if not self._filters:  # the first period: the measurement is the best there is
             self._filters = [_unicycle_ekf(pose, self.options, scenario.dt) for pose in observed]
             return observed.copy(), np.stack([np.array(ekf.P, dtype=np.float64) for ekf in self._filters])
-        acting = self._commands[0]
+        acting = self._sent[-1 - self.delay]  # sent `delay` periods before the period that just ended
         estimate = np.empty_like(observed)
         for i, ekf in enumerate(self._filters):
             ekf.predict(u=acting[i])
@@ -211,13 +324,14 @@ class PoseEstimator(BaseController):
         """The poses (and covariances) at which a command sent now will act: propagated through
         the ``delay`` commands already sent (the unicycle, no slip; the covariance grows by the
         process noise each period). The identity at ``delay=0`` or ``compensate_delay=False``."""
-        if self.options.delay == 0 or not self.options.compensate_delay:
+        delay = self.delay
+        if delay == 0 or not self.options.compensate_delay:
             return poses, covariances
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         poses, covariances = poses.copy(), covariances.copy()
         q = _process_noise(self.options)
-        for queued in list(self._commands)[1:]:  # oldest first: the order they will act in
+        for queued in list(self._sent)[len(self._sent) - delay :]:  # oldest first: as they will act
             for i in range(poses.shape[0]):
                 f = _jacobian(poses[i], queued[i], scenario.dt)
                 poses[i] = _predict_pose(poses[i], queued[i], scenario.dt)
@@ -226,9 +340,10 @@ class PoseEstimator(BaseController):
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         start = time.perf_counter()
-        estimate, covariance = self._compensate(
-            *self._estimate(np.asarray(info["observed_poses"], dtype=np.float64))
-        )
+        measured = np.asarray(info["observed_poses"], dtype=np.float64)
+        if self._identifier is not None:
+            self._identifier.observe(measured)
+        estimate, covariance = self._compensate(*self._estimate(measured))
         view = dict(info, observed_poses=estimate, pose_covariance=covariance)
         if "known_poses" in info:
             known = np.array(info["known_poses"], dtype=np.float64)
@@ -237,16 +352,27 @@ class PoseEstimator(BaseController):
             view["known_poses"] = known
         middle = time.perf_counter()
         command = np.asarray(self.inner.act(observation, view), dtype=np.float64)
-        self._commands.append(np.clip(command.reshape(-1, 2), -self._limits, self._limits))
-        self._commands.popleft()
+        sent = np.clip(command.reshape(-1, 2), -self._limits, self._limits)
+        self._sent.append(sent)
+        if self._identifier is not None:
+            self._identifier.sent(sent)
         self._stats.extra_times.setdefault("estimator", []).append(middle - start)
         return command
 
     def stats(self) -> ControllerStats:
-        """The inner controller's statistics, with the filter's time per period (``estimator``)."""
+        """The inner controller's statistics, with the filter's time per period (``estimator``)
+        and, with ``delay="auto"``, the delay identified by the episode's end (``identified_delay``,
+        -1 when the data could not tell)."""
         inner = self.inner.stats()
         times = self._stats.extra_times.get("estimator", [])
-        return dataclasses.replace(inner, extra_times={**inner.extra_times, "estimator": list(times)})
+        counts = inner.counts
+        if self._identifier is not None:
+            identified = self._identifier.delay
+            counts = counts.copy()
+            counts["identified_delay"] = -1 if identified is None else identified
+        return dataclasses.replace(
+            inner, extra_times={**inner.extra_times, "estimator": list(times)}, counts=counts
+        )
 
 
 def wrap(inner_factory: Callable[..., Controller], **options: Any) -> PoseEstimator:

@@ -134,8 +134,59 @@ def test_the_covariance_grows_with_each_compensated_period() -> None:
         ({"ekf_delay": 101}, r"ekf_delay=101 must be an integer >= 0 and <= 100"),
         ({"ekf_compensate_delay": "yes"}, r"ekf_compensate_delay='yes' must be True or False"),
         ({"ekf_position_std": 0}, r"ekf_position_std=0 must be a finite number > 0"),
+        (
+            {"ekf_delay": "automatic"},
+            r"ekf_delay='automatic' must be an integer >= 0 and <= 100 \(control periods, or 'auto'\)",
+        ),
+        ({"ekf_max_delay": 0}, r"ekf_max_delay=0 must be an integer >= 1 and <= 100"),
     ],
 )
 def test_bad_estimator_options_name_the_value(options, message) -> None:
     with pytest.raises(ValueError, match=message):
         controllers.make("ekf:consensus", **options)
+
+
+# --------------------------------------------------------------------------- delay identification
+def _identified(uncertainty: str, delay: int, seed: int, steps: int) -> int | None:
+    env = gym.make(
+        "KoopNav-TargetReaching-v0",
+        uncertainty=uncertainty,
+        actuation_delay=delay,
+        slip="high",
+        max_episode_steps=300,
+    )
+    ekf = PoseEstimator(_Weaving(), delay="auto")
+    obs, info = env.reset(seed=seed)
+    ekf.reset(env, seed=seed)
+    for _ in range(steps):
+        obs, *_, info = env.step(ekf.act(obs, info))
+    return ekf._identifier.delay
+
+
+@pytest.mark.parametrize("delay", [0, 1, 2, 3, 4])
+def test_the_delay_is_identified_online_within_one_period(delay) -> None:
+    """Stated: after 40 periods under `realistic` (3 cm, 0.02 rad of localization noise, high slip)
+    and after 100 under `harsh` (10 cm), the identified delay is within one period of the truth
+    (measured: exact in 59 of 60 realistic runs over delays 0-6, within one in all)."""
+    for seed in range(4):
+        assert abs(_identified("realistic", delay, seed, 40) - delay) <= 1, seed
+        assert abs(_identified("harsh", delay, seed, 100) - delay) <= 1, seed
+
+
+def test_without_noise_the_delay_is_exact_and_the_compensation_follows_it() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1", actuation_delay=3, max_episode_steps=100)
+    inner = _Weaving()
+    ekf = PoseEstimator(inner, delay="auto")
+    obs, info = env.reset(seed=0)
+    ekf.reset(env, seed=0)
+    assert ekf.delay == 0  # nothing seen yet: no compensation
+    truth = []
+    for _ in range(30):
+        truth.append(np.array(info["poses"]))
+        obs, *_, info = env.step(ekf.act(obs, info))
+    assert ekf.delay == 3 and ekf.stats().counts["identified_delay"] == 3
+    # once identified, the pose handed on is the pose at which the command acts, as with delay=3
+    # (to a fraction of a millimetre: the filter still carries the error of its first periods,
+    # predicted with delay 0, while the exact measurements pull it back)
+    assert np.allclose(inner.seen[-4][:, :2], truth[-1][:, :2], atol=1e-3)
+    assert not np.allclose(inner.seen[-4][:, :2], truth[-4][:, :2], atol=1e-2)
