@@ -80,3 +80,19 @@ def test_the_nmpc_keeps_farther_from_an_obstacle_the_less_certain_it_is() -> Non
     assert plans["none"] < plans["small"] < plans["large"], plans
     # the berth grows by about the margins' difference (z sigma: 1.6 cm, then 13 cm)
     assert plans["large"] - plans["none"] > 0.08, plans
+
+
+def test_the_distributed_nmpc_passes_each_robot_its_covariance_and_widens_team_mates() -> None:
+    env = gym.make("KoopNav-TargetReaching-v0", map="map2")
+    obs, info = env.reset(seed=0)
+    n = env.unwrapped.scenario.n_robots
+    plain = controllers.make("dmpc-nominal", solver="rti")
+    plain.reset(env, seed=0)
+    plain.act(obs, info)
+    wide = controllers.make("dmpc-nominal", solver="rti")
+    wide.reset(env, seed=0)
+    covariance = np.tile(np.diag([0.05**2, 0.05**2, 1e-4]), (n, 1, 1))
+    wide.act(obs, {**info, "pose_covariance": covariance})
+    assert np.array_equal(plain._pair_tightening, np.zeros(n))
+    assert wide._pair_tightening == pytest.approx(np.full(n, Z95 * 0.05 * np.sqrt(2)))
+    assert wide.stats().counts["tightened"] == n and plain.stats().counts.get("tightened", 0) == 0

@@ -58,7 +58,7 @@ from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model
 from controllers.mpc.config import PARKED, NMPCConfig
-from controllers.mpc.controller import NMPCController, margin_spread
+from controllers.mpc.controller import NMPCController, chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel, decode_state, encode_state
 from controllers.mpc.plan_exchange import PlanLog
 from koopman_envs.checks import check_int, check_number
@@ -297,6 +297,7 @@ class DistributedNMPC(BaseController):
                 "team first (the evaluator does)"
             )
         self._spread = self._spreads(n)
+        self._pair_tightening = np.zeros(n)
         while len(self._agents) < n:
             self._agents.append(_RobotNMPC(self.config, self.neighbours))
         for i in range(n):  # each robot's obstacle margin widens by its own residual
@@ -426,7 +427,7 @@ class DistributedNMPC(BaseController):
             positions[:, slot] = self._plan_heard(j, int(ages[j]), bool(fresh[j]), poses[j])
             # the central NMPC's pair margin: the offset, widened to both robots' spreads
             margin = max(self.config.robot_offset, self._spread[i] + self._spread[j])
-            reach[slot] = scenario.robot_radius[j] + margin + self._delay
+            reach[slot] = scenario.robot_radius[j] + margin + self._delay + self._pair_tightening[i]
         agent.set_neighbours(positions, reach)
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -440,6 +441,12 @@ class DistributedNMPC(BaseController):
         fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
         new_plans = self._plans.copy()
         movers = {"observed_movers": info["observed_movers"]} if "observed_movers" in info else {}
+        # an estimator in front hands on each robot's covariance: its own NMPC tightens its
+        # obstacle and mover margins by it, and each team-mate's disc by z sigma sqrt(2) (a
+        # message carries a pose, not its covariance: the team-mate's is taken to be as large)
+        covariance = info.get("pose_covariance")
+        per_robot, _ = chance_tightening(covariance, self.config.chance_risk, n)
+        self._pair_tightening = np.sqrt(2.0) * per_robot
         start = time.perf_counter()
         for i in range(n):
             robot_start = time.perf_counter()
@@ -449,7 +456,8 @@ class DistributedNMPC(BaseController):
                 agent.restart()
                 self._stats.counts["restarts"] += 1
             # the robot's own NMPC puts the movers nearest to it into its mover slots
-            commands[i] = agent.act(observation, {"observed_poses": poses[i : i + 1], **movers})
+            own = {} if covariance is None else {"pose_covariance": np.asarray(covariance)[i : i + 1]}
+            commands[i] = agent.act(observation, {"observed_poses": poses[i : i + 1], **own, **movers})
             if not agent.solve_failed() and agent.last_plan is not None:
                 new_plans[:, i] = agent.last_plan[1][:, 0, :2]
             else:  # no new plan: predicted to hold its position
