@@ -12,7 +12,7 @@ import pytest
 
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
-from controllers.mpc.controller import chance_tightening
+from controllers.mpc.margins import chance_tightening
 from koopman_envs.sim.maps import MapSpec
 
 Z95 = statistics.NormalDist().inv_cdf(0.95)

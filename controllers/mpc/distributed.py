@@ -58,7 +58,9 @@ from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model
 from controllers.mpc.config import PARKED, NMPCConfig
-from controllers.mpc.controller import NMPCController, chance_tightening, margin_spread
+from controllers.mpc.controller import NMPCController
+from controllers.mpc.detour import DETOUR_CLEARANCE, detour_waypoint
+from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel, decode_state, encode_state
 from controllers.mpc.plan_exchange import PlanLog
 from koopman_envs.checks import check_int, check_number
@@ -75,38 +77,10 @@ COORDINATION = ("sequential", "jacobi")
 MODELS = ("nominal", "koopman")
 #: what a formation follower drives to (see the module docstring)
 FORMATION_GOALS = ("target", "leader-plan")
-#: extra distance [m] a detour waypoint keeps from an obstacle's inflated disc (ours)
-DETOUR_CLEARANCE = 0.3
-#: how far [m] beyond the tangent point a detour waypoint lies (ours)
-DETOUR_LEAD = 1.0
 #: a robot that moved less than STALL_DISTANCE [m] in STALL_PERIODS periods while away from its
 #: target has stalled: its next solve starts cold (ours)
 STALL_PERIODS = 10
 STALL_DISTANCE = 0.02
-
-
-def _tangent_waypoint(
-    position: NDArray[np.float64], centre: NDArray[np.float64], radius: float, side: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """A point on the tangent from ``position`` to the circle (``centre``, ``radius``) that
-    touches it on ``side`` (a unit vector from the centre), ``DETOUR_LEAD`` beyond the tangent
-    point: the straight path to it clears the circle."""
-    to_robot = position - centre
-    distance = float(np.hypot(*to_robot))
-    # a robot already within the clearance ring (pressed against the obstacle) takes the tangent
-    # of a ring just inside its own distance: the waypoint then leads around the obstacle
-    radius = min(radius, 0.95 * distance)
-    # the tangent point seen from the centre: angle acos(r / d) from the robot's direction,
-    # turned toward ``side``
-    base = np.arctan2(to_robot[1], to_robot[0])
-    turn = np.arccos(radius / distance)
-    candidates = [base + turn, base - turn]
-    touch = max(
-        (centre + radius * np.array([np.cos(a), np.sin(a)]) for a in candidates),
-        key=lambda point: float(np.dot(point - centre, side)),
-    )
-    direction = (touch - position) / np.hypot(*(touch - position))
-    return touch + DETOUR_LEAD * direction
 
 
 class _RobotNMPC(NMPCController):
@@ -357,26 +331,8 @@ class DistributedNMPC(BaseController):
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         target = self._goal(i)
-        line = target - position
-        length = float(np.hypot(*line))
-        if length < 1e-9:
-            return target
-        along = line / length
         inflate = scenario.robot_radius[i] + self.config.obstacle_offset + DETOUR_CLEARANCE
-        best: tuple[float, NDArray[np.float64]] | None = None
-        for x, y, r in scenario.obstacles:
-            centre = np.array([x, y])
-            reach = r + inflate
-            t = float(np.clip(np.dot(centre - position, along), 0.0, length))
-            closest = position + t * along
-            offset = closest - centre
-            gap = float(np.hypot(*offset))
-            if gap >= reach or t <= 0.0 or np.hypot(*(target - centre)) <= reach:
-                continue  # clear of the line, behind the robot, or the target is beside it
-            if best is None or t < best[0]:
-                side = offset / gap if gap > 1e-9 else np.array([-along[1], along[0]])
-                best = (t, _tangent_waypoint(position, centre, reach, side))
-        return target if best is None else best[1]
+        return detour_waypoint(position, target, scenario.obstacles, inflate)
 
     # -------------------------------------------------------------------- act
     def _plan_heard(
