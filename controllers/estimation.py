@@ -41,13 +41,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats
+from controllers.identification import MotionIdentifier
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["AUTO", "DelayIdentifier", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "wrap"]
+__all__ = ["AUTO", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "wrap"]
 
 #: prefix of the estimator's options in a wrapped configuration's option list
 ESTIMATOR_OPTION_PREFIX = "ekf_"
@@ -61,10 +62,14 @@ class EstimatorOptions:
 
     Attributes
     ----------
-    position_std : float
-        Localization noise of x and y [m] (default: the ``realistic`` preset's 0.03).
-    heading_std : float
-        Localization noise of the heading [rad].
+    position_std : float or "auto"
+        Localization noise of x and y [m] (default: the ``realistic`` preset's 0.03), or
+        ``"auto"``: identified online (:class:`~controllers.identification.MotionIdentifier`).
+        While the identified noise is below its floor (none) the measured poses are passed on
+        as they are, with no covariance: a team that localizes exactly is driven exactly as
+        without the estimator.
+    heading_std : float or "auto"
+        Localization noise of the heading [rad], or ``"auto"`` (identified with the position's).
     process_position_std : float
         Unmodelled motion per period (slip, delay) of x and y [m].
     process_heading_std : float
@@ -81,8 +86,8 @@ class EstimatorOptions:
         at ``delay=0``).
     """
 
-    position_std: float = 0.03
-    heading_std: float = 0.02
+    position_std: float | str = 0.03
+    heading_std: float | str = 0.02
     process_position_std: float = 0.01
     process_heading_std: float = 0.02
     delay: int | str = 0
@@ -110,6 +115,8 @@ class EstimatorOptions:
                     )
             elif key == "max_delay":
                 check_int(prefix + key, value, 1, maximum=LIMITS.actuation_delay, note="control periods")
+            elif key in ("position_std", "heading_std") and value == AUTO:
+                continue
             elif key == "compensate_delay":
                 if not isinstance(value, (bool, np.bool_)):
                     raise ValueError(f"{prefix + key}={value!r} must be True or False")
@@ -142,7 +149,14 @@ def _jacobian(pose: NDArray[np.float64], command: NDArray[np.float64], dt: float
     )
 
 
-def _unicycle_ekf(pose: NDArray[np.float64], options: EstimatorOptions, dt: float) -> Any:
+def _measurement_noise(position_std: float, heading_std: float) -> NDArray[np.float64]:
+    # a floor keeps R invertible when one part is identified as exact
+    return np.diag(np.maximum([position_std, position_std, heading_std], 1e-4) ** 2)
+
+
+def _unicycle_ekf(
+    pose: NDArray[np.float64], options: EstimatorOptions, noise: tuple[float, float], dt: float
+) -> Any:
     from filterpy.kalman import ExtendedKalmanFilter
 
     class UnicycleEKF(ExtendedKalmanFilter):  # type: ignore[misc]
@@ -156,9 +170,8 @@ def _unicycle_ekf(pose: NDArray[np.float64], options: EstimatorOptions, dt: floa
 
     ekf = UnicycleEKF(dim_x=3, dim_z=3, dim_u=2)
     ekf.x = np.array(pose, dtype=np.float64)
-    measurement = np.array([options.position_std, options.position_std, options.heading_std]) ** 2
-    ekf.R = np.diag(measurement)
-    ekf.P = np.diag(measurement)
+    ekf.R = _measurement_noise(*noise)
+    ekf.P = ekf.R.copy()
     ekf.Q = _process_noise(options)
     return ekf
 
@@ -174,89 +187,6 @@ def _residual(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.floa
 
 
 _IDENTITY = np.eye(3)
-
-
-class DelayIdentifier:
-    """The actuation delay from how the measured motion follows the commands sent.
-
-    For every candidate delay d in 0..``max_delay`` it fits, per robot, the motion measured over
-    each period (the displacement along the measured heading, and the turn) to the command sent
-    d periods before that period, with one gain per robot and channel (slip scales a command, it
-    does not delay it), and keeps the least-squares residual. The delay is the candidate with the
-    smallest residual once the commands have moved the team enough to tell
-    (``min_excitation``, in metres of commanded travel summed over the robots, and
-    ``min_periods``). Sums only: constant memory and time per period.
-
-    Parameters
-    ----------
-    n_robots : int
-        N.
-    max_delay : int
-        Largest delay considered [periods].
-    dt : float
-        Control period [s].
-    min_periods : int
-        Periods observed before a delay is named.
-    min_excitation : float
-        Commanded travel [m], summed over robots and periods, before a delay is named.
-    """
-
-    #: the turn's weight in the residual [m/rad]: a robot radius, so that a turn counts as the
-    #: travel of its rim
-    TURN_SCALE = 0.2
-
-    def __init__(
-        self, n_robots: int, max_delay: int, dt: float, min_periods: int = 10, min_excitation: float = 1.0
-    ) -> None:
-        self.max_delay, self.dt = max_delay, dt
-        self.min_periods, self.min_excitation = min_periods, min_excitation
-        shape = (2, n_robots, max_delay + 1)  # channel (travel, turn), robot, candidate delay
-        self._sxy, self._syy = np.zeros(shape), np.zeros(shape)
-        self._sxx = np.zeros(shape[:2])
-        self._sent: deque[NDArray[np.float64]] = deque(
-            [np.zeros((n_robots, 2))] * (max_delay + 1), maxlen=max_delay + 1
-        )
-        self._last: NDArray[np.float64] | None = None
-        self.periods = 0
-        self.excitation = 0.0
-
-    def observe(self, measured: NDArray[np.float64]) -> None:
-        """The poses measured now (N, 3); call once per period, before :meth:`sent`."""
-        if self._last is not None:
-            step = measured[:, :2] - self._last[:, :2]
-            heading = self._last[:, 2]
-            motion = np.stack(
-                [
-                    step[:, 0] * np.cos(heading) + step[:, 1] * np.sin(heading),
-                    self.TURN_SCALE * wrap_angle(measured[:, 2] - self._last[:, 2]),
-                ]
-            )  # (2, N)
-            # candidate d: the command sent d periods before the last one acted in this period
-            sent = np.stack(list(self._sent)[::-1], axis=-1)  # (N, 2, D + 1): newest first
-            commanded = np.stack([sent[:, 0], self.TURN_SCALE * sent[:, 1]]) * self.dt  # (2, N, D + 1)
-            self._sxy += motion[..., None] * commanded
-            self._syy += commanded * commanded
-            self._sxx += motion * motion
-            self.periods += 1
-            self.excitation += float(np.abs(commanded[0, :, 0]).sum())
-        self._last = np.array(measured, dtype=np.float64)
-
-    def sent(self, command: NDArray[np.float64]) -> None:
-        """The command sent this period (N, 2), as it will act (clipped to the limits)."""
-        self._sent.append(np.array(command, dtype=np.float64))
-
-    def residuals(self) -> NDArray[np.float64]:
-        """The least-squares residual of each candidate delay (D + 1,), summed over robots and channels."""
-        with np.errstate(divide="ignore", invalid="ignore"):
-            explained = np.where(self._syy > 0, self._sxy**2 / self._syy, 0.0)
-        return (self._sxx[..., None] - explained).sum(axis=(0, 1))
-
-    @property
-    def delay(self) -> int | None:
-        """The identified delay [periods], or None while the data cannot tell yet."""
-        if self.periods < self.min_periods or self.excitation < self.min_excitation:
-            return None
-        return int(np.argmin(self.residuals()))
 
 
 class PoseEstimator(BaseController):
@@ -277,7 +207,7 @@ class PoseEstimator(BaseController):
         self.name = f"ekf:{getattr(inner, 'name', type(inner).__name__)}"
         self._filters: list[Any] = []
         self._sent: deque[NDArray[np.float64]] = deque()
-        self._identifier: DelayIdentifier | None = None
+        self._identifier: MotionIdentifier | None = None
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         self.inner.reset(scenario, seed=seed)
@@ -286,32 +216,52 @@ class PoseEstimator(BaseController):
         longest = options.max_delay if options.delay == AUTO else int(options.delay)
         # the commands sent, newest last; the env's queue starts with zero commands too
         self._sent = deque([np.zeros((scenario.n_robots, 2))] * (longest + 1), maxlen=longest + 1)
+        identify = AUTO in (options.delay, options.position_std, options.heading_std)
         self._identifier = (
-            DelayIdentifier(scenario.n_robots, options.max_delay, scenario.dt)
-            if options.delay == AUTO
-            else None
+            MotionIdentifier(scenario.n_robots, options.max_delay, scenario.dt) if identify else None
         )
         self._limits = np.array([scenario.v_max, scenario.omega_max])
 
     @property
     def delay(self) -> int:
         """The delay the prediction assumes now [periods]: the option, or the identified one
-        (0 while :class:`DelayIdentifier` cannot tell yet)."""
-        if self._identifier is None:
+        (0 while :class:`~controllers.identification.MotionIdentifier` cannot tell yet)."""
+        if self.options.delay != AUTO:
             return int(self.options.delay)
+        assert self._identifier is not None  # made by _reset for "auto"
         return self._identifier.delay or 0
 
-    def _estimate(self, observed: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    @property
+    def noise(self) -> tuple[float, float]:
+        """The localization noise the filter assumes now (position [m], heading [rad]): the
+        options, or the identified levels (0 while unknown or below the floor)."""
+        options = self.options
+        identified = self._identifier.noise_levels() if self._identifier is not None else None
+        levels = identified or (0.0, 0.0)
+        position = levels[0] if options.position_std == AUTO else float(options.position_std)
+        heading = levels[1] if options.heading_std == AUTO else float(options.heading_std)
+        return position, heading
+
+    def _estimate(
+        self, observed: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         """One predict (with the command acting in the period that just ended) and update per
-        robot: the filtered poses (N, 3) and their covariances (N, 3, 3)."""
+        robot: the filtered poses (N, 3) and their covariances (N, 3, 3). While there is no noise
+        to filter (identified as none), the measured poses as they are and no covariance."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
-        if not self._filters:  # the first period: the measurement is the best there is
-            self._filters = [_unicycle_ekf(pose, self.options, scenario.dt) for pose in observed]
+        noise = self.noise
+        if not self._filters:
+            if noise == (0.0, 0.0):  # exact localization (so far): nothing to filter
+                return observed.copy(), None
+            # the first period with noise: the measurement is the best there is
+            self._filters = [_unicycle_ekf(pose, self.options, noise, scenario.dt) for pose in observed]
             return observed.copy(), np.stack([np.array(ekf.P, dtype=np.float64) for ekf in self._filters])
         acting = self._sent[-1 - self.delay]  # sent `delay` periods before the period that just ended
+        measurement = _measurement_noise(*noise)
         estimate = np.empty_like(observed)
         for i, ekf in enumerate(self._filters):
+            ekf.R = measurement  # an identified level is refined every period
             ekf.predict(u=acting[i])
             ekf.update(observed[i], lambda _x: _IDENTITY, lambda x: x, residual=_residual)
             ekf.x[2] = wrap_angle(ekf.x[2])
@@ -319,8 +269,8 @@ class PoseEstimator(BaseController):
         return estimate, np.stack([np.array(ekf.P, dtype=np.float64) for ekf in self._filters])
 
     def _compensate(
-        self, poses: NDArray[np.float64], covariances: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        self, poses: NDArray[np.float64], covariances: NDArray[np.float64] | None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         """The poses (and covariances) at which a command sent now will act: propagated through
         the ``delay`` commands already sent (the unicycle, no slip; the covariance grows by the
         process noise each period). The identity at ``delay=0`` or ``compensate_delay=False``."""
@@ -329,7 +279,9 @@ class PoseEstimator(BaseController):
             return poses, covariances
         scenario = self.scenario
         assert scenario is not None  # act() checked it
-        poses, covariances = poses.copy(), covariances.copy()
+        # exact localization: the prediction's own uncertainty only, grown from zero
+        covariances = np.zeros((poses.shape[0], 3, 3)) if covariances is None else covariances.copy()
+        poses = poses.copy()
         q = _process_noise(self.options)
         for queued in list(self._sent)[len(self._sent) - delay :]:  # oldest first: as they will act
             for i in range(poses.shape[0]):
@@ -344,7 +296,9 @@ class PoseEstimator(BaseController):
         if self._identifier is not None:
             self._identifier.observe(measured)
         estimate, covariance = self._compensate(*self._estimate(measured))
-        view = dict(info, observed_poses=estimate, pose_covariance=covariance)
+        view = dict(info, observed_poses=estimate)
+        if covariance is not None:
+            view["pose_covariance"] = covariance
         if "known_poses" in info:
             known = np.array(info["known_poses"], dtype=np.float64)
             n = known.shape[0]
@@ -361,8 +315,9 @@ class PoseEstimator(BaseController):
 
     def stats(self) -> ControllerStats:
         """The inner controller's statistics, with the filter's time per period (``estimator``)
-        and, with ``delay="auto"``, the delay identified by the episode's end (``identified_delay``,
-        -1 when the data could not tell)."""
+        and, when it identifies, what it identified by the episode's end: ``identified_delay``
+        (-1 when the data could not tell), ``identified_position_std_mm`` and
+        ``identified_heading_std_mrad``."""
         inner = self.inner.stats()
         times = self._stats.extra_times.get("estimator", [])
         counts = inner.counts
@@ -370,6 +325,10 @@ class PoseEstimator(BaseController):
             identified = self._identifier.delay
             counts = counts.copy()
             counts["identified_delay"] = -1 if identified is None else identified
+            noise = self._identifier.noise_levels()
+            if noise is not None:  # in millimetres and milliradians: the counts are integers
+                counts["identified_position_std_mm"] = round(1e3 * noise[0])
+                counts["identified_heading_std_mrad"] = round(1e3 * noise[1])
         return dataclasses.replace(
             inner, extra_times={**inner.extra_times, "estimator": list(times)}, counts=counts
         )
