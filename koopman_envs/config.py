@@ -15,7 +15,7 @@ from koopman_envs.keywords import env_keywords, unknown_keywords
 from koopman_envs.movers import MoverConfig
 from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
 from koopman_envs.sim.maps import MapSpec, load_map
-from koopman_envs.sim.random_maps import RandomMapConfig
+from koopman_envs.sim.random_map_config import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, CommConfig, LidarConfig, PoseNoise, parse_setting
@@ -52,6 +52,68 @@ def _uncertainty(kw: dict[str, Any]) -> dict[str, Any]:
         "comm": parse_setting("comm", kw["comm"], CommConfig, preset.comm),
         "actuation_delay": preset.actuation_delay if delay is None else delay,
     }
+
+
+def _episode_limit(kw: dict[str, Any], front: str | None) -> int | None:
+    """The episode limit from the checked keywords ``kw``: ``max_episode_steps`` or its other
+    name ``max_cycles`` (two different values are an error); without either, the vector and
+    PettingZoo fronts' default (they truncate by themselves), else None."""
+    max_episode_steps: int | None = kw["max_episode_steps"]
+    max_cycles: int | None = kw.get("max_cycles")
+    if max_cycles is not None:
+        if max_episode_steps is not None and max_episode_steps != max_cycles:
+            raise ValueError(
+                f"max_cycles={max_cycles!r} and max_episode_steps={max_episode_steps!r} differ: "
+                "they are two names of the one episode limit (max_cycles as in PettingZoo's MPE); "
+                "give one of them, or the same value to both"
+            )
+        max_episode_steps = max_cycles
+    if max_episode_steps is None and front in ("vector", "parallel"):
+        max_episode_steps = PARAMS.max_episode_steps  # these fronts truncate by themselves
+    return max_episode_steps
+
+
+def _resolve_map(spec: TaskSpec, kw: dict[str, Any]) -> tuple[MapSpec | None, RandomMapConfig]:
+    """The fixed map (None for ``map="random"``) and the random-map settings, from the checked
+    keywords ``kw`` of task ``spec``: the team (``n_robots``, ``robot_radius``) and the
+    ``formation`` shape must fit the map, checked now rather than at a reset hours into training."""
+    n_robots, robot_radius, formation = kw["n_robots"], kw["robot_radius"], kw["formation"]
+    random_map: RandomMapConfig = kw["random_map"]
+    map_arg = spec.default_map if kw["map"] is None else kw["map"]
+    if isinstance(map_arg, str) and map_arg == "random":
+        if formation is not None:
+            random_map = _random_map_formation(random_map, formation)
+        # a team whose shape cannot be placed fails here, not at a reset hours into training
+        random_map.shape_for(n_robots, float(np.max(robot_radius)))
+        return None, random_map
+    map_spec = load_map(map_arg)
+    try:
+        map_spec.validate(n_robots, robot_radius)
+    except ValueError as exc:  # a map that holds the default team may not hold this one
+        raise ValueError(f"{exc} (n_robots={n_robots}, robot_radius={robot_radius:g})") from None
+    if formation is not None:
+        if not spec.formation:
+            raise ValueError(
+                f"formation={formation!r} applies to formation maps ({TASKS['formation'].env_id}) or to "
+                f"map='random'; map {map_spec.name!r} of {spec.label} keeps its own targets"
+            )
+        map_spec = map_spec.with_formation(formation, n_robots, PARAMS.formation_spacing, robot_radius)
+    return map_spec, random_map
+
+
+def _resolve_slip(slip: Any, n_robots: int) -> tuple[NDArray[np.float64], SlipSchedule | None, str]:
+    """The per-robot base slip means (NaN when drawn per reset), the schedule (None for a level
+    that is constant through an episode) and the label of the checked ``slip`` setting."""
+    schedule = None
+    if isinstance(slip, str) and slip == RANDOM_SLIP:
+        lambdas = np.full(n_robots, np.nan)  # drawn per reset
+    elif is_schedule(slip):
+        schedule = SlipSchedule.parse(slip, n_robots)
+        lambdas = np.full(n_robots, np.nan) if schedule.drift else schedule.levels[0].copy()
+    else:
+        lambdas = slip_lambdas(slip, n_robots)
+    label = slip if isinstance(slip, str) else ("schedule" if schedule is not None else "custom")
+    return lambdas, schedule, label
 
 
 @dataclass(frozen=True)
@@ -136,61 +198,12 @@ class EngineConfig:
         spec = TASKS[task]
         # each keyword's own check (its row), then the rules between keywords
         kw = {k.name: k.resolve(keywords.get(k.name, k.default)) for k in rows}
-        n_robots, robot_radius, slip, formation = (
-            kw["n_robots"],
-            kw["robot_radius"],
-            kw["slip"],
-            kw["formation"],
-        )
-        if "slip" not in keywords:  # the preset's slip; a slip given beside the preset wins
-            slip = UNCERTAINTY_PRESETS[kw["uncertainty"]].slip
-        random_map, max_episode_steps, max_cycles = (
-            kw["random_map"],
-            kw["max_episode_steps"],
-            kw.get("max_cycles"),
-        )
-        if max_cycles is not None:
-            if max_episode_steps is not None and max_episode_steps != max_cycles:
-                raise ValueError(
-                    f"max_cycles={max_cycles!r} and max_episode_steps={max_episode_steps!r} differ: "
-                    "they are two names of the one episode limit (max_cycles as in PettingZoo's MPE); "
-                    "give one of them, or the same value to both"
-                )
-            max_episode_steps = max_cycles
-        if max_episode_steps is None and front in ("vector", "parallel"):
-            max_episode_steps = PARAMS.max_episode_steps  # these fronts truncate by themselves
-        map_arg = spec.default_map if kw["map"] is None else kw["map"]
-        if isinstance(map_arg, str) and map_arg == "random":
-            map_spec = None
-            if formation is not None:
-                random_map = _random_map_formation(random_map, formation)
-            # a team whose shape cannot be placed fails here, not at a reset hours into training
-            random_map.shape_for(n_robots, float(np.max(robot_radius)))
-        else:
-            map_spec = load_map(map_arg)
-            try:
-                map_spec.validate(n_robots, robot_radius)
-            except ValueError as exc:  # a map that holds the default team may not hold this one
-                raise ValueError(f"{exc} (n_robots={n_robots}, robot_radius={robot_radius:g})") from None
-            if formation is not None:
-                if not spec.formation:
-                    raise ValueError(
-                        f"formation={formation!r} applies to formation maps ({TASKS['formation'].env_id}) or to "
-                        f"map='random'; map {map_spec.name!r} of {spec.label} keeps its own targets"
-                    )
-                map_spec = map_spec.with_formation(
-                    formation, n_robots, PARAMS.formation_spacing, robot_radius
-                )
-        schedule = None
-        if isinstance(slip, str) and slip == RANDOM_SLIP:
-            lambdas = np.full(n_robots, np.nan)  # drawn per reset
-        elif is_schedule(slip):
-            schedule = SlipSchedule.parse(slip, n_robots)
-            lambdas = np.full(n_robots, np.nan) if schedule.drift else schedule.levels[0].copy()
-        else:
-            lambdas = slip_lambdas(slip, n_robots)
-        label = slip if isinstance(slip, str) else ("schedule" if schedule is not None else "custom")
-
+        n_robots, robot_radius, formation = kw["n_robots"], kw["robot_radius"], kw["formation"]
+        # the preset's slip; a slip given beside the preset wins
+        slip = kw["slip"] if "slip" in keywords else UNCERTAINTY_PRESETS[kw["uncertainty"]].slip
+        max_episode_steps = _episode_limit(kw, front)
+        map_spec, random_map = _resolve_map(spec, kw)
+        lambdas, schedule, label = _resolve_slip(slip, n_robots)
         return cls(
             task=spec,
             map_spec=map_spec,

@@ -18,64 +18,25 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_commands
 from koopman_envs.config import EngineConfig
-from koopman_envs.params import LIMITS, PARAMS
+from koopman_envs.engine_memory import check_engine_memory, engine_array_bytes
+from koopman_envs.episode_layout import episode_layout
+from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import collision_flags
 from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
-from koopman_envs.sim.mover_motion import DRAW_SIZE
 from koopman_envs.sim.movers import MoverField
-from koopman_envs.sim.perception import BLOCK_NUMBERS, Perception, observed_info
-from koopman_envs.sim.random_maps import generate_random_map
+from koopman_envs.sim.perception import Perception, observed_info
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
 from koopman_envs.sim.slip_schedule import SlipClock
-from koopman_envs.sim.starts import START_NOISE_ATTEMPTS, perturbed_starts
+from koopman_envs.sim.starts import START_NOISE_ATTEMPTS
 from koopman_envs.sim.zones import ZoneTable
-from koopman_envs.tasks.observation import FeatureBuilder, feature_size
+from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import score_step
 
 __all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult", "engine_array_bytes"]
-
-
-def engine_array_bytes(config: EngineConfig, num_envs: int) -> int:
-    """An estimate from above of the bytes of the arrays a :class:`NavigationEngine` of
-    ``num_envs`` environments of ``config`` holds and builds in a step, computed before any is
-    allocated: every keyword is bounded on its own (:data:`~koopman_envs.params.LIMITS`), but
-    their product over a batch is bounded here (``LIMITS.engine_bytes``).
-
-    Each term is an array (or a step's copies of it) of the engine's parts, in 8-byte numbers
-    unless said; the exact allocations are those parts' constructors.
-    """
-    n, m, k = config.n_robots, config.n_obstacles, int(num_envs)
-    lidar, comm, movers = config.lidar, config.comm, config.movers
-    beams = 0 if lidar is None else lidar.beams
-    slots = movers.observed if movers.active and lidar is None else 0
-    width = feature_size(n, config.n_obstacle_obs, config.task.formation, beams, not comm.perfect, slots)
-    words = (
-        40 * n  # poses, targets, starts, offsets, distances and the step's copies of them
-        + 3 * 128 * n  # the slip draws' block (SlipSampler: 128 periods)
-        + n * (n + m)
-        + 3 * m  # radius sums, obstacle discs
-        + n * n  # the builder's message ages
-        + 4 * n * width  # the features, their clipped copy, the observation and the info's
-        + 6 * config.n_slip_zones * (n + 1)  # zone table
-    )
-    if config.perceives:
-        numbers = 6 * n + n * (n - 1) + 2 * n * beams  # per period at most (Perception.__init__)
-        block = int(np.clip(BLOCK_NUMBERS // max(1, numbers), 8, 256))
-        words += (
-            8 * n * n  # known poses, message ages, their info copies
-            + 4 * n * beams  # readings, the exact scan, the info's copy
-            + 5 * n * (comm.latency + 1)  # the radio's sent poses and positions
-            + 2 * n * max(config.actuation_delay, 1)  # the command queue
-            + block * numbers  # single-precision normals and uniforms: two halves of one block
-        )
-    if movers.active:
-        c = movers.count
-        words += max(4096, 8 * c * DRAW_SIZE) + 16 * c + 6 * n  # the uniforms' pool, states, goals, hits
-    return 8 * k * words
 
 
 @dataclass
@@ -113,16 +74,7 @@ class NavigationEngine:
         self.config = config
         self.num_envs = int(num_envs)
         # every keyword is bounded by itself, their product over the batch here, before allocating
-        need = engine_array_bytes(config, self.num_envs)
-        if need > LIMITS.engine_bytes:
-            per_env = need / self.num_envs / 2**20
-            raise ValueError(
-                f"num_envs={self.num_envs} environments of n_robots={config.n_robots} (lidar.beams="
-                f"{0 if config.lidar is None else config.lidar.beams}, comm.latency={config.comm.latency}, "
-                f"movers.count={config.movers.count}) need about {need / 2**30:.1f} GiB of arrays "
-                f"({per_env:.1f} MiB each); the limit is {LIMITS.engine_bytes / 2**30:g} GiB "
-                "(koopman_envs.params.LIMITS): use fewer environments, robots or lidar beams"
-            )
+        check_engine_memory(config, self.num_envs)
         k, n, m = self.num_envs, config.n_robots, config.n_obstacles
         self.state = np.zeros((k, 3, n))
         self.target = np.zeros((k, 3, n))
@@ -234,9 +186,11 @@ class NavigationEngine:
     def reset_env(self, index: int, rng: np.random.Generator, options: ResetOptions | None = None) -> None:
         """Start a new episode in environment ``index``, drawing only from ``rng``.
 
-        ``options`` (from :func:`parse_reset_options`) replace the map's start poses and/or
-        targets for this episode; they are checked against the episode's map (a new one per
-        reset with ``map="random"``) before anything changes.
+        The episode's map, starts and targets come from
+        :func:`~koopman_envs.episode_layout.episode_layout`: ``options`` (from
+        :func:`parse_reset_options`) replace the map's start poses and/or targets for this
+        episode; they are checked against the episode's map (a new one per reset with
+        ``map="random"``) before anything changes.
 
         Raises
         ------
@@ -246,24 +200,7 @@ class NavigationEngine:
         """
         cfg = self.config
         n = cfg.n_robots
-        options = options or ResetOptions()
-        spec = self.maps[index]
-        if cfg.map_spec is None:
-            spec = generate_random_map(rng, n, cfg.random_map, float(cfg.robot_radius[0]))
-        # with a fixed map, __init__ installed it in every environment (and nothing removes it)
-        assert spec is not None
-        targets = spec.targets[:n] if options.targets is None else options.targets
-        if options.targets is not None:
-            self._check_placement(spec, targets, "targets")
-        if options.start_poses is not None:
-            self._check_placement(spec, options.start_poses, "start_poses")
-            starts = options.start_poses
-        elif cfg.start_noise > 0:
-            # the noise is drawn after the map and before the slip level, and only when asked
-            # for, so that start_noise=0 consumes nothing and replays earlier rollouts bit for bit
-            starts = perturbed_starts(spec, rng, cfg.n_robots, cfg.start_noise, float(cfg.robot_radius[0]))
-        else:
-            starts = spec.starts[:n]
+        spec, starts, targets = episode_layout(cfg, self.maps[index], rng, options or ResetOptions())
         if spec is not self.maps[index]:
             self._set_map(index, spec)
         self.target[index] = targets.T
@@ -304,18 +241,6 @@ class NavigationEngine:
             np.concatenate([geometry.obstacle_y, my], axis=1),
             np.concatenate([geometry.obstacle_r, mr], axis=1),
         )
-
-    def _check_placement(self, spec: MapSpec, poses: NDArray[np.float64], key: str) -> None:
-        """Raise ValueError naming ``options[key]`` if the team cannot stand at ``poses`` on ``spec``."""
-        radius = float(self.config.robot_radius[0])
-        label = "start" if key == "start_poses" else "target"
-        problem = spec.pose_problem(poses, radius, PARAMS.workspace, label)
-        if problem is not None:
-            raise ValueError(
-                f"options[{key!r}]: {problem} (map {spec.name!r}); allowed: (x, y, heading) rows whose "
-                f"robot discs of radius {radius} lie inside the workspace {PARAMS.workspace}, clear of "
-                "every obstacle and of each other"
-            )
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""
