@@ -54,6 +54,8 @@ class MotionIdentifier:
         Periods observed before a delay or a noise level is named.
     min_excitation : float
         Commanded travel [m], summed over robots and periods, before a delay is named.
+    lock_excitation : float
+        Commanded travel [m] after which the delay is kept for the episode.
     """
 
     #: the turn's weight in the fits [m/rad]: a robot radius, so that a turn counts as the travel
@@ -61,10 +63,18 @@ class MotionIdentifier:
     TURN_SCALE = 0.2
 
     def __init__(
-        self, n_robots: int, max_delay: int, dt: float, min_periods: int = 10, min_excitation: float = 1.0
+        self,
+        n_robots: int,
+        max_delay: int,
+        dt: float,
+        min_periods: int = 10,
+        min_excitation: float = 1.0,
+        lock_excitation: float = 10.0,
     ) -> None:
         self.max_delay, self.dt = max_delay, dt
         self.min_periods, self.min_excitation = min_periods, min_excitation
+        self.lock_excitation = lock_excitation
+        self._locked: int | None = None
         shape = (2, n_robots, max_delay + 1)  # channel (travel, turn), robot, candidate delay
         # sums over periods of the motion m, the commanded motion u of each candidate, and of
         # their products with the previous period's (suffix 1): what the fits and the residuals'
@@ -118,8 +128,12 @@ class MotionIdentifier:
         self._sent.append(np.array(command, dtype=np.float64))
 
     def _gains(self) -> NDArray[np.float64]:
+        # at least 0: a command moves a robot its way, slip only scales it. A negative fit comes
+        # from the feedback loop, not the actuators: a controller's command answers the noise of
+        # the pose it was given, which the next measured step takes back (near a goal, where the
+        # commands are as small as the noise, that alone would name the wrong delay)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(self._suu > 0, self._smu / self._suu, 0.0)
+            return np.where(self._suu > 0, np.maximum(self._smu / self._suu, 0.0), 0.0)
 
     def residuals(self) -> NDArray[np.float64]:
         """The least-squares residual of each candidate delay (D + 1,), summed over robots and channels."""
@@ -128,10 +142,18 @@ class MotionIdentifier:
 
     @property
     def delay(self) -> int | None:
-        """The identified delay [periods], or None while the data cannot tell yet."""
+        """The identified delay [periods], or None while the data cannot tell yet. Once the
+        commands have moved the team ``lock_excitation`` metres it is kept for the episode (a
+        team's delay does not change within one; a team parked at its goals, commanding little
+        more than its noise, would otherwise blur it)."""
+        if self._locked is not None:
+            return self._locked
         if self.periods < self.min_periods or self.excitation < self.min_excitation:
             return None
-        return int(np.argmin(self.residuals()))
+        delay = int(np.argmin(self.residuals()))
+        if self.excitation >= self.lock_excitation:
+            self._locked = delay
+        return delay
 
     def noise_levels(self) -> tuple[float, float] | None:
         """The localization noise (position [m], heading [rad]) at the identified delay, each 0

@@ -241,3 +241,28 @@ def test_the_noise_is_identified_online_and_then_filtered() -> None:
         assert 0.02 <= position <= 0.04 and 0.013 <= heading <= 0.027, (seed, position, heading)
         assert ekf.delay == 1
         assert inner.covariances[-1].shape == (3, 3, 3)
+
+
+def test_the_identified_delay_is_kept_once_the_team_has_moved_enough() -> None:
+    """The delay, once the team has travelled lock_excitation metres of commands, stays for the
+    episode: later data (here, made to follow the commands at once) cannot move it. Before the
+    lock the same data would (the unlocked identifier's answer changes)."""
+    from controllers.identification import MotionIdentifier
+
+    def drive(ident: MotionIdentifier, rng: np.random.Generator) -> list[int | None]:
+        pose, queue, seen = np.zeros(3), [np.zeros(2)] * 2, []  # delay 2 for 100 periods, then 0
+        for t in range(600):
+            ident.observe((pose + rng.normal(0.0, [0.03, 0.03, 0.02]))[None])
+            command = np.array([0.3 + 0.2 * np.sin(0.5 * t), 0.5 * np.cos(0.3 * t)])
+            ident.sent(command[None])
+            queue.append(command)
+            v, omega = queue.pop(0) if t < 100 else command
+            pose = pose + 0.1 * np.array([v * np.cos(pose[2]), v * np.sin(pose[2]), omega])
+            seen.append(ident.delay)
+        return seen
+
+    locked = drive(MotionIdentifier(1, 5, 0.1, lock_excitation=3.0), np.random.default_rng(0))
+    unlocked = drive(MotionIdentifier(1, 5, 0.1, lock_excitation=1e9), np.random.default_rng(0))
+    assert locked[99] == unlocked[99] == 2
+    assert set(locked[99:]) == {2}
+    assert unlocked[-1] == 0
