@@ -96,3 +96,32 @@ def test_the_distributed_nmpc_passes_each_robot_its_covariance_and_widens_team_m
     assert np.array_equal(plain._pair_tightening, np.zeros(n))
     assert wide._pair_tightening == pytest.approx(np.full(n, Z95 * 0.05 * np.sqrt(2)))
     assert wide.stats().counts["tightened"] == n and plain.stats().counts.get("tightened", 0) == 0
+
+
+def test_a_robot_near_its_goal_under_an_uncertain_estimate_holds_still_and_moves_again_when_pushed_off() -> (
+    None
+):
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1")
+    obs, info = env.reset(seed=0)
+    scenario = env.unwrapped.scenario
+    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+    ctrl.reset(env, seed=0)
+    covariance = np.tile(np.diag([0.01**2, 0.01**2, 1e-4]), (scenario.n_robots, 1, 1))
+    tolerance = scenario.goal_tolerance
+    poses = scenario.targets.copy()
+    poses[0, 0] += 0.4 * tolerance  # robot 0 within half the tolerance: settles
+    poses[1, 0] += 2.0  # robot 1 far away: drives
+    poses[2, 0] += 0.6 * tolerance  # robot 2 between a half and 3/4 of it: not settled yet
+    command = ctrl.act(obs, {**info, "observed_poses": poses, "pose_covariance": covariance}).reshape(-1, 2)
+    assert np.array_equal(command[0], [0.0, 0.0]) and np.any(command[1] != 0) and np.any(command[2] != 0)
+    poses[0, 0] = scenario.targets[0, 0] + 0.7 * tolerance  # pushed off, still within 3/4: stays settled
+    command = ctrl.act(obs, {**info, "observed_poses": poses, "pose_covariance": covariance}).reshape(-1, 2)
+    assert np.array_equal(command[0], [0.0, 0.0])
+    poses[0, 0] = scenario.targets[0, 0] + 0.8 * tolerance  # beyond 3/4: moves again
+    command = ctrl.act(obs, {**info, "observed_poses": poses, "pose_covariance": covariance}).reshape(-1, 2)
+    assert np.any(command[0] != 0)
+    # without a covariance (the paper's setting) nothing settles
+    plain = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+    plain.reset(env, seed=0)
+    poses[0, 0] = scenario.targets[0, 0] + 0.4 * tolerance
+    assert np.any(plain.act(obs, {**info, "observed_poses": poses}).reshape(-1, 2)[0] != 0)

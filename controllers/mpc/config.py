@@ -193,6 +193,13 @@ class NMPCConfig:
         position is past a planned margin along any one separating direction is then at most
         ``chance_risk``. Without a covariance (no estimator, or none of the uncertainty it
         models) the margins are the paper's, bit for bit.
+    settle_fraction : float
+        (ours) With an estimator's covariance handed on, a robot whose estimated position comes
+        within ``settle_fraction`` times the goal tolerance of its target holds still (zero
+        command) until its estimate is farther than 3/4 of the tolerance
+        (:data:`controllers.mpc.controller.SETTLE_RELEASE`): near the goal, where the localization
+        noise is as large as the remaining error, the NMPC would otherwise chase the noise and
+        never settle. 0 turns it off; without a covariance it never acts (the paper's behaviour).
     jit : bool or None
         Compile the NLP's functions to C (several times faster derivative evaluations). The
         compiled objects are cached on disk (:mod:`controllers.solvers.compiled`), so a problem
@@ -226,6 +233,7 @@ class NMPCConfig:
     mover_prediction: str = "constant_velocity"
     mover_offset: float = PARAMS.obstacle_offset
     chance_risk: float = 0.05
+    settle_fraction: float = 0.5
     jit: bool | None = None
 
     @property
@@ -273,6 +281,7 @@ class NMPCConfig:
         check_int("obstacle_slots", self.obstacle_slots, 0)
         check_int("mover_slots", self.mover_slots, 0)
         check_number("mover_offset", self.mover_offset, at_least=0, note="metres")
+        check_number("settle_fraction", self.settle_fraction, at_least=0, at_most=1)
         if check_number("chance_risk", self.chance_risk, above=0, note="a probability") >= 0.5:
             raise ValueError(
                 f"chance_risk={self.chance_risk!r} must lie in (0, 0.5) (at 0.5 and above z <= 0 adds no margin)"

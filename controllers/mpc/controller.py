@@ -32,7 +32,11 @@ from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
 from koopman_envs.scenario import Scenario
 
 # the margins (controllers.mpc.margins) stay importable from here, where they were first
-__all__ = ["NMPCController", "SolveOutcome", "chance_tightening", "margin_spread"]
+__all__ = ["SETTLE_RELEASE", "NMPCController", "SolveOutcome", "chance_tightening", "margin_spread"]
+
+#: a settled robot (``settle_fraction``) moves again when its estimate is farther from its target
+#: than this fraction of the goal tolerance
+SETTLE_RELEASE = 0.75
 
 
 @dataclass
@@ -163,6 +167,7 @@ class NMPCController(BaseController):
         self._fallback = None
         self._fallback_used = 0
         self._failed = False
+        self._settled = np.zeros(scenario.n_robots, dtype=bool)
         self.last_plan = None
         self._stats.solver = self.solver_label
 
@@ -379,7 +384,11 @@ class NMPCController(BaseController):
             )
             self._fallback = commands
             self._fallback_used = 0
-            return commands[0].reshape(-1).copy()
+            return (
+                self._settle(commands[0].copy(), info)
+                if covariance is not None
+                else commands[0].reshape(-1).copy()
+            )
         self._stats.failures += 1
         self._failed = True
         self._warm = None  # a failed iterate is a poor starting point: restart cold next step
@@ -397,6 +406,26 @@ class NMPCController(BaseController):
             movers = slice(reach.start + self.neighbour_slots, reach.stop)
             params[movers] += per_robot.max() * (params[movers] > 0)
         self._stats.counts["tightened"] += 1
+
+    def _settle(self, command: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        """``command`` (N, 2) with the robots that have settled held still (``settle_fraction``):
+        a robot settles when its estimate comes within that fraction of the goal tolerance of its
+        target, and moves again when its estimate is farther than :data:`SETTLE_RELEASE` of it."""
+        scenario = self.scenario
+        assert scenario is not None  # act() checked it
+        fraction = self.config.settle_fraction
+        if fraction > 0:
+            poses = np.asarray(info["observed_poses"], dtype=float)
+            distance = np.hypot(*(poses[:, :2] - scenario.targets[:, :2]).T)
+            tolerance = scenario.goal_tolerance
+            # released at 3/4 of the tolerance: the truth may lie a localization error beyond the
+            # estimate, and a robot held just inside the tolerance would often be just outside it
+            self._settled = (distance <= fraction * tolerance) | (
+                self._settled & (distance <= SETTLE_RELEASE * tolerance)
+            )
+            command[self._settled] = 0.0
+            self._stats.counts["settled_periods"] += int(self._settled.sum())
+        return command.reshape(-1)
 
     def _solve(self, params: NDArray, guess: dict[str, NDArray], cold: bool) -> SolveOutcome:
         """The main solver, then the fallback solver on failure (both counted in the status)."""
