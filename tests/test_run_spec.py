@@ -31,7 +31,7 @@ BOTH = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
         ({"episodes": 2.5}, "episodes=2.5 must be an integer >= 1"),
         ({"seed": -1}, "seed=-1 must be an integer >= 0"),
         ({"calibration_seed": "a"}, "calibration_seed='a' must be an integer >= 0"),
-        ({"random_maps": 0}, r"random_maps=0 must be an integer >= 1 \(layouts per cell\)"),
+        ({"random_maps": 0}, r"random_maps=0 must be an integer >= 1 and <= 10000 \(layouts per cell\)"),
         ({"gifs": "yes"}, "gifs='yes' must be True or False"),
         ({"solver": "sqp"}, r"'sqp' is not one of \['ipopt', 'fatrop', 'rti'\]|'sqp' is not one of"),
         (
