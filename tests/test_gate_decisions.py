@@ -128,6 +128,15 @@ def test_errors_pair_with_nothing_and_one_sided_cells_are_listed() -> None:
     ]
 
 
+def test_a_controller_without_shared_seeds_gets_no_row_and_the_others_still_do() -> None:
+    # "a" sorts first and shares no seed: it is listed on both sides, and "b" after it is compared
+    base = [_rec(s, controller="a") for s in range(3)] + [_rec(s, controller="b") for s in range(3)]
+    run = [_rec(s, controller="a") for s in range(3, 6)] + [_rec(s, False, controller="b") for s in range(3)]
+    comparison = compare_runs(run, base)
+    assert [(r["controller"], r["n"], r["only_b"]) for r in comparison["rows"]] == [("b", 3, 3)]
+    assert comparison["only_run"] == comparison["only_baseline"] == [[TR, "a", "map1", "nominal"]]
+
+
 def test_a_controller_on_two_tasks_gets_a_pooled_row_after_the_task_rows() -> None:
     base, run = [], []
     for env in (TR, FO):
@@ -195,6 +204,15 @@ def test_the_gate_message_names_the_rates_the_interval_and_the_p_value() -> None
     farther = _row(difference=0.0, distance_cm_difference=2.5, distance_cm_low=0.25, distance_cm_high=4.75)
     assert gate_failures({"rows": [farther]}, GateOptions()) == [
         f"c on {TR} (20 paired episodes): final distance +2.50 cm [+0.25, +4.75]"
+    ]
+    # percentages rounded to whole points: 60, 10 and -90 [-97, -70] (a factor of 1.01 would show)
+    rounded = [
+        _row(rate_b=1.0, rate_a=0.6, difference=-0.4),
+        _row(rate_b=1.0, rate_a=0.1, difference=-0.9, low=-0.97, high=-0.7),
+    ]
+    assert [f.split(": success ")[1] for f in gate_failures({"rows": rounded}, GateOptions())] == [
+        "100% -> 60%, -40 points [-50, -10], McNemar p = 0.0312",
+        "100% -> 10%, -90 points [-97, -70], McNemar p = 0.0312",
     ]
     both = _row(distance_cm_difference=2.5, distance_cm_low=0.25, distance_cm_high=4.75)
     assert [
@@ -352,6 +370,17 @@ def test_the_span_of_seeds_and_cells_is_summarised() -> None:
         ": the baseline ran it with seed 7 on m0/a, m0/b, m1/a, m1/b and 2 more cells, this run with seed 7 "
         "on other/nominal"
     )
+    five = [_rec(7 + i, map_name=f"m{i}", slip="a") for i in range(5)]  # 5 cells: 4 named, 1 more
+    (failure,) = coverage_failures(run, five, GateOptions(), run_names_its_controllers=True)
+    assert failure.endswith(
+        ": the baseline ran it with seeds 7-11 on m0/a, m1/a, m2/a, m3/a and 1 more cells, this run with seed 7 "
+        "on other/nominal"
+    )
+    two = [_rec(3, map_name="m0", slip="a"), _rec(9, map_name="m0", slip="a")]  # two seeds: a range
+    (failure,) = coverage_failures(run, two, GateOptions(), run_names_its_controllers=True)
+    assert failure.endswith(
+        ": the baseline ran it with seeds 3-9 on m0/a, this run with seed 7 on other/nominal"
+    )
     four = [_rec(7, map_name=f"m{i}", slip="a") for i in range(4)]
     (failure,) = coverage_failures(run, four, GateOptions(), run_names_its_controllers=True)
     assert failure.endswith(
@@ -413,6 +442,30 @@ def test_a_file_that_is_no_results_document_is_named(tmp_path, content, problem)
     with pytest.raises(ValueError) as caught:
         load_baseline(path, what="sweep level")
     assert str(caught.value) == f"sweep level {str(path)!r} {problem}"
+
+
+def test_a_baseline_is_read_as_utf8_whatever_the_locale(tmp_path) -> None:
+    """Under an ASCII locale (LC_ALL=C without UTF-8 mode) a label such as 'régulateur' still reads."""
+    import os
+    import subprocess
+    import sys
+
+    doc = _document([_rec(0, controller="régulateur")])
+    path = tmp_path / "b.json"
+    path.write_bytes(json.dumps(doc, ensure_ascii=False).encode("utf-8"))
+    assert load_baseline(path) == doc  # here, and below in a process whose locale is ASCII
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    code = (
+        "import sys, locale; from evaluation.baseline import load_baseline; "
+        "assert locale.getpreferredencoding(False).lower() not in ('utf-8', 'utf8'), locale.getpreferredencoding(False); "
+        "doc = load_baseline(sys.argv[1]); "
+        "assert doc['episodes'][0]['controller'] == 'r\\u00e9gulateur', ascii(doc['episodes'][0]['controller'])"
+    )
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(path)], cwd=root, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
 
 
 def test_a_missing_baseline_is_named_with_the_reason(tmp_path) -> None:
@@ -522,6 +575,7 @@ def test_the_comparison_section_to_the_character() -> None:
                 p_value=1.0,
             ),
             _row(env_id=ALL_TASKS, p_value=0.001),
+            _row(rate_b=1.0, rate_a=0.6, difference=-0.9, low=-0.97, high=-0.7, p_value=0.5),
         ],
         "only_run": [[TR, "new", "map1", "nominal"]],
         "only_baseline": [[FO, "old<x>", "map2", "high"], [TR, "gone", "map1", "low"]],
@@ -538,6 +592,7 @@ def test_the_comparison_section_to_the_character() -> None:
         "| target reaching | a\\|b | 20 | 80% | 50% | -30 [-50, -10] | 0 / 6 | <0.001 | +1.23 [-0.50, +2.00] |",
         "| formation | d | 20 | 25% | 25% | +0 [-12, +12] | 1 / 1 | 1.000 | +0.00 [-1.00, +1.00] |",
         "| all tasks | c | 20 | 80% | 50% | -30 [-50, -10] | 0 / 6 | 0.001 | +0.00 [-1.00, +1.00] |",
+        "| target reaching | c | 20 | 100% | 60% | -90 [-97, -70] | 0 / 6 | 0.500 | +0.00 [-1.00, +1.00] |",
         "",
         "Cells in this run only (not compared): new map1 nominal (KoopNav-TargetReaching-v0)",
         "",
