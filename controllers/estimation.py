@@ -48,7 +48,7 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["AUTO", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "wrap"]
+__all__ = ["AUTO", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "PoseFrontEnd", "wrap"]
 
 #: prefix of the estimator's options in a wrapped configuration's option list
 ESTIMATOR_OPTION_PREFIX = "ekf_"
@@ -189,29 +189,35 @@ def _residual(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.floa
 _IDENTITY = np.eye(3)
 
 
-class PoseEstimator(BaseController):
-    """Any controller behind a per-robot pose EKF with delay compensation (see the module docstring).
+class PoseFrontEnd:
+    """What a deployed MPC has between the localization and the planner: the filter, delay
+    compensation and the covariance (see the module docstring), for any controller.
+
+    :meth:`view` turns the observed part of an ``info`` into what the controller should plan
+    from; :meth:`sent` records the command it sent. :class:`PoseEstimator` (``ekf:``) puts one in
+    front of any controller; the model-based controllers carry their own
+    (:attr:`controllers.base.BaseController.front_end`, their ``estimator`` option).
 
     Parameters
     ----------
-    inner : Controller
-        The controller that receives the estimates.
     **options
         Fields of :class:`EstimatorOptions`.
     """
 
-    def __init__(self, inner: Controller, **options: Any) -> None:
-        super().__init__()
-        self.inner = inner
+    def __init__(self, **options: Any) -> None:
         self.options = EstimatorOptions.from_options(**options)
-        self.name = f"ekf:{getattr(inner, 'name', type(inner).__name__)}"
+        self.scenario: Scenario | None = None
         self._filters: list[Any] = []
         self._sent: deque[NDArray[np.float64]] = deque()
         self._identifier: MotionIdentifier | None = None
+        #: the front-end's own time per period [s]
+        self.times: list[float] = []
 
-    def _reset(self, scenario: Scenario, seed: int | None) -> None:
-        self.inner.reset(scenario, seed=seed)
+    def reset(self, scenario: Scenario) -> None:
+        """Start an episode on ``scenario``."""
+        self.scenario = scenario
         self._filters = []
+        self.times = []
         options = self.options
         longest = options.max_delay if options.delay == AUTO else int(options.delay)
         # the commands sent, newest last; the env's queue starts with zero commands too
@@ -228,7 +234,7 @@ class PoseEstimator(BaseController):
         (0 while :class:`~controllers.identification.MotionIdentifier` cannot tell yet)."""
         if self.options.delay != AUTO:
             return int(self.options.delay)
-        assert self._identifier is not None  # made by _reset for "auto"
+        assert self._identifier is not None  # made by reset for "auto"
         return self._identifier.delay or 0
 
     @property
@@ -290,7 +296,12 @@ class PoseEstimator(BaseController):
                 covariances[i] = f @ covariances[i] @ f.T + q
         return poses, covariances
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def view(self, info: dict[str, Any]) -> dict[str, Any]:
+        """``info`` (its observed part) as the controller should plan from it: the estimate at
+        which the next command acts in ``observed_poses`` and on the diagonal of ``known_poses``,
+        and its covariance in ``pose_covariance`` (absent while there is none)."""
+        if self.scenario is None:
+            raise RuntimeError("PoseFrontEnd: call reset(scenario) before view()")
         start = time.perf_counter()
         measured = np.asarray(info["observed_poses"], dtype=np.float64)
         if self._identifier is not None:
@@ -304,33 +315,84 @@ class PoseEstimator(BaseController):
             n = known.shape[0]
             known[np.arange(n), np.arange(n)] = estimate
             view["known_poses"] = known
-        middle = time.perf_counter()
-        command = np.asarray(self.inner.act(observation, view), dtype=np.float64)
-        sent = np.clip(command.reshape(-1, 2), -self._limits, self._limits)
+        self.times.append(time.perf_counter() - start)
+        return view
+
+    def sent(self, command: NDArray[np.float64]) -> None:
+        """Record the joint command sent this period ((2N,) or (N, 2); clipped as the robots clip it)."""
+        sent = np.clip(np.asarray(command, dtype=np.float64).reshape(-1, 2), -self._limits, self._limits)
         self._sent.append(sent)
         if self._identifier is not None:
             self._identifier.sent(sent)
-        self._stats.extra_times.setdefault("estimator", []).append(middle - start)
+
+    def counts(self) -> dict[str, int]:
+        """What it identified so far: ``identified_delay`` (-1 while the data cannot tell),
+        ``identified_position_std_mm`` and ``identified_heading_std_mrad`` (once the delay is
+        known); empty when it identifies nothing."""
+        if self._identifier is None:
+            return {}
+        identified = self._identifier.delay
+        out = {"identified_delay": -1 if identified is None else identified}
+        noise = self._identifier.noise_levels()
+        if noise is not None:  # in millimetres and milliradians: the counts are integers
+            out["identified_position_std_mm"] = round(1e3 * noise[0])
+            out["identified_heading_std_mrad"] = round(1e3 * noise[1])
+        return out
+
+
+class PoseEstimator(BaseController):
+    """Any controller behind a :class:`PoseFrontEnd` (``ekf:``; see the module docstring). The
+    controller's own front-end, if it has one, is switched off: this one replaces it.
+
+    Parameters
+    ----------
+    inner : Controller
+        The controller that receives the estimates.
+    **options
+        Fields of :class:`EstimatorOptions`.
+    """
+
+    def __init__(self, inner: Controller, **options: Any) -> None:
+        super().__init__()
+        self.inner = inner
+        if getattr(inner, "front_end", None) is not None:
+            inner.front_end = None  # type: ignore[attr-defined]  # a BaseController's own
+        self.estimator = PoseFrontEnd(**options)
+        self.options = self.estimator.options
+        self.name = f"ekf:{getattr(inner, 'name', type(inner).__name__)}"
+
+    def _reset(self, scenario: Scenario, seed: int | None) -> None:
+        self.inner.reset(scenario, seed=seed)
+        self.estimator.reset(scenario)
+
+    @property
+    def delay(self) -> int:
+        """The delay its prediction assumes now (:attr:`PoseFrontEnd.delay`)."""
+        return self.estimator.delay
+
+    @property
+    def noise(self) -> tuple[float, float]:
+        """The noise its filter assumes now (:attr:`PoseFrontEnd.noise`)."""
+        return self.estimator.noise
+
+    @property
+    def _identifier(self) -> MotionIdentifier | None:
+        return self.estimator._identifier
+
+    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        command = np.asarray(self.inner.act(observation, self.estimator.view(info)), dtype=np.float64)
+        self.estimator.sent(command)
         return command
 
     def stats(self) -> ControllerStats:
-        """The inner controller's statistics, with the filter's time per period (``estimator``)
-        and, when it identifies, what it identified by the episode's end: ``identified_delay``
-        (-1 when the data could not tell), ``identified_position_std_mm`` and
-        ``identified_heading_std_mrad``."""
+        """The inner controller's statistics, with the front-end's time per period
+        (``estimator``) and what it identified (:meth:`PoseFrontEnd.counts`)."""
         inner = self.inner.stats()
-        times = self._stats.extra_times.get("estimator", [])
-        counts = inner.counts
-        if self._identifier is not None:
-            identified = self._identifier.delay
-            counts = counts.copy()
-            counts["identified_delay"] = -1 if identified is None else identified
-            noise = self._identifier.noise_levels()
-            if noise is not None:  # in millimetres and milliradians: the counts are integers
-                counts["identified_position_std_mm"] = round(1e3 * noise[0])
-                counts["identified_heading_std_mrad"] = round(1e3 * noise[1])
+        counts = inner.counts.copy()
+        for key, value in self.estimator.counts().items():  # values, not increments
+            counts[key] = value
         return dataclasses.replace(
-            inner, extra_times={**inner.extra_times, "estimator": list(times)}, counts=counts
+            inner, extra_times={**inner.extra_times, "estimator": list(self.estimator.times)}, counts=counts
         )
 
 
