@@ -139,6 +139,61 @@ def test_an_existing_log_needs_resume_and_a_resume_reads_its_episodes(tmp_path, 
     )
 
 
+def test_a_log_of_one_torn_byte_is_resumed_with_its_header_written_again(tmp_path, capsys) -> None:
+    (tmp_path / "episodes.jsonl").write_bytes(HEADER[:1])  # killed after the header's first byte
+    handle, done = open_log(tmp_path, CONFIG, resume=True)
+    handle.close()
+    assert done == {} and (tmp_path / "episodes.jsonl").read_bytes() == HEADER
+    assert "the header line was cut by the interruption" in capsys.readouterr().err
+
+
+def test_a_resume_checks_the_records_against_the_plan(tmp_path) -> None:
+    _log(tmp_path, _line(_rec("k9")))
+    with pytest.raises(LogError, match="line 2: episode 'k9' is not one of this run's episodes"):
+        open_log(tmp_path, CONFIG, resume=True, expected={"k0": {"seed": 0}})
+    handle, done = open_log(tmp_path, CONFIG, resume=True, expected={"k9": {"seed": 0}})
+    handle.close()
+    assert done == {"k9": _rec("k9")}
+
+
+class _Msvcrt:
+    """A stand-in for Windows' msvcrt: records the lock asked for, or refuses it."""
+
+    LK_NBLCK = 2
+
+    def __init__(self, held: bool) -> None:
+        self.held, self.calls = held, []
+
+    def locking(self, fd, mode, nbytes):
+        self.calls.append((fd, mode, nbytes))
+        if self.held:
+            raise PermissionError(13, "Permission denied")
+
+
+@pytest.mark.parametrize("held", [False, True])
+def test_on_windows_the_log_is_locked_with_msvcrt_without_waiting(tmp_path, monkeypatch, held) -> None:
+    import sys
+    import types
+
+    msvcrt = _Msvcrt(held)
+    monkeypatch.setitem(sys.modules, "msvcrt", msvcrt)
+    monkeypatch.setattr(runlog, "sys", types.SimpleNamespace(platform="win32"))
+    log = tmp_path / "episodes.jsonl"
+    handle = open(log, "a", encoding="utf-8")
+    fd = handle.fileno()
+    try:
+        if held:
+            with pytest.raises(RunLocked, match="is being written by another run"):
+                runlog._lock(handle, log)
+            assert handle.closed
+        else:
+            runlog._lock(handle, log)
+            assert not handle.closed
+        assert msvcrt.calls == [(fd, _Msvcrt.LK_NBLCK, 1)]  # one byte, non-blocking
+    finally:
+        handle.close()
+
+
 def test_a_second_run_on_the_same_log_is_refused_while_the_first_holds_it(tmp_path) -> None:
     first, _ = open_log(tmp_path, CONFIG, resume=False)
     try:
@@ -261,6 +316,15 @@ def test_bad_lines_are_refused_by_number_the_first_ten_listed(tmp_path) -> None:
     assert log.read_bytes() == before  # not even the torn line is cut
 
 
+@pytest.mark.parametrize(("count", "tail"), [(10, ""), (11, "; and 1 more")])
+def test_ten_bad_lines_are_all_listed_and_an_eleventh_is_counted(tmp_path, count, tail) -> None:
+    log = _log(tmp_path, *[b"[]\n"] * count)
+    with pytest.raises(LogError) as caught:
+        read_log(log, CONFIG)
+    listed = "; ".join(f"line {n}: a JSON list, not an episode record" for n in range(2, 12))
+    assert str(caught.value).startswith(f"{log} cannot be resumed: {listed}{tail}. It is not this run's log")
+
+
 def test_each_bad_record_is_named_with_its_line_and_problem(tmp_path) -> None:
     log = _log(
         tmp_path, _line(_rec("a")), b"\xff\n", _line([1]), _line(_rec("b", steps=-5)), _line(_rec("c"))
@@ -306,6 +370,17 @@ def test_the_output_directory_is_made_and_tried_with_a_real_write(tmp_path, monk
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
 
+    # a read-only --out (a mount, say) beside a writable temporary directory: the write is tried in --out
+    real = runlog.tempfile.TemporaryFile
+
+    def read_only_out(*args, dir=None, **kwargs):
+        if dir is not None and Path(dir) == out:
+            raise OSError(30, "Read-only file system")
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(runlog.tempfile, "TemporaryFile", read_only_out)
+    with pytest.raises(OutputNotWritable, match="Read-only file system; choose another --out"):
+        ensure_output_dir(out)
     monkeypatch.setattr(runlog.tempfile, "TemporaryFile", refuse)
     with pytest.raises(OutputNotWritable) as caught:
         ensure_output_dir(out)
