@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from koopman_envs.params import LIMITS
-from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise, parse_setting
+from koopman_envs.uncertainty import MIN_LIDAR_FOV, CommConfig, LidarConfig, PoseNoise, parse_setting
 
 POSE_FIELDS = ["xy", "heading", "drift_xy", "drift_heading"]
 
@@ -87,6 +87,49 @@ def test_lidar_defaults_and_normal_form() -> None:
 )
 def test_lidar_settings_out_of_range_are_refused_by_name(kwargs, prefix) -> None:
     _refused(lambda: LidarConfig(**kwargs), prefix)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"fov": 0.0}, f"lidar.fov=0.0 must be a finite number > 0 <= {2 * math.pi} ((0, 2 pi] rad)"),
+        ({"fov": 7.0}, f"lidar.fov=7.0 must be a finite number > 0 <= {2 * math.pi} ((0, 2 pi] rad)"),
+        ({"range": 0}, f"lidar.range=0 must be a finite number > 0 <= {float(LIMITS.lidar_range)} (metres)"),
+        (
+            {"range": 101},
+            f"lidar.range=101 must be a finite number > 0 <= {float(LIMITS.lidar_range)} (metres)",
+        ),
+        (
+            {"fov": MIN_LIDAR_FOV * 0.99},
+            f"lidar.fov={MIN_LIDAR_FOV * 0.99!r} is narrower than 0.001 rad; allowed: [0.001, 2 pi] rad",
+        ),
+    ],
+)
+def test_the_lidar_field_of_view_and_range_messages_state_the_unit(kwargs, message) -> None:
+    with pytest.raises(ValueError) as caught:
+        LidarConfig(**kwargs)
+    assert str(caught.value) == message
+
+
+def test_the_narrowest_field_of_view_is_a_milliradian() -> None:
+    assert MIN_LIDAR_FOV == 1e-3
+    assert LidarConfig(fov=MIN_LIDAR_FOV).fov == MIN_LIDAR_FOV  # the bound itself is allowed
+
+
+def test_pose_noise_is_bounded_by_the_workspace_side() -> None:
+    bound = LIMITS.pose_noise
+    for field in POSE_FIELDS:
+        assert getattr(PoseNoise(**{field: bound}), field) == bound
+        with pytest.raises(ValueError) as caught:
+            PoseNoise(**{field: bound * 1.5})
+        assert (
+            str(caught.value) == f"pose_noise.{field}={bound * 1.5!r} must be a finite number >= 0 <= {bound}"
+        )
+    # one number names the keyword itself
+    assert parse_setting("pose_noise", bound, PoseNoise) == PoseNoise(xy=bound)
+    with pytest.raises(ValueError) as caught:
+        parse_setting("pose_noise", bound * 2, PoseNoise)
+    assert str(caught.value) == f"pose_noise={bound * 2!r} must be a finite number >= 0 <= {bound}"
 
 
 def test_lidar_settings_at_their_bounds_are_accepted() -> None:
