@@ -147,13 +147,13 @@ class Replay:
         return self.commands[s - delay] if s >= delay else np.zeros_like(command)
 
 
-def _exact_ranges(state, lidar):
+def _exact_ranges(state, lidar, obstacles=OBSTACLES):
     """Exact ranges (K, N, B) of the true poses (the kernel, tested in tests/test_uncertainty.py)."""
     k, _, n = state.shape
     out = np.zeros((k, n, 0 if lidar is None else lidar.beams))
     if lidar is not None:
         angles = beam_angles(lidar.beams, lidar.fov)
-        cast_beams(state, *OBSTACLES, RADIUS, angles, lidar.range, np.asarray(WORKSPACE), out)
+        cast_beams(state, *obstacles, np.full(n, 0.2), angles, lidar.range, np.asarray(WORKSPACE), out)
     return out
 
 
@@ -394,6 +394,76 @@ def test_the_child_generator_consumes_nothing_of_the_env_stream() -> None:
     child = child_generator(rng)
     assert rng.random() == np.random.default_rng(42).random()
     assert child.random() == np.random.default_rng(42).spawn(1)[0].random()
+    # one child is derived: the next one spawned from the env's generator is its second
+    assert rng.spawn(1)[0].random() == np.random.default_rng(42).spawn(2)[1].random()
+
+
+@pytest.mark.parametrize(
+    "lidar",
+    [LidarConfig(beams=1, range=2.0, noise=0.1), LidarConfig(beams=1, range=2.0, dropout=0.4)],
+    ids=["one-normal", "one-uniform"],
+)
+def test_a_single_random_number_per_period_is_drawn_and_refilled(lidar) -> None:
+    """One robot with one beam: a period draws one normal (noise) or one uniform (dropout); the
+    block holds 256 periods and is drawn again after them."""
+    perception = Perception(1, 1, PoseNoise(), CommConfig(), lidar, 0, DT, WORKSPACE)
+    assert (perception._normals, perception._uniforms, perception.block) == (
+        int(lidar.noise > 0),
+        int(lidar.dropout > 0),
+        256,
+    )
+    obstacles = (np.array([[1.0]]), np.array([[0.0]]), np.array([[0.3]]))  # 0.7 m ahead of the robot
+    replay = Replay(np.random.default_rng(3), 1, PoseNoise(), CommConfig(), lidar, 256)
+    perception.reset_env(0, np.random.default_rng(3))
+    state = np.zeros((1, 3, 1))
+    exact = _exact_ranges(state, lidar, obstacles)
+    assert exact[0, 0, 0] == pytest.approx(0.7)
+    perception.flush(state, obstacles, np.full(1, 0.2))
+    for t in range(300):
+        if t:
+            perception.update(state, obstacles, np.full(1, 0.2), np.arange(1))
+        ranges = replay.period(state[0], exact[0])[3]
+        np.testing.assert_array_equal(perception.ranges[0], ranges, err_msg=f"period {t}", strict=True)
+
+
+def test_a_flush_reads_only_the_environments_reset_since_the_last_update() -> None:
+    noise, comm, lidar, delay, _ = SCENES["lidar"]
+    perception = Perception(2, 3, noise, comm, lidar, delay, DT, WORKSPACE)
+    for k in range(2):
+        perception.reset_env(k, np.random.default_rng(k))
+    state = _truths(1)[0]
+    perception.flush(state, OBSTACLES, RADIUS)
+    for _ in range(3):
+        perception.update(state, OBSTACLES, RADIUS, np.arange(2))
+    for reset in (1, 0):
+        others = 1 - reset
+        kept = observed_info(perception, state.transpose(0, 2, 1))
+        clock, cursor = perception.clock.copy(), perception.cursor.copy()
+        perception.reset_env(reset, np.random.default_rng(reset))
+        perception.flush(state, OBSTACLES, RADIUS)
+        after = observed_info(perception, state.transpose(0, 2, 1))
+        for key in kept:
+            np.testing.assert_array_equal(after[key][others], kept[key][others], strict=True)
+        assert perception.clock[others] == clock[others] and perception.cursor[others] == cursor[others]
+        assert perception.clock[reset] == 1
+
+
+def test_a_step_of_some_environments_leaves_the_readings_of_the_others() -> None:
+    """Four environments, three stepped: the fourth keeps its noisy readings (no exact re-cast)."""
+    lidar = LidarConfig(beams=16, range=3.0, noise=0.05)
+    perception = Perception(4, 2, PoseNoise(), CommConfig(), lidar, 0, DT, WORKSPACE)
+    obstacles = tuple(np.concatenate([a, a]) for a in OBSTACLES)
+    state = np.concatenate([_truths(1)[0], _truths(1, seed=5)[0]])[:, :, :2]
+    radius = np.full(2, 0.2)
+    for k in range(4):
+        perception.reset_env(k, np.random.default_rng(10 + k))
+    perception.flush(state, obstacles, radius)
+    exact = _exact_ranges(state, lidar, obstacles)
+    assert (perception.ranges != exact).any(axis=(1, 2)).all()  # every environment's readings are noisy
+    before = perception.ranges[3].copy()
+    perception.update(state, obstacles, radius, np.arange(3))
+    np.testing.assert_array_equal(perception.ranges[3], before, strict=True)
+    assert perception.clock.tolist() == [2, 2, 2, 1]
 
 
 class _NoSeedSequence:
