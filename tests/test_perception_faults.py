@@ -483,3 +483,48 @@ def test_a_generator_without_a_seed_sequence_is_refused_with_the_remedy(error) -
         "call reset(seed=...) (or make the generator with numpy.random.default_rng)"
     )
     assert isinstance(caught.value.__cause__, error)
+
+
+class _Drawn:
+    """A generator that hands out chosen numbers: the kernel's comparisons at their boundaries."""
+
+    def __init__(self, uniforms):
+        self.uniforms = np.asarray(uniforms, dtype=np.float32)
+
+    def spawn(self, count):
+        return [self]
+
+    def random(self, dtype, out):
+        out[...] = self.uniforms
+
+    def standard_normal(self, dtype, out):
+        out[...] = 0.0
+
+
+def test_a_uniform_equal_to_the_probability_is_no_loss_and_no_dropout() -> None:
+    """A loss (or a dropout) happens when the uniform in [0, 1) is below the probability: then
+    P(loss) is the probability itself, not a float32 step more."""
+    drop, dropout = 0.5, 0.25
+    perception = Perception(
+        1,
+        2,
+        PoseNoise(),
+        CommConfig(drop=drop),
+        LidarConfig(beams=2, range=3.0, dropout=dropout),
+        0,
+        DT,
+        WORKSPACE,
+    )
+    assert (perception._normals, perception._uniforms) == (0, 2 + 2 * 2)
+    below = lambda p: np.nextafter(np.float32(p), np.float32(0))  # noqa: E731
+    # messages 0 <- 1 and 1 <- 0, then the beams of robot 0 and of robot 1
+    row = [drop, below(drop), dropout, below(dropout), 0.9, 0.0]
+    perception.reset_env(0, _Drawn(np.tile(row, (perception.block, 1))))
+    state = np.array([[[0.0, 0.0], [0.0, 1.0], [0.0, math.pi / 2]]])  # robot 1 north of robot 0
+    # east and west of robot 0, north of robot 1 (and robot 0 south of it): every beam hits something
+    obstacles = (np.array([[2.0, -2.0, 0.0]]), np.array([[0.0, 0.0, 3.0]]), np.array([[0.5, 0.5, 0.5]]))
+    perception.flush(state, obstacles, np.full(2, 0.2))
+    assert perception.age[0].tolist() == [[0, 0], [-1, 0]]  # 0 heard 1 (u = drop); 1 lost 0's message
+    exact = _exact_ranges(state, perception.lidar, obstacles)[0]
+    assert exact.tolist() == [[1.5, 1.5], [1.5, 0.8]]
+    np.testing.assert_array_equal(perception.ranges[0], [[exact[0, 0], 3.0], [exact[1, 0], 3.0]], strict=True)
