@@ -23,7 +23,7 @@ from koopman_envs.scenario import Scenario, scenario_of
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.plant import CalibrationPlant
 
-__all__ = ["BaseController", "Calibratable", "Controller", "ControllerStats", "calibratable"]
+__all__ = ["BaseController", "Calibratable", "Controller", "ControllerStats", "FrontEnd", "calibratable"]
 
 
 @dataclass
@@ -127,10 +127,37 @@ def calibratable(controller: Any) -> Calibratable | None:
     return None
 
 
+class FrontEnd(Protocol):
+    """What may stand between the observed ``info`` and a controller's ``_act``: an estimator
+    (:class:`controllers.estimation.PoseFrontEnd`)."""
+
+    times: list[float]
+
+    def reset(self, scenario: Scenario) -> None:
+        """Start an episode."""
+
+    def view(self, info: dict[str, Any]) -> dict[str, Any]:
+        """The observed info as the controller should plan from it."""
+
+    def sent(self, command: NDArray[np.float64]) -> None:
+        """Record the command sent."""
+
+    def counts(self) -> dict[str, int]:
+        """What it identified so far (reported as counts)."""
+
+
 class BaseController(ABC):
-    """Convenience base: keeps the scenario and the statistics; subclasses implement ``_act``."""
+    """Convenience base: keeps the scenario and the statistics; subclasses implement ``_act``.
+
+    A subclass may set :attr:`front_end` (the model-based controllers do, by their ``estimator``
+    option): ``_act`` then plans from its view of the observed ``info`` (filtered, delay
+    compensated, with a covariance), and its time and what it identified go into the statistics
+    (``estimator`` in ``extra_times``; ``identified_*`` counts).
+    """
 
     name = "base"
+    #: the estimator in front of ``_act`` (None: ``_act`` reads the observed info as it is)
+    front_end: FrontEnd | None = None
 
     def __init__(self) -> None:
         self.scenario: Scenario | None = None
@@ -145,6 +172,8 @@ class BaseController(ABC):
             raise TypeError(f"{self.name}: reset() {exc}") from None
         self.scenario = scenario
         self._stats = ControllerStats()
+        if self.front_end is not None:
+            self.front_end.reset(scenario)
         self._reset(scenario, seed)
 
     def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
@@ -157,10 +186,19 @@ class BaseController(ABC):
         if self.scenario is None:
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
         recorded = len(self._stats.solve_times)
+        view = observed_view(info)
+        front_end = self.front_end
+        if front_end is not None:
+            view = front_end.view(view)
         start = time.perf_counter()
-        command = self._act(observation, observed_view(info))
+        command = self._act(observation, view)
         if len(self._stats.solve_times) == recorded:
             self._stats.solve_times.append(time.perf_counter() - start)
+        if front_end is not None:
+            front_end.sent(command)
+            for key, value in front_end.counts().items():  # values, not increments
+                self._stats.counts[key] = value
+            self._stats.extra_times["estimator"] = front_end.times
         return command
 
     def stats(self) -> ControllerStats:

@@ -20,8 +20,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.estimation import auto_front_end
 from controllers.movers import check_mover_prediction, observed_movers
+from controllers.mpc.config import ESTIMATORS
 from koopman_envs.scenario import Scenario
+from koopman_envs.suggest import did_you_mean
 
 __all__ = ["ConsensusController"]
 
@@ -50,6 +53,10 @@ class ConsensusController(BaseController):
         robot gives way before the mover arrives); ``"static"`` where it is seen now.
     mover_lookahead : float
         (ours) Seconds of a mover's path the constant-velocity repulsion looks ahead [s].
+    estimator : str
+        (ours) ``"auto"`` (default): the estimator front-end with everything identified online
+        (:func:`controllers.estimation.auto_front_end`: delay compensated, noise filtered; a
+        no-op without either); ``"none"``: the paper's, steering from every measured pose.
     """
 
     name = "consensus"
@@ -64,8 +71,15 @@ class ConsensusController(BaseController):
         repulsion_gain: float = 0.05,
         mover_prediction: str = "constant_velocity",
         mover_lookahead: float = 1.0,
+        estimator: str = "auto",
     ) -> None:
         super().__init__()
+        if estimator not in ESTIMATORS:
+            raise ValueError(
+                f"estimator={estimator!r} is not one of {list(ESTIMATORS)}{did_you_mean(str(estimator), ESTIMATORS)}"
+            )
+        self.estimator = estimator
+        self.front_end = auto_front_end() if estimator == "auto" else None
         for key, value in dict(
             goal_gain=goal_gain,
             consensus_gain=consensus_gain,

@@ -48,7 +48,15 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["AUTO", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions", "PoseEstimator", "PoseFrontEnd", "wrap"]
+__all__ = [
+    "AUTO",
+    "ESTIMATOR_OPTION_PREFIX",
+    "EstimatorOptions",
+    "PoseEstimator",
+    "PoseFrontEnd",
+    "auto_front_end",
+    "wrap",
+]
 
 #: prefix of the estimator's options in a wrapped configuration's option list
 ESTIMATOR_OPTION_PREFIX = "ekf_"
@@ -338,6 +346,12 @@ class PoseFrontEnd:
             out["identified_position_std_mm"] = round(1e3 * noise[0])
             out["identified_heading_std_mrad"] = round(1e3 * noise[1])
         return out
+
+
+def auto_front_end() -> PoseFrontEnd:
+    """The front-end of the model-based controllers' ``estimator="auto"``: delay and noise
+    identified online, a no-op on a team without either."""
+    return PoseFrontEnd(delay=AUTO, position_std=AUTO, heading_std=AUTO)
 
 
 class PoseEstimator(BaseController):

@@ -207,21 +207,41 @@ def _episode_commands(ctrl, uncertainty: str, seed: int = 0, steps: int = 200) -
     return commands
 
 
-@pytest.mark.parametrize("name", ["consensus", "nominal-nmpc:solver=rti"])
-def test_everything_auto_is_a_no_op_on_a_team_that_localizes_exactly(name) -> None:
+@pytest.mark.parametrize(
+    "name, options",
+    [
+        ("consensus", {}),
+        ("nominal-nmpc", {"solver": "rti"}),
+        ("koopman-nmpc", {"solver": "rti"}),
+        ("dmpc-nominal", {"solver": "rti"}),
+        ("safe:consensus", {}),
+    ],
+)
+def test_the_default_estimator_is_a_no_op_on_a_team_that_localizes_exactly(name, options) -> None:
     """No pose noise and no delay (high slip): the identified delay is 0 and the noise below its
-    floor at every period, so the controller behind the estimator acts bit for bit as without it."""
-    base, _, options = name.partition(":")
-    kwargs = dict(item.split("=") for item in options.split(",")) if options else {}
-    plain = _episode_commands(controllers.make(base, **kwargs), "nominal")
-    auto = controllers.make(
-        f"ekf:{base}", ekf_delay="auto", ekf_position_std="auto", ekf_heading_std="auto", **kwargs
-    )
-    wrapped = _episode_commands(auto, "nominal")
-    assert len(plain) == len(wrapped) > 50
-    for a, b in zip(plain, wrapped, strict=True):
+    floor at every period, so the built-in controllers with their default ``estimator="auto"``
+    act bit for bit as the paper's (``estimator="none"``), and as behind ``ekf:`` with
+    everything identified."""
+    from controllers.calibration import calibrate_controller
+    from koopman_envs.plant import make_plant
+
+    def build(configuration: str, **extra):
+        ctrl = controllers.make(configuration, **options, **extra)
+        plant = make_plant("KoopNav-Formation-v0", slip="high", budget=1_000_000, seed=0)
+        calibrate_controller(ctrl, plant, seed=0)
+        return ctrl
+
+    paper = _episode_commands(build(name, estimator="none"), "nominal")
+    default = build(name)
+    deployed = _episode_commands(default, "nominal")
+    # the same front-end put in front by the ekf: prefix (which switches the controller's own off)
+    identified = {"ekf_delay": "auto", "ekf_position_std": "auto", "ekf_heading_std": "auto"}
+    wrapped = _episode_commands(build(f"ekf:{name}", **identified), "nominal")
+    assert len(paper) == len(deployed) == len(wrapped) > 50
+    for a, b, c in zip(paper, deployed, wrapped, strict=True):
         np.testing.assert_array_equal(a, b)
-    counts = auto.stats().counts
+        np.testing.assert_array_equal(a, c)
+    counts = default.stats().counts
     assert counts["identified_delay"] == 0
     assert counts["identified_position_std_mm"] == 0 and counts["identified_heading_std_mrad"] == 0
 

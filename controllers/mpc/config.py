@@ -17,9 +17,11 @@ from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import PARAMS
+from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "DEFAULT_SOLVER_OPTIONS",
+    "ESTIMATORS",
     "FATROP_OPTIONS",
     "IPOPT_OPTIONS",
     "JIT_ENV",
@@ -75,6 +77,9 @@ DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fa
 
 #: NMPC solvers: the real-time iteration and the ``nlpsol`` plugins solved to convergence
 SOLVERS = ("rti", "ipopt", "fatrop")
+#: what stands between the localization and the planner (``estimator``): everything identified
+#: online, or nothing (the paper's)
+ESTIMATORS = ("auto", "none")
 
 #: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
 #: episode, or after a failure, with zero multipliers) drops them and uses the solver's own
@@ -193,6 +198,14 @@ class NMPCConfig:
         position is past a planned margin along any one separating direction is then at most
         ``chance_risk``. Without a covariance (no estimator, or none of the uncertainty it
         models) the margins are the paper's, bit for bit.
+    estimator : str
+        (ours) What stands between the robots' localization and the planner, one of
+        :data:`ESTIMATORS`: ``"auto"`` (default) the front-end a deployed MPC has
+        (:class:`controllers.estimation.PoseFrontEnd` with everything identified online: the
+        actuation delay compensated, the localization noise filtered, its covariance in the
+        margins); on a team without localization error or delay it identifies none and is a
+        no-op, bit for bit. ``"none"``: the paper's controller, planning from every measured
+        pose as if it were exact.
     settle_fraction : float
         (ours) With an estimator's covariance handed on, a robot whose estimated position comes
         within ``settle_fraction`` times the goal tolerance of its target holds still (zero
@@ -233,6 +246,7 @@ class NMPCConfig:
     mover_prediction: str = "constant_velocity"
     mover_offset: float = PARAMS.obstacle_offset
     chance_risk: float = 0.05
+    estimator: str = "auto"
     settle_fraction: float = 0.5
     jit: bool | None = None
 
@@ -272,6 +286,7 @@ class NMPCConfig:
             "qp_solver": tuple(sorted(QP_SOLVERS)),
             "hessian": HESSIANS,
             "mover_prediction": MOVER_PREDICTIONS,
+            "estimator": ESTIMATORS,
         }
 
     def validate(self) -> None:
@@ -282,6 +297,10 @@ class NMPCConfig:
         check_int("mover_slots", self.mover_slots, 0)
         check_number("mover_offset", self.mover_offset, at_least=0, note="metres")
         check_number("settle_fraction", self.settle_fraction, at_least=0, at_most=1)
+        if self.estimator not in ESTIMATORS:
+            raise ValueError(
+                f"estimator={self.estimator!r} is not one of {list(ESTIMATORS)}{did_you_mean(str(self.estimator), ESTIMATORS)}"
+            )
         if check_number("chance_risk", self.chance_risk, above=0, note="a probability") >= 0.5:
             raise ValueError(
                 f"chance_risk={self.chance_risk!r} must lie in (0, 0.5) (at 0.5 and above z <= 0 adds no margin)"

@@ -23,9 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
+from controllers.estimation import auto_front_end
 from controllers.movers import observed_movers
 from controllers.mpc.config import PARKED, NMPCConfig
-from controllers.mpc.margins import chance_tightening, margin_spread
+from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
 from controllers.mpc.models import PredictionModel, encode_state, model_step
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
@@ -80,6 +81,7 @@ class NMPCController(BaseController):
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
         self.config.validate()
+        self.front_end = auto_front_end() if self.config.estimator == "auto" else None
         self.model = model
         #: RMS one-step position residual of the prediction model per robot [m], from calibration
         self.position_residual: NDArray[np.float64] | None = None
@@ -322,16 +324,10 @@ class NMPCController(BaseController):
 
     def margins_for(self, n_robots: int, residual: NDArray | None) -> tuple[NDArray, NDArray]:
         """:meth:`safety_margins` for a given per-robot RMS position residual [m] (None: offsets only)."""
-        n = n_robots
-        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
-        obstacle = np.full(n, self.config.obstacle_offset)
-        pair = np.full(len(pairs), self.config.robot_offset)
-        k = self.config.uncertainty_margin
-        if k > 0 and residual is not None:
-            spread = k * np.asarray(residual, dtype=float)
-            obstacle = np.maximum(obstacle, spread)
-            pair = np.maximum(pair, np.array([spread[i] + spread[j] for i, j in pairs]))
-        return obstacle, pair
+        config = self.config
+        return offset_margins(
+            n_robots, config.obstacle_offset, config.robot_offset, config.uncertainty_margin, residual
+        )
 
     # -------------------------------------------------------------------- act
     def _initial_guess(self, state: NDArray) -> NDArray:

@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, ControllerStats
+from controllers.estimation import auto_front_end
 from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model
@@ -91,6 +92,7 @@ class _RobotNMPC(NMPCController):
     def __init__(self, config: NMPCConfig, slots: int) -> None:
         super().__init__(None, config)
         self.neighbour_slots = slots
+        self.front_end = None  # the team's estimator stands in front of the distributed NMPC
 
     #: the point the robot drives to in this period (its target or a detour waypoint)
     goal: NDArray[np.float64] | None = None
@@ -215,6 +217,7 @@ class DistributedNMPC(BaseController):
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
         self._robot = _RobotNMPC(self.config, self.neighbours)  # validates the NMPC options
+        self.front_end = auto_front_end() if self.config.estimator == "auto" else None
         self._agents: list[_RobotNMPC] = []
         self._plans: NDArray[np.float64] = np.zeros((0, 0, 2))
         self._per_robot_times: list[float] = []

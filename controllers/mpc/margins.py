@@ -10,7 +10,7 @@ import statistics
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["chance_tightening", "margin_spread"]
+__all__ = ["chance_tightening", "margin_spread", "offset_margins"]
 
 
 def margin_spread(name: str, k: float, residual: NDArray | None, n_robots: int) -> NDArray[np.float64] | None:
@@ -69,3 +69,23 @@ def chance_tightening(
     z = statistics.NormalDist().inv_cdf(1.0 - risk)
     per_pair = np.array([z * np.sqrt(variance[i] + variance[j]) for i, j in pairs])
     return z * np.sqrt(variance), per_pair.reshape(len(pairs))
+
+
+def offset_margins(
+    n_robots: int, obstacle_offset: float, robot_offset: float, k: float, residual: NDArray | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The margins added to the radii: per robot toward obstacles (N,), per robot pair i < j.
+
+    The offsets, widened to ``k`` times each robot's RMS one-step position residual [m] (pairs:
+    the sum of both robots' spreads) when that is larger; the offsets only for ``k = 0`` or no
+    residual.
+    """
+    n = n_robots
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+    obstacle = np.full(n, obstacle_offset)
+    pair = np.full(len(pairs), robot_offset)
+    if k > 0 and residual is not None:
+        spread = k * np.asarray(residual, dtype=float)
+        obstacle = np.maximum(obstacle, spread)
+        pair = np.maximum(pair, np.array([spread[i] + spread[j] for i, j in pairs]))
+    return obstacle, pair
