@@ -125,3 +125,29 @@ def test_a_robot_near_its_goal_under_an_uncertain_estimate_holds_still_and_moves
     plain.reset(env, seed=0)
     poses[0, 0] = scenario.targets[0, 0] + 0.4 * tolerance
     assert np.any(plain.act(obs, {**info, "observed_poses": poses}).reshape(-1, 2)[0] != 0)
+
+
+def test_the_safety_filter_widens_its_barriers_by_the_estimate_uncertainty() -> None:
+    """A robot driving at an obstacle 0.3 m past its filter margin: left alone without a covariance,
+    braked when the estimate is uncertain enough that z sigma eats the clearance."""
+    from controllers.safety.barriers import BarrierFilter
+    from controllers.safety.options import SafetyOptions
+
+    detour = MapSpec("wall", obstacles=[[1.0, 0.0, 0.3]], starts=[[0.0, 0.0, 0.0]], targets=[[2.0, 0.0, 0.0]])
+    env = gym.make("KoopNav-TargetReaching-v0", map=detour, n_robots=1)
+    env.reset(seed=0)
+    scenario = env.unwrapped.scenario
+    barrier = BarrierFilter(scenario, SafetyOptions())
+    pose = np.array([[1.0 - 0.3 - scenario.robot_radius[0] - 0.05 - 0.02 - 0.3, 0.0, 0.0]])
+    full_ahead = np.array([[0.3, 0.0]])
+    plain = barrier.filter(pose, full_ahead)
+    assert not plain.changed.any()
+    widened = barrier.filter(pose, full_ahead, widen=np.array([0.3]))
+    assert widened.changed.all() and widened.command[0, 0] < plain.command[0, 0]
+    assert widened.barrier_min < plain.barrier_min
+    # the wrapper: safe:consensus takes the consensus's estimator in front of both
+    ctrl = controllers.make("safe:consensus")
+    assert ctrl.front_end is not None and ctrl.inner.front_end is None
+    assert controllers.make("safe:consensus", estimator="none").front_end is None
+    with pytest.raises(ValueError, match=r"safety filter option safety_chance_risk=0.5 is out of range"):
+        controllers.make("safe:consensus", safety_chance_risk=0.5)

@@ -240,7 +240,9 @@ class BarrierFilter:
         reach = speed / self.options.gamma
         return reach, 2 * reach
 
-    def filter(self, poses: NDArray, command: NDArray, movers: NDArray | None = None) -> FilterStep:
+    def filter(
+        self, poses: NDArray, command: NDArray, movers: NDArray | None = None, widen: NDArray | None = None
+    ) -> FilterStep:
         """The safe command nearest to ``command``.
 
         Parameters
@@ -253,6 +255,10 @@ class BarrierFilter:
         movers : ndarray, shape (C, 4), optional
             Observed movers (x, y, vx, vy): each a moving barrier whose velocity counts with the
             weight ``mover_velocity`` (0: a disc standing where it is seen).
+        widen : ndarray, shape (N,), optional
+            Extra clearance per robot for this period [m] (the pose estimate's uncertainty,
+            :func:`controllers.mpc.margins.chance_tightening`): toward obstacles, walls and movers
+            by robot i's own, between robots i and j by sqrt(w_i^2 + w_j^2).
 
         Returns
         -------
@@ -267,16 +273,28 @@ class BarrierFilter:
         relaxation = np.empty(n)
         opt = self.options
         movers = np.zeros((0, 4)) if movers is None else np.asarray(movers, dtype=np.float64).reshape(-1, 4)
+        obstacle_reach, robot_reach, walls, mover_reach = (
+            self._obstacle_reach,
+            self._robot_reach,
+            self._walls,
+            self._mover_reach,
+        )
+        if widen is not None:
+            w = np.asarray(widen, dtype=np.float64).reshape(n)
+            obstacle_reach = np.ascontiguousarray(obstacle_reach + w[:, None])
+            robot_reach = np.ascontiguousarray(robot_reach + np.sqrt(w[:, None] ** 2 + w[None, :] ** 2))
+            walls = walls + np.array([1, -1, 1, -1]) * float(w.max(initial=0.0))
+            mover_reach = np.ascontiguousarray(mover_reach + w)
         h_min, built = _filter_team(
             poses,
             wanted,
             self._centres,
-            self._obstacle_reach,
-            self._robot_reach,
-            self._walls,
+            obstacle_reach,
+            robot_reach,
+            walls,
             np.ascontiguousarray(movers[:, :2]),
             np.ascontiguousarray(opt.mover_velocity * movers[:, 2:4]),
-            self._mover_reach,
+            mover_reach,
             opt.lookahead,
             opt.gamma,
             self.v_max,

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats
 from controllers.movers import observed_movers
+from controllers.mpc.margins import chance_tightening
 from controllers.safety.barriers import BarrierFilter
 from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
 from koopman_envs.scenario import Scenario
@@ -105,6 +106,12 @@ class SafetyFilter(BaseController):
                     f"SafetyFilter needs a controller with {method}(); got {type(inner).__name__}"
                 )
         self.inner = inner
+        # the inner controller's estimator moves in front of the filter: both then act on the
+        # same estimate (delay compensated, filtered), and the filter widens its barriers by its
+        # covariance
+        self.front_end, inner_front_end = getattr(inner, "front_end", None), None
+        if self.front_end is not None:
+            inner.front_end = inner_front_end  # type: ignore[attr-defined]  # a BaseController's own
         self.options = SafetyOptions.from_options(**options)
         self.name = f"safe:{getattr(inner, 'name', type(inner).__name__)}"
         self._filter: BarrierFilter | None = None
@@ -128,8 +135,14 @@ class SafetyFilter(BaseController):
         command = self.inner.act(observation, info)
         middle = time.perf_counter()
         assert self._filter is not None  # built by _reset, which act() requires
+        covariance = info.get("pose_covariance")
+        widen = (
+            None
+            if covariance is None
+            else chance_tightening(covariance, self.options.chance_risk, len(info["observed_poses"]))[0]
+        )
         step = self._filter.filter(
-            np.asarray(info["observed_poses"], dtype=np.float64), command, observed_movers(info)
+            np.asarray(info["observed_poses"], dtype=np.float64), command, observed_movers(info), widen
         )
         end = time.perf_counter()
         stats = self._stats

@@ -44,6 +44,11 @@ class SafetyOptions:
         (default) a moving barrier (constant-velocity prediction: the robot recedes as fast as
         the mover approaches, on top of the class-K rate); 0 the mover as a disc standing where
         it is seen (prediction off).
+    chance_risk : float
+        Risk level in ``(0, 0.5)`` of the chance-constrained widening: with an estimator's pose
+        covariance (the inner controller's ``estimator``), every barrier widens by z sigma as
+        the NMPCs' margins do (:func:`controllers.mpc.margins.chance_tightening`); without
+        one, never.
     """
 
     gamma: float = 2.0
@@ -51,6 +56,7 @@ class SafetyOptions:
     lookahead: float = 0.05
     omega_weight: float = 0.01
     mover_velocity: float = 1.0
+    chance_risk: float = 0.05
 
     #: allowed range per option: (low, high, low included, description)
     RANGES: ClassVar[dict[str, tuple[float, float, bool, str]]] = {
@@ -59,6 +65,8 @@ class SafetyOptions:
         "lookahead": (0.0, 0.5, False, "(0, 0.5] m"),
         "omega_weight": (0.0, 100.0, False, "(0, 100] m^2/rad^2"),
         "mover_velocity": (0.0, 1.0, True, "[0, 1]"),
+        # (0, 0.5): 0.5 itself would add no margin (z = 0)
+        "chance_risk": (0.0, 0.4999, False, "(0, 0.5)"),
     }
 
     def __post_init__(self) -> None:
