@@ -25,10 +25,11 @@
 #                   tests not yet committed)
 #   WITHOUT="tests/a.py ..."   leave those test files out (a score before they were added)
 #   MIN_SCORE=P     percent of mutants to kill (default 85)
+#   DRY=1           print each module's [tool.mutmut] section and run nothing
 # Needs mutmut 3 (pip install 'mutmut>=3'; measured with 3.8.1).
 set -euo pipefail
 
-# module -> "file to mutate|test files or test ids (files missing from the clone are skipped)|tests
+# module -> "file to mutate|test files, globs or test ids (files missing from the clone are skipped)|tests
 # left out (pytest --deselect prefixes)". Left out: tests of timing, signals and worker processes
 # (a SIGINT or SIGKILL sent at a chosen moment to `evaluate.py --workers 2`), which time out under
 # mutmut's load instead of failing on a mutant.
@@ -40,7 +41,7 @@ declare -A MODULES=(
     [baseline]="evaluation/baseline.py|tests/test_baseline.py tests/test_gate_decisions.py"
     [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py"
     [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py|$SIGNALS"
-    [records]="evaluation/records.py|tests/test_records.py tests/test_runlog.py tests/test_runlog_records.py|$SIGNALS"
+    [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py|$SIGNALS"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
 ORDER=(perception uncertainty observed baseline statistics runlog records)
@@ -67,7 +68,12 @@ for m in "${wanted[@]}"; do
     work=$(mktemp -d)
     git clone -q "$SOURCE" "$work/koopnav"
     tests=""
-    for t in $selection; do
+    where="$work/koopnav"
+    [ "${COPY_TESTS:-0}" = 1 ] && where=$SOURCE
+    for t in $(cd "$where" && shopt -s nullglob && for p in $selection; do
+        # a glob names every file that matches (tests other engineers add, e.g. tests/test_records*.py)
+        case $p in *"*"*) printf '%s\n' $p ;; *) printf '%s\n' "$p" ;; esac
+    done | awk '!seen[$0]++'); do
         file=${t%%::*}
         case " ${WITHOUT:-} " in *" $file "*) continue ;; esac
         if [ "${COPY_TESTS:-0}" = 1 ] && [ -f "$SOURCE/$file" ]; then
@@ -95,6 +101,11 @@ pytest_add_cli_args_test_selection = [$tests]
 pytest_add_cli_args = [$args]
 EOF
     echo "== $m: mutating $target, tests: $tests${deselect:+, left out: $deselect}"
+    if [ "${DRY:-0}" = 1 ]; then
+        sed -n '/^\[tool.mutmut\]/,$p' "$work/koopnav/pyproject.toml"
+        rm -rf "$work"
+        continue
+    fi
     start=$(date +%s)
     if ! (cd "$work/koopnav" && mutmut run --max-children "$JOBS" >"$work/run.log" 2>&1); then
         tail -c 3000 "$work/run.log"
