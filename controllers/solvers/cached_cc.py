@@ -109,14 +109,23 @@ def main(argv: list[str]) -> int:
             # matching checksum compiles again instead of trusting it
             try:
                 _store(directory, out, entry)
+                if settings.get("into-cache"):
+                    # before the checksum, which completes the entry: whoever sees the entry
+                    # complete sees no scratch left of its background compile
+                    _remove_scratch(source, out)
                 _store(directory, "", checksum, text=_digest(entry))
             except OSError:
                 pass  # a full disk: the object is compiled, only not kept
     if settings.get("into-cache"):  # a background compile: its source and output were scratch
-        for scratch in (source, out):
-            if os.path.exists(scratch):
-                os.remove(scratch)
+        _remove_scratch(source, out)
     return code
+
+
+def _remove_scratch(*paths: str) -> None:
+    """Remove a background compile's scratch files (its pending source and its output)."""
+    for scratch in paths:
+        if os.path.exists(scratch):
+            os.remove(scratch)
 
 
 def _start_background_compile(
