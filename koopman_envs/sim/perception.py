@@ -238,7 +238,7 @@ class Perception:
             self.sent_positions,
             self.known,
             self.age,
-            0.0 if lidar is None else lidar.noise,
+            np.float64(0.0 if lidar is None else lidar.noise),  # float64 in Python as in numba
             0.0 if lidar is None else lidar.dropout,
             self.max_range,
             self.ranges,
