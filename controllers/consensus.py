@@ -14,19 +14,21 @@ leader's law toward its own target.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.estimation import auto_front_end
-from controllers.movers import check_mover_prediction, observed_movers
-from controllers.mpc.config import ESTIMATORS
+from controllers.estimation import ESTIMATORS, check_estimator, front_end_for
+from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
 from koopman_envs.scenario import Scenario
-from koopman_envs.suggest import did_you_mean
 
-__all__ = ["ConsensusController"]
+__all__ = ["CONSENSUS_LEVERS", "ConsensusController"]
+
+#: the levers of the estimator consensus can switch off (``ablate``): it has no margins to tighten
+#: and no plan to settle
+CONSENSUS_LEVERS = ("estimation", "delay_compensation")
 
 
 class ConsensusController(BaseController):
@@ -56,10 +58,21 @@ class ConsensusController(BaseController):
     estimator : str
         (ours) ``"auto"`` (default): the estimator front-end with everything identified online
         (:func:`controllers.estimation.auto_front_end`: delay compensated, noise filtered; a
-        no-op without either); ``"none"``: the paper's, steering from every measured pose.
+        no-op without either); ``"realistic"``: the same told the ``realistic`` preset's delay
+        and noise (mis-specified when the team has others); ``"none"``: the paper's, steering
+        from every measured pose (:data:`controllers.estimation.ESTIMATORS`).
+    ablate : str
+        (ours) ``"none"`` (default), or one lever of the estimator switched off for the
+        ablation: ``"estimation"`` (no filter) or ``"delay_compensation"``.
     """
 
     name = "consensus"
+    #: the allowed values of the text options (:mod:`controllers.option_spec`)
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "mover_prediction": MOVER_PREDICTIONS,
+        "estimator": ESTIMATORS,
+        "ablate": ("none", *CONSENSUS_LEVERS),
+    }
 
     def __init__(
         self,
@@ -72,14 +85,12 @@ class ConsensusController(BaseController):
         mover_prediction: str = "constant_velocity",
         mover_lookahead: float = 1.0,
         estimator: str = "auto",
+        ablate: str = "none",
     ) -> None:
         super().__init__()
-        if estimator not in ESTIMATORS:
-            raise ValueError(
-                f"estimator={estimator!r} is not one of {list(ESTIMATORS)}{did_you_mean(str(estimator), ESTIMATORS)}"
-            )
-        self.estimator = estimator
-        self.front_end = auto_front_end() if estimator == "auto" else None
+        check_estimator(estimator, ablate, levers=CONSENSUS_LEVERS)
+        self.estimator, self.ablate = estimator, ablate
+        self.front_end = front_end_for(estimator, ablate)
         for key, value in dict(
             goal_gain=goal_gain,
             consensus_gain=consensus_gain,

@@ -47,14 +47,20 @@ from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
+from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 __all__ = [
+    "ABLATIONS",
     "AUTO",
+    "ESTIMATORS",
     "ESTIMATOR_OPTION_PREFIX",
+    "LEVERS",
     "EstimatorOptions",
     "PoseEstimator",
     "PoseFrontEnd",
     "auto_front_end",
+    "check_estimator",
+    "front_end_for",
     "wrap",
 ]
 
@@ -62,6 +68,20 @@ __all__ = [
 ESTIMATOR_OPTION_PREFIX = "ekf_"
 #: ``delay="auto"``: identify the actuation delay online
 AUTO = "auto"
+#: the model-based controllers' ``estimator`` option (:func:`front_end_for`): what stands between
+#: the robots' localization and the planner. ``"auto"``: everything identified online;
+#: ``"realistic"``: the team's datasheet held at the ``realistic`` preset's values (one period of
+#: delay, 3 cm and 0.02 rad of noise) whatever the team really has, the mis-specified case;
+#: ``"none"``: nothing, the paper's controllers
+ESTIMATORS = (AUTO, "realistic", "none")
+#: the parts of a deployed MPC that the ``ablate`` option switches off one at a time: the filter
+#: (``"estimation"``: the measured poses are used as they are, with the measurement noise as
+#: their covariance), the prediction through the commands already sent (``"delay_compensation"``),
+#: the chance-constrained margins (``"tightening"``) and holding still near the goal
+#: (``"settling"``); the last two belong to the NMPCs
+LEVERS = ("estimation", "delay_compensation", "tightening", "settling")
+#: the values of ``ablate``: no lever off, or one
+ABLATIONS = ("none", *LEVERS)
 
 
 @dataclass(frozen=True)
@@ -92,6 +112,10 @@ class EstimatorOptions:
         Hand the inner controller the pose predicted through the ``delay`` commands already sent
         (where its new command will act) instead of the filtered pose now (default True; a no-op
         at ``delay=0``).
+    filter_poses : bool
+        Filter the measured poses (default True). False: the measured poses are used as they
+        are, with the measurement noise (the options' or the identified) as their covariance
+        (the ``"estimation"`` lever of the ablation).
     """
 
     position_std: float | str = 0.03
@@ -101,6 +125,7 @@ class EstimatorOptions:
     delay: int | str = 0
     max_delay: int = 10
     compensate_delay: bool = True
+    filter_poses: bool = True
 
     @classmethod
     def from_options(cls, prefix: str = "", **options: Any) -> EstimatorOptions:
@@ -125,7 +150,7 @@ class EstimatorOptions:
                 check_int(prefix + key, value, 1, maximum=LIMITS.actuation_delay, note="control periods")
             elif key in ("position_std", "heading_std") and value == AUTO:
                 continue
-            elif key == "compensate_delay":
+            elif key in ("compensate_delay", "filter_poses"):
                 if not isinstance(value, (bool, np.bool_)):
                     raise ValueError(f"{prefix + key}={value!r} must be True or False")
             else:
@@ -265,9 +290,11 @@ class PoseFrontEnd:
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         noise = self.noise
+        if noise == (0.0, 0.0) and not self._filters:  # exact localization (so far): nothing to filter
+            return observed.copy(), None
+        if not self.options.filter_poses:  # the ablation's "estimation" lever: no filter
+            return observed.copy(), np.repeat(_measurement_noise(*noise)[None], observed.shape[0], axis=0)
         if not self._filters:
-            if noise == (0.0, 0.0):  # exact localization (so far): nothing to filter
-                return observed.copy(), None
             # the first period with noise: the measurement is the best there is
             self._filters = [_unicycle_ekf(pose, self.options, noise, scenario.dt) for pose in observed]
             return observed.copy(), np.stack([np.array(ekf.P, dtype=np.float64) for ekf in self._filters])
@@ -352,6 +379,45 @@ def auto_front_end() -> PoseFrontEnd:
     """The front-end of the model-based controllers' ``estimator="auto"``: delay and noise
     identified online, a no-op on a team without either."""
     return PoseFrontEnd(delay=AUTO, position_std=AUTO, heading_std=AUTO)
+
+
+def check_estimator(estimator: Any, ablate: Any = "none", levers: tuple[str, ...] = LEVERS) -> None:
+    """Raise ``ValueError`` naming a bad ``estimator`` (one of :data:`ESTIMATORS`) or ``ablate``
+    (``"none"`` or one of ``levers``, the controller's; a lever needs an estimator)."""
+    if estimator not in ESTIMATORS:
+        raise ValueError(
+            f"estimator={estimator!r} is not one of {list(ESTIMATORS)}{did_you_mean(str(estimator), ESTIMATORS)}"
+        )
+    allowed = ("none", *levers)
+    if ablate not in allowed:
+        raise ValueError(
+            f"ablate={ablate!r} is not one of {list(allowed)}{did_you_mean(str(ablate), allowed)}"
+        )
+    if ablate != "none" and estimator == "none":
+        raise ValueError(
+            f"ablate={ablate!r} switches off a lever of an estimator, and estimator='none' has none"
+        )
+
+
+def front_end_for(estimator: str, ablate: str = "none") -> PoseFrontEnd | None:
+    """The front-end of a model-based controller's ``estimator`` option (:data:`ESTIMATORS`),
+    with the ``ablate`` lever of the front-end switched off (:data:`LEVERS`: ``"estimation"``,
+    ``"delay_compensation"``; the others act in the controller). None for ``"none"``."""
+    check_estimator(estimator, ablate)
+    if estimator == "none":
+        return None
+    if estimator == AUTO:
+        options: dict[str, Any] = dict(delay=AUTO, position_std=AUTO, heading_std=AUTO)
+    else:  # a datasheet: a preset's values, held whatever the team really has
+        preset = UNCERTAINTY_PRESETS[estimator]
+        options = dict(
+            delay=preset.actuation_delay,
+            position_std=preset.pose_noise.xy,
+            heading_std=preset.pose_noise.heading,
+        )
+    options["filter_poses"] = ablate != "estimation"
+    options["compensate_delay"] = ablate != "delay_compensation"
+    return PoseFrontEnd(**options)
 
 
 class PoseEstimator(BaseController):

@@ -12,16 +12,15 @@ from typing import Any
 
 import numpy as np
 
+from controllers.estimation import ABLATIONS, ESTIMATORS, check_estimator
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import PARAMS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "DEFAULT_SOLVER_OPTIONS",
-    "ESTIMATORS",
     "FATROP_OPTIONS",
     "IPOPT_OPTIONS",
     "JIT_ENV",
@@ -77,9 +76,6 @@ DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fa
 
 #: NMPC solvers: the real-time iteration and the ``nlpsol`` plugins solved to convergence
 SOLVERS = ("rti", "ipopt", "fatrop")
-#: what stands between the localization and the planner (``estimator``): everything identified
-#: online, or nothing (the paper's)
-ESTIMATORS = ("auto", "none")
 
 #: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
 #: episode, or after a failure, with zero multipliers) drops them and uses the solver's own
@@ -200,12 +196,20 @@ class NMPCConfig:
         models) the margins are the paper's, bit for bit.
     estimator : str
         (ours) What stands between the robots' localization and the planner, one of
-        :data:`ESTIMATORS`: ``"auto"`` (default) the front-end a deployed MPC has
+        :data:`controllers.estimation.ESTIMATORS`: ``"auto"`` (default) the front-end a deployed MPC has
         (:class:`controllers.estimation.PoseFrontEnd` with everything identified online: the
         actuation delay compensated, the localization noise filtered, its covariance in the
         margins); on a team without localization error or delay it identifies none and is a
-        no-op, bit for bit. ``"none"``: the paper's controller, planning from every measured
-        pose as if it were exact.
+        no-op, bit for bit. ``"realistic"``: the same front-end told the ``realistic`` preset's
+        delay and noise (a datasheet) instead of identifying them, held whatever the team has
+        (the mis-specified case). ``"none"``: the paper's controller, planning from every
+        measured pose as if it were exact.
+    ablate : str
+        (ours) One lever of the estimator and its margins switched off, for the ablation
+        (:data:`controllers.estimation.LEVERS`): ``"estimation"`` (no filter: the measured poses
+        with the measurement noise as their covariance), ``"delay_compensation"``,
+        ``"tightening"`` (the chance constraints) or ``"settling"``; ``"none"`` (default) keeps
+        every lever on.
     settle_fraction : float
         (ours) With an estimator's covariance handed on, a robot whose estimated position comes
         within ``settle_fraction`` times the goal tolerance of its target holds still (zero
@@ -213,6 +217,12 @@ class NMPCConfig:
         (:data:`controllers.mpc.controller.SETTLE_RELEASE`): near the goal, where the localization
         noise is as large as the remaining error, the NMPC would otherwise chase the noise and
         never settle. 0 turns it off; without a covariance it never acts (the paper's behaviour).
+    unstall : bool
+        (ours) Resolve a stall of the central NMPC (:class:`controllers.mpc.detour.DeadlockResolver`):
+        a robot that has not moved for a second away from its target restarts cold, and, for
+        three seconds, gives way to a team-mate it blocks (by a fixed priority) or drives to a
+        waypoint beside the obstacle on its straight path. Without a stall it changes nothing,
+        bit for bit. The distributed NMPC has its own (detour waypoints, cold restarts).
     jit : bool or None
         Compile the NLP's functions to C (several times faster derivative evaluations). The
         compiled objects are cached on disk (:mod:`controllers.solvers.compiled`), so a problem
@@ -247,7 +257,9 @@ class NMPCConfig:
     mover_offset: float = PARAMS.obstacle_offset
     chance_risk: float = 0.05
     estimator: str = "auto"
+    ablate: str = "none"
     settle_fraction: float = 0.5
+    unstall: bool = True
     jit: bool | None = None
 
     @property
@@ -287,6 +299,7 @@ class NMPCConfig:
             "hessian": HESSIANS,
             "mover_prediction": MOVER_PREDICTIONS,
             "estimator": ESTIMATORS,
+            "ablate": ABLATIONS,
         }
 
     def validate(self) -> None:
@@ -297,10 +310,9 @@ class NMPCConfig:
         check_int("mover_slots", self.mover_slots, 0)
         check_number("mover_offset", self.mover_offset, at_least=0, note="metres")
         check_number("settle_fraction", self.settle_fraction, at_least=0, at_most=1)
-        if self.estimator not in ESTIMATORS:
-            raise ValueError(
-                f"estimator={self.estimator!r} is not one of {list(ESTIMATORS)}{did_you_mean(str(self.estimator), ESTIMATORS)}"
-            )
+        if not isinstance(self.unstall, (bool, np.bool_)):
+            raise ValueError(f"unstall={self.unstall!r} must be True or False")
+        check_estimator(self.estimator, self.ablate)
         if check_number("chance_risk", self.chance_risk, above=0, note="a probability") >= 0.5:
             raise ValueError(
                 f"chance_risk={self.chance_risk!r} must lie in (0, 0.5) (at 0.5 and above z <= 0 adds no margin)"

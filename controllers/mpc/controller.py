@@ -23,11 +23,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.estimation import auto_front_end
+from controllers.estimation import front_end_for
 from controllers.movers import observed_movers
 from controllers.mpc.config import PARKED, NMPCConfig
+from controllers.mpc.detour import DeadlockResolver
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
-from controllers.mpc.models import PredictionModel, encode_state, model_step
+from controllers.mpc.models import PredictionModel, decode_state, encode_state, model_step
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
 from koopman_envs.scenario import Scenario
@@ -35,6 +36,8 @@ from koopman_envs.scenario import Scenario
 # the margins (controllers.mpc.margins) stay importable from here, where they were first
 __all__ = ["SETTLE_RELEASE", "NMPCController", "SolveOutcome", "chance_tightening", "margin_spread"]
 
+#: SQP steps of the real-time iteration in the period a stall restarts it (:meth:`NMPCController._unstall`)
+RESTART_ITERATIONS = 10
 #: a settled robot (``settle_fraction``) moves again when its estimate is farther from its target
 #: than this fraction of the goal tolerance
 SETTLE_RELEASE = 0.75
@@ -68,6 +71,9 @@ class NMPCController(BaseController):
     name = "nmpc"
     #: moving-disc slots of the built problem (the distributed NMPC's robots: their neighbours)
     neighbour_slots = 0
+    #: whether the ``unstall`` option applies (a robot of the distributed NMPC has its goals set
+    #: by the team's own stall handling)
+    resolves_stalls = True
     #: mover slots of the built problem (set at reset from the scenario and ``mover_slots``)
     _mover_slots = 0
 
@@ -81,7 +87,7 @@ class NMPCController(BaseController):
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
         self.config.validate()
-        self.front_end = auto_front_end() if self.config.estimator == "auto" else None
+        self.front_end = front_end_for(self.config.estimator, self.config.ablate)
         self.model = model
         #: RMS one-step position residual of the prediction model per robot [m], from calibration
         self.position_residual: NDArray[np.float64] | None = None
@@ -170,6 +176,16 @@ class NMPCController(BaseController):
         self._fallback_used = 0
         self._failed = False
         self._settled = np.zeros(scenario.n_robots, dtype=bool)
+        self._pursue: NDArray | None = None
+        self._resolver = (
+            DeadlockResolver(
+                scenario.robot_radius,
+                scenario.obstacles,
+                max(self.config.obstacle_offset, self.config.robot_offset),
+            )
+            if self.config.unstall and self.resolves_stalls
+            else None
+        )
         self.last_plan = None
         self._stats.solver = self.solver_label
 
@@ -339,6 +355,32 @@ class NMPCController(BaseController):
         w[: prob.nx] = state
         return w
 
+    def _pursuit_guess(self, state: NDArray, goals: NDArray) -> NDArray:
+        """A cold start that already moves: every robot turns toward its goal (``goals`` (N, 2))
+        and drives (a pursuit rollout of the unicycle). With zero speed along the whole plan a
+        position cost has no gradient in the heading, so a robot stopped facing an obstacle or a
+        team-mate would never turn away from it from :meth:`_initial_guess`."""
+        prob, scenario = self._problem, self.scenario
+        assert prob is not None and scenario is not None  # built by _reset
+        w = np.zeros(prob.n_vars)
+        w[: prob.nx] = state
+        pose = decode_state(state, prob.coding).reshape(-1, 3).copy()
+        goals = np.asarray(goals, dtype=np.float64).reshape(-1, 2)
+        commands, states = [], []
+        for _ in range(prob.horizon):
+            delta = goals - pose[:, :2]
+            error = (np.arctan2(delta[:, 1], delta[:, 0]) - pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
+            omega = np.clip(2.0 * error, -scenario.omega_max, scenario.omega_max)
+            v = scenario.v_max * np.maximum(np.cos(error), 0.0) * np.minimum(1.0, np.hypot(*delta.T))
+            pose[:, 2] += omega * scenario.dt
+            pose[:, 0] += v * np.cos(pose[:, 2]) * scenario.dt
+            pose[:, 1] += v * np.sin(pose[:, 2]) * scenario.dt
+            commands.append(np.column_stack([v, omega]))
+            states.append(encode_state(pose, prob.coding))
+        w[prob.u_index] = np.ravel(commands)
+        w[prob.x_index] = np.ravel(states)
+        return w
+
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
@@ -346,19 +388,24 @@ class NMPCController(BaseController):
         assert self.scenario is not None  # act() checked it
         # an estimator in front hands on its covariance: chance-constrained margins (none without)
         covariance = info.get("pose_covariance")
-        per_robot, per_pair = chance_tightening(covariance, self.config.chance_risk, self.scenario.n_robots)
+        tightened = None if self.config.ablate == "tightening" else covariance
+        per_robot, per_pair = chance_tightening(tightened, self.config.chance_risk, self.scenario.n_robots)
         if self.config.obstacle_slots or self.config.pair_slots:
             self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2], per_pair)
         if self._mover_slots:
             self._fill_movers(np.asarray(info["observed_poses"], dtype=float)[:, :2], observed_movers(info))
+        if self._resolver is not None:
+            self._unstall(info["observed_poses"])
         params = self._params.copy()
         params[prob.layout["x_meas"]] = state
-        if covariance is not None:
+        if tightened is not None:
             self._tighten(params, per_robot, per_pair)
         cold = self._warm is None
         if self._warm is None:  # cold
             guess = {
-                "x0": self._initial_guess(state),
+                "x0": self._pursuit_guess(state, self._pursue)
+                if self._pursue is not None
+                else self._initial_guess(state),
                 "lam_x0": np.zeros(prob.n_vars),
                 "lam_g0": np.zeros(prob.n_cons),
             }
@@ -382,13 +429,29 @@ class NMPCController(BaseController):
             self._fallback_used = 0
             return (
                 self._settle(commands[0].copy(), info)
-                if covariance is not None
+                if covariance is not None and self.config.ablate != "settling"
                 else commands[0].reshape(-1).copy()
             )
         self._stats.failures += 1
         self._failed = True
         self._warm = None  # a failed iterate is a poor starting point: restart cold next step
         return self._fallback_command()
+
+    def _unstall(self, poses: NDArray) -> None:
+        """Set this period's goals from :class:`~controllers.mpc.detour.DeadlockResolver` (the
+        targets unless a robot has stalled); a stall restarts the solver cold."""
+        scenario, resolver = self.scenario, self._resolver
+        assert scenario is not None and resolver is not None  # act() checked; _reset built it
+        before = dict(resolver.started)
+        goals, stalled = resolver.goals(poses, scenario.targets, scenario.goal_tolerance)
+        self._params[self._block("goal_xy")] = goals.reshape(-1)
+        self._pursue = None
+        if stalled:  # restart cold from a plan that moves toward this period's goals
+            self._warm = None
+            self._pursue = goals
+            for kind, count in resolver.started.items():
+                if count > before[kind]:
+                    self._stats.counts[f"unstall_{kind}"] += count - before[kind]
 
     def _tighten(self, params: NDArray, per_robot: NDArray, per_pair: NDArray) -> None:
         """Widen this solve's collision margins (``params``, a copy) by :func:`chance_tightening`'s
@@ -448,8 +511,11 @@ class NMPCController(BaseController):
         """The real-time iteration's QP(s): a failed QP fails, and so does a plan with a large slack
         when there is a fallback solver to rescue it (without one the plan is used, counted)."""
         assert self._problem is not None  # built by _reset, which act() requires
+        # a restart after a stall starts from a pursuit rollout far from any optimum: SQP steps
+        # until it is near one, so that its first command is not one linearization's guess
+        restart = RESTART_ITERATIONS if self._pursue is not None else None
         step = self._problem.real_time_iteration().solve(
-            guess["x0"], guess["lam_x0"], guess["lam_g0"], params
+            guess["x0"], guess["lam_x0"], guess["lam_g0"], params, iterations=restart
         )
         if not step.success:
             return SolveOutcome(False, f"qp_failed({step.status})", iterations=step.iterations)

@@ -8,7 +8,18 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["DETOUR_CLEARANCE", "DETOUR_LEAD", "detour_waypoint", "tangent_waypoint"]
+__all__ = [
+    "DETOUR_CLEARANCE",
+    "DETOUR_LEAD",
+    "DETOUR_PERIODS",
+    "STALL_DISTANCE",
+    "STALL_PERIODS",
+    "YIELD_CLEARANCE",
+    "DeadlockResolver",
+    "StallMonitor",
+    "detour_waypoint",
+    "tangent_waypoint",
+]
 
 #: extra distance [m] a detour waypoint keeps from an obstacle's inflated disc (ours)
 DETOUR_CLEARANCE = 0.3
@@ -74,3 +85,138 @@ def detour_waypoint(
             side = offset / gap if gap > 1e-9 else np.array([-along[1], along[0]])
             best = (t, tangent_waypoint(position, centre, reach, side))
     return target if best is None else best[1]
+
+
+#: a robot that moved less than STALL_DISTANCE [m] in STALL_PERIODS periods while away from its
+#: target (more than twice the goal tolerance) has stalled (ours)
+STALL_PERIODS = 10
+STALL_DISTANCE = 0.02
+#: periods a stalled robot follows its detour before it tracks its target again (ours: 3 s, the
+#: time to drive 1.5 m, past the robot or obstacle that blocked it)
+DETOUR_PERIODS = 30
+#: how far [m], beyond both radii and the pair's margin, a yielding robot steps aside from the
+#: straight path of the robot it gives way to (ours)
+YIELD_CLEARANCE = 0.3
+
+
+class StallMonitor:
+    """Which robots have stalled: moved less than :data:`STALL_DISTANCE` in
+    :data:`STALL_PERIODS` periods while farther than twice the goal tolerance from their target.
+
+    A robot's history restarts when it is named stalled, so that whatever resolves the stall has
+    :data:`STALL_PERIODS` periods before it is judged again.
+    """
+
+    def __init__(self, n_robots: int) -> None:
+        self._history: list[list[NDArray[np.float64]]] = [[] for _ in range(n_robots)]
+
+    def stalled(
+        self, i: int, position: NDArray[np.float64], target: NDArray[np.float64], tolerance: float
+    ) -> bool:
+        """Record robot ``i``'s ``position`` (2,) this period; whether it has stalled."""
+        history = self._history[i]
+        history.append(np.array(position[:2], dtype=np.float64))
+        if len(history) <= STALL_PERIODS:
+            return False
+        history.pop(0)
+        away = np.hypot(*(position[:2] - target[:2])) > 2 * tolerance
+        if away and np.hypot(*(history[-1] - history[0])) < STALL_DISTANCE:
+            history.clear()
+            return True
+        return False
+
+
+def _blocks(position: NDArray, goal: NDArray, other: NDArray, reach: float) -> bool:
+    """Whether a disc of radius ``reach`` at ``other`` lies on the straight path ``position`` ->
+    ``goal`` (ahead of the robot, not beyond its goal)."""
+    line = goal - position
+    length = float(np.hypot(*line))
+    if length < 1e-9:
+        return False
+    t = float(np.dot(other - position, line / length))
+    return 0.0 < t < length + reach and float(np.hypot(*(position + t * line / length - other))) < reach
+
+
+class DeadlockResolver:
+    """The central NMPC's way out of a stall (ours; on by default, ``unstall``): a distance-tracking
+    cost has local minima where a robot faces an obstacle on its straight path, or where two
+    robots' paths cross and each blocks the other (Map 2's crossing), and the real-time
+    iteration, one QP per period from the last plan, stays in them.
+
+    A robot named stalled by :class:`StallMonitor` gets, for :data:`DETOUR_PERIODS` periods:
+
+    - when it blocks a team-mate's straight path, or a team-mate blocks its own, and it has the
+      lower priority (the higher index: a fixed order, so two robots never both yield), a point
+      :data:`YIELD_CLEARANCE` beyond both radii to the side of the other robot's straight path
+      on which it stands: it steps out of the way;
+    - else, when an obstacle lies on its straight path, the detour waypoint beside it
+      (:func:`detour_waypoint`, as the distributed NMPC's);
+    - else its target (a restart from the last plan is all it needs).
+
+    Without a stall every goal is the robot's target: the controller is unchanged, bit for bit.
+
+    Parameters
+    ----------
+    radii : ndarray, shape (N,)
+        The robots' radii [m].
+    obstacles : ndarray, shape (M, 3)
+        The map's obstacles.
+    margin : float
+        The pair and obstacle margin the NMPC keeps [m].
+    """
+
+    def __init__(self, radii: NDArray[np.float64], obstacles: NDArray[np.float64], margin: float) -> None:
+        self.radii = np.asarray(radii, dtype=np.float64)
+        self.obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        self.margin = float(margin)
+        n = self.radii.size
+        self.monitor = StallMonitor(n)
+        self._detour: list[tuple[NDArray[np.float64], int] | None] = [None] * n
+        #: detours started, by kind: ``"yield"`` (gave way to a team-mate), ``"obstacle"``, ``"restart"``
+        self.started: dict[str, int] = {"yield": 0, "obstacle": 0, "restart": 0}
+
+    def goals(
+        self, positions: NDArray[np.float64], targets: NDArray[np.float64], tolerance: float
+    ) -> tuple[NDArray[np.float64], list[int]]:
+        """This period's goal of every robot (N, 2) and the robots newly stalled (whose solver
+        should restart). ``positions`` (N, >=2) as the controller plans from them."""
+        positions = np.asarray(positions, dtype=np.float64)[:, :2]
+        goals = np.array(targets, dtype=np.float64)[:, :2]
+        stalled = [
+            i for i in range(goals.shape[0]) if self.monitor.stalled(i, positions[i], goals[i], tolerance)
+        ]
+        for i in stalled:
+            self._detour[i] = (self._waypoint(i, positions, goals), DETOUR_PERIODS)
+        for i, detour in enumerate(self._detour):
+            if detour is None:
+                continue
+            point, left = detour
+            goals[i] = point
+            self._detour[i] = (point, left - 1) if left > 1 else None
+        return goals, stalled
+
+    def _waypoint(self, i: int, positions: NDArray, goals: NDArray) -> NDArray[np.float64]:
+        for j in range(i):  # only a higher-priority (lower-index) team-mate makes robot i yield
+            reach = self.radii[i] + self.radii[j] + self.margin + YIELD_CLEARANCE
+            if _blocks(positions[j], goals[j], positions[i], reach) or _blocks(
+                positions[i], goals[i], positions[j], reach
+            ):
+                self.started["yield"] += 1
+                return _aside(positions[i], positions[j], goals[j], reach)
+        inflate = self.radii[i] + self.margin + DETOUR_CLEARANCE
+        waypoint = detour_waypoint(positions[i], goals[i], self.obstacles, inflate)
+        self.started["obstacle" if not np.array_equal(waypoint, goals[i]) else "restart"] += 1
+        return waypoint
+
+
+def _aside(position: NDArray, other: NDArray, other_goal: NDArray, reach: float) -> NDArray[np.float64]:
+    """A point ``reach`` from the straight path ``other`` -> ``other_goal``, on the side where
+    ``position`` stands, level with ``position`` along that path."""
+    line = other_goal - other
+    length = float(np.hypot(*line))
+    along = line / length if length > 1e-9 else np.array([1.0, 0.0])
+    normal = np.array([-along[1], along[0]])
+    offset = float(np.dot(position - other, normal))
+    side = 1.0 if offset >= 0 else -1.0
+    foot = other + float(np.dot(position - other, along)) * along
+    return foot + side * reach * normal

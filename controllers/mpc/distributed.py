@@ -54,15 +54,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, ControllerStats
-from controllers.estimation import auto_front_end
+from controllers.estimation import front_end_for
 from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model
 from controllers.mpc.config import PARKED, NMPCConfig
 from controllers.mpc.controller import NMPCController
-from controllers.mpc.detour import DETOUR_CLEARANCE, detour_waypoint
+from controllers.mpc.detour import DETOUR_CLEARANCE, StallMonitor, detour_waypoint
 from controllers.mpc.margins import chance_tightening, margin_spread
-from controllers.mpc.models import PredictionModel, UnicycleModel, decode_state, encode_state
+from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.plant import CalibrationPlant
@@ -78,16 +78,13 @@ COORDINATION = ("sequential", "jacobi")
 MODELS = ("nominal", "koopman")
 #: what a formation follower drives to (see the module docstring)
 FORMATION_GOALS = ("target", "leader-plan")
-#: a robot that moved less than STALL_DISTANCE [m] in STALL_PERIODS periods while away from its
-#: target has stalled: its next solve starts cold (ours)
-STALL_PERIODS = 10
-STALL_DISTANCE = 0.02
 
 
 class _RobotNMPC(NMPCController):
     """One robot's NMPC: the central NMPC's solver chain on a one-robot problem with neighbour slots."""
 
     name = "robot-nmpc"
+    resolves_stalls = False
 
     def __init__(self, config: NMPCConfig, slots: int) -> None:
         super().__init__(None, config)
@@ -98,32 +95,10 @@ class _RobotNMPC(NMPCController):
     goal: NDArray[np.float64] | None = None
 
     def _initial_guess(self, state: NDArray) -> NDArray:
-        """A cold start that already moves: turn toward the goal and drive (a pursuit rollout of
-        the unicycle). The central NMPC's guess holds the robot still; with zero speed along the
-        whole plan a position cost has no gradient in the heading, so a robot pressed against an
-        obstacle would never turn away from it."""
-        prob = self.problem
-        scenario = self.scenario
-        assert prob is not None and scenario is not None  # built by _reset
+        """A cold start that already moves toward the robot's goal (:meth:`_pursuit_guess`)."""
         if self.goal is None:
             return super()._initial_guess(state)
-        w = np.zeros(prob.n_vars)
-        w[: prob.nx] = state
-        x, y, theta = (float(v) for v in decode_state(state, prob.coding)[0])
-        commands, states = [], []
-        for _ in range(prob.horizon):
-            dx, dy = self.goal[0] - x, self.goal[1] - y
-            error = (np.arctan2(dy, dx) - theta + np.pi) % (2 * np.pi) - np.pi
-            omega = float(np.clip(2.0 * error, -scenario.omega_max, scenario.omega_max))
-            v = scenario.v_max * max(float(np.cos(error)), 0.0) * min(1.0, float(np.hypot(dx, dy)))
-            theta += omega * scenario.dt
-            x += v * np.cos(theta) * scenario.dt
-            y += v * np.sin(theta) * scenario.dt
-            commands.append([v, omega])
-            states.append(encode_state(np.array([[x, y, theta]]), prob.coding))
-        w[prob.u_index] = np.ravel(commands)
-        w[prob.x_index] = np.ravel(states)
-        return w
+        return self._pursuit_guess(state, self.goal[None])
 
     def _model_for(self, scenario: Scenario) -> PredictionModel:
         if self.model is None:  # the nominal variant; the Koopman one is handed its robot's block
@@ -217,7 +192,7 @@ class DistributedNMPC(BaseController):
         except TypeError as exc:
             raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
         self._robot = _RobotNMPC(self.config, self.neighbours)  # validates the NMPC options
-        self.front_end = auto_front_end() if self.config.estimator == "auto" else None
+        self.front_end = front_end_for(self.config.estimator, self.config.ablate)
         self._agents: list[_RobotNMPC] = []
         self._plans: NDArray[np.float64] = np.zeros((0, 0, 2))
         self._per_robot_times: list[float] = []
@@ -309,7 +284,7 @@ class DistributedNMPC(BaseController):
             + delay
         )
         self._per_robot_times = []
-        self._history: list[list[NDArray[np.float64]]] = [[] for _ in range(n)]
+        self._monitor = StallMonitor(n)
         # the plans by period, for team-mates whose messages arrive late (controllers.mpc.plan_exchange)
         self._plan_log = PlanLog(self.config.horizon)
         self._leader_end: NDArray[np.float64] | None = None  # the leader's plan end as robot i heard it
@@ -404,7 +379,8 @@ class DistributedNMPC(BaseController):
         # obstacle and mover margins by it, and each team-mate's disc by z sigma sqrt(2) (a
         # message carries a pose, not its covariance: the team-mate's is taken to be as large)
         covariance = info.get("pose_covariance")
-        per_robot, _ = chance_tightening(covariance, self.config.chance_risk, n)
+        tightened = None if self.config.ablate == "tightening" else covariance
+        per_robot, _ = chance_tightening(tightened, self.config.chance_risk, n)
         self._pair_tightening = np.sqrt(2.0) * per_robot
         start = time.perf_counter()
         for i in range(n):
@@ -431,20 +407,11 @@ class DistributedNMPC(BaseController):
         return commands.reshape(-1)
 
     def _stalled(self, i: int, position: NDArray[np.float64]) -> bool:
-        """Robot ``i`` has not moved for ``STALL_PERIODS`` periods while away from its target
-        (its history is kept here; a stall restarts its solver cold, once per stall)."""
+        """Robot ``i`` has stalled (:class:`~controllers.mpc.detour.StallMonitor`): its solver
+        restarts cold, once per stall."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
-        history = self._history[i]
-        history.append(position.copy())
-        if len(history) <= STALL_PERIODS:
-            return False
-        history.pop(0)
-        away = np.hypot(*(position - scenario.targets[i, :2])) > 2 * scenario.goal_tolerance
-        if away and np.hypot(*(history[-1] - history[0])) < STALL_DISTANCE:
-            history.clear()  # give the restarted plan time before judging it
-            return True
-        return False
+        return self._monitor.stalled(i, position, scenario.targets[i, :2], scenario.goal_tolerance)
 
     def stats(self) -> ControllerStats:
         """The team's statistics: per-period solve time of all robots together (``robot`` in

@@ -251,8 +251,12 @@ class RealTimeIteration:
             function, [inputs[n] for n in function.name_in()], [outputs[n] for n in function.name_out()]
         )
 
-    def solve(self, w: NDArray, lam_x: NDArray, lam_g: NDArray, params: NDArray) -> RTIStep:
-        """``iterations`` SQP steps from the guess ``(w, lam_x, lam_g)`` (arrays are not modified)."""
+    def solve(
+        self, w: NDArray, lam_x: NDArray, lam_g: NDArray, params: NDArray, iterations: int | None = None
+    ) -> RTIStep:
+        """``iterations`` SQP steps (default: the instance's) from the guess ``(w, lam_x, lam_g)``
+        (arrays are not modified)."""
+        iterations = self.iterations if iterations is None else iterations
         prob = self.problem
         lin_in, lin_out, qp_in, qp_out = self._lin_in, self._lin_out, self._qp_in, self._qp_out
         lin_in["p"][:] = params
@@ -260,7 +264,7 @@ class RealTimeIteration:
         lam_x = np.array(lam_x, dtype=float)
         lam_g = np.array(lam_g, dtype=float)
         status = "not_run"
-        for done in range(1, self.iterations + 1):
+        for done in range(1, iterations + 1):
             lin_in["w"][:] = w
             lin_in["lam_g"][:] = lam_g
             try:
@@ -293,7 +297,7 @@ class RealTimeIteration:
             lam_x = qp_out["lam_x"].copy()
             lam_g = qp_out["lam_a"].copy()
         max_slack = float(np.max(w[self._slack_index])) if self._slack_index.size else 0.0
-        return RTIStep(True, status, w, lam_x, lam_g, self.iterations, max_slack)
+        return RTIStep(True, status, w, lam_x, lam_g, iterations, max_slack)
 
     def _convex_hessian(self, flat: NDArray, out: NDArray) -> None:
         """Write into ``out`` (the QP Hessian's nonzeros) the stacked dense stage blocks of
