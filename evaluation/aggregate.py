@@ -21,8 +21,15 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.distinct import distinct_records, distinct_units
 from evaluation.records import is_degraded, ran
-from evaluation.statistics import bootstrap_mean_interval, paired_comparison, wilson_interval
+from evaluation.statistics import (
+    bootstrap_mean_interval,
+    cluster_bootstrap_rate,
+    holm_adjusted,
+    paired_comparison,
+    wilson_interval,
+)
 from koopman_envs.sim.collision import CollisionKind
 
 __all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons", "pooled_rate"]
@@ -109,12 +116,15 @@ class Cell:
     solver_failures: int
     calibration_transitions: int | None = None
     degraded: int = 0
+    #: episodes that ran and repeat an earlier one of the cell bit for bit (not counted in any rate)
+    duplicates: int = 0
     error_messages: list[str] = field(default_factory=list)
 
     @property
     def valid(self) -> int:
-        """Episodes that ran (did not raise)."""
-        return self.episodes - self.errors
+        """Distinct episodes that ran (did not raise): what every rate counts
+        (:mod:`evaluation.distinct`)."""
+        return self.episodes - self.errors - self.duplicates
 
     @property
     def success_rate(self) -> float:
@@ -161,7 +171,8 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
         by_cell.setdefault((rec["env_id"], rec["controller"], rec["map"], rec["slip"]), []).append(rec)
     cells = []
     for (env_id, name, map_name, slip), recs in by_cell.items():
-        ok = [r for r in recs if ran(r)]
+        ran_here = [r for r in recs if ran(r)]
+        ok = distinct_records(ran_here)  # an identical rerun is not a sample
         won = [r for r in ok if r["success"]]
         free = [r for r in ok if r["collision"] is None]
         n_robots = len(ok[0]["final_distance"]) if ok else 0
@@ -175,7 +186,8 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
                 episodes=len(recs),
                 successes=len(won),
                 collision_free=len(free),
-                errors=len(recs) - len(ok),
+                errors=len(recs) - len(ran_here),
+                duplicates=len(ran_here) - len(ok),
                 degraded=sum(is_degraded(r) for r in recs),
                 distance_collision_free=DistanceSummary.of(free, n_robots),
                 distance_settled=DistanceSummary.of(won, n_robots),
@@ -185,8 +197,9 @@ def aggregate(records: Iterable[dict[str, Any]]) -> list[Cell]:
                 formation_rms_cm=_nan_reduce(
                     np.mean, [100 * r["formation_rms"] for r in ok if r["formation_rms"] is not None]
                 ),
-                solve_ms_median=_nan_reduce(np.median, [r["solve_ms_median"] for r in ok]),
-                solve_ms_p95=_cell_p95(ok),
+                # timings are not outcome samples: every episode that ran
+                solve_ms_median=_nan_reduce(np.median, [r["solve_ms_median"] for r in ran_here]),
+                solve_ms_p95=_cell_p95(ran_here),
                 solver_failures=sum(r["solver_failures"] for r in ok),
                 calibration_transitions=max(
                     (int(c.get("transitions", 0)) for c in calibrations), default=None
@@ -220,6 +233,52 @@ def pooled_rate(cells: Iterable[Cell], outcome: str = "successes") -> tuple[floa
     return (count / valid if valid else float("nan")), list(wilson_interval(count, valid)), valid
 
 
+def _clustered_interval(wilson: list[float], records: list[dict[str, Any]]) -> list[float]:
+    """The wider of the Wilson interval over distinct episodes and the cluster bootstrap over
+    trials (episodes sharing a seed share its layout, start and slip draws across cells;
+    :func:`~evaluation.statistics.cluster_bootstrap_rate`). Wilson covers small samples, where
+    a bootstrap of a rate at 0 or 1 has no width; the cluster bootstrap covers the dependence
+    between a trial's episodes, which Wilson assumes away."""
+    by_seed: dict[Any, list[bool]] = {}
+    for r in records:
+        by_seed.setdefault(r["seed"], []).append(bool(r["success"]))
+    _, low, high = cluster_bootstrap_rate(by_seed.values())
+    if math.isnan(low):
+        return wilson
+    return [min(wilson[0], low), max(wilson[1], high)]
+
+
+def episode_metrics(records: list[dict[str, Any]]) -> dict[str, float]:
+    """The metrics robotics papers report, over episodes that ran (NaN where none has them;
+    records written before a metric existed lack it):
+
+    - ``time_to_goal_s``: mean over the successes;
+    - ``path_ratio``: mean over the successes of the robots' mean path length over
+      straight-line distance (robots that start within 10 cm of their target left out; a
+      failed episode's path ends early, so it would flatter the ratio);
+    - ``min_clearance_cm``: median over episodes of the episode's smallest surface clearance
+      to an obstacle, a team-mate or a mover (negative: a collision);
+    - ``accel_rms``: mean over episodes and robots of the RMS linear command rate [m/s^2].
+    """
+    ratios, clearances, accels = [], [], []
+    for r in records:
+        straight = np.asarray(r.get("straight_distance") or [], dtype=float)
+        if r["success"] and straight.size and (straight > 0.1).any():
+            moved = straight > 0.1
+            ratios.append(float(np.mean(np.asarray(r["path_length"], dtype=float)[moved] / straight[moved])))
+        low = [v for v in (r.get("min_clearance") or {}).values() if v is not None]
+        if low:
+            clearances.append(100 * min(low))
+        if r.get("accel_rms"):
+            accels.append(float(np.mean(r["accel_rms"])))
+    return {
+        "time_to_goal_s": _nan_reduce(np.mean, [r["time_to_goal"] for r in records if r["success"]]),
+        "path_ratio": _nan_reduce(np.mean, ratios),
+        "min_clearance_cm": _nan_reduce(np.median, clearances),
+        "accel_rms": _nan_reduce(np.mean, accels),
+    }
+
+
 def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (task, controller), ranked by success rate, then mean final distance.
 
@@ -232,16 +291,20 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
             own = [c for c in cells if c.env_id == env_id and c.controller == name]
             success_rate, success_ci, valid = pooled_rate(own, "successes")
             free_rate, free_ci, _ = pooled_rate(own, "collision_free")
-            recs = [r for r in records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
+            recs = distinct_records(
+                [r for r in records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
+            )
             settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
             free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
             d_low, d_high = bootstrap_mean_interval(settled)
+            success_ci = _clustered_interval(success_ci, recs)
             f_low, f_high = bootstrap_mean_interval(free_runs)
             rows.append(
                 {
                     "env_id": env_id,
                     "controller": name,
                     "episodes": valid,
+                    "episodes_run": sum(c.episodes for c in own),
                     "success_rate": success_rate,
                     "success_ci": success_ci,
                     "collision_free_rate": free_rate,
@@ -252,6 +315,7 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                     if free_runs
                     else float("nan"),
                     "final_distance_collision_free_ci": [f_low, f_high],
+                    **episode_metrics(recs),
                     "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in own]),
                     # the optimizer(s) behind the row's decisions, as the controllers reported them
                     "solver": ", ".join(
@@ -282,26 +346,26 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
 def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Every pair of controllers of a task, paired on their shared (map, slip, seed) episodes.
 
-    Only episodes that ran for both controllers count. Returns one plain-JSON row per pair with
+    Only episodes that ran for both controllers count, and a seed whose two episodes repeat an
+    earlier seed's of the same cell counts once (:func:`evaluation.distinct.distinct_units`). Returns one plain-JSON row per pair with
     ``a``, ``b``, the cells they share and :class:`~evaluation.statistics.PairedComparison` fields.
     """
-    outcomes: dict[tuple[str, str], dict[tuple, bool]] = {}
+    outcomes: dict[tuple[str, str], dict[tuple, dict[str, Any]]] = {}
     for r in records:
         if ran(r):
-            outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = bool(
-                r["success"]
-            )
+            outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = r
     rows = []
     env_ids = list(dict.fromkeys(env for env, _ in outcomes))
     for env_id in env_ids:
         names = [name for env, name in outcomes if env == env_id]
         for i, a in enumerate(names):
             for b in names[i + 1 :]:
-                shared = sorted(set(outcomes[(env_id, a)]) & set(outcomes[(env_id, b)]))
+                mine, theirs = outcomes[(env_id, a)], outcomes[(env_id, b)]
+                shared = distinct_units(sorted(set(mine) & set(theirs)), mine, theirs)
                 if not shared:
                     continue
                 comparison = paired_comparison(
-                    [outcomes[(env_id, a)][k] for k in shared], [outcomes[(env_id, b)][k] for k in shared]
+                    [bool(mine[k]["success"]) for k in shared], [bool(theirs[k]["success"]) for k in shared]
                 )
                 cells = sorted({(m, s) for m, s, _ in shared})
                 rows.append(
@@ -311,6 +375,15 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                         "b": b,
                         "cells": [list(c) for c in cells],
                         **comparison.to_dict(),
+                        # rliable's probability of improvement on paired binary outcomes: P(a
+                        # succeeds where b fails) + half the ties
+                        "prob_improvement": (
+                            comparison.only_a + 0.5 * (comparison.n - comparison.only_a - comparison.only_b)
+                        )
+                        / comparison.n,
                     }
                 )
+    # the table's tests as one family: Holm's adjustment beside the raw p
+    for row, adjusted in zip(rows, holm_adjusted(r["p_value"] for r in rows), strict=True):
+        row["p_holm"] = adjusted
     return rows

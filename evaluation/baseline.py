@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.distinct import distinct_units
 from evaluation.records import ran, record_problem
 from evaluation.report import markdown_cell, markdown_text, task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
@@ -183,7 +184,8 @@ def compare_runs(records: list[dict[str, Any]], baseline_records: list[dict[str,
     rows = []
     pooled: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {}
     for key in sorted(set(mine) & set(theirs)):
-        shared = sorted(set(mine[key]) & set(theirs[key]))
+        # a seed whose episodes repeat an earlier seed's on both sides is one pair, not two
+        shared = distinct_units(sorted(set(mine[key]) & set(theirs[key])), mine[key], theirs[key])
         if not shared:
             continue
         pairs = ([mine[key][k] for k in shared], [theirs[key][k] for k in shared])

@@ -217,8 +217,8 @@ def _env_settings(env: argparse._ArgumentGroup) -> None:
         "--start-noise",
         type=float,
         metavar="R",
-        help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE}; 0 with --paper and "
-        "--ablation, which keep the maps' starts)",
+        help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE} in every protocol, so "
+        "that trials are distinct episodes; 0: the maps' exact starts, as the paper ran them)",
     )
     env.add_argument(
         "--env-kwargs",
@@ -250,7 +250,7 @@ def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
         "--fallback-solver",
         choices=[*SOLVERS[1:], FALLBACK_NONE],
         help="NLP rescue of every NMPC configuration that names none, tried when its solver fails "
-        "(default: each controller's own, ipopt); none: no rescue, each period keeps its "
+        "(default: each controller's own, none); none: no rescue, each period keeps its "
         "real-time budget (a real-time iteration's plan with a large slack is used as it is, a "
         "failed QP goes to the rest of the last plan). Under pose noise the rescue runs on up to "
         "one period in three at 0.3-2 s each",

@@ -141,6 +141,17 @@ _OPTIONAL_SCHEMA: dict[str, tuple[Callable[[Any], bool], str]] = {
     "path_length": (_non_negative_numbers, "a list of finite numbers >= 0"),
     "control_effort": (_non_negative_numbers, "a list of finite numbers >= 0"),
     "formation_rms": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
+    "straight_distance": (_non_negative_numbers, "a list of finite numbers >= 0"),
+    "min_clearance": (
+        lambda v: (
+            isinstance(v, dict)
+            and set(v) <= {"obstacle", "robot", "mover"}
+            and all(x is None or _is_number(x) for x in v.values())
+        ),
+        "an object with keys of ['obstacle', 'robot', 'mover'], each null or a finite number (metres)",
+    ),
+    "accel_rms": (_non_negative_numbers, "a list of finite numbers >= 0"),
+    "angular_accel_rms": (_non_negative_numbers, "a list of finite numbers >= 0"),
     "solve_ms_median": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
     "solve_ms_p95": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
     "wall_seconds": (lambda v: _is_number(v, 0.0), "a finite number >= 0"),

@@ -54,8 +54,15 @@ Table = tuple[list[str], list[list[str]]]
 
 LEADERBOARD_NOTE = (
     "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
-    "Intervals: 95% Wilson for rates, 95% bootstrap for mean final distances (team mean per run). "
+    "Episodes: distinct episodes (an episode that repeats an earlier one of its cell bit for bit is "
+    "counted once). Intervals: 95%; for the success rate the wider of Wilson's and a cluster "
+    "bootstrap over trials (a trial's seed fixes its layout, start and slip draws in every cell), "
+    "Wilson for the collision-free rate, bootstrap for means. "
     "Final distances over settled runs and over collision-free runs (the paper's convention). "
+    "Time to goal over successes; path ratio: path length over straight-line distance, over "
+    "successes; min clearance: median over episodes of the smallest surface clearance to an "
+    "obstacle, team-mate or mover (negative: a collision); accel RMS: the RMS rate of change of "
+    "the speed command. "
     f"Degraded: episodes whose solver failed in more than {DEGRADED_FAILURE_SHARE:.0%} of its periods "
     "(their outcomes count; see the list below the tables)."
 )
@@ -101,6 +108,11 @@ def _mean_sd(mean: float, sd: float, runs: int) -> str:
     return f"{mean:.1f}" if runs == 1 else f"{mean:.1f}+-{sd:.1f}"
 
 
+def _number(value: float | None, form: str) -> str:
+    """``value`` in ``form``, or ``-`` when there is none (None or NaN)."""
+    return "-" if value is None or math.isnan(value) else form.format(value)
+
+
 def _p_value(p: float) -> str:
     return "<0.001" if p < 1e-3 else f"{p:.3f}"
 
@@ -117,6 +129,10 @@ def leaderboard_rows(results: RunData) -> Table:
         "Collision-free [95% CI]",
         "Final dist., settled [cm]",
         "Final dist., collision-free [cm]",
+        "Time to goal [s]",
+        "Path ratio",
+        "Min clearance [cm]",
+        "Accel RMS [m/s²]",
         "Solver",
         "Solve median [ms]",
         "Solver failures",
@@ -143,6 +159,10 @@ def leaderboard_rows(results: RunData) -> Table:
                 _pct(row["collision_free_rate"], row["collision_free_ci"]),
                 _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
                 _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
+                _number(row.get("time_to_goal_s"), "{:.1f}"),
+                _number(row.get("path_ratio"), "{:.2f}"),
+                _number(row.get("min_clearance_cm"), "{:.1f}"),
+                _number(row.get("accel_rms"), "{:.2f}"),
                 *([str((row.get("collisions_by_kind") or {}).get("mover", 0))] if mover_hits else []),
                 row.get("solver") or "-",
                 solve,
@@ -164,7 +184,9 @@ def paired_rows(results: RunData) -> Table:
         "Success b",
         "a - b [95% CI]",
         "only a / only b",
+        "P(a > b)",
         "McNemar p",
+        "Holm p",
     ]
     rows = []
     for r in results.paired():
@@ -178,7 +200,9 @@ def paired_rows(results: RunData) -> Table:
                 f"{100 * r['rate_b']:.0f}%",
                 f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]",
                 f"{r['only_a']} / {r['only_b']}",
+                _number(r.get("prob_improvement"), "{:.2f}"),
                 _p_value(r["p_value"]),
+                _p_value(r["p_holm"]) if "p_holm" in r else "-",
             ]
         )
     return header, rows

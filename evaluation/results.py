@@ -77,6 +77,9 @@ class Results(RunData):
             "path_length",
             "control_effort",
             "formation_rms",
+            "straight_distance",
+            "accel_rms",
+            "min_clearance",
             "solve_ms_median",
             "solve_ms_p95",
             "solver_failures",
@@ -86,9 +89,13 @@ class Results(RunData):
         writer.writeheader()
         for rec in self.records:
             row = dict(rec)
-            for key in ("final_distance", "path_length", "control_effort"):
+            for key in ("final_distance", "path_length", "control_effort", "straight_distance", "accel_rms"):
                 if isinstance(row.get(key), list):
                     row[key] = ";".join(f"{v:.5f}" for v in row[key])
+            if isinstance(row.get("min_clearance"), dict):
+                row["min_clearance"] = ";".join(
+                    f"{kind}={'' if v is None else f'{v:.5f}'}" for kind, v in row["min_clearance"].items()
+                )
             writer.writerow(row)
         return buffer.getvalue()
 

@@ -22,12 +22,14 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.distinct import distinct_records, distinct_units, signature
 from evaluation.records import json_safe, ran
 from evaluation.report import Block, Note, Section, TableBlock, markdown
 from evaluation.results import Results
 from evaluation.statistics import (
     bootstrap_mean_interval,
     bootstrap_tail_interval,
+    holm_adjusted,
     paired_comparison,
     tail_mean,
     wilson_interval,
@@ -104,7 +106,7 @@ def _by_unit(results: Results, controller: str, slip_axis: bool) -> dict[Unit, d
 
 
 def _level_row(controller: str, level: Any, mine: dict, reference: dict | None) -> LevelRow:
-    records = list(mine.values())
+    records = distinct_records(mine.values())  # an identical rerun is not a sample
     successes = sum(bool(r["success"]) for r in records)
     low, high = wilson_interval(successes, len(records)) if records else (math.nan, math.nan)
     distances = [_team_distance(r) for r in records]
@@ -121,7 +123,8 @@ def _level_row(controller: str, level: Any, mine: dict, reference: dict | None) 
         d_high,
     )
     if reference is not None:
-        shared = sorted(set(mine) & set(reference))
+        # units sharing a cell whose two episodes repeat an earlier unit's count once
+        shared = distinct_units(sorted(set(mine) & set(reference)), mine, reference, cell_of=lambda u: u[:3])
         if shared:
             test = paired_comparison(
                 [bool(mine[u]["success"]) for u in shared], [bool(reference[u]["success"]) for u in shared]
@@ -167,7 +170,7 @@ def profiles(sweep: dict[str, list[tuple[Any, Results]]], reference: str | None 
                 row = _level_row(controller, level, mine, None if controller == ref else theirs)
                 row.errors = sum(r["controller"] == controller and not ran(r) for r in results.records)
                 profile.rows.append(row)
-            units = sorted(set.intersection(*(set(m) for m in per_level)))
+            units = _distinct_units(sorted(set.intersection(*(set(m) for m in per_level))), per_level)
             scores = [float(np.mean([bool(m[u]["success"]) for m in per_level])) for u in units]
             distances = [_team_distance(r) for m in per_level for r in m.values()]
             auc_low, auc_high = bootstrap_mean_interval(scores)
@@ -182,6 +185,23 @@ def profiles(sweep: dict[str, list[tuple[Any, Results]]], reference: str | None 
                 "tail_high": tail_high,
             }
         out.append(profile)
+    # every paired test of the sweep as one family: Holm's adjustment beside the raw p
+    tests = [row.paired for profile in out for row in profile.rows if row.paired]
+    for test, adjusted in zip(tests, holm_adjusted(t["p_value"] for t in tests), strict=True):
+        test["p_holm"] = adjusted
+    return out
+
+
+def _distinct_units(units: list[Unit], per_level: list[dict[Unit, dict[str, Any]]]) -> list[Unit]:
+    """``units`` without those whose episodes at every level repeat an earlier unit's of the
+    same cell (an identical rerun is not a sample)."""
+    seen: set[tuple] = set()
+    out = []
+    for unit in units:
+        identity = (unit[:3], *(signature(level[unit]) for level in per_level))
+        if identity not in seen:
+            seen.add(identity)
+            out.append(unit)
     return out
 
 
@@ -248,6 +268,47 @@ def overview_section(
     return Section("sweep-overview", title, (Note(note), TableBlock((header, rows))))
 
 
+def _level_table(profile: AxisProfile) -> tuple[list[str], list[list[str]]]:
+    """Every controller at every level of ``profile``: rates, distances and the paired tests."""
+    header = [
+        "Controller",
+        profile.key,
+        "Episodes",
+        "Success [%]",
+        "Final distance [cm]",
+        f"Success vs {profile.reference} [pp]",
+        "McNemar p",
+        "Holm p",
+        f"Distance vs {profile.reference} [cm]",
+    ]
+    rows = []
+    for row in profile.rows:
+        paired = row.paired or {}
+        rows.append(
+            [
+                row.controller,
+                _level_text(row.level),
+                str(row.episodes) + (f" ({row.errors} raised)" if row.errors else ""),
+                _ci(row.success, row.success_low, row.success_high, 100),
+                _ci(row.distance, row.distance_low, row.distance_high, digits=1),
+                _ci(paired["success_difference"], paired["success_low"], paired["success_high"], 100)
+                if paired
+                else ("(reference)" if row.controller == profile.reference else "-"),
+                f"{paired['p_value']:.3g}" if paired else "",
+                f"{paired['p_holm']:.3g}" if "p_holm" in paired else "",
+                _ci(
+                    paired["distance_difference"],
+                    paired["distance_low"],
+                    paired["distance_high"],
+                    digits=1,
+                )
+                if paired
+                else "",
+            ]
+        )
+    return header, rows
+
+
 def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[Section]:
     """The report: an overview of every axis (two or more), then per axis a summary table (area
     under the success curve, tail) and a table of every level (success, final distance, paired
@@ -272,46 +333,15 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
                 for c, s in sorted(profile.summary.items(), key=lambda item: -np.nan_to_num(item[1]["auc"]))
             ],
         )
-        header = [
-            "Controller",
-            profile.key,
-            "Episodes",
-            "Success [%]",
-            "Final distance [cm]",
-            f"Success vs {profile.reference} [pp]",
-            "McNemar p",
-            f"Distance vs {profile.reference} [cm]",
-        ]
-        rows = []
-        for row in profile.rows:
-            paired = row.paired or {}
-            rows.append(
-                [
-                    row.controller,
-                    _level_text(row.level),
-                    str(row.episodes) + (f" ({row.errors} raised)" if row.errors else ""),
-                    _ci(row.success, row.success_low, row.success_high, 100),
-                    _ci(row.distance, row.distance_low, row.distance_high, digits=1),
-                    _ci(paired["success_difference"], paired["success_low"], paired["success_high"], 100)
-                    if paired
-                    else ("(reference)" if row.controller == profile.reference else "-"),
-                    f"{paired['p_value']:.3g}" if paired else "",
-                    _ci(
-                        paired["distance_difference"],
-                        paired["distance_low"],
-                        paired["distance_high"],
-                        digits=1,
-                    )
-                    if paired
-                    else "",
-                ]
-            )
+        header, rows = _level_table(profile)
         note = (
             f"Levels of `{profile.key}`: {', '.join(_level_text(v) for v in profile.levels)}; the same "
             "episode units (env, map, slip, trial: seed, layout and slip draws) at every level. Success "
             "with 95% Wilson intervals; final distance (mean over robots) with 95% bootstrap intervals; "
             f"paired differences to {profile.reference} on the shared units (Newcombe interval, exact "
-            "McNemar p; bootstrap interval of the per-episode distance differences). AUC: the mean success "
+            "McNemar p, and Holm's adjustment over every paired test of the sweep; bootstrap interval "
+            "of the per-episode distance differences). Distinct episodes only: an episode or unit that "
+            "repeats an earlier one of its cell bit for bit counts once. AUC: the mean success "
             "over the levels per unit, bootstrap over units; tail: the mean final distance of the worst "
             f"{TAIL_SHARE:.0%} of the sweep's episodes, bootstrap."
         )

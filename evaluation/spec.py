@@ -127,7 +127,7 @@ class RunSpec:
         (default: each controller's own).
     fallback_solver : str, optional
         NLP rescue (``ipopt``, ``fatrop``, or ``"none"`` for no rescue) of every NMPC
-        configuration that names none (default: each controller's own, IPOPT).
+        configuration that names none (default: each controller's own: none).
     """
 
     envs: str | Sequence[str] = tuple(TASK_MAPS)

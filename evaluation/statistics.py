@@ -4,6 +4,11 @@
 - :func:`bootstrap_mean_interval`: percentile bootstrap interval of a mean (final distances).
 - :func:`paired_comparison`: two controllers on the same seeds: difference in success rate with
   Newcombe's (1998) paired interval ("method 10") and the exact McNemar p-value.
+- :func:`holm_adjusted`: Holm's (1979) step-down adjustment of a family of p-values, for tables
+  that hold many tests (it controls the family-wise error rate under any dependence between
+  the tests, which paired tests on shared seeds have).
+- :func:`cluster_bootstrap_rate`: a success rate over clustered episodes (those sharing a
+  trial's seed) with a bootstrap that resamples whole clusters.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ from koopman_envs.checks import check_int
 
 __all__ = [
     "PairedComparison",
+    "cluster_bootstrap_rate",
+    "holm_adjusted",
     "bootstrap_mean_interval",
     "bootstrap_tail_interval",
     "paired_comparison",
@@ -345,3 +352,47 @@ def paired_comparison(a: Iterable[Any], b: Iterable[Any], confidence: float = 0.
         both_fail=neither,
         p_value=_mcnemar_exact(only_a, only_b),
     )
+
+
+def holm_adjusted(p_values: Iterable[float]) -> list[float]:
+    """Holm's step-down adjusted p-values, in the order given (NaN stays NaN and is not counted).
+
+    The i-th smallest of m p-values becomes max over j <= i of min(1, (m - j + 1) p_(j)): reject
+    where the adjusted value is below alpha, and the family-wise error rate is at most alpha.
+    """
+    values = [float(p) for p in p_values]
+    order = sorted((p, i) for i, p in enumerate(values) if not math.isnan(p))
+    m = len(order)
+    out = [math.nan] * len(values)
+    running = 0.0
+    for rank, (p, i) in enumerate(order):
+        running = max(running, min(1.0, (m - rank) * p))
+        out[i] = running
+    return out
+
+
+def cluster_bootstrap_rate(
+    clusters: Iterable[Iterable[Any]], confidence: float = 0.95, n_boot: int = 4000, seed: int = 0
+) -> tuple[float, float, float]:
+    """A success rate over clustered outcomes and its cluster (percentile) bootstrap interval:
+    whole clusters are resampled with replacement and the rate of each sample is its successes
+    over its episodes (a ratio estimator): (rate, low, high); NaN for no outcomes.
+
+    The clusters are what episodes share: a trial's seed (its layout on random maps, its start
+    perturbation and slip draws) is shared across the cells of a protocol, so a hard layout
+    fails at every slip and pooling its episodes as independent would overstate the evidence.
+    """
+    confidence = _check_confidence(confidence)
+    check_int("n_boot", n_boot, 1)
+    arrays = [np.asarray(_as_outcomes("cluster", list(c)), dtype=np.float64) for c in clusters]
+    arrays = [a for a in arrays if a.size]
+    if not arrays:
+        return math.nan, math.nan, math.nan
+    successes = np.array([a.sum() for a in arrays])
+    sizes = np.array([a.size for a in arrays], dtype=np.float64)
+    rate = float(successes.sum() / sizes.sum())
+    picks = np.random.default_rng(seed).integers(0, len(arrays), size=(n_boot, len(arrays)))
+    rates = successes[picks].sum(axis=1) / sizes[picks].sum(axis=1)
+    tail = (1.0 - confidence) / 2.0
+    low, high = np.quantile(rates, [tail, 1.0 - tail])
+    return rate, float(low), float(high)

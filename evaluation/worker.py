@@ -93,6 +93,10 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             path_length=result.path_length.tolist(),
             control_effort=result.control_effort.tolist(),
             formation_rms=result.formation_rms,
+            straight_distance=result.straight_distance.tolist(),
+            min_clearance=result.min_clearance,
+            accel_rms=result.accel_rms.tolist(),
+            angular_accel_rms=result.angular_accel_rms.tolist(),
             solve_ms_median=summary["solve_ms_median"],
             solve_ms_p95=summary["solve_ms_p95"],
             # every step's decision time, so that a cell's p95 is taken over its steps

@@ -52,6 +52,18 @@ class EpisodeResult:
         saturated commands times dt.
     formation_rms : float or None
         RMS follower formation error over the episode [m] (formation task).
+    straight_distance : ndarray, shape (N,)
+        Distance from each robot's start to its target [m]: ``path_length / straight_distance``
+        is the path-length ratio robotics papers report.
+    min_clearance : dict of str to float or None
+        Smallest surface clearance over the episode [m] (negative: overlapping) of any robot to
+        ``"obstacle"``, ``"robot"`` (a team-mate) and ``"mover"``; None where there is none (a
+        single robot, a map without obstacles, no movers). Measured on the true poses at every
+        period, the start included.
+    accel_rms, angular_accel_rms : ndarray, shape (N,)
+        Smoothness: root mean square of the change of the saturated command per period, divided
+        by the period: linear [m/s^2] and angular [rad/s^2] (0 for a constant command; the first
+        command is measured against standing still).
     trajectory : ndarray, shape (T + 1, N, 3)
         Poses from the start.
     frames : list of ndarray
@@ -70,6 +82,10 @@ class EpisodeResult:
     path_length: NDArray[np.float64]
     control_effort: NDArray[np.float64]
     formation_rms: float | None
+    straight_distance: NDArray[np.float64]
+    min_clearance: dict[str, float | None]
+    accel_rms: NDArray[np.float64]
+    angular_accel_rms: NDArray[np.float64]
     trajectory: NDArray[np.float64]
     frames: list[NDArray[np.uint8]] = field(default_factory=list)
 
@@ -114,7 +130,11 @@ def run_episode(
     high = np.array([scenario.v_max, scenario.omega_max])
     n = scenario.n_robots
     poses = [np.array(info["poses"], dtype=np.float64)]
+    clearance = _Clearance(scenario)
+    clearance.observe(info)
     effort = np.zeros(n)
+    previous = np.zeros((n, 2))
+    rate_sq = np.zeros((n, 2))
     formation_sq: list[NDArray[np.float64]] = []
     frames = [env.render()] if render else []
     steps, total = 0, 0.0
@@ -124,8 +144,12 @@ def run_episode(
         obs, reward, terminated, truncated, info = env.step(action.reshape(-1))
         steps += 1
         total += float(reward)
-        effort += (np.clip(action, low, high) ** 2).sum(axis=1) * scenario.dt
+        applied = np.clip(action, low, high)
+        effort += (applied**2).sum(axis=1) * scenario.dt
+        rate_sq += ((applied - previous) / scenario.dt) ** 2
+        previous = applied
         poses.append(np.array(info["poses"], dtype=np.float64))
+        clearance.observe(info)
         if "formation_error" in info:
             formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
         if np.all(info["distances"] <= scenario.goal_tolerance):
@@ -153,6 +177,42 @@ def run_episode(
         path_length=np.linalg.norm(np.diff(trajectory[:, :, :2], axis=0), axis=2).sum(axis=0),
         control_effort=effort,
         formation_rms=float(np.sqrt(np.mean(formation_sq))) if formation_sq else None,
+        straight_distance=np.hypot(*(trajectory[0, :, :2] - np.asarray(info["targets"])[:, :2]).T),
+        min_clearance=clearance.smallest(),
+        accel_rms=np.sqrt(rate_sq[:, 0] / steps),
+        angular_accel_rms=np.sqrt(rate_sq[:, 1] / steps),
         trajectory=trajectory,
         frames=frames,
     )
+
+
+class _Clearance:
+    """The smallest surface clearance so far of any robot to obstacles, team-mates and movers."""
+
+    def __init__(self, scenario: Any) -> None:
+        self.radius = np.asarray(scenario.robot_radius, dtype=np.float64)
+        self.obstacles = np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
+        self.mover_radius = float(getattr(scenario, "mover_radius", 0.0))
+        self.low: dict[str, float | None] = {"obstacle": None, "robot": None, "mover": None}
+
+    def _keep(self, kind: str, values: NDArray[np.float64]) -> None:
+        if values.size:
+            smallest = float(values.min())
+            current = self.low[kind]
+            self.low[kind] = smallest if current is None else min(current, smallest)
+
+    def observe(self, info: dict[str, Any]) -> None:
+        xy = np.asarray(info["poses"], dtype=np.float64)[:, :2]
+        if self.obstacles.shape[0]:
+            gaps = np.linalg.norm(xy[:, None] - self.obstacles[None, :, :2], axis=-1)
+            self._keep("obstacle", gaps - self.radius[:, None] - self.obstacles[None, :, 2])
+        if xy.shape[0] > 1:
+            gaps = np.linalg.norm(xy[:, None] - xy[None], axis=-1) - self.radius[:, None] - self.radius[None]
+            self._keep("robot", gaps[np.triu_indices(xy.shape[0], 1)])
+        movers = np.asarray(info.get("movers", np.zeros((0, 4))), dtype=np.float64).reshape(-1, 4)
+        if movers.shape[0]:
+            gaps = np.linalg.norm(xy[:, None] - movers[None, :, :2], axis=-1)
+            self._keep("mover", gaps - self.radius[:, None] - self.mover_radius)
+
+    def smallest(self) -> dict[str, float | None]:
+        return dict(self.low)

@@ -87,7 +87,7 @@ class _FailingSolver:
 
 def test_solver_failure_falls_back_and_is_counted() -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map=OPEN)
-    ctrl = controllers.make("nominal-nmpc")
+    ctrl = controllers.make("nominal-nmpc", solver="ipopt")
     obs, info = env.reset(seed=0)
     ctrl.reset(env.unwrapped.scenario)
     first = ctrl.act(obs, info)  # a real solve: leaves a plan to fall back on
@@ -316,7 +316,7 @@ def test_solver_reaches_the_distributed_nmpcs() -> None:
     assert all(c.build().config.solver == "ipopt" for c in configs[:2])
     # their default already: the configuration (and a baseline's) stays as it was
     same = with_solver(controller_configs(["dmpc-nominal", "nominal-nmpc"]), "rti")
-    assert [dict(c.options).get("solver") for c in same] == [None, "rti"]
+    assert [dict(c.options).get("solver") for c in same] == [None, None]
 
 
 @pytest.mark.parametrize(
@@ -383,7 +383,7 @@ def test_every_controller_has_an_option_spec_read_from_its_code() -> None:
             name
         )
     nominal = options("nominal-nmpc")
-    assert nominal.default("solver") == NMPCConfig().solver == "ipopt"
+    assert nominal.default("solver") == NMPCConfig().solver == "rti"
     assert nominal.option("solver").choices == ("rti", "ipopt", "fatrop")
     assert (
         options("dmpc-nominal").default("solver") == controllers.make("dmpc-nominal").config.solver == "rti"

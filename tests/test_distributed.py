@@ -109,7 +109,7 @@ def test_the_crossing_map_is_solved() -> None:
 
 
 def test_a_failed_robot_solve_falls_back_and_is_counted(monkeypatch) -> None:
-    ctrl, env, info = _reset()
+    ctrl, env, info = _reset(fallback_solver="ipopt")
     from controllers.mpc.controller import SolveOutcome as _SolveOutcome
 
     agent = ctrl._agents[1]

@@ -46,6 +46,7 @@ def _rec(seed, success=True, distances=(0.05, 0.05), controller="c", env=TR, map
         "collision": None,
         "steps": 100,
         "final_distance": list(distances),
+        "final_poses": [[float(seed), 0.0, 0.0]] * len(distances),  # a distinct episode per seed
         "solver_failures": 0,
     }
 

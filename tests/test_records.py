@@ -45,6 +45,10 @@ def test_every_committed_record_passes_both() -> None:
         ("final_distance", ["0.1"]),
         ("final_poses", [[0.0, 0.0]]),
         ("error", 5),
+        ("min_clearance", {"wall": 0.1}),
+        ("min_clearance", {"robot": "0.1"}),
+        ("accel_rms", [-1.0]),
+        ("straight_distance", ["1"]),
     ],
 )
 def test_values_the_code_refuses_the_json_schema_refuses(field, value) -> None:

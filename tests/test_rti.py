@@ -75,13 +75,13 @@ def test_iterated_to_convergence_it_reaches_ipopts_kkt_point(name, env_id, map_n
     np.testing.assert_allclose(lam_g, lam_ipopt, atol=1e-6 * max(1.0, np.max(np.abs(lam_ipopt))) * 100)
 
 
-def _failed_step(self, w, lam_x, lam_g, params) -> RTIStep:
+def _failed_step(self, w, lam_x, lam_g, params, **_) -> RTIStep:
     return RTIStep(False, "1", w, lam_x, lam_g, 1, np.inf)
 
 
 def test_a_failed_qp_falls_back_to_ipopt_and_is_counted(monkeypatch) -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map1", max_episode_steps=4)
-    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver="ipopt")
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)  # a real QP
@@ -99,7 +99,7 @@ def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
     from controllers.mpc.controller import SolveOutcome as _SolveOutcome
 
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver="ipopt")
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)
@@ -145,13 +145,13 @@ def test_the_real_time_iterations_problem_keeps_every_collision_row(soft: bool) 
 
 def test_a_plan_with_a_large_slack_goes_to_ipopt(monkeypatch) -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc", solver="rti", slack_tolerance=1e-300)
+    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver="ipopt", slack_tolerance=1e-300)
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     real = type(ctrl.problem.real_time_iteration()).solve
 
-    def slack(self, *args):
-        step = real(self, *args)
+    def slack(self, *args, **kwargs):
+        step = real(self, *args, **kwargs)
         step.max_slack = 1.0
         return step
 
@@ -253,10 +253,10 @@ def test_with_solver_sets_every_nmpc_that_names_none() -> None:
         parse_controller(t)
         for t in ("koopman-nmpc", "consensus", "safe:nominal-nmpc", "nominal-nmpc:solver=fatrop,label=fixed")
     ]
-    out = with_solver(configs, "rti")
-    assert dict(out[0].options)["solver"] == "rti" and out[0].label == "koopman-nmpc"
+    out = with_solver(configs, "ipopt")
+    assert dict(out[0].options)["solver"] == "ipopt" and out[0].label == "koopman-nmpc"
     assert out[1] == configs[1]  # consensus has no solver
-    assert dict(out[2].options)["solver"] == "rti"
+    assert dict(out[2].options)["solver"] == "ipopt"
     assert dict(out[3].options)["solver"] == "fatrop"  # a configuration's own choice wins
     assert with_solver(configs, None) == configs
     with pytest.raises(ValueError, match=r"--solver 'sqp' is not one of \['rti', 'ipopt', 'fatrop'\]"):
@@ -275,15 +275,17 @@ def test_with_solver_sets_or_turns_off_every_nmpcs_fallback_solver() -> None:
             "nominal-nmpc:fallback_solver=fatrop,label=own",
         )
     ]
-    out = with_solver(configs, "rti", "none")
-    assert dict(out[0].options) == {"solver": "rti", "fallback_solver": None}
+    # the real-time iteration without a rescue is every NMPC's default: nothing changes
+    assert with_solver(configs, "rti", "none") == configs
+    out = with_solver(configs, "ipopt", "fatrop")
+    assert dict(out[0].options) == {"solver": "ipopt", "fallback_solver": "fatrop"}
     assert out[1] == configs[1]  # consensus has no fallback solver
-    assert dict(out[2].options) == {"fallback_solver": None}  # solves with rti by default
+    assert dict(out[2].options) == {"solver": "ipopt", "fallback_solver": "fatrop"}
     assert dict(out[3].options)["fallback_solver"] == "fatrop"  # a configuration's own choice wins
-    assert out[0].build().config.fallback_solver is None and out[2].build().config.fallback_solver is None
+    assert out[0].build().config.fallback_solver == "fatrop" and out[2].build().config.solver == "ipopt"
     assert dict(with_solver(configs, None, "fatrop")[0].options) == {"fallback_solver": "fatrop"}
-    # the default rescue changes no configuration (nor so a resumed run's signature)
-    assert with_solver(configs, None, "ipopt") == configs
+    # the default rescue (none) changes no configuration (nor so a resumed run's signature)
+    assert with_solver(configs, None, "none") == configs
     with pytest.raises(
         ValueError, match=r"--fallback-solver 'rti' is not one of \['ipopt', 'fatrop', 'none'\]"
     ):
@@ -337,4 +339,4 @@ def test_paper_protocol_keeps_ipopt_and_the_quick_board_runs_the_real_time_itera
     assert quick_protocol().solver == "rti"
     from controllers.mpc.config import NMPCConfig
 
-    assert NMPCConfig().solver == "ipopt"  # the default until the real-time iteration loses nothing
+    assert NMPCConfig().solver == "rti" and NMPCConfig().fallback_solver is None  # real time by default

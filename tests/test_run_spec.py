@@ -118,7 +118,7 @@ def test_presets_equal_the_protocols_field_by_field() -> None:
             PAPER_MAPS,
             ("nominal", "low", "high"),
             10,
-            {},
+            {"start_noise": 0.05},  # distinct trials (the paper's exact starts: --start-noise 0)
             "ipopt",
         )
         hard = (("soft_constraints", False), ("uncertainty_margin", 0.0))
@@ -186,7 +186,7 @@ def test_the_command_line_builds_the_spec_its_options_say() -> None:
         maps=["map1"],
         episodes=3,
         seed=4,
-        env_kwargs={"max_episode_steps": 50, "n_robots": 3},
+        env_kwargs={"start_noise": 0.05, "max_episode_steps": 50, "n_robots": 3},
     )
     # controllers named on the command line keep their own solver; --solver applies to them
     named = ev.spec_from_args(ev.build_parser().parse_args(["--controllers", "nominal-nmpc"]))
@@ -197,14 +197,18 @@ def test_the_command_line_builds_the_spec_its_options_say() -> None:
         ).solver
         == "rti"
     )
-    # --fallback-solver none reaches every NMPC configuration as fallback_solver=None
-    rescue_off = ev.spec_from_args(
-        ev.build_parser().parse_args(
-            ["--controllers", "nominal-nmpc", "dmpc-nominal", "consensus", "--fallback-solver", "none"]
-        )
-    ).resolved()
-    options = [dict(config.options) for config in rescue_off.controllers]
-    assert options == [{"fallback_solver": None}, {"fallback_solver": None}, {}]
+
+    # --fallback-solver reaches every NMPC configuration whose default it is not (no rescue is
+    # the NMPCs' default: --fallback-solver none changes no configuration)
+    def rescue(name: str) -> list[dict]:
+        args = ["--controllers", "nominal-nmpc", "dmpc-nominal", "consensus", "--fallback-solver", name]
+        return [
+            dict(c.options)
+            for c in ev.spec_from_args(ev.build_parser().parse_args(args)).resolved().controllers
+        ]
+
+    assert rescue("none") == [{}, {}, {}]
+    assert rescue("ipopt") == [{"fallback_solver": "ipopt"}, {"fallback_solver": "ipopt"}, {}]
     with pytest.raises(SystemExit):  # argparse names the allowed values
         ev.build_parser().parse_args(["--fallback-solver", "rti"])
     # the quick board keeps its solver for its own (all registered) controllers

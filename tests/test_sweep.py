@@ -218,6 +218,7 @@ def _records(controller: str, successes: list[bool], distances: list[float]) -> 
             "status": "ok",
             "success": ok,
             "final_distance": [d, d],
+            "final_poses": [[float(t), 0.0, 0.0]] * 2,  # a distinct episode per trial
         }
         for t, (ok, d) in enumerate(zip(successes, distances, strict=True))
     ]

@@ -82,7 +82,7 @@ def test_ipopt_barrier_update_follows_the_team_size_unless_set(n_robots, options
         from controllers.mpc.config import IPOPT_OPTIONS
 
         solver_options = {**IPOPT_OPTIONS, **options}
-    ctrl = controllers.make("nominal-nmpc", solver_options=solver_options)
+    ctrl = controllers.make("nominal-nmpc", solver="ipopt", solver_options=solver_options)
     run_episode(env, ctrl, seed=0)
     assert ctrl.problem.solver_options("ipopt")["ipopt.mu_strategy"] == expected
     assert ctrl.problem.solver_options("ipopt", cold=True)["ipopt.mu_strategy"] == expected

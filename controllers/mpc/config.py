@@ -132,10 +132,11 @@ class NMPCConfig:
     slack_penalty : float
         Weight of the slack penalty.
     solver : str
-        ``"rti"``: the real-time iteration (:mod:`controllers.mpc.rti`): one structured QP per
-        control period from the previous plan shifted by one step (``rti_iterations`` QPs), no
-        compiler. Or a CasADi ``nlpsol`` plugin solved to convergence at every period:
-        ``"ipopt"`` (the paper's) or ``"fatrop"`` (the structure-exploiting interior-point
+        ``"rti"`` (default): the real-time iteration (:mod:`controllers.mpc.rti`): one
+        structured QP per control period from the previous plan shifted by one step
+        (``rti_iterations`` QPs), no compiler; with the stall resolution (``unstall``) it solves
+        Map 2's crossing where it used to deadlock. Or a CasADi ``nlpsol`` plugin solved to convergence at every period:
+        ``"ipopt"`` (the paper's, and the ``--paper`` protocol's) or ``"fatrop"`` (the structure-exploiting interior-point
         solver shipped with CasADi: faster per step, but not the same closed loop:
         Koopman-NMPC deadlocks on Map 2 at nominal slip with fatrop in every trial and succeeds
         with IPOPT; see ``bench/nmpc_solve.py``). See :data:`SOLVERS`.
@@ -147,10 +148,11 @@ class NMPCConfig:
     fallback_solver : str or None
         ``nlpsol`` plugin tried on the same problem when ``solver`` fails (for ``"rti"``: a
         failed QP, or a plan whose largest slack exceeds ``slack_tolerance``), before the plan
-        fallback (ignored when it equals ``solver``). None: no rescue, for a controller that must
-        keep its period; a real-time-iteration plan with a large slack is then used as it is
+        fallback (ignored when it equals ``solver``). None (default): no rescue, for a
+        controller that keeps its period; a real-time-iteration plan with a large slack is then used as it is
         (counted as ``large_slack_accepted``) and a failed QP goes to the plan fallback. Under
-        pose noise the rescue runs on up to one period in three and takes 0.3-2 s at 3 robots.
+        pose noise the rescue runs on up to one period in three and takes 0.3-2 s at 3 robots,
+        and on the robustness sweep it did not raise success (docs/controllers.md).
     qp_solver : str
         QP solver of the real-time iteration, one of :data:`controllers.mpc.rti.QP_SOLVERS`
         (``"hpipm"``: structure-exploiting interior point).
@@ -243,9 +245,9 @@ class NMPCConfig:
     formation_bound: float = 0.03
     soft_constraints: bool = True
     slack_penalty: float = 1e4
-    solver: str = "ipopt"
+    solver: str = "rti"
     solver_options: dict[str, Any] | None = None
-    fallback_solver: str | None = "ipopt"
+    fallback_solver: str | None = None
     qp_solver: str = "hpipm"
     rti_iterations: int = 1
     hessian: str = "exact"

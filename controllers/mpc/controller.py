@@ -15,7 +15,6 @@ its public hooks: :meth:`NMPCController.share_problem`, the ``set_*`` methods, :
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
@@ -26,33 +25,20 @@ from controllers.base import BaseController
 from controllers.estimation import front_end_for
 from controllers.movers import observed_movers
 from controllers.mpc.config import PARKED, NMPCConfig
-from controllers.mpc.detour import DeadlockResolver
+from controllers.mpc.detour import RESTART_ITERATIONS, DeadlockResolver, pursuit_rollout
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
 from controllers.mpc.models import PredictionModel, decode_state, encode_state, model_step
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
+from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
 from koopman_envs.scenario import Scenario
 
 # the margins (controllers.mpc.margins) stay importable from here, where they were first
 __all__ = ["SETTLE_RELEASE", "NMPCController", "SolveOutcome", "chance_tightening", "margin_spread"]
 
-#: SQP steps of the real-time iteration in the period a stall restarts it (:meth:`NMPCController._unstall`)
-RESTART_ITERATIONS = 10
 #: a settled robot (``settle_fraction``) moves again when its estimate is farther from its target
 #: than this fraction of the goal tolerance
 SETTLE_RELEASE = 0.75
-
-
-@dataclass
-class SolveOutcome:
-    """One attempt at the period's problem: (success, status, plan, multipliers, iterations)."""
-
-    success: bool
-    status: str
-    w: NDArray | None = None
-    lam_x: NDArray | None = None
-    lam_g: NDArray | None = None
-    iterations: int = 0
 
 
 class NMPCController(BaseController):
@@ -177,15 +163,9 @@ class NMPCController(BaseController):
         self._failed = False
         self._settled = np.zeros(scenario.n_robots, dtype=bool)
         self._pursue: NDArray | None = None
-        self._resolver = (
-            DeadlockResolver(
-                scenario.robot_radius,
-                scenario.obstacles,
-                max(self.config.obstacle_offset, self.config.robot_offset),
-            )
-            if self.config.unstall and self.resolves_stalls
-            else None
-        )
+        margin = max(self.config.obstacle_offset, self.config.robot_offset)
+        unstall = self.config.unstall and self.resolves_stalls
+        self._resolver = DeadlockResolver.for_scenario(scenario, margin) if unstall else None
         self.last_plan = None
         self._stats.solver = self.solver_label
 
@@ -356,29 +336,18 @@ class NMPCController(BaseController):
         return w
 
     def _pursuit_guess(self, state: NDArray, goals: NDArray) -> NDArray:
-        """A cold start that already moves: every robot turns toward its goal (``goals`` (N, 2))
-        and drives (a pursuit rollout of the unicycle). With zero speed along the whole plan a
-        position cost has no gradient in the heading, so a robot stopped facing an obstacle or a
-        team-mate would never turn away from it from :meth:`_initial_guess`."""
+        """A cold start that already moves toward ``goals`` (N, 2) (:func:`pursuit_rollout`): a
+        plan that holds still has no gradient in the heading, so a robot stopped facing an
+        obstacle or a team-mate would never turn away from it from :meth:`_initial_guess`."""
         prob, scenario = self._problem, self.scenario
         assert prob is not None and scenario is not None  # built by _reset
+        commands, poses = pursuit_rollout(
+            decode_state(state, prob.coding).reshape(-1, 3), goals, prob.horizon, scenario
+        )
         w = np.zeros(prob.n_vars)
         w[: prob.nx] = state
-        pose = decode_state(state, prob.coding).reshape(-1, 3).copy()
-        goals = np.asarray(goals, dtype=np.float64).reshape(-1, 2)
-        commands, states = [], []
-        for _ in range(prob.horizon):
-            delta = goals - pose[:, :2]
-            error = (np.arctan2(delta[:, 1], delta[:, 0]) - pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
-            omega = np.clip(2.0 * error, -scenario.omega_max, scenario.omega_max)
-            v = scenario.v_max * np.maximum(np.cos(error), 0.0) * np.minimum(1.0, np.hypot(*delta.T))
-            pose[:, 2] += omega * scenario.dt
-            pose[:, 0] += v * np.cos(pose[:, 2]) * scenario.dt
-            pose[:, 1] += v * np.sin(pose[:, 2]) * scenario.dt
-            commands.append(np.column_stack([v, omega]))
-            states.append(encode_state(pose, prob.coding))
-        w[prob.u_index] = np.ravel(commands)
-        w[prob.x_index] = np.ravel(states)
+        w[prob.u_index] = commands.ravel()
+        w[prob.x_index] = np.concatenate([encode_state(p, prob.coding) for p in poses])
         return w
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
@@ -438,20 +407,16 @@ class NMPCController(BaseController):
         return self._fallback_command()
 
     def _unstall(self, poses: NDArray) -> None:
-        """Set this period's goals from :class:`~controllers.mpc.detour.DeadlockResolver` (the
-        targets unless a robot has stalled); a stall restarts the solver cold."""
+        """This period's goals from :class:`~controllers.mpc.detour.DeadlockResolver` (the
+        targets unless a robot stalled); a stall restarts the solver from a pursuit rollout."""
         scenario, resolver = self.scenario, self._resolver
         assert scenario is not None and resolver is not None  # act() checked; _reset built it
-        before = dict(resolver.started)
-        goals, stalled = resolver.goals(poses, scenario.targets, scenario.goal_tolerance)
+        goals, started = resolver.goals(poses, scenario.targets, scenario.goal_tolerance)
         self._params[self._block("goal_xy")] = goals.reshape(-1)
-        self._pursue = None
-        if stalled:  # restart cold from a plan that moves toward this period's goals
+        self._pursue = goals if started else None
+        for kind in started:
             self._warm = None
-            self._pursue = goals
-            for kind, count in resolver.started.items():
-                if count > before[kind]:
-                    self._stats.counts[f"unstall_{kind}"] += count - before[kind]
+            self._stats.counts[f"unstall_{kind}"] += 1
 
     def _tighten(self, params: NDArray, per_robot: NDArray, per_pair: NDArray) -> None:
         """Widen this solve's collision margins (``params``, a copy) by :func:`chance_tightening`'s
@@ -508,49 +473,19 @@ class NMPCController(BaseController):
         return self._failed
 
     def _solve_rti(self, params: NDArray, guess: dict[str, NDArray]) -> SolveOutcome:
-        """The real-time iteration's QP(s): a failed QP fails, and so does a plan with a large slack
-        when there is a fallback solver to rescue it (without one the plan is used, counted)."""
+        """The real-time iteration (:func:`~controllers.mpc.solve.solve_rti`); after a stall,
+        :data:`RESTART_ITERATIONS` SQP steps from the pursuit rollout, far from any optimum."""
         assert self._problem is not None  # built by _reset, which act() requires
-        # a restart after a stall starts from a pursuit rollout far from any optimum: SQP steps
-        # until it is near one, so that its first command is not one linearization's guess
-        restart = RESTART_ITERATIONS if self._pursue is not None else None
-        step = self._problem.real_time_iteration().solve(
-            guess["x0"], guess["lam_x0"], guess["lam_g0"], params, iterations=restart
-        )
-        if not step.success:
-            return SolveOutcome(False, f"qp_failed({step.status})", iterations=step.iterations)
-        if step.max_slack > self.config.slack_tolerance:
-            if self.config.fallback_solver is not None:
-                return SolveOutcome(False, "large_slack", iterations=step.iterations)
-            # no rescue to call: the soft plan is the best there is (it steers back out of the
-            # violated margins), better than replaying an older plan; counted, not failed
+        more = {"iterations": RESTART_ITERATIONS} if self._pursue is not None else {}
+        outcome = solve_rti(self._problem, self.config, params, guess, **more)
+        if outcome.status == "rti_large_slack":
             self._stats.counts["large_slack_accepted"] += 1
-            return SolveOutcome(True, "rti_large_slack", step.w, step.lam_x, step.lam_g, step.iterations)
-        return SolveOutcome(True, "rti", step.w, step.lam_x, step.lam_g, step.iterations)
+        return outcome
 
     def _solve_nlp(self, name: str, params: NDArray, guess: dict[str, NDArray], cold: bool) -> SolveOutcome:
-        """One ``nlpsol`` call of plugin ``name`` to convergence."""
-        prob = self._problem
-        assert prob is not None  # built by _reset, which act() requires
-        solver = prob.solver_for(name, cold)
-        try:
-            sol = solver(p=params, **prob.bounds, **guess)
-        except RuntimeError as exc:  # CasADi raises on evaluation errors (e.g. NaN in a function)
-            return SolveOutcome(False, f"error: {exc}".splitlines()[0][:80])
-        stats = solver.stats()
-        status = str(stats.get("return_status", "unknown"))
-        w = np.asarray(sol["x"]).reshape(-1)
-        success = bool(stats.get("success", False)) and bool(np.all(np.isfinite(w)))
-        if not np.all(np.isfinite(w)):
-            status = "non_finite_solution"
-        return SolveOutcome(
-            success,
-            status,
-            w,
-            np.asarray(sol["lam_x"]).reshape(-1),
-            np.asarray(sol["lam_g"]).reshape(-1),
-            int(stats.get("iter_count", 0)),
-        )
+        """One ``nlpsol`` call of plugin ``name`` to convergence (:func:`~controllers.mpc.solve.solve_nlp`)."""
+        assert self._problem is not None  # built by _reset, which act() requires
+        return solve_nlp(self._problem, name, params, guess, cold)
 
     def _fallback_command(self) -> NDArray[np.float64]:
         """Next command of the last successful plan, or a stop when that plan is used up."""

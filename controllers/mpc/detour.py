@@ -5,6 +5,8 @@ too short to see around it; a waypoint on the tangent leads the robot around ins
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -12,12 +14,14 @@ __all__ = [
     "DETOUR_CLEARANCE",
     "DETOUR_LEAD",
     "DETOUR_PERIODS",
+    "RESTART_ITERATIONS",
     "STALL_DISTANCE",
     "STALL_PERIODS",
     "YIELD_CLEARANCE",
     "DeadlockResolver",
     "StallMonitor",
     "detour_waypoint",
+    "pursuit_rollout",
     "tangent_waypoint",
 ]
 
@@ -94,6 +98,8 @@ STALL_DISTANCE = 0.02
 #: periods a stalled robot follows its detour before it tracks its target again (ours: 3 s, the
 #: time to drive 1.5 m, past the robot or obstacle that blocked it)
 DETOUR_PERIODS = 30
+#: SQP steps of the real-time iteration in the period a stall restarts it from a pursuit rollout
+RESTART_ITERATIONS = 10
 #: how far [m], beyond both radii and the pair's margin, a yielding robot steps aside from the
 #: straight path of the robot it gives way to (ours)
 YIELD_CLEARANCE = 0.3
@@ -172,41 +178,44 @@ class DeadlockResolver:
         n = self.radii.size
         self.monitor = StallMonitor(n)
         self._detour: list[tuple[NDArray[np.float64], int] | None] = [None] * n
-        #: detours started, by kind: ``"yield"`` (gave way to a team-mate), ``"obstacle"``, ``"restart"``
-        self.started: dict[str, int] = {"yield": 0, "obstacle": 0, "restart": 0}
+
+    @classmethod
+    def for_scenario(cls, scenario: Any, margin: float) -> DeadlockResolver:
+        """The resolver of an episode on ``scenario`` (its robots' radii, its obstacles)."""
+        return cls(scenario.robot_radius, scenario.obstacles, margin)
 
     def goals(
         self, positions: NDArray[np.float64], targets: NDArray[np.float64], tolerance: float
-    ) -> tuple[NDArray[np.float64], list[int]]:
-        """This period's goal of every robot (N, 2) and the robots newly stalled (whose solver
-        should restart). ``positions`` (N, >=2) as the controller plans from them."""
+    ) -> tuple[NDArray[np.float64], list[str]]:
+        """This period's goal of every robot (N, 2), and the rule each newly stalled robot got
+        (``"yield"``, ``"obstacle"`` or ``"restart"``; its solver should restart).
+        ``positions`` (N, >=2) as the controller plans from them."""
         positions = np.asarray(positions, dtype=np.float64)[:, :2]
         goals = np.array(targets, dtype=np.float64)[:, :2]
-        stalled = [
-            i for i in range(goals.shape[0]) if self.monitor.stalled(i, positions[i], goals[i], tolerance)
-        ]
-        for i in stalled:
-            self._detour[i] = (self._waypoint(i, positions, goals), DETOUR_PERIODS)
+        started = []
+        for i in range(goals.shape[0]):
+            if self.monitor.stalled(i, positions[i], goals[i], tolerance):
+                kind, point = self._waypoint(i, positions, goals)
+                self._detour[i] = (point, DETOUR_PERIODS)
+                started.append(kind)
         for i, detour in enumerate(self._detour):
             if detour is None:
                 continue
             point, left = detour
             goals[i] = point
             self._detour[i] = (point, left - 1) if left > 1 else None
-        return goals, stalled
+        return goals, started
 
-    def _waypoint(self, i: int, positions: NDArray, goals: NDArray) -> NDArray[np.float64]:
+    def _waypoint(self, i: int, positions: NDArray, goals: NDArray) -> tuple[str, NDArray[np.float64]]:
         for j in range(i):  # only a higher-priority (lower-index) team-mate makes robot i yield
             reach = self.radii[i] + self.radii[j] + self.margin + YIELD_CLEARANCE
             if _blocks(positions[j], goals[j], positions[i], reach) or _blocks(
                 positions[i], goals[i], positions[j], reach
             ):
-                self.started["yield"] += 1
-                return _aside(positions[i], positions[j], goals[j], reach)
+                return "yield", _aside(positions[i], positions[j], goals[j], reach)
         inflate = self.radii[i] + self.margin + DETOUR_CLEARANCE
         waypoint = detour_waypoint(positions[i], goals[i], self.obstacles, inflate)
-        self.started["obstacle" if not np.array_equal(waypoint, goals[i]) else "restart"] += 1
-        return waypoint
+        return ("restart" if np.array_equal(waypoint, goals[i]) else "obstacle"), waypoint
 
 
 def _aside(position: NDArray, other: NDArray, other_goal: NDArray, reach: float) -> NDArray[np.float64]:
@@ -220,3 +229,30 @@ def _aside(position: NDArray, other: NDArray, other_goal: NDArray, reach: float)
     side = 1.0 if offset >= 0 else -1.0
     foot = other + float(np.dot(position - other, along)) * along
     return foot + side * reach * normal
+
+
+def pursuit_rollout(
+    poses: NDArray[np.float64], goals: NDArray[np.float64], horizon: int, scenario: Any
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Every robot turning toward its goal and driving, over ``horizon`` periods of the unicycle
+    (explicit Euler, within ``scenario``'s speed limits): commands (T, N, 2) and poses (T, N, 3).
+    The NMPCs' cold start after a stall."""
+    pose = np.array(poses, dtype=np.float64).reshape(-1, 3)
+    goals = np.asarray(goals, dtype=np.float64).reshape(-1, 2)
+    dt = scenario.dt
+    commands, states = [], []
+    for _ in range(horizon):
+        delta = goals - pose[:, :2]
+        error = (np.arctan2(delta[:, 1], delta[:, 0]) - pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
+        omega = np.clip(2.0 * error, -scenario.omega_max, scenario.omega_max)
+        v = (
+            scenario.v_max
+            * np.maximum(np.cos(error), 0.0)
+            * np.minimum(1.0, np.hypot(delta[:, 0], delta[:, 1]))
+        )
+        pose[:, 2] += omega * dt
+        pose[:, 0] += v * np.cos(pose[:, 2]) * dt
+        pose[:, 1] += v * np.sin(pose[:, 2]) * dt
+        commands.append(np.column_stack([v, omega]))
+        states.append(pose.copy())
+    return np.array(commands), np.array(states)

@@ -139,7 +139,7 @@ class DistributedNMPC(BaseController):
 
     name = "dmpc-nominal"
     #: NMPC options whose default differs from NMPCConfig's (controllers.options reads them too)
-    NMPC_DEFAULTS: ClassVar[dict[str, Any]] = {"solver": "rti"}
+    NMPC_DEFAULTS: ClassVar[dict[str, Any]] = {}
     #: allowed values of the text options (controllers.option_spec)
     OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "coordination": COORDINATION,

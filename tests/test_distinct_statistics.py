@@ -1,0 +1,134 @@
+"""Verdicts a reviewer accepts: identical episodes count once, clustered outcomes widen the
+interval, a table of many tests is corrected (evaluation/distinct.py, evaluation/statistics.py,
+evaluation/aggregate.py)."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from evaluation.aggregate import aggregate, leaderboard, paired_comparisons
+from evaluation.distinct import distinct_records, distinct_units, duplicates
+from evaluation.statistics import cluster_bootstrap_rate, holm_adjusted, paired_comparison, wilson_interval
+
+
+def _record(controller: str, seed: int, success: bool, pose: float, map_name: str = "map1") -> dict:
+    return {
+        "key": f"{controller}-{map_name}-{seed}",
+        "env_id": "KoopNav-TargetReaching-v0",
+        "controller": controller,
+        "map": map_name,
+        "slip": "nominal",
+        "trial": seed,
+        "seed": seed,
+        "status": "ok",
+        "success": success,
+        "collision": None if success else "obstacle",
+        "steps": 100,
+        "time_to_goal": 9.0 if success else None,
+        "final_poses": [[pose, 0.0, 0.0]],
+        "final_distance": [0.01 if success else 1.0],
+        "path_length": [2.0],
+        "control_effort": [1.0],
+        "formation_rms": None,
+        "solve_ms_median": 1.0,
+        "solve_ms_p95": 1.0,
+        "solver_failures": 0,
+    }
+
+
+def test_identical_episodes_are_counted_once() -> None:
+    """Ten trials of exact starts at nominal slip: one episode, ten times. The cell, the
+    leaderboard and the paired test each count it once; a real difference counts again."""
+    records = [_record("a", s, True, 1.0) for s in range(10)]  # one episode, ten times
+    records += [_record("b", s, s < 5, 2.0 + (s < 5)) for s in range(10)]  # two distinct episodes
+    assert duplicates(records) == 9 + 8
+    assert len(distinct_records(records)) == 1 + 2
+    cells = {c.controller: c for c in aggregate(records)}
+    assert (cells["a"].episodes, cells["a"].valid, cells["a"].duplicates) == (10, 1, 9)
+    assert (cells["b"].valid, cells["b"].successes) == (2, 1)
+    rows = {r["controller"]: r for r in leaderboard(list(cells.values()), records)}
+    assert rows["a"]["episodes"] == 1 and rows["a"]["episodes_run"] == 10
+    # Wilson over 1 episode, not over 10
+    assert rows["a"]["success_ci"][0] <= wilson_interval(1, 1)[0] < wilson_interval(10, 10)[0]
+    (pair,) = paired_comparisons(records)
+    assert pair["n"] == 2  # (a's episode, b's success) and (a's episode, b's failure)
+    assert (pair["only_a"], pair["only_b"]) == (1, 0)
+
+
+def test_distinct_units_keep_a_seed_whose_episodes_differ_on_either_side() -> None:
+    a = {(m, s): _record("a", s, True, 1.0, m) for m in ("map1", "map2") for s in range(3)}
+    b = {(m, s): _record("b", s, True, 1.0 + s, m) for m in ("map1", "map2") for s in range(3)}
+    keys = sorted(a)
+    assert distinct_units(keys, a, b) == keys  # b differs on every seed: every unit is distinct
+    assert distinct_units(keys, a, a) == [("map1", 0), ("map2", 0)]  # one per cell
+
+
+def test_holm_against_hand_computed_values() -> None:
+    # m = 4: sorted 0.01, 0.02, 0.03, 0.5 -> 0.04, 0.06, 0.06 (monotone), 0.5
+    assert holm_adjusted([0.03, 0.5, 0.01, 0.02]) == pytest.approx([0.06, 0.5, 0.04, 0.06])
+    assert holm_adjusted([0.2, 0.9]) == pytest.approx([0.4, 0.9])
+    assert holm_adjusted([0.6, 0.7]) == pytest.approx([1.0, 1.0])  # capped at 1
+    adjusted = holm_adjusted([math.nan, 0.01])
+    assert math.isnan(adjusted[0]) and adjusted[1] == pytest.approx(0.01)  # NaN is not a test
+    assert holm_adjusted([]) == []
+
+
+def test_the_paired_table_carries_holm_and_the_probability_of_improvement() -> None:
+    records = []
+    for name, rate in (("a", 0.9), ("b", 0.5), ("c", 0.2)):
+        records += [_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
+    rows = paired_comparisons(records)
+    assert len(rows) == 3
+    raw = [r["p_value"] for r in rows]
+    for row, expected in zip(rows, holm_adjusted(raw), strict=True):
+        assert row["p_holm"] == expected >= row["p_value"]
+    ab = next(r for r in rows if (r["a"], r["b"]) == ("a", "b"))
+    # a succeeds on seeds 0-17, b on 0-9: a better on 8 of 20, ties on 12
+    assert ab["prob_improvement"] == pytest.approx((8 + 0.5 * 12) / 20)
+    assert ab == {
+        **ab,
+        **paired_comparison([s < 18 for s in range(20)], [s < 10 for s in range(20)]).to_dict(),
+    }
+
+
+def test_the_cluster_bootstrap_covers_a_clustered_rate() -> None:
+    """Clusters of 8 episodes sharing a cluster-level success probability (Beta(1.2, 0.8),
+    mean 0.6, an intraclass correlation of 0.5): over 300 samples of 30 clusters the cluster
+    bootstrap's 95% interval covers 0.6 in close to 95% of them; Wilson over the pooled episodes,
+    which takes them as independent, in far fewer."""
+    rng = np.random.default_rng(7)
+    covered = wilson_covered = 0
+    draws = 300
+    for i in range(draws):
+        probabilities = rng.beta(1.2, 0.8, size=30)
+        clusters = [rng.random(8) < p for p in probabilities]
+        _, low, high = cluster_bootstrap_rate(clusters, n_boot=1000, seed=i)
+        covered += low <= 0.6 <= high
+        pooled = np.concatenate(clusters)
+        w_low, w_high = wilson_interval(int(pooled.sum()), pooled.size)
+        wilson_covered += w_low <= 0.6 <= w_high
+    assert 0.90 <= covered / draws <= 0.99, covered / draws
+    assert wilson_covered / draws < 0.85, wilson_covered / draws
+
+
+def test_the_cluster_bootstrap_names_bad_input() -> None:
+    rate, low, high = cluster_bootstrap_rate([])
+    assert math.isnan(rate) and math.isnan(low) and math.isnan(high)
+    with pytest.raises(ValueError, match=r"cluster\[1\]=2 is not allowed"):
+        cluster_bootstrap_rate([[True, 2]])
+    with pytest.raises(ValueError, match=r"confidence=1.5"):
+        cluster_bootstrap_rate([[True]], confidence=1.5)
+
+
+def test_a_record_without_final_poses_is_judged_by_its_distances() -> None:
+    one = _record("a", 0, True, 1.0)
+    other = copy.deepcopy(one)
+    del one["final_poses"], other["final_poses"]
+    other["seed"] = 1
+    assert duplicates([one, other]) == 1
+    other["final_distance"] = [0.02]
+    assert duplicates([one, other]) == 0
