@@ -23,7 +23,16 @@ from koopman_envs.scenario import Scenario, scenario_of
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.plant import CalibrationPlant
 
-__all__ = ["BaseController", "Calibratable", "Controller", "ControllerStats", "FrontEnd", "calibratable"]
+__all__ = [
+    "BaseController",
+    "Calibratable",
+    "Controller",
+    "ControllerStats",
+    "FrontEnd",
+    "calibratable",
+    "over_the_radio",
+    "take_over_radio",
+]
 
 
 @dataclass
@@ -146,6 +155,30 @@ class FrontEnd(Protocol):
         """What it identified so far (reported as counts)."""
 
 
+def take_over_radio(wrapper: Any, inner: Any) -> None:
+    """A wrapper (``ekf:``, ``safe:``) in front of a central controller hears the team over its
+    radio instead (its estimator or filter then acts on what the radio delivers)."""
+    station = getattr(inner, "radio_station", None)
+    if station is not None:
+        wrapper.radio_station = station
+        inner.radio_station = None
+
+
+def over_the_radio(view: dict[str, Any], station: int, planned: NDArray[np.float64]) -> dict[str, Any]:
+    """``view`` as a central controller on robot ``station``'s computer has it: each robot's pose
+    as the last message from it says (``known_poses[station]``; the station's own estimate on the
+    diagonal), with its age in periods as ``pose_age`` (N,); a robot never heard from stands at
+    its ``planned`` start. Without a ``comm`` setting every message arrives at once and the view
+    is unchanged, bit for bit."""
+    known = np.array(view["known_poses"][station], dtype=np.float64)
+    age = np.array(view["message_age"][station], dtype=np.int64)
+    unheard = age < 0
+    known[unheard] = planned[unheard]
+    out = observed_view({**view, "observed_poses": known})
+    out["pose_age"] = age  # -1: never heard (the planned start stands in)
+    return out
+
+
 class BaseController(ABC):
     """Convenience base: keeps the scenario and the statistics; subclasses implement ``_act``.
 
@@ -158,6 +191,11 @@ class BaseController(ABC):
     name = "base"
     #: the estimator in front of ``_act`` (None: ``_act`` reads the observed info as it is)
     front_end: FrontEnd | None = None
+    #: a central controller's computer: the robot whose radio it hears the team over (the
+    #: leader's, 0, for the central NMPCs), so that it meets the same late and lost messages as
+    #: the robots do (:func:`over_the_radio`); None: each robot's own estimate (a controller
+    #: whose robots decide for themselves reads its team-mates' messages itself)
+    radio_station: int | None = None
 
     def __init__(self) -> None:
         self.scenario: Scenario | None = None
@@ -187,6 +225,8 @@ class BaseController(ABC):
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
         recorded = len(self._stats.solve_times)
         view = observed_view(info)
+        if self.radio_station is not None and "known_poses" in view:  # (a hand-made info may have none)
+            view = over_the_radio(view, self.radio_station, self.scenario.starts)
         front_end = self.front_end
         if front_end is not None:
             view = front_end.view(view)

@@ -34,16 +34,14 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.base import BaseController, Controller, ControllerStats
+from controllers.base import BaseController, Controller, ControllerStats, take_over_radio
+from controllers.estimator_options import AUTO, EstimatorOptions
 from controllers.identification import MotionIdentifier
-from koopman_envs.checks import check_int, check_number
-from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
@@ -66,8 +64,6 @@ __all__ = [
 
 #: prefix of the estimator's options in a wrapped configuration's option list
 ESTIMATOR_OPTION_PREFIX = "ekf_"
-#: ``delay="auto"``: identify the actuation delay online
-AUTO = "auto"
 #: the model-based controllers' ``estimator`` option (:func:`front_end_for`): what stands between
 #: the robots' localization and the planner. ``"auto"``: everything identified online;
 #: ``"realistic"``: the team's datasheet held at the ``realistic`` preset's values (one period of
@@ -82,80 +78,10 @@ ESTIMATORS = (AUTO, "realistic", "none")
 LEVERS = ("estimation", "delay_compensation", "tightening", "settling")
 #: the values of ``ablate``: no lever off, or one
 ABLATIONS = ("none", *LEVERS)
-
-
-@dataclass(frozen=True)
-class EstimatorOptions:
-    """Noise levels the filter assumes (the controller is not told the env's).
-
-    Attributes
-    ----------
-    position_std : float or "auto"
-        Localization noise of x and y [m] (default: the ``realistic`` preset's 0.03), or
-        ``"auto"``: identified online (:class:`~controllers.identification.MotionIdentifier`).
-        While the identified noise is below its floor (none) the measured poses are passed on
-        as they are, with no covariance: a team that localizes exactly is driven exactly as
-        without the estimator.
-    heading_std : float or "auto"
-        Localization noise of the heading [rad], or ``"auto"`` (identified with the position's).
-    process_position_std : float
-        Unmodelled motion per period (slip, delay) of x and y [m].
-    process_heading_std : float
-        Unmodelled turn per period [rad].
-    delay : int or "auto"
-        Periods between a command and its action that the prediction assumes: the env's
-        ``actuation_delay`` if known (the datasheet), or ``"auto"``: identified online from how
-        the measured motion follows the commands (:class:`DelayIdentifier`; 0 until it is sure).
-    max_delay : int
-        With ``delay="auto"``: the largest delay considered [periods] (default 10).
-    compensate_delay : bool
-        Hand the inner controller the pose predicted through the ``delay`` commands already sent
-        (where its new command will act) instead of the filtered pose now (default True; a no-op
-        at ``delay=0``).
-    filter_poses : bool
-        Filter the measured poses (default True). False: the measured poses are used as they
-        are, with the measurement noise (the options' or the identified) as their covariance
-        (the ``"estimation"`` lever of the ablation).
-    """
-
-    position_std: float | str = 0.03
-    heading_std: float | str = 0.02
-    process_position_std: float = 0.01
-    process_heading_std: float = 0.02
-    delay: int | str = 0
-    max_delay: int = 10
-    compensate_delay: bool = True
-    filter_poses: bool = True
-
-    @classmethod
-    def from_options(cls, prefix: str = "", **options: Any) -> EstimatorOptions:
-        """Build from keyword options, each checked; errors name the option as given (with ``prefix``)."""
-        allowed = [f.name for f in dataclasses.fields(cls)]
-        for key, value in options.items():
-            if key not in allowed:
-                raise ValueError(
-                    f"unknown estimator option {prefix + key!r}{did_you_mean(prefix + key, [prefix + a for a in allowed])}; "
-                    f"allowed: {[prefix + a for a in allowed]}"
-                )
-            if key == "delay":
-                if value != AUTO:
-                    check_int(
-                        prefix + key,
-                        value,
-                        0,
-                        maximum=LIMITS.actuation_delay,
-                        note=f"control periods, or {AUTO!r}",
-                    )
-            elif key == "max_delay":
-                check_int(prefix + key, value, 1, maximum=LIMITS.actuation_delay, note="control periods")
-            elif key in ("position_std", "heading_std") and value == AUTO:
-                continue
-            elif key in ("compensate_delay", "filter_poses"):
-                if not isinstance(value, (bool, np.bool_)):
-                    raise ValueError(f"{prefix + key}={value!r} must be True or False")
-            else:
-                check_number(prefix + key, value, above=0)
-        return cls(**options)
+#: the oldest pose heard over the radio [periods] that the front-end carries forward through the
+#: commands sent since (:meth:`PoseFrontEnd.view`, ``pose_age``); an older one is carried forward
+#: this far only
+MAX_MESSAGE_AGE = 30
 
 
 def _predict_pose(pose: NDArray[np.float64], command: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
@@ -253,8 +179,10 @@ class PoseFrontEnd:
         self.times = []
         options = self.options
         longest = options.max_delay if options.delay == AUTO else int(options.delay)
-        # the commands sent, newest last; the env's queue starts with zero commands too
-        self._sent = deque([np.zeros((scenario.n_robots, 2))] * (longest + 1), maxlen=longest + 1)
+        # the commands sent, newest last; the env's queue starts with zero commands too (long
+        # enough to carry a pose heard over the radio forward, MAX_MESSAGE_AGE)
+        size = longest + MAX_MESSAGE_AGE + 1
+        self._sent = deque([np.zeros((scenario.n_robots, 2))] * size, maxlen=size)
         identify = AUTO in (options.delay, options.position_std, options.heading_std)
         self._identifier = (
             MotionIdentifier(scenario.n_robots, options.max_delay, scenario.dt) if identify else None
@@ -331,6 +259,19 @@ class PoseFrontEnd:
                 covariances[i] = f @ covariances[i] @ f.T + q
         return poses, covariances
 
+    def _carried_forward(self, poses: NDArray[np.float64], ages: NDArray[np.int64]) -> NDArray[np.float64]:
+        """``poses`` with each row measured ``ages[i] > 0`` periods ago predicted to now through
+        the commands that acted since (the unicycle, no slip): a late message's pose is where the
+        robot was, not where it is."""
+        scenario = self.scenario
+        assert scenario is not None  # view() checked it
+        out = poses.copy()
+        sent = list(self._sent)
+        for i in np.flatnonzero(ages > 0):
+            for k in range(min(int(ages[i]), MAX_MESSAGE_AGE) - 1, -1, -1):  # oldest first
+                out[i] = _predict_pose(out[i], sent[-1 - self.delay - k][i], scenario.dt)
+        return out
+
     def view(self, info: dict[str, Any]) -> dict[str, Any]:
         """``info`` (its observed part) as the controller should plan from it: the estimate at
         which the next command acts in ``observed_poses`` and on the diagonal of ``known_poses``,
@@ -339,8 +280,12 @@ class PoseFrontEnd:
             raise RuntimeError("PoseFrontEnd: call reset(scenario) before view()")
         start = time.perf_counter()
         measured = np.asarray(info["observed_poses"], dtype=np.float64)
+        ages = info.get("pose_age")  # a central controller's team heard over the radio
+        fresh = None if ages is None else np.asarray(ages) == 0
+        if fresh is not None and not fresh.all():
+            measured = self._carried_forward(measured, np.asarray(ages))
         if self._identifier is not None:
-            self._identifier.observe(measured)
+            self._identifier.observe(measured, fresh)
         estimate, covariance = self._compensate(*self._estimate(measured))
         view = dict(info, observed_poses=estimate)
         if covariance is not None:
@@ -437,6 +382,7 @@ class PoseEstimator(BaseController):
         self.inner = inner
         if getattr(inner, "front_end", None) is not None:
             inner.front_end = None  # type: ignore[attr-defined]  # a BaseController's own
+        take_over_radio(self, inner)
         self.estimator = PoseFrontEnd(**options)
         self.options = self.estimator.options
         self.name = f"ekf:{getattr(inner, 'name', type(inner).__name__)}"
@@ -460,6 +406,7 @@ class PoseEstimator(BaseController):
         return self.estimator._identifier
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        # (act() applied the inner controller's radio, which this wrapper took over)
         command = np.asarray(self.inner.act(observation, self.estimator.view(info)), dtype=np.float64)
         self.estimator.sent(command)
         return command

@@ -87,13 +87,22 @@ class MotionIdentifier:
         )
         self._last_pose: NDArray[np.float64] | None = None
         self._last: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # (m, u) of the last period
+        #: per robot: periods and neighbouring pairs of periods measured fresh
+        self._periods = np.zeros(n_robots)
+        self._pairs = np.zeros(n_robots)
+        self._fresh = np.ones(n_robots, dtype=bool)  # whether the last pose was fresh
+        self._last_fresh = np.zeros(n_robots, dtype=bool)  # whether the last period counted
         self.periods = 0
         self.pairs = 0
         self.excitation = 0.0
 
-    def observe(self, measured: NDArray[np.float64]) -> None:
-        """The poses measured now (N, 3); call once per period, before :meth:`sent`."""
+    def observe(self, measured: NDArray[np.float64], fresh: NDArray[np.bool_] | None = None) -> None:
+        """The poses measured now (N, 3); call once per period, before :meth:`sent`. ``fresh``
+        (N,): which rows were measured this period (a pose heard over the radio may be older:
+        a stale row and the period after it are left out of the fits)."""
+        fresh_now = np.ones(measured.shape[0], dtype=bool) if fresh is None else np.asarray(fresh, dtype=bool)
         if self._last_pose is not None:
+            counted = fresh_now & self._fresh  # the period's motion is measured at both ends
             step = measured[:, :2] - self._last_pose[:, :2]
             heading = self._last_pose[:, 2]
             motion = np.stack(
@@ -105,6 +114,9 @@ class MotionIdentifier:
             # candidate d: the command sent d periods before the last one acted in this period
             sent = np.stack(list(self._sent)[::-1], axis=-1)  # (N, 2, D + 1): newest first
             commanded = np.stack([sent[:, 0], self.TURN_SCALE * sent[:, 1]]) * self.dt  # (2, N, D + 1)
+            if not counted.all():  # stale rows contribute nothing this period
+                motion = motion * counted
+                commanded = commanded * counted[:, None]
             m = motion[..., None]
             self._sm += motion
             self._smm += motion * motion
@@ -117,11 +129,15 @@ class MotionIdentifier:
                 self._smu1 += m * last_u
                 self._sum1 += commanded * last_m[..., None]
                 self._suu1 += commanded * last_u
+                self._pairs += counted & self._last_fresh
                 self.pairs += 1
             self._last = (motion, commanded)
+            self._last_fresh = counted
+            self._periods += counted
             self.periods += 1
             self.excitation += float(np.abs(commanded[0, :, 0]).sum())
         self._last_pose = np.array(measured, dtype=np.float64)
+        self._fresh = fresh_now
 
     def sent(self, command: NDArray[np.float64]) -> None:
         """The command sent this period (N, 2), as it will act (clipped to the limits)."""
@@ -162,10 +178,14 @@ class MotionIdentifier:
         if d is None or self.pairs < self.min_periods:
             return None
         g = self._gains()[..., d]
-        n, pairs = self.periods, self.pairs
-        mean = (self._sm - g * self._su[..., d]) / n
+        measured = self._pairs > 0  # robots with fresh neighbouring periods (all, without a radio)
+        n, pairs = self._periods[measured], self._pairs[measured]
+        g = g[:, measured]
+        mean = (self._sm[:, measured] - g * self._su[:, measured, d]) / n
         lagged = (
-            self._smm1 - g * (self._smu1[..., d] + self._sum1[..., d]) + g * g * self._suu1[..., d]
+            self._smm1[:, measured]
+            - g * (self._smu1[:, measured, d] + self._sum1[:, measured, d])
+            + g * g * self._suu1[:, measured, d]
         ) / pairs
         variance = np.maximum(-(lagged - mean * mean).mean(axis=1), 0.0)  # per channel, pooled over robots
         position, heading = float(np.sqrt(variance[0])), float(np.sqrt(variance[1])) / self.TURN_SCALE

@@ -256,7 +256,10 @@ def _calibration_note(config: Mapping[str, Any]) -> str:
     return (
         f"Calibration: every controller was offered the same plant (the env's robots in an open field, "
         f"slip means hidden) with a budget of {calibration.get('budget'):,} team-transitions, seed "
-        f"{calibration.get('seed')}; the per-cell tables list what each used."
+        f"{calibration.get('seed')}; the per-cell tables list what each used. The plant's slip "
+        "is the cell's (its setting, never its means): the paper identifies its Koopman model from "
+        "the robots as they are, as a lab drives its robots on its own floor, so a controller that "
+        "learns calibrates on the slip distribution it is then evaluated on."
     )
 
 

@@ -81,6 +81,10 @@ class NavigationEngine:
         self.offset = np.zeros((k, 2, n))
         #: start poses of the current episodes, (K, N, 3): the map's, perturbed by ``start_noise``
         self.starts = np.zeros((k, n, 3))
+        #: the starts a controller is told (:meth:`scenario`): the map's (or the reset options'),
+        #: not perturbed; where each robot truly starts it learns from its localization, as a
+        #: robot placed by hand does
+        self.nominal_starts = np.zeros((k, n, 3))
         self.obstacles = np.zeros((k, m, 3))
         self.maps: list[MapSpec | None] = [None] * k
         self.distances = np.zeros((k, n))
@@ -180,6 +184,7 @@ class NavigationEngine:
         self.target[index] = spec.targets[:n].T
         self.offset[index] = formation_offsets(spec.targets[:n]).T
         self.starts[index] = spec.starts[:n]
+        self.nominal_starts[index] = spec.starts[:n]
         if self.zones is not None:
             self.zones.set_env(index, spec.slip_zones)
 
@@ -206,6 +211,8 @@ class NavigationEngine:
         self.target[index] = targets.T
         self.offset[index] = formation_offsets(targets).T
         self.starts[index] = starts
+        opts = options or ResetOptions()
+        self.nominal_starts[index] = spec.starts[:n] if opts.start_poses is None else opts.start_poses
         self.state[index] = starts.T
         self.settled[index] = 0
         self.elapsed[index] = 0
@@ -378,7 +385,7 @@ class NavigationEngine:
             n_robots=n,
             obstacles=self.obstacles[index].copy(),
             robot_radius=cfg.robot_radius.copy(),
-            starts=self.starts[index].copy(),
+            starts=self.nominal_starts[index].copy(),
             targets=self.target[index].T.copy(),
             formation_offsets=self.offset[index].T.copy(),
             leader=0,

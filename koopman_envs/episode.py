@@ -2,8 +2,10 @@
 
 The evaluator, both demos, the benchmark scripts and the tests all run episodes through
 :func:`run_episode`, so an outcome means the same thing everywhere. It needs nothing of a
-controller but ``act(observation, info)`` (and calls ``reset(env, seed=...)`` when the object
-has one), so it lives beside the environments and imports no controller.
+controller but ``act(observation, info)`` (and calls ``reset(scenario, seed=...)`` when the
+object has one: the episode's :class:`~koopman_envs.scenario.Scenario`, never the env, so that a
+controller learns nothing at reset that the observed info does not tell it), so it lives beside
+the environments and imports no controller.
 """
 
 from __future__ import annotations
@@ -111,7 +113,8 @@ def run_episode(
     env : gymnasium.Env
         A KoopNav Gymnasium env (wrapped or not).
     policy : Policy
-        Its ``reset(env, seed=seed)`` is called after ``env.reset`` when it has one.
+        Its ``reset(scenario, seed=seed)`` is called after ``env.reset`` when it has one, with
+        the episode's scenario (the planned starts, the targets, the map's obstacles, limits).
     seed : int, optional
         Seed of ``env.reset`` (and handed to the policy).
     options : dict, optional
@@ -122,10 +125,10 @@ def run_episode(
         ``on_step(step, action, info)`` after every step (for logging or recording).
     """
     obs, info = env.reset(seed=seed, options=options)
+    scenario = scenario_of(env)
     reset = getattr(policy, "reset", None)
     if callable(reset):
-        reset(env, seed=seed)
-    scenario = scenario_of(env)
+        reset(scenario, seed=seed)
     low = np.array([-scenario.v_max, -scenario.omega_max])
     high = np.array([scenario.v_max, scenario.omega_max])
     n = scenario.n_robots

@@ -33,7 +33,9 @@ class Scenario:
     robot_radius : ndarray, shape (N,)
         Robot radii [m].
     starts : ndarray, shape (N, 3)
-        Start poses (x [m], y [m], theta [rad]).
+        Start poses (x [m], y [m], theta [rad]) as planned: the map's (or the reset options'),
+        without the ``start_noise`` perturbation, which a controller learns only through the
+        robots' localization (the true starts are in the env's ``info["poses"]`` at reset).
     targets : ndarray, shape (N, 3)
         Target poses.
     formation_offsets : ndarray, shape (N, 2)

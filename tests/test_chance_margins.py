@@ -108,23 +108,28 @@ def test_a_robot_near_its_goal_under_an_uncertain_estimate_holds_still_and_moves
     ctrl.reset(env, seed=0)
     covariance = np.tile(np.diag([0.01**2, 0.01**2, 1e-4]), (scenario.n_robots, 1, 1))
     tolerance = scenario.goal_tolerance
+    n = scenario.n_robots
+
+    def seen(poses, **extra):  # every robot's estimate, heard at once over the radio
+        return {**info, "observed_poses": poses, "known_poses": np.broadcast_to(poses, (n, n, 3)), **extra}
+
     poses = scenario.targets.copy()
     poses[0, 0] += 0.4 * tolerance  # robot 0 within half the tolerance: settles
     poses[1, 0] += 2.0  # robot 1 far away: drives
     poses[2, 0] += 0.6 * tolerance  # robot 2 between a half and 3/4 of it: not settled yet
-    command = ctrl.act(obs, {**info, "observed_poses": poses, "pose_covariance": covariance}).reshape(-1, 2)
+    command = ctrl.act(obs, seen(poses, pose_covariance=covariance)).reshape(-1, 2)
     assert np.array_equal(command[0], [0.0, 0.0]) and np.any(command[1] != 0) and np.any(command[2] != 0)
     poses[0, 0] = scenario.targets[0, 0] + 0.7 * tolerance  # pushed off, still within 3/4: stays settled
-    command = ctrl.act(obs, {**info, "observed_poses": poses, "pose_covariance": covariance}).reshape(-1, 2)
+    command = ctrl.act(obs, seen(poses, pose_covariance=covariance)).reshape(-1, 2)
     assert np.array_equal(command[0], [0.0, 0.0])
     poses[0, 0] = scenario.targets[0, 0] + 0.8 * tolerance  # beyond 3/4: moves again
-    command = ctrl.act(obs, {**info, "observed_poses": poses, "pose_covariance": covariance}).reshape(-1, 2)
+    command = ctrl.act(obs, seen(poses, pose_covariance=covariance)).reshape(-1, 2)
     assert np.any(command[0] != 0)
     # without a covariance (the paper's setting) nothing settles
     plain = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
     plain.reset(env, seed=0)
     poses[0, 0] = scenario.targets[0, 0] + 0.4 * tolerance
-    assert np.any(plain.act(obs, {**info, "observed_poses": poses}).reshape(-1, 2)[0] != 0)
+    assert np.any(plain.act(obs, seen(poses)).reshape(-1, 2)[0] != 0)
 
 
 def test_the_safety_filter_widens_its_barriers_by_the_estimate_uncertainty() -> None:

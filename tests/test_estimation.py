@@ -9,7 +9,7 @@ import pytest
 
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
-from controllers.estimation import PoseEstimator
+from controllers.estimation import PoseEstimator, PoseFrontEnd
 
 
 class _Recorder(controllers.BaseController):
@@ -286,3 +286,48 @@ def test_the_identified_delay_is_kept_once_the_team_has_moved_enough() -> None:
     assert locked[99] == unlocked[99] == 2
     assert set(locked[99:]) == {2}
     assert unlocked[-1] == 0
+
+
+# --------------------------------------------------------------------------- the central radio
+class _RadioRecorder(_Recorder):
+    """A central controller on the leader's computer: hears the team over robot 0's radio."""
+
+    radio_station = 0
+
+
+def test_the_central_controller_hears_the_team_over_the_radio_and_carries_late_poses_forward() -> None:
+    """Messages 2 periods late, no noise, no slip: the poses the central controller plans from
+    are the team's as robot 0 heard them, carried forward through the commands sent since, so
+    they equal the true poses (to rounding); the paper's controller (no front-end) gets the late
+    ones as they are."""
+    from controllers.base import over_the_radio
+
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1", comm={"latency": 2}, max_episode_steps=40)
+    carried, late = _RadioRecorder(), _RadioRecorder()
+    carried.front_end = PoseFrontEnd(delay=0, position_std="auto", heading_std="auto")
+    obs, info = env.reset(seed=0)
+    for ctrl in (carried, late):
+        ctrl.reset(env, seed=0)
+    truth, heard = [], []
+    for _ in range(30):
+        truth.append(np.array(info["poses"]))
+        heard.append(over_the_radio(info, 0, env.unwrapped.scenario.starts))
+        command = carried.act(obs, info)
+        late.act(obs, info)
+        obs, *_, info = env.step(command)
+    for t in range(5, 30):
+        np.testing.assert_allclose(carried.seen[t], truth[t], atol=1e-9)
+        np.testing.assert_array_equal(late.seen[t], heard[t]["observed_poses"])
+        assert not np.allclose(late.seen[t][1:, :2], truth[t][1:, :2], atol=1e-3)  # 2 periods behind
+        assert list(heard[t]["pose_age"]) == [0, 2, 2]
+    # before a first message arrives a robot stands at its planned start
+    assert list(heard[0]["pose_age"]) == [0, -1, -1]
+    np.testing.assert_array_equal(heard[0]["observed_poses"][1:], env.unwrapped.scenario.starts[1:])
+
+
+def test_a_wrapper_hears_over_its_inner_central_controllers_radio() -> None:
+    for prefix in ("ekf", "safe"):
+        wrapped = controllers.make(f"{prefix}:nominal-nmpc")
+        assert wrapped.radio_station == 0 and wrapped.inner.radio_station is None
+    assert controllers.make("dmpc-nominal").radio_station is None
+    assert controllers.make("consensus").radio_station is None

@@ -24,9 +24,10 @@ FIXED = [(TR, "map1"), (TR, "map2"), (FO, "map3"), (FO, "map4")]
 
 
 def reset_starts(env_id: str, seed: int, **kwargs) -> np.ndarray:
+    """Where the robots truly start (the engine's record; controllers are told the map's)."""
     env = gym.make(env_id, **kwargs)
     env.reset(seed=seed)
-    return env.unwrapped.scenario.starts
+    return env.unwrapped.engine.starts[0].copy()
 
 
 @pytest.mark.parametrize("env_id, map_name", FIXED)
@@ -78,8 +79,10 @@ def test_noise_within_bounds_and_valid(env_id: str, map_name: str) -> None:
         engine = env.unwrapped.engine
         spec = engine.maps[0]
         base = spec.starts[:3]
-        starts = env.unwrapped.scenario.starts
-        np.testing.assert_array_equal(starts, info["poses"])  # the scenario reports the starts used
+        starts = engine.starts[0]
+        np.testing.assert_array_equal(starts, info["poses"])  # the engine records the starts used
+        # the scenario a controller is handed tells the planned starts, not the perturbed ones
+        np.testing.assert_array_equal(env.unwrapped.scenario.starts, base)
         shifts.append(np.hypot(*(starts[:, :2] - base[:, :2]).T))
         turns.append(wrap_angle(starts[:, 2] - base[:, 2]))
         assert np.all((starts[:, 2] >= -np.pi) & (starts[:, 2] < np.pi))
@@ -109,7 +112,7 @@ def test_invalid_draws_are_redrawn() -> None:
     env.reset(seed=0)
     for _ in range(100):
         _, info = env.reset()
-        starts = env.unwrapped.scenario.starts
+        starts = env.unwrapped.engine.starts[0]
         assert spec.pose_problem(starts, PARAMS.robot_radius) is None
         assert not info["collision"]
         # headings near +-pi wrap into [-pi, pi) like the simulator's
@@ -129,9 +132,10 @@ def test_pettingzoo_front(module, env_id: str) -> None:
     single = gym.make(env_id, slip="high", start_noise=0.25)
     observations, _ = par.reset(seed=6)
     obs, _ = single.reset(seed=6)
-    np.testing.assert_array_equal(par.scenario.starts, single.unwrapped.scenario.starts)
+    np.testing.assert_array_equal(par.engine.starts, single.unwrapped.engine.starts)
     np.testing.assert_array_equal(np.concatenate([observations[a] for a in par.possible_agents]), obs)
-    assert not np.array_equal(par.scenario.starts, load_map(par.config.map_name).starts[:3])
+    assert not np.array_equal(par.engine.starts[0], load_map(par.config.map_name).starts[:3])
+    np.testing.assert_array_equal(par.scenario.starts, load_map(par.config.map_name).starts[:3])
     clone = pickle.loads(pickle.dumps(par))  # copies the config with the state
     assert clone.config.start_noise == 0.25
 
@@ -156,3 +160,25 @@ def test_documented() -> None:
         assert "| start_noise" in cls.__doc__ and "start_noise" in cls.__doc__.split("## Starting State")[1]
     assert "start_noise" in parallel_front.KoopNavParallelEnv.__doc__
     assert "start_noise" in vector_env.KoopNavVectorEnv.__doc__
+
+
+def test_a_controller_is_handed_the_scenario_with_the_planned_starts_only() -> None:
+    """run_episode resets a controller with the episode's Scenario (never the env), whose starts
+    are the map's: where each robot truly starts it learns from its localization."""
+    from koopman_envs.episode import run_episode
+    from koopman_envs.scenario import Scenario
+
+    class Spy:
+        def reset(self, scenario, seed=None):
+            self.scenario = scenario
+
+        def act(self, observation, info):
+            self.first = getattr(self, "first", np.array(info["poses"]))
+            return np.zeros(6)
+
+    env = gym.make(TR, map="map1", start_noise=0.05, max_episode_steps=2)
+    spy = Spy()
+    run_episode(env, spy, seed=3)
+    assert type(spy.scenario) is Scenario
+    np.testing.assert_array_equal(spy.scenario.starts, load_map("map1").starts[:3])
+    assert not np.array_equal(spy.first, spy.scenario.starts)  # the truth differs by the noise

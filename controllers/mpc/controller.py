@@ -57,6 +57,8 @@ class NMPCController(BaseController):
     name = "nmpc"
     #: moving-disc slots of the built problem (the distributed NMPC's robots: their neighbours)
     neighbour_slots = 0
+    #: the central NMPC runs on the leader's computer and hears the team over its radio
+    radio_station: int | None = 0
     #: whether the ``unstall`` option applies (a robot of the distributed NMPC has its goals set
     #: by the team's own stall handling)
     resolves_stalls = True

@@ -85,6 +85,7 @@ class _RobotNMPC(NMPCController):
 
     name = "robot-nmpc"
     resolves_stalls = False
+    radio_station = None  # the distributed NMPC hands each robot what it knows
 
     def __init__(self, config: NMPCConfig, slots: int) -> None:
         super().__init__(None, config)

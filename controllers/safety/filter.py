@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.base import BaseController, Controller, ControllerStats
+from controllers.base import BaseController, Controller, ControllerStats, take_over_radio
 from controllers.movers import observed_movers
 from controllers.mpc.margins import chance_tightening
 from controllers.safety.barriers import BarrierFilter
@@ -112,6 +112,7 @@ class SafetyFilter(BaseController):
         self.front_end, inner_front_end = getattr(inner, "front_end", None), None
         if self.front_end is not None:
             inner.front_end = inner_front_end  # type: ignore[attr-defined]  # a BaseController's own
+        take_over_radio(self, inner)
         self.options = SafetyOptions.from_options(**options)
         self.name = f"safe:{getattr(inner, 'name', type(inner).__name__)}"
         self._filter: BarrierFilter | None = None
