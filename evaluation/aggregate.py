@@ -329,6 +329,17 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                     )
                     or None,
                     "solver_failures": sum(c.solver_failures for c in own),
+                    # compute-aware runs: decisions longer than the period (over every episode run)
+                    "deadline_misses": sum(
+                        int(r.get("deadline_misses") or 0)
+                        for r in records
+                        if r["env_id"] == env_id and r["controller"] == name and ran(r)
+                    ),
+                    "decisions": sum(
+                        int(r.get("decisions") or 0)
+                        for r in records
+                        if r["env_id"] == env_id and r["controller"] == name and ran(r)
+                    ),
                     "collisions_by_kind": collisions_by_kind(recs),
                     "errors": sum(c.errors for c in own),
                     "degraded": sum(c.degraded for c in own),

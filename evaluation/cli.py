@@ -290,6 +290,21 @@ def _output_options(output: argparse._ArgumentGroup) -> None:
         "--gifs", action="store_true", help="record trial 0 of every cell as OUT/animations/*.gif"
     )
     output.add_argument(
+        "--realtime",
+        action="store_true",
+        help="compute-aware episodes: each controller's decision time is charged to its robots (a "
+        "command acts from the period boundary after it is ready; longer than the period is a "
+        "deadline miss); results then depend on the machine, which the report names",
+    )
+    output.add_argument(
+        "--compute-scale",
+        type=float,
+        metavar="X",
+        help="with compute-aware episodes (implies --realtime): charge X times the measured decision "
+        "time, e.g. 5 to emulate an onboard computer five times slower than this one (default: 1 "
+        "with --realtime; free compute without either)",
+    )
+    output.add_argument(
         "--ablation-out",
         default=str(Path(__file__).resolve().parents[1] / "docs" / "ablation.md"),
         help="where --ablation writes its report (default: docs/ablation.md)",
@@ -439,4 +454,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         calibration_seed=args.calibration_seed,
         random_maps=args.random_maps if args.random_maps is not None else spec.random_maps,
         gifs=args.gifs,
+        compute_scale=args.compute_scale
+        if args.compute_scale is not None
+        else (1.0 if args.realtime else None),
     )

@@ -40,6 +40,7 @@ class EpisodeSpec:
     env_kwargs: str = "{}"  # JSON object of the run's env settings (goal_tolerance, n_robots, ...)
     animation: str = ""  # relative path of the GIF to record for this episode ("" = none)
     run_dir: str = ""  # the run's output directory (where ``animation`` goes)
+    compute_scale: float = 0.0  # > 0: compute-aware, the decision time times this charged (0: free)
     # a factory given as a callable (API only); sent to workers by reference, not recorded
     controller_factory: Callable[..., Any] | None = field(default=None, compare=False, repr=False)
 

@@ -145,6 +145,9 @@ def leaderboard_rows(results: RunData) -> Table:
     mover_hits = any((row.get("collisions_by_kind") or {}).get("mover", 0) for row in results.leaderboard())
     if mover_hits:
         header.insert(header.index("Solver"), "Mover collisions")
+    compute_aware = bool(results.config.get("compute"))
+    if compute_aware:
+        header.append("Deadline misses")
     for row in results.leaderboard():
         rank = 1 if row["env_id"] != last_env else rank + 1
         last_env = row["env_id"]
@@ -168,9 +171,29 @@ def leaderboard_rows(results: RunData) -> Table:
                 solve,
                 str(row["solver_failures"]),
                 str(row.get("degraded", 0)),
+                *([_misses(row)] if compute_aware else []),
             ]
         )
     return header, rows
+
+
+def _misses(row: Mapping[str, Any]) -> str:
+    """Deadline misses of a leaderboard row: count and share of its decisions."""
+    decisions = int(row.get("decisions") or 0)
+    misses = int(row.get("deadline_misses") or 0)
+    return f"{misses} ({100 * misses / decisions:.0f}%)" if decisions else "-"
+
+
+def _compute_note(config: Mapping[str, Any]) -> str:
+    compute = config.get("compute")
+    if not compute:
+        return ""
+    return (
+        f"Compute-aware run: every decision's wall time, times {compute.get('scale')}, was charged to "
+        f"the robots (measured on {compute.get('machine')}): a command acts from the period boundary "
+        "after its decision is ready, the last one holds meanwhile, and a decision longer than the "
+        "period is a deadline miss (koopman_envs.episode.ComputeCharge)."
+    )
 
 
 def paired_rows(results: RunData) -> Table:
@@ -313,6 +336,8 @@ def sections(results: RunData) -> list[Section]:
     lead: list[Block] = [TableBlock(leaderboard_rows(results)), Note(LEADERBOARD_NOTE)]
     if _calibration_note(results.config):
         lead.append(Note(_calibration_note(results.config)))
+    if _compute_note(results.config):
+        lead.append(Note(_compute_note(results.config)))
     out = [Section("leaderboard", "Leaderboard", tuple(lead))]
     paired = paired_rows(results)
     if paired[1]:
@@ -398,16 +423,21 @@ def terminal_summary(results: RunData, paths: Mapping[str, Path]) -> str:
             "Final dist., settled [cm]",
             "Solver",
             "Solve median [ms]",
+            "Deadline misses",
         )
+        if name in header
     ]
     table = markdown_table(([header[i] for i in keep], [[row[i] for i in keep] for row in rows]))
     cells = sorted({(c.map, c.slip) for c in results.cells})
     note = (
         f"{len(results.records)} episodes over {len(cells)} map/slip cells "
         f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
-        "without collision; 95% Wilson intervals. Few episodes per controller give wide intervals: "
-        "a smoke test, not a ranking."
+        "without collision; 95% intervals (the wider of Wilson's and a cluster bootstrap over trials); "
+        "Episodes: distinct ones. Few episodes per controller give wide intervals: a smoke test, not "
+        "a ranking."
     )
+    if _compute_note(results.config):
+        note += " " + _compute_note(results.config)
     lines = [table, "", note]
     reports = [str(paths[k]) for k in ("markdown", "html") if k in paths]
     if reports:

@@ -25,7 +25,7 @@ from controllers.calibration import data_spec_for
 from evaluation.configs import controller_configs, with_solver
 from evaluation.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.runlog import run_signature
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_int, check_number
 from koopman_envs.config import EngineConfig
 from koopman_envs.keywords import ENV_KEYWORDS
 from koopman_envs.params import (
@@ -122,6 +122,11 @@ class RunSpec:
         the same layouts for every controller).
     gifs : bool
         Record trial 0 of every cell as ``OUT/animations/*.gif`` (needs an output directory).
+    compute_scale : float, optional
+        Compute-aware episodes (``--realtime``, ``--compute-scale``): every controller's decision
+        time, times this factor, is charged to its robots
+        (:class:`koopman_envs.episode.ComputeCharge`); None (default): the env waits for the
+        controller.
     solver : str, optional
         Optimizer (``rti``, ``ipopt``, ``fatrop``) of every NMPC configuration that names none
         (default: each controller's own).
@@ -141,6 +146,7 @@ class RunSpec:
     calibration_seed: int = 0
     random_maps: int | None = None
     gifs: bool = False
+    compute_scale: float | None = None
     solver: str | None = None
     fallback_solver: str | None = None
 
@@ -257,6 +263,14 @@ class RunSpec:
             )
         if not isinstance(self.gifs, bool):
             raise ValueError(f"gifs={self.gifs!r} must be True or False")
+        if self.compute_scale is not None:
+            check_number(
+                "compute_scale",
+                self.compute_scale,
+                above=0,
+                at_most=1000,
+                note="a factor on the decision time",
+            )
         check_int("workers", workers, 1, maximum=MAX_WORKERS, note="processes or Ray tasks at once")
         self._validate_env_kwargs()
         if not self.slips:
@@ -344,6 +358,7 @@ class RunSpec:
                                     env_kwargs=env_json,
                                     animation=animation,
                                     run_dir=run_dir,
+                                    compute_scale=self.compute_scale or 0.0,
                                     controller_factory=cfg.factory,
                                 )
                             )
@@ -370,6 +385,10 @@ class RunSpec:
             "random_maps": self.random_maps,
             "env_settings": settings,
             "gifs": bool(self.gifs),
+            # compute-aware runs name the machine their decision times were measured on
+            "compute": None
+            if self.compute_scale is None
+            else {"scale": self.compute_scale, "machine": machine_name()},
             # the recorded settings also at the top level (schema v2 readers)
             "start_noise": settings["start_noise"],
             "tolerance": settings["goal_tolerance"],
@@ -382,3 +401,19 @@ class RunSpec:
     def signature(self) -> dict[str, Any]:
         """What ``--resume`` checks: the settings that change what an episode does."""
         return run_signature(self.config(workers=1, backend="process"))
+
+
+def machine_name() -> str:
+    """The CPU a compute-aware run measured its decision times on (model name and cores)."""
+    import platform
+
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as handle:
+            for line in handle:
+                if line.startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return f"{model}, {os.cpu_count()} cores"

@@ -15,6 +15,7 @@ from controllers.base import ControllerStats
 from controllers.calibration import calibrate_controller
 from evaluation.plan import EpisodeSpec, slip_value
 from evaluation.records import finished_status
+from koopman_envs.episode import ComputeCharge
 from koopman_envs.episode import run_episode as run_controller_episode
 from koopman_envs.plant import make_plant
 
@@ -77,7 +78,10 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
         env = gym.make(spec.env_id, render_mode="rgb_array" if spec.animation else None, **spec.make_kwargs())
         ctrl, calibration = _controller_for(spec)
         record["calibration"] = calibration
-        result = run_controller_episode(env, ctrl, seed=spec.seed, render=bool(spec.animation))
+        charge = ComputeCharge(scale=spec.compute_scale) if spec.compute_scale > 0 else None
+        result = run_controller_episode(
+            env, ctrl, seed=spec.seed, render=bool(spec.animation), compute=charge
+        )
         stats = ctrl.stats()
         summary = stats.summary()
         record.update(
@@ -96,6 +100,9 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             straight_distance=result.straight_distance.tolist(),
             min_clearance=result.min_clearance,
             accel_rms=result.accel_rms.tolist(),
+            decisions=result.decisions,
+            deadline_misses=result.deadline_misses,
+            late_periods=result.late_periods,
             angular_accel_rms=result.angular_accel_rms.tolist(),
             solve_ms_median=summary["solve_ms_median"],
             solve_ms_p95=summary["solve_ms_p95"],

@@ -10,6 +10,8 @@ the environments and imports no controller.
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -20,13 +22,50 @@ from numpy.typing import NDArray
 from koopman_envs.scenario import scenario_of
 from koopman_envs.sim.collision import CollisionKind
 
-__all__ = ["EpisodeResult", "Policy", "run_episode"]
+__all__ = ["ComputeCharge", "EpisodeResult", "Policy", "run_episode"]
 
 
 class Policy(Protocol):
     """Anything that maps (observation, info) to a joint command (2N,)."""
 
     def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]: ...
+
+
+@dataclass(frozen=True)
+class ComputeCharge:
+    """Compute-aware episodes: a controller's decision time is charged to its robots.
+
+    The pose of period t is measured at its start; the decision computed from it takes L
+    seconds (the wall time of ``act``, times ``scale``: a scale of 5 emulates a computer five
+    times slower, a small ARM board beside the machine the run is on). The robots hold the last
+    command applied until the period boundary after the decision is ready: a decision ready
+    within ``grace`` seconds of the measurement acts in period t, as without the charge; one of
+    L seconds otherwise acts from period t + ceil(L / dt). The controller decides again at the
+    period its command starts to act (it was busy until then), so a decision of 250 ms at a
+    100 ms period acts 3 periods late, every third period. A decision longer than the period
+    misses its deadline (counted). Timing varies from run to run, so compute-aware episodes are
+    not bit-reproducible; everything else about them is.
+
+    Attributes
+    ----------
+    scale : float
+        Factor on the measured decision time (> 0; 1: this machine).
+    grace : float
+        Decision time [s] within which a command still acts in the period it was computed for
+        (the actuator's own input latency; default 1 ms).
+
+    The third field, ``clock``, gives the seconds now (``time.perf_counter``; a test may give a
+    clock of its own).
+    """
+
+    scale: float = 1.0
+    grace: float = 1e-3
+    clock: Callable[[], float] = time.perf_counter
+
+    def periods_late(self, seconds: float, dt: float) -> int:
+        """Periods until a decision of ``seconds`` (before the scale) acts."""
+        charged = seconds * self.scale
+        return 0 if charged <= self.grace else math.ceil(charged / dt - 1e-9)
 
 
 @dataclass
@@ -62,6 +101,14 @@ class EpisodeResult:
         ``"obstacle"``, ``"robot"`` (a team-mate) and ``"mover"``; None where there is none (a
         single robot, a map without obstacles, no movers). Measured on the true poses at every
         period, the start included.
+    decisions : int
+        Times the controller decided (every period, except under a :class:`ComputeCharge`,
+        where a slow controller decides once per the periods it takes).
+    deadline_misses : int
+        Decisions that took longer than the control period (compute-aware episodes; else 0).
+    late_periods : float
+        Mean periods between a decision's measurement and its command acting (0 without a
+        compute charge).
     accel_rms, angular_accel_rms : ndarray, shape (N,)
         Smoothness: root mean square of the change of the saturated command per period, divided
         by the period: linear [m/s^2] and angular [rad/s^2] (0 for a constant command; the first
@@ -89,6 +136,9 @@ class EpisodeResult:
     accel_rms: NDArray[np.float64]
     angular_accel_rms: NDArray[np.float64]
     trajectory: NDArray[np.float64]
+    decisions: int = 0
+    deadline_misses: int = 0
+    late_periods: float = 0.0
     frames: list[NDArray[np.uint8]] = field(default_factory=list)
 
     @property
@@ -105,6 +155,7 @@ def run_episode(
     options: dict[str, Any] | None = None,
     render: bool = False,
     on_step: Callable[[int, NDArray[np.float64], dict[str, Any]], None] | None = None,
+    compute: ComputeCharge | None = None,
 ) -> EpisodeResult:
     """Reset ``env``, drive it with ``policy`` until the episode ends, and measure it.
 
@@ -123,6 +174,9 @@ def run_episode(
         Collect ``env.render()`` frames (the env needs ``render_mode="rgb_array"``).
     on_step : callable, optional
         ``on_step(step, action, info)`` after every step (for logging or recording).
+    compute : ComputeCharge, optional
+        Charge the controller's decision time to its robots (see :class:`ComputeCharge`);
+        None (default): the env waits for the controller, as the paper's evaluation does.
     """
     obs, info = env.reset(seed=seed, options=options)
     scenario = scenario_of(env)
@@ -142,8 +196,9 @@ def run_episode(
     frames = [env.render()] if render else []
     steps, total = 0, 0.0
     stretch_start: int | None = None  # first step of the current stretch with every robot within tolerance
+    decider = _Decider(policy, compute, scenario.dt, n)
     while True:
-        action = np.asarray(policy.act(obs, info), dtype=np.float64).reshape(n, 2)
+        action = decider.command(steps, obs, info)
         obs, reward, terminated, truncated, info = env.step(action.reshape(-1))
         steps += 1
         total += float(reward)
@@ -185,6 +240,9 @@ def run_episode(
         accel_rms=np.sqrt(rate_sq[:, 0] / steps),
         angular_accel_rms=np.sqrt(rate_sq[:, 1] / steps),
         trajectory=trajectory,
+        decisions=decider.decisions,
+        deadline_misses=decider.misses,
+        late_periods=decider.late / decider.decisions if decider.decisions else 0.0,
         frames=frames,
     )
 
@@ -219,3 +277,37 @@ class _Clearance:
 
     def smallest(self) -> dict[str, float | None]:
         return dict(self.low)
+
+
+class _Decider:
+    """When the controller decides and which command the robots hold (:class:`ComputeCharge`;
+    without one, a decision every period that acts at once)."""
+
+    def __init__(self, policy: Policy, compute: ComputeCharge | None, dt: float, n: int) -> None:
+        self.policy, self.compute, self.dt = policy, compute, dt
+        self.held = np.zeros((n, 2))
+        self.pending: tuple[int, NDArray[np.float64]] | None = None
+        self.next_decision = 0
+        self.decisions = self.misses = self.late = 0
+
+    def command(self, step: int, obs: Any, info: dict[str, Any]) -> NDArray[np.float64]:
+        compute = self.compute
+        if compute is None:
+            self.decisions += 1
+            return np.asarray(self.policy.act(obs, info), dtype=np.float64).reshape(self.held.shape)
+        if self.pending is not None and self.pending[0] <= step:
+            self.held, self.pending = self.pending[1], None
+        if step >= self.next_decision:
+            start = compute.clock()
+            command = np.asarray(self.policy.act(obs, info), dtype=np.float64).reshape(self.held.shape)
+            seconds = compute.clock() - start
+            late = compute.periods_late(seconds, self.dt)
+            self.decisions += 1
+            self.late += late
+            self.misses += seconds * compute.scale > self.dt
+            if late == 0:
+                self.held = command
+            else:
+                self.pending = (step + late, command)
+            self.next_decision = step + max(late, 1)
+        return self.held
