@@ -74,7 +74,7 @@ from evaluation.protocols import (
 )
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
 from evaluation.results import SCHEMA_VERSION, Results
-from evaluation.robustness import profiles, write_robustness
+from evaluation.robustness import profiles, terminal_overview, write_robustness
 from evaluation.runlog import ensure_output_dir
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
@@ -281,7 +281,10 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
         resume=args.resume,
         progress=not args.quiet,
     )
-    paths = write_robustness(profiles(done, args.reference), args.out, command)
+    axes_profiles = profiles(done, args.reference)
+    paths = write_robustness(axes_profiles, args.out, command)
+    if not args.quiet or args.full_report:
+        print(terminal_overview(axes_profiles))
     runs = {id(results): results for levels in done.values() for _, results in levels}  # aliases once
     episodes = sum(len(results.records) for results in runs.values())
     print(

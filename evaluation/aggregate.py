@@ -295,6 +295,7 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                 [r for r in records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
             )
             settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
+            every = [100 * float(np.mean(r["final_distance"])) for r in recs]
             free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
             d_low, d_high = bootstrap_mean_interval(settled)
             success_ci = _clustered_interval(success_ci, recs)
@@ -315,6 +316,8 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
                     if free_runs
                     else float("nan"),
                     "final_distance_collision_free_ci": [f_low, f_high],
+                    # over every episode: what breaks a tie in success (rank_key)
+                    "final_distance_all_cm": float(np.mean(every)) if every else float("nan"),
                     **episode_metrics(recs),
                     "solve_ms_median": _nan_reduce(np.median, [c.solve_ms_median for c in own]),
                     # the optimizer(s) behind the row's decisions, as the controllers reported them
@@ -347,7 +350,11 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
             )
 
     def rank_key(row: dict[str, Any]) -> tuple:
-        dist = row["final_distance_cm"]
+        # success first; a tie goes to the smaller final distance over every episode, so that of
+        # two controllers that never succeed the one that gets closer ranks first (the settled
+        # distance, NaN without a success, cannot tell a controller that never moves from one that
+        # tries)
+        dist = row["final_distance_all_cm"]
         rate = row["success_rate"]
         return (row["env_id"], -rate if not math.isnan(rate) else 1.0, dist if not math.isnan(dist) else 1e9)
 

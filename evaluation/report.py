@@ -54,6 +54,8 @@ Table = tuple[list[str], list[list[str]]]
 
 LEADERBOARD_NOTE = (
     "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
+    "Rank: by success, ties by the mean final distance over every episode (so a controller that "
+    "never moves does not outrank one that tries). "
     "Episodes: distinct episodes (an episode that repeats an earlier one of its cell bit for bit is "
     "counted once). Intervals: 95%; for the success rate the wider of Wilson's and a cluster "
     "bootstrap over trials (a trial's seed fixes its layout, start and slip draws in every cell), "

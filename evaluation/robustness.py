@@ -24,7 +24,7 @@ import numpy as np
 
 from evaluation.distinct import distinct_records, distinct_units, signature
 from evaluation.records import json_safe, ran
-from evaluation.report import Block, Note, Section, TableBlock, markdown
+from evaluation.report import Block, Note, Section, TableBlock, markdown, markdown_table
 from evaluation.results import Results
 from evaluation.statistics import (
     bootstrap_mean_interval,
@@ -41,6 +41,7 @@ __all__ = [
     "overview_section",
     "profiles",
     "robustness_sections",
+    "terminal_overview",
     "write_robustness",
 ]
 
@@ -214,6 +215,29 @@ def _ci(value: float, low: float, high: float, scale: float = 1.0, digits: int =
     if math.isnan(value):
         return "-"
     return f"{value * scale:.{digits}f} [{low * scale:.{digits}f}, {high * scale:.{digits}f}]"
+
+
+def terminal_overview(axes: Sequence[AxisProfile]) -> str:
+    """What a terminal gets after a sweep: per axis, every controller's success at each level
+    (distinct episodes, %), the controllers ranked by their success over the axis (AUC)."""
+    blocks = []
+    for profile in axes:
+        header = ["Controller", *(f"{profile.key}={_level_text(v)}" for v in profile.levels), "AUC"]
+        ranked = sorted(profile.summary, key=lambda c: -np.nan_to_num(profile.summary[c]["auc"]))
+        rows = [
+            [
+                c,
+                *(f"{100 * r.success:.0f}% ({r.episodes})" for r in profile.curve(c)),
+                f"{100 * profile.summary[c]['auc']:.0f}%",
+            ]
+            for c in ranked
+        ]
+        blocks.append(markdown_table((header, rows)))
+    note = (
+        "Success at each level (distinct episodes in brackets); AUC: the mean success over the "
+        "axis's levels. Intervals, paired tests (Holm-adjusted) and figures: the report files."
+    )
+    return "\n\n".join([*blocks, note])
 
 
 def overview_section(

@@ -132,3 +132,14 @@ def test_a_record_without_final_poses_is_judged_by_its_distances() -> None:
     assert duplicates([one, other]) == 1
     other["final_distance"] = [0.02]
     assert duplicates([one, other]) == 0
+
+
+def test_a_controller_that_never_moves_does_not_outrank_one_that_tries() -> None:
+    """Both fail every episode; the one that ends closer ranks first (the settled distance, NaN
+    for both, cannot tell them apart), whatever order they come in."""
+    still = [{**_record("still", s, False, 10.0 + s), "final_distance": [5.0]} for s in range(4)]
+    tries = [{**_record("tries", s, False, 20.0 + s), "final_distance": [1.0]} for s in range(4)]
+    for records in (still + tries, tries + still):
+        rows = leaderboard(aggregate(records), records)
+        assert [r["controller"] for r in rows] == ["tries", "still"]
+        assert rows[0]["final_distance_all_cm"] == pytest.approx(100.0)

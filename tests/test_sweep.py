@@ -272,3 +272,12 @@ def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
     assert by_controller["other"][1].startswith("50 [") and by_controller["other"][2].startswith("75 [")
     assert by_controller["other"][3] == "comm.drop (75% -> 25% at 0.5)"
     assert by_controller["ref"][3] == "comm.drop (100% -> 75% at 0.5)"
+
+
+def test_a_sweep_prints_its_overview_to_the_terminal(tmp_path, capsys) -> None:
+    words = [w for w in TINY if w != "--quiet"]
+    args = [*words, "--controllers", "consensus", "consensus-free", "--sweep", "actuation_delay=0,2"]
+    assert ev.main([*args, "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "| Controller | actuation_delay=0 | actuation_delay=2 | AUC |" in out
+    assert "| consensus-free | 0% (2) | 0% (2) | 0% |" in out  # never succeeds, every episode distinct

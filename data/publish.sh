@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# The published runs behind docs/*_results.md, each resumable: run this script again after an
+# interruption (or in a new session, after `unpack`) and every run continues where its log ends.
+# Each run writes data/runs/NAME/ (work files, not committed); `bash data/publish.sh pack` packs
+# its episode logs (JSON lines) into data/NAME.tar.gz (committed: the published data).
+#
+#   bash data/publish.sh [NAME ...]    run (or continue) the named runs, default all, in order
+#   bash data/publish.sh pack          pack every run's episode logs into data/NAME.tar.gz
+#   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.gz (a new machine)
+# KOOPNAV_PUBLISH_WORKERS: worker processes (default 1: a core stays free for other work).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+workers="${KOOPNAV_PUBLISH_WORKERS:-1}"
+
+# the model-based controllers as deployed (estimator="auto", stall resolution, the real-time
+# iteration) beside the paper's (no estimator, no stall resolution), paired on the same episodes
+PAPER_VARIANTS=(
+    "koopman-nmpc:estimator=none,unstall=false,label=koopman-nmpc-paper"
+    "nominal-nmpc:estimator=none,unstall=false,label=nominal-nmpc-paper"
+)
+declare -A RUNS
+# issue 42, the target table: the paper protocol's cells under `realistic`
+RUNS[paper_realistic]="--paper --solver rti --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} consensus:estimator=none,label=consensus-paper --sweep uncertainty=nominal,realistic --reference koopman-nmpc"
+# issue 42: pose noise and actuation delay swept alone (the paper's maps, nominal slip, 20 per cell)
+RUNS[lab_day_sweep]="--slips nominal --episodes 20 --controllers koopman-nmpc nominal-nmpc dmpc-koopman dmpc-nominal ${PAPER_VARIANTS[*]} dmpc-koopman:estimator=none,label=dmpc-koopman-paper dmpc-nominal:estimator=none,label=dmpc-nominal-paper --sweep pose_noise.xy=0,0.05,0.1 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
+# issue 42: the mis-specified datasheet (the realistic preset's values, whatever the team has)
+RUNS[lab_day_misspecified]="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:estimator=realistic,label=koopman-nmpc-datasheet nominal-nmpc:estimator=realistic,label=nominal-nmpc-datasheet dmpc-koopman:estimator=realistic,label=dmpc-koopman-datasheet consensus:estimator=realistic,label=consensus-datasheet --sweep pose_noise.xy=0,0.05,0.1 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
+# issue 42: the ablation, each lever off alone, under realistic and on the delay and noise sweeps
+RUNS[lab_day_ablation]="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:ablate=estimation,label=no-estimation koopman-nmpc:ablate=delay_compensation,label=no-delay-compensation koopman-nmpc:ablate=tightening,label=no-tightening koopman-nmpc:ablate=settling,label=no-settling koopman-nmpc:unstall=false,label=no-unstall --sweep uncertainty=realistic --sweep actuation_delay=2 --sweep pose_noise.xy=0.05 --reference koopman-nmpc"
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified)
+
+run() {
+    local name="$1" out="data/runs/$1"
+    local resume=()
+    [ -e "$out" ] && resume=(--resume)
+    # shellcheck disable=SC2086  # the option strings are split on purpose
+    python evaluate.py ${RUNS[$name]} --out "$out" --workers "$workers" --quiet "${resume[@]}"
+}
+
+case "${1:-}" in
+pack)  # the episode logs and sweep manifests only: everything else is rebuilt from them
+    for dir in data/runs/*/; do
+        name="$(basename "$dir")"
+        (cd data/runs && find "$name" \( -name episodes.jsonl -o -name sweep.json \) -print0 |
+            sort -z | tar --null -T - --owner=0 --group=0 --mtime=2026-01-01 -cf - | gzip -9n) \
+            > "data/$name.tar.gz"
+    done
+    ls -la data/*.tar.gz
+    ;;
+unpack)  # a new machine: the committed logs back into data/runs/, to resume or to report from
+    mkdir -p data/runs
+    for archive in data/*.tar.gz; do
+        tar -xzf "$archive" -C data/runs
+    done
+    ;;
+*)
+    names=("$@")
+    [ ${#names[@]} -eq 0 ] && names=("${ORDER[@]}")
+    for name in "${names[@]}"; do
+        [ -n "${RUNS[$name]+x}" ] || { echo "unknown run $name; known: ${ORDER[*]}" >&2; exit 2; }
+        echo "== $name"
+        run "$name"
+    done
+    ;;
+esac
