@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.distinct import distinct_records, distinct_units, signature
+from evaluation.profile_figures import save_profile_figures
 from evaluation.records import json_safe, ran
 from evaluation.report import Block, Note, Section, TableBlock, markdown, markdown_table
 from evaluation.results import Results
@@ -385,49 +386,6 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
     if command and out:
         out[0] = Section(out[0].anchor, out[0].title, (Note(f"Command: `{command}`"), *out[0].blocks))
     return out
-
-
-def save_profile_figures(axes: Sequence[AxisProfile], out_dir: Path) -> list[Path]:
-    """One figure per axis: success (Wilson band) and final distance (bootstrap band) against the level."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for profile in axes:
-        x = np.arange(len(profile.levels))
-        fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.2))
-        palette = plt.get_cmap("tab20")  # one distinct colour per controller (tab10 repeats after 10)
-        for number, controller in enumerate(profile.controllers):
-            curve = profile.curve(controller)
-            colour = palette(number % 20)
-            marker = "osD^v<>p*h"[number % 10]
-            rate = [r.success * 100 for r in curve]
-            left.plot(x, rate, marker=marker, color=colour, label=controller)
-            low, high = [r.success_low * 100 for r in curve], [r.success_high * 100 for r in curve]
-            left.fill_between(x, low, high, alpha=0.12, color=colour)
-            right.plot(x, [r.distance for r in curve], marker=marker, color=colour)
-            low, high = [r.distance_low for r in curve], [r.distance_high for r in curve]
-            right.fill_between(x, low, high, alpha=0.12, color=colour)
-        for axis, label in (
-            (left, "success [%] (95% Wilson)"),
-            (right, "final distance [cm] (95% bootstrap)"),
-        ):
-            axis.set_xticks(x, [_level_text(v) for v in profile.levels])
-            axis.set_xlabel(profile.key)
-            axis.set_ylabel(label)
-            axis.grid(alpha=0.3)
-        left.set_ylim(-2, 102)
-        fig.legend(loc="center right", fontsize=7, frameon=False)
-        fig.suptitle(f"Robustness to {profile.key}")
-        fig.tight_layout(rect=(0, 0, 0.84, 1))
-        path = out_dir / f"robustness_{profile.key.replace('.', '_')}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        paths.append(path)
-    return paths
 
 
 def write_robustness(axes: Sequence[AxisProfile], out: str | Path, command: str = "") -> dict[str, Path]:
