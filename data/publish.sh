@@ -20,13 +20,16 @@ PAPER_VARIANTS=(
 )
 declare -A RUNS
 # issue 42, the target table: the paper protocol's cells under `realistic`
-RUNS[paper_realistic]="--paper --solver rti --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} consensus:estimator=none,label=consensus-paper --sweep uncertainty=nominal,realistic --reference koopman-nmpc"
+# (the set policies on the same episodes: one episode set for every comparison of the page)
+RUNS[paper_realistic]="--paper --solver rti --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} consensus:estimator=none,label=consensus-paper rl-ppo-set rl-ppo-set-realistic --sweep uncertainty=nominal,realistic --reference koopman-nmpc"
 # issue 42: pose noise and actuation delay swept alone (the paper's maps, nominal slip, 20 per cell)
 RUNS[lab_day_sweep]="--slips nominal --episodes 20 --controllers koopman-nmpc nominal-nmpc dmpc-koopman dmpc-nominal ${PAPER_VARIANTS[*]} dmpc-koopman:estimator=none,label=dmpc-koopman-paper dmpc-nominal:estimator=none,label=dmpc-nominal-paper --sweep pose_noise.xy=0,0.05,0.1 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
 # issue 42: the mis-specified datasheet (the realistic preset's values, whatever the team has)
 RUNS[lab_day_misspecified]="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:estimator=realistic,label=koopman-nmpc-datasheet nominal-nmpc:estimator=realistic,label=nominal-nmpc-datasheet dmpc-koopman:estimator=realistic,label=dmpc-koopman-datasheet consensus:estimator=realistic,label=consensus-datasheet --sweep pose_noise.xy=0,0.05,0.1 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
-# issue 42: the ablation, each lever off alone, under realistic and on the delay and noise sweeps
-RUNS[lab_day_ablation]="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:ablate=estimation,label=no-estimation koopman-nmpc:ablate=delay_compensation,label=no-delay-compensation koopman-nmpc:ablate=tightening,label=no-tightening koopman-nmpc:ablate=settling,label=no-settling koopman-nmpc:unstall=false,label=no-unstall --sweep uncertainty=realistic --sweep actuation_delay=2 --sweep pose_noise.xy=0.05 --reference koopman-nmpc"
+# issue 42: the ablation, each lever off alone (Koopman-NMPC), under realistic, on the delay
+# sweep and on the noise sweep
+ABLATION="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:ablate=estimation,label=no-estimation koopman-nmpc:ablate=delay_compensation,label=no-delay-compensation koopman-nmpc:ablate=tightening,label=no-tightening koopman-nmpc:ablate=settling,label=no-settling koopman-nmpc:unstall=false,label=no-unstall"
+RUNS[lab_day_ablation]="$ABLATION --sweep uncertainty=nominal,realistic --sweep actuation_delay=2,4 --sweep pose_noise.xy=0.05,0.1 --reference koopman-nmpc"
 ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified)
 
 run() {

@@ -103,8 +103,13 @@ def _lock(handle: IO[str], log: Path) -> None:
 
 
 def run_signature(config: dict[str, Any]) -> dict[str, Any]:
-    """The parts of a run configuration that must match for a resume (plain JSON)."""
-    return json.loads(json.dumps(json_safe({k: config.get(k) for k in RESUME_KEYS})))
+    """The parts of a run configuration that must match for a resume (plain JSON); a
+    compute-aware run's scale and machine too (decision times of two machines do not mix; absent
+    from a free-compute run's, as in logs written before the mode existed)."""
+    signature = {k: config.get(k) for k in RESUME_KEYS}
+    if config.get("compute"):
+        signature["compute"] = config["compute"]
+    return json.loads(json.dumps(json_safe(signature)))
 
 
 def _header_line(config: dict[str, Any]) -> bytes:

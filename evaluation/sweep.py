@@ -282,8 +282,13 @@ def _level_setting(config: dict[str, Any], key: str) -> Any:
 
 def load_sweep(
     out: str | os.PathLike,
+    from_logs: bool = False,
 ) -> tuple[dict[str, list[tuple[Any, Results]]], list[str], dict[str, Any]]:
     """The finished levels of the sweep in ``out``, read back and checked.
+
+    ``from_logs``: read each level from its episode log instead of its results.json (published
+    data, :mod:`evaluation.published`: the logs are what the repository keeps). ``out`` may then
+    also be a published ``.tar.gz``.
 
     Returns
     -------
@@ -301,8 +306,11 @@ def load_sweep(
         recording another value of its axis than its directory's (each named).
     """
     from evaluation.baseline import load_baseline
+    from evaluation.published import extract_archive, results_from_log
 
     out = Path(out)
+    if out.is_file() and out.name.endswith(".tar.gz"):
+        out, from_logs = extract_archive(out), True
     manifest = _read_manifest(out)
     done: dict[str, list[tuple[Any, Results]]] = {}
     missing: list[str] = []
@@ -318,11 +326,16 @@ def load_sweep(
         for level in axis.levels:
             name = f"{axis.key}={_text(level)}"
             run_axis, run_level = by_name.get(aliases.get(name, name), (axis, level))
-            file = run_axis.level_dir(out, run_level) / "results.json"
+            file = run_axis.level_dir(out, run_level) / ("episodes.jsonl" if from_logs else "results.json")
             if not file.exists():
                 missing.append(name)
                 continue
-            doc = load_baseline(file, what="sweep level")
+            doc: dict[str, Any]
+            if from_logs:
+                results = results_from_log(file)
+                doc = {"config": results.config, "episodes": results.records}
+            else:
+                doc = load_baseline(file, what="sweep level")
             recorded = _level_setting(doc["config"], run_axis.key)
             if recorded != run_level:
                 raise ValueError(

@@ -1,0 +1,105 @@
+"""Published data: the episode logs behind every results page, in the repository as
+``data/NAME.tar.gz`` (each run's ``episodes.jsonl`` and, for a sweep, its ``sweep.json``;
+``bash data/publish.sh pack`` writes them), read back checked so that a page's generator rebuilds
+the page from them byte for byte.
+
+An episode log is JSON lines: a header ``{"kind": "koopnav-run", "config": {...}}`` with the
+run's settings, then one record per episode (the fields of ``docs/results.schema.json``). In
+pandas::
+
+    import json, tarfile
+    import pandas as pd
+
+    with tarfile.open("data/paper_realistic.tar.gz") as archive:
+        member = archive.extractfile("paper_realistic/sweep/uncertainty-realistic/episodes.jsonl")
+        lines = member.read().decode().splitlines()
+    episodes = pd.DataFrame([json.loads(line) for line in lines[1:]])
+    episodes.groupby("controller")["success"].mean()
+"""
+
+from __future__ import annotations
+
+import json
+import tarfile
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from evaluation.records import record_problem
+from evaluation.results import Results
+
+__all__ = ["extract_archive", "results_from_log"]
+
+
+def _plan_order(config: dict[str, Any]) -> Any:
+    """Sort key of a record in the order the run planned its episodes (env, controller, map,
+    slip, trial), so that a page does not depend on the order workers finished in."""
+    envs = list(config.get("env_ids") or [])
+    labels = [c.get("label") for c in config.get("controller_configs") or []]
+    maps = config.get("maps") or {}
+    slips = list(config.get("slips") or [])
+
+    def key(record: dict[str, Any]) -> tuple:
+        env = record["env_id"]
+        env_maps = list(maps.get(env, []))
+        return (
+            envs.index(env) if env in envs else len(envs),
+            labels.index(record["controller"]) if record["controller"] in labels else len(labels),
+            env_maps.index(record["map"]) if record["map"] in env_maps else len(env_maps),
+            slips.index(record["slip"]) if record["slip"] in slips else len(slips),
+            record["trial"],
+        )
+
+    return key
+
+
+def results_from_log(path: str | Path) -> Results:
+    """A run's results from its episode log: the header's settings and every record, each
+    checked (:func:`evaluation.records.record_problem`; a torn or foreign line is refused by
+    its number), in the run's planned order; a key logged twice keeps its last record."""
+    path = Path(path)
+    lines = path.read_text(encoding="utf-8").split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    try:
+        header = json.loads(lines[0]) if lines else None
+    except json.JSONDecodeError:
+        header = None
+    if not isinstance(header, dict) or header.get("kind") != "koopnav-run":
+        raise ValueError(f"{path} is not a KoopNav episode log (line 1 is not a run header)")
+    config = dict(header["config"])
+    config["controllers"] = [c["label"] for c in config.get("controller_configs") or []]
+    records: dict[str, dict[str, Any]] = {}
+    for number, line in enumerate(lines[1:], start=2):
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}, line {number}: not JSON ({exc.msg})") from None
+        problem = record_problem(record)
+        if problem is not None:
+            raise ValueError(f"{path}, line {number}: {problem}")
+        records[record["key"]] = record
+    return Results(sorted(records.values(), key=_plan_order(config)), config)
+
+
+def extract_archive(archive: str | Path, into: str | Path | None = None) -> Path:
+    """Unpack a published archive (its episode logs and manifests only: any other member, or
+    one that would land outside ``into``, is refused by name) and return the run's directory.
+    ``into``: where (default: a new temporary directory)."""
+    archive = Path(archive)
+    target = Path(into) if into is not None else Path(tempfile.mkdtemp(prefix="koopnav-published-"))
+    with tarfile.open(archive, "r:gz") as tar:
+        members = tar.getmembers()
+        for member in members:
+            name = Path(member.name)
+            if not member.isfile() or name.name not in ("episodes.jsonl", "sweep.json"):
+                if member.isdir():
+                    continue
+                raise ValueError(
+                    f"{archive}: member {member.name!r} is not an episode log or a sweep manifest"
+                )
+        tar.extractall(target, filter="data")
+    tops = {Path(m.name).parts[0] for m in members if m.isfile()}
+    if len(tops) != 1:
+        raise ValueError(f"{archive}: holds {sorted(tops)}, not one run's directory")
+    return target / tops.pop()
