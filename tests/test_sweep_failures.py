@@ -3,20 +3,16 @@
 
 from __future__ import annotations
 
+from test_sweep import TINY as SWEEP_TINY
+
 import evaluate as ev
 
+# the sweep tests' tiny run, with shorter episodes: every episode of a raising controller raises
+# at once anyway
 TINY = [
-    "--env",
-    "KoopNav-TargetReaching-v0",
-    "--maps",
-    "map1",
-    "--episodes",
-    "2",
-    "--max-episode-steps",
+    *SWEEP_TINY[: SWEEP_TINY.index("--max-episode-steps") + 1],
     "10",
-    "--workers",
-    "1",
-    "--quiet",
+    *SWEEP_TINY[SWEEP_TINY.index("--max-episode-steps") + 2 :],
 ]
 
 
