@@ -156,6 +156,13 @@ _OPTIONAL_SCHEMA: dict[str, tuple[Callable[[Any], bool], str]] = {
     "late_periods": (lambda v: _is_number(v, 0.0), "a finite number >= 0 (control periods)"),
     "compute_scale": (lambda v: _is_number(v, 0.0), "a finite number >= 0 (0: free compute)"),
     "angular_accel_rms": (_non_negative_numbers, "a list of finite numbers >= 0"),
+    "mover_trajectory": (
+        lambda v: (
+            isinstance(v, list)
+            and all(isinstance(r, list) and all(_numbers(p) and len(p) == 2 for p in r) for r in v)
+        ),
+        "a list, per step, of one [x, y] pair of finite numbers per mover (metres)",
+    ),
     "solve_ms_median": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
     "solve_ms_p95": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
     "wall_seconds": (lambda v: _is_number(v, 0.0), "a finite number >= 0"),

@@ -9,6 +9,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from controllers.base import ControllerStats
@@ -27,6 +28,30 @@ _COMMON_SUMMARY = frozenset(ControllerStats().summary())
 
 class CalibrationError(RuntimeError):
     """A controller's calibration raised (recorded for every episode of its cell)."""
+
+
+class _MoverPaths(gym.Wrapper):  # type: ignore[type-arg]  # any KoopNav env's spaces
+    """Keeps the movers' true positions (the info's ``movers``) at the reset and after every
+    step, for the record's ``mover_trajectory``; keeps nothing without movers."""
+
+    def __init__(self, env: Any) -> None:
+        super().__init__(env)
+        self.positions: list[np.ndarray] = []
+
+    def reset(self, **kwargs: Any) -> Any:
+        obs, info = self.env.reset(**kwargs)
+        self.positions = [np.asarray(info["movers"])[:, :2].copy()] if "movers" in info else []
+        return obs, info
+
+    def step(self, action: Any) -> Any:
+        out = self.env.step(action)
+        if self.positions:
+            self.positions.append(np.asarray(out[4]["movers"])[:, :2].copy())
+        return out
+
+    def record(self) -> list | None:
+        """(T + 1, C, 2) positions [m], rounded as the robots' ``trajectory``; None without movers."""
+        return np.round(np.asarray(self.positions), 4).tolist() if self.positions else None
 
 
 def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
@@ -70,8 +95,6 @@ def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
 
 def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
     """Run one episode and return its record (never raises: errors are recorded)."""
-    import gymnasium as gym
-
     start = time.perf_counter()
     record: dict[str, Any] = spec.record_fields()
     try:
@@ -79,8 +102,13 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
         ctrl, calibration = _controller_for(spec)
         record["calibration"] = calibration
         charge = ComputeCharge(scale=spec.compute_scale) if spec.compute_scale > 0 else None
+        paths = _MoverPaths(env) if spec.trial == 0 else None  # trial 0 keeps the movers' paths
         result = run_controller_episode(
-            env, ctrl, seed=spec.seed, render=bool(spec.animation), compute=charge
+            env if paths is None else paths,
+            ctrl,
+            seed=spec.seed,
+            render=bool(spec.animation),
+            compute=charge,
         )
         stats = ctrl.stats()
         summary = stats.summary()
@@ -114,6 +142,8 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
             obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,  # type: ignore[attr-defined]  # a KoopNav env
         )
+        if paths is not None and paths.positions:  # only an episode with movers has the field
+            record["mover_trajectory"] = paths.record()
         if spec.animation:
             from koopman_envs.rendering import save_episode
 

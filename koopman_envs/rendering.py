@@ -6,8 +6,10 @@ off-screen through the Agg canvas, ``human`` opens a pyplot window.
 A frame is cheap because the figure is built once per episode: slip zones, obstacles, targets,
 start markers, axes and grid form a static background that is drawn once and kept as a bitmap, and
 each frame only restores that bitmap and draws the moving artists (trails, robot bodies,
-headings, the clock in the title) on top of it (blitting). A robot that leaves the map's view
-widens it in 1 m steps, and a frame in which the axis limits change redraws the background.
+headings, the clock in the title, and the layers of :mod:`koopman_envs.rendering_layers`: lidar
+beams and collision marks) on top of it (blitting). The view holds the map and the area the movers
+roam; a robot or mover that leaves it widens it in 1 m steps, and a frame in which the axis limits
+change redraws the background.
 """
 
 from __future__ import annotations
@@ -19,7 +21,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.animation import save_episode
-from koopman_envs.params import PARAMS
+from koopman_envs.rendering_layers import (
+    MOVER_TRAIL,
+    FrameLayers,
+    Overlay,
+    engine_frame,
+    frame_title,
+    view_limits,
+)
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.zones import SlipZone
 
@@ -30,18 +39,19 @@ if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when
     from matplotlib.figure import Figure
     from matplotlib.text import Text
 
-__all__ = ["Renderer", "draw_engine_env", "draw_scenario", "frame_title", "save_episode", "title_parts"]
+__all__ = [
+    "MOVER_TRAIL",
+    "Renderer",
+    "draw_engine_env",
+    "draw_scenario",
+    "frame_title",
+    "save_episode",
+    "title_parts",
+]
 
 _COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink")
-#: margin around everything drawn [m] (the view is also clipped to the workspace)
-_VIEW_MARGIN = 1.0
-#: a robot that leaves the map's view widens it in steps of this much [m]: a view that followed
-#: it exactly would change, and need a full redraw, on every frame
-_VIEW_STEP = 1.0
 #: most ``tight_layout`` passes per layout (two settle it in practice)
 _LAYOUT_PASSES = 4
-#: periods of a mover's trail that a frame shows (2 s at the paper's dt)
-MOVER_TRAIL = 20
 #: movers: body colour and the opacity of their trails (dark and hatched: not a robot, not a map obstacle)
 _MOVER_COLOR = "0.15"
 #: where a mover disc waits before its first position is known (outside every view)
@@ -55,35 +65,13 @@ _ZONE_ALPHA = (0.08, 0.45)
 _ZONE_FULL_LAMBDA = 0.5
 
 
-def _view_limits(
-    scenario: Scenario, current: NDArray[np.float64], slip_zones: Sequence[SlipZone] = ()
-) -> tuple[float, float, float, float]:
-    """(x_min, x_max, y_min, y_max) [m] of the view: the starts, targets, obstacles and slip zones
-    with a margin, widened in whole steps to show the robots at ``current`` (N, 3) with the same
-    margin, and clipped to the workspace."""
-    fixed = np.vstack([scenario.starts[:, :2], scenario.targets[:, :2]])
-    if len(scenario.obstacles):
-        obs = scenario.obstacles
-        fixed = np.vstack([fixed, obs[:, :2] - obs[:, 2:], obs[:, :2] + obs[:, 2:]])
-    if len(slip_zones):
-        boxes = np.array([zone.extent() for zone in slip_zones])
-        fixed = np.vstack([fixed, boxes[:, :2], boxes[:, 2:]])
-    lo, hi = fixed.min(axis=0) - _VIEW_MARGIN, fixed.max(axis=0) + _VIEW_MARGIN
-    robots_lo = current[:, :2].min(axis=0) - _VIEW_MARGIN
-    robots_hi = current[:, :2].max(axis=0) + _VIEW_MARGIN
-    lo = lo - _VIEW_STEP * np.ceil(np.maximum(lo - robots_lo, 0.0) / _VIEW_STEP)
-    hi = hi + _VIEW_STEP * np.ceil(np.maximum(robots_hi - hi, 0.0) / _VIEW_STEP)
-    x0, x1, y0, y1 = scenario.workspace
-    return (float(max(lo[0], x0)), float(min(hi[0], x1)), float(max(lo[1], y0)), float(min(hi[1], y1)))
-
-
 class _Scene:
     """The artists of one scenario on one axes: static ones, built here once, and the dynamic
     ones (:attr:`dynamic`) that :meth:`update` moves.
 
-    Every dynamic artist has a higher zorder than every static one (trails 3, bodies 4,
-    headings 5, above the spines' 2.5), so drawing them over a bitmap of the static artists gives
-    the same picture as drawing everything at once. The axes title always holds the whole title
+    Every dynamic artist has a higher zorder than every static one (beams 2.7, trails 3, bodies 4,
+    headings 5, collision marks 6, above the spines' 2.5), so drawing them over a bitmap of the
+    static artists gives the same picture as drawing everything at once. The axes title holds the whole title
     (it places the layout); with ``animated`` it is left out of the drawing, because the
     :class:`Renderer` draws it in parts.
     """
@@ -143,21 +131,36 @@ class _Scene:
         ax.set_ylabel("y [m]")
         ax.grid(alpha=0.3)
         self.title = ax.set_title("", fontsize=9)
-        #: artists that change from frame to frame, in drawing (zorder) order
-        self.dynamic = [*self.trails, *self.mover_trails, *self.bodies, *self.movers, self.headings]
-        for artist in (*self.dynamic, self.title):
+        self.layers = FrameLayers(ax, _COLORS, scenario.n_robots, animated)
+        # the scene's own dynamic artists, in drawing (zorder) order
+        self._own = [*self.trails, *self.mover_trails, *self.bodies, *self.movers, self.headings]
+        for artist in (*self._own, self.title):
             artist.set_animated(animated)
         self.limits: tuple[float, float, float, float] | None = None
 
+    @property
+    def dynamic(self) -> list[Any]:
+        """The artists that change from frame to frame, in drawing (zorder) order."""
+        beams, hits, marks, *labels = self.layers.artists
+        return [beams, hits, *self._own, marks, *labels]
+
     def update(
-        self, trail: NDArray[np.float64] | None, title: str, movers: NDArray[np.float64] | None = None
+        self,
+        trail: NDArray[np.float64] | None,
+        title: str,
+        movers: NDArray[np.float64] | None = None,
+        overlay: Overlay | None = None,
+        elapsed: float | None = None,
     ) -> bool:
         """Move the dynamic artists to ``trail`` (T, N, 3) and the movers to ``movers`` (T', C,
-        2: their recent positions, the last drawn as the discs); True when the axis limits
-        changed (then the static background is stale)."""
+        2: their recent positions, the last drawn as the discs), and draw ``overlay`` (beams,
+        collision marks at time ``elapsed``); True when the axis limits changed (then the static
+        background is stale)."""
         scenario = self.scenario
+        now = None
         if movers is not None and len(movers):
             recent = np.asarray(movers)[-MOVER_TRAIL:]
+            now = recent[-1]
             for c, (line, disc) in enumerate(zip(self.mover_trails, self.movers, strict=True)):
                 line.set_data(recent[:, c, 0], recent[:, c, 1])
                 disc.set_center(recent[-1, c])
@@ -171,7 +174,8 @@ class _Scene:
         self._stroke[1::3, 0], self._stroke[1::3, 1] = x + reach * np.cos(th), y + reach * np.sin(th)
         self.headings.set_data(self._stroke[:, 0].copy(), self._stroke[:, 1].copy())
         self.title.set_text(title)
-        limits = _view_limits(scenario, poses[-1], self.slip_zones)
+        limits = view_limits(scenario, poses[-1], self.slip_zones, now)
+        self.layers.update(scenario, poses[-1], overlay, now, elapsed, limits)
         if limits == self.limits:
             return False
         self.ax.set_xlim(limits[0], limits[1])
@@ -251,7 +255,14 @@ class Renderer:
         Off-screen only: keep the static background as a bitmap and draw only the moving
         artists per frame (the default, a few ms a frame). ``False`` redraws the whole figure
         every frame (~10x slower); it exists as the reference the fast path is tested against.
+    show_beams : bool, optional
+        Draw the lidar beams of a ``sensing="lidar"`` env (:func:`draw_engine_env`); None: the
+        class default :attr:`show_beams`.
     """
+
+    #: the default of every renderer: ``Renderer.show_beams = False`` hides the lidar beams in
+    #: every env's frames drawn from then on
+    show_beams: bool = True
 
     # the figure and what is drawn on it: None until the first draw (see _no_figure and _open)
     figure: Figure | None
@@ -266,8 +277,14 @@ class Renderer:
     _initial_subplotpars: dict[str, float] | None
 
     def __init__(
-        self, human: bool = False, size: tuple[float, float] = (5.0, 5.0), blit: bool = True
+        self,
+        human: bool = False,
+        size: tuple[float, float] = (5.0, 5.0),
+        blit: bool = True,
+        show_beams: bool | None = None,
     ) -> None:
+        if show_beams is not None:
+            self.show_beams = show_beams
         self.human = human
         self.size = size
         self.blit = blit and not human
@@ -334,6 +351,7 @@ class Renderer:
         elapsed: float | None = None,
         slip_zones: Sequence[SlipZone] = (),
         movers: NDArray[np.float64] | None = None,
+        overlay: Overlay | None = None,
     ) -> NDArray[np.uint8] | None:
         """Draw one frame.
 
@@ -352,6 +370,8 @@ class Renderer:
         movers : ndarray, shape (T, C, 2), optional
             The movers' recent positions (``scenario.n_movers`` of them): the last
             :data:`MOVER_TRAIL` as dotted trails, the last row as hatched discs.
+        overlay : Overlay, optional
+            Lidar beams and collision flags of this step (:func:`draw_engine_env` reads them).
 
         Returns
         -------
@@ -368,7 +388,7 @@ class Renderer:
             self._scene_key = key
             stale = True
         head, clock, tail = title_parts(title, elapsed)
-        stale = self._scene.update(trail, head + clock + tail, movers) or stale
+        stale = self._scene.update(trail, head + clock + tail, movers, overlay, elapsed) or stale
         canvas = self.figure.canvas
         if self.human:
             if stale:
@@ -457,18 +477,12 @@ class Renderer:
         self._reset_figure()
 
 
-def frame_title(config: Any) -> str:
-    """The fixed part of a frame's title (the renderer appends the episode time): task, map, the
-    formation shape asked for, and the slip setting of an :class:`~koopman_envs.config.EngineConfig`."""
-    shape = f" | {config.formation}" if config.formation else ""
-    return f"{config.task.name} | {config.map_name}{shape} | slip {config.slip_label}"
-
-
 def draw_engine_env(
     renderer: Renderer, engine: Any, index: int, trail: Sequence[NDArray[np.float64]]
 ) -> NDArray[np.uint8] | None:
     """One frame of environment ``index`` of a :class:`~koopman_envs.engine.NavigationEngine`
-    (what the single env's and the vector env's ``render()`` draw).
+    (what the single env's and the vector env's ``render()`` draw): with its movers, its lidar
+    beams (unless ``renderer.show_beams`` is False) and a mark at a collision.
 
     Parameters
     ----------
@@ -480,18 +494,5 @@ def draw_engine_env(
     trail : sequence of ndarray, shape (N, 3) each
         Its poses since its episode started; the last is drawn as the robots.
     """
-    spec = engine.maps[index]
-    assert spec is not None  # the env was reset, so a map is installed
-    movers = None
-    if engine.movers is not None:
-        # the movers' trails are recorded from the first frame on (free until something draws)
-        engine.movers.keep_trail(MOVER_TRAIL)
-        movers = engine.movers.trail_of(index)
-    return renderer.draw(
-        engine.scenario(index),
-        np.asarray(trail),
-        title=frame_title(engine.config),
-        elapsed=engine.elapsed[index] * PARAMS.dt,
-        slip_zones=spec.slip_zones,
-        movers=movers,
-    )
+    frame = engine_frame(engine, index, renderer.show_beams)
+    return renderer.draw(engine.scenario(index), np.asarray(trail), **frame)
