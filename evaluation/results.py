@@ -51,7 +51,11 @@ class Results(RunData):
             "paired_comparisons": self.paired(),
             "cells": [c.to_dict() for c in self.cells],
             "episodes": [
-                {k: v for k, v in r.items() if k not in ("trajectory", "obstacles", "traceback", "solve_ms")}
+                {
+                    k: v
+                    for k, v in r.items()
+                    if k not in ("trajectory", "mover_trajectory", "obstacles", "traceback", "solve_ms")
+                }
                 for r in self.records
             ],
         }

@@ -203,19 +203,13 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode")
             return None
-        from koopman_envs.rendering import Renderer
+        from koopman_envs.rendering import Renderer, draw_engine_env
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")
-        scenario = self.scenario  # a RuntimeError before the first reset()
-        spec = self.engine.maps[0]
-        assert spec is not None  # the scenario exists, so reset() has installed a map
-        return self._renderer.draw(
-            scenario,
-            np.asarray(self._trail),
-            title=self.metadata["name"],
-            slip_zones=spec.slip_zones,
-        )
+        self.scenario  # noqa: B018 - a RuntimeError before the first reset()
+        # the single env's frame: movers, lidar beams and a collision's mark included
+        return draw_engine_env(self._renderer, self.engine, 0, self._trail)
 
     def close(self) -> None:
         if self._renderer is not None:
