@@ -44,9 +44,7 @@ case "${1:-}" in
 pack)  # the episode logs and sweep manifests only: everything else is rebuilt from them
     for dir in data/runs/*/; do
         name="$(basename "$dir")"
-        (cd data/runs && find "$name" \( -name episodes.jsonl -o -name sweep.json \) -print0 |
-            sort -z | tar --null -T - --owner=0 --group=0 --mtime=2026-01-01 -cf - | gzip -9n) \
-            > "data/$name.tar.gz"
+        python -m evaluation.published "data/runs/$name" "data/$name.tar.gz" > /dev/null
     done
     ls -la data/*.tar.gz
     ;;

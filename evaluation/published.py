@@ -28,7 +28,11 @@ from typing import Any
 from evaluation.records import record_problem
 from evaluation.results import Results
 
-__all__ = ["extract_archive", "results_from_log"]
+__all__ = ["PACKED_OUT", "extract_archive", "pack_run", "results_from_log"]
+
+#: record fields a published log leaves out: every step's decision time (the per-episode median
+#: and 95th percentile stay; a cell's p95 then comes from them), a third of the packed size
+PACKED_OUT = ("solve_ms",)
 
 
 def _plan_order(config: dict[str, Any]) -> Any:
@@ -103,3 +107,38 @@ def extract_archive(archive: str | Path, into: str | Path | None = None) -> Path
     if len(tops) != 1:
         raise ValueError(f"{archive}: holds {sorted(tops)}, not one run's directory")
     return target / tops.pop()
+
+
+def pack_run(run_dir: str | Path, archive: str | Path) -> Path:
+    """Pack a run's episode logs and sweep manifest into ``archive`` (a .tar.gz), reproducibly
+    (sorted members, fixed times and owners), each log's records without :data:`PACKED_OUT`."""
+    import gzip
+    import io
+
+    run_dir, archive = Path(run_dir), Path(archive)
+    members = sorted(
+        p for p in run_dir.rglob("*") if p.is_file() and p.name in ("episodes.jsonl", "sweep.json")
+    )
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
+        for path in members:
+            data = path.read_bytes()
+            if path.name == "episodes.jsonl":
+                lines = data.decode("utf-8").split("\n")
+                kept = [lines[0]]
+                for line in lines[1:]:
+                    if line:
+                        record = json.loads(line)
+                        kept.append(json.dumps({k: v for k, v in record.items() if k not in PACKED_OUT}))
+                data = ("\n".join(kept) + "\n").encode("utf-8")
+            info = tarfile.TarInfo(str(path.relative_to(run_dir.parent)))
+            info.size, info.mtime, info.mode = len(data), 0, 0o644
+            tar.addfile(info, io.BytesIO(data))
+    archive.write_bytes(gzip.compress(buffer.getvalue(), compresslevel=9, mtime=0))
+    return archive
+
+
+if __name__ == "__main__":  # python -m evaluation.published RUN_DIR ARCHIVE
+    import sys
+
+    print(pack_run(sys.argv[1], sys.argv[2]))

@@ -1,0 +1,61 @@
+"""Published data (evaluation/published.py, data/*.tar.gz): every page listed in data/pages.json
+is rebuilt by its generator from the committed episode logs, byte for byte; an archive that is
+not what KoopNav packs is refused by name."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+import tarfile
+from pathlib import Path
+
+import pytest
+
+from evaluation.published import extract_archive, results_from_log
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = json.loads((ROOT / "data" / "pages.json").read_text())
+
+
+@pytest.mark.parametrize("entry", PAGES, ids=[p["page"] for p in PAGES])
+def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_path) -> None:
+    page = tmp_path / Path(entry["page"]).name
+    command = [sys.executable, str(ROOT / entry["generator"]), *entry["args"]]
+    command += ["--out", str(page), "--figures", str(tmp_path / "_static")]
+    subprocess.run(command, cwd=ROOT, check=True, capture_output=True, text=True)
+    committed = (ROOT / entry["page"]).read_text(encoding="utf-8")
+    assert page.read_text(encoding="utf-8") == committed
+    assert list((tmp_path / "_static").glob("*.png"))  # its figures too
+
+
+def test_every_published_archive_is_on_a_page_and_reads_back_checked() -> None:
+    archives = sorted(p.name for p in (ROOT / "data").glob("*.tar.gz"))
+    on_pages = sorted({Path(a).name for p in PAGES for a in p["args"] if a.endswith(".tar.gz")})
+    assert archives and set(on_pages) <= set(archives)
+
+
+def _archive(tmp_path: Path, members: dict[str, bytes]) -> Path:
+    path = tmp_path / "bad.tar.gz"
+    with tarfile.open(path, "w:gz") as tar:
+        for name, data in members.items():
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            tar.addfile(info, io.BytesIO(data))
+    return path
+
+
+def test_a_foreign_archive_or_log_is_refused_by_name(tmp_path) -> None:
+    with pytest.raises(ValueError, match=r"member 'run/evil.sh' is not an episode log"):
+        extract_archive(_archive(tmp_path, {"run/evil.sh": b"rm -rf /"}), tmp_path / "x")
+    with pytest.raises(ValueError, match=r"not one run's directory"):
+        extract_archive(_archive(tmp_path, {"a/episodes.jsonl": b"", "b/episodes.jsonl": b""}), tmp_path / "y")
+    log = tmp_path / "episodes.jsonl"
+    log.write_text('{"kind": "something else"}\n')
+    with pytest.raises(ValueError, match=r"is not a KoopNav episode log"):
+        results_from_log(log)
+    header = json.dumps({"kind": "koopnav-run", "config": {"env_ids": ["E"]}})
+    log.write_text(header + "\n" + json.dumps({"key": "k", "status": "ok", "success": "yes"}) + "\n")
+    with pytest.raises(ValueError, match=r"line 2: "):
+        results_from_log(log)
