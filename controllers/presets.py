@@ -28,6 +28,9 @@ CONTROLLERS = {
     # distributed: every robot its own small NMPC, neighbours' plans as moving obstacles (16-32 robots)
     "dmpc-nominal": "controllers.mpc.distributed:DistributedNMPC",
     "consensus": "controllers.consensus:ConsensusController",
+    # the classic baselines (issue 45): ORCA through pyrvo (the [crowd] extra) and DWA (numpy)
+    "orca": "controllers.classic.orca:ORCAController",
+    "dwa": "controllers.classic.dwa:DWAController",
 }
 
 
