@@ -50,7 +50,9 @@ def test_a_foreign_archive_or_log_is_refused_by_name(tmp_path) -> None:
     with pytest.raises(ValueError, match=r"member 'run/evil.sh' is not an episode log"):
         extract_archive(_archive(tmp_path, {"run/evil.sh": b"rm -rf /"}), tmp_path / "x")
     with pytest.raises(ValueError, match=r"not one run's directory"):
-        extract_archive(_archive(tmp_path, {"a/episodes.jsonl": b"", "b/episodes.jsonl": b""}), tmp_path / "y")
+        extract_archive(
+            _archive(tmp_path, {"a/episodes.jsonl": b"", "b/episodes.jsonl": b""}), tmp_path / "y"
+        )
     log = tmp_path / "episodes.jsonl"
     log.write_text('{"kind": "something else"}\n')
     with pytest.raises(ValueError, match=r"is not a KoopNav episode log"):
