@@ -57,6 +57,8 @@ _FIXED = (
     "rl-ppo-set",
     "rl-ppo-set-realistic",
     "rl-ppo-set-movers",
+    "orca",
+    "dwa",
 )
 
 
