@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.estimation import ESTIMATORS, check_estimator, front_end_for
+from controllers.estimation import FRONT_END_LEVERS, estimator_choices, front_end_option
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
 from koopman_envs.scenario import Scenario
 
@@ -28,7 +28,7 @@ __all__ = ["CONSENSUS_LEVERS", "ConsensusController"]
 
 #: the levers of the estimator consensus can switch off (``ablate``): it has no margins to tighten
 #: and no plan to settle
-CONSENSUS_LEVERS = ("estimation", "delay_compensation")
+CONSENSUS_LEVERS = FRONT_END_LEVERS
 
 
 class ConsensusController(BaseController):
@@ -70,8 +70,7 @@ class ConsensusController(BaseController):
     #: the allowed values of the text options (:mod:`controllers.option_spec`)
     OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "mover_prediction": MOVER_PREDICTIONS,
-        "estimator": ESTIMATORS,
-        "ablate": ("none", *CONSENSUS_LEVERS),
+        **estimator_choices(),
     }
 
     def __init__(
@@ -88,9 +87,8 @@ class ConsensusController(BaseController):
         ablate: str = "none",
     ) -> None:
         super().__init__()
-        check_estimator(estimator, ablate, levers=CONSENSUS_LEVERS)
+        self.front_end = front_end_option(estimator, ablate)
         self.estimator, self.ablate = estimator, ablate
-        self.front_end = front_end_for(estimator, ablate)
         for key, value in dict(
             goal_gain=goal_gain,
             consensus_gain=consensus_gain,

@@ -58,7 +58,9 @@ __all__ = [
     "PoseFrontEnd",
     "auto_front_end",
     "check_estimator",
+    "estimator_choices",
     "front_end_for",
+    "front_end_option",
     "wrap",
 ]
 
@@ -78,6 +80,9 @@ ESTIMATORS = (AUTO, "realistic", "none")
 LEVERS = ("estimation", "delay_compensation", "tightening", "settling")
 #: the values of ``ablate``: no lever off, or one
 ABLATIONS = ("none", *LEVERS)
+#: the levers that live in the front-end alone, all that a controller without margins or a plan
+#: to settle (consensus, the classic baselines) can switch off
+FRONT_END_LEVERS = ("estimation", "delay_compensation")
 #: the oldest pose heard over the radio [periods] that the front-end carries forward through the
 #: commands sent since (:meth:`PoseFrontEnd.view`, ``pose_age``); an older one is carried forward
 #: this far only
@@ -363,6 +368,22 @@ def front_end_for(estimator: str, ablate: str = "none") -> PoseFrontEnd | None:
     options["filter_poses"] = ablate != "estimation"
     options["compensate_delay"] = ablate != "delay_compensation"
     return PoseFrontEnd(**options)
+
+
+def estimator_choices(levers: tuple[str, ...] = FRONT_END_LEVERS) -> dict[str, tuple[str, ...]]:
+    """The allowed values of the ``estimator`` and ``ablate`` options of a controller whose
+    levers are ``levers`` (for its ``OPTION_CHOICES``, :mod:`controllers.option_spec`)."""
+    return {"estimator": ESTIMATORS, "ablate": ("none", *levers)}
+
+
+def front_end_option(
+    estimator: str, ablate: str = "none", levers: tuple[str, ...] = FRONT_END_LEVERS
+) -> PoseFrontEnd | None:
+    """The front-end of a controller's ``estimator`` and ``ablate`` options, checked against the
+    controller's ``levers`` first (``ValueError`` naming a bad value): the one routine behind the
+    option in consensus and the classic baselines."""
+    check_estimator(estimator, ablate, levers=levers)
+    return front_end_for(estimator, ablate)
 
 
 class PoseEstimator(BaseController):

@@ -30,7 +30,10 @@ RUNS[lab_day_misspecified]="--slips nominal --episodes 20 --controllers koopman-
 # sweep and on the noise sweep
 ABLATION="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:ablate=estimation,label=no-estimation koopman-nmpc:ablate=delay_compensation,label=no-delay-compensation koopman-nmpc:ablate=tightening,label=no-tightening koopman-nmpc:ablate=settling,label=no-settling koopman-nmpc:unstall=false,label=no-unstall"
 RUNS[lab_day_ablation]="$ABLATION --sweep uncertainty=nominal,realistic --sweep actuation_delay=2,4 --sweep pose_noise.xy=0.05,0.1 --reference koopman-nmpc"
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified)
+# issue 43: the paper protocol republished (IPOPT, perturbed starts: distinct episodes), the
+# controllers as deployed beside the paper's, the PPO policies and the classic baselines (issue 45)
+RUNS[paper]="--paper --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa --reference koopman-nmpc"
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified paper)
 
 run() {
     local name="$1" out="data/runs/$1"

@@ -18,12 +18,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.estimation import FRONT_END_LEVERS
 from koopman_envs.scenario import Scenario
 
 __all__ = ["CLASSIC_LEVERS", "TeamView", "check_count", "check_positive", "goals"]
 
 #: the levers of the estimator front-end the classic baselines can switch off (``ablate``)
-CLASSIC_LEVERS = ("estimation", "delay_compensation")
+CLASSIC_LEVERS = FRONT_END_LEVERS
 #: periods of messages kept beyond the velocity window (late and lost messages)
 _SLACK = 20
 

@@ -51,9 +51,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import CLASSIC_LEVERS, TeamView, check_count, check_positive, goals
+from controllers.classic.common import TeamView, check_count, check_positive, goals
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
-from controllers.estimation import ESTIMATORS, check_estimator, front_end_for
+from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
 from koopman_envs.scenario import Scenario
 
@@ -133,8 +133,7 @@ class DWAController(BaseController):
     #: the allowed values of the text options (:mod:`controllers.option_spec`)
     OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "mover_prediction": MOVER_PREDICTIONS,
-        "estimator": ESTIMATORS,
-        "ablate": ("none", *CLASSIC_LEVERS),
+        **estimator_choices(),
     }
 
     def __init__(
@@ -160,9 +159,8 @@ class DWAController(BaseController):
         ablate: str = "none",
     ) -> None:
         super().__init__()
-        check_estimator(estimator, ablate, levers=CLASSIC_LEVERS)
+        self.front_end = front_end_option(estimator, ablate)
         self.estimator, self.ablate = estimator, ablate
-        self.front_end = front_end_for(estimator, ablate)
         self.acc_lim_x = check_positive("acc_lim_x", acc_lim_x)
         self.acc_lim_theta = check_positive("acc_lim_theta", acc_lim_theta)
         self.sim_time = check_positive("sim_time", sim_time)

@@ -43,8 +43,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import CLASSIC_LEVERS, TeamView, check_count, check_positive, goals
-from controllers.estimation import ESTIMATORS, check_estimator, front_end_for
+from controllers.classic.common import TeamView, check_count, check_positive, goals
+from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
 from koopman_envs.scenario import Scenario
 
@@ -127,8 +127,7 @@ class ORCAController(BaseController):
     #: the allowed values of the text options (:mod:`controllers.option_spec`)
     OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "mover_prediction": MOVER_PREDICTIONS,
-        "estimator": ESTIMATORS,
-        "ablate": ("none", *CLASSIC_LEVERS),
+        **estimator_choices(),
     }
 
     def __init__(
@@ -149,9 +148,8 @@ class ORCAController(BaseController):
     ) -> None:
         super().__init__()
         _import_pyrvo()  # refused here, with the extra to install, rather than at the first reset
-        check_estimator(estimator, ablate, levers=CLASSIC_LEVERS)
+        self.front_end = front_end_option(estimator, ablate)
         self.estimator, self.ablate = estimator, ablate
-        self.front_end = front_end_for(estimator, ablate)
         self.time_horizon = check_positive("time_horizon", time_horizon)
         self.time_horizon_obstacles = check_positive("time_horizon_obstacles", time_horizon_obstacles)
         self.neighbour_distance = check_positive("neighbour_distance", neighbour_distance)
