@@ -19,6 +19,10 @@ __all__ = ["CONTROLLERS", "PRESETS", "Preset", "build_preset", "builtin_names", 
 #: the robust presets' ``uncertainty_margin`` (kept equal to controllers.mpc.config's, tested):
 #: written here so that listing the presets imports no solver
 _ROBUST = 3.0
+#: the ``mpc-cbf`` preset's barrier decay rate gamma (controllers.mpc.config.NMPCConfig.cbf_gamma):
+#: chosen on a slalom map of our own that no protocol uses (tests/test_mpc_cbf.py), and ablated on the protocols in
+#: docs/controllers.md
+_CBF_GAMMA = 0.1
 
 #: the built-in controllers: name -> "module:Class"
 CONTROLLERS = {
@@ -86,6 +90,12 @@ PRESETS = (
         "dmpc-nominal",
         {"model": "koopman", "uncertainty_margin": _ROBUST},
         "distributed Koopman NMPC with margins widened by each robot's calibrated residual",
+    ),
+    Preset(
+        "mpc-cbf",
+        "nominal-nmpc",
+        {"cbf_gamma": _CBF_GAMMA},
+        "nominal NMPC with discrete-time control barrier constraints (Zeng et al. 2021) in the problem",
     ),
     Preset(
         "consensus-free",

@@ -219,6 +219,15 @@ class NMPCConfig:
         (:data:`controllers.mpc.controller.SETTLE_RELEASE`): near the goal, where the localization
         noise is as large as the remaining error, the NMPC would otherwise chase the noise and
         never settle. 0 turns it off; without a covariance it never acts (the paper's behaviour).
+    cbf_gamma : float or None
+        (ours; Zeng, Zhang and Sreenath 2021) None (default): the collision constraints are
+        distance constraints on the predicted states, h(x_k) >= 0 for k = 1..T (the paper's).
+        gamma in (0, 1]: discrete-time control barrier function constraints instead,
+        h(x_k+1) >= (1 - gamma) h(x_k) for k = 0..T-1 (:func:`controllers.mpc.problem.barrier_rows`),
+        h the squared clearance of every obstacle, team-mate and mover row with its margin: a
+        clearance may shrink by at most the fraction gamma per period, so the plan slows before
+        an obstacle instead of skimming its margin. Smaller is more cautious; 1 is the distance
+        constraint one step on. The ``mpc-cbf`` preset sets 0.1.
     unstall : bool
         (ours) Resolve a stall of the central NMPC (:class:`controllers.mpc.detour.DeadlockResolver`):
         a robot that has not moved for a second away from its target restarts cold, and, for
@@ -261,6 +270,7 @@ class NMPCConfig:
     estimator: str = "auto"
     ablate: str = "none"
     settle_fraction: float = 0.5
+    cbf_gamma: float | None = None
     unstall: bool = True
     jit: bool | None = None
 
@@ -320,6 +330,14 @@ class NMPCConfig:
                 f"chance_risk={self.chance_risk!r} must lie in (0, 0.5) (at 0.5 and above z <= 0 adds no margin)"
             )
         check_mover_prediction(self.mover_prediction)
+        if self.cbf_gamma is not None:
+            check_number(
+                "cbf_gamma",
+                self.cbf_gamma,
+                above=0,
+                at_most=1,
+                note="or None (null) for distance constraints",
+            )
         k = self.uncertainty_margin
         if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
             raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")

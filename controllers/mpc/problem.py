@@ -8,8 +8,9 @@ and the stage-wise QP of the real-time iteration need; IPOPT solves it the same 
 parameters are the named blocks of :mod:`controllers.mpc.layout`.
 
 The pieces are separate functions: :func:`tracking_cost` (the stage cost on the goals),
-:func:`collision_rows` (obstacles, robot pairs, pair slots and moving neighbour discs) and
-:func:`formation_rows` (the bound on how fast a follower's offset to the leader may change).
+:func:`clearances` (obstacles, robot pairs, pair slots and moving neighbour discs), written as
+distance rows by :func:`collision_rows` or, with ``cbf_gamma`` set, as discrete-time control
+barrier rows by :func:`barrier_rows`, and :func:`formation_rows` (the bound on how fast a follower's offset to the leader may change).
 :class:`Problem` stacks them stage by stage and keeps the index maps, the bounds, the solvers
 built on it and the shifted warm start.
 """
@@ -31,7 +32,7 @@ from controllers.solvers.compiled import nlpsol
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
-__all__ = ["Problem", "collision_rows", "formation_rows", "tracking_cost"]
+__all__ = ["Problem", "barrier_rows", "clearances", "collision_rows", "formation_rows", "tracking_cost"]
 
 
 class Rows:
@@ -103,38 +104,64 @@ def tracking_cost(x: Any, geo: Geometry, residuals: list) -> Any:
     return total
 
 
-def collision_rows(rows: Rows, x: Any, slack: Any, stage: int, geo: Geometry) -> None:
-    """Clearance rows of state ``x`` at ``stage`` (>= 1): per robot, its neighbour discs, its
-    obstacles and the robots after it (or, with pair slots, one row per slot), each softened by
-    ``slack``."""
+def clearances(x: Any, stage: int, geo: Geometry) -> list[Any]:
+    """The clearance functions h(x) of state ``x`` at ``stage`` (>= 1), one per collision row, in
+    row order: per robot, its neighbour discs (at their stage-``stage`` positions), its obstacles
+    and the robots after it (or, with pair slots, one per slot). Each is a squared centre distance
+    minus the squared reach (radii plus margin): >= 0 is clear."""
     sym, size, radius = geo.symbols, geo.size, geo.radius
+    out = []
     for i in range(geo.n):
         px, py = x[size * i], x[size * i + 1]
         for j in range(geo.neighbour_slots):
             at = 2 * (geo.neighbour_slots * (stage - 1) + j)
             reach = radius[i] + sym["neighbour_reach"][j]
-            clear = (px - sym["neighbour_xy"][at]) ** 2 + (py - sym["neighbour_xy"][at + 1]) ** 2 - reach**2
-            rows.add(clear + slack, 0.0, np.inf)
+            out.append(
+                (px - sym["neighbour_xy"][at]) ** 2 + (py - sym["neighbour_xy"][at + 1]) ** 2 - reach**2
+            )
         for k in range(geo.obstacle_count):
             at = 3 * (i * geo.obstacle_slots + k) if geo.obstacle_slots else 3 * k
             ox, oy, orad = sym["obstacles"][at], sym["obstacles"][at + 1], sym["obstacles"][at + 2]
-            clear = (px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + sym["obstacle_margin"][i]) ** 2
-            rows.add(clear + slack, 0.0, np.inf)
+            out.append((px - ox) ** 2 + (py - oy) ** 2 - (radius[i] + orad + sym["obstacle_margin"][i]) ** 2)
         if geo.pair_slots:
             continue
         for j in range(i + 1, geo.n):
             margin = sym["pair_margin"][geo.pairs.index((i, j))]
-            clear = (
+            out.append(
                 (px - x[size * j]) ** 2 + (py - x[size * j + 1]) ** 2 - (radius[i] + radius[j] + margin) ** 2
             )
-            rows.add(clear + slack, 0.0, np.inf)
     robot_x = ca.vertcat(*[x[size * m] for m in range(geo.n)])
     robot_y = ca.vertcat(*[x[size * m + 1] for m in range(geo.n)])
     for p in range(geo.pair_slots):
         select = sym["pair_select"][geo.n * p : geo.n * (p + 1)]
         dx = ca.dot(select, robot_x) + sym["pair_offset"][2 * p]
         dy = ca.dot(select, robot_y) + sym["pair_offset"][2 * p + 1]
-        rows.add(dx**2 + dy**2 - sym["pair_reach"][p] ** 2 + slack, 0.0, np.inf)
+        out.append(dx**2 + dy**2 - sym["pair_reach"][p] ** 2)
+    return out
+
+
+def collision_rows(rows: Rows, x: Any, slack: Any, stage: int, geo: Geometry) -> None:
+    """Clearance rows ``h(x) + slack >= 0`` of state ``x`` at ``stage`` (>= 1), one per
+    :func:`clearances` entry, each softened by ``slack``."""
+    for clear in clearances(x, stage, geo):
+        rows.add(clear + slack, 0.0, np.inf)
+
+
+def barrier_rows(
+    rows: Rows, x: Any, x_next: Any, slack: Any, stage: int, gamma: float, geo: Geometry
+) -> None:
+    """Discrete-time control barrier rows of stage ``stage`` (Zeng, Zhang and Sreenath 2021):
+    ``h(x_next) - (1 - gamma) h(x) + slack >= 0`` for every :func:`clearances` entry, with
+    ``x_next = f(x, u)`` (so the row is a function of the stage's own variables, as the
+    structured QP needs). The clearance may shrink by at most the fraction ``gamma`` per period:
+    the robot slows down before an obstacle rather than at it, and a state already inside a
+    margin (noise, slip) is asked to recover at that rate rather than at once. ``gamma = 1`` is
+    the distance constraint at the next state. A neighbour disc's (mover's) position now is not
+    a parameter: at stage 0 its first predicted position stands in."""
+    now = clearances(x, max(stage, 1), geo)
+    after = clearances(x_next, stage + 1, geo)
+    for h_now, h_next in zip(now, after):
+        rows.add(h_next - (1.0 - gamma) * h_now + slack, 0.0, np.inf)
 
 
 def formation_rows(rows: Rows, x: Any, x_next: Any, slack: Any, bound: float, geo: Geometry) -> None:
@@ -260,7 +287,7 @@ class Problem:
     ) -> _Stages:
         """Stack the stages: variables and bounds, dynamics gaps, cost, collision and formation rows."""
         nx, nu, ns, horizon, size = self.nx, self.nu, self.ns, self.horizon, geo.size
-        soft, n = config.soft_constraints, geo.n
+        soft, n, barrier = config.soft_constraints, geo.n, config.cbf_gamma
         x_meas = geo.symbols["x_meas"]
         r_weights = np.tile(np.asarray(config.r_input, dtype=float), n)
         x0_w, x1_w, y0_w, y1_w = scenario.workspace
@@ -304,9 +331,14 @@ class Problem:
                 rows.add(x - x_meas, 0.0, 0.0)
             else:
                 out.cost += tracking_cost(x, geo, out.residuals)
-                if not (terminal_slack and k == horizon):
+                if barrier is None and not (terminal_slack and k == horizon):
                     collision_rows(rows, x, slack, k, geo)
-            if terminal_slack and k == horizon - 1:
+            if barrier is not None:
+                # the barrier rows of stage k bound h(x_k+1) by h(x_k): stages 0..T-1 cover the
+                # states 1..T, and the terminal state needs no rows of its own
+                if k < horizon:
+                    barrier_rows(rows, x, x_next, slack, k, barrier, geo)
+            elif terminal_slack and k == horizon - 1:
                 # the terminal state's collision rows, written on the last stage's f(x, u) with
                 # a slack of their own: the structured QP solvers take no variables at the
                 # terminal stage, and every row of the real-time iteration's QP stays soft. A
