@@ -32,7 +32,7 @@ ABLATION="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:
 RUNS[lab_day_ablation]="$ABLATION --sweep uncertainty=nominal,realistic --sweep actuation_delay=2,4 --sweep pose_noise.xy=0.05,0.1 --reference koopman-nmpc"
 # issue 43: the paper protocol republished (IPOPT, perturbed starts: distinct episodes), the
 # controllers as deployed beside the paper's, the PPO policies and the classic baselines (issue 45)
-RUNS[paper]="--paper --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa --reference koopman-nmpc"
+RUNS[paper]="--paper --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa mpc-cbf --reference koopman-nmpc"
 ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified paper)
 
 run() {
