@@ -32,8 +32,24 @@ ABLATION="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:
 RUNS[lab_day_ablation]="$ABLATION --sweep uncertainty=nominal,realistic --sweep actuation_delay=2,4 --sweep pose_noise.xy=0.05,0.1 --reference koopman-nmpc"
 # issue 43: the paper protocol republished (IPOPT, perturbed starts: distinct episodes), the
 # controllers as deployed beside the paper's, the PPO policies and the classic baselines (issue 45)
-RUNS[paper]="--paper --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa mpc-cbf --reference koopman-nmpc"
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified paper)
+RUNS[paper]="--paper --solver ipopt --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa mpc-cbf --reference koopman-nmpc"
+# issue 43: docs/results.md's changing-uncertainty runs (slip zones, drifting and random slip),
+# republished from perturbed starts (distinct episodes) on the controllers' current defaults
+ADAPTIVE="adaptive-koopman-nmpc koopman-nmpc koopman-nmpc-robust nominal-nmpc rl-ppo adaptive-koopman-nmpc:adapt=false,label=adaptive-frozen"
+INPUT="adaptive-koopman-nmpc:adapted=input,label=adaptive-input"
+RUNS[zones_tr]="--env KoopNav-TargetReaching-v0 --maps map5 --slips nominal drift --episodes 30 --controllers $ADAPTIVE $INPUT"
+RUNS[zones_tr_random]="--env KoopNav-TargetReaching-v0 --maps map5 --slips random --episodes 30 --controllers $ADAPTIVE"
+RUNS[zones_fm]="--env KoopNav-Formation-v0 --maps map6 --slips nominal --episodes 30 --controllers $ADAPTIVE $INPUT"
+RUNS[zones_fm_changing]="--env KoopNav-Formation-v0 --maps map6 --slips drift random --episodes 30 --controllers $ADAPTIVE"
+RUNS[zones_paper_maps]="--env KoopNav-TargetReaching-v0 KoopNav-Formation-v0 --maps map1 map2 map3 map4 --slips random --episodes 10 --controllers koopman-nmpc koopman-nmpc-robust adaptive-koopman-nmpc"
+# issue 43: docs/results.md's team-size table (seeded random maps, nominal slip)
+TEAM="koopman-nmpc nominal-nmpc consensus consensus-free rl-ppo orca dwa mpc-cbf"
+RUNS[scale_n3]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 20 --env-kwargs n_robots=3 --controllers $TEAM"
+RUNS[scale_n6]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 10 --env-kwargs n_robots=6 --controllers $TEAM"
+RUNS[scale_n10]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 5 --env-kwargs n_robots=10 --controllers $TEAM"
+RUNS[scale_n16]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 3 --env-kwargs n_robots=16 --max-episode-steps 300 --controllers $TEAM"
+RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}")
 
 run() {
     local name="$1" out="data/runs/$1"

@@ -1,11 +1,11 @@
 """Write docs/results.md from ``python evaluate.py --paper`` runs, beside the paper's tables.
 
-Usage::
+Usage (every RESULTS a ``results.json`` or a published archive ``data/NAME.tar.gz``; the
+published page's arguments are in ``data/pages.json``)::
 
-    python docs/make_results_md.py results_paper/results.json [more results.json ...] \
-        [--ablation docs/ablation.md] [--strict results_strict/results.json] \
-        [--uncertainty results_zones_tr/results.json results_zones_fm/results.json ...] \
-        [--scaling results_n3/results.json results_n6/results.json ...]
+    python docs/make_results_md.py RESULTS [RESULTS ...] [--ablation docs/ablation.md] \
+        [--strict RESULTS] [--uncertainty RESULTS ...] [--scaling RESULTS ...] \
+        [--notes docs/_intros/results_notes.md] [--figures DIR] [--out docs/results.md]
 
 Cells of later files are added to those of the first (e.g. a separate ``--controllers rl-ppo``
 run). Every rate carries its 95% Wilson interval, every mean distance its 95% bootstrap
@@ -16,12 +16,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.report import controller_tables, markdown_table, paired_rows, task_label
+from evaluation.figures import save_success_figures  # noqa: E402
+from evaluation.published import extract_archive, results_from_log  # noqa: E402
+from evaluation.report import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from evaluation.results import Results  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
 
@@ -70,26 +74,55 @@ PAPER = {
         "high": "7/10 (7.4, 69.8, 90.9)",
     },
 }
+#: (title, env id, controller label) of each per-cell table, in page order
 TABLES = [
     ("Table 1: Koopman-NMPC, target reaching", "KoopNav-TargetReaching-v0", "koopman-nmpc"),
     ("Table 2: nominal NMPC, target reaching", "KoopNav-TargetReaching-v0", "nominal-nmpc"),
     ("Table 3: Koopman-NMPC, formation", "KoopNav-Formation-v0", "koopman-nmpc"),
     ("Table 4: nominal NMPC, formation", "KoopNav-Formation-v0", "nominal-nmpc"),
     ("Table 5: consensus (collision avoidance on), formation", "KoopNav-Formation-v0", "consensus"),
-    ("Not in the paper: consensus, target reaching", "KoopNav-TargetReaching-v0", "consensus"),
-    ("Not in the paper: RL baseline (rl-ppo), target reaching", "KoopNav-TargetReaching-v0", "rl-ppo"),
-    ("Not in the paper: RL baseline (rl-ppo), formation", "KoopNav-Formation-v0", "rl-ppo"),
-    (
-        "Not in the paper: set-policy RL baseline (rl-ppo-set), target reaching",
-        "KoopNav-TargetReaching-v0",
-        "rl-ppo-set",
-    ),
-    (
-        "Not in the paper: set-policy RL baseline (rl-ppo-set), formation",
-        "KoopNav-Formation-v0",
-        "rl-ppo-set",
-    ),
 ]
+#: the paper's controllers exactly (no estimator, no stall resolution), beside Tables 1-4
+PAPER_VARIANT = "-paper"
+#: the rows not in the paper: (what, controller label), each for both tasks
+EXTRA_TABLES = [
+    ("consensus", "consensus"),
+    ("RL baseline (rl-ppo)", "rl-ppo"),
+    ("set-policy RL baseline (rl-ppo-set)", "rl-ppo-set"),
+    ("classic baseline ORCA (orca)", "orca"),
+    ("classic baseline DWA (dwa)", "dwa"),
+    ("MPC with control barrier constraints (mpc-cbf)", "mpc-cbf"),
+]
+TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0": "formation"}
+
+
+def load_results(path: str) -> dict:
+    """A run's results document: a ``results.json``, or a published archive (``data/NAME.tar.gz``,
+    :mod:`evaluation.published`) whose episode log is read back checked."""
+    if path.endswith(".tar.gz"):
+        with tempfile.TemporaryDirectory() as tmp:
+            run = extract_archive(path, tmp)
+            return json.loads(results_from_log(run / "episodes.jsonl").to_json())
+    return json.loads(Path(path).read_text())
+
+
+def all_tables() -> list[tuple[str, str, str]]:
+    """Every per-cell table of the page: the paper's five, each NMPC's paper variant, the rest."""
+    out = list(TABLES)
+    for title, env_id, controller in TABLES[:4]:
+        out.append(
+            (
+                f"{title.split(':')[0]}, the paper's controller exactly (`{controller}{PAPER_VARIANT}`: "
+                "no estimator, no stall resolution)",
+                env_id,
+                controller + PAPER_VARIANT,
+            )
+        )
+    for what, controller in EXTRA_TABLES:
+        for env_id, task in TASKS.items():
+            if (env_id, controller) != ("KoopNav-Formation-v0", "consensus"):  # Table 5
+                out.append((f"Not in the paper: {what}, {task}", env_id, controller))
+    return out
 
 
 def _ci(ci: list) -> str:
@@ -126,7 +159,7 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
         c = cells[key]
         valid = c["episodes"] - c["errors"]
         free, settled = c["final_distance_cm"]["collision_free"], c["final_distance_cm"]["settled"]
-        paper = PAPER.get((controller, key[2]), {}).get(key[3], "-")
+        paper = PAPER.get((controller.removesuffix(PAPER_VARIANT), key[2]), {}).get(key[3], "-")
         lines.append(
             f"| {key[2]} | {key[3]} | {c['successes']}/{valid} {_ci(c['success_ci'])} | "
             f"{c['collision_free']}/{valid} {_ci(c['collision_free_ci'])} | {_dist(free)} | {_team(free)} | "
@@ -275,47 +308,34 @@ def _command(config: dict) -> str:
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("results", nargs="+")
-    parser.add_argument("--strict", help="results.json of `python evaluate.py --paper-strict`")
-    parser.add_argument("--ablation", help="docs/ablation.md to link")
-    parser.add_argument(
-        "--uncertainty",
-        nargs="+",
-        default=[],
-        help="results.json of the changing-uncertainty runs (slip zones, drift, random slip)",
-    )
-    parser.add_argument(
-        "--scaling",
-        nargs="+",
-        default=[],
-        help="results.json of the team-size runs (one per --env-kwargs n_robots=N)",
-    )
-    parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
-    args = parser.parse_args()
-    docs = [json.loads(Path(path).read_text()) for path in args.results]
-    doc = docs[0]
-    cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for d in docs for c in d["cells"]}
+def _header(doc: dict) -> list[str]:
     budget = doc["config"]["calibration"]["budget"]
-    lines = [
+    noise = doc["config"].get("env_settings", {}).get("start_noise", 0.0)
+    # the solver each NMPC record names (the protocol's, or --solver's)
+    solvers = sorted({(r.get("controller_extra") or {}).get("solver") for r in doc["episodes"]} - {None})
+    solver = ", ".join(f"`{s}`" for s in solvers) or "each controller's default"
+    return [
         "# Paper protocol results",
         "",
-        "Regenerate: `python evaluate.py --paper --out results_paper`, "
-        "`python evaluate.py --paper --controllers rl-ppo --out results_rl`, "
-        "`python evaluate.py --paper-strict --out results_strict`, `python evaluate.py --ablation`, then "
-        "`python docs/make_results_md.py results_paper/results.json results_rl/results.json "
-        "--strict results_strict/results.json --ablation docs/ablation.md` "
-        f"(package {doc['package_version']}). This page was written by `python docs/make_results_md.py "
-        f"{' '.join(sys.argv[1:])}`.",
+        "Rebuilt from the committed episode logs (`data/*.tar.gz`) by `python docs/make_results_md.py` "
+        "with the arguments listed in `data/pages.json`, byte for byte (`tests/test_published_pages.py`); "
+        "the runs: `bash data/publish.sh paper` and the other runs its arguments name "
+        "(`data/publish.sh` holds each run's evaluator command; resumable with `--resume`). "
+        f"Package {doc['package_version']}.",
         "",
-        "Protocol (SPEC section 5): 3 robots, 10 trials per cell, trial i seeded i: the same slip draws and "
-        "starts for every controller, so comparisons are paired. Every controller was offered the same "
-        f"calibration: the env's robots in an open field (slip means hidden), {budget:,} team-transitions, "
-        "seed 0. The evaluator hands no controller the slip setting.",
+        "Protocol (SPEC section 5): 3 robots, maps 1-2 (target reaching) and 3-4 (formation), the three "
+        f"slip settings, 10 trials per cell, trial i seeded i, the NMPCs solved by {solver}. Starts are "
+        f"perturbed by up to {100 * noise:.0f} cm and {noise} rad (seeded), so the ten trials of a cell are "
+        "ten distinct episodes even at nominal slip (the paper's exact starts made them one episode ten "
+        "times); every controller meets the same starts and slip draws, so comparisons are paired. Every "
+        "controller was offered the same calibration: the env's robots in an open field (slip means "
+        f"hidden), {budget:,} team-transitions, seed 0. The evaluator hands no controller the slip setting.",
         "",
-    ]
-    lines += [
+        "Tables 1-4 are the NMPCs as KoopNav ships them (the estimator front-end, a no-op here without "
+        "localization noise or delay, and the stall resolution, [controllers](controllers.md)); the "
+        "tables marked *the paper's controller exactly* run the paper's NMPC (`estimator=none, "
+        "unstall=false`) on the same episodes.",
+        "",
         "*Success*: every robot settled within 0.1 m of its target for 2 s without collision. *SR*: the "
         "paper's success rate (runs without collision). k/n with the 95% Wilson interval. Final distances "
         "per robot [cm], mean+-SD over the collision-free runs (the paper's convention, comparable with its "
@@ -325,66 +345,60 @@ def main() -> None:
         "our own designs (SPEC section 5) and only the shape of the results is comparable.",
         "",
     ]
-    if any(d["config"]["controllers"] == ["rl-ppo"] or "rl-ppo" in d["config"]["controllers"] for d in docs):
-        budgets, steps = [], []
-        for task in ("target_reaching", "formation"):
-            meta = Path(__file__).resolve().parents[1] / "baselines" / "policies" / task / "metadata.json"
-            if meta.exists():
-                steps.append(json.loads(meta.read_text())["timesteps"])
-                budgets.append(f"{task.replace('_', ' ')} {steps[-1]:,}")
-        lines += [
-            "**Unequal data, disclosed.** `rl-ppo` does not calibrate: its policies were trained beforehand on "
-            "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
-            "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
-            f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions the calibrating controllers may use. Its rows "
-            "compare a trained policy with model-based controllers; they are not an equal-data comparison.",
-            "",
-        ]
-    for title, env_id, controller in TABLES:
-        rows = table(cells, env_id, controller)
-        if rows:
-            lines += [f"## {title}", "", *rows, ""]
-    # all files' episodes in one Results: every controller is paired with every other on the
-    # shared (map, slip, seed) episodes, also across separate runs of the same protocol
-    pooled = Results([r for d in docs for r in d["episodes"]], doc["config"])
-    lines += [
+
+
+def _unequal_data(doc: dict) -> list[str]:
+    budget = doc["config"]["calibration"]["budget"]
+    budgets, steps = [], []
+    for task in ("target_reaching", "formation"):
+        meta = Path(__file__).resolve().parents[1] / "baselines" / "policies" / task / "metadata.json"
+        if meta.exists():
+            steps.append(json.loads(meta.read_text())["timesteps"])
+            budgets.append(f"{task.replace('_', ' ')} {steps[-1]:,}")
+    if not steps:
+        return []
+    return [
+        "**Unequal data, disclosed.** `rl-ppo` does not calibrate: its policies were trained beforehand on "
+        "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
+        "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
+        f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions "
+        "the calibrating controllers may use; `rl-ppo-set` likewise ([RL baselines](rl.md)). Their rows "
+        "compare trained policies with model-based controllers; they are not an equal-data comparison. "
+        "`orca` and `dwa` use no data; their settings were chosen on seeds 0-2 of the paper maps, which "
+        "are also trials 0-2 here ([controllers](controllers.md#classic-baselines-orca-and-dwa)).",
+        "",
+    ]
+
+
+def _pooled_sections(pooled: Results, figures: Path, out: Path) -> list[str]:
+    lines = [
         "## Leaderboard (paper protocol, pooled over maps and slip levels)",
         "",
-        "Ranked by success rate; 95% Wilson intervals; final distance: team mean over settled runs with "
-        "its 95% bootstrap interval.",
+        "Ranked by success rate; 95% intervals (the wider of Wilson's and a cluster bootstrap over "
+        "trials); final distance: team mean over settled runs with its 95% bootstrap interval.",
         "",
         pooled.leaderboard_table(),
         "",
     ]
+    for path in save_success_figures(pooled, figures, prefix="paper_"):
+        link = os.path.relpath(path, out.resolve().parent)
+        lines += [f"![success rate by slip setting, {task_label(path.stem.rsplit('_', 1)[-1])}]({link})", ""]
     lines += [
         "## Paired comparisons (paper protocol)",
         "",
         "Pooled over each task's maps and slip levels; pairs share map, slip and seed. Difference of "
-        "success rates with Newcombe's 95% interval for paired proportions; exact McNemar test.",
+        "success rates with Newcombe's 95% interval for paired proportions; exact McNemar test, and its "
+        "p-value Holm-corrected over the rows of each task.",
         "",
         markdown_table(paired_rows(pooled)),
         "",
     ]
-    if args.strict:
-        strict = json.loads(Path(args.strict).read_text())
-        scells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for c in strict["cells"]}
-        lines += [
-            "## The paper's exact formulation (`--paper-strict`: hard constraints, 0.015 m margins)",
-            "",
-        ]
-        for title, env_id, controller in TABLES[:4]:
-            rows = table(scells, env_id, controller)
-            if rows:
-                lines += [f"### {title}", "", *rows, ""]
-        failures = {}
-        for c in strict["cells"]:
-            failures[c["controller"]] = failures.get(c["controller"], 0) + c["solver_failures"]
-        lines += [
-            "Solver failures over the strict run: " + ", ".join(f"{k} {v}" for k, v in failures.items()),
-            "",
-        ]
-    if not args.strict:
-        lines += [
+    return lines
+
+
+def _strict_section(path: str | None) -> list[str]:
+    if not path:
+        return [
             "## The paper's exact formulation",
             "",
             "Not run for this page: with hard constraints and the paper's margins the NMPCs hit IPOPT's "
@@ -395,6 +409,62 @@ def main() -> None:
             "[hard_constraints.md](hard_constraints.md).",
             "",
         ]
+    strict = load_results(path)
+    scells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for c in strict["cells"]}
+    lines = ["## The paper's exact formulation (`--paper-strict`: hard constraints, 0.015 m margins)", ""]
+    for title, env_id, controller in TABLES[:4]:
+        rows = table(scells, env_id, controller)
+        if rows:
+            lines += [f"### {title}", "", *rows, ""]
+    failures: dict[str, int] = {}
+    for c in strict["cells"]:
+        failures[c["controller"]] = failures.get(c["controller"], 0) + c["solver_failures"]
+    return lines + [
+        "Solver failures over the strict run: " + ", ".join(f"{k} {v}" for k, v in failures.items()),
+        "",
+    ]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument(
+        "results", nargs="+", help="results.json files or published archives (data/NAME.tar.gz)"
+    )
+    parser.add_argument("--strict", help="results of `python evaluate.py --paper-strict`")
+    parser.add_argument("--ablation", help="docs/ablation.md to link")
+    parser.add_argument(
+        "--uncertainty",
+        nargs="+",
+        default=[],
+        help="results of the changing-uncertainty runs (slip zones, drift, random slip)",
+    )
+    parser.add_argument(
+        "--scaling",
+        nargs="+",
+        default=[],
+        help="results of the team-size runs (one per --env-kwargs n_robots=N)",
+    )
+    parser.add_argument(
+        "--notes", type=Path, help="a Markdown file appended to the page (hand-written sections)"
+    )
+    parser.add_argument(
+        "--figures", default=str(Path(__file__).with_name("_static")), help="where figures go"
+    )
+    parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
+    args = parser.parse_args()
+    docs = [load_results(path) for path in args.results]
+    doc = docs[0]
+    cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for d in docs for c in d["cells"]}
+    lines = _header(doc) + _unequal_data(doc)
+    for title, env_id, controller in all_tables():
+        rows = table(cells, env_id, controller)
+        if rows:
+            lines += [f"## {title}", "", *rows, ""]
+    # all files' episodes in one Results: every controller is paired with every other on the
+    # shared (map, slip, seed) episodes, also across separate runs of the same protocol
+    pooled = Results([r for d in docs for r in d["episodes"]], doc["config"])
+    lines += _pooled_sections(pooled, Path(args.figures), Path(args.out))
+    lines += _strict_section(args.strict)
     if args.ablation:
         lines += [
             "## Ablation",
@@ -404,10 +474,12 @@ def main() -> None:
             "",
         ]
     if args.uncertainty:
-        lines += uncertainty_section([json.loads(Path(path).read_text()) for path in args.uncertainty])
+        lines += uncertainty_section([load_results(path) for path in args.uncertainty])
     if args.scaling:
-        lines += scaling_section([json.loads(Path(path).read_text()) for path in args.scaling])
-    Path(args.out).write_text("\n".join(lines) + "\n")
+        lines += scaling_section([load_results(path) for path in args.scaling])
+    if args.notes:
+        lines += [args.notes.read_text(encoding="utf-8").strip(), ""]
+    Path(args.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {args.out}")
 
 

@@ -19,7 +19,7 @@ from evaluation.report import task_label
 from evaluation.run_data import RunData
 from koopman_envs.movers import MoverConfig, parse_movers
 
-__all__ = ["save_figures"]
+__all__ = ["save_figures", "save_success_figures"]
 
 #: movers in a trajectory figure: path colour (dark and dotted, as in the env's frames)
 _MOVER_COLOUR = "0.25"
@@ -138,6 +138,18 @@ def save_figures(results: RunData, out_dir: Path) -> list[Path]:
             written.append(path)
     for env_id in dict.fromkeys(c.env_id for c in results.cells):
         path = out_dir / f"success_by_slip_{env_id}.png"
+        _success_figure(results, env_id, path)
+        written.append(path)
+    return written
+
+
+def save_success_figures(results: RunData, out_dir: Path, prefix: str = "") -> list[Path]:
+    """Only the success-rate figures of :func:`save_figures` (one per task, named
+    ``<prefix>success_by_slip_<env>.png``), for a page that shows no trajectories."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for env_id in dict.fromkeys(c.env_id for c in results.cells):
+        path = out_dir / f"{prefix}success_by_slip_{env_id}.png"
         _success_figure(results, env_id, path)
         written.append(path)
     return written
