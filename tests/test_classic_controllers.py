@@ -211,3 +211,45 @@ def test_a_copy_pickled_mid_episode_commands_the_same(name: str) -> None:
         obs, _, _, _, info = env.step(ctrl.act(obs, info))
     copy = pickle.loads(pickle.dumps(ctrl))  # orca leaves its RVO2 simulator behind and rebuilds it
     assert np.array_equal(ctrl.act(obs, info), copy.act(obs, info))
+
+
+def _numpy_wavefront(free, seed, weight=None):
+    """The numpy relaxation ``wavefront`` ran before it was compiled (the reference)."""
+    import math
+
+    from controllers.classic.plan import _MOVES
+
+    field, start, (rows, cols) = seed.copy(), np.isfinite(seed), free.shape
+    cost = np.ones(free.shape) if weight is None else weight
+    while True:
+        before = field.copy()
+        for dx, dy in _MOVES:
+            step = math.hypot(dx, dy)
+            src = field[max(dx, 0) : rows + min(dx, 0), max(dy, 0) : cols + min(dy, 0)]
+            into = (slice(max(-dx, 0), rows + min(-dx, 0)), slice(max(-dy, 0), cols + min(-dy, 0)))
+            np.minimum(field[into], src + step * cost[into], out=field[into])
+        field[~free] = np.inf
+        field[start] = np.minimum(field[start], seed[start])
+        if np.array_equal(field, before):
+            return field
+
+
+def test_the_compiled_kernels_give_the_numpy_expressions_bits() -> None:
+    from controllers.classic.kernels import closest_approach
+    from controllers.classic.plan import wavefront
+
+    rng = np.random.default_rng(0)
+    for trial in range(20):
+        shape = tuple(int(v) for v in rng.integers(5, 50, 2))
+        free = rng.random(shape) > rng.uniform(0.0, 0.4)
+        seed = np.full(shape, np.inf)
+        goal = tuple(int(v) for v in rng.integers(0, shape))
+        seed[goal], free[goal] = 0.0, True
+        weight = 1.0 + rng.random(shape) if trial % 2 else None
+        assert np.array_equal(wavefront(free, seed, weight), _numpy_wavefront(free, seed, weight))
+    path = rng.normal(size=(3, 40, 12, 3))
+    centres = rng.normal(size=(3, 13, 7, 2))
+    dx = path[..., 0, None] - centres[:, None, 1:, :, 0]
+    dy = path[..., 1, None] - centres[:, None, 1:, :, 1]
+    expected = np.sqrt((dx * dx + dy * dy).min(axis=2))
+    assert np.array_equal(closest_approach(path, np.ascontiguousarray(centres[:, 1:])), expected)

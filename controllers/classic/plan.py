@@ -21,19 +21,20 @@ right side (:meth:`GlobalPlanner.detour`), where ROS's global costmap would hold
 
 from __future__ import annotations
 
-import math
 from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.classic.kernels import relax_wavefront
 from koopman_envs.scenario import Scenario
 
 __all__ = ["Detour", "GlobalPlanner", "Plan", "polyline_distance", "wavefront"]
 
 #: the 8 grid moves and their lengths in cells
 _MOVES = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
+_MOVE_ARRAY = np.array(_MOVES, dtype=np.int64)
 #: goal wavefronts kept per episode (the formation's slots move, the targets do not)
 _KEPT = 64
 #: metres of grid around the map's obstacles, starts and targets
@@ -49,21 +50,19 @@ def wavefront(
     distances) through ``free`` cells, 8-connected, each cell entered at its move's length times
     its ``weight`` (1 without), infinite where unreachable: relaxation sweeps over the 8 moves
     until nothing changes."""
-    field = seed.copy()
+    field = np.array(seed, dtype=np.float64)
     start = np.isfinite(seed)
-    rows, cols = free.shape
-    cost = np.ones(free.shape) if weight is None else weight
-    while True:
-        before = field.copy()
-        for dx, dy in _MOVES:
-            step = math.hypot(dx, dy)
-            src = field[max(dx, 0) : rows + min(dx, 0), max(dy, 0) : cols + min(dy, 0)]
-            into = (slice(max(-dx, 0), rows + min(-dx, 0)), slice(max(-dy, 0), cols + min(-dy, 0)))
-            np.minimum(field[into], src + step * cost[into], out=field[into])
-        field[~free] = np.inf
-        field[start] = np.minimum(field[start], seed[start])
-        if np.array_equal(field, before):
-            return field
+    cost = np.ones(free.shape) if weight is None else np.ascontiguousarray(weight, dtype=np.float64)
+    # compiled (controllers.classic.kernels), the same sweeps bit for bit
+    relax_wavefront(
+        field,
+        np.ascontiguousarray(free),
+        start,
+        np.ascontiguousarray(seed, dtype=np.float64),
+        cost,
+        _MOVE_ARRAY,
+    )
+    return field
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,94 @@
+"""Compiled loops of ``dwa`` (numba): the two places where numpy's temporaries cost more than the
+arithmetic (``bench/policy_speed.py``: 5 ms per three-robot decision, 3 of them here).
+
+Both compute exactly what the numpy expressions they replace computed, operation for operation
+(no fast-math, so no reassociation or fused multiply-add), and so return the same bits:
+
+- :func:`closest_approach`: each trajectory's closest approach to every disc,
+  ``sqrt(min_k (dx^2 + dy^2))``, without the (N, S, K, O) arrays;
+- :func:`relax_wavefront`: the relaxation sweeps of :func:`controllers.classic.plan.wavefront`
+  (each move reads the field as it was before that move, as ``np.minimum`` on overlapping views
+  does), in place, without a copy per move.
+
+The wavefront is still the relaxation, not a Dijkstra search: its sweeps let a value pass through
+one lethal cell between the resets at the end of a sweep, and a search over free cells alone
+would give other plans (and other episodes) than the published ones.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = ["closest_approach", "relax_wavefront"]
+
+
+@njit(cache=True)
+def closest_approach(path: NDArray[np.float64], centres: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, S, O) ``sqrt(min over k of |path[n, s, k, :2] - centres[n, k, o]|^2)``: ``path``
+    (N, S, K, >=2), ``centres`` (N, K, O, 2) the discs' centres at the same times."""
+    n, s, k, _ = path.shape
+    o = centres.shape[2]
+    out = np.empty((n, s, o))
+    for i in range(n):
+        for j in range(s):
+            for m in range(o):
+                best = np.inf
+                for t in range(k):
+                    dx = path[i, j, t, 0] - centres[i, t, m, 0]
+                    dy = path[i, j, t, 1] - centres[i, t, m, 1]
+                    d = dx * dx + dy * dy
+                    if d < best or math.isnan(d):  # np.min propagates a NaN
+                        best = d
+                        if math.isnan(d):
+                            break
+                out[i, j, m] = math.sqrt(best)
+    return out
+
+
+@njit(cache=True)
+def relax_wavefront(
+    field: NDArray[np.float64],
+    free: NDArray[np.bool_],
+    start: NDArray[np.bool_],
+    seed: NDArray[np.float64],
+    cost: NDArray[np.float64],
+    moves: NDArray[np.int64],
+) -> None:
+    """The relaxation sweeps of :func:`controllers.classic.plan.wavefront` on ``field`` (in
+    place) until nothing changes: per sweep, for each move (dx, dy) of ``moves`` in order, every
+    cell ``c`` takes ``min(field[c], before[c - (dx, dy)] + |(dx, dy)| cost[c])`` with ``before``
+    the field before that move; then lethal cells are infinite and seed cells keep their seed."""
+    rows, cols = field.shape
+    sweep_start = np.empty_like(field)
+    while True:
+        sweep_start[:, :] = field
+        for move in range(moves.shape[0]):
+            dx, dy = moves[move, 0], moves[move, 1]
+            step = math.hypot(dx, dy)
+            # in place, visiting the cells against the move's direction: the cell read,
+            # (i + dx, j + dy), is then always one this move has not written yet, so every read
+            # sees the field as it was before the move, with no copy
+            i_lo, i_hi = max(-dx, 0), rows + min(-dx, 0)
+            j_lo, j_hi = max(-dy, 0), cols + min(-dy, 0)
+            for a in range(i_hi - i_lo):
+                i = i_lo + a if dx > 0 else i_hi - 1 - a
+                for b in range(j_hi - j_lo):
+                    j = j_lo + b if dy > 0 else j_hi - 1 - b
+                    candidate = field[i + dx, j + dy] + step * cost[i, j]
+                    if candidate < field[i, j] or math.isnan(candidate):  # np.minimum propagates NaN
+                        field[i, j] = candidate
+        changed = False
+        for i in range(rows):
+            for j in range(cols):
+                if not free[i, j]:
+                    field[i, j] = np.inf
+                if start[i, j] and seed[i, j] < field[i, j]:
+                    field[i, j] = seed[i, j]
+                if field[i, j] != sweep_start[i, j]:
+                    changed = True
+        if not changed:
+            return
