@@ -48,8 +48,18 @@ RUNS[scale_n3]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --
 RUNS[scale_n6]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 10 --env-kwargs n_robots=6 --controllers $TEAM"
 RUNS[scale_n10]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 5 --env-kwargs n_robots=10 --controllers $TEAM"
 RUNS[scale_n16]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 3 --env-kwargs n_robots=16 --max-episode-steps 300 --controllers $TEAM"
+# issue 45: the classic baselines and MPC-CBF on the realistic page's episodes (Koopman-NMPC again
+# as the reference: its rows repeat paper_realistic's bit for bit)
+RUNS[realistic_classic]="--paper --solver rti --controllers koopman-nmpc orca dwa mpc-cbf --sweep uncertainty=nominal,realistic --reference koopman-nmpc"
+# issue 43: the realistic protocol with compute charged (--realtime; decision times measured on
+# this machine, one worker, and at --compute-scale 5 for a board five times slower)
+REALTIME_CONTROLLERS="koopman-nmpc nominal-nmpc consensus mpc-cbf orca dwa rl-ppo-set rl-ppo-set-realistic"
+RUNS[realistic_realtime]="--paper --solver rti --controllers $REALTIME_CONTROLLERS --sweep uncertainty=nominal,realistic --reference koopman-nmpc --realtime"
+RUNS[realistic_realtime5]="--paper --solver rti --controllers $REALTIME_CONTROLLERS --sweep uncertainty=nominal,realistic --reference koopman-nmpc --realtime --compute-scale 5"
+# issue 43: the robustness profiles republished (every registered controller, each axis alone)
+RUNS[robustness]="--slips nominal --episodes 20 --sweep pose_noise.xy=0,0.05,0.1,0.2 --sweep comm.latency=0,1,3,6 --sweep comm.drop=0,0.2,0.5,0.8 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}")
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic realistic_realtime realistic_realtime5 robustness)
 
 run() {
     local name="$1" out="data/runs/$1"
