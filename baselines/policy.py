@@ -295,8 +295,8 @@ def success_rate(
             features,
             set_config=set_config,
             formation=engine.config.task.formation,
-            message_ages=engine.builder.comm,
-            mover_slots=engine.builder.mover_slots,
+            message_ages=engine.observation_layout.comm,
+            mover_slots=engine.observation_layout.movers,
         )
         obs, _, terminated, truncated, info = venv.step(action)
         ended = (terminated | truncated) & ~done

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.sim.nearest import nearest_order
+from koopman_envs.tasks.layout import ObservationLayout
 from koopman_envs.tasks.observation import FAR
 
 __all__ = [
@@ -149,20 +150,21 @@ def set_features(
     n = blocks.shape[-2]
     if not 1 <= n <= MAX_TEAM:
         raise ValueError(f"a set policy runs teams of 1..{MAX_TEAM} robots; these blocks hold {n}")
-    expected = 9 + 3 * (n - 1) + 3 * n_obstacle_obs + (2 if formation else 0)
+    layout = ObservationLayout(n, n_obstacle_obs, formation)
+    expected = layout.size
     if blocks.shape[-1] != expected:
         raise ValueError(
             f"blocks of {blocks.shape[-1]} entries do not match N={n}, n_obstacle_obs={n_obstacle_obs}, "
             f"formation={formation} (expected {expected})"
         )
     batch = blocks.shape[:-2]
-    c, s = blocks[..., 2], blocks[..., 3]  # (..., N)
-    target = blocks[..., 4:6]
-    distance = blocks[..., 6]
+    c, s = blocks[..., layout.entry("heading", 0)], blocks[..., layout.entry("heading", 1)]  # (..., N)
+    target = blocks[..., layout["target"]]
+    distance = blocks[..., layout.entry("target_distance")]
     leader = np.zeros(batch + (n,))
     if formation:
         leader[..., 0] = 1.0
-        error = blocks[..., -2:]
+        error = blocks[..., layout["formation_error"]]
         ex, ey = _rotate_into_body(c, s, error[..., 0], error[..., 1])
     else:
         ex = ey = np.zeros(batch + (n,))
@@ -175,16 +177,16 @@ def set_features(
             target[..., 0] / safe,
             target[..., 1] / safe,
             np.log(distance + _EPS),
-            blocks[..., 7],
-            blocks[..., 8],
+            blocks[..., layout.entry("target_heading", 0)],
+            blocks[..., layout.entry("target_heading", 1)],
             np.clip(ex / _FORMATION_SCALE, -2, 2),
             np.clip(ey / _FORMATION_SCALE, -2, 2),
             leader,
         ],
         axis=-1,
     )
-    parts = [ego, _neighbour_slots(blocks, c, s, target, leader, config)]
-    parts.append(_obstacle_slots(blocks, n, n_obstacle_obs, config))
+    parts = [ego, _neighbour_slots(blocks, layout, c, s, target, leader, config)]
+    parts.append(_obstacle_slots(blocks, layout, config))
     if config.movers:
         parts.append(_mover_slots(movers, batch + (n,), config))
     return np.concatenate(parts, axis=-1).astype(np.float32)
@@ -236,7 +238,13 @@ def _others(n: int) -> NDArray[np.int64]:
 
 
 def _neighbour_slots(
-    blocks: NDArray, c: NDArray, s: NDArray, target: NDArray, leader: NDArray, config: SetFeatureConfig
+    blocks: NDArray,
+    layout: ObservationLayout,
+    c: NDArray,
+    s: NDArray,
+    target: NDArray,
+    leader: NDArray,
+    config: SetFeatureConfig,
 ) -> NDArray:
     """The neighbour slots (..., N, K * (NEIGHBOUR_SIZE + 1)), nearest first."""
     n = blocks.shape[-2]
@@ -246,7 +254,7 @@ def _neighbour_slots(
     if n == 1:
         return out.reshape(batch + (n, -1))
     others = _others(n)
-    listed = blocks[..., 9 : 9 + 3 * (n - 1)].reshape(batch + (n, n - 1, 3))
+    listed = blocks[..., layout["team"]].reshape(batch + (n, n - 1, 3))
     dx, dy, gap = listed[..., 0], listed[..., 1], listed[..., 2]  # (..., N, N - 1)
     # relative heading of j seen from i, and j's target offset rotated from j's frame into i's
     c_j, s_j = c[..., others], s[..., others]
@@ -276,14 +284,14 @@ def _neighbour_slots(
     return out.reshape(batch + (n, -1))
 
 
-def _obstacle_slots(blocks: NDArray, n: int, n_obstacle_obs: int, config: SetFeatureConfig) -> NDArray:
+def _obstacle_slots(blocks: NDArray, layout: ObservationLayout, config: SetFeatureConfig) -> NDArray:
     """The obstacle slots (..., N, slots * (OBSTACLE_SIZE + 1)), nearest first."""
-    batch = blocks.shape[:-2]
+    batch, n = blocks.shape[:-2], layout.n_robots
     k = config.obstacles
     out = np.zeros(batch + (n, k, OBSTACLE_SIZE + 1))
-    chosen = min(k, n_obstacle_obs)
+    chosen = min(k, layout.n_obstacle_obs)
     if chosen:
-        start = 9 + 3 * (n - 1)
+        start = layout["obstacles"].start
         listed = blocks[..., start : start + 3 * chosen].reshape(batch + (n, chosen, 3))
         gap = listed[..., 2]
         # the env lists absent obstacles at clearance FAR

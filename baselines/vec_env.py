@@ -32,6 +32,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
 from koopman_envs.checks import check_int
 from koopman_envs.sim.nearest import nearest_order
+from koopman_envs.tasks.layout import ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -67,12 +68,13 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     from koopman_envs.tasks.observation import FAR
 
     n = blocks.shape[-2]
+    team = ObservationLayout(n)["team"]  # the parts before and after it keep their places
     others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
     listed = min(neighbours, n - 1)
-    clearance = blocks[..., 9 + 2 : 9 + 3 * (n - 1) : 3]  # (..., N, N - 1)
+    clearance = blocks[..., team.start + 2 : team.stop : 3]  # (..., N, N - 1)
     # the nearest ``listed`` slots, then back into index order (a stable sort keeps ties in order)
     slots = np.sort(nearest_order(clearance, listed), axis=-1)
-    entries = 9 + 3 * slots[..., None] + np.arange(3)  # (..., N, listed, 3)
+    entries = team.start + 3 * slots[..., None] + np.arange(3)  # (..., N, listed, 3)
     chosen = np.take_along_axis(blocks, entries.reshape(entries.shape[:-2] + (-1,)), axis=-1)
     pad = np.tile([0.0, 0.0, FAR], neighbours - listed)
     chosen = np.concatenate([chosen, np.broadcast_to(pad, chosen.shape[:-1] + pad.shape)], axis=-1)
@@ -81,8 +83,8 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     robots = np.concatenate(
         [robots, np.broadcast_to(np.arange(n)[:, None], robots.shape[:-1] + (neighbours - listed,))], axis=-1
     )
-    rest = blocks[..., 9 + 3 * (n - 1) :]
-    return np.concatenate([blocks[..., :9], chosen, rest], axis=-1), robots
+    rest = blocks[..., team.stop :]
+    return np.concatenate([blocks[..., : team.start], chosen, rest], axis=-1), robots
 
 
 def without_message_ages(team_obs: np.ndarray, n_robots: int) -> np.ndarray:
@@ -139,11 +141,12 @@ def robot_features(
         )
     else:
         blocks, others = _nearest_neighbours(blocks, int(neighbours))
-    distance = blocks[..., 6:7]
-    bearing = blocks[..., 4:6] / np.maximum(distance, 1e-6)
+    layout = ObservationLayout(n)  # the parts read here come before every optional one
+    distance = blocks[..., layout["target_distance"]]
+    bearing = blocks[..., layout["target"]] / np.maximum(distance, 1e-6)
     parts = [blocks, bearing, np.log(distance + _PRECISION_EPS)]
     if features == "bearing+headings" and others.shape[-1] > 0:
-        c, s = blocks[..., 2], blocks[..., 3]  # (..., N)
+        c, s = blocks[..., layout.entry("heading", 0)], blocks[..., layout.entry("heading", 1)]  # (..., N)
         c_o = np.take_along_axis(c[..., None, :], others, axis=-1)  # (..., N, listed others)
         s_o = np.take_along_axis(s[..., None, :], others, axis=-1)
         ci, si = c[..., None], s[..., None]
@@ -227,14 +230,15 @@ class KoopNavSB3VecEnv(VecEnv):
         engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
         self.n_envs, self.n_robots = num_envs, engine.config.n_robots
         self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
+        observed = engine.observation_layout  # one robot's block by name (koopman_envs.tasks.layout)
         # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
-        self._message_ages = engine.builder.comm
-        self._mover_slots = engine.builder.mover_slots  # listed movers: a set policy may read them
+        self._message_ages = observed.comm
+        self._mover_slots = observed.movers  # listed movers: a set policy may read them
         if self._mover_slots and set_config is None:
             raise ValueError(
                 "an env with movers trains only set policies (--policy set: movers are their third set)"
             )
-        if engine.builder.beams:
+        if observed.beams:
             raise ValueError(
                 "the SB3 adapter's policies read the listed obstacles; sensing='lidar' is not supported"
             )
@@ -269,7 +273,11 @@ class KoopNavSB3VecEnv(VecEnv):
             extra = feature_count(0, self.n_robots, features) - 3
             low = np.concatenate([block.low, [-1.0, -1.0, np.log(_PRECISION_EPS)], -np.ones(extra)])
             high = np.concatenate(
-                [block.high, [1.0, 1.0, np.log(float(block.high[6]) + _PRECISION_EPS)], np.ones(extra)]
+                [
+                    block.high,
+                    [1.0, 1.0, np.log(float(block.high[observed.entry("target_distance")]) + _PRECISION_EPS)],
+                    np.ones(extra),
+                ]
             )
             observation = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
             width = num_envs * self.n_robots

@@ -18,6 +18,7 @@ from koopman_envs.sim.maps import MapSpec, load_map
 from koopman_envs.sim.random_map_config import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.tasks.base import TASKS, TaskSpec
+from koopman_envs.tasks.layout import ObservationLayout
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, CommConfig, LidarConfig, PoseNoise, parse_setting
 
 __all__ = ["EngineConfig"]
@@ -163,6 +164,19 @@ class EngineConfig:
             or not self.comm.perfect
             or self.lidar is not None
             or self.actuation_delay > 0
+        )
+
+    @property
+    def observation_layout(self) -> ObservationLayout:
+        """One robot's observation block by name (:mod:`koopman_envs.tasks.layout`): the movers
+        are listed only under state sensing (with lidar the beams hit them)."""
+        return ObservationLayout.for_settings(
+            self.n_robots,
+            self.n_obstacle_obs,
+            self.task.formation,
+            0 if self.lidar is None else self.lidar.beams,
+            not self.comm.perfect,
+            self.movers.observed if self.movers.active else 0,
         )
 
     @classmethod

@@ -108,17 +108,19 @@ class NavigationEngine:
         self.movers = (
             MoverField(k, config.movers, n, PARAMS.dt, PARAMS.workspace) if config.movers.active else None
         )
+        #: one robot's observation block by name (the public seam of every policy)
+        self.observation_layout = config.observation_layout
+        layout = self.observation_layout
         self.builder = FeatureBuilder(
             k,
             n,
             m,
             config.n_obstacle_obs,
             config.task.formation,
-            beams=0 if config.lidar is None else config.lidar.beams,
-            comm=not config.comm.perfect,
+            beams=layout.beams,
+            comm=layout.comm,
             lidar_range=0.0 if config.lidar is None else config.lidar.range,
-            # with lidar the beams hit the movers instead of a list
-            movers=config.movers.observed if config.movers.active and config.lidar is None else 0,
+            movers=layout.movers,
         )
         self._all_rows = np.arange(k, dtype=np.int64)
         self.feature_size = self.builder.shape[-1]
@@ -395,11 +397,12 @@ class NavigationEngine:
             dt=PARAMS.dt,
             goal_tolerance=cfg.goal_tolerance,
             settle_steps=self._settle_steps,
-            lidar_beams=self.builder.beams,
-            message_ages=self.builder.comm,
+            lidar_beams=self.observation_layout.beams,
+            message_ages=self.observation_layout.comm,
             n_movers=0 if self.movers is None else self.movers.count,
             mover_radius=self.config.movers.radius,
-            mover_slots=self.builder.mover_slots,
+            mover_slots=self.observation_layout.movers,
+            observation_layout=self.observation_layout,
         )
 
     def _formation_error(self) -> NDArray[np.float64]:
@@ -463,7 +466,7 @@ class NavigationEngine:
         may read (:func:`koopman_envs.sim.perception.observed_info` lists the keys)."""
         self._flush_perception()
         observed = observed_info(self.perception, self.poses)
-        if self.movers is not None and self.config.lidar is None:
+        if self.movers is not None and self.observation_layout.movers:
             # with sensing="state" the movers are tracked exactly, as the map's obstacles are known
             observed["observed_movers"] = self.movers.states()
         return observed

@@ -15,7 +15,6 @@ from koopman_envs.config import EngineConfig
 from koopman_envs.params import LIMITS
 from koopman_envs.sim.mover_motion import DRAW_SIZE
 from koopman_envs.sim.perception import BLOCK_NUMBERS
-from koopman_envs.tasks.observation import feature_size
 
 __all__ = ["check_engine_memory", "engine_array_bytes"]
 
@@ -43,10 +42,8 @@ def engine_array_bytes(config: EngineConfig, num_envs: int) -> int:
         Bytes [B], at least what the engine allocates.
     """
     n, m, k = config.n_robots, config.n_obstacles, int(num_envs)
-    lidar, comm, movers = config.lidar, config.comm, config.movers
-    beams = 0 if lidar is None else lidar.beams
-    slots = movers.observed if movers.active and lidar is None else 0
-    width = feature_size(n, config.n_obstacle_obs, config.task.formation, beams, not comm.perfect, slots)
+    comm, movers, layout = config.comm, config.movers, config.observation_layout
+    beams, width = layout.beams, layout.size
     words = (
         40 * n  # poses, targets, starts, offsets, distances and the step's copies of them
         + 3 * 128 * n  # the slip draws' block (SlipSampler: 128 periods)

@@ -13,6 +13,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.tasks.layout import ObservationLayout
+
 __all__ = ["Scenario", "scenario_of"]
 
 
@@ -64,6 +66,9 @@ class Scenario:
         Their disc radius [m].
     mover_slots : int
         Movers listed at the end of each robot's observation block (0 with lidar).
+    observation_layout : ObservationLayout, optional
+        One robot's observation block by name (:mod:`koopman_envs.tasks.layout`; the envs fill
+        it; None for a scenario built by hand).
     """
 
     task: str
@@ -86,6 +91,7 @@ class Scenario:
     n_movers: int = 0
     mover_radius: float = 0.0
     mover_slots: int = 0
+    observation_layout: ObservationLayout | None = None
 
     @property
     def is_formation(self) -> bool:

@@ -1,32 +1,8 @@
 """Per-robot observation features shared by every front (centralized, vector, per-agent).
 
-One robot's block, in this order (body frame = the robot's own x forward, y left):
-
-==========  ==========================================================  ============
-entries     meaning                                                      unit
-==========  ==========================================================  ============
-0, 1        x, y position                                                m
-2, 3        cos(theta), sin(theta)                                       -
-4, 5        target position in the body frame                            m
-6           distance to the target                                       m
-7, 8        cos, sin of (target heading - heading)                       -
-9 ..        each other robot j (index order): body-frame dx, dy,         m
-            surface clearance (3 entries per other robot)
-..          the ``n_obstacle_obs`` nearest obstacles, nearest first:     m
-            body-frame dx, dy to the centre, surface clearance;
-            missing ones read (0, 0, ``FAR``); with ``sensing="lidar"``
-            instead the B beam readings (no obstacle list)
-..          formation error e_i = (p_i - p_0) - offset_i (world frame),  m
-            formation task only (2 entries)
-..          with a ``comm`` setting: each other robot j (index order):   periods, -
-            age of its last message (clipped to ``AGE_MAX``) and 1 if
-            one has arrived, else 0 (2 entries per other robot)
-last        with ``movers`` and ``sensing="state"``: the                 m, m/s
-            ``movers.observed`` nearest movers, nearest first:
-            body-frame dx, dy to the centre, body-frame velocity vx,
-            vy, surface clearance; missing ones read (0, 0, 0, 0,
-            ``FAR``) (:func:`koopman_envs.sim.movers.mover_features`)
-==========  ==========================================================  ============
+One robot's block is laid out by :class:`koopman_envs.tasks.layout.ObservationLayout` (its
+module docstring has the table of named parts: position, heading, target, team-mates, obstacles
+or lidar beams, formation error, message ages, movers).
 
 Everything a robot's block says is what that robot believes: its own pose is its localization
 estimate and a team-mate's is the last message it received (:mod:`koopman_envs.sim.perception`;
@@ -45,8 +21,9 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.sim.geometry import TeamGeometry, clearance
-from koopman_envs.sim.movers import MOVER_FEATURES, mover_features
+from koopman_envs.sim.movers import mover_features
 from koopman_envs.sim.nearest import nearest_first
+from koopman_envs.tasks.layout import ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.sim.movers import MoverField
@@ -70,11 +47,7 @@ def feature_size(
     """Length of one robot's observation block (``beams`` > 0: lidar readings replace the obstacle
     list; ``comm``: the message ages and flags are appended; ``movers``: that many listed movers
     after them)."""
-    obstacles = beams if beams else 3 * n_obstacle_obs
-    comm_entries = 2 * (n_robots - 1) if comm else 0
-    return (
-        9 + 3 * (n_robots - 1) + obstacles + (2 if formation else 0) + comm_entries + MOVER_FEATURES * movers
-    )
+    return ObservationLayout(n_robots, n_obstacle_obs, formation, beams, comm, movers).size
 
 
 def feature_bounds(
@@ -144,10 +117,12 @@ class FeatureBuilder:
         movers: int = 0,
     ) -> None:
         n, k = n_robots, num_envs
-        self.shape = (k, n, feature_size(n, n_obstacle_obs, formation, beams, comm, movers))
+        #: the block's named parts (koopman_envs.tasks.layout)
+        self.layout = ObservationLayout(n, n_obstacle_obs, formation, beams, comm, movers)
+        self.shape = (k, n, self.layout.size)
         self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range, movers)
         self.mover_slots = movers
-        self.movers_at = self.shape[-1] - MOVER_FEATURES * movers
+        self.movers_at = self.layout["movers"].start if movers else self.shape[-1]
         self.n_robots, self.n_obstacles = n, n_obstacles
         self.n_obstacle_obs = 0 if beams else n_obstacle_obs
         self.formation, self.beams, self.comm = formation, beams, comm
@@ -155,7 +130,8 @@ class FeatureBuilder:
         self._no_ranges = np.zeros((k, n, 0))
         self._same_age = np.zeros((k, n, n), dtype=np.int64)
         #: positions in a block of the surface clearances (other robots, then listed obstacles)
-        self.clearance_index = np.arange(9 + 2, 9 + 3 * (n - 1 + self.n_obstacle_obs), 3)
+        listed = self.layout["team"].start, self.layout["team"].stop + 3 * self.n_obstacle_obs
+        self.clearance_index = np.arange(listed[0] + 2, listed[1], 3)
 
     def build(
         self,

@@ -1,0 +1,82 @@
+"""The named observation layout (koopman_envs/tasks/layout.py, issue 44): every env front carries
+it, its parts hold what their names say on real observations under every setting that adds or
+removes a part, and a wrong name or index is refused by name."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import koopman_envs  # noqa: F401 - registers the ids
+from koopman_envs import formation_v0
+from koopman_envs.movers import MoverConfig
+from koopman_envs.tasks.layout import ObservationLayout
+from koopman_envs.tasks.observation import FAR
+
+TR, FM = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
+SETTINGS = [
+    (TR, {}),
+    (FM, {}),
+    (TR, {"n_robots": 5, "map": "random"}),
+    (FM, {"sensing": "lidar"}),
+    (TR, {"uncertainty": "realistic"}),
+    (FM, {"movers": {"count": 3}}),
+    (TR, {"movers": {"count": 3}, "sensing": "lidar"}),
+    (TR, {"movers": {"count": 2}, "uncertainty": "realistic"}),
+]
+
+
+@pytest.mark.parametrize("env_id, kwargs", SETTINGS, ids=[f"{e[8:12]}-{sorted(k)}" for e, k in SETTINGS])
+def test_the_parts_hold_what_their_names_say(env_id: str, kwargs: dict) -> None:
+    env = gym.make(env_id, **kwargs)
+    obs, info = env.reset(seed=3)
+    layout = env.unwrapped.scenario.observation_layout
+    n = env.unwrapped.scenario.n_robots
+    blocks = obs.reshape(n, -1).astype(np.float64)
+    assert layout.size == blocks.shape[1]
+    own = np.asarray(info["observed_poses"])  # what each robot believes of itself
+    np.testing.assert_allclose(blocks[:, layout["position"]], own[:, :2], atol=1e-5)
+    np.testing.assert_allclose(
+        blocks[:, layout["heading"]], np.c_[np.cos(own[:, 2]), np.sin(own[:, 2])], atol=1e-6
+    )
+    target = blocks[:, layout["target"]]
+    np.testing.assert_allclose(blocks[:, layout.entry("target_distance")], np.hypot(*target.T), atol=1e-5)
+    assert layout["team"].stop - layout["team"].start == 3 * (n - 1)
+    lidar = kwargs.get("sensing") == "lidar"
+    assert layout.has("beams") == lidar and layout.has("obstacles") == (not lidar)
+    if lidar:
+        np.testing.assert_allclose(blocks[:, layout["beams"]], np.asarray(info["lidar_ranges"]), atol=1e-5)
+    else:  # the listed obstacles' clearances: nearest first, absent ones FAR
+        gaps = blocks[:, layout["obstacles"]][:, 2::3]
+        assert np.all(np.diff(gaps, axis=1) >= -1e-6) and np.all(gaps <= FAR)
+    assert layout.has("formation_error") == (env_id == FM)
+    assert layout.has("messages") == ("uncertainty" in kwargs)
+    # movers are listed only when the robots sense the state: the rule decided in one place
+    listed = MoverConfig().observed if "movers" in kwargs and not lidar else 0
+    assert layout.movers == listed
+    if layout.movers:
+        assert layout["movers"].stop == layout.size
+
+
+def test_every_front_carries_the_same_layout() -> None:
+    single = gym.make(FM, uncertainty="realistic")
+    single.reset(seed=0)
+    vector = gym.make_vec(FM, num_envs=2, uncertainty="realistic")
+    vector.reset(seed=0)
+    parallel = formation_v0.parallel_env(uncertainty="realistic")
+    parallel.reset(seed=0)
+    layout = single.unwrapped.scenario.observation_layout
+    assert vector.unwrapped.scenario(1).observation_layout == layout
+    assert parallel.scenario.observation_layout == layout
+    assert vector.single_observation_space.shape == (3 * layout.size,)
+
+
+def test_a_wrong_part_or_entry_is_refused_by_name() -> None:
+    layout = ObservationLayout(3, 4, formation=False)
+    with pytest.raises(KeyError, match=r"no part 'formation_error'.*'team'"):
+        layout["formation_error"]
+    with pytest.raises(IndexError, match=r"part 'heading' has 2 entries; index 2"):
+        layout.entry("heading", 2)
+    assert layout.entry("target_heading", 1) == 8 and layout["obstacles"] == slice(15, 27)
+    assert ObservationLayout.for_settings(3, 4, True, 16, False, 5).movers == 0  # lidar: no list
