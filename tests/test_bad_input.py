@@ -340,6 +340,8 @@ def test_numpy_scalars_are_taken_wherever_a_python_number_is(
     gives the env of the Python number, step for step."""
     from koopman_envs.fronts.gym_env import TargetReachingEnv
 
+    if isinstance(python, dict) and python.get("behaviour") == "crowd":
+        pytest.importorskip("pyrvo", reason="the ORCA crowd needs the [crowd] extra")
     runs = []
     for given in (value, python):
         env = TargetReachingEnv(**{name: given})
