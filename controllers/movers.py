@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice
+
 __all__ = ["MOVER_PREDICTIONS", "check_mover_prediction", "observed_movers", "predict_movers"]
 
 #: how a controller predicts a mover over its horizon (module docstring)
@@ -32,9 +34,7 @@ MOVER_PREDICTIONS = ("constant_velocity", "static")
 
 def check_mover_prediction(value: Any) -> str:
     """``value`` if it is one of :data:`MOVER_PREDICTIONS`, else ``ValueError`` naming it."""
-    if value not in MOVER_PREDICTIONS:
-        raise ValueError(f"mover_prediction={value!r} is not one of {list(MOVER_PREDICTIONS)}")
-    return str(value)
+    return str(check_choice("mover_prediction", value, MOVER_PREDICTIONS))
 
 
 def observed_movers(info: dict[str, Any]) -> NDArray[np.float64]:

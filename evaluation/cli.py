@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import controllers
-from controllers.mpc.config import SOLVERS
+from controllers.mpc.config import NLP_SOLVERS, SOLVERS
 from evaluation.ablation import check_factors
 from evaluation.baseline import GateOptions
 from evaluation.configs import FALLBACK_NONE, split_controller_list
@@ -248,7 +248,7 @@ def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
     )
     ctrl.add_argument(
         "--fallback-solver",
-        choices=[*SOLVERS[1:], FALLBACK_NONE],
+        choices=[*NLP_SOLVERS, FALLBACK_NONE],
         help="NLP rescue of every NMPC configuration that names none, tried when its solver fails "
         "(default: each controller's own, none); none: no rescue, each period keeps its "
         "real-time budget (a real-time iteration's plan with a large slack is used as it is, a "

@@ -293,11 +293,11 @@ def with_solver(
     :data:`controllers.mpc.config.SOLVERS` raises ``ValueError`` naming it and the allowed ones.
     """
     configs = list(configs)
-    from controllers.mpc.config import SOLVERS
+    from controllers.mpc.config import NLP_SOLVERS, SOLVERS
 
     if solver is not None and solver not in SOLVERS:
         raise ValueError(f"--solver {solver!r} is not one of {list(SOLVERS)}")
-    fallbacks = [*SOLVERS[1:], FALLBACK_NONE]
+    fallbacks = [*NLP_SOLVERS, FALLBACK_NONE]
     if fallback_solver is not None and fallback_solver not in fallbacks:
         raise ValueError(f"--fallback-solver {fallback_solver!r} is not one of {fallbacks}")
     out = []

@@ -8,13 +8,43 @@ bad value and what is allowed in one form.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from numbers import Integral, Real
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["check_commands", "check_int", "check_number"]
+from koopman_envs.suggest import did_you_mean
+
+__all__ = ["check_choice", "check_commands", "check_int", "check_number"]
+
+
+def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") -> Any:
+    """``value`` if it is one of ``allowed``, else ``ValueError``: ``name=value is not one of
+    [...]`` with ``also`` (e.g. ``" or None"``) and, for a near miss, a did-you-mean; the one
+    wording of every choice check in KoopNav.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, as the user wrote it (e.g. ``"movers.behaviour"``).
+    value : object
+        The value given.
+    allowed : iterable
+        The allowed values, in the order the message lists them.
+    also : str
+        Appended after the list (what else is allowed, or a hint).
+    """
+    options = list(allowed)
+    try:
+        ok = any(value == option and type(value) is not bool for option in options)
+    except (TypeError, ValueError):  # an array or another value without a plain ==
+        ok = False
+    if ok:
+        return value
+    words = [option for option in options if isinstance(option, str)]
+    raise ValueError(f"{name}={value!r} is not one of {options}{also}{did_you_mean(value, words)}")
 
 
 def check_int(

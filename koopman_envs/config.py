@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice
 from koopman_envs.keywords import env_keywords, unknown_keywords
 from koopman_envs.movers import MoverConfig
 from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
@@ -207,8 +208,7 @@ class EngineConfig:
         error = unknown_keywords(keywords, [k.name for k in rows], f"the {front or 'KoopNav'} env")
         if error is not None:
             raise error
-        if task not in TASKS:
-            raise ValueError(f"task={task!r} is not one of {sorted(TASKS)}")
+        check_choice("task", task, sorted(TASKS))
         spec = TASKS[task]
         # each keyword's own check (its row), then the rules between keywords
         kw = {k.name: k.resolve(keywords.get(k.name, k.default)) for k in rows}

@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.movers import MOVER_BEHAVIOURS, parse_movers
 from koopman_envs.params import LIMITS, PARAMS, SLIP_NAMES
 from koopman_envs.sim.formations import FORMATION_SHAPES
@@ -267,8 +267,8 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
 
 def env_keywords(front: str | None = None) -> tuple[EnvKeyword, ...]:
     """The rows of :data:`ENV_KEYWORDS` that ``front`` takes (None: every row)."""
-    if front is not None and front not in FRONTS:
-        raise ValueError(f"front={front!r} is not one of {list(FRONTS)} or None")
+    if front is not None:
+        check_choice("front", front, FRONTS, " or None")
     return tuple(k for k in ENV_KEYWORDS if front is None or front in k.fronts)
 
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
@@ -77,11 +77,7 @@ class MoverConfig:
     pause: float = 2.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.behaviour, str) or self.behaviour not in MOVER_BEHAVIOURS:
-            raise ValueError(
-                f"movers.behaviour={self.behaviour!r} is not one of {list(MOVER_BEHAVIOURS)}"
-                f"{did_you_mean(self.behaviour, MOVER_BEHAVIOURS)}"
-            )
+        check_choice("movers.behaviour", self.behaviour, MOVER_BEHAVIOURS)
         if not isinstance(self.aware, (bool, np.bool_)):
             raise ValueError(f"movers.aware={self.aware!r} must be True or False")
         object.__setattr__(self, "aware", bool(self.aware))  # NumPy's booleans too, stored as bool

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from controllers.koopman.fit import _cholesky_solve
 from controllers.koopman.model import KoopmanModel
+from koopman_envs.checks import check_choice
 from koopman_envs.params import PARAMS
 
 __all__ = ["ADAPTED_TERMS", "RecursiveBilinearFit", "check_adapted", "check_forgetting", "check_prior_weight"]
@@ -60,9 +61,7 @@ ADAPTED_TERMS = ("all", "input")
 
 def check_adapted(value: str) -> str:
     """``value`` as a choice of adapted coefficients, or ValueError naming it and the choices."""
-    if value not in ADAPTED_TERMS:
-        raise ValueError(f"adapted={value!r} is not one of {list(ADAPTED_TERMS)}")
-    return value
+    return str(check_choice("adapted", value, ADAPTED_TERMS))
 
 
 def check_prior_weight(value: float) -> float:

@@ -39,6 +39,7 @@ from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
 from koopman_envs import __version__ as envs_version
+from koopman_envs.checks import check_choice
 from koopman_envs.params import PARAMS
 from koopman_envs.plant import CalibrationPlant, make_plant
 
@@ -51,9 +52,7 @@ _SHIPPED_ENV = "KoopNav-TargetReaching-v0"  # the plant does not depend on the t
 
 def check_structure(structure: str) -> str:
     """``structure`` if it is one of :data:`controllers.koopman.fit.STRUCTURES`, else ValueError."""
-    if structure not in STRUCTURES:
-        raise ValueError(f"structure={structure!r} is not one of {list(STRUCTURES)}")
-    return structure
+    return str(check_choice("structure", structure, STRUCTURES))
 
 
 def default_structure(n_robots: int) -> str:

@@ -16,7 +16,7 @@ from controllers.estimation import ABLATIONS, ESTIMATORS, check_estimator
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import PARAMS
 
 __all__ = [
@@ -24,6 +24,7 @@ __all__ = [
     "FATROP_OPTIONS",
     "IPOPT_OPTIONS",
     "JIT_ENV",
+    "NLP_SOLVERS",
     "NMPCConfig",
     "PARKED",
     "ROBUST_UNCERTAINTY_MARGIN",
@@ -74,8 +75,10 @@ PARKED = 1.0e3
 
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
 
+#: the ``nlpsol`` plugins an NMPC solves to convergence (and the real-time iteration's rescue)
+NLP_SOLVERS = ("ipopt", "fatrop")
 #: NMPC solvers: the real-time iteration and the ``nlpsol`` plugins solved to convergence
-SOLVERS = ("rti", "ipopt", "fatrop")
+SOLVERS = ("rti", *NLP_SOLVERS)
 
 #: Options that tune a solver for a warm start near the optimum; a cold start (first step of an
 #: episode, or after a failure, with zero multipliers) drops them and uses the solver's own
@@ -306,7 +309,7 @@ class NMPCConfig:
 
         return {
             "solver": SOLVERS,
-            "fallback_solver": SOLVERS[1:],
+            "fallback_solver": NLP_SOLVERS,
             "qp_solver": tuple(sorted(QP_SOLVERS)),
             "hessian": HESSIANS,
             "mover_prediction": MOVER_PREDICTIONS,
@@ -346,12 +349,9 @@ class NMPCConfig:
 
 def check_solver_options(config: NMPCConfig) -> None:
     """Raise ``ValueError`` naming a bad solver option of ``config`` and what is allowed."""
-    if config.solver not in SOLVERS:
-        raise ValueError(f"solver={config.solver!r} is not one of {list(SOLVERS)}")
-    if config.fallback_solver is not None and config.fallback_solver not in SOLVERS[1:]:
-        raise ValueError(
-            f"fallback_solver={config.fallback_solver!r} is not one of {list(SOLVERS[1:])} or None"
-        )
+    check_choice("solver", config.solver, SOLVERS)
+    if config.fallback_solver is not None:
+        check_choice("fallback_solver", config.fallback_solver, NLP_SOLVERS, " or None")
     check_rti_options(config.qp_solver, config.rti_iterations, config.hessian)
     tol = config.slack_tolerance
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:

@@ -64,7 +64,7 @@ from controllers.mpc.detour import DETOUR_CLEARANCE, StallMonitor, detour_waypoi
 from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.nearest import nearest_by_clearance, nearest_order
@@ -166,11 +166,7 @@ class DistributedNMPC(BaseController):
         self.neighbours = check_int("neighbours", neighbours, 1)
         self.obstacle_slots = check_int("obstacles", obstacles, 1)
         self.reach = None if reach is None else check_number("reach", reach, above=0, note="metres")
-        if coordination not in COORDINATION:
-            raise ValueError(
-                f"coordination={coordination!r} is not one of {list(COORDINATION)}"
-                f"{did_you_mean(coordination, COORDINATION)}"
-            )
+        check_choice("coordination", coordination, COORDINATION)
         self.coordination = coordination
         if formation_goal not in FORMATION_GOALS:
             raise ValueError(

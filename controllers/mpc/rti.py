@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_choice, check_int
 
 __all__ = [
     "HESSIANS",
@@ -125,11 +125,9 @@ class RTIStep:
 
 def check_rti_options(qp_solver: str, iterations: int, hessian: str) -> None:
     """Raise ``ValueError`` naming a bad real-time-iteration option and what is allowed."""
-    if qp_solver not in QP_SOLVERS:
-        raise ValueError(f"qp_solver={qp_solver!r} is not one of {sorted(QP_SOLVERS)}")
+    check_choice("qp_solver", qp_solver, sorted(QP_SOLVERS))
     check_int("rti_iterations", iterations, 1)
-    if hessian not in HESSIANS:
-        raise ValueError(f"hessian={hessian!r} is not one of {list(HESSIANS)}")
+    check_choice("hessian", hessian, HESSIANS)
 
 
 def bind_buffer(function: ca.Function, inputs: list[NDArray], outputs: list[NDArray]) -> tuple[Any, Any]:

@@ -30,7 +30,7 @@ from numbers import Real
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_choice, check_int
 from koopman_envs.params import LIMITS
 
 __all__ = ["FORMATION_SHAPES", "formation_offsets_for", "formation_shape"]
@@ -59,8 +59,7 @@ def formation_shape(name: str, n_robots: int, spacing: float) -> NDArray[np.floa
     spacing : float
         Distance between neighbouring robots [m], > 0.
     """
-    if name not in FORMATION_SHAPES:
-        raise ValueError(f"formation={name!r} is not one of {list(FORMATION_SHAPES)}")
+    check_choice("formation", name, FORMATION_SHAPES)
     check_int("n_robots", n_robots, 1, maximum=LIMITS.robots)  # (N, 2) offsets: bounded before allocating
     # any real number, NumPy scalars included
     if (

@@ -19,7 +19,7 @@ from numbers import Real
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_shape
 from koopman_envs.sim.zones import SLIP_ZONE_MODES
@@ -200,11 +200,7 @@ class RandomMapConfig:
                     f"{name}={pair!r} must be a finite (low, high) pair with low {low_allowed} and "
                     f"low <= high{bound}"
                 )
-        if self.slip_zone_mode not in SLIP_ZONE_MODES:
-            raise ValueError(
-                f"slip_zone_mode={self.slip_zone_mode!r} is not one of {list(SLIP_ZONE_MODES)}"
-                f"{did_you_mean(self.slip_zone_mode, SLIP_ZONE_MODES)}"
-            )
+        check_choice("slip_zone_mode", self.slip_zone_mode, SLIP_ZONE_MODES)
 
     def placement_share(
         self,

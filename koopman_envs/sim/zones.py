@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice
 from koopman_envs.params import LIMITS
 
 __all__ = [
@@ -95,8 +96,7 @@ class SlipZone:
     mode: str = "replace"
 
     def __post_init__(self) -> None:
-        if self.shape not in SLIP_ZONE_SHAPES:
-            raise ValueError(f"shape={self.shape!r} is not one of {list(SLIP_ZONE_SHAPES)}")
+        check_choice("shape", self.shape, SLIP_ZONE_SHAPES)
         form = SLIP_ZONE_SHAPES[self.shape]
         bounds = _floats(self.bounds)
         size = 3 if self.shape == "circle" else 4
@@ -117,8 +117,7 @@ class SlipZone:
             raise ValueError(
                 f"lambda={self.lam!r} must be a finite number >= 0 <= {top:g} or a list of them (one per robot)"
             )
-        if self.mode not in SLIP_ZONE_MODES:
-            raise ValueError(f"mode={self.mode!r} is not one of {list(SLIP_ZONE_MODES)}")
+        check_choice("mode", self.mode, SLIP_ZONE_MODES)
         object.__setattr__(self, "bounds", bounds)
         object.__setattr__(self, "lam", lam)
 
