@@ -48,7 +48,10 @@ def test_poisoned_truth_changes_no_action(name: str, tmp_path, monkeypatch) -> N
         pytest.importorskip("stable_baselines3")
     env_id = "KoopNav-Formation-v0"
     env = gym.make(env_id, uncertainty="harsh")
-    honest, fooled = controllers.make(name), controllers.make(name)
+    try:
+        honest, fooled = controllers.make(name), controllers.make(name)
+    except ImportError as exc:  # an optional extra (orca: [crowd]); the board names it and skips
+        pytest.skip(str(exc))
     for ctrl in (honest, fooled):  # a small calibration (the evaluator's step), in a private cache
         calibrate_controller(ctrl, make_plant(env_id, slip="high", budget=2000, seed=0), seed=0)
     obs, info = env.reset(seed=5)

@@ -153,6 +153,7 @@ def test_collision_marks_name_each_kind_at_the_contact() -> None:
 
 
 def test_every_mover_stays_in_view_over_an_episode() -> None:
+    pytest.importorskip("pyrvo", reason="the ORCA crowd needs the [crowd] extra")
     env = gym.make(
         TR,
         movers=dict(count=8, behaviour="crowd", aware=True, speed=1.0),  # they avoid the robots
