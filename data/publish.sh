@@ -56,10 +56,14 @@ RUNS[realistic_classic]="--paper --solver rti --controllers koopman-nmpc orca dw
 REALTIME_CONTROLLERS="koopman-nmpc nominal-nmpc consensus mpc-cbf orca dwa rl-ppo-set rl-ppo-set-realistic"
 RUNS[realistic_realtime]="--paper --solver rti --controllers $REALTIME_CONTROLLERS --sweep uncertainty=nominal,realistic --reference koopman-nmpc --realtime"
 RUNS[realistic_realtime5]="--paper --solver rti --controllers $REALTIME_CONTROLLERS --sweep uncertainty=nominal,realistic --reference koopman-nmpc --realtime --compute-scale 5"
+# issue 45: MPC-CBF's decay rate gamma ablated on the paper protocol (the real-time iteration)
+GAMMAS=""
+for g in 0.05 0.1 0.2 0.5 1.0; do GAMMAS="$GAMMAS mpc-cbf:cbf_gamma=$g,label=mpc-cbf-gamma$g"; done
+RUNS[cbf_gamma]="--paper --solver rti --controllers nominal-nmpc$GAMMAS --reference nominal-nmpc"
 # issue 43: the robustness profiles republished (every registered controller, each axis alone)
 RUNS[robustness]="--slips nominal --episodes 20 --sweep pose_noise.xy=0,0.05,0.1,0.2 --sweep comm.latency=0,1,3,6 --sweep comm.drop=0,0.2,0.5,0.8 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic realistic_realtime realistic_realtime5 robustness)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness)
 
 run() {
     local name="$1" out="data/runs/$1"

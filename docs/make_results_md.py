@@ -445,6 +445,9 @@ def main() -> None:
         help="results of the team-size runs (one per --env-kwargs n_robots=N)",
     )
     parser.add_argument(
+        "--intro", type=Path, help="a Markdown file placed after the protocol (what the tables say)"
+    )
+    parser.add_argument(
         "--notes", type=Path, help="a Markdown file appended to the page (hand-written sections)"
     )
     parser.add_argument(
@@ -456,6 +459,8 @@ def main() -> None:
     doc = docs[0]
     cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for d in docs for c in d["cells"]}
     lines = _header(doc) + _unequal_data(doc)
+    if args.intro:
+        lines += [args.intro.read_text(encoding="utf-8").strip(), ""]
     for title, env_id, controller in all_tables():
         rows = table(cells, env_id, controller)
         if rows:
