@@ -3,10 +3,15 @@
 Importing the package registers the Gymnasium ids ``KoopNav-TargetReaching-v0`` and
 ``KoopNav-Formation-v0`` (each with a native ``vector_entry_point``). Without the import,
 ``gym.make("koopman_envs:KoopNav-Formation-v0")`` imports it for you. The PettingZoo versions
-are the modules :mod:`koopman_envs.target_reaching_v0` and :mod:`koopman_envs.formation_v0`.
+are the modules :mod:`koopman_envs.target_reaching_v0` and :mod:`koopman_envs.formation_v0`,
+reachable as attributes of the package (``koopman_envs.formation_v0.parallel_env()`` after
+``import koopman_envs``), imported on first use so that the Gymnasium import stays light.
 """
 
 from __future__ import annotations
+
+import importlib
+from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
@@ -36,6 +41,18 @@ for _task, (_cls, _vec) in _FRONTS.items():
             vector_entry_point=f"koopman_envs.fronts.vector_env:{_vec}",
             max_episode_steps=PARAMS.max_episode_steps,
         )
+
+#: the PettingZoo modules, imported when first read as attributes of the package
+_PETTINGZOO_MODULES = ("formation_v0", "target_reaching_v0")
+
+
+def __getattr__(name: str) -> Any:
+    """``koopman_envs.formation_v0`` and ``koopman_envs.target_reaching_v0`` without importing
+    them by name first (PettingZoo's ``from pettingzoo.butterfly import ...`` convention)."""
+    if name in _PETTINGZOO_MODULES:
+        return importlib.import_module(f"koopman_envs.{name}")
+    raise AttributeError(f"module 'koopman_envs' has no attribute {name!r}")
+
 
 __all__ = [
     "BUILTIN_MAPS",

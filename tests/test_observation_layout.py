@@ -80,3 +80,18 @@ def test_a_wrong_part_or_entry_is_refused_by_name() -> None:
         layout.entry("heading", 2)
     assert layout.entry("target_heading", 1) == 8 and layout["obstacles"] == slice(15, 27)
     assert ObservationLayout.for_settings(3, 4, True, 16, False, 5).movers == 0  # lidar: no list
+
+
+def test_the_pettingzoo_modules_are_attributes_of_the_package() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import koopman_envs; env = koopman_envs.formation_v0.parallel_env(); env.reset(seed=0); "
+        "print(len(env.agents), koopman_envs.target_reaching_v0.__name__)"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["3", "koopman_envs.target_reaching_v0"]
