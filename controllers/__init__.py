@@ -14,7 +14,6 @@ Any of them runs behind the CBF safety filter of :mod:`controllers.safety` as ``
 """
 
 from controllers.base import BaseController, Controller, ControllerStats
-from controllers.deprecated_paths import install_moved_paths
 from controllers.option_spec import options
 from controllers.presets import register_builtins
 from controllers.registry import ENTRY_POINT_GROUP, available, make, register, register_wrapper, split_name
@@ -24,8 +23,6 @@ register_builtins(register)
 register_wrapper("safe", "controllers.safety:wrap")
 # any controller reading an EKF estimate of every robot's pose: "ekf:<name>", options prefixed "ekf_"
 register_wrapper("ekf", "controllers.estimation:wrap")
-# the module paths of the previous release, importable with a DeprecationWarning
-install_moved_paths()
 
 __all__ = [
     "BaseController",

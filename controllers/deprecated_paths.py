@@ -1,22 +1,20 @@
 """The controller modules' paths of the previous release, kept importable for one release.
 
-``import controllers.nmpc`` (and the other paths of :data:`MOVED`) still works and gives a
-module whose names are read from where they live now, with a ``DeprecationWarning`` naming the new
-module. Nothing in the package imports these paths; they exist for users' code and notebooks.
+``import controllers.nmpc`` (and the other paths of :data:`MOVED`) still works: each old path is
+a plain stub module (``controllers/nmpc.py`` ...) whose names are read from where they live now,
+with one ``DeprecationWarning`` naming the new module and the removal release (no import hook,
+as Stable-Baselines3 keeps its moved paths). Nothing in the package imports these paths; they
+exist for users' code and notebooks.
 """
 
 from __future__ import annotations
 
 import importlib
-import importlib.abc
-import importlib.machinery
-import sys
-import types
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["MOVED", "install_moved_paths"]
+__all__ = ["MOVED", "REMOVAL", "moved_module"]
 
 #: old module -> the modules its names live in now (searched in order)
 MOVED: dict[str, tuple[str, ...]] = {
@@ -38,55 +36,34 @@ MOVED: dict[str, tuple[str, ...]] = {
 }
 
 
-class MovedModule(types.ModuleType):
-    """A module that reads every name from the modules that hold it now."""
+#: the release that removes the paths of :data:`MOVED`
+REMOVAL = "0.2.0"
 
-    def __init__(self, name: str, targets: Sequence[str]) -> None:
-        super().__init__(name, f"Moved: {name} now lives in {', '.join(targets)}.")
-        self._targets = tuple(targets)
 
-    def __getattr__(self, attribute: str) -> Any:
+def moved_module(name: str, targets: Sequence[str]) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+    """The ``__getattr__`` and ``__dir__`` of a deprecated stub module ``name`` (PEP 562): every
+    name is read from the modules in ``targets``, in order. Called from the stub's body, it warns
+    once (a ``DeprecationWarning`` naming the new modules and the removal release)."""
+    warnings.warn(
+        f"{name} is deprecated and will be removed in KoopNav {REMOVAL}; import from "
+        f"{' / '.join(targets)} instead",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+
+    def __getattr__(attribute: str) -> Any:
         if attribute.startswith("__"):
             raise AttributeError(attribute)
-        for target in self._targets:
+        for target in targets:
             module = importlib.import_module(target)
             if hasattr(module, attribute):
                 return getattr(module, attribute)
-        raise AttributeError(
-            f"module {self.__name__!r} (moved to {list(self._targets)}) has no attribute {attribute!r}"
-        )
+        raise AttributeError(f"module {name!r} (moved to {list(targets)}) has no attribute {attribute!r}")
 
-    def __dir__(self) -> list[str]:
+    def __dir__() -> list[str]:
         names: set[str] = set()
-        for target in self._targets:
+        for target in targets:
             names.update(getattr(importlib.import_module(target), "__all__", ()))
         return sorted(names)
 
-
-class _MovedLoader(importlib.abc.Loader):
-    def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType:
-        return MovedModule(spec.name, MOVED[spec.name])
-
-    def exec_module(self, module: types.ModuleType) -> None:
-        targets = MOVED[module.__name__]
-        warnings.warn(
-            f"{module.__name__} is deprecated and will be removed in the next release; import from "
-            f"{' / '.join(targets)} instead",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-
-
-class _MovedFinder(importlib.abc.MetaPathFinder):
-    def find_spec(
-        self, fullname: str, path: Any = None, target: Any = None
-    ) -> importlib.machinery.ModuleSpec | None:
-        if fullname in MOVED:
-            return importlib.machinery.ModuleSpec(fullname, _MovedLoader())
-        return None
-
-
-def install_moved_paths() -> None:
-    """Make the paths of :data:`MOVED` importable (idempotent)."""
-    if not any(isinstance(finder, _MovedFinder) for finder in sys.meta_path):
-        sys.meta_path.insert(0, _MovedFinder())
+    return __getattr__, __dir__

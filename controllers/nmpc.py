@@ -1,0 +1,14 @@
+"""Deprecated: ``controllers.nmpc`` moved to ``controllers.mpc.config``, ``controllers.mpc.models``, ``controllers.mpc.controller``, ``controllers.mpc.problem``; this path is removed in
+KoopNav 0.2.0. Every name is read from where it lives now."""
+
+from controllers.deprecated_paths import moved_module
+
+__getattr__, __dir__ = moved_module(
+    __name__,
+    (
+        "controllers.mpc.config",
+        "controllers.mpc.models",
+        "controllers.mpc.controller",
+        "controllers.mpc.problem",
+    ),
+)
