@@ -64,10 +64,11 @@ from controllers.mpc.detour import DETOUR_CLEARANCE, StallMonitor, detour_waypoi
 from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
+from controllers.mpc.slots import nearest_obstacle_slots
 from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.nearest import nearest_by_clearance, nearest_order
+from koopman_envs.sim.nearest import nearest_order
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["COORDINATION", "FORMATION_GOALS", "MODELS", "DistributedNMPC"]
@@ -335,12 +336,8 @@ class DistributedNMPC(BaseController):
             if ages[leader] >= 0
             else None
         )
-        obstacles = scenario.obstacles
-        slots = np.tile([PARKED, PARKED, 0.0], (self.obstacle_slots, 1))
-        if obstacles.shape[0]:
-            nearest = nearest_by_clearance(position[None], obstacles, self.obstacle_slots)[0]
-            slots[: nearest.size] = obstacles[nearest]
-        agent.set_obstacles(slots)
+        # the central NMPC's obstacle slots, for a team of one
+        agent.set_obstacles(nearest_obstacle_slots(position[None], scenario.obstacles, self.obstacle_slots))
         agent.goal = self._waypoint(i, position) if self.detour else self._goal(i)
         agent.set_goal(0, agent.goal)
         horizon, k = self.config.horizon, self.neighbours
