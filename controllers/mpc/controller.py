@@ -29,7 +29,7 @@ from controllers.mpc.detour import RESTART_ITERATIONS, DeadlockResolver, pursuit
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
 from controllers.mpc.models import PredictionModel, decode_state, encode_state, model_step
 from controllers.mpc.problem import Problem
-from controllers.mpc.slots import PairSlots, mover_slots, nearest_obstacle_slots
+from controllers.mpc.slots import PairSlots, closing_distance, mover_slots, nearest_obstacle_slots
 from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
 from koopman_envs.scenario import Scenario
 
@@ -185,7 +185,7 @@ class NMPCController(BaseController):
             self.config.pair_slots,
             scenario.n_robots,
             scenario.robot_radius,
-            2 * scenario.v_max * self.config.horizon * scenario.dt,
+            closing_distance(scenario.v_max, self.config.horizon, scenario.dt),
         )
         params = layout.zeros()
         params[layout["goal_xy"]] = scenario.targets[:, :2].reshape(-1)

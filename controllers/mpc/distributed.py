@@ -64,7 +64,7 @@ from controllers.mpc.detour import DETOUR_CLEARANCE, StallMonitor, detour_waypoi
 from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
-from controllers.mpc.slots import nearest_obstacle_slots
+from controllers.mpc.slots import closing_distance, nearest_obstacle_slots
 from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
@@ -276,7 +276,7 @@ class DistributedNMPC(BaseController):
         self._reach = (
             self.reach
             if self.reach is not None
-            else 2 * scenario.v_max * horizon * scenario.dt
+            else closing_distance(scenario.v_max, horizon, scenario.dt)
             + 2 * radius
             + 2 * max(self.config.robot_offset, 2 * float(np.max(self._spread)))
             + delay

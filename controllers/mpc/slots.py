@@ -16,7 +16,13 @@ from controllers.movers import predict_movers
 from controllers.mpc.config import PARKED
 from koopman_envs.sim.nearest import nearest_by_clearance
 
-__all__ = ["PairSlots", "mover_slots", "nearest_obstacle_slots"]
+__all__ = ["PairSlots", "closing_distance", "mover_slots", "nearest_obstacle_slots"]
+
+
+def closing_distance(v_max: float, horizon: int, dt: float) -> float:
+    """How far two robots can close in on each other over a horizon [m]: both at ``v_max`` for
+    ``horizon`` periods of ``dt`` (the pair slots' and the distributed NMPC's neighbour reach)."""
+    return 2 * v_max * horizon * dt
 
 
 def nearest_obstacle_slots(positions: NDArray, obstacles: NDArray, k: int) -> NDArray[np.float64]:
