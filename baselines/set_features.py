@@ -38,8 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.sim.nearest import nearest_order
-from koopman_envs.tasks.layout import ObservationLayout
 from koopman_envs.tasks.observation import FAR
 
 __all__ = [

@@ -31,8 +31,8 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepRetu
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
 from koopman_envs.checks import check_int
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.sim.nearest import nearest_order
-from koopman_envs.tasks.layout import ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -230,7 +230,7 @@ class KoopNavSB3VecEnv(VecEnv):
         engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
         self.n_envs, self.n_robots = num_envs, engine.config.n_robots
         self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
-        observed = engine.observation_layout  # one robot's block by name (koopman_envs.tasks.layout)
+        observed = engine.observation_layout  # one robot's block by name (koopman_envs.layout)
         # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
         self._message_ages = observed.comm
         self._mover_slots = observed.movers  # listed movers: a set policy may read them

@@ -66,7 +66,7 @@ from controllers.mpc.config import IPOPT_OPTIONS, NMPCConfig
 from controllers.mpc.models import UnicycleModel
 from controllers.mpc.rti import QP_SOLVERS
 from controllers.solvers.compiled import solver_cache_dir
-from koopman_envs.episode import EpisodeResult, run_episode
+from koopman_envs.fronts.episode import EpisodeResult, run_episode
 from koopman_envs.tasks.base import env_id_for_map
 
 #: QP solvers of the real-time iteration compared by default (``--qp-solvers`` picks others of

@@ -21,7 +21,7 @@ from koopman_envs.observed import observed_view
 from koopman_envs.scenario import Scenario, scenario_of
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from koopman_envs.plant import CalibrationPlant
+    from koopman_envs.builder.plant import CalibrationPlant
 
 __all__ = [
     "BaseController",

@@ -29,9 +29,9 @@ from numpy.typing import NDArray
 
 from controllers.base import Calibratable, calibratable
 from controllers.disk_cache import CacheWriteWarning, cache_root, write_atomic
+from koopman_envs.builder.plant import CalibrationPlant, make_plant
 from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
-from koopman_envs.plant import CalibrationPlant, make_plant
 
 __all__ = [
     "MAX_CALIBRATION_BUDGET",

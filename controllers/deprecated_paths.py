@@ -9,10 +9,7 @@ exist for users' code and notebooks.
 
 from __future__ import annotations
 
-import importlib
-import warnings
-from collections.abc import Callable, Sequence
-from typing import Any
+from koopman_envs.deprecated import REMOVAL, moved_module
 
 __all__ = ["MOVED", "REMOVAL", "moved_module"]
 
@@ -34,36 +31,3 @@ MOVED: dict[str, tuple[str, ...]] = {
     "controllers.solver_cache": ("controllers.solvers.compiled",),
     "controllers.cache": ("controllers.disk_cache",),
 }
-
-
-#: the release that removes the paths of :data:`MOVED`
-REMOVAL = "0.2.0"
-
-
-def moved_module(name: str, targets: Sequence[str]) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
-    """The ``__getattr__`` and ``__dir__`` of a deprecated stub module ``name`` (PEP 562): every
-    name is read from the modules in ``targets``, in order. Called from the stub's body, it warns
-    once (a ``DeprecationWarning`` naming the new modules and the removal release)."""
-    warnings.warn(
-        f"{name} is deprecated and will be removed in KoopNav {REMOVAL}; import from "
-        f"{' / '.join(targets)} instead",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-
-    def __getattr__(attribute: str) -> Any:
-        if attribute.startswith("__"):
-            raise AttributeError(attribute)
-        for target in targets:
-            module = importlib.import_module(target)
-            if hasattr(module, attribute):
-                return getattr(module, attribute)
-        raise AttributeError(f"module {name!r} (moved to {list(targets)}) has no attribute {attribute!r}")
-
-    def __dir__() -> list[str]:
-        names: set[str] = set()
-        for target in targets:
-            names.update(getattr(importlib.import_module(target), "__all__", ()))
-        return sorted(names)
-
-    return __getattr__, __dir__

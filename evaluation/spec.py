@@ -25,9 +25,9 @@ from controllers.calibration import data_spec_for
 from evaluation.configs import controller_configs, with_solver
 from evaluation.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.runlog import run_signature
+from koopman_envs.builder.config import EngineConfig
+from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.checks import check_int, check_number
-from koopman_envs.config import EngineConfig
-from koopman_envs.keywords import ENV_KEYWORDS
 from koopman_envs.params import (
     DRIFT_SLIP,
     MAX_EPISODES_PER_CELL,
@@ -125,7 +125,7 @@ class RunSpec:
     compute_scale : float, optional
         Compute-aware episodes (``--realtime``, ``--compute-scale``): every controller's decision
         time, times this factor, is charged to its robots
-        (:class:`koopman_envs.episode.ComputeCharge`); None (default): the env waits for the
+        (:class:`koopman_envs.fronts.episode.ComputeCharge`); None (default): the env waits for the
         controller.
     solver : str, optional
         Optimizer (``rti``, ``ipopt``, ``fatrop``) of every NMPC configuration that names none

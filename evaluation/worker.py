@@ -16,9 +16,9 @@ from controllers.base import ControllerStats
 from controllers.calibration import calibrate_controller
 from evaluation.plan import EpisodeSpec, slip_value
 from evaluation.records import finished_status
-from koopman_envs.episode import ComputeCharge
-from koopman_envs.episode import run_episode as run_controller_episode
-from koopman_envs.plant import make_plant
+from koopman_envs.builder.plant import make_plant
+from koopman_envs.fronts.episode import ComputeCharge
+from koopman_envs.fronts.episode import run_episode as run_controller_episode
 
 __all__ = ["CalibrationError", "run_episode"]
 
@@ -145,7 +145,7 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
         if paths is not None and paths.positions:  # only an episode with movers has the field
             record["mover_trajectory"] = paths.record()
         if spec.animation:
-            from koopman_envs.rendering import save_episode
+            from koopman_envs.fronts.rendering import save_episode
 
             path = Path(spec.run_dir) / spec.animation
             path.parent.mkdir(parents=True, exist_ok=True)

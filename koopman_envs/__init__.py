@@ -15,9 +15,9 @@ from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
-from koopman_envs.keywords import ENV_KEYWORDS
+from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs.builder.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
-from koopman_envs.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map

@@ -32,7 +32,11 @@ from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["MOVER_BEHAVIOURS", "MoverConfig", "parse_movers"]
+__all__ = ["MOVER_BEHAVIOURS", "MOVER_FEATURES", "MoverConfig", "parse_movers"]
+
+#: entries per listed mover in a robot's observation block: body-frame dx, dy, vx, vy, surface
+#: clearance (koopman_envs.layout; written by koopman_envs.sim.movers.mover_features)
+MOVER_FEATURES = 5
 
 #: the mover behaviours (module docstring)
 MOVER_BEHAVIOURS = ("constant", "waypoints", "crowd")

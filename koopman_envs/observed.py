@@ -2,7 +2,7 @@
 
 An env's ``info`` holds the true state (``poses``, ``distances``, collision flags, ...) for
 evaluation and for users, beside what the robots believe (:meth:`NavigationEngine.observed_info
-<koopman_envs.engine.NavigationEngine.observed_info>`). A controller that is to face the runtime
+<koopman_envs.builder.engine.NavigationEngine.observed_info>`). A controller that is to face the runtime
 uncertainty honestly reads only :data:`OBSERVED_KEYS`; every built-in controller receives
 ``observed_view(info)`` from :meth:`controllers.base.BaseController.act`, so none can read the truth
 by accident, and tests/test_observed_view.py hands them poisoned true fields to prove it.

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.tasks.layout import ObservationLayout
+from koopman_envs.layout import ObservationLayout
 
 __all__ = ["Scenario", "scenario_of"]
 
@@ -67,7 +67,7 @@ class Scenario:
     mover_slots : int
         Movers listed at the end of each robot's observation block (0 with lidar).
     observation_layout : ObservationLayout, optional
-        One robot's observation block by name (:mod:`koopman_envs.tasks.layout`; the envs fill
+        One robot's observation block by name (:mod:`koopman_envs.layout`; the envs fill
         it; None for a scenario built by hand).
     """
 

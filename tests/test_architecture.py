@@ -143,3 +143,65 @@ def test_the_previous_module_paths_still_import_with_a_warning(old: str) -> None
             with warnings.catch_warnings():
                 warnings.simplefilter("error")
                 assert getattr(module, name) is getattr(new, name), (old, name)
+
+
+#: the environment package's layers, lowest first (docs/layout.md): a module imports its own
+#: layer or a lower one, never a higher one (type-only and function-level imports included)
+ENV_LAYERS = ("base", "sim", "tasks", "builder", "fronts")
+#: the modules of the base layer, at the package root (with the old paths' stubs)
+ENV_BASE = {
+    "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
+    "layout", "deprecated", "maps",
+}  # fmt: skip
+#: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
+ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}
+
+
+def _env_layer(module: str) -> int | None:
+    """The layer of a ``koopman_envs`` module (None for the package itself and old-path stubs)."""
+    from koopman_envs.deprecated import MOVED
+
+    parts = module.split(".")
+    if parts[0] != "koopman_envs" or len(parts) == 1 or module in MOVED:
+        return None
+    if len(parts) == 2 and parts[1] in ENV_BASE:
+        return 0
+    if len(parts) == 2 and parts[1] in ENV_ROOT_FRONTS:
+        return ENV_LAYERS.index("fronts")
+    if parts[1] in ENV_LAYERS:
+        return ENV_LAYERS.index(parts[1])
+    raise AssertionError(f"{module} belongs to no layer of ENV_LAYERS: place it in a layer's folder")
+
+
+def test_the_environment_package_imports_only_downwards() -> None:
+    modules = _modules()
+    upward = []
+    for name, path in modules.items():
+        source = _env_layer(name)
+        if source is None:
+            continue
+        for target in _imports(path, modules):
+            if target == "koopman_envs":
+                upward.append(f"{name} -> the package root")
+                continue
+            layer = _env_layer(target)
+            if layer is not None and layer > source:
+                upward.append(f"{name} ({ENV_LAYERS[source]}) -> {target} ({ENV_LAYERS[layer]})")
+    assert upward == [], "upward imports:\n" + "\n".join(upward)
+
+
+@pytest.mark.parametrize("old", sorted(__import__("koopman_envs.deprecated").deprecated.MOVED))
+def test_the_environments_old_module_paths_still_import_with_a_warning(old: str) -> None:
+    import importlib
+
+    from koopman_envs.deprecated import MOVED
+
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"):
+        module = importlib.import_module(old)
+    for target in MOVED[old]:
+        new = importlib.import_module(target)
+        for name in getattr(new, "__all__", ()):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                assert getattr(module, name) is getattr(new, name), (old, name)

@@ -8,7 +8,7 @@ import pytest
 
 import controllers
 from controllers.mpc.config import PARKED
-from koopman_envs.episode import run_episode
+from koopman_envs.fronts.episode import run_episode
 
 
 def _reset(n: int = 3, map_name: str = "map1", **options):

@@ -16,7 +16,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from controllers.classic.common import TeamView
 from controllers.classic.dwa import DWAController
 from controllers.classic.orca import unicycle_tracking
-from koopman_envs.episode import run_episode
+from koopman_envs.fronts.episode import run_episode
 from koopman_envs.sim.maps import MapSpec
 
 #: ORCA runs through pyrvo (the [crowd] extra): without it its cases skip, as the board skips it

@@ -12,7 +12,7 @@ import pytest
 import controllers
 from controllers.mpc.config import PARKED
 from controllers.mpc.distributed import DistributedNMPC
-from koopman_envs.episode import run_episode
+from koopman_envs.fronts.episode import run_episode
 
 
 def _reset(n: int = 3, map_name: str = "map1", **options) -> tuple[DistributedNMPC, gym.Env, dict]:
@@ -172,7 +172,7 @@ def test_followers_can_track_the_leaders_plan() -> None:
 
 def test_a_robots_koopman_block_predicts_as_the_team_model() -> None:
     from controllers.koopman.store import calibrated_model
-    from koopman_envs.plant import make_plant
+    from koopman_envs.builder.plant import make_plant
 
     plant = make_plant("KoopNav-TargetReaching-v0", slip="high", budget=20_000, seed=0)
     team, _ = calibrated_model(plant, 0, "minimal", structure="per-robot")

@@ -1,4 +1,4 @@
-"""The per-episode metrics robotics papers report (koopman_envs/episode.py): clearance, path
+"""The per-episode metrics robotics papers report (koopman_envs/fronts/episode.py): clearance, path
 ratio, smoothness, against values computed by hand on scripted episodes."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from evaluation.aggregate import episode_metrics
-from koopman_envs.episode import run_episode
+from koopman_envs.fronts.episode import run_episode
 from koopman_envs.sim.maps import MapSpec
 
 #: one robot driving straight along the x axis past one obstacle, and a second parked far away

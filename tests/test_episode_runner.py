@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from evaluation.aggregate import aggregate
-from koopman_envs.episode import run_episode
+from koopman_envs.fronts.episode import run_episode
 
 
 class ScriptedEnv:

@@ -1,4 +1,4 @@
-"""The named observation layout (koopman_envs/tasks/layout.py, issue 44): every env front carries
+"""The named observation layout (koopman_envs/layout.py, issue 44): every env front carries
 it, its parts hold what their names say on real observations under every setting that adds or
 removes a part, and a wrong name or index is refused by name."""
 
@@ -10,8 +10,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.movers import MoverConfig
-from koopman_envs.tasks.layout import ObservationLayout
 from koopman_envs.tasks.observation import FAR
 
 TR, FM = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"

@@ -18,8 +18,8 @@ import pytest
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
+from koopman_envs.builder.plant import make_plant
 from koopman_envs.observed import OBSERVED_KEYS, observed_view
-from koopman_envs.plant import make_plant
 
 #: every built-in controller and preset (rl-ppo needs the [rl] extra, as everywhere)
 NAMES = list(controllers.available())

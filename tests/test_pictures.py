@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.rendering import Renderer, draw_engine_env, frame_title
-from koopman_envs.rendering_layers import Overlay, collision_marks, engine_frame, view_limits
+from koopman_envs.fronts.rendering import Renderer, draw_engine_env, frame_title
+from koopman_envs.fronts.rendering_layers import Overlay, collision_marks, engine_frame, view_limits
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.mover_placement import mover_arena
@@ -202,8 +202,8 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
     from evaluation.records import record_problem
     from evaluation.run_data import RunData
     from evaluation.worker import _MoverPaths
-    from koopman_envs.demo import NaiveGoToTarget
-    from koopman_envs.episode import run_episode
+    from koopman_envs.fronts.demo import NaiveGoToTarget
+    from koopman_envs.fronts.episode import run_episode
 
     env = _MoverPaths(gym.make(TR, movers=dict(count=3, behaviour="waypoints"), max_episode_steps=40))
     result = run_episode(env, NaiveGoToTarget(), seed=0)

@@ -39,9 +39,9 @@ from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
 from koopman_envs import __version__ as envs_version
+from koopman_envs.builder.plant import CalibrationPlant, make_plant
 from koopman_envs.checks import check_choice
 from koopman_envs.params import PARAMS
-from koopman_envs.plant import CalibrationPlant, make_plant
 
 __all__ = ["SHIPPED", "calibrated_model", "default_structure", "fit_for_env", "fit_on_plant", "shipped_path"]
 

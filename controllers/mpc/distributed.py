@@ -65,8 +65,8 @@ from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
 from controllers.mpc.slots import closing_distance, nearest_obstacle_slots
+from koopman_envs.builder.plant import CalibrationPlant
 from koopman_envs.checks import check_choice, check_int, check_number
-from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.nearest import nearest_order
 from koopman_envs.suggest import did_you_mean

@@ -58,8 +58,8 @@ from controllers.koopman.store import check_structure, default_structure
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
+from koopman_envs.builder.plant import CalibrationPlant
 from koopman_envs.checks import check_int
-from koopman_envs.plant import CalibrationPlant
 from koopman_envs.scenario import Scenario
 
 __all__ = ["AdaptiveKoopmanNMPC", "KoopmanNMPC", "NominalNMPC"]

@@ -9,9 +9,9 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.config import EngineConfig
-from koopman_envs.engine import START_NOISE_ATTEMPTS, NavigationEngine
-from koopman_envs.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
+from koopman_envs.builder.config import EngineConfig
+from koopman_envs.builder.engine import START_NOISE_ATTEMPTS, NavigationEngine
+from koopman_envs.builder.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
@@ -20,7 +20,7 @@ from koopman_envs.tasks.base import RewardWeights
 from koopman_envs.tasks.observation import feature_size
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
-    from koopman_envs.rendering import Renderer
+    from koopman_envs.fronts.rendering import Renderer
 
 __all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
 
@@ -100,7 +100,7 @@ class KoopNavEnv(gym.Env):
                 "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gym.make"
             )
             return None
-        from koopman_envs.rendering import Renderer, draw_engine_env
+        from koopman_envs.fronts.rendering import Renderer, draw_engine_env
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")

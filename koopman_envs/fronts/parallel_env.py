@@ -16,15 +16,15 @@ from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from koopman_envs.config import EngineConfig
-from koopman_envs.engine import NavigationEngine
-from koopman_envs.keywords import ENV_KEYWORDS, takes_env_keywords
+from koopman_envs.builder.config import EngineConfig
+from koopman_envs.builder.engine import NavigationEngine
+from koopman_envs.builder.keywords import ENV_KEYWORDS, takes_env_keywords
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
-    from koopman_envs.rendering import Renderer
+    from koopman_envs.fronts.rendering import Renderer
 
 __all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
 
@@ -57,7 +57,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
     render_mode : str, optional
         ``"rgb_array"`` or ``"human"`` (matplotlib), as for the Gymnasium env.
     **keywords
-        The env keywords of :data:`koopman_envs.keywords.ENV_KEYWORDS`, as for the Gymnasium env
+        The env keywords of :data:`koopman_envs.builder.keywords.ENV_KEYWORDS`, as for the Gymnasium env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...), plus
         ``max_episode_steps``: the time limit in control periods (default
         ``PARAMS.max_episode_steps``; this env truncates by itself), and ``max_cycles``, the same
@@ -203,7 +203,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode")
             return None
-        from koopman_envs.rendering import Renderer, draw_engine_env
+        from koopman_envs.fronts.rendering import Renderer, draw_engine_env
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")

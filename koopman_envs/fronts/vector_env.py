@@ -12,16 +12,16 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from koopman_envs.builder.config import EngineConfig
+from koopman_envs.builder.engine import NavigationEngine
+from koopman_envs.builder.keywords import takes_env_keywords
 from koopman_envs.checks import check_int
-from koopman_envs.config import EngineConfig
-from koopman_envs.engine import NavigationEngine
-from koopman_envs.keywords import takes_env_keywords
 from koopman_envs.params import LIMITS
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
-    from koopman_envs.rendering import Renderer
+    from koopman_envs.fronts.rendering import Renderer
 
 __all__ = ["KoopNavVectorEnv"]
 
@@ -50,7 +50,7 @@ class KoopNavVectorEnv(VectorEnv):
         Trails are kept only then. ``"human"`` is a ``ValueError``: render a single env, or
         tile these frames with ``gymnasium.wrappers.vector.HumanRendering``.
     **keywords
-        The env keywords of :data:`koopman_envs.keywords.ENV_KEYWORDS`, as for the single env
+        The env keywords of :data:`koopman_envs.builder.keywords.ENV_KEYWORDS`, as for the single env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...);
         ``max_episode_steps`` (default ``PARAMS.max_episode_steps``) comes from the registration,
         and this env truncates by itself. Sub-env i draws its map, start noise and slip (drift
@@ -257,7 +257,7 @@ class KoopNavVectorEnv(VectorEnv):
             return None
         if not self._trails:
             raise RuntimeError("call reset() before render()")
-        from koopman_envs.rendering import Renderer, draw_engine_env
+        from koopman_envs.fronts.rendering import Renderer, draw_engine_env
 
         while len(self._renderers) < self.num_envs:
             self._renderers.append(Renderer())

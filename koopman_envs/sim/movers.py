@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.movers import MoverConfig
+from koopman_envs.movers import MOVER_FEATURES, MoverConfig
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.crowd import orca_restore, orca_simulator, orca_step
 from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
@@ -47,8 +47,6 @@ __all__ = [
 #: free space between a mover and any start or target at reset [m] (ours; at least one second
 #: of the mover's travel, so none reaches a robot before the robot can move)
 START_CLEARANCE = 0.5
-#: entries per listed mover in a robot's block: body-frame dx, dy, vx, vy, surface clearance
-MOVER_FEATURES = 5
 #: clearance reported for an absent mover [m] (the observation's FAR)
 _FAR = 30.0
 

@@ -1,6 +1,6 @@
 """Per-robot observation features shared by every front (centralized, vector, per-agent).
 
-One robot's block is laid out by :class:`koopman_envs.tasks.layout.ObservationLayout` (its
+One robot's block is laid out by :class:`koopman_envs.layout.ObservationLayout` (its
 module docstring has the table of named parts: position, heading, target, team-mates, obstacles
 or lidar beams, formation error, message ages, movers).
 
@@ -20,10 +20,10 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 from koopman_envs.sim.movers import mover_features
 from koopman_envs.sim.nearest import nearest_first
-from koopman_envs.tasks.layout import ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.sim.movers import MoverField
@@ -117,7 +117,7 @@ class FeatureBuilder:
         movers: int = 0,
     ) -> None:
         n, k = n_robots, num_envs
-        #: the block's named parts (koopman_envs.tasks.layout)
+        #: the block's named parts (koopman_envs.layout)
         self.layout = ObservationLayout(n, n_obstacle_obs, formation, beams, comm, movers)
         self.shape = (k, n, self.layout.size)
         self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range, movers)

@@ -1,0 +1,313 @@
+"""The one episode runner: reset, the act/step loop and the per-episode metrics.
+
+The evaluator, both demos, the benchmark scripts and the tests all run episodes through
+:func:`run_episode`, so an outcome means the same thing everywhere. It needs nothing of a
+controller but ``act(observation, info)`` (and calls ``reset(scenario, seed=...)`` when the
+object has one: the episode's :class:`~koopman_envs.scenario.Scenario`, never the env, so that a
+controller learns nothing at reset that the observed info does not tell it), so it lives beside
+the environments and imports no controller.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from koopman_envs.scenario import scenario_of
+from koopman_envs.sim.collision import CollisionKind
+
+__all__ = ["ComputeCharge", "EpisodeResult", "Policy", "run_episode"]
+
+
+class Policy(Protocol):
+    """Anything that maps (observation, info) to a joint command (2N,)."""
+
+    def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]: ...
+
+
+@dataclass(frozen=True)
+class ComputeCharge:
+    """Compute-aware episodes: a controller's decision time is charged to its robots.
+
+    The pose of period t is measured at its start; the decision computed from it takes L
+    seconds (the wall time of ``act``, times ``scale``: a scale of 5 emulates a computer five
+    times slower, a small ARM board beside the machine the run is on). The robots hold the last
+    command applied until the period boundary after the decision is ready: a decision ready
+    within ``grace`` seconds of the measurement acts in period t, as without the charge; one of
+    L seconds otherwise acts from period t + ceil(L / dt). The controller decides again at the
+    period its command starts to act (it was busy until then), so a decision of 250 ms at a
+    100 ms period acts 3 periods late, every third period. A decision longer than the period
+    misses its deadline (counted). Timing varies from run to run, so compute-aware episodes are
+    not bit-reproducible; everything else about them is.
+
+    Attributes
+    ----------
+    scale : float
+        Factor on the measured decision time (> 0; 1: this machine).
+    grace : float
+        Decision time [s] within which a command still acts in the period it was computed for
+        (the actuator's own input latency; default 1 ms).
+
+    The third field, ``clock``, gives the seconds now (``time.perf_counter``; a test may give a
+    clock of its own).
+    """
+
+    scale: float = 1.0
+    grace: float = 1e-3
+    clock: Callable[[], float] = time.perf_counter
+
+    def periods_late(self, seconds: float, dt: float) -> int:
+        """Periods until a decision of ``seconds`` (before the scale) acts."""
+        charged = seconds * self.scale
+        return 0 if charged <= self.grace else math.ceil(charged / dt - 1e-9)
+
+
+@dataclass
+class EpisodeResult:
+    """What one episode did (metres, seconds; arrays per robot).
+
+    Attributes
+    ----------
+    success : bool
+        Every robot settled within tolerance without collision.
+    collision : str or None
+        Kind of the collision that ended the episode.
+    truncated : bool
+        Ended by the time limit.
+    steps : int
+        Control periods taken.
+    total_reward : float
+        Sum of the env's rewards.
+    time_to_goal : float or None
+        Start of the final settled stretch [s] (the team's last entry into tolerance, not its
+        first visit), for successful episodes.
+    final_poses, targets : ndarray, shape (N, 3)
+    final_distance, path_length, control_effort : ndarray, shape (N,)
+        Distance to target at the end [m]; distance driven [m]; sum of v^2 + omega^2 over the
+        saturated commands times dt.
+    formation_rms : float or None
+        RMS follower formation error over the episode [m] (formation task).
+    straight_distance : ndarray, shape (N,)
+        Distance from each robot's start to its target [m]: ``path_length / straight_distance``
+        is the path-length ratio robotics papers report.
+    min_clearance : dict of str to float or None
+        Smallest surface clearance over the episode [m] (negative: overlapping) of any robot to
+        ``"obstacle"``, ``"robot"`` (a team-mate) and ``"mover"``; None where there is none (a
+        single robot, a map without obstacles, no movers). Measured on the true poses at every
+        period, the start included.
+    decisions : int
+        Times the controller decided (every period, except under a :class:`ComputeCharge`,
+        where a slow controller decides once per the periods it takes).
+    deadline_misses : int
+        Decisions that took longer than the control period (compute-aware episodes; else 0).
+    late_periods : float
+        Mean periods between a decision's measurement and its command acting (0 without a
+        compute charge).
+    accel_rms, angular_accel_rms : ndarray, shape (N,)
+        Smoothness: root mean square of the change of the saturated command per period, divided
+        by the period: linear [m/s^2] and angular [rad/s^2] (0 for a constant command; the first
+        command is measured against standing still).
+    trajectory : ndarray, shape (T + 1, N, 3)
+        Poses from the start.
+    frames : list of ndarray
+        ``rgb_array`` frames when ``render=True``.
+    """
+
+    success: bool
+    collision: str | None
+    truncated: bool
+    steps: int
+    total_reward: float
+    time_to_goal: float | None
+    final_poses: NDArray[np.float64]
+    targets: NDArray[np.float64]
+    final_distance: NDArray[np.float64]
+    path_length: NDArray[np.float64]
+    control_effort: NDArray[np.float64]
+    formation_rms: float | None
+    straight_distance: NDArray[np.float64]
+    min_clearance: dict[str, float | None]
+    accel_rms: NDArray[np.float64]
+    angular_accel_rms: NDArray[np.float64]
+    trajectory: NDArray[np.float64]
+    decisions: int = 0
+    deadline_misses: int = 0
+    late_periods: float = 0.0
+    frames: list[NDArray[np.uint8]] = field(default_factory=list)
+
+    @property
+    def outcome(self) -> str:
+        """``"success"``, the collision kind, or ``"time limit"``."""
+        return "success" if self.success else (self.collision or "time limit")
+
+
+def run_episode(
+    env: Any,
+    policy: Policy,
+    *,
+    seed: int | None = None,
+    options: dict[str, Any] | None = None,
+    render: bool = False,
+    on_step: Callable[[int, NDArray[np.float64], dict[str, Any]], None] | None = None,
+    compute: ComputeCharge | None = None,
+) -> EpisodeResult:
+    """Reset ``env``, drive it with ``policy`` until the episode ends, and measure it.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        A KoopNav Gymnasium env (wrapped or not).
+    policy : Policy
+        Its ``reset(scenario, seed=seed)`` is called after ``env.reset`` when it has one, with
+        the episode's scenario (the planned starts, the targets, the map's obstacles, limits).
+    seed : int, optional
+        Seed of ``env.reset`` (and handed to the policy).
+    options : dict, optional
+        ``env.reset`` options.
+    render : bool
+        Collect ``env.render()`` frames (the env needs ``render_mode="rgb_array"``).
+    on_step : callable, optional
+        ``on_step(step, action, info)`` after every step (for logging or recording).
+    compute : ComputeCharge, optional
+        Charge the controller's decision time to its robots (see :class:`ComputeCharge`);
+        None (default): the env waits for the controller, as the paper's evaluation does.
+    """
+    obs, info = env.reset(seed=seed, options=options)
+    scenario = scenario_of(env)
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset(scenario, seed=seed)
+    low = np.array([-scenario.v_max, -scenario.omega_max])
+    high = np.array([scenario.v_max, scenario.omega_max])
+    n = scenario.n_robots
+    poses = [np.array(info["poses"], dtype=np.float64)]
+    clearance = _Clearance(scenario)
+    clearance.observe(info)
+    effort = np.zeros(n)
+    previous = np.zeros((n, 2))
+    rate_sq = np.zeros((n, 2))
+    formation_sq: list[NDArray[np.float64]] = []
+    frames = [env.render()] if render else []
+    steps, total = 0, 0.0
+    stretch_start: int | None = None  # first step of the current stretch with every robot within tolerance
+    decider = _Decider(policy, compute, scenario.dt, n)
+    while True:
+        action = decider.command(steps, obs, info)
+        obs, reward, terminated, truncated, info = env.step(action.reshape(-1))
+        steps += 1
+        total += float(reward)
+        applied = np.clip(action, low, high)
+        effort += (applied**2).sum(axis=1) * scenario.dt
+        rate_sq += ((applied - previous) / scenario.dt) ** 2
+        previous = applied
+        poses.append(np.array(info["poses"], dtype=np.float64))
+        clearance.observe(info)
+        if "formation_error" in info:
+            formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
+        if np.all(info["distances"] <= scenario.goal_tolerance):
+            stretch_start = steps if stretch_start is None else stretch_start
+        else:
+            stretch_start = None
+        if render:
+            frames.append(env.render())
+        if on_step is not None:
+            on_step(steps, action, info)
+        if terminated or truncated:
+            break
+    trajectory = np.asarray(poses)
+    success = bool(info["is_success"])
+    return EpisodeResult(
+        success=success,
+        collision=CollisionKind.describe(info["collision_code"]) if info["collision"] else None,
+        truncated=bool(truncated and not terminated),
+        steps=steps,
+        total_reward=total,
+        time_to_goal=stretch_start * scenario.dt if success and stretch_start is not None else None,
+        final_poses=np.array(info["poses"], dtype=np.float64),
+        targets=np.array(info["targets"], dtype=np.float64),
+        final_distance=np.array(info["distances"], dtype=np.float64),
+        path_length=np.linalg.norm(np.diff(trajectory[:, :, :2], axis=0), axis=2).sum(axis=0),
+        control_effort=effort,
+        formation_rms=float(np.sqrt(np.mean(formation_sq))) if formation_sq else None,
+        straight_distance=np.hypot(*(trajectory[0, :, :2] - np.asarray(info["targets"])[:, :2]).T),
+        min_clearance=clearance.smallest(),
+        accel_rms=np.sqrt(rate_sq[:, 0] / steps),
+        angular_accel_rms=np.sqrt(rate_sq[:, 1] / steps),
+        trajectory=trajectory,
+        decisions=decider.decisions,
+        deadline_misses=decider.misses,
+        late_periods=decider.late / decider.decisions if decider.decisions else 0.0,
+        frames=frames,
+    )
+
+
+class _Clearance:
+    """The smallest surface clearance so far of any robot to obstacles, team-mates and movers."""
+
+    def __init__(self, scenario: Any) -> None:
+        self.radius = np.asarray(scenario.robot_radius, dtype=np.float64)
+        self.obstacles = np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
+        self.mover_radius = float(getattr(scenario, "mover_radius", 0.0))
+        self.low: dict[str, float | None] = {"obstacle": None, "robot": None, "mover": None}
+
+    def _keep(self, kind: str, values: NDArray[np.float64]) -> None:
+        if values.size:
+            smallest = float(values.min())
+            current = self.low[kind]
+            self.low[kind] = smallest if current is None else min(current, smallest)
+
+    def observe(self, info: dict[str, Any]) -> None:
+        xy = np.asarray(info["poses"], dtype=np.float64)[:, :2]
+        if self.obstacles.shape[0]:
+            gaps = np.linalg.norm(xy[:, None] - self.obstacles[None, :, :2], axis=-1)
+            self._keep("obstacle", gaps - self.radius[:, None] - self.obstacles[None, :, 2])
+        if xy.shape[0] > 1:
+            gaps = np.linalg.norm(xy[:, None] - xy[None], axis=-1) - self.radius[:, None] - self.radius[None]
+            self._keep("robot", gaps[np.triu_indices(xy.shape[0], 1)])
+        movers = np.asarray(info.get("movers", np.zeros((0, 4))), dtype=np.float64).reshape(-1, 4)
+        if movers.shape[0]:
+            gaps = np.linalg.norm(xy[:, None] - movers[None, :, :2], axis=-1)
+            self._keep("mover", gaps - self.radius[:, None] - self.mover_radius)
+
+    def smallest(self) -> dict[str, float | None]:
+        return dict(self.low)
+
+
+class _Decider:
+    """When the controller decides and which command the robots hold (:class:`ComputeCharge`;
+    without one, a decision every period that acts at once)."""
+
+    def __init__(self, policy: Policy, compute: ComputeCharge | None, dt: float, n: int) -> None:
+        self.policy, self.compute, self.dt = policy, compute, dt
+        self.held = np.zeros((n, 2))
+        self.pending: tuple[int, NDArray[np.float64]] | None = None
+        self.next_decision = 0
+        self.decisions = self.misses = self.late = 0
+
+    def command(self, step: int, obs: Any, info: dict[str, Any]) -> NDArray[np.float64]:
+        compute = self.compute
+        if compute is None:
+            self.decisions += 1
+            return np.asarray(self.policy.act(obs, info), dtype=np.float64).reshape(self.held.shape)
+        if self.pending is not None and self.pending[0] <= step:
+            self.held, self.pending = self.pending[1], None
+        if step >= self.next_decision:
+            start = compute.clock()
+            command = np.asarray(self.policy.act(obs, info), dtype=np.float64).reshape(self.held.shape)
+            seconds = compute.clock() - start
+            late = compute.periods_late(seconds, self.dt)
+            self.decisions += 1
+            self.late += late
+            self.misses += seconds * compute.scale > self.dt
+            if late == 0:
+                self.held = command
+            else:
+                self.pending = (step + late, command)
+            self.next_decision = step + max(late, 1)
+        return self.held
