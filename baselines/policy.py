@@ -279,6 +279,7 @@ def success_rate(
     obs, _ = venv.reset(seed=seed)
     # a KoopNav id's vector entry point is a KoopNavVectorEnv (make_vec types it as any VectorEnv)
     engine = cast("KoopNavVectorEnv", venv.unwrapped).engine
+    layout_of_env = cast("KoopNavVectorEnv", venv.unwrapped).observation_layout
     n_robots = engine.config.n_robots
     v_max, omega_max = float(engine.command_high[0]), float(engine.command_high[1])
     done = np.zeros(episodes, dtype=bool)
@@ -295,8 +296,8 @@ def success_rate(
             features,
             set_config=set_config,
             formation=engine.config.task.formation,
-            message_ages=engine.observation_layout.comm,
-            mover_slots=engine.observation_layout.movers,
+            message_ages=layout_of_env.comm,
+            mover_slots=layout_of_env.movers,
         )
         obs, _, terminated, truncated, info = venv.step(action)
         ended = (terminated | truncated) & ~done

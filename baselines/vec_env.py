@@ -230,7 +230,8 @@ class KoopNavSB3VecEnv(VecEnv):
         engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
         self.n_envs, self.n_robots = num_envs, engine.config.n_robots
         self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
-        observed = engine.observation_layout  # one robot's block by name (koopman_envs.layout)
+        # one robot's block by name (koopman_envs.layout), the front's public seam
+        observed = cast("KoopNavVectorEnv", self.venv.unwrapped).observation_layout
         # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
         self._message_ages = observed.comm
         self._mover_slots = observed.movers  # listed movers: a set policy may read them

@@ -95,3 +95,24 @@ def test_the_pettingzoo_modules_are_attributes_of_the_package() -> None:
     )
     assert run.returncode == 0, run.stderr
     assert run.stdout.split() == ["3", "koopman_envs.target_reaching_v0"]
+
+
+def test_the_dict_observation_is_the_flat_one_resliced() -> None:
+    from koopman_envs.fronts.dict_observation import DictObservation
+
+    flat_env = gym.make(FM, uncertainty="realistic", movers={"count": 2})
+    dict_env = DictObservation(gym.make(FM, uncertainty="realistic", movers={"count": 2}))
+    layout = flat_env.unwrapped.observation_layout  # known before the first reset
+    assert dict_env.layout == layout and set(dict_env.observation_space) == {p for p, _ in layout.parts}
+    flat, _ = flat_env.reset(seed=2)
+    parts, _ = dict_env.reset(seed=2)
+    for _ in range(5):
+        assert dict_env.observation_space.contains(parts)
+        blocks = flat.reshape(3, -1)
+        for name, _width in layout.parts:
+            assert np.array_equal(parts[name], blocks[:, layout[name]]), name
+        action = np.full(flat_env.action_space.shape, 0.1, dtype=np.float32)
+        flat, *_ = flat_env.step(action)
+        parts, *_ = dict_env.step(action)
+    with pytest.raises(TypeError, match="needs a KoopNav env"):
+        DictObservation(gym.make("CartPole-v1"))

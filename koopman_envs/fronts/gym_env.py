@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.engine import START_NOISE_ATTEMPTS, NavigationEngine
 from koopman_envs.builder.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
@@ -113,6 +114,12 @@ class KoopNavEnv(gym.Env):
             self._renderer = None
 
     # ---------------------------------------------------------- for models
+    @property
+    def observation_layout(self) -> ObservationLayout:
+        """One robot's observation block by name (:class:`koopman_envs.layout.ObservationLayout`),
+        known before the first reset."""
+        return self.engine.observation_layout
+
     @property
     def scenario(self) -> Scenario:
         """Obstacles, radii, starts, targets, formation offsets, limits and dt of this episode."""

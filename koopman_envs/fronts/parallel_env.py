@@ -19,6 +19,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.engine import NavigationEngine
 from koopman_envs.builder.keywords import ENV_KEYWORDS, takes_env_keywords
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
@@ -193,6 +194,12 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         if self._features is None:
             raise RuntimeError("call reset() before state()")
         return self._features.reshape(-1).astype(np.float32)
+
+    @property
+    def observation_layout(self) -> ObservationLayout:
+        """One robot's observation block by name (:class:`koopman_envs.layout.ObservationLayout`),
+        known before the first reset."""
+        return self.engine.observation_layout
 
     @property
     def scenario(self) -> Scenario:

@@ -16,6 +16,7 @@ from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.engine import NavigationEngine
 from koopman_envs.builder.keywords import takes_env_keywords
 from koopman_envs.checks import check_int
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import LIMITS
 from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
@@ -271,6 +272,12 @@ class KoopNavVectorEnv(VectorEnv):
         for renderer in self._renderers:
             renderer.close()
         self._renderers = []
+
+    @property
+    def observation_layout(self) -> ObservationLayout:
+        """One robot's observation block by name (:class:`koopman_envs.layout.ObservationLayout`),
+        known before the first reset."""
+        return self.engine.observation_layout
 
     def scenario(self, index: int) -> Scenario:
         """Scenario of sub-environment ``index`` (see :class:`koopman_envs.scenario.Scenario`)."""
