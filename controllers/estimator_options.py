@@ -3,15 +3,13 @@ levels and delay it assumes, and the levers it can switch off, each checked on c
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_int, check_number, checked_options
 from koopman_envs.params import LIMITS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = ["AUTO", "EstimatorOptions"]
 
@@ -65,29 +63,26 @@ class EstimatorOptions:
     @classmethod
     def from_options(cls, prefix: str = "", **options: Any) -> EstimatorOptions:
         """Build from keyword options, each checked; errors name the option as given (with ``prefix``)."""
-        allowed = [f.name for f in dataclasses.fields(cls)]
-        for key, value in options.items():
-            if key not in allowed:
-                raise ValueError(
-                    f"unknown estimator option {prefix + key!r}{did_you_mean(prefix + key, [prefix + a for a in allowed])}; "
-                    f"allowed: {[prefix + a for a in allowed]}"
+        return checked_options(cls, "estimator", prefix, options, cls.check)
+
+    @staticmethod
+    def check(key: str, value: Any, prefix: str = "") -> None:
+        """Raise ``ValueError`` naming option ``prefix + key`` when ``value`` is not allowed."""
+        if key == "delay":
+            if value != AUTO:
+                check_int(
+                    prefix + key,
+                    value,
+                    0,
+                    maximum=LIMITS.actuation_delay,
+                    note=f"control periods, or {AUTO!r}",
                 )
-            if key == "delay":
-                if value != AUTO:
-                    check_int(
-                        prefix + key,
-                        value,
-                        0,
-                        maximum=LIMITS.actuation_delay,
-                        note=f"control periods, or {AUTO!r}",
-                    )
-            elif key == "max_delay":
-                check_int(prefix + key, value, 1, maximum=LIMITS.actuation_delay, note="control periods")
-            elif key in ("position_std", "heading_std") and value == AUTO:
-                continue
-            elif key in ("compensate_delay", "filter_poses"):
-                if not isinstance(value, (bool, np.bool_)):
-                    raise ValueError(f"{prefix + key}={value!r} must be True or False")
-            else:
-                check_number(prefix + key, value, above=0)
-        return cls(**options)
+        elif key == "max_delay":
+            check_int(prefix + key, value, 1, maximum=LIMITS.actuation_delay, note="control periods")
+        elif key in ("position_std", "heading_std") and value == AUTO:
+            return
+        elif key in ("compensate_delay", "filter_poses"):
+            if not isinstance(value, (bool, np.bool_)):
+                raise ValueError(f"{prefix + key}={value!r} must be True or False")
+        else:
+            check_number(prefix + key, value, above=0)

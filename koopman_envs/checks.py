@@ -8,7 +8,7 @@ bad value and what is allowed in one form.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from numbers import Integral, Real
 from typing import Any
 
@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["check_choice", "check_commands", "check_int", "check_number"]
+__all__ = ["check_choice", "check_commands", "check_int", "check_number", "checked_options"]
 
 
 def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") -> Any:
@@ -45,6 +45,26 @@ def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") 
         return value
     words = [option for option in options if isinstance(option, str)]
     raise ValueError(f"{name}={value!r} is not one of {options}{also}{did_you_mean(value, words)}")
+
+
+def checked_options(
+    cls: Any, what: str, prefix: str, options: dict[str, Any], check: Callable[[str, Any, str], None]
+) -> Any:
+    """``cls(**options)`` for an options dataclass, after every key is checked: an unknown one is a
+    ``ValueError`` naming it as given (with ``prefix``, e.g. ``"safety_"``), with a did-you-mean and
+    the allowed keys; a known one goes through ``check(key, value, prefix)``. The one routine behind
+    the option dataclasses' ``from_options``."""
+    import dataclasses
+
+    allowed = [f.name for f in dataclasses.fields(cls)]
+    for key, value in options.items():
+        if key not in allowed:
+            raise ValueError(
+                f"unknown {what} option {prefix + key!r}{did_you_mean(prefix + key, [prefix + a for a in allowed])}; "
+                f"allowed: {[prefix + a for a in allowed]}"
+            )
+        check(key, value, prefix)
+    return cls(**options)
 
 
 def check_int(

@@ -4,11 +4,11 @@ routes ``safety_*`` options of a ``safe:<name>`` configuration to the filter."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from koopman_envs.checks import checked_options
 from koopman_envs.params import PARAMS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = ["FILTER_OPTION_PREFIX", "SafetyOptions"]
 
@@ -87,13 +87,4 @@ class SafetyOptions:
     def from_options(cls, prefix: str = "", **options: Any) -> SafetyOptions:
         """Build from keyword options; errors name the option as given (with ``prefix``), its value
         and what is allowed."""
-        allowed = [f.name for f in fields(cls)]
-        for key, value in options.items():
-            if key not in allowed:
-                raise ValueError(
-                    f"unknown safety filter option {prefix + key!r}"
-                    f"{did_you_mean(prefix + key, [prefix + a for a in allowed])}; "
-                    f"allowed: {[prefix + a for a in allowed]}"
-                )
-            cls.check(key, value, prefix)
-        return cls(**options)
+        return checked_options(cls, "safety filter", prefix, options, cls.check)
