@@ -14,15 +14,33 @@ Any of them runs behind the CBF safety filter of :mod:`controllers.safety` as ``
 """
 
 from controllers.base import BaseController, Controller, ControllerStats
+from controllers.estimator_options import ESTIMATOR_OPTION_PREFIX
 from controllers.option_spec import options
 from controllers.presets import register_builtins
 from controllers.registry import ENTRY_POINT_GROUP, available, make, register, register_wrapper, split_name
+from controllers.safety.options import FILTER_OPTION_PREFIX
 
 register_builtins(register)
 # any controller behind the CBF safety filter: "safe:<name>", filter options prefixed "safety_"
-register_wrapper("safe", "controllers.safety:wrap")
+register_wrapper(
+    "safe",
+    "controllers.safety:wrap",
+    options=(
+        "controllers.safety.options:SafetyOptions",
+        FILTER_OPTION_PREFIX,
+        "behind the CBF safety filter",
+    ),
+)
 # any controller reading an EKF estimate of every robot's pose: "ekf:<name>", options prefixed "ekf_"
-register_wrapper("ekf", "controllers.estimation:wrap")
+register_wrapper(
+    "ekf",
+    "controllers.estimation:wrap",
+    options=(
+        "controllers.estimator_options:EstimatorOptions",
+        ESTIMATOR_OPTION_PREFIX,
+        "with an EKF on every robot's pose",
+    ),
+)
 
 __all__ = [
     "BaseController",

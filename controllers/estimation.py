@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats, take_over_radio
-from controllers.estimator_options import AUTO, EstimatorOptions
+from controllers.estimator_options import AUTO, ESTIMATOR_OPTION_PREFIX, EstimatorOptions
 from controllers.identification import MotionIdentifier
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
@@ -64,8 +64,6 @@ __all__ = [
     "wrap",
 ]
 
-#: prefix of the estimator's options in a wrapped configuration's option list
-ESTIMATOR_OPTION_PREFIX = "ekf_"
 #: the model-based controllers' ``estimator`` option (:func:`front_end_for`): what stands between
 #: the robots' localization and the planner. ``"auto"``: everything identified online;
 #: ``"realistic"``: the team's datasheet held at the ``realistic`` preset's values (one period of

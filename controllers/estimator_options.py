@@ -11,7 +11,10 @@ import numpy as np
 from koopman_envs.checks import check_int, check_number, checked_options
 from koopman_envs.params import LIMITS
 
-__all__ = ["AUTO", "EstimatorOptions"]
+__all__ = ["AUTO", "ESTIMATOR_OPTION_PREFIX", "EstimatorOptions"]
+
+#: prefix of the estimator's options in a wrapped configuration's option list (``ekf:``)
+ESTIMATOR_OPTION_PREFIX = "ekf_"
 
 #: ``delay="auto"``: identify the actuation delay online
 AUTO = "auto"

@@ -237,14 +237,14 @@ def _with_defaults(spec: ControllerSpec, name: str, defaults: Mapping[str, Any],
 
 
 def _wrapper_options(prefix: str) -> tuple[type, str, str]:
-    """A wrapper prefix's option dataclass, the prefix of its options, and what it does."""
-    if prefix == "ekf":
-        from controllers.estimation import ESTIMATOR_OPTION_PREFIX, EstimatorOptions
+    """A wrapper prefix's option dataclass, the prefix of its options, and what it does, as the
+    wrapper was registered (:func:`controllers.registry.register_wrapper`)."""
+    from controllers.registry import wrapper_options
 
-        return EstimatorOptions, ESTIMATOR_OPTION_PREFIX, "with an EKF on every robot's pose"
-    from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
-
-    return SafetyOptions, FILTER_OPTION_PREFIX, "behind the CBF safety filter"
+    found = wrapper_options(prefix)
+    if found is None:
+        raise ValueError(f"wrapper {prefix!r} was registered without an option class")
+    return found
 
 
 def options(name: str) -> ControllerSpec:

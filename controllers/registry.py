@@ -49,6 +49,8 @@ ENTRY_POINT_GROUP = "koopnav.controllers"
 
 _REGISTRY: dict[str, Callable[..., Controller] | str] = {}
 _WRAPPERS: dict[str, Callable[..., Controller] | str] = {}
+#: wrapper prefix -> (its option dataclass as "module:Class", the prefix of its options, what it does)
+_WRAPPER_OPTIONS: dict[str, tuple[str, str, str]] = {}
 
 
 def register(name: str, factory: Callable[..., Controller] | str, *, overwrite: bool = False) -> None:
@@ -59,15 +61,35 @@ def register(name: str, factory: Callable[..., Controller] | str, *, overwrite: 
 
 
 def register_wrapper(
-    prefix: str, wrapper: Callable[..., Controller] | str, *, overwrite: bool = False
+    prefix: str,
+    wrapper: Callable[..., Controller] | str,
+    *,
+    overwrite: bool = False,
+    options: tuple[str, str, str] | None = None,
 ) -> None:
     """Register a wrapper prefix: ``make(f"{prefix}:{name}", **options)`` calls
-    ``wrapper(factory(name), **options)`` (a callable or a ``"module:attribute"`` string)."""
+    ``wrapper(factory(name), **options)`` (a callable or a ``"module:attribute"`` string).
+    ``options``: the wrapper's option dataclass (``"module:Class"``), the prefix its options
+    carry and what the wrapper does, for :func:`controllers.options` (None: it takes none)."""
     if not prefix or ":" in prefix:
         raise ValueError(f"wrapper prefix {prefix!r} must be non-empty and contain no ':'")
     if not overwrite and prefix in _WRAPPERS:
         raise ValueError(f"wrapper prefix {prefix!r} is already registered")
     _WRAPPERS[prefix] = wrapper
+    if options is not None:
+        _WRAPPER_OPTIONS[prefix] = options
+    else:
+        _WRAPPER_OPTIONS.pop(prefix, None)
+
+
+def wrapper_options(prefix: str) -> tuple[type, str, str] | None:
+    """A registered wrapper's option dataclass, the prefix of its options and what it does (None
+    for a wrapper registered without options)."""
+    if prefix not in _WRAPPER_OPTIONS:
+        return None
+    path, option_prefix, role = _WRAPPER_OPTIONS[prefix]
+    module, _, attribute = path.partition(":")
+    return getattr(importlib.import_module(module), attribute), option_prefix, role
 
 
 def split_name(name: str) -> tuple[tuple[str, ...], str]:

@@ -22,7 +22,9 @@ from koopman_envs.layout import ObservationLayout
 __all__ = ["DictObservation", "split_observation"]
 
 
-def split_observation(flat: NDArray[Any], layout: ObservationLayout, n_robots: int) -> dict[str, NDArray[Any]]:
+def split_observation(
+    flat: NDArray[Any], layout: ObservationLayout, n_robots: int
+) -> dict[str, NDArray[Any]]:
     """The parts of a team observation (..., N * F) as (..., N, width) arrays, by name."""
     blocks = np.asarray(flat).reshape(np.shape(flat)[:-1] + (n_robots, layout.size))
     return {name: blocks[..., layout[name]] for name, _ in layout.parts}
