@@ -30,7 +30,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepRetu
 
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_choice, check_int
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.sim.nearest import nearest_order
 
@@ -128,8 +128,7 @@ def robot_features(
     -------
     ndarray, shape (..., N, F + 3) or (..., N, F + 3 + 2 (N - 1)), float32
     """
-    if features not in FEATURE_SETS:
-        raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
+    check_choice("features", features, FEATURE_SETS)
     blocks = np.asarray(team_blocks, dtype=np.float64)
     n = blocks.shape[-2]
     if neighbours is not None:
@@ -219,8 +218,7 @@ class KoopNavSB3VecEnv(VecEnv):
         set_config: SetFeatureConfig | None = None,
         **env_kwargs: Any,
     ) -> None:
-        if layout not in LAYOUTS:
-            raise ValueError(f"layout={layout!r} is not one of {list(LAYOUTS)}")
+        check_choice("layout", layout, LAYOUTS)
         if set_config is not None and layout != "robot":
             raise ValueError(f"set observations need layout='robot', not {layout!r}")
         self.set_config = set_config

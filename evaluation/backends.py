@@ -15,6 +15,7 @@ from typing import Any
 from evaluation.plan import EpisodeSpec
 from evaluation.records import is_degraded, ran
 from evaluation.worker import run_episode
+from koopman_envs.checks import check_choice
 
 __all__ = ["BACKENDS", "Progress", "RunInterrupted", "run_episodes"]
 
@@ -105,8 +106,7 @@ def run_episodes(
     The worker pool is terminated on every exit: success, error or Ctrl-C. Workers ignore
     SIGINT, so Ctrl-C reaches only this process, which stops the pool without tracebacks.
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend={backend!r} is not one of {list(BACKENDS)}")
+    check_choice("backend", backend, BACKENDS)
     if backend == "ray":
         yield _run_ray(todo, workers)
     elif workers == 1 or len(todo) <= 1:

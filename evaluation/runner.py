@@ -15,6 +15,7 @@ from evaluation.records import json_safe
 from evaluation.results import Results
 from evaluation.runlog import open_log
 from evaluation.spec import RunSpec
+from koopman_envs.checks import check_choice
 
 __all__ = ["evaluate", "usable_controllers"]
 
@@ -103,8 +104,7 @@ def evaluate(
             "RunSpec(envs=..., controllers=..., ...) or take a preset from evaluation.protocols"
         )
     workers = (os.cpu_count() or 1) if workers is None else workers
-    if backend not in BACKENDS:
-        raise ValueError(f"backend={backend!r} is not one of {list(BACKENDS)}")
+    check_choice("backend", backend, BACKENDS)
     if spec.gifs and out is None:
         raise ValueError("gifs=True needs an output directory (out=...) for the animations")
     spec.validate(workers)  # before the registry builds every controller below

@@ -14,6 +14,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice
+
 __all__ = ["DICTIONARIES", "Dictionary", "ExtendedDictionary", "MinimalDictionary", "get_dictionary"]
 
 _Symbolic = TypeVar("_Symbolic", ca.SX, ca.MX)  # lift_casadi returns the kind of expression it is given
@@ -97,7 +99,4 @@ DICTIONARIES: dict[str, Dictionary] = {d.name: d for d in (MinimalDictionary(), 
 
 def get_dictionary(name: str) -> Dictionary:
     """Dictionary by name; raises ``ValueError`` listing the known names."""
-    try:
-        return DICTIONARIES[name]
-    except KeyError:
-        raise ValueError(f"dictionary={name!r} is not one of {sorted(DICTIONARIES)}") from None
+    return DICTIONARIES[check_choice("dictionary", name, sorted(DICTIONARIES))]

@@ -169,11 +169,7 @@ class DistributedNMPC(BaseController):
         self.reach = None if reach is None else check_number("reach", reach, above=0, note="metres")
         check_choice("coordination", coordination, COORDINATION)
         self.coordination = coordination
-        if formation_goal not in FORMATION_GOALS:
-            raise ValueError(
-                f"formation_goal={formation_goal!r} is not one of {list(FORMATION_GOALS)}"
-                f"{did_you_mean(formation_goal, FORMATION_GOALS)}"
-            )
+        check_choice("formation_goal", formation_goal, FORMATION_GOALS)
         self.formation_goal = formation_goal
         self.detour = bool(detour)
         if model not in MODELS:
