@@ -62,8 +62,11 @@ for g in 0.05 0.1 0.2 0.5 1.0; do GAMMAS="$GAMMAS mpc-cbf:cbf_gamma=$g,label=mpc
 RUNS[cbf_gamma]="--paper --solver rti --controllers nominal-nmpc$GAMMAS --reference nominal-nmpc"
 # issue 43: the robustness profiles republished (every registered controller, each axis alone)
 RUNS[robustness]="--slips nominal --episodes 20 --sweep pose_noise.xy=0,0.05,0.1,0.2 --sweep comm.latency=0,1,3,6 --sweep comm.drop=0,0.2,0.5,0.8 --sweep actuation_delay=0,1,2,4 --reference koopman-nmpc"
+# issue 43, 45: the crowd protocol republished (every registered controller among 0-16 movers of
+# each behaviour; --crowd adds the movers.count sweep)
+for behaviour in constant waypoints crowd; do RUNS[crowd_$behaviour]="--crowd $behaviour --reference koopman-nmpc"; done
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness crowd_constant crowd_waypoints crowd_crowd)
 
 run() {
     local name="$1" out="data/runs/$1"
