@@ -423,6 +423,13 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         # a protocol's solver goes with its own controller list; controllers named on the command
         # line keep their own defaults unless --solver says otherwise
         changes.update(controllers=split_controller_list(args.controllers), solver=None)
+        if spec.solver not in (None, "rti") and not args.solver:  # the NMPCs default to "rti"
+            print(
+                f"note: the protocol's solver ({spec.solver}) goes with its own controller list; the "
+                f"controllers named by --controllers keep their own default solver (--solver {spec.solver} "
+                "sets it for them)",
+                file=sys.stderr,
+            )
     if args.solver:
         changes["solver"] = args.solver
     if args.fallback_solver:

@@ -340,3 +340,20 @@ def test_paper_protocol_keeps_ipopt_and_the_quick_board_runs_the_real_time_itera
     from controllers.mpc.config import NMPCConfig
 
     assert NMPCConfig().solver == "rti" and NMPCConfig().fallback_solver is None  # real time by default
+
+
+def test_paper_with_named_controllers_says_their_solver_is_their_own(capsys) -> None:
+    """``--paper --controllers ...`` keeps the named controllers' default solver (the real-time
+    iteration); a note says so and how to get the paper's, and --solver ipopt silences it."""
+    from evaluation.cli import build_parser, spec_from_args
+
+    parser = build_parser()
+    spec = spec_from_args(parser.parse_args(["--paper", "--controllers", "koopman-nmpc"]))
+    assert spec.solver is None
+    assert "--solver ipopt sets it for them" in capsys.readouterr().err
+    spec = spec_from_args(
+        parser.parse_args(["--paper", "--controllers", "koopman-nmpc", "--solver", "ipopt"])
+    )
+    assert spec.solver == "ipopt" and capsys.readouterr().err == ""
+    spec_from_args(parser.parse_args(["--controllers", "koopman-nmpc"]))  # the quick board: rti, no note
+    assert capsys.readouterr().err == ""
