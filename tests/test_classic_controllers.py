@@ -243,7 +243,7 @@ def _numpy_wavefront(free, seed, weight=None):
 
 def test_the_compiled_kernels_give_the_numpy_expressions_bits() -> None:
     from controllers.classic.kernels import closest_approach
-    from controllers.classic.plan import wavefront
+    from controllers.classic.plan import polyline_distance, wavefront
 
     rng = np.random.default_rng(0)
     for trial in range(20):
@@ -254,6 +254,15 @@ def test_the_compiled_kernels_give_the_numpy_expressions_bits() -> None:
         seed[goal], free[goal] = 0.0, True
         weight = 1.0 + rng.random(shape) if trial % 2 else None
         assert np.array_equal(wavefront(free, seed, weight), _numpy_wavefront(free, seed, weight))
+    for trial in range(50):  # the polyline distance against its numpy expression
+        points = rng.normal(size=(3, 40, 2)) * 3
+        line = np.cumsum(rng.normal(size=(int(rng.integers(2, 30)), 2)), axis=0)
+        start, along = line[:-1], line[1:] - line[:-1]
+        p = points[..., None, :]
+        t = ((p - start) * along).sum(axis=-1) / np.maximum((along * along).sum(axis=-1), 1e-12)
+        nearest = start + np.clip(t, 0.0, 1.0)[..., None] * along
+        reference = np.linalg.norm(p - nearest, axis=-1).min(axis=-1)
+        assert np.array_equal(polyline_distance(points, line), reference), trial
     path = rng.normal(size=(3, 40, 12, 3))
     centres = rng.normal(size=(3, 13, 7, 2))
     dx = path[..., 0, None] - centres[:, None, 1:, :, 0]

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["closest_approach", "relax_wavefront"]
+__all__ = ["closest_approach", "polyline_distances", "relax_wavefront"]
 
 
 @njit(cache=True)
@@ -92,3 +92,30 @@ def relax_wavefront(
                     changed = True
         if not changed:
             return
+
+
+@njit(cache=True)
+def polyline_distances(points: NDArray[np.float64], line: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(P,) distance of each of ``points`` (P, 2) to the polyline ``line`` (L, 2), L >= 2: the
+    numpy expression of :func:`controllers.classic.plan.polyline_distance`, operation for
+    operation (projection clipped to each segment, then the nearest)."""
+    p_count, segments = points.shape[0], line.shape[0] - 1
+    out = np.empty(p_count)
+    for i in range(p_count):
+        best = np.inf
+        for k in range(segments):
+            ax = line[k + 1, 0] - line[k, 0]
+            ay = line[k + 1, 1] - line[k, 1]
+            t = ((points[i, 0] - line[k, 0]) * ax + (points[i, 1] - line[k, 1]) * ay) / max(
+                ax * ax + ay * ay, 1e-12
+            )
+            t = min(max(t, 0.0), 1.0)
+            dx = points[i, 0] - (line[k, 0] + t * ax)
+            dy = points[i, 1] - (line[k, 1] + t * ay)
+            d = math.sqrt(dx * dx + dy * dy)
+            if d < best or math.isnan(d):
+                best = d
+                if math.isnan(d):
+                    break
+        out[i] = best
+    return out

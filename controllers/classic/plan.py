@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.classic.kernels import relax_wavefront
+from controllers.classic.kernels import polyline_distances, relax_wavefront
 from koopman_envs.scenario import Scenario
 
 __all__ = ["Detour", "GlobalPlanner", "Plan", "polyline_distance", "wavefront"]
@@ -117,14 +117,12 @@ class Plan:
 
 def polyline_distance(points: NDArray[np.float64], line: NDArray[np.float64]) -> NDArray[np.float64]:
     """Distance [m] of ``points`` (..., 2) to the polyline ``line`` (L, 2)."""
-    start, end = line[:-1], line[1:]
-    if len(start) == 0:
+    if len(line) < 2:
         return np.asarray(np.linalg.norm(points - line[0], axis=-1))
-    p = points[..., None, :]
-    along = end - start
-    t = ((p - start) * along).sum(axis=-1) / np.maximum((along * along).sum(axis=-1), 1e-12)
-    nearest = start + np.clip(t, 0.0, 1.0)[..., None] * along
-    return np.asarray(np.linalg.norm(p - nearest, axis=-1).min(axis=-1))
+    # compiled (controllers.classic.kernels): the same arithmetic without the (..., L, 2) arrays
+    flat = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    line = np.ascontiguousarray(line, dtype=np.float64)
+    return polyline_distances(flat, line).reshape(points.shape[:-1])
 
 
 @dataclass(frozen=True)
