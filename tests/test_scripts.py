@@ -48,7 +48,7 @@ SMOKE: dict[str, list[str]] = {
     "docs/check_links.py": ["{tmp}"],
     "docs/make_figure.py": ["--steps", "3", "--out", "{tmp}/figure.png"],
     "docs/make_options_md.py": ["--out", "{tmp}/options.md"],
-    "docs/make_results_md.py": ["{results}", "--out", "{tmp}/results.md"],
+    "docs/make_results_md.py": ["{results}", "--out", "{tmp}/results.md", "--figures", "{tmp}/figures"],
     "docs/make_robustness_md.py": ["{sweep}", "--out", "{tmp}/robustness.md", "--figures", "{tmp}/figures"],
     "docs/solver_comparison.py": ["{results}"],
 }
