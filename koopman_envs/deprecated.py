@@ -10,7 +10,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["MOVED", "REMOVAL", "moved_module"]
+__all__ = ["MOVED", "REMOVAL", "moved_module", "moved_names"]
 
 #: the release that removes the moved paths
 REMOVAL = "0.2.0"
@@ -60,3 +60,22 @@ def moved_module(name: str, targets: Sequence[str]) -> tuple[Callable[[str], Any
         return sorted(names)
 
     return __getattr__, __dir__
+
+
+def moved_names(name: str, moved: Sequence[str], target: str) -> Callable[[str], Any]:
+    """The ``__getattr__`` (PEP 562) of a module ``name`` some of whose names moved to ``target``:
+    a moved name is read from ``target`` with a ``DeprecationWarning`` naming the new module and
+    the removal release; any other name is an ``AttributeError``."""
+
+    def __getattr__(attribute: str) -> Any:
+        if attribute in moved:
+            warnings.warn(
+                f"{name}.{attribute} is deprecated and will be removed in KoopNav {REMOVAL}; "
+                f"import it from {target}",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            return getattr(importlib.import_module(target), attribute)
+        raise AttributeError(f"module {name!r} has no attribute {attribute!r}")
+
+    return __getattr__

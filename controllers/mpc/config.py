@@ -7,7 +7,7 @@ Everything a user sets on an NMPC (central or distributed) is a field of :class:
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -18,6 +18,7 @@ from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
 from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import PARAMS
+from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "DEFAULT_SOLVER_OPTIONS",
@@ -298,9 +299,32 @@ class NMPCConfig:
                 options.setdefault(key, value)
         return options
 
-    def with_options(self, **changes: Any) -> NMPCConfig:
-        """A copy with some fields changed; unknown names raise ``TypeError``."""
-        return replace(self, **changes)
+    def with_options(self, owner: str = "NMPC", /, **changes: Any) -> NMPCConfig:
+        """A validated copy with some fields changed: the one option merge of every NMPC
+        (central and distributed).
+
+        Parameters
+        ----------
+        owner : str
+            The controller's class name, for the error message.
+        **changes
+            Field names and their new values.
+
+        Raises
+        ------
+        ValueError
+            An unknown field (with did-you-mean, naming ``owner``) or a bad value
+            (:meth:`validate`).
+        """
+        allowed = [f.name for f in fields(self)]
+        for name in changes:
+            if name not in allowed:
+                raise ValueError(
+                    f"{owner}: unknown option {name!r}{did_you_mean(name, allowed)}; options: {sorted(allowed)}"
+                )
+        config = replace(self, **changes) if changes else self
+        config.validate()
+        return config
 
     @staticmethod
     def option_choices() -> dict[str, tuple[str, ...]]:

@@ -70,12 +70,7 @@ class NMPCController(ParameterHooks, BaseController):
         self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any
     ):
         super().__init__()
-        base = config or NMPCConfig()
-        try:
-            self.config = base.with_options(**options) if options else base
-        except TypeError as exc:
-            raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
-        self.config.validate()
+        self.config = (config or NMPCConfig()).with_options(type(self).__name__, **options)
         self.front_end = front_end_for(self.config.estimator, self.config.ablate)
         self.model = model
         #: RMS one-step position residual of the prediction model per robot [m], from calibration

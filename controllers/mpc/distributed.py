@@ -69,7 +69,6 @@ from koopman_envs.builder.plant import CalibrationPlant
 from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.nearest import nearest_order
-from koopman_envs.suggest import did_you_mean
 
 __all__ = ["COORDINATION", "FORMATION_GOALS", "MODELS", "DistributedNMPC"]
 
@@ -172,20 +171,17 @@ class DistributedNMPC(BaseController):
         check_choice("formation_goal", formation_goal, FORMATION_GOALS)
         self.formation_goal = formation_goal
         self.detour = bool(detour)
-        if model not in MODELS:
-            raise ValueError(f"model={model!r} is not one of {list(MODELS)}{did_you_mean(model, MODELS)}")
+        check_choice("model", model, MODELS)
         self.model_kind = model
         self.name = f"dmpc-{model}"
         self.dictionary = dictionary
         self._residual: NDArray[np.float64] | None = None
         self._spread: NDArray[np.float64] = np.zeros(0)
         self._blocks: list[KoopmanModel] = []
-        base = config or NMPCConfig(**self.NMPC_DEFAULTS)
-        try:
-            self.config = dataclasses.replace(base, **options) if options else base
-        except TypeError as exc:
-            raise ValueError(f"{type(self).__name__}: unknown option in {sorted(options)} ({exc})") from None
-        self._robot = _RobotNMPC(self.config, self.neighbours)  # validates the NMPC options
+        self.config = (config or NMPCConfig(**self.NMPC_DEFAULTS)).with_options(
+            type(self).__name__, **options
+        )
+        self._robot = _RobotNMPC(self.config, self.neighbours)
         self.front_end = front_end_for(self.config.estimator, self.config.ablate)
         self._agents: list[_RobotNMPC] = []
         self._plans: NDArray[np.float64] = np.zeros((0, 0, 2))

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
+from koopman_envs.deprecated import moved_names
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
 from koopman_envs.sim.geometry import TeamGeometry
@@ -404,24 +405,8 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
 
 
 #: names that lived here before the generator got its own module (kept for one release)
-_MOVED = {
-    "RandomMapConfig",
-    "generate_random_map",
-    "placement_share",
-    "AUTO_FORMATION",
-    "MIN_PLACEMENT_SHARE",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        import importlib
-        import warnings
-
-        warnings.warn(
-            f"koopman_envs.sim.maps.{name} is deprecated; import it from koopman_envs.sim.random_maps",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return getattr(importlib.import_module("koopman_envs.sim.random_maps"), name)
-    raise AttributeError(f"module 'koopman_envs.sim.maps' has no attribute {name!r}")
+__getattr__ = moved_names(
+    __name__,
+    ("RandomMapConfig", "generate_random_map", "placement_share", "AUTO_FORMATION", "MIN_PLACEMENT_SHARE"),
+    "koopman_envs.sim.random_maps",
+)
