@@ -327,6 +327,8 @@ class RLPolicyController(BaseController):
     """
 
     name = "rl-ppo"
+    #: a policy reads its observation (the beams themselves under lidar), not the perception's tracks
+    perceives = False
 
     def __init__(
         self,

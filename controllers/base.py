@@ -8,6 +8,7 @@ scenario, a learned policy reads the observation. Solver status and timing go in
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from abc import ABC, abstractmethod
 from collections import Counter
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.perception.front import LidarPerception
 from koopman_envs.observed import observed_view
 from koopman_envs.scenario import Scenario, scenario_of
 
@@ -196,10 +198,16 @@ class BaseController(ABC):
     #: the robots do (:func:`over_the_radio`); None: each robot's own estimate (a controller
     #: whose robots decide for themselves reads its team-mates' messages itself)
     radio_station: int | None = None
+    #: whether the controller sees through the lidar's perception under ``sensing="lidar"``
+    #: (:mod:`controllers.perception.front`: tracked movers and, with the map unknown, the
+    #: perceived obstacles); a learned policy that reads the beams itself sets False
+    perceives = True
 
     def __init__(self) -> None:
         self.scenario: Scenario | None = None
         self._stats = ControllerStats()
+        #: the perception front of the current episode (None without lidar, or not :attr:`perceives`)
+        self.perception: LidarPerception | None = None
 
     def reset(self, scenario: Scenario | Any, *, seed: int | None = None) -> None:
         """Prepare for an episode: ``scenario`` is the env (any front, wrapped or not, after its
@@ -208,10 +216,15 @@ class BaseController(ABC):
             scenario = scenario_of(scenario)
         except TypeError as exc:
             raise TypeError(f"{self.name}: reset() {exc}") from None
+        scenario = scenario.planner_view()  # without the map's obstacles when it is not known
         self.scenario = scenario
         self._stats = ControllerStats()
         if self.front_end is not None:
             self.front_end.reset(scenario)
+        self.perception = None
+        if self.perceives and scenario.lidar_beams:
+            self.perception = LidarPerception()
+            self.perception.reset(scenario)
         self._reset(scenario, seed)
 
     def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
@@ -230,6 +243,12 @@ class BaseController(ABC):
         front_end = self.front_end
         if front_end is not None:
             view = front_end.view(view)
+        # a wrapper in front (ekf:, safe:) that perceived hands its perception on: perceive once
+        if self.perception is not None and "lidar_ranges" in view and "mover_radii" not in view:
+            view = self.perception.view(view)
+            self._stats.extra_times["perception"] = self.perception.times
+        if "perceived_obstacles" in view:
+            self.obstacles_seen(view["perceived_obstacles"])
         start = time.perf_counter()
         command = self._act(observation, view)
         if len(self._stats.solve_times) == recorded:
@@ -243,6 +262,23 @@ class BaseController(ABC):
 
     def stats(self) -> ControllerStats:
         return self._stats
+
+    def obstacles_seen(self, obstacles: NDArray[np.float64]) -> bool:
+        """The obstacles the lidar has shown so far (the map unknown, ``lidar.map_known=False``),
+        (M, 3): x, y, r. They become the scenario's obstacles, which the controller reads each
+        period; a controller that prepares its obstacles once at reset extends this hook.
+
+        Returns
+        -------
+        bool
+            Whether they differ from the scenario's until now.
+        """
+        assert self.scenario is not None  # act() checked it
+        obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        if np.array_equal(obstacles, self.scenario.obstacles):
+            return False
+        self.scenario = dataclasses.replace(self.scenario, obstacles=obstacles)
+        return True
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:  # noqa: B027 - optional hook
         """Subclass hook called by :meth:`reset`."""

@@ -21,7 +21,12 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController
 from controllers.estimation import FRONT_END_LEVERS, estimator_choices, front_end_option
-from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
+from controllers.movers import (
+    MOVER_PREDICTIONS,
+    check_mover_prediction,
+    observed_mover_radii,
+    observed_movers,
+)
 from koopman_envs.scenario import Scenario
 
 __all__ = ["CONSENSUS_LEVERS", "ConsensusController"]
@@ -105,6 +110,7 @@ class ConsensusController(BaseController):
         self.mover_prediction = check_mover_prediction(mover_prediction)
         self.mover_lookahead = mover_lookahead
         self._movers = np.zeros((0, 4))
+        self._mover_radii = np.zeros(0)
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         heading = np.column_stack([np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])])
@@ -128,7 +134,7 @@ class ConsensusController(BaseController):
         push = np.zeros_like(positions)
         movers = self._movers
         centres = np.vstack([sc.obstacles[:, :2], positions, movers[:, :2]])
-        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius, np.full(len(movers), sc.mover_radius)])
+        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius, self._mover_radii])
         robots = slice(len(sc.obstacles), len(sc.obstacles) + len(positions))
         for i, p in enumerate(positions):
             if len(movers) and self.mover_prediction == "constant_velocity":
@@ -159,6 +165,8 @@ class ConsensusController(BaseController):
         every robot knows the same (instant messages) one team computation serves all."""
         start = time.perf_counter()
         self._movers = observed_movers(info)
+        assert self.scenario is not None  # act() checked it
+        self._mover_radii = observed_mover_radii(info, self.scenario.mover_radius)
         known = np.asarray(info["known_poses"], dtype=np.float64)
         ages = np.asarray(info["message_age"])
         if (ages == 0).all() and (known == known[:1]).all():

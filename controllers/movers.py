@@ -1,8 +1,8 @@
 """What the controllers assume of the moving obstacles: which ones matter and where they will be.
 
 Every built-in controller reads the movers from the observed view (``info["observed_movers"]``:
-x, y, vx, vy per mover, tracked with ``sensing="state"``; with lidar the beams are all a robot
-has of them, and no controller here models a mover then). The prediction is one of
+x, y, vx, vy per mover, tracked with ``sensing="state"``; with lidar, the tracks of the team's
+perception of the beams, :mod:`controllers.perception.front`, with their radii). The prediction is one of
 :data:`MOVER_PREDICTIONS`:
 
 ``"constant_velocity"``
@@ -26,7 +26,13 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_choice
 
-__all__ = ["MOVER_PREDICTIONS", "check_mover_prediction", "observed_movers", "predict_movers"]
+__all__ = [
+    "MOVER_PREDICTIONS",
+    "check_mover_prediction",
+    "observed_mover_radii",
+    "observed_movers",
+    "predict_movers",
+]
 
 #: how a controller predicts a mover over its horizon (module docstring)
 MOVER_PREDICTIONS = ("constant_velocity", "static")
@@ -43,6 +49,20 @@ def observed_movers(info: dict[str, Any]) -> NDArray[np.float64]:
     if movers is None:
         return np.zeros((0, 4))
     return np.asarray(movers, dtype=np.float64).reshape(-1, 4)
+
+
+def observed_mover_radii(info: dict[str, Any], default: float) -> NDArray[np.float64]:
+    """Each observed mover's radius [m], (C,): the perception's estimates (``mover_radii``, under
+    lidar: a track may be a larger object than a person) or ``default`` (the scenario's
+    ``mover_radius``) for every mover."""
+    count = observed_movers(info).shape[0]
+    radii = info.get("mover_radii")
+    if radii is None:
+        return np.full(count, float(default))
+    radii = np.asarray(radii, dtype=np.float64).reshape(-1)
+    if radii.shape[0] != count:
+        raise ValueError(f"mover_radii has {radii.shape[0]} entries for {count} observed movers")
+    return radii
 
 
 def predict_movers(

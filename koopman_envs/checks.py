@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["check_choice", "check_commands", "check_int", "check_number", "checked_options"]
+__all__ = ["check_choice", "check_commands", "check_flag", "check_int", "check_number", "checked_options"]
 
 
 def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") -> Any:
@@ -135,6 +135,13 @@ def check_number(
     if not ok:
         raise ValueError(f"{name}={value!r} must be {allowed}" + (f" ({note})" if note else ""))
     return float(value)
+
+
+def check_flag(name: str, value: Any) -> bool:
+    """``value`` as a ``bool`` (``True``/``False``, or numpy's), or ``ValueError`` naming it."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise ValueError(f"{name}={value!r} is not a flag; allowed: true or false")
 
 
 def check_commands(commands: Any, num_envs: int, n_robots: int) -> NDArray[np.float64]:

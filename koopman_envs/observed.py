@@ -14,22 +14,34 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["OBSERVED_KEYS", "observed_view"]
+__all__ = ["DERIVED_KEYS", "OBSERVED_KEYS", "SENSED_KEYS", "observed_view"]
 
-#: The info keys a controller may read: every robot's own pose estimate, what each robot has
-#: heard of its team-mates and how old it is, the lidar readings, the targets (a robot's goal is
-#: given, not sensed) and, with movers and ``sensing="state"``, the tracked movers (x, y, vx, vy).
-#: ``pose_covariance`` (N, 3, 3) is never written by an env: a controller's own estimator in front
-#: of another (``ekf:``) hands it on with its estimates.
-OBSERVED_KEYS = (
+#: The info keys an env writes for its controllers: every robot's own pose estimate, what each
+#: robot has heard of its team-mates and how old it is, the lidar readings, the targets (a
+#: robot's goal is given, not sensed) and, with movers and ``sensing="state"``, the tracked
+#: movers (x, y, vx, vy).
+SENSED_KEYS = (
     "observed_poses",
     "known_poses",
     "message_age",
     "lidar_ranges",
     "targets",
     "observed_movers",
-    "pose_covariance",
 )
+#: The keys a controller's own front-ends write and hand on to the controller they stand in front
+#: of, never an env: an estimator's ``pose_covariance`` (N, 3, 3) (``ekf:``), and the lidar
+#: perception's ``mover_covariance``, ``mover_radii``, ``perceived_obstacles`` and
+#: ``obstacle_covariance`` (``controllers.perception.front``; under lidar it also writes
+#: ``observed_movers``, its tracks).
+DERIVED_KEYS = (
+    "pose_covariance",
+    "mover_covariance",
+    "mover_radii",
+    "perceived_obstacles",
+    "obstacle_covariance",
+)
+#: The info keys a controller may read.
+OBSERVED_KEYS = SENSED_KEYS + DERIVED_KEYS
 
 
 def observed_view(info: dict[str, Any]) -> dict[str, Any]:

@@ -7,7 +7,8 @@ their lambdas), not part of the scenario either.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -69,6 +70,12 @@ class Scenario:
     observation_layout : ObservationLayout, optional
         One robot's observation block by name (:mod:`koopman_envs.layout`; the envs fill
         it; None for a scenario built by hand).
+    lidar_fov, lidar_range, lidar_noise : float
+        The lidar's field of view [rad], range [m] and range noise (standard deviation) [m]: its
+        datasheet, which a robot's perception knows (``sensing="lidar"``; defaults otherwise).
+    map_known : bool
+        Whether the planners may use ``obstacles`` (``lidar.map_known``); when False a
+        controller plans on :meth:`planner_view`, which holds none.
     """
 
     task: str
@@ -92,11 +99,22 @@ class Scenario:
     mover_radius: float = 0.0
     mover_slots: int = 0
     observation_layout: ObservationLayout | None = None
+    lidar_fov: float = 2 * math.pi
+    lidar_range: float = 5.0
+    lidar_noise: float = 0.0
+    map_known: bool = True
 
     @property
     def is_formation(self) -> bool:
         """True for the leader-follower formation task."""
         return self.task == "formation"
+
+    def planner_view(self) -> Scenario:
+        """What a planner may know: this scenario, without the map's obstacles when the map is
+        not known (``lidar.map_known=False``: the beams are all the robots have of them)."""
+        if self.map_known:
+            return self
+        return replace(self, obstacles=np.zeros((0, 3)))
 
 
 def scenario_of(source: Any) -> Scenario:

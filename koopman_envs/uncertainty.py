@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Any
 
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_flag, check_int, check_number
 from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
@@ -97,6 +97,11 @@ class LidarConfig:
         Standard deviation of the Gaussian error added to each reading [m] (clipped to [0, range]).
     dropout : float
         Probability that a beam returns nothing this period (it reads ``range``).
+    map_known : bool
+        Whether the planners have the map's obstacles (``True``: the building's map, as the
+        paper's controllers); ``False``: they know only what the beams show
+        (``env.unwrapped.scenario.planner_view()`` holds no obstacle; docs/perception.md).
+        The robots' physics and scoring use the true map either way.
     """
 
     beams: int = 32
@@ -104,6 +109,7 @@ class LidarConfig:
     range: float = 5.0
     noise: float = 0.0
     dropout: float = 0.0
+    map_known: bool = True
 
     def __post_init__(self) -> None:
         checked = {
@@ -114,6 +120,7 @@ class LidarConfig:
             ),
             "noise": check_number("lidar.noise", self.noise, at_least=0),
             "dropout": check_number("lidar.dropout", self.dropout, at_least=0, at_most=1),
+            "map_known": check_flag("lidar.map_known", self.map_known),
         }
         if checked["fov"] < MIN_LIDAR_FOV:  # the beams' spacing would round to 0 (a division by it)
             raise ValueError(

@@ -19,7 +19,7 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
 from koopman_envs.builder.plant import make_plant
-from koopman_envs.observed import OBSERVED_KEYS, observed_view
+from koopman_envs.observed import OBSERVED_KEYS, SENSED_KEYS, observed_view
 
 #: every built-in controller and preset (rl-ppo needs the [rl] extra, as everywhere)
 NAMES = list(controllers.available())
@@ -72,9 +72,9 @@ def test_the_view_is_what_the_robots_believe() -> None:
     for _ in range(5):
         _, _, _, _, info = env.step(np.zeros(6))
     view = observed_view(info)
-    # every observed key but the movers' (this env has none) and the covariance an estimator in
-    # front of a controller hands on (an env never writes it)
-    assert set(view) == {*OBSERVED_KEYS, "poses", "distances"} - {"observed_movers", "pose_covariance"}
+    # every observed key but the movers' (this env has none) and what a controller's front-ends
+    # (estimator, perception) hand on (an env never writes them)
+    assert set(view) == {*SENSED_KEYS, "poses", "distances"} - {"observed_movers"}
     assert view["poses"] is view["observed_poses"] and not np.array_equal(
         view["distances"], info["distances"]
     )

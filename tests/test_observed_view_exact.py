@@ -34,6 +34,10 @@ def test_the_observed_keys_are_the_beliefs_the_targets_and_the_tracked_movers() 
         "targets",
         "observed_movers",
         "pose_covariance",
+        "mover_covariance",
+        "mover_radii",
+        "perceived_obstacles",
+        "obstacle_covariance",
     )
 
 
@@ -49,7 +53,7 @@ def test_an_env_info_passes_its_observed_keys_as_they_are_and_aliases_the_estima
         "pose_covariance": np.tile(np.eye(3), (2, 1, 1)),  # what an estimator in front hands on
     }
     view = observed_view({**TRUTH, **beliefs})
-    assert list(view) == [*OBSERVED_KEYS, "poses", "distances"]
+    assert list(view) == [*OBSERVED_KEYS[:7], "poses", "distances"]
     for key, value in beliefs.items():
         assert view[key] is value  # passed as they are, not copied or converted
     np.testing.assert_array_equal(view["poses"], observed, strict=True)

@@ -242,7 +242,7 @@ def test_one_number_is_the_pose_noise_std_of_x_and_y() -> None:
             "lidar",
             [8],
             LidarConfig,
-            "lidar=[8] must be a dict of ['beams', 'fov', 'range', 'noise', 'dropout'], a LidarConfig, or None",
+            "lidar=[8] must be a dict of ['beams', 'fov', 'range', 'noise', 'dropout', 'map_known'], a LidarConfig, or None",
         ),
         (
             "comm",

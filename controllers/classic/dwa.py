@@ -55,7 +55,12 @@ from controllers.classic.common import TeamView, check_count, check_positive, go
 from controllers.classic.kernels import closest_approach
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
 from controllers.estimation import estimator_choices, front_end_option
-from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
+from controllers.movers import (
+    MOVER_PREDICTIONS,
+    check_mover_prediction,
+    observed_mover_radii,
+    observed_movers,
+)
 from koopman_envs.scenario import Scenario
 
 __all__ = ["DWAController", "segment_distance"]
@@ -195,6 +200,15 @@ class DWAController(BaseController):
         steps = max(1, int(np.ceil(scenario.v_max * self.sim_time / self.sim_granularity)))
         self._times = self.sim_time * np.arange(1, steps + 1) / steps
 
+    def obstacles_seen(self, obstacles: NDArray[np.float64]) -> bool:
+        """Perceived obstacles (map unknown): the global planner's grid is rebuilt when they
+        change on it (as a costmap updates from the sensors)."""
+        changed = super().obstacles_seen(obstacles)
+        assert self.scenario is not None  # set by the base
+        if changed and self._planner.outdated(self.scenario.obstacles):
+            self._planner.reset(self.scenario)
+        return changed
+
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         sc = self.scenario
         assert sc is not None  # act() checked it
@@ -207,6 +221,7 @@ class DWAController(BaseController):
         samples = self._window()  # (N, S, 2)
         path = self._rollout(pose, samples)  # (N, S, K, 3)
         movers = observed_movers(info)
+        self._mover_radii = observed_mover_radii(info, sc.mover_radius)
         blockers = self._blockers(position, heard, movers)
         cost = self._goal_cost(pose[:, :2], path, goal + moving * self.sim_time, blockers)
         clearance, now = self._clearances(path, position, velocity, heard, movers)
@@ -293,7 +308,7 @@ class DWAController(BaseController):
         for i in range(sc.n_robots):
             mates = heard[i] & (np.arange(sc.n_robots) != i)
             centres = np.vstack([position[i, mates], movers[:, :2]])
-            radii = np.concatenate([sc.robot_radius[mates], np.full(len(movers), sc.mover_radius)])
+            radii = np.concatenate([sc.robot_radius[mates], self._mover_radii])
             out.append((centres, radii + sc.robot_radius[i] + self.safety_margin))
         return out
 
@@ -319,7 +334,7 @@ class DWAController(BaseController):
         crowd = np.broadcast_to(crowd[None], (n, *crowd.shape))
         fixed = np.broadcast_to(sc.obstacles[None, None, :, :2], (n, len(t), len(sc.obstacles), 2))
         centres = np.concatenate([fixed, mates, crowd], axis=2)  # (N, K+1, O, 2)
-        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius, np.full(len(movers), sc.mover_radius)])
+        radii = np.concatenate([sc.obstacles[:, 2], sc.robot_radius, self._mover_radii])
         reach = radii[None, :] + sc.robot_radius[:, None]  # (N, O)
         ignored = np.zeros((n, len(radii)), dtype=bool)
         ignored[:, len(sc.obstacles) : len(sc.obstacles) + n] = ~heard | np.eye(n, dtype=bool)

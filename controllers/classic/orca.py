@@ -45,7 +45,12 @@ from numpy.typing import NDArray
 from controllers.base import BaseController
 from controllers.classic.common import TeamView, check_count, check_positive, goals
 from controllers.estimation import estimator_choices, front_end_option
-from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction, observed_movers
+from controllers.movers import (
+    MOVER_PREDICTIONS,
+    check_mover_prediction,
+    observed_mover_radii,
+    observed_movers,
+)
 from koopman_envs.scenario import Scenario
 
 __all__ = ["ORCAController", "unicycle_tracking"]
@@ -205,6 +210,14 @@ class ORCAController(BaseController):
         for j in range(scenario.n_robots):
             sim.add_agent(self._parking(j))
 
+    def obstacles_seen(self, obstacles: NDArray[np.float64]) -> bool:
+        """Perceived obstacles (map unknown): RVO2 cannot move an obstacle, so the simulator is
+        rebuilt on the new ones before the next decision (the agents are placed every period)."""
+        changed = super().obstacles_seen(obstacles)
+        if changed:
+            self._sim = None
+        return changed
+
     def _parking(self, agent: int) -> tuple[float, float]:
         """Where an agent out of the view waits: far from the map and from every other agent."""
         return (_PARKING + 4.0 * self.neighbour_distance * agent, _PARKING)
@@ -236,6 +249,7 @@ class ORCAController(BaseController):
         ages = np.asarray(info["message_age"], dtype=np.int64)
         position, velocity, heard = self._team.update(known, ages, self._last)
         movers = observed_movers(info)
+        self._mover_radii = observed_mover_radii(info, sc.mover_radius)
         if self.mover_prediction == "static":
             movers = np.column_stack([movers[:, :2], np.zeros((len(movers), 2))])
         goal, moving = goals(sc, position, velocity, heard)
@@ -290,7 +304,9 @@ class ORCAController(BaseController):
             if c < len(movers):
                 x, y, vx, vy = movers[c]
                 sim.set_agent_max_speed(agent, max(float(math.hypot(vx, vy)), 1e-3))
-                self._place(agent, (x, y), (vx, vy), (vx, vy), float(sc.mover_radius) + self.mover_margin)
+                self._place(
+                    agent, (x, y), (vx, vy), (vx, vy), float(self._mover_radii[c]) + self.mover_margin
+                )
             else:
                 self._park(agent)
         sim.do_step()

@@ -208,6 +208,15 @@ class GlobalPlanner:
         self._weight = (COST_NEUTRAL + COST_FACTOR * value) / COST_NEUTRAL
         self._fields = OrderedDict()
 
+    def outdated(self, obstacles: NDArray[np.float64]) -> bool:
+        """Whether ``obstacles`` (M, 3) differ from the gridded ones by more than half a cell
+        (another count, or a centre or radius moved further): perceived obstacles drift by
+        millimetres every period, and the grid is rebuilt only when that shows on it."""
+        obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        if obstacles.shape != self._obstacles.shape:
+            return True
+        return bool(np.any(np.abs(obstacles - self._obstacles) > 0.5 * self.resolution))
+
     def in_sight(self, start: NDArray[np.float64], goal: NDArray[np.float64]) -> bool:
         """Whether the segment ``start``-``goal`` clears every obstacle by the radius and margin."""
         if not len(self._obstacles):

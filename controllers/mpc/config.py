@@ -74,6 +74,11 @@ JIT_ENV = "KOOPNAV_NMPC_JIT"
 #: collision row never binds (and its squared distance stays well inside double precision)
 PARKED = 1.0e3
 
+#: obstacle slots of an NMPC whose map is unknown (``lidar.map_known=False``) and whose
+#: ``obstacle_slots`` is 0: the perceived obstacles nearest each robot, refilled every period
+#: (four: the most any robot of the paper's maps has within its horizon's reach)
+PERCEIVED_OBSTACLE_SLOTS = 4
+
 DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {"ipopt": IPOPT_OPTIONS, "fatrop": FATROP_OPTIONS}
 
 #: the ``nlpsol`` plugins an NMPC solves to convergence (and the real-time iteration's rescue)

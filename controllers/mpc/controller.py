@@ -23,8 +23,8 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController
 from controllers.estimation import front_end_for
-from controllers.movers import observed_movers
-from controllers.mpc.config import PARKED, NMPCConfig
+from controllers.movers import observed_mover_radii, observed_movers
+from controllers.mpc.config import PARKED, PERCEIVED_OBSTACLE_SLOTS, NMPCConfig
 from controllers.mpc.detour import RESTART_ITERATIONS, DeadlockResolver, pursuit_rollout
 from controllers.mpc.hooks import ParameterHooks
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
@@ -65,6 +65,9 @@ class NMPCController(ParameterHooks, BaseController):
     resolves_stalls = True
     #: mover slots of the built problem (set at reset from the scenario and ``mover_slots``)
     _mover_slots = 0
+    #: obstacle slots of the built problem: ``obstacle_slots``, or with the map unknown at least
+    #: :data:`~controllers.mpc.config.PERCEIVED_OBSTACLE_SLOTS` (set at reset)
+    _obstacle_slots = 0
 
     def __init__(
         self, model: PredictionModel | None = None, config: NMPCConfig | None = None, **options: Any
@@ -98,6 +101,7 @@ class NMPCController(ParameterHooks, BaseController):
             self.model, self._model_step = other.model, other._model_step
         self._problem, self._key = other._problem, other._key
         self._mover_slots = other._mover_slots
+        self._obstacle_slots = other._obstacle_slots
 
     def restart(self) -> None:
         """Start the next solve cold (from :meth:`_initial_guess`), not from the shifted plan."""
@@ -114,7 +118,7 @@ class NMPCController(ParameterHooks, BaseController):
             structure,
             scenario.n_robots,
             # with obstacle slots one problem serves any obstacle count
-            0 if self.config.obstacle_slots else scenario.obstacles.shape[0],
+            0 if self._obstacle_slots else scenario.obstacles.shape[0],
             scenario.task,
             tuple(scenario.robot_radius),
             scenario.workspace,
@@ -125,9 +129,9 @@ class NMPCController(ParameterHooks, BaseController):
         )
 
     def _movers_constrained(self, scenario: Scenario) -> int:
-        """Mover slots of this scenario's problem: ``mover_slots``, at most the movers, and none
-        when the robots do not track them (lidar)."""
-        if scenario.n_movers == 0 or scenario.lidar_beams:
+        """Mover slots of this scenario's problem: ``mover_slots``, at most the movers (tracked
+        exactly under state sensing, by the perception front through the lidar)."""
+        if scenario.n_movers == 0:
             return 0
         return min(self.config.mover_slots, scenario.n_movers)
 
@@ -142,12 +146,17 @@ class NMPCController(ParameterHooks, BaseController):
         step = self._model_step[1]
         _, theta_values, structure = step
         self._mover_slots = self._movers_constrained(scenario)
+        # with the map unknown the lidar shows the obstacles a few at a time: slots, refilled
+        # every period from what it has shown (obstacles_seen)
+        self._obstacle_slots = self.config.obstacle_slots or (
+            0 if scenario.map_known else PERCEIVED_OBSTACLE_SLOTS
+        )
         key = self._problem_key(scenario, structure)
         if key != self._key:
             self._problem = Problem(
                 model,
                 scenario,
-                self.config,
+                self.config.with_options(obstacle_slots=self._obstacle_slots),
                 step,
                 terminal_slack=self.config.solver == "rti",
                 neighbour_slots=self.neighbour_slots + self._mover_slots,
@@ -166,6 +175,15 @@ class NMPCController(ParameterHooks, BaseController):
         self._resolver = DeadlockResolver.for_scenario(scenario, margin) if unstall else None
         self.last_plan = None
         self._stats.solver = self.solver_label
+
+    def obstacles_seen(self, obstacles: NDArray[np.float64]) -> bool:
+        """The perceived obstacles (map unknown) fill the obstacle slots and the stall detours."""
+        changed = super().obstacles_seen(obstacles)
+        assert self.scenario is not None  # set by the base
+        self._scenario_obstacles = self.scenario.obstacles
+        if self._resolver is not None:
+            self._resolver.obstacles = self.scenario.obstacles
+        return changed
 
     def _fill_parameters(self, scenario: Scenario, theta_values: NDArray) -> None:
         """The episode's parameter values: goals, obstacles, margins, parked slots, model coefficients.
@@ -189,10 +207,8 @@ class NMPCController(ParameterHooks, BaseController):
             [np.cos(scenario.targets[:, 2]), np.sin(scenario.targets[:, 2])]
         ).reshape(-1)
         params[layout["obstacles"]] = (
-            nearest_obstacle_slots(
-                scenario.starts[:, :2], self._scenario_obstacles, self.config.obstacle_slots
-            )
-            if self.config.obstacle_slots
+            nearest_obstacle_slots(scenario.starts[:, :2], self._scenario_obstacles, self._obstacle_slots)
+            if self._obstacle_slots
             else scenario.obstacles.reshape(-1)
         )
         params[layout["obstacle_margin"]] = obstacle_margin
@@ -218,9 +234,9 @@ class NMPCController(ParameterHooks, BaseController):
     def _fill_slots(self, positions: NDArray, pair_tightening: NDArray | None = None) -> None:
         """Refresh the obstacle slots and the pair slots from the robots' current positions (the
         pair margins widened by ``pair_tightening``, one per pair i < j, when given)."""
-        if self.config.obstacle_slots:
+        if self._obstacle_slots:
             self._params[self._block("obstacles")] = nearest_obstacle_slots(
-                positions, self._scenario_obstacles, self.config.obstacle_slots
+                positions, self._scenario_obstacles, self._obstacle_slots
             )
         if not self.config.pair_slots:
             return
@@ -232,8 +248,9 @@ class NMPCController(ParameterHooks, BaseController):
             self._stats.counts["pairs_dropped"] += dropped
         self._params[self._block("pair_select").start : self._block("pair_reach").stop] = values
 
-    def _fill_movers(self, points: NDArray, movers: NDArray) -> None:
-        """The movers nearest to ``points`` (N, 2), predicted over the horizon, into the mover slots."""
+    def _fill_movers(self, points: NDArray, movers: NDArray, radii: NDArray) -> None:
+        """The movers nearest to ``points`` (N, 2), predicted over the horizon, into the mover
+        slots, each with its radius (C,) and the margin."""
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         positions, reach = mover_slots(
@@ -243,7 +260,7 @@ class NMPCController(ParameterHooks, BaseController):
             self.config.horizon,
             scenario.dt,
             self.config.mover_prediction,
-            scenario.mover_radius + self.config.mover_offset,
+            radii + self.config.mover_offset,
         )
         self.set_movers(positions, reach)
 
@@ -298,10 +315,14 @@ class NMPCController(ParameterHooks, BaseController):
         covariance = info.get("pose_covariance")
         tightened = None if self.config.ablate == "tightening" else covariance
         per_robot, per_pair = chance_tightening(tightened, self.config.chance_risk, self.scenario.n_robots)
-        if self.config.obstacle_slots or self.config.pair_slots:
+        if self._obstacle_slots or self.config.pair_slots:
             self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2], per_pair)
         if self._mover_slots:
-            self._fill_movers(np.asarray(info["observed_poses"], dtype=float)[:, :2], observed_movers(info))
+            self._fill_movers(
+                np.asarray(info["observed_poses"], dtype=float)[:, :2],
+                observed_movers(info),
+                observed_mover_radii(info, self.scenario.mover_radius),
+            )
         if self._resolver is not None:
             self._unstall(info["observed_poses"])
         params = self._params.copy()

@@ -202,6 +202,10 @@ class DistributedNMPC(BaseController):
             targets=scenario.targets[i : i + 1].copy(),
             formation_offsets=np.zeros((1, 2)),
             leader=0,
+            # its obstacles are the slots the team fills (perceived ones too): known, by itself
+            # it perceives nothing (the team's perception runs once, in front of the team)
+            lidar_beams=0,
+            map_known=True,
         )
 
     def calibrate(self, plant: CalibrationPlant, *, seed: int = 0) -> dict[str, Any]:
@@ -360,7 +364,7 @@ class DistributedNMPC(BaseController):
         commands = np.zeros((n, 2))
         fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
         new_plans = self._plans.copy()
-        movers = {"observed_movers": info["observed_movers"]} if "observed_movers" in info else {}
+        movers: dict[str, Any] = {key: info[key] for key in ("observed_movers", "mover_radii") if key in info}
         # an estimator in front hands on each robot's covariance: its own NMPC tightens its
         # obstacle and mover margins by it, and each team-mate's disc by z sigma sqrt(2) (a
         # message carries a pose, not its covariance: the team-mate's is taken to be as large)
@@ -405,7 +409,9 @@ class DistributedNMPC(BaseController):
         own = self._stats
         team = ControllerStats(
             solve_times=list(own.solve_times),
-            extra_times={"robot": list(self._per_robot_times)},
+            # the robots' solves, and the team's perception (the lidar's, when it runs one)
+            extra_times={"robot": list(self._per_robot_times)}
+            | {k: v for k, v in own.extra_times.items() if k == "perception"},
             solver=own.solver,
         )
         team.counts.update(own.counts)  # the team's own: restarts, plans aged or replaced, robots unheard

@@ -121,9 +121,11 @@ def mover_slots(
     horizon: int,
     dt: float,
     prediction: str,
-    reach: float,
+    reach: float | NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The ``slots`` movers nearest to any of ``points`` (P, 2), predicted over the horizon.
+    """The ``slots`` movers nearest to any of ``points`` (P, 2), predicted over the horizon;
+    ``reach`` is the distance to keep from a mover's centre (its radius plus the margin), one for
+    all or one per mover (C,).
 
     Returns
     -------
@@ -140,5 +142,7 @@ def mover_slots(
     distance = np.hypot(*(points[:, None, :] - movers[None, :, :2]).transpose(2, 0, 1)).min(axis=0)
     nearest = np.argsort(distance, kind="stable")[:slots]
     positions[:, : nearest.size] = predict_movers(movers[nearest], horizon, dt, prediction)
-    reaches[: nearest.size] = reach
+    reaches[: nearest.size] = np.broadcast_to(np.asarray(reach, dtype=np.float64), (movers.shape[0],))[
+        nearest
+    ]
     return positions, reaches

@@ -241,7 +241,12 @@ class BarrierFilter:
         return reach, 2 * reach
 
     def filter(
-        self, poses: NDArray, command: NDArray, movers: NDArray | None = None, widen: NDArray | None = None
+        self,
+        poses: NDArray,
+        command: NDArray,
+        movers: NDArray | None = None,
+        widen: NDArray | None = None,
+        mover_radius: float | None = None,
     ) -> FilterStep:
         """The safe command nearest to ``command``.
 
@@ -259,6 +264,9 @@ class BarrierFilter:
             Extra clearance per robot for this period [m] (the pose estimate's uncertainty,
             :func:`controllers.mpc.margins.chance_tightening`): toward obstacles, walls and movers
             by robot i's own, between robots i and j by sqrt(w_i^2 + w_j^2).
+        mover_radius : float, optional
+            The largest observed mover's radius [m] when it exceeds the scenario's (perceived
+            movers, ``mover_radii``): every mover barrier keeps that distance.
 
         Returns
         -------
@@ -279,6 +287,9 @@ class BarrierFilter:
             self._walls,
             self._mover_reach,
         )
+        if mover_radius is not None and mover_radius > self.scenario.mover_radius:
+            # perceived movers may be larger than a person: every mover barrier takes the largest
+            mover_reach = np.ascontiguousarray(mover_reach + (mover_radius - self.scenario.mover_radius))
         if widen is not None:
             w = np.asarray(widen, dtype=np.float64).reshape(n)
             obstacle_reach = np.ascontiguousarray(obstacle_reach + w[:, None])

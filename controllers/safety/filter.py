@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController, Controller, ControllerStats, take_over_radio
-from controllers.movers import observed_movers
+from controllers.movers import observed_mover_radii, observed_movers
 from controllers.mpc.margins import chance_tightening
 from controllers.safety.barriers import BarrierFilter
 from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
@@ -123,6 +123,14 @@ class SafetyFilter(BaseController):
         self._filter = BarrierFilter(scenario, self.options)
         self._stats = SafetyStats()
 
+    def obstacles_seen(self, obstacles: NDArray[np.float64]) -> bool:
+        """Perceived obstacles (map unknown): the barriers are rebuilt on them."""
+        changed = super().obstacles_seen(obstacles)
+        if changed:
+            assert self.scenario is not None  # set by the base
+            self._filter = BarrierFilter(self.scenario, self.options)
+        return changed
+
     @property
     def sensing_radius(self) -> tuple[float, float]:
         """Clearances beyond which obstacles / walls and other robots cannot constrain a robot [m]
@@ -142,8 +150,14 @@ class SafetyFilter(BaseController):
             if covariance is None
             else chance_tightening(covariance, self.options.chance_risk, len(info["observed_poses"]))[0]
         )
+        assert self.scenario is not None  # act() checked it
+        radii = observed_mover_radii(info, self.scenario.mover_radius)
         step = self._filter.filter(
-            np.asarray(info["observed_poses"], dtype=np.float64), command, observed_movers(info), widen
+            np.asarray(info["observed_poses"], dtype=np.float64),
+            command,
+            observed_movers(info),
+            widen,
+            float(radii.max(initial=self.scenario.mover_radius)),
         )
         end = time.perf_counter()
         stats = self._stats

@@ -403,7 +403,20 @@ class NavigationEngine:
             mover_radius=self.config.movers.radius,
             mover_slots=self.observation_layout.movers,
             observation_layout=self.observation_layout,
+            **self._lidar_datasheet(),
         )
+
+    def _lidar_datasheet(self) -> dict[str, Any]:
+        """The scenario's lidar fields (defaults under state sensing)."""
+        lidar = self.config.lidar
+        if lidar is None:
+            return {}
+        return {
+            "lidar_fov": lidar.fov,
+            "lidar_range": lidar.range,
+            "lidar_noise": lidar.noise,
+            "map_known": lidar.map_known,
+        }
 
     def _formation_error(self) -> NDArray[np.float64]:
         """What the reward charges: the slot errors for formation, a placeholder otherwise."""
