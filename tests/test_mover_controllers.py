@@ -61,17 +61,18 @@ def test_mover_slots_take_the_nearest_to_the_team_and_park_the_rest() -> None:
     assert (positions[:, 3] == PARKED).all() and reach.tolist() == [0.3, 0.3, 0.3, 0.0]
 
 
-def test_no_mover_slots_without_movers_or_with_lidar() -> None:
+def test_mover_slots_only_with_movers_tracked_or_seen_through_the_lidar() -> None:
     ctrl = controllers.make("nominal-nmpc", solver="rti")
-    for kwargs in ({}, {"movers": 3, "sensing": "lidar"}):
+    env = gym.make(TR)
+    env.reset(seed=0)
+    ctrl.reset(env, seed=0)
+    assert ctrl.problem is not None and ctrl.problem.neighbour_slots == 0
+    # at most the movers there are; with lidar the perception's tracks fill them
+    for kwargs in ({"movers": 3}, {"movers": 3, "sensing": "lidar"}):
         env = gym.make(TR, **kwargs)
         env.reset(seed=0)
         ctrl.reset(env, seed=0)
-        assert ctrl.problem is not None and ctrl.problem.neighbour_slots == 0, kwargs
-    env = gym.make(TR, movers=3)
-    env.reset(seed=0)
-    ctrl.reset(env, seed=0)
-    assert ctrl.problem.neighbour_slots == 3  # at most the movers there are
+        assert ctrl.problem.neighbour_slots == 3, kwargs
 
 
 def test_a_moving_barrier_makes_a_robot_give_way_to_an_approaching_mover() -> None:

@@ -21,6 +21,7 @@ SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
     "bench/uncertainty_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16"],
     "bench/movers_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16", "--crowd-envs", "4"],
+    "bench/perception_speed.py": ["--periods", "12", "--json", "{tmp}/perception.json"],
     "bench/evaluate_wall.py": [
         "--warm",
         "--workers",

@@ -219,18 +219,23 @@ class LidarPerception:
             return np.ones(len(tracks.ids), dtype=bool)
         static = self._static(tracks)
         self._alive = set(tracks.ids.tolist())
-        for k, track in enumerate(tracks.ids.tolist()):
-            if not static[k]:
-                self._map.pop(track, None)
-                continue
-            disc = np.array([*tracks.states[k, :2], tracks.radii[k]])
-            # an obstacle seen again after its track ended starts a new track: it replaces the
-            # remembered disc it overlaps instead of doubling it
-            for other in [t for t in self._map if t not in self._alive]:
-                remembered = self._map[other][0]
-                if math.hypot(*(remembered[:2] - disc[:2])) < max(remembered[2], disc[2]):
-                    del self._map[other]
-            self._map[track] = (disc, tracks.covariances[k, :2, :2])
+        for track in tracks.ids[~static].tolist():
+            self._map.pop(track, None)
+        discs = np.column_stack([tracks.states[static, :2], tracks.radii[static]])
+        # an obstacle seen again after its track ended starts a new track: it replaces the
+        # remembered disc it overlaps instead of doubling it
+        remembered = [t for t in self._map if t not in self._alive]
+        if remembered and len(discs):
+            old = np.array([self._map[t][0] for t in remembered])
+            gap = np.hypot(old[:, None, 0] - discs[None, :, 0], old[:, None, 1] - discs[None, :, 1])
+            overlap = (gap < np.maximum(old[:, None, 2], discs[None, :, 2])).any(axis=1)
+            for t in np.asarray(remembered)[overlap].tolist():
+                del self._map[t]
+        for k, track in zip(np.flatnonzero(static).tolist(), tracks.ids[static].tolist(), strict=True):
+            self._map[track] = (
+                np.array([*tracks.states[k, :2], tracks.radii[k]]),
+                tracks.covariances[k, :2, :2],
+            )
         return ~static
 
     def _static(self, tracks: MoverTracks) -> NDArray[np.bool_]:
@@ -281,15 +286,16 @@ class LidarPerception:
     def _carve(self, ranges: NDArray[np.float64], pose: NDArray[np.float64]) -> None:
         """Clear the remembered discs (their track ended) that two beams of this scan pass
         through (step 4)."""
-        for track in [t for t in self._map if t not in self._alive]:
-            disc = self._map[track][0]
-            rel = disc[:2] - pose[:2]
-            distance = math.hypot(rel[0], rel[1])
-            if distance <= disc[2]:
-                continue
-            bearing = math.atan2(rel[1], rel[0]) - pose[2]
-            offset = np.angle(np.exp(1j * (self._angles - bearing)))
-            half = math.asin(min(0.5 * disc[2] / distance, 1.0))
-            through = (np.abs(offset) <= half) & (ranges > distance + disc[2])
-            if through.sum() >= 2:
-                del self._map[track]
+        remembered = [t for t in self._map if t not in self._alive]
+        if not remembered:
+            return
+        discs = np.array([self._map[t][0] for t in remembered])  # (R, 3)
+        rel = discs[:, :2] - pose[:2]
+        distance = np.hypot(rel[:, 0], rel[:, 1])
+        bearing = np.arctan2(rel[:, 1], rel[:, 0]) - pose[2]
+        offset = np.remainder(self._angles[None, :] - bearing[:, None] + np.pi, 2 * np.pi) - np.pi
+        half = np.arcsin(np.minimum(0.5 * discs[:, 2] / np.maximum(distance, 1e-12), 1.0))
+        through = (np.abs(offset) <= half[:, None]) & (ranges[None, :] > (distance + discs[:, 2])[:, None])
+        cleared = (through.sum(axis=1) >= 2) & (distance > discs[:, 2])
+        for t in np.asarray(remembered)[cleared].tolist():
+            del self._map[t]

@@ -38,10 +38,12 @@ Team-mates, the map's known obstacles and the workspace walls are recognised and
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_number
@@ -150,16 +152,15 @@ def cluster_scan(
         return []
     spacing = float(angles[1] - angles[0]) if beams > 1 else 2 * math.pi
     full_circle = beams * spacing >= 2 * math.pi - 1e-9
-    local = np.column_stack([ranges * np.cos(angles), ranges * np.sin(angles)])
-    after = np.roll(np.arange(beams), -1)
-    step = np.hypot(*(local[after] - local).T)
+    local_x, local_y = ranges * np.cos(angles), ranges * np.sin(angles)
+    after, before = _neighbours(beams)
+    step = np.hypot(local_x[after] - local_x, local_y[after] - local_y)
     limit = settings.gap + settings.gap_per_beam * np.minimum(ranges, ranges[after]) * spacing
     linked = valid & valid[after] & (step <= limit)
     # a single beam that returned nothing between two returns close enough to be one surface
     # two beams apart is a dropout, not a gap: the run goes on across it (the beam itself is left
     # out of the cluster)
-    before = np.roll(np.arange(beams), 1)
-    across = np.hypot(*(local[after] - local[before]).T)
+    across = np.hypot(local_x[after] - local_x[before], local_y[after] - local_y[before])
     bridged = (
         ~valid
         & valid[before]
@@ -178,9 +179,18 @@ def cluster_scan(
         return [np.arange(beams)[valid]]
     ends = np.flatnonzero(~linked)  # beam b ends a run when it is not linked to b + 1
     # start after a run's end, so that a run across the seam stays whole
-    order = np.roll(np.arange(beams), -(int(ends[0]) + 1))
-    cut = np.flatnonzero(~linked[order]) + 1
-    return [run[valid[run]] for run in np.split(order, cut[:-1]) if valid[run[0]]]
+    shift = int(ends[0]) + 1
+    order = np.concatenate((np.arange(shift, beams), np.arange(shift)))
+    bounds = [0, *(np.flatnonzero(~linked[order]) + 1).tolist()]
+    runs = (order[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True))
+    return [run[valid[run]] for run in runs if valid[run[0]]]
+
+
+@functools.lru_cache(maxsize=16)
+def _neighbours(beams: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The index of the next and of the previous beam around the scan (cached per beam count)."""
+    index = np.arange(beams)
+    return (index + 1) % beams, (index - 1) % beams
 
 
 def fit_circle(
@@ -197,39 +207,62 @@ def fit_circle(
     """
     if len(points) < 3:
         return None
-    x, y = points[:, 0], points[:, 1]
-    # Kasa: x^2 + y^2 + D x + E y + F = 0 is linear in (D, E, F)
-    design = np.column_stack([x, y, np.ones_like(x)])
-    solution, *_ = np.linalg.lstsq(design, -(x * x + y * y), rcond=None)
-    centre = -0.5 * solution[:2]
-    radius_sq = centre @ centre - solution[2]
-    if not np.isfinite(radius_sq) or radius_sq <= 0.0:
+    cx, cy, radius, rms, c00, c01, c11, ok = _circle_fit(np.ascontiguousarray(points, dtype=np.float64))
+    if not ok:
         return None
-    radius = math.sqrt(radius_sq)
-    for _ in range(5):  # Gauss-Newton on the geometric residual |p - c| - r
-        offset = points - centre
-        distance = np.hypot(offset[:, 0], offset[:, 1])
-        if np.any(distance < 1e-12):
-            return None
-        jacobian = np.column_stack([-offset / distance[:, None], -np.ones(len(points))])
-        delta, *_ = np.linalg.lstsq(jacobian, -(distance - radius), rcond=None)
-        centre, radius = centre + delta[:2], radius + float(delta[2])
-        if abs(delta).max() < 1e-10:
-            break
-    offset = points - centre
-    distance = np.hypot(offset[:, 0], offset[:, 1])
-    residual = distance - radius
-    rms = float(np.sqrt(np.mean(residual * residual)))
+    centre = np.array([cx, cy])
     behind = np.hypot(*(centre - viewpoint)) > np.hypot(*(points.mean(axis=0) - viewpoint))
-    if not (settings.min_radius <= radius <= settings.max_radius) or not behind or not np.isfinite(rms):
-        return None
-    jacobian = np.column_stack([-offset / distance[:, None], -np.ones(len(points))])
-    normal = jacobian.T @ jacobian
-    if np.linalg.cond(normal) > 1e12:
+    if not (settings.min_radius <= radius <= settings.max_radius) or not behind:
         return None
     sigma = max(rms, settings.point_sigma)
-    covariance = sigma * sigma * np.linalg.inv(normal)[:2, :2]
-    return np.asarray(centre, dtype=np.float64), float(radius), covariance, rms
+    covariance = sigma * sigma * np.array([[c00, c01], [c01, c11]])
+    return centre, float(radius), covariance, float(rms)
+
+
+@njit(cache=True)
+def _circle_fit(
+    points: NDArray[np.float64],
+) -> tuple[float, float, float, float, float, float, float, bool]:  # pragma: no cover - compiled
+    """Kasa's fit refined by Gauss-Newton (module docstring, step 4), on the points relative to
+    their mean (for conditioning). Returns centre x, y, radius, RMS residual, the centre's
+    unscaled covariance (J^T J)^-1 entries 00, 01, 11, and whether the fit is sound (not
+    degenerate, finite, its normal matrix conditioned below 1e12)."""
+    count = points.shape[0]
+    mx, my = points[:, 0].mean(), points[:, 1].mean()
+    x, y = points[:, 0] - mx, points[:, 1] - my
+    # Kasa: x^2 + y^2 + D x + E y + F = 0 is linear in (D, E, F): its normal equations
+    design = np.empty((count, 3))
+    design[:, 0], design[:, 1], design[:, 2] = x, y, 1.0
+    normal = design.T @ design
+    if abs(np.linalg.det(normal)) < 1e-18:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    solution = np.linalg.solve(normal, design.T @ (-(x * x + y * y)))
+    cx, cy = -0.5 * solution[0], -0.5 * solution[1]
+    radius_sq = cx * cx + cy * cy - solution[2]
+    if not np.isfinite(radius_sq) or radius_sq <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    radius = math.sqrt(radius_sq)
+    jacobian = np.empty((count, 3))
+    residual = np.empty(count)
+    for iteration in range(6):  # Gauss-Newton on |p - c| - r: 5 steps at most, then evaluated
+        for k in range(count):
+            dx, dy = x[k] - cx, y[k] - cy
+            distance = math.sqrt(dx * dx + dy * dy)
+            if distance < 1e-12:
+                return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+            jacobian[k, 0], jacobian[k, 1], jacobian[k, 2] = -dx / distance, -dy / distance, -1.0
+            residual[k] = distance - radius
+        normal = jacobian.T @ jacobian
+        if iteration == 5 or abs(np.linalg.det(normal)) < 1e-18:
+            break
+        delta = np.linalg.solve(normal, jacobian.T @ (-residual))
+        cx, cy, radius = cx + delta[0], cy + delta[1], radius + delta[2]
+    singular = np.linalg.svd(normal)[1]
+    rms = math.sqrt((residual * residual).mean())
+    if not np.isfinite(rms) or singular[2] <= 0.0 or singular[0] / singular[2] > 1e12:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    inverse = np.linalg.inv(normal)
+    return cx + mx, cy + my, radius, rms, inverse[0, 0], inverse[0, 1], inverse[1, 1], True
 
 
 def _prior_discs(

@@ -111,14 +111,20 @@ def fuse_detections(
     count = len(discs)
     if count < 2:
         return discs, covariances
+    gap = np.hypot(discs[:, None, 0] - discs[None, :, 0], discs[:, None, 1] - discs[None, :, 1])
+    close = np.triu(gap < np.maximum(discs[:, None, 2], discs[None, :, 2]), k=1)
+    if not close.any():  # the common case: every disc is its own object
+        return discs, covariances
     group = np.arange(count)
-    for i in range(count):
-        for j in range(i + 1, count):
-            if math.hypot(*(discs[i, :2] - discs[j, :2])) < max(discs[i, 2], discs[j, 2]):
-                group[group == group[j]] = group[i]
+    for i, j in zip(*np.nonzero(close), strict=True):
+        group[group == group[j]] = group[i]
     fused, fused_cov = [], []
     for g in np.unique(group):
         members = np.flatnonzero(group == g)
+        if len(members) == 1:
+            fused.append(discs[members[0]])
+            fused_cov.append(covariances[members[0]])
+            continue
         information = np.linalg.inv(covariances[members])
         total = information.sum(axis=0)
         covariance = np.linalg.inv(total)
@@ -220,11 +226,11 @@ class Tracker:
         """(track, detection) pairs of the cheapest gated one-to-one assignment."""
         if not self._x or not len(discs):
             return []
-        cost = np.empty((len(self._x), len(discs)))
-        for k, (x, P) in enumerate(zip(self._x, self._P, strict=True)):
-            innovation = discs[:, :2] - x[:2]
-            S = P[:2, :2] + covariances
-            cost[k] = np.einsum("di,dij,dj->d", innovation, np.linalg.inv(S), innovation)
+        positions = np.array([x[:2] for x in self._x])  # (T, 2)
+        spread = np.array([P[:2, :2] for P in self._P])  # (T, 2, 2)
+        innovation = discs[None, :, :2] - positions[:, None]  # (T, D, 2)
+        S = spread[:, None] + covariances[None]  # (T, D, 2, 2): every pair in one inversion
+        cost = np.einsum("tdi,tdij,tdj->td", innovation, np.linalg.inv(S), innovation)
         blocked = cost > self._gate
         rows, cols = linear_sum_assignment(np.where(blocked, 1e12, cost))
         return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if not blocked[r, c]]
