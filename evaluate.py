@@ -73,13 +73,14 @@ from evaluation.protocols import (
     quick_protocol,
 )
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
-from evaluation.results import SCHEMA_VERSION, Results
-from evaluation.robustness import profiles, terminal_overview, write_robustness
+from evaluation.report import terminal_overview
+from evaluation.results import SCHEMA_VERSION, Results, write_profiles
+from evaluation.robustness import profiles
 from evaluation.runlog import ensure_output_dir
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
-from evaluation.sweep import check_levels, level_aliases, parse_sweep, run_sweep, write_manifest
+from evaluation.sweep import check_levels, level_aliases, load_sweep, parse_sweep, run_sweep, write_manifest
 from evaluation.thresholds import check_thresholds
 from koopman_envs.suggest import did_you_mean
 
@@ -282,7 +283,7 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
         progress=not args.quiet,
     )
     axes_profiles = profiles(done, args.reference)
-    paths = write_robustness(axes_profiles, args.out, command)
+    paths = write_profiles(axes_profiles, args.out, command)
     if not args.quiet or args.full_report:
         print(terminal_overview(axes_profiles))
     runs = {id(results): results for levels in done.values() for _, results in levels}  # aliases once
@@ -305,11 +306,36 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
     return min(failed, 100)
 
 
+def _sweep_report(out: str, reference: str | None) -> int:
+    """``--sweep-report OUT``: the robustness report of the levels of the sweep in ``OUT``
+    finished so far (a long sweep can be read while it runs); exit 2 for a sweep that cannot be
+    read back, or no level finished yet."""
+    try:
+        done, missing, manifest = load_sweep(out)
+        if not done:
+            raise ValueError(f"no level of the sweep in {out!r} has finished yet")
+        note = f" (levels not finished: {', '.join(missing)})" if missing else ""
+        paths = write_profiles(
+            profiles(done, reference or manifest.get("reference")),
+            out,
+            manifest.get("command", "") + note,
+        )
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if missing:  # named, never dropped silently
+        print(f"levels not finished, left out: {', '.join(missing)}", file=sys.stderr)
+    print(f"wrote {', '.join(map(str, paths.values()))}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit code (:data:`evaluation.cli.EXIT_CODES`)."""
     args = build_parser().parse_args(argv)
     if args.options:
         return _print_options(args.options)
+    if args.sweep_report is not None:
+        return _sweep_report(args.sweep_report, args.reference)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, stop_on_sigterm)
     try:

@@ -27,14 +27,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from evaluation.report import markdown  # noqa: E402
-from evaluation.robustness import (  # noqa: E402
-    AxisProfile,
-    overview_section,
-    profiles,
-    robustness_sections,
-    save_profile_figures,
-)
+from evaluation.figures import save_profile_figures  # noqa: E402
+from evaluation.report import markdown, overview_section, robustness_sections  # noqa: E402
+from evaluation.robustness import AxisProfile, profiles  # noqa: E402
 from evaluation.sweep import load_sweep  # noqa: E402
 
 INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one

@@ -177,7 +177,15 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
     what.add_argument(
         "--reference",
         metavar="CONTROLLER",
-        help="with --sweep: the controller every other is paired against (default: the first; --crowd: koopman-nmpc)",
+        help="with --sweep or --sweep-report: the controller every other is paired against (default: "
+        "the first; --crowd: koopman-nmpc; --sweep-report: the sweep's own)",
+    )
+    what.add_argument(
+        "--sweep-report",
+        metavar="OUT",
+        help="write the robustness report of the levels finished so far of the sweep in OUT (its "
+        "sweep.json; levels not finished are named and left out) and exit, running nothing "
+        "(default: no such report)",
     )
     protocol = what.add_mutually_exclusive_group()
     protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5), IPOPT")

@@ -1,9 +1,11 @@
-"""A run's report as one self-contained HTML page (``OUT/index.html``).
+"""The reports as self-contained HTML pages: a run's (``OUT/index.html``) and a sweep's
+(``OUT/robustness.html``), each written by :func:`write_page`.
 
-The page holds the run configuration, the leaderboard, the paired comparisons and the
+A run's page holds the run configuration, the leaderboard, the paired comparisons and the
 per-controller tables: the sections of :func:`evaluation.report.sections`, which the Markdown
 report renders too (the same formatted cells), every figure as an embedded PNG and, for each cell whose
 episode record names an ``animation`` (a path relative to the output directory), that animation.
+A sweep's page holds its figures and the sections of :func:`evaluation.report.robustness_sections`.
 
 Nothing is loaded from anywhere: CSS and JavaScript are inline, images are ``data:`` URIs, and
 a Content-Security-Policy forbids every other source, so the page opens offline and from an
@@ -26,7 +28,7 @@ import koopman_envs
 from evaluation.report import Items, Note, Section, Table, TableBlock, sections, task_label
 from evaluation.run_data import RunData
 
-__all__ = ["render_html", "write_html"]
+__all__ = ["render_html", "render_page", "write_html", "write_page"]
 
 #: No source but the page itself and ``data:`` images.
 _CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'"
@@ -156,7 +158,7 @@ def _section(section: Section) -> str:
 
 
 def _table(table: Table, caption: str = "") -> str:
-    """A :data:`~evaluation.results.Table` as a sortable HTML table."""
+    """A :data:`~evaluation.report.Table` as a sortable HTML table."""
     header, rows = table
     head = "".join(f'<th scope="col"><button type="button">{_e(h)}</button></th>' for h in header)
     body = "\n".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in row) + "</tr>" for row in rows)
@@ -272,6 +274,24 @@ def _page_head(title: str) -> list[str]:
     ]
 
 
+def _page(title: str, body: Iterable[str]) -> str:
+    """A self-contained page: its head (policy, style, title, sorting hint), ``body`` (HTML
+    parts in order) and the sorting script."""
+    return "\n".join([*_page_head(title), *body, f"<script>{_JS}</script>", "</body>", "</html>", ""])
+
+
+def _gallery(anchor: str, title: str, items: Sequence[str]) -> list[str]:
+    """A titled gallery of figures or animations (nothing for no item)."""
+    if not items:
+        return []
+    return [f'<h2 id="{_e(anchor)}">{_e(title)}</h2>', '<div class="gallery">', *items, "</div>"]
+
+
+def _figures(figures: Iterable[str | os.PathLike]) -> list[str]:
+    """The figures section of a page: every figure embedded, captioned by its file name."""
+    return _gallery("figures", "Figures", [_figure(Path(f), Path(f).name) for f in figures])
+
+
 def render_html(
     results: RunData, out_dir: str | os.PathLike, figures: Iterable[str | os.PathLike] | None = None
 ) -> str:
@@ -296,30 +316,52 @@ def render_html(
     if figures is None:
         figures = sorted((out / "figures").glob("*.png")) if (out / "figures").is_dir() else []
     figure_paths = sorted((Path(f) for f in figures), key=lambda p: p.name)
-    parts = [*_page_head("KoopNav results"), _config_section(results)]
-    parts += [_section(section) for section in sections(results)]
-    if figure_paths:
-        parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']
-        parts += [_figure(p, p.name) for p in figure_paths]
-        parts.append("</div>")
-    animations = _animations(results, out)
-    if animations:
-        parts += ['<h2 id="animations">Animations</h2>', '<div class="gallery">', *animations, "</div>"]
-    parts += [f"<script>{_JS}</script>", "</body>", "</html>", ""]
-    return "\n".join(parts)
+    body = [_config_section(results), *(_section(section) for section in sections(results))]
+    body += _figures(figure_paths)
+    body += _gallery("animations", "Animations", _animations(results, out))
+    return _page("KoopNav results", body)
 
 
 def render_page(title: str, report: Sequence[Section], figures: Iterable[str | os.PathLike] = ()) -> str:
-    """A self-contained page of report sections and embedded figures (the robustness page)."""
-    parts = _page_head(title)
-    paths = [Path(f) for f in figures]
-    if paths:
-        parts += ['<h2 id="figures">Figures</h2>', '<div class="gallery">']
-        parts += [_figure(p, p.name) for p in paths]
-        parts.append("</div>")
-    parts += [_section(section) for section in report]
-    parts += [f"<script>{_JS}</script>", "</body>", "</html>", ""]
-    return "\n".join(parts)
+    """A self-contained page of report sections after their figures (a sweep's robustness page).
+
+    Parameters
+    ----------
+    title : str
+        The page's title and heading.
+    report : sequence of Section
+        The report's sections (:mod:`evaluation.report`), in order.
+    figures : iterable of str or path-like, optional
+        PNG figures to embed above the sections, in the given order.
+
+    Returns
+    -------
+    str
+        The HTML text: no external resource, every data string escaped.
+    """
+    return _page(title, [*_figures(figures), *(_section(section) for section in report)])
+
+
+def write_page(path: str | os.PathLike, page: str) -> Path:
+    """Write a page to ``path``, its folder created if missing: the one writer of every report
+    page, a run's and a sweep's.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Where the page goes (``OUT/index.html``, ``OUT/robustness.html``).
+    page : str
+        The page's HTML (:func:`render_html`, :func:`render_page`).
+
+    Returns
+    -------
+    pathlib.Path
+        The page's path.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(page, encoding="utf-8")
+    return path
 
 
 def write_html(
@@ -341,8 +383,4 @@ def write_html(
     pathlib.Path
         The page's path.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "index.html"
-    path.write_text(render_html(results, out, figures), encoding="utf-8")
-    return path
+    return write_page(Path(out_dir) / "index.html", render_html(results, out_dir, figures))

@@ -1,8 +1,10 @@
 """A run's results with their formats: :class:`Results` is the run's data
 (:class:`~evaluation.run_data.RunData`) plus its Markdown and HTML reports
 (:mod:`evaluation.report`, :mod:`evaluation.html`), JSON, CSV and figures
-(:mod:`evaluation.figures`), and the files they are written to. The renderers read the data
-class, not this one, so nothing imports back here."""
+(:mod:`evaluation.figures`), and the files they are written to. A sweep's robustness profiles
+(:mod:`evaluation.robustness`) are written the same way by :func:`write_profiles`: both go
+through one writer of a report's files. The renderers read the data classes, not this module, so
+nothing imports back here."""
 
 from __future__ import annotations
 
@@ -10,18 +12,24 @@ import csv
 import io
 import json
 import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict
 from pathlib import Path
 
 import evaluation.report as report
 import koopman_envs
-from evaluation.figures import save_figures
-from evaluation.html import write_html
+from evaluation.figures import save_figures, save_profile_figures
+from evaluation.html import render_html, render_page, write_page
 from evaluation.records import json_safe
+from evaluation.robustness import AxisProfile
 from evaluation.run_data import RunData
 
-__all__ = ["Results", "SCHEMA_VERSION", "json_safe"]
+__all__ = ["PROFILES_TITLE", "Results", "SCHEMA_VERSION", "json_safe", "profiles_json", "write_profiles"]
 
 SCHEMA_VERSION = 2
+
+#: the title of a sweep's report (robustness.md and robustness.html)
+PROFILES_TITLE = "KoopNav robustness profiles"
 
 
 class Results(RunData):
@@ -107,14 +115,88 @@ class Results(RunData):
         """Write results.md, results.json, results.csv, figures/ and index.html under ``out_dir``.
 
         ``index.html`` is one self-contained page with every table and figure
-        (see :func:`evaluation.html.write_html`).
+        (see :func:`evaluation.html.render_html`).
         """
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"markdown": out / "results.md", "json": out / "results.json", "csv": out / "results.csv"}
-        paths["markdown"].write_text(self.to_markdown() + "\n", encoding="utf-8")
-        paths["json"].write_text(self.to_json() + "\n", encoding="utf-8")
-        paths["csv"].write_text(self.to_csv(), encoding="utf-8")
-        figures = save_figures(self, out / "figures")
-        paths["html"] = write_html(self, out, figures)
-        return paths
+        files = {
+            "markdown": ("results.md", self.to_markdown() + "\n"),
+            "json": ("results.json", self.to_json() + "\n"),
+            "csv": ("results.csv", self.to_csv()),
+        }
+        return _write_report(
+            out_dir,
+            files,
+            lambda folder: save_figures(self, folder),
+            ("index.html", lambda figures: render_html(self, out_dir, figures)),
+        )
+
+
+def profiles_json(axes: Sequence[AxisProfile]) -> str:
+    """The profiles as the JSON document ``robustness.json`` holds: per axis its key, levels,
+    reference, summary per controller and every row."""
+    data = [
+        {
+            "key": p.key,
+            "levels": p.levels,
+            "reference": p.reference,
+            "summary": p.summary,
+            "rows": [asdict(r) for r in p.rows],
+        }
+        for p in axes
+    ]
+    return json.dumps(json_safe(data), indent=1)
+
+
+def write_profiles(axes: Sequence[AxisProfile], out: str | os.PathLike, command: str = "") -> dict[str, Path]:
+    """Write a sweep's report under ``out``, as :meth:`Results.write` writes a run's.
+
+    Parameters
+    ----------
+    axes : sequence of AxisProfile
+        The profiles (:func:`evaluation.robustness.profiles`).
+    out : str or path-like
+        The sweep's output directory (created if missing).
+    command : str, optional
+        The command that ran the sweep, quoted at the top of the report.
+
+    Returns
+    -------
+    dict
+        ``markdown``, ``json`` and ``html``: the paths of ``robustness.md``, ``robustness.json``
+        and ``robustness.html`` (self-contained, with the figures ``figures/robustness_*.png``).
+    """
+    sections = report.robustness_sections(axes, command)
+    files = {
+        "markdown": ("robustness.md", f"# {PROFILES_TITLE}\n\n" + report.markdown(sections) + "\n"),
+        "json": ("robustness.json", profiles_json(axes) + "\n"),
+    }
+    return _write_report(
+        out,
+        files,
+        lambda folder: save_profile_figures(axes, folder),
+        ("robustness.html", lambda figures: render_page(PROFILES_TITLE, sections, figures)),
+    )
+
+
+def _write_report(
+    out_dir: str | os.PathLike,
+    files: Mapping[str, tuple[str, str]],
+    draw: Callable[[Path], list[Path]],
+    page: tuple[str, Callable[[list[Path]], str]],
+) -> dict[str, Path]:
+    """The one writer of a report's files, a run's or a sweep's: each format's text, the figures
+    drawn into ``out_dir/figures``, then the page that embeds them (:func:`evaluation.html.write_page`).
+
+    ``files`` maps a format to its (file name, text), ``draw`` writes the figures into the folder
+    it is given and returns their paths, and ``page`` is the page's (file name, renderer of the
+    figures' paths). Returns every format's path, the page's as ``html``, in that order.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    for kind, (name, text) in files.items():
+        paths[kind] = out / name
+        paths[kind].write_text(text, encoding="utf-8")
+    figures = draw(out / "figures")
+    name, render = page
+    paths["html"] = write_page(out / name, render(figures))
+    return paths

@@ -7,7 +7,9 @@ trial of the spec) with the level set on top of the spec's env settings, logged 
 directory ``OUT/sweep/<KEY>=<level>/`` and resumable like any run. Trial i uses seed
 ``seed + i`` at every level, and the uncertainty draws come from their own stream
 (:mod:`koopman_envs.sim.perception`), so the maps, starts and slip draws are the same at every
-level: the curves are paired. :mod:`evaluation.robustness` turns the levels into profiles.
+level: the curves are paired. :mod:`evaluation.robustness` turns the levels into profiles, and
+:func:`evaluation.results.write_profiles` writes their report (``python evaluate.py
+--sweep-report OUT``: from the levels of :func:`load_sweep` finished so far).
 """
 
 from __future__ import annotations
@@ -18,8 +20,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation.plan import safe_file_name
+from evaluation.baseline import load_baseline
+from evaluation.plan import safe_file_name, slip_value
+from evaluation.published import extract_archive, results_from_log
+from evaluation.report.blocks import level_text
 from evaluation.results import Results
+from evaluation.runner import evaluate
 from evaluation.spec import RunSpec, with_env_setting
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.keywords import ENV_KEYWORDS
@@ -55,11 +61,11 @@ class SweepAxis:
     @property
     def label(self) -> str:
         """``KEY=v1,v2,...`` as given."""
-        return f"{self.key}=" + ",".join(_text(v) for v in self.levels)
+        return f"{self.key}=" + ",".join(level_text(v) for v in self.levels)
 
     def level_dir(self, out: str | os.PathLike, level: Any) -> Path:
         """The run directory of one level."""
-        return Path(out) / "sweep" / safe_file_name(f"{self.key}={_text(level)}")
+        return Path(out) / "sweep" / safe_file_name(f"{self.key}={level_text(level)}")
 
     def apply(self, spec: RunSpec, level: Any) -> RunSpec:
         """``spec`` with this axis at ``level`` (over the spec's own env settings)."""
@@ -68,10 +74,6 @@ class SweepAxis:
         return spec.replace(
             env_kwargs=with_env_setting(spec.env_kwargs, self.key, level, f"--sweep {self.key}")
         )
-
-
-def _text(value: Any) -> str:
-    return value if isinstance(value, str) else json.dumps(value)
 
 
 def parse_sweep(text: str) -> SweepAxis:
@@ -124,10 +126,10 @@ def check_levels(spec: RunSpec, axes: list[SweepAxis]) -> None:
                 try:
                     for slip in sub.slips:
                         EngineConfig.create(
-                            task_for_env(env_id).name, slip=_slip(slip), map="random", **settings
+                            task_for_env(env_id).name, slip=slip_value(slip), map="random", **settings
                         )
                 except (TypeError, ValueError) as exc:
-                    raise ValueError(f"--sweep {axis.key}={_text(level)}: {exc}") from None
+                    raise ValueError(f"--sweep {axis.key}={level_text(level)}: {exc}") from None
 
 
 def _signature(spec: RunSpec) -> str:
@@ -155,19 +157,13 @@ def level_aliases(spec: RunSpec, axes: list[SweepAxis]) -> dict[str, str]:
     aliases = {}
     for axis in axes:
         for level in axis.levels:
-            name = f"{axis.key}={_text(level)}"
+            name = f"{axis.key}={level_text(level)}"
             signature = _signature(axis.apply(spec, level))
             if signature in first:
                 aliases[name] = first[signature]
             else:
                 first[signature] = name
     return aliases
-
-
-def _slip(slip: str) -> Any:
-    from evaluation.plan import slip_value
-
-    return slip_value(slip)
 
 
 def run_sweep(
@@ -194,8 +190,6 @@ def run_sweep(
     RunInterrupted
         Ctrl-C: every finished episode is logged; ``resume=True`` continues where it stopped.
     """
-    from evaluation.runner import evaluate
-
     check_levels(spec, axes)
     aliases = level_aliases(spec, axes)
     finished: dict[str, Results] = {}
@@ -203,7 +197,7 @@ def run_sweep(
     for axis in axes:
         done[axis.key] = []
         for level in axis.levels:
-            name = f"{axis.key}={_text(level)}"
+            name = f"{axis.key}={level_text(level)}"
             if name in aliases:  # the same run as an earlier level: its episodes serve both
                 done[axis.key].append((level, finished[aliases[name]]))
                 continue
@@ -305,9 +299,6 @@ def load_sweep(
         A manifest or a level's results.json that is torn, foreign, of an unreadable schema, or
         recording another value of its axis than its directory's (each named).
     """
-    from evaluation.baseline import load_baseline
-    from evaluation.published import extract_archive, results_from_log
-
     out = Path(out)
     if out.is_file() and out.name.endswith(".tar.gz"):
         out, from_logs = extract_archive(out), True
@@ -319,12 +310,12 @@ def load_sweep(
     for entry in manifest["axes"]:
         axis = SweepAxis(entry["key"], tuple(entry["levels"]))
         for level in axis.levels:
-            by_name[f"{axis.key}={_text(level)}"] = (axis, level)
+            by_name[f"{axis.key}={level_text(level)}"] = (axis, level)
     for entry in manifest["axes"]:
         axis = SweepAxis(entry["key"], tuple(entry["levels"]))
         done[axis.key] = []
         for level in axis.levels:
-            name = f"{axis.key}={_text(level)}"
+            name = f"{axis.key}={level_text(level)}"
             run_axis, run_level = by_name.get(aliases.get(name, name), (axis, level))
             file = run_axis.level_dir(out, run_level) / ("episodes.jsonl" if from_logs else "results.json")
             if not file.exists():
@@ -346,37 +337,3 @@ def load_sweep(
         if not done[axis.key]:
             del done[axis.key]
     return done, missing, manifest
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m evaluation.sweep OUT``: the robustness report of the finished levels of a sweep."""
-    import argparse
-    import sys
-
-    from evaluation.robustness import profiles, write_robustness
-
-    parser = argparse.ArgumentParser(prog="python -m evaluation.sweep", description=main.__doc__)
-    parser.add_argument("out", help="the sweep's output directory (holding sweep.json)")
-    parser.add_argument("--reference", help="controller every other is paired against (default: the sweep's)")
-    args = parser.parse_args(argv)
-    try:
-        done, missing, manifest = load_sweep(args.out)
-        if not done:
-            raise ValueError(f"no level of the sweep in {args.out!r} has finished yet")
-        note = f" (levels not finished: {', '.join(missing)})" if missing else ""
-        paths = write_robustness(
-            profiles(done, args.reference or manifest.get("reference")),
-            args.out,
-            manifest.get("command", "") + note,
-        )
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    if missing:
-        print(f"levels not finished, left out: {', '.join(missing)}", file=sys.stderr)
-    print(f"wrote {', '.join(map(str, paths.values()))}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -26,7 +26,7 @@ EXAMPLES = 12
 PEAK_BYTES = 400 * 2**20
 
 #: flags whose values name files to write (drawn inside the example's directory only)
-_PATHS = {"--out", "--ablation-out"}
+_PATHS = {"--out", "--ablation-out", "--sweep-report"}
 #: one small cell, overridden by the drawn flag (argparse: the last value wins)
 BASE = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--controllers", "consensus"]
 BASE += ["--episodes", "1", "--workers", "1", "--quiet"]

@@ -240,8 +240,7 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
 
 
 def test_the_success_chart_keeps_its_legend_off_the_bars(tmp_path: Path) -> None:
-    from evaluation.figures import _success_figure
-    from evaluation.profile_figures import colour_of
+    from evaluation.figures import _success_figure, colour_of
     from evaluation.run_data import RunData
 
     records = []

@@ -1,9 +1,9 @@
-"""The robustness figures a reader can read (evaluation/profile_figures.py): families, one colour
+"""The robustness figures a reader can read (evaluation/figures.py): families, one colour
 per controller in every figure, identical twins drawn once, units on the axes."""
 
 from __future__ import annotations
 
-from evaluation.profile_figures import FAMILIES, axis_label, colour_of, family_of, save_profile_figures, twins
+from evaluation.figures import FAMILIES, axis_label, colour_of, family_of, save_profile_figures, twins
 from evaluation.robustness import AxisProfile, LevelRow
 
 

@@ -181,7 +181,8 @@ def test_a_level_that_is_the_same_run_as_another_runs_once(tmp_path) -> None:
 
 
 def test_the_report_of_a_sweep_is_read_back_checked(tmp_path, capsys) -> None:
-    from evaluation.sweep import main as report
+    def report(argv: list[str]) -> int:  # python evaluate.py --sweep-report OUT
+        return ev.main(["--sweep-report", *argv])
 
     out = tmp_path / "o"
     args = [*TINY, "--controllers", "consensus-free", "--sweep", "actuation_delay=0,2"]
@@ -192,6 +193,8 @@ def test_the_report_of_a_sweep_is_read_back_checked(tmp_path, capsys) -> None:
     (out / "sweep" / "actuation_delay-2" / "results.json").unlink()
     assert report([str(out)]) == 0
     assert "levels not finished, left out: actuation_delay=2" in capsys.readouterr().err
+    assert report([str(out), "--reference", "nobody"]) == 2
+    assert "--reference 'nobody' is not one of the run's controllers" in capsys.readouterr().err
     # a level's results of another run, a torn one, a foreign manifest: refused by name
     other = json.loads((out / "sweep" / "actuation_delay-0" / "results.json").read_text())
     other["config"]["env_settings"]["actuation_delay"] = 3
@@ -258,7 +261,7 @@ def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
     with pytest.raises(ValueError, match=r"--reference 'nobody' is not one of the run's controllers"):
         profiles({"comm.drop": [(0, level_0)]}, reference="nobody")
     # the overview: every axis's AUC per controller, and the axis with the largest drop
-    from evaluation.robustness import overview_section, robustness_sections
+    from evaluation.report import overview_section, robustness_sections
 
     assert overview_section([profile]) is None  # one axis: its own summary says it all
     both = profiles(

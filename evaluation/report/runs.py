@@ -1,39 +1,41 @@
-"""A run's report, built once as sections (title, notes, tables, lists) that Markdown
-(``results.md``, the terminal) and HTML (``index.html``) render alike.
-
-Every table is a :data:`Table`: a header and rows of cells already formatted as text (rates
-with their Wilson intervals, means with their bootstrap intervals), so that every format shows
-the same numbers.
+"""A run's report, built once as sections (:mod:`evaluation.report.blocks`) that Markdown
+(``results.md``, the terminal) and HTML (``index.html``) render alike: the leaderboard, the
+paired comparisons, the per-controller tables, and the episodes that raised or degraded.
 """
 
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
+from evaluation.report.blocks import (
+    Block,
+    Items,
+    Note,
+    Section,
+    Table,
+    TableBlock,
+    count_cell,
+    markdown_table,
+    mean_cell,
+    mean_sd_cell,
+    number_cell,
+    p_cell,
+    rate_cell,
+)
 from evaluation.run_data import RunData
 from koopman_envs.tasks.base import TASKS
 
 __all__ = [
+    "DEGRADED_NOTE",
     "LEADERBOARD_NOTE",
-    "Note",
     "PAIRED_NOTE",
-    "Items",
-    "Section",
     "TABLES_NOTE",
-    "Table",
-    "TableBlock",
     "controller_tables",
     "leaderboard_rows",
-    "markdown",
-    "markdown_cell",
-    "markdown_table",
-    "markdown_text",
     "paired_rows",
     "paper_rows",
     "sections",
@@ -48,9 +50,6 @@ def task_label(env_id: str) -> str:
     """Report name of a task ("formation"), or the id itself for an unknown one."""
     return _LABELS.get(env_id, env_id)
 
-
-#: A report table: its header and its rows, every cell already formatted as text.
-Table = tuple[list[str], list[list[str]]]
 
 LEADERBOARD_NOTE = (
     "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
@@ -81,42 +80,6 @@ TABLES_NOTE = (
     "Success and SR: k/n [95% Wilson interval]. Robots: mean+-SD over collision-free runs (the paper's "
     "convention). Team: mean over robots per run, mean [95% bootstrap interval]."
 )
-
-
-# --------------------------------------------------------------------------- cell formats
-def _pct(rate: float, ci: tuple[float, float] | list[float]) -> str:
-    """``80% [49-94]``: a rate with its interval, in percent."""
-    if rate is None or math.isnan(rate):
-        return "-"
-    return f"{100 * rate:.0f}% [{100 * ci[0]:.0f}-{100 * ci[1]:.0f}]"
-
-
-def _count(k: int, n: int, ci: tuple[float, float]) -> str:
-    """``8/10 [49-94%]``."""
-    if n == 0:
-        return "-"
-    return f"{k}/{n} [{100 * ci[0]:.0f}-{100 * ci[1]:.0f}%]"
-
-
-def _mean_ci(mean: float, low: float, high: float) -> str:
-    if mean is None or math.isnan(mean):
-        return "-"
-    return f"{mean:.1f} [{low:.1f}-{high:.1f}]"
-
-
-def _mean_sd(mean: float, sd: float, runs: int) -> str:
-    if runs == 0 or math.isnan(mean):
-        return "-"
-    return f"{mean:.1f}" if runs == 1 else f"{mean:.1f}+-{sd:.1f}"
-
-
-def _number(value: float | None, form: str) -> str:
-    """``value`` in ``form``, or ``-`` when there is none (None or NaN)."""
-    return "-" if value is None or math.isnan(value) else form.format(value)
-
-
-def _p_value(p: float) -> str:
-    return "<0.001" if p < 1e-3 else f"{p:.3f}"
 
 
 # --------------------------------------------------------------------------- tables
@@ -160,14 +123,14 @@ def leaderboard_rows(results: RunData) -> Table:
                 task_label(row["env_id"]),
                 row["controller"],
                 str(row["episodes"]),
-                _pct(row["success_rate"], row["success_ci"]),
-                _pct(row["collision_free_rate"], row["collision_free_ci"]),
-                _mean_ci(row["final_distance_cm"], *row["final_distance_ci"]),
-                _mean_ci(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
-                _number(row.get("time_to_goal_s"), "{:.1f}"),
-                _number(row.get("path_ratio"), "{:.2f}"),
-                _number(row.get("min_clearance_cm"), "{:.1f}"),
-                _number(row.get("accel_rms"), "{:.2f}"),
+                rate_cell(row["success_rate"], row["success_ci"]),
+                rate_cell(row["collision_free_rate"], row["collision_free_ci"]),
+                mean_cell(row["final_distance_cm"], *row["final_distance_ci"]),
+                mean_cell(row["final_distance_collision_free_cm"], *row["final_distance_collision_free_ci"]),
+                number_cell(row.get("time_to_goal_s"), "{:.1f}"),
+                number_cell(row.get("path_ratio"), "{:.2f}"),
+                number_cell(row.get("min_clearance_cm"), "{:.1f}"),
+                number_cell(row.get("accel_rms"), "{:.2f}"),
                 *([str((row.get("collisions_by_kind") or {}).get("mover", 0))] if mover_hits else []),
                 row.get("solver") or "-",
                 solve,
@@ -225,9 +188,9 @@ def paired_rows(results: RunData) -> Table:
                 f"{100 * r['rate_b']:.0f}%",
                 f"{100 * r['difference']:+.0f} [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]",
                 f"{r['only_a']} / {r['only_b']}",
-                _number(r.get("prob_improvement"), "{:.2f}"),
-                _p_value(r["p_value"]),
-                _p_value(r["p_holm"]) if "p_holm" in r else "-",
+                number_cell(r.get("prob_improvement"), "{:.2f}"),
+                p_cell(r["p_value"]),
+                p_cell(r["p_holm"]) if "p_holm" in r else "-",
             ]
         )
     return header, rows
@@ -254,11 +217,11 @@ def paper_rows(results: RunData, env_id: str, controller: str) -> Table:
             [
                 c.map,
                 c.slip,
-                _count(c.successes, c.valid, c.success_ci),
-                _count(c.collision_free, c.valid, c.collision_free_ci),
-                *(_mean_sd(m, s, free.runs) for m, s in free.per_robot),
-                _mean_ci(free.team_mean, free.team_low, free.team_high),
-                _mean_ci(settled.team_mean, settled.team_low, settled.team_high),
+                count_cell(c.successes, c.valid, c.success_ci),
+                count_cell(c.collision_free, c.valid, c.collision_free_ci),
+                *(mean_sd_cell(m, s, free.runs) for m, s in free.per_robot),
+                mean_cell(free.team_mean, free.team_low, free.team_high),
+                mean_cell(settled.team_mean, settled.team_low, settled.team_high),
             ]
         )
     return header, rows
@@ -298,40 +261,6 @@ def _calibration_used(results: RunData) -> str:
 
 
 # --------------------------------------------------------------------------- sections
-@dataclass(frozen=True)
-class Note:
-    """A paragraph of explanation."""
-
-    text: str
-
-
-@dataclass(frozen=True)
-class TableBlock:
-    """A table with an optional caption."""
-
-    table: Table
-    caption: str = ""
-
-
-@dataclass(frozen=True)
-class Items:
-    """A list of (code, text) entries, e.g. the episodes that raised and their errors."""
-
-    entries: tuple[tuple[str, str], ...]
-
-
-Block = Note | TableBlock | Items
-
-
-@dataclass(frozen=True)
-class Section:
-    """One part of the report: an anchor (the HTML id), a title and its blocks in order."""
-
-    anchor: str
-    title: str
-    blocks: tuple[Block, ...]
-
-
 def sections(results: RunData) -> list[Section]:
     """The report of a run, in order: leaderboard, paired comparisons (when any two controllers
     share episodes), per-controller tables, and the episodes that raised (when any did)."""
@@ -360,54 +289,6 @@ def sections(results: RunData) -> list[Section]:
         )
         out.append(Section("degraded", "Degraded episodes", (Note(DEGRADED_NOTE), Items(entries))))
     return out
-
-
-# --------------------------------------------------------------------------- Markdown
-#: what opens raw HTML in Markdown (CommonMark: "<" before a tag name, "/", "!" or "?"); "<0.001" does not
-_HTML_OPENING = re.compile(r"<(?=[A-Za-z/!?])")
-
-
-def markdown_text(text: str) -> str:
-    """``text`` safe in a Markdown document: every ``<`` that could open an HTML tag becomes
-    ``&lt;``, as the HTML report escapes it (controller labels and errors are user text: a label
-    ``<img onerror=...>`` must show as text, not run in a Markdown viewer)."""
-    return _HTML_OPENING.sub("&lt;", text)
-
-
-def markdown_cell(text: str) -> str:
-    """A table cell's text: escaped, and its ``|`` kept from splitting the row."""
-    return markdown_text(text).replace("|", "\\|")
-
-
-def _code(text: str) -> str:
-    """``text`` as a Markdown code span, fenced by more backticks than any run inside it."""
-    longest = max((len(run) for run in re.findall("`+", text)), default=0)
-    fence = "`" * (longest + 1)
-    return f"{fence} {text} {fence}" if longest else f"`{text}`"
-
-
-def markdown_table(table: Table) -> str:
-    """A :data:`Table` as a Markdown table (every cell escaped: :func:`markdown_text`)."""
-    header, rows = table
-    lines = ["| " + " | ".join(map(markdown_cell, header)) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(map(markdown_cell, row)) + " |" for row in rows]
-    return "\n".join(lines)
-
-
-def _markdown_block(block: Block) -> str:
-    if isinstance(block, Note):
-        return markdown_text(block.text)
-    if isinstance(block, TableBlock):
-        caption = f"**{markdown_text(block.caption)}**\n\n" if block.caption else ""
-        return caption + markdown_table(block.table)
-    return "\n".join(f"- {_code(code)}: {markdown_text(text)}" for code, text in block.entries)
-
-
-def markdown(report: Sequence[Section]) -> str:
-    """The sections as one Markdown document (``## title`` per section)."""
-    return "\n\n".join(
-        f"## {markdown_text(s.title)}\n\n" + "\n\n".join(_markdown_block(b) for b in s.blocks) for s in report
-    )
 
 
 def terminal_summary(results: RunData, paths: Mapping[str, Path]) -> str:
