@@ -18,10 +18,12 @@ from evaluation.configs import FALLBACK_NONE, split_controller_list
 from evaluation.protocols import (
     CROWD_COUNTS,
     CROWD_REFERENCE,
+    LIDAR_AXES,
     QUICK_START_NOISE,
     TASK_MAPS,
     ablation_protocol,
     crowd_protocol,
+    lidar_protocol,
     paper_protocol,
     quick_protocol,
 )
@@ -200,6 +202,13 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
         help="navigation among movers: every controller on the paper maps and 20 random layouts, 20 "
         "trials per cell, swept over 0, 4, 8 and 16 movers of BEHAVIOUR (constant, waypoints or "
         "crowd; docs/movers.md) (default: no movers)",
+    )
+    protocol.add_argument(
+        "--lidar",
+        action="store_true",
+        help="navigating on what the robots see: every controller that perceives, on the paper maps "
+        "and 20 random layouts among 4 constant movers, 20 trials per cell, swept over exact state, "
+        "the lidar with the map known and the lidar only (docs/perception.md)",
     )
     protocol.add_argument(
         "--ablation",
@@ -419,6 +428,12 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         if not args.sweep:  # the protocol's own axis: the mover count
             args.sweep = ["movers.count=" + ",".join(str(c) for c in CROWD_COUNTS)]
         if args.reference is None and not args.controllers:  # pair everyone against the paper's method
+            args.reference = CROWD_REFERENCE
+    elif args.lidar:
+        spec = lidar_protocol()
+        if not args.sweep:  # the protocol's own axes: state, beams with the map, beams only
+            args.sweep = list(LIDAR_AXES)
+        if args.reference is None and not args.controllers:
             args.reference = CROWD_REFERENCE
     else:
         spec = quick_protocol()

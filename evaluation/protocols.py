@@ -20,6 +20,9 @@ __all__ = [
     "CROWD_COUNTS",
     "CROWD_REFERENCE",
     "crowd_protocol",
+    "LIDAR_AXES",
+    "LIDAR_MOVERS",
+    "lidar_protocol",
     "PROTOCOLS",
     "QUICK_SLIPS",
     "QUICK_START_NOISE",
@@ -127,6 +130,41 @@ def crowd_protocol(behaviour: str = "crowd") -> RunSpec:
         random_maps=20,
         env_kwargs={
             "movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0},
+            "start_noise": START_NOISE,
+        },
+        solver="rti",
+    )
+
+
+#: the sensing protocol's axes (``--lidar``): exact state against the beams with the map known,
+#: and the beams with the map known against the beams only (the level lidar with the map known is
+#: run once for both axes: the same episodes)
+LIDAR_AXES = ("sensing=state,lidar", "lidar.map_known=true,false")
+#: the movers of the sensing protocol: enough to track, few enough that the map dominates
+LIDAR_MOVERS = 4
+
+
+def lidar_protocol() -> RunSpec:
+    """Navigating on what the robots see (``--lidar``; docs/perception.md): both tasks on their
+    paper maps and 20 seeded random layouts, nominal slip, 20 trials per cell, among
+    :data:`LIDAR_MOVERS` constant movers at :data:`CROWD_SPEED`, every registered controller
+    that plans on obstacles and movers (the learned policies read the obstacle list and refuse
+    lidar), the NMPCs on the real-time iteration; swept (the command line adds it) over
+    :data:`LIDAR_AXES`: exact state (movers through the env's tracker), the beams with the map
+    known, the beams only. Paired on shared seeds: the same starts, layouts, slip draws and
+    movers at every level."""
+    from controllers import available
+
+    return RunSpec(
+        envs=tuple(TASK_MAPS),
+        maps=TASK_MAPS,
+        slips=("nominal",),
+        episodes=20,
+        random_maps=20,
+        controllers=[parse_controller(name) for name in available() if not name.startswith("rl-")],
+        env_kwargs={
+            "sensing": "lidar",
+            "movers": {"behaviour": "constant", "speed": CROWD_SPEED, "count": LIDAR_MOVERS},
             "start_noise": START_NOISE,
         },
         solver="rti",
