@@ -4,7 +4,7 @@ Usage::
 
     python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] [--out docs/robustness_results.md]
         [--figures docs/_static] [--title TEXT] [--intro FILE] [--names NAME ...]
-        [--figure-prefix sweep] [--reference CONTROLLER]
+        [--figure-prefix sweep] [--reference CONTROLLER] [--level-costs]
 
 Each sweep directory (holding the sweep.json manifest) becomes one part: its command, the levels
 not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
@@ -28,8 +28,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from evaluation.figures import save_profile_figures  # noqa: E402
-from evaluation.report import markdown, overview_section, robustness_sections  # noqa: E402
-from evaluation.robustness import AxisProfile, profiles  # noqa: E402
+from evaluation.report import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
+from evaluation.robustness import AxisProfile, level_costs, profiles  # noqa: E402
 from evaluation.sweep import load_sweep  # noqa: E402
 
 INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one
@@ -60,6 +60,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--reference", help="the controller every other is paired against (default: each sweep's own)"
+    )
+    parser.add_argument(
+        "--level-costs",
+        action="store_true",
+        help="add per part what each level costs each controller against the axis's first level "
+        "(paired, Holm-adjusted; the sensing protocol's 'what seeing through a lidar costs')",
     )
     args = parser.parse_args(argv)
     if args.names is not None and len(args.names) != len(args.sweeps):
@@ -105,6 +111,9 @@ def main(argv: list[str] | None = None) -> int:
             link = os.path.relpath(target, out.resolve().parent)
             parts.append(f"![{name}: robustness to {profile.key}]({link})")
         parts.append(markdown(robustness_sections(axes)).replace("## Robustness", "### Robustness"))
+        costs = level_cost_section(level_costs(done)) if args.level_costs else None
+        if costs is not None:
+            parts.append(markdown([costs]).replace("## What", "### What"))
     if args.names is not None:
         scope = (
             "Every part's axes side by side, named by part: each part is one sweep, its setting "

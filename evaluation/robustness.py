@@ -36,7 +36,7 @@ from evaluation.statistics import (
     wilson_interval,
 )
 
-__all__ = ["TAIL_SHARE", "AxisProfile", "LevelRow", "profiles"]
+__all__ = ["TAIL_SHARE", "AxisProfile", "LevelCost", "LevelRow", "level_costs", "profiles"]
 
 #: share of the worst episodes the tail summary averages
 TAIL_SHARE = 0.1
@@ -209,4 +209,64 @@ def _distinct_units(units: list[Unit], per_level: list[dict[Unit, dict[str, Any]
         if identity not in seen:
             seen.add(identity)
             out.append(unit)
+    return out
+
+
+@dataclass
+class LevelCost:
+    """What a level of an axis costs one controller: its success there against its success at
+    the axis's first level, on the episode units both share (paired; rates in [0, 1])."""
+
+    key: str
+    controller: str
+    level: Any
+    first: Any
+    pairs: int
+    first_success: float
+    success: float
+    difference: float
+    low: float
+    high: float
+    p_value: float
+    #: Holm's adjustment over every level cost of the sweep
+    p_holm: float = math.nan
+
+
+def level_costs(sweep: Mapping[str, Sequence[tuple[Any, RunData]]]) -> list[LevelCost]:
+    """Every controller's cost of every level of every axis against the axis's first level:
+    the paired difference in success (Newcombe interval, exact McNemar p) on the shared units
+    (distinct ones: a unit whose two episodes repeat an earlier one's of its cell counts once),
+    with Holm's adjustment over all of them (e.g. what seeing through a lidar costs each
+    controller against exact state, ``--lidar``)."""
+    out = []
+    for key, levels in sweep.items():
+        slip_axis = key == "slip"
+        first_level, first_run = levels[0]
+        for controller in first_run.config["controllers"]:
+            first = _by_unit(first_run, controller, slip_axis)
+            for level, results in levels[1:]:
+                mine = _by_unit(results, controller, slip_axis)
+                shared = distinct_units(sorted(set(mine) & set(first)), mine, first, cell_of=lambda u: u[:3])
+                if not shared:
+                    continue
+                now = [bool(mine[u]["success"]) for u in shared]
+                before = [bool(first[u]["success"]) for u in shared]
+                test = paired_comparison(now, before)
+                out.append(
+                    LevelCost(
+                        key,
+                        controller,
+                        level,
+                        first_level,
+                        len(shared),
+                        float(np.mean(before)),
+                        float(np.mean(now)),
+                        test.difference,
+                        test.low,
+                        test.high,
+                        test.p_value,
+                    )
+                )
+    for cost, adjusted in zip(out, holm_adjusted(c.p_value for c in out), strict=True):
+        cost.p_holm = adjusted
     return out

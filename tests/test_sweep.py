@@ -260,6 +260,7 @@ def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
     assert 0.0 <= low <= profile.summary["other"]["auc"] <= high <= 1.0
     with pytest.raises(ValueError, match=r"--reference 'nobody' is not one of the run's controllers"):
         profiles({"comm.drop": [(0, level_0)]}, reference="nobody")
+
     # the overview: every axis's AUC per controller, and the axis with the largest drop
     from evaluation.report import overview_section, robustness_sections
 
@@ -284,3 +285,36 @@ def test_a_sweep_prints_its_overview_to_the_terminal(tmp_path, capsys) -> None:
     out = capsys.readouterr().out
     assert "| Controller | actuation_delay=0 | actuation_delay=2 | AUC |" in out
     assert "| consensus-free | 0% (2) | 0% (2) | 0% |" in out  # never succeeds, every episode distinct
+
+
+def test_what_each_level_costs_each_controller_against_its_own_first_level() -> None:
+    from types import SimpleNamespace as Results
+
+    from evaluation.report import level_cost_section, markdown
+    from evaluation.robustness import level_costs
+    from evaluation.statistics import paired_comparison
+
+    config = {"controllers": ["ref", "other"]}
+    level_0 = Results(
+        records=_records("ref", [True] * 4, [0.01] * 4)
+        + _records("other", [True, True, False, True], [0.02] * 4),
+        config=config,
+    )
+    level_1 = Results(
+        records=_records("ref", [True, True, True, False], [0.01] * 4)
+        + _records("other", [False, False, False, True], [0.3] * 4),
+        config=config,
+    )
+    costs = level_costs({"sensing": [("state", level_0), ("lidar", level_1)]})
+    assert [(c.controller, c.level, c.first, c.pairs) for c in costs] == [
+        ("ref", "lidar", "state", 4),
+        ("other", "lidar", "state", 4),
+    ]
+    other = costs[1]
+    expected = paired_comparison([False, False, False, True], [True, True, False, True])
+    assert (other.success, other.first_success) == (0.25, 0.75)
+    assert (other.difference, other.p_value) == (expected.difference, expected.p_value)
+    assert all(c.p_holm >= c.p_value for c in costs)  # Holm never lowers a p-value
+    text = markdown([level_cost_section(costs)])
+    assert "| other | sensing | lidar (state) | 4 | 25 (75) |" in text
+    assert level_cost_section([]) is None

@@ -27,7 +27,12 @@ from evaluation.report.blocks import (
     markdown_table,
     markdown_text,
 )
-from evaluation.report.profiles import overview_section, robustness_sections, terminal_overview
+from evaluation.report.profiles import (
+    level_cost_section,
+    overview_section,
+    robustness_sections,
+    terminal_overview,
+)
 from evaluation.report.runs import (
     DEGRADED_NOTE,
     LEADERBOARD_NOTE,
@@ -59,6 +64,7 @@ __all__ = [
     "markdown_cell",
     "markdown_table",
     "markdown_text",
+    "level_cost_section",
     "overview_section",
     "paired_rows",
     "paper_rows",

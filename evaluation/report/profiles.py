@@ -19,9 +19,9 @@ from evaluation.report.blocks import (
     level_text,
     markdown_table,
 )
-from evaluation.robustness import TAIL_SHARE, AxisProfile
+from evaluation.robustness import TAIL_SHARE, AxisProfile, LevelCost
 
-__all__ = ["overview_section", "robustness_sections", "terminal_overview"]
+__all__ = ["level_cost_section", "overview_section", "robustness_sections", "terminal_overview"]
 
 
 def terminal_overview(axes: Sequence[AxisProfile]) -> str:
@@ -221,3 +221,41 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
     if command and out:
         out[0] = Section(out[0].anchor, out[0].title, (Note(f"Command: `{command}`"), *out[0].blocks))
     return out
+
+
+def level_cost_section(costs: Sequence[LevelCost], title: str = "What each level costs") -> Section | None:
+    """Every controller's success at each level against its own at the axis's first level,
+    paired on the same episodes (:func:`evaluation.robustness.level_costs`); None without any."""
+    if not costs:
+        return None
+    header = [
+        "Controller",
+        "Axis",
+        "Level (against)",
+        "Pairs",
+        "Success [%]",
+        "Difference [pp]",
+        "McNemar p",
+        "Holm p",
+    ]
+    rows = [
+        [
+            c.controller,
+            c.key,
+            f"{level_text(c.level)} ({level_text(c.first)})",
+            str(c.pairs),
+            f"{100 * c.success:.0f} ({100 * c.first_success:.0f})",
+            interval_cell(c.difference, c.low, c.high, 100),
+            f"{c.p_value:.3g}",
+            f"{c.p_holm:.3g}",
+        ]
+        for c in costs
+    ]
+    note = (
+        "Each controller against itself: its success at a level against its success at the axis's "
+        "first level (in brackets), on the episode units both levels share (distinct units only), "
+        "difference with a 95% Newcombe interval, exact McNemar p and Holm's adjustment over every "
+        "row of the table."
+    )
+    anchor = "level-costs"
+    return Section(anchor, title, (Note(note), TableBlock((header, rows))))
