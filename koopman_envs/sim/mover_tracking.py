@@ -15,9 +15,9 @@ once it has :data:`CONFIRM_HITS` detections, predicted on while unseen and dropp
 (zero rows for the movers without one) and ``mover_tracked`` which movers have one; each
 robot's observation lists the nearest reported ones; ``info["movers"]`` keeps the true states for scoring.
 
-The filter is written out here, batched over every environment and mover in a few array
-operations (a vector env steps thousands of movers per call; filterpy filters one at a time),
-and tested equal to filterpy's ``predict`` and ``update`` (tests/test_mover_tracking.py). The
+The filter is written out here and compiled with the step, every environment and mover in one
+call (a vector env steps thousands of movers per call; filterpy filters one at a time in
+Python), and tested equal to filterpy's ``predict`` and ``update`` (tests/test_mover_tracking.py). The
 detection noise comes from its own child of each env's generator, so the movers' motion and
 every other noise stream are the same with tracking on or off.
 """
@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.movers import MoverConfig
@@ -55,6 +56,8 @@ BIRTH_SPEED_SIGMA = 1.0
 CONFIRM_HITS = 3
 #: seconds a track survives unseen
 DROP_AFTER = 0.5
+#: detection errors drawn per environment at a time (pooled over periods, at most 32)
+POOL_DRAWS = 512
 
 
 def cv_model(dt: float, accel_sigma: float = ACCEL_SIGMA) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -68,31 +71,115 @@ def cv_model(dt: float, accel_sigma: float = ACCEL_SIGMA) -> tuple[NDArray[np.fl
     return F, Q
 
 
+@njit(cache=True)
 def cv_predict(
-    x: NDArray[np.float64], P: NDArray[np.float64], F: NDArray[np.float64], Q: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Kalman prediction of a batch of states (..., 4) and covariances (..., 4, 4)."""
-    return x @ F.T, F @ P @ F.T + Q
+    x: NDArray[np.float64], P: NDArray[np.float64], dt: float, Q: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """Kalman prediction of one track in place under the constant-velocity model of
+    :func:`cv_model`: x (4,) <- F x, P (4, 4) <- F P F^T + Q, written out for F's blocks
+    [[I, dt I], [0, I]] (a fortieth of the general product's work)."""
+    x[0] += dt * x[2]
+    x[1] += dt * x[3]
+    for a in range(2):
+        for b in range(2):
+            vv = P[a + 2, b + 2]
+            P[a, b] += dt * (P[a, b + 2] + P[a + 2, b]) + dt * dt * vv
+            P[a, b + 2] += dt * vv
+            P[a + 2, b] += dt * vv
+    for a in range(4):
+        for b in range(4):
+            P[a, b] += Q[a, b]
 
 
+@njit(cache=True)
 def cv_update(
-    x: NDArray[np.float64], P: NDArray[np.float64], z: NDArray[np.float64], R: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Kalman update (Joseph form, as filterpy's) of a batch by position measurements z (..., 2)
-    of covariance R (..., 2, 2)."""
-    S = P[..., :2, :2] + R
-    # the 2x2 inverse in closed form, for the whole batch at once
-    det = S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] * S[..., 1, 0]
-    inverse = np.stack(
-        [np.stack([S[..., 1, 1], -S[..., 0, 1]], -1), np.stack([-S[..., 1, 0], S[..., 0, 0]], -1)], -2
-    )
-    inverse = inverse / det[..., None, None]
-    gain = P[..., :, :2] @ inverse  # (..., 4, 2)
-    x = x + (gain @ (z - x[..., :2])[..., None])[..., 0]
-    I_KH = np.broadcast_to(np.eye(4), P.shape).copy()
-    I_KH[..., :, :2] -= gain
-    P = I_KH @ P @ np.swapaxes(I_KH, -1, -2) + gain @ R @ np.swapaxes(gain, -1, -2)
-    return x, P
+    x: NDArray[np.float64], P: NDArray[np.float64], z0: float, z1: float, r: float, work: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """Kalman update of one track in place by a position measurement (z0, z1) of covariance
+    r I, in the Joseph form as filterpy's ``update``: P <- A P A^T + r K K^T with A = I - K H;
+    ``work`` (6, 4) is scratch (no allocation per track)."""
+    s00, s01, s10, s11 = P[0, 0] + r, P[0, 1], P[1, 0], P[1, 1] + r
+    det = s00 * s11 - s01 * s10
+    i00, i01, i10, i11 = s11 / det, -s01 / det, -s10 / det, s00 / det
+    k0, k1 = work[4], work[5]  # the gain's columns
+    for a in range(4):
+        k0[a] = P[a, 0] * i00 + P[a, 1] * i10
+        k1[a] = P[a, 0] * i01 + P[a, 1] * i11
+    e0, e1 = z0 - x[0], z1 - x[1]
+    for a in range(4):
+        x[a] += k0[a] * e0 + k1[a] * e1
+    # work = A P, A[a, b] = delta_ab - (K H)[a, b]: (K H)[a, 0] = k0[a], (K H)[a, 1] = k1[a]
+    for a in range(4):
+        for c in range(4):
+            work[a, c] = P[a, c] - k0[a] * P[0, c] - k1[a] * P[1, c]
+    for a in range(4):
+        for c in range(4):
+            P[a, c] = (
+                work[a, c] - work[a, 0] * k0[c] - work[a, 1] * k1[c] + r * (k0[a] * k0[c] + k1[a] * k1[c])
+            )
+
+
+@njit(cache=True)
+def _track_step(
+    x: NDArray[np.float64],
+    P: NDArray[np.float64],
+    hits: NDArray[np.int64],
+    misses: NDArray[np.int64],
+    movers: NDArray[np.float64],
+    true_poses: NDArray[np.float64],
+    estimated_poses: NDArray[np.float64],
+    pool: NDArray[np.float64],
+    cursor: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    dt: float,
+    Q: NDArray[np.float64],
+    sigma: float,
+    r: float,
+    detection_range: float,
+    birth_var: float,
+    drop_misses: int,
+) -> None:  # pragma: no cover - compiled
+    """One period of the environments ``rows`` (module docstring): each mover detected by the
+    nearest robot within range (relative position plus ``sigma`` times its row of the
+    environment's error ``pool`` at its ``cursor``, which advances;
+    turned by that robot's heading error, placed at its estimated position); every live track
+    predicted, the detected ones updated (a new one born at rest), the rules applied."""
+    n_robots = true_poses.shape[2]
+    work = np.empty((6, 4))
+    for q in range(rows.shape[0]):
+        k = rows[q]
+        for m in range(movers.shape[1]):
+            best, nearest = np.inf, 0
+            for i in range(n_robots):
+                d = math.hypot(movers[k, m, 0] - true_poses[k, 0, i], movers[k, m, 1] - true_poses[k, 1, i])
+                if d < best:
+                    best, nearest = d, i
+            detected = best <= detection_range
+            alive = hits[k, m] > 0
+            if alive:
+                cv_predict(x[k, m], P[k, m], dt, Q)
+            if detected:
+                rx = movers[k, m, 0] - true_poses[k, 0, nearest] + sigma * pool[k, cursor[k], m, 0]
+                ry = movers[k, m, 1] - true_poses[k, 1, nearest] + sigma * pool[k, cursor[k], m, 1]
+                turn = estimated_poses[k, 2, nearest] - true_poses[k, 2, nearest]
+                c, s = math.cos(turn), math.sin(turn)
+                z0 = estimated_poses[k, 0, nearest] + c * rx - s * ry
+                z1 = estimated_poses[k, 1, nearest] + s * rx + c * ry
+                if alive:
+                    cv_update(x[k, m], P[k, m], z0, z1, r, work)
+                else:  # born at rest
+                    x[k, m, 0], x[k, m, 1], x[k, m, 2], x[k, m, 3] = z0, z1, 0.0, 0.0
+                    P[k, m] = 0.0
+                    P[k, m, 0, 0] = P[k, m, 1, 1] = r
+                    P[k, m, 2, 2] = P[k, m, 3, 3] = birth_var
+                hits[k, m] += 1
+                misses[k, m] = 0
+            elif alive:
+                misses[k, m] += 1
+                if misses[k, m] > drop_misses:
+                    hits[k, m] = 0
+                    misses[k, m] = 0
+        cursor[k] += 1  # every period draws its errors, seen or not
 
 
 class MoverTracker:
@@ -115,7 +202,7 @@ class MoverTracker:
     ) -> None:
         self.num_envs, self.count, self.dt = num_envs, count, dt
         self.detection_range, self.detection_noise = detection_range, detection_noise
-        self._F, self._Q = cv_model(dt)
+        _, self._Q = cv_model(dt)
         self._R = np.eye(2) * max(detection_noise, 1e-6) ** 2  # exact detections: a tiny floor
         self._drop_misses = max(1, math.ceil(DROP_AFTER / dt - 1e-9))
         self.x = np.zeros((num_envs, count, 4))
@@ -124,6 +211,10 @@ class MoverTracker:
         self.misses = np.zeros((num_envs, count), dtype=np.int64)
         self.rngs: list[np.random.Generator | None] = [None] * num_envs
         self._parents: list[np.random.Generator | None] = [None] * num_envs
+        # pooled detection errors: POOL_DRAWS per environment at a time (at least a period's)
+        periods = max(1, min(32, POOL_DRAWS // max(count, 1)))
+        self._pool = np.zeros((num_envs, periods, count, 2))
+        self._cursor = np.full(num_envs, periods, dtype=np.int64)
 
     @classmethod
     def for_movers(cls, movers: MoverConfig, num_envs: int, listed: int, dt: float) -> MoverTracker | None:
@@ -141,6 +232,7 @@ class MoverTracker:
             self.rngs[index] = child_generator(rng)
         self.hits[index] = 0
         self.misses[index] = 0
+        self._cursor[index] = self._pool.shape[1]  # the episode's errors: fresh draws
 
     def step(
         self,
@@ -164,27 +256,26 @@ class MoverTracker:
         rows = np.arange(self.num_envs) if rows is None else np.asarray(rows, dtype=np.int64)
         if not len(rows):
             return
-        detected, z = self._detections(movers[rows], true_poses[rows], estimated_poses[rows], rows)
-        hits, misses = self.hits[rows], self.misses[rows]
-        alive = hits > 0
-        x, P = cv_predict(self.x[rows], self.P[rows], self._F, self._Q)
-        update = detected & alive
-        if update.any():
-            x[update], P[update] = cv_update(x[update], P[update], z[update], self._R)
-        born = detected & ~alive
-        if born.any():
-            x[born] = np.concatenate([z[born], np.zeros((int(born.sum()), 2))], axis=1)
-            birth = np.zeros((int(born.sum()), 4, 4))
-            birth[:, :2, :2] = self._R
-            birth[:, 2, 2] = birth[:, 3, 3] = BIRTH_SPEED_SIGMA**2
-            P[born] = birth
-        hits[detected] += 1
-        misses[detected] = 0
-        misses[alive & ~detected] += 1
-        dropped = misses > self._drop_misses
-        hits[dropped] = 0
-        misses[dropped] = 0
-        self.x[rows], self.P[rows], self.hits[rows], self.misses[rows] = x, P, hits, misses
+        self._refill(rows)
+        _track_step(
+            self.x,
+            self.P,
+            self.hits,
+            self.misses,
+            np.ascontiguousarray(movers, dtype=np.float64),
+            np.ascontiguousarray(true_poses, dtype=np.float64),
+            np.ascontiguousarray(estimated_poses, dtype=np.float64),
+            self._pool,
+            self._cursor,
+            rows,
+            self.dt,
+            self._Q,
+            self.detection_noise,
+            self._R[0, 0],
+            self.detection_range,
+            BIRTH_SPEED_SIGMA**2,
+            self._drop_misses,
+        )
 
     def observed(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """The reported tracks (x, y, vx, vy), shape (K, C, 4), zero for a mover without one,
@@ -192,44 +283,16 @@ class MoverTracker:
         reported = self.hits >= CONFIRM_HITS
         return np.where(reported[..., None], self.x, 0.0), reported
 
-    def _detections(
-        self,
-        movers: NDArray[np.float64],
-        true_poses: NDArray[np.float64],
-        estimated_poses: NDArray[np.float64],
-        rows: NDArray[np.int64],
-    ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
-        """Which movers of the environments ``rows`` are detected (R, C), and where (R, C, 2): by
-        the nearest robot in range, relative to it, with noise, through its estimated pose."""
-        noise = np.stack([self._draw(k) for k in rows.tolist()])  # (R, C, 2), drawn every period
-        offset = movers[:, :, None, :2] - np.swapaxes(true_poses[:, :2], 1, 2)[:, None]  # (K, C, N, 2)
-        distance = np.hypot(offset[..., 0], offset[..., 1])
-        nearest = np.argmin(distance, axis=2)  # (K, C)
-        detected = np.take_along_axis(distance, nearest[..., None], axis=2)[..., 0] <= self.detection_range
-        rel = (
-            np.take_along_axis(offset, nearest[..., None, None], axis=2)[:, :, 0]
-            + self.detection_noise * noise
-        )
-        true_heading = np.take_along_axis(true_poses[:, 2], nearest, axis=1)
-        estimate = np.take_along_axis(
-            estimated_poses, np.broadcast_to(nearest[:, None], (len(nearest), 3, self.count)), 2
-        )
-        turn = estimate[:, 2] - true_heading  # the robot's heading error turns what it sees
-        c, s = np.cos(turn), np.sin(turn)
-        z = np.stack(
-            [
-                estimate[:, 0] + c * rel[..., 0] - s * rel[..., 1],
-                estimate[:, 1] + s * rel[..., 0] + c * rel[..., 1],
-            ],
-            -1,
-        )
-        return detected, z
-
-    def _draw(self, index: int) -> NDArray[np.float64]:
-        rng = self.rngs[index]
-        if rng is None:
-            raise RuntimeError("MoverTracker: reset_env() every environment before step()")
-        return rng.standard_normal((self.count, 2))
+    def _refill(self, rows: NDArray[np.int64]) -> None:
+        """Redraw the error pool of every environment of ``rows`` that has used its pool up
+        (standard normals from its generator: a Python call per environment every few
+        periods, not every period)."""
+        for k in rows[self._cursor[rows] >= self._pool.shape[1]].tolist():
+            rng = self.rngs[k]
+            if rng is None:
+                raise RuntimeError("MoverTracker: reset_env() every environment before step()")
+            self._pool[k] = rng.standard_normal(self._pool.shape[1:])
+            self._cursor[k] = 0
 
 
 def observed_movers(
