@@ -44,11 +44,17 @@ def check_mover_prediction(value: Any) -> str:
 
 
 def observed_movers(info: dict[str, Any]) -> NDArray[np.float64]:
-    """The tracked movers of an observed view, (C, 4): x, y, vx, vy (shape (0, 4) without any)."""
+    """The tracked movers of an observed view, (C, 4): x, y, vx, vy (shape (0, 4) without any).
+    A mover the env's tracker reports no track of (``mover_tracked`` False) is left out."""
     movers = info.get("observed_movers")
     if movers is None:
         return np.zeros((0, 4))
-    return np.asarray(movers, dtype=np.float64).reshape(-1, 4)
+    movers = np.asarray(movers, dtype=np.float64).reshape(-1, 4)
+    tracked = info.get("mover_tracked")
+    if tracked is None:
+        return movers
+    tracked = np.asarray(tracked, dtype=bool).reshape(-1)
+    return movers if tracked.all() else movers[tracked]
 
 
 def observed_mover_radii(info: dict[str, Any], default: float) -> NDArray[np.float64]:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from koopman_envs.checks import check_choice, check_int, check_number
+from koopman_envs.checks import check_choice, check_flag, check_int, check_number
 from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
@@ -70,6 +70,17 @@ class MoverConfig:
     pause : float
         ``"waypoints"`` and ``"crowd"``: longest pause at a waypoint [s] (drawn uniformly), at
         most ``LIMITS.mover_pause`` (an hour).
+    tracking : bool
+        ``sensing="state"``: the controllers and the observation get the movers as a people
+        tracker reports them (True: detected within ``detection_range`` with
+        ``detection_noise``, filtered; :mod:`koopman_envs.sim.mover_tracking`), or their exact
+        states (False, the behaviour before 0.2). ``info["movers"]`` is the truth either way.
+    detection_range : float
+        Largest robot-mover distance at which a mover is detected [m] (5: a 2D lidar's useful
+        range for legs, as the default lidar's).
+    detection_noise : float
+        Standard deviation of a detection's position error per axis [m] (0.05: a leg or person
+        detector on a 2D lidar at a few metres).
     """
 
     count: int = 0
@@ -79,6 +90,9 @@ class MoverConfig:
     aware: bool = False
     observed: int = 4
     pause: float = 2.0
+    tracking: bool = True
+    detection_range: float = 5.0
+    detection_noise: float = 0.05
 
     def __post_init__(self) -> None:
         check_choice("movers.behaviour", self.behaviour, MOVER_BEHAVIOURS)
@@ -94,6 +108,17 @@ class MoverConfig:
             "observed": check_int("movers.observed", self.observed, 0, maximum=LIMITS.movers),
             "pause": check_number(
                 "movers.pause", self.pause, at_least=0, at_most=LIMITS.mover_pause, note="seconds"
+            ),
+            "tracking": check_flag("movers.tracking", self.tracking),
+            "detection_range": check_number(
+                "movers.detection_range",
+                self.detection_range,
+                above=0,
+                at_most=LIMITS.lidar_range,
+                note="metres",
+            ),
+            "detection_noise": check_number(
+                "movers.detection_noise", self.detection_noise, at_least=0, note="metres"
             ),
         }
         for name, value in checked.items():  # stored in normal form (0 and 0.0 are one setting)

@@ -19,7 +19,7 @@ __all__ = ["DERIVED_KEYS", "OBSERVED_KEYS", "SENSED_KEYS", "observed_view"]
 #: The info keys an env writes for its controllers: every robot's own pose estimate, what each
 #: robot has heard of its team-mates and how old it is, the lidar readings, the targets (a
 #: robot's goal is given, not sensed) and, with movers and ``sensing="state"``, the tracked
-#: movers (x, y, vx, vy).
+#: movers (x, y, vx, vy) and which of them have a track (``mover_tracked``).
 SENSED_KEYS = (
     "observed_poses",
     "known_poses",
@@ -27,6 +27,7 @@ SENSED_KEYS = (
     "lidar_ranges",
     "targets",
     "observed_movers",
+    "mover_tracked",
 )
 #: The keys a controller's own front-ends write and hand on to the controller they stand in front
 #: of, never an env: an estimator's ``pose_covariance`` (N, 3, 3) (``ekf:``), and the lidar

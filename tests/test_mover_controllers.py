@@ -23,7 +23,7 @@ TR = "KoopNav-TargetReaching-v0"
 
 
 def test_the_nmpc_s_prediction_is_the_path_of_a_constant_velocity_mover() -> None:
-    env = gym.make(TR, movers=dict(count=1, speed=0.3))
+    env = gym.make(TR, movers=dict(count=1, speed=0.3, tracking=False))
     ctrl = controllers.make("nominal-nmpc", solver="rti")
     for seed in range(20):  # a seed whose mover meets no edge or obstacle within the horizon
         obs, info = env.reset(seed=seed)
@@ -105,7 +105,7 @@ def test_controllers_read_the_movers_from_the_observed_view_only(name: str) -> N
 
 
 def test_prediction_changes_what_the_nmpc_does() -> None:
-    env = gym.make(TR, movers=dict(count=8, speed=0.3))
+    env = gym.make(TR, movers=dict(count=8, speed=0.3, tracking=False))
     obs, info = env.reset(seed=0)
     with_it = controllers.make("nominal-nmpc", solver="rti")
     without = controllers.make("nominal-nmpc", solver="rti", mover_prediction="static")

@@ -179,7 +179,7 @@ def test_touching_a_mover_ends_the_episode_with_the_mover_kind() -> None:
 
 # --------------------------------------------------------------------------- observation
 def test_each_robot_lists_its_nearest_movers_and_masks_absent_slots() -> None:
-    env = gym.make(TR, movers=dict(count=2, observed=3, speed=0.3))
+    env = gym.make(TR, movers=dict(count=2, observed=3, speed=0.3, tracking=False))
     plain = gym.make(TR)
     obs, info = env.reset(seed=4)
     plain_obs, _ = plain.reset(seed=4)
@@ -224,10 +224,10 @@ def test_lidar_beams_hit_the_movers_and_the_observation_lists_none() -> None:
     assert ahead == pytest.approx(1.0 - 0.2, abs=1e-9)  # from the robot's centre to the mover's surface
 
 
-def test_info_holds_the_true_mover_states_and_the_view_tracks_them() -> None:
+def test_info_holds_the_true_mover_states_and_without_tracking_the_view_too() -> None:
     from koopman_envs.observed import observed_view
 
-    env = gym.make(FO, movers=dict(count=3, behaviour="waypoints"))
+    env = gym.make(FO, movers=dict(count=3, behaviour="waypoints", tracking=False))
     _, info = env.reset(seed=2)
     for _ in range(5):
         _, _, _, _, info = env.step(np.zeros(6))

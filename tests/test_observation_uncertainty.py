@@ -64,7 +64,7 @@ def _believed_blocks(env: Any, info: dict[str, Any]) -> np.ndarray:
                 if j != i:
                     row += [min(age[i, j], AGE_MAX), 1.0] if age[i, j] >= 0 else [AGE_MAX, 0.0]
         if engine.builder.mover_slots:
-            movers = info["observed_movers"]
+            movers = info["observed_movers"][info["mover_tracked"]]  # those with a track
             gaps = np.hypot(movers[:, 0] - x, movers[:, 1] - y) - radius[i] - cfg.movers.radius
             order = np.argsort(gaps, kind="stable")[: engine.builder.mover_slots]
             for m in order:

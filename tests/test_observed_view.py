@@ -74,7 +74,7 @@ def test_the_view_is_what_the_robots_believe() -> None:
     view = observed_view(info)
     # every observed key but the movers' (this env has none) and what a controller's front-ends
     # (estimator, perception) hand on (an env never writes them)
-    assert set(view) == {*SENSED_KEYS, "poses", "distances"} - {"observed_movers"}
+    assert set(view) == {*SENSED_KEYS, "poses", "distances"} - {"observed_movers", "mover_tracked"}
     assert view["poses"] is view["observed_poses"] and not np.array_equal(
         view["distances"], info["distances"]
     )

@@ -33,6 +33,7 @@ def test_the_observed_keys_are_the_beliefs_the_targets_and_the_tracked_movers() 
         "lidar_ranges",
         "targets",
         "observed_movers",
+        "mover_tracked",
         "pose_covariance",
         "mover_covariance",
         "mover_radii",
@@ -50,10 +51,11 @@ def test_an_env_info_passes_its_observed_keys_as_they_are_and_aliases_the_estima
         "lidar_ranges": np.ones((2, 8)),
         "targets": np.array([[3.0, 4.0, 0.0], [-5.0, 14.0, 1.0]]),
         "observed_movers": np.zeros((2, 1, 4)),
+        "mover_tracked": np.ones((2, 1), dtype=bool),
         "pose_covariance": np.tile(np.eye(3), (2, 1, 1)),  # what an estimator in front hands on
     }
     view = observed_view({**TRUTH, **beliefs})
-    assert list(view) == [*OBSERVED_KEYS[:7], "poses", "distances"]
+    assert list(view) == [*OBSERVED_KEYS[:8], "poses", "distances"]
     for key, value in beliefs.items():
         assert view[key] is value  # passed as they are, not copied or converted
     np.testing.assert_array_equal(view["poses"], observed, strict=True)

@@ -365,7 +365,7 @@ def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_p
 def test_the_movers_set_reads_the_listed_movers() -> None:
     from baselines.set_features import MOVER_SIZE, SetFeatureConfig, set_features, split_movers
 
-    env = gym.make("KoopNav-TargetReaching-v0", movers=dict(count=2, observed=3))
+    env = gym.make("KoopNav-TargetReaching-v0", movers=dict(count=2, observed=3, tracking=False))
     obs, info = env.reset(seed=1)
     blocks, movers = split_movers(obs.reshape(3, -1), 3)
     assert movers.shape == (3, 3, MOVER_SIZE) and (movers[:, 2, 4] == 30).all()  # the third absent

@@ -364,7 +364,9 @@ class DistributedNMPC(BaseController):
         commands = np.zeros((n, 2))
         fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
         new_plans = self._plans.copy()
-        movers: dict[str, Any] = {key: info[key] for key in ("observed_movers", "mover_radii") if key in info}
+        movers: dict[str, Any] = {
+            key: info[key] for key in ("observed_movers", "mover_tracked", "mover_radii") if key in info
+        }
         # an estimator in front hands on each robot's covariance: its own NMPC tightens its
         # obstacle and mover margins by it, and each team-mate's disc by z sigma sqrt(2) (a
         # message carries a pose, not its covariance: the team-mate's is taken to be as large)

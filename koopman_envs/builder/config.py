@@ -157,6 +157,20 @@ class EngineConfig:
     movers: MoverConfig = MoverConfig()
 
     @property
+    def lidar_datasheet(self) -> dict[str, Any]:
+        """The lidar fields of the scenario (its fov, range, noise and map mode; none under
+        state sensing, which leaves the scenario's defaults)."""
+        lidar = self.lidar
+        if lidar is None:
+            return {}
+        return {
+            "lidar_fov": lidar.fov,
+            "lidar_range": lidar.range,
+            "lidar_noise": lidar.noise,
+            "map_known": lidar.map_known,
+        }
+
+    @property
     def perceives(self) -> bool:
         """True when robots observe anything but the exact state at once (then
         :class:`~koopman_envs.sim.perception.Perception` runs)."""

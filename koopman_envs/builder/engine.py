@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.engine_memory import check_engine_memory, engine_array_bytes
+from koopman_envs.builder.engine_scenario import engine_scenario
 from koopman_envs.builder.episode_layout import episode_layout
 from koopman_envs.checks import check_commands
 from koopman_envs.params import PARAMS
@@ -27,6 +28,7 @@ from koopman_envs.sim.collision import collision_flags
 from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
+from koopman_envs.sim.mover_tracking import MoverTracker, listed_movers, observed_movers
 from koopman_envs.sim.movers import MoverField
 from koopman_envs.sim.perception import Perception, observed_info
 from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
@@ -111,6 +113,8 @@ class NavigationEngine:
         #: one robot's observation block by name (the public seam of every policy)
         self.observation_layout = config.observation_layout
         layout = self.observation_layout
+        #: the people tracker the movers are observed through (None: exact, or not at all)
+        self.mover_tracker = MoverTracker.for_movers(config.movers, k, layout.movers, PARAMS.dt)
         self.builder = FeatureBuilder(
             k,
             n,
@@ -121,6 +125,7 @@ class NavigationEngine:
             comm=layout.comm,
             lidar_range=0.0 if config.lidar is None else config.lidar.range,
             movers=layout.movers,
+            mover_radius=config.movers.radius,
         )
         self._all_rows = np.arange(k, dtype=np.int64)
         self.feature_size = self.builder.shape[-1]
@@ -132,7 +137,8 @@ class NavigationEngine:
         self._workspace = np.asarray(PARAMS.workspace, dtype=np.float64)
         self._all_active = np.ones(k, dtype=bool)
         self._no_formation = np.zeros((k, n))
-        self._settle_steps = PARAMS.settle_steps
+        #: periods every robot must stay within tolerance for success
+        self.settle_steps = PARAMS.settle_steps
         if config.map_spec is not None:
             for index in range(k):
                 self._set_map(index, config.map_spec)
@@ -233,6 +239,8 @@ class NavigationEngine:
             self.perception.reset_env(index, rng)  # its first readings: at the next features() or step()
         if self.movers is not None:  # another child of rng: placed clear of this episode's starts and targets
             self.movers.reset_env(index, rng, spec.obstacles, starts, targets, float(cfg.robot_radius[0]))
+        if self.mover_tracker is not None:  # the last child of rng: every earlier stream is as before
+            self.mover_tracker.reset_env(index, rng)
 
     def _flush_perception(self) -> None:
         """The first readings of the environments reset since the last step (one batched call)."""
@@ -260,7 +268,7 @@ class NavigationEngine:
             self.geometry,
             self.offset if self.config.task.formation else None,
             self.perception,
-            self.movers,
+            listed_movers(self.observed_movers()),
         )
         return features
 
@@ -318,19 +326,7 @@ class NavigationEngine:
         collision_flags(
             new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
         )
-        movers = self.movers
-        if movers is not None:  # the movers move through the same period, then meet the team
-            movers.step(before, new, rows)
-            movers.meet(new, cfg.robot_radius, collision)
-        if perception is not None:
-            perception.update(new, self._obstacle_discs(), cfg.robot_radius, rows)
-        features, distances = self.builder.build(
-            new, self.target, geometry, self.offset if cfg.task.formation else None, perception, movers
-        )
-        if perception is not None:  # the builder measured what the robots believe; rewards need the truth
-            dx = self.target[:, 0] - new[:, 0]
-            dy = self.target[:, 1] - new[:, 1]
-            distances = np.sqrt(dx * dx + dy * dy)
+        features, distances = self._sense(before, new, rows, collision)
         k, n = distances.shape
         robot_reward, team_reward = np.empty((k, n)), np.empty(k)
         success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
@@ -338,7 +334,7 @@ class NavigationEngine:
             cfg.task.reward,
             cfg.task.formation,
             cfg.goal_tolerance,
-            self._settle_steps,
+            self.settle_steps,
             cfg.max_episode_steps,
             self.distances,
             distances,
@@ -361,6 +357,40 @@ class NavigationEngine:
             self.slip_clock.advance(self.elapsed, active, slip.rngs, slip.lambdas)
         return StepResult(features, robot_reward, team_reward, terminated, truncated)
 
+    def _sense(
+        self,
+        before: NDArray[np.float64],
+        new: NDArray[np.float64],
+        rows: NDArray[np.int64],
+        collision: NDArray[np.int64],
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The world after the robots' move: the movers move and meet the team (their contacts
+        into ``collision``), the robots sense, the tracker follows the movers; returns the
+        observation blocks and the true target distances (the rewards')."""
+        cfg, perception, movers = self.config, self.perception, self.movers
+        if movers is not None:  # the movers move through the same period, then meet the team
+            movers.step(before, new, rows)
+            movers.meet(new, cfg.robot_radius, collision)
+        if perception is not None:
+            perception.update(new, self._obstacle_discs(), cfg.robot_radius, rows)
+        if self.mover_tracker is not None:
+            assert movers is not None  # a tracker is only made with movers
+            estimates = new if perception is None else perception.observed
+            self.mover_tracker.step(movers.states(), new, estimates, rows)
+        features, distances = self.builder.build(
+            new,
+            self.target,
+            self.geometry,
+            self.offset if cfg.task.formation else None,
+            perception,
+            listed_movers(self.observed_movers()),
+        )
+        if perception is not None:  # the builder measured what the robots believe; rewards need the truth
+            dx = self.target[:, 0] - new[:, 0]
+            dy = self.target[:, 1] - new[:, 1]
+            distances = np.sqrt(dx * dx + dy * dy)
+        return features, distances
+
     def slip_means(self) -> NDArray[np.float64]:
         """Slip mean lambda of every robot for the period that starts now, shape (K, N).
 
@@ -375,48 +405,17 @@ class NavigationEngine:
 
     # ------------------------------------------------------------------- info
     def scenario(self, index: int = 0) -> Scenario:
-        """The scenario a model-based controller may use for environment ``index``."""
-        cfg = self.config
-        spec = self.maps[index]
-        if spec is None:
-            raise RuntimeError("call reset() before reading the scenario")
-        n = cfg.n_robots
-        return Scenario(
-            task=cfg.task.name,
-            map_name=spec.name,
-            n_robots=n,
-            obstacles=self.obstacles[index].copy(),
-            robot_radius=cfg.robot_radius.copy(),
-            starts=self.nominal_starts[index].copy(),
-            targets=self.target[index].T.copy(),
-            formation_offsets=self.offset[index].T.copy(),
-            leader=0,
-            v_max=PARAMS.v_max,
-            omega_max=PARAMS.omega_max,
-            workspace=PARAMS.workspace,
-            dt=PARAMS.dt,
-            goal_tolerance=cfg.goal_tolerance,
-            settle_steps=self._settle_steps,
-            lidar_beams=self.observation_layout.beams,
-            message_ages=self.observation_layout.comm,
-            n_movers=0 if self.movers is None else self.movers.count,
-            mover_radius=self.config.movers.radius,
-            mover_slots=self.observation_layout.movers,
-            observation_layout=self.observation_layout,
-            **self._lidar_datasheet(),
+        """The scenario a model-based controller may use for environment ``index``
+        (:func:`~koopman_envs.builder.engine_scenario.engine_scenario`)."""
+        return engine_scenario(
+            self.config,
+            self.maps[index],
+            self.obstacles[index],
+            self.nominal_starts[index],
+            self.target[index],
+            self.offset[index],
+            self.settle_steps,
         )
-
-    def _lidar_datasheet(self) -> dict[str, Any]:
-        """The scenario's lidar fields (defaults under state sensing)."""
-        lidar = self.config.lidar
-        if lidar is None:
-            return {}
-        return {
-            "lidar_fov": lidar.fov,
-            "lidar_range": lidar.range,
-            "lidar_noise": lidar.noise,
-            "map_known": lidar.map_known,
-        }
 
     def _formation_error(self) -> NDArray[np.float64]:
         """What the reward charges: the slot errors for formation, a placeholder otherwise."""
@@ -479,10 +478,14 @@ class NavigationEngine:
         may read (:func:`koopman_envs.sim.perception.observed_info` lists the keys)."""
         self._flush_perception()
         observed = observed_info(self.perception, self.poses)
-        if self.movers is not None and self.observation_layout.movers:
-            # with sensing="state" the movers are tracked exactly, as the map's obstacles are known
-            observed["observed_movers"] = self.movers.states()
+        movers = self.observed_movers()
+        if movers is not None:
+            observed["observed_movers"], observed["mover_tracked"] = movers
         return observed
+
+    def observed_movers(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
+        """The movers as the robots observe them (:func:`~koopman_envs.sim.mover_tracking.observed_movers`)."""
+        return observed_movers(self.movers, self.mover_tracker, self.observation_layout.movers)
 
     def info(self, index: int = 0) -> dict[str, Any]:
         """The true structured state of environment ``index``: row ``index`` of :meth:`batch_info`

@@ -400,23 +400,28 @@ def mover_features(
 ) -> None:  # pragma: no cover - compiled
     """Write the ``slots`` nearest movers into ``out[k, i, at:]`` (K, N, F), nearest first by
     surface clearance: body-frame dx, dy to the centre, body-frame velocity vx, vy, clearance;
-    absent ones read (0, 0, 0, 0, FAR). ``own`` (K, 3, N) holds the robots' pose estimates.
+    absent ones read (0, 0, 0, 0, FAR), as do movers not observed (NaN rows: no track yet, or a
+    track dropped). ``own`` (K, 3, N) holds the robots' pose estimates.
 
     Every mover has the one radius, so the order of the clearances is that of the squared
     centre distances (ties in index order, as :func:`~koopman_envs.sim.nearest.nearest_first` orders): one root per listed
     mover."""
     n_envs, _, n_robots = own.shape
     count = position.shape[1]
-    listed = min(count, slots)
     distance2 = np.empty(count)
     order = np.empty(count, dtype=np.int64)
     for k in range(n_envs):
+        # a mover not observed (a NaN row: no confirmed track) is not listed
+        observed = 0
+        for m in range(count):
+            observed += not math.isnan(position[k, m, 0])
+        listed = min(observed, slots)
         for i in range(n_robots):
             x, y, theta = own[k, 0, i], own[k, 1, i], own[k, 2, i]
             c, s = math.cos(theta), math.sin(theta)
             for m in range(count):
                 dx, dy = position[k, m, 0] - x, position[k, m, 1] - y
-                distance2[m] = dx * dx + dy * dy
+                distance2[m] = dx * dx + dy * dy if not math.isnan(dx) else math.inf
             nearest_first_by_rank(distance2, order, count)
             col = at
             reach = robot_radius[i] + mover_radius

@@ -26,7 +26,6 @@ from koopman_envs.sim.movers import mover_features
 from koopman_envs.sim.nearest import nearest_first
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from koopman_envs.sim.movers import MoverField
     from koopman_envs.sim.perception import Perception
 
 __all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
@@ -102,6 +101,8 @@ class FeatureBuilder:
         Largest lidar reading [m] (the beams' upper bound).
     movers : int
         Nearest movers listed at the end of each block (0: none).
+    mover_radius : float
+        The movers' disc radius [m] (their clearances).
     """
 
     def __init__(
@@ -115,6 +116,7 @@ class FeatureBuilder:
         comm: bool = False,
         lidar_range: float = 0.0,
         movers: int = 0,
+        mover_radius: float = 0.0,
     ) -> None:
         n, k = n_robots, num_envs
         #: the block's named parts (koopman_envs.layout)
@@ -122,6 +124,7 @@ class FeatureBuilder:
         self.shape = (k, n, self.layout.size)
         self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range, movers)
         self.mover_slots = movers
+        self.mover_radius = mover_radius
         self.movers_at = self.layout["movers"].start if movers else self.shape[-1]
         self.n_robots, self.n_obstacles = n, n_obstacles
         self.n_obstacle_obs = 0 if beams else n_obstacle_obs
@@ -140,7 +143,7 @@ class FeatureBuilder:
         geometry: TeamGeometry,
         formation_offsets: NDArray[np.float64] | None,
         perception: Perception | None = None,
-        movers: MoverField | None = None,
+        movers: NDArray[np.float64] | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Observation blocks and target distances.
 
@@ -154,8 +157,9 @@ class FeatureBuilder:
             Rows dx, dy [m]; used when the builder was made with ``formation=True``.
         perception : Perception, optional
             What the robots believe (own estimates, messages, lidar); None: the truth.
-        movers : MoverField, optional
-            The moving obstacles listed at the end of each block (when the builder has slots).
+        movers : ndarray, shape (K, C, 4), optional
+            The movers as observed (x, y, vx, vy; a NaN row: a mover not observed), listed at
+            the end of each block (when the builder has slots).
 
         Returns
         -------
@@ -197,9 +201,9 @@ class FeatureBuilder:
             mover_features(
                 own,
                 geometry.robot_radius,
-                movers.position,
-                movers.velocity,
-                movers.config.radius,
+                movers[..., :2],
+                movers[..., 2:],
+                self.mover_radius,
                 self.mover_slots,
                 self.movers_at,
                 self.low,

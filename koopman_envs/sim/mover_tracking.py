@@ -1,0 +1,317 @@
+"""Movers observed through a tracker under ``sensing="state"``: what a robot's people tracker
+reports, not the movers' true states.
+
+Each period, a mover within ``movers.detection_range`` of a robot is detected by the nearest
+such robot. The detection is the mover's position relative to that robot, with Gaussian error
+of standard deviation ``movers.detection_noise`` per axis, placed in the world through the
+robot's *estimated* pose (so localization error moves it, as it moves a real robot's
+detections). Every mover's track is a constant-velocity Kalman filter (white-noise
+acceleration :data:`ACCEL_SIGMA`), with the association known (each detection carries its
+mover's identity: the perfect data association of a tracker that never swaps people; the lidar
+perception of ``controllers.perception`` does its own association). A track is born at rest on
+a mover's first detection (velocity standard deviation :data:`BIRTH_SPEED_SIGMA`), reported
+once it has :data:`CONFIRM_HITS` detections, predicted on while unseen and dropped after
+:data:`DROP_AFTER` seconds unseen. The info's ``observed_movers`` holds the reported tracks
+(zero rows for the movers without one) and ``mover_tracked`` which movers have one; each
+robot's observation lists the nearest reported ones; ``info["movers"]`` keeps the true states for scoring.
+
+The filter is written out here and compiled with the step, every environment and mover in one
+call (a vector env steps thousands of movers per call; filterpy filters one at a time in
+Python), and tested equal to filterpy's ``predict`` and ``update`` (tests/test_mover_tracking.py). The
+detection noise comes from its own child of each env's generator, so the movers' motion and
+every other noise stream are the same with tracking on or off.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from koopman_envs.movers import MoverConfig
+from koopman_envs.sim.movers import MoverField
+from koopman_envs.sim.perception import child_generator
+
+__all__ = [
+    "ACCEL_SIGMA",
+    "listed_movers",
+    "observed_movers",
+    "BIRTH_SPEED_SIGMA",
+    "CONFIRM_HITS",
+    "DROP_AFTER",
+    "MoverTracker",
+    "cv_predict",
+    "cv_update",
+    "cv_model",
+]
+
+#: white-noise acceleration of a mover's constant-velocity model [m/s^2] (a pedestrian's turns
+#: and stops); the lidar tracker's default too
+ACCEL_SIGMA = 1.0
+#: velocity standard deviation of a new track [m/s] (movers walk at most 2 m/s)
+BIRTH_SPEED_SIGMA = 1.0
+#: detections before a track is reported
+CONFIRM_HITS = 3
+#: seconds a track survives unseen
+DROP_AFTER = 0.5
+#: detection errors drawn per environment at a time (pooled over periods, at most 32)
+POOL_DRAWS = 512
+
+
+def cv_model(dt: float, accel_sigma: float = ACCEL_SIGMA) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The constant-velocity model of state (x, y, vx, vy): transition F (4, 4) and process
+    noise Q (4, 4) of piecewise white acceleration (filterpy's ``Q_discrete_white_noise`` with
+    ``block_size=2, order_by_dim=False``)."""
+    F = np.eye(4)
+    F[0, 2] = F[1, 3] = dt
+    q = accel_sigma**2 * np.array([[dt**4 / 4, dt**3 / 2], [dt**3 / 2, dt**2]])
+    Q = np.asarray(np.kron(q, np.eye(2)), dtype=np.float64)
+    return F, Q
+
+
+@njit(cache=True)
+def cv_predict(
+    x: NDArray[np.float64], P: NDArray[np.float64], dt: float, Q: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """Kalman prediction of one track in place under the constant-velocity model of
+    :func:`cv_model`: x (4,) <- F x, P (4, 4) <- F P F^T + Q, written out for F's blocks
+    [[I, dt I], [0, I]] (a fortieth of the general product's work)."""
+    x[0] += dt * x[2]
+    x[1] += dt * x[3]
+    for a in range(2):
+        for b in range(2):
+            vv = P[a + 2, b + 2]
+            P[a, b] += dt * (P[a, b + 2] + P[a + 2, b]) + dt * dt * vv
+            P[a, b + 2] += dt * vv
+            P[a + 2, b] += dt * vv
+    for a in range(4):
+        for b in range(4):
+            P[a, b] += Q[a, b]
+
+
+@njit(cache=True)
+def cv_update(
+    x: NDArray[np.float64], P: NDArray[np.float64], z0: float, z1: float, r: float, work: NDArray[np.float64]
+) -> None:  # pragma: no cover - compiled
+    """Kalman update of one track in place by a position measurement (z0, z1) of covariance
+    r I, in the Joseph form as filterpy's ``update``: P <- A P A^T + r K K^T with A = I - K H;
+    ``work`` (6, 4) is scratch (no allocation per track)."""
+    s00, s01, s10, s11 = P[0, 0] + r, P[0, 1], P[1, 0], P[1, 1] + r
+    det = s00 * s11 - s01 * s10
+    i00, i01, i10, i11 = s11 / det, -s01 / det, -s10 / det, s00 / det
+    k0, k1 = work[4], work[5]  # the gain's columns
+    for a in range(4):
+        k0[a] = P[a, 0] * i00 + P[a, 1] * i10
+        k1[a] = P[a, 0] * i01 + P[a, 1] * i11
+    e0, e1 = z0 - x[0], z1 - x[1]
+    for a in range(4):
+        x[a] += k0[a] * e0 + k1[a] * e1
+    # work = A P, A[a, b] = delta_ab - (K H)[a, b]: (K H)[a, 0] = k0[a], (K H)[a, 1] = k1[a]
+    for a in range(4):
+        for c in range(4):
+            work[a, c] = P[a, c] - k0[a] * P[0, c] - k1[a] * P[1, c]
+    for a in range(4):
+        for c in range(4):
+            P[a, c] = (
+                work[a, c] - work[a, 0] * k0[c] - work[a, 1] * k1[c] + r * (k0[a] * k0[c] + k1[a] * k1[c])
+            )
+
+
+@njit(cache=True)
+def _track_step(
+    x: NDArray[np.float64],
+    P: NDArray[np.float64],
+    hits: NDArray[np.int64],
+    misses: NDArray[np.int64],
+    movers: NDArray[np.float64],
+    true_poses: NDArray[np.float64],
+    estimated_poses: NDArray[np.float64],
+    pool: NDArray[np.float64],
+    cursor: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    dt: float,
+    Q: NDArray[np.float64],
+    sigma: float,
+    r: float,
+    detection_range: float,
+    birth_var: float,
+    drop_misses: int,
+) -> None:  # pragma: no cover - compiled
+    """One period of the environments ``rows`` (module docstring): each mover detected by the
+    nearest robot within range (relative position plus ``sigma`` times its row of the
+    environment's error ``pool`` at its ``cursor``, which advances;
+    turned by that robot's heading error, placed at its estimated position); every live track
+    predicted, the detected ones updated (a new one born at rest), the rules applied."""
+    n_robots = true_poses.shape[2]
+    work = np.empty((6, 4))
+    for q in range(rows.shape[0]):
+        k = rows[q]
+        for m in range(movers.shape[1]):
+            best, nearest = np.inf, 0
+            for i in range(n_robots):
+                d = math.hypot(movers[k, m, 0] - true_poses[k, 0, i], movers[k, m, 1] - true_poses[k, 1, i])
+                if d < best:
+                    best, nearest = d, i
+            detected = best <= detection_range
+            alive = hits[k, m] > 0
+            if alive:
+                cv_predict(x[k, m], P[k, m], dt, Q)
+            if detected:
+                rx = movers[k, m, 0] - true_poses[k, 0, nearest] + sigma * pool[k, cursor[k], m, 0]
+                ry = movers[k, m, 1] - true_poses[k, 1, nearest] + sigma * pool[k, cursor[k], m, 1]
+                turn = estimated_poses[k, 2, nearest] - true_poses[k, 2, nearest]
+                c, s = math.cos(turn), math.sin(turn)
+                z0 = estimated_poses[k, 0, nearest] + c * rx - s * ry
+                z1 = estimated_poses[k, 1, nearest] + s * rx + c * ry
+                if alive:
+                    cv_update(x[k, m], P[k, m], z0, z1, r, work)
+                else:  # born at rest
+                    x[k, m, 0], x[k, m, 1], x[k, m, 2], x[k, m, 3] = z0, z1, 0.0, 0.0
+                    P[k, m] = 0.0
+                    P[k, m, 0, 0] = P[k, m, 1, 1] = r
+                    P[k, m, 2, 2] = P[k, m, 3, 3] = birth_var
+                hits[k, m] += 1
+                misses[k, m] = 0
+            elif alive:
+                misses[k, m] += 1
+                if misses[k, m] > drop_misses:
+                    hits[k, m] = 0
+                    misses[k, m] = 0
+        cursor[k] += 1  # every period draws its errors, seen or not
+
+
+class MoverTracker:
+    """Tracks of every mover of ``num_envs`` environments (module docstring).
+
+    Parameters
+    ----------
+    num_envs, count : int
+        Environments and movers per environment.
+    dt : float
+        The control period [s].
+    detection_range : float
+        Largest robot-mover distance at which a mover is detected [m].
+    detection_noise : float
+        Standard deviation of a detection's position error per axis [m].
+    """
+
+    def __init__(
+        self, num_envs: int, count: int, dt: float, detection_range: float, detection_noise: float
+    ) -> None:
+        self.num_envs, self.count, self.dt = num_envs, count, dt
+        self.detection_range, self.detection_noise = detection_range, detection_noise
+        _, self._Q = cv_model(dt)
+        self._R = np.eye(2) * max(detection_noise, 1e-6) ** 2  # exact detections: a tiny floor
+        self._drop_misses = max(1, math.ceil(DROP_AFTER / dt - 1e-9))
+        self.x = np.zeros((num_envs, count, 4))
+        self.P = np.tile(np.eye(4), (num_envs, count, 1, 1))
+        self.hits = np.zeros((num_envs, count), dtype=np.int64)
+        self.misses = np.zeros((num_envs, count), dtype=np.int64)
+        self.rngs: list[np.random.Generator | None] = [None] * num_envs
+        self._parents: list[np.random.Generator | None] = [None] * num_envs
+        # pooled detection errors: POOL_DRAWS per environment at a time (at least a period's)
+        periods = max(1, min(32, POOL_DRAWS // max(count, 1)))
+        self._pool = np.zeros((num_envs, periods, count, 2))
+        self._cursor = np.full(num_envs, periods, dtype=np.int64)
+
+    @classmethod
+    def for_movers(cls, movers: MoverConfig, num_envs: int, listed: int, dt: float) -> MoverTracker | None:
+        """The tracker of ``movers`` when the robots observe them through one (movers, their
+        ``tracking`` on, and ``listed`` > 0 slots in the observation: ``sensing="state"``), else None."""
+        if not movers.active or not listed or not movers.tracking:
+            return None
+        return cls(num_envs, movers.count, dt, movers.detection_range, movers.detection_noise)
+
+    def reset_env(self, index: int, rng: np.random.Generator) -> None:
+        """Forget environment ``index``'s tracks; its detection noise comes from a child of
+        ``rng`` (spawned when ``rng`` is a new generator, as every other noise stream)."""
+        if self._parents[index] is not rng:
+            self._parents[index] = rng
+            self.rngs[index] = child_generator(rng)
+        self.hits[index] = 0
+        self.misses[index] = 0
+        self._cursor[index] = self._pool.shape[1]  # the episode's errors: fresh draws
+
+    def step(
+        self,
+        movers: NDArray[np.float64],
+        true_poses: NDArray[np.float64],
+        estimated_poses: NDArray[np.float64],
+        rows: NDArray[np.int64] | None = None,
+    ) -> None:
+        """One period of the environments ``rows`` (default all): detect, predict every track,
+        update the detected ones, birth and drop.
+
+        Parameters
+        ----------
+        movers : ndarray, shape (K, C, 4)
+            True mover states.
+        true_poses, estimated_poses : ndarray, shape (K, 3, N)
+            The robots' true poses (who sees what) and estimates (where they place it).
+        rows : ndarray of int, optional
+            The environments that stepped.
+        """
+        rows = np.arange(self.num_envs) if rows is None else np.asarray(rows, dtype=np.int64)
+        if not len(rows):
+            return
+        self._refill(rows)
+        _track_step(
+            self.x,
+            self.P,
+            self.hits,
+            self.misses,
+            np.ascontiguousarray(movers, dtype=np.float64),
+            np.ascontiguousarray(true_poses, dtype=np.float64),
+            np.ascontiguousarray(estimated_poses, dtype=np.float64),
+            self._pool,
+            self._cursor,
+            rows,
+            self.dt,
+            self._Q,
+            self.detection_noise,
+            self._R[0, 0],
+            self.detection_range,
+            BIRTH_SPEED_SIGMA**2,
+            self._drop_misses,
+        )
+
+    def observed(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """The reported tracks (x, y, vx, vy), shape (K, C, 4), zero for a mover without one,
+        and which movers have one (K, C)."""
+        reported = self.hits >= CONFIRM_HITS
+        return np.where(reported[..., None], self.x, 0.0), reported
+
+    def _refill(self, rows: NDArray[np.int64]) -> None:
+        """Redraw the error pool of every environment of ``rows`` that has used its pool up
+        (standard normals from its generator: a Python call per environment every few
+        periods, not every period)."""
+        for k in rows[self._cursor[rows] >= self._pool.shape[1]].tolist():
+            rng = self.rngs[k]
+            if rng is None:
+                raise RuntimeError("MoverTracker: reset_env() every environment before step()")
+            self._pool[k] = rng.standard_normal(self._pool.shape[1:])
+            self._cursor[k] = 0
+
+
+def observed_movers(
+    field: MoverField | None, tracker: MoverTracker | None, listed: int
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
+    """The movers as the robots observe them with ``sensing="state"`` (``listed`` > 0 slots):
+    their states (K, C, 4) and which are observed (K, C); the tracker's reports (zero rows for
+    movers without a track), or the exact states without a tracker (``movers.tracking=False``);
+    None with lidar or without movers (copies)."""
+    if field is None or not listed:
+        return None
+    if tracker is None:
+        return field.states(), np.ones((field.num_envs, field.count), dtype=bool)
+    return tracker.observed()
+
+
+def listed_movers(
+    observed: tuple[NDArray[np.float64], NDArray[np.bool_]] | None,
+) -> NDArray[np.float64] | None:
+    """:func:`observed_movers` as the observation's features list them: a NaN row for a mover
+    not observed (the feature kernel leaves it out)."""
+    return None if observed is None else np.where(observed[1][..., None], observed[0], np.nan)

@@ -1,0 +1,122 @@
+"""Movers observed through a tracker under sensing="state" (koopman_envs/sim/mover_tracking.py):
+the batched filter equals filterpy's, tracks are born, reported and dropped by the stated rules,
+the estimates are within stated bounds of the truth, the truth stays in info["movers"], and
+turning tracking off gives the exact states (the earlier behaviour)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import predict, update
+
+import koopman_envs  # noqa: F401 - registers the ids
+from koopman_envs.sim.mover_tracking import (
+    CONFIRM_HITS,
+    DROP_AFTER,
+    MoverTracker,
+    cv_model,
+    cv_predict,
+    cv_update,
+)
+
+ENV = "KoopNav-TargetReaching-v0"
+
+
+def test_the_compiled_filter_is_filterpys() -> None:
+    rng = np.random.default_rng(0)
+    F, Q = cv_model(0.1)
+    np.testing.assert_array_equal(
+        Q, Q_discrete_white_noise(2, dt=0.1, var=1.0, block_size=2, order_by_dim=False)
+    )
+    H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+    for _ in range(6):
+        x = rng.normal(size=4)
+        A = rng.normal(size=(4, 4))
+        P = A @ A.T + np.eye(4)
+        z = rng.normal(size=2)
+        a, b = predict(x, P, F, Q)
+        c, d = update(a, b, z, np.eye(2) * 0.01, H)
+        x_, P_ = x.copy(), P.copy()
+        cv_predict(x_, P_, 0.1, Q)
+        np.testing.assert_allclose(x_, a, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(P_, b, rtol=0, atol=1e-12)
+        cv_update(x_, P_, z[0], z[1], 0.01, np.empty((6, 4)))
+        np.testing.assert_allclose(x_, c, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(P_, d, rtol=0, atol=1e-12)
+
+
+def _walk(
+    tracker: MoverTracker, start: np.ndarray, velocity: np.ndarray, steps: int, robot: np.ndarray
+) -> np.ndarray:
+    poses = robot.reshape(1, 3, 1)
+    for t in range(steps):
+        position = start + 0.1 * (t + 1) * velocity
+        tracker.step(np.concatenate([position, velocity])[None, None], poses, poses)
+    return np.concatenate([position, velocity])
+
+
+def test_a_track_is_reported_after_its_confirmations_and_dropped_after_drop_after() -> None:
+    tracker = MoverTracker(1, 1, 0.1, detection_range=5.0, detection_noise=0.05)
+    tracker.reset_env(0, np.random.default_rng(0))
+    robot = np.array([0.0, 0.0, 0.0])
+    for _ in range(CONFIRM_HITS):
+        assert not tracker.observed()[1].any()
+        _walk(tracker, np.array([2.0, 0.0]), np.zeros(2), 1, robot)
+    assert tracker.observed()[1].all()
+    far = np.array([[[20.0, 0.0, 0.0, 0.0]]])  # out of range: unseen
+    for _ in range(round(DROP_AFTER / 0.1)):
+        tracker.step(far, robot.reshape(1, 3, 1), robot.reshape(1, 3, 1))
+        assert tracker.observed()[1].all()  # predicted on
+    tracker.step(far, robot.reshape(1, 3, 1), robot.reshape(1, 3, 1))
+    assert not tracker.observed()[1].any()
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_mover_on_a_straight_line_is_tracked_within_bounds(seed: int) -> None:
+    """5 cm detections: after 2 s, within 10 cm and 0.2 m/s of the truth."""
+    tracker = MoverTracker(1, 1, 0.1, detection_range=5.0, detection_noise=0.05)
+    tracker.reset_env(0, np.random.default_rng(seed))
+    truth = _walk(tracker, np.array([-2.0, 1.0]), np.array([0.5, -0.2]), 20, np.zeros(3))
+    estimate = tracker.observed()[0][0, 0]
+    assert np.hypot(*(estimate[:2] - truth[:2])) < 0.1
+    assert np.hypot(*(estimate[2:] - truth[2:])) < 0.2
+
+
+def test_the_env_reports_tracks_and_keeps_the_truth() -> None:
+    env = gym.make(ENV, map="map1", movers={"count": 6})
+    _, info = env.reset(seed=0)
+    assert not info["mover_tracked"].any() and not info["observed_movers"].any()  # none confirmed yet
+    errors = []
+    for _ in range(40):
+        _, _, terminated, truncated, info = env.step(np.zeros(6))
+        seen = info["mover_tracked"]
+        errors += np.hypot(*(info["observed_movers"][seen, :2] - info["movers"][seen, :2]).T).tolist()
+        if terminated or truncated:
+            break
+    assert len(errors) > 50 and np.median(errors) < 0.1
+    assert not np.isnan(info["movers"]).any()
+
+
+def test_tracking_off_gives_the_exact_states() -> None:
+    env = gym.make(ENV, map="map1", movers={"count": 4, "tracking": False})
+    _, info = env.reset(seed=0)
+    for _ in range(5):
+        _, _, _, _, info = env.step(np.zeros(6))
+    np.testing.assert_array_equal(info["observed_movers"], info["movers"])
+    assert info["mover_tracked"].all()
+
+
+def test_tracking_leaves_the_movers_and_every_other_stream_alone() -> None:
+    """The detection noise has its own stream: the movers move the same with tracking on or off,
+    and so do the robots under the harsh preset's noise."""
+    runs = []
+    for tracking in (True, False):
+        env = gym.make(ENV, map="map1", uncertainty="harsh", movers={"count": 4, "tracking": tracking})
+        _, info = env.reset(seed=3)
+        for _ in range(20):
+            _, _, _, _, info = env.step(np.full(6, 0.2))
+        runs.append((info["movers"], info["poses"], info["observed_poses"]))
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
