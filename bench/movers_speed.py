@@ -7,7 +7,8 @@ Usage::
 Target reaching on map1, 3 robots, random actions, each setting timed against the env without
 movers in alternating windows (a change of the machine's load slows both alike):
 
-* 8 ``"constant"`` movers at ``--envs`` environments (target: >= 0.5x the rate without);
+* 8 ``"constant"`` movers at ``--envs`` environments (target: >= 0.5x the rate without), and
+  the same movers observed exactly (``tracking=False``): what the people tracker costs;
 * 8 ``"crowd"`` pedestrians (ORCA through pyrvo), oblivious and aware, at ``--crowd-envs``:
   the rate and the share of the step the crowd takes;
 * the crowd models side by side on the same pedestrians (8 per environment in map1's arena
@@ -174,6 +175,18 @@ def main() -> None:
     print(f"vector env {k}, no movers          {plain:12,.0f} env-steps/s")
     print(
         f"vector env {k}, 8 constant movers  {moving:12,.0f} env-steps/s ({moving / plain:.2f}x without; target >= 0.5x)"
+    )
+    # the same movers observed exactly: what the people tracker (the default) costs
+    exact = {"movers": {"count": 8, "tracking": False}}
+    tracked, untracked = (
+        k * r for r in _timed_pair(vector_runner(ENV, k, **constant), vector_runner(ENV, k, **exact), *timing)
+    )
+    results.update(
+        {f"vector {k} 8 constant movers, tracked": tracked, f"vector {k} 8 constant movers, exact": untracked}
+    )
+    print(
+        f"vector env {k}, 8 movers exact     {untracked:12,.0f} env-steps/s (the tracker costs "
+        f"{1 - tracked / untracked:.0%} of the step)"
     )
     try:
         import pyrvo  # noqa: F401

@@ -189,7 +189,11 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
         "sweep.json; levels not finished are named and left out) and exit, running nothing "
         "(default: no such report)",
     )
-    protocol = what.add_mutually_exclusive_group()
+    _protocols(what.add_mutually_exclusive_group())
+
+
+def _protocols(protocol: argparse._MutuallyExclusiveGroup) -> None:
+    """The named protocols, one at a time."""
     protocol.add_argument("--paper", action="store_true", help="the paper's protocol (SPEC section 5), IPOPT")
     protocol.add_argument(
         "--paper-strict",

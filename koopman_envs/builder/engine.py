@@ -383,7 +383,7 @@ class NavigationEngine:
             self.geometry,
             self.offset if cfg.task.formation else None,
             perception,
-            listed_movers(self.observed_movers()),
+            None if movers is None else listed_movers(self.observed_movers()),
         )
         if perception is not None:  # the builder measured what the robots believe; rewards need the truth
             dx = self.target[:, 0] - new[:, 0]
