@@ -83,15 +83,15 @@ def test_with_the_map_known_and_no_movers_the_beams_change_nothing() -> None:
 
 def test_the_perception_is_deterministic() -> None:
     """Same seed, same episode (movers tracked, map unknown), in one process and in another."""
-    first, _ = _episode("orca", map_known=False, movers=4, seed=3)
-    again, _ = _episode("orca", map_known=False, movers=4, seed=3)
+    first, _ = _episode("dwa", map_known=False, movers=4, seed=3)
+    again, _ = _episode("dwa", map_known=False, movers=4, seed=3)
     assert (first.outcome, first.steps) == (again.outcome, again.steps)
     np.testing.assert_array_equal(first.final_distance, again.final_distance)
     code = (
         "import gymnasium as gym, numpy as np, koopman_envs, controllers;"
         "from koopman_envs.fronts.episode import run_episode;"
         f"env = gym.make({ENV!r}, map='map1', sensing='lidar', lidar={{'map_known': False}}, movers={{'count': 4}});"
-        "r = run_episode(env, controllers.make('orca'), seed=3);"
+        "r = run_episode(env, controllers.make('dwa'), seed=3);"
         "print(r.steps, repr(np.asarray(r.final_distance).tolist()))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
