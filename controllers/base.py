@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.perception.front import LidarPerception
 from koopman_envs.observed import observed_view
 from koopman_envs.scenario import Scenario, scenario_of
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    from controllers.perception.front import LidarPerception
     from koopman_envs.builder.plant import CalibrationPlant
 
 __all__ = [
@@ -223,6 +223,9 @@ class BaseController(ABC):
             self.front_end.reset(scenario)
         self.perception = None
         if self.perceives and scenario.lidar_beams:
+            # imported here: scipy and filterpy cost half a second, which no run without lidar pays
+            from controllers.perception.front import LidarPerception
+
             self.perception = LidarPerception()
             self.perception.reset(scenario)
         self._reset(scenario, seed)
