@@ -37,12 +37,13 @@ def test_the_compiled_filter_is_filterpys() -> None:
         P = A @ A.T + np.eye(4)
         z = rng.normal(size=2)
         a, b = predict(x, P, F, Q)
-        c, d = update(a, b, z, np.eye(2) * 0.01, H)
+        R = np.array([[0.01, 0.004], [0.004, 0.02]])  # a fit's covariance is not isotropic
+        c, d = update(a, b, z, R, H)
         x_, P_ = x.copy(), P.copy()
         cv_predict(x_, P_, 0.1, Q)
         np.testing.assert_allclose(x_, a, rtol=0, atol=1e-12)
         np.testing.assert_allclose(P_, b, rtol=0, atol=1e-12)
-        cv_update(x_, P_, z[0], z[1], 0.01, np.empty((6, 4)))
+        cv_update(x_, P_, z[0], z[1], R[0, 0], R[0, 1], R[1, 1], np.empty((6, 4)))
         np.testing.assert_allclose(x_, c, rtol=0, atol=1e-12)
         np.testing.assert_allclose(P_, d, rtol=0, atol=1e-12)
 

@@ -254,7 +254,8 @@ class LidarPerception:
             elapsed = (len(past) - 1) * self._dt
             moved = math.hypot(*(past[-1] - past[0]))
             # what the track's own position uncertainty explains is no evidence of motion
-            spread = 3.0 * math.sqrt(max(float(np.trace(tracks.covariances[k, :2, :2])), 0.0))
+            cov = tracks.covariances[k]
+            spread = 3.0 * math.sqrt(max(float(cov[0, 0] + cov[1, 1]), 0.0))
             speed = math.hypot(tracks.states[k, 2], tracks.states[k, 3])
             # moving: displaced beyond its own noise over the window, and moving now
             static[k] = moved <= self.settings.static_speed * max(elapsed, self._dt) + spread or (

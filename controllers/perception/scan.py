@@ -274,16 +274,19 @@ def _prior_discs(
     disc spanning both would fill the free space between them). Isotropic covariance of
     standard deviation radius / 2."""
     radius = settings.default_radius
-    sigma = 0.5 * radius
-    chord = float(np.hypot(*(points[-1] - points[0]))) if len(points) > 1 else 0.0
+    covariance = (0.5 * radius) ** 2 * np.eye(2)  # read only: shared by the cluster's discs
+    chord = math.hypot(points[-1, 0] - points[0, 0], points[-1, 1] - points[0, 1]) if len(points) > 1 else 0.0
+    offsets = points - viewpoint
+    distances = np.maximum(np.hypot(offsets[:, 0], offsets[:, 1]), 1e-12)
     if chord <= 2.0 * radius:
-        points = points[[int(np.argmin(np.hypot(*(points - viewpoint).T)))]]
-    out = []
-    for point in points:
-        direction = point - viewpoint
-        direction = direction / max(float(np.hypot(*direction)), 1e-12)
-        out.append((point + radius * direction, radius, sigma * sigma * np.eye(2)))
-    return out
+        nearest = int(np.argmin(distances))
+        points, offsets, distances = (
+            points[nearest : nearest + 1],
+            offsets[nearest : nearest + 1],
+            distances[nearest : nearest + 1],
+        )
+    centres = points + radius * offsets / distances[:, None]
+    return [(centre, radius, covariance) for centre in centres]
 
 
 def _wall(points: NDArray[np.float64], settings: ScanSettings) -> NDArray[np.float64] | None:

@@ -8,14 +8,15 @@ stripped of team-mates, known obstacles and walls by :mod:`controllers.perceptio
    centres lie closer than the larger radius are one detection, their centres fused by inverse
    covariance (information) weighting.
 2. **Prediction.** Every track moves one period under the constant-velocity model with white-noise
-   acceleration of standard deviation ``accel_sigma`` (filterpy's ``Q_discrete_white_noise``).
+   acceleration of standard deviation ``accel_sigma`` (the process noise of filterpy's
+   ``Q_discrete_white_noise``).
 3. **Association.** The globally cheapest one-to-one assignment of detections to tracks
    (Hungarian, ``scipy.optimize.linear_sum_assignment``) on the squared Mahalanobis distance
    of each detection from each track's predicted position, gated at the chi-square quantile
    ``gate_probability`` with 2 degrees of freedom (9.21 at 0.99): a pair beyond the gate is never
    assigned.
-4. **Update.** Each assigned track takes its detection through filterpy's Kalman ``update``
-   (Joseph form); its radius is that of its most precise detection so far (smallest covariance
+4. **Update.** Each assigned track takes its detection through the Kalman update in the Joseph
+   form; its radius is that of its most precise detection so far (smallest covariance
    trace: a disc seen from afar by one beam gets the prior radius, a closer view fits the true one).
 5. **Birth, confirmation, drop.** An unassigned detection starts a tentative track at rest with
    velocity standard deviation ``birth_speed_sigma``. A tentative track is confirmed after
@@ -24,9 +25,12 @@ stripped of team-mates, known obstacles and walls by :mod:`controllers.perceptio
    seconds (it left every robot's view, or is hidden) is dropped; until then it is predicted
    forward and its covariance grows.
 
-Only confirmed tracks are reported (:meth:`Tracker.tracks`). filterpy does the filtering (the
-estimator the ``ekf:`` front-end already uses); the association and the track rules, which no
-well-kept library packages at this size without a framework of its own (Stone Soup), are here.
+Only confirmed tracks are reported (:meth:`Tracker.tracks`). The filter is the env's people
+tracker's, compiled (:func:`koopman_envs.sim.mover_tracking.cv_predict` and ``cv_update``, tested
+equal to filterpy's ``predict`` and ``update``): one constant-velocity filter in the package, at a
+fraction of filterpy's per-call cost (it was a third of the perception's time). The association
+and the track rules, which no well-kept library packages at this size without a framework of its
+own (Stone Soup), are here.
 """
 
 from __future__ import annotations
@@ -35,18 +39,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.common import Q_discrete_white_noise
-from filterpy.kalman import predict, update
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
 from koopman_envs.checks import check_int, check_number
+from koopman_envs.sim.mover_tracking import cv_model, cv_predict, cv_update
 
 __all__ = ["MoverTracks", "Tracker", "TrackerSettings", "fuse_detections"]
-
-#: the constant-velocity model's measurement: the position of the state (x, y, vx, vy)
-_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
 @dataclass(frozen=True)
@@ -147,11 +147,8 @@ class Tracker:
     def __init__(self, dt: float, settings: TrackerSettings | None = None) -> None:
         self.dt = check_number("dt", dt, above=0, note="seconds")
         self.settings = settings or TrackerSettings()
-        self._F = np.eye(4)
-        self._F[0, 2] = self._F[1, 3] = self.dt
-        self._Q = Q_discrete_white_noise(
-            2, dt=self.dt, var=self.settings.accel_sigma**2, block_size=2, order_by_dim=False
-        )
+        _, self._Q = cv_model(self.dt, self.settings.accel_sigma)
+        self._work = np.empty((6, 4))  # the compiled update's scratch
         self._gate = float(chi2.ppf(self.settings.gate_probability, df=2))
         self._drop_misses = max(1, math.ceil(self.settings.drop_after / self.dt - 1e-9))
         self.reset()
@@ -185,17 +182,17 @@ class Tracker:
         discs = np.asarray(discs, dtype=np.float64).reshape(-1, 3)
         covariances = np.asarray(covariances, dtype=np.float64).reshape(-1, 2, 2)
         discs, covariances = fuse_detections(discs, covariances)
-        for k in range(len(self._x)):
-            self._x[k], self._P[k] = predict(self._x[k], self._P[k], self._F, self._Q)
+        for k in range(len(self._x)):  # in place
+            cv_predict(self._x[k], self._P[k], self.dt, self._Q)
         assigned = self._associate(discs, covariances)
         seen = set()
         for track, detection in assigned:
-            self._x[track], self._P[track] = update(
-                self._x[track], self._P[track], discs[detection, :2], covariances[detection], _H
-            )
+            R = covariances[detection]
+            z = discs[detection]
+            cv_update(self._x[track], self._P[track], z[0], z[1], R[0, 0], R[0, 1], R[1, 1], self._work)
             self._hits[track] += 1
             self._misses[track] = 0
-            spread = float(np.trace(covariances[detection]))
+            spread = float(covariances[detection, 0, 0] + covariances[detection, 1, 1])
             if spread <= self._spread[track]:  # the radius of the most precise detection so far
                 self._radius[track], self._spread[track] = float(discs[detection, 2]), spread
             seen.add(track)

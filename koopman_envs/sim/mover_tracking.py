@@ -93,12 +93,20 @@ def cv_predict(
 
 @njit(cache=True)
 def cv_update(
-    x: NDArray[np.float64], P: NDArray[np.float64], z0: float, z1: float, r: float, work: NDArray[np.float64]
+    x: NDArray[np.float64],
+    P: NDArray[np.float64],
+    z0: float,
+    z1: float,
+    r00: float,
+    r01: float,
+    r11: float,
+    work: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """Kalman update of one track in place by a position measurement (z0, z1) of covariance
-    r I, in the Joseph form as filterpy's ``update``: P <- A P A^T + r K K^T with A = I - K H;
-    ``work`` (6, 4) is scratch (no allocation per track)."""
-    s00, s01, s10, s11 = P[0, 0] + r, P[0, 1], P[1, 0], P[1, 1] + r
+    R = [[r00, r01], [r01, r11]], in the Joseph form as filterpy's ``update``:
+    P <- A P A^T + K R K^T with A = I - K H; ``work`` (6, 4) is scratch (no allocation per
+    track). The env's tracker and the lidar perception's both filter with it."""
+    s00, s01, s10, s11 = P[0, 0] + r00, P[0, 1] + r01, P[1, 0] + r01, P[1, 1] + r11
     det = s00 * s11 - s01 * s10
     i00, i01, i10, i11 = s11 / det, -s01 / det, -s10 / det, s00 / det
     k0, k1 = work[4], work[5]  # the gain's columns
@@ -115,7 +123,11 @@ def cv_update(
     for a in range(4):
         for c in range(4):
             P[a, c] = (
-                work[a, c] - work[a, 0] * k0[c] - work[a, 1] * k1[c] + r * (k0[a] * k0[c] + k1[a] * k1[c])
+                work[a, c]
+                - work[a, 0] * k0[c]
+                - work[a, 1] * k1[c]
+                + k0[a] * (r00 * k0[c] + r01 * k1[c])
+                + k1[a] * (r01 * k0[c] + r11 * k1[c])
             )
 
 
@@ -166,7 +178,7 @@ def _track_step(
                 z0 = estimated_poses[k, 0, nearest] + c * rx - s * ry
                 z1 = estimated_poses[k, 1, nearest] + s * rx + c * ry
                 if alive:
-                    cv_update(x[k, m], P[k, m], z0, z1, r, work)
+                    cv_update(x[k, m], P[k, m], z0, z1, r, 0.0, r, work)
                 else:  # born at rest
                     x[k, m, 0], x[k, m, 1], x[k, m, 2], x[k, m, 3] = z0, z1, 0.0, 0.0
                     P[k, m] = 0.0
