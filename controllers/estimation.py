@@ -171,6 +171,8 @@ class PoseFrontEnd:
         self.scenario: Scenario | None = None
         self._filters: list[Any] = []
         self._sent: deque[NDArray[np.float64]] = deque()
+        #: the pose estimate of the last view, before the delay compensation (N, 3)
+        self.filtered: NDArray[np.float64] = np.zeros((0, 3))
         self._identifier: MotionIdentifier | None = None
         #: the front-end's own time per period [s]
         self.times: list[float] = []
@@ -289,7 +291,10 @@ class PoseFrontEnd:
             measured = self._carried_forward(measured, np.asarray(ages))
         if self._identifier is not None:
             self._identifier.observe(measured, fresh)
-        estimate, covariance = self._compensate(*self._estimate(measured))
+        filtered, filtered_covariance = self._estimate(measured)
+        #: the pose estimate of now, before the delay compensation carries it forward (N, 3)
+        self.filtered = filtered
+        estimate, covariance = self._compensate(filtered, filtered_covariance)
         view = dict(info, observed_poses=estimate)
         if covariance is not None:
             view["pose_covariance"] = covariance
@@ -300,6 +305,11 @@ class PoseFrontEnd:
             view["known_poses"] = known
         self.times.append(time.perf_counter() - start)
         return view
+
+    def acting(self) -> NDArray[np.float64]:
+        """The command (N, 2) that acted in the period that just ended: the one sent ``delay``
+        periods before it (what moved the robots from the last estimate to this one)."""
+        return self._sent[-1 - self.delay]
 
     def sent(self, command: NDArray[np.float64]) -> None:
         """Record the joint command sent this period ((2N,) or (N, 2); clipped as the robots clip it)."""

@@ -44,6 +44,7 @@ from controllers.calibration import (
     write_atomic,
 )
 from controllers.disk_cache import entry_exists
+from controllers.estimation import PoseFrontEnd
 from controllers.koopman import KoopmanModel, calibrated_model
 from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.fit import STRUCTURES
@@ -274,21 +275,35 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
             )
         self._estimator.reset()
         self._residuals: deque[NDArray] = deque(maxlen=self.residual_window)
-        self._previous: tuple[NDArray, NDArray] | None = None
+        self._previous: tuple[NDArray, NDArray | None] | None = None
         self._limits = np.array([scenario.v_max, scenario.omega_max])
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+        front_end = self.front_end
+        if isinstance(front_end, PoseFrontEnd):
+            # learn what happened, not what is planned from: the estimate of now (before the
+            # delay compensation carries it forward) and the command that acted to reach it
+            poses = np.array(front_end.filtered, dtype=np.float64)
+            if self._previous is not None:
+                self._timed_learn(self._previous[0], front_end.acting(), poses)
+            command = super()._act(observation, info)
+            self._previous = (poses, None)
+            return command
         poses = np.asarray(info["observed_poses"], dtype=np.float64)
         if self._previous is not None:
-            start = time.perf_counter()
-            self._learn(*self._previous, poses)
-            self._stats.extra_times.setdefault("online_update", []).append(time.perf_counter() - start)
+            assert self._previous[1] is not None
+            self._timed_learn(self._previous[0], self._previous[1], poses)
         command = super()._act(observation, info)
         n = poses.shape[0]
         # the env saturates commands to the limits; learn from what the robots actually received
         applied = np.clip(command.reshape(n, 2), -self._limits, self._limits)
         self._previous = (poses, applied)
         return command
+
+    def _timed_learn(self, poses: NDArray, commands: NDArray, next_poses: NDArray) -> None:
+        start = time.perf_counter()
+        self._learn(poses, commands, next_poses)
+        self._stats.extra_times.setdefault("online_update", []).append(time.perf_counter() - start)
 
     def _learn(self, poses: NDArray, commands: NDArray, next_poses: NDArray) -> None:
         estimator = self._estimator
