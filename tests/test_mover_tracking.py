@@ -121,3 +121,20 @@ def test_tracking_leaves_the_movers_and_every_other_stream_alone() -> None:
         runs.append((info["movers"], info["poses"], info["observed_poses"]))
     for a, b in zip(*runs, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (
+            {"movers": {"count": 2, "tracking": "yes"}},
+            r"movers.tracking='yes' is not a flag; allowed: true or false",
+        ),
+        ({"movers": {"count": 2, "detection_range": -1.0}}, r"movers.detection_range"),
+        ({"movers": {"count": 2, "detection_noise": float("nan")}}, r"movers.detection_noise"),
+        ({"sensing": "lidar", "lidar": {"map_known": "no"}}, r"lidar.map_known='no' is not a flag"),
+    ],
+)
+def test_bad_tracking_and_map_settings_are_refused_by_name(kwargs: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        gym.make(ENV, **kwargs)
