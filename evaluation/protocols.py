@@ -8,6 +8,7 @@ A preset is a starting point: change any field with :meth:`RunSpec.replace`, e.g
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from evaluation.ablation import ablation_configs
 from evaluation.configs import ControllerConfig, parse_controller
@@ -122,17 +123,22 @@ def crowd_protocol(behaviour: str = "crowd") -> RunSpec:
         raise ValueError(
             f"--crowd {behaviour!r} is not one of {list(MOVER_BEHAVIOURS)}{did_you_mean(behaviour, MOVER_BEHAVIOURS)}"
         )
+    return _among_movers({"movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0}})
+
+
+def _among_movers(env_kwargs: dict, **changes: Any) -> RunSpec:
+    """The protocols among movers (``--crowd``, ``--lidar``): both tasks on their paper maps and
+    20 seeded random layouts, nominal slip, 20 trials per cell from perturbed starts, the NMPCs
+    on the real-time iteration; ``env_kwargs`` and ``changes`` are the protocol's own."""
     return RunSpec(
         envs=tuple(TASK_MAPS),
         maps=TASK_MAPS,
         slips=("nominal",),
         episodes=20,
         random_maps=20,
-        env_kwargs={
-            "movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0},
-            "start_noise": START_NOISE,
-        },
+        env_kwargs={**env_kwargs, "start_noise": START_NOISE},
         solver="rti",
+        **changes,
     )
 
 
@@ -155,19 +161,12 @@ def lidar_protocol() -> RunSpec:
     movers at every level."""
     from controllers import available
 
-    return RunSpec(
-        envs=tuple(TASK_MAPS),
-        maps=TASK_MAPS,
-        slips=("nominal",),
-        episodes=20,
-        random_maps=20,
-        controllers=[parse_controller(name) for name in available() if not name.startswith("rl-")],
-        env_kwargs={
+    return _among_movers(
+        {
             "sensing": "lidar",
             "movers": {"behaviour": "constant", "speed": CROWD_SPEED, "count": LIDAR_MOVERS},
-            "start_noise": START_NOISE,
         },
-        solver="rti",
+        controllers=[parse_controller(name) for name in available() if not name.startswith("rl-")],
     )
 
 
