@@ -126,7 +126,7 @@ def crowd_protocol(behaviour: str = "crowd") -> RunSpec:
     return _among_movers({"movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0}})
 
 
-def _among_movers(env_kwargs: dict, **changes: Any) -> RunSpec:
+def _among_movers(env_kwargs: dict[str, Any], **changes: Any) -> RunSpec:
     """The protocols among movers (``--crowd``, ``--lidar``): both tasks on their paper maps and
     20 seeded random layouts, nominal slip, 20 trials per cell from perturbed starts, the NMPCs
     on the real-time iteration; ``env_kwargs`` and ``changes`` are the protocol's own."""
