@@ -388,7 +388,8 @@ def _pooled_sections(pooled: Results, figures: Path, out: Path) -> list[str]:
         "",
         "Pooled over each task's maps and slip levels; pairs share map, slip and seed. Difference of "
         "success rates with Newcombe's 95% interval for paired proportions; exact McNemar test, and its "
-        "p-value Holm-corrected over the rows of each task.",
+        "p-value Holm-corrected over every distinct test of the table (both tasks; a bit-identical "
+        "twin's test counted once).",
         "",
         markdown_table(paired_rows(pooled)),
         "",

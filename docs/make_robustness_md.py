@@ -12,7 +12,7 @@ tail) and the table of every level, with the profile's figure copied under ``--f
 level's results are read back checked (``evaluation.sweep.load_sweep``).
 
 With ``--names`` (one per sweep) the parts are titled by them, and when the page has two or more
-axes in all, it opens with one overview of every controller over every part's axes: the same
+parts, it opens with one overview of every controller over every part's axes: the same
 axis swept under different settings (e.g. ``movers.count`` for each mover behaviour of
 ``--crowd``) side by side.
 """
@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         costs = level_cost_section(level_costs(done)) if args.level_costs else None
         if costs is not None:
             parts.append(markdown([costs]).replace("## What", "### What"))
-    if args.names is not None:
+    if args.names is not None and len(args.sweeps) > 1:
         scope = (
             "Every part's axes side by side, named by part: each part is one sweep, its setting "
             "varied alone under that part's other settings."

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from evaluation.distinct import distinct_records, distinct_units
+from evaluation.distinct import distinct_records, distinct_units, paired_identity
 from evaluation.records import is_degraded, ran
 from evaluation.statistics import (
     bootstrap_mean_interval,
@@ -373,6 +373,7 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if ran(r):
             outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = r
     rows = []
+    identities = []
     env_ids = list(dict.fromkeys(env for env, _ in outcomes))
     for env_id in env_ids:
         names = [name for env, name in outcomes if env == env_id]
@@ -386,6 +387,7 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                     [bool(mine[k]["success"]) for k in shared], [bool(theirs[k]["success"]) for k in shared]
                 )
                 cells = sorted({(m, s) for m, s, _ in shared})
+                identities.append(paired_identity(env_id, shared, mine, theirs))
                 rows.append(
                     {
                         "env_id": env_id,
@@ -401,7 +403,8 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                         / comparison.n,
                     }
                 )
-    # the table's tests as one family: Holm's adjustment beside the raw p
-    for row, adjusted in zip(rows, holm_adjusted(r["p_value"] for r in rows), strict=True):
+    # the table's tests as one family (a test on the same data as another, a bit-identical
+    # twin's, counted once): Holm's adjustment beside the raw p
+    for row, adjusted in zip(rows, holm_adjusted((r["p_value"] for r in rows), same=identities), strict=True):
         row["p_holm"] = adjusted
     return rows

@@ -14,12 +14,12 @@ episodes are. The reports show how many episodes ran and how many were distinct.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 from typing import Any
 
 from evaluation.records import ran
 
-__all__ = ["distinct_records", "distinct_units", "duplicates", "signature"]
+__all__ = ["distinct_records", "distinct_units", "duplicates", "paired_identity", "signature"]
 
 
 def signature(record: Mapping[str, Any]) -> str:
@@ -79,3 +79,20 @@ def distinct_units(
         seen.add(identity)
         out.append(key)
     return out
+
+
+def paired_identity(
+    context: Hashable,
+    keys: Iterable[tuple],
+    a: Mapping[tuple, Mapping[str, Any]],
+    b: Mapping[tuple, Mapping[str, Any]],
+) -> Hashable:
+    """What makes a paired test on the units ``keys`` this test: its ``context`` (the table's
+    cell: axis and level, or task) and every unit's two episodes, exactly. Two tests with the same
+    identity ran on the same data (a controller and its bit-identical twin, each against a third)
+    and are one hypothesis test (:func:`evaluation.statistics.holm_adjusted`'s ``same``); the
+    order of the two sides does not matter (McNemar's test is symmetric)."""
+    keys = list(keys)
+    forward = tuple((key, signature(a[key]), signature(b[key])) for key in keys)
+    backward = tuple((key, sb, sa) for key, sa, sb in forward)
+    return (context, min(forward, backward))

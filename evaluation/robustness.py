@@ -18,13 +18,13 @@ files, as for any run.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from evaluation.distinct import distinct_records, distinct_units, signature
+from evaluation.distinct import distinct_records, distinct_units, paired_identity, signature
 from evaluation.records import ran
 from evaluation.run_data import RunData
 from evaluation.statistics import (
@@ -99,7 +99,11 @@ def _by_unit(results: RunData, controller: str, slip_axis: bool) -> dict[Unit, d
     return {_unit(r, slip_axis): r for r in results.records if r["controller"] == controller and ran(r)}
 
 
-def _level_row(controller: str, level: Any, mine: dict, reference: dict | None) -> LevelRow:
+def _level_row(
+    controller: str, level: Any, mine: dict, reference: dict | None, context: Hashable = None
+) -> tuple[LevelRow, Hashable]:
+    """The row of ``controller`` at ``level`` and the identity of its paired test against the
+    reference (None without one): tests on the same data count once in the Holm family."""
     records = distinct_records(mine.values())  # an identical rerun is not a sample
     successes = sum(bool(r["success"]) for r in records)
     low, high = wilson_interval(successes, len(records)) if records else (math.nan, math.nan)
@@ -116,10 +120,12 @@ def _level_row(controller: str, level: Any, mine: dict, reference: dict | None) 
         d_low,
         d_high,
     )
+    identity: Hashable = None
     if reference is not None:
         # units sharing a cell whose two episodes repeat an earlier unit's count once
         shared = distinct_units(sorted(set(mine) & set(reference)), mine, reference, cell_of=lambda u: u[:3])
         if shared:
+            identity = paired_identity(context, shared, mine, reference)
             test = paired_comparison(
                 [bool(mine[u]["success"]) for u in shared], [bool(reference[u]["success"]) for u in shared]
             )
@@ -135,7 +141,7 @@ def _level_row(controller: str, level: Any, mine: dict, reference: dict | None) 
                 "distance_low": g_low,
                 "distance_high": g_high,
             }
-    return row
+    return row, identity
 
 
 def profiles(
@@ -163,6 +169,7 @@ def profiles(
         ``reference`` is not one of the run's controllers.
     """
     out = []
+    tests_identities: list[Hashable] = []
     for key, levels in sweep.items():
         controllers = list(levels[0][1].config["controllers"])
         ref = reference or controllers[0]
@@ -170,11 +177,16 @@ def profiles(
             raise ValueError(f"--reference {ref!r} is not one of the run's controllers {controllers}")
         slip_axis = key == "slip"
         profile = AxisProfile(key, [level for level, _ in levels], ref)
+        identities = []
         for controller in controllers:
             per_level = [_by_unit(results, controller, slip_axis) for _, results in levels]
             ref_level = [_by_unit(results, ref, slip_axis) for _, results in levels]
             for (level, results), mine, theirs in zip(levels, per_level, ref_level, strict=True):
-                row = _level_row(controller, level, mine, None if controller == ref else theirs)
+                row, identity = _level_row(
+                    controller, level, mine, None if controller == ref else theirs, (key, level)
+                )
+                if row.paired:
+                    identities.append(identity)
                 row.errors = sum(r["controller"] == controller and not ran(r) for r in results.records)
                 profile.rows.append(row)
             units = _distinct_units(sorted(set.intersection(*(set(m) for m in per_level))), per_level)
@@ -192,9 +204,12 @@ def profiles(
                 "tail_high": tail_high,
             }
         out.append(profile)
-    # every paired test of the sweep as one family: Holm's adjustment beside the raw p
+        tests_identities.extend(identities)
+    # every paired test of the sweep as one family (a test on the same data as another, a
+    # bit-identical twin's, counted once): Holm's adjustment beside the raw p
     tests = [row.paired for profile in out for row in profile.rows if row.paired]
-    for test, adjusted in zip(tests, holm_adjusted(t["p_value"] for t in tests), strict=True):
+    adjusted_p = holm_adjusted((t["p_value"] for t in tests), same=tests_identities)
+    for test, adjusted in zip(tests, adjusted_p, strict=True):
         test["p_holm"] = adjusted
     return out
 
@@ -228,7 +243,7 @@ class LevelCost:
     low: float
     high: float
     p_value: float
-    #: Holm's adjustment over every level cost of the sweep
+    #: Holm's adjustment over every distinct level cost of the sweep (a twin's test counted once)
     p_holm: float = math.nan
 
 
@@ -239,6 +254,7 @@ def level_costs(sweep: Mapping[str, Sequence[tuple[Any, RunData]]]) -> list[Leve
     with Holm's adjustment over all of them (e.g. what seeing through a lidar costs each
     controller against exact state, ``--lidar``)."""
     out = []
+    identities: list[Hashable] = []
     for key, levels in sweep.items():
         slip_axis = key == "slip"
         first_level, first_run = levels[0]
@@ -252,6 +268,7 @@ def level_costs(sweep: Mapping[str, Sequence[tuple[Any, RunData]]]) -> list[Leve
                 now = [bool(mine[u]["success"]) for u in shared]
                 before = [bool(first[u]["success"]) for u in shared]
                 test = paired_comparison(now, before)
+                identities.append(paired_identity((key, level), shared, mine, first))
                 out.append(
                     LevelCost(
                         key,
@@ -267,6 +284,7 @@ def level_costs(sweep: Mapping[str, Sequence[tuple[Any, RunData]]]) -> list[Leve
                         test.p_value,
                     )
                 )
-    for cost, adjusted in zip(out, holm_adjusted(c.p_value for c in out), strict=True):
+    # a test on the same data as another (a bit-identical twin's) is one test of the family
+    for cost, adjusted in zip(out, holm_adjusted((c.p_value for c in out), same=identities), strict=True):
         cost.p_holm = adjusted
     return out

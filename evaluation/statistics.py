@@ -14,7 +14,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Hashable, Iterable
 from dataclasses import asdict, dataclass
 from numbers import Integral, Real
 from statistics import NormalDist
@@ -354,21 +354,37 @@ def paired_comparison(a: Iterable[Any], b: Iterable[Any], confidence: float = 0.
     )
 
 
-def holm_adjusted(p_values: Iterable[float]) -> list[float]:
+def holm_adjusted(p_values: Iterable[float], same: Iterable[Hashable] | None = None) -> list[float]:
     """Holm's step-down adjusted p-values, in the order given (NaN stays NaN and is not counted).
 
     The i-th smallest of m p-values becomes max over j <= i of min(1, (m - j + 1) p_(j)): reject
     where the adjusted value is below alpha, and the family-wise error rate is at most alpha.
+
+    ``same`` (one identity per p-value, e.g. :func:`evaluation.distinct.paired_identity`) names
+    tests run on the same data: two controllers whose episodes agree bit for bit (a ``-robust``
+    twin at nominal slip) give the same test against a third, and one test is one hypothesis,
+    counted once in m and given one adjusted value (a repeated test is not a new one, as an
+    identical rerun is not a sample).
     """
     values = [float(p) for p in p_values]
-    order = sorted((p, i) for i, p in enumerate(values) if not math.isnan(p))
+    identities: list[Hashable] = list(range(len(values))) if same is None else list(same)
+    if len(identities) != len(values):
+        raise ValueError(f"same names {len(identities)} tests, p_values {len(values)}")
+    first: dict[Hashable, int] = {}
+    for i, (identity, p) in enumerate(zip(identities, values, strict=True)):
+        if not math.isnan(p):
+            first.setdefault(identity, i)
+    order = sorted((values[i], i) for i in first.values())
     m = len(order)
-    out = [math.nan] * len(values)
+    adjusted: dict[Hashable, float] = {}
     running = 0.0
     for rank, (p, i) in enumerate(order):
         running = max(running, min(1.0, (m - rank) * p))
-        out[i] = running
-    return out
+        adjusted[identities[i]] = running
+    return [
+        math.nan if math.isnan(p) else adjusted[identity]
+        for identity, p in zip(identities, values, strict=True)
+    ]
 
 
 def cluster_bootstrap_rate(

@@ -77,6 +77,34 @@ def test_holm_against_hand_computed_values() -> None:
     assert holm_adjusted([]) == []
 
 
+def test_holm_counts_a_test_on_the_same_data_once() -> None:
+    # the second and third tests are one (same identity): m = 2, not 3
+    assert holm_adjusted([0.01, 0.02, 0.02], same=["x", "y", "y"]) == pytest.approx([0.02, 0.02, 0.02])
+    assert holm_adjusted([0.01, 0.02, 0.02]) == pytest.approx([0.03, 0.04, 0.04])
+    with pytest.raises(ValueError, match="same names 1 tests, p_values 2"):
+        holm_adjusted([0.1, 0.2], same=["x"])
+
+
+def test_a_bit_identical_twin_adds_no_test_to_the_paired_family() -> None:
+    records = []
+    for name, rate in (("a", 0.9), ("b", 0.5), ("c", 0.2)):
+        records += [_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
+    # c's twin: every episode bit for bit c's (a -robust variant at nominal slip)
+    records += [{**r, "controller": "c-twin"} for r in records if r["controller"] == "c"]
+    rows = {(r["a"], r["b"]): r for r in paired_comparisons(records)}
+    assert len(rows) == 6
+    without = {
+        (r["a"], r["b"]): r for r in paired_comparisons([r for r in records if r["controller"] != "c-twin"])
+    }
+    # a-c and a-c-twin, b-c and b-c-twin are two tests; c-c-twin (no discordant pair) is the fourth
+    assert rows[("a", "c-twin")]["p_holm"] == rows[("a", "c")]["p_holm"]
+    assert rows[("c", "c-twin")]["p_value"] == 1.0
+    distinct_p = [without[k]["p_value"] for k in without] + [1.0]
+    expected = dict(zip([*without, ("c", "c-twin")], holm_adjusted(distinct_p), strict=True))
+    for key in without:
+        assert rows[key]["p_holm"] == pytest.approx(expected[key])
+
+
 def test_the_paired_table_carries_holm_and_the_probability_of_improvement() -> None:
     records = []
     for name, rate in (("a", 0.9), ("b", 0.5), ("c", 0.2)):

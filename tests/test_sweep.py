@@ -318,3 +318,16 @@ def test_what_each_level_costs_each_controller_against_its_own_first_level() -> 
     text = markdown([level_cost_section(costs)])
     assert "| other | sensing | lidar (state) | 4 | 25 (75) |" in text
     assert level_cost_section([]) is None
+    # a bit-identical twin of `other` (a -robust variant at nominal slip): its test is other's,
+    # counted once in the family, so the Holm values do not move
+    twin_config = {"controllers": ["ref", "other", "twin"]}
+    with_twin = [
+        Results(
+            records=run.records
+            + [{**r, "controller": "twin"} for r in run.records if r["controller"] == "other"],
+            config=twin_config,
+        )
+        for run in (level_0, level_1)
+    ]
+    twinned = level_costs({"sensing": [("state", with_twin[0]), ("lidar", with_twin[1])]})
+    assert [c.p_holm for c in twinned] == [costs[0].p_holm, costs[1].p_holm, costs[1].p_holm]

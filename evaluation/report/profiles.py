@@ -199,7 +199,8 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
             "episode units (env, map, slip, trial: seed, layout and slip draws) at every level. Success "
             "with 95% Wilson intervals; final distance (mean over robots) with 95% bootstrap intervals; "
             f"paired differences to {profile.reference} on the shared units (Newcombe interval, exact "
-            "McNemar p, and Holm's adjustment over every paired test of the sweep; bootstrap interval "
+            "McNemar p, and Holm's adjustment over every distinct paired test of the sweep, a "
+            "bit-identical twin's test counted once; bootstrap interval "
             "of the per-episode distance differences). Distinct episodes only: an episode or unit that "
             "repeats an earlier one of its cell bit for bit counts once. AUC: the mean success "
             "over the levels per unit, bootstrap over units; tail: the mean final distance of the worst "
@@ -255,7 +256,8 @@ def level_cost_section(costs: Sequence[LevelCost], title: str = "What each level
         "Each controller against itself: its success at a level against its success at the axis's "
         "first level (in brackets), on the episode units both levels share (distinct units only), "
         "difference with a 95% Newcombe interval, exact McNemar p and Holm's adjustment over every "
-        "row of the table."
+        "distinct test of the table (a bit-identical twin's test, e.g. a `-robust` variant's at "
+        "nominal slip, is its base's and counted once)."
     )
     anchor = "level-costs"
     return Section(anchor, title, (Note(note), TableBlock((header, rows))))
