@@ -379,18 +379,24 @@ class RLPolicyController(BaseController):
                 f"a set policy runs teams of 1..{MAX_TEAM} robots, not n_robots={scenario.n_robots}"
             )
         self._formation = TASKS[scenario.task].formation
-        if scenario.lidar_beams:
+        if scenario.lidar_beams and not self.perceives:
             raise ValueError(
                 f"{self.name} reads the listed obstacles of sensing='state'; this env has sensing='lidar' "
-                f"({scenario.lidar_beams} beams)"
+                f"({scenario.lidar_beams} beams): the set policies (rl-ppo-set*) read the perceived ones"
             )
-        self._scenario = scenario
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
         import time
 
         start = time.perf_counter()
-        sc = self._scenario
+        sc = self.scenario  # the planner's: under lidar with the map unknown, the local map's obstacles
+        assert sc is not None  # act() checked it
+        mover_slots = sc.mover_slots
+        if sc.lidar_beams:  # the perceived obstacles and movers, listed as a state env lists them
+            from baselines.perceived import LISTED_MOVERS, perceived_blocks
+
+            observation = perceived_blocks(info, sc).astype(np.float32)
+            mover_slots = LISTED_MOVERS
         command = policy_command(
             self._model,
             self._norm,
@@ -404,7 +410,7 @@ class RLPolicyController(BaseController):
             set_config=self._set_config,
             formation=self._formation,
             message_ages=sc.message_ages,
-            mover_slots=sc.mover_slots,
+            mover_slots=mover_slots,
         )
         self._stats.solve_times.append(time.perf_counter() - start)
         return command
@@ -423,6 +429,8 @@ class RLSetPolicyController(RLPolicyController):
     name = "rl-ppo-set"
     #: the folder under ``baselines/policies`` of the shipped policies this name loads
     shipped = "set"
+    #: under lidar a set policy reads the perceived obstacles and movers (:mod:`baselines.perceived`)
+    perceives = True
 
     def __init__(
         self,

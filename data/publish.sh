@@ -68,8 +68,12 @@ for behaviour in constant waypoints crowd; do RUNS[crowd_$behaviour]="--crowd $b
 # issue 46: navigating on what the robots see (every controller that perceives; exact state, the
 # lidar with the map known, the lidar only; 4 constant movers; docs/perception.md)
 RUNS[lidar]="--lidar --reference koopman-nmpc"
+# issue 46: the learned set policies on the sensing protocol's episodes, reading the perceived
+# obstacle and mover sets (baselines/perceived.py); Koopman-NMPC again as the reference (its rows
+# repeat the lidar run's bit for bit)
+RUNS[lidar_policies]="--lidar --solver rti --controllers koopman-nmpc rl-ppo-set rl-ppo-set-realistic rl-ppo-set-movers --reference koopman-nmpc"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar crowd_constant crowd_waypoints crowd_crowd)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd)
 
 run() {
     local name="$1" out="data/runs/$1"

@@ -154,19 +154,23 @@ def lidar_protocol() -> RunSpec:
     """Navigating on what the robots see (``--lidar``; docs/perception.md): both tasks on their
     paper maps and 20 seeded random layouts, nominal slip, 20 trials per cell, among
     :data:`LIDAR_MOVERS` constant movers at :data:`CROWD_SPEED`, every registered controller
-    that plans on obstacles and movers (the learned policies read the obstacle list and refuse
-    lidar), the NMPCs on the real-time iteration; swept (the command line adds it) over
+    that perceives (the learned set policies on the perceived obstacle and mover sets; ``rl-ppo``
+    reads its observation only and refuses lidar), the NMPCs on the real-time iteration; swept (the command line adds it) over
     :data:`LIDAR_AXES`: exact state (movers through the env's tracker), the beams with the map
     known, the beams only. Paired on shared seeds: the same starts, layouts, slip draws and
     movers at every level."""
     from controllers import available
+    from controllers.registry import factory
 
+    # every controller that perceives: the learned set policies read the perceived obstacle and
+    # mover sets (baselines.perceived); a policy that reads its observation only (rl-ppo) cannot
+    perceiving = [name for name in available() if getattr(factory(name), "perceives", True)]
     return _among_movers(
         {
             "sensing": "lidar",
             "movers": {"behaviour": "constant", "speed": CROWD_SPEED, "count": LIDAR_MOVERS},
         },
-        controllers=[parse_controller(name) for name in available() if not name.startswith("rl-")],
+        controllers=[parse_controller(name) for name in perceiving],
     )
 
 

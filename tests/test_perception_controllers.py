@@ -123,7 +123,7 @@ def test_poisoned_truth_changes_no_action_with_perception_in_the_loop(name: str)
 
 
 def test_the_lidar_protocol_sweeps_state_beams_and_beams_only() -> None:
-    """``--lidar``: every controller that perceives (no learned policy: they refuse lidar),
+    """``--lidar``: every controller that perceives (the set policies too; rl-ppo refuses lidar),
     among movers, swept over exact state, the beams with the map, and the beams only; the
     level 'lidar with the map known' of both axes is one run (the same episodes)."""
     from evaluation.cli import build_parser, spec_from_args
@@ -134,7 +134,7 @@ def test_the_lidar_protocol_sweeps_state_beams_and_beams_only() -> None:
     spec = spec_from_args(args)
     assert args.sweep == list(LIDAR_AXES) and args.reference == "koopman-nmpc"
     names = [c.name for c in spec.controllers]
-    assert names and not any(n.startswith("rl-") for n in names) and "koopman-nmpc" in names
+    assert "koopman-nmpc" in names and "rl-ppo-set-movers" in names and "rl-ppo" not in names
     assert spec.env_kwargs["sensing"] == "lidar" and spec.env_kwargs["movers"]["count"] > 0
     aliases = level_aliases(spec, [parse_sweep(a) for a in args.sweep])
     assert aliases == {"lidar.map_known=true": "sensing=lidar"}
