@@ -22,6 +22,13 @@ __all__ = ["BACKENDS", "Progress", "RunInterrupted", "run_episodes"]
 BACKENDS = ("process", "ray")
 
 
+def announce(message: str, enabled: bool = True) -> None:
+    """One line on stderr saying what the run is doing before its first episode ends (a cold
+    start prepares for tens of seconds: a newcomer must not mistake it for a hang)."""
+    if enabled:
+        print(f"koopnav: {message}", file=sys.stderr, flush=True)
+
+
 class Progress:
     """Progress on stderr: a tqdm bar on a terminal, one line per episode otherwise (CI logs)."""
 

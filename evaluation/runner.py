@@ -9,7 +9,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import controllers as registry
-from evaluation.backends import BACKENDS, Progress, RunInterrupted, run_episodes
+from evaluation.backends import BACKENDS, Progress, RunInterrupted, announce, run_episodes
 from evaluation.plan import EpisodeSpec
 from evaluation.records import json_safe
 from evaluation.results import Results
@@ -109,6 +109,7 @@ def evaluate(
         raise ValueError("gifs=True needs an output directory (out=...) for the animations")
     spec.validate(workers)  # before the registry builds every controller below
     if spec.controllers is None:
+        announce("checking which registered controllers can run here (the learned ones load torch)", progress)
         spec = spec.resolved(usable_controllers(progress))
         spec.validate(workers)  # the filled-in configurations too
     else:
@@ -124,6 +125,13 @@ def evaluate(
     todo = sorted(
         (episode for episode in plan if episode.key not in done),
         key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2),
+    )
+    announce(
+        f"{len(todo)} episodes to run"
+        + (f" ({len(done)} already in the log)" if done else "")
+        + f" on {workers} {backend} worker{'s' if workers != 1 else ''}; the first ones start the workers "
+        "(imports, compiled kernels, controller models and their caches) and take longest",
+        progress and bool(todo),
     )
     bar = Progress(len(todo), progress)
     records = dict(done)
