@@ -242,7 +242,7 @@ def _numpy_wavefront(free, seed, weight=None):
 
 
 def test_the_compiled_kernels_give_the_numpy_expressions_bits() -> None:
-    from controllers.classic.kernels import closest_approach
+    from controllers.classic.kernels import closest_approach, unicycle_arcs
     from controllers.classic.plan import polyline_distance, wavefront
 
     rng = np.random.default_rng(0)
@@ -269,3 +269,16 @@ def test_the_compiled_kernels_give_the_numpy_expressions_bits() -> None:
     dy = path[..., 1, None] - centres[:, None, 1:, :, 1]
     expected = np.sqrt((dx * dx + dy * dy).min(axis=2))
     assert np.array_equal(closest_approach(path, np.ascontiguousarray(centres[:, 1:])), expected)
+    for trial in range(50):  # the arcs against the numpy rollout they replaced (np.sinc's chord)
+        n, s, k = (int(v) for v in rng.integers(1, 40, 3))
+        pose = rng.uniform(-np.pi, np.pi, (n, 3))
+        samples = np.stack([rng.uniform(0, 0.5, (n, s)), rng.uniform(-1.5, 1.5, (n, s))], axis=-1)
+        samples[:, 0, 1] = 0.0  # a straight sample: the sinc at 0
+        times = 1.7 * np.arange(1, k + 1) / k
+        v, w, theta0 = samples[..., 0][..., None], samples[..., 1][..., None], pose[:, 2][:, None, None]
+        half = 0.5 * w * times
+        chord = v * times * np.sinc(half / np.pi)
+        x = pose[:, 0][:, None, None] + chord * np.cos(theta0 + half)
+        y = pose[:, 1][:, None, None] + chord * np.sin(theta0 + half)
+        reference = np.stack([x, y, np.broadcast_to(theta0 + w * times, x.shape)], axis=-1)
+        assert np.array_equal(unicycle_arcs(pose, samples, times), reference), trial

@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController
 from controllers.classic.common import TeamView, check_count, check_positive, goals
-from controllers.classic.kernels import closest_approach
+from controllers.classic.kernels import closest_approach, unicycle_arcs
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
 from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import (
@@ -256,15 +256,9 @@ class DWAController(BaseController):
         return np.stack([grid_v, grid_w], axis=-1)
 
     def _rollout(self, pose: NDArray[np.float64], samples: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(N, S, K, 3) poses along each sample's arc at the simulated times (exact unicycle)."""
-        t = self._times  # (K,)
-        v, w = samples[..., 0][..., None], samples[..., 1][..., None]  # (N, S, 1)
-        theta0 = pose[:, 2][:, None, None]
-        half = 0.5 * w * t
-        chord = v * t * np.sinc(half / np.pi)  # sin(half) / half, 1 at half = 0
-        x = pose[:, 0][:, None, None] + chord * np.cos(theta0 + half)
-        y = pose[:, 1][:, None, None] + chord * np.sin(theta0 + half)
-        return np.stack([x, y, np.broadcast_to(theta0 + w * t, x.shape)], axis=-1)
+        """(N, S, K, 3) poses along each sample's arc at the simulated times (exact unicycle;
+        compiled, :func:`controllers.classic.kernels.unicycle_arcs`)."""
+        return unicycle_arcs(np.ascontiguousarray(pose), np.ascontiguousarray(samples), self._times)
 
     def _goal_cost(
         self,

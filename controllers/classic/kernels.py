@@ -6,6 +6,8 @@ Both compute exactly what the numpy expressions they replace computed, operation
 
 - :func:`closest_approach`: each trajectory's closest approach to every disc,
   ``sqrt(min_k (dx^2 + dy^2))``, without the (N, S, K, O) arrays;
+- :func:`unicycle_arcs`: every velocity sample's arc at the simulated times (the exact unicycle,
+  ``np.sinc``'s chord factor computed as numpy computes it), without the (N, S, K) temporaries;
 - :func:`relax_wavefront`: the relaxation sweeps of :func:`controllers.classic.plan.wavefront`
   (each move reads the field as it was before that move, as ``np.minimum`` on overlapping views
   does), in place, without a copy per move.
@@ -23,7 +25,35 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["closest_approach", "polyline_distances", "relax_wavefront"]
+__all__ = ["closest_approach", "polyline_distances", "relax_wavefront", "unicycle_arcs"]
+
+
+@njit(cache=True)
+def unicycle_arcs(
+    pose: NDArray[np.float64], samples: NDArray[np.float64], times: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(N, S, K, 3) poses along each sample's arc: ``pose`` (N, 3) the start, ``samples``
+    (N, S, 2) the (v, omega) pairs, ``times`` (K,) the simulated times. With ``half = 0.5 omega
+    t`` the chord is ``v t sinc(half)`` (``sin(half) / half``, through ``np.sinc``'s ``pi (half /
+    pi)``, 1e-20 in place of 0), x and y advance by the chord along ``theta0 + half`` and theta
+    is ``theta0 + omega t``."""
+    n, s = samples.shape[0], samples.shape[1]
+    k = times.shape[0]
+    out = np.empty((n, s, k, 3))
+    for i in range(n):
+        x0, y0, theta0 = pose[i, 0], pose[i, 1], pose[i, 2]
+        for j in range(s):
+            v, w = samples[i, j, 0], samples[i, j, 1]
+            for q in range(k):
+                t = times[q]
+                half = 0.5 * w * t
+                ratio = half / np.pi
+                y = np.pi * (ratio if ratio != 0.0 else 1.0e-20)
+                chord = v * t * (math.sin(y) / y)
+                out[i, j, q, 0] = x0 + chord * math.cos(theta0 + half)
+                out[i, j, q, 1] = y0 + chord * math.sin(theta0 + half)
+                out[i, j, q, 2] = theta0 + w * t
+    return out
 
 
 @njit(cache=True)
