@@ -25,6 +25,12 @@ The task's config is the env keywords of :mod:`koopman_envs.builder.keywords` (`
 ``n_robots``, ``max_cycles``, ...); unknown ones fail when the env is built, naming the
 allowed ones. ``TASK_CONFIGS`` holds the defaults (random maps, random slip, 100 cycles, like
 BenchMARL's MPE tasks) and :func:`write_task_yaml` writes them as BenchMARL's YAML files.
+
+``vectorized`` (default True, not an env keyword) picks how BenchMARL gets its batch of
+environments: True, one compiled vector env as one batched TorchRL env
+(:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`, as VMAS does); False, one PettingZoo
+env per TorchRL env, which BenchMARL batches with a ``SerialEnv`` (every environment stepped
+through Python: about a tenth of the frames per second, ``bench/benchmarl_speed.py``).
 """
 
 from __future__ import annotations
@@ -44,9 +50,17 @@ __all__ = ["TASK_CONFIGS", "KoopNavTask", "KoopNavTaskClass", "write_task_yaml"]
 
 #: the default config of each task: env keywords of the PettingZoo parallel env
 TASK_CONFIGS: dict[str, dict[str, Any]] = {
-    "target_reaching": {"n_robots": 3, "map": "random", "slip": "random", "max_cycles": 100},
-    "formation": {"n_robots": 3, "map": "random", "slip": "random", "max_cycles": 100},
+    "target_reaching": {
+        "n_robots": 3,
+        "map": "random",
+        "slip": "random",
+        "max_cycles": 100,
+        "vectorized": True,
+    },
+    "formation": {"n_robots": 3, "map": "random", "slip": "random", "max_cycles": 100, "vectorized": True},
 }
+#: the Gymnasium ids of the tasks (the vectorized env's)
+_ENV_IDS = {"target_reaching": "KoopNav-TargetReaching-v0", "formation": "KoopNav-Formation-v0"}
 _MODULES = {"target_reaching": target_reaching_v0, "formation": formation_v0}
 
 
@@ -57,7 +71,21 @@ class KoopNavTaskClass(TaskClass):
         self, num_envs: int, continuous_actions: bool, seed: int | None, device: Any
     ) -> Callable[[], EnvBase]:
         config = copy.deepcopy(self.config)
-        module = _MODULES[self.name.lower()]
+        name = self.name.lower()
+        if config.pop("vectorized", True):
+            # every environment in one compiled vector env: BenchMARL takes it as already batched
+            from baselines.torchrl_env import KoopNavMultiAgentEnv
+
+            config["max_episode_steps"] = config.pop("max_cycles", 600)
+
+            def make() -> EnvBase:
+                env = KoopNavMultiAgentEnv(_ENV_IDS[name], num_envs, device=device, **config)
+                if seed is not None:
+                    env.set_seed(seed)
+                return env
+
+            return make
+        module = _MODULES[name]
         # one KoopNav env per TorchRL env: BenchMARL batches them with a SerialEnv / ParallelEnv
         return lambda: PettingZooWrapper(
             module.parallel_env(**config), use_mask=True, categorical_actions=True, device=device, seed=seed
@@ -79,7 +107,9 @@ class KoopNavTaskClass(TaskClass):
         return env.group_map
 
     def _group_entries(self, env: EnvBase, keep: str) -> Composite:
-        spec = env.observation_spec.clone()
+        # BenchMARL builds its networks from the specs of one environment (a batched env's
+        # unbatched specs; for an unbatched env they are its specs)
+        spec = env.full_observation_spec_unbatched.clone()
         for group in self.group_map(env):
             for key in list(spec[group].keys()):
                 if key != keep:
@@ -96,7 +126,7 @@ class KoopNavTaskClass(TaskClass):
         return None
 
     def action_spec(self, env: EnvBase) -> Composite:
-        return env.full_action_spec
+        return env.full_action_spec_unbatched
 
     def action_mask_spec(self, env: EnvBase) -> Composite | None:
         return None

@@ -17,15 +17,21 @@ from torchrl.envs.utils import check_env_specs  # noqa: E402
 from baselines.benchmarl_task import TASK_CONFIGS, KoopNavTask, write_task_yaml  # noqa: E402
 
 
+@pytest.mark.parametrize("vectorized", [True, False], ids=["vector-env", "pettingzoo"])
 @pytest.mark.parametrize("member", list(KoopNavTask))
-def test_every_task_builds_torchrl_envs_that_pass_the_spec_check(member) -> None:
+def test_every_task_builds_torchrl_envs_that_pass_the_spec_check(member, vectorized: bool) -> None:
     task = member.get_task()
     assert task.config == TASK_CONFIGS[member.name.lower()]
-    env = task.get_env_fun(num_envs=1, continuous_actions=True, seed=0, device="cpu")()
+    task.config["vectorized"] = vectorized
+    env = task.get_env_fun(num_envs=2, continuous_actions=True, seed=0, device="cpu")()
     check_env_specs(env)
+    # the vector env is one batched TorchRL env; a PettingZoo env is one environment
+    assert env.batch_size == ((2,) if vectorized else ())
     assert list(task.group_map(env)) == ["robot"] and len(task.group_map(env)["robot"]) == 3
     assert task.max_steps(env) == 100
-    assert "observation" in task.observation_spec(env)["robot"].keys()
+    # BenchMARL builds its networks from one environment's specs, whichever the batch
+    assert task.observation_spec(env)["robot", "observation"].shape[0] == 3
+    assert task.action_spec(env)["robot", "action"].shape == (3, 2)
 
 
 def test_yaml_configs_round_trip(tmp_path) -> None:

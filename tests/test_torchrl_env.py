@@ -1,0 +1,67 @@
+"""The batched multi-agent TorchRL env (baselines.torchrl_env): TorchRL's spec check, and step for
+step the vector env it wraps, ends of episodes included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torchrl")
+
+import gymnasium as gym  # noqa: E402
+from torchrl.envs.utils import check_env_specs  # noqa: E402
+
+from baselines.torchrl_env import GROUP, KoopNavMultiAgentEnv  # noqa: E402
+
+ENV = "KoopNav-Formation-v0"
+KWARGS = {"map": "random", "n_robots": 4, "max_episode_steps": 25}
+
+
+def test_the_batched_env_passes_torchrls_spec_check() -> None:
+    env = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
+    check_env_specs(env)
+    assert env.group_map == {GROUP: [f"{GROUP}_{i}" for i in range(4)]}
+    assert env.full_action_spec_unbatched[GROUP, "action"].shape == (4, 2)
+
+
+def test_a_rollout_is_the_vector_envs_step_for_step() -> None:
+    """Every observation, reward and flag of a 60-step rollout of 5 environments (each episode
+    truncated at 25 steps, so every environment ends and restarts twice) equals the vector env's
+    driven with the same actions: the final observation under "next" at an episode's end, the
+    new episode's first one after TorchRL's partial reset."""
+    k, steps = 5, 60
+    env = KoopNavMultiAgentEnv(ENV, k, **KWARGS)
+    env.set_seed(7)
+    td = env.rollout(steps, break_when_any_done=False)
+    venv = gym.make_vec(ENV, num_envs=k, autoreset_mode="SameStep", **KWARGS)
+    obs, _ = venv.reset(seed=7)
+    np.testing.assert_array_equal(obs.reshape(k, 4, -1), td[GROUP, "observation"][:, 0].numpy())
+    actions = td[GROUP, "action"].numpy().astype(np.float64)
+    ends = 0
+    for s in range(steps):
+        obs, _, terminated, truncated, info = venv.step(actions[:, s].reshape(k, -1))
+        ended = terminated | truncated
+        ends += int(ended.sum())
+        final = obs.copy()
+        if ended.any():
+            final[ended] = info["final_obs"][ended]
+        np.testing.assert_array_equal(final.reshape(k, 4, -1), td["next", GROUP, "observation"][:, s].numpy())
+        np.testing.assert_array_equal(
+            info["robot_rewards"].astype(np.float32), td["next", GROUP, "reward"][:, s, :, 0].numpy()
+        )
+        np.testing.assert_array_equal(ended, td["next", "done"][:, s, 0].numpy())
+        np.testing.assert_array_equal(terminated, td["next", "terminated"][:, s, 0].numpy())
+        if s + 1 < steps:
+            np.testing.assert_array_equal(obs.reshape(k, 4, -1), td[GROUP, "observation"][:, s + 1].numpy())
+    assert ends >= 2 * k  # every environment ended (and restarted) at least twice
+
+
+def test_a_reset_of_an_environment_whose_episode_runs_is_refused_by_name() -> None:
+    import torch
+    from tensordict import TensorDict
+
+    env = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
+    td = env.reset()
+    env.rand_step(td)
+    with pytest.raises(ValueError, match=r"a reset of environments \[1\] whose episode has not ended"):
+        env.reset(TensorDict({"_reset": torch.tensor([[False], [True], [False]])}, batch_size=[3]))
