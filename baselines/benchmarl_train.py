@@ -1,0 +1,151 @@
+"""Train a multi-agent PPO policy (MAPPO or IPPO) with BenchMARL on a KoopNav task and export it
+for the ``mappo`` / ``ippo`` controllers (:mod:`baselines.marl_policy`).
+
+    python -m baselines.benchmarl_train --task target_reaching --algorithm mappo \\
+        --frames 6_000_000 --out runs/mappo_tr
+
+BenchMARL trains on the task's batched vector env (:mod:`baselines.torchrl_env`) with its own
+algorithm and network defaults (MLP 256x256 with Tanh, parameters shared by the robots, a
+centralised critic for MAPPO) except the batch settings below, which the vector env makes
+cheap: ``--envs`` environments, 60,000 frames per iteration, 10 PPO epochs of 4,000-frame
+minibatches. The env: 3 robots, random layouts, random slip, ``--max-cycles`` periods per
+episode, KoopNav's own rewards (no shaping of ours). ``--out`` receives BenchMARL's run folder
+(its CSV logs and checkpoint) and the export: ``policy.npz`` (the actor's weights and the
+action bounds, numpy arrays only: loaded without pickle) and ``metadata.json`` (the command,
+seed, frames, wall time, versions and the evaluation curve).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+TASKS = ("target_reaching", "formation")
+ALGORITHMS = ("mappo", "ippo")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m baselines.benchmarl_train", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument("--task", choices=TASKS, required=True)
+    parser.add_argument("--algorithm", choices=ALGORITHMS, default="mappo")
+    parser.add_argument("--frames", type=lambda s: int(s.replace("_", "")), default=6_000_000)
+    parser.add_argument("--envs", type=int, default=300, help="environments in the batch (default 300)")
+    parser.add_argument(
+        "--max-cycles", type=int, default=400, help="periods per training episode (default 400)"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    parser.add_argument("--out", required=True)
+    return parser
+
+
+def _experiment(args: argparse.Namespace, folder: Path) -> Any:
+    import torch
+    from benchmarl.algorithms import IppoConfig, MappoConfig
+    from benchmarl.experiment import Experiment, ExperimentConfig
+    from benchmarl.models.mlp import MlpConfig
+
+    from baselines.benchmarl_task import KoopNavTask
+
+    torch.set_num_threads(args.threads)
+    task = getattr(KoopNavTask, args.task.upper()).get_task()
+    task.config.update({"max_cycles": args.max_cycles, "vectorized": True})
+    config = ExperimentConfig.get_from_yaml()
+    config.max_n_frames, config.max_n_iters = args.frames, None
+    config.on_policy_collected_frames_per_batch = 60_000
+    config.on_policy_n_envs_per_worker = args.envs
+    config.on_policy_n_minibatch_iters, config.on_policy_minibatch_size = 10, 4_000
+    config.evaluation, config.evaluation_interval, config.evaluation_episodes = True, 600_000, 20
+    config.render, config.loggers, config.create_json = False, ["csv"], True
+    config.save_folder, config.checkpoint_at_end = str(folder), True
+    algorithm = (MappoConfig if args.algorithm == "mappo" else IppoConfig).get_from_yaml()
+    return Experiment(
+        task=task,
+        algorithm_config=algorithm,
+        model_config=MlpConfig.get_from_yaml(),
+        critic_model_config=MlpConfig.get_from_yaml(),
+        seed=args.seed,
+        config=config,
+    )
+
+
+def export_actor(policy: Any) -> dict[str, np.ndarray]:
+    """The deterministic actor of a BenchMARL MAPPO/IPPO policy (shared MLP parameters) as numpy
+    arrays: ``weight_i``/``bias_i`` of its Linear layers in order (Tanh between them), and the
+    action bounds ``low``/``high`` of its TanhNormal head."""
+    state = policy.state_dict()
+    layers = sorted(
+        {key.rsplit(".", 1)[0] for key in state if key.endswith(".weight") and ".mlp.params." in key},
+        key=lambda key: int(key.rsplit(".", 1)[1]),
+    )
+    arrays = {}
+    for i, layer in enumerate(layers):
+        arrays[f"weight_{i}"] = state[f"{layer}.weight"].detach().cpu().numpy()
+        arrays[f"bias_{i}"] = state[f"{layer}.bias"].detach().cpu().numpy()
+    head = policy.module[0].module[1]  # the ProbabilisticActor's distribution module
+    kwargs = head.distribution_kwargs
+    arrays["low"] = np.asarray(kwargs["low"].cpu().numpy()[0], dtype=np.float32)
+    arrays["high"] = np.asarray(kwargs["high"].cpu().numpy()[0], dtype=np.float32)
+    return arrays
+
+
+def _curve(folder: Path) -> list[list[float]]:
+    """(frames, mean evaluation episode reward) from BenchMARL's CSV scalars."""
+    files = list(folder.glob("*/*/scalars/eval_reward_episode_reward_mean.csv"))
+    if not files:
+        return []
+    with files[0].open() as handle:
+        return [[float(row[0]), float(row[1])] for row in csv.reader(handle) if row]
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
+    experiment = _experiment(args, out / "benchmarl")
+    start = time.perf_counter()
+    experiment.run()
+    wall = time.perf_counter() - start
+    arrays = export_actor(experiment.policy)
+    np.savez(out / "policy.npz", **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
+    import benchmarl
+    import torch
+    import torchrl
+
+    metadata = {
+        "algorithm": args.algorithm,
+        "task": args.task,
+        "n_robots": 3,
+        "observation_size": int(arrays["weight_0"].shape[1]),
+        "arrays": sorted(arrays),
+        "env": {"map": "random", "slip": "random", "max_cycles": args.max_cycles},
+        "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),
+        "seed": args.seed,
+        "frames": int(experiment.total_frames),
+        "wall_seconds": round(wall, 1),
+        "versions": {
+            "benchmarl": benchmarl.__version__ if hasattr(benchmarl, "__version__") else "?",
+            "torchrl": torchrl.__version__,
+            "torch": torch.__version__,
+            "python": platform.python_version(),
+        },
+        "eval_curve": _curve(out / "benchmarl"),
+    }
+    (out / "metadata.json").write_text(json.dumps(metadata, indent=1) + "\n")
+    print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,100 @@
+"""The BenchMARL policies as controllers (baselines.marl_policy): the exported numpy actor acts as
+BenchMARL's own deterministic policy does, and the controller refuses what it cannot read."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import koopman_envs  # noqa: F401 - registers the ids
+from baselines.marl_policy import MappoController, actor_command
+from koopman_envs.fronts.episode import run_episode
+
+TR = "KoopNav-TargetReaching-v0"
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """A BenchMARL MAPPO policy for target reaching (its initial weights: no training is needed to
+    compare two implementations of one actor), its export, and the export as a policy folder."""
+    pytest.importorskip("benchmarl")
+    from benchmarl.algorithms import MappoConfig
+    from benchmarl.experiment import Experiment, ExperimentConfig
+    from benchmarl.models.mlp import MlpConfig
+
+    from baselines.benchmarl_task import KoopNavTask
+    from baselines.benchmarl_train import export_actor
+
+    folder = tmp_path_factory.mktemp("mappo")
+    config = ExperimentConfig.get_from_yaml()
+    config.max_n_iters, config.loggers, config.render, config.evaluation = 1, [], False, False
+    config.on_policy_collected_frames_per_batch, config.on_policy_n_envs_per_worker = 200, 2
+    config.save_folder = str(folder)
+    experiment = Experiment(
+        task=KoopNavTask.TARGET_REACHING.get_task(),
+        algorithm_config=MappoConfig.get_from_yaml(),
+        model_config=MlpConfig.get_from_yaml(),
+        critic_model_config=MlpConfig.get_from_yaml(),
+        seed=0,
+        config=config,
+    )
+    arrays = export_actor(experiment.policy)
+    root = folder / "root" / "target_reaching"
+    root.mkdir(parents=True)
+    np.savez(root / "policy.npz", **arrays)
+    size = int(arrays["weight_0"].shape[1])
+    metadata = {"n_robots": 3, "observation_size": size, "arrays": sorted(arrays), "algorithm": "mappo"}
+    (root / "metadata.json").write_text(json.dumps(metadata))
+    return experiment.policy, arrays, folder / "root"
+
+
+def test_the_numpy_actor_acts_as_benchmarls_deterministic_policy(exported) -> None:
+    import torch
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    policy, arrays, _ = exported
+    obs = torch.randn(64, 3, arrays["weight_0"].shape[1]) * 3
+    with set_exploration_type(ExplorationType.DETERMINISTIC), torch.no_grad():
+        expected = policy(TensorDict({("robot", "observation"): obs}, batch_size=[64]))["robot", "action"]
+    ours = actor_command(arrays, obs.numpy())
+    np.testing.assert_allclose(ours, expected.numpy(), atol=2e-6)
+    assert (np.abs(ours) <= arrays["high"] + 1e-6).all()
+
+
+def test_the_controller_plays_the_exported_policy_on_the_observed_blocks(exported) -> None:
+    _, arrays, root = exported
+    env = gym.make(TR, map="map1", uncertainty="realistic", movers={"count": 2})
+    ctrl = MappoController(root)
+    obs, info = env.reset(seed=0)
+    ctrl.reset(env, seed=0)
+    command = ctrl.act(obs, info)
+    layout = env.unwrapped.scenario.observation_layout
+    blocks = obs.reshape(3, -1)
+    keep = [
+        i
+        for name, _ in layout.parts
+        if name not in ("messages", "movers")
+        for i in range(*layout[name].indices(layout.size))
+    ]
+    np.testing.assert_array_equal(command, actor_command(arrays, blocks[:, keep]).reshape(-1))
+    result = run_episode(gym.make(TR, map="map1"), ctrl, seed=0)
+    assert result.steps > 0 and ctrl.stats().summary()["solve_ms_median"] > 0
+
+
+def test_what_the_policy_cannot_read_is_refused_by_name(exported, tmp_path) -> None:
+    _, _, root = exported
+    ctrl = MappoController(root)
+    with pytest.raises(
+        ValueError, match=r"takes teams of 3 robots .* not n_robots=5; rl-ppo-set runs any team size"
+    ):
+        run_episode(gym.make(TR, map="random", n_robots=5), ctrl, seed=0)
+    with pytest.raises(ValueError, match=r"mappo reads the listed obstacles of sensing='state'"):
+        run_episode(gym.make(TR, map="map1", sensing="lidar"), ctrl, seed=0)
+    with pytest.raises(ValueError, match=r"no policy for task 'formation'"):
+        run_episode(gym.make("KoopNav-Formation-v0", map="map3"), ctrl, seed=0)
+    with pytest.raises(ValueError, match=r"no trained policies in .*benchmarl_train"):
+        MappoController(tmp_path / "nothing")
