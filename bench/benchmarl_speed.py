@@ -34,7 +34,7 @@ def frames_per_second(vectorized: bool, envs: int, frames: int, iters: int) -> f
     config = ExperimentConfig.get_from_yaml()
     config.max_n_iters, config.max_n_frames, config.render, config.loggers = iters, None, False, []
     config.on_policy_collected_frames_per_batch, config.on_policy_n_envs_per_worker = frames, envs
-    config.on_policy_n_minibatch_iters, config.on_policy_minibatch_size = 2, 6000
+    config.on_policy_n_minibatch_iters, config.on_policy_minibatch_size = 2, min(6000, frames)
     config.evaluation, config.checkpoint_interval = False, 0
     with tempfile.TemporaryDirectory() as folder:
         config.save_folder = folder

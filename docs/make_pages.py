@@ -3,6 +3,7 @@ same commands tests/test_published_pages.py checks byte for byte).
 
     python docs/make_pages.py            # every page
     python docs/make_pages.py docs/lidar_results.md   # the named ones
+    python docs/make_pages.py --check [PAGE ...]       # rebuild elsewhere, say which differ (exit 1)
 """
 
 from __future__ import annotations
@@ -10,25 +11,37 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str]) -> int:
+    check = "--check" in argv
+    names = [name for name in argv if name != "--check"]
     pages = json.loads((ROOT / "data" / "pages.json").read_text())
     known = [entry["page"] for entry in pages]
-    unknown = [name for name in argv if name not in known]
+    unknown = [name for name in names if name not in known]
     if unknown:
         print(f"not a published page: {unknown}; data/pages.json lists {known}", file=sys.stderr)
         return 2
-    for entry in pages:
-        if argv and entry["page"] not in argv:
-            continue
-        print(f"== {entry['page']}", flush=True)
-        command = [sys.executable, str(ROOT / entry["generator"]), *entry["args"], "--out", entry["page"]]
-        subprocess.run(command, cwd=ROOT, check=True)
-    return 0
+    stale = []
+    with tempfile.TemporaryDirectory() as scratch:
+        for entry in pages:
+            if names and entry["page"] not in names:
+                continue
+            out = Path(scratch) / Path(entry["page"]).name if check else ROOT / entry["page"]
+            command = [sys.executable, str(ROOT / entry["generator"]), *entry["args"], "--out", str(out)]
+            if check:  # the figures too go to the scratch folder: the checkout is left alone
+                command += ["--figures", str(Path(scratch) / "_static")]
+            print(f"== {entry['page']}", flush=True)
+            subprocess.run(command, cwd=ROOT, check=True, capture_output=check)
+            if check and out.read_bytes() != (ROOT / entry["page"]).read_bytes():
+                stale.append(entry["page"])
+    if check:
+        print(f"differ from the committed data: {stale}" if stale else "every page checked is up to date")
+    return 1 if stale else 0
 
 
 if __name__ == "__main__":

@@ -19,6 +19,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: {sweep}: a small sweep's output directory)
 SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
+    "bench/cold_start.py": ["--settings", "plain", "--repeats", "1"],
+    "bench/benchmarl_speed.py": ["--envs", "4", "--frames", "400", "--iters", "1"],
     "bench/uncertainty_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16"],
     "bench/movers_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16", "--crowd-envs", "4"],
     "bench/perception_speed.py": ["--periods", "12", "--json", "{tmp}/perception.json"],
@@ -49,6 +51,7 @@ SMOKE: dict[str, list[str]] = {
     "docs/check_links.py": ["{tmp}"],
     "docs/make_figure.py": ["--steps", "3", "--out", "{tmp}/figure.png"],
     "docs/make_options_md.py": ["--out", "{tmp}/options.md"],
+    "docs/make_pages.py": ["--check", "docs/lidar_results.md"],
     "docs/make_results_md.py": ["{results}", "--out", "{tmp}/results.md", "--figures", "{tmp}/figures"],
     "docs/make_robustness_md.py": ["{sweep}", "--out", "{tmp}/robustness.md", "--figures", "{tmp}/figures"],
     "docs/solver_comparison.py": ["{results}"],
