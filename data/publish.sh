@@ -65,6 +65,11 @@ RUNS[robustness]="--slips nominal --episodes 20 --sweep pose_noise.xy=0,0.05,0.1
 # issue 43, 45: the crowd protocol republished (every registered controller among 0-16 movers of
 # each behaviour; --crowd adds the movers.count sweep)
 for behaviour in constant waypoints crowd; do RUNS[crowd_$behaviour]="--crowd $behaviour --reference koopman-nmpc"; done
+# issue 43, 46: what the people tracker costs among 16 constant movers (the movers observed
+# through it, the protocol's default, against their exact states); its tracked level repeats
+# crowd_constant's 16-mover episodes bit for bit
+TRACKING_CONTROLLERS="koopman-nmpc nominal-nmpc dmpc-koopman dmpc-nominal adaptive-koopman-nmpc mpc-cbf orca dwa consensus rl-ppo-set-movers"
+RUNS[crowd_tracking]="--crowd constant --env-kwargs movers={\"count\":16,\"behaviour\":\"constant\",\"speed\":0.3} --sweep movers.tracking=true,false --solver rti --controllers $TRACKING_CONTROLLERS --reference koopman-nmpc"
 # issue 43: the crowd protocol's oblivious ORCA crowd with compute charged (--realtime, as the
 # realistic page's twin): the realistic page's controllers and the movers policy
 RUNS[crowd_realtime]="--crowd crowd --solver rti --controllers $REALTIME_CONTROLLERS rl-ppo-set-movers --reference koopman-nmpc --realtime"
@@ -76,7 +81,7 @@ RUNS[lidar]="--lidar --reference koopman-nmpc"
 # repeat the lidar run's bit for bit)
 RUNS[lidar_policies]="--lidar --solver rti --controllers koopman-nmpc rl-ppo-set rl-ppo-set-realistic rl-ppo-set-movers --reference koopman-nmpc"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_realtime)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime)
 
 run() {
     local name="$1" out="data/runs/$1"
