@@ -49,11 +49,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def experiment(task: Any, config: Any, algorithm: str = "mappo", seed: int = 0) -> Any:
+    """A BenchMARL experiment of ``algorithm`` (``"mappo"`` or ``"ippo"``) on a KoopNav ``task``
+    with BenchMARL's default networks (MLP for the actor and the critic) and ``config`` (an
+    ``ExperimentConfig``): the one place this project builds one."""
+    from benchmarl.algorithms import IppoConfig, MappoConfig
+    from benchmarl.experiment import Experiment
+    from benchmarl.models.mlp import MlpConfig
+
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm={algorithm!r} is not one of {list(ALGORITHMS)}")
+    return Experiment(
+        task=task,
+        algorithm_config=(MappoConfig if algorithm == "mappo" else IppoConfig).get_from_yaml(),
+        model_config=MlpConfig.get_from_yaml(),
+        critic_model_config=MlpConfig.get_from_yaml(),
+        seed=seed,
+        config=config,
+    )
+
+
 def _experiment(args: argparse.Namespace, folder: Path) -> Any:
     import torch
-    from benchmarl.algorithms import IppoConfig, MappoConfig
-    from benchmarl.experiment import Experiment, ExperimentConfig
-    from benchmarl.models.mlp import MlpConfig
+    from benchmarl.experiment import ExperimentConfig
 
     from baselines.benchmarl_task import KoopNavTask
 
@@ -68,15 +86,7 @@ def _experiment(args: argparse.Namespace, folder: Path) -> Any:
     config.evaluation, config.evaluation_interval, config.evaluation_episodes = True, 600_000, 20
     config.render, config.loggers, config.create_json = False, ["csv"], True
     config.save_folder, config.checkpoint_at_end = str(folder), True
-    algorithm = (MappoConfig if args.algorithm == "mappo" else IppoConfig).get_from_yaml()
-    return Experiment(
-        task=task,
-        algorithm_config=algorithm,
-        model_config=MlpConfig.get_from_yaml(),
-        critic_model_config=MlpConfig.get_from_yaml(),
-        seed=args.seed,
-        config=config,
-    )
+    return experiment(task, config, args.algorithm, args.seed)
 
 
 def export_actor(policy: Any) -> dict[str, np.ndarray]:

@@ -22,11 +22,10 @@ import time
 
 def frames_per_second(vectorized: bool, envs: int, frames: int, iters: int) -> float:
     import torch
-    from benchmarl.algorithms import MappoConfig
-    from benchmarl.experiment import Experiment, ExperimentConfig
-    from benchmarl.models.mlp import MlpConfig
+    from benchmarl.experiment import ExperimentConfig
 
     from baselines.benchmarl_task import KoopNavTask
+    from baselines.benchmarl_train import experiment
 
     torch.set_num_threads(1)
     task = KoopNavTask.TARGET_REACHING.get_task()
@@ -38,16 +37,9 @@ def frames_per_second(vectorized: bool, envs: int, frames: int, iters: int) -> f
     config.evaluation, config.checkpoint_interval = False, 0
     with tempfile.TemporaryDirectory() as folder:
         config.save_folder = folder
-        experiment = Experiment(
-            task=task,
-            algorithm_config=MappoConfig.get_from_yaml(),
-            model_config=MlpConfig.get_from_yaml(),
-            critic_model_config=MlpConfig.get_from_yaml(),
-            seed=0,
-            config=config,
-        )
+        run = experiment(task, config, "mappo")
         start = time.perf_counter()
-        experiment.run()
+        run.run()
         return iters * frames / (time.perf_counter() - start)
 
 

@@ -21,34 +21,25 @@ def exported(tmp_path_factory):
     """A BenchMARL MAPPO policy for target reaching (its initial weights: no training is needed to
     compare two implementations of one actor), its export, and the export as a policy folder."""
     pytest.importorskip("benchmarl")
-    from benchmarl.algorithms import MappoConfig
-    from benchmarl.experiment import Experiment, ExperimentConfig
-    from benchmarl.models.mlp import MlpConfig
+    from benchmarl.experiment import ExperimentConfig
 
     from baselines.benchmarl_task import KoopNavTask
-    from baselines.benchmarl_train import export_actor
+    from baselines.benchmarl_train import experiment, export_actor
 
     folder = tmp_path_factory.mktemp("mappo")
     config = ExperimentConfig.get_from_yaml()
     config.max_n_iters, config.loggers, config.render, config.evaluation = 1, [], False, False
     config.on_policy_collected_frames_per_batch, config.on_policy_n_envs_per_worker = 200, 2
     config.save_folder = str(folder)
-    experiment = Experiment(
-        task=KoopNavTask.TARGET_REACHING.get_task(),
-        algorithm_config=MappoConfig.get_from_yaml(),
-        model_config=MlpConfig.get_from_yaml(),
-        critic_model_config=MlpConfig.get_from_yaml(),
-        seed=0,
-        config=config,
-    )
-    arrays = export_actor(experiment.policy)
+    run = experiment(KoopNavTask.TARGET_REACHING.get_task(), config, "mappo")
+    arrays = export_actor(run.policy)
     root = folder / "root" / "target_reaching"
     root.mkdir(parents=True)
     np.savez(root / "policy.npz", **arrays)
     size = int(arrays["weight_0"].shape[1])
     metadata = {"n_robots": 3, "observation_size": size, "arrays": sorted(arrays), "algorithm": "mappo"}
     (root / "metadata.json").write_text(json.dumps(metadata))
-    return experiment.policy, arrays, folder / "root"
+    return run.policy, arrays, folder / "root"
 
 
 def test_the_numpy_actor_acts_as_benchmarls_deterministic_policy(exported) -> None:
