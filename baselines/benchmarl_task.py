@@ -30,7 +30,9 @@ BenchMARL's MPE tasks) and :func:`write_task_yaml` writes them as BenchMARL's YA
 environments: True, one compiled vector env as one batched TorchRL env
 (:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`, as VMAS does); False, one PettingZoo
 env per TorchRL env, which BenchMARL batches with a ``SerialEnv`` (every environment stepped
-through Python: about a tenth of the frames per second, ``bench/benchmarl_speed.py``).
+through Python: about a tenth of the frames per second, ``bench/benchmarl_speed.py``). With the
+vector env, ``collision_penalty``, ``precision_shaping`` and ``mover_shaping`` (not env keywords
+either; default 0) add the training terms the PPO policies train with (:mod:`baselines.shaping`).
 """
 
 from __future__ import annotations

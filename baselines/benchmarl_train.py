@@ -9,7 +9,9 @@ algorithm and network defaults (MLP 256x256 with Tanh, parameters shared by the 
 centralised critic for MAPPO) except the batch settings below, which the vector env makes
 cheap: ``--envs`` environments, 60,000 frames per iteration, 10 PPO epochs of 4,000-frame
 minibatches. The env: 3 robots, random layouts, random slip, ``--max-cycles`` periods per
-episode, KoopNav's own rewards (no shaping of ours). ``--out`` receives BenchMARL's run folder
+episode, KoopNav's rewards plus the training terms the PPO policies train with
+(:mod:`baselines.shaping`: ``--collision-penalty``, ``--precision-shaping``; 0 and 0 for the
+env's reward alone). ``--out`` receives BenchMARL's run folder
 (its CSV logs and checkpoint) and the export: ``policy.npz`` (the actor's weights and the
 action bounds, numpy arrays only: loaded without pickle) and ``metadata.json`` (the command,
 seed, frames, wall time, versions and the evaluation curve).
@@ -42,6 +44,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--envs", type=int, default=300, help="environments in the batch (default 300)")
     parser.add_argument(
         "--max-cycles", type=int, default=400, help="periods per training episode (default 400)"
+    )
+    parser.add_argument(
+        "--collision-penalty",
+        type=float,
+        default=10.0,
+        help="extra penalty of the robot that collides (the PPO policies': 10)",
+    )
+    parser.add_argument(
+        "--precision-shaping",
+        type=float,
+        default=5.0,
+        help="weight of the log-distance potential (the PPO policies': 5)",
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
@@ -77,7 +91,14 @@ def _experiment(args: argparse.Namespace, folder: Path) -> Any:
 
     torch.set_num_threads(args.threads)
     task = getattr(KoopNavTask, args.task.upper()).get_task()
-    task.config.update({"max_cycles": args.max_cycles, "vectorized": True})
+    task.config.update(
+        {
+            "max_cycles": args.max_cycles,
+            "vectorized": True,
+            "collision_penalty": args.collision_penalty,
+            "precision_shaping": args.precision_shaping,
+        }
+    )
     config = ExperimentConfig.get_from_yaml()
     config.max_n_frames, config.max_n_iters = args.frames, None
     config.on_policy_collected_frames_per_batch = 60_000
@@ -140,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
         "observation_size": int(arrays["weight_0"].shape[1]),
         "arrays": sorted(arrays),
         "env": {"map": "random", "slip": "random", "max_cycles": args.max_cycles},
+        "shaping": {"collision_penalty": args.collision_penalty, "precision_shaping": args.precision_shaping},
         "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),
         "seed": args.seed,
         "frames": int(experiment.total_frames),

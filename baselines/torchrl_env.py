@@ -12,7 +12,8 @@ Layout (one group, ``"robot"``, holding every robot, as the PettingZoo wrapper's
 - ``("robot", "observation")`` (K, N, F): each robot's own observation block
   (:mod:`koopman_envs.layout`), what the PettingZoo env hands robot i;
 - ``("robot", "action")`` (K, N, 2): (v, omega) per robot within the actuation limits;
-- ``("robot", "reward")`` (K, N, 1): each robot's reward (the env's ``robot_rewards``);
+- ``("robot", "reward")`` (K, N, 1): each robot's reward (the env's ``robot_rewards``, plus the
+  PPO policies' training terms when asked for: :mod:`baselines.shaping`);
 - ``("robot", "info")``: :data:`INFO_KEYS` per robot (K, N, 1);
 - ``"done"``, ``"terminated"``, ``"truncated"`` (K, 1): per environment (the team's episode).
 
@@ -35,6 +36,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 import koopman_envs  # noqa: F401 - registers the ids
+from baselines.shaping import RewardShaping
 
 if TYPE_CHECKING:
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -59,16 +61,37 @@ class KoopNavMultiAgentEnv(EnvBase):
         Environments in the batch (the vector env's; its limits apply).
     device : str or torch.device
         Where the tensors live (the simulation runs on the CPU).
+    collision_penalty, precision_shaping, mover_shaping : float
+        The training terms the PPO policies train with (:class:`baselines.shaping.RewardShaping`;
+        default 0: the env's own reward).
     **env_kwargs
         Env keywords (``map="random"``, ``n_robots=5``, ``uncertainty="realistic"``, ...).
     """
 
-    def __init__(self, env_id: str, num_envs: int, device: Any = "cpu", **env_kwargs: Any) -> None:
+    def __init__(
+        self,
+        env_id: str,
+        num_envs: int,
+        device: Any = "cpu",
+        collision_penalty: float = 0.0,
+        precision_shaping: float = 0.0,
+        mover_shaping: float = 0.0,
+        **env_kwargs: Any,
+    ) -> None:
         venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
+        config = cast("KoopNavVectorEnv", venv.unwrapped).engine.config
+        movers = config.movers
+        self.shaping = RewardShaping(
+            collision_penalty,
+            precision_shaping,
+            mover_shaping,
+            config.task.reward.collision,
+            None if movers is None or movers.count == 0 else config.robot_radius + movers.radius,
+        )
         super().__init__(batch_size=torch.Size([num_envs]), device=device)
         self._venv = venv
         # a KoopNav id's vector entry point is a KoopNavVectorEnv, whose spaces are Boxes
-        self.n_robots = int(cast("KoopNavVectorEnv", venv.unwrapped).engine.config.n_robots)
+        self.n_robots = int(config.n_robots)
         n = self.n_robots
         obs_space = cast(gym.spaces.Box, venv.single_observation_space)
         act_space = cast(gym.spaces.Box, venv.single_action_space)
@@ -152,7 +175,8 @@ class KoopNavMultiAgentEnv(EnvBase):
             obs = self._pending
             self._ended = self._ended & ~asked
         else:
-            obs, _ = self._venv.reset(seed=self._seed)
+            obs, info = self._venv.reset(seed=self._seed)
+            self.shaping.reset(info)
             self._ended = np.zeros(self.batch_size[0], dtype=bool)
             self._seed = None  # later resets continue each environment's generator
             self._pending = obs
@@ -184,7 +208,8 @@ class KoopNavMultiAgentEnv(EnvBase):
         if ended.any():
             final = np.array(obs, copy=True)
             final[ended] = np.asarray(info["final_obs"])[ended]
-        rewards = np.asarray(info["robot_rewards"], dtype=np.float32)[..., None]  # (K, N, 1)
+        shaped, _, _ = self.shaping(info["robot_rewards"], info)
+        rewards = np.asarray(shaped, dtype=np.float32)[..., None]  # (K, N, 1)
         success, collided = np.asarray(info["is_success"]), np.asarray(info["robot_collision"])
         if ended.any():  # the ended episodes' last state, not their new one's
             final_info, done_now = info["final_info"], np.asarray(info["_final_info"])

@@ -122,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=0.0,
         help="robot layout with --movers: weight of the per-step cost of coming within "
-        "0.5 m of a mover (baselines.vec_env.MOVER_SHAPING_BAND; default 0: none)",
+        "0.5 m of a mover (baselines.shaping.MOVER_SHAPING_BAND; default 0: none)",
     )
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="initial log std of PPO's actions")
     parser.add_argument("--threads", type=int, default=2, help="torch threads")

@@ -30,6 +30,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepRetu
 
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
+from baselines.shaping import PRECISION_EPS, RewardShaping
 from koopman_envs.checks import check_choice, check_int
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.sim.nearest import nearest_order
@@ -51,10 +52,7 @@ __all__ = [
 LAYOUTS = ("robot", "team")
 #: what a shared (``"robot"`` layout) policy sees beside its block; see :func:`robot_features`
 FEATURE_SETS = ("bearing", "bearing+headings")
-_PRECISION_EPS = 0.05  # [m]: half the default goal tolerance
-#: clearance to a mover below which ``mover_shaping`` charges a robot [m] (ours: about 1.5 s of a
-#: mover at 0.3 m/s, the time a unicycle needs to turn away and accelerate)
-MOVER_SHAPING_BAND = 0.5
+_PRECISION_EPS = PRECISION_EPS  # [m]: the log-distance feature's floor, the potential's
 
 
 def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray, np.ndarray]:
@@ -192,7 +190,7 @@ class KoopNavSB3VecEnv(VecEnv):
     mover_shaping : float
         ``"robot"`` layout, env with movers: weight w of a proximity cost ``-w * max(0, 1 - c /
         b)`` charged to each robot every step, c its surface clearance to the nearest mover (true
-        states: a training signal, not an observation), b = :data:`MOVER_SHAPING_BAND`. Unlike
+        states: a training signal, not an observation), b = :data:`baselines.shaping.MOVER_SHAPING_BAND`. Unlike
         the precision term it is not potential-based: it asks for distance to movers, which a
         mover collision's one-off penalty teaches only after the fact.
     features : str
@@ -241,23 +239,15 @@ class KoopNavSB3VecEnv(VecEnv):
             raise ValueError(
                 "the SB3 adapter's policies read the listed obstacles; sensing='lidar' is not supported"
             )
-        if not np.isfinite(collision_penalty) or collision_penalty < 0:
-            raise ValueError(f"collision_penalty={collision_penalty!r} must be finite and >= 0")
-        self.collision_penalty = float(collision_penalty)
-        if not np.isfinite(precision_shaping) or precision_shaping < 0:
-            raise ValueError(f"precision_shaping={precision_shaping!r} must be finite and >= 0")
-        self.precision_shaping = float(precision_shaping)
-        self._potential: np.ndarray | None = None
-        if not np.isfinite(mover_shaping) or mover_shaping < 0:
-            raise ValueError(f"mover_shaping={mover_shaping!r} must be finite and >= 0")
-        self.mover_shaping = float(mover_shaping) if layout == "robot" else 0.0
         movers = engine.config.movers
-        self._mover_reach = (
-            None
-            if movers is None or movers.count == 0
-            else engine.config.robot_radius[:, None] + movers.radius
-        )  # (N, 1): centre distance at contact of each robot with a mover
-        self._team_collision = engine.config.task.reward.collision
+        # the training terms (baselines.shaping) apply to the shared per-robot policy only
+        self.shaping = RewardShaping(
+            collision_penalty,
+            precision_shaping,
+            mover_shaping if layout == "robot" else 0.0,
+            engine.config.task.reward.collision,
+            None if movers is None or movers.count == 0 else engine.config.robot_radius + movers.radius,
+        )
         if features not in FEATURE_SETS:
             raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
         self.features = features
@@ -310,23 +300,8 @@ class KoopNavSB3VecEnv(VecEnv):
     def reset(self) -> np.ndarray:
         obs, info = self.venv.reset(seed=self._seed)
         self._seed = None  # later resets continue the generators
-        self._potential = self._precision_potential(info["distances"])
+        self.shaping.reset(info)
         return self._split(obs)
-
-    def _precision_potential(self, distances: np.ndarray) -> np.ndarray:
-        return self.precision_shaping * np.log(distances + _PRECISION_EPS)
-
-    def _mover_cost(self, info: dict[str, Any]) -> np.ndarray:
-        """(K, N) proximity cost of the step's end state (an ended episode's final state)."""
-        poses, movers = info["poses"], info["movers"]
-        if "final_info" in info:
-            ended_now = info["_final_info"]
-            poses = np.where(ended_now[:, None, None], info["final_info"]["poses"], poses)
-            movers = np.where(ended_now[:, None, None], info["final_info"]["movers"], movers)
-        assert self._mover_reach is not None  # only called in an env with movers
-        gap = poses[:, :, None, :2] - movers[:, None, :, :2]  # (K, N, M, 2)
-        clearance = np.sqrt((gap**2).sum(-1)).min(-1) - self._mover_reach[:, 0]
-        return self.mover_shaping * np.clip(1.0 - clearance / MOVER_SHAPING_BAND, 0.0, None)
 
     def step_async(self, actions: np.ndarray) -> None:
         command = scale_action(np.asarray(actions, dtype=np.float64), self._low, self._high)
@@ -335,39 +310,23 @@ class KoopNavSB3VecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
+        crashed = involved = None
         if self.layout == "robot":
-            rewards = info["robot_rewards"]
+            rewards, crashed, involved = self.shaping(info["robot_rewards"], info)
             per_env = self.n_robots
-            if self.precision_shaping:
-                # potential at the step's end state: the final one for episodes that just ended
-                end_distances = info["distances"]
-                if "final_info" in info:
-                    ended_now = info["_final_info"][:, None]
-                    end_distances = np.where(ended_now, info["final_info"]["distances"], end_distances)
-                end_potential = self._precision_potential(end_distances)
-                rewards = rewards + (self._potential - end_potential)
-                self._potential = self._precision_potential(info["distances"])
-            if self.mover_shaping and self._mover_reach is not None:
-                rewards = rewards - self._mover_cost(info)
         else:
             per_env = 1
         # per sub-env: did its episode end by its own doing (terminal) or not (bootstrapped)
         own_end = np.repeat(terminated, per_env).reshape(self.n_envs, per_env)
+        if crashed is not None and involved is not None:
+            # credit assignment: only the robots that touched something are terminal (and pay the
+            # collision penalty); a crash of a team-mate merely cuts the others' episodes short
+            own_end[crashed] = involved[crashed]
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         if "final_obs" in info:
             final_obs = self._split(info["final_obs"]).reshape(self.n_envs, per_env, -1)
             final_info = info["final_info"]
             ended = info["_final_obs"]
-            if self.layout == "robot":
-                crashed = ended & final_info["collision"]
-                if crashed.any():
-                    # credit assignment: only the robots that touched something are terminal and
-                    # penalized; a crash of a team-mate merely cuts the others' episodes short
-                    involved = final_info["robot_collision"]  # the engine's own per-robot collision flags
-                    own_end[crashed] = involved[crashed]
-                    rewards = rewards.copy()
-                    bystander_refund = self._team_collision  # the env's team penalty, undone
-                    rewards[crashed] += np.where(involved[crashed], -self.collision_penalty, bystander_refund)
             for i in np.flatnonzero(ended):
                 for r in range(per_env):
                     entry = infos[i * per_env + r]

@@ -206,7 +206,7 @@ def test_precision_shaping_is_the_log_distance_potential_difference() -> None:
 
 def test_mover_shaping_charges_each_robot_its_nearest_movers_proximity() -> None:
     from baselines.set_features import SetFeatureConfig
-    from baselines.vec_env import MOVER_SHAPING_BAND
+    from baselines.shaping import MOVER_SHAPING_BAND
 
     movers = {"count": 6, "speed": 0.3, "radius": 0.2}
     kwargs = {"set_config": SetFeatureConfig(movers=4), "map": "random", "movers": movers}
@@ -227,9 +227,9 @@ def test_mover_shaping_charges_each_robot_its_nearest_movers_proximity() -> None
     mover_states = np.zeros((1, 6, 4))
     mover_states[0, :, 0] = 20.0
     mover_states[0, 0, 0] = 0.65  # 0.65 - 0.2 (robot) - 0.2 (mover) = 0.25 m from robot 0
-    cost = shaped._mover_cost({"poses": poses, "movers": mover_states})
+    cost = shaped.shaping.mover_cost({"poses": poses, "movers": mover_states})
     np.testing.assert_allclose(cost, [[0.3 * (1 - 0.25 / MOVER_SHAPING_BAND), 0.0, 0.0]], atol=1e-12)
-    with pytest.raises(ValueError, match=r"mover_shaping=-1.0 must be finite and >= 0"):
+    with pytest.raises(ValueError, match=r"mover_shaping=-1.0 must be a finite number >= 0"):
         KoopNavSB3VecEnv("KoopNav-TargetReaching-v0", 1, mover_shaping=-1.0, **kwargs)
 
 

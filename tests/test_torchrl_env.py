@@ -65,3 +65,36 @@ def test_a_reset_of_an_environment_whose_episode_runs_is_refused_by_name() -> No
     env.rand_step(td)
     with pytest.raises(ValueError, match=r"a reset of environments \[1\] whose episode has not ended"):
         env.reset(TensorDict({"_reset": torch.tensor([[False], [True], [False]])}, batch_size=[3]))
+
+
+def test_the_training_terms_are_the_sb3_adapters() -> None:
+    """With the PPO policies' collision penalty and precision potential, the batched env's rewards
+    equal the SB3 adapter's for the same actions (one shaping, baselines.shaping), crashes and
+    episode ends included: the robots drive ahead at full speed, turning a little."""
+    pytest.importorskip("stable_baselines3")
+    import torch
+
+    from baselines.vec_env import KoopNavSB3VecEnv
+
+    k, steps, terms = 6, 80, {"collision_penalty": 10.0, "precision_shaping": 5.0}
+    kwargs = {**KWARGS, "max_episode_steps": 60}
+    env = KoopNavMultiAgentEnv(ENV, k, **terms, **kwargs)
+    env.set_seed(3)
+    sb3 = KoopNavSB3VecEnv(ENV, k, seed=3, **terms, **kwargs)
+    sb3.reset()
+    td = env.reset()
+    rng = np.random.default_rng(0)
+    crashes = 0
+    for _ in range(steps):
+        unit = np.column_stack([np.ones(k * 4), rng.uniform(-0.3, 0.3, k * 4)]).astype(np.float32)
+        physical = sb3._low + (unit + 1.0) * 0.5 * (sb3._high - sb3._low)  # SB3's scale_action
+        td[GROUP, "action"] = torch.as_tensor(physical.reshape(k, 4, 2), dtype=torch.float32)
+        td, td_next = env.step_and_maybe_reset(td)
+        sb3.step_async(unit)
+        _, rewards, _, _ = sb3.step_wait()
+        np.testing.assert_allclose(
+            rewards.reshape(k, 4), td["next", GROUP, "reward"][..., 0].numpy(), atol=1e-4
+        )
+        crashes += int(td["next", "terminated"].sum())
+        td = td_next
+    assert crashes > 0  # the collision credit was exercised
