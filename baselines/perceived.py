@@ -94,7 +94,7 @@ def perceived_blocks(
         target,
         geometry,
         offsets if scenario.is_formation else None,
-        perception,
-        movers,  # type: ignore[arg-type]
+        perception,  # type: ignore[arg-type]  # the Perception fields the builder reads
+        movers,
     )
     return blocks.reshape(-1)
