@@ -57,6 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=5.0,
         help="weight of the log-distance potential (the PPO policies': 5)",
     )
+    parser.add_argument(
+        "--curriculum",
+        action="store_true",
+        help="train stage by stage on the 3-robot part of the set policies' random-layout "
+        "curriculum (baselines.curriculum), each stage resuming the last one's checkpoint",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--out", required=True)
@@ -83,7 +89,33 @@ def experiment(task: Any, config: Any, algorithm: str = "mappo", seed: int = 0) 
     )
 
 
-def _experiment(args: argparse.Namespace, folder: Path) -> Any:
+#: the curriculum part whose team size MAPPO trains on (an MLP actor takes one team size)
+CURRICULUM_TEAM = 3
+
+
+def curriculum_plan(task: str, frames: int) -> list[tuple[str, int, dict[str, Any]]]:
+    """(stage name, cumulative frames at its end, env keywords) of every stage of the set
+    policies' curriculum (:data:`baselines.curriculum.STAGES`) for its 3-robot part, with the
+    stages' shares of ``frames``; the last stage ends at ``frames`` exactly."""
+    from baselines.curriculum import PARTS, STAGES, stage_parts
+
+    part = [n for n, _ in PARTS].index(CURRICULUM_TEAM)
+    plan, done = [], 0.0
+    for stage in STAGES[task]:
+        done += stage.share
+        _, _, env_kwargs = stage_parts(task, stage)[part]
+        plan.append((stage.name, int(round(done * frames)), env_kwargs))
+    plan[-1] = (plan[-1][0], frames, plan[-1][2])
+    return plan
+
+
+def _experiment(
+    args: argparse.Namespace,
+    folder: Path,
+    env_kwargs: dict[str, Any] | None = None,
+    frames: int | None = None,
+    restore: Path | None = None,
+) -> Any:
     import torch
     from benchmarl.experiment import ExperimentConfig
 
@@ -97,17 +129,43 @@ def _experiment(args: argparse.Namespace, folder: Path) -> Any:
             "vectorized": True,
             "collision_penalty": args.collision_penalty,
             "precision_shaping": args.precision_shaping,
+            **(env_kwargs or {}),
         }
     )
     config = ExperimentConfig.get_from_yaml()
-    config.max_n_frames, config.max_n_iters = args.frames, None
+    config.max_n_frames, config.max_n_iters = args.frames if frames is None else frames, None
     config.on_policy_collected_frames_per_batch = 60_000
     config.on_policy_n_envs_per_worker = args.envs
     config.on_policy_n_minibatch_iters, config.on_policy_minibatch_size = 10, 4_000
     config.evaluation, config.evaluation_interval, config.evaluation_episodes = True, 600_000, 20
     config.render, config.loggers, config.create_json = False, ["csv"], True
     config.save_folder, config.checkpoint_at_end = str(folder), True
+    config.restore_file = None if restore is None else str(restore)
     return experiment(task, config, args.algorithm, args.seed)
+
+
+def _last_checkpoint(folder: Path) -> Path:
+    """The newest checkpoint BenchMARL wrote under ``folder`` (its run folder's checkpoints/)."""
+    files = list(folder.glob("*/checkpoints/checkpoint_*.pt"))
+    if not files:
+        raise RuntimeError(f"BenchMARL wrote no checkpoint under {folder}")
+    return max(files, key=lambda path: int(path.stem.rsplit("_", 1)[1]))
+
+
+def _train(args: argparse.Namespace, folder: Path) -> tuple[Any, list[dict[str, Any]]]:
+    """Run the training (stage by stage with ``--curriculum``); the last experiment and the
+    stages run (name, frames at the end, env keywords)."""
+    if not args.curriculum:
+        run = _experiment(args, folder)
+        run.run()
+        return run, []
+    stages, restore, run = [], None, None
+    for name, frames, env_kwargs in curriculum_plan(args.task, args.frames):
+        run = _experiment(args, folder, env_kwargs, frames, restore)
+        run.run()
+        restore = _last_checkpoint(folder)
+        stages.append({"name": name, "frames_end": frames, "env": env_kwargs})
+    return run, stages
 
 
 def export_actor(policy: Any) -> dict[str, np.ndarray]:
@@ -144,9 +202,8 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
-    experiment = _experiment(args, out / "benchmarl")
     start = time.perf_counter()
-    experiment.run()
+    experiment, stages = _train(args, out / "benchmarl")
     wall = time.perf_counter() - start
     arrays = export_actor(experiment.policy)
     np.savez(out / "policy.npz", **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
@@ -161,6 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         "observation_size": int(arrays["weight_0"].shape[1]),
         "arrays": sorted(arrays),
         "env": {"map": "random", "slip": "random", "max_cycles": args.max_cycles},
+        "curriculum": {"stages": stages} if stages else None,
         "shaping": {"collision_penalty": args.collision_penalty, "precision_shaping": args.precision_shaping},
         "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),
         "seed": args.seed,
