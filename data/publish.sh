@@ -2,11 +2,11 @@
 # The published runs behind docs/*_results.md, each resumable: run this script again after an
 # interruption (or in a new session, after `unpack`) and every run continues where its log ends.
 # Each run writes data/runs/NAME/ (work files, not committed); `bash data/publish.sh pack` packs
-# its episode logs (JSON lines) into data/NAME.tar.gz (committed: the published data).
+# its episode logs (JSON lines) into data/NAME.tar.xz (committed: the published data).
 #
 #   bash data/publish.sh [NAME ...]    run (or continue) the named runs, default all, in order
-#   bash data/publish.sh pack          pack every run's episode logs into data/NAME.tar.gz
-#   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.gz (a new machine)
+#   bash data/publish.sh pack          pack every run's episode logs into data/NAME.tar.xz
+#   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.xz (a new machine)
 # KOOPNAV_PUBLISH_WORKERS: worker processes (default 1: a core stays free for other work).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -95,14 +95,14 @@ case "${1:-}" in
 pack)  # the episode logs and sweep manifests only: everything else is rebuilt from them
     for dir in data/runs/*/; do
         name="$(basename "$dir")"
-        python -m evaluation.published "data/runs/$name" "data/$name.tar.gz" > /dev/null
+        python -m evaluation.published "data/runs/$name" "data/$name.tar.xz" > /dev/null
     done
-    ls -la data/*.tar.gz
+    ls -la data/*.tar.xz
     ;;
 unpack)  # a new machine: the committed logs back into data/runs/, to resume or to report from
     mkdir -p data/runs
-    for archive in data/*.tar.gz; do
-        tar -xzf "$archive" -C data/runs
+    for archive in data/*.tar.xz; do
+        tar -xJf "$archive" -C data/runs
     done
     ;;
 *)

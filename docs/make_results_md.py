@@ -1,6 +1,6 @@
 """Write docs/results.md from ``python evaluate.py --paper`` runs, beside the paper's tables.
 
-Usage (every RESULTS a ``results.json`` or a published archive ``data/NAME.tar.gz``; the
+Usage (every RESULTS a ``results.json`` or a published archive ``data/NAME.tar.xz``; the
 published page's arguments are in ``data/pages.json``)::
 
     python docs/make_results_md.py RESULTS [RESULTS ...] [--ablation docs/ablation.md] \
@@ -97,9 +97,9 @@ TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0":
 
 
 def load_results(path: str) -> dict:
-    """A run's results document: a ``results.json``, or a published archive (``data/NAME.tar.gz``,
+    """A run's results document: a ``results.json``, or a published archive (``data/NAME.tar.xz``,
     :mod:`evaluation.published`) whose episode log is read back checked."""
-    if path.endswith(".tar.gz"):
+    if not path.endswith(".json"):  # a published archive (refused by name if it is not one)
         with tempfile.TemporaryDirectory() as tmp:
             run = extract_archive(path, tmp)
             return json.loads(results_from_log(run / "episodes.jsonl").to_json())
@@ -317,7 +317,7 @@ def _header(doc: dict) -> list[str]:
     return [
         "# Paper protocol results",
         "",
-        "Rebuilt from the committed episode logs (`data/*.tar.gz`) by `python docs/make_results_md.py` "
+        "Rebuilt from the committed episode logs (`data/*.tar.xz`) by `python docs/make_results_md.py` "
         "with the arguments listed in `data/pages.json`, byte for byte (`tests/test_published_pages.py`); "
         "the runs: `bash data/publish.sh paper` and the other runs its arguments name "
         "(`data/publish.sh` holds each run's evaluator command; resumable with `--resume`). "
@@ -429,7 +429,7 @@ def _strict_section(path: str | None) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument(
-        "results", nargs="+", help="results.json files or published archives (data/NAME.tar.gz)"
+        "results", nargs="+", help="results.json files or published archives (data/NAME.tar.xz)"
     )
     parser.add_argument("--strict", help="results of `python evaluate.py --paper-strict`")
     parser.add_argument("--ablation", help="docs/ablation.md to link")

@@ -283,7 +283,7 @@ def load_sweep(
 
     ``from_logs``: read each level from its episode log instead of its results.json (published
     data, :mod:`evaluation.published`: the logs are what the repository keeps). ``out`` may then
-    also be a published ``.tar.gz``.
+    also be a published archive (``.tar.xz``).
 
     Returns
     -------
@@ -301,7 +301,7 @@ def load_sweep(
         recording another value of its axis than its directory's (each named).
     """
     out = Path(out)
-    if out.is_file() and out.name.endswith(".tar.gz"):
+    if out.is_file():  # a published archive (refused by name if it is not one)
         out, from_logs = extract_archive(out), True
     manifest = _read_manifest(out)
     done: dict[str, list[tuple[Any, Results]]] = {}

@@ -1,4 +1,4 @@
-"""Published data (evaluation/published.py, data/*.tar.gz): every page listed in data/pages.json
+"""Published data (evaluation/published.py, data/*.tar.xz): every page listed in data/pages.json
 is rebuilt by its generator from the committed episode logs, byte for byte; an archive that is
 not what KoopNav packs is refused by name."""
 
@@ -31,14 +31,14 @@ def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_pa
 
 
 def test_every_published_archive_is_on_a_page_and_reads_back_checked() -> None:
-    archives = sorted(p.name for p in (ROOT / "data").glob("*.tar.gz"))
-    on_pages = sorted({Path(a).name for p in PAGES for a in p["args"] if a.endswith(".tar.gz")})
+    archives = sorted(p.name for p in (ROOT / "data").glob("*.tar.xz"))
+    on_pages = sorted({Path(a).name for p in PAGES for a in p["args"] if a.endswith(".tar.xz")})
     assert archives and set(on_pages) <= set(archives)
 
 
 def _archive(tmp_path: Path, members: dict[str, bytes]) -> Path:
-    path = tmp_path / "bad.tar.gz"
-    with tarfile.open(path, "w:gz") as tar:
+    path = tmp_path / "bad.tar.xz"
+    with tarfile.open(path, "w:xz") as tar:
         for name, data in members.items():
             info = tarfile.TarInfo(name)
             info.size = len(data)
@@ -61,3 +61,23 @@ def test_a_foreign_archive_or_log_is_refused_by_name(tmp_path) -> None:
     log.write_text(header + "\n" + json.dumps({"key": "k", "status": "ok", "success": "yes"}) + "\n")
     with pytest.raises(ValueError, match=r"line 2: "):
         results_from_log(log)
+
+
+def test_an_archive_of_another_name_or_compression_is_refused_by_name(tmp_path) -> None:
+    with pytest.raises(ValueError, match=r"old\.tar\.gz: a published archive's name ends in '\.tar\.xz'"):
+        extract_archive(tmp_path / "old.tar.gz", tmp_path / "x")
+    gzipped = tmp_path / "gzipped.tar.xz"
+    with tarfile.open(gzipped, "w:gz") as tar:
+        tar.addfile(tarfile.TarInfo("run/episodes.jsonl"), io.BytesIO(b""))
+    with pytest.raises(ValueError, match=r"gzipped\.tar\.xz: not an xz-compressed tar archive"):
+        extract_archive(gzipped, tmp_path / "y")
+
+
+def test_packing_is_reproducible_and_reads_back(tmp_path) -> None:
+    from evaluation.published import pack_run
+
+    run = extract_archive(ROOT / "data" / "scale_n3.tar.xz", tmp_path / "run")
+    again = pack_run(run, tmp_path / "again.tar.xz")
+    assert again.read_bytes() == (ROOT / "data" / "scale_n3.tar.xz").read_bytes()
+    with pytest.raises(ValueError, match=r"name ends in '\.tar\.xz'"):
+        pack_run(run, tmp_path / "again.tar.gz")
