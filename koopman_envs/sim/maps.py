@@ -58,7 +58,7 @@ def _as_array(value: Any, name: str, columns: int, map_name: str) -> NDArray[np.
         arr = arr.reshape(0, columns)
     if arr.ndim != 2 or arr.shape[1] != columns:
         raise ValueError(f"map {map_name!r}: {name} has shape {arr.shape}; expected (k, {columns}) rows")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"map {map_name!r}: {name} contains NaN or inf")
     return arr
 
@@ -121,7 +121,7 @@ class MapSpec:
                 f"map {self.name!r}: {starts.shape[0]} starts but {targets.shape[0]} targets; "
                 "each robot needs one of each"
             )
-        if np.any(obstacles[:, 2] <= 0):
+        if (obstacles[:, 2] <= 0).any():
             raise ValueError(f"map {self.name!r}: obstacle radii must be > 0, got {obstacles[:, 2]}")
         for arr in (obstacles, starts, targets):
             arr.setflags(write=False)

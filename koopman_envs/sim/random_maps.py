@@ -8,10 +8,14 @@ and which formation shape a team takes, re-exported here).
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import Any
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
@@ -80,33 +84,13 @@ def generate_random_map(
     """
     if n_robots < 1:
         raise ValueError(f"n_robots={n_robots!r} must be >= 1")
-    local = formation_shape(config.shape_for(n_robots, robot_radius, workspace), n_robots, config.spacing)
-    x0, x1, y0, y1 = workspace
-    margin = config.border + robot_radius
-    low, high = [x0 + margin, y0 + margin], [x1 - margin, y1 - margin]
-    inner = np.array([x0 + margin, x1 - margin, y0 + margin, y1 - margin])
-    for _ in range(config.max_attempts):
-        # the draws, in this order, define the layout of a seed (tests/data/random_layouts.json)
-        heading = rng.uniform(-math.pi, math.pi)
-        cos_h, sin_h = math.cos(heading), math.sin(heading)
-        offsets = local @ np.array([[cos_h, sin_h], [-sin_h, cos_h]])  # local @ rot.T
-        travel = rng.uniform(*config.travel) * np.array([cos_h, sin_h])
-        lead = rng.uniform(low, high)
-        start_xy, target_xy, inside = _team_placement(offsets, travel, lead, inner)
-        if config.swap_targets and rng.uniform() < config.swap_targets:
-            target_xy = target_xy[rng.permutation(n_robots)]  # the same points: ``inside`` holds
-        if not inside:
-            continue
-        start_theta = heading + rng.uniform(-math.pi / 2, math.pi / 2, size=n_robots)
-        corridor = _corridor(start_xy, target_xy)
-        obstacles = _place_obstacles(rng, corridor, start_xy, target_xy, config, robot_radius, workspace)
-        if obstacles is None:
-            continue
-        starts = np.column_stack([start_xy, (start_theta + math.pi) % (2 * math.pi) - math.pi])
-        targets = np.column_stack([target_xy, np.full(n_robots, heading)])
+    found, starts, targets, obstacles, a, b, normal, half_width = _draw_layout(
+        rng, *_kernel_settings(config, n_robots, robot_radius, tuple(workspace))
+    )
+    if found:
         # after every draw of the layout and only when asked for: without zones a seed consumes
         # the generator as before and gives the same layout (tests/data/random_layouts.json)
-        zones = _place_slip_zones(rng, corridor, config) if config.n_slip_zones else ()
+        zones = _place_slip_zones(rng, (a, b, normal, half_width), config) if config.n_slip_zones else ()
         return MapSpec("random", obstacles, starts, targets, "seeded random layout", slip_zones=zones)
     raise NoValidMap(
         f"random_map: no valid random map in max_attempts={config.max_attempts} attempts for "
@@ -116,6 +100,148 @@ def generate_random_map(
         f"start and target and gap={config.gap:g} m between them; use fewer or smaller obstacles, a "
         "smaller clearance or gap, or fewer robots"
     )
+
+
+@functools.lru_cache(maxsize=256)
+def _kernel_settings(
+    config: RandomMapConfig, n_robots: int, robot_radius: float, workspace: tuple[float, float, float, float]
+) -> tuple:
+    """The arguments of :func:`_draw_layout` after the generator (read-only arrays), kept: a
+    vector env draws many maps of one setting."""
+    shape = config.shape_for(n_robots, robot_radius, workspace)
+    x0, x1, y0, y1 = workspace
+    margin = config.border + robot_radius
+    arrays = (
+        np.ascontiguousarray(formation_shape(shape, n_robots, config.spacing), dtype=np.float64),
+        np.array([x0 + margin, x1 - margin, y0 + margin, y1 - margin]),
+        np.array(
+            [*config.obstacle_radius, *config.obstacle_along, robot_radius, config.clearance, config.gap]
+        ),
+        np.asarray(workspace, dtype=np.float64),
+    )
+    for array in arrays:
+        array.setflags(write=False)
+    local, inner, settings, box = arrays
+    travel_low, travel_high = (float(v) for v in config.travel)
+    return (local, travel_low, travel_high, inner, float(config.swap_targets), int(config.max_attempts),
+            int(config.n_obstacles), settings, box)  # fmt: skip
+
+
+@njit(cache=True)
+def _draw_layout(
+    rng: np.random.Generator,
+    local: NDArray[np.float64],
+    travel_low: float,
+    travel_high: float,
+    inner: NDArray[np.float64],
+    swap: float,
+    max_attempts: int,
+    n_obstacles: int,
+    settings: NDArray[np.float64],
+    workspace: NDArray[np.float64],
+) -> tuple:
+    """Every draw of a random layout, compiled (a reset of a vector env with ``map="random"``
+    spent ~100 us here in Python). The draws, in this order, define the layout of a seed
+    (tests/data/random_layouts.json): per attempt the heading, the travel length, the lead's
+    position, the target swap (when asked for), the start headings, then the obstacles.
+
+    Arithmetic equal to the NumPy version's, bit for bit: the two small products NumPy hands to
+    BLAS are written out as BLAS computes them (:func:`_rotate`, :func:`_spread`: fused
+    multiply-adds), every other operation as NumPy does it (the means summed row by row).
+    ``settings``: obstacle radius low/high, along low/high, robot radius, clearance, gap.
+    Returns (found, starts, targets, obstacles, a, b, normal, half_width) of the first valid
+    attempt (found False after ``max_attempts``): a, b, normal and half_width describe the
+    corridor (the start and target centroids, the unit normal of a -> b, the team's spread
+    across it plus 1 m)."""
+    n = local.shape[0]
+    empty = np.zeros((0, 3))
+    for _ in range(max_attempts):
+        heading = rng.uniform(-math.pi, math.pi)
+        cos_h, sin_h = math.cos(heading), math.sin(heading)
+        offsets = _rotate(local, cos_h, sin_h)
+        length = rng.uniform(travel_low, travel_high)
+        travel = np.array([length * cos_h, length * sin_h])
+        lead = np.empty(2)
+        lead[0] = rng.uniform(inner[0], inner[1])
+        lead[1] = rng.uniform(inner[2], inner[3])
+        start_xy, target_xy, inside = _team_placement(offsets, travel, lead, inner)
+        if swap > 0.0 and rng.uniform() < swap:
+            target_xy = target_xy[rng.permutation(n)]  # the same points: ``inside`` holds
+        if not inside:
+            continue
+        start_theta = np.empty(n)
+        for i in range(n):
+            start_theta[i] = heading + rng.uniform(-math.pi / 2, math.pi / 2)
+        a, b = _row_mean(start_xy), _row_mean(target_xy)
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        norm = math.sqrt(dx * dx + dy * dy)
+        normal = np.array([-(dy / norm), dx / norm])
+        half_width = _spread(start_xy, a, normal) + 1.0
+        keep_clear = np.empty((2 * n, 2))
+        keep_clear[:n], keep_clear[n:] = start_xy, target_xy
+        placed, ok = _place_obstacles_kernel(
+            rng, a, b, normal, half_width, keep_clear, n_obstacles, settings[0], settings[1],
+            settings[2], settings[3], settings[4], settings[5], settings[6], workspace,
+        )  # fmt: skip
+        if ok:
+            starts, targets = np.empty((n, 3)), np.empty((n, 3))
+            starts[:, :2], targets[:, :2] = start_xy, target_xy
+            for i in range(n):  # Python's float remainder: NumPy's too
+                starts[i, 2] = (start_theta[i] + math.pi) % (2 * math.pi) - math.pi
+                targets[i, 2] = heading
+            return True, starts, targets, placed, a, b, normal, half_width
+    return False, empty, empty, empty, np.zeros(2), np.zeros(2), np.zeros(2), 0.0
+
+
+@intrinsic
+def _fma(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
+    """``a * b + c`` rounded once (LLVM's ``llvm.fma``: the CPU's fused multiply-add, exact in
+    software where there is none), as BLAS's kernels compute their products."""
+    signature = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context: Any, builder: Any, sig: Any, args: Any) -> Any:
+        double = ir.DoubleType()
+        fma = builder.module.declare_intrinsic("llvm.fma", [double], ir.FunctionType(double, [double] * 3))
+        return builder.call(fma, args)
+
+    return signature, codegen
+
+
+@njit(cache=True)
+def _rotate(local: NDArray[np.float64], cos_h: float, sin_h: float) -> NDArray[np.float64]:
+    """``local @ [[cos, sin], [-sin, cos]]`` as NumPy computes it (OpenBLAS's dgemm: each entry
+    ``fma(l1, r1j, l0 * r0j)``; a single row is NumPy's own unfused product), checked against
+    NumPy in tests/test_maps.py. Written out, the layouts no longer depend on the BLAS."""
+    out = np.empty_like(local)
+    for i in range(local.shape[0]):
+        if local.shape[0] == 1:
+            out[i, 0] = local[i, 0] * cos_h + local[i, 1] * -sin_h
+            out[i, 1] = local[i, 0] * sin_h + local[i, 1] * cos_h
+        else:
+            out[i, 0] = _fma(local[i, 1], -sin_h, local[i, 0] * cos_h)
+            out[i, 1] = _fma(local[i, 1], cos_h, local[i, 0] * sin_h)
+    return out
+
+
+@njit(cache=True)
+def _spread(points: NDArray[np.float64], centre: NDArray[np.float64], normal: NDArray[np.float64]) -> float:
+    """``abs((points - centre) @ normal).max()`` as NumPy computes it (OpenBLAS's dgemv: each
+    entry ``fma(d0, n0, d1 * n1)``)."""
+    widest = 0.0
+    for i in range(points.shape[0]):
+        d0 = points[i, 0] - centre[0]
+        d1 = points[i, 1] - centre[1]
+        widest = max(widest, abs(_fma(d0, normal[0], d1 * normal[1])))
+    return widest
+
+
+@njit(cache=True)
+def _row_mean(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``points.mean(axis=0)`` as NumPy computes it: rows summed in order, then divided."""
+    total = points[0].copy()
+    for i in range(1, points.shape[0]):
+        total = total + points[i]
+    return total / points.shape[0]
 
 
 @njit(cache=True)
@@ -142,24 +268,13 @@ def _team_placement(
     return start, target, inside
 
 
-def _corridor(
-    start_xy: NDArray[np.float64], target_xy: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
-    """The corridor of a random layout: start centroid a, target centroid b, unit normal of a -> b
-    and half width [m] (the team's spread across the travel direction plus 1 m)."""
-    a, b = start_xy.mean(axis=0), target_xy.mean(axis=0)
-    direction = (b - a) / np.linalg.norm(b - a)
-    normal = np.array([-direction[1], direction[0]])
-    half_width = np.abs((start_xy - a) @ normal).max() + 1.0
-    return a, b, normal, float(half_width)
-
-
 def _place_slip_zones(
     rng: np.random.Generator,
     corridor: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float],
     config: RandomMapConfig,
 ) -> tuple[SlipZone, ...]:
-    """``config.n_slip_zones`` circles in the corridor (:func:`_corridor`), overlapping anything
+    """``config.n_slip_zones`` circles in the corridor (a, b: the start and target centroids, the
+    unit normal of a -> b, the half width: the team's spread across it plus 1 m), overlapping anything
     (slip is no obstacle).
 
     One ``rng.uniform(size=(n_slip_zones, 4))`` call; row j places zone j: position along a -> b
@@ -180,39 +295,6 @@ def _place_slip_zones(
     return tuple(zones)
 
 
-def _place_obstacles(
-    rng: np.random.Generator,
-    corridor: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float],
-    start_xy: NDArray[np.float64],
-    target_xy: NDArray[np.float64],
-    config: RandomMapConfig,
-    robot_radius: float,
-    workspace: tuple[float, float, float, float],
-) -> NDArray[np.float64] | None:
-    """Obstacles along the corridor (:func:`_corridor`) between the start and target centroids,
-    or None if stuck."""
-    a, b, normal, half_width = corridor
-    keep_clear = np.ascontiguousarray(np.vstack([start_xy, target_xy]))
-    placed, ok = _place_obstacles_kernel(
-        rng,
-        a,
-        b,
-        normal,
-        float(half_width),
-        keep_clear,
-        int(config.n_obstacles),
-        float(config.obstacle_radius[0]),
-        float(config.obstacle_radius[1]),
-        float(config.obstacle_along[0]),
-        float(config.obstacle_along[1]),
-        float(robot_radius),
-        float(config.clearance),
-        float(config.gap),
-        np.asarray(workspace, dtype=np.float64),
-    )
-    return placed if ok else None
-
-
 @njit(cache=True)
 def _place_obstacles_kernel(
     rng: np.random.Generator,
@@ -231,8 +313,9 @@ def _place_obstacles_kernel(
     gap: float,
     workspace: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], bool]:
-    """The rejection sampler of :func:`_place_obstacles`, compiled: a reset of a vector env with
-    ``map="random"`` spent ~3 ms here in Python. It draws from ``rng`` exactly as the Python
+    """Obstacles along the corridor between the start and target centroids (a rejection sampler;
+    ``placed, False`` if stuck), compiled: a reset of a vector env with ``map="random"`` spent
+    ~3 ms here in Python. It draws from ``rng`` exactly as the Python
     version did (numba's Generator shares NumPy's bit stream and algorithms), so the same seed
     gives the same layout (tests/data/random_layouts.json)."""
     placed = np.zeros((n_obstacles, 3))
