@@ -32,7 +32,9 @@ environments: True, one compiled vector env as one batched TorchRL env
 env per TorchRL env, which BenchMARL batches with a ``SerialEnv`` (every environment stepped
 through Python: about a tenth of the frames per second, ``bench/benchmarl_speed.py``). With the
 vector env, ``collision_penalty``, ``precision_shaping`` and ``mover_shaping`` (not env keywords
-either; default 0) add the training terms the PPO policies train with (:mod:`baselines.shaping`).
+either; default 0) add the training terms the PPO policies train with (:mod:`baselines.shaping`),
+and ``observation_stats`` (``[mean, std]``, lists per entry of a robot's block) standardizes the
+observations (:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from benchmarl.environments.common import Task, TaskClass
 from torchrl.data import Composite
 from torchrl.envs import EnvBase, PettingZooWrapper
@@ -79,6 +82,9 @@ class KoopNavTaskClass(TaskClass):
             from baselines.torchrl_env import KoopNavMultiAgentEnv
 
             config["max_episode_steps"] = config.pop("max_cycles", 600)
+            stats = config.pop("observation_stats", None)  # [mean, std] lists (a YAML-able config)
+            if stats is not None:
+                config["observation_stats"] = tuple(np.asarray(v, dtype=np.float32) for v in stats)
 
             def make() -> EnvBase:
                 env = KoopNavMultiAgentEnv(_ENV_IDS[name], num_envs, device=device, **config)

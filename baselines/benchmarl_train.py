@@ -70,25 +70,47 @@ def build_parser() -> argparse.ArgumentParser:
         default=3e-4,
         help="Adam's learning rate (default 3e-4, the PPO policies'; BenchMARL's own default is 5e-5)",
     )
+    parser.add_argument(
+        "--initial-std",
+        type=float,
+        default=0.37,
+        help="the actions' initial standard deviation before the tanh (default 0.37, the PPO "
+        "policies' log-std -1; BenchMARL's own is 1.0)",
+    )
+    parser.add_argument(
+        "--normalize-observations",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="standardize each observation entry by its mean and deviation under random actions "
+        "on the training layouts (exported with the policy; default on)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--out", required=True)
     return parser
 
 
-def experiment(task: Any, config: Any, algorithm: str = "mappo", seed: int = 0) -> Any:
+def experiment(
+    task: Any, config: Any, algorithm: str = "mappo", seed: int = 0, initial_std: float | None = None
+) -> Any:
     """A BenchMARL experiment of ``algorithm`` (``"mappo"`` or ``"ippo"``) on a KoopNav ``task``
     with BenchMARL's default networks (MLP for the actor and the critic) and ``config`` (an
-    ``ExperimentConfig``): the one place this project builds one."""
+    ``ExperimentConfig``): the one place this project builds one. ``initial_std``: the actions'
+    standard deviation before the tanh at the start (BenchMARL's default 1.0 when None)."""
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
 
     if algorithm not in ALGORITHMS:
         raise ValueError(f"algorithm={algorithm!r} is not one of {list(ALGORITHMS)}")
+    algorithm_config = (MappoConfig if algorithm == "mappo" else IppoConfig).get_from_yaml()
+    if initial_std is not None:
+        if not initial_std > 0:
+            raise ValueError(f"initial_std={initial_std!r} must be > 0")
+        algorithm_config.scale_mapping = f"biased_softplus_{initial_std}"
     return Experiment(
         task=task,
-        algorithm_config=(MappoConfig if algorithm == "mappo" else IppoConfig).get_from_yaml(),
+        algorithm_config=algorithm_config,
         model_config=MlpConfig.get_from_yaml(),
         critic_model_config=MlpConfig.get_from_yaml(),
         seed=seed,
@@ -122,6 +144,7 @@ def _experiment(
     env_kwargs: dict[str, Any] | None = None,
     frames: int | None = None,
     restore: Path | None = None,
+    stats: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Any:
     import torch
     from benchmarl.experiment import ExperimentConfig
@@ -139,6 +162,8 @@ def _experiment(
             **(env_kwargs or {}),
         }
     )
+    if stats is not None:
+        task.config["observation_stats"] = [stats[0].tolist(), stats[1].tolist()]
     config = ExperimentConfig.get_from_yaml()
     config.max_n_frames, config.max_n_iters = args.frames if frames is None else frames, None
     config.lr = args.lr
@@ -149,7 +174,7 @@ def _experiment(
     config.render, config.loggers, config.create_json = False, ["csv"], True
     config.save_folder, config.checkpoint_at_end = str(folder), True
     config.restore_file = None if restore is None else str(restore)
-    return experiment(task, config, args.algorithm, args.seed)
+    return experiment(task, config, args.algorithm, args.seed, args.initial_std)
 
 
 def _last_checkpoint(folder: Path) -> Path:
@@ -160,26 +185,47 @@ def _last_checkpoint(folder: Path) -> Path:
     return max(files, key=lambda path: int(path.stem.rsplit("_", 1)[1]))
 
 
-def _train(args: argparse.Namespace, folder: Path) -> tuple[Any, list[dict[str, Any]]]:
+def _statistics(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | None:
+    """The observation statistics of the layouts the policy ends its training on (the
+    curriculum's last stage, or the task's random layouts), or None without
+    ``--normalize-observations``: every stage standardizes with the same figures."""
+    if not args.normalize_observations:
+        return None
+    from baselines.benchmarl_task import _ENV_IDS, TASK_CONFIGS
+    from baselines.torchrl_env import observation_statistics
+
+    if args.curriculum:
+        env_kwargs = curriculum_plan(args.task, args.frames)[-1][2]
+    else:
+        env_kwargs = {
+            k: v for k, v in TASK_CONFIGS[args.task].items() if k not in ("max_cycles", "vectorized")
+        }
+    return observation_statistics(_ENV_IDS[args.task], **env_kwargs)
+
+
+def _train(
+    args: argparse.Namespace, folder: Path, stats: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[Any, list[dict[str, Any]]]:
     """Run the training (stage by stage with ``--curriculum``); the last experiment and the
     stages run (name, frames at the end, env keywords)."""
     if not args.curriculum:
-        run = _experiment(args, folder)
+        run = _experiment(args, folder, stats=stats)
         run.run()
         return run, []
     stages, restore, run = [], None, None
     for name, frames, env_kwargs in curriculum_plan(args.task, args.frames):
-        run = _experiment(args, folder, env_kwargs, frames, restore)
+        run = _experiment(args, folder, env_kwargs, frames, restore, stats)
         run.run()
         restore = _last_checkpoint(folder)
         stages.append({"name": name, "frames_end": frames, "env": env_kwargs})
     return run, stages
 
 
-def export_actor(policy: Any) -> dict[str, np.ndarray]:
+def export_actor(policy: Any, stats: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """The deterministic actor of a BenchMARL MAPPO/IPPO policy (shared MLP parameters) as numpy
-    arrays: ``weight_i``/``bias_i`` of its Linear layers in order (Tanh between them), and the
-    action bounds ``low``/``high`` of its TanhNormal head."""
+    arrays: ``weight_i``/``bias_i`` of its Linear layers in order (Tanh between them), the
+    action bounds ``low``/``high`` of its TanhNormal head, and with ``stats`` the observation
+    statistics it was trained with (``obs_mean``, ``obs_std``)."""
     state = policy.state_dict()
     layers = sorted(
         {key.rsplit(".", 1)[0] for key in state if key.endswith(".weight") and ".mlp.params." in key},
@@ -193,6 +239,8 @@ def export_actor(policy: Any) -> dict[str, np.ndarray]:
     kwargs = head.distribution_kwargs
     arrays["low"] = np.asarray(kwargs["low"].cpu().numpy()[0], dtype=np.float32)
     arrays["high"] = np.asarray(kwargs["high"].cpu().numpy()[0], dtype=np.float32)
+    if stats is not None:
+        arrays["obs_mean"], arrays["obs_std"] = (np.asarray(v, dtype=np.float32) for v in stats)
     return arrays
 
 
@@ -211,9 +259,10 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
     start = time.perf_counter()
-    experiment, stages = _train(args, out / "benchmarl")
+    stats = _statistics(args)
+    experiment, stages = _train(args, out / "benchmarl", stats)
     wall = time.perf_counter() - start
-    arrays = export_actor(experiment.policy)
+    arrays = export_actor(experiment.policy, stats)
     np.savez(out / "policy.npz", **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
     import benchmarl
     import torch
@@ -228,6 +277,8 @@ def main(argv: list[str] | None = None) -> int:
         "env": {"map": "random", "slip": "random", "max_cycles": args.max_cycles},
         "curriculum": {"stages": stages} if stages else None,
         "lr": args.lr,
+        "initial_std": args.initial_std,
+        "normalize_observations": bool(args.normalize_observations),
         "shaping": {"collision_penalty": args.collision_penalty, "precision_shaping": args.precision_shaping},
         "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),
         "seed": args.seed,

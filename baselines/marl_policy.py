@@ -38,8 +38,11 @@ _DROPPED = ("messages", "movers")
 
 def actor_command(arrays: dict[str, NDArray[Any]], blocks: NDArray[np.float64]) -> NDArray[np.float64]:
     """(..., 2) deterministic actions of the exported actor ``arrays`` for observation blocks
-    (..., F): Tanh between the linear layers, then the TanhNormal head's deterministic action."""
+    (..., F): standardized as in training when the export holds ``obs_mean``/``obs_std``, Tanh
+    between the linear layers, then the TanhNormal head's deterministic action."""
     x = np.asarray(blocks, dtype=np.float32)
+    if "obs_mean" in arrays:
+        x = (x - arrays["obs_mean"]) / arrays["obs_std"]
     layers = sum(1 for key in arrays if key.startswith("weight_"))
     for i in range(layers):
         x = x @ arrays[f"weight_{i}"].T + arrays[f"bias_{i}"]

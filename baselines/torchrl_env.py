@@ -22,6 +22,11 @@ mode): the step returns its final observation under ``"next"``, and TorchRL's pa
 it (``"_reset"``) hands out the first observation of its new episode, which the env already drew.
 Seeding: ``set_seed(s)`` seeds environment i with s + i at the next full reset, as the vector env
 does, so a batch is reproducible.
+
+``observation_stats=(mean, std)`` (per entry of a robot's block; :func:`observation_statistics`
+measures them) hands out ``(block - mean) / std`` instead of the raw block: a fixed input scale
+for the policy network (positions in metres, headings as cosines and distances to 60 m share an
+MLP's input), which an exported policy applies the same way (:mod:`baselines.marl_policy`).
 """
 
 from __future__ import annotations
@@ -41,13 +46,35 @@ from baselines.shaping import RewardShaping
 if TYPE_CHECKING:
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
 
-__all__ = ["GROUP", "INFO_KEYS", "KoopNavMultiAgentEnv"]
+__all__ = ["GROUP", "INFO_KEYS", "KoopNavMultiAgentEnv", "observation_statistics"]
 
 #: the group holding every robot (the name the PettingZoo wrapper gives KoopNav's agents)
 GROUP = "robot"
 #: per-robot info entries (K, N, 1), as floats (BenchMARL logs them as ``collection_robot_info_*``):
 #: the team's success and whether this robot collided, at the end of the step
 INFO_KEYS = ("is_success", "collision")
+
+
+def observation_statistics(
+    env_id: str, num_envs: int = 64, steps: int = 200, seed: int = 0, **env_kwargs: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation (float32, per entry of a robot's observation block) of the
+    blocks of ``num_envs`` environments of ``env_id`` over ``steps`` periods of uniform random
+    actions (seeded: the same figures every call). An entry that never varies (an empty slot)
+    gets 1 as its deviation, so that it passes unscaled."""
+    venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
+    n = int(cast("KoopNavVectorEnv", venv.unwrapped).engine.config.n_robots)
+    obs, _ = venv.reset(seed=seed)
+    space = cast(gym.spaces.Box, venv.action_space)
+    rng = np.random.default_rng(seed)
+    blocks = [np.asarray(obs, dtype=np.float64).reshape(num_envs * n, -1)]
+    for _ in range(steps):
+        obs, *_ = venv.step(rng.uniform(space.low, space.high))
+        blocks.append(np.asarray(obs, dtype=np.float64).reshape(num_envs * n, -1))
+    venv.close()
+    data = np.concatenate(blocks)
+    std = data.std(axis=0)
+    return data.mean(axis=0).astype(np.float32), np.where(std > 1e-6, std, 1.0).astype(np.float32)
 
 
 class KoopNavMultiAgentEnv(EnvBase):
@@ -64,6 +91,8 @@ class KoopNavMultiAgentEnv(EnvBase):
     collision_penalty, precision_shaping, mover_shaping : float
         The training terms the PPO policies train with (:class:`baselines.shaping.RewardShaping`;
         default 0: the env's own reward).
+    observation_stats : (mean, std), optional
+        Hand out standardized blocks, ``(block - mean) / std`` (module docstring).
     **env_kwargs
         Env keywords (``map="random"``, ``n_robots=5``, ``uncertainty="realistic"``, ...).
     """
@@ -76,6 +105,7 @@ class KoopNavMultiAgentEnv(EnvBase):
         collision_penalty: float = 0.0,
         precision_shaping: float = 0.0,
         mover_shaping: float = 0.0,
+        observation_stats: tuple[Any, Any] | None = None,
         **env_kwargs: Any,
     ) -> None:
         venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
@@ -97,6 +127,17 @@ class KoopNavMultiAgentEnv(EnvBase):
         act_space = cast(gym.spaces.Box, venv.single_action_space)
         self._obs_low = np.asarray(obs_space.low, dtype=np.float32).reshape(n, -1)
         self._obs_high = np.asarray(obs_space.high, dtype=np.float32).reshape(n, -1)
+        self._stats: tuple[np.ndarray, np.ndarray] | None = None
+        if observation_stats is not None:
+            mean, std = (np.asarray(v, dtype=np.float32).reshape(-1) for v in observation_stats)
+            width = self._obs_low.shape[1]
+            if mean.shape != (width,) or std.shape != (width,) or not (std > 0).all():
+                raise ValueError(
+                    f"observation_stats: a mean and a positive std of {width} entries (a robot's block) "
+                    f"are needed, not shapes {mean.shape} and {std.shape}"
+                )
+            self._stats = (mean, std)
+            self._obs_low, self._obs_high = (self._obs_low - mean) / std, (self._obs_high - mean) / std
         act_low = np.asarray(act_space.low, dtype=np.float32).reshape(n, 2)
         act_high = np.asarray(act_space.high, dtype=np.float32).reshape(n, 2)
         info = Composite({key: Unbounded(shape=(n, 1), dtype=torch.float32) for key in INFO_KEYS}, shape=(n,))
@@ -145,9 +186,10 @@ class KoopNavMultiAgentEnv(EnvBase):
         self._seed = None if seed is None else int(seed)
 
     def _blocks(self, flat: np.ndarray) -> torch.Tensor:
-        return torch.as_tensor(
-            np.asarray(flat, dtype=np.float32).reshape(self.batch_size[0], self.n_robots, -1)
-        )
+        blocks = np.asarray(flat, dtype=np.float32).reshape(self.batch_size[0], self.n_robots, -1)
+        if self._stats is not None:
+            blocks = (blocks - self._stats[0]) / self._stats[1]
+        return torch.as_tensor(blocks)
 
     def _flags(self, values: np.ndarray) -> torch.Tensor:
         return torch.as_tensor(np.asarray(values, dtype=bool).reshape(-1, 1))

@@ -89,3 +89,17 @@ def test_what_the_policy_cannot_read_is_refused_by_name(exported, tmp_path) -> N
         run_episode(gym.make("KoopNav-Formation-v0", map="map3"), ctrl, seed=0)
     with pytest.raises(ValueError, match=r"no trained policies in .*benchmarl_train"):
         MappoController(tmp_path / "nothing")
+
+
+def test_an_export_with_observation_statistics_standardizes_first(exported) -> None:
+    """A policy trained on standardized observations (``--normalize-observations``) carries its
+    statistics, and the numpy actor applies them as the TorchRL env did in training."""
+    _, arrays, _ = exported
+    width = arrays["weight_0"].shape[1]
+    rng = np.random.default_rng(0)
+    mean = rng.normal(size=width).astype(np.float32)
+    std = rng.uniform(0.5, 3.0, size=width).astype(np.float32)
+    blocks = rng.normal(size=(5, 3, width)) * 3
+    scaled = (blocks.astype(np.float32) - mean) / std
+    with_stats = {**arrays, "obs_mean": mean, "obs_std": std}
+    np.testing.assert_array_equal(actor_command(with_stats, blocks), actor_command(arrays, scaled))

@@ -98,3 +98,32 @@ def test_the_training_terms_are_the_sb3_adapters() -> None:
         crashes += int(td["next", "terminated"].sum())
         td = td_next
     assert crashes > 0  # the collision credit was exercised
+
+
+def test_standardized_observations_are_the_raw_blocks_scaled_and_checked() -> None:
+    """``observation_stats`` hands out (block - mean) / std of the same rollout, the specs' bounds
+    scaled alike (TorchRL's check), and a mean of the wrong width is refused by name."""
+    from baselines.torchrl_env import observation_statistics
+
+    mean, std = observation_statistics(ENV, num_envs=4, steps=20, **KWARGS)
+    assert mean.shape == std.shape == (KoopNavMultiAgentEnv(ENV, 1, **KWARGS)._obs_low.shape[1],)
+    assert (std > 0).all() and np.array_equal(
+        mean, observation_statistics(ENV, num_envs=4, steps=20, **KWARGS)[0]
+    )
+    raw, scaled = (
+        KoopNavMultiAgentEnv(ENV, 3, **KWARGS),
+        KoopNavMultiAgentEnv(ENV, 3, observation_stats=(mean, std), **KWARGS),
+    )
+    check_env_specs(scaled)
+    import torch
+
+    rollouts = []
+    for env in (raw, scaled):
+        env.set_seed(3)
+        torch.manual_seed(0)  # the same random actions
+        rollouts.append(env.rollout(10, break_when_any_done=False))
+    first, second = rollouts
+    for key in ((GROUP, "observation"), ("next", GROUP, "observation")):
+        np.testing.assert_allclose(second[key].numpy(), (first[key].numpy() - mean) / std, rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match=r"observation_stats: a mean and a positive std of \d+ entries"):
+        KoopNavMultiAgentEnv(ENV, 2, observation_stats=(mean[:-1], std[:-1]), **KWARGS)
