@@ -15,12 +15,21 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the published pages: page, generator and the generator's arguments
+PAGES: list[dict] = json.loads((ROOT / "data" / "pages.json").read_text())
+
+
+def page_command(entry: dict, out: Path, figures: Path | None = None) -> list[str]:
+    """The command that rebuilds ``entry``'s page (one item of :data:`PAGES`) into ``out``, its
+    figures into ``figures`` (default: the generator's, docs/_static); run it from the root."""
+    command = [sys.executable, str(ROOT / entry["generator"]), *entry["args"], "--out", str(out)]
+    return command if figures is None else [*command, "--figures", str(figures)]
 
 
 def main(argv: list[str]) -> int:
     check = "--check" in argv
     names = [name for name in argv if name != "--check"]
-    pages = json.loads((ROOT / "data" / "pages.json").read_text())
+    pages = PAGES
     known = [entry["page"] for entry in pages]
     unknown = [name for name in names if name not in known]
     if unknown:
@@ -32,9 +41,8 @@ def main(argv: list[str]) -> int:
             if names and entry["page"] not in names:
                 continue
             out = Path(scratch) / Path(entry["page"]).name if check else ROOT / entry["page"]
-            command = [sys.executable, str(ROOT / entry["generator"]), *entry["args"], "--out", str(out)]
-            if check:  # the figures too go to the scratch folder: the checkout is left alone
-                command += ["--figures", str(Path(scratch) / "_static")]
+            # with --check the figures too go to the scratch folder: the checkout is left alone
+            command = page_command(entry, out, Path(scratch) / "_static" if check else None)
             print(f"== {entry['page']}", flush=True)
             subprocess.run(command, cwd=ROOT, check=True, capture_output=check)
             if check and out.read_bytes() != (ROOT / entry["page"]).read_bytes():
