@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, cast
 
 import numpy as np
 from llvmlite import ir
@@ -105,7 +106,7 @@ def generate_random_map(
 @functools.lru_cache(maxsize=256)
 def _kernel_settings(
     config: RandomMapConfig, n_robots: int, robot_radius: float, workspace: tuple[float, float, float, float]
-) -> tuple:
+) -> tuple[Any, ...]:
     """The arguments of :func:`_draw_layout` after the generator (read-only arrays), kept: a
     vector env draws many maps of one setting."""
     shape = config.shape_for(n_robots, robot_radius, workspace)
@@ -139,7 +140,7 @@ def _draw_layout(
     n_obstacles: int,
     settings: NDArray[np.float64],
     workspace: NDArray[np.float64],
-) -> tuple:
+) -> tuple[Any, ...]:
     """Every draw of a random layout, compiled (a reset of a vector env with ``map="random"``
     spent ~100 us here in Python). The draws, in this order, define the layout of a seed
     (tests/data/random_layouts.json): per attempt the heading, the travel length, the lead's
@@ -193,10 +194,10 @@ def _draw_layout(
     return False, empty, empty, empty, np.zeros(2), np.zeros(2), np.zeros(2), 0.0
 
 
-@intrinsic
-def _fma(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma``: the CPU's fused multiply-add, exact in
-    software where there is none), as BLAS's kernels compute their products."""
+def _fma_intrinsic(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
+    """``_fma(a, b, c)``: ``a * b + c`` rounded once (LLVM's ``llvm.fma``: the CPU's fused
+    multiply-add, exact in software where there is none), as BLAS's kernels compute their
+    products; callable from compiled code only."""
     signature = types.float64(types.float64, types.float64, types.float64)
 
     def codegen(context: Any, builder: Any, sig: Any, args: Any) -> Any:
@@ -205,6 +206,9 @@ def _fma(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
         return builder.call(fma, args)
 
     return signature, codegen
+
+
+_fma = cast("Callable[[float, float, float], float]", intrinsic(_fma_intrinsic))
 
 
 @njit(cache=True)
@@ -241,7 +245,8 @@ def _row_mean(points: NDArray[np.float64]) -> NDArray[np.float64]:
     total = points[0].copy()
     for i in range(1, points.shape[0]):
         total = total + points[i]
-    return total / points.shape[0]
+    mean: NDArray[np.float64] = total / points.shape[0]
+    return mean
 
 
 @njit(cache=True)
