@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from koopman_envs.scenario import scenario_of
 from koopman_envs.sim.collision import CollisionKind
 
-__all__ = ["ComputeCharge", "EpisodeResult", "Policy", "run_episode"]
+__all__ = ["ComputeCharge", "EpisodeRecorder", "EpisodeResult", "Policy", "run_episode"]
 
 
 class Policy(Protocol):
@@ -183,68 +183,100 @@ def run_episode(
     reset = getattr(policy, "reset", None)
     if callable(reset):
         reset(scenario, seed=seed)
-    low = np.array([-scenario.v_max, -scenario.omega_max])
-    high = np.array([scenario.v_max, scenario.omega_max])
-    n = scenario.n_robots
-    poses = [np.array(info["poses"], dtype=np.float64)]
-    clearance = _Clearance(scenario)
-    clearance.observe(info)
-    effort = np.zeros(n)
-    previous = np.zeros((n, 2))
-    rate_sq = np.zeros((n, 2))
-    formation_sq: list[NDArray[np.float64]] = []
+    recorder = EpisodeRecorder(scenario, info)
     frames = [env.render()] if render else []
-    steps, total = 0, 0.0
-    stretch_start: int | None = None  # first step of the current stretch with every robot within tolerance
-    decider = _Decider(policy, compute, scenario.dt, n)
+    decider = _Decider(policy, compute, scenario.dt, scenario.n_robots)
     while True:
-        action = decider.command(steps, obs, info)
+        action = decider.command(recorder.steps, obs, info)
         obs, reward, terminated, truncated, info = env.step(action.reshape(-1))
-        steps += 1
-        total += float(reward)
-        applied = np.clip(action, low, high)
-        effort += (applied**2).sum(axis=1) * scenario.dt
-        rate_sq += ((applied - previous) / scenario.dt) ** 2
-        previous = applied
-        poses.append(np.array(info["poses"], dtype=np.float64))
-        clearance.observe(info)
-        if "formation_error" in info:
-            formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
-        if np.all(info["distances"] <= scenario.goal_tolerance):
-            stretch_start = steps if stretch_start is None else stretch_start
-        else:
-            stretch_start = None
+        recorder.record(action, float(reward), info)
         if render:
             frames.append(env.render())
         if on_step is not None:
-            on_step(steps, action, info)
+            on_step(recorder.steps, action, info)
         if terminated or truncated:
             break
-    trajectory = np.asarray(poses)
-    success = bool(info["is_success"])
-    return EpisodeResult(
-        success=success,
-        collision=CollisionKind.describe(info["collision_code"]) if info["collision"] else None,
-        truncated=bool(truncated and not terminated),
-        steps=steps,
-        total_reward=total,
-        time_to_goal=stretch_start * scenario.dt if success and stretch_start is not None else None,
-        final_poses=np.array(info["poses"], dtype=np.float64),
-        targets=np.array(info["targets"], dtype=np.float64),
-        final_distance=np.array(info["distances"], dtype=np.float64),
-        path_length=np.linalg.norm(np.diff(trajectory[:, :, :2], axis=0), axis=2).sum(axis=0),
-        control_effort=effort,
-        formation_rms=float(np.sqrt(np.mean(formation_sq))) if formation_sq else None,
-        straight_distance=np.hypot(*(trajectory[0, :, :2] - np.asarray(info["targets"])[:, :2]).T),
-        min_clearance=clearance.smallest(),
-        accel_rms=np.sqrt(rate_sq[:, 0] / steps),
-        angular_accel_rms=np.sqrt(rate_sq[:, 1] / steps),
-        trajectory=trajectory,
-        decisions=decider.decisions,
-        deadline_misses=decider.misses,
-        late_periods=decider.late / decider.decisions if decider.decisions else 0.0,
-        frames=frames,
-    )
+    result = recorder.result(info, bool(truncated and not terminated))
+    result.decisions, result.deadline_misses = decider.decisions, decider.misses
+    result.late_periods = decider.late / decider.decisions if decider.decisions else 0.0
+    result.frames = frames
+    return result
+
+
+class EpisodeRecorder:
+    """The per-episode metrics of :class:`EpisodeResult`, fed one step at a time: the one place
+    they are computed, by :func:`run_episode` and by any runner that steps episodes another way
+    (a batch of them in a vector env: each environment's info row is a lone env's info).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The episode's scenario.
+    info : dict
+        The info of the episode's reset (true poses, and movers when there are any).
+    """
+
+    def __init__(self, scenario: Any, info: dict[str, Any]) -> None:
+        self.scenario = scenario
+        n = scenario.n_robots
+        self._low = np.array([-scenario.v_max, -scenario.omega_max])
+        self._high = np.array([scenario.v_max, scenario.omega_max])
+        self._poses = [np.array(info["poses"], dtype=np.float64)]
+        self._clearance = _Clearance(scenario)
+        self._clearance.observe(info)
+        self._effort = np.zeros(n)
+        self._previous = np.zeros((n, 2))
+        self._rate_sq = np.zeros((n, 2))
+        self._formation_sq: list[NDArray[np.float64]] = []
+        self.steps, self.total_reward = 0, 0.0
+        # first step of the current stretch with every robot within tolerance
+        self._stretch_start: int | None = None
+
+    def record(self, action: NDArray[np.float64], reward: float, info: dict[str, Any]) -> None:
+        """One period: the command the robots were given (N, 2), the env's reward and the info
+        after the step."""
+        scenario = self.scenario
+        self.steps += 1
+        self.total_reward += reward
+        applied = np.clip(action, self._low, self._high)
+        self._effort += (applied**2).sum(axis=1) * scenario.dt
+        self._rate_sq += ((applied - self._previous) / scenario.dt) ** 2
+        self._previous = applied
+        self._poses.append(np.array(info["poses"], dtype=np.float64))
+        self._clearance.observe(info)
+        if "formation_error" in info:
+            self._formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
+        if np.all(info["distances"] <= scenario.goal_tolerance):
+            self._stretch_start = self.steps if self._stretch_start is None else self._stretch_start
+        else:
+            self._stretch_start = None
+
+    def result(self, info: dict[str, Any], truncated: bool) -> EpisodeResult:
+        """The episode's result from the info of its last step; ``truncated``: ended by the
+        time limit (and not terminated)."""
+        scenario, steps = self.scenario, self.steps
+        trajectory = np.asarray(self._poses)
+        success = bool(info["is_success"])
+        stretch = self._stretch_start
+        return EpisodeResult(
+            success=success,
+            collision=CollisionKind.describe(info["collision_code"]) if info["collision"] else None,
+            truncated=truncated,
+            steps=steps,
+            total_reward=self.total_reward,
+            time_to_goal=stretch * scenario.dt if success and stretch is not None else None,
+            final_poses=np.array(info["poses"], dtype=np.float64),
+            targets=np.array(info["targets"], dtype=np.float64),
+            final_distance=np.array(info["distances"], dtype=np.float64),
+            path_length=np.linalg.norm(np.diff(trajectory[:, :, :2], axis=0), axis=2).sum(axis=0),
+            control_effort=self._effort,
+            formation_rms=float(np.sqrt(np.mean(self._formation_sq))) if self._formation_sq else None,
+            straight_distance=np.hypot(*(trajectory[0, :, :2] - np.asarray(info["targets"])[:, :2]).T),
+            min_clearance=self._clearance.smallest(),
+            accel_rms=np.sqrt(self._rate_sq[:, 0] / steps),
+            angular_accel_rms=np.sqrt(self._rate_sq[:, 1] / steps),
+            trajectory=trajectory,
+        )
 
 
 class _Clearance:
