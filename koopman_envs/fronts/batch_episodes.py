@@ -1,0 +1,99 @@
+"""Many episodes at once: one episode in every sub-environment of the native vector env, each
+measured as :func:`~koopman_envs.fronts.episode.run_episode` measures a lone one.
+
+A sub-environment seeded ``s`` is the lone env seeded ``s`` (the vector env's per-environment
+generators; tests/test_determinism.py), and its row of the vector env's info is the lone env's
+info (:func:`info_row`), so a policy that acts on the same observations gives the same episode,
+bit for bit (tests/test_batch_episodes.py). The environments step together in the compiled
+kernels; each policy still acts on its own environment's observation and info. This is the
+runner a batched evaluation builds on (issue 47): controllers that can act on many teams at once
+replace the per-environment calls, and the results stay those of the per-episode path.
+
+The vector env must run Gymnasium's ``"NextStep"`` autoreset (its default): the step that ends
+an episode returns that episode's own last observation and info; an environment whose episode
+has ended keeps stepping (its next episode is not recorded, and its generator is its own, so it
+changes nothing for the others). Compute-aware charging and rendering are the one-env runner's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from koopman_envs.fronts.episode import EpisodeRecorder, EpisodeResult, Policy
+
+__all__ = ["info_row", "run_episodes_in_batch"]
+
+
+def info_row(info: dict[str, Any], index: int) -> dict[str, Any]:
+    """Sub-environment ``index``'s info as the lone env gives it: its row of every array (per
+    environment flags and counters as Python scalars), without the vector env's ``_key`` masks."""
+    row = {}
+    for key, value in info.items():
+        if key.startswith("_") or key in ("final_obs", "final_info"):
+            continue
+        value = np.asarray(value)
+        row[key] = value[index].item() if value.ndim == 1 else value[index]
+    return row
+
+
+def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence[int]) -> list[EpisodeResult]:
+    """Run one episode in every sub-environment of ``venv``, sub-environment ``i`` seeded
+    ``seeds[i]`` and driven by ``policies[i]`` (reset with its scenario and seed first, as
+    :func:`~koopman_envs.fronts.episode.run_episode` does), and measure each.
+
+    Parameters
+    ----------
+    venv : KoopNavVectorEnv
+        ``gym.make_vec(env_id, num_envs=K, ...)`` of a KoopNav id, NextStep autoreset.
+    policies : sequence of Policy
+        One per sub-environment (their own objects: a controller keeps state over an episode).
+    seeds : sequence of int
+        One per sub-environment.
+
+    Returns
+    -------
+    list of EpisodeResult
+        In the order of the sub-environments, equal to ``run_episode(gym.make(env_id, ...),
+        policies[i], seed=seeds[i])``.
+    """
+    base = venv.unwrapped
+    k = int(base.num_envs)
+    if len(policies) != k or len(seeds) != k:
+        raise ValueError(
+            f"{len(policies)} policies and {len(seeds)} seeds for {k} environments: one of each per environment"
+        )
+    if str(getattr(base.autoreset_mode, "value", base.autoreset_mode)) != "NextStep":
+        raise ValueError(
+            f"autoreset_mode={base.autoreset_mode!r}: run_episodes_in_batch needs 'NextStep' (the default), "
+            "whose ending step returns the episode's own last info"
+        )
+    obs, info = venv.reset(seed=[int(s) for s in seeds])
+    recorders = []
+    for i, policy in enumerate(policies):
+        scenario = base.scenario(i)
+        reset = getattr(policy, "reset", None)
+        if callable(reset):
+            reset(scenario, seed=int(seeds[i]))
+        recorders.append(EpisodeRecorder(scenario, info_row(info, i)))
+    actions = np.zeros(venv.action_space.shape)
+    results: list[EpisodeResult | None] = [None] * k
+    running = list(range(k))
+    while running:
+        commands = {}
+        for i in running:
+            commands[i] = np.asarray(policies[i].act(obs[i], info_row(info, i)), dtype=np.float64)
+            actions[i] = commands[i].reshape(-1)
+        obs, reward, terminated, truncated, info = venv.step(actions)
+        for i in list(running):
+            row = info_row(info, i)
+            recorder = recorders[i]
+            recorder.record(commands[i].reshape(-1, 2), float(reward[i]), row)
+            if terminated[i] or truncated[i]:
+                result = recorder.result(row, bool(truncated[i] and not terminated[i]))
+                result.decisions = recorder.steps
+                results[i] = result
+                running.remove(i)
+    return [result for result in results if result is not None]
