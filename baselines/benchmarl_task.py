@@ -34,7 +34,8 @@ through Python: about a tenth of the frames per second, ``bench/benchmarl_speed.
 vector env, ``collision_penalty``, ``precision_shaping`` and ``mover_shaping`` (not env keywords
 either; default 0) add the training terms the PPO policies train with (:mod:`baselines.shaping`),
 and ``observation_stats`` (``[mean, std]``, lists per entry of a robot's block) standardizes the
-observations (:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`).
+observations (:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`); ``reward_scale`` (either
+path) multiplies the rewards before BenchMARL uses them.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ import numpy as np
 from benchmarl.environments.common import Task, TaskClass
 from torchrl.data import Composite
 from torchrl.envs import EnvBase, PettingZooWrapper
+from torchrl.envs.transforms import RewardScaling, Transform
 
 from koopman_envs import formation_v0, target_reaching_v0
 
@@ -76,6 +78,7 @@ class KoopNavTaskClass(TaskClass):
         self, num_envs: int, continuous_actions: bool, seed: int | None, device: Any
     ) -> Callable[[], EnvBase]:
         config = copy.deepcopy(self.config)
+        config.pop("reward_scale", None)  # a transform of the task's (get_env_transforms), not an env keyword
         name = self.name.lower()
         if config.pop("vectorized", True):
             # every environment in one compiled vector env: BenchMARL takes it as already batched
@@ -98,6 +101,17 @@ class KoopNavTaskClass(TaskClass):
         return lambda: PettingZooWrapper(
             module.parallel_env(**config), use_mask=True, categorical_actions=True, device=device, seed=seed
         )
+
+    def get_env_transforms(self, env: EnvBase) -> list[Transform]:
+        """``reward_scale`` (config, default 1): every robot's reward times it, before BenchMARL
+        sums the returns (its logged returns are then scaled alike)."""
+        scale = float(self.config.get("reward_scale", 1.0))
+        if not scale > 0:
+            raise ValueError(f"reward_scale={scale!r} must be > 0")
+        if scale == 1.0:
+            return []
+        group = next(iter(self.group_map(env)))
+        return [RewardScaling(0.0, scale, in_keys=[(group, "reward")])]
 
     def supports_continuous_actions(self) -> bool:
         return True

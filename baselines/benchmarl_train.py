@@ -84,6 +84,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="standardize each observation entry by its mean and deviation under random actions "
         "on the training layouts (exported with the policy; default on)",
     )
+    parser.add_argument(
+        "--reward-scale",
+        type=float,
+        default=1.0,
+        help="every reward times this before training (default 1: the env's scale)",
+    )
+    parser.add_argument(
+        "--gae-lambda", type=float, default=0.9, help="GAE's lambda (default 0.9, BenchMARL's; SB3's is 0.95)"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--out", required=True)
@@ -91,12 +100,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def experiment(
-    task: Any, config: Any, algorithm: str = "mappo", seed: int = 0, initial_std: float | None = None
+    task: Any,
+    config: Any,
+    algorithm: str = "mappo",
+    seed: int = 0,
+    initial_std: float | None = None,
+    gae_lambda: float | None = None,
 ) -> Any:
     """A BenchMARL experiment of ``algorithm`` (``"mappo"`` or ``"ippo"``) on a KoopNav ``task``
     with BenchMARL's default networks (MLP for the actor and the critic) and ``config`` (an
     ``ExperimentConfig``): the one place this project builds one. ``initial_std``: the actions'
-    standard deviation before the tanh at the start (BenchMARL's default 1.0 when None)."""
+    standard deviation before the tanh at the start (BenchMARL's default 1.0 when None);
+    ``gae_lambda``: GAE's lambda (BenchMARL's 0.9 when None)."""
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
@@ -108,6 +123,10 @@ def experiment(
         if not initial_std > 0:
             raise ValueError(f"initial_std={initial_std!r} must be > 0")
         algorithm_config.scale_mapping = f"biased_softplus_{initial_std}"
+    if gae_lambda is not None:
+        if not 0 <= gae_lambda <= 1:
+            raise ValueError(f"gae_lambda={gae_lambda!r} must be in [0, 1]")
+        algorithm_config.lmbda = gae_lambda
     return Experiment(
         task=task,
         algorithm_config=algorithm_config,
@@ -159,6 +178,7 @@ def _experiment(
             "vectorized": True,
             "collision_penalty": args.collision_penalty,
             "precision_shaping": args.precision_shaping,
+            "reward_scale": args.reward_scale,
             **(env_kwargs or {}),
         }
     )
@@ -174,7 +194,7 @@ def _experiment(
     config.render, config.loggers, config.create_json = False, ["csv"], True
     config.save_folder, config.checkpoint_at_end = str(folder), True
     config.restore_file = None if restore is None else str(restore)
-    return experiment(task, config, args.algorithm, args.seed, args.initial_std)
+    return experiment(task, config, args.algorithm, args.seed, args.initial_std, args.gae_lambda)
 
 
 def _last_checkpoint(folder: Path) -> Path:
@@ -278,6 +298,8 @@ def main(argv: list[str] | None = None) -> int:
         "curriculum": {"stages": stages} if stages else None,
         "lr": args.lr,
         "initial_std": args.initial_std,
+        "reward_scale": args.reward_scale,
+        "gae_lambda": args.gae_lambda,
         "normalize_observations": bool(args.normalize_observations),
         "shaping": {"collision_penalty": args.collision_penalty, "precision_shaping": args.precision_shaping},
         "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),

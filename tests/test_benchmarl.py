@@ -78,3 +78,27 @@ def test_benchmarl_trains_on_a_koopnav_task(tmp_path, member, algorithm) -> None
     assert len(run["step_2"]["return"]) == 2 and np.isfinite(run["step_2"]["return"]).all()  # 2 eval episodes
     scalars = {p.stem for p in tmp_path.glob("*/*/scalars/*.csv")}
     assert {"eval_reward_episode_reward_mean", "collection_robot_info_is_success"} <= scalars
+
+
+def test_reward_scale_scales_the_rewards_benchmarl_sees() -> None:
+    """``reward_scale`` is a transform of the task (not an env keyword): the same rollout's
+    rewards, times the scale; a scale <= 0 is refused by name."""
+    import torch
+    from torchrl.envs import TransformedEnv
+
+    rewards = []
+    for scale in (1.0, 0.25):
+        task = KoopNavTask.TARGET_REACHING.get_task()
+        task.config["reward_scale"] = scale
+        env = task.get_env_fun(num_envs=3, continuous_actions=True, seed=0, device="cpu")()
+        transforms = task.get_env_transforms(env)
+        assert len(transforms) == (0 if scale == 1.0 else 1)
+        env = TransformedEnv(env, transforms[0]) if transforms else env
+        torch.manual_seed(0)
+        rewards.append(env.rollout(20, break_when_any_done=False)["next", "robot", "reward"])
+    torch.testing.assert_close(rewards[1], rewards[0] * 0.25)
+    task = KoopNavTask.TARGET_REACHING.get_task()
+    task.config["reward_scale"] = 0.0
+    env = task.get_env_fun(num_envs=1, continuous_actions=True, seed=0, device="cpu")()
+    with pytest.raises(ValueError, match=r"reward_scale=0.0 must be > 0"):
+        task.get_env_transforms(env)
