@@ -274,7 +274,19 @@ def _curve(folder: Path) -> list[list[float]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    # every setting checked before any work starts (statistics, BenchMARL's experiment)
+    for name, ok, allowed in (
+        ("frames", args.frames > 0, "> 0"),
+        ("envs", args.envs > 0, "> 0"),
+        ("lr", args.lr > 0, "> 0"),
+        ("initial-std", args.initial_std > 0, "> 0"),
+        ("reward-scale", args.reward_scale > 0, "> 0"),
+        ("gae-lambda", 0 <= args.gae_lambda <= 1, "in [0, 1]"),
+    ):
+        if not ok:
+            parser.error(f"--{name}={getattr(args, name.replace('-', '_'))!r}: allowed {allowed}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside

@@ -102,3 +102,24 @@ def test_reward_scale_scales_the_rewards_benchmarl_sees() -> None:
     env = task.get_env_fun(num_envs=1, continuous_actions=True, seed=0, device="cpu")()
     with pytest.raises(ValueError, match=r"reward_scale=0.0 must be > 0"):
         task.get_env_transforms(env)
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "allowed"),
+    [
+        ("--lr", "0", "> 0"),
+        ("--initial-std", "-1", "> 0"),
+        ("--reward-scale", "0", "> 0"),
+        ("--gae-lambda", "1.5", "in [0, 1]"),
+    ],
+)
+def test_the_training_command_refuses_bad_settings_by_name_before_any_work(
+    option: str, value: str, allowed: str, tmp_path, capsys
+) -> None:
+    from baselines.benchmarl_train import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--task", "target_reaching", option, value, "--out", str(tmp_path / "run")])
+    assert exit_info.value.code == 2
+    assert f"{option}={float(value)!r}: allowed {allowed}" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()  # nothing started
