@@ -12,6 +12,7 @@ import dataclasses
 import time
 from abc import ABC, abstractmethod
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
@@ -202,6 +203,9 @@ class BaseController(ABC):
     #: (:mod:`controllers.perception.front`: tracked movers and, with the map unknown, the
     #: perceived obstacles); a learned policy that reads the beams itself sets False
     perceives = True
+    #: whether :meth:`act_many` decides for many teams at once (an evaluation then runs this
+    #: controller's episodes together in the vector env rather than one by one)
+    acts_in_batch = False
 
     def __init__(self) -> None:
         self.scenario: Scenario | None = None
@@ -237,9 +241,35 @@ class BaseController(ABC):
         ``_act`` receives only the observed part of ``info``
         (:func:`koopman_envs.observed.observed_view`: pose estimates, messages and their ages,
         lidar readings, targets), never the true state."""
+        recorded = len(self._stats.solve_times)
+        view = self._view(info)
+        start = time.perf_counter()
+        command = self._act(observation, view)
+        self._acted(command, None if len(self._stats.solve_times) > recorded else time.perf_counter() - start)
+        return command
+
+    @classmethod
+    def act_many(
+        cls,
+        controllers: Sequence[BaseController],
+        observations: Sequence[NDArray[np.float64]],
+        infos: Sequence[dict[str, Any]],
+    ) -> list[NDArray[np.float64]]:
+        """The commands of many teams, ``controllers[i]`` acting on ``observations[i]`` and
+        ``infos[i]``, each equal to ``controllers[i].act(observations[i], infos[i])``.
+
+        A controller that can decide for many teams at once (one forward pass of a learned
+        policy for all of them) overrides this and sets :attr:`acts_in_batch`, which tells an
+        evaluation to run its episodes together
+        (:func:`koopman_envs.fronts.batch_episodes.run_episodes_in_batch`).
+        """
+        return [c.act(o, i) for c, o, i in zip(controllers, observations, infos, strict=True)]
+
+    def _view(self, info: dict[str, Any]) -> dict[str, Any]:
+        """What ``_act`` reads of ``info``: its observed part, over the radio, through the front
+        end and the perception."""
         if self.scenario is None:
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
-        recorded = len(self._stats.solve_times)
         view = observed_view(info)
         if self.radio_station is not None and "known_poses" in view:  # (a hand-made info may have none)
             view = over_the_radio(view, self.radio_station, self.scenario.starts)
@@ -252,16 +282,18 @@ class BaseController(ABC):
             self._stats.extra_times["perception"] = self.perception.times
         if "perceived_obstacles" in view:
             self.obstacles_seen(view["perceived_obstacles"])
-        start = time.perf_counter()
-        command = self._act(observation, view)
-        if len(self._stats.solve_times) == recorded:
-            self._stats.solve_times.append(time.perf_counter() - start)
+        return view
+
+    def _acted(self, command: NDArray[np.float64], seconds: float | None) -> None:
+        """Record a decision: its time (None: ``_act`` recorded its own) and the front end's counts."""
+        if seconds is not None:
+            self._stats.solve_times.append(seconds)
+        front_end = self.front_end
         if front_end is not None:
             front_end.sent(command)
             for key, value in front_end.counts().items():  # values, not increments
                 self._stats.counts[key] = value
             self._stats.extra_times["estimator"] = front_end.times
-        return command
 
     def stats(self) -> ControllerStats:
         return self._stats

@@ -31,7 +31,7 @@ def _same(first: object, second: object) -> bool:
     return first == second
 
 
-@pytest.mark.parametrize("name", ["consensus", "orca", "dwa"])
+@pytest.mark.parametrize("name", ["consensus", "orca", "dwa", "rl-ppo", "rl-ppo-set", "rl-ppo-set-movers"])
 @pytest.mark.parametrize(
     ("env_id", "kwargs"), SETTINGS, ids=["map1-noise", "random-realistic-movers", "formation"]
 )
@@ -50,6 +50,9 @@ def test_episodes_that_end_at_different_steps_are_each_kept_whole() -> None:
 def _check_batch(env_id: str, kwargs: dict, name: str) -> list:
     if name == "orca":
         pytest.importorskip("pyrvo")
+    if name.startswith("rl-"):  # these decide for every running team in one call (act_many)
+        pytest.importorskip("stable_baselines3")
+        assert controllers.make(name).acts_in_batch
     seeds = [3, 11, 12, 40, 41]
     venv = gym.make_vec(env_id, num_envs=len(seeds), **kwargs)
     batched = run_episodes_in_batch(venv, [controllers.make(name) for _ in seeds], seeds)
@@ -82,3 +85,29 @@ def test_bad_batches_are_refused_by_name() -> None:
     same_step = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, autoreset_mode="SameStep")
     with pytest.raises(ValueError, match=r"needs 'NextStep'"):
         run_episodes_in_batch(same_step, [controllers.make("consensus")] * 2, [0, 1])
+
+
+def test_a_policy_that_acts_in_batch_decides_for_all_teams_in_one_call(monkeypatch) -> None:
+    """The learned policies' act_many serves every running environment in one call per period
+    (never their act), and its teams' decision times are recorded, one per period."""
+    pytest.importorskip("stable_baselines3")
+    from baselines.policy import RLPolicyController
+
+    calls: list[int] = []
+    act_many = RLPolicyController.act_many.__func__  # type: ignore[attr-defined]
+
+    def counted(cls, teams, observations, infos):
+        calls.append(len(teams))
+        return act_many(cls, teams, observations, infos)
+
+    def refused(self, observation, info):
+        raise AssertionError("act() called in a batch")
+
+    monkeypatch.setattr(RLPolicyController, "act_many", classmethod(counted))
+    monkeypatch.setattr(RLPolicyController, "act", refused)
+    seeds = [1, 2, 3]
+    policies = [controllers.make("rl-ppo") for _ in seeds]
+    venv = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=3, map="map1", max_episode_steps=40)
+    results = run_episodes_in_batch(venv, policies, seeds)
+    assert calls[0] == 3 and len(calls) == max(r.steps for r in results)
+    assert [len(p.stats().solve_times) for p in policies] == [r.steps for r in results]

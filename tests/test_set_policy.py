@@ -307,20 +307,73 @@ def test_batched_set_commands_equal_single_commands(set_root) -> None:
     venv.close()
 
 
-def test_the_fast_deterministic_action_is_predicts_action(set_root) -> None:
-    """policy_command skips predict's overhead; the actions must stay bit-identical."""
-    from baselines.policy import SHIPPED, deterministic_action
+def _policy_directories(set_root) -> list:
+    from baselines.policy import SHIPPED
 
-    directories = [set_root / "target_reaching"] + [
-        p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()
-    ]
-    directories += [p for p in (SHIPPED / "set").glob("*") if (p / "policy.zip").exists()]
+    directories = [set_root / "target_reaching"] + [p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()]
+    return directories + [p for p in SHIPPED.glob("*/*") if (p / "policy.zip").exists()]
+
+
+def _masked_observations(model, rng, rows: int) -> np.ndarray:
+    """Random normalized observations; a set policy's mask entries 0 or 1 (as the features give)."""
+    from baselines.actor import compile_actor
+
+    obs = (2 * rng.normal(size=(rows, model.observation_space.shape[0]))).astype(np.float32)
+    for pool in compile_actor(model).sets:
+        width = pool.slot_size + 1
+        masks = np.arange(pool.columns.start + pool.slot_size, pool.columns.stop, width)
+        obs[:, masks] = rng.random((rows, len(masks))) < 0.6
+    return obs
+
+
+def test_the_compiled_actor_acts_as_predict(set_root) -> None:
+    """The compiled actor (baselines.actor) computes predict's deterministic action: equal within
+    float32 rounding (it sums in another order than torch's kernels), for every shipped policy,
+    the set encoder's masked slots included."""
+    from baselines.policy import deterministic_action
+
     rng = np.random.default_rng(0)
+    directories = _policy_directories(set_root)
+    assert len(directories) >= 7  # the trained fixture and every shipped policy
     for directory in directories:
         model, _, _ = load_policy(directory)
-        obs = (2 * rng.normal(size=(64, model.observation_space.shape[0]))).astype(np.float32)
+        obs = _masked_observations(model, rng, 64)
         expected, _ = model.predict(obs, deterministic=True)
-        np.testing.assert_array_equal(deterministic_action(model, obs), expected)
+        np.testing.assert_allclose(deterministic_action(model, obs), expected, rtol=0, atol=2e-5)
+
+
+def test_a_robots_action_does_not_depend_on_the_batch(set_root) -> None:
+    """The property a batched evaluation rests on: a row's action is the same bit for bit alone,
+    in a batch of any size and at any place in it (torch's batched forward is not)."""
+    from baselines.actor import compile_actor
+
+    rng = np.random.default_rng(1)
+    for directory in _policy_directories(set_root):
+        model, _, _ = load_policy(directory)
+        actor = compile_actor(model)
+        obs = _masked_observations(model, rng, 97)
+        batch = actor(obs)
+        alone = np.concatenate([actor(obs[i : i + 1]) for i in range(len(obs))])
+        np.testing.assert_array_equal(batch, alone)
+        order = rng.permutation(len(obs))
+        np.testing.assert_array_equal(actor(obs[order]), batch[order])
+        np.testing.assert_array_equal(actor(obs[:5]), batch[:5])
+
+
+def test_a_policy_the_actor_does_not_compile_goes_through_predict(set_root) -> None:
+    """A policy with a part baselines.actor does not compile (here a SiLU activation) is not
+    compiled, and its actions come from predict."""
+    import torch
+
+    from baselines.actor import compile_actor
+    from baselines.policy import deterministic_action
+
+    model, _, _ = load_policy(set_root / "target_reaching")
+    model.policy.mlp_extractor.policy_net[1] = torch.nn.SiLU()
+    assert compile_actor(model) is None
+    obs = _masked_observations(load_policy(set_root / "target_reaching")[0], np.random.default_rng(2), 8)
+    expected, _ = model.predict(obs, deterministic=True)
+    np.testing.assert_array_equal(deterministic_action(model, obs), expected)
 
 
 def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_path, monkeypatch) -> None:

@@ -5,9 +5,10 @@ A sub-environment seeded ``s`` is the lone env seeded ``s`` (the vector env's pe
 generators; tests/test_determinism.py), and its row of the vector env's info is the lone env's
 info (:func:`info_row`), so a policy that acts on the same observations gives the same episode,
 bit for bit (tests/test_batch_episodes.py). The environments step together in the compiled
-kernels; each policy still acts on its own environment's observation and info. This is the
-runner a batched evaluation builds on (issue 47): controllers that can act on many teams at once
-replace the per-environment calls, and the results stay those of the per-episode path.
+kernels; a controller class that decides for many teams at once (``acts_in_batch``, its
+``act_many``: the learned policies' one forward pass) acts for all running environments in one
+call, every other policy on its own environment's observation and info. The results stay those
+of the per-episode path.
 
 The vector env must run Gymnasium's ``"NextStep"`` autoreset (its default): the step that ends
 an episode returns that episode's own last observation and info; an environment whose episode
@@ -37,6 +38,16 @@ def info_row(info: dict[str, Any], index: int) -> dict[str, Any]:
         value = np.asarray(value)
         row[key] = value[index].item() if value.ndim == 1 else value[index]
     return row
+
+
+def _act_many(policies: Sequence[Policy]) -> Any:
+    """The policies' common ``act_many`` (a controller class deciding for many teams at once,
+    :meth:`controllers.base.BaseController.act_many`), or None: each policy acts alone."""
+    kinds = {type(policy) for policy in policies}
+    if len(kinds) != 1:
+        return None
+    kind = kinds.pop()
+    return getattr(kind, "act_many", None) if getattr(kind, "acts_in_batch", False) else None
 
 
 def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence[int]) -> list[EpisodeResult]:
@@ -81,10 +92,19 @@ def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence
     actions = np.zeros(venv.action_space.shape)
     results: list[EpisodeResult | None] = [None] * k
     running = list(range(k))
+    act_many = _act_many(policies)
     while running:
+        if act_many is not None:
+            decided = act_many(
+                [policies[i] for i in running],
+                [obs[i] for i in running],
+                [info_row(info, i) for i in running],
+            )
+        else:
+            decided = [policies[i].act(obs[i], info_row(info, i)) for i in running]
         commands = {}
-        for i in running:
-            commands[i] = np.asarray(policies[i].act(obs[i], info_row(info, i)), dtype=np.float64)
+        for i, command in zip(running, decided, strict=True):
+            commands[i] = np.asarray(command, dtype=np.float64)
             actions[i] = commands[i].reshape(-1)
         obs, reward, terminated, truncated, info = venv.step(actions)
         for i in list(running):
