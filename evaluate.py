@@ -281,6 +281,7 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
         backend=args.backend,
         resume=args.resume,
         progress=not args.quiet,
+        batch=args.batch,
     )
     axes_profiles = profiles(done, args.reference)
     paths = write_profiles(axes_profiles, args.out, command)
@@ -357,6 +358,7 @@ def main(argv: list[str] | None = None) -> int:
             out=args.out,
             resume=args.resume,
             progress=not args.quiet,
+            batch=args.batch,
             config_check=_config_check(args, baseline),
             plan_check=_plan_check(args, baseline, gate),
         )

@@ -4,6 +4,7 @@ and clean interruption."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import multiprocessing as mp
 import os
 import signal
@@ -14,12 +15,14 @@ from typing import Any
 
 from evaluation.plan import EpisodeSpec
 from evaluation.records import is_degraded, ran
-from evaluation.worker import run_episode
+from evaluation.worker import run_batch, run_episode, runs_in_batch
 from koopman_envs.checks import check_choice
 
-__all__ = ["BACKENDS", "Progress", "RunInterrupted", "run_episodes"]
+__all__ = ["BACKENDS", "BATCH", "Progress", "RunInterrupted", "run_episodes", "work_units"]
 
 BACKENDS = ("process", "ray")
+#: the most episodes of a cell run together (a controller that acts in batch, worker.run_batch)
+BATCH = 64
 
 
 def announce(message: str, enabled: bool = True) -> None:
@@ -78,7 +81,30 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _run_ray(todo: Sequence[EpisodeSpec], workers: int) -> Iterator[dict[str, Any]]:
+def work_units(todo: Sequence[EpisodeSpec], batch: int = BATCH) -> list[tuple[EpisodeSpec, ...]]:
+    """What the workers get: one episode, or up to ``batch`` episodes of one cell that run
+    together (:func:`~evaluation.worker.runs_in_batch`), in ``todo``'s order of first episodes.
+    ``batch`` 1 runs every episode alone."""
+    units: list[list[EpisodeSpec]] = []
+    open_batches: dict[EpisodeSpec, list[EpisodeSpec]] = {}
+    for spec in todo:
+        if batch <= 1 or not runs_in_batch(spec):
+            units.append([spec])
+            continue
+        cell = dataclasses.replace(spec, trial=0, seed=0)
+        members = open_batches.get(cell)
+        if members is None or len(members) >= batch:
+            members = open_batches[cell] = []
+            units.append(members)
+        members.append(spec)
+    return [tuple(unit) for unit in units]
+
+
+def _run_unit(unit: tuple[EpisodeSpec, ...]) -> list[dict[str, Any]]:
+    return run_batch(unit) if len(unit) > 1 else [run_episode(unit[0])]
+
+
+def _run_ray(todo: Sequence[tuple[EpisodeSpec, ...]], workers: int) -> Iterator[dict[str, Any]]:
     """Episodes as Ray tasks: on a local Ray instance, or on the cluster at ``RAY_ADDRESS``."""
     try:
         import ray
@@ -94,11 +120,11 @@ def _run_ray(todo: Sequence[EpisodeSpec], workers: int) -> Iterator[dict[str, An
             log_to_driver=False,
         )
     try:
-        remote = ray.remote(num_cpus=1)(run_episode)
-        pending = [remote.remote(spec) for spec in todo]
+        remote = ray.remote(num_cpus=1)(_run_unit)
+        pending = [remote.remote(unit) for unit in todo]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(ready[0])
+            yield from ray.get(ready[0])
     finally:
         if started_here:
             ray.shutdown()
@@ -106,18 +132,23 @@ def _run_ray(todo: Sequence[EpisodeSpec], workers: int) -> Iterator[dict[str, An
 
 @contextlib.contextmanager
 def run_episodes(
-    todo: Sequence[EpisodeSpec], workers: int, backend: str = "process"
+    todo: Sequence[EpisodeSpec], workers: int, backend: str = "process", batch: int = BATCH
 ) -> Iterator[Iterator[dict[str, Any]]]:
     """Context manager yielding the episodes' records as they finish (in any order).
 
+    Episodes of a controller that acts in batch run ``batch`` at a time per cell
+    (:func:`work_units`; their records equal the one-by-one records but for the timing fields).
     The worker pool is terminated on every exit: success, error or Ctrl-C. Workers ignore
     SIGINT, so Ctrl-C reaches only this process, which stops the pool without tracebacks.
     """
     check_choice("backend", backend, BACKENDS)
+    units = work_units(todo, batch)
     if backend == "ray":
-        yield _run_ray(todo, workers)
-    elif workers == 1 or len(todo) <= 1:
-        yield (run_episode(spec) for spec in todo)
+        yield _run_ray(units, workers)
+    elif workers == 1 or len(units) <= 1:
+        yield (record for unit in units for record in _run_unit(unit))
     else:
-        with mp.get_context("spawn").Pool(min(workers, len(todo)), initializer=_ignore_sigint) as pool:
-            yield pool.imap_unordered(run_episode, todo, chunksize=1)
+        with mp.get_context("spawn").Pool(min(workers, len(units)), initializer=_ignore_sigint) as pool:
+            yield (
+                record for records in pool.imap_unordered(_run_unit, units, chunksize=1) for record in records
+            )

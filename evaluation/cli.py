@@ -349,6 +349,10 @@ def _execution_options(run: argparse._ArgumentGroup) -> None:
         help="process pool or a Ray cluster (default: process)",
     )
     run.add_argument("--resume", action="store_true", help="continue the run logged in --out")
+    batch_help = "episodes of a cell run together when the controller acts in batch (records as one by one)"
+    run.add_argument(
+        "--batch", type=int, default=64, metavar="N", help=f"{batch_help}; 1: alone (default: 64)"
+    )
 
 
 def _ci_options(ci: argparse._ArgumentGroup) -> None:

@@ -9,13 +9,13 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import controllers as registry
-from evaluation.backends import BACKENDS, Progress, RunInterrupted, announce, run_episodes
+from evaluation.backends import BACKENDS, BATCH, Progress, RunInterrupted, announce, run_episodes
 from evaluation.plan import EpisodeSpec
 from evaluation.records import json_safe
 from evaluation.results import Results
 from evaluation.runlog import open_log
 from evaluation.spec import RunSpec
-from koopman_envs.checks import check_choice
+from koopman_envs.checks import check_choice, check_int
 
 __all__ = ["evaluate", "usable_controllers"]
 
@@ -52,6 +52,7 @@ def evaluate(
     progress: bool = False,
     config_check: Callable[[dict[str, Any]], None] | None = None,
     plan_check: Callable[[Sequence[EpisodeSpec]], None] | None = None,
+    batch: int = BATCH,
 ) -> Results:
     """Run every controller configuration of ``spec`` on every (env, map, slip) cell.
 
@@ -78,6 +79,10 @@ def evaluate(
         Called with the planned episodes after ``config_check``, before any episode; raising
         ``ValueError`` stops the run there (``--fail-if-worse`` refuses a baseline that too few
         of them pair with this way).
+    batch : int
+        The most episodes of a cell that run together in the vector env when the controller
+        decides for many teams at once (``acts_in_batch``: the learned policies); their records
+        equal the one-by-one records but for the timing fields. 1 runs every episode alone.
 
     Returns
     -------
@@ -105,6 +110,7 @@ def evaluate(
         )
     workers = (os.cpu_count() or 1) if workers is None else workers
     check_choice("backend", backend, BACKENDS)
+    check_int("batch", batch, minimum=1)
     if spec.gifs and out is None:
         raise ValueError("gifs=True needs an output directory (out=...) for the animations")
     spec.validate(workers)  # before the registry builds every controller below
@@ -136,7 +142,7 @@ def evaluate(
     bar = Progress(len(todo), progress)
     records = dict(done)
     try:
-        with run_episodes(todo, workers, backend) as stream:
+        with run_episodes(todo, workers, backend, batch) as stream:
             for record in stream:
                 records[record["key"]] = record
                 if log_file is not None:

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from evaluation import runner
+from evaluation.backends import BATCH
 from evaluation.baseline import load_baseline
 from evaluation.plan import safe_file_name, slip_value
 from evaluation.published import extract_archive, results_from_log
@@ -175,8 +176,11 @@ def run_sweep(
     backend: str = "process",
     resume: bool = False,
     progress: bool = True,
+    batch: int = BATCH,
 ) -> dict[str, list[tuple[Any, Results]]]:
-    """Run ``spec`` at every level of every axis; each level's run lands in its own directory.
+    """Run ``spec`` at every level of every axis; each level's run lands in its own directory
+    (``workers``, ``backend``, ``resume``, ``progress`` and ``batch`` as
+    :func:`evaluation.runner.evaluate`'s).
 
     Returns
     -------
@@ -213,6 +217,7 @@ def run_sweep(
                 out=level_dir,
                 resume=again,
                 progress=progress,
+                batch=batch,
             )
             results.write(level_dir)
             finished[name] = results

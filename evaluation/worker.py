@@ -3,27 +3,33 @@ run the episode, return its record. Never raises: an error becomes the episode's
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 import traceback
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from controllers.base import ControllerStats
+from controllers import registry
+from controllers.base import ControllerStats, calibratable
 from controllers.calibration import calibrate_controller
 from evaluation.plan import EpisodeSpec, slip_value
 from evaluation.records import finished_status
 from koopman_envs.builder.plant import make_plant
+from koopman_envs.fronts.batch_episodes import run_episodes_in_batch
 from koopman_envs.fronts.episode import ComputeCharge
 from koopman_envs.fronts.episode import run_episode as run_controller_episode
 
-__all__ = ["CalibrationError", "run_episode"]
+__all__ = ["CalibrationError", "run_batch", "run_episode", "runs_in_batch"]
 
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
 _COMMON_SUMMARY = frozenset(ControllerStats().summary())
+#: per controller configuration (label, name, options): whether its episodes run in batches
+_BATCHABLE: dict[tuple[str, str, str], bool] = {}
 
 
 class CalibrationError(RuntimeError):
@@ -93,6 +99,92 @@ def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
     return entry
 
 
+def _result_fields(result: Any, stats: ControllerStats) -> dict[str, Any]:
+    """The measured fields of an episode's record (the one-env runner's or the batch's result)."""
+    summary = stats.summary()
+    return dict(
+        status=finished_status(summary["failures"], len(stats.solve_times) or result.steps),
+        success=result.success,
+        collision=result.collision,
+        truncated=result.truncated,
+        steps=result.steps,
+        time_to_goal=result.time_to_goal,
+        final_poses=result.final_poses.tolist(),
+        targets=result.targets.tolist(),
+        final_distance=result.final_distance.tolist(),
+        path_length=result.path_length.tolist(),
+        control_effort=result.control_effort.tolist(),
+        formation_rms=result.formation_rms,
+        straight_distance=result.straight_distance.tolist(),
+        min_clearance=result.min_clearance,
+        accel_rms=result.accel_rms.tolist(),
+        decisions=result.decisions,
+        deadline_misses=result.deadline_misses,
+        late_periods=result.late_periods,
+        angular_accel_rms=result.angular_accel_rms.tolist(),
+        solve_ms_median=summary["solve_ms_median"],
+        solve_ms_p95=summary["solve_ms_p95"],
+        # every step's decision time, so that a cell's p95 is taken over its steps
+        solve_ms=[round(1e3 * t, 3) for t in stats.solve_times],
+        solver_failures=summary["failures"],
+        # what a controller reports beyond the common summary (e.g. the safety filter's counts)
+        controller_extra={k: v for k, v in summary.items() if k not in _COMMON_SUMMARY} or None,
+        trajectory=None,
+        obstacles=None,
+    )
+
+
+def runs_in_batch(spec: EpisodeSpec) -> bool:
+    """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller
+    decides for many teams at once (``acts_in_batch``) and calibrates nothing, the compute is
+    free (no ``--realtime``: the one-env runner charges it), and it keeps nothing beyond its
+    record (not trial 0, whose trajectories and animation the one-env runner keeps)."""
+    if spec.trial == 0 or spec.animation or spec.compute_scale > 0:
+        return False
+    key = (spec.controller, spec.controller_name, spec.controller_options)
+    if key not in _BATCHABLE:
+        try:
+            factory = spec.controller_factory or registry.factory(spec.controller_name or spec.controller)
+            if isinstance(factory, type) and not getattr(factory, "acts_in_batch", False):
+                _BATCHABLE[key] = False  # known from the class: nothing to build
+                return False
+            ctrl = spec.config.build()
+            _BATCHABLE[key] = bool(getattr(ctrl, "acts_in_batch", False)) and calibratable(ctrl) is None
+        except Exception:  # noqa: BLE001 - a controller that does not build runs alone (and records its error)
+            _BATCHABLE[key] = False
+    return _BATCHABLE[key]
+
+
+def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
+    """The records of a cell's episodes run together in the vector env
+    (:func:`~koopman_envs.fronts.batch_episodes.run_episodes_in_batch`), equal to
+    :func:`run_episode`'s but for the timing fields; never raises. If the batch fails anywhere
+    (a controller or env error), every episode is run again alone, so that each episode's error is
+    its own and the others keep their results."""
+    if len(specs) == 1 or len({dataclasses.replace(s, trial=0, seed=0) for s in specs}) != 1:
+        return [run_episode(spec) for spec in specs]
+    start = time.perf_counter()
+    try:
+        first = specs[0]
+        teams = [first.config.build() for _ in specs]
+        venv = gym.make_vec(first.env_id, num_envs=len(specs), **first.make_kwargs())
+        try:
+            results = run_episodes_in_batch(venv, teams, [spec.seed for spec in specs])
+        finally:
+            venv.close()
+    except Exception:  # noqa: BLE001 - each episode again alone: its error is recorded as its own
+        return [run_episode(spec) for spec in specs]
+    share = (time.perf_counter() - start) / len(specs)
+    records = []
+    for spec, ctrl, result in zip(specs, teams, results, strict=True):
+        record = spec.record_fields()
+        record["calibration"] = None  # a batched controller calibrates nothing (runs_in_batch)
+        record.update(_result_fields(result, ctrl.stats()))
+        record["wall_seconds"] = share
+        records.append(record)
+    return records
+
+
 def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
     """Run one episode and return its record (never raises: errors are recorded)."""
     start = time.perf_counter()
@@ -110,38 +202,10 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             render=bool(spec.animation),
             compute=charge,
         )
-        stats = ctrl.stats()
-        summary = stats.summary()
-        record.update(
-            status=finished_status(summary["failures"], len(stats.solve_times) or result.steps),
-            success=result.success,
-            collision=result.collision,
-            truncated=result.truncated,
-            steps=result.steps,
-            time_to_goal=result.time_to_goal,
-            final_poses=result.final_poses.tolist(),
-            targets=result.targets.tolist(),
-            final_distance=result.final_distance.tolist(),
-            path_length=result.path_length.tolist(),
-            control_effort=result.control_effort.tolist(),
-            formation_rms=result.formation_rms,
-            straight_distance=result.straight_distance.tolist(),
-            min_clearance=result.min_clearance,
-            accel_rms=result.accel_rms.tolist(),
-            decisions=result.decisions,
-            deadline_misses=result.deadline_misses,
-            late_periods=result.late_periods,
-            angular_accel_rms=result.angular_accel_rms.tolist(),
-            solve_ms_median=summary["solve_ms_median"],
-            solve_ms_p95=summary["solve_ms_p95"],
-            # every step's decision time, so that a cell's p95 is taken over its steps
-            solve_ms=[round(1e3 * t, 3) for t in stats.solve_times],
-            solver_failures=summary["failures"],
-            # what a controller reports beyond the common summary (e.g. the safety filter's counts)
-            controller_extra={k: v for k, v in summary.items() if k not in _COMMON_SUMMARY} or None,
-            trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
-            obstacles=env.unwrapped.scenario.obstacles.tolist() if spec.trial == 0 else None,  # type: ignore[attr-defined]  # a KoopNav env
-        )
+        record.update(_result_fields(result, ctrl.stats()))
+        if spec.trial == 0:  # the first trial of a cell keeps its paths (figures)
+            record["trajectory"] = np.round(result.trajectory[:, :, :2], 4).tolist()
+            record["obstacles"] = env.unwrapped.scenario.obstacles.tolist()  # type: ignore[attr-defined]  # a KoopNav env
         if paths is not None and paths.positions:  # only an episode with movers has the field
             record["mover_trajectory"] = paths.record()
         if spec.animation:

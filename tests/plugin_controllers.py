@@ -76,3 +76,21 @@ def make_plain_timed() -> PlainTimed:
 def make_anything():  # noqa: ANN201 - undeclared on purpose: must be refused without a call
     """A factory without a return annotation: refused, never called."""
     raise AssertionError("an undeclared factory was called")
+
+
+class BatchedFailingOnce(BaseController):
+    """Acts in batch (``act_many``) and stands still, but raises in the episode of seed
+    ``$KOOPNAV_TEST_FAILING_SEED``: a batch holding that episode fails, and the evaluator must
+    still record every other episode of the batch as run, and that one as an error."""
+
+    name = "batched-failing-once"
+    acts_in_batch = True
+
+    def _reset(self, scenario: Any, seed: int | None) -> None:
+        self.seed = seed
+
+    def _act(self, observation: Any, info: dict[str, Any]) -> Any:
+        assert self.scenario is not None
+        if str(self.seed) == os.environ.get("KOOPNAV_TEST_FAILING_SEED"):
+            raise RuntimeError(f"planned failure in the episode of seed {self.seed}")
+        return np.zeros(2 * self.scenario.n_robots)
