@@ -163,12 +163,15 @@ def _loaded_policy(directory: Path, task: str, algo: str, allow_pickle: bool) ->
     itself when it does not compile), loaded once per process for unchanged files."""
     from baselines.actor import compile_actor
 
-    files = PolicyFiles(directory)
-    stamps = tuple(
-        (p.stat().st_size, p.stat().st_mtime_ns) if p.exists() else None
-        for p in (files.model, files.norm, files.metadata)
-    )
-    key = (str(directory.resolve()), task, algo, allow_pickle, stamps)
+    folder = os.path.abspath(directory)
+    stamps: list[tuple[int, int] | None] = []
+    for name in ("policy.zip", "obs_norm.npz", "metadata.json"):  # PolicyFiles' names
+        try:
+            stat = os.stat(os.path.join(folder, name))
+            stamps.append((stat.st_size, stat.st_mtime_ns))
+        except OSError:
+            stamps.append(None)  # load_policy names what is missing
+    key = (folder, task, algo, allow_pickle, tuple(stamps))
     if key not in _LOADED:
         model, norm, metadata = load_policy(directory, task, algo, allow_pickle=allow_pickle)
         _LOADED[key] = (model, norm, metadata, compile_actor(model) or model)
@@ -252,18 +255,21 @@ class RLPolicyController(BaseController):
                 f"({scenario.lidar_beams} beams): the set policies (rl-ppo-set*) read the perceived ones"
             )
 
-    def _inputs(
-        self, observation: NDArray, info: dict[str, Any]
-    ) -> tuple[NDArray[np.float32], tuple[int, ...]]:
-        """The network's rows for this team (and the batch shape of ``observation``)."""
+    def _observed(self, observation: NDArray, info: dict[str, Any]) -> tuple[NDArray, int]:
+        """This team's observation as the policy reads it, and the movers each block lists."""
         sc = self.scenario  # the planner's: under lidar with the map unknown, the local map's obstacles
         assert sc is not None  # act() checked it
-        mover_slots = sc.mover_slots
         if sc.lidar_beams:  # the perceived obstacles and movers, listed as a state env lists them
             from baselines.perceived import LISTED_MOVERS, perceived_blocks
 
-            observation = perceived_blocks(info, sc).astype(np.float32)
-            mover_slots = LISTED_MOVERS
+            return perceived_blocks(info, sc).astype(np.float32), LISTED_MOVERS
+        return observation, sc.mover_slots
+
+    def _inputs(self, observation: NDArray, mover_slots: int) -> tuple[NDArray[np.float32], tuple[int, ...]]:
+        """The network's rows of this controller's observation (or a batch of observations of
+        teams in the same settings) and their batch shape."""
+        sc = self.scenario
+        assert sc is not None  # act() checked it
         return policy_inputs(
             self._norm,
             self._layout,
@@ -283,8 +289,29 @@ class RLPolicyController(BaseController):
         return command_of(action, self._layout, sc.n_robots, sc.v_max, sc.omega_max, batch_shape)
 
     def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
-        rows, batch_shape = self._inputs(observation, info)
+        rows, batch_shape = self._inputs(*self._observed(observation, info))
         return self._command(deterministic_action(self._actor, rows), batch_shape)
+
+    def _batch_key(self, observation: NDArray, mover_slots: int) -> tuple:
+        """Teams with equal keys go through :func:`policy_inputs`, the actor and
+        :func:`command_of` as one batch: the same policy, settings and observation size."""
+        sc = self.scenario
+        assert sc is not None  # act() checked it
+        return (
+            id(self._actor),
+            id(self._norm),
+            self._layout,
+            self._features,
+            self._neighbours,
+            self._set_config,
+            self._formation,
+            sc.n_robots,
+            sc.v_max,
+            sc.omega_max,
+            sc.message_ages,
+            mover_slots,
+            np.shape(observation),
+        )
 
     @classmethod
     def act_many(
@@ -293,41 +320,38 @@ class RLPolicyController(BaseController):
         observations: Sequence[NDArray],
         infos: Sequence[dict[str, Any]],
     ) -> list[NDArray[np.float64]]:
-        """Every team's command with one forward pass of each policy for all of them: equal, bit
-        for bit, to each controller's :meth:`act` (the compiled actor's rows do not depend on
-        the batch, :mod:`baselines.actor`). Each team's decision time is its own preparation
-        plus its rows' share of the forward pass."""
+        """Every team's command, computed for all teams of the same policy and settings at once
+        (their observations stacked through :func:`policy_inputs`, one forward pass of the
+        compiled actor, :func:`command_of`): equal, bit for bit, to each controller's
+        :meth:`act`, since every step acts on each row alone (elementwise arithmetic, per-row
+        sorts, the actor's batch-independent rows, :mod:`baselines.actor`). Each team's decision
+        time is its own preparation plus its share of the batch's computation."""
         if not all(isinstance(c, RLPolicyController) for c in controllers):
             return super().act_many(controllers, observations, infos)
         teams = cast("list[RLPolicyController]", list(controllers))
-        prepared = []
-        for ctrl, observation, info in zip(teams, observations, infos, strict=True):
+        seen: list[tuple[NDArray, int]] = []
+        seconds = [0.0] * len(teams)
+        groups: dict[tuple, list[int]] = {}
+        for i, (ctrl, observation, info) in enumerate(zip(teams, observations, infos, strict=True)):
             view = ctrl._view(info)
             start = time.perf_counter()
-            rows, batch_shape = ctrl._inputs(observation, view)
-            prepared.append((rows, batch_shape, time.perf_counter() - start))
-        actions: list[NDArray | None] = [None] * len(teams)
-        shares = [0.0] * len(teams)
-        by_actor: dict[int, list[int]] = {}
-        for i, ctrl in enumerate(teams):
-            by_actor.setdefault(id(ctrl._actor), []).append(i)
-        for members in by_actor.values():
+            seen.append(ctrl._observed(observation, view))
+            groups.setdefault(ctrl._batch_key(*seen[i]), []).append(i)
+            seconds[i] = time.perf_counter() - start
+        commands: list[NDArray[np.float64] | None] = [None] * len(teams)
+        for members in groups.values():
             start = time.perf_counter()
-            stacked = np.concatenate([prepared[i][0] for i in members])
-            out = deterministic_action(teams[members[0]]._actor, stacked)
-            elapsed = time.perf_counter() - start
-            offset = 0
-            for i in members:
-                n = len(prepared[i][0])
-                actions[i], offset = out[offset : offset + n], offset + n
-                shares[i] = elapsed * n / len(stacked)
-        commands = []
+            lead = teams[members[0]]
+            stacked = np.stack([seen[i][0] for i in members])
+            rows, batch_shape = lead._inputs(stacked, seen[members[0]][1])
+            batch = lead._command(deterministic_action(lead._actor, rows), batch_shape)
+            share = (time.perf_counter() - start) / len(members)
+            for j, i in enumerate(members):
+                commands[i] = batch[j]
+                seconds[i] += share
         for i, ctrl in enumerate(teams):
-            start = time.perf_counter()
-            command = ctrl._command(cast("NDArray", actions[i]), prepared[i][1])
-            ctrl._acted(command, prepared[i][2] + shares[i] + time.perf_counter() - start)
-            commands.append(command)
-        return commands
+            ctrl._acted(cast("NDArray[np.float64]", commands[i]), seconds[i])
+        return cast("list[NDArray[np.float64]]", commands)
 
 
 class RLSetPolicyController(RLPolicyController):

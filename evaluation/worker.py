@@ -3,6 +3,7 @@ run the episode, return its record. Never raises: an error becomes the episode's
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import time
@@ -21,7 +22,7 @@ from evaluation.plan import EpisodeSpec, slip_value
 from evaluation.records import finished_status
 from koopman_envs.builder.plant import make_plant
 from koopman_envs.fronts.batch_episodes import run_episodes_in_batch
-from koopman_envs.fronts.episode import ComputeCharge
+from koopman_envs.fronts.episode import ComputeCharge, EpisodeResult
 from koopman_envs.fronts.episode import run_episode as run_controller_episode
 
 __all__ = ["CalibrationError", "run_batch", "run_episode", "runs_in_batch"]
@@ -34,30 +35,6 @@ _BATCHABLE: dict[tuple[str, str, str], bool] = {}
 
 class CalibrationError(RuntimeError):
     """A controller's calibration raised (recorded for every episode of its cell)."""
-
-
-class _MoverPaths(gym.Wrapper):  # type: ignore[type-arg]  # any KoopNav env's spaces
-    """Keeps the movers' true positions (the info's ``movers``) at the reset and after every
-    step, for the record's ``mover_trajectory``; keeps nothing without movers."""
-
-    def __init__(self, env: Any) -> None:
-        super().__init__(env)
-        self.positions: list[np.ndarray] = []
-
-    def reset(self, **kwargs: Any) -> Any:
-        obs, info = self.env.reset(**kwargs)
-        self.positions = [np.asarray(info["movers"])[:, :2].copy()] if "movers" in info else []
-        return obs, info
-
-    def step(self, action: Any) -> Any:
-        out = self.env.step(action)
-        if self.positions:
-            self.positions.append(np.asarray(out[4]["movers"])[:, :2].copy())
-        return out
-
-    def record(self) -> list | None:
-        """(T + 1, C, 2) positions [m], rounded as the robots' ``trajectory``; None without movers."""
-        return np.round(np.asarray(self.positions), 4).tolist() if self.positions else None
 
 
 def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
@@ -99,10 +76,11 @@ def _controller_for(spec: EpisodeSpec) -> tuple[Any, dict[str, Any] | None]:
     return entry
 
 
-def _result_fields(result: Any, stats: ControllerStats) -> dict[str, Any]:
-    """The measured fields of an episode's record (the one-env runner's or the batch's result)."""
+def _result_fields(spec: EpisodeSpec, result: EpisodeResult, stats: ControllerStats) -> dict[str, Any]:
+    """The measured fields of an episode's record (the one-env runner's or the batch's result);
+    the first trial of a cell keeps its paths and obstacles (figures)."""
     summary = stats.summary()
-    return dict(
+    fields = dict(
         status=finished_status(summary["failures"], len(stats.solve_times) or result.steps),
         success=result.success,
         collision=result.collision,
@@ -129,17 +107,19 @@ def _result_fields(result: Any, stats: ControllerStats) -> dict[str, Any]:
         solver_failures=summary["failures"],
         # what a controller reports beyond the common summary (e.g. the safety filter's counts)
         controller_extra={k: v for k, v in summary.items() if k not in _COMMON_SUMMARY} or None,
-        trajectory=None,
-        obstacles=None,
+        trajectory=np.round(result.trajectory[:, :, :2], 4).tolist() if spec.trial == 0 else None,
+        obstacles=result.obstacles.tolist() if spec.trial == 0 and result.obstacles is not None else None,
     )
+    if spec.trial == 0 and result.mover_trajectory is not None:  # only an episode with movers has it
+        fields["mover_trajectory"] = np.round(result.mover_trajectory, 4).tolist()
+    return fields
 
 
 def runs_in_batch(spec: EpisodeSpec) -> bool:
     """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller
     decides for many teams at once (``acts_in_batch``) and calibrates nothing, the compute is
-    free (no ``--realtime``: the one-env runner charges it), and it keeps nothing beyond its
-    record (not trial 0, whose trajectories and animation the one-env runner keeps)."""
-    if spec.trial == 0 or spec.animation or spec.compute_scale > 0:
+    free (no ``--realtime``: the one-env runner charges it), and it records no animation."""
+    if spec.animation or spec.compute_scale > 0:
         return False
     key = (spec.controller, spec.controller_name, spec.controller_options)
     if key not in _BATCHABLE:
@@ -166,7 +146,9 @@ def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
     start = time.perf_counter()
     try:
         first = specs[0]
-        teams = [first.config.build() for _ in specs]
+        built = first.config.build()
+        # copies of one fresh build, as many fresh builds but without resolving the factory again
+        teams = [built] + [copy.deepcopy(built) for _ in specs[1:]]
         venv = gym.make_vec(first.env_id, num_envs=len(specs), **first.make_kwargs())
         try:
             results = run_episodes_in_batch(venv, teams, [spec.seed for spec in specs])
@@ -179,7 +161,7 @@ def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
     for spec, ctrl, result in zip(specs, teams, results, strict=True):
         record = spec.record_fields()
         record["calibration"] = None  # a batched controller calibrates nothing (runs_in_batch)
-        record.update(_result_fields(result, ctrl.stats()))
+        record.update(_result_fields(spec, result, ctrl.stats()))
         record["wall_seconds"] = share
         records.append(record)
     return records
@@ -194,20 +176,14 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
         ctrl, calibration = _controller_for(spec)
         record["calibration"] = calibration
         charge = ComputeCharge(scale=spec.compute_scale) if spec.compute_scale > 0 else None
-        paths = _MoverPaths(env) if spec.trial == 0 else None  # trial 0 keeps the movers' paths
         result = run_controller_episode(
-            env if paths is None else paths,
+            env,
             ctrl,
             seed=spec.seed,
             render=bool(spec.animation),
             compute=charge,
         )
-        record.update(_result_fields(result, ctrl.stats()))
-        if spec.trial == 0:  # the first trial of a cell keeps its paths (figures)
-            record["trajectory"] = np.round(result.trajectory[:, :, :2], 4).tolist()
-            record["obstacles"] = env.unwrapped.scenario.obstacles.tolist()  # type: ignore[attr-defined]  # a KoopNav env
-        if paths is not None and paths.positions:  # only an episode with movers has the field
-            record["mover_trajectory"] = paths.record()
+        record.update(_result_fields(spec, result, ctrl.stats()))
         if spec.animation:
             from koopman_envs.fronts.rendering import save_episode
 

@@ -45,14 +45,17 @@ def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(con
     plan = spec.resolved().episodes_plan("")
     units = work_units(plan)
     batched_units = [unit for unit in units if len(unit) > 1]
-    # trial 0 of every cell runs alone (it keeps its paths); the other 4 of a cell run together
-    assert len(batched_units) == 2 * len(controllers) and {len(u) for u in batched_units} == {4}
+    # every cell's 5 trials run together (trial 0 keeps its paths, the movers' too)
+    assert len(batched_units) == 2 * len(controllers) and {len(u) for u in batched_units} == {5}
     together = evaluate(spec, workers=2)  # the batches in worker processes
     alone = evaluate(spec, workers=1, batch=1)
     assert [r["key"] for r in together.records] == [r["key"] for r in alone.records]
     for first, second in zip(together.records, alone.records, strict=True):
         assert first["status"] == "ok", first.get("error")
         assert _untimed(first) == _untimed(second), first["key"]
+    first_trials = [r for r in together.records if r["trial"] == 0]
+    assert first_trials and all(r["trajectory"] and r["obstacles"] is not None for r in first_trials)
+    assert all(bool(r.get("mover_trajectory")) == ("movers" in env_kwargs) for r in first_trials)
     for name in controllers:  # distinct episodes (perturbed starts, random layouts)
         poses = [str(r["final_poses"]) for r in together.records if r["controller"] == name]
         assert len(set(poses)) == len(poses) == 10
@@ -70,20 +73,20 @@ def test_one_failing_episode_of_a_batch_is_its_own_error(monkeypatch) -> None:
         env_kwargs={"max_episode_steps": 20},
     )
     plan = spec.resolved().episodes_plan("")
-    assert runs_in_batch(plan[1]) and not runs_in_batch(plan[0])
+    assert all(runs_in_batch(spec) for spec in plan)
     monkeypatch.setenv("KOOPNAV_TEST_FAILING_SEED", str(plan[2].seed))
     records = {r["trial"]: r for r in evaluate(spec, workers=1).records}
     assert records[2]["status"] == "error" and "planned failure" in records[2]["error"]
     assert all(records[t]["status"] == "ok" and records[t]["steps"] == 20 for t in (0, 1, 3, 4))
 
 
-def test_controllers_that_act_alone_and_first_trials_are_not_batched() -> None:
+def test_controllers_that_act_alone_are_not_batched() -> None:
     pytest.importorskip("stable_baselines3")
     spec = _spec(["consensus", "rl-ppo"])
     units = work_units(spec.resolved().episodes_plan(""))
     for unit in units:
         if len(unit) > 1:
-            assert {s.controller for s in unit} == {"rl-ppo"} and all(s.trial > 0 for s in unit)
+            assert {s.controller for s in unit} == {"rl-ppo"}
             assert len({(s.map, s.slip) for s in unit}) == 1  # one cell per batch
     assert all(len(u) == 1 for u in work_units(spec.resolved().episodes_plan(""), batch=1))
     with pytest.raises(ValueError, match="batch"):

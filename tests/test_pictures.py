@@ -201,15 +201,16 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
     from evaluation.figures import _trajectory_figure, save_figures
     from evaluation.records import record_problem
     from evaluation.run_data import RunData
-    from evaluation.worker import _MoverPaths
     from koopman_envs.fronts.demo import NaiveGoToTarget
     from koopman_envs.fronts.episode import run_episode
 
-    env = _MoverPaths(gym.make(TR, movers=dict(count=3, behaviour="waypoints"), max_episode_steps=40))
+    env = gym.make(TR, movers=dict(count=3, behaviour="waypoints"), max_episode_steps=40)
     result = run_episode(env, NaiveGoToTarget(), seed=0)
-    paths = env.record()
+    assert result.mover_trajectory is not None
+    paths = np.round(result.mover_trajectory, 4).tolist()  # as the worker records them
     assert np.shape(paths) == (result.steps + 1, 3, 2)
     np.testing.assert_allclose(paths[-1], env.unwrapped.engine.movers.position[0], atol=1e-4)
+    np.testing.assert_array_equal(result.obstacles, env.unwrapped.scenario.obstacles)
     rec = copy.deepcopy(next(r for r in _baseline_records() if r["env_id"] == TR))
     rec.update(
         key="with-movers",
@@ -234,9 +235,7 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
     assert len(dotted) == 3  # one path per mover
     np.testing.assert_allclose(dotted[0].get_xydata(), np.asarray(paths)[:, 0])
     without = gym.make(TR, max_episode_steps=5)
-    plain = _MoverPaths(without)
-    run_episode(plain, NaiveGoToTarget(), seed=0)
-    assert plain.record() is None  # no movers: no field
+    assert run_episode(without, NaiveGoToTarget(), seed=0).mover_trajectory is None  # no movers: no field
 
 
 def test_the_success_chart_keeps_its_legend_off_the_bars(tmp_path: Path) -> None:

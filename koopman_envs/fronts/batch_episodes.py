@@ -93,22 +93,21 @@ def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence
     results: list[EpisodeResult | None] = [None] * k
     running = list(range(k))
     act_many = _act_many(policies)
+    rows = [info_row(info, i) for i in range(k)]  # each running environment's info, as a lone env's
     while running:
         if act_many is not None:
             decided = act_many(
-                [policies[i] for i in running],
-                [obs[i] for i in running],
-                [info_row(info, i) for i in running],
+                [policies[i] for i in running], [obs[i] for i in running], [rows[i] for i in running]
             )
         else:
-            decided = [policies[i].act(obs[i], info_row(info, i)) for i in running]
+            decided = [policies[i].act(obs[i], rows[i]) for i in running]
         commands = {}
         for i, command in zip(running, decided, strict=True):
             commands[i] = np.asarray(command, dtype=np.float64)
             actions[i] = commands[i].reshape(-1)
         obs, reward, terminated, truncated, info = venv.step(actions)
         for i in list(running):
-            row = info_row(info, i)
+            rows[i] = row = info_row(info, i)
             recorder = recorders[i]
             recorder.record(commands[i].reshape(-1, 2), float(reward[i]), row)
             if terminated[i] or truncated[i]:

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.scenario import scenario_of
 from koopman_envs.sim.collision import CollisionKind
+from koopman_envs.sim.nearest import smallest_clearances
 
 __all__ = ["ComputeCharge", "EpisodeRecorder", "EpisodeResult", "Policy", "run_episode"]
 
@@ -115,6 +116,10 @@ class EpisodeResult:
         command is measured against standing still).
     trajectory : ndarray, shape (T + 1, N, 3)
         Poses from the start.
+    mover_trajectory : ndarray, shape (T + 1, C, 2), or None
+        The movers' true positions from the start (None without movers).
+    obstacles : ndarray, shape (M, 3), or None
+        The episode's obstacles (x, y, r; its map's, random layouts included).
     frames : list of ndarray
         ``rgb_array`` frames when ``render=True``.
     """
@@ -139,6 +144,8 @@ class EpisodeResult:
     decisions: int = 0
     deadline_misses: int = 0
     late_periods: float = 0.0
+    mover_trajectory: NDArray[np.float64] | None = None
+    obstacles: NDArray[np.float64] | None = None
     frames: list[NDArray[np.uint8]] = field(default_factory=list)
 
     @property
@@ -228,6 +235,8 @@ class EpisodeRecorder:
         self._previous = np.zeros((n, 2))
         self._rate_sq = np.zeros((n, 2))
         self._formation_sq: list[NDArray[np.float64]] = []
+        # the movers' true positions (info["movers"]) at the start and after every period
+        self._movers = [np.asarray(info["movers"])[:, :2].copy()] if "movers" in info else None
         self.steps, self.total_reward = 0, 0.0
         # first step of the current stretch with every robot within tolerance
         self._stretch_start: int | None = None
@@ -244,6 +253,8 @@ class EpisodeRecorder:
         self._previous = applied
         self._poses.append(np.array(info["poses"], dtype=np.float64))
         self._clearance.observe(info)
+        if self._movers is not None:
+            self._movers.append(np.asarray(info["movers"])[:, :2].copy())
         if "formation_error" in info:
             self._formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
         if np.all(info["distances"] <= scenario.goal_tolerance):
@@ -276,6 +287,8 @@ class EpisodeRecorder:
             accel_rms=np.sqrt(self._rate_sq[:, 0] / steps),
             angular_accel_rms=np.sqrt(self._rate_sq[:, 1] / steps),
             trajectory=trajectory,
+            mover_trajectory=np.asarray(self._movers) if self._movers else None,
+            obstacles=np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3).copy(),
         )
 
 
@@ -283,32 +296,28 @@ class _Clearance:
     """The smallest surface clearance so far of any robot to obstacles, team-mates and movers."""
 
     def __init__(self, scenario: Any) -> None:
-        self.radius = np.asarray(scenario.robot_radius, dtype=np.float64)
-        self.obstacles = np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
+        self.radius = np.ascontiguousarray(scenario.robot_radius, dtype=np.float64)
+        self.obstacles = np.ascontiguousarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
         self.mover_radius = float(getattr(scenario, "mover_radius", 0.0))
-        self.low: dict[str, float | None] = {"obstacle": None, "robot": None, "mover": None}
-
-    def _keep(self, kind: str, values: NDArray[np.float64]) -> None:
-        if values.size:
-            smallest = float(values.min())
-            current = self.low[kind]
-            self.low[kind] = smallest if current is None else min(current, smallest)
+        self.low = [np.inf, np.inf, np.inf]  # obstacle, robot, mover
 
     def observe(self, info: dict[str, Any]) -> None:
-        xy = np.asarray(info["poses"], dtype=np.float64)[:, :2]
-        if self.obstacles.shape[0]:
-            gaps = np.linalg.norm(xy[:, None] - self.obstacles[None, :, :2], axis=-1)
-            self._keep("obstacle", gaps - self.radius[:, None] - self.obstacles[None, :, 2])
-        if xy.shape[0] > 1:
-            gaps = np.linalg.norm(xy[:, None] - xy[None], axis=-1) - self.radius[:, None] - self.radius[None]
-            self._keep("robot", gaps[np.triu_indices(xy.shape[0], 1)])
-        movers = np.asarray(info.get("movers", np.zeros((0, 4))), dtype=np.float64).reshape(-1, 4)
-        if movers.shape[0]:
-            gaps = np.linalg.norm(xy[:, None] - movers[None, :, :2], axis=-1)
-            self._keep("mover", gaps - self.radius[:, None] - self.mover_radius)
+        xy = np.ascontiguousarray(np.asarray(info["poses"], dtype=np.float64)[:, :2])
+        movers = np.ascontiguousarray(
+            np.asarray(info.get("movers", _NO_MOVERS), dtype=np.float64).reshape(-1, 4)
+        )
+        now = smallest_clearances(xy, self.radius, self.obstacles, movers, self.mover_radius)
+        self.low = [min(before, value) for before, value in zip(self.low, now, strict=True)]
 
     def smallest(self) -> dict[str, float | None]:
-        return dict(self.low)
+        """Per kind, the smallest clearance so far, None where there is nothing of the kind."""
+        return {
+            kind: float(value) if math.isfinite(value) else None
+            for kind, value in zip(("obstacle", "robot", "mover"), self.low, strict=True)
+        }
+
+
+_NO_MOVERS = np.zeros((0, 4))
 
 
 class _Decider:

@@ -18,6 +18,7 @@ __all__ = [
     "nearest_first",
     "nearest_first_by_rank",
     "nearest_order",
+    "smallest_clearances",
 ]
 
 
@@ -65,3 +66,35 @@ def disc_clearance(points: NDArray[np.float64], discs: NDArray[np.float64]) -> N
 def nearest_by_clearance(points: NDArray[np.float64], discs: NDArray[np.float64], k: int) -> NDArray[np.intp]:
     """Each point's ``k`` nearest discs by surface clearance, nearest first, shape (N, min(k, M))."""
     return nearest_order(disc_clearance(points, discs), k)
+
+
+@njit(cache=True, nogil=True)
+def smallest_clearances(
+    xy: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    movers: NDArray[np.float64],
+    mover_radius: float,
+) -> tuple[float, float, float]:
+    """The smallest surface clearance of any robot (``xy`` (N, 2), ``radius`` (N,)) to the
+    obstacles (M, 3: x, y, r), to a team-mate, and to the movers (C, >= 2: x, y, ...) of
+    ``mover_radius`` [m]; inf where there is none.
+
+    Each clearance is computed as the numpy expression ``norm(a - b) - r_a - r_b`` evaluates it
+    (the squares summed x first, then the radii subtracted in that order), so the minima are
+    those of the vectorised form to the bit.
+    """
+    n = xy.shape[0]
+    low_obstacle = low_robot = low_mover = np.inf
+    for i in range(n):
+        x, y, r = xy[i, 0], xy[i, 1], radius[i]
+        for m in range(obstacles.shape[0]):
+            dx, dy = x - obstacles[m, 0], y - obstacles[m, 1]
+            low_obstacle = min(low_obstacle, np.sqrt(dx * dx + dy * dy) - r - obstacles[m, 2])
+        for j in range(i + 1, n):
+            dx, dy = x - xy[j, 0], y - xy[j, 1]
+            low_robot = min(low_robot, np.sqrt(dx * dx + dy * dy) - r - radius[j])
+        for c in range(movers.shape[0]):
+            dx, dy = x - movers[c, 0], y - movers[c, 1]
+            low_mover = min(low_mover, np.sqrt(dx * dx + dy * dy) - r - mover_radius)
+    return low_obstacle, low_robot, low_mover
