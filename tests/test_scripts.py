@@ -20,6 +20,16 @@ ROOT = Path(__file__).resolve().parents[1]
 SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
     "bench/cold_start.py": ["--settings", "plain", "--repeats", "1"],
+    "bench/batched_evaluation.py": [
+        "--behaviours",
+        "constant",
+        "--counts",
+        "2",
+        "--controllers",
+        "rl-ppo",
+        "--episodes",
+        "2",
+    ],
     "bench/benchmarl_speed.py": ["--envs", "4", "--frames", "400", "--iters", "1"],
     "bench/uncertainty_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16"],
     "bench/movers_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "16", "--crowd-envs", "4"],

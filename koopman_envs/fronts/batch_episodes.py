@@ -25,7 +25,7 @@ import numpy as np
 
 from koopman_envs.fronts.episode import EpisodeRecorder, EpisodeResult, Policy
 
-__all__ = ["info_row", "run_episodes_in_batch"]
+__all__ = ["info_row", "info_rows", "run_episodes_in_batch"]
 
 
 def info_row(info: dict[str, Any], index: int) -> dict[str, Any]:
@@ -38,6 +38,17 @@ def info_row(info: dict[str, Any], index: int) -> dict[str, Any]:
         value = np.asarray(value)
         row[key] = value[index].item() if value.ndim == 1 else value[index]
     return row
+
+
+def info_rows(info: dict[str, Any], indices: Sequence[int]) -> list[dict[str, Any]]:
+    """:func:`info_row` of each of ``indices``, each array split once for all of them."""
+    columns = {}
+    for key, value in info.items():
+        if key.startswith("_") or key in ("final_obs", "final_info"):
+            continue
+        value = np.asarray(value)
+        columns[key] = value.tolist() if value.ndim == 1 else value  # Python scalars, as .item()
+    return [{key: column[i] for key, column in columns.items()} for i in indices]
 
 
 def _act_many(policies: Sequence[Policy]) -> Any:
@@ -93,7 +104,7 @@ def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence
     results: list[EpisodeResult | None] = [None] * k
     running = list(range(k))
     act_many = _act_many(policies)
-    rows = [info_row(info, i) for i in range(k)]  # each running environment's info, as a lone env's
+    rows = info_rows(info, range(k))  # each running environment's info, as a lone env's
     while running:
         if act_many is not None:
             decided = act_many(
@@ -106,13 +117,12 @@ def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence
             commands[i] = np.asarray(command, dtype=np.float64)
             actions[i] = commands[i].reshape(-1)
         obs, reward, terminated, truncated, info = venv.step(actions)
-        for i in list(running):
-            rows[i] = row = info_row(info, i)
-            recorder = recorders[i]
-            recorder.record(commands[i].reshape(-1, 2), float(reward[i]), row)
+        for i, row in zip(running, info_rows(info, running), strict=True):
+            rows[i] = row
+            recorders[i].record(commands[i].reshape(-1, 2), float(reward[i]), row)
             if terminated[i] or truncated[i]:
-                result = recorder.result(row, bool(truncated[i] and not terminated[i]))
-                result.decisions = recorder.steps
+                result = recorders[i].result(row, bool(truncated[i] and not terminated[i]))
+                result.decisions = recorders[i].steps
                 results[i] = result
-                running.remove(i)
+        running = [i for i in running if results[i] is None]
     return [result for result in results if result is not None]
