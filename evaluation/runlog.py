@@ -12,7 +12,7 @@ import json
 import os
 import sys
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -24,6 +24,7 @@ __all__ = [
     "OutputNotWritable",
     "RunLocked",
     "ensure_output_dir",
+    "forget_controllers",
     "open_log",
     "read_log",
     "run_signature",
@@ -282,3 +283,71 @@ def open_log(
         handle.close()
         raise
     return handle, {}
+
+
+def forget_controllers(out: str | os.PathLike[str], labels: Sequence[str]) -> int:
+    """Drop the records of the controllers ``labels`` from every episode log under ``out`` (a
+    run's or a sweep's directory), so that ``--resume`` runs their episodes again: after a change
+    of those controllers that changes what they do, their rows are republished without rerunning
+    anyone else's. Each log keeps its header and every other line byte for byte; it is rewritten
+    through a temporary file (a kill leaves the old log or the new one, never a mix) while holding
+    the log's lock (a run writing it is refused, :class:`RunLocked`).
+
+    Returns
+    -------
+    int
+        Records dropped.
+
+    Raises
+    ------
+    LogError
+        A log under ``out`` with a line that is not a JSON record (named by file and line).
+    """
+    dropped = 0
+    wanted = set(labels)
+    logs = sorted(Path(out).rglob("episodes.jsonl"))
+    if not logs:
+        raise LogError(f"no episode log (episodes.jsonl) under {out}")
+    for log in logs:
+        with open(log, "a", encoding="utf-8") as handle:
+            _lock(handle, log)
+            lines = log.read_bytes().splitlines(keepends=True)
+            kept = lines[:1]
+            for number, line in enumerate(lines[1:], start=2):
+                try:
+                    rec = json.loads(line)
+                except (json.JSONDecodeError, UnicodeDecodeError):
+                    raise LogError(
+                        f"{log}: line {number} is not a JSON record; nothing was changed"
+                    ) from None
+                if isinstance(rec, dict) and rec.get("controller") in wanted:
+                    dropped += 1
+                else:
+                    kept.append(line)
+            if len(kept) != len(lines):
+                fd, tmp = tempfile.mkstemp(dir=log.parent, prefix=".episodes-", suffix=".jsonl")
+                with os.fdopen(fd, "wb") as out_file:
+                    out_file.write(b"".join(kept))
+                os.replace(tmp, log)
+    return dropped
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m evaluation.runlog --forget LABEL [LABEL ...] -- DIR [DIR ...]``."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="python -m evaluation.runlog", description=forget_controllers.__doc__
+    )
+    parser.add_argument(
+        "--forget", nargs="+", required=True, metavar="LABEL", help="controller labels to drop"
+    )
+    parser.add_argument("runs", nargs="+", metavar="DIR", help="run or sweep directories")
+    args = parser.parse_args(argv)
+    for run in args.runs:
+        print(f"{run}: {forget_controllers(run, args.forget)} records dropped")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

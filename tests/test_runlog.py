@@ -308,3 +308,40 @@ def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path, gated_re
     resumed = ev.evaluate(GATED, workers=1, out=out, resume=True)
     assert outcomes(resumed.records) == outcomes(gated_reference.records)
     shutil.rmtree(out)
+
+
+def test_forgetting_a_controller_reruns_only_its_episodes_on_resume(tmp_path) -> None:
+    """The republishing path for a changed controller: its records leave the log (every other
+    line kept byte for byte), and the resume runs exactly its episodes again, with the
+    uninterrupted run's results."""
+    from evaluation.runlog import forget_controllers
+    from evaluation.runlog import main as runlog_main
+
+    spec = FAST.replace(controllers=["consensus", "consensus-free"], episodes=2)
+    first = ev.evaluate(spec, workers=1, out=tmp_path)
+    log = tmp_path / "episodes.jsonl"
+    before = log.read_bytes().splitlines(keepends=True)
+    assert forget_controllers(tmp_path, ["consensus-free"]) == 2
+    after = log.read_bytes().splitlines(keepends=True)
+    assert after == [line for line in before if b'"controller": "consensus-free"' not in line]
+    assert len(after) == len(before) - 2
+    again = ev.evaluate(spec, workers=1, out=tmp_path, resume=True)
+    assert outcomes(again.records) == outcomes(first.records)
+    assert len(log.read_bytes().splitlines()) == len(before)
+    assert runlog_main(["--forget", "consensus", "--", str(tmp_path)]) == 0
+    assert all(b'"controller": "consensus"' not in line for line in log.read_bytes().splitlines()[1:])
+
+
+def test_forgetting_refuses_a_log_with_an_unreadable_line(tmp_path) -> None:
+    (tmp_path / "episodes.jsonl").write_text('{"kind": "koopnav-run"}\n{"controller": "x"}\nnot json\n')
+    with pytest.raises(LogError, match=r"episodes.jsonl: line 3 is not a JSON record"):
+        forget_controllers_of(tmp_path)
+    assert (tmp_path / "episodes.jsonl").read_text().endswith("not json\n")  # unchanged
+    with pytest.raises(LogError, match="no episode log"):
+        forget_controllers_of(tmp_path / "nothing")
+
+
+def forget_controllers_of(path: Path) -> int:
+    from evaluation.runlog import forget_controllers
+
+    return forget_controllers(path, ["x"])
