@@ -170,3 +170,18 @@ def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: 
     assert wrong.returncode == 2 and "--names gives 2 name(s) for 1 sweep(s)" in wrong.stderr
     stranger = _robustness_page(str(small_sweep), "--reference", "nobody", "--out", str(out))
     assert stranger.returncode == 2 and "--reference 'nobody' is not one of" in stranger.stderr
+
+
+def test_the_actor_timing_of_the_batched_evaluation_bench_runs() -> None:
+    """``bench/batched_evaluation.py --actors``: one row per shipped policy, with both timings."""
+    pytest.importorskip("stable_baselines3")
+    run = subprocess.run(
+        [sys.executable, "bench/batched_evaluation.py", "--actors", "--rows", "2"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    rows = [line for line in run.stdout.splitlines() if line.startswith("| ") and "x |" in line]
+    assert len(rows) >= 6 and all(line.split("|")[2].strip() == "2" for line in rows)
