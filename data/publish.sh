@@ -8,7 +8,7 @@
 #   bash data/publish.sh pack          pack every run's episode logs into data/NAME.tar.xz
 #   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.xz (a new machine)
 # After a change to some controllers that changes what they do, republish only their rows: drop
-# their records (`python -m evaluation.runlog --forget LABEL... -- data/runs/NAME`), then run NAME
+# their records (`python -m evaluation.forget LABEL... -- data/runs/NAME`), then run NAME
 # again (it resumes and runs just those episodes), then `pack`.
 # KOOPNAV_PUBLISH_WORKERS: worker processes (default 1: a core stays free for other work).
 set -euo pipefail

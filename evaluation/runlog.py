@@ -330,24 +330,3 @@ def forget_controllers(out: str | os.PathLike[str], labels: Sequence[str]) -> in
                     out_file.write(b"".join(kept))
                 os.replace(tmp, log)
     return dropped
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m evaluation.runlog --forget LABEL [LABEL ...] -- DIR [DIR ...]``."""
-    import argparse
-
-    parser = argparse.ArgumentParser(
-        prog="python -m evaluation.runlog", description=forget_controllers.__doc__
-    )
-    parser.add_argument(
-        "--forget", nargs="+", required=True, metavar="LABEL", help="controller labels to drop"
-    )
-    parser.add_argument("runs", nargs="+", metavar="DIR", help="run or sweep directories")
-    args = parser.parse_args(argv)
-    for run in args.runs:
-        print(f"{run}: {forget_controllers(run, args.forget)} records dropped")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

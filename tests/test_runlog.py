@@ -314,8 +314,8 @@ def test_forgetting_a_controller_reruns_only_its_episodes_on_resume(tmp_path) ->
     """The republishing path for a changed controller: its records leave the log (every other
     line kept byte for byte), and the resume runs exactly its episodes again, with the
     uninterrupted run's results."""
+    from evaluation.forget import main as forget_main
     from evaluation.runlog import forget_controllers
-    from evaluation.runlog import main as runlog_main
 
     spec = FAST.replace(controllers=["consensus", "consensus-free"], episodes=2)
     first = ev.evaluate(spec, workers=1, out=tmp_path)
@@ -328,7 +328,7 @@ def test_forgetting_a_controller_reruns_only_its_episodes_on_resume(tmp_path) ->
     again = ev.evaluate(spec, workers=1, out=tmp_path, resume=True)
     assert outcomes(again.records) == outcomes(first.records)
     assert len(log.read_bytes().splitlines()) == len(before)
-    assert runlog_main(["--forget", "consensus", "--", str(tmp_path)]) == 0
+    assert forget_main(["consensus", "--", str(tmp_path)]) == 0
     assert all(b'"controller": "consensus"' not in line for line in log.read_bytes().splitlines()[1:])
 
 
@@ -339,6 +339,9 @@ def test_forgetting_refuses_a_log_with_an_unreadable_line(tmp_path) -> None:
     assert (tmp_path / "episodes.jsonl").read_text().endswith("not json\n")  # unchanged
     with pytest.raises(LogError, match="no episode log"):
         forget_controllers_of(tmp_path / "nothing")
+    from evaluation.forget import main as forget_main
+
+    assert forget_main(["x", "--", str(tmp_path / "nothing")]) == 2
 
 
 def forget_controllers_of(path: Path) -> int:
