@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -247,17 +248,24 @@ class EpisodeRecorder:
         scenario = self.scenario
         self.steps += 1
         self.total_reward += reward
-        applied = np.clip(action, self._low, self._high)
-        self._effort += (applied**2).sum(axis=1) * scenario.dt
-        self._rate_sq += ((applied - self._previous) / scenario.dt) ** 2
-        self._previous = applied
+        within = _record_commands(
+            np.asarray(action, dtype=np.float64),
+            self._low,
+            self._high,
+            float(scenario.dt),
+            self._effort,
+            self._rate_sq,
+            self._previous,
+            np.asarray(info["distances"], dtype=np.float64),
+            float(scenario.goal_tolerance),
+        )
         self._poses.append(np.array(info["poses"], dtype=np.float64))
         self._clearance.observe(info)
         if self._movers is not None:
             self._movers.append(np.asarray(info["movers"])[:, :2].copy())
         if "formation_error" in info:
             self._formation_sq.append(np.asarray(info["formation_error"])[1:] ** 2)
-        if np.all(info["distances"] <= scenario.goal_tolerance):
+        if within:
             self._stretch_start = self.steps if self._stretch_start is None else self._stretch_start
         else:
             self._stretch_start = None
@@ -290,6 +298,44 @@ class EpisodeRecorder:
             mover_trajectory=np.asarray(self._movers) if self._movers else None,
             obstacles=np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3).copy(),
         )
+
+
+@numba.njit(cache=True, nogil=True)
+def _record_commands(
+    action: NDArray[np.float64],
+    low: NDArray[np.float64],
+    high: NDArray[np.float64],
+    dt: float,
+    effort: NDArray[np.float64],
+    rate_sq: NDArray[np.float64],
+    previous: NDArray[np.float64],
+    distances: NDArray[np.float64],
+    tolerance: float,
+) -> bool:
+    """One period of the recorder's command metrics, in place: the command saturated to
+    [low, high] (NaN stays NaN, as ``np.clip``), its effort ``(v^2 + omega^2) dt`` added per robot,
+    the squared rate of change added, the previous command replaced; returns whether every
+    robot is within ``tolerance`` of its target. Each value is computed in the order of the numpy
+    expressions it replaces (``(applied**2).sum(axis=1) * dt``, ``((applied - previous) / dt) ** 2``),
+    so the metrics are the same to the bit; one call instead of six numpy ones per period."""
+    for i in range(action.shape[0]):
+        total = 0.0
+        for j in range(2):
+            a = action[i, j]
+            if a < low[j]:
+                a = low[j]
+            elif a > high[j]:
+                a = high[j]
+            total += a * a
+            d = (a - previous[i, j]) / dt
+            rate_sq[i, j] += d * d
+            previous[i, j] = a
+        effort[i] += total * dt
+    within = True
+    for i in range(distances.shape[0]):
+        if not distances[i] <= tolerance:
+            within = False
+    return within
 
 
 class _Clearance:
