@@ -31,8 +31,27 @@ from typing import Any
 
 import numpy as np
 
+from baselines.robot_features import FEATURE_SETS
+
 TASKS = ("target_reaching", "formation")
 ALGORITHMS = ("mappo", "ippo")
+
+
+def _json_object(text: str) -> dict[str, Any]:
+    """``--env-kwargs``: a JSON object (argparse names the option and the value when this raises)."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc})") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(
+            f"a JSON object of env keywords is needed, not {type(value).__name__}"
+        )
+    return value
+
+
+def _features(args: argparse.Namespace) -> str | None:
+    return None if args.features == "none" else str(args.features)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -92,6 +111,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--gae-lambda", type=float, default=0.9, help="GAE's lambda (default 0.9, BenchMARL's; SB3's is 0.95)"
+    )
+    parser.add_argument(
+        "--features",
+        choices=("none", *FEATURE_SETS),
+        default="none",
+        help="append to each robot's block what the rl-ppo policies read beside it "
+        "(baselines.robot_features: the target's bearing and log distance, with +headings the "
+        "team-mates' relative headings; default none)",
+    )
+    parser.add_argument(
+        "--env-kwargs",
+        type=_json_object,
+        default={},
+        metavar="JSON",
+        help='env keywords over the task\'s (a JSON object, e.g. \'{"n_robots": 1, "random_map": '
+        "{\"n_obstacles\": 0}}'); they win over a curriculum stage's",
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
@@ -180,8 +215,11 @@ def _experiment(
             "precision_shaping": args.precision_shaping,
             "reward_scale": args.reward_scale,
             **(env_kwargs or {}),
+            **args.env_kwargs,
         }
     )
+    if _features(args) is not None:
+        task.config["features"] = _features(args)
     if stats is not None:
         task.config["observation_stats"] = [stats[0].tolist(), stats[1].tolist()]
     config = ExperimentConfig.get_from_yaml()
@@ -211,16 +249,24 @@ def _statistics(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | Non
     ``--normalize-observations``: every stage standardizes with the same figures."""
     if not args.normalize_observations:
         return None
-    from baselines.benchmarl_task import _ENV_IDS, TASK_CONFIGS
+    from baselines.benchmarl_task import _ENV_IDS
     from baselines.torchrl_env import observation_statistics
 
+    return observation_statistics(_ENV_IDS[args.task], features=_features(args), **_final_env(args))
+
+
+def _final_env(args: argparse.Namespace) -> dict[str, Any]:
+    """The env keywords of the layouts the training ends on (the curriculum's last stage, or the
+    task's defaults), with ``--env-kwargs`` over them."""
+    from baselines.benchmarl_task import TASK_CONFIGS
+
     if args.curriculum:
-        env_kwargs = curriculum_plan(args.task, args.frames)[-1][2]
+        env_kwargs = dict(curriculum_plan(args.task, args.frames)[-1][2])
     else:
         env_kwargs = {
             k: v for k, v in TASK_CONFIGS[args.task].items() if k not in ("max_cycles", "vectorized")
         }
-    return observation_statistics(_ENV_IDS[args.task], **env_kwargs)
+    return {**env_kwargs, **args.env_kwargs}
 
 
 def _train(
@@ -303,10 +349,11 @@ def main(argv: list[str] | None = None) -> int:
     metadata = {
         "algorithm": args.algorithm,
         "task": args.task,
-        "n_robots": 3,
+        "n_robots": int(_final_env(args).get("n_robots", 3)),
         "observation_size": int(arrays["weight_0"].shape[1]),
+        "features": _features(args),
         "arrays": sorted(arrays),
-        "env": {"map": "random", "slip": "random", "max_cycles": args.max_cycles},
+        "env": {**_final_env(args), "max_cycles": args.max_cycles},
         "curriculum": {"stages": stages} if stages else None,
         "lr": args.lr,
         "initial_std": args.initial_std,

@@ -7,8 +7,9 @@ and evaluation curve are in its ``metadata.json``) and exported as numpy arrays
 controller runs that actor on every robot's own observation block, deterministically, as
 BenchMARL's deterministic exploration does: ``Tanh`` MLP, the first half of its output is the
 location of a ``TanhNormal``, and the action is ``low + (high - low) (tanh(loc) + 1) / 2``
-(checked against BenchMARL's own policy in tests/test_marl_policy.py). numpy only: neither torch
-nor BenchMARL is needed to play it.
+(checked against BenchMARL's own policy in tests/test_marl_policy.py). A policy trained with
+``--features`` reads its block with :func:`baselines.robot_features.robot_features` appended, as
+in training. numpy only: neither torch nor BenchMARL is needed to play it.
 
 The actor takes the block of the team size it was trained with (3 robots, the env's default
 obstacle slots, ``sensing="state"``); message ages (a ``comm`` setting) and listed movers are
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.robot_features import FEATURE_SETS, feature_count, robot_features
 from baselines.safe_load import PolicyLoadError, load_npz, read_json
 from controllers.base import BaseController
 from koopman_envs.scenario import Scenario
@@ -118,11 +120,21 @@ class MappoController(BaseController):
                 if name not in _DROPPED
             ]
         )
+        self._features = self.metadata.get("features")
+        if self._features is not None and self._features not in FEATURE_SETS:
+            raise PolicyLoadError(
+                f"{self.name}'s {scenario.task} metadata: features={self._features!r} is not one of {list(FEATURE_SETS)}"
+            )
         expected = int(self.metadata["observation_size"])
-        if self._keep.size != expected:
+        read = (
+            self._keep.size
+            if self._features is None
+            else feature_count(self._keep.size, trained, self._features)
+        )
+        if read != expected:
             raise ValueError(
                 f"{self.name}'s {scenario.task} policy reads blocks of {expected} entries; this env gives "
-                f"{self._keep.size} (without message ages and movers): it runs with the env settings it was "
+                f"{read} (without message ages and movers, with its features): it runs with the env settings it was "
                 "trained on (n_obstacle_obs, sensing='state')"
             )
 
@@ -130,7 +142,10 @@ class MappoController(BaseController):
         start = time.perf_counter()
         assert self.scenario is not None  # act() checked it
         blocks = np.asarray(observation, dtype=np.float64).reshape(self.scenario.n_robots, self._block)
-        command = actor_command(self._arrays, blocks[:, self._keep])
+        read = blocks[:, self._keep]
+        if self._features is not None:  # what it was trained to read beside its block
+            read = robot_features(read, self._features)
+        command = actor_command(self._arrays, read)
         self._stats.solve_times.append(time.perf_counter() - start)
         return command.reshape(-1)
 

@@ -41,7 +41,9 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 import koopman_envs  # noqa: F401 - registers the ids
+from baselines.robot_features import FEATURE_SETS, feature_bounds, robot_features
 from baselines.shaping import RewardShaping
+from koopman_envs.checks import check_choice
 
 if TYPE_CHECKING:
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -56,9 +58,15 @@ INFO_KEYS = ("is_success", "collision")
 
 
 def observation_statistics(
-    env_id: str, num_envs: int = 64, steps: int = 200, seed: int = 0, **env_kwargs: Any
+    env_id: str,
+    num_envs: int = 64,
+    steps: int = 200,
+    seed: int = 0,
+    features: str | None = None,
+    **env_kwargs: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and standard deviation (float32, per entry of a robot's observation block) of the
+    """Mean and standard deviation (float32, per entry of a robot's observation block, with the
+    entries of :func:`~baselines.vec_env.robot_features` ``features`` appended when given) of the
     blocks of ``num_envs`` environments of ``env_id`` over ``steps`` periods of uniform random
     actions (seeded: the same figures every call). An entry that never varies (an empty slot)
     gets 1 as its deviation, so that it passes unscaled."""
@@ -73,6 +81,12 @@ def observation_statistics(
         blocks.append(np.asarray(obs, dtype=np.float64).reshape(num_envs * n, -1))
     venv.close()
     data = np.concatenate(blocks)
+    if features is not None:
+        data = (
+            robot_features(data.reshape(-1, n, data.shape[-1]), features)
+            .reshape(len(data), -1)
+            .astype(np.float64)
+        )
     std = data.std(axis=0)
     return data.mean(axis=0).astype(np.float32), np.where(std > 1e-6, std, 1.0).astype(np.float32)
 
@@ -92,7 +106,12 @@ class KoopNavMultiAgentEnv(EnvBase):
         The training terms the PPO policies train with (:class:`baselines.shaping.RewardShaping`;
         default 0: the env's own reward).
     observation_stats : (mean, std), optional
-        Hand out standardized blocks, ``(block - mean) / std`` (module docstring).
+        Hand out standardized blocks, ``(block - mean) / std`` (module docstring; of the
+        blocks with ``features`` appended when given).
+    features : str, optional
+        Append to each robot's block the entries of :func:`baselines.vec_env.robot_features`
+        (``"bearing"``: the target's unit bearing and log distance; ``"bearing+headings"``: also
+        the team-mates' relative headings), as the ``rl-ppo`` policies read them.
     **env_kwargs
         Env keywords (``map="random"``, ``n_robots=5``, ``uncertainty="realistic"``, ...).
     """
@@ -106,8 +125,12 @@ class KoopNavMultiAgentEnv(EnvBase):
         precision_shaping: float = 0.0,
         mover_shaping: float = 0.0,
         observation_stats: tuple[Any, Any] | None = None,
+        features: str | None = None,
         **env_kwargs: Any,
     ) -> None:
+        if features is not None:
+            check_choice("features", features, FEATURE_SETS)
+        self.features = features
         venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
         config = cast("KoopNavVectorEnv", venv.unwrapped).engine.config
         movers = config.movers
@@ -127,6 +150,8 @@ class KoopNavMultiAgentEnv(EnvBase):
         act_space = cast(gym.spaces.Box, venv.single_action_space)
         self._obs_low = np.asarray(obs_space.low, dtype=np.float32).reshape(n, -1)
         self._obs_high = np.asarray(obs_space.high, dtype=np.float32).reshape(n, -1)
+        if features is not None:
+            self._obs_low, self._obs_high = feature_bounds(self._obs_low, self._obs_high, n, features)
         self._stats: tuple[np.ndarray, np.ndarray] | None = None
         if observation_stats is not None:
             mean, std = (np.asarray(v, dtype=np.float32).reshape(-1) for v in observation_stats)
@@ -187,6 +212,8 @@ class KoopNavMultiAgentEnv(EnvBase):
 
     def _blocks(self, flat: np.ndarray) -> torch.Tensor:
         blocks = np.asarray(flat, dtype=np.float32).reshape(self.batch_size[0], self.n_robots, -1)
+        if self.features is not None:
+            blocks = robot_features(blocks, self.features)
         if self._stats is not None:
             blocks = (blocks - self._stats[0]) / self._stats[1]
         return torch.as_tensor(blocks)

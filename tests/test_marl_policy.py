@@ -103,3 +103,47 @@ def test_an_export_with_observation_statistics_standardizes_first(exported) -> N
     scaled = (blocks.astype(np.float32) - mean) / std
     with_stats = {**arrays, "obs_mean": mean, "obs_std": std}
     np.testing.assert_array_equal(actor_command(with_stats, blocks), actor_command(arrays, scaled))
+
+
+def test_a_policy_trained_with_features_reads_them_beside_its_block(tmp_path) -> None:
+    """An export of ``--features bearing+headings`` (its metadata says so): the controller appends
+    baselines.robot_features to each robot's block before the actor, as the TorchRL env did in
+    training; an unknown feature set and a width that does not fit are refused by name."""
+    from baselines.robot_features import feature_count, robot_features
+
+    env = gym.make(TR, map="map1")
+    obs, info = env.reset(seed=2)
+    block = env.unwrapped.scenario.observation_layout.size
+    width = feature_count(block, 3, "bearing+headings")
+    rng = np.random.default_rng(0)
+    arrays = {
+        "weight_0": rng.normal(size=(16, width)).astype(np.float32) / 4,
+        "bias_0": np.zeros(16, np.float32),
+        "weight_1": rng.normal(size=(4, 16)).astype(np.float32),
+        "bias_1": np.zeros(4, np.float32),
+        "low": np.array([-0.6, -0.8], np.float32),
+        "high": np.array([0.6, 0.8], np.float32),
+    }
+    root = tmp_path / "root" / "target_reaching"
+    root.mkdir(parents=True)
+    np.savez(root / "policy.npz", **arrays)
+    metadata = {
+        "n_robots": 3,
+        "observation_size": width,
+        "features": "bearing+headings",
+        "arrays": sorted(arrays),
+    }
+    (root / "metadata.json").write_text(json.dumps(metadata))
+    ctrl = MappoController(root.parent)
+    ctrl.reset(env, seed=2)
+    expected = actor_command(
+        arrays, robot_features(obs.reshape(3, -1).astype(np.float64), "bearing+headings")
+    )
+    np.testing.assert_array_equal(ctrl.act(obs, info), expected.reshape(-1))
+    for bad, match in (
+        ({"features": "bearings"}, "features='bearings' is not one of"),
+        ({"features": None}, "reads blocks of"),
+    ):
+        (root / "metadata.json").write_text(json.dumps({**metadata, **bad}))
+        with pytest.raises(ValueError, match=match):
+            MappoController(root.parent).reset(env, seed=2)

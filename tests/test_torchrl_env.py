@@ -127,3 +127,34 @@ def test_standardized_observations_are_the_raw_blocks_scaled_and_checked() -> No
         np.testing.assert_allclose(second[key].numpy(), (first[key].numpy() - mean) / std, rtol=0, atol=1e-6)
     with pytest.raises(ValueError, match=r"observation_stats: a mean and a positive std of \d+ entries"):
         KoopNavMultiAgentEnv(ENV, 2, observation_stats=(mean[:-1], std[:-1]), **KWARGS)
+
+
+def test_features_are_appended_as_the_ppo_policies_read_them() -> None:
+    """``features="bearing+headings"``: every robot's observation is its block with
+    baselines.robot_features appended (the rl-ppo policies' input), within the specs' bounds
+    (TorchRL's check), standardized by statistics of the same widened blocks; an unknown feature
+    set is refused by name."""
+    from baselines.robot_features import robot_features
+    from baselines.torchrl_env import observation_statistics
+
+    plain = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
+    featured = KoopNavMultiAgentEnv(ENV, 3, features="bearing+headings", **KWARGS)
+    check_env_specs(featured)
+    import torch
+
+    rollouts = []
+    for env in (plain, featured):
+        env.set_seed(4)
+        torch.manual_seed(1)
+        rollouts.append(env.rollout(8, break_when_any_done=False))
+    raw = rollouts[0][GROUP, "observation"].numpy()
+    np.testing.assert_array_equal(
+        rollouts[1][GROUP, "observation"].numpy(), robot_features(raw, "bearing+headings")
+    )
+    mean, std = observation_statistics(ENV, num_envs=4, steps=20, features="bearing+headings", **KWARGS)
+    assert mean.shape == (featured._obs_low.shape[1],) and (std > 0).all()
+    check_env_specs(
+        KoopNavMultiAgentEnv(ENV, 2, features="bearing+headings", observation_stats=(mean, std), **KWARGS)
+    )
+    with pytest.raises(ValueError, match="features"):
+        KoopNavMultiAgentEnv(ENV, 2, features="bearings", **KWARGS)
