@@ -310,7 +310,9 @@ def test_batched_set_commands_equal_single_commands(set_root) -> None:
 def _policy_directories(set_root) -> list:
     from baselines.policy import SHIPPED
 
-    directories = [set_root / "target_reaching"] + [p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()]
+    directories = [set_root / "target_reaching"] + [
+        p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()
+    ]
     return directories + [p for p in SHIPPED.glob("*/*") if (p / "policy.zip").exists()]
 
 
