@@ -36,8 +36,9 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
     [
         (["rl-ppo", "rl-ppo-set-movers"], {"movers": {"count": 3, "behaviour": "constant", "speed": 0.3}}),
         (["rl-ppo-set", "rl-ppo-set-realistic"], {"uncertainty": "realistic"}),
+        (["rl-ppo-set-movers"], {"sensing": "lidar", "movers": {"count": 2, "behaviour": "constant"}}),
     ],
-    ids=["movers", "realistic"],
+    ids=["movers", "realistic", "lidar"],
 )
 def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(controllers, env_kwargs) -> None:
     pytest.importorskip("stable_baselines3")
