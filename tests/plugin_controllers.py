@@ -19,12 +19,17 @@ GATE_VARIABLE = "KOOPNAV_TEST_GATE"
 class GatedConsensus(ConsensusController):
     """Consensus whose episodes wait at reset until the file named by ``$KOOPNAV_TEST_GATE``
     exists (at most 10 minutes): a run with it cannot finish before the test opens the gate, so an
-    interruption lands mid-run on a busy machine as on an idle one."""
+    interruption lands mid-run on a busy machine as on an idle one. Each waiting episode first
+    leaves a file ``<gate>.waiting-<pid>``, so that a test can wait until every worker is past its
+    start-up and waiting before it interrupts (a signal during a worker's start-up is another
+    scenario, whose outcome depends on where the start-up is)."""
 
     name = "gated-consensus"
 
     def _reset(self, scenario: Any, seed: int | None) -> None:
         gate = os.environ.get(GATE_VARIABLE)
+        if gate:
+            open(f"{gate}.waiting-{os.getpid()}", "w").close()
         deadline = time.monotonic() + 600
         while gate and not os.path.exists(gate) and time.monotonic() < deadline:
             time.sleep(0.02)

@@ -232,9 +232,12 @@ def test_out_pointing_at_a_file_is_refused_before_any_episode(tmp_path, capsys) 
 
 
 # ------------------------------------------------------------------ kills and signals, gated
-def start_gated_run(tmp_path: Path, extra: list[str], lines: int) -> tuple[subprocess.Popen, Path, Path]:
+def start_gated_run(
+    tmp_path: Path, extra: list[str], lines: int, waiting: int = 0
+) -> tuple[subprocess.Popen, Path, Path]:
     """Start the CLI on :data:`GATED` in its own session with the gate closed; return once its log
-    has ``lines`` lines (the consensus episodes: the gated ones cannot start until the gate opens)."""
+    has ``lines`` lines (the consensus episodes: the gated ones cannot start until the gate opens)
+    and ``waiting`` gated episodes wait at the gate (every worker past its start-up)."""
     out, gate = tmp_path / "run", tmp_path / "gate"
     env = {
         **os.environ,
@@ -252,7 +255,11 @@ def start_gated_run(tmp_path: Path, extra: list[str], lines: int) -> tuple[subpr
     )
     log = out / "episodes.jsonl"
     deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and (not log.exists() or len(log.read_text().splitlines()) < lines):
+    while time.monotonic() < deadline and (
+        not log.exists()
+        or len(log.read_text().splitlines()) < lines
+        or len(list(tmp_path.glob("gate.waiting-*"))) < waiting
+    ):
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.05)
     return proc, out, gate
@@ -279,7 +286,7 @@ def test_sigkill_at_any_point_then_resume_equals_the_uninterrupted_run(
 
 def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, gated_reference) -> None:
     """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) stops the workers cleanly."""
-    proc, out, gate = start_gated_run(tmp_path, ["--workers", "2"], lines=3)
+    proc, out, gate = start_gated_run(tmp_path, ["--workers", "2"], lines=3, waiting=2)
     os.killpg(proc.pid, signal.SIGINT)
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
@@ -292,7 +299,7 @@ def test_ctrl_c_exits_130_and_resume_finishes_identically(tmp_path, gated_refere
 
 def test_sigterm_stops_the_workers_and_leaves_a_resumable_log(tmp_path, gated_reference) -> None:
     """``kill`` (SIGTERM to the main process alone) must not leave orphan workers computing."""
-    proc, out, gate = start_gated_run(tmp_path, ["--workers", "2", "--quiet"], lines=3)
+    proc, out, gate = start_gated_run(tmp_path, ["--workers", "2", "--quiet"], lines=3, waiting=2)
     proc.send_signal(signal.SIGTERM)
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
