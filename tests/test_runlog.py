@@ -232,6 +232,10 @@ def test_out_pointing_at_a_file_is_refused_before_any_episode(tmp_path, capsys) 
 
 
 # ------------------------------------------------------------------ kills and signals, gated
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start_gated_run(
     tmp_path: Path, extra: list[str], lines: int, waiting: int = 0
 ) -> tuple[subprocess.Popen, Path, Path]:
@@ -252,6 +256,10 @@ def start_gated_run(
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        # Ctrl-C as a terminal user has it: a suite started in the background of a
+        # non-interactive shell (`bash .ci/run &`) inherits SIGINT ignored, and Python then
+        # installs no KeyboardInterrupt handler in the evaluator
+        preexec_fn=_default_sigint,
     )
     log = out / "episodes.jsonl"
     deadline = time.monotonic() + 300
