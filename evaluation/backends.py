@@ -4,7 +4,6 @@ and clean interruption."""
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import multiprocessing as mp
 import os
 import signal
@@ -15,7 +14,7 @@ from typing import Any
 
 from evaluation.plan import EpisodeSpec
 from evaluation.records import is_degraded, ran
-from evaluation.worker import run_batch, run_episode, runs_in_batch
+from evaluation.worker import batch_cell, run_batch, run_episode, runs_in_batch
 from koopman_envs.checks import check_choice
 
 __all__ = ["BACKENDS", "BATCH", "Progress", "RunInterrupted", "run_episodes", "work_units"]
@@ -91,7 +90,7 @@ def work_units(todo: Sequence[EpisodeSpec], batch: int = BATCH) -> list[tuple[Ep
         if batch <= 1 or not runs_in_batch(spec):
             units.append([spec])
             continue
-        cell = dataclasses.replace(spec, trial=0, seed=0)
+        cell = batch_cell(spec)
         members = open_batches.get(cell)
         if members is None or len(members) >= batch:
             members = open_batches[cell] = []

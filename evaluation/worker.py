@@ -25,7 +25,7 @@ from koopman_envs.fronts.batch_episodes import run_episodes_in_batch
 from koopman_envs.fronts.episode import ComputeCharge, EpisodeResult
 from koopman_envs.fronts.episode import run_episode as run_controller_episode
 
-__all__ = ["CalibrationError", "run_batch", "run_episode", "runs_in_batch"]
+__all__ = ["CalibrationError", "batch_cell", "run_batch", "run_episode", "runs_in_batch"]
 
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
 _COMMON_SUMMARY = frozenset(ControllerStats().summary())
@@ -115,6 +115,11 @@ def _result_fields(spec: EpisodeSpec, result: EpisodeResult, stats: ControllerSt
     return fields
 
 
+def batch_cell(spec: EpisodeSpec) -> EpisodeSpec:
+    """What the episodes of one batch share: the spec without its trial and seed."""
+    return dataclasses.replace(spec, trial=0, seed=0)
+
+
 def runs_in_batch(spec: EpisodeSpec) -> bool:
     """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller
     decides for many teams at once (``acts_in_batch``) and calibrates nothing, the compute is
@@ -141,7 +146,7 @@ def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
     :func:`run_episode`'s but for the timing fields; never raises. If the batch fails anywhere
     (a controller or env error), every episode is run again alone, so that each episode's error is
     its own and the others keep their results."""
-    if len(specs) == 1 or len({dataclasses.replace(s, trial=0, seed=0) for s in specs}) != 1:
+    if len(specs) == 1 or len({batch_cell(s) for s in specs}) != 1:
         return [run_episode(spec) for spec in specs]
     start = time.perf_counter()
     try:
