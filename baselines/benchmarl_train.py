@@ -50,39 +50,38 @@ def _json_object(text: str) -> dict[str, Any]:
     return value
 
 
+def _stage_list(text: str) -> list[dict[str, Any]]:
+    """``--stages``: a JSON list of ``{"share": S, "env": {...}}`` whose shares sum to 1 (argparse
+    names the option and the value when this raises)."""
+    try:
+        stages = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc})") from None
+    if not isinstance(stages, list) or not stages:
+        raise argparse.ArgumentTypeError("a non-empty JSON list of stages is needed")
+    for i, stage in enumerate(stages):
+        if not isinstance(stage, dict) or set(stage) - {"share", "env", "name"} or "share" not in stage:
+            raise argparse.ArgumentTypeError(
+                f"stage {i}: {stage!r} is not an object with 'share' and optionally 'env' and 'name'"
+            )
+        share = stage["share"]
+        if isinstance(share, bool) or not isinstance(share, (int, float)) or not share > 0:
+            raise argparse.ArgumentTypeError(f"stage {i}: share={share!r} must be a number > 0")
+        if not isinstance(stage.get("env", {}), dict):
+            raise argparse.ArgumentTypeError(f"stage {i}: env={stage['env']!r} must be a JSON object")
+    total = sum(stage["share"] for stage in stages)
+    if abs(total - 1.0) > 1e-9:
+        raise argparse.ArgumentTypeError(f"the stages' shares sum to {total!r}, not 1")
+    return stages
+
+
 def _features(args: argparse.Namespace) -> str | None:
     return None if args.features == "none" else str(args.features)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m baselines.benchmarl_train", description=__doc__.split("\n\n")[0]
-    )
-    parser.add_argument("--task", choices=TASKS, required=True)
-    parser.add_argument("--algorithm", choices=ALGORITHMS, default="mappo")
-    parser.add_argument("--frames", type=lambda s: int(s.replace("_", "")), default=6_000_000)
-    parser.add_argument("--envs", type=int, default=300, help="environments in the batch (default 300)")
-    parser.add_argument(
-        "--max-cycles", type=int, default=400, help="periods per training episode (default 400)"
-    )
-    parser.add_argument(
-        "--collision-penalty",
-        type=float,
-        default=10.0,
-        help="extra penalty of the robot that collides (the PPO policies': 10)",
-    )
-    parser.add_argument(
-        "--precision-shaping",
-        type=float,
-        default=5.0,
-        help="weight of the log-distance potential (the PPO policies': 5)",
-    )
-    parser.add_argument(
-        "--curriculum",
-        action="store_true",
-        help="train stage by stage on the 3-robot part of the set policies' random-layout "
-        "curriculum (baselines.curriculum), each stage resuming the last one's checkpoint",
-    )
+def _add_ppo_options(parser: argparse.ArgumentParser) -> None:
+    """The PPO settings where this command departs from BenchMARL's defaults (learning rate,
+    initial spread, standardization, reward scale, GAE, the update schedule)."""
     parser.add_argument(
         "--lr",
         type=float,
@@ -113,6 +112,69 @@ def build_parser() -> argparse.ArgumentParser:
         "--gae-lambda", type=float, default=0.9, help="GAE's lambda (default 0.9, BenchMARL's; SB3's is 0.95)"
     )
     parser.add_argument(
+        "--normalize-advantage",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="standardize the advantages of every minibatch, as SB3's PPO does (default off, BenchMARL's)",
+    )
+    parser.add_argument(
+        "--frames-per-batch",
+        type=lambda s: int(s.replace("_", "")),
+        default=60_000,
+        help="frames collected per iteration (default 60,000)",
+    )
+    parser.add_argument(
+        "--minibatch-size",
+        type=lambda s: int(s.replace("_", "")),
+        default=4_000,
+        help="frames per PPO minibatch (default 4,000; a frame holds every robot's step)",
+    )
+    parser.add_argument(
+        "--epochs", type=int, default=10, help="PPO passes over each iteration's frames (default 10)"
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m baselines.benchmarl_train", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument("--task", choices=TASKS, required=True)
+    parser.add_argument("--algorithm", choices=ALGORITHMS, default="mappo")
+    parser.add_argument("--frames", type=lambda s: int(s.replace("_", "")), default=6_000_000)
+    parser.add_argument("--envs", type=int, default=300, help="environments in the batch (default 300)")
+    parser.add_argument(
+        "--max-cycles", type=int, default=400, help="periods per training episode (default 400)"
+    )
+    parser.add_argument(
+        "--collision-penalty",
+        type=float,
+        default=10.0,
+        help="extra penalty of the robot that collides (the PPO policies': 10)",
+    )
+    parser.add_argument(
+        "--precision-shaping",
+        type=float,
+        default=5.0,
+        help="weight of the log-distance potential (the PPO policies': 5)",
+    )
+    staged = parser.add_mutually_exclusive_group()
+    staged.add_argument(
+        "--curriculum",
+        action="store_true",
+        help="train stage by stage on the 3-robot part of the set policies' random-layout "
+        "curriculum (baselines.curriculum), each stage resuming the last one's checkpoint",
+    )
+    staged.add_argument(
+        "--stages",
+        type=_stage_list,
+        metavar="JSON",
+        help="train stage by stage on the given layouts, each stage resuming the last one's "
+        'checkpoint: a JSON list of {"share": S, "env": {...}} (shares of --frames summing to 1, '
+        'env keywords over the task\'s), e.g. \'[{"share": 0.3, "env": {"random_map": '
+        '{"n_obstacles": 0}}}, {"share": 0.7, "env": {}}]\'',
+    )
+    _add_ppo_options(parser)
+    parser.add_argument(
         "--features",
         choices=("none", *FEATURE_SETS),
         default="none",
@@ -141,12 +203,14 @@ def experiment(
     seed: int = 0,
     initial_std: float | None = None,
     gae_lambda: float | None = None,
+    normalize_advantage: bool = False,
 ) -> Any:
     """A BenchMARL experiment of ``algorithm`` (``"mappo"`` or ``"ippo"``) on a KoopNav ``task``
     with BenchMARL's default networks (MLP for the actor and the critic) and ``config`` (an
     ``ExperimentConfig``): the one place this project builds one. ``initial_std``: the actions'
     standard deviation before the tanh at the start (BenchMARL's default 1.0 when None);
-    ``gae_lambda``: GAE's lambda (BenchMARL's 0.9 when None)."""
+    ``gae_lambda``: GAE's lambda (BenchMARL's 0.9 when None); ``normalize_advantage``: standardize
+    every minibatch's advantages (SB3's PPO does; BenchMARL's losses do not)."""
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
@@ -162,7 +226,7 @@ def experiment(
         if not 0 <= gae_lambda <= 1:
             raise ValueError(f"gae_lambda={gae_lambda!r} must be in [0, 1]")
         algorithm_config.lmbda = gae_lambda
-    return Experiment(
+    run = Experiment(
         task=task,
         algorithm_config=algorithm_config,
         model_config=MlpConfig.get_from_yaml(),
@@ -170,6 +234,10 @@ def experiment(
         seed=seed,
         config=config,
     )
+    if normalize_advantage:  # BenchMARL builds its ClipPPOLoss with normalize_advantage=False
+        for loss in run.losses.values():
+            loss.normalize_advantage = True
+    return run
 
 
 #: the curriculum part whose team size MAPPO trains on (an MLP actor takes one team size)
@@ -189,6 +257,23 @@ def curriculum_plan(task: str, frames: int) -> list[tuple[str, int, dict[str, An
         _, _, env_kwargs = stage_parts(task, stage)[part]
         plan.append((stage.name, int(round(done * frames)), env_kwargs))
     plan[-1] = (plan[-1][0], frames, plan[-1][2])
+    return plan
+
+
+def training_plan(args: argparse.Namespace) -> list[tuple[str, int, dict[str, Any]]] | None:
+    """(stage name, cumulative frames at its end, env keywords) of a staged training
+    (``--curriculum`` or ``--stages``), or None for one stage on the task's layouts."""
+    if args.curriculum:
+        return curriculum_plan(args.task, args.frames)
+    if not args.stages:
+        return None
+    plan, done = [], 0.0
+    for i, stage in enumerate(args.stages):
+        done += stage["share"]
+        plan.append(
+            (str(stage.get("name", f"stage{i}")), int(round(done * args.frames)), dict(stage.get("env", {})))
+        )
+    plan[-1] = (plan[-1][0], args.frames, plan[-1][2])
     return plan
 
 
@@ -225,14 +310,22 @@ def _experiment(
     config = ExperimentConfig.get_from_yaml()
     config.max_n_frames, config.max_n_iters = args.frames if frames is None else frames, None
     config.lr = args.lr
-    config.on_policy_collected_frames_per_batch = 60_000
+    config.on_policy_collected_frames_per_batch = args.frames_per_batch
     config.on_policy_n_envs_per_worker = args.envs
-    config.on_policy_n_minibatch_iters, config.on_policy_minibatch_size = 10, 4_000
-    config.evaluation, config.evaluation_interval, config.evaluation_episodes = True, 600_000, 20
+    config.on_policy_n_minibatch_iters = args.epochs
+    config.on_policy_minibatch_size = args.minibatch_size
+    # an evaluation every 10 iterations
+    config.evaluation, config.evaluation_interval, config.evaluation_episodes = (
+        True,
+        10 * args.frames_per_batch,
+        20,
+    )
     config.render, config.loggers, config.create_json = False, ["csv"], True
     config.save_folder, config.checkpoint_at_end = str(folder), True
     config.restore_file = None if restore is None else str(restore)
-    return experiment(task, config, args.algorithm, args.seed, args.initial_std, args.gae_lambda)
+    return experiment(
+        task, config, args.algorithm, args.seed, args.initial_std, args.gae_lambda, args.normalize_advantage
+    )
 
 
 def _last_checkpoint(folder: Path) -> Path:
@@ -244,8 +337,8 @@ def _last_checkpoint(folder: Path) -> Path:
 
 
 def _statistics(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | None:
-    """The observation statistics of the layouts the policy ends its training on (the
-    curriculum's last stage, or the task's random layouts), or None without
+    """The observation statistics of the layouts the policy ends its training on (the last
+    stage's, or the task's random layouts), or None without
     ``--normalize-observations``: every stage standardizes with the same figures."""
     if not args.normalize_observations:
         return None
@@ -256,12 +349,14 @@ def _statistics(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | Non
 
 
 def _final_env(args: argparse.Namespace) -> dict[str, Any]:
-    """The env keywords of the layouts the training ends on (the curriculum's last stage, or the
-    task's defaults), with ``--env-kwargs`` over them."""
+    """The env keywords of the layouts the training ends on (the last stage of ``--curriculum`` or
+    ``--stages``, or the task's defaults), with ``--env-kwargs`` over them."""
     from baselines.benchmarl_task import TASK_CONFIGS
 
-    if args.curriculum:
-        env_kwargs = dict(curriculum_plan(args.task, args.frames)[-1][2])
+    plan = training_plan(args)
+    if plan is not None:
+        base = {k: v for k, v in TASK_CONFIGS[args.task].items() if k not in ("max_cycles", "vectorized")}
+        env_kwargs = {**base, **plan[-1][2]} if args.stages else dict(plan[-1][2])
     else:
         env_kwargs = {
             k: v for k, v in TASK_CONFIGS[args.task].items() if k not in ("max_cycles", "vectorized")
@@ -272,14 +367,15 @@ def _final_env(args: argparse.Namespace) -> dict[str, Any]:
 def _train(
     args: argparse.Namespace, folder: Path, stats: tuple[np.ndarray, np.ndarray] | None
 ) -> tuple[Any, list[dict[str, Any]]]:
-    """Run the training (stage by stage with ``--curriculum``); the last experiment and the
-    stages run (name, frames at the end, env keywords)."""
-    if not args.curriculum:
+    """Run the training (stage by stage with ``--curriculum`` or ``--stages``); the last
+    experiment and the stages run (name, frames at the end, env keywords)."""
+    plan = training_plan(args)
+    if plan is None:
         run = _experiment(args, folder, stats=stats)
         run.run()
         return run, []
     stages, restore, run = [], None, None
-    for name, frames, env_kwargs in curriculum_plan(args.task, args.frames):
+    for name, frames, env_kwargs in plan:
         run = _experiment(args, folder, env_kwargs, frames, restore, stats)
         run.run()
         restore = _last_checkpoint(folder)
@@ -330,6 +426,9 @@ def main(argv: list[str] | None = None) -> int:
         ("initial-std", args.initial_std > 0, "> 0"),
         ("reward-scale", args.reward_scale > 0, "> 0"),
         ("gae-lambda", 0 <= args.gae_lambda <= 1, "in [0, 1]"),
+        ("epochs", args.epochs > 0, "> 0"),
+        ("frames-per-batch", args.frames_per_batch % args.envs == 0, "a multiple of --envs"),
+        ("minibatch-size", 0 < args.minibatch_size <= args.frames_per_batch, "in [1, --frames-per-batch]"),
     ):
         if not ok:
             parser.error(f"--{name}={getattr(args, name.replace('-', '_'))!r}: allowed {allowed}")
@@ -359,6 +458,12 @@ def main(argv: list[str] | None = None) -> int:
         "initial_std": args.initial_std,
         "reward_scale": args.reward_scale,
         "gae_lambda": args.gae_lambda,
+        "normalize_advantage": bool(args.normalize_advantage),
+        "ppo": {
+            "frames_per_batch": args.frames_per_batch,
+            "minibatch_size": args.minibatch_size,
+            "epochs": args.epochs,
+        },
         "normalize_observations": bool(args.normalize_observations),
         "shaping": {"collision_penalty": args.collision_penalty, "precision_shaping": args.precision_shaping},
         "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),

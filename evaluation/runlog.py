@@ -118,8 +118,23 @@ def _header_line(config: dict[str, Any]) -> bytes:
     return (json.dumps({"kind": "koopnav-run", "config": run_signature(config)}) + "\n").encode()
 
 
-def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> None:
-    """Refuse a log whose first line is not this run's header."""
+def _adds_controllers(theirs: Any, ours: dict[str, Any]) -> list[str] | None:
+    """The labels a run with signature ``ours`` adds to the logged run ``theirs`` when it is the
+    same run with more controllers (every other setting equal, every logged controller kept with
+    its options); None otherwise."""
+    if not isinstance(theirs, dict) or set(theirs) != set(ours):
+        return None
+    if any(theirs[k] != ours[k] for k in ours if k != "controller_configs"):
+        return None
+    logged, now = theirs.get("controller_configs"), ours.get("controller_configs") or []
+    if not isinstance(logged, list) or any(c not in now for c in logged):
+        return None
+    return [c["label"] for c in now if c not in logged]
+
+
+def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> list[str]:
+    """Refuse a log whose first line is not this run's header; the labels this run adds to the
+    logged one (an empty list for the same run)."""
     try:
         header = json.loads(first)
     except (json.JSONDecodeError, UnicodeDecodeError):
@@ -130,16 +145,30 @@ def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> None:
     theirs = (
         header.get("config") if isinstance(header, dict) and header.get("kind") == "koopnav-run" else None
     )
-    if theirs != ours:
-        if isinstance(theirs, dict):
-            differ = sorted(k for k in set(ours) | set(theirs) if ours.get(k) != theirs.get(k))
-            what = "; ".join(f"{k}: logged {theirs.get(k)!r}, now {ours.get(k)!r}" for k in differ)
-        else:
-            what = "line 1 is not a KoopNav run header"
-        raise LogError(
-            f"{log} belongs to a run with other settings ({what}); use the same options to resume, "
-            "or another --out directory; nothing was overwritten"
-        )
+    if theirs == ours:
+        return []
+    added = _adds_controllers(theirs, ours)
+    if added:
+        return added
+    if isinstance(theirs, dict):
+        differ = sorted(k for k in set(ours) | set(theirs) if ours.get(k) != theirs.get(k))
+        what = "; ".join(f"{k}: logged {theirs.get(k)!r}, now {ours.get(k)!r}" for k in differ)
+    else:
+        what = "line 1 is not a KoopNav run header"
+    raise LogError(
+        f"{log} belongs to a run with other settings ({what}); use the same options to resume, "
+        "or another --out directory; nothing was overwritten"
+    )
+
+
+def _rewrite_header(path: Path, config: dict[str, Any]) -> None:
+    """Give the log this run's header, every record byte for byte, through a temporary file (a
+    kill leaves the old log or the new one, never a mix)."""
+    data = path.read_bytes()
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".episodes-", suffix=".jsonl")
+    with os.fdopen(fd, "wb") as handle:
+        handle.write(_header_line(config) + data[data.index(b"\n") + 1 :])
+    os.replace(tmp, path)
 
 
 def _record_problem(rec: Any, expected: Mapping[str, Mapping[str, Any]] | None) -> str | None:
@@ -203,7 +232,7 @@ def read_log(
         if repair:
             path.write_bytes(_header_line(config))
         return {}, [f"{path}: the header line was cut by the interruption; it was written again"]
-    _check_header(path, lines[0], config)
+    added = _check_header(path, lines[0], config)
     done: dict[str, dict[str, Any]] = {}
     bad: list[str] = []
     duplicates = 0
@@ -236,6 +265,13 @@ def read_log(
         notes.append(
             f"{path}: dropped 1 incomplete record (line {len(lines) + 1}, {len(torn)} bytes cut by "
             "the interruption); it will be run again"
+        )
+    if added:
+        if repair:
+            _rewrite_header(path, config)
+        notes.append(
+            f"{path}: this run adds {', '.join(added)} to the logged run's controllers; their episodes "
+            "run now, the logged ones are kept"
         )
     return done, notes
 
@@ -273,9 +309,14 @@ def open_log(
         if log.stat().st_size > 0:
             if not resume:
                 raise ValueError(f"{log} exists: pass --resume to continue that run, or choose another --out")
+            inode = os.fstat(handle.fileno()).st_ino
             done, notes = read_log(log, config, expected)
             for note in notes:
                 print(f"note: {note}", file=sys.stderr)
+            if os.stat(log).st_ino != inode:  # the header was rewritten into a new file
+                handle.close()
+                handle = open(log, "a", encoding="utf-8")  # noqa: SIM115 - the caller closes it
+                _lock(handle, log)
             return handle, done
         handle.write(_header_line(config).decode())
         handle.flush()

@@ -123,3 +123,70 @@ def test_the_training_command_refuses_bad_settings_by_name_before_any_work(
     assert exit_info.value.code == 2
     assert f"{option}={float(value)!r}: allowed {allowed}" in capsys.readouterr().err
     assert not (tmp_path / "run").exists()  # nothing started
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--epochs", "0"], "--epochs=0: allowed > 0"),
+        (
+            ["--envs", "200", "--frames-per-batch", "12001"],
+            "--frames-per-batch=12001: allowed a multiple of --envs",
+        ),
+        (["--minibatch-size", "70000"], "--minibatch-size=70000: allowed in [1, --frames-per-batch]"),
+        (["--stages", '[{"share": 0.5}, {"share": 0.4}]'], "the stages' shares sum to 0.9, not 1"),
+        (["--stages", '[{"share": 1, "env": 3}]'], "stage 0: env=3 must be a JSON object"),
+        (["--stages", '[{"share": 0}, {"share": 1}]'], "stage 0: share=0 must be a number > 0"),
+        (["--stages", "[]"], "a non-empty JSON list of stages is needed"),
+        (["--stages", '[{"share": 1}]', "--curriculum"], "not allowed with argument --stages"),
+    ],
+)
+def test_the_training_schedule_and_stages_are_checked_before_any_work(
+    options: list[str], message: str, tmp_path, capsys
+) -> None:
+    from baselines.benchmarl_train import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--task", "target_reaching", *options, "--out", str(tmp_path / "run")])
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_staged_training_resumes_each_stage_and_records_its_schedule(tmp_path) -> None:
+    """Two stages of one iteration each (real training), standardized advantages: the second
+    stage continues the first's checkpoint on its own layouts, and the export records it all."""
+    from baselines.benchmarl_train import main
+
+    stages = [
+        {"name": "open", "share": 0.5, "env": {"random_map": {"n_obstacles": 0}}},
+        {"name": "two", "share": 0.5, "env": {"random_map": {"n_obstacles": 2}}},
+    ]
+    out = tmp_path / "run"
+    argv = ["--task", "target_reaching", "--frames", "400", "--envs", "2", "--max-cycles", "20"]
+    argv += ["--frames-per-batch", "200", "--minibatch-size", "100", "--epochs", "1", "--normalize-advantage"]
+    assert main([*argv, "--stages", json.dumps(stages), "--out", str(out)]) == 0
+    metadata = json.loads((out / "metadata.json").read_text())
+    assert metadata["frames"] == 400 and metadata["normalize_advantage"] is True
+    assert metadata["ppo"] == {"frames_per_batch": 200, "minibatch_size": 100, "epochs": 1}
+    ran = metadata["curriculum"]["stages"]
+    assert [(s["name"], s["frames_end"], s["env"]) for s in ran] == [
+        ("open", 200, stages[0]["env"]),
+        ("two", 400, stages[1]["env"]),
+    ]
+    assert metadata["env"]["random_map"] == {"n_obstacles": 2}  # the layouts the training ended on
+    with np.load(out / "policy.npz") as arrays:
+        assert {"weight_0", "obs_mean", "obs_std", "low", "high"} <= set(arrays.files)
+
+
+def test_standardized_advantages_reach_benchmarls_loss(tmp_path) -> None:
+    from baselines.benchmarl_train import experiment
+
+    config = experiment_config(tmp_path)
+    task = KoopNavTask.TARGET_REACHING.get_task()
+    plain = experiment(task, config, "mappo")
+    standardized = experiment(
+        KoopNavTask.TARGET_REACHING.get_task(), config, "ippo", normalize_advantage=True
+    )
+    assert [loss.normalize_advantage for loss in plain.losses.values()] == [False]
+    assert [loss.normalize_advantage for loss in standardized.losses.values()] == [True]

@@ -363,3 +363,25 @@ def forget_controllers_of(path: Path) -> int:
     from evaluation.runlog import forget_controllers
 
     return forget_controllers(path, ["x"])
+
+
+def test_adding_a_controller_to_a_finished_run_runs_only_its_episodes(tmp_path) -> None:
+    """The publishing path for a new controller: the same run with one more controller resumes
+    the log, keeps every logged record byte for byte, and runs only the new controller's
+    episodes, with the results of a run that had it from the start."""
+    both = FAST.replace(controllers=["consensus", "consensus-free"], episodes=2)
+    reference = ev.evaluate(both, workers=1, out=tmp_path / "both")
+    ev.evaluate(both.replace(controllers=["consensus"]), workers=1, out=tmp_path)
+    log = tmp_path / "episodes.jsonl"
+    logged = log.read_bytes().splitlines(keepends=True)[1:]
+    extended = ev.evaluate(both, workers=1, out=tmp_path, resume=True)
+    lines = log.read_bytes().splitlines(keepends=True)
+    assert lines[0] == (tmp_path / "both" / "episodes.jsonl").read_bytes().splitlines(keepends=True)[0]
+    assert lines[1 : 1 + len(logged)] == logged  # the logged records, untouched
+    assert len(lines) == 1 + 2 * len(logged)
+    assert all(b'"controller": "consensus-free"' in line for line in lines[1 + len(logged) :])
+    key = lambda r: r["key"]  # noqa: E731
+    assert sorted(outcomes(extended.records), key=key) == sorted(outcomes(reference.records), key=key)
+    # one controller fewer is another run: refused by name
+    with pytest.raises(ValueError, match="controller_configs: logged"):
+        ev.evaluate(both.replace(controllers=["consensus"]), workers=1, out=tmp_path, resume=True)

@@ -604,3 +604,48 @@ def test_a_long_value_is_cut_to_60_characters_in_the_message() -> None:
     assert record_problem(_rec(status=value)) == (
         f"field 'status' is '{'x' * 56}...; allowed: one of ['ok', 'degraded', 'error']"
     )
+
+
+def _controllers(*labels: str, options: dict | None = None) -> dict:
+    configs = [{"label": label, "name": label, "options": dict(options or {})} for label in labels]
+    return {**CONFIG, "controller_configs": configs}
+
+
+def test_a_run_with_more_controllers_extends_the_log_and_keeps_its_records(tmp_path) -> None:
+    """Adding controllers to a finished run (everything else equal): the logged records stay
+    valid, the header becomes this run's, and only the new controllers' episodes are missing."""
+    logged = _controllers("consensus")
+    log = _log(tmp_path, _line(_rec("a")), _line(_rec("b")), header=runlog._header_line(logged))
+    records = log.read_bytes().split(b"\n", 1)[1]
+    wider = _controllers("orca", "consensus")
+    assert read_log(log, wider, repair=False) == (
+        {"a": _rec("a"), "b": _rec("b")},
+        [
+            f"{log}: this run adds orca to the logged run's controllers; their episodes run now, the logged ones are kept"
+        ],
+    )
+    assert log.read_bytes() == runlog._header_line(logged) + records  # not repaired: untouched
+    done, _ = read_log(log, wider)
+    assert set(done) == {"a", "b"}
+    assert log.read_bytes() == runlog._header_line(wider) + records
+    assert read_log(log, wider) == ({"a": _rec("a"), "b": _rec("b")}, [])  # now the same run
+    # fewer controllers, or a logged controller with other options, is another run
+    for other in (logged, _controllers("orca", "consensus", options={"x": 1})):
+        with pytest.raises(LogError, match="controller_configs: logged"):
+            read_log(log, other)
+    assert log.read_bytes() == runlog._header_line(wider) + records
+
+
+def test_open_log_appends_to_the_extended_log_under_its_lock(tmp_path) -> None:
+    logged, wider = _controllers("consensus"), _controllers("consensus", "dwa")
+    _log(tmp_path, _line(_rec("a")), header=runlog._header_line(logged))
+    handle, done = open_log(tmp_path, wider, resume=True)
+    try:
+        assert set(done) == {"a"}
+        with pytest.raises(RunLocked):  # the new file is locked too
+            open_log(tmp_path, wider, resume=True)
+        handle.write(json.dumps(_rec("b")) + "\n")
+        handle.flush()
+    finally:
+        handle.close()
+    assert set(read_log(tmp_path / "episodes.jsonl", wider)[0]) == {"a", "b"}
