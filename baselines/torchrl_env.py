@@ -15,6 +15,12 @@ Layout (one group, ``"robot"``, holding every robot, as the PettingZoo wrapper's
 - ``("robot", "reward")`` (K, N, 1): each robot's reward (the env's ``robot_rewards``, plus the
   PPO policies' training terms when asked for: :mod:`baselines.shaping`);
 - ``("robot", "info")``: :data:`INFO_KEYS` per robot (K, N, 1);
+- ``("robot", "terminated")`` (K, N, 1): whether the step ended this robot's episode by its own
+  doing: the team's ``terminated``, except that a collision ends it only for the robots that
+  touched something (the SB3 adapter's credit rule, :mod:`baselines.vec_env`): for a team-mate of
+  a crashed robot the episode was cut short, and its value is bootstrapped, not zeroed.
+  BenchMARL's MAPPO and IPPO read it for GAE (``(group, "terminated")``); it is an entry of the
+  group, not of the done spec, so TorchRL's resets stay per environment;
 - ``"done"``, ``"terminated"``, ``"truncated"`` (K, 1): per environment (the team's episode).
 
 An environment whose episode ends is reset in the same step (the vector env's ``SameStep``
@@ -176,6 +182,7 @@ class KoopNavMultiAgentEnv(EnvBase):
                             dtype=torch.float32,
                         ),
                         "info": info,
+                        "terminated": Categorical(n=2, shape=(n, 1), dtype=torch.bool),
                     },
                     shape=(n,),
                 )
@@ -256,6 +263,7 @@ class KoopNavMultiAgentEnv(EnvBase):
                     {
                         "observation": self._blocks(obs),
                         "info": self._info(np.zeros(k), np.zeros((k, self.n_robots))),
+                        "terminated": torch.zeros(k, self.n_robots, 1, dtype=torch.bool),
                     },
                     batch_size=(k, self.n_robots),
                 ),
@@ -277,8 +285,12 @@ class KoopNavMultiAgentEnv(EnvBase):
         if ended.any():
             final = np.array(obs, copy=True)
             final[ended] = np.asarray(info["final_obs"])[ended]
-        shaped, _, _ = self.shaping(info["robot_rewards"], info)
+        shaped, crashed, involved = self.shaping(info["robot_rewards"], info)
         rewards = np.asarray(shaped, dtype=np.float32)[..., None]  # (K, N, 1)
+        # each robot's own end: a crash is terminal only for the robots involved
+        own_end = np.repeat(np.asarray(terminated, dtype=bool)[:, None], self.n_robots, axis=1)
+        if crashed is not None and involved is not None:
+            own_end[crashed] = involved[crashed]
         success, collided = np.asarray(info["is_success"]), np.asarray(info["robot_collision"])
         if ended.any():  # the ended episodes' last state, not their new one's
             final_info, done_now = info["final_info"], np.asarray(info["_final_info"])
@@ -292,6 +304,7 @@ class KoopNavMultiAgentEnv(EnvBase):
                         "observation": self._blocks(final),
                         "reward": torch.as_tensor(rewards),
                         "info": self._info(success, collided),
+                        "terminated": torch.as_tensor(own_end[..., None]),
                     },
                     batch_size=(k, self.n_robots),
                 ),

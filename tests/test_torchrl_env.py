@@ -84,20 +84,27 @@ def test_the_training_terms_are_the_sb3_adapters() -> None:
     sb3.reset()
     td = env.reset()
     rng = np.random.default_rng(0)
-    crashes = 0
+    crashes = bystanders = 0
     for _ in range(steps):
         unit = np.column_stack([np.ones(k * 4), rng.uniform(-0.3, 0.3, k * 4)]).astype(np.float32)
         physical = sb3._low + (unit + 1.0) * 0.5 * (sb3._high - sb3._low)  # SB3's scale_action
         td[GROUP, "action"] = torch.as_tensor(physical.reshape(k, 4, 2), dtype=torch.float32)
         td, td_next = env.step_and_maybe_reset(td)
         sb3.step_async(unit)
-        _, rewards, _, _ = sb3.step_wait()
+        _, rewards, dones, infos = sb3.step_wait()
         np.testing.assert_allclose(
             rewards.reshape(k, 4), td["next", GROUP, "reward"][..., 0].numpy(), atol=1e-4
         )
-        crashes += int(td["next", "terminated"].sum())
+        # each robot's own end, as SB3 bootstraps it: terminal unless its episode was cut short
+        own = td["next", GROUP, "terminated"][..., 0].numpy()
+        sb3_own = [d and not info["TimeLimit.truncated"] for d, info in zip(dones, infos, strict=True)]
+        np.testing.assert_array_equal(own, np.reshape(sb3_own, (k, 4)))
+        team = td["next", "terminated"].numpy()[:, 0]
+        assert (own <= team[:, None]).all()
+        bystanders += int((team[:, None] & ~own).sum())
+        crashes += int(team.sum())
         td = td_next
-    assert crashes > 0  # the collision credit was exercised
+    assert crashes > 0 and bystanders > 0  # the collision credit was exercised
 
 
 def test_standardized_observations_are_the_raw_blocks_scaled_and_checked() -> None:
