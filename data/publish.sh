@@ -9,7 +9,9 @@
 #   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.xz (a new machine)
 # After a change to some controllers that changes what they do, republish only their rows: drop
 # their records (`python -m evaluation.forget LABEL... -- data/runs/NAME`), then run NAME
-# again (it resumes and runs just those episodes), then `pack`.
+# again (it resumes and runs just those episodes), then `pack`. A controller added to a run's
+# --controllers (or newly registered, for the runs of every registered controller) joins it the
+# same way: the resume keeps the logged records and runs only its episodes.
 # KOOPNAV_PUBLISH_WORKERS: worker processes (default 1: a core stays free for other work).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -35,7 +37,7 @@ ABLATION="--slips nominal --episodes 20 --controllers koopman-nmpc koopman-nmpc:
 RUNS[lab_day_ablation]="$ABLATION --sweep uncertainty=nominal,realistic --sweep actuation_delay=2,4 --sweep pose_noise.xy=0.05,0.1 --reference koopman-nmpc"
 # issue 43: the paper protocol republished (IPOPT, perturbed starts: distinct episodes), the
 # controllers as deployed beside the paper's, the PPO policies and the classic baselines (issue 45)
-RUNS[paper]="--paper --solver ipopt --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa mpc-cbf --reference koopman-nmpc"
+RUNS[paper]="--paper --solver ipopt --controllers koopman-nmpc nominal-nmpc consensus ${PAPER_VARIANTS[*]} rl-ppo rl-ppo-set orca dwa mpc-cbf ippo --reference koopman-nmpc"
 # issue 43: docs/results.md's changing-uncertainty runs (slip zones, drifting and random slip),
 # republished from perturbed starts (distinct episodes) on the controllers' current defaults
 ADAPTIVE="adaptive-koopman-nmpc koopman-nmpc koopman-nmpc-robust nominal-nmpc rl-ppo adaptive-koopman-nmpc:adapt=false,label=adaptive-frozen"
@@ -47,13 +49,14 @@ RUNS[zones_fm_changing]="--env KoopNav-Formation-v0 --maps map6 --slips drift ra
 RUNS[zones_paper_maps]="--env KoopNav-TargetReaching-v0 KoopNav-Formation-v0 --maps map1 map2 map3 map4 --slips random --episodes 10 --controllers koopman-nmpc koopman-nmpc-robust adaptive-koopman-nmpc"
 # issue 43: docs/results.md's team-size table (seeded random maps, nominal slip)
 TEAM="koopman-nmpc nominal-nmpc consensus consensus-free rl-ppo orca dwa mpc-cbf"
-RUNS[scale_n3]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 20 --env-kwargs n_robots=3 --controllers $TEAM"
+# (ippo, an MLP over a 3-robot block, in the 3-robot run only)
+RUNS[scale_n3]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 20 --env-kwargs n_robots=3 --controllers $TEAM ippo"
 RUNS[scale_n6]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 10 --env-kwargs n_robots=6 --controllers $TEAM"
 RUNS[scale_n10]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 5 --env-kwargs n_robots=10 --controllers $TEAM"
 RUNS[scale_n16]="--env KoopNav-TargetReaching-v0 --maps random --slips nominal --episodes 3 --env-kwargs n_robots=16 --max-episode-steps 300 --controllers $TEAM"
 # issue 45: the classic baselines and MPC-CBF on the realistic page's episodes (Koopman-NMPC again
 # as the reference: its rows repeat paper_realistic's bit for bit)
-RUNS[realistic_classic]="--paper --solver rti --controllers koopman-nmpc orca dwa mpc-cbf --sweep uncertainty=nominal,realistic --reference koopman-nmpc"
+RUNS[realistic_classic]="--paper --solver rti --controllers koopman-nmpc orca dwa mpc-cbf ippo --sweep uncertainty=nominal,realistic --reference koopman-nmpc"
 # issue 43: the realistic protocol with compute charged (--realtime; decision times measured on
 # this machine, one worker, and at --compute-scale 5 for a board five times slower)
 REALTIME_CONTROLLERS="koopman-nmpc nominal-nmpc consensus mpc-cbf orca dwa rl-ppo-set rl-ppo-set-realistic"

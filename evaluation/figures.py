@@ -80,6 +80,7 @@ _FIXED = (
     "rl-ppo-set-movers",
     "orca",
     "dwa",
+    "ippo",
 )
 
 

@@ -147,3 +147,27 @@ def test_a_policy_trained_with_features_reads_them_beside_its_block(tmp_path) ->
         (root / "metadata.json").write_text(json.dumps({**metadata, **bad}))
         with pytest.raises(ValueError, match=match):
             MappoController(root.parent).reset(env, seed=2)
+
+
+@pytest.mark.parametrize(
+    ("task", "env_id", "map_name"),
+    [("target_reaching", TR, "random"), ("formation", "KoopNav-Formation-v0", "map3")],
+)
+def test_the_shipped_ippo_policies_load_without_pickle_and_arrive(
+    task: str, env_id: str, map_name: str
+) -> None:
+    """``ippo`` (registered; numpy alone): each task's export holds arrays only, its metadata the
+    command that trained it, and it settles a team (one real closed-loop episode: a random layout, as
+    in training, and a paper formation map)."""
+    import controllers
+    from baselines.marl_policy import SHIPPED
+
+    directory = SHIPPED / "ippo" / task
+    metadata = json.loads((directory / "metadata.json").read_text())
+    assert metadata["algorithm"] == "ippo" and metadata["task"] == task and metadata["n_robots"] == 3
+    assert metadata["command"].startswith("python -m baselines.benchmarl_train --task " + task)
+    with np.load(directory / "policy.npz", allow_pickle=False) as arrays:  # arrays only, no objects
+        assert sorted(arrays.files) == metadata["arrays"]
+    assert "ippo" in controllers.available()
+    result = run_episode(gym.make(env_id, map=map_name), controllers.make("ippo"), seed=0)
+    assert result.success, (result.outcome, result.final_distance)
