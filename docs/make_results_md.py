@@ -92,6 +92,7 @@ EXTRA_TABLES = [
     ("classic baseline ORCA (orca)", "orca"),
     ("classic baseline DWA (dwa)", "dwa"),
     ("MPC with control barrier constraints (mpc-cbf)", "mpc-cbf"),
+    ("multi-agent RL baseline, BenchMARL's IPPO (ippo)", "ippo"),
 ]
 TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0": "formation"}
 
@@ -362,7 +363,8 @@ def _unequal_data(doc: dict) -> list[str]:
         "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
         "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
         f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions "
-        "the calibrating controllers may use; `rl-ppo-set` likewise ([RL baselines](rl.md)). Their rows "
+        "the calibrating controllers may use; `rl-ppo-set` and `ippo` (18 M robot-steps per task) likewise "
+        "([RL baselines](rl.md)). Their rows "
         "compare trained policies with model-based controllers; they are not an equal-data comparison. "
         "`orca` and `dwa` use no data; their settings were chosen on seeds 0-2 of the paper maps, which "
         "are also trials 0-2 here ([controllers](controllers.md#classic-baselines-orca-and-dwa)).",
