@@ -171,3 +171,39 @@ def test_the_shipped_ippo_policies_load_without_pickle_and_arrive(
     assert "ippo" in controllers.available()
     result = run_episode(gym.make(env_id, map=map_name), controllers.make("ippo"), seed=0)
     assert result.success, (result.outcome, result.final_distance)
+
+
+def test_ippo_in_the_evaluator_same_records_in_one_process_or_two_and_options_checked() -> None:
+    """The registered ``ippo`` through the evaluator: the same seeds give the same records bit for
+    bit whether its episodes run in this process or in two worker processes, and a misspelt
+    option is refused before any episode with a did-you-mean."""
+    import evaluate as ev
+
+    spec = ev.RunSpec(
+        envs=[TR, "KoopNav-Formation-v0"],
+        controllers=["ippo"],
+        maps=["map1", "map3"],
+        slips=["high"],
+        episodes=2,
+        seed=3,
+        env_kwargs={"max_episode_steps": 120},
+    )
+    timing = {
+        "wall_seconds",
+        "solve_ms",
+        "solve_ms_median",
+        "solve_ms_p95",
+        "controller_extra",
+        "calibration",
+    }
+
+    def records(workers: int) -> list[dict]:
+        results = ev.evaluate(spec, workers=workers)
+        return sorted(
+            ({k: v for k, v in r.items() if k not in timing} for r in results.records), key=lambda r: r["key"]
+        )
+
+    one, two = records(1), records(2)
+    assert len(one) == 8 and one == two  # 2 tasks x 2 maps x 2 seeds
+    with pytest.raises(ValueError, match=r"unknown option 'policy_rot' \(did you mean 'policy_root'\?\)"):
+        ev.evaluate(spec.replace(controllers=["ippo:policy_rot=x"]), workers=1)
