@@ -80,6 +80,8 @@ _FIXED = (
     "rl-ppo-set-movers",
     "orca",
     "dwa",
+    # slot 17: the colour mpc-cbf had from its name's checksum before it was listed
+    "mpc-cbf",
     "ippo",
 )
 
