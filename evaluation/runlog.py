@@ -161,14 +161,19 @@ def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> list[str]:
     )
 
 
-def _rewrite_header(path: Path, config: dict[str, Any]) -> None:
-    """Give the log this run's header, every record byte for byte, through a temporary file (a
-    kill leaves the old log or the new one, never a mix)."""
-    data = path.read_bytes()
+def _replace_log(path: Path, data: bytes) -> None:
+    """Replace the log's bytes through a temporary file beside it (a kill leaves the old log or
+    the new one, never a mix)."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".episodes-", suffix=".jsonl")
     with os.fdopen(fd, "wb") as handle:
-        handle.write(_header_line(config) + data[data.index(b"\n") + 1 :])
+        handle.write(data)
     os.replace(tmp, path)
+
+
+def _rewrite_header(path: Path, config: dict[str, Any]) -> None:
+    """Give the log this run's header, every record byte for byte."""
+    data = path.read_bytes()
+    _replace_log(path, _header_line(config) + data[data.index(b"\n") + 1 :])
 
 
 def _record_problem(rec: Any, expected: Mapping[str, Mapping[str, Any]] | None) -> str | None:
@@ -366,8 +371,5 @@ def forget_controllers(out: str | os.PathLike[str], labels: Sequence[str]) -> in
                 else:
                     kept.append(line)
             if len(kept) != len(lines):
-                fd, tmp = tempfile.mkstemp(dir=log.parent, prefix=".episodes-", suffix=".jsonl")
-                with os.fdopen(fd, "wb") as out_file:
-                    out_file.write(b"".join(kept))
-                os.replace(tmp, log)
+                _replace_log(log, b"".join(kept))
     return dropped
