@@ -92,6 +92,19 @@ def experiment(
 CURRICULUM_TEAM = 3
 
 
+def _staged(
+    stages: list[tuple[str, float, dict[str, Any]]], frames: int
+) -> list[tuple[str, int, dict[str, Any]]]:
+    """(name, cumulative frames at its end, env keywords) from (name, share, env keywords): the
+    last stage ends at ``frames`` exactly, whatever the rounding."""
+    plan, done = [], 0.0
+    for name, share, env_kwargs in stages:
+        done += share
+        plan.append((name, int(round(done * frames)), env_kwargs))
+    plan[-1] = (plan[-1][0], frames, plan[-1][2])
+    return plan
+
+
 def curriculum_plan(task: str, frames: int) -> list[tuple[str, int, dict[str, Any]]]:
     """(stage name, cumulative frames at its end, env keywords) of every stage of the set
     policies' curriculum (:data:`baselines.curriculum.STAGES`) for its 3-robot part, with the
@@ -99,13 +112,7 @@ def curriculum_plan(task: str, frames: int) -> list[tuple[str, int, dict[str, An
     from baselines.curriculum import PARTS, STAGES, stage_parts
 
     part = [n for n, _ in PARTS].index(CURRICULUM_TEAM)
-    plan, done = [], 0.0
-    for stage in STAGES[task]:
-        done += stage.share
-        _, _, env_kwargs = stage_parts(task, stage)[part]
-        plan.append((stage.name, int(round(done * frames)), env_kwargs))
-    plan[-1] = (plan[-1][0], frames, plan[-1][2])
-    return plan
+    return _staged([(st.name, st.share, stage_parts(task, st)[part][2]) for st in STAGES[task]], frames)
 
 
 def training_plan(args: argparse.Namespace) -> list[tuple[str, int, dict[str, Any]]] | None:
@@ -115,14 +122,11 @@ def training_plan(args: argparse.Namespace) -> list[tuple[str, int, dict[str, An
         return curriculum_plan(args.task, args.frames)
     if not args.stages:
         return None
-    plan, done = [], 0.0
-    for i, stage in enumerate(args.stages):
-        done += stage["share"]
-        plan.append(
-            (str(stage.get("name", f"stage{i}")), int(round(done * args.frames)), dict(stage.get("env", {})))
-        )
-    plan[-1] = (plan[-1][0], args.frames, plan[-1][2])
-    return plan
+    stages = [
+        (str(stage.get("name", f"stage{i}")), stage["share"], dict(stage.get("env", {})))
+        for i, stage in enumerate(args.stages)
+    ]
+    return _staged(stages, args.frames)
 
 
 def _experiment(
