@@ -116,7 +116,10 @@ def small_run(tmp_path_factory) -> Path:
 
 #: scripts whose tiny run needs an extra (the module it imports): skipped on a core install, as
 #: README's test command runs on `pip install -e '.[test]'` alone
-SMOKE_NEEDS = {"bench/batched_evaluation.py": "stable_baselines3"}  # it times the rl-ppo policy
+SMOKE_NEEDS = {
+    "bench/batched_evaluation.py": "stable_baselines3",  # it times the rl-ppo policy
+    "bench/benchmarl_speed.py": "benchmarl",  # it trains MAPPO
+}
 
 
 @pytest.mark.parametrize("script", sorted(SMOKE))
