@@ -9,6 +9,7 @@ sub-environment i of a batch seeded with s + i reproduces a lone environment see
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,7 +20,7 @@ from numpy.typing import NDArray
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.engine_memory import check_engine_memory, engine_array_bytes
 from koopman_envs.builder.engine_scenario import engine_scenario
-from koopman_envs.builder.episode_layout import episode_layout
+from koopman_envs.builder.episode_reset import reset_episodes
 from koopman_envs.checks import check_commands
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
@@ -31,7 +32,7 @@ from koopman_envs.sim.maps import MapSpec, formation_offsets
 from koopman_envs.sim.mover_tracking import MoverTracker, listed_movers, observed_movers
 from koopman_envs.sim.movers import MoverField
 from koopman_envs.sim.perception import Perception, observed_info
-from koopman_envs.sim.slip import SlipSampler, draw_random_lambdas
+from koopman_envs.sim.slip import SlipSampler
 from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.starts import START_NOISE_ATTEMPTS
 from koopman_envs.sim.zones import ZoneTable
@@ -197,7 +198,8 @@ class NavigationEngine:
             self.zones.set_env(index, spec.slip_zones)
 
     def reset_env(self, index: int, rng: np.random.Generator, options: ResetOptions | None = None) -> None:
-        """Start a new episode in environment ``index``, drawing only from ``rng``.
+        """Start a new episode in environment ``index``, drawing only from ``rng``:
+        :meth:`reset_envs` for one environment.
 
         The episode's map, starts and targets come from
         :func:`~koopman_envs.builder.episode_layout.episode_layout`: ``options`` (from
@@ -211,36 +213,19 @@ class NavigationEngine:
             A start pose or target of ``options`` that is outside the workspace, overlaps an
             obstacle or another robot's (the environment keeps its previous episode).
         """
-        cfg = self.config
-        n = cfg.n_robots
-        spec, starts, targets = episode_layout(cfg, self.maps[index], rng, options or ResetOptions())
-        if spec is not self.maps[index]:
-            self._set_map(index, spec)
-        self.target[index] = targets.T
-        self.offset[index] = formation_offsets(targets).T
-        self.starts[index] = starts
-        opts = options or ResetOptions()
-        self.nominal_starts[index] = spec.starts[:n] if opts.start_poses is None else opts.start_poses
-        self.state[index] = starts.T
-        self.settled[index] = 0
-        self.elapsed[index] = 0
-        self.collision[index] = 0
-        self.success[index] = False
-        dx = self.target[index, 0] - self.state[index, 0]
-        dy = self.target[index, 1] - self.state[index, 1]
-        self.distances[index] = np.sqrt(dx * dx + dy * dy)  # the formula of FeatureBuilder
-        if self.slip_clock is not None:
-            # the last draws of a reset (drift only), so that every other setting draws as before
-            lambdas = self.slip_clock.reset_env(index, rng)
-        else:
-            lambdas = draw_random_lambdas(rng, n) if cfg.random_slip else cfg.lambdas
-        self.slip.reset_env(index, rng, lambdas)
-        if self.perception is not None:  # draws from a child of rng: the env's own stream is untouched
-            self.perception.reset_env(index, rng)  # its first readings: at the next features() or step()
-        if self.movers is not None:  # another child of rng: placed clear of this episode's starts and targets
-            self.movers.reset_env(index, rng, spec.obstacles, starts, targets, float(cfg.robot_radius[0]))
-        if self.mover_tracker is not None:  # the last child of rng: every earlier stream is as before
-            self.mover_tracker.reset_env(index, rng)
+        reset_episodes(self, [index], [rng], [options])
+
+    def reset_envs(
+        self,
+        rows: Sequence[int],
+        rngs: Sequence[np.random.Generator],
+        options: Sequence[ResetOptions | None] | None = None,
+    ) -> None:
+        """Start a new episode in each environment of ``rows`` together, environment
+        ``rows[b]`` drawing only from ``rngs[b]`` exactly as :meth:`reset_env` would
+        (:func:`~koopman_envs.builder.episode_reset.reset_episodes`); a rejected option
+        leaves every environment of the batch in its previous episode."""
+        reset_episodes(self, rows, rngs, options)
 
     def _flush_perception(self) -> None:
         """The first readings of the environments reset since the last step (one batched call)."""

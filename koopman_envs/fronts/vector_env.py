@@ -144,8 +144,11 @@ class KoopNavVectorEnv(VectorEnv):
             for i, s in enumerate(seeds):
                 if s is not None:
                     self._rngs[i] = seeding.np_random(s)[0]
-        for i in range(self.num_envs):
-            self.engine.reset_env(i, self._rngs[i], overrides[i])
+        if options is None:  # every sub-env on its map's starts and targets: one batched reset
+            self.engine.reset_envs(range(self.num_envs), self._rngs)
+        else:
+            for i in range(self.num_envs):
+                self.engine.reset_env(i, self._rngs[i], overrides[i])
         self._autoreset[:] = False
         self._record(restarted=range(self.num_envs))
         return self._observations(self.engine.features()), self._info()
@@ -172,8 +175,7 @@ class KoopNavVectorEnv(VectorEnv):
         assert self._rngs is not None  # step() has checked that reset() made the generators
         pending = np.flatnonzero(self._autoreset)
         if pending.size:
-            for i in pending:
-                engine.reset_env(int(i), self._rngs[i])
+            engine.reset_envs(pending.tolist(), [self._rngs[i] for i in pending])
             self._record(restarted=pending)
             result = engine.step(commands, active=~self._autoreset)
         else:
@@ -210,9 +212,9 @@ class KoopNavVectorEnv(VectorEnv):
             # as Gymnasium's SyncVectorEnv builds it: the finished sub-envs' entries, each key's
             # mask true for those sub-envs only
             final_info = {key: (done.copy() if key.startswith("_") else value) for key, value in info.items()}
-            for i in np.flatnonzero(done):
-                engine.reset_env(int(i), self._rngs[i])
-            self._record(restarted=np.flatnonzero(done))
+            ended = np.flatnonzero(done)
+            engine.reset_envs(ended.tolist(), [self._rngs[i] for i in ended])
+            self._record(restarted=ended)
             fresh = self._observations(engine.features())
             obs = np.where(done[:, None], fresh, obs)
             info = self._info()

@@ -110,7 +110,8 @@ def orca_restore(
 
 
 def orca_step(
-    sim: object | None,
+    sims: list[Any],
+    rows: NDArray[np.int64],
     position: NDArray[np.float64],
     velocity: NDArray[np.float64],
     robots_before: NDArray[np.float64],
@@ -118,30 +119,39 @@ def orca_step(
     aware: bool,
     dt: float,
 ) -> None:
-    """One ORCA period of one environment: the waypoint kernel's velocities are the preferred
-    ones; ``position`` and ``velocity`` (C, 2) become ORCA's."""
-    if sim is None:
-        raise RuntimeError(
-            "the crowd has no ORCA simulator before its first reset: reset the env before stepping"
-        )
-    count = position.shape[0]
+    """One ORCA period of the environments ``rows``: the waypoint kernel's velocities are the
+    preferred ones; each environment's ``position`` and ``velocity`` rows (K, C, 2) become ORCA's.
+
+    What every environment needs is computed for all of them in numpy first (the preferred
+    velocities turned right, the robots' agents) and handed to each simulator as Python lists.
+    RVO2 has no batch interface, so the calls remain: for 8 pedestrians about 8 us of RVO2's
+    own step against 6 us of setting the preferred velocities and 29 us of reading positions
+    and velocities back (each read builds a ``Vector2``). The arithmetic is numpy's element
+    by element, as Python's floats did it before, so the crowd moves bit for bit as it did.
+    """
     turn_c, turn_s = math.cos(ORCA_KEEP_RIGHT), math.sin(ORCA_KEEP_RIGHT)
-    for c in range(count):
-        vx, vy = float(velocity[c, 0]), float(velocity[c, 1])
-        preferred = (turn_c * vx + turn_s * vy, turn_c * vy - turn_s * vx)  # turned clockwise
-        sim.set_agent_pref_velocity(c, preferred)  # type: ignore[attr-defined]
+    vx, vy = velocity[rows, :, 0], velocity[rows, :, 1]
+    preferred = np.stack(
+        [turn_c * vx + turn_s * vy, turn_c * vy - turn_s * vx], axis=-1
+    ).tolist()  # turned clockwise
     if aware:
-        for i in range(robots_before.shape[1]):
-            agent = count + i
-            x, y = float(robots_before[0, i]), float(robots_before[1, i])
-            vx = (float(robots_after[0, i]) - x) / dt
-            vy = (float(robots_after[1, i]) - y) / dt
-            sim.set_agent_position(agent, (x, y))  # type: ignore[attr-defined]
-            sim.set_agent_velocity(agent, (vx, vy))  # type: ignore[attr-defined]
-            sim.set_agent_pref_velocity(agent, (vx, vy))  # type: ignore[attr-defined]
-    sim.do_step()  # type: ignore[attr-defined]
-    for c in range(count):
-        p = sim.get_agent_position(c)  # type: ignore[attr-defined]
-        v = sim.get_agent_velocity(c)  # type: ignore[attr-defined]
-        position[c, 0], position[c, 1] = p.x, p.y
-        velocity[c, 0], velocity[c, 1] = v.x, v.y
+        before, after = robots_before[rows, :2], robots_after[rows, :2]
+        robot_at = before.transpose(0, 2, 1).tolist()
+        robot_velocity = ((after - before) / dt).transpose(0, 2, 1).tolist()
+    count = position.shape[1]
+    for q, k in enumerate(rows.tolist()):
+        sim = sims[k]
+        if sim is None:
+            raise RuntimeError(
+                "the crowd has no ORCA simulator before its first reset: reset the env before stepping"
+            )
+        for c, pref in enumerate(preferred[q]):
+            sim.set_agent_pref_velocity(c, pref)
+        if aware:
+            for i, (at, v) in enumerate(zip(robot_at[q], robot_velocity[q])):
+                sim.set_agent_position(count + i, at)
+                sim.set_agent_velocity(count + i, v)
+                sim.set_agent_pref_velocity(count + i, v)
+        sim.do_step()
+        position[k] = [sim.get_agent_position(c).to_tuple() for c in range(count)]
+        velocity[k] = [sim.get_agent_velocity(c).to_tuple() for c in range(count)]

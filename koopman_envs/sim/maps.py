@@ -130,6 +130,29 @@ class MapSpec:
         object.__setattr__(self, "starts", starts)
         object.__setattr__(self, "targets", targets)
 
+    @classmethod
+    def generated(
+        cls,
+        name: str,
+        obstacles: NDArray[np.float64],
+        starts: NDArray[np.float64],
+        targets: NDArray[np.float64],
+        description: str,
+        slip_zones: tuple[SlipZone, ...] = (),
+    ) -> MapSpec:
+        """A map from a generator that builds its arrays to the checked form itself (float64,
+        (k, 3) rows, finite, radii > 0, as many starts as targets, zones of the right type), as
+        :func:`~koopman_envs.sim.random_maps.generate_random_map` does at every reset: the arrays
+        are taken as they are (made read-only) without :meth:`__post_init__`'s checks, which cost
+        a quarter of a random-map reset. Everything else builds a map the checked way."""
+        spec = object.__new__(cls)
+        for key, value in (("name", name), ("obstacles", obstacles), ("starts", starts), ("targets", targets),
+                           ("description", description), ("metadata", {}), ("slip_zones", slip_zones)):  # fmt: skip
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+            object.__setattr__(spec, key, value)
+        return spec
+
     def _zones(self, value: Any, n_robots: int) -> tuple[SlipZone, ...]:
         """``slip_zones`` checked and converted (dicts of the map-file form become zones)."""
         if not isinstance(value, (list, tuple)):

@@ -13,7 +13,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["ARENA_MARGIN", "PLACEMENT_ATTEMPTS", "arena_into", "mover_arena", "place_movers"]
+__all__ = [
+    "ARENA_MARGIN",
+    "PLACEMENT_ATTEMPTS",
+    "arena_into",
+    "mover_arena",
+    "PlacementError",
+    "place_movers",
+    "place_movers_batch",
+]
 
 #: how far the movers' arena reaches beyond the map's starts, targets and obstacles [m] (ours)
 ARENA_MARGIN = 1.5
@@ -21,6 +29,15 @@ ARENA_MARGIN = 1.5
 PLACEMENT_ATTEMPTS = 2000
 #: gap kept between a mover and a static obstacle or another mover at placement [m]
 _PLACEMENT_GAP = 0.1
+
+
+class PlacementError(ValueError):
+    """No free place for a mover: a ``ValueError`` whose :attr:`row` is the environment's
+    position in the batch of :func:`place_movers_batch`."""
+
+    def __init__(self, row: int, message: str) -> None:
+        super().__init__(message)
+        self.row = row
 
 
 def mover_arena(
@@ -75,10 +92,8 @@ def place_movers(
 ) -> NDArray[np.float64]:
     """``count`` mover centres (C, 2) drawn uniformly in ``arena``, clear of the obstacles, of each
     other and by ``clearance`` + ``radius`` of every point of the two ``keep_clear`` arrays
-    (rows x, y, ...: the starts and the targets).
-
-    Candidates come in blocks of uniforms from ``rng`` and a compiled loop takes the first free
-    ones in order (a Python loop of scalar draws cost more than the rest of a reset).
+    (rows x, y, ...: the starts and the targets): :func:`place_movers_batch` for one
+    environment.
 
     Raises
     ------
@@ -86,29 +101,97 @@ def place_movers(
         A mover is wider than the arena, or finds no free place in :data:`PLACEMENT_ATTEMPTS`
         draws.
     """
-    if not (arena[1] - arena[0] > 2.0 * radius and arena[3] - arena[2] > 2.0 * radius):
-        # the candidates would lie outside the arena (or be NaN for a huge radius: every test
-        # against a NaN passes, so they were "free")
-        raise ValueError(
-            f"movers: a mover of radius {radius!r} m (movers.radius) does not fit the arena "
-            f"{np.round(arena, 2).tolist()}; use smaller movers"
-        )
-    placed = np.zeros((count, 2))
-    obstacles = np.ascontiguousarray(obstacles, dtype=np.float64).reshape(-1, 3)
-    starts, targets = (np.array(points, dtype=np.float64) for points in keep_clear)  # writable: one type
-    block = 4 * count + 16
-    done = np.zeros(2, dtype=np.int64)  # movers placed, failed attempts at the current one
-    while done[0] < count:
-        _place_from(
-            rng.random((block, 2)), arena, radius, obstacles, starts, targets, clearance, placed, done
-        )
-        if done[1] >= PLACEMENT_ATTEMPTS:
-            raise ValueError(
-                f"movers: no free place for mover {done[0] + 1} of {count} (radius {radius} m) in the arena "
-                f"{np.round(arena, 2).tolist()} clear of the obstacles, the other movers and the starts "
-                "and targets; use fewer or smaller movers"
-            )
+    starts, targets = (np.array(points, dtype=np.float64)[None] for points in keep_clear)
+    obstacles = np.asarray(obstacles, dtype=np.float64).reshape(1, -1, 3)
+    arenas = np.asarray(arena, dtype=np.float64).reshape(1, 4)
+    placed: NDArray[np.float64] = place_movers_batch(
+        [rng], count, radius, arenas, obstacles, starts, targets, clearance
+    )[0]
     return placed
+
+
+def place_movers_batch(
+    rngs: list[np.random.Generator],
+    count: int,
+    radius: float,
+    arenas: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    clearance: float,
+) -> NDArray[np.float64]:
+    """The movers of B environments (B, C, 2), environment b's from ``rngs[b]`` in its
+    ``arenas[b]`` (B, 4), clear of its ``obstacles[b]`` (B, M, 3), of each other and by
+    ``clearance`` + ``radius`` of its ``starts[b]`` and ``targets[b]`` (B, N, 3).
+
+    Candidates come in blocks of uniforms from each generator and a compiled loop takes the
+    first free ones in order: the first block of every environment in one call, the rare
+    further blocks one environment at a time. Each environment draws and places exactly as it
+    would alone (a vector env resets the environments that end in the same step together).
+
+    Raises
+    ------
+    ValueError
+        A mover is wider than an arena; :class:`PlacementError` (a ``ValueError``) when one finds
+        no free place in :data:`PLACEMENT_ATTEMPTS` draws (naming the arena).
+    """
+    for arena in arenas:
+        if not (arena[1] - arena[0] > 2.0 * radius and arena[3] - arena[2] > 2.0 * radius):
+            # the candidates would lie outside the arena (or be NaN for a huge radius: every test
+            # against a NaN passes, so they were "free")
+            raise ValueError(
+                f"movers: a mover of radius {radius!r} m (movers.radius) does not fit the arena "
+                f"{np.round(arena, 2).tolist()}; use smaller movers"
+            )
+    batch = len(rngs)
+    placed = np.zeros((batch, count, 2))
+    done = np.zeros((batch, 2), dtype=np.int64)  # movers placed, failed attempts at the current one
+    block = 4 * count + 16
+    first = np.stack([rng.random((block, 2)) for rng in rngs]) if batch else np.zeros((0, block, 2))
+    _place_batch(first, arenas, radius, obstacles, starts, targets, clearance, placed, done)
+    for b, rng in enumerate(rngs):
+        while True:
+            if done[b, 1] >= PLACEMENT_ATTEMPTS:
+                raise PlacementError(
+                    b,
+                    f"movers: no free place for mover {done[b, 0] + 1} of {count} (radius {radius} m) in "
+                    f"the arena {np.round(arenas[b], 2).tolist()} clear of the obstacles, the other movers "
+                    "and the starts and targets; use fewer or smaller movers",
+                )
+            if done[b, 0] >= count:
+                break
+            _place_from(
+                rng.random((block, 2)), arenas[b], radius, obstacles[b], starts[b], targets[b], clearance,
+                placed[b], done[b],
+            )  # fmt: skip
+    return placed
+
+
+@njit(cache=True)
+def _place_batch(
+    candidates: NDArray[np.float64],
+    arenas: NDArray[np.float64],
+    radius: float,
+    obstacles: NDArray[np.float64],
+    starts: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    clearance: float,
+    placed: NDArray[np.float64],
+    done: NDArray[np.int64],
+) -> None:  # pragma: no cover - compiled
+    """:func:`_place_from` for every environment b of the batch, its own rows of each array."""
+    for b in range(candidates.shape[0]):
+        _place_from(
+            candidates[b],
+            arenas[b],
+            radius,
+            obstacles[b],
+            starts[b],
+            targets[b],
+            clearance,
+            placed[b],
+            done[b],
+        )
 
 
 @njit(cache=True)

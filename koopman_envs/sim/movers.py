@@ -32,7 +32,7 @@ from koopman_envs.movers import MOVER_FEATURES, MoverConfig
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.crowd import orca_restore, orca_simulator, orca_step
 from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
-from koopman_envs.sim.mover_placement import arena_into, place_movers
+from koopman_envs.sim.mover_placement import PlacementError, arena_into, place_movers, place_movers_batch
 from koopman_envs.sim.nearest import nearest_first_by_rank
 from koopman_envs.sim.perception import child_generator
 
@@ -135,7 +135,24 @@ class MoverField:
         targets: NDArray[np.float64],
         robot_radius: float,
     ) -> None:
-        """Place environment ``index``'s movers for a new episode (module docstring).
+        """Place environment ``index``'s movers for a new episode: :meth:`reset_envs` for one."""
+        self.reset_envs(
+            [index], [rng], [obstacles], np.asarray(starts)[None], np.asarray(targets)[None], robot_radius
+        )
+
+    def reset_envs(
+        self,
+        rows: list[int],
+        rngs: list[np.random.Generator],
+        obstacles: list[NDArray[np.float64]],
+        starts: NDArray[np.float64],
+        targets: NDArray[np.float64],
+        robot_radius: float,
+    ) -> None:
+        """Place the movers of environments ``rows`` for their new episodes (module docstring),
+        all in one pass: environment ``rows[b]`` draws from a child of ``rngs[b]`` among its
+        ``obstacles[b]`` (M, 3), clear of ``starts[b]`` and ``targets[b]`` (B, N, 3), exactly as
+        it would alone.
 
         Raises
         ------
@@ -144,50 +161,68 @@ class MoverField:
             fast, named when slower movers would fit: ``speed`` x 1 s is kept from every start and
             target).
         """
-        if self._parents[index] is not rng:
-            self._parents[index] = rng
-            self.rngs[index] = child_generator(rng)
-            self.cursor[index] = self.pool_size
-        child = self.rngs[index]
-        assert child is not None
         cfg = self.config
-        obstacles = np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
+        children: list[np.random.Generator] = []
+        for index, rng, source in zip(rows, rngs, obstacles):
+            if self._parents[index] is not rng:
+                self._parents[index] = rng
+                self.rngs[index] = child_generator(rng)
+                self.cursor[index] = self.pool_size
+            child = self.rngs[index]
+            assert child is not None  # spawned above at the latest
+            children.append(child)
+            if self.obstacles[index] is not source:  # a fixed map's are the same array every episode
+                self._set_obstacles(index, _as_obstacles(source))
+        blocks = [self.obstacles[index] for index in rows]
+        if len({block.shape for block in blocks}) > 1:  # obstacle counts differ: one at a time
+            for b, index in enumerate(rows):
+                self.reset_envs(
+                    [index], [rngs[b]], [obstacles[b]], starts[b : b + 1], targets[b : b + 1], robot_radius
+                )
+            return
         # writable copies: the compiled loops take the two as one type, and a map's arrays
         # may be read-only (frozen maps)
         starts, targets = np.array(starts, dtype=np.float64), np.array(targets, dtype=np.float64)
-        self._set_obstacles(index, obstacles)
-        arena = self.arena[index]
-        arena_into(starts, targets, obstacles, self._workspace, arena)
+        stacked = np.stack(blocks) if blocks else np.zeros((0, 0, 3))
+        where = np.asarray(rows, dtype=np.int64)
+        arenas = np.empty((len(rows), 4))
+        for b in range(len(rows)):
+            arena_into(starts[b], targets[b], stacked[b], self._workspace, arenas[b])
+        self.arena[where] = arenas
         clearance = robot_radius + max(START_CLEARANCE, cfg.speed * 1.0)
         try:
-            placed = place_movers(
-                child, cfg.count, cfg.radius, arena, obstacles, (starts, targets), clearance
+            placed = place_movers_batch(
+                children, cfg.count, cfg.radius, arenas, stacked, starts, targets, clearance
             )
-        except ValueError as exc:
-            self._refuse_fast(exc, arena, obstacles, (starts, targets), robot_radius, clearance)
+        except PlacementError as exc:
+            b = exc.row
+            self._refuse_fast(exc, arenas[b], stacked[b], (starts[b], targets[b]), robot_radius, clearance)
             raise
-        self.position[index] = placed
-        self.waiting[index] = 0
-        self.hit[index] = False
+        self.position[where] = placed
+        self.waiting[where] = 0
+        self.hit[where] = False
         if self.trail_length:
-            self._trail_count[index] = 0
-            self._record(np.array([index]))
+            self._trail_count[where] = 0
+            self._record(where)
         if cfg.behaviour == "constant":
-            heading = child.uniform(-math.pi, math.pi, cfg.count)
-            self.velocity[index, :, 0] = cfg.speed * np.cos(heading)
-            self.velocity[index, :, 1] = cfg.speed * np.sin(heading)
-        else:
+            heading = np.stack([child.uniform(-math.pi, math.pi, cfg.count) for child in children])
+            self.velocity[where, :, 0] = cfg.speed * np.cos(heading)
+            self.velocity[where, :, 1] = cfg.speed * np.sin(heading)
+            return
+        for b, index in enumerate(rows):
             self.velocity[index] = 0.0
-            self.pool[index] = child.random(self.pool_size)
+            self.pool[index] = children[b].random(self.pool_size)
             self.cursor[index] = 0
             first_goals(
                 self.position[index], self.goal[index], self.leg_speed[index], self.pool[index],
-                self.cursor[index:index + 1], arena, self._obstacle_x[index], self._obstacle_y[index],
+                self.cursor[index:index + 1], self.arena[index], self._obstacle_x[index], self._obstacle_y[index],
                 self._obstacle_r[index], cfg.radius, cfg.speed,
             )  # fmt: skip
-        if cfg.behaviour == "crowd":
-            self._robot_radius[index] = robot_radius
-            self._orca[index] = orca_simulator(obstacles, placed, cfg, self.n_robots, robot_radius, self.dt)
+            if cfg.behaviour == "crowd":
+                self._robot_radius[index] = robot_radius
+                self._orca[index] = orca_simulator(
+                    stacked[b], placed[b], cfg, self.n_robots, robot_radius, self.dt
+                )
 
     def _refuse_fast(
         self,
@@ -219,6 +254,8 @@ class MoverField:
         ) from None
 
     def _set_obstacles(self, index: int, obstacles: NDArray[np.float64]) -> None:
+        """Install environment ``index``'s static obstacles (M, 3); :attr:`obstacles` keeps the
+        array itself, so the next episode on the same map finds it installed."""
         m = obstacles.shape[0]
         if m > self._obstacle_x.shape[1]:  # a map with more obstacles: widen (padding reads radius 0)
             for name in ("_obstacle_x", "_obstacle_y", "_obstacle_r"):
@@ -296,11 +333,16 @@ class MoverField:
             self._obstacle_r, self.dt, not crowd,
         )  # fmt: skip
         if crowd:
-            for k in rows:
-                orca_step(
-                    self._orca[k], self.position[k], self.velocity[k], robots_before[k], robots_after[k],
-                    cfg.aware, self.dt,
-                )  # fmt: skip
+            orca_step(
+                self._orca,
+                rows,
+                self.position,
+                self.velocity,
+                robots_before,
+                robots_after,
+                cfg.aware,
+                self.dt,
+            )
 
     def meet(
         self, state: NDArray[np.float64], robot_radius: NDArray[np.float64], collision: NDArray[np.int64]
@@ -358,6 +400,14 @@ class MoverField:
                     self.obstacles[k], self.position[k], self.velocity[k], self.config, self.n_robots,
                     float(self._robot_radius[k]), self.dt,
                 )  # fmt: skip
+
+
+def _as_obstacles(obstacles: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``obstacles`` as (M, 3) float64 rows: the array itself when it is one already (a map's)."""
+    if isinstance(obstacles, np.ndarray) and obstacles.dtype == np.float64 and obstacles.ndim == 2:
+        if obstacles.shape[1] == 3:
+            return obstacles
+    return np.asarray(obstacles, dtype=np.float64).reshape(-1, 3)
 
 
 # ---------------------------------------------------------------------- kernels

@@ -92,7 +92,7 @@ def generate_random_map(
         # after every draw of the layout and only when asked for: without zones a seed consumes
         # the generator as before and gives the same layout (tests/data/random_layouts.json)
         zones = _place_slip_zones(rng, (a, b, normal, half_width), config) if config.n_slip_zones else ()
-        return MapSpec("random", obstacles, starts, targets, "seeded random layout", slip_zones=zones)
+        return MapSpec.generated("random", obstacles, starts, targets, "seeded random layout", tuple(zones))
     raise NoValidMap(
         f"random_map: no valid random map in max_attempts={config.max_attempts} attempts for "
         f"n_robots={n_robots}: the team must fit the workspace, and n_obstacles={config.n_obstacles} "
