@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: {sweep}: a small sweep's output directory)
 SMOKE: dict[str, list[str]] = {
     "bench/env_throughput.py": ["--seconds", "0.05", "--repeats", "1"],
+    "bench/batched_resets.py": ["--envs", "8", "--batch", "3", "--repeats", "1", "--calls", "2"],
     "bench/cold_start.py": ["--settings", "plain", "--repeats", "1"],
     "bench/batched_evaluation.py": [
         "--behaviours",

@@ -18,6 +18,7 @@ import numpy as np
 
 from koopman_envs.builder.episode_layout import episode_layout
 from koopman_envs.reset_options import ResetOptions
+from koopman_envs.sim.rows import rows_index
 from koopman_envs.sim.slip import draw_random_lambdas
 
 __all__ = ["reset_episodes"]
@@ -53,9 +54,9 @@ def reset_episodes(
     for index, layout in zip(rows, layouts):
         if layout.spec is not engine.maps[index]:
             engine._set_map(index, layout.spec)
-    where = np.asarray(rows, dtype=np.int64)
-    starts = np.stack([layout.starts for layout in layouts]) if rows else np.zeros((0, n, 3))
-    targets = np.stack([layout.targets for layout in layouts]) if rows else np.zeros((0, n, 3))
+    where = rows_index(rows)
+    starts = np.array([layout.starts for layout in layouts]).reshape(-1, n, 3)
+    targets = np.array([layout.targets for layout in layouts]).reshape(-1, n, 3)
     engine.target[where] = targets.transpose(0, 2, 1)
     # each team's formation_offsets(targets): its targets relative to its leader's
     engine.offset[where] = (targets[:, :, :2] - targets[:, :1, :2]).transpose(0, 2, 1)

@@ -35,6 +35,7 @@ from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoin
 from koopman_envs.sim.mover_placement import PlacementError, arena_into, place_movers, place_movers_batch
 from koopman_envs.sim.nearest import nearest_first_by_rank
 from koopman_envs.sim.perception import child_generator
+from koopman_envs.sim.rows import rows_index
 
 __all__ = [
     "MOVER_FEATURES",
@@ -184,7 +185,7 @@ class MoverField:
         # may be read-only (frozen maps)
         starts, targets = np.array(starts, dtype=np.float64), np.array(targets, dtype=np.float64)
         stacked = np.stack(blocks) if blocks else np.zeros((0, 0, 3))
-        where = np.asarray(rows, dtype=np.int64)
+        where = rows_index(rows)
         arenas = np.empty((len(rows), 4))
         for b in range(len(rows)):
             arena_into(starts[b], targets[b], stacked[b], self._workspace, arenas[b])
@@ -203,7 +204,7 @@ class MoverField:
         self.hit[where] = False
         if self.trail_length:
             self._trail_count[where] = 0
-            self._record(where)
+            self._record(np.asarray(rows, dtype=np.int64))
         if cfg.behaviour == "constant":
             heading = np.stack([child.uniform(-math.pi, math.pi, cfg.count) for child in children])
             self.velocity[where, :, 0] = cfg.speed * np.cos(heading)
