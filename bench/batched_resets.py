@@ -22,6 +22,7 @@ import argparse
 import json
 import platform
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -29,7 +30,7 @@ import numpy as np
 import koopman_envs  # noqa: F401 - registers the ids
 
 ENV = "KoopNav-TargetReaching-v0"
-SETTINGS = {
+SETTINGS: dict[str, dict[str, Any]] = {
     "fixed map": {},
     "random layouts": {"map": "random"},
     "8 constant movers, exact": {"movers": {"count": 8, "tracking": False}},
