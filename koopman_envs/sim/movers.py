@@ -172,7 +172,12 @@ class MoverField:
             child = self.rngs[index]
             assert child is not None  # spawned above at the latest
             children.append(child)
-            if self.obstacles[index] is not source:  # a fixed map's are the same array every episode
+            # a fixed map's obstacles are the same read-only array every episode: installed once
+            if (
+                self.obstacles[index] is not source
+                or getattr(source, "flags", None) is None
+                or source.flags.writeable
+            ):
                 self._set_obstacles(index, _as_obstacles(source))
         blocks = [self.obstacles[index] for index in rows]
         if len({block.shape for block in blocks}) > 1:  # obstacle counts differ: one at a time
