@@ -134,3 +134,20 @@ def test_a_batch_that_cannot_place_its_movers_names_the_environment_s_arena() ->
     with pytest.raises(PlacementError, match=r"arena \[-1.0, 1.0, -1.0, 1.0\]") as caught:
         place_movers_batch(rngs, 30, 0.3, arenas, obstacles, starts + 2.5, starts + 2.5, 0.1)
     assert caught.value.row == 1 and isinstance(caught.value, ValueError)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--batch", "0"], "--batch=0 must be >= 1"),
+        (["--envs", "4", "--batch", "5"], "--batch=5 must be <= --envs=4"),
+    ],
+)
+def test_the_reset_bench_refuses_bad_sizes_by_name(args: list[str], message: str) -> None:
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "bench" / "batched_resets.py"
+    run = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and message in run.stderr, run.stderr
