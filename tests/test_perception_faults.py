@@ -335,10 +335,10 @@ def test_the_buffers_have_the_documented_shapes_and_start_empty() -> None:
     np.testing.assert_array_equal(p.angles, beam_angles(40, 2 * math.pi))
     assert p.sent_poses.shape == (4, 2, 3, 3) and p.sent_positions.shape == (4, 2, 2, 3)
     assert (p._normals, p._uniforms) == (18 + 120, 6 + 120)
-    assert p.normal.shape == (4, block, 138) and p.normal.dtype == np.float32
-    assert p.uniform.shape == (4, block, 126) and p.uniform.dtype == np.float32
+    assert p.normal.shape == (block, 4, 138) and p.normal.dtype == np.float32
+    assert p.uniform.shape == (block, 4, 126) and p.uniform.dtype == np.float32
     assert p.cursor.tolist() == [block] * 4 and p.clock.tolist() == [0] * 4
-    assert p.rngs == [None] * 4 and p.dt == 0.1 and p.delay == 2
+    assert p.streams.generators == [None] * 4 and p.dt == 0.1 and p.delay == 2
     np.testing.assert_array_equal(p.workspace, WORKSPACE)
     bare = Perception(2, 3, PoseNoise(), CommConfig(), None, 0, DT, WORKSPACE)
     assert bare.ranges.shape == (2, 3, 0) and bare.angles.shape == (0,) and bare.max_range == 0.0
@@ -355,7 +355,7 @@ def test_a_step_before_any_reset_is_refused_by_environment() -> None:
     perception = Perception(2, 3, PoseNoise(0.1), CommConfig(), None, 0, DT, WORKSPACE)
     perception.reset_env(0, np.random.default_rng(0))
     state = _truths(1)[0]
-    with pytest.raises(RuntimeError, match=r"^environment 1 was stepped before reset\(\)$"):
+    with pytest.raises(RuntimeError, match=r"^Perception: environment 1 was stepped before reset\(\)$"):
         perception.update(state, OBSTACLES, RADIUS, np.arange(2))
 
 

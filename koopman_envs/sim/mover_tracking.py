@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.movers import MoverConfig
 from koopman_envs.sim.movers import MoverField
+from koopman_envs.sim.pcg64 import Streams, refill_normals_f64
 from koopman_envs.sim.perception import child_generator
 
 __all__ = [
@@ -221,7 +222,8 @@ class MoverTracker:
         self.P = np.tile(np.eye(4), (num_envs, count, 1, 1))
         self.hits = np.zeros((num_envs, count), dtype=np.int64)
         self.misses = np.zeros((num_envs, count), dtype=np.int64)
-        self.rngs: list[np.random.Generator | None] = [None] * num_envs
+        #: each environment's child generator (drawn in compiled code where it is a PCG64)
+        self.streams = Streams(num_envs)
         self._parents: list[np.random.Generator | None] = [None] * num_envs
         # pooled detection errors: POOL_DRAWS per environment at a time (at least a period's)
         periods = max(1, min(32, POOL_DRAWS // max(count, 1)))
@@ -241,7 +243,7 @@ class MoverTracker:
         ``rng`` (spawned when ``rng`` is a new generator, as every other noise stream)."""
         if self._parents[index] is not rng:
             self._parents[index] = rng
-            self.rngs[index] = child_generator(rng)
+            self.streams.attach(index, child_generator(rng))
         self.hits[index] = 0
         self.misses[index] = 0
         self._cursor[index] = self._pool.shape[1]  # the episode's errors: fresh draws
@@ -297,14 +299,19 @@ class MoverTracker:
 
     def _refill(self, rows: NDArray[np.int64]) -> None:
         """Redraw the error pool of every environment of ``rows`` that has used its pool up
-        (standard normals from its generator: a Python call per environment every few
-        periods, not every period)."""
-        for k in rows[self._cursor[rows] >= self._pool.shape[1]].tolist():
-            rng = self.rngs[k]
-            if rng is None:
-                raise RuntimeError("MoverTracker: reset_env() every environment before step()")
-            self._pool[k] = rng.standard_normal(self._pool.shape[1:])
-            self._cursor[k] = 0
+        (standard normals from its generator, every few periods: one compiled call for every
+        PCG64 generator, see :mod:`koopman_envs.sim.pcg64`)."""
+        periods = self._pool.shape[1]
+        due = rows[self._cursor[rows] >= periods]
+        if not due.shape[0]:
+            return
+        compiled, others = self.streams.split(due, "MoverTracker")
+        pool = self._pool.reshape(self.num_envs, -1)
+        if compiled.shape[0]:
+            refill_normals_f64(self.streams.words, compiled, pool, self._cursor)
+        for index, rng in others:
+            rng.standard_normal(out=pool[index])
+            self._cursor[index] = 0
 
 
 def observed_movers(

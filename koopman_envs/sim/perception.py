@@ -12,8 +12,9 @@ After each step (and at reset) one compiled pass updates, per environment:
 
 Random numbers come from a child of the env's generator (``Generator.spawn``), made when the
 env's generator changes (``reset(seed=...)``) and kept across episodes otherwise, and are drawn
-in blocks per environment (each generator fills its own block in place), as the slip draws
-are. Spawning consumes nothing of the env's own stream, so the map, start and slip draws of a
+in blocks per environment, as the slip draws are: every environment due for a block in a step
+fills it in one compiled call (:mod:`koopman_envs.sim.pcg64`: NumPy's own PCG64 stream and
+samplers, number for number). Spawning consumes nothing of the env's own stream, so the map, start and slip draws of a
 seed are the same at every uncertainty level (a sweep's curves are paired), and a
 sub-environment of a batch draws exactly as a lone env.
 """
@@ -29,6 +30,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.sim.dynamics import wrap_scalar
 from koopman_envs.sim.lidar import beam_angles, cast_beams
+from koopman_envs.sim.pcg64 import Streams, refill_f32
 from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
 __all__ = ["Perception", "child_generator", "observed_info"]
@@ -124,13 +126,15 @@ class Perception:
         #: periods per block: as many as BLOCK_NUMBERS random numbers allow, 8 to 256
         self.block = int(np.clip(BLOCK_NUMBERS // max(1, self._normals + self._uniforms), 8, 256))
         # single precision: half the generator's time, and ample for noise (7 significant digits)
-        # environment-major (K, block, width): the generator fills an environment's block in
-        # place (no strided copy, no scratch buffer), and a step reads one contiguous row per
-        # environment
-        self.normal = np.zeros((k, self.block, self._normals), dtype=np.float32)
-        self.uniform = np.zeros((k, self.block, self._uniforms), dtype=np.float32)
+        # period-major (block, K, width): the environments' cursors move together (every
+        # environment of a batch reads one period a step), so a step reads the buffer in order,
+        # where an environment-major one costs a cache and TLB miss per environment (its rows
+        # are a block apart); a refill writes one environment's column through a scratch row
+        self.normal = np.zeros((self.block, k, self._normals), dtype=np.float32)
+        self.uniform = np.zeros((self.block, k, self._uniforms), dtype=np.float32)
         self.cursor = np.full(k, self.block, dtype=np.int64)
-        self.rngs: list[np.random.Generator | None] = [None] * k
+        #: each environment's child generator (drawn in compiled code where it is a PCG64)
+        self.streams = Streams(k)
         self._parents: list[np.random.Generator | None] = [None] * k
         self.queue = np.zeros((k, max(self.delay, 1), n, 2))
         self._pending: list[int] = []  # environments reset since the last update
@@ -144,7 +148,7 @@ class Perception:
         """
         if self._parents[index] is not rng:
             self._parents[index] = rng
-            self.rngs[index] = child_generator(rng)
+            self.streams.attach(index, child_generator(rng))
             self.cursor[index] = self.block
         self.clock[index] = 0
         self.bias[index] = 0.0
@@ -245,18 +249,23 @@ class Perception:
         )
 
     def _refill(self, rows: NDArray[np.int64]) -> None:
-        """Draw a new block for every environment of ``rows`` that has used up its own."""
+        """Draw a new block for every environment of ``rows`` that has used up its own: its
+        normals, then its uniforms (one compiled call for every PCG64 generator)."""
         if self._normals == 0 and self._uniforms == 0:
             return
-        for k in rows[self.cursor[rows] >= self.block]:
-            rng = self.rngs[k]
-            if rng is None:
-                raise RuntimeError(f"environment {k} was stepped before reset()")
-            if self._normals:
-                rng.standard_normal(dtype=np.float32, out=self.normal[k])
-            if self._uniforms:
-                rng.random(dtype=np.float32, out=self.uniform[k])
-            self.cursor[k] = 0
+        due = rows[self.cursor[rows] >= self.block]
+        if not due.shape[0]:
+            return
+        compiled, others = self.streams.split(due, "Perception")
+        if compiled.shape[0]:
+            refill_f32(self.streams.words, compiled, self.normal, self.uniform, self.cursor)
+        for index, rng in others:
+            normal = np.empty((self.block, self._normals), dtype=np.float32)
+            uniform = np.empty((self.block, self._uniforms), dtype=np.float32)
+            rng.standard_normal(dtype=np.float32, out=normal)
+            rng.random(dtype=np.float32, out=uniform)
+            self.normal[:, index], self.uniform[:, index] = normal, uniform
+            self.cursor[index] = 0
 
 
 @njit(cache=True)
@@ -316,8 +325,8 @@ def _perceive(
                 value = truth[k, c, i]
                 if noisy:
                     if t > 0:
-                        bias[k, c, i] += drift[c] * normal[k, row, at_normal + 3 + c]
-                    value += bias[k, c, i] + std[c] * normal[k, row, at_normal + c]
+                        bias[k, c, i] += drift[c] * normal[row, k, at_normal + 3 + c]
+                    value += bias[k, c, i] + std[c] * normal[row, k, at_normal + c]
                 observed[k, c, i] = wrap_scalar(value) if c == 2 else value
             if noisy:
                 at_normal += 6
@@ -339,7 +348,7 @@ def _perceive(
                     continue
                 lost = False
                 if drop > 0.0:
-                    lost = uniform[k, row, at_uniform] < drop
+                    lost = uniform[row, k, at_uniform] < drop
                     at_uniform += 1
                 delivered = False
                 if t >= latency and not lost:
@@ -357,12 +366,12 @@ def _perceive(
             for b in range(beams):
                 value = ranges[k, i, b]
                 if lidar_dropout > 0.0:
-                    if uniform[k, row, at_uniform] < lidar_dropout:
+                    if uniform[row, k, at_uniform] < lidar_dropout:
                         value = max_range
                     at_uniform += 1
                 if lidar_noise > 0.0:
                     if value < max_range:
-                        value += lidar_noise * normal[k, row, at_normal]
+                        value += lidar_noise * normal[row, k, at_normal]
                     at_normal += 1
                 ranges[k, i, b] = min(max(value, 0.0), max_range)
         cursor[k] = row + (1 if (at_normal or at_uniform) else 0)
