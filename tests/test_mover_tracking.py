@@ -16,6 +16,7 @@ from koopman_envs.sim.mover_tracking import (
     CONFIRM_HITS,
     DROP_AFTER,
     MoverTracker,
+    _cv_step_axes,
     cv_model,
     cv_predict,
     cv_update,
@@ -46,6 +47,31 @@ def test_the_compiled_filter_is_filterpys() -> None:
         cv_update(x_, P_, z[0], z[1], R[0, 0], R[0, 1], R[1, 1], np.empty((6, 4)))
         np.testing.assert_allclose(x_, c, rtol=0, atol=1e-12)
         np.testing.assert_allclose(P_, d, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_per_axis_filter_equals_the_4x4_one_bit_for_bit(seed: int) -> None:
+    """The env's tracker filters each axis as a 2 x 2 block (_cv_step_axes); over a track's
+    life of predictions with and without detections, every entry of x and of P's blocks is
+    the 4 x 4 code's (cv_predict, cv_update with R = r I), and the off-block entries stay zero."""
+    rng = np.random.default_rng(seed)
+    dt, r = 0.1, 0.05**2
+    _, Q = cv_model(dt)
+    x = np.array([rng.normal(), rng.normal(), 0.0, 0.0])
+    P = np.diag([r, r, 4.0, 4.0])  # born as the tracker births a track
+    x4, P4 = x.copy(), P.copy()
+    blocks = np.zeros((4, 4), dtype=bool)
+    blocks[np.ix_([0, 2], [0, 2])] = blocks[np.ix_([1, 3], [1, 3])] = True
+    for t in range(300):
+        detected = bool(rng.random() < 0.8)
+        z0, z1 = rng.normal(size=2) * (1.0 + t / 10)
+        _cv_step_axes(x, P, dt, Q, detected, z0, z1, r)
+        cv_predict(x4, P4, dt, Q)
+        if detected:
+            cv_update(x4, P4, z0, z1, r, 0.0, r, np.empty((6, 4)))
+        np.testing.assert_array_equal(x, x4, strict=True, err_msg=f"period {t}")
+        np.testing.assert_array_equal(P[blocks], P4[blocks], strict=True, err_msg=f"period {t}")
+        assert (P[~blocks] == 0).all() and (P4[~blocks] == 0).all()
 
 
 def _walk(
