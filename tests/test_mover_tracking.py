@@ -17,6 +17,7 @@ from koopman_envs.sim.mover_tracking import (
     DROP_AFTER,
     MoverTracker,
     _cv_step_axes,
+    _rows_or,
     cv_model,
     cv_predict,
     cv_update,
@@ -164,3 +165,15 @@ def test_tracking_leaves_the_movers_and_every_other_stream_alone() -> None:
 def test_bad_tracking_and_map_settings_are_refused_by_name(kwargs: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         gym.make(ENV, **kwargs)
+
+
+def test_masked_rows_equal_numpys_where() -> None:
+    rng = np.random.default_rng(4)
+    rows = rng.normal(size=(5, 7, 4))
+    rows[0, 0] = -0.0  # a kept negative zero stays negative
+    keep = rng.random((5, 7)) < 0.5
+    keep[0, 0] = True
+    for fill in (0.0, np.nan):
+        ours = _rows_or(rows, keep, fill)
+        np.testing.assert_array_equal(ours, np.where(keep[..., None], rows, fill), strict=True)
+        assert np.signbit(ours[0, 0]).all() and ours is not rows
