@@ -5,6 +5,8 @@ turning tracking off gives the exact states (the earlier behaviour)."""
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ from koopman_envs.sim.mover_tracking import (
     DROP_AFTER,
     MoverTracker,
     _cv_step_axes,
+    _nearest_within,
     _rows_or,
     cv_model,
     cv_predict,
@@ -177,3 +180,45 @@ def test_masked_rows_equal_numpys_where() -> None:
         ours = _rows_or(rows, keep, fill)
         np.testing.assert_array_equal(ours, np.where(keep[..., None], rows, fill), strict=True)
         assert np.signbit(ours[0, 0]).all() and ours is not rows
+
+
+def _nearest_by_hypot(px: float, py: float, poses: np.ndarray, limit: float) -> tuple[int, bool]:
+    best, nearest = math.inf, 0
+    for i in range(poses.shape[1]):
+        d = math.hypot(px - poses[0, i], py - poses[1, i])
+        if d < best:
+            best, nearest = d, i
+    return nearest, best <= limit
+
+
+def test_the_nearest_robot_and_the_detection_are_hypots() -> None:
+    """Squared distances decide only where they are clearly apart: random teams, exact and
+    near ties (one ulp apart), movers on and one ulp around the detection limit, NaN poses."""
+    rng = np.random.default_rng(11)
+    cases = []
+    for _ in range(3000):
+        poses = np.zeros((3, int(rng.integers(1, 5))))
+        poses[:2] = rng.uniform(-6, 6, (2, poses.shape[1]))
+        cases.append((*rng.uniform(-6, 6, 2), poses, 5.0))
+    for scale in (1e-3, 1.0, 7.0):
+        poses = np.zeros((3, 3))
+        poses[:2, 0] = (scale, 0.0)
+        poses[:2, 1] = (0.0, scale)  # an exact tie with robot 0 from the origin
+        poses[:2, 2] = (np.nextafter(scale, 0.0), 0.0)  # one ulp nearer
+        cases += [(0.0, 0.0, poses, 5.0), (0.0, 0.0, poses[:, :2], scale)]
+        for limit in (np.nextafter(scale, 0.0), scale, np.nextafter(scale, 10.0)):
+            cases.append((0.0, 0.0, poses[:, :1], limit))
+    three_four = np.zeros((3, 2))
+    three_four[:2, 0] = (3.0, 4.0)  # hypot exactly 5
+    three_four[:2, 1] = (4.0, 3.0)
+    cases += [(0.0, 0.0, three_four, 5.0), (0.0, 0.0, three_four, np.nextafter(5.0, 0.0))]
+    nan = np.zeros((3, 2))
+    nan[0, 0] = np.nan
+    cases += [(1.0, 1.0, nan, 5.0), (np.nan, 0.0, three_four, 5.0)]
+    for px, py, poses, limit in cases:
+        assert _nearest_within(px, py, poses, limit) == _nearest_by_hypot(px, py, poses, limit), (
+            px,
+            py,
+            poses,
+            limit,
+        )
