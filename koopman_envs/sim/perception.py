@@ -14,9 +14,9 @@ Random numbers come from a child of the env's generator (``Generator.spawn``), m
 env's generator changes (``reset(seed=...)``) and kept across episodes otherwise, and are drawn
 in blocks per environment, as the slip draws are: every environment due for a block in a step
 fills it in one compiled call (:mod:`koopman_envs.sim.pcg64`: NumPy's own PCG64 stream and
-samplers, number for number). Spawning consumes nothing of the env's own stream, so the map, start and slip draws of a
-seed are the same at every uncertainty level (a sweep's curves are paired), and a
-sub-environment of a batch draws exactly as a lone env.
+samplers, number for number). Spawning consumes nothing of the env's own stream, so the map,
+start and slip draws of a seed are the same at every uncertainty level (a sweep's curves are
+paired), and a sub-environment of a batch draws exactly as a lone env.
 """
 
 from __future__ import annotations
