@@ -154,3 +154,24 @@ def test_tracker_pools_are_numpys_draws_compiled_or_not() -> None:
         tracker.step(movers, poses, poses)
         for k in range(2):
             np.testing.assert_array_equal(tracker._pool[k], references[k].standard_normal((periods, 3, 2)))
+
+
+def test_without_the_compiled_draws_every_generator_takes_numpys_path(monkeypatch) -> None:
+    """If numba's copy of the tables is missing, the same numbers come through NumPy."""
+    import koopman_envs.sim.pcg64 as pcg64
+
+    monkeypatch.setattr(pcg64, "COMPILED_DRAWS", False)
+    assert generator_words(np.random.default_rng(0)) is None
+    perception = Perception(1, 3, PoseNoise(0.05), CommConfig(drop=0.2), None, 0, DT, WORKSPACE)
+    perception.reset_env(0, np.random.default_rng(5))
+    assert perception.streams.compiled.tolist() == [False]
+    state = np.zeros((1, 3, 3))
+    perception.update(state, (np.zeros((1, 0)),) * 3, np.full(3, 0.2), np.arange(1))
+    reference = np.random.default_rng(5).spawn(1)[0]
+    block, width_n, width_u = perception.block, perception._normals, perception._uniforms
+    np.testing.assert_array_equal(
+        perception.normal[:, 0], reference.standard_normal((block, width_n), dtype=np.float32)
+    )
+    np.testing.assert_array_equal(
+        perception.uniform[:, 0], reference.random((block, width_u), dtype=np.float32)
+    )

@@ -31,21 +31,30 @@ import numpy as np
 from llvmlite import ir
 from numba import float32, njit, types, uint32, uint64
 from numba.extending import intrinsic
-from numba.np.random._constants import (
-    fi_double,
-    fi_float,
-    ki_double,
-    ki_float,
-    wi_double,
-    wi_float,
-    ziggurat_nor_inv_r,
-    ziggurat_nor_inv_r_f,
-    ziggurat_nor_r,
-    ziggurat_nor_r_f,
-)
 from numpy.typing import NDArray
 
+try:  # numba's copy of NumPy's ziggurat tables (a private module: guarded)
+    from numba.np.random._constants import (
+        fi_double,
+        fi_float,
+        ki_double,
+        ki_float,
+        wi_double,
+        wi_float,
+        ziggurat_nor_inv_r,
+        ziggurat_nor_inv_r_f,
+        ziggurat_nor_r,
+        ziggurat_nor_r_f,
+    )
+
+    #: whether the compiled draws are available; without the tables every generator takes
+    #: NumPy's path (:func:`generator_words` returns None), with the same numbers, only slower
+    COMPILED_DRAWS = True
+except ImportError:  # pragma: no cover - a numba release without the module
+    COMPILED_DRAWS = False
+
 __all__ = [
+    "COMPILED_DRAWS",
     "STATE_WORDS",
     "Streams",
     "generator_words",
@@ -68,7 +77,10 @@ _SIGN64 = np.array([1.0, -1.0])
 
 def generator_words(rng: np.random.Generator) -> NDArray[np.uint64] | None:
     """``rng``'s PCG64 state as :data:`STATE_WORDS` words, or None for another bit generator
-    (or an object that only draws like a ``Generator``, as a test's scripted one)."""
+    (or an object that only draws like a ``Generator``, as a test's scripted one), or None for
+    every generator when the compiled draws are unavailable (:data:`COMPILED_DRAWS`)."""
+    if not COMPILED_DRAWS:
+        return None
     bit_generator = getattr(rng, "bit_generator", None)
     if type(bit_generator) is not np.random.PCG64:
         return None
