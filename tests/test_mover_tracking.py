@@ -222,3 +222,11 @@ def test_the_nearest_robot_and_the_detection_are_hypots() -> None:
             poses,
             limit,
         )
+
+
+def test_a_tracker_step_before_a_reset_is_refused_by_environment() -> None:
+    tracker = MoverTracker(2, 1, 0.1, detection_range=5.0, detection_noise=0.05)
+    tracker.reset_env(0, np.random.default_rng(0))
+    poses = np.zeros((2, 3, 1))
+    with pytest.raises(RuntimeError, match=r"^MoverTracker: environment 1 was stepped before reset\(\)$"):
+        tracker.step(np.zeros((2, 1, 4)), poses, poses)

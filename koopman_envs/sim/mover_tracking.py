@@ -427,8 +427,8 @@ def _rows_or(
     rows: NDArray[np.float64], keep: NDArray[np.bool_], fill: float
 ) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """A copy of ``rows`` (K, C, D) with row [k, c] set to ``fill`` where ``keep[k, c]`` is
-    False: ``np.where(keep[..., None], rows, fill)`` in one pass (a tenth of NumPy's time
-    with a broadcast mask, and it runs twice a step)."""
+    False: ``np.where(keep[..., None], rows, fill)`` in one pass (less than half NumPy's time
+    with a broadcast mask: 51 against 120 us at 1024 x 8 x 4; it runs twice a step)."""
     out = np.empty(rows.shape)
     for k in range(rows.shape[0]):
         for c in range(rows.shape[1]):

@@ -142,6 +142,12 @@ def _next64(words: NDArray[np.uint64]) -> Any:  # pragma: no cover - compiled
     """PCG64's next 64-bit output (``pcg64_next64``): step, then XSL-RR of the new state."""
     high, low = _lcg(words[0], words[1], words[2], words[3])
     words[0], words[1] = high, low
+    return _xsl_rr(high, low)
+
+
+@njit(inline="always")
+def _xsl_rr(high: Any, low: Any) -> Any:  # pragma: no cover - compiled
+    """PCG64's output of the state (high, low): the halves' XOR rotated right by the top 6 bits."""
     mixed = high ^ low
     rotation = high >> uint64(58)
     return (mixed >> rotation) | (mixed << ((uint64(64) - rotation) & uint64(63)))
@@ -189,9 +195,7 @@ def normals_f32(words: NDArray[np.uint64], out: NDArray[np.float32]) -> None:  #
             held_flag = uint64(0)
         else:
             high, low = _lcg(high, low, words[2], words[3])
-            mixed = high ^ low
-            rotation = high >> uint64(58)
-            value = (mixed >> rotation) | (mixed << ((uint64(64) - rotation) & uint64(63)))
+            value = _xsl_rr(high, low)
             held_flag, held = uint64(1), value >> uint64(32)
             r = uint32(value & uint64(0xFFFFFFFF))
         idx = r & 0xFF
