@@ -49,6 +49,7 @@ from evaluation.baseline import (
     compare_runs,
     comparison_markdown,
     coverage_failures,
+    distinct_pairs,
     gate_failures,
     load_baseline,
     pair_keys,
@@ -200,7 +201,7 @@ def _uncovered(
     args: argparse.Namespace, results: Results, baseline: dict[str, Any], gate: GateOptions
 ) -> list[str]:
     """``--fail-if-worse`` after the run: the controllers whose episodes that ran pair too few
-    times with the baseline (episodes that raised cannot pair)."""
+    times with the baseline (episodes that raised cannot pair; repeats of one episode pair once)."""
     errors: dict[str, int] = {}
     for record in results.failed_episodes:
         errors[record["controller"]] = errors.get(record["controller"], 0) + 1
@@ -213,6 +214,7 @@ def _uncovered(
         gate,
         run_names_its_controllers=bool(args.controllers),
         run_errors=errors,
+        distinct=distinct_pairs(results.records, baseline["episodes"]),
     )
 
 

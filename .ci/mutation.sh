@@ -38,10 +38,10 @@ declare -A MODULES=(
     [perception]="koopman_envs/sim/perception.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_perception_faults.py"
     [uncertainty]="koopman_envs/uncertainty.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_bad_input.py tests/test_env_limits.py tests/test_keyword_spec.py tests/test_perception_faults.py tests/test_uncertainty_settings.py"
     [observed]="koopman_envs/observed.py|tests/test_observed_view.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_movers.py tests/test_mover_controllers.py tests/test_observed_view_exact.py"
-    [baseline]="evaluation/baseline.py|tests/test_baseline.py tests/test_gate_decisions.py"
+    [baseline]="evaluation/baseline.py|tests/test_baseline.py tests/test_gate_decisions.py tests/test_duplicate_records.py"
     [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py"
     [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py|$SIGNALS"
-    [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py|$SIGNALS"
+    [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py|$SIGNALS"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
 ORDER=(perception uncertainty observed baseline statistics runlog records)

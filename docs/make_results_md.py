@@ -23,6 +23,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from evaluation.baseline import load_baseline  # noqa: E402
+from evaluation.distinct import read_once  # noqa: E402
 from evaluation.figures import save_success_figures  # noqa: E402
 from evaluation.published import extract_archive, results_from_log  # noqa: E402
 from evaluation.report import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
@@ -98,13 +100,26 @@ TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0":
 
 
 def load_results(path: str) -> dict:
-    """A run's results document: a ``results.json``, or a published archive (``data/NAME.tar.xz``,
-    :mod:`evaluation.published`) whose episode log is read back checked."""
+    """A run's results document: a ``results.json`` (read checked, :func:`load_baseline`), or a
+    published archive (``data/NAME.tar.xz``, :mod:`evaluation.published`) whose episode log is
+    read back checked; its episodes each once, a conflicting repeat refused by name. The
+    document's ``source`` is ``path``, for the messages of :func:`pool`."""
     if not path.endswith(".json"):  # a published archive (refused by name if it is not one)
         with tempfile.TemporaryDirectory() as tmp:
             run = extract_archive(path, tmp)
-            return json.loads(results_from_log(run / "episodes.jsonl").to_json())
-    return json.loads(Path(path).read_text())
+            doc = json.loads(results_from_log(run / "episodes.jsonl").to_json())
+    else:
+        doc = load_baseline(path, what="results")
+    return {**doc, "source": path}
+
+
+def pool(docs: list[dict]) -> Results:
+    """Every document's episodes in one :class:`Results` (the first one's configuration), each
+    episode once: one in two files alike counts once, one the files disagree about is refused
+    naming both files (:func:`evaluation.distinct.read_once`)."""
+    records = [r for d in docs for r in d["episodes"]]
+    places = [f"{d['source']} episodes[{i}]" for d in docs for i in range(len(d["episodes"]))]
+    return Results(read_once(records, "the pooled results", places), docs[0]["config"])
 
 
 def all_tables() -> list[tuple[str, str, str]]:
@@ -191,7 +206,7 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
         key = tuple(sorted({(c["env_id"], c["map"], c["slip"]) for c in d["cells"]}))
         groups.setdefault(key, []).append(d)
     for key, members in groups.items():
-        pooled = Results([r for d in members for r in d["episodes"]], members[0]["config"])
+        pooled = pool(members)
         seeds = max(c.episodes for c in pooled.cells)
         title = "; ".join(f"{task_label(env_id)} {m}, slip {slip}" for env_id, m, slip in key)
         lines += [
@@ -470,7 +485,7 @@ def main() -> None:
             lines += [f"## {title}", "", *rows, ""]
     # all files' episodes in one Results: every controller is paired with every other on the
     # shared (map, slip, seed) episodes, also across separate runs of the same protocol
-    pooled = Results([r for d in docs for r in d["episodes"]], doc["config"])
+    pooled = pool(docs)
     lines += _pooled_sections(pooled, Path(args.figures), Path(args.out))
     lines += _strict_section(args.strict)
     if args.ablation:
@@ -492,4 +507,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ValueError as exc:  # a results file that is not as KoopNav writes it (the message names it)
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -21,12 +21,13 @@ every cell for both solvers (a later file's episodes replace the same label's, c
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from evaluation.baseline import load_baseline
 from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.statistics import paired_comparison
@@ -141,7 +142,9 @@ def main() -> None:
     parser.add_argument("--a", default="rti", help="the candidate solver label suffix (default rti)")
     parser.add_argument("--b", default="ipopt", help="the solver it is compared with (default ipopt)")
     args = parser.parse_args()
-    documents = [json.loads(path.read_text(encoding="utf-8")) for path in args.results]
+    # each file read checked, its episodes each once (a conflicting repeat within a file is refused);
+    # across files a later rerun of one arm replaces the earlier one on purpose (see above)
+    documents = [load_baseline(path, what="results") for path in args.results]
     rows = comparison_rows(documents, args.a, args.b)
     if not rows:
         raise SystemExit(f"no controller ran as both <name>@{args.a} and <name>@{args.b} in {args.results}")
@@ -151,4 +154,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ValueError as exc:  # a results file that is not as KoopNav writes it (the message names it)
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

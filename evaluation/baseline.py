@@ -10,14 +10,18 @@ bootstrap interval. Cells or controllers on one side only are listed, never drop
 A baseline whose settings differ in anything that changes outcomes (env settings, calibration,
 map files, the package version that holds the dynamics) is refused with the differing keys
 named, as ``--resume`` refuses a log of another run. Its episode records are checked field by
-field on reading (:func:`evaluation.records.record_problem`, the schema the resume log uses).
+field on reading (:func:`evaluation.records.record_problem`, the schema the resume log uses), and
+read once (:func:`evaluation.distinct.read_once`): an episode recorded twice alike counts once,
+one recorded twice with different outcomes is refused by name, whatever the order of the two.
 
 The gate fails closed: a stale baseline must not turn it off. Before any episode runs, and again
 on the episodes that ran, every controller of the run must pair at least
 :attr:`GateOptions.min_pairs` episodes with the baseline, and (unless the run names its
 controllers) every controller of the baseline must be in the run; otherwise
 :func:`coverage_failures` says why (no episodes of that controller in the baseline, its
-episodes there all raised, other seeds or cells) and the evaluator exits 2.
+episodes there all raised, other seeds or cells) and the evaluator exits 2. On the episodes that
+ran, pairs are counted distinct (:func:`distinct_pairs`): seeds whose two episodes repeat an
+earlier seed's bit for bit are one pair, for the minimum as for every test.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from evaluation.distinct import distinct_units
+from evaluation.distinct import distinct_units, read_once
 from evaluation.records import ran, record_problem
 from evaluation.report import markdown_cell, markdown_text, task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
@@ -44,6 +48,7 @@ __all__ = [
     "compare_runs",
     "comparison_markdown",
     "coverage_failures",
+    "distinct_pairs",
     "gate_failures",
     "load_baseline",
     "refuse_incomparable",
@@ -67,7 +72,10 @@ def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
 
     Raises ``ValueError`` naming the file (as ``what``: a baseline, a sweep level) when it is
     missing, not JSON, not a KoopNav results document, or of a schema version this package
-    cannot read.
+    cannot read. Its episodes are read once (:func:`evaluation.distinct.read_once`): one recorded
+    twice alike counts once, one recorded twice with different outcomes is refused
+    (:class:`~evaluation.distinct.ConflictingRecords`, a ``ValueError``) naming the file, the
+    episode, both places and the fields that differ.
     """
     path = Path(path)
     file = path / "results.json" if path.is_dir() else path
@@ -94,6 +102,10 @@ def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
             f"{what} {str(file)!r} is not a results document as KoopNav writes it: {problem}; "
             "nothing was compared (rerun the baseline, or restore the file from version control)"
         )
+    episodes = doc["episodes"]
+    doc["episodes"] = read_once(
+        episodes, f"{what} {str(file)!r}", [f"episodes[{index}]" for index in range(len(episodes))]
+    )
     return doc
 
 
@@ -136,12 +148,42 @@ def refuse_incomparable(config: dict[str, Any], package_version: str, baseline: 
         )
 
 
-def _outcomes(records: list[dict[str, Any]]) -> dict[tuple[str, str], dict[tuple, dict[str, Any]]]:
+def _outcomes(records: list[dict[str, Any]], side: str) -> dict[tuple[str, str], dict[tuple, dict[str, Any]]]:
+    """(env id, controller) -> (map, slip, seed) -> the record of each episode that ran on one
+    ``side`` (each episode once: a conflicting repeat is refused, never overwritten)."""
     table: dict[tuple[str, str], dict[tuple, dict[str, Any]]] = {}
-    for r in records:
+    for r in read_once(records, side):
         if ran(r):
             table.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = r
     return table
+
+
+def _paired_units(
+    mine: dict[tuple[str, str], dict[tuple, dict[str, Any]]],
+    theirs: dict[tuple[str, str], dict[tuple, dict[str, Any]]],
+) -> list[tuple[tuple[str, str], list[tuple]]]:
+    """Per (env id, controller) on both sides, its distinct paired units (map, slip, seed): a seed
+    whose episodes repeat an earlier seed's on both sides, bit for bit, is one pair, not two
+    (:func:`evaluation.distinct.distinct_units`). What every count of pairs reads: the rows, the
+    gate and its minimum of pairs."""
+    out = []
+    for key in sorted(set(mine) & set(theirs)):
+        shared = distinct_units(sorted(set(mine[key]) & set(theirs[key])), mine[key], theirs[key])
+        if shared:
+            out.append((key, shared))
+    return out
+
+
+def distinct_pairs(records: list[dict[str, Any]], baseline_records: list[dict[str, Any]]) -> dict[str, int]:
+    """Controller label -> how many distinct pairs its episodes form with the baseline's, over
+    every task (the ``n`` of its rows in :func:`compare_runs`): ten seeds that repeat one episode
+    on both sides are one pair, which no test can judge."""
+    counts: dict[str, int] = {}
+    for (_, label), units in _paired_units(
+        _outcomes(records, "the run"), _outcomes(baseline_records, "the baseline")
+    ):
+        counts[label] = counts.get(label, 0) + len(units)
+    return counts
 
 
 def _team_cm(record: dict[str, Any]) -> float:
@@ -178,16 +220,18 @@ def compare_runs(records: list[dict[str, Any]], baseline_records: list[dict[str,
         baseline), ``distance_cm_difference`` (mean of run minus baseline team final distance
         [cm] over the pairs) and its bootstrap ``distance_cm_low`` / ``distance_cm_high``;
         ``only_run`` / ``only_baseline``: ``[env id, controller, map, slip]`` cells without a
-        partner on the other side.
+        partner on the other side. Every count is of distinct pairs (:func:`distinct_pairs`).
+
+    Raises
+    ------
+    ConflictingRecords
+        An episode recorded twice with different outcomes on one side
+        (:func:`evaluation.distinct.read_once`).
     """
-    mine, theirs = _outcomes(records), _outcomes(baseline_records)
+    mine, theirs = _outcomes(records, "the run"), _outcomes(baseline_records, "the baseline")
     rows = []
     pooled: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {}
-    for key in sorted(set(mine) & set(theirs)):
-        # a seed whose episodes repeat an earlier seed's on both sides is one pair, not two
-        shared = distinct_units(sorted(set(mine[key]) & set(theirs[key])), mine[key], theirs[key])
-        if not shared:
-            continue
+    for key, shared in _paired_units(mine, theirs):
         pairs = ([mine[key][k] for k in shared], [theirs[key][k] for k in shared])
         rows.append(_paired_row(key[0], key[1], *pairs))
         run_side, base_side = pooled.setdefault(key[1], ([], []))
@@ -278,6 +322,7 @@ def coverage_failures(
     *,
     run_names_its_controllers: bool,
     run_errors: Mapping[str, int] | None = None,
+    distinct: Mapping[str, int] | None = None,
 ) -> list[str]:
     """Why the gate cannot judge this run against the baseline (empty list = it can).
 
@@ -296,7 +341,12 @@ def coverage_failures(
         controller that vanished from the registry or could not be built is a failure).
     run_errors : mapping, optional
         Controller label -> episodes of the run that raised, to explain a shortfall.
+    distinct : mapping, optional
+        After the run: controller label -> its distinct pairs with the baseline
+        (:func:`distinct_pairs`). Pairs whose episodes repeat an earlier seed's on both sides,
+        bit for bit, count once: ten copies of one episode are one pair, too few to judge.
     """
+    baseline_records = read_once(baseline_records, "the baseline")
     theirs = pair_keys(baseline_records)
     failures = []
     if not theirs:
@@ -307,13 +357,23 @@ def coverage_failures(
         ]
     for label in sorted(run):
         pairs = len(run[label] & theirs.get(label, set()))
-        if pairs >= options.min_pairs:
+        unique = pairs if distinct is None else distinct.get(label, 0)
+        if unique >= options.min_pairs:
             continue
         why = (
             f"{label}: {pairs} episode(s) pair with the baseline, fewer than the minimum {options.min_pairs}"
         )
         baseline_errors = sum(r["controller"] == label and not ran(r) for r in baseline_records)
-        if label not in theirs:
+        if pairs >= options.min_pairs:
+            why = (
+                f"{label}: {pairs} episode(s) pair with the baseline but only {unique} of those pairs are "
+                f"distinct, fewer than the minimum {options.min_pairs}"
+            )
+            reason = (
+                "the others repeat an earlier seed's two episodes bit for bit (an identical rerun is not a "
+                "sample); make the seeds' episodes differ (--start-noise, a random slip, --random-maps)"
+            )
+        elif label not in theirs:
             reason = (
                 f"all {baseline_errors} of its baseline episodes raised"
                 if baseline_errors
@@ -343,9 +403,19 @@ def gate_failures(comparison: dict[str, Any], options: GateOptions) -> list[str]
     Success: the drop is significant (McNemar p < ``alpha``) and larger than ``delta``.
     Final distance: the mean paired increase is larger than ``delta_cm`` and its interval lies
     above 0.
+
+    A controller with fewer than ``min_pairs`` distinct pairs over its task rows is not judged
+    (one distinct pair gives a zero-width interval, not evidence): :func:`coverage_failures`,
+    given :func:`distinct_pairs`, says why the gate cannot judge it.
     """
+    distinct: dict[str, int] = {}
+    for r in comparison["rows"]:
+        if r["env_id"] != ALL_TASKS:
+            distinct[r["controller"]] = distinct.get(r["controller"], 0) + r["n"]
     failures = []
     for r in comparison["rows"]:
+        if distinct[r["controller"]] < options.min_pairs:
+            continue
         where = f"{r['controller']} on {r['env_id']} ({r['n']} paired episodes)"
         if r["difference"] < -options.delta and r["p_value"] < options.alpha:
             failures.append(

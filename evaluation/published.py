@@ -32,6 +32,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from evaluation.distinct import read_once
 from evaluation.records import record_problem
 from evaluation.results import Results
 
@@ -70,7 +71,9 @@ def _plan_order(config: dict[str, Any]) -> Any:
 def results_from_log(path: str | Path) -> Results:
     """A run's results from its episode log: the header's settings and every record, each
     checked (:func:`evaluation.records.record_problem`; a torn or foreign line is refused by
-    its number), in the run's planned order; a key logged twice keeps its last record."""
+    its number), in the run's planned order; an episode logged twice is read once, and refused
+    (:class:`~evaluation.distinct.ConflictingRecords`, a ``ValueError``) when its two records
+    disagree (:func:`evaluation.distinct.read_once`)."""
     path = Path(path)
     lines = path.read_text(encoding="utf-8").split("\n")
     if lines and lines[-1] == "":
@@ -83,7 +86,7 @@ def results_from_log(path: str | Path) -> Results:
         raise ValueError(f"{path} is not a KoopNav episode log (line 1 is not a run header)")
     config = dict(header["config"])
     config["controllers"] = [c["label"] for c in config.get("controller_configs") or []]
-    records: dict[str, dict[str, Any]] = {}
+    records: list[dict[str, Any]] = []
     for number, line in enumerate(lines[1:], start=2):
         try:
             record = json.loads(line)
@@ -92,8 +95,9 @@ def results_from_log(path: str | Path) -> Results:
         problem = record_problem(record)
         if problem is not None:
             raise ValueError(f"{path}, line {number}: {problem}")
-        records[record["key"]] = record
-    return Results(sorted(records.values(), key=_plan_order(config)), config)
+        records.append(record)
+    once = read_once(records, str(path), [f"line {number}" for number in range(2, len(records) + 2)])
+    return Results(sorted(once, key=_plan_order(config)), config)
 
 
 def is_archive(path: str | Path) -> bool:

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
+from evaluation.distinct import read_once
 from evaluation.records import ran
 
 __all__ = ["RunData"]
@@ -17,13 +18,20 @@ __all__ = ["RunData"]
 @dataclass
 class RunData:
     """Everything a run produced: episode records, cells, and the run configuration (data only:
-    :class:`evaluation.results.Results` adds its formats)."""
+    :class:`evaluation.results.Results` adds its formats).
+
+    ``records`` are read once (:func:`evaluation.distinct.read_once`): an episode given twice
+    alike is kept once, one given twice with different outcomes raises
+    :class:`~evaluation.distinct.ConflictingRecords` (a ``ValueError``)."""
 
     records: list[dict[str, Any]]
     config: dict[str, Any]
     cells: list[Cell] = field(default_factory=list)
 
     def __post_init__(self) -> None:
+        # every episode once, whoever assembled the records (a page pooling several runs, a
+        # sweep level, an API caller): a repeat counts once, a conflicting one is refused
+        self.records = read_once(self.records, "the run's records")
         if not self.cells:
             self.cells = aggregate(self.records)
 

@@ -3,7 +3,9 @@ JSON line per finished episode, flushed at once, so that an interrupted run can 
 
 Reading a log back trusts nothing in it: a line cut by a kill is repaired (cut off, reported, its
 episode run again), and a line that cannot be read, or a record that is not an episode of this run,
-refuses the resume with its line number, so that no result is lost or taken on faith.
+refuses the resume with its line number, so that no result is lost or taken on faith. An episode
+logged twice is read once, and refused with both line numbers when its two records disagree
+(:func:`evaluation.distinct.read_once`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
+from evaluation.distinct import ConflictingRecords, read_once
 from evaluation.records import json_safe, record_problem
 
 __all__ = [
@@ -214,15 +217,17 @@ def read_log(
     Returns
     -------
     done : dict
-        Episode key -> its record (a key logged twice keeps its last record).
+        Episode key -> its record (an episode logged twice alike is read once,
+        :func:`evaluation.distinct.read_once`).
     notes : list of str
         What was repaired, for the user (e.g. the dropped incomplete record).
 
     Raises
     ------
     LogError
-        The header is not this run's, a complete line is not JSON, or a record is not an episode
-        of this run: each named by its line number. Nothing is changed in the file then.
+        The header is not this run's, a complete line is not JSON, a record is not an episode
+        of this run, or two records of one episode disagree in their outcome: each named by its
+        line number. Nothing is changed in the file then.
     """
     path = Path(log)
     data = path.read_bytes()
@@ -238,9 +243,9 @@ def read_log(
             path.write_bytes(_header_line(config))
         return {}, [f"{path}: the header line was cut by the interruption; it was written again"]
     added = _check_header(path, lines[0], config)
-    done: dict[str, dict[str, Any]] = {}
+    records: list[dict[str, Any]] = []
+    places: list[str] = []
     bad: list[str] = []
-    duplicates = 0
     for number, raw in enumerate(lines[1:], start=2):
         try:
             rec = json.loads(raw)
@@ -251,8 +256,13 @@ def read_log(
         if problem is not None:
             bad.append(f"line {number}: {problem}")
             continue
-        duplicates += rec["key"] in done
-        done[rec["key"]] = rec
+        records.append(rec)
+        places.append(f"line {number}")
+    if not bad:
+        try:
+            once = read_once(records, str(path), places)
+        except ConflictingRecords as exc:
+            bad.append(str(exc).removeprefix(f"{path}: "))
     if bad:
         raise LogError(
             f"{path} cannot be resumed: "
@@ -261,8 +271,13 @@ def read_log(
             + ". It is not this run's log as KoopNav wrote it; resume into another --out, or move "
             "the file aside to start afresh (nothing was changed)"
         )
-    if duplicates:
-        notes.append(f"{path}: {duplicates} episode(s) logged twice; the last record of each is kept")
+    # an episode logged twice alike is one episode (evaluation.distinct.read_once)
+    done = {rec["key"]: rec for rec in once}
+    if len(once) < len(records):
+        notes.append(
+            f"{path}: {len(records) - len(once)} record(s) repeat an episode logged before, outcome for "
+            "outcome; each episode is read once"
+        )
     if torn:
         if repair:
             with open(path, "r+b") as handle:

@@ -21,11 +21,13 @@ from evaluation.baseline import (
     compare_runs,
     comparison_markdown,
     coverage_failures,
+    distinct_pairs,
     gate_failures,
     load_baseline,
     pair_keys,
     refuse_incomparable,
 )
+from evaluation.distinct import ConflictingRecords
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
@@ -400,6 +402,97 @@ def test_controllers_of_the_baseline_missing_from_the_run_fail_unless_the_run_na
     assert coverage_failures(run, base, GateOptions(), run_names_its_controllers=True) == []
 
 
+# --------------------------------------------------------- repeated and conflicting episodes
+def _copies(seeds, distance):
+    """One episode under every seed: the same final poses and distances (exact starts, no slip)."""
+    return [{**_rec(s, distances=(distance, distance)), "final_poses": [[0.0, 0.0, 0.0]] * 2} for s in seeds]
+
+
+def test_ten_copies_of_one_episode_are_one_pair_for_the_minimum_and_for_every_test() -> None:
+    """Ten seeds that repeat one episode on both sides are one pair: too few to judge, so the
+    distance test does not fail the run on a zero-width interval ([+45, +45] cm) and the
+    minimum of pairs names the repeats (issue 59)."""
+    run, base = _copies(range(10), 0.5), _copies(range(10), 0.05)
+    comparison = compare_runs(run, base)
+    (row,) = comparison["rows"]
+    assert row["n"] == 1
+    assert (row["distance_cm_difference"], row["distance_cm_low"], row["distance_cm_high"]) == (
+        45.0,
+        45.0,
+        45.0,
+    )
+    assert distinct_pairs(run, base) == {"c": 1}
+    assert gate_failures(comparison, GateOptions()) == []  # not judged on one distinct pair
+    keys = {"c": _keys(range(10))}
+    assert coverage_failures(keys, base, GateOptions(), run_names_its_controllers=True) == []  # as planned
+    assert coverage_failures(
+        keys, base, GateOptions(), run_names_its_controllers=True, distinct=distinct_pairs(run, base)
+    ) == [
+        "c: 10 episode(s) pair with the baseline but only 1 of those pairs are distinct, fewer than the "
+        "minimum 10: the others repeat an earlier seed's two episodes bit for bit (an identical rerun is "
+        "not a sample); make the seeds' episodes differ (--start-noise, a random slip, --random-maps)"
+    ]
+    # with the minimum at one distinct pair the gate judges it, as it judges any single pair
+    assert gate_failures(comparison, GateOptions(min_pairs=1)) == [
+        f"c on {TR} (1 paired episodes): final distance +45.00 cm [+45.00, +45.00]"
+    ]
+
+
+def test_the_minimum_counts_distinct_pairs_over_every_task_of_a_controller() -> None:
+    """Nine distinct pairs on one task and one pair repeated ten times on the other: ten distinct
+    pairs, enough for the default minimum; the controller is judged on every row."""
+    run = [_rec(s, distances=(0.5, 0.5)) for s in range(9)] + [
+        {**r, "env_id": FO, "key": r["key"].replace(TR, FO)} for r in _copies(range(10), 0.5)
+    ]
+    base = [_rec(s) for s in range(9)] + [
+        {**r, "env_id": FO, "key": r["key"].replace(TR, FO)} for r in _copies(range(10), 0.05)
+    ]
+    comparison = compare_runs(run, base)
+    assert [(r["env_id"], r["n"]) for r in comparison["rows"]] == [(FO, 1), (TR, 9), (ALL_TASKS, 10)]
+    assert distinct_pairs(run, base) == {"c": 10}
+    assert len(gate_failures(comparison, GateOptions())) == 3  # farther on each task and over both
+    assert gate_failures(comparison, GateOptions(min_pairs=11)) == []
+
+
+def test_a_repeated_record_is_one_episode_on_either_side() -> None:
+    base = [_rec(s) for s in range(10)]
+    run = [_rec(s, distances=(0.5, 0.5)) for s in range(10)]
+    for doubled_run, doubled_base in ((run + run, base), (run, base + base[::-1])):
+        comparison = compare_runs(doubled_run, doubled_base)
+        assert [r["n"] for r in comparison["rows"]] == [10]
+        assert distinct_pairs(doubled_run, doubled_base) == {"c": 10}
+    raised = base + [_error(10), _error(10)]  # one episode that raised, recorded twice
+    (failure,) = coverage_failures(
+        {"c": _keys(range(10)), "d": set()},
+        raised + [_error(0, controller="d")] * 2,
+        GateOptions(),
+        run_names_its_controllers=True,
+    )
+    assert failure.endswith("all 1 of its baseline episodes raised")
+
+
+@pytest.mark.parametrize("flipped_last", [True, False])
+def test_conflicting_duplicates_are_refused_whatever_their_order(flipped_last) -> None:
+    """Each baseline record twice, a success and a failure: refused both ways, naming the
+    episode and the field (before, the later record won: one order passed, the other failed)."""
+    run = [_rec(s, success=False, distances=(0.5, 0.5)) for s in range(10)]
+    won = [_rec(s) for s in range(10)]
+    lost = [_rec(s, success=False, distances=(0.5, 0.5)) for s in range(10)]
+    base = won + lost if flipped_last else lost + won
+    first, then = ("true", "false") if flipped_last else ("false", "true")
+    message = (
+        rf"^the baseline: episode '{TR}\|c\|map1\|nominal\|0' \(seed 0\) is recorded twice with different "
+        rf"outcomes, at record 1 and record 11, which differ in success, final_distance \(success: {first}, "
+        rf"then {then}; "
+    )
+    with pytest.raises(ConflictingRecords, match=message):
+        compare_runs(run, base)
+    with pytest.raises(ConflictingRecords, match=message):
+        coverage_failures({"c": _keys(range(10))}, base, GateOptions(), run_names_its_controllers=True)
+    with pytest.raises(ConflictingRecords, match=message.replace("the baseline", "the run")):
+        compare_runs(base, run)
+
+
 # ------------------------------------------------------------------------- reading a baseline
 def _document(episodes=None, **changes) -> dict:
     doc = {
@@ -509,6 +602,20 @@ def test_a_malformed_document_is_refused_naming_the_field(tmp_path, changes, pro
     assert str(caught.value) == (
         f"baseline {str(path)!r} is not a results document as KoopNav writes it: {problem}; nothing was "
         "compared (rerun the baseline, or restore the file from version control)"
+    )
+
+
+def test_a_baseline_reads_each_episode_once_and_refuses_a_conflicting_repeat(tmp_path) -> None:
+    path = _write(tmp_path / "b.json", _document([_rec(0), _rec(1), _rec(0), _rec(1)]))
+    assert load_baseline(path)["episodes"] == [_rec(0), _rec(1)]
+    path = _write(tmp_path / "b.json", _document([_rec(0), _rec(1), {**_rec(1), "success": False}]))
+    with pytest.raises(ConflictingRecords) as caught:
+        load_baseline(path, what="sweep level")
+    assert str(caught.value) == (
+        f"sweep level {str(path)!r}: episode '{TR}|c|map1|nominal|1' (seed 1) is recorded twice with "
+        "different outcomes, at episodes[1] and episodes[2], which differ in success (success: true, then "
+        "false); which one is true cannot be told, so neither is read (remove the wrong record, or run the "
+        "episode again)"
     )
 
 

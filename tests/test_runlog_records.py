@@ -216,14 +216,15 @@ def test_a_bad_log_is_refused_and_its_lock_released(tmp_path) -> None:
             open_log(tmp_path, CONFIG, resume=True)
 
 
-def test_read_back_records_the_last_of_each_key_and_notes_duplicates(tmp_path) -> None:
-    log = _log(
-        tmp_path, _line(_rec("a")), _line(_rec("b")), _line(_rec("a", steps=7)), _line(_rec("b", steps=8))
-    )
+def test_read_back_reads_an_episode_logged_twice_alike_once_and_notes_it(tmp_path) -> None:
+    b = _rec("b", trial=1, seed=1, steps=8)
+    log = _log(tmp_path, _line(_rec("a")), _line(b), _line(_rec("a", wall_seconds=9.0)), _line(b))
     before = log.read_bytes()
     done, notes = read_log(log, CONFIG)
-    assert done == {"a": _rec("a", steps=7), "b": _rec("b", steps=8)}
-    assert notes == [f"{log}: 2 episode(s) logged twice; the last record of each is kept"]
+    assert done == {"a": _rec("a"), "b": b}  # the first of each (a wall time is no outcome)
+    assert notes == [
+        f"{log}: 2 record(s) repeat an episode logged before, outcome for outcome; each episode is read once"
+    ]
     assert log.read_bytes() == before  # nothing to repair
 
 
@@ -615,11 +616,12 @@ def test_a_run_with_more_controllers_extends_the_log_and_keeps_its_records(tmp_p
     """Adding controllers to a finished run (everything else equal): the logged records stay
     valid, the header becomes this run's, and only the new controllers' episodes are missing."""
     logged = _controllers("consensus")
-    log = _log(tmp_path, _line(_rec("a")), _line(_rec("b")), header=runlog._header_line(logged))
+    b = _rec("b", trial=1, seed=1)
+    log = _log(tmp_path, _line(_rec("a")), _line(b), header=runlog._header_line(logged))
     records = log.read_bytes().split(b"\n", 1)[1]
     wider = _controllers("orca", "consensus")
     assert read_log(log, wider, repair=False) == (
-        {"a": _rec("a"), "b": _rec("b")},
+        {"a": _rec("a"), "b": b},
         [
             f"{log}: this run adds orca to the logged run's controllers; their episodes run now, the logged ones are kept"
         ],
@@ -628,7 +630,7 @@ def test_a_run_with_more_controllers_extends_the_log_and_keeps_its_records(tmp_p
     done, _ = read_log(log, wider)
     assert set(done) == {"a", "b"}
     assert log.read_bytes() == runlog._header_line(wider) + records
-    assert read_log(log, wider) == ({"a": _rec("a"), "b": _rec("b")}, [])  # now the same run
+    assert read_log(log, wider) == ({"a": _rec("a"), "b": b}, [])  # now the same run
     # fewer controllers, or a logged controller with other options, is another run
     for other in (logged, _controllers("orca", "consensus", options={"x": 1})):
         with pytest.raises(LogError, match="controller_configs: logged"):
@@ -644,7 +646,7 @@ def test_open_log_appends_to_the_extended_log_under_its_lock(tmp_path) -> None:
         assert set(done) == {"a"}
         with pytest.raises(RunLocked):  # the new file is locked too
             open_log(tmp_path, wider, resume=True)
-        handle.write(json.dumps(_rec("b")) + "\n")
+        handle.write(json.dumps(_rec("b", trial=1, seed=1)) + "\n")
         handle.flush()
     finally:
         handle.close()
