@@ -26,7 +26,7 @@ import json
 from collections.abc import Hashable, Iterable, Mapping, Sequence
 from typing import Any
 
-from evaluation.records import json_safe, ran
+from evaluation.records import json_safe, ran, shown_value
 
 __all__ = [
     "NOT_OUTCOME",
@@ -82,9 +82,9 @@ def outcome_fields(record: Mapping[str, Any]) -> dict[str, str]:
 _FIRST_SHOWN = ("status", "success", "collision", "final_distance", "steps", "error")
 
 
-def _shown(text: str) -> str:
-    """A field's JSON value for a message, cut to 40 characters."""
-    return text if len(text) <= 40 else text[:37] + "..."
+def _value(record: Mapping[str, Any], name: str) -> str:
+    """A field of ``record`` for a conflict's message (``absent`` when it has none)."""
+    return shown_value(record[name]) if name in record else "absent"
 
 
 def read_once(
@@ -133,14 +133,11 @@ def read_once(
         )
         if not differ:
             continue
-        place = (lambda i: places[i]) if places is not None else (lambda i: f"record {i + 1}")
-        values = "; ".join(
-            f"{k}: {_shown(theirs.get(k, 'absent'))}, then {_shown(ours.get(k, 'absent'))}"
-            for k in differ[:3]
-        )
+        values = "; ".join(f"{k}: {_value(earlier, k)}, then {_value(record, k)}" for k in differ[:3])
+        where = [places[i] if places is not None else f"record {i + 1}" for i in (earlier_index, index)]
         raise ConflictingRecords(
             f"{source}: episode {earlier.get('key', '')!r} (seed {identity[-1]!r}) is recorded twice "
-            f"with different outcomes, at {place(earlier_index)} and {place(index)}, which differ in "
+            f"with different outcomes, at {where[0]} and {where[1]}, which differ in "
             f"{', '.join(differ)} ({values}{'; ...' if len(differ) > 3 else ''}); which one is true "
             "cannot be told, so neither is read (remove the wrong record, or run the episode again)"
         )

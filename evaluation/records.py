@@ -27,6 +27,7 @@ __all__ = [
     "json_safe",
     "ran",
     "record_problem",
+    "shown_value",
 ]
 
 STATUSES = ("ok", "degraded", "error")
@@ -199,7 +200,7 @@ def record_problem(record: Any) -> str | None:
         return "an 'error' record without its 'error' text"
     for name, (valid, allowed) in {**required, **_OPTIONAL_SCHEMA}.items():
         if name in record and not valid(record[name]):
-            return f"field {name!r} is {_shown(record[name])}; allowed: {allowed}"
+            return f"field {name!r} is {shown_value(record[name])}; allowed: {allowed}"
     if status in RAN:
         if record["success"] and record["collision"] is not None:
             return (
@@ -214,7 +215,7 @@ def record_problem(record: Any) -> str | None:
     return None
 
 
-def _shown(value: Any) -> str:
+def shown_value(value: Any) -> str:
     """A field's value for a message: its repr, cut to 60 characters."""
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."

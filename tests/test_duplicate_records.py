@@ -96,13 +96,18 @@ def test_a_conflicting_repeat_is_refused_naming_source_places_episode_and_fields
     assert str(caught.value) == (
         f"baseline 'b.json': episode '{TR}|c|map1|nominal|3' (seed 3) is recorded twice with different "
         "outcomes, at episodes[1] and episodes[2], which differ in success, collision, final_distance, steps "
-        '(success: true, then false; collision: null, then "obstacle"; final_distance: [0.01, 0.02], then '
+        "(success: True, then False; collision: None, then 'obstacle'; final_distance: [0.01, 0.02], then "
         "[0.5, 0.02]; ...); which one is true cannot be told, so neither is read (remove the wrong record, "
         "or run the episode again)"
     )
     assert isinstance(caught.value, ValueError)  # the command line's bad input (exit 2)
     with pytest.raises(ConflictingRecords, match=r"at record 1 and record 2, which differ in success \("):
         read_once([_rec(), _rec(success=False)], "f")
+    without = {k: v for k, v in _rec().items() if k != "final_poses"}
+    with pytest.raises(
+        ConflictingRecords, match=r"differ in final_poses \(final_poses: absent, then \[\[3\.0, "
+    ):
+        read_once([without, _rec()], "f")
 
 
 def test_a_run_s_data_counts_a_record_given_twice_once() -> None:
@@ -193,7 +198,7 @@ def test_a_baseline_holding_each_record_twice_is_refused_in_either_order(
     )
     err = capsys.readouterr().err
     assert code == 2, err
-    first, second = ("false", "true") if flipped_last else ("true", "false")
+    first, second = ("False", "True") if flipped_last else ("True", "False")
     assert (
         f"error: baseline {str(path)!r}: episode '{TR}|consensus|map1|nominal|0' (seed 0) is recorded twice "
         f"with different outcomes, at episodes[0] and episodes[10], which differ in success (success: "
@@ -265,7 +270,7 @@ def test_a_resume_log_with_a_flipped_duplicate_is_refused_by_name(noisy, tmp_pat
     assert (
         f"error: {log} cannot be resumed: episode {first['key']!r} (seed {first['seed']}) is recorded twice "
         f"with different outcomes, at line 2 and line {len(lines) + 1}, which differ in success (success: "
-        "false, then true)" in err
+        "False, then True)" in err
     )
     assert log.read_bytes().splitlines()[-1] == json.dumps(_flip(first)).encode()  # nothing changed
 

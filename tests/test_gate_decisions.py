@@ -479,7 +479,7 @@ def test_conflicting_duplicates_are_refused_whatever_their_order(flipped_last) -
     won = [_rec(s) for s in range(10)]
     lost = [_rec(s, success=False, distances=(0.5, 0.5)) for s in range(10)]
     base = won + lost if flipped_last else lost + won
-    first, then = ("true", "false") if flipped_last else ("false", "true")
+    first, then = ("True", "False") if flipped_last else ("False", "True")
     message = (
         rf"^the baseline: episode '{TR}\|c\|map1\|nominal\|0' \(seed 0\) is recorded twice with different "
         rf"outcomes, at record 1 and record 11, which differ in success, final_distance \(success: {first}, "
@@ -613,8 +613,8 @@ def test_a_baseline_reads_each_episode_once_and_refuses_a_conflicting_repeat(tmp
         load_baseline(path, what="sweep level")
     assert str(caught.value) == (
         f"sweep level {str(path)!r}: episode '{TR}|c|map1|nominal|1' (seed 1) is recorded twice with "
-        "different outcomes, at episodes[1] and episodes[2], which differ in success (success: true, then "
-        "false); which one is true cannot be told, so neither is read (remove the wrong record, or run the "
+        "different outcomes, at episodes[1] and episodes[2], which differ in success (success: True, then "
+        "False); which one is true cannot be told, so neither is read (remove the wrong record, or run the "
         "episode again)"
     )
 
