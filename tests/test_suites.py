@@ -6,7 +6,6 @@ the digest of reference rollouts that pins the test episodes."""
 from __future__ import annotations
 
 import gzip
-import json
 import re
 import shutil
 from collections import Counter
@@ -115,7 +114,10 @@ def test_an_edited_split_file_is_refused_by_name(tmp_path: Path) -> None:
     path.write_bytes(gzip.compress(edited.encode()))
     other = tmp_path / "other"
     shutil.copytree(tmp_path / NAME, other / NAME)
-    with pytest.raises(ValueError, match=rf"suite file .*{re.escape(str(Path(NAME, 'target_reaching', 'test.json.gz')))} has sha256 .* but the manifest records"):
+    with pytest.raises(
+        ValueError,
+        match=rf"suite file .*{re.escape(str(Path(NAME, 'target_reaching', 'test.json.gz')))} has sha256 .* but the manifest records",
+    ):
         load_suite(NAME, "target_reaching", "test", data=other)
 
 
@@ -141,7 +143,9 @@ def test_the_generator_reproduces_the_first_stored_layouts(task: str, split: str
 
 
 @pytest.mark.slow
-def test_the_build_script_reproduces_every_stored_split_and_digest(capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_build_script_reproduces_every_stored_split_and_digest(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     assert main(["--check"]) == 0, capsys.readouterr().out
 
 
@@ -254,10 +258,16 @@ def test_the_layout_option_picks_a_layout_and_leaves_the_seeded_draws_alone() ->
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"map": "suite:koopnav-bench-v1/tset"}, r"is not a suite split; allowed: \[.*'suite:koopnav-bench-v1/test'\]"),
+        (
+            {"map": "suite:koopnav-bench-v1/tset"},
+            r"is not a suite split; allowed: \[.*'suite:koopnav-bench-v1/test'\]",
+        ),
         ({"map": "suite:koopnav-bench-v9/test"}, r"map='suite:koopnav-bench-v9/test' is not a suite split"),
         ({"map": MAP, "n_robots": 4}, r"n_robots=4 is larger than map 'test-000' supports"),
-        ({"map": MAP, "formation": "line"}, r"formation='line' does not apply to map='suite:.*allowed: formation=None"),
+        (
+            {"map": MAP, "formation": "line"},
+            r"formation='line' does not apply to map='suite:.*allowed: formation=None",
+        ),
     ],
 )
 def test_bad_suite_maps_are_refused_by_name(kwargs: dict[str, object], message: str) -> None:
@@ -268,7 +278,10 @@ def test_bad_suite_maps_are_refused_by_name(kwargs: dict[str, object], message: 
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        ({"layout": 200}, r"layout=200 is not a layout of koopnav-bench-v1/target_reaching/test@.*\[0, 199\]"),
+        (
+            {"layout": 200},
+            r"layout=200 is not a layout of koopnav-bench-v1/target_reaching/test@.*\[0, 199\]",
+        ),
         ({"layout": -1}, r"options\['layout'\]=-1 is not allowed; allowed: an integer >= 0"),
         ({"layout": True}, r"options\['layout'\]=True is not allowed"),
         ({"layout": 1.5}, r"options\['layout'\]=1.5 is not allowed"),
@@ -281,7 +294,9 @@ def test_bad_layout_options_are_refused_by_name(options: dict[str, object], mess
 
 
 def test_the_layout_option_needs_a_suite_map_and_the_vector_env_one_per_sub_env() -> None:
-    with pytest.raises(ValueError, match=r"options\['layout'\]=1 needs a suite map; this env's map is 'map1'"):
+    with pytest.raises(
+        ValueError, match=r"options\['layout'\]=1 needs a suite map; this env's map is 'map1'"
+    ):
         gym.make("KoopNav-TargetReaching-v0").reset(seed=0, options={"layout": 1})
     vector = gym.make_vec("KoopNav-TargetReaching-v0", num_envs=2, map=MAP)
     with pytest.raises(ValueError, match=r"or a sequence of 2 of them \(one per sub-env\)"):
@@ -312,7 +327,9 @@ def test_the_test_split_is_refused_for_tuning_training_calibration_and_selection
 def test_the_test_split_serves_evaluation_and_unknown_purposes_are_refused() -> None:
     check_split_allowed("test", "evaluation")
     check_split_allowed("test", "reporting")
-    with pytest.raises(ValueError, match=r"purpose='tune' is not one of \[.*'tuning'.*\] \(did you mean 'tuning'\?\)"):
+    with pytest.raises(
+        ValueError, match=r"purpose='tune' is not one of \[.*'tuning'.*\] \(did you mean 'tuning'\?\)"
+    ):
         check_split_allowed("validation", "tune")
     assert koopman_envs.check_split_allowed is check_split_allowed and koopman_envs.load_suite is load_suite
 
