@@ -142,6 +142,11 @@ def test_the_generator_reproduces_the_first_stored_layouts(task: str, split: str
     assert built == [{k: v for k, v in record.items() if k != "tier"} for record in stored["layouts"][:3]]
 
 
+def test_the_build_script_refuses_to_rewrite_a_published_suite(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--write", "--suite", NAME]) == 2
+    assert "a published suite never changes; add a new version" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_the_build_script_reproduces_every_stored_split_and_digest(
     capsys: pytest.CaptureFixture[str],

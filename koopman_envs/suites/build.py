@@ -3,8 +3,10 @@
 ``python -m koopman_envs.suites.build --check`` (the default) regenerates every split of every
 suite, the tier thresholds from the train splits and the reference-rollout digests, and exits 1
 naming each difference from the stored files, the manifest and the declared thresholds;
-``--write`` writes the split files and the manifest instead (only for a new suite version: the
-stored layouts of a published suite never change). ``--suite NAME`` limits it to one suite.
+``--write`` writes the split files and the manifest of a suite that has no data yet (a new
+version: it refuses, exit 2, to change a published suite, whose layouts never change); it prints
+the train splits' tier cuts, to be declared in the suite's definition before ``--check`` passes.
+``--suite NAME`` limits it to one suite.
 
 This module rolls episodes on the Gymnasium front for the digests, so it sits on top of the
 environment package's layers (tests/test_architecture.py places it with the fronts).
@@ -249,8 +251,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     mode.add_argument("--write", action="store_true", help="write the data of a new suite version")
     parser.add_argument("--suite", choices=sorted(SUITES), help="only this suite")
     args = parser.parse_args(argv)
+    names = [args.suite] if args.suite else sorted(SUITES)
+    published = [name for name in names if (_DATA / name / "manifest.json").exists()]
+    if args.write and published:  # the versioning rule: stored layouts never change under a name
+        print(
+            f"--write refused: {published} already have data, and a published suite never changes; "
+            "add a new version to koopman_envs.suites.suite.SUITES (e.g. koopnav-bench-v2) and write that",
+            file=sys.stderr,
+        )
+        return 2
     failed = False
-    for name in [args.suite] if args.suite else sorted(SUITES):
+    for name in names:
         definition = SUITES[name]
         documents, manifest = build_suite(definition)
         if args.write:

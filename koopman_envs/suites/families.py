@@ -32,8 +32,9 @@ ends, its targets the leader's target plus the wedge's offsets. Starts and targe
 by the suite builder (:mod:`koopman_envs.suites.build`).
 
 Every draw comes from ``numpy.random.default_rng((seed, TASK_CODES[task]))``, in one fixed order:
-travel, team, the family's walls, clutter, turn, shift (the team and walls are first centred along the
-travel, a fixed step). (headings to 1e-4 rad), so that a layout is the same number for number on every machine.
+travel, room end (rooms), team, the family's walls, clutter, turn, shift (before the clutter, the
+team and walls are centred along the travel: no draw). Coordinates are rounded to the millimetre
+(headings to 1e-4 rad), so that a layout is the same number for number on every machine.
 """
 
 from __future__ import annotations
