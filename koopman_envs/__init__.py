@@ -23,6 +23,7 @@ from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
 from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.zones import SlipZone
+from koopman_envs.suites import SPLITS, SUITES, Suite, check_split_allowed, load_suite
 from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, task_for_env
 
 __version__ = "0.1.0"
@@ -68,10 +69,15 @@ __all__ = [
     "SLIP_SETTINGS",
     "Scenario",
     "SlipZone",
+    "SPLITS",
+    "SUITES",
+    "Suite",
     "TASKS",
     "TaskSpec",
+    "check_split_allowed",
     "generate_random_map",
     "load_map",
+    "load_suite",
     "make_plant",
     "slip_lambdas",
     "task_for_env",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from numbers import Integral
 from typing import Any
 
 import numpy as np
@@ -13,7 +14,9 @@ __all__ = ["RESET_OPTIONS", "ResetOptions", "parse_reset_options"]
 
 
 #: the keys of ``reset(options=...)``, on every front (docs/reset_options.md)
-RESET_OPTIONS = ("start_poses", "targets")
+RESET_OPTIONS = ("start_poses", "targets", "layout")
+#: the keys whose value is an array of poses
+_POSE_OPTIONS = ("start_poses", "targets")
 
 
 @dataclass(frozen=True)
@@ -28,10 +31,28 @@ class ResetOptions:
     targets : ndarray, shape (N, 3), optional
         Target pose of every robot; for formation, the formation offsets are these targets
         relative to robot 0's.
+    layout : int, optional
+        With ``map="suite:<name>/<split>"``: the index of the split's layout this episode runs on
+        (None: the one drawn from the seed).
     """
 
     start_poses: NDArray[np.float64] | None = None
     targets: NDArray[np.float64] | None = None
+    layout: int | None = None
+
+
+def _layouts(value: Any, count: int, vector: bool) -> list[int | None]:
+    """``options["layout"]`` per environment: one integer >= 0 (every environment), or, for the
+    vector env, one per sub-environment. Its upper bound is the suite's, checked at the reset."""
+    values = list(value) if vector and isinstance(value, (list, tuple, np.ndarray)) else [value] * count
+    allowed = "an integer >= 0 (a layout index of the env's suite)" + (
+        f", or a sequence of {count} of them (one per sub-env)" if vector else ""
+    )
+    if len(values) != count or not all(
+        isinstance(v, Integral) and not isinstance(v, (bool, np.bool_)) and int(v) >= 0 for v in values
+    ):
+        raise ValueError(f"options['layout']={value!r} is not allowed; allowed: {allowed}")
+    return [int(v) for v in values]
 
 
 def parse_reset_options(
@@ -49,6 +70,9 @@ def parse_reset_options(
         for this episode (``start_noise`` is not applied to it).
     ``targets``
         (N, 3) array of target poses that replaces the map's targets for this episode.
+    ``layout``
+        With ``map="suite:<name>/<split>"``, the index of the layout to run (per sub-env for
+        the vector env); the engine checks it against the suite.
 
     A value of None means the map's. Here only the keys, shapes and finiteness are checked; the
     engine checks the placement (inside the workspace, clear of obstacles and of each other)
@@ -89,8 +113,10 @@ def parse_reset_options(
             "(see docs/reset_options.md)"
         )
     shapes = [(n_robots, 3)] if num_envs is None else [(n_robots, 3), (count, n_robots, 3)]
-    per_env: dict[str, list[NDArray[np.float64] | None]] = {}
-    for key in RESET_OPTIONS:
+    per_env: dict[str, list[Any]] = {}
+    layout = options.get("layout")
+    per_env["layout"] = [None] * count if layout is None else _layouts(layout, count, num_envs is not None)
+    for key in _POSE_OPTIONS:
         value = options.get(key)
         if value is None:
             per_env[key] = [None] * count

@@ -153,7 +153,7 @@ def test_the_previous_module_paths_still_import_with_a_warning(old: str) -> None
 
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
 #: layer or a lower one, never a higher one (type-only and function-level imports included)
-ENV_LAYERS = ("base", "sim", "tasks", "builder", "fronts")
+ENV_LAYERS = ("base", "sim", "tasks", "suites", "builder", "fronts")
 #: the modules of the base layer, at the package root (with the old paths' stubs)
 ENV_BASE = {
     "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
@@ -161,6 +161,8 @@ ENV_BASE = {
 }  # fmt: skip
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
 ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}
+#: commands that live beside the data they make but run episodes on the fronts: placed on top
+ENV_COMMANDS = {"koopman_envs.suites.build"}
 
 
 def _env_layer(module: str) -> int | None:
@@ -172,7 +174,7 @@ def _env_layer(module: str) -> int | None:
         return None
     if len(parts) == 2 and parts[1] in ENV_BASE:
         return 0
-    if len(parts) == 2 and parts[1] in ENV_ROOT_FRONTS:
+    if (len(parts) == 2 and parts[1] in ENV_ROOT_FRONTS) or module in ENV_COMMANDS:
         return ENV_LAYERS.index("fronts")
     if parts[1] in ENV_LAYERS:
         return ENV_LAYERS.index(parts[1])

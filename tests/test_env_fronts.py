@@ -197,7 +197,7 @@ def test_vector_options_per_sub_env() -> None:
 BAD_OPTIONS = [
     (
         {"start_pose": START_POSES},
-        r"reset options \['start_pose'\] are not supported; allowed keys: \['start_poses', 'targets'\]",
+        r"reset options \['start_pose'\] are not supported; allowed keys: \['start_poses', 'targets', 'layout'\]",
     ),
     ({"start_poses": START_POSES[:2]}, r"options\['start_poses'\] has shape \(2, 3\); allowed: \(3, 3\)"),
     ({"targets": "north"}, r"options\['targets'\]='north' is not an array of numbers"),

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +20,7 @@ from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
 from koopman_envs.sim.maps import MapSpec, load_map
 from koopman_envs.sim.random_map_config import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
+from koopman_envs.suites.suite import SUITE_PREFIX, Suite, load_suite, parse_suite_map
 from koopman_envs.tasks.base import TASKS, TaskSpec
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, CommConfig, LidarConfig, PoseNoise, parse_setting
 
@@ -75,10 +77,11 @@ def _episode_limit(kw: dict[str, Any], front: str | None) -> int | None:
     return max_episode_steps
 
 
-def _resolve_map(spec: TaskSpec, kw: dict[str, Any]) -> tuple[MapSpec | None, RandomMapConfig]:
-    """The fixed map (None for ``map="random"``) and the random-map settings, from the checked
-    keywords ``kw`` of task ``spec``: the team (``n_robots``, ``robot_radius``) and the
-    ``formation`` shape must fit the map, checked now rather than at a reset hours into training."""
+def _resolve_map(spec: TaskSpec, kw: dict[str, Any]) -> tuple[MapSpec | None, RandomMapConfig, Suite | None]:
+    """The fixed map (None for ``map="random"`` and for a suite), the random-map settings and the
+    suite split (``map="suite:<name>/<split>"``), from the checked keywords ``kw`` of task
+    ``spec``: the team (``n_robots``, ``robot_radius``) and the ``formation`` shape must fit the
+    map, checked now rather than at a reset hours into training."""
     n_robots, robot_radius, formation = kw["n_robots"], kw["robot_radius"], kw["formation"]
     random_map: RandomMapConfig = kw["random_map"]
     map_arg = spec.default_map if kw["map"] is None else kw["map"]
@@ -87,7 +90,9 @@ def _resolve_map(spec: TaskSpec, kw: dict[str, Any]) -> tuple[MapSpec | None, Ra
             random_map = _random_map_formation(random_map, formation)
         # a team whose shape cannot be placed fails here, not at a reset hours into training
         random_map.shape_for(n_robots, float(np.max(robot_radius)))
-        return None, random_map
+        return None, random_map, None
+    if isinstance(map_arg, str) and map_arg.startswith(SUITE_PREFIX):
+        return None, random_map, _resolve_suite(spec, map_arg, n_robots, robot_radius, formation)
     map_spec = load_map(map_arg)
     try:
         map_spec.validate(n_robots, robot_radius)
@@ -100,7 +105,37 @@ def _resolve_map(spec: TaskSpec, kw: dict[str, Any]) -> tuple[MapSpec | None, Ra
                 f"map='random'; map {map_spec.name!r} of {spec.label} keeps its own targets"
             )
         map_spec = map_spec.with_formation(formation, n_robots, PARAMS.formation_spacing, robot_radius)
-    return map_spec, random_map
+    return map_spec, random_map, None
+
+
+def _resolve_suite(
+    spec: TaskSpec, map_arg: str, n_robots: int, robot_radius: float, formation: str | None
+) -> Suite:
+    """The suite split of ``map="suite:<name>/<split>"`` for task ``spec``, its every layout
+    checked for the team; a suite's layouts are its own, so ``formation`` is refused."""
+    name, split = parse_suite_map(map_arg)
+    suite = load_suite(name, spec.name, split)
+    if formation is not None:
+        raise ValueError(
+            f"formation={formation!r} does not apply to map={map_arg!r}: a suite's layouts keep their own "
+            "targets (a benchmark episode is the stored one); allowed: formation=None"
+        )
+    _check_suite_team(suite, n_robots, float(robot_radius))
+    return suite
+
+
+@functools.lru_cache(maxsize=64)
+def _check_suite_team(suite: Suite, n_robots: int, robot_radius: float) -> None:
+    """Every layout of ``suite`` holds the team (checked once per suite and team: a vector env
+    of a 500-layout split would spend 0.2 s on it per construction)."""
+    for layout in suite.layouts:
+        try:
+            layout.spec.validate(n_robots, robot_radius)
+        except ValueError as exc:
+            raise ValueError(
+                f"{suite.map_name} ({suite.label}), layout {layout.index}: {exc} "
+                f"(n_robots={n_robots}, robot_radius={robot_radius:g})"
+            ) from None
 
 
 def _resolve_slip(slip: Any, n_robots: int) -> tuple[NDArray[np.float64], SlipSchedule | None, str]:
@@ -127,7 +162,7 @@ class EngineConfig:
     """
 
     task: TaskSpec
-    map_spec: MapSpec | None  # None means a random map per reset
+    map_spec: MapSpec | None  # None means a layout drawn per reset: random, or from ``suite``
     random_map: RandomMapConfig
     #: per-robot base slip means; NaN when drawn per reset ("random", "drift")
     lambdas: NDArray[np.float64]
@@ -155,6 +190,8 @@ class EngineConfig:
     actuation_delay: int = 0
     #: the moving obstacles
     movers: MoverConfig = MoverConfig()
+    #: the suite split a layout is taken from at every reset (``map="suite:<name>/<split>"``), else None
+    suite: Suite | None = None
 
     @property
     def lidar_datasheet(self) -> dict[str, Any]:
@@ -230,7 +267,7 @@ class EngineConfig:
         # the preset's slip; a slip given beside the preset wins
         slip = kw["slip"] if "slip" in keywords else UNCERTAINTY_PRESETS[kw["uncertainty"]].slip
         max_episode_steps = _episode_limit(kw, front)
-        map_spec, random_map = _resolve_map(spec, kw)
+        map_spec, random_map, suite = _resolve_map(spec, kw)
         lambdas, schedule, label = _resolve_slip(slip, n_robots)
         return cls(
             task=spec,
@@ -247,6 +284,7 @@ class EngineConfig:
             slip_schedule=schedule,
             formation=formation,
             movers=kw["movers"],
+            suite=suite,
             **_uncertainty(kw),
         )
 
@@ -257,15 +295,21 @@ class EngineConfig:
 
     @property
     def n_slip_zones(self) -> int:
-        """Slip zones per environment (fixed for a config)."""
+        """Slip zones per environment (fixed for a config; suite layouts have none)."""
+        if self.suite is not None:
+            return 0
         return self.random_map.n_slip_zones if self.map_spec is None else len(self.map_spec.slip_zones)
 
     @property
     def map_name(self) -> str:
-        """Name of the fixed map, or ``"random"``."""
+        """Name of the fixed map, ``"random"``, or the suite split's ``"suite:<name>/<split>"``."""
+        if self.suite is not None:
+            return self.suite.map_name
         return "random" if self.map_spec is None else self.map_spec.name
 
     @property
     def n_obstacles(self) -> int:
-        """Obstacles per environment (fixed for a config)."""
+        """Obstacles per environment (fixed for a config: every layout of a suite has as many)."""
+        if self.suite is not None:
+            return self.suite.n_obstacles
         return self.random_map.n_obstacles if self.map_spec is None else self.map_spec.obstacles.shape[0]

@@ -2,7 +2,9 @@
 
 A reset of the engine first decides the episode's layout, then installs it. This module is
 that decision, and it draws from the reset's generator in the one order a seed fixes: a new
-layout with ``map="random"`` (:func:`~koopman_envs.sim.random_maps.generate_random_map`), then
+layout with ``map="random"`` (:func:`~koopman_envs.sim.random_maps.generate_random_map`) or a
+layout index with ``map="suite:<name>/<split>"`` (one ``rng.integers`` draw, made even when
+``options["layout"]`` picks the layout, so that every later draw is the same either way), then
 the ``start_noise`` perturbation when it is asked for
 (:func:`~koopman_envs.sim.starts.perturbed_starts`), nothing else. ``reset(options=...)``
 replacements (:class:`~koopman_envs.reset_options.ResetOptions`) are checked against the
@@ -52,7 +54,7 @@ def episode_layout(
     rng : numpy.random.Generator
         The environment's generator: the random layout's draws, then the start noise's.
     options : ResetOptions
-        Start poses and/or targets replacing the map's for this episode.
+        Start poses and/or targets replacing the map's for this episode; the suite layout to run.
 
     Returns
     -------
@@ -64,12 +66,20 @@ def episode_layout(
     ------
     ValueError
         A start pose or target of ``options`` that is outside the workspace, overlaps an
-        obstacle or another robot's.
+        obstacle or another robot's; a ``layout`` outside the suite, or without a suite map.
     """
     n = config.n_robots
     radius = float(config.robot_radius[0])
     spec = current
-    if config.map_spec is None:
+    if config.suite is not None:
+        drawn = int(rng.integers(len(config.suite)))
+        spec = config.suite.layout(drawn if options.layout is None else options.layout).spec
+    elif options.layout is not None:
+        raise ValueError(
+            f"options['layout']={options.layout!r} needs a suite map; this env's map is {config.map_name!r}; "
+            "allowed: map='suite:<name>/<split>' (koopman_envs.suites), or no 'layout' option"
+        )
+    elif config.map_spec is None:
         spec = generate_random_map(rng, n, config.random_map, radius)
     # with a fixed map, the engine installed it in every environment (and nothing removes it)
     assert spec is not None

@@ -130,8 +130,9 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "map",
         None,
         "str | os.PathLike | MapSpec | None",
-        f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), a JSON '
-        "map file or a MapSpec; None: the task's first map",
+        f'"{BUILTIN_MAPS[0]}".."{BUILTIN_MAPS[-1]}", "random" (a new seeded layout per reset), '
+        '"suite:<name>/<split>" (a benchmark split, one of its layouts per reset: docs/benchmark.md), a '
+        "JSON map file or a MapSpec; None: the task's first map",
     ),
     EnvKeyword(
         "slip",
