@@ -267,23 +267,68 @@ def test_the_generator_s_previous_path_still_works_with_a_warning() -> None:
         maps.no_such_name  # noqa: B018
 
 
+def _openblas_core() -> str | None:
+    """The kernel family OpenBLAS chose on this CPU (``"Haswell"``, ``"SkylakeX"``...), or None when
+    NumPy's BLAS is not OpenBLAS or does not say."""
+    import ctypes
+
+    with open("/proc/self/maps") as maps_file:
+        libraries = sorted({line.split()[-1] for line in maps_file if "openblas" in line.lower()})
+    for path in libraries:
+        library = ctypes.CDLL(path)
+        for name in (
+            "scipy_openblas_get_corename64_",
+            "scipy_openblas_get_corename",
+            "openblas_get_corename",
+        ):
+            function = getattr(library, name, None)
+            if function is not None:
+                function.restype = ctypes.c_char_p
+                return function().decode()
+    return None
+
+
+def _fma_exact(a: float, b: float, c: float) -> float:
+    """``a * b + c`` rounded once, from exact rationals (``float`` of a Fraction is correctly
+    rounded): the reference for the kernel's fused multiply-adds, with no hardware FMA involved."""
+    from fractions import Fraction
+
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
 def test_the_compiled_layout_arithmetic_equals_numpys() -> None:
     """The random-map kernel writes out the two products NumPy hands to BLAS, and the means, so
     that a seed gives the layout the NumPy generator gave (tests/data/random_layouts.json holds
-    such layouts; this checks the pieces on many more inputs, team sizes 1 to 20). Bit for bit
-    against OpenBLAS's Haswell kernels (numpy's wheels, this machine); within the layout test's
-    1e-12 where a BLAS rounds otherwise."""
+    such layouts; this checks the pieces on many more inputs, team sizes 1 to 20). The kernel's
+    arithmetic is fixed (each entry ``fma(l1, r1j, l0 * r0j)``, one row unfused) and checked bit for
+    bit against that formula in exact rationals on every machine; against NumPy bit for bit where
+    OpenBLAS runs its Haswell kernels (whose order the kernel copies), within 1e-15 where
+    it picks another kernel (SkylakeX's rounds a few products otherwise)."""
     from koopman_envs.sim.random_maps import _rotate, _row_mean, _spread
 
+    numpy_bit_for_bit = _openblas_core() == "Haswell"
     rng = np.random.default_rng(0)
     for _ in range(2000):
         n = int(rng.integers(1, 21))
         local = rng.normal(size=(n, 2))
         heading = rng.uniform(-np.pi, np.pi)
         cos_h, sin_h = math.cos(heading), math.sin(heading)
-        np.testing.assert_array_equal(
-            _rotate(local, cos_h, sin_h), local @ np.array([[cos_h, sin_h], [-sin_h, cos_h]])
-        )
+        rotated = _rotate(local, cos_h, sin_h)
+        if n == 1:
+            formula = [
+                [local[0, 0] * cos_h + local[0, 1] * -sin_h, local[0, 0] * sin_h + local[0, 1] * cos_h]
+            ]
+        else:
+            formula = [
+                [_fma_exact(row[1], -sin_h, row[0] * cos_h), _fma_exact(row[1], cos_h, row[0] * sin_h)]
+                for row in local.tolist()
+            ]
+        np.testing.assert_array_equal(rotated, np.array(formula))
+        by_numpy = local @ np.array([[cos_h, sin_h], [-sin_h, cos_h]])
+        if numpy_bit_for_bit:
+            np.testing.assert_array_equal(rotated, by_numpy)
+        else:
+            np.testing.assert_allclose(rotated, by_numpy, rtol=0, atol=1e-15)
         centre = local.mean(axis=0)
         np.testing.assert_array_equal(_row_mean(local), centre)  # no BLAS: NumPy's own sum
         normal = rng.normal(size=2)
