@@ -7,7 +7,7 @@ import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TypedDict, cast
+from typing import Any, ClassVar, TypedDict, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,6 +16,7 @@ from baselines.inference import command_of, deterministic_action, policy_command
 from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, load_npz, read_json
 from baselines.set_features import MAX_TEAM, SetFeatureConfig
 from controllers.base import BaseController
+from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 from koopman_envs.tasks.base import TASKS
 
@@ -202,6 +203,10 @@ class RLPolicyController(BaseController):
     perceives = False
     #: one forward pass of the compiled actor serves many teams (:meth:`act_many`)
     acts_in_batch = True
+    #: the allowed range of the numeric option (:mod:`controllers.option_spec`): torch threads
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "threads": Range(1, 256, integer=True, note="or None (null)")
+    }
 
     def __init__(
         self,
@@ -213,7 +218,7 @@ class RLPolicyController(BaseController):
         super().__init__()
         self.policy_root = Path(policy_root) if policy_root else SHIPPED
         self.algo = algo
-        self.threads = threads
+        self.threads = None if threads is None else self.OPTION_RANGES["threads"].check("threads", threads)
         self.allow_pickle = bool(allow_pickle)
         import importlib.util
 

@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.statistics import paired_comparison
@@ -135,7 +137,7 @@ def markdown(rows: list[dict[str, Any]], a: str, b: str) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("results", nargs="+", type=Path, help="results.json of evaluator runs")
     parser.add_argument("--a", default="rti", help="the candidate solver label suffix (default rti)")
@@ -144,11 +146,16 @@ def main() -> None:
     documents = [json.loads(path.read_text(encoding="utf-8")) for path in args.results]
     rows = comparison_rows(documents, args.a, args.b)
     if not rows:
-        raise SystemExit(f"no controller ran as both <name>@{args.a} and <name>@{args.b} in {args.results}")
+        print(
+            f"error: no controller ran as both <name>@{args.a} and <name>@{args.b} in {args.results}",
+            file=sys.stderr,
+        )
+        return BAD_INPUT_EXIT
     print(markdown(rows, args.a, args.b))
     print()
     print(per_cell_markdown(documents, args.a, args.b))
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())
