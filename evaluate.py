@@ -69,6 +69,7 @@ from evaluation.exit_codes import (
     EXIT_CODES,
     FAILED_CHECK_EXIT,
     FAILED_GATE_EXIT,
+    INTERNAL_ERROR_EXIT,
     INTERRUPTED_EXIT,
     SUCCESS_EXIT,
     UNWRITABLE_OUT_EXIT,
@@ -93,11 +94,15 @@ from evaluation.thresholds import ThresholdCheck, check_thresholds, load_thresho
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
+    "BAD_INPUT_EXIT",
     "Cell",
+    "EPISODES_RAISED_EXIT",
     "EXIT_CODES",
     "FAILED_CHECK_EXIT",
     "FAILED_GATE_EXIT",
+    "INTERNAL_ERROR_EXIT",
     "INTERRUPTED_EXIT",
+    "SUCCESS_EXIT",
     "UNWRITABLE_OUT_EXIT",
     "EpisodeSpec",
     "Results",
@@ -448,6 +453,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.sweep_report is not None:
             return _sweep_report(args.sweep_report, args.reference)
         return _run(args, argv)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM before the run started (a run's own is RunInterrupted)
+        print("\ninterrupted before any episode ran", file=sys.stderr)
+        return INTERRUPTED_EXIT
     except Exception:  # noqa: BLE001 - every other exception is a bug, reported as one
         return report_internal_error(program_name())
 

@@ -442,7 +442,11 @@ def _refuse_sweep_clash(sweeps: list[str] | None, given: dict[str, Any]) -> None
             continue
         value = given[root]
         if not field or not isinstance(value, dict) or field in value:
-            shown = f"{root}.{field}={value[field]!r}" if field and isinstance(value, dict) else f"{root}={value!r}"
+            shown = (
+                f"{root}.{field}={value[field]!r}"
+                if field and isinstance(value, dict)
+                else f"{root}={value!r}"
+            )
             raise ValueError(
                 f"--sweep {key} and the setting {shown} given on the command line both set {key}; the "
                 "sweep sets it at every level: give it once"

@@ -129,15 +129,16 @@ def check_label(label: Any) -> str:
     return label
 
 
-def _scalar(text: str) -> Any:
+def _scalar(key: str, text: str) -> Any:
+    """Option ``key``'s value text as JSON (a scalar), else the text itself."""
     if text.strip() == "None":  # Python's spelling of JSON's null
         return None
     try:
-        value = parse_json(text, f"option value {text[:40]!r}", max_chars=CLI_JSON_CHARS)
+        value = parse_json(text, f"option {key}", max_chars=CLI_JSON_CHARS)
     except json.JSONDecodeError:
         return text
     if isinstance(value, (list, dict)):
-        raise ValueError(f"option value {text!r} must be a scalar (number, true/false, null or text)")
+        raise ValueError(f"option {key}={text!r} must be a scalar (number, true/false, null or text)")
     return value
 
 
@@ -170,9 +171,11 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
             if key == "label":
                 label = value.strip()
                 if not label:
-                    raise ValueError(f"controller {text!r}: label= is empty; name the row or leave label= out")
+                    raise ValueError(
+                        f"controller {text!r}: label= is empty; name the row or leave label= out"
+                    )
             else:
-                options[key] = _scalar(value.strip())
+                options[key] = _scalar(key, value.strip())
     return ControllerConfig(label, name.strip(), tuple(sorted(options.items())))
 
 

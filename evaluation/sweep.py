@@ -34,7 +34,15 @@ from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import task_for_env
 
-__all__ = ["MANIFEST", "MAX_SWEEP_LEVELS", "SweepAxis", "load_sweep", "parse_sweep", "run_sweep", "write_manifest"]
+__all__ = [
+    "MANIFEST",
+    "MAX_SWEEP_LEVELS",
+    "SweepAxis",
+    "load_sweep",
+    "parse_sweep",
+    "run_sweep",
+    "write_manifest",
+]
 
 #: the sweep's axes and reference, written in OUT before the first level runs
 MANIFEST = "sweep.json"
