@@ -1,5 +1,5 @@
 """The evaluator's command line (``python evaluate.py``): its options, one function per group,
-the exit codes, and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
+the exit codes in ``--help`` (:mod:`evaluation.exit_codes`), and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
 with the given options replacing its fields). ``evaluate.py`` runs it."""
 
 from __future__ import annotations
@@ -15,17 +15,7 @@ from controllers.mpc.config import NLP_SOLVERS, SOLVERS
 from evaluation.ablation import check_factors
 from evaluation.baseline import GateOptions
 from evaluation.configs import FALLBACK_NONE, split_controller_list
-from evaluation.exit_codes import (
-    BAD_INPUT_EXIT,
-    EPISODES_RAISED_EXIT,
-    EXIT_CODES,
-    FAILED_CHECK_EXIT,
-    FAILED_GATE_EXIT,
-    INTERNAL_ERROR_EXIT,
-    INTERRUPTED_EXIT,
-    UNWRITABLE_OUT_EXIT,
-    exit_codes_help,
-)
+from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, FAILED_GATE_EXIT, exit_codes_help
 from evaluation.protocols import (
     CROWD_COUNTS,
     CROWD_REFERENCE,
@@ -40,18 +30,11 @@ from evaluation.protocols import (
 )
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec, with_env_setting
+from evaluation.sweep import refuse_sweep_clash
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.params import PARAMS, SLIP_NAMES
 
 __all__ = [
-    "BAD_INPUT_EXIT",
-    "EPISODES_RAISED_EXIT",
-    "EXIT_CODES",
-    "FAILED_CHECK_EXIT",
-    "FAILED_GATE_EXIT",
-    "INTERNAL_ERROR_EXIT",
-    "INTERRUPTED_EXIT",
-    "UNWRITABLE_OUT_EXIT",
     "build_parser",
     "parse_env_kwargs",
     "program_name",
@@ -431,28 +414,6 @@ def stop_on_sigterm(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
-def _refuse_sweep_clash(sweeps: list[str] | None, given: dict[str, Any]) -> None:
-    """Refuse an env setting given on the command line that a ``--sweep`` axis also sets: the
-    sweep would override it at every level without a word (as ``--max-episode-steps`` against
-    ``--env-kwargs``)."""
-    for text in sweeps or []:
-        key = text.partition("=")[0].strip()
-        root, _, field = key.partition(".")
-        if root not in given:
-            continue
-        value = given[root]
-        if not field or not isinstance(value, dict) or field in value:
-            shown = (
-                f"{root}.{field}={value[field]!r}"
-                if field and isinstance(value, dict)
-                else f"{root}={value!r}"
-            )
-            raise ValueError(
-                f"--sweep {key} and the setting {shown} given on the command line both set {key}; the "
-                "sweep sets it at every level: give it once"
-            )
-
-
 def spec_from_args(args: argparse.Namespace) -> RunSpec:
     """The run the command line asks for: a protocol preset with the given options replacing its fields."""
     if args.ablation is not None:
@@ -512,7 +473,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
                 "keyword to different values; give it once"
             )
     env_kwargs = parse_env_kwargs(args.env_kwargs, into=env_kwargs)
-    _refuse_sweep_clash(args.sweep, {**dedicated, **given})
+    refuse_sweep_clash(args.sweep, {**dedicated, **given})
     return spec.replace(
         **changes,
         env_kwargs=env_kwargs,

@@ -131,6 +131,29 @@ def parse_sweep(text: str) -> SweepAxis:
     return SweepAxis(key, tuple(levels))
 
 
+def refuse_sweep_clash(sweeps: list[str] | None, given: dict[str, Any]) -> None:
+    """Refuse an env setting given on the command line (``given``: the settings as parsed, dotted
+    keys merged into their dicts) that a ``--sweep`` axis (``sweeps``: the ``KEY=v1,...`` texts)
+    also sets: the sweep would override it at every level without a word (as
+    ``--max-episode-steps`` against ``--env-kwargs`` is refused). ``ValueError`` naming both."""
+    for text in sweeps or []:
+        key = text.partition("=")[0].strip()
+        root, _, field = key.partition(".")
+        if root not in given:
+            continue
+        value = given[root]
+        if not field or not isinstance(value, dict) or field in value:
+            shown = (
+                f"{root}.{field}={value[field]!r}"
+                if field and isinstance(value, dict)
+                else f"{root}={value!r}"
+            )
+            raise ValueError(
+                f"--sweep {key} and the setting {shown} given on the command line both set {key}; the "
+                "sweep sets it at every level: give it once"
+            )
+
+
 def check_levels(spec: RunSpec, axes: list[SweepAxis]) -> None:
     """Build every level's env config of every env of ``spec`` (fast, no episode): a bad level
     is a ``ValueError`` naming the axis and the level before anything runs."""

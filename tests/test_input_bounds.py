@@ -25,7 +25,7 @@ from evaluation.cli import parse_env_kwargs
 from evaluation.configs import ControllerConfig, parse_controller
 from evaluation.exit_codes import EXIT_CODES, EXIT_PRECEDENCE, worst
 from evaluation.spec import RunSpec
-from evaluation.sweep import MAX_SWEEP_LEVELS, load_sweep, parse_sweep
+from evaluation.sweep import MAX_SWEEP_LEVELS, load_sweep, parse_sweep, refuse_sweep_clash
 from evaluation.thresholds import load_thresholds
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.checks import MAX_JSON_DEPTH, MAX_NUMBER, parse_json
@@ -274,9 +274,7 @@ def test_a_setting_the_sweep_also_sets_is_refused(
 
 def test_a_sweep_over_other_fields_of_a_given_dict_runs_its_checks(tmp_path: Path) -> None:
     """movers.radius given, movers.count swept: no clash (parse only)."""
-    from evaluation.cli import _refuse_sweep_clash
-
-    _refuse_sweep_clash(["movers.count=0,4"], {"movers": {"radius": 0.1}})
+    refuse_sweep_clash(["movers.count=0,4"], {"movers": {"radius": 0.1}})
 
 
 def test_an_empty_out_is_refused(capsys) -> None:
