@@ -21,8 +21,9 @@ module: ``spec`` (``RunSpec``: the run, its checks and its episodes), ``plan`` (
 Episodes run in worker processes; each episode's seed depends only on the base seed and its
 index in the cell, so results do not depend on the worker count. Each finished episode is
 appended to ``OUT/episodes.jsonl`` at once; ``--resume`` continues an interrupted run. An
-episode that raises is recorded with its error, the others go on, and the exit code is the
-number of failed episodes (capped at 100); a failed ``--check`` exits with 101.
+episode that raises is recorded with its error and the others go on; the exit codes are one table,
+:data:`evaluation.exit_codes.EXIT_CODES` (``--help`` lists it): 2 bad input, 3 episodes raised,
+101 a ``--check`` floor missed, and so on.
 """
 
 from __future__ import annotations
@@ -56,17 +57,25 @@ from evaluation.baseline import (
     refuse_incomparable,
 )
 from evaluation.cli import (
-    EXIT_CODES,
-    FAILED_CHECK_EXIT,
-    FAILED_GATE_EXIT,
-    INTERRUPTED_EXIT,
-    UNWRITABLE_OUT_EXIT,
     build_parser,
     parse_env_kwargs,
     program_name,
     spec_from_args,
     split_words,
     stop_on_sigterm,
+)
+from evaluation.exit_codes import (
+    BAD_INPUT_EXIT,
+    EPISODES_RAISED_EXIT,
+    EXIT_CODES,
+    FAILED_CHECK_EXIT,
+    FAILED_GATE_EXIT,
+    INTERNAL_ERROR_EXIT,
+    INTERRUPTED_EXIT,
+    SUCCESS_EXIT,
+    UNWRITABLE_OUT_EXIT,
+    report_internal_error,
+    worst,
 )
 from evaluation.plan import EpisodeSpec
 from evaluation.protocols import (
@@ -82,15 +91,19 @@ from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
 from evaluation.sweep import check_levels, level_aliases, load_sweep, parse_sweep, run_sweep, write_manifest
-from evaluation.thresholds import check_thresholds
+from evaluation.thresholds import ThresholdCheck, check_thresholds, load_thresholds
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
+    "BAD_INPUT_EXIT",
     "Cell",
+    "EPISODES_RAISED_EXIT",
     "EXIT_CODES",
     "FAILED_CHECK_EXIT",
     "FAILED_GATE_EXIT",
+    "INTERNAL_ERROR_EXIT",
     "INTERRUPTED_EXIT",
+    "SUCCESS_EXIT",
     "UNWRITABLE_OUT_EXIT",
     "EpisodeSpec",
     "Results",
@@ -114,14 +127,14 @@ __all__ = [
 
 
 def _print_options(name: str) -> int:
-    """``--options NAME``: the controller's option table (exit 2 for an unknown name)."""
+    """``--options NAME``: the controller's option table (bad input for an unknown name)."""
     try:
         table = controllers.options(name)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     print(f"{table.name}: {table.doc}\n\n{table.markdown()}")
-    return 0
+    return SUCCESS_EXIT
 
 
 def _config_check(
@@ -294,7 +307,7 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
     print(
         f"\n{episodes} episodes in {time.perf_counter() - start:.1f} s; wrote {', '.join(map(str, paths.values()))}"
     )
-    # as a run without --sweep: the exit code counts the episodes that raised, at every level
+    # as a run without --sweep: episodes that raised, at any level, are counted and named
     failed = 0
     for axis in axes:
         for level, results in done[axis.key]:
@@ -306,13 +319,15 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
                     f"{axis.level_dir(args.out, level) / 'results.md'}",
                     file=sys.stderr,
                 )
-    return min(failed, 100)
+    if failed:
+        print(f"{failed} episode(s) raised in the sweep", file=sys.stderr)
+    return EPISODES_RAISED_EXIT if failed else SUCCESS_EXIT
 
 
 def _sweep_report(out: str, reference: str | None) -> int:
     """``--sweep-report OUT``: the robustness report of the levels of the sweep in ``OUT``
-    finished so far (a long sweep can be read while it runs); exit 2 for a sweep that cannot be
-    read back, or no level finished yet."""
+    finished so far (a long sweep can be read while it runs); bad input for a sweep that cannot
+    be read back, or no level finished yet."""
     try:
         done, missing, manifest = load_sweep(out)
         if not done:
@@ -325,28 +340,64 @@ def _sweep_report(out: str, reference: str | None) -> int:
         )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
+    except OSError as exc:  # the report cannot be written into OUT
+        print(f"error: {exc}", file=sys.stderr)
+        return UNWRITABLE_OUT_EXIT
     if missing:  # named, never dropped silently
         print(f"levels not finished, left out: {', '.join(missing)}", file=sys.stderr)
     print(f"wrote {', '.join(map(str, paths.values()))}")
-    return 0
+    return SUCCESS_EXIT
 
 
-def main(argv: list[str] | None = None) -> int:
-    """The command line; returns the exit code (:data:`evaluation.cli.EXIT_CODES`)."""
-    args = build_parser().parse_args(argv)
-    if args.options:
-        return _print_options(args.options)
-    if args.sweep_report is not None:
-        return _sweep_report(args.sweep_report, args.reference)
+def _verdict(
+    args: argparse.Namespace,
+    results: Results,
+    threshold_check: ThresholdCheck | None,
+    worse: list[str],
+    uncovered: list[str],
+) -> int:
+    """Print every outcome of a finished run (floors, gate, episodes that raised) and return the
+    one exit code of highest priority (:func:`evaluation.exit_codes.worst`)."""
+    codes = []
+    problems = threshold_check.problems if threshold_check else []
+    if problems:
+        print("threshold check failed:\n" + "\n".join(f"  - {p}" for p in problems), file=sys.stderr)
+        codes.append(FAILED_CHECK_EXIT)
+    if uncovered:
+        print(
+            f"the baseline gate cannot judge this run ({args.baseline}):\n"
+            + "\n".join(f"  - {u}" for u in uncovered),
+            file=sys.stderr,
+        )
+    if worse:
+        print("worse than the baseline:\n" + "\n".join(f"  - {w}" for w in worse), file=sys.stderr)
+        codes.append(FAILED_GATE_EXIT)
+    elif args.fail_if_worse and not uncovered:
+        print(f"baseline gate passed ({args.baseline}: no significant loss at alpha {args.alpha})")
+    if threshold_check is not None:
+        for line in threshold_check.skipped:
+            print(f"threshold rule {line}", file=sys.stderr)
+        if not problems:
+            print(f"threshold check passed ({args.check}, floors read as {threshold_check.reading})")
+    if results.failed_episodes:  # counted in the summary printed before; the code says only "some"
+        codes.append(EPISODES_RAISED_EXIT)
+    code = worst(*codes)
+    # a gate that cannot judge fails closed, as it does before the run: 102 and 101 say more
+    return BAD_INPUT_EXIT if uncovered and code in (SUCCESS_EXIT, EPISODES_RAISED_EXIT) else code
+
+
+def _run(args: argparse.Namespace, argv: list[str] | None) -> int:
+    """Everything after parsing: check the input, run, report, and return the exit code."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, stop_on_sigterm)
     try:
         spec = spec_from_args(args)
         if args.sweep:
             return _run_sweep(args, spec, argv)
-        baseline = load_baseline(args.baseline) if args.baseline else None
         # checked before any episode
+        thresholds = load_thresholds(args.check) if args.check else None
+        baseline = load_baseline(args.baseline) if args.baseline else None
         gate = GateOptions(args.alpha, args.delta, args.delta_cm, args.min_pairs)
         if args.fail_if_worse and baseline is None:
             raise ValueError(
@@ -371,14 +422,14 @@ def main(argv: list[str] | None = None) -> int:
             paths["badge"] = write_badge(results, args.badge, Path(args.out) / "badge.svg")
         if args.ablation is not None:
             paths["ablation"] = _write_ablation(args, results, wall)
-        threshold_check = check_thresholds(results, args.check, strict=args.strict) if args.check else None
+        threshold_check = check_thresholds(results, thresholds, strict=args.strict) if thresholds else None
         comparison, worse = _compare(args, results, baseline, gate) if baseline is not None else ("", [])
         uncovered = (
             _uncovered(args, results, baseline, gate) if baseline is not None and args.fail_if_worse else []
         )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     except OSError as exc:  # --out unwritable up front (OutputNotWritable), or a report write that failed
         print(f"error: {exc}", file=sys.stderr)
         return UNWRITABLE_OUT_EXIT
@@ -388,28 +439,27 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n{exc}; continue with: {again}", file=sys.stderr)
         return INTERRUPTED_EXIT
     _print_summary(args, results, paths, comparison, wall)
-    problems = threshold_check.problems if threshold_check else []
-    if problems:
-        print("threshold check failed:\n" + "\n".join(f"  - {p}" for p in problems), file=sys.stderr)
-        return FAILED_CHECK_EXIT
-    if uncovered:
-        print(
-            f"the baseline gate cannot judge this run ({args.baseline}):\n"
-            + "\n".join(f"  - {u}" for u in uncovered),
-            file=sys.stderr,
-        )
-    if worse:
-        print("worse than the baseline:\n" + "\n".join(f"  - {w}" for w in worse), file=sys.stderr)
-        return FAILED_GATE_EXIT
-    if uncovered:
-        return 2
-    if args.fail_if_worse:
-        print(f"baseline gate passed ({args.baseline}: no significant loss at alpha {args.alpha})")
-    if threshold_check is not None:
-        for line in threshold_check.skipped:
-            print(f"threshold rule {line}", file=sys.stderr)
-        print(f"threshold check passed ({args.check}, floors read as {threshold_check.reading})")
-    return min(len(results.failed_episodes), 100)
+    return _verdict(args, results, threshold_check, worse, uncovered)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit code (:data:`evaluation.exit_codes.EXIT_CODES`).
+
+    An exception that is neither bad input (``ValueError``), an unwritable output (``OSError``)
+    nor an interruption is a fault of KoopNav: its traceback is printed with a line saying so,
+    and the code is 1, which no other outcome uses."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.options:
+            return _print_options(args.options)
+        if args.sweep_report is not None:
+            return _sweep_report(args.sweep_report, args.reference)
+        return _run(args, argv)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM before the run started (a run's own is RunInterrupted)
+        print("\ninterrupted before any episode ran", file=sys.stderr)
+        return INTERRUPTED_EXIT
+    except Exception:  # noqa: BLE001 - every other exception is a bug, reported as one
+        return report_internal_error(program_name())
 
 
 if __name__ == "__main__":

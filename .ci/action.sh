@@ -16,7 +16,8 @@
 #   KOOPNAV_OUT          report directory (default koopnav-results)
 #   KOOPNAV_PRINT_ONLY   "true": check the inputs, print the evaluator's words one per line, stop
 #                        (nothing installed or run; what tests/test_workflows.py checks quickly)
-# Every input is checked before anything is installed; a bad one exits 2 naming it and its value.
+# Every input is checked before anything is installed; a bad one exits 2 naming it and its value
+# (2: bad input, as in the evaluator's table of exit codes, evaluation/exit_codes.py).
 set -euo pipefail
 # the list inputs are split into words, and never expanded against the workspace's files
 set -f

@@ -6,7 +6,8 @@
 # per cell (default 10: 40 paired episodes per controller over both tasks, the count at which the
 # gate catches a 20-point drop from 90% with 80% power; docs/ci.md), paired on shared seeds with
 # the committed baseline .ci/baseline/results.json. Exit 102 when a controller is significantly
-# worse than the baseline, 101 when a floor of .ci/thresholds.toml fails.
+# worse than the baseline, 101 when a floor of .ci/thresholds.toml fails, 3 when episodes raised, 2
+# for bad input (evaluation/exit_codes.py: the highest-priority code when several apply).
 #
 #   bash .ci/leaderboard.sh [OUT]       run and gate (OUT: report directory, default a temp dir)
 #   bash .ci/leaderboard.sh --update    re-run without the gate and replace the committed baseline

@@ -8,6 +8,7 @@ import json
 from typing import Any
 
 from baselines.robot_features import FEATURE_SETS
+from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 
 __all__ = ["ALGORITHMS", "DESCRIPTION", "TASKS", "build_parser"]
 
@@ -22,7 +23,7 @@ ALGORITHMS = ("mappo", "ippo")
 def _json_object(text: str) -> dict[str, Any]:
     """``--env-kwargs``: a JSON object (argparse names the option and the value when this raises)."""
     try:
-        value = json.loads(text)
+        value = parse_json(text, "--env-kwargs", max_chars=CLI_JSON_CHARS)
     except json.JSONDecodeError as exc:
         raise argparse.ArgumentTypeError(f"not JSON ({exc})") from None
     if not isinstance(value, dict):
@@ -36,7 +37,7 @@ def _stage_list(text: str) -> list[dict[str, Any]]:
     """``--stages``: a JSON list of ``{"share": S, "env": {...}}`` whose shares sum to 1 (argparse
     names the option and the value when this raises)."""
     try:
-        stages = json.loads(text)
+        stages = parse_json(text, "--stages", max_chars=CLI_JSON_CHARS)
     except json.JSONDecodeError as exc:
         raise argparse.ArgumentTypeError(f"not JSON ({exc})") from None
     if not isinstance(stages, list) or not stages:

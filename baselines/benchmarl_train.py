@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from baselines.benchmarl_options import ALGORITHMS, build_parser
+from evaluation.exit_codes import SUCCESS_EXIT
 
 
 def _features(args: argparse.Namespace) -> str | None:
@@ -341,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     (out / "metadata.json").write_text(json.dumps(metadata, indent=1) + "\n")
     print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
-    return 0
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TypedDict, cast
+from typing import Any, ClassVar, TypedDict, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,6 +16,7 @@ from baselines.inference import command_of, deterministic_action, policy_command
 from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, load_npz, read_json
 from baselines.set_features import MAX_TEAM, SetFeatureConfig
 from controllers.base import BaseController
+from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 from koopman_envs.tasks.base import TASKS
 
@@ -98,6 +99,31 @@ def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
     files.metadata.write_text(json.dumps(metadata, indent=1) + "\n", encoding="utf-8")
 
 
+def _checked_norm(path: Path, norm: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``norm`` if it can normalize an observation: ``mean`` and ``var`` finite vectors of one
+    length with ``var >= 0``, ``clip > 0`` (inf: no clipping) and ``epsilon`` finite and >= 0.
+    Otherwise a :class:`PolicyLoadError` naming the file, the array and the first bad entry: a
+    NaN mean or a negative variance was accepted and every episode then failed with "action
+    contains a non-finite value"."""
+    mean, var = np.asarray(norm["mean"]), np.asarray(norm["var"])
+    if mean.ndim != 1 or var.shape != mean.shape:
+        raise PolicyLoadError(f"{path}: mean {mean.shape} and var {var.shape} must be vectors of one length")
+    for name, values, ok in (
+        ("mean", mean, np.isfinite(mean)),
+        ("var", var, np.isfinite(var) & (var >= 0)),
+    ):
+        if not ok.all():
+            index = int(np.flatnonzero(~ok)[0])
+            allowed = "finite and >= 0" if name == "var" else "finite"
+            raise PolicyLoadError(f"{path}: {name}[{index}]={float(values[index])!r}; allowed: {allowed}")
+    clip, epsilon = np.asarray(norm["clip"]), np.asarray(norm["epsilon"])
+    if clip.shape != () or np.isnan(clip) or not clip > 0:
+        raise PolicyLoadError(f"{path}: clip={float(clip)!r}; allowed: a number > 0 (inf: no clipping)")
+    if epsilon.shape != () or not np.isfinite(epsilon) or epsilon < 0:
+        raise PolicyLoadError(f"{path}: epsilon={float(epsilon)!r}; allowed: a finite number >= 0")
+    return norm
+
+
 def load_policy(
     directory: str | os.PathLike, task: str = "formation", algo: str = "ppo", *, allow_pickle: bool = False
 ) -> tuple[Any, dict, dict]:
@@ -135,7 +161,7 @@ def load_policy(
     algorithms: dict[str, type[PPO] | type[SAC]] = {"ppo": PPO, "sac": SAC}
     try:
         metadata = read_json(files.metadata)
-        norm = load_npz(files.norm, ("mean", "var", "clip", "epsilon"))
+        norm = _checked_norm(files.norm, load_npz(files.norm, ("mean", "var", "clip", "epsilon")))
         name = metadata.get("algo", algo)
         if name not in algorithms:
             raise PolicyLoadError(f"{files.metadata}: algo={name!r} is not one of {list(algorithms)}")
@@ -202,6 +228,12 @@ class RLPolicyController(BaseController):
     perceives = False
     #: one forward pass of the compiled actor serves many teams (:meth:`act_many`)
     acts_in_batch = True
+    #: the allowed values of the text option (:mod:`controllers.option_spec`): load_policy's algorithms
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"algo": ("ppo", "sac")}
+    #: the allowed range of the numeric option (:mod:`controllers.option_spec`): torch threads
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "threads": Range(1, 256, integer=True, note="or None (null)")
+    }
 
     def __init__(
         self,
@@ -213,7 +245,7 @@ class RLPolicyController(BaseController):
         super().__init__()
         self.policy_root = Path(policy_root) if policy_root else SHIPPED
         self.algo = algo
-        self.threads = threads
+        self.threads = None if threads is None else self.OPTION_RANGES["threads"].check("threads", threads)
         self.allow_pickle = bool(allow_pickle)
         import importlib.util
 
@@ -223,7 +255,7 @@ class RLPolicyController(BaseController):
             )
         if not any(policy_dir(task, self.policy_root).exists() for task in TASK_ENV):
             raise ValueError(
-                f"no trained policy in {self.policy_root}; train one with "
+                f"policy_root={str(self.policy_root)!r} holds no trained policy; train one with "
                 f"`{REGENERATE.format(env_id=TASK_ENV['formation'], algo=algo, task='formation')}`"
             )
         self._loaded: dict[str, tuple[Any, dict, dict, Any]] = {}

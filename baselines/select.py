@@ -24,6 +24,7 @@ import numpy as np
 from baselines.curriculum import VALIDATION
 from baselines.policy import PolicyFiles, load_policy, success_rate
 from baselines.set_features import SetFeatureConfig
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 
 __all__ = ["VALIDATION_SEED", "candidates", "main", "set_validation_success", "validation_success"]
 
@@ -106,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     run = Path(args.run)
     if not PolicyFiles(run).metadata.exists():
         print(f"error: {run} holds no finished training run (metadata.json missing)", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     metadata = json.loads(PolicyFiles(run).metadata.read_text(encoding="utf-8"))
     table = []
     for steps, directory in candidates(run):
@@ -138,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         f"selected the policy after {table[best]['timesteps']:,} steps "
         f"(validation success {table[best]['validation_success_rate']:.2f}); wrote {out}"
     )
-    return 0
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ from baselines.policy import ObsNorm, norm_of, save_policy, success_rate
 from baselines.set_features import SetFeatureConfig
 from baselines.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
 from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from koopman_envs.tasks.base import TASKS
 
 EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
@@ -340,7 +341,8 @@ class Trainer:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Train and save a policy (see the module docstring); exit 2 without stable-baselines3."""
+    """Train and save a policy (see the module docstring); bad input (exit 2) without
+    stable-baselines3 or with a policy to fine-tune that does not fit."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -351,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:
             "error: training needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'",
             file=sys.stderr,
         )
-        return 2
+        return BAD_INPUT_EXIT
     run = Trainer(args, parser, argv)
     run.out.mkdir(parents=True, exist_ok=True)
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
@@ -363,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
         model = run.build_model(venv)
     except ValueError as exc:  # a policy given to --init-from that does not fit
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     start = time.perf_counter()
     venv = run.learn(model, venv)
     wall = time.perf_counter() - start
@@ -373,7 +375,7 @@ def main(argv: list[str] | None = None) -> int:
         f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
         f"{label} {final_rate:.2f}; wrote {run.out}"
     )
-    return 0
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":

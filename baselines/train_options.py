@@ -6,9 +6,10 @@ Kept apart from :mod:`baselines.train` (the training run) so that each module ha
 from __future__ import annotations
 
 import argparse
-import json
+from typing import Any
 
 from baselines.vec_env import FEATURE_SETS, LAYOUTS
+from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.tasks.base import TASKS
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
@@ -27,11 +28,17 @@ TIMESTEPS = {"KoopNav-TargetReaching-v0": 14_000_000, "KoopNav-Formation-v0": 12
 POLICIES = ("mlp", "set")
 
 
+def json_value(text: str) -> Any:
+    """A JSON option value, its size and nesting bounded (argparse names the option when this
+    raises ``ValueError``)."""
+    return parse_json(text, "a JSON option value", max_chars=CLI_JSON_CHARS)
+
+
 def env_options(parser: argparse.ArgumentParser) -> None:
     """The training envs' options: layouts, seed, checkpoints, time limit, uncertainty."""
     parser.add_argument(
         "--random-map",
-        type=json.loads,
+        type=json_value,
         default=None,
         help="RandomMapConfig fields as JSON (default: the task's TRAIN_MAPS entry)",
     )
@@ -52,7 +59,7 @@ def env_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--movers",
-        type=json.loads,
+        type=json_value,
         default=None,
         help="moving obstacles of every training and validation env: the movers keyword as JSON, "
         'e.g. \'{"count": 6, "behaviour": "waypoints"}\' (set policies; default: none)',

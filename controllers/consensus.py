@@ -27,6 +27,7 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
+from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
 __all__ = ["CONSENSUS_LEVERS", "ConsensusController"]
@@ -77,6 +78,15 @@ class ConsensusController(BaseController):
         "mover_prediction": MOVER_PREDICTIONS,
         **estimator_choices(),
     }
+    #: the allowed range of every numeric option (:mod:`controllers.option_spec`; ours)
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "goal_gain": Range(0, 100, low_open=True, note="1/s"),
+        "consensus_gain": Range(0, 100, low_open=True),
+        "hand": Range(0, 1, low_open=True, note="m"),
+        "influence": Range(0, 10, low_open=True, note="m"),
+        "repulsion_gain": Range(0, 100, low_open=True),
+        "mover_lookahead": Range(0, 60, low_open=True, note="s"),
+    }
 
     def __init__(
         self,
@@ -102,8 +112,7 @@ class ConsensusController(BaseController):
             repulsion_gain=repulsion_gain,
             mover_lookahead=mover_lookahead,
         ).items():
-            if not np.isfinite(value) or value <= 0:
-                raise ValueError(f"{key}={value!r} must be a finite number > 0")
+            self.OPTION_RANGES[key].check(key, value)  # a number (not text, not a flag) in range
         self.collision_avoidance = bool(collision_avoidance)
         self.goal_gain, self.consensus_gain = goal_gain, consensus_gain
         self.hand, self.influence, self.repulsion_gain = hand, influence, repulsion_gain

@@ -8,12 +8,14 @@ from the controller itself, so it cannot drift from it:
   fields of :class:`~controllers.mpc.config.NMPCConfig`, which ``**options`` fill);
 - docs from the ``Parameters`` section of the class docstring (NMPCConfig: ``Attributes``);
 - the allowed names of a text option from the ``OPTION_CHOICES`` table of the class (and of
-  NMPCConfig);
+  NMPCConfig), the range of a numeric one from its ``OPTION_RANGES`` table (NMPCConfig:
+  :data:`~controllers.mpc.config.NMPC_RANGES`; a wrapper's option dataclass: ``RANGES``);
 - a preset's defaults from :mod:`controllers.presets`, a ``safe:`` wrapper's options from
   :class:`~controllers.safety.options.SafetyOptions`, prefixed ``safety_``.
 
-The evaluator asks the spec which configurations take ``solver`` and checks option names and
-choices before any controller is built; ``python evaluate.py --options NAME`` prints it; the docs
+The evaluator asks the spec which configurations take ``solver`` and checks option names,
+choices, types (a flag is true/false, a number is not a flag) and ranges before any controller
+is built; ``python evaluate.py --options NAME`` prints it; the docs
 page of controller options is generated from it (``docs/make_options_md.py``).
 """
 
@@ -22,10 +24,11 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from koopman_envs.checks import Range, check_number
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["ControllerSpec", "Option", "options", "spec_of"]
@@ -49,6 +52,8 @@ class Option:
         The docstring's text for it (first paragraph).
     choices : tuple of str, optional
         The allowed values of a text option.
+    bounds : Range, optional
+        The allowed range of a numeric option (of each entry of a tuple of numbers).
     """
 
     name: str
@@ -56,23 +61,61 @@ class Option:
     default: Any
     doc: str = ""
     choices: tuple[str, ...] | None = None
+    bounds: Range | None = None
 
     @property
     def required(self) -> bool:
         """No default: the option must be given."""
         return self.default is _EMPTY
 
+    @property
+    def kind(self) -> str:
+        """What the annotation asks for: ``"flag"``, ``"numbers"`` (a tuple), ``"number"``,
+        ``"mapping"`` or ``""`` (anything else: text, paths, objects)."""
+        words = {w.strip() for w in self.type.split("|")} - {"None"}
+        if words == {"bool"}:
+            return "flag"
+        if any(w.startswith("tuple[") for w in words) and words <= {"tuple[float, ...]", "tuple[int, ...]"}:
+            return "numbers"
+        if words and words <= {"int", "float"}:
+            return "number"
+        if words and all(w.startswith("dict") for w in words):
+            return "mapping"
+        return ""
+
     def check(self, value: Any, owner: str) -> None:
-        """Raise ``ValueError`` when ``value`` is not one of :attr:`choices` (naming them), nor
-        None for an optional option (type ``... | None``)."""
+        """Raise ``ValueError`` naming ``owner``, the option, the value and what is allowed when
+        ``value`` is not one of :attr:`choices`, not of the option's kind (a flag takes
+        true/false only, a number is never a flag, text or NaN, a dict option takes a dict), or
+        outside :attr:`bounds`; None passes for an optional option (type ``... | None``)."""
         optional = "None" in self.type  # e.g. no fallback solver
         if value is None and optional:
             return
+        also = " or None (null)" if optional else ""
         if self.choices is not None and value not in self.choices:
             raise ValueError(
                 f"{owner}: {self.name}={value!r} is not one of {list(self.choices)}"
-                f"{' or None (null)' if optional else ''}{did_you_mean(value, self.choices)}"
+                f"{also}{did_you_mean(value, self.choices)}"
             )
+        kind = self.kind
+        if kind == "flag" and not isinstance(value, bool):
+            raise ValueError(f"{owner}: {self.name}={value!r} is not a flag; allowed: true or false{also}")
+        if kind == "mapping" and not isinstance(value, Mapping):
+            raise ValueError(f"{owner}: {self.name}={value!r} is not a dict of options{also}")
+        if kind not in ("number", "numbers"):
+            return
+        # without a declared range (a plugin's option) a number is at least a finite number
+        check = self.bounds.check if self.bounds is not None else check_number
+        try:
+            if kind == "numbers":
+                if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+                    raise ValueError(f"{self.name}={value!r} is not a list of numbers, each in {self.bounds}")
+                for i, entry in enumerate(value):
+                    check(f"{self.name}[{i}]", entry)
+            else:
+                check(self.name, value)
+        except ValueError as exc:
+            raise ValueError(f"{owner}: {exc}{also if kind == 'number' else ''}") from None
 
 
 @dataclass(frozen=True)
@@ -134,6 +177,7 @@ class ControllerSpec:
         for o in self.options:
             default = "(required)" if o.required else cell(f"`{o.default!r}`")
             allowed = ", ".join(f"`{c}`" for c in o.choices) if o.choices else ""
+            allowed = allowed or (cell(str(o.bounds)) if o.bounds is not None else "")
             rows.append(f"| `{o.name}` | {cell(f'`{o.type}`')} | {default} | {allowed} | {cell(o.doc)} |")
         return "\n".join(rows)
 
@@ -170,7 +214,10 @@ def _sections(doc: str | None, heading: str) -> dict[str, str]:
 
 
 def _from_signature(
-    target: Callable[..., Any], docs: Mapping[str, str], choices: Mapping[str, Any]
+    target: Callable[..., Any],
+    docs: Mapping[str, str],
+    choices: Mapping[str, Any],
+    ranges: Mapping[str, Range],
 ) -> list[Option]:
     out = []
     for parameter in inspect.signature(target).parameters.values():
@@ -189,6 +236,7 @@ def _from_signature(
                 parameter.default,
                 docs.get(parameter.name, ""),
                 tuple(allowed) if allowed is not None else None,
+                ranges.get(parameter.name),
             )
         )
     return out
@@ -196,7 +244,7 @@ def _from_signature(
 
 def _nmpc_options(skip: set[str], defaults: Mapping[str, Any]) -> list[Option]:
     """NMPCConfig's fields as options (``defaults``: the controller's own defaults for some)."""
-    from controllers.mpc.config import NMPCConfig
+    from controllers.mpc.config import NMPC_RANGES, NMPCConfig
 
     docs = _sections(NMPCConfig.__doc__, "Attributes")
     choices = NMPCConfig.option_choices()
@@ -207,6 +255,7 @@ def _nmpc_options(skip: set[str], defaults: Mapping[str, Any]) -> list[Option]:
             defaults.get(f.name, f.default if f.default is not dataclasses.MISSING else None),
             docs.get(f.name, ""),
             tuple(choices[f.name]) if f.name in choices else None,
+            NMPC_RANGES.get(f.name),
         )
         for f in dataclasses.fields(NMPCConfig)
         if f.name not in skip
@@ -220,7 +269,8 @@ def spec_of(name: str, factory: Any) -> ControllerSpec:
     doc_owner = cls if cls is not None else factory
     docs = _sections(getattr(doc_owner, "__doc__", None), "Parameters")
     choices = dict(getattr(cls, "OPTION_CHOICES", {}) or {})
-    found = _from_signature(target, docs, choices)
+    ranges = dict(getattr(cls, "OPTION_RANGES", {}) or {})
+    found = _from_signature(target, docs, choices, ranges)
     signature = inspect.signature(target).parameters
     if "config" in signature and any(p.kind == p.VAR_KEYWORD for p in signature.values()):
         # **options are NMPCConfig's fields
@@ -268,8 +318,9 @@ def options(name: str) -> ControllerSpec:
         inner = options(name.split(":", 1)[1])
         table, prefix, role = _wrapper_options(prefixes[0])
         docs = _sections(table.__doc__, "Attributes")
+        ranges = getattr(table, "RANGES", {})
         mine = tuple(
-            Option(prefix + f.name, str(f.type), f.default, docs.get(f.name, ""))
+            Option(prefix + f.name, str(f.type), f.default, docs.get(f.name, ""), None, ranges.get(f.name))
             for f in dataclasses.fields(table)
         )
         return ControllerSpec(name, f"{inner.doc} ({role})", inner.options + mine)

@@ -12,6 +12,10 @@ from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, SUCCESS_EXIT  # noqa: E402
+
 
 class _Page(HTMLParser):
     def __init__(self) -> None:
@@ -73,12 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1 or not Path(args[0]).is_dir():
         print(__doc__.strip().split("\n\n")[1], file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     bad = broken_links(Path(args[0]))
     for line in bad:
         print(line)
     print(f"{len(bad)} broken relative links" if bad else "every relative link resolves")
-    return 1 if bad else 0
+    return FAILED_CHECK_EXIT if bad else SUCCESS_EXIT
 
 
 if __name__ == "__main__":

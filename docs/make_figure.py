@@ -20,6 +20,7 @@ import matplotlib.image
 import controllers
 import koopman_envs  # noqa: F401  (registers the ids)
 from controllers.calibration import calibrate_controller
+from evaluation.exit_codes import SUCCESS_EXIT
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     matplotlib.image.imsave(args.out, env.render())
     env.close()
     print(args.out)
-    return 0
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":

@@ -15,6 +15,10 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout
+
+from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, SUCCESS_EXIT  # noqa: E402
+
 #: the published pages: page, generator and the generator's arguments
 PAGES: list[dict] = json.loads((ROOT / "data" / "pages.json").read_text())
 
@@ -34,7 +38,7 @@ def main(argv: list[str]) -> int:
     unknown = [name for name in names if name not in known]
     if unknown:
         print(f"not a published page: {unknown}; data/pages.json lists {known}", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     stale = []
     with tempfile.TemporaryDirectory() as scratch:
         for entry in pages:
@@ -49,7 +53,7 @@ def main(argv: list[str]) -> int:
                 stale.append(entry["page"])
     if check:
         print(f"differ from the committed data: {stale}" if stale else "every page checked is up to date")
-    return 1 if stale else 0
+    return FAILED_CHECK_EXIT if stale else SUCCESS_EXIT
 
 
 if __name__ == "__main__":

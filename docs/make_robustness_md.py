@@ -27,6 +27,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.figures import save_profile_figures  # noqa: E402
 from evaluation.report import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
 from evaluation.robustness import AxisProfile, level_costs, profiles  # noqa: E402
@@ -73,10 +74,10 @@ def main(argv: list[str] | None = None) -> int:
             f"error: --names gives {len(args.names)} name(s) for {len(args.sweeps)} sweep(s); give one per sweep",
             file=sys.stderr,
         )
-        return 2
+        return BAD_INPUT_EXIT
     if args.intro is not None and not args.intro.is_file():
         print(f"error: --intro {str(args.intro)!r} is not a file", file=sys.stderr)
-        return 2
+        return BAD_INPUT_EXIT
     out = Path(args.out)
     figures = Path(args.figures)
     intro = INTRO if args.intro is None else args.intro.read_text(encoding="utf-8").strip()
@@ -88,18 +89,18 @@ def main(argv: list[str] | None = None) -> int:
             done, missing, manifest = load_sweep(directory)
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
-            return 2
+            return BAD_INPUT_EXIT
         # an axis with one finished level (its 0, which every axis shares) has no profile yet
         shown = {key: levels for key, levels in done.items() if len(levels) >= 2}
         if not shown:
             print(f"error: no axis of the sweep in {directory!r} has two finished levels", file=sys.stderr)
-            return 2
+            return BAD_INPUT_EXIT
         done = shown
         try:
             axes = profiles(done, args.reference or manifest.get("reference"))
         except ValueError as exc:
             print(f"error: {exc} (sweep {directory!r})", file=sys.stderr)
-            return 2
+            return BAD_INPUT_EXIT
         named_axes += [replace(profile, key=f"{name}: {profile.key}") for profile in axes]
         parts.append(f"## {name}\n\nCommand: `{manifest.get('command', '')}`")
         if missing:
@@ -124,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
             parts.insert(2, markdown([overview]))
     out.write_text("\n\n".join(parts) + "\n", encoding="utf-8")
     print(f"wrote {out} and {len(args.sweeps)} sweep(s) of figures in {figures}")
-    return 0
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":

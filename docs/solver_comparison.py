@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.baseline import load_baseline
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.statistics import paired_comparison
@@ -136,7 +137,7 @@ def markdown(rows: list[dict[str, Any]], a: str, b: str) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("results", nargs="+", type=Path, help="results.json of evaluator runs")
     parser.add_argument("--a", default="rti", help="the candidate solver label suffix (default rti)")
@@ -147,15 +148,20 @@ def main() -> None:
     documents = [load_baseline(path, what="results") for path in args.results]
     rows = comparison_rows(documents, args.a, args.b)
     if not rows:
-        raise SystemExit(f"no controller ran as both <name>@{args.a} and <name>@{args.b} in {args.results}")
+        print(
+            f"error: no controller ran as both <name>@{args.a} and <name>@{args.b} in {args.results}",
+            file=sys.stderr,
+        )
+        return BAD_INPUT_EXIT
     print(markdown(rows, args.a, args.b))
     print()
     print(per_cell_markdown(documents, args.a, args.b))
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":
     try:
-        main()
+        raise SystemExit(main())
     except ValueError as exc:  # a results file that is not as KoopNav writes it (the message names it)
         print(f"error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+        raise SystemExit(BAD_INPUT_EXIT) from None

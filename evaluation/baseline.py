@@ -39,6 +39,7 @@ from evaluation.distinct import distinct_units, read_once
 from evaluation.records import ran, record_problem
 from evaluation.report import markdown_cell, markdown_text, task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
+from koopman_envs.checks import parse_json
 
 __all__ = [
     "ALL_TASKS",
@@ -84,7 +85,7 @@ def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
     except OSError as exc:
         raise ValueError(f"{what} {str(file)!r} cannot be read ({exc.strerror or exc})") from None
     try:
-        doc = json.loads(text)
+        doc = parse_json(text, f"{what} {str(file)!r}")
     except json.JSONDecodeError as exc:
         raise ValueError(f"{what} {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
     if not isinstance(doc, dict) or not {"schema_version", "config", "episodes"} <= set(doc):

@@ -1,5 +1,5 @@
 """The evaluator's command line (``python evaluate.py``): its options, one function per group,
-the exit codes, and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
+the exit codes in ``--help`` (:mod:`evaluation.exit_codes`), and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
 with the given options replacing its fields). ``evaluate.py`` runs it."""
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from controllers.mpc.config import NLP_SOLVERS, SOLVERS
 from evaluation.ablation import check_factors
 from evaluation.baseline import GateOptions
 from evaluation.configs import FALLBACK_NONE, split_controller_list
+from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, FAILED_GATE_EXIT, exit_codes_help
 from evaluation.protocols import (
     CROWD_COUNTS,
     CROWD_REFERENCE,
@@ -29,14 +30,11 @@ from evaluation.protocols import (
 )
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec, with_env_setting
+from evaluation.sweep import refuse_sweep_clash
+from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.params import PARAMS, SLIP_NAMES
 
 __all__ = [
-    "EXIT_CODES",
-    "FAILED_CHECK_EXIT",
-    "FAILED_GATE_EXIT",
-    "INTERRUPTED_EXIT",
-    "UNWRITABLE_OUT_EXIT",
     "build_parser",
     "parse_env_kwargs",
     "program_name",
@@ -44,11 +42,6 @@ __all__ = [
     "split_words",
     "stop_on_sigterm",
 ]
-
-FAILED_CHECK_EXIT = 101
-FAILED_GATE_EXIT = 102  # --fail-if-worse: a controller significantly worse than the baseline
-INTERRUPTED_EXIT = 130  # the shell's code for a run stopped by Ctrl-C (128 + SIGINT)
-UNWRITABLE_OUT_EXIT = 103  # --out cannot be made or written (refused before any episode)
 
 
 # --------------------------------------------------------------------------- list arguments
@@ -63,11 +56,17 @@ def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None
     """``["n_robots=5", "pose_noise.xy=0.1"]`` -> dict (values parsed as JSON, else text).
 
     A dotted key sets one field of a dict keyword, over that keyword's fields in ``into`` (the
-    settings given before, which the result copies and overrides).
+    settings given before, which the result copies and overrides). A key given twice is refused
+    (``ValueError`` naming it), as are JSON values nested or sized beyond
+    :func:`koopman_envs.checks.parse_json`'s bounds.
     """
     kwargs: dict[str, Any] = dict(into or {})
+    seen: set[str] = set()
     for word in words or []:
         key, eq, value = word.partition("=")
+        if key.strip() in seen:
+            raise ValueError(f"--env-kwargs {key.strip()!r} is given twice; give each key once")
+        seen.add(key.strip())
         root, dot, field = key.strip().partition(".")
         if not eq or not root.isidentifier() or (dot and not field.isidentifier()):
             raise ValueError(
@@ -75,7 +74,7 @@ def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None
                 "keyword.field for one field of a dict keyword, e.g. pose_noise.xy=0.1)"
             )
         try:
-            parsed = json.loads(value)
+            parsed = parse_json(value, f"--env-kwargs {key.strip()}", max_chars=CLI_JSON_CHARS)
         except json.JSONDecodeError:
             parsed = value
         kwargs = with_env_setting(kwargs, key.strip(), parsed, f"--env-kwargs {word!r}")
@@ -83,26 +82,6 @@ def parse_env_kwargs(words: list[str] | None, into: dict[str, Any] | None = None
 
 
 # --------------------------------------------------------------------------- CLI
-#: exit codes of the command line, as ``--help`` lists them
-EXIT_CODES = (
-    ("0", "every episode ran (and --check, if given, passed)"),
-    ("1-100", "that many episodes raised (capped at 100); the others' results are written"),
-    (
-        "2",
-        "bad input (named on stderr) before any episode ran, or --fail-if-worse could not pair "
-        "enough episodes with the --baseline to judge the run (a stale or empty baseline fails closed)",
-    ),
-    (
-        str(UNWRITABLE_OUT_EXIT),
-        "--out cannot be made or written (a file, read-only, no permission or space); before any "
-        "episode, or when a report could not be written",
-    ),
-    (str(FAILED_CHECK_EXIT), "a --check threshold failed"),
-    (str(FAILED_GATE_EXIT), "--fail-if-worse: a controller is significantly worse than the --baseline"),
-    (str(INTERRUPTED_EXIT), "interrupted (Ctrl-C or SIGTERM); continue with --resume"),
-)
-
-
 def program_name() -> str:
     """How the user called the evaluator: ``koopnav-evaluate`` (the installed script) or
     ``python evaluate.py``, for usage lines and resume hints."""
@@ -112,7 +91,7 @@ def program_name() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The evaluator's command line, one argument group per function below."""
-    epilog = "exit codes:\n" + "\n".join(f"  {code:<6} {meaning}" for code, meaning in EXIT_CODES)
+    epilog = exit_codes_help()
     parser = argparse.ArgumentParser(
         prog=program_name(),
         description="KoopNav evaluator: run every controller on every cell, report success rates and final distances.",
@@ -298,9 +277,19 @@ def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
     )
 
 
+def _directory(text: str) -> str:
+    """``--out``: a directory path; empty text (which would write into the current directory) is
+    refused by argparse with this message (exit 2)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is empty; name the output directory (default: results)")
+    return text
+
+
 def _output_options(output: argparse._ArgumentGroup) -> None:
     """The "output" options."""
-    output.add_argument("--out", default="results", help="output directory (default: results)")
+    output.add_argument(
+        "--out", default="results", type=_directory, help="output directory (default: results)"
+    )
     output.add_argument(
         "--full-report",
         action="store_true",
@@ -401,7 +390,7 @@ def _ci_options(ci: argparse._ArgumentGroup) -> None:
         default=defaults.min_pairs,
         metavar="N",
         help=f"with --fail-if-worse: episodes each controller must pair with the baseline, >= 1; fewer "
-        f"(other seeds, cells or controllers, or errors) exit 2 (default {defaults.min_pairs})",
+        f"(other seeds, cells or controllers, or errors) exit {BAD_INPUT_EXIT} (default {defaults.min_pairs})",
     )
     ci.add_argument(
         "--delta-cm",
@@ -484,6 +473,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
                 "keyword to different values; give it once"
             )
     env_kwargs = parse_env_kwargs(args.env_kwargs, into=env_kwargs)
+    refuse_sweep_clash(args.sweep, {**dedicated, **given})
     return spec.replace(
         **changes,
         env_kwargs=env_kwargs,

@@ -31,9 +31,11 @@ from typing import Any
 import controllers
 from controllers.registry import factory as registered_factory
 from controllers.registry import is_import_path, split_name
+from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 
 __all__ = [
     "ControllerConfig",
+    "check_label",
     "controller_configs",
     "parse_controller",
     "split_controller_list",
@@ -65,6 +67,9 @@ class ControllerConfig:
     name: str
     options: tuple[tuple[str, Any], ...] = ()
     factory: Callable[..., Any] | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        check_label(self.label)
 
     def build(self) -> Any:
         """A fresh controller instance."""
@@ -112,15 +117,28 @@ class ControllerConfig:
         return {"label": self.label, "name": self.name, "options": dict(self.options)}
 
 
-def _scalar(text: str) -> Any:
+def check_label(label: Any) -> str:
+    """``label`` if it can name a row of every report: non-empty text on one line, without control
+    characters (a newline broke the results.md table); else ``ValueError`` naming it."""
+    if not isinstance(label, str) or not label.strip():
+        raise ValueError(f"controller label {label!r} must be non-empty text")
+    if not label.isprintable():
+        raise ValueError(
+            f"controller label {label!r} holds a line break or another control character; a label is one line"
+        )
+    return label
+
+
+def _scalar(key: str, text: str) -> Any:
+    """Option ``key``'s value text as JSON (a scalar), else the text itself."""
     if text.strip() == "None":  # Python's spelling of JSON's null
         return None
     try:
-        value = json.loads(text)
+        value = parse_json(text, f"option {key}", max_chars=CLI_JSON_CHARS)
     except json.JSONDecodeError:
         return text
     if isinstance(value, (list, dict)):
-        raise ValueError(f"option value {text!r} must be a scalar (number, true/false, null or text)")
+        raise ValueError(f"option {key}={text!r} must be a scalar (number, true/false, null or text)")
     return value
 
 
@@ -139,6 +157,7 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
     if sep:
         if not rest:
             raise ValueError(f"controller {text!r}: nothing after ':'; expected 'name:key=value,...'")
+        given: set[str] = set()
         for item in rest.split(","):
             key, eq, value = item.partition("=")
             key = key.strip()
@@ -146,10 +165,17 @@ def parse_controller(text: str | ControllerConfig) -> ControllerConfig:
                 raise ValueError(
                     f"controller {text!r}: {item!r} is not key=value (a Python identifier as key)"
                 )
+            if key in given:  # the last would win without a word
+                raise ValueError(f"controller {text!r}: option {key!r} is given twice; give each option once")
+            given.add(key)
             if key == "label":
                 label = value.strip()
+                if not label:
+                    raise ValueError(
+                        f"controller {text!r}: label= is empty; name the row or leave label= out"
+                    )
             else:
-                options[key] = _scalar(value.strip())
+                options[key] = _scalar(key, value.strip())
     return ControllerConfig(label, name.strip(), tuple(sorted(options.items())))
 
 

@@ -9,11 +9,12 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from evaluation.runlog import LogError, RunLocked, forget_controllers
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Drop the labels' records; print how many per directory. Exit 2 on a log that cannot be read."""
+    """Drop the labels' records; print how many per directory. Bad input (exit 2) for a log that cannot be read."""
     parser = argparse.ArgumentParser(prog="python -m evaluation.forget", description=__doc__.split("\n\n")[0])
     parser.add_argument("labels", nargs="+", metavar="LABEL", help="controller labels whose records to drop")
     parser.add_argument("runs", nargs="+", metavar="DIR", help="run or sweep directories (after --)")
@@ -23,8 +24,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{run}: {forget_controllers(run, args.labels)} records dropped")
         except (LogError, RunLocked) as exc:
             print(f"error: {exc}", file=sys.stderr)
-            return 2
-    return 0
+            return BAD_INPUT_EXIT
+    return SUCCESS_EXIT
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from typing import IO, Any
 
 from evaluation.distinct import ConflictingRecords, read_once
 from evaluation.records import json_safe, record_problem
+from koopman_envs.checks import parse_json
 
 __all__ = [
     "RESUME_KEYS",
@@ -139,8 +140,8 @@ def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> list[str]:
     """Refuse a log whose first line is not this run's header; the labels this run adds to the
     logged one (an empty list for the same run)."""
     try:
-        header = json.loads(first)
-    except (json.JSONDecodeError, UnicodeDecodeError):
+        header = parse_json(first, f"{log} line 1")
+    except ValueError:  # not JSON, not UTF-8, or nested beyond any header
         raise LogError(
             f"{log} is not a KoopNav episode log (line 1 is not JSON); nothing was overwritten"
         ) from None
@@ -248,8 +249,8 @@ def read_log(
     bad: list[str] = []
     for number, raw in enumerate(lines[1:], start=2):
         try:
-            rec = json.loads(raw)
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            rec = parse_json(raw, "the record")
+        except ValueError as exc:  # not JSON (or not UTF-8), or nested beyond any record
             bad.append(f"line {number}: not JSON ({getattr(exc, 'msg', exc)})")
             continue
         problem = _record_problem(rec, expected)
@@ -376,8 +377,8 @@ def forget_controllers(out: str | os.PathLike[str], labels: Sequence[str]) -> in
             kept = lines[:1]
             for number, line in enumerate(lines[1:], start=2):
                 try:
-                    rec = json.loads(line)
-                except (json.JSONDecodeError, UnicodeDecodeError):
+                    rec = parse_json(line, f"{log} line {number}")
+                except ValueError:  # not JSON (or not UTF-8), or nested beyond any record
                     raise LogError(
                         f"{log}: line {number} is not a JSON record; nothing was changed"
                     ) from None

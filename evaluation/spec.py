@@ -315,6 +315,13 @@ class RunSpec:
                 raise ValueError(
                     f"env_kwargs: {key}={value!r} must be plain JSON (a number, text, list or dict)"
                 ) from None
+            # the keyword's own check first, so that its message names it (n_robots="abc" was
+            # reported by the first check that used the team size: the slips')
+            row = next(k for k in ENV_KEYWORDS if k.name == key)
+            try:
+                row.resolve(value)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"env_kwargs: {exc}") from None
 
     # ------------------------------------------------------------------ the run
     def episodes_plan(self, run_dir: str = "") -> list[EpisodeSpec]:

@@ -30,10 +30,19 @@ from evaluation.results import Results
 from evaluation.spec import RunSpec, with_env_setting
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import task_for_env
 
-__all__ = ["MANIFEST", "SweepAxis", "load_sweep", "parse_sweep", "run_sweep", "write_manifest"]
+__all__ = [
+    "MANIFEST",
+    "MAX_SWEEP_LEVELS",
+    "SweepAxis",
+    "load_sweep",
+    "parse_sweep",
+    "run_sweep",
+    "write_manifest",
+]
 
 #: the sweep's axes and reference, written in OUT before the first level runs
 MANIFEST = "sweep.json"
@@ -42,6 +51,9 @@ _MANIFEST_KIND = "koopnav-sweep"
 #: keywords a sweep cannot vary: the map is a cell axis, rendering is the evaluator's business,
 #: and the team size changes what a controller is (sweep it as separate runs)
 _NOT_SWEPT = ("map", "render_mode", "max_cycles")
+#: the most levels of one sweep axis (ours): each level is a whole run of every controller, and a
+#: profile of 64 points already resolves any curve; 15,000 were accepted and planned
+MAX_SWEEP_LEVELS = 64
 
 
 @dataclass(frozen=True)
@@ -84,7 +96,7 @@ def parse_sweep(text: str) -> SweepAxis:
     ------
     ValueError
         Not ``KEY=v1,v2,...``, an unknown or unsweepable keyword (with did-you-mean), fewer than
-        two levels, or a level given twice.
+        two levels or more than :data:`MAX_SWEEP_LEVELS`, or a level given twice.
     """
     key, eq, values = text.partition("=")
     key = key.strip()
@@ -96,8 +108,11 @@ def parse_sweep(text: str) -> SweepAxis:
         raise ValueError(
             f"--sweep {key!r}: {root!r} is not an env keyword{did_you_mean(root, allowed)}; allowed: {allowed}"
         )
+    words = values.split(",")
+    if len(words) > MAX_SWEEP_LEVELS:
+        raise ValueError(f"--sweep {key}: {len(words):,} levels; allowed: at most {MAX_SWEEP_LEVELS}")
     levels: list[Any] = []
-    for position, word in enumerate(values.split(","), start=1):
+    for position, word in enumerate(words, start=1):
         word = word.strip()
         if not word:
             raise ValueError(
@@ -105,7 +120,7 @@ def parse_sweep(text: str) -> SweepAxis:
                 "end); give the levels as KEY=v1,v2,..."
             )
         try:
-            level = json.loads(word)
+            level = parse_json(word, f"--sweep {key} level {position}", max_chars=CLI_JSON_CHARS)
         except json.JSONDecodeError:
             level = word
         if level in levels:
@@ -114,6 +129,29 @@ def parse_sweep(text: str) -> SweepAxis:
     if len(levels) < 2:
         raise ValueError(f"--sweep {text!r}: give at least two levels, separated by commas")
     return SweepAxis(key, tuple(levels))
+
+
+def refuse_sweep_clash(sweeps: list[str] | None, given: dict[str, Any]) -> None:
+    """Refuse an env setting given on the command line (``given``: the settings as parsed, dotted
+    keys merged into their dicts) that a ``--sweep`` axis (``sweeps``: the ``KEY=v1,...`` texts)
+    also sets: the sweep would override it at every level without a word (as
+    ``--max-episode-steps`` against ``--env-kwargs`` is refused). ``ValueError`` naming both."""
+    for text in sweeps or []:
+        key = text.partition("=")[0].strip()
+        root, _, field = key.partition(".")
+        if root not in given:
+            continue
+        value = given[root]
+        if not field or not isinstance(value, dict) or field in value:
+            shown = (
+                f"{root}.{field}={value[field]!r}"
+                if field and isinstance(value, dict)
+                else f"{root}={value!r}"
+            )
+            raise ValueError(
+                f"--sweep {key} and the setting {shown} given on the command line both set {key}; the "
+                "sweep sets it at every level: give it once"
+            )
 
 
 def check_levels(spec: RunSpec, axes: list[SweepAxis]) -> None:
@@ -250,7 +288,7 @@ def write_manifest(
 def _read_manifest(out: Path) -> dict[str, Any]:
     path = out / MANIFEST
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = parse_json(path.read_text(encoding="utf-8"), f"sweep manifest {str(path)!r}")
     except OSError as exc:
         raise ValueError(f"sweep manifest {str(path)!r} cannot be read ({exc.strerror or exc})") from None
     except json.JSONDecodeError as exc:

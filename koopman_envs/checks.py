@@ -7,8 +7,12 @@ bad value and what is allowed in one form.
 
 from __future__ import annotations
 
+import itertools
+import json
 import math
+import re
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from numbers import Integral, Real
 from typing import Any
 
@@ -17,7 +21,37 @@ from numpy.typing import NDArray
 
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["check_choice", "check_commands", "check_flag", "check_int", "check_number", "checked_options"]
+__all__ = [
+    "CLI_JSON_CHARS",
+    "MAX_NUMBER",
+    "MAX_JSON_CHARS",
+    "MAX_JSON_DEPTH",
+    "Range",
+    "check_choice",
+    "check_commands",
+    "check_flag",
+    "check_int",
+    "check_number",
+    "checked_options",
+    "parse_json",
+]
+
+#: the largest number :func:`check_number` accepts where its caller sets no upper bound: far
+#: beyond any physical setting of KoopNav (metres, seconds, gains), and small enough that its
+#: square and products stay finite (``movers.detection_noise=1e200`` overflowed when squared)
+MAX_NUMBER = 1e9
+#: the deepest nesting of lists and objects :func:`parse_json` reads: the deepest of KoopNav's own
+#: documents (a sweep manifest, a results file, an env setting) is under 10 levels
+MAX_JSON_DEPTH = 64
+#: the longest JSON text :func:`parse_json` reads by default [characters]: a results file of
+#: 10,000 episodes per cell of a large run is tens of MiB
+MAX_JSON_CHARS = 256 * 2**20
+#: the longest JSON value of one command-line word [characters] (the largest real one, a map
+#: given inline or a curriculum of stages, is a few KiB)
+CLI_JSON_CHARS = 2**20
+#: a JSON string literal (escapes included), removed before the brackets are counted
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_NOT_BRACKET = re.compile(r"[^\[\]{}]+")
 
 
 def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") -> Any:
@@ -104,6 +138,7 @@ def check_number(
     above: float | None = None,
     at_least: float | None = None,
     at_most: float | None = None,
+    below: float | None = None,
     note: str = "",
 ) -> float:
     """``value`` as a finite ``float``, or ``ValueError`` naming it and the allowed range.
@@ -114,15 +149,20 @@ def check_number(
         The argument's name, as the user wrote it.
     value : object
         A real number (``bool``, text, NaN and infinities are refused).
-    above, at_least, at_most : float, optional
-        Bounds: ``value > above``, ``value >= at_least``, ``value <= at_most``.
+    above, at_least, at_most, below : float, optional
+        Bounds: ``value > above``, ``value >= at_least``, ``value <= at_most``, ``value < below``;
+        without ``at_most`` and ``below`` the bound is ``value <= MAX_NUMBER`` (every number is
+        bounded, so that no float overflows further on).
     note : str
         Appended to the message in parentheses (e.g. the unit).
     """
+    if at_most is None and below is None:
+        at_most = MAX_NUMBER  # no float setting is unbounded: see MAX_NUMBER
     bounds = [
         f"> {above}" if above is not None else "",
         f">= {at_least}" if at_least is not None else "",
         f"<= {at_most}" if at_most is not None else "",
+        f"< {below}" if below is not None else "",
     ]
     allowed = "a finite number" + "".join(f" {b}" for b in bounds if b)
     ok = isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
@@ -131,10 +171,98 @@ def check_number(
             (above is not None and value <= above)
             or (at_least is not None and value < at_least)
             or (at_most is not None and value > at_most)
+            or (below is not None and value >= below)
         )
     if not ok:
         raise ValueError(f"{name}={value!r} must be {allowed}" + (f" ({note})" if note else ""))
     return float(value)
+
+
+@dataclass(frozen=True)
+class Range:
+    """The allowed values of a numeric setting, declared once beside it (a controller's option
+    table, an options dataclass) and checked by :meth:`check` with the one wording of
+    :func:`check_int` / :func:`check_number`.
+
+    Every range is bounded on both sides: an unbounded size or weight let a typo
+    (``horizon=100000000``) allocate until the machine ran out of memory, and a huge float
+    overflow further on instead of being refused by name.
+
+    Attributes
+    ----------
+    low, high : float
+        The bounds.
+    integer : bool
+        Integers only (``bool`` is never a number).
+    low_open, high_open : bool
+        The bound itself is excluded (``(0, 1]``: ``low_open=True``).
+    note : str
+        The unit or a hint, shown in the message in parentheses.
+    """
+
+    low: float
+    high: float
+    integer: bool = False
+    low_open: bool = False
+    high_open: bool = False
+    note: str = ""
+
+    def check(self, name: str, value: Any) -> Any:
+        """``value`` as an ``int`` or ``float`` in the range, else ``ValueError`` naming ``name``,
+        the value and the range."""
+        if self.integer:
+            low = int(self.low) + (1 if self.low_open else 0)
+            high = int(self.high) - (1 if self.high_open else 0)
+            return check_int(name, value, low, maximum=high, note=self.note)
+        return check_number(
+            name,
+            value,
+            above=self.low if self.low_open else None,
+            at_least=None if self.low_open else self.low,
+            at_most=None if self.high_open else self.high,
+            below=self.high if self.high_open else None,
+            note=self.note,
+        )
+
+    def __str__(self) -> str:
+        """``an integer in [1, 200]``, ``(0, 0.5)``, ``[0, 1] m``: the range in interval notation,
+        then the note."""
+        text = f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}{')' if self.high_open else ']'}"
+        return ("an integer in " if self.integer else "") + text + (f" {self.note}" if self.note else "")
+
+
+def parse_json(text: str | bytes, what: str, *, max_chars: int = MAX_JSON_CHARS) -> Any:
+    """``json.loads(text)`` with its size and nesting bounded first: the one JSON parser of
+    command-line values and of files read back (maps, sweep manifests, run logs, baselines).
+
+    Python's parser recurses once per level, so ``[[[[...`` 100,000 deep raised
+    ``RecursionError`` (a traceback) instead of a message; here the depth is counted before
+    parsing, outside string literals, in linear time.
+
+    Parameters
+    ----------
+    text : str or bytes
+        The JSON text.
+    what : str
+        What it is, named in the error (e.g. ``"--env-kwargs movers"`` or a file's path).
+    max_chars : int
+        The longest text accepted (default :data:`MAX_JSON_CHARS`).
+
+    Raises
+    ------
+    ValueError
+        Longer than ``max_chars`` or nested deeper than :data:`MAX_JSON_DEPTH`, naming ``what``
+        (a plain ``ValueError``); a syntax error is ``json.JSONDecodeError`` as from ``json.loads``
+        (callers that fall back to text catch that one only).
+    """
+    if len(text) > max_chars:
+        raise ValueError(f"{what}: {len(text):,} characters of JSON, more than the {max_chars:,} allowed")
+    plain = text.decode("utf-8", "replace") if isinstance(text, bytes) else text
+    brackets = _NOT_BRACKET.sub("", _JSON_STRING.sub("", plain))
+    depth = max(itertools.accumulate(1 if c in "[{" else -1 for c in brackets), default=0)
+    if depth > MAX_JSON_DEPTH:
+        raise ValueError(f"{what}: JSON nested {depth} levels deep; allowed: at most {MAX_JSON_DEPTH}")
+    return json.loads(text)
 
 
 def check_flag(name: str, value: Any) -> bool:

@@ -80,7 +80,7 @@ class MoverConfig:
         range for legs, as the default lidar's).
     detection_noise : float
         Standard deviation of a detection's position error per axis [m] (0.05: a leg or person
-        detector on a 2D lidar at a few metres).
+        detector on a 2D lidar at a few metres), at most ``LIMITS.pose_noise``.
     """
 
     count: int = 0
@@ -117,8 +117,13 @@ class MoverConfig:
                 at_most=LIMITS.lidar_range,
                 note="metres",
             ),
+            # an error the size of the workspace's side is no detection at all (as pose_noise)
             "detection_noise": check_number(
-                "movers.detection_noise", self.detection_noise, at_least=0, note="metres"
+                "movers.detection_noise",
+                self.detection_noise,
+                at_least=0,
+                at_most=LIMITS.pose_noise,
+                note="metres",
             ),
         }
         for name, value in checked.items():  # stored in normal form (0 and 0.0 are one setting)

@@ -67,7 +67,7 @@ NUMBERS = st.one_of(
 VALUES = st.one_of(WORDS, NUMBERS, st.text(max_size=12))
 
 
-class _Ready(Exception):
+class _Ready(BaseException):  # not an Exception: main() reports those as internal errors (exit 1)
     """The run validated and planned: the first episode would start now."""
 
 

@@ -221,9 +221,9 @@ def test_a_slip_zone_of_a_map_file_is_bounded(tmp_path: Path) -> None:
     [
         ({"sensing": "lidar", "lidar": {"fov": 5e-324, "beams": 64}}, r"lidar.fov=5e-324 is narrower than 0.001 rad"),
         ({"map": "random", "random_map": {"travel": (5e-324, 5e-324)}}, r"random_map: travel=\(5e-324, 5e-324\) must have low >= 0.01"),
-        ({"movers": {"count": 3, "radius": 1.7e308}}, r"movers: a mover of radius 1.7e\+308 m \(movers.radius\) does not fit the arena"),
-        ({"map": "random", "random_map": {"border": 1e300}}, r"random_map border=1e\+300 m and robot_radius=0.2 m leave no room"),
-        ({"map": "random", "robot_radius": 1e300}, r"random_map border=1 m and robot_radius=1e\+300 m leave no room"),
+        ({"movers": {"count": 3, "radius": 1e6}}, r"movers: a mover of radius 1000000.0 m \(movers.radius\) does not fit the arena"),
+        ({"map": "random", "random_map": {"border": 1e6}}, r"random_map border=1e\+06 m and robot_radius=0.2 m leave no room"),
+        ({"map": "random", "robot_radius": 1e6}, r"random_map border=1 m and robot_radius=1e\+06 m leave no room"),
         ({"map": "random", "random_map": {"obstacle_radius": (1e3, 1e3), "max_attempts": 50}}, r"random_map: no valid random map in max_attempts=50"),
         ({"start_noise": 20.0}, r"start_noise=20.0: no valid start poses on map 'map1'"),
     ],

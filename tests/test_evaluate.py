@@ -149,9 +149,13 @@ def test_check_thresholds(tmp_path, small_results: ev.Results) -> None:
     )
     assert ev.check_thresholds(small_results, passing).problems == []
     failing = tmp_path / "bad.toml"
-    failing.write_text('reading = "point"\n[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
+    failing.write_text('[[cell]]\ncontroller = "consensus"\nmax_final_distance_cm = 0.0\n')
     problems = ev.check_thresholds(small_results, failing).problems
-    assert len(problems) == 2 and all("consensus / map1" in p and "< 1.01" in p for p in problems)
+    assert len(problems) == 2 and all("consensus / map1" in p and "cm > 0.0 cm" in p for p in problems)
+    impossible = tmp_path / "impossible.toml"  # a floor above 1 can never pass: refused on load
+    impossible.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
+    with pytest.raises(ValueError, match="min_success_rate=1.01 must be a finite number >= 0 <= 1"):
+        ev.check_thresholds(small_results, impossible)
     with pytest.raises(ValueError, match="cannot be read"):
         ev.check_thresholds(small_results, tmp_path / "missing.toml")
     broken = tmp_path / "broken.toml"
@@ -185,7 +189,8 @@ def test_bad_input(kwargs, message) -> None:
 
 def test_cli_writes_outputs_and_checks(tmp_path) -> None:
     thresholds = tmp_path / "t.toml"
-    thresholds.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 1.01\n')
+    # a floor no run can meet, and valid (a min_success_rate above 1 is refused on load: exit 2)
+    thresholds.write_text('[[cell]]\ncontroller = "consensus"\nmax_final_distance_cm = 0.0\n')
     out = tmp_path / "cli"
     cmd = [
         sys.executable,
@@ -208,7 +213,7 @@ def test_cli_writes_outputs_and_checks(tmp_path) -> None:
     ]
     proc = subprocess.run(cmd, cwd=Path(ev.__file__).parent, capture_output=True, text=True)
     assert proc.returncode == ev.FAILED_CHECK_EXIT, proc.stderr
-    assert "consensus / map4 / nominal: success rate" in proc.stderr
+    assert "consensus / map4 / nominal: final distance" in proc.stderr
     for name in ("results.md", "results.json", "results.csv", "episodes.jsonl"):
         assert (out / name).stat().st_size > 0
     assert list((out / "figures").glob("*.png"))

@@ -40,7 +40,6 @@ def test_an_unwritable_out_is_refused_up_front_with_its_own_exit_code(tmp_path, 
     assert code == ev.UNWRITABLE_OUT_EXIT == 103, err
     assert f"--out {str(out)!r} cannot be made a directory this run can write: Permission denied" in err
     assert "Traceback" not in err and list(out.iterdir()) == []
-    assert code not in range(1, 101)  # not read as "that many episodes raised"
 
 
 def test_a_sweep_into_an_unwritable_out_is_refused_up_front(tmp_path, monkeypatch, capsys) -> None:

@@ -195,7 +195,7 @@ def test_without_a_fallback_solver_a_plan_with_a_large_slack_is_used_and_counted
         ({"rti_iterations": 0}, "rti_iterations=0 must be an integer >= 1"),
         ({"rti_iterations": 1.5}, "rti_iterations=1.5 must be an integer >= 1"),
         ({"hessian": "bfgs"}, "hessian='bfgs' is not one of"),
-        ({"slack_tolerance": -1}, "slack_tolerance=-1 must be a number > 0"),
+        ({"slack_tolerance": -1}, "slack_tolerance=-1 must be a finite number > 0"),
         ({"fallback_solver": "rti"}, "fallback_solver='rti' is not one of"),
     ],
 )

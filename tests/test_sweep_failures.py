@@ -1,5 +1,5 @@
-"""A sweep whose episodes raise: the exit code counts them at every level, as a run without
-``--sweep`` does, and the robustness report says which controller raised where (issue 41, item 5)."""
+"""A sweep whose episodes raise: exit 3 (episodes raised) as a run without ``--sweep``, the count
+printed per level, and the robustness report says which controller raised where (issue 41, item 5)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,8 @@ def test_a_level_where_every_episode_raised_fails_the_sweep(tmp_path, capsys) ->
         ]
     )
     err = capsys.readouterr().err
-    assert code == 4, err  # 2 episodes of the raising controller at each of 2 levels
+    assert code == ev.EPISODES_RAISED_EXIT == 3, err  # the count is printed, not encoded
+    assert "4 episode(s) raised in the sweep" in err  # 2 of the raising controller at each of 2 levels
     assert "2 episode(s) raised at comm.drop=0;" in err and "2 episode(s) raised at comm.drop=0.5;" in err
     report = (out / "robustness.md").read_text()
     assert "| raising | 0 | 0 (2 raised) |" in report and "| raising | 0.5 | 0 (2 raised) |" in report

@@ -11,17 +11,18 @@ message forward to now along that velocity. A robot's own velocity is the comman
 
 from __future__ import annotations
 
-import math
 from collections import deque
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.estimation import FRONT_END_LEVERS
+from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
-__all__ = ["CLASSIC_LEVERS", "TeamView", "check_count", "check_positive", "goals"]
+__all__ = ["CLASSIC_LEVERS", "TeamView", "goals", "in_range"]
 
 #: the levers of the estimator front-end the classic baselines can switch off (``ablate``)
 CLASSIC_LEVERS = FRONT_END_LEVERS
@@ -29,24 +30,11 @@ CLASSIC_LEVERS = FRONT_END_LEVERS
 _SLACK = 20
 
 
-def check_positive(key: str, value: Any, *, zero: bool = False) -> float:
-    """``value`` as a float if it is a finite number > 0 (>= 0 with ``zero``), else ``ValueError``
-    naming ``key``, the value and what is allowed."""
-    bound = ">= 0" if zero else "> 0"
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key}={value!r} must be a finite number {bound}") from None
-    if isinstance(value, bool) or not math.isfinite(number) or number < 0 or (number == 0 and not zero):
-        raise ValueError(f"{key}={value!r} must be a finite number {bound}")
-    return number
-
-
-def check_count(key: str, value: Any, smallest: int) -> int:
-    """``value`` if it is an integer >= ``smallest``, else ``ValueError`` naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < smallest:
-        raise ValueError(f"{key}={value!r} must be an integer >= {smallest}")
-    return int(value)
+def in_range(ranges: Mapping[str, Range], key: str, value: Any) -> Any:
+    """``value`` checked against option ``key``'s declared range in ``ranges`` (a controller's
+    ``OPTION_RANGES``, which :mod:`controllers.option_spec` also reads): the one bound of each
+    option, ``ValueError`` naming the option, the value and the range otherwise."""
+    return ranges[key].check(key, value)
 
 
 class TeamView:

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import TeamView, check_count, check_positive, goals
+from controllers.classic.common import TeamView, goals, in_range
 from controllers.classic.kernels import closest_approach, unicycle_arcs
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
 from controllers.estimation import estimator_choices, front_end_option
@@ -61,6 +61,7 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
+from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
 __all__ = ["DWAController", "segment_distance"]
@@ -141,6 +142,28 @@ class DWAController(BaseController):
         "mover_prediction": MOVER_PREDICTIONS,
         **estimator_choices(),
     }
+    #: the allowed range of every numeric option (:mod:`controllers.option_spec`; ours): far beyond
+    #: ROS's defaults and bounded so that the trajectory rollouts stay small (at most 32 x 64
+    #: samples of at most 10 s / 0.01 s = 1,000 steps per robot and period)
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "acc_lim_x": Range(0, 100, low_open=True, note="m/s^2"),
+        "acc_lim_theta": Range(0, 100, low_open=True, note="rad/s^2"),
+        "sim_time": Range(0, 10, low_open=True, note="s"),
+        "sim_granularity": Range(0.01, 1, note="s"),
+        "vx_samples": Range(1, 32, integer=True),
+        "vth_samples": Range(1, 64, integer=True),
+        "path_distance_bias": Range(0, 1e6),
+        "goal_distance_bias": Range(0, 1e6),
+        "occdist_scale": Range(0, 1e6),
+        "forward_point_distance": Range(0, 10, note="m"),
+        "inflation_radius": Range(0, 10, note="m"),
+        "cost_scaling_factor": Range(0, 1000, low_open=True),
+        "safety_margin": Range(0, 1, note="m"),
+        "xy_goal_tolerance": Range(0, 1, low_open=True, note="m"),
+        # the global plan's grid: 0.02 m cells are 1.4 M cells on the largest workspace
+        "plan_resolution": Range(0.02, 1, note="m"),
+        "velocity_window": Range(1, 100, integer=True, note="periods"),
+    }
 
     def __init__(
         self,
@@ -167,25 +190,25 @@ class DWAController(BaseController):
         super().__init__()
         self.front_end = front_end_option(estimator, ablate)
         self.estimator, self.ablate = estimator, ablate
-        self.acc_lim_x = check_positive("acc_lim_x", acc_lim_x)
-        self.acc_lim_theta = check_positive("acc_lim_theta", acc_lim_theta)
-        self.sim_time = check_positive("sim_time", sim_time)
-        self.sim_granularity = check_positive("sim_granularity", sim_granularity)
-        self.cost_scaling_factor = check_positive("cost_scaling_factor", cost_scaling_factor)
-        self.xy_goal_tolerance = check_positive("xy_goal_tolerance", xy_goal_tolerance)
-        self.path_distance_bias = check_positive("path_distance_bias", path_distance_bias, zero=True)
-        self.goal_distance_bias = check_positive("goal_distance_bias", goal_distance_bias, zero=True)
-        self.occdist_scale = check_positive("occdist_scale", occdist_scale, zero=True)
-        self.forward_point_distance = check_positive(
-            "forward_point_distance", forward_point_distance, zero=True
+        self.acc_lim_x = in_range(self.OPTION_RANGES, "acc_lim_x", acc_lim_x)
+        self.acc_lim_theta = in_range(self.OPTION_RANGES, "acc_lim_theta", acc_lim_theta)
+        self.sim_time = in_range(self.OPTION_RANGES, "sim_time", sim_time)
+        self.sim_granularity = in_range(self.OPTION_RANGES, "sim_granularity", sim_granularity)
+        self.cost_scaling_factor = in_range(self.OPTION_RANGES, "cost_scaling_factor", cost_scaling_factor)
+        self.xy_goal_tolerance = in_range(self.OPTION_RANGES, "xy_goal_tolerance", xy_goal_tolerance)
+        self.path_distance_bias = in_range(self.OPTION_RANGES, "path_distance_bias", path_distance_bias)
+        self.goal_distance_bias = in_range(self.OPTION_RANGES, "goal_distance_bias", goal_distance_bias)
+        self.occdist_scale = in_range(self.OPTION_RANGES, "occdist_scale", occdist_scale)
+        self.forward_point_distance = in_range(
+            self.OPTION_RANGES, "forward_point_distance", forward_point_distance
         )
-        self.inflation_radius = check_positive("inflation_radius", inflation_radius, zero=True)
-        self.safety_margin = check_positive("safety_margin", safety_margin, zero=True)
-        self.vx_samples = check_count("vx_samples", vx_samples, 1)
-        self.vth_samples = check_count("vth_samples", vth_samples, 1)
-        self.velocity_window = check_count("velocity_window", velocity_window, 1)
+        self.inflation_radius = in_range(self.OPTION_RANGES, "inflation_radius", inflation_radius)
+        self.safety_margin = in_range(self.OPTION_RANGES, "safety_margin", safety_margin)
+        self.vx_samples = in_range(self.OPTION_RANGES, "vx_samples", vx_samples)
+        self.vth_samples = in_range(self.OPTION_RANGES, "vth_samples", vth_samples)
+        self.velocity_window = in_range(self.OPTION_RANGES, "velocity_window", velocity_window)
         self.mover_prediction = check_mover_prediction(mover_prediction)
-        self.plan_resolution = check_positive("plan_resolution", plan_resolution)
+        self.plan_resolution = in_range(self.OPTION_RANGES, "plan_resolution", plan_resolution)
         self._planner = GlobalPlanner(
             self.plan_resolution, self.safety_margin, self.inflation_radius, self.cost_scaling_factor
         )

@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import TeamView, check_count, check_positive, goals
+from controllers.classic.common import TeamView, goals, in_range
 from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import (
     MOVER_PREDICTIONS,
@@ -51,6 +51,8 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
+from koopman_envs.checks import Range
+from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 
 __all__ = ["ORCAController", "unicycle_tracking"]
@@ -134,6 +136,20 @@ class ORCAController(BaseController):
         "mover_prediction": MOVER_PREDICTIONS,
         **estimator_choices(),
     }
+    #: the allowed range of every numeric option (:mod:`controllers.option_spec`; ours)
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "time_horizon": Range(0, 60, low_open=True, note="s"),
+        "time_horizon_obstacles": Range(0, 60, low_open=True, note="s"),
+        "neighbour_distance": Range(0, LIMITS.lidar_range, low_open=True, note="m"),
+        "max_neighbours": Range(1, LIMITS.robots + LIMITS.movers, integer=True),
+        "radius_margin": Range(0, 1, note="m"),
+        "mover_margin": Range(0, 1, note="m"),
+        "goal_gain": Range(0, 100, low_open=True, note="1/s"),
+        "heading_gain": Range(0, 100, low_open=True, note="1/s"),
+        # below pi/2: a turn of less than 90 degrees
+        "keep_right": Range(0, math.pi / 2, high_open=True, note="rad"),
+        "velocity_window": Range(1, 100, integer=True, note="periods"),
+    }
 
     def __init__(
         self,
@@ -155,18 +171,18 @@ class ORCAController(BaseController):
         _import_pyrvo()  # refused here, with the extra to install, rather than at the first reset
         self.front_end = front_end_option(estimator, ablate)
         self.estimator, self.ablate = estimator, ablate
-        self.time_horizon = check_positive("time_horizon", time_horizon)
-        self.time_horizon_obstacles = check_positive("time_horizon_obstacles", time_horizon_obstacles)
-        self.neighbour_distance = check_positive("neighbour_distance", neighbour_distance)
-        self.max_neighbours = check_count("max_neighbours", max_neighbours, 1)
-        self.radius_margin = check_positive("radius_margin", radius_margin, zero=True)
-        self.mover_margin = check_positive("mover_margin", mover_margin, zero=True)
-        self.goal_gain = check_positive("goal_gain", goal_gain)
-        self.heading_gain = check_positive("heading_gain", heading_gain)
-        self.keep_right = check_positive("keep_right", keep_right, zero=True)
-        if self.keep_right >= math.pi / 2:
-            raise ValueError(f"keep_right={keep_right!r} must be below pi/2 (a turn of less than 90 degrees)")
-        self.velocity_window = check_count("velocity_window", velocity_window, 1)
+        self.time_horizon = in_range(self.OPTION_RANGES, "time_horizon", time_horizon)
+        self.time_horizon_obstacles = in_range(
+            self.OPTION_RANGES, "time_horizon_obstacles", time_horizon_obstacles
+        )
+        self.neighbour_distance = in_range(self.OPTION_RANGES, "neighbour_distance", neighbour_distance)
+        self.max_neighbours = in_range(self.OPTION_RANGES, "max_neighbours", max_neighbours)
+        self.radius_margin = in_range(self.OPTION_RANGES, "radius_margin", radius_margin)
+        self.mover_margin = in_range(self.OPTION_RANGES, "mover_margin", mover_margin)
+        self.goal_gain = in_range(self.OPTION_RANGES, "goal_gain", goal_gain)
+        self.heading_gain = in_range(self.OPTION_RANGES, "heading_gain", heading_gain)
+        self.keep_right = in_range(self.OPTION_RANGES, "keep_right", keep_right)
+        self.velocity_window = in_range(self.OPTION_RANGES, "velocity_window", velocity_window)
         self.mover_prediction = check_mover_prediction(mover_prediction)
         self._team = TeamView(self.velocity_window)
         self._sim: Any = None

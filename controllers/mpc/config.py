@@ -16,8 +16,8 @@ from controllers.estimation import ABLATIONS, ESTIMATORS, check_estimator
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
-from koopman_envs.checks import check_choice, check_int, check_number
-from koopman_envs.params import PARAMS
+from koopman_envs.checks import Range, check_choice
+from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "IPOPT_OPTIONS",
     "JIT_ENV",
     "NLP_SOLVERS",
+    "NMPC_RANGES",
     "NMPCConfig",
     "PARKED",
     "ROBUST_UNCERTAINTY_MARGIN",
@@ -36,6 +37,37 @@ __all__ = [
 
 #: residuals, i.e. a prediction error that large is three standard deviations out for Gaussian errors.
 ROBUST_UNCERTAINTY_MARGIN = 3.0
+
+#: The allowed range of every numeric NMPC option (ours), checked by :meth:`NMPCConfig.validate`
+#: and, before anything is built, by the evaluator's option check (:mod:`controllers.option_spec`).
+#: Each is far beyond real use and bounded so that a typo is refused by name instead of building
+#: a problem that exhausts the memory (``horizon=100000000`` died after 101 s in std::bad_alloc).
+NMPC_RANGES: dict[str, Range] = {
+    # 20 s of look-ahead at T_s = 0.1 s, ten times the paper's; the NLP grows linearly with it
+    "horizon": Range(1, 200, integer=True, note="control periods"),
+    # weights of the tracking cost, per entry; their ratios matter, not their scale
+    "q_leader": Range(0, 1e6, note="per entry"),
+    "q_follower": Range(0, 1e6, note="per entry"),
+    "r_input": Range(0, 1e6, note="per entry"),
+    # margins [m]: a metre of margin already closes every corridor of the built-in maps
+    "obstacle_offset": Range(0, 1, note="m"),
+    "robot_offset": Range(0, 1, note="m"),
+    "mover_offset": Range(0, 1, note="m"),
+    # standard deviations of the residual: ten is no longer a confidence margin
+    "uncertainty_margin": Range(0, 10, note="standard deviations"),
+    "formation_bound": Range(0, 10, note="m"),
+    "slack_penalty": Range(0, 1e9, low_open=True),
+    "rti_iterations": Range(1, 100, integer=True, note="QPs per period"),
+    "slack_tolerance": Range(0, 10, low_open=True, note="m"),
+    # constraint slots: the sizes the environments allow (koopman_envs.params.LIMITS)
+    "pair_slots": Range(0, LIMITS.robots, integer=True, note="0: every pair"),
+    "obstacle_slots": Range(0, LIMITS.obstacle_obs, integer=True, note="0: every obstacle"),
+    "mover_slots": Range(0, LIMITS.movers, integer=True),
+    # at 0.5 and above the chance quantile z <= 0 adds no margin
+    "chance_risk": Range(0, 0.5, low_open=True, high_open=True, note="a probability"),
+    "settle_fraction": Range(0, 1),
+    "cbf_gamma": Range(0, 1, low_open=True, note="or None (null) for distance constraints"),
+}
 
 #: IPOPT settings (ours): quiet, warm-startable, bounded effort per control period.
 IPOPT_OPTIONS: dict[str, Any] = {
@@ -347,32 +379,32 @@ class NMPCConfig:
         }
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming a bad option and what is allowed (before any problem is built)."""
-        check_int("horizon", self.horizon, 1)
-        check_int("pair_slots", self.pair_slots, 0)
-        check_int("obstacle_slots", self.obstacle_slots, 0)
-        check_int("mover_slots", self.mover_slots, 0)
-        check_number("mover_offset", self.mover_offset, at_least=0, note="metres")
-        check_number("settle_fraction", self.settle_fraction, at_least=0, at_most=1)
+        """Raise ``ValueError`` naming a bad option and what is allowed (before any problem is
+        built): every numeric option within :data:`NMPC_RANGES` (each entry of a weight tuple),
+        the flags, and the text options' choices."""
+        for name, allowed in NMPC_RANGES.items():
+            value = getattr(self, name)
+            if value is None and name == "cbf_gamma":
+                continue  # distance constraints
+            if name in ("q_leader", "q_follower", "r_input"):
+                if isinstance(value, (str, bytes)) or not isinstance(value, (tuple, list, np.ndarray)):
+                    raise ValueError(f"{name}={value!r} must be a list of numbers, each in {allowed}")
+                for i, entry in enumerate(value):
+                    allowed.check(f"{name}[{i}]", entry)
+            else:
+                allowed.check(name, value)
         if not isinstance(self.unstall, (bool, np.bool_)):
             raise ValueError(f"unstall={self.unstall!r} must be True or False")
-        check_estimator(self.estimator, self.ablate)
-        if check_number("chance_risk", self.chance_risk, above=0, note="a probability") >= 0.5:
+        if not isinstance(self.soft_constraints, (bool, np.bool_)):
+            raise ValueError(f"soft_constraints={self.soft_constraints!r} must be True or False")
+        if self.jit is not None and not isinstance(self.jit, (bool, np.bool_)):
+            raise ValueError(f"jit={self.jit!r} must be True, False or None")
+        if self.solver_options is not None and not isinstance(self.solver_options, dict):
             raise ValueError(
-                f"chance_risk={self.chance_risk!r} must lie in (0, 0.5) (at 0.5 and above z <= 0 adds no margin)"
+                f"solver_options={self.solver_options!r} must be a dict of solver options or None"
             )
+        check_estimator(self.estimator, self.ablate)
         check_mover_prediction(self.mover_prediction)
-        if self.cbf_gamma is not None:
-            check_number(
-                "cbf_gamma",
-                self.cbf_gamma,
-                above=0,
-                at_most=1,
-                note="or None (null) for distance constraints",
-            )
-        k = self.uncertainty_margin
-        if isinstance(k, bool) or not isinstance(k, (int, float)) or not np.isfinite(k) or k < 0:
-            raise ValueError(f"uncertainty_margin={k!r} must be a finite number >= 0")
         check_solver_options(self)
 
 
@@ -382,6 +414,3 @@ def check_solver_options(config: NMPCConfig) -> None:
     if config.fallback_solver is not None:
         check_choice("fallback_solver", config.fallback_solver, NLP_SOLVERS, " or None")
     check_rti_options(config.qp_solver, config.rti_iterations, config.hessian)
-    tol = config.slack_tolerance
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
-        raise ValueError(f"slack_tolerance={tol!r} must be a number > 0")

@@ -66,7 +66,8 @@ from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
 from controllers.mpc.slots import closing_distance, nearest_obstacle_slots
 from koopman_envs.builder.plant import CalibrationPlant
-from koopman_envs.checks import check_choice, check_int, check_number
+from koopman_envs.checks import Range, check_choice
+from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.nearest import nearest_order
 
@@ -148,6 +149,13 @@ class DistributedNMPC(BaseController):
         "model": MODELS,
         "dictionary": tuple(DICTIONARIES),
     }
+    #: the allowed range of its own numeric options (:mod:`controllers.option_spec`; the NMPC's:
+    #: controllers.mpc.config.NMPC_RANGES): the slots the environments allow
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "neighbours": Range(1, LIMITS.robots, integer=True),
+        "obstacles": Range(1, LIMITS.obstacle_obs, integer=True),
+        "reach": Range(0, LIMITS.lidar_range, low_open=True, note="m, or None (null)"),
+    }
 
     def __init__(
         self,
@@ -163,9 +171,9 @@ class DistributedNMPC(BaseController):
         **options: Any,
     ) -> None:
         super().__init__()
-        self.neighbours = check_int("neighbours", neighbours, 1)
-        self.obstacle_slots = check_int("obstacles", obstacles, 1)
-        self.reach = None if reach is None else check_number("reach", reach, above=0, note="metres")
+        self.neighbours = self.OPTION_RANGES["neighbours"].check("neighbours", neighbours)
+        self.obstacle_slots = self.OPTION_RANGES["obstacles"].check("obstacles", obstacles)
+        self.reach = None if reach is None else self.OPTION_RANGES["reach"].check("reach", reach)
         check_choice("coordination", coordination, COORDINATION)
         self.coordination = coordination
         check_choice("formation_goal", formation_goal, FORMATION_GOALS)

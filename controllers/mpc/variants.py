@@ -60,7 +60,7 @@ from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
 from koopman_envs.builder.plant import CalibrationPlant
-from koopman_envs.checks import check_int
+from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
 __all__ = ["AdaptiveKoopmanNMPC", "KoopmanNMPC", "NominalNMPC"]
@@ -235,6 +235,13 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         **KoopmanNMPC.OPTION_CHOICES,
         "adapted": ADAPTED_TERMS,
     }
+    #: the allowed range of its own numeric options (:mod:`controllers.option_spec`; ours)
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "forgetting": Range(0, 1, low_open=True, note="1: no forgetting"),
+        "prior_weight": Range(0, 1e9, low_open=True, note="calibration transitions"),
+        # the residuals kept: 10,000 periods are 1,000 s, longer than any episode
+        "residual_window": Range(1, 10_000, integer=True, note="periods"),
+    }
 
     def __init__(
         self,
@@ -251,9 +258,10 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
     ) -> None:
         for key, value in self.NMPC_DEFAULTS.items():
             options.setdefault(key, value)
-        check_forgetting(forgetting)
+        check_forgetting(forgetting)  # the online fit's own checks, then the upper bounds declared here
         check_prior_weight(prior_weight)
-        check_int("residual_window", residual_window, 1, note="periods")
+        for key, value in (("prior_weight", prior_weight), ("residual_window", residual_window)):
+            self.OPTION_RANGES[key].check(key, value)
         self.forgetting = float(forgetting)
         self.prior_weight = float(prior_weight)
         self.residual_window = residual_window

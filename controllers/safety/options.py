@@ -3,11 +3,10 @@ routes ``safety_*`` options of a ``safe:<name>`` configuration to the filter."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from koopman_envs.checks import checked_options
+from koopman_envs.checks import Range, checked_options
 from koopman_envs.params import PARAMS
 
 __all__ = ["FILTER_OPTION_PREFIX", "SafetyOptions"]
@@ -58,15 +57,15 @@ class SafetyOptions:
     mover_velocity: float = 1.0
     chance_risk: float = 0.05
 
-    #: allowed range per option: (low, high, low included, description)
-    RANGES: ClassVar[dict[str, tuple[float, float, bool, str]]] = {
-        "gamma": (0.0, 1.0 / PARAMS.dt, False, f"(0, {1.0 / PARAMS.dt:g}] 1/s (gamma * dt <= 1)"),
-        "margin": (0.0, 1.0, True, "[0, 1] m"),
-        "lookahead": (0.0, 0.5, False, "(0, 0.5] m"),
-        "omega_weight": (0.0, 100.0, False, "(0, 100] m^2/rad^2"),
-        "mover_velocity": (0.0, 1.0, True, "[0, 1]"),
+    #: allowed range per option (:mod:`controllers.option_spec` reads it for the option table)
+    RANGES: ClassVar[dict[str, Range]] = {
+        "gamma": Range(0.0, 1.0 / PARAMS.dt, low_open=True, note="1/s (gamma * dt <= 1)"),
+        "margin": Range(0.0, 1.0, note="m"),
+        "lookahead": Range(0.0, 0.5, low_open=True, note="m"),
+        "omega_weight": Range(0.0, 100.0, low_open=True, note="m^2/rad^2"),
+        "mover_velocity": Range(0.0, 1.0),
         # (0, 0.5): 0.5 itself would add no margin (z = 0)
-        "chance_risk": (0.0, 0.4999, False, "(0, 0.5)"),
+        "chance_risk": Range(0.0, 0.5, low_open=True, high_open=True),
     }
 
     def __post_init__(self) -> None:
@@ -76,12 +75,12 @@ class SafetyOptions:
     @classmethod
     def check(cls, name: str, value: Any, prefix: str = "") -> None:
         """Raise ``ValueError`` naming option ``prefix + name``, its value and its allowed range."""
-        low, high, closed, text = cls.RANGES[name]
-        number = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-        if not number or value > high or value < low or (value == low and not closed):
+        try:
+            cls.RANGES[name].check(prefix + name, value)
+        except ValueError:
             raise ValueError(
-                f"safety filter option {prefix}{name}={value!r} is out of range; allowed: {text}"
-            )
+                f"safety filter option {prefix}{name}={value!r} is out of range; allowed: {cls.RANGES[name]}"
+            ) from None
 
     @classmethod
     def from_options(cls, prefix: str = "", **options: Any) -> SafetyOptions:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_int, parse_json
 from koopman_envs.deprecated import moved_names
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
@@ -399,7 +399,7 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
         text = os.fspath(spec)
         if text in BUILTIN_MAPS:
             raw = resources.files("koopman_envs.maps").joinpath(f"{text}.json").read_text("utf-8")
-            return MapSpec.from_dict(json.loads(raw), default_name=text)
+            return MapSpec.from_dict(parse_json(raw, f"map {text!r}"), default_name=text)
         if text.endswith(".json") or os.path.sep in text:
             try:
                 # a regular file of bounded size before it is read whole (map="/dev/zero" read forever)
@@ -412,7 +412,7 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
                         f"{LIMITS.map_file_bytes} (koopman_envs.params.LIMITS.map_file_bytes)"
                     )
                 with open(text, encoding="utf-8") as fh:
-                    data = json.load(fh)
+                    data = parse_json(fh.read(), f"map file {text!r}")
             except OSError as exc:
                 raise ValueError(f"map file {text!r} cannot be read: {exc}") from exc
             except json.JSONDecodeError as exc:
