@@ -18,15 +18,15 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 from evaluation.figures import save_success_figures  # noqa: E402
-from evaluation.published import extract_archive, results_from_log  # noqa: E402
+from evaluation.published import extracted_archive, results_from_log  # noqa: E402
 from evaluation.report import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from evaluation.results import Results  # noqa: E402
+from koopman_envs.files import MAX_LOG_BYTES, read_text, write_atomic  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
@@ -101,10 +101,9 @@ def load_results(path: str) -> dict:
     """A run's results document: a ``results.json``, or a published archive (``data/NAME.tar.xz``,
     :mod:`evaluation.published`) whose episode log is read back checked."""
     if not path.endswith(".json"):  # a published archive (refused by name if it is not one)
-        with tempfile.TemporaryDirectory() as tmp:
-            run = extract_archive(path, tmp)
+        with extracted_archive(path) as run:
             return json.loads(results_from_log(run / "episodes.jsonl").to_json())
-    return json.loads(Path(path).read_text())
+    return json.loads(read_text(path, MAX_LOG_BYTES, what="results file", expected="a results.json"))
 
 
 def all_tables() -> list[tuple[str, str, str]]:
@@ -487,7 +486,7 @@ def main() -> None:
         lines += scaling_section([load_results(path) for path in args.scaling])
     if args.notes:
         lines += [args.notes.read_text(encoding="utf-8").strip(), ""]
-    Path(args.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_atomic(args.out, "\n".join(lines) + "\n")
     print(f"wrote {args.out}")
 
 

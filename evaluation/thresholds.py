@@ -16,6 +16,7 @@ import os
 from dataclasses import dataclass, field
 
 from evaluation.results import Results
+from koopman_envs.files import MAX_TEXT_BYTES, read_text
 
 __all__ = ["READINGS", "ThresholdCheck", "check_thresholds"]
 
@@ -71,11 +72,10 @@ def check_thresholds(results: Results, path: str | os.PathLike, *, strict: bool 
     except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli backport
         import tomli as tomllib  # type: ignore[no-redef]  # the same module, another name
 
+    # a regular file of bounded size, refused unread otherwise (a FIFO as --check hung forever)
+    text = read_text(path, MAX_TEXT_BYTES, what="thresholds file", expected="a TOML thresholds file")
     try:
-        with open(path, "rb") as fh:
-            spec = tomllib.load(fh)
-    except OSError as exc:
-        raise ValueError(f"thresholds file {os.fspath(path)!r} cannot be read: {exc}") from None
+        spec = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"thresholds file {os.fspath(path)!r} is not valid TOML: {exc}") from None
     rules = spec.get("cell")
