@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from baselines.benchmarl_options import ALGORITHMS, build_parser
+from koopman_envs.files import write_atomic
 
 
 def _features(args: argparse.Namespace) -> str | None:
@@ -339,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "eval_curve": _curve(out / "benchmarl"),
     }
-    (out / "metadata.json").write_text(json.dumps(metadata, indent=1) + "\n")
+    write_atomic(out / "metadata.json", json.dumps(metadata, indent=1) + "\n")
     print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
     return 0
 
