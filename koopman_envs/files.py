@@ -74,6 +74,10 @@ def _refuse(path: str | os.PathLike[str], what: str, reason: str) -> FileRefused
     return FileRefused(f"{what} {os.fspath(path)!r} cannot be read: {reason}")
 
 
+def _unreadable(path: str | os.PathLike[str], what: str, exc: OSError) -> FileRefused:
+    return FileRefused(f"{what} {os.fspath(path)!r} cannot be read ({exc.strerror or exc})")
+
+
 def _check_status(path: str | os.PathLike[str], status: os.stat_result, limit: int, what: str) -> None:
     """Refuse a status that is not a regular file's, or one of more than ``limit`` bytes."""
     if not stat.S_ISREG(status.st_mode):
@@ -107,7 +111,7 @@ def check_regular(path: str | os.PathLike[str], limit: int, *, what: str = "file
     try:
         status = os.stat(path)
     except OSError as exc:
-        raise _refuse(path, what, exc.strerror or str(exc)) from None
+        raise _unreadable(path, what, exc) from None
     _check_status(path, status, limit, what)
     return status
 
@@ -146,7 +150,7 @@ def read_bounded(path: str | os.PathLike[str], limit: int, *, what: str = "file"
                     raise _refuse(path, what, f"it grew beyond {_size(limit)} while read, the most allowed")
                 parts.append(chunk)
     except OSError as exc:
-        raise _refuse(path, what, exc.strerror or str(exc)) from None
+        raise _unreadable(path, what, exc) from None
     return b"".join(parts)
 
 
