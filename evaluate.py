@@ -82,6 +82,7 @@ from evaluation.protocols import (
     paper_protocol,
     quick_protocol,
 )
+from evaluation.published import is_archive
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
 from evaluation.report import terminal_overview
 from evaluation.results import SCHEMA_VERSION, Results, write_profiles
@@ -92,6 +93,7 @@ from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
 from evaluation.sweep import check_levels, level_aliases, load_sweep, parse_sweep, run_sweep, write_manifest
 from evaluation.thresholds import ThresholdCheck, check_thresholds, load_thresholds
+from koopman_envs.files import write_atomic
 from koopman_envs.suggest import did_you_mean
 
 __all__ = [
@@ -191,9 +193,7 @@ def _write_ablation(args: argparse.Namespace, results: Results, wall: float) -> 
     )
     report = ablation_markdown(results, args.ablation, command=command.strip())
     report += f"\n{len(results.records)} episodes in {wall:.0f} s on {results.config['workers']} workers.\n"
-    Path(args.ablation_out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.ablation_out).write_text(report, encoding="utf-8")
-    return Path(args.ablation_out)
+    return write_atomic(args.ablation_out, report)
 
 
 def _compare(
@@ -203,9 +203,9 @@ def _compare(
     ``--fail-if-worse``, the controllers significantly worse than the baseline."""
     comparison = compare_runs(results.records, baseline["episodes"])
     text = comparison_markdown(comparison, args.baseline)
-    Path(args.out, "baseline_comparison.md").write_text(text + "\n", encoding="utf-8")
-    Path(args.out, "baseline_comparison.json").write_text(
-        json.dumps(json_safe(comparison), indent=1) + "\n", encoding="utf-8"
+    write_atomic(Path(args.out, "baseline_comparison.md"), text + "\n")
+    write_atomic(
+        Path(args.out, "baseline_comparison.json"), json.dumps(json_safe(comparison), indent=1) + "\n"
     )
     return text, gate_failures(comparison, gate) if args.fail_if_worse else []
 
@@ -329,6 +329,12 @@ def _sweep_report(out: str, reference: str | None) -> int:
     finished so far (a long sweep can be read while it runs); bad input for a sweep that cannot
     be read back, or no level finished yet."""
     try:
+        if is_archive(out):  # its report would go where the archive is: a file
+            raise ValueError(
+                f"--sweep-report {out!r} is a published archive; the report is written into a sweep's "
+                f"directory: unpack it (tar -xJf {out} -C DIR) and pass DIR/NAME, or build its page "
+                "with docs/make_robustness_md.py, which reads archives"
+            )
         done, missing, manifest = load_sweep(out)
         if not done:
             raise ValueError(f"no level of the sweep in {out!r} has finished yet")

@@ -42,9 +42,10 @@ declare -A MODULES=(
     [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py"
     [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py|$SIGNALS"
     [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py|$SIGNALS"
+    [published]="evaluation/published.py|tests/test_published_pages.py tests/test_bounded_reads.py"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
-ORDER=(perception uncertainty observed baseline statistics runlog records)
+ORDER=(perception uncertainty observed baseline statistics runlog records published)
 
 if [ $# -eq 0 ] || [ "$1" = "-h" ] || [ "$1" = "--help" ]; then
     sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'

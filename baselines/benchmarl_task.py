@@ -52,6 +52,7 @@ from torchrl.envs import EnvBase, PettingZooWrapper
 from torchrl.envs.transforms import RewardScaling, Transform
 
 from koopman_envs import formation_v0, target_reaching_v0
+from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 
 __all__ = ["TASK_CONFIGS", "KoopNavTask", "KoopNavTaskClass", "write_task_yaml"]
 
@@ -174,7 +175,10 @@ class KoopNavTask(Task):
             return self.get_task(config=copy.deepcopy(TASK_CONFIGS[self.name.lower()]))
         import yaml
 
-        config = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+        config = (
+            yaml.safe_load(read_text(path, MAX_TEXT_BYTES, what="task config", expected="a YAML task config"))
+            or {}
+        )
         config.pop("defaults", None)
         return self.get_task(config=config)
 
@@ -186,7 +190,6 @@ def write_task_yaml(directory: str | Path) -> list[Path]:
     written = []
     for name, config in TASK_CONFIGS.items():
         path = Path(directory) / "koopnav" / f"{name}.yaml"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
+        write_atomic(path, yaml.safe_dump(config, sort_keys=False))
         written.append(path)
     return written

@@ -33,6 +33,7 @@ import numpy as np
 
 from baselines.benchmarl_options import ALGORITHMS, build_parser
 from evaluation.exit_codes import SUCCESS_EXIT
+from koopman_envs.files import write_atomic
 
 
 def _features(args: argparse.Namespace) -> str | None:
@@ -340,7 +341,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "eval_curve": _curve(out / "benchmarl"),
     }
-    (out / "metadata.json").write_text(json.dumps(metadata, indent=1) + "\n")
+    write_atomic(out / "metadata.json", json.dumps(metadata, indent=1) + "\n")
     print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
     return SUCCESS_EXIT
 

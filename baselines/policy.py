@@ -17,6 +17,7 @@ from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, l
 from baselines.set_features import MAX_TEAM, SetFeatureConfig
 from controllers.base import BaseController
 from koopman_envs.checks import Range
+from koopman_envs.files import write_atomic
 from koopman_envs.scenario import Scenario
 from koopman_envs.tasks.base import TASKS
 
@@ -94,9 +95,10 @@ def save_policy(out: Path, model, vec_normalize, metadata: dict) -> None:
     """Write policy.zip, obs_norm.npz and metadata.json to ``out``."""
     files = PolicyFiles(out)
     out.mkdir(parents=True, exist_ok=True)
-    model.save(files.model)
-    np.savez(files.norm, **norm_of(vec_normalize))
-    files.metadata.write_text(json.dumps(metadata, indent=1) + "\n", encoding="utf-8")
+    # each file whole or not at all (koopman_envs.files.write_atomic): a full disk leaves no torn policy
+    write_atomic(files.model, model.save)
+    write_atomic(files.norm, lambda tmp: np.savez(tmp, **norm_of(vec_normalize)))
+    write_atomic(files.metadata, json.dumps(metadata, indent=1) + "\n")
 
 
 def _checked_norm(path: Path, norm: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

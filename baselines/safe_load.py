@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs import files
+
 __all__ = [
     "MAX_DIRECTORY_BYTES",
     "MAX_ENTRIES",
@@ -75,7 +77,7 @@ MAX_DIRECTORY_BYTES = _MIB
 MAX_FILE_BYTES = MAX_TOTAL_BYTES + _MIB
 #: Largest text parsed as JSON [bytes] (SB3's ``data`` entry, ``metadata.json``): the parser
 #: builds objects several times the size of the text. The shipped ones are 0.6 MB at most.
-MAX_TEXT_BYTES = 16 * _MIB
+MAX_TEXT_BYTES = files.MAX_TEXT_BYTES
 #: Bytes read from an entry at a time.
 _CHUNK = _MIB
 
@@ -125,29 +127,18 @@ def _size(n: int) -> str:
 
 
 def read_bounded(path: str | os.PathLike[str], limit: int) -> bytes:
-    """The bytes of the file ``path``; one of more than ``limit`` bytes is refused unread.
+    """The bytes of the file ``path``; one of more than ``limit`` bytes, or one that is not a regular
+    file (a FIFO, a device), is refused unread (:func:`koopman_envs.files.read_bounded`).
 
     Raises
     ------
     PolicyLoadError
-        The file cannot be read, or is larger than ``limit``.
+        The file cannot be read, is not a regular file, or is larger than ``limit``.
     """
-    parts, total = [], 0
     try:
-        with open(path, "rb") as fh:
-            size = os.fstat(fh.fileno()).st_size
-            if size > limit:
-                raise _refuse(path, f"is {_size(size)}; at most {_size(limit)} are allowed")
-            # in chunks, not read(limit + 1), which allocates its whole buffer first; and counted,
-            # since the file may grow while it is read (or be a device whose size says nothing)
-            while chunk := fh.read(_CHUNK):
-                total += len(chunk)
-                if total > limit:
-                    raise _refuse(path, f"is more than {_size(limit)}, the most allowed")
-                parts.append(chunk)
-    except OSError as exc:
-        raise _refuse(path, f"cannot be read ({type(exc).__name__}: {exc.strerror or exc})") from exc
-    return b"".join(parts)
+        return files.read_bounded(path, limit, what="policy file")
+    except files.FileRefused as exc:
+        raise PolicyLoadError(str(exc)) from None
 
 
 def _directory_size(blob: bytes, path: str | os.PathLike[str]) -> tuple[int, int]:

@@ -25,6 +25,7 @@ from baselines.curriculum import VALIDATION
 from baselines.policy import PolicyFiles, load_policy, success_rate
 from baselines.set_features import SetFeatureConfig
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
+from koopman_envs.files import write_atomic
 
 __all__ = ["VALIDATION_SEED", "candidates", "main", "set_validation_success", "validation_success"]
 
@@ -134,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         "selected_timesteps": table[best]["timesteps"],
         "validation": table,
     }
-    target.metadata.write_text(json.dumps(selected, indent=1) + "\n", encoding="utf-8")
+    write_atomic(target.metadata, json.dumps(selected, indent=1) + "\n")
     print(
         f"selected the policy after {table[best]['timesteps']:,} steps "
         f"(validation success {table[best]['validation_success_rate']:.2f}); wrote {out}"

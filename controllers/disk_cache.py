@@ -10,12 +10,13 @@ foreign entry is refused by name and recomputed, see :mod:`controllers.calibrati
 
 from __future__ import annotations
 
-import contextlib
 import os
 import tempfile
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+
+from koopman_envs import files
 
 __all__ = ["CacheWriteWarning", "cache_root", "entry_exists", "writable", "write_atomic"]
 
@@ -69,7 +70,8 @@ def writable(directory: Path) -> bool:
 
 def write_atomic(path: Path, write: Callable[[str], object], suffix: str) -> bool:
     """Write a cache entry through a temporary file and rename, so that concurrent workers never
-    read half a file. Best effort: the cache is optional.
+    read half a file (:func:`koopman_envs.files.write_atomic`, the one atomic writer). Best effort:
+    the cache is optional.
 
     Parameters
     ----------
@@ -87,22 +89,11 @@ def write_atomic(path: Path, write: Callable[[str], object], suffix: str) -> boo
         read-only or full file system, a path through a regular file): then nothing is left
         behind, and the first failure of the process warns with :class:`CacheWriteWarning`.
     """
-    tmp = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=suffix)
-        os.close(fd)
-        write(tmp)
-        os.replace(tmp, path)
-        tmp = None
+        files.write_atomic(path, write, suffix=suffix)
     except OSError as exc:
         _warn_unwritable(path.parent, exc)
         return False
-    finally:
-        if tmp is not None:
-            # a torn temporary file (a full disk) must not stay; it may be gone already
-            with contextlib.suppress(OSError):
-                os.remove(tmp)
     return True
 
 

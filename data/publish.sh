@@ -6,7 +6,8 @@
 #
 #   bash data/publish.sh [NAME ...]    run (or continue) the named runs, default all, in order
 #   bash data/publish.sh pack          pack every run's episode logs into data/NAME.tar.xz
-#   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.xz (a new machine)
+#   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.xz (a new machine); a local log
+#                                      holding more records than its archive stops it (unpack --force replaces it)
 # After a change to some controllers that changes what they do, republish only their rows: drop
 # their records (`python -m evaluation.forget LABEL... -- data/runs/NAME`), then run NAME
 # again (it resumes and runs just those episodes), then `pack`. A controller added to a run's
@@ -106,9 +107,13 @@ pack)  # the episode logs and sweep manifests only: everything else is rebuilt f
     ls -la data/*.tar.xz
     ;;
 unpack)  # a new machine: the committed logs back into data/runs/, to resume or to report from
+    # (a local log with more records than its archive is kept and the script stops, naming it;
+    # `unpack --force` replaces it)
+    force=()
+    [ "${2:-}" = "--force" ] && force=(--force)
     mkdir -p data/runs
     for archive in data/*.tar.xz; do
-        tar -xJf "$archive" -C data/runs
+        python -m evaluation.published unpack "$archive" data/runs "${force[@]}" > /dev/null
     done
     ;;
 *)

@@ -15,12 +15,13 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run from a checkout
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, SUCCESS_EXIT  # noqa: E402
+from koopman_envs.files import MAX_TEXT_BYTES, read_text  # noqa: E402
 
 #: the published pages: page, generator and the generator's arguments
-PAGES: list[dict] = json.loads((ROOT / "data" / "pages.json").read_text())
+PAGES: list[dict] = json.loads(read_text(ROOT / "data" / "pages.json", MAX_TEXT_BYTES, what="page list"))
 
 
 def page_command(entry: dict, out: Path, figures: Path | None = None) -> list[str]:

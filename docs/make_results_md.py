@@ -18,7 +18,6 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
@@ -26,9 +25,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 from evaluation.baseline import load_baseline  # noqa: E402
 from evaluation.distinct import read_once  # noqa: E402
 from evaluation.figures import save_success_figures  # noqa: E402
-from evaluation.published import extract_archive, results_from_log  # noqa: E402
+from evaluation.published import extracted_archive, results_from_log  # noqa: E402
 from evaluation.report import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from evaluation.results import Results  # noqa: E402
+from koopman_envs.files import write_atomic  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
@@ -105,8 +105,7 @@ def load_results(path: str) -> dict:
     read back checked; its episodes each once, a conflicting repeat refused by name. The
     document's ``source`` is ``path``, for the messages of :func:`pool`."""
     if not path.endswith(".json"):  # a published archive (refused by name if it is not one)
-        with tempfile.TemporaryDirectory() as tmp:
-            run = extract_archive(path, tmp)
+        with extracted_archive(path) as run:
             doc = json.loads(results_from_log(run / "episodes.jsonl").to_json())
     else:
         doc = load_baseline(path, what="results")
@@ -502,7 +501,7 @@ def main() -> None:
         lines += scaling_section([load_results(path) for path in args.scaling])
     if args.notes:
         lines += [args.notes.read_text(encoding="utf-8").strip(), ""]
-    Path(args.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_atomic(args.out, "\n".join(lines) + "\n")
     print(f"wrote {args.out}")
 
 

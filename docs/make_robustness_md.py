@@ -32,6 +32,7 @@ from evaluation.figures import save_profile_figures  # noqa: E402
 from evaluation.report import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
 from evaluation.robustness import AxisProfile, level_costs, profiles  # noqa: E402
 from evaluation.sweep import load_sweep  # noqa: E402
+from koopman_envs.files import write_atomic  # noqa: E402
 
 INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one
 runtime-uncertainty setting at a time, the others perfect, on the paper's maps with 3 robots.
@@ -123,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         overview = overview_section(named_axes, scope, "Overview of every part")
         if overview is not None:
             parts.insert(2, markdown([overview]))
-    out.write_text("\n\n".join(parts) + "\n", encoding="utf-8")
+    write_atomic(out, "\n\n".join(parts) + "\n")
     print(f"wrote {out} and {len(args.sweeps)} sweep(s) of figures in {figures}")
     return SUCCESS_EXIT
 

@@ -6,6 +6,7 @@ from pathlib import Path
 from xml.sax.saxutils import escape
 
 from evaluation.results import Results
+from koopman_envs.files import write_atomic
 
 __all__ = ["badge_svg", "write_badge"]
 
@@ -55,6 +56,4 @@ def write_badge(results: Results, controller: str, path: str | Path) -> Path:
     low, high = wilson_interval(successes, valid)
     rate = successes / valid if valid else 0.0
     value = f"{100 * rate:.0f}% [{100 * low:.0f}-{100 * high:.0f}], n={valid}"
-    path = Path(path)
-    path.write_text(badge_svg(f"{controller} success", value, _colour(rate)) + "\n", encoding="utf-8")
-    return path
+    return write_atomic(path, badge_svg(f"{controller} success", value, _colour(rate)) + "\n")

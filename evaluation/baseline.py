@@ -36,10 +36,12 @@ from typing import Any
 import numpy as np
 
 from evaluation.distinct import distinct_units, read_once
+from evaluation.published import is_archive
 from evaluation.records import ran, record_problem
 from evaluation.report import markdown_cell, markdown_text, task_label
 from evaluation.statistics import bootstrap_mean_interval, paired_comparison
 from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_LOG_BYTES, read_text
 
 __all__ = [
     "ALL_TASKS",
@@ -72,18 +74,25 @@ def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
     """The results document of ``path`` (a results.json, or a run directory holding one).
 
     Raises ``ValueError`` naming the file (as ``what``: a baseline, a sweep level) when it is
-    missing, not JSON, not a KoopNav results document, or of a schema version this package
-    cannot read. Its episodes are read once (:func:`evaluation.distinct.read_once`): one recorded
-    twice alike counts once, one recorded twice with different outcomes is refused
+    missing, not a regular file of at most :data:`koopman_envs.files.MAX_LOG_BYTES` (a FIFO, a
+    device: refused unread), a published archive (with how to use one), not UTF-8 JSON, not a
+    KoopNav results document, or of a schema version this package cannot read. Its episodes are
+    read once (:func:`evaluation.distinct.read_once`): one recorded twice alike counts once, one
+    recorded twice with different outcomes is refused
     (:class:`~evaluation.distinct.ConflictingRecords`, a ``ValueError``) naming the file, the
     episode, both places and the fields that differ.
     """
     path = Path(path)
+    if is_archive(path):
+        raise ValueError(
+            f"{what} {str(path)!r} is a published archive (episode logs), not a results.json or a run "
+            f"directory: unpack it (tar -xJf {path} -C DIR), write its run's results.json with the run's "
+            "command and --resume --out DIR/NAME (data/publish.sh lists it; every episode is logged, so "
+            "none runs again), then pass DIR/NAME"
+        )
     file = path / "results.json" if path.is_dir() else path
-    try:
-        text = file.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValueError(f"{what} {str(file)!r} cannot be read ({exc.strerror or exc})") from None
+    # a regular file of bounded size (--baseline /dev/zero read until MemoryError, a FIFO forever)
+    text = read_text(file, MAX_LOG_BYTES, what=what, expected="a KoopNav results.json (UTF-8 JSON)")
     try:
         doc = parse_json(text, f"{what} {str(file)!r}")
     except json.JSONDecodeError as exc:

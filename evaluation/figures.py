@@ -24,6 +24,7 @@ from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.robustness import AxisProfile, LevelRow
 from evaluation.run_data import RunData
+from koopman_envs.files import write_atomic
 from koopman_envs.movers import MoverConfig, parse_movers
 
 __all__ = [
@@ -173,7 +174,7 @@ def _trajectory_figure(rec: dict[str, Any], path: Path) -> Any:
     outcome = "success" if rec["success"] else (rec["collision"] or "time limit")
     ax.set_title(f"{rec['controller']} | {rec['map']} | {rec['slip']} | {outcome}", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
+    write_atomic(path, fig.savefig)
     return fig
 
 
@@ -204,7 +205,7 @@ def _success_figure(results: RunData, env_id: str, path: Path) -> Any:
               ncols=columns)  # fmt: skip
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path)
+    write_atomic(path, fig.savefig)
     return fig
 
 
@@ -347,7 +348,7 @@ def save_profile_figures(axes: Sequence[AxisProfile], out_dir: Path) -> list[Pat
         )
         fig.tight_layout()
         path = out_dir / f"robustness_{profile.key.replace('.', '_')}.png"
-        fig.savefig(path, dpi=110)
+        write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110))  # noqa: B023 - called at once
         plt.close(fig)
         paths.append(path)
     return paths

@@ -27,6 +27,7 @@ from typing import Any
 import koopman_envs
 from evaluation.report import Items, Note, Section, Table, TableBlock, sections, task_label
 from evaluation.run_data import RunData
+from koopman_envs.files import write_atomic
 
 __all__ = ["render_html", "render_page", "write_html", "write_page"]
 
@@ -358,10 +359,7 @@ def write_page(path: str | os.PathLike, page: str) -> Path:
     pathlib.Path
         The page's path.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(page, encoding="utf-8")
-    return path
+    return write_atomic(path, page)
 
 
 def write_html(

@@ -23,6 +23,7 @@ from evaluation.html import render_html, render_page, write_page
 from evaluation.records import json_safe
 from evaluation.robustness import AxisProfile
 from evaluation.run_data import RunData
+from koopman_envs.files import write_atomic
 
 __all__ = ["PROFILES_TITLE", "Results", "SCHEMA_VERSION", "json_safe", "profiles_json", "write_profiles"]
 
@@ -194,8 +195,8 @@ def _write_report(
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     for kind, (name, text) in files.items():
-        paths[kind] = out / name
-        paths[kind].write_text(text, encoding="utf-8")
+        # whole or not at all: a full disk leaves the previous file, and the error names the file
+        paths[kind] = write_atomic(out / name, text)
     figures = draw(out / "figures")
     name, render = page
     paths["html"] = write_page(out / name, render(figures))

@@ -21,6 +21,7 @@ from typing import IO, Any
 from evaluation.distinct import ConflictingRecords, read_once
 from evaluation.records import json_safe, record_problem
 from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_LOG_BYTES, check_regular, read_bounded, write_atomic
 
 __all__ = [
     "RESUME_KEYS",
@@ -165,18 +166,21 @@ def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> list[str]:
     )
 
 
+def _read(log: Path) -> bytes:
+    """The log's bytes: a regular file of at most :data:`koopman_envs.files.MAX_LOG_BYTES`, refused
+    unread otherwise (a FIFO given as the log hung ``--resume`` forever)."""
+    return read_bounded(log, MAX_LOG_BYTES, what="episode log")
+
+
 def _replace_log(path: Path, data: bytes) -> None:
     """Replace the log's bytes through a temporary file beside it (a kill leaves the old log or
-    the new one, never a mix)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".episodes-", suffix=".jsonl")
-    with os.fdopen(fd, "wb") as handle:
-        handle.write(data)
-    os.replace(tmp, path)
+    the new one, never a mix: :func:`koopman_envs.files.write_atomic`)."""
+    write_atomic(path, data)
 
 
 def _rewrite_header(path: Path, config: dict[str, Any]) -> None:
     """Give the log this run's header, every record byte for byte."""
-    data = path.read_bytes()
+    data = _read(path)
     _replace_log(path, _header_line(config) + data[data.index(b"\n") + 1 :])
 
 
@@ -231,7 +235,7 @@ def read_log(
         line number. Nothing is changed in the file then.
     """
     path = Path(log)
-    data = path.read_bytes()
+    data = _read(path)
     notes: list[str] = []
     lines = data.split(b"\n")
     # a file ends with a newline after every complete record, so the last piece is b"" unless a
@@ -241,7 +245,7 @@ def read_log(
         if not _header_line(config).startswith(torn):
             raise LogError(f"{path} is not a KoopNav episode log (its only line is not a run header)")
         if repair:
-            path.write_bytes(_header_line(config))
+            _replace_log(path, _header_line(config))
         return {}, [f"{path}: the header line was cut by the interruption; it was written again"]
     added = _check_header(path, lines[0], config)
     records: list[dict[str, Any]] = []
@@ -297,6 +301,20 @@ def read_log(
     return done, notes
 
 
+def _open_append(log: Path) -> IO[str]:
+    """The log opened for appending (never truncated: another run may be writing it). An existing
+    log must be a regular file within the cap before it is opened (an append-mode open of a FIFO
+    waits for a reader forever), and the open does not block either (``O_NONBLOCK``: a FIFO put
+    there meanwhile fails the open instead)."""
+    if os.path.lexists(log):
+        check_regular(log, MAX_LOG_BYTES, what="episode log")
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NONBLOCK", 0)
+    try:
+        return os.fdopen(os.open(log, flags, 0o666), "a", encoding="utf-8")
+    except OSError as exc:
+        raise OutputNotWritable(f"{log} cannot be opened for writing: {exc.strerror or exc}") from None
+
+
 def open_log(
     out: str | os.PathLike[str],
     config: dict[str, Any],
@@ -320,11 +338,7 @@ def open_log(
         cannot be resumed (:class:`LogError`).
     """
     log = ensure_output_dir(out) / "episodes.jsonl"
-    try:
-        # append mode: opening never truncates a log another run may be writing
-        handle = open(log, "a", encoding="utf-8")  # noqa: SIM115 - the caller closes it
-    except OSError as exc:
-        raise OutputNotWritable(f"{log} cannot be opened for writing: {exc.strerror or exc}") from None
+    handle = _open_append(log)
     _lock(handle, log)
     try:
         if log.stat().st_size > 0:
@@ -336,7 +350,7 @@ def open_log(
                 print(f"note: {note}", file=sys.stderr)
             if os.stat(log).st_ino != inode:  # the header was rewritten into a new file
                 handle.close()
-                handle = open(log, "a", encoding="utf-8")  # noqa: SIM115 - the caller closes it
+                handle = _open_append(log)
                 _lock(handle, log)
             return handle, done
         handle.write(_header_line(config).decode())
@@ -371,9 +385,9 @@ def forget_controllers(out: str | os.PathLike[str], labels: Sequence[str]) -> in
     if not logs:
         raise LogError(f"no episode log (episodes.jsonl) under {out}")
     for log in logs:
-        with open(log, "a", encoding="utf-8") as handle:
+        with _open_append(log) as handle:
             _lock(handle, log)
-            lines = log.read_bytes().splitlines(keepends=True)
+            lines = _read(log).splitlines(keepends=True)
             kept = lines[:1]
             for number, line in enumerate(lines[1:], start=2):
                 try:

@@ -24,13 +24,14 @@ from evaluation import runner
 from evaluation.backends import BATCH
 from evaluation.baseline import load_baseline
 from evaluation.plan import safe_file_name, slip_value
-from evaluation.published import extract_archive, results_from_log
+from evaluation.published import extracted_archive, results_from_log
 from evaluation.report.blocks import level_text
 from evaluation.results import Results
 from evaluation.spec import RunSpec, with_env_setting
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
+from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.tasks.base import task_for_env
 
@@ -273,7 +274,6 @@ def write_manifest(
     """Record the sweep in ``OUT/sweep.json`` (what :func:`load_sweep` reads back); ``aliases``
     are the levels run once for several axes (:func:`level_aliases`)."""
     path = Path(out) / MANIFEST
-    path.parent.mkdir(parents=True, exist_ok=True)
     doc = {
         "kind": _MANIFEST_KIND,
         "axes": [{"key": a.key, "levels": list(a.levels)} for a in axes],
@@ -281,16 +281,17 @@ def write_manifest(
         "command": command,
         "aliases": aliases or {},
     }
-    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    return path
+    return write_atomic(path, json.dumps(doc, indent=1) + "\n")
 
 
 def _read_manifest(out: Path) -> dict[str, Any]:
     path = out / MANIFEST
+    # a regular file of bounded size, refused unread otherwise (a FIFO here hung --sweep-report)
+    text = read_text(
+        path, MAX_TEXT_BYTES, what="sweep manifest", expected="a KoopNav sweep.json (UTF-8 JSON)"
+    )
     try:
-        doc = parse_json(path.read_text(encoding="utf-8"), f"sweep manifest {str(path)!r}")
-    except OSError as exc:
-        raise ValueError(f"sweep manifest {str(path)!r} cannot be read ({exc.strerror or exc})") from None
+        doc = parse_json(text, f"sweep manifest {str(path)!r}")
     except json.JSONDecodeError as exc:
         raise ValueError(f"sweep manifest {str(path)!r} is not JSON ({exc.msg}, line {exc.lineno})") from None
     axes = doc.get("axes") if isinstance(doc, dict) else None
@@ -344,8 +345,16 @@ def load_sweep(
         recording another value of its axis than its directory's (each named).
     """
     out = Path(out)
-    if out.is_file():  # a published archive (refused by name if it is not one)
-        out, from_logs = extract_archive(out), True
+    if out.is_file():  # a published archive (refused by name if it is not one), unpacked while read
+        with extracted_archive(out) as run_dir:
+            return _read_levels(run_dir, from_logs=True)
+    return _read_levels(out, from_logs)
+
+
+def _read_levels(
+    out: Path, from_logs: bool
+) -> tuple[dict[str, list[tuple[Any, Results]]], list[str], dict[str, Any]]:
+    """:func:`load_sweep` of a sweep's directory."""
     manifest = _read_manifest(out)
     done: dict[str, list[tuple[Any, Results]]] = {}
     missing: list[str] = []

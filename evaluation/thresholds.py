@@ -20,6 +20,7 @@ from typing import Any
 
 from evaluation.results import Results
 from koopman_envs.checks import check_number
+from koopman_envs.files import MAX_TEXT_BYTES, read_text
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["READINGS", "ThresholdCheck", "Thresholds", "check_thresholds", "load_thresholds"]
@@ -123,11 +124,10 @@ def load_thresholds(path: str | os.PathLike[str]) -> Thresholds:
         import tomli as tomllib  # type: ignore[no-redef]  # the same module, another name
 
     name = f"thresholds file {os.fspath(path)!r}"
+    # a regular file of bounded size, refused unread otherwise (a FIFO as --check hung forever)
+    text = read_text(path, MAX_TEXT_BYTES, what="thresholds file", expected="a TOML thresholds file")
     try:
-        with open(path, "rb") as fh:
-            spec = tomllib.load(fh)
-    except OSError as exc:
-        raise ValueError(f"{name} cannot be read: {exc}") from None
+        spec = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{name} is not valid TOML: {exc}") from None
     _unknown(name, spec, _TOP_KEYS)

@@ -157,7 +157,7 @@ ENV_LAYERS = ("base", "sim", "tasks", "suites", "builder", "fronts")
 #: the modules of the base layer, at the package root (with the old paths' stubs)
 ENV_BASE = {
     "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
-    "layout", "deprecated", "maps",
+    "layout", "deprecated", "maps", "files",
 }  # fmt: skip
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
 ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}

@@ -249,13 +249,17 @@ def test_a_map_file_is_checked_before_it_is_read_whole(tmp_path: Path) -> None:
     latin = tmp_path / "latin.json"
     latin.write_bytes(b'{"obstacles": [], "name": "\xe9"}')
     cases = [
-        ("/dev/zero", r"map file '/dev/zero' is not a regular file"),
-        (str(tmp_path), r"is not a regular file"),
+        ("/dev/zero", r"map file '/dev/zero' cannot be read: it is a character device, not a regular file"),
+        (str(tmp_path), r"it is a directory, not a regular file"),
         (
             str(big),
-            rf"map file .*big.json' has {L.map_file_bytes + 1} bytes; allowed: at most {L.map_file_bytes}",
+            rf"map file .*big.json' cannot be read: it is {L.map_file_bytes + 1} bytes .*; at most "
+            rf"{L.map_file_bytes} bytes .* are allowed",
         ),
-        (str(latin), r"map file .*latin.json' is not UTF-8 text"),
+        (
+            str(latin),
+            r"map file .*latin.json' is not UTF-8 text \(byte 27 is b'\\xe9'\); expected a JSON map",
+        ),
     ]
     for path, message in cases:
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -394,14 +395,14 @@ def test_the_output_directory_is_made_and_tried_with_a_real_write(tmp_path, monk
 
 
 def test_a_log_that_cannot_be_opened_is_refused_as_not_writable(tmp_path, monkeypatch) -> None:
-    real_open = open
+    real_open = os.open  # the log is opened by os.open (O_NONBLOCK: a FIFO cannot block it)
 
     def refuse(path, *args, **kwargs):
         if str(path).endswith("episodes.jsonl"):
             raise PermissionError(13, "Permission denied")
         return real_open(path, *args, **kwargs)
 
-    monkeypatch.setattr("builtins.open", refuse)
+    monkeypatch.setattr(os, "open", refuse)
     with pytest.raises(OutputNotWritable) as caught:
         open_log(tmp_path, CONFIG, resume=False)
     assert (

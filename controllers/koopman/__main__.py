@@ -19,6 +19,7 @@ from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model, fit_on_plant
 from koopman_envs.builder.plant import make_plant
+from koopman_envs.files import write_atomic
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 
 
@@ -132,7 +133,7 @@ def _plot(path: str, prediction: np.ndarray, truths: np.ndarray, report, name: s
     rmse = ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed)
     ax.set_title(f"{name} model, lambda={report.lambdas}: RMSE [{rmse}] %", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path)
+    write_atomic(path, fig.savefig)
 
 
 def main(argv: list[str] | None = None) -> int:

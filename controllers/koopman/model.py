@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import zipfile
@@ -15,6 +16,7 @@ from numpy.typing import NDArray
 
 from controllers.calibration import check_position_residual
 from controllers.koopman.dictionary import Dictionary, get_dictionary
+from koopman_envs.files import MAX_LOG_BYTES, FileRefused, read_bounded
 
 __all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
 
@@ -335,13 +337,16 @@ class KoopmanModel:
         """
         path = os.fspath(path)
         hint = "regenerate it with `python -m controllers.koopman fit --slip SETTING --out PATH`"
+        if not os.path.lexists(path):
+            raise ModelFileError(f"Koopman model file {path!r} does not exist; {hint}")
         try:
-            # our own handle: np.load leaks the one it opens when a torn zip fails its header check
-            with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:
+            # a regular file within the cap, read once (a FIFO in the cache would block an open)
+            blob = io.BytesIO(read_bounded(path, MAX_LOG_BYTES, what="Koopman model file"))
+            with np.load(blob, allow_pickle=False) as data:
                 arrays = {key: data[key] for key in ("A", "N", "B", "C")}
                 meta = json.loads(str(data["metadata"]))
-        except FileNotFoundError:
-            raise ModelFileError(f"Koopman model file {path!r} does not exist; {hint}") from None
+        except FileRefused as exc:  # not a regular file, or over the cap: named by the reader
+            raise ModelFileError(f"{exc}; {hint}") from None
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
             raise ModelFileError(
                 f"Koopman model file {path!r} is corrupt or truncated ({type(exc).__name__}: {exc}); {hint}"

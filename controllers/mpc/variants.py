@@ -61,6 +61,7 @@ from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
 from koopman_envs.builder.plant import CalibrationPlant
 from koopman_envs.checks import Range
+from koopman_envs.files import MAX_TEXT_BYTES, read_text
 from koopman_envs.scenario import Scenario
 
 __all__ = ["AdaptiveKoopmanNMPC", "KoopmanNMPC", "NominalNMPC"]
@@ -96,7 +97,10 @@ class NominalNMPC(NMPCController):
         summary = {"transitions": spec.transitions, "key": key}
         try:
             residual = check_position_residual(
-                json.loads(path.read_text(encoding="utf-8"))["position_residual"], plant.n_robots
+                json.loads(read_text(path, MAX_TEXT_BYTES, what="calibration cache entry"))[
+                    "position_residual"
+                ],
+                plant.n_robots,
             ).tolist()
             source = "cache"
         except (OSError, ValueError, KeyError, TypeError) as exc:  # missing or bad entry: measure again

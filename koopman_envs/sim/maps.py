@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import stat
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from typing import Any
@@ -21,6 +20,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int, parse_json
 from koopman_envs.deprecated import moved_names
+from koopman_envs.files import read_text, write_atomic
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
 from koopman_envs.sim.geometry import TeamGeometry
@@ -333,8 +333,7 @@ class MapSpec:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the map as a JSON file."""
-        with open(path, "w", encoding="utf-8") as fh:
-            json.dump(self.to_dict(), fh, indent=1)
+        write_atomic(path, json.dumps(self.to_dict(), indent=1))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], default_name: str = "custom") -> MapSpec:
@@ -401,24 +400,12 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
             raw = resources.files("koopman_envs.maps").joinpath(f"{text}.json").read_text("utf-8")
             return MapSpec.from_dict(parse_json(raw, f"map {text!r}"), default_name=text)
         if text.endswith(".json") or os.path.sep in text:
+            # a regular file of bounded size before it is read whole (map="/dev/zero" read forever)
+            raw = read_text(text, LIMITS.map_file_bytes, what="map file", expected="a JSON map file")
             try:
-                # a regular file of bounded size before it is read whole (map="/dev/zero" read forever)
-                status = os.stat(text)
-                if not stat.S_ISREG(status.st_mode):
-                    raise ValueError(f"map file {text!r} is not a regular file")
-                if status.st_size > LIMITS.map_file_bytes:
-                    raise ValueError(
-                        f"map file {text!r} has {status.st_size} bytes; allowed: at most "
-                        f"{LIMITS.map_file_bytes} (koopman_envs.params.LIMITS.map_file_bytes)"
-                    )
-                with open(text, encoding="utf-8") as fh:
-                    data = parse_json(fh.read(), f"map file {text!r}")
-            except OSError as exc:
-                raise ValueError(f"map file {text!r} cannot be read: {exc}") from exc
+                data = parse_json(raw, f"map file {text!r}")
             except json.JSONDecodeError as exc:
                 raise ValueError(f"map file {text!r} is not valid JSON: {exc}") from exc
-            except UnicodeDecodeError as exc:
-                raise ValueError(f"map file {text!r} is not UTF-8 text: {exc}") from exc
             stem = os.path.splitext(os.path.basename(text))[0]
             return MapSpec.from_dict(data, default_name=stem)
     raise ValueError(
