@@ -1,4 +1,5 @@
-"""Collision checks between disc robots, circular obstacles and the workspace box, batched and compiled."""
+"""Collision checks between disc robots, circular obstacles, movers and the workspace box, and
+whose fault a collision is (:class:`CollisionFault`), batched and compiled."""
 
 from __future__ import annotations
 
