@@ -30,6 +30,7 @@ from evaluation.statistics import (
     paired_comparison,
     wilson_interval,
 )
+from koopman_envs.fronts.episode import smallest_clearance
 from koopman_envs.sim.collision import CollisionKind
 
 __all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons", "pooled_rate"]
@@ -266,9 +267,9 @@ def episode_metrics(records: list[dict[str, Any]]) -> dict[str, float]:
         if r["success"] and straight.size and (straight > 0.1).any():
             moved = straight > 0.1
             ratios.append(float(np.mean(np.asarray(r["path_length"], dtype=float)[moved] / straight[moved])))
-        low = [v for v in (r.get("min_clearance") or {}).values() if v is not None]
-        if low:
-            clearances.append(100 * min(low))
+        low = smallest_clearance(r.get("min_clearance"))
+        if low is not None:
+            clearances.append(100 * low)
         if r.get("accel_rms"):
             accels.append(float(np.mean(r["accel_rms"])))
     return {

@@ -133,6 +133,11 @@ _OUTCOME_SCHEMA: dict[str, tuple[Callable[[Any], bool], str]] = {
 }
 #: field -> (check, what is allowed), checked when the record holds the field
 _OPTIONAL_SCHEMA: dict[str, tuple[Callable[[Any], bool], str]] = {
+    # recorded since the fault rule and the strict success (records written before lack them)
+    "strict_success": (lambda v: isinstance(v, bool), "true or false"),
+    "success_excusing_unavoidable": (lambda v: isinstance(v, bool), "true or false"),
+    "collision_at_fault": (lambda v: isinstance(v, bool), "true or false"),
+    "clearance_min_m": (lambda v: v is None or _is_number(v), "null or a finite number (metres)"),
     "truncated": (lambda v: isinstance(v, bool), "true or false"),
     "time_to_goal": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0 (seconds)"),
     "final_poses": (
@@ -206,11 +211,42 @@ def record_problem(record: Any) -> str | None:
             return (
                 f"field 'success' is true with collision {record['collision']!r} (a success has no collision)"
             )
+        problem = _outcome_conflict(record)
+        if problem is not None:
+            return problem
         poses = record.get("final_poses")
         if poses is not None and len(poses) != len(record["final_distance"]):
             return (
                 f"field 'final_poses' holds {len(poses)} robots and 'final_distance' "
                 f"{len(record['final_distance'])} (one of each per robot)"
+            )
+    return None
+
+
+#: (field, when it contradicts the outcome, why) for the fields recorded beside success
+_OUTCOME_RULES: tuple[tuple[str, Callable[[Mapping[str, Any]], bool], str], ...] = (
+    ("strict_success", lambda r: r["strict_success"] and not r["success"], "a strict success is a success"),
+    (
+        "success_excusing_unavoidable",
+        lambda r: r["success"] and not r["success_excusing_unavoidable"],
+        "a success is one with the unavoidable collisions excused",
+    ),
+    (
+        "collision_at_fault",
+        lambda r: r["collision_at_fault"] and r["collision"] is None,
+        "a collision at fault is a collision",
+    ),
+)
+
+
+def _outcome_conflict(record: Mapping[str, Any]) -> str | None:
+    """The first field recorded beside success that contradicts it (each rule applies when the
+    record holds the fields it reads)."""
+    for name, broken, why in _OUTCOME_RULES:
+        if name in record and broken(record):
+            return (
+                f"field {name!r} is {shown_value(record[name])} with success {record['success']!r} "
+                f"and collision {record['collision']!r} ({why})"
             )
     return None
 

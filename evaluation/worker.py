@@ -83,7 +83,12 @@ def _result_fields(spec: EpisodeSpec, result: EpisodeResult, stats: ControllerSt
     fields = dict(
         status=finished_status(summary["failures"], len(stats.solve_times) or result.steps),
         success=result.success,
+        # beside success: the stricter success, the fault of the collision that ended the
+        # episode and success with the collisions no robot could avoid excused
+        strict_success=result.strict_success,
+        success_excusing_unavoidable=result.success_excusing_unavoidable,
         collision=result.collision,
+        collision_at_fault=result.collision_at_fault,
         truncated=result.truncated,
         steps=result.steps,
         time_to_goal=result.time_to_goal,
@@ -95,6 +100,7 @@ def _result_fields(spec: EpisodeSpec, result: EpisodeResult, stats: ControllerSt
         formation_rms=result.formation_rms,
         straight_distance=result.straight_distance.tolist(),
         min_clearance=result.min_clearance,
+        clearance_min_m=result.clearance_min_m,
         accel_rms=result.accel_rms.tolist(),
         decisions=result.decisions,
         deadline_misses=result.deadline_misses,

@@ -17,6 +17,7 @@ from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "DRIFT_MEAN_INTERVAL",
+    "FAULT_STOPPED_SPEED",
     "LIMITS",
     "MAX_EPISODES_PER_CELL",
     "MAX_ROBOTS",
@@ -25,6 +26,7 @@ __all__ = [
     "RANDOM_SLIP_MAX",
     "SLIP_SETTINGS",
     "SLIP_MAX_LAMBDA",
+    "STRICT_CLEARANCE_MARGIN",
     "SizeLimits",
     "slip_lambdas",
 ]
@@ -219,6 +221,20 @@ LIMITS = SizeLimits()
 MAX_EPISODES_PER_CELL = LIMITS.episodes_per_cell
 #: the largest team (``n_robots``; the evaluator's ``--env-kwargs n_robots=``)
 MAX_ROBOTS = LIMITS.robots
+
+#: Below this speed [m/s] a robot counts as stopped when a mover touches it, so the contact is
+#: not its fault (the fault rule of docs/movers.md, "Who is at fault"). Ours: a robot told to
+#: hold still is seldom at exactly zero (an NMPC's commands settle at 1e-3 m/s, not 0), and
+#: 0.05 m/s, a twelfth of ``v_max``, moves it 5 mm in a period, a fortieth of its radius: too
+#: little to run into anything.
+FAULT_STOPPED_SPEED = 0.05
+
+#: A success is strict when every robot kept more than this clearance [m] from every obstacle,
+#: team-mate and mover all episode (``strict_success`` in the evaluator's records). Ours: 5 cm is
+#: the localization error the robustness sweep's pose-noise level and the people tracker's
+#: detection noise assume, so a team that passes closer than that touched nothing only because
+#: its poses were exact; it is also the issue's "within 5 cm of an obstacle".
+STRICT_CLEARANCE_MARGIN = 0.05
 
 #: Named slip settings: lambda of the most-slipping robot. Robot 1 is always slip-free and the
 #: others are spaced linearly up to this value, which for 3 robots gives exactly SPEC's table:

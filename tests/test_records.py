@@ -49,6 +49,12 @@ def test_every_committed_record_passes_both() -> None:
         ("min_clearance", {"robot": "0.1"}),
         ("accel_rms", [-1.0]),
         ("straight_distance", ["1"]),
+        ("strict_success", "true"),
+        ("strict_success", None),
+        ("success_excusing_unavoidable", 1),
+        ("collision_at_fault", "no"),
+        ("clearance_min_m", "0.03"),
+        ("clearance_min_m", [0.03]),
     ],
 )
 def test_values_the_code_refuses_the_json_schema_refuses(field, value) -> None:
@@ -86,6 +92,49 @@ def test_values_the_code_refuses_the_json_schema_refuses(field, value) -> None:
 )
 def test_each_problem_is_named(record, problem) -> None:
     assert problem in record_problem(record)
+
+
+#: the fields recorded beside success since the fault rule (docs/movers.md) and the strict success
+NEW_OUTCOME_FIELDS = (
+    "strict_success",
+    "success_excusing_unavoidable",
+    "collision_at_fault",
+    "clearance_min_m",
+)
+
+
+@pytest.mark.parametrize("field", NEW_OUTCOME_FIELDS)
+def test_the_new_outcome_fields_are_optional_but_typed(field: str) -> None:
+    """Records written before the fields load; a record with one of the wrong type does not."""
+    jsonschema = pytest.importorskip("jsonschema")
+    old = BASELINE["episodes"][0]
+    assert field not in old and record_problem(old) is None  # the committed baseline predates them
+    new = {**old, "success": False, "collision": "mover", "collision_at_fault": False}
+    new.update(strict_success=False, success_excusing_unavoidable=True, clearance_min_m=-0.01)
+    assert record_problem(new) is None
+    jsonschema.validate(new, EPISODE_SCHEMA)
+    assert f"field {field!r} is 'x'" in record_problem({**old, field: "x"})
+
+
+@pytest.mark.parametrize(
+    "change, problem",
+    [
+        (
+            dict(success=False, collision=None, strict_success=True),
+            "field 'strict_success' is True with success False and collision None (a strict success is a success)",
+        ),
+        (
+            dict(success=True, collision=None, success_excusing_unavoidable=False),
+            "field 'success_excusing_unavoidable' is False with success True",
+        ),
+        (
+            dict(success=False, collision=None, collision_at_fault=True),
+            "field 'collision_at_fault' is True with success False and collision None (a collision at fault",
+        ),
+    ],
+)
+def test_fields_that_contradict_the_outcome_are_named(change, problem) -> None:
+    assert problem in record_problem({**BASELINE["episodes"][0], **change})
 
 
 def test_a_collision_of_several_kinds_and_an_error_record_pass() -> None:

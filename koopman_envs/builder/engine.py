@@ -25,7 +25,7 @@ from koopman_envs.checks import check_commands
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.collision import collision_flags
+from koopman_envs.sim.collision import CollisionFault, collision_flags
 from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
@@ -311,7 +311,7 @@ class NavigationEngine:
         collision_flags(
             new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
         )
-        features, distances = self._sense(before, new, rows, collision)
+        features, distances = self._sense(before, new, rows, stepping, collision)
         k, n = distances.shape
         robot_reward, team_reward = np.empty((k, n)), np.empty(k)
         success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
@@ -347,15 +347,17 @@ class NavigationEngine:
         before: NDArray[np.float64],
         new: NDArray[np.float64],
         rows: NDArray[np.int64],
+        stepping: NDArray[np.bool_],
         collision: NDArray[np.int64],
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The world after the robots' move: the movers move and meet the team (their contacts
-        into ``collision``), the robots sense, the tracker follows the movers; returns the
-        observation blocks and the true target distances (the rewards')."""
+        into ``collision``, whose fault each is from the robots' move ``before`` to ``new`` in
+        the ``stepping`` environments), the robots sense, the tracker follows the movers;
+        returns the observation blocks and the true target distances (the rewards')."""
         cfg, perception, movers = self.config, self.perception, self.movers
         if movers is not None:  # the movers move through the same period, then meet the team
             movers.step(before, new, rows)
-            movers.meet(new, cfg.robot_radius, collision)
+            movers.meet(before, new, stepping, cfg.robot_radius, collision)
         if perception is not None:
             perception.update(new, self._obstacle_discs(), cfg.robot_radius, rows)
         if self.mover_tracker is not None:
@@ -414,18 +416,28 @@ class NavigationEngine:
         return np.hypot(ex, ey)
 
     def robot_collisions(self) -> NDArray[np.bool_]:
-        """Which robots are in collision, (K, N): overlapping an obstacle or another robot, or with
-        the centre outside the workspace (the per-robot view of the collision flags)."""
+        """Which robots are in collision, (K, N): overlapping an obstacle, another robot or a mover,
+        or with the centre outside the workspace (the per-robot view of the collision flags)."""
+        return self._robot_collisions()[0]
+
+    def _robot_collisions(self) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+        """:meth:`robot_collisions`, and whose fault each robot's collision is, (K, N) codes of
+        :class:`~koopman_envs.sim.collision.CollisionFault` (the rule is there)."""
         out = np.zeros(self.distances.shape, dtype=bool)
+        fault = np.zeros(self.distances.shape, dtype=np.int64)
         hit = np.flatnonzero(self.collision)
         if hit.size:  # only the environments that collided: this runs on every vector step
             x, y = self.state[hit, 0], self.state[hit, 1]
             touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
             x_min, x_max, y_min, y_max = PARAMS.workspace
-            out[hit] = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
+            out[hit] = static = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
+            # a static contact is the robot's whatever a mover did in the same period
+            fault[hit] = np.where(
+                static, CollisionFault.ROBOT, 0 if self.movers is None else self.movers.fault[hit]
+            )
             if self.movers is not None:
                 out[hit] |= self.movers.hit[hit]
-        return out
+        return out, fault
 
     def batch_info(self) -> dict[str, Any]:
         """The true structured state of every environment, one array per key (copies).
@@ -436,11 +448,15 @@ class NavigationEngine:
         8 mover;
         ``CollisionKind.describe(code)`` names them, e.g. ``"robot+workspace"``; every value of
         an info is a number or an array, which RL libraries stack into tensors),
-        ``robot_collision`` (K, N) bool (which robots collided), ``is_success`` (K,),
-        ``settled_steps`` (K,), ``formation_error`` (K, N) for formation, and with ``movers``
+        ``robot_collision`` (K, N) bool (which robots collided), ``collision_fault`` (K, N) int
+        (whose fault each robot's collision is: 0 none, 1 the robot's, 2 a mover's, by the rule of
+        :class:`~koopman_envs.sim.collision.CollisionFault`, which ``describe`` names),
+        ``robots_at_fault`` and ``robots_not_at_fault`` (K,) int (the robots of each fault),
+        ``is_success`` (K,), ``settled_steps`` (K,), ``formation_error`` (K, N) for formation, and with ``movers``
         ``movers`` (K, C, 4): every mover's true x, y [m], vx, vy [m/s].
         :meth:`info` is row ``index`` of this, so every front reports the same keys.
         """
+        robot_collision, fault = self._robot_collisions()
         info = {
             **self.observed_info(),
             "poses": self.poses.copy(),
@@ -448,7 +464,10 @@ class NavigationEngine:
             "distances": self.distances.copy(),
             "collision": self.collision != 0,
             "collision_code": self.collision.astype(np.int64),
-            "robot_collision": self.robot_collisions(),
+            "robot_collision": robot_collision,
+            "collision_fault": fault,
+            "robots_at_fault": (fault == CollisionFault.ROBOT).sum(axis=1),
+            "robots_not_at_fault": (fault == CollisionFault.MOVER).sum(axis=1),
             "is_success": self.success.copy(),
             "settled_steps": self.settled.copy(),
         }

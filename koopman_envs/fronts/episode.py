@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -20,11 +20,12 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.params import STRICT_CLEARANCE_MARGIN
 from koopman_envs.scenario import scenario_of
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.nearest import smallest_clearances
 
-__all__ = ["ComputeCharge", "EpisodeRecorder", "EpisodeResult", "Policy", "run_episode"]
+__all__ = ["ComputeCharge", "EpisodeRecorder", "EpisodeResult", "Policy", "run_episode", "smallest_clearance"]
 
 
 class Policy(Protocol):
@@ -80,6 +81,17 @@ class EpisodeResult:
         Every robot settled within tolerance without collision.
     collision : str or None
         Kind of the collision that ended the episode.
+    collision_at_fault : bool
+        The episode ended on a collision that was a robot's fault (``info["robots_at_fault"]``
+        of its last step: an obstacle, a team-mate, the workspace's edge, or a mover the robot
+        ran into; the rule: :class:`~koopman_envs.sim.collision.CollisionFault`). False
+        without a collision, and for one where movers ran into robots that were stopped or
+        moving away.
+    success_excusing_unavoidable : bool
+        Success, or an episode ended by a collision that was no robot's fault with every robot
+        within ``goal_tolerance`` of its target at that period. A collision of any fault ends
+        the episode (the env's rule), so a team hit on its way can never be shown to have
+        arrived: only one hit after it had arrived is excused.
     truncated : bool
         Ended by the time limit.
     steps : int
@@ -127,6 +139,8 @@ class EpisodeResult:
 
     success: bool
     collision: str | None
+    collision_at_fault: bool
+    success_excusing_unavoidable: bool
     truncated: bool
     steps: int
     total_reward: float
@@ -153,6 +167,28 @@ class EpisodeResult:
     def outcome(self) -> str:
         """``"success"``, the collision kind, or ``"time limit"``."""
         return "success" if self.success else (self.collision or "time limit")
+
+    @property
+    def clearance_min_m(self) -> float | None:
+        """The smallest clearance over the episode [m] of any robot to anything it must not
+        touch: :func:`smallest_clearance` of :attr:`min_clearance`."""
+        return smallest_clearance(self.min_clearance)
+
+    @property
+    def strict_success(self) -> bool:
+        """A success that kept more than ``params.STRICT_CLEARANCE_MARGIN`` (5 cm) from every
+        obstacle, team-mate and mover all episode (a success with nothing to keep clear of is
+        strict)."""
+        low = self.clearance_min_m
+        return self.success and (low is None or low > STRICT_CLEARANCE_MARGIN)
+
+
+def smallest_clearance(min_clearance: Mapping[str, float | None] | None) -> float | None:
+    """The smallest of an episode's per-kind minimum clearances [m] (``min_clearance`` of an
+    :class:`EpisodeResult` or an episode record: obstacle, team-mate, mover), None when it has
+    none (a lone robot on an empty map without movers, or a record without the field)."""
+    values = [value for value in (min_clearance or {}).values() if value is not None]
+    return min(values) if values else None
 
 
 def run_episode(
@@ -277,9 +313,16 @@ class EpisodeRecorder:
         trajectory = np.asarray(self._poses)
         success = bool(info["is_success"])
         stretch = self._stretch_start
+        # the fault of the last step's contacts, and whether the team had arrived (every robot
+        # within tolerance at the last period: the stretch the recorder follows is open)
+        collided = bool(info["collision"])
+        at_fault = collided and int(info["robots_at_fault"]) > 0
+        excused = collided and not at_fault and stretch is not None
         return EpisodeResult(
             success=success,
-            collision=CollisionKind.describe(info["collision_code"]) if info["collision"] else None,
+            collision=CollisionKind.describe(info["collision_code"]) if collided else None,
+            collision_at_fault=at_fault,
+            success_excusing_unavoidable=success or excused,
             truncated=truncated,
             steps=steps,
             total_reward=self.total_reward,

@@ -219,7 +219,9 @@ _COMMON_DOC = """
     ``info`` always carries the true structured state: ``poses`` (N, 3), ``targets`` (N, 3),
     ``distances`` (N,) to the targets [m], ``collision`` (bool), ``collision_code`` (int bit
     flags: 1 obstacle, 2 robot, 4 workspace; ``CollisionKind.describe(code)`` names them),
-    ``robot_collision`` (N,), ``is_success`` (bool) and ``settled_steps``; formation adds
+    ``robot_collision`` (N,), ``collision_fault`` (N,) (whose fault: 0 none, 1 the robot's, 2 a
+    mover's; ``CollisionFault.describe(code)``), ``robots_at_fault`` and ``robots_not_at_fault``,
+    ``is_success`` (bool) and ``settled_steps``; formation adds
     ``formation_error`` (N,) [m]. Every value is a number or an array.
 
     ## Dynamics and Slip

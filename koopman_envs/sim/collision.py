@@ -1,4 +1,5 @@
-"""Collision checks between disc robots, circular obstacles and the workspace box, batched and compiled."""
+"""Collision checks between disc robots, circular obstacles, movers and the workspace box, and
+whose fault a collision is (:class:`CollisionFault`), batched and compiled."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 
-__all__ = ["CollisionKind", "check_collisions", "collision_flags"]
+__all__ = ["CollisionFault", "CollisionKind", "check_collisions", "collision_flags", "mover_collisions"]
 
 
 class CollisionKind:
@@ -30,7 +31,35 @@ class CollisionKind:
         return "+".join(names) if names else "none"
 
 
+class CollisionFault:
+    """Whose fault a robot's collision is: one code per robot in ``info["collision_fault"]``.
+
+    The rule (docs/movers.md, "Who is at fault"): a contact with a static obstacle, a team-mate
+    (both robots) or the workspace's edge is always the robot's; a contact with a mover is the
+    mover's when, over the period of the contact, the robot was stopped (speed below
+    :data:`~koopman_envs.params.FAULT_STOPPED_SPEED`) or moving away from the mover (its velocity
+    has a non-positive component along the direction from its centre to the mover's), and the
+    robot's otherwise. A robot with several contacts in a period is at fault if any one is its.
+    """
+
+    NONE = 0
+    #: the robot ran into something
+    ROBOT = 1
+    #: a mover ran into the robot (every contact of the robot this period)
+    MOVER = 2
+
+    NAMES = {NONE: "", ROBOT: "robot", MOVER: "mover"}
+
+    @classmethod
+    def describe(cls, code: int) -> str:
+        """``"robot"``, ``"mover"`` or ``""`` (no collision) for a code of ``info["collision_fault"]``."""
+        if int(code) not in cls.NAMES:
+            raise ValueError(f"collision fault code {code!r} is not one of {sorted(cls.NAMES)}")
+        return cls.NAMES[int(code)]
+
+
 _ROBOT, _OBSTACLE, _WORKSPACE = CollisionKind.ROBOT, CollisionKind.OBSTACLE, CollisionKind.WORKSPACE
+_NO_FAULT, _ROBOT_FAULT, _MOVER_FAULT = CollisionFault.NONE, CollisionFault.ROBOT, CollisionFault.MOVER
 
 
 @njit(cache=True)
@@ -73,6 +102,53 @@ def collision_flags(
                 if clearance(x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]) < 0.0:
                     flags |= _OBSTACLE
         out[k] = flags
+
+
+@njit(cache=True)
+def mover_collisions(
+    before: NDArray[np.float64],
+    state: NDArray[np.float64],
+    robot_radius: NDArray[np.float64],
+    position: NDArray[np.float64],
+    mover_radius: NDArray[np.float64],
+    rows: NDArray[np.int64],
+    stepping: NDArray[np.bool_],
+    flag: int,
+    stopped_step: float,
+    collision: NDArray[np.int64],
+    robot_hit: NDArray[np.bool_],
+    fault: NDArray[np.int64],
+) -> None:  # pragma: no cover - compiled
+    """OR ``flag`` into ``collision[k]`` for every environment of ``rows`` where a robot overlaps a
+    mover, mark that robot in ``robot_hit`` (K, N), and in the ``stepping`` environments write
+    whose fault its contacts are into ``fault`` (K, N), by the rule of
+    :class:`~koopman_envs.sim.collision.CollisionFault`: the robot's when it moved at least
+    ``stopped_step`` [m] over the period (``FAULT_STOPPED_SPEED`` x dt) with a positive
+    component towards the mover's centre, else the mover's. ``before`` and ``state`` (K, 3, N)
+    are the robots' poses at the start and the end of the period; the contact is judged at its
+    end, where it is seen."""
+    for k in rows:
+        judged = stepping[k]
+        for i in range(state.shape[2]):
+            x, y = state[k, 0, i], state[k, 1, i]
+            # the displacement over the period is the robot's mean velocity times dt: the rule
+            # needs only its length and the sign of its component towards a mover
+            mx, my = x - before[k, 0, i], y - before[k, 1, i]
+            moving = mx * mx + my * my >= stopped_step * stopped_step
+            if judged:
+                fault[k, i] = _NO_FAULT
+            for c in range(position.shape[1]):
+                dx, dy = position[k, c, 0] - x, position[k, c, 1] - y
+                reach = robot_radius[i] + mover_radius[c]
+                if dx * dx + dy * dy < reach * reach:
+                    collision[k] |= flag
+                    robot_hit[k, i] = True
+                    if not judged:
+                        continue
+                    if moving and mx * dx + my * dy > 0.0:
+                        fault[k, i] = _ROBOT_FAULT
+                    elif fault[k, i] == _NO_FAULT:
+                        fault[k, i] = _MOVER_FAULT
 
 
 def check_collisions(

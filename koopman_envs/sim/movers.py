@@ -29,7 +29,8 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.movers import MOVER_FEATURES, MoverConfig
-from koopman_envs.sim.collision import CollisionKind
+from koopman_envs.params import FAULT_STOPPED_SPEED
+from koopman_envs.sim.collision import CollisionFault, CollisionKind, mover_collisions
 from koopman_envs.sim.crowd import orca_restore, orca_simulator, orca_step
 from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
 from koopman_envs.sim.mover_placement import PlacementError, arena_into, place_movers, place_movers_batch
@@ -41,7 +42,6 @@ __all__ = [
     "MOVER_FEATURES",
     "START_CLEARANCE",
     "MoverField",
-    "mover_collisions",
     "mover_features",
 ]
 
@@ -103,6 +103,9 @@ class MoverField:
         self.arena = np.zeros((k, 4))
         #: which robots touch a mover after the last step (K, N)
         self.hit = np.zeros((k, n_robots), dtype=bool)
+        #: whose fault each robot's mover contacts are (K, N): a
+        #: :class:`~koopman_envs.sim.collision.CollisionFault` code, NONE without a contact
+        self.fault = np.zeros((k, n_robots), dtype=np.int64)
         self.radius = np.full(c, config.radius)
         self.pause_periods = int(round(config.pause / self.dt))
         # the static obstacles as the kernels read them (set per reset: random maps change)
@@ -207,6 +210,7 @@ class MoverField:
         self.position[where] = placed
         self.waiting[where] = 0
         self.hit[where] = False
+        self.fault[where] = CollisionFault.NONE
         if self.trail_length:
             self._trail_count[where] = 0
             self._record(np.asarray(rows, dtype=np.int64))
@@ -351,21 +355,34 @@ class MoverField:
             )
 
     def meet(
-        self, state: NDArray[np.float64], robot_radius: NDArray[np.float64], collision: NDArray[np.int64]
+        self,
+        before: NDArray[np.float64],
+        state: NDArray[np.float64],
+        stepping: NDArray[np.bool_],
+        robot_radius: NDArray[np.float64],
+        collision: NDArray[np.int64],
     ) -> None:
         """Mark in :attr:`hit` the robots of ``state`` (K, 3, N) that overlap a mover and OR
         ``CollisionKind.MOVER`` into their environments' ``collision`` (K,): every environment,
-        as the other collision flags, so that a finished one keeps reporting its collision."""
+        as the other collision flags, so that a finished one keeps reporting its collision.
+
+        :attr:`fault` gets whose fault each contact is (:class:`~koopman_envs.sim.collision.CollisionFault`),
+        from the robots' motion over the period, ``before`` to ``state`` (K, 3, N), in the
+        environments that moved (``stepping``, (K,)); the others keep theirs (nothing moved)."""
         self.hit[:] = False
         mover_collisions(
+            before,
             state,
             robot_radius,
             self.position,
             self.radius,
             self._all_rows,
+            stepping,
             CollisionKind.MOVER,
+            FAULT_STOPPED_SPEED * self.dt,
             collision,
             self.hit,
+            self.fault,
         )
 
     # ------------------------------------------------------------------- read
@@ -417,30 +434,6 @@ def _as_obstacles(obstacles: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 # ---------------------------------------------------------------------- kernels
-@njit(cache=True)
-def mover_collisions(
-    state: NDArray[np.float64],
-    robot_radius: NDArray[np.float64],
-    position: NDArray[np.float64],
-    mover_radius: NDArray[np.float64],
-    rows: NDArray[np.int64],
-    flag: int,
-    collision: NDArray[np.int64],
-    robot_hit: NDArray[np.bool_],
-) -> None:  # pragma: no cover - compiled
-    """OR ``flag`` into ``collision[k]`` for every environment of ``rows`` where a robot overlaps a
-    mover, and mark that robot in ``robot_hit`` (K, N)."""
-    for k in rows:
-        for i in range(state.shape[2]):
-            x, y = state[k, 0, i], state[k, 1, i]
-            for c in range(position.shape[1]):
-                dx, dy = position[k, c, 0] - x, position[k, c, 1] - y
-                reach = robot_radius[i] + mover_radius[c]
-                if dx * dx + dy * dy < reach * reach:
-                    collision[k] |= flag
-                    robot_hit[k, i] = True
-
-
 @njit(cache=True)
 def mover_features(
     own: NDArray[np.float64],
