@@ -215,20 +215,21 @@ def _compare(
     (va, sizes), (vb, _) = _paired_tables(a, b, binary)
     d = (va - vb, sizes)
     difference, low, high = _interval(d, "mean", confidence, n_boot, seed, "layouts+within")
-    p_value, exact = _sign_flip(_layout_totals(d), permutations, seed)
+    totals = _layout_totals(d)
+    p_value, exact = _sign_flip(totals, permutations, seed)
     flat = d[0][_mask(sizes, d[0].shape[1])]
     n = int(sizes.sum())
     return LayoutComparison(
         layouts=int(sizes.size),
         units=n,
-        mean_a=float(_layout_totals((va, sizes)).sum() / n),
-        mean_b=float(_layout_totals((vb, sizes)).sum() / n),
+        mean_a=float(va.sum() / n),  # the tables are padded with zeros
+        mean_b=float(vb.sum() / n),
         difference=difference,
         low=max(-1.0, low) if binary else low,
         high=min(1.0, high) if binary else high,
         p_value=p_value,
         exact=exact,
-        permutations=2 ** int((_layout_totals(d) != 0).sum()) if exact else permutations,
+        permutations=2 ** int((totals != 0).sum()) if exact else permutations,
         discordance=float((flat != 0).mean()) if binary else math.nan,
         sd=float(flat.std(ddof=1)) if n > 1 else math.nan,
         icc=_icc(d),
