@@ -39,13 +39,16 @@ declare -A MODULES=(
     [uncertainty]="koopman_envs/uncertainty.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_bad_input.py tests/test_env_limits.py tests/test_keyword_spec.py tests/test_perception_faults.py tests/test_uncertainty_settings.py"
     [observed]="koopman_envs/observed.py|tests/test_observed_view.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_movers.py tests/test_mover_controllers.py tests/test_observed_view_exact.py"
     [baseline]="evaluation/baseline.py|tests/test_baseline.py tests/test_gate_decisions.py tests/test_duplicate_records.py"
-    [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py"
+    [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py tests/test_clustered_statistics.py tests/test_distinct_statistics.py"
+    [clustered]="evaluation/clustered.py|tests/test_clustered_statistics.py"
+    [layout_tests]="evaluation/layout_tests.py|tests/test_clustered_statistics.py"
+    [families]="evaluation/families.py|tests/test_clustered_statistics.py"
     [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py|$SIGNALS"
     [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py|$SIGNALS"
     [published]="evaluation/published.py|tests/test_published_pages.py tests/test_bounded_reads.py"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
-ORDER=(perception uncertainty observed baseline statistics runlog records published)
+ORDER=(perception uncertainty observed baseline statistics clustered layout_tests families runlog records published)
 
 if [ $# -eq 0 ] || [ "$1" = "-h" ] || [ "$1" = "--help" ]; then
     sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'

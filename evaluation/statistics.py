@@ -7,20 +7,27 @@
 - :func:`holm_adjusted`: Holm's (1979) step-down adjustment of a family of p-values, for tables
   that hold many tests (it controls the family-wise error rate under any dependence between
   the tests, which paired tests on shared seeds have).
+
 - :func:`cluster_bootstrap_rate`: a success rate over clustered episodes (those sharing a
-  trial's seed) with a bootstrap that resamples whole clusters.
+  trial's seed) with a bootstrap that resamples whole clusters; its tables of clusters and its
+  resampler are the ones :mod:`evaluation.clustered` draws with.
+
+Statistics with a suite's layouts as the unit (two-stage intervals) are in
+:mod:`evaluation.clustered`, paired tests over layouts in :mod:`evaluation.layout_tests`, named
+families of tests and power statements in :mod:`evaluation.families`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable, Iterable
+from collections.abc import Callable, Hashable, Iterable
 from dataclasses import asdict, dataclass
 from numbers import Integral, Real
 from statistics import NormalDist
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int
 
@@ -40,9 +47,10 @@ __all__ = [
 _BOOTSTRAP_CHUNK = 1 << 20
 
 
-def _check_confidence(confidence: float) -> float:
+def _check_confidence(confidence: float, name: str = "confidence") -> float:
+    """A level strictly within (0, 1) (a confidence, an alpha), or ``ValueError`` naming it."""
     if isinstance(confidence, bool) or not isinstance(confidence, Real) or not 0.0 < confidence < 1.0:
-        raise ValueError(f"confidence={confidence!r} must be a number with 0 < confidence < 1")
+        raise ValueError(f"{name}={confidence!r} must be a number with 0 < {name} < 1")
     return float(confidence)
 
 
@@ -98,6 +106,24 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     return (low, high)
 
 
+def _as_finite(name: str, values: Iterable[Any]) -> NDArray[np.float64]:
+    """``values`` as a one-dimensional float array, or ``ValueError`` naming the first entry that
+    is not a finite number (``name[i]=value``) or the shape."""
+    items = values if isinstance(values, np.ndarray) else list(values)
+    try:
+        x = np.asarray(items, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be finite numbers; could not convert them to float ({exc})") from None
+    if x.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional; got shape {x.shape}")
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        i = int(bad[0])
+        shown = float(x[i]) if isinstance(items, np.ndarray) else items[i]
+        raise ValueError(f"{name}[{i}]={shown!r} is not allowed; every value must be a finite number")
+    return x
+
+
 def bootstrap_mean_interval(
     values: Iterable[float],
     confidence: float = 0.95,
@@ -138,18 +164,7 @@ def bootstrap_mean_interval(
     confidence = _check_confidence(confidence)
     resamples = check_int("resamples", resamples, 1)
     seed = check_int("seed", seed, 0)
-    items = values if isinstance(values, np.ndarray) else list(values)
-    try:
-        x = np.asarray(items, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"values must be finite numbers; could not convert them to float ({exc})") from None
-    if x.ndim != 1:
-        raise ValueError(f"values must be one-dimensional; got shape {x.shape}")
-    bad = np.flatnonzero(~np.isfinite(x))
-    if bad.size:
-        i = int(bad[0])
-        shown = float(x[i]) if isinstance(items, np.ndarray) else items[i]
-        raise ValueError(f"values[{i}]={shown!r} is not allowed; every value must be a finite number")
+    x = _as_finite("values", values)
     n = x.size
     if n == 0:
         return (math.nan, math.nan)
@@ -387,6 +402,74 @@ def holm_adjusted(p_values: Iterable[float], same: Iterable[Hashable] | None = N
     ]
 
 
+Table = tuple[NDArray[np.float64], NDArray[np.int64]]
+
+
+def _layout_table(name: str, clusters: Iterable[Iterable[Any]], binary: bool) -> Table:
+    """``clusters`` as (values (L, K_max) padded with 0, sizes (L,)), layouts without episodes
+    left out; entries checked by name (``name[i][j]``): outcomes 0/1 when ``binary``, else finite."""
+    rows = []
+    for i, cluster in enumerate(clusters):
+        if binary:
+            rows.append(np.asarray(_as_outcomes(f"{name}[{i}]", list(cluster)), dtype=np.float64))
+        else:
+            rows.append(_as_finite(f"{name}[{i}]", cluster))
+    return _padded(rows)
+
+
+def _padded(rows: list[NDArray[np.float64]]) -> Table:
+    rows = [r for r in rows if r.size]
+    sizes = np.array([r.size for r in rows], dtype=np.int64)
+    values = np.zeros((len(rows), int(sizes.max()) if rows else 0))
+    for i, r in enumerate(rows):
+        values[i, : r.size] = r
+    return values, sizes
+
+
+def _mask(sizes: NDArray[np.int64], width: int) -> NDArray[np.bool_]:
+    return np.arange(width) < sizes[..., None]
+
+
+def _replicates(
+    table: Table,
+    statistic: Callable[[NDArray[np.float64], NDArray[np.bool_]], NDArray[np.float64]],
+    scheme: str,
+    n_boot: int,
+    rng: np.random.Generator,
+) -> NDArray[np.float64]:
+    """``statistic`` of ``n_boot`` resampled tables (shape (b, L, K) values and mask in, (b,) out).
+
+    The layouts of every replicate are drawn first, all at once (``rng.integers(0, L, (n_boot,
+    L))``: the draws of the one-stage cluster bootstrap, whatever the scheme), then the episodes
+    within the drawn layouts, in chunks of at most 2**20 entries."""
+    values, sizes = table
+    n_layouts, width = values.shape
+    picks = (
+        rng.integers(0, n_layouts, size=(n_boot, n_layouts))
+        if scheme != "within"
+        else np.broadcast_to(np.arange(n_layouts), (n_boot, n_layouts))
+    )
+    out = np.empty(n_boot)
+    rows = max(1, _BOOTSTRAP_CHUNK // (n_layouts * width))
+    for start in range(0, n_boot, rows):
+        chunk = picks[start : start + rows]
+        drawn_sizes = sizes[chunk]
+        if scheme == "layouts":
+            drawn = values[chunk]
+        else:
+            # episode j of a drawn layout of size k: floor(u k), u uniform in [0, 1)
+            within = (rng.random((*chunk.shape, width)) * drawn_sizes[..., None]).astype(np.int64)
+            drawn = values[chunk[..., None], within]
+        out[start : start + chunk.shape[0]] = statistic(drawn, _mask(drawn_sizes, width))
+    return out
+
+
+def _ratio(values: NDArray[np.float64], mask: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Episodes' mean per replicate: the sum over drawn episodes over their number."""
+    axes = tuple(range(1, values.ndim))
+    return np.asarray(np.where(mask, values, 0.0).sum(axis=axes) / mask.sum(axis=axes))
+
+
 def cluster_bootstrap_rate(
     clusters: Iterable[Iterable[Any]], confidence: float = 0.95, n_boot: int = 4000, seed: int = 0
 ) -> tuple[float, float, float]:
@@ -397,18 +480,16 @@ def cluster_bootstrap_rate(
     The clusters are what episodes share: a trial's seed (its layout on random maps, its start
     perturbation and slip draws) is shared across the cells of a protocol, so a hard layout
     fails at every slip and pooling its episodes as independent would overstate the evidence.
+    :func:`evaluation.clustered.layout_rate_interval` with ``resample="layouts"`` is the same
+    interval, refusing empty input instead.
     """
     confidence = _check_confidence(confidence)
-    check_int("n_boot", n_boot, 1)
-    arrays = [np.asarray(_as_outcomes("cluster", list(c)), dtype=np.float64) for c in clusters]
-    arrays = [a for a in arrays if a.size]
-    if not arrays:
+    n_boot = check_int("n_boot", n_boot, 1)
+    seed = check_int("seed", seed, 0)
+    table = _layout_table("clusters", clusters, binary=True)
+    if table[1].size == 0:
         return math.nan, math.nan, math.nan
-    successes = np.array([a.sum() for a in arrays])
-    sizes = np.array([a.size for a in arrays], dtype=np.float64)
-    rate = float(successes.sum() / sizes.sum())
-    picks = np.random.default_rng(seed).integers(0, len(arrays), size=(n_boot, len(arrays)))
-    rates = successes[picks].sum(axis=1) / sizes[picks].sum(axis=1)
+    rates = _replicates(table, _ratio, "layouts", n_boot, np.random.default_rng(seed))
     tail = (1.0 - confidence) / 2.0
     low, high = np.quantile(rates, [tail, 1.0 - tail])
-    return rate, float(low), float(high)
+    return float(table[0].sum() / table[1].sum()), float(low), float(high)

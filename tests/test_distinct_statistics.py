@@ -146,7 +146,7 @@ def test_the_cluster_bootstrap_covers_a_clustered_rate() -> None:
 def test_the_cluster_bootstrap_names_bad_input() -> None:
     rate, low, high = cluster_bootstrap_rate([])
     assert math.isnan(rate) and math.isnan(low) and math.isnan(high)
-    with pytest.raises(ValueError, match=r"cluster\[1\]=2 is not allowed"):
+    with pytest.raises(ValueError, match=r"clusters\[0\]\[1\]=2 is not allowed"):
         cluster_bootstrap_rate([[True, 2]])
     with pytest.raises(ValueError, match=r"confidence=1.5"):
         cluster_bootstrap_rate([[True]], confidence=1.5)
