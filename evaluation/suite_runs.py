@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from koopman_envs.checks import check_choice
 from koopman_envs.suites import SPLITS, SUITES, Suite, SuiteLayout, check_split_allowed, load_suite
 from koopman_envs.suites.suite import SUITE_PREFIX
 from koopman_envs.tasks.base import task_for_env
+
+if TYPE_CHECKING:  # a type only: evaluation.spec imports this module
+    from evaluation.spec import RunSpec
 
 __all__ = [
     "LAYOUT_FIELDS",
@@ -75,7 +78,7 @@ def layout_slice(value: Any) -> Any:
     return value  # named by check_suite_run
 
 
-def check_suite_run(spec: Any, max_episodes: int) -> None:
+def check_suite_run(spec: RunSpec, max_episodes: int) -> None:
     """Refuse a run's bad suite settings, naming the value and what is allowed.
 
     Parameters
@@ -93,7 +96,8 @@ def check_suite_run(spec: Any, max_episodes: int) -> None:
         ``random_maps`` or with maps other than the suite's split; a selection that is not a
         slice of every task's split; more episodes per cell than ``max_episodes``.
     """
-    name, split, layouts, episodes = spec.suite, spec.split, spec.layouts, spec.episodes
+    name, episodes = spec.suite, spec.episodes
+    layouts: Any = spec.layouts  # the normal form of layout_slice, or a bad value to name
     if name is None:
         for field in ("split", "layouts"):
             if getattr(spec, field) is not None:
@@ -103,7 +107,7 @@ def check_suite_run(spec: Any, max_episodes: int) -> None:
                 )
         return
     check_choice("suite", name, list(SUITES))
-    check_choice("split", split, SPLITS)
+    split = str(check_choice("split", spec.split, SPLITS))
     check_split_allowed(split, "evaluation")
     if spec.random_maps is not None:
         raise ValueError(

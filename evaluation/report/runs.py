@@ -40,6 +40,7 @@ __all__ = [
     "paired_rows",
     "paper_rows",
     "sections",
+    "suite_heading",
     "suite_note",
     "suite_rows",
     "task_label",
@@ -251,6 +252,18 @@ def _clusters_text(text: str, config: Mapping[str, Any]) -> str:
 
 
 def suite_note(config: Mapping[str, Any]) -> str:
+    """A suite run's suite (:func:`suite_heading`) and how its intervals and pairs are taken;
+    empty for a run without a suite."""
+    heading = suite_heading(config)
+    if not heading:
+        return ""
+    return (
+        f"{heading}. Intervals of rates resample layouts (the cluster bootstrap's clusters are "
+        "layouts); paired comparisons pair on (layout, seed) units, which every controller met alike."
+    )
+
+
+def suite_heading(config: Mapping[str, Any]) -> str:
     """A suite run's suite, as every report prints it: name and version, split, the layouts run,
     and each task's split label (with its hash); empty for a run without a suite."""
     suite = config.get("suite")
@@ -262,14 +275,13 @@ def suite_note(config: Mapping[str, Any]) -> str:
     if selected is None:
         which = f"all {size} layouts" if size is not None else "every layout"
     else:
-        which = f"layouts {selected[0]}-{selected[1] - 1} ({selected[1] - selected[0]} of {size or 'its'})"
+        count = selected[1] - selected[0]
+        which = f"layouts {selected[0]}-{selected[1] - 1} ({count} {f'of {size}' if size else 'per split'})"
     episodes = suite.get("episodes_per_layout")
     labels = "; ".join(f"{task_label(env_id)} {t['label']}" for env_id, t in suite["tasks"].items())
     return (
         f"Suite {suite['name']} (version {suite['version']}), split {suite['split']}, {which}, "
-        f"{episodes} episode{'s' if episodes != 1 else ''} per layout: {labels}. Intervals of rates "
-        "resample layouts (the cluster bootstrap's clusters are layouts); paired comparisons pair "
-        "on (layout, seed) units, which every controller met alike."
+        f"{episodes} episode{'s' if episodes != 1 else ''} per layout: {labels}"
     )
 
 
