@@ -15,15 +15,12 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from koopman_envs.checks import check_choice
 from koopman_envs.suites import SPLITS, SUITES, Suite, SuiteLayout, check_split_allowed, load_suite
 from koopman_envs.suites.suite import SUITE_PREFIX
 from koopman_envs.tasks.base import task_for_env
-
-if TYPE_CHECKING:  # a type only: evaluation.spec imports this module
-    from evaluation.spec import RunSpec
 
 __all__ = [
     "LAYOUT_FIELDS",
@@ -78,13 +75,13 @@ def layout_slice(value: Any) -> Any:
     return value  # named by check_suite_run
 
 
-def check_suite_run(spec: RunSpec, max_episodes: int) -> None:
+def check_suite_run(spec: Any, max_episodes: int) -> None:
     """Refuse a run's bad suite settings, naming the value and what is allowed.
 
     Parameters
     ----------
     spec : RunSpec
-        The run (its ``suite``, ``split``, ``layouts``, ``envs``, ``maps``, ``random_maps`` and
+        The run (typed ``Any`` here: :mod:`evaluation.spec` imports this module; its ``suite``, ``split``, ``layouts``, ``envs``, ``maps``, ``random_maps`` and
         ``episodes``, episodes per layout in a suite run).
     max_episodes : int
         The most episodes a cell may plan.

@@ -119,6 +119,8 @@ def test_the_reports_print_the_label_and_break_success_down_by_tier_and_family(s
     tiers = [r for r in results["suite_breakdown"] if r["by"] == "layout_tier"]
     assert len(tiers) == 2 * 2 * 3 and sum(r["episodes"] for r in tiers) == 8
     assert "layout_tier" in (suite_run / "results.csv").read_text().splitlines()[0]
+    jsonschema = pytest.importorskip("jsonschema")
+    jsonschema.validate(results, json.loads((ROOT / "docs" / "results.schema.json").read_text()))
 
 
 def test_an_interrupted_suite_run_resumes_to_the_uninterrupted_results(suite_run, tmp_path) -> None:
