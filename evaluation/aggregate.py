@@ -30,10 +30,21 @@ from evaluation.statistics import (
     paired_comparison,
     wilson_interval,
 )
+from evaluation.suite_runs import cluster_of
 from koopman_envs.fronts.episode import smallest_clearance
 from koopman_envs.sim.collision import CollisionKind
+from koopman_envs.suites import FAMILIES, TIERS
 
-__all__ = ["Cell", "DistanceSummary", "aggregate", "leaderboard", "paired_comparisons", "pooled_rate"]
+__all__ = [
+    "BREAKDOWNS",
+    "Cell",
+    "DistanceSummary",
+    "aggregate",
+    "breakdown",
+    "leaderboard",
+    "paired_comparisons",
+    "pooled_rate",
+]
 
 
 def _finite(values: Iterable[Any]) -> list[float]:
@@ -236,14 +247,18 @@ def pooled_rate(cells: Iterable[Cell], outcome: str = "successes") -> tuple[floa
 
 def _clustered_interval(wilson: list[float], records: list[dict[str, Any]]) -> list[float]:
     """The wider of the Wilson interval over distinct episodes and the cluster bootstrap over
-    trials (episodes sharing a seed share its layout, start and slip draws across cells;
+    the clusters of :func:`~evaluation.suite_runs.cluster_of`: a suite run's layouts (the layouts
+    are the sample, the episodes on one layout share it), else trials (episodes sharing a seed
+    share its layout, start and slip draws across cells;
     :func:`~evaluation.statistics.cluster_bootstrap_rate`). Wilson covers small samples, where
     a bootstrap of a rate at 0 or 1 has no width; the cluster bootstrap covers the dependence
-    between a trial's episodes, which Wilson assumes away."""
-    by_seed: dict[Any, list[bool]] = {}
+    between a cluster's episodes, which Wilson assumes away."""
+    clusters: dict[Any, list[bool]] = {}
     for r in records:
-        by_seed.setdefault(r["seed"], []).append(bool(r["success"]))
-    _, low, high = cluster_bootstrap_rate(by_seed.values())
+        clusters.setdefault(cluster_of(r), []).append(bool(r["success"]))
+    # the one call site of the clustered interval of a rate (the leaderboard's and the suite
+    # breakdowns'): a two-stage bootstrap, layouts then episodes within them, goes here
+    _, low, high = cluster_bootstrap_rate(clusters.values())
     if math.isnan(low):
         return wilson
     return [min(wilson[0], low), max(wilson[1], high)]
@@ -362,8 +377,54 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
     return sorted(rows, key=rank_key)
 
 
+def _layout_index(record: dict[str, Any]) -> int:
+    """A record's suite layout index, -1 for a record of a run without a suite."""
+    layout = record.get("layout")
+    return -1 if layout is None else int(layout)
+
+
+#: the suite breakdowns of a run's report: the record field and its groups, in report order
+BREAKDOWNS = {"layout_tier": TIERS, "layout_family": FAMILIES}
+
+
+def breakdown(records: list[dict[str, Any]], by: str) -> list[dict[str, Any]]:
+    """A suite run's success per (task, controller, group of ``by``): ``layout_tier`` (easy,
+    medium, hard) or ``layout_family`` (clutter, passages, rooms); empty for a run without a suite.
+
+    Each row counts the group's distinct episodes that ran, its layouts, and the success rate
+    with the interval of the leaderboard (the wider of Wilson's and the bootstrap over layouts).
+    """
+    groups = BREAKDOWNS[by]
+    rows = []
+    suite_records = [r for r in records if r.get(by) is not None]
+    for env_id in dict.fromkeys(r["env_id"] for r in suite_records):
+        for name in dict.fromkeys(r["controller"] for r in suite_records if r["env_id"] == env_id):
+            own = distinct_records(
+                [r for r in suite_records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
+            )
+            for group in groups:
+                recs = [r for r in own if r[by] == group]
+                won = sum(bool(r["success"]) for r in recs)
+                wilson = list(wilson_interval(won, len(recs)))
+                rows.append(
+                    {
+                        "env_id": env_id,
+                        "controller": name,
+                        "by": by,
+                        "group": group,
+                        "layouts": len({cluster_of(r) for r in recs}),
+                        "episodes": len(recs),
+                        "successes": won,
+                        "success_rate": won / len(recs) if recs else float("nan"),
+                        "success_ci": _clustered_interval(wilson, recs) if recs else wilson,
+                    }
+                )
+    return rows
+
+
 def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Every pair of controllers of a task, paired on their shared (map, slip, seed) episodes.
+    """Every pair of controllers of a task, paired on their shared (map, slip, seed) episodes,
+    in a suite run on their shared (layout, seed) units.
 
     Only episodes that ran for both controllers count, and a seed whose two episodes repeat an
     earlier seed's of the same cell counts once (:func:`evaluation.distinct.distinct_units`). Returns one plain-JSON row per pair with
@@ -372,7 +433,9 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     outcomes: dict[tuple[str, str], dict[tuple, dict[str, Any]]] = {}
     for r in records:
         if ran(r):
-            outcomes.setdefault((r["env_id"], r["controller"]), {})[(r["map"], r["slip"], r["seed"])] = r
+            # a suite run's unit is (layout, seed); -1 where a record has no layout (not a suite run)
+            unit = (r["map"], r["slip"], _layout_index(r), r["seed"])
+            outcomes.setdefault((r["env_id"], r["controller"]), {})[unit] = r
     rows = []
     identities = []
     env_ids = list(dict.fromkeys(env for env, _ in outcomes))
@@ -387,7 +450,7 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 comparison = paired_comparison(
                     [bool(mine[k]["success"]) for k in shared], [bool(theirs[k]["success"]) for k in shared]
                 )
-                cells = sorted({(m, s) for m, s, _ in shared})
+                cells = sorted({(m, s) for m, s, _, _ in shared})
                 identities.append(paired_identity(env_id, shared, mine, theirs))
                 rows.append(
                     {

@@ -27,9 +27,11 @@ from evaluation.protocols import (
     lidar_protocol,
     paper_protocol,
     quick_protocol,
+    suite_protocol,
 )
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec, with_env_setting
+from evaluation.suite_runs import add_suite_options, refuse_suite_clash
 from evaluation.sweep import refuse_sweep_clash
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.params import PARAMS, SLIP_NAMES
@@ -131,6 +133,7 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
         help="add a 'random' map row with K seeded layouts per cell, the same for every controller "
         "(default: none)",
     )
+    add_suite_options(what)
     what.add_argument(
         "--slips",
         nargs="+",
@@ -142,7 +145,8 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
         "--episodes",
         type=int,
         metavar="N",
-        help="trials per cell (default 2; 10 with --paper, 20 with --ablation)",
+        help="trials per cell (default 2; 10 with --paper, 20 with --ablation); with --suite, episodes "
+        "per layout (default 1)",
     )
     what.add_argument(
         "--seed", type=int, default=0, help="base seed; trial i of a cell uses seed + i (default 0)"
@@ -416,7 +420,10 @@ def stop_on_sigterm(signum: int, frame: Any) -> None:
 
 def spec_from_args(args: argparse.Namespace) -> RunSpec:
     """The run the command line asks for: a protocol preset with the given options replacing its fields."""
-    if args.ablation is not None:
+    refuse_suite_clash(args)
+    if args.suite is not None:
+        spec = suite_protocol(args.suite, args.split or "test")
+    elif args.ablation is not None:
         spec = ablation_protocol(check_factors(args.ablation))
     elif args.paper or args.paper_strict:
         spec = paper_protocol(strict=args.paper_strict)
@@ -481,6 +488,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         calibration_budget=args.calibration_budget,
         calibration_seed=args.calibration_seed,
         random_maps=args.random_maps if args.random_maps is not None else spec.random_maps,
+        **({"layouts": args.layouts} if args.layouts is not None else {}),
         gifs=args.gifs,
         compute_scale=args.compute_scale
         if args.compute_scale is not None

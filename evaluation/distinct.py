@@ -56,9 +56,10 @@ class ConflictingRecords(ValueError):
 
 
 def episode_identity(record: Mapping[str, Any]) -> tuple:
-    """What names an episode across records and runs: (task, controller label, map, slip, seed),
-    the coordinates every pairing reads (the trial index only numbers it within its run)."""
-    return tuple(record.get(k) for k in ("env_id", "controller", "map", "slip", "seed"))
+    """What names an episode across records and runs: (task, controller label, map, slip, suite
+    layout, seed), the coordinates every pairing reads (the trial index only numbers it within its
+    run; the layout is None in records of runs without a suite)."""
+    return tuple(record.get(k) for k in ("env_id", "controller", "map", "slip", "layout", "seed"))
 
 
 def outcome_fields(record: Mapping[str, Any]) -> dict[str, str]:

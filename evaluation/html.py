@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import koopman_envs
-from evaluation.report import Items, Note, Section, Table, TableBlock, sections, task_label
+from evaluation.report import Items, Note, Section, Table, TableBlock, sections, suite_heading, task_label
 from evaluation.run_data import RunData
 from koopman_envs.files import write_atomic
 
@@ -201,7 +201,11 @@ def _config_section(results: RunData) -> str:
         maps = next(iter(maps.values()))  # the same maps for every task
     items.append(("Maps", _text(maps)))
     items.append(("Slips", _text(config.get("slips") or list(dict.fromkeys(c.slip for c in results.cells)))))
-    items.append(("Episodes per cell", _text(config.get("episodes"))))
+    if config.get("suite"):  # a suite run: its label(s), and its episodes are per layout
+        items.append(("Suite", suite_heading(config)))
+    items.append(
+        ("Episodes per layout" if config.get("suite") else "Episodes per cell", _text(config.get("episodes")))
+    )
     items.append(("Seed", _text(config.get("seed"))))
     calibration = config.get("calibration") or {}
     if calibration:

@@ -15,8 +15,10 @@ from typing import Any
 
 from evaluation.configs import ControllerConfig
 from evaluation.slip_text import is_lambda, slip_value
+from evaluation.suite_runs import LAYOUT_FIELDS
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.maps import BUILTIN_MAPS
+from koopman_envs.suites.suite import SUITE_PREFIX
 
 __all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
 
@@ -41,6 +43,12 @@ class EpisodeSpec:
     animation: str = ""  # relative path of the GIF to record for this episode ("" = none)
     run_dir: str = ""  # the run's output directory (where ``animation`` goes)
     compute_scale: float = 0.0  # > 0: compute-aware, the decision time times this charged (0: free)
+    # a suite run's episode: the layout's index in the split (the env's reset option), its family
+    # and tier, and the split's label (evaluation.suite_runs); None elsewhere, and then not recorded
+    layout: int | None = None
+    layout_family: str | None = None
+    layout_tier: str | None = None
+    suite: str | None = None
     # a factory given as a callable (API only); sent to workers by reference, not recorded
     controller_factory: Callable[..., Any] | None = field(default=None, compare=False, repr=False)
 
@@ -69,12 +77,17 @@ class EpisodeSpec:
         """Keyword arguments of ``gym.make`` for this episode (without ``render_mode``)."""
         return {**json.loads(self.env_kwargs), "map": self.map, "slip": slip_value(self.slip)}
 
+    def reset_options(self) -> dict[str, Any] | None:
+        """The env's reset options of this episode: its suite layout (None off a suite)."""
+        return None if self.layout is None else {"layout": self.layout}
+
     def record_fields(self) -> dict[str, Any]:
-        """The plain-JSON fields of the spec, as every episode record starts."""
+        """The plain-JSON fields of the spec, as every episode record starts (the layout fields
+        only in a suite run's records, so that every other record is as before)."""
         fields = {
             k: getattr(self, k)
             for k in self.__dataclass_fields__
-            if k not in ("controller_factory", "run_dir")
+            if k not in ("controller_factory", "run_dir") and not (k in LAYOUT_FIELDS and self.layout is None)
         }
         # the recorded env settings also as fields of their own (results schema v2 readers)
         env = json.loads(self.env_kwargs)
@@ -95,11 +108,12 @@ def safe_file_name(*parts: str) -> str:
 
 
 def map_fingerprints(maps: Mapping[str, Sequence[str]]) -> dict[str, str]:
-    """SHA-256 of every user map file of the run (so a resume notices an edited file)."""
+    """SHA-256 of every user map file of the run (so a resume notices an edited file; a suite
+    split's hash is the run's ``suite`` record)."""
     prints = {}
     for names in maps.values():
         for name in names:
-            if name != RANDOM_MAP and name not in BUILTIN_MAPS:
+            if name != RANDOM_MAP and name not in BUILTIN_MAPS and not name.startswith(SUITE_PREFIX):
                 with open(name, "rb") as fh:
                     prints[name] = hashlib.sha256(fh.read()).hexdigest()
     return prints

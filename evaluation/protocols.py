@@ -28,11 +28,13 @@ __all__ = [
     "QUICK_SLIPS",
     "QUICK_START_NOISE",
     "START_NOISE",
+    "SUITE_EPISODES",
     "TASK_MAPS",
     "ablation_protocol",
     "paper_protocol",
     "protocol",
     "quick_protocol",
+    "suite_protocol",
 ]
 
 #: ``start_noise`` of every protocol (ours): starts moved within 5 cm and turned within 0.05 rad,
@@ -59,6 +61,28 @@ def quick_protocol() -> RunSpec:
         maps=TASK_MAPS,
         slips=QUICK_SLIPS,
         episodes=2,
+        env_kwargs={"start_noise": START_NOISE},
+        solver="rti",
+    )
+
+
+#: episodes per layout of a suite run (ours): the layouts are the sample (a controller's success
+#: varies far more between layouts than between seeds on one layout), so a budget buys layouts first
+SUITE_EPISODES = 1
+
+
+def suite_protocol(name: str = "koopnav-bench-v1", split: str = "test") -> RunSpec:
+    """A benchmark suite run (``--suite NAME --split SPLIT``; docs/benchmark.md): both tasks on
+    their split of suite ``name``, every layout once (:data:`SUITE_EPISODES` episode per layout),
+    under the quick leaderboard's settings: high slip (:data:`QUICK_SLIPS`), perturbed starts,
+    every registered controller, the NMPCs on the real-time iteration. ``replace(layouts=50)``
+    runs the first 50 layouts of each split."""
+    return RunSpec(
+        envs=tuple(TASK_MAPS),
+        suite=name,
+        split=split,
+        slips=QUICK_SLIPS,
+        episodes=SUITE_EPISODES,
         env_kwargs={"start_noise": START_NOISE},
         solver="rti",
     )
@@ -181,6 +205,7 @@ PROTOCOLS: dict[str, Callable[[], RunSpec]] = {
     "paper-strict": lambda: paper_protocol(strict=True),
     "ablation": ablation_protocol,
     "crowd": crowd_protocol,
+    "suite": suite_protocol,
 }
 
 

@@ -17,6 +17,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from koopman_envs.sim.collision import CollisionKind
+from koopman_envs.suites import FAMILIES, TIERS
 
 __all__ = [
     "DEGRADED_FAILURE_SHARE",
@@ -173,6 +174,11 @@ _OPTIONAL_SCHEMA: dict[str, tuple[Callable[[Any], bool], str]] = {
     "solve_ms_p95": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
     "wall_seconds": (lambda v: _is_number(v, 0.0), "a finite number >= 0"),
     "error": (lambda v: isinstance(v, str), "a string"),
+    # a suite run's episode (evaluation.suite_runs); records of other runs have none of these
+    "layout": (lambda v: _is_int(v, 0), "an integer >= 0 (the layout's index in its suite split)"),
+    "layout_family": (lambda v: v in FAMILIES, f"one of {list(FAMILIES)}"),
+    "layout_tier": (lambda v: v in TIERS, f"one of {list(TIERS)}"),
+    "suite": (_text, "a non-empty string (the suite split's label, <name>/<task>/<split>@<sha256 prefix>)"),
 }
 
 

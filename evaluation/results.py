@@ -58,6 +58,8 @@ class Results(RunData):
             "config": self.config,
             "leaderboard": self.leaderboard(),
             "paired_comparisons": self.paired(),
+            # a suite run's success per layout tier and family (absent from other runs' files)
+            **({"suite_breakdown": self.suite_breakdown()} if self.config.get("suite") else {}),
             "cells": [c.to_dict() for c in self.cells],
             "episodes": [
                 {
@@ -81,6 +83,8 @@ class Results(RunData):
             "slip",
             "trial",
             "seed",
+            # a suite run's layout columns (absent from other runs' files)
+            *(("layout", "layout_family", "layout_tier") if self.config.get("suite") else ()),
             "status",
             "success",
             "strict_success",

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
+from evaluation.aggregate import BREAKDOWNS, Cell, aggregate, breakdown, leaderboard, paired_comparisons
 from evaluation.distinct import read_once
 from evaluation.records import ran
 
@@ -50,6 +50,11 @@ class RunData:
     def leaderboard(self) -> list[dict[str, Any]]:
         """One row per (task, controller), ranked; see :func:`evaluation.aggregate.leaderboard`."""
         return leaderboard(self.cells, self.records)
+
+    def suite_breakdown(self) -> list[dict[str, Any]]:
+        """A suite run's success per tier, then per family, of every (task, controller)
+        (:func:`evaluation.aggregate.breakdown`); empty for a run without a suite."""
+        return [row for by in BREAKDOWNS for row in breakdown(self.records, by)]
 
     def paired(self) -> list[dict[str, Any]]:
         """Paired comparisons of every two controllers of a task on their shared seeds."""

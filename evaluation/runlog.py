@@ -111,10 +111,15 @@ def _lock(handle: IO[str], log: Path) -> None:
 def run_signature(config: dict[str, Any]) -> dict[str, Any]:
     """The parts of a run configuration that must match for a resume (plain JSON); a
     compute-aware run's scale and machine too (decision times of two machines do not mix; absent
-    from a free-compute run's, as in logs written before the mode existed)."""
+    from a free-compute run's, as in logs written before the mode existed), and a suite run's
+    suite."""
     signature = {k: config.get(k) for k in RESUME_KEYS}
     if config.get("compute"):
         signature["compute"] = config["compute"]
+    # a suite run's suite (name, version, split, selection, each task's split hash): a log of
+    # another suite version is another run (absent from other runs', as in logs written before)
+    if config.get("suite"):
+        signature["suite"] = config["suite"]
     return json.loads(json.dumps(json_safe(signature)))
 
 

@@ -25,6 +25,7 @@ from controllers.calibration import data_spec_for
 from evaluation.configs import controller_configs, with_solver
 from evaluation.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.runlog import run_signature
+from evaluation.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.checks import check_int, check_number
@@ -133,6 +134,15 @@ class RunSpec:
     fallback_solver : str, optional
         NLP rescue (``ipopt``, ``fatrop``, or ``"none"`` for no rescue) of every NMPC
         configuration that names none (default: each controller's own: none).
+    suite : str, optional
+        A benchmark suite (``"koopnav-bench-v1"``, :mod:`koopman_envs.suites`): each task's map
+        axis becomes its split of the suite, and each selected layout runs ``episodes`` episodes
+        (:mod:`evaluation.suite_runs`). Not with ``maps`` or ``random_maps``.
+    split : str, optional
+        The suite's split (``train``, ``validation``, ``test``; default ``test``); only with ``suite``.
+    layouts : int, str or (int, int), optional
+        The layouts of the split to run: N (the first N), ``"a:b"`` or ``(a, b)`` (layouts a to
+        b-1); default every layout. Only with ``suite``.
     """
 
     envs: str | Sequence[str] = tuple(TASK_MAPS)
@@ -149,6 +159,9 @@ class RunSpec:
     compute_scale: float | None = None
     solver: str | None = None
     fallback_solver: str | None = None
+    suite: str | None = None
+    split: str | None = None
+    layouts: int | str | tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         # normal forms only (nothing here can fail on a value: validate() names bad ones)
@@ -163,6 +176,11 @@ class RunSpec:
                 set_("controllers", tuple(controller_configs(self.controllers)))
             except ValueError as exc:
                 raise ValueError(f"controllers: {exc}") from None
+        if self.suite is not None:
+            set_("split", self.split if self.split is not None else "test")
+            if self.maps is None:  # the map axis is each task's split of the suite
+                set_("maps", {e: (suite_map(str(self.suite), str(self.split)),) for e in envs})
+        set_("layouts", layout_slice(self.layouts))
         set_("maps", self._map_table(envs, self.maps, self.random_maps))
         set_("slips", tuple(s if isinstance(s, str) else ",".join(str(v) for v in s) for s in self.slips))
         set_("env_kwargs", dict(self.env_kwargs or {}))
@@ -191,7 +209,10 @@ class RunSpec:
     def replace(self, **changes: Any) -> RunSpec:
         """A copy with some fields changed (``maps`` recomputed when ``envs`` change and
         ``maps`` is not given)."""
-        if "envs" in changes and "maps" not in changes:
+        suite_run = changes.get("suite", self.suite) is not None
+        if "maps" not in changes and ({"suite", "split"} & set(changes) or ("envs" in changes and suite_run)):
+            changes["maps"] = None  # each task's suite split again, or the paper maps (__post_init__)
+        elif "envs" in changes and "maps" not in changes:
             old = self.maps
             envs = (changes["envs"],) if isinstance(changes["envs"], str) else tuple(changes["envs"])
             changes["maps"] = {e: old.get(e, TASK_MAPS.get(e, BUILTIN_MAPS)) for e in envs}
@@ -272,6 +293,7 @@ class RunSpec:
                 note="a factor on the decision time",
             )
         check_int("workers", workers, 1, maximum=MAX_WORKERS, note="processes or Ray tasks at once")
+        check_suite_run(self, MAX_EPISODES_PER_CELL)
         self._validate_env_kwargs()
         if not self.slips:
             raise ValueError(
@@ -329,8 +351,11 @@ class RunSpec:
 
         Trial i of every cell uses seed ``seed + i``. The ``random`` map row runs
         ``random_maps`` trials when given (one seeded layout each), the other maps
-        ``episodes``. With ``gifs``, trial 0 of every cell records an animation under
-        ``animations/`` of ``run_dir``.
+        ``episodes``. A suite run runs ``episodes`` episodes on each selected layout of the
+        split, episode j of layout l as trial ``j * len(split) + l``
+        (:func:`evaluation.suite_runs.unit_trial`), its layout given to the env's reset. With
+        ``gifs``, the first episode of every cell records an animation under ``animations/`` of
+        ``run_dir``.
         """
         if self.controllers is None:
             raise ValueError("RunSpec.episodes_plan() needs explicit controllers; call resolved() first")
@@ -340,13 +365,11 @@ class RunSpec:
             for cfg in self.controllers:
                 options = json.dumps(dict(cfg.options), sort_keys=True)
                 for map_name in self.maps[env_id]:
-                    trials = (
-                        self.random_maps if (map_name == RANDOM_MAP and self.random_maps) else self.episodes
-                    )
+                    units = self._units(env_id, map_name)
                     for slip in self.slips:
-                        for trial in range(trials):
+                        for n, (trial, layout) in enumerate(units):
                             animation = ""
-                            if self.gifs and trial == 0:
+                            if self.gifs and n == 0:
                                 animation = (
                                     f"animations/{safe_file_name(env_id, cfg.label, map_name, slip)}.gif"
                                 )
@@ -367,9 +390,17 @@ class RunSpec:
                                     run_dir=run_dir,
                                     compute_scale=self.compute_scale or 0.0,
                                     controller_factory=cfg.factory,
+                                    **layout,
                                 )
                             )
         return plan
+
+    def _units(self, env_id: str, map_name: str) -> list[tuple[int, dict[str, Any]]]:
+        """The (trial index, layout fields of the episode) of every episode of a cell."""
+        if self.suite is not None:
+            return suite_units(env_id, self.suite, str(self.split), self.layouts, self.episodes)  # type: ignore[arg-type]
+        trials = self.random_maps if (map_name == RANDOM_MAP and self.random_maps) else self.episodes
+        return [(trial, {}) for trial in range(trials)]
 
     def config(self, workers: int, backend: str) -> dict[str, Any]:
         """The run's configuration as ``results.json`` records it (plain JSON; explicit controllers)."""
@@ -390,6 +421,10 @@ class RunSpec:
             "slips": list(self.slips),
             "episodes": self.episodes,
             "random_maps": self.random_maps,
+            # a suite run: the suite's name, version, split, selection and each task's label and hash
+            "suite": None
+            if self.suite is None
+            else suite_config(self.envs, self.suite, str(self.split), self.layouts, self.episodes),  # type: ignore[arg-type]
             "env_settings": settings,
             "gifs": bool(self.gifs),
             # compute-aware runs name the machine their decision times were measured on

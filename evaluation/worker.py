@@ -122,8 +122,8 @@ def _result_fields(spec: EpisodeSpec, result: EpisodeResult, stats: ControllerSt
 
 
 def batch_cell(spec: EpisodeSpec) -> EpisodeSpec:
-    """What the episodes of one batch share: the spec without its trial and seed."""
-    return dataclasses.replace(spec, trial=0, seed=0)
+    """What the episodes of one batch share: the spec without its trial, seed and suite layout."""
+    return dataclasses.replace(spec, trial=0, seed=0, layout=None, layout_family=None, layout_tier=None)
 
 
 def runs_in_batch(spec: EpisodeSpec) -> bool:
@@ -162,7 +162,10 @@ def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
         teams = [built] + [copy.deepcopy(built) for _ in specs[1:]]
         venv = gym.make_vec(first.env_id, num_envs=len(specs), **first.make_kwargs())
         try:
-            results = run_episodes_in_batch(venv, teams, [spec.seed for spec in specs])
+            # a suite run's episodes each on their own layout (one reset option per sub-env)
+            layouts = [spec.layout for spec in specs]
+            options = None if first.layout is None else {"layout": layouts}
+            results = run_episodes_in_batch(venv, teams, [spec.seed for spec in specs], options=options)
         finally:
             venv.close()
     except Exception:  # noqa: BLE001 - each episode again alone: its error is recorded as its own
@@ -191,6 +194,7 @@ def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
             env,
             ctrl,
             seed=spec.seed,
+            options=spec.reset_options(),
             render=bool(spec.animation),
             compute=charge,
         )

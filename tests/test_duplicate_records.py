@@ -176,9 +176,10 @@ def _baseline(run: Path, tmp_path: Path, edit) -> Path:
 
 
 def _flip(record: dict) -> dict:
-    """The record as a success (a success has no collision)."""
+    """The record as a success (a success has no collision, and is a success with the unavoidable
+    collisions excused too)."""
     assert record["collision"] is None and not record["success"]
-    return {**record, "success": True}
+    return {**record, "success": True, "success_excusing_unavoidable": True}
 
 
 @pytest.mark.parametrize("flipped_last", [True, False], ids=["failure-then-success", "success-then-failure"])
@@ -201,7 +202,8 @@ def test_a_baseline_holding_each_record_twice_is_refused_in_either_order(
     first, second = ("False", "True") if flipped_last else ("True", "False")
     assert (
         f"error: baseline {str(path)!r}: episode '{TR}|consensus|map1|nominal|0' (seed 0) is recorded twice "
-        f"with different outcomes, at episodes[0] and episodes[10], which differ in success (success: "
+        f"with different outcomes, at episodes[0] and episodes[10], which differ in success, "
+        f"success_excusing_unavoidable (success: {first}, then {second}; success_excusing_unavoidable: "
         f"{first}, then {second}); which one is true cannot be told" in err
     )
     assert not (tmp_path / "run").exists()  # refused before any episode
@@ -269,8 +271,9 @@ def test_a_resume_log_with_a_flipped_duplicate_is_refused_by_name(noisy, tmp_pat
     assert code == 2, err
     assert (
         f"error: {log} cannot be resumed: episode {first['key']!r} (seed {first['seed']}) is recorded twice "
-        f"with different outcomes, at line 2 and line {len(lines) + 1}, which differ in success (success: "
-        "False, then True)" in err
+        f"with different outcomes, at line 2 and line {len(lines) + 1}, which differ in success, "
+        "success_excusing_unavoidable (success: False, then True; success_excusing_unavoidable: False, then "
+        "True)" in err
     )
     assert log.read_bytes().splitlines()[-1] == json.dumps(_flip(first)).encode()  # nothing changed
 
@@ -295,7 +298,8 @@ def test_a_published_log_with_a_conflicting_duplicate_is_refused(noisy, tmp_path
     with pytest.raises(
         ValueError,
         match=rf"^{log}: episode '{TR}\|consensus\|map1\|nominal\|2' \(seed 2\) is recorded twice with "
-        rf"different outcomes, at line 4 and line {len(lines) + 1}, which differ in success ",
+        rf"different outcomes, at line 4 and line {len(lines) + 1}, which differ in success, "
+        r"success_excusing_unavoidable ",
     ):
         results_from_log(log)
     log.write_bytes(b"\n".join([*lines, lines[3]]) + b"\n")  # the same line twice: read once

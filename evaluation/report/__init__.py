@@ -43,6 +43,8 @@ from evaluation.report.runs import (
     paired_rows,
     paper_rows,
     sections,
+    suite_heading,
+    suite_note,
     task_label,
     terminal_summary,
 )
@@ -70,6 +72,8 @@ __all__ = [
     "paper_rows",
     "robustness_sections",
     "sections",
+    "suite_heading",
+    "suite_note",
     "task_label",
     "terminal_overview",
     "terminal_summary",

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from evaluation.aggregate import BREAKDOWNS
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
 from evaluation.report.blocks import (
     Block,
@@ -39,6 +40,9 @@ __all__ = [
     "paired_rows",
     "paper_rows",
     "sections",
+    "suite_heading",
+    "suite_note",
+    "suite_rows",
     "task_label",
     "terminal_summary",
 ]
@@ -51,13 +55,18 @@ def task_label(env_id: str) -> str:
     return _LABELS.get(env_id, env_id)
 
 
+#: how the reports name the clusters of the success rate's bootstrap, off a suite and on one
+_TRIAL_CLUSTERS = (
+    "a cluster bootstrap over trials (a trial's seed fixes its layout, start and slip draws in every cell)"
+)
+_LAYOUT_CLUSTERS = "a cluster bootstrap over layouts (the suite's layouts are the sample)"
+
 LEADERBOARD_NOTE = (
     "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
     "Rank: by success, ties by the mean final distance over every episode (so a controller that "
     "never moves does not outrank one that tries). "
     "Episodes: distinct episodes (an episode that repeats an earlier one of its cell bit for bit is "
-    "counted once). Intervals: 95%; for the success rate the wider of Wilson's and a cluster "
-    "bootstrap over trials (a trial's seed fixes its layout, start and slip draws in every cell), "
+    f"counted once). Intervals: 95%; for the success rate the wider of Wilson's and {_TRIAL_CLUSTERS}, "
     "Wilson for the collision-free rate, bootstrap for means. "
     "Final distances over settled runs and over collision-free runs (the paper's convention). "
     "Time to goal over successes; path ratio: path length over straight-line distance, over "
@@ -237,6 +246,72 @@ def controller_tables(results: RunData) -> list[tuple[str, Table]]:
     return [(f"{name}, {task_label(env_id)}", paper_rows(results, env_id, name)) for env_id, name in keys]
 
 
+def _clusters_text(text: str, config: Mapping[str, Any]) -> str:
+    """``text`` with its bootstrap's clusters named as the run's are: layouts in a suite run."""
+    return text.replace(_TRIAL_CLUSTERS, _LAYOUT_CLUSTERS) if config.get("suite") else text
+
+
+def suite_note(config: Mapping[str, Any]) -> str:
+    """A suite run's suite (:func:`suite_heading`) and how its intervals and pairs are taken;
+    empty for a run without a suite."""
+    heading = suite_heading(config)
+    if not heading:
+        return ""
+    return (
+        f"{heading}. Intervals of rates resample layouts (the cluster bootstrap's clusters are "
+        "layouts); paired comparisons pair on (layout, seed) units, which every controller met alike."
+    )
+
+
+def suite_heading(config: Mapping[str, Any]) -> str:
+    """A suite run's suite, as every report prints it: name and version, split, the layouts run,
+    and each task's split label (with its hash); empty for a run without a suite."""
+    suite = config.get("suite")
+    if not suite:
+        return ""
+    selected = suite.get("layouts")
+    sizes = {t.get("size") for t in suite["tasks"].values()}
+    size = sizes.pop() if len(sizes) == 1 else None
+    if selected is None:
+        which = f"all {size} layouts" if size is not None else "every layout"
+    else:
+        count = selected[1] - selected[0]
+        which = f"layouts {selected[0]}-{selected[1] - 1} ({count} {f'of {size}' if size else 'per split'})"
+    episodes = suite.get("episodes_per_layout")
+    labels = "; ".join(f"{task_label(env_id)} {t['label']}" for env_id, t in suite["tasks"].items())
+    return (
+        f"Suite {suite['name']} (version {suite['version']}), split {suite['split']}, {which}, "
+        f"{episodes} episode{'s' if episodes != 1 else ''} per layout: {labels}"
+    )
+
+
+def suite_rows(results: RunData, by: str) -> Table:
+    """A suite run's success per layout tier (``by="layout_tier"``) or family
+    (``"layout_family"``): one row per (task, controller), one column per group, each cell
+    successes/episodes [95% interval over layouts]."""
+    groups = BREAKDOWNS[by]
+    table: dict[tuple[str, str], dict[str, str]] = {}
+    for row in results.suite_breakdown():
+        if row["by"] == by:
+            key = (row["env_id"], row["controller"])
+            table.setdefault(key, {})[row["group"]] = count_cell(
+                row["successes"], row["episodes"], row["success_ci"]
+            )
+    header = ["Task", "Controller", *groups]
+    rows = [
+        [task_label(env_id), name, *(cells.get(g, "-") for g in groups)]
+        for (env_id, name), cells in table.items()
+    ]
+    return header, rows
+
+
+SUITE_NOTE = (
+    "Success per layout tier (the suite's difficulty grade: easy, medium, hard) and per layout "
+    "family (clutter, passages, rooms): successes/episodes [95% interval, the wider of Wilson's "
+    "and the cluster bootstrap over layouts]. docs/benchmark.md defines the tiers and families."
+)
+
+
 def _calibration_note(config: Mapping[str, Any]) -> str:
     calibration = config.get("calibration", {})
     if not calibration:
@@ -264,12 +339,23 @@ def _calibration_used(results: RunData) -> str:
 def sections(results: RunData) -> list[Section]:
     """The report of a run, in order: leaderboard, paired comparisons (when any two controllers
     share episodes), per-controller tables, and the episodes that raised (when any did)."""
-    lead: list[Block] = [TableBlock(leaderboard_rows(results)), Note(LEADERBOARD_NOTE)]
+    lead: list[Block] = [
+        TableBlock(leaderboard_rows(results)),
+        Note(_clusters_text(LEADERBOARD_NOTE, results.config)),
+    ]
+    if suite_note(results.config):
+        lead.insert(0, Note(suite_note(results.config)))
     if _calibration_note(results.config):
         lead.append(Note(_calibration_note(results.config)))
     if _compute_note(results.config):
         lead.append(Note(_compute_note(results.config)))
     out = [Section("leaderboard", "Leaderboard", tuple(lead))]
+    if results.config.get("suite"):
+        by_group = tuple(
+            TableBlock(suite_rows(results, by), f"Success by layout {by.removeprefix('layout_')}")
+            for by in BREAKDOWNS
+        )
+        out.append(Section("suite", "By layout tier and family", (Note(SUITE_NOTE), *by_group)))
     paired = paired_rows(results)
     if paired[1]:
         out.append(Section("paired", "Paired comparisons", (Note(PAIRED_NOTE), TableBlock(paired))))
@@ -315,12 +401,15 @@ def terminal_summary(results: RunData, paths: Mapping[str, Path]) -> str:
     note = (
         f"{len(results.records)} episodes over {len(cells)} map/slip cells "
         f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
-        "without collision; 95% intervals (the wider of Wilson's and a cluster bootstrap over trials); "
+        "without collision; 95% intervals (the wider of Wilson's and a cluster bootstrap over "
+        f"{'layouts' if results.config.get('suite') else 'trials'}); "
         "Episodes: distinct ones. Few episodes per controller give wide intervals: a smoke test, not "
         "a ranking."
     )
     if _compute_note(results.config):
         note += " " + _compute_note(results.config)
+    if suite_note(results.config):
+        note += " " + suite_note(results.config)
     lines = [table, "", note]
     reports = [str(paths[k]) for k in ("markdown", "html") if k in paths]
     if reports:

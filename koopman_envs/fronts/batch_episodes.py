@@ -61,7 +61,9 @@ def _act_many(policies: Sequence[Policy]) -> Any:
     return getattr(kind, "act_many", None) if getattr(kind, "acts_in_batch", False) else None
 
 
-def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence[int]) -> list[EpisodeResult]:
+def run_episodes_in_batch(
+    venv: Any, policies: Sequence[Policy], seeds: Sequence[int], options: dict[str, Any] | None = None
+) -> list[EpisodeResult]:
     """Run one episode in every sub-environment of ``venv``, sub-environment ``i`` seeded
     ``seeds[i]`` and driven by ``policies[i]`` (reset with its scenario and seed first, as
     :func:`~koopman_envs.fronts.episode.run_episode` does), and measure each.
@@ -74,6 +76,9 @@ def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence
         One per sub-environment (their own objects: a controller keeps state over an episode).
     seeds : sequence of int
         One per sub-environment.
+    options : dict, optional
+        The vector env's reset options (e.g. ``{"layout": [i0, i1, ...]}``, one suite layout per
+        sub-environment; ``docs/reset_options.md``).
 
     Returns
     -------
@@ -92,7 +97,7 @@ def run_episodes_in_batch(venv: Any, policies: Sequence[Policy], seeds: Sequence
             f"autoreset_mode={base.autoreset_mode!r}: run_episodes_in_batch needs 'NextStep' (the default), "
             "whose ending step returns the episode's own last info"
         )
-    obs, info = venv.reset(seed=[int(s) for s in seeds])
+    obs, info = venv.reset(seed=[int(s) for s in seeds], options=options)
     recorders = []
     for i, policy in enumerate(policies):
         scenario = base.scenario(i)
