@@ -27,6 +27,7 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
+from controllers.search_space import Search
 from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
@@ -86,6 +87,17 @@ class ConsensusController(BaseController):
         "influence": Range(0, 10, low_open=True, note="m"),
         "repulsion_gain": Range(0, 100, low_open=True),
         "mover_lookahead": Range(0, 60, low_open=True, note="s"),
+    }
+    #: what the tuner searches (:mod:`evaluation.tune`; ours): the law's three gains (towards
+    #: the goal, towards the team's consensus, away from obstacles) and the two lengths of the
+    #: repulsion (the hand, the influence distance). Mover settings are left: the suites have
+    #: no movers.
+    TUNABLE: ClassVar[dict[str, Search]] = {
+        "goal_gain": Search(0.2, 3.0, log=True),
+        "consensus_gain": Search(0.3, 5.0, log=True),
+        "hand": Search(0.01, 0.2),
+        "influence": Search(0.1, 1.0),
+        "repulsion_gain": Search(0.01, 0.5, log=True),
     }
 
     def __init__(

@@ -11,7 +11,9 @@ from the controller itself, so it cannot drift from it:
   NMPCConfig), the range of a numeric one from its ``OPTION_RANGES`` table (NMPCConfig:
   :data:`~controllers.mpc.config.NMPC_RANGES`; a wrapper's option dataclass: ``RANGES``);
 - a preset's defaults from :mod:`controllers.presets`, a ``safe:`` wrapper's options from
-  :class:`~controllers.safety.options.SafetyOptions`, prefixed ``safety_``.
+  :class:`~controllers.safety.options.SafetyOptions`, prefixed ``safety_``;
+- the options the tuner searches (:mod:`evaluation.tune`), and over what, from the ``TUNABLE``
+  table of the class (name -> :class:`Search`, each inside the option's declared range).
 
 The evaluator asks the spec which configurations take ``solver`` and checks option names,
 choices, types (a flag is true/false, a number is not a flag) and ranges before any controller
@@ -28,10 +30,11 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from controllers.search_space import Search
 from koopman_envs.checks import Range, check_number
 from koopman_envs.suggest import did_you_mean
 
-__all__ = ["ControllerSpec", "Option", "options", "spec_of"]
+__all__ = ["ControllerSpec", "Option", "Search", "options", "spec_of", "with_search"]
 
 _EMPTY = inspect.Parameter.empty
 
@@ -54,6 +57,8 @@ class Option:
         The allowed values of a text option.
     bounds : Range, optional
         The allowed range of a numeric option (of each entry of a tuple of numbers).
+    search : Search, optional
+        What the tuner tries for it (:mod:`evaluation.tune`); None: not tuned.
     """
 
     name: str
@@ -62,6 +67,7 @@ class Option:
     doc: str = ""
     choices: tuple[str, ...] | None = None
     bounds: Range | None = None
+    search: Search | None = None
 
     @property
     def required(self) -> bool:
@@ -155,6 +161,10 @@ class ControllerSpec:
         """The default of option ``name``."""
         return self.option(name).default
 
+    def tunable(self) -> dict[str, Search]:
+        """The tuned options: name -> :class:`Search`, in signature order (empty: nothing to tune)."""
+        return {o.name: o.search for o in self.options if o.search is not None}
+
     def check(self, given: Mapping[str, Any]) -> None:
         """Raise ``ValueError`` for an unknown option name (with did-you-mean) or a value outside
         an option's choices, before anything is built."""
@@ -167,18 +177,24 @@ class ControllerSpec:
             self.option(key).check(value, self.name)
 
     def markdown(self) -> str:
-        """The options as a Markdown table (name, type, default, allowed, doc)."""
+        """The options as a Markdown table (name, type, default, allowed, tuned over, doc)."""
 
         def cell(text: str) -> str:  # Markdown in a table cell: no pipes, no reST roles
             text = re.sub(r":[a-z]+:`~?([^`]+)`", r"`\1`", " ".join(text.split()))
             return text.replace("``", "`").replace("|", "\\|")
 
-        rows = ["| option | type | default | allowed | what it does |", "|---|---|---|---|---|"]
+        rows = [
+            "| option | type | default | allowed | tuned over | what it does |",
+            "|---|---|---|---|---|---|",
+        ]
         for o in self.options:
             default = "(required)" if o.required else cell(f"`{o.default!r}`")
             allowed = ", ".join(f"`{c}`" for c in o.choices) if o.choices else ""
             allowed = allowed or (cell(str(o.bounds)) if o.bounds is not None else "")
-            rows.append(f"| `{o.name}` | {cell(f'`{o.type}`')} | {default} | {allowed} | {cell(o.doc)} |")
+            tuned = cell(str(o.search)) if o.search is not None else ""
+            rows.append(
+                f"| `{o.name}` | {cell(f'`{o.type}`')} | {default} | {allowed} | {tuned} | {cell(o.doc)} |"
+            )
         return "\n".join(rows)
 
 
@@ -276,7 +292,29 @@ def spec_of(name: str, factory: Any) -> ControllerSpec:
         # **options are NMPCConfig's fields
         found += _nmpc_options({o.name for o in found}, getattr(cls, "NMPC_DEFAULTS", {}) or {})
     summary = inspect.cleandoc(getattr(doc_owner, "__doc__", "") or "").split("\n")[0]
-    return ControllerSpec(name, summary, tuple(found))
+    return with_search(ControllerSpec(name, summary, tuple(found)), getattr(cls, "TUNABLE", {}) or {})
+
+
+def with_search(spec: ControllerSpec, tunable: Mapping[str, Search]) -> ControllerSpec:
+    """``spec`` with the searches of ``tunable`` (a ``TUNABLE`` table) on its options.
+
+    Raises
+    ------
+    ValueError
+        A name of ``tunable`` that is not an option of ``spec``, or a search that leaves the
+        option's declared range or choices (:meth:`Search.check_within`).
+    """
+    for key, search in tunable.items():
+        option = spec.option(key) if spec.takes(key) else None
+        if option is None:
+            raise ValueError(
+                f"{spec.name}: TUNABLE names {key!r}, which is not one of its options {spec.names()}"
+            )
+        search.check_within(f"{spec.name}: {key}", option.bounds, option.choices)
+    changed = tuple(
+        dataclasses.replace(o, search=tunable[o.name]) if o.name in tunable else o for o in spec.options
+    )
+    return ControllerSpec(spec.name, spec.doc, changed)
 
 
 def _with_defaults(spec: ControllerSpec, name: str, defaults: Mapping[str, Any], doc: str) -> ControllerSpec:
@@ -327,7 +365,10 @@ def options(name: str) -> ControllerSpec:
     presets = {p.name: p for p in PRESETS}
     if base in presets:
         preset = presets[base]
-        return _with_defaults(options(preset.base), base, preset.defaults, preset.doc)
+        # the preset's base as its class declares it (the preset's defaults alone stand over the
+        # class's, as build_preset builds it: a tuned preset of the base is not inherited)
+        spec = spec_of(preset.base, _resolve(CONTROLLERS[preset.base]))
+        return with_search(_with_defaults(spec, base, preset.defaults, preset.doc), preset.tunable)
     if base in CONTROLLERS:
         return spec_of(base, _resolve(CONTROLLERS[base]))
     return spec_of(base, factory(base))

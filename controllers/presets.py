@@ -5,16 +5,41 @@ some options set by default (``koopman-nmpc-robust`` is ``koopman-nmpc`` with
 ``uncertainty_margin=3``); it is built by :func:`build_preset`, which gives the controller the
 preset's name, so reports and statistics name what was asked for. Options given to
 ``controllers.make`` override a preset's defaults.
+
+*Tuned presets* (issue 60): a file ``controllers/tuned/<name>.json``, written by the tuner
+(``python -m evaluation.tune NAME --task both ...``, :mod:`evaluation.tune`) from a study on the
+validation layouts, gives the controller or preset ``<name>`` the tuned options as its defaults,
+and ``<name>-v0`` keeps the defaults it had before, for comparison (:func:`with_tuned`). Without a
+file nothing changes: no tuned values ship until the real studies have run.
 """
 
 from __future__ import annotations
 
 import functools
 import importlib
-from dataclasses import dataclass, field
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
-__all__ = ["CONTROLLERS", "PRESETS", "Preset", "build_preset", "builtin_names", "register_builtins"]
+from controllers.search_space import Search
+from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_TEXT_BYTES, read_text
+
+__all__ = [
+    "CONTROLLERS",
+    "PRESETS",
+    "TUNED_DIR",
+    "TUNED_KIND",
+    "V0_SUFFIX",
+    "Preset",
+    "build_preset",
+    "builtin_names",
+    "read_tuned",
+    "register_builtins",
+    "with_tuned",
+]
 
 #: the robust presets' ``uncertainty_margin`` (kept equal to controllers.mpc.config's, tested):
 #: written here so that listing the presets imports no solver
@@ -52,15 +77,20 @@ class Preset:
         Options set unless the caller sets them.
     doc : str
         One line for listings and docs.
+    tunable : dict
+        Options the tuner searches beyond the base's ``TUNABLE`` (name ->
+        :class:`~controllers.option_spec.Search`), e.g. the barrier rate of ``mpc-cbf``.
     """
 
     name: str
     base: str
     defaults: dict[str, Any] = field(default_factory=dict)
     doc: str = ""
+    tunable: dict[str, Search] = field(default_factory=dict)
 
 
-PRESETS = (
+#: the presets written by hand (before the tuned files are applied: :data:`PRESETS`)
+HAND_PRESETS = (
     Preset(
         "koopman-nmpc-robust",
         "koopman-nmpc",
@@ -96,6 +126,9 @@ PRESETS = (
         "nominal-nmpc",
         {"cbf_gamma": _CBF_GAMMA},
         "nominal NMPC with discrete-time control barrier constraints (Zeng et al. 2021) in the problem",
+        # its one option beyond the NMPC's: how fast a clearance may shrink (log: 0.1 and 0.01
+        # differ as much as 1 and 0.1)
+        {"cbf_gamma": Search(0.02, 1.0, log=True)},
     ),
     Preset(
         "consensus-free",
@@ -104,6 +137,84 @@ PRESETS = (
         "the consensus law with collision avoidance off (the paper's validation variant)",
     ),
 )
+
+
+#: where the tuned presets are read from: ``<name>.json`` per tuned controller or preset
+TUNED_DIR = Path(__file__).with_name("tuned")
+#: the ``kind`` of a tuned preset file (:func:`evaluation.tune.write_preset` writes it)
+TUNED_KIND = "koopnav-tuned-preset"
+#: the task of a study whose preset may ship: a controller's defaults serve every task
+SHIPPED_TASK = "both"
+#: ``<name>-v0``: the defaults ``<name>`` had before its tuned preset
+V0_SUFFIX = "-v0"
+
+
+def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
+    """The controller (or preset) name and the tuned options of a tuned preset file.
+
+    Parameters
+    ----------
+    path : path
+        A JSON file as :func:`evaluation.tune.write_preset` writes it: ``kind``
+        (:data:`TUNED_KIND`), ``controller``, ``task``, ``options`` (and the study's record,
+        not read here). Weight lists are returned as tuples.
+
+    Raises
+    ------
+    ValueError
+        The file cannot be read, is not a tuned preset, names a controller that is not a
+        built-in controller or preset, or a study of another task than :data:`SHIPPED_TASK`;
+        each naming the file and the value.
+    """
+    what = os.fspath(path)
+    document = parse_json(read_text(path, MAX_TEXT_BYTES, what="tuned preset", expected="JSON"), what)
+    if not isinstance(document, dict) or document.get("kind") != TUNED_KIND:
+        raise ValueError(f"{what}: not a tuned preset (its 'kind' must be {TUNED_KIND!r})")
+    name, task, options = document.get("controller"), document.get("task"), document.get("options")
+    known = [*CONTROLLERS, *(p.name for p in HAND_PRESETS)]
+    if name not in known:
+        raise ValueError(f"{what}: controller={name!r} is not one of the built-in names {sorted(known)}")
+    if task != SHIPPED_TASK:
+        raise ValueError(
+            f"{what}: task={task!r}; a shipped preset must come from a task={SHIPPED_TASK!r} study, "
+            "because a controller's defaults serve every task"
+        )
+    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
+        raise ValueError(f"{what}: options={options!r} is not an object of option values")
+    return name, {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
+
+
+def with_tuned(
+    presets: Sequence[Preset], directory: str | os.PathLike[str] = TUNED_DIR
+) -> tuple[Preset, ...]:
+    """``presets`` with every tuned preset file of ``directory`` applied (:func:`read_tuned`).
+
+    A file ``<name>.json`` makes ``<name>`` (a controller of :data:`CONTROLLERS` or a preset of
+    ``presets``) a preset whose defaults are the tuned options over its own, and adds
+    ``<name>-v0`` with the defaults it had before. Files are read in name order; a missing
+    directory is no tuned preset.
+    """
+    out = list(presets)
+    folder = Path(directory)
+    files = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    for path in files:
+        name, options = read_tuned(path)
+        if path.stem != name:
+            raise ValueError(f"{path}: names controller {name!r}; the file must be called {name}.json")
+        before = next((p for p in out if p.name == name), None) or Preset(name, name)
+        doc = before.doc or f"{name} with the defaults its class declares"
+        v0 = replace(before, name=name + V0_SUFFIX, doc=f"{doc} (the defaults before tuning)")
+        tuned = replace(
+            before,
+            defaults={**before.defaults, **options},
+            doc=f"{doc}, tuned ({path.parent.name}/{path.name})",
+        )
+        out = [p for p in out if p.name != name] + [tuned, v0]
+    return tuple(out)
+
+
+#: every preset: the hand-made ones and the tuned ones of :data:`TUNED_DIR`
+PRESETS = with_tuned(HAND_PRESETS)
 
 
 def _resolve(path: str) -> Any:
@@ -121,8 +232,10 @@ def build_preset(preset: Preset, **options: Any) -> Any:
 
 def register_builtins(register: Any) -> None:
     """Register every built-in controller and preset with ``register(name, factory)``."""
+    presets = {preset.name for preset in PRESETS}
     for name, path in CONTROLLERS.items():
-        register(name, path)
+        if name not in presets:  # a tuned controller is registered as its preset below
+            register(name, path)
     for preset in PRESETS:
         register(preset.name, functools.partial(build_preset, preset))
 

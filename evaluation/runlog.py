@@ -14,7 +14,7 @@ import json
 import os
 import sys
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -28,11 +28,15 @@ __all__ = [
     "LogError",
     "OutputNotWritable",
     "RunLocked",
+    "cut_torn",
     "ensure_output_dir",
     "forget_controllers",
+    "open_append_locked",
     "open_log",
+    "parse_lines",
     "read_log",
     "run_signature",
+    "split_lines",
 ]
 
 #: settings that must match for a resume (everything that changes what an episode does)
@@ -203,6 +207,65 @@ def _record_problem(rec: Any, expected: Mapping[str, Mapping[str, Any]] | None) 
     return None
 
 
+def split_lines(data: bytes) -> tuple[list[bytes], bytes]:
+    """The complete lines of a JSON-lines file and its torn last piece (``b""`` when none).
+
+    A log ends with a newline after every complete line, so the last piece after the final
+    newline is empty unless a kill cut the final write short: that piece is torn, whatever it
+    looks like (it may even parse as JSON).
+    """
+    lines = data.split(b"\n")
+    return lines, lines.pop()
+
+
+def parse_lines(
+    lines: Sequence[bytes], problem: Callable[[Any], str | None], first: int = 2
+) -> tuple[list[Any], list[str], list[str]]:
+    """Parse the record lines of a JSON-lines log (the one parser of every KoopNav log).
+
+    Parameters
+    ----------
+    lines : sequence of bytes
+        Complete lines (:func:`split_lines`), the header excluded.
+    problem : callable
+        Why a parsed record is not one of this log's (None when it is one).
+    first : int
+        The line number of ``lines[0]`` in the file (2: after the header).
+
+    Returns
+    -------
+    records : list
+        The good records, in order.
+    places : list of str
+        ``"line N"`` of each good record.
+    bad : list of str
+        ``"line N: why"`` of each line that is not JSON or not a record of this log.
+    """
+    records: list[Any] = []
+    places: list[str] = []
+    bad: list[str] = []
+    for number, raw in enumerate(lines, start=first):
+        try:
+            rec = parse_json(raw, "the record")
+        except ValueError as exc:  # not JSON (or not UTF-8), or nested beyond any record
+            bad.append(f"line {number}: not JSON ({getattr(exc, 'msg', exc)})")
+            continue
+        why = problem(rec)
+        if why is not None:
+            bad.append(f"line {number}: {why}")
+            continue
+        records.append(rec)
+        places.append(f"line {number}")
+    return records, places, bad
+
+
+def cut_torn(path: str | os.PathLike[str], data: bytes, torn: bytes) -> None:
+    """Cut the torn last piece ``torn`` off the log ``path`` whose bytes were ``data``, so that
+    the next record starts on a line of its own."""
+    with open(path, "r+b") as handle:
+        handle.truncate(len(data) - len(torn))
+
+
 def read_log(
     log: str | os.PathLike[str],
     config: dict[str, Any],
@@ -242,10 +305,7 @@ def read_log(
     path = Path(log)
     data = _read(path)
     notes: list[str] = []
-    lines = data.split(b"\n")
-    # a file ends with a newline after every complete record, so the last piece is b"" unless a
-    # kill cut the final write short: that piece is torn, whatever it looks like
-    torn = lines.pop()
+    lines, torn = split_lines(data)
     if not lines:  # the kill came while the header was written: nothing was finished
         if not _header_line(config).startswith(torn):
             raise LogError(f"{path} is not a KoopNav episode log (its only line is not a run header)")
@@ -253,21 +313,7 @@ def read_log(
             _replace_log(path, _header_line(config))
         return {}, [f"{path}: the header line was cut by the interruption; it was written again"]
     added = _check_header(path, lines[0], config)
-    records: list[dict[str, Any]] = []
-    places: list[str] = []
-    bad: list[str] = []
-    for number, raw in enumerate(lines[1:], start=2):
-        try:
-            rec = parse_json(raw, "the record")
-        except ValueError as exc:  # not JSON (or not UTF-8), or nested beyond any record
-            bad.append(f"line {number}: not JSON ({getattr(exc, 'msg', exc)})")
-            continue
-        problem = _record_problem(rec, expected)
-        if problem is not None:
-            bad.append(f"line {number}: {problem}")
-            continue
-        records.append(rec)
-        places.append(f"line {number}")
+    records, places, bad = parse_lines(lines[1:], lambda rec: _record_problem(rec, expected))
     if not bad:
         try:
             once = read_once(records, str(path), places)
@@ -290,8 +336,7 @@ def read_log(
         )
     if torn:
         if repair:
-            with open(path, "r+b") as handle:
-                handle.truncate(len(data) - len(torn))
+            cut_torn(path, data, torn)
         notes.append(
             f"{path}: dropped 1 incomplete record (line {len(lines) + 1}, {len(torn)} bytes cut by "
             "the interruption); it will be run again"
@@ -306,18 +351,34 @@ def read_log(
     return done, notes
 
 
-def _open_append(log: Path) -> IO[str]:
+def _open_append(log: Path, what: str = "episode log") -> IO[str]:
     """The log opened for appending (never truncated: another run may be writing it). An existing
     log must be a regular file within the cap before it is opened (an append-mode open of a FIFO
     waits for a reader forever), and the open does not block either (``O_NONBLOCK``: a FIFO put
     there meanwhile fails the open instead)."""
     if os.path.lexists(log):
-        check_regular(log, MAX_LOG_BYTES, what="episode log")
+        check_regular(log, MAX_LOG_BYTES, what=what)
     flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NONBLOCK", 0)
     try:
         return os.fdopen(os.open(log, flags, 0o666), "a", encoding="utf-8")
     except OSError as exc:
         raise OutputNotWritable(f"{log} cannot be opened for writing: {exc.strerror or exc}") from None
+
+
+def open_append_locked(log: str | os.PathLike[str], what: str) -> IO[str]:
+    """A JSON-lines log (``what``, e.g. ``"study log"``) opened for appending and locked while
+    open, as the episode log is (:func:`open_log`): a regular file within
+    :data:`~koopman_envs.files.MAX_LOG_BYTES`, never truncated, and a second writer refused with
+    :class:`RunLocked`.
+
+    Raises
+    ------
+    OutputNotWritable, RunLocked, koopman_envs.files.FileRefused
+        As :func:`open_log`.
+    """
+    handle = _open_append(Path(log), what)
+    _lock(handle, Path(log))
+    return handle
 
 
 def open_log(

@@ -61,6 +61,7 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
+from controllers.search_space import Search
 from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
@@ -163,6 +164,18 @@ class DWAController(BaseController):
         # the global plan's grid: 0.02 m cells are 1.4 M cells on the largest workspace
         "plan_resolution": Range(0.02, 1, note="m"),
         "velocity_window": Range(1, 100, integer=True, note="periods"),
+    }
+    #: what the tuner searches (:mod:`evaluation.tune`; ours): the rollout length and the three
+    #: weights of the trajectory score (the ratios ROS users tune: plan against goal against
+    #: obstacle cost), the hard clearance and the costmap's inflation. Sample counts and grid
+    #: resolutions trade compute for precision and are left at their defaults.
+    TUNABLE: ClassVar[dict[str, Search]] = {
+        "sim_time": Search(0.8, 3.0),
+        "path_distance_bias": Search(4.0, 128.0, log=True),
+        "goal_distance_bias": Search(4.0, 96.0, log=True),
+        "occdist_scale": Search(0.001, 0.1, log=True),
+        "safety_margin": Search(0.02, 0.2),
+        "inflation_radius": Search(0.2, 1.0),
     }
 
     def __init__(

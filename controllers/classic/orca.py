@@ -51,6 +51,7 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
+from controllers.search_space import Search
 from koopman_envs.checks import Range
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
@@ -149,6 +150,19 @@ class ORCAController(BaseController):
         # below pi/2: a turn of less than 90 degrees
         "keep_right": Range(0, math.pi / 2, high_open=True, note="rad"),
         "velocity_window": Range(1, 100, integer=True, note="periods"),
+    }
+    #: what the tuner searches (:mod:`evaluation.tune`; ours): the two avoidance horizons (how
+    #: early ORCA gives way to team-mates and to obstacles), the radius margin (clearance against
+    #: room), the two gains of the unicycle's tracking of ORCA's holonomic velocity, and the
+    #: head-on symmetry breaking. Neighbour counts and mover settings are left: the suites'
+    #: teams are small and have no movers.
+    TUNABLE: ClassVar[dict[str, Search]] = {
+        "time_horizon": Search(0.5, 5.0, log=True),
+        "time_horizon_obstacles": Search(1.0, 8.0, log=True),
+        "radius_margin": Search(0.0, 0.2),
+        "goal_gain": Search(0.3, 3.0, log=True),
+        "heading_gain": Search(1.0, 10.0, log=True),
+        "keep_right": Search(0.0, 0.3),
     }
 
     def __init__(

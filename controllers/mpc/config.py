@@ -15,6 +15,7 @@ import numpy as np
 from controllers.estimation import ABLATIONS, ESTIMATORS, check_estimator
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from controllers.mpc.rti import check_rti_options
+from controllers.search_space import Search
 from controllers.solvers.compiled import jit_options
 from koopman_envs.checks import Range, check_choice
 from koopman_envs.params import LIMITS, PARAMS
@@ -27,6 +28,7 @@ __all__ = [
     "JIT_ENV",
     "NLP_SOLVERS",
     "NMPC_RANGES",
+    "NMPC_TUNABLE",
     "NMPCConfig",
     "PARKED",
     "ROBUST_UNCERTAINTY_MARGIN",
@@ -67,6 +69,31 @@ NMPC_RANGES: dict[str, Range] = {
     "chance_risk": Range(0, 0.5, low_open=True, high_open=True, note="a probability"),
     "settle_fraction": Range(0, 1),
     "cbf_gamma": Range(0, 1, low_open=True, note="or None (null) for distance constraints"),
+}
+
+#: What the tuner (:mod:`evaluation.tune`) searches for the central NMPCs (ours), six options a
+#: control engineer turns on a receding-horizon planner, each inside :data:`NMPC_RANGES`:
+#:
+#: - ``horizon``: how far ahead the plan sees (a longer horizon sees round an obstacle sooner and
+#:   costs more per period); 10-40 periods is 1-4 s at T_s = 0.1 s, around the paper's 20;
+#: - ``r_input``: the input weight against the fixed tracking weights (their ratio sets how
+#:   aggressively the plan drives; one scale for v and omega, log-uniform over two decades);
+#: - ``obstacle_offset`` and ``robot_offset``: the margins, which trade clearance for room in
+#:   narrow passages (0-10 cm; the paper's 1.5 cm is inside);
+#: - ``uncertainty_margin``: the margins widened by the model's calibrated residual (0 is the
+#:   paper's, 3 the robust presets');
+#: - ``unstall``: the stall resolution on or off (its waypoints are fixed constants of
+#:   :mod:`controllers.mpc.detour`, not options).
+#:
+#: The tracking weights ``q_*`` stay the paper's: only the input-to-tracking ratio matters, and
+#: ``r_input`` sets it. Solver choices are not tuned: they change the compute, not the problem.
+NMPC_TUNABLE: dict[str, Search] = {
+    "horizon": Search(10, 40, integer=True),
+    "r_input": Search(0.01, 1.0, log=True, entries=2),
+    "obstacle_offset": Search(0.0, 0.1),
+    "robot_offset": Search(0.0, 0.1),
+    "uncertainty_margin": Search(0.0, 4.0),
+    "unstall": Search(choices=(True, False)),
 }
 
 #: IPOPT settings (ours): quiet, warm-startable, bounded effort per control period.

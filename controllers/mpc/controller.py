@@ -15,7 +15,7 @@ its public hooks: :meth:`NMPCController.share_problem`, the ``set_*`` methods, :
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, ClassVar
 
 import casadi as ca
 import numpy as np
@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from controllers.base import BaseController
 from controllers.estimation import front_end_for
 from controllers.movers import observed_mover_radii, observed_movers
-from controllers.mpc.config import PARKED, PERCEIVED_OBSTACLE_SLOTS, NMPCConfig
+from controllers.mpc.config import NMPC_TUNABLE, PARKED, PERCEIVED_OBSTACLE_SLOTS, NMPCConfig
 from controllers.mpc.detour import RESTART_ITERATIONS, DeadlockResolver, pursuit_rollout
 from controllers.mpc.hooks import ParameterHooks
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
@@ -32,6 +32,7 @@ from controllers.mpc.models import PredictionModel, decode_state, encode_state, 
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, closing_distance, mover_slots, nearest_obstacle_slots
 from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
+from controllers.search_space import Search
 from koopman_envs.scenario import Scenario
 
 # the margins (controllers.mpc.margins) stay importable from here, where they were first
@@ -56,6 +57,8 @@ class NMPCController(ParameterHooks, BaseController):
     """
 
     name = "nmpc"
+    #: what the tuner searches (:data:`~controllers.mpc.config.NMPC_TUNABLE`, why these there)
+    TUNABLE: ClassVar[dict[str, Search]] = NMPC_TUNABLE
     #: moving-disc slots of the built problem (the distributed NMPC's robots: their neighbours)
     neighbour_slots = 0
     #: the central NMPC runs on the leader's computer and hears the team over its radio

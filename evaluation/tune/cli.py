@@ -1,0 +1,89 @@
+"""``python -m evaluation.tune``: tune a controller, or report on studies."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from evaluation.exit_codes import BAD_INPUT_EXIT, INTERRUPTED_EXIT, SUCCESS_EXIT, UNWRITABLE_OUT_EXIT
+from evaluation.runlog import (
+    OutputNotWritable,
+)
+from evaluation.tune.configuration import DEFAULT_SLIP, TASK_CHOICES
+from evaluation.tune.log import BEST_FILE, StudySettings
+from evaluation.tune.report import load_summary, report_figure, report_markdown
+from evaluation.tune.study import best_of, run_study
+from koopman_envs.files import write_atomic
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m evaluation.tune",
+        description="Tune a controller's options on a suite's validation layouts (Optuna TPE, seeded), "
+        "or draw the expected-best-score curves of several studies (--report).",
+    )
+    parser.add_argument(
+        "controller", nargs="?", help="a registered controller or preset with tunable options"
+    )
+    parser.add_argument("--task", default="both", help=f"one of {list(TASK_CHOICES)} (default both)")
+    parser.add_argument("--trials", type=int, default=50, help="configurations tried (N, default 50)")
+    parser.add_argument("--layouts", type=int, default=20, help="layouts per task (K: the split's first K)")
+    parser.add_argument("--episodes", type=int, default=2, help="episodes per layout (E)")
+    parser.add_argument("--seed", type=int, default=0, help="sampler seed and first episode seed")
+    parser.add_argument(
+        "--split", default="validation", help="validation (default) or train; test is refused"
+    )
+    parser.add_argument(
+        "--slip", default=DEFAULT_SLIP, help=f"slip of every episode (default {DEFAULT_SLIP})"
+    )
+    parser.add_argument("--max-episode-steps", type=int, default=None, help="episode step limit")
+    parser.add_argument("--workers", type=int, default=1, help="worker processes per evaluation (default 1)")
+    parser.add_argument("--out", required=True, help="study directory, or with --report the figure (PNG)")
+    parser.add_argument("--resume", action="store_true", help="continue the study logged in --out")
+    parser.add_argument("--report", nargs="+", metavar="DIR", help="study directories to draw and tabulate")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m evaluation.tune``: see the module docstring. Returns the exit code."""
+    args = _parser().parse_args(argv)
+    try:
+        if args.report:
+            studies = [load_summary(folder) for folder in args.report]
+            report_figure(studies, args.out)
+            table = report_markdown(studies)
+            write_atomic(Path(args.out).with_suffix(".md"), table)
+            print(table, end="")
+            return SUCCESS_EXIT
+        if not args.controller:
+            raise ValueError("a controller to tune is required (or --report DIR ...)")
+        env_kwargs = {} if args.max_episode_steps is None else {"max_episode_steps": args.max_episode_steps}
+        settings = StudySettings(
+            args.controller,
+            args.task,
+            args.trials,
+            args.layouts,
+            args.episodes,
+            args.seed,
+            split=args.split,
+            slip=args.slip,
+            env_kwargs=env_kwargs,
+        )
+        trials = run_study(settings, args.out, resume=args.resume, workers=args.workers, progress=True)
+    except OutputNotWritable as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return UNWRITABLE_OUT_EXIT
+    except KeyboardInterrupt:
+        print(f"interrupted: the finished trials are in {args.out}; --resume continues", file=sys.stderr)
+        return INTERRUPTED_EXIT
+    except (ValueError, ImportError) as exc:  # bad input, or the tune extra missing: named
+        print(f"error: {exc}", file=sys.stderr)
+        return BAD_INPUT_EXIT
+    best = best_of(trials)
+    print(
+        f"best: trial {best.number}, score {best.score:.4f} (defaults {trials[0].score:.4f}); "
+        f"{Path(args.out) / BEST_FILE}"
+    )
+    return SUCCESS_EXIT

@@ -1,0 +1,226 @@
+"""A study's settings and its log (``OUT/study.jsonl``): the header, the trial lines, the reader."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from controllers.search_space import Search
+from evaluation.records import json_safe
+from evaluation.runlog import (
+    LogError,
+    cut_torn,
+    parse_lines,
+    split_lines,
+)
+from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, tasks_of
+from evaluation.tune.scoring import OBJECTIVE
+from koopman_envs.checks import check_int, parse_json
+from koopman_envs.files import MAX_LOG_BYTES, read_bounded
+from koopman_envs.suites import check_split_allowed, load_suite
+
+#: the study's log, its best configuration
+STUDY_FILE = "study.jsonl"
+BEST_FILE = "best.json"
+#: the ``kind`` of a study log's header line
+STUDY_KIND = "koopnav-study"
+#: the fields of a trial's line
+TRIAL_FIELDS = (
+    "trial",
+    "params",
+    "options",
+    "score",
+    "successes",
+    "episodes",
+    "errors",
+    "mean_time_to_goal",
+    "layouts",
+    "seeds",
+    "wall_seconds",
+    "budget_so_far",
+)
+
+
+@dataclass(frozen=True)
+class StudySettings:
+    """One study: what is tuned, on what, with which budget.
+
+    Attributes
+    ----------
+    controller : str
+        A registered controller or preset with tunable options.
+    task : str
+        One of :data:`TASK_CHOICES`.
+    trials, layouts, episodes : int
+        The budget: configurations, layouts per task (the split's first ``layouts``), episodes
+        per layout.
+    seed : int
+        The sampler's seed and the first episode seed.
+    split : str
+        ``"validation"`` (default) or ``"train"``; ``"test"`` is refused.
+    slip : str
+        The slip setting of every episode.
+    env_kwargs : dict
+        Further ``gym.make`` keywords (e.g. ``{"max_episode_steps": 100}``).
+    suite : str
+        The suite's name.
+    """
+
+    controller: str
+    task: str
+    trials: int
+    layouts: int
+    episodes: int
+    seed: int
+    split: str = "validation"
+    slip: str = DEFAULT_SLIP
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    suite: str = SUITE
+
+    def check(self) -> None:
+        """``ValueError`` naming a bad setting; the test split first, before anything is read."""
+        check_split_allowed(self.split, "tuning")  # an unknown split too, naming the allowed ones
+        tasks_of(self.task)
+        check_int("trials", self.trials, 1, maximum=100_000)
+        check_int("layouts", self.layouts, 1)
+        check_int("episodes", self.episodes, 1, maximum=10_000)
+        check_int("seed", self.seed, 0)
+
+    @property
+    def layout_indices(self) -> list[int]:
+        """The layouts of every trial: the split's first ``layouts`` (balanced across the
+        families, which the split's seeds cycle through)."""
+        return list(range(self.layouts))
+
+    @property
+    def seeds(self) -> list[int]:
+        """The episode seeds of every layout."""
+        return list(range(self.seed, self.seed + self.episodes))
+
+    @property
+    def episodes_per_trial(self) -> int:
+        """Episodes of one configuration."""
+        return len(tasks_of(self.task)) * self.layouts * self.episodes
+
+    def header(self, search: Mapping[str, Search], defaults: Mapping[str, Any]) -> dict[str, Any]:
+        """The study log's first line (plain JSON): everything a resume must match."""
+        suites = []
+        for name in tasks_of(self.task):
+            suite = load_suite(self.suite, name, self.split)
+            if self.layouts > len(suite):
+                raise ValueError(
+                    f"layouts={self.layouts} is more than {suite.label} holds; allowed: 1 to {len(suite)}"
+                )
+            suites.append(suite.label)
+        return json_safe(
+            {
+                "kind": STUDY_KIND,
+                "controller": self.controller,
+                "task": self.task,
+                "split": self.split,
+                "suites": suites,
+                "seed": self.seed,
+                "slip": self.slip,
+                "env_kwargs": dict(sorted(self.env_kwargs.items())),
+                "budget": {
+                    "configurations": self.trials,
+                    "layouts_per_task": self.layouts,
+                    "episodes_per_layout": self.episodes,
+                    "episodes_per_configuration": self.episodes_per_trial,
+                    "episodes": self.trials * self.episodes_per_trial,
+                },
+                "objective": OBJECTIVE,
+                "sampler": f"optuna TPESampler(seed={self.seed}); trial 0 the defaults",
+                "search": {name: str(s) for name, s in search.items()},
+                "defaults": dict(defaults),
+            }
+        )
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One finished trial, as its line of the study log holds it."""
+
+    number: int
+    params: dict[str, Any]
+    options: dict[str, Any]
+    score: float
+    successes: int
+    episodes: int
+    record: dict[str, Any]
+
+
+def _trial_problem(record: Any) -> str | None:
+    """Why ``record`` is not a trial line (None when it is one)."""
+    if not isinstance(record, dict):
+        return "not a JSON object"
+    missing = [k for k in TRIAL_FIELDS if k not in record]
+    if missing:
+        return f"not a trial record (no {', '.join(missing)})"
+    if not isinstance(record["params"], dict) or not isinstance(record["score"], (int, float)):
+        return "a trial record whose params are not an object or whose score is not a number"
+    return None
+
+
+def read_study(
+    path: str | os.PathLike[str], header: Mapping[str, Any] | None = None, *, repair: bool = True
+) -> tuple[dict[str, Any], list[Trial], list[str]]:
+    """The header and the finished trials of a study log, with notes on what was repaired.
+
+    Parameters
+    ----------
+    path : path
+        The study's ``study.jsonl``.
+    header : mapping, optional
+        The header the log must have (a resume's); None: any study header.
+    repair : bool
+        Cut a torn last line (one a kill left without its newline) off the file.
+
+    Raises
+    ------
+    LogError
+        Not a study log, a header of another study (naming the settings that differ), a line
+        that is not a trial, or trials out of order: each named by file and line; nothing is
+        changed in the file then.
+    """
+    data = read_bounded(path, MAX_LOG_BYTES, what="study log")
+    lines, torn = split_lines(data)
+    if not lines:
+        raise LogError(
+            f"{path}: no complete header line; it is not a study log (move it aside to start afresh)"
+        )
+    try:
+        found = parse_json(lines[0], f"{path} line 1")
+    except ValueError:
+        found = None
+    if not isinstance(found, dict) or found.get("kind") != STUDY_KIND:
+        raise LogError(f"{path} is not a KoopNav study log (line 1 is not a {STUDY_KIND!r} header)")
+    if header is not None and found != header:
+        differ = sorted(k for k in set(found) | set(header) if found.get(k) != header.get(k))
+        what = "; ".join(f"{k}: logged {found.get(k)!r}, now {header.get(k)!r}" for k in differ)
+        raise LogError(
+            f"{path} belongs to another study ({what}); resume with the same settings or use "
+            "another --out; nothing was changed"
+        )
+    records, places, bad = parse_lines(lines[1:], _trial_problem)
+    for i, (record, place) in enumerate(zip(records, places)):
+        if record["trial"] != i:
+            bad.append(f"{place}: trial {record['trial']!r} where trial {i} was expected")
+            break
+    if bad:
+        raise LogError(f"{path} cannot be resumed: " + "; ".join(bad[:10]) + "; nothing was changed")
+    notes = []
+    if torn:
+        if repair:
+            cut_torn(path, data, torn)
+        notes.append(
+            f"{path}: dropped 1 incomplete trial (line {len(lines) + 1}, {len(torn)} bytes cut by the "
+            "interruption); it will be run again"
+        )
+    trials = [
+        Trial(r["trial"], r["params"], r["options"], float(r["score"]), r["successes"], r["episodes"], r)
+        for r in records
+    ]
+    return found, trials, notes
