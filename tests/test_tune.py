@@ -115,7 +115,7 @@ def test_a_real_study_is_seeded_and_starts_from_the_defaults(tmp_path: Path) -> 
         "episodes_per_configuration": 2,
         "episodes": 4,
     }
-    assert trial["layouts"] == {header["suites"][0]: [0, 1]} and trial["seeds"] == [0]
+    assert trial["layouts"] == {header["suites"][0]: [0, 1]} and trial["seeds"] == [0, 1]  # seed + l
     assert [line["budget_so_far"]["episodes"] for line in lines[1:]] == [2, 4]
     best = json.loads((tmp_path / "a" / "best.json").read_text())
     assert best["defaults"]["score"] == first[0].score

@@ -8,9 +8,11 @@ suite, never on ``test``::
     python -m evaluation.tune --report runs/tune-orca runs/tune-dwa --out tuning.png
 
 - **Budget.** N configurations (``--trials``) x K layouts (``--layouts``: the first K of the
-  split, per task) x E episodes (``--episodes``: seeds ``seed .. seed + E - 1`` on every
-  layout), the same for every controller, recorded in the study's header. Every configuration
-  runs on the same layouts and seeds (paired: common random numbers).
+  split, per task) x E episodes (``--episodes``: episode j of layout l seeded
+  ``seed + j * len(split) + l``, as in any suite run), the same for every controller, recorded
+  in the study's header. Every configuration runs on the same layouts and seeds (paired: common
+  random numbers), in the benchmark's own run (:func:`evaluation.protocols.suite_protocol`:
+  high slip, perturbed starts, the NMPCs on the real-time iteration).
 - **Objective.** :func:`~evaluation.tune.scoring.objective`: the validation success rate, ties
   broken by the mean time to goal over the successes. With S successes of n episodes and u the
   mean over the successes of (time to goal / the episode's time limit),

@@ -2,23 +2,21 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from koopman_envs.checks import check_choice
-from koopman_envs.suites import check_split_allowed, load_suite
+from koopman_envs.suites import check_split_allowed
 from koopman_envs.tasks.base import TASKS
 
 #: the suite tuned on (its ``validation`` split)
 SUITE = "koopnav-bench-v1"
 #: ``--task``: one task, or both (one configuration scored on the layouts of both)
 TASK_CHOICES = (*TASKS, "both")
-#: the slip of every tuning episode (ours): each episode draws its own levels up to beyond
-#: ``high`` (koopman_envs.params.RANDOM_SLIP_MAX), so that a configuration is tuned for the whole
-#: range the benchmark reports rather than for one setting
-DEFAULT_SLIP = "random"
+#: the slip of every tuning episode: the benchmark's own setting (the quick board's high slip,
+#: :func:`evaluation.protocols.suite_protocol`), so a configuration is tuned on validation layouts
+#: under the conditions its test-suite row is measured in
+DEFAULT_SLIP = "high"
 
 Evaluator = Callable[..., list[dict[str, Any]]]
 
@@ -46,11 +44,11 @@ def evaluate_configuration(
     """The episode records of one configuration on layouts of a suite split: the tuner's one
     call into the evaluator.
 
-    Every layout runs ``episodes`` episodes, seeds ``seed .. seed + episodes - 1``. Today each
-    layout is written to a map file and run as a map of a :class:`~evaluation.spec.RunSpec`
-    (the evaluator passes no reset options, so ``reset(options={"layout": i})`` on
-    ``map="suite:..."`` is out of its reach); when the evaluator runs suites itself
-    (``RunSpec(suite=..., split=..., layouts=...)``), this function is where the tuner switches.
+    The benchmark's own run (:func:`evaluation.protocols.suite_protocol`: perturbed starts, the
+    NMPCs on the real-time iteration) on the given layouts of ``split``, for this one
+    configuration: every layout runs ``episodes`` episodes, episode j of layout l seeded
+    ``seed + j * len(split) + l`` as in any suite run (:mod:`evaluation.suite_runs`), the layout
+    handed to the env's reset, so that a tuning episode is the episode the evaluator would run.
 
     Parameters
     ----------
@@ -83,38 +81,24 @@ def evaluate_configuration(
         The episode records (:mod:`evaluation.records`), each with ``suite`` (the split's label,
         its hash included) and ``layout`` (the index) added.
     """
+    from evaluation.protocols import suite_protocol
     from evaluation.runner import evaluate
-    from evaluation.spec import RunSpec
 
     check_split_allowed(split, "tuning")
     tasks = tasks_of(task)
-    with tempfile.TemporaryDirectory(prefix="koopnav-tune-") as folder:
-        maps: dict[str, list[str]] = {}
-        where: dict[tuple[str, str], tuple[str, int, str]] = {}
-        for name in tasks:
-            loaded = load_suite(suite, name, split)
-            env_id = TASKS[name].env_id
-            maps[env_id] = []
-            for index in layouts:
-                layout = loaded.layout(index)
-                path = os.path.join(folder, name, f"{layout.id}.json")
-                os.makedirs(os.path.dirname(path), exist_ok=True)
-                layout.spec.save(path)
-                maps[env_id].append(path)
-                where[(env_id, path)] = (loaded.label, int(index), layout.id)
-        spec = RunSpec(
-            envs=tuple(maps),
-            controllers={controller: (controller, dict(options))},
-            maps=maps,
-            slips=(slip,),
-            episodes=episodes,
-            seed=seed,
-            env_kwargs=dict(env_kwargs or {}),
+    selected = sorted(int(i) for i in layouts)
+    if not selected or selected != list(range(selected[0], selected[-1] + 1)):
+        raise ValueError(
+            f"layouts={list(layouts)!r}: the tuner runs a contiguous range of layouts, e.g. [0, 1, 2]"
         )
-        records = evaluate(spec, workers=workers).records
-    out = []
-    for record in records:
-        label, index, name = where[(record["env_id"], record["map"])]
-        # the layout's id for the temporary file's path, which is gone
-        out.append({**record, "map": name, "suite": label, "layout": index})
-    return out
+    protocol = suite_protocol(suite, split)
+    spec = protocol.replace(
+        envs=tuple(TASKS[name].env_id for name in tasks),
+        controllers={controller: (controller, dict(options))},
+        slips=(slip,),
+        episodes=episodes,
+        seed=seed,
+        layouts=(selected[0], selected[-1] + 1),
+        env_kwargs={**protocol.env_kwargs, **dict(env_kwargs or {})},
+    )
+    return list(evaluate(spec, workers=workers).records)

@@ -95,11 +95,6 @@ class StudySettings:
         return list(range(self.layouts))
 
     @property
-    def seeds(self) -> list[int]:
-        """The episode seeds of every layout."""
-        return list(range(self.seed, self.seed + self.episodes))
-
-    @property
     def episodes_per_trial(self) -> int:
         """Episodes of one configuration."""
         return len(tasks_of(self.task)) * self.layouts * self.episodes
