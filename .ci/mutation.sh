@@ -86,7 +86,8 @@ for m in "${wanted[@]}"; do
         [ -f "$work/koopnav/$file" ] && tests+="\"$t\", "
     done
     tests=${tests%, }
-    args='"-p", "no:cacheprovider"'
+    # -n 0: mutmut runs the tests in its own process (pyproject's addopts spread them over xdist workers)
+    args='"-p", "no:cacheprovider", "-n", "0"'
     for t in ${deselect:-}; do
         args+=", \"--deselect\", \"$t\""
     done

@@ -134,7 +134,6 @@ SLOW = {
     "bench/cold_start.py",
     "bench/env_throughput.py",
     "bench/evaluate_wall.py",
-    "bench/movers_speed.py",
     "bench/nmpc_solve.py",
     "docs/make_pages.py",
 }
@@ -219,6 +218,19 @@ def _as_main(script: str, args: list[str]):
             torch.set_num_threads(threads or torch.get_num_threads())
 
 
+def _run_script(script: str, args: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[object, str, str]:
+    """``python script args`` in this process: (exit code, 0 or None for success; stdout; stderr)."""
+    code: object = 0
+    capfd.readouterr()  # what came before is not the script's
+    with _as_main(script, args):
+        try:
+            runpy.run_path(str(ROOT / script), run_name="__main__")
+        except SystemExit as exc:
+            code = exc.code
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
 @pytest.mark.parametrize(
     "script", [pytest.param(s, marks=pytest.mark.slow) if s in SLOW else s for s in sorted(SMOKE)]
 )
@@ -236,13 +248,7 @@ def test_script_runs_on_tiny_arguments_and_prints_its_result(
     (tmp_path / "index.html").write_text('<html><body><a href="index.html">self</a></body></html>')
     raw, expected = SMOKE[script]
     args = [a.format(tmp=tmp_path, results=small_run, sweep=small_sweep) for a in raw]
-    code: object = 0
-    with _as_main(script, args):
-        try:
-            runpy.run_path(str(ROOT / script), run_name="__main__")
-        except SystemExit as exc:
-            code = exc.code
-    out, err = capfd.readouterr()
+    code, out, err = _run_script(script, args, capfd)
     assert code in (0, None), f"{script} exited {code}:\n{out[-1500:]}\n{err[-3000:]}"
     assert re.search(expected, out, re.MULTILINE), (
         f"{script} printed:\n{out[-3000:]}\nnot matching {expected!r}"
@@ -287,16 +293,10 @@ def test_robustness_page_names_parts_and_opens_with_their_overview(small_sweep: 
     assert stranger.returncode == 2 and "--reference 'nobody' is not one of" in stranger.stderr
 
 
-def test_the_actor_timing_of_the_batched_evaluation_bench_runs() -> None:
+def test_the_actor_timing_of_the_batched_evaluation_bench_runs(capfd: pytest.CaptureFixture[str]) -> None:
     """``bench/batched_evaluation.py --actors``: one row per shipped policy, with both timings."""
     pytest.importorskip("stable_baselines3")
-    run = subprocess.run(
-        [sys.executable, "bench/batched_evaluation.py", "--actors", "--rows", "2"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    assert run.returncode == 0, run.stderr
-    rows = [line for line in run.stdout.splitlines() if line.startswith("| ") and "x |" in line]
+    code, out, err = _run_script("bench/batched_evaluation.py", ["--actors", "--rows", "2"], capfd)
+    assert code in (0, None), err[-3000:]
+    rows = [line for line in out.splitlines() if line.startswith("| ") and "x |" in line]
     assert len(rows) >= 6 and all(line.split("|")[2].strip() == "2" for line in rows)

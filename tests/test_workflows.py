@@ -215,6 +215,7 @@ def _run_action(env_dir: Path, package: Path, out: Path, **inputs: str) -> subpr
     )
 
 
+@pytest.mark.slow  # three whole runs of the action, each installing KoopNav into the venv (about a minute)
 def test_the_action_ranks_a_users_controller_and_gates_a_rerun(user_venv, tmp_path) -> None:
     env_dir, package = user_venv
     first = _run_action(env_dir, package, tmp_path / "base")
