@@ -80,7 +80,7 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"
 def pytest_configure(config: pytest.Config) -> None:
     """With pytest-xdist workers (one per core), each numerical library gets one thread per worker:
     their default, a thread per core in every worker, oversubscribes the cores, and OpenBLAS's
-    threads spin while they wait (a gate test of NMPC episodes ran 30% slower). Set in the
+    threads spin while they wait. Set in the
     process that starts the workers, before it starts them: a library reads its variable when it
     loads. A variable the user set is kept."""
     if _owner and (getattr(config.option, "numprocesses", None) or 0) > 1:
