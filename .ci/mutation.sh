@@ -30,21 +30,25 @@
 set -euo pipefail
 
 # module -> "file to mutate|test files, globs or test ids (files missing from the clone are skipped)|tests
-# left out (pytest --deselect prefixes)". Left out: tests of timing, signals and worker processes
+# left out (pytest --deselect prefixes)". A selection holds every test file that imports the module
+# (`grep -l 'koopman_envs.observed' tests/*.py`, ...; tests/test_classic_controllers.py, which only
+# reads the uncertainty presets through 4 whole episodes per controller, excepted): a test file left
+# out lets its mutants survive (Holm without its step-down maximum survived the statistics selection
+# without tests/test_distinct_statistics.py). Left out: tests of timing, signals and worker processes
 # (a SIGINT or SIGKILL sent at a chosen moment to `evaluate.py --workers 2`), which time out under
 # mutmut's load instead of failing on a mutant.
 SIGNALS="tests/test_runlog.py::test_sigkill_at_any_point tests/test_runlog.py::test_ctrl_c_exits_130 tests/test_runlog.py::test_sigterm_stops_the_workers"
 declare -A MODULES=(
-    [perception]="koopman_envs/sim/perception.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_perception_faults.py"
-    [uncertainty]="koopman_envs/uncertainty.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_bad_input.py tests/test_env_limits.py tests/test_keyword_spec.py tests/test_perception_faults.py tests/test_uncertainty_settings.py"
-    [observed]="koopman_envs/observed.py|tests/test_observed_view.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_movers.py tests/test_mover_controllers.py tests/test_observed_view_exact.py"
-    [baseline]="evaluation/baseline.py|tests/test_baseline.py tests/test_gate_decisions.py tests/test_duplicate_records.py"
-    [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py tests/test_clustered_statistics.py tests/test_distinct_statistics.py"
+    [perception]="koopman_envs/sim/perception.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_perception_faults.py tests/test_pcg64.py"
+    [uncertainty]="koopman_envs/uncertainty.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_bad_input.py tests/test_env_limits.py tests/test_keyword_spec.py tests/test_perception_faults.py tests/test_uncertainty_settings.py tests/test_pcg64.py tests/test_keyword_properties.py tests/test_estimator_levers.py"
+    [observed]="koopman_envs/observed.py|tests/test_observed_view.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_movers.py tests/test_mover_controllers.py tests/test_observed_view_exact.py tests/test_estimator_levers.py tests/test_perceived_policy.py tests/test_perception.py"
+    [baseline]="evaluation/baseline.py|tests/test_baseline.py tests/test_gate_decisions.py tests/test_duplicate_records.py tests/test_bounded_reads.py"
+    [statistics]="evaluation/statistics.py|tests/test_statistics.py tests/test_sweep.py tests/test_fair_comparison.py::test_reports_carry_intervals_and_paired_comparisons tests/test_statistics_exact.py tests/test_clustered_statistics.py tests/test_distinct_statistics.py tests/test_gate_decisions.py"
     [clustered]="evaluation/clustered.py|tests/test_clustered_statistics.py"
     [layout_tests]="evaluation/layout_tests.py|tests/test_clustered_statistics.py"
     [families]="evaluation/families.py|tests/test_clustered_statistics.py"
-    [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py|$SIGNALS"
-    [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py|$SIGNALS"
+    [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py tests/test_duplicate_records.py tests/test_bounded_reads.py tests/test_tune.py|$SIGNALS"
+    [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py tests/test_collision_fault.py tests/test_suite_runs.py tests/test_cache_entries.py tests/test_pictures.py::test_the_worker_records_the_movers_paths_and_the_figure_draws_them|$SIGNALS"
     [published]="evaluation/published.py|tests/test_published_pages.py tests/test_bounded_reads.py"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
@@ -86,7 +90,8 @@ for m in "${wanted[@]}"; do
         [ -f "$work/koopnav/$file" ] && tests+="\"$t\", "
     done
     tests=${tests%, }
-    args='"-p", "no:cacheprovider"'
+    # -n 0: mutmut runs the tests in its own process (pyproject's addopts spread them over xdist workers)
+    args='"-p", "no:cacheprovider", "-n", "0"'
     for t in ${deselect:-}; do
         args+=", \"--deselect\", \"$t\""
     done

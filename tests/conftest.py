@@ -1,9 +1,13 @@
-"""Shared fixtures: small hand-made maps for exact scenarios."""
+"""Shared fixtures (small hand-made maps for exact scenarios) and the suite's own temporary caches."""
 
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 # NMPC solvers run uncompiled in the tests: the suite builds dozens of one-off problem structures,
@@ -12,7 +16,100 @@ import pytest
 # Set before any controller is built; worker processes and subprocesses inherit it.
 os.environ.setdefault("KOOPNAV_NMPC_JIT", "0")
 
-from koopman_envs.sim.maps import MapSpec
+# The suite writes nothing under the user's HOME: calibrations and compiled solvers go to a
+# KOOPNAV_CACHE of its own, so that its run time and results never depend on what an earlier run
+# left in ~/.cache/koopnav (a cold cache every run), and matplotlib's font cache and Selenium
+# Manager's driver metadata go there too. Numba's kernel cache stays where numba puts it, in the
+# checkout's __pycache__ folders. The directory is made once per session by the process that runs
+# pytest and removed when it ends (pytest_unconfigure below); pytest-xdist workers and every
+# subprocess inherit these variables (set here, before anything imports koopman_envs or
+# controllers), and each xdist worker takes a cache of its own below the session's directory.
+# A test that sets KOOPNAV_CACHE itself (monkeypatch.setenv) still wins.
+SESSION_VARIABLE = "KOOPNAV_TEST_SESSION_DIR"
+#: where the library's cache lives when KOOPNAV_CACHE is unset (controllers.disk_cache.cache_root;
+#: tests/test_suite_hygiene.py holds the two together)
+HOME_CACHE = Path(os.path.expanduser("~")) / ".cache" / "koopnav"
+
+_worker = os.environ.get("PYTEST_XDIST_WORKER")
+_owner = not (_worker and os.environ.get(SESSION_VARIABLE))
+if _owner:
+    os.environ[SESSION_VARIABLE] = tempfile.mkdtemp(prefix="koopnav-tests-")
+SESSION_DIR = Path(os.environ[SESSION_VARIABLE])
+_home = SESSION_DIR / (_worker if not _owner and _worker else "main")
+os.environ["KOOPNAV_CACHE"] = str(_home / "koopnav")
+os.environ["MPLCONFIGDIR"] = str(_home / "matplotlib")
+os.environ["SE_CACHE_PATH"] = str(_home / "selenium")
+
+
+def tree_state(root: Path) -> dict[str, tuple[bool, int, int]] | None:
+    """Every entry below ``root`` (``root`` included) with (is a directory, size, mtime in ns);
+    None when ``root`` does not exist. Two states differ when anything was created, removed or
+    written below ``root`` between them (a removed file changes its directory's mtime)."""
+    if not root.exists():
+        return None
+    state = {}
+    for path in [root, *root.rglob("*")]:
+        st = path.lstat()
+        state[str(path.relative_to(root))] = (path.is_dir(), st.st_size, st.st_mtime_ns)
+    return state
+
+
+def describe_change(
+    before: dict[str, tuple[bool, int, int]] | None, after: dict[str, tuple[bool, int, int]] | None
+) -> str:
+    """What changed between two :func:`tree_state` results, in a few words ("" when nothing)."""
+    if before == after:
+        return ""
+    if after is None:
+        return "removed"
+    was = before or {}
+    changed = sorted(k for k in was.keys() | after.keys() if was.get(k) != after.get(k))
+    listed = ", ".join(changed[:10]) + (" ..." if len(changed) > 10 else "")
+    return ("created: " if before is None else "changed: ") + listed
+
+
+_HOME_CACHE_BEFORE = tree_state(HOME_CACHE)
+
+from koopman_envs.sim.maps import MapSpec  # noqa: E402  (after the environment above is set)
+
+#: the thread pools of the numerical libraries (OpenBLAS, MKL, OpenMP: numpy, torch), one thread each
+#: in an xdist worker
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With pytest-xdist workers (one per core), each numerical library gets one thread per worker:
+    their default, a thread per core in every worker, oversubscribes the cores, and OpenBLAS's
+    threads spin while they wait. Set in the
+    process that starts the workers, before it starts them: a library reads its variable when it
+    loads. A variable the user set is kept."""
+    if _owner and (getattr(config.option, "numprocesses", None) or 0) > 1:
+        for variable in THREAD_VARIABLES:
+            os.environ.setdefault(variable, "1")
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the run when the user's own cache was written while it ran (checked by the process that
+    owns the session, whose lifetime covers every xdist worker's)."""
+    if not _owner:
+        return
+    change = describe_change(_HOME_CACHE_BEFORE, tree_state(HOME_CACHE))
+    if change:
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        message = (
+            f"the user's cache {HOME_CACHE} was written during the test session ({change}); the suite "
+            f"must only write to its own KOOPNAV_CACHE below {SESSION_DIR} (or another process wrote there "
+            "meanwhile)"
+        )
+        if reporter is not None:
+            reporter.write_sep("!", message, red=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """Remove the session's caches (the owner only: the workers' caches live below its directory)."""
+    if _owner:
+        shutil.rmtree(SESSION_DIR, ignore_errors=True)
 
 
 @pytest.fixture
@@ -20,14 +117,14 @@ def open_map() -> MapSpec:
     """Three robots in an obstacle-free area, targets 1 m ahead."""
     return MapSpec(
         "open",
-        obstacles=[],
-        starts=[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]],
-        targets=[[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, -1.0, 0.0]],
+        obstacles=np.zeros((0, 3)),
+        starts=np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]),
+        targets=np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, -1.0, 0.0]]),
     )
 
 
 @pytest.fixture
 def parked_map() -> MapSpec:
     """Every robot starts on its target: success after the settling time with zero commands."""
-    poses = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]
-    return MapSpec("parked", obstacles=[[3.0, 3.0, 0.5]], starts=poses, targets=poses)
+    poses = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
+    return MapSpec("parked", obstacles=np.array([[3.0, 3.0, 0.5]]), starts=poses, targets=poses)

@@ -36,7 +36,12 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
     [
         (["rl-ppo", "rl-ppo-set-movers"], {"movers": {"count": 3, "behaviour": "constant", "speed": 0.3}}),
         (["rl-ppo-set", "rl-ppo-set-realistic"], {"uncertainty": "realistic"}),
-        (["rl-ppo-set-movers"], {"sensing": "lidar", "movers": {"count": 2, "behaviour": "constant"}}),
+        # the lidar case takes a minute (20 episodes of a set policy reading beams): -m slow
+        pytest.param(
+            ["rl-ppo-set-movers"],
+            {"sensing": "lidar", "movers": {"count": 2, "behaviour": "constant"}},
+            marks=pytest.mark.slow,
+        ),
     ],
     ids=["movers", "realistic", "lidar"],
 )

@@ -91,23 +91,58 @@ def test_periods_late_by_hand(seconds: float, scale: float, late: int) -> None:
     assert ComputeCharge(scale=scale).periods_late(seconds, 0.1) == late
 
 
-def test_the_evaluator_runs_compute_aware_and_names_the_machine(tmp_path) -> None:
+class _Ticks:
+    """A clock that moves ``seconds`` every time it is read: each decision, timed by two reads,
+    takes exactly ``seconds``."""
+
+    def __init__(self, seconds: float) -> None:
+        self.now, self.seconds = 0.0, seconds
+
+    def __call__(self) -> float:
+        self.now += self.seconds
+        return self.now
+
+
+@pytest.mark.parametrize(
+    "scale, decisions, misses, late",
+    [
+        (1.0, 20, 0, 1),  # 50 ms: the next period, every period, within the deadline
+        (3.0, 10, 10, 2),  # 150 ms: two periods late, every other period, every deadline missed
+    ],
+)
+def test_the_evaluator_charges_the_scaled_decision_time_and_names_the_machine(
+    tmp_path, monkeypatch: pytest.MonkeyPatch, scale: float, decisions: int, misses: int, late: int
+) -> None:
+    """``--compute-scale`` end to end: each decision takes 50 ms on the run's clock, the scale
+    multiplies it, and the records and the report show what the charge did."""
+    import functools
+    import json
+
+    import evaluation.worker
+
+    monkeypatch.setattr(
+        evaluation.worker, "ComputeCharge", functools.partial(ComputeCharge, clock=_Ticks(0.05))
+    )
     code = ev.main(
         [
             "--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--episodes", "1",
-            "--controllers", "consensus", "--env-kwargs", "max_episode_steps=20",
-            "--compute-scale", "3", "--out", str(tmp_path), "--quiet",
+            "--controllers", "consensus", "--env-kwargs", "max_episode_steps=20", "--workers", "1",
+            "--compute-scale", str(scale), "--out", str(tmp_path), "--quiet",
         ]
     )  # fmt: skip
     assert code == 0
-    import json
-
     doc = json.loads((tmp_path / "results.json").read_text())
-    assert doc["config"]["compute"]["scale"] == 3.0 and "cores" in doc["config"]["compute"]["machine"]
+    assert doc["config"]["compute"]["scale"] == scale and "cores" in doc["config"]["compute"]["machine"]
     (record,) = doc["episodes"]
-    assert record["compute_scale"] == 3.0 and record["decisions"] >= 1 and record["deadline_misses"] >= 0
+    assert record["compute_scale"] == scale and record["steps"] == 20
+    assert (record["decisions"], record["deadline_misses"], record["late_periods"]) == (
+        decisions,
+        misses,
+        late,
+    )
     text = (tmp_path / "results.md").read_text()
-    assert "Deadline misses" in text and "Compute-aware run" in text
+    assert f"| {misses} ({100 * misses // decisions}%) |" in text
+    assert f"every decision's wall time, times {scale:.1f}, was charged to the robots" in text
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "5000"])

@@ -1,14 +1,23 @@
-"""Every ```python block of README.md and docs/*.md runs, and every relative link resolves.
+"""Every ```python block of README.md and docs/*.md runs and prints what the page says it
+prints, and every relative link resolves.
 
 The blocks of one page run in order in one namespace (a later block may use an earlier one's
-``env``), with the working directory a fresh temporary folder. A block preceded by the line
-``<!-- no-test: why -->`` is skipped; the reason is required and such blocks stay rare (training
-for minutes, a fragment that is only a signature). ```bash blocks are not run.
+``env``), with the working directory a fresh temporary folder. What a block prints is its
+``print`` output plus, as in an interactive session, the repr of a final bare expression (the
+docs end blocks with ``info["poses"], ...`` to show a value). The line right after a block's
+closing fence, ``<!-- prints: REGEX -->``, says what that output must contain (``re.search``,
+one line of regex; invisible in the rendered page); every block that runs has one. A block
+preceded by the line ``<!-- no-test: why -->`` is skipped; the reason is required and such
+blocks stay rare (training for minutes, a fragment that is only a signature). ```bash blocks are
+not run.
 """
 
 from __future__ import annotations
 
+import ast
+import contextlib
 import importlib.util
+import io
 import re
 import traceback
 from pathlib import Path
@@ -25,12 +34,19 @@ FENCE = re.compile(
 )
 SKIP = re.compile(r"<!--\s*no-test:\s*(?P<why>\S[^>]*?)\s*-->[ \t]*$", re.MULTILINE)
 REQUIRES = re.compile(r"<!--\s*requires:\s*(?P<module>[\w.]+)\s*-->[ \t]*$", re.MULTILINE)
+PRINTS = re.compile(r"\A\n[ \t]*<!-- prints: (?P<regex>.+?) -->[ \t]*$", re.MULTILINE)
 #: at most this many skipped blocks over all pages: a skip needs a reason, and the docs should run
 MAX_SKIPS = 4
 
 
 def python_blocks(text: str) -> list[tuple[int, str, str | None]]:
     """``(line, code, skip_reason)`` for every ```python fenced block of a Markdown text."""
+    return [(line, code, why) for line, code, why, _ in _blocks(text)]
+
+
+def _blocks(text: str) -> list[tuple[int, str, str | None, str | None]]:
+    """``(line, code, skip_reason, prints)`` for every ```python fenced block; ``prints`` is the
+    regex of the ``<!-- prints: ... -->`` line right after it, or None."""
     blocks = []
     for m in FENCE.finditer(text):
         if m["info"].strip().split(" ")[0] not in ("python", "py", "{code-block} python"):
@@ -43,8 +59,28 @@ def python_blocks(text: str) -> list[tuple[int, str, str | None]]:
             why = f"needs {needs['module']}, not installed"
         indent = len(m["indent"])
         code = "\n".join(row[indent:] for row in m["body"].split("\n"))
-        blocks.append((line, code, why))
+        prints = PRINTS.search(text[m.end() :])
+        blocks.append((line, code, why, prints["regex"] if prints else None))
     return blocks
+
+
+def run_block(code: str, filename: str, namespace: dict) -> str:
+    """Run ``code`` in ``namespace`` and return what it printed, a final bare expression's repr
+    included (as an interactive session shows it)."""
+    tree = ast.parse(code, filename)
+    shown = tree.body[-1] if tree.body else None
+    if isinstance(shown, ast.Expr):
+        tree.body.pop()
+    else:
+        shown = None
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(tree, filename, "exec"), namespace)  # noqa: S102 - running the docs is the test
+        if shown is not None:
+            value = eval(compile(ast.Expression(shown.value), filename, "eval"), namespace)  # noqa: S307
+            if value is not None:
+                print(repr(value))
+    return out.getvalue()
 
 
 def _rel(page: Path) -> str:
@@ -56,13 +92,18 @@ def test_the_python_blocks_of_a_page_run(page: Path, tmp_path: Path, monkeypatch
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
     namespace: dict = {"__name__": f"docs_snippets_{page.stem}"}
-    for line, code, skip in python_blocks(page.read_text()):
+    for line, code, skip, prints in _blocks(page.read_text()):
         if skip:
             continue
+        where = f"{_rel(page)}:{line}"
+        assert prints is not None, f"{where}: no '<!-- prints: REGEX -->' line right after the block"
         try:
-            exec(compile(code, f"{_rel(page)}:{line}", "exec"), namespace)  # noqa: S102 - running the docs is the test
+            out = run_block(code, where, namespace)
         except Exception:  # noqa: BLE001 - name the block, then fail
             pytest.fail(f"{_rel(page)}, the python block at line {line} raised:\n{traceback.format_exc()}")
+        assert re.search(prints, out, re.MULTILINE), (
+            f"{where} printed:\n{out[-2000:]}\nnot matching {prints!r}"
+        )
     for value in namespace.values():  # close what the page opened (envs with figures)
         close = getattr(value, "close", None)
         if callable(close) and hasattr(value, "unwrapped"):
@@ -82,6 +123,8 @@ def test_skipped_blocks_are_rare_and_say_why() -> None:
         text = page.read_text()
         assert text.count("no-test") == len(SKIP.findall(text)), _rel(page)
         assert text.count("requires:") == len(REQUIRES.findall(text)), _rel(page)
+        # a prints line that follows no python block would check nothing
+        assert text.count("<!-- prints:") == sum(p is not None for *_, p in _blocks(text)), _rel(page)
 
 
 def test_the_readme_and_the_docs_have_snippets() -> None:

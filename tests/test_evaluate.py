@@ -226,6 +226,7 @@ def test_cli_writes_outputs_and_checks(tmp_path) -> None:
     assert bad.returncode == 2 and "controller 'nope' is not one of" in bad.stderr
 
 
+@pytest.mark.slow  # starts a local Ray instance (half a minute)
 def test_ray_backend_matches_the_process_backend(small_results: ev.Results) -> None:
     """The same episodes as Ray tasks on a local Ray instance give the same results."""
     pytest.importorskip("ray")

@@ -127,6 +127,7 @@ def _assert_same_model(made: Path, shipped: Path) -> None:
             np.testing.assert_allclose(ours[key], theirs[key], rtol=1e-9, atol=1e-15, err_msg=key)
 
 
+@pytest.mark.slow  # a fit on the paper's 1,000,000 transitions in a fresh interpreter; -m slow
 def test_shipped_high_model_is_what_the_documented_command_makes(tmp_path) -> None:
     out = tmp_path / "high.npz"
     subprocess.run(

@@ -26,8 +26,17 @@ QUICK = ["nominal-nmpc", "orca", "dwa", "dmpc-nominal", "mpc-cbf"]
 CALIBRATED = ["koopman-nmpc", "adaptive-koopman-nmpc", "dmpc-koopman"]
 
 
-def _episode(name: str, map_known: bool, movers: int = 0, seed: int = 0, calibrate: bool = False):
-    env = gym.make(ENV, map="map1", sensing="lidar", lidar={"map_known": map_known}, movers={"count": movers})
+def _episode(
+    name: str, map_known: bool, movers: int = 0, seed: int = 0, calibrate: bool = False, **env_kwargs
+):
+    env = gym.make(
+        ENV,
+        map="map1",
+        sensing="lidar",
+        lidar={"map_known": map_known},
+        movers={"count": movers},
+        **env_kwargs,
+    )
     try:
         ctrl = controllers.make(name)
     except ImportError as exc:  # orca needs the [crowd] extra
@@ -82,15 +91,18 @@ def test_with_the_map_known_and_no_movers_the_beams_change_nothing() -> None:
 
 
 def test_the_perception_is_deterministic() -> None:
-    """Same seed, same episode (movers tracked, map unknown), in one process and in another."""
-    first, _ = _episode("dwa", map_known=False, movers=4, seed=3)
-    again, _ = _episode("dwa", map_known=False, movers=4, seed=3)
+    """Same seed, same episode (movers tracked, map unknown), in one process and in another; 30
+    periods, the robots still driving among the movers (a whole episode, 102 periods, is 3x longer)."""
+    first, _ = _episode("dwa", map_known=False, movers=4, seed=3, max_episode_steps=30)
+    again, _ = _episode("dwa", map_known=False, movers=4, seed=3, max_episode_steps=30)
+    assert first.steps == 30 and first.truncated
     assert (first.outcome, first.steps) == (again.outcome, again.steps)
     np.testing.assert_array_equal(first.final_distance, again.final_distance)
     code = (
         "import gymnasium as gym, numpy as np, koopman_envs, controllers;"
         "from koopman_envs.fronts.episode import run_episode;"
-        f"env = gym.make({ENV!r}, map='map1', sensing='lidar', lidar={{'map_known': False}}, movers={{'count': 4}});"
+        f"env = gym.make({ENV!r}, map='map1', sensing='lidar', lidar={{'map_known': False}}, movers={{'count': 4}},"
+        " max_episode_steps=30);"
         "r = run_episode(env, controllers.make('dwa'), seed=3);"
         "print(r.steps, repr(np.asarray(r.final_distance).tolist()))"
     )

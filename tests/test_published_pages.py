@@ -20,6 +20,10 @@ sys.path.insert(0, str(ROOT / "docs"))
 from make_pages import PAGES, page_command  # noqa: E402  (docs/ is no package)
 
 
+# 25-100 s per page (each reads its archives and draws its figures): run by -m slow; the generators run
+# in the default run on a small evaluator run (tests/test_scripts.py), and the archive reader on
+# data/scale_n3.tar.xz (test_packing_is_reproducible_and_reads_back below)
+@pytest.mark.slow
 @pytest.mark.parametrize("entry", PAGES, ids=[p["page"] for p in PAGES])
 def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_path) -> None:
     page = tmp_path / Path(entry["page"]).name

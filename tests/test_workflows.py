@@ -1,13 +1,14 @@
 """The GitHub Action and the example workflows work by construction: their run steps are scripts
 under .ci/, which .ci/run (the repository's leaderboard gate) and these tests run.
 
-The action's script runs here in a fresh virtual environment (on top of this one's packages, so
-that nothing is downloaded) with a user's package that adds a controller by import path."""
+The action's script runs here in a fresh virtual environment (on top of the packages this
+interpreter sees, its own venv's included, so that nothing is downloaded) with a user's package that adds a controller by import path."""
 
 from __future__ import annotations
 
 import json
 import os
+import site
 import subprocess
 import venv
 from pathlib import Path
@@ -107,9 +108,80 @@ def user_venv(tmp_path_factory) -> tuple[Path, Path]:
         '[project]\nname = "my-package"\nversion = "0.0.1"\n'
     )
     env_dir = root / "venv"
-    # no pip of its own: this environment's pip and setuptools install into it (sys.prefix is the venv)
-    venv.create(env_dir, system_site_packages=True, with_pip=False)
+    venv_seeing_this_interpreter(env_dir)
     return env_dir, package
+
+
+def venv_seeing_this_interpreter(env_dir: Path) -> None:
+    """Create a venv at ``env_dir`` that sees the packages this interpreter sees, in its order.
+
+    No pip of its own: this environment's pip and setuptools install into it (``sys.prefix`` is the
+    new venv). ``system_site_packages=True`` is not enough: it shows the *base* interpreter's
+    site-packages, so when this interpreter is itself a venv (a newcomer's, with setuptools
+    upgraded over the base Python's older one) the new venv would build with the base's packages
+    while the skip guard of :func:`user_venv` read this one's. A ``.pth`` file adds this
+    interpreter's site directories instead, with ``site.addsitedir`` so that their own ``.pth``
+    files (editable installs) are read as well.
+    """
+    venv.create(env_dir, system_site_packages=False, with_pip=False)
+    seen = [site.getusersitepackages()] if site.ENABLE_USER_SITE else []
+    seen += site.getsitepackages()
+    python = env_dir / "bin" / "python"
+    purelib = subprocess.run(
+        [str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    ).stdout.strip()
+    lines = "; ".join(f"site.addsitedir({d!r})" for d in seen if os.path.isdir(d))
+    (Path(purelib) / "koopnav_tests_outer.pth").write_text(f"import site; {lines}\n")
+
+
+def test_a_nested_venv_sees_the_packages_of_the_venv_that_made_it(tmp_path: Path) -> None:
+    """The newcomer's setup: this interpreter is a venv over a base Python, with a package of its own
+    (here a probe module) that the base lacks; the venv the action's tests make from it sees it."""
+    outer = tmp_path / "outer"
+    venv.create(outer, system_site_packages=True, with_pip=False)
+    outer_python = outer / "bin" / "python"
+    purelib = subprocess.run(
+        [str(outer_python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    ).stdout.strip()
+    (Path(purelib) / "koopnav_probe.py").write_text("")
+    make = f"import sys; sys.path.insert(0, {str(ROOT / 'tests')!r}); import test_workflows as t; "
+    make += f"t.venv_seeing_this_interpreter(t.Path({str(tmp_path / 'nested')!r}))"
+    subprocess.run(
+        [str(outer_python), "-c", make], check=True, timeout=120, env={**os.environ, "PYTHONPATH": ""}
+    )
+    where = subprocess.run(
+        [
+            str(tmp_path / "nested" / "bin" / "python"),
+            "-c",
+            "import koopnav_probe; print(koopnav_probe.__file__)",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "PYTHONPATH": ""},
+    )
+    assert where.returncode == 0, where.stderr[-2000:]
+    assert Path(where.stdout.strip()) == Path(purelib) / "koopnav_probe.py"
+    # and the venv this interpreter makes builds with the setuptools that user_venv's guard reads
+    import setuptools
+
+    venv_seeing_this_interpreter(tmp_path / "ours")
+    seen = subprocess.run(
+        [str(tmp_path / "ours" / "bin" / "python"), "-c", "import setuptools; print(setuptools.__file__)"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "PYTHONPATH": ""},
+    )
+    assert Path(seen.stdout.strip()) == Path(setuptools.__file__), seen.stderr[-2000:]
 
 
 #: the evaluator options of the action's test runs (one small cell)
@@ -143,6 +215,7 @@ def _run_action(env_dir: Path, package: Path, out: Path, **inputs: str) -> subpr
     )
 
 
+@pytest.mark.slow  # three whole runs of the action, each installing KoopNav into the venv (about a minute)
 def test_the_action_ranks_a_users_controller_and_gates_a_rerun(user_venv, tmp_path) -> None:
     env_dir, package = user_venv
     first = _run_action(env_dir, package, tmp_path / "base")
