@@ -46,6 +46,7 @@ SMOKE: dict[str, list[str]] = {
     "bench/koopman_fit.py": ["--budget", "2000", "--repeats", "1"],
     "bench/nmpc_solve.py": ["--no-do-mpc", "--qp-solvers", "hpipm", "--steps", "5"],
     "bench/online_update.py": ["--robots", "3", "--steps", "60"],
+    "bench/physics_speed.py": ["--seconds", "0.05", "--repeats", "1", "--envs", "3"],
     "bench/policy_speed.py": ["--robots", "3", "--seeds", "1", "--controllers", "consensus"],
     "bench/random_map_resets.py": ["--robots", "2", "24", "--seeds", "2"],
     "bench/render_speed.py": ["--seconds", "0.1", "--repeats", "1"],
