@@ -197,3 +197,25 @@ def test_the_threaded_period_equals_the_stepped_one_bit_for_bit() -> None:
         final.append(state)
     np.testing.assert_array_equal(final[0], final[1])
     assert not np.array_equal(final[0][0], final[0][2])  # the two stepped envs differ (their frictions)
+
+
+def test_the_calibration_plant_runs_the_physics_robots() -> None:
+    """make_plant of a physics env drives the MuJoCo robots: step by step as one rollout, slower
+    to speed up than the kinematic unicycle, and on ice off the unicycle's path."""
+    from koopman_envs import make_plant
+
+    start = np.zeros((2, 3, 3))
+    start[:, :, 1] = [-1.0, 0.0, 1.0]
+    commands = np.tile([0.5, 0.3], (10, 2, 3, 1))
+    carpet = make_plant(TR, plant="mujoco", slip=1.0, budget=200, seed=1)  # fixed: no draw per reset
+    states = carpet.rollout(start, commands)
+    carpet.reset(start)
+    stepped = [carpet.step(command) for command in commands]
+    np.testing.assert_array_equal(np.array(stepped), states[1:])
+    assert carpet.used == 2 * 10 * 2
+    kinematic = make_plant(TR, budget=200, seed=1).rollout(start, commands)
+    lag = np.hypot(*(states[-1, ..., :2] - kinematic[-1, ..., :2]).transpose(2, 0, 1))
+    assert np.all((lag > 0.01) & (lag < 0.1))  # the motors' lag, on carpet
+    ice = make_plant(TR, plant="mujoco", slip="ice", budget=20, seed=1).rollout(start, commands)
+    assert np.all(np.hypot(*(ice[-1, ..., :2] - kinematic[-1, ..., :2]).transpose(2, 0, 1)) > lag)
+    assert carpet.signature != make_plant(TR, slip=1.0, budget=1).signature
