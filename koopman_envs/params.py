@@ -130,7 +130,7 @@ class PhysicsParams:
     (stall torque 3.0 N m, no-load speed 77 rpm = 8.06 rad/s at 12 V).
 
     **Departures from the datasheet** (ours, so that the model can fly the paper's envelope):
-    the paper's limits are |v| <= 0.6 m/s and |omega| <= pi/4 rad/s with a 0.2 m disc, while a
+    the paper's limits are ``|v| <= 0.6`` m/s and ``|omega| <= pi/4`` rad/s with a 0.2 m disc, while a
     Waffle Pi tops out at 0.26 m/s. The motors are therefore geared ``gear_factor`` = 3 times
     faster than an XM430-W210: 24.2 rad/s no-load (0.80 m/s at the rim, room for 0.6 m/s plus a
     turn at pi/4 rad/s: 21.6 rad/s on the outer wheel) at a third of the torque (1.0 N m), the

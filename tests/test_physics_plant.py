@@ -219,3 +219,20 @@ def test_the_calibration_plant_runs_the_physics_robots() -> None:
     ice = make_plant(TR, plant="mujoco", slip="ice", budget=20, seed=1).rollout(start, commands)
     assert np.all(np.hypot(*(ice[-1, ..., :2] - kinematic[-1, ..., :2]).transpose(2, 0, 1)) > lag)
     assert carpet.signature != make_plant(TR, slip=1.0, budget=1).signature
+
+
+def test_the_uncertainty_fronts_and_movers_run_on_the_physics_poses() -> None:
+    """Pose noise, lidar, radio, delay and movers as on the kinematic plant: the same info keys
+    and observation layout, the robots' beliefs built around the bodies' poses."""
+    kwargs = dict(uncertainty="harsh", sensing="lidar", movers=3, map="map1")
+    physics, kinematic = gym.make(TR, plant="mujoco", **kwargs), gym.make(TR, **kwargs)
+    assert physics.observation_space == kinematic.observation_space
+    _, info = physics.reset(seed=2)
+    _, reference = kinematic.reset(seed=2)
+    assert sorted(info) == sorted(reference)
+    np.testing.assert_array_equal(info["movers"], reference["movers"])  # the same episode's movers
+    for _ in range(10):
+        obs, _, terminated, _, info = physics.step(np.tile([0.3, 0.1], 3).astype(np.float32))
+        assert np.isfinite(obs).all() and not terminated
+    error = np.hypot(*(info["observed_poses"][:, :2] - info["poses"][:, :2]).T)
+    assert np.all(error < 0.5)  # the noisy beliefs follow the bodies
