@@ -9,7 +9,9 @@ resets: the kinematic single env, the physics single env (one thread; every env-
 ``PHYSICS.substeps`` MuJoCo steps, printed too), and the physics vector env of ``--envs``
 environments on 1 and on 2 threads (MuJoCo's rollout threads; the results are the same numbers
 either way). Actions are drawn before timing. Each figure is the best of ``--repeats`` windows
-of ``--seconds``; on a machine shared with other work the figures move with its load.
+of ``--seconds``; on a machine shared with other work the wall-clock figures move with its load,
+so each is printed beside its rate per CPU-second of this process (``time.process_time``: the
+time the process ran, which other work slows far less; for two threads it counts both).
 """
 
 from __future__ import annotations
@@ -31,22 +33,23 @@ from koopman_envs.params import PHYSICS
 ENV_ID = "KoopNav-TargetReaching-v0"
 
 
-def best_rate(step: Callable[[int], int], seconds: float, repeats: int) -> float:
-    """The best of ``repeats`` windows of ``seconds``: env-steps per second of ``step(i)``,
-    which returns the env-steps it made."""
+def best_rate(step: Callable[[int], int], seconds: float, repeats: int) -> tuple[float, float]:
+    """The best of ``repeats`` windows of ``seconds``: env-steps per wall-clock second and per
+    CPU-second of ``step(i)``, which returns the env-steps it made."""
     for i in range(20):  # warm up (compilation, first resets)
         step(i)
-    best = 0.0
+    best, best_cpu = 0.0, 0.0
     for _ in range(repeats):
-        done, start, i = 0, time.perf_counter(), 0
+        done, start, cpu, i = 0, time.perf_counter(), time.process_time(), 0
         while (elapsed := time.perf_counter() - start) < seconds:
             done += step(i)
             i += 1
         best = max(best, done / elapsed)
-    return best
+        best_cpu = max(best_cpu, done / max(time.process_time() - cpu, 1e-9))
+    return best, best_cpu
 
 
-def single(plant: str, seconds: float, repeats: int) -> float:
+def single(plant: str, seconds: float, repeats: int) -> tuple[float, float]:
     """env-steps/s of one ``gym.make`` env of ``plant``."""
     env = gym.make(ENV_ID, plant=plant)
     env.reset(seed=0)
@@ -64,7 +67,7 @@ def single(plant: str, seconds: float, repeats: int) -> float:
     return rate
 
 
-def vector(num_envs: int, threads: int, seconds: float, repeats: int) -> float:
+def vector(num_envs: int, threads: int, seconds: float, repeats: int) -> tuple[float, float]:
     """env-steps/s of a physics vector env of ``num_envs`` on ``threads`` threads."""
     venv = gym.make_vec(ENV_ID, num_envs=num_envs, plant="mujoco")
     venv.unwrapped.engine.physics.threads = threads
@@ -81,7 +84,7 @@ def vector(num_envs: int, threads: int, seconds: float, repeats: int) -> float:
     return rate
 
 
-def main(argv: list[str] | None = None) -> dict[str, float]:
+def main(argv: list[str] | None = None) -> dict[str, tuple[float, float]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="length of a timing window [s]")
     parser.add_argument("--repeats", type=int, default=3, help="timing windows per figure (best kept)")
@@ -102,9 +105,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         figures[f"physics vector env, {args.envs} envs, {threads} thread(s)"] = vector(
             args.envs, threads, args.seconds, args.repeats
         )
-    for name, rate in figures.items():
-        physics = f" ({rate * PHYSICS.substeps:,.0f} MuJoCo steps/s)" if "physics" in name else ""
-        print(f"{name:45s} {rate:10,.0f} env-steps/s{physics}")
+    print(f"{'':45s} {'env-steps/s':>12s} {'per CPU-s':>10s} {'MuJoCo steps/s':>15s}")
+    for name, (rate, cpu_rate) in figures.items():
+        physics = f"{rate * PHYSICS.substeps:15,.0f}" if "physics" in name else ""
+        print(f"{name:45s} {rate:12,.0f} {cpu_rate:10,.0f} {physics}")
     if args.json:
         with open(args.json, "w") as out:
             json.dump({"load": load, **figures}, out, indent=1)

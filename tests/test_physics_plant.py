@@ -45,7 +45,6 @@ def test_a_straight_command_reaches_63_percent_of_its_speed_within_the_time_cons
     mode, which the PI's zero nearly cancels but not exactly (the loop is second order)."""
     world = _world("carpet")
     model, data = world.models[0], world.datas[0]
-    model.geom_friction[world._wheels, 0] = 1.0
     speed = 0.5
     data.ctrl[:] = wheel_setpoints(np.array(speed), np.array(0.0))
     speeds = []

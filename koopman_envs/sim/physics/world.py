@@ -24,21 +24,23 @@ the kinematic plant with the same seed.
 from __future__ import annotations
 
 import copy
+import math
 import os
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.params import PHYSICS, PhysicsParams
-from koopman_envs.sim.dynamics import saturate_teams, wrap_angle
+from koopman_envs.sim.dynamics import saturate_teams, wrap_scalar
 from koopman_envs.sim.perception import child_generator
 from koopman_envs.sim.physics.model import OBSTACLE_HEIGHT, robot_mjcf
 from koopman_envs.sim.physics.surfaces import SurfaceSetting, draw_friction, surface_for_lambda
 from koopman_envs.sim.zones import SlipZone, ZoneTable
 
-__all__ = ["INSTALL_HINT", "PhysicsWorld", "import_mujoco", "wheel_setpoints", "zone_surface"]
+__all__ = ["INSTALL_HINT", "PhysicsWorld", "import_mujoco", "planar_poses", "wheel_setpoints", "zone_surface"]
 
 #: how to get the physics plant's dependency
 INSTALL_HINT = "pip install 'koopnav[physics]'"
@@ -62,6 +64,27 @@ def zone_surface(zone: SlipZone) -> SurfaceSetting:
         return zone.surface
     lam = zone.lam
     return surface_for_lambda(max(lam) if isinstance(lam, tuple) else lam)
+
+
+@njit(cache=True)
+def planar_poses(qpos: NDArray[np.float64], address: NDArray[np.int64], out: NDArray[np.float64]) -> None:
+    """The planar poses of free bodies from a world's ``qpos`` (compiled).
+
+    Parameters
+    ----------
+    qpos : ndarray
+        The world's positions; body i's free joint starts at ``address[i]``: x, y, z [m], then
+        its orientation quaternion w, x, y, z.
+    address : ndarray of int, shape (N,)
+    out : ndarray, shape (3, N)
+        Output rows x [m], y [m], yaw [rad] wrapped to [-pi, pi).
+    """
+    for i in range(address.shape[0]):
+        a = address[i]
+        w, qx, qy, qz = qpos[a + 3], qpos[a + 4], qpos[a + 5], qpos[a + 6]
+        out[0, i] = qpos[a]
+        out[1, i] = qpos[a + 1]
+        out[2, i] = wrap_scalar(math.atan2(2.0 * (w * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
 
 
 def wheel_setpoints(
@@ -122,8 +145,8 @@ class PhysicsWorld:
         self.datas = [mujoco.MjData(m) for m in self.models]
         name = mujoco.mjtObj
         geom = [[model.geom(f"wheel_{s}_{i}").id for s in ("left", "right")] for i in range(n_robots)]
-        #: (N, 2) the wheel geoms (their friction is the surface's)
-        self._wheels = np.array(geom, dtype=np.int64)
+        #: the wheel geoms, robot by robot, left then right (their friction is the surface's)
+        self._wheels = np.array(geom, dtype=np.int64).reshape(-1)
         joints = [mujoco.mj_name2id(model, name.mjOBJ_JOINT, f"robot_{i}") for i in range(n_robots)]
         self._qpos = np.array([model.jnt_qposadr[j] for j in joints], dtype=np.int64)
         self._obstacles = np.array(
@@ -221,8 +244,9 @@ class PhysicsWorld:
             len(self.models), -1
         )
         rows = np.flatnonzero(active)
+        wheel_friction = np.repeat(self.friction, 2, axis=1)  # (K, 2N): the wheels' order
         for k in rows:
-            self.models[k].geom_friction[self._wheels, 0] = self.friction[k, :, None]
+            self.models[k].geom_friction[self._wheels, 0] = wheel_friction[k]
             self.datas[k].ctrl[:] = ctrl[k]
         if len(rows) > 1 and self.threads > 1:
             self._step_threaded(rows, ctrl)
@@ -231,13 +255,7 @@ class PhysicsWorld:
                 self._mujoco.mj_step(self.models[k], self.datas[k], nstep=self.params.substeps)
         new_state[:] = state
         for k in rows:
-            qpos = self.datas[k].qpos
-            a = self._qpos
-            w, z = qpos[a + 3], qpos[a + 6]
-            qx, qy = qpos[a + 4], qpos[a + 5]
-            new_state[k, 0] = qpos[a]
-            new_state[k, 1] = qpos[a + 1]
-            new_state[k, 2] = wrap_angle(np.arctan2(2.0 * (w * z + qx * qy), 1.0 - 2.0 * (qy * qy + z * z)))
+            planar_poses(self.datas[k].qpos, self._qpos, new_state[k])
 
     def _step_threaded(self, rows: NDArray[np.int64], ctrl: NDArray[np.float64]) -> None:
         """The period of ``rows`` through :func:`mujoco.rollout.rollout` on :attr:`threads`
