@@ -18,15 +18,22 @@ from koopman_envs.suggest import did_you_mean
 __all__ = [
     "DRIFT_MEAN_INTERVAL",
     "FAULT_STOPPED_SPEED",
+    "FRICTION_MAX",
     "LIMITS",
     "MAX_EPISODES_PER_CELL",
     "MAX_ROBOTS",
     "PARAMS",
+    "PHYSICS",
+    "PLANTS",
     "PaperParams",
+    "PhysicsParams",
     "RANDOM_SLIP_MAX",
     "SLIP_SETTINGS",
     "SLIP_MAX_LAMBDA",
     "STRICT_CLEARANCE_MARGIN",
+    "SLIP_SURFACES",
+    "SURFACES",
+    "SURFACE_LAMBDA_BOUNDS",
     "SizeLimits",
     "slip_lambdas",
 ]
@@ -103,6 +110,132 @@ class PaperParams:
 
 
 PARAMS = PaperParams()
+
+
+#: The plants an environment can run on (the ``plant`` env keyword): the paper's kinematic
+#: unicycle with drawn slip (the default), or the MuJoCo differential-drive robots of
+#: :mod:`koopman_envs.sim.physics` (extra ``[physics]``).
+PLANTS = ("kinematic", "mujoco")
+
+
+@dataclass(frozen=True)
+class PhysicsParams:
+    """The physics plant's robot and simulation (``plant="mujoco"``, docs/physics.md).
+
+    The robot is a TurtleBot3 Waffle Pi (ROBOTIS e-Manual, "TurtleBot3 specifications", and the
+    ``turtlebot3_description`` URDF ``turtlebot3_waffle_pi.urdf.xacro``): 1.8 kg with computer,
+    battery and sensors; wheel radius 0.033 m; wheel separation 0.287 m (joints at y = +-0.144 m in
+    the URDF); base link centre of mass 0.064 m behind the wheel axle, ball casters 0.177 m behind
+    it; base yaw inertia 1.4612727e-2 kg m^2 at the URDF's 1.3729 kg; two Dynamixel XM430-W210-T
+    (stall torque 3.0 N m, no-load speed 77 rpm = 8.06 rad/s at 12 V).
+
+    **Departures from the datasheet** (ours, so that the model can fly the paper's envelope):
+    the paper's limits are ``|v| <= 0.6`` m/s and ``|omega| <= pi/4`` rad/s with a 0.2 m disc, while a
+    Waffle Pi tops out at 0.26 m/s. The motors are therefore geared ``gear_factor`` = 3 times
+    faster than an XM430-W210: 24.2 rad/s no-load (0.80 m/s at the rim, room for 0.6 m/s plus a
+    turn at pi/4 rad/s: 21.6 rad/s on the outer wheel) at a third of the torque (1.0 N m), the
+    same power. The chassis mass is the datasheet's 1.8 kg less the wheels, its yaw inertia the
+    URDF's scaled by that mass; the two rear ball casters are one frictionless sphere on the
+    centre line. The disc of ``robot_radius`` (0.2 m) bounds the 281 x 306 mm footprint
+    (half-diagonal 0.208 m: 4 % more), and collisions are judged on it, as on the kinematic plant.
+
+    Attributes
+    ----------
+    timestep : float
+        Physics step [s] (ours: 5 ms, 20 substeps per 0.1 s control period; the contacts' time
+        constant, 0.02 s, is four steps).
+    mass : float
+        Chassis mass [kg] (1.8 kg less two 0.0285 kg wheels).
+    yaw_inertia : float
+        Chassis inertia about the vertical axis through its centre of mass [kg m^2]
+        (1.4612727e-2 x 1.743 / 1.3729).
+    roll_pitch_inertia : float
+        Chassis inertia about the horizontal axes [kg m^2] (the URDF's 8.7e-3 scaled alike).
+    com_offset : float
+        Centre of mass behind the wheel axle [m] (URDF: 0.064 m).
+    wheel_radius, wheel_separation : float
+        [m] (datasheet and URDF).
+    wheel_mass, wheel_inertia : float
+        Per wheel [kg], [kg m^2] about its axle (URDF: 2.8498940e-2 kg, 2.0712558e-5 kg m^2).
+    armature : float
+        Rotor inertia reflected through the gearbox, per wheel [kg m^2] (ours, an estimate: a
+        coreless rotor of about 1e-7 kg m^2 through the XM430's 212.6:1 gear made 3 times faster,
+        1e-7 x 70.9^2). It also keeps the stiff speed loop well inside the 5 ms step's stability
+        when a wheel spins free on ice (with 2e-4 the implicit step let the chassis run ahead of
+        its wheels at start-up by 40 %, a numerical artefact checked against RK4).
+    caster_offset, caster_radius : float
+        Position behind the axle [m] (URDF: 0.177 m) and radius [m] (ours: 0.01 m).
+    gear_factor : float
+        How much faster than an XM430-W210 the model's motors are geared (ours, see above).
+    wheel_speed_max : float
+        Wheel-speed set-point limit [rad/s]: the XM430-W210's 8.06 rad/s times ``gear_factor``.
+    wheel_torque_max : float
+        Torque limit per wheel [N m]: the XM430-W210's 3.0 N m stall torque over ``gear_factor``.
+    motor_time_constant : float
+        The first-order lag of each wheel's speed set-point [s] (ours: the drive's current loop
+        and ramp): a step in the commanded speed reaches 63 % within this plus the speed loop's
+        own lag (``speed_loop_time_constant``) on carpet.
+    speed_kp : float
+        Proportional gain of the PI wheel-speed controller [N m s/rad] (ours): with the inertia a
+        wheel drives straight ahead, ``wheel_inertia + armature + (mass + 2 wheel_mass) r^2 / 2``,
+        the speed loop's time constant is that inertia over ``speed_kp``.
+    speed_ki : float
+        Integral gain [N m/rad] (ours): removes the steady error of the rolling load, a slow
+        zero well below the loop's bandwidth.
+    """
+
+    timestep: float = 0.005
+    mass: float = 1.8 - 2 * 2.8498940e-2
+    yaw_inertia: float = 1.4612727e-2 * (1.8 - 2 * 2.8498940e-2) / 1.3729096
+    roll_pitch_inertia: float = 8.7002718e-3 * (1.8 - 2 * 2.8498940e-2) / 1.3729096
+    com_offset: float = 0.064
+    wheel_radius: float = 0.033
+    wheel_separation: float = 0.287
+    wheel_mass: float = 2.8498940e-2
+    wheel_inertia: float = 2.0712558e-5
+    armature: float = 5.0e-4
+    caster_offset: float = 0.177
+    caster_radius: float = 0.01
+    gear_factor: float = 3.0
+    wheel_speed_max: float = 77.0 * 2.0 * math.pi / 60.0 * 3.0
+    wheel_torque_max: float = 3.0 / 3.0
+    motor_time_constant: float = 0.1
+    speed_kp: float = 0.12
+    speed_ki: float = 0.6
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control period ``PARAMS.dt``."""
+        return int(round(PARAMS.dt / self.timestep))
+
+    @property
+    def drive_inertia(self) -> float:
+        """The inertia one wheel drives when the robot goes straight [kg m^2]."""
+        half_mass = (self.mass + 2.0 * self.wheel_mass) / 2.0
+        return self.wheel_inertia + self.armature + half_mass * self.wheel_radius**2
+
+    @property
+    def speed_loop_time_constant(self) -> float:
+        """The PI speed loop's own time constant straight ahead, ``drive_inertia / speed_kp`` [s]."""
+        return self.drive_inertia / self.speed_kp
+
+
+PHYSICS = PhysicsParams()
+
+#: Wheel-ground surfaces of the physics plant (ours): the range [low, high] of the Coulomb
+#: friction coefficient between a rubber tyre and the floor, each episode drawing uniformly
+#: from it (per robot for the floor, per zone for a map's zones). Carpet and dry indoor floors
+#: give rubber 0.9-1.1, gravel and wet tiles 0.4-0.6, ice 0.05-0.15.
+SURFACES: dict[str, tuple[float, float]] = {"carpet": (0.9, 1.1), "gravel": (0.4, 0.6), "ice": (0.05, 0.15)}
+#: The floor of each named slip setting on the physics plant: ``slip="high"`` is low friction
+SLIP_SURFACES: dict[str, str] = {"nominal": "carpet", "low": "gravel", "high": "ice"}
+#: A slip zone without a ``surface`` key on the physics plant: its lambda (the largest of a
+#: per-robot list) names the surface, carpet up to the first bound, gravel up to the second,
+#: ice beyond (ours: the midpoints between the named settings' top lambdas 0, 0.1, 0.2)
+SURFACE_LAMBDA_BOUNDS: tuple[float, float] = (0.05, 0.15)
+#: The friction coefficients a user may give (a number for ``slip`` or a zone's ``surface``):
+#: (0, FRICTION_MAX]; beyond 2 no tyre grips, and 0 would be no traction at all
+FRICTION_MAX = 2.0
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,10 @@ BUILDERS: dict[str, tuple[str, Callable[..., Any]]] = {
 BAD = {
     "map": ("nowhere", "map='nowhere' is not one of"),
     "slip": ("extreme", "slip='extreme' is not one of"),
+    "plant": (
+        "mujuco",
+        r"plant='mujuco' is not one of \['kinematic', 'mujoco'\] \(did you mean 'mujoco'\?\)",
+    ),
     "n_robots": (0, "n_robots=0 must be an integer >= 1"),
     "goal_tolerance": (-1.0, "goal_tolerance=-1.0 must be a finite number > 0"),
     "robot_radius": (0.0, "robot_radius=0.0 must be a finite number > 0"),

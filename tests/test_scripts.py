@@ -85,6 +85,10 @@ SMOKE: dict[str, tuple[list[str], str]] = {
         ["--robots", "3", "--steps", "60"],
         r"^N=3 +RLS update +[\d.]+ +[\d.]+ +\(60 updates, 0 rejected",
     ),
+    "bench/physics_speed.py": (
+        ["--seconds", "0.05", "--repeats", "1", "--envs", "3"],
+        r"(?s)^physics: 5 ms steps, 20 per env-step; 3 robots$.*^physics single env +[\d,]+ ",
+    ),
     "bench/policy_speed.py": (
         ["--robots", "3", "--seeds", "1", "--controllers", "consensus"],
         r"^consensus +3 +[\d.]+ +[\d.]+ +[\d.]+ +[01]/1",

@@ -18,6 +18,7 @@ from koopman_envs.layout import ObservationLayout
 from koopman_envs.movers import MoverConfig
 from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
 from koopman_envs.sim.maps import MapSpec, load_map
+from koopman_envs.sim.physics.surfaces import SurfaceSetting, floor_surface
 from koopman_envs.sim.random_map_config import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.suites.suite import SUITE_PREFIX, Suite, load_suite, parse_suite_map
@@ -192,6 +193,10 @@ class EngineConfig:
     movers: MoverConfig = MoverConfig()
     #: the suite split a layout is taken from at every reset (``map="suite:<name>/<split>"``), else None
     suite: Suite | None = None
+    #: what the robots are (:data:`~koopman_envs.params.PLANTS`)
+    plant: str = "kinematic"
+    #: the physics plant's floor (a surface name or a friction), None on the kinematic plant
+    floor: SurfaceSetting | None = None
 
     @property
     def lidar_datasheet(self) -> dict[str, Any]:
@@ -268,7 +273,12 @@ class EngineConfig:
         slip = kw["slip"] if "slip" in keywords else UNCERTAINTY_PRESETS[kw["uncertainty"]].slip
         max_episode_steps = _episode_limit(kw, front)
         map_spec, random_map, suite = _resolve_map(spec, kw)
-        lambdas, schedule, label = _resolve_slip(slip, n_robots)
+        floor = None
+        if kw["plant"] == "mujoco":  # slip is the floor's surface: no drawn slip on top of physics
+            floor = floor_surface(slip)
+            lambdas, schedule, label = np.zeros(n_robots), None, str(slip)
+        else:
+            lambdas, schedule, label = _resolve_slip(slip, n_robots)
         return cls(
             task=spec,
             map_spec=map_spec,
@@ -285,6 +295,8 @@ class EngineConfig:
             formation=formation,
             movers=kw["movers"],
             suite=suite,
+            plant=kw["plant"],
+            floor=floor,
             **_uncertainty(kw),
         )
 

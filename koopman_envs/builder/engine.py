@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.engine_memory import check_engine_memory, engine_array_bytes
+from koopman_envs.builder.engine_plant import advance_plant, make_physics
 from koopman_envs.builder.engine_scenario import engine_scenario
 from koopman_envs.builder.episode_reset import reset_episodes
 from koopman_envs.checks import check_commands
@@ -26,7 +27,6 @@ from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionFault, collision_flags
-from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
 from koopman_envs.sim.mover_tracking import MoverTracker, listed_movers, observed_movers
@@ -58,7 +58,8 @@ class NavigationEngine:
 
     The state is kept channel-first, ``state[k] = [x; y; theta]`` of shape (3, N);
     :attr:`poses` gives the familiar (K, N, 3) view. A step is four compiled passes over the
-    batch: physics (:func:`~koopman_envs.sim.dynamics.advance_teams`), collision flags,
+    batch: the plant (:func:`~koopman_envs.builder.engine_plant.advance_plant`: the kinematic
+    :func:`~koopman_envs.sim.dynamics.advance_teams`, or MuJoCo's robots), collision flags,
     observation features, and rewards with episode ends (:mod:`koopman_envs.tasks.reward`).
     Maps with slip zones add a fifth before the physics
     (:func:`~koopman_envs.sim.zones.zone_slip_means`: every robot's slip mean where it stands),
@@ -98,7 +99,9 @@ class NavigationEngine:
         self.slip = SlipSampler(k, n)
         #: slip zones of every environment, None on maps without zones (then no zone pass runs)
         self.zones = ZoneTable(k, config.n_slip_zones, n) if config.n_slip_zones else None
-        self._means = np.zeros((k, n))  # the zone pass's output
+        self.zone_means = np.zeros((k, n))  # the zone pass's output
+        #: the physics plant's worlds (``plant="mujoco"``), None on the kinematic plant
+        self.physics = make_physics(config, k)
         #: scheduled base levels, None for a slip level that is constant through an episode
         self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
@@ -134,15 +137,20 @@ class NavigationEngine:
         self.command_low = np.array([-PARAMS.v_max, -PARAMS.omega_max])
         self.command_high = np.array([PARAMS.v_max, PARAMS.omega_max])
         # effort weight per command channel: (1 / v_max^2, 1 / omega_max^2)
-        self._effort_scale = 1.0 / self.command_high**2
+        self.effort_scale = 1.0 / self.command_high**2
         self._workspace = np.asarray(PARAMS.workspace, dtype=np.float64)
-        self._all_active = np.ones(k, dtype=bool)
+        self.all_active = np.ones(k, dtype=bool)
         self._no_formation = np.zeros((k, n))
         #: periods every robot must stay within tolerance for success
         self.settle_steps = PARAMS.settle_steps
         if config.map_spec is not None:
             for index in range(k):
                 self._set_map(index, config.map_spec)
+
+    def close(self) -> None:
+        """Release what the plant holds beyond arrays (the physics plant's thread pool)."""
+        if self.physics is not None:
+            self.physics.close()
 
     # ----------------------------------------------------------------- spaces
     def robot_spaces(self) -> tuple[spaces.Box, spaces.Box]:
@@ -278,33 +286,12 @@ class NavigationEngine:
         StepResult
         """
         cfg = self.config
-        slip = self.slip
-        slip.prepare(active)
-        stepping = self._all_active if active is None else active
-        new = np.empty_like(self.state)
-        effort = np.empty(self.distances.shape)
-        # one branch per step: maps without zones scale the draws by the base levels directly
-        means = slip.lambdas
-        if self.zones is not None:
-            means = self.zones.slip_means(self.state, slip.lambdas, self._means)
+        stepping = self.all_active if active is None else active
         perception = self.perception
         rows = self._all_rows if active is None else np.flatnonzero(active)
         if perception is not None:
             commands = perception.delayed(commands, rows)
-        advance_teams(
-            self.state,
-            commands,
-            slip.unit,
-            slip.cursor,
-            means,
-            stepping,
-            self.command_low,
-            self.command_high,
-            self._effort_scale,
-            PARAMS.dt,
-            new,
-            effort,
-        )
+        new, effort = advance_plant(self, commands, active)
         before, self.state = self.state, new
         geometry = self.geometry
         collision = np.empty(self.num_envs, dtype=np.int64)
@@ -339,7 +326,7 @@ class NavigationEngine:
         self.collision = collision
         self.success = success
         if self.slip_clock is not None:
-            self.slip_clock.advance(self.elapsed, active, slip.rngs, slip.lambdas)
+            self.slip_clock.advance(self.elapsed, active, self.slip.rngs, self.slip.lambdas)
         return StepResult(features, robot_reward, team_reward, terminated, truncated)
 
     def _sense(

@@ -15,6 +15,7 @@ from koopman_envs.builder.config import EngineConfig
 from koopman_envs.params import LIMITS
 from koopman_envs.sim.mover_motion import DRAW_SIZE
 from koopman_envs.sim.perception import BLOCK_NUMBERS
+from koopman_envs.sim.physics.model import world_bytes
 
 __all__ = ["check_engine_memory", "engine_array_bytes"]
 
@@ -66,6 +67,8 @@ def engine_array_bytes(config: EngineConfig, num_envs: int) -> int:
     if movers.active:
         c = movers.count
         words += max(4096, 8 * c * DRAW_SIZE) + 16 * c + 6 * n  # the uniforms' pool, states, goals, hits
+    if config.plant == "mujoco":
+        words += world_bytes(n, m) // 8  # every environment's MuJoCo model copy, data and arena
     return 8 * k * words
 
 

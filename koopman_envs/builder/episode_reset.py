@@ -3,8 +3,8 @@
 A vector env resets the environments that end in the same step together
 (:meth:`~koopman_envs.builder.engine.NavigationEngine.reset_envs`). Each environment still
 draws only from its own generator, in the order a lone environment draws (the layout, the start
-noise, the slip level, then the children of the perception, the movers and the people
-tracker), so sub-environment i of a batch reproduces a lone environment with the same seed; what
+noise, the slip level, then the children of the perception, the movers, the people tracker
+and the physics plant's frictions), so sub-environment i of a batch reproduces a lone environment with the same seed; what
 the batch shares is the bookkeeping: the episode's arrays are written once for all of them, and
 the movers are placed in one compiled call (:meth:`~koopman_envs.sim.movers.MoverField.reset_envs`).
 """
@@ -85,6 +85,9 @@ def reset_episodes(
     if engine.movers is not None:  # another child of rng: placed clear of this episode's starts and targets
         obstacles = [layout.spec.obstacles for layout in layouts]
         engine.movers.reset_envs(rows, list(rngs), obstacles, starts, targets, float(cfg.robot_radius[0]))
-    if engine.mover_tracker is not None:  # the last child of rng: every earlier stream is as before
+    if engine.mover_tracker is not None:  # another child of rng: every earlier stream is as before
         for index, rng in zip(rows, rngs):
             engine.mover_tracker.reset_env(index, rng)
+    if engine.physics is not None:  # the last child of rng: the episode's frictions
+        for index, rng, layout, start in zip(rows, rngs, layouts, starts):
+            engine.physics.reset_env(index, rng, start, layout.spec.obstacles, layout.spec.slip_zones)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.util
 import inspect
 import json
 from collections.abc import Callable, Sequence
@@ -14,7 +15,7 @@ from typing import Any
 
 from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.movers import MOVER_BEHAVIOURS, parse_movers
-from koopman_envs.params import LIMITS, PARAMS, SLIP_NAMES
+from koopman_envs.params import LIMITS, PARAMS, PLANTS, SLIP_NAMES, SLIP_SURFACES, SURFACES
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.sim.random_maps import RandomMapConfig
@@ -69,6 +70,16 @@ def _choice(allowed: Sequence[str]) -> Callable[[str, Any], str]:
         return value
 
     return check
+
+
+def _plant(name: str, value: Any) -> str:
+    """``plant``: one of :data:`~koopman_envs.params.PLANTS`; ``"mujoco"`` only with MuJoCo installed."""
+    plant = _choice(PLANTS)(name, value)
+    if plant == "mujoco" and importlib.util.find_spec("mujoco") is None:
+        raise ModuleNotFoundError(
+            f"{name}={plant!r} needs the mujoco package, which is not installed: pip install 'koopnav[physics]'"
+        )
+    return plant
 
 
 def _optional_delay(name: str, value: Any) -> int | None:
@@ -139,6 +150,16 @@ ENV_KEYWORDS: tuple[EnvKeyword, ...] = (
         "nominal",
         "str | Sequence[Any]",
         f"{', '.join(map(json.dumps, SLIP_NAMES))}, one lambda >= 0 per robot, or (time [s], lambdas) pairs",
+    ),
+    EnvKeyword(
+        "plant",
+        PLANTS[0],
+        "str",
+        f"what the robots are, one of {list(PLANTS)}: the paper's kinematic unicycle with drawn slip, or "
+        "TurtleBot3-class robots in MuJoCo (extra [physics]; slip then names a floor surface: "
+        + ", ".join(f"{k}: {v} {SURFACES[v]}" for k, v in SLIP_SURFACES.items())
+        + ", a surface name or a friction in (0, 2]; docs/physics.md)",
+        check=_plant,
     ),
     EnvKeyword(
         "n_robots",

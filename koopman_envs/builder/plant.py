@@ -4,7 +4,10 @@ A controller that needs data about the robots it will drive (a learned predictio
 measured prediction error) gets it here, as it would on real robots: it puts teams at poses of
 its choosing, sends commands of its choosing and observes the poses that result. The plant is an
 open field (no obstacles, targets, collisions or episode ends) with the same unicycle kinematics,
-RK4 period and slip process as the environment it twins; it never reveals the slip means.
+RK4 period and slip process as the environment it twins; it never reveals the slip means. On the
+physics plant (``plant="mujoco"``) the teams are the environment's MuJoCo robots on its floor
+(each team's frictions drawn when it is placed), and the motors' limits bound what the
+commands achieve.
 The slip process is the environment's base level over time: its setting, one random level per
 team (``slip="random"``), a listed schedule counted from each :meth:`CalibrationPlant.reset` or
 :meth:`CalibrationPlant.rollout`, or drift (``slip="drift"``, the same law, drawn per team). Slip
@@ -23,6 +26,7 @@ state exactly how much data each controller used::
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -33,7 +37,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.checks import check_int
-from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
+from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, PHYSICS, RANDOM_SLIP_MAX
 from koopman_envs.sim.rollout import rollout
 from koopman_envs.sim.slip import draw_random_lambdas
 from koopman_envs.tasks.base import task_for_env
@@ -102,6 +106,11 @@ class CalibrationPlant:
         blob = {"n_robots": self.n_robots, "dt": self.dt, "slip": slip, "dynamics": DYNAMICS_VERSION}
         if config.random_slip:
             blob["random_slip_max"] = RANDOM_SLIP_MAX
+        self._config = config
+        #: the physics plant's worlds of the teams of the last reset; None on the kinematic plant
+        self._world: Any = None
+        if config.plant == "mujoco":
+            blob.update(plant=config.plant, floor=config.floor, physics=dataclasses.asdict(PHYSICS))
         self.signature = hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
 
     @property
@@ -157,6 +166,14 @@ class CalibrationPlant:
     def reset(self, poses: NDArray[np.float64]) -> None:
         """Put B teams at the given poses, shape (B, N, 3); costs no budget."""
         self._poses = self._check_poses(poses, "poses").copy()
+        if self._config.plant == "mujoco":  # teams at rest on an open floor, their frictions drawn
+            from koopman_envs.sim.physics.world import PhysicsWorld
+
+            radius, floor = float(np.max(self._config.robot_radius)), self._config.floor
+            assert floor is not None  # EngineConfig sets the floor of every physics config
+            self._world = PhysicsWorld(len(self._poses), self.n_robots, 0, 0, radius, floor)
+            for team, pose in enumerate(self._poses):
+                self._world.reset_env(team, self._rng, pose, np.zeros((0, 3)))
         self._team_lambdas = self._slip_for(self._poses.shape[0])
         self._clock = 0
 
@@ -173,7 +190,11 @@ class CalibrationPlant:
         commands = np.asarray(commands, dtype=np.float64)
         if commands.shape != self._poses.shape[:2] + (2,):
             raise ValueError(f"commands has shape {commands.shape}; expected {self._poses.shape[:2] + (2,)}")
-        self._poses = self._simulate(self._poses, commands[None], self._team_lambdas)[1]
+        if self._world is not None:
+            self._check_and_spend(commands[None])
+            self._poses = self._physics_step(self._poses, commands)
+        else:
+            self._poses = self._simulate(self._poses, commands[None], self._team_lambdas)[1]
         self._clock += 1
         self._team_lambdas = self._next_levels(self._team_lambdas, self._clock)
         return self._poses.copy()
@@ -187,6 +208,15 @@ class CalibrationPlant:
         commands = np.asarray(commands, dtype=np.float64)
         if commands.ndim != 4 or commands.shape[1:] != start.shape[:2] + (2,):
             raise ValueError(f"commands has shape {commands.shape}; expected (T,) + {start.shape[:2] + (2,)}")
+        if self._config.plant == "mujoco":  # period by period, as a sequence of step() calls
+            self._check_and_spend(commands)
+            self.reset(start)
+            states = np.empty((commands.shape[0] + 1, *start.shape))
+            states[0] = start
+            for t, command in enumerate(commands):
+                states[t + 1] = self._poses = self._physics_step(states[t], command)
+            self._clock = commands.shape[0]
+            return states
         lambdas = self._slip_for(start.shape[0])
         steps = commands.shape[0]
         if self._schedule is None:
@@ -202,6 +232,16 @@ class CalibrationPlant:
                 lambdas = self._next_levels(lambdas, t + 1)
         self._poses, self._team_lambdas, self._clock = states[-1].copy(), lambdas, steps
         return states
+
+    def _physics_step(self, poses: NDArray[np.float64], commands: NDArray[np.float64]) -> NDArray[np.float64]:
+        """One period of the physics plant's teams from ``poses`` (B, N, 3): the commands go to
+        the wheels as given (only the motors' limits bound them), as the kinematic plant applies them."""
+        state = np.ascontiguousarray(poses.transpose(0, 2, 1))
+        new, effort = np.empty_like(state), np.empty(poses.shape[:2])
+        unbounded, unit = np.full(2, np.inf), np.ones(2)
+        everyone = np.ones(len(poses), dtype=bool)
+        self._world.advance(state, commands, everyone, -unbounded, unbounded, unit, new, effort)
+        return new.transpose(0, 2, 1).copy()
 
     def _check_and_spend(self, commands: NDArray[np.float64]) -> None:
         if not np.isfinite(commands).all():

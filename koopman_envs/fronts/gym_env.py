@@ -109,6 +109,7 @@ class KoopNavEnv(gym.Env):
         return draw_engine_env(self._renderer, self.engine, 0, self._trail)
 
     def close(self) -> None:
+        self.engine.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -168,6 +169,11 @@ _SLIP_TABLE = """
     changes, so an env with zones consumes its generator exactly as one without.
     ``env.unwrapped.lambdas`` holds every robot's mean for the period that starts now (ground
     truth; ``info`` carries no slip data, as controllers must not read it).
+
+    With ``plant="mujoco"`` nothing is drawn: the robots are TurtleBot3-class bodies in MuJoCo,
+    ``slip`` names the floor ("nominal" carpet, "low" gravel, "high" ice, a surface name or a
+    friction in (0, 2], friction drawn per episode), zones are friction zones, and the wheels slip
+    where the friction gives out (docs/physics.md); ``lambdas`` is then zero.
 """
 
 _SLIP_DOC = _SLIP_TABLE.format(max=RANDOM_SLIP_MAX, interval=DRIFT_MEAN_INTERVAL)

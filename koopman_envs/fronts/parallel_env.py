@@ -219,6 +219,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         return draw_engine_env(self._renderer, self.engine, 0, self._trail)
 
     def close(self) -> None:
+        self.engine.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

@@ -270,7 +270,8 @@ class KoopNavVectorEnv(VectorEnv):
         return tuple(frame for frame in frames if frame is not None)
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Close the renderers' figures."""
+        """Close the renderers' figures and the plant's thread pool."""
+        self.engine.close()
         for renderer in self._renderers:
             renderer.close()
         self._renderers = []

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.checks import check_choice
 from koopman_envs.params import LIMITS
+from koopman_envs.sim.physics.surfaces import SurfaceSetting, check_surface
 
 __all__ = [
     "SLIP_ZONE_MODES",
@@ -46,7 +47,7 @@ __all__ = [
 SLIP_ZONE_SHAPES = {"circle": "[x, y, radius]", "rect": "[xmin, ymin, xmax, ymax]"}
 #: how a zone's lambda combines with the robot's level (see the module docstring)
 SLIP_ZONE_MODES = ("replace", "add")
-_ZONE_KEYS = (*SLIP_ZONE_SHAPES, "lambda", "mode")
+_ZONE_KEYS = (*SLIP_ZONE_SHAPES, "lambda", "mode", "surface")
 _CIRCLE, _RECT = 0, 1
 
 
@@ -83,6 +84,11 @@ class SlipZone:
         for every robot, or one per robot of the map.
     mode : str
         ``"replace"`` (default) or ``"add"``.
+    surface : str or float, optional
+        The zone's floor on the physics plant (``plant="mujoco"``): a surface name of
+        :data:`~koopman_envs.params.SURFACES` or a friction coefficient in (0, 2]; None: the
+        surface its lambda names (:func:`~koopman_envs.sim.physics.surfaces.surface_for_lambda`).
+        The kinematic plant ignores it.
 
     Raises
     ------
@@ -94,6 +100,7 @@ class SlipZone:
     bounds: tuple[float, ...]
     lam: float | tuple[float, ...]
     mode: str = "replace"
+    surface: SurfaceSetting | None = None
 
     def __post_init__(self) -> None:
         check_choice("shape", self.shape, SLIP_ZONE_SHAPES)
@@ -118,6 +125,8 @@ class SlipZone:
                 f"lambda={self.lam!r} must be a finite number >= 0 <= {top:g} or a list of them (one per robot)"
             )
         check_choice("mode", self.mode, SLIP_ZONE_MODES)
+        if self.surface is not None:
+            object.__setattr__(self, "surface", check_surface("surface", self.surface))
         object.__setattr__(self, "bounds", bounds)
         object.__setattr__(self, "lam", lam)
 
@@ -150,12 +159,13 @@ class SlipZone:
 
     def to_dict(self) -> dict[str, Any]:
         """Map-file form, readable by :meth:`from_dict`."""
-        return {
+        form = {
             self.shape: list(self.bounds),
             # isinstance rather than self.per_robot (the same test) narrows lam for the type checker
             "lambda": list(self.lam) if isinstance(self.lam, tuple) else self.lam,
             "mode": self.mode,
         }
+        return form if self.surface is None else {**form, "surface": self.surface}
 
     @classmethod
     def from_dict(cls, data: Any) -> SlipZone:
@@ -179,7 +189,9 @@ class SlipZone:
             raise ValueError(f"{data!r} must have exactly one shape key, {allowed}")
         if "lambda" not in data:
             raise ValueError(f"{data!r} has no 'lambda' (a number >= 0 or one per robot)")
-        return cls(shapes[0], data[shapes[0]], data["lambda"], data.get("mode", "replace"))
+        return cls(
+            shapes[0], data[shapes[0]], data["lambda"], data.get("mode", "replace"), data.get("surface")
+        )
 
 
 def check_zone_robots(zones: Sequence[SlipZone], n_robots: int) -> None:
@@ -213,8 +225,12 @@ class ZoneTable:
         self.add = np.zeros((num_envs, n_zones), dtype=np.bool_)
         self.lambdas = np.zeros((num_envs, n_zones, n_robots))
 
-    def set_env(self, index: int, zones: Sequence[SlipZone]) -> None:
-        """Load the zones of environment ``index`` (exactly Z of them)."""
+    def set_env(self, index: int, zones: Sequence[SlipZone], values: Sequence[float] | None = None) -> None:
+        """Load the zones of environment ``index`` (exactly Z of them).
+
+        ``values`` (one per zone) replace the zones' lambdas, every zone then in ``"replace"``
+        mode: the physics plant's zone frictions, looked up by the same kernel.
+        """
         if len(zones) != self.kind.shape[1]:
             raise ValueError(
                 f"{len(zones)} slip zones for environment {index}; the table holds {self.kind.shape[1]}"
@@ -223,8 +239,8 @@ class ZoneTable:
             self.kind[index, j] = _CIRCLE if zone.shape == "circle" else _RECT
             self.geometry[index, j] = 0.0
             self.geometry[index, j, : len(zone.bounds)] = zone.bounds
-            self.add[index, j] = zone.mode == "add"
-            self.lambdas[index, j] = zone.lambdas_for(self.n_robots)
+            self.add[index, j] = zone.mode == "add" and values is None
+            self.lambdas[index, j] = zone.lambdas_for(self.n_robots) if values is None else values[j]
 
     def slip_means(
         self, state: NDArray[np.float64], base: NDArray[np.float64], out: NDArray[np.float64]
