@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from koopman_envs.checks import MAX_NUMBER
 from koopman_envs.params import LIMITS
 from koopman_envs.uncertainty import MIN_LIDAR_FOV, CommConfig, LidarConfig, PoseNoise, parse_setting
 
@@ -170,11 +171,14 @@ def test_comm_settings_at_their_bounds_are_accepted() -> None:
         ({"drop": -0.1}, "comm.drop=-0.1 must be a finite number >= 0 <= 1"),
         ({"drop": 1.5}, "comm.drop=1.5 must be a finite number >= 0 <= 1"),
         ({"drop": math.nan}, "comm.drop=nan must be a finite number"),
-        ({"range": 0}, "comm.range=0 must be a finite number > 0 (metres, or inf)"),
-        ({"range": -math.inf}, "comm.range=-inf must be a finite number > 0 (metres, or inf)"),
-        ({"range": True}, "comm.range=True must be a finite number > 0 (metres, or inf)"),
-        ({"range": "inf"}, "comm.range='inf' must be a finite number > 0 (metres, or inf)"),
-        ({"range": None}, "comm.range=None must be a finite number > 0 (metres, or inf)"),
+        ({"range": 0}, f"comm.range=0 must be a finite number > 0 <= {MAX_NUMBER} (metres, or inf)"),
+        (
+            {"range": -math.inf},
+            f"comm.range=-inf must be a finite number > 0 <= {MAX_NUMBER} (metres, or inf)",
+        ),
+        ({"range": True}, f"comm.range=True must be a finite number > 0 <= {MAX_NUMBER} (metres, or inf)"),
+        ({"range": "inf"}, f"comm.range='inf' must be a finite number > 0 <= {MAX_NUMBER} (metres, or inf)"),
+        ({"range": None}, f"comm.range=None must be a finite number > 0 <= {MAX_NUMBER} (metres, or inf)"),
     ],
 )
 def test_comm_settings_out_of_range_are_refused_by_name(kwargs, prefix) -> None:
