@@ -179,7 +179,7 @@ C = [1, 1, 0.5]  # a valid circle
         ),
         (
             {"disc": C, "lambda": 0.3},
-            r"unknown keys \['disc'\]; allowed: \['circle', 'rect', 'lambda', 'mode'\]",
+            r"unknown keys \['disc'\]; allowed: \['circle', 'rect', 'lambda', 'mode', 'surface'\]",
         ),
         ({"lambda": 0.3}, r"must have exactly one shape key, 'circle': \[x, y, radius\] or 'rect'"),
         ({"circle": C, "rect": [0, 0, 1, 1], "lambda": 0.3}, r"must have exactly one shape key"),

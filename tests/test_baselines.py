@@ -121,7 +121,9 @@ def test_inference_is_deterministic(trained_root) -> None:
 
 
 def test_missing_and_corrupt_policy_files(tmp_path, trained_root) -> None:
-    with pytest.raises(ValueError, match="holds no trained policy; train one with `python -m baselines.train"):
+    with pytest.raises(
+        ValueError, match="holds no trained policy; train one with `python -m baselines.train"
+    ):
         RLPolicyController(policy_root=tmp_path / "empty")
     broken = tmp_path / "broken" / "formation"
     broken.mkdir(parents=True)

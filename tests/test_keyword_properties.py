@@ -31,6 +31,7 @@ hold.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 import string
@@ -204,6 +205,9 @@ SCHEDULES = st.lists(
     st.tuples(st.one_of(st.just(0.0), reals(0.0, 20.0)), SLIP_LEVELS), min_size=1, max_size=3
 )
 
+#: MuJoCo installed (the [physics] extra): plant="mujoco" is a value to try
+HAS_MUJOCO = importlib.util.find_spec("mujoco") is not None
+
 #: each keyword's values
 VALUES: dict[str, st.SearchStrategy[Any]] = {
     "map": keyword_values(st.one_of(st.sampled_from(MAP_NAMES), st.sampled_from(["", ".", "/", "x.json", "/no/m.json"]))),
@@ -230,6 +234,8 @@ VALUES: dict[str, st.SearchStrategy[Any]] = {
     }),
     "actuation_delay": keyword_values(st.one_of(st.none(), ints(0, 5, L.actuation_delay))),
     "movers": setting(MOVER_FIELDS, ints(0, 6, L.movers)),
+    # "mujoco" only where the [physics] extra is installed (without it: ModuleNotFoundError, by design)
+    "plant": keyword_values(st.sampled_from(["kinematic", "Kinematic", "physics", *(["mujoco"] if HAS_MUJOCO else [])])),
 }  # fmt: skip
 
 
@@ -304,4 +310,4 @@ def test_any_value_of_a_keyword_builds_a_working_env_or_is_refused_by_name(name:
 def test_every_keyword_is_covered() -> None:
     """Every keyword of the table has its values here (a new keyword needs its own)."""
     assert set(VALUES) == {row.name for row in ENV_KEYWORDS}
-    assert len(ENV_KEYWORDS) == 18
+    assert len(ENV_KEYWORDS) == 19
