@@ -66,6 +66,13 @@ ALL_TASKS = "all tasks"
 #: what pairs an episode with its partner in the other run, per controller: (env id, map, slip, seed)
 PairKey = tuple[str, str, str, int]
 
+#: paired final distances closer than this [cm] (10 micrometres, far below what a robot's
+#: localisation resolves) are one distance: another CPU's BLAS kernels round the NMPCs' arithmetic
+#: otherwise, which moves final poses by 1e-12 to 1e-5 cm, and twenty such crumbs of one sign put
+#: a bootstrap interval "above 0" with no change at all (the gate then read one episode that
+#: ended elsewhere as a significant increase)
+DISTANCE_RESOLUTION_CM = 1e-3
+
 #: config keys whose difference changes outcomes: a baseline must match them
 OUTCOME_KEYS = ("env_settings", "calibration", "map_files", "random_maps")
 
@@ -200,12 +207,17 @@ def _team_cm(record: dict[str, Any]) -> float:
     return 100.0 * float(np.mean(record["final_distance"]))
 
 
+def _tied(difference_cm: float) -> float:
+    """A paired final-distance difference [cm], 0 below :data:`DISTANCE_RESOLUTION_CM`."""
+    return 0.0 if abs(difference_cm) < DISTANCE_RESOLUTION_CM else difference_cm
+
+
 def _paired_row(
     env_id: str, controller: str, run: list[dict[str, Any]], baseline: list[dict[str, Any]]
 ) -> dict[str, Any]:
     """One comparison row from the paired episode records of both sides (same order)."""
     pair = paired_comparison([bool(r["success"]) for r in run], [bool(r["success"]) for r in baseline])
-    differences = [_team_cm(a) - _team_cm(b) for a, b in zip(run, baseline)]
+    differences = [_tied(_team_cm(a) - _team_cm(b)) for a, b in zip(run, baseline)]
     low, high = bootstrap_mean_interval(differences)
     return {
         "env_id": env_id,

@@ -713,3 +713,22 @@ def test_a_comparison_without_one_sided_cells_ends_with_its_table() -> None:
     text = comparison_markdown({"rows": [], "only_run": [], "only_baseline": []}, "b")
     assert text.split("\n")[0] == "## Compared with the baseline (b)"
     assert text.endswith("|---|---|---|---|---|---|---|---|---|")
+
+
+def test_last_digit_differences_are_ties_so_one_episode_ending_elsewhere_is_no_significant_increase() -> None:
+    """Seen on an Intel machine against a baseline recorded on an AMD one: 19 of 20 formation
+    episodes of dmpc-koopman-robust ended where they had, their final distances 1e-12 to 1e-5 cm
+    larger (another BLAS kernel's rounding), and one ended 34 cm off. Counted as evidence, the
+    crumbs put the bootstrap interval above 0 and the gate failed the run (+1.72 cm [+0.00,
+    +5.17]); they are ties below DISTANCE_RESOLUTION_CM, so the interval touches 0."""
+    baseline = [_rec(seed, distances=(0.05, 0.05)) for seed in range(20)]
+    run = [_rec(seed, distances=(0.05 + 1e-9 * (seed + 1), 0.05)) for seed in range(20)]
+    run[7] = _rec(7, success=False, distances=(0.73, 0.05))  # 34 cm further, one episode
+    row = next(r for r in compare_runs(run, baseline)["rows"] if r["env_id"] == TR)
+    assert row["distance_cm_difference"] == pytest.approx(34.0 / 20, rel=1e-6)
+    assert row["distance_cm_low"] == 0.0  # every resample without that episode: exact ties
+    assert gate_failures(compare_runs(run, baseline), GateOptions()) == []
+    # a shift of 0.2 cm in every episode is no crumb: the same run is judged worse then
+    shifted = [_rec(seed, distances=(0.052, 0.052)) for seed in range(20)]
+    shifted[7] = run[7]
+    assert gate_failures(compare_runs(shifted, baseline), GateOptions()) != []
