@@ -197,6 +197,8 @@ def small_run(tmp_path_factory) -> Path:
 SMOKE_NEEDS = {
     "bench/batched_evaluation.py": "stable_baselines3",  # it times the rl-ppo policy
     "bench/benchmarl_speed.py": "benchmarl",  # it trains MAPPO
+    "bench/movers_speed.py": "pyrvo",  # it times the ORCA crowd (the [crowd] extra)
+    "bench/physics_speed.py": "mujoco",  # the physics plant (the [physics] extra)
 }
 
 
