@@ -35,14 +35,16 @@ ARGS = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--m
 ARGS += ["--episodes", "1", "--max-episode-steps", "5", "--workers", "1", "--quiet"]
 
 
-def _cli(*argv: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    """``python evaluate.py ARGV`` in ``cwd``; a hang fails the test instead of stalling the suite."""
+def _cli(*argv: str) -> subprocess.CompletedProcess[str]:
+    """``python evaluate.py ARGV`` from the repository root; a hang fails the test instead of stalling
+    the suite. Every path in ARGV is absolute; the root as working directory lets the command run
+    under mutmut too (its trampolines find their configuration in the working directory)."""
     try:
         return subprocess.run(
             [sys.executable, str(ROOT / "evaluate.py"), *argv],
             capture_output=True,
             text=True,
-            cwd=cwd,
+            cwd=ROOT,
             timeout=HANG_GUARD,
         )
     except subprocess.TimeoutExpired:
@@ -56,7 +58,7 @@ def _cli(*argv: str, cwd: Path) -> subprocess.CompletedProcess[str]:
 def test_a_fifo_as_the_baseline_is_refused_by_name(tmp_path) -> None:
     fifo = tmp_path / "base.json"
     os.mkfifo(fifo)
-    done = _cli(*ARGS, "--out", str(tmp_path / "out"), "--baseline", str(fifo), cwd=tmp_path)
+    done = _cli(*ARGS, "--out", str(tmp_path / "out"), "--baseline", str(fifo))
     assert done.returncode == 2, done.stderr
     assert (
         f"baseline {str(fifo)!r} cannot be read: it is a FIFO (named pipe), not a regular file" in done.stderr
@@ -69,7 +71,7 @@ def test_a_fifo_as_the_resumed_episode_log_is_refused_by_name(tmp_path) -> None:
     out = tmp_path / "out"
     out.mkdir()
     os.mkfifo(out / "episodes.jsonl")
-    done = _cli(*ARGS, "--out", str(out), "--resume", cwd=tmp_path)
+    done = _cli(*ARGS, "--out", str(out), "--resume")
     assert done.returncode == 2, done.stderr
     assert f"episode log '{out / 'episodes.jsonl'}' cannot be read: it is a FIFO" in done.stderr
 
@@ -79,7 +81,7 @@ def test_a_fifo_as_the_sweep_manifest_is_refused_by_name(tmp_path) -> None:
     out = tmp_path / "sweep"
     out.mkdir()
     os.mkfifo(out / "sweep.json")
-    done = _cli("--sweep-report", str(out), cwd=tmp_path)
+    done = _cli("--sweep-report", str(out))
     assert done.returncode == 2, done.stderr
     assert f"sweep manifest '{out / 'sweep.json'}' cannot be read: it is a FIFO" in done.stderr
 
