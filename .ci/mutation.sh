@@ -105,7 +105,7 @@ for m in "${wanted[@]}"; do
 [tool.mutmut]
 source_paths = ["koopman_envs", "evaluation", "controllers", "baselines"]
 only_mutate = ["$target"]
-also_copy = ["evaluate.py", "docs", ".ci", "bench", "examples", "action.yml", "README.md"]
+also_copy = ["evaluate.py", "data", "docs", ".ci", "bench", "examples", "action.yml", "README.md"]
 pytest_add_cli_args_test_selection = [$tests]
 pytest_add_cli_args = [$args]
 EOF
