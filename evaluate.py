@@ -31,9 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -60,9 +58,9 @@ from evaluation.cli import (
     build_parser,
     parse_env_kwargs,
     program_name,
+    sigterm_stops_the_run,
     spec_from_args,
     split_words,
-    stop_on_sigterm,
 )
 from evaluation.exit_codes import (
     BAD_INPUT_EXIT,
@@ -395,8 +393,6 @@ def _verdict(
 
 def _run(args: argparse.Namespace, argv: list[str] | None) -> int:
     """Everything after parsing: check the input, run, report, and return the exit code."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, stop_on_sigterm)
     try:
         spec = spec_from_args(args)
         if args.sweep:
@@ -460,7 +456,8 @@ def main(argv: list[str] | None = None) -> int:
             return _print_options(args.options)
         if args.sweep_report is not None:
             return _sweep_report(args.sweep_report, args.reference)
-        return _run(args, argv)
+        with sigterm_stops_the_run():
+            return _run(args, argv)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM before the run started (a run's own is RunInterrupted)
         print("\ninterrupted before any episode ran", file=sys.stderr)
         return INTERRUPTED_EXIT

@@ -5,8 +5,12 @@ with the given options replacing its fields). ``evaluate.py`` runs it."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -416,6 +420,22 @@ def stop_on_sigterm(signum: int, frame: Any) -> None:
     """SIGTERM (``kill``, a CI timeout) stops a run like Ctrl-C: the worker pool is terminated
     (no orphan workers keep computing) and the log stays resumable."""
     raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigterm_stops_the_run() -> Iterator[None]:
+    """Within the block, SIGTERM stops a run like Ctrl-C (:func:`stop_on_sigterm`); the handler
+    that was there before is put back afterwards, so a program or test that calls
+    ``evaluate.main`` keeps its own SIGTERM behaviour. Only the main thread can set a handler;
+    elsewhere the block changes nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGTERM, stop_on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
 
 
 def spec_from_args(args: argparse.Namespace) -> RunSpec:

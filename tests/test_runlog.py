@@ -385,3 +385,30 @@ def test_adding_a_controller_to_a_finished_run_runs_only_its_episodes(tmp_path) 
     # one controller fewer is another run: refused by name
     with pytest.raises(ValueError, match="controller_configs: logged"):
         ev.evaluate(both.replace(controllers=["consensus"]), workers=1, out=tmp_path, resume=True)
+
+
+def test_main_puts_the_callers_sigterm_handler_back(tmp_path) -> None:
+    # evaluate.main turns SIGTERM into a resumable stop only while it runs: a program (or test
+    # session) that calls it keeps its own handler afterwards, whether the run ends well or not
+    def own_handler(signum, frame) -> None:  # pragma: no cover - never delivered
+        raise AssertionError("not called")
+
+    before = signal.signal(signal.SIGTERM, own_handler)
+    try:
+        bad = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map9", "--out", str(tmp_path / "o")]
+        assert ev.main(bad) == 2
+        assert signal.getsignal(signal.SIGTERM) is own_handler
+        tiny = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--episodes", "1"]
+        tiny += [
+            "--max-episode-steps",
+            "3",
+            "--controllers",
+            "consensus",
+            "--quiet",
+            "--out",
+            str(tmp_path / "r"),
+        ]
+        assert ev.main(tiny) == 0
+        assert signal.getsignal(signal.SIGTERM) is own_handler
+    finally:
+        signal.signal(signal.SIGTERM, before)
