@@ -33,7 +33,7 @@ from baselines.set_features import SetFeatureConfig
 from baselines.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
 from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from koopman_envs.tasks.base import TASKS
+from koopman_envs import TASKS
 
 EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 

@@ -9,8 +9,8 @@ import argparse
 from typing import Any
 
 from baselines.vec_env import FEATURE_SETS, LAYOUTS
+from koopman_envs import TASKS
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
-from koopman_envs.tasks.base import TASKS
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 __all__ = ["POLICIES", "TASK_OF", "TIMESTEPS", "TRAIN_MAPS", "build_parser", "env_options"]

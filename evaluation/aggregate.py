@@ -31,9 +31,7 @@ from evaluation.statistics import (
     wilson_interval,
 )
 from evaluation.suite_runs import cluster_of
-from koopman_envs.fronts.episode import smallest_clearance
-from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.suites import FAMILIES, TIERS
+from koopman_envs import FAMILIES, TIERS, CollisionKind, smallest_clearance
 
 __all__ = [
     "BREAKDOWNS",

@@ -16,8 +16,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.suites import FAMILIES, TIERS
+from koopman_envs import FAMILIES, TIERS, CollisionKind
 
 __all__ = [
     "DEGRADED_FAILURE_SHARE",

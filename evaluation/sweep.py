@@ -29,12 +29,10 @@ from evaluation.published import extracted_archive, results_from_log
 from evaluation.report.blocks import level_text
 from evaluation.results import Results
 from evaluation.spec import RunSpec, with_env_setting
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs import ENV_KEYWORDS, EngineConfig, task_for_env
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 from koopman_envs.suggest import did_you_mean
-from koopman_envs.tasks.base import task_for_env
 
 __all__ = [
     "MANIFEST",

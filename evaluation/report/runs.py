@@ -28,7 +28,7 @@ from evaluation.report.blocks import (
     rate_cell,
 )
 from evaluation.run_data import RunData
-from koopman_envs.tasks.base import TASKS
+from koopman_envs import TASKS
 
 __all__ = [
     "DEGRADED_NOTE",

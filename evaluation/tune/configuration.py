@@ -5,9 +5,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from koopman_envs import TASKS, check_split_allowed
 from koopman_envs.checks import check_choice
-from koopman_envs.suites import check_split_allowed
-from koopman_envs.tasks.base import TASKS
 
 #: the suite tuned on (its ``validation`` split)
 SUITE = "koopnav-bench-v1"
