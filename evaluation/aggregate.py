@@ -31,7 +31,7 @@ from evaluation.statistics import (
     wilson_interval,
 )
 from evaluation.suite_runs import cluster_of
-from koopman_envs.fronts.episode import smallest_clearance
+from koopman_envs.fronts.episode import path_ratio, smallest_clearance
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.suites import FAMILIES, TIERS
 
@@ -278,10 +278,9 @@ def episode_metrics(records: list[dict[str, Any]]) -> dict[str, float]:
     """
     ratios, clearances, accels = [], [], []
     for r in records:
-        straight = np.asarray(r.get("straight_distance") or [], dtype=float)
-        if r["success"] and straight.size and (straight > 0.1).any():
-            moved = straight > 0.1
-            ratios.append(float(np.mean(np.asarray(r["path_length"], dtype=float)[moved] / straight[moved])))
+        ratio = path_ratio(r.get("path_length"), r.get("straight_distance")) if r["success"] else None
+        if ratio is not None:
+            ratios.append(ratio)
         low = smallest_clearance(r.get("min_clearance"))
         if low is not None:
             clearances.append(100 * low)

@@ -99,6 +99,9 @@ class Results(RunData):
             "formation_rms",
             "straight_distance",
             "accel_rms",
+            "jerk_rms",
+            "near_obstacle_share",
+            "path_ratio",
             "min_clearance",
             "clearance_min_m",
             "solve_ms_median",
@@ -110,7 +113,15 @@ class Results(RunData):
         writer.writeheader()
         for rec in self.records:
             row = dict(rec)
-            for key in ("final_distance", "path_length", "control_effort", "straight_distance", "accel_rms"):
+            for key in (
+                "final_distance",
+                "path_length",
+                "control_effort",
+                "straight_distance",
+                "accel_rms",
+                "jerk_rms",
+                "near_obstacle_share",
+            ):
                 if isinstance(row.get(key), list):
                     row[key] = ";".join(f"{v:.5f}" for v in row[key])
             if isinstance(row.get("min_clearance"), dict):
