@@ -60,6 +60,12 @@ class Results(RunData):
             "paired_comparisons": self.paired(),
             # a suite run's success per layout tier and family (absent from other runs' files)
             **({"suite_breakdown": self.suite_breakdown()} if self.config.get("suite") else {}),
+            # a suite run's rates and metrics over layouts, and its tested tables (one family each)
+            **(
+                {"suite_summary": self.layout_summary, "suite_tests": self.suite_tables}
+                if self.config.get("suite")
+                else {}
+            ),
             "cells": [c.to_dict() for c in self.cells],
             "episodes": [
                 {
