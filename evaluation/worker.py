@@ -100,6 +100,10 @@ def _result_fields(spec: EpisodeSpec, result: EpisodeResult, stats: ControllerSt
         min_clearance=result.min_clearance,
         clearance_min_m=result.clearance_min_m,
         accel_rms=result.accel_rms.tolist(),
+        # the metrics the suite reports test (docs/benchmark.md, "Metrics")
+        jerk_rms=None if result.jerk_rms is None else result.jerk_rms.tolist(),
+        near_obstacle_share=result.near_obstacle_share.tolist(),
+        path_ratio=result.path_ratio,
         decisions=result.decisions,
         deadline_misses=result.deadline_misses,
         late_periods=result.late_periods,

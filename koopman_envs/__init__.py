@@ -50,7 +50,13 @@ from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, env_id_for_map, ta
 if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use (_LAZY)
     from koopman_envs.fronts.batch_episodes import run_episodes_in_batch
     from koopman_envs.fronts.dict_observation import DictObservation
-    from koopman_envs.fronts.episode import ComputeCharge, EpisodeResult, run_episode, smallest_clearance
+    from koopman_envs.fronts.episode import (
+        ComputeCharge,
+        EpisodeResult,
+        path_ratio,
+        run_episode,
+        smallest_clearance,
+    )
     from koopman_envs.fronts.gym_env import KoopNavEnv
     from koopman_envs.fronts.rendering import Renderer, save_episode
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -91,6 +97,7 @@ _LAZY = {
     "EpisodeResult": "koopman_envs.fronts.episode",
     "ComputeCharge": "koopman_envs.fronts.episode",
     "smallest_clearance": "koopman_envs.fronts.episode",
+    "path_ratio": "koopman_envs.fronts.episode",
     "run_episodes_in_batch": "koopman_envs.fronts.batch_episodes",
     "Renderer": "koopman_envs.fronts.rendering",
     "save_episode": "koopman_envs.fronts.rendering",
@@ -166,6 +173,7 @@ __all__ = [
     "SLIP_SETTINGS",
     "SlipZone",
     "smallest_clearance",
+    "path_ratio",
     "SPLITS",
     "Suite",
     "SUITE_PREFIX",
