@@ -119,6 +119,35 @@ def _add_ppo_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_suite_options(parser: argparse.ArgumentParser) -> None:
+    """Training on a benchmark suite (:mod:`baselines.suite_training`; ``--algorithm ippo``)."""
+    group = parser.add_argument_group("benchmark suite (docs/benchmark.md#learned-policies)")
+    group.add_argument(
+        "--suite",
+        metavar="NAME",
+        default=None,
+        help="train on a benchmark suite (koopnav-bench-v1): the task's --split layouts under the "
+        "benchmark's settings (high slip, 5 cm start noise, its time limit), one stage; every "
+        "--eval-freq frames the policy is exported and scored on the validation layouts, the best "
+        "kept in OUT/<task>/ with OUT/selection.json",
+    )
+    group.add_argument(
+        "--split", default=None, help="with --suite: the split trained on (default train; test is refused)"
+    )
+    group.add_argument(
+        "--validation-layouts",
+        type=int,
+        default=50,
+        help="with --suite: validation layouts every checkpoint is scored on (the split's first N; default 50)",
+    )
+    group.add_argument(
+        "--eval-freq",
+        type=lambda s: int(s.replace("_", "")),
+        default=1_000_000,
+        help="with --suite: frames between scored checkpoints (default 1,000,000; the final policy is scored too)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m baselines.benchmarl_train", description=DESCRIPTION)
     parser.add_argument("--task", choices=TASKS, required=True)
@@ -126,7 +155,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--frames", type=lambda s: int(s.replace("_", "")), default=6_000_000)
     parser.add_argument("--envs", type=int, default=300, help="environments in the batch (default 300)")
     parser.add_argument(
-        "--max-cycles", type=int, default=400, help="periods per training episode (default 400)"
+        "--max-cycles",
+        type=int,
+        default=None,
+        help="periods per training episode (default 400; with --suite the benchmark's time limit)",
     )
     parser.add_argument(
         "--collision-penalty",
@@ -175,5 +207,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    _add_suite_options(parser)
     parser.add_argument("--out", required=True)
     return parser
