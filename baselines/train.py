@@ -455,8 +455,19 @@ def main(argv: list[str] | None = None) -> int:
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
     # same seed, same weights: PPO(seed=) seeds Python, numpy and torch (SB3's set_random_seed);
-    # this makes torch refuse an op without a deterministic kernel instead of running it
+    # deterministic algorithms make torch refuse an op without a deterministic kernel instead of
+    # running it (restored afterwards: a caller's process keeps its own setting)
+    previous = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)
+    try:
+        return _train(run)
+    finally:
+        torch.use_deterministic_algorithms(previous)
+
+
+def _train(run: Trainer) -> int:
+    """Build the env and the model, train, score and save (``main``'s work once its checks passed)."""
+    args = run.args
     raw = run.make_venv(0)
     team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
     venv = run.wrap(raw)

@@ -154,14 +154,14 @@ class SeedAggregate:
 
 
 def aggregate(
-    outcomes: Mapping[int, Mapping[Any, Sequence[bool]]], *, n_boot: int = 4000, seed: int = 0
+    outcomes: Mapping[int, Mapping[Any, Sequence[bool | int]]], *, n_boot: int = 4000, seed: int = 0
 ) -> SeedAggregate:
     """Per-seed success and the interquartile mean over (layout, seed) scores.
 
     Parameters
     ----------
     outcomes : mapping
-        ``outcomes[s][l]``: the successes of training seed s's episodes on layout l; every seed
+        ``outcomes[s][l]``: the successes (bools or 0/1) of training seed s's episodes on layout l; every seed
         on the same layouts.
     n_boot, seed
         Bootstrap replicates and the bootstrap's seed (the result is a function of the arguments).
