@@ -8,6 +8,7 @@ import json
 from typing import Any
 
 from baselines.robot_features import FEATURE_SETS
+from baselines.suite_training import add_suite_options
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 
 __all__ = ["ALGORITHMS", "DESCRIPTION", "TASKS", "build_parser"]
@@ -121,25 +122,7 @@ def _add_ppo_options(parser: argparse.ArgumentParser) -> None:
 
 def _add_suite_options(parser: argparse.ArgumentParser) -> None:
     """Training on a benchmark suite (:mod:`baselines.suite_training`; ``--algorithm ippo``)."""
-    group = parser.add_argument_group("benchmark suite (docs/benchmark.md#learned-policies)")
-    group.add_argument(
-        "--suite",
-        metavar="NAME",
-        default=None,
-        help="train on a benchmark suite (koopnav-bench-v1): the task's --split layouts under the "
-        "benchmark's settings (high slip, 5 cm start noise, its time limit), one stage; every "
-        "--eval-freq frames the policy is exported and scored on the validation layouts, the best "
-        "kept in OUT/<task>/ with OUT/selection.json",
-    )
-    group.add_argument(
-        "--split", default=None, help="with --suite: the split trained on (default train; test is refused)"
-    )
-    group.add_argument(
-        "--validation-layouts",
-        type=int,
-        default=50,
-        help="with --suite: validation layouts every checkpoint is scored on (the split's first N; default 50)",
-    )
+    group = add_suite_options(parser, "one stage, the policy exported and scored every --eval-freq frames")
     group.add_argument(
         "--eval-freq",
         type=lambda s: int(s.replace("_", "")),

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from benchmarl.experiment.callback import Callback
 
-from baselines.suite_training import CheckpointScore, SuiteTraining, refuse_held_out_map
+from baselines.suite_training import CheckpointScore, SuiteTraining, refuse_held_out_map, suite_from_args
 from koopman_envs.files import write_atomic
 
 __all__ = ["SuiteCheckpoints", "suite_training", "write_export"]
@@ -49,9 +49,8 @@ def suite_training(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
             refuse_held_out_map(stage.get("env", {}))
     except ValueError as exc:
         parser.error(str(exc))
-    if args.suite is None:
-        if args.split is not None:
-            parser.error("--split needs --suite NAME")
+    training = suite_from_args(args, args.task, parser)
+    if training is None:
         return None
     if args.algorithm not in SUITE_ALGORITHMS:
         parser.error(
@@ -67,11 +66,6 @@ def suite_training(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
         parser.error(
             f"--suite sets {', '.join(given)} itself (the benchmark's settings); leave them out of --env-kwargs"
         )
-    training = SuiteTraining(args.suite, args.task, args.split or "train", layouts=args.validation_layouts)
-    try:
-        training.check()
-    except ValueError as exc:
-        parser.error(str(exc))
     if not args.eval_freq > 0:
         parser.error(f"--eval-freq={args.eval_freq!r}: allowed > 0")
     env = training.env_kwargs()

@@ -24,6 +24,7 @@ one :class:`SuiteTraining` of their run:
 
 from __future__ import annotations
 
+import argparse
 import functools
 import json
 import math
@@ -40,16 +41,21 @@ from koopman_envs.suites import SUITES, check_split_allowed, load_suite
 from koopman_envs.suites.suite import SUITE_PREFIX, parse_suite_map
 
 __all__ = [
+    "DEFAULT_VALIDATION_LAYOUTS",
     "SELECTION_FILE",
     "SELECTION_RULE",
     "CheckpointScore",
     "SuiteTraining",
+    "add_suite_options",
     "choose",
+    "suite_from_args",
     "keep_chosen",
     "refuse_held_out_map",
     "summarize",
 ]
 
+#: validation layouts every checkpoint is scored on, by default (the split's first N)
+DEFAULT_VALIDATION_LAYOUTS = 50
 #: the selection record a suite run writes beside its chosen policy (``OUT/selection.json``)
 SELECTION_FILE = "selection.json"
 #: how the kept checkpoint is chosen (recorded in the selection record)
@@ -156,7 +162,7 @@ class SuiteTraining:
     task: str
     split: str = "train"
     selection_split: str = "validation"
-    layouts: int = 50
+    layouts: int = DEFAULT_VALIDATION_LAYOUTS
     episodes: int = 1
     seed: int = 0
 
@@ -223,6 +229,51 @@ class SuiteTraining:
             "env": self.env_kwargs(),
             "episodes_per_checkpoint": self.layouts * self.episodes,
         }
+
+
+def add_suite_options(parser: argparse.ArgumentParser, what: str) -> argparse._ArgumentGroup:
+    """Both trainers' ``--suite``, ``--split`` and ``--validation-layouts`` (``what``: how that
+    trainer trains on the suite, for ``--suite``'s help); the group, for options of its own."""
+    group = parser.add_argument_group("benchmark suite (docs/benchmark.md#learned-policies)")
+    group.add_argument(
+        "--suite",
+        metavar="NAME",
+        default=None,
+        help=f"train on a benchmark suite ({', '.join(SUITES)}): the task's --split layouts under the "
+        f"benchmark's settings (high slip, 5 cm start noise, its time limit), {what}; the best "
+        "checkpoint on the validation layouts kept in OUT/<task>/ with OUT/selection.json",
+    )
+    group.add_argument(
+        "--split",
+        default=None,
+        help="with --suite: the split trained on (default train; test is refused: held out)",
+    )
+    group.add_argument(
+        "--validation-layouts",
+        type=int,
+        default=DEFAULT_VALIDATION_LAYOUTS,
+        help="with --suite: validation layouts every checkpoint is scored on (the split's first N; "
+        f"default {DEFAULT_VALIDATION_LAYOUTS})",
+    )
+    return group
+
+
+def suite_from_args(
+    args: argparse.Namespace, task: str, parser: argparse.ArgumentParser
+) -> SuiteTraining | None:
+    """A trainer's :class:`SuiteTraining` from the options of :func:`add_suite_options` (None
+    without ``--suite``), checked: a bad setting, the test split first, ends the command through
+    ``parser.error`` (exit 2) naming it, before any work."""
+    if args.suite is None:
+        if args.split is not None:
+            parser.error("--split needs --suite NAME")
+        return None
+    training = SuiteTraining(args.suite, task, args.split or "train", layouts=args.validation_layouts)
+    try:
+        training.check()
+    except ValueError as exc:
+        parser.error(str(exc))
+    return training
 
 
 def keep_chosen(

@@ -36,7 +36,7 @@ from baselines.curriculum import PARTS, STAGES, stage_parts
 from baselines.fine_tune import copy_weights, mismatches
 from baselines.policy import ObsNorm, norm_of, save_policy, success_rate
 from baselines.set_features import SetFeatureConfig
-from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen
+from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
 from baselines.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
 from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
@@ -103,24 +103,15 @@ class Trainer:
         """The run's :class:`SuiteTraining` with ``--suite`` (None without), checked before any
         work: the test split is refused by name (the tuner's check), as are the options a suite
         run's layouts replace."""
-        if args.suite is None:
-            given = [f"--{o}" for o in ("split",) if getattr(args, o) is not None]
-            if given:
-                parser.error(f"{' and '.join(given)} needs --suite NAME")
-            return None
+        suite = suite_from_args(args, self.task, parser)
         clashes = [
             f"--{o.replace('_', '-')}" for o in ("random_map", "movers") if getattr(args, o) is not None
         ]
-        if clashes:
+        if suite is not None and clashes:
             parser.error(
                 f"--suite {args.suite} cannot be combined with {', '.join(clashes)}: a suite run trains on "
                 "the suite's layouts under the benchmark's settings"
             )
-        suite = SuiteTraining(args.suite, self.task, args.split or "train", layouts=args.validation_layouts)
-        try:
-            suite.check()
-        except ValueError as exc:
-            parser.error(str(exc))
         return suite
 
     @property

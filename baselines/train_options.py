@@ -8,13 +8,13 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from baselines.suite_training import add_suite_options
 from baselines.vec_env import FEATURE_SETS, LAYOUTS
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
-from koopman_envs.suites import SUITES
 from koopman_envs.tasks.base import TASKS
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
-__all__ = ["POLICIES", "TASK_OF", "TIMESTEPS", "TRAIN_MAPS", "build_parser", "env_options", "suite_options"]
+__all__ = ["POLICIES", "TASK_OF", "TIMESTEPS", "TRAIN_MAPS", "build_parser", "env_options"]
 
 DESCRIPTION = "Train a stable-baselines3 policy on a KoopNav task."
 TASK_OF = {spec.env_id: name for name, spec in TASKS.items()}  # the task table's names
@@ -73,31 +73,6 @@ def env_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--mover-slots", type=int, default=4, help="set policy with --movers: mover slots (default 4)"
-    )
-
-
-def suite_options(parser: argparse.ArgumentParser) -> None:
-    """Training on a benchmark suite (:mod:`baselines.suite_training`): its name, the split trained
-    on and the validation layouts every checkpoint is scored on."""
-    group = parser.add_argument_group("benchmark suite (docs/benchmark.md#learned-policies)")
-    group.add_argument(
-        "--suite",
-        metavar="NAME",
-        default=None,
-        help=f"train on a benchmark suite ({', '.join(SUITES)}): the task's --split layouts under the "
-        "benchmark's settings (high slip, 5 cm start noise, its time limit), no curriculum; every "
-        "checkpoint scored on the validation layouts, the best kept in OUT/<task>/ with OUT/selection.json",
-    )
-    group.add_argument(
-        "--split",
-        default=None,
-        help="with --suite: the split trained on (default train; test is refused: held out)",
-    )
-    group.add_argument(
-        "--validation-layouts",
-        type=int,
-        default=50,
-        help="with --suite: validation layouts every checkpoint is scored on (the split's first N; default 50)",
     )
 
 
@@ -180,6 +155,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="hidden layer widths of actor and critic, e.g. 128,128",
     )
     env_options(parser)
-    suite_options(parser)
+    add_suite_options(parser, "no curriculum, every --eval-freq checkpoint scored on the validation layouts")
     parser.add_argument("--out", required=True)
     return parser
