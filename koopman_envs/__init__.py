@@ -44,7 +44,7 @@ from koopman_envs.suites import (
     check_split_allowed,
     load_suite,
 )
-from koopman_envs.suites.suite import SUITE_PREFIX
+from koopman_envs.suites.suite import SUITE_PREFIX, parse_suite_map
 from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, env_id_for_map, task_for_env
 
 if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use (_LAZY)
@@ -177,6 +177,7 @@ __all__ = [
     "SPLITS",
     "Suite",
     "SUITE_PREFIX",
+    "parse_suite_map",
     "SuiteLayout",
     "SUITES",
     "task_for_env",
