@@ -171,3 +171,65 @@ def test_a_controller_that_never_moves_does_not_outrank_one_that_tries() -> None
         rows = leaderboard(aggregate(records), records)
         assert [r["controller"] for r in rows] == ["tries", "still"]
         assert rows[0]["final_distance_all_cm"] == pytest.approx(100.0)
+
+
+# ------------------------------------------------- what the mutation run of statistics.py showed
+# (bash .ci/mutation.sh statistics: each test below kills mutants that survived the tests above)
+CLUSTERS = [[True, True, False], [False], [True, True], [False, False, True, True], [True]]
+#: 40 layouts of 1-4 episodes: enough distinct replicate rates that a changed seed or count moves a bound
+MANY = [[(7 * i + 3 * j) % 5 < 2 + i % 3 for j in range(1 + i % 4)] for i in range(40)]
+
+
+def test_no_successes_give_a_lower_wilson_bound_of_exactly_zero() -> None:
+    # (centre - spread) / denominator is a rounding crumb (4.9e-17 at n = 3), not 0
+    for n in (3, 6, 7, 12, 14, 50):
+        assert wilson_interval(0, n)[0] == 0.0
+
+
+def test_the_cluster_bootstrap_rate_is_the_one_stage_layout_interval_with_its_defaults() -> None:
+    from evaluation.clustered import layout_rate_interval
+
+    assert cluster_bootstrap_rate(CLUSTERS)[0] == 7 / 11  # successes over episodes, each weighs the same
+    rate, low, high = cluster_bootstrap_rate(MANY)
+    assert rate == 59 / 100
+    assert (rate, low, high) == cluster_bootstrap_rate(MANY, confidence=0.95, n_boot=4000, seed=0)
+    assert (rate, low, high) == layout_rate_interval(MANY, 0.95, 4000, 0, resample="layouts")
+    assert (rate, low, high) == cluster_bootstrap_rate(MANY)  # a function of its arguments
+    assert cluster_bootstrap_rate(MANY, seed=1) != (rate, low, high)
+    assert cluster_bootstrap_rate(MANY, n_boot=4001) != (rate, low, high)
+    narrow = cluster_bootstrap_rate(MANY, confidence=0.5)
+    assert narrow == layout_rate_interval(MANY, 0.5, 4000, 0, resample="layouts")
+    assert low < narrow[1] <= narrow[2] < high
+
+
+def test_the_cluster_bootstrap_rate_names_a_bad_count_or_seed() -> None:
+    assert not math.isnan(cluster_bootstrap_rate(CLUSTERS, n_boot=1)[1])
+    with pytest.raises(ValueError, match="^n_boot=0 must be an integer >= 1$"):
+        cluster_bootstrap_rate(CLUSTERS, n_boot=0)
+    with pytest.raises(ValueError, match="^seed=-1 must be an integer >= 0$"):
+        cluster_bootstrap_rate(CLUSTERS, seed=-1)
+
+
+def test_every_bootstrap_replicate_is_the_rate_of_its_drawn_layouts() -> None:
+    import evaluation.statistics as statistics
+
+    table = statistics._layout_table("clusters", MANY, binary=True)
+    replicates = statistics._replicates(table, statistics._ratio, "layouts", 50, np.random.default_rng(3))
+    picks = np.random.default_rng(3).integers(0, len(MANY), size=(50, len(MANY)))
+    successes, sizes = table[0].sum(axis=1), table[1]
+    expected = successes[picks].sum(axis=1) / sizes[picks].sum(axis=1)
+    np.testing.assert_allclose(replicates, expected, rtol=1e-12, atol=0)
+
+
+def test_bootstrap_replicates_do_not_depend_on_the_chunk_size(monkeypatch) -> None:
+    # the replicates are drawn in chunks of at most _BOOTSTRAP_CHUNK entries to bound memory; the
+    # chunks must neither overlap, skip a replicate nor change the draws
+    import evaluation.statistics as statistics
+    from evaluation.clustered import layout_rate_interval
+
+    whole = [layout_rate_interval(CLUSTERS, n_boot=50, resample=scheme) for scheme in ("layouts", "within")]
+    whole.append(cluster_bootstrap_rate(CLUSTERS, n_boot=50))
+    monkeypatch.setattr(statistics, "_BOOTSTRAP_CHUNK", 5 * 4 * 3)  # 3 replicates of 5 x 4 per chunk
+    chunked = [layout_rate_interval(CLUSTERS, n_boot=50, resample=scheme) for scheme in ("layouts", "within")]
+    chunked.append(cluster_bootstrap_rate(CLUSTERS, n_boot=50))
+    assert chunked == whole
