@@ -291,6 +291,35 @@ def test_unpack_keeps_a_local_log_with_more_records_unless_forced(tmp_path) -> N
     assert local.read_text() == log
 
 
+def test_unpack_run_in_process_refuses_to_lose_records_and_forced_replaces_the_log(tmp_path, capsys) -> None:
+    # the same rule as publish.sh's, called in this process (the command line's exit code and
+    # message too), so that mutation testing reaches it: under `mutmut run` a child process
+    # started in publish.sh's working directory cannot find mutmut's configuration
+    archive = DATA / "scale_n3.tar.xz"
+    with published.extracted_archive(archive) as run:
+        log = (run / "episodes.jsonl").read_text()
+    packed = len(log.splitlines()) - 1
+    local = tmp_path / "scale_n3" / "episodes.jsonl"
+    local.parent.mkdir()
+    local.write_text(log + log.splitlines()[-1] + "\n")  # one record more than the archive
+    with pytest.raises(ValueError) as caught:
+        published.unpack_run(archive, tmp_path)
+    assert str(caught.value) == (
+        f"{local} holds {packed + 1} records, the archive {archive} {packed}: unpacking would lose the "
+        "records added since it was packed; pack them first (bash data/publish.sh pack), or unpack with "
+        "--force to replace the log"
+    )
+    assert len(local.read_text().splitlines()) == packed + 2  # kept as it was
+    assert published._main(["unpack", str(archive), str(tmp_path)]) == 2
+    assert capsys.readouterr().err.startswith(f"error: {local} holds {packed + 1} records")
+    assert published._main(["unpack", str(archive), str(tmp_path), "--force"]) == 0
+    assert capsys.readouterr().out == f"{tmp_path / 'scale_n3'}\n"
+    assert local.read_text() == log
+    # a local log with as many records (or fewer) is replaced without --force
+    local.write_text(log)
+    assert published.unpack_run(archive, tmp_path) == tmp_path / "scale_n3"
+
+
 # -------------------------------------------------------------- item 13: atomic report writes
 
 

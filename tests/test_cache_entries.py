@@ -117,13 +117,16 @@ def test_a_nan_calibration_entry_no_longer_spoils_an_evaluation(cache) -> None:
         calibration_budget=BUDGET,
         env_kwargs={"max_episode_steps": 30},
     )
+    from evaluation import worker
+
+    # controllers an earlier test of this process built are kept by the in-process worker: this
+    # run must calibrate into its own cache (it did not, under `mutmut run`'s single process)
+    worker._CONTROLLER_CACHE.clear()
     with pytest.warns(CacheWarning):  # nothing cached yet: measured; then poison and run again
         ev.evaluate(spec, workers=1)
         paths = list((cache / "calibration").glob("unicycle-residual-*.json"))
         assert len(paths) == 1
         paths[0].write_text('{"position_residual": [NaN, NaN, NaN]}')
-        from evaluation import worker
-
         worker._CONTROLLER_CACHE.clear()  # a new run in a new worker would calibrate again
         results = ev.evaluate(spec, workers=1)
     record = results.records[0]
