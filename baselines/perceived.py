@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs.layout import ObservationLayout
 from koopman_envs.movers import MoverConfig
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.geometry import TeamGeometry
@@ -66,16 +67,10 @@ def perceived_blocks(
     movers = np.array(view.get("observed_movers", np.zeros((0, 4))), dtype=np.float64).reshape(1, -1, 4)
     if "mover_tracked" in view:  # the env's tracker (sensing="state"): a mover without a track is not listed
         movers[0, ~np.asarray(view["mover_tracked"], dtype=bool)] = np.nan
-    builder = FeatureBuilder(
-        1,
-        n,
-        len(obstacles),
-        n_obstacle_obs,
-        scenario.is_formation,
-        comm=scenario.message_ages,
-        movers=mover_slots,
-        mover_radius=scenario.mover_radius,
+    layout = ObservationLayout(
+        n, n_obstacle_obs, scenario.is_formation, comm=scenario.message_ages, movers=mover_slots
     )
+    builder = FeatureBuilder(1, layout, len(obstacles), mover_radius=scenario.mover_radius)
     geometry = TeamGeometry(1, np.asarray(scenario.robot_radius, dtype=np.float64), len(obstacles))
     geometry.set_obstacles(0, obstacles)
     poses = own.T[None]  # (1, 3, N)

@@ -17,6 +17,7 @@ from gymnasium.envs.registration import register, registry
 
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.builder.plant import BudgetExceeded, CalibrationPlant, make_plant
+from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
@@ -64,6 +65,9 @@ __all__ = [
     "FORMATION_SHAPES",
     "MAP_NAMES",
     "MapSpec",
+    "MessageEntry",
+    "MoverEntry",
+    "ObstacleEntry",
     "PARAMS",
     "PaperParams",
     "SLIP_SETTINGS",
@@ -74,6 +78,7 @@ __all__ = [
     "Suite",
     "TASKS",
     "TaskSpec",
+    "TeamEntry",
     "check_split_allowed",
     "generate_random_map",
     "load_map",
