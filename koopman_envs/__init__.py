@@ -18,6 +18,7 @@ from gymnasium.envs.registration import register, registry
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.builder.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
+from koopman_envs.observed import Observed
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.formations import FORMATION_SHAPES
@@ -68,6 +69,7 @@ __all__ = [
     "MessageEntry",
     "MoverEntry",
     "ObstacleEntry",
+    "Observed",
     "PARAMS",
     "PaperParams",
     "SLIP_SETTINGS",
