@@ -148,35 +148,38 @@ class Observed:
         Raises
         ------
         ValueError
-            ``info`` has neither ``observed_poses`` nor ``poses``.
+            ``info`` has neither ``observed_poses`` nor ``poses``, or the poses, messages or
+            ages are not of shapes (N, 3), (N, N, 3) and (N, N).
         """
-        if "observed_poses" in info:
-            poses = np.asarray(info["observed_poses"], dtype=np.float64)
-        elif "poses" in info:
-            poses = np.asarray(info["poses"], dtype=np.float64)
-        else:
+        given = info.get("observed_poses")
+        if given is None:
+            given = info.get("poses")
+        if given is None:
             raise ValueError(
                 "an info for a controller needs 'observed_poses' (every KoopNav env writes it) or, "
                 f"written by hand, 'poses'; this one has {sorted(info)}"
             )
+        poses = np.asarray(given, dtype=np.float64)
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError(f"the poses have shape {poses.shape}; expected (N, 3): x, y, theta per robot")
         n = poses.shape[0]
-        known = info.get("known_poses")
-        age = info.get("message_age")
-        return cls(
-            observed_poses=poses,
-            known_poses=(
-                np.broadcast_to(poses[None], (n, n, 3))
-                if known is None
-                else np.asarray(known, dtype=np.float64)
-            ),
-            message_age=np.zeros((n, n), dtype=np.int64) if age is None else np.asarray(age, dtype=np.int64),
-            perceived="mover_radii" in info,
-            **{
-                key: np.asarray(info[key], dtype=dtype)
-                for key, dtype in _OPTIONAL_DTYPES.items()
-                if key in info
-            },
+        known, age = info.get("known_poses"), info.get("message_age")
+        known = (
+            np.broadcast_to(poses[None], (n, n, 3)) if known is None else np.asarray(known, dtype=np.float64)
         )
+        age = np.zeros((n, n), dtype=np.int64) if age is None else np.asarray(age, dtype=np.int64)
+        if known.shape != (n, n, 3) or age.shape != (n, n):
+            raise ValueError(
+                f"known_poses has shape {known.shape} and message_age {age.shape}; for {n} robots "
+                f"expected {(n, n, 3)} and {(n, n)}"
+            )
+        optional: dict[str, Any] = {
+            key: np.asarray(info[key], dtype=dtype)
+            for key, dtype in _OPTIONAL_DTYPES.items()
+            if info.get(key) is not None
+        }
+        perceived = info.get("mover_radii") is not None
+        return cls(poses, known, age, perceived=perceived, **optional)
 
     @property
     def n_robots(self) -> int:

@@ -91,6 +91,19 @@ def test_a_partial_info_passes_only_what_it_has() -> None:
     assert Observed.from_info({"poses": np.zeros((0, 3))}).message_age.shape == (0, 0)  # no robots
 
 
+def test_poses_messages_and_ages_of_the_wrong_shape_are_refused_by_name() -> None:
+    with pytest.raises(ValueError, match=r"the poses have shape \(3, 2\); expected \(N, 3\)"):
+        Observed.from_info({"observed_poses": np.zeros((3, 2))})
+    with pytest.raises(
+        ValueError, match=r"known_poses has shape \(3, 3\) and message_age \(3, 3\); for 3 robots"
+    ):
+        Observed.from_info({"observed_poses": np.zeros((3, 3)), "known_poses": np.zeros((3, 3))})
+    with pytest.raises(
+        ValueError, match=r"message_age \(2, 2\); for 3 robots expected \(3, 3, 3\) and \(3, 3\)"
+    ):
+        Observed.from_info({"poses": np.zeros((3, 3)), "message_age": np.zeros((2, 2))})
+
+
 def test_a_hand_written_info_of_poses_is_one_of_perfect_information() -> None:
     poses = [[0, 0, 0], [3, -4, 1], [1, 1, 2]]  # integers: converted to float
     targets = [[3.0, 4.0, 0.0], [0.0, 0.0, 0.0], [1.0, 1.0, 0.0]]

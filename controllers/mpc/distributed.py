@@ -401,6 +401,7 @@ class DistributedNMPC(BaseController):
                     observed_movers=observed.observed_movers,
                     mover_tracked=observed.mover_tracked,
                     mover_radii=observed.mover_radii,
+                    perceived=observed.perceived,
                 ),
             )
             if not agent.solve_failed() and agent.last_plan is not None:
