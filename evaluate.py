@@ -3,7 +3,8 @@
 ``python evaluate.py`` runs the quick default leaderboard (both tasks, their paper maps under
 high slip, every registered controller, 2 episodes per cell from perturbed starts, the NMPCs on
 the real-time iteration), prints a compact leaderboard and writes the full report (Markdown,
-JSON, CSV, HTML, figures) to ``results/``. ``python evaluate.py --paper`` runs the paper's
+JSON, CSV, HTML, figures) to ``results/`` (``results-2/``, ``results-3/``, ... when it holds an
+earlier run, so that the command can be run again). ``python evaluate.py --paper`` runs the paper's
 protocol (SPEC section 5: 10 trials per cell) and prints tables 1-5. From Python::
 
     from evaluation import RunSpec, evaluate
@@ -40,7 +41,7 @@ from typing import Any
 import controllers
 from evaluation.ablation import ablation_markdown
 from evaluation.aggregate import Cell
-from evaluation.backends import RunInterrupted
+from evaluation.backends import RunInterrupted, sigterm_stops_the_run
 from evaluation.badge import write_badge
 from evaluation.baseline import (
     GateOptions,
@@ -58,7 +59,6 @@ from evaluation.cli import (
     build_parser,
     parse_env_kwargs,
     program_name,
-    sigterm_stops_the_run,
     spec_from_args,
     split_words,
 )
@@ -85,7 +85,7 @@ from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
 from evaluation.report import terminal_overview
 from evaluation.results import SCHEMA_VERSION, Results, write_profiles
 from evaluation.robustness import profiles
-from evaluation.runlog import ensure_output_dir
+from evaluation.runlog import DEFAULT_OUT, ensure_output_dir, output_directory
 from evaluation.runner import evaluate, usable_controllers
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec
@@ -184,14 +184,16 @@ def _plan_check(
 
 
 def _write_ablation(args: argparse.Namespace, results: Results, wall: float) -> Path:
-    """``--ablation``: the ablation report, written to ``--ablation-out``."""
+    """``--ablation``: the ablation report, written to ``--ablation-out`` (default OUT/ablation.md)."""
     command = "python evaluate.py --ablation " + " ".join(args.ablation) if args.ablation else ""
     command = (command or "python evaluate.py --ablation") + (
         f" --episodes {args.episodes}" if args.episodes else ""
     )
+    if args.ablation_out is not None:  # a page published elsewhere: its regeneration names it
+        command += f" --ablation-out {args.ablation_out}"
     report = ablation_markdown(results, args.ablation, command=command.strip())
     report += f"\n{len(results.records)} episodes in {wall:.0f} s on {results.config['workers']} workers.\n"
-    return write_atomic(args.ablation_out, report)
+    return write_atomic(args.ablation_out or Path(args.out, "ablation.md"), report)
 
 
 def _compare(
@@ -260,7 +262,7 @@ def _print_summary(
         )
 
 
-def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) -> int:
+def _run_sweep(args: argparse.Namespace, spec: RunSpec, words: list[str]) -> int:
     """``--sweep``: every level's run in its own directory, then the robustness profiles."""
     for option in ("baseline", "check", "badge", "ablation"):
         if getattr(args, option):
@@ -279,7 +281,6 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, argv: list[str] | None) 
             raise ValueError(
                 f"{existing[0]} exists: pass --resume to continue that sweep, or choose another --out"
             )
-    words = list(sys.argv[1:] if argv is None else argv)
     check_levels(spec, axes)
     ensure_output_dir(args.out)
     aliases = level_aliases(spec, axes)
@@ -393,10 +394,19 @@ def _verdict(
 
 def _run(args: argparse.Namespace, argv: list[str] | None) -> int:
     """Everything after parsing: check the input, run, report, and return the exit code."""
+    words = list(sys.argv[1:] if argv is None else argv)
     try:
+        given, args.out = args.out, output_directory(args.out, args.resume)
+        if given is None and args.out != DEFAULT_OUT:  # the same command run again: a new directory
+            print(
+                f"note: {DEFAULT_OUT}/ holds an earlier run, so this one writes to {args.out}/ (--out DIR "
+                f"chooses the directory; --resume continues the run in {DEFAULT_OUT}/)",
+                file=sys.stderr,
+            )
+            words += ["--out", args.out]  # so that a resume hint names this run's directory
         spec = spec_from_args(args)
         if args.sweep:
-            return _run_sweep(args, spec, argv)
+            return _run_sweep(args, spec, words)
         # checked before any episode
         thresholds = load_thresholds(args.check) if args.check else None
         baseline = load_baseline(args.baseline) if args.baseline else None
@@ -436,7 +446,6 @@ def _run(args: argparse.Namespace, argv: list[str] | None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return UNWRITABLE_OUT_EXIT
     except RunInterrupted as exc:
-        words = list(sys.argv[1:] if argv is None else argv)
         again = " ".join([program_name(), *words, *([] if "--resume" in words else ["--resume"])])
         print(f"\n{exc}; continue with: {again}", file=sys.stderr)
         return INTERRUPTED_EXIT

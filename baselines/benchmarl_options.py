@@ -8,6 +8,7 @@ import json
 from typing import Any
 
 from baselines.robot_features import FEATURE_SETS
+from baselines.suite_training import add_suite_options
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 
 __all__ = ["ALGORITHMS", "DESCRIPTION", "TASKS", "build_parser"]
@@ -119,6 +120,17 @@ def _add_ppo_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_suite_options(parser: argparse.ArgumentParser) -> None:
+    """Training on a benchmark suite (:mod:`baselines.suite_training`; ``--algorithm ippo``)."""
+    group = add_suite_options(parser, "one stage, the policy exported and scored every --eval-freq frames")
+    group.add_argument(
+        "--eval-freq",
+        type=lambda s: int(s.replace("_", "")),
+        default=1_000_000,
+        help="with --suite: frames between scored checkpoints (default 1,000,000; the final policy is scored too)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m baselines.benchmarl_train", description=DESCRIPTION)
     parser.add_argument("--task", choices=TASKS, required=True)
@@ -126,7 +138,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--frames", type=lambda s: int(s.replace("_", "")), default=6_000_000)
     parser.add_argument("--envs", type=int, default=300, help="environments in the batch (default 300)")
     parser.add_argument(
-        "--max-cycles", type=int, default=400, help="periods per training episode (default 400)"
+        "--max-cycles",
+        type=int,
+        default=None,
+        help="periods per training episode (default 400; with --suite the benchmark's time limit)",
     )
     parser.add_argument(
         "--collision-penalty",
@@ -175,5 +190,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    _add_suite_options(parser)
     parser.add_argument("--out", required=True)
     return parser

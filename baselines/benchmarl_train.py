@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import json
 import platform
 import sys
@@ -32,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from baselines.benchmarl_options import ALGORITHMS, build_parser
+from baselines.suite_training import choose, keep_chosen
 from evaluation.exit_codes import SUCCESS_EXIT
 from koopman_envs.files import write_atomic
 
@@ -49,6 +51,7 @@ def experiment(
     gae_lambda: float | None = None,
     normalize_advantage: bool = False,
     entropy_coef: float | None = None,
+    callbacks: list[Any] | None = None,
 ) -> Any:
     """A BenchMARL experiment of ``algorithm`` (``"mappo"`` or ``"ippo"``) on a KoopNav ``task``
     with BenchMARL's default networks (MLP for the actor and the critic) and ``config`` (an
@@ -56,7 +59,7 @@ def experiment(
     standard deviation before the tanh at the start (BenchMARL's default 1.0 when None);
     ``gae_lambda``: GAE's lambda (BenchMARL's 0.9 when None); ``normalize_advantage``: standardize
     every minibatch's advantages (SB3's PPO does; BenchMARL's losses do not); ``entropy_coef``: the
-    entropy bonus's weight (BenchMARL's 0 when None)."""
+    entropy bonus's weight (BenchMARL's 0 when None); ``callbacks``: BenchMARL callbacks of the run."""
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
@@ -83,6 +86,7 @@ def experiment(
         critic_model_config=MlpConfig.get_from_yaml(),
         seed=seed,
         config=config,
+        callbacks=callbacks,
     )
     if normalize_advantage:  # BenchMARL builds its ClipPPOLoss with normalize_advantage=False
         for loss in run.losses.values():
@@ -138,6 +142,7 @@ def _experiment(
     frames: int | None = None,
     restore: Path | None = None,
     stats: tuple[np.ndarray, np.ndarray] | None = None,
+    callbacks: list[Any] | None = None,
 ) -> Any:
     import torch
     from benchmarl.experiment import ExperimentConfig
@@ -186,6 +191,7 @@ def _experiment(
         args.gae_lambda,
         args.normalize_advantage,
         args.entropy_coef,
+        callbacks,
     )
 
 
@@ -226,13 +232,17 @@ def _final_env(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _train(
-    args: argparse.Namespace, folder: Path, stats: tuple[np.ndarray, np.ndarray] | None
+    args: argparse.Namespace,
+    folder: Path,
+    stats: tuple[np.ndarray, np.ndarray] | None,
+    callbacks: list[Any] | None = None,
 ) -> tuple[Any, list[dict[str, Any]]]:
     """Run the training (stage by stage with ``--curriculum`` or ``--stages``); the last
-    experiment and the stages run (name, frames at the end, env keywords)."""
+    experiment and the stages run (name, frames at the end, env keywords). ``callbacks``: of a
+    one-stage run (a suite run's checkpoints)."""
     plan = training_plan(args)
     if plan is None:
-        run = _experiment(args, folder, stats=stats)
+        run = _experiment(args, folder, stats=stats, callbacks=callbacks)
         run.run()
         return run, []
     stages, restore, run = [], None, None
@@ -276,44 +286,45 @@ def _curve(folder: Path) -> list[list[float]]:
         return [[float(row[0]), float(row[1])] for row in csv.reader(handle) if row]
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    # every setting checked before any work starts (statistics, BenchMARL's experiment)
-    for name, ok, allowed in (
-        ("frames", args.frames > 0, "> 0"),
-        ("envs", args.envs > 0, "> 0"),
-        ("lr", args.lr > 0, "> 0"),
-        ("initial-std", args.initial_std > 0, "> 0"),
-        ("reward-scale", args.reward_scale > 0, "> 0"),
-        ("gae-lambda", 0 <= args.gae_lambda <= 1, "in [0, 1]"),
-        ("epochs", args.epochs > 0, "> 0"),
-        ("entropy-coef", args.entropy_coef >= 0, ">= 0"),
-        ("frames-per-batch", args.frames_per_batch % args.envs == 0, "a multiple of --envs"),
-        ("minibatch-size", 0 < args.minibatch_size <= args.frames_per_batch, "in [1, --frames-per-batch]"),
-    ):
-        if not ok:
-            parser.error(f"--{name}={getattr(args, name.replace('-', '_'))!r}: allowed {allowed}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
-    start = time.perf_counter()
-    stats = _statistics(args)
-    experiment, stages = _train(args, out / "benchmarl", stats)
-    wall = time.perf_counter() - start
-    arrays = export_actor(experiment.policy, stats)
-    np.savez(out / "policy.npz", **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
-    import benchmarl
-    import torch
-    import torchrl
-
-    metadata = {
+def export_metadata(args: argparse.Namespace, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    """What the ``mappo``/``ippo`` controllers read of an export's ``metadata.json`` besides its
+    arrays (every checkpoint's and the final policy's)."""
+    return {
         "algorithm": args.algorithm,
         "task": args.task,
         "n_robots": int(_final_env(args).get("n_robots", 3)),
         "observation_size": int(arrays["weight_0"].shape[1]),
         "features": _features(args),
         "arrays": sorted(arrays),
+    }
+
+
+def export_policy(
+    args: argparse.Namespace, stats: tuple[np.ndarray, np.ndarray] | None, policy: Any
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The actor's arrays (:func:`export_actor`) and :func:`export_metadata`: a suite run's
+    checkpoint export."""
+    arrays = export_actor(policy, stats)
+    return arrays, export_metadata(args, arrays)
+
+
+def _metadata(
+    args: argparse.Namespace,
+    arrays: dict[str, np.ndarray],
+    experiment: Any,
+    stages: list[dict[str, Any]],
+    wall: float,
+    command: str,
+    folder: Path,
+) -> dict[str, Any]:
+    """The final export's ``metadata.json``: the controller's fields, the settings, the command,
+    seed, frames, wall time, versions and BenchMARL's evaluation curve."""
+    import benchmarl
+    import torch
+    import torchrl
+
+    return {
+        **export_metadata(args, arrays),
         "env": {**_final_env(args), "max_cycles": args.max_cycles},
         "curriculum": {"stages": stages} if stages else None,
         "lr": args.lr,
@@ -329,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "normalize_observations": bool(args.normalize_observations),
         "shaping": {"collision_penalty": args.collision_penalty, "precision_shaping": args.precision_shaping},
-        "command": "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv),
+        "command": command,
         "seed": args.seed,
         "frames": int(experiment.total_frames),
         "wall_seconds": round(wall, 1),
@@ -339,8 +350,69 @@ def main(argv: list[str] | None = None) -> int:
             "torch": torch.__version__,
             "python": platform.python_version(),
         },
-        "eval_curve": _curve(out / "benchmarl"),
+        "eval_curve": _curve(folder),
     }
+
+
+def _check_settings(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    """Every numeric setting checked before any work starts (statistics, BenchMARL's experiment)."""
+    for name, ok, allowed in (
+        ("frames", args.frames > 0, "> 0"),
+        ("envs", args.envs > 0, "> 0"),
+        ("lr", args.lr > 0, "> 0"),
+        ("initial-std", args.initial_std > 0, "> 0"),
+        ("reward-scale", args.reward_scale > 0, "> 0"),
+        ("gae-lambda", 0 <= args.gae_lambda <= 1, "in [0, 1]"),
+        ("epochs", args.epochs > 0, "> 0"),
+        ("entropy-coef", args.entropy_coef >= 0, ">= 0"),
+        ("frames-per-batch", args.frames_per_batch % args.envs == 0, "a multiple of --envs"),
+        ("minibatch-size", 0 < args.minibatch_size <= args.frames_per_batch, "in [1, --frames-per-batch]"),
+    ):
+        if not ok:
+            parser.error(f"--{name}={getattr(args, name.replace('-', '_'))!r}: allowed {allowed}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _check_settings(args, parser)
+    from baselines.benchmarl_suite import SuiteCheckpoints, suite_training
+
+    training = suite_training(args, parser)  # the test split refused by name, before any work
+    if args.max_cycles is None:
+        args.max_cycles = 400
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
+    command = "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv)
+    start = time.perf_counter()
+    stats = _statistics(args)
+
+    # a module-level function: BenchMARL pickles its callbacks
+    export = functools.partial(export_policy, args, stats)
+    checkpoints = (
+        None if training is None else SuiteCheckpoints(training, out, args.eval_freq, export, args.algorithm)
+    )
+    experiment, stages = _train(
+        args, out / "benchmarl", stats, None if checkpoints is None else [checkpoints]
+    )
+    wall = time.perf_counter() - start
+    arrays = export_actor(experiment.policy, stats)
+    metadata = _metadata(args, arrays, experiment, stages, wall, command, out / "benchmarl")
+    if checkpoints is not None and training is not None:
+        scores = checkpoints.finish(experiment.policy, int(experiment.total_frames))
+        best = choose(scores)
+        metadata.update(
+            suite=training.as_dict(), selected_frames=best.step, validation_success_rate=best.success_rate
+        )
+        keep_chosen(out, training, scores, metadata, command)
+        print(
+            f"{args.algorithm} on {args.task} ({training.labels['train']}): {metadata['frames']} frames in "
+            f"{wall:.0f} s; kept the export after {best.step:,} frames (validation success "
+            f"{best.success_rate:.2f}) in {out / args.task}"
+        )
+        return SUCCESS_EXIT
+    np.savez(out / "policy.npz", **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
     write_atomic(out / "metadata.json", json.dumps(metadata, indent=1) + "\n")
     print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
     return SUCCESS_EXIT

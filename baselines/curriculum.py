@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from koopman_envs.sim.formations import FORMATION_SHAPES
+from koopman_envs import FORMATION_SHAPES
 
 __all__ = ["PARTS", "STAGES", "VALIDATION", "Stage", "stage_parts"]
 

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from baselines.set_features import SetFeatureConfig, set_features, split_movers
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from koopman_envs.fronts.vector_env import KoopNavVectorEnv
+    from koopman_envs import KoopNavVectorEnv
 
 __all__ = ["command_of", "deterministic_action", "policy_command", "policy_inputs", "success_rate"]
 
@@ -186,10 +186,11 @@ def success_rate(
     venv = gym.make_vec(env_id, num_envs=episodes, **env_kwargs)
     obs, _ = venv.reset(seed=seed)
     # a KoopNav id's vector entry point is a KoopNavVectorEnv (make_vec types it as any VectorEnv)
-    engine = cast("KoopNavVectorEnv", venv.unwrapped).engine
-    layout_of_env = cast("KoopNavVectorEnv", venv.unwrapped).observation_layout
-    n_robots = engine.config.n_robots
-    v_max, omega_max = float(engine.command_high[0]), float(engine.command_high[1])
+    unwrapped = cast("KoopNavVectorEnv", venv.unwrapped)
+    config, layout_of_env = unwrapped.config, unwrapped.observation_layout
+    n_robots = config.n_robots
+    scenario = unwrapped.scenario(0)  # the actuation limits, as a controller knows them
+    v_max, omega_max = float(scenario.v_max), float(scenario.omega_max)
     done = np.zeros(episodes, dtype=bool)
     success = np.zeros(episodes, dtype=bool)
     while not done.all():
@@ -203,7 +204,7 @@ def success_rate(
             omega_max,
             features,
             set_config=set_config,
-            formation=engine.config.task.formation,
+            formation=config.task.formation,
             message_ages=layout_of_env.comm,
             mover_slots=layout_of_env.movers,
         )

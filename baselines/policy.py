@@ -16,11 +16,10 @@ from baselines.inference import command_of, deterministic_action, policy_command
 from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, load_npz, read_json
 from baselines.set_features import MAX_TEAM, SetFeatureConfig
 from controllers.base import BaseController
-from koopman_envs import Observed
+from koopman_envs import TASKS, Observed
 from koopman_envs.checks import Range
 from koopman_envs.files import write_atomic
 from koopman_envs.scenario import Scenario
-from koopman_envs.tasks.base import TASKS
 
 __all__ = [
     "ObsNorm",

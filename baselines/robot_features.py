@@ -8,10 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from baselines.shaping import PRECISION_EPS
-from koopman_envs import TeamEntry
+from koopman_envs import TeamEntry, nearest_order
 from koopman_envs.checks import check_choice, check_int
 from koopman_envs.layout import ObservationLayout
-from koopman_envs.sim.nearest import nearest_order
 
 __all__ = ["FEATURE_SETS", "feature_bounds", "feature_count", "robot_features"]
 
@@ -28,7 +27,7 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     changes); with fewer others than that, the missing slots read like absent obstacles
     (0, 0, FAR) and point at the robot itself.
     """
-    from koopman_envs.tasks.observation import FAR
+    from koopman_envs import FAR
 
     n = blocks.shape[-2]
     layout = ObservationLayout(n)

@@ -37,11 +37,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs import MoverEntry, ObstacleEntry, TeamEntry
+from koopman_envs import FAR, MoverEntry, ObstacleEntry, TeamEntry, nearest_order
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.layout import ObservationLayout
-from koopman_envs.sim.nearest import nearest_order
-from koopman_envs.tasks.observation import FAR
 
 __all__ = [
     "EGO_SIZE",

@@ -52,7 +52,7 @@ from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
 
 if TYPE_CHECKING:
-    from koopman_envs.fronts.vector_env import KoopNavVectorEnv
+    from koopman_envs import KoopNavVectorEnv
 
 __all__ = ["GROUP", "INFO_KEYS", "KoopNavMultiAgentEnv", "observation_statistics"]
 
@@ -77,7 +77,7 @@ def observation_statistics(
     actions (seeded: the same figures every call). An entry that never varies (an empty slot)
     gets 1 as its deviation, so that it passes unscaled."""
     venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
-    n = int(cast("KoopNavVectorEnv", venv.unwrapped).engine.config.n_robots)
+    n = int(cast("KoopNavVectorEnv", venv.unwrapped).config.n_robots)
     obs, _ = venv.reset(seed=seed)
     space = cast(gym.spaces.Box, venv.action_space)
     rng = np.random.default_rng(seed)
@@ -138,7 +138,7 @@ class KoopNavMultiAgentEnv(EnvBase):
             check_choice("features", features, FEATURE_SETS)
         self.features = features
         venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
-        config = cast("KoopNavVectorEnv", venv.unwrapped).engine.config
+        config = cast("KoopNavVectorEnv", venv.unwrapped).config
         movers = config.movers
         self.shaping = RewardShaping(
             collision_penalty,

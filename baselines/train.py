@@ -11,6 +11,12 @@ to ``OUT/progress.csv`` (no TensorBoard); checkpoints to ``OUT/checkpoints``; ev
 ``--eval-freq`` steps the deterministic policy is evaluated on the task's paper maps at nominal
 slip. The final ``OUT`` holds ``policy.zip``, ``obs_norm.npz`` and ``metadata.json`` (the files
 ``rl-ppo`` loads).
+
+``--suite koopnav-bench-v1`` trains on the task's ``train`` layouts of the benchmark suite under
+the benchmark's settings instead (high slip, 5 cm start noise, its time limit; no curriculum),
+scores every checkpoint on the ``validation`` layouts through the evaluator, and keeps the best
+in ``OUT/<task>/`` (a policy root: ``rl-ppo-set:policy_root=OUT``) with the selection record
+``OUT/selection.json``; ``--split test`` is refused by name (:mod:`baselines.suite_training`).
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -30,10 +36,11 @@ from baselines.curriculum import PARTS, STAGES, stage_parts
 from baselines.fine_tune import copy_weights, mismatches
 from baselines.policy import ObsNorm, norm_of, save_policy, success_rate
 from baselines.set_features import SetFeatureConfig
+from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
 from baselines.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
 from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from koopman_envs.tasks.base import TASKS
+from koopman_envs import TASKS
 
 EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
 
@@ -81,12 +88,43 @@ class Trainer:
                 f"--mover-shaping {args.mover_shaping} needs --movers and the robot layout "
                 f"(got {'no --movers' if not args.movers else '--layout ' + args.layout})"
             )
+        self.suite = self._suite(args, parser)
+        if args.max_episode_steps is None:
+            args.max_episode_steps = (
+                400 if self.suite is None else self.suite.env_kwargs()["max_episode_steps"]
+            )
         self.history: list[dict] = []
+        #: a suite run's checkpoints as scored on the validation layouts, in order
+        self.scores: list[CheckpointScore] = []
         #: the policy this run was fine-tuned from (``--init-from``), recorded in the metadata
         self.init_source: dict[str, Any] | None = None
 
+    def _suite(self, args: argparse.Namespace, parser: argparse.ArgumentParser) -> SuiteTraining | None:
+        """The run's :class:`SuiteTraining` with ``--suite`` (None without), checked before any
+        work: the test split is refused by name (the tuner's check), as are the options a suite
+        run's layouts replace."""
+        suite = suite_from_args(args, self.task, parser)
+        clashes = [
+            f"--{o.replace('_', '-')}" for o in ("random_map", "movers") if getattr(args, o) is not None
+        ]
+        if suite is not None and clashes:
+            parser.error(
+                f"--suite {args.suite} cannot be combined with {', '.join(clashes)}: a suite run trains on "
+                "the suite's layouts under the benchmark's settings"
+            )
+        return suite
+
+    @property
+    def controller(self) -> tuple[str, dict[str, Any]]:
+        """The registered controller that plays this run's policies, and its options but the root
+        (``threads=None``: scoring a checkpoint leaves the training's torch threads alone)."""
+        if self.set_config is not None:
+            return "rl-ppo-set", {"threads": None}
+        return "rl-ppo", {"algo": self.args.algo, "threads": None}
+
     def make_venv(self, stage: int) -> KoopNavSB3VecEnv | MixtureVecEnv:
-        """The training env: one vector env, or the curriculum stage's parts side by side."""
+        """The training env: one vector env (the suite's training layouts with ``--suite``), or
+        the curriculum stage's parts side by side."""
         args = self.args
         shared = {
             "layout": args.layout,
@@ -97,6 +135,12 @@ class Trainer:
             "uncertainty": args.uncertainty,
             **({"movers": args.movers} if args.movers else {}),
         }
+        if self.suite is not None:
+            # the suite's layouts, slip and settings (its time limit: --max-episode-steps wins)
+            env = {**self.suite.env_kwargs(), **shared}
+            if self.set_config is None:
+                return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, features=args.features, **env)
+            return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, set_config=self.set_config, **env)
         if self.set_config is None:
             return KoopNavSB3VecEnv(
                 args.env,
@@ -237,8 +281,10 @@ class Trainer:
             identity["movers"] = args.movers
         if self.set_config is not None:
             identity["set_config"] = self.set_config.as_dict()
-        else:
+        elif self.suite is None:
             identity["random_map"] = self.random_map
+        if self.suite is not None:
+            identity["trained_on"] = self.suite.labels["train"]
         return identity
 
     def score(self, model: Any, policy_norm: ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
@@ -255,8 +301,25 @@ class Trainer:
             model, dict(policy_norm), self.identity, episodes_per_cell=args.validation_episodes
         )
 
+    def suite_checkpoint(self, model: Any, venv: Any, timesteps: int) -> str:
+        """Save the policy as checkpoint ``step_<timesteps>/<task>/`` (a policy root) and score it
+        on the suite's validation layouts through the evaluator; one line."""
+        root = self.out / "checkpoints" / f"step_{timesteps}"
+        save_policy(root / self.task, model, venv, {**self.identity, "timesteps": timesteps})
+        name, options = self.controller
+        assert self.suite is not None  # called for suite runs only
+        score = self.suite.score(name, {**options, "policy_root": str(root)}, timesteps, root)
+        self.scores.append(score)
+        label = f"validation success ({self.suite.labels['selection']}, {score.episodes} episodes)"
+        self.history.append({"timesteps": timesteps, "scored_on": label, **score.as_dict()})
+        model.logger.record("eval/success_rate", score.success_rate)
+        distance = "-" if score.mean_final_distance is None else f"{score.mean_final_distance:.3f} m"
+        return f"{timesteps:>10,d} steps  {label} {score.success_rate:.2f}, mean final distance {distance}"
+
     def checkpoint(self, model: Any, venv: Any, timesteps: int) -> str:
         """Score the policy now, record it in the history and save it as a checkpoint; one line."""
+        if self.suite is not None:
+            return self.suite_checkpoint(model, venv, timesteps)
         label, rate = self.score(model, norm_of(venv))
         self.history.append({"timesteps": timesteps, "scored_on": label, "success_rate": rate})
         model.logger.record("eval/success_rate", rate)
@@ -277,7 +340,8 @@ class Trainer:
             args.eval_freq, lambda steps: self.checkpoint(model, venv_now[0], steps)
         )
         venv_now = [venv]
-        stages = STAGES[self.task] if self.set_config is not None else ()
+        # a suite run trains on the suite's layouts alone: no curriculum
+        stages = STAGES[self.task] if self.set_config is not None and self.suite is None else ()
         if not stages:
             model.learn(total_timesteps=args.timesteps, callback=callback)
             return venv
@@ -328,7 +392,12 @@ class Trainer:
                 "python": platform.python_version(),
             },
         }
-        if self.set_config is None:
+        if self.suite is not None:
+            metadata["suite"] = self.suite.as_dict()
+            metadata["validation_success_rate"] = final_rate
+            if self.set_config is not None:
+                metadata["set_width"] = args.set_width
+        elif self.set_config is None:
             metadata["eval_success_rate_nominal_paper_maps"] = final_rate
         else:
             metadata["set_width"] = args.set_width
@@ -338,6 +407,24 @@ class Trainer:
             }
             metadata["validation_success_rate"] = final_rate
         return metadata
+
+
+def finish_suite_run(run: Trainer, model: Any, venv: Any, team_size: int | None, wall: float) -> int:
+    """A suite run's end: the final policy scored as the last checkpoint, the best checkpoint on
+    the validation layouts kept in ``OUT/<task>/`` with the selection record ``OUT/selection.json``."""
+    steps = int(model.num_timesteps)
+    if not run.scores or run.scores[-1].step != steps:
+        print(run.checkpoint(model, venv, steps), flush=True)
+    best = choose(run.scores)
+    metadata = run.metadata(model, venv, team_size, wall, best.success_rate)
+    metadata["selected_timesteps"] = best.step
+    chosen = keep_chosen(run.out, cast(SuiteTraining, run.suite), run.scores, metadata, metadata["command"])
+    print(
+        f"trained {run.args.algo} on {run.args.env} ({metadata['trained_on']}) for {steps:,} steps in "
+        f"{wall:.0f} s; kept the checkpoint after {chosen.step:,} steps (validation success "
+        f"{chosen.success_rate:.2f}); wrote {run.out / run.task} and {run.out / 'selection.json'}"
+    )
+    return SUCCESS_EXIT
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -358,6 +445,20 @@ def main(argv: list[str] | None = None) -> int:
     run.out.mkdir(parents=True, exist_ok=True)
     # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
     torch.set_num_threads(args.threads)
+    # same seed, same weights: PPO(seed=) seeds Python, numpy and torch (SB3's set_random_seed);
+    # deterministic algorithms make torch refuse an op without a deterministic kernel instead of
+    # running it (restored afterwards: a caller's process keeps its own setting)
+    previous = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True)
+    try:
+        return _train(run)
+    finally:
+        torch.use_deterministic_algorithms(previous)
+
+
+def _train(run: Trainer) -> int:
+    """Build the env and the model, train, score and save (``main``'s work once its checks passed)."""
+    args = run.args
     raw = run.make_venv(0)
     team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
     venv = run.wrap(raw)
@@ -369,6 +470,8 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     venv = run.learn(model, venv)
     wall = time.perf_counter() - start
+    if run.suite is not None:
+        return finish_suite_run(run, model, venv, team_size, wall)
     label, final_rate = run.score(model, norm_of(venv), episodes_per_map=5)
     save_policy(run.out, model, venv, run.metadata(model, venv, team_size, wall, final_rate))
     print(

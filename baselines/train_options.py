@@ -8,9 +8,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from baselines.suite_training import add_suite_options
 from baselines.vec_env import FEATURE_SETS, LAYOUTS
+from koopman_envs import TASKS
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
-from koopman_envs.tasks.base import TASKS
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 __all__ = ["POLICIES", "TASK_OF", "TIMESTEPS", "TRAIN_MAPS", "build_parser", "env_options"]
@@ -47,9 +48,15 @@ def env_options(parser: argparse.ArgumentParser) -> None:
         "--eval-freq",
         type=lambda s: int(s.replace("_", "")),
         default=2_000_000,
-        help="steps between checkpoints (each also evaluated on the paper maps)",
+        help="steps between checkpoints (each also evaluated: on the paper maps, on held-out random "
+        "layouts (set policy), or on the validation layouts (--suite))",
     )
-    parser.add_argument("--max-episode-steps", type=int, default=400)
+    parser.add_argument(
+        "--max-episode-steps",
+        type=int,
+        default=None,
+        help="time limit of a training episode [periods] (default 400; with --suite the benchmark's)",
+    )
     parser.add_argument(
         "--uncertainty",
         default="nominal",
@@ -148,5 +155,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="hidden layer widths of actor and critic, e.g. 128,128",
     )
     env_options(parser)
+    add_suite_options(parser, "no curriculum, every --eval-freq checkpoint scored on the validation layouts")
     parser.add_argument("--out", required=True)
     return parser

@@ -35,7 +35,7 @@ from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from koopman_envs.fronts.vector_env import KoopNavVectorEnv
+    from koopman_envs import KoopNavVectorEnv
 
 __all__ = [
     "FEATURE_SETS",
@@ -127,11 +127,12 @@ class KoopNavSB3VecEnv(VecEnv):
         self.layout = layout
         self.venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
         # a KoopNav id's vector entry point is a KoopNavVectorEnv (make_vec types it as any VectorEnv)
-        engine = cast("KoopNavVectorEnv", self.venv.unwrapped).engine
-        self.n_envs, self.n_robots = num_envs, engine.config.n_robots
-        self._n_obstacle_obs, self._formation = engine.config.n_obstacle_obs, engine.config.task.formation
+        unwrapped = cast("KoopNavVectorEnv", self.venv.unwrapped)
+        config = unwrapped.config  # the env's keywords resolved (koopman_envs.EngineConfig)
+        self.n_envs, self.n_robots = num_envs, config.n_robots
+        self._n_obstacle_obs, self._formation = config.n_obstacle_obs, config.task.formation
         # one robot's block by name (koopman_envs.layout), the front's public seam
-        observed = cast("KoopNavVectorEnv", self.venv.unwrapped).observation_layout
+        observed = unwrapped.observation_layout
         # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
         self._message_ages = observed.comm
         self._mover_slots = observed.movers  # listed movers: a set policy may read them
@@ -143,26 +144,26 @@ class KoopNavSB3VecEnv(VecEnv):
             raise ValueError(
                 "the SB3 adapter's policies read the listed obstacles; sensing='lidar' is not supported"
             )
-        movers = engine.config.movers
+        movers = config.movers
         # the training terms (baselines.shaping) apply to the shared per-robot policy only
         self.shaping = RewardShaping(
             collision_penalty,
             precision_shaping,
             mover_shaping if layout == "robot" else 0.0,
-            engine.config.task.reward.collision,
-            None if movers is None or movers.count == 0 else engine.config.robot_radius + movers.radius,
+            config.task.reward.collision,
+            None if movers is None or movers.count == 0 else config.robot_radius + movers.radius,
         )
         if features not in FEATURE_SETS:
             raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
         self.features = features
         observation: spaces.Space[Any]
         if set_config is not None:
-            physical, _ = engine.robot_spaces()
+            physical, _ = unwrapped.robot_spaces()
             bound = SET_FEATURE_BOUND
             observation = spaces.Box(-bound, bound, shape=(set_config.size,), dtype=np.float32)
             width = num_envs * self.n_robots
         elif layout == "robot":
-            physical, block = engine.robot_spaces()
+            physical, block = unwrapped.robot_spaces()
             low, high = feature_bounds(block.low, block.high, self.n_robots, features)
             observation = spaces.Box(low, high, dtype=np.float32)
             width = num_envs * self.n_robots

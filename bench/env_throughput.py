@@ -25,8 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 import koopman_envs
-from koopman_envs.sim.maps import MapSpec, load_map
-from koopman_envs.tasks.base import task_for_env
+from koopman_envs import MapSpec, load_map, task_for_env
 
 REPEATS = 3  # timing windows per figure; the best is reported
 

@@ -33,9 +33,8 @@ from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, c
 from controllers.koopman.dictionary import get_dictionary
 from controllers.koopman.fit import fit_bilinear
 from controllers.koopman.model import KoopmanModel
-from koopman_envs.builder.plant import make_plant
+from koopman_envs import make_plant, rollout
 from koopman_envs.params import PARAMS, slip_lambdas
-from koopman_envs.sim.rollout import rollout
 
 PYKOOPMAN_SCRIPT = r"""
 import json, sys, time

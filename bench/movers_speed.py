@@ -39,9 +39,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling script's
 from env_throughput import REPEATS, _timed_pair, vector_runner  # noqa: E402
 
 import koopman_envs  # noqa: E402
+from koopman_envs import load_map  # noqa: E402
 from koopman_envs.movers import MoverConfig  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
-from koopman_envs.sim.maps import load_map  # noqa: E402
 from koopman_envs.sim.movers import MoverField  # noqa: E402
 
 ENV = "KoopNav-TargetReaching-v0"

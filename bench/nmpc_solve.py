@@ -66,8 +66,7 @@ from controllers.mpc.config import IPOPT_OPTIONS, NMPCConfig
 from controllers.mpc.models import UnicycleModel
 from controllers.mpc.rti import QP_SOLVERS
 from controllers.solvers.compiled import solver_cache_dir
-from koopman_envs.fronts.episode import EpisodeResult, run_episode
-from koopman_envs.tasks.base import env_id_for_map
+from koopman_envs import EpisodeResult, env_id_for_map, run_episode
 
 #: QP solvers of the real-time iteration compared by default (``--qp-solvers`` picks others of
 #: :data:`controllers.mpc.rti.QP_SOLVERS`, e.g. DAQP or proxQP)

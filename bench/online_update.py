@@ -25,7 +25,7 @@ from controllers.koopman import calibrated_model
 from controllers.koopman.fit import fit_lifted
 from controllers.koopman.online import RecursiveBilinearFit
 from controllers.koopman.store import default_structure
-from koopman_envs.builder.plant import make_plant
+from koopman_envs import make_plant
 
 
 def _trajectory(n_robots: int, steps: int) -> tuple[np.ndarray, np.ndarray, object]:
@@ -85,7 +85,7 @@ def time_episode() -> None:
     import controllers
     import koopman_envs  # noqa: F401
     from controllers.calibration import calibrate_controller
-    from koopman_envs.fronts.episode import run_episode
+    from koopman_envs import run_episode
 
     env = gym.make("KoopNav-TargetReaching-v0", map="map1", slip="high")
     ctrl = controllers.make("adaptive-koopman-nmpc")

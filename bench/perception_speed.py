@@ -34,8 +34,7 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.perception.front import LidarPerception
 from controllers.perception.scan import ScanSettings, cluster_scan, scan_points
-from koopman_envs import Observed
-from koopman_envs.sim.lidar import beam_angles
+from koopman_envs import Observed, beam_angles
 
 ENV = "KoopNav-TargetReaching-v0"
 

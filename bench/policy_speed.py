@@ -31,7 +31,7 @@ from nmpc_solve import closed_loop, line  # noqa: E402  (the same closed-loop ru
 from scaling import run_cell  # noqa: E402  (the scaling table's cells)
 
 import controllers  # noqa: E402
-from koopman_envs.tasks.base import env_id_for_map  # noqa: E402
+from koopman_envs import env_id_for_map  # noqa: E402
 
 PAPER_MAP_CONTROLLERS = ("rl-ppo-set", "rl-ppo", "koopman-nmpc", "nominal-nmpc", "consensus")
 TEAM_CONTROLLERS = ("rl-ppo-set", "rl-ppo", "consensus", "dmpc-nominal")

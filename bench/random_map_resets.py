@@ -37,7 +37,7 @@ def main() -> int:
     for env_id in TASKS:
         for n in args.robots:
             env = gym.make(env_id, map="random", n_robots=n)
-            config = env.unwrapped.engine.config.random_map  # type: ignore[attr-defined]
+            config = env.unwrapped.config.random_map  # type: ignore[attr-defined]
             shape = config.shape_for(n)
             share = config.placement_share(shape, n)
             env.reset(seed=0)

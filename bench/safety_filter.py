@@ -34,7 +34,7 @@ from evaluation import RunSpec, evaluate
 from evaluation.configs import parse_controller, split_controller_list
 from evaluation.records import ran
 from evaluation.statistics import wilson_interval
-from koopman_envs.fronts.episode import run_episode
+from koopman_envs import run_episode
 
 TASKS = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
 

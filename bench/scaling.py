@@ -28,7 +28,7 @@ import koopman_envs  # noqa: F401  (registers the envs)
 from controllers.calibration import calibrate_controller
 from evaluation.configs import parse_controller
 from evaluation.statistics import wilson_interval
-from koopman_envs.fronts.episode import run_episode
+from koopman_envs import run_episode
 
 ENV_ID = "KoopNav-TargetReaching-v0"
 ENV_IDS = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")

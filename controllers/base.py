@@ -25,7 +25,7 @@ from koopman_envs.scenario import Scenario, scenario_of
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from controllers.perception.front import LidarPerception
-    from koopman_envs.builder.plant import CalibrationPlant
+    from koopman_envs import CalibrationPlant
 
 __all__ = [
     "BaseController",

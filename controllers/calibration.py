@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from controllers.base import Calibratable, calibratable
 from controllers.disk_cache import CacheWriteWarning, cache_root, write_atomic
-from koopman_envs.builder.plant import CalibrationPlant, make_plant
+from koopman_envs import CalibrationPlant, make_plant
 from koopman_envs.checks import check_int
 from koopman_envs.params import PARAMS
 

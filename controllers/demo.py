@@ -16,10 +16,10 @@ import numpy as np
 import controllers
 import koopman_envs
 from controllers.calibration import calibrate_controller
-from koopman_envs.fronts.episode import run_episode
+from koopman_envs import run_episode
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from koopman_envs.fronts.gym_env import KoopNavEnv
+    from koopman_envs import KoopNavEnv
 
 
 def run_demo(
@@ -44,7 +44,7 @@ def run_demo(
         **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in ctrl.stats().summary().items()},
     }
     if gif:
-        from koopman_envs.fronts.rendering import save_episode
+        from koopman_envs import save_episode
 
         summary["gif"] = save_episode(result.frames, gif)
     return summary

@@ -42,9 +42,8 @@ from numpy.typing import NDArray
 from controllers.base import BaseController, Controller, ControllerStats, hand_on, take_over_radio
 from controllers.estimator_options import AUTO, ESTIMATOR_OPTION_PREFIX, EstimatorOptions
 from controllers.identification import MotionIdentifier
-from koopman_envs import Observed
+from koopman_envs import Observed, rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.dynamics import rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 

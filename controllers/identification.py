@@ -28,7 +28,7 @@ from collections import deque
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.sim.dynamics import wrap_angle
+from koopman_envs import wrap_angle
 
 __all__ = ["HEADING_FLOOR", "POSITION_FLOOR", "MotionIdentifier"]
 

@@ -1,6 +1,6 @@
 """Draw example layouts of the benchmark suites, one row per family, for docs/benchmark.md.
 
-``python docs/make_bench_figure.py [--out docs/_static/bench_layouts.png]``
+``python docs/make_bench_figure.py --out docs/_static/bench_layouts.png``
 
 The first layouts of each family in ``koopnav-bench-v1``'s validation split (target reaching on
 the left, formation on the right), as stored: obstacles in grey, starts as hollow discs, targets
@@ -54,7 +54,8 @@ def _draw(ax: plt.Axes, layout: object) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", default="docs/_static/bench_layouts.png")
+    # no default: the figure is a tracked file, written only when named
+    parser.add_argument("--out", required=True, help="the PNG to write (docs/_static/bench_layouts.png)")
     args = parser.parse_args(argv)
     suites = [load_suite("koopnav-bench-v1", task, "validation") for task in ("target_reaching", "formation")]
     fig, axes = plt.subplots(len(FAMILIES), 2 * PER_TASK, figsize=(2.6 * 2 * PER_TASK, 2.9 * len(FAMILIES)))

@@ -1,6 +1,6 @@
 """Draw the README's picture with the package's own renderer.
 
-``python docs/make_figure.py [--steps 300] [--out docs/_static/formation_map3.png]``
+``python docs/make_figure.py --out docs/_static/formation_map3.png [--steps 300]``
 
 Koopman-NMPC with widened margins (``koopman-nmpc-robust``) drives the formation task on Map 3
 under high slip, seed 0; the env's ``rgb_array`` frame at the end of the episode (or after
@@ -29,7 +29,8 @@ def main(argv: list[str] | None = None) -> int:
         "--steps", type=int, default=300, help="at most this many control periods (the episode may end first)"
     )
     parser.add_argument("--controller", default="koopman-nmpc-robust")
-    parser.add_argument("--out", default="docs/_static/formation_map3.png")
+    # no default: the picture is a tracked file, written only when named
+    parser.add_argument("--out", required=True, help="the PNG to write (docs/_static/formation_map3.png)")
     args = parser.parse_args(argv)
     env = gym.make("KoopNav-Formation-v0", map="map3", slip="high", render_mode="rgb_array")
     ctrl = controllers.make(args.controller)

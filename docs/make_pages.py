@@ -26,7 +26,8 @@ PAGES: list[dict] = json.loads(read_text(ROOT / "data" / "pages.json", MAX_TEXT_
 
 def page_command(entry: dict, out: Path, figures: Path | None = None) -> list[str]:
     """The command that rebuilds ``entry``'s page (one item of :data:`PAGES`) into ``out``, its
-    figures into ``figures`` (default: the generator's, docs/_static); run it from the root."""
+    figures into ``figures`` (default: the generator's, ``_static`` beside the page: docs/_static);
+    run it from the root."""
     command = [sys.executable, str(ROOT / entry["generator"]), *entry["args"], "--out", str(out)]
     return command if figures is None else [*command, "--figures", str(figures)]
 

@@ -5,7 +5,7 @@ published page's arguments are in ``data/pages.json``)::
 
     python docs/make_results_md.py RESULTS [RESULTS ...] [--ablation docs/ablation.md] \
         [--strict RESULTS] [--uncertainty RESULTS ...] [--scaling RESULTS ...] \
-        [--notes docs/_intros/results_notes.md] [--figures DIR] [--out docs/results.md]
+        [--notes docs/_intros/results_notes.md] [--figures DIR] --out docs/results.md
 
 Cells of later files are added to those of the first (e.g. a separate ``--controllers rl-ppo``
 run). Every rate carries its 95% Wilson interval, every mean distance its 95% bootstrap
@@ -332,8 +332,8 @@ def _header(doc: dict) -> list[str]:
     return [
         "# Paper protocol results",
         "",
-        "Rebuilt from the committed episode logs (`data/*.tar.xz`) by `python docs/make_results_md.py` "
-        "with the arguments listed in `data/pages.json`, byte for byte (`tests/test_published_pages.py`); "
+        "Rebuilt from the committed episode logs (`data/*.tar.xz`) by `python docs/make_pages.py docs/results.md` "
+        "(`docs/make_results_md.py` with the arguments listed in `data/pages.json`), byte for byte (`tests/test_published_pages.py`); "
         "the runs: `bash data/publish.sh paper` and the other runs its arguments name "
         "(`data/publish.sh` holds each run's evaluator command; resumable with `--resume`). "
         f"Package {doc['package_version']}.",
@@ -467,10 +467,9 @@ def main() -> None:
     parser.add_argument(
         "--notes", type=Path, help="a Markdown file appended to the page (hand-written sections)"
     )
-    parser.add_argument(
-        "--figures", default=str(Path(__file__).with_name("_static")), help="where figures go"
-    )
-    parser.add_argument("--out", default=str(Path(__file__).with_name("results.md")))
+    parser.add_argument("--figures", help="where figures go (default: _static beside --out)")
+    # no default page: the published one is a tracked file (docs/make_pages.py names it)
+    parser.add_argument("--out", required=True, help="the page to write, e.g. docs/results.md")
     args = parser.parse_args()
     docs = [load_results(path) for path in args.results]
     doc = docs[0]
@@ -485,7 +484,8 @@ def main() -> None:
     # all files' episodes in one Results: every controller is paired with every other on the
     # shared (map, slip, seed) episodes, also across separate runs of the same protocol
     pooled = pool(docs)
-    lines += _pooled_sections(pooled, Path(args.figures), Path(args.out))
+    figures = Path(args.figures) if args.figures else Path(args.out).parent / "_static"
+    lines += _pooled_sections(pooled, figures, Path(args.out))
     lines += _strict_section(args.strict)
     if args.ablation:
         lines += [

@@ -2,13 +2,14 @@
 
 Usage::
 
-    python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] [--out docs/robustness_results.md]
-        [--figures docs/_static] [--title TEXT] [--intro FILE] [--names NAME ...]
+    python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] --out PAGE.md
+        [--figures DIR] [--title TEXT] [--intro FILE] [--names NAME ...]
         [--figure-prefix sweep] [--reference CONTROLLER] [--level-costs]
 
 Each sweep directory (holding the sweep.json manifest) becomes one part: its command, the levels
 not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
-tail) and the table of every level, with the profile's figure copied under ``--figures``. Every
+tail) and the table of every level, with the profile's figure copied under ``--figures`` (default:
+``_static`` beside the page, as docs/_static for a page of docs/). Every
 level's results are read back checked (``evaluation.sweep.load_sweep``).
 
 With ``--names`` (one per sweep) the parts are titled by them, and when the page has two or more
@@ -40,16 +41,15 @@ Trial i uses seed i at every level, so the maps, starts and slip draws are the s
 level and the curves are paired ([Robustness profiles](robustness.md),
 [Runtime uncertainty](uncertainty.md)). A level that resolves to the same settings as another
 (every axis at 0) is run once and serves every axis. Regenerate with the commands below, then
-`python docs/make_robustness_md.py SWEEP_DIR ...`."""
+`python docs/make_robustness_md.py SWEEP_DIR ... --out PAGE.md`."""
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("sweeps", nargs="+", help="sweep output directories")
-    parser.add_argument("--out", default=str(Path(__file__).with_name("robustness_results.md")))
-    parser.add_argument(
-        "--figures", default=str(Path(__file__).with_name("_static")), help="where figures go"
-    )
+    # no default page: the published ones are tracked files (docs/make_pages.py names them)
+    parser.add_argument("--out", required=True, help="the page to write, e.g. docs/robustness_results.md")
+    parser.add_argument("--figures", help="where figures go (default: _static beside --out)")
     parser.add_argument("--title", default="Robustness results")
     parser.add_argument(
         "--intro", type=Path, help="a Markdown file whose text opens the page (default: the sweeps' intro)"
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --intro {str(args.intro)!r} is not a file", file=sys.stderr)
         return BAD_INPUT_EXIT
     out = Path(args.out)
-    figures = Path(args.figures)
+    figures = Path(args.figures) if args.figures else out.parent / "_static"
     intro = INTRO if args.intro is None else args.intro.read_text(encoding="utf-8").strip()
     names = args.names or [f"Sweep {index + 1}" for index in range(len(args.sweeps))]
     parts = [f"# {args.title}", intro]

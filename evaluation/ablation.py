@@ -12,7 +12,7 @@ constraints soft / hard                       exact-penalty slacks vs the paper'
 
 ``python evaluate.py --ablation [FACTOR ...]`` runs the full factorial of the named factors (the
 others held at learned / paper / soft) on the paper maps under high slip and writes
-``docs/ablation.md``: success per configuration and map with intervals, and each factor's main
+``OUT/ablation.md`` (``--ablation-out docs/ablation.md``: the published page): success per configuration and map with intervals, and each factor's main
 effect as a paired comparison (configurations that differ only in that factor, same seeds).
 """
 

@@ -15,7 +15,7 @@ Conventions (the same in every report):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,16 +31,19 @@ from evaluation.statistics import (
     wilson_interval,
 )
 from evaluation.suite_runs import cluster_of
-from koopman_envs.fronts.episode import smallest_clearance
-from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.suites import FAMILIES, TIERS
+from evaluation.suite_statistics import (
+    OUTCOMES,
+    is_suite_run,
+    measure_table,
+    suite_mean_interval,
+    suite_rate_interval,
+)
+from koopman_envs import CollisionKind, path_ratio, smallest_clearance
 
 __all__ = [
-    "BREAKDOWNS",
     "Cell",
     "DistanceSummary",
     "aggregate",
-    "breakdown",
     "leaderboard",
     "paired_comparisons",
     "pooled_rate",
@@ -245,19 +248,26 @@ def pooled_rate(cells: Iterable[Cell], outcome: str = "successes") -> tuple[floa
     return (count / valid if valid else float("nan")), list(wilson_interval(count, valid)), valid
 
 
-def _clustered_interval(wilson: list[float], records: list[dict[str, Any]]) -> list[float]:
-    """The wider of the Wilson interval over distinct episodes and the cluster bootstrap over
-    the clusters of :func:`~evaluation.suite_runs.cluster_of`: a suite run's layouts (the layouts
-    are the sample, the episodes on one layout share it), else trials (episodes sharing a seed
-    share its layout, start and slip draws across cells;
-    :func:`~evaluation.statistics.cluster_bootstrap_rate`). Wilson covers small samples, where
-    a bootstrap of a rate at 0 or 1 has no width; the cluster bootstrap covers the dependence
-    between a cluster's episodes, which Wilson assumes away."""
+def _clustered_interval(
+    wilson: list[float],
+    records: list[dict[str, Any]],
+    outcome: Callable[[Mapping[str, Any]], bool] | None = None,
+) -> list[float]:
+    """The wider of the Wilson interval over distinct episodes and a bootstrap over the clusters
+    of :func:`~evaluation.suite_runs.cluster_of` (``outcome``: what counts, default success). In a
+    suite run the clusters are layouts (the sample) and the bootstrap is two-stage, layouts then
+    episodes within them (:func:`evaluation.suite_statistics.suite_rate_interval`); in other runs they
+    are trials (a seed's episodes share its layout, start and slip draws across cells;
+    :func:`~evaluation.statistics.cluster_bootstrap_rate`). Wilson covers small samples, where a
+    bootstrap of a rate at 0 or 1 has no width; the bootstrap covers the dependence between a
+    cluster's episodes, which Wilson assumes away."""
+    outcome = outcome or (lambda r: bool(r["success"]))
+    # the one place of a rate's clustered interval (the leaderboard's and the suite breakdowns')
+    if is_suite_run(records):
+        return suite_rate_interval(records, outcome)[1]
     clusters: dict[Any, list[bool]] = {}
     for r in records:
-        clusters.setdefault(cluster_of(r), []).append(bool(r["success"]))
-    # the one call site of the clustered interval of a rate (the leaderboard's and the suite
-    # breakdowns'): a two-stage bootstrap, layouts then episodes within them, goes here
+        clusters.setdefault(cluster_of(r), []).append(outcome(r))
     _, low, high = cluster_bootstrap_rate(clusters.values())
     if math.isnan(low):
         return wilson
@@ -278,10 +288,9 @@ def episode_metrics(records: list[dict[str, Any]]) -> dict[str, float]:
     """
     ratios, clearances, accels = [], [], []
     for r in records:
-        straight = np.asarray(r.get("straight_distance") or [], dtype=float)
-        if r["success"] and straight.size and (straight > 0.1).any():
-            moved = straight > 0.1
-            ratios.append(float(np.mean(np.asarray(r["path_length"], dtype=float)[moved] / straight[moved])))
+        ratio = path_ratio(r.get("path_length"), r.get("straight_distance")) if r["success"] else None
+        if ratio is not None:
+            ratios.append(ratio)
         low = smallest_clearance(r.get("min_clearance"))
         if low is not None:
             clearances.append(100 * low)
@@ -293,6 +302,21 @@ def episode_metrics(records: list[dict[str, Any]]) -> dict[str, float]:
         "min_clearance_cm": _nan_reduce(np.median, clearances),
         "accel_rms": _nan_reduce(np.mean, accels),
     }
+
+
+def _suite_intervals(recs: list[dict[str, Any]], free_ci: list[float]) -> tuple[list[float], ...]:
+    """A leaderboard row's collision-free interval and its final distances' (settled, then
+    collision-free): in a suite run every one resamples layouts, then episodes within them;
+    otherwise Wilson's and bootstraps over episodes."""
+    if not is_suite_run(recs):
+        settled = [_team_cm(r) for r in recs if r["success"]]
+        free = [_team_cm(r) for r in recs if r["collision"] is None]
+        return free_ci, list(bootstrap_mean_interval(settled)), list(bootstrap_mean_interval(free))
+    return (
+        _clustered_interval(free_ci, recs, lambda r: r["collision"] is None),
+        suite_mean_interval(recs, lambda r: _team_cm(r) if r["success"] else None)[1],
+        suite_mean_interval(recs, lambda r: _team_cm(r) if r["collision"] is None else None)[1],
+    )
 
 
 def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -310,12 +334,11 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
             recs = distinct_records(
                 [r for r in records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
             )
-            settled = [100 * float(np.mean(r["final_distance"])) for r in recs if r["success"]]
-            every = [100 * float(np.mean(r["final_distance"])) for r in recs]
-            free_runs = [100 * float(np.mean(r["final_distance"])) for r in recs if r["collision"] is None]
-            d_low, d_high = bootstrap_mean_interval(settled)
+            settled = [_team_cm(r) for r in recs if r["success"]]
+            every = [_team_cm(r) for r in recs]
+            free_runs = [_team_cm(r) for r in recs if r["collision"] is None]
             success_ci = _clustered_interval(success_ci, recs)
-            f_low, f_high = bootstrap_mean_interval(free_runs)
+            free_ci, (d_low, d_high), (f_low, f_high) = _suite_intervals(recs, free_ci)
             rows.append(
                 {
                     "env_id": env_id,
@@ -377,64 +400,30 @@ def leaderboard(cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[s
     return sorted(rows, key=rank_key)
 
 
-def _layout_index(record: dict[str, Any]) -> int:
-    """A record's suite layout index, -1 for a record of a run without a suite."""
-    layout = record.get("layout")
-    return -1 if layout is None else int(layout)
-
-
-#: the suite breakdowns of a run's report: the record field and its groups, in report order
-BREAKDOWNS = {"layout_tier": TIERS, "layout_family": FAMILIES}
-
-
-def breakdown(records: list[dict[str, Any]], by: str) -> list[dict[str, Any]]:
-    """A suite run's success per (task, controller, group of ``by``): ``layout_tier`` (easy,
-    medium, hard) or ``layout_family`` (clutter, passages, rooms); empty for a run without a suite.
-
-    Each row counts the group's distinct episodes that ran, its layouts, and the success rate
-    with the interval of the leaderboard (the wider of Wilson's and the bootstrap over layouts).
-    """
-    groups = BREAKDOWNS[by]
-    rows = []
-    suite_records = [r for r in records if r.get(by) is not None]
-    for env_id in dict.fromkeys(r["env_id"] for r in suite_records):
-        for name in dict.fromkeys(r["controller"] for r in suite_records if r["env_id"] == env_id):
-            own = distinct_records(
-                [r for r in suite_records if r["env_id"] == env_id and r["controller"] == name and ran(r)]
-            )
-            for group in groups:
-                recs = [r for r in own if r[by] == group]
-                won = sum(bool(r["success"]) for r in recs)
-                wilson = list(wilson_interval(won, len(recs)))
-                rows.append(
-                    {
-                        "env_id": env_id,
-                        "controller": name,
-                        "by": by,
-                        "group": group,
-                        "layouts": len({cluster_of(r) for r in recs}),
-                        "episodes": len(recs),
-                        "successes": won,
-                        "success_rate": won / len(recs) if recs else float("nan"),
-                        "success_ci": _clustered_interval(wilson, recs) if recs else wilson,
-                    }
-                )
-    return rows
+def _team_cm(record: Mapping[str, Any]) -> float:
+    """An episode's team final distance: the mean over robots [cm]."""
+    return 100 * float(np.mean(record["final_distance"]))
 
 
 def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Every pair of controllers of a task, paired on their shared (map, slip, seed) episodes,
-    in a suite run on their shared (layout, seed) units.
+    """Every pair of controllers of a task, paired on their shared (map, slip, seed) episodes.
 
     Only episodes that ran for both controllers count, and a seed whose two episodes repeat an
-    earlier seed's of the same cell counts once (:func:`evaluation.distinct.distinct_units`). Returns one plain-JSON row per pair with
-    ``a``, ``b``, the cells they share and :class:`~evaluation.statistics.PairedComparison` fields.
+    earlier seed's of the same cell counts once (:func:`evaluation.distinct.distinct_units`).
+    Returns one plain-JSON row per pair with ``a``, ``b``, the cells they share and
+    :class:`~evaluation.statistics.PairedComparison` fields (Newcombe's interval, McNemar's exact
+    test), Holm's adjustment over the rows in ``p_holm``.
+
+    A suite run's records (they carry ``layout``) pair on (layout, seed) units with the layout as
+    the unit: the rows of its success table (:func:`evaluation.suite_statistics.measure_table`: the
+    two-stage bootstrap interval, the layout sign-flip test, Holm within the declared family).
     """
+    if is_suite_run(records):
+        return measure_table(records, OUTCOMES[0])["rows"]
     outcomes: dict[tuple[str, str], dict[tuple, dict[str, Any]]] = {}
     for r in records:
         if ran(r):
-            # a suite run's unit is (layout, seed); -1 where a record has no layout (not a suite run)
-            unit = (r["map"], r["slip"], _layout_index(r), r["seed"])
+            unit = (r["map"], r["slip"], r["seed"])
             outcomes.setdefault((r["env_id"], r["controller"]), {})[unit] = r
     rows = []
     identities = []
@@ -450,7 +439,7 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 comparison = paired_comparison(
                     [bool(mine[k]["success"]) for k in shared], [bool(theirs[k]["success"]) for k in shared]
                 )
-                cells = sorted({(m, s) for m, s, _, _ in shared})
+                cells = sorted({(m, s) for m, s, _ in shared})
                 identities.append(paired_identity(env_id, shared, mine, theirs))
                 rows.append(
                     {

@@ -8,6 +8,7 @@ import multiprocessing as mp
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from typing import Any
@@ -17,7 +18,16 @@ from evaluation.records import is_degraded, ran
 from evaluation.worker import batch_cell, run_batch, run_episode, runs_in_batch
 from koopman_envs.checks import check_choice
 
-__all__ = ["BACKENDS", "BATCH", "Progress", "RunInterrupted", "run_episodes", "work_units"]
+__all__ = [
+    "BACKENDS",
+    "BATCH",
+    "Progress",
+    "RunInterrupted",
+    "run_episodes",
+    "sigterm_stops_the_run",
+    "stop_on_sigterm",
+    "work_units",
+]
 
 BACKENDS = ("process", "ray")
 #: the most episodes of a cell run together (a controller that acts in batch, worker.run_batch)
@@ -73,6 +83,28 @@ class RunInterrupted(KeyboardInterrupt):
     def __init__(self, finished: int, total: int) -> None:
         super().__init__(f"interrupted after {finished}/{total} episodes")
         self.finished, self.total = finished, total
+
+
+def stop_on_sigterm(signum: int, frame: Any) -> None:
+    """SIGTERM (``kill``, a CI timeout) stops a run like Ctrl-C: the worker pool is terminated
+    (no orphan workers keep computing) and the log stays resumable."""
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigterm_stops_the_run() -> Iterator[None]:
+    """Within the block, SIGTERM stops a run like Ctrl-C (:func:`stop_on_sigterm`); the handler
+    that was there before is put back afterwards, so a program or test that calls
+    ``evaluate.main`` keeps its own SIGTERM behaviour. Only the main thread can set a handler;
+    elsewhere the block changes nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGTERM, stop_on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
 
 
 def _ignore_sigint() -> None:

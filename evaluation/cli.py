@@ -1,16 +1,12 @@
 """The evaluator's command line (``python evaluate.py``): its options, one function per group,
-the exit codes in ``--help`` (:mod:`evaluation.exit_codes`), and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
+examples of the common commands and the exit codes in ``--help`` (:mod:`evaluation.exit_codes`), and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
 with the given options replacing its fields). ``evaluate.py`` runs it."""
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import signal
 import sys
-import threading
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -33,20 +29,21 @@ from evaluation.protocols import (
     quick_protocol,
     suite_protocol,
 )
+from evaluation.runlog import DEFAULT_OUT
 from evaluation.slip_text import split_slips
 from evaluation.spec import RunSpec, with_env_setting
 from evaluation.suite_runs import add_suite_options, refuse_suite_clash
-from evaluation.sweep import refuse_sweep_clash
+from evaluation.sweep import add_sweep_options, refuse_sweep_clash
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.params import PARAMS, SLIP_NAMES
 
 __all__ = [
+    "EXAMPLES",
     "build_parser",
     "parse_env_kwargs",
     "program_name",
     "spec_from_args",
     "split_words",
-    "stop_on_sigterm",
 ]
 
 
@@ -95,9 +92,32 @@ def program_name() -> str:
     return "koopnav-evaluate" if invoked.startswith("koopnav-evaluate") else "python evaluate.py"
 
 
+#: the common commands, shown by ``--help``: (the options, what the command does); each parses and
+#: makes a run (tests/test_cli.py), and each writes under its ``--out`` unless it names a path
+EXAMPLES: tuple[tuple[str, str], ...] = (
+    ("", "the quick leaderboard: every controller, both tasks"),
+    ("--controllers consensus dwa nominal-nmpc --episodes 10", "three controllers, 10 per cell"),
+    ("--env KoopNav-Formation-v0 --maps map3 --slips nominal high", "one task, chosen map and slips"),
+    ("--paper --out results_paper", "the paper's protocol: 3 slips, 10 per cell, IPOPT"),
+    ("--sweep comm.drop=0,0.2,0.5 --controllers consensus nominal-nmpc", "a robustness profile"),
+    ("--out results --resume", "continue an interrupted run"),
+    ("--baseline .ci/baseline/results.json --fail-if-worse --episodes 10", "CI: 102 if worse"),
+    ("--ablation --ablation-out docs/ablation.md", "the ablation, into the published page"),
+    ("--options koopman-nmpc", "a controller's options, then exit"),
+)
+
+
+def examples_help() -> str:
+    """:data:`EXAMPLES` as the first part of ``--help``'s epilog, each under the program's name."""
+    rows = [" ".join(filter(None, [program_name(), options])) for options, _ in EXAMPLES]
+    width = min(max(map(len, rows)), 62)  # a longer command pushes its own comment only
+    lines = [f"  {row:<{width}}  # {what}" for row, (_, what) in zip(rows, EXAMPLES, strict=True)]
+    return "examples:\n" + "\n".join(lines)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The evaluator's command line, one argument group per function below."""
-    epilog = exit_codes_help()
+    epilog = examples_help() + "\n\n" + exit_codes_help()
     parser = argparse.ArgumentParser(
         prog=program_name(),
         description="KoopNav evaluator: run every controller on every cell, report success rates and final distances.",
@@ -155,27 +175,7 @@ def _what_to_run(what: argparse._ArgumentGroup) -> None:
     what.add_argument(
         "--seed", type=int, default=0, help="base seed; trial i of a cell uses seed + i (default 0)"
     )
-    what.add_argument(
-        "--sweep",
-        action="append",
-        metavar="KEY=V1,V2,...",
-        help="robustness profile: run everything at each level of an env setting (repeatable; nested "
-        "fields as comm.drop, pose_noise.xy), same seeds at every level; writes OUT/sweep/<KEY>-<level>/ "
-        "and OUT/robustness.{md,json,html} (docs/robustness.md; default: no sweep)",
-    )
-    what.add_argument(
-        "--reference",
-        metavar="CONTROLLER",
-        help="with --sweep or --sweep-report: the controller every other is paired against (default: "
-        "the first; --crowd: koopman-nmpc; --sweep-report: the sweep's own)",
-    )
-    what.add_argument(
-        "--sweep-report",
-        metavar="OUT",
-        help="write the robustness report of the levels finished so far of the sweep in OUT (its "
-        "sweep.json; levels not finished are named and left out) and exit, running nothing "
-        "(default: no such report)",
-    )
+    add_sweep_options(what)
     _protocols(what.add_mutually_exclusive_group())
 
 
@@ -296,7 +296,10 @@ def _directory(text: str) -> str:
 def _output_options(output: argparse._ArgumentGroup) -> None:
     """The "output" options."""
     output.add_argument(
-        "--out", default="results", type=_directory, help="output directory (default: results)"
+        "--out",
+        type=_directory,
+        help=f"output directory (default: {DEFAULT_OUT}, or the first free of {DEFAULT_OUT}-2, "
+        f"{DEFAULT_OUT}-3, ... when {DEFAULT_OUT} holds an earlier run; with --resume: {DEFAULT_OUT})",
     )
     output.add_argument(
         "--full-report",
@@ -324,8 +327,9 @@ def _output_options(output: argparse._ArgumentGroup) -> None:
     )
     output.add_argument(
         "--ablation-out",
-        default=str(Path(__file__).resolve().parents[1] / "docs" / "ablation.md"),
-        help="where --ablation writes its report (default: docs/ablation.md)",
+        metavar="FILE",
+        help="where --ablation writes its report (default: OUT/ablation.md; the published page: "
+        "docs/ablation.md)",
     )
     output.add_argument("--quiet", action="store_true", help="no progress bar")
     output.add_argument(
@@ -414,28 +418,6 @@ _DEDICATED = (
     ("max_episode_steps", "max_episode_steps"),
     ("start_noise", "start_noise"),
 )
-
-
-def stop_on_sigterm(signum: int, frame: Any) -> None:
-    """SIGTERM (``kill``, a CI timeout) stops a run like Ctrl-C: the worker pool is terminated
-    (no orphan workers keep computing) and the log stays resumable."""
-    raise KeyboardInterrupt
-
-
-@contextlib.contextmanager
-def sigterm_stops_the_run() -> Iterator[None]:
-    """Within the block, SIGTERM stops a run like Ctrl-C (:func:`stop_on_sigterm`); the handler
-    that was there before is put back afterwards, so a program or test that calls
-    ``evaluate.main`` keeps its own SIGTERM behaviour. Only the main thread can set a handler;
-    elsewhere the block changes nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    before = signal.signal(signal.SIGTERM, stop_on_sigterm)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, before)
 
 
 def spec_from_args(args: argparse.Namespace) -> RunSpec:

@@ -25,7 +25,7 @@ from typing import Any
 
 from evaluation.layout_tests import LayoutComparison
 from evaluation.statistics import _check_confidence, _z, holm_adjusted
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import MAX_NUMBER, check_int, check_number
 
 __all__ = [
     "CorrectedTest",
@@ -210,6 +210,8 @@ def paired_power(
     correlation (``(1 - c)**2``), the second ``Q``'s own spread. Without them (Connor's form,
     ``Phi((sqrt(L) mu - z s0) / sqrt(v1))``) the power of a family of 4 at 40 layouts x 3 was
     0.80 where 1000 simulations gave 0.846; with them 0.843. The opposite tail is left out.
+    With fewer layouts than the exact test needs to reach the level at all (its smallest p-value
+    is ``2 / 2**L``: 5 layouts cannot reach 0.05) the power is 0.
 
     References
     ----------
@@ -224,7 +226,17 @@ def paired_power(
     m = check_int("family_size", family_size, 1)
     alpha = _check_confidence(alpha, "alpha")
     v1 = k * _unit_variance(delta, discordance, sd) * (1.0 + (k - 1.0) * rho)
+    if n_layouts < _fewest_layouts(alpha / m):
+        return 0.0
     return _power(k * delta, v1, n_layouts, _z(1.0 - alpha / m))
+
+
+def _fewest_layouts(level: float) -> int:
+    """The fewest layouts with which the sign-flip test can reject at ``level``: its smallest
+    p-value over L layouts is ``2 / 2**L`` (the data's sign pattern and its mirror), so with fewer
+    it never rejects, whatever the difference (the normal approximation of :func:`_power` does not
+    see this; it matters below about 10 layouts)."""
+    return max(1, math.ceil(1.0 - math.log2(level) - 1e-12))
 
 
 def _power(mu: float, v1: float, n_layouts: int, z: float) -> float:
@@ -282,8 +294,10 @@ def detectable_difference(
 
     high = discordance if discordance is not None else check_number("sd", sd, above=0.0)
     if discordance is None:
-        for _ in range(64):  # the power of a metric's test grows without bound once L > z**2
-            if reach(high) >= power:
+        # the power of a metric's test grows without bound once L > z**2 (and the exact test can
+        # reject at all); beyond a million SDs no difference is worth stating
+        for _ in range(20):
+            if reach(high) >= power or 2.0 * high > MAX_NUMBER:
                 break
             high *= 2.0
     if reach(high) < power:
@@ -325,8 +339,8 @@ def layouts_needed(
     mu, z = k * delta, _z(1.0 - alpha / m)
     # start from Connor's closed form, then step to the smallest L whose power reaches the target
     first = (z * math.sqrt(v1 + mu * mu) + NormalDist().inv_cdf(power) * math.sqrt(v1)) / mu
-    n_layouts = max(1, math.ceil(first**2))
-    while n_layouts > 1 and _power(mu, v1, n_layouts - 1, z) >= power:
+    n_layouts = max(_fewest_layouts(alpha / m), math.ceil(first**2))
+    while n_layouts > _fewest_layouts(alpha / m) and _power(mu, v1, n_layouts - 1, z) >= power:
         n_layouts -= 1
     while _power(mu, v1, n_layouts, z) < power:
         n_layouts += 1
@@ -374,16 +388,24 @@ class PowerStatement:
         """The statement in words, as a table's caption prints it."""
         binary = not math.isnan(self.discordance)
         spread = f"discordance {self.discordance:.2f}" if binary else f"SD of the differences {self.sd:.3g}"
-        found = (
-            (f"{100 * self.difference:.1f} points" if binary else f"{self.difference:.3g}")
-            if not math.isnan(self.difference)
-            else "no difference"
-        )
+        value = self.discordance if binary else self.sd
+        if not math.isnan(self.difference):
+            found = f"a paired difference of {f'{100 * self.difference:.1f} points' if binary else f'{self.difference:.3g}'}"
+        elif self.layouts < _fewest_layouts(self.alpha_per_test):
+            found = (
+                f"no paired difference (the sign-flip test's smallest p-value over {self.layouts} layouts, "
+                f"2/2^{self.layouts} = {2.0 ** (1 - self.layouts):.3g}, is above alpha/m)"
+            )
+        elif math.isnan(value) or value == 0:
+            # nothing to compute the power from: no discordant pair, or differences all alike
+            found = "no paired difference (the comparisons show no spread to compute a power from)"
+        else:
+            found = f"no paired difference ({'not even the largest the discordance allows' if binary else 'none reaches it'})"
         return (
             f"Family {self.family!r}: m = {self.family_size} tests, Holm at alpha = {self.alpha:g} "
             f"(first step alpha/m = {self.alpha_per_test:.3g}). With {self.layouts} layouts x "
             f"{self.per_layout:g} pairs, {spread} and a between-layout correlation of {self.icc:.2f}, "
-            f"a paired difference of {found} is found with {100 * self.power:.0f}% power."
+            f"{found} is found with {100 * self.power:.0f}% power."
         )
 
     def to_dict(self) -> dict[str, Any]:

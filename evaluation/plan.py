@@ -16,9 +16,8 @@ from typing import Any
 from evaluation.configs import ControllerConfig
 from evaluation.slip_text import is_lambda, slip_value
 from evaluation.suite_runs import LAYOUT_FIELDS
+from koopman_envs import BUILTIN_MAPS, SUITE_PREFIX
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.maps import BUILTIN_MAPS
-from koopman_envs.suites.suite import SUITE_PREFIX
 
 __all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
 

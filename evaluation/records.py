@@ -16,8 +16,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.suites import FAMILIES, TIERS
+from koopman_envs import FAMILIES, TIERS, CollisionKind
 
 __all__ = [
     "DEGRADED_FAILURE_SHARE",
@@ -158,6 +157,16 @@ _OPTIONAL_SCHEMA: dict[str, tuple[Callable[[Any], bool], str]] = {
         "an object with keys of ['obstacle', 'robot', 'mover'], each null or a finite number (metres)",
     ),
     "accel_rms": (_non_negative_numbers, "a list of finite numbers >= 0"),
+    # recorded since the suite's metric tables (records written before lack them)
+    "jerk_rms": (
+        lambda v: v is None or _non_negative_numbers(v),
+        "null or a list of finite numbers >= 0 (one per robot, m/s^3)",
+    ),
+    "near_obstacle_share": (
+        lambda v: _non_negative_numbers(v) and all(x <= 1.0 for x in v),
+        "a list of numbers within [0, 1] (one per robot)",
+    ),
+    "path_ratio": (lambda v: v is None or _is_number(v, 0.0), "null or a finite number >= 0"),
     "decisions": (lambda v: _is_int(v, 0), "an integer >= 0"),
     "deadline_misses": (lambda v: _is_int(v, 0), "an integer >= 0"),
     "late_periods": (lambda v: _is_number(v, 0.0), "a finite number >= 0 (control periods)"),

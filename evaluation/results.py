@@ -60,6 +60,12 @@ class Results(RunData):
             "paired_comparisons": self.paired(),
             # a suite run's success per layout tier and family (absent from other runs' files)
             **({"suite_breakdown": self.suite_breakdown()} if self.config.get("suite") else {}),
+            # a suite run's rates and metrics over layouts, and its tested tables (one family each)
+            **(
+                {"suite_summary": self.layout_summary, "suite_tests": self.suite_tables}
+                if self.config.get("suite")
+                else {}
+            ),
             "cells": [c.to_dict() for c in self.cells],
             "episodes": [
                 {
@@ -99,6 +105,9 @@ class Results(RunData):
             "formation_rms",
             "straight_distance",
             "accel_rms",
+            "jerk_rms",
+            "near_obstacle_share",
+            "path_ratio",
             "min_clearance",
             "clearance_min_m",
             "solve_ms_median",
@@ -110,7 +119,15 @@ class Results(RunData):
         writer.writeheader()
         for rec in self.records:
             row = dict(rec)
-            for key in ("final_distance", "path_length", "control_effort", "straight_distance", "accel_rms"):
+            for key in (
+                "final_distance",
+                "path_length",
+                "control_effort",
+                "straight_distance",
+                "accel_rms",
+                "jerk_rms",
+                "near_obstacle_share",
+            ):
                 if isinstance(row.get(key), list):
                     row[key] = ";".join(f"{v:.5f}" for v in row[key])
             if isinstance(row.get("min_clearance"), dict):

@@ -6,11 +6,13 @@ them (cells, leaderboard rows, paired comparisons). It knows no output format; t
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
-from evaluation.aggregate import BREAKDOWNS, Cell, aggregate, breakdown, leaderboard, paired_comparisons
+from evaluation.aggregate import Cell, aggregate, leaderboard, paired_comparisons
 from evaluation.distinct import read_once
 from evaluation.records import ran
+from evaluation.suite_statistics import BREAKDOWNS, breakdown, is_suite_run, layout_summary, suite_tables
 
 __all__ = ["RunData"]
 
@@ -48,17 +50,42 @@ class RunData:
         raise KeyError((env_id, controller, map_name, slip))
 
     def leaderboard(self) -> list[dict[str, Any]]:
-        """One row per (task, controller), ranked; see :func:`evaluation.aggregate.leaderboard`."""
+        """One row per (task, controller), ranked; see :func:`evaluation.aggregate.leaderboard`.
+        Computed once (every format reads it; a suite run's intervals are bootstraps)."""
+        return self._leaderboard
+
+    @cached_property
+    def _leaderboard(self) -> list[dict[str, Any]]:
         return leaderboard(self.cells, self.records)
 
     def suite_breakdown(self) -> list[dict[str, Any]]:
         """A suite run's success per tier, then per family, of every (task, controller)
-        (:func:`evaluation.aggregate.breakdown`); empty for a run without a suite."""
+        (:func:`evaluation.suite_statistics.breakdown`); empty for a run without a suite."""
+        return self._suite_breakdown
+
+    @cached_property
+    def _suite_breakdown(self) -> list[dict[str, Any]]:
         return [row for by in BREAKDOWNS for row in breakdown(self.records, by)]
 
     def paired(self) -> list[dict[str, Any]]:
-        """Paired comparisons of every two controllers of a task on their shared seeds."""
+        """Paired comparisons of every two controllers of a task on their shared seeds
+        (:func:`evaluation.aggregate.paired_comparisons`; a suite run's: its success table's rows)."""
+        if is_suite_run(self.records):
+            return list(self.suite_tables[0]["rows"])
         return paired_comparisons(self.records)
+
+    @cached_property
+    def suite_tables(self) -> list[dict[str, Any]]:
+        """A suite run's tested tables, success first (:func:`evaluation.suite_statistics.suite_tables`:
+        each a declared family, Holm within it, its power statement); empty for other runs.
+        Computed once (the bootstraps and sign-flip tests take a while on a full split)."""
+        return suite_tables(self.records)
+
+    @cached_property
+    def layout_summary(self) -> list[dict[str, Any]]:
+        """A suite run's rates and metrics per (task, controller) with their intervals over layouts
+        (:func:`evaluation.suite_statistics.layout_summary`); empty for other runs."""
+        return layout_summary(self.records)
 
     def table_keys(self) -> list[tuple[str, str]]:
         """(env id, controller) of every per-controller table, in report order."""

@@ -10,6 +10,7 @@ logged twice is read once, and refused with both line numbers when its two recor
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import sys
@@ -24,6 +25,7 @@ from koopman_envs.checks import parse_json
 from koopman_envs.files import MAX_LOG_BYTES, check_regular, read_bounded, write_atomic
 
 __all__ = [
+    "DEFAULT_OUT",
     "RESUME_KEYS",
     "LogError",
     "OutputNotWritable",
@@ -33,6 +35,7 @@ __all__ = [
     "forget_controllers",
     "open_append_locked",
     "open_log",
+    "output_directory",
     "parse_lines",
     "read_log",
     "run_signature",
@@ -65,6 +68,30 @@ class RunLocked(ValueError):
 
 class OutputNotWritable(OSError):
     """The output directory cannot be made or written (refused before any episode runs)."""
+
+
+#: ``--out`` when none is given (:func:`output_directory`), relative to the working directory
+DEFAULT_OUT = "results"
+
+
+def output_directory(out: str | None, resume: bool) -> str:
+    """The run's directory: ``out`` when given (one that holds a run is refused by
+    :func:`open_log` unless ``resume``); else :data:`DEFAULT_OUT`, or, when that holds
+    something and the run does not resume it, the first of ``results-2``, ``results-3``, ...
+    that holds nothing, so that the same command run twice runs twice and keeps the first run."""
+    if out is not None:
+        return out
+    if resume:
+        return DEFAULT_OUT
+    names = itertools.chain([DEFAULT_OUT], (f"{DEFAULT_OUT}-{n}" for n in itertools.count(2)))
+    return next(name for name in names if _holds_nothing(Path(name)))
+
+
+def _holds_nothing(path: Path) -> bool:
+    """Nothing at ``path``, or an empty directory (a symlink, even to one, holds something)."""
+    if path.is_symlink():
+        return False
+    return not path.exists() or (path.is_dir() and not any(path.iterdir()))
 
 
 def ensure_output_dir(out: str | os.PathLike[str]) -> Path:

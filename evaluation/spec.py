@@ -26,8 +26,7 @@ from evaluation.configs import controller_configs, with_solver
 from evaluation.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.runlog import run_signature
 from evaluation.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, EngineConfig, task_for_env
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.params import (
     DRIFT_SLIP,
@@ -38,9 +37,7 @@ from koopman_envs.params import (
     SLIP_SETTINGS,
     slip_lambdas,
 )
-from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.suggest import did_you_mean
-from koopman_envs.tasks.base import ENV_IDS, TASKS, task_for_env
 
 __all__ = ["CELL_AXES", "MAX_WORKERS", "RECORDED_ENV_SETTINGS", "RunSpec", "with_env_setting"]
 

@@ -17,10 +17,17 @@ import argparse
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from koopman_envs import (
+    SPLITS,
+    SUITE_PREFIX,
+    SUITES,
+    Suite,
+    SuiteLayout,
+    check_split_allowed,
+    load_suite,
+    task_for_env,
+)
 from koopman_envs.checks import check_choice
-from koopman_envs.suites import SPLITS, SUITES, Suite, SuiteLayout, check_split_allowed, load_suite
-from koopman_envs.suites.suite import SUITE_PREFIX
-from koopman_envs.tasks.base import task_for_env
 
 __all__ = [
     "LAYOUT_FIELDS",

@@ -14,6 +14,7 @@ level: the curves are paired. :mod:`evaluation.robustness` turns the levels into
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 from dataclasses import dataclass
@@ -28,17 +29,16 @@ from evaluation.published import extracted_archive, results_from_log
 from evaluation.report.blocks import level_text
 from evaluation.results import Results
 from evaluation.spec import RunSpec, with_env_setting
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs import ENV_KEYWORDS, EngineConfig, task_for_env
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 from koopman_envs.suggest import did_you_mean
-from koopman_envs.tasks.base import task_for_env
 
 __all__ = [
     "MANIFEST",
     "MAX_SWEEP_LEVELS",
     "SweepAxis",
+    "add_sweep_options",
     "load_sweep",
     "parse_sweep",
     "run_sweep",
@@ -130,6 +130,31 @@ def parse_sweep(text: str) -> SweepAxis:
     if len(levels) < 2:
         raise ValueError(f"--sweep {text!r}: give at least two levels, separated by commas")
     return SweepAxis(key, tuple(levels))
+
+
+def add_sweep_options(what: argparse._ArgumentGroup) -> None:
+    """The evaluator's ``--sweep``, ``--reference`` and ``--sweep-report`` options."""
+    what.add_argument(
+        "--sweep",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        help="robustness profile: run everything at each level of an env setting (repeatable; nested "
+        "fields as comm.drop, pose_noise.xy), same seeds at every level; writes OUT/sweep/<KEY>-<level>/ "
+        "and OUT/robustness.{md,json,html} (docs/robustness.md; default: no sweep)",
+    )
+    what.add_argument(
+        "--reference",
+        metavar="CONTROLLER",
+        help="with --sweep or --sweep-report: the controller every other is paired against (default: "
+        "the first; --crowd: koopman-nmpc; --sweep-report: the sweep's own)",
+    )
+    what.add_argument(
+        "--sweep-report",
+        metavar="OUT",
+        help="write the robustness report of the levels finished so far of the sweep in OUT (its "
+        "sweep.json; levels not finished are named and left out) and exit, running nothing "
+        "(default: no such report)",
+    )
 
 
 def refuse_sweep_clash(sweeps: list[str] | None, given: dict[str, Any]) -> None:

@@ -6,27 +6,67 @@ Importing the package registers the Gymnasium ids ``KoopNav-TargetReaching-v0`` 
 are the modules :mod:`koopman_envs.target_reaching_v0` and :mod:`koopman_envs.formation_v0`,
 reachable as attributes of the package (``koopman_envs.formation_v0.parallel_env()`` after
 ``import koopman_envs``), imported on first use so that the Gymnasium import stays light.
+
+The package is the face of the environments (docs/layout.md): what controllers, baselines, the
+evaluator and users need of the folders (``sim/``, ``tasks/``, ``suites/``, ``builder/``,
+``fronts/``, all internal) is exported here, the fronts, the episode runners and the renderer
+imported on first use like the PettingZoo modules. The other public modules are the root's:
+``params``, ``checks``, ``suggest``, ``files``, ``scenario``, ``observed``, ``layout``,
+``movers``, ``uncertainty``, ``reset_options`` and the two PettingZoo modules
+(tests/test_architecture.py::PUBLIC_MODULES).
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gymnasium.envs.registration import register, registry
 
+from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.builder.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
 from koopman_envs.observed import Observed
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
+from koopman_envs.sim.dynamics import rk4_pose, rk4_step, wrap_angle, wrap_scalar
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
 from koopman_envs.sim.random_maps import generate_random_map
+from koopman_envs.sim.rollout import rollout
 from koopman_envs.sim.zones import SlipZone
-from koopman_envs.suites import SPLITS, SUITES, Suite, check_split_allowed, load_suite
-from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, task_for_env
+from koopman_envs.suites import (
+    FAMILIES,
+    SPLITS,
+    SUITES,
+    TIERS,
+    Suite,
+    SuiteLayout,
+    check_split_allowed,
+    load_suite,
+)
+from koopman_envs.suites.suite import SUITE_PREFIX, parse_suite_map
+from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, env_id_for_map, task_for_env
+
+if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use (_LAZY)
+    from koopman_envs.fronts.batch_episodes import run_episodes_in_batch
+    from koopman_envs.fronts.dict_observation import DictObservation
+    from koopman_envs.fronts.episode import (
+        ComputeCharge,
+        EpisodeResult,
+        path_ratio,
+        run_episode,
+        smallest_clearance,
+    )
+    from koopman_envs.fronts.gym_env import KoopNavEnv
+    from koopman_envs.fronts.rendering import Renderer, save_episode
+    from koopman_envs.fronts.vector_env import KoopNavVectorEnv
+    from koopman_envs.sim.collision import CollisionKind
+    from koopman_envs.sim.lidar import beam_angles
+    from koopman_envs.sim.mover_tracking import cv_model, cv_predict, cv_update
+    from koopman_envs.sim.nearest import nearest_by_clearance, nearest_order
+    from koopman_envs.tasks.observation import FAR, observation_from_beliefs
 
 __version__ = "0.1.0"
 
@@ -48,44 +88,109 @@ for _task, (_cls, _vec) in _FRONTS.items():
 #: the PettingZoo modules, imported when first read as attributes of the package
 _PETTINGZOO_MODULES = ("formation_v0", "target_reaching_v0")
 
+#: names exported from modules that ``import koopman_envs`` does not load (the fronts, the
+#: episode runners, the renderer, the kernels only perception and the policies use): name ->
+#: its module, imported when the name is first read
+_LAZY = {
+    "KoopNavEnv": "koopman_envs.fronts.gym_env",
+    "KoopNavVectorEnv": "koopman_envs.fronts.vector_env",
+    "DictObservation": "koopman_envs.fronts.dict_observation",
+    "run_episode": "koopman_envs.fronts.episode",
+    "EpisodeResult": "koopman_envs.fronts.episode",
+    "ComputeCharge": "koopman_envs.fronts.episode",
+    "smallest_clearance": "koopman_envs.fronts.episode",
+    "path_ratio": "koopman_envs.fronts.episode",
+    "run_episodes_in_batch": "koopman_envs.fronts.batch_episodes",
+    "Renderer": "koopman_envs.fronts.rendering",
+    "save_episode": "koopman_envs.fronts.rendering",
+    "CollisionKind": "koopman_envs.sim.collision",
+    "beam_angles": "koopman_envs.sim.lidar",
+    "cv_model": "koopman_envs.sim.mover_tracking",
+    "cv_predict": "koopman_envs.sim.mover_tracking",
+    "cv_update": "koopman_envs.sim.mover_tracking",
+    "nearest_by_clearance": "koopman_envs.sim.nearest",
+    "nearest_order": "koopman_envs.sim.nearest",
+    "FAR": "koopman_envs.tasks.observation",
+    "observation_from_beliefs": "koopman_envs.tasks.observation",
+}
+
 
 def __getattr__(name: str) -> Any:
-    """``koopman_envs.formation_v0`` and ``koopman_envs.target_reaching_v0`` without importing
-    them by name first (PettingZoo's ``from pettingzoo.butterfly import ...`` convention)."""
+    """The names of :data:`_LAZY`, and ``koopman_envs.formation_v0`` and
+    ``koopman_envs.target_reaching_v0`` without importing them by name first (PettingZoo's
+    ``from pettingzoo.butterfly import ...`` convention), each imported when first read."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
     if name in _PETTINGZOO_MODULES:
         return importlib.import_module(f"koopman_envs.{name}")
     raise AttributeError(f"module 'koopman_envs' has no attribute {name!r}")
 
 
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY, *_PETTINGZOO_MODULES})
+
+
 __all__ = [
-    "BUILTIN_MAPS",
+    "beam_angles",
     "BudgetExceeded",
+    "BUILTIN_MAPS",
     "CalibrationPlant",
+    "check_split_allowed",
+    "CollisionKind",
+    "ComputeCharge",
+    "cv_model",
+    "cv_predict",
+    "cv_update",
+    "DictObservation",
+    "EngineConfig",
+    "env_id_for_map",
     "ENV_IDS",
     "ENV_KEYWORDS",
+    "EpisodeResult",
+    "FAMILIES",
+    "FAR",
     "FORMATION_SHAPES",
+    "generate_random_map",
+    "KoopNavEnv",
+    "KoopNavVectorEnv",
+    "load_map",
+    "load_suite",
+    "make_plant",
     "MAP_NAMES",
     "MapSpec",
     "MessageEntry",
     "MoverEntry",
-    "ObstacleEntry",
+    "nearest_by_clearance",
+    "nearest_order",
+    "observation_from_beliefs",
     "Observed",
-    "PARAMS",
+    "ObstacleEntry",
     "PaperParams",
-    "SLIP_SETTINGS",
+    "PARAMS",
+    "Renderer",
+    "rk4_pose",
+    "rk4_step",
+    "rollout",
+    "run_episode",
+    "run_episodes_in_batch",
+    "save_episode",
     "Scenario",
+    "slip_lambdas",
+    "SLIP_SETTINGS",
     "SlipZone",
+    "smallest_clearance",
+    "path_ratio",
     "SPLITS",
-    "SUITES",
     "Suite",
+    "SUITE_PREFIX",
+    "parse_suite_map",
+    "SuiteLayout",
+    "SUITES",
+    "task_for_env",
     "TASKS",
     "TaskSpec",
     "TeamEntry",
-    "check_split_allowed",
-    "generate_random_map",
-    "load_map",
-    "load_suite",
-    "make_plant",
-    "slip_lambdas",
-    "task_for_env",
+    "TIERS",
+    "wrap_angle",
+    "wrap_scalar",
 ]

@@ -24,8 +24,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.deprecated import REMOVAL
-
 __all__ = ["DERIVED_KEYS", "OBSERVED_KEYS", "SENSED_KEYS", "Observed", "observed_view"]
 
 #: The info keys an env writes for its controllers: every robot's own pose estimate, what each
@@ -55,6 +53,9 @@ DERIVED_KEYS = (
 )
 #: The info keys a controller may read (what :meth:`Observed.from_info` takes).
 OBSERVED_KEYS = SENSED_KEYS + DERIVED_KEYS
+#: the release that removes the dict view of the earlier API (:func:`observed_view`, reading an
+#: :class:`Observed` by key), deprecated in CHANGELOG.md
+REMOVAL = "0.2.0"
 
 #: the dtype each optional field is read as (every env writes these dtypes already, so reading an
 #: env's info converts nothing)
@@ -246,7 +247,7 @@ def observed_view(info: Mapping[str, Any]) -> dict[str, Any]:
     """Deprecated: the observed part of ``info`` as a dict, ``Observed.from_info(info).to_info()``.
 
     Use :meth:`Observed.from_info`; this function is removed in the release named by
-    :data:`koopman_envs.deprecated.REMOVAL`.
+    :data:`REMOVAL`.
     """
     warnings.warn(
         f"koopman_envs.observed.observed_view is deprecated and will be removed in KoopNav {REMOVAL}; "

@@ -31,6 +31,7 @@ __all__ = [
     "SLIP_SETTINGS",
     "SLIP_MAX_LAMBDA",
     "STRICT_CLEARANCE_MARGIN",
+    "PATH_RATIO_MIN_DISTANCE",
     "SLIP_SURFACES",
     "SURFACES",
     "SURFACE_LAMBDA_BOUNDS",
@@ -366,8 +367,16 @@ FAULT_STOPPED_SPEED = 0.05
 #: team-mate and mover all episode (``strict_success`` in the evaluator's records). Ours: 5 cm is
 #: the localization error the robustness sweep's pose-noise level and the people tracker's
 #: detection noise assume, so a team that passes closer than that touched nothing only because
-#: its poses were exact; it is also the issue's "within 5 cm of an obstacle".
+#: its poses were exact. It is also the margin of ``near_obstacle_share`` (the share of a robot's
+#: periods that end within this clearance of an obstacle): one margin, so that a strict success
+#: is one with no such period.
 STRICT_CLEARANCE_MARGIN = 0.05
+
+#: A robot whose start lies within this distance [m] of its target is left out of the path-length
+#: ratio (``path_ratio`` in the evaluator's records): its straight-line distance is too small to
+#: divide by. Ours: 10 cm, the default goal tolerance: a robot that starts within tolerance of its
+#: target has no path to rate (a parked team-mate, a robot placed on its slot).
+PATH_RATIO_MIN_DISTANCE = 0.1
 
 #: Named slip settings: lambda of the most-slipping robot. Robot 1 is always slip-free and the
 #: others are spaced linearly up to this value, which for 3 robots gives exactly SPEC's table:

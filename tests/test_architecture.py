@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import ast
 import sys
-import warnings
 from pathlib import Path
 
 import pytest
@@ -128,36 +127,37 @@ def test_module_and_function_sizes() -> None:
     )
 
 
-def _moved() -> dict[str, tuple[str, ...]]:
-    """Every old module path of both packages and where its names live now."""
-    from controllers.deprecated_paths import MOVED as CONTROLLERS_MOVED
-    from koopman_envs.deprecated import MOVED as ENVS_MOVED
+#: the previous releases' module paths, removed with their stubs once the other packages used the
+#: environments through their face (issue 61): nothing in docs/ or README.md named them, so none
+#: kept a release of deprecation (CHANGELOG.md, Unreleased)
+REMOVED_PATHS = (
+    *(f"koopman_envs.{name}" for name in (
+        "animation", "config", "demo", "deprecated", "engine", "engine_memory", "episode",
+        "episode_layout", "keywords", "plant", "rendering", "rendering_layers", "tasks.layout",
+    )),
+    *(f"controllers.{name}" for name in (
+        "adaptive_koopman_nmpc", "cache", "deprecated_paths", "distributed", "koopman_nmpc", "nmpc",
+        "nominal_nmpc", "qp2", "rti", "solver_cache", "unicycle",
+    )),
+)  # fmt: skip
 
-    return {**CONTROLLERS_MOVED, **ENVS_MOVED}
 
+@pytest.mark.parametrize("old", REMOVED_PATHS)
+def test_the_removed_module_paths_are_gone(old: str) -> None:
+    """No stub is left behind: the path names no module (its names live in their new modules,
+    reached through the package's face)."""
+    import importlib.util
 
-@pytest.mark.parametrize("old", sorted(_moved()))
-def test_the_previous_module_paths_still_import_with_a_warning(old: str) -> None:
-    import importlib
-
-    sys.modules.pop(old, None)
-    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"):
-        module = importlib.import_module(old)
-    for target in _moved()[old]:
-        new = importlib.import_module(target)
-        for name in getattr(new, "__all__", ()):
-            with warnings.catch_warnings():
-                warnings.simplefilter("error")
-                assert getattr(module, name) is getattr(new, name), (old, name)
+    assert importlib.util.find_spec(old) is None, f"{old} is back; import from its new module"
 
 
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
 #: layer or a lower one, never a higher one (type-only and function-level imports included)
 ENV_LAYERS = ("base", "sim", "tasks", "suites", "builder", "fronts")
-#: the modules of the base layer, at the package root (with the old paths' stubs)
+#: the modules of the base layer, at the package root
 ENV_BASE = {
     "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
-    "layout", "deprecated", "maps", "files",
+    "layout", "maps", "files",
 }  # fmt: skip
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
 ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}
@@ -166,11 +166,9 @@ ENV_COMMANDS = {"koopman_envs.suites.build"}
 
 
 def _env_layer(module: str) -> int | None:
-    """The layer of a ``koopman_envs`` module (None for the package itself and old-path stubs)."""
-    from koopman_envs.deprecated import MOVED
-
+    """The layer of a ``koopman_envs`` module (None for the package itself)."""
     parts = module.split(".")
-    if parts[0] != "koopman_envs" or len(parts) == 1 or module in MOVED:
+    if parts[0] != "koopman_envs" or len(parts) == 1:
         return None
     if len(parts) == 2 and parts[1] in ENV_BASE:
         return 0
@@ -196,3 +194,64 @@ def test_the_environment_package_imports_only_downwards() -> None:
             if layer is not None and layer > source:
                 upward.append(f"{name} ({ENV_LAYERS[source]}) -> {target} ({ENV_LAYERS[layer]})")
     assert upward == [], "upward imports:\n" + "\n".join(upward)
+
+
+#: the environment package's public face (docs/layout.md): the modules controllers/, baselines/,
+#: evaluation/ and evaluate.py may import. Every other koopman_envs module (sim/, tasks/,
+#: suites/, builder/, fronts/) is internal: what the other packages need of it is exported by
+#: the package itself (``from koopman_envs import run_episode``), lazily where it is heavy.
+PUBLIC_MODULES: dict[str, str] = {
+    "koopman_envs": "the face: ids, env classes, episode runner, task table, maps, suites, plant, shared kernels",
+    "koopman_envs.params": "the paper's defaults and the slip settings, defined once",
+    "koopman_envs.checks": "the number and choice checks, one wording for every package's errors",
+    "koopman_envs.suggest": "did-you-mean for every package's error messages",
+    "koopman_envs.files": "the one bounded reader and the one atomic writer of every file KoopNav keeps",
+    "koopman_envs.scenario": "what a model-based controller may know of an episode",
+    "koopman_envs.observed": "what a controller may read of an info (the robots' beliefs)",
+    "koopman_envs.layout": "one robot's observation block by name, the policies' seam",
+    "koopman_envs.movers": "the moving-obstacle settings and their presets",
+    "koopman_envs.uncertainty": "the runtime-uncertainty settings and their presets",
+    "koopman_envs.reset_options": "reset(options=...) of every front: the keys and their check",
+    "koopman_envs.formation_v0": "a PettingZoo versioned module (PettingZoo's naming)",
+    "koopman_envs.target_reaching_v0": "a PettingZoo versioned module (PettingZoo's naming)",
+}
+#: the packages that use the environments through their face only
+FACE_CLIENTS = ("controllers", "baselines", "evaluation", "evaluate.py")
+
+
+def _face_violations(path: Path, modules: dict[str, Path]) -> list[str]:
+    """Imports of ``koopman_envs`` internals in ``path`` (functions and TYPE_CHECKING blocks
+    included), and reads of an env's ``engine`` (its accessors are the face: ``config``,
+    ``scenario``, ``observation_layout``, ``robot_spaces``)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        named: list[str] = []
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            named = [node.module]
+            if node.module == "koopman_envs":  # a module read as an attribute of the package
+                named += [f"koopman_envs.{a.name}" for a in node.names if f"koopman_envs.{a.name}" in modules]
+        elif isinstance(node, ast.Import):
+            named = [a.name for a in node.names]
+        elif isinstance(node, ast.Attribute) and node.attr == "engine":
+            found.append(f"line {node.lineno}: {ast.unparse(node)} (the env's engine)")
+        found += [
+            f"line {getattr(node, 'lineno', '?')}: imports {name}"
+            for name in named
+            if name.split(".")[0] == "koopman_envs" and name not in PUBLIC_MODULES
+        ]
+    return found
+
+
+def test_the_other_packages_use_the_environments_through_their_face() -> None:
+    modules = _modules()
+    found = []
+    for client in FACE_CLIENTS:
+        paths = [ROOT / client] if client.endswith(".py") else sorted((ROOT / client).rglob("*.py"))
+        for path in paths:
+            found += [f"{path.relative_to(ROOT)} {v}" for v in _face_violations(path, modules)]
+    assert found == [], "koopman_envs internals used outside the package:\n" + "\n".join(found)
+
+
+def test_every_public_module_exists() -> None:
+    modules = _modules()
+    assert sorted(set(PUBLIC_MODULES) - set(modules)) == []

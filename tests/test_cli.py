@@ -3,11 +3,17 @@ defaults for every option, exit codes in --help."""
 
 from __future__ import annotations
 
+import re
+import shlex
 import sys
+from pathlib import Path
 
 import pytest
 
 import evaluate as ev
+from evaluation.cli import EXAMPLES, build_parser, spec_from_args
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _help(monkeypatch, argv0: str, capsys) -> str:
@@ -72,3 +78,133 @@ def test_the_resume_hint_uses_the_program_name(monkeypatch, tmp_path, capsys) ->
     code = ev.main(["--controllers", "consensus", "--out", str(tmp_path)])
     assert code == ev.INTERRUPTED_EXIT
     assert "continue with: koopnav-evaluate --controllers consensus" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- --help's examples
+def test_help_shows_the_examples_first_in_its_epilog(monkeypatch, capsys) -> None:
+    text = _help(monkeypatch, "evaluate.py", capsys)
+    assert text.index("examples:") < text.index("exit codes:")
+    for options, what in EXAMPLES:
+        assert re.search(
+            rf"^  python evaluate\.py {re.escape(options)} *# {re.escape(what)}$", text, re.MULTILINE
+        )
+    assert 6 <= len(EXAMPLES) <= 10
+
+
+@pytest.mark.parametrize(("options", "what"), EXAMPLES, ids=[o or "(none)" for o, _ in EXAMPLES])
+def test_every_example_of_the_help_parses_and_makes_a_run(options: str, what: str) -> None:
+    """Each example's options parse and, but for --options (which prints and exits), make the run
+    they describe; a file an example names exists in the checkout."""
+    args = build_parser().parse_args(shlex.split(options))
+    if args.options:
+        assert args.options in ev.controllers.available()
+        return
+    spec = spec_from_args(args)
+    assert spec.episodes >= 1 and spec.envs
+    if args.baseline:
+        assert (ROOT / args.baseline).is_file()
+    if args.ablation_out:
+        assert (ROOT / args.ablation_out).is_file()
+
+
+# --------------------------------------------------------------------------- the quick start twice
+def _readme_quick_command() -> list[str]:
+    """The options of README's first command, ``pip install -e . && python evaluate.py ...``."""
+    line = next(row for row in (ROOT / "README.md").read_text().splitlines() if "python evaluate.py" in row)
+    command = line.split("&&", 1)[1].split("#", 1)[0]
+    words = shlex.split(command)
+    assert words[:2] == ["python", "evaluate.py"], line
+    return words[2:]
+
+
+#: the quick command on one tiny cell: the same code path at a budget a test can pay
+_SMALL = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--controllers", "consensus"]
+_SMALL += ["--episodes", "1", "--max-episode-steps", "5", "--workers", "1", "--quiet"]
+
+
+def test_the_quick_start_can_be_run_twice(monkeypatch, tmp_path, capsys) -> None:
+    """README's quick command names no --out: a second run goes to results-2/ (a note says so) and
+    leaves the first run's files alone; --resume continues results/; an --out that holds a run is
+    still refused."""
+    quick = _readme_quick_command()
+    assert "--out" not in quick
+    monkeypatch.chdir(tmp_path)
+    assert ev.main([*quick, *_SMALL]) == 0
+    first = (tmp_path / "results" / "episodes.jsonl").read_bytes()
+    capsys.readouterr()
+    assert ev.main([*quick, *_SMALL]) == 0
+    err = capsys.readouterr().err
+    assert "note: results/ holds an earlier run, so this one writes to results-2/" in err
+    assert (tmp_path / "results" / "episodes.jsonl").read_bytes() == first
+    assert (tmp_path / "results-2" / "episodes.jsonl").read_bytes().count(b"\n") == 2  # header + 1
+    assert ev.main([*quick, *_SMALL, "--resume"]) == 0  # continues results/: nothing left to run
+    assert (tmp_path / "results" / "episodes.jsonl").read_bytes() == first
+    assert not (tmp_path / "results-3").exists()
+    capsys.readouterr()
+    assert ev.main([*quick, *_SMALL, "--out", "results"]) == ev.BAD_INPUT_EXIT
+    assert "exists: pass --resume" in capsys.readouterr().err
+
+
+def test_an_empty_results_directory_is_used_and_a_file_is_passed_over(monkeypatch, tmp_path) -> None:
+    from evaluation.runlog import output_directory
+
+    monkeypatch.chdir(tmp_path)
+    assert output_directory(None, resume=False) == "results"
+    (tmp_path / "results").mkdir()
+    assert output_directory(None, resume=False) == "results"
+    (tmp_path / "results" / "x").write_text("")
+    (tmp_path / "results-2").write_text("a file")
+    assert output_directory(None, resume=False) == "results-3"
+    assert output_directory(None, resume=True) == "results"
+    assert output_directory("mine", resume=False) == "mine"
+
+
+def test_the_resume_hint_names_the_directory_a_repeated_run_chose(monkeypatch, tmp_path, capsys) -> None:
+    from evaluation.backends import RunInterrupted
+
+    def interrupted(*_, **__):
+        raise RunInterrupted(1, 4)
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "episodes.jsonl").write_text("an earlier run\n")
+    monkeypatch.setattr(ev, "evaluate", interrupted)
+    monkeypatch.setattr(sys, "argv", ["evaluate.py"])
+    assert ev.main(["--controllers", "consensus"]) == ev.INTERRUPTED_EXIT
+    assert "continue with: python evaluate.py --controllers consensus --out results-2 --resume" in (
+        capsys.readouterr().err
+    )
+
+
+def test_no_option_defaults_to_a_path_in_the_checkout(monkeypatch, tmp_path) -> None:
+    """Run from anywhere, no default of the evaluator names a file or directory of the checkout
+    (the ablation report went to docs/ablation.md unless told otherwise)."""
+    monkeypatch.chdir(ROOT)
+    args = build_parser().parse_args(["--ablation"])
+    for name, value in vars(args).items():
+        if isinstance(value, str):
+            assert not Path(value).is_absolute() and not Path(value).exists(), (name, value)
+    assert args.ablation_out is None and args.out is None
+
+
+def test_the_ablation_report_goes_under_out_unless_a_page_is_named(tmp_path) -> None:
+    """--ablation writes OUT/ablation.md (it wrote the tracked docs/ablation.md before); with
+    --ablation-out the report goes there and its regeneration command names the page."""
+    from evaluation.published import results_from_log
+
+    page = (ROOT / "docs" / "ablation.md").read_bytes()
+    tiny = ["--ablation", "margins", "--env", "KoopNav-TargetReaching-v0", "--maps", "map1"]
+    tiny += ["--episodes", "1", "--max-episode-steps", "3", "--calibration-budget", "2000"]
+    tiny += ["--workers", "1", "--quiet"]
+    assert ev.main([*tiny, "--out", str(tmp_path / "run")]) == 0
+    report = (tmp_path / "run" / "ablation.md").read_text()
+    assert (
+        report.startswith("# Ablation") and "Regenerate with `python evaluate.py --ablation margins" in report
+    )
+    assert (ROOT / "docs" / "ablation.md").read_bytes() == page
+    elsewhere = tmp_path / "page.md"
+    args = build_parser().parse_args([*tiny, "--ablation-out", str(elsewhere)])
+    results = results_from_log(tmp_path / "run" / "episodes.jsonl")
+    results.config["workers"] = 1  # what the run adds to the log's settings
+    ev._write_ablation(args, results, 1.0)
+    assert f"--episodes 1 --ablation-out {elsewhere}`." in elsewhere.read_text()

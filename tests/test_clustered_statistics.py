@@ -364,3 +364,20 @@ def test_a_paired_comparison_reports_its_design() -> None:
 def test_bad_input_is_refused_by_name(call, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def test_too_few_layouts_for_the_level_have_no_power() -> None:
+    """The exact sign-flip test's smallest p over L layouts is 2 / 2**L: at 5 layouts 0.0625, above
+    0.05, so nothing is ever found; the normal approximation alone would promise power there."""
+    assert paired_power(0.5, 5, 10, sd=0.1) == 0.0
+    assert paired_power(0.5, 6, 10, sd=0.1) > 0.99
+    assert paired_power(0.5, 6, 10, sd=0.1, family_size=2) == 0.0  # 2/64 > 0.05/2
+    # a metric on 4 layouts: no difference reaches 80% power (NaN, not a refusal of a huge value)
+    assert math.isnan(detectable_difference(4, 1, sd=10.0, family_size=2))
+    assert layouts_needed(0.5, 10, sd=0.1) == 6
+    statement = power_statement(
+        [paired_means_by_layout([[1.0], [2.0], [3.0], [5.0]], [[0.0], [0.5], [1.0], [0.0]], n_boot=10)],
+        HypothesisFamily("t: metric", ("a-b", "a-c")),
+    )
+    assert math.isnan(statement.difference)
+    assert "smallest p-value over 4 layouts, 2/2^4 = 0.125, is above alpha/m" in statement.sentence()

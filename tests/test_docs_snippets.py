@@ -1,25 +1,27 @@
-"""Every ```python block of README.md and docs/*.md runs and prints what the page says it
+"""Every ```python block of README.md and docs/*.md runs alone and prints what the page says it
 prints, and every relative link resolves.
 
-The blocks of one page run in order in one namespace (a later block may use an earlier one's
-``env``), with the working directory a fresh temporary folder. What a block prints is its
-``print`` output plus, as in an interactive session, the repr of a final bare expression (the
-docs end blocks with ``info["poses"], ...`` to show a value). The line right after a block's
-closing fence, ``<!-- prints: REGEX -->``, says what that output must contain (``re.search``,
-one line of regex; invisible in the rendered page); every block that runs has one. A block
-preceded by the line ``<!-- no-test: why -->`` is skipped; the reason is required and such
-blocks stay rare (training for minutes, a fragment that is only a signature). ```bash blocks are
-not run.
+Each block runs by itself in a fresh interpreter (``python -c DRIVER`` with the block on stdin), as a
+reader who pastes that one block would run it: no earlier block's imports or variables, no module
+an earlier block imported (``import koopman_envs`` registers the env ids, so a block that forgets
+it fails here as it would for the reader). The working directory is a fresh temporary folder. What
+a block prints is its ``print`` output plus, as in an interactive session, the repr of a final bare
+expression (the docs end blocks with ``info["poses"], ...`` to show a value). The line right after
+a block's closing fence, ``<!-- prints: REGEX -->``, says what that output must contain
+(``re.search``, one line of regex; invisible in the rendered page); every block that runs has one.
+A block preceded by the line ``<!-- no-test: why -->`` is skipped; the reason is required and such
+blocks stay rare (training for minutes, a fragment that is only a signature). A block preceded by
+``<!-- requires: module -->`` is skipped when that module is not installed (an optional extra).
+```bash blocks are not run.
 """
 
 from __future__ import annotations
 
-import ast
-import contextlib
 import importlib.util
-import io
+import os
 import re
-import traceback
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -64,50 +66,74 @@ def _blocks(text: str) -> list[tuple[int, str, str | None, str | None]]:
     return blocks
 
 
-def run_block(code: str, filename: str, namespace: dict) -> str:
-    """Run ``code`` in ``namespace`` and return what it printed, a final bare expression's repr
-    included (as an interactive session shows it)."""
-    tree = ast.parse(code, filename)
-    shown = tree.body[-1] if tree.body else None
-    if isinstance(shown, ast.Expr):
-        tree.body.pop()
-    else:
-        shown = None
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        exec(compile(tree, filename, "exec"), namespace)  # noqa: S102 - running the docs is the test
-        if shown is not None:
-            value = eval(compile(ast.Expression(shown.value), filename, "eval"), namespace)  # noqa: S307
-            if value is not None:
-                print(repr(value))
-    return out.getvalue()
+#: what the fresh interpreter runs: the block (stdin) compiled under its page and line, then the
+#: repr of a final bare expression printed, as an interactive session shows it
+DRIVER = """
+import ast, sys
+code, where = sys.stdin.read(), sys.argv[1]
+tree = ast.parse(code, where)
+shown = tree.body.pop() if tree.body and isinstance(tree.body[-1], ast.Expr) else None
+namespace = {"__name__": "__main__"}
+exec(compile(tree, where, "exec"), namespace)
+if shown is not None:
+    value = eval(compile(ast.Expression(shown.value), where, "eval"), namespace)
+    if value is not None:
+        print(repr(value))
+"""
+
+
+def run_alone(code: str, where: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """Run one block in a fresh interpreter in ``cwd``; its stdout is what it printed, a final
+    bare expression's repr included. This checkout comes first on the path, as in the tests."""
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return subprocess.run(
+        [sys.executable, "-c", DRIVER, where],
+        input=code,
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
+    )
 
 
 def _rel(page: Path) -> str:
     return page.relative_to(ROOT).as_posix()
 
 
-@pytest.mark.parametrize("page", [p for p in PAGES if python_blocks(p.read_text())], ids=_rel)
-def test_the_python_blocks_of_a_page_run(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-    namespace: dict = {"__name__": f"docs_snippets_{page.stem}"}
-    for line, code, skip, prints in _blocks(page.read_text()):
-        if skip:
-            continue
-        where = f"{_rel(page)}:{line}"
-        assert prints is not None, f"{where}: no '<!-- prints: REGEX -->' line right after the block"
-        try:
-            out = run_block(code, where, namespace)
-        except Exception:  # noqa: BLE001 - name the block, then fail
-            pytest.fail(f"{_rel(page)}, the python block at line {line} raised:\n{traceback.format_exc()}")
-        assert re.search(prints, out, re.MULTILINE), (
-            f"{where} printed:\n{out[-2000:]}\nnot matching {prints!r}"
-        )
-    for value in namespace.values():  # close what the page opened (envs with figures)
-        close = getattr(value, "close", None)
-        if callable(close) and hasattr(value, "unwrapped"):
-            close()
+def _every_block() -> list:
+    """One pytest parameter per python block of every page, named ``page:line``."""
+    return [
+        pytest.param(f"{_rel(page)}:{line}", code, skip, prints, id=f"{_rel(page)}:{line}")
+        for page in PAGES
+        for line, code, skip, prints in _blocks(page.read_text())
+    ]
+
+
+@pytest.mark.parametrize(("where", "code", "skip", "prints"), _every_block())
+def test_a_python_block_runs_alone_and_prints_what_its_page_says(
+    where: str, code: str, skip: str | None, prints: str | None, tmp_path: Path
+) -> None:
+    if skip:
+        pytest.skip(skip)
+    assert prints is not None, f"{where}: no '<!-- prints: REGEX -->' line right after the block"
+    run = run_alone(code, where, tmp_path)
+    assert run.returncode == 0, f"{where}, run alone in a fresh interpreter, raised:\n{run.stderr[-4000:]}"
+    assert re.search(prints, run.stdout, re.MULTILINE), (
+        f"{where} printed:\n{run.stdout[-2000:]}\nnot matching {prints!r}"
+    )
+
+
+def test_a_block_that_leans_on_an_earlier_one_fails(tmp_path: Path) -> None:
+    """The runner is a fresh interpreter: a name or an env id an earlier block would have made is
+    not there (the in-process runner this replaced let both through)."""
+    assert run_alone("import koopman_envs\nprint(1)", "first", tmp_path).returncode == 0
+    assert "NameError" in run_alone("gym.make('KoopNav-Formation-v0')", "second", tmp_path).stderr
+    unregistered = run_alone("import gymnasium as gym\ngym.make('KoopNav-Formation-v0')", "third", tmp_path)
+    assert "NameNotFound" in unregistered.stderr or "not found" in unregistered.stderr, unregistered.stderr
+    assert run_alone("x = 1\nx + 1", "fourth", tmp_path).stdout == "2\n"
 
 
 def test_skipped_blocks_are_rare_and_say_why() -> None:
@@ -129,7 +155,25 @@ def test_skipped_blocks_are_rare_and_say_why() -> None:
 
 def test_the_readme_and_the_docs_have_snippets() -> None:
     counts = {_rel(p): len(python_blocks(p.read_text())) for p in PAGES}
-    assert counts["README.md"] >= 2 and counts["docs/getting_started.md"] >= 3, counts
+    # README: one short first episode; getting started: env, controller, PettingZoo, vector env
+    assert counts["README.md"] >= 1 and counts["docs/getting_started.md"] >= 3, counts
+
+
+#: README's first command and the time it states: ``... python evaluate.py  # install, run the
+#: quick leaderboard (TIME)``
+QUICK_TIME = re.compile(r"python evaluate\.py +# install, run the quick leaderboard \((?P<time>[^)]+)\)")
+
+
+def test_the_quick_leaderboard_has_one_stated_time() -> None:
+    """README states how long the quick leaderboard takes; getting started repeats README's two
+    commands with the same words, and the evaluator guide states the same time, so that the three
+    never give three different times again."""
+    stated = QUICK_TIME.search((ROOT / "README.md").read_text())
+    assert stated, "README's first command no longer states its time"
+    repeated = QUICK_TIME.search((ROOT / "docs" / "getting_started.md").read_text())
+    assert repeated and repeated["time"] == stated["time"], repeated
+    evaluator = " ".join((ROOT / "docs" / "evaluator.md").read_text().split())
+    assert stated["time"] in evaluator, stated["time"]
 
 
 # --- links ----------------------------------------------------------------------------------------
@@ -178,7 +222,7 @@ def test_relative_links_resolve(page: Path) -> None:
 
 def test_the_controller_options_page_is_what_the_specs_generate() -> None:
     """docs/controller_options.md is generated from controllers.options; regenerate it with
-    `python docs/make_options_md.py` after changing a controller's options."""
+    `python docs/make_options_md.py --out docs/controller_options.md` after changing a controller's options."""
     pytest.importorskip("stable_baselines3")  # the page lists the RL controllers' options too
     import importlib.util
     from pathlib import Path

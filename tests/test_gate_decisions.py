@@ -732,3 +732,85 @@ def test_last_digit_differences_are_ties_so_one_episode_ending_elsewhere_is_no_s
     shifted = [_rec(seed, distances=(0.052, 0.052)) for seed in range(20)]
     shifted[7] = run[7]
     assert gate_failures(compare_runs(shifted, baseline), GateOptions()) != []
+
+
+# ------------------------------------------------- what the mutation run of this module showed
+# (bash .ci/mutation.sh baseline: each test below kills mutants that survived the tests above)
+def test_a_distance_difference_of_exactly_the_resolution_is_no_tie() -> None:
+    from evaluation.baseline import DISTANCE_RESOLUTION_CM, _tied
+
+    assert _tied(DISTANCE_RESOLUTION_CM) == DISTANCE_RESOLUTION_CM
+    assert _tied(-DISTANCE_RESOLUTION_CM) == -DISTANCE_RESOLUTION_CM
+    assert _tied(0.999 * DISTANCE_RESOLUTION_CM) == 0.0
+    assert _tied(-0.999 * DISTANCE_RESOLUTION_CM) == 0.0
+
+
+def test_a_published_archive_as_the_baseline_is_named_with_how_to_use_it(tmp_path) -> None:
+    archive = tmp_path / "scale_n3.tar.xz"
+    archive.write_bytes(b"\xfd7zXZ\x00")  # named by its suffix, refused before it is read
+    with pytest.raises(ValueError) as caught:
+        load_baseline(archive)
+    assert str(caught.value) == (
+        f"baseline {str(archive)!r} is a published archive (episode logs), not a results.json or a run "
+        f"directory: unpack it (tar -xJf {archive} -C DIR), write its run's results.json with the run's "
+        "command and --resume --out DIR/NAME (data/publish.sh lists it; every episode is logged, so "
+        "none runs again), then pass DIR/NAME"
+    )
+
+
+def test_a_baseline_nested_too_deep_is_named_by_its_file(tmp_path) -> None:
+    path = _write(tmp_path / "deep.json", "[" * 100 + "]" * 100)
+    with pytest.raises(ValueError) as caught:
+        load_baseline(path)
+    assert str(caught.value) == f"baseline {str(path)!r}: JSON nested 100 levels deep; allowed: at most 64"
+
+
+def test_settings_that_are_not_json_compare_by_their_text() -> None:
+    # a run's configuration may hold paths (map files given on the command line); the baseline's,
+    # read back from JSON, holds their text: the same file is the same setting
+    config = {"env_settings": {"n_robots": 3}, "map_files": [Path("maps/a.json")]}
+    baseline = {
+        "config": {"env_settings": {"n_robots": 3}, "map_files": ["maps/a.json"]},
+        "package_version": "1",
+    }
+    refuse_incomparable(config, "1", baseline)
+    # and either side may be built in memory (two runs compared in one Python session)
+    refuse_incomparable(baseline["config"], "1", {"config": config, "package_version": "1"})
+    with pytest.raises(ValueError, match=r"map_files: baseline \['maps/b.json'\], now \[PosixPath"):
+        refuse_incomparable(
+            config, "1", {**baseline, "config": {**baseline["config"], "map_files": ["maps/b.json"]}}
+        )
+
+
+@pytest.mark.parametrize("side", ["the run", "the baseline"])
+def test_distinct_pairs_names_the_side_holding_a_conflicting_repeat(side) -> None:
+    clean = [_rec(s) for s in range(3)]
+    torn = clean + [_rec(0, success=False, distances=(0.5, 0.5))]
+    records, baseline_records = (torn, clean) if side == "the run" else (clean, torn)
+    with pytest.raises(ConflictingRecords, match=rf"^{side}: episode '{TR}\|c\|map1\|nominal\|0'"):
+        distinct_pairs(records, baseline_records)
+
+
+def test_a_controller_without_distinct_pairs_counted_has_none() -> None:
+    # distinct pairs counted after the run for other controllers only: this one has 0, not 1
+    base = [_rec(s) for s in range(10)]
+    failures = coverage_failures(
+        {"c": _keys(range(10))},
+        base,
+        GateOptions(min_pairs=1),
+        run_names_its_controllers=True,
+        distinct={"d": 10},
+    )
+    assert failures == [
+        "c: 10 episode(s) pair with the baseline but only 0 of those pairs are distinct, fewer than the "
+        "minimum 1: the others repeat an earlier seed's two episodes bit for bit (an identical rerun is "
+        "not a sample); make the seeds' episodes differ (--start-noise, a random slip, --random-maps)"
+    ]
+
+
+def test_a_controller_too_thin_to_judge_does_not_stop_the_gate_judging_the_next() -> None:
+    thin = _row(controller="a", n=3)
+    worse = _row(controller="b")
+    assert gate_failures({"rows": [thin, worse]}, GateOptions()) == [
+        f"b on {TR} (20 paired episodes): success 80% -> 50%, -30 points [-50, -10], McNemar p = 0.0312"
+    ]

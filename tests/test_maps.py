@@ -255,18 +255,6 @@ def test_placement_share_matches_the_generators_acceptance() -> None:
     assert abs(rate - share) < band + 2e-3, (rate, share)
 
 
-def test_the_generator_s_previous_path_still_works_with_a_warning() -> None:
-    import koopman_envs.sim.maps as maps
-    import koopman_envs.sim.random_maps as random_maps
-
-    with pytest.warns(
-        DeprecationWarning, match="removed in KoopNav 0.2.0; import it from koopman_envs.sim.random_maps"
-    ):
-        assert maps.RandomMapConfig is random_maps.RandomMapConfig
-    with pytest.raises(AttributeError):
-        maps.no_such_name  # noqa: B018
-
-
 def _openblas_core() -> str | None:
     """The kernel family OpenBLAS chose on this CPU (``"Haswell"``, ``"SkylakeX"``...), or None when
     NumPy's BLAS is not OpenBLAS or does not say."""

@@ -121,9 +121,9 @@ SMOKE: dict[str, tuple[list[str], str]] = {
         ["{results}", "--out", "{tmp}/results.md", "--figures", "{tmp}/figures"],
         r"^wrote .*/results\.md$",
     ),
-    "docs/make_robustness_md.py": (
-        ["{sweep}", "--out", "{tmp}/robustness.md", "--figures", "{tmp}/figures"],
-        r"^wrote .*/robustness\.md and 1 sweep\(s\) of figures in ",
+    "docs/make_robustness_md.py": (  # no --figures: they go to _static beside the page
+        ["{sweep}", "--out", "{tmp}/robustness.md"],
+        r"^wrote .*/robustness\.md and 1 sweep\(s\) of figures in .*/_static",
     ),
     "docs/solver_comparison.py": (
         ["{results}"],
@@ -262,6 +262,24 @@ def test_script_runs_on_tiny_arguments_and_prints_its_result(
     for a in raw:
         if a.startswith("{tmp}/"):
             assert Path(a.format(tmp=tmp_path)).exists(), f"{script} did not write {a}"
+
+
+#: the generators of docs/'s pages and pictures: each output is a tracked file, so none has a default
+GENERATORS = [
+    "docs/make_bench_figure.py",
+    "docs/make_figure.py",
+    "docs/make_options_md.py",
+    "docs/make_results_md.py",
+    "docs/make_robustness_md.py",
+]
+
+
+@pytest.mark.parametrize("script", GENERATORS)
+def test_a_docs_generator_writes_nothing_until_told_where(
+    script: str, capfd: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = _run_script(script, [], capfd)
+    assert code == 2 and re.search(r"the following arguments are required: .*--out", err), err
 
 
 def test_robustness_page_names_parts_and_opens_with_their_overview(

@@ -114,13 +114,76 @@ def test_the_reports_print_the_label_and_break_success_down_by_tier_and_family(s
     assert "Suite koopnav-bench-v1 (version 1), split test, layouts 0-1 (2 of 200)" in markdown
     assert "| Task | Controller | easy | medium | hard |" in markdown
     assert "| Task | Controller | clutter | passages | rooms |" in markdown
-    assert "cluster bootstrap over layouts" in markdown and "over trials" not in markdown
+    assert "two-stage bootstrap over layouts" in markdown and "over trials" not in markdown
     results = json.loads((suite_run / "results.json").read_text())
     tiers = [r for r in results["suite_breakdown"] if r["by"] == "layout_tier"]
     assert len(tiers) == 2 * 2 * 3 and sum(r["episodes"] for r in tiers) == 8
     assert "layout_tier" in (suite_run / "results.csv").read_text().splitlines()[0]
     jsonschema = pytest.importorskip("jsonschema")
     jsonschema.validate(results, json.loads((ROOT / "docs" / "results.schema.json").read_text()))
+
+
+#: the captions of a suite report's paired tables, one per outcome and metric
+PAIRED_CAPTIONS = (
+    "Paired: Success",
+    "Paired: Strict success (clearance above 5 cm all episode)",
+    "Paired: Success excusing unavoidable collisions",
+    "Paired: Minimum clearance [cm]",
+    "Paired: Share of periods within 5 cm of an obstacle",
+    "Paired: Time to goal [s]",
+    "Paired: Path-length ratio",
+    "Paired: Jerk RMS [m/s³]",
+)
+
+
+def test_the_report_holds_a_tested_table_per_outcome_and_metric(suite_run) -> None:
+    markdown = (suite_run / "results.md").read_text()
+    assert "## Outcomes and metrics over layouts" in markdown
+    assert "## Paired comparisons over layouts" in markdown and "McNemar" not in markdown
+    for caption in PAIRED_CAPTIONS:
+        assert caption in markdown
+    results = json.loads((suite_run / "results.json").read_text())
+    tables = results["suite_tests"]
+    assert len(tables) == len(PAIRED_CAPTIONS)
+    for table in tables:
+        # one pair per task, declared for both tasks; Holm within the table
+        family = table["family"]
+        assert family["size"] == 2 and [t["comparison"] for t in family["tests"]] == [
+            f"{env_id}: consensus vs nominal-nmpc" for env_id in TASKS
+        ]
+        assert f"Family '{family['family']}': m = 2 tests" in markdown
+        for row in table["rows"]:
+            assert row["test"] == "layout sign-flip" and row["layouts"] == 2
+    # the episodes ran 10 periods: clearance, near-obstacle share and jerk are compared on every unit
+    for key in ("clearance_cm", "near_obstacle_share", "jerk_rms"):
+        (table,) = [t for t in tables if t["measure"] == key]
+        assert [r["n"] for r in table["rows"]] == [2, 2]
+    assert [row["controller"] for row in results["suite_summary"]] == ["consensus", "nominal-nmpc"] * 2
+    for record in results["episodes"]:
+        assert len(record["near_obstacle_share"]) == len(record["final_distance"])
+        assert record["jerk_rms"] is not None and record["path_ratio"] is not None
+
+
+def test_a_log_written_before_the_metrics_still_resumes_and_reports(suite_run, tmp_path) -> None:
+    """A log whose records lack the metric fields (written before them) is read as it is: nothing
+    runs again, and the report's tables count those episodes as having no value."""
+    lines = (suite_run / "episodes.jsonl").read_text().splitlines()
+    old = [json.loads(line) for line in lines[1:]]
+    for record in old:
+        for field in (
+            "near_obstacle_share",
+            "jerk_rms",
+            "path_ratio",
+            "strict_success",
+            "success_excusing_unavoidable",
+        ):
+            record.pop(field)
+    (tmp_path / "episodes.jsonl").write_text("\n".join([lines[0], *map(json.dumps, old)]) + "\n")
+    assert ev.main([*ARGS, "--out", str(tmp_path), "--resume"]) == ev.SUCCESS_EXIT
+    assert [json.loads(line) for line in (tmp_path / "episodes.jsonl").read_text().splitlines()[1:]] == old
+    markdown = (tmp_path / "results.md").read_text()
+    assert "Paired: Jerk RMS [m/s³]: no pair of controllers shares a unit with a value." in markdown
+    assert "**Paired: Minimum clearance [cm]**" in markdown
 
 
 def test_an_interrupted_suite_run_resumes_to_the_uninterrupted_results(suite_run, tmp_path) -> None:

@@ -18,7 +18,7 @@ from controllers.koopman.accuracy import circle_test
 from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model, fit_on_plant
-from koopman_envs.builder.plant import make_plant
+from koopman_envs import make_plant
 from koopman_envs.files import write_atomic
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 

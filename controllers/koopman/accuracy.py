@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.koopman.model import KoopmanModel
-from koopman_envs.sim.rollout import rollout
+from koopman_envs import rollout
 
 __all__ = ["CircleReport", "circle_starts", "circle_test", "hausdorff", "rmse_percent"]
 

@@ -65,12 +65,10 @@ from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
 from controllers.mpc.slots import closing_distance, nearest_obstacle_slots
-from koopman_envs import Observed
-from koopman_envs.builder.plant import CalibrationPlant
+from koopman_envs import CalibrationPlant, Observed, nearest_order
 from koopman_envs.checks import Range, check_choice
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.nearest import nearest_order
 
 __all__ = ["COORDINATION", "FORMATION_GOALS", "MODELS", "DistributedNMPC"]
 

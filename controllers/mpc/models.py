@@ -11,8 +11,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs import rk4_step
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.dynamics import rk4_step
 
 __all__ = ["CODING_SIZE", "PredictionModel", "UnicycleModel", "decode_state", "encode_state", "model_step"]
 

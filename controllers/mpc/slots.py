@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from controllers.movers import predict_movers
 from controllers.mpc.config import PARKED
-from koopman_envs.sim.nearest import nearest_by_clearance
+from koopman_envs import nearest_by_clearance
 
 __all__ = ["PairSlots", "closing_distance", "mover_slots", "nearest_obstacle_slots"]
 

@@ -59,8 +59,7 @@ from controllers.koopman.store import check_structure, default_structure
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
-from koopman_envs import Observed
-from koopman_envs.builder.plant import CalibrationPlant
+from koopman_envs import CalibrationPlant, Observed
 from koopman_envs.checks import Range
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 from koopman_envs.scenario import Scenario

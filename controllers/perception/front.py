@@ -41,10 +41,9 @@ from numpy.typing import NDArray
 
 from controllers.perception.scan import ScanSettings, scan_objects
 from controllers.perception.tracker import MoverTracks, Tracker, TrackerSettings
-from koopman_envs import Observed
+from koopman_envs import Observed, beam_angles
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.lidar import beam_angles
 
 __all__ = ["LidarPerception", "PerceptionSettings"]
 

@@ -43,8 +43,8 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
+from koopman_envs import cv_model, cv_predict, cv_update
 from koopman_envs.checks import check_int, check_number
-from koopman_envs.sim.mover_tracking import cv_model, cv_predict, cv_update
 
 __all__ = ["MoverTracks", "Tracker", "TrackerSettings", "fuse_detections"]
 

@@ -10,7 +10,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from evaluation.aggregate import BREAKDOWNS
 from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded
 from evaluation.report.blocks import (
     Block,
@@ -27,8 +26,10 @@ from evaluation.report.blocks import (
     p_cell,
     rate_cell,
 )
+from evaluation.report.suite_tables import suite_sections
 from evaluation.run_data import RunData
-from koopman_envs.tasks.base import TASKS
+from evaluation.suite_statistics import BREAKDOWNS
+from koopman_envs import TASKS
 
 __all__ = [
     "DEGRADED_NOTE",
@@ -59,7 +60,13 @@ def task_label(env_id: str) -> str:
 _TRIAL_CLUSTERS = (
     "a cluster bootstrap over trials (a trial's seed fixes its layout, start and slip draws in every cell)"
 )
-_LAYOUT_CLUSTERS = "a cluster bootstrap over layouts (the suite's layouts are the sample)"
+#: a suite run's intervals (evaluation.suite_statistics): the text that replaces the other runs' in the notes
+_SUITE_INTERVALS = {
+    f"for the success rate the wider of Wilson's and {_TRIAL_CLUSTERS}, Wilson for the collision-free "
+    "rate, bootstrap for means": "for the success and collision-free rates the wider of Wilson's and a "
+    "two-stage bootstrap over layouts, then episodes within them (the suite's layouts are the sample); "
+    "for the final distances the two-stage bootstrap"
+}
 
 LEADERBOARD_NOTE = (
     "Success: every robot settled within tolerance without collision. Collision-free: the paper's SR. "
@@ -247,8 +254,11 @@ def controller_tables(results: RunData) -> list[tuple[str, Table]]:
 
 
 def _clusters_text(text: str, config: Mapping[str, Any]) -> str:
-    """``text`` with its bootstrap's clusters named as the run's are: layouts in a suite run."""
-    return text.replace(_TRIAL_CLUSTERS, _LAYOUT_CLUSTERS) if config.get("suite") else text
+    """``text`` with its intervals named as the run's are: over layouts in a suite run."""
+    if config.get("suite"):
+        for other, suite in _SUITE_INTERVALS.items():
+            text = text.replace(other, suite)
+    return text
 
 
 def suite_note(config: Mapping[str, Any]) -> str:
@@ -258,8 +268,9 @@ def suite_note(config: Mapping[str, Any]) -> str:
     if not heading:
         return ""
     return (
-        f"{heading}. Intervals of rates resample layouts (the cluster bootstrap's clusters are "
-        "layouts); paired comparisons pair on (layout, seed) units, which every controller met alike."
+        f"{heading}. Intervals resample layouts, then episodes within them (a two-stage bootstrap); "
+        "paired comparisons pair on (layout, seed) units, which every controller met alike, and test "
+        "with the layout as the unit."
     )
 
 
@@ -308,7 +319,8 @@ def suite_rows(results: RunData, by: str) -> Table:
 SUITE_NOTE = (
     "Success per layout tier (the suite's difficulty grade: easy, medium, hard) and per layout "
     "family (clutter, passages, rooms): successes/episodes [95% interval, the wider of Wilson's "
-    "and the cluster bootstrap over layouts]. docs/benchmark.md defines the tiers and families."
+    "and the two-stage bootstrap over layouts, then episodes]. docs/benchmark.md defines the tiers "
+    "and families."
 )
 
 
@@ -356,9 +368,13 @@ def sections(results: RunData) -> list[Section]:
             for by in BREAKDOWNS
         )
         out.append(Section("suite", "By layout tier and family", (Note(SUITE_NOTE), *by_group)))
-    paired = paired_rows(results)
-    if paired[1]:
-        out.append(Section("paired", "Paired comparisons", (Note(PAIRED_NOTE), TableBlock(paired))))
+    if results.config.get("suite"):
+        # a suite run's paired tables: one family per outcome and metric, with its power
+        out += suite_sections(results)
+    else:
+        paired = paired_rows(results)
+        if paired[1]:
+            out.append(Section("paired", "Paired comparisons", (Note(PAIRED_NOTE), TableBlock(paired))))
     tables: list[Block] = [Note(TABLES_NOTE)]
     tables += [TableBlock(table, caption) for caption, table in controller_tables(results) if table[1]]
     if _calibration_used(results):
@@ -401,8 +417,8 @@ def terminal_summary(results: RunData, paths: Mapping[str, Path]) -> str:
     note = (
         f"{len(results.records)} episodes over {len(cells)} map/slip cells "
         f"({', '.join(f'{m} {s}' for m, s in cells)}); success = every robot settled within tolerance "
-        "without collision; 95% intervals (the wider of Wilson's and a cluster bootstrap over "
-        f"{'layouts' if results.config.get('suite') else 'trials'}); "
+        "without collision; 95% intervals (the wider of Wilson's and a "
+        f"{'two-stage bootstrap over layouts, then episodes' if results.config.get('suite') else 'cluster bootstrap over trials'}); "
         "Episodes: distinct ones. Few episodes per controller give wide intervals: a smoke test, not "
         "a ranking."
     )

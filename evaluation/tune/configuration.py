@@ -5,9 +5,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from koopman_envs import TASKS, check_split_allowed
 from koopman_envs.checks import check_choice
-from koopman_envs.suites import check_split_allowed
-from koopman_envs.tasks.base import TASKS
 
 #: the suite tuned on (its ``validation`` split)
 SUITE = "koopnav-bench-v1"
@@ -40,9 +39,11 @@ def evaluate_configuration(
     slip: str = DEFAULT_SLIP,
     env_kwargs: Mapping[str, Any] | None = None,
     workers: int = 1,
+    purpose: str = "tuning",
 ) -> list[dict[str, Any]]:
     """The episode records of one configuration on layouts of a suite split: the tuner's one
-    call into the evaluator.
+    call into the evaluator (and the learned policies' trainers', which score their checkpoints
+    with it: ``purpose="checkpoint selection"``).
 
     The benchmark's own run (:func:`evaluation.protocols.suite_protocol`: perturbed starts, the
     NMPCs on the real-time iteration) on the given layouts of ``split``, for this one
@@ -59,7 +60,7 @@ def evaluate_configuration(
     task : str
         ``"target_reaching"``, ``"formation"`` or ``"both"``.
     split : str
-        ``"train"`` or ``"validation"``; ``"test"`` is refused (held out).
+        ``"train"`` or ``"validation"``; ``"test"`` is refused (held out) for ``purpose``.
     layouts : sequence of int
         Layout indices of the split (the same for every task).
     episodes : int
@@ -74,6 +75,10 @@ def evaluate_configuration(
         Further ``gym.make`` keywords (e.g. ``max_episode_steps``).
     workers : int
         Worker processes of the evaluator.
+    purpose : str
+        What the episodes are for, one of :data:`koopman_envs.suites.HELD_OUT_PURPOSES`
+        (``"tuning"``, ``"checkpoint selection"``, ...): :func:`check_split_allowed` refuses the
+        test split for it by name before any episode.
 
     Returns
     -------
@@ -84,7 +89,7 @@ def evaluate_configuration(
     from evaluation.protocols import suite_protocol
     from evaluation.runner import evaluate
 
-    check_split_allowed(split, "tuning")
+    check_split_allowed(split, purpose)
     tasks = tasks_of(task)
     selected = sorted(int(i) for i in layouts)
     if not selected or selected != list(range(selected[0], selected[-1] + 1)):

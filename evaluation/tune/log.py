@@ -17,9 +17,9 @@ from evaluation.runlog import (
 )
 from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, tasks_of
 from evaluation.tune.scoring import OBJECTIVE
+from koopman_envs import check_split_allowed, load_suite
 from koopman_envs.checks import check_int, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded
-from koopman_envs.suites import check_split_allowed, load_suite
 
 #: the study's log, its best configuration
 STUDY_FILE = "study.jsonl"

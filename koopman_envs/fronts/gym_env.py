@@ -38,6 +38,8 @@ class KoopNavEnv(gym.Env):
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
             )
+        #: the env's keywords resolved and checked (:class:`koopman_envs.EngineConfig`): the public
+        #: way to read its team size, task, movers and radii (``engine`` is internal)
         self.config = EngineConfig.create(self.task_name, front="gym", **keywords)
         self.engine = NavigationEngine(self.config, num_envs=1)
         self.action_space, self.observation_space = self.engine.team_spaces()

@@ -83,6 +83,8 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
             )
         # a PettingZoo env truncates by itself: without max_episode_steps / max_cycles, the default limit
+        #: the env's keywords resolved and checked (:class:`koopman_envs.EngineConfig`): the public
+        #: way to read its team size, task, movers and radii (``engine`` is internal)
         self.config = EngineConfig.create(task, front="parallel", **keywords)
         self.metadata = {**self.metadata, "name": f"koopnav_{task}_v0"}
         self.engine = NavigationEngine(self.config, num_envs=1)

@@ -87,6 +87,8 @@ class KoopNavVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": mode}
         #: the same mode as an attribute, where TorchRL's GymWrapper and others look for it
         self.autoreset_mode = mode
+        #: the env's keywords resolved and checked (:class:`koopman_envs.EngineConfig`): the public
+        #: way to read its team size, task, movers and radii (``engine`` is internal)
         self.config = EngineConfig.create(task, front="vector", **keywords)
         self.num_envs = int(num_envs)
         self.engine = NavigationEngine(self.config, num_envs=self.num_envs)
@@ -285,6 +287,11 @@ class KoopNavVectorEnv(VectorEnv):
     def scenario(self, index: int) -> Scenario:
         """Scenario of sub-environment ``index`` (see :class:`koopman_envs.scenario.Scenario`)."""
         return self.engine.scenario(index)
+
+    def robot_spaces(self) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+        """(action, observation) spaces of one robot: its (v, omega) and its observation block
+        (the team spaces repeat them once per robot, robot 0 first)."""
+        return self.engine.robot_spaces()
 
 
 def make_target_reaching_vec(num_envs: int = 1, **kwargs: Any) -> KoopNavVectorEnv:

@@ -19,7 +19,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_int, parse_json
-from koopman_envs.deprecated import moved_names
 from koopman_envs.files import read_text, write_atomic
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
@@ -412,11 +411,3 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
         f"map={spec!r} is not one of {list(MAP_NAMES)}, a path to a .json map file, or a MapSpec"
         f"{did_you_mean(spec, MAP_NAMES)}"
     )
-
-
-#: names that lived here before the generator got its own module (kept for one release)
-__getattr__ = moved_names(
-    __name__,
-    ("RandomMapConfig", "generate_random_map", "placement_share", "AUTO_FORMATION", "MIN_PLACEMENT_SHARE"),
-    "koopman_envs.sim.random_maps",
-)

@@ -18,6 +18,7 @@ __all__ = [
     "nearest_first",
     "nearest_first_by_rank",
     "nearest_order",
+    "obstacle_clearances",
     "smallest_clearances",
 ]
 
@@ -98,3 +99,20 @@ def smallest_clearances(
             dx, dy = x - movers[c, 0], y - movers[c, 1]
             low_mover = min(low_mover, np.sqrt(dx * dx + dy * dy) - r - mover_radius)
     return low_obstacle, low_robot, low_mover
+
+
+@njit(cache=True, nogil=True)
+def obstacle_clearances(
+    xy: NDArray[np.float64], radius: NDArray[np.float64], obstacles: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Each robot's smallest surface clearance to the obstacles, shape (N,) [m] (inf without
+    obstacles); computed as :func:`smallest_clearances` computes it, so that the smallest of
+    them is that function's obstacle clearance to the bit."""
+    n = xy.shape[0]
+    out = np.full(n, np.inf)
+    for i in range(n):
+        x, y, r = xy[i, 0], xy[i, 1], radius[i]
+        for m in range(obstacles.shape[0]):
+            dx, dy = x - obstacles[m, 0], y - obstacles[m, 1]
+            out[i] = min(out[i], np.sqrt(dx * dx + dy * dy) - r - obstacles[m, 2])
+    return out

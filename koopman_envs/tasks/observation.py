@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from enum import IntEnum
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,6 +31,7 @@ from koopman_envs.layout import (
     PartOffsets,
     TeamEntry,
 )
+from koopman_envs.scenario import Scenario
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 from koopman_envs.sim.movers import mover_features
 from koopman_envs.sim.nearest import nearest_first
@@ -37,7 +39,7 @@ from koopman_envs.sim.nearest import nearest_first
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs.sim.perception import Perception
 
-__all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size"]
+__all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size", "observation_from_beliefs"]
 
 #: Clearance reported for an absent obstacle [m]: farther than anything in a 20 m workspace.
 FAR = 30.0
@@ -230,6 +232,74 @@ class FeatureBuilder:
                 out,
             )
         return out, distances
+
+
+def observation_from_beliefs(
+    scenario: Scenario,
+    poses: NDArray[np.float64],
+    known: NDArray[np.float64],
+    message_age: NDArray[np.int64],
+    targets: NDArray[np.float64],
+    movers: NDArray[np.float64],
+    n_obstacle_obs: int,
+    mover_slots: int,
+) -> NDArray[np.float64]:
+    """The team's observation blocks as a state-sensing env of ``scenario`` lists them, built by
+    the env's own builder (:class:`FeatureBuilder`) from what the robots believe: for a policy
+    that reads listed obstacles and movers when they come from perception instead of the env.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``obstacles`` are the ones listed (the map's, or a local map's), its radii,
+        ``formation_offsets``, ``message_ages`` and ``mover_radius`` those of the env.
+    poses : ndarray, shape (N, 3)
+        Each robot's own pose estimate: x [m], y [m], theta [rad].
+    known : ndarray, shape (N, N, 3)
+        Row i: the poses robot i believes its team-mates are at.
+    message_age : ndarray of int64, shape (N, N)
+        Periods since robot i last heard from robot j.
+    targets : ndarray, shape (N, 3)
+        Target poses.
+    movers : ndarray, shape (C, 4)
+        Movers as observed: x, y [m], vx, vy [m/s]; a NaN row is not listed.
+    n_obstacle_obs, mover_slots : int
+        Obstacles and movers listed per robot.
+
+    Returns
+    -------
+    ndarray, shape (N, F)
+        One block per robot, in the layout of :class:`koopman_envs.layout.ObservationLayout`.
+    """
+    n = scenario.n_robots
+    obstacles = np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
+    layout = ObservationLayout(
+        n, n_obstacle_obs, scenario.is_formation, comm=scenario.message_ages, movers=mover_slots
+    )
+    builder = FeatureBuilder(1, layout, len(obstacles), mover_radius=scenario.mover_radius)
+    geometry = TeamGeometry(1, np.asarray(scenario.robot_radius, dtype=np.float64), len(obstacles))
+    geometry.set_obstacles(0, obstacles)
+    state = poses.T[None]  # (1, 3, N)
+    perception = SimpleNamespace(
+        observed=np.ascontiguousarray(state),
+        known=np.ascontiguousarray(known.reshape(1, n, n, 3)),
+        age=message_age.reshape(1, n, n),
+        ranges=np.zeros((1, n, 0)),
+    )
+    target = np.ascontiguousarray(np.asarray(targets, dtype=np.float64).reshape(n, 3).T[None])
+    offsets = np.ascontiguousarray(
+        np.asarray(scenario.formation_offsets, dtype=np.float64).reshape(n, 2).T[None]
+    )
+    blocks, _ = builder.build(
+        state,
+        target,
+        geometry,
+        offsets if scenario.is_formation else None,
+        perception,  # type: ignore[arg-type]  # the Perception fields the builder reads
+        movers.reshape(1, -1, 4),
+    )
+    team: NDArray[np.float64] = blocks[0]
+    return team
 
 
 @njit(cache=True)

@@ -1,6 +1,0 @@
-"""Deprecated: ``koopman_envs.engine_memory`` moved to ``koopman_envs.builder.engine_memory``; this path is removed in
-KoopNav 0.2.0. Every name is read from where it lives now."""
-
-from koopman_envs.deprecated import moved_module
-
-__getattr__, __dir__ = moved_module("koopman_envs.engine_memory", ("koopman_envs.builder.engine_memory",))

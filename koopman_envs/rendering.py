@@ -1,6 +1,0 @@
-"""Deprecated: ``koopman_envs.rendering`` moved to ``koopman_envs.fronts.rendering``; this path is removed in
-KoopNav 0.2.0. Every name is read from where it lives now."""
-
-from koopman_envs.deprecated import moved_module
-
-__getattr__, __dir__ = moved_module("koopman_envs.rendering", ("koopman_envs.fronts.rendering",))

@@ -1,0 +1,315 @@
+"""The learned policies on the benchmark (issue 60): trained on the suite's train layouts, the
+checkpoint chosen on validation, the test split refused by the trainers by name, seeds trained by
+a resumable driver, and their test results aggregated (IQM with rliable's stratified bootstrap)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from baselines.suite_training import CheckpointScore, SuiteTraining, choose, refuse_held_out_map
+from evaluation.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
+
+pytest.importorskip("stable_baselines3")
+
+ROOT = Path(__file__).resolve().parents[1]
+SUITE = "koopnav-bench-v1"
+HELD_OUT = r"split='test' is held out"
+#: a tiny set-policy run: 2 envs x 3 robots x 64 steps per rollout, 2 validation layouts
+TINY_SB3 = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
+
+#: a tiny IPPO run: 2 envs, 2 iterations of 200 frames
+TINY_IPPO = [
+    "--frames",
+    "400",
+    "--envs",
+    "2",
+    "--frames-per-batch",
+    "200",
+    "--minibatch-size",
+    "100",
+    "--epochs",
+    "1",
+]
+
+
+# ----------------------------------------------------------------------------- held out by name
+def test_the_sb3_trainer_refuses_the_test_split_by_name_before_any_work(tmp_path, capsys) -> None:
+    from baselines.train import main
+
+    out = tmp_path / "run"
+    argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--suite", SUITE, "--out", str(out)]
+    argv += [
+        "--timesteps",
+        "384",
+        "--validation-layouts",
+        "1",
+        *TINY_SB3,
+    ]  # a trainer that failed to refuse ends soon
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--split", "test"])
+    assert exit_info.value.code == 2
+    assert "split='test' is held out: the test split may not be used for training" in capsys.readouterr().err
+    assert not out.exists()  # nothing started
+    with pytest.raises(SystemExit):
+        main([*argv, "--split", "tset"])
+    assert "split='tset' is not one of" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # --split without --suite
+        main(["--split", "train", "--out", str(out)])
+    assert "--split needs --suite NAME" in capsys.readouterr().err
+
+
+def test_selection_on_the_test_split_and_a_test_map_are_refused_by_name() -> None:
+    with pytest.raises(ValueError, match=HELD_OUT + r".*checkpoint selection"):
+        SuiteTraining(SUITE, "formation", selection_split="test").check()
+    with pytest.raises(
+        ValueError, match=HELD_OUT + r": map='suite:koopnav-bench-v1/test' may not be used for training"
+    ):
+        refuse_held_out_map({"map": "suite:koopnav-bench-v1/test"})
+    refuse_held_out_map({"map": "suite:koopnav-bench-v1/train"})  # train and validation are fine
+    refuse_held_out_map({"map": "random"})
+    from evaluation.tune.configuration import evaluate_configuration
+
+    with pytest.raises(ValueError, match=HELD_OUT + r".*checkpoint selection"):
+        evaluate_configuration("ippo", {}, "formation", "test", [0], 1, 0, purpose="checkpoint selection")
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--suite", SUITE, "--split", "test"], HELD_OUT + ": the test split may not be used for training"),
+        (["--env-kwargs", '{"map": "suite:koopnav-bench-v1/test"}'], HELD_OUT + ": map="),
+        (["--stages", '[{"share": 1, "env": {"map": "suite:koopnav-bench-v1/test"}}]'], HELD_OUT),
+        (["--suite", SUITE, "--algorithm", "mappo"], "--suite trains --algorithm ippo"),
+        (["--suite", SUITE, "--curriculum"], "leave out --curriculum and --stages"),
+        (["--suite", SUITE, "--env-kwargs", '{"slip": "nominal"}'], "--suite sets slip itself"),
+    ],
+)
+def test_the_benchmarl_trainer_refuses_the_test_split_by_name_before_any_work(
+    options: list[str], message: str, tmp_path, capsys
+) -> None:
+    pytest.importorskip("benchmarl")
+    from baselines.benchmarl_train import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(
+            [
+                "--task",
+                "formation",
+                "--algorithm",
+                "ippo",
+                *TINY_IPPO,
+                *options,
+                "--out",
+                str(tmp_path / "run"),
+            ]
+        )
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_the_training_envs_are_the_train_layouts_under_the_benchmarks_settings() -> None:
+    env = SuiteTraining(SUITE, "target_reaching").env_kwargs()
+    assert env == {
+        "map": "suite:koopnav-bench-v1/train",
+        "slip": "high",
+        "goal_tolerance": 0.1,
+        "max_episode_steps": 600,
+        "start_noise": 0.05,
+    }
+
+
+# ----------------------------------------------------------------------------- checkpoint choice
+def _score(step: int, successes: int, distance: float | None) -> CheckpointScore:
+    return CheckpointScore(step, f"ck{step}", successes, 10, 0, distance)
+
+
+def test_the_kept_checkpoint_is_the_best_by_success_then_final_distance_then_the_later() -> None:
+    assert choose([_score(1, 3, 0.5), _score(2, 4, 2.0), _score(3, 2, 0.1)]).step == 2
+    assert choose([_score(1, 4, 0.5), _score(2, 4, 0.7), _score(3, 4, None)]).step == 1
+    assert choose([_score(1, 4, 0.5), _score(2, 4, 0.5)]).step == 2
+    with pytest.raises(ValueError, match="no checkpoint was scored"):
+        choose([])
+
+
+def _policy_weights(folder: Path) -> bytes:
+    with zipfile.ZipFile(folder / "policy.zip") as archive:
+        return archive.read("policy.pth")
+
+
+@pytest.mark.slow
+def test_a_tiny_suite_run_keeps_the_checkpoint_best_on_validation_and_is_deterministic(tmp_path) -> None:
+    """A real set-policy run (1,152 robot-steps) on the train layouts, every checkpoint scored on
+    2 validation layouts through the evaluator; twice with the same seed, the same weights."""
+    from baselines.train import main
+
+    def run(out: Path) -> None:
+        argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--suite", SUITE, "--seed", "3"]
+        argv += ["--timesteps", "1152", "--eval-freq", "384", "--validation-layouts", "2", "--threads", "1"]
+        assert main([*argv, *TINY_SB3, "--out", str(out)]) == 0
+
+    run(tmp_path / "a")
+    record = json.loads((tmp_path / "a" / "selection.json").read_text())
+    steps = [c["step"] for c in record["checkpoints"]]
+    assert steps == [384, 768, 1152]
+    assert all(c["episodes"] == 2 and c["errors"] == 0 for c in record["checkpoints"])
+    assert record["suite"]["labels"]["selection"].startswith("koopnav-bench-v1/target_reaching/validation@")
+    assert record["suite"]["env"]["map"] == "suite:koopnav-bench-v1/train"
+    best = max(record["checkpoints"], key=lambda c: (c["success_rate"], -c["mean_final_distance"], c["step"]))
+    assert record["chosen"]["step"] == best["step"]
+    kept = tmp_path / "a" / "target_reaching"
+    metadata = json.loads((kept / "metadata.json").read_text())
+    assert metadata["trained_on"].startswith("koopnav-bench-v1/target_reaching/train@")
+    assert (
+        metadata["selected_timesteps"] == best["step"] and metadata["selection"]["chosen"] == record["chosen"]
+    )
+    chosen_files = tmp_path / "a" / "checkpoints" / f"step_{best['step']}" / "target_reaching"
+    assert (kept / "policy.zip").read_bytes() == (chosen_files / "policy.zip").read_bytes()
+    run(tmp_path / "b")
+    for step in steps:
+        folder = f"checkpoints/step_{step}/target_reaching"
+        assert _policy_weights(tmp_path / "a" / folder) == _policy_weights(tmp_path / "b" / folder)
+
+
+@pytest.mark.slow
+def test_a_tiny_ippo_suite_run_exports_scores_and_keeps_a_checkpoint(tmp_path) -> None:
+    pytest.importorskip("benchmarl")
+    import numpy as np
+
+    from baselines.benchmarl_train import main
+
+    argv = ["--task", "formation", "--algorithm", "ippo", "--suite", SUITE, *TINY_IPPO]
+    argv += ["--eval-freq", "200", "--validation-layouts", "2"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    record = json.loads((tmp_path / "a" / "selection.json").read_text())
+    assert [c["step"] for c in record["checkpoints"]] == [200, 400]
+    assert all(c["episodes"] == 2 for c in record["checkpoints"])
+    kept = np.load(tmp_path / "a" / "formation" / "policy.npz")
+    chosen = np.load(
+        tmp_path / "a" / "checkpoints" / f"frames_{record['chosen']['step']}" / "formation" / "policy.npz"
+    )
+    assert all(np.array_equal(kept[k], chosen[k]) for k in chosen.files)
+    metadata = json.loads((tmp_path / "a" / "formation" / "metadata.json").read_text())
+    assert metadata["env"]["map"] == "suite:koopnav-bench-v1/train" and metadata["env"]["max_cycles"] == 600
+
+
+# ----------------------------------------------------------------------------- the driver
+def _driver(root: Path) -> subprocess.CompletedProcess[str]:
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(ROOT),
+        "TRAINING_ROOT": str(root),
+        "SEEDS": "1",
+        "TASKS": "target_reaching",
+        "TIMESTEPS": "384",
+        "VALIDATION_LAYOUTS": "1",
+        "SB3_ARGS": " ".join([*TINY_SB3, "--eval-freq", "384"]),
+    }
+    return subprocess.run(
+        ["bash", str(ROOT / "data/training/run.sh"), "rl-ppo-set"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
+    )
+
+
+@pytest.mark.slow
+def test_the_driver_skips_a_finished_seed_and_restarts_an_unfinished_one(tmp_path) -> None:
+    seed_dir = tmp_path / "rl-ppo-set" / "target_reaching" / "seed0"
+    first = _driver(tmp_path)
+    assert first.returncode == 0, first.stderr
+    marker = json.loads((seed_dir / "finished.json").read_text())
+    assert marker["policy"] == "rl-ppo-set" and marker["seed"] == 0
+    assert (seed_dir / "target_reaching" / "policy.zip").is_file() and (seed_dir / "selection.json").is_file()
+    stamp = (seed_dir / "selection.json").stat().st_mtime_ns
+
+    again = _driver(tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "seed 0: finished, skipped" in again.stdout
+    assert (seed_dir / "selection.json").stat().st_mtime_ns == stamp  # not trained again
+
+    (seed_dir / "finished.json").unlink()  # as an interrupted run leaves it
+    (seed_dir / "half-written").write_text("x")
+    restarted = _driver(tmp_path)
+    assert restarted.returncode == 0, restarted.stderr
+    assert "unfinished run" in restarted.stdout and "removed; training again" in restarted.stdout
+    assert not (seed_dir / "half-written").exists() and (seed_dir / "finished.json").is_file()
+
+    # the seed, evaluated on 2 test layouts through the evaluator
+    [summary] = evaluate_seeds(
+        tmp_path, ["rl-ppo-set"], ["target_reaching"], layouts=(0, 2), workers=1, n_boot=200
+    )
+    assert summary["suite"].startswith("koopnav-bench-v1/target_reaching/test@")
+    assert summary["aggregate"].seeds == (0,) and summary["aggregate"].layouts == 2
+
+
+def test_the_driver_refuses_an_unknown_policy_before_touching_a_folder(tmp_path) -> None:
+    result = subprocess.run(
+        ["bash", str(ROOT / "data/training/run.sh"), "rl-ppo-sett"],
+        env={**os.environ, "TRAINING_ROOT": str(tmp_path / "t")},
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 2 and "unknown policy 'rl-ppo-sett'" in result.stderr
+    assert not (tmp_path / "t").exists()
+
+
+# ----------------------------------------------------------------------------- aggregation
+#: outcomes[seed][layout]: two episodes per (layout, seed)
+HAND_MADE = {
+    0: {0: [1, 1], 1: [1, 1], 2: [0, 0], 3: [1, 1]},
+    1: {0: [1, 0], 1: [1, 1], 2: [0, 0], 3: [0, 1]},
+    2: {0: [0, 0], 1: [1, 0], 2: [0, 1], 3: [1, 1]},
+}
+
+
+def test_the_iqm_over_layouts_and_seeds_matches_the_hand_computation() -> None:
+    result = aggregate(HAND_MADE, n_boot=500)
+    # the 12 (layout, seed) scores: 1, .5, 0 | 1, 1, .5 | 0, 0, .5 | 1, .5, 1; sorted
+    # 0 0 0 .5 .5 .5 .5 1 1 1 1 1; n // 4 = 3 cut at each end: (.5 * 4 + 1 * 2) / 6 = 2/3
+    assert result.iqm[0] == pytest.approx(2 / 3)
+    assert result.iqm_layouts[0] == pytest.approx(2 / 3)
+    assert result.mean == pytest.approx(14 / 24)
+    assert {s: r[0] for s, r in result.per_seed.items()} == {0: 0.75, 1: 0.5, 2: 0.5}
+    assert result.seeds == (0, 1, 2) and result.layouts == 4
+    for low_high in (result.iqm[1:], result.iqm_layouts[1:], *(r[1:] for r in result.per_seed.values())):
+        assert 0.0 <= low_high[0] <= low_high[1] <= 1.0
+    assert aggregate(HAND_MADE, n_boot=500) == result  # a function of its arguments
+    with pytest.raises(ValueError, match=r"seed 1 ran layouts \[0, 1\], seed 0 ran \[0, 1, 2, 3\]"):
+        aggregate({0: HAND_MADE[0], 1: {0: [1], 1: [0]}})
+
+
+def test_records_group_by_variant_and_layout() -> None:
+    records = [
+        {"controller": "ippo@seed0", "layout": 4, "success": True},
+        {"controller": "ippo@seed0", "layout": 4, "success": None, "status": "error"},
+        {"controller": "ippo@seed1", "layout": 5, "success": False},
+    ]
+    assert outcomes_by_label(records) == {"ippo@seed0": {4: [True, False]}, "ippo@seed1": {5: [False]}}
+
+
+def test_the_shipped_seed_is_chosen_on_validation_never_on_test() -> None:
+    def run(seed: int, rate: float, distance: float | None) -> SeedRun:
+        return SeedRun(
+            "ippo",
+            "formation",
+            seed,
+            Path(f"seed{seed}"),
+            {"success_rate": rate, "mean_final_distance": distance},
+        )
+
+    assert chosen_seed([run(0, 0.5, 0.1), run(1, 0.7, 0.9), run(2, 0.6, 0.0)]).seed == 1
+    assert chosen_seed([run(0, 0.7, 0.3), run(1, 0.7, 0.2)]).seed == 1
+    assert chosen_seed([run(0, 0.7, 0.2), run(1, 0.7, 0.2)]).seed == 0
+    with pytest.raises(ValueError, match="no finished seed"):
+        chosen_seed([])
