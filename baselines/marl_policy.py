@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from baselines.robot_features import FEATURE_SETS, feature_count, robot_features
 from baselines.safe_load import PolicyLoadError, load_npz, read_json
 from controllers.base import BaseController
+from koopman_envs import Observed
 from koopman_envs.scenario import Scenario
 
 __all__ = ["IppoController", "MappoController", "actor_command"]
@@ -138,7 +139,7 @@ class MappoController(BaseController):
                 "trained on (n_obstacle_obs, sensing='state')"
             )
 
-    def _act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray[np.float64], observed: Observed) -> NDArray[np.float64]:
         start = time.perf_counter()
         assert self.scenario is not None  # act() checked it
         blocks = np.asarray(observation, dtype=np.float64).reshape(self.scenario.n_robots, self._block)

@@ -16,12 +16,10 @@ unmapped in view the blocks equal the state env's bit for bit (tests/test_percei
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs import ENV_KEYWORDS, observation_from_beliefs
+from koopman_envs import ENV_KEYWORDS, Observed, observation_from_beliefs
 from koopman_envs.movers import MoverConfig
 from koopman_envs.scenario import Scenario
 
@@ -34,20 +32,21 @@ LISTED_MOVERS: int = MoverConfig().observed
 
 
 def perceived_blocks(
-    view: dict[str, Any],
+    observed: Observed,
     scenario: Scenario,
     n_obstacle_obs: int = LISTED_OBSTACLES,
     mover_slots: int = LISTED_MOVERS,
 ) -> NDArray[np.float64]:
     """The team's observation, flat (N * F,), in the layout of a state-sensing env with
     ``n_obstacle_obs`` listed obstacles, ``mover_slots`` listed movers and the scenario's message
-    ages, built from an observed ``view`` after the perception front.
+    ages, built from what the team observes after the perception front.
 
     Parameters
     ----------
-    view : dict
-        ``observed_poses`` (N, 3), ``targets`` (N, 3), and where present ``known_poses``
-        (N, N, 3), ``message_age`` (N, N) and ``observed_movers`` (C, 4: x, y, vx, vy).
+    observed : Observed
+        ``observed_poses`` (N, 3), ``known_poses`` (N, N, 3), ``message_age`` (N, N),
+        ``targets`` (N, 3) and where present ``observed_movers`` (C, 4: x, y, vx, vy) and
+        ``mover_tracked`` (C,).
     scenario : Scenario
         The planner's scenario: its ``obstacles`` are what the planner knows (the map's with
         ``lidar.map_known``, else the local map the perception handed on), its
@@ -56,13 +55,17 @@ def perceived_blocks(
         Obstacles and movers listed per robot, as in the env the policy was trained in.
     """
     n = scenario.n_robots
-    own = np.asarray(view["observed_poses"], dtype=np.float64).reshape(n, 3)
-    known = np.asarray(view.get("known_poses", np.broadcast_to(own[None], (n, n, 3))), dtype=np.float64)
-    age = np.asarray(view.get("message_age", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
-    movers = np.array(view.get("observed_movers", np.zeros((0, 4))), dtype=np.float64).reshape(-1, 4)
-    if "mover_tracked" in view:  # the env's tracker (sensing="state"): a mover without a track is not listed
-        movers[~np.asarray(view["mover_tracked"], dtype=bool)] = np.nan
+    if observed.targets is None:
+        raise ValueError("perceived_blocks needs the targets; this Observed has none")
+    own = observed.observed_poses.reshape(n, 3)
+    age = observed.message_age.reshape(n, n)
+    listed = np.zeros((0, 4)) if observed.observed_movers is None else observed.observed_movers
+    movers = np.array(listed, dtype=np.float64).reshape(-1, 4)
+    if (
+        observed.mover_tracked is not None
+    ):  # the env's tracker (sensing="state"): an untracked mover is not listed
+        movers[~observed.mover_tracked] = np.nan
     blocks = observation_from_beliefs(
-        scenario, own, known, age, view["targets"], movers, n_obstacle_obs, mover_slots
+        scenario, own, observed.known_poses, age, observed.targets, movers, n_obstacle_obs, mover_slots
     )
     return blocks.reshape(-1)

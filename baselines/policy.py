@@ -16,7 +16,7 @@ from baselines.inference import command_of, deterministic_action, policy_command
 from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, load_npz, read_json
 from baselines.set_features import MAX_TEAM, SetFeatureConfig
 from controllers.base import BaseController
-from koopman_envs import TASKS
+from koopman_envs import TASKS, Observed
 from koopman_envs.checks import Range
 from koopman_envs.files import write_atomic
 from koopman_envs.scenario import Scenario
@@ -289,14 +289,14 @@ class RLPolicyController(BaseController):
                 f"({scenario.lidar_beams} beams): the set policies (rl-ppo-set*) read the perceived ones"
             )
 
-    def _observed(self, observation: NDArray, info: dict[str, Any]) -> tuple[NDArray, int]:
+    def _observed(self, observation: NDArray, observed: Observed) -> tuple[NDArray, int]:
         """This team's observation as the policy reads it, and the movers each block lists."""
         sc = self.scenario  # the planner's: under lidar with the map unknown, the local map's obstacles
         assert sc is not None  # act() checked it
         if sc.lidar_beams:  # the perceived obstacles and movers, listed as a state env lists them
             from baselines.perceived import LISTED_MOVERS, perceived_blocks
 
-            return perceived_blocks(info, sc).astype(np.float32), LISTED_MOVERS
+            return perceived_blocks(observed, sc).astype(np.float32), LISTED_MOVERS
         return observation, sc.mover_slots
 
     def _inputs(self, observation: NDArray, mover_slots: int) -> tuple[NDArray[np.float32], tuple[int, ...]]:
@@ -322,8 +322,8 @@ class RLPolicyController(BaseController):
         assert sc is not None  # act() checked it
         return command_of(action, self._layout, sc.n_robots, sc.v_max, sc.omega_max, batch_shape)
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
-        rows, batch_shape = self._inputs(*self._observed(observation, info))
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
+        rows, batch_shape = self._inputs(*self._observed(observation, observed))
         return self._command(deterministic_action(self._actor, rows), batch_shape)
 
     def _batch_key(self, observation: NDArray, mover_slots: int) -> tuple:

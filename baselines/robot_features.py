@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from baselines.shaping import PRECISION_EPS
-from koopman_envs import nearest_order
+from koopman_envs import TeamEntry, nearest_order
 from koopman_envs.checks import check_choice, check_int
 from koopman_envs.layout import ObservationLayout
 
@@ -30,15 +30,19 @@ def _nearest_neighbours(blocks: np.ndarray, neighbours: int) -> tuple[np.ndarray
     from koopman_envs import FAR
 
     n = blocks.shape[-2]
-    team = ObservationLayout(n)["team"]  # the parts before and after it keep their places
+    layout = ObservationLayout(n)
+    team = layout["team"]  # the parts before and after it keep their places
+    width = len(TeamEntry)  # entries per team-mate
     others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
     listed = min(neighbours, n - 1)
-    clearance = blocks[..., team.start + 2 : team.stop : 3]  # (..., N, N - 1)
+    clearance = layout.items(blocks, "team")[..., TeamEntry.CLEARANCE]  # (..., N, N - 1)
     # the nearest ``listed`` slots, then back into index order (a stable sort keeps ties in order)
     slots = np.sort(nearest_order(clearance, listed), axis=-1)
-    entries = team.start + 3 * slots[..., None] + np.arange(3)  # (..., N, listed, 3)
+    entries = team.start + width * slots[..., None] + np.arange(width)  # (..., N, listed, width)
     chosen = np.take_along_axis(blocks, entries.reshape(entries.shape[:-2] + (-1,)), axis=-1)
-    pad = np.tile([0.0, 0.0, FAR], neighbours - listed)
+    absent = np.zeros(width)  # a missing slot reads as an absent team-mate: (0, 0, FAR)
+    absent[TeamEntry.CLEARANCE] = FAR
+    pad = np.tile(absent, neighbours - listed)
     chosen = np.concatenate([chosen, np.broadcast_to(pad, chosen.shape[:-1] + pad.shape)], axis=-1)
     index = np.broadcast_to(others, slots.shape[:-2] + others.shape)
     robots = np.take_along_axis(index, slots, axis=-1)
@@ -66,8 +70,8 @@ def robot_features(
     Parameters
     ----------
     team_blocks : ndarray, shape (..., N, F)
-        The team's feature blocks (:mod:`koopman_envs.tasks.observation`: entries 2, 3 are
-        cos/sin of the heading, 4, 5 the target in the body frame, 6 its distance).
+        The team's feature blocks (:class:`koopman_envs.layout.ObservationLayout`: read are the
+        ``heading``, ``target`` and ``target_distance`` parts).
     features : str
         One of :data:`FEATURE_SETS`.
     neighbours : int, optional

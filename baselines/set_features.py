@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs import FAR, nearest_order
+from koopman_envs import FAR, MoverEntry, ObstacleEntry, TeamEntry, nearest_order
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.layout import ObservationLayout
 
@@ -193,13 +193,14 @@ def set_features(
 
 def split_movers(team_blocks: NDArray, mover_slots: int) -> tuple[NDArray, NDArray]:
     """The blocks (..., N, F) without the movers they list at their end, and those movers
-    (..., N, S, MOVER_SIZE) (:mod:`koopman_envs.tasks.observation`: dx, dy, vx, vy, clearance,
-    nearest first); ``mover_slots`` = S, the env's ``movers.observed`` (0: nothing listed)."""
+    (..., N, S, 5), nearest first, their entries named by :class:`koopman_envs.MoverEntry` (dx,
+    dy, vx, vy, clearance); ``mover_slots`` = S, the env's ``movers.observed`` (0: nothing listed)."""
     blocks = np.asarray(team_blocks, dtype=np.float64)
-    width = MOVER_SIZE * mover_slots
+    item = len(MoverEntry)  # the env's entries per listed mover
+    width = item * mover_slots
     if width == 0:
-        return blocks, np.zeros(blocks.shape[:-1] + (0, MOVER_SIZE))
-    movers = blocks[..., -width:].reshape(blocks.shape[:-1] + (mover_slots, MOVER_SIZE))
+        return blocks, np.zeros(blocks.shape[:-1] + (0, item))
+    movers = blocks[..., -width:].reshape(blocks.shape[:-1] + (mover_slots, item))
     return blocks[..., :-width], movers
 
 
@@ -211,14 +212,14 @@ def _mover_slots(movers: NDArray | None, lead: tuple[int, ...], config: SetFeatu
     if chosen:
         assert movers is not None
         listed = np.asarray(movers, dtype=np.float64)[..., :chosen, :]
-        gap = listed[..., 4]
+        gap = listed[..., MoverEntry.CLEARANCE]
         present = (gap < FAR - 1.0) & (gap <= config.sensing_radius)  # absent ones read FAR
         features = np.stack(
             [
-                np.clip(listed[..., 0] / _NEAR_SCALE, -3, 3),
-                np.clip(listed[..., 1] / _NEAR_SCALE, -3, 3),
-                np.clip(listed[..., 2] / _SPEED_SCALE, -3, 3),
-                np.clip(listed[..., 3] / _SPEED_SCALE, -3, 3),
+                np.clip(listed[..., MoverEntry.DX] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., MoverEntry.DY] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., MoverEntry.VX] / _SPEED_SCALE, -3, 3),
+                np.clip(listed[..., MoverEntry.VY] / _SPEED_SCALE, -3, 3),
                 np.clip(gap / _NEAR_SCALE, -1, 3),
             ],
             axis=-1,
@@ -253,8 +254,8 @@ def _neighbour_slots(
     if n == 1:
         return out.reshape(batch + (n, -1))
     others = _others(n)
-    listed = blocks[..., layout["team"]].reshape(batch + (n, n - 1, 3))
-    dx, dy, gap = listed[..., 0], listed[..., 1], listed[..., 2]  # (..., N, N - 1)
+    listed = layout.items(blocks, "team")  # (..., N, N - 1, entries)
+    dx, dy, gap = listed[..., TeamEntry.DX], listed[..., TeamEntry.DY], listed[..., TeamEntry.CLEARANCE]
     # relative heading of j seen from i, and j's target offset rotated from j's frame into i's
     c_j, s_j = c[..., others], s[..., others]
     ci, si = c[..., None], s[..., None]
@@ -290,15 +291,14 @@ def _obstacle_slots(blocks: NDArray, layout: ObservationLayout, config: SetFeatu
     out = np.zeros(batch + (n, k, OBSTACLE_SIZE + 1))
     chosen = min(k, layout.n_obstacle_obs)
     if chosen:
-        start = layout["obstacles"].start
-        listed = blocks[..., start : start + 3 * chosen].reshape(batch + (n, chosen, 3))
-        gap = listed[..., 2]
+        listed = layout.items(blocks, "obstacles")[..., :chosen, :]  # (..., N, chosen, entries)
+        gap = listed[..., ObstacleEntry.CLEARANCE]
         # the env lists absent obstacles at clearance FAR
         present = (gap < FAR - 1.0) & (gap <= config.sensing_radius)
         features = np.stack(
             [
-                np.clip(listed[..., 0] / _NEAR_SCALE, -3, 3),
-                np.clip(listed[..., 1] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., ObstacleEntry.DX] / _NEAR_SCALE, -3, 3),
+                np.clip(listed[..., ObstacleEntry.DY] / _NEAR_SCALE, -3, 3),
                 np.clip(gap / _NEAR_SCALE, -1, 3),
             ],
             axis=-1,

@@ -34,13 +34,12 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.perception.front import LidarPerception
 from controllers.perception.scan import ScanSettings, cluster_scan, scan_points
-from koopman_envs import beam_angles
-from koopman_envs.observed import observed_view
+from koopman_envs import Observed, beam_angles
 
 ENV = "KoopNav-TargetReaching-v0"
 
 
-def _views(robots: int, periods: int, map_known: bool, seed: int = 0) -> tuple[list[dict[str, Any]], Any]:
+def _views(robots: int, periods: int, map_known: bool, seed: int = 0) -> tuple[list[Observed], Any]:
     """``periods`` observed views of one episode on a random layout (consensus drives)."""
     env = gym.make(
         ENV,
@@ -56,7 +55,7 @@ def _views(robots: int, periods: int, map_known: bool, seed: int = 0) -> tuple[l
     driver.reset(env, seed=seed)
     views = []
     for _ in range(periods):
-        views.append(observed_view(info))
+        views.append(Observed.from_info(info))
         obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
         if terminated or truncated:
             obs, info = env.reset(seed=seed + len(views))
@@ -83,7 +82,12 @@ def clustering_times(periods: int) -> dict[str, float]:
     views, scenario = _views(3, periods, True)
     settings = ScanSettings()
     angles = beam_angles(scenario.lidar_beams, scenario.lidar_fov)
-    scans = [(v["lidar_ranges"][i], v["observed_poses"][i]) for v in views for i in range(3)]
+    scans = [
+        (v.lidar_ranges[i], v.observed_poses[i])
+        for v in views
+        if v.lidar_ranges is not None
+        for i in range(3)
+    ]
     ours = []
     for ranges, _ in scans:
         start = time.perf_counter()

@@ -1,8 +1,9 @@
 """The controller contract: one protocol for every controller, plus per-episode statistics.
 
 Any object with ``reset(scenario, seed=...)``, ``act(observation, info)`` and ``stats()`` is a
-controller: the model-based ones read the structured state in ``info`` and the geometry in the
-scenario, a learned policy reads the observation. Solver status and timing go into
+controller: the model-based ones read the structured state in ``info`` (its observed part, as a
+:class:`koopman_envs.Observed`) and the geometry in the scenario, a learned policy reads the
+observation. Solver status and timing go into
 :class:`ControllerStats`, never onto stdout.
 """
 
@@ -19,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.observed import observed_view
+from koopman_envs import Observed
 from koopman_envs.scenario import Scenario, scenario_of
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -33,6 +34,7 @@ __all__ = [
     "ControllerStats",
     "FrontEnd",
     "calibratable",
+    "hand_on",
     "over_the_radio",
     "take_over_radio",
 ]
@@ -148,8 +150,9 @@ class FrontEnd(Protocol):
     def reset(self, scenario: Scenario) -> None:
         """Start an episode."""
 
-    def view(self, info: dict[str, Any]) -> dict[str, Any]:
-        """The observed info as the controller should plan from it."""
+    def view(self, observed: Observed) -> Observed:
+        """``observed`` as the controller should plan from it: a new value (``observed`` is
+        left as it is)."""
 
     def sent(self, command: NDArray[np.float64]) -> None:
         """Record the command sent."""
@@ -167,19 +170,27 @@ def take_over_radio(wrapper: Any, inner: Any) -> None:
         inner.radio_station = None
 
 
-def over_the_radio(view: dict[str, Any], station: int, planned: NDArray[np.float64]) -> dict[str, Any]:
-    """``view`` as a central controller on robot ``station``'s computer has it: each robot's pose
-    as the last message from it says (``known_poses[station]``; the station's own estimate on the
-    diagonal), with its age in periods as ``pose_age`` (N,); a robot never heard from stands at
-    its ``planned`` start. Without a ``comm`` setting every message arrives at once and the view
-    is unchanged, bit for bit."""
-    known = np.array(view["known_poses"][station], dtype=np.float64)
-    age = np.array(view["message_age"][station], dtype=np.int64)
+def over_the_radio(observed: Observed, station: int, planned: NDArray[np.float64]) -> Observed:
+    """``observed`` as a central controller on robot ``station``'s computer has it: each robot's
+    pose as the last message from it says (``known_poses[station]``; the station's own estimate
+    on the diagonal), with its age in periods as ``pose_age`` (N,); a robot never heard from
+    stands at its ``planned`` start. Without a ``comm`` setting every message arrives at once and
+    the poses are unchanged, bit for bit. A new value: ``observed`` is left as it is."""
+    known = np.array(observed.known_poses[station], dtype=np.float64)
+    age = np.array(observed.message_age[station], dtype=np.int64)
     unheard = age < 0
     known[unheard] = planned[unheard]
-    out = observed_view({**view, "observed_poses": known})
-    out["pose_age"] = age  # -1: never heard (the planned start stands in)
-    return out
+    # pose_age -1: never heard (the planned start stands in)
+    return dataclasses.replace(observed, observed_poses=known, pose_age=age)
+
+
+def hand_on(inner: Controller, observation: NDArray[np.float64], observed: Observed) -> NDArray[np.float64]:
+    """``inner``'s command on what a wrapper in front (``ekf:``, ``safe:``) planned from: a
+    :class:`BaseController` takes the :class:`~koopman_envs.Observed` as it is, any other
+    controller the dict of its observed keys (:meth:`~koopman_envs.Observed.to_info`)."""
+    if isinstance(inner, BaseController):
+        return inner.act(observation, observed)
+    return inner.act(observation, observed.to_info())
 
 
 class BaseController(ABC):
@@ -234,13 +245,14 @@ class BaseController(ABC):
             self.perception.reset(scenario)
         self._reset(scenario, seed)
 
-    def act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
+    def act(self, observation: NDArray[np.float64], info: dict[str, Any] | Observed) -> NDArray[np.float64]:
         """The joint command; its wall time is recorded in :meth:`stats` unless ``_act`` records
         its own (an optimizer timing only its solve).
 
         ``_act`` receives only the observed part of ``info``
-        (:func:`koopman_envs.observed.observed_view`: pose estimates, messages and their ages,
-        lidar readings, targets), never the true state."""
+        (:meth:`koopman_envs.Observed.from_info`: pose estimates, messages and their ages, lidar
+        readings, targets), never the true state. A wrapper in front (``ekf:``, ``safe:``) hands
+        on the :class:`~koopman_envs.Observed` it planned from instead of an info."""
         recorded = len(self._stats.solve_times)
         view = self._view(info)
         start = time.perf_counter()
@@ -265,24 +277,30 @@ class BaseController(ABC):
         """
         return [c.act(o, i) for c, o, i in zip(controllers, observations, infos, strict=True)]
 
-    def _view(self, info: dict[str, Any]) -> dict[str, Any]:
+    def _view(self, info: dict[str, Any] | Observed) -> Observed:
         """What ``_act`` reads of ``info``: its observed part, over the radio, through the front
         end and the perception."""
         if self.scenario is None:
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
-        view = observed_view(info)
-        if self.radio_station is not None and "known_poses" in view:  # (a hand-made info may have none)
-            view = over_the_radio(view, self.radio_station, self.scenario.starts)
+        if isinstance(info, Observed):
+            # a wrapper in front (ekf:, safe:) hands on what it planned from; its radio's ages
+            # were for its own front end and stay with it, as the dict view of the earlier API
+            # (which had no key for them) left them
+            observed = info if info.pose_age is None else dataclasses.replace(info, pose_age=None)
+        else:
+            observed = Observed.from_info(info)
+        if self.radio_station is not None:
+            observed = over_the_radio(observed, self.radio_station, self.scenario.starts)
         front_end = self.front_end
         if front_end is not None:
-            view = front_end.view(view)
+            observed = front_end.view(observed)
         # a wrapper in front (ekf:, safe:) that perceived hands its perception on: perceive once
-        if self.perception is not None and "lidar_ranges" in view and "mover_radii" not in view:
-            view = self.perception.view(view)
+        if self.perception is not None and observed.lidar_ranges is not None and not observed.perceived:
+            observed = self.perception.view(observed)
             self._stats.extra_times["perception"] = self.perception.times
-        if "perceived_obstacles" in view:
-            self.obstacles_seen(view["perceived_obstacles"])
-        return view
+        if observed.perceived_obstacles is not None:
+            self.obstacles_seen(observed.perceived_obstacles)
+        return observed
 
     def _acted(self, command: NDArray[np.float64], seconds: float | None) -> None:
         """Record a decision: its time (None: ``_act`` recorded its own) and the front end's counts."""
@@ -319,5 +337,5 @@ class BaseController(ABC):
         """Subclass hook called by :meth:`reset`."""
 
     @abstractmethod
-    def _act(self, observation: NDArray[np.float64], info: dict[str, Any]) -> NDArray[np.float64]:
-        """Compute the joint command."""
+    def _act(self, observation: NDArray[np.float64], observed: Observed) -> NDArray[np.float64]:
+        """Compute the joint command from the observation and what the robots believe."""

@@ -14,7 +14,7 @@ leader's law toward its own target.
 from __future__ import annotations
 
 import time
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +28,7 @@ from controllers.movers import (
     observed_movers,
 )
 from controllers.search_space import Search
+from koopman_envs import Observed
 from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
@@ -180,16 +181,15 @@ class ConsensusController(BaseController):
                 )
         return push
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         """Every robot's command from what it knows: its own pose estimate and its last messages
         of the others (``known_poses`` row i; robots it has heard nothing of are left out). When
         every robot knows the same (instant messages) one team computation serves all."""
         start = time.perf_counter()
-        self._movers = observed_movers(info)
+        self._movers = observed_movers(observed)
         assert self.scenario is not None  # act() checked it
-        self._mover_radii = observed_mover_radii(info, self.scenario.mover_radius)
-        known = np.asarray(info["known_poses"], dtype=np.float64)
-        ages = np.asarray(info["message_age"])
+        self._mover_radii = observed_mover_radii(observed, self.scenario.mover_radius)
+        known, ages = observed.known_poses, observed.message_age
         if (ages == 0).all() and (known == known[:1]).all():
             command = self._team_command(known[0])
         else:

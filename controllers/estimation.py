@@ -2,7 +2,7 @@
 and the estimate's covariance (``ekf:`` prefix).
 
 ``controllers.make("ekf:nominal-nmpc")`` is the nominal NMPC reading, instead of each robot's raw
-localization (``info["observed_poses"]``), what a deployed MPC reads:
+localization (``observed_poses`` of :class:`koopman_envs.Observed`), what a deployed MPC reads:
 
 1. **the filtered pose**: an extended Kalman filter per robot fuses the commands it sent (the
    unicycle's RK4 period, the env's integrator without slip) with the noisy pose. It smooths the
@@ -11,7 +11,7 @@ localization (``info["observed_poses"]``), what a deployed MPC reads:
    commands already sent but not yet acting are run through the same prediction, so the inner
    controller plans from the pose at which its new command will act. Without noise or slip this
    prediction is exact (tests/test_estimation.py, k = 1..4);
-3. **the covariance** of that pose, ``info["pose_covariance"]`` (N, 3, 3), grown by the process
+3. **the covariance** of that pose, ``pose_covariance`` (N, 3, 3), grown by the process
    noise over the compensated periods: controllers with margins tighten them by it (the NMPCs'
    ``chance_risk``).
 
@@ -39,10 +39,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.base import BaseController, Controller, ControllerStats, take_over_radio
+from controllers.base import BaseController, Controller, ControllerStats, hand_on, take_over_radio
 from controllers.estimator_options import AUTO, ESTIMATOR_OPTION_PREFIX, EstimatorOptions
 from controllers.identification import MotionIdentifier
-from koopman_envs import rk4_pose, wrap_angle, wrap_scalar
+from koopman_envs import Observed, rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.scenario import Scenario
 from koopman_envs.suggest import did_you_mean
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
@@ -277,32 +277,33 @@ class PoseFrontEnd:
                 out[i] = _predict_pose(out[i], sent[-1 - self.delay - k][i], scenario.dt)
         return out
 
-    def view(self, info: dict[str, Any]) -> dict[str, Any]:
-        """``info`` (its observed part) as the controller should plan from it: the estimate at
-        which the next command acts in ``observed_poses`` and on the diagonal of ``known_poses``,
-        and its covariance in ``pose_covariance`` (absent while there is none)."""
+    def view(self, observed: Observed) -> Observed:
+        """``observed`` as the controller should plan from it, a new value: the estimate at which
+        the next command acts in ``observed_poses`` and on the diagonal of ``known_poses``, and
+        its covariance in ``pose_covariance`` (left as it was while there is none)."""
         if self.scenario is None:
             raise RuntimeError("PoseFrontEnd: call reset(scenario) before view()")
         start = time.perf_counter()
-        measured = np.asarray(info["observed_poses"], dtype=np.float64)
-        ages = info.get("pose_age")  # a central controller's team heard over the radio
-        fresh = None if ages is None else np.asarray(ages) == 0
-        if fresh is not None and not fresh.all():
-            measured = self._carried_forward(measured, np.asarray(ages))
+        measured = observed.observed_poses
+        ages = observed.pose_age  # a central controller's team heard over the radio
+        fresh = None if ages is None else ages == 0
+        if ages is not None and fresh is not None and not fresh.all():
+            measured = self._carried_forward(measured, ages)
         if self._identifier is not None:
             self._identifier.observe(measured, fresh)
         filtered, filtered_covariance = self._estimate(measured)
         #: the pose estimate of now, before the delay compensation carries it forward (N, 3)
         self.filtered = filtered
         estimate, covariance = self._compensate(filtered, filtered_covariance)
-        view = dict(info, observed_poses=estimate)
-        if covariance is not None:
-            view["pose_covariance"] = covariance
-        if "known_poses" in info:
-            known = np.array(info["known_poses"], dtype=np.float64)
-            n = known.shape[0]
-            known[np.arange(n), np.arange(n)] = estimate
-            view["known_poses"] = known
+        known = np.array(observed.known_poses, dtype=np.float64)
+        n = known.shape[0]
+        known[np.arange(n), np.arange(n)] = estimate
+        view = dataclasses.replace(
+            observed,
+            observed_poses=estimate,
+            known_poses=known,
+            pose_covariance=observed.pose_covariance if covariance is None else covariance,
+        )
         self.times.append(time.perf_counter() - start)
         return view
 
@@ -434,9 +435,11 @@ class PoseEstimator(BaseController):
     def _identifier(self) -> MotionIdentifier | None:
         return self.estimator._identifier
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         # (act() applied the inner controller's radio, which this wrapper took over)
-        command = np.asarray(self.inner.act(observation, self.estimator.view(info)), dtype=np.float64)
+        command = np.asarray(
+            hand_on(self.inner, observation, self.estimator.view(observed)), dtype=np.float64
+        )
         self.estimator.sent(command)
         return command
 

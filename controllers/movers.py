@@ -1,8 +1,9 @@
 """What the controllers assume of the moving obstacles: which ones matter and where they will be.
 
-Every built-in controller reads the movers from the observed view (``info["observed_movers"]``:
-x, y, vx, vy per mover, tracked with ``sensing="state"``; with lidar, the tracks of the team's
-perception of the beams, :mod:`controllers.perception.front`, with their radii). The prediction is one of
+Every built-in controller reads the movers from what it observes (``observed_movers`` of
+:class:`koopman_envs.Observed`: x, y, vx, vy per mover, tracked with ``sensing="state"``; with
+lidar, the tracks of the team's perception of the beams, :mod:`controllers.perception.front`,
+with their radii). The prediction is one of
 :data:`MOVER_PREDICTIONS`:
 
 ``"constant_velocity"``
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs import Observed
 from koopman_envs.checks import check_choice
 
 __all__ = [
@@ -43,29 +45,26 @@ def check_mover_prediction(value: Any) -> str:
     return str(check_choice("mover_prediction", value, MOVER_PREDICTIONS))
 
 
-def observed_movers(info: dict[str, Any]) -> NDArray[np.float64]:
-    """The tracked movers of an observed view, (C, 4): x, y, vx, vy (shape (0, 4) without any).
+def observed_movers(observed: Observed) -> NDArray[np.float64]:
+    """The tracked movers of ``observed``, (C, 4): x, y, vx, vy (shape (0, 4) without any).
     A mover the env's tracker reports no track of (``mover_tracked`` False) is left out."""
-    movers = info.get("observed_movers")
-    if movers is None:
+    if observed.observed_movers is None:
         return np.zeros((0, 4))
-    movers = np.asarray(movers, dtype=np.float64).reshape(-1, 4)
-    tracked = info.get("mover_tracked")
-    if tracked is None:
+    movers = observed.observed_movers.reshape(-1, 4)
+    if observed.mover_tracked is None:
         return movers
-    tracked = np.asarray(tracked, dtype=bool).reshape(-1)
+    tracked = observed.mover_tracked.reshape(-1)
     return movers if tracked.all() else movers[tracked]
 
 
-def observed_mover_radii(info: dict[str, Any], default: float) -> NDArray[np.float64]:
+def observed_mover_radii(observed: Observed, default: float) -> NDArray[np.float64]:
     """Each observed mover's radius [m], (C,): the perception's estimates (``mover_radii``, under
     lidar: a track may be a larger object than a person) or ``default`` (the scenario's
     ``mover_radius``) for every mover."""
-    count = observed_movers(info).shape[0]
-    radii = info.get("mover_radii")
-    if radii is None:
+    count = observed_movers(observed).shape[0]
+    if observed.mover_radii is None:
         return np.full(count, float(default))
-    radii = np.asarray(radii, dtype=np.float64).reshape(-1)
+    radii = observed.mover_radii.reshape(-1)
     if radii.shape[0] != count:
         raise ValueError(f"mover_radii has {radii.shape[0]} entries for {count} observed movers")
     return radii

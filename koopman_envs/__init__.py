@@ -26,6 +26,8 @@ from gymnasium.envs.registration import register, registry
 from koopman_envs.builder.config import EngineConfig
 from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.builder.plant import BudgetExceeded, CalibrationPlant, make_plant
+from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
+from koopman_envs.observed import Observed
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, rk4_step, wrap_angle, wrap_scalar
@@ -156,9 +158,13 @@ __all__ = [
     "make_plant",
     "MAP_NAMES",
     "MapSpec",
+    "MessageEntry",
+    "MoverEntry",
     "nearest_by_clearance",
     "nearest_order",
     "observation_from_beliefs",
+    "Observed",
+    "ObstacleEntry",
     "PaperParams",
     "PARAMS",
     "Renderer",
@@ -183,6 +189,7 @@ __all__ = [
     "task_for_env",
     "TASKS",
     "TaskSpec",
+    "TeamEntry",
     "TIERS",
     "wrap_angle",
     "wrap_scalar",

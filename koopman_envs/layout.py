@@ -28,23 +28,107 @@ part                meaning                                                 entr
                     body-frame dx, dy, vx, vy, surface clearance
 =================== ======================================================= ======= ==========
 
-``layout["team"]`` is that part's slice of a block and ``layout.entry("heading", 1)`` one entry's
-index, so a policy never counts positions by hand; every env front carries its layout
+``layout["team"]`` is that part's slice of a block, ``layout.entry("heading", 1)`` one entry's
+index and ``layout.items(blocks, "movers")[..., MoverEntry.CLEARANCE]`` one field of every item of
+a listing part (the fields of an item are named by :data:`ITEM_ENTRIES`), so a policy never
+counts positions by hand; every env front carries its layout
 (``env.unwrapped.scenario.observation_layout``), and a policy trained on one layout checks that
 it reads the same one. Which parts a setting adds is decided here once: the movers are listed
-only when the robots sense the state (with lidar the beams hit them instead).
+only when the robots sense the state (with lidar the beams hit them instead). The compiled
+writer (:mod:`koopman_envs.tasks.observation`) takes where each part begins from
+:attr:`ObservationLayout.offsets` and its bounds part by part, so the table above is the one
+definition of the order.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import IntEnum
+from typing import NamedTuple
 
-from koopman_envs.movers import MOVER_FEATURES
+import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["ObservationLayout", "PART_WIDTH"]
+__all__ = [
+    "ITEM_ENTRIES",
+    "MessageEntry",
+    "MoverEntry",
+    "ObservationLayout",
+    "ObstacleEntry",
+    "PART_WIDTH",
+    "PartOffsets",
+    "TeamEntry",
+]
 
+
+class TeamEntry(IntEnum):
+    """The entries of one team-mate in ``team``: body-frame offset [m] and surface clearance [m]."""
+
+    DX = 0
+    DY = 1
+    CLEARANCE = 2
+
+
+class ObstacleEntry(IntEnum):
+    """The entries of one listed obstacle in ``obstacles``: body-frame offset of its centre [m]
+    and surface clearance [m] (an absent one reads (0, 0, ``FAR``))."""
+
+    DX = 0
+    DY = 1
+    CLEARANCE = 2
+
+
+class MessageEntry(IntEnum):
+    """The entries of one team-mate in ``messages``: age of its last message [periods] and 1 if
+    one has arrived, else 0."""
+
+    AGE = 0
+    HEARD = 1
+
+
+class MoverEntry(IntEnum):
+    """The entries of one listed mover in ``movers``: body-frame offset of its centre [m],
+    body-frame velocity [m/s] and surface clearance [m]."""
+
+    DX = 0
+    DY = 1
+    VX = 2
+    VY = 3
+    CLEARANCE = 4
+
+
+#: the named entries of one item of each part that lists several (a beam is one reading)
+ITEM_ENTRIES: dict[str, type[IntEnum]] = {
+    "team": TeamEntry,
+    "obstacles": ObstacleEntry,
+    "messages": MessageEntry,
+    "movers": MoverEntry,
+}
 #: entries per item of the parts that list several items (a team-mate, an obstacle, ...)
-PART_WIDTH = {"team": 3, "obstacles": 3, "beams": 1, "messages": 2, "movers": MOVER_FEATURES}
+PART_WIDTH = {**{part: len(entries) for part, entries in ITEM_ENTRIES.items()}, "beams": 1}
+
+
+class PartOffsets(NamedTuple):
+    """Where each part begins in a block, in block order (the one definition of that order),
+    and the block's size: what the compiled writer is handed. A part a layout lacks begins
+    where the next one does (it has no entries), so every part's width is the gap to the next."""
+
+    position: int
+    heading: int
+    target: int
+    target_distance: int
+    target_heading: int
+    team: int
+    obstacles: int
+    beams: int
+    formation_error: int
+    messages: int
+    movers: int
+    size: int
+
+
+#: every part a block may have, in block order (``obstacles`` and ``beams`` exclude each other)
+PART_NAMES: tuple[str, ...] = PartOffsets._fields[:-1]
 
 
 @dataclass(frozen=True)
@@ -91,28 +175,47 @@ class ObservationLayout:
     @property
     def parts(self) -> tuple[tuple[str, int], ...]:
         """Each part's name and entry count, in block order (absent parts left out)."""
-        n = self.n_robots
-        out = [
-            ("position", 2),
-            ("heading", 2),
-            ("target", 2),
-            ("target_distance", 1),
-            ("target_heading", 2),
-            ("team", 3 * (n - 1)),
-        ]
-        out.append(("beams", self.beams) if self.beams else ("obstacles", 3 * self.n_obstacle_obs))
-        if self.formation:
-            out.append(("formation_error", 2))
-        if self.comm:
-            out.append(("messages", 2 * (n - 1)))
-        if self.movers:
-            out.append(("movers", MOVER_FEATURES * self.movers))
-        return tuple(out)
+        others = self.n_robots - 1
+        widths: dict[str, int | None] = {  # None: a part this layout does not have
+            "position": 2,
+            "heading": 2,
+            "target": 2,
+            "target_distance": 1,
+            "target_heading": 2,
+            "team": PART_WIDTH["team"] * others,
+            "obstacles": None if self.beams else PART_WIDTH["obstacles"] * self.n_obstacle_obs,
+            "beams": self.beams or None,
+            "formation_error": 2 if self.formation else None,
+            "messages": PART_WIDTH["messages"] * others if self.comm else None,
+            "movers": PART_WIDTH["movers"] * self.movers or None,
+        }
+        return tuple((name, width) for name in PART_NAMES if (width := widths[name]) is not None)
 
     @property
     def size(self) -> int:
         """Entries of one block."""
         return sum(width for _, width in self.parts)
+
+    @property
+    def offsets(self) -> PartOffsets:
+        """Where each part begins in a block (:class:`PartOffsets`), for the compiled writer."""
+        widths = dict(self.parts)
+        starts = [0]
+        for name in PART_NAMES:
+            starts.append(starts[-1] + widths.get(name, 0))
+        return PartOffsets(*starts)
+
+    def count(self, name: str) -> int:
+        """How many items part ``name`` lists (0 when this layout has no such part)."""
+        if name not in PART_WIDTH:
+            raise KeyError(f"{name!r} is not a part that lists items; those are {sorted(PART_WIDTH)}")
+        return dict(self.parts).get(name, 0) // PART_WIDTH[name]
+
+    def items(self, blocks: NDArray[np.float64], name: str) -> NDArray[np.float64]:
+        """Part ``name`` of ``blocks`` (..., F) as its items, (..., count, PART_WIDTH[name]): field
+        ``f`` of every item is ``[..., f]`` with ``f`` one of ``ITEM_ENTRIES[name]``."""
+        count = self.count(name)
+        return blocks[..., self[name]].reshape(blocks.shape[:-1] + (count, PART_WIDTH[name]))
 
     def __getitem__(self, name: str) -> slice:
         """The slice of part ``name`` in a block (``KeyError`` naming the parts this layout has)."""

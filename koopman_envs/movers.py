@@ -29,14 +29,15 @@ from typing import Any
 import numpy as np
 
 from koopman_envs.checks import check_choice, check_flag, check_int, check_number
+from koopman_envs.layout import MoverEntry
 from koopman_envs.params import LIMITS
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["MOVER_BEHAVIOURS", "MOVER_FEATURES", "MoverConfig", "parse_movers"]
 
 #: entries per listed mover in a robot's observation block: body-frame dx, dy, vx, vy, surface
-#: clearance (koopman_envs.layout; written by koopman_envs.sim.movers.mover_features)
-MOVER_FEATURES = 5
+#: clearance (koopman_envs.layout.MoverEntry; written by koopman_envs.sim.movers.mover_features)
+MOVER_FEATURES = len(MoverEntry)
 
 #: the mover behaviours (module docstring)
 MOVER_BEHAVIOURS = ("constant", "waypoints", "crowd")

@@ -1,20 +1,30 @@
-"""What a controller may read: the one definition of the observed part of an ``info``.
+"""What a controller may read: the observed part of an ``info``, as one typed value.
 
 An env's ``info`` holds the true state (``poses``, ``distances``, collision flags, ...) for
 evaluation and for users, beside what the robots believe (:meth:`NavigationEngine.observed_info
-<koopman_envs.builder.engine.NavigationEngine.observed_info>`). A controller that is to face the runtime
-uncertainty honestly reads only :data:`OBSERVED_KEYS`; every built-in controller receives
-``observed_view(info)`` from :meth:`controllers.base.BaseController.act`, so none can read the truth
-by accident, and tests/test_observed_view.py hands them poisoned true fields to prove it.
+<koopman_envs.builder.engine.NavigationEngine.observed_info>`). A controller that is to face the
+runtime uncertainty honestly reads only what :meth:`Observed.from_info` takes of it
+(:data:`OBSERVED_KEYS`); every built-in controller receives an :class:`Observed` from
+:meth:`controllers.base.BaseController.act`, so none can read the truth by accident, and
+tests/test_observed_view.py hands them poisoned true fields to prove it.
+
+The Gymnasium ``info`` stays a dict for its users. The stages a controller puts in front of its
+planner (the radio of a central controller, the pose estimator, the lidar perception) each take
+an :class:`Observed` and return a new one (:func:`dataclasses.replace`), filling the optional
+derived fields; none edits the value it was given.
 """
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["DERIVED_KEYS", "OBSERVED_KEYS", "SENSED_KEYS", "observed_view"]
+__all__ = ["DERIVED_KEYS", "OBSERVED_KEYS", "SENSED_KEYS", "Observed", "observed_view"]
 
 #: The info keys an env writes for its controllers: every robot's own pose estimate, what each
 #: robot has heard of its team-mates and how old it is, the lidar readings, the targets (a
@@ -29,11 +39,11 @@ SENSED_KEYS = (
     "observed_movers",
     "mover_tracked",
 )
-#: The keys a controller's own front-ends write and hand on to the controller they stand in front
-#: of, never an env: an estimator's ``pose_covariance`` (N, 3, 3) (``ekf:``), and the lidar
+#: The fields a controller's own front-ends fill and hand on to the controller they stand in
+#: front of, never an env: an estimator's ``pose_covariance`` (N, 3, 3) (``ekf:``), and the lidar
 #: perception's ``mover_covariance``, ``mover_radii``, ``perceived_obstacles`` and
 #: ``obstacle_covariance`` (``controllers.perception.front``; under lidar it also writes
-#: ``observed_movers``, its tracks).
+#: ``observed_movers``, its tracks). An info written by hand may carry them too.
 DERIVED_KEYS = (
     "pose_covariance",
     "mover_covariance",
@@ -41,35 +51,208 @@ DERIVED_KEYS = (
     "perceived_obstacles",
     "obstacle_covariance",
 )
-#: The info keys a controller may read.
+#: The info keys a controller may read (what :meth:`Observed.from_info` takes).
 OBSERVED_KEYS = SENSED_KEYS + DERIVED_KEYS
+#: the release that removes the dict view of the earlier API (:func:`observed_view`, reading an
+#: :class:`Observed` by key), deprecated in CHANGELOG.md
+REMOVAL = "0.2.0"
+
+#: the dtype each optional field is read as (every env writes these dtypes already, so reading an
+#: env's info converts nothing)
+_OPTIONAL_DTYPES: dict[str, type] = {
+    "targets": np.float64,
+    "lidar_ranges": np.float64,
+    "observed_movers": np.float64,
+    "mover_tracked": np.bool_,
+    "pose_covariance": np.float64,
+    "mover_covariance": np.float64,
+    "mover_radii": np.float64,
+    "perceived_obstacles": np.float64,
+    "obstacle_covariance": np.float64,
+}
 
 
-def observed_view(info: dict[str, Any]) -> dict[str, Any]:
-    """The observed keys of ``info`` (those present), without the true state, plus what a
-    controller of the earlier API reads: ``poses`` (an alias of ``observed_poses``) and
-    ``distances`` (from those estimates to the targets).
+@dataclass(frozen=True, eq=False)
+class Observed:
+    """What a model-based controller receives each period: what the robots believe, never the truth.
 
-    An info without ``observed_poses`` (written by hand, as in ``ctrl.act(obs, {"poses":
-    poses})``) is one of perfect information: its ``poses`` are then every robot's estimate and
-    every team-mate's message, of age 0. Every KoopNav env's info has ``observed_poses``, so
-    this never reads the truth of an env.
+    The first three fields are always there (an info written by hand with ``poses`` only is one
+    of perfect information: see :meth:`from_info`); the others are None where nothing supplies
+    them. The sensed ones come from the env's ``info``; the derived ones from the stages in
+    front of the controller, each of which returns a new value. The arrays are the info's own
+    (not copies): a stage that changes one copies it first.
+
+    Attributes
+    ----------
+    observed_poses : ndarray, shape (N, 3)
+        Every robot's estimate of its own pose: x [m], y [m], theta [rad].
+    known_poses : ndarray, shape (N, N, 3)
+        Row i: robot i's own estimate at i, its last message of each team-mate elsewhere
+        (zeros before one arrives).
+    message_age : ndarray of int64, shape (N, N)
+        Periods since that message was sent (0 at i itself, -1 before one arrives).
+    targets : ndarray, shape (N, 3), optional
+        The goals (given, not sensed); None only in an info written by hand without them.
+    lidar_ranges : ndarray, shape (N, B), optional
+        The beam readings [m], with ``sensing="lidar"``.
+    observed_movers : ndarray, shape (C, 4), optional
+        The movers as observed: x [m], y [m], vx, vy [m/s] (with ``sensing="state"`` the env's
+        tracker; under lidar the perception's moving tracks).
+    mover_tracked : ndarray of bool, shape (C,), optional
+        Which of ``observed_movers`` have a track (the env's tracker).
+    pose_age : ndarray of int64, shape (N,), optional
+        Derived by the radio of a central controller (:func:`controllers.base.over_the_radio`):
+        how old each row of ``observed_poses`` is [periods], -1 for a robot never heard from; the
+        pose estimator in the same controller carries a late pose forward by it.
+    pose_covariance : ndarray, shape (N, 3, 3), optional
+        Derived by a pose estimator: the covariance of ``observed_poses``.
+    mover_covariance : ndarray, shape (C, 4, 4), optional
+        Derived by the lidar perception: the covariance of each moving track.
+    mover_radii : ndarray, shape (C,), optional
+        Derived by the lidar perception: each moving track's radius [m].
+    perceived_obstacles : ndarray, shape (M, 3), optional
+        Derived by the lidar perception with the map unknown: the local map, x, y, r [m].
+    obstacle_covariance : ndarray, shape (M, 2, 2), optional
+        Derived with ``perceived_obstacles``: the covariance of each disc's centre.
+    perceived : bool
+        Whether the lidar perception has run on this value (a wrapper in front that perceived
+        hands it on, and the controller behind it does not perceive again).
     """
-    view = {key: info[key] for key in OBSERVED_KEYS if key in info}
-    if "observed_poses" not in view and "poses" in info:
-        poses = np.asarray(info["poses"], dtype=np.float64)
+
+    observed_poses: NDArray[np.float64]
+    known_poses: NDArray[np.float64]
+    message_age: NDArray[np.int64]
+    targets: NDArray[np.float64] | None = None
+    lidar_ranges: NDArray[np.float64] | None = None
+    observed_movers: NDArray[np.float64] | None = None
+    mover_tracked: NDArray[np.bool_] | None = None
+    pose_age: NDArray[np.int64] | None = None
+    pose_covariance: NDArray[np.float64] | None = None
+    mover_covariance: NDArray[np.float64] | None = None
+    mover_radii: NDArray[np.float64] | None = None
+    perceived_obstacles: NDArray[np.float64] | None = None
+    obstacle_covariance: NDArray[np.float64] | None = None
+    perceived: bool = False
+
+    @classmethod
+    def from_info(cls, info: Mapping[str, Any]) -> Observed:
+        """The observed part of ``info`` (the keys of :data:`OBSERVED_KEYS` it has), without the
+        true state.
+
+        An info without ``observed_poses`` (written by hand, as in ``ctrl.act(obs, {"poses":
+        poses})``) is one of perfect information: its ``poses`` are then every robot's estimate;
+        an info without ``known_poses`` / ``message_age`` has every robot hear every team-mate at
+        once (each row of ``known_poses`` the team, of age 0). Every KoopNav env's info has all
+        three, so this never reads the truth of an env. An info that carries the perception's
+        ``mover_radii`` counts as perceived.
+
+        Raises
+        ------
+        ValueError
+            ``info`` has neither ``observed_poses`` nor ``poses``, or the poses, messages or
+            ages are not of shapes (N, 3), (N, N, 3) and (N, N).
+        """
+        given = info.get("observed_poses")
+        if given is None:
+            given = info.get("poses")
+        if given is None:
+            raise ValueError(
+                "an info for a controller needs 'observed_poses' (every KoopNav env writes it) or, "
+                f"written by hand, 'poses'; this one has {sorted(info)}"
+            )
+        poses = np.asarray(given, dtype=np.float64)
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError(f"the poses have shape {poses.shape}; expected (N, 3): x, y, theta per robot")
         n = poses.shape[0]
-        view["observed_poses"] = poses
-        view.setdefault("known_poses", np.broadcast_to(poses[None], (n, n, 3)))
-        view.setdefault("message_age", np.zeros((n, n), dtype=np.int64))
-    if "observed_poses" in view:
-        # a controller written before the observed keys existed reads info["poses"] and
-        # info["distances"]: in the view they are the robots' beliefs, so it faces the uncertainty
-        # too (and without uncertainty they equal the truth bit for bit: the env's formula)
-        poses = np.asarray(view["observed_poses"], dtype=np.float64)
-        view["poses"] = poses
-        if "targets" in view:
-            targets = np.asarray(view["targets"], dtype=np.float64)
-            dx, dy = targets[..., 0] - poses[..., 0], targets[..., 1] - poses[..., 1]
-            view["distances"] = np.sqrt(dx * dx + dy * dy)
-    return view
+        known, age = info.get("known_poses"), info.get("message_age")
+        known = (
+            np.broadcast_to(poses[None], (n, n, 3)) if known is None else np.asarray(known, dtype=np.float64)
+        )
+        age = np.zeros((n, n), dtype=np.int64) if age is None else np.asarray(age, dtype=np.int64)
+        if known.shape != (n, n, 3) or age.shape != (n, n):
+            raise ValueError(
+                f"known_poses has shape {known.shape} and message_age {age.shape}; for {n} robots "
+                f"expected {(n, n, 3)} and {(n, n)}"
+            )
+        optional: dict[str, Any] = {
+            key: np.asarray(info[key], dtype=dtype)
+            for key, dtype in _OPTIONAL_DTYPES.items()
+            if info.get(key) is not None
+        }
+        perceived = info.get("mover_radii") is not None
+        return cls(poses, known, age, perceived=perceived, **optional)
+
+    @property
+    def n_robots(self) -> int:
+        """Team size N."""
+        return int(self.observed_poses.shape[0])
+
+    @property
+    def poses(self) -> NDArray[np.float64]:
+        """The robots' pose estimates, (N, 3): ``observed_poses`` (what a controller of the
+        earlier API read as ``info["poses"]``; without uncertainty settings, the truth)."""
+        return self.observed_poses
+
+    @property
+    def distances(self) -> NDArray[np.float64] | None:
+        """Each robot's distance to its target as it believes it [m], (N,): from its estimate
+        (the env's formula, so without uncertainty settings equal to ``info["distances"]`` bit
+        for bit); None without ``targets``."""
+        if self.targets is None:
+            return None
+        poses = self.observed_poses
+        dx, dy = self.targets[..., 0] - poses[..., 0], self.targets[..., 1] - poses[..., 1]
+        return np.sqrt(dx * dx + dy * dy)
+
+    def to_info(self) -> dict[str, Any]:
+        """The fields that are set, as the dict of observed keys a controller of the earlier API
+        reads (:data:`OBSERVED_KEYS` in order, ``pose_age``, then ``poses`` and ``distances``):
+        what a wrapper hands a controller that takes no :class:`Observed`."""
+        keys = (*OBSERVED_KEYS, "pose_age")
+        out = {key: value for key in keys if (value := getattr(self, key)) is not None}
+        out["poses"] = self.poses
+        distances = self.distances
+        if distances is not None:
+            out["distances"] = distances
+        return out
+
+    # ------------------------------------------------------------------ the earlier API
+    def _legacy(self, key: str) -> Any:
+        warnings.warn(
+            f"reading the observed view by key ({key!r}) is deprecated and will be removed in KoopNav "
+            f"{REMOVAL}; read the attribute of koopman_envs.Observed instead (observed.{key})",
+            DeprecationWarning,
+            stacklevel=3,
+        )
+        return self.to_info().get(key)
+
+    def __getitem__(self, key: str) -> Any:
+        """Deprecated: ``observed[key]`` as the dict view was read (``KeyError`` for a field not set)."""
+        value = self._legacy(key)
+        if value is None:
+            raise KeyError(key)
+        return value
+
+    def get(self, key: str, default: Any = None) -> Any:
+        """Deprecated: ``observed.get(key, default)`` as the dict view was read."""
+        value = self._legacy(key)
+        return default if value is None else value
+
+    def __contains__(self, key: object) -> bool:
+        """Deprecated: ``key in observed`` as the dict view was read."""
+        return isinstance(key, str) and self._legacy(key) is not None
+
+
+def observed_view(info: Mapping[str, Any]) -> dict[str, Any]:
+    """Deprecated: the observed part of ``info`` as a dict, ``Observed.from_info(info).to_info()``.
+
+    Use :meth:`Observed.from_info`; this function is removed in the release named by
+    :data:`REMOVAL`.
+    """
+    warnings.warn(
+        f"koopman_envs.observed.observed_view is deprecated and will be removed in KoopNav {REMOVAL}; "
+        "use koopman_envs.Observed.from_info(info)",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return Observed.from_info(info).to_info()

@@ -20,9 +20,9 @@ class _Recorder(controllers.BaseController):
     def _reset(self, scenario, seed):
         self.seen = []
 
-    def _act(self, observation, info):
-        self.seen.append(np.array(info["observed_poses"]))
-        return np.tile([0.3, 0.1], len(info["observed_poses"]))
+    def _act(self, observation, observed):
+        self.seen.append(np.array(observed.observed_poses))
+        return np.tile([0.3, 0.1], observed.n_robots)
 
 
 def test_the_estimate_is_closer_to_the_truth_than_the_measurement() -> None:
@@ -70,12 +70,12 @@ class _Weaving(controllers.BaseController):
     def _reset(self, scenario, seed):
         self.seen, self.covariances, self.t = [], [], 0
 
-    def _act(self, observation, info):
-        self.seen.append(np.array(info["observed_poses"]))
-        if "pose_covariance" in info:
-            self.covariances.append(np.array(info["pose_covariance"]))
+    def _act(self, observation, observed):
+        self.seen.append(np.array(observed.observed_poses))
+        if observed.pose_covariance is not None:
+            self.covariances.append(np.array(observed.pose_covariance))
         self.t += 1
-        n = len(info["observed_poses"])
+        n = observed.n_robots
         return np.tile([0.2 + 0.3 * np.sin(0.3 * self.t), 0.6 * np.cos(0.2 * self.t)], n)
 
 
@@ -301,6 +301,7 @@ def test_the_central_controller_hears_the_team_over_the_radio_and_carries_late_p
     they equal the true poses (to rounding); the paper's controller (no front-end) gets the late
     ones as they are."""
     from controllers.base import over_the_radio
+    from koopman_envs import Observed
 
     env = gym.make("KoopNav-TargetReaching-v0", map="map1", comm={"latency": 2}, max_episode_steps=40)
     carried, late = _RadioRecorder(), _RadioRecorder()
@@ -311,18 +312,18 @@ def test_the_central_controller_hears_the_team_over_the_radio_and_carries_late_p
     truth, heard = [], []
     for _ in range(30):
         truth.append(np.array(info["poses"]))
-        heard.append(over_the_radio(info, 0, env.unwrapped.scenario.starts))
+        heard.append(over_the_radio(Observed.from_info(info), 0, env.unwrapped.scenario.starts))
         command = carried.act(obs, info)
         late.act(obs, info)
         obs, *_, info = env.step(command)
     for t in range(5, 30):
         np.testing.assert_allclose(carried.seen[t], truth[t], atol=1e-9)
-        np.testing.assert_array_equal(late.seen[t], heard[t]["observed_poses"])
+        np.testing.assert_array_equal(late.seen[t], heard[t].observed_poses)
         assert not np.allclose(late.seen[t][1:, :2], truth[t][1:, :2], atol=1e-3)  # 2 periods behind
-        assert list(heard[t]["pose_age"]) == [0, 2, 2]
+        assert list(heard[t].pose_age) == [0, 2, 2]
     # before a first message arrives a robot stands at its planned start
-    assert list(heard[0]["pose_age"]) == [0, -1, -1]
-    np.testing.assert_array_equal(heard[0]["observed_poses"][1:], env.unwrapped.scenario.starts[1:])
+    assert list(heard[0].pose_age) == [0, -1, -1]
+    np.testing.assert_array_equal(heard[0].observed_poses[1:], env.unwrapped.scenario.starts[1:])
 
 
 def test_a_wrapper_hears_over_its_inner_central_controllers_radio() -> None:

@@ -11,18 +11,18 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.estimation import ABLATIONS, LEVERS, PoseFrontEnd, front_end_for
 from controllers.mpc.controller import NMPCController
-from koopman_envs.observed import observed_view
+from koopman_envs import Observed
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 
 def _views(front_end, steps: int = 30, **env_kwargs):
-    """The (measured, handed-on) info pairs of ``steps`` periods of a weaving team."""
+    """The (measured, handed-on) Observed pairs of ``steps`` periods of a weaving team."""
     env = gym.make("KoopNav-TargetReaching-v0", slip="high", max_episode_steps=200, **env_kwargs)
     _, info = env.reset(seed=3)
     front_end.reset(env.unwrapped.scenario)
     pairs = []
     for t in range(steps):
-        measured = observed_view(info)
+        measured = Observed.from_info(info)
         pairs.append((measured, front_end.view(measured)))
         command = np.tile([0.3, 0.4 * np.sin(0.2 * t)], 3)
         front_end.sent(command)
@@ -43,10 +43,10 @@ def test_the_realistic_datasheet_is_the_presets_values_held_whatever_the_team_ha
     # a team that localizes exactly and acts at once: the datasheet still filters and predicts
     # one period ahead (mis-specified), where "auto" identifies nothing and hands the poses on
     pairs = _views(front_end)
-    assert front_end.delay == 1 and "pose_covariance" in pairs[-1][1]
-    assert not np.array_equal(pairs[-1][0]["observed_poses"], pairs[-1][1]["observed_poses"])
+    assert front_end.delay == 1 and pairs[-1][1].pose_covariance is not None
+    assert not np.array_equal(pairs[-1][0].observed_poses, pairs[-1][1].observed_poses)
     auto = front_end_for("auto")
-    assert all(np.array_equal(m["observed_poses"], v["observed_poses"]) for m, v in _views(auto))
+    assert all(np.array_equal(m.observed_poses, v.observed_poses) for m, v in _views(auto))
     assert front_end_for("none") is None
 
 
@@ -57,15 +57,15 @@ def test_the_estimation_lever_hands_on_the_measured_poses_with_the_measurement_n
     front_end = front_end_for("realistic", ablate="estimation")
     assert front_end is not None and not front_end.options.filter_poses
     for measured, view in _views(front_end, uncertainty="realistic")[1:]:
-        assert not np.array_equal(measured["observed_poses"], view["observed_poses"])
+        assert not np.array_equal(measured.observed_poses, view.observed_poses)
     unfiltered = PoseFrontEnd(delay=0, position_std=0.03, heading_std=0.02, filter_poses=False)
     expected = np.broadcast_to(np.diag([0.03**2, 0.03**2, 0.02**2]), (3, 3, 3))
     for measured, view in _views(unfiltered, uncertainty="realistic"):
-        np.testing.assert_array_equal(measured["observed_poses"], view["observed_poses"])
-        np.testing.assert_allclose(view["pose_covariance"], expected)
+        np.testing.assert_array_equal(measured.observed_poses, view.observed_poses)
+        np.testing.assert_allclose(view.pose_covariance, expected)
     filtered = PoseFrontEnd(delay=0, position_std=0.03, heading_std=0.02)
     assert all(
-        not np.array_equal(m["observed_poses"], v["observed_poses"])
+        not np.array_equal(m.observed_poses, v.observed_poses)
         for m, v in _views(filtered, uncertainty="realistic")[1:]
     )
 
@@ -74,12 +74,10 @@ def test_the_delay_compensation_lever_hands_on_the_filtered_pose_now() -> None:
     on = _views(front_end_for("realistic"), actuation_delay=1)
     off = _views(front_end_for("realistic", ablate="delay_compensation"), actuation_delay=1)
     # the same filter: the compensated pose is the uncompensated one driven one period further
-    moved = [
-        np.linalg.norm(a[1]["observed_poses"][:, :2] - b[1]["observed_poses"][:, :2]) for a, b in zip(on, off)
-    ]
+    moved = [np.linalg.norm(a[1].observed_poses[:, :2] - b[1].observed_poses[:, :2]) for a, b in zip(on, off)]
     assert max(moved[2:]) > 0.02  # 0.3 m/s for one period of 0.1 s, per robot
     # and its covariance is the filter's own, smaller than the one grown over the delay
-    assert np.all(off[-1][1]["pose_covariance"][:, 0, 0] < on[-1][1]["pose_covariance"][:, 0, 0])
+    assert np.all(off[-1][1].pose_covariance[:, 0, 0] < on[-1][1].pose_covariance[:, 0, 0])
 
 
 @pytest.mark.parametrize("lever, method", [("tightening", "_tighten"), ("settling", "_settle")])

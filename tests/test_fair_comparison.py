@@ -3,6 +3,7 @@ the reports carry the statistics; the paper's strict formulation and the ablatio
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -47,7 +48,7 @@ class RecordingController(BaseController):
         )
 
     def _act(self, observation, info):
-        SEEN.append({"where": "act", "info": dict(info)})
+        SEEN.append({"where": "act", "info": dataclasses.asdict(info)})  # every field of the Observed
         return np.zeros(2 * self.scenario.n_robots)
 
 

@@ -225,15 +225,15 @@ def test_lidar_beams_hit_the_movers_and_the_observation_lists_none() -> None:
 
 
 def test_info_holds_the_true_mover_states_and_without_tracking_the_view_too() -> None:
-    from koopman_envs.observed import observed_view
+    from koopman_envs import Observed
 
     env = gym.make(FO, movers=dict(count=3, behaviour="waypoints", tracking=False))
     _, info = env.reset(seed=2)
     for _ in range(5):
         _, _, _, _, info = env.step(np.zeros(6))
     assert info["movers"].shape == (3, 4)
-    view = observed_view(info)
-    assert np.array_equal(view["observed_movers"], info["movers"])
+    view = Observed.from_info(info)
+    assert np.array_equal(view.observed_movers, info["movers"])
 
 
 # --------------------------------------------------------------------------- replay, seeds, fronts

@@ -18,8 +18,9 @@ import pytest
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
+from koopman_envs import Observed
 from koopman_envs.builder.plant import make_plant
-from koopman_envs.observed import OBSERVED_KEYS, SENSED_KEYS, observed_view
+from koopman_envs.observed import OBSERVED_KEYS, SENSED_KEYS
 
 #: every built-in controller and preset (rl-ppo needs the [rl] extra, as everywhere)
 NAMES = list(controllers.available())
@@ -71,18 +72,19 @@ def test_the_view_is_what_the_robots_believe() -> None:
     _, info = env.reset(seed=1)
     for _ in range(5):
         _, _, _, _, info = env.step(np.zeros(6))
-    view = observed_view(info)
-    # every observed key but the movers' (this env has none) and what a controller's front-ends
-    # (estimator, perception) hand on (an env never writes them)
-    assert set(view) == {*SENSED_KEYS, "poses", "distances"} - {"observed_movers", "mover_tracked"}
-    assert view["poses"] is view["observed_poses"] and not np.array_equal(
-        view["distances"], info["distances"]
-    )
-    assert not np.array_equal(view["observed_poses"], info["poses"])  # noisy estimates
+    view = Observed.from_info(info)
+    # every sensed field but the movers' (this env has none), and none of what a controller's
+    # front-ends (radio, estimator, perception) hand on (an env never writes them)
+    sensed = {key for key in SENSED_KEYS if getattr(view, key) is not None}
+    assert sensed == set(SENSED_KEYS) - {"observed_movers", "mover_tracked"}
+    assert all(getattr(view, key) is None for key in (*OBSERVED_KEYS[len(SENSED_KEYS) :], "pose_age"))
+    assert not view.perceived
+    assert view.poses is view.observed_poses and not np.array_equal(view.distances, info["distances"])
+    assert not np.array_equal(view.observed_poses, info["poses"])  # noisy estimates
     # harsh: 3 periods of latency, so a team-mate is never heard of fresher than that
-    heard = view["message_age"][~np.eye(3, dtype=bool)]
+    heard = view.message_age[~np.eye(3, dtype=bool)]
     assert ((heard >= 3) | (heard == -1)).all() and (heard >= 3).any()
-    assert view["lidar_ranges"].shape == (3, 32)
+    assert view.lidar_ranges is not None and view.lidar_ranges.shape == (3, 32)
 
 
 def test_without_uncertainty_the_view_is_the_truth() -> None:
@@ -91,7 +93,5 @@ def test_without_uncertainty_the_view_is_the_truth() -> None:
     assert np.array_equal(info["observed_poses"], info["poses"])
     assert all(np.array_equal(info["known_poses"][i], info["poses"]) for i in range(3))
     assert (info["message_age"] == 0).all() and "lidar_ranges" not in info
-    view = observed_view(info)  # the earlier API's keys, equal to the truth bit for bit
-    assert np.array_equal(view["poses"], info["poses"]) and np.array_equal(
-        view["distances"], info["distances"]
-    )
+    view = Observed.from_info(info)  # the earlier API's aliases, equal to the truth bit for bit
+    assert np.array_equal(view.poses, info["poses"]) and np.array_equal(view.distances, info["distances"])

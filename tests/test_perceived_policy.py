@@ -12,8 +12,8 @@ from test_observed_view import _poisoned
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.perceived import perceived_blocks
+from koopman_envs import Observed
 from koopman_envs.fronts.episode import run_episode
-from koopman_envs.observed import observed_view
 from koopman_envs.scenario import scenario_of
 
 TR, FM = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
@@ -35,7 +35,7 @@ def test_the_rebuilt_blocks_are_the_state_envs_bit_for_bit(env_id: str, kwargs: 
     scenario = scenario_of(env)
     rng = np.random.default_rng(0)
     for _ in range(40):
-        rebuilt = perceived_blocks(observed_view(info), scenario, mover_slots=scenario.mover_slots)
+        rebuilt = perceived_blocks(Observed.from_info(info), scenario, mover_slots=scenario.mover_slots)
         np.testing.assert_array_equal(rebuilt.astype(np.float32), obs)
         obs, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
         if terminated or truncated:

@@ -14,7 +14,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from controllers.perception.front import LidarPerception
 from controllers.perception.scan import ScanSettings, cluster_scan, fit_circle, scan_objects
 from controllers.perception.tracker import Tracker, TrackerSettings
-from koopman_envs.observed import observed_view
+from koopman_envs import Observed
 from koopman_envs.sim.lidar import beam_angles, cast_beams
 
 SETTINGS = ScanSettings()
@@ -195,8 +195,8 @@ def test_no_false_mover_tracks_from_noise_with_the_map_known(noise: float, dropo
         perception = LidarPerception()
         perception.reset(env.unwrapped.scenario.planner_view())
         for _ in range(100):
-            view = perception.view(observed_view(info))
-            assert len(view["observed_movers"]) == len(view["mover_radii"])
+            view = perception.view(Observed.from_info(info))
+            assert view.perceived and len(view.observed_movers) == len(view.mover_radii)
             assert perception.tracks is not None
             tracks |= {(seed, int(k)) for k in perception.tracks.ids}
             _, _, _, _, info = env.step(np.zeros(6))
@@ -214,9 +214,9 @@ def test_movers_are_seen_where_they_are() -> None:
         perception = LidarPerception()
         perception.reset(env.unwrapped.scenario.planner_view())
         for _ in range(100):
-            view = perception.view(observed_view(info))
+            view = perception.view(Observed.from_info(info))
             truth = info["movers"]
-            for state in view["observed_movers"]:
+            for state in view.observed_movers:
                 reported += 1
                 gap = np.hypot(*(truth[:, :2] - state[:2]).T)
                 if gap.min() < 0.5:

@@ -45,7 +45,7 @@ tolerance) and the plan's 0.1 m grid (ROS's costmap: 0.05 m).
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,6 +62,7 @@ from controllers.movers import (
     observed_movers,
 )
 from controllers.search_space import Search
+from koopman_envs import Observed
 from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
@@ -245,19 +246,18 @@ class DWAController(BaseController):
             self._planner.reset(self.scenario)
         return changed
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         sc = self.scenario
         assert sc is not None  # act() checked it
-        known = np.asarray(info["known_poses"], dtype=np.float64)
-        ages = np.asarray(info["message_age"], dtype=np.int64)
+        known, ages = observed.known_poses, observed.message_age
         position, velocity, heard = self._team.update(known, ages, self._last)
         own = np.arange(sc.n_robots)
         pose = known[own, own]
         goal, moving = goals(sc, position, velocity, heard)
         samples = self._window()  # (N, S, 2)
         path = self._rollout(pose, samples)  # (N, S, K, 3)
-        movers = observed_movers(info)
-        self._mover_radii = observed_mover_radii(info, sc.mover_radius)
+        movers = observed_movers(observed)
+        self._mover_radii = observed_mover_radii(observed, sc.mover_radius)
         blockers = self._blockers(position, heard, movers)
         cost = self._goal_cost(pose[:, :2], path, goal + moving * self.sim_time, blockers)
         clearance, now = self._clearances(path, position, velocity, heard, movers)

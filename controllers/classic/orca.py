@@ -52,6 +52,7 @@ from controllers.movers import (
     observed_movers,
 )
 from controllers.search_space import Search
+from koopman_envs import Observed
 from koopman_envs.checks import Range
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
@@ -270,16 +271,15 @@ class ORCAController(BaseController):
     def _park(self, agent: int) -> None:
         self._place(agent, self._parking(agent), (0.0, 0.0), (0.0, 0.0), 0.0)
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         sc = self.scenario
         assert sc is not None  # act() checked it
         if self._sim is None:  # unpickled
             self._build(sc)
-        known = np.asarray(info["known_poses"], dtype=np.float64)
-        ages = np.asarray(info["message_age"], dtype=np.int64)
+        known, ages = observed.known_poses, observed.message_age
         position, velocity, heard = self._team.update(known, ages, self._last)
-        movers = observed_movers(info)
-        self._mover_radii = observed_mover_radii(info, sc.mover_radius)
+        movers = observed_movers(observed)
+        self._mover_radii = observed_mover_radii(observed, sc.mover_radius)
         if self.mover_prediction == "static":
             movers = np.column_stack([movers[:, :2], np.zeros((len(movers), 2))])
         goal, moving = goals(sc, position, velocity, heard)

@@ -256,7 +256,7 @@ class NMPCConfig:
         (ours) Margin added to the radii toward a mover [m] (default: ``obstacle_offset``).
     chance_risk : float
         (ours) Risk level of the chance constraints, in (0, 0.5): when an estimator in front
-        (``ekf:``) hands on its pose covariance (``info["pose_covariance"]``), every collision
+        (``ekf:``) hands on its pose covariance (``Observed.pose_covariance``), every collision
         margin is widened by z sigma, z the standard normal quantile of 1 - ``chance_risk``
         (1.645 at the default 0.05) and sigma the position standard deviation along the worst
         direction (the 2x2 block's largest eigenvalue, rooted): toward obstacles and movers

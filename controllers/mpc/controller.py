@@ -33,6 +33,7 @@ from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, closing_distance, mover_slots, nearest_obstacle_slots
 from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
 from controllers.search_space import Search
+from koopman_envs import Observed
 from koopman_envs.scenario import Scenario
 
 # the margins (controllers.mpc.margins) stay importable from here, where they were first
@@ -309,25 +310,26 @@ class NMPCController(ParameterHooks, BaseController):
         w[prob.x_index] = np.concatenate([encode_state(p, prob.coding) for p in poses])
         return w
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
-        state = encode_state(info["observed_poses"], prob.coding)
+        poses = observed.observed_poses
+        state = encode_state(poses, prob.coding)
         assert self.scenario is not None  # act() checked it
         # an estimator in front hands on its covariance: chance-constrained margins (none without)
-        covariance = info.get("pose_covariance")
+        covariance = observed.pose_covariance
         tightened = None if self.config.ablate == "tightening" else covariance
         per_robot, per_pair = chance_tightening(tightened, self.config.chance_risk, self.scenario.n_robots)
         if self._obstacle_slots or self.config.pair_slots:
-            self._fill_slots(np.asarray(info["observed_poses"], dtype=float)[:, :2], per_pair)
+            self._fill_slots(poses[:, :2], per_pair)
         if self._mover_slots:
             self._fill_movers(
-                np.asarray(info["observed_poses"], dtype=float)[:, :2],
-                observed_movers(info),
-                observed_mover_radii(info, self.scenario.mover_radius),
+                poses[:, :2],
+                observed_movers(observed),
+                observed_mover_radii(observed, self.scenario.mover_radius),
             )
         if self._resolver is not None:
-            self._unstall(info["observed_poses"])
+            self._unstall(poses)
         params = self._params.copy()
         params[prob.layout["x_meas"]] = state
         if tightened is not None:
@@ -360,7 +362,7 @@ class NMPCController(ParameterHooks, BaseController):
             self._fallback = commands
             self._fallback_used = 0
             return (
-                self._settle(commands[0].copy(), info)
+                self._settle(commands[0].copy(), observed)
                 if covariance is not None and self.config.ablate != "settling"
                 else commands[0].reshape(-1).copy()
             )
@@ -394,7 +396,7 @@ class NMPCController(ParameterHooks, BaseController):
             params[movers] += per_robot.max() * (params[movers] > 0)
         self._stats.counts["tightened"] += 1
 
-    def _settle(self, command: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _settle(self, command: NDArray, observed: Observed) -> NDArray[np.float64]:
         """``command`` (N, 2) with the robots that have settled held still (``settle_fraction``):
         a robot settles when its estimate comes within that fraction of the goal tolerance of its
         target, and moves again when its estimate is farther than :data:`SETTLE_RELEASE` of it."""
@@ -402,7 +404,7 @@ class NMPCController(ParameterHooks, BaseController):
         assert scenario is not None  # act() checked it
         fraction = self.config.settle_fraction
         if fraction > 0:
-            poses = np.asarray(info["observed_poses"], dtype=float)
+            poses = observed.observed_poses
             distance = np.hypot(*(poses[:, :2] - scenario.targets[:, :2]).T)
             tolerance = scenario.goal_tolerance
             # released at 3/4 of the tolerance: the truth may lie a localization error beyond the

@@ -65,7 +65,7 @@ from controllers.mpc.margins import chance_tightening, margin_spread
 from controllers.mpc.models import PredictionModel, UnicycleModel
 from controllers.mpc.plan_exchange import PlanLog
 from controllers.mpc.slots import closing_distance, nearest_obstacle_slots
-from koopman_envs import CalibrationPlant, nearest_order
+from koopman_envs import CalibrationPlant, Observed, nearest_order
 from koopman_envs.checks import Range, check_choice
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
@@ -361,23 +361,20 @@ class DistributedNMPC(BaseController):
             reach[slot] = scenario.robot_radius[j] + margin + self._delay + self._pair_tightening[i]
         agent.set_neighbours(positions, reach)
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         scenario = self.scenario
         assert scenario is not None  # act() checked it
         n = scenario.n_robots
-        known = np.asarray(info["known_poses"], dtype=float)  # (N, N, 3): robot i's view in row i
-        ages = np.asarray(info["message_age"], dtype=np.int64)
-        poses = np.asarray(info["observed_poses"], dtype=float)  # every robot's own estimate
+        known = observed.known_poses  # (N, N, 3): robot i's view in row i
+        ages = observed.message_age
+        poses = observed.observed_poses  # every robot's own estimate
         commands = np.zeros((n, 2))
         fresh = np.zeros(n, dtype=bool)  # whose plan in self._plans was made in this period
         new_plans = self._plans.copy()
-        movers: dict[str, Any] = {
-            key: info[key] for key in ("observed_movers", "mover_tracked", "mover_radii") if key in info
-        }
         # an estimator in front hands on each robot's covariance: its own NMPC tightens its
         # obstacle and mover margins by it, and each team-mate's disc by z sigma sqrt(2) (a
         # message carries a pose, not its covariance: the team-mate's is taken to be as large)
-        covariance = info.get("pose_covariance")
+        covariance = observed.pose_covariance
         tightened = None if self.config.ablate == "tightening" else covariance
         per_robot, _ = chance_tightening(tightened, self.config.chance_risk, n)
         self._pair_tightening = np.sqrt(2.0) * per_robot
@@ -389,9 +386,22 @@ class DistributedNMPC(BaseController):
             if self._stalled(i, poses[i, :2]):
                 agent.restart()
                 self._stats.counts["restarts"] += 1
-            # the robot's own NMPC puts the movers nearest to it into its mover slots
-            own = {} if covariance is None else {"pose_covariance": np.asarray(covariance)[i : i + 1]}
-            commands[i] = agent.act(observation, {"observed_poses": poses[i : i + 1], **own, **movers})
+            # the robot's own NMPC: its own pose (and covariance) and the team's movers, which it
+            # puts nearest first into its mover slots; it hears no team-mate over its radio
+            alone = poses[i : i + 1]
+            commands[i] = agent.act(
+                observation,
+                Observed(
+                    observed_poses=alone,
+                    known_poses=alone[None],
+                    message_age=np.zeros((1, 1), dtype=np.int64),
+                    pose_covariance=None if covariance is None else covariance[i : i + 1],
+                    observed_movers=observed.observed_movers,
+                    mover_tracked=observed.mover_tracked,
+                    mover_radii=observed.mover_radii,
+                    perceived=observed.perceived,
+                ),
+            )
             if not agent.solve_failed() and agent.last_plan is not None:
                 new_plans[:, i] = agent.last_plan[1][:, 0, :2]
             else:  # no new plan: predicted to hold its position

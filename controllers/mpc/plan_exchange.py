@@ -2,7 +2,7 @@
 
 A robot's message carries its pose estimate and the plan it made the period before; the env
 delivers it ``latency`` periods late, or loses it (:mod:`koopman_envs.sim.perception`). The
-receiver knows the message's age (``info["message_age"]``), so it uses the plan the sender made
+receiver knows the message's age (``Observed.message_age``), so it uses the plan the sender made
 ``age + 1`` periods ago, shifted by as many steps (its end held). A plan as old as the horizon,
 or one made before the episode, is replaced by the prediction that the sender holds its last
 known position. With instant messages (age 0) this is the previous period's plan shifted by

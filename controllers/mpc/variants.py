@@ -59,7 +59,7 @@ from controllers.koopman.store import check_structure, default_structure
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
-from koopman_envs import CalibrationPlant
+from koopman_envs import CalibrationPlant, Observed
 from koopman_envs.checks import Range
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 from koopman_envs.scenario import Scenario
@@ -290,7 +290,7 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         self._previous: tuple[NDArray, NDArray | None] | None = None
         self._limits = np.array([scenario.v_max, scenario.omega_max])
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         front_end = self.front_end
         if isinstance(front_end, PoseFrontEnd):
             # learn what happened, not what is planned from: the estimate of now (before the
@@ -298,14 +298,14 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
             poses = np.array(front_end.filtered, dtype=np.float64)
             if self._previous is not None:
                 self._timed_learn(self._previous[0], front_end.acting(), poses)
-            command = super()._act(observation, info)
+            command = super()._act(observation, observed)
             self._previous = (poses, None)
             return command
-        poses = np.asarray(info["observed_poses"], dtype=np.float64)
+        poses = observed.observed_poses
         if self._previous is not None:
             assert self._previous[1] is not None
             self._timed_learn(self._previous[0], self._previous[1], poses)
-        command = super()._act(observation, info)
+        command = super()._act(observation, observed)
         n = poses.shape[0]
         # the env saturates commands to the limits; learn from what the robots actually received
         applied = np.clip(command.reshape(n, 2), -self._limits, self._limits)

@@ -22,9 +22,10 @@ robot's estimate as the controller has it, so localization error moves what it s
    beams of one scan pass through it (they read beyond it), so a mover that paused and walked
    on leaves no ghost; a track that speeds up leaves the map for the movers.
 
-The controller's view then holds ``observed_movers`` (the moving tracks: x, y, vx, vy),
-``mover_covariance`` (their 4x4 covariances), ``mover_radii`` and, with the map unknown,
-``perceived_obstacles`` (the local map, x, y, r) and ``obstacle_covariance``.
+The controller's :class:`koopman_envs.Observed` then holds ``observed_movers`` (the moving tracks:
+x, y, vx, vy), ``mover_covariance`` (their 4x4 covariances), ``mover_radii`` and, with the map
+unknown, ``perceived_obstacles`` (the local map, x, y, r) and ``obstacle_covariance``; it is
+marked ``perceived``.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ from numpy.typing import NDArray
 
 from controllers.perception.scan import ScanSettings, scan_objects
 from controllers.perception.tracker import MoverTracks, Tracker, TrackerSettings
-from koopman_envs import beam_angles
+from koopman_envs import Observed, beam_angles
 from koopman_envs.checks import check_int, check_number
 from koopman_envs.scenario import Scenario
 
@@ -122,17 +123,22 @@ class LidarPerception:
         self.tracks = None
 
     # ------------------------------------------------------------------ one period
-    def view(self, view: dict[str, Any]) -> dict[str, Any]:
-        """``view`` with what the team sees added (module docstring); needs ``lidar_ranges``."""
+    def view(self, observed: Observed) -> Observed:
+        """``observed`` with what the team sees added (module docstring), a new value marked
+        ``perceived``; needs ``lidar_ranges``."""
         if self._scenario is None or self._tracker is None:
             raise RuntimeError("LidarPerception: call reset(scenario) before view()")
+        if observed.lidar_ranges is None:
+            raise ValueError(
+                "LidarPerception.view needs lidar_ranges (sensing='lidar'); this Observed has none"
+            )
         start = time.perf_counter()
         sc = self._scenario
-        ranges = np.asarray(view["lidar_ranges"], dtype=np.float64)
-        poses = np.asarray(view["observed_poses"], dtype=np.float64)
-        known = np.asarray(view.get("known_poses", np.broadcast_to(poses[None], (len(poses), *poses.shape))))
-        ages = np.asarray(view.get("message_age", np.zeros((len(poses), len(poses)), dtype=np.int64)))
-        covariance = view.get("pose_covariance")
+        ranges = observed.lidar_ranges
+        poses = observed.observed_poses
+        known = observed.known_poses
+        ages = observed.message_age
+        covariance = observed.pose_covariance
         discs, disc_cov = [], []
         for i in range(sc.n_robots):
             kept = self._unexplained(i, ranges[i], poses, known[i], ages[i], covariance)
@@ -151,14 +157,20 @@ class LidarPerception:
         tracks = self._tracker.step(np.vstack(discs), np.concatenate(disc_cov))
         self.tracks = tracks
         moving = self._split_static(tracks)
-        out = dict(view)
-        out["observed_movers"] = tracks.states[moving]
-        out["mover_covariance"] = tracks.covariances[moving]
-        out["mover_radii"] = tracks.radii[moving]
+        out = dataclasses.replace(
+            observed,
+            observed_movers=tracks.states[moving],
+            mover_covariance=tracks.covariances[moving],
+            mover_radii=tracks.radii[moving],
+            perceived=True,
+        )
         if not sc.map_known:
             self._free_robots(poses)
-            out["perceived_obstacles"] = self.local_map.copy()
-            out["obstacle_covariance"] = self.local_map_covariance.copy()
+            out = dataclasses.replace(
+                out,
+                perceived_obstacles=self.local_map.copy(),
+                obstacle_covariance=self.local_map_covariance.copy(),
+            )
         self.times.append(time.perf_counter() - start)
         return out
 

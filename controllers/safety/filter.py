@@ -10,11 +10,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.base import BaseController, Controller, ControllerStats, take_over_radio
+from controllers.base import BaseController, Controller, ControllerStats, hand_on, take_over_radio
 from controllers.movers import observed_mover_radii, observed_movers
 from controllers.mpc.margins import chance_tightening
 from controllers.safety.barriers import BarrierFilter
 from controllers.safety.options import FILTER_OPTION_PREFIX, SafetyOptions
+from koopman_envs import Observed
 from koopman_envs.scenario import Scenario
 
 __all__ = ["SafetyFilter", "SafetyStats", "wrap"]
@@ -139,23 +140,23 @@ class SafetyFilter(BaseController):
             raise RuntimeError(f"{self.name}: call reset(scenario) first")
         return self._filter.sensing_radius
 
-    def _act(self, observation: NDArray, info: dict[str, Any]) -> NDArray[np.float64]:
+    def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         start = time.perf_counter()
-        command = self.inner.act(observation, info)
+        command = hand_on(self.inner, observation, observed)
         middle = time.perf_counter()
         assert self._filter is not None  # built by _reset, which act() requires
-        covariance = info.get("pose_covariance")
+        covariance = observed.pose_covariance
         widen = (
             None
             if covariance is None
-            else chance_tightening(covariance, self.options.chance_risk, len(info["observed_poses"]))[0]
+            else chance_tightening(covariance, self.options.chance_risk, observed.n_robots)[0]
         )
         assert self.scenario is not None  # act() checked it
-        radii = observed_mover_radii(info, self.scenario.mover_radius)
+        radii = observed_mover_radii(observed, self.scenario.mover_radius)
         step = self._filter.filter(
-            np.asarray(info["observed_poses"], dtype=np.float64),
+            observed.observed_poses,
             command,
-            observed_movers(info),
+            observed_movers(observed),
             widen,
             float(radii.max(initial=self.scenario.mover_radius)),
         )

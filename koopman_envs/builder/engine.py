@@ -121,14 +121,9 @@ class NavigationEngine:
         self.mover_tracker = MoverTracker.for_movers(config.movers, k, layout.movers, PARAMS.dt)
         self.builder = FeatureBuilder(
             k,
-            n,
+            layout,
             m,
-            config.n_obstacle_obs,
-            config.task.formation,
-            beams=layout.beams,
-            comm=layout.comm,
             lidar_range=0.0 if config.lidar is None else config.lidar.range,
-            movers=layout.movers,
             mover_radius=config.movers.radius,
         )
         self._all_rows = np.arange(k, dtype=np.int64)

@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.layout import MoverEntry
 from koopman_envs.movers import MOVER_FEATURES, MoverConfig
 from koopman_envs.params import FAULT_STOPPED_SPEED
 from koopman_envs.sim.collision import CollisionFault, CollisionKind, mover_collisions
@@ -448,7 +449,8 @@ def mover_features(
     out: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
     """Write the ``slots`` nearest movers into ``out[k, i, at:]`` (K, N, F), nearest first by
-    surface clearance: body-frame dx, dy to the centre, body-frame velocity vx, vy, clearance;
+    surface clearance, each item's entries as :class:`~koopman_envs.layout.MoverEntry` names
+    them: body-frame dx, dy to the centre, body-frame velocity vx, vy, clearance;
     absent ones read (0, 0, 0, 0, FAR), as do movers not observed (NaN rows: no track yet, or a
     track dropped). ``own`` (K, 3, N) holds the robots' pose estimates.
 
@@ -479,14 +481,19 @@ def mover_features(
                 dx, dy = position[k, m, 0] - x, position[k, m, 1] - y
                 vx, vy = velocity[k, m, 0], velocity[k, m, 1]
                 gap = math.sqrt(distance2[m]) - reach
-                out[k, i, col] = min(max(c * dx + s * dy, low[col]), high[col])
-                out[k, i, col + 1] = min(max(c * dy - s * dx, low[col + 1]), high[col + 1])
-                out[k, i, col + 2] = min(max(c * vx + s * vy, low[col + 2]), high[col + 2])
-                out[k, i, col + 3] = min(max(c * vy - s * vx, low[col + 3]), high[col + 3])
-                out[k, i, col + 4] = min(max(gap, low[col + 4]), high[col + 4])
+                e = col + MoverEntry.DX
+                out[k, i, e] = min(max(c * dx + s * dy, low[e]), high[e])
+                e = col + MoverEntry.DY
+                out[k, i, e] = min(max(c * dy - s * dx, low[e]), high[e])
+                e = col + MoverEntry.VX
+                out[k, i, e] = min(max(c * vx + s * vy, low[e]), high[e])
+                e = col + MoverEntry.VY
+                out[k, i, e] = min(max(c * vy - s * vx, low[e]), high[e])
+                e = col + MoverEntry.CLEARANCE
+                out[k, i, e] = min(max(gap, low[e]), high[e])
                 col += MOVER_FEATURES
             for _ in range(listed, slots):
-                for f in range(MOVER_FEATURES - 1):
+                for f in range(MOVER_FEATURES):
                     out[k, i, col + f] = 0.0
-                out[k, i, col + MOVER_FEATURES - 1] = _FAR
+                out[k, i, col + MoverEntry.CLEARANCE] = _FAR
                 col += MOVER_FEATURES

@@ -14,6 +14,7 @@ observations stay inside the observation space even after a robot has left the w
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
@@ -21,7 +22,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.layout import ObservationLayout
+from koopman_envs.layout import (
+    PART_WIDTH,
+    MessageEntry,
+    MoverEntry,
+    ObservationLayout,
+    ObstacleEntry,
+    PartOffsets,
+    TeamEntry,
+)
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 from koopman_envs.sim.movers import mover_features
@@ -41,6 +50,13 @@ _SPEED = 5.0  # mover velocities [m/s]: ten times a pedestrian's
 #: Largest message age an observation reports [control periods] (ours: 10 s; older reads this).
 AGE_MAX = 100
 
+#: (lower, upper) bounds of one entry
+_Bounds = tuple[float, float]
+# entries per item, as module constants: what the compiled writer can read
+_TEAM_WIDTH = PART_WIDTH["team"]
+_OBSTACLE_WIDTH = PART_WIDTH["obstacles"]
+_MESSAGE_WIDTH = PART_WIDTH["messages"]
+
 
 def feature_size(
     n_robots: int, n_obstacle_obs: int, formation: bool, beams: int = 0, comm: bool = False, movers: int = 0
@@ -51,32 +67,55 @@ def feature_size(
     return ObservationLayout(n_robots, n_obstacle_obs, formation, beams, comm, movers).size
 
 
+def _item(entries: dict[IntEnum, _Bounds]) -> list[_Bounds]:
+    """An item's bounds in the order of its named entries (each entry named once)."""
+    kind = type(next(iter(entries)))
+    if set(entries) != set(kind):
+        raise ValueError(f"bounds for {sorted(entries)}; {kind.__name__} has {list(kind)}")
+    return [entries[entry] for entry in kind]
+
+
+def _part_bounds(lidar_range: float) -> dict[str, list[_Bounds]]:
+    """The bounds of one item of every part, by part name (a part of one item: the part's)."""
+    rel, dist, unit = (-_REL, _REL), (-_DIST, _DIST), (-1.0, 1.0)
+    speed = (-_SPEED, _SPEED)
+    return {
+        "position": [(-_POS, _POS)] * 2,
+        "heading": [unit] * 2,
+        "target": [rel] * 2,
+        "target_distance": [(0.0, _DIST)],
+        "target_heading": [unit] * 2,
+        "team": _item({TeamEntry.DX: rel, TeamEntry.DY: rel, TeamEntry.CLEARANCE: dist}),
+        "obstacles": _item({ObstacleEntry.DX: rel, ObstacleEntry.DY: rel, ObstacleEntry.CLEARANCE: dist}),
+        "beams": [(0.0, lidar_range)],
+        "formation_error": [rel] * 2,
+        "messages": _item({MessageEntry.AGE: (0.0, AGE_MAX), MessageEntry.HEARD: (0.0, 1.0)}),
+        "movers": _item(
+            {
+                MoverEntry.DX: rel,
+                MoverEntry.DY: rel,
+                MoverEntry.VX: speed,
+                MoverEntry.VY: speed,
+                MoverEntry.CLEARANCE: dist,
+            }
+        ),
+    }
+
+
 def feature_bounds(
-    n_robots: int,
-    n_obstacle_obs: int,
-    formation: bool,
-    beams: int = 0,
-    comm: bool = False,
-    lidar_range: float = 0.0,
-    movers: int = 0,
+    layout: ObservationLayout, lidar_range: float = 0.0
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Lower and upper bounds of one robot's block, each shape (F,) (arguments as :func:`feature_size`)."""
-    low = [-_POS, -_POS, -1, -1, -_REL, -_REL, 0, -1, -1] + [-_REL, -_REL, -_DIST] * (n_robots - 1)
-    high = [_POS, _POS, 1, 1, _REL, _REL, _DIST, 1, 1] + [_REL, _REL, _DIST] * (n_robots - 1)
-    if beams:
-        low += [0.0] * beams
-        high += [lidar_range] * beams
-    else:
-        low += [-_REL, -_REL, -_DIST] * n_obstacle_obs
-        high += [_REL, _REL, _DIST] * n_obstacle_obs
-    if formation:
-        low += [-_REL, -_REL]
-        high += [_REL, _REL]
-    if comm:
-        low += [0, 0] * (n_robots - 1)
-        high += [AGE_MAX, 1] * (n_robots - 1)
-    low += [-_REL, -_REL, -_SPEED, -_SPEED, -_DIST] * movers
-    high += [_REL, _REL, _SPEED, _SPEED, _DIST] * movers
+    """Lower and upper bounds of one robot's block of ``layout``, each shape (F,): every part's
+    item bounds repeated over its items, in the layout's order (``lidar_range`` [m]: the beams'
+    upper bound)."""
+    table = _part_bounds(lidar_range)
+    low: list[float] = []
+    high: list[float] = []
+    for name, width in layout.parts:
+        item = table[name]
+        count = width // len(item)
+        low += [lower for lower, _ in item] * count
+        high += [upper for _, upper in item] * count
     return np.array(low, dtype=np.float64), np.array(high, dtype=np.float64)
 
 
@@ -87,22 +126,13 @@ class FeatureBuilder:
     ----------
     num_envs : int
         Batch size K.
-    n_robots : int
-        Robots per environment N.
+    layout : ObservationLayout
+        One robot's block (the engine's :attr:`~koopman_envs.builder.config.EngineConfig.observation_layout`):
+        team size, listed obstacles or lidar beams, formation error, message ages, listed movers.
     n_obstacles : int
         Obstacles per environment M.
-    n_obstacle_obs : int
-        Obstacles listed per robot (nearest first).
-    formation : bool
-        Append the formation error.
-    beams : int
-        Lidar beams replacing the obstacle list (0: the list).
-    comm : bool
-        Append each team-mate's message age and arrival flag.
     lidar_range : float
         Largest lidar reading [m] (the beams' upper bound).
-    movers : int
-        Nearest movers listed at the end of each block (0: none).
     mover_radius : float
         The movers' disc radius [m] (their clearances).
     """
@@ -110,33 +140,24 @@ class FeatureBuilder:
     def __init__(
         self,
         num_envs: int,
-        n_robots: int,
+        layout: ObservationLayout,
         n_obstacles: int,
-        n_obstacle_obs: int,
-        formation: bool,
-        beams: int = 0,
-        comm: bool = False,
         lidar_range: float = 0.0,
-        movers: int = 0,
         mover_radius: float = 0.0,
     ) -> None:
-        n, k = n_robots, num_envs
+        n, k = layout.n_robots, num_envs
         #: the block's named parts (koopman_envs.layout)
-        self.layout = ObservationLayout(n, n_obstacle_obs, formation, beams, comm, movers)
-        self.shape = (k, n, self.layout.size)
-        self.low, self.high = feature_bounds(n, n_obstacle_obs, formation, beams, comm, lidar_range, movers)
-        self.mover_slots = movers
+        self.layout = layout
+        #: where each part begins, as the compiled writer takes them
+        self.offsets = layout.offsets
+        self.shape = (k, n, layout.size)
+        self.low, self.high = feature_bounds(layout, lidar_range)
+        self.mover_slots = layout.movers
         self.mover_radius = mover_radius
-        self.movers_at = self.layout["movers"].start if movers else self.shape[-1]
         self.n_robots, self.n_obstacles = n, n_obstacles
-        self.n_obstacle_obs = 0 if beams else n_obstacle_obs
-        self.formation, self.beams, self.comm = formation, beams, comm
         self._no_offsets = np.zeros((k, 2, n))  # the kernel's formation input when unused
         self._no_ranges = np.zeros((k, n, 0))
         self._same_age = np.zeros((k, n, n), dtype=np.int64)
-        #: positions in a block of the surface clearances (other robots, then listed obstacles)
-        listed = self.layout["team"].start, self.layout["team"].stop + 3 * self.n_obstacle_obs
-        self.clearance_index = np.arange(listed[0] + 2, listed[1], 3)
 
     def build(
         self,
@@ -185,15 +206,13 @@ class FeatureBuilder:
             own,
             known,
             age,
-            self.comm,
             ranges,
             target,
             offsets,
-            self.formation,
             geometry.obstacle_x,
             geometry.obstacle_y,
             geometry.radius_sum,
-            self.n_obstacle_obs,
+            self.offsets,
             self.low,
             self.high,
             out,
@@ -207,7 +226,7 @@ class FeatureBuilder:
                 movers[..., 2:],
                 self.mover_radius,
                 self.mover_slots,
-                self.movers_at,
+                self.offsets.movers,
                 self.low,
                 self.high,
                 out,
@@ -254,16 +273,10 @@ def observation_from_beliefs(
     """
     n = scenario.n_robots
     obstacles = np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
-    builder = FeatureBuilder(
-        1,
-        n,
-        len(obstacles),
-        n_obstacle_obs,
-        scenario.is_formation,
-        comm=scenario.message_ages,
-        movers=mover_slots,
-        mover_radius=scenario.mover_radius,
+    layout = ObservationLayout(
+        n, n_obstacle_obs, scenario.is_formation, comm=scenario.message_ages, movers=mover_slots
     )
+    builder = FeatureBuilder(1, layout, len(obstacles), mover_radius=scenario.mover_radius)
     geometry = TeamGeometry(1, np.asarray(scenario.robot_radius, dtype=np.float64), len(obstacles))
     geometry.set_obstacles(0, obstacles)
     state = poses.T[None]  # (1, 3, N)
@@ -294,34 +307,35 @@ def _build_features(
     own: NDArray[np.float64],
     known: NDArray[np.float64],
     age: NDArray[np.int64],
-    comm: bool,
     ranges: NDArray[np.float64],
     target: NDArray[np.float64],
     offsets: NDArray[np.float64],
-    formation: bool,
     obstacle_x: NDArray[np.float64],
     obstacle_y: NDArray[np.float64],
     radius_sum: NDArray[np.float64],
-    n_obstacle_obs: int,
+    at: PartOffsets,
     low: NDArray[np.float64],
     high: NDArray[np.float64],
     out: NDArray[np.float64],
     distances: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout of the module docstring.
+    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout whose part offsets are ``at``
+    (:attr:`ObservationLayout.offsets <koopman_envs.layout.ObservationLayout.offsets>`: a part's
+    width is the gap to the next part, so a part the layout lacks is written nowhere).
 
     ``own`` (K, 3, N) holds every robot's pose estimate, ``known[k, i, j]`` (K, N, N, 3) what
     robot i knows of robot j and ``age`` (K, N, N) how old that is (-1: nothing yet);
-    ``ranges`` (K, N, B) the lidar readings (B = 0: list the obstacles instead).
+    ``ranges`` (K, N, B) the lidar readings (the ``beams`` part); ``offsets`` (K, 2, N) the
+    formation offsets (the ``formation_error`` part).
     """
     n_envs, _, n_robots = own.shape
     n_obstacles = obstacle_x.shape[1]
     n_features = out.shape[2]
-    beams = ranges.shape[2]
+    beams = at.formation_error - at.beams
+    n_obstacle_obs = (at.beams - at.obstacles) // _OBSTACLE_WIDTH
+    formation = at.messages > at.formation_error
+    comm = at.movers > at.messages
     listed = min(n_obstacles, n_obstacle_obs)
-    obstacles_at = 9 + 3 * (n_robots - 1)
-    formation_at = obstacles_at + (beams if beams else 3 * n_obstacle_obs)
-    comm_at = formation_at + (2 if formation else 0)
     gap = np.empty(n_obstacles)
     order = np.empty(n_obstacles, dtype=np.int64)
     for k in range(n_envs):
@@ -329,62 +343,65 @@ def _build_features(
             row = out[k, i]
             x, y, theta = own[k, 0, i], own[k, 1, i], own[k, 2, i]
             c, s = math.cos(theta), math.sin(theta)
-            row[0], row[1], row[2], row[3] = x, y, c, s
+            row[at.position], row[at.position + 1] = x, y
+            row[at.heading], row[at.heading + 1] = c, s
             tdx = target[k, 0, i] - x
             tdy = target[k, 1, i] - y
-            row[4] = c * tdx + s * tdy
-            row[5] = c * tdy - s * tdx
+            row[at.target] = c * tdx + s * tdy
+            row[at.target + 1] = c * tdy - s * tdx
             distance = math.sqrt(tdx * tdx + tdy * tdy)
-            row[6] = distance
+            row[at.target_distance] = distance
             distances[k, i] = distance
             dtheta = target[k, 2, i] - theta
-            row[7], row[8] = math.cos(dtheta), math.sin(dtheta)
-            at = 9
+            row[at.target_heading], row[at.target_heading + 1] = math.cos(dtheta), math.sin(dtheta)
+            col = at.team
             for j in range(n_robots):
                 if j != i:
                     if age[k, i, j] < 0:  # no message from j yet
-                        row[at], row[at + 1], row[at + 2] = 0.0, 0.0, FAR
+                        row[col + TeamEntry.DX], row[col + TeamEntry.DY] = 0.0, 0.0
+                        row[col + TeamEntry.CLEARANCE] = FAR
                     else:
                         ox, oy = known[k, i, j, 0], known[k, i, j, 1]
                         dx, dy = ox - x, oy - y
-                        row[at] = c * dx + s * dy
-                        row[at + 1] = c * dy - s * dx
-                        row[at + 2] = clearance(x, y, ox, oy, radius_sum[k, i, j])
-                    at += 3
+                        row[col + TeamEntry.DX] = c * dx + s * dy
+                        row[col + TeamEntry.DY] = c * dy - s * dx
+                        row[col + TeamEntry.CLEARANCE] = clearance(x, y, ox, oy, radius_sum[k, i, j])
+                    col += _TEAM_WIDTH
             for b in range(beams):
-                row[at] = ranges[k, i, b]
-                at += 1
+                row[at.beams + b] = ranges[k, i, b]
             if n_obstacle_obs:
                 for m in range(n_obstacles):
                     gap[m] = clearance(
                         x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]
                     )
                 nearest_first(gap, order, n_obstacles)  # equal clearances keep index order
+                col = at.obstacles
                 for q in range(listed):
                     m = order[q]
                     dx, dy = obstacle_x[k, m] - x, obstacle_y[k, m] - y
-                    row[at] = c * dx + s * dy
-                    row[at + 1] = c * dy - s * dx
-                    row[at + 2] = gap[m]
-                    at += 3
+                    row[col + ObstacleEntry.DX] = c * dx + s * dy
+                    row[col + ObstacleEntry.DY] = c * dy - s * dx
+                    row[col + ObstacleEntry.CLEARANCE] = gap[m]
+                    col += _OBSTACLE_WIDTH
                 for _ in range(listed, n_obstacle_obs):
-                    row[at], row[at + 1], row[at + 2] = 0.0, 0.0, FAR
-                    at += 3
+                    row[col + ObstacleEntry.DX], row[col + ObstacleEntry.DY] = 0.0, 0.0
+                    row[col + ObstacleEntry.CLEARANCE] = FAR
+                    col += _OBSTACLE_WIDTH
             if formation:
                 # the leader's position as this robot knows it (its own estimate for the leader)
                 if age[k, i, 0] < 0:  # nothing heard of the leader yet: no error to report
-                    row[formation_at], row[formation_at + 1] = 0.0, 0.0
+                    row[at.formation_error], row[at.formation_error + 1] = 0.0, 0.0
                 else:
-                    row[formation_at] = (x - known[k, i, 0, 0]) - offsets[k, 0, i]
-                    row[formation_at + 1] = (y - known[k, i, 0, 1]) - offsets[k, 1, i]
+                    row[at.formation_error] = (x - known[k, i, 0, 0]) - offsets[k, 0, i]
+                    row[at.formation_error + 1] = (y - known[k, i, 0, 1]) - offsets[k, 1, i]
             if comm:
-                at = comm_at
+                col = at.messages
                 for j in range(n_robots):
                     if j != i:
                         heard = age[k, i, j] >= 0
-                        row[at] = min(age[k, i, j], AGE_MAX) if heard else AGE_MAX
-                        row[at + 1] = 1.0 if heard else 0.0
-                        at += 2
+                        row[col + MessageEntry.AGE] = min(age[k, i, j], AGE_MAX) if heard else AGE_MAX
+                        row[col + MessageEntry.HEARD] = 1.0 if heard else 0.0
+                        col += _MESSAGE_WIDTH
             for f in range(n_features):
                 value = row[f]
                 if value < low[f]:
