@@ -94,8 +94,10 @@ for m in "${wanted[@]}"; do
         [ -f "$work/koopnav/$file" ] && tests+="\"$t\", "
     done
     tests=${tests%, }
-    # -n 0: mutmut runs the tests in its own process (pyproject's addopts spread them over xdist workers)
-    args='"-p", "no:cacheprovider", "-n", "0"'
+    # -n 0: mutmut runs the tests in its own process (pyproject's addopts spread them over xdist
+    # workers); -m: the slow tests too (addopts leaves them out, and a selection is every test of
+    # the module: without them the archive reader's page rebuilds were never run on a mutant)
+    args='"-p", "no:cacheprovider", "-n", "0", "-m", "slow or not slow"'
     for t in ${deselect:-}; do
         args+=", \"--deselect\", \"$t\""
     done
