@@ -159,6 +159,44 @@ def test_an_empty_results_directory_is_used_and_a_file_is_passed_over(monkeypatc
     assert output_directory("mine", resume=False) == "mine"
 
 
+def test_only_a_missing_path_or_an_empty_directory_holds_nothing(tmp_path) -> None:
+    from evaluation.runlog import _holds_nothing
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("")
+    (tmp_path / "file").write_text("")
+    (tmp_path / "link").symlink_to(tmp_path / "empty")
+    (tmp_path / "dangling").symlink_to(tmp_path / "missing")
+    held = {p.name: _holds_nothing(p) for p in sorted(tmp_path.iterdir())}
+    held["missing"] = _holds_nothing(tmp_path / "missing")
+    assert held == {
+        "dangling": False,
+        "empty": True,
+        "file": False,
+        "full": False,
+        "link": False,
+        "missing": True,
+    }
+
+
+def test_the_default_directory_counts_up_from_results_2_past_symlinks(monkeypatch, tmp_path) -> None:
+    """results/ taken: results-2/ next (then -3, ...); a symlink holds something even when it
+    points to an empty directory, so it is passed over and left alone."""
+    from evaluation.runlog import output_directory
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "x").write_text("")
+    assert output_directory(None, resume=False) == "results-2"
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "results-2").symlink_to(tmp_path / "empty")
+    (tmp_path / "results-3").mkdir()
+    assert output_directory(None, resume=False) == "results-3"
+    (tmp_path / "results-3" / "y").mkdir()
+    assert output_directory(None, resume=False) == "results-4"
+
+
 def test_the_resume_hint_names_the_directory_a_repeated_run_chose(monkeypatch, tmp_path, capsys) -> None:
     from evaluation.backends import RunInterrupted
 

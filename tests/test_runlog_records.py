@@ -652,3 +652,110 @@ def test_open_log_appends_to_the_extended_log_under_its_lock(tmp_path) -> None:
     finally:
         handle.close()
     assert set(read_log(tmp_path / "episodes.jsonl", wider)[0]) == {"a", "b"}
+
+
+# ============================================================================ issue 59: mutation survivors
+def test_the_signature_carries_a_compute_aware_runs_compute_and_a_suite_runs_suite() -> None:
+    compute = {"scale": 2.0, "machine": "m1"}
+    suite = {"name": "s", "version": 3, "split": "test"}
+    plain = run_signature(CONFIG)
+    assert "compute" not in plain and "suite" not in plain
+    assert run_signature({**CONFIG, "compute": compute, "suite": suite}) == {
+        **plain,
+        "compute": compute,
+        "suite": suite,
+    }
+    assert run_signature({**CONFIG, "compute": None, "suite": {}}) == plain  # free compute, no suite
+
+
+def test_a_record_nested_too_deep_is_refused_naming_the_record(tmp_path) -> None:
+    deep = b"[" * 65 + b"]" * 65 + b"\n"
+    with pytest.raises(LogError) as caught:
+        read_log(_log(tmp_path, deep), CONFIG)
+    assert "line 2: not JSON (the record: JSON nested 65 levels deep; allowed: at most 64)" in str(
+        caught.value
+    )
+
+
+def test_a_run_adding_two_controllers_names_both(tmp_path) -> None:
+    log = _log(tmp_path, _line(_rec("a")), header=runlog._header_line(_controllers("consensus")))
+    _, notes = read_log(log, _controllers("consensus", "orca", "dwa"), repair=False)
+    assert notes == [
+        f"{log}: this run adds orca, dwa to the logged run's controllers; their episodes run now, the "
+        "logged ones are kept"
+    ]
+
+
+def test_an_episode_log_that_is_a_fifo_is_refused_as_an_episode_log(tmp_path) -> None:
+    log = tmp_path / "episodes.jsonl"
+    os.mkfifo(log)
+    with pytest.raises(ValueError) as caught:
+        open_log(tmp_path, CONFIG, resume=True)
+    assert str(caught.value) == (
+        f"episode log {str(log)!r} cannot be read: it is a FIFO (named pipe), not a regular file "
+        "(only regular files are read)"
+    )
+
+
+def test_a_locked_log_that_is_a_fifo_is_refused_as_what_it_is(tmp_path) -> None:
+    log = tmp_path / "study.jsonl"
+    os.mkfifo(log)
+    with pytest.raises(ValueError, match=r"^study log '.*study\.jsonl' cannot be read: it is a FIFO"):
+        runlog.open_append_locked(log, "study log")
+
+
+def test_a_locked_log_is_opened_for_appending_without_blocking_and_not_executable(tmp_path) -> None:
+    """O_NONBLOCK stays on the handle (a FIFO swapped in cannot hang the open); the file is made
+    with the usual 0o666 less the umask."""
+    import fcntl
+    import stat
+
+    log = tmp_path / "study.jsonl"
+    with runlog.open_append_locked(log, "study log") as handle:
+        flags = fcntl.fcntl(handle.fileno(), fcntl.F_GETFL)
+        assert flags & os.O_NONBLOCK and flags & os.O_APPEND
+        handle.write("é\n")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(log.stat().st_mode) == 0o666 & ~umask
+    assert log.read_bytes() == "é\n".encode()
+
+
+def test_a_second_writer_of_a_locked_log_is_refused_naming_it(tmp_path) -> None:
+    log = tmp_path / "study.jsonl"
+    with runlog.open_append_locked(log, "study log"):
+        with pytest.raises(RunLocked) as caught:
+            runlog.open_append_locked(str(log), "study log")
+    assert str(caught.value).startswith(f"{log} is being written by another run")
+
+
+def test_a_run_that_takes_the_extended_log_first_is_refused_naming_it(tmp_path, monkeypatch) -> None:
+    """Another run that locks the log rewritten with this run's header before this one reopens
+    it: this one is refused, naming the log."""
+    logged, wider = _controllers("consensus"), _controllers("consensus", "dwa")
+    log = _log(tmp_path, _line(_rec("a")), header=runlog._header_line(logged))
+    held = []
+    real_read_log = runlog.read_log
+
+    def read_then_taken(*args, **kwargs):
+        result = real_read_log(*args, **kwargs)
+        held.append(runlog.open_append_locked(log, "episode log"))
+        return result
+
+    monkeypatch.setattr(runlog, "read_log", read_then_taken)
+    try:
+        with pytest.raises(RunLocked) as caught:
+            open_log(tmp_path, wider, resume=True)
+    finally:
+        for handle in held:
+            handle.close()
+    assert str(caught.value).startswith(f"{log} is being written by another run")
+
+
+def test_forgetting_controllers_of_a_log_another_run_holds_is_refused_naming_it(tmp_path) -> None:
+    log = _log(tmp_path, _line(_rec("a")))
+    with runlog.open_append_locked(log, "episode log"):
+        with pytest.raises(RunLocked) as caught:
+            runlog.forget_controllers(tmp_path, ["consensus"])
+    assert str(caught.value).startswith(f"{log} is being written by another run")
+    assert log.read_bytes() == HEADER + _line(_rec("a"))
