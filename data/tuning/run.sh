@@ -13,6 +13,7 @@ cd "$(dirname "$0")/../.."
 TRIALS="${TRIALS:-24}"
 LAYOUTS="${LAYOUTS:-25}"
 EPISODES="${EPISODES:-1}"
+WORKERS="${WORKERS:-1}" # worker processes per evaluation: results do not depend on it
 controllers=("$@")
 [ ${#controllers[@]} -gt 0 ] || controllers=(orca dwa consensus mpc-cbf nominal-nmpc koopman-nmpc)
 for name in "${controllers[@]}"; do
@@ -20,5 +21,5 @@ for name in "${controllers[@]}"; do
     resume=()
     [ -f "$out/study.jsonl" ] && resume=(--resume)
     python -m evaluation.tune "$name" --task both --trials "$TRIALS" --layouts "$LAYOUTS" \
-        --episodes "$EPISODES" --seed 0 --out "$out" "${resume[@]}"
+        --episodes "$EPISODES" --seed 0 --workers "$WORKERS" --out "$out" "${resume[@]}"
 done
