@@ -25,7 +25,7 @@ pandas::
 Reading an archive back trusts nothing in it (:func:`extract_archive`): the file must be a regular
 file of bounded size; its members are streamed, each checked before a byte of it is written (a
 directory or an episode log or sweep manifest, at a relative path inside the extraction directory:
-no absolute path, ``..``, link or device), with their number, each one's size, the total
+no absolute path, ``..``, link or device; one top directory, the run's), with their number, each one's size, the total
 unpacked and the compression ratio bounded as the bytes come (the ``MAX_*`` limits below, in the
 policy loader's style, :mod:`baselines.safe_load`), so a decompression bomb is stopped within its
 first megabytes; :func:`extracted_archive` unpacks into a temporary directory removed after use.
@@ -209,7 +209,8 @@ class _Bounded:
 
 def _member_parts(archive: Path, member: tarfile.TarInfo) -> tuple[str, ...]:
     """The path of ``member`` below the extraction directory, as parts; refused by name when it
-    is not a directory or a regular file, or would land outside (absolute, ``..``)."""
+    is not a directory or a regular file, would land outside (absolute, ``..``), or is a file
+    outside a run's directory."""
     name = PurePosixPath(member.name)
     parts = tuple(part for part in name.parts if part not in ("", "."))
     if name.is_absolute() or ".." in parts or not parts or "\\" in member.name:
@@ -228,6 +229,11 @@ def _member_parts(archive: Path, member: tarfile.TarInfo) -> tuple[str, ...]:
         )
     if parts[-1] not in _MEMBER_NAMES:
         raise ValueError(f"{archive}: member {member.name!r} is not an episode log or a sweep manifest")
+    if len(parts) < 2:  # the run's directory would be this file: unpack_run then restored nothing
+        raise ValueError(
+            f"{archive}: member {member.name!r} is not inside a run's directory; a published archive "
+            "holds one run's directory (RUN/episodes.jsonl, RUN/sweep.json, RUN/sweep/LEVEL/...)"
+        )
     if member.size > MAX_MEMBER_BYTES:
         raise ValueError(
             f"{archive}: member {member.name!r} unpacks to {member.size} bytes; at most "
@@ -238,7 +244,8 @@ def _member_parts(archive: Path, member: tarfile.TarInfo) -> tuple[str, ...]:
 
 def _unpack(archive: Path, tar: tarfile.TarFile, target: Path) -> set[str]:
     """Stream the members of ``tar`` into ``target``, each checked before any of its bytes are
-    written (:func:`_member_parts`) and counted while written; the top directories of the files."""
+    written (:func:`_member_parts`) and counted while written; the top directories of the members
+    (an empty directory beside the run's counts too: it would be left behind)."""
     tops: set[str] = set()
     members = 0
     for member in tar:
@@ -250,10 +257,10 @@ def _unpack(archive: Path, tar: tarfile.TarFile, target: Path) -> set[str]:
             )
         parts = _member_parts(archive, member)
         dest = target.joinpath(*parts)
+        tops.add(parts[0])
         if member.isdir():
             dest.mkdir(parents=True, exist_ok=True)
             continue
-        tops.add(parts[0])
         dest.parent.mkdir(parents=True, exist_ok=True)
         source = tar.extractfile(member)
         assert source is not None  # a regular file's  # noqa: S101
@@ -285,11 +292,12 @@ def extract_archive(archive: str | Path, into: str | Path) -> Path:
 
     The archive is read as :func:`koopman_envs.files.read_bounded` reads (a regular file of at most
     :data:`MAX_ARCHIVE_BYTES`), then streamed: every member is checked before its bytes are
-    written (a directory or a regular file named ``episodes.jsonl`` or ``sweep.json``, a relative
-    path inside ``into``, at most :data:`MAX_MEMBER_BYTES`), their number is bounded
-    (:data:`MAX_MEMBERS`), and the unpacked bytes are counted as they come (:data:`MAX_TOTAL_BYTES`,
-    :data:`MAX_RATIO`), so a bomb is stopped within its first megabytes. What was unpacked of a
-    refused archive is removed. Use :func:`extracted_archive` for a directory that is removed after use.
+    written (a directory or a regular file named ``episodes.jsonl`` or ``sweep.json`` within the
+    run's directory, a relative path inside ``into``, at most :data:`MAX_MEMBER_BYTES`), their
+    number is bounded (:data:`MAX_MEMBERS`), and the unpacked bytes are counted as they come
+    (:data:`MAX_TOTAL_BYTES`, :data:`MAX_RATIO`), so a bomb is stopped within its first megabytes;
+    the archive must hold one top directory, the run's. What was unpacked of a refused archive is
+    removed. Use :func:`extracted_archive` for a directory that is removed after use.
 
     Raises
     ------
@@ -345,12 +353,23 @@ def extracted_archive(archive: str | Path) -> Iterator[Path]:
 def pack_run(run_dir: str | Path, archive: str | Path) -> Path:
     """Pack a run's episode logs and sweep manifest into ``archive`` (a .tar.xz), reproducibly
     (sorted members, fixed times and owners, xz preset 9), each log's records without
-    :data:`PACKED_OUT`."""
+    :data:`PACKED_OUT`.
+
+    Raises
+    ------
+    ValueError
+        ``archive`` does not end in :data:`ARCHIVE_SUFFIX`, or ``run_dir`` holds no episode log
+        (``archive`` is then left as it was), or a log is not a regular file of at most
+        :data:`MAX_MEMBER_BYTES`.
+    """
     run_dir, archive = Path(run_dir), Path(archive)
     _check_name(archive)
-    members = sorted(
-        p for p in run_dir.rglob("*") if p.is_file() and p.name in ("episodes.jsonl", "sweep.json")
-    )
+    members = sorted(p for p in run_dir.rglob("*") if p.is_file() and p.name in _MEMBER_NAMES)
+    if not any(p.name == "episodes.jsonl" for p in members):  # a missing directory too
+        raise ValueError(
+            f"{run_dir}: no episode log (episodes.jsonl) in it or below it, so not a run's directory; "
+            f"{archive} was not written"
+        )
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
         for path in members:
@@ -412,10 +431,13 @@ def _main(argv: list[str]) -> int:
     ``python -m evaluation.published unpack ARCHIVE DIR [--force]`` restores one (exit 2, named, if refused)."""
     import sys
 
+    # "unpack" is always the command: "unpack ARCHIVE" without DIR once packed a run named
+    # "unpack" (none) over ARCHIVE
+    unpack = argv[:1] == ["unpack"]
     try:
-        if argv[:1] == ["unpack"] and len(argv) in (3, 4) and argv[3:] in ([], ["--force"]):
+        if unpack and len(argv) in (3, 4) and argv[3:] in ([], ["--force"]):
             print(unpack_run(argv[1], argv[2], force=argv[3:] == ["--force"]))
-        elif len(argv) == 2:
+        elif not unpack and len(argv) == 2:
             print(pack_run(argv[0], argv[1]))
         else:
             print(_main.__doc__, file=sys.stderr)

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tarfile
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
@@ -152,7 +153,7 @@ def test_a_binary_baseline_names_the_file_and_what_was_expected(tmp_path) -> Non
 # --------------------------------------------------------------------- items 3 and 9: archives
 
 
-def _tar_xz(path: Path, members: list[tarfile.TarInfo | tuple[str, bytes]], preset: int = 6) -> Path:
+def _tar_xz(path: Path, members: Sequence[tarfile.TarInfo | tuple[str, bytes]], preset: int = 6) -> Path:
     """An xz tar of ``members``: (name, bytes) for a regular file, or a ready TarInfo (no data)."""
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
@@ -326,8 +327,6 @@ def test_unpack_run_in_process_refuses_to_lose_records_and_forced_replaces_the_l
 def test_a_full_disk_leaves_the_previous_report_whole_and_names_the_file(
     tmp_path, monkeypatch, capsys
 ) -> None:
-    from koopman_envs import files
-
     out = tmp_path / "out"
     assert ev.main([*ARGS, "--out", str(out)]) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file() and p.name != "episodes.jsonl"}
@@ -338,7 +337,7 @@ def test_a_full_disk_leaves_the_previous_report_whole_and_names_the_file(
         real(fd, bytes(data[:10]))
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(files.os, "write", full)
+    monkeypatch.setattr(os, "write", full)  # the os.write koopman_envs.files calls
     code = ev.main([*ARGS, "--out", str(out), "--resume"])
     err = capsys.readouterr().err
     assert code == ev.UNWRITABLE_OUT_EXIT, err
@@ -357,7 +356,7 @@ def test_write_atomic_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monke
     def full(fd: int, data) -> int:
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(files.os, "write", full)
+    monkeypatch.setattr(os, "write", full)  # the os.write koopman_envs.files calls
     with pytest.raises(
         OSError, match=r"No space left on device; .*results\.json was left as it was"
     ) as raised:
