@@ -53,7 +53,7 @@ declare -A MODULES=(
     [families]="evaluation/families.py|tests/test_clustered_statistics.py"
     [runlog]="evaluation/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py tests/test_duplicate_records.py tests/test_bounded_reads.py tests/test_tune.py tests/test_cli.py tests/test_evaluate.py|$SIGNALS"
     [records]="evaluation/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py tests/test_collision_fault.py tests/test_suite_runs.py tests/test_cache_entries.py tests/test_pictures.py::test_the_worker_records_the_movers_paths_and_the_figure_draws_them|$SIGNALS"
-    [published]="evaluation/published.py|tests/test_published_pages.py tests/test_bounded_reads.py|$SHELL_SCRIPT"
+    [published]="evaluation/published.py|tests/test_published_pages.py tests/test_bounded_reads.py tests/test_published_archive.py|$SHELL_SCRIPT"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
 ORDER=(perception uncertainty observed baseline statistics clustered layout_tests families runlog records published)
