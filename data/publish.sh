@@ -87,8 +87,10 @@ RUNS[lidar]="--lidar --reference koopman-nmpc"
 # obstacle and mover sets (baselines/perceived.py); Koopman-NMPC again as the reference (its rows
 # repeat the lidar run's bit for bit)
 RUNS[lidar_policies]="--lidar --solver rti --controllers koopman-nmpc rl-ppo-set rl-ppo-set-realistic rl-ppo-set-movers --reference koopman-nmpc"
+# issue 60: the ablation of the NMPC's design factors (docs/ablation.md; 640 episodes on IPOPT)
+RUNS[ablation]="--ablation"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation)
 
 run() {
     local name="$1" out="data/runs/$1"

@@ -12,8 +12,11 @@ constraints soft / hard                       exact-penalty slacks vs the paper'
 
 ``python evaluate.py --ablation [FACTOR ...]`` runs the full factorial of the named factors (the
 others held at learned / paper / soft) on the paper maps under high slip and writes
-``OUT/ablation.md`` (``--ablation-out docs/ablation.md``: the published page): success per configuration and map with intervals, and each factor's main
-effect as a paired comparison (configurations that differ only in that factor, same seeds).
+``OUT/ablation.md`` (:func:`ablation_markdown`): success per configuration and map with
+intervals, and each factor's main effect paired per episode unit (:func:`main_effects`: the
+configurations that differ only in that factor, on the same map and seed, a unit counted once).
+The published page, docs/ablation.md, is the same report of the published run
+(``bash data/publish.sh ablation``), rebuilt by ``python docs/make_pages.py docs/ablation.md``.
 """
 
 from __future__ import annotations
@@ -24,12 +27,20 @@ from typing import Any
 
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN
 from evaluation.configs import ControllerConfig
+from evaluation.layout_tests import paired_means_by_layout
 from evaluation.records import ran
 from evaluation.report import task_label
 from evaluation.results import Results
-from evaluation.statistics import paired_comparison, wilson_interval
+from evaluation.statistics import holm_adjusted, wilson_interval
 
-__all__ = ["DEFAULT_LEVELS", "FACTORS", "ablation_configs", "ablation_markdown", "check_factors"]
+__all__ = [
+    "DEFAULT_LEVELS",
+    "FACTORS",
+    "ablation_configs",
+    "ablation_markdown",
+    "check_factors",
+    "main_effects",
+]
 
 #: factor -> level -> (controller name or None, options)
 FACTORS: dict[str, dict[str, tuple[str | None, dict[str, Any]]]] = {
@@ -75,26 +86,80 @@ def ablation_configs(factors: Sequence[str] | None = None) -> list[ControllerCon
     return configs
 
 
-def _main_effect(results: Results, factor: str) -> dict[str, Any] | None:
-    """Paired comparison of the two levels of ``factor``, all else equal, on shared seeds."""
-    first, second = list(FACTORS[factor])
-    outcomes: dict[tuple, bool] = {}
+def _unit_outcomes(results: Results) -> dict[tuple, dict[str, bool]]:
+    """Every episode unit (task, map, slip and seed: the same starts and slip draws for every
+    configuration) -> configuration label -> success, of the episodes that ran."""
+    units: dict[tuple, dict[str, bool]] = {}
     for r in results.records:
         if ran(r):
-            outcomes[(r["controller"], r["env_id"], r["map"], r["slip"], r["seed"])] = bool(r["success"])
-    a, b = [], []
-    for (label, env_id, map_name, slip, seed), won in outcomes.items():
-        levels = _levels(label)
-        if levels[factor] != first:
+            units.setdefault((r["env_id"], r["map"], r["slip"], r["seed"]), {})[r["controller"]] = bool(
+                r["success"]
+            )
+    return units
+
+
+def main_effects(results: Results, factors: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """Each factor's main effect, with the episode unit as the unit.
+
+    A unit is an episode's conditions (task, map, slip level, seed), which every configuration
+    meets. For a factor with levels a and b, each configuration at a is paired with the one at b
+    that shares the other factors' levels, on the same unit; the unit's difference is the mean
+    of its pairs' differences (four with three factors), so that a unit counts once however many
+    configurations meet it (counting every pair as a sample would count each unit four times).
+    The interval is a bootstrap over units, the p-value the two-sided sign-flip test over units
+    (:func:`evaluation.layout_tests.paired_means_by_layout`, each unit its own cluster, seed 0),
+    and ``p_holm`` Holm's adjustment over the factors reported.
+
+    Returns
+    -------
+    list of dict
+        Per factor with pairs: ``factor``, ``a``, ``b``, ``units``, ``episodes`` (per level),
+        ``rate_a``, ``rate_b``, ``difference``, ``low``, ``high`` (a - b, in [-1, 1]),
+        ``units_a`` / ``units_b`` (units where a / b did better), ``p_value``, ``p_holm``.
+    """
+    units = _unit_outcomes(results)
+    effects: list[dict[str, Any]] = []
+    for factor in check_factors(factors):
+        first, second = list(FACTORS[factor])
+        a_means: list[list[float]] = []
+        b_means: list[list[float]] = []
+        episodes = 0
+        for outcomes in units.values():
+            pairs = []
+            for label, won in outcomes.items():
+                levels = _levels(label)
+                if levels[factor] != first:
+                    continue
+                other = " ".join(f"{f}={second if f == factor else levels[f]}" for f in FACTORS)
+                if other in outcomes:
+                    pairs.append((won, outcomes[other]))
+            if pairs:
+                episodes += len(pairs)
+                a_means.append([sum(a for a, _ in pairs) / len(pairs)])
+                b_means.append([sum(b for _, b in pairs) / len(pairs)])
+        if not a_means:
             continue
-        other = " ".join(f"{f}={second if f == factor else levels[f]}" for f in FACTORS)
-        partner = outcomes.get((other, env_id, map_name, slip, seed))
-        if partner is not None:
-            a.append(won)
-            b.append(partner)
-    if not a:
-        return None
-    return {"factor": factor, "a": first, "b": second, **paired_comparison(a, b).to_dict()}
+        test = paired_means_by_layout(a_means, b_means)
+        effects.append(
+            {
+                "factor": factor,
+                "a": first,
+                "b": second,
+                "units": test.units,
+                "episodes": episodes,
+                "rate_a": test.mean_a,
+                "rate_b": test.mean_b,
+                "difference": test.difference,
+                "low": max(-1.0, test.low),
+                "high": min(1.0, test.high),
+                "units_a": sum(x[0] > y[0] for x, y in zip(a_means, b_means, strict=True)),
+                "units_b": sum(x[0] < y[0] for x, y in zip(a_means, b_means, strict=True)),
+                "p_value": test.p_value,
+            }
+        )
+    for effect, adjusted in zip(effects, holm_adjusted(float(e["p_value"]) for e in effects), strict=True):
+        effect["p_holm"] = adjusted
+    return effects
 
 
 def ablation_markdown(results: Results, factors: Sequence[str] | None = None, command: str = "") -> str:
@@ -133,37 +198,45 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
         low, high = wilson_interval(total_k, total_n)
         overall = f"**{100 * total_k / total_n:.0f}%** [{100 * low:.0f}-{100 * high:.0f}]" if total_n else "-"
         lines.append(f"| {label} | " + " | ".join(row) + f" | {overall} | {failures} |")
-    effects = [e for e in (_main_effect(results, f) for f in chosen) if e is not None]
+    effects = main_effects(results, chosen)
     if effects:
         lines += [
             "",
-            "## Main effects (paired)",
+            "## Main effects (paired per episode unit)",
             "",
-            "Each row pairs every episode of a configuration at the first level with the same episode "
-            "(same map, seed, and other factors) at the second level: difference in success rate with "
-            "Newcombe's 95% interval and the exact McNemar p-value.",
+            "The unit is an episode's conditions (map, slip level, seed), which every configuration "
+            "meets. For each factor, every configuration at the first level is paired with the one at "
+            "the second that shares the other factors' levels, on the same unit, and a unit's difference "
+            "is the mean over its pairs: each unit counts once. Difference in success rate with a 95% "
+            "bootstrap interval over units; two-sided sign-flip test over units; Holm's adjustment over "
+            "the factors of the table.",
             "",
-            "| Factor | Levels (a vs b) | Pairs | Success a | Success b | a - b [95% CI] | only a / only b | p |",
-            "|---|---|---|---|---|---|---|---|",
+            "| Factor | Levels (a vs b) | Units | Episodes per level | Success a | Success b | a - b [95% CI] "
+            "| units a better / b better | p | Holm p |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for e in effects:
             lines.append(
-                f"| {e['factor']} | {e['a']} vs {e['b']} | {e['n']} | {100 * e['rate_a']:.0f}% | {100 * e['rate_b']:.0f}% | "
+                f"| {e['factor']} | {e['a']} vs {e['b']} | {e['units']} | {e['episodes']} | "
+                f"{100 * e['rate_a']:.0f}% | {100 * e['rate_b']:.0f}% | "
                 f"{100 * e['difference']:+.0f} pp [{100 * e['low']:+.0f}, {100 * e['high']:+.0f}] | "
-                f"{e['only_a']} / {e['only_b']} | {e['p_value']:.3g} |"
+                f"{e['units_a']} / {e['units_b']} | {e['p_value']:.3g} | {e['p_holm']:.3g} |"
             )
         lines += ["", "## What the numbers say", ""]
         for e in sorted(effects, key=lambda e: -abs(e["difference"])):
-            significant = e["low"] > 0 or e["high"] < 0
-            direction = "raises" if e["difference"] > 0 else "lowers"
-            verdict = (
-                f"{direction} success by {100 * abs(e['difference']):.0f} percentage points "
-                f"(95% CI {100 * e['low']:+.0f} to {100 * e['high']:+.0f}; McNemar p = {e['p_value']:.3g})"
-                if significant
-                else f"makes no difference we can distinguish from chance ({100 * e['difference']:+.0f} pp, "
-                f"95% CI {100 * e['low']:+.0f} to {100 * e['high']:+.0f}; p = {e['p_value']:.3g})"
-            )
             lines.append(
-                f"- **{e['factor']}**: {e['a']} instead of {e['b']} {verdict}, averaged over the other factors."
+                f"- **{e['factor']}**: {e['a']} instead of {e['b']} {effect_verdict(e)}, averaged over the other factors."
             )
     return "\n".join(lines) + "\n"
+
+
+def effect_verdict(effect: dict[str, Any]) -> str:
+    """What a main effect of :func:`main_effects` says, in words: its direction and size when
+    its Holm-adjusted p is below 0.05, else that it cannot be told from chance."""
+    size = f"{100 * abs(effect['difference']):.0f} percentage points"
+    interval = f"95% CI {100 * effect['low']:+.0f} to {100 * effect['high']:+.0f}"
+    tests = f"sign-flip p = {effect['p_value']:.3g}, Holm p = {effect['p_holm']:.3g}"
+    if effect["p_holm"] < 0.05:
+        direction = "raises" if effect["difference"] > 0 else "lowers"
+        return f"{direction} success by {size} ({interval}; {tests})"
+    return f"makes no difference we can distinguish from chance ({100 * effect['difference']:+.0f} pp, {interval}; {tests})"

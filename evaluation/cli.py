@@ -102,7 +102,7 @@ EXAMPLES: tuple[tuple[str, str], ...] = (
     ("--sweep comm.drop=0,0.2,0.5 --controllers consensus nominal-nmpc", "a robustness profile"),
     ("--out results --resume", "continue an interrupted run"),
     ("--baseline .ci/baseline/results.json --fail-if-worse --episodes 10", "CI: 102 if worse"),
-    ("--ablation --ablation-out docs/ablation.md", "the ablation, into the published page"),
+    ("--ablation --out results_ablation", "the ablation (its report: OUT/ablation.md)"),
     ("--options koopman-nmpc", "a controller's options, then exit"),
 )
 
