@@ -17,7 +17,7 @@ from evaluation.published import extract_archive, results_from_log
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_pages import PAGES, page_command  # noqa: E402  (docs/ is no package)
+from make_pages import PAGES, page_command, page_digest, read_digests  # noqa: E402  (docs/ is no package)
 
 
 # 25-100 s per page (each reads its archives and draws its figures): run by -m slow; the generators run
@@ -32,6 +32,8 @@ def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_pa
     )
     committed = (ROOT / entry["page"]).read_text(encoding="utf-8")
     assert page.read_text(encoding="utf-8") == committed
+    # the digest the fast check of hand edits compares with (tests/test_prose_checks.py)
+    assert read_digests()[entry["page"]] == page_digest(page.read_bytes())
     if "_static/" in committed:  # its figures too (docs/paper.md draws none)
         assert list((tmp_path / "_static").glob("*.png"))
 
