@@ -17,33 +17,11 @@ from evaluation.results import Results
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
 from make_ablation_md import page  # noqa: E402  (docs/ is no package)
+from test_fair_comparison import _record  # noqa: E402  (a hand-made episode record)
 
 #: a run of the ablation protocol with one trial per cell (32 episodes: seed 0 of every map and
 #: configuration; `python evaluate.py --ablation --episodes 1 --workers 1`, packed)
 FIXTURE = ROOT / "tests" / "data" / "ablation_trial0.tar.xz"
-
-
-def _record(label: str, map_name: str, seed: int, success: bool) -> dict:
-    return {
-        "env_id": "E",
-        "controller": label,
-        "map": map_name,
-        "slip": "high",
-        "seed": seed,
-        "trial": seed,
-        "status": "ok",
-        "success": success,
-        "collision": None if success else "obstacle",
-        "final_distance": [0.01, 0.02],
-        "final_poses": [[float(seed), 0.0, 0.0]] * 2,
-        "time_to_goal": 1.0,
-        "path_length": [1.0],
-        "control_effort": [1.0],
-        "formation_rms": None,
-        "solve_ms_median": 1.0,
-        "solve_ms_p95": 2.0,
-        "solver_failures": 0,
-    }
 
 
 def _factorial(rng: np.random.Generator, maps: int = 2, seeds: int = 5) -> tuple[Results, dict]:
@@ -56,7 +34,8 @@ def _factorial(rng: np.random.Generator, maps: int = 2, seeds: int = 5) -> tuple
             for config in ablation_configs():
                 won = bool(rng.random() < (0.8 if "widened" in config.label else 0.3))
                 outcomes[(f"map{m}", seed, config.label)] = won
-                records.append(_record(config.label, f"map{m}", seed, won))
+                record = _record(won, None if won else "obstacle", [0.01, 0.02], seed, config.label)
+                records.append({**record, "map": f"map{m}", "slip": "high", "trial": seed})
     return Results(records, {"episodes": seeds, "calibration": {"budget": 100}}), outcomes
 
 
