@@ -61,3 +61,24 @@ def test_a_run_list_that_is_not_name_equals_path_is_refused() -> None:
         parse_runs(["data/paper.tar.xz"])
     with pytest.raises(ValueError, match=re.escape("run 'a' is given twice")):
         parse_runs(["a=x.tar.xz", "a=y.tar.xz"])
+
+
+def test_the_ablation_placeholders_read_the_evaluators_main_effects() -> None:
+    """``effect``, ``effect_p`` and ``factor_table`` on the small real ablation run
+    (tests/test_ablation_units.py's fixture): what the published ablation will feed the page."""
+    from evaluation.ablation import main_effects
+    from evaluation.published import extracted_archive, results_from_log
+
+    archive = "tests/data/ablation_trial0.tar.xz"
+    runs = Runs(parse_runs([f"ablation={archive}"]))
+    with extracted_archive(ROOT / archive) as run:
+        margins = next(
+            e for e in main_effects(results_from_log(run / "episodes.jsonl")) if e["factor"] == "margins"
+        )
+    low, high = round(100 * margins["low"]), round(100 * margins["high"])
+    expected = f"{round(100 * margins['difference']):+d} [{low:+d}, {high:+d}]"
+    assert expand("{{ effect ablation margins }}", runs) == expected
+    assert expand("{{ effect_p ablation margins }}", runs).startswith("Holm p = ")
+    table = expand("{{ factor_table ablation }}", runs).splitlines()
+    assert table[0] == "| Configuration | learned model | nominal model |"
+    assert len(table) == 2 + 4 and table[2].startswith("| paper margins, soft constraints | 75% [30-95] |")
