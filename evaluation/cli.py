@@ -185,7 +185,7 @@ def _protocols(protocol: argparse._MutuallyExclusiveGroup) -> None:
     protocol.add_argument(
         "--paper-strict",
         action="store_true",
-        help="the paper's protocol with its exact NMPC: hard constraints, 0.015 m margins",
+        help="the paper's protocol with the paper's controllers exactly: hard constraints, IPOPT, no estimator, no stall resolution",
     )
     protocol.add_argument(
         "--crowd",
