@@ -17,8 +17,8 @@ import pytest
 import controllers
 import evaluate as ev
 from controllers.base import BaseController
-from evaluation.ablation import FACTORS, ablation_configs, ablation_markdown
-from evaluation.aggregate import aggregate
+from evaluation.experiments.ablation import FACTORS, ablation_configs, ablation_markdown
+from evaluation.stats.aggregate import aggregate
 from koopman_envs import BudgetExceeded, make_plant
 from koopman_envs.params import slip_lambdas
 

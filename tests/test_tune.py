@@ -17,8 +17,8 @@ from controllers import presets
 from controllers.option_spec import Search, with_search
 from controllers.presets import HAND_PRESETS, TUNED_KIND, build_preset, builtin_names, read_tuned, with_tuned
 from evaluation import tune
+from evaluation.episodes.runlog import LogError
 from evaluation.exit_codes import BAD_INPUT_EXIT
-from evaluation.runlog import LogError
 from evaluation.tune import (
     STUDY_FILE,
     StudySettings,
