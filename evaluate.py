@@ -12,12 +12,14 @@ protocol (SPEC section 5: 10 trials per cell) and prints tables 1-5. From Python
                    slips=["nominal", "high"], episodes=5, seed=0)
     print(evaluate(spec).to_markdown())
 
-This file is the command line; the work is done by the ``evaluation`` package, one job per
-module: ``spec`` (``RunSpec``: the run, its checks and its episodes), ``plan`` (one episode), ``worker`` (one episode), ``backends``
-(process pool, Ray, progress, Ctrl-C), ``runlog`` (the resumable log), ``runner``
-(``evaluate``), ``aggregate`` and ``statistics`` (cells, intervals, paired comparisons),
-``results`` and ``html`` (reports, figures, the leaderboard page), ``protocols``,
-``thresholds`` and ``ablation``.
+This file is the command line; the work is done by the ``evaluation`` package, one folder per
+concept (docs/layout.md), each imported here through its face: ``evaluation.run`` (``RunSpec``:
+the run, its checks and its episodes), ``evaluation.execution`` (workers; process pool, Ray,
+progress, Ctrl-C; ``evaluate``), ``evaluation.episodes`` (records, the resumable log),
+``evaluation.stats`` (cells, intervals, paired comparisons, robustness profiles),
+``evaluation.reports`` (``Results``: reports, figures, the leaderboard page; the baseline gate,
+thresholds, the badge), ``evaluation.experiments`` (protocols, the ablation, ``--sweep``),
+``evaluation.cli`` (the options) and ``evaluation.exit_codes``.
 
 Episodes run in worker processes; each episode's seed depends only on the base seed and its
 index in the cell, so results do not depend on the worker count. Each finished episode is
