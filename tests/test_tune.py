@@ -1,4 +1,4 @@
-"""The tuner (evaluation/tune.py, issue 60): held-out split, seeded sampling, resumable study log,
+"""The tuner (evaluation/tune/, issue 60): held-out split, seeded sampling, resumable study log,
 trial 0 the defaults, the expected-max curve, the tunable spaces and the tuned presets."""
 
 from __future__ import annotations
