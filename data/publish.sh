@@ -120,7 +120,7 @@ case "${1:-}" in
 pack)  # the episode logs and sweep manifests only: everything else is rebuilt from them
     for dir in data/runs/*/; do
         name="$(basename "$dir")"
-        python -m evaluation.published "data/runs/$name" "data/$name.tar.xz" > /dev/null
+        python -m evaluation.archive "data/runs/$name" "data/$name.tar.xz" > /dev/null
     done
     ls -la data/*.tar.xz
     ;;
@@ -131,7 +131,7 @@ unpack)  # a new machine: the committed logs back into data/runs/, to resume or 
     [ "${2:-}" = "--force" ] && force=(--force)
     mkdir -p data/runs
     for archive in data/*.tar.xz; do
-        python -m evaluation.published unpack "$archive" data/runs "${force[@]}" > /dev/null
+        python -m evaluation.archive unpack "$archive" data/runs "${force[@]}" > /dev/null
     done
     ;;
 *)

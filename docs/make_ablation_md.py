@@ -4,7 +4,7 @@ Usage (the published page's arguments are in ``data/pages.json``)::
 
     python docs/make_ablation_md.py data/ablation.tar.xz --out docs/ablation.md
 
-The page is the evaluator's own ablation report (:func:`evaluation.ablation.ablation_markdown`,
+The page is the evaluator's own ablation report (:func:`evaluation.experiments.ablation.ablation_markdown`,
 what ``python evaluate.py --ablation`` writes beside its run: the main effects paired per
 episode unit), headed by where its data are.
 """
@@ -17,9 +17,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.ablation import ablation_markdown  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.experiments.ablation import ablation_markdown  # noqa: E402
+from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
 #: the run of data/publish.sh behind the page

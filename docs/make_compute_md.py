@@ -31,8 +31,8 @@ from controllers.estimator_options import EstimatorOptions  # noqa: E402
 from controllers.mpc.config import NMPCConfig  # noqa: E402
 from controllers.mpc.margins import chance_tightening  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.published import extracted_archive  # noqa: E402
-from evaluation.statistics import PairedComparison, holm_adjusted, paired_comparison, wilson_interval  # noqa: E402
+from evaluation.reports.published import extracted_archive  # noqa: E402
+from evaluation.stats.statistics import PairedComparison, holm_adjusted, paired_comparison, wilson_interval  # noqa: E402
 from koopman_envs import ComputeCharge  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
@@ -463,7 +463,7 @@ def page(arms: dict[str, dict[Key, dict[str, Any]]], archives: list[str]) -> str
         "```bash",
         "bash data/publish.sh compute_free compute_delay compute_ipopt_delay  # resumable",
         "for run in compute_free compute_delay compute_ipopt_delay; do",
-        '    python -m evaluation.published "data/runs/$run" "data/$run.tar.xz"',
+        '    python -m evaluation.archive "data/runs/$run" "data/$run.tar.xz"',
         "done",
         "python docs/make_pages.py docs/compute.md",
         "```",

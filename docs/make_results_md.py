@@ -22,12 +22,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.baseline import load_baseline  # noqa: E402
-from evaluation.distinct import read_once  # noqa: E402
-from evaluation.figures import save_success_figures  # noqa: E402
-from evaluation.published import extracted_archive, results_from_log  # noqa: E402
-from evaluation.report import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
-from evaluation.results import Results  # noqa: E402
+from evaluation.episodes.distinct import read_once  # noqa: E402
+from evaluation.reports.baseline import load_baseline  # noqa: E402
+from evaluation.reports.figures import save_success_figures  # noqa: E402
+from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.reports.results import Results  # noqa: E402
+from evaluation.reports.sections import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
 
@@ -85,7 +85,7 @@ TABLES = [
     ("Table 5: consensus (collision avoidance on), formation", "KoopNav-Formation-v0", "consensus"),
 ]
 #: the paper's control logic (no estimator, no stall resolution) in our soft-constrained NMPC, beside
-#: Tables 1-4 (the paper's controllers exactly are ``--paper-strict``'s: evaluation.protocols.PAPER_EXACT)
+#: Tables 1-4 (the paper's controllers exactly are ``--paper-strict``'s: evaluation.experiments.protocols.PAPER_EXACT)
 PAPER_VARIANT = "-paper"
 #: the rows not in the paper: (what, controller label), each for both tasks
 EXTRA_TABLES = [
@@ -102,7 +102,7 @@ TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0":
 
 def load_results(path: str) -> dict:
     """A run's results document: a ``results.json`` (read checked, :func:`load_baseline`), or a
-    published archive (``data/NAME.tar.xz``, :mod:`evaluation.published`) whose episode log is
+    published archive (``data/NAME.tar.xz``, :mod:`evaluation.reports.published`) whose episode log is
     read back checked; its episodes each once, a conflicting repeat refused by name. The
     document's ``source`` is ``path``, for the messages of :func:`pool`."""
     if not path.endswith(".json"):  # a published archive (refused by name if it is not one)
@@ -116,7 +116,7 @@ def load_results(path: str) -> dict:
 def pool(docs: list[dict]) -> Results:
     """Every document's episodes in one :class:`Results` (the first one's configuration), each
     episode once: one in two files alike counts once, one the files disagree about is refused
-    naming both files (:func:`evaluation.distinct.read_once`)."""
+    naming both files (:func:`evaluation.episodes.distinct.read_once`)."""
     records = [r for d in docs for r in d["episodes"]]
     places = [f"{d['source']} episodes[{i}]" for d in docs for i in range(len(d["episodes"]))]
     return Results(read_once(records, "the pooled results", places), docs[0]["config"])

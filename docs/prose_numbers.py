@@ -23,15 +23,15 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 
-from evaluation.ablation import FACTORS, main_effects  # noqa: E402
-from evaluation.aggregate import paired_comparisons  # noqa: E402
-from evaluation.published import extracted_archive, results_from_log  # noqa: E402
-from evaluation.records import ran  # noqa: E402
-from evaluation.report.blocks import level_text, p_cell, rate_cell  # noqa: E402
-from evaluation.results import Results  # noqa: E402
-from evaluation.robustness import AxisProfile, LevelCost, level_costs, profiles  # noqa: E402
-from evaluation.statistics import wilson_interval  # noqa: E402
-from evaluation.sweep import load_sweep  # noqa: E402
+from evaluation.episodes.records import ran  # noqa: E402
+from evaluation.experiments.ablation import FACTORS, main_effects  # noqa: E402
+from evaluation.experiments.sweep import load_sweep  # noqa: E402
+from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.reports.results import Results  # noqa: E402
+from evaluation.reports.sections.blocks import level_text, p_cell, rate_cell  # noqa: E402
+from evaluation.stats.aggregate import paired_comparisons  # noqa: E402
+from evaluation.stats.robustness import AxisProfile, LevelCost, level_costs, profiles  # noqa: E402
+from evaluation.stats.statistics import wilson_interval  # noqa: E402
 
 __all__ = [
     "FILTERED",
@@ -157,7 +157,7 @@ def successes(run: Results, controller: str, options: Mapping[str, str]) -> tupl
 
 def _pair(run: Results, a: str, b: str, options: Mapping[str, str]) -> dict[str, Any]:
     """The paired comparison of ``a`` against ``b`` on their shared episodes (the run's own
-    pairing, :func:`evaluation.aggregate.paired_comparisons`), pooled over the filtered tasks."""
+    pairing, :func:`evaluation.stats.aggregate.paired_comparisons`), pooled over the filtered tasks."""
     records = [r for c in (a, b) for r in episodes_of(run, c, options)]
     rows = [row for row in paired_comparisons(records) if {row["a"], row["b"]} == {a, b}]
     if len(rows) != 1:
@@ -169,7 +169,7 @@ def _pair(run: Results, a: str, b: str, options: Mapping[str, str]) -> dict[str,
 
 
 def p_text(value: float, name: str = "Holm p") -> str:
-    """A p-value in a sentence, as the tables print it (:func:`evaluation.report.blocks.p_cell`):
+    """A p-value in a sentence, as the tables print it (:func:`evaluation.reports.sections.blocks.p_cell`):
     ``Holm p = 0.013``, ``Holm p < 0.001``."""
     cell = p_cell(value)
     return f"{name} {cell[0]} {cell[1:]}" if cell.startswith("<") else f"{name} = {cell}"
@@ -359,7 +359,7 @@ def _effect(runs: Runs, args: Sequence[str]) -> dict[str, Any]:
 
 def effect(runs: Runs, args: Sequence[str], options: Options) -> str:
     """``effect ABLATION FACTOR``: the factor's main effect, first level minus second, in points
-    with its 95% interval over episode units (:func:`evaluation.ablation.main_effects`)."""
+    with its 95% interval over episode units (:func:`evaluation.experiments.ablation.main_effects`)."""
     e = _effect(runs, args)
     return interval_text(e["difference"], e["low"], e["high"])
 

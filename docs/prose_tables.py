@@ -15,11 +15,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts bes
 from make_results_md import PAPER  # noqa: E402  (the paper's own tables, SPEC section 5)
 from prose_numbers import Options, Runs, check_args, ci, episodes_of, successes  # noqa: E402
 
-from evaluation.ablation import FACTORS  # noqa: E402
-from evaluation.report import markdown_table, task_label  # noqa: E402
-from evaluation.report.blocks import count_cell, rate_cell  # noqa: E402
-from evaluation.results import Results  # noqa: E402
-from evaluation.statistics import wilson_interval  # noqa: E402
+from evaluation.experiments.ablation import FACTORS  # noqa: E402
+from evaluation.reports.results import Results  # noqa: E402
+from evaluation.reports.sections import markdown_table, task_label  # noqa: E402
+from evaluation.reports.sections.blocks import count_cell, rate_cell  # noqa: E402
+from evaluation.stats.statistics import wilson_interval  # noqa: E402
 
 __all__ = ["TABLES", "factor_table", "paper_cells", "run_table", "scale_table", "slip_table", "success_table"]
 

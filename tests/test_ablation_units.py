@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evaluation.ablation import FACTORS, ablation_configs, ablation_markdown, main_effects
-from evaluation.layout_tests import layout_sign_flip_test
-from evaluation.results import Results
+from evaluation.experiments.ablation import FACTORS, ablation_configs, ablation_markdown, main_effects
+from evaluation.reports.results import Results
+from evaluation.stats.layout_tests import layout_sign_flip_test
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))

@@ -139,6 +139,15 @@ REMOVED_PATHS = (
         "adaptive_koopman_nmpc", "cache", "deprecated_paths", "distributed", "koopman_nmpc", "nmpc",
         "nominal_nmpc", "qp2", "rti", "solver_cache", "unicycle",
     )),
+    # the evaluator's root modules before its folders (issue 61, part 2): docs/ named them as
+    # modules to import from (the API page), not as commands, and the folders' faces export their
+    # names; the one documented command among them, evaluation.seeds, keeps a release (below)
+    *(f"evaluation.{name}" for name in (
+        "ablation", "aggregate", "backends", "badge", "baseline", "clustered", "configs", "distinct",
+        "families", "figures", "html", "layout_tests", "plan", "protocols", "published", "records",
+        "report", "results", "robustness", "run_data", "runlog", "runner", "slip_text", "spec",
+        "statistics", "suite_runs", "suite_statistics", "sweep", "thresholds", "worker",
+    )),
 )  # fmt: skip
 
 
@@ -149,6 +158,34 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
     import importlib.util
 
     assert importlib.util.find_spec(old) is None, f"{old} is back; import from its new module"
+
+
+#: moved module paths that docs/ told users to run, kept one release with a DeprecationWarning
+#: (CHANGELOG.md, Deprecated): old path -> new module
+DEPRECATED_PATHS = {"evaluation.seeds": "evaluation.experiments.seeds"}
+
+
+@pytest.mark.parametrize("old", sorted(DEPRECATED_PATHS))
+def test_a_deprecated_path_warns_and_still_runs_its_command(old: str, monkeypatch, capsys) -> None:
+    """Imported, the old path warns (naming the new module and the removal release) and reads the
+    new module's names; run with ``python -m``, it runs the new module's command."""
+    import importlib
+    import runpy
+
+    new = DEPRECATED_PATHS[old]
+    monkeypatch.delitem(sys.modules, old, raising=False)
+    with pytest.warns(
+        DeprecationWarning, match=rf"{old} is deprecated and will be removed in KoopNav 0\.2\.0.*{new}"
+    ):
+        module = importlib.import_module(old)
+    moved = importlib.import_module(new)
+    assert [name for name in moved.__all__ if getattr(module, name) is not getattr(moved, name)] == []
+    monkeypatch.delitem(sys.modules, old)
+    monkeypatch.setattr(sys, "argv", [old, "--help"])
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"), pytest.raises(SystemExit) as exited:
+        runpy.run_module(old, run_name="__main__")
+    assert exited.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: python -m {new}")
 
 
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
@@ -255,3 +292,79 @@ def test_the_other_packages_use_the_environments_through_their_face() -> None:
 def test_every_public_module_exists() -> None:
     modules = _modules()
     assert sorted(set(PUBLIC_MODULES) - set(modules)) == []
+
+
+#: the evaluator's folders, lowest first (docs/layout.md): a module imports its own folder or a
+#: lower one, never a higher one (type-only and function-level imports included)
+EVAL_LAYERS = ("base", "episodes", "run", "stats", "reports", "execution", "experiments", "commands")
+#: the root modules of the base layer: the exit codes, which every command line reads (baselines'
+#: and docs' too), whatever its floor
+EVAL_BASE = {"exit_codes"}
+#: the command lines, on top: evaluate.py's options, the commands at the root and the tuner
+EVAL_COMMANDS = {"cli", "forget", "archive", "seeds", "tune"}
+
+
+def _eval_layer(module: str) -> int | None:
+    """The layer of an ``evaluation`` module; the package itself (its face, which imports the
+    runner) is a command's."""
+    parts = module.split(".")
+    if parts[0] != "evaluation":
+        return None
+    if len(parts) == 1 or parts[1] in EVAL_COMMANDS:
+        return EVAL_LAYERS.index("commands")
+    if len(parts) == 2 and parts[1] in EVAL_BASE:
+        return 0
+    if parts[1] in EVAL_LAYERS:
+        return EVAL_LAYERS.index(parts[1])
+    raise AssertionError(f"{module} belongs to no layer of EVAL_LAYERS: place it in a folder")
+
+
+def test_the_evaluator_imports_only_downwards() -> None:
+    """No upward import between the evaluator's folders, and none of a module's own folder's face
+    (a module imports its neighbours by their module: the face imports them all)."""
+    modules = _modules()
+    upward = []
+    for name, path in modules.items():
+        source = _eval_layer(name)
+        if source is None:
+            continue
+        folder = ".".join(name.split(".")[:2])
+        for target in _imports(path, modules):
+            layer = _eval_layer(target)
+            if layer is not None and layer > source:
+                upward.append(f"{name} ({EVAL_LAYERS[source]}) -> {target} ({EVAL_LAYERS[layer]})")
+            if target == folder and name != folder and EVAL_LAYERS[source] != "commands":
+                upward.append(f"{name} -> its own folder's face {folder}")
+    assert upward == [], "upward imports:\n" + "\n".join(upward)
+
+
+#: the folders whose package is a face, and the modules a face leaves out: a command (its main and
+#: aggregate would be ambiguous beside the others')
+EVAL_FACES = {
+    "episodes": (),
+    "run": (),
+    "stats": (),
+    "reports": (),
+    "execution": (),
+    "experiments": ("seeds",),
+}
+
+
+@pytest.mark.parametrize("folder", sorted(EVAL_FACES))
+def test_every_evaluator_folder_is_the_face_of_its_modules(folder: str) -> None:
+    """A folder's package exports the public names (``__all__``) of its modules and subfolders,
+    except a name that is also a submodule's, which stays the module (``evaluation.stats.aggregate``
+    is the module, its function ``aggregate`` is read from there)."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    package = importlib.import_module(f"evaluation.{folder}")
+    found = [m.name for m in pkgutil.iter_modules(package.__path__) if m.name not in EVAL_FACES[folder]]
+    expected: dict[str, object] = {}
+    for name in found:
+        module = importlib.import_module(f"evaluation.{folder}.{name}")
+        expected.update({n: getattr(module, n) for n in module.__all__ if n not in found})
+    assert sorted(package.__all__) == sorted(expected)
+    assert [n for n in package.__all__ if getattr(package, n) is not expected[n]] == []
+    assert [n for n in found if not inspect.ismodule(getattr(package, n))] == []

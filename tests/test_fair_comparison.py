@@ -17,8 +17,8 @@ import pytest
 import controllers
 import evaluate as ev
 from controllers.base import BaseController
-from evaluation.ablation import FACTORS, ablation_configs, ablation_markdown
-from evaluation.aggregate import aggregate
+from evaluation.experiments.ablation import FACTORS, ablation_configs, ablation_markdown
+from evaluation.stats.aggregate import aggregate
 from koopman_envs import BudgetExceeded, make_plant
 from koopman_envs.params import slip_lambdas
 
@@ -235,7 +235,7 @@ def test_paper_strict_builds_the_papers_controllers_exactly() -> None:
     """``--paper-strict`` is the paper's controller as the paper built it (SPEC section 3): an OCP
     with hard constraints and the 0.015 m offset toward obstacles only, solved by IPOPT with no
     rescue, no estimator in front and no stall resolution, whatever ``--solver`` says."""
-    from evaluation.configs import with_solver
+    from evaluation.run.configs import with_solver
 
     protocol = ev.paper_protocol(strict=True)
     configs = with_solver(protocol.controllers, "rti", "ipopt")  # --solver rti --fallback-solver ipopt

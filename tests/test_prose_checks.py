@@ -23,8 +23,8 @@ from pathlib import Path
 import pytest
 
 import controllers as registry
-from evaluation.protocols import QUICK_SLIPS, TASK_MAPS, quick_protocol
-from evaluation.runner import usable_controllers
+from evaluation.execution.runner import usable_controllers
+from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_protocol
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
@@ -40,7 +40,7 @@ EXTRA_MODULES = {"rl": "stable_baselines3", "crowd": "pyrvo"}
 def quick_counts(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
     """The quick leaderboard's episodes with the core install, and what each extra adds: the
     controllers the evaluator can build with every extra's module missing
-    (:func:`evaluation.runner.usable_controllers`), the others by the extra their refusal names,
+    (:func:`evaluation.execution.runner.usable_controllers`), the others by the extra their refusal names,
     each times the episodes the quick plan gives one controller."""
     for module in EXTRA_MODULES.values():
         monkeypatch.setitem(sys.modules, module, None)  # an import of it now raises ImportError
@@ -162,7 +162,7 @@ def _figure(match: re.Match[str], sources: dict) -> list[str]:
 
 
 def _intervals(match: re.Match[str], sources: dict) -> list[str]:
-    from evaluation.statistics import wilson_interval
+    from evaluation.stats.statistics import wilson_interval
 
     default = wilson_interval.__defaults__
     return (

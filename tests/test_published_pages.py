@@ -1,4 +1,4 @@
-"""Published data (evaluation/published.py, data/*.tar.xz): every page listed in data/pages.json
+"""Published data (evaluation/reports/published.py, data/*.tar.xz): every page listed in data/pages.json
 is rebuilt by its generator from the committed episode logs, byte for byte; an archive that is
 not what KoopNav packs is refused by name."""
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from evaluation.published import extract_archive, results_from_log
+from evaluation.reports.published import extract_archive, results_from_log
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
@@ -82,7 +82,7 @@ def test_an_archive_of_another_name_or_compression_is_refused_by_name(tmp_path) 
 
 
 def test_packing_is_reproducible_and_reads_back(tmp_path) -> None:
-    from evaluation.published import pack_run
+    from evaluation.reports.published import pack_run
 
     run = extract_archive(ROOT / "data" / "scale_n3.tar.xz", tmp_path / "run")
     again = pack_run(run, tmp_path / "again.tar.xz")
