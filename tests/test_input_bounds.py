@@ -215,7 +215,7 @@ def test_a_corrupt_observation_normalization_is_refused_at_load(
     tmp_path: Path, change: Any, message: str
 ) -> None:
     pytest.importorskip("stable_baselines3")
-    from baselines.policy import SHIPPED, PolicyLoadError, load_policy
+    from baselines.sb3.policy import SHIPPED, PolicyLoadError, load_policy
 
     source = SHIPPED / "formation"
     target = tmp_path / "formation"

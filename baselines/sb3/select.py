@@ -1,10 +1,10 @@
 """Pick the policy of a training run by its success on held-out random maps.
 
-``python -m baselines.select --run runs/formation --out baselines/policies/formation``
+``python -m baselines.sb3.select --run runs/formation --out baselines/policies/formation``
 
 PPO's deterministic policy swings from one checkpoint to the next, so the last one is not
 necessarily the best. This command scores the final policy and every checkpoint of a run
-(``baselines.train`` writes them) on a fixed validation set: ``--episodes`` random layouts of
+(``baselines.sb3.train`` writes them) on a fixed validation set: ``--episodes`` random layouts of
 the run's training distribution (same generator settings, random slip) with seeds far from any
 training seed, never the paper maps that the evaluator reports on. The best (ties: the later
 one) is written to ``--out`` with the run's metadata plus the whole validation table.
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from baselines.curriculum import VALIDATION
-from baselines.policy import PolicyFiles, load_policy, success_rate
-from baselines.set_features import SetFeatureConfig
+from baselines.features.set_features import SetFeatureConfig
+from baselines.sb3.policy import PolicyFiles, load_policy, success_rate
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from koopman_envs.files import write_atomic
 
@@ -100,8 +100,10 @@ def candidates(run: Path) -> list[tuple[int, Path]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m baselines.select", description=__doc__.split("\n")[0])
-    parser.add_argument("--run", required=True, help="output directory of python -m baselines.train")
+    parser = argparse.ArgumentParser(
+        prog="python -m baselines.sb3.select", description=__doc__.split("\n")[0]
+    )
+    parser.add_argument("--run", required=True, help="output directory of python -m baselines.sb3.train")
     parser.add_argument("--out", required=True, help="where to write the selected policy")
     parser.add_argument("--episodes", type=int, default=100, help="validation layouts")
     args = parser.parse_args(argv)
@@ -124,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     shutil.copyfile(source.norm, target.norm)
     selected = dict(metadata)
     selected["selection"] = {
-        "command": "python -m baselines.select " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": "python -m baselines.sb3.select " + " ".join(argv if argv is not None else sys.argv[1:]),
         "rule": (
             f"best mean success on {args.episodes} held-out random layouts split over the validation "
             f"cells of baselines.curriculum.VALIDATION (seeds {VALIDATION_SEED}+); ties go to the later policy"

@@ -12,9 +12,15 @@ from typing import Any, ClassVar, TypedDict, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.inference import command_of, deterministic_action, policy_command, policy_inputs, success_rate
+from baselines.features.set_features import MAX_TEAM, SetFeatureConfig
 from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model, load_npz, read_json
-from baselines.set_features import MAX_TEAM, SetFeatureConfig
+from baselines.sb3.inference import (
+    command_of,
+    deterministic_action,
+    policy_command,
+    policy_inputs,
+    success_rate,
+)
 from controllers.base import BaseController
 from koopman_envs import TASKS, Observed
 from koopman_envs.checks import Range
@@ -39,10 +45,10 @@ __all__ = [
     "success_rate",
 ]
 
-SHIPPED = Path(__file__).resolve().parent / "policies"
+SHIPPED = Path(__file__).resolve().parents[1] / "policies"
 REGENERATE = (
-    "python -m baselines.train --env {env_id} --algo {algo} --out runs/{task}` then "
-    "`python -m baselines.select --run runs/{task} --out baselines/policies/{task}"
+    "python -m baselines.sb3.train --env {env_id} --algo {algo} --out runs/{task}` then "
+    "`python -m baselines.sb3.select --run runs/{task} --out baselines/policies/{task}"
 )
 TASK_ENV = {name: spec.env_id for name, spec in TASKS.items()}  # the task table's ids
 
@@ -189,7 +195,7 @@ _LOADED: dict[tuple, tuple[Any, dict, dict, Any]] = {}
 def _loaded_policy(directory: Path, task: str, algo: str, allow_pickle: bool) -> tuple[Any, dict, dict, Any]:
     """:func:`load_policy`'s (model, norm, metadata) and the model's compiled actor (the model
     itself when it does not compile), loaded once per process for unchanged files."""
-    from baselines.actor import compile_actor
+    from baselines.sb3.actor import compile_actor
 
     folder = os.path.abspath(directory)
     stamps: list[tuple[int, int] | None] = []
@@ -294,7 +300,7 @@ class RLPolicyController(BaseController):
         sc = self.scenario  # the planner's: under lidar with the map unknown, the local map's obstacles
         assert sc is not None  # act() checked it
         if sc.lidar_beams:  # the perceived obstacles and movers, listed as a state env lists them
-            from baselines.perceived import LISTED_MOVERS, perceived_blocks
+            from baselines.features.perceived import LISTED_MOVERS, perceived_blocks
 
             return perceived_blocks(observed, sc).astype(np.float32), LISTED_MOVERS
         return observation, sc.mover_slots
@@ -358,7 +364,7 @@ class RLPolicyController(BaseController):
         (their observations stacked through :func:`policy_inputs`, one forward pass of the
         compiled actor, :func:`command_of`): equal, bit for bit, to each controller's
         :meth:`act`, since every step acts on each row alone (elementwise arithmetic, per-row
-        sorts, the actor's batch-independent rows, :mod:`baselines.actor`). Each team's decision
+        sorts, the actor's batch-independent rows, :mod:`baselines.sb3.actor`). Each team's decision
         time is its own preparation plus its share of the batch's computation."""
         if not all(isinstance(c, RLPolicyController) for c in controllers):
             return super().act_many(controllers, observations, infos)
@@ -392,7 +398,7 @@ class RLSetPolicyController(RLPolicyController):
     """The set-encoder PPO policies (``rl-ppo-set``): one network for any team size and layout.
 
     Each robot reads its own state and goal and the sets of its nearest team-mates and obstacles
-    (:mod:`baselines.set_features`), encoded by :class:`baselines.set_encoder.SetEncoder`; the
+    (:mod:`baselines.features.set_features`), encoded by :class:`baselines.sb3.set_encoder.SetEncoder`; the
     policies were trained on the random-layout curriculum of :mod:`baselines.curriculum`.
     Parameters as :class:`RLPolicyController`; the default ``policy_root`` is
     ``baselines/policies/set``.
@@ -401,7 +407,7 @@ class RLSetPolicyController(RLPolicyController):
     name = "rl-ppo-set"
     #: the folder under ``baselines/policies`` of the shipped policies this name loads
     shipped = "set"
-    #: under lidar a set policy reads the perceived obstacles and movers (:mod:`baselines.perceived`)
+    #: under lidar a set policy reads the perceived obstacles and movers (:mod:`baselines.features.perceived`)
     perceives = True
 
     def __init__(
@@ -427,7 +433,7 @@ class RLSetMoversPolicyController(RLSetPolicyController):
     """``rl-ppo-set-movers``: set policies trained from scratch with 4 constant-velocity movers
     (0.3 m/s) in every stage of the curriculum, which they see as a third set (each mover's
     body-frame offset, velocity and clearance), and a proximity cost within 0.5 m of a mover
-    (``baselines.train --movers ... --mover-shaping 0.3``; ``baselines/policies/set_movers``;
+    (``baselines.sb3.train --movers ... --mover-shaping 0.3``; ``baselines/policies/set_movers``;
     docs/rl.md). In an env without movers the mover set is empty (masked)."""
 
     name = "rl-ppo-set-movers"

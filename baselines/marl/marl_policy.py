@@ -1,14 +1,14 @@
 """``mappo`` (and ``ippo``): multi-agent PPO policies trained with BenchMARL, played as controllers.
 
-Each policy was trained by ``python -m baselines.benchmarl_train`` (BenchMARL's MAPPO on the
-task's batched vector env, :mod:`baselines.torchrl_env`; the command, seed, frames, wall time
+Each policy was trained by ``python -m baselines.marl.benchmarl_train`` (BenchMARL's MAPPO on the
+task's batched vector env, :mod:`baselines.marl.torchrl_env`; the command, seed, frames, wall time
 and evaluation curve are in its ``metadata.json``) and exported as numpy arrays
 (``policy.npz``: the shared actor MLP's layers and the action bounds, read without pickle). The
 controller runs that actor on every robot's own observation block, deterministically, as
 BenchMARL's deterministic exploration does: ``Tanh`` MLP, the first half of its output is the
 location of a ``TanhNormal``, and the action is ``low + (high - low) (tanh(loc) + 1) / 2``
 (checked against BenchMARL's own policy in tests/test_marl_policy.py). A policy trained with
-``--features`` reads its block with :func:`baselines.robot_features.robot_features` appended, as
+``--features`` reads its block with :func:`baselines.features.robot_features.robot_features` appended, as
 in training. numpy only: neither torch nor BenchMARL is needed to play it.
 
 The actor takes the block of the team size it was trained with (3 robots, the env's default
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.robot_features import FEATURE_SETS, feature_count, robot_features
+from baselines.features.robot_features import FEATURE_SETS, feature_count, robot_features
 from baselines.safe_load import PolicyLoadError, load_npz, read_json
 from controllers.base import BaseController
 from koopman_envs import Observed
@@ -34,7 +34,7 @@ from koopman_envs.scenario import Scenario
 
 __all__ = ["IppoController", "MappoController", "actor_command"]
 
-SHIPPED = Path(__file__).resolve().parent / "policies"
+SHIPPED = Path(__file__).resolve().parents[1] / "policies"
 #: the parts of a block a policy trained without them does not read
 _DROPPED = ("messages", "movers")
 
@@ -78,7 +78,7 @@ class MappoController(BaseController):
         if not self.policy_root.is_dir():
             raise ValueError(
                 f"{self.name}: no trained policies in {self.policy_root}; train one with "
-                f"`python -m baselines.benchmarl_train --algorithm {self.shipped} --task target_reaching --out DIR`"
+                f"`python -m baselines.marl.benchmarl_train --algorithm {self.shipped} --task target_reaching --out DIR`"
             )
         self._loaded: dict[str, tuple[dict[str, NDArray[Any]], dict[str, Any]]] = {}
 

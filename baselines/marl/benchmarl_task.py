@@ -7,7 +7,7 @@ builds TorchRL envs; this one wraps KoopNav's PettingZoo parallel env in TorchRL
     from benchmarl.algorithms import MappoConfig
     from benchmarl.experiment import Experiment, ExperimentConfig
     from benchmarl.models.mlp import MlpConfig
-    from baselines.benchmarl_task import KoopNavTask
+    from baselines.marl.benchmarl_task import KoopNavTask
 
     task = KoopNavTask.FORMATION.get_task()          # the defaults of TASK_CONFIGS["formation"]
     task.config.update({"n_robots": 5, "slip": "high"})  # any env keyword
@@ -28,13 +28,13 @@ BenchMARL's MPE tasks) and :func:`write_task_yaml` writes them as BenchMARL's YA
 
 ``vectorized`` (default True, not an env keyword) picks how BenchMARL gets its batch of
 environments: True, one compiled vector env as one batched TorchRL env
-(:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`, as VMAS does); False, one PettingZoo
+(:class:`baselines.marl.torchrl_env.KoopNavMultiAgentEnv`, as VMAS does); False, one PettingZoo
 env per TorchRL env, which BenchMARL batches with a ``SerialEnv`` (every environment stepped
 through Python: about a tenth of the frames per second, ``bench/benchmarl_speed.py``). With the
 vector env, ``collision_penalty``, ``precision_shaping`` and ``mover_shaping`` (not env keywords
 either; default 0) add the training terms the PPO policies train with (:mod:`baselines.shaping`),
 and ``observation_stats`` (``[mean, std]``, lists per entry of a robot's block) standardizes the
-observations (:class:`baselines.torchrl_env.KoopNavMultiAgentEnv`); ``reward_scale`` (either
+observations (:class:`baselines.marl.torchrl_env.KoopNavMultiAgentEnv`); ``reward_scale`` (either
 path) multiplies the rewards before BenchMARL uses them.
 """
 
@@ -83,7 +83,7 @@ class KoopNavTaskClass(TaskClass):
         name = self.name.lower()
         if config.pop("vectorized", True):
             # every environment in one compiled vector env: BenchMARL takes it as already batched
-            from baselines.torchrl_env import KoopNavMultiAgentEnv
+            from baselines.marl.torchrl_env import KoopNavMultiAgentEnv
 
             config["max_episode_steps"] = config.pop("max_cycles", 600)
             stats = config.pop("observation_stats", None)  # [mean, std] lists (a YAML-able config)

@@ -21,7 +21,7 @@ reads instead, for every robot i, a fixed-size vector built from the team's bloc
     of the centre, body-frame velocity, clearance, then a mask entry. A policy without mover
     slots runs in an env with movers too: it does not see them.
 
-Absent slots hold zeros and mask 0; the set encoder (:mod:`baselines.set_encoder`) multiplies
+Absent slots hold zeros and mask 0; the set encoder (:mod:`baselines.sb3.set_encoder`) multiplies
 every slot's encoding by its mask before pooling, so an absent slot's values change nothing.
 Every entry is scaled by hand to order one, so the features need no running normalization
 (which would also move the masks).

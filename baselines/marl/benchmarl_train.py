@@ -1,10 +1,10 @@
 """Train a multi-agent PPO policy (MAPPO or IPPO) with BenchMARL on a KoopNav task and export it
-for the ``mappo`` / ``ippo`` controllers (:mod:`baselines.marl_policy`).
+for the ``mappo`` / ``ippo`` controllers (:mod:`baselines.marl.marl_policy`).
 
-    python -m baselines.benchmarl_train --task target_reaching --algorithm mappo \\
+    python -m baselines.marl.benchmarl_train --task target_reaching --algorithm mappo \\
         --frames 6_000_000 --out runs/mappo_tr
 
-BenchMARL trains on the task's batched vector env (:mod:`baselines.torchrl_env`) with its own
+BenchMARL trains on the task's batched vector env (:mod:`baselines.marl.torchrl_env`) with its own
 algorithm and network defaults (MLP 256x256 with Tanh, parameters shared by the robots, a
 centralised critic for MAPPO) except the batch settings below, which the vector env makes
 cheap: ``--envs`` environments, 60,000 frames per iteration, 10 PPO epochs of 4,000-frame
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from baselines.benchmarl_options import ALGORITHMS, build_parser
+from baselines.marl.benchmarl_options import ALGORITHMS, build_parser
 from baselines.suite_training import choose, keep_chosen
 from evaluation.exit_codes import SUCCESS_EXIT
 from koopman_envs.files import write_atomic
@@ -147,7 +147,7 @@ def _experiment(
     import torch
     from benchmarl.experiment import ExperimentConfig
 
-    from baselines.benchmarl_task import KoopNavTask
+    from baselines.marl.benchmarl_task import KoopNavTask
 
     torch.set_num_threads(args.threads)
     task = getattr(KoopNavTask, args.task.upper()).get_task()
@@ -209,8 +209,8 @@ def _statistics(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | Non
     ``--normalize-observations``: every stage standardizes with the same figures."""
     if not args.normalize_observations:
         return None
-    from baselines.benchmarl_task import _ENV_IDS
-    from baselines.torchrl_env import observation_statistics
+    from baselines.marl.benchmarl_task import _ENV_IDS
+    from baselines.marl.torchrl_env import observation_statistics
 
     return observation_statistics(_ENV_IDS[args.task], features=_features(args), **_final_env(args))
 
@@ -218,7 +218,7 @@ def _statistics(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | Non
 def _final_env(args: argparse.Namespace) -> dict[str, Any]:
     """The env keywords of the layouts the training ends on (the last stage of ``--curriculum`` or
     ``--stages``, or the task's defaults), with ``--env-kwargs`` over them."""
-    from baselines.benchmarl_task import TASK_CONFIGS
+    from baselines.marl.benchmarl_task import TASK_CONFIGS
 
     plan = training_plan(args)
     if plan is not None:
@@ -376,7 +376,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     _check_settings(args, parser)
-    from baselines.benchmarl_suite import SuiteCheckpoints, suite_training
+    from baselines.marl.benchmarl_suite import SuiteCheckpoints, suite_training
 
     training = suite_training(args, parser)  # the test split refused by name, before any work
     if args.max_cycles is None:
@@ -384,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
-    command = "python -m baselines.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv)
+    command = "python -m baselines.marl.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv)
     start = time.perf_counter()
     stats = _statistics(args)
 

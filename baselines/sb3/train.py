@@ -1,11 +1,11 @@
 """Train a stable-baselines3 policy on a KoopNav task.
 
-``python -m baselines.train --env KoopNav-Formation-v0 --out runs/formation``
+``python -m baselines.sb3.train --env KoopNav-Formation-v0 --out runs/formation``
 
 Trains PPO on the native vector env with random maps and random slip levels per episode (so
 that the policy generalizes to the evaluation maps instead of memorizing them), with normalized
 observations and rewards (SB3's ``VecNormalize``) and actions in [-1, 1]. By default one policy
-is shared by every robot (``--layout robot``, see :mod:`baselines.vec_env`), with training-side
+is shared by every robot (``--layout robot``, see :mod:`baselines.sb3.vec_env`), with training-side
 shaping (per-robot collision credit, a log-distance potential) recorded in the metadata. Logs go
 to ``OUT/progress.csv`` (no TensorBoard); checkpoints to ``OUT/checkpoints``; every
 ``--eval-freq`` steps the deterministic policy is evaluated on the task's paper maps at nominal
@@ -33,12 +33,12 @@ import numpy as np
 
 import koopman_envs
 from baselines.curriculum import PARTS, STAGES, stage_parts
-from baselines.fine_tune import copy_weights, mismatches
-from baselines.policy import ObsNorm, norm_of, save_policy, success_rate
-from baselines.set_features import SetFeatureConfig
+from baselines.features.set_features import SetFeatureConfig
+from baselines.sb3.fine_tune import copy_weights, mismatches
+from baselines.sb3.policy import ObsNorm, norm_of, save_policy, success_rate
+from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
+from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
-from baselines.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
-from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from koopman_envs import TASKS
 
@@ -187,7 +187,7 @@ class Trainer:
         # noise mostly produces early collisions
         policy_kwargs: dict = {"net_arch": args.net, "log_std_init": args.log_std_init}
         if self.set_config is not None:
-            from baselines.set_encoder import SetEncoder
+            from baselines.sb3.set_encoder import SetEncoder
 
             policy_kwargs["features_extractor_class"] = SetEncoder
             policy_kwargs["features_extractor_kwargs"] = {
@@ -245,10 +245,10 @@ class Trainer:
         """Copy the weights of the policy in ``directory`` into ``model`` (fine-tuning).
 
         The policy is loaded without running its pickles and must match this run's task, policy
-        kind, features and network (:mod:`baselines.fine_tune`: a set policy may grow mover
+        kind, features and network (:mod:`baselines.sb3.fine_tune`: a set policy may grow mover
         slots); a mismatch is refused by name before any training.
         """
-        from baselines.policy import load_policy
+        from baselines.sb3.policy import load_policy
 
         loaded, _, metadata = load_policy(directory, self.task, self.args.algo)
         wrong = mismatches(metadata, self._init_requirements())
@@ -295,7 +295,7 @@ class Trainer:
             return label, evaluate_policy_on_maps(
                 model, policy_norm, args.env, args.layout, args.features, episodes_per_map
             )
-        from baselines.select import set_validation_success
+        from baselines.sb3.select import set_validation_success
 
         return "validation success (held-out random layouts)", set_validation_success(
             model, dict(policy_norm), self.identity, episodes_per_cell=args.validation_episodes
@@ -333,7 +333,7 @@ class Trainer:
 
     def learn(self, model: Any, venv: Any) -> Any:
         """Train (stage by stage on the curriculum for the set policy); returns the last env."""
-        from baselines.training_callbacks import PeriodicCheckpoints
+        from baselines.sb3.training_callbacks import PeriodicCheckpoints
 
         args = self.args
         callback = PeriodicCheckpoints(
@@ -372,7 +372,7 @@ class Trainer:
             "precision_shaping": args.precision_shaping,
             "mover_shaping": args.mover_shaping,
             "n_robots": team_size,
-            "command": "python -m baselines.train "
+            "command": "python -m baselines.sb3.train "
             + " ".join(self.argv if self.argv is not None else sys.argv[1:]),
             "seed": args.seed,
             "timesteps": args.timesteps,

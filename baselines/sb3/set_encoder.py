@@ -1,6 +1,6 @@
 """A permutation-invariant set encoder as a stable-baselines3 features extractor (deep sets).
 
-Each robot's set observation (:mod:`baselines.set_features`) is split into its ego entries and
+Each robot's set observation (:mod:`baselines.features.set_features`) is split into its ego entries and
 two sets, team-mates and obstacles, and a third, movers, for a policy that reads them. Every element of a set goes through the same small MLP;
 the encodings are multiplied by the element's mask and pooled by their mean and their maximum
 (both ignore the order of the elements, and a masked element contributes zero to both since
@@ -22,7 +22,7 @@ from gymnasium import spaces
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
-from baselines.set_features import (
+from baselines.features.set_features import (
     MOVER_SIZE,
     NEIGHBOUR_SIZE,
     OBSTACLE_SIZE,
@@ -65,7 +65,7 @@ class SetEncoder(BaseFeaturesExtractor):
     observation_space : gymnasium.spaces.Box
         Of shape (``SetFeatureConfig(**set_config).size``,).
     set_config : dict
-        The :class:`~baselines.set_features.SetFeatureConfig` fields the observations were built with.
+        The :class:`~baselines.features.set_features.SetFeatureConfig` fields the observations were built with.
     width : int
         Width of every encoder layer.
     """
