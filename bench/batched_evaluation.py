@@ -63,8 +63,7 @@ def actor_speed(rows: list[int]) -> None:
     import numpy as np
     import torch
 
-    from baselines.sb3.actor import compile_actor
-    from baselines.sb3.policy import SHIPPED, load_policy
+    from baselines import SHIPPED, compile_actor, load_policy
 
     torch.set_num_threads(1)
     print("| policy | rows | compiled [us] | torch [us] | torch / compiled |")

@@ -24,7 +24,7 @@ def frames_per_second(vectorized: bool, envs: int, frames: int, iters: int) -> f
     import torch
     from benchmarl.experiment import ExperimentConfig
 
-    from baselines.marl.benchmarl_task import KoopNavTask
+    from baselines import KoopNavTask
     from baselines.marl.benchmarl_train import experiment
 
     torch.set_num_threads(1)

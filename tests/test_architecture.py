@@ -255,3 +255,115 @@ def test_the_other_packages_use_the_environments_through_their_face() -> None:
 def test_every_public_module_exists() -> None:
     modules = _modules()
     assert sorted(set(PUBLIC_MODULES) - set(modules)) == []
+
+
+#: baselines' layers (docs/layout.md), lowest first: the root's modules both families share <
+#: features/ (what a policy reads) < the two families, sb3/ and marl/, beside each other (neither
+#: imports the other). The package itself is the face on top (nothing inside imports it but the
+#: deprecated stubs), so every module is importable without the others' libraries.
+BASELINES_LAYERS = {"": 0, "features": 1, "sb3": 2, "marl": 2}
+#: the previous release's module paths of baselines/, kept one release as stub modules at the root
+#: (CHANGELOG.md, Deprecated; removed in 0.2.0): named in docs/api/baselines.md, docs/rl.md, the
+#: installed controllers' entry points, or documented as commands (python -m baselines.train)
+DEPRECATED_PATHS = {
+    "baselines.policy": "baselines.sb3.policy",
+    "baselines.set_encoder": "baselines.sb3.set_encoder",
+    "baselines.train": "baselines.sb3.train",
+    "baselines.select": "baselines.sb3.select",
+    "baselines.set_features": "baselines.features.set_features",
+    "baselines.benchmarl_task": "baselines.marl.benchmarl_task",
+    "baselines.benchmarl_train": "baselines.marl.benchmarl_train",
+    "baselines.marl_policy": "baselines.marl.marl_policy",
+}
+#: the deprecated paths that are commands: python -m OLD runs python -m NEW
+DEPRECATED_COMMANDS = ("baselines.train", "baselines.select", "baselines.benchmarl_train")
+
+
+def _baselines_layer(module: str) -> tuple[int, str]:
+    """The layer and folder of a ``baselines`` module below the face."""
+    parts = module.split(".")
+    folder = parts[1] if len(parts) > 2 else ""
+    if folder not in BASELINES_LAYERS:
+        raise AssertionError(f"{module} is in no folder of BASELINES_LAYERS: place it in one")
+    return BASELINES_LAYERS[folder], folder
+
+
+def test_baselines_import_only_downwards() -> None:
+    modules = _modules()
+    wrong = []
+    for name, path in modules.items():
+        if not name.startswith("baselines.") or name in DEPRECATED_PATHS:
+            continue
+        layer, folder = _baselines_layer(name)
+        for target in _imports(path, modules):
+            if target == "baselines" or target in DEPRECATED_PATHS:
+                wrong.append(f"{name} -> {target} (the face or a deprecated path)")
+            elif target.startswith("baselines."):
+                other_layer, other_folder = _baselines_layer(target)
+                if other_layer > layer or (other_layer == layer and other_folder != folder):
+                    wrong.append(f"{name} ({folder or 'root'}) -> {target} ({other_folder or 'root'})")
+    assert wrong == [], "baselines imports against its layers:\n" + "\n".join(wrong)
+
+
+def test_the_baselines_root_holds_the_shared_modules_and_the_stubs_only() -> None:
+    """The root's modules are the four both families use and the deprecated stubs; the rest live
+    in the folders of BASELINES_LAYERS."""
+    root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
+    stubs = {old.split(".")[1] for old in DEPRECATED_PATHS}
+    assert root - stubs == {"shaping", "curriculum", "suite_training", "safe_load"}
+    assert stubs <= root
+
+
+@pytest.mark.parametrize("old", sorted(DEPRECATED_PATHS))
+def test_a_deprecated_baselines_path_warns_and_names_its_new_module(old: str) -> None:
+    """Importing the old path warns (naming the new module and the removal release); its names are
+    read from the new module, which exists (and has the command's ``main``)."""
+    import importlib
+    import importlib.util
+
+    new = DEPRECATED_PATHS[old]
+    spec = importlib.util.find_spec(new)
+    assert spec is not None and spec.origin, f"{old} forwards to {new}, which is no module"
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=rf"{old} is deprecated .* 0\.2\.0; import from {new}"):
+        stub = importlib.import_module(old)
+    sys.modules.pop(old, None)  # the next import warns again
+    assert stub.__getattr__.__qualname__.startswith("_moved_module")
+    if old in DEPRECATED_COMMANDS:  # the command runs the new module's main()
+        text = (ROOT / "baselines" / f"{old.split('.')[1]}.py").read_text()
+        assert f'if __name__ == "__main__":\n    _run_moved_command("{old}", "{new}")' in text
+        target = ast.parse(Path(spec.origin).read_text())
+        assert any(isinstance(n, ast.FunctionDef) and n.name == "main" for n in target.body)
+
+
+def test_a_deprecated_module_reads_its_names_from_the_new_module() -> None:
+    import importlib
+
+    import baselines.features.set_features as new
+
+    sys.modules.pop("baselines.set_features", None)
+    with pytest.warns(DeprecationWarning):
+        old = importlib.import_module("baselines.set_features")
+    assert old.SetFeatureConfig is new.SetFeatureConfig and old.set_features is new.set_features
+    assert set(new.__all__) == set(dir(old))
+    with pytest.raises(AttributeError, match="no_such_name"):
+        old.no_such_name  # noqa: B018 - the read is the test
+
+
+def test_a_deprecated_command_runs_the_new_one(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``python -m baselines.select --help`` (run in this process) warns and prints the help of
+    ``python -m baselines.sb3.select``, exit code 0."""
+    import runpy
+
+    monkeypatch.setattr(sys, "argv", ["select", "--help"])
+    monkeypatch.delitem(sys.modules, "baselines.select", raising=False)
+    with pytest.warns(
+        DeprecationWarning,
+        match=r"python -m baselines.select is deprecated .* python -m baselines.sb3.select",
+    ):
+        with pytest.raises(SystemExit) as exited:
+            runpy.run_module("baselines.select", run_name="__main__")
+    assert exited.value.code == 0
+    assert "usage: python -m baselines.sb3.select" in capsys.readouterr().out

@@ -249,7 +249,7 @@ def _tiny_run(out, *extra: str) -> list[str]:
 def test_fine_tuning_starts_from_the_given_policy_and_records_it(set_root, tmp_path, monkeypatch) -> None:
     import torch
 
-    from baselines import train
+    from baselines.sb3 import train
 
     source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
     started = {}
@@ -383,8 +383,8 @@ def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_p
     its source on observations with movers present (the movers' columns start at zero)."""
     import torch
 
-    from baselines import train
     from baselines.features.set_features import MOVER_SIZE, SetFeatureConfig
+    from baselines.sb3 import train
 
     source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
     started = {}

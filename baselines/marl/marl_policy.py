@@ -78,7 +78,8 @@ class MappoController(BaseController):
         if not self.policy_root.is_dir():
             raise ValueError(
                 f"{self.name}: no trained policies in {self.policy_root}; train one with "
-                f"`python -m baselines.marl.benchmarl_train --algorithm {self.shipped} --task target_reaching --out DIR`"
+                f"`python -m baselines.marl.benchmarl_train --algorithm {self.shipped} "
+                "--task target_reaching --out DIR`"
             )
         self._loaded: dict[str, tuple[dict[str, NDArray[Any]], dict[str, Any]]] = {}
 

@@ -72,10 +72,10 @@ def observation_statistics(
     **env_kwargs: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation (float32, per entry of a robot's observation block, with the
-    entries of :func:`~baselines.sb3.vec_env.robot_features` ``features`` appended when given) of the
-    blocks of ``num_envs`` environments of ``env_id`` over ``steps`` periods of uniform random
-    actions (seeded: the same figures every call). An entry that never varies (an empty slot)
-    gets 1 as its deviation, so that it passes unscaled."""
+    entries of :func:`~baselines.features.robot_features.robot_features` ``features`` appended
+    when given) of the blocks of ``num_envs`` environments of ``env_id`` over ``steps`` periods of
+    uniform random actions (seeded: the same figures every call). An entry that never varies (an
+    empty slot) gets 1 as its deviation, so that it passes unscaled."""
     venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
     n = int(cast("KoopNavVectorEnv", venv.unwrapped).config.n_robots)
     obs, _ = venv.reset(seed=seed)
@@ -115,9 +115,10 @@ class KoopNavMultiAgentEnv(EnvBase):
         Hand out standardized blocks, ``(block - mean) / std`` (module docstring; of the
         blocks with ``features`` appended when given).
     features : str, optional
-        Append to each robot's block the entries of :func:`baselines.sb3.vec_env.robot_features`
-        (``"bearing"``: the target's unit bearing and log distance; ``"bearing+headings"``: also
-        the team-mates' relative headings), as the ``rl-ppo`` policies read them.
+        Append to each robot's block the entries of
+        :func:`baselines.features.robot_features.robot_features` (``"bearing"``: the target's
+        unit bearing and log distance; ``"bearing+headings"``: also the team-mates' relative
+        headings), as the ``rl-ppo`` policies read them.
     **env_kwargs
         Env keywords (``map="random"``, ``n_robots=5``, ``uncertainty="realistic"``, ...).
     """

@@ -118,7 +118,7 @@ def policy_command(
         Observation normalization (``mean``, ``var``, ``clip``, ``epsilon``) saved with the model.
     layout : str
         ``"robot"``: the shared policy sees each robot's block (plus
-        :func:`baselines.sb3.vec_env.robot_features`) and commands that robot;
+        :func:`baselines.features.robot_features.robot_features`) and commands that robot;
         ``"team"``: it sees the flat team observation and commands everybody.
     observation : ndarray, shape (N * F,) or (K, N * F)
         The centralized observation of the Gymnasium env (or a batch of them).
@@ -130,7 +130,7 @@ def policy_command(
     neighbours : int, optional
         ``"robot"`` layout: team-mates per block the policy was trained with (N_train - 1); a
         team of another size then shows each robot its nearest ones (see
-        :func:`baselines.sb3.vec_env.robot_features`). Default: all.
+        :func:`baselines.features.robot_features.robot_features`). Default: all.
     set_config : SetFeatureConfig, optional
         A set policy's observation settings (its metadata): each robot then reads
         :func:`baselines.features.set_features.set_features`, for any team size, and ``features`` and

@@ -65,7 +65,8 @@ class SetEncoder(BaseFeaturesExtractor):
     observation_space : gymnasium.spaces.Box
         Of shape (``SetFeatureConfig(**set_config).size``,).
     set_config : dict
-        The :class:`~baselines.features.set_features.SetFeatureConfig` fields the observations were built with.
+        The :class:`~baselines.features.set_features.SetFeatureConfig` fields the observations
+        were built with.
     width : int
         Width of every encoder layer.
     """
