@@ -129,10 +129,11 @@ def test_module_and_function_sizes() -> None:
 
 #: the previous releases' module paths, removed with their stubs once the other packages used the
 #: environments through their face (issue 61): nothing in docs/ or README.md named them, so none
-#: kept a release of deprecation (CHANGELOG.md, Unreleased)
+#: kept a release of deprecation (CHANGELOG.md, Unreleased); and koopman_envs.builder, the
+#: simulator core's folder, renamed engine/ (internal, so without a stub)
 REMOVED_PATHS = (
     *(f"koopman_envs.{name}" for name in (
-        "animation", "config", "demo", "deprecated", "engine", "engine_memory", "episode",
+        "animation", "builder", "config", "demo", "deprecated", "engine_memory", "episode",
         "episode_layout", "keywords", "plant", "rendering", "rendering_layers", "tasks.layout",
     )),
     *(f"controllers.{name}" for name in (
@@ -151,9 +152,21 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
     assert importlib.util.find_spec(old) is None, f"{old} is back; import from its new module"
 
 
+def test_the_engine_module_path_is_the_engine_folder_not_a_stub() -> None:
+    """``koopman_envs.engine``, the engine module's path until its stub went, names the simulator
+    core's folder now (builder/ renamed): a package that forwards none of the old module's names."""
+    import importlib
+    import importlib.util
+
+    spec = importlib.util.find_spec("koopman_envs.engine")
+    assert spec is not None and spec.submodule_search_locations, "koopman_envs.engine is not the folder"
+    folder = importlib.import_module("koopman_envs.engine")
+    assert not hasattr(folder, "__getattr__") and not hasattr(folder, "NavigationEngine")
+
+
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
 #: layer or a lower one, never a higher one (type-only and function-level imports included)
-ENV_LAYERS = ("base", "sim", "tasks", "suites", "builder", "fronts")
+ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "fronts")
 #: the modules of the base layer, at the package root
 ENV_BASE = {
     "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
@@ -198,7 +211,7 @@ def test_the_environment_package_imports_only_downwards() -> None:
 
 #: the environment package's public face (docs/layout.md): the modules controllers/, baselines/,
 #: evaluation/ and evaluate.py may import. Every other koopman_envs module (sim/, tasks/,
-#: suites/, builder/, fronts/) is internal: what the other packages need of it is exported by
+#: suites/, engine/, fronts/) is internal: what the other packages need of it is exported by
 #: the package itself (``from koopman_envs import run_episode``), lazily where it is heavy.
 PUBLIC_MODULES: dict[str, str] = {
     "koopman_envs": "the face: ids, env classes, episode runner, task table, maps, suites, plant, shared kernels",

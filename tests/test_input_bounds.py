@@ -27,8 +27,8 @@ from evaluation.exit_codes import EXIT_CODES, EXIT_PRECEDENCE, worst
 from evaluation.spec import RunSpec
 from evaluation.sweep import MAX_SWEEP_LEVELS, load_sweep, parse_sweep, refuse_sweep_clash
 from evaluation.thresholds import load_thresholds
-from koopman_envs.builder.keywords import ENV_KEYWORDS
 from koopman_envs.checks import MAX_JSON_DEPTH, MAX_NUMBER, parse_json
+from koopman_envs.engine.keywords import ENV_KEYWORDS
 
 TINY = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--episodes", "1"]
 TINY += ["--max-episode-steps", "5", "--workers", "1", "--quiet"]

@@ -21,7 +21,7 @@ builds TorchRL envs; this one wraps KoopNav's PettingZoo parallel env in TorchRL
     )
     experiment.run()
 
-The task's config is the env keywords of :mod:`koopman_envs.builder.keywords` (``map``, ``slip``,
+The task's config is the env keywords of :mod:`koopman_envs.engine.keywords` (``map``, ``slip``,
 ``n_robots``, ``max_cycles``, ...); unknown ones fail when the env is built, naming the
 allowed ones. ``TASK_CONFIGS`` holds the defaults (random maps, random slip, 100 cycles, like
 BenchMARL's MPE tasks) and :func:`write_task_yaml` writes them as BenchMARL's YAML files.
