@@ -2,7 +2,7 @@
 split's layouts under the benchmark's own settings, the checkpoint chosen on the validation
 split, the test split refused by name (issue 60, docs/benchmark.md#learned-policies).
 
-Both trainers (``python -m baselines.train`` and ``python -m baselines.benchmarl_train``) use the
+Both trainers (``python -m baselines.sb3.train`` and ``python -m baselines.marl.benchmarl_train``) use the
 one :class:`SuiteTraining` of their run:
 
 - **Training layouts.** :meth:`SuiteTraining.env_kwargs`: ``map="suite:<name>/train"`` (each reset

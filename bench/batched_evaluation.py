@@ -16,7 +16,7 @@ timing ones). A short warm-up run first compiles the kernels and loads the polic
 neither side pays for them.
 
 ``--actors`` times instead one forward pass of each shipped policy's actor, compiled
-(:mod:`baselines.actor`) and torch's (the actor's mean as ``predict`` computes it, one torch
+(:mod:`baselines.sb3.actor`) and torch's (the actor's mean as ``predict`` computes it, one torch
 thread), on ``--rows`` random observations, in alternation (median of 200 calls each).
 """
 
@@ -63,8 +63,7 @@ def actor_speed(rows: list[int]) -> None:
     import numpy as np
     import torch
 
-    from baselines.actor import compile_actor
-    from baselines.policy import SHIPPED, load_policy
+    from baselines import SHIPPED, compile_actor, load_policy
 
     torch.set_num_threads(1)
     print("| policy | rows | compiled [us] | torch [us] | torch / compiled |")

@@ -84,7 +84,7 @@ RUNS[crowd_realtime]="--crowd crowd --solver rti --controllers $REALTIME_CONTROL
 # lidar with the map known, the lidar only; 4 constant movers; docs/perception.md)
 RUNS[lidar]="--lidar --reference koopman-nmpc"
 # issue 46: the learned set policies on the sensing protocol's episodes, reading the perceived
-# obstacle and mover sets (baselines/perceived.py); Koopman-NMPC again as the reference (its rows
+# obstacle and mover sets (baselines/features/perceived.py); Koopman-NMPC again as the reference (its rows
 # repeat the lidar run's bit for bit)
 RUNS[lidar_policies]="--lidar --solver rti --controllers koopman-nmpc rl-ppo-set rl-ppo-set-realistic rl-ppo-set-movers --reference koopman-nmpc"
 # issue 60: the ablation of the NMPC's design factors (docs/ablation.md; 640 episodes on IPOPT)

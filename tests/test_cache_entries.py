@@ -22,7 +22,7 @@ from controllers.calibration import (
 )
 from controllers.koopman.model import KoopmanModel, ModelFileError
 from evaluation.episodes.records import DEGRADED_FAILURE_SHARE, finished_status
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 
 BUDGET = 2000  # team-transitions: two short trajectories, enough to exercise every path
 

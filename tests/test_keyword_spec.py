@@ -14,8 +14,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.keywords import ENV_KEYWORDS, FRONTS, env_keywords
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.keywords import ENV_KEYWORDS, FRONTS, env_keywords
 from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
 from koopman_envs.fronts.vector_env import KoopNavVectorEnv

@@ -16,7 +16,7 @@ from test_observed_view import _poisoned
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 from koopman_envs.fronts.episode import run_episode
 
 ENV = "KoopNav-TargetReaching-v0"

@@ -211,7 +211,7 @@ def lidar_protocol() -> RunSpec:
     from controllers.registry import factory
 
     # every controller that perceives: the learned set policies read the perceived obstacle and
-    # mover sets (baselines.perceived); a policy that reads its observation only (rl-ppo) cannot
+    # mover sets (baselines.features.perceived); a policy that reads its observation only (rl-ppo) cannot
     perceiving = [name for name in available() if getattr(factory(name), "perceives", True)]
     return _among_movers(
         {

@@ -1,6 +1,6 @@
 """``--sweep KEY=v1,v2,...``: the same run at every level of an env setting, for robustness profiles.
 
-A sweep axis names an env keyword of :data:`~koopman_envs.builder.keywords.ENV_KEYWORDS` (``actuation_delay``,
+A sweep axis names an env keyword of :data:`~koopman_envs.engine.keywords.ENV_KEYWORDS` (``actuation_delay``,
 ``uncertainty``, ``sensing``, ``slip``) or a field of a dict-valued one (``comm.drop``,
 ``pose_noise.xy``, ``lidar.noise``). Each level is one ordinary run (every controller, cell and
 trial of the spec) with the level set on top of the spec's env settings, logged in its own

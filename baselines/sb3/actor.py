@@ -11,7 +11,7 @@ result is the same bit for bit whatever else is in the batch. It is also faster 
 the small batches of one team (no dispatch, no autograd bookkeeping; ``bench/policy_speed.py``).
 
 Supported: stable-baselines3's ``ActorCriticPolicy`` with a Gaussian head (PPO), its
-``FlattenExtractor`` or KoopNav's :class:`~baselines.set_encoder.SetEncoder`, an MLP of
+``FlattenExtractor`` or KoopNav's :class:`~baselines.sb3.set_encoder.SetEncoder`, an MLP of
 ``Linear`` layers with ``Tanh`` or ``ReLU``. Anything else (SAC's squashed head, another
 extractor) is refused by :func:`compile_actor`, and the caller falls back to torch.
 """
@@ -124,7 +124,7 @@ def _run(layers: tuple[Dense, ...], x: NDArray[np.float32]) -> NDArray[np.float3
 
 @dataclass(frozen=True)
 class SetPool:
-    """One set of :class:`~baselines.set_encoder.SetEncoder`: its columns, slot size and its
+    """One set of :class:`~baselines.sb3.set_encoder.SetEncoder`: its columns, slot size and its
     two-layer ReLU slot encoder."""
 
     columns: slice
@@ -201,7 +201,7 @@ def compile_actor(model: Any) -> ActorNetwork | None:
     policy has a part this module does not compile (the caller then uses ``predict``)."""
     from stable_baselines3.common.torch_layers import FlattenExtractor
 
-    from baselines.set_encoder import SetEncoder, _SetPool
+    from baselines.sb3.set_encoder import SetEncoder, _SetPool
 
     policy = getattr(model, "policy", None)
     if policy is None or not (hasattr(policy, "mlp_extractor") and hasattr(policy, "action_net")):

@@ -1,9 +1,9 @@
-"""Fine-tuning a trained policy (``python -m baselines.train --init-from DIR``): what the source
+"""Fine-tuning a trained policy (``python -m baselines.sb3.train --init-from DIR``): what the source
 must share with the run, and how its weights are carried over.
 
 A source fits when its task, policy kind, features and network are the run's. One difference is
 allowed: a set policy without mover slots may seed a run with them (the movers' third set of
-:mod:`baselines.set_encoder`). Its weights are then copied where the shapes agree, and the first
+:mod:`baselines.sb3.set_encoder`). Its weights are then copied where the shapes agree, and the first
 layers of the actor and critic heads, which read the features and grew by the movers' pooled
 encoding at the end, keep the source's columns with zeros for the new ones: the fine-tune starts
 from exactly the source's policy, blind to movers, and learns to read them.

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
+from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.maps import MapSpec

@@ -1,5 +1,5 @@
 """The training run's stable-baselines3 callback (a module of its own: it imports SB3 at load,
-and :mod:`baselines.train` loads it only once SB3 is known to be installed)."""
+and :mod:`baselines.sb3.train` loads it only once SB3 is known to be installed)."""
 
 from __future__ import annotations
 

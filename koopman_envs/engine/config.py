@@ -1,6 +1,6 @@
 """``EngineConfig``: the env keywords resolved and validated into the definition of an environment
 (task, map, slip, team, limits): each keyword's own check from its row of
-:data:`~koopman_envs.builder.keywords.ENV_KEYWORDS`, then the rules that involve several keywords."""
+:data:`~koopman_envs.engine.keywords.ENV_KEYWORDS`, then the rules that involve several keywords."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.builder.keywords import env_keywords, unknown_keywords
 from koopman_envs.checks import check_choice
+from koopman_envs.engine.keywords import env_keywords, unknown_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.movers import MoverConfig
 from koopman_envs.params import PARAMS, RANDOM_SLIP, slip_lambdas
@@ -159,7 +159,7 @@ class EngineConfig:
     """Everything that defines an environment, resolved and validated.
 
     Build it with :meth:`EngineConfig.create`, which accepts the env keywords
-    (:data:`~koopman_envs.builder.keywords.ENV_KEYWORDS`).
+    (:data:`~koopman_envs.engine.keywords.ENV_KEYWORDS`).
     """
 
     task: TaskSpec
@@ -249,7 +249,7 @@ class EngineConfig:
             the vector and PettingZoo fronts' default time limit (they truncate by themselves).
             None (the calibration plant, tests): every keyword, no default limit.
         **keywords
-            The env keywords of :data:`~koopman_envs.builder.keywords.ENV_KEYWORDS` (documented there and in the env docstrings).
+            The env keywords of :data:`~koopman_envs.engine.keywords.ENV_KEYWORDS` (documented there and in the env docstrings).
             ``max_cycles`` is another name of ``max_episode_steps``, the one of PettingZoo's MPE
             environments; giving both with different values is a ``ValueError``.
 

@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
 from koopman_envs.checks import check_int
+from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, PHYSICS, RANDOM_SLIP_MAX
 from koopman_envs.sim.rollout import rollout
 from koopman_envs.sim.slip import draw_random_lambdas

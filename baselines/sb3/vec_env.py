@@ -29,8 +29,8 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn
 
 import koopman_envs  # noqa: F401 - registers the ids
-from baselines.robot_features import FEATURE_SETS, feature_bounds, feature_count, robot_features
-from baselines.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
+from baselines.features.robot_features import FEATURE_SETS, feature_bounds, feature_count, robot_features
+from baselines.features.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
 from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
 
@@ -101,7 +101,7 @@ class KoopNavSB3VecEnv(VecEnv):
         ``"robot"`` layout: the feature set of :func:`robot_features`.
     set_config : SetFeatureConfig, optional
         ``"robot"`` layout: observe sets of team-mates and obstacles
-        (:func:`baselines.set_features.set_features`) instead of ``features``; the observation
+        (:func:`baselines.features.set_features.set_features`) instead of ``features``; the observation
         then has the same size for every team size.
     **env_kwargs
         Environment keywords (``map="random"``, ``slip="random"``, ...).

@@ -2,7 +2,7 @@
 
 Every env keyword is bounded on its own (:data:`~koopman_envs.params.LIMITS`), but a batch
 multiplies them: :func:`engine_array_bytes` estimates from above the bytes of the arrays a
-:class:`~koopman_envs.builder.engine.NavigationEngine` of a config holds and builds in a step, from the
+:class:`~koopman_envs.engine.engine.NavigationEngine` of a config holds and builds in a step, from the
 settings alone, and :func:`check_engine_memory` refuses a batch over ``LIMITS.engine_bytes``
 naming what to reduce. The engine runs the check first thing in its constructor.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from koopman_envs.builder.config import EngineConfig
+from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import LIMITS
 from koopman_envs.sim.mover_motion import DRAW_SIZE
 from koopman_envs.sim.perception import BLOCK_NUMBERS
@@ -22,7 +22,7 @@ __all__ = ["check_engine_memory", "engine_array_bytes"]
 
 def engine_array_bytes(config: EngineConfig, num_envs: int) -> int:
     """An estimate from above of the bytes of the arrays a
-    :class:`~koopman_envs.builder.engine.NavigationEngine` of
+    :class:`~koopman_envs.engine.engine.NavigationEngine` of
     ``num_envs`` environments of ``config`` holds and builds in a step, computed before any is
     allocated: every keyword is bounded on its own (:data:`~koopman_envs.params.LIMITS`), but
     their product over a batch is bounded here (``LIMITS.engine_bytes``).

@@ -1,7 +1,7 @@
 """New episodes for a batch of environments: the engine's reset, one pass for many.
 
 A vector env resets the environments that end in the same step together
-(:meth:`~koopman_envs.builder.engine.NavigationEngine.reset_envs`). Each environment still
+(:meth:`~koopman_envs.engine.engine.NavigationEngine.reset_envs`). Each environment still
 draws only from its own generator, in the order a lone environment draws (the layout, the start
 noise, the slip level, then the children of the perception, the movers, the people tracker
 and the physics plant's frictions), so sub-environment i of a batch reproduces a lone environment with the same seed; what
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from koopman_envs.builder.episode_layout import episode_layout
+from koopman_envs.engine.episode_layout import episode_layout
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.sim.rows import rows_index
 from koopman_envs.sim.slip import draw_random_lambdas
@@ -33,7 +33,7 @@ def reset_episodes(
     options: Sequence[ResetOptions | None] | None = None,
 ) -> None:
     """Start a new episode in each environment of ``rows`` of ``engine`` (a
-    :class:`~koopman_envs.builder.engine.NavigationEngine`, which calls this: typed ``Any`` so
+    :class:`~koopman_envs.engine.engine.NavigationEngine`, which calls this: typed ``Any`` so
     that the two modules do not import each other), environment ``rows[b]`` drawing only from
     ``rngs[b]`` with ``options[b]`` (default: the map's starts and targets).
 

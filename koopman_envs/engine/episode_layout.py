@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
+from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.sim.maps import MapSpec

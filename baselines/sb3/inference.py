@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.set_features import SetFeatureConfig, set_features, split_movers
+from baselines.features.set_features import SetFeatureConfig, set_features, split_movers
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs import KoopNavVectorEnv
@@ -17,18 +17,18 @@ __all__ = ["command_of", "deterministic_action", "policy_command", "policy_input
 
 
 def deterministic_action(model: Any, obs: NDArray[np.float32]) -> NDArray[np.float32]:
-    """The deterministic actions of a model (or of its :class:`~baselines.actor.ActorNetwork`)
+    """The deterministic actions of a model (or of its :class:`~baselines.sb3.actor.ActorNetwork`)
     for a batch of normalized observations.
 
     A PPO actor (a Gaussian head: the action is the mean, clipped into the action space as
-    ``predict`` clips it) runs compiled (:mod:`baselines.actor`): a row's action does not depend
+    ``predict`` clips it) runs compiled (:mod:`baselines.sb3.actor`): a row's action does not depend
     on the rest of the batch, so a batched evaluation equals the per-episode one bit for bit,
     and one team's decision costs a fraction of torch's. The weights are read at this call:
     pass the model's ``compile_actor`` once where it does not change between calls (a
     controller), the model itself where it does (an evaluation during training). Other models
     (SAC's squashed head) go through ``predict``.
     """
-    from baselines.actor import ActorNetwork, compile_actor
+    from baselines.sb3.actor import ActorNetwork, compile_actor
 
     actor = model if isinstance(model, ActorNetwork) else compile_actor(model)
     if actor is None:
@@ -52,7 +52,7 @@ def policy_inputs(
     """The normalized network inputs of (a batch of) observations: one row per robot for the
     ``"robot"`` layout, per team for ``"team"``; and the batch shape of ``observation``.
     Parameters as :func:`policy_command`."""
-    from baselines.vec_env import robot_features, without_message_ages
+    from baselines.sb3.vec_env import robot_features, without_message_ages
 
     obs = np.asarray(observation, dtype=np.float64)
     batch_shape = obs.shape[:-1]
@@ -85,7 +85,7 @@ def command_of(
 ) -> NDArray[np.float64]:
     """The joint commands (v, omega per robot, flat; of ``batch_shape``) of the policy's
     actions in [-1, 1] (the rows of :func:`policy_inputs`)."""
-    from baselines.vec_env import scale_action
+    from baselines.sb3.vec_env import scale_action
 
     high = np.array([v_max, omega_max])
     if layout == "team":
@@ -113,12 +113,12 @@ def policy_command(
     Parameters
     ----------
     model : stable_baselines3 model or ActorNetwork
-        The policy, or its compiled actor (:func:`baselines.actor.compile_actor`).
+        The policy, or its compiled actor (:func:`baselines.sb3.actor.compile_actor`).
     norm : dict
         Observation normalization (``mean``, ``var``, ``clip``, ``epsilon``) saved with the model.
     layout : str
         ``"robot"``: the shared policy sees each robot's block (plus
-        :func:`baselines.vec_env.robot_features`) and commands that robot;
+        :func:`baselines.features.robot_features.robot_features`) and commands that robot;
         ``"team"``: it sees the flat team observation and commands everybody.
     observation : ndarray, shape (N * F,) or (K, N * F)
         The centralized observation of the Gymnasium env (or a batch of them).
@@ -130,10 +130,10 @@ def policy_command(
     neighbours : int, optional
         ``"robot"`` layout: team-mates per block the policy was trained with (N_train - 1); a
         team of another size then shows each robot its nearest ones (see
-        :func:`baselines.vec_env.robot_features`). Default: all.
+        :func:`baselines.features.robot_features.robot_features`). Default: all.
     set_config : SetFeatureConfig, optional
         A set policy's observation settings (its metadata): each robot then reads
-        :func:`baselines.set_features.set_features`, for any team size, and ``features`` and
+        :func:`baselines.features.set_features.set_features`, for any team size, and ``features`` and
         ``neighbours`` are ignored.
     formation : bool
         Whether the observation is the formation task's (set policies only).
@@ -180,7 +180,7 @@ def success_rate(
     """
     import gymnasium as gym
 
-    from baselines.actor import compile_actor
+    from baselines.sb3.actor import compile_actor
 
     actor = compile_actor(model) or model  # the weights as they are now, read once
     venv = gym.make_vec(env_id, num_envs=episodes, **env_kwargs)

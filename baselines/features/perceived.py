@@ -1,7 +1,7 @@
 """What a set policy reads on beams: the observation blocks a state-sensing env would have given,
 rebuilt from what the team's lidars show.
 
-A set policy (:mod:`baselines.set_features`) reads each robot's nearest obstacles and movers as
+A set policy (:mod:`baselines.features.set_features`) reads each robot's nearest obstacles and movers as
 sets. Under ``sensing="lidar"`` the env lists no obstacles (the beams replace them) and no
 movers; the perception front (:mod:`controllers.perception.front`, run by
 :meth:`controllers.base.BaseController.act` for every controller that perceives) turns the beams

@@ -22,7 +22,7 @@ __all__ = ["advance_plant", "make_physics"]
 
 def make_physics(config: Any, num_envs: int) -> Any:
     """The :class:`~koopman_envs.sim.physics.world.PhysicsWorld` of an engine of ``num_envs``
-    environments of ``config`` (an :class:`~koopman_envs.builder.config.EngineConfig`), or None
+    environments of ``config`` (an :class:`~koopman_envs.engine.config.EngineConfig`), or None
     on the kinematic plant (MuJoCo is imported only here, for ``plant="mujoco"``)."""
     if config.plant != "mujoco":
         return None
@@ -43,7 +43,7 @@ def advance_plant(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The poses (K, 3, N) one period after ``engine.state`` under ``commands`` (K, N, 2), and
     the commands' effort (K, N), for the ``active`` environments (None: all) of ``engine`` (a
-    :class:`~koopman_envs.builder.engine.NavigationEngine`; typed ``Any`` so that the two
+    :class:`~koopman_envs.engine.engine.NavigationEngine`; typed ``Any`` so that the two
     modules do not import each other)."""
     stepping = engine.all_active if active is None else active
     new = np.empty_like(engine.state)

@@ -17,7 +17,7 @@ Layout (one group, ``"robot"``, holding every robot, as the PettingZoo wrapper's
 - ``("robot", "info")``: :data:`INFO_KEYS` per robot (K, N, 1);
 - ``("robot", "terminated")`` (K, N, 1): whether the step ended this robot's episode by its own
   doing: the team's ``terminated``, except that a collision ends it only for the robots that
-  touched something (the SB3 adapter's credit rule, :mod:`baselines.vec_env`): for a team-mate of
+  touched something (the SB3 adapter's credit rule, :mod:`baselines.sb3.vec_env`): for a team-mate of
   a crashed robot the episode was cut short, and its value is bootstrapped, not zeroed.
   BenchMARL's MAPPO and IPPO read it for GAE (``(group, "terminated")``); it is an entry of the
   group, not of the done spec, so TorchRL's resets stay per environment;
@@ -32,7 +32,7 @@ does, so a batch is reproducible.
 ``observation_stats=(mean, std)`` (per entry of a robot's block; :func:`observation_statistics`
 measures them) hands out ``(block - mean) / std`` instead of the raw block: a fixed input scale
 for the policy network (positions in metres, headings as cosines and distances to 60 m share an
-MLP's input), which an exported policy applies the same way (:mod:`baselines.marl_policy`).
+MLP's input), which an exported policy applies the same way (:mod:`baselines.marl.marl_policy`).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 import koopman_envs  # noqa: F401 - registers the ids
-from baselines.robot_features import FEATURE_SETS, feature_bounds, robot_features
+from baselines.features.robot_features import FEATURE_SETS, feature_bounds, robot_features
 from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
 
@@ -72,10 +72,10 @@ def observation_statistics(
     **env_kwargs: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation (float32, per entry of a robot's observation block, with the
-    entries of :func:`~baselines.vec_env.robot_features` ``features`` appended when given) of the
-    blocks of ``num_envs`` environments of ``env_id`` over ``steps`` periods of uniform random
-    actions (seeded: the same figures every call). An entry that never varies (an empty slot)
-    gets 1 as its deviation, so that it passes unscaled."""
+    entries of :func:`~baselines.features.robot_features.robot_features` ``features`` appended
+    when given) of the blocks of ``num_envs`` environments of ``env_id`` over ``steps`` periods of
+    uniform random actions (seeded: the same figures every call). An entry that never varies (an
+    empty slot) gets 1 as its deviation, so that it passes unscaled."""
     venv = gym.make_vec(env_id, num_envs=num_envs, autoreset_mode="SameStep", **env_kwargs)
     n = int(cast("KoopNavVectorEnv", venv.unwrapped).config.n_robots)
     obs, _ = venv.reset(seed=seed)
@@ -115,9 +115,10 @@ class KoopNavMultiAgentEnv(EnvBase):
         Hand out standardized blocks, ``(block - mean) / std`` (module docstring; of the
         blocks with ``features`` appended when given).
     features : str, optional
-        Append to each robot's block the entries of :func:`baselines.vec_env.robot_features`
-        (``"bearing"``: the target's unit bearing and log distance; ``"bearing+headings"``: also
-        the team-mates' relative headings), as the ``rl-ppo`` policies read them.
+        Append to each robot's block the entries of
+        :func:`baselines.features.robot_features.robot_features` (``"bearing"``: the target's
+        unit bearing and log distance; ``"bearing+headings"``: also the team-mates' relative
+        headings), as the ``rl-ppo`` policies read them.
     **env_kwargs
         Env keywords (``map="random"``, ``n_robots=5``, ``uncertainty="realistic"``, ...).
     """

@@ -1,4 +1,4 @@
-"""``python -m baselines.benchmarl_train --suite NAME``: IPPO trained on a benchmark suite's train
+"""``python -m baselines.marl.benchmarl_train --suite NAME``: IPPO trained on a benchmark suite's train
 layouts, its checkpoint chosen on the validation layouts (:mod:`baselines.suite_training`).
 
 BenchMARL keeps no policy per iteration that the ``ippo`` controller could play, so
@@ -89,7 +89,7 @@ class SuiteCheckpoints(Callback):
         Frames between checkpoints.
     export : callable
         ``export(policy) -> (arrays, metadata)``: the actor's arrays and the metadata the
-        controller reads (:func:`baselines.benchmarl_train.export_policy`).
+        controller reads (:func:`baselines.marl.benchmarl_train.export_policy`).
     controller : str
         The registered controller that plays the export (``"ippo"``).
     """

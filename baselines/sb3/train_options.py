@@ -1,6 +1,6 @@
-"""The command line of ``python -m baselines.train``: its options and the tables they draw on.
+"""The command line of ``python -m baselines.sb3.train``: its options and the tables they draw on.
 
-Kept apart from :mod:`baselines.train` (the training run) so that each module has one job.
+Kept apart from :mod:`baselines.sb3.train` (the training run) so that each module has one job.
 """
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from baselines.sb3.vec_env import FEATURE_SETS, LAYOUTS
 from baselines.suite_training import add_suite_options
-from baselines.vec_env import FEATURE_SETS, LAYOUTS
 from koopman_envs import TASKS
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
@@ -77,8 +77,8 @@ def env_options(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The training command line (``python -m baselines.train``)."""
-    parser = argparse.ArgumentParser(prog="python -m baselines.train", description=DESCRIPTION)
+    """The training command line (``python -m baselines.sb3.train``)."""
+    parser = argparse.ArgumentParser(prog="python -m baselines.sb3.train", description=DESCRIPTION)
     parser.add_argument("--env", default="KoopNav-Formation-v0", choices=list(TASK_OF))
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
     parser.add_argument(

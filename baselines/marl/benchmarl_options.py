@@ -1,4 +1,4 @@
-"""The command line of ``python -m baselines.benchmarl_train`` (:mod:`baselines.benchmarl_train`):
+"""The command line of ``python -m baselines.marl.benchmarl_train`` (:mod:`baselines.marl.benchmarl_train`):
 its options, their defaults and the checks argparse makes while parsing."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import argparse
 import json
 from typing import Any
 
-from baselines.robot_features import FEATURE_SETS
+from baselines.features.robot_features import FEATURE_SETS
 from baselines.suite_training import add_suite_options
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 
@@ -15,7 +15,7 @@ __all__ = ["ALGORITHMS", "DESCRIPTION", "TASKS", "build_parser"]
 
 DESCRIPTION = (
     "Train a multi-agent PPO policy (MAPPO or IPPO) with BenchMARL on a KoopNav task and export it "
-    "for the mappo / ippo controllers (baselines.marl_policy)."
+    "for the mappo / ippo controllers (baselines.marl.marl_policy)."
 )
 TASKS = ("target_reaching", "formation")
 ALGORITHMS = ("mappo", "ippo")
@@ -132,7 +132,7 @@ def _add_suite_options(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m baselines.benchmarl_train", description=DESCRIPTION)
+    parser = argparse.ArgumentParser(prog="python -m baselines.marl.benchmarl_train", description=DESCRIPTION)
     parser.add_argument("--task", choices=TASKS, required=True)
     parser.add_argument("--algorithm", choices=ALGORITHMS, default="mappo")
     parser.add_argument("--frames", type=lambda s: int(s.replace("_", "")), default=6_000_000)
@@ -177,7 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("none", *FEATURE_SETS),
         default="none",
         help="append to each robot's block what the rl-ppo policies read beside it "
-        "(baselines.robot_features: the target's bearing and log distance, with +headings the "
+        "(baselines.features.robot_features: the target's bearing and log distance, with +headings the "
         "team-mates' relative headings; default none)",
     )
     parser.add_argument(

@@ -17,12 +17,12 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine_memory import check_engine_memory, engine_array_bytes
-from koopman_envs.builder.engine_plant import advance_plant, make_physics
-from koopman_envs.builder.engine_scenario import engine_scenario
-from koopman_envs.builder.episode_reset import reset_episodes
 from koopman_envs.checks import check_commands
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine_memory import check_engine_memory, engine_array_bytes
+from koopman_envs.engine.engine_plant import advance_plant, make_physics
+from koopman_envs.engine.engine_scenario import engine_scenario
+from koopman_envs.engine.episode_reset import reset_episodes
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
@@ -58,7 +58,7 @@ class NavigationEngine:
 
     The state is kept channel-first, ``state[k] = [x; y; theta]`` of shape (3, N);
     :attr:`poses` gives the familiar (K, N, 3) view. A step is four compiled passes over the
-    batch: the plant (:func:`~koopman_envs.builder.engine_plant.advance_plant`: the kinematic
+    batch: the plant (:func:`~koopman_envs.engine.engine_plant.advance_plant`: the kinematic
     :func:`~koopman_envs.sim.dynamics.advance_teams`, or MuJoCo's robots), collision flags,
     observation features, and rewards with episode ends (:mod:`koopman_envs.tasks.reward`).
     Maps with slip zones add a fifth before the physics
@@ -205,7 +205,7 @@ class NavigationEngine:
         :meth:`reset_envs` for one environment.
 
         The episode's map, starts and targets come from
-        :func:`~koopman_envs.builder.episode_layout.episode_layout`: ``options`` (from
+        :func:`~koopman_envs.engine.episode_layout.episode_layout`: ``options`` (from
         :func:`parse_reset_options`) replace the map's start poses and/or targets for this
         episode; they are checked against the episode's map (a new one per reset with
         ``map="random"``) before anything changes.
@@ -226,7 +226,7 @@ class NavigationEngine:
     ) -> None:
         """Start a new episode in each environment of ``rows`` together, environment
         ``rows[b]`` drawing only from ``rngs[b]`` exactly as :meth:`reset_env` would
-        (:func:`~koopman_envs.builder.episode_reset.reset_episodes`); a rejected option
+        (:func:`~koopman_envs.engine.episode_reset.reset_episodes`); a rejected option
         leaves every environment of the batch in its previous episode."""
         reset_episodes(self, rows, rngs, options)
 
@@ -375,7 +375,7 @@ class NavigationEngine:
     # ------------------------------------------------------------------- info
     def scenario(self, index: int = 0) -> Scenario:
         """The scenario a model-based controller may use for environment ``index``
-        (:func:`~koopman_envs.builder.engine_scenario.engine_scenario`)."""
+        (:func:`~koopman_envs.engine.engine_scenario.engine_scenario`)."""
         return engine_scenario(
             self.config,
             self.maps[index],
