@@ -37,7 +37,7 @@ from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.starts import START_NOISE_ATTEMPTS
 from koopman_envs.sim.zones import ZoneTable
 from koopman_envs.tasks.observation import FeatureBuilder
-from koopman_envs.tasks.reward import score_step
+from koopman_envs.tasks.reward import SUCCESS, TERMINATED, TRUNCATED, score_rule, score_step, slot_errors
 
 __all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult", "engine_array_bytes"]
 
@@ -138,6 +138,13 @@ class NavigationEngine:
         self._no_formation = np.zeros((k, n))
         #: periods every robot must stay within tolerance for success
         self.settle_steps = PARAMS.settle_steps
+        self._score_rule = score_rule(
+            config.task.reward,
+            config.task.formation,
+            config.goal_tolerance,
+            self.settle_steps,
+            config.max_episode_steps,
+        )
         if config.map_spec is not None:
             for index in range(k):
                 self._set_map(index, config.map_spec)
@@ -280,7 +287,6 @@ class NavigationEngine:
         -------
         StepResult
         """
-        cfg = self.config
         stepping = self.all_active if active is None else active
         perception = self.perception
         rows = self._all_rows if active is None else np.flatnonzero(active)
@@ -295,14 +301,9 @@ class NavigationEngine:
         )
         features, distances = self._sense(before, new, rows, stepping, collision)
         k, n = distances.shape
-        robot_reward, team_reward = np.empty((k, n)), np.empty(k)
-        success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
+        robot_reward, team_reward, ends = np.empty((k, n)), np.empty(k), np.empty((3, k), dtype=bool)
         score_step(
-            cfg.task.reward,
-            cfg.task.formation,
-            cfg.goal_tolerance,
-            self.settle_steps,
-            cfg.max_episode_steps,
+            self._score_rule,
             self.distances,
             distances,
             effort,
@@ -313,16 +314,14 @@ class NavigationEngine:
             self.elapsed,
             robot_reward,
             team_reward,
-            success,
-            terminated,
-            truncated,
+            ends,
         )
         self.distances = distances
         self.collision = collision
-        self.success = success
+        self.success = ends[SUCCESS]
         if self.slip_clock is not None:
             self.slip_clock.advance(self.elapsed, active, self.slip.rngs, self.slip.lambdas)
-        return StepResult(features, robot_reward, team_reward, terminated, truncated)
+        return StepResult(features, robot_reward, team_reward, ends[TERMINATED], ends[TRUNCATED])
 
     def _sense(
         self,
@@ -393,33 +392,44 @@ class NavigationEngine:
     def formation_errors(self) -> NDArray[np.float64]:
         """Distance of every robot from its formation slot relative to the leader [m], (K, N)
         (the leader's is 0), from the engine's state, not from the clipped observation."""
-        ex = self.state[:, 0] - self.state[:, 0, :1] - self.offset[:, 0]
-        ey = self.state[:, 1] - self.state[:, 1, :1] - self.offset[:, 1]
-        return np.hypot(ex, ey)
+        errors = np.empty(self.distances.shape)
+        slot_errors(self.state, self.offset, errors)
+        return errors
 
     def robot_collisions(self) -> NDArray[np.bool_]:
         """Which robots are in collision, (K, N): overlapping an obstacle, another robot or a mover,
         or with the centre outside the workspace (the per-robot view of the collision flags)."""
         return self._robot_collisions()[0]
 
-    def _robot_collisions(self) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
-        """:meth:`robot_collisions`, and whose fault each robot's collision is, (K, N) codes of
-        :class:`~koopman_envs.sim.collision.CollisionFault` (the rule is there)."""
-        out = np.zeros(self.distances.shape, dtype=bool)
-        fault = np.zeros(self.distances.shape, dtype=np.int64)
-        hit = np.flatnonzero(self.collision)
-        if hit.size:  # only the environments that collided: this runs on every vector step
-            x, y = self.state[hit, 0], self.state[hit, 1]
-            touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
-            x_min, x_max, y_min, y_max = PARAMS.workspace
-            out[hit] = static = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
-            # a static contact is the robot's whatever a mover did in the same period
-            fault[hit] = np.where(
-                static, CollisionFault.ROBOT, 0 if self.movers is None else self.movers.fault[hit]
-            )
-            if self.movers is not None:
-                out[hit] |= self.movers.hit[hit]
-        return out, fault
+    def _robot_collisions(
+        self,
+    ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int_], NDArray[np.int_]]:
+        """:meth:`robot_collisions`, whose fault each robot's collision is, (K, N) codes of
+        :class:`~koopman_envs.sim.collision.CollisionFault` (the rule is there), and how many
+        robots of each environment are at fault and not at fault, (K,) each."""
+        k, n = self.distances.shape
+        out = np.zeros((k, n), dtype=bool)
+        fault = np.zeros((k, n), dtype=np.int64)
+        hit = self.collision.nonzero()[0]
+        if not hit.size:  # the common case, on every step: no fault anywhere
+            return out, fault, np.zeros(k, dtype=np.int_), np.zeros(k, dtype=np.int_)
+        # only the environments that collided
+        x, y = self.state[hit, 0], self.state[hit, 1]
+        touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
+        x_min, x_max, y_min, y_max = PARAMS.workspace
+        out[hit] = static = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
+        # a static contact is the robot's whatever a mover did in the same period
+        fault[hit] = np.where(
+            static, CollisionFault.ROBOT, 0 if self.movers is None else self.movers.fault[hit]
+        )
+        if self.movers is not None:
+            out[hit] |= self.movers.hit[hit]
+        return (
+            out,
+            fault,
+            (fault == CollisionFault.ROBOT).sum(axis=1),
+            (fault == CollisionFault.MOVER).sum(axis=1),
+        )
 
     def batch_info(self) -> dict[str, Any]:
         """The true structured state of every environment, one array per key (copies).
@@ -438,18 +448,18 @@ class NavigationEngine:
         ``movers`` (K, C, 4): every mover's true x, y [m], vx, vy [m/s].
         :meth:`info` is row ``index`` of this, so every front reports the same keys.
         """
-        robot_collision, fault = self._robot_collisions()
+        robot_collision, fault, at_fault, not_at_fault = self._robot_collisions()
         info = {
             **self.observed_info(),
             "poses": self.poses.copy(),
             "targets": self.targets.copy(),
             "distances": self.distances.copy(),
             "collision": self.collision != 0,
-            "collision_code": self.collision.astype(np.int64),
+            "collision_code": self.collision.copy(),  # int64 already
             "robot_collision": robot_collision,
             "collision_fault": fault,
-            "robots_at_fault": (fault == CollisionFault.ROBOT).sum(axis=1),
-            "robots_not_at_fault": (fault == CollisionFault.MOVER).sum(axis=1),
+            "robots_at_fault": at_fault,
+            "robots_not_at_fault": not_at_fault,
             "is_success": self.success.copy(),
             "settled_steps": self.settled.copy(),
         }
@@ -477,6 +487,6 @@ class NavigationEngine:
         """The true structured state of environment ``index``: row ``index`` of :meth:`batch_info`
         (per-env flags and counters as Python scalars)."""
         return {
-            key: value[index].item() if value.ndim == 1 else value[index]
+            key: value.item(index) if value.ndim == 1 else value[index]
             for key, value in self.batch_info().items()
         }
