@@ -24,7 +24,13 @@ import pytest
 from koopman_envs.sim import perception as perception_module
 from koopman_envs.sim.dynamics import wrap_scalar
 from koopman_envs.sim.lidar import beam_angles, cast_beams
-from koopman_envs.sim.perception import BLOCK_NUMBERS, Perception, child_generator, observed_info
+from koopman_envs.sim.perception import (
+    BLOCK_NUMBERS,
+    SENSOR_MODEL,
+    Perception,
+    child_generator,
+    observed_info,
+)
 from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
 DT = 0.1
@@ -333,7 +339,8 @@ def test_the_buffers_have_the_documented_shapes_and_start_empty() -> None:
     assert p.age.shape == (4, 3, 3) and (p.age == -1).all() and p.age.dtype == np.int64
     assert p.ranges.shape == (4, 3, 40) and p.max_range == 3.0
     np.testing.assert_array_equal(p.angles, beam_angles(40, 2 * math.pi))
-    assert p.sent_poses.shape == (4, 2, 3, 3) and p.sent_positions.shape == (4, 2, 2, 3)
+    assert p.sent.shape == (4, 2, 5, 3)  # the estimates sent, then the true positions
+    assert p.model.dtype == SENSOR_MODEL and p.model.shape == (1,) and p.model[0]["max_range"] == 3.0
     assert (p._normals, p._uniforms) == (18 + 120, 6 + 120)
     assert p.normal.shape == (block, 4, 138) and p.normal.dtype == np.float32
     assert p.uniform.shape == (block, 4, 126) and p.uniform.dtype == np.float32
