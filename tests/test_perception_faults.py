@@ -40,10 +40,14 @@ COMPILED = hasattr(perception_module._perceive, "py_func")
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)
 RADIUS = np.full(3, 0.2)
 #: two obstacle discs per environment (x, y, r), fixed
-OBSTACLES = (
-    np.array([[1.5, -2.0], [0.5, 2.5]]),
-    np.array([[0.5, 1.0], [-1.5, 0.0]]),
-    np.array([[0.4, 0.6], [0.3, 0.5]]),
+# two environments' obstacle sets (K, M, 3): x, y, radius each
+OBSTACLES = np.stack(
+    (
+        np.array([[1.5, -2.0], [0.5, 2.5]]),
+        np.array([[0.5, 1.0], [-1.5, 0.0]]),
+        np.array([[0.4, 0.6], [0.3, 0.5]]),
+    ),
+    axis=-1,
 )
 
 
@@ -159,7 +163,7 @@ def _exact_ranges(state, lidar, obstacles=OBSTACLES):
     out = np.zeros((k, n, 0 if lidar is None else lidar.beams))
     if lidar is not None:
         angles = beam_angles(lidar.beams, lidar.fov)
-        cast_beams(state, *obstacles, np.full(n, 0.2), angles, lidar.range, np.asarray(WORKSPACE), out)
+        cast_beams(state, obstacles, np.full(n, 0.2), angles, lidar.range, np.asarray(WORKSPACE), out)
     return out
 
 
@@ -300,7 +304,7 @@ def test_a_reset_clears_the_episode_state_and_the_first_readings_wait_for_flush(
     rng = np.random.default_rng(1)
     perception.reset_env(0, rng)
     state = _truths(1)[0][:1]
-    obstacles = tuple(a[:1] for a in OBSTACLES)
+    obstacles = OBSTACLES[:1]
     perception.flush(state, obstacles, RADIUS)
     for _ in range(5):
         perception.delayed(np.ones((1, 3, 2)), np.array([0]))
@@ -419,7 +423,7 @@ def test_a_single_random_number_per_period_is_drawn_and_refilled(lidar) -> None:
         int(lidar.dropout > 0),
         256,
     )
-    obstacles = (np.array([[1.0]]), np.array([[0.0]]), np.array([[0.3]]))  # 0.7 m ahead of the robot
+    obstacles = np.array([[[1.0, 0.0, 0.3]]])  # 0.7 m ahead of the robot
     replay = Replay(np.random.default_rng(3), 1, PoseNoise(), CommConfig(), lidar, 256)
     perception.reset_env(0, np.random.default_rng(3))
     state = np.zeros((1, 3, 1))
@@ -459,7 +463,7 @@ def test_a_step_of_some_environments_leaves_the_readings_of_the_others() -> None
     """Four environments, three stepped: the fourth keeps its noisy readings (no exact re-cast)."""
     lidar = LidarConfig(beams=16, range=3.0, noise=0.05)
     perception = Perception(4, 2, PoseNoise(), CommConfig(), lidar, 0, DT, WORKSPACE)
-    obstacles = tuple(np.concatenate([a, a]) for a in OBSTACLES)
+    obstacles = np.concatenate([OBSTACLES, OBSTACLES])
     state = np.concatenate([_truths(1)[0], _truths(1, seed=5)[0]])[:, :, :2]
     radius = np.full(2, 0.2)
     for k in range(4):
@@ -529,7 +533,7 @@ def test_a_uniform_equal_to_the_probability_is_no_loss_and_no_dropout() -> None:
     perception.reset_env(0, _Drawn(np.tile(row, (perception.block, 1))))
     state = np.array([[[0.0, 0.0], [0.0, 1.0], [0.0, math.pi / 2]]])  # robot 1 north of robot 0
     # east and west of robot 0, north of robot 1 (and robot 0 south of it): every beam hits something
-    obstacles = (np.array([[2.0, -2.0, 0.0]]), np.array([[0.0, 0.0, 3.0]]), np.array([[0.5, 0.5, 0.5]]))
+    obstacles = np.array([[[2.0, 0.0, 0.5], [-2.0, 0.0, 0.5], [0.0, 3.0, 0.5]]])
     perception.flush(state, obstacles, np.full(2, 0.2))
     assert perception.age[0].tolist() == [[0, 0], [-1, 0]]  # 0 heard 1 (u = drop); 1 lost 0's message
     exact = _exact_ranges(state, perception.lidar, obstacles)[0]

@@ -49,6 +49,7 @@ class StepResult:
     features: NDArray[np.float64]  # (K, N, F)
     robot_reward: NDArray[np.float64]  # (K, N)
     team_reward: NDArray[np.float64]  # (K,)
+    reward: NDArray[np.float64]  # (K,): the robots' terms summed, plus the team's
     terminated: NDArray[np.bool_]  # (K,)
     truncated: NDArray[np.bool_]  # (K,)
 
@@ -89,7 +90,6 @@ class NavigationEngine:
         #: not perturbed; where each robot truly starts it learns from its localization, as a
         #: robot placed by hand does
         self.nominal_starts = np.zeros((k, n, 3))
-        self.obstacles = np.zeros((k, m, 3))
         self.maps: list[MapSpec | None] = [None] * k
         self.distances = np.zeros((k, n))
         self.settled = np.zeros(k, dtype=np.int64)
@@ -105,6 +105,8 @@ class NavigationEngine:
         #: scheduled base levels, None for a slip level that is constant through an episode
         self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
+        #: every environment's obstacle set (K, M, 3): x, y, radius [m] (the geometry's own array)
+        self.obstacles = self.geometry.obstacles
         #: what the robots believe (noise, radio, lidar, command queue); None when they know the truth
         settings = (config.pose_noise, config.comm, config.lidar, config.actuation_delay)
         self.perception = (
@@ -198,7 +200,6 @@ class NavigationEngine:
     def _set_map(self, index: int, spec: MapSpec) -> None:
         n = self.config.n_robots
         self.maps[index] = spec
-        self.obstacles[index] = spec.obstacles
         self.geometry.set_obstacles(index, spec.obstacles)
         self.target[index] = spec.targets[:n].T
         self.offset[index] = formation_offsets(spec.targets[:n]).T
@@ -242,17 +243,12 @@ class NavigationEngine:
         if self.perception is not None:
             self.perception.flush(self.state, self._obstacle_discs(), self.config.robot_radius)
 
-    def _obstacle_discs(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """What the lidar's beams hit besides the robots: the static obstacles and the movers."""
-        geometry = self.geometry
+    def _obstacle_discs(self) -> NDArray[np.float64]:
+        """What the lidar's beams hit besides the robots, (K, M + C, 3): the static obstacles,
+        then the movers (x, y, radius [m] each)."""
         if self.movers is None:
-            return geometry.obstacle_x, geometry.obstacle_y, geometry.obstacle_r
-        mx, my, mr = self.movers.discs()
-        return (
-            np.concatenate([geometry.obstacle_x, mx], axis=1),
-            np.concatenate([geometry.obstacle_y, my], axis=1),
-            np.concatenate([geometry.obstacle_r, mr], axis=1),
-        )
+            return self.geometry.obstacles
+        return np.concatenate([self.geometry.obstacles, self.movers.discs()], axis=1)
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""
@@ -296,12 +292,11 @@ class NavigationEngine:
         before, self.state = self.state, new
         geometry = self.geometry
         collision = np.empty(self.num_envs, dtype=np.int64)
-        collision_flags(
-            new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
-        )
+        collision_flags(new, geometry.obstacles, geometry.radius_sum, self._workspace, collision)
         features, distances = self._sense(before, new, rows, stepping, collision)
         k, n = distances.shape
-        robot_reward, team_reward, ends = np.empty((k, n)), np.empty(k), np.empty((3, k), dtype=bool)
+        robot_reward, team_reward, reward = np.empty((k, n)), np.empty(k), np.empty(k)
+        ends = np.empty((3, k), dtype=bool)
         score_step(
             self._score_rule,
             self.distances,
@@ -314,6 +309,7 @@ class NavigationEngine:
             self.elapsed,
             robot_reward,
             team_reward,
+            reward,
             ends,
         )
         self.distances = distances
@@ -321,7 +317,7 @@ class NavigationEngine:
         self.success = ends[SUCCESS]
         if self.slip_clock is not None:
             self.slip_clock.advance(self.elapsed, active, self.slip.rngs, self.slip.lambdas)
-        return StepResult(features, robot_reward, team_reward, ends[TERMINATED], ends[TRUNCATED])
+        return StepResult(features, robot_reward, team_reward, reward, ends[TERMINATED], ends[TRUNCATED])
 
     def _sense(
         self,
@@ -454,7 +450,7 @@ class NavigationEngine:
             "poses": self.poses.copy(),
             "targets": self.targets.copy(),
             "distances": self.distances.copy(),
-            "collision": self.collision != 0,
+            "collision": self.collision.astype(bool),
             "collision_code": self.collision.copy(),  # int64 already
             "robot_collision": robot_collision,
             "collision_fault": fault,

@@ -194,12 +194,12 @@ class Perception:
     def flush(
         self,
         state: NDArray[np.float64],
-        obstacles: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        discs: NDArray[np.float64],
         robot_radius: NDArray[np.float64],
     ) -> None:
         """Take the first readings of the environments reset since the last update."""
         if self._pending:
-            self.update(state, obstacles, robot_radius, np.zeros(0, dtype=np.int64))
+            self.update(state, discs, robot_radius, np.zeros(0, dtype=np.int64))
 
     # ------------------------------------------------------------------- step
     def delayed(self, commands: NDArray[np.float64], rows: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -215,12 +215,13 @@ class Perception:
     def update(
         self,
         state: NDArray[np.float64],
-        obstacles: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        discs: NDArray[np.float64],
         robot_radius: NDArray[np.float64],
         rows: NDArray[np.int64],
     ) -> None:
         """Read the sensors and the radio of environments ``rows`` (and of those reset since the
-        last update) at the true poses ``state`` (K, 3, N), then advance their clocks."""
+        last update) at the true poses ``state`` (K, 3, N), then advance their clocks; the lidar's
+        beams hit the robots and ``discs`` (K, M, 3: x, y, radius [m] each)."""
         if self._pending:  # a mask rather than a set union: O(K), and each environment once
             chosen = np.zeros(self.clock.shape[0], dtype=bool)
             chosen[rows] = True
@@ -229,13 +230,10 @@ class Perception:
             self._pending.clear()
         self._refill(rows)
         if self.lidar is not None:
-            obstacle_x, obstacle_y, obstacle_r = obstacles
             if rows.shape[0] == state.shape[0]:  # every environment (a plain step): no copies
                 cast_beams(
                     state,
-                    obstacle_x,
-                    obstacle_y,
-                    obstacle_r,
+                    discs,
                     robot_radius,
                     self.angles,
                     self.max_range,
@@ -246,9 +244,7 @@ class Perception:
                 exact = np.empty((rows.shape[0],) + self.ranges.shape[1:])
                 cast_beams(
                     state[rows],
-                    obstacle_x[rows],
-                    obstacle_y[rows],
-                    obstacle_r[rows],
+                    discs[rows],
                     robot_radius,
                     self.angles,
                     self.max_range,
@@ -412,10 +408,11 @@ def observed_info(perception: Perception | None, poses: NDArray[np.float64]) -> 
     """
     if perception is None:
         k, n, _ = poses.shape
+        known = np.empty((k, n, n, 3))
+        known[...] = poses[:, None]  # row i: every robot's pose (np.broadcast_to costs microseconds)
         return {
             "observed_poses": poses.copy(),
-            # row i: every robot's pose, a copy made in one call (np.broadcast_to costs microseconds)
-            "known_poses": poses[:, None].repeat(n, axis=1),
+            "known_poses": known,
             "message_age": np.zeros((k, n, n), dtype=np.int64),
         }
     info = {

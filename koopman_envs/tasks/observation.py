@@ -204,8 +204,7 @@ class FeatureBuilder:
             ranges,
             target,
             offsets,
-            geometry.obstacle_x,
-            geometry.obstacle_y,
+            geometry.obstacles,
             geometry.radius_sum,
             self._at,
             self.low,
@@ -305,8 +304,7 @@ def _build_features(
     ranges: NDArray[np.float64],
     target: NDArray[np.float64],
     offsets: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     radius_sum: NDArray[np.float64],
     offsets_record: NDArray[np.void],
     low: NDArray[np.float64],
@@ -327,7 +325,7 @@ def _build_features(
     """
     at = offsets_record[0]
     n_envs, _, n_robots = own.shape
-    n_obstacles = obstacle_x.shape[1]
+    n_obstacles = obstacles.shape[1]
     n_features = out.shape[2]
     beams = at.formation_error - at.beams
     n_obstacle_obs = (at.beams - at.obstacles) // _OBSTACLE_WIDTH
@@ -374,13 +372,13 @@ def _build_features(
             if n_obstacle_obs:
                 for m in range(n_obstacles):
                     gap[m] = clearance(
-                        x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]
+                        x, y, obstacles[k, m, 0], obstacles[k, m, 1], radius_sum[k, i, n_robots + m]
                     )
                 nearest_first(gap, order, n_obstacles)  # equal clearances keep index order
                 col = at.obstacles
                 for q in range(listed):
                     m = order[q]
-                    dx, dy = obstacle_x[k, m] - x, obstacle_y[k, m] - y
+                    dx, dy = obstacles[k, m, 0] - x, obstacles[k, m, 1] - y
                     row[col + ObstacleEntry.DX] = c * dx + s * dy
                     row[col + ObstacleEntry.DY] = c * dy - s * dx
                     row[col + ObstacleEntry.CLEARANCE] = gap[m]
