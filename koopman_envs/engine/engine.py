@@ -37,7 +37,7 @@ from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.starts import START_NOISE_ATTEMPTS
 from koopman_envs.sim.zones import ZoneTable
 from koopman_envs.tasks.observation import FeatureBuilder
-from koopman_envs.tasks.reward import score_step
+from koopman_envs.tasks.reward import SUCCESS, TERMINATED, TRUNCATED, score_rule, score_step, slot_errors
 
 __all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult", "engine_array_bytes"]
 
@@ -49,6 +49,7 @@ class StepResult:
     features: NDArray[np.float64]  # (K, N, F)
     robot_reward: NDArray[np.float64]  # (K, N)
     team_reward: NDArray[np.float64]  # (K,)
+    reward: NDArray[np.float64]  # (K,): the robots' terms summed, plus the team's
     terminated: NDArray[np.bool_]  # (K,)
     truncated: NDArray[np.bool_]  # (K,)
 
@@ -89,7 +90,6 @@ class NavigationEngine:
         #: not perturbed; where each robot truly starts it learns from its localization, as a
         #: robot placed by hand does
         self.nominal_starts = np.zeros((k, n, 3))
-        self.obstacles = np.zeros((k, m, 3))
         self.maps: list[MapSpec | None] = [None] * k
         self.distances = np.zeros((k, n))
         self.settled = np.zeros(k, dtype=np.int64)
@@ -105,6 +105,8 @@ class NavigationEngine:
         #: scheduled base levels, None for a slip level that is constant through an episode
         self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
+        #: every environment's obstacle set (K, M, 3): x, y, radius [m] (the geometry's own array)
+        self.obstacles = self.geometry.obstacles
         #: what the robots believe (noise, radio, lidar, command queue); None when they know the truth
         settings = (config.pose_noise, config.comm, config.lidar, config.actuation_delay)
         self.perception = (
@@ -138,6 +140,13 @@ class NavigationEngine:
         self._no_formation = np.zeros((k, n))
         #: periods every robot must stay within tolerance for success
         self.settle_steps = PARAMS.settle_steps
+        self._score_rule = score_rule(
+            config.task.reward,
+            config.task.formation,
+            config.goal_tolerance,
+            self.settle_steps,
+            config.max_episode_steps,
+        )
         if config.map_spec is not None:
             for index in range(k):
                 self._set_map(index, config.map_spec)
@@ -191,7 +200,6 @@ class NavigationEngine:
     def _set_map(self, index: int, spec: MapSpec) -> None:
         n = self.config.n_robots
         self.maps[index] = spec
-        self.obstacles[index] = spec.obstacles
         self.geometry.set_obstacles(index, spec.obstacles)
         self.target[index] = spec.targets[:n].T
         self.offset[index] = formation_offsets(spec.targets[:n]).T
@@ -235,17 +243,12 @@ class NavigationEngine:
         if self.perception is not None:
             self.perception.flush(self.state, self._obstacle_discs(), self.config.robot_radius)
 
-    def _obstacle_discs(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """What the lidar's beams hit besides the robots: the static obstacles and the movers."""
-        geometry = self.geometry
+    def _obstacle_discs(self) -> NDArray[np.float64]:
+        """What the lidar's beams hit besides the robots, (K, M + C, 3): the static obstacles,
+        then the movers (x, y, radius [m] each)."""
         if self.movers is None:
-            return geometry.obstacle_x, geometry.obstacle_y, geometry.obstacle_r
-        mx, my, mr = self.movers.discs()
-        return (
-            np.concatenate([geometry.obstacle_x, mx], axis=1),
-            np.concatenate([geometry.obstacle_y, my], axis=1),
-            np.concatenate([geometry.obstacle_r, mr], axis=1),
-        )
+            return self.geometry.obstacles
+        return np.concatenate([self.geometry.obstacles, self.movers.discs()], axis=1)
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""
@@ -280,7 +283,6 @@ class NavigationEngine:
         -------
         StepResult
         """
-        cfg = self.config
         stepping = self.all_active if active is None else active
         perception = self.perception
         rows = self._all_rows if active is None else np.flatnonzero(active)
@@ -290,19 +292,13 @@ class NavigationEngine:
         before, self.state = self.state, new
         geometry = self.geometry
         collision = np.empty(self.num_envs, dtype=np.int64)
-        collision_flags(
-            new, geometry.obstacle_x, geometry.obstacle_y, geometry.radius_sum, self._workspace, collision
-        )
+        collision_flags(new, geometry.obstacles, geometry.radius_sum, self._workspace, collision)
         features, distances = self._sense(before, new, rows, stepping, collision)
         k, n = distances.shape
-        robot_reward, team_reward = np.empty((k, n)), np.empty(k)
-        success, terminated, truncated = np.empty(k, bool), np.empty(k, bool), np.empty(k, bool)
+        robot_reward, team_reward, reward = np.empty((k, n)), np.empty(k), np.empty(k)
+        ends = np.empty((3, k), dtype=bool)
         score_step(
-            cfg.task.reward,
-            cfg.task.formation,
-            cfg.goal_tolerance,
-            self.settle_steps,
-            cfg.max_episode_steps,
+            self._score_rule,
             self.distances,
             distances,
             effort,
@@ -313,16 +309,15 @@ class NavigationEngine:
             self.elapsed,
             robot_reward,
             team_reward,
-            success,
-            terminated,
-            truncated,
+            reward,
+            ends,
         )
         self.distances = distances
         self.collision = collision
-        self.success = success
+        self.success = ends[SUCCESS]
         if self.slip_clock is not None:
             self.slip_clock.advance(self.elapsed, active, self.slip.rngs, self.slip.lambdas)
-        return StepResult(features, robot_reward, team_reward, terminated, truncated)
+        return StepResult(features, robot_reward, team_reward, reward, ends[TERMINATED], ends[TRUNCATED])
 
     def _sense(
         self,
@@ -393,33 +388,44 @@ class NavigationEngine:
     def formation_errors(self) -> NDArray[np.float64]:
         """Distance of every robot from its formation slot relative to the leader [m], (K, N)
         (the leader's is 0), from the engine's state, not from the clipped observation."""
-        ex = self.state[:, 0] - self.state[:, 0, :1] - self.offset[:, 0]
-        ey = self.state[:, 1] - self.state[:, 1, :1] - self.offset[:, 1]
-        return np.hypot(ex, ey)
+        errors = np.empty(self.distances.shape)
+        slot_errors(self.state, self.offset, errors)
+        return errors
 
     def robot_collisions(self) -> NDArray[np.bool_]:
         """Which robots are in collision, (K, N): overlapping an obstacle, another robot or a mover,
         or with the centre outside the workspace (the per-robot view of the collision flags)."""
         return self._robot_collisions()[0]
 
-    def _robot_collisions(self) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
-        """:meth:`robot_collisions`, and whose fault each robot's collision is, (K, N) codes of
-        :class:`~koopman_envs.sim.collision.CollisionFault` (the rule is there)."""
-        out = np.zeros(self.distances.shape, dtype=bool)
-        fault = np.zeros(self.distances.shape, dtype=np.int64)
-        hit = np.flatnonzero(self.collision)
-        if hit.size:  # only the environments that collided: this runs on every vector step
-            x, y = self.state[hit, 0], self.state[hit, 1]
-            touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
-            x_min, x_max, y_min, y_max = PARAMS.workspace
-            out[hit] = static = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
-            # a static contact is the robot's whatever a mover did in the same period
-            fault[hit] = np.where(
-                static, CollisionFault.ROBOT, 0 if self.movers is None else self.movers.fault[hit]
-            )
-            if self.movers is not None:
-                out[hit] |= self.movers.hit[hit]
-        return out, fault
+    def _robot_collisions(
+        self,
+    ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int_], NDArray[np.int_]]:
+        """:meth:`robot_collisions`, whose fault each robot's collision is, (K, N) codes of
+        :class:`~koopman_envs.sim.collision.CollisionFault` (the rule is there), and how many
+        robots of each environment are at fault and not at fault, (K,) each."""
+        k, n = self.distances.shape
+        out = np.zeros((k, n), dtype=bool)
+        fault = np.zeros((k, n), dtype=np.int64)
+        hit = self.collision.nonzero()[0]
+        if not hit.size:  # the common case, on every step: no fault anywhere
+            return out, fault, np.zeros(k, dtype=np.int_), np.zeros(k, dtype=np.int_)
+        # only the environments that collided
+        x, y = self.state[hit, 0], self.state[hit, 1]
+        touching = (self.geometry.clearances(x, y, rows=hit) < 0.0).any(axis=-1)
+        x_min, x_max, y_min, y_max = PARAMS.workspace
+        out[hit] = static = touching | (x < x_min) | (x > x_max) | (y < y_min) | (y > y_max)
+        # a static contact is the robot's whatever a mover did in the same period
+        fault[hit] = np.where(
+            static, CollisionFault.ROBOT, 0 if self.movers is None else self.movers.fault[hit]
+        )
+        if self.movers is not None:
+            out[hit] |= self.movers.hit[hit]
+        return (
+            out,
+            fault,
+            (fault == CollisionFault.ROBOT).sum(axis=1),
+            (fault == CollisionFault.MOVER).sum(axis=1),
+        )
 
     def batch_info(self) -> dict[str, Any]:
         """The true structured state of every environment, one array per key (copies).
@@ -438,18 +444,18 @@ class NavigationEngine:
         ``movers`` (K, C, 4): every mover's true x, y [m], vx, vy [m/s].
         :meth:`info` is row ``index`` of this, so every front reports the same keys.
         """
-        robot_collision, fault = self._robot_collisions()
+        robot_collision, fault, at_fault, not_at_fault = self._robot_collisions()
         info = {
             **self.observed_info(),
             "poses": self.poses.copy(),
             "targets": self.targets.copy(),
             "distances": self.distances.copy(),
-            "collision": self.collision != 0,
-            "collision_code": self.collision.astype(np.int64),
+            "collision": self.collision.astype(bool),
+            "collision_code": self.collision.copy(),  # int64 already
             "robot_collision": robot_collision,
             "collision_fault": fault,
-            "robots_at_fault": (fault == CollisionFault.ROBOT).sum(axis=1),
-            "robots_not_at_fault": (fault == CollisionFault.MOVER).sum(axis=1),
+            "robots_at_fault": at_fault,
+            "robots_not_at_fault": not_at_fault,
             "is_success": self.success.copy(),
             "settled_steps": self.settled.copy(),
         }
@@ -477,6 +483,6 @@ class NavigationEngine:
         """The true structured state of environment ``index``: row ``index`` of :meth:`batch_info`
         (per-env flags and counters as Python scalars)."""
         return {
-            key: value[index].item() if value.ndim == 1 else value[index]
+            key: value.item(index) if value.ndim == 1 else value[index]
             for key, value in self.batch_info().items()
         }

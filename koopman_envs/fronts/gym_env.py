@@ -87,7 +87,7 @@ class KoopNavEnv(gym.Env):
         if engine.maps[0] is None:
             raise RuntimeError("call reset() before step()")
         result = engine.step(engine.validate_commands(action))
-        reward = float(result.robot_reward[0].sum() + result.team_reward[0])
+        reward = float(result.reward[0])
         obs = result.features[0].reshape(-1).astype(np.float32)
         if self.render_mode is not None:
             self._trail.append(engine.poses[0].copy())

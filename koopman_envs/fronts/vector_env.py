@@ -183,7 +183,7 @@ class KoopNavVectorEnv(VectorEnv):
         else:
             result = engine.step(commands)
         self._record()
-        reward = result.robot_reward.sum(-1) + result.team_reward
+        reward = result.reward
         self._autoreset = result.terminated | result.truncated
         info = self._info()
         info["robot_rewards"] = result.robot_reward + result.team_reward[:, None]
@@ -205,7 +205,7 @@ class KoopNavVectorEnv(VectorEnv):
         assert self._rngs is not None  # step() has checked that reset() made the generators
         result = engine.step(commands)
         self._record()
-        reward = result.robot_reward.sum(-1) + result.team_reward
+        reward = result.reward
         done = result.terminated | result.truncated
         obs = self._observations(result.features)
         info = self._info()
