@@ -35,7 +35,7 @@ from evaluation.run.slip_text import split_slips
 from evaluation.run.spec import RunSpec, with_env_setting
 from evaluation.run.suite_runs import add_suite_options, refuse_suite_clash
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
-from koopman_envs.params import PARAMS, SLIP_NAMES
+from koopman_envs.params import PARAMS, PLANTS, SLIP_NAMES
 
 __all__ = [
     "EXAMPLES",
@@ -228,6 +228,7 @@ def _env_settings(env: argparse._ArgumentGroup) -> None:
         help=f"seeded start perturbation [m, rad] (default {QUICK_START_NOISE} in every protocol, so "
         "that trials are distinct episodes; 0: the maps' exact starts, as the paper ran them)",
     )
+    env.add_argument("--plant", choices=PLANTS, help="kinematic (default) or MuJoCo robots (docs/physics.md)")
     env.add_argument(
         "--env-kwargs",
         nargs="+",
@@ -417,6 +418,7 @@ _DEDICATED = (
     ("tolerance", "goal_tolerance"),
     ("max_episode_steps", "max_episode_steps"),
     ("start_noise", "start_noise"),
+    ("plant", "plant"),
 )
 
 
