@@ -161,7 +161,7 @@ def test_the_docs_list_every_keyword() -> None:
 
 
 def test_the_evaluator_takes_the_table_as_env_kwargs() -> None:
-    from evaluation.spec import RunSpec
+    from evaluation.run.spec import RunSpec
 
     spec = RunSpec(
         "KoopNav-Formation-v0",

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, refuse_held_out_map
-from evaluation.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
+from evaluation.experiments.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
 
 pytest.importorskip("stable_baselines3")
 
