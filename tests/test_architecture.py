@@ -161,27 +161,42 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
     assert importlib.util.find_spec(old) is None, f"{old} is back; import from its new module"
 
 
-#: moved module paths that docs/ told users to run, kept one release with a DeprecationWarning
-#: (CHANGELOG.md, Deprecated): old path -> new module
-EVAL_DEPRECATED_PATHS = {"evaluation.seeds": "evaluation.experiments.seeds"}
+#: moved module paths kept one release with a DeprecationWarning (CHANGELOG.md, Deprecated), old
+#: path -> new module: the commands docs/ told users to run, and the baselines modules that
+#: something outside the source names (the installed controllers' entry points: baselines.policy,
+#: .marl_policy; the shipped set policies' zips, which name baselines.set_encoder.SetEncoder)
+DEPRECATED_PATHS = {
+    "evaluation.seeds": "evaluation.experiments.seeds",
+    "baselines.train": "baselines.sb3.train",
+    "baselines.select": "baselines.sb3.select",
+    "baselines.benchmarl_train": "baselines.marl.benchmarl_train",
+    "baselines.policy": "baselines.sb3.policy",
+    "baselines.marl_policy": "baselines.marl.marl_policy",
+    "baselines.set_encoder": "baselines.sb3.set_encoder",
+}
+#: the deprecated paths that are commands: python -m OLD runs python -m NEW
+DEPRECATED_COMMANDS = {"evaluation.seeds", "baselines.train", "baselines.select", "baselines.benchmarl_train"}
 
 
-@pytest.mark.parametrize("old", sorted(EVAL_DEPRECATED_PATHS))
+@pytest.mark.parametrize("old", sorted(DEPRECATED_PATHS))
 def test_a_deprecated_path_warns_and_still_runs_its_command(old: str, monkeypatch, capsys) -> None:
     """Imported, the old path warns (naming the new module and the removal release) and reads the
-    new module's names; run with ``python -m``, it runs the new module's command."""
+    new module's names; a command's, run with ``python -m``, runs the new module's command."""
     import importlib
     import runpy
 
-    new = EVAL_DEPRECATED_PATHS[old]
+    new = DEPRECATED_PATHS[old]
     monkeypatch.delitem(sys.modules, old, raising=False)
     with pytest.warns(
         DeprecationWarning, match=rf"{old} is deprecated and will be removed in KoopNav 0\.2\.0.*{new}"
     ):
         module = importlib.import_module(old)
     moved = importlib.import_module(new)
-    assert [name for name in moved.__all__ if getattr(module, name) is not getattr(moved, name)] == []
+    names = getattr(moved, "__all__", None) or [n for n in vars(moved) if not n.startswith("_")]
+    assert names and [name for name in names if getattr(module, name) is not getattr(moved, name)] == []
     monkeypatch.delitem(sys.modules, old)
+    if old not in DEPRECATED_COMMANDS:
+        return
     monkeypatch.setattr(sys, "argv", [old, "--help"])
     with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"), pytest.raises(SystemExit) as exited:
         runpy.run_module(old, run_name="__main__")
@@ -388,21 +403,6 @@ def test_every_evaluator_folder_is_the_face_of_its_modules(folder: str) -> None:
 #: imports the other). The package itself is the face on top (nothing inside imports it but the
 #: deprecated stubs), so every module is importable without the others' libraries.
 BASELINES_LAYERS = {"": 0, "features": 1, "sb3": 2, "marl": 2}
-#: the previous release's module paths of baselines/, kept one release as stub modules at the root
-#: (CHANGELOG.md, Deprecated; removed in 0.2.0): named in docs/api/baselines.md, docs/rl.md, the
-#: installed controllers' entry points, or documented as commands (python -m baselines.train)
-BASELINES_DEPRECATED_PATHS = {
-    "baselines.policy": "baselines.sb3.policy",
-    "baselines.set_encoder": "baselines.sb3.set_encoder",
-    "baselines.train": "baselines.sb3.train",
-    "baselines.select": "baselines.sb3.select",
-    "baselines.set_features": "baselines.features.set_features",
-    "baselines.benchmarl_task": "baselines.marl.benchmarl_task",
-    "baselines.benchmarl_train": "baselines.marl.benchmarl_train",
-    "baselines.marl_policy": "baselines.marl.marl_policy",
-}
-#: the deprecated paths that are commands: python -m OLD runs python -m NEW
-DEPRECATED_COMMANDS = ("baselines.train", "baselines.select", "baselines.benchmarl_train")
 
 
 def _baselines_layer(module: str) -> tuple[int, str]:
@@ -418,11 +418,11 @@ def test_baselines_import_only_downwards() -> None:
     modules = _modules()
     wrong = []
     for name, path in modules.items():
-        if not name.startswith("baselines.") or name in BASELINES_DEPRECATED_PATHS:
+        if not name.startswith("baselines.") or name in DEPRECATED_PATHS:
             continue
         layer, folder = _baselines_layer(name)
         for target in _imports(path, modules):
-            if target == "baselines" or target in BASELINES_DEPRECATED_PATHS:
+            if target == "baselines" or target in DEPRECATED_PATHS:
                 wrong.append(f"{name} -> {target} (the face or a deprecated path)")
             elif target.startswith("baselines."):
                 other_layer, other_folder = _baselines_layer(target)
@@ -435,61 +435,6 @@ def test_the_baselines_root_holds_the_shared_modules_and_the_stubs_only() -> Non
     """The root's modules are the four both families use and the deprecated stubs; the rest live
     in the folders of BASELINES_LAYERS."""
     root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
-    stubs = {old.split(".")[1] for old in BASELINES_DEPRECATED_PATHS}
+    stubs = {old.split(".")[1] for old in DEPRECATED_PATHS if old.startswith("baselines.")}
     assert root - stubs == {"shaping", "curriculum", "suite_training", "safe_load"}
     assert stubs <= root
-
-
-@pytest.mark.parametrize("old", sorted(BASELINES_DEPRECATED_PATHS))
-def test_a_deprecated_baselines_path_warns_and_names_its_new_module(old: str) -> None:
-    """Importing the old path warns (naming the new module and the removal release); its names are
-    read from the new module, which exists (and has the command's ``main``)."""
-    import importlib
-    import importlib.util
-
-    new = BASELINES_DEPRECATED_PATHS[old]
-    spec = importlib.util.find_spec(new)
-    assert spec is not None and spec.origin, f"{old} forwards to {new}, which is no module"
-    sys.modules.pop(old, None)
-    with pytest.warns(DeprecationWarning, match=rf"{old} is deprecated .* 0\.2\.0; import from {new}"):
-        stub = importlib.import_module(old)
-    sys.modules.pop(old, None)  # the next import warns again
-    assert stub.__getattr__.__qualname__.startswith("_moved_module")
-    if old in DEPRECATED_COMMANDS:  # the command runs the new module's main()
-        text = (ROOT / "baselines" / f"{old.split('.')[1]}.py").read_text()
-        assert f'if __name__ == "__main__":\n    _run_moved_command("{old}", "{new}")' in text
-        target = ast.parse(Path(spec.origin).read_text())
-        assert any(isinstance(n, ast.FunctionDef) and n.name == "main" for n in target.body)
-
-
-def test_a_deprecated_module_reads_its_names_from_the_new_module() -> None:
-    import importlib
-
-    import baselines.features.set_features as new
-
-    sys.modules.pop("baselines.set_features", None)
-    with pytest.warns(DeprecationWarning):
-        old = importlib.import_module("baselines.set_features")
-    assert old.SetFeatureConfig is new.SetFeatureConfig and old.set_features is new.set_features
-    assert set(new.__all__) == set(dir(old))
-    with pytest.raises(AttributeError, match="no_such_name"):
-        old.no_such_name  # noqa: B018 - the read is the test
-
-
-def test_a_deprecated_command_runs_the_new_one(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """``python -m baselines.select --help`` (run in this process) warns and prints the help of
-    ``python -m baselines.sb3.select``, exit code 0."""
-    import runpy
-
-    monkeypatch.setattr(sys, "argv", ["select", "--help"])
-    monkeypatch.delitem(sys.modules, "baselines.select", raising=False)
-    with pytest.warns(
-        DeprecationWarning,
-        match=r"python -m baselines.select is deprecated .* python -m baselines.sb3.select",
-    ):
-        with pytest.raises(SystemExit) as exited:
-            runpy.run_module("baselines.select", run_name="__main__")
-    assert exited.value.code == 0
-    assert "usage: python -m baselines.sb3.select" in capsys.readouterr().out
