@@ -72,9 +72,7 @@ def orca_runner(num_envs: int) -> tuple:
 
 
 @njit(cache=True)
-def _social_force_step(
-    position, velocity, goal, speed, radius, obstacle_x, obstacle_y, obstacle_r, dt
-):  # pragma: no cover - compiled
+def _social_force_step(position, velocity, goal, speed, radius, obstacles, dt):  # pragma: no cover - compiled
     """One period of Helbing and Molnar's social force for every pedestrian of every environment:
     relaxation to the preferred velocity (tau 0.5 s), exponential repulsion from the others
     (A 2.1 m/s^2, B 0.3 m) and from the obstacles' surfaces (A 10 m/s^2, B 0.2 m), speed capped."""
@@ -94,10 +92,10 @@ def _social_force_step(
                     push = a_people * math.exp((2 * radius - dist) / b_people)
                     fx += push * ox / dist
                     fy += push * oy / dist
-            for m in range(obstacle_x.shape[1]):
-                ox, oy = x - obstacle_x[k, m], y - obstacle_y[k, m]
+            for m in range(obstacles.shape[1]):  # (K, M, 3): x, y, radius each
+                ox, oy = x - obstacles[k, m, 0], y - obstacles[k, m, 1]
                 dist = math.sqrt(ox * ox + oy * oy) + 1e-9
-                push = a_wall * math.exp((radius + obstacle_r[k, m] - dist) / b_wall)
+                push = a_wall * math.exp((radius + obstacles[k, m, 2] - dist) / b_wall)
                 fx += push * ox / dist
                 fy += push * oy / dist
             vx, vy = velocity[k, c, 0] + fx * dt, velocity[k, c, 1] + fy * dt
@@ -112,10 +110,10 @@ def social_force_runner(num_envs: int) -> tuple:
     """``(step, reset)`` of the compiled social-force kernel on the same pedestrians and goals."""
     field = _crowd_field(num_envs)
     position, velocity, goal = field.position.copy(), field.velocity.copy(), field.goal.copy()
-    args = (field._obstacle_x, field._obstacle_y, field._obstacle_r)
+    obstacles = field._obstacles
 
     def step(i: int) -> None:
-        _social_force_step(position, velocity, goal, 0.4, 0.2, *args, PARAMS.dt)
+        _social_force_step(position, velocity, goal, 0.4, 0.2, obstacles, PARAMS.dt)
 
     step(0)  # compile outside the timing
     return step, lambda: None

@@ -1,15 +1,23 @@
-"""--baseline and --fail-if-worse (evaluation/baseline.py): pairing across runs, refusal of other
+"""--baseline and --fail-if-worse (evaluation/reports/baseline.py): pairing across runs, refusal of other
 settings, the gate's decisions, bad baseline files, the GitHub step summary."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from pathlib import Path
 
 import pytest
 
 import evaluate as ev
-from evaluation.baseline import GateOptions, compare_runs, coverage_failures, gate_failures, load_baseline
+from evaluation.reports.baseline import (
+    GateOptions,
+    compare_runs,
+    coverage_failures,
+    gate_failures,
+    load_baseline,
+)
 
 RUN = [
     "--env",
@@ -41,7 +49,7 @@ def _record(
         "seed": seed,
         "success": success,
         "final_distance": [distance] * 3,
-        # a distinct episode per seed (evaluation.distinct: identical episodes count once)
+        # a distinct episode per seed (evaluation.episodes.distinct: identical episodes count once)
         "final_poses": [[float(seed), 0.0, 0.0]] * 3,
     }
 
@@ -57,11 +65,26 @@ def base(tmp_path_factory) -> Path:
 GATE = ["--fail-if-worse", "--min-pairs", "8"]
 
 
-def test_an_identical_rerun_passes_the_gate(base, tmp_path, capsys) -> None:
-    code = ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--baseline", str(base), *GATE])
+@pytest.fixture(scope="module")
+def rerun(base, tmp_path_factory) -> tuple[Path, int, str, Path]:
+    """An identical rerun gated against ``base``, with a badge and a GitHub step summary that
+    already holds an earlier step's text: (its output directory, exit code, stdout, the summary).
+    One run of 8 NMPC episodes serves the three tests that read it."""
+    out = tmp_path_factory.mktemp("rerun")
+    summary = out / "summary.md"
+    summary.write_text("earlier step\n")
+    args = [*RUN, "--controllers", NMPC, "--out", str(out), "--baseline", str(base), *GATE, "--badge", "nmpc"]
+    with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stdout(io.StringIO()) as stdout:
+        patch.setenv("GITHUB_STEP_SUMMARY", str(summary))
+        code = ev.main(args)
+    return out, code, stdout.getvalue(), summary
+
+
+def test_an_identical_rerun_passes_the_gate(rerun) -> None:
+    out, code, stdout, _ = rerun
     assert code == 0
-    assert "baseline gate passed" in capsys.readouterr().out
-    comparison = json.loads((tmp_path / "baseline_comparison.json").read_text())
+    assert "baseline gate passed" in stdout
+    comparison = json.loads((out / "baseline_comparison.json").read_text())
     (row,) = comparison["rows"]
     assert row["n"] == 8 and row["only_a"] == row["only_b"] == 0 and row["distance_cm_difference"] == 0.0
 
@@ -159,13 +182,9 @@ def test_cells_on_one_side_only_are_listed_not_dropped() -> None:
     ]
 
 
-def test_the_github_step_summary_is_appended(base, tmp_path, monkeypatch) -> None:
-    summary = tmp_path / "summary.md"
-    summary.write_text("earlier step\n")
-    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(summary))
-    assert (
-        ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path / "run"), "--baseline", str(base)]) == 0
-    )
+def test_the_github_step_summary_is_appended(rerun) -> None:
+    _, code, _, summary = rerun
+    assert code == 0
     text = summary.read_text()
     assert (
         text.startswith("earlier step\n")
@@ -174,11 +193,12 @@ def test_the_github_step_summary_is_appended(base, tmp_path, monkeypatch) -> Non
     )
 
 
-def test_the_badge_is_valid_svg_with_the_rate_and_its_interval(base, tmp_path) -> None:
+def test_the_badge_is_valid_svg_with_the_rate_and_its_interval(rerun) -> None:
     import xml.etree.ElementTree as ET
 
-    assert ev.main([*RUN, "--controllers", NMPC, "--out", str(tmp_path), "--badge", "nmpc"]) == 0
-    root = ET.fromstring((tmp_path / "badge.svg").read_text())
+    out, code, _, _ = rerun
+    assert code == 0
+    root = ET.fromstring((out / "badge.svg").read_text())
     assert root.tag == "{http://www.w3.org/2000/svg}svg"
     texts = [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
     assert texts == ["nmpc success", "100% [68-100], n=8"]
@@ -221,7 +241,7 @@ def test_the_solver_comparison_page_pairs_across_files_and_counts_cells() -> Non
 
 def test_a_controller_on_several_tasks_is_also_gated_over_all_of_them() -> None:
     """4 of 12 pairs lost per task is not significant (p = 0.125); 8 of 24 over both tasks is (p = 0.008)."""
-    from evaluation.baseline import ALL_TASKS
+    from evaluation.reports.baseline import ALL_TASKS
 
     def run(won: int) -> list[dict]:
         records = []

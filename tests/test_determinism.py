@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import hashlib
+import itertools
 import multiprocessing as mp
+from collections.abc import Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -50,14 +52,33 @@ def test_different_seed_different_slip() -> None:
 
 def test_same_rollout_in_other_processes() -> None:
     here = [rollout_digest(*case) for case in CASES]
-    with mp.get_context("spawn").Pool(2) as pool:
+    with mp.get_context("spawn").Pool(1) as pool:  # one fresh interpreter: its start-up is most of the cost
         there = pool.starmap(rollout_digest, CASES)
     assert here == there
 
 
-@pytest.mark.parametrize("start_noise", [0.0, 0.3])
-@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
+def covering(*choices: Sequence[object]) -> list:
+    """One pytest parameter per combination of two-valued ``choices``. The default run keeps the
+    combinations whose value indices add up to an even number: with three choices, every pair of
+    values of any two of them (the four pairs) is among those; with two, every value of each.
+    The rest run with ``-m slow`` (600 steps of 4 sub-envs and 4 single envs: seconds each)."""
+    return [
+        pytest.param(
+            *combination,
+            marks=[pytest.mark.slow] if sum(index) % 2 else [],
+            id="-".join(
+                str(v) for value in combination for v in (value if isinstance(value, tuple) else [value])
+            ),
+        )
+        for index in itertools.product(*(range(len(values)) for values in choices))
+        for combination in [tuple(values[i] for values, i in zip(choices, index, strict=True))]
+    ]
+
+
+MODES = ["NextStep", "SameStep"]
+
+
+@pytest.mark.parametrize(("env_id", "mode", "start_noise"), covering(koopman_envs.ENV_IDS, MODES, [0.0, 0.3]))
 def test_vector_env_matches_single_envs(env_id: str, mode: str, start_noise: float) -> None:
     """Sub-env i seeded s + i is the single env seeded s + i, across auto-resets (with perturbed starts too)."""
     vector_matches_single_envs(
@@ -71,9 +92,9 @@ ZONES_AND_SCHEDULES = {
 }
 
 
-@pytest.mark.parametrize("variant", ZONES_AND_SCHEDULES)
-@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id", koopman_envs.ENV_IDS)
+@pytest.mark.parametrize(
+    ("env_id", "mode", "variant"), covering(koopman_envs.ENV_IDS, MODES, list(ZONES_AND_SCHEDULES))
+)
 def test_vector_env_matches_single_envs_with_zones_and_drift(env_id: str, mode: str, variant: str) -> None:
     """The same with slip zones (per sub-env on random maps; map5 / map6) and changing slip."""
     kwargs = dict(ZONES_AND_SCHEDULES[variant], max_episode_steps=120)
@@ -81,12 +102,15 @@ def test_vector_env_matches_single_envs_with_zones_and_drift(env_id: str, mode: 
     vector_matches_single_envs(env_id, mode, kwargs)
 
 
-@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
 @pytest.mark.parametrize(
-    "env_id, shape", [("KoopNav-TargetReaching-v0", "line"), ("KoopNav-Formation-v0", "circle")]
+    ("env_and_shape", "mode"),
+    covering([("KoopNav-TargetReaching-v0", "line"), ("KoopNav-Formation-v0", "circle")], MODES),
 )
-def test_vector_env_matches_single_envs_with_a_formation_shape(env_id: str, shape: str, mode: str) -> None:
+def test_vector_env_matches_single_envs_with_a_formation_shape(
+    env_and_shape: tuple[str, str], mode: str
+) -> None:
     """The same for six robots laid out in a formation shape on random maps."""
+    env_id, shape = env_and_shape
     kwargs = {
         "map": "random",
         "n_robots": 6,

@@ -12,7 +12,9 @@ a block's closing fence, ``<!-- prints: REGEX -->``, says what that output must 
 A block preceded by the line ``<!-- no-test: why -->`` is skipped; the reason is required and such
 blocks stay rare (training for minutes, a fragment that is only a signature). A block preceded by
 ``<!-- requires: module -->`` is skipped when that module is not installed (an optional extra).
-```bash blocks are not run.
+A block preceded by ``<!-- slow: tests/test_x.py why -->`` runs with ``-m slow`` only (CI runs both):
+a block of many seconds whose behaviour the named test file checks in the default run. These
+markers may stand together, one per line, right above the block. ```bash blocks are not run.
 """
 
 from __future__ import annotations
@@ -36,6 +38,9 @@ FENCE = re.compile(
 )
 SKIP = re.compile(r"<!--\s*no-test:\s*(?P<why>\S[^>]*?)\s*-->[ \t]*$", re.MULTILINE)
 REQUIRES = re.compile(r"<!--\s*requires:\s*(?P<module>[\w.]+)\s*-->[ \t]*$", re.MULTILINE)
+SLOW = re.compile(r"<!--\s*slow:\s*(?P<covered>tests/\S+\.py)\s+(?P<why>\S[^>]*?)\s*-->[ \t]*$", re.MULTILINE)
+#: the HTML comment lines right above a block, where its markers stand
+MARKERS = re.compile(r"(?:^[ \t]*<!--[^\n]*-->[ \t]*\n)*\Z", re.MULTILINE)
 PRINTS = re.compile(r"\A\n[ \t]*<!-- prints: (?P<regex>.+?) -->[ \t]*$", re.MULTILINE)
 #: at most this many skipped blocks over all pages: a skip needs a reason, and the docs should run
 MAX_SKIPS = 4
@@ -43,26 +48,30 @@ MAX_SKIPS = 4
 
 def python_blocks(text: str) -> list[tuple[int, str, str | None]]:
     """``(line, code, skip_reason)`` for every ```python fenced block of a Markdown text."""
-    return [(line, code, why) for line, code, why, _ in _blocks(text)]
+    return [(line, code, why) for line, code, why, *_ in _blocks(text)]
 
 
-def _blocks(text: str) -> list[tuple[int, str, str | None, str | None]]:
-    """``(line, code, skip_reason, prints)`` for every ```python fenced block; ``prints`` is the
-    regex of the ``<!-- prints: ... -->`` line right after it, or None."""
+def _blocks(text: str) -> list[tuple[int, str, str | None, str | None, str | None]]:
+    """``(line, code, skip_reason, prints, slow)`` for every ```python fenced block; ``prints`` is
+    the regex of the ``<!-- prints: ... -->`` line right after it, or None; ``slow`` the test file
+    its ``<!-- slow: ... -->`` marker names, or None."""
     blocks = []
     for m in FENCE.finditer(text):
         if m["info"].strip().split(" ")[0] not in ("python", "py", "{code-block} python"):
             continue
         line = text.count("\n", 0, m.start()) + 1
-        before = text[: m.start()].rstrip("\n").rsplit("\n", 1)[-1]
-        skip, needs = SKIP.search(before), REQUIRES.search(before)
+        above = text[: m.start()]
+        before = above[MARKERS.search(above).start() :]  # type: ignore[union-attr]  # matches "" at least
+        skip, needs, slow = SKIP.search(before), REQUIRES.search(before), SLOW.search(before)
         why = skip["why"] if skip else None
         if needs and importlib.util.find_spec(needs["module"]) is None:
             why = f"needs {needs['module']}, not installed"
         indent = len(m["indent"])
         code = "\n".join(row[indent:] for row in m["body"].split("\n"))
         prints = PRINTS.search(text[m.end() :])
-        blocks.append((line, code, why, prints["regex"] if prints else None))
+        blocks.append(
+            (line, code, why, prints["regex"] if prints else None, slow["covered"] if slow else None)
+        )
     return blocks
 
 
@@ -106,9 +115,16 @@ def _rel(page: Path) -> str:
 def _every_block() -> list:
     """One pytest parameter per python block of every page, named ``page:line``."""
     return [
-        pytest.param(f"{_rel(page)}:{line}", code, skip, prints, id=f"{_rel(page)}:{line}")
+        pytest.param(
+            f"{_rel(page)}:{line}",
+            code,
+            skip,
+            prints,
+            id=f"{_rel(page)}:{line}",
+            marks=[pytest.mark.slow] if slow else [],
+        )
         for page in PAGES
-        for line, code, skip, prints in _blocks(page.read_text())
+        for line, code, skip, prints, slow in _blocks(page.read_text())
     ]
 
 
@@ -150,7 +166,12 @@ def test_skipped_blocks_are_rare_and_say_why() -> None:
         assert text.count("no-test") == len(SKIP.findall(text)), _rel(page)
         assert text.count("requires:") == len(REQUIRES.findall(text)), _rel(page)
         # a prints line that follows no python block would check nothing
-        assert text.count("<!-- prints:") == sum(p is not None for *_, p in _blocks(text)), _rel(page)
+        assert text.count("<!-- prints:") == sum(b[3] is not None for b in _blocks(text)), _rel(page)
+        # a slow marker stands right above a python block and names the test file that checks the
+        # block's behaviour in the default run
+        covered = [b[4] for b in _blocks(text) if b[4] is not None]
+        assert text.count("<!-- slow:") == len(covered), _rel(page)
+        assert all((ROOT / name).is_file() for name in covered), (_rel(page), covered)
 
 
 def test_the_readme_and_the_docs_have_snippets() -> None:

@@ -35,9 +35,7 @@ def _scan(
     angles = beam_angles(beams, 2 * math.pi)
     cast_beams(
         np.array(pose, dtype=np.float64).reshape(1, 3, 1),
-        obstacles[None, :, 0].copy(),
-        obstacles[None, :, 1].copy(),
-        obstacles[None, :, 2].copy(),
+        obstacles[None],
         np.array([0.2]),
         angles,
         RANGE,

@@ -24,7 +24,13 @@ import pytest
 from koopman_envs.sim import perception as perception_module
 from koopman_envs.sim.dynamics import wrap_scalar
 from koopman_envs.sim.lidar import beam_angles, cast_beams
-from koopman_envs.sim.perception import BLOCK_NUMBERS, Perception, child_generator, observed_info
+from koopman_envs.sim.perception import (
+    BLOCK_NUMBERS,
+    SENSOR_MODEL,
+    Perception,
+    child_generator,
+    observed_info,
+)
 from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
 DT = 0.1
@@ -34,10 +40,14 @@ COMPILED = hasattr(perception_module._perceive, "py_func")
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)
 RADIUS = np.full(3, 0.2)
 #: two obstacle discs per environment (x, y, r), fixed
-OBSTACLES = (
-    np.array([[1.5, -2.0], [0.5, 2.5]]),
-    np.array([[0.5, 1.0], [-1.5, 0.0]]),
-    np.array([[0.4, 0.6], [0.3, 0.5]]),
+# two environments' obstacle sets (K, M, 3): x, y, radius each
+OBSTACLES = np.stack(
+    (
+        np.array([[1.5, -2.0], [0.5, 2.5]]),
+        np.array([[0.5, 1.0], [-1.5, 0.0]]),
+        np.array([[0.4, 0.6], [0.3, 0.5]]),
+    ),
+    axis=-1,
 )
 
 
@@ -153,7 +163,7 @@ def _exact_ranges(state, lidar, obstacles=OBSTACLES):
     out = np.zeros((k, n, 0 if lidar is None else lidar.beams))
     if lidar is not None:
         angles = beam_angles(lidar.beams, lidar.fov)
-        cast_beams(state, *obstacles, np.full(n, 0.2), angles, lidar.range, np.asarray(WORKSPACE), out)
+        cast_beams(state, obstacles, np.full(n, 0.2), angles, lidar.range, np.asarray(WORKSPACE), out)
     return out
 
 
@@ -294,7 +304,7 @@ def test_a_reset_clears_the_episode_state_and_the_first_readings_wait_for_flush(
     rng = np.random.default_rng(1)
     perception.reset_env(0, rng)
     state = _truths(1)[0][:1]
-    obstacles = tuple(a[:1] for a in OBSTACLES)
+    obstacles = OBSTACLES[:1]
     perception.flush(state, obstacles, RADIUS)
     for _ in range(5):
         perception.delayed(np.ones((1, 3, 2)), np.array([0]))
@@ -333,7 +343,8 @@ def test_the_buffers_have_the_documented_shapes_and_start_empty() -> None:
     assert p.age.shape == (4, 3, 3) and (p.age == -1).all() and p.age.dtype == np.int64
     assert p.ranges.shape == (4, 3, 40) and p.max_range == 3.0
     np.testing.assert_array_equal(p.angles, beam_angles(40, 2 * math.pi))
-    assert p.sent_poses.shape == (4, 2, 3, 3) and p.sent_positions.shape == (4, 2, 2, 3)
+    assert p.sent.shape == (4, 2, 5, 3)  # the estimates sent, then the true positions
+    assert p.model.dtype == SENSOR_MODEL and p.model.shape == (1,) and p.model[0]["max_range"] == 3.0
     assert (p._normals, p._uniforms) == (18 + 120, 6 + 120)
     assert p.normal.shape == (block, 4, 138) and p.normal.dtype == np.float32
     assert p.uniform.shape == (block, 4, 126) and p.uniform.dtype == np.float32
@@ -412,7 +423,7 @@ def test_a_single_random_number_per_period_is_drawn_and_refilled(lidar) -> None:
         int(lidar.dropout > 0),
         256,
     )
-    obstacles = (np.array([[1.0]]), np.array([[0.0]]), np.array([[0.3]]))  # 0.7 m ahead of the robot
+    obstacles = np.array([[[1.0, 0.0, 0.3]]])  # 0.7 m ahead of the robot
     replay = Replay(np.random.default_rng(3), 1, PoseNoise(), CommConfig(), lidar, 256)
     perception.reset_env(0, np.random.default_rng(3))
     state = np.zeros((1, 3, 1))
@@ -452,7 +463,7 @@ def test_a_step_of_some_environments_leaves_the_readings_of_the_others() -> None
     """Four environments, three stepped: the fourth keeps its noisy readings (no exact re-cast)."""
     lidar = LidarConfig(beams=16, range=3.0, noise=0.05)
     perception = Perception(4, 2, PoseNoise(), CommConfig(), lidar, 0, DT, WORKSPACE)
-    obstacles = tuple(np.concatenate([a, a]) for a in OBSTACLES)
+    obstacles = np.concatenate([OBSTACLES, OBSTACLES])
     state = np.concatenate([_truths(1)[0], _truths(1, seed=5)[0]])[:, :, :2]
     radius = np.full(2, 0.2)
     for k in range(4):
@@ -522,7 +533,7 @@ def test_a_uniform_equal_to_the_probability_is_no_loss_and_no_dropout() -> None:
     perception.reset_env(0, _Drawn(np.tile(row, (perception.block, 1))))
     state = np.array([[[0.0, 0.0], [0.0, 1.0], [0.0, math.pi / 2]]])  # robot 1 north of robot 0
     # east and west of robot 0, north of robot 1 (and robot 0 south of it): every beam hits something
-    obstacles = (np.array([[2.0, -2.0, 0.0]]), np.array([[0.0, 0.0, 3.0]]), np.array([[0.5, 0.5, 0.5]]))
+    obstacles = np.array([[[2.0, 0.0, 0.5], [-2.0, 0.0, 0.5], [0.0, 3.0, 0.5]]])
     perception.flush(state, obstacles, np.full(2, 0.2))
     assert perception.age[0].tolist() == [[0, 0], [-1, 0]]  # 0 heard 1 (u = drop); 1 lost 0's message
     exact = _exact_ranges(state, perception.lidar, obstacles)[0]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.builder.config import EngineConfig
+from koopman_envs.engine.config import EngineConfig
 from koopman_envs.sim.physics.surfaces import check_surface, floor_surface
 from koopman_envs.sim.zones import SlipZone
 
@@ -86,3 +86,52 @@ def test_named_slip_settings_name_surfaces_and_zones_keep_theirs() -> None:
     zone = SlipZone.from_dict({"rect": [0, 0, 1, 1], "lambda": 0.4, "surface": "gravel"})
     assert zone.surface == "gravel"
     assert SlipZone.from_dict(zone.to_dict()).to_dict() == zone.to_dict()
+
+
+def _run_spec(*words: str):
+    from evaluation.cli import build_parser, spec_from_args
+
+    return spec_from_args(build_parser().parse_args(list(words)))
+
+
+def test_the_evaluator_s_plant_option_is_the_env_keyword() -> None:
+    """``--plant mujoco`` is ``--env-kwargs plant=mujoco`` (the sim-to-sim protocol's switch);
+    without it the run's env keywords hold no plant (the kinematic default)."""
+    assert _run_spec("--plant", "mujoco").env_kwargs["plant"] == "mujoco"
+    assert _run_spec("--plant", "mujoco").env_kwargs == _run_spec("--env-kwargs", "plant=mujoco").env_kwargs
+    assert "plant" not in _run_spec().env_kwargs
+    assert (
+        _run_spec("--plant", "kinematic", "--env-kwargs", "plant=kinematic").env_kwargs["plant"]
+        == "kinematic"
+    )
+
+
+@pytest.mark.parametrize(
+    "words, message",
+    [
+        (
+            ["--plant", "mujuco"],
+            "argument --plant: invalid choice: 'mujuco' (choose from 'kinematic', 'mujoco')",
+        ),
+        (
+            ["--plant", "mujoco", "--env-kwargs", "plant=kinematic"],
+            "--plant mujoco and --env-kwargs plant='kinematic' set the same env keyword to different values",
+        ),
+    ],
+)
+def test_a_bad_or_clashing_plant_option_exits_2_by_name(tmp_path, capsys, words, message) -> None:
+    import evaluate
+
+    out = tmp_path / "run"
+    args = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
+    code: int | str | None
+    try:  # argparse's refusal exits; the run's own checks return the exit code
+        code = evaluate.main(
+            [*args, "--episodes", "1", "--workers", "1", "--quiet", *words, "--out", str(out)]
+        )
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err and "Traceback" not in err
+    assert not (out / "episodes.jsonl").exists()

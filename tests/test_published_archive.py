@@ -1,8 +1,8 @@
-"""The published-archive reader (evaluation/published.py) on small archives built here, each in
+"""The published-archive reader (evaluation/reports/published.py) on small archives built here, each in
 tmp_path with the module's own pack_run or with tarfile (issue 59: the cases its mutation run
 left untested): the planned order of a log's records, a log's bad lines named by number, every
 limit exact at its bound, every refusal's message in full, directory members, the clean-up of a
-refused archive, packing and unpacking, and the command line."""
+refused archive, packing and unpacking, and its command (evaluation/archive.py)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ from typing import Any
 import pytest
 from test_bounded_reads import _special, _tar_xz
 
-from evaluation import published
+from evaluation.archive import main as archive_command
+from evaluation.reports import published
 
 HEADER = {"kind": "koopnav-run", "config": {}}
 
@@ -195,13 +196,13 @@ def test_every_limit_holds_its_own_value(small, tmp_path, monkeypatch) -> None:
             "MAX_TOTAL_BYTES",
             total - 1,
             f"{small}: unpacks to more than {total - 1} bytes, the most allowed "
-            "(evaluation.published.MAX_TOTAL_BYTES); nothing more was unpacked",
+            "(evaluation.reports.published.MAX_TOTAL_BYTES); nothing more was unpacked",
         ),
         ("MAX_MEMBERS", 3, None),
         (
             "MAX_MEMBERS",
             2,
-            f"{small}: holds more than 2 members, the most allowed (evaluation.published.MAX_MEMBERS)",
+            f"{small}: holds more than 2 members, the most allowed (evaluation.reports.published.MAX_MEMBERS)",
         ),
         ("MAX_MEMBER_BYTES", 600, None),
         ("MAX_RATIO", Fraction(total, packed), None),  # exactly MAX_RATIO:1 is allowed
@@ -234,7 +235,7 @@ def test_the_ratio_floor_holds_its_own_value_and_the_refusal_names_both_counts(
         published.extract_archive(small, tmp_path / "y")
     assert str(raised.value) == (
         f"{small}: {packed} compressed bytes unpack to {total} and more, beyond 1:1 "
-        "(evaluation.published.MAX_RATIO): the mark of a decompression bomb; nothing more was unpacked"
+        "(evaluation.reports.published.MAX_RATIO): the mark of a decompression bomb; nothing more was unpacked"
     )
 
 
@@ -290,7 +291,7 @@ def test_an_archive_of_a_top_level_log_restores_nothing_and_says_so(tmp_path, ca
     """It used to be taken for a run whose directory is the log: unpack_run wrote nothing and
     reported the run restored."""
     archive = _tar_xz(tmp_path / "top.tar.xz", [("episodes.jsonl", json.dumps(HEADER).encode() + b"\n")])
-    assert published._main(["unpack", str(archive), str(tmp_path / "into")]) == 2
+    assert archive_command(["unpack", str(archive), str(tmp_path / "into")]) == 2
     assert "is not inside a run's directory" in capsys.readouterr().err
     assert not (tmp_path / "into").exists()
 
@@ -493,20 +494,20 @@ def test_unpack_replaces_a_longer_local_sweep_manifest(tmp_path) -> None:
 
 def test_the_command_line_packs_unpacks_and_refuses_other_words(tmp_path, capsys) -> None:
     run, archive, into = _run(tmp_path / "made"), tmp_path / "run.tar.xz", tmp_path / "into"
-    assert published._main([str(run), str(archive)]) == 0
+    assert archive_command([str(run), str(archive)]) == 0
     assert capsys.readouterr().out == f"{archive}\n"
     with tarfile.open(archive) as tar:
         assert tar.getnames() == ["run/episodes.jsonl"]
-    usage = f"{published._main.__doc__}\n"
+    usage = f"{archive_command.__doc__}\n"
     for wrong in (
         ["unpack", str(archive), str(into), "--bogus"],
         ["unpack", str(archive), str(into), "--force", "more"],
         [str(run)],
     ):
-        assert published._main(wrong) == 2, wrong
+        assert archive_command(wrong) == 2, wrong
         assert capsys.readouterr() == ("", usage)
     assert not into.exists()
-    assert published._main(["unpack", str(archive), str(into)]) == 0
+    assert archive_command(["unpack", str(archive), str(into)]) == 0
     assert capsys.readouterr().out == f"{into / 'run'}\n"
     assert (into / "run" / "episodes.jsonl").read_bytes() == (run / "episodes.jsonl").read_bytes()
 
@@ -516,6 +517,6 @@ def test_unpack_without_a_directory_is_a_usage_error_and_leaves_the_archive(tmp_
     ARCHIVE: "unpack" is always the command."""
     archive = published.pack_run(_run(tmp_path / "made"), tmp_path / "run.tar.xz")
     packed = archive.read_bytes()
-    assert published._main(["unpack", str(archive)]) == 2
-    assert capsys.readouterr() == ("", f"{published._main.__doc__}\n")
+    assert archive_command(["unpack", str(archive)]) == 2
+    assert capsys.readouterr() == ("", f"{archive_command.__doc__}\n")
     assert archive.read_bytes() == packed

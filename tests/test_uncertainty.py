@@ -41,9 +41,7 @@ def _scan(robots, obstacles, angles, max_range=5.0, radius=0.2):
     out = np.empty((1, n, len(angles)))
     cast_beams(
         np.ascontiguousarray(robots.T[None]),
-        obstacles[None, :, 0].copy(),
-        obstacles[None, :, 1].copy(),
-        obstacles[None, :, 2].copy(),
+        np.ascontiguousarray(obstacles[None]),
         np.full(n, radius),
         np.asarray(angles, float),
         max_range,

@@ -14,12 +14,30 @@ from controllers.safety.options import SafetyOptions
 from controllers.solvers.two_variable_qp import qp2_kernel
 from koopman_envs.scenario import Scenario
 
-__all__ = ["BarrierFilter", "FilterStep"]
+__all__ = ["FILTER_GAINS", "BarrierFilter", "FilterStep"]
 
 #: a robot's command counts as changed by the filter beyond this difference [m/s or rad/s]
 _CHANGED = 1e-6
 #: bisection steps of the least-violating fallback (resolution 2^-12 of the asked recovery rate)
 _BISECTION_STEPS = 12
+
+#: the filter's fixed terms, one record per filter (:attr:`BarrierFilter.gains`): numba reads a
+#: record's fields by name and types a record argument about as fast as a plain array (a named
+#: tuple it types field by field in Python, microseconds a call)
+FILTER_GAINS = np.dtype(
+    [
+        ("lookahead", np.float64),  # the look-ahead point's distance ahead of the centre [m]
+        ("gamma", np.float64),  # the barriers' recovery rate [1/s]
+        ("v_max", np.float64),  # [m/s]
+        ("omega_max", np.float64),  # [rad/s]
+        ("dt", np.float64),  # the control period [s]
+        ("omega_weight", np.float64),  # the QP's cost weight of a turn-rate change
+        ("margin", np.float64),  # the extra clearance every barrier keeps [m]
+        ("mover_radius", np.float64),  # a mover's radius in the scenario [m]
+        # the limits x_min, x_max, y_min, y_max within which the look-ahead points stay [m]
+        ("walls", np.float64, (4,)),
+    ]
+)
 
 
 @dataclass
@@ -79,35 +97,36 @@ def _add_barrier(
 
 @njit(cache=True)
 def _filter_team(
-    poses,
-    wanted,
-    centres,
-    obstacle_reach,
-    robot_reach,
-    walls,
-    mover_xy,
-    mover_velocity,
-    mover_reach,
-    lookahead,
-    gamma,
-    v_max,
-    omega_max,
-    dt,
-    omega_weight,
-    out,
-    infeasible,
-    relaxation,
+    poses, wanted, obstacles, radius, widen, movers, mover_extra, gains, out, infeasible, relaxation
 ):  # pragma: no cover - compiled
     """Filter every robot's command (see the module docstring); returns (barrier minimum, barriers built).
 
-    ``mover_xy`` and ``mover_velocity`` (C, 2): the movers' observed centres and the velocities
-    their barriers assume; ``mover_reach`` (N,): the distance each robot's look-ahead point keeps."""
-    n, n_obs = poses.shape[0], centres.shape[0]
+    ``poses`` (N, 3) and ``wanted`` (N, 2): the team's poses and the commands asked for;
+    ``obstacles`` (M, 3): the static obstacle set, x, y, radius [m] each (the scenario's);
+    ``radius`` (N,): the robots' radii and ``widen`` (N,) their extra clearance this period [m];
+    ``movers`` (C, 4): the movers' observed centres and the velocities their barriers assume
+    (x, y, vx, vy), each mover ``mover_extra`` [m] larger than the scenario's; ``gains`` (1,) of
+    :data:`FILTER_GAINS`. Writes the filtered commands into ``out`` (N, 2), and per robot
+    whether its QP was infeasible and the fraction of the recovery rate granted.
+
+    The distances the look-ahead points keep are summed here in the order the filter has
+    always summed them (a term of zero leaves a sum as it is): from an obstacle ((r + r_i) + l)
+    + margin + w_i, from robot j ((r_i + r_j) + 2 l) + margin + sqrt(w_i^2 + w_j^2), from a mover
+    ((r_i + r_mover) + l) + margin + extra + w_i, and the walls moved in by max(w).
+    """
+    g = gains[0]
+    lookahead, gamma, v_max, omega_max, dt = g.lookahead, g.gamma, g.v_max, g.omega_max, g.dt
+    omega_weight, margin, walls = g.omega_weight, g.margin, g.walls
+    n, n_obs = poses.shape[0], obstacles.shape[0]
+    wider = 0.0
+    for i in range(n):
+        wider = max(wider, widen[i])
+    limits = (walls[0] + wider, walls[1] - wider, walls[2] + wider, walls[3] - wider)
     px, py = np.empty(n), np.empty(n)
     for i in range(n):
         px[i] = poses[i, 0] + lookahead * math.cos(poses[i, 2])
         py[i] = poses[i, 1] + lookahead * math.sin(poses[i, 2])
-    size = 4 * (n_obs + n - 1 + mover_xy.shape[0] + 4) + 4
+    size = 4 * (n_obs + n - 1 + movers.shape[0] + 4) + 4
     A, b, relaxed = np.empty((size, 2)), np.empty(size), np.empty(size)
     h_min, built = math.inf, 0
     for i in range(n):
@@ -121,15 +140,13 @@ def _filter_team(
             if k == n_obs + i:
                 continue  # not itself
             if k < n_obs:
-                dx, dy, reach, share = px[i] - centres[k, 0], py[i] - centres[k, 1], obstacle_reach[i, k], 1.0
+                dx, dy, share = px[i] - obstacles[k, 0], py[i] - obstacles[k, 1], 1.0
+                reach = obstacles[k, 2] + radius[i] + lookahead + margin + widen[i]
             else:
                 j = k - n_obs
-                dx, dy, reach, share = (
-                    px[i] - px[j],
-                    py[i] - py[j],
-                    robot_reach[i, j],
-                    0.5,
-                )  # half of the pair's
+                dx, dy, share = px[i] - px[j], py[i] - py[j], 0.5  # half of the pair's
+                reach = radius[i] + radius[j] + 2.0 * lookahead + margin
+                reach += math.sqrt(widen[i] * widen[i] + widen[j] * widen[j])
             dist = math.hypot(dx, dy)
             h = dist - reach
             h_min = min(h_min, h)
@@ -140,21 +157,21 @@ def _filter_team(
             row = _add_barrier(
                 A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam
             )
-        for m in range(mover_xy.shape[0]):  # moving discs: their velocity along the gradient
-            dx, dy = px[i] - mover_xy[m, 0], py[i] - mover_xy[m, 1]
+        for m in range(movers.shape[0]):  # moving discs: their velocity along the gradient
+            dx, dy = px[i] - movers[m, 0], py[i] - movers[m, 1]
             dist = math.hypot(dx, dy)
-            h = dist - mover_reach[i]
+            h = dist - (radius[i] + g.mover_radius + lookahead + margin + mover_extra + widen[i])
             h_min = min(h_min, h)
             if dist > 1e-12:
                 nx, ny = dx / dist, dy / dist
             else:
                 nx, ny = -hx, -hy
-            approach = nx * mover_velocity[m, 0] + ny * mover_velocity[m, 1]
+            approach = nx * movers[m, 2] + ny * movers[m, 3]
             row = _add_barrier(
                 A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam, approach
             )
         for w in range(4):  # left, right, bottom, top
-            h = (px[i] - walls[0], walls[1] - px[i], py[i] - walls[2], walls[3] - py[i])[w]
+            h = (px[i] - limits[0], limits[1] - px[i], py[i] - limits[2], limits[3] - py[i])[w]
             nx, ny = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[w]
             h_min = min(h_min, h)
             row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam)
@@ -214,17 +231,32 @@ class BarrierFilter:
         self.n = scenario.n_robots
         l, margin = options.lookahead, options.margin
         radius = np.asarray(scenario.robot_radius, dtype=np.float64)
-        obstacles = np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3)
-        self._centres = np.ascontiguousarray(obstacles[:, :2])
-        # distances the look-ahead points must keep: obstacles (N, M), robots (N, N), walls (4,)
-        self._obstacle_reach = np.ascontiguousarray(obstacles[None, :, 2] + radius[:, None] + l + margin)
-        self._robot_reach = radius[:, None] + radius[None, :] + 2 * l + margin
-        self._mover_reach = radius + scenario.mover_radius + l + margin
+        #: the static obstacle set (M, 3): x, y, radius [m] each
+        self.obstacles = np.ascontiguousarray(np.asarray(scenario.obstacles, dtype=np.float64).reshape(-1, 3))
+        self._radius = np.ascontiguousarray(radius)
         x0, x1, y0, y1 = scenario.workspace
-        self._walls = np.array([x0, x1, y0, y1], dtype=np.float64) + np.array([1, -1, 1, -1]) * (l + margin)
+        walls = np.array([x0, x1, y0, y1], dtype=np.float64) + np.array([1, -1, 1, -1]) * (l + margin)
         self.v_max, self.omega_max = float(scenario.v_max), float(scenario.omega_max)
         self.dt = float(scenario.dt)
         self._limits = np.array([self.v_max, self.omega_max])
+        self._no_movers, self._no_widening = np.zeros((0, 4)), np.zeros(self.n)
+        #: the fixed terms, one record of :data:`FILTER_GAINS`
+        self.gains = np.array(
+            [
+                (
+                    l,
+                    options.gamma,
+                    self.v_max,
+                    self.omega_max,
+                    self.dt,
+                    options.omega_weight,
+                    margin,
+                    scenario.mover_radius,
+                    walls,
+                )
+            ],
+            dtype=FILTER_GAINS,
+        )
         # compile (or load the compiled kernel) here, not inside the first timed step
         self.filter(np.asarray(scenario.starts, dtype=np.float64), np.zeros((self.n, 2)))
 
@@ -280,38 +312,25 @@ class BarrierFilter:
         infeasible = np.empty(n, dtype=np.bool_)
         relaxation = np.empty(n)
         opt = self.options
-        movers = np.zeros((0, 4)) if movers is None else np.asarray(movers, dtype=np.float64).reshape(-1, 4)
-        obstacle_reach, robot_reach, walls, mover_reach = (
-            self._obstacle_reach,
-            self._robot_reach,
-            self._walls,
-            self._mover_reach,
-        )
+        if movers is None:
+            movers = self._no_movers
+        else:  # a copy whose velocities are the ones the barriers assume: times the option's weight
+            movers = np.array(movers, dtype=np.float64).reshape(-1, 4)
+            movers[:, 2:] *= opt.mover_velocity
+        # a mover perceived larger than a person: every mover barrier keeps the largest's distance
+        extra = 0.0
         if mover_radius is not None and mover_radius > self.scenario.mover_radius:
-            # perceived movers may be larger than a person: every mover barrier takes the largest
-            mover_reach = np.ascontiguousarray(mover_reach + (mover_radius - self.scenario.mover_radius))
-        if widen is not None:
-            w = np.asarray(widen, dtype=np.float64).reshape(n)
-            obstacle_reach = np.ascontiguousarray(obstacle_reach + w[:, None])
-            robot_reach = np.ascontiguousarray(robot_reach + np.sqrt(w[:, None] ** 2 + w[None, :] ** 2))
-            walls = walls + np.array([1, -1, 1, -1]) * float(w.max(initial=0.0))
-            mover_reach = np.ascontiguousarray(mover_reach + w)
+            extra = mover_radius - self.scenario.mover_radius
+        w = self._no_widening if widen is None else np.ascontiguousarray(widen, dtype=np.float64).reshape(n)
         h_min, built = _filter_team(
             poses,
             wanted,
-            self._centres,
-            obstacle_reach,
-            robot_reach,
-            walls,
-            np.ascontiguousarray(movers[:, :2]),
-            np.ascontiguousarray(opt.mover_velocity * movers[:, 2:4]),
-            mover_reach,
-            opt.lookahead,
-            opt.gamma,
-            self.v_max,
-            self.omega_max,
-            self.dt,
-            opt.omega_weight,
+            self.obstacles,
+            self._radius,
+            w,
+            movers,
+            extra,
+            self.gains,
             out,
             infeasible,
             relaxation,

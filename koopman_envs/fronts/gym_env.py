@@ -9,9 +9,9 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import START_NOISE_ATTEMPTS, NavigationEngine
-from koopman_envs.builder.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import START_NOISE_ATTEMPTS, NavigationEngine
+from koopman_envs.engine.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.reset_options import parse_reset_options
@@ -87,7 +87,7 @@ class KoopNavEnv(gym.Env):
         if engine.maps[0] is None:
             raise RuntimeError("call reset() before step()")
         result = engine.step(engine.validate_commands(action))
-        reward = float(result.robot_reward[0].sum() + result.team_reward[0])
+        reward = float(result.reward[0])
         obs = result.features[0].reshape(-1).astype(np.float32)
         if self.render_mode is not None:
             self._trail.append(engine.poses[0].copy())

@@ -65,8 +65,7 @@ _NO_FAULT, _ROBOT_FAULT, _MOVER_FAULT = CollisionFault.NONE, CollisionFault.ROBO
 @njit(cache=True)
 def collision_flags(
     state: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     radius_sum: NDArray[np.float64],
     workspace: NDArray[np.float64],
     out: NDArray[np.int64],
@@ -77,8 +76,8 @@ def collision_flags(
     ----------
     state : ndarray, shape (K, 3, N)
         Rows x [m], y [m], theta [rad].
-    obstacle_x, obstacle_y : ndarray, shape (K, M)
-        Obstacle centres [m].
+    obstacles : ndarray, shape (K, M, 3)
+        Obstacle sets (x, y, radius [m]; the radius sums below hold the radii).
     radius_sum : ndarray, shape (K, N, N + M)
         Radius sums, robots first (see :class:`~koopman_envs.sim.geometry.TeamGeometry`).
     workspace : ndarray, shape (4,)
@@ -88,7 +87,7 @@ def collision_flags(
         Bitwise OR of :class:`CollisionKind` flags per environment (0 = no collision).
     """
     n_envs, _, n_robots = state.shape
-    n_obstacles = obstacle_x.shape[1]
+    n_obstacles = obstacles.shape[1]
     for k in range(n_envs):
         flags = 0
         for i in range(n_robots):
@@ -99,7 +98,10 @@ def collision_flags(
                 if clearance(x, y, state[k, 0, j], state[k, 1, j], radius_sum[k, i, j]) < 0.0:
                     flags |= _ROBOT
             for m in range(n_obstacles):
-                if clearance(x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]) < 0.0:
+                if (
+                    clearance(x, y, obstacles[k, m, 0], obstacles[k, m, 1], radius_sum[k, i, n_robots + m])
+                    < 0.0
+                ):
                     flags |= _OBSTACLE
         out[k] = flags
 
@@ -183,5 +185,5 @@ def check_collisions(
     geo.set_obstacles(0, obstacles)
     out = np.zeros(1, dtype=np.int64)
     bounds = np.asarray(workspace, dtype=np.float64)
-    collision_flags(state, geo.obstacle_x, geo.obstacle_y, geo.radius_sum, bounds, out)
+    collision_flags(state, geo.obstacles, geo.radius_sum, bounds, out)
     return int(out[0])

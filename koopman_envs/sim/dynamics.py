@@ -24,7 +24,6 @@ __all__ = [
     "rk4_channels",
     "rk4_pose",
     "rk4_step",
-    "saturate_teams",
     "saturated_command",
     "slip_velocity",
     "wrap_angle",
@@ -298,27 +297,3 @@ def saturated_command(
     v = min(max(v, command_low[0]), command_high[0])
     omega = min(max(omega, command_low[1]), command_high[1])
     return v, omega, (v * v) * effort_scale[0] + (omega * omega) * effort_scale[1]
-
-
-@njit(cache=True)
-def saturate_teams(
-    commands: NDArray[np.float64],
-    active: NDArray[np.bool_],
-    command_low: NDArray[np.float64],
-    command_high: NDArray[np.float64],
-    effort_scale: NDArray[np.float64],
-    saturated: NDArray[np.float64],
-    effort: NDArray[np.float64],
-) -> None:  # pragma: no cover - compiled
-    """:func:`saturated_command` of every robot of K teams: ``commands`` (K, N, 2) into
-    ``saturated`` (K, N, 2) and ``effort`` (K, N); inactive environments get zero commands and
-    zero effort (the physics plant's command pass)."""
-    n_envs, n_robots, _ = commands.shape
-    for k in range(n_envs):
-        for i in range(n_robots):
-            if active[k]:
-                saturated[k, i, 0], saturated[k, i, 1], effort[k, i] = saturated_command(
-                    commands[k, i, 0], commands[k, i, 1], command_low, command_high, effort_scale
-                )
-            else:
-                saturated[k, i, 0] = saturated[k, i, 1] = effort[k, i] = 0.0

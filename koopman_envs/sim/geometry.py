@@ -60,8 +60,9 @@ class TeamGeometry:
 
     Attributes
     ----------
-    obstacle_x, obstacle_y, obstacle_r : ndarray, shape (K, M)
-        Obstacle centres and radii [m].
+    obstacles : ndarray, shape (K, M, 3)
+        Every environment's obstacle set: x, y of each centre and its radius [m] (the maps'
+        own (M, 3) layout; the count is the array's, M).
     radius_sum : ndarray, shape (K, N, N + M)
         Robot i's radius plus entity e's (robots first, then obstacles); -inf from a robot to
         itself, which makes its clearance to itself +inf without a mask.
@@ -72,9 +73,7 @@ class TeamGeometry:
         self.n_robots = n
         self.n_obstacles = int(n_obstacles)
         self.robot_radius = np.asarray(robot_radius, dtype=np.float64)
-        self.obstacle_x = np.zeros((num_envs, self.n_obstacles))
-        self.obstacle_y = np.zeros((num_envs, self.n_obstacles))
-        self.obstacle_r = np.zeros((num_envs, self.n_obstacles))
+        self.obstacles = np.zeros((num_envs, self.n_obstacles, 3))
         self.radius_sum = np.zeros((num_envs, n, n + self.n_obstacles))
         pair = self.robot_radius[:, None] + self.robot_radius[None, :]
         pair[np.arange(n), np.arange(n)] = -np.inf
@@ -82,9 +81,7 @@ class TeamGeometry:
 
     def set_obstacles(self, index: int, obstacles: NDArray[np.float64]) -> None:
         """Install the (M, 3) obstacles (x, y, radius) of environment ``index``."""
-        self.obstacle_x[index] = obstacles[:, 0]
-        self.obstacle_y[index] = obstacles[:, 1]
-        self.obstacle_r[index] = obstacles[:, 2]
+        self.obstacles[index] = obstacles
         self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
     def clearances(
@@ -95,11 +92,11 @@ class TeamGeometry:
         of environments), ``x`` and ``y`` hold only those environments and so does the result."""
         x = np.ascontiguousarray(x, dtype=np.float64)
         y = np.ascontiguousarray(y, dtype=np.float64)
-        obstacle_x, obstacle_y, radius_sum = self.obstacle_x, self.obstacle_y, self.radius_sum
+        obstacles, radius_sum = self.obstacles, self.radius_sum
         if rows is not None:
-            obstacle_x, obstacle_y, radius_sum = obstacle_x[rows], obstacle_y[rows], radius_sum[rows]
-        entity_x = np.concatenate([x, obstacle_x], axis=1)
-        entity_y = np.concatenate([y, obstacle_y], axis=1)
+            obstacles, radius_sum = obstacles[rows], radius_sum[rows]
+        entity_x = np.concatenate([x, obstacles[..., 0]], axis=1)
+        entity_y = np.concatenate([y, obstacles[..., 1]], axis=1)
         out = np.empty(radius_sum.shape)
         _clearances(x, y, entity_x, entity_y, np.ascontiguousarray(radius_sum), out)
         return out

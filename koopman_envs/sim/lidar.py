@@ -34,9 +34,7 @@ def beam_angles(beams: int, fov: float) -> NDArray[np.float64]:
 @njit(cache=True)
 def cast_beams(
     state: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    discs: NDArray[np.float64],
     robot_radius: NDArray[np.float64],
     angles: NDArray[np.float64],
     max_range: float,
@@ -49,8 +47,9 @@ def cast_beams(
     ----------
     state : ndarray, shape (K, 3, N)
         True poses, rows x, y, theta.
-    obstacle_x, obstacle_y, obstacle_r : ndarray, shape (K, M)
-        Obstacle discs.
+    discs : ndarray, shape (K, M, 3)
+        The discs the beams hit besides the robots: x, y, radius [m] each (the obstacles, and
+        the movers after them).
     robot_radius : ndarray, shape (N,)
         Radii of the robots, which the other robots' beams hit.
     angles : ndarray, shape (B,)
@@ -62,7 +61,7 @@ def cast_beams(
     out : ndarray, shape (K, N, B)
     """
     n_envs, _, n_robots = state.shape
-    n_obstacles = obstacle_x.shape[1]
+    n_obstacles = discs.shape[1]
     n_discs = n_obstacles + n_robots
     n_beams = angles.shape[0]
     disc_dx = np.empty(n_discs)
@@ -89,7 +88,7 @@ def cast_beams(
             count = 0
             for e in range(n_discs):
                 if e < n_obstacles:
-                    cx, cy, r = obstacle_x[k, e], obstacle_y[k, e], obstacle_r[k, e]
+                    cx, cy, r = discs[k, e, 0], discs[k, e, 1], discs[k, e, 2]
                 else:
                     j = e - n_obstacles
                     if j == i:

@@ -30,17 +30,16 @@ def _reflect_off_obstacles(
     vx: float,
     vy: float,
     radius: float,
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     k: int,
 ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
-    """A disc that has entered a static obstacle of environment ``k`` (rows of the (K, M)
-    arrays; a row slice per call would cost more than the motion): put back on its surface, the
-    velocity mirrored about the surface normal (only when moving inwards)."""
-    for m in range(obstacle_x.shape[1]):
-        dx, dy = x - obstacle_x[k, m], y - obstacle_y[k, m]
-        reach = radius + obstacle_r[k, m]
+    """A disc that has entered a static obstacle of environment ``k`` (row k of the (K, M, 3)
+    obstacle sets, x, y, radius each; a row slice per call would cost more than the motion):
+    put back on its surface, the velocity mirrored about the surface normal (only when moving
+    inwards)."""
+    for m in range(obstacles.shape[1]):
+        dx, dy = x - obstacles[k, m, 0], y - obstacles[k, m, 1]
+        reach = radius + obstacles[k, m, 2]
         d2 = dx * dx + dy * dy
         if d2 < reach * reach and d2 > 0.0:
             d = math.sqrt(d2)
@@ -49,7 +48,7 @@ def _reflect_off_obstacles(
             if inward < 0.0:
                 vx -= 2.0 * inward * nx
                 vy -= 2.0 * inward * ny
-            x, y = obstacle_x[k, m] + nx * reach, obstacle_y[k, m] + ny * reach
+            x, y = obstacles[k, m, 0] + nx * reach, obstacles[k, m, 1] + ny * reach
     return x, y, vx, vy
 
 
@@ -60,12 +59,11 @@ def move_constant(
     rows: NDArray[np.int64],
     radius: float,
     arena: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     dt: float,
 ) -> None:  # pragma: no cover - compiled
-    """Straight lines at constant velocity, mirrored at the arena's edges and the obstacles."""
+    """Straight lines at constant velocity, mirrored at the arena's edges and the obstacles
+    (K, M, 3: x, y, radius each)."""
     for k in rows:
         lo_x, hi_x = arena[k, 0] + radius, arena[k, 1] - radius
         lo_y, hi_y = arena[k, 2] + radius, arena[k, 3] - radius
@@ -81,7 +79,7 @@ def move_constant(
                 y, vy = 2.0 * lo_y - y, abs(vy)
             elif y > hi_y:
                 y, vy = 2.0 * hi_y - y, -abs(vy)
-            x, y, vx, vy = _reflect_off_obstacles(x, y, vx, vy, radius, obstacle_x, obstacle_y, obstacle_r, k)
+            x, y, vx, vy = _reflect_off_obstacles(x, y, vx, vy, radius, obstacles, k)
             position[k, c, 0], position[k, c, 1] = x, y
             velocity[k, c, 0], velocity[k, c, 1] = vx, vy
 
@@ -93,18 +91,17 @@ def _way_is_clear(
     x1: float,
     y1: float,
     radius: float,
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
 ) -> bool:  # pragma: no cover - compiled
-    """True when a disc of ``radius`` moving straight from (x0, y0) to (x1, y1) meets no obstacle."""
+    """True when a disc of ``radius`` moving straight from (x0, y0) to (x1, y1) meets no
+    obstacle of ``obstacles`` (M, 3: x, y, radius each)."""
     sx, sy = x1 - x0, y1 - y0
     length2 = sx * sx + sy * sy
-    for m in range(obstacle_x.shape[0]):
-        px, py = obstacle_x[m] - x0, obstacle_y[m] - y0
+    for m in range(obstacles.shape[0]):
+        px, py = obstacles[m, 0] - x0, obstacles[m, 1] - y0
         t = 0.0 if length2 == 0.0 else min(max((px * sx + py * sy) / length2, 0.0), 1.0)
         dx, dy = px - t * sx, py - t * sy
-        reach = radius + obstacle_r[m] + 0.05
+        reach = radius + obstacles[m, 2] + 0.05
         if dx * dx + dy * dy < reach * reach:
             return False
     return True
@@ -117,9 +114,7 @@ def _draw_goal(
     pool: NDArray[np.float64],
     cursor: NDArray[np.int64],
     arena: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     radius: float,
     speed: float,
 ) -> tuple[float, float, float, bool]:  # pragma: no cover - compiled
@@ -134,7 +129,7 @@ def _draw_goal(
     for attempt in range(WAYPOINT_ATTEMPTS):
         gx = lo_x + span_x * pool[at + 2 * attempt]
         gy = lo_y + span_y * pool[at + 2 * attempt + 1]
-        if _way_is_clear(x, y, gx, gy, radius, obstacle_x, obstacle_y, obstacle_r):
+        if _way_is_clear(x, y, gx, gy, radius, obstacles):
             return gx, gy, leg_speed, True
     return x, y, leg_speed, False
 
@@ -147,13 +142,12 @@ def first_goals(
     pool: NDArray[np.float64],
     cursor: NDArray[np.int64],
     arena: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     radius: float,
     speed: float,
 ) -> None:  # pragma: no cover - compiled
-    """The first waypoint of every mover of one environment."""
+    """The first waypoint of every mover of one environment (``obstacles`` (M, 3): its obstacle
+    set, x, y, radius each)."""
     for c in range(position.shape[0]):
         gx, gy, s, _ = _draw_goal(
             position[c, 0],
@@ -161,9 +155,7 @@ def first_goals(
             pool,
             cursor,
             arena,
-            obstacle_x,
-            obstacle_y,
-            obstacle_r,
+            obstacles,
             radius,
             speed,
         )
@@ -184,9 +176,7 @@ def follow_waypoints(
     speed: float,
     pause_periods: int,
     arena: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
-    obstacle_r: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     dt: float,
     move: bool,
 ) -> None:  # pragma: no cover - compiled
@@ -204,8 +194,7 @@ def follow_waypoints(
                 velocity[k, c, 0], velocity[k, c, 1] = 0.0, 0.0
                 if waiting[k, c] == 0:
                     gx, gy, s, found = _draw_goal(
-                        x, y, pool[k], own_cursor, arena[k], obstacle_x[k], obstacle_y[k], obstacle_r[k],
-                        radius, speed,
+                        x, y, pool[k], own_cursor, arena[k], obstacles[k], radius, speed,
                     )  # fmt: skip
                     goal[k, c, 0], goal[k, c, 1], leg_speed[k, c] = gx, gy, s
                     if not found:

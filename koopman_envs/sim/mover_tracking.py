@@ -37,6 +37,7 @@ from koopman_envs.sim.perception import child_generator
 
 __all__ = [
     "ACCEL_SIGMA",
+    "TRACKER_MODEL",
     "listed_movers",
     "observed_movers",
     "BIRTH_SPEED_SIGMA",
@@ -59,6 +60,19 @@ CONFIRM_HITS = 3
 DROP_AFTER = 0.5
 #: detection errors drawn per environment at a time (pooled over periods, at most 32)
 POOL_DRAWS = 512
+#: the fixed terms of a :class:`MoverTracker`, one record made with it (numba reads a record's
+#: fields by name and types a record argument as fast as a plain array)
+TRACKER_MODEL = np.dtype(
+    [
+        ("dt", np.float64),  # the control period [s]
+        ("Q", np.float64, (4, 4)),  # process noise of the constant-velocity model (cv_model)
+        ("sigma", np.float64),  # a detection's position error per axis [m]
+        ("r", np.float64),  # the measurement variance the filter assumes [m^2]
+        ("detection_range", np.float64),  # robot-mover distance up to which a mover is seen [m]
+        ("birth_var", np.float64),  # velocity variance of a new track [m^2/s^2]
+        ("drop_misses", np.int64),  # periods unseen after which a track is dropped
+    ]
+)
 
 
 def cv_model(dt: float, accel_sigma: float = ACCEL_SIGMA) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -225,6 +239,7 @@ def _nearest_within(
 
 @njit(cache=True)
 def _track_step(
+    model: NDArray[np.void],
     x: NDArray[np.float64],
     P: NDArray[np.float64],
     hits: NDArray[np.int64],
@@ -235,19 +250,16 @@ def _track_step(
     pool: NDArray[np.float64],
     cursor: NDArray[np.int64],
     rows: NDArray[np.int64],
-    dt: float,
-    Q: NDArray[np.float64],
-    sigma: float,
-    r: float,
-    detection_range: float,
-    birth_var: float,
-    drop_misses: int,
 ) -> None:  # pragma: no cover - compiled
-    """One period of the environments ``rows`` (module docstring): each mover detected by the
-    nearest robot within range (relative position plus ``sigma`` times its row of the
-    environment's error ``pool`` at its ``cursor``, which advances;
-    turned by that robot's heading error, placed at its estimated position); every live track
-    predicted, the detected ones updated (a new one born at rest), the rules applied."""
+    """One period of the environments ``rows`` under ``model`` (:data:`TRACKER_MODEL`; module
+    docstring): each mover detected by the nearest robot within range (relative position plus
+    ``sigma`` times its row of the environment's error ``pool`` at its ``cursor``, which
+    advances; turned by that robot's heading error, placed at its estimated position); every
+    live track (``x``, ``P``, ``hits``, ``misses``) predicted, the detected ones updated (a new
+    one born at rest), the rules applied."""
+    spec = model[0]
+    dt, Q, sigma, r, detection_range = spec.dt, spec.Q, spec.sigma, spec.r, spec.detection_range
+    birth_var, drop_misses = spec.birth_var, spec.drop_misses
     for q in range(rows.shape[0]):
         k = rows[q]
         for m in range(movers.shape[1]):
@@ -301,9 +313,17 @@ class MoverTracker:
     ) -> None:
         self.num_envs, self.count, self.dt = num_envs, count, dt
         self.detection_range, self.detection_noise = detection_range, detection_noise
-        _, self._Q = cv_model(dt)
-        self._R = np.eye(2) * max(detection_noise, 1e-6) ** 2  # exact detections: a tiny floor
-        self._drop_misses = max(1, math.ceil(DROP_AFTER / dt - 1e-9))
+        _, Q = cv_model(dt)
+        terms = (
+            dt,
+            Q,
+            detection_noise,
+            max(detection_noise, 1e-6) ** 2,  # exact detections: a tiny floor
+            detection_range,
+            BIRTH_SPEED_SIGMA**2,
+            max(1, math.ceil(DROP_AFTER / dt - 1e-9)),
+        )
+        self.model = np.array([terms], dtype=TRACKER_MODEL)
         self.x = np.zeros((num_envs, count, 4))
         self.P = np.tile(np.eye(4), (num_envs, count, 1, 1))
         self.hits = np.zeros((num_envs, count), dtype=np.int64)
@@ -358,6 +378,7 @@ class MoverTracker:
             return
         self._refill(rows)
         _track_step(
+            self.model,
             self.x,
             self.P,
             self.hits,
@@ -368,13 +389,6 @@ class MoverTracker:
             self._pool,
             self._cursor,
             rows,
-            self.dt,
-            self._Q,
-            self.detection_noise,
-            self._R[0, 0],
-            self.detection_range,
-            BIRTH_SPEED_SIGMA**2,
-            self._drop_misses,
         )
 
     def observed(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:

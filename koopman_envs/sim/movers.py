@@ -111,9 +111,7 @@ class MoverField:
         self.pause_periods = int(round(config.pause / self.dt))
         # the static obstacles as the kernels read them (set per reset: random maps change)
         self.obstacles: list[NDArray[np.float64]] = [np.zeros((0, 3))] * k
-        self._obstacle_x = np.zeros((k, 0))
-        self._obstacle_y = np.zeros((k, 0))
-        self._obstacle_r = np.zeros((k, 0))
+        self._obstacles = np.zeros((k, 0, 3))  # padded to the widest map's: x, y, radius each
         self.waypoints = config.behaviour in ("waypoints", "crowd")
         self.pool_size = max(4096, 8 * c * DRAW_SIZE)
         self.pool = np.zeros((k, self.pool_size))
@@ -226,8 +224,7 @@ class MoverField:
             self.cursor[index] = 0
             first_goals(
                 self.position[index], self.goal[index], self.leg_speed[index], self.pool[index],
-                self.cursor[index:index + 1], self.arena[index], self._obstacle_x[index], self._obstacle_y[index],
-                self._obstacle_r[index], cfg.radius, cfg.speed,
+                self.cursor[index:index + 1], self.arena[index], self._obstacles[index], cfg.radius, cfg.speed,
             )  # fmt: skip
             if cfg.behaviour == "crowd":
                 self._robot_radius[index] = robot_radius
@@ -268,19 +265,14 @@ class MoverField:
         """Install environment ``index``'s static obstacles (M, 3); :attr:`obstacles` keeps the
         array itself, so the next episode on the same map finds it installed."""
         m = obstacles.shape[0]
-        if m > self._obstacle_x.shape[1]:  # a map with more obstacles: widen (padding reads radius 0)
-            for name in ("_obstacle_x", "_obstacle_y", "_obstacle_r"):
-                wider = np.zeros((self.num_envs, m))
-                old = getattr(self, name)
-                wider[:, : old.shape[1]] = old
-                if name != "_obstacle_r":
-                    wider[:, old.shape[1] :] = 1e6  # far away: never met
-                setattr(self, name, wider)
+        if m > self._obstacles.shape[1]:  # a map with more obstacles: widen (padding reads radius 0)
+            wider = np.zeros((self.num_envs, m, 3))
+            wider[:, : self._obstacles.shape[1]] = self._obstacles
+            wider[:, self._obstacles.shape[1] :, :2] = 1e6  # far away: never met
+            self._obstacles = wider
         self.obstacles[index] = obstacles
-        self._obstacle_x[index], self._obstacle_y[index], self._obstacle_r[index] = 1e6, 1e6, 0.0
-        self._obstacle_x[index, :m] = obstacles[:, 0]
-        self._obstacle_y[index, :m] = obstacles[:, 1]
-        self._obstacle_r[index, :m] = obstacles[:, 2]
+        self._obstacles[index] = (1e6, 1e6, 0.0)
+        self._obstacles[index, :m] = obstacles
 
     def keep_trail(self, length: int) -> None:
         """Record the last ``length`` positions of every mover from now on (:meth:`trail_of`)."""
@@ -318,8 +310,7 @@ class MoverField:
         if self.config.behaviour == "constant":
             cfg = self.config
             move_constant(
-                self.position, self.velocity, rows, cfg.radius, self.arena, self._obstacle_x,
-                self._obstacle_y, self._obstacle_r, self.dt,
+                self.position, self.velocity, rows, cfg.radius, self.arena, self._obstacles, self.dt,
             )  # fmt: skip
         else:
             self._walk(robots_before, robots_after, rows)
@@ -340,8 +331,7 @@ class MoverField:
         crowd = cfg.behaviour == "crowd"
         follow_waypoints(
             self.position, self.velocity, self.goal, self.leg_speed, self.waiting, self.pool, self.cursor,
-            rows, cfg.radius, cfg.speed, self.pause_periods, self.arena, self._obstacle_x, self._obstacle_y,
-            self._obstacle_r, self.dt, not crowd,
+            rows, cfg.radius, cfg.speed, self.pause_periods, self.arena, self._obstacles, self.dt, not crowd,
         )  # fmt: skip
         if crowd:
             orca_step(
@@ -391,14 +381,12 @@ class MoverField:
         """Every mover's (x, y, vx, vy), shape (K, C, 4) (a copy)."""
         return self._states.copy()
 
-    def discs(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """The movers as discs (x, y, r), each (K, C): what the lidar's beams hit."""
-        k = self.num_envs
-        return (
-            np.ascontiguousarray(self.position[..., 0]),
-            np.ascontiguousarray(self.position[..., 1]),
-            np.broadcast_to(self.radius, (k, self.count)).copy(),
-        )
+    def discs(self) -> NDArray[np.float64]:
+        """The movers as discs, (K, C, 3): x, y, radius [m] each (what the lidar's beams hit)."""
+        discs = np.empty((self.num_envs, self.count, 3))
+        discs[..., :2] = self.position
+        discs[..., 2] = self.radius
+        return discs
 
     def __getstate__(self) -> dict[str, object]:
         # ORCA simulators are C++ objects without pickling: the copy keeps which environments

@@ -1,6 +1,6 @@
 """What every robot believes: noisy localization, team-mates heard over a lossy radio, lidar readings.
 
-:class:`Perception` runs beside the physics of :class:`~koopman_envs.builder.engine.NavigationEngine`
+:class:`Perception` runs beside the physics of :class:`~koopman_envs.engine.engine.NavigationEngine`
 when any uncertainty setting of :mod:`koopman_envs.uncertainty` is away from its perfect value.
 After each step (and at reset) one compiled pass updates, per environment:
 
@@ -33,12 +33,29 @@ from koopman_envs.sim.lidar import beam_angles, cast_beams
 from koopman_envs.sim.pcg64 import Streams, refill_f32
 from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
-__all__ = ["Perception", "child_generator", "observed_info"]
+__all__ = ["SENSOR_MODEL", "Perception", "child_generator", "observed_info"]
 
 #: random numbers drawn per environment and generator call, about (ours): a block of periods
 #: this large amortizes the generator calls (a few microseconds each) and keeps the buffer of
 #: 1024 environments at about 64 MiB
 BLOCK_NUMBERS = 8192
+
+#: the fixed terms of the sensors and the radio, one record per :class:`Perception` (made once,
+#: not per step): numba reads its fields by name and types a record argument as fast as a plain
+#: array (a named tuple it types field by field in Python, microseconds a call)
+SENSOR_MODEL = np.dtype(
+    [
+        ("std", np.float64, (3,)),  # white noise of x, y [m] and heading [rad]
+        ("drift", np.float64, (3,)),  # the bias's random-walk step per period (per sqrt(s) x sqrt(dt))
+        ("noisy", np.bool_),  # any pose noise (else no normals are read for it)
+        ("latency", np.int64),  # periods a message travels
+        ("drop", np.float64),  # probability a message is lost
+        ("range2", np.float64),  # the radio's range squared [m^2]
+        ("lidar_noise", np.float64),  # a reading's standard deviation [m]
+        ("lidar_dropout", np.float64),  # probability a reading is lost (reads max_range)
+        ("max_range", np.float64),  # the lidar's range [m] (0 without lidar)
+    ]
+)
 
 
 def child_generator(rng: np.random.Generator) -> np.random.Generator:
@@ -114,9 +131,26 @@ class Perception:
         self.age = np.full((k, n, n), -1, dtype=np.int64)
         self.ranges = np.zeros((k, n, beams))
         self.clock = np.zeros(k, dtype=np.int64)
-        slots = comm.latency + 1
-        self.sent_poses = np.zeros((k, slots, 3, n))
-        self.sent_positions = np.zeros((k, slots, 2, n))
+        #: the radio's last ``latency + 1`` broadcasts per environment: rows 0-2 the estimate
+        #: each robot sent (x, y, theta), rows 3-4 where it truly was (x, y; the range check)
+        self.sent = np.zeros((k, comm.latency + 1, 5, n))
+        self.model = np.array(
+            [
+                (
+                    (pose_noise.xy, pose_noise.xy, pose_noise.heading),
+                    np.array([pose_noise.drift_xy, pose_noise.drift_xy, pose_noise.drift_heading])
+                    * math.sqrt(self.dt),
+                    pose_noise.active,
+                    comm.latency,
+                    comm.drop,
+                    comm.range * comm.range,
+                    0.0 if lidar is None else lidar.noise,
+                    0.0 if lidar is None else lidar.dropout,
+                    self.max_range,
+                )
+            ],
+            dtype=SENSOR_MODEL,
+        )
         # random numbers per period: pose white noise and bias steps (6 N), then the lidar's
         # reading noise (N B); uniforms: message losses (N (N - 1)), then beam dropouts (N B)
         noisy_lidar = lidar is not None and lidar.noise > 0
@@ -160,12 +194,12 @@ class Perception:
     def flush(
         self,
         state: NDArray[np.float64],
-        obstacles: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        discs: NDArray[np.float64],
         robot_radius: NDArray[np.float64],
     ) -> None:
         """Take the first readings of the environments reset since the last update."""
         if self._pending:
-            self.update(state, obstacles, robot_radius, np.zeros(0, dtype=np.int64))
+            self.update(state, discs, robot_radius, np.zeros(0, dtype=np.int64))
 
     # ------------------------------------------------------------------- step
     def delayed(self, commands: NDArray[np.float64], rows: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -181,12 +215,13 @@ class Perception:
     def update(
         self,
         state: NDArray[np.float64],
-        obstacles: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        discs: NDArray[np.float64],
         robot_radius: NDArray[np.float64],
         rows: NDArray[np.int64],
     ) -> None:
         """Read the sensors and the radio of environments ``rows`` (and of those reset since the
-        last update) at the true poses ``state`` (K, 3, N), then advance their clocks."""
+        last update) at the true poses ``state`` (K, 3, N), then advance their clocks; the lidar's
+        beams hit the robots and ``discs`` (K, M, 3: x, y, radius [m] each)."""
         if self._pending:  # a mask rather than a set union: O(K), and each environment once
             chosen = np.zeros(self.clock.shape[0], dtype=bool)
             chosen[rows] = True
@@ -195,13 +230,10 @@ class Perception:
             self._pending.clear()
         self._refill(rows)
         if self.lidar is not None:
-            obstacle_x, obstacle_y, obstacle_r = obstacles
             if rows.shape[0] == state.shape[0]:  # every environment (a plain step): no copies
                 cast_beams(
                     state,
-                    obstacle_x,
-                    obstacle_y,
-                    obstacle_r,
+                    discs,
                     robot_radius,
                     self.angles,
                     self.max_range,
@@ -212,9 +244,7 @@ class Perception:
                 exact = np.empty((rows.shape[0],) + self.ranges.shape[1:])
                 cast_beams(
                     state[rows],
-                    obstacle_x[rows],
-                    obstacle_y[rows],
-                    obstacle_r[rows],
+                    discs[rows],
                     robot_radius,
                     self.angles,
                     self.max_range,
@@ -222,29 +252,19 @@ class Perception:
                     exact,
                 )
                 self.ranges[rows] = exact
-        noise, comm, lidar = self.pose_noise, self.comm, self.lidar
         _perceive(
+            self.model,
             state,
             rows,
             self.clock,
             self.cursor,
             self.normal,
             self.uniform,
-            np.array([noise.xy, noise.xy, noise.heading]),
-            np.array([noise.drift_xy, noise.drift_xy, noise.drift_heading]) * math.sqrt(self.dt),
-            noise.active,
             self.bias,
             self.observed,
-            comm.latency,
-            comm.drop,
-            comm.range * comm.range,
-            self.sent_poses,
-            self.sent_positions,
+            self.sent,
             self.known,
             self.age,
-            np.float64(0.0 if lidar is None else lidar.noise),  # float64 in Python as in numba
-            0.0 if lidar is None else lidar.dropout,
-            self.max_range,
             self.ranges,
         )
 
@@ -288,33 +308,31 @@ def _delay(
 
 @njit(cache=True)
 def _perceive(
+    model: NDArray[np.void],
     truth: NDArray[np.float64],
     rows: NDArray[np.int64],
     clock: NDArray[np.int64],
     cursor: NDArray[np.int64],
     normal: NDArray[np.float32],
     uniform: NDArray[np.float32],
-    std: NDArray[np.float64],
-    drift: NDArray[np.float64],
-    noisy: bool,
     bias: NDArray[np.float64],
     observed: NDArray[np.float64],
-    latency: int,
-    drop: float,
-    range2: float,
-    sent_poses: NDArray[np.float64],
-    sent_positions: NDArray[np.float64],
+    sent: NDArray[np.float64],
     known: NDArray[np.float64],
     age: NDArray[np.int64],
-    lidar_noise: float,
-    lidar_dropout: float,
-    max_range: float,
     ranges: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """One period of sensing and messaging for environments ``rows`` (see :class:`Perception`)."""
+    """One period of sensing and messaging for environments ``rows`` of the true poses ``truth``
+    (K, 3, N) under ``model`` (:data:`SENSOR_MODEL`), drawing from each environment's block of
+    ``normal`` and ``uniform`` at its ``cursor``; the other arrays are :class:`Perception`'s state,
+    updated in place."""
+    spec = model[0]
+    std, drift, noisy, latency = spec.std, spec.drift, spec.noisy, spec.latency
+    drop, range2 = spec.drop, spec.range2
+    lidar_noise, lidar_dropout, max_range = spec.lidar_noise, spec.lidar_dropout, spec.max_range
     n = truth.shape[2]
     beams = ranges.shape[2]
-    slots = sent_poses.shape[1]
+    slots = sent.shape[1]
     for k in rows:
         t = clock[k]
         row = cursor[k]
@@ -334,10 +352,10 @@ def _perceive(
         slot = t % slots
         for c in range(3):
             for j in range(n):
-                sent_poses[k, slot, c, j] = observed[k, c, j]
+                sent[k, slot, c, j] = observed[k, c, j]
         for j in range(n):
-            sent_positions[k, slot, 0, j] = truth[k, 0, j]
-            sent_positions[k, slot, 1, j] = truth[k, 1, j]
+            sent[k, slot, 3, j] = truth[k, 0, j]
+            sent[k, slot, 4, j] = truth[k, 1, j]
         source = (t - latency) % slots
         for i in range(n):
             for j in range(n):
@@ -352,12 +370,12 @@ def _perceive(
                     at_uniform += 1
                 delivered = False
                 if t >= latency and not lost:
-                    dx = sent_positions[k, source, 0, j] - sent_positions[k, source, 0, i]
-                    dy = sent_positions[k, source, 1, j] - sent_positions[k, source, 1, i]
+                    dx = sent[k, source, 3, j] - sent[k, source, 3, i]
+                    dy = sent[k, source, 4, j] - sent[k, source, 4, i]
                     delivered = dx * dx + dy * dy <= range2
                 if delivered:
                     for c in range(3):
-                        known[k, i, j, c] = sent_poses[k, source, c, j]
+                        known[k, i, j, c] = sent[k, source, c, j]
                     age[k, i, j] = latency
                 elif age[k, i, j] >= 0:
                     age[k, i, j] += 1
@@ -390,9 +408,11 @@ def observed_info(perception: Perception | None, poses: NDArray[np.float64]) -> 
     """
     if perception is None:
         k, n, _ = poses.shape
+        known = np.empty((k, n, n, 3))
+        known[...] = poses[:, None]  # row i: every robot's pose (np.broadcast_to costs microseconds)
         return {
             "observed_poses": poses.copy(),
-            "known_poses": np.broadcast_to(poses[:, None], (k, n, n, 3)).copy(),
+            "known_poses": known,
             "message_age": np.zeros((k, n, n), dtype=np.int64),
         }
     info = {

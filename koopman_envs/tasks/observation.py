@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 from types import SimpleNamespace
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -28,16 +27,13 @@ from koopman_envs.layout import (
     MoverEntry,
     ObservationLayout,
     ObstacleEntry,
-    PartOffsets,
     TeamEntry,
 )
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 from koopman_envs.sim.movers import mover_features
 from koopman_envs.sim.nearest import nearest_first
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from koopman_envs.sim.perception import Perception
+from koopman_envs.sim.perception import Perception
 
 __all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size", "observation_from_beliefs"]
 
@@ -127,7 +123,7 @@ class FeatureBuilder:
     num_envs : int
         Batch size K.
     layout : ObservationLayout
-        One robot's block (the engine's :attr:`~koopman_envs.builder.config.EngineConfig.observation_layout`):
+        One robot's block (the engine's :attr:`~koopman_envs.engine.config.EngineConfig.observation_layout`):
         team size, listed obstacles or lidar beams, formation error, message ages, listed movers.
     n_obstacles : int
         Obstacles per environment M.
@@ -148,8 +144,9 @@ class FeatureBuilder:
         n, k = layout.n_robots, num_envs
         #: the block's named parts (koopman_envs.layout)
         self.layout = layout
-        #: where each part begins, as the compiled writer takes them
+        #: where each part begins (:class:`~koopman_envs.layout.PartOffsets`)
         self.offsets = layout.offsets
+        self._at = self.offsets.as_record()  # the same, as the compiled writer takes them
         self.shape = (k, n, layout.size)
         self.low, self.high = feature_bounds(layout, lidar_range)
         self.mover_slots = layout.movers
@@ -157,6 +154,7 @@ class FeatureBuilder:
         self.n_robots, self.n_obstacles = n, n_obstacles
         self._no_offsets = np.zeros((k, 2, n))  # the kernel's formation input when unused
         self._no_ranges = np.zeros((k, n, 0))
+        self._no_known = np.zeros((k, 0, 0, 3))  # the kernel's sign that the robots know the truth
         self._same_age = np.zeros((k, n, n), dtype=np.int64)
 
     def build(
@@ -196,10 +194,7 @@ class FeatureBuilder:
         distances = np.empty(self.shape[:2])
         offsets = self._no_offsets if formation_offsets is None else formation_offsets
         if perception is None:
-            k, _, n = state.shape
-            own, ranges, age = state, self._no_ranges, self._same_age
-            # everyone knows the truth: row i of robot i's view is every robot's true pose
-            known = np.broadcast_to(state.transpose(0, 2, 1)[:, None], (k, n, n, 3))
+            own, known, age, ranges = state, self._no_known, self._same_age, self._no_ranges
         else:
             own, known, age, ranges = perception.observed, perception.known, perception.age, perception.ranges
         _build_features(
@@ -209,10 +204,9 @@ class FeatureBuilder:
             ranges,
             target,
             offsets,
-            geometry.obstacle_x,
-            geometry.obstacle_y,
+            geometry.obstacles,
             geometry.radius_sum,
-            self.offsets,
+            self._at,
             self.low,
             self.high,
             out,
@@ -310,31 +304,34 @@ def _build_features(
     ranges: NDArray[np.float64],
     target: NDArray[np.float64],
     offsets: NDArray[np.float64],
-    obstacle_x: NDArray[np.float64],
-    obstacle_y: NDArray[np.float64],
+    obstacles: NDArray[np.float64],
     radius_sum: NDArray[np.float64],
-    at: PartOffsets,
+    offsets_record: NDArray[np.void],
     low: NDArray[np.float64],
     high: NDArray[np.float64],
     out: NDArray[np.float64],
     distances: NDArray[np.float64],
 ) -> None:  # pragma: no cover - compiled
-    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout whose part offsets are ``at``
-    (:attr:`ObservationLayout.offsets <koopman_envs.layout.ObservationLayout.offsets>`: a part's
+    """Fill ``out`` (K, N, F) and ``distances`` (K, N) in the layout whose part offsets are
+    ``offsets_record[0]`` (:meth:`PartOffsets.as_record <koopman_envs.layout.PartOffsets.as_record>`
+    of :attr:`ObservationLayout.offsets <koopman_envs.layout.ObservationLayout.offsets>`: a part's
     width is the gap to the next part, so a part the layout lacks is written nowhere).
 
     ``own`` (K, 3, N) holds every robot's pose estimate, ``known[k, i, j]`` (K, N, N, 3) what
-    robot i knows of robot j and ``age`` (K, N, N) how old that is (-1: nothing yet);
+    robot i knows of robot j (an empty ``known``, (K, 0, 0, 3): every robot knows the truth,
+    ``own``, without a (K, N, N, 3) copy or view made for it on every step) and ``age`` (K, N, N) how old that is (-1: nothing yet);
     ``ranges`` (K, N, B) the lidar readings (the ``beams`` part); ``offsets`` (K, 2, N) the
     formation offsets (the ``formation_error`` part).
     """
+    at = offsets_record[0]
     n_envs, _, n_robots = own.shape
-    n_obstacles = obstacle_x.shape[1]
+    n_obstacles = obstacles.shape[1]
     n_features = out.shape[2]
     beams = at.formation_error - at.beams
     n_obstacle_obs = (at.beams - at.obstacles) // _OBSTACLE_WIDTH
     formation = at.messages > at.formation_error
     comm = at.movers > at.messages
+    truth = known.shape[1] == 0
     listed = min(n_obstacles, n_obstacle_obs)
     gap = np.empty(n_obstacles)
     order = np.empty(n_obstacles, dtype=np.int64)
@@ -361,7 +358,10 @@ def _build_features(
                         row[col + TeamEntry.DX], row[col + TeamEntry.DY] = 0.0, 0.0
                         row[col + TeamEntry.CLEARANCE] = FAR
                     else:
-                        ox, oy = known[k, i, j, 0], known[k, i, j, 1]
+                        if truth:
+                            ox, oy = own[k, 0, j], own[k, 1, j]
+                        else:
+                            ox, oy = known[k, i, j, 0], known[k, i, j, 1]
                         dx, dy = ox - x, oy - y
                         row[col + TeamEntry.DX] = c * dx + s * dy
                         row[col + TeamEntry.DY] = c * dy - s * dx
@@ -372,13 +372,13 @@ def _build_features(
             if n_obstacle_obs:
                 for m in range(n_obstacles):
                     gap[m] = clearance(
-                        x, y, obstacle_x[k, m], obstacle_y[k, m], radius_sum[k, i, n_robots + m]
+                        x, y, obstacles[k, m, 0], obstacles[k, m, 1], radius_sum[k, i, n_robots + m]
                     )
                 nearest_first(gap, order, n_obstacles)  # equal clearances keep index order
                 col = at.obstacles
                 for q in range(listed):
                     m = order[q]
-                    dx, dy = obstacle_x[k, m] - x, obstacle_y[k, m] - y
+                    dx, dy = obstacles[k, m, 0] - x, obstacles[k, m, 1] - y
                     row[col + ObstacleEntry.DX] = c * dx + s * dy
                     row[col + ObstacleEntry.DY] = c * dy - s * dx
                     row[col + ObstacleEntry.CLEARANCE] = gap[m]
@@ -392,8 +392,12 @@ def _build_features(
                 if age[k, i, 0] < 0:  # nothing heard of the leader yet: no error to report
                     row[at.formation_error], row[at.formation_error + 1] = 0.0, 0.0
                 else:
-                    row[at.formation_error] = (x - known[k, i, 0, 0]) - offsets[k, 0, i]
-                    row[at.formation_error + 1] = (y - known[k, i, 0, 1]) - offsets[k, 1, i]
+                    if truth:
+                        lx, ly = own[k, 0, 0], own[k, 1, 0]
+                    else:
+                        lx, ly = known[k, i, 0, 0], known[k, i, 0, 1]
+                    row[at.formation_error] = (x - lx) - offsets[k, 0, i]
+                    row[at.formation_error + 1] = (y - ly) - offsets[k, 1, i]
             if comm:
                 col = at.messages
                 for j in range(n_robots):

@@ -34,13 +34,21 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.params import PHYSICS, PhysicsParams
-from koopman_envs.sim.dynamics import saturate_teams, wrap_scalar
+from koopman_envs.sim.dynamics import saturated_command, wrap_scalar
 from koopman_envs.sim.perception import child_generator
 from koopman_envs.sim.physics.model import OBSTACLE_HEIGHT, robot_mjcf
 from koopman_envs.sim.physics.surfaces import SurfaceSetting, draw_friction, surface_for_lambda
 from koopman_envs.sim.zones import SlipZone, ZoneTable
 
-__all__ = ["INSTALL_HINT", "PhysicsWorld", "import_mujoco", "planar_poses", "wheel_setpoints", "zone_surface"]
+__all__ = [
+    "INSTALL_HINT",
+    "PhysicsWorld",
+    "drive_setpoints",
+    "import_mujoco",
+    "planar_poses",
+    "wheel_setpoints",
+    "zone_surface",
+]
 
 #: how to get the physics plant's dependency
 INSTALL_HINT = "pip install 'koopnav[physics]'"
@@ -87,15 +95,57 @@ def planar_poses(qpos: NDArray[np.float64], address: NDArray[np.int64], out: NDA
         out[2, i] = wrap_scalar(math.atan2(2.0 * (w * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
 
 
+@njit(cache=True)
+def _wheel_speeds(v: Any, omega: Any, half_track: float, wheel_radius: float) -> tuple[Any, Any]:
+    """The left and right wheel speeds [rad/s] of robots commanded ``(v [m/s], omega [rad/s])``,
+    floats or 1-D arrays (compiled; the one rule of :func:`wheel_setpoints` and
+    :func:`drive_setpoints`)."""
+    turn = omega * half_track
+    return (v - turn) / wheel_radius, (v + turn) / wheel_radius
+
+
 def wheel_setpoints(
     v: NDArray[np.float64], omega: NDArray[np.float64], params: PhysicsParams = PHYSICS
 ) -> NDArray[np.float64]:
     """The actuators' controls of robots commanded ``(v [m/s], omega [rad/s])`` (arrays of one
     shape S): shape S + (4,), the left wheel's speed set-point [rad/s] twice (its P and I drives)
     then the right wheel's, the model's order (MuJoCo clamps them to the motors' speed limit)."""
-    turn = omega * (params.wheel_separation / 2.0)
-    left, right = (v - turn) / params.wheel_radius, (v + turn) / params.wheel_radius
-    return np.stack([left, left, right, right], axis=-1)
+    v, omega = np.broadcast_arrays(np.asarray(v, dtype=np.float64), np.asarray(omega, dtype=np.float64))
+    left, right = _wheel_speeds(
+        np.ravel(v), np.ravel(omega), params.wheel_separation / 2.0, params.wheel_radius
+    )
+    return np.stack([left, left, right, right], axis=-1).reshape(v.shape + (4,))
+
+
+@njit(cache=True)
+def drive_setpoints(
+    commands: NDArray[np.float64],
+    active: NDArray[np.bool_],
+    command_low: NDArray[np.float64],
+    command_high: NDArray[np.float64],
+    effort_scale: NDArray[np.float64],
+    half_track: float,
+    wheel_radius: float,
+    ctrl: NDArray[np.float64],
+    effort: NDArray[np.float64],
+) -> None:  # pragma: no cover - compiled
+    """The physics plant's command pass of K teams of N robots, in one compiled loop: every
+    command saturated to the limits (:func:`~koopman_envs.sim.dynamics.saturated_command`) and
+    turned into its wheels' set-points, into ``ctrl`` (K, 4 N: the model's actuator order, as
+    :func:`wheel_setpoints`), its effort into ``effort`` (K, N). Inactive environments get zero
+    set-points and zero effort."""
+    n_envs, n_robots, _ = commands.shape
+    for k in range(n_envs):
+        for i in range(n_robots):
+            left = right = 0.0
+            effort[k, i] = 0.0
+            if active[k]:
+                v, omega, effort[k, i] = saturated_command(
+                    commands[k, i, 0], commands[k, i, 1], command_low, command_high, effort_scale
+                )
+                left, right = _wheel_speeds(v, omega, half_track, wheel_radius)
+            ctrl[k, 4 * i] = ctrl[k, 4 * i + 1] = left
+            ctrl[k, 4 * i + 2] = ctrl[k, 4 * i + 3] = right
 
 
 class PhysicsWorld:
@@ -120,7 +170,8 @@ class PhysicsWorld:
         Threads a batch of more than one environment is stepped on (default: up to 2, the
         cores there are); 1 steps environment by environment. The results do not depend on it.
     friction : ndarray, shape (K, N)
-        Every robot's wheel-ground friction of the last period stepped (ground truth).
+        Every robot's wheel-ground friction (ground truth): the floor's drawn at each reset and,
+        on a map with zones, the one under the robot in the last period stepped.
     """
 
     def __init__(
@@ -156,6 +207,15 @@ class PhysicsWorld:
         self._state_size = mujoco.mj_stateSize(model, self._spec)
         self.base_friction = np.ones((num_envs, n_robots))
         self.friction = np.ones((num_envs, n_robots))
+        # the wheels' friction as written into each model: a model is written only when its
+        # robots' surfaces change (at a reset, or a robot crossing into another zone)
+        self._applied = np.full((num_envs, n_robots), np.nan)
+        # views of each world's arrays, taken once (every access of a MuJoCo field makes a new one)
+        self._geom_friction = [m.geom_friction for m in self.models]
+        self._ctrl_views = [d.ctrl for d in self.datas]
+        self._qpos_views = [d.qpos for d in self.datas]
+        self._ctrl = np.zeros((num_envs, 4 * n_robots))
+        self._every = np.arange(num_envs)
         self._zones = ZoneTable(num_envs, n_zones, n_robots) if n_zones else None
         self._streams: list[np.random.Generator | None] = [None] * num_envs
         self._parents: list[np.random.Generator | None] = [None] * num_envs
@@ -190,6 +250,8 @@ class PhysicsWorld:
         if self._zones is not None:
             values = [draw_friction(stream, zone_surface(zone), 1)[0] for zone in zones]
             self._zones.set_env(index, zones, values)
+        self.friction[index] = self.base_friction[index]
+        self._write_friction(index)
         model, data = self.models[index], self.datas[index]
         self._mujoco.mj_resetData(model, data)
         starts = np.asarray(starts, dtype=np.float64)
@@ -234,28 +296,32 @@ class PhysicsWorld:
         effort : ndarray, shape (K, N)
             Output ``scale_v v^2 + scale_omega omega^2`` of the saturated commands.
         """
-        saturated = np.empty_like(commands)
-        saturate_teams(commands, active, command_low, command_high, effort_scale, saturated, effort)
-        if self._zones is not None:
-            self._zones.slip_means(state, self.base_friction, self.friction)
-        else:
-            self.friction[:] = self.base_friction
-        ctrl = wheel_setpoints(saturated[..., 0], saturated[..., 1], self.params).reshape(
-            len(self.models), -1
+        half_track, radius = self.params.wheel_separation / 2.0, self.params.wheel_radius
+        ctrl = self._ctrl
+        drive_setpoints(
+            commands, active, command_low, command_high, effort_scale, half_track, radius, ctrl, effort
         )
-        rows = np.flatnonzero(active)
-        wheel_friction = np.repeat(self.friction, 2, axis=1)  # (K, 2N): the wheels' order
+        rows = self._every if active.all() else np.flatnonzero(active)
+        if self._zones is not None:  # the surface under each robot: write the models whose changed
+            self._zones.slip_means(state, self.base_friction, self.friction)
+            for k in rows[(self.friction[rows] != self._applied[rows]).any(axis=1)]:
+                self._write_friction(k)
         for k in rows:
-            self.models[k].geom_friction[self._wheels, 0] = wheel_friction[k]
-            self.datas[k].ctrl[:] = ctrl[k]
+            self._ctrl_views[k][:] = ctrl[k]
         if len(rows) > 1 and self.threads > 1:
             self._step_threaded(rows, ctrl)
         else:
+            step, substeps = self._mujoco.mj_step, self.params.substeps
             for k in rows:
-                self._mujoco.mj_step(self.models[k], self.datas[k], nstep=self.params.substeps)
+                step(self.models[k], self.datas[k], nstep=substeps)
         new_state[:] = state
         for k in rows:
-            planar_poses(self.datas[k].qpos, self._qpos, new_state[k])
+            planar_poses(self._qpos_views[k], self._qpos, new_state[k])
+
+    def _write_friction(self, index: int) -> None:
+        """Write environment ``index``'s :attr:`friction` into its model's wheel geoms."""
+        self._geom_friction[index][self._wheels, 0] = np.repeat(self.friction[index], 2)
+        self._applied[index] = self.friction[index]
 
     def _step_threaded(self, rows: NDArray[np.int64], ctrl: NDArray[np.float64]) -> None:
         """The period of ``rows`` through :func:`mujoco.rollout.rollout` on :attr:`threads`

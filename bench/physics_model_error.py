@@ -1,0 +1,285 @@
+"""What the Koopman model learns on the physics plant: its multi-step position error against the
+nominal unicycle's, on held-out physics rollouts, per friction level.
+
+Usage::
+
+    python bench/physics_model_error.py [--levels high low nominal] [--budget 1000000] [--seed 0]
+        [--repetitions 30] [--episodes 3] [--controller nominal-nmpc] [--horizon 20]
+        [--held-out-budget 20000] [--json out.json]
+
+For each slip setting (on the physics plant a floor: ``nominal`` carpet, ``low`` gravel, ``high``
+ice; docs/physics.md) the Koopman-NMPC is calibrated as the evaluator calibrates it: its
+``calibrate`` on ``make_plant(ENV, plant="mujoco", slip=level, budget, seed)`` (open field, slip
+hidden, the paper's budget; a fit is read from the calibration cache under ``KOOPNAV_CACHE``
+when there is one). Its model and the nominal unicycle (RK4, the nominal NMPC's) then predict,
+open loop, held-out rollouts of the physics robots:
+
+* **circle**: the paper's circle test (SPEC section 2: v = 0.3 m/s, omega = 0.3 rad/s from
+  (0, 0, 0), (-1, -1, 0), (1, 1, 0) for 210 periods) driven by ``--repetitions`` teams of a
+  calibration plant of another seed (every team's frictions drawn anew from the surface); the
+  error is the RMS position error over the 210 periods, per robot and team.
+* **closed loop**: ``--episodes`` episodes of ``--controller`` on map1 at that level (the
+  evaluator's start noise); from every period of an episode, ``--horizon`` periods (the NMPC's
+  horizon) predicted from the true pose under the commands the robots were given (saturated to
+  the limits); the error is the RMS position error over the windows, their periods and robots.
+
+Also printed, to say why a model does what it does (:func:`identification_figures`): each
+model's one-step RMS position error on held-out identification data (the calibration's own kind
+of data, another seed), the speed the robots reach there and on the circle against the speed
+each model predicts on the circle, and how much of a period's move the period's command alone
+explains against the command with the second before it (the robot's inertia and motor lag).
+Errors in cm; "ratio" is Koopman's over the unicycle's (the issue's target: at most 0.7 on ice).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+import controllers
+import koopman_envs  # noqa: F401 - registers the ids
+from controllers.calibration import calibrate_controller, collect_data, data_spec_for, position_residual
+from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts
+from controllers.mpc.models import UnicycleModel
+from controllers.mpc.variants import KoopmanNMPC
+from koopman_envs import make_plant, run_episode
+from koopman_envs.params import PARAMS, SLIP_SURFACES
+
+ENV = "KoopNav-TargetReaching-v0"
+#: the seed of every held-out plant and episode is the calibration seed plus this (other draws)
+HELD_OUT = 1000
+#: the evaluator's start noise (evaluation.protocols.START_NOISE), so the episodes are its episodes
+START_NOISE = 0.05
+#: the actuation limits (v [m/s], omega [rad/s]) the env saturates commands to
+LIMITS = np.array([PARAMS.v_max, PARAMS.omega_max])
+#: commands before the period's own that the lag diagnostic regresses on (1 s)
+LAGS = 10
+
+Predict = Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+
+
+def open_loop(
+    step: Predict, start: NDArray[np.float64], commands: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Poses (T + 1, ..., N, 3) predicted by ``step`` from ``start`` (..., N, 3) under ``commands``
+    (T, ..., N, 2), each prediction fed back (as the NMPC's horizon does)."""
+    out = np.empty((commands.shape[0] + 1, *start.shape))
+    out[0] = start
+    for t, command in enumerate(commands):
+        out[t + 1] = step(out[t], command)
+    return out
+
+
+def rms_cm(truth: NDArray[np.float64], prediction: NDArray[np.float64], axis: Any = None) -> Any:
+    """RMS position error [cm] of predicted poses (..., N, 3) against the true ones over ``axis``."""
+    diff = truth[..., :2] - prediction[..., :2]
+    return 100.0 * np.sqrt((diff * diff).sum(-1).mean(axis=axis))
+
+
+def circle_errors(level: str, models: dict[str, Any], repetitions: int, seed: int) -> dict[str, Any]:
+    """The circle test on ``repetitions`` physics teams: every model's RMS position error [cm] over
+    the 210 periods (mean over teams and robots, and the worst team-robot), and the speeds."""
+    n = PARAMS.n_robots
+    start = circle_starts(n)
+    commands = np.tile([CIRCLE_V, CIRCLE_OMEGA], (CIRCLE_STEPS, n, 1))
+    plant = make_plant(ENV, plant="mujoco", slip=level, budget=repetitions * CIRCLE_STEPS, seed=seed)
+    truth = plant.rollout(
+        np.broadcast_to(start, (repetitions, n, 3)),
+        np.broadcast_to(commands[:, None], (CIRCLE_STEPS, repetitions, n, 2)),
+    )
+    out: dict[str, Any] = {}
+    # the true speed over the last 10 s (the circle's steady state) against each model's
+    tail = np.hypot(*np.diff(truth[-101:, ..., :2], axis=0).transpose(3, 0, 1, 2)) / PARAMS.dt
+    out["speed"] = {"physics": float(tail.mean())}
+    for name, model in models.items():
+        predicted = open_loop(model.step, start, commands)
+        per = rms_cm(truth[1:], predicted[1:, None], axis=0)  # (teams, robots)
+        out[name] = {"mean": float(per.mean()), "worst": float(per.max())}
+        out["speed"][name] = float(np.hypot(*np.diff(predicted[-101:, :, :2], axis=0).T).mean() / PARAMS.dt)
+    return out
+
+
+def closed_loop_data(
+    level: str, controller: str, episodes: int, seed: int, budget: int
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], dict[str, Any]]]:
+    """``episodes`` episodes of ``controller`` on map1 of the physics plant at ``level`` (calibrated
+    as the evaluator calibrates it): each episode's true poses (T + 1, N, 3), the commands the
+    robots were given (T, N, 2, saturated to the limits) and its outcome."""
+    env = gym.make(ENV, plant="mujoco", map="map1", slip=level, start_noise=START_NOISE)
+    ctrl = controllers.make(controller)
+    calibrate_controller(
+        ctrl, make_plant(ENV, plant="mujoco", slip=level, budget=budget, seed=seed), seed=seed
+    )
+    data = []
+    for episode in range(episodes):
+        given: list[NDArray[np.float64]] = []
+        result = run_episode(
+            env,
+            ctrl,
+            seed=seed + HELD_OUT + episode,
+            on_step=partial(_record, given),
+        )
+        outcome = {"steps": result.steps, "success": bool(result.success), "collision": result.collision}
+        data.append((result.trajectory, np.array(given), outcome))
+    env.close()
+    return data
+
+
+def _record(into: list[NDArray[np.float64]], _step: int, action: NDArray[np.float64], _info: Any) -> None:
+    """``run_episode``'s ``on_step``: keep the period's command as the env applies it (saturated)."""
+    into.append(np.clip(action, -LIMITS, LIMITS))
+
+
+def window_errors(
+    data: list[tuple[NDArray[np.float64], NDArray[np.float64], dict[str, Any]]],
+    models: dict[str, Any],
+    horizon: int,
+) -> dict[str, float]:
+    """Every model's RMS position error [cm] over ``horizon``-period open-loop predictions started
+    at every period of the episodes (windows that would run past an episode's end are left out)."""
+    sums = dict.fromkeys(models, 0.0)
+    count = 0
+    for poses, commands, _ in data:
+        windows = commands.shape[0] - horizon + 1
+        if windows < 1:
+            continue
+        index = np.arange(windows)[None, :] + np.arange(horizon)[:, None]  # (H, W)
+        truth = poses[index + 1]  # (H, W, N, 3)
+        for name, model in models.items():
+            predicted = open_loop(model.step, poses[:windows], commands[index])
+            sums[name] += float((rms_cm(truth, predicted[1:]) ** 2) * truth[..., 0].size)
+        count += truth[..., 0].size
+    return {name: float(np.sqrt(total / count)) if count else float("nan") for name, total in sums.items()}
+
+
+def identification_figures(level: str, models: dict[str, Any], budget: int, seed: int) -> dict[str, Any]:
+    """What held-out identification data (the calibration's random inputs and starts, drawn with
+    another seed on a plant of another seed) say about the models and the robots.
+
+    Returns every model's RMS one-step position error [cm] on them (``one_step``); the mean speed
+    the robots reach against the mean commanded ``|v|`` [m/s]; and how much of a robot's forward
+    move in a period (its displacement along its heading) a linear fit explains from the
+    period's command alone (``r2_now``: what a model of the pose and the command can use) and
+    from that command and the ``LAGS`` before it (``r2_past``: what a model with the robot's
+    speed as a state could use), as R^2.
+    """
+    spec = data_spec_for(budget, seed + HELD_OUT)
+    plant = make_plant(ENV, plant="mujoco", slip=level, budget=budget, seed=seed + HELD_OUT)
+    data = collect_data(plant, spec)
+    one_step = {
+        name: float(100.0 * position_residual(model.step, data).mean()) for name, model in models.items()
+    }
+    move = np.diff(data.states[..., :2], axis=0)  # (T, B, N, 2)
+    heading = data.states[:-1, ..., 2]
+    forward = move[..., 0] * np.cos(heading) + move[..., 1] * np.sin(heading)  # (T, B, N) [m]
+    speed = data.commands[..., 0]
+    y = forward[LAGS:].reshape(-1)
+    columns = [np.ones_like(y)] + [
+        speed[LAGS - lag : speed.shape[0] - lag].reshape(-1) for lag in range(LAGS + 1)
+    ]
+
+    def r2(x: list[NDArray[np.float64]]) -> float:
+        design = np.stack(x, axis=1)
+        fitted = design @ np.linalg.lstsq(design, y, rcond=None)[0]
+        return float(1.0 - ((y - fitted) ** 2).sum() / ((y - y.mean()) ** 2).sum())
+
+    return {
+        "one_step": one_step,
+        "speed_reached": float(np.abs(forward).mean() / PARAMS.dt),
+        "speed_commanded": float(np.abs(np.clip(speed, -LIMITS[0], LIMITS[0])).mean()),
+        "r2_now": r2(columns[:2]),
+        "r2_past": r2(columns),
+    }
+
+
+def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
+    """Every figure of one friction level."""
+    start = time.perf_counter()
+    koopman = controllers.make("koopman-nmpc")
+    assert isinstance(koopman, KoopmanNMPC)  # the registered name's class
+    plant = make_plant(ENV, plant="mujoco", slip=level, budget=args.budget, seed=args.seed)
+    calibration = calibrate_controller(koopman, plant, seed=args.seed) or {}
+    models = {"koopman": koopman.model, "unicycle": UnicycleModel(PARAMS.n_robots, PARAMS.dt)}
+    held_out = args.seed + HELD_OUT
+    row: dict[str, Any] = {
+        "level": level,
+        "surface": SLIP_SURFACES[level],
+        "calibration": {k: calibration[k] for k in ("source", "transitions", "key") if k in calibration},
+        "circle": circle_errors(level, models, args.repetitions, held_out),
+    }
+    data = closed_loop_data(level, args.controller, args.episodes, args.seed, args.budget)
+    row["closed_loop"] = window_errors(data, models, args.horizon)
+    row["episodes"] = [outcome for _, _, outcome in data]
+    row["identification"] = identification_figures(level, models, args.held_out_budget, args.seed)
+    row["seconds"] = time.perf_counter() - start
+    return row
+
+
+def tables(rows: list[dict[str, Any]], args: argparse.Namespace) -> str:
+    """The Markdown tables of the rows: the errors, then why."""
+    lines = [
+        f"| floor | circle, {CIRCLE_STEPS} periods: Koopman / unicycle [cm] | ratio | closed loop, "
+        f"{args.horizon} periods: Koopman / unicycle [cm] | ratio | one step, identification data: "
+        "Koopman / unicycle [cm] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        c, w, i = row["circle"], row["closed_loop"], row["identification"]
+        lines.append(
+            f"| {row['level']} ({row['surface']}) | {c['koopman']['mean']:.1f} / {c['unicycle']['mean']:.1f} "
+            f"| {c['koopman']['mean'] / c['unicycle']['mean']:.2f} | {w['koopman']:.1f} / {w['unicycle']:.1f} "
+            f"| {w['koopman'] / w['unicycle']:.2f} | {i['one_step']['koopman']:.2f} / "
+            f"{i['one_step']['unicycle']:.2f} |"
+        )
+    lines += [
+        "",
+        "| floor | circle speed: physics / Koopman / unicycle [m/s] | identification data: speed reached / "
+        f"commanded [m/s] | R^2 of a period's forward move: its command / with the {LAGS} before |",
+        "|---|---|---|---|",
+    ]
+    for row in rows:
+        s, i = row["circle"]["speed"], row["identification"]
+        lines.append(
+            f"| {row['level']} ({row['surface']}) | {s['physics']:.3f} / {s['koopman']:.3f} / {s['unicycle']:.3f} "
+            f"| {i['speed_reached']:.3f} / {i['speed_commanded']:.3f} | {i['r2_now']:.2f} / {i['r2_past']:.2f} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--levels", nargs="+", default=["high", "low", "nominal"], choices=list(SLIP_SURFACES)
+    )
+    parser.add_argument("--budget", type=int, default=PARAMS.calibration_budget, help="calibration budget")
+    parser.add_argument("--seed", type=int, default=0, help="calibration seed (held-out draws: seed + 1000)")
+    parser.add_argument("--repetitions", type=int, default=30, help="physics teams driving the circle")
+    parser.add_argument("--episodes", type=int, default=3, help="closed-loop episodes per level")
+    parser.add_argument("--controller", default="nominal-nmpc", help="the controller of the closed-loop data")
+    parser.add_argument("--horizon", type=int, default=20, help="periods of a closed-loop prediction")
+    parser.add_argument(
+        "--held-out-budget", type=int, default=20_000, help="team-transitions of held-out identification data"
+    )
+    parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    args = parser.parse_args(argv)
+    rows = []
+    for level in args.levels:
+        rows.append(measure(level, args))
+        print(f"{level}: {json.dumps(rows[-1])}", flush=True)
+    print(tables(rows, args))
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump(rows, out, indent=1)
+    return rows
+
+
+if __name__ == "__main__":
+    main()
