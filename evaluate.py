@@ -12,12 +12,14 @@ protocol (SPEC section 5: 10 trials per cell) and prints tables 1-5. From Python
                    slips=["nominal", "high"], episodes=5, seed=0)
     print(evaluate(spec).to_markdown())
 
-This file is the command line; the work is done by the ``evaluation`` package, one job per
-module: ``spec`` (``RunSpec``: the run, its checks and its episodes), ``plan`` (one episode), ``worker`` (one episode), ``backends``
-(process pool, Ray, progress, Ctrl-C), ``runlog`` (the resumable log), ``runner``
-(``evaluate``), ``aggregate`` and ``statistics`` (cells, intervals, paired comparisons),
-``results`` and ``html`` (reports, figures, the leaderboard page), ``protocols``,
-``thresholds`` and ``ablation``.
+This file is the command line; the work is done by the ``evaluation`` package, one folder per
+concept (docs/layout.md), each imported here through its face: ``evaluation.run`` (``RunSpec``:
+the run, its checks and its episodes), ``evaluation.execution`` (workers; process pool, Ray,
+progress, Ctrl-C; ``evaluate``), ``evaluation.episodes`` (records, the resumable log),
+``evaluation.stats`` (cells, intervals, paired comparisons, robustness profiles),
+``evaluation.reports`` (``Results``: reports, figures, the leaderboard page; the baseline gate,
+thresholds, the badge), ``evaluation.experiments`` (protocols, the ablation, ``--sweep``),
+``evaluation.cli`` (the options) and ``evaluation.exit_codes``.
 
 Episodes run in worker processes; each episode's seed depends only on the base seed and its
 index in the cell, so results do not depend on the worker count. Each finished episode is
@@ -39,29 +41,16 @@ from pathlib import Path
 from typing import Any
 
 import controllers
-from evaluation.ablation import ablation_markdown
-from evaluation.aggregate import Cell
-from evaluation.backends import RunInterrupted, sigterm_stops_the_run
-from evaluation.badge import write_badge
-from evaluation.baseline import (
-    GateOptions,
-    PairKey,
-    compare_runs,
-    comparison_markdown,
-    coverage_failures,
-    distinct_pairs,
-    gate_failures,
-    load_baseline,
-    pair_keys,
-    refuse_incomparable,
+from evaluation.cli import build_parser, parse_env_kwargs, program_name, spec_from_args, split_words
+from evaluation.episodes import (
+    DEFAULT_OUT,
+    DEGRADED_FAILURE_SHARE,
+    ensure_output_dir,
+    is_degraded,
+    json_safe,
+    output_directory,
 )
-from evaluation.cli import (
-    build_parser,
-    parse_env_kwargs,
-    program_name,
-    spec_from_args,
-    split_words,
-)
+from evaluation.execution import RunInterrupted, evaluate, sigterm_stops_the_run, usable_controllers
 from evaluation.exit_codes import (
     BAD_INPUT_EXIT,
     EPISODES_RAISED_EXIT,
@@ -75,22 +64,40 @@ from evaluation.exit_codes import (
     report_internal_error,
     worst,
 )
-from evaluation.plan import EpisodeSpec
-from evaluation.protocols import (
+from evaluation.experiments import (
+    ablation_markdown,
+    check_levels,
+    level_aliases,
+    load_sweep,
     paper_protocol,
+    parse_sweep,
     quick_protocol,
+    run_sweep,
+    write_manifest,
 )
-from evaluation.published import is_archive
-from evaluation.records import DEGRADED_FAILURE_SHARE, is_degraded, json_safe
-from evaluation.report import terminal_overview
-from evaluation.results import SCHEMA_VERSION, Results, write_profiles
-from evaluation.robustness import profiles
-from evaluation.runlog import DEFAULT_OUT, ensure_output_dir, output_directory
-from evaluation.runner import evaluate, usable_controllers
-from evaluation.slip_text import split_slips
-from evaluation.spec import RunSpec
-from evaluation.sweep import check_levels, level_aliases, load_sweep, parse_sweep, run_sweep, write_manifest
-from evaluation.thresholds import ThresholdCheck, check_thresholds, load_thresholds
+from evaluation.reports import (
+    SCHEMA_VERSION,
+    GateOptions,
+    PairKey,
+    Results,
+    ThresholdCheck,
+    check_thresholds,
+    compare_runs,
+    comparison_markdown,
+    coverage_failures,
+    distinct_pairs,
+    gate_failures,
+    is_archive,
+    load_baseline,
+    load_thresholds,
+    pair_keys,
+    refuse_incomparable,
+    terminal_overview,
+    write_badge,
+    write_profiles,
+)
+from evaluation.run import EpisodeSpec, RunSpec, split_slips
+from evaluation.stats import Cell, profiles
 from koopman_envs.files import write_atomic
 from koopman_envs.suggest import did_you_mean
 

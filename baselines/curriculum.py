@@ -89,7 +89,7 @@ STAGES: dict[str, tuple[Stage, ...]] = {
 }
 
 #: the held-out validation cells that pick the checkpoint: (N, random-map settings, slip); seeds
-#: start at baselines.select.VALIDATION_SEED, far from every training seed
+#: start at baselines.sb3.select.VALIDATION_SEED, far from every training seed
 VALIDATION: dict[str, tuple[tuple[int, dict[str, Any], str], ...]] = {
     "target_reaching": (
         (3, {"n_obstacles": 5, "swap_targets": 0.5, "n_slip_zones": 1}, "random"),

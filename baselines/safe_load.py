@@ -7,7 +7,7 @@ cloudpickle (the policy class, the spaces, the schedules, the extractor class...
 the plain way is running an untrusted program.
 
 SB3's ``load(custom_objects=...)`` takes a value for a field instead of unpickling it. This module
-rebuilds every pickled field of a policy that KoopNav trains (``python -m baselines.train``) from
+rebuilds every pickled field of a policy that KoopNav trains (``python -m baselines.sb3.train``) from
 the readable text SB3 writes beside each pickle, against an allow-list of classes, and refuses a
 zip that holds any other pickled field. The shipped policies load this way (tested bit-identical
 to the pickled load); ``allow_pickle=True`` loads any zip the plain way, for files you trust.
@@ -86,8 +86,13 @@ _END = struct.Struct("<4s4H2LH")  # signature, disks, entries here and in all, s
 _END64_LOCATOR = struct.Struct("<4sLQL")
 _END64 = struct.Struct("<4sQ2H2L4Q")  # ..., entries here and in all, size, offset
 
-#: the extractor classes a KoopNav policy may name (by the text SB3 writes beside the pickle)
-_EXTRACTORS = {"<class 'baselines.set_encoder.SetEncoder'>": ("baselines.set_encoder", "SetEncoder")}
+#: the extractor classes a KoopNav policy may name (by the text SB3 writes beside the pickle): the
+#: set encoder under its module path now and under the one it had when the shipped set policies
+#: were trained (``baselines.set_encoder``, recorded in their zips; they keep loading after the move)
+_EXTRACTORS = {
+    f"<class '{module}.SetEncoder'>": ("baselines.sb3.set_encoder", "SetEncoder")
+    for module in ("baselines.sb3.set_encoder", "baselines.set_encoder")
+}
 #: pickled fields that only matter for training (rollout state, episode buffers): left out
 _TRAINING_STATE = (
     "_last_obs",
@@ -101,7 +106,7 @@ _TRAINING_STATE = (
 class PolicyLoadError(ValueError):
     """A policy file cannot be loaded: the message names the file and what is wrong.
 
-    Every failure of :func:`load_model` (and of :func:`baselines.policy.load_policy`) is one: a
+    Every failure of :func:`load_model` (and of :func:`baselines.sb3.policy.load_policy`) is one: a
     file that is missing, not a zip, damaged or beyond the ``MAX_*`` limits, an entry that is
     missing, not UTF-8 or not JSON, a malformed field, weights that torch cannot read.
     """

@@ -1,6 +1,6 @@
 """The training terms the learned policies add to the env's per-robot reward, for every RL adapter
-(the SB3 vector env, :mod:`baselines.vec_env`; the TorchRL env BenchMARL trains on,
-:mod:`baselines.torchrl_env`): one place, so that a policy trained through either library
+(the SB3 vector env, :mod:`baselines.sb3.vec_env`; the TorchRL env BenchMARL trains on,
+:mod:`baselines.marl.torchrl_env`): one place, so that a policy trained through either library
 meets the same reward.
 
 - **Precision potential** (``precision_shaping``, potential-based, so it changes no optimal

@@ -2,12 +2,12 @@
 split's layouts under the benchmark's own settings, the checkpoint chosen on the validation
 split, the test split refused by name (issue 60, docs/benchmark.md#learned-policies).
 
-Both trainers (``python -m baselines.train`` and ``python -m baselines.benchmarl_train``) use the
+Both trainers (``python -m baselines.sb3.train`` and ``python -m baselines.marl.benchmarl_train``) use the
 one :class:`SuiteTraining` of their run:
 
 - **Training layouts.** :meth:`SuiteTraining.env_kwargs`: ``map="suite:<name>/train"`` (each reset
   draws a layout of the split from the env's generator) with the slip and env settings of the
-  benchmark's run (:func:`evaluation.protocols.suite_protocol`: high slip, starts perturbed by
+  benchmark's run (:func:`evaluation.experiments.protocols.suite_protocol`: high slip, starts perturbed by
   5 cm, its time limit and goal tolerance), so that a policy trains under the conditions its
   test-suite row is measured in.
 - **Checkpoint selection.** :meth:`SuiteTraining.score` runs a saved checkpoint as its registered
@@ -186,9 +186,9 @@ class SuiteTraining:
 
     def env_kwargs(self) -> dict[str, Any]:
         """The training envs' keywords: the training split as the map, and the slip and env
-        settings of the benchmark's run (:func:`evaluation.protocols.suite_protocol`)."""
-        from evaluation.protocols import suite_protocol
-        from evaluation.suite_runs import suite_map
+        settings of the benchmark's run (:func:`evaluation.experiments.protocols.suite_protocol`)."""
+        from evaluation.experiments.protocols import suite_protocol
+        from evaluation.run.suite_runs import suite_map
 
         protocol = suite_protocol(self.suite, self.split)
         if len(protocol.slips) != 1:  # the benchmark runs one slip; a mixture would need a choice

@@ -9,14 +9,14 @@ Usage::
 Plans the crowd protocol (``python evaluate.py --crowd BEHAVIOUR``: both tasks on their paper maps
 and random layouts, perturbed starts, nominal slip) for the learned policies at each mover count
 and runs it twice in this process on one worker: with ``--batch`` (a cell's episodes together in
-the vector env, :func:`evaluation.worker.run_batch`) and with ``batch=1`` (every episode alone, the
+the vector env, :func:`evaluation.execution.worker.run_batch`) and with ``batch=1`` (every episode alone, the
 path every controller took before), alternating which goes first. Prints the wall time and
 episodes per second of each, the ratio, and whether every record is the same (all fields but the
 timing ones). A short warm-up run first compiles the kernels and loads the policies, so that
 neither side pays for them.
 
 ``--actors`` times instead one forward pass of each shipped policy's actor, compiled
-(:mod:`baselines.actor`) and torch's (the actor's mean as ``predict`` computes it, one torch
+(:mod:`baselines.sb3.actor`) and torch's (the actor's mean as ``predict`` computes it, one torch
 thread), on ``--rows`` random observations, in alternation (median of 200 calls each).
 """
 
@@ -27,8 +27,8 @@ import dataclasses
 import time
 
 from evaluation import RunSpec, evaluate
-from evaluation.configs import parse_controller
-from evaluation.protocols import CROWD_COUNTS, crowd_protocol
+from evaluation.experiments.protocols import CROWD_COUNTS, crowd_protocol
+from evaluation.run.configs import parse_controller
 
 POLICIES = ["rl-ppo", "rl-ppo-set", "rl-ppo-set-movers", "rl-ppo-set-realistic"]
 TIMING = {"solve_ms", "solve_ms_median", "solve_ms_p95", "wall_seconds"}
@@ -63,8 +63,7 @@ def actor_speed(rows: list[int]) -> None:
     import numpy as np
     import torch
 
-    from baselines.actor import compile_actor
-    from baselines.policy import SHIPPED, load_policy
+    from baselines import SHIPPED, compile_actor, load_policy
 
     torch.set_num_threads(1)
     print("| policy | rows | compiled [us] | torch [us] | torch / compiled |")

@@ -9,7 +9,7 @@ Target reaching, 3 robots, random layouts, nominal slip, 200-step episodes; MAPP
 BenchMARL's default networks, ``--iters`` iterations of ``--frames`` frames collected from
 ``--envs`` environments, 2 PPO epochs of minibatches of 6,000 (the training share small, so the
 figure is mostly collection); torch on one thread. ``vectorized=True`` is
-:class:`baselines.torchrl_env.KoopNavMultiAgentEnv` (the task's default), ``False`` the
+:class:`baselines.marl.torchrl_env.KoopNavMultiAgentEnv` (the task's default), ``False`` the
 ``PettingZooWrapper`` path.
 """
 
@@ -24,8 +24,8 @@ def frames_per_second(vectorized: bool, envs: int, frames: int, iters: int) -> f
     import torch
     from benchmarl.experiment import ExperimentConfig
 
-    from baselines.benchmarl_task import KoopNavTask
-    from baselines.benchmarl_train import experiment
+    from baselines import KoopNavTask
+    from baselines.marl.benchmarl_train import experiment
 
     torch.set_num_threads(1)
     task = KoopNavTask.TARGET_REACHING.get_task()

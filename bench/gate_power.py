@@ -5,7 +5,7 @@ Usage::
     python bench/gate_power.py [--drop 0.2] [--base 0.9] [--alpha 0.05] [--delta 0.10] [--trials 20000]
 
 For each episode count n the script draws ``trials`` pairs of runs and reports the fraction the
-gate (evaluation/baseline.py: success drop larger than ``delta`` with exact McNemar p < ``alpha``)
+gate (evaluation/reports/baseline.py: success drop larger than ``delta`` with exact McNemar p < ``alpha``)
 fails, for two ways a controller can get worse by ``drop``:
 
 ``nested``
@@ -17,7 +17,7 @@ fails, for two ways a controller can get worse by ``drop``:
     ways): the hardest case for a paired test.
 
 It prints the smallest n with power >= 80% for each. The gate's decision uses the same functions
-as the evaluator (:func:`evaluation.statistics.paired_comparison`).
+as the evaluator (:func:`evaluation.stats.statistics.paired_comparison`).
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ import argparse
 
 import numpy as np
 
-from evaluation.baseline import GateOptions
-from evaluation.statistics import paired_comparison
+from evaluation.reports.baseline import GateOptions
+from evaluation.stats.statistics import paired_comparison
 
 
 def power(

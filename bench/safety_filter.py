@@ -11,7 +11,7 @@ Usage::
    around ``consensus-free``, which drives straight for its targets and so keeps the filter busy.
 2. Collisions on the paper maps (target reaching: map1, map2; formation: map3, map4) under high
    slip, each controller with and without the filter (``safe:<name>``), through the evaluator
-   (``evaluation.runner.evaluate``: same seeds, same calibration, the paper's starts), pooled over
+   (``evaluation.execution.runner.evaluate``: same seeds, same calibration, the paper's starts), pooled over
    the four maps: collision and success counts with 95% Wilson intervals, and the relative
    reduction of collisions. ``rl-ppo`` is skipped when stable-baselines3 is missing.
 
@@ -31,9 +31,9 @@ import numpy as np
 import controllers
 import koopman_envs  # noqa: F401  (registers the envs)
 from evaluation import RunSpec, evaluate
-from evaluation.configs import parse_controller, split_controller_list
-from evaluation.records import ran
-from evaluation.statistics import wilson_interval
+from evaluation.episodes.records import ran
+from evaluation.run.configs import parse_controller, split_controller_list
+from evaluation.stats.statistics import wilson_interval
 from koopman_envs import run_episode
 
 TASKS = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")

@@ -26,8 +26,8 @@ import numpy as np
 
 import koopman_envs  # noqa: F401  (registers the envs)
 from controllers.calibration import calibrate_controller
-from evaluation.configs import parse_controller
-from evaluation.statistics import wilson_interval
+from evaluation.run.configs import parse_controller
+from evaluation.stats.statistics import wilson_interval
 from koopman_envs import run_episode
 
 ENV_ID = "KoopNav-TargetReaching-v0"

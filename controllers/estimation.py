@@ -68,7 +68,7 @@ __all__ = [
 #: the robots' localization and the planner. ``"auto"``: everything identified online;
 #: ``"realistic"``: the team's datasheet held at the ``realistic`` preset's values (one period of
 #: delay, 3 cm and 0.02 rad of noise) whatever the team really has, the mis-specified case;
-#: ``"none"``: nothing, the paper's controllers
+#: ``"none"``: nothing, as in the paper
 ESTIMATORS = (AUTO, "realistic", "none")
 #: the parts of a deployed MPC that the ``ablate`` option switches off one at a time: the filter
 #: (``"estimation"``: the measured poses are used as they are, with the measurement noise as

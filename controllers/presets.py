@@ -141,7 +141,7 @@ HAND_PRESETS = (
 
 #: where the tuned presets are read from: ``<name>.json`` per tuned controller or preset
 TUNED_DIR = Path(__file__).with_name("tuned")
-#: the ``kind`` of a tuned preset file (:func:`evaluation.tune.write_preset` writes it)
+#: the ``kind`` of a tuned preset file (:func:`evaluation.tune.write_best` writes it)
 TUNED_KIND = "koopnav-tuned-preset"
 #: the task of a study whose preset may ship: a controller's defaults serve every task
 SHIPPED_TASK = "both"
@@ -155,7 +155,7 @@ def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
     Parameters
     ----------
     path : path
-        A JSON file as :func:`evaluation.tune.write_preset` writes it: ``kind``
+        A JSON file as :func:`evaluation.tune.write_best` writes it: ``kind``
         (:data:`TUNED_KIND`), ``controller``, ``task``, ``options`` (and the study's record,
         not read here). Weight lists are returned as tuples.
 

@@ -84,11 +84,29 @@ RUNS[crowd_realtime]="--crowd crowd --solver rti --controllers $REALTIME_CONTROL
 # lidar with the map known, the lidar only; 4 constant movers; docs/perception.md)
 RUNS[lidar]="--lidar --reference koopman-nmpc"
 # issue 46: the learned set policies on the sensing protocol's episodes, reading the perceived
-# obstacle and mover sets (baselines/perceived.py); Koopman-NMPC again as the reference (its rows
+# obstacle and mover sets (baselines/features/perceived.py); Koopman-NMPC again as the reference (its rows
 # repeat the lidar run's bit for bit)
 RUNS[lidar_policies]="--lidar --solver rti --controllers koopman-nmpc rl-ppo-set rl-ppo-set-realistic rl-ppo-set-movers --reference koopman-nmpc"
+# issue 60: the ablation of the NMPC's design factors (docs/ablation.md; 640 episodes on IPOPT)
+RUNS[ablation]="--ablation"
+# issue 60: why charging decision time raises Koopman-NMPC at nominal (docs/compute.md): the
+# realistic_realtime gain sits in the high-slip cells, so each mechanism is run there on the
+# paper protocol's episodes (its seeds, maps and starts) and paired with the published ones.
+# compute_free: free compute, no delay; the NMPC as shipped (repeats paper_realistic's rows bit for
+# bit) and with its margins widened by what the chance constraints add at one period of delay
+# (z(0.95) x 1 cm, the estimator's process noise: 0.0164 m toward obstacles, 0.0233 m per pair)
+WIDE="koopman-nmpc:obstacle_offset=0.03145,robot_offset=0.03826,label=koopman-nmpc-wide-margins"
+MECHANISM="--paper --slips high --reference koopman-nmpc"
+RUNS[compute_free]="$MECHANISM --solver rti --controllers koopman-nmpc $WIDE --env-kwargs uncertainty=nominal"
+# compute_delay: one period of actuation delay in the env, free compute: the estimator identifies
+# and compensates it as under --realtime; each of its levers off alone
+RUNS[compute_delay]="$MECHANISM --solver rti --controllers koopman-nmpc koopman-nmpc:ablate=tightening,label=koopman-nmpc-no-tightening koopman-nmpc:ablate=delay_compensation,label=koopman-nmpc-no-compensation --env-kwargs uncertainty=nominal actuation_delay=1"
+# compute_ipopt_delay: one period of delay with IPOPT solved to convergence instead of the
+# real-time iteration (paired with the paper run's koopman-nmpc rows: IPOPT, free compute, no delay)
+RUNS[compute_ipopt_delay]="$MECHANISM --solver ipopt --controllers koopman-nmpc --env-kwargs actuation_delay=1"
+COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation)
 
 run() {
     local name="$1" out="data/runs/$1"
@@ -102,7 +120,7 @@ case "${1:-}" in
 pack)  # the episode logs and sweep manifests only: everything else is rebuilt from them
     for dir in data/runs/*/; do
         name="$(basename "$dir")"
-        python -m evaluation.published "data/runs/$name" "data/$name.tar.xz" > /dev/null
+        python -m evaluation.archive "data/runs/$name" "data/$name.tar.xz" > /dev/null
     done
     ls -la data/*.tar.xz
     ;;
@@ -113,7 +131,7 @@ unpack)  # a new machine: the committed logs back into data/runs/, to resume or 
     [ "${2:-}" = "--force" ] && force=(--force)
     mkdir -p data/runs
     for archive in data/*.tar.xz; do
-        python -m evaluation.published unpack "$archive" data/runs "${force[@]}" > /dev/null
+        python -m evaluation.archive unpack "$archive" data/runs "${force[@]}" > /dev/null
     done
     ;;
 *)

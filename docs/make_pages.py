@@ -4,10 +4,15 @@ same commands tests/test_published_pages.py checks byte for byte).
     python docs/make_pages.py            # every page
     python docs/make_pages.py docs/lidar_results.md   # the named ones
     python docs/make_pages.py --check [PAGE ...]       # rebuild elsewhere, say which differ (exit 1)
+
+Each rebuilt page's SHA-256 goes into data/pages.sha256 (``sha256sum -c data/pages.sha256``
+reads it): tests/test_prose_checks.py compares every published page with it in a second, so a
+page edited by hand fails the fast tests; the slow ones rebuild the pages from the data.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import subprocess
 import sys
@@ -18,10 +23,41 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, SUCCESS_EXIT  # noqa: E402
-from koopman_envs.files import MAX_TEXT_BYTES, read_text  # noqa: E402
+from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic  # noqa: E402
 
 #: the published pages: page, generator and the generator's arguments
 PAGES: list[dict] = json.loads(read_text(ROOT / "data" / "pages.json", MAX_TEXT_BYTES, what="page list"))
+
+
+#: the SHA-256 of every published page as its generator last wrote it: ``HASH  PAGE`` per line
+DIGESTS = ROOT / "data" / "pages.sha256"
+
+
+def page_digest(data: bytes) -> str:
+    """A page's SHA-256, as ``sha256sum`` prints it."""
+    return hashlib.sha256(data).hexdigest()
+
+
+def read_digests(path: Path = DIGESTS) -> dict[str, str]:
+    """Page -> the SHA-256 its generator's output had (empty without the file)."""
+    if not path.exists():
+        return {}
+    text = read_text(path, MAX_TEXT_BYTES, what="page digests")
+    return {page: digest for digest, page in (line.split("  ", 1) for line in text.splitlines() if line)}
+
+
+def write_digests(digests: dict[str, str], path: Path = DIGESTS) -> None:
+    """Write ``digests`` in page order, as ``sha256sum`` writes them."""
+    write_atomic(path, "".join(f"{digests[page]}  {page}\n" for page in sorted(digests)))
+
+
+def edited_pages(pages: dict[str, bytes] | None = None) -> list[str]:
+    """The published pages whose bytes (default: the checkout's) are not what their generator
+    last wrote (:data:`DIGESTS`): edited by hand, or written otherwise than by this script."""
+    recorded = read_digests()
+    if pages is None:
+        pages = {entry["page"]: (ROOT / entry["page"]).read_bytes() for entry in PAGES}
+    return [page for page, data in pages.items() if recorded.get(page) != page_digest(data)]
 
 
 def page_command(entry: dict, out: Path, figures: Path | None = None) -> list[str]:
@@ -53,6 +89,8 @@ def main(argv: list[str]) -> int:
             subprocess.run(command, cwd=ROOT, check=True, capture_output=check)
             if check and out.read_bytes() != (ROOT / entry["page"]).read_bytes():
                 stale.append(entry["page"])
+            if not check:  # what the generator wrote, for the fast check of hand edits
+                write_digests({**read_digests(), entry["page"]: page_digest(out.read_bytes())})
     if check:
         print(f"differ from the committed data: {stale}" if stale else "every page checked is up to date")
     return FAILED_CHECK_EXIT if stale else SUCCESS_EXIT

@@ -22,12 +22,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.baseline import load_baseline  # noqa: E402
-from evaluation.distinct import read_once  # noqa: E402
-from evaluation.figures import save_success_figures  # noqa: E402
-from evaluation.published import extracted_archive, results_from_log  # noqa: E402
-from evaluation.report import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
-from evaluation.results import Results  # noqa: E402
+from evaluation.episodes.distinct import read_once  # noqa: E402
+from evaluation.reports.baseline import load_baseline  # noqa: E402
+from evaluation.reports.figures import save_success_figures  # noqa: E402
+from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.reports.results import Results  # noqa: E402
+from evaluation.reports.sections import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
 
@@ -84,7 +84,8 @@ TABLES = [
     ("Table 4: nominal NMPC, formation", "KoopNav-Formation-v0", "nominal-nmpc"),
     ("Table 5: consensus (collision avoidance on), formation", "KoopNav-Formation-v0", "consensus"),
 ]
-#: the paper's controllers exactly (no estimator, no stall resolution), beside Tables 1-4
+#: the paper's control logic (no estimator, no stall resolution) in our soft-constrained NMPC, beside
+#: Tables 1-4 (the paper's controllers exactly are ``--paper-strict``'s: evaluation.experiments.protocols.PAPER_EXACT)
 PAPER_VARIANT = "-paper"
 #: the rows not in the paper: (what, controller label), each for both tasks
 EXTRA_TABLES = [
@@ -101,7 +102,7 @@ TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0":
 
 def load_results(path: str) -> dict:
     """A run's results document: a ``results.json`` (read checked, :func:`load_baseline`), or a
-    published archive (``data/NAME.tar.xz``, :mod:`evaluation.published`) whose episode log is
+    published archive (``data/NAME.tar.xz``, :mod:`evaluation.reports.published`) whose episode log is
     read back checked; its episodes each once, a conflicting repeat refused by name. The
     document's ``source`` is ``path``, for the messages of :func:`pool`."""
     if not path.endswith(".json"):  # a published archive (refused by name if it is not one)
@@ -115,7 +116,7 @@ def load_results(path: str) -> dict:
 def pool(docs: list[dict]) -> Results:
     """Every document's episodes in one :class:`Results` (the first one's configuration), each
     episode once: one in two files alike counts once, one the files disagree about is refused
-    naming both files (:func:`evaluation.distinct.read_once`)."""
+    naming both files (:func:`evaluation.episodes.distinct.read_once`)."""
     records = [r for d in docs for r in d["episodes"]]
     places = [f"{d['source']} episodes[{i}]" for d in docs for i in range(len(d["episodes"]))]
     return Results(read_once(records, "the pooled results", places), docs[0]["config"])
@@ -127,8 +128,8 @@ def all_tables() -> list[tuple[str, str, str]]:
     for title, env_id, controller in TABLES[:4]:
         out.append(
             (
-                f"{title.split(':')[0]}, the paper's controller exactly (`{controller}{PAPER_VARIANT}`: "
-                "no estimator, no stall resolution)",
+                f"{title.split(':')[0]}, the paper's control logic (`{controller}{PAPER_VARIANT}`: "
+                "no estimator, no stall resolution; soft constraints)",
                 env_id,
                 controller + PAPER_VARIANT,
             )
@@ -348,8 +349,11 @@ def _header(doc: dict) -> list[str]:
         "",
         "Tables 1-4 are the NMPCs as KoopNav ships them (the estimator front-end, a no-op here without "
         "localization noise or delay, and the stall resolution, [controllers](controllers.md)); the "
-        "tables marked *the paper's controller exactly* run the paper's NMPC (`estimator=none, "
-        "unstall=false`) on the same episodes.",
+        "tables marked *the paper's control logic* run the NMPC without our front-end and stall "
+        "resolution (`estimator=none, unstall=false`) on the same episodes, still with our soft "
+        "constraints and our 0.015 m margin between robots: the paper's controllers exactly (hard "
+        "constraints, no margin between robots) are `--paper-strict`'s, "
+        "[below](#the-papers-exact-formulation).",
         "",
         "*Success*: every robot settled within 0.1 m of its target for 2 s without collision. *SR*: the "
         "paper's success rate (runs without collision). k/n with the 95% Wilson interval. Final distances "
@@ -421,14 +425,15 @@ def _strict_section(path: str | None) -> list[str]:
             "Not run for this page: with hard constraints and the paper's margins the NMPCs hit IPOPT's "
             "iteration limit at many steps (about 0.4 s median per step and 162 solver failures in one "
             "Map 1 nominal episode of Koopman-NMPC on the 2-core machine, about 3 minutes per episode), so "
-            "the full 360-episode `--paper-strict` protocol takes hours. Its high-slip cells are in the "
-            "ablation (row *paper margins, hard constraints*, 20 seeds per map); why it fails: "
+            "the full 360-episode `--paper-strict` protocol takes hours. The closest measured is the "
+            "ablation's row *paper margins, hard constraints* (20 seeds per map, high slip; it keeps "
+            "our stall resolution and margin between robots); why it fails: "
             "[hard_constraints.md](hard_constraints.md).",
             "",
         ]
     strict = load_results(path)
     scells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for c in strict["cells"]}
-    lines = ["## The paper's exact formulation (`--paper-strict`: hard constraints, 0.015 m margins)", ""]
+    lines = ["## The paper's exact formulation (`--paper-strict`: hard constraints, IPOPT, no estimator)", ""]
     for title, env_id, controller in TABLES[:4]:
         rows = table(scells, env_id, controller)
         if rows:

@@ -10,7 +10,7 @@ Each sweep directory (holding the sweep.json manifest) becomes one part: its com
 not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
 tail) and the table of every level, with the profile's figure copied under ``--figures`` (default:
 ``_static`` beside the page, as docs/_static for a page of docs/). Every
-level's results are read back checked (``evaluation.sweep.load_sweep``).
+level's results are read back checked (``evaluation.experiments.sweep.load_sweep``).
 
 With ``--names`` (one per sweep) the parts are titled by them, and when the page has two or more
 parts, it opens with one overview of every controller over every part's axes: the same
@@ -29,10 +29,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.figures import save_profile_figures  # noqa: E402
-from evaluation.report import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
-from evaluation.robustness import AxisProfile, level_costs, profiles  # noqa: E402
-from evaluation.sweep import load_sweep  # noqa: E402
+from evaluation.experiments.sweep import load_sweep  # noqa: E402
+from evaluation.reports.figures import save_profile_figures  # noqa: E402
+from evaluation.reports.sections import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
+from evaluation.stats.robustness import AxisProfile, level_costs, profiles  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
 INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one

@@ -27,11 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from evaluation.baseline import load_baseline
+from evaluation.episodes.records import ran
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from evaluation.records import ran
-from evaluation.report import task_label
-from evaluation.statistics import paired_comparison
+from evaluation.reports.baseline import load_baseline
+from evaluation.reports.sections import task_label
+from evaluation.stats.statistics import paired_comparison
 
 #: the rule of the default solver: no significant loss, and the interval's lower end above this
 LOWER_END_LIMIT = -0.05

@@ -1,5 +1,5 @@
 """The evaluator's command line (``python evaluate.py``): its options, one function per group,
-examples of the common commands and the exit codes in ``--help`` (:mod:`evaluation.exit_codes`), and how the options make a :class:`~evaluation.spec.RunSpec` (a protocol preset
+examples of the common commands and the exit codes in ``--help`` (:mod:`evaluation.exit_codes`), and how the options make a :class:`~evaluation.run.spec.RunSpec` (a protocol preset
 with the given options replacing its fields). ``evaluate.py`` runs it."""
 
 from __future__ import annotations
@@ -12,11 +12,10 @@ from typing import Any
 
 import controllers
 from controllers.mpc.config import NLP_SOLVERS, SOLVERS
-from evaluation.ablation import check_factors
-from evaluation.baseline import GateOptions
-from evaluation.configs import FALLBACK_NONE, split_controller_list
+from evaluation.episodes.runlog import DEFAULT_OUT
 from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, FAILED_GATE_EXIT, exit_codes_help
-from evaluation.protocols import (
+from evaluation.experiments.ablation import check_factors
+from evaluation.experiments.protocols import (
     CROWD_COUNTS,
     CROWD_REFERENCE,
     LIDAR_AXES,
@@ -29,11 +28,12 @@ from evaluation.protocols import (
     quick_protocol,
     suite_protocol,
 )
-from evaluation.runlog import DEFAULT_OUT
-from evaluation.slip_text import split_slips
-from evaluation.spec import RunSpec, with_env_setting
-from evaluation.suite_runs import add_suite_options, refuse_suite_clash
-from evaluation.sweep import add_sweep_options, refuse_sweep_clash
+from evaluation.experiments.sweep import add_sweep_options, refuse_sweep_clash
+from evaluation.reports.baseline import GateOptions
+from evaluation.run.configs import FALLBACK_NONE, split_controller_list
+from evaluation.run.slip_text import split_slips
+from evaluation.run.spec import RunSpec, with_env_setting
+from evaluation.run.suite_runs import add_suite_options, refuse_suite_clash
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.params import PARAMS, SLIP_NAMES
 
@@ -102,7 +102,7 @@ EXAMPLES: tuple[tuple[str, str], ...] = (
     ("--sweep comm.drop=0,0.2,0.5 --controllers consensus nominal-nmpc", "a robustness profile"),
     ("--out results --resume", "continue an interrupted run"),
     ("--baseline .ci/baseline/results.json --fail-if-worse --episodes 10", "CI: 102 if worse"),
-    ("--ablation --ablation-out docs/ablation.md", "the ablation, into the published page"),
+    ("--ablation --out results_ablation", "the ablation (its report: OUT/ablation.md)"),
     ("--options koopman-nmpc", "a controller's options, then exit"),
 )
 
@@ -185,7 +185,7 @@ def _protocols(protocol: argparse._MutuallyExclusiveGroup) -> None:
     protocol.add_argument(
         "--paper-strict",
         action="store_true",
-        help="the paper's protocol with its exact NMPC: hard constraints, 0.015 m margins",
+        help="the paper's protocol with the paper's controllers exactly: hard constraints, IPOPT, no estimator, no stall resolution",
     )
     protocol.add_argument(
         "--crowd",

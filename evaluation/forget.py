@@ -1,6 +1,6 @@
 """Republish a changed controller's rows: ``python -m evaluation.forget LABEL [LABEL ...] -- DIR [DIR ...]``
 drops the records of those controller labels from every episode log under each run or sweep
-directory (:func:`evaluation.runlog.forget_controllers`), so that running the same command again
+directory (:func:`evaluation.episodes.runlog.forget_controllers`), so that running the same command again
 with ``--resume`` runs exactly their episodes."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from evaluation.episodes.runlog import LogError, RunLocked, forget_controllers
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from evaluation.runlog import LogError, RunLocked, forget_controllers
 
 
 def main(argv: Sequence[str] | None = None) -> int:

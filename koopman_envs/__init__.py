@@ -8,7 +8,7 @@ reachable as attributes of the package (``koopman_envs.formation_v0.parallel_env
 ``import koopman_envs``), imported on first use so that the Gymnasium import stays light.
 
 The package is the face of the environments (docs/layout.md): what controllers, baselines, the
-evaluator and users need of the folders (``sim/``, ``tasks/``, ``suites/``, ``builder/``,
+evaluator and users need of the folders (``sim/``, ``tasks/``, ``suites/``, ``engine/``,
 ``fronts/``, all internal) is exported here, the fronts, the episode runners and the renderer
 imported on first use like the PettingZoo modules. The other public modules are the root's:
 ``params``, ``checks``, ``suggest``, ``files``, ``scenario``, ``observed``, ``layout``,
@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING, Any
 
 from gymnasium.envs.registration import register, registry
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.keywords import ENV_KEYWORDS
-from koopman_envs.builder.plant import BudgetExceeded, CalibrationPlant, make_plant
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.keywords import ENV_KEYWORDS
+from koopman_envs.engine.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
 from koopman_envs.observed import Observed
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas

@@ -11,7 +11,7 @@ is, and the cap.
 Writing: :func:`write_atomic` writes a report, a manifest, a figure or a cache entry into a
 temporary file beside it, flushes it to the disk and renames it over the old one, so that an
 interruption or a full disk leaves the old file whole (or none), never half a file; the error
-names the file. The append-only episode log (:mod:`evaluation.runlog`) keeps its own rules.
+names the file. The append-only episode log (:mod:`evaluation.episodes.runlog`) keeps its own rules.
 
 This module is in the environments' base layer so that every package above (the controllers,
 the baselines, the evaluator) reads and writes through it.

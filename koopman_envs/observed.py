@@ -2,7 +2,7 @@
 
 An env's ``info`` holds the true state (``poses``, ``distances``, collision flags, ...) for
 evaluation and for users, beside what the robots believe (:meth:`NavigationEngine.observed_info
-<koopman_envs.builder.engine.NavigationEngine.observed_info>`). A controller that is to face the
+<koopman_envs.engine.engine.NavigationEngine.observed_info>`). A controller that is to face the
 runtime uncertainty honestly reads only what :meth:`Observed.from_info` takes of it
 (:data:`OBSERVED_KEYS`); every built-in controller receives an :class:`Observed` from
 :meth:`controllers.base.BaseController.act`, so none can read the truth by accident, and

@@ -247,7 +247,7 @@ class SizeLimits:
     Every array of an environment grows with one of these numbers, so an unbounded one lets a
     typo (``comm=dict(latency=10**9)``) allocate tens of GiB. Each bound is far beyond real use
     and its reason is given per attribute; the env keyword table
-    (:data:`koopman_envs.builder.keywords.ENV_KEYWORDS`) states them, and the evaluator's CLI and CI
+    (:data:`koopman_envs.engine.keywords.ENV_KEYWORDS`) states them, and the evaluator's CLI and CI
     action read :data:`MAX_EPISODES_PER_CELL` and :data:`MAX_ROBOTS` from here.
 
     Attributes
@@ -320,7 +320,7 @@ class SizeLimits:
         estimate below is the binding limit anyway.
     engine_bytes : int
         The arrays of one batched engine [bytes], estimated from its settings before any is
-        allocated (:func:`koopman_envs.builder.engine.engine_array_bytes`): 4 GiB.
+        allocated (:func:`koopman_envs.engine.engine.engine_array_bytes`): 4 GiB.
     episodes_per_cell : int
         The evaluator's episodes per (controller, map, setting) cell: the 95% confidence
         interval of a success rate is then +-1 percentage point, finer than any comparison

@@ -13,7 +13,7 @@
 {make_call}
 ```
 ``max_cycles`` (PettingZoo MPE's name) is accepted for ``max_episode_steps``; the keywords are
-those of :data:`koopman_envs.builder.keywords.ENV_KEYWORDS` (see the Gymnasium env's Arguments table).
+those of :data:`koopman_envs.engine.keywords.ENV_KEYWORDS` (see the Gymnasium env's Arguments table).
 History: v0 initial release.
 """
 

@@ -129,15 +129,25 @@ def test_module_and_function_sizes() -> None:
 
 #: the previous releases' module paths, removed with their stubs once the other packages used the
 #: environments through their face (issue 61): nothing in docs/ or README.md named them, so none
-#: kept a release of deprecation (CHANGELOG.md, Unreleased)
+#: kept a release of deprecation (CHANGELOG.md, Unreleased); and koopman_envs.builder, the
+#: simulator core's folder, renamed engine/ (internal, so without a stub)
 REMOVED_PATHS = (
     *(f"koopman_envs.{name}" for name in (
-        "animation", "config", "demo", "deprecated", "engine", "engine_memory", "episode",
+        "animation", "builder", "config", "demo", "deprecated", "engine_memory", "episode",
         "episode_layout", "keywords", "plant", "rendering", "rendering_layers", "tasks.layout",
     )),
     *(f"controllers.{name}" for name in (
         "adaptive_koopman_nmpc", "cache", "deprecated_paths", "distributed", "koopman_nmpc", "nmpc",
         "nominal_nmpc", "qp2", "rti", "solver_cache", "unicycle",
+    )),
+    # the evaluator's root modules before its folders (issue 61, part 2): docs/ named them as
+    # modules to import from (the API page), not as commands, and the folders' faces export their
+    # names; the one documented command among them, evaluation.seeds, keeps a release (below)
+    *(f"evaluation.{name}" for name in (
+        "ablation", "aggregate", "backends", "badge", "baseline", "clustered", "configs", "distinct",
+        "families", "figures", "html", "layout_tests", "plan", "protocols", "published", "records",
+        "report", "results", "robustness", "run_data", "runlog", "runner", "slip_text", "spec",
+        "statistics", "suite_runs", "suite_statistics", "sweep", "thresholds", "worker",
     )),
 )  # fmt: skip
 
@@ -151,9 +161,49 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
     assert importlib.util.find_spec(old) is None, f"{old} is back; import from its new module"
 
 
+#: moved module paths that docs/ told users to run, kept one release with a DeprecationWarning
+#: (CHANGELOG.md, Deprecated): old path -> new module
+EVAL_DEPRECATED_PATHS = {"evaluation.seeds": "evaluation.experiments.seeds"}
+
+
+@pytest.mark.parametrize("old", sorted(EVAL_DEPRECATED_PATHS))
+def test_a_deprecated_path_warns_and_still_runs_its_command(old: str, monkeypatch, capsys) -> None:
+    """Imported, the old path warns (naming the new module and the removal release) and reads the
+    new module's names; run with ``python -m``, it runs the new module's command."""
+    import importlib
+    import runpy
+
+    new = EVAL_DEPRECATED_PATHS[old]
+    monkeypatch.delitem(sys.modules, old, raising=False)
+    with pytest.warns(
+        DeprecationWarning, match=rf"{old} is deprecated and will be removed in KoopNav 0\.2\.0.*{new}"
+    ):
+        module = importlib.import_module(old)
+    moved = importlib.import_module(new)
+    assert [name for name in moved.__all__ if getattr(module, name) is not getattr(moved, name)] == []
+    monkeypatch.delitem(sys.modules, old)
+    monkeypatch.setattr(sys, "argv", [old, "--help"])
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"), pytest.raises(SystemExit) as exited:
+        runpy.run_module(old, run_name="__main__")
+    assert exited.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: python -m {new}")
+
+
+def test_the_engine_module_path_is_the_engine_folder_not_a_stub() -> None:
+    """``koopman_envs.engine``, the engine module's path until its stub went, names the simulator
+    core's folder now (builder/ renamed): a package that forwards none of the old module's names."""
+    import importlib
+    import importlib.util
+
+    spec = importlib.util.find_spec("koopman_envs.engine")
+    assert spec is not None and spec.submodule_search_locations, "koopman_envs.engine is not the folder"
+    folder = importlib.import_module("koopman_envs.engine")
+    assert not hasattr(folder, "__getattr__") and not hasattr(folder, "NavigationEngine")
+
+
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
 #: layer or a lower one, never a higher one (type-only and function-level imports included)
-ENV_LAYERS = ("base", "sim", "tasks", "suites", "builder", "fronts")
+ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "fronts")
 #: the modules of the base layer, at the package root
 ENV_BASE = {
     "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
@@ -198,7 +248,7 @@ def test_the_environment_package_imports_only_downwards() -> None:
 
 #: the environment package's public face (docs/layout.md): the modules controllers/, baselines/,
 #: evaluation/ and evaluate.py may import. Every other koopman_envs module (sim/, tasks/,
-#: suites/, builder/, fronts/) is internal: what the other packages need of it is exported by
+#: suites/, engine/, fronts/) is internal: what the other packages need of it is exported by
 #: the package itself (``from koopman_envs import run_episode``), lazily where it is heavy.
 PUBLIC_MODULES: dict[str, str] = {
     "koopman_envs": "the face: ids, env classes, episode runner, task table, maps, suites, plant, shared kernels",
@@ -255,3 +305,191 @@ def test_the_other_packages_use_the_environments_through_their_face() -> None:
 def test_every_public_module_exists() -> None:
     modules = _modules()
     assert sorted(set(PUBLIC_MODULES) - set(modules)) == []
+
+
+#: the evaluator's folders, lowest first (docs/layout.md): a module imports its own folder or a
+#: lower one, never a higher one (type-only and function-level imports included)
+EVAL_LAYERS = ("base", "episodes", "run", "stats", "reports", "execution", "experiments", "commands")
+#: the root modules of the base layer: the exit codes, which every command line reads (baselines'
+#: and docs' too), whatever its floor
+EVAL_BASE = {"exit_codes"}
+#: the command lines, on top: evaluate.py's options, the commands at the root and the tuner
+EVAL_COMMANDS = {"cli", "forget", "archive", "seeds", "tune"}
+
+
+def _eval_layer(module: str) -> int | None:
+    """The layer of an ``evaluation`` module; the package itself (its face, which imports the
+    runner) is a command's."""
+    parts = module.split(".")
+    if parts[0] != "evaluation":
+        return None
+    if len(parts) == 1 or parts[1] in EVAL_COMMANDS:
+        return EVAL_LAYERS.index("commands")
+    if len(parts) == 2 and parts[1] in EVAL_BASE:
+        return 0
+    if parts[1] in EVAL_LAYERS:
+        return EVAL_LAYERS.index(parts[1])
+    raise AssertionError(f"{module} belongs to no layer of EVAL_LAYERS: place it in a folder")
+
+
+def test_the_evaluator_imports_only_downwards() -> None:
+    """No upward import between the evaluator's folders, and none of a module's own folder's face
+    (a module imports its neighbours by their module: the face imports them all)."""
+    modules = _modules()
+    upward = []
+    for name, path in modules.items():
+        source = _eval_layer(name)
+        if source is None:
+            continue
+        folder = ".".join(name.split(".")[:2])
+        for target in _imports(path, modules):
+            layer = _eval_layer(target)
+            if layer is not None and layer > source:
+                upward.append(f"{name} ({EVAL_LAYERS[source]}) -> {target} ({EVAL_LAYERS[layer]})")
+            if target == folder and name != folder and EVAL_LAYERS[source] != "commands":
+                upward.append(f"{name} -> its own folder's face {folder}")
+    assert upward == [], "upward imports:\n" + "\n".join(upward)
+
+
+#: the folders whose package is a face, and the modules a face leaves out: a command (its main and
+#: aggregate would be ambiguous beside the others')
+EVAL_FACES = {
+    "episodes": (),
+    "run": (),
+    "stats": (),
+    "reports": (),
+    "execution": (),
+    "experiments": ("seeds",),
+}
+
+
+@pytest.mark.parametrize("folder", sorted(EVAL_FACES))
+def test_every_evaluator_folder_is_the_face_of_its_modules(folder: str) -> None:
+    """A folder's package exports the public names (``__all__``) of its modules and subfolders,
+    except a name that is also a submodule's, which stays the module (``evaluation.stats.aggregate``
+    is the module, its function ``aggregate`` is read from there)."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    package = importlib.import_module(f"evaluation.{folder}")
+    found = [m.name for m in pkgutil.iter_modules(package.__path__) if m.name not in EVAL_FACES[folder]]
+    expected: dict[str, object] = {}
+    for name in found:
+        module = importlib.import_module(f"evaluation.{folder}.{name}")
+        expected.update({n: getattr(module, n) for n in module.__all__ if n not in found})
+    assert sorted(package.__all__) == sorted(expected)
+    assert [n for n in package.__all__ if getattr(package, n) is not expected[n]] == []
+    assert [n for n in found if not inspect.ismodule(getattr(package, n))] == []
+
+
+#: baselines' layers (docs/layout.md), lowest first: the root's modules both families share <
+#: features/ (what a policy reads) < the two families, sb3/ and marl/, beside each other (neither
+#: imports the other). The package itself is the face on top (nothing inside imports it but the
+#: deprecated stubs), so every module is importable without the others' libraries.
+BASELINES_LAYERS = {"": 0, "features": 1, "sb3": 2, "marl": 2}
+#: the previous release's module paths of baselines/, kept one release as stub modules at the root
+#: (CHANGELOG.md, Deprecated; removed in 0.2.0): named in docs/api/baselines.md, docs/rl.md, the
+#: installed controllers' entry points, or documented as commands (python -m baselines.train)
+BASELINES_DEPRECATED_PATHS = {
+    "baselines.policy": "baselines.sb3.policy",
+    "baselines.set_encoder": "baselines.sb3.set_encoder",
+    "baselines.train": "baselines.sb3.train",
+    "baselines.select": "baselines.sb3.select",
+    "baselines.set_features": "baselines.features.set_features",
+    "baselines.benchmarl_task": "baselines.marl.benchmarl_task",
+    "baselines.benchmarl_train": "baselines.marl.benchmarl_train",
+    "baselines.marl_policy": "baselines.marl.marl_policy",
+}
+#: the deprecated paths that are commands: python -m OLD runs python -m NEW
+DEPRECATED_COMMANDS = ("baselines.train", "baselines.select", "baselines.benchmarl_train")
+
+
+def _baselines_layer(module: str) -> tuple[int, str]:
+    """The layer and folder of a ``baselines`` module below the face."""
+    parts = module.split(".")
+    folder = parts[1] if len(parts) > 2 else ""
+    if folder not in BASELINES_LAYERS:
+        raise AssertionError(f"{module} is in no folder of BASELINES_LAYERS: place it in one")
+    return BASELINES_LAYERS[folder], folder
+
+
+def test_baselines_import_only_downwards() -> None:
+    modules = _modules()
+    wrong = []
+    for name, path in modules.items():
+        if not name.startswith("baselines.") or name in BASELINES_DEPRECATED_PATHS:
+            continue
+        layer, folder = _baselines_layer(name)
+        for target in _imports(path, modules):
+            if target == "baselines" or target in BASELINES_DEPRECATED_PATHS:
+                wrong.append(f"{name} -> {target} (the face or a deprecated path)")
+            elif target.startswith("baselines."):
+                other_layer, other_folder = _baselines_layer(target)
+                if other_layer > layer or (other_layer == layer and other_folder != folder):
+                    wrong.append(f"{name} ({folder or 'root'}) -> {target} ({other_folder or 'root'})")
+    assert wrong == [], "baselines imports against its layers:\n" + "\n".join(wrong)
+
+
+def test_the_baselines_root_holds_the_shared_modules_and_the_stubs_only() -> None:
+    """The root's modules are the four both families use and the deprecated stubs; the rest live
+    in the folders of BASELINES_LAYERS."""
+    root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
+    stubs = {old.split(".")[1] for old in BASELINES_DEPRECATED_PATHS}
+    assert root - stubs == {"shaping", "curriculum", "suite_training", "safe_load"}
+    assert stubs <= root
+
+
+@pytest.mark.parametrize("old", sorted(BASELINES_DEPRECATED_PATHS))
+def test_a_deprecated_baselines_path_warns_and_names_its_new_module(old: str) -> None:
+    """Importing the old path warns (naming the new module and the removal release); its names are
+    read from the new module, which exists (and has the command's ``main``)."""
+    import importlib
+    import importlib.util
+
+    new = BASELINES_DEPRECATED_PATHS[old]
+    spec = importlib.util.find_spec(new)
+    assert spec is not None and spec.origin, f"{old} forwards to {new}, which is no module"
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=rf"{old} is deprecated .* 0\.2\.0; import from {new}"):
+        stub = importlib.import_module(old)
+    sys.modules.pop(old, None)  # the next import warns again
+    assert stub.__getattr__.__qualname__.startswith("_moved_module")
+    if old in DEPRECATED_COMMANDS:  # the command runs the new module's main()
+        text = (ROOT / "baselines" / f"{old.split('.')[1]}.py").read_text()
+        assert f'if __name__ == "__main__":\n    _run_moved_command("{old}", "{new}")' in text
+        target = ast.parse(Path(spec.origin).read_text())
+        assert any(isinstance(n, ast.FunctionDef) and n.name == "main" for n in target.body)
+
+
+def test_a_deprecated_module_reads_its_names_from_the_new_module() -> None:
+    import importlib
+
+    import baselines.features.set_features as new
+
+    sys.modules.pop("baselines.set_features", None)
+    with pytest.warns(DeprecationWarning):
+        old = importlib.import_module("baselines.set_features")
+    assert old.SetFeatureConfig is new.SetFeatureConfig and old.set_features is new.set_features
+    assert set(new.__all__) == set(dir(old))
+    with pytest.raises(AttributeError, match="no_such_name"):
+        old.no_such_name  # noqa: B018 - the read is the test
+
+
+def test_a_deprecated_command_runs_the_new_one(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``python -m baselines.select --help`` (run in this process) warns and prints the help of
+    ``python -m baselines.sb3.select``, exit code 0."""
+    import runpy
+
+    monkeypatch.setattr(sys, "argv", ["select", "--help"])
+    monkeypatch.delitem(sys.modules, "baselines.select", raising=False)
+    with pytest.warns(
+        DeprecationWarning,
+        match=r"python -m baselines.select is deprecated .* python -m baselines.sb3.select",
+    ):
+        with pytest.raises(SystemExit) as exited:
+            runpy.run_module("baselines.select", run_name="__main__")
+    assert exited.value.code == 0
+    assert "usage: python -m baselines.sb3.select" in capsys.readouterr().out

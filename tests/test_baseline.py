@@ -1,4 +1,4 @@
-"""--baseline and --fail-if-worse (evaluation/baseline.py): pairing across runs, refusal of other
+"""--baseline and --fail-if-worse (evaluation/reports/baseline.py): pairing across runs, refusal of other
 settings, the gate's decisions, bad baseline files, the GitHub step summary."""
 
 from __future__ import annotations
@@ -11,7 +11,13 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation.baseline import GateOptions, compare_runs, coverage_failures, gate_failures, load_baseline
+from evaluation.reports.baseline import (
+    GateOptions,
+    compare_runs,
+    coverage_failures,
+    gate_failures,
+    load_baseline,
+)
 
 RUN = [
     "--env",
@@ -43,7 +49,7 @@ def _record(
         "seed": seed,
         "success": success,
         "final_distance": [distance] * 3,
-        # a distinct episode per seed (evaluation.distinct: identical episodes count once)
+        # a distinct episode per seed (evaluation.episodes.distinct: identical episodes count once)
         "final_poses": [[float(seed), 0.0, 0.0]] * 3,
     }
 
@@ -235,7 +241,7 @@ def test_the_solver_comparison_page_pairs_across_files_and_counts_cells() -> Non
 
 def test_a_controller_on_several_tasks_is_also_gated_over_all_of_them() -> None:
     """4 of 12 pairs lost per task is not significant (p = 0.125); 8 of 24 over both tasks is (p = 0.008)."""
-    from evaluation.baseline import ALL_TASKS
+    from evaluation.reports.baseline import ALL_TASKS
 
     def run(won: int) -> list[dict]:
         records = []

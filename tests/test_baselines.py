@@ -9,9 +9,9 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 import controllers  # noqa: E402
-from baselines.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
-from baselines.train import main as train_main  # noqa: E402
-from baselines.vec_env import KoopNavSB3VecEnv, robot_features  # noqa: E402
+from baselines.sb3.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
+from baselines.sb3.train import main as train_main  # noqa: E402
+from baselines.sb3.vec_env import KoopNavSB3VecEnv, robot_features  # noqa: E402
 from koopman_envs.sim.maps import MapSpec  # noqa: E402
 
 # robot 0 starts 5 cm from an obstacle's surface: driving forward hits it on the first step
@@ -72,7 +72,7 @@ def test_short_training_saves_a_loadable_policy(trained_root) -> None:
 def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_policy(
     trained_root, tmp_path
 ) -> None:
-    from baselines.select import main as select_main
+    from baselines.sb3.select import main as select_main
 
     assert (
         select_main(
@@ -98,7 +98,7 @@ def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_poli
 
 
 def test_batched_commands_equal_single_commands(trained_root) -> None:
-    from baselines.policy import policy_command
+    from baselines.sb3.policy import policy_command
 
     model, norm, metadata = load_policy(trained_root / "formation")
     env = gym.make_vec("KoopNav-Formation-v0", num_envs=3, map="random")
@@ -122,7 +122,7 @@ def test_inference_is_deterministic(trained_root) -> None:
 
 def test_missing_and_corrupt_policy_files(tmp_path, trained_root) -> None:
     with pytest.raises(
-        ValueError, match="holds no trained policy; train one with `python -m baselines.train"
+        ValueError, match="holds no trained policy; train one with `python -m baselines.sb3.train"
     ):
         RLPolicyController(policy_root=tmp_path / "empty")
     broken = tmp_path / "broken" / "formation"
@@ -130,7 +130,7 @@ def test_missing_and_corrupt_policy_files(tmp_path, trained_root) -> None:
     for name in ("policy.zip", "obs_norm.npz", "metadata.json"):
         (broken / name).write_bytes((trained_root / "formation" / name).read_bytes())
     (broken / "policy.zip").write_bytes(b"PK\x03\x04 truncated")
-    with pytest.raises(ValueError, match="corrupt or unreadable.*python -m baselines.train"):
+    with pytest.raises(ValueError, match="corrupt or unreadable.*python -m baselines.sb3.train"):
         load_policy(broken)
     (broken / "obs_norm.npz").unlink()
     with pytest.raises(ValueError, match=r"\['obs_norm.npz'\] are missing"):
@@ -207,7 +207,7 @@ def test_precision_shaping_is_the_log_distance_potential_difference() -> None:
 
 
 def test_mover_shaping_charges_each_robot_its_nearest_movers_proximity() -> None:
-    from baselines.set_features import SetFeatureConfig
+    from baselines.features.set_features import SetFeatureConfig
     from baselines.shaping import MOVER_SHAPING_BAND
 
     movers = {"count": 6, "speed": 0.3, "radius": 0.2}

@@ -91,7 +91,7 @@ def test_a_policy_that_acts_in_batch_decides_for_all_teams_in_one_call(monkeypat
     """The learned policies' act_many serves every running environment in one call per period
     (never their act), and its teams' decision times are recorded, one per period."""
     pytest.importorskip("stable_baselines3")
-    from baselines.policy import RLPolicyController
+    from baselines.sb3.policy import RLPolicyController
 
     calls: list[int] = []
     act_many = RLPolicyController.act_many.__func__  # type: ignore[attr-defined]

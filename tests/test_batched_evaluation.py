@@ -1,4 +1,4 @@
-"""The evaluator's batched path (evaluation.worker.run_batch): a controller that decides for many
+"""The evaluator's batched path (evaluation.execution.worker.run_batch): a controller that decides for many
 teams at once has its episodes run together in the vector env, and every record equals the
 record of the same episode run alone, field for field and bit for bit, but for the timing fields;
 one failing episode never costs the others of its batch their results."""
@@ -8,8 +8,8 @@ from __future__ import annotations
 import pytest
 
 from evaluation import RunSpec, evaluate
-from evaluation.backends import work_units
-from evaluation.worker import runs_in_batch
+from evaluation.execution.backends import work_units
+from evaluation.execution.worker import runs_in_batch
 
 #: what a batch may change: decision and wall times (measured, never the same twice)
 TIMING = {"solve_ms", "solve_ms_median", "solve_ms_p95", "wall_seconds"}

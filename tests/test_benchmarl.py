@@ -14,7 +14,7 @@ from benchmarl.experiment import Experiment, ExperimentConfig  # noqa: E402
 from benchmarl.models.mlp import MlpConfig  # noqa: E402
 from torchrl.envs.utils import check_env_specs  # noqa: E402
 
-from baselines.benchmarl_task import TASK_CONFIGS, KoopNavTask, write_task_yaml  # noqa: E402
+from baselines.marl.benchmarl_task import TASK_CONFIGS, KoopNavTask, write_task_yaml  # noqa: E402
 
 
 @pytest.mark.parametrize("vectorized", [True, False], ids=["vector-env", "pettingzoo"])
@@ -122,7 +122,7 @@ def test_reward_scale_scales_the_rewards_benchmarl_sees() -> None:
 def test_the_training_command_refuses_bad_settings_by_name_before_any_work(
     option: str, value: str, allowed: str, tmp_path, capsys
 ) -> None:
-    from baselines.benchmarl_train import main
+    from baselines.marl.benchmarl_train import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(["--task", "target_reaching", option, value, "--out", str(tmp_path / "run")])
@@ -150,7 +150,7 @@ def test_the_training_command_refuses_bad_settings_by_name_before_any_work(
 def test_the_training_schedule_and_stages_are_checked_before_any_work(
     options: list[str], message: str, tmp_path, capsys
 ) -> None:
-    from baselines.benchmarl_train import main
+    from baselines.marl.benchmarl_train import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(["--task", "target_reaching", *options, "--out", str(tmp_path / "run")])
@@ -162,7 +162,7 @@ def test_the_training_schedule_and_stages_are_checked_before_any_work(
 def test_a_staged_training_resumes_each_stage_and_records_its_schedule(tmp_path) -> None:
     """Two stages of one iteration each (real training), standardized advantages: the second
     stage continues the first's checkpoint on its own layouts, and the export records it all."""
-    from baselines.benchmarl_train import main
+    from baselines.marl.benchmarl_train import main
 
     stages = [
         {"name": "open", "share": 0.5, "env": {"random_map": {"n_obstacles": 0}}},
@@ -186,7 +186,7 @@ def test_a_staged_training_resumes_each_stage_and_records_its_schedule(tmp_path)
 
 
 def test_standardized_advantages_reach_benchmarls_loss(tmp_path) -> None:
-    from baselines.benchmarl_train import experiment
+    from baselines.marl.benchmarl_train import experiment
 
     config = experiment_config(tmp_path)
     task = KoopNavTask.TARGET_REACHING.get_task()

@@ -23,9 +23,10 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation import published
-from evaluation.baseline import load_baseline
-from evaluation.sweep import load_sweep
+from evaluation.archive import main as archive_command
+from evaluation.experiments.sweep import load_sweep
+from evaluation.reports import published
+from evaluation.reports.baseline import load_baseline
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
@@ -91,7 +92,9 @@ def test_a_fifo_as_the_thresholds_file_is_refused_by_name(tmp_path) -> None:
     # the command line reads --check after the run: the reader itself, in a subprocess (hang guard)
     fifo = tmp_path / "floors.toml"
     os.mkfifo(fifo)
-    code = f"from evaluation.thresholds import check_thresholds; check_thresholds(None, {str(fifo)!r})"
+    code = (
+        f"from evaluation.reports.thresholds import check_thresholds; check_thresholds(None, {str(fifo)!r})"
+    )
     try:
         done = subprocess.run(
             [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=HANG_GUARD
@@ -106,7 +109,7 @@ def test_dev_zero_as_the_baseline_is_refused_unread(tmp_path) -> None:
     machine), and the refusal must come without reading."""
     code = (
         "import resource; resource.setrlimit(resource.RLIMIT_DATA, (2**30, 2**30)); "
-        "from evaluation.baseline import load_baseline; load_baseline('/dev/zero')"
+        "from evaluation.reports.baseline import load_baseline; load_baseline('/dev/zero')"
     )
     try:
         done = subprocess.run(
@@ -119,7 +122,7 @@ def test_dev_zero_as_the_baseline_is_refused_unread(tmp_path) -> None:
 
 
 def test_an_oversized_log_is_refused_with_its_cap(tmp_path, monkeypatch) -> None:
-    from evaluation import runlog
+    from evaluation.episodes import runlog
 
     log = tmp_path / "episodes.jsonl"
     log.write_text('{"kind": "koopnav-run", "config": {}}\n' + "x" * 200)
@@ -310,9 +313,9 @@ def test_unpack_run_in_process_refuses_to_lose_records_and_forced_replaces_the_l
         "--force to replace the log"
     )
     assert len(local.read_text().splitlines()) == packed + 2  # kept as it was
-    assert published._main(["unpack", str(archive), str(tmp_path)]) == 2
+    assert archive_command(["unpack", str(archive), str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith(f"error: {local} holds {packed + 1} records")
-    assert published._main(["unpack", str(archive), str(tmp_path), "--force"]) == 0
+    assert archive_command(["unpack", str(archive), str(tmp_path), "--force"]) == 0
     assert capsys.readouterr().out == f"{tmp_path / 'scale_n3'}\n"
     assert local.read_text() == log
     # a local log with as many records (or fewer) is replaced without --force

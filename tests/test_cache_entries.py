@@ -21,8 +21,8 @@ from controllers.calibration import (
     check_position_residual,
 )
 from controllers.koopman.model import KoopmanModel, ModelFileError
-from evaluation.records import DEGRADED_FAILURE_SHARE, finished_status
-from koopman_envs.builder.plant import make_plant
+from evaluation.episodes.records import DEGRADED_FAILURE_SHARE, finished_status
+from koopman_envs.engine.plant import make_plant
 
 BUDGET = 2000  # team-transitions: two short trajectories, enough to exercise every path
 
@@ -117,7 +117,7 @@ def test_a_nan_calibration_entry_no_longer_spoils_an_evaluation(cache) -> None:
         calibration_budget=BUDGET,
         env_kwargs={"max_episode_steps": 30},
     )
-    from evaluation import worker
+    from evaluation.execution import worker
 
     # controllers an earlier test of this process built are kept by the in-process worker: this
     # run must calibrate into its own cache (it did not, under `mutmut run`'s single process)

@@ -27,7 +27,7 @@ from controllers import disk_cache
 from controllers.calibration import CacheWarning, cache_path, calibrate_controller
 from controllers.koopman.model import KoopmanModel
 from controllers.solvers import compiled as solver_cache
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = "KoopNav-TargetReaching-v0"

@@ -168,7 +168,7 @@ def test_orca_without_pyrvo_names_the_extra_and_the_board_skips_it(monkeypatch, 
     monkeypatch.setitem(sys.modules, "pyrvo", None)  # import pyrvo now raises ImportError
     with pytest.raises(ImportError, match=r"pip install -e '\.\[crowd\]'"):
         controllers.make("orca")
-    from evaluation import runner
+    from evaluation.execution import runner
 
     monkeypatch.setattr(runner.registry, "available", lambda: ["dwa", "orca"])
     assert runner.usable_controllers(verbose=True) == ["dwa"]

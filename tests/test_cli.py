@@ -68,7 +68,7 @@ def test_envs_is_the_plural_of_env() -> None:
 
 
 def test_the_resume_hint_uses_the_program_name(monkeypatch, tmp_path, capsys) -> None:
-    from evaluation.backends import RunInterrupted
+    from evaluation.execution.backends import RunInterrupted
 
     def interrupted(*_, **__):
         raise RunInterrupted(1, 4)
@@ -146,7 +146,7 @@ def test_the_quick_start_can_be_run_twice(monkeypatch, tmp_path, capsys) -> None
 
 
 def test_an_empty_results_directory_is_used_and_a_file_is_passed_over(monkeypatch, tmp_path) -> None:
-    from evaluation.runlog import output_directory
+    from evaluation.episodes.runlog import output_directory
 
     monkeypatch.chdir(tmp_path)
     assert output_directory(None, resume=False) == "results"
@@ -160,7 +160,7 @@ def test_an_empty_results_directory_is_used_and_a_file_is_passed_over(monkeypatc
 
 
 def test_only_a_missing_path_or_an_empty_directory_holds_nothing(tmp_path) -> None:
-    from evaluation.runlog import _holds_nothing
+    from evaluation.episodes.runlog import _holds_nothing
 
     (tmp_path / "empty").mkdir()
     (tmp_path / "full").mkdir()
@@ -183,7 +183,7 @@ def test_only_a_missing_path_or_an_empty_directory_holds_nothing(tmp_path) -> No
 def test_the_default_directory_counts_up_from_results_2_past_symlinks(monkeypatch, tmp_path) -> None:
     """results/ taken: results-2/ next (then -3, ...); a symlink holds something even when it
     points to an empty directory, so it is passed over and left alone."""
-    from evaluation.runlog import output_directory
+    from evaluation.episodes.runlog import output_directory
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "results").mkdir()
@@ -198,7 +198,7 @@ def test_the_default_directory_counts_up_from_results_2_past_symlinks(monkeypatc
 
 
 def test_the_resume_hint_names_the_directory_a_repeated_run_chose(monkeypatch, tmp_path, capsys) -> None:
-    from evaluation.backends import RunInterrupted
+    from evaluation.execution.backends import RunInterrupted
 
     def interrupted(*_, **__):
         raise RunInterrupted(1, 4)
@@ -228,7 +228,7 @@ def test_no_option_defaults_to_a_path_in_the_checkout(monkeypatch, tmp_path) -> 
 def test_the_ablation_report_goes_under_out_unless_a_page_is_named(tmp_path) -> None:
     """--ablation writes OUT/ablation.md (it wrote the tracked docs/ablation.md before); with
     --ablation-out the report goes there and its regeneration command names the page."""
-    from evaluation.published import results_from_log
+    from evaluation.reports.published import results_from_log
 
     page = (ROOT / "docs" / "ablation.md").read_bytes()
     tiny = ["--ablation", "margins", "--env", "KoopNav-TargetReaching-v0", "--maps", "map1"]

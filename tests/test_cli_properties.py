@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import evaluate as ev
-import evaluation.runner as runner
+import evaluation.execution.runner as runner
 from evaluation.cli import build_parser
 
 EXAMPLES = 12

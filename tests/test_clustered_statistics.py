@@ -1,5 +1,5 @@
-"""Statistics with the layout as the unit (evaluation/clustered.py, evaluation/layout_tests.py,
-evaluation/families.py): two-stage intervals that cover, a paired test whose size holds when
+"""Statistics with the layout as the unit (evaluation/stats/clustered.py, evaluation/stats/layout_tests.py,
+evaluation/stats/families.py): two-stage intervals that cover, a paired test whose size holds when
 outcomes cluster on layouts, power statements a simulation confirms, named families of tests.
 
 Monte Carlo tolerances: a coverage or rejection rate estimated from N simulated data sets has a
@@ -17,21 +17,25 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from evaluation.clustered import (
+from evaluation.stats.clustered import (
     interquartile_mean,
     layout_iqm_interval,
     layout_mean_interval,
     layout_rate_interval,
 )
-from evaluation.families import (
+from evaluation.stats.families import (
     HypothesisFamily,
     detectable_difference,
     layouts_needed,
     paired_power,
     power_statement,
 )
-from evaluation.layout_tests import layout_sign_flip_test, paired_means_by_layout, paired_rates_by_layout
-from evaluation.statistics import bootstrap_mean_interval, paired_comparison
+from evaluation.stats.layout_tests import (
+    layout_sign_flip_test,
+    paired_means_by_layout,
+    paired_rates_by_layout,
+)
+from evaluation.stats.statistics import bootstrap_mean_interval, paired_comparison
 
 
 def _tolerance(q: float, n: int) -> float:

@@ -16,8 +16,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.base import ControllerStats
-from evaluation.records import json_safe, record_problem
-from evaluation.worker import _result_fields
+from evaluation.episodes.records import json_safe, record_problem
+from evaluation.execution.worker import _result_fields
 from koopman_envs import target_reaching_v0
 from koopman_envs.fronts.episode import EpisodeRecorder, EpisodeResult
 from koopman_envs.params import FAULT_STOPPED_SPEED, STRICT_CLEARANCE_MARGIN

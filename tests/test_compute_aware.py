@@ -118,10 +118,10 @@ def test_the_evaluator_charges_the_scaled_decision_time_and_names_the_machine(
     import functools
     import json
 
-    import evaluation.worker
+    import evaluation.execution.worker
 
     monkeypatch.setattr(
-        evaluation.worker, "ComputeCharge", functools.partial(ComputeCharge, clock=_Ticks(0.05))
+        evaluation.execution.worker, "ComputeCharge", functools.partial(ComputeCharge, clock=_Ticks(0.05))
     )
     code = ev.main(
         [

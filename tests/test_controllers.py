@@ -310,7 +310,7 @@ def test_calibratable_is_a_declared_capability_found_down_wrappers() -> None:
 
 # ------------------------------------------------------------ issue 31, smaller faults
 def test_solver_reaches_the_distributed_nmpcs() -> None:
-    from evaluation.configs import controller_configs, with_solver
+    from evaluation.run.configs import controller_configs, with_solver
 
     configs = with_solver(
         controller_configs(["dmpc-nominal", "dmpc-koopman-robust", "safe:dmpc-nominal", "consensus"]), "ipopt"

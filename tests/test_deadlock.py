@@ -12,7 +12,7 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
 from controllers.mpc.detour import DETOUR_PERIODS, STALL_PERIODS, DeadlockResolver, StallMonitor
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 
 
 def _episode(name: str, map_name: str, slip: str = "nominal", seed: int = 0, **options):

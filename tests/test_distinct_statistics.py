@@ -1,6 +1,6 @@
 """Verdicts a reviewer accepts: identical episodes count once, clustered outcomes widen the
-interval, a table of many tests is corrected (evaluation/distinct.py, evaluation/statistics.py,
-evaluation/aggregate.py)."""
+interval, a table of many tests is corrected (evaluation/episodes/distinct.py, evaluation/stats/statistics.py,
+evaluation/stats/aggregate.py)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,14 @@ import math
 import numpy as np
 import pytest
 
-from evaluation.aggregate import aggregate, leaderboard, paired_comparisons
-from evaluation.distinct import distinct_records, distinct_units, duplicates
-from evaluation.statistics import cluster_bootstrap_rate, holm_adjusted, paired_comparison, wilson_interval
+from evaluation.episodes.distinct import distinct_records, distinct_units, duplicates
+from evaluation.stats.aggregate import aggregate, leaderboard, paired_comparisons
+from evaluation.stats.statistics import (
+    cluster_bootstrap_rate,
+    holm_adjusted,
+    paired_comparison,
+    wilson_interval,
+)
 
 
 def _record(controller: str, seed: int, success: bool, pose: float, map_name: str = "map1") -> dict:
@@ -187,7 +192,7 @@ def test_no_successes_give_a_lower_wilson_bound_of_exactly_zero() -> None:
 
 
 def test_the_cluster_bootstrap_rate_is_the_one_stage_layout_interval_with_its_defaults() -> None:
-    from evaluation.clustered import layout_rate_interval
+    from evaluation.stats.clustered import layout_rate_interval
 
     assert cluster_bootstrap_rate(CLUSTERS)[0] == 7 / 11  # successes over episodes, each weighs the same
     rate, low, high = cluster_bootstrap_rate(MANY)
@@ -211,7 +216,7 @@ def test_the_cluster_bootstrap_rate_names_a_bad_count_or_seed() -> None:
 
 
 def test_every_bootstrap_replicate_is_the_rate_of_its_drawn_layouts() -> None:
-    import evaluation.statistics as statistics
+    import evaluation.stats.statistics as statistics
 
     table = statistics._layout_table("clusters", MANY, binary=True)
     replicates = statistics._replicates(table, statistics._ratio, "layouts", 50, np.random.default_rng(3))
@@ -224,8 +229,8 @@ def test_every_bootstrap_replicate_is_the_rate_of_its_drawn_layouts() -> None:
 def test_bootstrap_replicates_do_not_depend_on_the_chunk_size(monkeypatch) -> None:
     # the replicates are drawn in chunks of at most _BOOTSTRAP_CHUNK entries to bound memory; the
     # chunks must neither overlap, skip a replicate nor change the draws
-    import evaluation.statistics as statistics
-    from evaluation.clustered import layout_rate_interval
+    import evaluation.stats.statistics as statistics
+    from evaluation.stats.clustered import layout_rate_interval
 
     whole = [layout_rate_interval(CLUSTERS, n_boot=50, resample=scheme) for scheme in ("layouts", "within")]
     whole.append(cluster_bootstrap_rate(CLUSTERS, n_boot=50))

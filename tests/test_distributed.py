@@ -172,7 +172,7 @@ def test_followers_can_track_the_leaders_plan() -> None:
 
 def test_a_robots_koopman_block_predicts_as_the_team_model() -> None:
     from controllers.koopman.store import calibrated_model
-    from koopman_envs.builder.plant import make_plant
+    from koopman_envs.engine.plant import make_plant
 
     plant = make_plant("KoopNav-TargetReaching-v0", slip="high", budget=20_000, seed=0)
     team, _ = calibrated_model(plant, 0, "minimal", structure="per-robot")

@@ -1,4 +1,4 @@
-"""Every record is read once (issue 59, item 5; evaluation/distinct.py's ``read_once``): two
+"""Every record is read once (issue 59, item 5; evaluation/episodes/distinct.py's ``read_once``): two
 records of one episode (task, controller label, map, slip, seed) that agree in every outcome are
 one episode wherever they are read (a resume log, a baseline, a published log, a page, a run's
 data), and two that disagree are refused naming the file, the episode and the fields that differ,
@@ -18,10 +18,10 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation.baseline import load_baseline
-from evaluation.distinct import ConflictingRecords, outcome_fields, read_once
-from evaluation.published import results_from_log
-from evaluation.results import Results
+from evaluation.episodes.distinct import ConflictingRecords, outcome_fields, read_once
+from evaluation.reports.baseline import load_baseline
+from evaluation.reports.published import results_from_log
+from evaluation.reports.results import Results
 
 ROOT = Path(__file__).resolve().parents[1]
 TR = "KoopNav-TargetReaching-v0"

@@ -6,8 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import NavigationEngine
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.sim.collision import CollisionKind, check_collisions
 from koopman_envs.sim.dynamics import rk4_step, slip_velocity
 from koopman_envs.sim.maps import MapSpec

@@ -19,9 +19,9 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import NavigationEngine
-from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import NavigationEngine
+from koopman_envs.engine.keywords import ENV_KEYWORDS
 from koopman_envs.fronts.gym_env import TargetReachingEnv
 from koopman_envs.params import LIMITS, MAX_EPISODES_PER_CELL, MAX_ROBOTS
 from koopman_envs.sim.random_maps import RandomMapConfig
@@ -138,7 +138,7 @@ def test_a_batch_whose_arrays_exceed_the_memory_bound_is_refused_before_allocati
 )
 def test_the_memory_estimate_covers_what_the_engine_allocates(kwargs: dict[str, Any]) -> None:
     """The estimate the bound is checked on is not below what the engine allocates (nor absurdly above)."""
-    from koopman_envs.builder.engine import engine_array_bytes
+    from koopman_envs.engine.engine import engine_array_bytes
 
     config = EngineConfig.create("target_reaching", **kwargs)
     estimate = engine_array_bytes(config, 64)

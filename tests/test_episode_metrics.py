@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from evaluation.aggregate import episode_metrics
+from evaluation.stats.aggregate import episode_metrics
 from koopman_envs.fronts.episode import path_ratio, run_episode
 from koopman_envs.params import PARAMS, PATH_RATIO_MIN_DISTANCE, STRICT_CLEARANCE_MARGIN
 from koopman_envs.sim.maps import MapSpec
@@ -194,8 +194,8 @@ def test_the_record_carries_the_new_metrics_and_the_report_reads_them() -> None:
     from types import SimpleNamespace
 
     from controllers.base import ControllerStats
-    from evaluation.records import json_safe, record_problem
-    from evaluation.worker import _result_fields
+    from evaluation.episodes.records import json_safe, record_problem
+    from evaluation.execution.worker import _result_fields
 
     radius = PARAMS.robot_radius
     behind = [[-(radius + 0.03 + 0.2), 0.0, 0.2]]

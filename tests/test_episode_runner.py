@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from evaluation.aggregate import aggregate
+from evaluation.stats.aggregate import aggregate
 from koopman_envs.fronts.episode import run_episode
 
 

@@ -223,7 +223,7 @@ def test_the_default_estimator_is_a_no_op_on_a_team_that_localizes_exactly(name,
     act bit for bit as the paper's (``estimator="none"``), and as behind ``ekf:`` with
     everything identified."""
     from controllers.calibration import calibrate_controller
-    from koopman_envs.builder.plant import make_plant
+    from koopman_envs.engine.plant import make_plant
 
     def build(configuration: str, **extra):
         ctrl = controllers.make(configuration, **options, **extra)

@@ -17,8 +17,8 @@ import pytest
 import controllers
 import evaluate as ev
 from controllers.base import BaseController
-from evaluation.ablation import FACTORS, ablation_configs, ablation_markdown
-from evaluation.aggregate import aggregate
+from evaluation.experiments.ablation import FACTORS, ablation_configs, ablation_markdown
+from evaluation.stats.aggregate import aggregate
 from koopman_envs import BudgetExceeded, make_plant
 from koopman_envs.params import slip_lambdas
 
@@ -231,23 +231,38 @@ def test_reports_carry_intervals_and_paired_comparisons() -> None:
     assert doc["leaderboard"][0]["success_ci"][0] == pytest.approx(0.5958, abs=1e-3)
 
 
-def test_paper_strict_builds_hard_constraints() -> None:
+def test_paper_strict_builds_the_papers_controllers_exactly() -> None:
+    """``--paper-strict`` is the paper's controller as the paper built it (SPEC section 3): an OCP
+    with hard constraints and the 0.015 m offset toward obstacles only, solved by IPOPT with no
+    rescue, no estimator in front and no stall resolution, whatever ``--solver`` says."""
+    from evaluation.run.configs import with_solver
+
     protocol = ev.paper_protocol(strict=True)
-    nmpcs = [cfg for cfg in protocol.controllers if cfg.name.endswith("nmpc")]
+    configs = with_solver(protocol.controllers, "rti", "ipopt")  # --solver rti --fallback-solver ipopt
+    nmpcs = [cfg for cfg in configs if cfg.name.endswith("nmpc")]
     assert [cfg.label for cfg in nmpcs] == ["koopman-nmpc", "nominal-nmpc"]
     env = __import__("gymnasium").make("KoopNav-TargetReaching-v0", map="map1")
     env.reset(seed=0)
     for cfg in nmpcs:
         ctrl = cfg.build()
-        assert ctrl.config.soft_constraints is False and ctrl.config.uncertainty_margin == 0
+        config = ctrl.config
+        assert config.soft_constraints is False and config.uncertainty_margin == 0
+        assert config.solver == "ipopt" and config.fallback_solver is None and ctrl.solver_label == "ipopt"
+        assert config.estimator == "none" and ctrl.front_end is None  # the measured poses as they are
+        assert config.unstall is False
         if cfg.name == "koopman-nmpc":
             ctrl.calibrate(
                 make_plant("KoopNav-TargetReaching-v0", slip="nominal"), seed=0
             )  # the shipped model
         ctrl.reset(env.unwrapped.scenario, seed=0)
         assert ctrl.problem.ns == 0  # no slack variables: the paper's hard constraints
+        assert ctrl._resolver is None  # no stall resolution
+        np.testing.assert_array_equal(ctrl.parameter("obstacle_margin"), 0.015)
+        np.testing.assert_array_equal(ctrl.parameter("pair_margin"), 0.0)
+    consensus = next(cfg for cfg in configs if cfg.name == "consensus").build()
+    assert consensus.front_end is None
     default = ev.paper_protocol().controllers[0].build()
-    assert default.config.soft_constraints is True
+    assert default.config.soft_constraints is True and default.front_end is not None
 
 
 def test_ablation_configurations_and_bad_factor(tmp_path) -> None:

@@ -1,4 +1,4 @@
-"""evaluation/baseline.py function by function, with every expectation written out (issue 41,
+"""evaluation/reports/baseline.py function by function, with every expectation written out (issue 41,
 mutation testing): the pairing of episodes across two runs, the rows and their order, the gate's
 thresholds at their boundaries, every reason the gate gives for not judging a run, the refusal of
 a baseline of other settings or of a malformed file, and the Markdown section, to the character.
@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from evaluation.baseline import (
+from evaluation.episodes.distinct import ConflictingRecords
+from evaluation.reports.baseline import (
     ALL_TASKS,
     GateOptions,
     compare_runs,
@@ -27,8 +28,7 @@ from evaluation.baseline import (
     pair_keys,
     refuse_incomparable,
 )
-from evaluation.distinct import ConflictingRecords
-from evaluation.statistics import bootstrap_mean_interval, paired_comparison
+from evaluation.stats.statistics import bootstrap_mean_interval, paired_comparison
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 
@@ -550,7 +550,7 @@ def test_a_baseline_is_read_as_utf8_whatever_the_locale(tmp_path) -> None:
     assert load_baseline(path) == doc  # here, and below in a process whose locale is ASCII
     env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
     code = (
-        "import sys, locale; from evaluation.baseline import load_baseline; "
+        "import sys, locale; from evaluation.reports.baseline import load_baseline; "
         "assert locale.getpreferredencoding(False).lower() not in ('utf-8', 'utf8'), locale.getpreferredencoding(False); "
         "doc = load_baseline(sys.argv[1]); "
         "assert doc['episodes'][0]['controller'] == 'r\\u00e9gulateur', ascii(doc['episodes'][0]['controller'])"
@@ -737,7 +737,7 @@ def test_last_digit_differences_are_ties_so_one_episode_ending_elsewhere_is_no_s
 # ------------------------------------------------- what the mutation run of this module showed
 # (bash .ci/mutation.sh baseline: each test below kills mutants that survived the tests above)
 def test_a_distance_difference_of_exactly_the_resolution_is_no_tie() -> None:
-    from evaluation.baseline import DISTANCE_RESOLUTION_CM, _tied
+    from evaluation.reports.baseline import DISTANCE_RESOLUTION_CM, _tied
 
     assert _tied(DISTANCE_RESOLUTION_CM) == DISTANCE_RESOLUTION_CM
     assert _tied(-DISTANCE_RESOLUTION_CM) == -DISTANCE_RESOLUTION_CM

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation.html import render_html
+from evaluation.reports.html import render_html
 
 XSS_LABEL = "<script>x</script>"
 CHROMIUM = Path("/usr/bin/chromium")
@@ -90,7 +90,7 @@ class _Tables(HTMLParser):
 
 
 def _expected_tables(results: ev.Results) -> list:
-    from evaluation.report import controller_tables, leaderboard_rows, paired_rows
+    from evaluation.reports.sections import controller_tables, leaderboard_rows, paired_rows
 
     tables = [leaderboard_rows(results)]
     if paired_rows(results)[1]:

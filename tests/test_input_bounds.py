@@ -20,15 +20,15 @@ import controllers
 import evaluate as ev
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.option_spec import options
-from evaluation.backends import RunInterrupted
 from evaluation.cli import parse_env_kwargs
-from evaluation.configs import ControllerConfig, parse_controller
+from evaluation.execution.backends import RunInterrupted
 from evaluation.exit_codes import EXIT_CODES, EXIT_PRECEDENCE, worst
-from evaluation.spec import RunSpec
-from evaluation.sweep import MAX_SWEEP_LEVELS, load_sweep, parse_sweep, refuse_sweep_clash
-from evaluation.thresholds import load_thresholds
-from koopman_envs.builder.keywords import ENV_KEYWORDS
+from evaluation.experiments.sweep import MAX_SWEEP_LEVELS, load_sweep, parse_sweep, refuse_sweep_clash
+from evaluation.reports.thresholds import load_thresholds
+from evaluation.run.configs import ControllerConfig, parse_controller
+from evaluation.run.spec import RunSpec
 from koopman_envs.checks import MAX_JSON_DEPTH, MAX_NUMBER, parse_json
+from koopman_envs.engine.keywords import ENV_KEYWORDS
 
 TINY = ["--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--episodes", "1"]
 TINY += ["--max-episode-steps", "5", "--workers", "1", "--quiet"]
@@ -215,7 +215,7 @@ def test_a_corrupt_observation_normalization_is_refused_at_load(
     tmp_path: Path, change: Any, message: str
 ) -> None:
     pytest.importorskip("stable_baselines3")
-    from baselines.policy import SHIPPED, PolicyLoadError, load_policy
+    from baselines.sb3.policy import SHIPPED, PolicyLoadError, load_policy
 
     source = SHIPPED / "formation"
     target = tmp_path / "formation"

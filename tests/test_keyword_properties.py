@@ -1,5 +1,5 @@
 """Property test (Hypothesis) over the env keyword table, issue 41: for every keyword of
-:data:`koopman_envs.builder.keywords.ENV_KEYWORDS`, a random value either builds an env that resets and
+:data:`koopman_envs.engine.keywords.ENV_KEYWORDS`, a random value either builds an env that resets and
 steps (finite observations and rewards), or raises ``ValueError`` / ``TypeError`` whose message
 names the keyword; never another exception, and never more than :data:`MEMORY_LIMIT` bytes of
 traced allocations (tracemalloc's peak: numpy reports its arrays to it, so an allocation of a size
@@ -44,7 +44,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.builder.keywords import ENV_KEYWORDS
+from koopman_envs.engine.keywords import ENV_KEYWORDS
 from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
 from koopman_envs.movers import MOVER_BEHAVIOURS

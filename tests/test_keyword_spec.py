@@ -14,8 +14,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.keywords import ENV_KEYWORDS, FRONTS, env_keywords
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.keywords import ENV_KEYWORDS, FRONTS, env_keywords
 from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
 from koopman_envs.fronts.vector_env import KoopNavVectorEnv
@@ -161,7 +161,7 @@ def test_the_docs_list_every_keyword() -> None:
 
 
 def test_the_evaluator_takes_the_table_as_env_kwargs() -> None:
-    from evaluation.spec import RunSpec
+    from evaluation.run.spec import RunSpec
 
     spec = RunSpec(
         "KoopNav-Formation-v0",

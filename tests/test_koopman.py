@@ -315,7 +315,7 @@ def test_per_robot_structure_matches_the_stacked_fit_with_far_fewer_coefficients
     from controllers.calibration import collect_data, data_spec_for
     from controllers.koopman.fit import fit_per_robot
     from controllers.koopman.store import calibrated_model
-    from koopman_envs.builder.plant import make_plant
+    from koopman_envs.engine.plant import make_plant
 
     dic = get_dictionary("minimal")
     plant = make_plant("KoopNav-TargetReaching-v0", slip="high", budget=20_000, seed=3)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, refuse_held_out_map
-from evaluation.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
+from evaluation.experiments.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
 
 pytest.importorskip("stable_baselines3")
 
@@ -40,7 +40,7 @@ TINY_IPPO = [
 
 # ----------------------------------------------------------------------------- held out by name
 def test_the_sb3_trainer_refuses_the_test_split_by_name_before_any_work(tmp_path, capsys) -> None:
-    from baselines.train import main
+    from baselines.sb3.train import main
 
     out = tmp_path / "run"
     argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--suite", SUITE, "--out", str(out)]
@@ -94,7 +94,7 @@ def test_the_benchmarl_trainer_refuses_the_test_split_by_name_before_any_work(
     options: list[str], message: str, tmp_path, capsys
 ) -> None:
     pytest.importorskip("benchmarl")
-    from baselines.benchmarl_train import main
+    from baselines.marl.benchmarl_train import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(
@@ -147,7 +147,7 @@ def _policy_weights(folder: Path) -> bytes:
 def test_a_tiny_suite_run_keeps_the_checkpoint_best_on_validation_and_is_deterministic(tmp_path) -> None:
     """A real set-policy run (1,152 robot-steps) on the train layouts, every checkpoint scored on
     2 validation layouts through the evaluator; twice with the same seed, the same weights."""
-    from baselines.train import main
+    from baselines.sb3.train import main
 
     def run(out: Path) -> None:
         argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--suite", SUITE, "--seed", "3"]
@@ -182,7 +182,7 @@ def test_a_tiny_ippo_suite_run_exports_scores_and_keeps_a_checkpoint(tmp_path) -
     pytest.importorskip("benchmarl")
     import numpy as np
 
-    from baselines.benchmarl_train import main
+    from baselines.marl.benchmarl_train import main
 
     argv = ["--task", "formation", "--algorithm", "ippo", "--suite", SUITE, *TINY_IPPO]
     argv += ["--eval-freq", "200", "--validation-layouts", "2"]

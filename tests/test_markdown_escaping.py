@@ -5,7 +5,7 @@ never as a tag a Markdown viewer would render."""
 from __future__ import annotations
 
 import evaluate as ev
-from evaluation.report import Items, Note, Section, TableBlock, markdown, markdown_text
+from evaluation.reports.sections import Items, Note, Section, TableBlock, markdown, markdown_text
 
 HOSTILE = "<img src=x onerror=alert(1)>"
 

@@ -1,4 +1,4 @@
-"""The BenchMARL policies as controllers (baselines.marl_policy): the exported numpy actor acts as
+"""The BenchMARL policies as controllers (baselines.marl.marl_policy): the exported numpy actor acts as
 BenchMARL's own deterministic policy does, and the controller refuses what it cannot read."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from baselines.marl_policy import MappoController, actor_command
+from baselines.marl.marl_policy import MappoController, actor_command
 from koopman_envs.fronts.episode import run_episode
 
 TR = "KoopNav-TargetReaching-v0"
@@ -23,8 +23,8 @@ def exported(tmp_path_factory):
     pytest.importorskip("benchmarl")
     from benchmarl.experiment import ExperimentConfig
 
-    from baselines.benchmarl_task import KoopNavTask
-    from baselines.benchmarl_train import experiment, export_actor
+    from baselines.marl.benchmarl_task import KoopNavTask
+    from baselines.marl.benchmarl_train import experiment, export_actor
 
     folder = tmp_path_factory.mktemp("mappo")
     config = ExperimentConfig.get_from_yaml()
@@ -107,9 +107,9 @@ def test_an_export_with_observation_statistics_standardizes_first(exported) -> N
 
 def test_a_policy_trained_with_features_reads_them_beside_its_block(tmp_path) -> None:
     """An export of ``--features bearing+headings`` (its metadata says so): the controller appends
-    baselines.robot_features to each robot's block before the actor, as the TorchRL env did in
+    baselines.features.robot_features to each robot's block before the actor, as the TorchRL env did in
     training; an unknown feature set and a width that does not fit are refused by name."""
-    from baselines.robot_features import feature_count, robot_features
+    from baselines.features.robot_features import feature_count, robot_features
 
     env = gym.make(TR, map="map1")
     obs, info = env.reset(seed=2)
@@ -160,11 +160,12 @@ def test_the_shipped_ippo_policies_load_without_pickle_and_arrive(
     command that trained it, and it settles a team (one real closed-loop episode: a random layout, as
     in training, and a paper formation map)."""
     import controllers
-    from baselines.marl_policy import SHIPPED
+    from baselines.marl.marl_policy import SHIPPED
 
     directory = SHIPPED / "ippo" / task
     metadata = json.loads((directory / "metadata.json").read_text())
     assert metadata["algorithm"] == "ippo" and metadata["task"] == task and metadata["n_robots"] == 3
+    # the command as it was run (the module path of that release)
     assert metadata["command"].startswith("python -m baselines.benchmarl_train --task " + task)
     with np.load(directory / "policy.npz", allow_pickle=False) as arrays:  # arrays only, no objects
         assert sorted(arrays.files) == metadata["arrays"]

@@ -265,7 +265,7 @@ def test_the_evaluator_counts_mover_collisions_apart(tmp_path) -> None:
 
 def test_the_crowd_protocol_sweeps_the_mover_count_of_one_behaviour() -> None:
     from evaluation.cli import build_parser, spec_from_args
-    from evaluation.protocols import CROWD_COUNTS, crowd_protocol
+    from evaluation.experiments.protocols import CROWD_COUNTS, crowd_protocol
 
     args = build_parser().parse_args(["--crowd", "waypoints"])
     spec = spec_from_args(args)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import NavigationEngine
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.tasks.observation import FAR
 
 

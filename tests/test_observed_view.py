@@ -19,7 +19,7 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
 from koopman_envs import Observed
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 from koopman_envs.observed import OBSERVED_KEYS, SENSED_KEYS
 
 #: every built-in controller and preset (rl-ppo needs the [rl] extra, as everywhere)

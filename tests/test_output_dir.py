@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation.runlog import OutputNotWritable, RunLocked, ensure_output_dir, open_log
+from evaluation.episodes.runlog import OutputNotWritable, RunLocked, ensure_output_dir, open_log
 
 ARGS = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
 ARGS += ["--episodes", "1", "--max-episode-steps", "5", "--workers", "1", "--quiet"]
@@ -29,7 +29,7 @@ def _unwritable(tmp_path: Path, monkeypatch) -> Path:
             raise PermissionError(13, "Permission denied", str(out))
         return real(*args, dir=dir, **kwargs)
 
-    monkeypatch.setattr("evaluation.runlog.tempfile.TemporaryFile", refuse)
+    monkeypatch.setattr("evaluation.episodes.runlog.tempfile.TemporaryFile", refuse)
     return out
 
 

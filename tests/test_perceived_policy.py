@@ -1,4 +1,4 @@
-"""The set policies on beams (baselines.perceived): the blocks they read under lidar are the
+"""The set policies on beams (baselines.features.perceived): the blocks they read under lidar are the
 state env's blocks rebuilt from what the robots see, bit for bit where the two must agree, and no
 truth is read with the perception in the loop."""
 
@@ -11,7 +11,7 @@ from test_observed_view import _poisoned
 
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
-from baselines.perceived import perceived_blocks
+from baselines.features.perceived import perceived_blocks
 from koopman_envs import Observed
 from koopman_envs.fronts.episode import run_episode
 from koopman_envs.scenario import scenario_of

@@ -16,7 +16,7 @@ from test_observed_view import _poisoned
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 from koopman_envs.fronts.episode import run_episode
 
 ENV = "KoopNav-TargetReaching-v0"
@@ -139,8 +139,8 @@ def test_the_lidar_protocol_sweeps_state_beams_and_beams_only() -> None:
     among movers, swept over exact state, the beams with the map, and the beams only; the
     level 'lidar with the map known' of both axes is one run (the same episodes)."""
     from evaluation.cli import build_parser, spec_from_args
-    from evaluation.protocols import LIDAR_AXES
-    from evaluation.sweep import level_aliases, parse_sweep
+    from evaluation.experiments.protocols import LIDAR_AXES
+    from evaluation.experiments.sweep import level_aliases, parse_sweep
 
     args = build_parser().parse_args(["--lidar"])
     spec = spec_from_args(args)

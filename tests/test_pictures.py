@@ -198,9 +198,9 @@ def _baseline_records() -> list[dict]:
 
 def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path: Path) -> None:
     jsonschema = pytest.importorskip("jsonschema")
-    from evaluation.figures import _trajectory_figure, save_figures
-    from evaluation.records import record_problem
-    from evaluation.run_data import RunData
+    from evaluation.episodes.records import record_problem
+    from evaluation.reports.figures import _trajectory_figure, save_figures
+    from evaluation.stats.run_data import RunData
     from koopman_envs.fronts.demo import NaiveGoToTarget
     from koopman_envs.fronts.episode import run_episode
 
@@ -239,8 +239,8 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
 
 
 def test_the_success_chart_keeps_its_legend_off_the_bars(tmp_path: Path) -> None:
-    from evaluation.figures import _success_figure, colour_of
-    from evaluation.run_data import RunData
+    from evaluation.reports.figures import _success_figure, colour_of
+    from evaluation.stats.run_data import RunData
 
     records = []
     for slip in ("nominal", "high"):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.builder.config import EngineConfig
+from koopman_envs.engine.config import EngineConfig
 from koopman_envs.sim.physics.surfaces import check_surface, floor_surface
 from koopman_envs.sim.zones import SlipZone
 

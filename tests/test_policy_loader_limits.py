@@ -25,7 +25,7 @@ pytest.importorskip("stable_baselines3")
 from stable_baselines3 import PPO  # noqa: E402
 
 from baselines import safe_load  # noqa: E402
-from baselines.policy import SHIPPED, load_policy  # noqa: E402
+from baselines.sb3.policy import SHIPPED, load_policy  # noqa: E402
 
 SOURCE = SHIPPED / "formation"
 MIB = 2**20
@@ -252,7 +252,7 @@ def test_load_policy_names_the_bad_file(policy_copy) -> None:
     _bomb(policy_copy / "policy.zip", "data", 300 * MIB)
     raised, peak = _peak(lambda: load_policy(policy_copy))
     assert isinstance(raised, _error()) and peak < MEMORY_BOUND
-    assert str(policy_copy / "policy.zip") in str(raised) and "python -m baselines.train" in str(raised)
+    assert str(policy_copy / "policy.zip") in str(raised) and "python -m baselines.sb3.train" in str(raised)
 
 
 def test_an_obs_norm_bomb_is_refused(policy_copy) -> None:

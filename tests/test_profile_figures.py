@@ -1,10 +1,10 @@
-"""The robustness figures a reader can read (evaluation/figures.py): families, one colour
+"""The robustness figures a reader can read (evaluation/reports/figures.py): families, one colour
 per controller in every figure, identical twins drawn once, units on the axes."""
 
 from __future__ import annotations
 
-from evaluation.figures import FAMILIES, axis_label, colour_of, family_of, save_profile_figures, twins
-from evaluation.robustness import AxisProfile, LevelRow
+from evaluation.reports.figures import FAMILIES, axis_label, colour_of, family_of, save_profile_figures, twins
+from evaluation.stats.robustness import AxisProfile, LevelRow
 
 
 def _row(controller: str, level, successes: int, distance: float) -> LevelRow:

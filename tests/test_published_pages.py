@@ -1,4 +1,4 @@
-"""Published data (evaluation/published.py, data/*.tar.xz): every page listed in data/pages.json
+"""Published data (evaluation/reports/published.py, data/*.tar.xz): every page listed in data/pages.json
 is rebuilt by its generator from the committed episode logs, byte for byte; an archive that is
 not what KoopNav packs is refused by name."""
 
@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from evaluation.published import extract_archive, results_from_log
+from evaluation.reports.published import extract_archive, results_from_log
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_pages import PAGES, page_command  # noqa: E402  (docs/ is no package)
+from make_pages import PAGES, page_command, page_digest, read_digests  # noqa: E402  (docs/ is no package)
 
 
 # 25-100 s per page (each reads its archives and draws its figures): run by -m slow; the generators run
@@ -32,7 +32,10 @@ def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_pa
     )
     committed = (ROOT / entry["page"]).read_text(encoding="utf-8")
     assert page.read_text(encoding="utf-8") == committed
-    assert list((tmp_path / "_static").glob("*.png"))  # its figures too
+    # the digest the fast check of hand edits compares with (tests/test_prose_checks.py)
+    assert read_digests()[entry["page"]] == page_digest(page.read_bytes())
+    if "_static/" in committed:  # its figures too (docs/paper.md draws none)
+        assert list((tmp_path / "_static").glob("*.png"))
 
 
 def test_every_published_archive_is_on_a_page_and_reads_back_checked() -> None:
@@ -79,7 +82,7 @@ def test_an_archive_of_another_name_or_compression_is_refused_by_name(tmp_path) 
 
 
 def test_packing_is_reproducible_and_reads_back(tmp_path) -> None:
-    from evaluation.published import pack_run
+    from evaluation.reports.published import pack_run
 
     run = extract_archive(ROOT / "data" / "scale_n3.tar.xz", tmp_path / "run")
     again = pack_run(run, tmp_path / "again.tar.xz")

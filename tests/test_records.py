@@ -1,4 +1,4 @@
-"""The record schema (evaluation.records.record_problem) and the published JSON schema
+"""The record schema (evaluation.episodes.records.record_problem) and the published JSON schema
 (docs/results.schema.json) describe the same episode records: what one requires the other
 requires, every real record passes both, and a value the code refuses is one the JSON schema
 refuses too where it states the field."""
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from evaluation.records import STATUSES, record_problem
+from evaluation.episodes.records import STATUSES, record_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA = json.loads((ROOT / "docs" / "results.schema.json").read_text())
@@ -20,7 +20,7 @@ BASELINE = json.loads((ROOT / ".ci" / "baseline" / "results.json").read_text())
 
 
 def test_the_json_schema_requires_what_the_code_requires() -> None:
-    from evaluation.records import _COMMON_SCHEMA
+    from evaluation.episodes.records import _COMMON_SCHEMA
 
     assert set(EPISODE_SCHEMA["required"]) == set(_COMMON_SCHEMA)
     assert EPISODE_SCHEMA["properties"]["status"]["enum"] == list(STATUSES)

@@ -13,7 +13,7 @@ import pytest
 import evaluate as ev
 from controllers.base import BaseController
 from controllers.consensus import ConsensusController
-from evaluation.configs import controller_configs, split_controller_list
+from evaluation.run.configs import controller_configs, split_controller_list
 
 TARGET = "KoopNav-TargetReaching-v0"
 

@@ -247,7 +247,7 @@ def test_same_seed_same_closed_loop_in_two_processes() -> None:
 
 # ----------------------------------------------------------------------------- the evaluator
 def test_with_solver_sets_every_nmpc_that_names_none() -> None:
-    from evaluation.configs import parse_controller, with_solver
+    from evaluation.run.configs import parse_controller, with_solver
 
     configs = [
         parse_controller(t)
@@ -264,7 +264,7 @@ def test_with_solver_sets_every_nmpc_that_names_none() -> None:
 
 
 def test_with_solver_sets_or_turns_off_every_nmpcs_fallback_solver() -> None:
-    from evaluation.configs import parse_controller, with_solver
+    from evaluation.run.configs import parse_controller, with_solver
 
     configs = [
         parse_controller(t)
@@ -332,7 +332,7 @@ def test_cli_rejects_an_unknown_solver_before_any_episode(tmp_path, capsys) -> N
 
 
 def test_paper_protocol_keeps_ipopt_and_the_quick_board_runs_the_real_time_iteration() -> None:
-    from evaluation.protocols import ablation_protocol, paper_protocol, quick_protocol
+    from evaluation.experiments.protocols import ablation_protocol, paper_protocol, quick_protocol
 
     assert paper_protocol().solver == "ipopt" and paper_protocol(strict=True).solver == "ipopt"
     assert ablation_protocol().solver == "ipopt"

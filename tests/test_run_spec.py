@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 
 import evaluate as ev
-from evaluation.configs import ControllerConfig
-from evaluation.protocols import PROTOCOLS, protocol
-from evaluation.spec import RunSpec
+from evaluation.experiments.protocols import PROTOCOLS, protocol
+from evaluation.run.configs import ControllerConfig
+from evaluation.run.spec import RunSpec
 from koopman_envs.params import PARAMS
 
 PAPER_MAPS = {"KoopNav-TargetReaching-v0": ("map1", "map2"), "KoopNav-Formation-v0": ("map3", "map4")}
@@ -100,7 +100,7 @@ def test_signature_changes_with_what_an_episode_does() -> None:
 
 
 def test_presets_equal_the_protocols_field_by_field() -> None:
-    """The values of the protocol dicts they replace (evaluation/protocols.py before RunSpec)."""
+    """The values of the protocol dicts they replace (evaluation/experiments/protocols.py before RunSpec)."""
     quick = protocol("quick")
     assert (
         quick.envs,

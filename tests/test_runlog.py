@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 import evaluate as ev
-from evaluation.runlog import LogError, read_log
+from evaluation.episodes.runlog import LogError, read_log
 
 ROOT = Path(ev.__file__).parent
 TESTS = Path(__file__).parent
@@ -329,8 +329,8 @@ def test_forgetting_a_controller_reruns_only_its_episodes_on_resume(tmp_path) ->
     """The republishing path for a changed controller: its records leave the log (every other
     line kept byte for byte), and the resume runs exactly its episodes again, with the
     uninterrupted run's results."""
+    from evaluation.episodes.runlog import forget_controllers
     from evaluation.forget import main as forget_main
-    from evaluation.runlog import forget_controllers
 
     spec = FAST.replace(controllers=["consensus", "consensus-free"], episodes=2)
     first = ev.evaluate(spec, workers=1, out=tmp_path)
@@ -360,7 +360,7 @@ def test_forgetting_refuses_a_log_with_an_unreadable_line(tmp_path) -> None:
 
 
 def forget_controllers_of(path: Path) -> int:
-    from evaluation.runlog import forget_controllers
+    from evaluation.episodes.runlog import forget_controllers
 
     return forget_controllers(path, ["x"])
 

@@ -1,4 +1,4 @@
-"""The resume log (evaluation/runlog.py) and the record schema (evaluation/records.py) called
+"""The resume log (evaluation/episodes/runlog.py) and the record schema (evaluation/episodes/records.py) called
 directly, every expectation written out (issue 41, mutation testing): the header's bytes, what a
 resume reads back, each refusal with its file, line and field, the repairs and their notes, the
 lock, and every field rule of the schema at its boundary.
@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import evaluation.runlog as runlog
-from evaluation.records import (
+import evaluation.episodes.runlog as runlog
+from evaluation.episodes.records import (
     DEGRADED_FAILURE_SHARE,
     RAN,
     STATUSES,
@@ -28,7 +28,7 @@ from evaluation.records import (
     ran,
     record_problem,
 )
-from evaluation.runlog import (
+from evaluation.episodes.runlog import (
     RESUME_KEYS,
     LogError,
     OutputNotWritable,

@@ -110,6 +110,14 @@ SMOKE: dict[str, tuple[list[str], str]] = {
         r"^consensus +3 +[01]/1 \[\d+-\d+%\] +[01]/1 ",
     ),
     "docs/check_links.py": (["{tmp}"], r"^every relative link resolves$"),
+    "docs/make_compute_md.py": (  # the published page's own archives (data/pages.json)
+        [
+            *(f"data/{run}.tar.xz" for run in ("paper_realistic", "realistic_realtime", "paper")),
+            *(f"data/compute_{run}.tar.xz" for run in ("free", "delay", "ipopt_delay")),
+            *("--out", "{tmp}/compute.md", "--figures", "{tmp}/figures"),
+        ],
+        r"^wrote .*/compute\.md and .*/compute_mechanism\.png$",
+    ),
     "docs/make_figure.py": (
         ["--steps", "3", "--out", "{tmp}/figure.png"],
         r"^koopman-nmpc-robust: 3 steps, collision=(True|False), success=(True|False)$",
@@ -267,6 +275,7 @@ def test_script_runs_on_tiny_arguments_and_prints_its_result(
 #: the generators of docs/'s pages and pictures: each output is a tracked file, so none has a default
 GENERATORS = [
     "docs/make_bench_figure.py",
+    "docs/make_compute_md.py",
     "docs/make_figure.py",
     "docs/make_options_md.py",
     "docs/make_results_md.py",

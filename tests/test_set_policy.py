@@ -14,10 +14,7 @@ import torch  # noqa: E402
 from gymnasium import spaces  # noqa: E402
 
 from baselines.curriculum import PARTS, STAGES, stage_parts  # noqa: E402
-from baselines.policy import RLSetPolicyController, load_policy, policy_command  # noqa: E402
-from baselines.select import main as select_main  # noqa: E402
-from baselines.set_encoder import SetEncoder  # noqa: E402
-from baselines.set_features import (  # noqa: E402
+from baselines.features.set_features import (  # noqa: E402
     EGO_SIZE,
     MAX_TEAM,
     NEIGHBOUR_SIZE,
@@ -25,8 +22,11 @@ from baselines.set_features import (  # noqa: E402
     SetFeatureConfig,
     set_features,
 )
-from baselines.train import main as train_main  # noqa: E402
-from baselines.vec_env import KoopNavSB3VecEnv, MixtureVecEnv  # noqa: E402
+from baselines.sb3.policy import RLSetPolicyController, load_policy, policy_command  # noqa: E402
+from baselines.sb3.select import main as select_main  # noqa: E402
+from baselines.sb3.set_encoder import SetEncoder  # noqa: E402
+from baselines.sb3.train import main as train_main  # noqa: E402
+from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv  # noqa: E402
 
 CONFIG = SetFeatureConfig(neighbours=4, obstacles=3, sensing_radius=3.0)
 
@@ -249,7 +249,7 @@ def _tiny_run(out, *extra: str) -> list[str]:
 def test_fine_tuning_starts_from_the_given_policy_and_records_it(set_root, tmp_path, monkeypatch) -> None:
     import torch
 
-    from baselines import train
+    from baselines.sb3 import train
 
     source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
     started = {}
@@ -308,7 +308,7 @@ def test_batched_set_commands_equal_single_commands(set_root) -> None:
 
 
 def _policy_directories(set_root) -> list:
-    from baselines.policy import SHIPPED
+    from baselines.sb3.policy import SHIPPED
 
     directories = [set_root / "target_reaching"] + [
         p for p in SHIPPED.glob("*") if (p / "policy.zip").exists()
@@ -318,7 +318,7 @@ def _policy_directories(set_root) -> list:
 
 def _masked_observations(model, rng, rows: int) -> np.ndarray:
     """Random normalized observations; a set policy's mask entries 0 or 1 (as the features give)."""
-    from baselines.actor import compile_actor
+    from baselines.sb3.actor import compile_actor
 
     obs = (2 * rng.normal(size=(rows, model.observation_space.shape[0]))).astype(np.float32)
     for pool in compile_actor(model).sets:
@@ -329,10 +329,10 @@ def _masked_observations(model, rng, rows: int) -> np.ndarray:
 
 
 def test_the_compiled_actor_acts_as_predict(set_root) -> None:
-    """The compiled actor (baselines.actor) computes predict's deterministic action: equal within
+    """The compiled actor (baselines.sb3.actor) computes predict's deterministic action: equal within
     float32 rounding (it sums in another order than torch's kernels), for every shipped policy,
     the set encoder's masked slots included."""
-    from baselines.policy import deterministic_action
+    from baselines.sb3.policy import deterministic_action
 
     rng = np.random.default_rng(0)
     directories = _policy_directories(set_root)
@@ -347,7 +347,7 @@ def test_the_compiled_actor_acts_as_predict(set_root) -> None:
 def test_a_robots_action_does_not_depend_on_the_batch(set_root) -> None:
     """The property a batched evaluation rests on: a row's action is the same bit for bit alone,
     in a batch of any size and at any place in it (torch's batched forward is not)."""
-    from baselines.actor import compile_actor
+    from baselines.sb3.actor import compile_actor
 
     rng = np.random.default_rng(1)
     for directory in _policy_directories(set_root):
@@ -363,12 +363,12 @@ def test_a_robots_action_does_not_depend_on_the_batch(set_root) -> None:
 
 
 def test_a_policy_the_actor_does_not_compile_goes_through_predict(set_root) -> None:
-    """A policy with a part baselines.actor does not compile (here a SiLU activation) is not
+    """A policy with a part baselines.sb3.actor does not compile (here a SiLU activation) is not
     compiled, and its actions come from predict."""
     import torch
 
-    from baselines.actor import compile_actor
-    from baselines.policy import deterministic_action
+    from baselines.sb3.actor import compile_actor
+    from baselines.sb3.policy import deterministic_action
 
     model, _, _ = load_policy(set_root / "target_reaching")
     model.policy.mlp_extractor.policy_net[1] = torch.nn.SiLU()
@@ -383,8 +383,8 @@ def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_p
     its source on observations with movers present (the movers' columns start at zero)."""
     import torch
 
-    from baselines import train
-    from baselines.set_features import MOVER_SIZE, SetFeatureConfig
+    from baselines.features.set_features import MOVER_SIZE, SetFeatureConfig
+    from baselines.sb3 import train
 
     source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
     started = {}
@@ -418,7 +418,7 @@ def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_p
 
 
 def test_the_movers_set_reads_the_listed_movers() -> None:
-    from baselines.set_features import MOVER_SIZE, SetFeatureConfig, set_features, split_movers
+    from baselines.features.set_features import MOVER_SIZE, SetFeatureConfig, set_features, split_movers
 
     env = gym.make("KoopNav-TargetReaching-v0", movers=dict(count=2, observed=3, tracking=False))
     obs, info = env.reset(seed=1)

@@ -11,8 +11,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import make_plant
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import NavigationEngine
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.sim.maps import MapSpec
 

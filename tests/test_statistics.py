@@ -1,4 +1,4 @@
-"""evaluation.statistics against published and independently computed reference values.
+"""evaluation.stats.statistics against published and independently computed reference values.
 
 Sources of the hard-coded numbers:
 
@@ -26,8 +26,8 @@ import warnings
 import numpy as np
 import pytest
 
-import evaluation.statistics as st
-from evaluation.statistics import (
+import evaluation.stats.statistics as st
+from evaluation.stats.statistics import (
     PairedComparison,
     bootstrap_mean_interval,
     paired_comparison,

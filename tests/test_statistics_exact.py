@@ -1,4 +1,4 @@
-"""evaluation.statistics to the bit where tests/test_statistics.py checks to a tolerance (issue 41,
+"""evaluation.stats.statistics to the bit where tests/test_statistics.py checks to a tolerance (issue 41,
 mutation testing): the bootstraps replayed from the very indices they drew (so the resampled
 statistic, the quantiles, the chunking and the memory bound are all checked exactly), the
 documented defaults, the tail mean by hand, and the outcome and message checks.
@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pytest
 
-import evaluation.statistics as st
-from evaluation.statistics import (
+import evaluation.stats.statistics as st
+from evaluation.stats.statistics import (
     bootstrap_mean_interval,
     bootstrap_tail_interval,
     paired_comparison,

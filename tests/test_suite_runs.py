@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import evaluate as ev
-from evaluation.aggregate import leaderboard, paired_comparisons
-from evaluation.records import record_problem
-from evaluation.run_data import RunData
+from evaluation.episodes.records import record_problem
+from evaluation.stats.aggregate import leaderboard, paired_comparisons
+from evaluation.stats.run_data import RunData
 from koopman_envs.suites import load_suite
 
 ROOT = Path(ev.__file__).parent

@@ -1,4 +1,4 @@
-"""A suite run's statistics in its reports (evaluation/suite_statistics.py): the leaderboard's
+"""A suite run's statistics in its reports (evaluation/stats/suite_statistics.py): the leaderboard's
 intervals are the two-stage bootstrap over layouts; every paired table is a family declared from
 the run's design, Holm within it, its p-values the layout sign-flip test's; each table states its
 power; records written before the metrics existed still make a report."""
@@ -10,16 +10,20 @@ import math
 import numpy as np
 import pytest
 
-from evaluation.aggregate import leaderboard, paired_comparisons
-from evaluation.clustered import layout_mean_interval, layout_rate_interval
-from evaluation.families import HypothesisFamily, power_statement
-from evaluation.layout_tests import layout_sign_flip_test, paired_means_by_layout, paired_rates_by_layout
-from evaluation.records import record_problem
-from evaluation.report import markdown, sections
-from evaluation.results import Results
-from evaluation.run_data import RunData
-from evaluation.statistics import holm_adjusted, wilson_interval
-from evaluation.suite_statistics import (
+from evaluation.episodes.records import record_problem
+from evaluation.reports.results import Results
+from evaluation.reports.sections import markdown, sections
+from evaluation.stats.aggregate import leaderboard, paired_comparisons
+from evaluation.stats.clustered import layout_mean_interval, layout_rate_interval
+from evaluation.stats.families import HypothesisFamily, power_statement
+from evaluation.stats.layout_tests import (
+    layout_sign_flip_test,
+    paired_means_by_layout,
+    paired_rates_by_layout,
+)
+from evaluation.stats.run_data import RunData
+from evaluation.stats.statistics import holm_adjusted, wilson_interval
+from evaluation.stats.suite_statistics import (
     MEASURES,
     METRICS,
     OUTCOMES,

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import evaluate as ev
-from evaluation.spec import RunSpec
-from evaluation.statistics import bootstrap_tail_interval, tail_mean
-from evaluation.sweep import SweepAxis, parse_sweep
+from evaluation.experiments.sweep import SweepAxis, parse_sweep
+from evaluation.run.spec import RunSpec
+from evaluation.stats.statistics import bootstrap_tail_interval, tail_mean
 
 TINY = [
     "--env",
@@ -150,7 +150,7 @@ def test_the_tail_is_the_mean_of_the_worst_tenth() -> None:
 
 
 def test_a_level_that_is_the_same_run_as_another_runs_once(tmp_path) -> None:
-    from evaluation.sweep import level_aliases
+    from evaluation.experiments.sweep import level_aliases
 
     axes = [
         parse_sweep("pose_noise.xy=0,0.2"),
@@ -230,7 +230,7 @@ def _records(controller: str, successes: list[bool], distances: list[float]) -> 
 def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
     from types import SimpleNamespace as Results  # profiles read a run's records and config only
 
-    from evaluation.robustness import profiles
+    from evaluation.stats.robustness import profiles
 
     config = {"controllers": ["ref", "other"]}
     level_0 = Results(
@@ -262,7 +262,7 @@ def test_the_profile_statistics_on_a_hand_made_sweep() -> None:
         profiles({"comm.drop": [(0, level_0)]}, reference="nobody")
 
     # the overview: every axis's AUC per controller, and the axis with the largest drop
-    from evaluation.report import overview_section, robustness_sections
+    from evaluation.reports.sections import overview_section, robustness_sections
 
     assert overview_section([profile]) is None  # one axis: its own summary says it all
     both = profiles(
@@ -290,9 +290,9 @@ def test_a_sweep_prints_its_overview_to_the_terminal(tmp_path, capsys) -> None:
 def test_what_each_level_costs_each_controller_against_its_own_first_level() -> None:
     from types import SimpleNamespace as Results
 
-    from evaluation.report import level_cost_section, markdown
-    from evaluation.robustness import level_costs
-    from evaluation.statistics import paired_comparison
+    from evaluation.reports.sections import level_cost_section, markdown
+    from evaluation.stats.robustness import level_costs
+    from evaluation.stats.statistics import paired_comparison
 
     config = {"controllers": ["ref", "other"]}
     level_0 = Results(

@@ -8,8 +8,8 @@ import copy
 import pytest
 
 import evaluate as ev
-import evaluation.thresholds as thresholds
-from evaluation.results import Results
+import evaluation.reports.thresholds as thresholds
+from evaluation.reports.results import Results
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The batched multi-agent TorchRL env (baselines.torchrl_env): TorchRL's spec check, and step for
+"""The batched multi-agent TorchRL env (baselines.marl.torchrl_env): TorchRL's spec check, and step for
 step the vector env it wraps, ends of episodes included."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ pytest.importorskip("torchrl")
 import gymnasium as gym  # noqa: E402
 from torchrl.envs.utils import check_env_specs  # noqa: E402
 
-from baselines.torchrl_env import GROUP, KoopNavMultiAgentEnv  # noqa: E402
+from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv  # noqa: E402
 
 ENV = "KoopNav-Formation-v0"
 KWARGS = {"map": "random", "n_robots": 4, "max_episode_steps": 25}
@@ -74,7 +74,7 @@ def test_the_training_terms_are_the_sb3_adapters() -> None:
     pytest.importorskip("stable_baselines3")
     import torch
 
-    from baselines.vec_env import KoopNavSB3VecEnv
+    from baselines.sb3.vec_env import KoopNavSB3VecEnv
 
     k, steps, terms = 6, 80, {"collision_penalty": 10.0, "precision_shaping": 5.0}
     kwargs = {**KWARGS, "max_episode_steps": 60}
@@ -110,7 +110,7 @@ def test_the_training_terms_are_the_sb3_adapters() -> None:
 def test_standardized_observations_are_the_raw_blocks_scaled_and_checked() -> None:
     """``observation_stats`` hands out (block - mean) / std of the same rollout, the specs' bounds
     scaled alike (TorchRL's check), and a mean of the wrong width is refused by name."""
-    from baselines.torchrl_env import observation_statistics
+    from baselines.marl.torchrl_env import observation_statistics
 
     mean, std = observation_statistics(ENV, num_envs=4, steps=20, **KWARGS)
     assert mean.shape == std.shape == (KoopNavMultiAgentEnv(ENV, 1, **KWARGS)._obs_low.shape[1],)
@@ -138,11 +138,11 @@ def test_standardized_observations_are_the_raw_blocks_scaled_and_checked() -> No
 
 def test_features_are_appended_as_the_ppo_policies_read_them() -> None:
     """``features="bearing+headings"``: every robot's observation is its block with
-    baselines.robot_features appended (the rl-ppo policies' input), within the specs' bounds
+    baselines.features.robot_features appended (the rl-ppo policies' input), within the specs' bounds
     (TorchRL's check), standardized by statistics of the same widened blocks; an unknown feature
     set is refused by name."""
-    from baselines.robot_features import robot_features
-    from baselines.torchrl_env import observation_statistics
+    from baselines.features.robot_features import robot_features
+    from baselines.marl.torchrl_env import observation_statistics
 
     plain = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
     featured = KoopNavMultiAgentEnv(ENV, 3, features="bearing+headings", **KWARGS)

@@ -33,7 +33,7 @@ from test_observed_view import _poisoned  # every field outside the observed vie
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
-from koopman_envs.builder.plant import make_plant
+from koopman_envs.engine.plant import make_plant
 from koopman_envs.observed import OBSERVED_KEYS
 from koopman_envs.sim.maps import MapSpec
 

@@ -1,4 +1,4 @@
-"""The tuner (evaluation/tune.py, issue 60): held-out split, seeded sampling, resumable study log,
+"""The tuner (evaluation/tune/, issue 60): held-out split, seeded sampling, resumable study log,
 trial 0 the defaults, the expected-max curve, the tunable spaces and the tuned presets."""
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from controllers import presets
 from controllers.option_spec import Search, with_search
 from controllers.presets import HAND_PRESETS, TUNED_KIND, build_preset, builtin_names, read_tuned, with_tuned
 from evaluation import tune
+from evaluation.episodes.runlog import LogError
 from evaluation.exit_codes import BAD_INPUT_EXIT
-from evaluation.runlog import LogError
 from evaluation.tune import (
     STUDY_FILE,
     StudySettings,

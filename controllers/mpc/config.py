@@ -272,7 +272,7 @@ class NMPCConfig:
         margins); on a team without localization error or delay it identifies none and is a
         no-op, bit for bit. ``"realistic"``: the same front-end told the ``realistic`` preset's
         delay and noise (a datasheet) instead of identifying them, held whatever the team has
-        (the mis-specified case). ``"none"``: the paper's controller, planning from every
+        (the mis-specified case). ``"none"``: no front-end, as in the paper, planning from every
         measured pose as if it were exact.
     ablate : str
         (ours) One lever of the estimator and its margins switched off, for the ablation

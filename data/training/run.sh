@@ -15,12 +15,12 @@
 #   SEEDS               seeds per policy and task (default 3: seeds 0, 1, 2)
 #   TASKS               the tasks (default "target_reaching formation")
 #   TIMESTEPS           rl-ppo-set / rl-ppo budget in robot-steps (default: the task's
-#                       baselines.train_options.TIMESTEPS, 14 M target reaching, 12 M formation)
+#                       baselines.sb3.train_options.TIMESTEPS, 14 M target reaching, 12 M formation)
 #   FRAMES              ippo budget in frames (default 6_000_000, the shipped ippo's)
 #   VALIDATION_LAYOUTS  validation layouts per checkpoint (default 50)
 #   THREADS             torch threads of a training run (default 1; a seed's weights are the
 #                       same bit for bit at the same thread count)
-#   SB3_ARGS, IPPO_ARGS further options of baselines.train / baselines.benchmarl_train (after
+#   SB3_ARGS, IPPO_ARGS further options of baselines.sb3.train / baselines.marl.benchmarl_train (after
 #                       the defaults here, so they win), e.g. a tiny network for a smoke run
 #   TRAINING_ROOT       where the seed folders go (default data/training)
 set -euo pipefail
@@ -59,14 +59,14 @@ train() {  # train POLICY TASK SEED DIR: one seed's run, its output in DIR/train
     [ -n "${TIMESTEPS:-}" ] && budget=(--timesteps "$TIMESTEPS")
     case "$policy" in
         rl-ppo-set)
-            python -m baselines.train --env "$(env_id "$task")" --policy set "${common[@]}" "${budget[@]}" \
+            python -m baselines.sb3.train --env "$(env_id "$task")" --policy set "${common[@]}" "${budget[@]}" \
                 "${sb3_args[@]}" --out "$dir" ;;
         rl-ppo)
-            python -m baselines.train --env "$(env_id "$task")" "${common[@]}" "${budget[@]}" \
+            python -m baselines.sb3.train --env "$(env_id "$task")" "${common[@]}" "${budget[@]}" \
                 "${sb3_args[@]}" --out "$dir" ;;
         ippo)
             # the shipped ippo's settings (baselines/policies/ippo/*/metadata.json), on the suite's layouts
-            python -m baselines.benchmarl_train --task "$task" --algorithm ippo "${common[@]}" \
+            python -m baselines.marl.benchmarl_train --task "$task" --algorithm ippo "${common[@]}" \
                 --frames "$FRAMES" --frames-per-batch 12000 --minibatch-size 1000 --epochs 5 \
                 --normalize-advantage --envs 200 --features bearing+headings --entropy-coef 0.01 \
                 "${ippo_args[@]}" --out "$dir" ;;

@@ -11,7 +11,7 @@ suite, never on ``test``::
   split, per task) x E episodes (``--episodes``: episode j of layout l seeded
   ``seed + j * len(split) + l``, as in any suite run), the same for every controller, recorded
   in the study's header. Every configuration runs on the same layouts and seeds (paired: common
-  random numbers), in the benchmark's own run (:func:`evaluation.protocols.suite_protocol`:
+  random numbers), in the benchmark's own run (:func:`evaluation.experiments.protocols.suite_protocol`:
   high slip, perturbed starts, the NMPCs on the real-time iteration).
 - **Objective.** :func:`~evaluation.tune.scoring.objective`: the validation success rate, ties
   broken by the mean time to goal over the successes. With S successes of n episodes and u the

@@ -13,7 +13,7 @@ SUITE = "koopnav-bench-v1"
 #: ``--task``: one task, or both (one configuration scored on the layouts of both)
 TASK_CHOICES = (*TASKS, "both")
 #: the slip of every tuning episode: the benchmark's own setting (the quick board's high slip,
-#: :func:`evaluation.protocols.suite_protocol`), so a configuration is tuned on validation layouts
+#: :func:`evaluation.experiments.protocols.suite_protocol`), so a configuration is tuned on validation layouts
 #: under the conditions its test-suite row is measured in
 DEFAULT_SLIP = "high"
 
@@ -45,10 +45,10 @@ def evaluate_configuration(
     call into the evaluator (and the learned policies' trainers', which score their checkpoints
     with it: ``purpose="checkpoint selection"``).
 
-    The benchmark's own run (:func:`evaluation.protocols.suite_protocol`: perturbed starts, the
+    The benchmark's own run (:func:`evaluation.experiments.protocols.suite_protocol`: perturbed starts, the
     NMPCs on the real-time iteration) on the given layouts of ``split``, for this one
     configuration: every layout runs ``episodes`` episodes, episode j of layout l seeded
-    ``seed + j * len(split) + l`` as in any suite run (:mod:`evaluation.suite_runs`), the layout
+    ``seed + j * len(split) + l`` as in any suite run (:mod:`evaluation.run.suite_runs`), the layout
     handed to the env's reset, so that a tuning episode is the episode the evaluator would run.
 
     Parameters
@@ -83,11 +83,11 @@ def evaluate_configuration(
     Returns
     -------
     list of dict
-        The episode records (:mod:`evaluation.records`), each with ``suite`` (the split's label,
+        The episode records (:mod:`evaluation.episodes.records`), each with ``suite`` (the split's label,
         its hash included) and ``layout`` (the index) added.
     """
-    from evaluation.protocols import suite_protocol
-    from evaluation.runner import evaluate
+    from evaluation.execution.runner import evaluate
+    from evaluation.experiments.protocols import suite_protocol
 
     check_split_allowed(split, purpose)
     tasks = tasks_of(task)

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controllers.search_space import Search
-from evaluation.records import json_safe
-from evaluation.runlog import (
+from evaluation.episodes.records import json_safe
+from evaluation.episodes.runlog import (
     LogError,
     cut_torn,
     parse_lines,

@@ -13,8 +13,8 @@ from typing import Any
 import controllers
 from controllers.presets import TUNED_KIND
 from controllers.search_space import Search
-from evaluation.records import json_safe
-from evaluation.runlog import (
+from evaluation.episodes.records import json_safe
+from evaluation.episodes.runlog import (
     LogError,
     ensure_output_dir,
     open_append_locked,
@@ -98,7 +98,7 @@ def run_study(
     ------
     ValueError
         A bad setting (the test split by name), before any episode; a log that exists without
-        ``resume`` or cannot be resumed (:class:`~evaluation.runlog.LogError`).
+        ``resume`` or cannot be resumed (:class:`~evaluation.episodes.runlog.LogError`).
     ImportError
         Optuna is not installed (the ``tune`` extra).
     KeyboardInterrupt

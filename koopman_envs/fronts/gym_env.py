@@ -9,9 +9,9 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import START_NOISE_ATTEMPTS, NavigationEngine
-from koopman_envs.builder.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import START_NOISE_ATTEMPTS, NavigationEngine
+from koopman_envs.engine.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
 from koopman_envs.reset_options import parse_reset_options

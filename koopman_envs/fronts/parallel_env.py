@@ -16,9 +16,9 @@ from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import NavigationEngine
-from koopman_envs.builder.keywords import ENV_KEYWORDS, takes_env_keywords
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import NavigationEngine
+from koopman_envs.engine.keywords import ENV_KEYWORDS, takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import parse_reset_options
@@ -58,7 +58,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
     render_mode : str, optional
         ``"rgb_array"`` or ``"human"`` (matplotlib), as for the Gymnasium env.
     **keywords
-        The env keywords of :data:`koopman_envs.builder.keywords.ENV_KEYWORDS`, as for the Gymnasium env
+        The env keywords of :data:`koopman_envs.engine.keywords.ENV_KEYWORDS`, as for the Gymnasium env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...), plus
         ``max_episode_steps``: the time limit in control periods (default
         ``PARAMS.max_episode_steps``; this env truncates by itself), and ``max_cycles``, the same

@@ -314,7 +314,7 @@ class Renderer:
 def draw_engine_env(
     renderer: Renderer, engine: Any, index: int, trail: Sequence[NDArray[np.float64]]
 ) -> NDArray[np.uint8] | None:
-    """One frame of environment ``index`` of a :class:`~koopman_envs.builder.engine.NavigationEngine`
+    """One frame of environment ``index`` of a :class:`~koopman_envs.engine.engine.NavigationEngine`
     (what the single env's and the vector env's ``render()`` draw): with its movers, its lidar
     beams (unless ``renderer.show_beams`` is False) and a mark at a collision.
 

@@ -199,7 +199,7 @@ def collision_marks(
 
 def engine_overlay(engine: Any, index: int, show_beams: bool = True) -> Overlay:
     """The :class:`Overlay` of environment ``index`` of a
-    :class:`~koopman_envs.builder.engine.NavigationEngine` after a reset: its lidar readings (the info's
+    :class:`~koopman_envs.engine.engine.NavigationEngine` after a reset: its lidar readings (the info's
     ``lidar_ranges``; with ``sensing="lidar"`` and ``show_beams``) and its collision flags."""
     lidar = engine.config.lidar
     ranges, angles, max_range = None, np.zeros(0), 0.0
@@ -213,13 +213,13 @@ def engine_overlay(engine: Any, index: int, show_beams: bool = True) -> Overlay:
 
 def frame_title(config: Any) -> str:
     """The fixed part of a frame's title (the renderer appends the episode time): task, map, the
-    formation shape asked for, and the slip setting of an :class:`~koopman_envs.builder.config.EngineConfig`."""
+    formation shape asked for, and the slip setting of an :class:`~koopman_envs.engine.config.EngineConfig`."""
     shape = f" | {config.formation}" if config.formation else ""
     return f"{config.task.name} | {config.map_name}{shape} | slip {config.slip_label}"
 
 
 def engine_frame(engine: Any, index: int, show_beams: bool = True) -> dict[str, Any]:
-    """What a frame of environment ``index`` of a :class:`~koopman_envs.builder.engine.NavigationEngine`
+    """What a frame of environment ``index`` of a :class:`~koopman_envs.engine.engine.NavigationEngine`
     shows besides its scenario and trail: the keywords ``title``, ``elapsed``, ``slip_zones``,
     ``movers`` and ``overlay`` of :meth:`Renderer.draw <koopman_envs.fronts.rendering.Renderer.draw>`."""
     spec = engine.maps[index]

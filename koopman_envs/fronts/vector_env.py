@@ -12,10 +12,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from koopman_envs.builder.config import EngineConfig
-from koopman_envs.builder.engine import NavigationEngine
-from koopman_envs.builder.keywords import takes_env_keywords
 from koopman_envs.checks import check_int
+from koopman_envs.engine.config import EngineConfig
+from koopman_envs.engine.engine import NavigationEngine
+from koopman_envs.engine.keywords import takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import LIMITS
 from koopman_envs.reset_options import parse_reset_options
@@ -51,7 +51,7 @@ class KoopNavVectorEnv(VectorEnv):
         Trails are kept only then. ``"human"`` is a ``ValueError``: render a single env, or
         tile these frames with ``gymnasium.wrappers.vector.HumanRendering``.
     **keywords
-        The env keywords of :data:`koopman_envs.builder.keywords.ENV_KEYWORDS`, as for the single env
+        The env keywords of :data:`koopman_envs.engine.keywords.ENV_KEYWORDS`, as for the single env
         (``map``, ``slip``, ``n_robots``, ``formation``, ``start_noise``, ...);
         ``max_episode_steps`` (default ``PARAMS.max_episode_steps``) comes from the registration,
         and this env truncates by itself. Sub-env i draws its map, start noise and slip (drift

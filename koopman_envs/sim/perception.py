@@ -1,6 +1,6 @@
 """What every robot believes: noisy localization, team-mates heard over a lossy radio, lidar readings.
 
-:class:`Perception` runs beside the physics of :class:`~koopman_envs.builder.engine.NavigationEngine`
+:class:`Perception` runs beside the physics of :class:`~koopman_envs.engine.engine.NavigationEngine`
 when any uncertainty setting of :mod:`koopman_envs.uncertainty` is away from its perfect value.
 After each step (and at reset) one compiled pass updates, per environment:
 

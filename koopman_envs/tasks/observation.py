@@ -127,7 +127,7 @@ class FeatureBuilder:
     num_envs : int
         Batch size K.
     layout : ObservationLayout
-        One robot's block (the engine's :attr:`~koopman_envs.builder.config.EngineConfig.observation_layout`):
+        One robot's block (the engine's :attr:`~koopman_envs.engine.config.EngineConfig.observation_layout`):
         team size, listed obstacles or lidar beams, formation error, message ages, listed movers.
     n_obstacles : int
         Obstacles per environment M.

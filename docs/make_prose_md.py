@@ -1,0 +1,119 @@
+"""Write a page whose text is a template with its numbers computed from the committed data
+(issue 60: prose that cannot drift), e.g. docs/paper.md from docs/_intros/paper.md.
+
+Usage (the published pages' arguments are in ``data/pages.json``)::
+
+    python docs/make_prose_md.py TEMPLATE --runs NAME=data/NAME.tar.xz ... --out PAGE
+
+The template is Markdown in which every result is a placeholder ``{{ FUNCTION ARGUMENT ...
+KEY=VALUE ... }}`` (its words split as a shell splits them: quote one that holds spaces). Each
+is replaced by what FUNCTION prints from the published runs the page names, so the page states
+no number its data do not give and a republication updates every number at once:
+
+- the numbers (``docs/prose_numbers.py``): ``episodes``, ``kn``, ``rate``, ``ci``, ``diff``,
+  ``points``, ``p``, ``holm``, ``tests`` (a run's episodes, filtered by ``task=``, ``map=``,
+  ``slip=``), ``vsref``, ``vsref_holm``, ``cost``, ``cost_holm`` (a sweep's paired tests),
+  ``effect``, ``effect_p`` (the ablation's main effects), ``steps`` (a shipped policy's budget);
+- the tables (``docs/prose_tables.py``), each alone on its line: ``success_table``,
+  ``slip_table``, ``paper_cells``, ``run_table``, ``scale_table``, ``factor_table``.
+
+A run is named ``NAME`` or, for one level of a sweep, ``NAME@KEY=LEVEL``
+(``paper_realistic@uncertainty=realistic``). Each function's docstring says what it prints;
+``python docs/make_prose_md.py --list`` prints them all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shlex
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts beside this one
+
+from prose_numbers import FILTERED, FILTERS, NUMBERS, ROOT, Options, Runs, parse_runs  # noqa: E402
+from prose_tables import TABLES  # noqa: E402
+
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
+from koopman_envs.files import write_atomic  # noqa: E402
+
+__all__ = ["FUNCTIONS", "PLACEHOLDER", "expand", "main"]
+
+#: a placeholder: ``{{ FUNCTION ARGUMENT ... }}`` (on one line or several)
+PLACEHOLDER = re.compile(r"\{\{(.*?)\}\}", re.DOTALL)
+#: every placeholder function by name: the numbers, then the tables
+FUNCTIONS: dict[str, Callable[[Runs, Sequence[str], Options], str]] = {**NUMBERS, **TABLES}
+#: the words of a placeholder that are options, not arguments: the filters and the tables' lists
+OPTION = re.compile(rf"^({'|'.join([*FILTERS, 'runs', 'times'])})=(.+)$")
+
+
+def _call(runs: Runs, inner: str) -> str:
+    words = shlex.split(inner)
+    if not words or words[0] not in FUNCTIONS:
+        raise ValueError(f"{words[0] if words else ''!r} is not one of the functions {sorted(FUNCTIONS)}")
+    options = {m[1]: m[2] for m in map(OPTION.match, words[1:]) if m}
+    args = [w for w in words[1:] if not OPTION.match(w)]
+    filters = set(options) & set(FILTERS)
+    if filters and words[0] not in FILTERED:
+        raise ValueError(f"{words[0]} takes no filter, got {sorted(filters)}")
+    return FUNCTIONS[words[0]](runs, args, options)
+
+
+def expand(text: str, runs: Runs) -> str:
+    """``text`` with every placeholder replaced by what its function computes from ``runs``.
+
+    Raises
+    ------
+    ValueError
+        A placeholder names an unknown function, run, controller, level or filter, or counts no
+        episode (the message quotes the placeholder); or ``{{`` / ``}}`` is left unpaired.
+    """
+
+    def replace(match: re.Match[str]) -> str:
+        try:
+            return _call(runs, match[1])
+        except (ValueError, KeyError) as exc:
+            raise ValueError(f"placeholder {match[0]!r}: {exc}") from None
+
+    out = PLACEHOLDER.sub(replace, text)
+    for mark in ("{{", "}}"):
+        if mark in out:
+            line = out[: out.index(mark)].count("\n") + 1
+            raise ValueError(f"an unpaired {mark!r} is left in the page at line {line}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument(
+        "template", nargs="?", type=Path, help="the page's template, e.g. docs/_intros/paper.md"
+    )
+    parser.add_argument(
+        "--runs", nargs="+", default=[], help="the published runs it reads, NAME=data/NAME.tar.xz"
+    )
+    parser.add_argument("--out", help="the page to write, e.g. docs/paper.md")
+    parser.add_argument("--figures", help="accepted for docs/make_pages.py; these pages draw no figure")
+    parser.add_argument("--list", action="store_true", help="print every placeholder function and exit")
+    args = parser.parse_args(argv)
+    if args.list:
+        for name, function in FUNCTIONS.items():
+            print(f"{name}: {' '.join((function.__doc__ or '').split())}")
+        return SUCCESS_EXIT
+    if args.template is None or args.out is None:
+        parser.error("a TEMPLATE and --out are needed (or --list)")
+    try:
+        text = expand(args.template.read_text(encoding="utf-8"), Runs(parse_runs(args.runs)))
+    except (ValueError, OSError) as exc:  # the message names the placeholder, run or file
+        print(f"error: {exc}", file=sys.stderr)
+        return BAD_INPUT_EXIT
+    write_atomic(args.out, text)
+    print(f"wrote {args.out}")
+    return SUCCESS_EXIT
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

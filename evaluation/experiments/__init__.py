@@ -1,0 +1,92 @@
+"""Experiments made of runs: the named protocols, presets of :class:`~evaluation.run.spec.RunSpec`
+(:mod:`~evaluation.experiments.protocols`), the NMPC design-factor ablation and its report
+(:mod:`~evaluation.experiments.ablation`), ``--sweep``: one run per level of an env setting
+(:mod:`~evaluation.experiments.sweep`), and the learned policies' training seeds on the test split
+(:mod:`~evaluation.experiments.seeds`, a command: ``python -m evaluation.experiments.seeds``).
+
+The package is their face: the public names of its modules (their ``__all__``), importable from
+here (tests/test_architecture.py checks the list), except those of the seeds command, which are
+read from :mod:`evaluation.experiments.seeds` (its ``main`` and ``aggregate`` would be ambiguous here).
+"""
+
+from __future__ import annotations
+
+from evaluation.experiments.ablation import (
+    DEFAULT_LEVELS,
+    FACTORS,
+    ablation_configs,
+    ablation_markdown,
+    check_factors,
+    main_effects,
+)
+from evaluation.experiments.protocols import (
+    CROWD_COUNTS,
+    CROWD_REFERENCE,
+    LIDAR_AXES,
+    LIDAR_MOVERS,
+    PAPER_EXACT,
+    PROTOCOLS,
+    QUICK_SLIPS,
+    QUICK_START_NOISE,
+    START_NOISE,
+    SUITE_EPISODES,
+    TASK_MAPS,
+    ablation_protocol,
+    crowd_protocol,
+    lidar_protocol,
+    paper_protocol,
+    protocol,
+    quick_protocol,
+    suite_protocol,
+)
+from evaluation.experiments.sweep import (
+    MANIFEST,
+    MAX_SWEEP_LEVELS,
+    SweepAxis,
+    add_sweep_options,
+    check_levels,
+    level_aliases,
+    load_sweep,
+    parse_sweep,
+    refuse_sweep_clash,
+    run_sweep,
+    write_manifest,
+)
+
+__all__ = [
+    "DEFAULT_LEVELS",
+    "FACTORS",
+    "ablation_configs",
+    "ablation_markdown",
+    "check_factors",
+    "main_effects",
+    "CROWD_COUNTS",
+    "CROWD_REFERENCE",
+    "crowd_protocol",
+    "LIDAR_AXES",
+    "LIDAR_MOVERS",
+    "lidar_protocol",
+    "PAPER_EXACT",
+    "PROTOCOLS",
+    "QUICK_SLIPS",
+    "QUICK_START_NOISE",
+    "START_NOISE",
+    "SUITE_EPISODES",
+    "TASK_MAPS",
+    "ablation_protocol",
+    "paper_protocol",
+    "protocol",
+    "quick_protocol",
+    "suite_protocol",
+    "MANIFEST",
+    "MAX_SWEEP_LEVELS",
+    "SweepAxis",
+    "add_sweep_options",
+    "check_levels",
+    "level_aliases",
+    "load_sweep",
+    "parse_sweep",
+    "refuse_sweep_clash",
+    "run_sweep",
+    "write_manifest",
+]

@@ -1,0 +1,407 @@
+"""Published data: the episode logs behind every results page, in the repository as
+``data/NAME.tar.xz`` (each run's ``episodes.jsonl`` and, for a sweep, its ``sweep.json``;
+``bash data/publish.sh pack`` writes them), read back checked so that a page's generator rebuilds
+the page from them byte for byte.
+
+xz (LZMA, Python's standard ``lzma``: no extra dependency, read by ``tar -xJf`` and pandas alike)
+holds the same logs in a third of gzip's size (57.8 MB of ``.tar.gz`` became 26.4 MB). What is
+left is the records' full-precision floats (poses, distances, timings: about 40 per episode at
+8 bytes of entropy each), which stay unrounded because resumed runs and the bit-identity checks
+compare them exactly.
+
+An episode log is JSON lines: a header ``{"kind": "koopnav-run", "config": {...}}`` with the
+run's settings, then one record per episode (the fields of ``docs/results.schema.json``). In
+pandas::
+
+    import json, tarfile
+    import pandas as pd
+
+    with tarfile.open("data/paper_realistic.tar.xz") as archive:
+        member = archive.extractfile("paper_realistic/sweep/uncertainty-realistic/episodes.jsonl")
+        lines = member.read().decode().splitlines()
+    episodes = pd.DataFrame([json.loads(line) for line in lines[1:]])
+    episodes.groupby("controller")["success"].mean()
+
+Reading an archive back trusts nothing in it (:func:`extract_archive`): the file must be a regular
+file of bounded size; its members are streamed, each checked before a byte of it is written (a
+directory or an episode log or sweep manifest, at a relative path inside the extraction directory:
+no absolute path, ``..``, link or device), with their number, each one's size, the total
+unpacked and the compression ratio bounded as the bytes come (the ``MAX_*`` limits below, in the
+policy loader's style, :mod:`baselines.safe_load`), so a decompression bomb is stopped within its
+first megabytes; :func:`extracted_archive` unpacks into a temporary directory removed after use.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import lzma
+import os
+import shutil
+import tarfile
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from evaluation.episodes.distinct import read_once
+from evaluation.episodes.records import record_problem
+from evaluation.reports.results import Results
+from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_LOG_BYTES, read_bounded, read_text, write_atomic
+
+__all__ = [
+    "ARCHIVE_SUFFIX",
+    "MAX_ARCHIVE_BYTES",
+    "MAX_MEMBERS",
+    "MAX_MEMBER_BYTES",
+    "MAX_RATIO",
+    "MAX_TOTAL_BYTES",
+    "PACKED_OUT",
+    "RATIO_FLOOR",
+    "extract_archive",
+    "extracted_archive",
+    "is_archive",
+    "pack_run",
+    "results_from_log",
+    "unpack_run",
+]
+
+_MIB = 2**20
+#: Largest published archive [bytes], read whole before it is unpacked: the largest committed one
+#: (robustness) is 5.8 MB.
+MAX_ARCHIVE_BYTES = 64 * _MIB
+#: Largest number of members: a sweep's manifest and one log per level (the largest holds 14).
+MAX_MEMBERS = 256
+#: Largest unpacked member [bytes]: an episode log, which is then read whole
+#: (:data:`koopman_envs.files.MAX_LOG_BYTES`; the largest committed one is 9.8 MB).
+MAX_MEMBER_BYTES = MAX_LOG_BYTES
+#: Largest total unpacked [bytes], tar headers included: ten times the largest committed archive (51 MB).
+MAX_TOTAL_BYTES = 512 * _MIB
+#: Largest ratio of the bytes unpacked to the compressed bytes read so far, beyond
+#: :data:`RATIO_FLOOR`: the committed archives unpack at 5-10:1; beyond 100:1 the payload is runs
+#: of one byte, a decompression bomb's (229 KB of xz once unpacked to 1.5 GB).
+MAX_RATIO = 100
+#: Bytes unpacked before the ratio is checked: a small archive's fixed costs (tar headers and
+#: padding, xz's blocks) may compress beyond :data:`MAX_RATIO` and cost nothing.
+RATIO_FLOOR = _MIB
+#: the member files a published archive holds (directories aside)
+_MEMBER_NAMES = ("episodes.jsonl", "sweep.json")
+#: the magic bytes an xz stream starts with
+_XZ_MAGIC = b"\xfd7zXZ\x00"
+#: bytes unpacked at a time
+_CHUNK = _MIB
+
+#: how a published archive's name ends
+ARCHIVE_SUFFIX = ".tar.xz"
+
+#: record fields a published log leaves out: every step's decision time (the per-episode median
+#: and 95th percentile stay; a cell's p95 then comes from them), a third of the packed size
+PACKED_OUT = ("solve_ms",)
+
+
+def _plan_order(config: dict[str, Any]) -> Any:
+    """Sort key of a record in the order the run planned its episodes (env, controller, map,
+    slip, trial), so that a page does not depend on the order workers finished in."""
+    envs = list(config.get("env_ids") or [])
+    labels = [c.get("label") for c in config.get("controller_configs") or []]
+    maps = config.get("maps") or {}
+    slips = list(config.get("slips") or [])
+
+    def key(record: dict[str, Any]) -> tuple:
+        env = record["env_id"]
+        env_maps = list(maps.get(env, []))
+        return (
+            envs.index(env) if env in envs else len(envs),
+            labels.index(record["controller"]) if record["controller"] in labels else len(labels),
+            env_maps.index(record["map"]) if record["map"] in env_maps else len(env_maps),
+            slips.index(record["slip"]) if record["slip"] in slips else len(slips),
+            record["trial"],
+        )
+
+    return key
+
+
+def results_from_log(path: str | Path) -> Results:
+    """A run's results from its episode log: the header's settings and every record, each
+    checked (:func:`evaluation.episodes.records.record_problem`; a torn or foreign line is refused by
+    its number), in the run's planned order; an episode logged twice is read once, and refused
+    (:class:`~evaluation.episodes.distinct.ConflictingRecords`, a ``ValueError``) when its two records
+    disagree (:func:`evaluation.episodes.distinct.read_once`). The log is read as
+    :func:`koopman_envs.files.read_text` reads (a regular file of at most
+    :data:`koopman_envs.files.MAX_LOG_BYTES`)."""
+    path = Path(path)
+    text = read_text(path, MAX_LOG_BYTES, what="episode log", expected="a KoopNav episode log (JSON lines)")
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    try:
+        header = parse_json(lines[0], f"{path}, line 1") if lines else None
+    except ValueError:  # not JSON (a JSONDecodeError) or nested past the bound: not a header
+        header = None
+    if not isinstance(header, dict) or header.get("kind") != "koopnav-run":
+        raise ValueError(f"{path} is not a KoopNav episode log (line 1 is not a run header)")
+    config = dict(header["config"])
+    config["controllers"] = [c["label"] for c in config.get("controller_configs") or []]
+    records: list[dict[str, Any]] = []
+    for number, line in enumerate(lines[1:], start=2):
+        try:
+            record = parse_json(line, f"{path}, line {number}")
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}, line {number}: not JSON ({exc.msg})") from None
+        problem = record_problem(record)
+        if problem is not None:
+            raise ValueError(f"{path}, line {number}: {problem}")
+        records.append(record)
+    once = read_once(records, str(path), [f"line {number}" for number in range(2, len(records) + 2)])
+    return Results(sorted(once, key=_plan_order(config)), config)
+
+
+def is_archive(path: str | Path) -> bool:
+    """Whether ``path`` names a published archive (``*.tar.xz``, :data:`ARCHIVE_SUFFIX`)."""
+    return str(path).endswith(ARCHIVE_SUFFIX)
+
+
+def _check_name(archive: Path) -> None:
+    if not is_archive(archive):
+        raise ValueError(f"{archive}: a published archive's name ends in {ARCHIVE_SUFFIX!r}")
+
+
+class _Counted:
+    """A binary stream that counts the bytes read from it."""
+
+    def __init__(self, stream: io.BufferedIOBase) -> None:
+        self.stream, self.count = stream, 0
+
+    def read(self, size: int = -1) -> bytes:
+        data = self.stream.read(size)
+        self.count += len(data)
+        return data
+
+
+class _Bounded:
+    """The unpacked tar stream of an xz archive, refused as soon as what it has unpacked exceeds
+    :data:`MAX_TOTAL_BYTES`, or :data:`MAX_RATIO` times the compressed bytes read (beyond
+    :data:`RATIO_FLOOR`): every byte tarfile reads (headers included) comes through here."""
+
+    def __init__(self, blob: bytes, archive: Path) -> None:
+        self.packed = _Counted(io.BytesIO(blob))
+        self.xz = lzma.LZMAFile(self.packed)  # type: ignore[arg-type]  # reads like a file
+        self.archive, self.count = archive, 0
+
+    def read(self, size: int = -1) -> bytes:
+        data = self.xz.read(min(size, _CHUNK) if size >= 0 else _CHUNK)
+        self.count += len(data)
+        if self.count > MAX_TOTAL_BYTES:
+            raise ValueError(
+                f"{self.archive}: unpacks to more than {MAX_TOTAL_BYTES} bytes, the most allowed "
+                "(evaluation.reports.published.MAX_TOTAL_BYTES); nothing more was unpacked"
+            )
+        if self.count > RATIO_FLOOR and self.count > MAX_RATIO * self.packed.count:
+            raise ValueError(
+                f"{self.archive}: {self.packed.count} compressed bytes unpack to {self.count} and more, "
+                f"beyond {MAX_RATIO}:1 (evaluation.reports.published.MAX_RATIO): the mark of a decompression "
+                "bomb; nothing more was unpacked"
+            )
+        return data
+
+
+def _member_parts(archive: Path, member: tarfile.TarInfo) -> tuple[str, ...]:
+    """The path of ``member`` below the extraction directory, as parts; refused by name when it
+    is not a directory or a regular file, or would land outside (absolute, ``..``)."""
+    name = PurePosixPath(member.name)
+    parts = tuple(part for part in name.parts if part not in ("", "."))
+    if name.is_absolute() or ".." in parts or not parts or "\\" in member.name:
+        raise ValueError(
+            f"{archive}: member {member.name!r} would land outside the extraction directory (an absolute "
+            "path or '..'); a published archive holds relative paths only"
+        )
+    if member.isdir():
+        return parts
+    kinds = ((member.issym, "a symbolic link"), (member.islnk, "a hard link"), (member.isdev, "a device"))
+    kind = next((what for test, what in kinds if test()), None)
+    if kind is not None or not member.isfile():
+        raise ValueError(
+            f"{archive}: member {member.name!r} is {kind or 'not a regular file'}; a published archive "
+            "holds regular files only"
+        )
+    if parts[-1] not in _MEMBER_NAMES:
+        raise ValueError(f"{archive}: member {member.name!r} is not an episode log or a sweep manifest")
+    if member.size > MAX_MEMBER_BYTES:
+        raise ValueError(
+            f"{archive}: member {member.name!r} unpacks to {member.size} bytes; at most "
+            f"{MAX_MEMBER_BYTES} per member are allowed (evaluation.reports.published.MAX_MEMBER_BYTES)"
+        )
+    return parts
+
+
+def _unpack(archive: Path, tar: tarfile.TarFile, target: Path) -> set[str]:
+    """Stream the members of ``tar`` into ``target``, each checked before any of its bytes are
+    written (:func:`_member_parts`) and counted while written; the top directories of the files."""
+    tops: set[str] = set()
+    members = 0
+    for member in tar:
+        members += 1
+        if members > MAX_MEMBERS:
+            raise ValueError(
+                f"{archive}: holds more than {MAX_MEMBERS} members, the most allowed "
+                "(evaluation.reports.published.MAX_MEMBERS)"
+            )
+        parts = _member_parts(archive, member)
+        dest = target.joinpath(*parts)
+        if member.isdir():
+            dest.mkdir(parents=True, exist_ok=True)
+            continue
+        tops.add(parts[0])
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        source = tar.extractfile(member)
+        assert source is not None  # a regular file's  # noqa: S101
+        written = 0
+        try:
+            handle = open(dest, "xb")  # noqa: SIM115 - closed below; "x": a member twice is refused
+        except FileExistsError:
+            raise ValueError(f"{archive}: member {member.name!r} appears twice") from None
+        with handle:
+            while chunk := source.read(_CHUNK):
+                written += len(chunk)
+                if written > member.size:  # tarfile stops at the declared size; counted anyway
+                    raise ValueError(f"{archive}: member {member.name!r} holds more than it declares")
+                handle.write(chunk)
+    return tops
+
+
+def _remove(paths: list[Path]) -> None:
+    """Remove ``paths`` (files or directory trees), whatever is already gone."""
+    for path in paths:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+
+
+def extract_archive(archive: str | Path, into: str | Path) -> Path:
+    """Unpack a published archive into the directory ``into`` and return the run's directory.
+
+    The archive is read as :func:`koopman_envs.files.read_bounded` reads (a regular file of at most
+    :data:`MAX_ARCHIVE_BYTES`), then streamed: every member is checked before its bytes are
+    written (a directory or a regular file named ``episodes.jsonl`` or ``sweep.json``, a relative
+    path inside ``into``, at most :data:`MAX_MEMBER_BYTES`), their number is bounded
+    (:data:`MAX_MEMBERS`), and the unpacked bytes are counted as they come (:data:`MAX_TOTAL_BYTES`,
+    :data:`MAX_RATIO`), so a bomb is stopped within its first megabytes. What was unpacked of a
+    refused archive is removed. Use :func:`extracted_archive` for a directory that is removed after use.
+
+    Raises
+    ------
+    ValueError
+        Naming the archive: its name, what it is (not a regular file, too large, not xz, truncated,
+        damaged), the member that is refused and why, or a limit exceeded.
+    """
+    archive, target = Path(archive), Path(into)
+    _check_name(archive)
+    blob = read_bounded(archive, MAX_ARCHIVE_BYTES, what="published archive")
+    if not blob.startswith(_XZ_MAGIC):
+        raise ValueError(f"{archive}: not an xz-compressed tar archive (it does not start as an xz stream)")
+    made = not target.exists()
+    target.mkdir(parents=True, exist_ok=True)
+    before = set(target.iterdir())
+    try:
+        with tarfile.open(fileobj=_Bounded(blob, archive), mode="r|") as tar:  # type: ignore[call-overload]
+            tops = _unpack(archive, tar, target)
+        if len(tops) != 1:
+            raise ValueError(f"{archive}: holds {sorted(tops)}, not one run's directory")
+    except BaseException as exc:
+        _remove([target] if made else sorted(set(target.iterdir()) - before))  # nothing of it stays
+        if isinstance(exc, EOFError):
+            raise ValueError(f"{archive}: is truncated (the xz stream ends before its end marker)") from None
+        if isinstance(exc, (tarfile.TarError, lzma.LZMAError)):
+            raise ValueError(
+                f"{archive}: is damaged or not a tar archive ({type(exc).__name__}: {exc})"
+            ) from None
+        raise
+    return target / tops.pop()
+
+
+@contextlib.contextmanager
+def extracted_archive(archive: str | Path) -> Iterator[Path]:
+    """A published archive unpacked (:func:`extract_archive`) into a new temporary directory,
+    which is removed when the ``with`` block ends, normally or by an exception::
+
+        with extracted_archive("data/paper.tar.xz") as run:
+            results = results_from_log(run / "episodes.jsonl")
+
+    Yields
+    ------
+    pathlib.Path
+        The run's directory.
+    """
+    scratch = Path(tempfile.mkdtemp(prefix="koopnav-published-"))
+    try:
+        yield extract_archive(archive, scratch)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def pack_run(run_dir: str | Path, archive: str | Path) -> Path:
+    """Pack a run's episode logs and sweep manifest into ``archive`` (a .tar.xz), reproducibly
+    (sorted members, fixed times and owners, xz preset 9), each log's records without
+    :data:`PACKED_OUT`."""
+    run_dir, archive = Path(run_dir), Path(archive)
+    _check_name(archive)
+    members = sorted(
+        p for p in run_dir.rglob("*") if p.is_file() and p.name in ("episodes.jsonl", "sweep.json")
+    )
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
+        for path in members:
+            data = read_bounded(path, MAX_MEMBER_BYTES, what="episode log or sweep manifest")
+            if path.name == "episodes.jsonl":
+                lines = data.decode("utf-8").split("\n")
+                kept = [lines[0]]
+                for line in lines[1:]:
+                    if line:
+                        record = json.loads(line)
+                        kept.append(json.dumps({k: v for k, v in record.items() if k not in PACKED_OUT}))
+                data = ("\n".join(kept) + "\n").encode("utf-8")
+            info = tarfile.TarInfo(str(path.relative_to(run_dir.parent)))
+            info.size, info.mtime, info.mode = len(data), 0, 0o644
+            tar.addfile(info, io.BytesIO(data))
+    return write_atomic(archive, lzma.compress(buffer.getvalue(), format=lzma.FORMAT_XZ, preset=9))
+
+
+def _records(log: Path) -> int:
+    """The number of records of an episode log (its lines after the header)."""
+    text = read_text(log, MAX_LOG_BYTES, what="episode log", expected="a KoopNav episode log (JSON lines)")
+    return max(0, sum(1 for line in text.split("\n") if line) - 1)
+
+
+def unpack_run(archive: str | Path, into: str | Path, *, force: bool = False) -> Path:
+    """Restore a published archive's logs under ``into`` (``data/publish.sh unpack``: a new
+    machine's ``data/runs/``), and return the run's directory there.
+
+    A local episode log that holds more records than the archive's (a run continued since it was
+    packed) is kept: the archive is refused, naming the log and both counts, before any file is
+    written, unless ``force``. Every file is replaced whole (:func:`koopman_envs.files.write_atomic`).
+
+    Raises
+    ------
+    ValueError
+        The archive is refused (:func:`extract_archive`), or a local log holds more records.
+    """
+    into = Path(into)
+    with extracted_archive(archive) as run:
+        unpacked = sorted(p for p in run.rglob("*") if p.is_file())
+        targets = {path: into / path.relative_to(run.parent) for path in unpacked}
+        if not force:
+            for path, target in targets.items():
+                if path.name == "episodes.jsonl" and os.path.lexists(target):
+                    ours, theirs = _records(target), _records(path)
+                    if ours > theirs:
+                        raise ValueError(
+                            f"{target} holds {ours} records, the archive {archive} {theirs}: unpacking would "
+                            "lose the records added since it was packed; pack them first (bash "
+                            "data/publish.sh pack), or unpack with --force to replace the log"
+                        )
+        for path, target in targets.items():
+            write_atomic(target, read_bounded(path, MAX_MEMBER_BYTES, what="unpacked member"))
+        return into / run.name

@@ -1,0 +1,118 @@
+"""One episode of a run (``EpisodeSpec``, what a worker gets) and the helpers that name cells.
+
+:class:`evaluation.run.spec.RunSpec` plans a run into these; a worker builds its env and controller
+from one and returns the episode's record.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from evaluation.run.configs import ControllerConfig
+from evaluation.run.slip_text import is_lambda, slip_value
+from evaluation.run.suite_runs import LAYOUT_FIELDS
+from koopman_envs import BUILTIN_MAPS, SUITE_PREFIX
+from koopman_envs.params import PARAMS
+
+__all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
+
+RANDOM_MAP = "random"
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    """One episode to run: a cell plus the trial index (which fixes the seed)."""
+
+    env_id: str
+    controller: str  # the configuration's label (its row in the reports)
+    map: str
+    slip: str  # a setting name, or comma-separated lambdas
+    trial: int
+    seed: int
+    controller_name: str = ""  # registered name (default: the label)
+    controller_options: str = "{}"  # JSON object of factory options
+    calibration_budget: int = PARAMS.calibration_budget
+    calibration_seed: int = 0
+    env_kwargs: str = "{}"  # JSON object of the run's env settings (goal_tolerance, n_robots, ...)
+    animation: str = ""  # relative path of the GIF to record for this episode ("" = none)
+    run_dir: str = ""  # the run's output directory (where ``animation`` goes)
+    compute_scale: float = 0.0  # > 0: compute-aware, the decision time times this charged (0: free)
+    # a suite run's episode: the layout's index in the split (the env's reset option), its family
+    # and tier, and the split's label (evaluation.run.suite_runs); None elsewhere, and then not recorded
+    layout: int | None = None
+    layout_family: str | None = None
+    layout_tier: str | None = None
+    suite: str | None = None
+    # a factory given as a callable (API only); sent to workers by reference, not recorded
+    controller_factory: Callable[..., Any] | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def key(self) -> str:
+        """Unique id of the episode within a run."""
+        return f"{self.env_id}|{self.controller}|{self.map}|{self.slip}|{self.trial}"
+
+    @property
+    def cell(self) -> tuple[str, str, str, str]:
+        """(env, controller, map, slip)."""
+        return (self.env_id, self.controller, self.map, self.slip)
+
+    @property
+    def config(self) -> ControllerConfig:
+        """The controller configuration of this episode."""
+        options = json.loads(self.controller_options)
+        return ControllerConfig(
+            self.controller,
+            self.controller_name or self.controller,
+            tuple(sorted(options.items())),
+            self.controller_factory,
+        )
+
+    def make_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``gym.make`` for this episode (without ``render_mode``)."""
+        return {**json.loads(self.env_kwargs), "map": self.map, "slip": slip_value(self.slip)}
+
+    def reset_options(self) -> dict[str, Any] | None:
+        """The env's reset options of this episode: its suite layout (None off a suite)."""
+        return None if self.layout is None else {"layout": self.layout}
+
+    def record_fields(self) -> dict[str, Any]:
+        """The plain-JSON fields of the spec, as every episode record starts (the layout fields
+        only in a suite run's records, so that every other record is as before)."""
+        fields = {
+            k: getattr(self, k)
+            for k in self.__dataclass_fields__
+            if k not in ("controller_factory", "run_dir") and not (k in LAYOUT_FIELDS and self.layout is None)
+        }
+        # the recorded env settings also as fields of their own (results schema v2 readers)
+        env = json.loads(self.env_kwargs)
+        recorded = {
+            "tolerance": env.get("goal_tolerance", PARAMS.goal_tolerance),
+            "max_episode_steps": env.get("max_episode_steps", PARAMS.max_episode_steps),
+            "start_noise": env.get("start_noise", 0.0),
+        }
+        return {"key": self.key, **fields, **recorded}
+
+
+def safe_file_name(*parts: str) -> str:
+    """Cell coordinates joined into a file-name stem (``,:=/`` and the path separator become ``-``)."""
+    return "_".join(
+        str(p).replace(",", "-").replace(":", "-").replace("=", "-").replace("/", "-").replace(os.sep, "-")
+        for p in parts
+    )
+
+
+def map_fingerprints(maps: Mapping[str, Sequence[str]]) -> dict[str, str]:
+    """SHA-256 of every user map file of the run (so a resume notices an edited file; a suite
+    split's hash is the run's ``suite`` record)."""
+    prints = {}
+    for names in maps.values():
+        for name in names:
+            if name != RANDOM_MAP and name not in BUILTIN_MAPS and not name.startswith(SUITE_PREFIX):
+                with open(name, "rb") as fh:
+                    prints[name] = hashlib.sha256(fh.read()).hexdigest()
+    return prints

@@ -1,0 +1,119 @@
+"""From episode records to numbers: intervals and tests (:mod:`~evaluation.stats.statistics`),
+the same with the layout as the unit (:mod:`~evaluation.stats.clustered`,
+:mod:`~evaluation.stats.layout_tests`), families of tests and their power
+(:mod:`~evaluation.stats.families`), a suite run's tables (:mod:`~evaluation.stats.suite_statistics`),
+cells, leaderboard rows and paired comparisons (:mod:`~evaluation.stats.aggregate`), a run's data
+for the renderers (:class:`~evaluation.stats.run_data.RunData`) and a sweep's robustness profiles
+(:mod:`~evaluation.stats.robustness`). No output format is known here.
+
+The package is their face: the public names of its modules (their ``__all__``), importable from
+here (tests/test_architecture.py checks the list), except ``aggregate``, which names the module
+(the function is :func:`evaluation.stats.aggregate.aggregate`).
+"""
+
+from __future__ import annotations
+
+from evaluation.stats.aggregate import Cell, DistanceSummary, leaderboard, paired_comparisons, pooled_rate
+from evaluation.stats.clustered import (
+    interquartile_mean,
+    layout_iqm_interval,
+    layout_mean_interval,
+    layout_rate_interval,
+)
+from evaluation.stats.families import (
+    CorrectedTest,
+    FamilyResult,
+    HypothesisFamily,
+    PowerStatement,
+    detectable_difference,
+    layouts_needed,
+    paired_power,
+    power_statement,
+)
+from evaluation.stats.layout_tests import (
+    EXACT_FLIPS,
+    LayoutComparison,
+    layout_sign_flip_test,
+    paired_means_by_layout,
+    paired_rates_by_layout,
+)
+from evaluation.stats.robustness import TAIL_SHARE, AxisProfile, LevelCost, LevelRow, level_costs, profiles
+from evaluation.stats.run_data import RunData
+from evaluation.stats.statistics import (
+    PairedComparison,
+    bootstrap_mean_interval,
+    bootstrap_tail_interval,
+    cluster_bootstrap_rate,
+    holm_adjusted,
+    paired_comparison,
+    tail_mean,
+    wilson_interval,
+)
+from evaluation.stats.suite_statistics import (
+    BREAKDOWNS,
+    MEASURES,
+    METRICS,
+    OUTCOMES,
+    Measure,
+    breakdown,
+    declared_pairs,
+    is_suite_run,
+    layout_summary,
+    measure_table,
+    suite_mean_interval,
+    suite_rate_interval,
+    suite_tables,
+)
+
+__all__ = [
+    "PairedComparison",
+    "cluster_bootstrap_rate",
+    "holm_adjusted",
+    "bootstrap_mean_interval",
+    "bootstrap_tail_interval",
+    "paired_comparison",
+    "tail_mean",
+    "wilson_interval",
+    "interquartile_mean",
+    "layout_iqm_interval",
+    "layout_mean_interval",
+    "layout_rate_interval",
+    "EXACT_FLIPS",
+    "LayoutComparison",
+    "layout_sign_flip_test",
+    "paired_means_by_layout",
+    "paired_rates_by_layout",
+    "CorrectedTest",
+    "FamilyResult",
+    "HypothesisFamily",
+    "PowerStatement",
+    "detectable_difference",
+    "layouts_needed",
+    "paired_power",
+    "power_statement",
+    "BREAKDOWNS",
+    "METRICS",
+    "MEASURES",
+    "OUTCOMES",
+    "Measure",
+    "breakdown",
+    "declared_pairs",
+    "is_suite_run",
+    "layout_summary",
+    "suite_mean_interval",
+    "suite_rate_interval",
+    "suite_tables",
+    "measure_table",
+    "Cell",
+    "DistanceSummary",
+    "leaderboard",
+    "paired_comparisons",
+    "pooled_rate",
+    "RunData",
+    "TAIL_SHARE",
+    "AxisProfile",
+    "LevelCost",
+    "LevelRow",
+    "level_costs",
+    "profiles",
+]

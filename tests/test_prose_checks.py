@@ -1,0 +1,280 @@
+"""Prose that cannot drift (issue 60): every number README.md states is checked against its
+source, and no published page differs from what its generator wrote.
+
+- README's numbers: the quick leaderboard's episode counts from the evaluator's quick plan and
+  the controllers each install can build; its two commands' times from the table of measured
+  times in docs/performance.md; the tasks, maps and episodes per cell from the code. Every digit
+  in README's text must belong to one of these checks (a new number needs a check).
+- The published pages (data/pages.json): each one's bytes against the SHA-256 its generator's
+  output had (data/pages.sha256, written by docs/make_pages.py), so a page edited by hand fails
+  here in a second; tests/test_published_pages.py (slow) rebuilds them from the data.
+
+Each check reads the text it is given, so the tests below also show that editing a README number
+by hand, or a number of a generated page, makes them fail.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+import controllers as registry
+from evaluation.execution.runner import usable_controllers
+from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_protocol
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "docs"))
+from make_pages import PAGES, edited_pages, page_digest, read_digests  # noqa: E402  (docs/ is no package)
+
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+
+#: the modules of the extras that add controllers to the quick leaderboard
+EXTRA_MODULES = {"rl": "stable_baselines3", "crowd": "pyrvo"}
+
+
+# --------------------------------------------------------------------------- the sources
+def quick_counts(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """The quick leaderboard's episodes with the core install, and what each extra adds: the
+    controllers the evaluator can build with every extra's module missing
+    (:func:`evaluation.execution.runner.usable_controllers`), the others by the extra their refusal names,
+    each times the episodes the quick plan gives one controller."""
+    for module in EXTRA_MODULES.values():
+        monkeypatch.setitem(sys.modules, module, None)  # an import of it now raises ImportError
+    core = usable_controllers(verbose=False)
+    needs: dict[str, list[str]] = {}
+    for name in registry.available():
+        if name in core:
+            continue
+        try:
+            registry.make(name)
+        except (ImportError, ValueError) as exc:
+            extra = re.search(r"\.\[(\w+)\]", str(exc))
+            needs.setdefault(extra[1] if extra else "?", []).append(name)
+    per_controller = len(quick_protocol().resolved(["consensus"]).episodes_plan(""))
+    return {
+        "core": per_controller * len(core),
+        **{extra: per_controller * len(names) for extra, names in needs.items()},
+    }
+
+
+#: a row of docs/performance.md's table of README's commands
+ROW = re.compile(r"^\| `(?P<command>[^`]+)` \| (?P<time>[^|]+?) \| (?P<episodes>[^|]+?) \|", re.MULTILINE)
+
+
+def _seconds(text: str) -> float:
+    minutes = re.fullmatch(r"(\d+) min (\d+) s", text)
+    if minutes:
+        return 60 * int(minutes[1]) + int(minutes[2])
+    seconds = re.fullmatch(r"([\d.]+) s", text)
+    if not seconds:
+        raise ValueError(f"wall time {text!r} is not 'S s' or 'M min S s'")
+    return float(seconds[1])
+
+
+def measured_times() -> dict[str, list[tuple[float, str]]]:
+    """docs/performance.md's measured times of README's commands: command -> [(seconds, episodes)]."""
+    section = (
+        (ROOT / "docs" / "performance.md").read_text(encoding="utf-8").split("## README's two commands")[1]
+    )
+    section = section.split("\n## ")[0]
+    rows: dict[str, list[tuple[float, str]]] = {}
+    for match in ROW.finditer(section):
+        if match["command"] != "Command":
+            rows.setdefault(match["command"], []).append((_seconds(match["time"]), match["episodes"]))
+    return rows
+
+
+# --------------------------------------------------------------------------- the checks
+#: README's statements with numbers: (pattern, what checks it); a check returns the problems
+Check = Callable[[re.Match[str], dict], list[str]]
+COUNTS = re.compile(r"the core install runs (\d+)\s+episodes, `\[rl\]` adds (\d+), `\[crowd\]` (\d+)\)")
+QUICK = re.compile(
+    r"python evaluate\.py +# install, run the quick leaderboard \(under (\d+) min on (\d+) idle cores\)"
+)
+TESTS = re.compile(
+    r"python -m pytest -q +# install, run the tests \(([\d.]+)-([\d.]+) min on (\d+) idle cores, both used\)"
+)
+WORDS = {"one": 1, "two": 2, "three": 3, "four": 4, "six": 6, "eight": 8}
+
+
+def _counts(match: re.Match[str], sources: dict) -> list[str]:
+    stated = dict(zip(("core", "rl", "crowd"), map(int, match.groups()), strict=True))
+    actual = {key: sources["counts"].get(key, 0) for key in stated}
+    return [] if stated == actual else [f"README states {stated} episodes; the quick plan gives {actual}"]
+
+
+def _half_minutes(seconds: float) -> float:
+    return round(seconds / 30) / 2
+
+
+def _quick(match: re.Match[str], sources: dict) -> list[str]:
+    rows = sources["times"].get("python evaluate.py", [])
+    problems = ["no measured time of `python evaluate.py` in docs/performance.md"] if not rows else []
+    limit = 60 * int(match[1])
+    problems += [f"`python evaluate.py` took {t} s, not under {match[1]} min" for t, _ in rows if t >= limit]
+    if rows and rows[-1][1] != str(sources["counts"]["core"]):
+        problems.append(
+            f"the latest measured quick run had {rows[-1][1]} episodes; the plan has {sources['counts']['core']}: re-measure"
+        )
+    return problems + ([] if match[2] == "2" else [f"measured on 2 cores, README says {match[2]}"])
+
+
+def _tests(match: re.Match[str], sources: dict) -> list[str]:
+    rows = sources["times"].get("python -m pytest -q", [])
+    low, high = float(match[1]), float(match[2])
+    problems = [] if rows else ["no measured time of `python -m pytest -q` in docs/performance.md"]
+    problems += [
+        f"`python -m pytest -q` took {t:.0f} s ({_half_minutes(t)} min), not within {match[1]}-{match[2]} min"
+        for t, _ in rows
+        if not low <= _half_minutes(t) <= high
+    ]
+    return problems + ([] if match[3] == "2" else [f"measured on 2 cores, README says {match[3]}"])
+
+
+def _tasks_and_maps(match: re.Match[str], sources: dict) -> list[str]:
+    maps = sorted(p.stem for p in (ROOT / "koopman_envs" / "maps").glob("map*.json"))
+    stated = (WORDS.get(match[1]), WORDS.get(match[2]))
+    actual = (len(TASK_MAPS), len(maps))
+    return [] if stated == actual else [f"README states {stated} tasks and maps; there are {actual}"]
+
+
+def _per_cell(match: re.Match[str], sources: dict) -> list[str]:
+    spec = quick_protocol()
+    stated = (match[1], WORDS.get(match[2]))
+    actual = ("high" if QUICK_SLIPS == ("high",) else "/".join(QUICK_SLIPS), spec.episodes)
+    return [] if stated == actual else [f"README states {stated}; the quick protocol has {actual}"]
+
+
+def _torch(match: re.Match[str], sources: dict) -> list[str]:
+    pin = f"torch=={match[1]}"
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    return [] if pin in pyproject else [f"README's {pin} is not the pin of pyproject.toml"]
+
+
+def _figure(match: re.Match[str], sources: dict) -> list[str]:
+    script = (ROOT / "docs" / "make_figure.py").read_text(encoding="utf-8")
+    wanted = (f'"map{match[1]}"', f"seed={match[2]}")
+    return [] if all(w in script for w in wanted) else [f"docs/make_figure.py does not draw {wanted}"]
+
+
+def _intervals(match: re.Match[str], sources: dict) -> list[str]:
+    from evaluation.stats.statistics import wilson_interval
+
+    default = wilson_interval.__defaults__
+    return (
+        []
+        if default == (float(match[1]) / 100,)
+        else [f"README says {match[1]}% intervals; the default is {default}"]
+    )
+
+
+def _second_run(match: re.Match[str], sources: dict) -> list[str]:
+    # tests/test_cli.py's test_the_quick_start_can_be_run_twice runs README's command twice
+    return [] if match[1] == "2" else [f"README names results-{match[1]}/; a second run writes results-2/"]
+
+
+CHECKS: list[tuple[re.Pattern[str], Check]] = [
+    (COUNTS, _counts),
+    (QUICK, _quick),
+    (TESTS, _tests),
+    (re.compile(r"(\w+) tasks, (\w+) maps"), _tasks_and_maps),
+    (re.compile(r"paper\s+maps, (\w+) slip, (\w+) episodes per cell"), _per_cell),
+    (re.compile(r"`torch==([\d.]+)`"), _torch),
+    (re.compile(r"Map (\d) under high slip \(koopman-nmpc-robust, seed (\d+);"), _figure),
+    (re.compile(r"leaderboard with (\d+)% intervals"), _intervals),
+    (re.compile(r"goes to `results-(\d+)/`"), _second_run),
+    (re.compile(r"koopnav-bench-v(\d+)"), lambda m, s: [] if m[1] == "1" else [f"suite v{m[1]}"]),
+]
+
+
+def _prose(text: str) -> str:
+    """README without what is checked elsewhere: its python blocks (run by test_docs_snippets)
+    and link targets (paths), each replaced by spaces so that positions stay."""
+    blank = lambda m: " " * len(m[0])  # noqa: E731
+    text = re.sub(r"```python\n.*?```", blank, text, flags=re.DOTALL)
+    return re.sub(r"\]\([^)]*\)", blank, text)
+
+
+def readme_problems(text: str, sources: dict) -> list[str]:
+    """Every way README ``text`` disagrees with ``sources`` (the counts and the measured times):
+    a check whose statement is gone, a check that fails, a digit no check covers."""
+    problems: list[str] = []
+    covered: set[int] = set()
+    for pattern, check in CHECKS:
+        matches = list(pattern.finditer(text))
+        if not matches:
+            problems.append(f"README no longer states {pattern.pattern!r}: update tests/test_prose_checks.py")
+        for match in matches:
+            problems += check(match, sources)
+            covered.update(range(*match.span()))
+    prose = _prose(text)
+    for number in re.finditer(r"\d+(?:[.,]\d+)*", prose):
+        if not covered.issuperset(range(*number.span())):
+            line = prose[: number.start()].count("\n") + 1
+            problems.append(f"README line {line}: {number[0]!r} is checked by nothing")
+    return problems
+
+
+@pytest.fixture(scope="module")
+def sources() -> Iterator[dict]:
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        yield {"counts": quick_counts(monkeypatch), "times": measured_times()}
+
+
+def test_every_number_of_the_readme_is_checked_against_its_source(sources) -> None:
+    assert readme_problems(README, sources) == []
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "complaint"),
+    [
+        ("runs 112", "runs 113", "episodes; the quick plan gives"),
+        ("adds 32", "adds 24", "episodes; the quick plan gives"),
+        ("(under 2 min", "(under 1 min", "not under 1 min"),
+        ("(5.5-6 min", "(4-4.5 min", "not within 4-4.5 min"),
+        ("eight maps", "nine maps", "tasks and maps"),
+        ("two episodes per cell", "three episodes per cell", "the quick protocol has"),
+        ("What is in it", "What is in it (12 envs)", "'12' is checked by nothing"),
+    ],
+)
+def test_a_readme_number_edited_by_hand_fails(sources, old, new, complaint) -> None:
+    assert old in README
+    problems = readme_problems(README.replace(old, new, 1), sources)
+    assert any(complaint in problem for problem in problems), problems
+
+
+def test_getting_started_repeats_the_readmes_commands_and_times() -> None:
+    """docs/getting_started.md shows README's two commands with their times, word for word, so
+    that the checks above hold for both pages."""
+    guide = (ROOT / "docs" / "getting_started.md").read_text(encoding="utf-8")
+    for pattern in (QUICK, TESTS):
+        stated = pattern.search(README)
+        assert stated is not None and stated[0] in guide, stated
+
+
+def test_a_new_measurement_that_disagrees_with_the_readme_fails(sources) -> None:
+    slower = {**sources["times"], "python -m pytest -q": [(18 * 60.0, "-")]}
+    assert any("not within 5.5-6 min" in p for p in readme_problems(README, {**sources, "times": slower}))
+    fewer = {**sources["times"], "python evaluate.py": [(96.5, "104")]}
+    assert any("re-measure" in p for p in readme_problems(README, {**sources, "times": fewer}))
+
+
+# --------------------------------------------------------------------------- generated pages
+def test_no_published_page_is_edited_by_hand() -> None:
+    """Every page of data/pages.json is, byte for byte, what its generator last wrote."""
+    assert sorted(read_digests()) == sorted(entry["page"] for entry in PAGES)
+    assert edited_pages() == []
+
+
+def test_a_number_edited_by_hand_in_a_generated_page_fails() -> None:
+    page = "docs/paper.md"
+    text = (ROOT / page).read_text(encoding="utf-8")
+    number = re.search(r"\b\d+/\d+\b", text)
+    assert number is not None
+    edited = text[: number.start()] + "1" + text[number.start() :]  # 20/20 -> 120/20
+    assert edited_pages({page: edited.encode()}) == [page]
+    assert page_digest(text.encode()) == read_digests()[page]
