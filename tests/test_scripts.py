@@ -151,6 +151,11 @@ SLOW = {
 }
 #: scripts run elsewhere, with the reason
 ELSEWHERE = {
+    "bench/physics_model_error.py": "a physics calibration per friction level (minutes): run by hand, docs/physics.md",
+    "docs/make_ablation_md.py": "its page's generator, run by docs/make_pages.py (tests/test_prose_pages.py runs it on a fixture)",
+    "docs/make_prose_md.py": "docs/paper.md's generator, run by docs/make_pages.py (tests/test_prose_pages.py)",
+    "docs/prose_numbers.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
+    "docs/prose_tables.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
     "docs/conf.py": "Sphinx's configuration: .ci/run builds the site with it (bash docs/build.sh)",
     "docs/build.sh": "the site build itself: the docs step of .ci/run",
 }
