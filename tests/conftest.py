@@ -128,3 +128,19 @@ def parked_map() -> MapSpec:
     """Every robot starts on its target: success after the settling time with zero commands."""
     poses = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
     return MapSpec("parked", obstacles=np.array([[3.0, 3.0, 0.5]]), starts=poses, targets=poses)
+
+
+@pytest.fixture(autouse=True)
+def _restore_controller_registry():
+    """Undo the controllers a test registers (``controllers.register(..., overwrite=True)``): a
+    registration left behind joins ``registry.available()`` for every later test of the same xdist
+    worker, so which tests saw it would depend on how the run was split (the quick plan's count in
+    tests/test_prose_checks.py once read 15 controllers in CI and 14 locally)."""
+    from controllers import registry
+
+    tables = (registry._REGISTRY, registry._WRAPPERS, registry._WRAPPER_OPTIONS)
+    saved = [dict(table) for table in tables]
+    yield
+    for table, before in zip(tables, saved, strict=True):
+        table.clear()
+        table.update(before)
