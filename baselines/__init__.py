@@ -29,9 +29,9 @@ point (``rl-ppo``, ``rl-ppo-set``, ``rl-ppo-set-realistic``, ``rl-ppo-set-movers
 from __future__ import annotations
 
 import importlib
-import warnings
-from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
+
+from koopman_envs.deprecation import register_moved_paths
 
 if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use (_LAZY)
     from baselines.features.robot_features import robot_features
@@ -51,6 +51,23 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
     )
     from baselines.sb3.set_encoder import SetEncoder
     from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
+
+#: the previous release's module paths named in docs/api/baselines.md, docs/rl.md, the installed
+#: controllers' entry points or as commands, kept one release with a DeprecationWarning by
+#: koopman_envs.deprecation's import hook (no file at the old path; CHANGELOG.md, Deprecated)
+MOVED_PATHS = {
+    "baselines.policy": "baselines.sb3.policy",
+    "baselines.set_encoder": "baselines.sb3.set_encoder",
+    "baselines.train": "baselines.sb3.train",
+    "baselines.select": "baselines.sb3.select",
+    "baselines.set_features": "baselines.features.set_features",
+    "baselines.benchmarl_task": "baselines.marl.benchmarl_task",
+    "baselines.benchmarl_train": "baselines.marl.benchmarl_train",
+    "baselines.marl_policy": "baselines.marl.marl_policy",
+}
+register_moved_paths(
+    MOVED_PATHS, commands=("baselines.train", "baselines.select", "baselines.benchmarl_train")
+)
 
 #: the exported names -> the module each lives in (imported when the name is first read)
 _LAZY = {
@@ -76,9 +93,6 @@ _LAZY = {
     "load_model": "baselines.safe_load",
 }
 
-#: the release that removes the deprecated module paths (the stubs at the package root)
-REMOVAL = "0.2.0"
-
 
 def __getattr__(name: str) -> Any:
     """The names of :data:`_LAZY`, each imported when first read."""
@@ -89,41 +103,6 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted({*globals(), *_LAZY})
-
-
-def _moved_module(old: str, new: str) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
-    """The ``__getattr__`` and ``__dir__`` (PEP 562) of the deprecated stub module ``old``: every
-    name is read from ``new``. Called from the stub's body, so importing ``old`` warns once (a
-    ``DeprecationWarning`` at the importing line, naming ``new`` and the removal release); a plain
-    stub module rather than an import hook, as stable-baselines3 keeps its moved paths."""
-    warnings.warn(
-        f"{old} is deprecated and will be removed in KoopNav {REMOVAL}; import from {new} "
-        "(or from the package, baselines)",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-
-    def __getattr__(attribute: str) -> Any:
-        if attribute.startswith("__"):
-            raise AttributeError(attribute)
-        return getattr(importlib.import_module(new), attribute)
-
-    def __dir__() -> list[str]:
-        module = importlib.import_module(new)
-        return sorted(getattr(module, "__all__", None) or (n for n in vars(module) if not n.startswith("_")))
-
-    return __getattr__, __dir__
-
-
-def _run_moved_command(old: str, new: str) -> None:
-    """``python -m old`` of a deprecated command: warn (at the stub, which is ``__main__``, so the
-    default filters show it) and run ``python -m new`` with the same arguments and exit code."""
-    warnings.warn(
-        f"python -m {old} is deprecated and will be removed in KoopNav {REMOVAL}; run python -m {new}",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    raise SystemExit(importlib.import_module(new).main())
 
 
 __all__ = [

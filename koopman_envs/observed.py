@@ -24,6 +24,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+# the release that removes the dict view of the earlier API (observed_view, reading an Observed by
+# key), deprecated in CHANGELOG.md
+from koopman_envs.deprecation import REMOVAL
+
 __all__ = ["DERIVED_KEYS", "OBSERVED_KEYS", "SENSED_KEYS", "Observed", "observed_view"]
 
 #: The info keys an env writes for its controllers: every robot's own pose estimate, what each
@@ -53,9 +57,6 @@ DERIVED_KEYS = (
 )
 #: The info keys a controller may read (what :meth:`Observed.from_info` takes).
 OBSERVED_KEYS = SENSED_KEYS + DERIVED_KEYS
-#: the release that removes the dict view of the earlier API (:func:`observed_view`, reading an
-#: :class:`Observed` by key), deprecated in CHANGELOG.md
-REMOVAL = "0.2.0"
 
 #: the dtype each optional field is read as (every env writes these dtypes already, so reading an
 #: env's info converts nothing)

@@ -8,8 +8,13 @@ from __future__ import annotations
 import ast
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
+
+import baselines  # noqa: F401 - importing a package registers its moved paths (MOVED below)
+import evaluation  # noqa: F401
+from koopman_envs.deprecation import moved_paths
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("koopman_envs", "controllers", "evaluation", "baselines")
@@ -111,7 +116,7 @@ def _sizes() -> dict[str, int]:
             ):
                 body = body[1:]
             if body:
-                sizes[f"{where}:{node.name}"] = node.end_lineno - body[0].lineno + 1
+                sizes[f"{where}:{node.name}"] = (node.end_lineno or node.lineno) - body[0].lineno + 1
     return sizes
 
 
@@ -140,14 +145,11 @@ REMOVED_PATHS = (
         "adaptive_koopman_nmpc", "cache", "deprecated_paths", "distributed", "koopman_nmpc", "nmpc",
         "nominal_nmpc", "qp2", "rti", "solver_cache", "unicycle",
     )),
-    # the evaluator's root modules before its folders (issue 61, part 2): docs/ named them as
-    # modules to import from (the API page), not as commands, and the folders' faces export their
-    # names; the one documented command among them, evaluation.seeds, keeps a release (below)
+    # the evaluator's root modules before its folders (issue 61, part 2) that docs/ never named;
+    # the ones its API page named, and the command evaluation.seeds, keep a release (MOVED below)
     *(f"evaluation.{name}" for name in (
-        "ablation", "aggregate", "backends", "badge", "baseline", "clustered", "configs", "distinct",
-        "families", "figures", "html", "layout_tests", "plan", "protocols", "published", "records",
-        "report", "results", "robustness", "run_data", "runlog", "runner", "slip_text", "spec",
-        "statistics", "suite_runs", "suite_statistics", "sweep", "thresholds", "worker",
+        "ablation", "aggregate", "backends", "badge", "distinct", "html", "plan", "published",
+        "records", "robustness", "run_data", "runlog", "slip_text", "sweep", "worker",
     )),
 )  # fmt: skip
 
@@ -161,47 +163,130 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
     assert importlib.util.find_spec(old) is None, f"{old} is back; import from its new module"
 
 
-#: moved module paths kept one release with a DeprecationWarning (CHANGELOG.md, Deprecated), old
-#: path -> new module: the commands docs/ told users to run, and the baselines modules that
-#: something outside the source names (the installed controllers' entry points: baselines.policy,
-#: .marl_policy; the shipped set policies' zips, which name baselines.set_encoder.SetEncoder)
-DEPRECATED_PATHS = {
-    "evaluation.seeds": "evaluation.experiments.seeds",
-    "baselines.train": "baselines.sb3.train",
-    "baselines.select": "baselines.sb3.select",
-    "baselines.benchmarl_train": "baselines.marl.benchmarl_train",
-    "baselines.policy": "baselines.sb3.policy",
-    "baselines.marl_policy": "baselines.marl.marl_policy",
-    "baselines.set_encoder": "baselines.sb3.set_encoder",
-}
-#: the deprecated paths that are commands: python -m OLD runs python -m NEW
-DEPRECATED_COMMANDS = {"evaluation.seeds", "baselines.train", "baselines.select", "baselines.benchmarl_train"}
+#: the moved module paths kept one release (koopman_envs.deprecation's one registry, which
+#: evaluation/__init__.py and baselines/__init__.py fill with their MOVED_PATHS): old -> MovedPath
+MOVED = moved_paths()
+#: the moved paths users ran (docs/benchmark.md, docs/rl.md of the previous release)
+MOVED_COMMANDS = sorted(old for old, moved in MOVED.items() if moved.command)
 
 
-@pytest.mark.parametrize("old", sorted(DEPRECATED_PATHS))
-def test_a_deprecated_path_warns_and_still_runs_its_command(old: str, monkeypatch, capsys) -> None:
-    """Imported, the old path warns (naming the new module and the removal release) and reads the
-    new module's names; a command's, run with ``python -m``, runs the new module's command."""
+def test_the_documented_commands_are_kept_and_no_moved_path_is_removed() -> None:
+    """Each package registers its own paths, the commands the previous release's docs ran among
+    them, and no path is both kept and removed."""
+    assert {old.split(".")[0] for old in MOVED} == {"evaluation", "baselines"}
+    assert MOVED_COMMANDS == [
+        "baselines.benchmarl_train", "baselines.select", "baselines.train", "evaluation.seeds",
+    ]  # fmt: skip
+    assert set(MOVED).isdisjoint(REMOVED_PATHS)
+
+
+def _import_new(new: str) -> ModuleType:
+    """The new module, or a skip when it needs an extra that is not installed (torch, BenchMARL)."""
     import importlib
-    import runpy
 
-    new = DEPRECATED_PATHS[old]
+    try:
+        return importlib.import_module(new)
+    except ModuleNotFoundError as missing:
+        if (missing.name or "").split(".")[0] in PACKAGES:
+            raise
+        pytest.skip(f"{new} needs {missing.name}, not installed")
+
+
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_a_moved_path_warns_and_is_its_new_module(old: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Importing the old path warns, naming the new module and the removal release, at the
+    importing line, and gives the new module itself (every name, class and patch is the new
+    module's); no file is left at the old path."""
+    import importlib
+    import importlib.machinery
+
+    new = MOVED[old].new
+    module = _import_new(new)
     monkeypatch.delitem(sys.modules, old, raising=False)
     with pytest.warns(
-        DeprecationWarning, match=rf"{old} is deprecated and will be removed in KoopNav 0\.2\.0.*{new}"
-    ):
-        module = importlib.import_module(old)
-    moved = importlib.import_module(new)
-    names = getattr(moved, "__all__", None) or [n for n in vars(moved) if not n.startswith("_")]
-    assert names and [name for name in names if getattr(module, name) is not getattr(moved, name)] == []
-    monkeypatch.delitem(sys.modules, old)
-    if old not in DEPRECATED_COMMANDS:
-        return
+        DeprecationWarning,
+        match=rf"^{old} is deprecated and will be removed in KoopNav 0\.2\.0; import from {new}$",
+    ) as caught:
+        assert importlib.import_module(old) is module
+    assert [w.filename for w in caught] == [__file__]
+    assert sys.modules[old] is module and module.__name__ == new
+    assert getattr(module.__spec__, "name", None) == new  # the new module's own spec, untouched
+    parent = old.rpartition(".")[0]
+    assert importlib.machinery.PathFinder.find_spec(old, sys.modules[parent].__path__) is None, (
+        f"a file at {old}: the moved path is the import hook's, not a stub's"
+    )
+
+
+@pytest.mark.parametrize("old", MOVED_COMMANDS)
+def test_a_moved_command_warns_and_runs_the_new_one(
+    old: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``python -m OLD --help`` (runpy, in this process) warns and prints the help of
+    ``python -m NEW``, exit code 0."""
+    import runpy
+
+    new = MOVED[old].new
+    _import_new(new)
+    monkeypatch.delitem(sys.modules, old, raising=False)
     monkeypatch.setattr(sys, "argv", [old, "--help"])
-    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated"), pytest.raises(SystemExit) as exited:
-        runpy.run_module(old, run_name="__main__")
+    with pytest.warns(
+        DeprecationWarning, match=rf"^python -m {old} is deprecated .* 0\.2\.0; run python -m {new}$"
+    ):
+        with pytest.raises(SystemExit) as exited:
+            runpy.run_module(old, run_name="__main__")
     assert exited.value.code == 0
     assert capsys.readouterr().out.startswith(f"usage: python -m {new}")
+
+
+def test_a_moved_module_that_is_no_command_is_refused_by_python_m(monkeypatch: pytest.MonkeyPatch) -> None:
+    import runpy
+
+    monkeypatch.delitem(sys.modules, "evaluation.statistics", raising=False)
+    with pytest.raises(
+        ImportError, match=r"evaluation\.statistics moved to evaluation\.stats\.statistics .* not a command"
+    ):
+        runpy.run_module("evaluation.statistics", run_name="__main__")
+
+
+def _import_statements(body: list[ast.stmt]) -> list[ast.Import | ast.ImportFrom]:
+    """The import statements of ``body`` and of every block nested in it (functions, classes,
+    branches, handlers), without walking the expressions."""
+    found: list[ast.Import | ast.ImportFrom] = []
+    for node in body:
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            found.append(node)
+        for block in ("body", "orelse", "finalbody", "handlers", "cases"):
+            nested = getattr(node, block, None)
+            if isinstance(nested, list):
+                found += _import_statements(nested)
+    return found
+
+
+def test_nothing_of_ours_imports_a_moved_path() -> None:
+    """The packages, the scripts, the docs' generators and the tests import the new paths (an old
+    one is read only as a string, by the tests of the hook)."""
+    sources = [ROOT / "evaluate.py"]
+    for folder in (*PACKAGES, "bench", "docs", "tests", "examples"):
+        sources += sorted((ROOT / folder).rglob("*.py"))
+    packages = {old.split(".")[0] for old in MOVED}
+    found = []
+    for path in sources:
+        text = path.read_text()
+        if not any(package in text for package in packages):
+            continue  # names none of the packages with moved paths
+        for node in _import_statements(ast.parse(text).body):
+            if isinstance(node, ast.ImportFrom):
+                if node.level or not node.module:
+                    continue
+                names = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+            else:
+                names = [a.name for a in node.names]
+            found += [
+                f"{path.relative_to(ROOT)}:{node.lineno} {name}"
+                for name in names
+                if any(name == old or name.startswith(f"{old}.") for old in MOVED)
+            ]
+    assert found == [], "imports of moved paths:\n" + "\n".join(found)
 
 
 def test_the_engine_module_path_is_the_engine_folder_not_a_stub() -> None:
@@ -222,7 +307,7 @@ ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "fronts")
 #: the modules of the base layer, at the package root
 ENV_BASE = {
     "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
-    "layout", "maps", "files",
+    "layout", "maps", "files", "deprecation",
 }  # fmt: skip
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
 ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}
@@ -271,6 +356,7 @@ PUBLIC_MODULES: dict[str, str] = {
     "koopman_envs.checks": "the number and choice checks, one wording for every package's errors",
     "koopman_envs.suggest": "did-you-mean for every package's error messages",
     "koopman_envs.files": "the one bounded reader and the one atomic writer of every file KoopNav keeps",
+    "koopman_envs.deprecation": "the removal release and the moved module paths' import hook, for every package",
     "koopman_envs.scenario": "what a model-based controller may know of an episode",
     "koopman_envs.observed": "what a controller may read of an info (the robots' beliefs)",
     "koopman_envs.layout": "one robot's observation block by name, the policies' seam",
@@ -329,7 +415,7 @@ EVAL_LAYERS = ("base", "episodes", "run", "stats", "reports", "execution", "expe
 #: and docs' too), whatever its floor
 EVAL_BASE = {"exit_codes"}
 #: the command lines, on top: evaluate.py's options, the commands at the root and the tuner
-EVAL_COMMANDS = {"cli", "forget", "archive", "seeds", "tune"}
+EVAL_COMMANDS = {"cli", "forget", "archive", "tune"}
 
 
 def _eval_layer(module: str) -> int | None:
@@ -400,8 +486,8 @@ def test_every_evaluator_folder_is_the_face_of_its_modules(folder: str) -> None:
 
 #: baselines' layers (docs/layout.md), lowest first: the root's modules both families share <
 #: features/ (what a policy reads) < the two families, sb3/ and marl/, beside each other (neither
-#: imports the other). The package itself is the face on top (nothing inside imports it but the
-#: deprecated stubs), so every module is importable without the others' libraries.
+#: imports the other). The package itself is the face on top (nothing inside imports it), so every
+#: module is importable without the others' libraries.
 BASELINES_LAYERS = {"": 0, "features": 1, "sb3": 2, "marl": 2}
 
 
@@ -418,12 +504,12 @@ def test_baselines_import_only_downwards() -> None:
     modules = _modules()
     wrong = []
     for name, path in modules.items():
-        if not name.startswith("baselines.") or name in DEPRECATED_PATHS:
+        if not name.startswith("baselines."):
             continue
         layer, folder = _baselines_layer(name)
         for target in _imports(path, modules):
-            if target == "baselines" or target in DEPRECATED_PATHS:
-                wrong.append(f"{name} -> {target} (the face or a deprecated path)")
+            if target == "baselines":
+                wrong.append(f"{name} -> {target} (the face)")
             elif target.startswith("baselines."):
                 other_layer, other_folder = _baselines_layer(target)
                 if other_layer > layer or (other_layer == layer and other_folder != folder):
@@ -431,10 +517,8 @@ def test_baselines_import_only_downwards() -> None:
     assert wrong == [], "baselines imports against its layers:\n" + "\n".join(wrong)
 
 
-def test_the_baselines_root_holds_the_shared_modules_and_the_stubs_only() -> None:
-    """The root's modules are the four both families use and the deprecated stubs; the rest live
-    in the folders of BASELINES_LAYERS."""
+def test_the_baselines_root_holds_the_shared_modules_only() -> None:
+    """The root's modules are the four both families use; the rest live in the folders of
+    BASELINES_LAYERS, and the previous paths are the import hook's (MOVED), not files."""
     root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
-    stubs = {old.split(".")[1] for old in DEPRECATED_PATHS if old.startswith("baselines.")}
-    assert root - stubs == {"shaping", "curriculum", "suite_training", "safe_load"}
-    assert stubs <= root
+    assert root == {"shaping", "curriculum", "suite_training", "safe_load"}
