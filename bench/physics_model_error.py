@@ -19,7 +19,7 @@ open loop, held-out rollouts of the physics robots:
   calibration plant of another seed (every team's frictions drawn anew from the surface); the
   error is the RMS position error over the 210 periods, per robot and team.
 * **closed loop**: ``--episodes`` episodes of ``--controller`` on map1 at that level (the
-  evaluator's start noise); from every period of an episode, ``--horizon`` periods (the NMPC's
+  evaluator's start noise, ``START_NOISE``); from every period of an episode, ``--horizon`` periods (the NMPC's
   horizon) predicted from the true pose under the commands the robots were given (saturated to
   the limits); the error is the RMS position error over the windows, their periods and robots.
 
@@ -50,14 +50,13 @@ from controllers.calibration import calibrate_controller, collect_data, data_spe
 from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts
 from controllers.mpc.models import UnicycleModel
 from controllers.mpc.variants import KoopmanNMPC
+from evaluation.experiments.protocols import START_NOISE
 from koopman_envs import make_plant, run_episode
 from koopman_envs.params import PARAMS, SLIP_SURFACES
 
 ENV = "KoopNav-TargetReaching-v0"
 #: the seed of every held-out plant and episode is the calibration seed plus this (other draws)
 HELD_OUT = 1000
-#: the evaluator's start noise (evaluation.protocols.START_NOISE), so the episodes are its episodes
-START_NOISE = 0.05
 #: the actuation limits (v [m/s], omega [rad/s]) the env saturates commands to
 LIMITS = np.array([PARAMS.v_max, PARAMS.omega_max])
 #: commands before the period's own that the lag diagnostic regresses on (1 s)
