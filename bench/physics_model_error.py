@@ -5,7 +5,7 @@ Usage::
 
     python bench/physics_model_error.py [--levels high low nominal] [--budget 1000000] [--seed 0]
         [--repetitions 30] [--episodes 3] [--controller nominal-nmpc] [--horizon 20]
-        [--held-out-budget 20000] [--json out.json]
+        [--held-out-budget 20000] [--max-episode-steps 600] [--json out.json]
 
 For each slip setting (on the physics plant a floor: ``nominal`` carpet, ``low`` gravel, ``high``
 ice; docs/physics.md) the Koopman-NMPC is calibrated as the evaluator calibrates it: its
@@ -19,7 +19,7 @@ open loop, held-out rollouts of the physics robots:
   calibration plant of another seed (every team's frictions drawn anew from the surface); the
   error is the RMS position error over the 210 periods, per robot and team.
 * **closed loop**: ``--episodes`` episodes of ``--controller`` on map1 at that level (the
-  evaluator's start noise); from every period of an episode, ``--horizon`` periods (the NMPC's
+  evaluator's start noise, ``START_NOISE``); from every period of an episode, ``--horizon`` periods (the NMPC's
   horizon) predicted from the true pose under the commands the robots were given (saturated to
   the limits); the error is the RMS position error over the windows, their periods and robots.
 
@@ -50,14 +50,13 @@ from controllers.calibration import calibrate_controller, collect_data, data_spe
 from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts
 from controllers.mpc.models import UnicycleModel
 from controllers.mpc.variants import KoopmanNMPC
+from evaluation.experiments.protocols import START_NOISE
 from koopman_envs import make_plant, run_episode
 from koopman_envs.params import PARAMS, SLIP_SURFACES
 
 ENV = "KoopNav-TargetReaching-v0"
 #: the seed of every held-out plant and episode is the calibration seed plus this (other draws)
 HELD_OUT = 1000
-#: the evaluator's start noise (evaluation.protocols.START_NOISE), so the episodes are its episodes
-START_NOISE = 0.05
 #: the actuation limits (v [m/s], omega [rad/s]) the env saturates commands to
 LIMITS = np.array([PARAMS.v_max, PARAMS.omega_max])
 #: commands before the period's own that the lag diagnostic regresses on (1 s)
@@ -108,12 +107,19 @@ def circle_errors(level: str, models: dict[str, Any], repetitions: int, seed: in
 
 
 def closed_loop_data(
-    level: str, controller: str, episodes: int, seed: int, budget: int
+    level: str,
+    controller: str,
+    episodes: int,
+    seed: int,
+    budget: int,
+    max_steps: int = PARAMS.max_episode_steps,
 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], dict[str, Any]]]:
     """``episodes`` episodes of ``controller`` on map1 of the physics plant at ``level`` (calibrated
     as the evaluator calibrates it): each episode's true poses (T + 1, N, 3), the commands the
     robots were given (T, N, 2, saturated to the limits) and its outcome."""
-    env = gym.make(ENV, plant="mujoco", map="map1", slip=level, start_noise=START_NOISE)
+    env = gym.make(
+        ENV, plant="mujoco", map="map1", slip=level, start_noise=START_NOISE, max_episode_steps=max_steps
+    )
     ctrl = controllers.make(controller)
     calibrate_controller(
         ctrl, make_plant(ENV, plant="mujoco", slip=level, budget=budget, seed=seed), seed=seed
@@ -215,7 +221,9 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
         "calibration": {k: calibration[k] for k in ("source", "transitions", "key") if k in calibration},
         "circle": circle_errors(level, models, args.repetitions, held_out),
     }
-    data = closed_loop_data(level, args.controller, args.episodes, args.seed, args.budget)
+    data = closed_loop_data(
+        level, args.controller, args.episodes, args.seed, args.budget, args.max_episode_steps
+    )
     row["closed_loop"] = window_errors(data, models, args.horizon)
     row["episodes"] = [outcome for _, _, outcome in data]
     row["identification"] = identification_figures(level, models, args.held_out_budget, args.seed)
@@ -265,6 +273,9 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     parser.add_argument("--episodes", type=int, default=3, help="closed-loop episodes per level")
     parser.add_argument("--controller", default="nominal-nmpc", help="the controller of the closed-loop data")
     parser.add_argument("--horizon", type=int, default=20, help="periods of a closed-loop prediction")
+    parser.add_argument(
+        "--max-episode-steps", type=int, default=PARAMS.max_episode_steps, help="time limit of an episode"
+    )
     parser.add_argument(
         "--held-out-budget", type=int, default=20_000, help="team-transitions of held-out identification data"
     )

@@ -85,6 +85,23 @@ SMOKE: dict[str, tuple[list[str], str]] = {
         ["--robots", "3", "--steps", "60"],
         r"^N=3 +RLS update +[\d.]+ +[\d.]+ +\(60 updates, 0 rejected",
     ),
+    "bench/physics_model_error.py": (
+        [
+            "--levels",
+            "high",
+            "--budget",
+            "1000",
+            "--repetitions",
+            "2",
+            "--episodes",
+            "1",
+            "--controller",
+            "orca",
+        ]
+        + ["--horizon", "5", "--max-episode-steps", "30", "--held-out-budget", "1000"],
+        r"(?s)^\| high \(ice\) \| [\d.]+ / [\d.]+ \| [\d.]+ \| [\d.]+ / [\d.]+ \|.*"
+        r"^\| high \(ice\) \| [\d.]+ / [\d.]+ / [\d.]+ \|",
+    ),
     "bench/physics_speed.py": (
         ["--seconds", "0.05", "--repeats", "1", "--envs", "3"],
         r"(?s)^physics: 5 ms steps, 20 per env-step; 3 robots$.*^physics single env +[\d,]+ ",
@@ -211,6 +228,7 @@ SMOKE_NEEDS = {
     "bench/batched_evaluation.py": "stable_baselines3",  # it times the rl-ppo policy
     "bench/benchmarl_speed.py": "benchmarl",  # it trains MAPPO
     "bench/movers_speed.py": "pyrvo",  # it times the ORCA crowd (the [crowd] extra)
+    "bench/physics_model_error.py": "mujoco",  # the physics plant (the [physics] extra)
     "bench/physics_speed.py": "mujoco",  # the physics plant (the [physics] extra)
 }
 
