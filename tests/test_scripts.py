@@ -168,7 +168,6 @@ SLOW = {
 }
 #: scripts run elsewhere, with the reason
 ELSEWHERE = {
-    "bench/physics_model_error.py": "a physics calibration per friction level (minutes): run by hand, docs/physics.md",
     "docs/make_ablation_md.py": "its page's generator, run by docs/make_pages.py (tests/test_prose_pages.py runs it on a fixture)",
     "docs/make_prose_md.py": "docs/paper.md's generator, run by docs/make_pages.py (tests/test_prose_pages.py)",
     "docs/prose_numbers.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
@@ -186,6 +185,7 @@ def test_every_script_has_a_smoke_run() -> None:
         for path in (ROOT / folder).iterdir()
         if path.suffix in (".py", ".sh")
     }
+    assert not set(SMOKE) & set(ELSEWHERE), f"both run and run elsewhere: {sorted(set(SMOKE) & set(ELSEWHERE))}"
     assert scripts == set(SMOKE) | set(ELSEWHERE), (
         f"without a smoke run: {sorted(scripts - set(SMOKE) - set(ELSEWHERE))}; "
         f"listed but gone: {sorted((set(SMOKE) | set(ELSEWHERE)) - scripts)}"
