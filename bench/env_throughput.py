@@ -6,7 +6,8 @@ Usage::
 
 Prints steps/s for ``gym.make`` (3 robots, random actions in the actuation limits, auto reset),
 the vector env at 1, 64 and 1024 envs (env-steps/s), and, when ``mpe2`` is installed,
-PettingZoo MPE2 ``simple_spread_v3`` (3 agents, continuous random actions) in the same run.
+PettingZoo MPE2 ``simple_spread_v3`` (3 agents, continuous random actions) in the same run, its
+windows alternating with each task's single env (the ratio printed at the end).
 Beside the fixed map (the task's default) it times the same map with two slip zones added (a
 ``replace`` circle and an ``add`` rectangle on the route, single env and 1024 envs), random maps
 (1024 envs, a new layout per reset) and random maps with two slip zones each.
@@ -84,14 +85,20 @@ def _timed(step, reset, seconds: float, repeats: int = REPEATS) -> float:
     return contender.best
 
 
-def _timed_pair(a: tuple, b: tuple, seconds: float, repeats: int = REPEATS) -> tuple[float, float]:
-    """Best steps per second of two ``(step, reset)`` contenders, their windows alternating, so
-    that a change of the machine's load during the run slows both alike and their ratio holds."""
-    first, second = _Contender(*a), _Contender(*b)
+def _timed_together(*runners: tuple, seconds: float, repeats: int = REPEATS) -> list[float]:
+    """Best steps per second of each ``(step, reset)`` contender, their windows taken in turn, so
+    that a change of the machine's load during the run slows them alike and their ratios hold."""
+    contenders = [_Contender(*runner) for runner in runners]
     for _ in range(repeats):
-        first.window(seconds)
-        second.window(seconds)
-    return first.best, second.best
+        for contender in contenders:
+            contender.window(seconds)
+    return [contender.best for contender in contenders]
+
+
+def _timed_pair(a: tuple, b: tuple, seconds: float, repeats: int = REPEATS) -> tuple[float, float]:
+    """:func:`_timed_together` of two contenders."""
+    first, second = _timed_together(a, b, seconds=seconds, repeats=repeats)
+    return first, second
 
 
 def single_runner(env_id: str, **kwargs) -> tuple:
@@ -129,7 +136,9 @@ def bench_vector(env_id: str, num_envs: int, seconds: float, repeats: int = REPE
     return _timed(*vector_runner(env_id, num_envs, **kwargs), seconds, repeats) * num_envs
 
 
-def bench_mpe2(seconds: float, repeats: int = REPEATS) -> float | None:
+def mpe2_runner() -> tuple | None:
+    """``(step, reset)`` of PettingZoo MPE2 ``simple_spread_v3`` (3 agents, continuous random
+    actions), None when ``mpe2`` is not installed."""
     try:
         from mpe2 import simple_spread_v3
     except ImportError:
@@ -147,7 +156,13 @@ def bench_mpe2(seconds: float, repeats: int = REPEATS) -> float | None:
         if not env.agents:
             env.reset()
 
-    return _timed(step, lambda: env.reset(seed=0), seconds, repeats)
+    return step, lambda: env.reset(seed=0)
+
+
+def bench_mpe2(seconds: float, repeats: int = REPEATS) -> float | None:
+    """Steps/s of MPE2 ``simple_spread_v3`` alone (None without ``mpe2``)."""
+    runner = mpe2_runner()
+    return None if runner is None else _timed(*runner, seconds, repeats)
 
 
 def main() -> None:
@@ -169,10 +184,20 @@ def main() -> None:
         f"KoopNav {koopman_envs.__version__}, numpy {np.__version__}, {platform.processor() or platform.machine()}, "
         f"{args.clock} clock, load average {os.getloadavg()[0]:.1f}"
     )
+    mpe_rates: dict[str, float] = {}
     for env_id in koopman_envs.ENV_IDS:
         zoned = two_zone_map(env_id)
         timing = (args.seconds, args.repeats)
-        rate, zones = _timed_pair(single_runner(env_id), single_runner(env_id, map=zoned), *timing)
+        # the single env's windows alternate with the same env on the zoned map and with MPE2's,
+        # so that their ratios hold however the machine's load changes during the run
+        runners = [single_runner(env_id), single_runner(env_id, map=zoned)]
+        mpe = mpe2_runner()
+        rates = _timed_together(
+            *runners, *([] if mpe is None else [mpe]), seconds=args.seconds, repeats=args.repeats
+        )
+        rate, zones = rates[:2]
+        if mpe is not None:
+            mpe_rates[env_id] = rates[2]
         results[f"{env_id} single"] = rate
         results[f"{env_id} single two slip zones"] = zones
         print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
@@ -208,14 +233,23 @@ def main() -> None:
             f"{env_id:28s} 1024, random + 2 zones   {zones:12,.0f} env-steps/s "
             f"({zones / rate:.2f}x random maps without zones)"
         )
-    mpe = bench_mpe2(args.seconds, args.repeats)
-    results["mpe2 simple_spread_v3"] = mpe
-    if mpe is None:
+    if not mpe_rates:
+        results["mpe2 simple_spread_v3"] = None
         print("mpe2 not installed: `pip install mpe2` to compare against simple_spread_v3")
     else:
-        ours = results[f"{koopman_envs.ENV_IDS[0]} single"]
-        print(f"{'mpe2 simple_spread_v3 (3 agents)':52s} {mpe:12,.0f} steps/s")
-        print(f"ratio KoopNav single / simple_spread: {ours / mpe:.2f}x")
+        first = koopman_envs.ENV_IDS[0]
+        results["mpe2 simple_spread_v3"] = mpe_rates[first]
+        for env_id, mpe_rate in mpe_rates.items():
+            results[f"mpe2 simple_spread_v3 beside {env_id}"] = mpe_rate
+            print(f"{env_id:28s} beside it: MPE2 simple_spread_v3 (3 agents) {mpe_rate:12,.0f} steps/s")
+        ratios = ", ".join(
+            f"{env_id} {results[f'{env_id} single'] / mpe_rate:.2f}x"
+            for env_id, mpe_rate in mpe_rates.items()
+        )
+        ours = results[f"{first} single"]
+        print(
+            f"ratio KoopNav single / simple_spread: {ours / mpe_rates[first]:.2f}x ({ratios}; windows alternating)"
+        )
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(results, fh, indent=1)

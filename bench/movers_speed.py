@@ -92,10 +92,10 @@ def _social_force_step(position, velocity, goal, speed, radius, obstacles, dt): 
                     push = a_people * math.exp((2 * radius - dist) / b_people)
                     fx += push * ox / dist
                     fy += push * oy / dist
-            for m in range(obstacles.shape[1]):  # (K, M, 3): x, y, radius each
-                ox, oy = x - obstacles[k, m, 0], y - obstacles[k, m, 1]
+            for m in range(obstacles.shape[2]):  # (K, 3, M): rows x, y, radius
+                ox, oy = x - obstacles[k, 0, m], y - obstacles[k, 1, m]
                 dist = math.sqrt(ox * ox + oy * oy) + 1e-9
-                push = a_wall * math.exp((radius + obstacles[k, m, 2] - dist) / b_wall)
+                push = a_wall * math.exp((radius + obstacles[k, 2, m] - dist) / b_wall)
                 fx += push * ox / dist
                 fy += push * oy / dist
             vx, vy = velocity[k, c, 0] + fx * dt, velocity[k, c, 1] + fy * dt

@@ -35,7 +35,7 @@ def _scan(
     angles = beam_angles(beams, 2 * math.pi)
     cast_beams(
         np.array(pose, dtype=np.float64).reshape(1, 3, 1),
-        obstacles[None],
+        np.ascontiguousarray(obstacles.T[None]),
         np.array([0.2]),
         angles,
         RANGE,

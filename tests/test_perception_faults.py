@@ -40,14 +40,14 @@ COMPILED = hasattr(perception_module._perceive, "py_func")
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)
 RADIUS = np.full(3, 0.2)
 #: two obstacle discs per environment (x, y, r), fixed
-# two environments' obstacle sets (K, M, 3): x, y, radius each
+# two environments' obstacle sets (K, 3, M): rows x, y, radius
 OBSTACLES = np.stack(
     (
         np.array([[1.5, -2.0], [0.5, 2.5]]),
         np.array([[0.5, 1.0], [-1.5, 0.0]]),
         np.array([[0.4, 0.6], [0.3, 0.5]]),
     ),
-    axis=-1,
+    axis=1,
 )
 
 
@@ -423,7 +423,7 @@ def test_a_single_random_number_per_period_is_drawn_and_refilled(lidar) -> None:
         int(lidar.dropout > 0),
         256,
     )
-    obstacles = np.array([[[1.0, 0.0, 0.3]]])  # 0.7 m ahead of the robot
+    obstacles = np.array([[[1.0], [0.0], [0.3]]])  # 0.7 m ahead of the robot
     replay = Replay(np.random.default_rng(3), 1, PoseNoise(), CommConfig(), lidar, 256)
     perception.reset_env(0, np.random.default_rng(3))
     state = np.zeros((1, 3, 1))
@@ -533,7 +533,7 @@ def test_a_uniform_equal_to_the_probability_is_no_loss_and_no_dropout() -> None:
     perception.reset_env(0, _Drawn(np.tile(row, (perception.block, 1))))
     state = np.array([[[0.0, 0.0], [0.0, 1.0], [0.0, math.pi / 2]]])  # robot 1 north of robot 0
     # east and west of robot 0, north of robot 1 (and robot 0 south of it): every beam hits something
-    obstacles = np.array([[[2.0, 0.0, 0.5], [-2.0, 0.0, 0.5], [0.0, 3.0, 0.5]]])
+    obstacles = np.array([[[2.0, -2.0, 0.0], [0.0, 0.0, 3.0], [0.5, 0.5, 0.5]]])
     perception.flush(state, obstacles, np.full(2, 0.2))
     assert perception.age[0].tolist() == [[0, 0], [-1, 0]]  # 0 heard 1 (u = drop); 1 lost 0's message
     exact = _exact_ranges(state, perception.lidar, obstacles)[0]

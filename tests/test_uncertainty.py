@@ -41,7 +41,7 @@ def _scan(robots, obstacles, angles, max_range=5.0, radius=0.2):
     out = np.empty((1, n, len(angles)))
     cast_beams(
         np.ascontiguousarray(robots.T[None]),
-        np.ascontiguousarray(obstacles[None]),
+        np.ascontiguousarray(obstacles.T[None]),
         np.full(n, radius),
         np.asarray(angles, float),
         max_range,

@@ -69,14 +69,14 @@ class FilterStep:
 
 
 @njit(cache=True)
-def _add_barrier(
-    A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam, approach=0.0
-):  # pragma: no cover
+def _add_barrier(A, b, row, h, nx, ny, share, hx, hy, g, lam, approach=0.0):  # pragma: no cover
     """Append the four rows of one barrier (unit gradient n, value h) of a robot with heading
     (hx, hy) when some command within the limits could violate them; return the new row count.
+    ``g``: the filter's gains (a record of :data:`FILTER_GAINS`).
 
     ``approach``: n . v of a moving obstacle (its velocity along the gradient, positive when it
     comes toward the robot): dh/dt = n . dp/dt - n . v, so the robot must recede that much more."""
+    lookahead, gamma, v_max, omega_max, dt = g.lookahead, g.gamma, g.v_max, g.omega_max, g.dt
     a_v = nx * hx + ny * hy  # n . e
     cross = -nx * hy + ny * hx  # n . e_perp
     a_w = lookahead * cross
@@ -115,7 +115,7 @@ def _filter_team(
     ((r_i + r_mover) + l) + margin + extra + w_i, and the walls moved in by max(w).
     """
     g = gains[0]
-    lookahead, gamma, v_max, omega_max, dt = g.lookahead, g.gamma, g.v_max, g.omega_max, g.dt
+    lookahead, v_max, omega_max = g.lookahead, g.v_max, g.omega_max
     omega_weight, margin, walls = g.omega_weight, g.margin, g.walls
     n, n_obs = poses.shape[0], obstacles.shape[0]
     wider = 0.0
@@ -154,9 +154,7 @@ def _filter_team(
                 nx, ny = dx / dist, dy / dist
             else:  # coincident points (deep in collision) have no direction: push straight back
                 nx, ny = -hx, -hy
-            row = _add_barrier(
-                A, b, row, h, nx, ny, share, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam
-            )
+            row = _add_barrier(A, b, row, h, nx, ny, share, hx, hy, g, lam)
         for m in range(movers.shape[0]):  # moving discs: their velocity along the gradient
             dx, dy = px[i] - movers[m, 0], py[i] - movers[m, 1]
             dist = math.hypot(dx, dy)
@@ -167,14 +165,12 @@ def _filter_team(
             else:
                 nx, ny = -hx, -hy
             approach = nx * movers[m, 2] + ny * movers[m, 3]
-            row = _add_barrier(
-                A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam, approach
-            )
+            row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, g, lam, approach)
         for w in range(4):  # left, right, bottom, top
             h = (px[i] - limits[0], limits[1] - px[i], py[i] - limits[2], limits[3] - py[i])[w]
             nx, ny = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[w]
             h_min = min(h_min, h)
-            row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, lookahead, gamma, v_max, omega_max, dt, lam)
+            row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, g, lam)
         built += row // 4
         for sign in range(4):  # the command box
             A[row, 0], A[row, 1] = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[sign]

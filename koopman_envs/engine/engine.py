@@ -105,8 +105,6 @@ class NavigationEngine:
         #: scheduled base levels, None for a slip level that is constant through an episode
         self.slip_clock = None if config.slip_schedule is None else SlipClock(config.slip_schedule, k, n)
         self.geometry = TeamGeometry(k, config.robot_radius, m)
-        #: every environment's obstacle set (K, M, 3): x, y, radius [m] (the geometry's own array)
-        self.obstacles = self.geometry.obstacles
         #: what the robots believe (noise, radio, lidar, command queue); None when they know the truth
         settings = (config.pose_noise, config.comm, config.lidar, config.actuation_delay)
         self.perception = (
@@ -187,6 +185,12 @@ class NavigationEngine:
         self.state = np.ascontiguousarray(np.asarray(value, dtype=np.float64).transpose(0, 2, 1))
 
     @property
+    def obstacles(self) -> NDArray[np.float64]:
+        """Every environment's obstacles, shape (K, M, 3): x, y, radius [m] each (a view of the
+        geometry's channel-first obstacle sets)."""
+        return self.geometry.obstacles.transpose(0, 2, 1)
+
+    @property
     def targets(self) -> NDArray[np.float64]:
         """Target poses, shape (K, N, 3) (a view)."""
         return self.target.transpose(0, 2, 1)
@@ -244,11 +248,11 @@ class NavigationEngine:
             self.perception.flush(self.state, self._obstacle_discs(), self.config.robot_radius)
 
     def _obstacle_discs(self) -> NDArray[np.float64]:
-        """What the lidar's beams hit besides the robots, (K, M + C, 3): the static obstacles,
-        then the movers (x, y, radius [m] each)."""
+        """What the lidar's beams hit besides the robots, (K, 3, M + C): the static obstacles,
+        then the movers (rows x, y, radius [m])."""
         if self.movers is None:
             return self.geometry.obstacles
-        return np.concatenate([self.geometry.obstacles, self.movers.discs()], axis=1)
+        return np.concatenate([self.geometry.obstacles, self.movers.discs()], axis=2)
 
     def features(self) -> NDArray[np.float64]:
         """Observation blocks of every robot, shape (K, N, F)."""

@@ -76,8 +76,8 @@ def collision_flags(
     ----------
     state : ndarray, shape (K, 3, N)
         Rows x [m], y [m], theta [rad].
-    obstacles : ndarray, shape (K, M, 3)
-        Obstacle sets (x, y, radius [m]; the radius sums below hold the radii).
+    obstacles : ndarray, shape (K, 3, M)
+        Obstacle sets, rows x, y, radius [m] (the radius sums below hold the radii).
     radius_sum : ndarray, shape (K, N, N + M)
         Radius sums, robots first (see :class:`~koopman_envs.sim.geometry.TeamGeometry`).
     workspace : ndarray, shape (4,)
@@ -87,7 +87,7 @@ def collision_flags(
         Bitwise OR of :class:`CollisionKind` flags per environment (0 = no collision).
     """
     n_envs, _, n_robots = state.shape
-    n_obstacles = obstacles.shape[1]
+    n_obstacles = obstacles.shape[2]
     for k in range(n_envs):
         flags = 0
         for i in range(n_robots):
@@ -99,7 +99,7 @@ def collision_flags(
                     flags |= _ROBOT
             for m in range(n_obstacles):
                 if (
-                    clearance(x, y, obstacles[k, m, 0], obstacles[k, m, 1], radius_sum[k, i, n_robots + m])
+                    clearance(x, y, obstacles[k, 0, m], obstacles[k, 1, m], radius_sum[k, i, n_robots + m])
                     < 0.0
                 ):
                     flags |= _OBSTACLE

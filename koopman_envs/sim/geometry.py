@@ -60,9 +60,11 @@ class TeamGeometry:
 
     Attributes
     ----------
-    obstacles : ndarray, shape (K, M, 3)
-        Every environment's obstacle set: x, y of each centre and its radius [m] (the maps'
-        own (M, 3) layout; the count is the array's, M).
+    obstacles : ndarray, shape (K, 3, M)
+        Every environment's obstacle set, channel-first as the engine's state: rows x, y of the
+        centres and the radii [m] (the count is the array's, M; a map lists them as (M, 3)). A
+        kernel's loop over the obstacles then reads consecutive memory, which the compiler
+        vectorizes.
     radius_sum : ndarray, shape (K, N, N + M)
         Robot i's radius plus entity e's (robots first, then obstacles); -inf from a robot to
         itself, which makes its clearance to itself +inf without a mask.
@@ -73,7 +75,7 @@ class TeamGeometry:
         self.n_robots = n
         self.n_obstacles = int(n_obstacles)
         self.robot_radius = np.asarray(robot_radius, dtype=np.float64)
-        self.obstacles = np.zeros((num_envs, self.n_obstacles, 3))
+        self.obstacles = np.zeros((num_envs, 3, self.n_obstacles))
         self.radius_sum = np.zeros((num_envs, n, n + self.n_obstacles))
         pair = self.robot_radius[:, None] + self.robot_radius[None, :]
         pair[np.arange(n), np.arange(n)] = -np.inf
@@ -81,7 +83,7 @@ class TeamGeometry:
 
     def set_obstacles(self, index: int, obstacles: NDArray[np.float64]) -> None:
         """Install the (M, 3) obstacles (x, y, radius) of environment ``index``."""
-        self.obstacles[index] = obstacles
+        self.obstacles[index] = obstacles.T
         self.radius_sum[index, :, self.n_robots :] = obstacles[None, :, 2] + self.robot_radius[:, None]
 
     def clearances(
@@ -95,8 +97,8 @@ class TeamGeometry:
         obstacles, radius_sum = self.obstacles, self.radius_sum
         if rows is not None:
             obstacles, radius_sum = obstacles[rows], radius_sum[rows]
-        entity_x = np.concatenate([x, obstacles[..., 0]], axis=1)
-        entity_y = np.concatenate([y, obstacles[..., 1]], axis=1)
+        entity_x = np.concatenate([x, obstacles[:, 0]], axis=1)
+        entity_y = np.concatenate([y, obstacles[:, 1]], axis=1)
         out = np.empty(radius_sum.shape)
         _clearances(x, y, entity_x, entity_y, np.ascontiguousarray(radius_sum), out)
         return out

@@ -47,9 +47,9 @@ def cast_beams(
     ----------
     state : ndarray, shape (K, 3, N)
         True poses, rows x, y, theta.
-    discs : ndarray, shape (K, M, 3)
-        The discs the beams hit besides the robots: x, y, radius [m] each (the obstacles, and
-        the movers after them).
+    discs : ndarray, shape (K, 3, M)
+        The discs the beams hit besides the robots, rows x, y, radius [m] (the obstacles, and the
+        movers after them).
     robot_radius : ndarray, shape (N,)
         Radii of the robots, which the other robots' beams hit.
     angles : ndarray, shape (B,)
@@ -61,7 +61,7 @@ def cast_beams(
     out : ndarray, shape (K, N, B)
     """
     n_envs, _, n_robots = state.shape
-    n_obstacles = discs.shape[1]
+    n_obstacles = discs.shape[2]
     n_discs = n_obstacles + n_robots
     n_beams = angles.shape[0]
     disc_dx = np.empty(n_discs)
@@ -88,7 +88,7 @@ def cast_beams(
             count = 0
             for e in range(n_discs):
                 if e < n_obstacles:
-                    cx, cy, r = discs[k, e, 0], discs[k, e, 1], discs[k, e, 2]
+                    cx, cy, r = discs[k, 0, e], discs[k, 1, e], discs[k, 2, e]
                 else:
                     j = e - n_obstacles
                     if j == i:

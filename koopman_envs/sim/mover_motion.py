@@ -33,13 +33,13 @@ def _reflect_off_obstacles(
     obstacles: NDArray[np.float64],
     k: int,
 ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
-    """A disc that has entered a static obstacle of environment ``k`` (row k of the (K, M, 3)
-    obstacle sets, x, y, radius each; a row slice per call would cost more than the motion):
+    """A disc that has entered a static obstacle of environment ``k`` (row k of the (K, 3, M)
+    obstacle sets, rows x, y, radius; a row slice per call would cost more than the motion):
     put back on its surface, the velocity mirrored about the surface normal (only when moving
     inwards)."""
-    for m in range(obstacles.shape[1]):
-        dx, dy = x - obstacles[k, m, 0], y - obstacles[k, m, 1]
-        reach = radius + obstacles[k, m, 2]
+    for m in range(obstacles.shape[2]):
+        dx, dy = x - obstacles[k, 0, m], y - obstacles[k, 1, m]
+        reach = radius + obstacles[k, 2, m]
         d2 = dx * dx + dy * dy
         if d2 < reach * reach and d2 > 0.0:
             d = math.sqrt(d2)
@@ -48,7 +48,7 @@ def _reflect_off_obstacles(
             if inward < 0.0:
                 vx -= 2.0 * inward * nx
                 vy -= 2.0 * inward * ny
-            x, y = obstacles[k, m, 0] + nx * reach, obstacles[k, m, 1] + ny * reach
+            x, y = obstacles[k, 0, m] + nx * reach, obstacles[k, 1, m] + ny * reach
     return x, y, vx, vy
 
 
@@ -63,7 +63,7 @@ def move_constant(
     dt: float,
 ) -> None:  # pragma: no cover - compiled
     """Straight lines at constant velocity, mirrored at the arena's edges and the obstacles
-    (K, M, 3: x, y, radius each)."""
+    (K, 3, M: rows x, y, radius)."""
     for k in rows:
         lo_x, hi_x = arena[k, 0] + radius, arena[k, 1] - radius
         lo_y, hi_y = arena[k, 2] + radius, arena[k, 3] - radius
@@ -94,14 +94,14 @@ def _way_is_clear(
     obstacles: NDArray[np.float64],
 ) -> bool:  # pragma: no cover - compiled
     """True when a disc of ``radius`` moving straight from (x0, y0) to (x1, y1) meets no
-    obstacle of ``obstacles`` (M, 3: x, y, radius each)."""
+    obstacle of ``obstacles`` (3, M: rows x, y, radius)."""
     sx, sy = x1 - x0, y1 - y0
     length2 = sx * sx + sy * sy
-    for m in range(obstacles.shape[0]):
-        px, py = obstacles[m, 0] - x0, obstacles[m, 1] - y0
+    for m in range(obstacles.shape[1]):
+        px, py = obstacles[0, m] - x0, obstacles[1, m] - y0
         t = 0.0 if length2 == 0.0 else min(max((px * sx + py * sy) / length2, 0.0), 1.0)
         dx, dy = px - t * sx, py - t * sy
-        reach = radius + obstacles[m, 2] + 0.05
+        reach = radius + obstacles[2, m] + 0.05
         if dx * dx + dy * dy < reach * reach:
             return False
     return True
@@ -146,8 +146,8 @@ def first_goals(
     radius: float,
     speed: float,
 ) -> None:  # pragma: no cover - compiled
-    """The first waypoint of every mover of one environment (``obstacles`` (M, 3): its obstacle
-    set, x, y, radius each)."""
+    """The first waypoint of every mover of one environment (``obstacles`` (3, M): its obstacle
+    set, rows x, y, radius)."""
     for c in range(position.shape[0]):
         gx, gy, s, _ = _draw_goal(
             position[c, 0],

@@ -111,7 +111,7 @@ class MoverField:
         self.pause_periods = int(round(config.pause / self.dt))
         # the static obstacles as the kernels read them (set per reset: random maps change)
         self.obstacles: list[NDArray[np.float64]] = [np.zeros((0, 3))] * k
-        self._obstacles = np.zeros((k, 0, 3))  # padded to the widest map's: x, y, radius each
+        self._obstacles = np.zeros((k, 3, 0))  # padded to the widest map's: rows x, y, radius
         self.waypoints = config.behaviour in ("waypoints", "crowd")
         self.pool_size = max(4096, 8 * c * DRAW_SIZE)
         self.pool = np.zeros((k, self.pool_size))
@@ -265,14 +265,14 @@ class MoverField:
         """Install environment ``index``'s static obstacles (M, 3); :attr:`obstacles` keeps the
         array itself, so the next episode on the same map finds it installed."""
         m = obstacles.shape[0]
-        if m > self._obstacles.shape[1]:  # a map with more obstacles: widen (padding reads radius 0)
-            wider = np.zeros((self.num_envs, m, 3))
-            wider[:, : self._obstacles.shape[1]] = self._obstacles
-            wider[:, self._obstacles.shape[1] :, :2] = 1e6  # far away: never met
+        if m > self._obstacles.shape[2]:  # a map with more obstacles: widen (padding reads radius 0)
+            wider = np.zeros((self.num_envs, 3, m))
+            wider[:, :, : self._obstacles.shape[2]] = self._obstacles
+            wider[:, :2, self._obstacles.shape[2] :] = 1e6  # far away: never met
             self._obstacles = wider
         self.obstacles[index] = obstacles
-        self._obstacles[index] = (1e6, 1e6, 0.0)
-        self._obstacles[index, :m] = obstacles
+        self._obstacles[index, :2], self._obstacles[index, 2] = 1e6, 0.0
+        self._obstacles[index, :, :m] = obstacles.T
 
     def keep_trail(self, length: int) -> None:
         """Record the last ``length`` positions of every mover from now on (:meth:`trail_of`)."""
@@ -382,10 +382,10 @@ class MoverField:
         return self._states.copy()
 
     def discs(self) -> NDArray[np.float64]:
-        """The movers as discs, (K, C, 3): x, y, radius [m] each (what the lidar's beams hit)."""
-        discs = np.empty((self.num_envs, self.count, 3))
-        discs[..., :2] = self.position
-        discs[..., 2] = self.radius
+        """The movers as discs, (K, 3, C): rows x, y, radius [m] (what the lidar's beams hit)."""
+        discs = np.empty((self.num_envs, 3, self.count))
+        discs[:, :2] = self.position.transpose(0, 2, 1)
+        discs[:, 2] = self.radius
         return discs
 
     def __getstate__(self) -> dict[str, object]:

@@ -221,7 +221,7 @@ class Perception:
     ) -> None:
         """Read the sensors and the radio of environments ``rows`` (and of those reset since the
         last update) at the true poses ``state`` (K, 3, N), then advance their clocks; the lidar's
-        beams hit the robots and ``discs`` (K, M, 3: x, y, radius [m] each)."""
+        beams hit the robots and ``discs`` (K, 3, M: rows x, y, radius [m])."""
         if self._pending:  # a mask rather than a set union: O(K), and each environment once
             chosen = np.zeros(self.clock.shape[0], dtype=bool)
             chosen[rows] = True

@@ -325,7 +325,7 @@ def _build_features(
     """
     at = offsets_record[0]
     n_envs, _, n_robots = own.shape
-    n_obstacles = obstacles.shape[1]
+    n_obstacles = obstacles.shape[2]
     n_features = out.shape[2]
     beams = at.formation_error - at.beams
     n_obstacle_obs = (at.beams - at.obstacles) // _OBSTACLE_WIDTH
@@ -372,13 +372,13 @@ def _build_features(
             if n_obstacle_obs:
                 for m in range(n_obstacles):
                     gap[m] = clearance(
-                        x, y, obstacles[k, m, 0], obstacles[k, m, 1], radius_sum[k, i, n_robots + m]
+                        x, y, obstacles[k, 0, m], obstacles[k, 1, m], radius_sum[k, i, n_robots + m]
                     )
                 nearest_first(gap, order, n_obstacles)  # equal clearances keep index order
                 col = at.obstacles
                 for q in range(listed):
                     m = order[q]
-                    dx, dy = obstacles[k, m, 0] - x, obstacles[k, m, 1] - y
+                    dx, dy = obstacles[k, 0, m] - x, obstacles[k, 1, m] - y
                     row[col + ObstacleEntry.DX] = c * dx + s * dy
                     row[col + ObstacleEntry.DY] = c * dy - s * dx
                     row[col + ObstacleEntry.CLEARANCE] = gap[m]

@@ -50,7 +50,7 @@ SUCCESS, TERMINATED, TRUNCATED = 0, 1, 2
 _BLOCK = 128
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def numpy_sum(values: NDArray[np.float64], start: int, count: int) -> float:  # pragma: no cover - compiled
     """The sum of ``values[start:start + count]`` (1-d float64) exactly as ``np.add.reduce`` of
     that contiguous run adds it: numpy's pairwise summation (below 8 terms one after another;
@@ -63,7 +63,7 @@ def numpy_sum(values: NDArray[np.float64], start: int, count: int) -> float:  # 
     return 0.0 + _halves_sum(values, start, count)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _block_sum(values: NDArray[np.float64], start: int, n: int) -> float:  # pragma: no cover - compiled
     """numpy's ``pairwise_sum`` of ``values[start:start + n]`` for n <= 128 (one block)."""
     if n < 8:
@@ -215,6 +215,16 @@ def score_step(
         Output: rows :data:`SUCCESS`, :data:`TERMINATED` and :data:`TRUNCATED`.
     """
     r = rule[0]
+    # the rule's terms as locals, read once: a record's fields are memory that the writes below
+    # could alias, so the loop would load them again and again
+    goal_tolerance, settle_steps, max_steps, formation = (
+        r.goal_tolerance,
+        r.settle_steps,
+        r.max_episode_steps,
+        r.formation,
+    )
+    w_progress, w_effort, w_settle, w_formation = r.w_progress, r.w_effort, r.w_settle, r.w_formation
+    w_success, w_collision = r.w_success, r.w_collision
     n_envs, n_robots = distances.shape
     for k in range(n_envs):
         stepped = 1 if active[k] else 0
@@ -222,22 +232,22 @@ def score_step(
         worst = distances[k, 0]
         for i in range(1, n_robots):
             worst = max(worst, distances[k, i])
-        settled[k] = (settled[k] + stepped) * (1 if worst <= r.goal_tolerance else 0)
+        settled[k] = (settled[k] + stepped) * (1 if worst <= goal_tolerance else 0)
         hit = collision[k] != 0
-        done = settled[k] >= r.settle_steps and not hit
+        done = settled[k] >= settle_steps and not hit
         ends[SUCCESS, k] = done
         elapsed[k] += stepped
         ends[TERMINATED, k] = (hit or done) and active[k]
-        ends[TRUNCATED, k] = r.max_episode_steps > 0 and elapsed[k] >= r.max_episode_steps and active[k]
+        ends[TRUNCATED, k] = max_steps > 0 and elapsed[k] >= max_steps and active[k]
         for i in range(n_robots):
-            reward = (prev_distances[k, i] - distances[k, i]) * r.w_progress
-            reward -= effort[k, i] * r.w_effort
-            reward += r.w_settle if distances[k, i] <= r.goal_tolerance else 0.0
-            if r.formation:
-                reward -= r.w_formation * formation_error[k, i]
+            reward = (prev_distances[k, i] - distances[k, i]) * w_progress
+            reward -= effort[k, i] * w_effort
+            reward += w_settle if distances[k, i] <= goal_tolerance else 0.0
+            if formation:
+                reward -= w_formation * formation_error[k, i]
             robot_reward[k, i] = reward * mask
-        team = (1.0 if done else 0.0) * r.w_success
-        team -= (1.0 if hit else 0.0) * r.w_collision
+        team = (1.0 if done else 0.0) * w_success
+        team -= (1.0 if hit else 0.0) * w_collision
         team_reward[k] = team * mask
         total[k] = numpy_sum(robot_reward[k], 0, n_robots) + team_reward[k]
 
