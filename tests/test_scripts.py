@@ -185,7 +185,9 @@ def test_every_script_has_a_smoke_run() -> None:
         for path in (ROOT / folder).iterdir()
         if path.suffix in (".py", ".sh")
     }
-    assert not set(SMOKE) & set(ELSEWHERE), f"both run and run elsewhere: {sorted(set(SMOKE) & set(ELSEWHERE))}"
+    assert not set(SMOKE) & set(ELSEWHERE), (
+        f"both run and run elsewhere: {sorted(set(SMOKE) & set(ELSEWHERE))}"
+    )
     assert scripts == set(SMOKE) | set(ELSEWHERE), (
         f"without a smoke run: {sorted(scripts - set(SMOKE) - set(ELSEWHERE))}; "
         f"listed but gone: {sorted((set(SMOKE) | set(ELSEWHERE)) - scripts)}"
