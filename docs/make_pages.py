@@ -98,7 +98,7 @@ def main(argv: list[str]) -> int:
     check, names = args.check, args.pages
     for name in names:
         try:
-            check_choice("page", name, known, " (the pages of data/pages.json)")
+            check_choice("page", name, known, among="the pages of data/pages.json")
         except ValueError as exc:
             print(f"{cli.prog}: error: {exc}", file=sys.stderr)
             return BAD_INPUT_EXIT
