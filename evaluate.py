@@ -98,6 +98,7 @@ from evaluation.reports import (
 )
 from evaluation.run import EpisodeSpec, RunSpec, split_slips
 from evaluation.stats import Cell, profiles
+from koopman_envs.checks import check_choice
 from koopman_envs.files import write_atomic
 from koopman_envs.suggest import did_you_mean
 
@@ -276,8 +277,8 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, words: list[str]) -> int
             raise ValueError(f"--sweep does not combine with --{option}; run them separately")
     axes = [parse_sweep(text) for text in args.sweep]
     labels = [c.label for c in spec.controllers] if spec.controllers is not None else None
-    if args.reference and labels is not None and args.reference not in labels:
-        raise ValueError(f"--reference {args.reference!r} is not one of the controllers {labels}")
+    if args.reference and labels is not None:
+        check_choice("--reference", args.reference, labels, sep=" ", among="the controllers")
     if len({axis.key for axis in axes}) < len(axes):
         raise ValueError(f"--sweep: an axis is given twice ({[a.key for a in axes]})")
     if not args.resume:

@@ -43,8 +43,8 @@ from controllers.base import BaseController, Controller, ControllerStats, hand_o
 from controllers.estimator_options import AUTO, ESTIMATOR_OPTION_PREFIX, EstimatorOptions
 from controllers.identification import MotionIdentifier
 from koopman_envs import Observed, rk4_pose, wrap_angle, wrap_scalar
+from koopman_envs.checks import check_choice
 from koopman_envs.scenario import Scenario
-from koopman_envs.suggest import did_you_mean
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 __all__ = [
@@ -343,15 +343,8 @@ def auto_front_end() -> PoseFrontEnd:
 def check_estimator(estimator: Any, ablate: Any = "none", levers: tuple[str, ...] = LEVERS) -> None:
     """Raise ``ValueError`` naming a bad ``estimator`` (one of :data:`ESTIMATORS`) or ``ablate``
     (``"none"`` or one of ``levers``, the controller's; a lever needs an estimator)."""
-    if estimator not in ESTIMATORS:
-        raise ValueError(
-            f"estimator={estimator!r} is not one of {list(ESTIMATORS)}{did_you_mean(str(estimator), ESTIMATORS)}"
-        )
-    allowed = ("none", *levers)
-    if ablate not in allowed:
-        raise ValueError(
-            f"ablate={ablate!r} is not one of {list(allowed)}{did_you_mean(str(ablate), allowed)}"
-        )
+    check_choice("estimator", estimator, ESTIMATORS)
+    check_choice("ablate", ablate, ("none", *levers))
     if ablate != "none" and estimator == "none":
         raise ValueError(
             f"ablate={ablate!r} switches off a lever of an estimator, and estimator='none' has none"

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from controllers.search_space import Search
-from koopman_envs.checks import Range, check_number
+from koopman_envs.checks import Range, check_choice, check_number, choice_message
 from koopman_envs.suggest import did_you_mean
 
 __all__ = ["ControllerSpec", "Option", "Search", "options", "spec_of", "with_search"]
@@ -98,11 +98,8 @@ class Option:
         if value is None and optional:
             return
         also = " or None (null)" if optional else ""
-        if self.choices is not None and value not in self.choices:
-            raise ValueError(
-                f"{owner}: {self.name}={value!r} is not one of {list(self.choices)}"
-                f"{also}{did_you_mean(value, self.choices)}"
-            )
+        if self.choices is not None:
+            check_choice(f"{owner}: {self.name}", value, self.choices, also)
         kind = self.kind
         if kind == "flag" and not isinstance(value, bool):
             raise ValueError(f"{owner}: {self.name}={value!r} is not a flag; allowed: true or false{also}")
@@ -308,7 +305,7 @@ def with_search(spec: ControllerSpec, tunable: Mapping[str, Search]) -> Controll
         option = spec.option(key) if spec.takes(key) else None
         if option is None:
             raise ValueError(
-                f"{spec.name}: TUNABLE names {key!r}, which is not one of its options {spec.names()}"
+                choice_message(f"{spec.name}: TUNABLE key", key, spec.names(), sep=" ", among="its options")
             )
         search.check_within(f"{spec.name}: {key}", option.bounds, option.choices)
     changed = tuple(

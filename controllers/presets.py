@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from controllers.search_space import Search
-from koopman_envs.checks import parse_json
+from koopman_envs.checks import check_choice, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 
 __all__ = [
@@ -172,8 +172,7 @@ def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
         raise ValueError(f"{what}: not a tuned preset (its 'kind' must be {TUNED_KIND!r})")
     name, task, options = document.get("controller"), document.get("task"), document.get("options")
     known = [*CONTROLLERS, *(p.name for p in HAND_PRESETS)]
-    if name not in known:
-        raise ValueError(f"{what}: controller={name!r} is not one of the built-in names {sorted(known)}")
+    name = check_choice(f"{what}: controller", name, sorted(known), among="the built-in names")
     if task != SHIPPED_TASK:
         raise ValueError(
             f"{what}: task={task!r}; a shipped preset must come from a task={SHIPPED_TASK!r} study, "

@@ -33,7 +33,7 @@ from importlib import metadata
 from typing import Any
 
 from controllers.base import Controller
-from koopman_envs.suggest import did_you_mean
+from koopman_envs.checks import choice_message
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -200,7 +200,7 @@ def factory(name: str) -> Callable[..., Controller]:
     if name not in points:
         points = _entry_points(refresh=True)
     if name not in points:
-        raise ValueError(f"controller {name!r} is not one of {available()}{did_you_mean(name, available())}")
+        raise ValueError(choice_message("controller", name, available(), sep=" "))
     loaded: Callable[..., Controller] = points[name].load()
     return loaded
 

@@ -3,7 +3,7 @@ same commands tests/test_published_pages.py checks byte for byte).
 
     python docs/make_pages.py            # every page
     python docs/make_pages.py docs/lidar_results.md   # the named ones
-    python docs/make_pages.py --check [PAGE ...]       # rebuild elsewhere, say which differ (exit 1)
+    python docs/make_pages.py --check [PAGE ...]       # rebuild elsewhere, say which differ (exit 101)
 
 Each rebuilt page's SHA-256 goes into data/pages.sha256 (``sha256sum -c data/pages.sha256``
 reads it): tests/test_prose_checks.py compares every published page with it in a second, so a
@@ -12,6 +12,7 @@ page edited by hand fails the fast tests; the slow ones rebuild the pages from t
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import subprocess
@@ -23,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, FAILED_CHECK_EXIT, SUCCESS_EXIT  # noqa: E402
+from koopman_envs.checks import check_choice  # noqa: E402
 from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic  # noqa: E402
 
 #: the published pages: page, generator and the generator's arguments
@@ -68,15 +70,38 @@ def page_command(entry: dict, out: Path, figures: Path | None = None) -> list[st
     return command if figures is None else [*command, "--figures", str(figures)]
 
 
+def parser(known: list[str]) -> argparse.ArgumentParser:
+    """The command line: the pages to rebuild (default: every page of ``known``) and ``--check``;
+    ``--help`` shows the module's examples and lists ``known``."""
+    cli = argparse.ArgumentParser(
+        prog="python docs/make_pages.py",
+        description=__doc__,  # what it does, with examples
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="published pages (data/pages.json):\n" + "".join(f"  {page}\n" for page in known),
+    )
+    cli.add_argument(
+        "pages", nargs="*", metavar="PAGE", help="a published page to rebuild (default: every one)"
+    )
+    cli.add_argument(
+        "--check",
+        action="store_true",
+        help="rebuild in a scratch folder and name the pages that differ (exit 101); the checkout is left alone",
+    )
+    return cli
+
+
 def main(argv: list[str]) -> int:
-    check = "--check" in argv
-    names = [name for name in argv if name != "--check"]
     pages = PAGES
     known = [entry["page"] for entry in pages]
-    unknown = [name for name in names if name not in known]
-    if unknown:
-        print(f"not a published page: {unknown}; data/pages.json lists {known}", file=sys.stderr)
-        return BAD_INPUT_EXIT
+    cli = parser(known)
+    args = cli.parse_args(argv)  # --help exits 0; an unknown option exits 2 (BAD_INPUT_EXIT)
+    check, names = args.check, args.pages
+    for name in names:
+        try:
+            check_choice("page", name, known, among="the pages of data/pages.json")
+        except ValueError as exc:
+            print(f"{cli.prog}: error: {exc}", file=sys.stderr)
+            return BAD_INPUT_EXIT
     stale = []
     with tempfile.TemporaryDirectory() as scratch:
         for entry in pages:

@@ -315,8 +315,11 @@ def _command(config: dict) -> str:
     env_kwargs = (
         (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
     )
-    if config.get("max_episode_steps") not in (None, PARAMS.max_episode_steps):
-        env_kwargs += f" --max-episode-steps {config['max_episode_steps']}"
+    # the time limit as the run recorded it: env_settings always has it (a config rebuilt from
+    # an archive's episode log has no top-level copy)
+    steps = config.get("env_settings", {}).get("max_episode_steps", config.get("max_episode_steps"))
+    if steps not in (None, PARAMS.max_episode_steps):
+        env_kwargs += f" --max-episode-steps {steps}"
     return (
         f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
         f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "

@@ -34,6 +34,7 @@ __all__ = [
     "check_int",
     "check_number",
     "checked_options",
+    "choice_message",
     "parse_json",
 ]
 
@@ -55,21 +56,61 @@ _JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
 _NOT_BRACKET = re.compile(r"[^\[\]{}]+")
 
 
-def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") -> Any:
-    """``value`` if it is one of ``allowed``, else ``ValueError``: ``name=value is not one of
-    [...]`` with ``also`` (e.g. ``" or None"``) and, for a near miss, a did-you-mean; the one
-    wording of every choice check in KoopNav.
+def choice_message(
+    name: str,
+    value: Any,
+    allowed: Iterable[Any],
+    also: str = "",
+    *,
+    sep: str = "=",
+    among: str = "",
+    suggest: Iterable[str] | None = None,
+) -> str:
+    """The one wording of a value outside its allowed set: ``name=value is not one of [...]``,
+    then ``also`` and, for a near miss, a did-you-mean. :func:`check_choice` raises it; a caller
+    that raises another exception (a policy file's ``PolicyLoadError``, argparse's
+    ``ArgumentTypeError``) or has already found the value unknown takes the text from here.
 
     Parameters
     ----------
     name : str
-        The option's name, as the user wrote it (e.g. ``"movers.behaviour"``).
+        What was given, as the user wrote it (``"movers.behaviour"``, ``"--reference"``).
     value : object
-        The value given.
+        The value given (shown by its ``repr``).
     allowed : iterable
         The allowed values, in the order the message lists them.
     also : str
-        Appended after the list (what else is allowed, or a hint).
+        Appended after the list (what else is allowed, or a hint), e.g. ``" or None"``.
+    sep : str
+        Between ``name`` and the value: ``"="`` for a keyword (``slip='icy'``), ``" "`` for a
+        command-line flag or a noun (``--reference 'x'``, ``protocol 'papr'``).
+    among : str
+        What the allowed values are, said before the list (``"the run's controllers"``).
+    suggest : iterable of str, optional
+        The names a did-you-mean may propose (default: the allowed values that are text), for a
+        message whose ``also`` allows more names than the list shows.
+    """
+    options = list(allowed)
+    words = [option for option in options if isinstance(option, str)] if suggest is None else list(suggest)
+    listed = f"{among} {options}" if among else f"{options}"
+    return f"{name}{sep}{value!r} is not one of {listed}{also}{did_you_mean(value, words)}"
+
+
+def check_choice(
+    name: str,
+    value: Any,
+    allowed: Iterable[Any],
+    also: str = "",
+    *,
+    sep: str = "=",
+    among: str = "",
+    suggest: Iterable[str] | None = None,
+) -> Any:
+    """``value`` if it is one of ``allowed``, else ``ValueError``: ``name=value is not one of
+    [...]`` with ``also`` (e.g. ``" or None"``) and, for a near miss, a did-you-mean; the one
+    wording of every choice check in KoopNav (:func:`choice_message`, whose parameters these are).
+
+    A bool is never taken for one of the allowed numbers (``True == 1``).
     """
     options = list(allowed)
     try:
@@ -78,8 +119,7 @@ def check_choice(name: str, value: Any, allowed: Iterable[Any], also: str = "") 
         ok = False
     if ok:
         return value
-    words = [option for option in options if isinstance(option, str)]
-    raise ValueError(f"{name}={value!r} is not one of {options}{also}{did_you_mean(value, words)}")
+    raise ValueError(choice_message(name, value, options, also, sep=sep, among=among, suggest=suggest))
 
 
 def checked_options(

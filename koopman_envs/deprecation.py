@@ -33,6 +33,8 @@ from pathlib import Path
 from types import CodeType, FrameType, ModuleType
 from typing import NoReturn
 
+from koopman_envs.checks import choice_message
+
 __all__ = ["REMOVAL", "MovedPath", "MovedPathFinder", "moved_paths", "register_moved_paths"]
 
 #: the release that removes what is deprecated now (the moved module paths, the observed view's
@@ -204,7 +206,7 @@ def _run_moved_command(old: str) -> NoReturn:
     moved = _REGISTRY.get(old)
     if moved is None or not moved.command:
         commands = sorted(name for name, entry in _REGISTRY.items() if entry.command)
-        raise ValueError(f"old={old!r} is not one of the moved commands {commands}")
+        raise ValueError(choice_message("old", old, commands, among="the moved commands"))
     warnings.warn(
         f"python -m {old} is deprecated and will be removed in KoopNav {REMOVAL}; run python -m {moved.new}",
         DeprecationWarning,

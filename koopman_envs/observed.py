@@ -73,6 +73,33 @@ _OPTIONAL_DTYPES: dict[str, type] = {
 }
 
 
+def _whole_periods(key: str, given: Any) -> NDArray[np.int64]:
+    """``given`` as int64 ages in control periods (an integer array as it is, not copied), or a
+    ``ValueError`` naming ``key`` and the first entry that is no whole number of periods.
+
+    A NaN or fractional age is refused rather than cast: the cast gives an arbitrary integer
+    (NaN becomes -2**63, "nothing heard" to readers that test ``age < 0``, or a huge age), and
+    every reader acts on the number: leaves an unheard team-mate out (consensus, ORCA, DWA, the
+    perception front), puts the planned start in its place (:func:`controllers.base.over_the_radio`)
+    or picks the step of its plan by it (:mod:`controllers.mpc.plan_exchange`). An env writes int64.
+    """
+    ages = np.asarray(given)
+    if ages.dtype.kind in "iu":
+        return np.asarray(ages, dtype=np.int64)
+    if ages.dtype.kind == "f":
+        # whole and within int64 (2**63 itself is not): exactly representable, so the cast is exact
+        whole = np.isfinite(ages) & (ages == np.round(ages)) & (np.abs(ages) < 2.0**63)
+        if whole.all():
+            return ages.astype(np.int64)
+        at = tuple(int(i) for i in np.argwhere(~whole)[0])
+        raise ValueError(
+            f"{key}{list(at) if at else ''}={float(ages[at])!r} is not a whole number of periods "
+            f"({int((~whole).sum())} such entries); an age counts control periods: 0 at a robot itself, "
+            "-1 before a message arrives"
+        )
+    raise TypeError(f"{key} has dtype {ages.dtype}; expected whole control periods (int64)")
+
+
 @dataclass(frozen=True, eq=False)
 class Observed:
     """What a model-based controller receives each period: what the robots believe, never the truth.
@@ -150,8 +177,11 @@ class Observed:
         Raises
         ------
         ValueError
-            ``info`` has neither ``observed_poses`` nor ``poses``, or the poses, messages or
-            ages are not of shapes (N, 3), (N, N, 3) and (N, N).
+            ``info`` has neither ``observed_poses`` nor ``poses``, the poses, messages or ages
+            are not of shapes (N, 3), (N, N, 3) and (N, N), or an age is not a whole number of
+            periods (NaN, a fraction).
+        TypeError
+            ``message_age`` is not numeric.
         """
         given = info.get("observed_poses")
         if given is None:
@@ -169,7 +199,7 @@ class Observed:
         known = (
             np.broadcast_to(poses[None], (n, n, 3)) if known is None else np.asarray(known, dtype=np.float64)
         )
-        age = np.zeros((n, n), dtype=np.int64) if age is None else np.asarray(age, dtype=np.int64)
+        age = np.zeros((n, n), dtype=np.int64) if age is None else _whole_periods("message_age", age)
         if known.shape != (n, n, 3) or age.shape != (n, n):
             raise ValueError(
                 f"known_poses has shape {known.shape} and message_age {age.shape}; for {n} robots "

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.suggest import did_you_mean
+from koopman_envs.checks import check_choice
 
 __all__ = [
     "DRIFT_MEAN_INTERVAL",
@@ -436,12 +436,14 @@ def slip_lambdas(slip: str | object, n_robots: int) -> NDArray[np.float64]:
         Unknown name, wrong length, negative, non-finite or too large (``LIMITS.slip_lambda``) lambda.
     """
     if isinstance(slip, str):
-        if slip not in SLIP_MAX_LAMBDA:
-            raise ValueError(
-                f"slip={slip!r} is not one of {list(SLIP_SETTINGS)}{did_you_mean(slip, SLIP_NAMES)} "
-                "(or 'random' for a new level per episode, 'drift' for levels that change within an "
-                "episode, a sequence of per-robot lambda >= 0, or a list of (time [s], lambdas) pairs)"
-            )
+        check_choice(
+            "slip",
+            slip,
+            SLIP_SETTINGS,
+            " (or 'random' for a new level per episode, 'drift' for levels that change within an "
+            "episode, a sequence of per-robot lambda >= 0, or a list of (time [s], lambdas) pairs)",
+            suggest=SLIP_NAMES,
+        )
         if n_robots == 1:
             return np.zeros(1)
         return np.linspace(0.0, SLIP_MAX_LAMBDA[slip], n_robots)

@@ -397,3 +397,78 @@ def test_the_suggestion_helper_prefers_the_same_name_in_another_case() -> None:
     assert closest("realstic", ["nominal", "realistic"]) == "realistic"  # the old matches stay
     assert closest("zzz", ["nominal"]) is None and closest(3, ["nominal"]) is None
     assert did_you_mean("CROWDS", ["constant", "crowd"]) == " (did you mean 'crowd'?)"
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        ((("slip", "icy", ["low", "high"]), {}), "slip='icy' is not one of ['low', 'high']"),
+        (
+            (("slip", "hihg", ["low", "high"], " or lambdas"), {}),
+            "slip='hihg' is not one of ['low', 'high'] or lambdas (did you mean 'high'?)",
+        ),
+        (
+            (("--reference", "kn", ["a", "b"]), {"sep": " ", "among": "the run's controllers"}),
+            "--reference 'kn' is not one of the run's controllers ['a', 'b']",
+        ),
+        (
+            (("slip", "drft", ["low"]), {"suggest": ["low", "drift"]}),
+            "slip='drft' is not one of ['low'] (did you mean 'drift'?)",
+        ),
+        ((("code", True, [0, 1]), {}), "code=True is not one of [0, 1]"),  # a bool is no number here
+    ],
+)
+def test_check_choice_is_the_one_wording(call: tuple, message: str) -> None:
+    """``check_choice`` (and ``choice_message``, its text) words every choice check alike: the
+    name, its separator, the value's repr, what the set is, the list, ``also``, a did-you-mean."""
+    from koopman_envs.checks import check_choice, choice_message
+
+    args, options = call
+    assert choice_message(*args, **options) == message
+    with pytest.raises(ValueError) as refused:
+        check_choice(*args, **options)
+    assert str(refused.value) == message
+    assert check_choice(args[0], args[2][0], *args[2:], **options) == args[2][0]
+
+
+def test_no_choice_message_is_worded_inline() -> None:
+    """Issue 61: every "is not one of" message of the packages comes from ``choice_message``; a
+    string with the phrase anywhere else (a docstring aside) is a second wording. The one left is
+    a run log's reason for a record, which lists no allowed set (a run's episodes)."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    # a run log's reason (no allowed set to list), and a test of a message's text
+    allowed = {" is not one of this run's episodes", "is not one of"}
+    found = []
+    for path in [
+        root / "evaluate.py",
+        *(
+            p
+            for d in ("koopman_envs", "controllers", "baselines", "evaluation")
+            for p in (root / d).rglob("*.py")
+        ),
+    ]:
+        name = path.relative_to(root).as_posix()
+        if name == "koopman_envs/checks.py":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        docstrings = {
+            id(node.body[0].value)
+            for node in ast.walk(tree)
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.body
+            and isinstance(node.body[0], ast.Expr)
+            and isinstance(node.body[0].value, ast.Constant)
+        }
+        found += [
+            f"{name}:{node.lineno}"
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Constant)
+            and isinstance(node.value, str)
+            and id(node) not in docstrings
+            and node.value not in allowed
+            and ("is not one of" in node.value or "must be one of" in node.value)
+        ]
+    assert found == [], found

@@ -95,3 +95,23 @@ def test_without_uncertainty_the_view_is_the_truth() -> None:
     assert (info["message_age"] == 0).all() and "lidar_ranges" not in info
     view = Observed.from_info(info)  # the earlier API's aliases, equal to the truth bit for bit
     assert np.array_equal(view.poses, info["poses"]) and np.array_equal(view.distances, info["distances"])
+
+
+@pytest.mark.parametrize("bad", [np.nan, 1.5, np.inf, 2.0**63])
+def test_an_age_that_is_no_whole_number_of_periods_is_refused(bad: float) -> None:
+    """A NaN or fractional ``message_age`` is refused naming the key and the entry, not cast to
+    an arbitrary integer (NaN gave -2**63 with only a RuntimeWarning): its readers act on it."""
+    ages = np.array([[0.0, 2.0], [-1.0, 0.0]])
+    ages[1, 0] = bad
+    with pytest.raises(ValueError, match=r"message_age\[1, 0\]=.* is not a whole number of periods"):
+        Observed.from_info({"poses": np.zeros((2, 3)), "message_age": ages})
+    with pytest.raises(TypeError, match="message_age has dtype"):
+        Observed.from_info({"poses": np.zeros((2, 3)), "message_age": ages.astype(str)})
+
+
+def test_whole_ages_are_read_as_given() -> None:
+    """Whole ages pass: an int64 array as it is (not copied), whole floats exactly."""
+    ages = np.array([[0, 3], [-1, 0]], dtype=np.int64)
+    assert Observed.from_info({"poses": np.zeros((2, 3)), "message_age": ages}).message_age is ages
+    read = Observed.from_info({"poses": np.zeros((2, 3)), "message_age": ages.astype(float)}).message_age
+    assert read.dtype == np.int64 and np.array_equal(read, ages)

@@ -28,7 +28,7 @@ from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_proto
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_pages import PAGES, edited_pages, page_digest, read_digests  # noqa: E402  (docs/ is no package)
+from make_pages import PAGES, edited_pages, main, page_digest, read_digests  # noqa: E402  (docs/ is no package)
 
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
@@ -278,3 +278,29 @@ def test_a_number_edited_by_hand_in_a_generated_page_fails() -> None:
     edited = text[: number.start()] + "1" + text[number.start() :]  # 20/20 -> 120/20
     assert edited_pages({page: edited.encode()}) == [page]
     assert page_digest(text.encode()) == read_digests()[page]
+
+
+def test_make_pages_help_lists_the_pages_and_rebuilds_nothing(capsys) -> None:
+    """``--help`` is the command line's help, not a page name: it exits 0 with the examples and
+    every published page, before any generator runs."""
+    with pytest.raises(SystemExit) as stop:
+        main(["--help"])
+    assert stop.value.code == 0
+    shown = capsys.readouterr().out
+    assert shown.startswith("usage: python docs/make_pages.py")
+    assert "python docs/make_pages.py --check" in shown  # an example
+    assert all(f"  {entry['page']}\n" in shown for entry in PAGES)
+
+
+@pytest.mark.parametrize("argv", [["docs/result.md"], ["--check", "docs/lidar_results.md", "nope.md"]])
+def test_make_pages_refuses_an_unknown_page_naming_the_known_ones(capsys, argv) -> None:
+    """A name that is no published page is refused (exit 2) before any page is rebuilt, naming
+    the pages it knows (and the near miss)."""
+    assert main(argv) == 2
+    shown = capsys.readouterr()
+    complaint = shown.err
+    assert f"page={argv[-1]!r} is not one of" in complaint
+    assert all(repr(entry["page"]) in complaint for entry in PAGES)
+    assert "== " not in shown.out  # no page was started
+    if argv == ["docs/result.md"]:
+        assert "did you mean 'docs/results.md'?" in complaint

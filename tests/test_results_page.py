@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import importlib.util
+import json
+import subprocess
 from pathlib import Path
 
 import pytest
 
-_PATH = Path(__file__).resolve().parents[1] / "docs" / "make_results_md.py"
+ROOT = Path(__file__).resolve().parents[1]
+_PATH = ROOT / "docs" / "make_results_md.py"
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +49,41 @@ def test_regenerate_command_carries_env_keywords_time_limit_and_options(page):
     # settings with their own flags are not repeated as env keywords; the default time limit is implied
     default = page._command(_config(3))
     assert "goal_tolerance" not in default and "--max-episode-steps" not in default
+
+
+def _published_runs() -> dict[str, str]:
+    """data/publish.sh's runs as bash expands them: NAME -> evaluate.py's arguments (the script's
+    definitions only; nothing is run)."""
+    script = (ROOT / "data" / "publish.sh").read_text(encoding="utf-8")
+    definitions = script[: script.index("\nrun() {")]
+    show = 'for name in "${!RUNS[@]}"; do printf "%s\\t%s\\n" "$name" "${RUNS[$name]}"; done'
+    printed = subprocess.run(
+        ["bash", "-c", f"{definitions}\n{show}", str(ROOT / "data" / "publish.sh")],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    return dict(line.split("\t", 1) for line in printed.splitlines())
+
+
+def test_the_pages_regenerate_commands_are_the_published_runs(page):
+    """Every run whose command docs/results.md prints (the changing-uncertainty and team-size
+    archives of data/pages.json): the command rebuilt from its archive is the one data/publish.sh
+    ran, flag for flag (the N = 16 run's --max-episode-steps 300 was left out)."""
+    entry = next(
+        e for e in json.loads((ROOT / "data" / "pages.json").read_text()) if e["page"] == "docs/results.md"
+    )
+    args = entry["args"]
+    archives, option = [], ""
+    for arg in args:  # the values of --uncertainty and --scaling (the sections that print commands)
+        option = arg if arg.startswith("--") else option
+        archives += [arg] if option in ("--uncertainty", "--scaling") and arg != option else []
+    runs = _published_runs()
+    assert len(archives) == 9 and "data/scale_n16.tar.xz" in archives
+    for archive in archives:
+        name = Path(archive).name.removesuffix(".tar.xz")
+        config = page.load_results(str(ROOT / archive))["config"]
+        assert page._command(config) == f"python evaluate.py {runs[name]}", name
 
 
 def _cell(controller: str, successes: int) -> dict:

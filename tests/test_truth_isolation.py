@@ -15,7 +15,7 @@ movers to plan around) would pass it whenever nothing is near in those steps. He
   equal the honest one's bit for bit, every period. The NMPCs run one scene by default, all
   three with ``-m slow``;
 * the learned policies read only the observation: their actions are unchanged with every key
-  of the info lied about or NaN (the observed keys too), and with a stale observation of
+  of the info lied about, or every real-valued key NaN (the observed keys too), and with a stale observation of
   5 periods before they give exactly the action they gave then, which differs from the current
   one (the action depends on the observation, and on nothing else).
 """
@@ -126,8 +126,10 @@ def _lied(info: dict[str, Any], t: int, everything: bool = False) -> dict[str, A
 
 
 def _nan_everything(info: dict[str, Any]) -> dict[str, Any]:
+    """``info`` with every real-valued field NaN. An integer or boolean field cannot hold NaN (a
+    NaN ``message_age`` is bad input, refused by ``Observed.from_info``): the lies change those."""
     return {
-        key: np.full(np.shape(value), np.nan) if np.asarray(value).dtype.kind in "fiub" else value
+        key: np.full(np.shape(value), np.nan) if np.asarray(value).dtype.kind == "f" else value
         for key, value in info.items()
     }
 

@@ -274,7 +274,7 @@ def test_a_search_outside_its_range_is_refused_by_name() -> None:
     spec = controllers.options("consensus")
     with pytest.raises(ValueError, match=r"hand: the searched \[0.01, 5\] leaves the option's range"):
         with_search(spec, {"hand": Search(0.01, 5.0)})
-    with pytest.raises(ValueError, match="'nope', which is not one of its options"):
+    with pytest.raises(ValueError, match=r"consensus: TUNABLE key 'nope' is not one of its options \["):
         with_search(spec, {"nope": Search(0.0, 1.0)})
     with pytest.raises(ValueError, match="not in the searched"):
         Search(0.1, 1.0).point("hand", 2.0)

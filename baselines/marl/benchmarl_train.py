@@ -35,6 +35,7 @@ import numpy as np
 from baselines.marl.benchmarl_options import ALGORITHMS, build_parser
 from baselines.suite_training import choose, keep_chosen
 from evaluation.exit_codes import SUCCESS_EXIT
+from koopman_envs.checks import check_choice
 from koopman_envs.files import write_atomic
 
 
@@ -64,8 +65,7 @@ def experiment(
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
 
-    if algorithm not in ALGORITHMS:
-        raise ValueError(f"algorithm={algorithm!r} is not one of {list(ALGORITHMS)}")
+    check_choice("algorithm", algorithm, ALGORITHMS)
     algorithm_config = (MappoConfig if algorithm == "mappo" else IppoConfig).get_from_yaml()
     if initial_std is not None:
         if not initial_std > 0:

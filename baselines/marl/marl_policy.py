@@ -30,6 +30,7 @@ from baselines.features.robot_features import FEATURE_SETS, feature_count, robot
 from baselines.safe_load import PolicyLoadError, load_npz, read_json
 from controllers.base import BaseController
 from koopman_envs import Observed
+from koopman_envs.checks import choice_message
 from koopman_envs.scenario import Scenario
 
 __all__ = ["IppoController", "MappoController", "actor_command"]
@@ -125,7 +126,9 @@ class MappoController(BaseController):
         self._features = self.metadata.get("features")
         if self._features is not None and self._features not in FEATURE_SETS:
             raise PolicyLoadError(
-                f"{self.name}'s {scenario.task} metadata: features={self._features!r} is not one of {list(FEATURE_SETS)}"
+                choice_message(
+                    f"{self.name}'s {scenario.task} metadata: features", self._features, FEATURE_SETS
+                )
             )
         expected = int(self.metadata["observation_size"])
         read = (

@@ -23,7 +23,7 @@ from baselines.sb3.inference import (
 )
 from controllers.base import BaseController
 from koopman_envs import TASKS, Observed
-from koopman_envs.checks import Range
+from koopman_envs.checks import Range, choice_message
 from koopman_envs.files import write_atomic
 from koopman_envs.scenario import Scenario
 
@@ -172,7 +172,7 @@ def load_policy(
         norm = _checked_norm(files.norm, load_npz(files.norm, ("mean", "var", "clip", "epsilon")))
         name = metadata.get("algo", algo)
         if name not in algorithms:
-            raise PolicyLoadError(f"{files.metadata}: algo={name!r} is not one of {list(algorithms)}")
+            raise PolicyLoadError(choice_message(f"{files.metadata}: algo", name, algorithms))
         model = load_model(files.model, algorithms[name], allow_pickle=allow_pickle)
     except UnsafePolicyFile:
         raise

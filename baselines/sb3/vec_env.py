@@ -153,9 +153,7 @@ class KoopNavSB3VecEnv(VecEnv):
             config.task.reward.collision,
             None if movers is None or movers.count == 0 else config.robot_radius + movers.radius,
         )
-        if features not in FEATURE_SETS:
-            raise ValueError(f"features={features!r} is not one of {list(FEATURE_SETS)}")
-        self.features = features
+        self.features = check_choice("features", features, FEATURE_SETS)
         observation: spaces.Space[Any]
         if set_config is not None:
             physical, _ = unwrapped.robot_spaces()

@@ -19,6 +19,7 @@ from controllers.koopman.dictionary import DICTIONARIES
 from controllers.koopman.model import KoopmanModel
 from controllers.koopman.store import calibrated_model, fit_on_plant
 from koopman_envs import make_plant
+from koopman_envs.checks import choice_message
 from koopman_envs.files import write_atomic
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, slip_lambdas
 
@@ -31,7 +32,7 @@ def _slip_arg(text: str) -> str | list[float]:
         return [float(v) for v in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"slip={text!r} is not one of {list(SLIP_SETTINGS)} nor comma-separated numbers"
+            choice_message("slip", text, SLIP_SETTINGS, " nor comma-separated numbers")
         ) from None
 
 

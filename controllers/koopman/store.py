@@ -110,8 +110,7 @@ def _model_key(
 
 def shipped_path(setting: str) -> Path:
     """Path of the shipped model of a named slip setting (3 robots, minimal dictionary)."""
-    if setting not in SHIPPED:
-        raise ValueError(f"setting={setting!r} is not one of the shipped {list(SHIPPED)}")
+    check_choice("setting", setting, SHIPPED, among="the shipped")
     return Path(str(resources.files("controllers.koopman").joinpath("models", f"{setting}.npz")))
 
 

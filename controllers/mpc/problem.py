@@ -29,6 +29,7 @@ from controllers.mpc.layout import nmpc_layout
 from controllers.mpc.models import CODING_SIZE, PredictionModel, decode_state, model_step
 from controllers.mpc.rti import RealTimeIteration, bind_buffer
 from controllers.solvers.compiled import nlpsol
+from koopman_envs.checks import check_choice
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -228,8 +229,7 @@ class Problem:
     ) -> None:
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         coding = model.coding
-        if coding not in CODING_SIZE:
-            raise ValueError(f"model coding={coding!r} is not one of {sorted(CODING_SIZE)}")
+        check_choice("model coding", coding, sorted(CODING_SIZE))
         size = CODING_SIZE[coding]
         nx, nu = size * n, 2 * n
         # slacks per stage: collision rows, formation rows and (terminal_slack) the terminal

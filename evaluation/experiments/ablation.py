@@ -32,6 +32,7 @@ from evaluation.reports.sections import task_label
 from evaluation.run.configs import ControllerConfig
 from evaluation.stats.layout_tests import paired_means_by_layout
 from evaluation.stats.statistics import holm_adjusted, wilson_interval
+from koopman_envs.checks import check_choice
 
 __all__ = [
     "DEFAULT_LEVELS",
@@ -59,8 +60,7 @@ def check_factors(factors: Sequence[str] | None) -> list[str]:
     """The factors to vary (all when none are named); ``ValueError`` naming an unknown one."""
     chosen = list(factors) if factors else list(FACTORS)
     for factor in chosen:
-        if factor not in FACTORS:
-            raise ValueError(f"ablation factor {factor!r} is not one of {list(FACTORS)}")
+        check_choice("ablation factor", factor, FACTORS, sep=" ")
     return list(dict.fromkeys(chosen))
 
 

@@ -13,9 +13,9 @@ from typing import Any
 from evaluation.experiments.ablation import ablation_configs
 from evaluation.run.configs import ControllerConfig, parse_controller
 from evaluation.run.spec import TASK_MAPS, RunSpec
+from koopman_envs.checks import check_choice
 from koopman_envs.movers import MOVER_BEHAVIOURS
 from koopman_envs.params import PARAMS, SLIP_SETTINGS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "CROWD_COUNTS",
@@ -167,10 +167,7 @@ def crowd_protocol(behaviour: str = "crowd") -> RunSpec:
     NMPCs on the real-time iteration; swept over ``movers.count`` = :data:`CROWD_COUNTS` of
     ``behaviour`` movers (:data:`koopman_envs.movers.MOVER_BEHAVIOURS`) at :data:`CROWD_SPEED`
     (the sweep is added by the command line: ``--sweep movers.count=0,4,8,16``)."""
-    if behaviour not in MOVER_BEHAVIOURS:
-        raise ValueError(
-            f"--crowd {behaviour!r} is not one of {list(MOVER_BEHAVIOURS)}{did_you_mean(behaviour, MOVER_BEHAVIOURS)}"
-        )
+    check_choice("--crowd", behaviour, MOVER_BEHAVIOURS, sep=" ")
     return _among_movers({"movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0}})
 
 
@@ -235,6 +232,5 @@ PROTOCOLS: dict[str, Callable[[], RunSpec]] = {
 
 def protocol(name: str) -> RunSpec:
     """The preset called ``name`` (one of :data:`PROTOCOLS`); ``ValueError`` with a suggestion otherwise."""
-    if name not in PROTOCOLS:
-        raise ValueError(f"protocol {name!r} is not one of {list(PROTOCOLS)}{did_you_mean(name, PROTOCOLS)}")
+    check_choice("protocol", name, PROTOCOLS, sep=" ")
     return PROTOCOLS[name]()

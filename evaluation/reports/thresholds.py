@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from evaluation.reports.results import Results
-from koopman_envs.checks import check_number
+from koopman_envs.checks import check_choice, check_number
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 from koopman_envs.suggest import did_you_mean
 
@@ -135,10 +135,7 @@ def load_thresholds(path: str | os.PathLike[str]) -> Thresholds:
     if not isinstance(rules, list) or not rules:
         raise ValueError(f"{name} has no [[cell]] tables")
     reading = spec.get("reading", "interval")
-    if reading not in READINGS:
-        raise ValueError(
-            f"{name}: reading={reading!r} is not one of {list(READINGS)}{did_you_mean(reading, READINGS)}"
-        )
+    check_choice(f"{name}: reading", reading, READINGS)
     checked = tuple(_checked_rule(f"{name}: [[cell]] {i + 1}", rule) for i, rule in enumerate(rules))
     return Thresholds(os.fspath(path), checked, reading)
 

@@ -31,7 +31,7 @@ from typing import Any
 import controllers
 from controllers.registry import factory as registered_factory
 from controllers.registry import is_import_path, split_name
-from koopman_envs.checks import CLI_JSON_CHARS, parse_json
+from koopman_envs.checks import CLI_JSON_CHARS, check_choice, parse_json
 
 __all__ = [
     "ControllerConfig",
@@ -321,11 +321,10 @@ def with_solver(
     configs = list(configs)
     from controllers.mpc.config import NLP_SOLVERS, SOLVERS
 
-    if solver is not None and solver not in SOLVERS:
-        raise ValueError(f"--solver {solver!r} is not one of {list(SOLVERS)}")
-    fallbacks = [*NLP_SOLVERS, FALLBACK_NONE]
-    if fallback_solver is not None and fallback_solver not in fallbacks:
-        raise ValueError(f"--fallback-solver {fallback_solver!r} is not one of {fallbacks}")
+    if solver is not None:
+        check_choice("--solver", solver, SOLVERS, sep=" ")
+    if fallback_solver is not None:
+        check_choice("--fallback-solver", fallback_solver, [*NLP_SOLVERS, FALLBACK_NONE], sep=" ")
     out = []
     for config in configs:
         given = dict(config.options)

@@ -9,6 +9,7 @@ keyword only, not a cell.
 
 from __future__ import annotations
 
+from koopman_envs.checks import choice_message
 from koopman_envs.params import SLIP_NAMES
 
 __all__ = ["is_lambda", "slip_value", "split_slips"]
@@ -31,9 +32,7 @@ def slip_value(slip: str) -> str | list[float]:
         return slip
     pieces = slip.split(",")
     if not all(is_lambda(piece) for piece in pieces):
-        raise ValueError(
-            f"slip={slip!r} is not one of {list(SLIP_NAMES)} nor comma-separated per-robot lambdas"
-        )
+        raise ValueError(choice_message("slip", slip, SLIP_NAMES, " nor comma-separated per-robot lambdas"))
     return [float(piece) for piece in pieces]
 
 

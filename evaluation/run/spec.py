@@ -27,7 +27,7 @@ from evaluation.run.configs import controller_configs, with_solver
 from evaluation.run.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.run.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
 from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, EngineConfig, task_for_env
-from koopman_envs.checks import check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import (
     DRIFT_SLIP,
     MAX_EPISODES_PER_CELL,
@@ -251,10 +251,7 @@ class RunSpec:
         env kwarg the env rejects (or a map with too few starts for ``n_robots``) fails here.
         """
         for env_id in self.envs:
-            if env_id not in ENV_IDS:
-                raise ValueError(
-                    f"envs: {env_id!r} is not one of {list(ENV_IDS)}{did_you_mean(env_id, ENV_IDS)}"
-                )
+            check_choice("envs:", env_id, ENV_IDS, sep=" ")
         configs = self.controllers
         if configs is not None:
             if not configs:

@@ -35,6 +35,7 @@ from evaluation.stats.statistics import (
     tail_mean,
     wilson_interval,
 )
+from koopman_envs.checks import check_choice
 
 __all__ = ["TAIL_SHARE", "AxisProfile", "LevelCost", "LevelRow", "level_costs", "profiles"]
 
@@ -173,8 +174,7 @@ def profiles(
     for key, levels in sweep.items():
         controllers = list(levels[0][1].config["controllers"])
         ref = reference or controllers[0]
-        if ref not in controllers:
-            raise ValueError(f"--reference {ref!r} is not one of the run's controllers {controllers}")
+        check_choice("--reference", ref, controllers, sep=" ", among="the run's controllers")
         slip_axis = key == "slip"
         profile = AxisProfile(key, [level for level, _ in levels], ref)
         identities = []

@@ -53,21 +53,16 @@ def _random_map_config(name: str, value: RandomMapConfig | dict[str, Any] | None
 
 
 def _formation(name: str, value: Any) -> str | None:
-    if value is not None and (not isinstance(value, str) or value not in FORMATION_SHAPES):
-        raise ValueError(
-            f"{name}={value!r} is not one of {list(FORMATION_SHAPES)} or None (the map's own layout)"
-            f"{did_you_mean(value, FORMATION_SHAPES)}"
-        )
-    return value
+    if value is None:
+        return None
+    return str(check_choice(name, value, FORMATION_SHAPES, " or None (the map's own layout)"))
 
 
 def _choice(allowed: Sequence[str]) -> Callable[[str, Any], str]:
     """A check that ``value`` is one of ``allowed`` (with did-you-mean)."""
 
     def check(name: str, value: Any) -> str:
-        if not isinstance(value, str) or value not in allowed:
-            raise ValueError(f"{name}={value!r} is not one of {list(allowed)}{did_you_mean(value, allowed)}")
-        return value
+        return str(check_choice(name, value, allowed))
 
     return check
 

@@ -9,6 +9,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import START_NOISE_ATTEMPTS, NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
@@ -34,10 +35,8 @@ class KoopNavEnv(gym.Env):
 
     @takes_env_keywords("gym")
     def __init__(self, render_mode: str | None = None, **keywords: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
-            )
+        if render_mode is not None:
+            check_choice("render_mode", render_mode, self.metadata["render_modes"], " or None")
         #: the env's keywords resolved and checked (:class:`koopman_envs.EngineConfig`): the public
         #: way to read its team size, task, movers and radii (``engine`` is internal)
         self.config = EngineConfig.create(self.task_name, front="gym", **keywords)

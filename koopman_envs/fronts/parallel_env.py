@@ -16,6 +16,7 @@ from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import OrderEnforcingWrapper
 from pettingzoo.utils.conversions import parallel_to_aec
 
+from koopman_envs.checks import check_choice
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS, takes_env_keywords
@@ -78,10 +79,8 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
     def __init__(
         self, task: str = "target_reaching", render_mode: str | None = None, **keywords: Any
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']} or None"
-            )
+        if render_mode is not None:
+            check_choice("render_mode", render_mode, self.metadata["render_modes"], " or None")
         # a PettingZoo env truncates by itself: without max_episode_steps / max_cycles, the default limit
         #: the env's keywords resolved and checked (:class:`koopman_envs.EngineConfig`): the public
         #: way to read its team size, task, movers and radii (``engine`` is internal)

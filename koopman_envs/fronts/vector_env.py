@@ -12,7 +12,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_choice, check_int, choice_message
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.engine.keywords import takes_env_keywords
@@ -72,16 +72,18 @@ class KoopNavVectorEnv(VectorEnv):
     ) -> None:
         # every array is batched over it (the engine also checks the batch's estimated memory)
         check_int("num_envs", num_envs, 1, maximum=LIMITS.num_envs)
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(
-                f"render_mode={render_mode!r} is not one of [None, 'rgb_array'] for the vector env; "
-                "'human': render a single env, or wrap this one in gymnasium.wrappers.vector.HumanRendering"
-            )
+        check_choice(
+            "render_mode",
+            render_mode,
+            [None, "rgb_array"],
+            " for the vector env; 'human': render a single env, or wrap this one in "
+            "gymnasium.wrappers.vector.HumanRendering",
+        )
         try:
             mode = AutoresetMode(autoreset_mode)
         except ValueError as exc:
             allowed = [AutoresetMode.NEXT_STEP.value, AutoresetMode.SAME_STEP.value]
-            raise ValueError(f"autoreset_mode={autoreset_mode!r} is not one of {allowed}") from exc
+            raise ValueError(choice_message("autoreset_mode", autoreset_mode, allowed)) from exc
         if mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode='Disabled' is not supported; use NextStep or SameStep")
         self.metadata = {**self.metadata, "autoreset_mode": mode}

@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice
 from koopman_envs.sim.geometry import TeamGeometry, clearance
 
 __all__ = ["CollisionFault", "CollisionKind", "check_collisions", "collision_flags", "mover_collisions"]
@@ -53,8 +54,7 @@ class CollisionFault:
     @classmethod
     def describe(cls, code: int) -> str:
         """``"robot"``, ``"mover"`` or ``""`` (no collision) for a code of ``info["collision_fault"]``."""
-        if int(code) not in cls.NAMES:
-            raise ValueError(f"collision fault code {code!r} is not one of {sorted(cls.NAMES)}")
+        check_choice("collision fault code", code, sorted(cls.NAMES), sep=" ")
         return cls.NAMES[int(code)]
 
 

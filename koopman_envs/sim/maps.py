@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int, parse_json
+from koopman_envs.checks import check_int, choice_message, parse_json
 from koopman_envs.files import read_text, write_atomic
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
@@ -407,7 +407,4 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
                 raise ValueError(f"map file {text!r} is not valid JSON: {exc}") from exc
             stem = os.path.splitext(os.path.basename(text))[0]
             return MapSpec.from_dict(data, default_name=stem)
-    raise ValueError(
-        f"map={spec!r} is not one of {list(MAP_NAMES)}, a path to a .json map file, or a MapSpec"
-        f"{did_you_mean(spec, MAP_NAMES)}"
-    )
+    raise ValueError(choice_message("map", spec, MAP_NAMES, ", a path to a .json map file, or a MapSpec"))

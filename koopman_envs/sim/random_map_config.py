@@ -19,11 +19,10 @@ from numbers import Real
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_choice, check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number, choice_message
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_shape
 from koopman_envs.sim.zones import SLIP_ZONE_MODES
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "AUTO_FORMATION",
@@ -167,8 +166,7 @@ class RandomMapConfig:
                 if "is not one of" not in str(exc):
                     raise
                 raise ValueError(
-                    f"formation={self.formation!r} is not one of {[AUTO_FORMATION, *FORMATION_SHAPES]}"
-                    f"{did_you_mean(self.formation, [AUTO_FORMATION, *FORMATION_SHAPES])}"
+                    choice_message("formation", self.formation, [AUTO_FORMATION, *FORMATION_SHAPES])
                 ) from None
         else:
             formation_shape("grid", 1, self.spacing)  # the spacing's check

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from koopman_envs.checks import choice_message
+
 __all__ = ["ENV_IDS", "RewardWeights", "TASKS", "TaskSpec", "env_id_for_map", "task_for_env"]
 
 
@@ -98,7 +100,7 @@ def task_for_env(env_id: str) -> TaskSpec:
     for spec in TASKS.values():
         if spec.env_id == env_id:
             return spec
-    raise ValueError(f"env id {env_id!r} is not one of {list(ENV_IDS)}")
+    raise ValueError(choice_message("env id", env_id, ENV_IDS, sep=" "))
 
 
 def env_id_for_map(map_name: str, default: str = ENV_IDS[0]) -> str:
