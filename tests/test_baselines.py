@@ -31,9 +31,13 @@ def trained_root(tmp_path_factory):
             "--env",
             "KoopNav-Formation-v0",
             "--timesteps",
-            "4096",
+            "1024",
             "--n-envs",
             "8",
+            "--n-steps",  # rollouts of 8 envs x 3 robots x 32 steps, one minibatch each
+            "32",
+            "--batch-size",
+            "768",
             "--eval-freq",
             "100000",
             "--out",
@@ -59,7 +63,7 @@ def play(ctrl, seed: int = 0) -> tuple[dict, list]:
 
 def test_short_training_saves_a_loadable_policy(trained_root) -> None:
     model, norm, metadata = load_policy(trained_root / "formation")
-    assert metadata["timesteps"] == 4096 and metadata["algo"] == "ppo"
+    assert metadata["timesteps"] == 1024 and metadata["algo"] == "ppo"
     assert {"stable_baselines3", "torch"} <= set(metadata["versions"])
     assert metadata["layout"] == "robot"
     assert metadata["features"] == "bearing+headings"
@@ -89,8 +93,8 @@ def test_selection_scores_the_run_on_held_out_layouts_and_writes_a_loadable_poli
     )
     _, _, metadata = load_policy(tmp_path / "formation")
     selection = metadata["selection"]
-    # the only candidate, the final policy, after whole rollouts: 2 x (8 envs x 3 robots x 128 steps)
-    assert selection["selected_timesteps"] == metadata["trained_timesteps"] == 6144
+    # the only candidate, the final policy, after whole rollouts: 2 x (8 envs x 3 robots x 32 steps)
+    assert selection["selected_timesteps"] == metadata["trained_timesteps"] == 1536
     assert len(selection["validation"]) == 1
     assert 0.0 <= selection["validation"][0]["validation_success_rate"] <= 1.0
     assert metadata["env_id"] == "KoopNav-Formation-v0"

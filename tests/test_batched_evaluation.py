@@ -13,6 +13,8 @@ from evaluation.execution.worker import runs_in_batch
 
 #: what a batch may change: decision and wall times (measured, never the same twice)
 TIMING = {"solve_ms", "solve_ms_median", "solve_ms_p95", "wall_seconds"}
+#: trials per cell: a batch of 3 holds a first trial (its paths recorded) and two others
+EPISODES = 3
 
 
 def _untimed(record: dict) -> dict:
@@ -26,7 +28,7 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
         controllers=controllers,
         maps=["random", "map1"],
         slips=["nominal"],
-        episodes=5,
+        episodes=EPISODES,
         env_kwargs={"max_episode_steps": 100, "start_noise": 0.05, **env_kwargs},
     )
 
@@ -51,8 +53,8 @@ def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(con
     plan = spec.resolved().episodes_plan("")
     units = work_units(plan)
     batched_units = [unit for unit in units if len(unit) > 1]
-    # every cell's 5 trials run together (trial 0 keeps its paths, the movers' too)
-    assert len(batched_units) == 2 * len(controllers) and {len(u) for u in batched_units} == {5}
+    # every cell's trials run together (trial 0 keeps its paths, the movers' too)
+    assert len(batched_units) == 2 * len(controllers) and {len(u) for u in batched_units} == {EPISODES}
     together = evaluate(spec, workers=2)  # the batches in worker processes
     alone = evaluate(spec, workers=1, batch=1)
     assert [r["key"] for r in together.records] == [r["key"] for r in alone.records]
@@ -64,7 +66,7 @@ def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(con
     assert all(bool(r.get("mover_trajectory")) == ("movers" in env_kwargs) for r in first_trials)
     for name in controllers:  # distinct episodes (perturbed starts, random layouts)
         poses = [str(r["final_poses"]) for r in together.records if r["controller"] == name]
-        assert len(set(poses)) == len(poses) == 10
+        assert len(set(poses)) == len(poses) == 2 * EPISODES
 
 
 def test_one_failing_episode_of_a_batch_is_its_own_error(monkeypatch) -> None:

@@ -30,7 +30,9 @@ def _episode(name: str, map_name: str, slip: str = "nominal", seed: int = 0, **o
             return info, commands, ctrl.stats().counts
 
 
-@pytest.mark.parametrize("name", ["nominal-nmpc", "koopman-nmpc"])
+# koopman-nmpc's crossing runs with -m slow: two whole Map 2 episodes of the central NMPC are the
+# check, and nominal-nmpc runs the same detour code on the same crossing in the default run
+@pytest.mark.parametrize("name", ["nominal-nmpc", pytest.param("koopman-nmpc", marks=pytest.mark.slow)])
 def test_the_map2_crossing_deadlock_is_resolved(name: str) -> None:
     stuck, _, counts = _episode(name, "map2", unstall=False)
     assert not stuck["is_success"] and not stuck["collision"]

@@ -8,6 +8,8 @@ margin at every step. It is the map the preset's gamma was chosen on."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import subprocess
 import sys
 from pathlib import Path
@@ -112,24 +114,32 @@ def test_the_barrier_holds_at_every_step_where_the_plain_nmpcs_margin_is_crossed
 _EPISODE = """
 import gymnasium as gym, koopman_envs, controllers
 from koopman_envs.fronts.episode import run_episode
-env = gym.make('KoopNav-Formation-v0', map='map4', slip='high', start_noise=0.05)
+env = gym.make('KoopNav-Formation-v0', map='map4', slip='high', start_noise=0.05{limit})
 result = run_episode(env, controllers.make('mpc-cbf'), seed=1)
 print(result.trajectory.tobytes().hex(), result.steps)
 """
 
 
+def _in_a_fresh_process(code: str) -> str:
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300, check=False
+    )
+    assert run.returncode == 0, run.stderr
+    return run.stdout
+
+
+def test_same_seed_same_closed_loop_here_and_in_another_process() -> None:
+    """The first 40 periods, in this process and in a fresh one (the whole episode, in two fresh
+    processes, runs with -m slow)."""
+    code = _EPISODE.format(limit=", max_episode_steps=40")
+    here = io.StringIO()
+    with contextlib.redirect_stdout(here):
+        exec(code, {})
+    assert here.getvalue().strip().endswith(" 40")  # still driving: no episode ended early
+    assert here.getvalue() == _in_a_fresh_process(code)
+
+
+@pytest.mark.slow
 def test_same_seed_same_closed_loop_in_two_processes() -> None:
-    runs = [
-        subprocess.run(
-            [sys.executable, "-c", _EPISODE],
-            capture_output=True,
-            text=True,
-            cwd=ROOT,
-            timeout=300,
-            check=False,
-        )
-        for _ in range(2)
-    ]
-    for run in runs:
-        assert run.returncode == 0, run.stderr
-    assert runs[0].stdout.strip() and runs[0].stdout == runs[1].stdout
+    runs = [_in_a_fresh_process(_EPISODE.format(limit="")) for _ in range(2)]
+    assert runs[0].strip() and runs[0] == runs[1]
