@@ -6,7 +6,9 @@ truncated, of another run or another controller) is refused, naming it, with not
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +44,9 @@ def _sweep(root: Path, labels: list[str] = ["a", "b"], name: str = "run", steps:
     run = root / name
     for level in LEVELS:
         _write_log(run / "sweep" / level / "episodes.jsonl", labels, _records(labels, steps))
-    (run / "sweep.json").write_text(json.dumps({"kind": "koopnav-sweep", "axes": [{"key": "lvl", "levels": [0, 1]}]}) + "\n")
+    (run / "sweep.json").write_text(
+        json.dumps({"kind": "koopnav-sweep", "axes": [{"key": "lvl", "levels": [0, 1]}]}) + "\n"
+    )
     return run
 
 
@@ -204,7 +208,9 @@ def test_a_renamed_torn_or_foreign_part_is_refused_by_name(split, tmp_path) -> N
 
 
 def test_a_frame_holding_records_is_refused(split, tmp_path) -> None:
-    header = json.dumps({**HEADER, "config": {**_config(["a", "b"]), "env_settings": {"lvl": 0}}}).encode() + b"\n"
+    header = (
+        json.dumps({**HEADER, "config": {**_config(["a", "b"]), "env_settings": {"lvl": 0}}}).encode() + b"\n"
+    )
     record = json.dumps(_record("E", "a", "m", "s", 0)).encode() + b"\n"
     members = [(f"run/sweep/{level}/episodes.jsonl", header + record) for level in LEVELS]
     (split / "run.tar.xz").write_bytes(published.tar_xz(members))
@@ -216,3 +222,44 @@ def test_a_split_publication_given_as_a_baseline_is_refused_with_how_to_unpack_i
         ValueError, match=r"is a published archive .* \(python -m evaluation.archive unpack .*/run DIR\)"
     ):
         load_baseline(split, what="baseline")
+
+
+# 40 s (four fresh interpreters, xz at preset 9): run by -m slow (.ci/run)
+@pytest.mark.slow
+def test_publish_sh_pack_keeps_an_unchanged_whole_archive_and_splits_a_republished_run(tmp_path) -> None:
+    """``bash data/publish.sh pack`` on a run published whole (data/NAME.tar.xz): unchanged logs
+    leave it as it is (no split, nothing added to the history); a rerun controller's records
+    replace it with data/NAME/, which ``unpack`` restores."""
+    root = Path(__file__).resolve().parents[1]
+    data = tmp_path / "data"
+    data.mkdir()
+    shutil.copy(root / "data" / "publish.sh", data)
+    shutil.copy(root / "data" / "scale_n3.tar.xz", data)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
+
+    def publish(*words: str) -> None:
+        done = subprocess.run(
+            ["bash", str(data / "publish.sh"), *words], capture_output=True, text=True, env=env
+        )
+        assert done.returncode == 0, done.stderr
+
+    publish("unpack")
+    whole = (data / "scale_n3.tar.xz").read_bytes()
+    publish("pack")
+    assert (data / "scale_n3.tar.xz").read_bytes() == whole and not (data / "scale_n3").exists()
+    log = data / "runs" / "scale_n3" / "episodes.jsonl"
+    lines = log.read_text().splitlines(keepends=True)
+    rerun = [json.loads(line) for line in lines[1:] if json.loads(line)["controller"] == "orca"]
+    kept = [line for line in lines[1:] if json.loads(line)["controller"] != "orca"]
+    log.write_text(
+        lines[0] + "".join(kept) + "".join(json.dumps({**r, "steps": r["steps"] + 1}) + "\n" for r in rerun)
+    )
+    publish("pack")
+    assert not (data / "scale_n3.tar.xz").exists() and publications.is_split(data / "scale_n3")
+    shutil.rmtree(data / "runs")
+    publish("unpack")
+    back = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    assert sorted((r["controller"], r["key"], r["steps"]) for r in back) == sorted(
+        [(r["controller"], r["key"], r["steps"]) for r in map(json.loads, kept)]
+        + [(r["controller"], r["key"], r["steps"] + 1) for r in rerun]
+    )
