@@ -263,3 +263,13 @@ def test_publish_sh_pack_keeps_an_unchanged_whole_archive_and_splits_a_republish
         [(r["controller"], r["key"], r["steps"]) for r in map(json.loads, kept)]
         + [(r["controller"], r["key"], r["steps"] + 1) for r in rerun]
     )
+
+
+@pytest.mark.parametrize("name", ["extracted_archive", "unpack_run"])
+def test_the_moved_names_warn_at_their_old_path_for_one_release(name) -> None:
+    with pytest.warns(
+        DeprecationWarning, match=rf"published\.{name} moved to evaluation\.reports\.publications\.{name}"
+    ):
+        assert getattr(published, name) is getattr(publications, name)
+    with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
+        published.nothing  # noqa: B018

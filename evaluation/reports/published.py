@@ -35,11 +35,13 @@ temporary directory removed after use, a single archive or a publication split p
 
 from __future__ import annotations
 
+import importlib
 import io
 import json
 import lzma
 import shutil
 import tarfile
+import warnings
 from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -100,6 +102,25 @@ ARCHIVE_SUFFIX = ".tar.xz"
 #: record fields a published log leaves out: every step's decision time (the per-episode median
 #: and 95th percentile stay; a cell's p95 then comes from them), a third of the packed size
 PACKED_OUT = ("solve_ms",)
+
+
+#: names that moved to :mod:`evaluation.reports.publications` (issue 61, with the split form),
+#: read here for one release with a DeprecationWarning (CHANGELOG.md)
+_MOVED = ("extracted_archive", "unpack_run")
+
+
+def __getattr__(name: str) -> Any:
+    """:data:`_MOVED`'s names at their old path, with a warning naming the new one."""
+    if name in _MOVED:
+        warnings.warn(
+            f"evaluation.reports.published.{name} moved to evaluation.reports.publications.{name} "
+            "(it reads split publications too); the old path goes in the next release",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        # by name, not an import statement: publications imports this module
+        return getattr(importlib.import_module("evaluation.reports.publications"), name)
+    raise AttributeError(f"module 'evaluation.reports.published' has no attribute {name!r}")
 
 
 def _plan_order(config: dict[str, Any]) -> Any:
