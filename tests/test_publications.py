@@ -268,7 +268,8 @@ def test_publish_sh_pack_keeps_an_unchanged_whole_archive_and_splits_a_republish
 @pytest.mark.parametrize("name", ["extracted_archive", "unpack_run"])
 def test_the_moved_names_warn_at_their_old_path_for_one_release(name) -> None:
     with pytest.warns(
-        DeprecationWarning, match=rf"published\.{name} moved to evaluation\.reports\.publications\.{name}"
+        DeprecationWarning,
+        match=rf"published\.{name} is deprecated and will be removed in KoopNav 0\.2\.0; import it from evaluation\.reports\.publications",
     ):
         assert getattr(published, name) is getattr(publications, name)
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):

@@ -50,6 +50,7 @@ from evaluation.episodes.distinct import read_once
 from evaluation.episodes.records import record_problem
 from evaluation.reports.results import Results
 from koopman_envs.checks import parse_json
+from koopman_envs.deprecation import REMOVAL
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded, read_text, write_atomic
 
 __all__ = [
@@ -113,8 +114,8 @@ def __getattr__(name: str) -> Any:
     """:data:`_MOVED`'s names at their old path, with a warning naming the new one."""
     if name in _MOVED:
         warnings.warn(
-            f"evaluation.reports.published.{name} moved to evaluation.reports.publications.{name} "
-            "(it reads split publications too); the old path goes in the next release",
+            f"evaluation.reports.published.{name} is deprecated and will be removed in KoopNav {REMOVAL}; "
+            f"import it from evaluation.reports.publications (it reads split publications too)",
             DeprecationWarning,
             stacklevel=2,
         )
