@@ -274,3 +274,13 @@ def test_the_moved_names_warn_at_their_old_path_for_one_release(name) -> None:
         assert getattr(published, name) is getattr(publications, name)
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         published.nothing  # noqa: B018
+
+
+def test_a_part_whose_last_line_has_no_newline_keeps_its_records_apart(split, tmp_path) -> None:
+    header = publications._part_header("a")
+    records = [json.dumps(_record("E", "a", "m", "s", trial)).encode() for trial in range(2)]
+    members = [(f"run/sweep/{level}/episodes.jsonl", header + b"\n".join(records)) for level in LEVELS]
+    (split / "controllers" / "a.tar.xz").write_bytes(published.tar_xz(members))
+    run = publications.extract_split(split, tmp_path / "into")
+    lines = (run / "sweep" / "lvl-0" / "episodes.jsonl").read_text().splitlines()
+    assert [json.loads(line)["controller"] for line in lines[1:]] == ["a", "a", "b", "b"]

@@ -244,7 +244,7 @@ def _read_part(part: Path, label: str, logs: dict[str, list[str]], run: Path) ->
                     f"{part}: {name}, line {number} is a record of {owner!r}, not of its part's controller "
                     f"{label!r} among the log's {logs[name]}"
                 )
-        records[name] = body
+        records[name] = body if body.endswith(b"\n") or not body else body + b"\n"  # lines stay lines
     return records
 
 
