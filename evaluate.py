@@ -87,12 +87,13 @@ from evaluation.reports import (
     coverage_failures,
     distinct_pairs,
     gate_failures,
-    is_archive,
+    is_published,
     load_baseline,
     load_thresholds,
     pair_keys,
     refuse_incomparable,
     terminal_overview,
+    unpack_hint,
     write_badge,
     write_profiles,
 )
@@ -336,10 +337,10 @@ def _sweep_report(out: str, reference: str | None) -> int:
     finished so far (a long sweep can be read while it runs); bad input for a sweep that cannot
     be read back, or no level finished yet."""
     try:
-        if is_archive(out):  # its report would go where the archive is: a file
+        if is_published(out):  # its report would go where the archive is: a file, or data/NAME/
             raise ValueError(
                 f"--sweep-report {out!r} is a published archive; the report is written into a sweep's "
-                f"directory: unpack it (tar -xJf {out} -C DIR) and pass DIR/NAME, or build its page "
+                f"directory: unpack it ({unpack_hint(out)}) and pass DIR/NAME, or build its page "
                 "with docs/make_robustness_md.py, which reads archives"
             )
         done, missing, manifest = load_sweep(out)

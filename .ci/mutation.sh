@@ -42,6 +42,7 @@ SIGNALS="tests/test_runlog.py::test_sigkill_at_any_point tests/test_runlog.py::t
 # the script's own working directory, where mutmut's trampolines cannot find their configuration
 # (tests/test_bounded_reads.py calls the same unpack_run in-process, so its mutants are still reached).
 SHELL_SCRIPT="tests/test_bounded_reads.py::test_unpack_keeps_a_local_log_with_more_records_unless_forced"
+SPLIT_SCRIPT="tests/test_publications.py::test_publish_sh_pack_keeps_an_unchanged_whole_archive_and_splits_a_republished_run"
 declare -A MODULES=(
     [perception]="koopman_envs/sim/perception.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_observation_uncertainty.py tests/test_truth_isolation.py tests/test_perception_faults.py tests/test_pcg64.py"
     [uncertainty]="koopman_envs/uncertainty.py|tests/test_uncertainty.py tests/test_comm_delivery.py tests/test_lidar_statistics.py tests/test_bad_input.py tests/test_env_limits.py tests/test_keyword_spec.py tests/test_perception_faults.py tests/test_uncertainty_settings.py tests/test_pcg64.py tests/test_keyword_properties.py tests/test_estimator_levers.py"
@@ -53,10 +54,11 @@ declare -A MODULES=(
     [families]="evaluation/stats/families.py|tests/test_clustered_statistics.py"
     [runlog]="evaluation/episodes/runlog.py|tests/test_runlog.py tests/test_output_dir.py tests/test_runlog_records.py tests/test_duplicate_records.py tests/test_bounded_reads.py tests/test_tune.py tests/test_cli.py tests/test_evaluate.py|$SIGNALS"
     [records]="evaluation/episodes/records.py|tests/test_records*.py tests/test_runlog.py tests/test_runlog_records.py tests/test_duplicate_records.py tests/test_collision_fault.py tests/test_suite_runs.py tests/test_cache_entries.py tests/test_pictures.py::test_the_worker_records_the_movers_paths_and_the_figure_draws_them|$SIGNALS"
-    [published]="evaluation/reports/published.py|tests/test_published_pages.py tests/test_bounded_reads.py tests/test_published_archive.py|$SHELL_SCRIPT"
+    [published]="evaluation/reports/published.py|tests/test_published_pages.py tests/test_bounded_reads.py tests/test_published_archive.py tests/test_publications.py|$SHELL_SCRIPT $SPLIT_SCRIPT"
+    [publications]="evaluation/reports/publications.py|tests/test_publications.py tests/test_published_archive.py tests/test_bounded_reads.py|$SHELL_SCRIPT $SPLIT_SCRIPT"
 )
 MODULES[perception-kernels]=${MODULES[perception]}
-ORDER=(perception uncertainty observed baseline statistics clustered layout_tests families runlog records published)
+ORDER=(perception uncertainty observed baseline statistics clustered layout_tests families runlog records published publications)
 
 if [ $# -eq 0 ] || [ "$1" = "-h" ] || [ "$1" = "--help" ]; then
     sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'

@@ -2,15 +2,22 @@
 # The published runs behind docs/*_results.md, each resumable: run this script again after an
 # interruption (or in a new session, after `unpack`) and every run continues where its log ends.
 # Each run writes data/runs/NAME/ (work files, not committed); `bash data/publish.sh pack` packs
-# its episode logs (JSON lines) into data/NAME.tar.xz (committed: the published data).
+# its episode logs (JSON lines) into data/NAME/ (committed: the published data), split per
+# controller (data/NAME/run.tar.xz, the run's headers and sweep manifest, and
+# data/NAME/controllers/LABEL.tar.xz, each controller's records), so that republishing one
+# controller's rows rewrites its file only (docs/layout.md, "What a clone weighs"). The runs published
+# before that are one archive each, data/NAME.tar.xz: read alike, left as they are while their logs
+# are unchanged (repacking them would add their whole size to the history again); the first
+# republication of such a run replaces it with data/NAME/ (then point data/pages.json at data/NAME).
 #
 #   bash data/publish.sh [NAME ...]    run (or continue) the named runs, default all, in order
-#   bash data/publish.sh pack          pack every run's episode logs into data/NAME.tar.xz
-#   bash data/publish.sh unpack        restore data/runs/ from data/*.tar.xz (a new machine); a local log
-#                                      holding more records than its archive stops it (unpack --force replaces it)
+#   bash data/publish.sh pack          pack every changed run's episode logs into data/NAME/
+#   bash data/publish.sh unpack        restore data/runs/ from data/NAME/ and data/NAME.tar.xz (a new machine);
+#                                      a local log holding more records than its publication stops it
+#                                      (unpack --force replaces it)
 # After a change to some controllers that changes what they do, republish only their rows: drop
 # their records (`python -m evaluation.forget LABEL... -- data/runs/NAME`), then run NAME
-# again (it resumes and runs just those episodes), then `pack`. A controller added to a run's
+# again (it resumes and runs just those episodes), then `pack` (it rewrites their files only). A controller added to a run's
 # --controllers (or newly registered, for the runs of every registered controller) joins it the
 # same way: the resume keeps the logged records and runs only its episodes.
 # KOOPNAV_PUBLISH_WORKERS: worker processes (default 1: a core stays free for other work).
@@ -118,11 +125,19 @@ run() {
 
 case "${1:-}" in
 pack)  # the episode logs and sweep manifests only: everything else is rebuilt from them
+    scratch="$(mktemp -d)"
+    trap 'rm -rf "$scratch"' EXIT
     for dir in data/runs/*/; do
         name="$(basename "$dir")"
-        python -m evaluation.archive "data/runs/$name" "data/$name.tar.xz" > /dev/null
+        if [ -e "data/$name.tar.xz" ]; then  # published whole: kept while its logs are unchanged
+            python -m evaluation.archive "data/runs/$name" "$scratch/$name.tar.xz" > /dev/null
+            cmp -s "$scratch/$name.tar.xz" "data/$name.tar.xz" && continue
+            rm "data/$name.tar.xz"
+            echo "data/$name.tar.xz is now data/$name/ (split per controller): point data/pages.json at data/$name" >&2
+        fi
+        python -m evaluation.archive "data/runs/$name" "data/$name" > /dev/null
     done
-    ls -la data/*.tar.xz
+    git status --short -- data/ 2> /dev/null || true
     ;;
 unpack)  # a new machine: the committed logs back into data/runs/, to resume or to report from
     # (a local log with more records than its archive is kept and the script stops, naming it;
@@ -130,8 +145,10 @@ unpack)  # a new machine: the committed logs back into data/runs/, to resume or 
     force=()
     [ "${2:-}" = "--force" ] && force=(--force)
     mkdir -p data/runs
-    for archive in data/*.tar.xz; do
-        python -m evaluation.archive unpack "$archive" data/runs "${force[@]}" > /dev/null
+    for frame in data/*.tar.xz data/*/run.tar.xz; do
+        [ -e "$frame" ] || continue
+        publication="${frame%/run.tar.xz}"  # data/NAME/ when split, else data/NAME.tar.xz itself
+        python -m evaluation.archive unpack "$publication" data/runs "${force[@]}" > /dev/null
     done
     ;;
 *)

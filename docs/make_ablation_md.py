@@ -19,7 +19,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.experiments.ablation import ablation_markdown  # noqa: E402
-from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.reports.publications import extracted_archive  # noqa: E402
+from evaluation.reports.published import results_from_log  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
 #: the run of data/publish.sh behind the page

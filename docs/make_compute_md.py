@@ -31,7 +31,7 @@ from controllers.estimator_options import EstimatorOptions  # noqa: E402
 from controllers.mpc.config import NMPCConfig  # noqa: E402
 from controllers.mpc.margins import chance_tightening  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.reports.published import extracted_archive  # noqa: E402
+from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.stats.statistics import PairedComparison, holm_adjusted, paired_comparison, wilson_interval  # noqa: E402
 from koopman_envs import ComputeCharge  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402

@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 from evaluation.episodes.distinct import read_once  # noqa: E402
 from evaluation.reports.baseline import load_baseline  # noqa: E402
 from evaluation.reports.figures import save_success_figures  # noqa: E402
-from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.reports.publications import extracted_archive  # noqa: E402
+from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.reports.results import Results  # noqa: E402
 from evaluation.reports.sections import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402

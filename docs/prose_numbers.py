@@ -26,7 +26,8 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 from evaluation.episodes.records import ran  # noqa: E402
 from evaluation.experiments.ablation import FACTORS, main_effects  # noqa: E402
 from evaluation.experiments.sweep import load_sweep  # noqa: E402
-from evaluation.reports.published import extracted_archive, results_from_log  # noqa: E402
+from evaluation.reports.publications import extracted_archive  # noqa: E402
+from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.reports.results import Results  # noqa: E402
 from evaluation.reports.sections.blocks import level_text, p_cell, rate_cell  # noqa: E402
 from evaluation.stats.aggregate import paired_comparisons  # noqa: E402

@@ -26,7 +26,7 @@ import pytest
 import evaluate as ev
 from evaluation.archive import main as archive_command
 from evaluation.experiments.sweep import load_sweep
-from evaluation.reports import published
+from evaluation.reports import publications, published
 from evaluation.reports.baseline import load_baseline
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -260,7 +260,7 @@ def test_reading_an_archive_leaves_no_temporary_directory(tmp_path, monkeypatch)
     bad = _tar_xz(tmp_path / "bad.tar.xz", [("run/sweep.json", b"{}"), ("run/evil.sh", b"")])
     with pytest.raises(ValueError, match="not an episode log"):
         load_sweep(bad)
-    with pytest.raises(RuntimeError), published.extracted_archive(DATA / "scale_n3.tar.xz") as run:
+    with pytest.raises(RuntimeError), publications.extracted_archive(DATA / "scale_n3.tar.xz") as run:
         assert (run / "episodes.jsonl").is_file()
         raise RuntimeError("the caller fails")
     assert list(scratch.iterdir()) == []
@@ -273,7 +273,7 @@ def test_unpack_keeps_a_local_log_with_more_records_unless_forced(tmp_path) -> N
     (tmp_path / "data").mkdir()
     shutil.copy(DATA / "publish.sh", tmp_path / "data")
     shutil.copy(DATA / "scale_n3.tar.xz", tmp_path / "data")
-    with published.extracted_archive(DATA / "scale_n3.tar.xz") as run:
+    with publications.extracted_archive(DATA / "scale_n3.tar.xz") as run:
         log = (run / "episodes.jsonl").read_text()
     packed = len(log.splitlines()) - 1
     local = tmp_path / "data" / "runs" / "scale_n3" / "episodes.jsonl"
@@ -300,14 +300,14 @@ def test_unpack_run_in_process_refuses_to_lose_records_and_forced_replaces_the_l
     # message too), so that mutation testing reaches it: under `mutmut run` a child process
     # started in publish.sh's working directory cannot find mutmut's configuration
     archive = DATA / "scale_n3.tar.xz"
-    with published.extracted_archive(archive) as run:
+    with publications.extracted_archive(archive) as run:
         log = (run / "episodes.jsonl").read_text()
     packed = len(log.splitlines()) - 1
     local = tmp_path / "scale_n3" / "episodes.jsonl"
     local.parent.mkdir()
     local.write_text(log + log.splitlines()[-1] + "\n")  # one record more than the archive
     with pytest.raises(ValueError) as caught:
-        published.unpack_run(archive, tmp_path)
+        publications.unpack_run(archive, tmp_path)
     assert str(caught.value) == (
         f"{local} holds {packed + 1} records, the archive {archive} {packed}: unpacking would lose the "
         "records added since it was packed; pack them first (bash data/publish.sh pack), or unpack with "
@@ -321,7 +321,7 @@ def test_unpack_run_in_process_refuses_to_lose_records_and_forced_replaces_the_l
     assert local.read_text() == log
     # a local log with as many records (or fewer) is replaced without --force
     local.write_text(log)
-    assert published.unpack_run(archive, tmp_path) == tmp_path / "scale_n3"
+    assert publications.unpack_run(archive, tmp_path) == tmp_path / "scale_n3"
 
 
 # -------------------------------------------------------------- item 13: atomic report writes

@@ -67,7 +67,8 @@ def test_the_ablation_placeholders_read_the_evaluators_main_effects() -> None:
     """``effect``, ``effect_p`` and ``factor_table`` on the small real ablation run
     (tests/test_ablation_units.py's fixture): what the published ablation will feed the page."""
     from evaluation.experiments.ablation import main_effects
-    from evaluation.reports.published import extracted_archive, results_from_log
+    from evaluation.reports.publications import extracted_archive
+    from evaluation.reports.published import results_from_log
 
     archive = "tests/data/ablation_trial0.tar.xz"
     runs = Runs(parse_runs([f"ablation={archive}"]))

@@ -21,7 +21,7 @@ import pytest
 from test_bounded_reads import _special, _tar_xz
 
 from evaluation.archive import main as archive_command
-from evaluation.reports import published
+from evaluation.reports import publications, published
 
 HEADER = {"kind": "koopnav-run", "config": {}}
 
@@ -462,7 +462,7 @@ def test_unpack_names_a_local_log_that_is_not_text(tmp_path) -> None:
     local.parent.mkdir(parents=True)
     local.write_bytes(b"\xff\n")
     with pytest.raises(ValueError) as raised:
-        published.unpack_run(archive, tmp_path / "into")
+        publications.unpack_run(archive, tmp_path / "into")
     assert str(raised.value) == (
         f"episode log {str(local)!r} is not UTF-8 text (byte 0 is b'\\xff'); "
         "expected a KoopNav episode log (JSON lines)"
@@ -473,7 +473,7 @@ def test_unpack_counts_an_archive_log_of_no_records_as_none(tmp_path) -> None:
     archive = published.pack_run(_run(tmp_path / "made", records=0), tmp_path / "run.tar.xz")
     local = _run(tmp_path / "into", records=1) / "episodes.jsonl"
     with pytest.raises(ValueError, match=rf"holds 1 records, the archive {re.escape(str(archive))} 0: "):
-        published.unpack_run(archive, tmp_path / "into")
+        publications.unpack_run(archive, tmp_path / "into")
     assert len(local.read_text().splitlines()) == 2  # kept
 
 
@@ -485,7 +485,7 @@ def test_unpack_replaces_a_longer_local_sweep_manifest(tmp_path) -> None:
     local = tmp_path / "into" / "run" / "sweep.json"
     local.parent.mkdir(parents=True)
     local.write_text(json.dumps({"levels": ["a", "b"]}, indent=2) + "\n")
-    assert published.unpack_run(archive, tmp_path / "into") == tmp_path / "into" / "run"
+    assert publications.unpack_run(archive, tmp_path / "into") == tmp_path / "into" / "run"
     assert local.read_text() == '{"levels": []}\n'
 
 

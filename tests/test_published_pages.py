@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from evaluation.reports.publications import FRAME
 from evaluation.reports.published import extract_archive, results_from_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,10 +39,19 @@ def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_pa
         assert list((tmp_path / "_static").glob("*.png"))
 
 
+def _publications_on_pages() -> set[str]:
+    """The publications the pages read: an argument ``data/NAME.tar.xz`` or ``data/NAME`` (split),
+    alone or as ``RUN=PATH``."""
+    paths = {a.partition("=")[2] or a for p in PAGES for a in p["args"]}
+    return {a for a in paths if a.startswith("data/") and (a.endswith(".tar.xz") or not Path(a).suffix)}
+
+
 def test_every_published_archive_is_on_a_page_and_reads_back_checked() -> None:
-    archives = sorted(p.name for p in (ROOT / "data").glob("*.tar.xz"))
-    on_pages = sorted({Path(a).name for p in PAGES for a in p["args"] if a.endswith(".tar.xz")})
-    assert archives and set(on_pages) <= set(archives)
+    archives = {f"data/{p.name}" for p in (ROOT / "data").glob("*.tar.xz")}
+    split = {f"data/{p.parent.name}" for p in (ROOT / "data").glob(f"*/{FRAME}")}
+    assert archives and not {a.removesuffix(".tar.xz") for a in archives} & split  # one form per run
+    assert _publications_on_pages() <= archives | split
+    assert "data/paper.tar.xz" in _publications_on_pages()  # RUN=PATH arguments are read too
 
 
 def _archive(tmp_path: Path, members: dict[str, bytes]) -> Path:

@@ -35,6 +35,12 @@ SMOKE: dict[str, tuple[list[str], str]] = {
         ["--envs", "8", "--batch", "3", "--repeats", "1", "--calls", "2"],
         r"(?s)^8 envs, 3 reset per call.*^8 waypoint walkers +together +[\d.]+ +one at a time +[\d.]+ +\([\d.]+x\)$",
     ),
+    "bench/clone_size.py": (  # in place (no clone), one small run split
+        ["--no-clone", "--archives", "scale_n3"],
+        r"(?s)^history: [\d.]+ MB of objects on disk, data/ [\d.]+ MB \([\d.]+%\)$.*"
+        r"^\| data/scale_n3\.tar\.xz \| [\d,]+ \| \d+ \| .* \| 9 \| [\d.]+ \| [\d,]+ \| [\d,]+ \| [\d,]+ \|$.*"
+        r"one part \(split\) median [\d,]+ KB",
+    ),
     "bench/cold_start.py": (
         ["--settings", "plain", "--repeats", "1"],
         r"(?s)^\| KoopNav plain( \| [\d.]+ s){5} \|$.*first line from empty caches: [\d.]+ s",

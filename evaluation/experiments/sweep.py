@@ -24,7 +24,8 @@ from typing import Any
 from evaluation.execution import runner
 from evaluation.execution.backends import BATCH
 from evaluation.reports.baseline import load_baseline
-from evaluation.reports.published import extracted_archive, results_from_log
+from evaluation.reports.publications import extracted_archive, is_published
+from evaluation.reports.published import results_from_log
 from evaluation.reports.results import Results
 from evaluation.reports.sections.blocks import level_text
 from evaluation.run.plan import safe_file_name, slip_value
@@ -355,7 +356,8 @@ def load_sweep(
 
     ``from_logs``: read each level from its episode log instead of its results.json (published
     data, :mod:`evaluation.reports.published`: the logs are what the repository keeps). ``out`` may then
-    also be a published archive (``.tar.xz``).
+    also be a publication: an archive (``.tar.xz``) or a split one (``data/NAME/``,
+    :mod:`evaluation.reports.publications`).
 
     Returns
     -------
@@ -373,7 +375,7 @@ def load_sweep(
         recording another value of its axis than its directory's (each named).
     """
     out = Path(out)
-    if out.is_file():  # a published archive (refused by name if it is not one), unpacked while read
+    if out.is_file() or is_published(out):  # a publication (an archive refused by name if it is not one)
         with extracted_archive(out) as run_dir:
             return _read_levels(run_dir, from_logs=True)
     return _read_levels(out, from_logs)

@@ -2,7 +2,8 @@
 formats), the report's sections that Markdown and HTML render alike
 (:mod:`~evaluation.reports.sections`), the pages (:mod:`~evaluation.reports.html`), the figures
 (:mod:`~evaluation.reports.figures`), the badge (:mod:`~evaluation.reports.badge`); the published
-archives read back (:mod:`~evaluation.reports.published`), the comparison with an earlier run and
+archives read back (:mod:`~evaluation.reports.published`; a run published whole or split per
+controller, :mod:`~evaluation.reports.publications`), the comparison with an earlier run and
 its gate (:mod:`~evaluation.reports.baseline`) and the floors of ``--check``
 (:mod:`~evaluation.reports.thresholds`). Nothing here runs an episode.
 
@@ -39,6 +40,19 @@ from evaluation.reports.figures import (
     twins,
 )
 from evaluation.reports.html import render_html, render_page, write_html, write_page
+from evaluation.reports.publications import (
+    FRAME,
+    MAX_PARTS,
+    PART_KIND,
+    PARTS,
+    extract_split,
+    extracted_archive,
+    is_published,
+    is_split,
+    pack_split,
+    unpack_hint,
+    unpack_run,
+)
 from evaluation.reports.published import (
     ARCHIVE_SUFFIX,
     MAX_ARCHIVE_BYTES,
@@ -49,11 +63,13 @@ from evaluation.reports.published import (
     PACKED_OUT,
     RATIO_FLOOR,
     extract_archive,
-    extracted_archive,
     is_archive,
     pack_run,
+    packed_log,
+    packed_member,
     results_from_log,
-    unpack_run,
+    run_files,
+    tar_xz,
 )
 from evaluation.reports.results import (
     PROFILES_TITLE,
@@ -163,7 +179,20 @@ __all__ = [
     "extracted_archive",
     "is_archive",
     "pack_run",
+    "packed_log",
+    "packed_member",
     "results_from_log",
+    "run_files",
+    "tar_xz",
+    "FRAME",
+    "MAX_PARTS",
+    "PARTS",
+    "PART_KIND",
+    "extract_split",
+    "is_published",
+    "is_split",
+    "pack_split",
+    "unpack_hint",
     "unpack_run",
     "ALL_TASKS",
     "GateOptions",

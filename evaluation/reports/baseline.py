@@ -37,6 +37,7 @@ import numpy as np
 
 from evaluation.episodes.distinct import distinct_units, read_once
 from evaluation.episodes.records import ran, record_problem
+from evaluation.reports.publications import is_split, unpack_hint
 from evaluation.reports.published import is_archive
 from evaluation.reports.sections import markdown_cell, markdown_text, task_label
 from evaluation.stats.statistics import bootstrap_mean_interval, paired_comparison
@@ -90,10 +91,10 @@ def load_baseline(path: str | Path, what: str = "baseline") -> dict[str, Any]:
     episode, both places and the fields that differ.
     """
     path = Path(path)
-    if is_archive(path):
+    if is_archive(path) or is_split(path):
         raise ValueError(
             f"{what} {str(path)!r} is a published archive (episode logs), not a results.json or a run "
-            f"directory: unpack it (tar -xJf {path} -C DIR), write its run's results.json with the run's "
+            f"directory: unpack it ({unpack_hint(path)}), write its run's results.json with the run's "
             "command and --resume --out DIR/NAME (data/publish.sh lists it; every episode is logged, so "
             "none runs again), then pass DIR/NAME"
         )

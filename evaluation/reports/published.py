@@ -28,21 +28,21 @@ directory or an episode log or sweep manifest, at a relative path inside the ext
 no absolute path, ``..``, link or device; one top directory, the run's), with their number, each
 one's size, the total unpacked and the compression ratio bounded as the bytes come (the ``MAX_*``
 limits below, in the policy loader's style, :mod:`baselines.safe_load`), so a decompression bomb
-is stopped within its first megabytes; :func:`extracted_archive` unpacks into a temporary
-directory removed after use.
+is stopped within its first megabytes; :func:`evaluation.reports.publications.extracted_archive` unpacks into a
+temporary directory removed after use, a single archive or a publication split per controller
+(:mod:`evaluation.reports.publications`, whose parts are each read back by :func:`extract_archive`).
 """
 
 from __future__ import annotations
 
-import contextlib
+import importlib
 import io
 import json
 import lzma
-import os
 import shutil
 import tarfile
-import tempfile
-from collections.abc import Iterator
+import warnings
+from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -50,6 +50,7 @@ from evaluation.episodes.distinct import read_once
 from evaluation.episodes.records import record_problem
 from evaluation.reports.results import Results
 from koopman_envs.checks import parse_json
+from koopman_envs.deprecation import REMOVAL
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded, read_text, write_atomic
 
 __all__ = [
@@ -62,11 +63,13 @@ __all__ = [
     "PACKED_OUT",
     "RATIO_FLOOR",
     "extract_archive",
-    "extracted_archive",
     "is_archive",
     "pack_run",
+    "packed_log",
+    "packed_member",
     "results_from_log",
-    "unpack_run",
+    "run_files",
+    "tar_xz",
 ]
 
 _MIB = 2**20
@@ -100,6 +103,25 @@ ARCHIVE_SUFFIX = ".tar.xz"
 #: record fields a published log leaves out: every step's decision time (the per-episode median
 #: and 95th percentile stay; a cell's p95 then comes from them), a third of the packed size
 PACKED_OUT = ("solve_ms",)
+
+
+#: names that moved to :mod:`evaluation.reports.publications` (issue 61, with the split form),
+#: read here for one release with a DeprecationWarning (CHANGELOG.md)
+_MOVED = ("extracted_archive", "unpack_run")
+
+
+def __getattr__(name: str) -> Any:
+    """:data:`_MOVED`'s names at their old path, with a warning naming the new one."""
+    if name in _MOVED:
+        warnings.warn(
+            f"evaluation.reports.published.{name} is deprecated and will be removed in KoopNav {REMOVAL}; "
+            f"import it from evaluation.reports.publications (it reads split publications too)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        # by name, not an import statement: publications imports this module
+        return getattr(importlib.import_module("evaluation.reports.publications"), name)
+    raise AttributeError(f"module 'evaluation.reports.published' has no attribute {name!r}")
 
 
 def _plan_order(config: dict[str, Any]) -> Any:
@@ -298,7 +320,7 @@ def extract_archive(archive: str | Path, into: str | Path) -> Path:
     number is bounded (:data:`MAX_MEMBERS`), and the unpacked bytes are counted as they come
     (:data:`MAX_TOTAL_BYTES`, :data:`MAX_RATIO`), so a bomb is stopped within its first megabytes;
     the archive must hold one top directory, the run's. What was unpacked of a refused archive is
-    removed. Use :func:`extracted_archive` for a directory that is removed after use.
+    removed. Use :func:`evaluation.reports.publications.extracted_archive` for a directory that is removed after use.
 
     Raises
     ------
@@ -331,26 +353,6 @@ def extract_archive(archive: str | Path, into: str | Path) -> Path:
     return target / tops.pop()
 
 
-@contextlib.contextmanager
-def extracted_archive(archive: str | Path) -> Iterator[Path]:
-    """A published archive unpacked (:func:`extract_archive`) into a new temporary directory,
-    which is removed when the ``with`` block ends, normally or by an exception::
-
-        with extracted_archive("data/paper.tar.xz") as run:
-            results = results_from_log(run / "episodes.jsonl")
-
-    Yields
-    ------
-    pathlib.Path
-        The run's directory.
-    """
-    scratch = Path(tempfile.mkdtemp(prefix="koopnav-published-"))
-    try:
-        yield extract_archive(archive, scratch)
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
-
-
 def pack_run(run_dir: str | Path, archive: str | Path) -> Path:
     """Pack a run's episode logs and sweep manifest into ``archive`` (a .tar.xz), reproducibly
     (sorted members, fixed times and owners, xz preset 9), each log's records without
@@ -365,63 +367,56 @@ def pack_run(run_dir: str | Path, archive: str | Path) -> Path:
     """
     run_dir, archive = Path(run_dir), Path(archive)
     _check_name(archive)
+    members = run_files(run_dir, archive)
+    return write_atomic(
+        archive,
+        tar_xz(
+            (str(path.relative_to(run_dir.parent)), packed_member(path, MAX_MEMBER_BYTES)) for path in members
+        ),
+    )
+
+
+def run_files(run_dir: Path, dest: Path) -> list[Path]:
+    """The files of ``run_dir`` a publication holds (its episode logs and sweep manifest), sorted;
+    ``ValueError`` when it holds no episode log (a missing directory too), naming ``dest``, which
+    is then not written."""
     members = sorted(p for p in run_dir.rglob("*") if p.is_file() and p.name in _MEMBER_NAMES)
-    if not any(p.name == "episodes.jsonl" for p in members):  # a missing directory too
+    if not any(p.name == "episodes.jsonl" for p in members):
         raise ValueError(
             f"{run_dir}: no episode log (episodes.jsonl) in it or below it, so not a run's directory; "
-            f"{archive} was not written"
+            f"{dest} was not written"
         )
+    return members
+
+
+def packed_log(data: bytes) -> bytes:
+    """An episode log's bytes as published: its header line, then each record without
+    :data:`PACKED_OUT`, one per line."""
+    lines = data.decode("utf-8").split("\n")
+    kept = [lines[0]]
+    for line in lines[1:]:
+        if line:
+            record = json.loads(line)
+            kept.append(json.dumps({k: v for k, v in record.items() if k not in PACKED_OUT}))
+    return ("\n".join(kept) + "\n").encode("utf-8")
+
+
+def packed_member(path: Path, limit: int) -> bytes:
+    """The bytes a run's file ``path`` is published as (an episode log by :func:`packed_log`, a
+    sweep manifest as it is), read as :func:`koopman_envs.files.read_bounded` reads (a regular
+    file of at most ``limit`` bytes)."""
+    data = read_bounded(path, limit, what="episode log or sweep manifest")
+    return packed_log(data) if path.name == "episodes.jsonl" else data
+
+
+def tar_xz(members: Iterable[tuple[str, bytes]]) -> bytes:
+    """The members ``(path, bytes)`` as an xz-compressed tar archive, reproducibly: the same
+    members give the same bytes (PAX format, in the order given, times 0, mode 0644, no owner;
+    xz preset 9), so a file republished unchanged is unchanged in git."""
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
-        for path in members:
-            data = read_bounded(path, MAX_MEMBER_BYTES, what="episode log or sweep manifest")
-            if path.name == "episodes.jsonl":
-                lines = data.decode("utf-8").split("\n")
-                kept = [lines[0]]
-                for line in lines[1:]:
-                    if line:
-                        record = json.loads(line)
-                        kept.append(json.dumps({k: v for k, v in record.items() if k not in PACKED_OUT}))
-                data = ("\n".join(kept) + "\n").encode("utf-8")
-            info = tarfile.TarInfo(str(path.relative_to(run_dir.parent)))
+        for name, data in members:
+            info = tarfile.TarInfo(name)
             info.size, info.mtime, info.mode = len(data), 0, 0o644
             tar.addfile(info, io.BytesIO(data))
-    return write_atomic(archive, lzma.compress(buffer.getvalue(), format=lzma.FORMAT_XZ, preset=9))
-
-
-def _records(log: Path) -> int:
-    """The number of records of an episode log (its lines after the header)."""
-    text = read_text(log, MAX_LOG_BYTES, what="episode log", expected="a KoopNav episode log (JSON lines)")
-    return max(0, sum(1 for line in text.split("\n") if line) - 1)
-
-
-def unpack_run(archive: str | Path, into: str | Path, *, force: bool = False) -> Path:
-    """Restore a published archive's logs under ``into`` (``data/publish.sh unpack``: a new
-    machine's ``data/runs/``), and return the run's directory there.
-
-    A local episode log that holds more records than the archive's (a run continued since it was
-    packed) is kept: the archive is refused, naming the log and both counts, before any file is
-    written, unless ``force``. Every file is replaced whole (:func:`koopman_envs.files.write_atomic`).
-
-    Raises
-    ------
-    ValueError
-        The archive is refused (:func:`extract_archive`), or a local log holds more records.
-    """
-    into = Path(into)
-    with extracted_archive(archive) as run:
-        unpacked = sorted(p for p in run.rglob("*") if p.is_file())
-        targets = {path: into / path.relative_to(run.parent) for path in unpacked}
-        if not force:
-            for path, target in targets.items():
-                if path.name == "episodes.jsonl" and os.path.lexists(target):
-                    ours, theirs = _records(target), _records(path)
-                    if ours > theirs:
-                        raise ValueError(
-                            f"{target} holds {ours} records, the archive {archive} {theirs}: unpacking would "
-                            "lose the records added since it was packed; pack them first (bash "
-                            "data/publish.sh pack), or unpack with --force to replace the log"
-                        )
-        for path, target in targets.items():
-            write_atomic(target, read_bounded(path, MAX_MEMBER_BYTES, what="unpacked member"))
-        return into / run.name
+    return lzma.compress(buffer.getvalue(), format=lzma.FORMAT_XZ, preset=9)

@@ -1,0 +1,286 @@
+"""A run published split per controller (evaluation/reports/publications.py, issue 61): it reads
+back as the same run as one archive of it, a rerun of one controller rewrites that controller's
+file only, and a publication that is not what KoopNav packs (a file added, missing, renamed,
+truncated, of another run or another controller) is refused, naming it, with nothing left behind."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_published_archive import HEADER, _record
+
+from evaluation.archive import main as archive_command
+from evaluation.experiments.sweep import load_sweep
+from evaluation.reports import publications, published
+from evaluation.reports.baseline import load_baseline
+
+LEVELS = ("lvl-0", "lvl-1")
+
+
+def _config(labels: list[str]) -> dict[str, Any]:
+    return {"controller_configs": [{"label": label, "name": label, "options": {}} for label in labels]}
+
+
+def _records(labels: list[str], steps: int = 10) -> list[dict[str, Any]]:
+    """Two episodes of each controller, interleaved as workers finish them."""
+    return [_record("E", label, "m", "s", trial, steps=steps) for trial in range(2) for label in labels]
+
+
+def _write_log(path: Path, labels: list[str], records: list[dict[str, Any]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    level = int(path.parent.name.removeprefix("lvl-"))  # the sweep's axis, as a level's run records it
+    header = {**HEADER, "config": {**_config(labels), "env_settings": {"lvl": level}}}
+    path.write_text("".join(json.dumps(line) + "\n" for line in [header, *records]))
+
+
+def _sweep(root: Path, labels: list[str] = ["a", "b"], name: str = "run", steps: int = 10) -> Path:  # noqa: B006
+    """A two-level sweep's directory of the controllers ``labels`` (records with ``steps``)."""
+    run = root / name
+    for level in LEVELS:
+        _write_log(run / "sweep" / level / "episodes.jsonl", labels, _records(labels, steps))
+    (run / "sweep.json").write_text(
+        json.dumps({"kind": "koopnav-sweep", "axes": [{"key": "lvl", "levels": [0, 1]}]}) + "\n"
+    )
+    return run
+
+
+def _logs(run: Path) -> dict[str, list[str]]:
+    """Each log's header and its sorted record lines (a split keeps records, not their order)."""
+    out = {}
+    for log in sorted(run.rglob("episodes.jsonl")):
+        lines = log.read_text().splitlines()
+        out[str(log.relative_to(run))] = [lines[0], *sorted(lines[1:])]
+    return out
+
+
+def test_a_split_publication_reads_back_as_the_run_and_as_its_single_archive(tmp_path) -> None:
+    run = _sweep(tmp_path / "made")
+    split = publications.pack_split(run, tmp_path / "data" / "run")
+    assert sorted(str(p.relative_to(split)) for p in split.rglob("*") if p.is_file()) == [
+        "controllers/a.tar.xz",
+        "controllers/b.tar.xz",
+        "run.tar.xz",
+    ]
+    archive = published.pack_run(run, tmp_path / "data" / "run.tar.xz")
+    with publications.extracted_archive(split) as back, publications.extracted_archive(archive) as whole:
+        assert back.name == "run"
+        assert _logs(back) == _logs(whole)
+        assert (back / "sweep.json").read_bytes() == (run / "sweep.json").read_bytes()
+        for log in _logs(back):  # the same results, in the run's planned order
+            assert (
+                published.results_from_log(back / log).to_json()
+                == published.results_from_log(whole / log).to_json()
+            )
+    for form in (split, archive):
+        done, missing, manifest = load_sweep(form)
+        assert missing == [] and manifest["kind"] == "koopnav-sweep"
+    assert publications.is_split(split) and publications.is_published(split)
+    assert not publications.is_split(run) and not publications.is_published(run)
+
+
+def test_a_rerun_of_one_controller_rewrites_its_file_only(tmp_path) -> None:
+    dest = tmp_path / "data" / "run"
+    publications.pack_split(_sweep(tmp_path / "first"), dest)
+    before = {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in dest.rglob("*.tar.xz")}
+    rerun = _sweep(tmp_path / "second")
+    for level in LEVELS:  # b's episodes run again (forget, resume): appended after a's, other steps
+        log = rerun / "sweep" / level / "episodes.jsonl"
+        lines = log.read_text().splitlines(keepends=True)
+        kept = [line for line in lines[1:] if json.loads(line)["controller"] == "a"]
+        again = [json.dumps(r) + "\n" for r in _records(["b"], steps=11)]
+        log.write_text(lines[0] + "".join(kept + again))
+    publications.pack_split(rerun, dest)
+    changed = sorted(str(p.relative_to(dest)) for p, (data, _) in before.items() if p.read_bytes() != data)
+    assert changed == ["controllers/b.tar.xz"]
+    assert all(p.stat().st_mtime_ns == mtime for p, (data, mtime) in before.items() if p.read_bytes() == data)
+    with publications.extracted_archive(dest) as back:
+        steps = {
+            (r["controller"], r["steps"])
+            for r in map(json.loads, (back / "sweep/lvl-0/episodes.jsonl").read_text().splitlines()[1:])
+        }
+    assert ("b", 11) in steps and ("b", 10) not in steps and ("a", 10) in steps
+    # a controller dropped from the run: its part goes, the frame names the others only
+    publications.pack_split(_sweep(tmp_path / "third", ["a"]), dest)
+    assert sorted(p.name for p in (dest / publications.PARTS).iterdir()) == ["a.tar.xz"]
+
+
+def test_the_command_publishes_split_or_whole_by_the_name_and_unpacks_both(tmp_path, capsys) -> None:
+    run = _sweep(tmp_path / "made")
+    assert archive_command([str(run), str(tmp_path / "split")]) == 0
+    assert archive_command([str(run), str(tmp_path / "whole.tar.xz")]) == 0
+    assert capsys.readouterr().out == f"{tmp_path / 'split'}\n{tmp_path / 'whole.tar.xz'}\n"
+    for form, into in ((tmp_path / "split", tmp_path / "a"), (tmp_path / "whole.tar.xz", tmp_path / "b")):
+        assert archive_command(["unpack", str(form), str(into)]) == 0
+    assert _logs(tmp_path / "a" / "run") == _logs(tmp_path / "b" / "run") == _logs(run)
+    assert archive_command([str(run), str(tmp_path / "run.tar.gz")]) == 2  # neither form
+    assert "without a suffix (data/NAME)" in capsys.readouterr().err
+    assert not (tmp_path / "run.tar.gz").exists()
+
+
+def test_packing_refuses_what_cannot_be_split_and_writes_nothing(tmp_path) -> None:
+    run = _sweep(tmp_path / "made", ["a", "b/c"])
+    with pytest.raises(ValueError, match=r"controller label 'b/c' cannot name its part's file"):
+        publications.pack_split(run, tmp_path / "out")
+    log = _sweep(tmp_path / "other", ["a"]) / "sweep" / "lvl-0" / "episodes.jsonl"
+    with log.open("a") as handle:
+        handle.write(json.dumps(_record("E", "z", "m", "s", 0)) + "\n")
+    with pytest.raises(
+        ValueError,
+        match=r"lvl-0/episodes.jsonl, line 4: a record of controller 'z', not one of the run's \['a'\]",
+    ):
+        publications.pack_split(log.parents[2], tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture()
+def split(tmp_path) -> Path:
+    return publications.pack_split(_sweep(tmp_path / "made"), tmp_path / "data" / "run")
+
+
+def _refused(split: Path, tmp_path: Path, message: str) -> None:
+    into = tmp_path / "into"
+    with pytest.raises(ValueError, match=message):
+        publications.extract_split(split, into)
+    assert not into.exists() or list(into.iterdir()) == []
+
+
+def test_a_file_added_or_a_part_missing_or_foreign_is_refused(split, tmp_path) -> None:
+    (split / "notes.txt").write_text("x")
+    _refused(
+        split, tmp_path, r"holds \['notes.txt'\]; a split publication holds run.tar.xz and controllers/ only"
+    )
+    (split / "notes.txt").unlink()
+    (split / "controllers" / "README").write_text("x")
+    _refused(split, tmp_path, r"controllers/README: not a controller's part")
+    (split / "controllers" / "README").unlink()
+    shutil.copy(split / "controllers" / "a.tar.xz", split / "controllers" / "c.tar.xz")
+    _refused(
+        split,
+        tmp_path,
+        r"parts \['a', 'b', 'c'\], the run's controllers \['a', 'b'\]: missing \[\], foreign \['c'\]",
+    )
+    (split / "controllers" / "c.tar.xz").unlink()
+    (split / "controllers" / "b.tar.xz").unlink()
+    _refused(split, tmp_path, r"missing \['b'\], foreign \[\]")
+    shutil.rmtree(split / "controllers")
+    _refused(split, tmp_path, r"no controllers/ folder of parts beside run.tar.xz")
+
+
+def test_a_renamed_torn_or_foreign_part_is_refused_by_name(split, tmp_path) -> None:
+    parts = split / "controllers"
+    a, b = (parts / "a.tar.xz").read_bytes(), (parts / "b.tar.xz").read_bytes()
+    (parts / "a.tar.xz").write_bytes(b)
+    (parts / "b.tar.xz").write_bytes(a)
+    _refused(
+        split,
+        tmp_path,
+        r"a.tar.xz: sweep/lvl-0/episodes.jsonl, line 1 is not the part header of controller 'a'",
+    )
+    (parts / "b.tar.xz").write_bytes(b)
+    (parts / "a.tar.xz").write_bytes(a[: len(a) // 2])
+    _refused(split, tmp_path, r"a.tar.xz: is truncated")
+    # a part whose header is right but holds b's record (a file put together by hand)
+    header = publications._part_header("a")
+    members = [
+        (
+            f"run/sweep/{level}/episodes.jsonl",
+            header + json.dumps(_record("E", "b", "m", "s", 0)).encode() + b"\n",
+        )
+        for level in LEVELS
+    ]
+    (parts / "a.tar.xz").write_bytes(published.tar_xz(members))
+    _refused(
+        split,
+        tmp_path,
+        r"a.tar.xz: sweep/lvl-0/episodes.jsonl, line 2 is a record of 'b', not of its part's controller 'a'",
+    )
+    (parts / "a.tar.xz").write_bytes(published.tar_xz(members[:1]))
+    _refused(split, tmp_path, r"a.tar.xz: holds the logs \['sweep/lvl-0/episodes.jsonl'\], the run's frame")
+    other = publications.pack_split(_sweep(tmp_path / "o", name="other"), tmp_path / "data" / "other")
+    shutil.copy(other / "controllers" / "a.tar.xz", parts / "a.tar.xz")
+    _refused(split, tmp_path, r"a.tar.xz: a part of run 'other', not of 'run'")
+
+
+def test_a_frame_holding_records_is_refused(split, tmp_path) -> None:
+    header = (
+        json.dumps({**HEADER, "config": {**_config(["a", "b"]), "env_settings": {"lvl": 0}}}).encode() + b"\n"
+    )
+    record = json.dumps(_record("E", "a", "m", "s", 0)).encode() + b"\n"
+    members = [(f"run/sweep/{level}/episodes.jsonl", header + record) for level in LEVELS]
+    (split / "run.tar.xz").write_bytes(published.tar_xz(members))
+    _refused(split, tmp_path, r"run.tar.xz: sweep/lvl-0/episodes.jsonl is not one run header line")
+
+
+def test_a_split_publication_given_as_a_baseline_is_refused_with_how_to_unpack_it(split) -> None:
+    with pytest.raises(
+        ValueError, match=r"is a published archive .* \(python -m evaluation.archive unpack .*/run DIR\)"
+    ):
+        load_baseline(split, what="baseline")
+
+
+# 40 s (four fresh interpreters, xz at preset 9): run by -m slow (.ci/run)
+@pytest.mark.slow
+def test_publish_sh_pack_keeps_an_unchanged_whole_archive_and_splits_a_republished_run(tmp_path) -> None:
+    """``bash data/publish.sh pack`` on a run published whole (data/NAME.tar.xz): unchanged logs
+    leave it as it is (no split, nothing added to the history); a rerun controller's records
+    replace it with data/NAME/, which ``unpack`` restores."""
+    root = Path(__file__).resolve().parents[1]
+    data = tmp_path / "data"
+    data.mkdir()
+    shutil.copy(root / "data" / "publish.sh", data)
+    shutil.copy(root / "data" / "scale_n3.tar.xz", data)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
+
+    def publish(*words: str) -> None:
+        done = subprocess.run(
+            ["bash", str(data / "publish.sh"), *words], capture_output=True, text=True, env=env
+        )
+        assert done.returncode == 0, done.stderr
+
+    publish("unpack")
+    whole = (data / "scale_n3.tar.xz").read_bytes()
+    publish("pack")
+    assert (data / "scale_n3.tar.xz").read_bytes() == whole and not (data / "scale_n3").exists()
+    log = data / "runs" / "scale_n3" / "episodes.jsonl"
+    lines = log.read_text().splitlines(keepends=True)
+    rerun = [json.loads(line) for line in lines[1:] if json.loads(line)["controller"] == "orca"]
+    kept = [line for line in lines[1:] if json.loads(line)["controller"] != "orca"]
+    log.write_text(
+        lines[0] + "".join(kept) + "".join(json.dumps({**r, "steps": r["steps"] + 1}) + "\n" for r in rerun)
+    )
+    publish("pack")
+    assert not (data / "scale_n3.tar.xz").exists() and publications.is_split(data / "scale_n3")
+    shutil.rmtree(data / "runs")
+    publish("unpack")
+    back = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    assert sorted((r["controller"], r["key"], r["steps"]) for r in back) == sorted(
+        [(r["controller"], r["key"], r["steps"]) for r in map(json.loads, kept)]
+        + [(r["controller"], r["key"], r["steps"] + 1) for r in rerun]
+    )
+
+
+@pytest.mark.parametrize("name", ["extracted_archive", "unpack_run"])
+def test_the_moved_names_warn_at_their_old_path_for_one_release(name) -> None:
+    with pytest.warns(
+        DeprecationWarning,
+        match=rf"published\.{name} is deprecated and will be removed in KoopNav 0\.2\.0; import it from evaluation\.reports\.publications",
+    ):
+        assert getattr(published, name) is getattr(publications, name)
+    with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
+        published.nothing  # noqa: B018
+
+
+def test_a_part_whose_last_line_has_no_newline_keeps_its_records_apart(split, tmp_path) -> None:
+    header = publications._part_header("a")
+    records = [json.dumps(_record("E", "a", "m", "s", trial)).encode() for trial in range(2)]
+    members = [(f"run/sweep/{level}/episodes.jsonl", header + b"\n".join(records)) for level in LEVELS]
+    (split / "controllers" / "a.tar.xz").write_bytes(published.tar_xz(members))
+    run = publications.extract_split(split, tmp_path / "into")
+    lines = (run / "sweep" / "lvl-0" / "episodes.jsonl").read_text().splitlines()
+    assert [json.loads(line)["controller"] for line in lines[1:]] == ["a", "a", "b", "b"]
