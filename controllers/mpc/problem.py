@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from controllers.mpc.config import WARM_START_OPTIONS, NMPCConfig
 from controllers.mpc.layout import nmpc_layout
-from controllers.mpc.models import CODING_SIZE, PredictionModel, decode_state, model_step
+from controllers.mpc.models import PredictionModel, coding_size, decode_state, model_step
 from controllers.mpc.rti import RealTimeIteration, bind_buffer
 from controllers.solvers.compiled import nlpsol
 from koopman_envs.params import PARAMS
@@ -228,9 +228,7 @@ class Problem:
     ) -> None:
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         coding = model.coding
-        if coding not in CODING_SIZE:
-            raise ValueError(f"model coding={coding!r} is not one of {sorted(CODING_SIZE)}")
-        size = CODING_SIZE[coding]
+        size = coding_size(coding)  # refuses an unknown coding by name
         nx, nu = size * n, 2 * n
         # slacks per stage: collision rows, formation rows and (terminal_slack) the terminal
         # state's collision rows, which only the last stage uses
