@@ -255,8 +255,9 @@ class KoopmanModel:
         horizon's own.
         """
         state, u, z = self._nlp_lift()
-        z_next = self._casadi_advance(z, u)
-        s_next = self._nlp_next(state, u, ca.mtimes(_sparse_dm(self.C), z_next))
+        matrices = self._constant_matrices()
+        z_next = self._casadi_advance(z, u, matrices)
+        s_next = self._nlp_next(state, u, ca.mtimes(matrices[3], z_next))
         return ca.Function(name, [state, u], [s_next], ["s", "u"], ["s_next"])
 
     def _nlp_next(self, state, u, xycs):
@@ -280,9 +281,21 @@ class KoopmanModel:
         return z_next
 
     def _constant_matrices(self) -> tuple:
+        A, B, blocks, C = self._nlp_matrices(self.A, self.N, self.B)
+        return _sparse_dm(A), _sparse_dm(B), [_sparse_dm(block) for block in blocks], _sparse_dm(C)
+
+    def _nlp_matrices(self, A: NDArray, N: NDArray, B: NDArray) -> tuple:
+        """(A, B, [N_i], C) as the NLP takes them. With memory C is folded in (C A, C B, C N_i and
+        the identity): the NLP re-lifts every step and reads only the projected poses, so the
+        rows of the remembered observables' own prediction would be dead weight, most of a memory
+        model's coefficients (their derivatives made each real-time iteration several times
+        costlier). Without memory the paper's form, as it always was."""
         d = self.size
-        blocks = [_sparse_dm(self.N[:, i * d : (i + 1) * d]) for i in range(2 * self.n_robots)]
-        return _sparse_dm(self.A), _sparse_dm(self.B), blocks, _sparse_dm(self.C)
+        blocks = [N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)]
+        if not self.memory:
+            return A, B, blocks, self.C
+        c = self.C
+        return c @ A, c @ B, [c @ block for block in blocks], np.eye(c.shape[0])
 
     # ------------------------------------------------------- the NMPC's parametric form
     # The NMPC takes the model's coefficients as NLP parameters, not constants: its problem (and
@@ -314,8 +327,8 @@ class KoopmanModel:
         """
         if self._nlp_index is None:
             self._nlp_index = [dm.sparsity().get_triplet() for dm in self._flat_constants()]
-        d = A.shape[0]
-        sources = [A, B, *(N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)), self.C]
+        A_nlp, B_nlp, blocks, C_nlp = self._nlp_matrices(A, N, B)
+        sources = [A_nlp, B_nlp, *blocks, C_nlp]
         return np.concatenate(
             [np.asarray(m, dtype=np.float64)[rows, cols] for m, (rows, cols) in zip(sources, self._nlp_index)]
         )
