@@ -5,7 +5,7 @@ Usage::
 
     python bench/physics_model_error.py [--levels high low nominal] [--budget 1000000] [--seed 0]
         [--repetitions 30] [--episodes 3] [--controller nominal-nmpc] [--horizon 20]
-        [--held-out-budget 20000] [--max-episode-steps 600] [--json out.json]
+        [--held-out-budget 20000] [--max-episode-steps 600] [--memory 1 2] [--json out.json]
 
 For each slip setting (on the physics plant a floor: ``nominal`` carpet, ``low`` gravel, ``high``
 ice; docs/physics.md) the Koopman-NMPC is calibrated as the evaluator calibrates it: its
@@ -23,12 +23,18 @@ open loop, held-out rollouts of the physics robots:
   horizon) predicted from the true pose under the commands the robots were given (saturated to
   the limits); the error is the RMS position error over the windows, their periods and robots.
 
+``--memory L ...`` adds, beside the paper's pose-only lift (``koopman``), a model whose lift also
+holds the robots' last L commands (``koopman-uL``, :class:`~controllers.koopman.KoopmanModel`'s
+``memory``), fitted on the same calibration data; it predicts every window from the commands the
+robots were given before it (none before an episode's or the circle's start: the robots stand).
+
 Also printed, to say why a model does what it does (:func:`identification_figures`): each
 model's one-step RMS position error on held-out identification data (the calibration's own kind
 of data, another seed), the speed the robots reach there and on the circle against the speed
 each model predicts on the circle, and how much of a period's move the period's command alone
 explains against the command with the second before it (the robot's inertia and motor lag).
-Errors in cm; "ratio" is Koopman's over the unicycle's (the issue's target: at most 0.7 on ice).
+Errors in cm; "ratio" is each Koopman model's over the unicycle's (the issue's target: at most 0.7
+on ice).
 """
 
 from __future__ import annotations
@@ -36,7 +42,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable
 from functools import partial
 from typing import Any
 
@@ -46,7 +51,14 @@ from numpy.typing import NDArray
 
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
-from controllers.calibration import calibrate_controller, collect_data, data_spec_for, position_residual
+from controllers.calibration import (
+    calibrate_controller,
+    collect_data,
+    data_spec_for,
+    position_residual,
+    previous_commands,
+)
+from controllers.koopman import calibrated_model
 from controllers.koopman.accuracy import CIRCLE_OMEGA, CIRCLE_STEPS, CIRCLE_V, circle_starts
 from controllers.mpc.models import UnicycleModel
 from controllers.mpc.variants import KoopmanNMPC
@@ -62,18 +74,27 @@ LIMITS = np.array([PARAMS.v_max, PARAMS.omega_max])
 #: commands before the period's own that the lag diagnostic regresses on (1 s)
 LAGS = 10
 
-Predict = Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+
+def memory_of(model: Any) -> int:
+    """Previous commands a model's lift holds (0: none, the unicycle's and the paper's lift)."""
+    return int(getattr(model, "memory", 0))
 
 
 def open_loop(
-    step: Predict, start: NDArray[np.float64], commands: NDArray[np.float64]
+    model: Any,
+    start: NDArray[np.float64],
+    commands: NDArray[np.float64],
+    previous: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
-    """Poses (T + 1, ..., N, 3) predicted by ``step`` from ``start`` (..., N, 3) under ``commands``
-    (T, ..., N, 2), each prediction fed back (as the NMPC's horizon does)."""
+    """Poses (T + 1, ..., N, 3) predicted by ``model`` from ``start`` (..., N, 3) under ``commands``
+    (T, ..., N, 2), each prediction fed back (as the NMPC's horizon does); a model with memory
+    starts from ``previous`` (..., L, N, 2), the commands before the first (None: at rest)."""
+    if memory_of(model):
+        return np.asarray(model.rollout(start, commands, previous))
     out = np.empty((commands.shape[0] + 1, *start.shape))
     out[0] = start
     for t, command in enumerate(commands):
-        out[t + 1] = step(out[t], command)
+        out[t + 1] = model.step(out[t], command)
     return out
 
 
@@ -99,7 +120,7 @@ def circle_errors(level: str, models: dict[str, Any], repetitions: int, seed: in
     tail = np.hypot(*np.diff(truth[-101:, ..., :2], axis=0).transpose(3, 0, 1, 2)) / PARAMS.dt
     out["speed"] = {"physics": float(tail.mean())}
     for name, model in models.items():
-        predicted = open_loop(model.step, start, commands)
+        predicted = open_loop(model, start, commands)
         per = rms_cm(truth[1:], predicted[1:, None], axis=0)  # (teams, robots)
         out[name] = {"mean": float(per.mean()), "worst": float(per.max())}
         out["speed"][name] = float(np.hypot(*np.diff(predicted[-101:, :, :2], axis=0).T).mean() / PARAMS.dt)
@@ -159,8 +180,11 @@ def window_errors(
             continue
         index = np.arange(windows)[None, :] + np.arange(horizon)[:, None]  # (H, W)
         truth = poses[index + 1]  # (H, W, N, 3)
+        lags = max(map(memory_of, models.values()))
+        # the commands before each window (none before the episode's start: the robots stand)
+        before = previous_commands(commands, lags)[:windows] if lags else None
         for name, model in models.items():
-            predicted = open_loop(model.step, poses[:windows], commands[index])
+            predicted = open_loop(model, poses[:windows], commands[index], before)
             sums[name] += float((rms_cm(truth, predicted[1:]) ** 2) * truth[..., 0].size)
         count += truth[..., 0].size
     return {name: float(np.sqrt(total / count)) if count else float("nan") for name, total in sums.items()}
@@ -181,7 +205,8 @@ def identification_figures(level: str, models: dict[str, Any], budget: int, seed
     plant = make_plant(ENV, plant="mujoco", slip=level, budget=budget, seed=seed + HELD_OUT)
     data = collect_data(plant, spec)
     one_step = {
-        name: float(100.0 * position_residual(model.step, data).mean()) for name, model in models.items()
+        name: float(100.0 * position_residual(model.step, data, memory=memory_of(model)).mean())
+        for name, model in models.items()
     }
     move = np.diff(data.states[..., :2], axis=0)  # (T, B, N, 2)
     heading = data.states[:-1, ..., 2]
@@ -213,12 +238,23 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
     assert isinstance(koopman, KoopmanNMPC)  # the registered name's class
     plant = make_plant(ENV, plant="mujoco", slip=level, budget=args.budget, seed=args.seed)
     calibration = calibrate_controller(koopman, plant, seed=args.seed) or {}
-    models = {"koopman": koopman.model, "unicycle": UnicycleModel(PARAMS.n_robots, PARAMS.dt)}
+    models: dict[str, Any] = {"koopman": koopman.model}
+    calibrations = {"koopman": calibration}
+    for memory in args.memory:
+        # the same calibration data (plant, budget and seed), the lift with memory
+        plant = make_plant(ENV, plant="mujoco", slip=level, budget=args.budget, seed=args.seed)
+        models[f"koopman-u{memory}"], calibrations[f"koopman-u{memory}"] = calibrated_model(
+            plant, args.seed, memory=memory
+        )
+    models["unicycle"] = UnicycleModel(PARAMS.n_robots, PARAMS.dt)
     held_out = args.seed + HELD_OUT
     row: dict[str, Any] = {
         "level": level,
         "surface": SLIP_SURFACES[level],
-        "calibration": {k: calibration[k] for k in ("source", "transitions", "key") if k in calibration},
+        "calibration": {
+            name: {k: summary[k] for k in ("source", "transitions", "key") if k in summary}
+            for name, summary in calibrations.items()
+        },
         "circle": circle_errors(level, models, args.repetitions, held_out),
     }
     data = closed_loop_data(
@@ -232,31 +268,39 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def tables(rows: list[dict[str, Any]], args: argparse.Namespace) -> str:
-    """The Markdown tables of the rows: the errors, then why."""
+    """The Markdown tables of the rows: the errors, then why (every Koopman lift side by side)."""
+    names = ["koopman", *(f"koopman-u{memory}" for memory in args.memory)]
+    models = " / ".join(names)
+
+    def each(values: dict[str, Any], form: str) -> str:
+        return " / ".join(format(values[name], form) for name in [*names, "unicycle"])
+
+    def ratios(values: dict[str, Any]) -> str:
+        return " / ".join(f"{values[name] / values['unicycle']:.2f}" for name in names)
+
     lines = [
-        f"| floor | circle, {CIRCLE_STEPS} periods: Koopman / unicycle [cm] | ratio | closed loop, "
-        f"{args.horizon} periods: Koopman / unicycle [cm] | ratio | one step, identification data: "
-        "Koopman / unicycle [cm] |",
+        f"| floor | circle, {CIRCLE_STEPS} periods: {models} / unicycle [cm] | ratio | closed loop, "
+        f"{args.horizon} periods: {models} / unicycle [cm] | ratio | one step, identification data: "
+        f"{models} / unicycle [cm] |",
         "|---|---|---|---|---|---|",
     ]
     for row in rows:
         c, w, i = row["circle"], row["closed_loop"], row["identification"]
+        circle = {name: c[name]["mean"] for name in [*names, "unicycle"]}
         lines.append(
-            f"| {row['level']} ({row['surface']}) | {c['koopman']['mean']:.1f} / {c['unicycle']['mean']:.1f} "
-            f"| {c['koopman']['mean'] / c['unicycle']['mean']:.2f} | {w['koopman']:.1f} / {w['unicycle']:.1f} "
-            f"| {w['koopman'] / w['unicycle']:.2f} | {i['one_step']['koopman']:.2f} / "
-            f"{i['one_step']['unicycle']:.2f} |"
+            f"| {row['level']} ({row['surface']}) | {each(circle, '.1f')} | {ratios(circle)} "
+            f"| {each(w, '.1f')} | {ratios(w)} | {each(i['one_step'], '.2f')} |"
         )
     lines += [
         "",
-        "| floor | circle speed: physics / Koopman / unicycle [m/s] | identification data: speed reached / "
-        f"commanded [m/s] | R^2 of a period's forward move: its command / with the {LAGS} before |",
+        f"| floor | circle speed: physics / {models} / unicycle [m/s] | identification data: speed "
+        f"reached / commanded [m/s] | R^2 of a period's forward move: its command / with the {LAGS} before |",
         "|---|---|---|---|",
     ]
     for row in rows:
         s, i = row["circle"]["speed"], row["identification"]
         lines.append(
-            f"| {row['level']} ({row['surface']}) | {s['physics']:.3f} / {s['koopman']:.3f} / {s['unicycle']:.3f} "
+            f"| {row['level']} ({row['surface']}) | {s['physics']:.3f} / {each(s, '.3f')} "
             f"| {i['speed_reached']:.3f} / {i['speed_commanded']:.3f} | {i['r2_now']:.2f} / {i['r2_past']:.2f} |"
         )
     return "\n".join(lines)
@@ -278,6 +322,13 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     )
     parser.add_argument(
         "--held-out-budget", type=int, default=20_000, help="team-transitions of held-out identification data"
+    )
+    parser.add_argument(
+        "--memory",
+        nargs="*",
+        type=int,
+        default=[],
+        help="also fit a lift holding the robots' last L commands, for each L given (beside the pose-only lift)",
     )
     parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)

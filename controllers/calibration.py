@@ -48,6 +48,7 @@ __all__ = [
     "collect_data",
     "data_spec_for",
     "position_residual",
+    "previous_commands",
     "write_atomic",
 ]
 
@@ -190,24 +191,55 @@ def collect_data(plant: CalibrationPlant, spec: DataSpec) -> TrajectoryData:
     return TrajectoryData(plant.rollout(start, commands), commands, spec)
 
 
+def previous_commands(commands: NDArray, memory: int) -> NDArray[np.float64]:
+    """The ``memory`` commands before every period of trajectories that start at rest.
+
+    Parameters
+    ----------
+    commands : ndarray, shape (T, ..., N, 2)
+        Commands of periods 0..T-1.
+    memory : int
+        How many to remember.
+
+    Returns
+    -------
+    ndarray, shape (T + 1, ..., memory, N, 2)
+        Entry [t, ..., l] is the command of period t - 1 - l, zero before period 0 (a team at rest
+        has the same lag state as one commanded to stand still).
+    """
+    commands = np.asarray(commands, dtype=np.float64)
+    steps = commands.shape[0]
+    padded = np.concatenate([np.zeros((memory,) + commands.shape[1:]), commands])
+    # padded[t + memory - 1 - l] is the command of period t - 1 - l
+    return np.stack([padded[memory - 1 - lag : memory + steps - lag] for lag in range(memory)], axis=-3)
+
+
 def position_residual(
-    predict: Callable[[NDArray, NDArray], NDArray], data: TrajectoryData, chunk: int = 100
+    predict: Callable[..., NDArray], data: TrajectoryData, chunk: int = 100, memory: int = 0
 ) -> NDArray[np.float64]:
     """RMS one-step position error of a prediction model on a data set, per robot [m].
 
     Parameters
     ----------
     predict : callable
-        ``predict(poses (..., N, 3), commands (..., N, 2)) -> poses (..., N, 3)``.
+        ``predict(poses (..., N, 3), commands (..., N, 2)) -> poses (..., N, 3)``, with
+        ``memory`` > 0 ``predict(poses, commands, previous (..., memory, N, 2))``.
     data : TrajectoryData
     chunk : int
         Periods evaluated at once (bounds memory).
+    memory : int
+        Previous commands the model takes (:func:`previous_commands`; 0: none).
     """
     total = np.zeros(data.states.shape[2])
     steps = data.commands.shape[0]
     for t0 in range(0, steps, chunk):
         t1 = min(steps, t0 + chunk)
-        predicted = predict(data.states[t0:t1], data.commands[t0:t1])
+        if memory:
+            # the commands before period t0 are those of the periods before it
+            previous = previous_commands(data.commands[max(0, t0 - memory) : t1], memory)[-(t1 - t0 + 1) : -1]
+            predicted = predict(data.states[t0:t1], data.commands[t0:t1], previous)
+        else:
+            predicted = predict(data.states[t0:t1], data.commands[t0:t1])
         err = predicted[..., :2] - data.states[t0 + 1 : t1 + 1, ..., :2]
         total += (err**2).sum(axis=-1).sum(axis=(0, 1))
     return np.sqrt(total / (steps * data.states.shape[1]))

@@ -3,6 +3,10 @@
 Every dictionary starts with the constant 1 and contains, for each robot, x, y, cos(theta) and
 sin(theta), so that the state can be read back from the lifted vector (see
 :meth:`Dictionary.state_rows`).
+
+A lift with memory (:func:`lift_memory`, ``memory`` > 0) appends observables of the robots'
+previous commands to a dictionary's: the robots of the physics plant move with a lag (inertia,
+the motors' ramp), so a period's move depends on the commands before it (docs/physics.md).
 """
 
 from __future__ import annotations
@@ -14,9 +18,22 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_choice
+from koopman_envs.checks import check_choice, check_int
 
-__all__ = ["DICTIONARIES", "Dictionary", "ExtendedDictionary", "MinimalDictionary", "get_dictionary"]
+__all__ = [
+    "DICTIONARIES",
+    "MAX_MEMORY",
+    "MEMORY_TERMS",
+    "Dictionary",
+    "ExtendedDictionary",
+    "MinimalDictionary",
+    "check_memory",
+    "get_dictionary",
+    "lift_memory",
+    "lift_memory_casadi",
+    "memory_size",
+    "shift_memory",
+]
 
 _Symbolic = TypeVar("_Symbolic", ca.SX, ca.MX)  # lift_casadi returns the kind of expression it is given
 
@@ -100,3 +117,78 @@ DICTIONARIES: dict[str, Dictionary] = {d.name: d for d in (MinimalDictionary(), 
 def get_dictionary(name: str) -> Dictionary:
     """Dictionary by name; raises ``ValueError`` listing the known names."""
     return DICTIONARIES[check_choice("dictionary", name, sorted(DICTIONARIES))]
+
+
+# ----------------------------------------------------------------------------- memory
+#: the largest number of previous commands a lift may hold (1 s at the paper's 0.1 s period)
+MAX_MEMORY = 10
+#: lifted terms per robot and remembered command: v, omega, v cos, v sin, omega cos, omega sin
+MEMORY_TERMS = 6
+
+
+def check_memory(memory: object) -> int:
+    """``memory`` (previous commands in the lift) as an int in [0, :data:`MAX_MEMORY`], else
+    ``ValueError`` naming it."""
+    return check_int(
+        "memory", memory, 0, maximum=MAX_MEMORY, note="previous commands in the lift; 0: the pose-only lift"
+    )
+
+
+def memory_size(n_robots: int, memory: int) -> int:
+    """Observables the memory adds to the lift of ``n_robots`` robots."""
+    return MEMORY_TERMS * n_robots * memory
+
+
+def lift_memory(poses: NDArray, previous: NDArray, memory: int) -> NDArray[np.float64]:
+    """The memory observables of poses (..., N, 3) and previous commands (..., L, N, 2).
+
+    ``previous[..., l, i]`` is robot i's command l + 1 periods ago (L >= ``memory``; the first
+    ``memory`` are used). Per remembered command and robot (lag-major, then robot): v, omega and
+    their products with cos theta and sin theta. The products are what make a delayed unicycle
+    bilinear: a period's move v_k-1 (cos theta, sin theta) dt is linear in them, and their own
+    next values v_k (cos, sin)(theta_k+1) are bilinear in the command and the pose's terms.
+
+    Returns
+    -------
+    ndarray, shape (..., MEMORY_TERMS * N * memory)
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    lead = poses.shape[:-2]
+    if memory == 0:
+        return np.zeros(lead + (0,))
+    previous = np.asarray(previous, dtype=np.float64)
+    if previous.shape[-3] < memory or previous.shape[-2:] != poses.shape[-2:-1] + (2,):
+        raise ValueError(
+            f"previous commands of shape {previous.shape} do not fit poses {poses.shape} and "
+            f"memory={memory}: need (..., L >= {memory}, N, 2)"
+        )
+    u = np.broadcast_to(previous[..., :memory, :, :], lead + (memory,) + previous.shape[-2:])
+    c = np.cos(poses[..., 2])[..., None, :]  # (..., 1, N)
+    s = np.sin(poses[..., 2])[..., None, :]
+    v, w = u[..., 0], u[..., 1]  # (..., L, N)
+    terms = np.stack([v, w, v * c, v * s, w * c, w * s], axis=-1)  # (..., L, N, 6)
+    return terms.reshape(lead + (-1,))
+
+
+def lift_memory_casadi(cos_sin: list, previous: list) -> list:
+    """:func:`lift_memory` in CasADi: ``cos_sin`` [(c_i, s_i)] per robot, ``previous`` [[(v, omega)
+    per robot] per lag], as a list of scalars in the same order."""
+    terms: list = []
+    for lag in previous:
+        for (c, s), (v, w) in zip(cos_sin, lag):
+            terms += [v, w, v * c, v * s, w * c, w * s]
+    return terms
+
+
+def shift_memory(previous: NDArray, command: NDArray) -> NDArray[np.float64]:
+    """The previous commands one period later: ``command`` (..., N, 2) first, the oldest dropped.
+
+    ``previous`` (..., L, N, 2) -> (..., L, N, 2).
+    """
+    previous = np.asarray(previous, dtype=np.float64)
+    if previous.shape[-3] == 0:
+        return previous.copy()
+    command = np.broadcast_to(
+        np.asarray(command, dtype=np.float64), previous.shape[:-3] + previous.shape[-2:]
+    )
+    return np.concatenate([command[..., None, :, :], previous[..., :-1, :, :]], axis=-3)

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.koopman.dictionary import Dictionary
+from controllers.calibration import previous_commands
+from controllers.koopman.dictionary import Dictionary, check_memory, lift_memory, memory_size
 
 __all__ = ["STRUCTURES", "BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted", "fit_per_robot"]
 
@@ -191,6 +192,7 @@ def fit_bilinear(
     ridge: float = 0.0,
     rcond: float = 1e-12,
     chunk: int = 32_768,
+    memory: int = 0,
 ) -> BilinearFit:
     """Fit [A, N, B] = Z' [Z; U kron Z; U]^+ and C = X Z^+ (SPEC eq. 9).
 
@@ -208,6 +210,10 @@ def fit_bilinear(
         Relative pivot tolerance that flags a rank-deficient problem.
     chunk : int
         Transitions per accumulation chunk (memory ~ chunk x 104 x 8 bytes for 3 robots).
+    memory : int
+        Previous commands in the lift (:func:`~controllers.koopman.dictionary.lift_memory`;
+        0: the paper's pose-only lift). Every trajectory is taken to start at rest, as the
+        calibration plant's teams do: the commands before its first period count as zero.
 
     Returns
     -------
@@ -216,15 +222,20 @@ def fit_bilinear(
     steps, batch, n = commands.shape[:3]
     if states.shape[:3] != (steps + 1, batch, n):
         raise ValueError(f"states {states.shape} and commands {commands.shape} do not match")
-    d = dictionary.size(n)
+    memory = check_memory(memory)
+    d = dictionary.size(n) + memory_size(n, memory)
     m = 2 * n
     acc = MomentAccumulator(d, m)
     flat_u = commands.reshape(steps * batch, m)
+    previous = previous_commands(commands, memory) if memory else None  # (T + 1, B, memory, N, 2)
     # chunks run over whole periods so z_k and z_k+1 come from contiguous slices
     per_chunk = max(1, chunk // batch)
     for t0 in range(0, steps, per_chunk):
         t1 = min(steps, t0 + per_chunk)
         z_all = dictionary.lift(states[t0 : t1 + 1])  # (t1 - t0 + 1, batch, d)
+        if previous is not None:
+            memory_terms = lift_memory(states[t0 : t1 + 1], previous[t0 : t1 + 1], memory)
+            z_all = np.concatenate([z_all, memory_terms], axis=-1)
         acc.add(z_all[:-1].reshape(-1, d), flat_u[t0 * batch : t1 * batch], z_all[1:].reshape(-1, d))
     return BilinearFit(*acc.solve(dictionary.state_rows(n).reshape(-1), ridge, rcond))
 

@@ -15,7 +15,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.calibration import check_position_residual
-from controllers.koopman.dictionary import Dictionary, get_dictionary
+from controllers.koopman.dictionary import (
+    Dictionary,
+    check_memory,
+    get_dictionary,
+    lift_memory,
+    lift_memory_casadi,
+    memory_size,
+    shift_memory,
+)
 from koopman_envs.files import MAX_LOG_BYTES, FileRefused, read_bounded
 
 __all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
@@ -46,6 +54,11 @@ class KoopmanModel:
     atan2(sin, cos). Predicting several steps re-lifts the projected state every step, as the
     NMPC does (SPEC section 2): lift, advance, project, re-lift.
 
+    With ``memory`` = L > 0 the lift is phi(x) followed by observables of the robots' last L
+    commands (:func:`~controllers.koopman.dictionary.lift_memory`), so that the model can carry
+    the robots' lag; a prediction then needs the commands applied before its first period
+    (``previous``), and every later step re-lifts with the commands it was given.
+
     Attributes
     ----------
     A, N, B, C : ndarray
@@ -58,6 +71,9 @@ class KoopmanModel:
         Sampling period of the data [s].
     metadata : dict
         Provenance: data spec (slip setting, size, seed), fit residual, package version.
+    memory : int
+        Previous commands in the lift (0: the paper's pose-only lift, at most
+        :data:`~controllers.koopman.dictionary.MAX_MEMORY`).
     """
 
     A: NDArray[np.float64]
@@ -68,9 +84,11 @@ class KoopmanModel:
     n_robots: int
     dt: float
     metadata: dict[str, Any] = field(default_factory=dict)
+    memory: int = 0
 
     def __post_init__(self) -> None:
-        d = self.dictionary.size(self.n_robots)
+        self.memory = check_memory(self.memory)
+        d = self.size
         m = 2 * self.n_robots
         expected = {"A": (d, d), "N": (d, m * d), "B": (d, m), "C": (4 * self.n_robots, d)}
         for name, shape in expected.items():
@@ -87,6 +105,16 @@ class KoopmanModel:
         self._n_blocks = self.N.reshape(d, m, d).transpose(1, 0, 2)  # (m, D, D)
         self._nlp_index: list | None = None  # (rows, cols) of each NLP constant's nonzeros
 
+    @property
+    def size(self) -> int:
+        """Dimension D of the lifted state (the dictionary's observables, then the memory's)."""
+        return self.dictionary.size(self.n_robots) + memory_size(self.n_robots, self.memory)
+
+    def no_memory(self) -> NDArray[np.float64]:
+        """Previous commands of a team at rest, shape (memory, N, 2): what a prediction from a
+        standing start passes as ``previous``."""
+        return np.zeros((self.memory, self.n_robots, 2))
+
     # ------------------------------------------------------------ prediction
     def robot_block(self, robot: int) -> KoopmanModel:
         """Robot ``robot``'s own one-robot model, cut out of a team model whose robots do not
@@ -99,6 +127,8 @@ class KoopmanModel:
             ``robot`` outside 0..N-1, or the team model couples robots (a stacked fit).
         """
         n, p = self.n_robots, self.dictionary.per_robot
+        if self.memory:
+            raise ValueError(f"robot_block needs a model without memory (this one has memory={self.memory})")
         if not 0 <= robot < n:
             raise ValueError(f"robot={robot!r} must be an integer in [0, {n - 1}]")
         d = self.dictionary.size(n)
@@ -129,9 +159,17 @@ class KoopmanModel:
             metadata={**self.metadata, "robot": robot},
         )
 
-    def lift(self, poses: NDArray) -> NDArray[np.float64]:
-        """phi(x) for poses (..., N, 3) -> (..., D)."""
-        return self.dictionary.lift(poses)
+    def lift(self, poses: NDArray, previous: NDArray | None = None) -> NDArray[np.float64]:
+        """phi(x) for poses (..., N, 3) -> (..., D).
+
+        ``previous`` (..., L, N, 2): the commands of the last L >= ``memory`` periods, the most
+        recent first (None: a team at rest); unused without memory.
+        """
+        z = self.dictionary.lift(poses)
+        if not self.memory:
+            return z
+        previous = self.no_memory() if previous is None else previous
+        return np.concatenate([z, lift_memory(poses, previous, self.memory)], axis=-1)
 
     def advance(self, z: NDArray, commands: NDArray) -> NDArray[np.float64]:
         """One step in the lifted space: (..., D) and commands (..., N, 2) -> (..., D)."""
@@ -145,21 +183,26 @@ class KoopmanModel:
         theta = np.arctan2(xycs[..., 3], xycs[..., 2])
         return np.concatenate([xycs[..., :2], theta[..., None]], axis=-1)
 
-    def step(self, poses: NDArray, commands: NDArray) -> NDArray[np.float64]:
+    def step(self, poses: NDArray, commands: NDArray, previous: NDArray | None = None) -> NDArray[np.float64]:
         """f_b(x, u): predicted poses one period later, batched over leading axes.
 
         Parameters
         ----------
         poses : ndarray, shape (..., N, 3)
         commands : ndarray, shape (..., N, 2)
+        previous : ndarray, shape (..., L, N, 2), optional
+            With memory: the commands applied before ``commands``, the most recent first
+            (None: a team at rest). Unused without memory.
 
         Returns
         -------
         ndarray, shape (..., N, 3)
         """
-        return self.project(self.advance(self.lift(poses), commands))
+        return self.project(self.advance(self.lift(poses, previous), commands))
 
-    def rollout(self, start: NDArray, commands: NDArray) -> NDArray[np.float64]:
+    def rollout(
+        self, start: NDArray, commands: NDArray, previous: NDArray | None = None
+    ) -> NDArray[np.float64]:
         """Open-loop prediction with re-lifting every step.
 
         Parameters
@@ -168,6 +211,9 @@ class KoopmanModel:
             Initial poses.
         commands : ndarray, shape (T, ..., N, 2)
             Command sequence.
+        previous : ndarray, shape (..., L, N, 2), optional
+            With memory: the commands applied before the first one, the most recent first
+            (None: a team at rest); later steps remember the sequence's own commands.
 
         Returns
         -------
@@ -177,11 +223,21 @@ class KoopmanModel:
         commands = np.asarray(commands, dtype=np.float64)
         out = np.empty((commands.shape[0] + 1,) + np.shape(start))
         out[0] = start
+        # a team at rest before the first command; without memory nothing is remembered
+        sent = (
+            np.zeros(np.shape(start)[:-2] + (self.memory, self.n_robots, 2)) if previous is None else previous
+        )
         for t in range(commands.shape[0]):
-            out[t + 1] = self.step(out[t], commands[t])
+            out[t + 1] = self.step(out[t], commands[t], sent)
+            if self.memory:
+                sent = shift_memory(sent, commands[t])
         return out
 
-    coding = "cs"  # the NMPC state of this model: (x, y, cos theta, sin theta) per robot
+    @property
+    def coding(self) -> str:
+        """The NMPC state of this model: (x, y, cos theta, sin theta) per robot (``"cs"``), with
+        memory followed by the robot's last ``memory`` commands, most recent first (``"cs+uL"``)."""
+        return "cs" if not self.memory else f"cs+u{self.memory}"
 
     def casadi_nlp_step(self, name: str = "koopman_cs_step") -> ca.Function:
         """f_b on the (x, y, cos theta, sin theta) coding used inside the NMPC.
@@ -192,10 +248,29 @@ class KoopmanModel:
         through the heading only renormalizes (cos, sin), and the normalization matters. Without
         it a bilinear model lets the heading vector grow under alternating turn commands and
         with it the predicted speed, which an optimizer exploits with bang-bang steering.
+
+        With memory the state per robot also holds its last ``memory`` commands (:attr:`coding`):
+        the next state's are ``u`` and the older ones shifted, so the first step of a horizon
+        remembers the commands applied before it (in the measured state) and later steps the
+        horizon's own.
         """
         state, u, z = self._nlp_lift()
-        z_next = self._casadi_advance(z, u)
-        return ca.Function(name, [state, u], [ca.mtimes(_sparse_dm(self.C), z_next)], ["s", "u"], ["s_next"])
+        matrices = self._constant_matrices()
+        z_next = self._casadi_advance(z, u, matrices)
+        s_next = self._nlp_next(state, u, ca.mtimes(matrices[3], z_next))
+        return ca.Function(name, [state, u], [s_next], ["s", "u"], ["s_next"])
+
+    def _nlp_next(self, state, u, xycs):
+        """The next NLP state from the projected (x, y, cos, sin) of every robot (4N): with
+        memory, each robot's block followed by its command and its older remembered ones."""
+        if not self.memory:
+            return xycs
+        n, size, lags = self.n_robots, 4 + 2 * self.memory, self.memory
+        parts = []
+        for i in range(n):
+            parts += [xycs[4 * i : 4 * i + 4], u[2 * i : 2 * i + 2]]
+            parts += [state[size * i + 4 : size * i + 4 + 2 * (lags - 1)]]
+        return ca.vertcat(*parts)
 
     def _casadi_advance(self, z, u, matrices=None):
         """A z + B u + sum_i u_i N_i z, with the model's matrices as constants or as given."""
@@ -206,9 +281,21 @@ class KoopmanModel:
         return z_next
 
     def _constant_matrices(self) -> tuple:
-        d = self.dictionary.size(self.n_robots)
-        blocks = [_sparse_dm(self.N[:, i * d : (i + 1) * d]) for i in range(2 * self.n_robots)]
-        return _sparse_dm(self.A), _sparse_dm(self.B), blocks, _sparse_dm(self.C)
+        A, B, blocks, C = self._nlp_matrices(self.A, self.N, self.B)
+        return _sparse_dm(A), _sparse_dm(B), [_sparse_dm(block) for block in blocks], _sparse_dm(C)
+
+    def _nlp_matrices(self, A: NDArray, N: NDArray, B: NDArray) -> tuple:
+        """(A, B, [N_i], C) as the NLP takes them. With memory C is folded in (C A, C B, C N_i and
+        the identity): the NLP re-lifts every step and reads only the projected poses, so the
+        rows of the remembered observables' own prediction would be dead weight, most of a memory
+        model's coefficients (their derivatives made each real-time iteration several times
+        costlier). Without memory the paper's form, as it always was."""
+        d = self.size
+        blocks = [N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)]
+        if not self.memory:
+            return A, B, blocks, self.C
+        c = self.C
+        return c @ A, c @ B, [c @ block for block in blocks], np.eye(c.shape[0])
 
     # ------------------------------------------------------- the NMPC's parametric form
     # The NMPC takes the model's coefficients as NLP parameters, not constants: its problem (and
@@ -220,7 +307,9 @@ class KoopmanModel:
         for dm in self._flat_constants():
             patterns.update(np.asarray(dm.sparsity().get_triplet(), dtype=np.int64).tobytes())
             patterns.update(np.asarray(dm.shape, dtype=np.int64).tobytes())
-        return ("koopman", self.dictionary.name, self.n_robots, patterns.hexdigest())
+        key = ("koopman", self.dictionary.name, self.n_robots, patterns.hexdigest())
+        # the memory-free key is the one it had before memory existed (compiled solvers on disk)
+        return key if not self.memory else (*key, "memory", self.memory)
 
     def _flat_constants(self) -> list:
         A, B, blocks, C = self._constant_matrices()
@@ -238,8 +327,8 @@ class KoopmanModel:
         """
         if self._nlp_index is None:
             self._nlp_index = [dm.sparsity().get_triplet() for dm in self._flat_constants()]
-        d = A.shape[0]
-        sources = [A, B, *(N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)), self.C]
+        A_nlp, B_nlp, blocks, C_nlp = self._nlp_matrices(A, N, B)
+        sources = [A_nlp, B_nlp, *blocks, C_nlp]
         return np.concatenate(
             [np.asarray(m, dtype=np.float64)[rows, cols] for m, (rows, cols) in zip(sources, self._nlp_index)]
         )
@@ -257,26 +346,38 @@ class KoopmanModel:
         matrices = (A, B, symbolic[2:-1], C)
         state, u, z = self._nlp_lift()
         z_next = self._casadi_advance(z, u, matrices)
-        return ca.Function(name, [state, u, theta], [ca.mtimes(C, z_next)], ["s", "u", "theta"], ["s_next"])
+        s_next = self._nlp_next(state, u, ca.mtimes(C, z_next))
+        return ca.Function(name, [state, u, theta], [s_next], ["s", "u", "theta"], ["s_next"])
 
     def _nlp_lift(self) -> tuple:
         """Symbols (s, u) of the NLP coding and the lifted z of s with normalized (cos, sin)."""
-        n = self.n_robots
-        state = ca.SX.sym("s", 4 * n)
+        n, size = self.n_robots, 4 + 2 * self.memory
+        state = ca.SX.sym("s", size * n)
         u = ca.SX.sym("u", 2 * n)
         terms: list = [1]
+        cos_sin = []
         for i in range(n):
-            c, s = state[4 * i + 2], state[4 * i + 3]
+            c, s = state[size * i + 2], state[size * i + 3]
             norm = ca.sqrt(c * c + s * s)
-            terms += self.dictionary._robot_terms_casadi(state[4 * i], state[4 * i + 1], c / norm, s / norm)
+            cos_sin.append((c / norm, s / norm))
+            terms += self.dictionary._robot_terms_casadi(state[size * i], state[size * i + 1], *cos_sin[-1])
+        previous = [
+            [(state[size * i + 4 + 2 * lag], state[size * i + 5 + 2 * lag]) for i in range(n)]
+            for lag in range(self.memory)
+        ]
+        terms += lift_memory_casadi(cos_sin, previous)
         return state, u, ca.vertcat(*terms)
 
     def casadi_step(self, name: str = "koopman_step") -> ca.Function:
         """f_b as a CasADi SX function ``x+ = f(x, u)`` on stacked vectors.
 
         Inputs ``x`` (3N: x_1, y_1, theta_1, x_2, ...) and ``u`` (2N: v_1, omega_1, ...),
-        output ``x_next`` (3N).
+        output ``x_next`` (3N). Without memory only (a model with memory: :meth:`casadi_nlp_step`).
         """
+        if self.memory:
+            raise ValueError(
+                f"casadi_step is the pose-only map; this model has memory={self.memory}: use casadi_nlp_step"
+            )
         n = self.n_robots
         x = ca.SX.sym("x", 3 * n)
         u = ca.SX.sym("u", 2 * n)
@@ -296,6 +397,8 @@ class KoopmanModel:
             "n_robots": self.n_robots,
             "dt": self.dt,
             **self.metadata,
+            # only with memory: a model without it writes the file it wrote before memory existed
+            **({"memory": self.memory} if self.memory else {}),
         }
         arrays = {
             "A": self.A,
@@ -360,6 +463,7 @@ class KoopmanModel:
             dictionary = get_dictionary(meta["dictionary"])
             model_robots = int(meta["n_robots"])
             model_dt = float(meta["dt"])
+            memory = check_memory(meta.get("memory", 0))
         except (KeyError, ValueError) as exc:
             raise ModelFileError(f"Koopman model file {path!r} has bad metadata ({exc}); {hint}") from exc
         if n_robots is not None and model_robots != n_robots:
@@ -379,8 +483,16 @@ class KoopmanModel:
                 )
             except ValueError as exc:
                 raise ModelFileError(f"{exc}; {hint}") from None
-        extra = {k: v for k, v in meta.items() if k not in ("format_version", "dictionary", "n_robots", "dt")}
+        own = ("format_version", "dictionary", "n_robots", "dt", "memory")
+        extra = {k: v for k, v in meta.items() if k not in own}
         try:
-            return cls(dictionary=dictionary, n_robots=model_robots, dt=model_dt, metadata=extra, **arrays)
+            return cls(
+                dictionary=dictionary,
+                n_robots=model_robots,
+                dt=model_dt,
+                metadata=extra,
+                memory=memory,
+                **arrays,
+            )
         except ValueError as exc:  # shapes that do not fit the dictionary and team size
             raise ModelFileError(f"Koopman model file {path!r}: {exc}; {hint}") from None

@@ -35,7 +35,7 @@ from controllers.calibration import (
     write_atomic,
 )
 from controllers.disk_cache import entry_exists
-from controllers.koopman.dictionary import get_dictionary
+from controllers.koopman.dictionary import check_memory, get_dictionary
 from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
 from koopman_envs import CalibrationPlant, make_plant
@@ -67,17 +67,22 @@ def fit_on_plant(
     dictionary: str = "minimal",
     ridge: float = 0.0,
     structure: str = "stacked",
+    memory: int = 0,
 ) -> KoopmanModel:
     """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance.
 
     ``structure``: ``"stacked"`` (the paper's) or ``"per-robot"``
-    (:func:`controllers.koopman.fit.fit_per_robot`).
+    (:func:`controllers.koopman.fit.fit_per_robot`). ``memory``: previous commands in the lift
+    (0: the paper's pose-only lift; stacked models only).
     """
     dic = get_dictionary(dictionary)
     check_structure(structure)
+    memory = check_memory_structure(memory, structure)
     data = collect_data(plant, spec)
-    fitter = fit_bilinear if structure == "stacked" else fit_per_robot
-    fit = fitter(data.states, data.commands, dic, ridge=ridge)
+    if structure == "stacked":
+        fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge, memory=memory)
+    else:
+        fit = fit_per_robot(data.states, data.commands, dic, ridge=ridge)
     rows = dic.state_rows(plant.n_robots)  # (N, 4): x, y, cos, sin
     position_residual = np.hypot(fit.coordinate_residual[rows[:, 0]], fit.coordinate_residual[rows[:, 1]])
     meta = {
@@ -91,20 +96,37 @@ def fit_on_plant(
         "position_residual": [float(v) for v in position_residual],
         "rank": fit.rank,
         "transitions": spec.transitions,
-        "cache_key": _model_key(plant, spec, dictionary, ridge, structure),
+        "cache_key": _model_key(plant, spec, dictionary, ridge, structure, memory),
         # only beyond the paper's stacked fit, as in the cache key: the documented command then
         # regenerates the shipped files bit for bit (tests/test_koopman.py)
         **({} if structure == "stacked" else {"structure": structure}),
         "package_version": envs_version,
     }
-    return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta)
+    return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta, memory=memory)
+
+
+def check_memory_structure(memory: object, structure: str) -> int:
+    """``memory`` checked (:func:`~controllers.koopman.dictionary.check_memory`), and refused
+    with a ``ValueError`` beside the per-robot structure, whose blocks hold poses only."""
+    memory = check_memory(memory)
+    if memory and structure == "per-robot":
+        raise ValueError(f"memory={memory} needs structure='stacked'; the per-robot fit lifts the poses only")
+    return memory
 
 
 def _model_key(
-    plant: CalibrationPlant, spec: DataSpec, dictionary: str, ridge: float, structure: str = "stacked"
+    plant: CalibrationPlant,
+    spec: DataSpec,
+    dictionary: str,
+    ridge: float,
+    structure: str = "stacked",
+    memory: int = 0,
 ) -> str:
-    # the stacked structure keeps the key it had before structures existed (shipped files, caches)
-    extra = {} if structure == "stacked" else {"structure": structure}
+    # the stacked structure and the pose-only lift keep the key they had before structures and
+    # memory existed (shipped files, caches)
+    extra: dict[str, Any] = {} if structure == "stacked" else {"structure": structure}
+    if memory:
+        extra["memory"] = memory
     return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge, **extra)
 
 
@@ -130,6 +152,7 @@ def calibrated_model(
     dictionary: str = "minimal",
     spec: DataSpec | None = None,
     structure: str = "stacked",
+    memory: int = 0,
 ) -> tuple[KoopmanModel, dict[str, Any]]:
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached if the cache can be
     written: a failed write warns once and the fitted model is returned all the same).
@@ -146,6 +169,8 @@ def calibrated_model(
         The data set (default: what the plant's budget buys, :func:`data_spec_for`).
     structure : str
         ``"stacked"`` (the paper's team regression) or ``"per-robot"``.
+    memory : int
+        Previous commands in the lift (0: the paper's pose-only lift; stacked only).
 
     Returns
     -------
@@ -156,7 +181,8 @@ def calibrated_model(
     """
     start = time.perf_counter()
     spec = data_spec_for(plant.budget, seed) if spec is None else spec
-    key = _model_key(plant, spec, dictionary, 0.0, check_structure(structure))
+    memory = check_memory_structure(memory, check_structure(structure))
+    key = _model_key(plant, spec, dictionary, 0.0, structure, memory)
     summary = {"transitions": spec.transitions, "key": key}
     shipped = _shipped_for(key)
     path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
@@ -174,7 +200,7 @@ def calibrated_model(
                 raise
             warnings.warn(f"{exc}; fitting it again", CacheWarning, stacklevel=2)
         # a corrupt or stale cache entry is refitted and replaced, never used
-    model = fit_on_plant(plant, spec, dictionary, structure=structure)
+    model = fit_on_plant(plant, spec, dictionary, structure=structure, memory=memory)
     if shipped is None:
         # best effort: a cache that cannot be written warns once and the fitted model is used
         write_atomic(path, model.save, ".npz")
@@ -187,6 +213,7 @@ def fit_for_env(
     budget: int = PARAMS.calibration_budget,
     seed: int = 0,
     dictionary: str = "minimal",
+    memory: int = 0,
     **env_kwargs: Any,
 ) -> KoopmanModel:
     """Fit (or load from the cache) the Koopman model of an environment's robots.
@@ -202,6 +229,8 @@ def fit_for_env(
         Seed of the plant's slip and of the identification inputs.
     dictionary : str
         ``"minimal"`` (the paper's) or ``"extended"``.
+    memory : int
+        Previous commands in the lift (0: the paper's pose-only lift).
     """
     plant = make_plant(env, budget=budget, seed=seed, **env_kwargs)
-    return calibrated_model(plant, seed, dictionary)[0]
+    return calibrated_model(plant, seed, dictionary, memory=memory)[0]

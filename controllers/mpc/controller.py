@@ -23,12 +23,13 @@ from numpy.typing import NDArray
 
 from controllers.base import BaseController
 from controllers.estimation import front_end_for
+from controllers.koopman.dictionary import shift_memory
 from controllers.movers import observed_mover_radii, observed_movers
 from controllers.mpc.config import NMPC_TUNABLE, PARKED, PERCEIVED_OBSTACLE_SLOTS, NMPCConfig
 from controllers.mpc.detour import RESTART_ITERATIONS, DeadlockResolver, pursuit_rollout
 from controllers.mpc.hooks import ParameterHooks
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
-from controllers.mpc.models import PredictionModel, decode_state, encode_state, model_step
+from controllers.mpc.models import PredictionModel, coding_memory, decode_state, encode_state, model_step
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, closing_distance, mover_slots, nearest_obstacle_slots
 from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
@@ -173,6 +174,8 @@ class NMPCController(ParameterHooks, BaseController):
         self._fallback_used = 0
         self._failed = False
         self._settled = np.zeros(scenario.n_robots, dtype=bool)
+        # a model with memory predicts from the commands the robots were sent: none yet (at rest)
+        self._sent = np.zeros((coding_memory(self._problem.coding), scenario.n_robots, 2))
         self._pursue: NDArray | None = None
         margin = max(self.config.obstacle_offset, self.config.robot_offset)
         unstall = self.config.unstall and self.resolves_stalls
@@ -307,14 +310,29 @@ class NMPCController(ParameterHooks, BaseController):
         w = np.zeros(prob.n_vars)
         w[: prob.nx] = state
         w[prob.u_index] = commands.ravel()
-        w[prob.x_index] = np.concatenate([encode_state(p, prob.coding) for p in poses])
+        states, sent = [], self._sent
+        for command, pose in zip(commands, poses):
+            sent = shift_memory(sent, command)  # a model with memory: stage t + 1 remembers u_t
+            states.append(encode_state(pose, prob.coding, sent))
+        w[prob.x_index] = np.concatenate(states)
         return w
 
     def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
+        command = self._decide(observation, observed)
+        if self._sent.shape[0]:
+            # the commands the robots were sent, as the env applies them (saturated to the limits)
+            scenario = self.scenario
+            assert scenario is not None  # act() checked it
+            limits = np.array([scenario.v_max, scenario.omega_max])
+            self._sent = shift_memory(self._sent, np.clip(command.reshape(-1, 2), -limits, limits))
+        return command
+
+    def _decide(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
+        """This period's command (N * 2) from the solve (or the fallback on a failure)."""
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
         poses = observed.observed_poses
-        state = encode_state(poses, prob.coding)
+        state = encode_state(poses, prob.coding, self._sent)
         assert self.scenario is not None  # act() checked it
         # an estimator in front hands on its covariance: chance-constrained margins (none without)
         covariance = observed.pose_covariance

@@ -4,6 +4,7 @@ state codes poses, and the nominal (slip-free) unicycle of the team. The Koopman
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -12,16 +13,28 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs import rk4_step
+from koopman_envs.checks import choice_message
 from koopman_envs.params import PARAMS
 
-__all__ = ["CODING_SIZE", "PredictionModel", "UnicycleModel", "decode_state", "encode_state", "model_step"]
+__all__ = [
+    "CODING_SIZE",
+    "PredictionModel",
+    "UnicycleModel",
+    "coding_memory",
+    "coding_size",
+    "decode_state",
+    "encode_state",
+    "model_step",
+]
 
 
 class PredictionModel(Protocol):
     """What the NMPC needs of a model: team size, period, and a CasADi step function.
 
-    ``coding`` names the per-robot NLP state: ``"pose"`` = (x, y, theta) or ``"cs"`` =
-    (x, y, cos theta, sin theta); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
+    ``coding`` names the per-robot NLP state: ``"pose"`` = (x, y, theta), ``"cs"`` =
+    (x, y, cos theta, sin theta), or ``"cs+uL"`` = the ``"cs"`` state followed by the robot's
+    last L commands, most recent first (a model with memory, which the controller fills with the
+    commands it sent); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
     """
 
     # read-only members: a frozen dataclass (UnicycleModel) satisfies them, the NMPC only reads them
@@ -66,19 +79,48 @@ def model_step(model: PredictionModel) -> tuple[ca.Function, NDArray[np.float64]
 
 
 CODING_SIZE = {"pose": 3, "cs": 4}
+_MEMORY_CODING = re.compile(r"cs\+u([1-9][0-9]*)")
 
 
-def encode_state(poses: NDArray, coding: str) -> NDArray[np.float64]:
-    """Stacked NLP state of poses (N, 3) in a model's coding."""
+def coding_memory(coding: str) -> int:
+    """Commands a coding remembers per robot (``"cs+uL"``: L; the others 0); an unknown coding
+    is a ``ValueError`` naming the allowed ones."""
+    if coding in CODING_SIZE:
+        return 0
+    match = _MEMORY_CODING.fullmatch(coding) if isinstance(coding, str) else None
+    if match is None:
+        raise ValueError(choice_message("model coding", coding, sorted(CODING_SIZE), " or 'cs+uL' (L >= 1)"))
+    return int(match.group(1))
+
+
+def coding_size(coding: str) -> int:
+    """NLP state entries per robot of a coding."""
+    memory = coding_memory(coding)
+    return CODING_SIZE[coding] if not memory else CODING_SIZE["cs"] + 2 * memory
+
+
+def encode_state(poses: NDArray, coding: str, previous: NDArray | None = None) -> NDArray[np.float64]:
+    """Stacked NLP state of poses (N, 3) in a model's coding.
+
+    ``previous`` (L, N, 2): with a ``"cs+uL"`` coding, the commands the robots were sent in the
+    last L periods, most recent first (None: a team at rest); unused by the other codings.
+    """
     poses = np.asarray(poses, dtype=np.float64)
     if coding == "pose":
         return poses.reshape(-1)
-    return np.column_stack([poses[:, :2], np.cos(poses[:, 2]), np.sin(poses[:, 2])]).reshape(-1)
+    blocks = [poses[:, :2], np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])]
+    memory = coding_memory(coding)
+    if memory:
+        sent = (
+            np.zeros((memory, poses.shape[0], 2)) if previous is None else np.asarray(previous, dtype=float)
+        )
+        blocks.append(sent[:memory].transpose(1, 0, 2).reshape(poses.shape[0], 2 * memory))
+    return np.concatenate(blocks, axis=1).reshape(-1)
 
 
 def decode_state(states: NDArray, coding: str) -> NDArray[np.float64]:
     """Poses (..., N, 3) from NLP states (..., N * size) in a coding."""
-    size = CODING_SIZE[coding]
+    size = coding_size(coding)
     s = np.asarray(states).reshape(states.shape[:-1] + (-1, size))
     if coding == "pose":
         return s.copy()

@@ -26,10 +26,9 @@ from numpy.typing import NDArray
 
 from controllers.mpc.config import WARM_START_OPTIONS, NMPCConfig
 from controllers.mpc.layout import nmpc_layout
-from controllers.mpc.models import CODING_SIZE, PredictionModel, decode_state, model_step
+from controllers.mpc.models import PredictionModel, coding_size, decode_state, model_step
 from controllers.mpc.rti import RealTimeIteration, bind_buffer
 from controllers.solvers.compiled import nlpsol
-from koopman_envs.checks import check_choice
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 
@@ -229,8 +228,7 @@ class Problem:
     ) -> None:
         n, m_obs, horizon = scenario.n_robots, scenario.obstacles.shape[0], config.horizon
         coding = model.coding
-        check_choice("model coding", coding, sorted(CODING_SIZE))
-        size = CODING_SIZE[coding]
+        size = coding_size(coding)  # refuses an unknown coding by name
         nx, nu = size * n, 2 * n
         # slacks per stage: collision rows, formation rows and (terminal_slack) the terminal
         # state's collision rows, which only the last stage uses

@@ -46,7 +46,7 @@ from controllers.calibration import (
 from controllers.disk_cache import entry_exists
 from controllers.estimation import PoseFrontEnd
 from controllers.koopman import KoopmanModel, calibrated_model
-from controllers.koopman.dictionary import DICTIONARIES
+from controllers.koopman.dictionary import DICTIONARIES, MAX_MEMORY
 from controllers.koopman.fit import STRUCTURES
 from controllers.koopman.online import (
     ADAPTED_TERMS,
@@ -55,7 +55,7 @@ from controllers.koopman.online import (
     check_forgetting,
     check_prior_weight,
 )
-from controllers.koopman.store import check_structure, default_structure
+from controllers.koopman.store import check_memory_structure, check_structure, default_structure
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
@@ -143,7 +143,12 @@ class KoopmanNMPC(NMPCController):
         How the fitted model couples the robots: ``"stacked"`` (the paper's one team
         regression), ``"per-robot"`` (each robot's own block; the fit and the NMPC problem grow
         linearly with N instead of quadratically) or ``"auto"`` (default: stacked up to the
-        paper's 3 robots, per-robot beyond).
+        paper's 3 robots, per-robot beyond; stacked with ``memory``).
+    memory : int
+        Previous commands in the lift of the model that :meth:`calibrate` fits (0: the paper's
+        pose-only lift). With L > 0 the model can carry the robots' lag (inertia, motor ramps:
+        the physics plant, docs/physics.md); the NMPC's state then holds each robot's last L
+        commands, the measured state the ones it sent. Stacked models only.
     config, **options
         NMPC options, see :class:`controllers.mpc.config.NMPCConfig` (``uncertainty_margin`` uses the
         model's RMS one-step position residual on its calibration data).
@@ -155,6 +160,10 @@ class KoopmanNMPC(NMPCController):
         "dictionary": tuple(DICTIONARIES),
         "structure": ("auto", *STRUCTURES),
     }
+    #: the allowed range of its own numeric options (:mod:`controllers.option_spec`)
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+        "memory": Range(0, MAX_MEMORY, integer=True, note="previous commands in the lift"),
+    }
     model: KoopmanModel | None  # only ever a KoopmanModel here (__init__, _use)
 
     def __init__(
@@ -163,10 +172,12 @@ class KoopmanNMPC(NMPCController):
         dictionary: str = "minimal",
         config: NMPCConfig | None = None,
         structure: str = "auto",
+        memory: int = 0,
         **options: Any,
     ) -> None:
         if structure != "auto":
             check_structure(structure)
+        self.memory = check_memory_structure(memory, "stacked" if structure == "auto" else structure)
         self.structure = structure
         if model is not None and not isinstance(model, KoopmanModel):
             model = KoopmanModel.load(model)
@@ -187,9 +198,11 @@ class KoopmanNMPC(NMPCController):
             assert self.model is not None  # _fixed_model: __init__ was given a model
             return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
         structure = self.structure
-        if structure == "auto":
-            structure = default_structure(plant.n_robots)
-        model, summary = calibrated_model(plant, seed, self.dictionary, structure=structure)
+        if structure == "auto":  # a lift with memory is a stacked model's
+            structure = "stacked" if self.memory else default_structure(plant.n_robots)
+        model, summary = calibrated_model(
+            plant, seed, self.dictionary, structure=structure, memory=self.memory
+        )
         summary["structure"] = structure
         self._use(model)
         return summary
@@ -275,6 +288,10 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         super().__init__(model, dictionary, config, structure, **options)
 
     def _use(self, model: KoopmanModel) -> None:
+        if model.memory:
+            raise ValueError(
+                f"{self.name} updates a pose-only model online; this model has memory={model.memory}"
+            )
         super()._use(model)
         self._estimator = None  # rebuilt for the new model at the next reset
 
