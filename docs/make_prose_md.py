@@ -13,13 +13,20 @@ no number its data do not give and a republication updates every number at once:
 - the numbers (``docs/prose_numbers.py``): ``episodes``, ``kn``, ``rate``, ``ci``, ``diff``,
   ``points``, ``p``, ``holm``, ``tests`` (a run's episodes, filtered by ``task=``, ``map=``,
   ``slip=``), ``vsref``, ``vsref_holm``, ``cost``, ``cost_holm`` (a sweep's paired tests),
-  ``effect``, ``effect_p`` (the ablation's main effects), ``steps`` (a shipped policy's budget);
+  ``sweep_tests`` (a sweep's paired tests), ``effect``, ``effect_p`` (the ablation's main
+  effects), ``steps`` (a shipped policy's budget), ``median`` (a per-episode number's median),
+  ``misses`` (deadline misses), ``collisions`` (episodes with a collision of a kind);
 - the tables (``docs/prose_tables.py``), each alone on its line: ``success_table``,
   ``slip_table``, ``paper_cells``, ``run_table``, ``scale_table``, ``factor_table``.
 
 A run is named ``NAME`` or, for one level of a sweep, ``NAME@KEY=LEVEL``
 (``paper_realistic@uncertainty=realistic``). Each function's docstring says what it prints;
 ``python docs/make_prose_md.py --list`` prints them all.
+
+The other generated pages' intros (``docs/_intros/*.md``, read by ``docs/make_robustness_md.py``
+and ``docs/make_results_md.py``) are templates too (:func:`expand_template`): their runs are the
+archives the generator reads, each named by its file (``data/lab_day_sweep.tar.xz`` is
+``lab_day_sweep``).
 """
 
 from __future__ import annotations
@@ -41,7 +48,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
-__all__ = ["FUNCTIONS", "PLACEHOLDER", "expand", "main"]
+__all__ = ["FUNCTIONS", "PLACEHOLDER", "expand", "expand_template", "main", "runs_by_file"]
 
 #: a placeholder: ``{{ FUNCTION ARGUMENT ... }}`` (on one line or several)
 PLACEHOLDER = re.compile(r"\{\{(.*?)\}\}", re.DOTALL)
@@ -85,6 +92,29 @@ def expand(text: str, runs: Runs) -> str:
             line = out[: out.index(mark)].count("\n") + 1
             raise ValueError(f"an unpaired {mark!r} is left in the page at line {line}")
     return out
+
+
+def runs_by_file(archives: Sequence[str | Path]) -> Runs:
+    """The published archives a generator reads as a page's runs, each named by its file without
+    the suffixes (``data/lab_day_sweep.tar.xz`` -> ``lab_day_sweep``); ``ValueError`` naming two
+    archives of one name."""
+    return Runs(parse_runs([f"{Path(a).name.split('.')[0]}={a}" for a in archives]))
+
+
+def expand_template(template: Path, archives: Sequence[str | Path]) -> str:
+    """The text of ``template`` (a page's intro) with its placeholders filled from ``archives``
+    (:func:`runs_by_file`); a text without placeholders comes back as it is.
+
+    Raises
+    ------
+    ValueError
+        As :func:`expand`, the message naming the template.
+    """
+    text = template.read_text(encoding="utf-8")
+    try:
+        return expand(text, runs_by_file(archives))
+    except ValueError as exc:
+        raise ValueError(f"{template}: {exc}") from None
 
 
 def main(argv: list[str] | None = None) -> int:

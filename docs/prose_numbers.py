@@ -11,7 +11,10 @@ run's page), so a number on the page is what the page of its run says.
 
 from __future__ import annotations
 
+import itertools
 import json
+import math
+import re
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -19,10 +22,13 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 
+from evaluation.episodes.distinct import distinct_records  # noqa: E402
 from evaluation.episodes.records import ran  # noqa: E402
 from evaluation.experiments.ablation import FACTORS, main_effects  # noqa: E402
 from evaluation.experiments.sweep import load_sweep  # noqa: E402
@@ -47,8 +53,9 @@ __all__ = [
     "successes",
 ]
 
-#: the filters a placeholder may name, and the record field each one reads
-FILTERS = {"task": "env_id", "map": "map", "slip": "slip"}
+#: the filters a placeholder may name, and the record field each one reads; a value may list
+#: several, comma-separated (``trial=0,1,2``)
+FILTERS = {"task": "env_id", "map": "map", "slip": "slip", "trial": "trial"}
 #: a placeholder's options (its filters, a table's lists) by name
 Options = dict[str, str]
 #: ``task=`` shorthands
@@ -132,10 +139,12 @@ class Runs:
 
 
 def _filters(options: Mapping[str, str]) -> Callable[[Mapping[str, Any]], bool]:
+    # a filter's value may list several, comma-separated: ``trial=0,1,2``
     wanted = {
-        FILTERS[key]: TASKS.get(value, value) if key == "task" else value for key, value in options.items()
+        FILTERS[key]: {TASKS.get(v, v) if key == "task" else v for v in value.split(",")}
+        for key, value in options.items()
     }
-    return lambda record: all(record[field_] == value for field_, value in wanted.items())
+    return lambda record: all(str(record[field_]) in values for field_, values in wanted.items())
 
 
 def episodes_of(run: Results, controller: str | None, options: Mapping[str, str]) -> list[dict[str, Any]]:
@@ -296,6 +305,12 @@ def vsref(runs: Runs, args: Sequence[str], options: Options) -> str:
     return interval_text(row["success_difference"], row["success_low"], row["success_high"])
 
 
+def vsref_points(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``vsref_points SWEEP CONTROLLER KEY=LEVEL``: that difference to the reference in points
+    without sign, ``12`` (the prose says which way)."""
+    return f"{abs(100 * _vsref(runs, args)['success_difference']):.0f}"
+
+
 def vsref_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
     """``vsref_holm SWEEP CONTROLLER KEY=LEVEL``: that comparison's Holm-adjusted p over every
     paired test of the sweep, as its page corrects, ``Holm p = 0.004``."""
@@ -317,6 +332,12 @@ def cost(runs: Runs, args: Sequence[str], options: Options) -> str:
     axis's first level, paired, in points with Newcombe's interval (the page's level costs)."""
     c = _cost(runs, args)
     return interval_text(c.difference, c.low, c.high)
+
+
+def cost_points(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``cost_points SWEEP CONTROLLER KEY=LEVEL``: that level cost in points without sign,
+    ``24`` (the prose says which way)."""
+    return f"{abs(100 * _cost(runs, args).difference):.0f}"
 
 
 def cost_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
@@ -346,6 +367,144 @@ def steps(runs: Runs, args: Sequence[str], options: Options) -> str:
     if len(budgets) == 1:
         return budgets[0]
     return f"{budgets[0]} per task" if len(set(budgets)) == 1 else " and ".join(budgets)
+
+
+def _field(record: Mapping[str, Any], name: str) -> Any:
+    if name in record:
+        return record[name]
+    extra = record.get("controller_extra") or {}
+    if name in extra:
+        return extra[name]
+    raise ValueError(f"field {name!r} is in neither the episode record nor its controller_extra")
+
+
+def median(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``median RUN CONTROLLER FIELD``: the median over the episodes of a per-episode number (a
+    record field, or one of ``controller_extra``: ``solve_ms_median``, ``estimator_ms_median``),
+    to two significant digits, ``2.3``, ``0.14``."""
+    check_args("median", args, 3)
+    values = [_field(r, args[2]) for r in episodes_of(runs.run(args[0]), args[1], options)]
+    numbers = [float(v) for v in values if v is not None]
+    if not numbers:
+        raise ValueError(f"no episode of {args[1]} records {args[2]!r}")
+    return f"{float(np.median(numbers)):.2g}"
+
+
+def misses(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``misses RUN CONTROLLER [count]``: deadline misses over the decisions of the episodes
+    (compute charged), ``10 of 17,594``; with ``count``, the misses alone, ``10``."""
+    if len(args) not in (2, 3) or list(args[2:]) not in ([], ["count"]):
+        raise ValueError(f"misses takes RUN CONTROLLER [count], got {list(args)}")
+    found = episodes_of(runs.run(args[0]), args[1], options)
+    missed, decided = (sum(int(r[key] or 0) for r in found) for key in ("deadline_misses", "decisions"))
+    return f"{missed:,}" if len(args) == 3 else f"{missed:,} of {decided:,}"
+
+
+def count(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``count RUN CONTROLLER``: successes of the episodes alone, ``12`` (``kn``'s numerator,
+    for prose that says ``40 -> 30 of 40``)."""
+    check_args("count", args, 2)
+    return str(successes(runs.run(args[0]), args[1], options)[0])
+
+
+#: a number function's output: its number (sign and thousands' commas kept), then the rest
+_NUMBER = re.compile(r"^([+-]?\d[\d,]*(?:\.\d+)?)(.*)$", re.DOTALL)
+
+
+def _alternatives(runs: Runs, word: str) -> list[str]:
+    """A word of ``span``: ``A|B|C`` as its alternatives, ``SWEEP@*`` as every level of the sweep
+    (in its order), ``SWEEP@KEY=*`` as every level of that axis."""
+    name, at, level = word.partition("@")
+    if at and level.endswith("*") and level in ("*", f"{level[:-2]}=*"):
+        key = level[:-2]
+        levels = runs.sweep(name).levels
+        if key and key not in levels:
+            raise ValueError(f"{word!r}: sweep {name!r} has the axes {sorted(levels)}")
+        return list(
+            dict.fromkeys(
+                f"{name}@{k}={level_text(value)}"
+                for k, pairs in levels.items()
+                if k == key or not key
+                for value, _ in pairs
+            )
+        )
+    return word.split("|")
+
+
+def _every(runs: Runs, function: Callable[..., str], args: Sequence[str], options: Options) -> list[str]:
+    """What ``function`` prints at every combination of its arguments' and filters' alternatives."""
+    choices = [_alternatives(runs, word) for word in args]
+    keys = list(options)
+    option_choices = [options[key].split("|") for key in keys]
+    return [
+        function(runs, list(combo[: len(choices)]), dict(zip(keys, combo[len(choices) :], strict=True)))
+        for combo in itertools.product(*choices, *option_choices)
+    ]
+
+
+def _extreme(runs: Runs, args: Sequence[str], options: Options) -> str:
+    # ``span max FUNCTION ...``: the text whose first number is the largest (a p-value's bound)
+    if len(args) < 2 or args[1] not in NUMBERS or args[1] == "span":
+        raise ValueError(f"span {args[0]} takes a number function, got {list(args)}")
+    texts = _every(runs, NUMBERS[args[1]], args[2:], options)
+    found = [(re.search(r"\d[\d,]*(?:\.\d+)?", text), text) for text in texts]
+    if not all(m for m, _ in found):
+        raise ValueError(f"span {list(args)}: {texts} are not all numbers")
+    pick = max if args[0] == "max" else min
+    return pick(found, key=lambda item: float(item[0][0].replace(",", "")) if item[0] else 0.0)[1]
+
+
+def span(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``span FUNCTION ARGUMENT...``: FUNCTION (a number function) at every combination of its
+    arguments' and filters' alternatives (``A|B``, ``SWEEP@*``, ``SWEEP@KEY=*``), as the range
+    of its number, ``94-100%``; one value when every combination prints the same (``0/80``),
+    ``ValueError`` when their units differ. ``span max FUNCTION ...`` (or ``min``) prints the one
+    whose first number is the largest (the smallest): ``Holm p = 0.004`` of several p-values."""
+    if args and args[0] in ("max", "min"):
+        return _extreme(runs, args, options)
+    if not args or args[0] not in NUMBERS or args[0] == "span":
+        raise ValueError(
+            f"span takes a number function of {sorted(set(NUMBERS) - {'span'})}, got {list(args)}"
+        )
+    function = NUMBERS[args[0]]
+    if options and args[0] not in FILTERED:
+        raise ValueError(f"{args[0]} takes no filter, got {sorted(options)}")
+    texts = _every(runs, function, args[1:], options)
+    if len(set(texts)) == 1:
+        return texts[0]
+    parts = [_NUMBER.match(text) for text in texts]
+    if not all(parts) or len({m[2] for m in parts if m}) != 1:
+        raise ValueError(f"span {list(args)}: its values {texts} are not one number with one unit")
+    values = sorted((float(m[1].replace(",", "")), m[1]) for m in parts if m)
+    return f"{values[0][1]}-{values[-1][1]}{parts[0][2] if parts[0] else ''}"
+
+
+def collisions(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``collisions RUN CONTROLLER KIND``: the episodes whose collision involves KIND
+    (``obstacle``, ``mover``, ``robot``), ``31``; with ``failures`` as KIND, the episodes that
+    did not succeed."""
+    check_args("collisions", args, 3)
+    found = distinct_records(episodes_of(runs.run(args[0]), args[1], options))
+    if args[2] == "failures":
+        return str(sum(not r["success"] for r in found))
+    return str(sum(args[2] in (r["collision"] or "").split("+") for r in found))
+
+
+def sweep_tests(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``sweep_tests SWEEP``: the paired tests against the reference over every level of the
+    sweep (the family ``vsref_holm`` corrects over), a bit-identical twin's test counted once as
+    its page counts it, ``6``."""
+    check_args("sweep_tests", args, 1)
+    tests = [
+        row.paired | {"level": row.level}
+        for p in runs.sweep(args[0]).profiles
+        for row in p.rows
+        if row.paired
+    ]
+    # a twin's test is on the same episodes: every one of its numbers equals its base's
+    keys = ("level", "pairs", "success_difference", "p_value", "distance_difference")
+    same = {tuple(test[k] for k in keys) for test in tests if not math.isnan(test["p_value"])}
+    return str(len(same))
 
 
 # --------------------------------------------------------------------------- the ablation
@@ -384,13 +543,36 @@ NUMBERS = {
         holm,
         tests,
         vsref,
+        vsref_points,
         vsref_holm,
         cost,
+        cost_points,
         cost_holm,
         steps,
+        median,
+        misses,
+        count,
+        span,
+        collisions,
+        sweep_tests,
         effect,
         effect_p,
     )
 }
 #: the functions that count filtered episodes (the others refuse a filter)
-FILTERED = {"episodes", "kn", "rate", "ci", "diff", "points", "p", "holm", "tests"}
+FILTERED = {
+    "episodes",
+    "kn",
+    "rate",
+    "ci",
+    "diff",
+    "points",
+    "p",
+    "holm",
+    "tests",
+    "median",
+    "misses",
+    "collisions",
+    "count",
+    "span",
+}
