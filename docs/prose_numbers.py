@@ -340,6 +340,12 @@ def cost_points(runs: Runs, args: Sequence[str], options: Options) -> str:
     return f"{abs(100 * _cost(runs, args).difference):.0f}"
 
 
+def cost_change(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``cost_change SWEEP CONTROLLER KEY=LEVEL``: that level cost in points with its sign,
+    ``-18`` (``span min``/``span max`` over controllers: ``within -6 and +2 points``)."""
+    return _signed(_cost(runs, args).difference)
+
+
 def cost_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
     """``cost_holm SWEEP CONTROLLER KEY=LEVEL``: that level cost's Holm-adjusted p over every
     level cost of the sweep, as its page corrects, ``Holm p = 0.010``."""
@@ -447,7 +453,7 @@ def _extreme(runs: Runs, args: Sequence[str], options: Options) -> str:
     if len(args) < 2 or args[1] not in NUMBERS or args[1] == "span":
         raise ValueError(f"span {args[0]} takes a number function, got {list(args)}")
     texts = _every(runs, NUMBERS[args[1]], args[2:], options)
-    found = [(re.search(r"\d[\d,]*(?:\.\d+)?", text), text) for text in texts]
+    found = [(re.search(r"[+-]?\d[\d,]*(?:\.\d+)?", text), text) for text in texts]
     if not all(m for m, _ in found):
         raise ValueError(f"span {list(args)}: {texts} are not all numbers")
     pick = max if args[0] == "max" else min
@@ -547,6 +553,7 @@ NUMBERS = {
         vsref_holm,
         cost,
         cost_points,
+        cost_change,
         cost_holm,
         steps,
         median,
