@@ -10,12 +10,15 @@ KEY=VALUE ... }}`` (its words split as a shell splits them: quote one that holds
 is replaced by what FUNCTION prints from the published runs the page names, so the page states
 no number its data do not give and a republication updates every number at once:
 
-- the numbers (``docs/prose_numbers.py``): ``episodes``, ``kn``, ``rate``, ``ci``, ``diff``,
-  ``points``, ``p``, ``holm``, ``tests`` (a run's episodes, filtered by ``task=``, ``map=``,
-  ``slip=``), ``vsref``, ``vsref_holm``, ``cost``, ``cost_holm`` (a sweep's paired tests),
-  ``sweep_tests`` (a sweep's paired tests), ``effect``, ``effect_p`` (the ablation's main
-  effects), ``steps`` (a shipped policy's budget), ``median`` (a per-episode number's median),
-  ``misses`` (deadline misses), ``collisions`` (episodes with a collision of a kind);
+- the numbers of a run (``docs/prose_numbers.py``): ``episodes``, ``kn``, ``count``, ``rate``,
+  ``ci``, ``diff``, ``points``, ``p``, ``holm``, ``tests``, ``median`` (a per-episode number),
+  ``misses`` (deadline misses), ``collisions`` (episodes with a collision of a kind), filtered
+  by ``task=``, ``map=``, ``slip=``, ``trial=`` (a value may list several: ``trial=0,1,2``);
+  ``effect``, ``effect_p`` (the ablation's main effects), ``steps`` (a shipped policy's budget);
+- the numbers of a sweep (``docs/prose_sweeps.py``): ``vsref``, ``vsref_points``, ``vsref_holm``
+  (paired against its reference), ``cost``, ``cost_points``, ``cost_change``, ``cost_holm``
+  (what a level costs), ``sweep_tests`` (the size of its Holm family);
+- ``span`` (``docs/prose_span.py``): any of these over alternatives, ``94-100%``;
 - the tables (``docs/prose_tables.py``), each alone on its line: ``success_table``,
   ``slip_table``, ``paper_cells``, ``run_table``, ``scale_table``, ``factor_table``.
 
@@ -41,6 +44,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts beside this one
 
 from prose_numbers import FILTERED, FILTERS, NUMBERS, ROOT, Options, Runs, parse_runs  # noqa: E402
+from prose_span import SPAN  # noqa: E402
+from prose_sweeps import SWEEP_NUMBERS  # noqa: E402
 from prose_tables import TABLES  # noqa: E402
 
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
@@ -52,8 +57,13 @@ __all__ = ["FUNCTIONS", "PLACEHOLDER", "expand", "expand_template", "main", "run
 
 #: a placeholder: ``{{ FUNCTION ARGUMENT ... }}`` (on one line or several)
 PLACEHOLDER = re.compile(r"\{\{(.*?)\}\}", re.DOTALL)
-#: every placeholder function by name: the numbers, then the tables
-FUNCTIONS: dict[str, Callable[[Runs, Sequence[str], Options], str]] = {**NUMBERS, **TABLES}
+#: every placeholder function by name: the numbers (of a run, of a sweep), their span, the tables
+FUNCTIONS: dict[str, Callable[[Runs, Sequence[str], Options], str]] = {
+    **NUMBERS,
+    **SWEEP_NUMBERS,
+    **SPAN,
+    **TABLES,
+}
 #: the words of a placeholder that are options, not arguments: the filters and the tables' lists
 OPTION = re.compile(rf"^({'|'.join([*FILTERS, 'runs', 'times'])})=(.+)$")
 

@@ -11,10 +11,7 @@ run's page), so a number on the page is what the page of its run says.
 
 from __future__ import annotations
 
-import itertools
 import json
-import math
-import re
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -50,6 +47,7 @@ __all__ = [
     "episodes_of",
     "interval_text",
     "parse_runs",
+    "signed_points",
     "successes",
 ]
 
@@ -184,12 +182,13 @@ def p_text(value: float, name: str = "Holm p") -> str:
     return f"{name} {cell[0]} {cell[1:]}" if cell.startswith("<") else f"{name} = {cell}"
 
 
-def _signed(value: float) -> str:
+def signed_points(value: float) -> str:
+    """A difference in points with its sign, ``+15``."""
     return f"{100 * value:+.0f}"
 
 
 def interval_text(difference: float, low: float, high: float) -> str:
-    return f"{_signed(difference)} [{_signed(low)}, {_signed(high)}]"
+    return f"{signed_points(difference)} [{signed_points(low)}, {signed_points(high)}]"
 
 
 # --------------------------------------------------------------------------- inline numbers
@@ -277,81 +276,6 @@ def tests(runs: Runs, args: Sequence[str], options: Options) -> str:
     return str(sum(env_id in (None, r["env_id"]) for r in _family(runs.run(args[0]))))
 
 
-def _level(value: Any, text: str) -> bool:
-    return level_text(value) == text
-
-
-def _vsref(runs: Runs, args: Sequence[str]) -> dict[str, float]:
-    check_args("vsref", args, 3)
-    name, controller, level = args
-    key, _, value = level.partition("=")
-    for profile in runs.sweep(name).profiles:
-        for row in profile.rows:
-            if (
-                profile.key == key
-                and row.controller == controller
-                and _level(row.level, value)
-                and row.paired
-            ):
-                return row.paired
-    raise ValueError(f"no paired row of {controller!r} at {level!r} in sweep {name!r}")
-
-
-def vsref(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``vsref SWEEP CONTROLLER KEY=LEVEL``: CONTROLLER's success minus the sweep's reference
-    controller's at that level, paired, in points with Newcombe's interval (the sweep page's
-    robustness table)."""
-    row = _vsref(runs, args)
-    return interval_text(row["success_difference"], row["success_low"], row["success_high"])
-
-
-def vsref_points(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``vsref_points SWEEP CONTROLLER KEY=LEVEL``: that difference to the reference in points
-    without sign, ``12`` (the prose says which way)."""
-    return f"{abs(100 * _vsref(runs, args)['success_difference']):.0f}"
-
-
-def vsref_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``vsref_holm SWEEP CONTROLLER KEY=LEVEL``: that comparison's Holm-adjusted p over every
-    paired test of the sweep, as its page corrects, ``Holm p = 0.004``."""
-    return p_text(_vsref(runs, args)["p_holm"])
-
-
-def _cost(runs: Runs, args: Sequence[str]) -> LevelCost:
-    check_args("cost", args, 3)
-    name, controller, level = args
-    key, _, value = level.partition("=")
-    for cost in runs.sweep(name).costs:
-        if cost.key == key and cost.controller == controller and _level(cost.level, value):
-            return cost
-    raise ValueError(f"no level cost of {controller!r} at {level!r} in sweep {name!r}")
-
-
-def cost(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``cost SWEEP CONTROLLER KEY=LEVEL``: CONTROLLER's success at that level minus at the
-    axis's first level, paired, in points with Newcombe's interval (the page's level costs)."""
-    c = _cost(runs, args)
-    return interval_text(c.difference, c.low, c.high)
-
-
-def cost_points(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``cost_points SWEEP CONTROLLER KEY=LEVEL``: that level cost in points without sign,
-    ``24`` (the prose says which way)."""
-    return f"{abs(100 * _cost(runs, args).difference):.0f}"
-
-
-def cost_change(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``cost_change SWEEP CONTROLLER KEY=LEVEL``: that level cost in points with its sign,
-    ``-18`` (``span min``/``span max`` over controllers: ``within -6 and +2 points``)."""
-    return _signed(_cost(runs, args).difference)
-
-
-def cost_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``cost_holm SWEEP CONTROLLER KEY=LEVEL``: that level cost's Holm-adjusted p over every
-    level cost of the sweep, as its page corrects, ``Holm p = 0.010``."""
-    return p_text(_cost(runs, args).p_holm)
-
-
 def steps(runs: Runs, args: Sequence[str], options: Options) -> str:
     """``steps POLICY``: the training budget of a shipped policy (``baselines/policies/POLICY``:
     ``target_reaching``, ``formation``, ``set``, ``ippo``, ...) as its metadata record it, in
@@ -413,78 +337,6 @@ def count(runs: Runs, args: Sequence[str], options: Options) -> str:
     return str(successes(runs.run(args[0]), args[1], options)[0])
 
 
-#: a number function's output: its number (sign and thousands' commas kept), then the rest
-_NUMBER = re.compile(r"^([+-]?\d[\d,]*(?:\.\d+)?)(.*)$", re.DOTALL)
-
-
-def _alternatives(runs: Runs, word: str) -> list[str]:
-    """A word of ``span``: ``A|B|C`` as its alternatives, ``SWEEP@*`` as every level of the sweep
-    (in its order), ``SWEEP@KEY=*`` as every level of that axis."""
-    name, at, level = word.partition("@")
-    if at and level.endswith("*") and level in ("*", f"{level[:-2]}=*"):
-        key = level[:-2]
-        levels = runs.sweep(name).levels
-        if key and key not in levels:
-            raise ValueError(f"{word!r}: sweep {name!r} has the axes {sorted(levels)}")
-        return list(
-            dict.fromkeys(
-                f"{name}@{k}={level_text(value)}"
-                for k, pairs in levels.items()
-                if k == key or not key
-                for value, _ in pairs
-            )
-        )
-    return word.split("|")
-
-
-def _every(runs: Runs, function: Callable[..., str], args: Sequence[str], options: Options) -> list[str]:
-    """What ``function`` prints at every combination of its arguments' and filters' alternatives."""
-    choices = [_alternatives(runs, word) for word in args]
-    keys = list(options)
-    option_choices = [options[key].split("|") for key in keys]
-    return [
-        function(runs, list(combo[: len(choices)]), dict(zip(keys, combo[len(choices) :], strict=True)))
-        for combo in itertools.product(*choices, *option_choices)
-    ]
-
-
-def _extreme(runs: Runs, args: Sequence[str], options: Options) -> str:
-    # ``span max FUNCTION ...``: the text whose first number is the largest (a p-value's bound)
-    if len(args) < 2 or args[1] not in NUMBERS or args[1] == "span":
-        raise ValueError(f"span {args[0]} takes a number function, got {list(args)}")
-    texts = _every(runs, NUMBERS[args[1]], args[2:], options)
-    found = [(re.search(r"[+-]?\d[\d,]*(?:\.\d+)?", text), text) for text in texts]
-    if not all(m for m, _ in found):
-        raise ValueError(f"span {list(args)}: {texts} are not all numbers")
-    pick = max if args[0] == "max" else min
-    return pick(found, key=lambda item: float(item[0][0].replace(",", "")) if item[0] else 0.0)[1]
-
-
-def span(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``span FUNCTION ARGUMENT...``: FUNCTION (a number function) at every combination of its
-    arguments' and filters' alternatives (``A|B``, ``SWEEP@*``, ``SWEEP@KEY=*``), as the range
-    of its number, ``94-100%``; one value when every combination prints the same (``0/80``),
-    ``ValueError`` when their units differ. ``span max FUNCTION ...`` (or ``min``) prints the one
-    whose first number is the largest (the smallest): ``Holm p = 0.004`` of several p-values."""
-    if args and args[0] in ("max", "min"):
-        return _extreme(runs, args, options)
-    if not args or args[0] not in NUMBERS or args[0] == "span":
-        raise ValueError(
-            f"span takes a number function of {sorted(set(NUMBERS) - {'span'})}, got {list(args)}"
-        )
-    function = NUMBERS[args[0]]
-    if options and args[0] not in FILTERED:
-        raise ValueError(f"{args[0]} takes no filter, got {sorted(options)}")
-    texts = _every(runs, function, args[1:], options)
-    if len(set(texts)) == 1:
-        return texts[0]
-    parts = [_NUMBER.match(text) for text in texts]
-    if not all(parts) or len({m[2] for m in parts if m}) != 1:
-        raise ValueError(f"span {list(args)}: its values {texts} are not one number with one unit")
-    values = sorted((float(m[1].replace(",", "")), m[1]) for m in parts if m)
-    return f"{values[0][1]}-{values[-1][1]}{parts[0][2] if parts[0] else ''}"
-
-
 def collisions(runs: Runs, args: Sequence[str], options: Options) -> str:
     """``collisions RUN CONTROLLER KIND``: the episodes whose collision involves KIND
     (``obstacle``, ``mover``, ``robot``), ``31``; with ``failures`` as KIND, the episodes that
@@ -494,23 +346,6 @@ def collisions(runs: Runs, args: Sequence[str], options: Options) -> str:
     if args[2] == "failures":
         return str(sum(not r["success"] for r in found))
     return str(sum(args[2] in (r["collision"] or "").split("+") for r in found))
-
-
-def sweep_tests(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``sweep_tests SWEEP``: the paired tests against the reference over every level of the
-    sweep (the family ``vsref_holm`` corrects over), a bit-identical twin's test counted once as
-    its page counts it, ``6``."""
-    check_args("sweep_tests", args, 1)
-    tests = [
-        row.paired | {"level": row.level}
-        for p in runs.sweep(args[0]).profiles
-        for row in p.rows
-        if row.paired
-    ]
-    # a twin's test is on the same episodes: every one of its numbers equals its base's
-    keys = ("level", "pairs", "success_difference", "p_value", "distance_difference")
-    same = {tuple(test[k] for k in keys) for test in tests if not math.isnan(test["p_value"])}
-    return str(len(same))
 
 
 # --------------------------------------------------------------------------- the ablation
@@ -548,20 +383,11 @@ NUMBERS = {
         p,
         holm,
         tests,
-        vsref,
-        vsref_points,
-        vsref_holm,
-        cost,
-        cost_points,
-        cost_change,
-        cost_holm,
         steps,
         median,
         misses,
         count,
-        span,
         collisions,
-        sweep_tests,
         effect,
         effect_p,
     )
