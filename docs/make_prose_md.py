@@ -106,9 +106,17 @@ def expand(text: str, runs: Runs) -> str:
 
 def runs_by_file(archives: Sequence[str | Path]) -> Runs:
     """The published archives a generator reads as a page's runs, each named by its file without
-    the suffixes (``data/lab_day_sweep.tar.xz`` -> ``lab_day_sweep``); ``ValueError`` naming two
-    archives of one name."""
-    return Runs(parse_runs([f"{Path(a).name.split('.')[0]}={a}" for a in archives]))
+    the suffixes (``data/lab_day_sweep.tar.xz`` -> ``lab_day_sweep``). A name two different
+    archives share is refused only when a placeholder names it (a page may read one sweep twice)."""
+    named: dict[str, list[str]] = {}
+    for archive in archives:
+        paths = named.setdefault(Path(archive).name.split(".")[0], [])
+        if str(archive) not in paths:
+            paths.append(str(archive))
+    return Runs(
+        {name: Path(paths[0]) for name, paths in named.items() if len(paths) == 1},
+        {name: paths for name, paths in named.items() if len(paths) > 1},
+    )
 
 
 def expand_template(template: Path, archives: Sequence[str | Path]) -> str:

@@ -96,9 +96,13 @@ class Runs:
     """The published runs a page reads, each loaded (checked) when first named."""
 
     archives: Mapping[str, Path]
+    #: names that stand for several archives (refused when a placeholder names one)
+    ambiguous: Mapping[str, Sequence[str]] = field(default_factory=dict)
     _loaded: dict[str, Results | _Sweep] = field(default_factory=dict)
 
     def _load(self, name: str) -> Results | _Sweep:
+        if name in self.ambiguous:
+            raise ValueError(f"run {name!r} names several archives {list(self.ambiguous[name])}")
         if name not in self.archives:
             raise ValueError(f"run {name!r} is not one of the page's runs {sorted(self.archives)}")
         if name not in self._loaded:

@@ -174,6 +174,11 @@ def test_the_generator_refuses_a_page_with_a_bad_placeholder(tmp_path: Path, cap
     assert not (tmp_path / "page.md").exists()
 
 
-def test_two_archives_of_one_name_are_refused() -> None:
-    with pytest.raises(ValueError, match=re.escape("run 'paper' is given twice")):
-        runs_by_file(["data/paper.tar.xz", "elsewhere/paper.tar.xz"])
+def test_two_archives_of_one_name_are_refused_when_named() -> None:
+    """A page may read one archive twice (two parts of one sweep); two archives of one name are
+    refused when a placeholder names that run."""
+    assert expand("{{ kn realistic_classic@uncertainty=realistic orca }}", runs_by_file([ARCHIVE, ARCHIVE]))
+    twice = runs_by_file(["data/paper.tar.xz", "elsewhere/paper.tar.xz"])
+    assert expand("no placeholder", twice) == "no placeholder"
+    with pytest.raises(ValueError, match=re.escape("run 'paper' names several archives")):
+        expand("{{ kn paper orca }}", twice)
