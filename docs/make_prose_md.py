@@ -10,16 +10,26 @@ KEY=VALUE ... }}`` (its words split as a shell splits them: quote one that holds
 is replaced by what FUNCTION prints from the published runs the page names, so the page states
 no number its data do not give and a republication updates every number at once:
 
-- the numbers (``docs/prose_numbers.py``): ``episodes``, ``kn``, ``rate``, ``ci``, ``diff``,
-  ``points``, ``p``, ``holm``, ``tests`` (a run's episodes, filtered by ``task=``, ``map=``,
-  ``slip=``), ``vsref``, ``vsref_holm``, ``cost``, ``cost_holm`` (a sweep's paired tests),
+- the numbers of a run (``docs/prose_numbers.py``): ``episodes``, ``kn``, ``count``, ``rate``,
+  ``ci``, ``diff``, ``points``, ``p``, ``holm``, ``tests``, ``median`` (a per-episode number),
+  ``misses`` (deadline misses), ``collisions`` (episodes with a collision of a kind), filtered
+  by ``task=``, ``map=``, ``slip=``, ``trial=`` (a value may list several: ``trial=0,1,2``);
   ``effect``, ``effect_p`` (the ablation's main effects), ``steps`` (a shipped policy's budget);
+- the numbers of a sweep (``docs/prose_sweeps.py``): ``vsref``, ``vsref_points``, ``vsref_holm``
+  (paired against its reference), ``cost``, ``cost_points``, ``cost_change``, ``cost_holm``
+  (what a level costs), ``sweep_tests`` (the size of its Holm family);
+- ``span`` (``docs/prose_span.py``): any of these over alternatives, ``94-100%``;
 - the tables (``docs/prose_tables.py``), each alone on its line: ``success_table``,
   ``slip_table``, ``paper_cells``, ``run_table``, ``scale_table``, ``factor_table``.
 
 A run is named ``NAME`` or, for one level of a sweep, ``NAME@KEY=LEVEL``
 (``paper_realistic@uncertainty=realistic``). Each function's docstring says what it prints;
 ``python docs/make_prose_md.py --list`` prints them all.
+
+The other generated pages' intros (``docs/_intros/*.md``, read by ``docs/make_robustness_md.py``
+and ``docs/make_results_md.py``) are templates too (:func:`expand_template`): their runs are the
+archives the generator reads, each named by its file (``data/lab_day_sweep.tar.xz`` is
+``lab_day_sweep``).
 """
 
 from __future__ import annotations
@@ -34,6 +44,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts beside this one
 
 from prose_numbers import FILTERED, FILTERS, NUMBERS, ROOT, Options, Runs, parse_runs  # noqa: E402
+from prose_span import SPAN  # noqa: E402
+from prose_sweeps import SWEEP_NUMBERS  # noqa: E402
 from prose_tables import TABLES  # noqa: E402
 
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
@@ -41,12 +53,17 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
-__all__ = ["FUNCTIONS", "PLACEHOLDER", "expand", "main"]
+__all__ = ["FUNCTIONS", "PLACEHOLDER", "expand", "expand_template", "main", "runs_by_file"]
 
 #: a placeholder: ``{{ FUNCTION ARGUMENT ... }}`` (on one line or several)
 PLACEHOLDER = re.compile(r"\{\{(.*?)\}\}", re.DOTALL)
-#: every placeholder function by name: the numbers, then the tables
-FUNCTIONS: dict[str, Callable[[Runs, Sequence[str], Options], str]] = {**NUMBERS, **TABLES}
+#: every placeholder function by name: the numbers (of a run, of a sweep), their span, the tables
+FUNCTIONS: dict[str, Callable[[Runs, Sequence[str], Options], str]] = {
+    **NUMBERS,
+    **SWEEP_NUMBERS,
+    **SPAN,
+    **TABLES,
+}
 #: the words of a placeholder that are options, not arguments: the filters and the tables' lists
 OPTION = re.compile(rf"^({'|'.join([*FILTERS, 'runs', 'times'])})=(.+)$")
 
@@ -85,6 +102,37 @@ def expand(text: str, runs: Runs) -> str:
             line = out[: out.index(mark)].count("\n") + 1
             raise ValueError(f"an unpaired {mark!r} is left in the page at line {line}")
     return out
+
+
+def runs_by_file(archives: Sequence[str | Path]) -> Runs:
+    """The published archives a generator reads as a page's runs, each named by its file without
+    the suffixes (``data/lab_day_sweep.tar.xz`` -> ``lab_day_sweep``). A name two different
+    archives share is refused only when a placeholder names it (a page may read one sweep twice)."""
+    named: dict[str, list[str]] = {}
+    for archive in archives:
+        paths = named.setdefault(Path(archive).name.split(".")[0], [])
+        if str(archive) not in paths:
+            paths.append(str(archive))
+    return Runs(
+        {name: Path(paths[0]) for name, paths in named.items() if len(paths) == 1},
+        {name: paths for name, paths in named.items() if len(paths) > 1},
+    )
+
+
+def expand_template(template: Path, archives: Sequence[str | Path]) -> str:
+    """The text of ``template`` (a page's intro) with its placeholders filled from ``archives``
+    (:func:`runs_by_file`); a text without placeholders comes back as it is.
+
+    Raises
+    ------
+    ValueError
+        As :func:`expand`, the message naming the template.
+    """
+    text = template.read_text(encoding="utf-8")
+    try:
+        return expand(text, runs_by_file(archives))
+    except ValueError as exc:
+        raise ValueError(f"{template}: {exc}") from None
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,6 +10,9 @@ published page's arguments are in ``data/pages.json``)::
 Cells of later files are added to those of the first (e.g. a separate ``--controllers rl-ppo``
 run). Every rate carries its 95% Wilson interval, every mean distance its 95% bootstrap
 interval; paired comparisons come from the runs themselves (same seeds for every controller).
+The ``--intro`` and ``--notes`` files are templates (``docs/make_prose_md.py``): their
+placeholders are filled from the published archives given, each named by its file
+(``{{ kn paper orca task=formation slip=high }}``).
 """
 
 from __future__ import annotations
@@ -484,8 +487,13 @@ def main() -> None:
     doc = docs[0]
     cells = {(c["env_id"], c["controller"], c["map"], c["slip"]): c for d in docs for c in d["cells"]}
     lines = _header(doc) + _unequal_data(doc)
+    # the intro and the notes are templates whose numbers are filled from every archive the page
+    # reads (docs/make_prose_md.py; imported here: prose_tables imports this module)
+    from make_prose_md import expand_template
+
+    archives = [a for a in (*args.results, *args.uncertainty, *args.scaling) if a.endswith(".tar.xz")]
     if args.intro:
-        lines += [args.intro.read_text(encoding="utf-8").strip(), ""]
+        lines += [expand_template(args.intro, archives).strip(), ""]
     for title, env_id, controller in all_tables():
         rows = table(cells, env_id, controller)
         if rows:
@@ -509,7 +517,7 @@ def main() -> None:
     if args.scaling:
         lines += scaling_section([load_results(path) for path in args.scaling])
     if args.notes:
-        lines += [args.notes.read_text(encoding="utf-8").strip(), ""]
+        lines += [expand_template(args.notes, archives).strip(), ""]
     write_atomic(args.out, "\n".join(lines) + "\n")
     print(f"wrote {args.out}")
 

@@ -12,6 +12,10 @@ tail) and the table of every level, with the profile's figure copied under ``--f
 ``_static`` beside the page, as docs/_static for a page of docs/). Every
 level's results are read back checked (``evaluation.experiments.sweep.load_sweep``).
 
+The ``--intro`` file is a template (``docs/make_prose_md.py``): its placeholders
+(``{{ rate lab_day_sweep@actuation_delay=4 koopman-nmpc }}``) are filled from the sweeps given,
+each named by its file.
+
 With ``--names`` (one per sweep) the parts are titled by them, and when the page has two or more
 parts, it opens with one overview of every controller over every part's axes: the same
 axis swept under different settings (e.g. ``movers.count`` for each mover behaviour of
@@ -34,6 +38,9 @@ from evaluation.reports.figures import save_profile_figures  # noqa: E402
 from evaluation.reports.sections import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
 from evaluation.stats.robustness import AxisProfile, level_costs, profiles  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts beside this one
+from make_prose_md import expand_template  # noqa: E402
 
 INTRO = """Robustness profiles (not in the paper): every built-in controller at every level of one
 runtime-uncertainty setting at a time, the others perfect, on the paper's maps with 3 robots.
@@ -81,7 +88,11 @@ def main(argv: list[str] | None = None) -> int:
         return BAD_INPUT_EXIT
     out = Path(args.out)
     figures = Path(args.figures) if args.figures else out.parent / "_static"
-    intro = INTRO if args.intro is None else args.intro.read_text(encoding="utf-8").strip()
+    try:  # the intro's numbers are placeholders filled from these sweeps (docs/make_prose_md.py)
+        intro = INTRO if args.intro is None else expand_template(args.intro, args.sweeps).strip()
+    except ValueError as exc:  # the message names the template and the placeholder
+        print(f"error: {exc}", file=sys.stderr)
+        return BAD_INPUT_EXIT
     names = args.names or [f"Sweep {index + 1}" for index in range(len(args.sweeps))]
     parts = [f"# {args.title}", intro]
     named_axes: list[AxisProfile] = []

@@ -19,10 +19,13 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 
+from evaluation.episodes.distinct import distinct_records  # noqa: E402
 from evaluation.episodes.records import ran  # noqa: E402
 from evaluation.experiments.ablation import FACTORS, main_effects  # noqa: E402
 from evaluation.experiments.sweep import load_sweep  # noqa: E402
@@ -45,11 +48,13 @@ __all__ = [
     "episodes_of",
     "interval_text",
     "parse_runs",
+    "signed_points",
     "successes",
 ]
 
-#: the filters a placeholder may name, and the record field each one reads
-FILTERS = {"task": "env_id", "map": "map", "slip": "slip"}
+#: the filters a placeholder may name, and the record field each one reads; a value may list
+#: several, comma-separated (``trial=0,1,2``)
+FILTERS = {"task": "env_id", "map": "map", "slip": "slip", "trial": "trial"}
 #: a placeholder's options (its filters, a table's lists) by name
 Options = dict[str, str]
 #: ``task=`` shorthands
@@ -92,9 +97,13 @@ class Runs:
     """The published runs a page reads, each loaded (checked) when first named."""
 
     archives: Mapping[str, Path]
+    #: names that stand for several archives (refused when a placeholder names one)
+    ambiguous: Mapping[str, Sequence[str]] = field(default_factory=dict)
     _loaded: dict[str, Results | _Sweep] = field(default_factory=dict)
 
     def _load(self, name: str) -> Results | _Sweep:
+        if name in self.ambiguous:
+            raise ValueError(f"run {name!r} names several archives {list(self.ambiguous[name])}")
         if name not in self.archives:
             raise ValueError(f"run {name!r} is not one of the page's runs {sorted(self.archives)}")
         if name not in self._loaded:
@@ -133,10 +142,12 @@ class Runs:
 
 
 def _filters(options: Mapping[str, str]) -> Callable[[Mapping[str, Any]], bool]:
+    # a filter's value may list several, comma-separated: ``trial=0,1,2``
     wanted = {
-        FILTERS[key]: TASKS.get(value, value) if key == "task" else value for key, value in options.items()
+        FILTERS[key]: {TASKS.get(v, v) if key == "task" else v for v in value.split(",")}
+        for key, value in options.items()
     }
-    return lambda record: all(record[field_] == value for field_, value in wanted.items())
+    return lambda record: all(str(record[field_]) in values for field_, values in wanted.items())
 
 
 def episodes_of(run: Results, controller: str | None, options: Mapping[str, str]) -> list[dict[str, Any]]:
@@ -176,12 +187,13 @@ def p_text(value: float, name: str = "Holm p") -> str:
     return f"{name} {cell[0]} {cell[1:]}" if cell.startswith("<") else f"{name} = {cell}"
 
 
-def _signed(value: float) -> str:
+def signed_points(value: float) -> str:
+    """A difference in points with its sign, ``+15``."""
     return f"{100 * value:+.0f}"
 
 
 def interval_text(difference: float, low: float, high: float) -> str:
-    return f"{_signed(difference)} [{_signed(low)}, {_signed(high)}]"
+    return f"{signed_points(difference)} [{signed_points(low)}, {signed_points(high)}]"
 
 
 # --------------------------------------------------------------------------- inline numbers
@@ -269,63 +281,6 @@ def tests(runs: Runs, args: Sequence[str], options: Options) -> str:
     return str(sum(env_id in (None, r["env_id"]) for r in _family(runs.run(args[0]))))
 
 
-def _level(value: Any, text: str) -> bool:
-    return level_text(value) == text
-
-
-def _vsref(runs: Runs, args: Sequence[str]) -> dict[str, float]:
-    check_args("vsref", args, 3)
-    name, controller, level = args
-    key, _, value = level.partition("=")
-    for profile in runs.sweep(name).profiles:
-        for row in profile.rows:
-            if (
-                profile.key == key
-                and row.controller == controller
-                and _level(row.level, value)
-                and row.paired
-            ):
-                return row.paired
-    raise ValueError(f"no paired row of {controller!r} at {level!r} in sweep {name!r}")
-
-
-def vsref(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``vsref SWEEP CONTROLLER KEY=LEVEL``: CONTROLLER's success minus the sweep's reference
-    controller's at that level, paired, in points with Newcombe's interval (the sweep page's
-    robustness table)."""
-    row = _vsref(runs, args)
-    return interval_text(row["success_difference"], row["success_low"], row["success_high"])
-
-
-def vsref_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``vsref_holm SWEEP CONTROLLER KEY=LEVEL``: that comparison's Holm-adjusted p over every
-    paired test of the sweep, as its page corrects, ``Holm p = 0.004``."""
-    return p_text(_vsref(runs, args)["p_holm"])
-
-
-def _cost(runs: Runs, args: Sequence[str]) -> LevelCost:
-    check_args("cost", args, 3)
-    name, controller, level = args
-    key, _, value = level.partition("=")
-    for cost in runs.sweep(name).costs:
-        if cost.key == key and cost.controller == controller and _level(cost.level, value):
-            return cost
-    raise ValueError(f"no level cost of {controller!r} at {level!r} in sweep {name!r}")
-
-
-def cost(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``cost SWEEP CONTROLLER KEY=LEVEL``: CONTROLLER's success at that level minus at the
-    axis's first level, paired, in points with Newcombe's interval (the page's level costs)."""
-    c = _cost(runs, args)
-    return interval_text(c.difference, c.low, c.high)
-
-
-def cost_holm(runs: Runs, args: Sequence[str], options: Options) -> str:
-    """``cost_holm SWEEP CONTROLLER KEY=LEVEL``: that level cost's Holm-adjusted p over every
-    level cost of the sweep, as its page corrects, ``Holm p = 0.010``."""
-    return p_text(_cost(runs, args).p_holm)
-
-
 def steps(runs: Runs, args: Sequence[str], options: Options) -> str:
     """``steps POLICY``: the training budget of a shipped policy (``baselines/policies/POLICY``:
     ``target_reaching``, ``formation``, ``set``, ``ippo``, ...) as its metadata record it, in
@@ -347,6 +302,55 @@ def steps(runs: Runs, args: Sequence[str], options: Options) -> str:
     if len(budgets) == 1:
         return budgets[0]
     return f"{budgets[0]} per task" if len(set(budgets)) == 1 else " and ".join(budgets)
+
+
+def _field(record: Mapping[str, Any], name: str) -> Any:
+    if name in record:
+        return record[name]
+    extra = record.get("controller_extra") or {}
+    if name in extra:
+        return extra[name]
+    raise ValueError(f"field {name!r} is in neither the episode record nor its controller_extra")
+
+
+def median(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``median RUN CONTROLLER FIELD``: the median over the episodes of a per-episode number (a
+    record field, or one of ``controller_extra``: ``solve_ms_median``, ``estimator_ms_median``),
+    to two significant digits, ``2.3``, ``0.14``."""
+    check_args("median", args, 3)
+    values = [_field(r, args[2]) for r in episodes_of(runs.run(args[0]), args[1], options)]
+    numbers = [float(v) for v in values if v is not None]
+    if not numbers:
+        raise ValueError(f"no episode of {args[1]} records {args[2]!r}")
+    return f"{float(np.median(numbers)):.2g}"
+
+
+def misses(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``misses RUN CONTROLLER [count]``: deadline misses over the decisions of the episodes
+    (compute charged), ``10 of 17,594``; with ``count``, the misses alone, ``10``."""
+    if len(args) not in (2, 3) or list(args[2:]) not in ([], ["count"]):
+        raise ValueError(f"misses takes RUN CONTROLLER [count], got {list(args)}")
+    found = episodes_of(runs.run(args[0]), args[1], options)
+    missed, decided = (sum(int(r[key] or 0) for r in found) for key in ("deadline_misses", "decisions"))
+    return f"{missed:,}" if len(args) == 3 else f"{missed:,} of {decided:,}"
+
+
+def count(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``count RUN CONTROLLER``: successes of the episodes alone, ``12`` (``kn``'s numerator,
+    for prose that says ``40 -> 30 of 40``)."""
+    check_args("count", args, 2)
+    return str(successes(runs.run(args[0]), args[1], options)[0])
+
+
+def collisions(runs: Runs, args: Sequence[str], options: Options) -> str:
+    """``collisions RUN CONTROLLER KIND``: the episodes whose collision involves KIND
+    (``obstacle``, ``mover``, ``robot``), ``31``; with ``failures`` as KIND, the episodes that
+    did not succeed."""
+    check_args("collisions", args, 3)
+    found = distinct_records(episodes_of(runs.run(args[0]), args[1], options))
+    if args[2] == "failures":
+        return str(sum(not r["success"] for r in found))
+    return str(sum(args[2] in (r["collision"] or "").split("+") for r in found))
 
 
 # --------------------------------------------------------------------------- the ablation
@@ -384,14 +388,29 @@ NUMBERS = {
         p,
         holm,
         tests,
-        vsref,
-        vsref_holm,
-        cost,
-        cost_holm,
         steps,
+        median,
+        misses,
+        count,
+        collisions,
         effect,
         effect_p,
     )
 }
 #: the functions that count filtered episodes (the others refuse a filter)
-FILTERED = {"episodes", "kn", "rate", "ci", "diff", "points", "p", "holm", "tests"}
+FILTERED = {
+    "episodes",
+    "kn",
+    "rate",
+    "ci",
+    "diff",
+    "points",
+    "p",
+    "holm",
+    "tests",
+    "median",
+    "misses",
+    "collisions",
+    "count",
+    "span",
+}

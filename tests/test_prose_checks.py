@@ -304,3 +304,126 @@ def test_make_pages_refuses_an_unknown_page_naming_the_known_ones(capsys, argv) 
     assert "== " not in shown.out  # no page was started
     if argv == ["docs/result.md"]:
         assert "did you mean 'docs/results.md'?" in complaint
+
+
+# --------------------------------------------------------------------------- the intros' code numbers
+# The results in docs/_intros/*.md are placeholders filled from the data (docs/make_prose_md.py;
+# tests/test_prose_intros.py); the numbers they state about the code (a preset's values, a
+# sensor's defaults, the protocol's start noise and mover speed) are checked here.
+def _realistic_preset(match: re.Match[str]) -> list[str]:
+    from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
+
+    preset = UNCERTAINTY_PRESETS["realistic"]
+    period_ms = 100  # the control period, 0.1 s
+    stated = (
+        float(match[1]) / 100,
+        float(match[2]),
+        int(match[3]),
+        float(match[4]) / 100,
+        WORDS.get(match[5]),
+    )
+    actual = (
+        preset.pose_noise.xy,
+        preset.pose_noise.heading,
+        preset.comm.latency * period_ms,
+        preset.comm.drop,
+        preset.actuation_delay,
+    )
+    return [] if stated == actual else [f"the realistic preset is stated as {stated}; the code has {actual}"]
+
+
+def _lidar_defaults(match: re.Match[str]) -> list[str]:
+    from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, LidarConfig
+
+    # the --lidar protocol names no lidar settings and no preset: the defaults, the nominal preset's noise
+    actual = (LidarConfig().beams, UNCERTAINTY_PRESETS["nominal"].lidar.noise)
+    stated = (int(match[1]), float(match[2]) / 100)
+    return (
+        []
+        if stated == actual
+        else [f"the lidar is stated as (beams, noise) {stated}; the protocol has {actual}"]
+    )
+
+
+def _tracker(match: re.Match[str]) -> list[str]:
+    from koopman_envs.movers import MoverConfig
+
+    actual = (MoverConfig().detection_range, MoverConfig().detection_noise)
+    stated = (float(match[1]), float(match[2]) / 100)
+    return [] if stated == actual else [f"the tracker is stated as {stated}; the default is {actual}"]
+
+
+def _start_noise(match: re.Match[str]) -> list[str]:
+    from evaluation.experiments.protocols import START_NOISE
+
+    return (
+        []
+        if float(match[1]) / 100 == START_NOISE
+        else [f"starts perturbed by {match[1]} cm, not {START_NOISE} m"]
+    )
+
+
+def _speed(match: re.Match[str]) -> list[str]:
+    from evaluation.experiments.protocols import CROWD_SPEED
+
+    return [] if float(match[1]) == CROWD_SPEED else [f"movers at {match[1]} m/s, not {CROWD_SPEED}"]
+
+
+STARTS = (re.compile(r"starts perturbed\s+by (\d+) cm"), _start_noise)
+INTRO_CHECKS: dict[str, list[tuple[re.Pattern[str], Callable[[re.Match[str]], list[str]]]]] = {
+    "realistic_results.md": [
+        (
+            re.compile(
+                r"\(([\d.]+) cm and ([\d.]+) rad of localization\s+noise with a drifting bias, messages"
+                r"\s+(\d+) ms late and (\d+)% lost, (\w+) period of actuation delay"
+            ),
+            _realistic_preset,
+        ),
+        STARTS,
+    ],
+    "robustness_results.md": [STARTS],
+    "lidar_results.md": [
+        (re.compile(r"\((\d+) beams, (\d+) cm noise"), _lidar_defaults),
+        (re.compile(r"movers at ([\d.]+) m/s"), _speed),
+        STARTS,
+    ],
+    "crowd_results.md": [
+        (re.compile(r"detections within (\d+) m with (\d+) cm of noise"), _tracker),
+        (re.compile(r"movers at ([\d.]+) m/s"), _speed),
+        STARTS,
+    ],
+}
+
+
+def intro_problems(name: str, text: str) -> list[str]:
+    """Every way the intro ``name``'s ``text`` misstates the code (a statement gone included)."""
+    problems = []
+    for pattern, check in INTRO_CHECKS[name]:
+        matches = list(pattern.finditer(text))
+        if not matches:
+            problems.append(f"{name} no longer states {pattern.pattern!r}: update tests/test_prose_checks.py")
+        for match in matches:
+            problems += check(match)
+    return problems
+
+
+@pytest.mark.parametrize("name", sorted(INTRO_CHECKS))
+def test_the_intros_numbers_about_the_code_are_the_codes(name: str) -> None:
+    text = (ROOT / "docs" / "_intros" / name).read_text(encoding="utf-8")
+    assert intro_problems(name, text) == []
+
+
+@pytest.mark.parametrize(
+    ("name", "old", "new", "complaint"),
+    [
+        ("realistic_results.md", "(3 cm and", "(2 cm and", "the realistic preset is stated as"),
+        ("realistic_results.md", "5% lost", "10% lost", "the realistic preset is stated as"),
+        ("crowd_results.md", "within 5 m", "within 8 m", "the tracker is stated as"),
+        ("lidar_results.md", "(32 beams", "(64 beams", "the lidar is stated as"),
+        ("robustness_results.md", "by 5 cm", "by 3 cm", "starts perturbed by 3 cm"),
+    ],
+)
+def test_an_intros_code_number_edited_by_hand_fails(name: str, old: str, new: str, complaint: str) -> None:
+    text = (ROOT / "docs" / "_intros" / name).read_text(encoding="utf-8")
+    assert old in text
+    assert any(complaint in p for p in intro_problems(name, text.replace(old, new, 1)))
