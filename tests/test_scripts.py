@@ -178,6 +178,8 @@ ELSEWHERE = {
     "docs/make_prose_md.py": "docs/paper.md's generator, run by docs/make_pages.py (tests/test_prose_pages.py)",
     "docs/prose_numbers.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
     "docs/prose_tables.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
+    "docs/prose_span.py": "a module of docs/prose_numbers.py, not a script (tests/test_prose_intros.py)",
+    "docs/prose_sweeps.py": "a module of docs/prose_numbers.py, not a script (tests/test_prose_intros.py)",
     "docs/conf.py": "Sphinx's configuration: .ci/run builds the site with it (bash docs/build.sh)",
     "docs/build.sh": "the site build itself: the docs step of .ci/run",
 }
