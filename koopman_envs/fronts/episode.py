@@ -45,8 +45,11 @@ class ComputeCharge:
     """Compute-aware episodes: a controller's decision time is charged to its robots.
 
     The pose of period t is measured at its start; the decision computed from it takes L
-    seconds (the wall time of ``act``, times ``scale``: a scale of 5 emulates a computer five
-    times slower, a small ARM board beside the machine the run is on). The robots hold the last
+    seconds (the CPU time ``act`` takes in this process, times ``scale``: a scale of 5 emulates a
+    computer five times slower, a small ARM board beside the machine the run is on). CPU time
+    rather than wall time, so that other processes on a shared machine (a second worker, a test
+    run) do not lengthen a decision; threads a solver starts are summed, as if they ran on one
+    core. The robots hold the last
     command applied until the period boundary after the decision is ready: a decision ready
     within ``grace`` seconds of the measurement acts in period t, as without the charge; one of
     L seconds otherwise acts from period t + ceil(L / dt). The controller decides again at the
@@ -63,13 +66,13 @@ class ComputeCharge:
         Decision time [s] within which a command still acts in the period it was computed for
         (the actuator's own input latency; default 1 ms).
 
-    The third field, ``clock``, gives the seconds now (``time.perf_counter``; a test may give a
-    clock of its own).
+    The third field, ``clock``, gives the seconds now (``time.process_time``, this process's CPU
+    time; a test may give a clock of its own).
     """
 
     scale: float = 1.0
     grace: float = 1e-3
-    clock: Callable[[], float] = time.perf_counter
+    clock: Callable[[], float] = time.process_time
 
     def periods_late(self, seconds: float, dt: float) -> int:
         """Periods until a decision of ``seconds`` (before the scale) acts."""
