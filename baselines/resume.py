@@ -36,11 +36,12 @@ from typing import Any
 import numpy as np
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from koopman_envs.files import write_atomic
+from koopman_envs.files import read_bounded, write_atomic
 
 __all__ = [
     "FORMAT",
     "MAGIC",
+    "MAX_RESUME_BYTES",
     "RESUME_FILE",
     "ResumeRefused",
     "check_resume",
@@ -58,6 +59,8 @@ MAGIC = b"KOOPNAV-RESUME"
 FORMAT = 1
 #: the largest header line [bytes] (read before the payload)
 _MAX_HEADER = 1 << 20
+#: the largest resume checkpoint read [bytes]: a real rl-ppo-set run's is 2.8 MiB (384 sub-envs)
+MAX_RESUME_BYTES = 1 << 30
 
 
 class ResumeRefused(ValueError):
@@ -99,9 +102,9 @@ def _split(path: Path, kind: str | None) -> tuple[dict[str, Any], bytes]:
     """The header and the payload of ``path``, checked (magic, format, kind, size, hash)."""
     name = f"resume checkpoint {os.fspath(path)!r}"
     try:
-        blob = path.read_bytes()
-    except OSError as exc:
-        raise ResumeRefused(f"{name} cannot be read: {exc.strerror or exc}") from None
+        blob = read_bounded(path, MAX_RESUME_BYTES, what="resume checkpoint")
+    except (OSError, ValueError) as exc:  # missing, not a regular file, over the cap
+        raise ResumeRefused(str(exc)) from None
     first, _, rest = blob.partition(b"\n")
     words = first.split(b" ")
     if len(words) != 2 or words[0] != MAGIC:

@@ -160,6 +160,50 @@ def test_an_interrupted_run_resumed_ends_bit_for_bit_as_the_uninterrupted_one(
     assert sorted(p.name for p in other.iterdir()) == [RESUME_FILE]
 
 
+@pytest.mark.slow
+def test_a_curriculum_run_resumes_at_a_stage_boundary_and_mid_stage_bit_for_bit(
+    tmp_path, monkeypatch
+) -> None:
+    """The set policy's curriculum (no --suite): rollouts of 432 robot-steps, stage "basics" in
+    rollouts 0-2, "crossing" from rollout 3 (its env built and reset before the checkpoint), so a
+    stop after the checkpoint at rollout 3 resumes at the stage boundary and one at rollout 5
+    inside the stage; both end as the run that never stopped."""
+    pytest.importorskip("stable_baselines3")
+    from baselines.sb3.train import main
+    from baselines.sb3.training_callbacks import PeriodicCheckpoints
+
+    argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--timesteps", "4608", "--n-steps", "1"]
+    argv += [
+        "--batch-size",
+        "576",
+        "--eval-freq",
+        "100000",
+        "--validation-episodes",
+        "1",
+        "--set-width",
+        "16",
+    ]
+    argv += ["--threads", "1", "--seed", "2"]
+    assert main([*argv, "--out", str(tmp_path / "whole"), "--resume-every", "0"]) == 0
+    on_step = PeriodicCheckpoints._on_step
+    for stop in (3, 5):
+
+        def stop_after_saving(self: PeriodicCheckpoints, stop: int = stop) -> bool:
+            if self.saved_at == stop:
+                raise Interrupted
+            return on_step(self)
+
+        out = tmp_path / f"stopped{stop}"
+        with monkeypatch.context() as patch:
+            patch.setattr(PeriodicCheckpoints, "_on_step", stop_after_saving)
+            with pytest.raises(Interrupted):
+                main([*argv, "--out", str(out), "--resume-every", "1"])
+        assert main([*argv, "--out", str(out), "--resume"]) == 0
+        assert _entries(out / "policy.zip") == _entries(tmp_path / "whole" / "policy.zip")
+        assert (out / "obs_norm.npz").read_bytes() == (tmp_path / "whole" / "obs_norm.npz").read_bytes()
+        assert json.loads((out / "metadata.json").read_text())["resumed_from_timesteps"] == [432 * stop]
+
+
 # ----------------------------------------------------------------------------- the driver
 @pytest.mark.slow
 def test_the_driver_resumes_a_seed_with_a_sound_checkpoint_and_restarts_one_without(

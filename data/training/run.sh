@@ -23,8 +23,8 @@
 #   VALIDATION_LAYOUTS  validation layouts per checkpoint (default 50)
 #   THREADS             torch threads of a training run (default 1; a seed's weights are the
 #                       same bit for bit at the same thread count)
-#   RESUME_EVERY        rl-ppo-set / rl-ppo: rollouts between resume checkpoints (default 10, about
-#                       0.5-1 M robot-steps; 0: none, an interrupted seed starts again)
+#   RESUME_EVERY        rl-ppo-set / rl-ppo: rollouts between resume checkpoints (default 10: 491,520
+#                       robot-steps at the default 128 envs; 0: none, an interrupted seed starts again)
 #   SB3_ARGS, IPPO_ARGS further options of baselines.sb3.train / baselines.marl.benchmarl_train (after
 #                       the defaults here, so they win), e.g. a tiny network for a smoke run
 #   TRAINING_ROOT       where the seed folders go (default data/training)
