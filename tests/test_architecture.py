@@ -518,7 +518,7 @@ def test_baselines_import_only_downwards() -> None:
 
 
 def test_the_baselines_root_holds_the_shared_modules_only() -> None:
-    """The root's modules are the four both families use; the rest live in the folders of
+    """The root's modules are the five both families use; the rest live in the folders of
     BASELINES_LAYERS, and the previous paths are the import hook's (MOVED), not files."""
     root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
-    assert root == {"shaping", "curriculum", "suite_training", "safe_load"}
+    assert root == {"shaping", "curriculum", "suite_training", "safe_load", "resume"}

@@ -254,7 +254,7 @@ def test_fine_tuning_starts_from_the_given_policy_and_records_it(set_root, tmp_p
     source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
     started = {}
 
-    def learn_nothing(self, model, venv):  # capture the weights training starts from
+    def learn_nothing(self, model, venv, resumed=None):  # capture the weights training starts from
         started.update({k: v.clone() for k, v in model.policy.state_dict().items()})
         return venv
 
@@ -389,7 +389,7 @@ def test_a_fine_tune_that_grows_mover_slots_starts_as_its_source(set_root, tmp_p
     source, _, _ = load_policy(set_root / "target_reaching", "target_reaching")
     started = {}
 
-    def learn_nothing(self, model, venv):
+    def learn_nothing(self, model, venv, resumed=None):
         started["policy"] = model.policy
         return venv
 

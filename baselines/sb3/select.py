@@ -25,12 +25,36 @@ from baselines.curriculum import VALIDATION
 from baselines.features.set_features import SetFeatureConfig
 from baselines.sb3.policy import PolicyFiles, load_policy, success_rate
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
+from koopman_envs import TASKS
 from koopman_envs.files import write_atomic
 
-__all__ = ["VALIDATION_SEED", "candidates", "main", "set_validation_success", "validation_success"]
+__all__ = [
+    "EVAL_MAPS",
+    "VALIDATION_SEED",
+    "candidates",
+    "evaluate_policy_on_maps",
+    "main",
+    "set_validation_success",
+    "validation_success",
+]
 
 #: first seed of the validation layouts (training seeds run from ``--seed`` upward, by ones)
 VALIDATION_SEED = 1_000_000
+
+
+#: the paper maps an mlp policy's checkpoints are scored on, by env id
+EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
+
+
+def evaluate_policy_on_maps(
+    model, norm, env_id: str, layout: str, features: str, episodes_per_map: int = 2, slip: str = "nominal"
+) -> float:
+    """Success rate of the deterministic policy on the task's paper maps (seeds 0, 1, ...)."""
+    rates = [
+        success_rate(model, norm, layout, features, env_id, episodes_per_map, 0, map=map_name, slip=slip)
+        for map_name in EVAL_MAPS[env_id]
+    ]
+    return float(np.mean(rates))
 
 
 def set_validation_success(

@@ -34,26 +34,14 @@ import numpy as np
 import koopman_envs
 from baselines.curriculum import PARTS, STAGES, stage_parts
 from baselines.features.set_features import SetFeatureConfig
+from baselines.sb3 import resume_state
 from baselines.sb3.fine_tune import copy_weights, mismatches
-from baselines.sb3.policy import ObsNorm, norm_of, save_policy, success_rate
+from baselines.sb3.policy import ObsNorm, norm_of, save_policy
+from baselines.sb3.select import evaluate_policy_on_maps
 from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
 from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from koopman_envs import TASKS
-
-EVAL_MAPS = {spec.env_id: spec.paper_maps for spec in TASKS.values()}
-
-
-def evaluate_policy_on_maps(
-    model, norm, env_id: str, layout: str, features: str, episodes_per_map: int = 2, slip: str = "nominal"
-) -> float:
-    """Success rate of the deterministic policy on the task's paper maps (seeds 0, 1, ...)."""
-    rates = [
-        success_rate(model, norm, layout, features, env_id, episodes_per_map, 0, map=map_name, slip=slip)
-        for map_name in EVAL_MAPS[env_id]
-    ]
-    return float(np.mean(rates))
 
 
 class Trainer:
@@ -98,6 +86,8 @@ class Trainer:
         self.scores: list[CheckpointScore] = []
         #: the policy this run was fine-tuned from (``--init-from``), recorded in the metadata
         self.init_source: dict[str, Any] | None = None
+        #: earlier sessions' wall time [s], this one's start, the steps each resumed session began at
+        self.wall_before, self.session_start, self.resumed_from = 0.0, time.perf_counter(), list[int]()
 
     def _suite(self, args: argparse.Namespace, parser: argparse.ArgumentParser) -> SuiteTraining | None:
         """The run's :class:`SuiteTraining` with ``--suite`` (None without), checked before any
@@ -177,8 +167,9 @@ class Trainer:
             monitored, norm_obs=self.set_config is None, norm_reward=True, clip_obs=10.0, gamma=0.99
         )
 
-    def build_model(self, venv: Any) -> Any:
-        """PPO (or SAC) on ``venv``, logging CSV into the run's folder."""
+    def build_model(self, venv: Any, resuming: bool = False) -> Any:
+        """PPO (or SAC) on ``venv``, logging CSV into the run's folder; ``resuming``: without a
+        seed and without ``--init-from`` (the resume checkpoint's state replaces both)."""
         from stable_baselines3 import PPO, SAC
         from stable_baselines3.common.logger import configure
 
@@ -208,10 +199,12 @@ class Trainer:
                 clip_range=0.2,
                 ent_coef=0.0,
                 policy_kwargs=policy_kwargs,
-                seed=args.seed,
+                # a seed would also reseed the restored env's and spaces' generators
+                seed=None if resuming else args.seed,
                 device="cpu",
                 verbose=0,
             )
+            model.seed = args.seed
         else:
             model = SAC(
                 "MlpPolicy",
@@ -227,7 +220,7 @@ class Trainer:
                 verbose=0,
             )
         model.set_logger(configure(str(self.out), ["csv"]))
-        if self.args.init_from is not None:
+        if self.args.init_from is not None and not resuming:
             self.initialize_from(model, Path(self.args.init_from))
         return model
 
@@ -331,21 +324,32 @@ class Trainer:
         )
         return f"{timesteps:>10,d} steps  {label} {rate:.2f}"
 
-    def learn(self, model: Any, venv: Any) -> Any:
-        """Train (stage by stage on the curriculum for the set policy); returns the last env."""
+    def learn(self, model: Any, venv: Any, resumed: dict[str, Any] | None = None) -> Any:
+        """Train (stage by stage on the curriculum for the set policy); returns the last env.
+        ``resumed``: the trainer's state of a resume checkpoint, to continue from."""
         from baselines.sb3.training_callbacks import PeriodicCheckpoints
 
         args = self.args
+        venv_now, where = [venv], {"stage": 0, "start": 0}  # where: the stage trained, its first step
         callback = PeriodicCheckpoints(
-            args.eval_freq, lambda steps: self.checkpoint(model, venv_now[0], steps)
+            args.eval_freq,
+            lambda steps: self.checkpoint(model, venv_now[0], steps),
+            args.resume_every if args.algo == "ppo" else 0,  # SAC's replay buffer is not saved
+            lambda: resume_state.save(self, model, venv_now[0], callback.state(), where),
         )
-        venv_now = [venv]
-        # a suite run trains on the suite's layouts alone: no curriculum
+        if resumed is not None:
+            callback.set_state(resumed["callback"])
+            where.update(resumed["where"])
+        # a suite run trains on the suite's layouts alone: no curriculum, one stage of the budget
         stages = STAGES[self.task] if self.set_config is not None and self.suite is None else ()
-        if not stages:
-            model.learn(total_timesteps=args.timesteps, callback=callback)
-            return venv
-        for index, stage in enumerate(stages):
+        plan = [(s.name, round(s.share * args.timesteps)) for s in stages] or [("", args.timesteps)]
+        for index, (name, steps) in enumerate(plan):
+            if resumed is not None and index <= where["stage"]:
+                if index == where["stage"]:  # the checkpoint's stage: its env is the restored one
+                    left = where["start"] + steps - model.num_timesteps  # SB3 counts on from its count
+                    print(f"stage {name or 'all'}: resumed, {left:,} robot-steps left", flush=True)
+                    model.learn(total_timesteps=left, callback=callback, reset_num_timesteps=False)
+                continue
             if index:
                 # the next stage's layouts; the reward scale learnt so far carries over
                 returns = venv_now[0].ret_rms
@@ -353,8 +357,9 @@ class Trainer:
                 venv_now[0] = self.wrap(self.make_venv(index))
                 venv_now[0].ret_rms = returns
                 model.set_env(venv_now[0])  # forces a reset: every episode starts on the new stage
-            steps = round(stage.share * args.timesteps)
-            print(f"stage {stage.name}: {steps:,} robot-steps", flush=True)
+            where.update(stage=index, start=int(model.num_timesteps))
+            if name:
+                print(f"stage {name}: {steps:,} robot-steps", flush=True)
             model.learn(total_timesteps=steps, callback=callback, reset_num_timesteps=index == 0)
         return venv_now[0]
 
@@ -381,6 +386,8 @@ class Trainer:
             "net_arch": args.net,
             "wall_seconds": round(wall, 1),
             "robot_steps_per_second": round(model.num_timesteps / wall),
+            # sessions resumed from a resume checkpoint (bit for bit as one uninterrupted run)
+            "resumed_from_timesteps": self.resumed_from,
             "eval_history": self.history,
             "initialized_from": self.init_source,
             "versions": {
@@ -457,28 +464,36 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _train(run: Trainer) -> int:
-    """Build the env and the model, train, score and save (``main``'s work once its checks passed)."""
+    """Build the env and the model (or restore them, ``--resume``), train, score and save
+    (``main``'s work once its checks passed)."""
     args = run.args
-    raw = run.make_venv(0)
-    team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
-    venv = run.wrap(raw)
+    resumed = None
     try:
-        model = run.build_model(venv)
-    except ValueError as exc:  # a policy given to --init-from that does not fit
+        if args.resume:
+            model, venv, resumed = resume_state.resume(run)
+        else:
+            venv = run.wrap(run.make_venv(0))
+            model = run.build_model(venv)
+    except ValueError as exc:  # a policy given to --init-from that does not fit; a refused resume file
         print(f"error: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT
-    start = time.perf_counter()
-    venv = run.learn(model, venv)
-    wall = time.perf_counter() - start
+    raw = resume_state.chain_of(venv)[-1]
+    team_size = raw.n_robots if isinstance(raw, KoopNavSB3VecEnv) else None
+    run.session_start = time.perf_counter()
+    venv = run.learn(model, venv, resumed)
+    wall = run.wall_before + time.perf_counter() - run.session_start
     if run.suite is not None:
-        return finish_suite_run(run, model, venv, team_size, wall)
-    label, final_rate = run.score(model, norm_of(venv), episodes_per_map=5)
-    save_policy(run.out, model, venv, run.metadata(model, venv, team_size, wall, final_rate))
-    print(
-        f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
-        f"{label} {final_rate:.2f}; wrote {run.out}"
-    )
-    return SUCCESS_EXIT
+        code = finish_suite_run(run, model, venv, team_size, wall)
+    else:
+        label, final_rate = run.score(model, norm_of(venv), episodes_per_map=5)
+        save_policy(run.out, model, venv, run.metadata(model, venv, team_size, wall, final_rate))
+        print(
+            f"trained {args.algo} on {args.env} for {args.timesteps:,} steps in {wall:.0f} s; "
+            f"{label} {final_rate:.2f}; wrote {run.out}"
+        )
+        code = SUCCESS_EXIT
+    resume_state.finished(run.out)
+    return code
 
 
 if __name__ == "__main__":

@@ -35,6 +35,17 @@ def json_value(text: str) -> Any:
     return parse_json(text, "a JSON option value", max_chars=CLI_JSON_CHARS)
 
 
+def rollout_count(text: str) -> int:
+    """A whole number of rollouts >= 0 (argparse names the option when this raises)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of rollouts (0: never)") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} is negative; allowed: 0 (never) or more rollouts")
+    return value
+
+
 def env_options(parser: argparse.ArgumentParser) -> None:
     """The training envs' options: layouts, seed, checkpoints, time limit, uncertainty."""
     parser.add_argument(
@@ -73,6 +84,20 @@ def env_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--mover-slots", type=int, default=4, help="set policy with --movers: mover slots (default 4)"
+    )
+    parser.add_argument(
+        "--resume-every",
+        type=rollout_count,
+        default=10,
+        metavar="N",
+        help="PPO: write the resume checkpoint OUT/resume.ckpt every N rollouts (atomically; 0: never; "
+        "default 10)",
+    )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted run in OUT from OUT/resume.ckpt, bit for bit as if it had never "
+        "stopped (the same options; a foreign, torn or other run's file is refused by name)",
     )
 
 

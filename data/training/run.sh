@@ -6,10 +6,13 @@
 #   bash data/training/run.sh [POLICY ...]     # default: rl-ppo-set ippo; also rl-ppo
 #
 # Each seed trains in data/training/POLICY/TASK/seedK/ (a policy root: TASK/ holds the kept
-# policy, selection.json the validation table, train.log the trainer's output). finished.json is
-# written last, atomically (a rename); a seed that has it is skipped, and a seed folder without it
-# (an interrupted run) is removed and trained again from the start. So the script can be stopped
-# and run again, in this session or another.
+# policy, selection.json the validation table, train.log the trainer's output, every session's).
+# finished.json is written last, atomically (a rename); a seed that has it is skipped. A seed
+# folder without it is an interrupted run: an SB3 seed (rl-ppo-set, rl-ppo) whose folder holds a
+# sound resume checkpoint (resume.ckpt, written every RESUME_EVERY rollouts; checked with
+# python -m baselines.resume) continues from it (--resume), bit for bit as if it had never
+# stopped; any other (ippo, or no sound checkpoint) is removed and trained again from the start.
+# So the script can be stopped (Ctrl-C, kill) and run again, in this session or another.
 #
 # Settings (environment variables):
 #   SEEDS               seeds per policy and task (default 3: seeds 0, 1, 2)
@@ -20,6 +23,8 @@
 #   VALIDATION_LAYOUTS  validation layouts per checkpoint (default 50)
 #   THREADS             torch threads of a training run (default 1; a seed's weights are the
 #                       same bit for bit at the same thread count)
+#   RESUME_EVERY        rl-ppo-set / rl-ppo: rollouts between resume checkpoints (default 10: 491,520
+#                       robot-steps at the default 128 envs; 0: none, an interrupted seed starts again)
 #   SB3_ARGS, IPPO_ARGS further options of baselines.sb3.train / baselines.marl.benchmarl_train (after
 #                       the defaults here, so they win), e.g. a tiny network for a smoke run
 #   TRAINING_ROOT       where the seed folders go (default data/training)
@@ -31,6 +36,7 @@ SEEDS="${SEEDS:-3}"
 FRAMES="${FRAMES:-6_000_000}"
 VALIDATION_LAYOUTS="${VALIDATION_LAYOUTS:-50}"
 THREADS="${THREADS:-1}"
+RESUME_EVERY="${RESUME_EVERY:-10}"
 read -r -a tasks <<< "${TASKS:-target_reaching formation}"
 read -r -a sb3_args <<< "${SB3_ARGS:-}"
 read -r -a ippo_args <<< "${IPPO_ARGS:-}"
@@ -43,6 +49,7 @@ for policy in "${policies[@]}"; do  # checked before any folder is touched
     esac
 done
 [[ "$SEEDS" =~ ^[0-9]+$ ]] || { echo "SEEDS='$SEEDS'; allowed: a whole number" >&2; exit 2; }
+[[ "$RESUME_EVERY" =~ ^[0-9]+$ ]] || { echo "RESUME_EVERY='$RESUME_EVERY'; allowed: a whole number" >&2; exit 2; }
 
 env_id() {
     case "$1" in
@@ -52,18 +59,18 @@ env_id() {
     esac
 }
 
-train() {  # train POLICY TASK SEED DIR: one seed's run, its output in DIR/train.log
+train() {  # train POLICY TASK SEED DIR [--resume]: one seed's run, its output in DIR/train.log
     local policy=$1 task=$2 seed=$3 dir=$4
     local common=(--suite "$SUITE" --seed "$seed" --validation-layouts "$VALIDATION_LAYOUTS" --threads "$THREADS")
-    local budget=()
+    local budget=() resume=(--resume-every "$RESUME_EVERY" "${@:5}")
     [ -n "${TIMESTEPS:-}" ] && budget=(--timesteps "$TIMESTEPS")
     case "$policy" in
         rl-ppo-set)
             python -m baselines.sb3.train --env "$(env_id "$task")" --policy set "${common[@]}" "${budget[@]}" \
-                "${sb3_args[@]}" --out "$dir" ;;
+                "${sb3_args[@]}" "${resume[@]}" --out "$dir" ;;
         rl-ppo)
             python -m baselines.sb3.train --env "$(env_id "$task")" "${common[@]}" "${budget[@]}" \
-                "${sb3_args[@]}" --out "$dir" ;;
+                "${sb3_args[@]}" "${resume[@]}" --out "$dir" ;;
         ippo)
             # the shipped ippo's settings (baselines/policies/ippo/*/metadata.json), on the suite's layouts
             python -m baselines.marl.benchmarl_train --task "$task" --algorithm ippo "${common[@]}" \
@@ -82,12 +89,24 @@ for policy in "${policies[@]}"; do
                 echo "$policy $task seed $seed: finished, skipped ($dir/finished.json)"
                 continue
             fi
-            [ -e "$dir" ] && echo "$policy $task seed $seed: unfinished run in $dir, removed; training again"
-            rm -rf "$dir"
-            mkdir -p "$dir"
-            echo "$policy $task seed $seed: training into $dir"
+            resume=()
+            if [ "$policy" != ippo ] && [ -f "$dir/resume.ckpt" ]; then
+                if check=$(python -m baselines.resume "$dir/resume.ckpt" sb3-ppo 2>&1); then
+                    resume=(--resume)
+                    echo "$policy $task seed $seed: unfinished run in $dir; resuming from its checkpoint"
+                else
+                    echo "$policy $task seed $seed: $check" >&2
+                fi
+            fi
+            if [ ${#resume[@]} -eq 0 ]; then
+                [ -e "$dir" ] && echo "$policy $task seed $seed: unfinished run in $dir, removed; training again"
+                rm -rf "$dir"
+                mkdir -p "$dir"
+                echo "$policy $task seed $seed: training into $dir"
+            fi
+            echo "$(date -u +%Y-%m-%dT%H:%M:%SZ) ${resume[*]:-start}" >> "$dir/sessions.txt"
             start=$(date +%s)
-            train "$policy" "$task" "$seed" "$dir" > "$dir/train.log" 2>&1 || {
+            train "$policy" "$task" "$seed" "$dir" "${resume[@]}" >> "$dir/train.log" 2>&1 || {
                 echo "$policy $task seed $seed: the trainer failed (exit $?); see $dir/train.log" >&2
                 exit 1
             }
@@ -95,8 +114,11 @@ for policy in "${policies[@]}"; do
                 [ -f "$file" ] || { echo "$policy $task seed $seed: $file missing" >&2; exit 1; }
             done
             wall=$(( $(date +%s) - start ))
-            printf '{"policy": "%s", "task": "%s", "seed": %d, "wall_seconds": %d, "finished": "%s"}\n' \
-                "$policy" "$task" "$seed" "$wall" "$(date -u +%Y-%m-%dT%H:%M:%SZ)" > "$dir/finished.json.tmp"
+            # sessions: 1 + the resumes (each resumed bit for bit: the policy's metadata.json lists the
+            # steps in resumed_from_timesteps); wall_seconds: this last session's
+            sessions=$(wc -l < "$dir/sessions.txt")
+            printf '{"policy": "%s", "task": "%s", "seed": %d, "wall_seconds": %d, "sessions": %d, "finished": "%s"}\n' \
+                "$policy" "$task" "$seed" "$wall" "$sessions" "$(date -u +%Y-%m-%dT%H:%M:%SZ)" > "$dir/finished.json.tmp"
             mv "$dir/finished.json.tmp" "$dir/finished.json"
             echo "$policy $task seed $seed: finished in ${wall} s"
         done
