@@ -63,3 +63,27 @@ def test_consensus_commands_are_the_same_under_every_blas_kernel() -> None:
         assert run.returncode == 0, run.stderr[-3000:]
         digests[core] = run.stdout.strip()
     assert len(set(digests.values())) == 1, digests
+
+
+@pytest.mark.parametrize(("given", "expected"), [(None, "Haswell"), ("Nehalem", "Nehalem")])
+def test_the_gate_pins_the_haswell_kernels_unless_told_otherwise(tmp_path: Path, given, expected) -> None:
+    """.ci/leaderboard.sh runs the evaluator under OPENBLAS_CORETYPE=Haswell where the CPU has
+    AVX2 and FMA (the kernels the committed baseline was recorded with); a value set wins. A
+    stand-in ``python`` on PATH prints what the evaluator would see, and nothing is evaluated."""
+    if "Haswell" not in _runnable_cores():
+        pytest.skip("the pin applies to x86-64 CPUs with AVX2 and FMA")
+    stand_in = tmp_path / "python"
+    stand_in.write_text('#!/bin/sh\necho "OPENBLAS_CORETYPE=${OPENBLAS_CORETYPE:-unset}"\n')
+    stand_in.chmod(0o755)
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    env["PATH"] = f"{tmp_path}{os.pathsep}{env['PATH']}"
+    if given is not None:
+        env["OPENBLAS_CORETYPE"] = given
+    run = subprocess.run(
+        ["bash", str(ROOT / ".ci" / "leaderboard.sh"), str(tmp_path / "out")],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == f"OPENBLAS_CORETYPE={expected}"
