@@ -173,9 +173,12 @@ class ConsensusController(BaseController):
                 strength = self.repulsion_gain * (1.0 / c - 1.0 / self.influence) / c**2
                 normal = delta[near] / dist[near, None]
                 tangent = np.column_stack([-normal[:, 1], normal[:, 0]])
-                side = np.sign(tangent @ goal_velocity[i])
+                # products written out, not `@` / `norm`: NumPy hands those to the BLAS, whose
+                # kernel (chosen by CPU) fuses multiply-adds on some machines and not on others
+                gx, gy = goal_velocity[i]
+                side = np.sign(tangent[:, 0] * gx + tangent[:, 1] * gy)
                 side[side == 0] = 1.0
-                speed = np.linalg.norm(goal_velocity[i])
+                speed = np.sqrt(gx * gx + gy * gy)
                 push[i] = (strength[:, None] * normal).sum(axis=0) + speed * (side[:, None] * tangent).sum(
                     axis=0
                 )
