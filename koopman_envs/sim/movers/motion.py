@@ -4,7 +4,7 @@ Numba loops over the environments of a batch, as the robots' physics: straight l
 at the arena's edges and the static obstacles, and waypoint walkers that draw their goals from a
 per-environment pool of uniforms (a fixed number per draw, so that the pool's use does not
 depend on the outcome and a sub-environment of a batch draws as a lone one).
-:class:`koopman_envs.sim.movers.MoverField` calls them.
+:class:`koopman_envs.sim.movers.field.MoverField` calls them.
 """
 
 from __future__ import annotations

@@ -1,14 +1,14 @@
-"""Moving obstacles of K environments: placement at reset, motion per period, collisions, features.
+"""The movers of K environments in one batch (:class:`MoverField`): their state, the placement
+at reset, the motion per period, the robots' contacts with them and the observation's mover
+items (:func:`mover_features`).
 
-The behaviours and their parameters are defined in :mod:`koopman_envs.movers`. What this module
-adds:
+The behaviours and their parameters are defined in :mod:`koopman_envs.movers`; the arena and
+the placement are :mod:`~koopman_envs.sim.movers.placement`'s, the compiled motion
+:mod:`~koopman_envs.sim.movers.motion`'s and the crowd's ORCA :mod:`~koopman_envs.sim.movers.crowd`'s.
+What the field adds:
 
-* **The arena.** Movers keep to the map's region: the bounding box of its starts, targets and
-  obstacles grown by :data:`~koopman_envs.sim.mover_placement.ARENA_MARGIN` and clipped to the workspace (a mover anywhere in the
-  20 m workspace would seldom meet a team working in a 6 m patch of it).
-* **Placement.** At reset every mover is drawn uniformly in the arena, clear of the static
-  obstacles, of the other movers and, by :data:`START_CLEARANCE` (more at high speed), of every
-  start and target, so no episode starts with a mover on a robot or its goal.
+* **Clear starts.** Every mover is placed, by :data:`START_CLEARANCE` (more at high speed), clear
+  of every start and target, so no episode starts with a mover on a robot or its goal.
 * **Randomness.** Each environment draws from a child of its generator
   (:func:`~koopman_envs.sim.perception.child_generator`): the env's own stream (map, starts,
   slip) is untouched, so an episode with movers pairs with the same episode without. The
@@ -32,9 +32,9 @@ from koopman_envs.layout import MoverEntry
 from koopman_envs.movers import MOVER_FEATURES, MoverConfig
 from koopman_envs.params import FAULT_STOPPED_SPEED
 from koopman_envs.sim.collision import CollisionFault, CollisionKind, mover_collisions
-from koopman_envs.sim.crowd import orca_restore, orca_simulator, orca_step
-from koopman_envs.sim.mover_motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
-from koopman_envs.sim.mover_placement import PlacementError, arena_into, place_movers, place_movers_batch
+from koopman_envs.sim.movers.crowd import orca_restore, orca_simulator, orca_step
+from koopman_envs.sim.movers.motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
+from koopman_envs.sim.movers.placement import PlacementError, arena_into, place_movers, place_movers_batch
 from koopman_envs.sim.nearest import nearest_first_by_rank
 from koopman_envs.sim.perception import child_generator
 from koopman_envs.sim.rows import rows_index
@@ -76,7 +76,7 @@ class MoverField:
     goal : ndarray, shape (K, C, 2)
         Current waypoint of each mover (``"waypoints"``, ``"crowd"``).
     arena : ndarray, shape (K, 4)
-        Each environment's arena (:func:`~koopman_envs.sim.mover_placement.mover_arena`).
+        Each environment's arena (:func:`~koopman_envs.sim.movers.placement.mover_arena`).
     """
 
     def __init__(
