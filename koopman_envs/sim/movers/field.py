@@ -33,7 +33,13 @@ from koopman_envs.movers import MOVER_FEATURES, MoverConfig
 from koopman_envs.params import FAULT_STOPPED_SPEED
 from koopman_envs.sim.collision import CollisionFault, CollisionKind, mover_collisions
 from koopman_envs.sim.movers.crowd import orca_restore, orca_simulator, orca_step
-from koopman_envs.sim.movers.motion import DRAW_SIZE, first_goals, follow_waypoints, move_constant
+from koopman_envs.sim.movers.motion import (
+    DRAW_SIZE,
+    first_goals,
+    follow_waypoints,
+    move_constant,
+    walker_model,
+)
 from koopman_envs.sim.movers.placement import PlacementError, arena_into, place_movers, place_movers_batch
 from koopman_envs.sim.nearest import nearest_first_by_rank
 from koopman_envs.sim.perception import child_generator
@@ -109,6 +115,10 @@ class MoverField:
         self.fault = np.zeros((k, n_robots), dtype=np.int64)
         self.radius = np.full(c, config.radius)
         self.pause_periods = int(round(config.pause / self.dt))
+        #: the motion kernels' fixed terms, one record (the crowd's walkers only set velocities)
+        self._model = walker_model(
+            config.radius, config.speed, self.pause_periods, self.dt, config.behaviour != "crowd"
+        )
         # the static obstacles as the kernels read them (set per reset: random maps change)
         self.obstacles: list[NDArray[np.float64]] = [np.zeros((0, 3))] * k
         self._obstacles = np.zeros((k, 3, 0))  # padded to the widest map's: rows x, y, radius
@@ -224,7 +234,7 @@ class MoverField:
             self.cursor[index] = 0
             first_goals(
                 self.position[index], self.goal[index], self.leg_speed[index], self.pool[index],
-                self.cursor[index:index + 1], self.arena[index], self._obstacles[index], cfg.radius, cfg.speed,
+                self.cursor[index:index + 1], self.arena[index], self._obstacles[index], self._model,
             )  # fmt: skip
             if cfg.behaviour == "crowd":
                 self._robot_radius[index] = robot_radius
@@ -308,10 +318,8 @@ class MoverField:
         start and the end of the period (the aware crowd sees where they are and how they move).
         """
         if self.config.behaviour == "constant":
-            cfg = self.config
-            move_constant(
-                self.position, self.velocity, rows, cfg.radius, self.arena, self._obstacles, self.dt,
-            )  # fmt: skip
+            # the two views, not the (K, C, 4) array: the kernel ran 5-10% faster on them (measured)
+            move_constant(self.position, self.velocity, rows, self._model, self.arena, self._obstacles)
         else:
             self._walk(robots_before, robots_after, rows)
         if self.trail_length:
@@ -331,7 +339,7 @@ class MoverField:
         crowd = cfg.behaviour == "crowd"
         follow_waypoints(
             self.position, self.velocity, self.goal, self.leg_speed, self.waiting, self.pool, self.cursor,
-            rows, cfg.radius, cfg.speed, self.pause_periods, self.arena, self._obstacles, self.dt, not crowd,
+            rows, self._model, self.arena, self._obstacles,
         )  # fmt: skip
         if crowd:
             orca_step(
