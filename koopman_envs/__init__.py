@@ -64,7 +64,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
     from koopman_envs.sim.collision import CollisionKind
     from koopman_envs.sim.lidar import beam_angles
-    from koopman_envs.sim.mover_tracking import cv_model, cv_predict, cv_update
+    from koopman_envs.sim.movers.tracking import cv_model, cv_predict, cv_update
     from koopman_envs.sim.nearest import nearest_by_clearance, nearest_order
     from koopman_envs.tasks.observation import FAR, observation_from_beliefs
 
@@ -105,9 +105,9 @@ _LAZY = {
     "save_episode": "koopman_envs.fronts.rendering",
     "CollisionKind": "koopman_envs.sim.collision",
     "beam_angles": "koopman_envs.sim.lidar",
-    "cv_model": "koopman_envs.sim.mover_tracking",
-    "cv_predict": "koopman_envs.sim.mover_tracking",
-    "cv_update": "koopman_envs.sim.mover_tracking",
+    "cv_model": "koopman_envs.sim.movers.tracking",
+    "cv_predict": "koopman_envs.sim.movers.tracking",
+    "cv_update": "koopman_envs.sim.movers.tracking",
     "nearest_by_clearance": "koopman_envs.sim.nearest",
     "nearest_order": "koopman_envs.sim.nearest",
     "FAR": "koopman_envs.tasks.observation",

@@ -36,7 +36,7 @@ from koopman_envs.suggest import did_you_mean
 __all__ = ["MOVER_BEHAVIOURS", "MOVER_FEATURES", "MoverConfig", "parse_movers"]
 
 #: entries per listed mover in a robot's observation block: body-frame dx, dy, vx, vy, surface
-#: clearance (koopman_envs.layout.MoverEntry; written by koopman_envs.sim.movers.mover_features)
+#: clearance (koopman_envs.layout.MoverEntry; written by koopman_envs.sim.movers.field.mover_features)
 MOVER_FEATURES = len(MoverEntry)
 
 #: the mover behaviours (module docstring)
@@ -74,7 +74,7 @@ class MoverConfig:
     tracking : bool
         ``sensing="state"``: the controllers and the observation get the movers as a people
         tracker reports them (True: detected within ``detection_range`` with
-        ``detection_noise``, filtered; :mod:`koopman_envs.sim.mover_tracking`), or their exact
+        ``detection_noise``, filtered; :mod:`koopman_envs.sim.movers.tracking`), or their exact
         states (False, the behaviour before 0.2). ``info["movers"]`` is the truth either way.
     detection_range : float
         Largest robot-mover distance at which a mover is detected [m] (5: a 2D lidar's useful

@@ -141,6 +141,12 @@ REMOVED_PATHS = (
         "animation", "builder", "config", "demo", "deprecated", "engine_memory", "episode",
         "episode_layout", "keywords", "plant", "rendering", "rendering_layers", "tasks.layout",
     )),
+    # the engine's and the movers' satellites, cut off to fit the module size, merged back by
+    # concept (issue 61): engine.episode, engine.config, engine.plant; the sim.movers folder
+    *(f"koopman_envs.engine.{name}" for name in (
+        "engine_memory", "engine_plant", "engine_scenario", "episode_layout", "episode_reset",
+    )),
+    *(f"koopman_envs.sim.{name}" for name in ("crowd", "mover_motion", "mover_placement", "mover_tracking")),
     *(f"controllers.{name}" for name in (
         "adaptive_koopman_nmpc", "cache", "deprecated_paths", "distributed", "koopman_nmpc", "nmpc",
         "nominal_nmpc", "qp2", "rti", "solver_cache", "unicycle",

@@ -12,7 +12,7 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs.reset_options import ResetOptions
-from koopman_envs.sim.mover_placement import PlacementError, place_movers, place_movers_batch
+from koopman_envs.sim.movers.placement import PlacementError, place_movers, place_movers_batch
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 

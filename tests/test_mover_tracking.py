@@ -1,4 +1,4 @@
-"""Movers observed through a tracker under sensing="state" (koopman_envs/sim/mover_tracking.py):
+"""Movers observed through a tracker under sensing="state" (koopman_envs/sim/movers/tracking.py):
 the batched filter equals filterpy's, tracks are born, reported and dropped by the stated rules,
 the estimates are within stated bounds of the truth, the truth stays in info["movers"], and
 turning tracking off gives the exact states (the earlier behaviour)."""
@@ -14,7 +14,7 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import predict, update
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.sim.mover_tracking import (
+from koopman_envs.sim.movers.tracking import (
     CONFIRM_HITS,
     DROP_AFTER,
     MoverTracker,

@@ -19,8 +19,8 @@ import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.movers import MoverConfig, parse_movers
 from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.sim.mover_placement import mover_arena
-from koopman_envs.sim.movers import MOVER_FEATURES, MoverField
+from koopman_envs.sim.movers.field import MOVER_FEATURES, MoverField
+from koopman_envs.sim.movers.placement import mover_arena
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)
@@ -131,7 +131,7 @@ def test_two_pedestrians_head_on_pass_without_contact() -> None:
     field = _field("crowd", 2, speed=0.4, radius=0.2, pause=0.0)
     _reset_open_field(field)
     # rebuild the simulators with the two walkers facing each other on one line
-    from koopman_envs.sim.crowd import orca_simulator
+    from koopman_envs.sim.movers.crowd import orca_simulator
 
     field.position[0] = [(-2.0, 0.0), (2.0, 0.0)]
     field.goal[0] = [(2.0, 0.0), (-2.0, 0.0)]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from koopman_envs.sim.mover_tracking import MoverTracker
+from koopman_envs.sim.movers.tracking import MoverTracker
 from koopman_envs.sim.pcg64 import (
     Streams,
     generator_words,

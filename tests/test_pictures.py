@@ -18,7 +18,7 @@ from koopman_envs.fronts.rendering import Renderer, draw_engine_env, frame_title
 from koopman_envs.fronts.rendering_layers import Overlay, collision_marks, engine_frame, view_limits
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind
-from koopman_envs.sim.mover_placement import mover_arena
+from koopman_envs.sim.movers.placement import mover_arena
 
 ROOT = Path(__file__).resolve().parents[1]
 TR = "KoopNav-TargetReaching-v0"

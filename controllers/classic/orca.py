@@ -9,7 +9,7 @@ Per period and robot (decentralized: robot i plans from ``known_poses[i]``, see
    the leader's position as it knows it plus its offset, with the leader's velocity as
    feed-forward): ``v_pref = clip(goal_gain * (goal - p) + feed-forward, v_max)``, turned
    ``keep_right`` radians clockwise, which breaks the symmetry of an exact head-on meeting (RVO2's
-   examples perturb at random for this; ``koopman_envs.sim.crowd`` does the same for people);
+   examples perturb at random for this; ``koopman_envs.sim.movers.crowd`` does the same for people);
 2. **ORCA** among its neighbours: the team-mates it has heard of (at their positions carried to
    now, with their velocities estimated from their messages; they run ORCA too, so avoidance is
    shared half and half, as ORCA assumes), the movers (``observed_movers``: position and velocity,
@@ -28,7 +28,7 @@ Per period and robot (decentralized: robot i plans from ``known_poses[i]``, see
 Settings and where they come from: the radius is the scenario's ``robot_radius`` plus
 ``radius_margin`` (0.05 m, ours); the time horizon for agents (2 s), the neighbour distance (3 m)
 and the neighbour count (10) are the values KoopNav's crowd of pedestrians uses
-(``koopman_envs.sim.crowd``: RVO2's example values scaled to a person); the horizon for
+(``koopman_envs.sim.movers.crowd``: RVO2's example values scaled to a person); the horizon for
 obstacles is ours, 4 s where the crowd uses 1 s (a unicycle at ``omega_max`` = 0.79 rad/s needs
 2 s for a quarter turn: with 1 s it met the obstacles it saw too late, docs/controllers.md has the
 count); the maximum speed is ``v_max``. The tracking gains and margins are ours.
@@ -97,13 +97,13 @@ class ORCAController(BaseController):
     ----------
     time_horizon : float
         ORCA's time horizon for other agents (team-mates, movers) [s]: velocities that avoid
-        them for this long (default 2 s: koopman_envs.sim.crowd's value).
+        them for this long (default 2 s: koopman_envs.sim.movers.crowd's value).
     time_horizon_obstacles : float
         ORCA's time horizon for the map's obstacles [s] (ours: 4 s, where the crowd's pedestrians
         use 1 s: a unicycle turning at omega_max needs 2 s for a quarter turn, so it must react
         to an obstacle earlier than a person does).
     neighbour_distance : float
-        Agents farther than this are not neighbours [m] (default 3 m: koopman_envs.sim.crowd's).
+        Agents farther than this are not neighbours [m] (default 3 m: koopman_envs.sim.movers.crowd's).
     max_neighbours : int
         Most agents each robot takes into account, nearest first (default 10, RVO2's examples').
     radius_margin : float
@@ -225,7 +225,7 @@ class ORCAController(BaseController):
             )
         if len(scenario.obstacles):
             sim.process_obstacles()
-        # the agents are made once and moved every period (RVO2 as koopman_envs.sim.crowd uses it:
+        # the agents are made once and moved every period (RVO2 as koopman_envs.sim.movers.crowd uses it:
         # pyrvo's clear_agents left garbage velocities behind in our trials): one per robot, then
         # one per mover seen so far; those not in a view wait far away, out of everyone's range
         sim.set_agent_defaults(

@@ -26,7 +26,7 @@ stripped of team-mates, known obstacles and walls by :mod:`controllers.perceptio
    forward and its covariance grows.
 
 Only confirmed tracks are reported (:meth:`Tracker.tracks`). The filter is the env's people
-tracker's, compiled (:func:`koopman_envs.sim.mover_tracking.cv_predict` and ``cv_update``, tested
+tracker's, compiled (:func:`koopman_envs.sim.movers.tracking.cv_predict` and ``cv_update``, tested
 equal to filterpy's ``predict`` and ``update``): one constant-velocity filter in the package, at a
 fraction of filterpy's per-call cost (it was a third of the perception's time). The association
 and the track rules, which no well-kept library packages at this size without a framework of its

@@ -18,19 +18,17 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from koopman_envs.checks import check_commands
-from koopman_envs.engine.config import EngineConfig
-from koopman_envs.engine.engine_memory import check_engine_memory, engine_array_bytes
-from koopman_envs.engine.engine_plant import advance_plant, make_physics
-from koopman_envs.engine.engine_scenario import engine_scenario
-from koopman_envs.engine.episode_reset import reset_episodes
+from koopman_envs.engine.config import EngineConfig, check_engine_memory, engine_array_bytes
+from koopman_envs.engine.episode import engine_scenario, reset_episodes
+from koopman_envs.engine.plant import advance_plant, make_physics
 from koopman_envs.params import PARAMS
 from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionFault, collision_flags
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets
-from koopman_envs.sim.mover_tracking import MoverTracker, listed_movers, observed_movers
-from koopman_envs.sim.movers import MoverField
+from koopman_envs.sim.movers.field import MoverField
+from koopman_envs.sim.movers.tracking import MoverTracker, listed_movers, observed_movers
 from koopman_envs.sim.perception import Perception, observed_info
 from koopman_envs.sim.slip import SlipSampler
 from koopman_envs.sim.slip_schedule import SlipClock
@@ -59,7 +57,7 @@ class NavigationEngine:
 
     The state is kept channel-first, ``state[k] = [x; y; theta]`` of shape (3, N);
     :attr:`poses` gives the familiar (K, N, 3) view. A step is four compiled passes over the
-    batch: the plant (:func:`~koopman_envs.engine.engine_plant.advance_plant`: the kinematic
+    batch: the plant (:func:`~koopman_envs.engine.plant.advance_plant`: the kinematic
     :func:`~koopman_envs.sim.dynamics.advance_teams`, or MuJoCo's robots), collision flags,
     observation features, and rewards with episode ends (:mod:`koopman_envs.tasks.reward`).
     Maps with slip zones add a fifth before the physics
@@ -217,7 +215,7 @@ class NavigationEngine:
         :meth:`reset_envs` for one environment.
 
         The episode's map, starts and targets come from
-        :func:`~koopman_envs.engine.episode_layout.episode_layout`: ``options`` (from
+        :func:`~koopman_envs.engine.episode.episode_layout`: ``options`` (from
         :func:`parse_reset_options`) replace the map's start poses and/or targets for this
         episode; they are checked against the episode's map (a new one per reset with
         ``map="random"``) before anything changes.
@@ -238,7 +236,7 @@ class NavigationEngine:
     ) -> None:
         """Start a new episode in each environment of ``rows`` together, environment
         ``rows[b]`` drawing only from ``rngs[b]`` exactly as :meth:`reset_env` would
-        (:func:`~koopman_envs.engine.episode_reset.reset_episodes`); a rejected option
+        (:func:`~koopman_envs.engine.episode.reset_episodes`); a rejected option
         leaves every environment of the batch in its previous episode."""
         reset_episodes(self, rows, rngs, options)
 
@@ -374,7 +372,7 @@ class NavigationEngine:
     # ------------------------------------------------------------------- info
     def scenario(self, index: int = 0) -> Scenario:
         """The scenario a model-based controller may use for environment ``index``
-        (:func:`~koopman_envs.engine.engine_scenario.engine_scenario`)."""
+        (:func:`~koopman_envs.engine.episode.engine_scenario`)."""
         return engine_scenario(
             self.config,
             self.maps[index],
@@ -480,7 +478,7 @@ class NavigationEngine:
         return observed
 
     def observed_movers(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
-        """The movers as the robots observe them (:func:`~koopman_envs.sim.mover_tracking.observed_movers`)."""
+        """The movers as the robots observe them (:func:`~koopman_envs.sim.movers.tracking.observed_movers`)."""
         return observed_movers(self.movers, self.mover_tracker, self.observation_layout.movers)
 
     def info(self, index: int = 0) -> dict[str, Any]:

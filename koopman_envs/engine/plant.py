@@ -1,6 +1,13 @@
-"""The calibration plant: an environment's robots without the task, for controllers that learn.
+"""The plant: the robots' motion, kinematic or physical, in the engine's step and in the
+calibration plant that twins an environment's robots for controllers that learn.
 
-A controller that needs data about the robots it will drive (a learned prediction model, a
+**The engine's plant pass.** :func:`make_physics` builds the physics plant's worlds
+(``plant="mujoco"``; None on the kinematic plant) and :func:`advance_plant` runs one control
+period on whichever plant the engine has: the paper's unicycle with drawn slip
+(:func:`~koopman_envs.sim.dynamics.advance_teams`, after the slip zones' pass) or the MuJoCo
+robots (:meth:`~koopman_envs.sim.physics.world.PhysicsWorld.advance`).
+
+**The calibration plant**: an environment's robots without the task. A controller that needs data about the robots it will drive (a learned prediction model, a
 measured prediction error) gets it here, as it would on real robots: it puts teams at poses of
 its choosing, sends commands of its choosing and observes the poses that result. The plant is an
 open field (no obstacles, targets, collisions or episode ends) with the same unicycle kinematics,
@@ -38,11 +45,19 @@ from numpy.typing import NDArray
 from koopman_envs.checks import check_int
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, PHYSICS, RANDOM_SLIP_MAX
+from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.rollout import rollout
 from koopman_envs.sim.slip import draw_random_lambdas
 from koopman_envs.tasks.base import task_for_env
 
-__all__ = ["BudgetExceeded", "CalibrationPlant", "DYNAMICS_VERSION", "make_plant"]
+__all__ = [
+    "BudgetExceeded",
+    "CalibrationPlant",
+    "DYNAMICS_VERSION",
+    "advance_plant",
+    "make_physics",
+    "make_plant",
+]
 
 #: Bump when the simulated kinematics or slip process change: it is part of every plant
 #: signature, so cached calibrations of the old dynamics are not reused.
@@ -51,6 +66,51 @@ DYNAMICS_VERSION = 1
 # The plant's slip draws come from their own stream of the seed, so a controller that draws its
 # inputs from ``default_rng(seed)`` does not correlate them with the slip.
 _SLIP_STREAM = 0x534C4950  # "SLIP"
+
+
+def make_physics(config: EngineConfig, num_envs: int, *, open_field: bool = False) -> Any:
+    """The :class:`~koopman_envs.sim.physics.world.PhysicsWorld` of ``num_envs`` environments
+    of ``config``, or None on the kinematic plant (MuJoCo is imported only here, for
+    ``plant="mujoco"``); with ``open_field``, the calibration plant's: no obstacles, no zones."""
+    if config.plant != "mujoco":
+        return None
+    from koopman_envs.sim.physics.world import PhysicsWorld
+
+    assert config.floor is not None  # EngineConfig sets the floor of every physics config
+    return PhysicsWorld(
+        num_envs,
+        config.n_robots,
+        0 if open_field else config.n_obstacles,
+        0 if open_field else config.n_slip_zones,
+        float(np.max(config.robot_radius)),
+        config.floor,
+    )
+
+
+def advance_plant(
+    engine: Any, commands: NDArray[np.float64], active: NDArray[np.bool_] | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The poses (K, 3, N) one period after ``engine.state`` under ``commands`` (K, N, 2), and
+    the commands' effort (K, N), for the ``active`` environments (None: all) of ``engine`` (a
+    :class:`~koopman_envs.engine.engine.NavigationEngine`; typed ``Any`` so that the two
+    modules do not import each other)."""
+    stepping = engine.all_active if active is None else active
+    new = np.empty_like(engine.state)
+    effort = np.empty(engine.distances.shape)
+    limits = (engine.command_low, engine.command_high, engine.effort_scale)
+    if engine.physics is not None:
+        engine.physics.advance(engine.state, commands, stepping, *limits, new, effort)
+        return new, effort
+    slip = engine.slip
+    slip.prepare(active)
+    # one branch per step: maps without zones scale the draws by the base levels directly
+    means = slip.lambdas
+    if engine.zones is not None:
+        means = engine.zones.slip_means(engine.state, slip.lambdas, engine.zone_means)
+    advance_teams(
+        engine.state, commands, slip.unit, slip.cursor, means, stepping, *limits, PARAMS.dt, new, effort
+    )
+    return new, effort
 
 
 class BudgetExceeded(RuntimeError):
@@ -167,11 +227,7 @@ class CalibrationPlant:
         """Put B teams at the given poses, shape (B, N, 3); costs no budget."""
         self._poses = self._check_poses(poses, "poses").copy()
         if self._config.plant == "mujoco":  # teams at rest on an open floor, their frictions drawn
-            from koopman_envs.sim.physics.world import PhysicsWorld
-
-            radius, floor = float(np.max(self._config.robot_radius)), self._config.floor
-            assert floor is not None  # EngineConfig sets the floor of every physics config
-            self._world = PhysicsWorld(len(self._poses), self.n_robots, 0, 0, radius, floor)
+            self._world = make_physics(self._config, len(self._poses), open_field=True)
             for team, pose in enumerate(self._poses):
                 self._world.reset_env(team, self._rng, pose, np.zeros((0, 3)))
         self._team_lambdas = self._slip_for(self._poses.shape[0])

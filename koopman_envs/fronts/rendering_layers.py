@@ -10,7 +10,7 @@ view that keeps every mover in sight (used by :mod:`koopman_envs.fronts.renderin
   at the wall for a workspace exit) and a label with the kind
   (:class:`~koopman_envs.sim.collision.CollisionKind`) and the time.
 * **View.** With movers the view covers the area they roam (their arena,
-  :func:`~koopman_envs.sim.mover_placement.mover_arena`) besides the map, and widens, as for the
+  :func:`~koopman_envs.sim.movers.placement.mover_arena`) besides the map, and widens, as for the
   robots, in whole steps for a mover found outside it.
 
 The artists here are dynamic (drawn every frame over the static background) and stack above the
@@ -30,7 +30,7 @@ from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.lidar import beam_angles
-from koopman_envs.sim.mover_placement import mover_arena
+from koopman_envs.sim.movers.placement import mover_arena
 from koopman_envs.sim.zones import SlipZone
 
 __all__ = [

@@ -181,9 +181,8 @@ def _draw_layout(
         keep_clear = np.empty((2 * n, 2))
         keep_clear[:n], keep_clear[n:] = start_xy, target_xy
         placed, ok = _place_obstacles_kernel(
-            rng, a, b, normal, half_width, keep_clear, n_obstacles, settings[0], settings[1],
-            settings[2], settings[3], settings[4], settings[5], settings[6], workspace,
-        )  # fmt: skip
+            rng, a, b, normal, half_width, keep_clear, n_obstacles, settings, workspace
+        )
         if ok:
             starts, targets = np.empty((n, 3)), np.empty((n, 3))
             starts[:, :2], targets[:, :2] = start_xy, target_xy
@@ -309,20 +308,18 @@ def _place_obstacles_kernel(
     half_width: float,
     keep_clear: NDArray[np.float64],
     n_obstacles: int,
-    r_low: float,
-    r_high: float,
-    along_low: float,
-    along_high: float,
-    robot_radius: float,
-    clearance: float,
-    gap: float,
+    settings: NDArray[np.float64],
     workspace: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], bool]:
     """Obstacles along the corridor between the start and target centroids (a rejection sampler;
     ``placed, False`` if stuck), compiled: a reset of a vector env with ``map="random"`` spent
     ~3 ms here in Python. It draws from ``rng`` exactly as the Python
     version did (numba's Generator shares NumPy's bit stream and algorithms), so the same seed
-    gives the same layout (tests/data/random_layouts.json)."""
+    gives the same layout (tests/data/random_layouts.json). ``settings`` as
+    :func:`_draw_layout`'s: obstacle radius low/high, along low/high, robot radius, clearance,
+    gap."""
+    r_low, r_high, along_low, along_high = settings[0], settings[1], settings[2], settings[3]
+    robot_radius, clearance, gap = settings[4], settings[5], settings[6]
     placed = np.zeros((n_obstacles, 3))
     for k in range(n_obstacles):
         found = False

@@ -31,7 +31,7 @@ from koopman_envs.layout import (
 )
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.geometry import TeamGeometry, clearance
-from koopman_envs.sim.movers import mover_features
+from koopman_envs.sim.movers.field import mover_features
 from koopman_envs.sim.nearest import nearest_first
 from koopman_envs.sim.perception import Perception
 

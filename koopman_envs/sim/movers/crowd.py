@@ -2,7 +2,7 @@
 RVO2 library through ``pyrvo``, one simulator per environment (docs/movers.md says why this
 library).
 
-The waypoint kernel (:mod:`koopman_envs.sim.mover_motion`) gives each pedestrian its preferred
+The waypoint kernel (:mod:`koopman_envs.sim.movers.motion`) gives each pedestrian its preferred
 velocity; ORCA turns it into a collision-free one among the other pedestrians, the static
 obstacles (circumscribed polygons) and, when the crowd is aware of them, the robots (agents moved
 to where the robots are every period).

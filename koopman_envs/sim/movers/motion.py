@@ -4,7 +4,7 @@ Numba loops over the environments of a batch, as the robots' physics: straight l
 at the arena's edges and the static obstacles, and waypoint walkers that draw their goals from a
 per-environment pool of uniforms (a fixed number per draw, so that the pool's use does not
 depend on the outcome and a sub-environment of a batch draws as a lone one).
-:class:`koopman_envs.sim.movers.MoverField` calls them.
+:class:`koopman_envs.sim.movers.field.MoverField` calls them.
 """
 
 from __future__ import annotations
@@ -15,12 +15,39 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["DRAW_SIZE", "WAYPOINT_ATTEMPTS", "first_goals", "follow_waypoints", "move_constant"]
+__all__ = [
+    "DRAW_SIZE",
+    "WALKER_MODEL",
+    "WAYPOINT_ATTEMPTS",
+    "first_goals",
+    "follow_waypoints",
+    "move_constant",
+    "walker_model",
+]
 
 #: attempts at a waypoint whose straight way is clear, per draw (then the mover waits a period)
 WAYPOINT_ATTEMPTS = 16
 #: uniforms one waypoint draw takes at most: two per attempt, then the leg's speed and pause
 DRAW_SIZE = 2 * WAYPOINT_ATTEMPTS + 2
+#: the fixed terms of a batch's mover motion, one record made with the
+#: :class:`~koopman_envs.sim.movers.field.MoverField` (numba reads a record's fields by name and
+#: types a record argument as fast as a plain array; five scalars were five arguments)
+WALKER_MODEL = np.dtype(
+    [
+        ("radius", np.float64),  # every mover's radius [m]
+        ("speed", np.float64),  # the setting's speed [m/s]: a leg's is half of it to all of it
+        ("pause_periods", np.int64),  # the longest pause at a waypoint [periods]
+        ("dt", np.float64),  # the control period [s]
+        ("move", np.bool_),  # step the positions ("waypoints"); off for the crowd (ORCA moves it)
+    ]
+)
+
+
+def walker_model(radius: float, speed: float, pause_periods: int, dt: float, move: bool) -> NDArray[np.void]:
+    """The :data:`WALKER_MODEL` record (shape (1,)) of movers of ``radius`` [m] and ``speed``
+    [m/s] pausing up to ``pause_periods`` at a waypoint, stepped every ``dt`` [s]; ``move``:
+    the walkers move themselves (not a crowd, whose positions ORCA steps)."""
+    return np.array([(radius, speed, pause_periods, dt, move)], dtype=WALKER_MODEL)
 
 
 @njit(cache=True)
@@ -57,13 +84,16 @@ def move_constant(
     position: NDArray[np.float64],
     velocity: NDArray[np.float64],
     rows: NDArray[np.int64],
-    radius: float,
+    model: NDArray[np.void],
     arena: NDArray[np.float64],
     obstacles: NDArray[np.float64],
-    dt: float,
 ) -> None:  # pragma: no cover - compiled
-    """Straight lines at constant velocity, mirrored at the arena's edges and the obstacles
-    (K, 3, M: rows x, y, radius)."""
+    """Straight lines at constant velocity: the movers' ``position`` and ``velocity`` (K, C, 2)
+    of the environments ``rows`` one period on, mirrored at the ``arena``'s edges (K, 4) and the
+    ``obstacles`` (K, 3, M: rows x, y, radius); ``model`` (:data:`WALKER_MODEL`) gives the
+    radius and the period."""
+    spec = model[0]
+    radius, dt = spec.radius, spec.dt
     for k in rows:
         lo_x, hi_x = arena[k, 0] + radius, arena[k, 1] - radius
         lo_y, hi_y = arena[k, 2] + radius, arena[k, 3] - radius
@@ -143,11 +173,14 @@ def first_goals(
     cursor: NDArray[np.int64],
     arena: NDArray[np.float64],
     obstacles: NDArray[np.float64],
-    radius: float,
-    speed: float,
+    model: NDArray[np.void],
 ) -> None:  # pragma: no cover - compiled
-    """The first waypoint of every mover of one environment (``obstacles`` (3, M): its obstacle
-    set, rows x, y, radius)."""
+    """The first waypoint (``goal`` (C, 2), ``leg_speed`` (C,)) of every mover of one
+    environment from its ``position`` (C, 2), drawn from its ``pool`` at its
+    ``cursor`` (1,) in its ``arena`` (4,) among its ``obstacles`` (3, M: rows x, y, radius), for
+    the movers of ``model`` (:data:`WALKER_MODEL`)."""
+    spec = model[0]
+    radius, speed = spec.radius, spec.speed
     for c in range(position.shape[0]):
         gx, gy, s, _ = _draw_goal(
             position[c, 0],
@@ -172,19 +205,22 @@ def follow_waypoints(
     pool: NDArray[np.float64],
     cursor: NDArray[np.int64],
     rows: NDArray[np.int64],
-    radius: float,
-    speed: float,
-    pause_periods: int,
+    model: NDArray[np.void],
     arena: NDArray[np.float64],
     obstacles: NDArray[np.float64],
-    dt: float,
-    move: bool,
 ) -> None:  # pragma: no cover - compiled
-    """One period of the waypoint walkers: pause, arrive, draw the next waypoint, or walk on.
+    """One period of the waypoint walkers of the environments ``rows``: pause, arrive, draw the
+    next waypoint, or walk on.
 
-    ``move``: step the positions ("waypoints"); otherwise only set the velocities, which the
-    crowd uses as the preferred velocities of ORCA (arrival then within one radius).
+    ``position``, ``velocity``, ``goal`` (K, C, 2), ``leg_speed`` and ``waiting``
+    (K, C) are the walkers'; ``pool`` (K, P) and ``cursor`` (K,) their uniforms; ``arena``
+    (K, 4) and ``obstacles`` (K, 3, M) where they walk. ``model`` (:data:`WALKER_MODEL`) gives
+    the radius, speed, pause and period, and ``move``: step the positions ("waypoints");
+    otherwise only set the velocities, which the crowd uses as the preferred velocities of ORCA
+    (arrival then within one radius).
     """
+    spec = model[0]
+    radius, speed, pause_periods, dt, move = spec.radius, spec.speed, spec.pause_periods, spec.dt, spec.move
     for k in rows:
         own_cursor = cursor[k : k + 1]
         for c in range(position.shape[1]):
