@@ -9,8 +9,8 @@ preset's name, so reports and statistics name what was asked for. Options given 
 *Tuned presets* (issue 60): a file ``controllers/tuned/<name>.json``, written by the tuner
 (``python -m evaluation.tune NAME --task both ...``, :mod:`evaluation.tune`) from a study on the
 validation layouts, gives the controller or preset ``<name>`` the tuned options as its defaults,
-and ``<name>-v0`` keeps the defaults it had before, for comparison (:func:`with_tuned`). Without a
-file nothing changes: no tuned values ship until the real studies have run.
+and ``<name>-v0`` keeps the defaults it had before, for comparison (:func:`with_tuned`). A file is
+applied only beside its finished study (``data/tuning/<name>/``: :func:`check_study`).
 """
 
 from __future__ import annotations
@@ -24,18 +24,24 @@ from pathlib import Path
 from typing import Any
 
 from controllers.search_space import Search
+from koopman_envs import check_split_allowed
 from koopman_envs.checks import check_choice, parse_json
-from koopman_envs.files import MAX_TEXT_BYTES, read_text
+from koopman_envs.files import MAX_LOG_BYTES, MAX_TEXT_BYTES, read_text
 
 __all__ = [
     "CONTROLLERS",
     "PRESETS",
+    "BEST_FILE",
+    "STUDIES_DIR",
+    "STUDY_FILE",
+    "STUDY_KIND",
     "TUNED_DIR",
     "TUNED_KIND",
     "V0_SUFFIX",
     "Preset",
     "build_preset",
     "builtin_names",
+    "check_study",
     "read_tuned",
     "register_builtins",
     "with_tuned",
@@ -147,6 +153,34 @@ TUNED_KIND = "koopnav-tuned-preset"
 SHIPPED_TASK = "both"
 #: ``<name>-v0``: the defaults ``<name>`` had before its tuned preset
 V0_SUFFIX = "-v0"
+#: where the studies behind the tuned presets are committed: ``<name>/`` holds the study of
+#: ``<name>`` (the repository's ``data/tuning/``, as ``bash data/tuning/run.sh`` writes it)
+STUDIES_DIR = Path(__file__).resolve().parents[1] / "data" / "tuning"
+#: a study's log and its summary, as :mod:`evaluation.tune` writes them into the study's folder
+STUDY_FILE = "study.jsonl"
+BEST_FILE = "best.json"
+#: the ``kind`` of a study log's header line
+STUDY_KIND = "koopnav-study"
+
+
+def _preset_document(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A tuned preset file's JSON object, its kind, controller, task and options checked
+    (:func:`read_tuned` says how)."""
+    what = os.fspath(path)
+    document = parse_json(read_text(path, MAX_TEXT_BYTES, what="tuned preset", expected="JSON"), what)
+    if not isinstance(document, dict) or document.get("kind") != TUNED_KIND:
+        raise ValueError(f"{what}: not a tuned preset (its 'kind' must be {TUNED_KIND!r})")
+    name, task, options = document.get("controller"), document.get("task"), document.get("options")
+    known = [*CONTROLLERS, *(p.name for p in HAND_PRESETS)]
+    check_choice(f"{what}: controller", name, sorted(known), among="the built-in names")
+    if task != SHIPPED_TASK:
+        raise ValueError(
+            f"{what}: task={task!r}; a shipped preset must come from a task={SHIPPED_TASK!r} study, "
+            "because a controller's defaults serve every task"
+        )
+    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
+        raise ValueError(f"{what}: options={options!r} is not an object of option values")
+    return document
 
 
 def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
@@ -166,32 +200,117 @@ def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
         built-in controller or preset, or a study of another task than :data:`SHIPPED_TASK`;
         each naming the file and the value.
     """
-    what = os.fspath(path)
-    document = parse_json(read_text(path, MAX_TEXT_BYTES, what="tuned preset", expected="JSON"), what)
-    if not isinstance(document, dict) or document.get("kind") != TUNED_KIND:
-        raise ValueError(f"{what}: not a tuned preset (its 'kind' must be {TUNED_KIND!r})")
-    name, task, options = document.get("controller"), document.get("task"), document.get("options")
-    known = [*CONTROLLERS, *(p.name for p in HAND_PRESETS)]
-    name = check_choice(f"{what}: controller", name, sorted(known), among="the built-in names")
-    if task != SHIPPED_TASK:
-        raise ValueError(
-            f"{what}: task={task!r}; a shipped preset must come from a task={SHIPPED_TASK!r} study, "
-            "because a controller's defaults serve every task"
-        )
-    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
-        raise ValueError(f"{what}: options={options!r} is not an object of option values")
+    document = _preset_document(path)
+    name, options = document["controller"], document["options"]
     return name, {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
 
 
+def _study_lines(preset: str, log: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The header and the trial lines of a study log, refused when missing or torn."""
+    if not log.is_file():
+        raise ValueError(
+            f"{preset}: its study {log} is missing; a tuned preset ships with the study that chose it "
+            f"({STUDY_FILE} and {BEST_FILE} in {log.parent})"
+        )
+    text = read_text(log, MAX_LOG_BYTES, what="study log", expected="JSON lines")
+    if not text.endswith("\n"):
+        # a kill mid-write leaves the last line without its newline: the study did not finish
+        raise ValueError(
+            f"{preset}: its study {log} is torn (the last line has no newline); finish it with "
+            "`python -m evaluation.tune ... --resume` before shipping its preset"
+        )
+    lines = [parse_json(line, f"{log} line {i}") for i, line in enumerate(text.splitlines(), 1)]
+    header, trials = lines[0], lines[1:]
+    if not isinstance(header, dict) or header.get("kind") != STUDY_KIND:
+        raise ValueError(f"{preset}: {log} is not a study log (line 1 is not a {STUDY_KIND!r} header)")
+    for i, trial in enumerate(trials):
+        if (
+            not isinstance(trial, dict)
+            or trial.get("trial") != i
+            or not isinstance(trial.get("score"), (float, int))
+        ):
+            raise ValueError(f"{preset}: {log} line {i + 2} is not trial {i} with a score")
+    return header, trials
+
+
+def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = STUDIES_DIR) -> None:
+    """Refuse a tuned preset file whose study did not choose it on held-out layouts.
+
+    The study of ``<name>.json`` is the folder ``studies/<name>/``, as the tuner wrote it.
+
+    Parameters
+    ----------
+    path : path
+        A tuned preset file (:func:`read_tuned`).
+    studies : path
+        The folder of the studies (default :data:`STUDIES_DIR`).
+
+    Raises
+    ------
+    ValueError
+        Naming the preset, the file and the value, when the study's log or ``best.json`` is
+        missing; the log is torn (an interrupted run) or unfinished (fewer trials than its
+        budget's configurations); the study is of another controller or task, or tuned on a split
+        :func:`koopman_envs.check_split_allowed` refuses for tuning (``test``); or the preset's
+        options, score or study record are not the study's best configuration and its record.
+    """
+    document = _preset_document(path)
+    name = document["controller"]
+    folder = Path(studies) / name
+    log = folder / STUDY_FILE
+    header, trials = _study_lines(name, log)
+    if header.get("controller") != name:
+        raise ValueError(
+            f"{name}: its study {log} is of another controller: controller={header.get('controller')!r}"
+        )
+    if header.get("task") != SHIPPED_TASK:
+        raise ValueError(f"{name}: its study {log} has task={header.get('task')!r}, not {SHIPPED_TASK!r}")
+    split = header.get("split")
+    try:
+        check_split_allowed(str(split), "tuning")
+    except ValueError as error:
+        raise ValueError(f"{name}: its study {log} was tuned on split={split!r}: {error}") from None
+    wanted = header.get("budget", {}).get("configurations")
+    if len(trials) != wanted:
+        raise ValueError(
+            f"{name}: its study {log} is unfinished: {len(trials)} of configurations={wanted!r} trials"
+        )
+    top = max(t["score"] for t in trials)
+    record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
+    record["configurations_run"] = len(trials)
+    problems = []
+    if document.get("score") != top:
+        problems.append(f"score={document.get('score')!r} is not the study's best, {top!r}")
+    if not any(t["score"] == top and t.get("options") == document["options"] for t in trials):
+        problems.append("its options are not those of the study's best trial")
+    if document.get("study") != record:
+        problems.append(f"study={document.get('study')!r} is not the log's {record!r}")
+    best = folder / BEST_FILE
+    if not best.is_file():
+        problems.append(f"{best} is missing")
+    else:
+        summary = parse_json(
+            read_text(best, MAX_TEXT_BYTES, what="study summary", expected="JSON"), str(best)
+        )
+        chosen = summary.get("best", {}) if isinstance(summary, dict) else {}
+        if chosen.get("options") != document["options"] or chosen.get("score") != top:
+            problems.append(f"{best} names another best configuration")
+    if problems:
+        raise ValueError(f"{name}: {path} does not come from its study {folder}: " + "; ".join(problems))
+
+
 def with_tuned(
-    presets: Sequence[Preset], directory: str | os.PathLike[str] = TUNED_DIR
+    presets: Sequence[Preset],
+    directory: str | os.PathLike[str] = TUNED_DIR,
+    studies: str | os.PathLike[str] = STUDIES_DIR,
 ) -> tuple[Preset, ...]:
     """``presets`` with every tuned preset file of ``directory`` applied (:func:`read_tuned`).
 
     A file ``<name>.json`` makes ``<name>`` (a controller of :data:`CONTROLLERS` or a preset of
     ``presets``) a preset whose defaults are the tuned options over its own, and adds
     ``<name>-v0`` with the defaults it had before. Files are read in name order; a missing
-    directory is no tuned preset.
+    directory is no tuned preset. Each file is applied only beside its finished study in
+    ``studies`` (:func:`check_study`), so no preset ships without the record that chose it.
     """
     out = list(presets)
     folder = Path(directory)
@@ -200,6 +319,7 @@ def with_tuned(
         name, options = read_tuned(path)
         if path.stem != name:
             raise ValueError(f"{path}: names controller {name!r}; the file must be called {name}.json")
+        check_study(path, studies)
         before = next((p for p in out if p.name == name), None) or Preset(name, name)
         doc = before.doc or f"{name} with the defaults its class declares"
         v0 = replace(before, name=name + V0_SUFFIX, doc=f"{doc} (the defaults before tuning)")

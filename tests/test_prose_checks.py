@@ -15,6 +15,7 @@ by hand, or a number of a generated page, makes them fail.
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 from collections.abc import Callable, Iterator
@@ -23,6 +24,7 @@ from pathlib import Path
 import pytest
 
 import controllers as registry
+from controllers.presets import STUDIES_DIR, TUNED_DIR
 from evaluation.execution.runner import usable_controllers
 from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_protocol
 
@@ -232,7 +234,7 @@ def test_every_number_of_the_readme_is_checked_against_its_source(sources) -> No
 @pytest.mark.parametrize(
     ("old", "new", "complaint"),
     [
-        ("runs 112", "runs 113", "episodes; the quick plan gives"),
+        ("runs 128", "runs 129", "episodes; the quick plan gives"),
         ("adds 32", "adds 24", "episodes; the quick plan gives"),
         ("(under 2 min", "(under 1 min", "not under 1 min"),
         ("(5.5-6 min", "(4-4.5 min", "not within 4-4.5 min"),
@@ -427,3 +429,41 @@ def test_an_intros_code_number_edited_by_hand_fails(name: str, old: str, new: st
     text = (ROOT / "docs" / "_intros" / name).read_text(encoding="utf-8")
     assert old in text
     assert any(complaint in p for p in intro_problems(name, text.replace(old, new, 1)))
+
+
+# --------------------------------------------------------------------------- the tuning studies
+def tuning_rows() -> list[str]:
+    """docs/benchmark.md's rows of the shipped tuned defaults, written from each shipped preset's
+    study summary (``data/tuning/<name>/best.json``)."""
+    rows = []
+    for path in sorted(TUNED_DIR.glob("*.json")):
+        best = json.loads((STUDIES_DIR / path.stem / "best.json").read_text())
+        budget, tasks = best["budget"], 2 if best["task"] == "both" else 1
+        n = best["best"]["episodes"]
+        rows.append(
+            f"| `{path.stem}` | {budget['configurations']} x {budget['layouts_per_task']} x "
+            f"{budget['episodes_per_layout']} x {tasks} = {budget['episodes']:,} | "
+            f"{best['defaults']['score']:.3f} ({best['defaults']['successes']}/{n}) | "
+            f"{best['best']['score']:.3f} ({best['best']['successes']}/{n}) | {best['gain']:+.4f} |"
+        )
+    return rows
+
+
+def tuning_problems(text: str) -> list[str]:
+    """The rows of the tuning table of ``text`` (docs/benchmark.md) that are not the studies'."""
+    table = text.split(
+        "<!-- the rows tests/test_prose_checks.py checks against data/tuning/<name>/best.json -->"
+    )
+    if len(table) != 2:
+        return ["docs/benchmark.md has no table of the shipped tuned defaults"]
+    expected = tuning_rows()
+    lines = table[1].strip().splitlines()[2:]  # after the header and its rule
+    rows = lines[: next((i for i, line in enumerate(lines) if not line.startswith("|")), len(lines))]
+    return [] if rows == expected else [f"the table states {rows}; the studies give {expected}"]
+
+
+def test_the_tuning_table_is_the_studies_best_json() -> None:
+    text = (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8")
+    assert tuning_rows() and tuning_problems(text) == []
+    edited = text.replace("0.414 (20/50)", "0.424 (20/50)", 1)  # a score edited by hand
+    assert edited != text and tuning_problems(edited) != []

@@ -7,12 +7,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from controllers.presets import BEST_FILE
 from evaluation.episodes.runlog import (
     OutputNotWritable,
 )
 from evaluation.exit_codes import BAD_INPUT_EXIT, INTERRUPTED_EXIT, SUCCESS_EXIT, UNWRITABLE_OUT_EXIT
 from evaluation.tune.configuration import DEFAULT_SLIP, TASK_CHOICES
-from evaluation.tune.log import BEST_FILE, StudySettings
+from evaluation.tune.log import StudySettings
 from evaluation.tune.report import load_summary, report_figure, report_markdown
 from evaluation.tune.study import best_of, run_study
 from koopman_envs.files import write_atomic

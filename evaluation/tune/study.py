@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import controllers
-from controllers.presets import TUNED_KIND
+from controllers.presets import BEST_FILE, STUDY_FILE, TUNED_KIND
 from controllers.search_space import Search
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
@@ -20,7 +20,7 @@ from evaluation.episodes.runlog import (
     open_append_locked,
 )
 from evaluation.tune.configuration import Evaluator, evaluate_configuration
-from evaluation.tune.log import BEST_FILE, STUDY_FILE, StudySettings, Trial, read_study
+from evaluation.tune.log import StudySettings, Trial, read_study
 from evaluation.tune.scoring import OBJECTIVE, objective
 from koopman_envs.files import write_atomic
 
