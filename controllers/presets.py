@@ -24,17 +24,21 @@ from pathlib import Path
 from typing import Any
 
 from controllers.search_space import Search
-from koopman_envs import check_split_allowed
+from controllers.studies import (
+    ADOPTION_RULE,
+    BEST_FILE,
+    SHIPPED_TASK,
+    STUDIES_DIR,
+    Adoption,
+    adoption,
+    finished_study,
+)
 from koopman_envs.checks import check_choice, parse_json
-from koopman_envs.files import MAX_LOG_BYTES, MAX_TEXT_BYTES, read_text
+from koopman_envs.files import MAX_TEXT_BYTES, read_text
 
 __all__ = [
     "CONTROLLERS",
     "PRESETS",
-    "BEST_FILE",
-    "STUDIES_DIR",
-    "STUDY_FILE",
-    "STUDY_KIND",
     "TUNED_DIR",
     "TUNED_KIND",
     "V0_SUFFIX",
@@ -42,6 +46,7 @@ __all__ = [
     "build_preset",
     "builtin_names",
     "check_study",
+    "is_comparison_variant",
     "read_tuned",
     "register_builtins",
     "with_tuned",
@@ -149,18 +154,8 @@ HAND_PRESETS = (
 TUNED_DIR = Path(__file__).with_name("tuned")
 #: the ``kind`` of a tuned preset file (:func:`evaluation.tune.write_best` writes it)
 TUNED_KIND = "koopnav-tuned-preset"
-#: the task of a study whose preset may ship: a controller's defaults serve every task
-SHIPPED_TASK = "both"
 #: ``<name>-v0``: the defaults ``<name>`` had before its tuned preset
 V0_SUFFIX = "-v0"
-#: where the studies behind the tuned presets are committed: ``<name>/`` holds the study of
-#: ``<name>`` (the repository's ``data/tuning/``, as ``bash data/tuning/run.sh`` writes it)
-STUDIES_DIR = Path(__file__).resolve().parents[1] / "data" / "tuning"
-#: a study's log and its summary, as :mod:`evaluation.tune` writes them into the study's folder
-STUDY_FILE = "study.jsonl"
-BEST_FILE = "best.json"
-#: the ``kind`` of a study log's header line
-STUDY_KIND = "koopnav-study"
 
 
 def _preset_document(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -205,36 +200,9 @@ def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
     return name, {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
 
 
-def _study_lines(preset: str, log: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """The header and the trial lines of a study log, refused when missing or torn."""
-    if not log.is_file():
-        raise ValueError(
-            f"{preset}: its study {log} is missing; a tuned preset ships with the study that chose it "
-            f"({STUDY_FILE} and {BEST_FILE} in {log.parent})"
-        )
-    text = read_text(log, MAX_LOG_BYTES, what="study log", expected="JSON lines")
-    if not text.endswith("\n"):
-        # a kill mid-write leaves the last line without its newline: the study did not finish
-        raise ValueError(
-            f"{preset}: its study {log} is torn (the last line has no newline); finish it with "
-            "`python -m evaluation.tune ... --resume` before shipping its preset"
-        )
-    lines = [parse_json(line, f"{log} line {i}") for i, line in enumerate(text.splitlines(), 1)]
-    header, trials = lines[0], lines[1:]
-    if not isinstance(header, dict) or header.get("kind") != STUDY_KIND:
-        raise ValueError(f"{preset}: {log} is not a study log (line 1 is not a {STUDY_KIND!r} header)")
-    for i, trial in enumerate(trials):
-        if (
-            not isinstance(trial, dict)
-            or trial.get("trial") != i
-            or not isinstance(trial.get("score"), (float, int))
-        ):
-            raise ValueError(f"{preset}: {log} line {i + 2} is not trial {i} with a score")
-    return header, trials
-
-
-def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = STUDIES_DIR) -> None:
-    """Refuse a tuned preset file whose study did not choose it on held-out layouts.
+def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = STUDIES_DIR) -> Adoption:
+    """Refuse a tuned preset file whose study did not choose it on held-out layouts; the
+    adoption rule's decision on that study otherwise.
 
     The study of ``<name>.json`` is the folder ``studies/<name>/``, as the tuner wrote it.
 
@@ -244,6 +212,11 @@ def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = 
         A tuned preset file (:func:`read_tuned`).
     studies : path
         The folder of the studies (default :data:`STUDIES_DIR`).
+
+    Returns
+    -------
+    Adoption
+        :func:`adoption` on the study's trials (:func:`with_tuned` applies only an adopted one).
 
     Raises
     ------
@@ -257,24 +230,7 @@ def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = 
     document = _preset_document(path)
     name = document["controller"]
     folder = Path(studies) / name
-    log = folder / STUDY_FILE
-    header, trials = _study_lines(name, log)
-    if header.get("controller") != name:
-        raise ValueError(
-            f"{name}: its study {log} is of another controller: controller={header.get('controller')!r}"
-        )
-    if header.get("task") != SHIPPED_TASK:
-        raise ValueError(f"{name}: its study {log} has task={header.get('task')!r}, not {SHIPPED_TASK!r}")
-    split = header.get("split")
-    try:
-        check_split_allowed(str(split), "tuning")
-    except ValueError as error:
-        raise ValueError(f"{name}: its study {log} was tuned on split={split!r}: {error}") from None
-    wanted = header.get("budget", {}).get("configurations")
-    if len(trials) != wanted:
-        raise ValueError(
-            f"{name}: its study {log} is unfinished: {len(trials)} of configurations={wanted!r} trials"
-        )
+    header, trials = finished_study(name, studies)
     top = max(t["score"] for t in trials)
     record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
     record["configurations_run"] = len(trials)
@@ -297,6 +253,7 @@ def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = 
             problems.append(f"{best} names another best configuration")
     if problems:
         raise ValueError(f"{name}: {path} does not come from its study {folder}: " + "; ".join(problems))
+    return adoption(name, trials)
 
 
 def with_tuned(
@@ -310,7 +267,8 @@ def with_tuned(
     ``presets``) a preset whose defaults are the tuned options over its own, and adds
     ``<name>-v0`` with the defaults it had before. Files are read in name order; a missing
     directory is no tuned preset. Each file is applied only beside its finished study in
-    ``studies`` (:func:`check_study`), so no preset ships without the record that chose it.
+    ``studies`` (:func:`check_study`), so no preset ships without the record that chose it, and
+    only when :data:`ADOPTION_RULE` adopts it (a file the rule refuses is an error, named).
     """
     out = list(presets)
     folder = Path(directory)
@@ -319,7 +277,12 @@ def with_tuned(
         name, options = read_tuned(path)
         if path.stem != name:
             raise ValueError(f"{path}: names controller {name!r}; the file must be called {name}.json")
-        check_study(path, studies)
+        decision = check_study(path, studies)
+        if not decision.adopted:
+            raise ValueError(
+                f"{path}: {decision}; the adoption rule keeps the defaults ({ADOPTION_RULE}): "
+                f"delete it (`python -m evaluation.tune adopt {name}` installs only what the rule admits)"
+            )
         before = next((p for p in out if p.name == name), None) or Preset(name, name)
         doc = before.doc or f"{name} with the defaults its class declares"
         v0 = replace(before, name=name + V0_SUFFIX, doc=f"{doc} (the defaults before tuning)")
@@ -334,6 +297,16 @@ def with_tuned(
 
 #: every preset: the hand-made ones and the tuned ones of :data:`TUNED_DIR`
 PRESETS = with_tuned(HAND_PRESETS)
+
+
+def is_comparison_variant(name: str) -> bool:
+    """Whether ``name`` is a ``<name>-v0`` variant :func:`with_tuned` registered: the defaults a
+    tuned controller had before, kept for comparison, run only when asked for by name (default
+    runs leave them out: :func:`controllers.registry.available`)."""
+    return name.endswith(V0_SUFFIX) and name in _VARIANTS
+
+
+_VARIANTS = frozenset(p.name for p in PRESETS if p.name.endswith(V0_SUFFIX))
 
 
 def _resolve(path: str) -> Any:

@@ -36,7 +36,7 @@ suite, never on ``test``::
 The evaluation of one configuration is one function, :func:`evaluate_configuration`.
 """
 
-from controllers.presets import STUDY_FILE
+from controllers.studies import STUDY_FILE
 from evaluation.tune.cli import main
 from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, TASK_CHOICES, evaluate_configuration, tasks_of
 from evaluation.tune.log import StudySettings, Trial, read_study

@@ -7,8 +7,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from controllers.presets import STUDY_KIND
 from controllers.search_space import Search
+from controllers.studies import STUDY_KIND
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,
