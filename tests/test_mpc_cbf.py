@@ -4,9 +4,10 @@ h(x_k+1) >= (1 - gamma) h(x_k) inside the problem (controllers/mpc/problem.py, `
 The closed-loop case is a slalom of our own (no protocol uses it): two discs of 0.5 m leave a
 squeezed S-shaped corridor, and under high slip the plain NMPC, whose distance rows bind at the
 margin, crosses its 0.015 m margin and collides, while the barrier keeps the clearance above the
-margin at every step. It is the map the hand-set gamma (0.1, ``mpc-cbf-v0``) was chosen on; the
-closed loop runs ``mpc-cbf-v0``, the plain NMPC's settings with the barrier only, since the tuned
-``mpc-cbf`` also widens the margins (controllers/tuned/mpc-cbf.json)."""
+margin at every step. It is the map the hand-set gamma (0.1, ``mpc-cbf-v0``) was chosen on. The
+tests of the barrier run ``mpc-cbf-v0``, the plain NMPC's settings with the barrier only: the tuned
+``mpc-cbf`` also widens the margins by its calibrated residual (controllers/tuned/mpc-cbf.json),
+so it needs a calibration first, as the evaluator gives it."""
 
 from __future__ import annotations
 
@@ -69,7 +70,7 @@ def test_every_stage_holds_one_barrier_row_per_clearance_and_the_plan_keeps_them
 
     env = gym.make(TR, map=SLALOM)
     obs, info = env.reset(seed=0)
-    ctrl = controllers.make("mpc-cbf", solver=solver, horizon=6)
+    ctrl = controllers.make("mpc-cbf-v0", solver=solver, horizon=6)
     ctrl.reset(env, seed=0)
     solves = []
     solve = ctrl._solve
@@ -122,7 +123,7 @@ _EPISODE = """
 import gymnasium as gym, koopman_envs, controllers
 from koopman_envs.fronts.episode import run_episode
 env = gym.make('KoopNav-Formation-v0', map='map4', slip='high', start_noise=0.05{limit})
-result = run_episode(env, controllers.make('mpc-cbf'), seed=1)
+result = run_episode(env, controllers.make('mpc-cbf-v0'), seed=1)
 print(result.trajectory.tobytes().hex(), result.steps)
 """
 
