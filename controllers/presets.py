@@ -9,8 +9,8 @@ preset's name, so reports and statistics name what was asked for. Options given 
 *Tuned presets* (issue 60): a file ``controllers/tuned/<name>.json``, written by the tuner
 (``python -m evaluation.tune NAME --task both ...``, :mod:`evaluation.tune`) from a study on the
 validation layouts, gives the controller or preset ``<name>`` the tuned options as its defaults,
-and ``<name>-v0`` keeps the defaults it had before, for comparison (:func:`with_tuned`). Without a
-file nothing changes: no tuned values ship until the real studies have run.
+and ``<name>-v0`` keeps the defaults it had before, for comparison (:func:`with_tuned`). A file is
+applied only beside its finished study (``data/tuning/<name>/``: :func:`check_study`).
 """
 
 from __future__ import annotations
@@ -24,6 +24,15 @@ from pathlib import Path
 from typing import Any
 
 from controllers.search_space import Search
+from controllers.studies import (
+    ADOPTION_RULE,
+    BEST_FILE,
+    SHIPPED_TASK,
+    STUDIES_DIR,
+    Adoption,
+    adoption,
+    finished_study,
+)
 from koopman_envs.checks import check_choice, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 
@@ -36,6 +45,8 @@ __all__ = [
     "Preset",
     "build_preset",
     "builtin_names",
+    "check_study",
+    "is_comparison_variant",
     "read_tuned",
     "register_builtins",
     "with_tuned",
@@ -143,10 +154,28 @@ HAND_PRESETS = (
 TUNED_DIR = Path(__file__).with_name("tuned")
 #: the ``kind`` of a tuned preset file (:func:`evaluation.tune.write_best` writes it)
 TUNED_KIND = "koopnav-tuned-preset"
-#: the task of a study whose preset may ship: a controller's defaults serve every task
-SHIPPED_TASK = "both"
 #: ``<name>-v0``: the defaults ``<name>`` had before its tuned preset
 V0_SUFFIX = "-v0"
+
+
+def _preset_document(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A tuned preset file's JSON object, its kind, controller, task and options checked
+    (:func:`read_tuned` says how)."""
+    what = os.fspath(path)
+    document = parse_json(read_text(path, MAX_TEXT_BYTES, what="tuned preset", expected="JSON"), what)
+    if not isinstance(document, dict) or document.get("kind") != TUNED_KIND:
+        raise ValueError(f"{what}: not a tuned preset (its 'kind' must be {TUNED_KIND!r})")
+    name, task, options = document.get("controller"), document.get("task"), document.get("options")
+    known = [*CONTROLLERS, *(p.name for p in HAND_PRESETS)]
+    check_choice(f"{what}: controller", name, sorted(known), among="the built-in names")
+    if task != SHIPPED_TASK:
+        raise ValueError(
+            f"{what}: task={task!r}; a shipped preset must come from a task={SHIPPED_TASK!r} study, "
+            "because a controller's defaults serve every task"
+        )
+    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
+        raise ValueError(f"{what}: options={options!r} is not an object of option values")
+    return document
 
 
 def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
@@ -166,32 +195,80 @@ def read_tuned(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
         built-in controller or preset, or a study of another task than :data:`SHIPPED_TASK`;
         each naming the file and the value.
     """
-    what = os.fspath(path)
-    document = parse_json(read_text(path, MAX_TEXT_BYTES, what="tuned preset", expected="JSON"), what)
-    if not isinstance(document, dict) or document.get("kind") != TUNED_KIND:
-        raise ValueError(f"{what}: not a tuned preset (its 'kind' must be {TUNED_KIND!r})")
-    name, task, options = document.get("controller"), document.get("task"), document.get("options")
-    known = [*CONTROLLERS, *(p.name for p in HAND_PRESETS)]
-    name = check_choice(f"{what}: controller", name, sorted(known), among="the built-in names")
-    if task != SHIPPED_TASK:
-        raise ValueError(
-            f"{what}: task={task!r}; a shipped preset must come from a task={SHIPPED_TASK!r} study, "
-            "because a controller's defaults serve every task"
-        )
-    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
-        raise ValueError(f"{what}: options={options!r} is not an object of option values")
+    document = _preset_document(path)
+    name, options = document["controller"], document["options"]
     return name, {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
 
 
+def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = STUDIES_DIR) -> Adoption:
+    """Refuse a tuned preset file whose study did not choose it on held-out layouts; the
+    adoption rule's decision on that study otherwise.
+
+    The study of ``<name>.json`` is the folder ``studies/<name>/``, as the tuner wrote it.
+
+    Parameters
+    ----------
+    path : path
+        A tuned preset file (:func:`read_tuned`).
+    studies : path
+        The folder of the studies (default :data:`STUDIES_DIR`).
+
+    Returns
+    -------
+    Adoption
+        :func:`adoption` on the study's trials (:func:`with_tuned` applies only an adopted one).
+
+    Raises
+    ------
+    ValueError
+        Naming the preset, the file and the value, when the study's log or ``best.json`` is
+        missing; the log is torn (an interrupted run) or unfinished (fewer trials than its
+        budget's configurations); the study is of another controller or task, or tuned on a split
+        :func:`koopman_envs.check_split_allowed` refuses for tuning (``test``); or the preset's
+        options, score or study record are not the study's best configuration and its record.
+    """
+    document = _preset_document(path)
+    name = document["controller"]
+    folder = Path(studies) / name
+    header, trials = finished_study(name, studies)
+    top = max(t["score"] for t in trials)
+    record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
+    record["configurations_run"] = len(trials)
+    problems = []
+    if document.get("score") != top:
+        problems.append(f"score={document.get('score')!r} is not the study's best, {top!r}")
+    if not any(t["score"] == top and t.get("options") == document["options"] for t in trials):
+        problems.append("its options are not those of the study's best trial")
+    if document.get("study") != record:
+        problems.append(f"study={document.get('study')!r} is not the log's {record!r}")
+    best = folder / BEST_FILE
+    if not best.is_file():
+        problems.append(f"{best} is missing")
+    else:
+        summary = parse_json(
+            read_text(best, MAX_TEXT_BYTES, what="study summary", expected="JSON"), str(best)
+        )
+        chosen = summary.get("best", {}) if isinstance(summary, dict) else {}
+        if chosen.get("options") != document["options"] or chosen.get("score") != top:
+            problems.append(f"{best} names another best configuration")
+    if problems:
+        raise ValueError(f"{name}: {path} does not come from its study {folder}: " + "; ".join(problems))
+    return adoption(name, trials)
+
+
 def with_tuned(
-    presets: Sequence[Preset], directory: str | os.PathLike[str] = TUNED_DIR
+    presets: Sequence[Preset],
+    directory: str | os.PathLike[str] = TUNED_DIR,
+    studies: str | os.PathLike[str] = STUDIES_DIR,
 ) -> tuple[Preset, ...]:
     """``presets`` with every tuned preset file of ``directory`` applied (:func:`read_tuned`).
 
     A file ``<name>.json`` makes ``<name>`` (a controller of :data:`CONTROLLERS` or a preset of
     ``presets``) a preset whose defaults are the tuned options over its own, and adds
     ``<name>-v0`` with the defaults it had before. Files are read in name order; a missing
-    directory is no tuned preset.
+    directory is no tuned preset. Each file is applied only beside its finished study in
+    ``studies`` (:func:`check_study`), so no preset ships without the record that chose it, and
+    only when :data:`ADOPTION_RULE` adopts it (a file the rule refuses is an error, named).
     """
     out = list(presets)
     folder = Path(directory)
@@ -200,6 +277,12 @@ def with_tuned(
         name, options = read_tuned(path)
         if path.stem != name:
             raise ValueError(f"{path}: names controller {name!r}; the file must be called {name}.json")
+        decision = check_study(path, studies)
+        if not decision.adopted:
+            raise ValueError(
+                f"{path}: {decision}; the adoption rule keeps the defaults ({ADOPTION_RULE}): "
+                f"delete it (`python -m evaluation.tune adopt {name}` installs only what the rule admits)"
+            )
         before = next((p for p in out if p.name == name), None) or Preset(name, name)
         doc = before.doc or f"{name} with the defaults its class declares"
         v0 = replace(before, name=name + V0_SUFFIX, doc=f"{doc} (the defaults before tuning)")
@@ -214,6 +297,16 @@ def with_tuned(
 
 #: every preset: the hand-made ones and the tuned ones of :data:`TUNED_DIR`
 PRESETS = with_tuned(HAND_PRESETS)
+
+
+def is_comparison_variant(name: str) -> bool:
+    """Whether ``name`` is a ``<name>-v0`` variant :func:`with_tuned` registered: the defaults a
+    tuned controller had before, kept for comparison, run only when asked for by name (default
+    runs leave them out: :func:`controllers.registry.available`)."""
+    return name.endswith(V0_SUFFIX) and name in _VARIANTS
+
+
+_VARIANTS = frozenset(p.name for p in PRESETS if p.name.endswith(V0_SUFFIX))
 
 
 def _resolve(path: str) -> Any:

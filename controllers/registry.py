@@ -33,6 +33,7 @@ from importlib import metadata
 from typing import Any
 
 from controllers.base import Controller
+from controllers.presets import is_comparison_variant
 from koopman_envs.checks import choice_message
 
 __all__ = [
@@ -127,9 +128,18 @@ def _read_entry_points(path: tuple[str, ...]) -> dict[str, metadata.EntryPoint]:
     return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
 
 
-def available() -> list[str]:
-    """Names of every controller: built-in ones and those of installed entry points."""
-    return sorted(set(_REGISTRY) | set(_entry_points()))
+def available(*, variants: bool = True) -> list[str]:
+    """Names of every controller: built-in ones and those of installed entry points.
+
+    Parameters
+    ----------
+    variants : bool
+        Include the ``<name>-v0`` variants of the tuned presets (the defaults before tuning,
+        :func:`controllers.presets.is_comparison_variant`). Default runs pass ``False``: a variant
+        runs only when asked for by name (``--controllers dwa-v0``), and is always buildable.
+    """
+    names = set(_REGISTRY) | set(_entry_points())
+    return sorted(n for n in names if variants or not is_comparison_variant(n))
 
 
 def _resolve(factory: Callable[..., Controller] | str) -> Callable[..., Controller]:

@@ -170,7 +170,7 @@ def test_orca_without_pyrvo_names_the_extra_and_the_board_skips_it(monkeypatch, 
         controllers.make("orca")
     from evaluation.execution import runner
 
-    monkeypatch.setattr(runner.registry, "available", lambda: ["dwa", "orca"])
+    monkeypatch.setattr(runner.registry, "available", lambda **_: ["dwa", "orca"])
     assert runner.usable_controllers(verbose=True) == ["dwa"]
     assert "controller 'orca' skipped" in capsys.readouterr().err
 

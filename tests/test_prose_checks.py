@@ -15,6 +15,7 @@ by hand, or a number of a generated page, makes them fail.
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 from collections.abc import Callable, Iterator
@@ -23,6 +24,7 @@ from pathlib import Path
 import pytest
 
 import controllers as registry
+from controllers.studies import BEST_FILE, STUDIES_DIR, study_adoption
 from evaluation.execution.runner import usable_controllers
 from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_protocol
 
@@ -427,3 +429,45 @@ def test_an_intros_code_number_edited_by_hand_fails(name: str, old: str, new: st
     text = (ROOT / "docs" / "_intros" / name).read_text(encoding="utf-8")
     assert old in text
     assert any(complaint in p for p in intro_problems(name, text.replace(old, new, 1)))
+
+
+# --------------------------------------------------------------------------- the tuning studies
+def tuning_rows() -> list[str]:
+    """docs/benchmark.md's rows of the finished tuning studies, written from each study's summary
+    (``data/tuning/<name>/best.json``) and the adoption rule's decision on its log."""
+    rows = []
+    for folder in sorted(p for p in STUDIES_DIR.iterdir() if (p / BEST_FILE).is_file()):
+        best = json.loads((folder / BEST_FILE).read_text())
+        budget, tasks = best["budget"], 2 if best["task"] == "both" else 1
+        n = best["best"]["episodes"]
+        rows.append(
+            f"| `{folder.name}` | {budget['configurations']} x {budget['layouts_per_task']} x "
+            f"{budget['episodes_per_layout']} x {tasks} = {budget['episodes']:,} | "
+            f"{best['defaults']['score']:.3f} ({best['defaults']['successes']}/{n}) | "
+            f"{best['best']['score']:.3f} ({best['best']['successes']}/{n}) | {best['gain']:+.4f} | "
+            f"{study_adoption(folder.name).verdict} |"
+        )
+    return rows
+
+
+def tuning_problems(text: str) -> list[str]:
+    """The rows of the tuning table of ``text`` (docs/benchmark.md) that are not the studies'."""
+    table = text.split(
+        "<!-- the rows tests/test_prose_checks.py checks against data/tuning/<name>/best.json -->"
+    )
+    if len(table) != 2:
+        return ["docs/benchmark.md has no table of the shipped tuned defaults"]
+    expected = tuning_rows()
+    lines = table[1].strip().splitlines()[2:]  # after the header and its rule
+    rows = lines[: next((i for i, line in enumerate(lines) if not line.startswith("|")), len(lines))]
+    return [] if rows == expected else [f"the table states {rows}; the studies give {expected}"]
+
+
+def test_the_tuning_table_is_the_studies_best_json() -> None:
+    text = (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8")
+    assert tuning_rows() and tuning_problems(text) == []
+    edited = text.replace("0.414 (20/50)", "0.424 (20/50)", 1)  # a score edited by hand
+    assert edited != text and tuning_problems(edited) != []
+    # orca's tie stated as adopted
+    edited = text.replace("| +0.0003 | defaults kept (a tie) |", "| +0.0003 | adopted |", 1)
+    assert edited != text and tuning_problems(edited) != []

@@ -295,7 +295,8 @@ class NMPCConfig:
         h the squared clearance of every obstacle, team-mate and mover row with its margin: a
         clearance may shrink by at most the fraction gamma per period, so the plan slows before
         an obstacle instead of skimming its margin. Smaller is more cautious; 1 is the distance
-        constraint one step on. The ``mpc-cbf`` preset sets 0.1.
+        constraint one step on. The hand-set ``mpc-cbf`` preset (``mpc-cbf-v0``) sets 0.1; ``mpc-cbf``
+        runs its tuned rate (controllers/tuned/mpc-cbf.json).
     unstall : bool
         (ours) Resolve a stall of the central NMPC (:class:`controllers.mpc.detour.DeadlockResolver`):
         a robot that has not moved for a second away from its target restarts cold, and, for

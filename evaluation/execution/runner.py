@@ -28,10 +28,11 @@ def usable_controllers(verbose: bool = True) -> list[str]:
     """Registered controllers that can be built here; the others are named on stderr.
 
     An optional controller (``rl-ppo`` without the ``[rl]`` extra or without trained policies)
-    is skipped by the default run instead of failing every episode.
+    is skipped by the default run instead of failing every episode. The ``<name>-v0`` variants
+    of the tuned presets are left out: they run when asked for by name.
     """
     usable = []
-    for name in registry.available():
+    for name in registry.available(variants=False):  # a -v0 variant runs when named only
         try:
             registry.make(name)
         except (ImportError, ValueError) as exc:

@@ -209,7 +209,7 @@ def lidar_protocol() -> RunSpec:
 
     # every controller that perceives: the learned set policies read the perceived obstacle and
     # mover sets (baselines.features.perceived); a policy that reads its observation only (rl-ppo) cannot
-    perceiving = [name for name in available() if getattr(factory(name), "perceives", True)]
+    perceiving = [name for name in available(variants=False) if getattr(factory(name), "perceives", True)]
     return _among_movers(
         {
             "sensing": "lidar",

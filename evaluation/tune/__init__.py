@@ -36,9 +36,10 @@ suite, never on ``test``::
 The evaluation of one configuration is one function, :func:`evaluate_configuration`.
 """
 
+from controllers.studies import STUDY_FILE
 from evaluation.tune.cli import main
 from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, TASK_CHOICES, evaluate_configuration, tasks_of
-from evaluation.tune.log import STUDY_FILE, StudySettings, Trial, read_study
+from evaluation.tune.log import StudySettings, Trial, read_study
 from evaluation.tune.report import load_summary, report_figure, report_markdown
 from evaluation.tune.scoring import OBJECTIVE, Score, expected_max, expected_max_curve, objective
 from evaluation.tune.study import best_of, run_study, write_best

@@ -1,4 +1,5 @@
-"""``python -m evaluation.tune``: tune a controller, or report on studies."""
+"""``python -m evaluation.tune``: tune a controller, report on studies, or adopt a study's preset
+(``python -m evaluation.tune adopt NAME``: :mod:`evaluation.tune.adopt`)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,15 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from controllers.presets import TUNED_DIR
+from controllers.studies import ADOPTION_RULE, BEST_FILE, STUDIES_DIR
 from evaluation.episodes.runlog import (
     OutputNotWritable,
 )
 from evaluation.exit_codes import BAD_INPUT_EXIT, INTERRUPTED_EXIT, SUCCESS_EXIT, UNWRITABLE_OUT_EXIT
+from evaluation.tune.adopt import adopt
 from evaluation.tune.configuration import DEFAULT_SLIP, TASK_CHOICES
-from evaluation.tune.log import BEST_FILE, StudySettings
+from evaluation.tune.log import StudySettings
 from evaluation.tune.report import load_summary, report_figure, report_markdown
 from evaluation.tune.study import best_of, run_study
 from koopman_envs.files import write_atomic
@@ -46,8 +50,43 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _adopt_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m evaluation.tune adopt",
+        description="Apply the adoption rule to finished studies and install what it admits: a "
+        f"study's preset ships only if {ADOPTION_RULE}.",
+    )
+    parser.add_argument("names", nargs="+", metavar="NAME", help="the tuned controllers (data/tuning/NAME/)")
+    parser.add_argument(
+        "--studies", default=str(STUDIES_DIR), help="the studies' folder (default data/tuning)"
+    )
+    parser.add_argument(
+        "--tuned", default=str(TUNED_DIR), help="the installed presets' folder (default controllers/tuned)"
+    )
+    return parser
+
+
+def _adopt_main(argv: Sequence[str]) -> int:
+    """``python -m evaluation.tune adopt NAME ...``: one line per decision; exit 2 on a refusal."""
+    args = _adopt_parser().parse_args(argv)
+    code = SUCCESS_EXIT
+    for name in args.names:
+        try:
+            decision = adopt(name, args.studies, args.tuned)
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            code = BAD_INPUT_EXIT
+            continue
+        installed = Path(args.tuned) / f"{name}.json"
+        print(f"{decision}; " + (f"installed {installed}" if decision.adopted else f"no {installed}"))
+    return code
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m evaluation.tune``: see the module docstring. Returns the exit code."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["adopt"]:
+        return _adopt_main(argv[1:])
     args = _parser().parse_args(argv)
     try:
         if args.report:

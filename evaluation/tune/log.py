@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controllers.search_space import Search
+from controllers.studies import STUDY_KIND
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,
@@ -21,11 +22,6 @@ from koopman_envs import check_split_allowed, load_suite
 from koopman_envs.checks import check_int, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded
 
-#: the study's log, its best configuration
-STUDY_FILE = "study.jsonl"
-BEST_FILE = "best.json"
-#: the ``kind`` of a study log's header line
-STUDY_KIND = "koopnav-study"
 #: the fields of a trial's line
 TRIAL_FIELDS = (
     "trial",

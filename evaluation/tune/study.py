@@ -13,6 +13,7 @@ from typing import Any
 import controllers
 from controllers.presets import TUNED_KIND
 from controllers.search_space import Search
+from controllers.studies import BEST_FILE, STUDY_FILE, trial_rank
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,
@@ -20,7 +21,7 @@ from evaluation.episodes.runlog import (
     open_append_locked,
 )
 from evaluation.tune.configuration import Evaluator, evaluate_configuration
-from evaluation.tune.log import BEST_FILE, STUDY_FILE, StudySettings, Trial, read_study
+from evaluation.tune.log import StudySettings, Trial, read_study
 from evaluation.tune.scoring import OBJECTIVE, objective
 from koopman_envs.files import write_atomic
 
@@ -229,7 +230,7 @@ def _run_trial(
 
 def best_of(trials: Sequence[Trial]) -> Trial:
     """The trial of the highest score (the earliest among equals: trial 0, the defaults, wins a tie)."""
-    return max(trials, key=lambda t: (t.score, -t.number))
+    return max(trials, key=lambda t: trial_rank({"score": t.score, "trial": t.number}))
 
 
 def write_best(out: str | os.PathLike[str], header: Mapping[str, Any], trials: Sequence[Trial]) -> None:

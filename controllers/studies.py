@@ -1,0 +1,210 @@
+"""The record of a tuning study and the rule that adopts its best configuration (issue 60).
+
+A study (:mod:`evaluation.tune`) writes ``study.jsonl`` (a header, then one line per trial, trial
+0 the controller's defaults) and ``best.json`` into its folder, ``data/tuning/<name>/`` for the
+studies behind the shipped presets. :func:`finished_study` reads a finished one, refusing a
+missing, torn or unfinished log, another controller's or task's, or one tuned on the test split;
+:func:`adoption` decides by :data:`ADOPTION_RULE` whether its best configuration becomes the
+shipped default (:mod:`controllers.presets` applies only what it adopts;
+``python -m evaluation.tune adopt NAME`` installs it).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from koopman_envs import check_split_allowed
+from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_LOG_BYTES, read_text
+
+__all__ = [
+    "ADOPTION_RULE",
+    "BEST_FILE",
+    "SHIPPED_TASK",
+    "STUDIES_DIR",
+    "STUDY_FILE",
+    "STUDY_KIND",
+    "Adoption",
+    "adoption",
+    "finished_study",
+    "study_adoption",
+    "trial_rank",
+]
+
+#: the task of a study whose preset may ship: a controller's defaults serve every task
+SHIPPED_TASK = "both"
+#: where the studies behind the tuned presets are committed: ``<name>/`` holds the study of
+#: ``<name>`` (the repository's ``data/tuning/``, as ``bash data/tuning/run.sh`` writes it)
+STUDIES_DIR = Path(__file__).resolve().parents[1] / "data" / "tuning"
+#: a study's log and its summary, as :mod:`evaluation.tune` writes them into the study's folder
+STUDY_FILE = "study.jsonl"
+BEST_FILE = "best.json"
+#: the ``kind`` of a study log's header line
+STUDY_KIND = "koopnav-study"
+
+
+def _study_lines(preset: str, log: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The header and the trial lines of a study log, refused when missing or torn."""
+    if not log.is_file():
+        raise ValueError(
+            f"{preset}: its study {log} is missing; a tuned preset ships with the study that chose it "
+            f"({STUDY_FILE} and {BEST_FILE} in {log.parent})"
+        )
+    text = read_text(log, MAX_LOG_BYTES, what="study log", expected="JSON lines")
+    if not text.endswith("\n"):
+        # a kill mid-write leaves the last line without its newline: the study did not finish
+        raise ValueError(
+            f"{preset}: its study {log} is torn (the last line has no newline); finish it with "
+            "`python -m evaluation.tune ... --resume` before shipping its preset"
+        )
+    lines = [parse_json(line, f"{log} line {i}") for i, line in enumerate(text.splitlines(), 1)]
+    header, trials = lines[0], lines[1:]
+    if not isinstance(header, dict) or header.get("kind") != STUDY_KIND:
+        raise ValueError(f"{preset}: {log} is not a study log (line 1 is not a {STUDY_KIND!r} header)")
+    for i, trial in enumerate(trials):
+        if (
+            not isinstance(trial, dict)
+            or trial.get("trial") != i
+            or not isinstance(trial.get("score"), (float, int))
+        ):
+            raise ValueError(f"{preset}: {log} line {i + 2} is not trial {i} with a score")
+    return header, trials
+
+
+#: the adoption rule (issue 60), declared before any study's preset is adopted: :func:`adoption`
+ADOPTION_RULE = (
+    "a study's best configuration becomes the shipped default only if it has strictly more "
+    "validation successes than the defaults (its trial 0) had in the same study, on the same "
+    "layouts, seeds and budget; a tie or a loss keeps the defaults"
+)
+
+
+@dataclass(frozen=True)
+class Adoption:
+    """The adoption rule's decision on one finished study (:func:`adoption`).
+
+    Attributes
+    ----------
+    controller : str
+        The controller or preset the study tuned.
+    adopted : bool
+        Whether its best configuration becomes the shipped default.
+    best_trial : int
+        The study's best trial (the highest score, the earliest among equals).
+    best_successes, defaults_successes : int
+        The validation successes of the best trial and of trial 0 (the defaults).
+    episodes : int
+        The validation episodes of each of them.
+    """
+
+    controller: str
+    adopted: bool
+    best_trial: int
+    best_successes: int
+    defaults_successes: int
+    episodes: int
+
+    @property
+    def verdict(self) -> str:
+        """``adopted``, or why the defaults are kept (``a tie`` or ``a loss``)."""
+        if self.adopted:
+            return "adopted"
+        return (
+            "defaults kept ("
+            + ("a tie" if self.best_successes == self.defaults_successes else "a loss")
+            + ")"
+        )
+
+    def __str__(self) -> str:
+        return (
+            f"{self.controller}: {self.verdict}: trial {self.best_trial} {self.best_successes}/{self.episodes} "
+            f"validation successes against the defaults' {self.defaults_successes}/{self.episodes}"
+        )
+
+
+def trial_rank(trial: Mapping[str, Any]) -> tuple[float, int]:
+    """The order of a study's trial records: the highest score first, the earliest among equals
+    (so trial 0, the defaults, wins a tie)."""
+    return trial["score"], -trial["trial"]
+
+
+def adoption(controller: str, trials: Sequence[Mapping[str, Any]]) -> Adoption:
+    """Decide by :data:`ADOPTION_RULE` whether a study's best configuration is adopted.
+
+    Parameters
+    ----------
+    controller : str
+        The controller or preset the study tuned (named in the decision and the errors).
+    trials : sequence of dict
+        The study log's trial records in order (``trial``, ``score``, ``successes``,
+        ``episodes``, ``layouts``, ``seeds``), trial 0 the defaults.
+
+    Returns
+    -------
+    Adoption
+        Adopted when the best trial has strictly more successes than trial 0.
+
+    Raises
+    ------
+    ValueError
+        No trial, a trial without integer successes and episodes, or a best trial that did not
+        run trial 0's layouts, seeds and number of episodes (then the two are not comparable).
+    """
+    if not trials:
+        raise ValueError(f"{controller}: a study without trials adopts nothing")
+    for trial in trials:
+        if not all(type(trial.get(k)) is int for k in ("successes", "episodes")):
+            raise ValueError(
+                f"{controller}: trial {trial.get('trial')!r} has no integer successes and episodes"
+            )
+    defaults, best = trials[0], max(trials, key=trial_rank)
+    for key in ("episodes", "layouts", "seeds"):
+        if best.get(key) != defaults.get(key):
+            raise ValueError(
+                f"{controller}: trial {best['trial']} ran {key}={best.get(key)!r}, the defaults' trial 0 "
+                f"{defaults.get(key)!r}; the adoption rule compares the two on the same episodes"
+            )
+    return Adoption(
+        controller,
+        best["successes"] > defaults["successes"],
+        best["trial"],
+        best["successes"],
+        defaults["successes"],
+        defaults["episodes"],
+    )
+
+
+def finished_study(name: str, studies: str | os.PathLike[str]) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The header and trials of ``studies/<name>/``'s log, refused unless it is a finished
+    ``task=both`` study of ``name`` on a split tuning may use
+    (:func:`controllers.presets.check_study` says how)."""
+    log = Path(studies) / name / STUDY_FILE
+    header, trials = _study_lines(name, log)
+    if header.get("controller") != name:
+        raise ValueError(
+            f"{name}: its study {log} is of another controller: controller={header.get('controller')!r}"
+        )
+    if header.get("task") != SHIPPED_TASK:
+        raise ValueError(f"{name}: its study {log} has task={header.get('task')!r}, not {SHIPPED_TASK!r}")
+    split = header.get("split")
+    try:
+        check_split_allowed(str(split), "tuning")
+    except ValueError as error:
+        raise ValueError(f"{name}: its study {log} was tuned on split={split!r}: {error}") from None
+    wanted = header.get("budget", {}).get("configurations")
+    if len(trials) != wanted:
+        raise ValueError(
+            f"{name}: its study {log} is unfinished: {len(trials)} of configurations={wanted!r} trials"
+        )
+    return header, trials
+
+
+def study_adoption(name: str, studies: str | os.PathLike[str] = STUDIES_DIR) -> Adoption:
+    """The :func:`adoption` decision on the finished study of ``name`` in ``studies``
+    (refused as :func:`controllers.presets.check_study` refuses a study that is missing, torn, unfinished or not
+    ``name``'s held-out ``task=both`` study)."""
+    return adoption(name, finished_study(name, studies)[1])

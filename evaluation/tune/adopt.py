@@ -1,0 +1,65 @@
+"""``python -m evaluation.tune adopt NAME``: install what the adoption rule admits of a finished study.
+
+The rule (:data:`controllers.studies.ADOPTION_RULE`, decided by :func:`controllers.studies.adoption`):
+a study's best configuration becomes ``NAME``'s shipped default only with strictly more validation
+successes than the defaults had in the same study. Adopted, the preset the study wrote
+(``data/tuning/NAME/NAME.json``) is copied unchanged to ``controllers/tuned/NAME.json``; kept, no
+preset of ``NAME`` is installed (one installed before is removed), so ``NAME`` keeps its defaults.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from controllers.presets import TUNED_DIR, check_study
+from controllers.studies import STUDIES_DIR, Adoption, study_adoption
+from koopman_envs.files import write_atomic
+
+__all__ = ["adopt"]
+
+
+def adopt(
+    name: str,
+    studies: str | os.PathLike[str] = STUDIES_DIR,
+    tuned: str | os.PathLike[str] = TUNED_DIR,
+) -> Adoption:
+    """Apply the adoption rule to the finished study of ``name`` and install what it admits.
+
+    Parameters
+    ----------
+    name : str
+        The controller or preset the study tuned: its study is ``studies/NAME/``.
+    studies : path
+        The folder of the studies (default ``data/tuning``).
+    tuned : path
+        The folder of the installed presets (default ``controllers/tuned``).
+
+    Returns
+    -------
+    Adoption
+        The rule's decision: adopted, ``tuned/NAME.json`` is the study's preset byte for byte;
+        kept, ``tuned/NAME.json`` does not exist.
+
+    Raises
+    ------
+    ValueError
+        Before anything is installed or removed: the study has no preset (``NAME.json``, written
+        when a study ends), or :func:`controllers.presets.check_study` refuses it (missing, torn,
+        unfinished, another controller's or task's, tuned on the test split, or a preset that is
+        not the study's best), each named.
+    """
+    study_adoption(name, studies)  # a missing, torn or unfinished study is refused as such first
+    written = Path(studies) / name / f"{name}.json"
+    if not written.is_file():
+        raise ValueError(
+            f"{name}: {written} is missing; a study writes its preset when it ends "
+            f"(`python -m evaluation.tune {name} --task both ... --out {written.parent}`)"
+        )
+    decision = check_study(written, studies)
+    target = Path(tuned) / written.name
+    if decision.adopted:
+        write_atomic(target, written.read_bytes())
+    else:
+        target.unlink(missing_ok=True)
+    return decision
