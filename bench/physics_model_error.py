@@ -30,7 +30,8 @@ holds the robots' last L commands (``koopman-uL``, :class:`~controllers.koopman.
 robots were given before it (none before an episode's or the circle's start: the robots stand).
 ``--velocity`` adds a model whose lift holds the robots' measured velocity, the last period's move
 in the body frame (``koopman-v``, ``velocity=True``), fitted on the same data; it predicts every
-window from the true pose a period before it (the start's own at an episode's start).
+window from the true pose a period before it (the start's own at an episode's start); with
+``--memory L`` as well, also a lift with both (``koopman-uLv``).
 
 Also printed, to say why a model does what it does (:func:`identification_figures`): each
 model's one-step RMS position error on held-out identification data (the calibration's own kind
@@ -95,6 +96,8 @@ def lifts(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {f"koopman-u{memory}": {"memory": memory} for memory in args.memory}
     if args.velocity:
         out["koopman-v"] = {"velocity": True}
+        # and each memory with the velocity beside it
+        out.update({f"koopman-u{memory}v": {"memory": memory, "velocity": True} for memory in args.memory})
     return out
 
 
