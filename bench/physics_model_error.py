@@ -5,7 +5,8 @@ Usage::
 
     python bench/physics_model_error.py [--levels high low nominal] [--budget 1000000] [--seed 0]
         [--repetitions 30] [--episodes 3] [--controller nominal-nmpc] [--horizon 20]
-        [--held-out-budget 20000] [--max-episode-steps 600] [--memory 1 2] [--json out.json]
+        [--held-out-budget 20000] [--max-episode-steps 600] [--memory 1 2] [--velocity]
+        [--json out.json]
 
 For each slip setting (on the physics plant a floor: ``nominal`` carpet, ``low`` gravel, ``high``
 ice; docs/physics.md) the Koopman-NMPC is calibrated as the evaluator calibrates it: its
@@ -27,6 +28,10 @@ open loop, held-out rollouts of the physics robots:
 holds the robots' last L commands (``koopman-uL``, :class:`~controllers.koopman.KoopmanModel`'s
 ``memory``), fitted on the same calibration data; it predicts every window from the commands the
 robots were given before it (none before an episode's or the circle's start: the robots stand).
+``--velocity`` adds a model whose lift holds the robots' measured velocity, the last period's move
+in the body frame (``koopman-v``, ``velocity=True``), fitted on the same data; it predicts every
+window from the true pose a period before it (the start's own at an episode's start); with
+``--memory L`` as well, also a lift with both (``koopman-uLv``).
 
 Also printed, to say why a model does what it does (:func:`identification_figures`): each
 model's one-step RMS position error on held-out identification data (the calibration's own kind
@@ -55,6 +60,7 @@ from controllers.calibration import (
     calibrate_controller,
     collect_data,
     data_spec_for,
+    poses_before,
     position_residual,
     previous_commands,
 )
@@ -80,17 +86,34 @@ def memory_of(model: Any) -> int:
     return int(getattr(model, "memory", 0))
 
 
+def velocity_of(model: Any) -> bool:
+    """Whether a model's lift holds the last period's move (False: the unicycle's, the paper's)."""
+    return bool(getattr(model, "velocity", False))
+
+
+def lifts(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
+    """The Koopman lifts beside the paper's pose-only one: name -> ``calibrated_model`` options."""
+    out: dict[str, dict[str, Any]] = {f"koopman-u{memory}": {"memory": memory} for memory in args.memory}
+    if args.velocity:
+        out["koopman-v"] = {"velocity": True}
+        # and each memory with the velocity beside it
+        out.update({f"koopman-u{memory}v": {"memory": memory, "velocity": True} for memory in args.memory})
+    return out
+
+
 def open_loop(
     model: Any,
     start: NDArray[np.float64],
     commands: NDArray[np.float64],
     previous: NDArray[np.float64] | None = None,
+    before: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Poses (T + 1, ..., N, 3) predicted by ``model`` from ``start`` (..., N, 3) under ``commands``
     (T, ..., N, 2), each prediction fed back (as the NMPC's horizon does); a model with memory
-    starts from ``previous`` (..., L, N, 2), the commands before the first (None: at rest)."""
-    if memory_of(model):
-        return np.asarray(model.rollout(start, commands, previous))
+    starts from ``previous`` (..., L, N, 2), the commands before the first (None: at rest), one
+    with velocity from ``before`` (..., N, 3), the poses a period before ``start`` (None: at rest)."""
+    if memory_of(model) or velocity_of(model):
+        return np.asarray(model.rollout(start, commands, previous, before))
     out = np.empty((commands.shape[0] + 1, *start.shape))
     out[0] = start
     for t, command in enumerate(commands):
@@ -182,9 +205,10 @@ def window_errors(
         truth = poses[index + 1]  # (H, W, N, 3)
         lags = max(map(memory_of, models.values()))
         # the commands before each window (none before the episode's start: the robots stand)
-        before = previous_commands(commands, lags)[:windows] if lags else None
+        previous = previous_commands(commands, lags)[:windows] if lags else None
+        before = poses_before(poses)[:windows]  # the pose before each window (the start's own first)
         for name, model in models.items():
-            predicted = open_loop(model, poses[:windows], commands[index], before)
+            predicted = open_loop(model, poses[:windows], commands[index], previous, before)
             sums[name] += float((rms_cm(truth, predicted[1:]) ** 2) * truth[..., 0].size)
         count += truth[..., 0].size
     return {name: float(np.sqrt(total / count)) if count else float("nan") for name, total in sums.items()}
@@ -205,7 +229,10 @@ def identification_figures(level: str, models: dict[str, Any], budget: int, seed
     plant = make_plant(ENV, plant="mujoco", slip=level, budget=budget, seed=seed + HELD_OUT)
     data = collect_data(plant, spec)
     one_step = {
-        name: float(100.0 * position_residual(model.step, data, memory=memory_of(model)).mean())
+        name: float(
+            100.0
+            * position_residual(model.step, data, memory=memory_of(model), velocity=velocity_of(model)).mean()
+        )
         for name, model in models.items()
     }
     move = np.diff(data.states[..., :2], axis=0)  # (T, B, N, 2)
@@ -240,12 +267,10 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
     calibration = calibrate_controller(koopman, plant, seed=args.seed) or {}
     models: dict[str, Any] = {"koopman": koopman.model}
     calibrations = {"koopman": calibration}
-    for memory in args.memory:
-        # the same calibration data (plant, budget and seed), the lift with memory
+    for name, lift in lifts(args).items():
+        # the same calibration data (plant, budget and seed), the lift with memory or velocity
         plant = make_plant(ENV, plant="mujoco", slip=level, budget=args.budget, seed=args.seed)
-        models[f"koopman-u{memory}"], calibrations[f"koopman-u{memory}"] = calibrated_model(
-            plant, args.seed, memory=memory
-        )
+        models[name], calibrations[name] = calibrated_model(plant, args.seed, **lift)
     models["unicycle"] = UnicycleModel(PARAMS.n_robots, PARAMS.dt)
     held_out = args.seed + HELD_OUT
     row: dict[str, Any] = {
@@ -269,7 +294,7 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
 
 def tables(rows: list[dict[str, Any]], args: argparse.Namespace) -> str:
     """The Markdown tables of the rows: the errors, then why (every Koopman lift side by side)."""
-    names = ["koopman", *(f"koopman-u{memory}" for memory in args.memory)]
+    names = ["koopman", *lifts(args)]
     models = " / ".join(names)
 
     def each(values: dict[str, Any], form: str) -> str:
@@ -329,6 +354,11 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         type=int,
         default=[],
         help="also fit a lift holding the robots' last L commands, for each L given (beside the pose-only lift)",
+    )
+    parser.add_argument(
+        "--velocity",
+        action="store_true",
+        help="also fit a lift holding the robots' measured velocity, the last period's move (koopman-v)",
     )
     parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)

@@ -48,6 +48,7 @@ __all__ = [
     "collect_data",
     "data_spec_for",
     "position_residual",
+    "poses_before",
     "previous_commands",
     "write_atomic",
 ]
@@ -214,8 +215,19 @@ def previous_commands(commands: NDArray, memory: int) -> NDArray[np.float64]:
     return np.stack([padded[memory - 1 - lag : memory + steps - lag] for lag in range(memory)], axis=-3)
 
 
+def poses_before(states: NDArray) -> NDArray[np.float64]:
+    """The poses one period before every period of trajectories (T + 1, ..., N, 3) that start at
+    rest: entry t is pose t - 1, and entry 0 the start itself (a standing robot has not moved)."""
+    states = np.asarray(states, dtype=np.float64)
+    return np.concatenate([states[:1], states[:-1]])
+
+
 def position_residual(
-    predict: Callable[..., NDArray], data: TrajectoryData, chunk: int = 100, memory: int = 0
+    predict: Callable[..., NDArray],
+    data: TrajectoryData,
+    chunk: int = 100,
+    memory: int = 0,
+    velocity: bool = False,
 ) -> NDArray[np.float64]:
     """RMS one-step position error of a prediction model on a data set, per robot [m].
 
@@ -223,23 +235,28 @@ def position_residual(
     ----------
     predict : callable
         ``predict(poses (..., N, 3), commands (..., N, 2)) -> poses (..., N, 3)``, with
-        ``memory`` > 0 ``predict(poses, commands, previous (..., memory, N, 2))``.
+        ``memory`` > 0 ``predict(poses, commands, previous (..., memory, N, 2))``, with
+        ``velocity`` also ``before=`` the poses one period earlier (..., N, 3).
     data : TrajectoryData
     chunk : int
         Periods evaluated at once (bounds memory).
     memory : int
         Previous commands the model takes (:func:`previous_commands`; 0: none).
+    velocity : bool
+        The model takes the poses one period before (:func:`poses_before`).
     """
     total = np.zeros(data.states.shape[2])
     steps = data.commands.shape[0]
     for t0 in range(0, steps, chunk):
         t1 = min(steps, t0 + chunk)
+        lifted: dict[str, NDArray] = {}
         if memory:
             # the commands before period t0 are those of the periods before it
             previous = previous_commands(data.commands[max(0, t0 - memory) : t1], memory)[-(t1 - t0 + 1) : -1]
-            predicted = predict(data.states[t0:t1], data.commands[t0:t1], previous)
-        else:
-            predicted = predict(data.states[t0:t1], data.commands[t0:t1])
+            lifted["previous"] = previous
+        if velocity:  # the pose before period t0 is that of period t0 - 1 (the start's own at 0)
+            lifted["before"] = poses_before(data.states[max(0, t0 - 1) : t1 + 1])[-(t1 - t0 + 1) : -1]
+        predicted = predict(data.states[t0:t1], data.commands[t0:t1], **lifted)
         err = predicted[..., :2] - data.states[t0 + 1 : t1 + 1, ..., :2]
         total += (err**2).sum(axis=-1).sum(axis=(0, 1))
     return np.sqrt(total / (steps * data.states.shape[1]))

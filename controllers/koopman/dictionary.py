@@ -7,6 +7,9 @@ sin(theta), so that the state can be read back from the lifted vector (see
 A lift with memory (:func:`lift_memory`, ``memory`` > 0) appends observables of the robots'
 previous commands to a dictionary's: the robots of the physics plant move with a lag (inertia,
 the motors' ramp), so a period's move depends on the commands before it (docs/physics.md).
+A lift with the velocity memory (:func:`lift_velocity`, ``velocity=True``) appends the robots'
+measured velocity instead (or as well): the last period's move in the body frame, which carries
+the lag without a window of commands.
 """
 
 from __future__ import annotations
@@ -24,15 +27,20 @@ __all__ = [
     "DICTIONARIES",
     "MAX_MEMORY",
     "MEMORY_TERMS",
+    "VELOCITY_TERMS",
     "Dictionary",
     "ExtendedDictionary",
     "MinimalDictionary",
     "check_memory",
+    "check_velocity",
     "get_dictionary",
     "lift_memory",
     "lift_memory_casadi",
+    "lift_velocity",
+    "lift_velocity_casadi",
     "memory_size",
     "shift_memory",
+    "velocity_size",
 ]
 
 _Symbolic = TypeVar("_Symbolic", ca.SX, ca.MX)  # lift_casadi returns the kind of expression it is given
@@ -192,3 +200,78 @@ def shift_memory(previous: NDArray, command: NDArray) -> NDArray[np.float64]:
         np.asarray(command, dtype=np.float64), previous.shape[:-3] + previous.shape[-2:]
     )
     return np.concatenate([command[..., None, :, :], previous[..., :-1, :, :]], axis=-3)
+
+
+# ----------------------------------------------------------------------------- velocity
+#: lifted terms per robot of the velocity memory: the last period's move in the body frame
+#: (forward, lateral, turn) and their products with cos theta and sin theta
+VELOCITY_TERMS = 9
+
+
+def check_velocity(velocity: object) -> bool:
+    """``velocity`` (the last period's move in the lift) as a bool, else ``ValueError`` naming it."""
+    if not isinstance(velocity, (bool, np.bool_)):
+        raise ValueError(
+            f"velocity={velocity!r} must be True or False (the last period's move in the lift; "
+            "False: without it)"
+        )
+    return bool(velocity)
+
+
+def velocity_size(n_robots: int, velocity: bool) -> int:
+    """Observables the velocity memory adds to the lift of ``n_robots`` robots."""
+    return VELOCITY_TERMS * n_robots if velocity else 0
+
+
+def _move_terms(dx, dy, c, s, c_before, s_before, atan2) -> list:
+    """The velocity observables of one robot (or arrays of them): the move (dx, dy) since the
+    pose before, turned into the body frame of the current heading (c, s), the heading's change
+    (from the two headings' cos and sin), and the three times cos and sin. One formula for numpy
+    and CasADi, so that the NMPC's lift is the fit's."""
+    forward = dx * c + dy * s
+    lateral = dy * c - dx * s
+    turn = atan2(s * c_before - c * s_before, c * c_before + s * s_before)
+    return [forward, lateral, turn, forward * c, forward * s, lateral * c, lateral * s, turn * c, turn * s]
+
+
+def lift_velocity(poses: NDArray, before: NDArray) -> NDArray[np.float64]:
+    """The velocity observables of poses (..., N, 3) and the poses one period before (..., N, 3).
+
+    The measured velocity times the period: the move since the pose before in the current body
+    frame (forward, lateral) and the heading's change (wrapped to (-pi, pi]), then their products
+    with cos theta and sin theta, robot by robot. A robot with inertia or motor lag keeps part
+    of its last move, so its next move is linear in these (a world-frame move is forward cos -
+    lateral sin) plus the command's push (bilinear: the model's N (u kron z) holds the commands'
+    products with every observable).
+
+    Returns
+    -------
+    ndarray, shape (..., VELOCITY_TERMS * N)
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    before = np.asarray(before, dtype=np.float64)
+    if before.shape[-2:] != poses.shape[-2:]:
+        raise ValueError(
+            f"poses before of shape {before.shape} do not fit poses {poses.shape}: need (..., N, 3)"
+        )
+    before = np.broadcast_to(before, poses.shape)
+    th, th_before = poses[..., 2], before[..., 2]
+    terms = _move_terms(
+        poses[..., 0] - before[..., 0],
+        poses[..., 1] - before[..., 1],
+        np.cos(th),
+        np.sin(th),
+        np.cos(th_before),
+        np.sin(th_before),
+        np.arctan2,
+    )
+    return np.stack(terms, axis=-1).reshape(poses.shape[:-2] + (-1,))
+
+
+def lift_velocity_casadi(now: list, before: list) -> list:
+    """:func:`lift_velocity` in CasADi: ``now`` and ``before`` [(x, y, cos, sin)] per robot (the
+    cos and sin normalized), as a list of scalars in the same order."""
+    terms: list = []
+    for (x, y, c, s), (xb, yb, cb, sb) in zip(now, before):
+        terms += _move_terms(x - xb, y - yb, c, s, cb, sb, ca.atan2)
+    return terms

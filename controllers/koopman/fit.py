@@ -18,8 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.calibration import previous_commands
-from controllers.koopman.dictionary import Dictionary, check_memory, lift_memory, memory_size
+from controllers.calibration import poses_before, previous_commands
+from controllers.koopman.dictionary import (
+    Dictionary,
+    check_memory,
+    check_velocity,
+    lift_memory,
+    lift_velocity,
+    memory_size,
+    velocity_size,
+)
 
 __all__ = ["STRUCTURES", "BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted", "fit_per_robot"]
 
@@ -193,6 +201,7 @@ def fit_bilinear(
     rcond: float = 1e-12,
     chunk: int = 32_768,
     memory: int = 0,
+    velocity: bool = False,
 ) -> BilinearFit:
     """Fit [A, N, B] = Z' [Z; U kron Z; U]^+ and C = X Z^+ (SPEC eq. 9).
 
@@ -214,6 +223,10 @@ def fit_bilinear(
         Previous commands in the lift (:func:`~controllers.koopman.dictionary.lift_memory`;
         0: the paper's pose-only lift). Every trajectory is taken to start at rest, as the
         calibration plant's teams do: the commands before its first period count as zero.
+    velocity : bool
+        Also the last period's move in the lift
+        (:func:`~controllers.koopman.dictionary.lift_velocity`); at a trajectory's start the
+        robots stand (no move before it).
 
     Returns
     -------
@@ -222,8 +235,8 @@ def fit_bilinear(
     steps, batch, n = commands.shape[:3]
     if states.shape[:3] != (steps + 1, batch, n):
         raise ValueError(f"states {states.shape} and commands {commands.shape} do not match")
-    memory = check_memory(memory)
-    d = dictionary.size(n) + memory_size(n, memory)
+    memory, velocity = check_memory(memory), check_velocity(velocity)
+    d = dictionary.size(n) + memory_size(n, memory) + velocity_size(n, velocity)
     m = 2 * n
     acc = MomentAccumulator(d, m)
     flat_u = commands.reshape(steps * batch, m)
@@ -236,6 +249,10 @@ def fit_bilinear(
         if previous is not None:
             memory_terms = lift_memory(states[t0 : t1 + 1], previous[t0 : t1 + 1], memory)
             z_all = np.concatenate([z_all, memory_terms], axis=-1)
+        if velocity:
+            # the pose before period t0 is the last of the previous chunk (the start's own at t0 = 0)
+            before = poses_before(states[max(0, t0 - 1) : t1 + 1])[-(t1 - t0 + 1) :]
+            z_all = np.concatenate([z_all, lift_velocity(states[t0 : t1 + 1], before)], axis=-1)
         acc.add(z_all[:-1].reshape(-1, d), flat_u[t0 * batch : t1 * batch], z_all[1:].reshape(-1, d))
     return BilinearFit(*acc.solve(dictionary.state_rows(n).reshape(-1), ridge, rcond))
 

@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import hashlib
-import io
-import json
 import os
-import zipfile
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -14,21 +11,27 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.calibration import check_position_residual
 from controllers.koopman.dictionary import (
     Dictionary,
     check_memory,
-    get_dictionary,
+    check_velocity,
     lift_memory,
     lift_memory_casadi,
+    lift_velocity,
+    lift_velocity_casadi,
     memory_size,
     shift_memory,
+    velocity_size,
 )
-from koopman_envs.files import MAX_LOG_BYTES, FileRefused, read_bounded
+from controllers.koopman.model_file import (
+    FORMAT_VERSION,
+    ModelFileError,
+    model_file_hint,
+    read_model_file,
+    write_model_file,
+)
 
 __all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
-
-FORMAT_VERSION = 1
 
 
 def _sparse_dm(matrix: NDArray) -> ca.DM:
@@ -42,8 +45,12 @@ def _sparse_dm(matrix: NDArray) -> ca.DM:
     return ca.sparsify(ca.DM(np.where(np.abs(matrix) > 1e-13 * scale, matrix, 0.0)))
 
 
-class ModelFileError(ValueError):
-    """A model file is missing, corrupt, truncated or does not match what was asked for."""
+def _normalized(block) -> tuple:
+    """(x, y, cos, sin) of a CasADi (x, y, cos, sin) block with (cos, sin) scaled to unit length:
+    the NLP's predicted heading vector drifts off the circle, the data's never does."""
+    c, s = block[2], block[3]
+    norm = ca.sqrt(c * c + s * s)
+    return block[0], block[1], c / norm, s / norm
 
 
 @dataclass(eq=False)
@@ -58,6 +65,11 @@ class KoopmanModel:
     commands (:func:`~controllers.koopman.dictionary.lift_memory`), so that the model can carry
     the robots' lag; a prediction then needs the commands applied before its first period
     (``previous``), and every later step re-lifts with the commands it was given.
+
+    With ``velocity`` the lift also holds the robots' measured velocity: the last period's move
+    in the body frame (:func:`~controllers.koopman.dictionary.lift_velocity`); a prediction
+    needs the poses one period before its first (``before``; None: the robots stand), and every
+    later step takes the pose it predicted before.
 
     Attributes
     ----------
@@ -74,6 +86,8 @@ class KoopmanModel:
     memory : int
         Previous commands in the lift (0: the paper's pose-only lift, at most
         :data:`~controllers.koopman.dictionary.MAX_MEMORY`).
+    velocity : bool
+        The last period's move in the lift (False: without it).
     """
 
     A: NDArray[np.float64]
@@ -85,9 +99,11 @@ class KoopmanModel:
     dt: float
     metadata: dict[str, Any] = field(default_factory=dict)
     memory: int = 0
+    velocity: bool = False
 
     def __post_init__(self) -> None:
         self.memory = check_memory(self.memory)
+        self.velocity = check_velocity(self.velocity)
         d = self.size
         m = 2 * self.n_robots
         expected = {"A": (d, d), "N": (d, m * d), "B": (d, m), "C": (4 * self.n_robots, d)}
@@ -107,8 +123,10 @@ class KoopmanModel:
 
     @property
     def size(self) -> int:
-        """Dimension D of the lifted state (the dictionary's observables, then the memory's)."""
-        return self.dictionary.size(self.n_robots) + memory_size(self.n_robots, self.memory)
+        """Dimension D of the lifted state (the dictionary's observables, the memory's, then the
+        velocity's)."""
+        n = self.n_robots
+        return self.dictionary.size(n) + memory_size(n, self.memory) + velocity_size(n, self.velocity)
 
     def no_memory(self) -> NDArray[np.float64]:
         """Previous commands of a team at rest, shape (memory, N, 2): what a prediction from a
@@ -127,8 +145,11 @@ class KoopmanModel:
             ``robot`` outside 0..N-1, or the team model couples robots (a stacked fit).
         """
         n, p = self.n_robots, self.dictionary.per_robot
-        if self.memory:
-            raise ValueError(f"robot_block needs a model without memory (this one has memory={self.memory})")
+        if self.memory or self.velocity:
+            raise ValueError(
+                "robot_block needs a model without memory or velocity (this one has "
+                f"memory={self.memory}, velocity={self.velocity})"
+            )
         if not 0 <= robot < n:
             raise ValueError(f"robot={robot!r} must be an integer in [0, {n - 1}]")
         d = self.dictionary.size(n)
@@ -159,17 +180,25 @@ class KoopmanModel:
             metadata={**self.metadata, "robot": robot},
         )
 
-    def lift(self, poses: NDArray, previous: NDArray | None = None) -> NDArray[np.float64]:
+    def lift(
+        self, poses: NDArray, previous: NDArray | None = None, before: NDArray | None = None
+    ) -> NDArray[np.float64]:
         """phi(x) for poses (..., N, 3) -> (..., D).
 
         ``previous`` (..., L, N, 2): the commands of the last L >= ``memory`` periods, the most
-        recent first (None: a team at rest); unused without memory.
+        recent first (None: a team at rest); unused without memory. ``before`` (..., N, 3): the
+        poses one period earlier (None: the robots stand); unused without velocity.
         """
         z = self.dictionary.lift(poses)
-        if not self.memory:
+        if not (self.memory or self.velocity):
             return z
-        previous = self.no_memory() if previous is None else previous
-        return np.concatenate([z, lift_memory(poses, previous, self.memory)], axis=-1)
+        parts = [z]
+        if self.memory:
+            previous = self.no_memory() if previous is None else previous
+            parts.append(lift_memory(poses, previous, self.memory))
+        if self.velocity:
+            parts.append(lift_velocity(poses, poses if before is None else before))
+        return np.concatenate(parts, axis=-1)
 
     def advance(self, z: NDArray, commands: NDArray) -> NDArray[np.float64]:
         """One step in the lifted space: (..., D) and commands (..., N, 2) -> (..., D)."""
@@ -183,7 +212,13 @@ class KoopmanModel:
         theta = np.arctan2(xycs[..., 3], xycs[..., 2])
         return np.concatenate([xycs[..., :2], theta[..., None]], axis=-1)
 
-    def step(self, poses: NDArray, commands: NDArray, previous: NDArray | None = None) -> NDArray[np.float64]:
+    def step(
+        self,
+        poses: NDArray,
+        commands: NDArray,
+        previous: NDArray | None = None,
+        before: NDArray | None = None,
+    ) -> NDArray[np.float64]:
         """f_b(x, u): predicted poses one period later, batched over leading axes.
 
         Parameters
@@ -193,15 +228,21 @@ class KoopmanModel:
         previous : ndarray, shape (..., L, N, 2), optional
             With memory: the commands applied before ``commands``, the most recent first
             (None: a team at rest). Unused without memory.
+        before : ndarray, shape (..., N, 3), optional
+            With velocity: the poses one period before ``poses`` (None: the robots stand).
 
         Returns
         -------
         ndarray, shape (..., N, 3)
         """
-        return self.project(self.advance(self.lift(poses, previous), commands))
+        return self.project(self.advance(self.lift(poses, previous, before), commands))
 
     def rollout(
-        self, start: NDArray, commands: NDArray, previous: NDArray | None = None
+        self,
+        start: NDArray,
+        commands: NDArray,
+        previous: NDArray | None = None,
+        before: NDArray | None = None,
     ) -> NDArray[np.float64]:
         """Open-loop prediction with re-lifting every step.
 
@@ -214,6 +255,9 @@ class KoopmanModel:
         previous : ndarray, shape (..., L, N, 2), optional
             With memory: the commands applied before the first one, the most recent first
             (None: a team at rest); later steps remember the sequence's own commands.
+        before : ndarray, shape (..., N, 3), optional
+            With velocity: the poses one period before ``start`` (None: the robots stand); later
+            steps take the poses predicted before.
 
         Returns
         -------
@@ -228,7 +272,7 @@ class KoopmanModel:
             np.zeros(np.shape(start)[:-2] + (self.memory, self.n_robots, 2)) if previous is None else previous
         )
         for t in range(commands.shape[0]):
-            out[t + 1] = self.step(out[t], commands[t], sent)
+            out[t + 1] = self.step(out[t], commands[t], sent, before if t == 0 else out[t - 1])
             if self.memory:
                 sent = shift_memory(sent, commands[t])
         return out
@@ -236,8 +280,14 @@ class KoopmanModel:
     @property
     def coding(self) -> str:
         """The NMPC state of this model: (x, y, cos theta, sin theta) per robot (``"cs"``), with
-        memory followed by the robot's last ``memory`` commands, most recent first (``"cs+uL"``)."""
-        return "cs" if not self.memory else f"cs+u{self.memory}"
+        memory followed by the robot's last ``memory`` commands, most recent first (``"cs+uL"``),
+        with velocity then by its (x, y, cos theta, sin theta) one period before (``"+v"``)."""
+        return "cs" + (f"+u{self.memory}" if self.memory else "") + ("+v" if self.velocity else "")
+
+    @property
+    def _nlp_size(self) -> int:
+        """NLP state entries per robot (:attr:`coding`)."""
+        return 4 + 2 * self.memory + (4 if self.velocity else 0)
 
     def casadi_nlp_step(self, name: str = "koopman_cs_step") -> ca.Function:
         """f_b on the (x, y, cos theta, sin theta) coding used inside the NMPC.
@@ -252,7 +302,8 @@ class KoopmanModel:
         With memory the state per robot also holds its last ``memory`` commands (:attr:`coding`):
         the next state's are ``u`` and the older ones shifted, so the first step of a horizon
         remembers the commands applied before it (in the measured state) and later steps the
-        horizon's own.
+        horizon's own. With velocity it holds the robot's (x, y, cos, sin) one period before: the
+        next state's is this state's.
         """
         state, u, z = self._nlp_lift()
         matrices = self._constant_matrices()
@@ -262,14 +313,18 @@ class KoopmanModel:
 
     def _nlp_next(self, state, u, xycs):
         """The next NLP state from the projected (x, y, cos, sin) of every robot (4N): with
-        memory, each robot's block followed by its command and its older remembered ones."""
-        if not self.memory:
+        memory, each robot's block followed by its command and its older remembered ones; with
+        velocity, then by its (x, y, cos, sin) in ``state`` (the pose one period before)."""
+        if not (self.memory or self.velocity):
             return xycs
-        n, size, lags = self.n_robots, 4 + 2 * self.memory, self.memory
+        n, size, lags = self.n_robots, self._nlp_size, self.memory
         parts = []
         for i in range(n):
-            parts += [xycs[4 * i : 4 * i + 4], u[2 * i : 2 * i + 2]]
-            parts += [state[size * i + 4 : size * i + 4 + 2 * (lags - 1)]]
+            parts.append(xycs[4 * i : 4 * i + 4])
+            if lags:
+                parts += [u[2 * i : 2 * i + 2], state[size * i + 4 : size * i + 4 + 2 * (lags - 1)]]
+            if self.velocity:
+                parts.append(state[size * i : size * i + 4])
         return ca.vertcat(*parts)
 
     def _casadi_advance(self, z, u, matrices=None):
@@ -292,7 +347,7 @@ class KoopmanModel:
         costlier). Without memory the paper's form, as it always was."""
         d = self.size
         blocks = [N[:, i * d : (i + 1) * d] for i in range(2 * self.n_robots)]
-        if not self.memory:
+        if not (self.memory or self.velocity):
             return A, B, blocks, self.C
         c = self.C
         return c @ A, c @ B, [c @ block for block in blocks], np.eye(c.shape[0])
@@ -307,9 +362,10 @@ class KoopmanModel:
         for dm in self._flat_constants():
             patterns.update(np.asarray(dm.sparsity().get_triplet(), dtype=np.int64).tobytes())
             patterns.update(np.asarray(dm.shape, dtype=np.int64).tobytes())
-        key = ("koopman", self.dictionary.name, self.n_robots, patterns.hexdigest())
+        key: tuple = ("koopman", self.dictionary.name, self.n_robots, patterns.hexdigest())
         # the memory-free key is the one it had before memory existed (compiled solvers on disk)
-        return key if not self.memory else (*key, "memory", self.memory)
+        key = key if not self.memory else (*key, "memory", self.memory)
+        return key if not self.velocity else (*key, "velocity")
 
     def _flat_constants(self) -> list:
         A, B, blocks, C = self._constant_matrices()
@@ -351,21 +407,23 @@ class KoopmanModel:
 
     def _nlp_lift(self) -> tuple:
         """Symbols (s, u) of the NLP coding and the lifted z of s with normalized (cos, sin)."""
-        n, size = self.n_robots, 4 + 2 * self.memory
+        n, size = self.n_robots, self._nlp_size
         state = ca.SX.sym("s", size * n)
         u = ca.SX.sym("u", 2 * n)
         terms: list = [1]
-        cos_sin = []
+        now, before = [], []
         for i in range(n):
-            c, s = state[size * i + 2], state[size * i + 3]
-            norm = ca.sqrt(c * c + s * s)
-            cos_sin.append((c / norm, s / norm))
-            terms += self.dictionary._robot_terms_casadi(state[size * i], state[size * i + 1], *cos_sin[-1])
+            now.append(_normalized(state[size * i : size * i + 4]))
+            terms += self.dictionary._robot_terms_casadi(*now[-1])
+            if self.velocity:  # the pose one period before, last in the robot's block
+                before.append(_normalized(state[size * (i + 1) - 4 : size * (i + 1)]))
         previous = [
             [(state[size * i + 4 + 2 * lag], state[size * i + 5 + 2 * lag]) for i in range(n)]
             for lag in range(self.memory)
         ]
-        terms += lift_memory_casadi(cos_sin, previous)
+        terms += lift_memory_casadi([(c, s) for _, _, c, s in now], previous)
+        if self.velocity:
+            terms += lift_velocity_casadi(now, before)
         return state, u, ca.vertcat(*terms)
 
     def casadi_step(self, name: str = "koopman_step") -> ca.Function:
@@ -374,9 +432,10 @@ class KoopmanModel:
         Inputs ``x`` (3N: x_1, y_1, theta_1, x_2, ...) and ``u`` (2N: v_1, omega_1, ...),
         output ``x_next`` (3N). Without memory only (a model with memory: :meth:`casadi_nlp_step`).
         """
-        if self.memory:
+        if self.memory or self.velocity:
             raise ValueError(
-                f"casadi_step is the pose-only map; this model has memory={self.memory}: use casadi_nlp_step"
+                f"casadi_step is the pose-only map; this model has memory={self.memory}, "
+                f"velocity={self.velocity}: use casadi_nlp_step"
             )
         n = self.n_robots
         x = ca.SX.sym("x", 3 * n)
@@ -391,30 +450,15 @@ class KoopmanModel:
     # ----------------------------------------------------------------- files
     def save(self, path: str | os.PathLike) -> None:
         """Write the model to a small ``.npz`` (matrices plus JSON metadata)."""
-        meta = {
-            "format_version": FORMAT_VERSION,
+        own = {
             "dictionary": self.dictionary.name,
             "n_robots": self.n_robots,
             "dt": self.dt,
-            **self.metadata,
-            # only with memory: a model without it writes the file it wrote before memory existed
-            **({"memory": self.memory} if self.memory else {}),
+            "memory": self.memory,
+            "velocity": self.velocity,
         }
-        arrays = {
-            "A": self.A,
-            "N": self.N,
-            "B": self.B,
-            "C": self.C,
-            "metadata": np.array(json.dumps(meta, sort_keys=True)),
-        }
-        # np.savez stamps the current time into the archive; fixed timestamps make the file a
-        # pure function of its content, so a refit can be compared byte for byte
-        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-            for key, value in arrays.items():
-                info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-                info.compress_type = zipfile.ZIP_DEFLATED
-                with archive.open(info, "w") as fh:
-                    np.lib.format.write_array(fh, np.asarray(value), allow_pickle=False)
+        arrays = {"A": self.A, "N": self.N, "B": self.B, "C": self.C}
+        write_model_file(path, arrays, own, self.metadata)
 
     @classmethod
     def load(
@@ -438,61 +482,10 @@ class KoopmanModel:
             Missing, truncated or corrupt file, unknown format, or a mismatch with ``n_robots``
             or ``dt``. The message says how to regenerate the file.
         """
-        path = os.fspath(path)
-        hint = "regenerate it with `python -m controllers.koopman fit --slip SETTING --out PATH`"
-        if not os.path.lexists(path):
-            raise ModelFileError(f"Koopman model file {path!r} does not exist; {hint}")
+        fields = read_model_file(path, n_robots, dt)
         try:
-            # a regular file within the cap, read once (a FIFO in the cache would block an open)
-            blob = io.BytesIO(read_bounded(path, MAX_LOG_BYTES, what="Koopman model file"))
-            with np.load(blob, allow_pickle=False) as data:
-                arrays = {key: data[key] for key in ("A", "N", "B", "C")}
-                meta = json.loads(str(data["metadata"]))
-        except FileRefused as exc:  # not a regular file, or over the cap: named by the reader
-            raise ModelFileError(f"{exc}; {hint}") from None
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
-            raise ModelFileError(
-                f"Koopman model file {path!r} is corrupt or truncated ({type(exc).__name__}: {exc}); {hint}"
-            ) from exc
-        if meta.get("format_version") != FORMAT_VERSION:
-            raise ModelFileError(
-                f"Koopman model file {path!r} has format_version={meta.get('format_version')!r}; "
-                f"this package reads {FORMAT_VERSION}; {hint}"
-            )
-        try:
-            dictionary = get_dictionary(meta["dictionary"])
-            model_robots = int(meta["n_robots"])
-            model_dt = float(meta["dt"])
-            memory = check_memory(meta.get("memory", 0))
-        except (KeyError, ValueError) as exc:
-            raise ModelFileError(f"Koopman model file {path!r} has bad metadata ({exc}); {hint}") from exc
-        if n_robots is not None and model_robots != n_robots:
-            raise ModelFileError(
-                f"Koopman model file {path!r} models {model_robots} robots, but {n_robots} were "
-                f"asked for; fit a model for this team size ({hint})"
-            )
-        if dt is not None and not np.isclose(model_dt, dt):
-            raise ModelFileError(f"Koopman model file {path!r} was fitted at dt={model_dt}, not dt={dt}")
-        bad = [key for key, value in arrays.items() if not np.all(np.isfinite(value))]
-        if bad:
-            raise ModelFileError(f"Koopman model file {path!r} has non-finite entries in {bad}; {hint}")
-        if "position_residual" in meta:
-            try:
-                check_position_residual(
-                    meta["position_residual"], model_robots, f"Koopman model file {path!r}"
-                )
-            except ValueError as exc:
-                raise ModelFileError(f"{exc}; {hint}") from None
-        own = ("format_version", "dictionary", "n_robots", "dt", "memory")
-        extra = {k: v for k, v in meta.items() if k not in own}
-        try:
-            return cls(
-                dictionary=dictionary,
-                n_robots=model_robots,
-                dt=model_dt,
-                metadata=extra,
-                memory=memory,
-                **arrays,
-            )
+            return cls(**fields)
         except ValueError as exc:  # shapes that do not fit the dictionary and team size
-            raise ModelFileError(f"Koopman model file {path!r}: {exc}; {hint}") from None
+            raise ModelFileError(
+                f"Koopman model file {os.fspath(path)!r}: {exc}; {model_file_hint()}"
+            ) from None

@@ -35,7 +35,7 @@ from controllers.calibration import (
     write_atomic,
 )
 from controllers.disk_cache import entry_exists
-from controllers.koopman.dictionary import check_memory, get_dictionary
+from controllers.koopman.dictionary import check_memory, check_velocity, get_dictionary
 from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
 from koopman_envs import CalibrationPlant, make_plant
@@ -68,19 +68,21 @@ def fit_on_plant(
     ridge: float = 0.0,
     structure: str = "stacked",
     memory: int = 0,
+    velocity: bool = False,
 ) -> KoopmanModel:
     """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance.
 
     ``structure``: ``"stacked"`` (the paper's) or ``"per-robot"``
     (:func:`controllers.koopman.fit.fit_per_robot`). ``memory``: previous commands in the lift
-    (0: the paper's pose-only lift; stacked models only).
+    (0: the paper's pose-only lift; stacked models only); ``velocity``: the last period's move
+    in the lift (stacked models only).
     """
     dic = get_dictionary(dictionary)
     check_structure(structure)
-    memory = check_memory_structure(memory, structure)
+    memory, velocity = check_lift(memory, velocity, structure)
     data = collect_data(plant, spec)
     if structure == "stacked":
-        fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge, memory=memory)
+        fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge, memory=memory, velocity=velocity)
     else:
         fit = fit_per_robot(data.states, data.commands, dic, ridge=ridge)
     rows = dic.state_rows(plant.n_robots)  # (N, 4): x, y, cos, sin
@@ -96,22 +98,28 @@ def fit_on_plant(
         "position_residual": [float(v) for v in position_residual],
         "rank": fit.rank,
         "transitions": spec.transitions,
-        "cache_key": _model_key(plant, spec, dictionary, ridge, structure, memory),
+        "cache_key": _model_key(plant, spec, dictionary, ridge, structure, memory, velocity),
         # only beyond the paper's stacked fit, as in the cache key: the documented command then
         # regenerates the shipped files bit for bit (tests/test_koopman.py)
         **({} if structure == "stacked" else {"structure": structure}),
         "package_version": envs_version,
     }
-    return KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta, memory=memory)
+    return KoopmanModel(
+        fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta, memory=memory, velocity=velocity
+    )
 
 
-def check_memory_structure(memory: object, structure: str) -> int:
-    """``memory`` checked (:func:`~controllers.koopman.dictionary.check_memory`), and refused
-    with a ``ValueError`` beside the per-robot structure, whose blocks hold poses only."""
-    memory = check_memory(memory)
-    if memory and structure == "per-robot":
-        raise ValueError(f"memory={memory} needs structure='stacked'; the per-robot fit lifts the poses only")
-    return memory
+def check_lift(memory: object, velocity: object, structure: str) -> tuple[int, bool]:
+    """``memory`` and ``velocity`` checked (:func:`~controllers.koopman.dictionary.check_memory`,
+    :func:`~controllers.koopman.dictionary.check_velocity`), and refused with a ``ValueError``
+    beside the per-robot structure, whose blocks hold poses only."""
+    memory, velocity = check_memory(memory), check_velocity(velocity)
+    for name, value in (("memory", memory), ("velocity", velocity)):
+        if value and structure == "per-robot":
+            raise ValueError(
+                f"{name}={value} needs structure='stacked'; the per-robot fit lifts the poses only"
+            )
+    return memory, velocity
 
 
 def _model_key(
@@ -121,12 +129,15 @@ def _model_key(
     ridge: float,
     structure: str = "stacked",
     memory: int = 0,
+    velocity: bool = False,
 ) -> str:
-    # the stacked structure and the pose-only lift keep the key they had before structures and
-    # memory existed (shipped files, caches)
+    # the stacked structure and the pose-only lift keep the key they had before structures,
+    # memory and velocity existed (shipped files, caches)
     extra: dict[str, Any] = {} if structure == "stacked" else {"structure": structure}
     if memory:
         extra["memory"] = memory
+    if velocity:
+        extra["velocity"] = True
     return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge, **extra)
 
 
@@ -153,6 +164,7 @@ def calibrated_model(
     spec: DataSpec | None = None,
     structure: str = "stacked",
     memory: int = 0,
+    velocity: bool = False,
 ) -> tuple[KoopmanModel, dict[str, Any]]:
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached if the cache can be
     written: a failed write warns once and the fitted model is returned all the same).
@@ -171,6 +183,8 @@ def calibrated_model(
         ``"stacked"`` (the paper's team regression) or ``"per-robot"``.
     memory : int
         Previous commands in the lift (0: the paper's pose-only lift; stacked only).
+    velocity : bool
+        The last period's move in the lift (stacked only).
 
     Returns
     -------
@@ -181,8 +195,8 @@ def calibrated_model(
     """
     start = time.perf_counter()
     spec = data_spec_for(plant.budget, seed) if spec is None else spec
-    memory = check_memory_structure(memory, check_structure(structure))
-    key = _model_key(plant, spec, dictionary, 0.0, structure, memory)
+    memory, velocity = check_lift(memory, velocity, check_structure(structure))
+    key = _model_key(plant, spec, dictionary, 0.0, structure, memory, velocity)
     summary = {"transitions": spec.transitions, "key": key}
     shipped = _shipped_for(key)
     path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
@@ -200,7 +214,7 @@ def calibrated_model(
                 raise
             warnings.warn(f"{exc}; fitting it again", CacheWarning, stacklevel=2)
         # a corrupt or stale cache entry is refitted and replaced, never used
-    model = fit_on_plant(plant, spec, dictionary, structure=structure, memory=memory)
+    model = fit_on_plant(plant, spec, dictionary, structure=structure, memory=memory, velocity=velocity)
     if shipped is None:
         # best effort: a cache that cannot be written warns once and the fitted model is used
         write_atomic(path, model.save, ".npz")
@@ -214,6 +228,7 @@ def fit_for_env(
     seed: int = 0,
     dictionary: str = "minimal",
     memory: int = 0,
+    velocity: bool = False,
     **env_kwargs: Any,
 ) -> KoopmanModel:
     """Fit (or load from the cache) the Koopman model of an environment's robots.
@@ -231,6 +246,8 @@ def fit_for_env(
         ``"minimal"`` (the paper's) or ``"extended"``.
     memory : int
         Previous commands in the lift (0: the paper's pose-only lift).
+    velocity : bool
+        The last period's move in the lift.
     """
     plant = make_plant(env, budget=budget, seed=seed, **env_kwargs)
-    return calibrated_model(plant, seed, dictionary, memory=memory)[0]
+    return calibrated_model(plant, seed, dictionary, memory=memory, velocity=velocity)[0]

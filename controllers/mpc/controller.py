@@ -29,7 +29,14 @@ from controllers.mpc.config import NMPC_TUNABLE, PARKED, PERCEIVED_OBSTACLE_SLOT
 from controllers.mpc.detour import RESTART_ITERATIONS, DeadlockResolver, pursuit_rollout
 from controllers.mpc.hooks import ParameterHooks
 from controllers.mpc.margins import chance_tightening, margin_spread, offset_margins
-from controllers.mpc.models import PredictionModel, coding_memory, decode_state, encode_state, model_step
+from controllers.mpc.models import (
+    PredictionModel,
+    coding_memory,
+    coding_velocity,
+    decode_state,
+    encode_state,
+    model_step,
+)
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, closing_distance, mover_slots, nearest_obstacle_slots
 from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
@@ -176,6 +183,8 @@ class NMPCController(ParameterHooks, BaseController):
         self._settled = np.zeros(scenario.n_robots, dtype=bool)
         # a model with memory predicts from the commands the robots were sent: none yet (at rest)
         self._sent = np.zeros((coding_memory(self._problem.coding), scenario.n_robots, 2))
+        # a model with velocity predicts from the poses measured a period before: none yet (standing)
+        self._before: NDArray | None = None
         self._pursue: NDArray | None = None
         margin = max(self.config.obstacle_offset, self.config.robot_offset)
         unstall = self.config.unstall and self.resolves_stalls
@@ -310,15 +319,19 @@ class NMPCController(ParameterHooks, BaseController):
         w = np.zeros(prob.n_vars)
         w[: prob.nx] = state
         w[prob.u_index] = commands.ravel()
-        states, sent = [], self._sent
+        states, sent, before = [], self._sent, decode_state(state, prob.coding).reshape(-1, 3)
         for command, pose in zip(commands, poses):
             sent = shift_memory(sent, command)  # a model with memory: stage t + 1 remembers u_t
-            states.append(encode_state(pose, prob.coding, sent))
+            states.append(encode_state(pose, prob.coding, sent, before))  # ... and the pose of t
+            before = pose
         w[prob.x_index] = np.concatenate(states)
         return w
 
     def _act(self, observation: NDArray, observed: Observed) -> NDArray[np.float64]:
         command = self._decide(observation, observed)
+        assert self._problem is not None  # built by _reset, which act() requires
+        if coding_velocity(self._problem.coding):
+            self._before = np.array(observed.observed_poses, dtype=np.float64)
         if self._sent.shape[0]:
             # the commands the robots were sent, as the env applies them (saturated to the limits)
             scenario = self.scenario
@@ -332,7 +345,7 @@ class NMPCController(ParameterHooks, BaseController):
         prob = self._problem
         assert prob is not None  # built by _reset, which act() requires
         poses = observed.observed_poses
-        state = encode_state(poses, prob.coding, self._sent)
+        state = encode_state(poses, prob.coding, self._sent, self._before)
         assert self.scenario is not None  # act() checked it
         # an estimator in front hands on its covariance: chance-constrained margins (none without)
         covariance = observed.pose_covariance

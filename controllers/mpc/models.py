@@ -22,6 +22,7 @@ __all__ = [
     "UnicycleModel",
     "coding_memory",
     "coding_size",
+    "coding_velocity",
     "decode_state",
     "encode_state",
     "model_step",
@@ -34,7 +35,8 @@ class PredictionModel(Protocol):
     ``coding`` names the per-robot NLP state: ``"pose"`` = (x, y, theta), ``"cs"`` =
     (x, y, cos theta, sin theta), or ``"cs+uL"`` = the ``"cs"`` state followed by the robot's
     last L commands, most recent first (a model with memory, which the controller fills with the
-    commands it sent); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
+    commands it sent), each with ``"+v"`` followed by the robot's (x, y, cos, sin) one period
+    before (the velocity memory, which the controller fills with the poses it measured); ``casadi_nlp_step()`` maps (state, u) to the next state in it.
     """
 
     # read-only members: a frozen dataclass (UnicycleModel) satisfies them, the NMPC only reads them
@@ -79,42 +81,71 @@ def model_step(model: PredictionModel) -> tuple[ca.Function, NDArray[np.float64]
 
 
 CODING_SIZE = {"pose": 3, "cs": 4}
-_MEMORY_CODING = re.compile(r"cs\+u([1-9][0-9]*)")
+_LIFT_CODING = re.compile(r"cs(?:\+u([1-9][0-9]*))?(\+v)?")
+
+
+def _lift_coding(coding: str) -> tuple[int, bool]:
+    """(commands remembered, velocity) of a coding; an unknown coding is a ``ValueError``
+    naming the allowed ones."""
+    if coding in CODING_SIZE:
+        return 0, False
+    match = _LIFT_CODING.fullmatch(coding) if isinstance(coding, str) else None
+    if match is None:
+        raise ValueError(
+            choice_message(
+                "model coding", coding, sorted(CODING_SIZE), ", 'cs+uL' (L >= 1), 'cs+v' or 'cs+uL+v'"
+            )
+        )
+    return int(match.group(1) or 0), match.group(2) is not None
 
 
 def coding_memory(coding: str) -> int:
-    """Commands a coding remembers per robot (``"cs+uL"``: L; the others 0); an unknown coding
-    is a ``ValueError`` naming the allowed ones."""
-    if coding in CODING_SIZE:
-        return 0
-    match = _MEMORY_CODING.fullmatch(coding) if isinstance(coding, str) else None
-    if match is None:
-        raise ValueError(choice_message("model coding", coding, sorted(CODING_SIZE), " or 'cs+uL' (L >= 1)"))
-    return int(match.group(1))
+    """Commands a coding remembers per robot (``"cs+uL"``, ``"cs+uL+v"``: L; the others 0); an
+    unknown coding is a ``ValueError`` naming the allowed ones."""
+    return _lift_coding(coding)[0]
+
+
+def coding_velocity(coding: str) -> bool:
+    """Whether a coding holds each robot's pose one period before (``"+v"``: a model with the
+    velocity memory)."""
+    return _lift_coding(coding)[1]
 
 
 def coding_size(coding: str) -> int:
     """NLP state entries per robot of a coding."""
-    memory = coding_memory(coding)
-    return CODING_SIZE[coding] if not memory else CODING_SIZE["cs"] + 2 * memory
+    memory, velocity = _lift_coding(coding)
+    if not (memory or velocity):
+        return CODING_SIZE[coding]
+    return CODING_SIZE["cs"] + 2 * memory + (CODING_SIZE["cs"] if velocity else 0)
 
 
-def encode_state(poses: NDArray, coding: str, previous: NDArray | None = None) -> NDArray[np.float64]:
+def _cos_sin(poses: NDArray) -> list[NDArray]:
+    """Columns x, y, cos theta, sin theta of poses (N, 3)."""
+    return [poses[:, :2], np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])]
+
+
+def encode_state(
+    poses: NDArray, coding: str, previous: NDArray | None = None, before: NDArray | None = None
+) -> NDArray[np.float64]:
     """Stacked NLP state of poses (N, 3) in a model's coding.
 
     ``previous`` (L, N, 2): with a ``"cs+uL"`` coding, the commands the robots were sent in the
     last L periods, most recent first (None: a team at rest); unused by the other codings.
+    ``before`` (N, 3): with a ``"+v"`` coding, the poses one period earlier (None: the robots
+    stand, their poses now).
     """
     poses = np.asarray(poses, dtype=np.float64)
     if coding == "pose":
         return poses.reshape(-1)
-    blocks = [poses[:, :2], np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])]
-    memory = coding_memory(coding)
+    blocks = _cos_sin(poses)
+    memory, velocity = _lift_coding(coding)
     if memory:
         sent = (
             np.zeros((memory, poses.shape[0], 2)) if previous is None else np.asarray(previous, dtype=float)
         )
         blocks.append(sent[:memory].transpose(1, 0, 2).reshape(poses.shape[0], 2 * memory))
+    if velocity:
+        blocks += _cos_sin(poses if before is None else np.asarray(before, dtype=np.float64))
     return np.concatenate(blocks, axis=1).reshape(-1)
 
 

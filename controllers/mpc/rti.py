@@ -30,6 +30,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from controllers.solvers.compiled import blas_threads
 from koopman_envs.checks import check_choice, check_int
 
 __all__ = [
@@ -253,7 +254,14 @@ class RealTimeIteration:
         self, w: NDArray, lam_x: NDArray, lam_g: NDArray, params: NDArray, iterations: int | None = None
     ) -> RTIStep:
         """``iterations`` SQP steps (default: the instance's) from the guess ``(w, lam_x, lam_g)``
-        (arrays are not modified)."""
+        (arrays are not modified), numpy's BLAS on one thread (:func:`blas_threads`)."""
+        with blas_threads():
+            return self._iterate(w, lam_x, lam_g, params, iterations)
+
+    def _iterate(
+        self, w: NDArray, lam_x: NDArray, lam_g: NDArray, params: NDArray, iterations: int | None
+    ) -> RTIStep:
+        """:meth:`solve`'s SQP steps."""
         iterations = self.iterations if iterations is None else iterations
         prob = self.problem
         lin_in, lin_out, qp_in, qp_out = self._lin_in, self._lin_out, self._qp_in, self._qp_out

@@ -55,7 +55,7 @@ from controllers.koopman.online import (
     check_forgetting,
     check_prior_weight,
 )
-from controllers.koopman.store import check_memory_structure, check_structure, default_structure
+from controllers.koopman.store import check_lift, check_structure, default_structure
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
@@ -143,12 +143,18 @@ class KoopmanNMPC(NMPCController):
         How the fitted model couples the robots: ``"stacked"`` (the paper's one team
         regression), ``"per-robot"`` (each robot's own block; the fit and the NMPC problem grow
         linearly with N instead of quadratically) or ``"auto"`` (default: stacked up to the
-        paper's 3 robots, per-robot beyond; stacked with ``memory``).
+        paper's 3 robots, per-robot beyond; stacked with ``memory`` or ``velocity``).
     memory : int
         Previous commands in the lift of the model that :meth:`calibrate` fits (0: the paper's
         pose-only lift). With L > 0 the model can carry the robots' lag (inertia, motor ramps:
         the physics plant, docs/physics.md); the NMPC's state then holds each robot's last L
         commands, the measured state the ones it sent. Stacked models only.
+    velocity : bool
+        The robots' measured velocity in the lift of the model that :meth:`calibrate` fits: the
+        last period's move in the body frame (forward, lateral, turn) and its products with the
+        heading's cos and sin, so that the model can carry the robots' inertia without a window
+        of commands. The NMPC's state then holds each robot's pose one period before, the
+        measured state the pose it measured a period ago. Stacked models only.
     config, **options
         NMPC options, see :class:`controllers.mpc.config.NMPCConfig` (``uncertainty_margin`` uses the
         model's RMS one-step position residual on its calibration data).
@@ -173,11 +179,14 @@ class KoopmanNMPC(NMPCController):
         config: NMPCConfig | None = None,
         structure: str = "auto",
         memory: int = 0,
+        velocity: bool = False,
         **options: Any,
     ) -> None:
         if structure != "auto":
             check_structure(structure)
-        self.memory = check_memory_structure(memory, "stacked" if structure == "auto" else structure)
+        self.memory, self.velocity = check_lift(
+            memory, velocity, "stacked" if structure == "auto" else structure
+        )
         self.structure = structure
         if model is not None and not isinstance(model, KoopmanModel):
             model = KoopmanModel.load(model)
@@ -198,10 +207,10 @@ class KoopmanNMPC(NMPCController):
             assert self.model is not None  # _fixed_model: __init__ was given a model
             return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
         structure = self.structure
-        if structure == "auto":  # a lift with memory is a stacked model's
-            structure = "stacked" if self.memory else default_structure(plant.n_robots)
+        if structure == "auto":  # a lift with memory or velocity is a stacked model's
+            structure = "stacked" if self.memory or self.velocity else default_structure(plant.n_robots)
         model, summary = calibrated_model(
-            plant, seed, self.dictionary, structure=structure, memory=self.memory
+            plant, seed, self.dictionary, structure=structure, memory=self.memory, velocity=self.velocity
         )
         summary["structure"] = structure
         self._use(model)
@@ -288,9 +297,10 @@ class AdaptiveKoopmanNMPC(KoopmanNMPC):
         super().__init__(model, dictionary, config, structure, **options)
 
     def _use(self, model: KoopmanModel) -> None:
-        if model.memory:
+        if model.memory or model.velocity:
             raise ValueError(
-                f"{self.name} updates a pose-only model online; this model has memory={model.memory}"
+                f"{self.name} updates a pose-only model online; this model has memory={model.memory}, "
+                f"velocity={model.velocity}"
             )
         super()._use(model)
         self._estimator = None  # rebuilt for the new model at the next reset
