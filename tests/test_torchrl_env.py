@@ -3,21 +3,28 @@ step the vector env it wraps, ends of episodes included."""
 
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 import pytest
 
-pytest.importorskip("torchrl")
+# the [torchrl] extra: skipped without it, found without importing it (importing it costs several
+# CPU-s, which every pytest-xdist worker would pay at collection)
+if importlib.util.find_spec("torchrl") is None:
+    pytest.skip("needs torchrl", allow_module_level=True)
+
 
 import gymnasium as gym  # noqa: E402
-from torchrl.envs.utils import check_env_specs  # noqa: E402
-
-from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv  # noqa: E402
 
 ENV = "KoopNav-Formation-v0"
 KWARGS = {"map": "random", "n_robots": 4, "max_episode_steps": 25}
 
 
 def test_the_batched_env_passes_torchrls_spec_check() -> None:
+    from torchrl.envs.utils import check_env_specs
+
+    from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv
+
     env = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
     check_env_specs(env)
     assert env.group_map == {GROUP: [f"{GROUP}_{i}" for i in range(4)]}
@@ -29,6 +36,8 @@ def test_a_rollout_is_the_vector_envs_step_for_step() -> None:
     truncated at 25 steps, so every environment ends and restarts twice) equals the vector env's
     driven with the same actions: the final observation under "next" at an episode's end, the
     new episode's first one after TorchRL's partial reset."""
+    from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv
+
     k, steps = 5, 60
     env = KoopNavMultiAgentEnv(ENV, k, **KWARGS)
     env.set_seed(7)
@@ -60,6 +69,8 @@ def test_a_reset_of_an_environment_whose_episode_runs_is_refused_by_name() -> No
     import torch
     from tensordict import TensorDict
 
+    from baselines.marl.torchrl_env import KoopNavMultiAgentEnv
+
     env = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
     td = env.reset()
     env.rand_step(td)
@@ -71,6 +82,8 @@ def test_the_training_terms_are_the_sb3_adapters() -> None:
     """With the PPO policies' collision penalty and precision potential, the batched env's rewards
     equal the SB3 adapter's for the same actions (one shaping, baselines.shaping), crashes and
     episode ends included: the robots drive ahead at full speed, turning a little."""
+    from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv
+
     pytest.importorskip("stable_baselines3")
     import torch
 
@@ -110,7 +123,9 @@ def test_the_training_terms_are_the_sb3_adapters() -> None:
 def test_standardized_observations_are_the_raw_blocks_scaled_and_checked() -> None:
     """``observation_stats`` hands out (block - mean) / std of the same rollout, the specs' bounds
     scaled alike (TorchRL's check), and a mean of the wrong width is refused by name."""
-    from baselines.marl.torchrl_env import observation_statistics
+    from torchrl.envs.utils import check_env_specs
+
+    from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv, observation_statistics
 
     mean, std = observation_statistics(ENV, num_envs=4, steps=20, **KWARGS)
     assert mean.shape == std.shape == (KoopNavMultiAgentEnv(ENV, 1, **KWARGS)._obs_low.shape[1],)
@@ -141,8 +156,10 @@ def test_features_are_appended_as_the_ppo_policies_read_them() -> None:
     baselines.features.robot_features appended (the rl-ppo policies' input), within the specs' bounds
     (TorchRL's check), standardized by statistics of the same widened blocks; an unknown feature
     set is refused by name."""
+    from torchrl.envs.utils import check_env_specs
+
     from baselines.features.robot_features import robot_features
-    from baselines.marl.torchrl_env import observation_statistics
+    from baselines.marl.torchrl_env import GROUP, KoopNavMultiAgentEnv, observation_statistics
 
     plain = KoopNavMultiAgentEnv(ENV, 3, **KWARGS)
     featured = KoopNavMultiAgentEnv(ENV, 3, features="bearing+headings", **KWARGS)
