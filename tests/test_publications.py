@@ -379,8 +379,9 @@ def test_a_frame_log_that_is_not_text_or_not_a_run_header_is_refused_by_name(spl
     frame = split / publications.FRAME
     log = "sweep/lvl-0/episodes.jsonl"
     frame.write_bytes(published.tar_xz([(f"run/{log}", b"\xff\n")]))
+    # the unpacked path is what says which file of the publication it was: the frame, or a part
     assert re.fullmatch(
-        rf"episode log '.*/run/{log}' is not UTF-8 text \(byte 0 is b'\\xff'\); expected a run header line",
+        rf"episode log '.*/koopnav-split-\w+/frame/run/{log}' is not UTF-8 text \(byte 0 is b'\\xff'\); expected a run header line",
         _message(split, tmp_path),
     )
     frame.write_bytes(published.tar_xz([(f"run/{log}", json.dumps({"kind": "other"}).encode() + b"\n")]))
@@ -398,7 +399,7 @@ def test_a_parts_log_and_a_log_put_together_are_bounded_by_the_log_cap(split, tm
     longest = len(publications._part_header("b") + _line("b") * 3)  # trials 0-2: lines of one length
     monkeypatch.setattr(publications, "MAX_LOG_BYTES", longest - 1)
     assert re.fullmatch(
-        rf"episode log '.*/parts/b/run/{log}' cannot be read: it is {longest} bytes; "
+        rf"episode log '.*/koopnav-split-\w+/parts/b/run/{log}' cannot be read: it is {longest} bytes; "
         rf"at most {longest - 1} bytes are allowed",
         _message(split, tmp_path),
     )
