@@ -7,8 +7,11 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
+import tarfile
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -284,3 +287,239 @@ def test_a_part_whose_last_line_has_no_newline_keeps_its_records_apart(split, tm
     run = publications.extract_split(split, tmp_path / "into")
     lines = (run / "sweep" / "lvl-0" / "episodes.jsonl").read_text().splitlines()
     assert [json.loads(line)["controller"] for line in lines[1:]] == ["a", "a", "b", "b"]
+
+
+# ------------------------------------------- issue 59: what the reader's mutation run left untested
+
+
+def _part(split: Path, label: str, body: bytes) -> Path:
+    """Replace ``label``'s part by one whose two logs hold its part header, then ``body``."""
+    path = split / publications.PARTS / f"{label}.tar.xz"
+    header = publications._part_header(label)
+    path.write_bytes(
+        published.tar_xz((f"run/sweep/{level}/episodes.jsonl", header + body) for level in LEVELS)
+    )
+    return path
+
+
+def _line(label: str, trial: int = 0) -> bytes:
+    return json.dumps(_record("E", label, "m", "s", trial)).encode() + b"\n"
+
+
+def _message(split: Path, tmp_path: Path) -> str:
+    """The refusal of ``split``, with nothing left in the directory it was unpacked into."""
+    into = tmp_path / "into"
+    with pytest.raises(ValueError) as raised:
+        publications.extract_split(split, into)
+    assert not into.exists() or list(into.iterdir()) == []
+    return str(raised.value)
+
+
+def test_a_parts_line_that_is_torn_or_not_an_object_is_refused_by_its_number(split, tmp_path) -> None:
+    log = "sweep/lvl-0/episodes.jsonl"
+    part = _part(split, "a", _line("a") + b'{"key": "E|a|m\n')
+    assert _message(split, tmp_path) == f"{part}: {log}, line 3 is not a JSON record (torn?)"
+    _part(split, "a", b"[1, 2]\n")  # JSON, but no record: it has no controller
+    assert _message(split, tmp_path) == (
+        f"{part}: {log}, line 2 is a record of None, not of its part's controller 'a' among the log's ['a', 'b']"
+    )
+    _part(split, "a", _line("a") + b"\n" + _line("b"))  # a blank line does not end the part
+    assert _message(split, tmp_path) == (
+        f"{part}: {log}, line 4 is a record of 'b', not of its part's controller 'a' among the log's ['a', 'b']"
+    )
+
+
+def test_a_part_missing_a_log_is_refused_naming_both_sets(split, tmp_path) -> None:
+    part = split / publications.PARTS / "a.tar.xz"
+    members = [("run/sweep/lvl-0/episodes.jsonl", publications._part_header("a") + _line("a"))]
+    part.write_bytes(published.tar_xz(members))
+    assert _message(split, tmp_path) == (
+        f"{part}: holds the logs ['sweep/lvl-0/episodes.jsonl'], the run's frame "
+        "['sweep/lvl-0/episodes.jsonl', 'sweep/lvl-1/episodes.jsonl']; a part holds every log of its run"
+    )
+
+
+def test_a_symlinked_part_or_a_folder_named_as_one_is_refused(split, tmp_path) -> None:
+    parts = split / publications.PARTS
+    (parts / "a.tar.xz").rename(tmp_path / "a.tar.xz")
+    (parts / "a.tar.xz").symlink_to(tmp_path / "a.tar.xz")  # the bytes are a's part, but elsewhere
+    expected = "{}: not a controller's part (a regular file LABEL.tar.xz)"
+    assert _message(split, tmp_path) == expected.format(parts / "a.tar.xz")
+    (parts / "a.tar.xz").unlink()
+    (tmp_path / "a.tar.xz").rename(parts / "a.tar.xz")
+    (parts / "c.tar.xz").mkdir()
+    assert _message(split, tmp_path) == expected.format(parts / "c.tar.xz")
+
+
+def test_the_number_of_parts_is_bounded_at_max_parts(split, tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(publications, "MAX_PARTS", 2)  # the run's two controllers: at the bound
+    assert publications.extract_split(split, tmp_path / "at").name == "run"
+    monkeypatch.setattr(publications, "MAX_PARTS", 1)
+    assert _message(split, tmp_path) == (
+        f"{split}: holds 2 parts, more than 1, the most allowed (evaluation.reports.publications.MAX_PARTS)"
+    )
+
+
+def test_what_is_not_a_directory_or_whose_run_is_there_already_is_refused(split, tmp_path) -> None:
+    with pytest.raises(ValueError) as raised:
+        publications.extract_split(split / publications.FRAME, tmp_path)
+    assert str(raised.value) == (
+        f"{split / publications.FRAME}: not a directory, so not a split publication (data/NAME/run.tar.xz, ...)"
+    )
+    (tmp_path / "into" / "run").mkdir(parents=True)
+    with pytest.raises(ValueError) as raised:
+        publications.extract_split(split, tmp_path / "into")
+    assert str(raised.value) == (
+        f"{tmp_path / 'into' / 'run'} exists; a publication is unpacked into a directory without its run"
+    )
+    assert list((tmp_path / "into" / "run").iterdir()) == []
+
+
+def test_a_frame_log_that_is_not_text_or_not_a_run_header_is_refused_by_name(split, tmp_path) -> None:
+    frame = split / publications.FRAME
+    log = "sweep/lvl-0/episodes.jsonl"
+    frame.write_bytes(published.tar_xz([(f"run/{log}", b"\xff\n")]))
+    # the unpacked path is what says which file of the publication it was: the frame, or a part
+    assert re.fullmatch(
+        rf"episode log '.*/koopnav-split-\w+/frame/run/{log}' is not UTF-8 text \(byte 0 is b'\\xff'\); expected a run header line",
+        _message(split, tmp_path),
+    )
+    frame.write_bytes(published.tar_xz([(f"run/{log}", json.dumps({"kind": "other"}).encode() + b"\n")]))
+    assert _message(split, tmp_path) == (
+        f"{frame}: {log}: line 1 is not a KoopNav run header naming its controllers"
+    )
+
+
+def test_a_parts_log_and_a_log_put_together_are_bounded_by_the_log_cap(split, tmp_path, monkeypatch) -> None:
+    """The cap of an episode log (MAX_LOG_BYTES) holds for each part's log as read and for the
+    log put together, inclusive, and a refusal in the middle of writing leaves nothing behind."""
+    log = "sweep/lvl-0/episodes.jsonl"
+    whole = (publications.extract_split(split, tmp_path / "whole") / log).read_bytes()
+    _part(split, "b", _line("b") + _line("b", 1) + _line("b", 2))  # longer than a's: read last
+    longest = len(publications._part_header("b") + _line("b") * 3)  # trials 0-2: lines of one length
+    monkeypatch.setattr(publications, "MAX_LOG_BYTES", longest - 1)
+    assert re.fullmatch(
+        rf"episode log '.*/koopnav-split-\w+/parts/b/run/{log}' cannot be read: it is {longest} bytes; "
+        rf"at most {longest - 1} bytes are allowed",
+        _message(split, tmp_path),
+    )
+    # the logs put together: lvl-0 is written before lvl-1, which is longer
+    _part(split, "b", _line("b") + _line("b", 1))
+    lvl1 = published.tar_xz(
+        (f"run/sweep/{level}/episodes.jsonl", publications._part_header("b") + body)
+        for level, body in (("lvl-0", _line("b") + _line("b", 1)), ("lvl-1", _line("b") * 3))
+    )
+    (split / publications.PARTS / "b.tar.xz").write_bytes(lvl1)
+    second = len(whole) + len(_line("b"))
+    for limit in (len(whole) - 1, second - 1):  # the first log refused, then the second
+        monkeypatch.setattr(publications, "MAX_LOG_BYTES", limit)
+        name = log if limit < len(whole) else "sweep/lvl-1/episodes.jsonl"
+        size = len(whole) if limit < len(whole) else second
+        assert _message(split, tmp_path) == f"{split}: {name} is {size} bytes put together, beyond {limit}"
+    monkeypatch.setattr(publications, "MAX_LOG_BYTES", second)
+    assert (
+        len((publications.extract_split(split, tmp_path / "at") / "sweep/lvl-1/episodes.jsonl").read_bytes())
+        == second
+    )
+
+
+def test_the_scratch_directory_is_named_for_koopnav_and_removed(split, tmp_path, monkeypatch) -> None:
+    """A process killed while unpacking leaves a ``koopnav-split-*`` directory, which says whose it
+    is (issue 59's leaked directories were found by their name)."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    seen = []
+    extract = publications.extract_archive
+
+    def spied(archive: Path, into: Path) -> Path:
+        seen.append(sorted(p.name for p in scratch.iterdir()))
+        return extract(archive, into)
+
+    monkeypatch.setattr(publications, "extract_archive", spied)
+    publications.extract_split(split, tmp_path / "into")
+    assert len(seen) == 3 and all(len(names) == 1 for names in seen)
+    assert seen[0][0].startswith("koopnav-split-") and seen[0] == seen[1] == seen[2]
+    assert list(scratch.iterdir()) == []
+
+
+def test_a_parts_line_1_is_the_documented_part_header(split) -> None:
+    """The published format (module docstring): what older publications hold must read back."""
+    with tarfile.open(split / publications.PARTS / "b.tar.xz") as tar:
+        names = tar.getnames()
+        first = [tar.extractfile(name).readline() for name in names]  # type: ignore[union-attr]
+    assert names == [f"run/sweep/{level}/episodes.jsonl" for level in LEVELS]
+    assert first == [b'{"kind": "koopnav-part", "controller": "b"}\n'] * 2
+
+
+BAD_HEADERS = {
+    "not JSON": b"koopnav-run",
+    "a list": b'[{"kind": "koopnav-run"}]',
+    "another kind": json.dumps({"kind": "koopnav-sweep", "config": _config(["a", "b"])}).encode(),
+    "no config": json.dumps({"kind": "koopnav-run"}).encode(),
+    "a config without controllers": json.dumps({"kind": "koopnav-run", "config": {}}).encode(),
+    "controllers not a list": json.dumps(
+        {"kind": "koopnav-run", "config": {"controller_configs": {}}}
+    ).encode(),
+    "a controller without a label": json.dumps(
+        {"kind": "koopnav-run", "config": {"controller_configs": [{"name": "a"}]}}
+    ).encode(),
+    "a controller not a table": json.dumps(
+        {"kind": "koopnav-run", "config": {"controller_configs": ["a"]}}
+    ).encode(),
+}
+
+
+@pytest.mark.parametrize("header", BAD_HEADERS.values(), ids=BAD_HEADERS.keys())
+def test_a_log_whose_line_1_is_not_a_run_header_naming_its_controllers_is_refused(
+    header: bytes, split: Path, tmp_path: Path
+) -> None:
+    frame = split / publications.FRAME
+    log = "sweep/lvl-0/episodes.jsonl"
+    frame.write_bytes(published.tar_xz([(f"run/{log}", header + b"\n")]))
+    assert (
+        _message(split, tmp_path)
+        == f"{frame}: {log}: line 1 is not a KoopNav run header naming its controllers"
+    )
+    run = _sweep(tmp_path / "made")
+    (run / log).write_bytes(header + b"\n" + (run / log).read_bytes().partition(b"\n")[2])
+    with pytest.raises(ValueError) as raised:
+        publications.pack_split(run, tmp_path / "out")
+    assert str(raised.value) == f"{run / log}: line 1 is not a KoopNav run header naming its controllers"
+    assert not (tmp_path / "out").exists()
+
+
+def test_packing_names_the_publication_it_did_not_write(tmp_path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError) as raised:
+        publications.pack_split(empty, tmp_path / "out")
+    assert str(raised.value) == (
+        f"{empty}: no episode log (episodes.jsonl) in it or below it, so not a run's directory; "
+        f"{tmp_path / 'out'} was not written"
+    )
+    with pytest.raises(ValueError) as raised:
+        publications.pack_split(_sweep(tmp_path / "made", ["a", ".b"]), tmp_path / "out")
+    assert str(raised.value) == (
+        "controller label '.b' cannot name its part's file (letters, digits and . _ + = -, at most 100, "
+        f"not starting with a dot or a sign); {tmp_path / 'out'} was not written"
+    )
+    assert not (tmp_path / "out").exists()
+
+
+def test_logs_of_other_controllers_and_several_sweeps_read_back_whole(tmp_path) -> None:
+    """A run directory holding two sweeps (one's manifest sorted before the other's logs), whose
+    levels ran other controllers: each part holds every log, the header alone where its
+    controller did not run, and the run reads back as packed."""
+    run = tmp_path / "made" / "run"
+    _sweep(run, ["a", "b"], name="first")
+    _sweep(run, ["b", "c"], name="second")
+    split = publications.pack_split(run, tmp_path / "data" / "run")
+    assert sorted(p.name for p in (split / publications.PARTS).iterdir()) == [
+        "a.tar.xz",
+        "b.tar.xz",
+        "c.tar.xz",
+    ]
+    back = publications.extract_split(split, tmp_path / "into")
+    assert _logs(back) == _logs(run) and len(_logs(back)) == 4
+    assert (back / "second" / "sweep.json").read_bytes() == (run / "second" / "sweep.json").read_bytes()
