@@ -33,6 +33,7 @@ from controllers.studies import (
     adoption,
     finished_study,
 )
+from koopman_envs import check_split_allowed
 from koopman_envs.checks import check_choice, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 
@@ -269,30 +270,55 @@ def with_tuned(
     directory is no tuned preset. Each file is applied only beside its finished study in
     ``studies`` (:func:`check_study`), so no preset ships without the record that chose it, and
     only when :data:`ADOPTION_RULE` adopts it (a file the rule refuses is an error, named).
+
+    An installed package has no ``studies`` folder (the studies stay in the repository, where
+    the tests check every shipped preset against its study): there a preset is applied on its
+    own record, whose split must still be one tuning may use.
     """
     out = list(presets)
     folder = Path(directory)
     files = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    in_repository = Path(studies).is_dir()
     for path in files:
         name, options = read_tuned(path)
         if path.stem != name:
             raise ValueError(f"{path}: names controller {name!r}; the file must be called {name}.json")
+        if not in_repository:
+            _check_recorded_split(path)
+            out = _apply_tuned(out, name, options, path)
+            continue
         decision = check_study(path, studies)
         if not decision.adopted:
             raise ValueError(
                 f"{path}: {decision}; the adoption rule keeps the defaults ({ADOPTION_RULE}): "
                 f"delete it (`python -m evaluation.tune adopt {name}` installs only what the rule admits)"
             )
-        before = next((p for p in out if p.name == name), None) or Preset(name, name)
-        doc = before.doc or f"{name} with the defaults its class declares"
-        v0 = replace(before, name=name + V0_SUFFIX, doc=f"{doc} (the defaults before tuning)")
-        tuned = replace(
-            before,
-            defaults={**before.defaults, **options},
-            doc=f"{doc}, tuned ({path.parent.name}/{path.name})",
-        )
-        out = [p for p in out if p.name != name] + [tuned, v0]
+        out = _apply_tuned(out, name, options, path)
     return tuple(out)
+
+
+def _check_recorded_split(path: Path) -> None:
+    """Refuse a preset whose own study record names a split tuning may not use (``test``)."""
+    study = _preset_document(path).get("study")
+    split = study.get("split") if isinstance(study, dict) else None
+    if not isinstance(split, str):
+        raise ValueError(
+            f"{path}: its study record names no split (study={study!r}); a tuned preset records its study"
+        )
+    check_split_allowed(split, "tuning", label=str(path))
+
+
+def _apply_tuned(presets: list[Preset], name: str, options: dict[str, Any], path: Path) -> list[Preset]:
+    """``presets`` with ``name``'s defaults tuned to ``options`` and ``<name>-v0`` keeping the old."""
+    before = next((p for p in presets if p.name == name), None) or Preset(name, name)
+    doc = before.doc or f"{name} with the defaults its class declares"
+    v0 = replace(before, name=name + V0_SUFFIX, doc=f"{doc} (the defaults before tuning)")
+    tuned = replace(
+        before,
+        defaults={**before.defaults, **options},
+        doc=f"{doc}, tuned ({path.parent.name}/{path.name})",
+    )
+    return [p for p in presets if p.name != name] + [tuned, v0]
 
 
 #: every preset: the hand-made ones and the tuned ones of :data:`TUNED_DIR`

@@ -391,6 +391,28 @@ def test_a_preset_without_its_finished_held_out_study_is_refused_by_name(tmp_pat
     refused(r"orca: .* does not come from its study .*best.json is missing")
 
 
+def test_an_installed_package_without_the_studies_applies_a_preset_on_its_own_record(tmp_path: Path) -> None:
+    """A wheel ships controllers/tuned/ but not the repository's data/tuning/: `import controllers`
+    must work there (found by the slow action test, whose user venv installs the package), with
+    the preset's recorded split still checked."""
+    import shutil
+
+    _shipped(tmp_path, "consensus", {"goal_gain": 1.7})
+    shutil.rmtree(tmp_path / "studies")
+    table = {p.name: p for p in with_tuned(HAND_PRESETS, tmp_path / "tuned", tmp_path / "studies")}
+    assert table["consensus"].defaults["goal_gain"] == 1.7 and "consensus-v0" in table
+    path = tmp_path / "tuned" / "consensus.json"
+    path.write_text(path.read_text().replace('"split": "validation"', '"split": "test"'))
+    assert '"split": "test"' in path.read_text()
+    with pytest.raises(ValueError, match=r"consensus.json.*test"):
+        with_tuned(HAND_PRESETS, tmp_path / "tuned", tmp_path / "studies")
+    document = json.loads(path.read_text())
+    del document["study"]
+    path.write_text(json.dumps(document))
+    with pytest.raises(ValueError, match=r"its study record names no split"):
+        with_tuned(HAND_PRESETS, tmp_path / "tuned", tmp_path / "studies")
+
+
 def test_the_shipped_presets_are_their_studies_best_and_v0_their_defaults() -> None:
     shipped = sorted(presets.TUNED_DIR.glob("*.json"))
     assert [p.stem for p in shipped] == ["consensus", "dwa", "mpc-cbf"]
