@@ -16,16 +16,10 @@
 # --solver rti"); a subset run is not held to the floors.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# OpenBLAS chooses its kernels by CPU, and they round differently: on an AVX-512 Intel (SkylakeX
-# kernels) a dot product fuses its multiply-adds, on an AMD Zen (Haswell kernels) it does not, and
-# the NMPCs' and ippo's closed loops carry that last bit to other final poses. The Haswell kernels
-# run on every x86-64 CPU with AVX2 and FMA (Intel since 2013, every AMD Zen), so the gate pins
-# them there: its episodes then equal the baseline's bit for bit on either (docs/ci.md, "Across
-# machines"). An OPENBLAS_CORETYPE already set wins.
-if [ -z "${OPENBLAS_CORETYPE:-}" ] && [ "$(uname -m)" = x86_64 ] \
-    && grep -qw avx2 /proc/cpuinfo 2>/dev/null && grep -qw fma /proc/cpuinfo; then
-    export OPENBLAS_CORETYPE=Haswell
-fi
+# the OpenBLAS kernels pinned where the CPU allows: the gate's episodes equal the baseline's bit for
+# bit across machines (.ci/blas_pin.sh)
+# shellcheck source=.ci/blas_pin.sh
+source .ci/blas_pin.sh
 episodes="${KOOPNAV_GATE_EPISODES:-10}"
 baseline=".ci/baseline/results.json"
 # shellcheck disable=SC2206  # word splitting of the extra options is intended

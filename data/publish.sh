@@ -24,6 +24,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 workers="${KOOPNAV_PUBLISH_WORKERS:-1}"
+# the OpenBLAS kernels pinned where the CPU allows, so that a run resumed on another machine
+# continues with the same arithmetic (.ci/blas_pin.sh)
+# shellcheck source=.ci/blas_pin.sh
+source .ci/blas_pin.sh
 
 # the model-based controllers as deployed (estimator="auto", stall resolution, the real-time
 # iteration) beside the paper's (no estimator, no stall resolution), paired on the same episodes
