@@ -32,6 +32,7 @@ __all__ = [
     "adoption",
     "finished_study",
     "study_adoption",
+    "study_record",
     "trial_rank",
 ]
 
@@ -45,6 +46,18 @@ STUDY_FILE = "study.jsonl"
 BEST_FILE = "best.json"
 #: the ``kind`` of a study log's header line
 STUDY_KIND = "koopnav-study"
+
+
+def study_record(header: Mapping[str, Any], configurations_run: int) -> dict[str, Any]:
+    """The record of its study that a tuned preset carries (``"study"``): the split, suites,
+    seed and budget of the study log's ``header``, and how many configurations it ran.
+
+    :func:`evaluation.tune.write_best` writes it and :func:`controllers.presets.check_study`
+    compares a preset's with its log's, so both build it here, in this key order.
+    """
+    record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
+    record["configurations_run"] = configurations_run
+    return record
 
 
 def _study_lines(preset: str, log: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
