@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controllers.search_space import Search
-from controllers.studies import STUDY_KIND
+from controllers.studies import STUDY_KIND, trial_problem
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,
@@ -21,22 +21,6 @@ from evaluation.tune.scoring import OBJECTIVE
 from koopman_envs import check_split_allowed, load_suite
 from koopman_envs.checks import check_int, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded
-
-#: the fields of a trial's line
-TRIAL_FIELDS = (
-    "trial",
-    "params",
-    "options",
-    "score",
-    "successes",
-    "episodes",
-    "errors",
-    "mean_time_to_goal",
-    "layouts",
-    "seeds",
-    "wall_seconds",
-    "budget_so_far",
-)
 
 
 @dataclass(frozen=True)
@@ -143,18 +127,6 @@ class Trial:
     record: dict[str, Any]
 
 
-def _trial_problem(record: Any) -> str | None:
-    """Why ``record`` is not a trial line (None when it is one)."""
-    if not isinstance(record, dict):
-        return "not a JSON object"
-    missing = [k for k in TRIAL_FIELDS if k not in record]
-    if missing:
-        return f"not a trial record (no {', '.join(missing)})"
-    if not isinstance(record["params"], dict) or not isinstance(record["score"], (int, float)):
-        return "a trial record whose params are not an object or whose score is not a number"
-    return None
-
-
 def read_study(
     path: str | os.PathLike[str], header: Mapping[str, Any] | None = None, *, repair: bool = True
 ) -> tuple[dict[str, Any], list[Trial], list[str]]:
@@ -195,7 +167,7 @@ def read_study(
             f"{path} belongs to another study ({what}); resume with the same settings or use "
             "another --out; nothing was changed"
         )
-    records, places, bad = parse_lines(lines[1:], _trial_problem)
+    records, places, bad = parse_lines(lines[1:], trial_problem)
     for i, (record, place) in enumerate(zip(records, places)):
         if record["trial"] != i:
             bad.append(f"{place}: trial {record['trial']!r} where trial {i} was expected")
