@@ -19,7 +19,7 @@ from evaluation.episodes.runlog import (
 from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, tasks_of
 from evaluation.tune.scoring import OBJECTIVE
 from koopman_envs import check_split_allowed, load_suite
-from koopman_envs.checks import check_int, parse_json
+from koopman_envs.checks import check_int, differing_settings, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded
 
 
@@ -161,8 +161,7 @@ def read_study(
     if not isinstance(found, dict) or found.get("kind") != STUDY_KIND:
         raise LogError(f"{path} is not a KoopNav study log (line 1 is not a {STUDY_KIND!r} header)")
     if header is not None and found != header:
-        differ = sorted(k for k in set(found) | set(header) if found.get(k) != header.get(k))
-        what = "; ".join(f"{k}: logged {found.get(k)!r}, now {header.get(k)!r}" for k in differ)
+        what = differing_settings(found, header)
         raise LogError(
             f"{path} belongs to another study ({what}); resume with the same settings or use "
             "another --out; nothing was changed"
