@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
+from koopman_envs.checks import differing_settings
 from koopman_envs.files import read_bounded, write_atomic
 
 __all__ = [
@@ -152,14 +153,9 @@ def read_resume(path: str | os.PathLike[str], kind: str, identity: dict[str, Any
     # a JSON round trip: the header holds the identity as JSON gave it back (lists for tuples)
     expected = json.loads(json.dumps(identity, sort_keys=True))
     if header["identity"] != expected:
-        keys = sorted(set(expected) | set(header["identity"]))
-        differ = [
-            f"{k}: {header['identity'].get(k, '<absent>')!r} in the file, {expected.get(k, '<absent>')!r} now"
-            for k in keys
-            if header["identity"].get(k) != expected.get(k)
-        ]
         raise ResumeRefused(
-            f"resume checkpoint {os.fspath(path)!r} was written by a run with other settings ({'; '.join(differ)})"
+            f"resume checkpoint {os.fspath(path)!r} was written by a run with other settings "
+            f"({differing_settings(header['identity'], expected)})"
         )
     return pickle.loads(payload)
 

@@ -215,11 +215,14 @@ def previous_commands(commands: NDArray, memory: int) -> NDArray[np.float64]:
     return np.stack([padded[memory - 1 - lag : memory + steps - lag] for lag in range(memory)], axis=-3)
 
 
-def poses_before(states: NDArray) -> NDArray[np.float64]:
-    """The poses one period before every period of trajectories (T + 1, ..., N, 3) that start at
-    rest: entry t is pose t - 1, and entry 0 the start itself (a standing robot has not moved)."""
-    states = np.asarray(states, dtype=np.float64)
-    return np.concatenate([states[:1], states[:-1]])
+def poses_before(states: NDArray, start: int = 0, stop: int | None = None) -> NDArray[np.float64]:
+    """The poses one period before periods ``start`` to ``stop`` - 1 (default: every period) of
+    trajectories (T + 1, ..., N, 3) that start at rest: entry t is pose t - 1, and the entry of
+    period 0 the start itself (a standing robot has not moved). A chunk of periods reads only
+    the poses from ``start`` - 1 on."""
+    stop = len(states) if stop is None else stop
+    states = np.asarray(states[max(0, start - 1) : stop], dtype=np.float64)
+    return np.concatenate([states[:1], states[:-1]])[len(states) - (stop - start) :]
 
 
 def position_residual(
@@ -255,7 +258,7 @@ def position_residual(
             previous = previous_commands(data.commands[max(0, t0 - memory) : t1], memory)[-(t1 - t0 + 1) : -1]
             lifted["previous"] = previous
         if velocity:  # the pose before period t0 is that of period t0 - 1 (the start's own at 0)
-            lifted["before"] = poses_before(data.states[max(0, t0 - 1) : t1 + 1])[-(t1 - t0 + 1) : -1]
+            lifted["before"] = poses_before(data.states, t0, t1)
         predicted = predict(data.states[t0:t1], data.commands[t0:t1], **lifted)
         err = predicted[..., :2] - data.states[t0 + 1 : t1 + 1, ..., :2]
         total += (err**2).sum(axis=-1).sum(axis=(0, 1))

@@ -32,6 +32,7 @@ from controllers.studies import (
     Adoption,
     adoption,
     finished_study,
+    study_record,
 )
 from koopman_envs import check_split_allowed
 from koopman_envs.checks import check_choice, parse_json
@@ -233,8 +234,7 @@ def check_study(path: str | os.PathLike[str], studies: str | os.PathLike[str] = 
     folder = Path(studies) / name
     header, trials = finished_study(name, studies)
     top = max(t["score"] for t in trials)
-    record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
-    record["configurations_run"] = len(trials)
+    record = study_record(header, len(trials))
     problems = []
     if document.get("score") != top:
         problems.append(f"score={document.get('score')!r} is not the study's best, {top!r}")

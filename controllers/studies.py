@@ -28,10 +28,13 @@ __all__ = [
     "STUDIES_DIR",
     "STUDY_FILE",
     "STUDY_KIND",
+    "TRIAL_FIELDS",
     "Adoption",
     "adoption",
     "finished_study",
     "study_adoption",
+    "study_record",
+    "trial_problem",
     "trial_rank",
 ]
 
@@ -45,6 +48,46 @@ STUDY_FILE = "study.jsonl"
 BEST_FILE = "best.json"
 #: the ``kind`` of a study log's header line
 STUDY_KIND = "koopnav-study"
+#: the fields of a trial's line (:func:`trial_problem`)
+TRIAL_FIELDS = (
+    "trial",
+    "params",
+    "options",
+    "score",
+    "successes",
+    "episodes",
+    "errors",
+    "mean_time_to_goal",
+    "layouts",
+    "seeds",
+    "wall_seconds",
+    "budget_so_far",
+)
+
+
+def trial_problem(record: Any) -> str | None:
+    """Why ``record`` is not a trial line of a study log (None when it is one): the one rule for
+    the tuner's reader (:func:`evaluation.tune.read_study`) and the shipped presets' check."""
+    if not isinstance(record, dict):
+        return "not a JSON object"
+    missing = [k for k in TRIAL_FIELDS if k not in record]
+    if missing:
+        return f"not a trial record (no {', '.join(missing)})"
+    if not isinstance(record["params"], dict) or not isinstance(record["score"], (int, float)):
+        return "a trial record whose params are not an object or whose score is not a number"
+    return None
+
+
+def study_record(header: Mapping[str, Any], configurations_run: int) -> dict[str, Any]:
+    """The record of its study that a tuned preset carries (``"study"``): the split, suites,
+    seed and budget of the study log's ``header``, and how many configurations it ran.
+
+    :func:`evaluation.tune.write_best` writes it and :func:`controllers.presets.check_study`
+    compares a preset's with its log's, so both build it here, in this key order.
+    """
+    record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
+    record["configurations_run"] = configurations_run
+    return record
 
 
 def _study_lines(preset: str, log: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
@@ -66,12 +109,11 @@ def _study_lines(preset: str, log: Path) -> tuple[dict[str, Any], list[dict[str,
     if not isinstance(header, dict) or header.get("kind") != STUDY_KIND:
         raise ValueError(f"{preset}: {log} is not a study log (line 1 is not a {STUDY_KIND!r} header)")
     for i, trial in enumerate(trials):
-        if (
-            not isinstance(trial, dict)
-            or trial.get("trial") != i
-            or not isinstance(trial.get("score"), (float, int))
-        ):
-            raise ValueError(f"{preset}: {log} line {i + 2} is not trial {i} with a score")
+        problem = trial_problem(trial)
+        if problem is None and trial["trial"] != i:
+            problem = f"trial {trial['trial']!r} where trial {i} was expected"
+        if problem is not None:
+            raise ValueError(f"{preset}: {log} line {i + 2}: {problem}")
     return header, trials
 
 

@@ -11,7 +11,7 @@ import itertools
 import json
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from numbers import Integral, Real
 from typing import Any
@@ -35,6 +35,7 @@ __all__ = [
     "check_number",
     "checked_options",
     "choice_message",
+    "differing_settings",
     "parse_json",
 ]
 
@@ -94,6 +95,14 @@ def choice_message(
     words = [option for option in options if isinstance(option, str)] if suggest is None else list(suggest)
     listed = f"{among} {options}" if among else f"{options}"
     return f"{name}{sep}{value!r} is not one of {listed}{also}{did_you_mean(value, words)}"
+
+
+def differing_settings(logged: Mapping[str, Any], now: Mapping[str, Any]) -> str:
+    """The one wording of the settings a logged run (an episode log, a study, a resume
+    checkpoint) and this one do not share: ``key: logged X, now Y`` for each differing key, in
+    key order, joined by ``"; "`` (a key one side lacks shows ``None`` there)."""
+    differ = sorted(k for k in set(logged) | set(now) if logged.get(k) != now.get(k))
+    return "; ".join(f"{k}: logged {logged.get(k)!r}, now {now.get(k)!r}" for k in differ)
 
 
 def check_choice(

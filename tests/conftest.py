@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import ctypes
 import os
 import shutil
+import sys
 import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -144,3 +147,53 @@ def _restore_controller_registry():
     for table, before in zip(tables, saved, strict=True):
         table.clear()
         table.update(before)
+
+
+# Root writes through permission bits, and CI runs as root: without this the tests of a read-only
+# directory would skip there and check nothing. Linux keeps the bypass in capabilities, per
+# thread: lowering them in the effective set (the permitted set keeps them, so they come back
+# after) makes this thread meet permission bits as any user does, in the directories it has.
+_CAP_VERSION_3 = 0x20080522
+#: CAP_DAC_OVERRIDE (1), CAP_DAC_READ_SEARCH (2), CAP_FOWNER (3): what lets root past the bits
+_PERMISSION_OVERRIDES = (1 << 1) | (1 << 2) | (1 << 3)
+
+
+class _CapHeader(ctypes.Structure):
+    _fields_ = [("version", ctypes.c_uint32), ("pid", ctypes.c_int)]
+
+
+class _CapData(ctypes.Structure):
+    _fields_ = [
+        ("effective", ctypes.c_uint32),
+        ("permitted", ctypes.c_uint32),
+        ("inheritable", ctypes.c_uint32),
+    ]
+
+
+def _capabilities(change: Callable[[int], int]) -> int:
+    """Set this thread's effective capabilities (the first 32) to ``change(effective)``; the old."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    header, data = _CapHeader(_CAP_VERSION_3, 0), (_CapData * 2)()
+    if libc.capget(ctypes.byref(header), data) != 0:
+        raise OSError(ctypes.get_errno(), "capget failed")
+    old = data[0].effective
+    data[0].effective = change(old)
+    if libc.capset(ctypes.byref(header), data) != 0:
+        raise OSError(ctypes.get_errno(), "capset failed")
+    return old
+
+
+@pytest.fixture
+def permission_bits_bind() -> Iterator[None]:
+    """Within the test, permission bits bind this process as they bind a user: for root, its
+    permission overrides are off (Linux capabilities, this thread only) and restored after."""
+    if os.geteuid() != 0:
+        yield
+        return
+    if not sys.platform.startswith("linux"):
+        pytest.skip("root's permission override is lowered through Linux capabilities")
+    old = _capabilities(lambda effective: effective & ~_PERMISSION_OVERRIDES)
+    try:
+        yield
+    finally:
+        _capabilities(lambda _: old)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import operator
 import os
 import subprocess
@@ -256,6 +257,10 @@ def test_every_controller_resets_from_the_env_or_its_scenario(name: str) -> None
     try:
         ctrl = controllers.make(name)
     except (ImportError, ValueError) as exc:
+        # an optional extra that is not installed (orca: [crowd]; rl-ppo: [rl], named in a
+        # ValueError); with the extra there, a controller that cannot be built is a failure
+        if isinstance(exc, ValueError) and importlib.util.find_spec("stable_baselines3") is not None:
+            raise
         pytest.skip(f"{name} is not usable here: {exc}")
     env = gym.make("KoopNav-Formation-v0", map=OPEN)
     calibrate_controller(ctrl, env, budget=2000)

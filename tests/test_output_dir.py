@@ -4,7 +4,6 @@ episode log is locked while a run writes it)."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -49,9 +48,8 @@ def test_a_sweep_into_an_unwritable_out_is_refused_up_front(tmp_path, monkeypatc
     assert list(out.iterdir()) == []  # not even the manifest
 
 
-@pytest.mark.skipif(
-    sys.platform == "win32" or os.geteuid() == 0, reason="root writes through permission bits"
-)
+@pytest.mark.skipif(sys.platform == "win32", reason="no POSIX permission bits")
+@pytest.mark.usefixtures("permission_bits_bind")  # root (CI) too
 def test_a_read_only_directory_is_refused_for_real(tmp_path) -> None:
     out = tmp_path / "ro"
     out.mkdir()

@@ -58,7 +58,7 @@ def test_a_file_of_another_trainer_or_other_settings_is_refused_naming_them(tmp_
     path = write_resume(tmp_path / RESUME_FILE, "sb3-ppo", IDENTITY, None)
     with pytest.raises(ResumeRefused, match="written by a 'sb3-ppo' run; this is a 'benchmarl' run"):
         read_resume(path, "benchmarl", IDENTITY)
-    with pytest.raises(ResumeRefused, match=r"other settings \(seed: 3 in the file, 4 now\)"):
+    with pytest.raises(ResumeRefused, match=r"other settings \(seed: logged 3, now 4\)"):
         read_resume(path, "sb3-ppo", {**IDENTITY, "seed": 4})
     with pytest.raises(ResumeRefused, match="cannot be read"):
         read_resume(tmp_path / "absent.ckpt", "sb3-ppo", IDENTITY)
@@ -156,7 +156,7 @@ def test_an_interrupted_run_resumed_ends_bit_for_bit_as_the_uninterrupted_one(
     other.mkdir()
     (other / RESUME_FILE).write_bytes(saved)
     assert _run(other, "--resume", seed=4) == 2
-    assert "other settings (seed: 3 in the file, 4 now)" in capsys.readouterr().err
+    assert "other settings (seed: logged 3, now 4)" in capsys.readouterr().err
     assert sorted(p.name for p in other.iterdir()) == [RESUME_FILE]
 
 

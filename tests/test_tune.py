@@ -295,6 +295,8 @@ _RECORD = {
 
 #: the episodes of each fake trial: 2 on one layout of each task, as the tuner records them
 _EPISODES = {"episodes": 2, "layouts": {"a": [0], "b": [0]}, "seeds": [0]}
+#: the rest of a trial line as the tuner writes it (controllers.studies.TRIAL_FIELDS)
+_TRIAL_REST = {"params": {}, "errors": 0, "mean_time_to_goal": 10.0, "wall_seconds": 1.0, "budget_so_far": {}}
 
 
 def _shipped(root: Path, name: str, options: dict[str, Any], successes: int = 2, **header: Any) -> Path:
@@ -307,8 +309,8 @@ def _shipped(root: Path, name: str, options: dict[str, Any], successes: int = 2,
     (root / "tuned").mkdir(exist_ok=True)
     head = {"kind": "koopnav-study", "controller": name, "task": "both", **_RECORD, **header}
     trials = [
-        {"trial": 0, "options": {}, "score": 0.25, "successes": 1, **_EPISODES},
-        {"trial": 1, "options": options, "score": 0.5, "successes": successes, **_EPISODES},
+        {"trial": 0, "options": {}, "score": 0.25, "successes": 1, **_EPISODES, **_TRIAL_REST},
+        {"trial": 1, "options": options, "score": 0.5, "successes": successes, **_EPISODES, **_TRIAL_REST},
     ]
     (study / STUDY_FILE).write_text("".join(json.dumps(line) + "\n" for line in [head, *trials]))
     record = {**{k: head[k] for k in _RECORD}, "configurations_run": 2}
@@ -375,6 +377,10 @@ def test_a_preset_without_its_finished_held_out_study_is_refused_by_name(tmp_pat
     refused(r"orca: its study .*study.jsonl is torn")
     log.write_text(text.rsplit("\n", 2)[0] + "\n")  # trial 1 of 2 never ran
     refused(r"orca: its study .*study.jsonl is unfinished: 1 of configurations=2 trials")
+    log.write_text(text.replace('"wall_seconds"', '"wall"', 1))  # trial 0 lacks a field of TRIAL_FIELDS
+    refused(r"orca: .*study.jsonl line 2: not a trial record \(no wall_seconds\)")
+    log.write_text(text.replace('"trial": 1', '"trial": 2', 1))
+    refused(r"orca: .*study.jsonl line 3: trial 2 where trial 1 was expected")
     log.unlink()
     refused(r"orca: its study .*study.jsonl is missing")
     _shipped(tmp_path, "orca", {"goal_gain": 0.9}, controller="dwa")

@@ -34,8 +34,10 @@ __all__ = [
     "check_memory",
     "check_velocity",
     "get_dictionary",
+    "lifted_size",
     "lift_memory",
     "lift_memory_casadi",
+    "lift_state",
     "lift_velocity",
     "lift_velocity_casadi",
     "memory_size",
@@ -275,3 +277,39 @@ def lift_velocity_casadi(now: list, before: list) -> list:
     for (x, y, c, s), (xb, yb, cb, sb) in zip(now, before):
         terms += _move_terms(x - xb, y - yb, c, s, cb, sb, ca.atan2)
     return terms
+
+
+# ----------------------------------------------------------------------------- the whole lift
+def lifted_size(dictionary: Dictionary, n_robots: int, memory: int = 0, velocity: bool = False) -> int:
+    """Dimension D of the lifted state of ``n_robots`` robots (:func:`lift_state`)."""
+    return dictionary.size(n_robots) + memory_size(n_robots, memory) + velocity_size(n_robots, velocity)
+
+
+def lift_state(
+    dictionary: Dictionary,
+    poses: NDArray,
+    memory: int = 0,
+    previous: NDArray | None = None,
+    velocity: bool = False,
+    before: NDArray | None = None,
+) -> NDArray[np.float64]:
+    """The lifted state of poses (..., N, 3): the dictionary's observables, then the memory's
+    (:func:`lift_memory` of ``previous`` (..., L, N, 2), with ``memory`` > 0), then the
+    velocity's (:func:`lift_velocity` of ``before`` (..., N, 3), with ``velocity``). The one
+    order of the lift, which the fit and the model share.
+
+    Returns
+    -------
+    ndarray, shape (..., D)
+        D = :func:`lifted_size`.
+    """
+    parts = [dictionary.lift(poses)]
+    if memory:
+        if previous is None:
+            raise ValueError(f"memory={memory} needs the previous commands (..., L, N, 2), not None")
+        parts.append(lift_memory(poses, previous, memory))
+    if velocity:
+        if before is None:
+            raise ValueError("velocity=True needs the poses one period before (..., N, 3), not None")
+        parts.append(lift_velocity(poses, before))
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)

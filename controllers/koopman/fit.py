@@ -23,10 +23,8 @@ from controllers.koopman.dictionary import (
     Dictionary,
     check_memory,
     check_velocity,
-    lift_memory,
-    lift_velocity,
-    memory_size,
-    velocity_size,
+    lift_state,
+    lifted_size,
 )
 
 __all__ = ["STRUCTURES", "BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted", "fit_per_robot"]
@@ -236,7 +234,7 @@ def fit_bilinear(
     if states.shape[:3] != (steps + 1, batch, n):
         raise ValueError(f"states {states.shape} and commands {commands.shape} do not match")
     memory, velocity = check_memory(memory), check_velocity(velocity)
-    d = dictionary.size(n) + memory_size(n, memory) + velocity_size(n, velocity)
+    d = lifted_size(dictionary, n, memory, velocity)
     m = 2 * n
     acc = MomentAccumulator(d, m)
     flat_u = commands.reshape(steps * batch, m)
@@ -245,14 +243,15 @@ def fit_bilinear(
     per_chunk = max(1, chunk // batch)
     for t0 in range(0, steps, per_chunk):
         t1 = min(steps, t0 + per_chunk)
-        z_all = dictionary.lift(states[t0 : t1 + 1])  # (t1 - t0 + 1, batch, d)
-        if previous is not None:
-            memory_terms = lift_memory(states[t0 : t1 + 1], previous[t0 : t1 + 1], memory)
-            z_all = np.concatenate([z_all, memory_terms], axis=-1)
-        if velocity:
+        z_all = lift_state(  # (t1 - t0 + 1, batch, d)
+            dictionary,
+            states[t0 : t1 + 1],
+            memory,
+            None if previous is None else previous[t0 : t1 + 1],
+            velocity,
             # the pose before period t0 is the last of the previous chunk (the start's own at t0 = 0)
-            before = poses_before(states[max(0, t0 - 1) : t1 + 1])[-(t1 - t0 + 1) :]
-            z_all = np.concatenate([z_all, lift_velocity(states[t0 : t1 + 1], before)], axis=-1)
+            poses_before(states, t0, t1 + 1) if velocity else None,
+        )
         acc.add(z_all[:-1].reshape(-1, d), flat_u[t0 * batch : t1 * batch], z_all[1:].reshape(-1, d))
     return BilinearFit(*acc.solve(dictionary.state_rows(n).reshape(-1), ridge, rcond))
 

@@ -15,13 +15,11 @@ from controllers.koopman.dictionary import (
     Dictionary,
     check_memory,
     check_velocity,
-    lift_memory,
     lift_memory_casadi,
-    lift_velocity,
+    lift_state,
     lift_velocity_casadi,
-    memory_size,
+    lifted_size,
     shift_memory,
-    velocity_size,
 )
 from controllers.koopman.model_file import (
     FORMAT_VERSION,
@@ -30,6 +28,7 @@ from controllers.koopman.model_file import (
     read_model_file,
     write_model_file,
 )
+from controllers.mpc.models import coding_size
 
 __all__ = ["KoopmanModel", "ModelFileError", "FORMAT_VERSION"]
 
@@ -125,8 +124,7 @@ class KoopmanModel:
     def size(self) -> int:
         """Dimension D of the lifted state (the dictionary's observables, the memory's, then the
         velocity's)."""
-        n = self.n_robots
-        return self.dictionary.size(n) + memory_size(n, self.memory) + velocity_size(n, self.velocity)
+        return lifted_size(self.dictionary, self.n_robots, self.memory, self.velocity)
 
     def no_memory(self) -> NDArray[np.float64]:
         """Previous commands of a team at rest, shape (memory, N, 2): what a prediction from a
@@ -189,16 +187,14 @@ class KoopmanModel:
         recent first (None: a team at rest); unused without memory. ``before`` (..., N, 3): the
         poses one period earlier (None: the robots stand); unused without velocity.
         """
-        z = self.dictionary.lift(poses)
-        if not (self.memory or self.velocity):
-            return z
-        parts = [z]
-        if self.memory:
-            previous = self.no_memory() if previous is None else previous
-            parts.append(lift_memory(poses, previous, self.memory))
-        if self.velocity:
-            parts.append(lift_velocity(poses, poses if before is None else before))
-        return np.concatenate(parts, axis=-1)
+        return lift_state(
+            self.dictionary,
+            poses,
+            self.memory,
+            self.no_memory() if previous is None else previous,
+            self.velocity,
+            poses if before is None else before,
+        )
 
     def advance(self, z: NDArray, commands: NDArray) -> NDArray[np.float64]:
         """One step in the lifted space: (..., D) and commands (..., N, 2) -> (..., D)."""
@@ -284,11 +280,6 @@ class KoopmanModel:
         with velocity then by its (x, y, cos theta, sin theta) one period before (``"+v"``)."""
         return "cs" + (f"+u{self.memory}" if self.memory else "") + ("+v" if self.velocity else "")
 
-    @property
-    def _nlp_size(self) -> int:
-        """NLP state entries per robot (:attr:`coding`)."""
-        return 4 + 2 * self.memory + (4 if self.velocity else 0)
-
     def casadi_nlp_step(self, name: str = "koopman_cs_step") -> ca.Function:
         """f_b on the (x, y, cos theta, sin theta) coding used inside the NMPC.
 
@@ -317,7 +308,7 @@ class KoopmanModel:
         velocity, then by its (x, y, cos, sin) in ``state`` (the pose one period before)."""
         if not (self.memory or self.velocity):
             return xycs
-        n, size, lags = self.n_robots, self._nlp_size, self.memory
+        n, size, lags = self.n_robots, coding_size(self.coding), self.memory
         parts = []
         for i in range(n):
             parts.append(xycs[4 * i : 4 * i + 4])
@@ -407,7 +398,7 @@ class KoopmanModel:
 
     def _nlp_lift(self) -> tuple:
         """Symbols (s, u) of the NLP coding and the lifted z of s with normalized (cos, sin)."""
-        n, size = self.n_robots, self._nlp_size
+        n, size = self.n_robots, coding_size(self.coding)
         state = ca.SX.sym("s", size * n)
         u = ca.SX.sym("u", 2 * n)
         terms: list = [1]

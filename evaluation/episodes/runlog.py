@@ -21,7 +21,7 @@ from typing import IO, Any
 
 from evaluation.episodes.distinct import ConflictingRecords, read_once
 from evaluation.episodes.records import json_safe, record_problem
-from koopman_envs.checks import parse_json
+from koopman_envs.checks import differing_settings, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, check_regular, read_bounded, write_atomic
 
 __all__ = [
@@ -192,8 +192,7 @@ def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> list[str]:
     if added:
         return added
     if isinstance(theirs, dict):
-        differ = sorted(k for k in set(ours) | set(theirs) if ours.get(k) != theirs.get(k))
-        what = "; ".join(f"{k}: logged {theirs.get(k)!r}, now {ours.get(k)!r}" for k in differ)
+        what = differing_settings(theirs, ours)
     else:
         what = "line 1 is not a KoopNav run header"
     raise LogError(

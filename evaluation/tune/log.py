@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controllers.search_space import Search
-from controllers.studies import STUDY_KIND
+from controllers.studies import STUDY_KIND, trial_problem
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,
@@ -19,24 +19,8 @@ from evaluation.episodes.runlog import (
 from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, tasks_of
 from evaluation.tune.scoring import OBJECTIVE
 from koopman_envs import check_split_allowed, load_suite
-from koopman_envs.checks import check_int, parse_json
+from koopman_envs.checks import check_int, differing_settings, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, read_bounded
-
-#: the fields of a trial's line
-TRIAL_FIELDS = (
-    "trial",
-    "params",
-    "options",
-    "score",
-    "successes",
-    "episodes",
-    "errors",
-    "mean_time_to_goal",
-    "layouts",
-    "seeds",
-    "wall_seconds",
-    "budget_so_far",
-)
 
 
 @dataclass(frozen=True)
@@ -143,18 +127,6 @@ class Trial:
     record: dict[str, Any]
 
 
-def _trial_problem(record: Any) -> str | None:
-    """Why ``record`` is not a trial line (None when it is one)."""
-    if not isinstance(record, dict):
-        return "not a JSON object"
-    missing = [k for k in TRIAL_FIELDS if k not in record]
-    if missing:
-        return f"not a trial record (no {', '.join(missing)})"
-    if not isinstance(record["params"], dict) or not isinstance(record["score"], (int, float)):
-        return "a trial record whose params are not an object or whose score is not a number"
-    return None
-
-
 def read_study(
     path: str | os.PathLike[str], header: Mapping[str, Any] | None = None, *, repair: bool = True
 ) -> tuple[dict[str, Any], list[Trial], list[str]]:
@@ -189,13 +161,12 @@ def read_study(
     if not isinstance(found, dict) or found.get("kind") != STUDY_KIND:
         raise LogError(f"{path} is not a KoopNav study log (line 1 is not a {STUDY_KIND!r} header)")
     if header is not None and found != header:
-        differ = sorted(k for k in set(found) | set(header) if found.get(k) != header.get(k))
-        what = "; ".join(f"{k}: logged {found.get(k)!r}, now {header.get(k)!r}" for k in differ)
+        what = differing_settings(found, header)
         raise LogError(
             f"{path} belongs to another study ({what}); resume with the same settings or use "
             "another --out; nothing was changed"
         )
-    records, places, bad = parse_lines(lines[1:], _trial_problem)
+    records, places, bad = parse_lines(lines[1:], trial_problem)
     for i, (record, place) in enumerate(zip(records, places)):
         if record["trial"] != i:
             bad.append(f"{place}: trial {record['trial']!r} where trial {i} was expected")

@@ -13,7 +13,7 @@ from typing import Any
 import controllers
 from controllers.presets import TUNED_KIND
 from controllers.search_space import Search
-from controllers.studies import BEST_FILE, STUDY_FILE, trial_rank
+from controllers.studies import BEST_FILE, STUDY_FILE, study_record, trial_rank
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,
@@ -266,6 +266,6 @@ def write_best(out: str | os.PathLike[str], header: Mapping[str, Any], trials: S
         "options": best.options,
         "score": best.score,
         "defaults_score": defaults.score,
-        "study": {k: summary[k] for k in ("split", "suites", "seed", "budget", "configurations_run")},
+        "study": study_record(header, len(trials)),
     }
     write_atomic(Path(out) / f"{controller}.json", json.dumps(json_safe(preset), indent=2) + "\n")
