@@ -92,7 +92,7 @@ fi
 export KOOPNAV_NMPC_JIT=0 # no test compiles an NMPC solver (tests/conftest.py sets it too)
 
 # The clone's state, read and written by one program: `count TARGET` (mutants mutmut makes of
-# TARGET), `resume [--dry]` (in a clone: every meta file checked whole, the verdicts an interruption
+# TARGET), `resume TARGET [--dry]` (in a clone: the meta file checked whole, the verdicts an interruption
 # can leave reset), `score MODULE RESULTS MIN SECONDS KEY [FILE]` (the score of `mutmut results`, kept
 # in FILE when every mutant has a verdict), `show FILE KEY MIN` (a kept score, refused when torn or
 # made from another KEY). Exit 0: at least MIN percent killed, 1: below, 3: no whole score.
@@ -101,6 +101,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -113,10 +114,6 @@ def write_atomically(path: Path, text: str) -> None:
     part = path.with_name(path.name + ".part")
     part.write_text(text, encoding="utf-8")
     os.replace(part, path)
-
-
-def meta_files() -> list[Path]:
-    return sorted(p for p in Path("mutants").rglob("*.meta") if p.is_file())
 
 
 def whole_meta(path: Path) -> dict | None:
@@ -133,9 +130,19 @@ def whole_meta(path: Path) -> dict | None:
     return meta
 
 
-def resume(dry: bool) -> None:
+def resume(target: str, dry: bool) -> None:
     from mutmut.stats import status_by_exit_code
 
+    path = Path("mutants") / f"{target}.meta"
+    meta = whole_meta(path)
+    if meta is None:
+        # mutmut writes the meta file once it has copied the packages and made the mutants, so a
+        # mutants/ folder without a whole one was stopped before (a copy may be cut short) or torn:
+        # nothing in it is trusted, every mutant is made and tested afresh
+        print(f"  {path} is {'torn' if path.exists() else 'missing'}: every mutant is made and tested afresh")
+        if not dry:
+            shutil.rmtree("mutants")
+        return
     stats = Path("mutants/mutmut-stats.json")
     if stats.exists():
         try:
@@ -144,30 +151,15 @@ def resume(dry: bool) -> None:
             print(f"  torn {stats}: mutmut collects the tests' coverage again")
             if not dry:
                 stats.unlink()
-    decided = total = reset = 0
-    for path in meta_files():
-        before = reset
-        meta = whole_meta(path)
-        if meta is None:
-            # a torn meta file holds no verdict to trust: its module is mutated and tested afresh
-            mutated = path.with_name(path.name.removesuffix(".meta"))
-            print(f"  torn {path}: every mutant of {mutated} is tested again")
-            if not dry:
-                path.unlink()
-                mutated.unlink(missing_ok=True)
-            continue
-        codes = meta["exit_code_by_key"]
-        for name, code in codes.items():
-            if code is not None and status_by_exit_code[code] not in FINAL:
-                codes[name] = None
-                reset += 1
-        total += len(codes)
-        decided += sum(code is not None for code in codes.values())
-        if reset > before and not dry:
-            write_atomically(path, json.dumps(meta, indent=4))
-    if total:
-        again = f", {reset} interrupted or doubtful verdicts to test again" if reset else ""
-        print(f"  {decided} of {total} mutants have a verdict{again}")
+    codes = meta["exit_code_by_key"]
+    reset = [name for name, code in codes.items() if code is not None and status_by_exit_code[code] not in FINAL]
+    for name in reset:
+        codes[name] = None
+    if reset and not dry:
+        write_atomically(path, json.dumps(meta, indent=4))
+    decided = sum(code is not None for code in codes.values())
+    again = f", {len(reset)} interrupted or doubtful verdicts to test again" if reset else ""
+    print(f"  {decided} of {len(codes)} mutants have a verdict{again}")
 
 
 def score_line(killed: int, total: int, seconds: int, counts: dict[str, int]) -> str:
@@ -235,7 +227,7 @@ command, args = sys.argv[1], sys.argv[2:]
 if command == "count":
     count(args[0])
 elif command == "resume":
-    resume(dry=args == ["--dry"])
+    resume(args[0], dry=args[1:] == ["--dry"])
 elif command == "score":
     sys.exit(score(args[0], args[1], float(args[2]), int(args[3]), args[4], args[5] if len(args) > 5 else ""))
 elif command == "show":
@@ -377,7 +369,7 @@ pytest_add_cli_args = [$args]"
             python3 -c "$STATE" show "$kept/score" "$key" "$MIN_SCORE" | head -1 || true
         elif [ -n "$kept" ] && [ -d "$kept/koopnav/mutants" ]; then
             echo "$kept:"
-            (cd "$kept/koopnav" && python3 -c "$STATE" resume --dry)
+            (cd "$kept/koopnav" && python3 -c "$STATE" resume "$target" --dry)
         fi
         rm -rf "$base"
         scratch=""
@@ -397,7 +389,7 @@ pytest_add_cli_args = [$args]"
     fi
     if [ -d "$clone/mutants" ]; then
         echo "resuming $clone"
-        (cd "$clone" && python3 -c "$STATE" resume)
+        (cd "$clone" && python3 -c "$STATE" resume "$target")
     fi
     start=$(date +%s)
     (cd "$clone" && exec python3 -c "$RUN" run --max-children "$JOBS") >>"$base/run.log" 2>&1 &
