@@ -3,12 +3,13 @@
 #
 #   bash .ci/mutation.sh MODULE [MODULE ...]     # MODULE from the list below, or "all"
 #
-# For each module: clones the committed HEAD of this repository into a temporary directory (the
-# mutants/ folder never lands in the checkout), appends a [tool.mutmut] section to the clone's
-# pyproject.toml that mutates only that module and runs only the test files that exercise it,
-# runs `mutmut run`, and prints the score: killed / total, then every mutant not killed with its
-# status (survived, timeout, "no tests": no selected test reaches it). Exit 1 when a module scores
-# below MIN_SCORE.
+# For each module: clones the committed HEAD of this repository into a temporary directory, or
+# WORKDIR/MODULE (the mutants/ folder never lands in the checkout), appends a [tool.mutmut]
+# section to the clone's pyproject.toml that mutates only that module and runs only the test files
+# that exercise it, runs `mutmut run`, and prints the score: killed / total, then every mutant not
+# killed with its status (survived, timeout, "no tests": no selected test reaches it), and at the
+# end every module's score line. Exit 1 when a module scores below MIN_SCORE, 2 on bad input or a WORKDIR that does not
+# match, 130 when stopped by a signal.
 #
 # mutmut does not mutate decorated functions (its trampolines replace the function object): the
 # numba kernels (@njit) and properties (@property) are out of its reach. The module
@@ -92,10 +93,10 @@ fi
 export KOOPNAV_NMPC_JIT=0 # no test compiles an NMPC solver (tests/conftest.py sets it too)
 
 # The clone's state, read and written by one program: `count TARGET` (mutants mutmut makes of
-# TARGET), `resume TARGET [--dry]` (in a clone: the meta file checked whole, the verdicts an interruption
-# can leave reset), `score MODULE RESULTS MIN SECONDS KEY [FILE]` (the score of `mutmut results`, kept
-# in FILE when every mutant has a verdict), `show FILE KEY MIN` (a kept score, refused when torn or
-# made from another KEY). Exit 0: at least MIN percent killed, 1: below, 3: no whole score.
+# TARGET), `resume TARGET [--dry]` (in a clone: the meta file checked whole, the verdicts an
+# interruption can leave reset), `score MODULE RESULTS MIN SECONDS KEY [FILE]` (the score of
+# `mutmut results`, kept in FILE when every mutant has a verdict), `show FILE KEY MIN` (a kept
+# score, refused when torn or made from another KEY). Exit 0: at least MIN percent killed, 1: below, 3: no whole score.
 read -r -d '' STATE <<'EOF' || true
 import hashlib
 import json
