@@ -366,7 +366,9 @@ pytest_add_cli_args = [$args]"
         sed -n '/^\[tool.mutmut\]/,$p' "$clone/pyproject.toml"
         echo "$m: $(cd "$clone" && python3 -c "$STATE" count "$target") mutants"
         kept=${WORKDIR:+$WORKDIR/$m}
-        if [ -n "$kept" ] && [ -f "$kept/score" ]; then
+        if [ -n "$kept" ] && [ -f "$kept/key" ] && [ "$(tr '\n' ' ' <"$kept/key")" != "$key " ]; then
+            echo "$kept was set up from another commit or test selection: a run would refuse it"
+        elif [ -n "$kept" ] && [ -f "$kept/score" ]; then
             python3 -c "$STATE" show "$kept/score" "$key" "$MIN_SCORE" | head -1 || true
         elif [ -n "$kept" ] && [ -d "$kept/koopnav/mutants" ]; then
             echo "$kept:"
