@@ -291,9 +291,23 @@ else
     echo "stopped" >&2
     exit 130
 fi' INT TERM HUP
+commit=$(git -C "$SOURCE" rev-parse HEAD)
+refuse_another_commit() { # MODULE: its kept clone, if any, must come from $commit
+    local kept=$WORKDIR/$1/key
+    if [ -f "$kept" ] && [ "$(sed -n 's/^commit //p' "$kept")" != "$commit" ]; then
+        echo "$WORKDIR/$1 was cloned from commit $(sed -n 's/^commit //p' "$kept"), not from" \
+            "$SOURCE's HEAD $commit; remove $WORKDIR/$1 to start $1 afresh at $commit, or use" \
+            "another WORKDIR" >&2
+        exit 2
+    fi
+}
+if [ -n "$WORKDIR" ] && [ "${DRY:-0}" != 1 ]; then
+    for m in "${wanted[@]}"; do # before any module runs for hours
+        refuse_another_commit "$m"
+    done
+fi
 for m in "${wanted[@]}"; do
     IFS="|" read -r target selection deselect <<<"${MODULES[$m]}"
-    commit=$(git -C "$SOURCE" rev-parse HEAD)
     if [ -n "$WORKDIR" ] && [ "${DRY:-0}" != 1 ]; then
         base=$WORKDIR/$m
         mkdir -p "$base"
@@ -308,10 +322,8 @@ for m in "${wanted[@]}"; do
         rm -rf "$clone" "$base/score" "$base/seconds"
         git clone -q "$SOURCE" "$clone"
         fresh=1
-    elif [ "$(sed -n 's/^commit //p' "$base/key")" != "$commit" ]; then
-        echo "$base was cloned from commit $(sed -n 's/^commit //p' "$base/key"), not from $SOURCE's HEAD" \
-            "$commit; remove $base to start $m afresh at $commit, or use another WORKDIR" >&2
-        exit 2
+    else
+        refuse_another_commit "$m"
     fi
     tests=""
     copied=""
