@@ -113,12 +113,15 @@ RUNS[compute_delay]="$MECHANISM --solver rti --controllers koopman-nmpc koopman-
 RUNS[compute_ipopt_delay]="$MECHANISM --solver ipopt --controllers koopman-nmpc --env-kwargs actuation_delay=1"
 COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
 # issue 62: the sim-to-sim protocol (docs/sim2sim_results.md): every registered controller, as
-# tuned or trained on the kinematic plant, on the suite's first test layouts of both tasks at every
-# friction level (carpet, gravel and ice on the physics plant), on the kinematic plant and on the
-# physics plant; the two runs differ by --plant only, so every episode pairs with its twin (same
-# layout, starts and seed). The Koopman models calibrate on the plant they run on (1,000,000
-# team-transitions per friction level on the physics plant: the run's largest single cost).
-SIM2SIM="--suite koopnav-bench-v1 --split test --layouts 0:10 --sweep slip=nominal,low,high --reference koopman-nmpc"
+# tuned or trained on the kinematic plant, on the suite's first 10 test layouts of both tasks on
+# carpet and on ice (slip=nominal and high: the physics plant's extremes of friction), on the
+# kinematic plant and on the physics plant; the two runs differ by --plant only, so every episode
+# pairs with its twin (same layout, starts and seed). Estimated 2 CPU-hours with 1 worker, half
+# of it the physics run's calibrations: the Koopman models (stacked and per-robot) and the robust
+# NMPCs' residual calibrate on the plant they run on, 1,000,000 team-transitions each per friction
+# level, about 28 CPU-minutes per level on the physics plant (docs/physics.md, "The sim-to-sim
+# protocol"); gravel (slip=low) would add about 58 CPU-minutes.
+SIM2SIM="--suite koopnav-bench-v1 --split test --layouts 0:10 --sweep slip=nominal,high --reference koopman-nmpc"
 RUNS[sim2sim_kinematic]="$SIM2SIM"
 RUNS[sim2sim_physics]="$SIM2SIM --plant mujoco"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
