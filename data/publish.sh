@@ -116,7 +116,7 @@ COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
 # tuned or trained on the kinematic plant, on the suite's first 10 test layouts of both tasks on
 # carpet and on ice (slip=nominal and high: the physics plant's extremes of friction), on the
 # kinematic plant and on the physics plant; the two runs differ by --plant only, so every episode
-# pairs with its twin (same layout, starts and seed). Estimated 2 CPU-hours with 1 worker, half
+# pairs with its twin (same layout, starts and seed). Estimated 1.9 CPU-hours with 1 worker, half
 # of it the physics run's calibrations: the Koopman models (stacked and per-robot) and the robust
 # NMPCs' residual calibrate on the plant they run on, 1,000,000 team-transitions each per friction
 # level, about 28 CPU-minutes per level on the physics plant (docs/physics.md, "The sim-to-sim
