@@ -123,8 +123,20 @@ RUNS[compute_delay]="$MECHANISM --solver rti --controllers koopman-nmpc koopman-
 # real-time iteration (paired with the paper run's koopman-nmpc rows: IPOPT, free compute, no delay)
 RUNS[compute_ipopt_delay]="$MECHANISM --solver ipopt --controllers koopman-nmpc --env-kwargs actuation_delay=1"
 COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
+# issue 62: the sim-to-sim protocol (docs/sim2sim_results.md): every registered controller, as
+# tuned or trained on the kinematic plant, on the suite's first 10 test layouts of both tasks on
+# carpet and on ice (slip=nominal and high: the physics plant's extremes of friction), on the
+# kinematic plant and on the physics plant; the two runs differ by --plant only, so every episode
+# pairs with its twin (same layout, starts and seed). Estimated 1.9 CPU-hours with 1 worker, half
+# of it the physics run's calibrations: the Koopman models (stacked and per-robot) and the robust
+# NMPCs' residual calibrate on the plant they run on, 1,000,000 team-transitions each per friction
+# level, about 28 CPU-minutes per level on the physics plant (docs/physics.md, "The sim-to-sim
+# protocol"); gravel (slip=low) would add about 58 CPU-minutes.
+SIM2SIM="--suite koopnav-bench-v1 --split test --layouts 0:10 --sweep slip=nominal,high --reference koopman-nmpc"
+RUNS[sim2sim_kinematic]="$SIM2SIM"
+RUNS[sim2sim_physics]="$SIM2SIM --plant mujoco"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation bench_test_realtime bench_test)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation bench_test_realtime bench_test sim2sim_kinematic sim2sim_physics)
 
 run() {
     local name="$1" out="data/runs/$1"

@@ -3,8 +3,9 @@ the same with the layout as the unit (:mod:`~evaluation.stats.clustered`,
 :mod:`~evaluation.stats.layout_tests`), families of tests and their power
 (:mod:`~evaluation.stats.families`), a suite run's tables (:mod:`~evaluation.stats.suite_statistics`),
 cells, leaderboard rows and paired comparisons (:mod:`~evaluation.stats.aggregate`), a run's data
-for the renderers (:class:`~evaluation.stats.run_data.RunData`) and a sweep's robustness profiles
-(:mod:`~evaluation.stats.robustness`). No output format is known here.
+for the renderers (:class:`~evaluation.stats.run_data.RunData`) a sweep's robustness profiles
+(:mod:`~evaluation.stats.robustness`) and the sim-to-sim comparison of two plants
+(:mod:`~evaluation.stats.transfer`). No output format is known here.
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
 here (tests/test_architecture.py checks the list), except ``aggregate``, which names the module
@@ -64,6 +65,15 @@ from evaluation.stats.suite_statistics import (
     suite_rate_interval,
     suite_tables,
 )
+from evaluation.stats.transfer import (
+    TRANSFER_ALPHA,
+    Ordering,
+    PlantRow,
+    check_same_protocol,
+    ordering_verdict,
+    orderings,
+    plant_differences,
+)
 
 __all__ = [
     "PairedComparison",
@@ -116,4 +126,11 @@ __all__ = [
     "LevelRow",
     "level_costs",
     "profiles",
+    "TRANSFER_ALPHA",
+    "Ordering",
+    "PlantRow",
+    "check_same_protocol",
+    "ordering_verdict",
+    "orderings",
+    "plant_differences",
 ]

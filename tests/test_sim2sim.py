@@ -1,0 +1,183 @@
+"""The sim-to-sim protocol (issue 62): ``--plant mujoco`` recorded in a run's identity (a kinematic
+log is not resumed on the physics plant), the published runs in data/publish.sh differing by the
+plant only, and docs/make_sim2sim_md.py's page on two small real runs: its paired numbers are
+the records' own, its verdict sentence says what the data say, and runs that differ by more than
+the plant are refused by name."""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+import evaluate as ev
+from evaluation.reports.publications import pack_split
+from evaluation.stats.statistics import paired_comparison
+from evaluation.stats.transfer import Ordering, ordering_verdict
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "docs"))
+from make_sim2sim_md import level_title, summary_sentence, transfer_sentence  # noqa: E402  (docs/ is no package)
+from make_sim2sim_md import main as make_page  # noqa: E402
+
+#: a small friction sweep: two cheap controllers, map1, two seeds, 40 periods
+SMALL = [
+    *("--env", "KoopNav-TargetReaching-v0", "--maps", "map1", "--controllers", "consensus-free", "orca"),
+    *("--episodes", "2", "--max-episode-steps", "40", "--workers", "1", "--quiet"),
+    *("--sweep", "slip=nominal,high"),
+]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> tuple[Path, Path]:
+    """The small sweep on the kinematic plant and on the physics plant, named as the published
+    runs are (the intro template names its runs by their files)."""
+    pytest.importorskip("mujoco")  # the physics plant (the [physics] extra)
+    root = tmp_path_factory.mktemp("sim2sim")
+    kinematic, physics = root / "sim2sim_kinematic", root / "sim2sim_physics"
+    assert ev.main([*SMALL, "--out", str(kinematic)]) == 0
+    assert ev.main([*SMALL, "--plant", "mujoco", "--out", str(physics)]) == 0
+    return kinematic, physics
+
+
+@pytest.fixture(scope="module")
+def published(runs, tmp_path_factory) -> tuple[Path, Path]:
+    """The two runs published as data/publish.sh packs them (what the page reads)."""
+    data = tmp_path_factory.mktemp("data")
+    for run in runs:
+        pack_split(run, data / run.name)
+    return data / runs[0].name, data / runs[1].name
+
+
+def _records(run: Path, level: str) -> dict[tuple[str, int], dict]:
+    lines = (run / "sweep" / f"slip-{level}" / "episodes.jsonl").read_text().splitlines()[1:]
+    return {(r["controller"], r["trial"]): r for r in map(json.loads, lines) if r.get("status") == "ok"}
+
+
+def _make_page(args: list[str], capsys) -> tuple[int, str, str]:
+    """``python docs/make_sim2sim_md.py ARGS``: (exit code, stdout, stderr)."""
+    code = make_page(args)
+    shown = capsys.readouterr()
+    return code, shown.out, shown.err
+
+
+def test_a_kinematic_log_is_not_resumed_on_the_physics_plant(runs, capsys) -> None:
+    kinematic, _ = runs
+    level = kinematic / "sweep" / "slip-nominal"
+    before = (level / "episodes.jsonl").read_bytes()
+    args = [a for a in SMALL if a not in ("--sweep", "slip=nominal,high")]
+    code = ev.main([*args, "--slips", "nominal", "--plant", "mujoco", "--out", str(level), "--resume"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "belongs to a run with other settings" in err and "'plant': 'mujoco'" in err
+    assert (level / "episodes.jsonl").read_bytes() == before  # nothing appended
+
+
+def test_the_page_pairs_every_episode_with_its_twin_on_the_other_plant(
+    runs, published, tmp_path, capsys
+) -> None:
+    kinematic, physics = runs
+    out = tmp_path / "sim2sim.md"
+    intro = ROOT / "docs" / "_intros" / "sim2sim_results.md"
+    code, printed, err = _make_page([*map(str, published), "--out", str(out), "--intro", str(intro)], capsys)
+    assert code == 0, err
+    assert printed.strip() == f"wrote {out}"
+    text = out.read_text()
+    assert "{{" not in text and "differs by the plant only (2 episodes per" in " ".join(text.split())
+    for level in ("nominal", "high"):
+        assert f"## {level_title(level)}" in text
+        before, after = _records(kinematic, level), _records(physics, level)
+        section = text.split(f"## {level_title(level)}")[1].split("\n## ")[0]
+        for controller in ("consensus-free", "orca"):
+            keys = sorted(k for k in before if k[0] == controller and k in after)
+            test = paired_comparison(
+                [after[k]["success"] for k in keys], [before[k]["success"] for k in keys]
+            )
+            row = re.search(
+                rf"^\| {controller} \| (\d+) \| (\d+)% .*\| (\d+)% .*\| ([+-]\d+) \[", section, re.M
+            )
+            assert row is not None, section
+            assert int(row[1]) == len(keys) == 2
+            assert int(row[2]) == round(100 * test.rate_b) and int(row[3]) == round(100 * test.rate_a)
+            assert int(row[4]) == round(100 * test.difference)
+        assert "**Which verdicts transfer**: " in section
+    # the twins are the same episodes but for the plant: same seed, layout and starts
+    twin_a, twin_b = _records(kinematic, "high")[("orca", 1)], _records(physics, "high")[("orca", 1)]
+    assert (twin_a["seed"], twin_a["map"]) == (twin_b["seed"], twin_b["map"])
+    assert json.loads(twin_b["env_kwargs"])["plant"] == "mujoco" and "plant" not in json.loads(
+        twin_a["env_kwargs"]
+    )
+
+
+def test_runs_that_differ_by_more_than_the_plant_are_refused_by_name(runs, tmp_path, capsys) -> None:
+    kinematic, physics = runs
+    out = tmp_path / "page.md"
+    code, _, err = _make_page([str(kinematic), str(kinematic), "--out", str(out)], capsys)
+    assert code == 2 and "both runs are on the 'kinematic' plant" in err
+    other = tmp_path / "other"
+    assert (
+        ev.main([*SMALL[:-2], "--sweep", "slip=nominal,high", "--tolerance", "0.2", "--out", str(other)]) == 0
+    )
+    code, _, err = _make_page([str(other), str(physics), "--out", str(out)], capsys)
+    assert code == 2 and "differ in ['env_settings'], not only in the plant" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "first, second, verdict",
+    [(1, 1, "holds"), (-1, -1, "holds"), (1, 0, "lost"), (1, -1, "reversed"), (0, -1, "new"), (0, 0, "none")],
+)
+def test_what_became_of_a_verdict(first: int, second: int, verdict: str) -> None:
+    assert ordering_verdict(first, second) == verdict
+
+
+def test_the_sentence_names_each_verdict_by_its_fate() -> None:
+    env = "KoopNav-TargetReaching-v0"
+    found = [
+        Ordering(env, "a", "b", 1, 1),
+        Ordering(env, "a", "c", -1, 0),
+        Ordering(env, "b", "c", 1, -1),
+        Ordering(env, "a", "d", 0, 1),
+        Ordering(env, "b", "d", 0, 0),
+    ]
+    assert transfer_sentence(found) == (
+        "Of the 3 orderings significant on the kinematic plant (of 5 pairs), 1 hold on the physics "
+        "plant: `a` > `b` (target reaching); 1 are no longer significant there: `c` > `a` (target "
+        "reaching); 1 reverse: `b` > `c` (target reaching) (now `c` > `b` (target reaching)); 1 "
+        "appear on the physics plant only: `a` > `d` (target reaching)."
+    )
+    assert transfer_sentence(found[-1:]).startswith("No ordering of two controllers is significant")
+    summary = summary_sentence({"nominal": found, "high": found[3:]})
+    assert "at each friction level: carpet 1 of 3 (and 1 new); ice 0 of 0 (and 1 new)." in summary
+
+
+def test_the_published_runs_differ_by_the_plant_only() -> None:
+    script = (ROOT / "data" / "publish.sh").read_text(encoding="utf-8")
+    runs = dict(re.findall(r'^RUNS\[(sim2sim_\w+)\]="(.*)"$', script, re.M))
+    assert set(runs) == {"sim2sim_kinematic", "sim2sim_physics"}
+    assert runs["sim2sim_physics"] == runs["sim2sim_kinematic"] + " --plant mujoco"
+    shared, order = re.search(r'^SIM2SIM="(.*)"$', script, re.M), re.search(r"^ORDER=\((.*)\)$", script, re.M)
+    assert shared is not None and order is not None
+    assert re.search(r"--sweep slip=nominal,(low,)?high ", shared[1])
+    names = order[1].split()
+    assert names.index("sim2sim_kinematic") < names.index("sim2sim_physics")
+
+
+def test_the_difference_is_physics_minus_kinematic_on_the_twins(runs) -> None:
+    """The small runs end alike on both plants (40 periods reach no target), so here orca's
+    physics episodes are marked successful in a copy: its row must show the gain, the others none."""
+    from evaluation.experiments.sweep import load_sweep
+    from evaluation.stats.run_data import RunData
+    from evaluation.stats.transfer import plant_differences
+
+    (kinematic, _, _), (physics, _, _) = (load_sweep(run) for run in runs)
+    before, after = dict(kinematic["slip"])["high"], dict(physics["slip"])["high"]
+    assert not any(r["success"] for r in before.records + after.records)
+    marked = [{**r, "success": r["controller"] == "orca"} for r in after.records]
+    rows = {row.controller: row for row in plant_differences(before, RunData(marked, after.config))}
+    assert (rows["orca"].first, rows["orca"].second, rows["orca"].difference) == (0.0, 1.0, 1.0)
+    assert rows["orca"].second_interval[0] > 0.3 and rows["orca"].first_interval[1] < 0.7
+    assert rows["consensus-free"].difference == 0.0 and rows["orca"].pairs == 2
