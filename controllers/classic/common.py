@@ -14,16 +14,17 @@ from __future__ import annotations
 import dataclasses
 from collections import deque
 from collections.abc import Mapping
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.estimation import FRONT_END_LEVERS
+from controllers.estimation import FRONT_END_LEVERS, check_estimator
+from controllers.movers import check_mover_prediction
 from koopman_envs.checks import Range, checked_options
 from koopman_envs.scenario import Scenario
 
-__all__ = ["CLASSIC_LEVERS", "TeamView", "goals", "in_range", "settings_from"]
+__all__ = ["CLASSIC_LEVERS", "ClassicSettings", "TeamView", "goals", "in_range", "settings_from"]
 
 _Settings = TypeVar("_Settings")
 
@@ -46,6 +47,24 @@ def checked_fields(settings: Any, ranges: Mapping[str, Range]) -> None:
     given as a whole float is stored as the integer); for its ``__post_init__``."""
     for key in ranges:
         object.__setattr__(settings, key, in_range(ranges, key, getattr(settings, key)))
+
+
+class ClassicSettings:
+    """What the classic baselines' frozen settings dataclasses share: on construction every field
+    with a range in the class's ``RANGES`` is checked (:func:`checked_fields`), and the options
+    every classic baseline has, ``mover_prediction``, ``estimator`` and ``ablate`` (its levers:
+    :data:`CLASSIC_LEVERS`), against their choices; ``ValueError`` naming the bad one."""
+
+    #: the allowed range of every numeric field (the controller's ``OPTION_RANGES``)
+    RANGES: ClassVar[dict[str, Range]] = {}
+    mover_prediction: str
+    estimator: str
+    ablate: str
+
+    def __post_init__(self) -> None:
+        checked_fields(self, self.RANGES)
+        check_mover_prediction(self.mover_prediction)
+        check_estimator(self.estimator, self.ablate, levers=CLASSIC_LEVERS)
 
 
 def settings_from(

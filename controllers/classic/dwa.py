@@ -52,13 +52,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import CLASSIC_LEVERS, TeamView, checked_fields, goals, settings_from
+from controllers.classic.common import ClassicSettings, TeamView, goals, settings_from
 from controllers.classic.kernels import closest_approach, unicycle_arcs
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
-from controllers.estimation import check_estimator, estimator_choices, front_end_option
+from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import (
     MOVER_PREDICTIONS,
-    check_mover_prediction,
     observed_mover_radii,
     observed_movers,
 )
@@ -85,7 +84,7 @@ def segment_distance(
 
 
 @dataclass(frozen=True)
-class DWASettings:
+class DWASettings(ClassicSettings):
     """The options of :class:`DWAController` (ranges and choices checked on construction).
 
     Attributes
@@ -183,11 +182,6 @@ class DWASettings:
         "plan_resolution": Range(0.02, 1, note="m"),
         "velocity_window": Range(1, 100, integer=True, note="periods"),
     }
-
-    def __post_init__(self) -> None:
-        checked_fields(self, self.RANGES)
-        check_mover_prediction(self.mover_prediction)
-        check_estimator(self.estimator, self.ablate, levers=CLASSIC_LEVERS)
 
 
 class DWAController(BaseController):

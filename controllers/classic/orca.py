@@ -44,11 +44,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import CLASSIC_LEVERS, TeamView, checked_fields, goals, settings_from
-from controllers.estimation import check_estimator, estimator_choices, front_end_option
+from controllers.classic.common import ClassicSettings, TeamView, goals, settings_from
+from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import (
     MOVER_PREDICTIONS,
-    check_mover_prediction,
     observed_mover_radii,
     observed_movers,
 )
@@ -92,7 +91,7 @@ def unicycle_tracking(
 
 
 @dataclass(frozen=True)
-class ORCASettings:
+class ORCASettings(ClassicSettings):
     """The options of :class:`ORCAController` (ranges and choices checked on construction).
 
     Attributes
@@ -163,11 +162,6 @@ class ORCASettings:
         "keep_right": Range(0, math.pi / 2, high_open=True, note="rad"),
         "velocity_window": Range(1, 100, integer=True, note="periods"),
     }
-
-    def __post_init__(self) -> None:
-        checked_fields(self, self.RANGES)
-        check_mover_prediction(self.mover_prediction)
-        check_estimator(self.estimator, self.ablate, levers=CLASSIC_LEVERS)
 
 
 class ORCAController(BaseController):
