@@ -4,9 +4,12 @@
 controller, preset, wrapped configuration (``"safe:consensus"``) or import path. The spec is read
 from the controller itself, so it cannot drift from it:
 
-- names, defaults and types from the constructor's signature (and, for the NMPCs, from the
-  fields of :class:`~controllers.mpc.config.NMPCConfig`, which ``**options`` fill);
-- docs from the ``Parameters`` section of the class docstring (NMPCConfig: ``Attributes``);
+- names, defaults and types from the constructor's signature, or from the fields of the
+  settings dataclass its ``**options`` fill: the class's ``SETTINGS`` (e.g.
+  :class:`~controllers.classic.dwa.DWASettings`), else for the NMPCs
+  :class:`~controllers.mpc.config.NMPCConfig`;
+- docs from the ``Parameters`` section of the class docstring (a settings dataclass's:
+  ``Attributes``);
 - the allowed names of a text option from the ``OPTION_CHOICES`` table of the class (and of
   NMPCConfig), the range of a numeric one from its ``OPTION_RANGES`` table (NMPCConfig:
   :data:`~controllers.mpc.config.NMPC_RANGES`; a wrapper's option dataclass: ``RANGES``);
@@ -26,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -255,24 +258,38 @@ def _from_signature(
     return out
 
 
+def _field_options(
+    table: Any,
+    choices: Mapping[str, Any],
+    ranges: Mapping[str, Range],
+    skip: Collection[str] = (),
+    defaults: Mapping[str, Any] | None = None,
+    prefix: str = "",
+) -> list[Option]:
+    """The fields of an options dataclass ``table`` as options named ``prefix + field``: docs
+    from its ``Attributes`` section, ``defaults`` (the controller's own for some) over the
+    fields' (None for a field without one), fields in ``skip`` left out."""
+    docs = _sections(table.__doc__, "Attributes")
+    given = defaults or {}
+    return [
+        Option(
+            prefix + f.name,
+            str(f.type),
+            given.get(f.name, f.default if f.default is not dataclasses.MISSING else None),
+            docs.get(f.name, ""),
+            tuple(choices[f.name]) if f.name in choices else None,
+            ranges.get(f.name),
+        )
+        for f in dataclasses.fields(table)
+        if f.name not in skip
+    ]
+
+
 def _nmpc_options(skip: set[str], defaults: Mapping[str, Any]) -> list[Option]:
     """NMPCConfig's fields as options (``defaults``: the controller's own defaults for some)."""
     from controllers.mpc.config import NMPC_RANGES, NMPCConfig
 
-    docs = _sections(NMPCConfig.__doc__, "Attributes")
-    choices = NMPCConfig.option_choices()
-    return [
-        Option(
-            f.name,
-            str(f.type),
-            defaults.get(f.name, f.default if f.default is not dataclasses.MISSING else None),
-            docs.get(f.name, ""),
-            tuple(choices[f.name]) if f.name in choices else None,
-            NMPC_RANGES.get(f.name),
-        )
-        for f in dataclasses.fields(NMPCConfig)
-        if f.name not in skip
-    ]
+    return _field_options(NMPCConfig, NMPCConfig.option_choices(), NMPC_RANGES, skip, defaults)
 
 
 def spec_of(name: str, factory: Any) -> ControllerSpec:
@@ -285,7 +302,10 @@ def spec_of(name: str, factory: Any) -> ControllerSpec:
     ranges = dict(getattr(cls, "OPTION_RANGES", {}) or {})
     found = _from_signature(target, docs, choices, ranges)
     signature = inspect.signature(target).parameters
-    if "config" in signature and any(p.kind == p.VAR_KEYWORD for p in signature.values()):
+    settings = getattr(cls, "SETTINGS", None)
+    if settings is not None:  # **options are the fields of the class's settings dataclass
+        found += _field_options(settings, choices, ranges, {o.name for o in found})
+    elif "config" in signature and any(p.kind == p.VAR_KEYWORD for p in signature.values()):
         # **options are NMPCConfig's fields
         found += _nmpc_options({o.name for o in found}, getattr(cls, "NMPC_DEFAULTS", {}) or {})
     summary = inspect.cleandoc(getattr(doc_owner, "__doc__", "") or "").split("\n")[0]
@@ -352,12 +372,7 @@ def options(name: str) -> ControllerSpec:
     if prefixes:
         inner = options(name.split(":", 1)[1])
         table, prefix, role = _wrapper_options(prefixes[0])
-        docs = _sections(table.__doc__, "Attributes")
-        ranges = getattr(table, "RANGES", {})
-        mine = tuple(
-            Option(prefix + f.name, str(f.type), f.default, docs.get(f.name, ""), None, ranges.get(f.name))
-            for f in dataclasses.fields(table)
-        )
+        mine = tuple(_field_options(table, {}, getattr(table, "RANGES", {}), prefix=prefix))
         return ControllerSpec(name, f"{inner.doc} ({role})", inner.options + mine)
     presets = {p.name: p for p in PRESETS}
     if base in presets:

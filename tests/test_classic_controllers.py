@@ -4,6 +4,7 @@ bad options by name and never read the true state."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import sys
 
@@ -14,8 +15,9 @@ import pytest
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.classic.common import TeamView
-from controllers.classic.dwa import DWAController
-from controllers.classic.orca import unicycle_tracking
+from controllers.classic.dwa import DWAController, DWASettings
+from controllers.classic.orca import ORCAController, ORCASettings, unicycle_tracking
+from controllers.option_spec import spec_of
 from koopman_envs.fronts.episode import run_episode
 from koopman_envs.sim.maps import MapSpec
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
@@ -214,7 +216,7 @@ def test_dwa_window_stays_within_the_limits() -> None:
     scenario = env.unwrapped.scenario
     assert samples[..., 0].min() >= 0.0 and samples[..., 0].max() <= scenario.v_max
     assert np.abs(samples[..., 1]).max() <= scenario.omega_max
-    assert samples.shape == (3, ctrl.vx_samples * ctrl.vth_samples, 2)
+    assert samples.shape == (3, ctrl.config.vx_samples * ctrl.config.vth_samples, 2)
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -293,3 +295,33 @@ def test_the_compiled_kernels_give_the_numpy_expressions_bits() -> None:
         y = pose[:, 1][:, None, None] + chord * np.sin(theta0 + half)
         reference = np.stack([x, y, np.broadcast_to(theta0 + w * times, x.shape)], axis=-1)
         assert np.array_equal(unicycle_arcs(pose, samples, times), reference), trial
+
+
+def test_dwa_takes_its_settings_as_one_frozen_value_or_as_options() -> None:
+    settings = DWASettings(sim_time=2.0, vx_samples=5)
+    assert DWAController(settings).config == settings
+    # options replace the given settings' fields; the others stay
+    built = DWAController(settings, safety_margin=0.05).config
+    assert (built.sim_time, built.vx_samples, built.safety_margin) == (2.0, 5, 0.05)
+    # the registry's "dwa" applies its tuned preset; the options given stand over it
+    made = controllers.make("dwa", sim_time=2.0, vx_samples=5).config
+    assert (made.sim_time, made.vx_samples) == (2.0, 5)
+    assert DWAController().config == DWASettings()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        settings.sim_time = 1.0  # type: ignore[misc]
+    with pytest.raises(ValueError, match="sim_time=-1.0"):
+        DWASettings(sim_time=-1.0)
+    with pytest.raises(ValueError, match=r"unknown dwa option 'sim_tim'.*did you mean 'sim_time'"):
+        DWAController(sim_tim=2.0)
+    with pytest.raises(TypeError, match="is not a DWASettings"):
+        DWAController({"sim_time": 2.0})  # type: ignore[arg-type]
+
+
+def test_the_option_spec_reads_the_settings_fields() -> None:
+    # the classes' own specs (the registered names carry their tuned presets' defaults)
+    for cls, settings in ((DWAController, DWASettings), (ORCAController, ORCASettings)):
+        spec = spec_of(cls.name, cls)
+        fields = dataclasses.fields(settings)
+        assert spec.names() == [f.name for f in fields]
+        assert [spec.default(f.name) for f in fields] == [f.default for f in fields]
+        assert all(spec.option(key).bounds is bound for key, bound in settings.RANGES.items())

@@ -20,7 +20,7 @@ from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.movers import MoverConfig, parse_movers
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.movers.field import MOVER_FEATURES, MoverField
-from koopman_envs.sim.movers.placement import mover_arena
+from koopman_envs.sim.movers.placement import PlacementError, mover_arena, place_movers_batch
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 WORKSPACE = (-10.0, 10.0, -10.0, 10.0)
@@ -110,6 +110,30 @@ def test_no_mover_starts_on_a_start_or_a_target_or_an_obstacle(env_id: str, map_
         if len(obstacles):
             reach = np.hypot(*(movers[:, None] - obstacles[None, :, :2]).transpose(2, 0, 1))
             assert (reach >= obstacles[None, :, 2] + 0.2).all(), seed
+
+
+def test_placement_draws_and_places_as_on_main_before_its_kernels_were_merged() -> None:
+    """Crowded arenas, so that most environments need further blocks of candidates (each then
+    placed by the batch kernel on a batch of one): the placements, the refusals and every
+    generator's next number hashed, against the digest computed on main at 4a00b79 (where a
+    separate single-environment kernel placed the further blocks)."""
+    digest = hashlib.sha256()
+    for seed in range(40):
+        draw = np.random.default_rng(seed)
+        batch, count, radius = 3, int(draw.integers(2, 12)), float(draw.uniform(0.2, 0.6))
+        arenas = np.tile([-3.0, 3.0, -3.0, 3.0], (batch, 1)) * draw.uniform(0.6, 1.2, (batch, 1))
+        obstacles = draw.uniform(-3, 3, (batch, 5, 3))
+        obstacles[..., 2] = draw.uniform(0.2, 0.8, (batch, 5))
+        starts, targets = draw.uniform(-3, 3, (batch, 3, 3)), draw.uniform(-3, 3, (batch, 3, 3))
+        rngs = [np.random.default_rng(seed * 10 + b) for b in range(batch)]
+        try:
+            digest.update(
+                place_movers_batch(rngs, count, radius, arenas, obstacles, starts, targets, 0.3).tobytes()
+            )
+        except PlacementError as error:
+            digest.update(str(error).encode())
+        digest.update(np.array([rng.random() for rng in rngs]).tobytes())  # the draws each made
+    assert digest.hexdigest() == "51a19e0e7bd40f690cb367628126c68325828fc63b8a58da65c81ae87becc841"
 
 
 def test_the_arena_covers_the_map_with_a_margin_inside_the_workspace() -> None:

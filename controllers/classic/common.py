@@ -11,18 +11,22 @@ message forward to now along that velocity. A robot's own velocity is the comman
 
 from __future__ import annotations
 
+import dataclasses
 from collections import deque
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.estimation import FRONT_END_LEVERS
-from koopman_envs.checks import Range
+from controllers.estimation import FRONT_END_LEVERS, check_estimator
+from controllers.movers import check_mover_prediction
+from koopman_envs.checks import Range, checked_options
 from koopman_envs.scenario import Scenario
 
-__all__ = ["CLASSIC_LEVERS", "TeamView", "goals", "in_range"]
+__all__ = ["CLASSIC_LEVERS", "ClassicSettings", "TeamView", "goals", "in_range", "settings_from"]
+
+_Settings = TypeVar("_Settings")
 
 #: the levers of the estimator front-end the classic baselines can switch off (``ablate``)
 CLASSIC_LEVERS = FRONT_END_LEVERS
@@ -35,6 +39,52 @@ def in_range(ranges: Mapping[str, Range], key: str, value: Any) -> Any:
     ``OPTION_RANGES``, which :mod:`controllers.option_spec` also reads): the one bound of each
     option, ``ValueError`` naming the option, the value and the range otherwise."""
     return ranges[key].check(key, value)
+
+
+def checked_fields(settings: Any, ranges: Mapping[str, Range]) -> None:
+    """Check every field of a frozen settings dataclass that has a declared range in ``ranges``
+    (:func:`in_range`: ``ValueError`` naming it), keeping the checked value (an integer option
+    given as a whole float is stored as the integer); for its ``__post_init__``."""
+    for key in ranges:
+        object.__setattr__(settings, key, in_range(ranges, key, getattr(settings, key)))
+
+
+class ClassicSettings:
+    """What the classic baselines' frozen settings dataclasses share: on construction every field
+    with a range in the class's ``RANGES`` is checked (:func:`checked_fields`), and the options
+    every classic baseline has, ``mover_prediction``, ``estimator`` and ``ablate`` (its levers:
+    :data:`CLASSIC_LEVERS`), against their choices; ``ValueError`` naming the bad one."""
+
+    #: the allowed range of every numeric field (the controller's ``OPTION_RANGES``)
+    RANGES: ClassVar[dict[str, Range]] = {}
+    mover_prediction: str
+    estimator: str
+    ablate: str
+
+    def __post_init__(self) -> None:
+        checked_fields(self, self.RANGES)
+        check_mover_prediction(self.mover_prediction)
+        check_estimator(self.estimator, self.ablate, levers=CLASSIC_LEVERS)
+
+
+def settings_from(
+    kind: type[_Settings], config: _Settings | None, options: dict[str, Any], owner: str
+) -> _Settings:
+    """A controller's settings: ``config`` (default: ``kind()``) with ``options`` (field name ->
+    value) in place of its fields, each checked by the dataclass itself.
+
+    Raises
+    ------
+    TypeError
+        ``config`` is not a ``kind``.
+    ValueError
+        An option ``kind`` has no field for (with a did-you-mean and the allowed names), or a
+        value outside its field's range or choices.
+    """
+    if config is not None and not isinstance(config, kind):
+        raise TypeError(f"{owner}: config={config!r} is not a {kind.__name__}")
+    built: _Settings = checked_options(kind, owner, "", options, lambda *_: None)
+    return built if config is None else dataclasses.replace(config, **options)  # type: ignore[type-var]
 
 
 class TeamView:

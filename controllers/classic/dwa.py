@@ -45,19 +45,19 @@ tolerance) and the plan's 0.1 m grid (ROS's costmap: 0.05 m).
 
 from __future__ import annotations
 
-from typing import ClassVar
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import TeamView, goals, in_range
+from controllers.classic.common import ClassicSettings, TeamView, goals, settings_from
 from controllers.classic.kernels import closest_approach, unicycle_arcs
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
 from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import (
     MOVER_PREDICTIONS,
-    check_mover_prediction,
     observed_mover_radii,
     observed_movers,
 )
@@ -66,7 +66,7 @@ from koopman_envs import Observed
 from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario
 
-__all__ = ["DWAController", "segment_distance"]
+__all__ = ["DWAController", "DWASettings", "segment_distance"]
 
 #: ROS costmap_2d's highest cost of a free cell (INSCRIBED_INFLATED_OBSTACLE - 1)
 _FREE_MAX_COST = 252.0
@@ -83,10 +83,11 @@ def segment_distance(
     return np.asarray(np.linalg.norm(point - nearest, axis=-1))
 
 
-class DWAController(BaseController):
-    """The dynamic window approach per robot, with ROS dwa_local_planner's scoring and defaults.
+@dataclass(frozen=True)
+class DWASettings(ClassicSettings):
+    """The options of :class:`DWAController` (ranges and choices checked on construction).
 
-    Parameters
+    Attributes
     ----------
     acc_lim_x : float
         Translational acceleration bounding the window [m/s^2] (ROS default 2.5).
@@ -138,16 +139,31 @@ class DWAController(BaseController):
         ``"estimation"`` or ``"delay_compensation"``.
     """
 
-    name = "dwa"
-    #: the allowed values of the text options (:mod:`controllers.option_spec`)
-    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
-        "mover_prediction": MOVER_PREDICTIONS,
-        **estimator_choices(),
-    }
-    #: the allowed range of every numeric option (:mod:`controllers.option_spec`; ours): far beyond
-    #: ROS's defaults and bounded so that the trajectory rollouts stay small (at most 32 x 64
-    #: samples of at most 10 s / 0.01 s = 1,000 steps per robot and period)
-    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+    acc_lim_x: float = 2.5
+    acc_lim_theta: float = 3.2
+    sim_time: float = 1.7
+    sim_granularity: float = 0.025
+    vx_samples: int = 7
+    vth_samples: int = 20
+    path_distance_bias: float = 32.0
+    goal_distance_bias: float = 24.0
+    occdist_scale: float = 0.01
+    forward_point_distance: float = 0.325
+    inflation_radius: float = 0.55
+    cost_scaling_factor: float = 10.0
+    safety_margin: float = 0.1
+    xy_goal_tolerance: float = 0.05
+    plan_resolution: float = 0.1
+    velocity_window: int = 5
+    mover_prediction: str = "constant_velocity"
+    estimator: str = "auto"
+    ablate: str = "none"
+
+    #: the allowed range of every numeric option (ours; :mod:`controllers.option_spec` reads it as
+    #: the controller's ``OPTION_RANGES``): far beyond ROS's defaults and bounded so that the
+    #: trajectory rollouts stay small (at most 32 x 64 samples of at most 10 s / 0.01 s = 1,000
+    #: steps per robot and period)
+    RANGES: ClassVar[dict[str, Range]] = {
         "acc_lim_x": Range(0, 100, low_open=True, note="m/s^2"),
         "acc_lim_theta": Range(0, 100, low_open=True, note="rad/s^2"),
         "sim_time": Range(0, 10, low_open=True, note="s"),
@@ -166,6 +182,31 @@ class DWAController(BaseController):
         "plan_resolution": Range(0.02, 1, note="m"),
         "velocity_window": Range(1, 100, integer=True, note="periods"),
     }
+
+
+class DWAController(BaseController):
+    """The dynamic window approach per robot, with ROS dwa_local_planner's scoring and defaults.
+
+    Parameters
+    ----------
+    config : DWASettings, optional
+        The settings (default: ``DWASettings()``, ROS's defaults and ours).
+    **options
+        Fields of :class:`DWASettings` by name, in place of ``config``'s
+        (``controllers.make("dwa", sim_time=2.0)``).
+    """
+
+    name = "dwa"
+    #: the allowed values of the text options (:mod:`controllers.option_spec`)
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "mover_prediction": MOVER_PREDICTIONS,
+        **estimator_choices(),
+    }
+    #: the allowed range of every numeric option (:mod:`controllers.option_spec`), declared with
+    #: the settings
+    OPTION_RANGES: ClassVar[dict[str, Range]] = DWASettings.RANGES
+    #: the options' names, types, defaults and docs (:mod:`controllers.option_spec`)
+    SETTINGS: ClassVar[type] = DWASettings
     #: what the tuner searches (:mod:`evaluation.tune`; ours): the rollout length and the three
     #: weights of the trajectory score (the ratios ROS users tune: plan against goal against
     #: obstacle cost), the hard clearance and the costmap's inflation. Sample counts and grid
@@ -179,54 +220,18 @@ class DWAController(BaseController):
         "inflation_radius": Search(0.2, 1.0),
     }
 
-    def __init__(
-        self,
-        acc_lim_x: float = 2.5,
-        acc_lim_theta: float = 3.2,
-        sim_time: float = 1.7,
-        sim_granularity: float = 0.025,
-        vx_samples: int = 7,
-        vth_samples: int = 20,
-        path_distance_bias: float = 32.0,
-        goal_distance_bias: float = 24.0,
-        occdist_scale: float = 0.01,
-        forward_point_distance: float = 0.325,
-        inflation_radius: float = 0.55,
-        cost_scaling_factor: float = 10.0,
-        safety_margin: float = 0.1,
-        xy_goal_tolerance: float = 0.05,
-        plan_resolution: float = 0.1,
-        velocity_window: int = 5,
-        mover_prediction: str = "constant_velocity",
-        estimator: str = "auto",
-        ablate: str = "none",
-    ) -> None:
+    def __init__(self, config: DWASettings | None = None, **options: Any) -> None:
         super().__init__()
-        self.front_end = front_end_option(estimator, ablate)
-        self.estimator, self.ablate = estimator, ablate
-        self.acc_lim_x = in_range(self.OPTION_RANGES, "acc_lim_x", acc_lim_x)
-        self.acc_lim_theta = in_range(self.OPTION_RANGES, "acc_lim_theta", acc_lim_theta)
-        self.sim_time = in_range(self.OPTION_RANGES, "sim_time", sim_time)
-        self.sim_granularity = in_range(self.OPTION_RANGES, "sim_granularity", sim_granularity)
-        self.cost_scaling_factor = in_range(self.OPTION_RANGES, "cost_scaling_factor", cost_scaling_factor)
-        self.xy_goal_tolerance = in_range(self.OPTION_RANGES, "xy_goal_tolerance", xy_goal_tolerance)
-        self.path_distance_bias = in_range(self.OPTION_RANGES, "path_distance_bias", path_distance_bias)
-        self.goal_distance_bias = in_range(self.OPTION_RANGES, "goal_distance_bias", goal_distance_bias)
-        self.occdist_scale = in_range(self.OPTION_RANGES, "occdist_scale", occdist_scale)
-        self.forward_point_distance = in_range(
-            self.OPTION_RANGES, "forward_point_distance", forward_point_distance
-        )
-        self.inflation_radius = in_range(self.OPTION_RANGES, "inflation_radius", inflation_radius)
-        self.safety_margin = in_range(self.OPTION_RANGES, "safety_margin", safety_margin)
-        self.vx_samples = in_range(self.OPTION_RANGES, "vx_samples", vx_samples)
-        self.vth_samples = in_range(self.OPTION_RANGES, "vth_samples", vth_samples)
-        self.velocity_window = in_range(self.OPTION_RANGES, "velocity_window", velocity_window)
-        self.mover_prediction = check_mover_prediction(mover_prediction)
-        self.plan_resolution = in_range(self.OPTION_RANGES, "plan_resolution", plan_resolution)
+        #: the settings (frozen), ``config`` with ``options`` in place
+        self.config = settings_from(DWASettings, config, options, "dwa")
+        self.front_end = front_end_option(self.config.estimator, self.config.ablate)
         self._planner = GlobalPlanner(
-            self.plan_resolution, self.safety_margin, self.inflation_radius, self.cost_scaling_factor
+            self.config.plan_resolution,
+            self.config.safety_margin,
+            self.config.inflation_radius,
+            self.config.cost_scaling_factor,
         )
-        self._team = TeamView(self.velocity_window)
+        self._team = TeamView(self.config.velocity_window)
         self._last = np.zeros((0, 2))
         self._times = np.zeros(0)
 
@@ -234,8 +239,8 @@ class DWAController(BaseController):
         self._team.reset(scenario.n_robots, scenario.dt)
         self._planner.reset(scenario)
         self._last = np.zeros((scenario.n_robots, 2))
-        steps = max(1, int(np.ceil(scenario.v_max * self.sim_time / self.sim_granularity)))
-        self._times = self.sim_time * np.arange(1, steps + 1) / steps
+        steps = max(1, int(np.ceil(scenario.v_max * self.config.sim_time / self.config.sim_granularity)))
+        self._times = self.config.sim_time * np.arange(1, steps + 1) / steps
 
     def obstacles_seen(self, obstacles: NDArray[np.float64]) -> bool:
         """Perceived obstacles (map unknown): the global planner's grid is rebuilt when they
@@ -259,17 +264,17 @@ class DWAController(BaseController):
         movers = observed_movers(observed)
         self._mover_radii = observed_mover_radii(observed, sc.mover_radius)
         blockers = self._blockers(position, heard, movers)
-        cost = self._goal_cost(pose[:, :2], path, goal + moving * self.sim_time, blockers)
+        cost = self._goal_cost(pose[:, :2], path, goal + moving * self.config.sim_time, blockers)
         clearance, now = self._clearances(path, position, velocity, heard, movers)
         worst = clearance  # (N, S, O): each disc's closest approach
-        cost = cost + self.occdist_scale * self._occupancy(worst.min(axis=-1))
-        refused = (worst < np.minimum(self.safety_margin, now)[:, None, :] - 1e-9).any(axis=-1)
+        cost = cost + self.config.occdist_scale * self._occupancy(worst.min(axis=-1))
+        refused = (worst < np.minimum(self.config.safety_margin, now)[:, None, :] - 1e-9).any(axis=-1)
         cost = np.where(refused, np.inf, cost)
         best = np.argmin(cost, axis=1)
         stuck = ~np.isfinite(cost[own, best])
         best = np.where(stuck, np.argmax(worst.min(axis=-1), axis=1), best)  # nothing admissible
         command = samples[own, best]
-        arrived = np.hypot(*(pose[:, :2] - goal).T) <= self.xy_goal_tolerance
+        arrived = np.hypot(*(pose[:, :2] - goal).T) <= self.config.xy_goal_tolerance
         command[arrived] = self._brake(self._last[arrived])
         self._last = command
         return command.reshape(-1)
@@ -279,12 +284,14 @@ class DWAController(BaseController):
         sc = self.scenario
         assert sc is not None
         v0, w0 = self._last[:, 0], self._last[:, 1]
-        v_lo = np.clip(v0 - self.acc_lim_x * sc.dt, 0.0, sc.v_max)
-        v_hi = np.clip(v0 + self.acc_lim_x * sc.dt, 0.0, sc.v_max)
-        w_lo = np.clip(w0 - self.acc_lim_theta * sc.dt, -sc.omega_max, sc.omega_max)
-        w_hi = np.clip(w0 + self.acc_lim_theta * sc.dt, -sc.omega_max, sc.omega_max)
-        fv = np.linspace(0.0, 1.0, self.vx_samples) if self.vx_samples > 1 else np.ones(1)
-        fw = np.linspace(0.0, 1.0, self.vth_samples) if self.vth_samples > 1 else np.full(1, 0.5)
+        v_lo = np.clip(v0 - self.config.acc_lim_x * sc.dt, 0.0, sc.v_max)
+        v_hi = np.clip(v0 + self.config.acc_lim_x * sc.dt, 0.0, sc.v_max)
+        w_lo = np.clip(w0 - self.config.acc_lim_theta * sc.dt, -sc.omega_max, sc.omega_max)
+        w_hi = np.clip(w0 + self.config.acc_lim_theta * sc.dt, -sc.omega_max, sc.omega_max)
+        fv = np.linspace(0.0, 1.0, self.config.vx_samples) if self.config.vx_samples > 1 else np.ones(1)
+        fw = (
+            np.linspace(0.0, 1.0, self.config.vth_samples) if self.config.vth_samples > 1 else np.full(1, 0.5)
+        )
         v = v_lo[:, None] + (v_hi - v_lo)[:, None] * fv  # (N, Sv)
         w = w_lo[:, None] + (w_hi - w_lo)[:, None] * fw  # (N, Sw): right turns first on a tie
         grid_v = np.repeat(v, len(fw), axis=1)
@@ -306,7 +313,7 @@ class DWAController(BaseController):
         """(N, S) ROS's path, goal, alignment and goal-front critics (module docstring, step 3);
         ``blockers[i]``: the centres and reaches of the discs that may stand on robot i's plan."""
         end, heading = path[:, :, -1, :2], path[:, :, -1, 2]
-        reach = self.forward_point_distance
+        reach = self.config.forward_point_distance
         nose = end + reach * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
         cost = np.empty(end.shape[:2])
         for i in range(end.shape[0]):
@@ -324,7 +331,7 @@ class DWAController(BaseController):
                 on_path = plan.path_distance(end[i]) + (plan.path_distance(nose[i]) if far else 0.0)
                 to_end = plan.goal_distance(end[i])
                 to_end = to_end + plan.goal_distance(nose[i], fallback=to_end)
-            cost[i] = self.path_distance_bias * on_path + self.goal_distance_bias * to_end
+            cost[i] = self.config.path_distance_bias * on_path + self.config.goal_distance_bias * to_end
         return cost
 
     def _blockers(
@@ -339,7 +346,7 @@ class DWAController(BaseController):
             mates = heard[i] & (np.arange(sc.n_robots) != i)
             centres = np.vstack([position[i, mates], movers[:, :2]])
             radii = np.concatenate([sc.robot_radius[mates], self._mover_radii])
-            out.append((centres, radii + sc.robot_radius[i] + self.safety_margin))
+            out.append((centres, radii + sc.robot_radius[i] + self.config.safety_margin))
         return out
 
     def _clearances(
@@ -357,7 +364,7 @@ class DWAController(BaseController):
         assert sc is not None
         n = sc.n_robots
         t = np.concatenate([[0.0], self._times])  # (K + 1,)
-        if self.mover_prediction == "static":
+        if self.config.mover_prediction == "static":
             movers = np.column_stack([movers[:, :2], np.zeros((len(movers), 2))])
         mates = position[:, None] + t[None, :, None, None] * velocity[:, None]  # (N, K+1, N, 2)
         crowd = movers[None, :, :2] + t[:, None, None] * movers[None, :, 2:4]  # (K+1, C, 2)
@@ -383,13 +390,13 @@ class DWAController(BaseController):
         sc = self.scenario
         assert sc is not None
         closest = clearance
-        inflated = closest + sc.robot_radius[:, None] <= self.inflation_radius
-        cost = _FREE_MAX_COST * np.exp(-self.cost_scaling_factor * np.maximum(closest, 0.0))
+        inflated = closest + sc.robot_radius[:, None] <= self.config.inflation_radius
+        cost = _FREE_MAX_COST * np.exp(-self.config.cost_scaling_factor * np.maximum(closest, 0.0))
         return np.where(inflated, cost, 0.0)
 
     def _brake(self, last: NDArray[np.float64]) -> NDArray[np.float64]:
         """Commands slowing ``last`` (M, 2) to a stop within the acceleration limits."""
         sc = self.scenario
         assert sc is not None
-        step = np.array([self.acc_lim_x, self.acc_lim_theta]) * sc.dt
+        step = np.array([self.config.acc_lim_x, self.config.acc_lim_theta]) * sc.dt
         return np.sign(last) * np.maximum(np.abs(last) - step, 0.0)

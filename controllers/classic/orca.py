@@ -37,17 +37,17 @@ count); the maximum speed is ``v_max``. The tracking gains and margins are ours.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import TeamView, goals, in_range
+from controllers.classic.common import ClassicSettings, TeamView, goals, settings_from
 from controllers.estimation import estimator_choices, front_end_option
 from controllers.movers import (
     MOVER_PREDICTIONS,
-    check_mover_prediction,
     observed_mover_radii,
     observed_movers,
 )
@@ -57,7 +57,7 @@ from koopman_envs.checks import Range
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 
-__all__ = ["ORCAController", "unicycle_tracking"]
+__all__ = ["ORCAController", "ORCASettings", "unicycle_tracking"]
 
 #: sides of the polygon that stands in for a round obstacle (circumscribed: never smaller)
 POLYGON_SIDES = 16
@@ -90,10 +90,11 @@ def unicycle_tracking(
     return np.column_stack([v, omega])
 
 
-class ORCAController(BaseController):
-    """ORCA per robot through pyrvo (RVO2), unicycle commands by a heading controller.
+@dataclass(frozen=True)
+class ORCASettings(ClassicSettings):
+    """The options of :class:`ORCAController` (ranges and choices checked on construction).
 
-    Parameters
+    Attributes
     ----------
     time_horizon : float
         ORCA's time horizon for other agents (team-mates, movers) [s]: velocities that avoid
@@ -132,14 +133,23 @@ class ORCAController(BaseController):
         ``"estimation"`` or ``"delay_compensation"``.
     """
 
-    name = "orca"
-    #: the allowed values of the text options (:mod:`controllers.option_spec`)
-    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
-        "mover_prediction": MOVER_PREDICTIONS,
-        **estimator_choices(),
-    }
-    #: the allowed range of every numeric option (:mod:`controllers.option_spec`; ours)
-    OPTION_RANGES: ClassVar[dict[str, Range]] = {
+    time_horizon: float = 2.0
+    time_horizon_obstacles: float = 4.0
+    neighbour_distance: float = 3.0
+    max_neighbours: int = 10
+    radius_margin: float = 0.05
+    mover_margin: float = 0.1
+    goal_gain: float = 1.0
+    heading_gain: float = 4.0
+    keep_right: float = 0.05
+    velocity_window: int = 5
+    mover_prediction: str = "constant_velocity"
+    estimator: str = "auto"
+    ablate: str = "none"
+
+    #: the allowed range of every numeric option (ours; :mod:`controllers.option_spec` reads it as
+    #: the controller's ``OPTION_RANGES``)
+    RANGES: ClassVar[dict[str, Range]] = {
         "time_horizon": Range(0, 60, low_open=True, note="s"),
         "time_horizon_obstacles": Range(0, 60, low_open=True, note="s"),
         "neighbour_distance": Range(0, LIMITS.lidar_range, low_open=True, note="m"),
@@ -152,6 +162,31 @@ class ORCAController(BaseController):
         "keep_right": Range(0, math.pi / 2, high_open=True, note="rad"),
         "velocity_window": Range(1, 100, integer=True, note="periods"),
     }
+
+
+class ORCAController(BaseController):
+    """ORCA per robot through pyrvo (RVO2), unicycle commands by a heading controller.
+
+    Parameters
+    ----------
+    config : ORCASettings, optional
+        The settings (default: ``ORCASettings()``).
+    **options
+        Fields of :class:`ORCASettings` by name, in place of ``config``'s
+        (``controllers.make("orca", time_horizon=3.0)``).
+    """
+
+    name = "orca"
+    #: the allowed values of the text options (:mod:`controllers.option_spec`)
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "mover_prediction": MOVER_PREDICTIONS,
+        **estimator_choices(),
+    }
+    #: the allowed range of every numeric option (:mod:`controllers.option_spec`), declared with
+    #: the settings
+    OPTION_RANGES: ClassVar[dict[str, Range]] = ORCASettings.RANGES
+    #: the options' names, types, defaults and docs (:mod:`controllers.option_spec`)
+    SETTINGS: ClassVar[type] = ORCASettings
     #: what the tuner searches (:mod:`evaluation.tune`; ours): the two avoidance horizons (how
     #: early ORCA gives way to team-mates and to obstacles), the radius margin (clearance against
     #: room), the two gains of the unicycle's tracking of ORCA's holonomic velocity, and the
@@ -166,40 +201,13 @@ class ORCAController(BaseController):
         "keep_right": Search(0.0, 0.3),
     }
 
-    def __init__(
-        self,
-        time_horizon: float = 2.0,
-        time_horizon_obstacles: float = 4.0,
-        neighbour_distance: float = 3.0,
-        max_neighbours: int = 10,
-        radius_margin: float = 0.05,
-        mover_margin: float = 0.1,
-        goal_gain: float = 1.0,
-        heading_gain: float = 4.0,
-        keep_right: float = 0.05,
-        velocity_window: int = 5,
-        mover_prediction: str = "constant_velocity",
-        estimator: str = "auto",
-        ablate: str = "none",
-    ) -> None:
+    def __init__(self, config: ORCASettings | None = None, **options: Any) -> None:
         super().__init__()
         _import_pyrvo()  # refused here, with the extra to install, rather than at the first reset
-        self.front_end = front_end_option(estimator, ablate)
-        self.estimator, self.ablate = estimator, ablate
-        self.time_horizon = in_range(self.OPTION_RANGES, "time_horizon", time_horizon)
-        self.time_horizon_obstacles = in_range(
-            self.OPTION_RANGES, "time_horizon_obstacles", time_horizon_obstacles
-        )
-        self.neighbour_distance = in_range(self.OPTION_RANGES, "neighbour_distance", neighbour_distance)
-        self.max_neighbours = in_range(self.OPTION_RANGES, "max_neighbours", max_neighbours)
-        self.radius_margin = in_range(self.OPTION_RANGES, "radius_margin", radius_margin)
-        self.mover_margin = in_range(self.OPTION_RANGES, "mover_margin", mover_margin)
-        self.goal_gain = in_range(self.OPTION_RANGES, "goal_gain", goal_gain)
-        self.heading_gain = in_range(self.OPTION_RANGES, "heading_gain", heading_gain)
-        self.keep_right = in_range(self.OPTION_RANGES, "keep_right", keep_right)
-        self.velocity_window = in_range(self.OPTION_RANGES, "velocity_window", velocity_window)
-        self.mover_prediction = check_mover_prediction(mover_prediction)
-        self._team = TeamView(self.velocity_window)
+        #: the settings (frozen), ``config`` with ``options`` in place
+        self.config = settings_from(ORCASettings, config, options, "orca")
+        self.front_end = front_end_option(self.config.estimator, self.config.ablate)
+        self._team = TeamView(self.config.velocity_window)
         self._sim: Any = None
         self._movers_held = 0
         self._last = np.zeros((0, 2))
@@ -229,11 +237,11 @@ class ORCAController(BaseController):
         # pyrvo's clear_agents left garbage velocities behind in our trials): one per robot, then
         # one per mover seen so far; those not in a view wait far away, out of everyone's range
         sim.set_agent_defaults(
-            self.neighbour_distance,
-            self.max_neighbours,
-            self.time_horizon,
-            self.time_horizon_obstacles,
-            float(scenario.robot_radius.max()) + self.radius_margin,
+            self.config.neighbour_distance,
+            self.config.max_neighbours,
+            self.config.time_horizon,
+            self.config.time_horizon_obstacles,
+            float(scenario.robot_radius.max()) + self.config.radius_margin,
             float(scenario.v_max),
         )
         self._sim = sim
@@ -251,7 +259,7 @@ class ORCAController(BaseController):
 
     def _parking(self, agent: int) -> tuple[float, float]:
         """Where an agent out of the view waits: far from the map and from every other agent."""
-        return (_PARKING + 4.0 * self.neighbour_distance * agent, _PARKING)
+        return (_PARKING + 4.0 * self.config.neighbour_distance * agent, _PARKING)
 
     def _agents_for(self, movers: int) -> None:
         """Agents enough for ``movers`` movers after the robots' (never removed)."""
@@ -280,7 +288,7 @@ class ORCAController(BaseController):
         position, velocity, heard = self._team.update(known, ages, self._last)
         movers = observed_movers(observed)
         self._mover_radii = observed_mover_radii(observed, sc.mover_radius)
-        if self.mover_prediction == "static":
+        if self.config.mover_prediction == "static":
             movers = np.column_stack([movers[:, :2], np.zeros((len(movers), 2))])
         goal, moving = goals(sc, position, velocity, heard)
         own = np.arange(sc.n_robots)
@@ -291,7 +299,9 @@ class ORCAController(BaseController):
             chosen = np.stack(
                 [self._orca(position[i], velocity[i], preferred, heard[i], movers)[i] for i in own]
             )
-        command = unicycle_tracking(chosen, known[own, own, 2], self.heading_gain, sc.v_max, sc.omega_max)
+        command = unicycle_tracking(
+            chosen, known[own, own, 2], self.config.heading_gain, sc.v_max, sc.omega_max
+        )
         self._last = command
         return command.reshape(-1)
 
@@ -301,10 +311,10 @@ class ORCAController(BaseController):
         """(N, 2) preferred velocities: towards the goal, capped at v_max, turned ``keep_right``."""
         sc = self.scenario
         assert sc is not None
-        wish = self.goal_gain * (goal - position) + moving
+        wish = self.config.goal_gain * (goal - position) + moving
         speed = np.hypot(wish[:, 0], wish[:, 1])
         wish = wish * np.minimum(1.0, sc.v_max / np.maximum(speed, 1e-12))[:, None]
-        c, s = math.cos(self.keep_right), math.sin(self.keep_right)
+        c, s = math.cos(self.config.keep_right), math.sin(self.config.keep_right)
         return np.column_stack([c * wish[:, 0] + s * wish[:, 1], c * wish[:, 1] - s * wish[:, 0]])
 
     def _orca(
@@ -325,7 +335,11 @@ class ORCAController(BaseController):
         for j in range(sc.n_robots):
             if heard[j]:
                 self._place(
-                    j, position[j], velocity[j], preferred[j], float(sc.robot_radius[j]) + self.radius_margin
+                    j,
+                    position[j],
+                    velocity[j],
+                    preferred[j],
+                    float(sc.robot_radius[j]) + self.config.radius_margin,
                 )
             else:
                 self._park(j)
@@ -335,7 +349,7 @@ class ORCAController(BaseController):
                 x, y, vx, vy = movers[c]
                 sim.set_agent_max_speed(agent, max(float(math.hypot(vx, vy)), 1e-3))
                 self._place(
-                    agent, (x, y), (vx, vy), (vx, vy), float(self._mover_radii[c]) + self.mover_margin
+                    agent, (x, y), (vx, vy), (vx, vy), float(self._mover_radii[c]) + self.config.mover_margin
                 )
             else:
                 self._park(agent)

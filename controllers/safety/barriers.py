@@ -69,13 +69,16 @@ class FilterStep:
 
 
 @njit(cache=True)
-def _add_barrier(A, b, row, h, nx, ny, share, hx, hy, g, lam, approach=0.0):  # pragma: no cover
-    """Append the four rows of one barrier (unit gradient n, value h) of a robot with heading
-    (hx, hy) when some command within the limits could violate them; return the new row count.
-    ``g``: the filter's gains (a record of :data:`FILTER_GAINS`).
+def _add_barrier(system, row, h, normal, share, heading, g, lam, approach=0.0):  # pragma: no cover
+    """Append the four rows of one barrier (unit gradient ``normal`` (nx, ny), value h) of a robot
+    with ``heading`` (hx, hy) to the rows ``system`` = (A, b) when some command within the limits
+    could violate them; return the new row count. ``g``: the filter's gains (a record of
+    :data:`FILTER_GAINS`).
 
     ``approach``: n . v of a moving obstacle (its velocity along the gradient, positive when it
     comes toward the robot): dh/dt = n . dp/dt - n . v, so the robot must recede that much more."""
+    A, b = system
+    (nx, ny), (hx, hy) = normal, heading
     lookahead, gamma, v_max, omega_max, dt = g.lookahead, g.gamma, g.v_max, g.omega_max, g.dt
     a_v = nx * hx + ny * hy  # n . e
     cross = -nx * hy + ny * hx  # n . e_perp
@@ -97,7 +100,7 @@ def _add_barrier(A, b, row, h, nx, ny, share, hx, hy, g, lam, approach=0.0):  # 
 
 @njit(cache=True)
 def _filter_team(
-    poses, wanted, obstacles, radius, widen, movers, mover_extra, gains, out, infeasible, relaxation
+    poses, wanted, obstacles, radius, widen, movers, mover_extra, gains, outputs
 ):  # pragma: no cover - compiled
     """Filter every robot's command (see the module docstring); returns (barrier minimum, barriers built).
 
@@ -106,14 +109,16 @@ def _filter_team(
     ``radius`` (N,): the robots' radii and ``widen`` (N,) their extra clearance this period [m];
     ``movers`` (C, 4): the movers' observed centres and the velocities their barriers assume
     (x, y, vx, vy), each mover ``mover_extra`` [m] larger than the scenario's; ``gains`` (1,) of
-    :data:`FILTER_GAINS`. Writes the filtered commands into ``out`` (N, 2), and per robot
-    whether its QP was infeasible and the fraction of the recovery rate granted.
+    :data:`FILTER_GAINS`. ``outputs`` is the tuple ``out``, ``infeasible``, ``relaxation``: the
+    filtered commands (N, 2), and per robot whether its QP was infeasible and the fraction of
+    the recovery rate granted.
 
     The distances the look-ahead points keep are summed here in the order the filter has
     always summed them (a term of zero leaves a sum as it is): from an obstacle ((r + r_i) + l)
     + margin + w_i, from robot j ((r_i + r_j) + 2 l) + margin + sqrt(w_i^2 + w_j^2), from a mover
     ((r_i + r_mover) + l) + margin + extra + w_i, and the walls moved in by max(w).
     """
+    out, infeasible, relaxation = outputs
     g = gains[0]
     lookahead, v_max, omega_max = g.lookahead, g.v_max, g.omega_max
     omega_weight, margin, walls = g.omega_weight, g.margin, g.walls
@@ -128,6 +133,7 @@ def _filter_team(
         py[i] = poses[i, 1] + lookahead * math.sin(poses[i, 2])
     size = 4 * (n_obs + n - 1 + movers.shape[0] + 4) + 4
     A, b, relaxed = np.empty((size, 2)), np.empty(size), np.empty(size)
+    system = (A, b)  # the rows _add_barrier appends to
     h_min, built = math.inf, 0
     for i in range(n):
         hx, hy = math.cos(poses[i, 2]), math.sin(poses[i, 2])
@@ -154,7 +160,7 @@ def _filter_team(
                 nx, ny = dx / dist, dy / dist
             else:  # coincident points (deep in collision) have no direction: push straight back
                 nx, ny = -hx, -hy
-            row = _add_barrier(A, b, row, h, nx, ny, share, hx, hy, g, lam)
+            row = _add_barrier(system, row, h, (nx, ny), share, (hx, hy), g, lam)
         for m in range(movers.shape[0]):  # moving discs: their velocity along the gradient
             dx, dy = px[i] - movers[m, 0], py[i] - movers[m, 1]
             dist = math.hypot(dx, dy)
@@ -165,12 +171,12 @@ def _filter_team(
             else:
                 nx, ny = -hx, -hy
             approach = nx * movers[m, 2] + ny * movers[m, 3]
-            row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, g, lam, approach)
+            row = _add_barrier(system, row, h, (nx, ny), 1.0, (hx, hy), g, lam, approach)
         for w in range(4):  # left, right, bottom, top
             h = (px[i] - limits[0], limits[1] - px[i], py[i] - limits[2], limits[3] - py[i])[w]
             nx, ny = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[w]
             h_min = min(h_min, h)
-            row = _add_barrier(A, b, row, h, nx, ny, 1.0, hx, hy, g, lam)
+            row = _add_barrier(system, row, h, (nx, ny), 1.0, (hx, hy), g, lam)
         built += row // 4
         for sign in range(4):  # the command box
             A[row, 0], A[row, 1] = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))[sign]
@@ -327,9 +333,7 @@ class BarrierFilter:
             movers,
             extra,
             self.gains,
-            out,
-            infeasible,
-            relaxation,
+            (out, infeasible, relaxation),
         )
         return FilterStep(
             command=out,

@@ -35,7 +35,16 @@ from koopman_envs.sim.slip_schedule import SlipClock
 from koopman_envs.sim.starts import START_NOISE_ATTEMPTS
 from koopman_envs.sim.zones import ZoneTable
 from koopman_envs.tasks.observation import FeatureBuilder
-from koopman_envs.tasks.reward import SUCCESS, TERMINATED, TRUNCATED, score_rule, score_step, slot_errors
+from koopman_envs.tasks.reward import (
+    ELAPSED,
+    SETTLED,
+    SUCCESS,
+    TERMINATED,
+    TRUNCATED,
+    score_rule,
+    score_step,
+    slot_errors,
+)
 
 __all__ = ["START_NOISE_ATTEMPTS", "NavigationEngine", "StepResult", "engine_array_bytes"]
 
@@ -90,8 +99,8 @@ class NavigationEngine:
         self.nominal_starts = np.zeros((k, n, 3))
         self.maps: list[MapSpec | None] = [None] * k
         self.distances = np.zeros((k, n))
-        self.settled = np.zeros(k, dtype=np.int64)
-        self.elapsed = np.zeros(k, dtype=np.int64)
+        #: the episode counters, rows SETTLED and ELAPSED (read as :attr:`settled`, :attr:`elapsed`)
+        self.counters = np.zeros((2, k), dtype=np.int64)
         self.collision = np.zeros(k, dtype=np.int64)
         self.success = np.zeros(k, dtype=bool)
         self.slip = SlipSampler(k, n)
@@ -181,6 +190,10 @@ class NavigationEngine:
     @poses.setter
     def poses(self, value: NDArray[np.float64]) -> None:
         self.state = np.ascontiguousarray(np.asarray(value, dtype=np.float64).transpose(0, 2, 1))
+
+    #: rows of :attr:`counters`, (K,) views: periods within the goal tolerance, since the reset
+    settled = property(lambda self: self.counters[SETTLED])
+    elapsed = property(lambda self: self.counters[ELAPSED])
 
     @property
     def obstacles(self) -> NDArray[np.float64]:
@@ -307,11 +320,8 @@ class NavigationEngine:
             self._formation_error(),
             collision,
             stepping,
-            self.settled,
-            self.elapsed,
-            robot_reward,
-            team_reward,
-            reward,
+            self.counters,
+            (robot_reward, team_reward, reward),
             ends,
         )
         self.distances = distances

@@ -108,7 +108,7 @@ def advance_plant(
     if engine.zones is not None:
         means = engine.zones.slip_means(engine.state, slip.lambdas, engine.zone_means)
     advance_teams(
-        engine.state, commands, slip.unit, slip.cursor, means, stepping, *limits, PARAMS.dt, new, effort
+        engine.state, commands, slip.unit, slip.cursor, means, stepping, limits, PARAMS.dt, new, effort
     )
     return new, effort
 

@@ -238,13 +238,10 @@ class EpisodeRecorder:
             self._low,
             self._high,
             float(scenario.dt),
-            self._effort,
-            self._rate_sq,
-            self._previous,
+            (self._effort, self._rate_sq, self._jerk_sq),
+            (self._previous, self._earlier),
             np.asarray(info["distances"], dtype=np.float64),
             float(scenario.goal_tolerance),
-            self._jerk_sq,
-            self._earlier,
             self.steps,
         )
         self._poses.append(np.array(info["poses"], dtype=np.float64))
@@ -303,13 +300,10 @@ def _record_commands(
     low: NDArray[np.float64],
     high: NDArray[np.float64],
     dt: float,
-    effort: NDArray[np.float64],
-    rate_sq: NDArray[np.float64],
-    previous: NDArray[np.float64],
+    sums: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    memory: tuple[NDArray[np.float64], NDArray[np.float64]],
     distances: NDArray[np.float64],
     tolerance: float,
-    jerk_sq: NDArray[np.float64],
-    earlier: NDArray[np.float64],
     step: int,
 ) -> bool:
     """One period of the recorder's command metrics, in place: the command saturated to
@@ -321,7 +315,10 @@ def _record_commands(
 
     From the episode's third period on (``step`` counts from 1) the squared second difference of
     the linear command over ``dt**2`` is added to ``jerk_sq``; ``earlier`` holds the linear
-    command two periods back."""
+    command two periods back. ``sums`` is the tuple ``effort`` (N,), ``rate_sq`` (N, 2),
+    ``jerk_sq`` (N,) and ``memory`` the tuple ``previous`` (N, 2), ``earlier`` (N,)."""
+    effort, rate_sq, jerk_sq = sums
+    previous, earlier = memory
     for i in range(action.shape[0]):
         total = 0.0
         for j in range(2):

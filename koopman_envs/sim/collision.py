@@ -108,8 +108,7 @@ def collision_flags(
 
 @njit(cache=True)
 def mover_collisions(
-    before: NDArray[np.float64],
-    state: NDArray[np.float64],
+    motion: tuple[NDArray[np.float64], NDArray[np.float64]],
     robot_radius: NDArray[np.float64],
     position: NDArray[np.float64],
     mover_radius: NDArray[np.float64],
@@ -117,18 +116,19 @@ def mover_collisions(
     stepping: NDArray[np.bool_],
     flag: int,
     stopped_step: float,
-    collision: NDArray[np.int64],
-    robot_hit: NDArray[np.bool_],
-    fault: NDArray[np.int64],
+    marks: tuple[NDArray[np.int64], NDArray[np.bool_], NDArray[np.int64]],
 ) -> None:  # pragma: no cover - compiled
     """OR ``flag`` into ``collision[k]`` for every environment of ``rows`` where a robot overlaps a
     mover, mark that robot in ``robot_hit`` (K, N), and in the ``stepping`` environments write
-    whose fault its contacts are into ``fault`` (K, N), by the rule of
+    whose fault its contacts are into ``fault`` (K, N) (``marks`` is the tuple ``collision``,
+    ``robot_hit``, ``fault``), by the rule of
     :class:`~koopman_envs.sim.collision.CollisionFault`: the robot's when it moved at least
     ``stopped_step`` [m] over the period (``FAULT_STOPPED_SPEED`` x dt) with a positive
-    component towards the mover's centre, else the mover's. ``before`` and ``state`` (K, 3, N)
-    are the robots' poses at the start and the end of the period; the contact is judged at its
-    end, where it is seen."""
+    component towards the mover's centre, else the mover's. ``motion`` is the tuple ``before``,
+    ``state``: the robots' poses (K, 3, N) at the start and the end of the period; the contact is
+    judged at its end, where it is seen."""
+    before, state = motion
+    collision, robot_hit, fault = marks
     for k in rows:
         judged = stepping[k]
         for i in range(state.shape[2]):

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from koopman_envs.params import PARAMS
 
 __all__ = [
+    "Limits",
     "advance_teams",
     "rk4_channels",
     "rk4_pose",
@@ -29,6 +30,11 @@ __all__ = [
     "wrap_angle",
     "wrap_scalar",
 ]
+
+#: the actuation as the compiled physics takes it: ``command_low``, ``command_high`` and
+#: ``effort_scale``, (2,) each over the channels v, omega (a plain tuple: numba types one at a
+#: call almost as fast as loose arrays, a named tuple field by field in Python)
+Limits = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 
 def slip_velocity(
@@ -106,21 +112,20 @@ def wrap_scalar(angle: float) -> float:
 
 @njit(cache=True)
 def _rk4_flat(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    theta: NDArray[np.float64],
-    v: NDArray[np.float64],
-    omega: NDArray[np.float64],
-    alpha: NDArray[np.float64],
-    beta: NDArray[np.float64],
-    gamma: NDArray[np.float64],
+    pose: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    command: tuple[NDArray[np.float64], NDArray[np.float64]],
+    slip: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
     dt: float,
-    out_x: NDArray[np.float64],
-    out_y: NDArray[np.float64],
-    out_theta: NDArray[np.float64],
+    out: NDArray[np.float64],
 ) -> None:  # pragma: no cover
+    """:func:`rk4_pose` over flat arrays: ``pose`` (x, y, theta), ``command`` (v, omega) and
+    ``slip`` (alpha, beta, gamma), each a tuple of (P,) arrays, into rows x, y, theta of ``out``
+    (3, P)."""
+    x, y, theta = pose
+    v, omega = command
+    alpha, beta, gamma = slip
     for i in range(x.shape[0]):
-        out_x[i], out_y[i], out_theta[i] = rk4_pose(
+        out[0, i], out[1, i], out[2, i] = rk4_pose(
             x[i], y[i], theta[i], v[i], omega[i], alpha[i], beta[i], gamma[i], dt
         )
 
@@ -161,9 +166,7 @@ def rk4_channels(
     flat_out = out.reshape(3, -1)
     # named rather than splatted: a type checker cannot count a list's entries before ``dt``
     fx, fy, ftheta, fv, fomega, falpha, fbeta, fgamma = flat
-    _rk4_flat(
-        fx, fy, ftheta, fv, fomega, falpha, fbeta, fgamma, float(dt), flat_out[0], flat_out[1], flat_out[2]
-    )
+    _rk4_flat((fx, fy, ftheta), (fv, fomega), (falpha, fbeta, fgamma), float(dt), flat_out)
     return out[0], out[1], out[2]
 
 
@@ -218,9 +221,7 @@ def advance_teams(
     slip_cursor: NDArray[np.int64],
     lambdas: NDArray[np.float64],
     active: NDArray[np.bool_],
-    command_low: NDArray[np.float64],
-    command_high: NDArray[np.float64],
-    effort_scale: NDArray[np.float64],
+    limits: Limits,
     dt: float,
     new_state: NDArray[np.float64],
     effort: NDArray[np.float64],
@@ -243,8 +244,9 @@ def advance_teams(
         output of :func:`koopman_envs.sim.zones.zone_slip_means`).
     active : ndarray of bool, shape (K,)
         Inactive environments keep their state, consume no slip and report zero effort.
-    command_low, command_high, effort_scale : ndarray, shape (2,)
-        Actuation limits and the effort weight of each channel.
+    limits : tuple of ndarray, shape (2,) each
+        :data:`Limits`: ``command_low``, ``command_high`` (the actuation limits) and
+        ``effort_scale`` (the effort weight of each channel).
     dt : float
         Period [s].
     new_state : ndarray, shape (K, 3, N)
@@ -252,6 +254,7 @@ def advance_teams(
     effort : ndarray, shape (K, N)
         Output ``scale_v v^2 + scale_omega omega^2`` of the saturated commands.
     """
+    command_low, command_high, effort_scale = limits
     n_envs, _, n_robots = state.shape
     for k in range(n_envs):
         if not active[k]:

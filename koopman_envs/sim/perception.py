@@ -56,6 +56,23 @@ SENSOR_MODEL = np.dtype(
         ("max_range", np.float64),  # the lidar's range [m] (0 without lidar)
     ]
 )
+#: an environment's block of random numbers as the compiled pass takes it: ``normal`` and
+#: ``uniform`` (block, K, width) float32 and each environment's ``cursor`` (K,) int64 into them
+#: (plain tuples, made once per :class:`Perception`: numba types one at a call almost as fast as
+#: loose arrays, a named tuple field by field in Python)
+Draws = tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.int64]]
+#: :class:`Perception`'s state as the compiled pass updates it: ``clock`` (K,) int64, ``bias``
+#: (K, 3, N), ``observed`` (K, 3, N), ``sent`` (K, latency + 1, 5, N), ``known`` (K, N, N, 3),
+#: ``age`` (K, N, N) int64, ``ranges`` (K, N, B)
+Memory = tuple[
+    NDArray[np.int64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+]
 
 
 def child_generator(rng: np.random.Generator) -> np.random.Generator:
@@ -172,6 +189,18 @@ class Perception:
         self._parents: list[np.random.Generator | None] = [None] * k
         self.queue = np.zeros((k, max(self.delay, 1), n, 2))
         self._pending: list[int] = []  # environments reset since the last update
+        # the compiled pass's arguments (the same arrays, updated in place; a copy of the
+        # object copies them once, as shared references)
+        self._draws: Draws = (self.normal, self.uniform, self.cursor)
+        self._memory: Memory = (
+            self.clock,
+            self.bias,
+            self.observed,
+            self.sent,
+            self.known,
+            self.age,
+            self.ranges,
+        )
 
     # ------------------------------------------------------------------ reset
     def reset_env(self, index: int, rng: np.random.Generator) -> None:
@@ -252,21 +281,7 @@ class Perception:
                     exact,
                 )
                 self.ranges[rows] = exact
-        _perceive(
-            self.model,
-            state,
-            rows,
-            self.clock,
-            self.cursor,
-            self.normal,
-            self.uniform,
-            self.bias,
-            self.observed,
-            self.sent,
-            self.known,
-            self.age,
-            self.ranges,
-        )
+        _perceive(self.model, state, rows, self._draws, self._memory)
 
     def _refill(self, rows: NDArray[np.int64]) -> None:
         """Draw a new block for every environment of ``rows`` that has used up its own: its
@@ -311,21 +326,15 @@ def _perceive(
     model: NDArray[np.void],
     truth: NDArray[np.float64],
     rows: NDArray[np.int64],
-    clock: NDArray[np.int64],
-    cursor: NDArray[np.int64],
-    normal: NDArray[np.float32],
-    uniform: NDArray[np.float32],
-    bias: NDArray[np.float64],
-    observed: NDArray[np.float64],
-    sent: NDArray[np.float64],
-    known: NDArray[np.float64],
-    age: NDArray[np.int64],
-    ranges: NDArray[np.float64],
+    draws: Draws,
+    memory: Memory,
 ) -> None:  # pragma: no cover - compiled
     """One period of sensing and messaging for environments ``rows`` of the true poses ``truth``
     (K, 3, N) under ``model`` (:data:`SENSOR_MODEL`), drawing from each environment's block of
-    ``normal`` and ``uniform`` at its ``cursor``; the other arrays are :class:`Perception`'s state,
-    updated in place."""
+    ``normal`` and ``uniform`` at its ``cursor`` (``draws``, :data:`Draws`); ``memory``
+    (:data:`Memory`) is :class:`Perception`'s state, updated in place."""
+    normal, uniform, cursor = draws
+    clock, bias, observed, sent, known, age, ranges = memory
     spec = model[0]
     std, drift, noisy, latency = spec.std, spec.drift, spec.noisy, spec.latency
     drop, range2 = spec.drop, spec.range2

@@ -337,10 +337,10 @@ class MoverField:
                 self.pool[k] = rng.random(self.pool_size)
                 self.cursor[k] = 0
         crowd = cfg.behaviour == "crowd"
-        follow_waypoints(
-            self.position, self.velocity, self.goal, self.leg_speed, self.waiting, self.pool, self.cursor,
-            rows, self._model, self.arena, self._obstacles,
-        )  # fmt: skip
+        # the walkers' tuple made here, not kept: position and velocity are views of _states,
+        # which a copy or an unpickled field makes anew
+        walkers = (self.position, self.velocity, self.goal, self.leg_speed, self.waiting)
+        follow_waypoints(walkers, (self.pool, self.cursor), rows, self._model, self.arena, self._obstacles)
         if crowd:
             orca_step(
                 self._orca,
@@ -370,8 +370,7 @@ class MoverField:
         environments that moved (``stepping``, (K,)); the others keep theirs (nothing moved)."""
         self.hit[:] = False
         mover_collisions(
-            before,
-            state,
+            (before, state),
             robot_radius,
             self.position,
             self.radius,
@@ -379,9 +378,7 @@ class MoverField:
             stepping,
             CollisionKind.MOVER,
             FAULT_STOPPED_SPEED * self.dt,
-            collision,
-            self.hit,
-            self.fault,
+            (collision, self.hit, self.fault),
         )
 
     # ------------------------------------------------------------------- read

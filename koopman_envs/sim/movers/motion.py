@@ -41,6 +41,12 @@ WALKER_MODEL = np.dtype(
         ("move", np.bool_),  # step the positions ("waypoints"); off for the crowd (ORCA moves it)
     ]
 )
+#: the waypoint walkers as :func:`follow_waypoints` takes them: ``position``, ``velocity``,
+#: ``goal`` (K, C, 2), ``leg_speed`` (K, C) and ``waiting`` (K, C) int64 (a plain tuple: numba
+#: types one at a call almost as fast as loose arrays, a named tuple field by field in Python)
+Walkers = tuple[
+    NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]
+]
 
 
 def walker_model(radius: float, speed: float, pause_periods: int, dt: float, move: bool) -> NDArray[np.void]:
@@ -197,13 +203,8 @@ def first_goals(
 
 @njit(cache=True)
 def follow_waypoints(
-    position: NDArray[np.float64],
-    velocity: NDArray[np.float64],
-    goal: NDArray[np.float64],
-    leg_speed: NDArray[np.float64],
-    waiting: NDArray[np.int64],
-    pool: NDArray[np.float64],
-    cursor: NDArray[np.int64],
+    walkers: Walkers,
+    draws: tuple[NDArray[np.float64], NDArray[np.int64]],
     rows: NDArray[np.int64],
     model: NDArray[np.void],
     arena: NDArray[np.float64],
@@ -212,13 +213,16 @@ def follow_waypoints(
     """One period of the waypoint walkers of the environments ``rows``: pause, arrive, draw the
     next waypoint, or walk on.
 
-    ``position``, ``velocity``, ``goal`` (K, C, 2), ``leg_speed`` and ``waiting``
-    (K, C) are the walkers'; ``pool`` (K, P) and ``cursor`` (K,) their uniforms; ``arena``
-    (K, 4) and ``obstacles`` (K, 3, M) where they walk. ``model`` (:data:`WALKER_MODEL`) gives
+    ``walkers`` (:data:`Walkers`) is the walkers' ``position``, ``velocity``, ``goal`` (K, C, 2),
+    ``leg_speed`` and ``waiting`` (K, C); ``draws`` their uniforms, ``pool`` (K, P) and
+    ``cursor`` (K,); ``arena`` (K, 4) and ``obstacles`` (K, 3, M) where they walk. ``model``
+    (:data:`WALKER_MODEL`) gives
     the radius, speed, pause and period, and ``move``: step the positions ("waypoints");
     otherwise only set the velocities, which the crowd uses as the preferred velocities of ORCA
     (arrival then within one radius).
     """
+    position, velocity, goal, leg_speed, waiting = walkers
+    pool, cursor = draws
     spec = model[0]
     radius, speed, pause_periods, dt, move = spec.radius, spec.speed, spec.pause_periods, spec.dt, spec.move
     for k in rows:

@@ -160,9 +160,10 @@ def place_movers_batch(
                 )
             if done[b, 0] >= count:
                 break
-            _place_from(
-                rng.random((block, 2)), arenas[b], radius, obstacles[b], starts[b], targets[b], clearance,
-                placed[b], done[b],
+            one = slice(b, b + 1)  # the kernel on a batch of one: this environment's rows
+            _place_batch(
+                rng.random((1, block, 2)), arenas[one], radius, obstacles[one], starts[one], targets[one],
+                clearance, placed[one], done[one],
             )  # fmt: skip
     return placed
 
@@ -179,61 +180,38 @@ def _place_batch(
     placed: NDArray[np.float64],
     done: NDArray[np.int64],
 ) -> None:  # pragma: no cover - compiled
-    """:func:`_place_from` for every environment b of the batch, its own rows of each array."""
-    for b in range(candidates.shape[0]):
-        _place_from(
-            candidates[b],
-            arenas[b],
-            radius,
-            obstacles[b],
-            starts[b],
-            targets[b],
-            clearance,
-            placed[b],
-            done[b],
-        )
-
-
-@njit(cache=True)
-def _place_from(
-    candidates: NDArray[np.float64],
-    arena: NDArray[np.float64],
-    radius: float,
-    obstacles: NDArray[np.float64],
-    starts: NDArray[np.float64],
-    targets: NDArray[np.float64],
-    clearance: float,
-    placed: NDArray[np.float64],
-    done: NDArray[np.int64],
-) -> None:  # pragma: no cover - compiled
-    """Try ``candidates`` (B, 2) of uniforms in order for the movers from ``done[0]`` on (see
-    :func:`place_movers`); stops at :data:`PLACEMENT_ATTEMPTS` failures of one mover."""
-    lo_x, span_x = arena[0] + radius, arena[1] - arena[0] - 2.0 * radius
-    lo_y, span_y = arena[2] + radius, arena[3] - arena[2] - 2.0 * radius
-    for b in range(candidates.shape[0]):
-        c = done[0]
-        if c >= placed.shape[0] or done[1] >= PLACEMENT_ATTEMPTS:
-            return
-        x, y = lo_x + span_x * candidates[b, 0], lo_y + span_y * candidates[b, 1]
-        free = True
-        for m in range(obstacles.shape[0]):
-            reach = obstacles[m, 2] + radius + _PLACEMENT_GAP
-            if (obstacles[m, 0] - x) ** 2 + (obstacles[m, 1] - y) ** 2 < reach * reach:
-                free = False
+    """For every environment k of the batch, try its ``candidates[k]`` (T, 2) of uniforms in
+    order for its movers from ``done[k, 0]`` on (see :func:`place_movers_batch`), each in its
+    own rows of the other arrays; an environment stops at :data:`PLACEMENT_ATTEMPTS` failures
+    of one mover. A further block of one environment is a batch of one."""
+    for k in range(candidates.shape[0]):
+        arena, mine, done_k = arenas[k], placed[k], done[k]
+        lo_x, span_x = arena[0] + radius, arena[1] - arena[0] - 2.0 * radius
+        lo_y, span_y = arena[2] + radius, arena[3] - arena[2] - 2.0 * radius
+        for b in range(candidates.shape[1]):
+            c = done_k[0]
+            if c >= mine.shape[0] or done_k[1] >= PLACEMENT_ATTEMPTS:
                 break
-        reach = clearance + radius
-        for points in (starts, targets):
-            for m in range(points.shape[0]):
-                if free and (points[m, 0] - x) ** 2 + (points[m, 1] - y) ** 2 < reach * reach:
-                    free = False
-        if free:
-            reach = 2.0 * radius + _PLACEMENT_GAP
-            for m in range(c):
-                if (placed[m, 0] - x) ** 2 + (placed[m, 1] - y) ** 2 < reach * reach:
+            x, y = lo_x + span_x * candidates[k, b, 0], lo_y + span_y * candidates[k, b, 1]
+            free = True
+            for m in range(obstacles.shape[1]):
+                reach = obstacles[k, m, 2] + radius + _PLACEMENT_GAP
+                if (obstacles[k, m, 0] - x) ** 2 + (obstacles[k, m, 1] - y) ** 2 < reach * reach:
                     free = False
                     break
-        if free:
-            placed[c, 0], placed[c, 1] = x, y
-            done[0], done[1] = c + 1, 0
-        else:
-            done[1] += 1
+            reach = clearance + radius
+            for points in (starts[k], targets[k]):
+                for m in range(points.shape[0]):
+                    if free and (points[m, 0] - x) ** 2 + (points[m, 1] - y) ** 2 < reach * reach:
+                        free = False
+            if free:
+                reach = 2.0 * radius + _PLACEMENT_GAP
+                for m in range(c):
+                    if (mine[m, 0] - x) ** 2 + (mine[m, 1] - y) ** 2 < reach * reach:
+                        free = False
+                        break
+            if free:
+                mine[c, 0], mine[c, 1] = x, y
+                done_k[0], done_k[1] = c + 1, 0
+            else:
+                done_k[1] += 1

@@ -73,6 +73,10 @@ TRACKER_MODEL = np.dtype(
         ("drop_misses", np.int64),  # periods unseen after which a track is dropped
     ]
 )
+#: every track of a :class:`MoverTracker` as its compiled step takes them: the states ``x``
+#: (K, C, 4), covariances ``P`` (K, C, 4, 4), ``hits`` and ``misses`` (K, C) int64 (a plain
+#: tuple: numba types one at a call almost as fast as loose arrays, a named tuple in Python)
+Tracks = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]
 
 
 def cv_model(dt: float, accel_sigma: float = ACCEL_SIGMA) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -240,15 +244,10 @@ def _nearest_within(
 @njit(cache=True)
 def _track_step(
     model: NDArray[np.void],
-    x: NDArray[np.float64],
-    P: NDArray[np.float64],
-    hits: NDArray[np.int64],
-    misses: NDArray[np.int64],
+    tracks: Tracks,
     movers: NDArray[np.float64],
-    true_poses: NDArray[np.float64],
-    estimated_poses: NDArray[np.float64],
-    pool: NDArray[np.float64],
-    cursor: NDArray[np.int64],
+    poses: tuple[NDArray[np.float64], NDArray[np.float64]],
+    draws: tuple[NDArray[np.float64], NDArray[np.int64]],
     rows: NDArray[np.int64],
 ) -> None:  # pragma: no cover - compiled
     """One period of the environments ``rows`` under ``model`` (:data:`TRACKER_MODEL`; module
@@ -256,7 +255,12 @@ def _track_step(
     ``sigma`` times its row of the environment's error ``pool`` at its ``cursor``, which
     advances; turned by that robot's heading error, placed at its estimated position); every
     live track (``x``, ``P``, ``hits``, ``misses``) predicted, the detected ones updated (a new
-    one born at rest), the rules applied."""
+    one born at rest), the rules applied. ``tracks`` is :data:`Tracks`; ``poses`` the robots'
+    ``true_poses`` and ``estimated_poses`` (K, 3, N); ``draws`` the ``pool`` and the ``cursor``
+    (K,) into it."""
+    x, P, hits, misses = tracks
+    true_poses, estimated_poses = poses
+    pool, cursor = draws
     spec = model[0]
     dt, Q, sigma, r, detection_range = spec.dt, spec.Q, spec.sigma, spec.r, spec.detection_range
     birth_var, drop_misses = spec.birth_var, spec.drop_misses
@@ -335,6 +339,9 @@ class MoverTracker:
         periods = max(1, min(32, POOL_DRAWS // max(count, 1)))
         self._pool = np.zeros((num_envs, periods, count, 2))
         self._cursor = np.full(num_envs, periods, dtype=np.int64)
+        # the compiled step's arguments (the same arrays, updated in place)
+        self._tracks: Tracks = (self.x, self.P, self.hits, self.misses)
+        self._draws = (self._pool, self._cursor)
 
     @classmethod
     def for_movers(cls, movers: MoverConfig, num_envs: int, listed: int, dt: float) -> MoverTracker | None:
@@ -379,15 +386,13 @@ class MoverTracker:
         self._refill(rows)
         _track_step(
             self.model,
-            self.x,
-            self.P,
-            self.hits,
-            self.misses,
+            self._tracks,
             np.ascontiguousarray(movers, dtype=np.float64),
-            np.ascontiguousarray(true_poses, dtype=np.float64),
-            np.ascontiguousarray(estimated_poses, dtype=np.float64),
-            self._pool,
-            self._cursor,
+            (
+                np.ascontiguousarray(true_poses, dtype=np.float64),
+                np.ascontiguousarray(estimated_poses, dtype=np.float64),
+            ),
+            self._draws,
             rows,
         )
 
