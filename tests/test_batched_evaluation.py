@@ -34,20 +34,25 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
 
 
 @pytest.mark.parametrize(
-    ("controllers", "env_kwargs"),
+    ("controllers", "env_kwargs", "workers"),
     [
-        (["rl-ppo", "rl-ppo-set-movers"], {"movers": {"count": 3, "behaviour": "constant", "speed": 0.3}}),
-        (["rl-ppo-set", "rl-ppo-set-realistic"], {"uncertainty": "realistic"}),
+        # the batches in 2 worker processes (each starts an interpreter and loads torch and the
+        # policies: most of a case's CPU); the other cases run the same batches in this process
+        (["rl-ppo", "rl-ppo-set-movers"], {"movers": {"count": 3, "behaviour": "constant", "speed": 0.3}}, 2),
+        (["rl-ppo-set", "rl-ppo-set-realistic"], {"uncertainty": "realistic"}, 1),
         # the lidar case takes a minute (20 episodes of a set policy reading beams): -m slow
         pytest.param(
             ["rl-ppo-set-movers"],
             {"sensing": "lidar", "movers": {"count": 2, "behaviour": "constant"}},
+            2,
             marks=pytest.mark.slow,
         ),
     ],
     ids=["movers", "realistic", "lidar"],
 )
-def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(controllers, env_kwargs) -> None:
+def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(
+    controllers, env_kwargs, workers
+) -> None:
     pytest.importorskip("stable_baselines3")
     spec = _spec(controllers, **env_kwargs)
     plan = spec.resolved().episodes_plan("")
@@ -55,7 +60,7 @@ def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(con
     batched_units = [unit for unit in units if len(unit) > 1]
     # every cell's trials run together (trial 0 keeps its paths, the movers' too)
     assert len(batched_units) == 2 * len(controllers) and {len(u) for u in batched_units} == {EPISODES}
-    together = evaluate(spec, workers=2)  # the batches in worker processes
+    together = evaluate(spec, workers=workers)  # batched (the default), in workers or here
     alone = evaluate(spec, workers=1, batch=1)
     assert [r["key"] for r in together.records] == [r["key"] for r in alone.records]
     for first, second in zip(together.records, alone.records, strict=True):

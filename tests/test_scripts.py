@@ -216,7 +216,8 @@ def small_sweep(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory) -> Path:
     """A results.json with both tasks (their two paper maps, high slip), consensus and an NMPC under
-    two solver labels."""
+    two solver labels; 10 periods per episode (IPOPT uncompiled takes most of the run: 20 periods
+    took 4.3-4.6 CPU-s, 10 take 2.4-2.8)."""
     out = tmp_path_factory.mktemp("run")
     spec = ev.RunSpec(
         envs=["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"],
@@ -227,7 +228,7 @@ def small_run(tmp_path_factory) -> Path:
         ],
         episodes=1,
         slips=["high"],
-        env_kwargs={"max_episode_steps": 20},
+        env_kwargs={"max_episode_steps": 10},
     )
     results = ev.evaluate(spec, workers=1)
     return results.write(out)["json"]
