@@ -1,0 +1,83 @@
+"""Held (piecewise-constant) identification inputs (issue 62): ``DataSpec.hold`` and
+``koopman-nmpc:hold``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from controllers.calibration import MAX_HOLD, DataSpec, collect_data, data_spec_for
+from controllers.koopman.store import _model_key, calibrated_model, fit_on_plant
+from koopman_envs import make_plant
+
+ENV = "KoopNav-TargetReaching-v0"
+
+
+def _plant(budget: int, seed: int = 0):
+    return make_plant(ENV, slip="high", budget=budget, seed=seed)
+
+
+@pytest.mark.parametrize("hold", [0, -1, MAX_HOLD + 1, 1.5, "3", True, None])
+def test_bad_hold_is_refused_by_name(hold) -> None:
+    import controllers
+
+    for make in (
+        lambda: DataSpec(2, 100, hold=hold),
+        lambda: data_spec_for(200, 0, hold=hold),
+        lambda: controllers.make("koopman-nmpc", hold=hold),
+        lambda: calibrated_model(_plant(200), 0, hold=hold),
+    ):
+        with pytest.raises(ValueError, match=rf"hold={hold!r} must be an integer >= 1 and <= {MAX_HOLD}"):
+            make()
+
+
+@pytest.mark.parametrize("hold", [1, 7, 25])
+def test_held_inputs_are_constant_over_the_hold_and_change_between_holds(hold) -> None:
+    steps, teams = 103, 4  # not a multiple of the holds: the last hold is cut at the end
+    spec = DataSpec(teams, steps, seed=3, hold=hold)
+    data = collect_data(_plant(spec.transitions), spec)
+    commands = data.commands
+    assert commands.shape == (steps, teams, 3, 2) and data.states.shape == (steps + 1, teams, 3, 3)
+    starts = np.arange(0, steps, hold)
+    for start in starts:
+        block = commands[start : start + hold]
+        np.testing.assert_array_equal(block, np.broadcast_to(block[0], block.shape))
+    # a new draw at every hold's start, for every robot and both inputs (continuous draws: never equal)
+    assert np.all(commands[starts[1:]] != commands[starts[1:] - 1])
+    assert np.abs(commands).max() <= spec.input_bound
+    # the draws are the hold=1 stream's first ceil(steps / hold) periods, each held
+    paper = collect_data(_plant(teams * steps), DataSpec(teams, steps, seed=3)).commands
+    np.testing.assert_array_equal(commands[starts], paper[: len(starts)])
+
+
+def test_hold_one_is_the_papers_data_set_and_cache_key() -> None:
+    spec = data_spec_for(2000, 0)
+    assert spec.hold == 1 and "hold" not in spec.to_dict()  # keys of caches and shipped files unchanged
+    assert data_spec_for(2000, 0, hold=10).to_dict()["hold"] == 10
+    plant = _plant(2000)
+    keys = {hold: _model_key(plant, data_spec_for(2000, 0, hold), "minimal", 0.0) for hold in (1, 2, 10)}
+    assert len(set(keys.values())) == 3  # the hold is part of the model cache key
+    assert keys[1] == _model_key(plant, DataSpec(2, 1000, seed=0), "minimal", 0.0)
+
+
+def test_calibration_with_a_hold_is_deterministic_to_the_bit() -> None:
+    spec = data_spec_for(2000, 0, hold=10)
+    first, second = (fit_on_plant(_plant(2000), spec, velocity=True) for _ in range(2))
+    for name in ("A", "B", "N", "C"):
+        assert np.asarray(getattr(first, name)).tobytes() == np.asarray(getattr(second, name)).tobytes()
+    assert first.metadata == second.metadata and first.metadata["data"]["hold"] == 10
+    paper = fit_on_plant(_plant(2000), data_spec_for(2000, 0), velocity=True)
+    assert not np.array_equal(paper.A, first.A)  # held data are other data
+
+
+def test_koopman_nmpc_calibrates_on_held_inputs() -> None:
+    import controllers
+    from controllers.mpc.variants import KoopmanNMPC
+
+    ctrl = KoopmanNMPC(hold=5, velocity=True)
+    summary = ctrl.calibrate(_plant(2000), seed=0)
+    assert ctrl.model is not None and ctrl.model.metadata["data"]["hold"] == 5
+    assert summary["key"] == _model_key(
+        _plant(2000), data_spec_for(2000, 0, 5), "minimal", 0.0, velocity=True
+    )
+    assert controllers.options("koopman-nmpc").option("hold").default == 1
