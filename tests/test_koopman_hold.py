@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -81,3 +84,57 @@ def test_koopman_nmpc_calibrates_on_held_inputs() -> None:
         _plant(2000), data_spec_for(2000, 0, 5), "minimal", 0.0, velocity=True
     )
     assert controllers.options("koopman-nmpc").option("hold").default == 1
+
+
+# --------------------------------------------------------------------------- docs/physics.md's figures
+ROOT = Path(__file__).resolve().parents[1]
+#: the committed outputs of ``bench/physics_model_error.py --json`` behind docs/physics.md's held-input table
+MEASURED = ROOT / "data" / "physics_model_error"
+LIFT_NAMES = {
+    "koopman": "pose only",
+    "koopman-u3": "memory 3",
+    "koopman-v": "velocity",
+    "koopman-u3v": "memory 3 + velocity",
+    "unicycle": "unicycle",
+}
+
+
+def held_rows(row: dict) -> list[str]:
+    """The Markdown rows docs/physics.md shows for one level of one bench output (every lift, the
+    unicycle last; ratios over the unicycle's)."""
+    circle, windows, one_step = row["circle"], row["closed_loop"], row["identification"]["one_step"]
+    out = []
+    for name, label in LIFT_NAMES.items():
+        if name not in windows:
+            continue
+        c, w = circle[name]["mean"], windows[name]
+        ratios = (
+            ("", "")
+            if name == "unicycle"
+            else (
+                f"{c / circle['unicycle']['mean']:.2f}",
+                f"{w / windows['unicycle']:.2f}",
+            )
+        )
+        hold = "" if name == "unicycle" else row["hold"]  # the unicycle fits nothing: one row per floor
+        out.append(
+            f"| {row['level']} ({row['surface']}) | {hold} | {label} | {c:.1f} | {ratios[0]} | {w:.1f} "
+            f"| {ratios[1]} | {one_step[name]:.2f} | {circle['speed'][name]:.3f} |"
+        )
+    return out
+
+
+def test_the_held_input_figures_of_the_physics_page_are_the_committed_measurements() -> None:
+    page = (ROOT / "docs" / "physics.md").read_text(encoding="utf-8")
+    files = sorted(MEASURED.glob("*.json"))
+    assert files, f"no bench output in {MEASURED}"
+    for path in files:
+        for row in json.loads(path.read_text(encoding="utf-8")):
+            for line in held_rows(row):
+                assert line in page, f"docs/physics.md lacks the row of {path.name}: {line}"
+
+
+if __name__ == "__main__":  # print the rows for the page: python tests/test_koopman_hold.py
+    for path in sorted(MEASURED.glob("*.json")):
+        for row in json.loads(path.read_text(encoding="utf-8")):
+            print("\n".join(held_rows(row)))
