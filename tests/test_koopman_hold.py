@@ -134,7 +134,55 @@ def test_the_held_input_figures_of_the_physics_page_are_the_committed_measuremen
                 assert line in page, f"docs/physics.md lacks the row of {path.name}: {line}"
 
 
+#: Map 1 closed-loop episodes on the physics plant behind the page's closed-loop table: the
+#: evaluator's records (episodes.jsonl) reduced to the fields the table uses (:data:`EPISODE_FIELDS`)
+EPISODES = ROOT / "data" / "physics_closed_loop"
+EPISODE_FIELDS = ("controller", "slip", "seed", "success", "collision", "steps", "final_distance")
+
+
+def episode_rows(records: list[dict]) -> list[str]:
+    """The page's rows of Map 1 episodes: per controller and floor, successes, every seed's periods
+    (and collision), and the robots' final distance to their targets (mean and largest) [cm]."""
+    cells: dict[tuple[str, str], list[dict]] = {}
+    for record in records:
+        cells.setdefault((record["controller"], record["slip"]), []).append(record)
+    out = []
+    for (controller, slip), cell in cells.items():
+        cell.sort(key=lambda r: r["seed"])
+        distances = np.array([r["final_distance"] for r in cell]) * 100.0
+        periods = ", ".join(
+            f"{r['steps']}" + (f" ({r['collision']})" if r["collision"] else "") for r in cell
+        )
+        out.append(
+            f"| `{controller}` | {slip} | {sum(r['success'] for r in cell)}/{len(cell)} | {periods} "
+            f"| {distances.mean():.1f} | {distances.max():.1f} |"
+        )
+    return out
+
+
+def test_the_closed_loop_figures_of_the_physics_page_are_the_committed_episodes() -> None:
+    page = (ROOT / "docs" / "physics.md").read_text(encoding="utf-8")
+    for path in sorted(EPISODES.glob("*.jsonl")):
+        records = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()]
+        assert records and all(set(r) == set(EPISODE_FIELDS) for r in records), path.name
+        for line in episode_rows(records):
+            assert line in page, f"docs/physics.md lacks the row of {path.name}: {line}"
+
+
+def reduce_episodes(source: Path, target: Path) -> None:
+    """Write the evaluator's ``episodes.jsonl`` at ``source`` as the reduced records at ``target``."""
+    lines = [json.loads(line) for line in source.read_text(encoding="utf-8").splitlines()]
+    kept = [{k: r[k] for k in EPISODE_FIELDS} for r in lines if r.get("status") == "ok"]
+    target.write_text("".join(json.dumps(r) + "\n" for r in kept), encoding="utf-8")
+
+
 if __name__ == "__main__":  # print the rows for the page: python tests/test_koopman_hold.py
     for path in sorted(MEASURED.glob("*.json")):
         for row in json.loads(path.read_text(encoding="utf-8")):
             print("\n".join(held_rows(row)))
+    for path in sorted(EPISODES.glob("*.jsonl")):
+        print(
+            "\n".join(
+                episode_rows([json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()])
+            )
+        )
