@@ -6,7 +6,7 @@ Usage::
     python bench/physics_model_error.py [--levels high low nominal] [--budget 1000000] [--seed 0]
         [--repetitions 30] [--episodes 3] [--controller nominal-nmpc] [--horizon 20]
         [--held-out-budget 20000] [--max-episode-steps 600] [--memory 1 2] [--velocity]
-        [--json out.json]
+        [--hold 1] [--json out.json]
 
 For each slip setting (on the physics plant a floor: ``nominal`` carpet, ``low`` gravel, ``high``
 ice; docs/physics.md) the Koopman-NMPC is calibrated as the evaluator calibrates it: its
@@ -32,6 +32,12 @@ robots were given before it (none before an episode's or the circle's start: the
 in the body frame (``koopman-v``, ``velocity=True``), fitted on the same data; it predicts every
 window from the true pose a period before it (the start's own at an episode's start); with
 ``--memory L`` as well, also a lift with both (``koopman-uLv``).
+
+``--hold K`` fits every Koopman lift (the pose-only one too) on identification data whose
+random inputs are each held for K periods (:class:`~controllers.calibration.DataSpec`'s
+``hold``; 1, the default: the paper's inputs, drawn anew every period). The held-out data, the
+circle, the closed-loop episodes and the nominal NMPC that drives them do not depend on it, so
+runs with different holds are compared on the same data.
 
 Also printed, to say why a model does what it does (:func:`identification_figures`): each
 model's one-step RMS position error on held-out identification data (the calibration's own kind
@@ -98,6 +104,8 @@ def lifts(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
         out["koopman-v"] = {"velocity": True}
         # and each memory with the velocity beside it
         out.update({f"koopman-u{memory}v": {"memory": memory, "velocity": True} for memory in args.memory})
+    for lift in out.values():
+        lift["hold"] = args.hold
     return out
 
 
@@ -261,7 +269,7 @@ def identification_figures(level: str, models: dict[str, Any], budget: int, seed
 def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
     """Every figure of one friction level."""
     start = time.perf_counter()
-    koopman = controllers.make("koopman-nmpc")
+    koopman = controllers.make("koopman-nmpc", hold=args.hold)
     assert isinstance(koopman, KoopmanNMPC)  # the registered name's class
     plant = make_plant(ENV, plant="mujoco", slip=level, budget=args.budget, seed=args.seed)
     calibration = calibrate_controller(koopman, plant, seed=args.seed) or {}
@@ -275,6 +283,7 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
     held_out = args.seed + HELD_OUT
     row: dict[str, Any] = {
         "level": level,
+        "hold": args.hold,
         "surface": SLIP_SURFACES[level],
         "calibration": {
             name: {k: summary[k] for k in ("source", "transitions", "key") if k in summary}
@@ -359,6 +368,12 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         "--velocity",
         action="store_true",
         help="also fit a lift holding the robots' measured velocity, the last period's move (koopman-v)",
+    )
+    parser.add_argument(
+        "--hold",
+        type=int,
+        default=1,
+        help="periods each identification input of every Koopman lift's data is held (1: the paper's)",
     )
     parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)

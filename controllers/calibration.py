@@ -35,6 +35,7 @@ from koopman_envs.params import PARAMS
 
 __all__ = [
     "MAX_CALIBRATION_BUDGET",
+    "MAX_HOLD",
     "MAX_POSITION_RESIDUAL",
     "CacheWarning",
     "CacheWriteWarning",
@@ -44,6 +45,7 @@ __all__ = [
     "cache_dir",
     "cache_path",
     "calibrate_controller",
+    "check_hold",
     "check_position_residual",
     "collect_data",
     "data_spec_for",
@@ -109,6 +111,22 @@ def check_position_residual(value: Any, n_robots: int, source: str = "") -> NDAr
 # the identification inputs come from their own stream of the seed (the plant draws its slip from another)
 _INPUT_STREAM = 0x494E5055  # "INPU"
 
+#: the longest hold of an identification input [periods]: 10 s, a tenth of a paper trajectory
+#: (1000 periods), so that a trajectory still sees 100 different commands per robot
+MAX_HOLD = 100
+
+
+def check_hold(hold: object) -> int:
+    """``hold`` (periods each identification input is held) as an int in [1, :data:`MAX_HOLD`],
+    else ``ValueError`` naming it."""
+    return check_int(
+        "hold",
+        hold,
+        1,
+        maximum=MAX_HOLD,
+        note="periods each random input is held; 1: drawn anew every period",
+    )
+
 
 @dataclass(frozen=True)
 class DataSpec:
@@ -124,6 +142,11 @@ class DataSpec:
         Initial poses uniform on [-b, b]^3 per robot.
     seed : int
         Seed of the inputs and initial states.
+    hold : int
+        Periods each robot's random command is held (piecewise constant, changing at periods 0,
+        hold, 2 hold, ...; the last hold cut at the trajectory's end). 1, the default, is the
+        paper's protocol: a command drawn anew every period. Longer holds let robots with inertia
+        and motor lag (the physics plant) reach steady speeds within the data.
     """
 
     trajectories: int
@@ -131,6 +154,11 @@ class DataSpec:
     input_bound: float = PARAMS.koopman_input_bound
     state_bound: float = PARAMS.koopman_state_bound
     seed: int = 0
+    hold: int = 1
+
+    def __post_init__(self) -> None:
+        # frozen: the checked int replaces what was given (e.g. numpy's int64)
+        object.__setattr__(self, "hold", check_hold(self.hold))
 
     @property
     def transitions(self) -> int:
@@ -138,8 +166,12 @@ class DataSpec:
         return self.trajectories * self.steps
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form."""
-        return asdict(self)
+        """Plain-JSON form (``hold`` only when it is not 1, so that the paper's data sets keep the
+        cache keys and model files they had before holds existed)."""
+        out = asdict(self)
+        if self.hold == 1:
+            del out["hold"]
+        return out
 
 
 #: the largest calibration budget [team-transitions]: 10x the paper's 1,000,000. The identification
@@ -148,9 +180,10 @@ class DataSpec:
 MAX_CALIBRATION_BUDGET = 10_000_000
 
 
-def data_spec_for(budget: int, seed: int = 0) -> DataSpec:
+def data_spec_for(budget: int, seed: int = 0, hold: int = 1) -> DataSpec:
     """The identification set a budget buys: trajectories of the paper's length (1000 periods),
-    as many as fit (one shorter trajectory when the budget is below one paper trajectory)."""
+    as many as fit (one shorter trajectory when the budget is below one paper trajectory), each
+    random input held for ``hold`` periods (:class:`DataSpec`)."""
     check_int(
         "calibration budget",
         budget,
@@ -159,7 +192,7 @@ def data_spec_for(budget: int, seed: int = 0) -> DataSpec:
         note="team-transitions; the data take about 40 bytes per robot and transition",
     )
     steps = min(PARAMS.koopman_steps, int(budget))
-    return DataSpec(trajectories=int(budget) // steps, steps=steps, seed=seed)
+    return DataSpec(trajectories=int(budget) // steps, steps=steps, seed=seed, hold=hold)
 
 
 @dataclass(frozen=True)
@@ -182,13 +215,20 @@ class TrajectoryData:
 
 
 def collect_data(plant: CalibrationPlant, spec: DataSpec) -> TrajectoryData:
-    """Drive the plant's teams with the random inputs of ``spec`` (spends ``spec.transitions``)."""
+    """Drive the plant's teams with the random inputs of ``spec`` (spends ``spec.transitions``).
+
+    With ``spec.hold`` = K > 1 every robot's command is drawn once per K periods and held: the
+    draws are those of ``ceil(steps / K)`` periods of ``hold=1`` data (the same stream), each
+    repeated K times, so ``hold=1`` draws exactly the paper's inputs."""
     if spec.trajectories < 1 or spec.steps < 1:
         raise ValueError(f"trajectories={spec.trajectories} and steps={spec.steps} must be >= 1")
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(_INPUT_STREAM,)))
     n, b = plant.n_robots, spec.state_bound
     start = rng.uniform(-b, b, size=(spec.trajectories, n, 3))
-    commands = rng.uniform(-spec.input_bound, spec.input_bound, size=(spec.steps, spec.trajectories, n, 2))
+    draws = -(-spec.steps // spec.hold)
+    commands = rng.uniform(-spec.input_bound, spec.input_bound, size=(draws, spec.trajectories, n, 2))
+    if spec.hold > 1:
+        commands = np.repeat(commands, spec.hold, axis=0)[: spec.steps]
     return TrajectoryData(plant.rollout(start, commands), commands, spec)
 
 

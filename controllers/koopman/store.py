@@ -165,6 +165,7 @@ def calibrated_model(
     structure: str = "stacked",
     memory: int = 0,
     velocity: bool = False,
+    hold: int = 1,
 ) -> tuple[KoopmanModel, dict[str, Any]]:
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached if the cache can be
     written: a failed write warns once and the fitted model is returned all the same).
@@ -178,13 +179,17 @@ def calibrated_model(
     dictionary : str
         Observables (``"minimal"``: the paper's).
     spec : DataSpec, optional
-        The data set (default: what the plant's budget buys, :func:`data_spec_for`).
+        The data set (default: what the plant's budget buys, :func:`data_spec_for`, with ``hold``).
     structure : str
         ``"stacked"`` (the paper's team regression) or ``"per-robot"``.
     memory : int
         Previous commands in the lift (0: the paper's pose-only lift; stacked only).
     velocity : bool
         The last period's move in the lift (stacked only).
+    hold : int
+        Periods each identification input is held (:class:`~controllers.calibration.DataSpec`;
+        1: the paper's inputs, drawn anew every period). Ignored when ``spec`` is given (its own
+        ``hold`` counts). Part of the cache key through the data set.
 
     Returns
     -------
@@ -194,7 +199,7 @@ def calibrated_model(
         ``"fitted"``), ``seconds`` and the cache ``key``.
     """
     start = time.perf_counter()
-    spec = data_spec_for(plant.budget, seed) if spec is None else spec
+    spec = data_spec_for(plant.budget, seed, hold) if spec is None else spec
     memory, velocity = check_lift(memory, velocity, check_structure(structure))
     key = _model_key(plant, spec, dictionary, 0.0, structure, memory, velocity)
     summary = {"transitions": spec.transitions, "key": key}
@@ -229,6 +234,7 @@ def fit_for_env(
     dictionary: str = "minimal",
     memory: int = 0,
     velocity: bool = False,
+    hold: int = 1,
     **env_kwargs: Any,
 ) -> KoopmanModel:
     """Fit (or load from the cache) the Koopman model of an environment's robots.
@@ -248,6 +254,8 @@ def fit_for_env(
         Previous commands in the lift (0: the paper's pose-only lift).
     velocity : bool
         The last period's move in the lift.
+    hold : int
+        Periods each identification input is held (1: the paper's inputs).
     """
     plant = make_plant(env, budget=budget, seed=seed, **env_kwargs)
-    return calibrated_model(plant, seed, dictionary, memory=memory, velocity=velocity)[0]
+    return calibrated_model(plant, seed, dictionary, memory=memory, velocity=velocity, hold=hold)[0]

@@ -34,9 +34,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.calibration import (
+    MAX_HOLD,
     CacheWarning,
     cache_key,
     cache_path,
+    check_hold,
     check_position_residual,
     collect_data,
     data_spec_for,
@@ -155,6 +157,12 @@ class KoopmanNMPC(NMPCController):
         heading's cos and sin, so that the model can carry the robots' inertia without a window
         of commands. The NMPC's state then holds each robot's pose one period before, the
         measured state the pose it measured a period ago. Stacked models only.
+    hold : int
+        Periods each random input of the identification data that :meth:`calibrate` draws is held
+        (piecewise constant; 1, the default: the paper's inputs, drawn anew every period, which
+        keeps the kinematic plant's results bit for bit). A robot with inertia and motor lag (the
+        physics plant) reaches steady speeds only under held inputs (docs/physics.md). Part of
+        the calibration's cache key.
     config, **options
         NMPC options, see :class:`controllers.mpc.config.NMPCConfig` (``uncertainty_margin`` uses the
         model's RMS one-step position residual on its calibration data).
@@ -169,6 +177,7 @@ class KoopmanNMPC(NMPCController):
     #: the allowed range of its own numeric options (:mod:`controllers.option_spec`)
     OPTION_RANGES: ClassVar[dict[str, Range]] = {
         "memory": Range(0, MAX_MEMORY, integer=True, note="previous commands in the lift"),
+        "hold": Range(1, MAX_HOLD, integer=True, note="periods per identification input"),
     }
     model: KoopmanModel | None  # only ever a KoopmanModel here (__init__, _use)
 
@@ -180,8 +189,10 @@ class KoopmanNMPC(NMPCController):
         structure: str = "auto",
         memory: int = 0,
         velocity: bool = False,
+        hold: int = 1,
         **options: Any,
     ) -> None:
+        self.hold = check_hold(hold)
         if structure != "auto":
             check_structure(structure)
         self.memory, self.velocity = check_lift(
@@ -210,7 +221,13 @@ class KoopmanNMPC(NMPCController):
         if structure == "auto":  # a lift with memory or velocity is a stacked model's
             structure = "stacked" if self.memory or self.velocity else default_structure(plant.n_robots)
         model, summary = calibrated_model(
-            plant, seed, self.dictionary, structure=structure, memory=self.memory, velocity=self.velocity
+            plant,
+            seed,
+            self.dictionary,
+            structure=structure,
+            memory=self.memory,
+            velocity=self.velocity,
+            hold=self.hold,
         )
         summary["structure"] = structure
         self._use(model)
