@@ -96,6 +96,12 @@ RUNS[lidar]="--lidar --reference koopman-nmpc"
 RUNS[lidar_policies]="--lidar --solver rti --controllers koopman-nmpc rl-ppo-set rl-ppo-set-realistic rl-ppo-set-movers --reference koopman-nmpc"
 # issue 60: the ablation of the NMPC's design factors (docs/ablation.md; 640 episodes on IPOPT)
 RUNS[ablation]="--ablation"
+# issue 60: koopnav-bench-v1's held-out test split, every registered controller with its shipped
+# defaults (docs/bench_results.md and README's headline, docs/make_bench_md.py): the decision time
+# charged to the robots (the headline) and free compute beside it, on the same (layout, seed) units
+BENCH_TEST="--suite koopnav-bench-v1 --split test --reference koopman-nmpc"
+RUNS[bench_test_realtime]="$BENCH_TEST --realtime"
+RUNS[bench_test]="$BENCH_TEST"
 # issue 60: why charging decision time raises Koopman-NMPC at nominal (docs/compute.md): the
 # realistic_realtime gain sits in the high-slip cells, so each mechanism is run there on the
 # paper protocol's episodes (its seeds, maps and starts) and paired with the published ones.
@@ -113,7 +119,7 @@ RUNS[compute_delay]="$MECHANISM --solver rti --controllers koopman-nmpc koopman-
 RUNS[compute_ipopt_delay]="$MECHANISM --solver ipopt --controllers koopman-nmpc --env-kwargs actuation_delay=1"
 COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation bench_test_realtime bench_test)
 
 run() {
     local name="$1" out="data/runs/$1"
