@@ -26,6 +26,7 @@ against the page.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -37,7 +38,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 import controllers  # noqa: E402
 from controllers.studies import STUDIES_DIR, study_budget  # noqa: E402
-from evaluation.episodes.distinct import distinct_records  # noqa: E402
+from evaluation.episodes.distinct import distinct_records, episode_identity  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
@@ -132,17 +133,27 @@ def load_mode(name: str, path: str | Path) -> Mode:
         raise ValueError(
             f"{path}: its decision time is {'' if config.get('compute') else 'not '}charged; --{name} needs compute {wanted}"
         )
-    done: dict[tuple[str, str], int] = {}
-    for record in distinct_records(results.records):
-        key = (record["env_id"], record["controller"])
-        done[key] = done.get(key, 0) + 1
+    done: dict[tuple[str, str], set[tuple]] = {}  # every episode logged, once (its identity)
+    for record in results.records:
+        done.setdefault((record["env_id"], record["controller"]), set()).add(episode_identity(record))
     progress = {
-        (env_id, label): Progress(done.get((env_id, label), 0), planned_episodes(config, env_id))
+        (env_id, label): Progress(len(done.get((env_id, label), ())), planned_episodes(config, env_id))
         for env_id in config["env_ids"]
         for label in config["controllers"]
     }
     kept = [r for r in results.records if progress[r["env_id"], r["controller"]].complete]
     return Mode(name, path, Results(kept, config) if kept else None, progress)
+
+
+def check_same_suite(modes: Sequence[Mode]) -> None:
+    """``ValueError`` unless every published mode ran the same suite selection (name, version,
+    split, layouts, episodes per layout and each task's split hash): side by side, the two modes'
+    rows must come from the same (layout, seed) units."""
+    suites = {
+        mode.path.as_posix(): mode.results.config["suite"] for mode in modes if mode.results is not None
+    }
+    if len({json.dumps(suite, sort_keys=True) for suite in suites.values()}) > 1:
+        raise ValueError(f"the publications ran different suites, so their rows do not compare: {suites}")
 
 
 def _summary(mode: Mode) -> dict[tuple[str, str], dict[str, Any]]:
@@ -444,6 +455,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         modes = [load_mode("charged", args.charged), load_mode("free", args.free)]
+        check_same_suite(modes)
         text = page(modes, _paper(args.paper), args.studies, args.paper or "data/paper.tar.xz")
     except ValueError as exc:  # a publication that is not as KoopNav packs it, or the wrong run
         print(f"error: {exc}", file=sys.stderr)

@@ -125,3 +125,18 @@ def test_a_study_gives_its_budget_finished_or_not(tmp_path) -> None:
     cut = study_budget("orca", tmp_path)
     assert cut is not None and not cut.finished
     assert (cut.configurations_run, cut.configurations, cut.verdict) == (5, 24, "unfinished")
+
+
+def test_runs_of_different_suites_are_refused(tmp_path, capsys) -> None:
+    """Side by side, the two modes must have run the same units: a run of other layouts is named."""
+    with extracted_archive(FREE) as run:
+        log = run / "episodes.jsonl"
+        lines = log.read_text(encoding="utf-8").splitlines(keepends=True)
+        header = json.loads(lines[0])
+        header["config"]["suite"]["layouts"] = [0, 2]
+        kept = [line for line in lines[1:] if json.loads(line)["layout"] < 2]
+        log.write_text(json.dumps(header) + "\n" + "".join(kept), encoding="utf-8")
+        other = pack_run(run, tmp_path / "bench_test.tar.xz")
+    out = tmp_path / "page.md"
+    assert main(["--charged", str(CHARGED), "--free", str(other), "--out", str(out)]) == 2
+    assert "the publications ran different suites" in capsys.readouterr().err
