@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.experiments.ablation import TITLE, ablation_configs, ablation_markdown  # noqa: E402
+from evaluation.experiments.ablation import ABLATION_TITLE, ablation_configs, ablation_markdown  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
@@ -41,7 +41,7 @@ def pending_page(archive: str | Path) -> str:
     """The page while the publication ``archive`` is missing: what it will hold and how to make it."""
     archive = Path(archive)
     return (
-        f"# {TITLE}\n\n"
+        f"# {ABLATION_TITLE}\n\n"
         f"**Pending: the ablation run is not published yet** (`{archive.as_posix()}` is missing). "
         f"To publish it: {_regenerate(archive)}; then `python docs/make_pages.py docs/ablation.md` "
         f"rebuilds this page from it. The run is every combination of the factors' levels "
@@ -68,7 +68,7 @@ def page(archive: str | Path) -> str:
         f"`python docs/make_pages.py docs/ablation.md`, byte for byte (`tests/test_published_pages.py`); "
         f"{_regenerate(archive)}."
     )
-    return f"# {TITLE}\n\n{data}\n\n{rest}"
+    return f"# {ABLATION_TITLE}\n\n{data}\n\n{rest}"
 
 
 def main(argv: list[str] | None = None) -> int:

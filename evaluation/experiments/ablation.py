@@ -41,7 +41,7 @@ __all__ = [
     "DEFAULT_LEVELS",
     "FACTORS",
     "MainEffects",
-    "TITLE",
+    "ABLATION_TITLE",
     "ablation_configs",
     "ablation_markdown",
     "check_factors",
@@ -61,7 +61,7 @@ FACTORS: dict[str, dict[str, tuple[str | None, dict[str, Any]]]] = {
     "constraints": {"soft": (None, {"soft_constraints": True}), "hard": (None, {"soft_constraints": False})},
 }
 #: the report's title (docs/ablation.md's, published or pending)
-TITLE = "Ablation: what decides the NMPC's outcome under slip"
+ABLATION_TITLE = "Ablation: what decides the NMPC's outcome under slip"
 #: the level of a factor that is not varied
 DEFAULT_LEVELS = {"model": "learned", "margins": "paper", "constraints": "soft"}
 
@@ -236,7 +236,7 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
     maps = list(dict.fromkeys((c.env_id, c.map) for c in results.cells))
     slips = sorted({c.slip for c in results.cells})
     episodes = results.config.get("episodes")
-    lines = [f"# {TITLE}", ""]
+    lines = [f"# {ABLATION_TITLE}", ""]
     if command:
         lines += [f"Regenerate with `{command}`.", ""]
     lines += [
