@@ -389,7 +389,7 @@ def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[st
         why = (
             "no study: its hand-set defaults"
             if tunable
-            else "no tunable options declared (a learned policy or a variant)"
+            else "no tunable options declared (nothing for the tuner to search)"
         )
         lines.append(f"| {label} | - | 0 | - | 0 | {why} |")
     return lines + [""]
