@@ -30,9 +30,11 @@ __all__ = [
     "STUDY_KIND",
     "TRIAL_FIELDS",
     "Adoption",
+    "StudyBudget",
     "adoption",
     "finished_study",
     "study_adoption",
+    "study_budget",
     "study_record",
     "trial_problem",
     "trial_rank",
@@ -250,3 +252,74 @@ def study_adoption(name: str, studies: str | os.PathLike[str] = STUDIES_DIR) -> 
     (refused as :func:`controllers.presets.check_study` refuses a study that is missing, torn, unfinished or not
     ``name``'s held-out ``task=both`` study)."""
     return adoption(name, finished_study(name, studies)[1])
+
+
+@dataclass(frozen=True)
+class StudyBudget:
+    """The tuning budget one controller had: what its study declared and how much of it ran
+    (:func:`study_budget`), for the pages that report results beside it ("Show Your Work",
+    Dodge et al. 2019).
+
+    Attributes
+    ----------
+    controller : str
+        The controller or preset the study tuned.
+    split : str
+        The split it was tuned on (``validation`` or ``train``; never ``test``).
+    configurations : int
+        The configurations the study declared (its budget), trial 0 the defaults.
+    configurations_run : int
+        The trials its log holds.
+    episodes_per_configuration : int
+        The validation episodes each configuration ran (both tasks).
+    verdict : str
+        The adoption rule's decision (:attr:`Adoption.verdict`) on a finished study, else
+        ``"unfinished"``.
+    """
+
+    controller: str
+    split: str
+    configurations: int
+    configurations_run: int
+    episodes_per_configuration: int
+    verdict: str
+
+    @property
+    def finished(self) -> bool:
+        """Whether every declared configuration ran."""
+        return self.configurations_run == self.configurations
+
+    @property
+    def episodes_run(self) -> int:
+        """The validation episodes the study ran so far."""
+        return self.configurations_run * self.episodes_per_configuration
+
+
+def study_budget(name: str, studies: str | os.PathLike[str] = STUDIES_DIR) -> StudyBudget | None:
+    """The tuning budget of ``name``: its study in ``studies/<name>/``, finished or not; None when
+    there is no study log (the controller was not tuned).
+
+    Raises
+    ------
+    ValueError
+        A log that is torn or not a study log, another controller's, or one tuned on a split
+        tuning may not use (as :func:`finished_study`, which also refuses an unfinished one).
+    """
+    log = Path(studies) / name / STUDY_FILE
+    if not log.exists():
+        return None
+    header, trials = _study_lines(name, log)
+    if header.get("controller") != name:
+        raise ValueError(f"{name}: its study {log} is of another controller: {header.get('controller')!r}")
+    check_split_allowed(str(header.get("split")), "tuning")
+    budget = header.get("budget", {})
+    declared = int(budget.get("configurations", 0))
+    finished = len(trials) == declared
+    return StudyBudget(
+        controller=name,
+        split=str(header["split"]),
+        configurations=declared,
+        configurations_run=len(trials),
+        episodes_per_configuration=int(budget.get("episodes_per_configuration", 0)),
+        verdict=adoption(name, trials).verdict if finished else "unfinished",
+    )

@@ -103,7 +103,8 @@ RUNS[ablation]="--ablation"
 # issue 60, KoopNav-Bench v1: the held-out test suite (200 layouts per task, one episode each,
 # high slip, the NMPCs on the real-time iteration), every registered controller on its tuned
 # defaults plus the hand-set defaults the tuned presets replaced (-v0); compute charged (the
-# headline: decision time delays the command, docs/evaluator.md) and free (the idealised case)
+# headline: decision time delays the command, docs/evaluator.md) and free (the idealised case), on
+# the same (layout, seed) units: docs/bench_results.md and README's headline (docs/make_bench_md.py)
 BENCH="--suite koopnav-bench-v1 --split test --reference koopman-nmpc --controllers adaptive-koopman-nmpc consensus consensus-free dmpc-koopman dmpc-koopman-robust dmpc-nominal dmpc-nominal-robust dwa ippo koopman-nmpc koopman-nmpc-robust mpc-cbf nominal-nmpc nominal-nmpc-robust orca rl-ppo rl-ppo-set rl-ppo-set-movers rl-ppo-set-realistic consensus-v0 dwa-v0 mpc-cbf-v0"
 RUNS[bench_test_realtime]="$BENCH --realtime"
 RUNS[bench_test]="$BENCH"

@@ -8,6 +8,11 @@ same commands tests/test_published_pages.py checks byte for byte).
 Each rebuilt page's SHA-256 goes into data/pages.sha256 (``sha256sum -c data/pages.sha256``
 reads it): tests/test_prose_checks.py compares every published page with it in a second, so a
 page edited by hand fails the fast tests; the slow ones rebuild the pages from the data.
+
+A page whose entry names a ``"readme"`` block (docs/bench_results.md: ``bench-headline``) holds
+that block between ``<!-- begin NAME ...-->`` and ``<!-- end NAME -->`` lines; rebuilding the
+page copies it into README.md in place of README's block of that name (:func:`with_block`), and
+tests/test_prose_checks.py checks README's copy against the page's.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -60,6 +66,48 @@ def edited_pages(pages: dict[str, bytes] | None = None) -> list[str]:
     if pages is None:
         pages = {entry["page"]: (ROOT / entry["page"]).read_bytes() for entry in PAGES}
     return [page for page, data in pages.items() if recorded.get(page) != page_digest(data)]
+
+
+#: the file a page's ``"readme"`` block is copied into
+README = ROOT / "README.md"
+
+
+def _block_pattern(name: str) -> re.Pattern[str]:
+    return re.compile(
+        rf"^<!-- begin {re.escape(name)}\b[^\n]*-->\n.*?^<!-- end {re.escape(name)} -->\n", re.M | re.S
+    )
+
+
+def block_of(text: str, name: str) -> str | None:
+    """The block ``name`` of ``text``, its ``<!-- begin NAME`` and ``<!-- end NAME -->`` lines
+    included (None when ``text`` has none)."""
+    found = _block_pattern(name).search(text)
+    return None if found is None else found[0]
+
+
+def with_block(text: str, name: str, block: str) -> str:
+    """``text`` with its block ``name`` replaced by ``block``; ``ValueError`` when it has none
+    (README.md must hold the block's two lines where the block goes)."""
+    pattern = _block_pattern(name)
+    if not pattern.search(text):
+        raise ValueError(
+            f"no block {name!r} (a '<!-- begin {name} -->' line, then '<!-- end {name} -->') to replace"
+        )
+    return pattern.sub(lambda _: block, text, count=1)
+
+
+def stale_readme_blocks(readme: str | None = None) -> list[str]:
+    """The ``"readme"`` blocks of the published pages that README.md (or ``readme``) does not
+    hold as the page holds them: edited by hand, or not copied since the page was rebuilt."""
+    text = README.read_text(encoding="utf-8") if readme is None else readme
+    stale = []
+    for entry in PAGES:
+        if "readme" in entry:
+            page = (ROOT / entry["page"]).read_text(encoding="utf-8")
+            block = block_of(page, entry["readme"])
+            if block is None or block_of(text, entry["readme"]) != block:
+                stale.append(entry["readme"])
+    return stale
 
 
 def page_command(entry: dict, out: Path, figures: Path | None = None) -> list[str]:
@@ -116,6 +164,17 @@ def main(argv: list[str]) -> int:
                 stale.append(entry["page"])
             if not check:  # what the generator wrote, for the fast check of hand edits
                 write_digests({**read_digests(), entry["page"]: page_digest(out.read_bytes())})
+            if "readme" in entry:  # README.md's copy of the page's block
+                block = block_of(out.read_text(encoding="utf-8"), entry["readme"])
+                if block is None:
+                    raise ValueError(
+                        f"{entry['page']} holds no block {entry['readme']!r} to copy into README.md"
+                    )
+                readme = README.read_text(encoding="utf-8")
+                if check and block_of(readme, entry["readme"]) != block:
+                    stale.append(f"{README.name} ({entry['readme']})")
+                if not check:
+                    write_atomic(README, with_block(readme, entry["readme"], block))
     if check:
         print(f"differ from the committed data: {stale}" if stale else "every page checked is up to date")
     return FAILED_CHECK_EXIT if stale else SUCCESS_EXIT

@@ -30,7 +30,15 @@ from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_proto
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_pages import PAGES, edited_pages, main, page_digest, read_digests  # noqa: E402  (docs/ is no package)
+from make_pages import (  # noqa: E402  (docs/ is no package)
+    PAGES,
+    block_of,
+    edited_pages,
+    main,
+    page_digest,
+    read_digests,
+    stale_readme_blocks,
+)
 
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
@@ -179,7 +187,14 @@ def _second_run(match: re.Match[str], sources: dict) -> list[str]:
     return [] if match[1] == "2" else [f"README names results-{match[1]}/; a second run writes results-2/"]
 
 
+def _headline(match: re.Match[str], sources: dict) -> list[str]:
+    # the block is the generated page's (whose bytes test_no_published_page_is_edited_by_hand checks)
+    stale = stale_readme_blocks(match.string)
+    return [f"README's {name} block is not docs/bench_results.md's: rebuild it" for name in stale]
+
+
 CHECKS: list[tuple[re.Pattern[str], Check]] = [
+    (re.compile(r"^<!-- begin bench-headline\b.*?^<!-- end bench-headline -->$", re.M | re.S), _headline),
     (COUNTS, _counts),
     (QUICK, _quick),
     (TESTS, _tests),
@@ -267,9 +282,34 @@ def test_a_new_measurement_that_disagrees_with_the_readme_fails(sources) -> None
 
 # --------------------------------------------------------------------------- generated pages
 def test_no_published_page_is_edited_by_hand() -> None:
-    """Every page of data/pages.json is, byte for byte, what its generator last wrote."""
+    """Every page of data/pages.json is, byte for byte, what its generator last wrote, and
+    README.md holds every block a page gives it (its headline) as the page holds it."""
     assert sorted(read_digests()) == sorted(entry["page"] for entry in PAGES)
     assert edited_pages() == []
+    assert stale_readme_blocks() == []
+
+
+def test_readmes_headline_is_the_bench_pages_block() -> None:
+    """README's headline block is docs/bench_results.md's, copied by docs/make_pages.py; a README
+    without it, or with a number changed in it, is named."""
+    page = (ROOT / "docs" / "bench_results.md").read_text(encoding="utf-8")
+    block = block_of(page, "bench-headline")
+    assert block is not None and block in README
+    assert stale_readme_blocks(README.replace(block, "")) == ["bench-headline"]
+    number = re.search(r"\d+%", block)
+    assert number is not None
+    edited = README.replace(block, block.replace(number[0], "1" + number[0], 1))  # 98% -> 198%
+    assert stale_readme_blocks(edited) == ["bench-headline"]
+
+
+def test_a_number_edited_in_readmes_headline_fails(sources) -> None:
+    """README's check (every number has a source) names the headline block edited by hand."""
+    block = block_of(README, "bench-headline")
+    assert block is not None
+    number = re.search(r"\d+%", block)
+    assert number is not None
+    edited = README.replace(block, block.replace(number[0], "1" + number[0], 1))
+    assert any("block is not docs/bench_results.md's" in p for p in readme_problems(edited, sources))
 
 
 def test_a_number_edited_by_hand_in_a_generated_page_fails() -> None:

@@ -39,10 +39,10 @@ def test_the_page_is_rebuilt_from_the_committed_data_byte_for_byte(entry, tmp_pa
         assert list((tmp_path / "_static").glob("*.png"))
 
 
-def _publications_on_pages() -> set[str]:
+def _publications_on_pages(pages: list[dict] = PAGES) -> set[str]:
     """The publications the pages read: an argument ``data/NAME.tar.xz`` or ``data/NAME`` (split),
     alone or as ``RUN=PATH``."""
-    paths = {a.partition("=")[2] or a for p in PAGES for a in p["args"]}
+    paths = {a.partition("=")[2] or a for p in pages for a in p["args"]}
     return {a for a in paths if a.startswith("data/") and (a.endswith(".tar.xz") or not Path(a).suffix)}
 
 
@@ -50,7 +50,12 @@ def test_every_published_archive_is_on_a_page_and_reads_back_checked() -> None:
     archives = {f"data/{p.name}" for p in (ROOT / "data").glob("*.tar.xz")}
     split = {f"data/{p.parent.name}" for p in (ROOT / "data").glob(f"*/{FRAME}")}
     assert archives and not {a.removesuffix(".tar.xz") for a in archives} & split  # one form per run
-    assert _publications_on_pages() <= archives | split
+    # a page may name a publication not made yet (docs/bench_results.md, docs/ablation.md) only
+    # while the committed page says so, naming it as pending
+    for entry in PAGES:
+        text = (ROOT / entry["page"]).read_text(encoding="utf-8")
+        for path in _publications_on_pages([entry]) - archives - split:
+            assert f"`{path}`" in text and "pending" in text.lower(), (entry["page"], path)
     assert "data/paper.tar.xz" in _publications_on_pages()  # RUN=PATH arguments are read too
 
 

@@ -12,12 +12,17 @@ read from :mod:`evaluation.experiments.seeds` (its ``main`` and ``aggregate`` wo
 from __future__ import annotations
 
 from evaluation.experiments.ablation import (
+    ABLATION_TITLE,
     DEFAULT_LEVELS,
     FACTORS,
+    MainEffects,
     ablation_configs,
     ablation_markdown,
     check_factors,
     main_effects,
+    main_effects_family,
+    main_effects_table,
+    power_note,
 )
 from evaluation.experiments.protocols import (
     CROWD_COUNTS,
@@ -54,12 +59,17 @@ from evaluation.experiments.sweep import (
 )
 
 __all__ = [
+    "ABLATION_TITLE",
     "DEFAULT_LEVELS",
     "FACTORS",
+    "MainEffects",
     "ablation_configs",
     "ablation_markdown",
     "check_factors",
     "main_effects",
+    "main_effects_family",
+    "main_effects_table",
+    "power_note",
     "CROWD_COUNTS",
     "CROWD_REFERENCE",
     "crowd_protocol",

@@ -22,7 +22,9 @@ The published page, docs/ablation.md, is the same report of the published run
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN
@@ -30,17 +32,23 @@ from evaluation.episodes.records import ran
 from evaluation.reports.results import Results
 from evaluation.reports.sections import task_label
 from evaluation.run.configs import ControllerConfig
+from evaluation.stats.families import FamilyResult, HypothesisFamily, PowerStatement, power_statement
 from evaluation.stats.layout_tests import paired_means_by_layout
-from evaluation.stats.statistics import holm_adjusted, wilson_interval
+from evaluation.stats.statistics import wilson_interval
 from koopman_envs.checks import check_choice
 
 __all__ = [
     "DEFAULT_LEVELS",
     "FACTORS",
+    "MainEffects",
+    "ABLATION_TITLE",
     "ablation_configs",
     "ablation_markdown",
     "check_factors",
     "main_effects",
+    "main_effects_family",
+    "power_note",
+    "main_effects_table",
 ]
 
 #: factor -> level -> (controller name or None, options)
@@ -52,6 +60,8 @@ FACTORS: dict[str, dict[str, tuple[str | None, dict[str, Any]]]] = {
     },
     "constraints": {"soft": (None, {"soft_constraints": True}), "hard": (None, {"soft_constraints": False})},
 }
+#: the report's title (docs/ablation.md's, published or pending)
+ABLATION_TITLE = "Ablation: what decides the NMPC's outcome under slip"
 #: the level of a factor that is not varied
 DEFAULT_LEVELS = {"model": "learned", "margins": "paper", "constraints": "soft"}
 
@@ -98,8 +108,26 @@ def _unit_outcomes(results: Results) -> dict[tuple, dict[str, bool]]:
     return units
 
 
-def main_effects(results: Results, factors: Sequence[str] | None = None) -> list[dict[str, Any]]:
-    """Each factor's main effect, with the episode unit as the unit.
+def main_effects_family(factors: Sequence[str] | None = None) -> HypothesisFamily:
+    """The main-effects table's family of tests, declared from the design before any outcome:
+    one comparison per factor varied (a factor without paired units still counts in ``m``)."""
+    return HypothesisFamily(
+        "ablation: main effects on success, one per factor", tuple(check_factors(factors))
+    )
+
+
+@dataclass(frozen=True)
+class MainEffects:
+    """The main-effects table (:func:`main_effects_table`): its rows, its family corrected by
+    Holm and its power statement (None when no factor had paired units)."""
+
+    effects: list[dict[str, Any]]
+    family: FamilyResult
+    power: PowerStatement | None
+
+
+def main_effects_table(results: Results, factors: Sequence[str] | None = None) -> MainEffects:
+    """Each factor's main effect, with the episode unit as the unit, its family and its power.
 
     A unit is an episode's conditions (task, map, slip level, seed), which every configuration
     meets. For a factor with levels a and b, each configuration at a is paired with the one at b
@@ -108,18 +136,23 @@ def main_effects(results: Results, factors: Sequence[str] | None = None) -> list
     configurations meet it (counting every pair as a sample would count each unit four times).
     The interval is a bootstrap over units, the p-value the two-sided sign-flip test over units
     (:func:`evaluation.stats.layout_tests.paired_means_by_layout`, each unit its own cluster, seed 0),
-    and ``p_holm`` Holm's adjustment over the factors reported.
+    and ``p_holm`` Holm's adjustment within :func:`main_effects_family` (every factor varied). The
+    power statement (:func:`evaluation.stats.families.power_statement`) is the smallest main effect
+    found with 80% power at Holm's first step, from the units' measured differences.
 
     Returns
     -------
-    list of dict
-        Per factor with pairs: ``factor``, ``a``, ``b``, ``units``, ``episodes`` (per level),
-        ``rate_a``, ``rate_b``, ``difference``, ``low``, ``high`` (a - b, in [-1, 1]),
-        ``units_a`` / ``units_b`` (units where a / b did better), ``p_value``, ``p_holm``.
+    MainEffects
+        ``effects``: per factor with pairs, ``factor``, ``a``, ``b``, ``units``, ``episodes`` (per
+        level), ``rate_a``, ``rate_b``, ``difference``, ``low``, ``high`` (a - b, in [-1, 1]),
+        ``units_a`` / ``units_b`` (units where a / b did better), ``p_value``, ``p_holm``,
+        ``rejected``; ``family`` and ``power``.
     """
     units = _unit_outcomes(results)
+    family = main_effects_family(factors)
     effects: list[dict[str, Any]] = []
-    for factor in check_factors(factors):
+    comparisons = []
+    for factor in family.comparisons:
         first, second = list(FACTORS[factor])
         a_means: list[list[float]] = []
         b_means: list[list[float]] = []
@@ -140,6 +173,7 @@ def main_effects(results: Results, factors: Sequence[str] | None = None) -> list
         if not a_means:
             continue
         test = paired_means_by_layout(a_means, b_means)
+        comparisons.append(test)
         effects.append(
             {
                 "factor": factor,
@@ -157,9 +191,42 @@ def main_effects(results: Results, factors: Sequence[str] | None = None) -> list
                 "p_value": test.p_value,
             }
         )
-    for effect, adjusted in zip(effects, holm_adjusted(float(e["p_value"]) for e in effects), strict=True):
-        effect["p_holm"] = adjusted
-    return effects
+    tested = {e["factor"]: float(e["p_value"]) for e in effects}
+    corrected = family.correct({f: tested.get(f, math.nan) for f in family.comparisons})
+    by_factor = {t.comparison: t for t in corrected.tests}
+    for effect in effects:
+        effect["p_holm"] = by_factor[effect["factor"]].p_holm
+        effect["rejected"] = by_factor[effect["factor"]].rejected
+    power = power_statement(comparisons, family) if comparisons else None
+    return MainEffects(effects, corrected, power)
+
+
+def main_effects(results: Results, factors: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """The rows of :func:`main_effects_table`: each factor's main effect with the episode unit
+    as the unit, Holm-adjusted within the factors varied."""
+    return main_effects_table(results, factors).effects
+
+
+def power_note(table: MainEffects) -> str:
+    """The main-effects table's family and power statement, in words (below the table)."""
+    family = table.family
+    head = (
+        f"Family {family.family!r}: m = {family.size} tests, Holm at alpha = {family.alpha:g} "
+        f"(first step alpha/m = {family.alpha / family.size:.3g})."
+    )
+    power = table.power
+    if power is None:
+        return f"{head} No factor had paired units."
+    if math.isnan(power.difference):
+        found = "no main effect is found with 80% power (too few units, or no spread in their differences)"
+    else:
+        found = f"a main effect of {100 * power.difference:.1f} points is found with {100 * power.power:.0f}% power"
+    rejected = [t.comparison for t in family.tests if t.rejected]
+    verdict = f"Rejected after Holm: {', '.join(rejected)}." if rejected else "None rejected after Holm."
+    return (
+        f"{head} With {power.layouts} episode units (each its own cluster) and an SD of the units' "
+        f"differences of {power.sd:.3g}, {found}. {verdict}"
+    )
 
 
 def ablation_markdown(results: Results, factors: Sequence[str] | None = None, command: str = "") -> str:
@@ -169,7 +236,7 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
     maps = list(dict.fromkeys((c.env_id, c.map) for c in results.cells))
     slips = sorted({c.slip for c in results.cells})
     episodes = results.config.get("episodes")
-    lines = ["# Ablation: what decides the NMPC's outcome under slip", ""]
+    lines = [f"# {ABLATION_TITLE}", ""]
     if command:
         lines += [f"Regenerate with `{command}`.", ""]
     lines += [
@@ -198,7 +265,8 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
         low, high = wilson_interval(total_k, total_n)
         overall = f"**{100 * total_k / total_n:.0f}%** [{100 * low:.0f}-{100 * high:.0f}]" if total_n else "-"
         lines.append(f"| {label} | " + " | ".join(row) + f" | {overall} | {failures} |")
-    effects = main_effects(results, chosen)
+    table = main_effects_table(results, chosen)
+    effects = table.effects
     if effects:
         lines += [
             "",
@@ -209,7 +277,8 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
             "the second that shares the other factors' levels, on the same unit, and a unit's difference "
             "is the mean over its pairs: each unit counts once. Difference in success rate with a 95% "
             "bootstrap interval over units; two-sided sign-flip test over units; Holm's adjustment over "
-            "the factors of the table.",
+            "the factors of the table (its family, declared before the run: every factor varied), and "
+            "below it the smallest main effect the table finds with 80% power at Holm's first step.",
             "",
             "| Factor | Levels (a vs b) | Units | Episodes per level | Success a | Success b | a - b [95% CI] "
             "| units a better / b better | p | Holm p |",
@@ -222,7 +291,7 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
                 f"{100 * e['difference']:+.0f} pp [{100 * e['low']:+.0f}, {100 * e['high']:+.0f}] | "
                 f"{e['units_a']} / {e['units_b']} | {e['p_value']:.3g} | {e['p_holm']:.3g} |"
             )
-        lines += ["", "## What the numbers say", ""]
+        lines += ["", power_note(table), "", "## What the numbers say", ""]
         for e in sorted(effects, key=lambda e: -abs(e["difference"])):
             lines.append(
                 f"- **{e['factor']}**: {e['a']} instead of {e['b']} {effect_verdict(e)}, averaged over the other factors."

@@ -1,0 +1,470 @@
+"""Write docs/bench_results.md, and README.md's headline block, from the published test-suite runs
+of koopnav-bench-v1 (issue 60: the README headline becomes the test suite's leaderboard, the paper
+track after it).
+
+Usage (the published page's arguments are in ``data/pages.json``)::
+
+    python docs/make_bench_md.py --charged data/bench_test_realtime --free data/bench_test \\
+        --paper data/paper.tar.xz --out docs/bench_results.md
+
+``--charged`` and ``--free`` are the publications of ``bash data/publish.sh bench_test_realtime``
+(the decision time charged to the robots, ``--realtime``: the headline) and ``bench_test`` (free
+compute, the idealised case beside it), each packed by ``bash data/publish.sh pack``. Every number
+is the evaluator's own (:class:`~evaluation.stats.run_data.RunData`: ``layout_summary``,
+``suite_breakdown``, ``suite_tables``: intervals over layouts, the paired tables with their
+families and power statements); this script only lays them out. The tuning budget of each
+controller is its study in ``data/tuning/<name>/`` (:func:`controllers.studies.study_budget`).
+
+A run may be partial (published progressively): a (task, controller) whose episodes are not all
+in its publication is named as pending, with how many it has, and left out of every table and
+test until it is complete; a publication not there yet makes its whole column pending. The page
+opens with the headline block (:data:`HEADLINE`) that ``python docs/make_pages.py`` copies into
+README.md (``"readme"`` in ``data/pages.json``); tests/test_prose_checks.py checks README's copy
+against the page.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+
+import controllers  # noqa: E402
+from controllers.studies import STUDIES_DIR, study_budget  # noqa: E402
+from evaluation.episodes.distinct import distinct_records, episode_identity  # noqa: E402
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
+from evaluation.reports.publications import extracted_archive  # noqa: E402
+from evaluation.reports.published import results_from_log  # noqa: E402
+from evaluation.reports.results import Results  # noqa: E402
+from evaluation.reports.sections import markdown, markdown_table, suite_heading, task_label  # noqa: E402
+from evaluation.reports.sections.blocks import rate_cell  # noqa: E402
+from evaluation.reports.sections.runs import SUITE_NOTE, suite_rows  # noqa: E402
+from evaluation.reports.sections.suite_tables import suite_sections  # noqa: E402
+from evaluation.stats.suite_statistics import OUTCOMES  # noqa: E402
+from koopman_envs import TIERS  # noqa: E402
+from koopman_envs.files import write_atomic  # noqa: E402
+
+__all__ = ["HEADLINE", "Mode", "Progress", "headline", "load_mode", "page"]
+
+#: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
+HEADLINE = "bench-headline"
+#: the runs of data/publish.sh behind the two modes (their commands are there), and their titles
+RUNS = {
+    "charged": ("bench_test_realtime", "Compute charged"),
+    "free": ("bench_test", "Free compute"),
+}
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How far one (task, controller) of a run is: ``done`` of ``planned`` episodes."""
+
+    done: int
+    planned: int
+
+    @property
+    def complete(self) -> bool:
+        return self.done >= self.planned
+
+    def text(self) -> str:
+        return f"pending: {self.done:,} of {self.planned:,} episodes"
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One mode's publication: where it is, its complete records as results (None: not
+    published yet) and the progress of every (task, controller) its header declares."""
+
+    name: str
+    path: Path
+    results: Results | None
+    progress: dict[tuple[str, str], Progress]
+
+    @property
+    def run(self) -> str:
+        return RUNS[self.name][0]
+
+    def pending(self, env_id: str, controller: str) -> str | None:
+        """Why (task, controller) has no row yet, or None when it has one."""
+        if not self.progress:
+            return "pending: not published yet"
+        state = self.progress.get((env_id, controller))
+        if state is None:
+            return "not in this run"
+        return None if state.complete else state.text()
+
+
+def planned_episodes(config: Mapping[str, Any], env_id: str) -> int:
+    """The episodes a suite run plans per (task, controller): its layouts x episodes per layout x slips."""
+    suite = config["suite"]
+    selected = suite.get("layouts")
+    layouts = suite["tasks"][env_id]["size"] if selected is None else selected[1] - selected[0]
+    return int(layouts) * int(suite["episodes_per_layout"]) * len(config["slips"])
+
+
+def load_mode(name: str, path: str | Path) -> Mode:
+    """A mode's publication read back (:func:`~evaluation.reports.publications.extracted_archive`),
+    its records kept only for the (task, controller)s that ran every planned episode.
+
+    Raises
+    ------
+    ValueError
+        The publication is not a suite run, or is the other mode's (``--realtime`` or not).
+    """
+    path = Path(path)
+    if not path.exists():  # not published yet: the whole column is pending
+        return Mode(name, path, None, {})
+    with extracted_archive(path) as run:
+        results = results_from_log(run / "episodes.jsonl")
+    config = results.config
+    if not config.get("suite"):
+        raise ValueError(
+            f"{path}: not a suite run (its header has no suite); expected the run {RUNS[name][0]}"
+        )
+    if bool(config.get("compute")) != (name == "charged"):
+        wanted = "charged (--realtime)" if name == "charged" else "free (no --realtime)"
+        raise ValueError(
+            f"{path}: its decision time is {'' if config.get('compute') else 'not '}charged; --{name} needs compute {wanted}"
+        )
+    done: dict[tuple[str, str], set[tuple]] = {}  # every episode logged, once (its identity)
+    for record in results.records:
+        done.setdefault((record["env_id"], record["controller"]), set()).add(episode_identity(record))
+    progress = {
+        (env_id, label): Progress(len(done.get((env_id, label), ())), planned_episodes(config, env_id))
+        for env_id in config["env_ids"]
+        for label in config["controllers"]
+    }
+    kept = [r for r in results.records if progress[r["env_id"], r["controller"]].complete]
+    return Mode(name, path, Results(kept, config) if kept else None, progress)
+
+
+def check_same_suite(modes: Sequence[Mode]) -> None:
+    """``ValueError`` unless every published mode ran the same suite selection (name, version,
+    split, layouts, episodes per layout and each task's split hash): side by side, the two modes'
+    rows must come from the same (layout, seed) units."""
+    suites = {
+        mode.path.as_posix(): mode.results.config["suite"] for mode in modes if mode.results is not None
+    }
+    if len({json.dumps(suite, sort_keys=True) for suite in suites.values()}) > 1:
+        raise ValueError(f"the publications ran different suites, so their rows do not compare: {suites}")
+
+
+def _summary(mode: Mode) -> dict[tuple[str, str], dict[str, Any]]:
+    if mode.results is None:
+        return {}
+    return {(row["env_id"], row["controller"]): row for row in mode.results.layout_summary}
+
+
+def _tiers(mode: Mode) -> dict[tuple[str, str, str], list[Any]]:
+    if mode.results is None:
+        return {}
+    return {
+        (row["env_id"], row["controller"], row["group"]): [row["success_rate"], row["success_ci"]]
+        for row in mode.results.suite_breakdown()
+        if row["by"] == "layout_tier"
+    }
+
+
+def _tasks(modes: Sequence[Mode]) -> list[str]:
+    return list(dict.fromkeys(env_id for mode in modes for env_id, _ in mode.progress))
+
+
+def _ranked(modes: Sequence[Mode], env_id: str) -> list[str]:
+    """Every controller either mode declares for ``env_id``: those with a row by the headline mode's
+    success (the first mode), then the others', then the pending ones, each by name among equals."""
+    labels = dict.fromkeys(c for mode in modes for e, c in mode.progress if e == env_id)
+    summaries = [_summary(mode) for mode in modes]
+
+    def key(label: str) -> tuple:
+        for index, summary in enumerate(summaries):
+            row = summary.get((env_id, label))
+            if row is not None:
+                return (index, -row["success"]["value"], label)
+        return (len(summaries), 0.0, label)
+
+    return sorted(labels, key=key)
+
+
+def _rate(summary: Mapping[tuple[str, str], Any], mode: Mode, env_id: str, label: str, key: str) -> str:
+    row = summary.get((env_id, label))
+    if row is None:
+        return mode.pending(env_id, label) or "-"
+    return rate_cell(row[key]["value"], row[key]["ci"])
+
+
+def _scope(modes: Sequence[Mode]) -> str:
+    """What the runs are, from the first published mode's header."""
+    for mode in modes:
+        if mode.results is not None:
+            return suite_heading(mode.results.config)
+    return "Suite koopnav-bench-v1, split test"
+
+
+def headline(modes: Sequence[Mode], paper: Results | None, paper_path: str = "data/paper.tar.xz") -> str:
+    """README's headline block: per task the test split's leaderboard (success, compute charged,
+    per tier, free compute beside it), then the paper track's success per controller."""
+    charged, free = modes
+    lines = [
+        f"<!-- begin {HEADLINE}: written by `python docs/make_pages.py docs/bench_results.md` "
+        "from the committed data (docs/make_bench_md.py); an edit by hand fails the tests -->"
+    ]
+    if not any(mode.progress for mode in modes):  # neither run published yet
+        runs = " and ".join(f"`{mode.path.as_posix()}`" for mode in modes)
+        lines += [
+            f"**The held-out test split of koopnav-bench-v1**: pending, {runs} are not published yet "
+            f"(`bash data/publish.sh {' '.join(mode.run for mode in modes)}`, then `bash data/publish.sh pack`).",
+            "",
+            *paper_track(paper, paper_path),
+            f"<!-- end {HEADLINE} -->",
+        ]
+        return "\n".join(lines) + "\n"
+    lines += [
+        "**The held-out test split of koopnav-bench-v1.** "
+        + _scope(modes)
+        + ". No controller was tuned or trained on it; every one runs its shipped defaults, high slip. "
+        "Success with 95% intervals over layouts (the wider of Wilson's and the two-stage bootstrap, "
+        "layouts then episodes); the decision time charged to the robots (`--realtime`), by layout "
+        "tier, and free compute beside it.",
+        "",
+    ]
+    summaries = {mode.name: _summary(mode) for mode in modes}
+    tiers = _tiers(charged)
+    for env_id in _tasks(modes):
+        lines += [
+            f"| {task_label(env_id)} | Compute charged | " + " | ".join(TIERS) + " | Free compute |",
+            "|---|---|" + "---|" * len(TIERS) + "---|",
+        ]
+        for label in _ranked(modes, env_id):
+            by_tier = [
+                rate_cell(*tiers[env_id, label, tier]) if (env_id, label, tier) in tiers else ""
+                for tier in TIERS
+            ]
+            lines.append(
+                f"| {label} | {_rate(summaries['charged'], charged, env_id, label, 'success')} | "
+                + " | ".join(by_tier)
+                + f" | {_rate(summaries['free'], free, env_id, label, 'success')} |"
+            )
+        lines.append("")
+    lines += paper_track(paper, paper_path)
+    lines.append(f"<!-- end {HEADLINE} -->")
+    return "\n".join(lines) + "\n"
+
+
+def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[str]:
+    """The paper track's lines: success per controller and task on the paper's protocol
+    (``paper``, read from ``path``; None: not published)."""
+    if paper is None:
+        return [f"**The paper track**: pending, `{path}` is not published.", ""]
+    config = paper.config
+    slips = ", ".join(config["slips"])
+    lines = [
+        f"**The paper track**: the paper's protocol on its own maps (each task's two hand-made maps; "
+        f"slip {slips}; {config['episodes']} episodes per cell; IPOPT; free compute), on which ORCA's "
+        "and DWA's hand-set defaults were chosen. Each row ran with the defaults of the code it was "
+        "published from: the hand-set ones (now `NAME-v0`) for a controller whose tuned preset came "
+        "later (docs/benchmark.md). Success with 95% intervals.",
+        "",
+    ]
+    board = paper.leaderboard()
+    tasks = [t for t in config["env_ids"] if any(row["env_id"] == t for row in board)]
+    rows = {(row["env_id"], row["controller"]): row for row in board}
+    labels = dict.fromkeys(row["controller"] for row in board if row["env_id"] == tasks[0])
+    labels.update(dict.fromkeys(row["controller"] for row in board))
+    lines += [
+        "| Controller | " + " | ".join(task_label(t) for t in tasks) + " |",
+        "|---|" + "---|" * len(tasks),
+    ]
+    for label in labels:
+        cells = [
+            rate_cell(rows[t, label]["success_rate"], rows[t, label]["success_ci"])
+            if (t, label) in rows
+            else "-"
+            for t in tasks
+        ]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
+def _runs_section(modes: Sequence[Mode]) -> list[str]:
+    lines = ["## The runs", ""]
+    for mode in modes:
+        run, title = RUNS[mode.name]
+        command = f"the run `{run}` of data/publish.sh"
+        if not mode.progress:
+            lines.append(
+                f"- **{title}** ({command}): pending, `{mode.path.as_posix()}` is not published yet "
+                f"(`bash data/publish.sh {run}`, then `bash data/publish.sh pack`)."
+            )
+            continue
+        pending = [
+            f"{task_label(e)} {c} ({p.text().removeprefix('pending: ')})"
+            for (e, c), p in mode.progress.items()
+            if not p.complete
+        ]
+        episodes = 0 if mode.results is None else len(distinct_records(mode.results.records))
+        lines.append(
+            f"- **{title}** ({command}, `{mode.path.as_posix()}`): {episodes:,} distinct episodes of complete rows"
+            + (f"; pending: {'; '.join(pending)}." if pending else "; every row complete.")
+        )
+        if mode.results is not None:
+            compute = mode.results.config.get("compute")
+            machine = f" Decision times measured on {compute['machine']}." if compute else ""
+            lines.append(f"  {suite_heading(mode.results.config)}.{machine}")
+    return lines + [""]
+
+
+def _leaderboard_section(modes: Sequence[Mode]) -> list[str]:
+    charged, free = modes
+    summaries = {mode.name: _summary(mode) for mode in modes}
+    names = {o.key: o.label for o in OUTCOMES}
+    lines = [
+        "## Leaderboard: compute charged beside free compute",
+        "",
+        "Per task, ranked by success with compute charged. Each outcome with compute charged, then "
+        "free: success; " + names["strict_success"] + "; success excusing the "
+        "collisions no robot could avoid. Rates with the wider of Wilson's interval and the two-stage "
+        "bootstrap over layouts, then episodes.",
+        "",
+    ]
+    header = ["Controller"] + [
+        f"{head}, {mode}"
+        for head in ("Success", "Strict", "Excusing unavoidable")
+        for mode in ("charged", "free")
+    ]
+    for env_id in _tasks(modes):
+        rows = []
+        for label in _ranked(modes, env_id):
+            cells = [
+                _rate(summaries[mode.name], mode, env_id, label, key)
+                for key in ("success", "strict_success", "success_excusing_unavoidable")
+                for mode in (charged, free)
+            ]
+            rows.append([label, *cells])
+        lines += [f"**{task_label(env_id)}**", "", markdown_table((header, rows)), ""]
+    return lines
+
+
+def _breakdown_section(modes: Sequence[Mode]) -> list[str]:
+    lines = ["## By layout tier and family", "", SUITE_NOTE, ""]
+    for mode in modes:
+        if mode.results is None:
+            continue
+        title = RUNS[mode.name][1]
+        for by, what in (("layout_tier", "tier"), ("layout_family", "family")):
+            lines += [f"**{title}, by {what}**", "", markdown_table(suite_rows(mode.results, by)), ""]
+    return lines
+
+
+def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[str]:
+    """A table of each controller's tuning budget: its study (:func:`controllers.studies.study_budget`),
+    or why it has none."""
+    lines = [
+        "## Tuning budget",
+        "",
+        "What each controller's shipped defaults cost to find: its study on the validation split "
+        "(`data/tuning/<name>/`, docs/benchmark.md), every study with the same budget and objective.",
+        "",
+        "| Controller | Tuned on | Configurations run | Validation episodes per configuration | Episodes | Decision |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label in labels:
+        budget = study_budget(label, studies)
+        if budget is not None:
+            lines.append(
+                f"| {label} | {budget.split} | {budget.configurations_run} of {budget.configurations} | "
+                f"{budget.episodes_per_configuration} | {budget.episodes_run:,} | {budget.verdict} |"
+            )
+            continue
+        try:
+            tunable = bool(controllers.options(label).tunable())
+        except ValueError:  # a label that is no registered controller (a variant of a run)
+            tunable = False
+        why = (
+            "no study: its hand-set defaults"
+            if tunable
+            else "no tunable options declared (nothing for the tuner to search)"
+        )
+        lines.append(f"| {label} | - | 0 | - | 0 | {why} |")
+    return lines + [""]
+
+
+def _tested_section(mode: Mode) -> list[str]:
+    if mode.results is None:
+        return []
+    title = RUNS[mode.name][1]
+    text = markdown(suite_sections(mode.results)).replace("\n## ", "\n### ")
+    return [f"## {title}: outcomes, metrics and paired tests", "", "### " + text.removeprefix("## "), ""]
+
+
+def page(
+    modes: Sequence[Mode],
+    paper: Results | None,
+    studies: Path = STUDIES_DIR,
+    paper_path: str = "data/paper.tar.xz",
+) -> str:
+    """The page's Markdown: the headline block, the runs, the leaderboard, the breakdowns, the
+    tuning budget and each mode's tested tables."""
+    labels = list(dict.fromkeys(c for mode in modes for _, c in mode.progress))
+    lines = [
+        "# koopnav-bench-v1: results on the held-out test split",
+        "",
+        "Every controller on the test split of koopnav-bench-v1 (docs/benchmark.md), which no "
+        "controller was tuned or trained on, with the decision time charged to the robots (the "
+        "headline) and with free compute beside it. Written by `docs/make_bench_md.py` from the "
+        "committed publications; a (task, controller) still running is named as pending and left "
+        "out of every table and test.",
+        "",
+        headline(modes, paper, paper_path).rstrip("\n"),
+        "",
+        *_runs_section(modes),
+    ]
+    if any(mode.results is not None for mode in modes):
+        lines += _leaderboard_section(modes) + _breakdown_section(modes)
+    lines += tuning_budget(labels, studies) if labels else []
+    for mode in modes:
+        lines += _tested_section(mode)
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def _paper(path: str | None) -> Results | None:
+    if path is None or not Path(path).exists():
+        return None
+    with extracted_archive(path) as run:
+        return results_from_log(run / "episodes.jsonl")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument(
+        "--charged", required=True, help="the compute-charged publication, data/bench_test_realtime"
+    )
+    parser.add_argument("--free", required=True, help="the free-compute publication, data/bench_test")
+    parser.add_argument("--paper", help="the paper track's publication, data/paper.tar.xz")
+    parser.add_argument(
+        "--studies", type=Path, default=STUDIES_DIR, help="the tuning studies (default data/tuning)"
+    )
+    parser.add_argument("--out", required=True, help="the page to write, e.g. docs/bench_results.md")
+    parser.add_argument("--figures", help="accepted for docs/make_pages.py; the page has no figures")
+    args = parser.parse_args(argv)
+    try:
+        modes = [load_mode("charged", args.charged), load_mode("free", args.free)]
+        check_same_suite(modes)
+        text = page(modes, _paper(args.paper), args.studies, args.paper or "data/paper.tar.xz")
+    except ValueError as exc:  # a publication that is not as KoopNav packs it, or the wrong run
+        print(f"error: {exc}", file=sys.stderr)
+        return BAD_INPUT_EXIT
+    write_atomic(args.out, text)
+    missing = [m.path.as_posix() for m in modes if m.results is None and not m.progress]
+    print(f"wrote {args.out}" + (f" (pending: {', '.join(missing)} not published yet)" if missing else ""))
+    return SUCCESS_EXIT
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
