@@ -10,6 +10,10 @@
 # interrupted and run again.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+# the OpenBLAS kernels pinned where the CPU allows, so that a study resumed on another machine
+# goes on with the same arithmetic (.ci/blas_pin.sh; studies before koopman-nmpc's ran unpinned)
+# shellcheck source=.ci/blas_pin.sh
+source .ci/blas_pin.sh
 TRIALS="${TRIALS:-24}"
 LAYOUTS="${LAYOUTS:-25}"
 EPISODES="${EPISODES:-1}"
