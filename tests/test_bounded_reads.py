@@ -271,7 +271,9 @@ def test_reading_an_archive_leaves_no_temporary_directory(tmp_path, monkeypatch)
 
 def test_unpack_keeps_a_local_log_with_more_records_unless_forced(tmp_path) -> None:
     (tmp_path / "data").mkdir()
+    (tmp_path / ".ci").mkdir()
     shutil.copy(DATA / "publish.sh", tmp_path / "data")
+    shutil.copy(DATA.parent / ".ci" / "blas_pin.sh", tmp_path / ".ci")  # the script sources it
     shutil.copy(DATA / "scale_n3.tar.xz", tmp_path / "data")
     with publications.extracted_archive(DATA / "scale_n3.tar.xz") as run:
         log = (run / "episodes.jsonl").read_text()

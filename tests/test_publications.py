@@ -236,7 +236,9 @@ def test_publish_sh_pack_keeps_an_unchanged_whole_archive_and_splits_a_republish
     root = Path(__file__).resolve().parents[1]
     data = tmp_path / "data"
     data.mkdir()
+    (tmp_path / ".ci").mkdir()
     shutil.copy(root / "data" / "publish.sh", data)
+    shutil.copy(root / ".ci" / "blas_pin.sh", tmp_path / ".ci")  # the script sources it
     shutil.copy(root / "data" / "scale_n3.tar.xz", data)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
 
