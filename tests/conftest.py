@@ -7,7 +7,7 @@ import os
 import shutil
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +89,25 @@ def pytest_configure(config: pytest.Config) -> None:
     if _owner and (getattr(config.option, "numprocesses", None) or 0) > 1:
         for variable in THREAD_VARIABLES:
             os.environ.setdefault(variable, "1")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_make_collect_report(
+    collector: pytest.Collector,
+) -> Generator[None, pytest.CollectReport, pytest.CollectReport]:
+    """Import a test module with bytecode writing on, so that pytest caches the module's rewritten
+    asserts in ``__pycache__`` (a ``-pytest-`` .pyc) and the next run, or the other xdist worker,
+    reads it instead of rewriting again (5.9 CPU-s per process for the test modules).
+    ``PYTHONDONTWRITEBYTECODE=1`` would otherwise make every process of every run rewrite them all;
+    a project module the test module imports first is cached as well. The user's setting is
+    restored after each module."""
+    if not isinstance(collector, pytest.Module):
+        return (yield)
+    previous, sys.dont_write_bytecode = sys.dont_write_bytecode, False
+    try:
+        return (yield)
+    finally:
+        sys.dont_write_bytecode = previous
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:

@@ -40,6 +40,8 @@ def trained_root(tmp_path_factory):
             "768",
             "--eval-freq",
             "100000",
+            "--threads",  # one torch thread, as tests/test_set_policy.py's fixture (why there)
+            "1",
             "--out",
             str(root / "formation"),
         ]

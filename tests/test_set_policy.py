@@ -218,6 +218,10 @@ def set_root(tmp_path_factory):
             "1",  # one held-out episode per checkpoint scores it (the tests read no rate)
             "--set-width",
             "16",
+            # one torch thread: with two, their waits for each other cost 2-6 times the CPU of the
+            # training itself when the cores are busy (an xdist worker beside the other)
+            "--threads",
+            "1",
             "--out",
             str(run),
         ]
@@ -270,6 +274,27 @@ def test_fine_tuning_starts_from_the_given_policy_and_records_it(set_root, tmp_p
     assert metadata["uncertainty"] == "realistic"
     assert metadata["initialized_from"]["path"] == str(set_root / "target_reaching")
     assert metadata["initialized_from"]["uncertainty"] == "nominal"
+
+
+def test_training_leaves_the_callers_torch_threads_as_they_were(tmp_path, monkeypatch) -> None:
+    import torch
+
+    from baselines.sb3 import train
+
+    during = []
+
+    def learn_nothing(self, model, venv, resumed=None):
+        during.append(torch.get_num_threads())
+        return venv
+
+    monkeypatch.setattr(train.Trainer, "learn", learn_nothing)
+    before = torch.get_num_threads()
+    torch.set_num_threads(3)
+    try:
+        assert train_main(_tiny_run(tmp_path / "run", "--threads", "1")) == 0
+        assert during == [1] and torch.get_num_threads() == 3
+    finally:
+        torch.set_num_threads(before)
 
 
 def test_fine_tuning_from_a_policy_that_does_not_fit_is_refused_by_name(set_root, tmp_path, capsys) -> None:

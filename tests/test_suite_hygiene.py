@@ -98,3 +98,26 @@ def test_a_session_that_writes_to_the_home_cache_fails(tmp_path: Path) -> None:
     assert run.returncode == pytest.ExitCode.TESTS_FAILED, run.stdout + run.stderr
     assert f"the user's cache {home / '.cache' / 'koopnav'} was written" in run.stdout
     assert "calibration/stray.npz" in run.stdout
+
+
+def test_a_test_module_is_imported_with_bytecode_writing_on_and_the_setting_restored(
+    request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """pytest caches a module's rewritten asserts only when bytecode may be written: the collection
+    hook turns writing on for the module's import (PYTHONDONTWRITEBYTECODE=1 or not) and gives the
+    user's setting back, and leaves other collectors (the session, a directory) alone."""
+    module = request.node.parent
+    assert isinstance(module, pytest.Module)
+    for setting in (True, False):
+        monkeypatch.setattr(sys, "dont_write_bytecode", setting)
+        hook = conftest.pytest_make_collect_report(module)
+        next(hook)
+        assert sys.dont_write_bytecode is False
+        report = pytest.CollectReport(module.nodeid, "passed", None, [])
+        with pytest.raises(StopIteration) as done:
+            hook.send(report)
+        assert done.value.value is report and sys.dont_write_bytecode is setting
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    hook = conftest.pytest_make_collect_report(request.session)
+    next(hook)
+    assert sys.dont_write_bytecode is True

@@ -450,17 +450,17 @@ def main(argv: list[str] | None = None) -> int:
         return BAD_INPUT_EXIT
     run = Trainer(args, parser, argv)
     run.out.mkdir(parents=True, exist_ok=True)
-    # the simulator steps in one thread; PPO's minibatch updates (most of the wall time) use all
+    # PPO's minibatch updates (most of the wall time) use --threads; same seed, same weights: PPO(seed=)
+    # seeds Python, numpy and torch, and deterministic algorithms make torch refuse an op without a
+    # deterministic kernel. Both restored afterwards: a caller's process keeps its own settings
+    previous, previous_threads = torch.are_deterministic_algorithms_enabled(), torch.get_num_threads()
     torch.set_num_threads(args.threads)
-    # same seed, same weights: PPO(seed=) seeds Python, numpy and torch (SB3's set_random_seed);
-    # deterministic algorithms make torch refuse an op without a deterministic kernel instead of
-    # running it (restored afterwards: a caller's process keeps its own setting)
-    previous = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)
     try:
         return _train(run)
     finally:
         torch.use_deterministic_algorithms(previous)
+        torch.set_num_threads(previous_threads)
 
 
 def _train(run: Trainer) -> int:
