@@ -534,3 +534,14 @@ def test_the_baselines_root_holds_the_shared_modules_only() -> None:
     BASELINES_LAYERS, and the previous paths are the import hook's (MOVED), not files."""
     root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
     assert root == {"shaping", "curriculum", "suite_training", "safe_load", "resume"}
+
+
+#: the most modules a package root holds before its modules go into folders by concept (issue 61)
+ROOT_MODULES_AT_MOST = 12
+
+
+def test_the_controllers_root_holds_at_most_twelve_modules() -> None:
+    """controllers/ keeps its roots few (tuning/, estimation/ and the rest are folders by concept):
+    a thirteenth root module belongs in a folder."""
+    root = sorted(p.stem for p in (ROOT / "controllers").glob("*.py"))
+    assert len(root) <= ROOT_MODULES_AT_MOST, f"controllers/ has {len(root)} root modules: {root}"
