@@ -13,7 +13,7 @@ from the controller itself, so it cannot drift from it:
 - the allowed names of a text option from the ``OPTION_CHOICES`` table of the class (and of
   NMPCConfig), the range of a numeric one from its ``OPTION_RANGES`` table (NMPCConfig:
   :data:`~controllers.mpc.config.NMPC_RANGES`; a wrapper's option dataclass: ``RANGES``);
-- a preset's defaults from :mod:`controllers.presets`, a ``safe:`` wrapper's options from
+- a preset's defaults from :mod:`controllers.tuning.presets`, a ``safe:`` wrapper's options from
   :class:`~controllers.safety.options.SafetyOptions`, prefixed ``safety_``;
 - the options the tuner searches (:mod:`evaluation.tune`), and over what, from the ``TUNABLE``
   table of the class (name -> :class:`Search`, each inside the option's declared range).
@@ -33,7 +33,7 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from controllers.search_space import Search
+from controllers.tuning.search_space import Search
 from koopman_envs.checks import Range, check_choice, check_number, choice_message
 from koopman_envs.suggest import did_you_mean
 
@@ -365,8 +365,8 @@ def options(name: str) -> ControllerSpec:
     ValueError
         An unknown name (listing the available ones).
     """
-    from controllers.presets import CONTROLLERS, PRESETS, _resolve
     from controllers.registry import factory, split_name
+    from controllers.tuning.presets import CONTROLLERS, PRESETS, _resolve
 
     prefixes, base = split_name(name)
     if prefixes:

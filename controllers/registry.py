@@ -33,7 +33,7 @@ from importlib import metadata
 from typing import Any
 
 from controllers.base import Controller
-from controllers.presets import is_comparison_variant
+from controllers.tuning.presets import is_comparison_variant
 from koopman_envs.checks import choice_message
 
 __all__ = [
@@ -135,7 +135,7 @@ def available(*, variants: bool = True) -> list[str]:
     ----------
     variants : bool
         Include the ``<name>-v0`` variants of the tuned presets (the defaults before tuning,
-        :func:`controllers.presets.is_comparison_variant`). Default runs pass ``False``: a variant
+        :func:`controllers.tuning.presets.is_comparison_variant`). Default runs pass ``False``: a variant
         runs only when asked for by name (``--controllers dwa-v0``), and is always buildable.
     """
     names = set(_REGISTRY) | set(_entry_points())

@@ -13,7 +13,7 @@ compute, the idealised case beside it), each packed by ``bash data/publish.sh pa
 is the evaluator's own (:class:`~evaluation.stats.run_data.RunData`: ``layout_summary``,
 ``suite_breakdown``, ``suite_tables``: intervals over layouts, the paired tables with their
 families and power statements); this script only lays them out. The tuning budget of each
-controller is its study in ``data/tuning/<name>/`` (:func:`controllers.studies.study_budget`).
+controller is its study in ``data/tuning/<name>/`` (:func:`controllers.tuning.studies.study_budget`).
 
 A run may be partial (published progressively): a (task, controller) whose episodes are not all
 in its publication is named as pending, with how many it has, and left out of every table and
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 import controllers  # noqa: E402
-from controllers.studies import STUDIES_DIR, study_budget  # noqa: E402
+from controllers.tuning import STUDIES_DIR, study_budget  # noqa: E402
 from evaluation.episodes.distinct import distinct_records, episode_identity  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
@@ -363,7 +363,7 @@ def _breakdown_section(modes: Sequence[Mode]) -> list[str]:
 
 
 def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[str]:
-    """A table of each controller's tuning budget: its study (:func:`controllers.studies.study_budget`),
+    """A table of each controller's tuning budget: its study (:func:`controllers.tuning.studies.study_budget`),
     or why it has none."""
     lines = [
         "## Tuning budget",

@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from controllers.estimator_options import EstimatorOptions  # noqa: E402
+from controllers.estimation import EstimatorOptions  # noqa: E402
 from controllers.mpc.config import NMPCConfig  # noqa: E402
 from controllers.mpc.margins import chance_tightening  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402

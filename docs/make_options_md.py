@@ -16,8 +16,8 @@ from importlib import metadata
 from pathlib import Path
 
 import controllers
-from controllers.presets import builtin_names
 from controllers.registry import ENTRY_POINT_GROUP
+from controllers.tuning import builtin_names
 
 HEADER = """# Controller options
 

@@ -13,6 +13,7 @@ from types import ModuleType
 import pytest
 
 import baselines  # noqa: F401 - importing a package registers its moved paths (MOVED below)
+import controllers  # noqa: F401
 import evaluation  # noqa: F401
 from koopman_envs.deprecation import moved_paths
 
@@ -151,6 +152,10 @@ REMOVED_PATHS = (
         "adaptive_koopman_nmpc", "cache", "deprecated_paths", "distributed", "koopman_nmpc", "nmpc",
         "nominal_nmpc", "qp2", "rti", "solver_cache", "unicycle",
     )),
+    # the controllers' root modules grouped by concept (issue 61): controllers.tuning (presets,
+    # search_space and studies) and controllers.estimation (front_end, options, identification);
+    # the two its API page named keep a release (MOVED below), controllers.estimation is the folder
+    *(f"controllers.{name}" for name in ("estimator_options", "identification", "studies")),
     # the evaluator's root modules before its folders (issue 61, part 2) that docs/ never named;
     # the ones its API page named, and the command evaluation.seeds, keep a release (MOVED below)
     *(f"evaluation.{name}" for name in (
@@ -170,7 +175,8 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
 
 
 #: the moved module paths kept one release (koopman_envs.deprecation's one registry, which
-#: evaluation/__init__.py and baselines/__init__.py fill with their MOVED_PATHS): old -> MovedPath
+#: evaluation/__init__.py, baselines/__init__.py and controllers/__init__.py fill with their
+#: MOVED_PATHS): old -> MovedPath
 MOVED = moved_paths()
 #: the moved paths users ran (docs/benchmark.md, docs/rl.md of the previous release)
 MOVED_COMMANDS = sorted(old for old, moved in MOVED.items() if moved.command)
@@ -179,7 +185,7 @@ MOVED_COMMANDS = sorted(old for old, moved in MOVED.items() if moved.command)
 def test_the_documented_commands_are_kept_and_no_moved_path_is_removed() -> None:
     """Each package registers its own paths, the commands the previous release's docs ran among
     them, and no path is both kept and removed."""
-    assert {old.split(".")[0] for old in MOVED} == {"evaluation", "baselines"}
+    assert {old.split(".")[0] for old in MOVED} == {"evaluation", "baselines", "controllers"}
     assert MOVED_COMMANDS == [
         "baselines.benchmarl_train", "baselines.select", "baselines.train", "evaluation.seeds",
     ]  # fmt: skip
@@ -528,3 +534,14 @@ def test_the_baselines_root_holds_the_shared_modules_only() -> None:
     BASELINES_LAYERS, and the previous paths are the import hook's (MOVED), not files."""
     root = {p.stem for p in (ROOT / "baselines").glob("*.py")} - {"__init__"}
     assert root == {"shaping", "curriculum", "suite_training", "safe_load", "resume"}
+
+
+#: the most modules a package root holds before its modules go into folders by concept (issue 61)
+ROOT_MODULES_AT_MOST = 12
+
+
+def test_the_controllers_root_holds_at_most_twelve_modules() -> None:
+    """controllers/ keeps its roots few (tuning/, estimation/ and the rest are folders by concept):
+    a thirteenth root module belongs in a folder."""
+    root = sorted(p.stem for p in (ROOT / "controllers").glob("*.py"))
+    assert len(root) <= ROOT_MODULES_AT_MOST, f"controllers/ has {len(root)} root modules: {root}"

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from controllers.studies import study_budget
+from controllers.tuning import study_budget
 from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
 from evaluation.reports.sections.blocks import rate_cell

@@ -379,7 +379,7 @@ def _held(key: str):
 
 def test_presets_are_their_base_with_defaults_and_options_override() -> None:
     from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN
-    from controllers.presets import _ROBUST, CONTROLLERS, PRESETS, _resolve
+    from controllers.tuning.presets import _ROBUST, CONTROLLERS, PRESETS, _resolve
 
     assert _ROBUST == ROBUST_UNCERTAINTY_MARGIN  # the presets' copy of the constant
     for preset in PRESETS:
@@ -403,7 +403,7 @@ def test_every_controller_has_an_option_spec_read_from_its_code() -> None:
     from the classes, docs from the docstrings; presets and wrappers included."""
     from controllers.mpc.config import NMPCConfig
     from controllers.option_spec import options
-    from controllers.presets import builtin_names
+    from controllers.tuning import builtin_names
 
     for name in builtin_names():
         spec = controllers.options(name)

@@ -1,4 +1,4 @@
-"""The ekf: estimator (controllers/estimation.py): a per-robot unicycle EKF in front of any
+"""The ekf: estimator (controllers/estimation/): a per-robot unicycle EKF in front of any
 controller, closer to the truth than the raw localization, with checked options."""
 
 from __future__ import annotations
@@ -277,7 +277,7 @@ def test_the_identified_delay_is_kept_once_the_team_has_moved_enough() -> None:
     """The delay, once the team has travelled lock_excitation metres of commands, stays for the
     episode: later data (here, made to follow the commands at once) cannot move it. Before the
     lock the same data would (the unlocked identifier's answer changes)."""
-    from controllers.identification import MotionIdentifier
+    from controllers.estimation import MotionIdentifier
 
     def drive(ident: MotionIdentifier, rng: np.random.Generator) -> list[int | None]:
         pose, queue, seen = np.zeros(3), [np.zeros(2)] * 2, []  # delay 2 for 100 periods, then 0

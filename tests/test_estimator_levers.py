@@ -1,5 +1,5 @@
 """The levers of the model-based controllers' estimator, one at a time (the ablation's rows), and
-the mis-specified datasheet (``estimator="realistic"``): controllers/estimation.py."""
+the mis-specified datasheet (``estimator="realistic"``): controllers/estimation/."""
 
 from __future__ import annotations
 

@@ -23,7 +23,7 @@ import pytest
 
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
-from controllers.presets import TUNED_DIR, read_tuned
+from controllers.tuning import TUNED_DIR, read_tuned
 from koopman_envs.fronts.episode import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.maps import MapSpec

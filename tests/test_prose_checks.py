@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 
 import controllers as registry
-from controllers.studies import BEST_FILE, STUDIES_DIR, study_adoption
+from controllers.tuning import BEST_FILE, STUDIES_DIR, study_adoption
 from evaluation.execution.runner import usable_controllers
 from evaluation.experiments.protocols import QUICK_SLIPS, TASK_MAPS, quick_protocol
 

@@ -13,10 +13,16 @@ import numpy as np
 import pytest
 
 import controllers
-from controllers import presets
 from controllers.option_spec import Search, with_search
-from controllers.presets import HAND_PRESETS, TUNED_KIND, build_preset, builtin_names, read_tuned, with_tuned
-from controllers.studies import ADOPTION_RULE, STUDIES_DIR, adoption, study_adoption
+from controllers.tuning import ADOPTION_RULE, STUDIES_DIR, adoption, presets, study_adoption
+from controllers.tuning.presets import (
+    HAND_PRESETS,
+    TUNED_KIND,
+    build_preset,
+    builtin_names,
+    read_tuned,
+    with_tuned,
+)
 from evaluation import tune
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import LogError
@@ -295,7 +301,7 @@ _RECORD = {
 
 #: the episodes of each fake trial: 2 on one layout of each task, as the tuner records them
 _EPISODES = {"episodes": 2, "layouts": {"a": [0], "b": [0]}, "seeds": [0]}
-#: the rest of a trial line as the tuner writes it (controllers.studies.TRIAL_FIELDS)
+#: the rest of a trial line as the tuner writes it (controllers.tuning.studies.TRIAL_FIELDS)
 _TRIAL_REST = {"params": {}, "errors": 0, "mean_time_to_goal": 10.0, "wall_seconds": 1.0, "budget_so_far": {}}
 
 

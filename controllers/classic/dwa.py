@@ -61,7 +61,7 @@ from controllers.movers import (
     observed_mover_radii,
     observed_movers,
 )
-from controllers.search_space import Search
+from controllers.tuning.search_space import Search
 from koopman_envs import Observed
 from koopman_envs.checks import Range
 from koopman_envs.scenario import Scenario

@@ -40,7 +40,7 @@ from controllers.mpc.models import (
 from controllers.mpc.problem import Problem
 from controllers.mpc.slots import PairSlots, closing_distance, mover_slots, nearest_obstacle_slots
 from controllers.mpc.solve import SolveOutcome, solve_nlp, solve_rti
-from controllers.search_space import Search
+from controllers.tuning.search_space import Search
 from koopman_envs import Observed
 from koopman_envs.scenario import Scenario
 

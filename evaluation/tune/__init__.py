@@ -28,7 +28,7 @@ suite, never on ``test``::
   once. ``--resume`` replays the logged trials through the sampler (the same configurations,
   checked) and continues; a torn last line is cut off, a header of another study refused.
 - **Output.** ``OUT/best.json`` (the best configuration, its score, the defaults' score) and
-  ``OUT/<controller>.json``, a tuned preset :mod:`controllers.presets` loads from
+  ``OUT/<controller>.json``, a tuned preset :mod:`controllers.tuning.presets` loads from
   ``controllers/tuned/`` (a ``--task both`` study's only: a controller's defaults serve both tasks).
 - **Curves.** :func:`expected_max`: the expected best validation score against the number of
   configurations tried (Dodge et al. 2019), drawn for several studies by ``--report``.
@@ -36,7 +36,7 @@ suite, never on ``test``::
 The evaluation of one configuration is one function, :func:`evaluate_configuration`.
 """
 
-from controllers.studies import STUDY_FILE
+from controllers.tuning import STUDY_FILE
 from evaluation.tune.cli import main
 from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, TASK_CHOICES, evaluate_configuration, tasks_of
 from evaluation.tune.log import StudySettings, Trial, read_study

@@ -1,6 +1,6 @@
 """``python -m evaluation.tune adopt NAME``: install what the adoption rule admits of a finished study.
 
-The rule (:data:`controllers.studies.ADOPTION_RULE`, decided by :func:`controllers.studies.adoption`):
+The rule (:data:`controllers.tuning.studies.ADOPTION_RULE`, decided by :func:`controllers.tuning.studies.adoption`):
 a study's best configuration becomes ``NAME``'s shipped default only with strictly more validation
 successes than the defaults had in the same study. Adopted, the preset the study wrote
 (``data/tuning/NAME/NAME.json``) is copied unchanged to ``controllers/tuned/NAME.json``; kept, no
@@ -12,8 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from controllers.presets import TUNED_DIR, check_study
-from controllers.studies import STUDIES_DIR, Adoption, study_adoption
+from controllers.tuning import STUDIES_DIR, TUNED_DIR, Adoption, check_study, study_adoption
 from koopman_envs.files import write_atomic
 
 __all__ = ["adopt"]
@@ -45,7 +44,7 @@ def adopt(
     ------
     ValueError
         Before anything is installed or removed: the study has no preset (``NAME.json``, written
-        when a study ends), or :func:`controllers.presets.check_study` refuses it (missing, torn,
+        when a study ends), or :func:`controllers.tuning.presets.check_study` refuses it (missing, torn,
         unfinished, another controller's or task's, tuned on the test split, or a preset that is
         not the study's best), each named.
     """

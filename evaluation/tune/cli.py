@@ -8,8 +8,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from controllers.presets import TUNED_DIR
-from controllers.studies import ADOPTION_RULE, BEST_FILE, STUDIES_DIR
+from controllers.tuning import ADOPTION_RULE, BEST_FILE, STUDIES_DIR, TUNED_DIR
 from evaluation.episodes.runlog import (
     OutputNotWritable,
 )

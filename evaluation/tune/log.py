@@ -7,8 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from controllers.search_space import Search
-from controllers.studies import STUDY_KIND, trial_problem
+from controllers.tuning import STUDY_KIND, Search, trial_problem
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from controllers.studies import STUDY_FILE
+from controllers.tuning import STUDY_FILE
 from evaluation.tune.log import read_study
 from evaluation.tune.scoring import expected_max_curve
 

@@ -11,9 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import controllers
-from controllers.presets import TUNED_KIND
-from controllers.search_space import Search
-from controllers.studies import BEST_FILE, STUDY_FILE, study_record, trial_rank
+from controllers.tuning import BEST_FILE, STUDY_FILE, TUNED_KIND, Search, study_record, trial_rank
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import (
     LogError,

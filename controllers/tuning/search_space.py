@@ -1,7 +1,7 @@
 """The values the tuner tries for one option of a controller (:class:`Search`).
 
 A leaf module: the controllers' ``TUNABLE`` tables, :mod:`controllers.option_spec` and
-:mod:`controllers.presets` import it, and it imports nothing of theirs.
+:mod:`controllers.tuning.presets` import it, and it imports nothing of theirs.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ A study (:mod:`evaluation.tune`) writes ``study.jsonl`` (a header, then one line
 studies behind the shipped presets. :func:`finished_study` reads a finished one, refusing a
 missing, torn or unfinished log, another controller's or task's, or one tuned on the test split;
 :func:`adoption` decides by :data:`ADOPTION_RULE` whether its best configuration becomes the
-shipped default (:mod:`controllers.presets` applies only what it adopts;
+shipped default (:mod:`controllers.tuning.presets` applies only what it adopts;
 ``python -m evaluation.tune adopt NAME`` installs it).
 """
 
@@ -44,7 +44,7 @@ __all__ = [
 SHIPPED_TASK = "both"
 #: where the studies behind the tuned presets are committed: ``<name>/`` holds the study of
 #: ``<name>`` (the repository's ``data/tuning/``, as ``bash data/tuning/run.sh`` writes it)
-STUDIES_DIR = Path(__file__).resolve().parents[1] / "data" / "tuning"
+STUDIES_DIR = Path(__file__).resolve().parents[2] / "data" / "tuning"
 #: a study's log and its summary, as :mod:`evaluation.tune` writes them into the study's folder
 STUDY_FILE = "study.jsonl"
 BEST_FILE = "best.json"
@@ -84,7 +84,7 @@ def study_record(header: Mapping[str, Any], configurations_run: int) -> dict[str
     """The record of its study that a tuned preset carries (``"study"``): the split, suites,
     seed and budget of the study log's ``header``, and how many configurations it ran.
 
-    :func:`evaluation.tune.write_best` writes it and :func:`controllers.presets.check_study`
+    :func:`evaluation.tune.write_best` writes it and :func:`controllers.tuning.presets.check_study`
     compares a preset's with its log's, so both build it here, in this key order.
     """
     record = {k: header.get(k) for k in ("split", "suites", "seed", "budget")}
@@ -225,7 +225,7 @@ def adoption(controller: str, trials: Sequence[Mapping[str, Any]]) -> Adoption:
 def finished_study(name: str, studies: str | os.PathLike[str]) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The header and trials of ``studies/<name>/``'s log, refused unless it is a finished
     ``task=both`` study of ``name`` on a split tuning may use
-    (:func:`controllers.presets.check_study` says how)."""
+    (:func:`controllers.tuning.presets.check_study` says how)."""
     log = Path(studies) / name / STUDY_FILE
     header, trials = _study_lines(name, log)
     if header.get("controller") != name:
@@ -249,7 +249,7 @@ def finished_study(name: str, studies: str | os.PathLike[str]) -> tuple[dict[str
 
 def study_adoption(name: str, studies: str | os.PathLike[str] = STUDIES_DIR) -> Adoption:
     """The :func:`adoption` decision on the finished study of ``name`` in ``studies``
-    (refused as :func:`controllers.presets.check_study` refuses a study that is missing, torn, unfinished or not
+    (refused as :func:`controllers.tuning.presets.check_study` refuses a study that is missing, torn, unfinished or not
     ``name``'s held-out ``task=both`` study)."""
     return adoption(name, finished_study(name, studies)[1])
 

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from controllers.search_space import Search
-from controllers.studies import (
+from controllers.tuning.search_space import Search
+from controllers.tuning.studies import (
     ADOPTION_RULE,
     BEST_FILE,
     SHIPPED_TASK,
@@ -153,7 +153,7 @@ HAND_PRESETS = (
 
 
 #: where the tuned presets are read from: ``<name>.json`` per tuned controller or preset
-TUNED_DIR = Path(__file__).with_name("tuned")
+TUNED_DIR = Path(__file__).parents[1] / "tuned"
 #: the ``kind`` of a tuned preset file (:func:`evaluation.tune.write_best` writes it)
 TUNED_KIND = "koopnav-tuned-preset"
 #: ``<name>-v0``: the defaults ``<name>`` had before its tuned preset

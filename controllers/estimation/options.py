@@ -28,7 +28,7 @@ class EstimatorOptions:
     ----------
     position_std : float or "auto"
         Localization noise of x and y [m] (default: the ``realistic`` preset's 0.03), or
-        ``"auto"``: identified online (:class:`~controllers.identification.MotionIdentifier`).
+        ``"auto"``: identified online (:class:`~controllers.estimation.identification.MotionIdentifier`).
         While the identified noise is below its floor (none) the measured poses are passed on
         as they are, with no covariance: a team that localizes exactly is driven exactly as
         without the estimator.
