@@ -19,12 +19,20 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.estimation import FRONT_END_LEVERS, check_estimator
-from controllers.movers import check_mover_prediction
+from controllers.estimation import FRONT_END_LEVERS, check_estimator, estimator_choices
+from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from koopman_envs.checks import Range, checked_options
 from koopman_envs.scenario import Scenario
 
-__all__ = ["CLASSIC_LEVERS", "ClassicSettings", "TeamView", "goals", "in_range", "settings_from"]
+__all__ = [
+    "CLASSIC_CHOICES",
+    "CLASSIC_LEVERS",
+    "ClassicSettings",
+    "TeamView",
+    "goals",
+    "in_range",
+    "settings_from",
+]
 
 _Settings = TypeVar("_Settings")
 
@@ -47,6 +55,11 @@ def checked_fields(settings: Any, ranges: Mapping[str, Range]) -> None:
     given as a whole float is stored as the integer); for its ``__post_init__``."""
     for key in ranges:
         object.__setattr__(settings, key, in_range(ranges, key, getattr(settings, key)))
+
+
+#: the allowed values of DWA's and ORCA's text options (:mod:`controllers.option_spec`): the
+#: movers' prediction and the estimator front-end's choices
+CLASSIC_CHOICES: dict[str, tuple[str, ...]] = {"mover_prediction": MOVER_PREDICTIONS, **estimator_choices()}
 
 
 class ClassicSettings:

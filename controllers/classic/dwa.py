@@ -52,12 +52,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from controllers.base import BaseController
-from controllers.classic.common import ClassicSettings, TeamView, goals, settings_from
+from controllers.classic.common import CLASSIC_CHOICES, ClassicSettings, TeamView, goals, settings_from
 from controllers.classic.kernels import closest_approach, unicycle_arcs
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
-from controllers.estimation import estimator_choices, front_end_option
+from controllers.estimation import front_end_option
 from controllers.movers import (
-    MOVER_PREDICTIONS,
     observed_mover_radii,
     observed_movers,
 )
@@ -198,10 +197,7 @@ class DWAController(BaseController):
 
     name = "dwa"
     #: the allowed values of the text options (:mod:`controllers.option_spec`)
-    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
-        "mover_prediction": MOVER_PREDICTIONS,
-        **estimator_choices(),
-    }
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = CLASSIC_CHOICES
     #: the allowed range of every numeric option (:mod:`controllers.option_spec`), declared with
     #: the settings
     OPTION_RANGES: ClassVar[dict[str, Range]] = DWASettings.RANGES
