@@ -99,9 +99,8 @@ from evaluation.reports import (
 )
 from evaluation.run import EpisodeSpec, RunSpec, split_slips
 from evaluation.stats import Cell, profiles
-from koopman_envs.checks import check_choice
+from koopman_envs.checks import check_choice, did_you_mean
 from koopman_envs.files import write_atomic
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "BAD_INPUT_EXIT",

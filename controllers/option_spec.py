@@ -34,8 +34,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from controllers.tuning.search_space import Search
-from koopman_envs.checks import Range, check_choice, check_number, choice_message
-from koopman_envs.suggest import did_you_mean
+from koopman_envs.checks import Range, check_choice, check_number, choice_message, did_you_mean
 
 __all__ = ["ControllerSpec", "Option", "Search", "options", "spec_of", "with_search"]
 

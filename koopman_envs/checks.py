@@ -2,11 +2,14 @@
 
 Every public function and keyword of KoopNav checks its numbers before any work starts; these
 helpers make the messages the same across the package, so that a user (and a test) reads the
-bad value and what is allowed in one form.
+bad value and what is allowed in one form. The did-you-mean hint for a name that is not among the
+allowed ones (as Gymnasium's registry gives), :func:`did_you_mean`, is here too: every error
+message of the package that names an allowed set uses it.
 """
 
 from __future__ import annotations
 
+import difflib
 import itertools
 import json
 import math
@@ -19,8 +22,6 @@ from typing import Any
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "CLI_JSON_CHARS",
@@ -35,6 +36,8 @@ __all__ = [
     "check_number",
     "checked_options",
     "choice_message",
+    "closest",
+    "did_you_mean",
     "differing_settings",
     "parse_json",
 ]
@@ -55,6 +58,40 @@ CLI_JSON_CHARS = 2**20
 #: a JSON string literal (escapes included), removed before the brackets are counted
 _JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
 _NOT_BRACKET = re.compile(r"[^\[\]{}]+")
+
+
+def closest(name: object, allowed: Iterable[str]) -> str | None:
+    """The allowed name closest to ``name``, or None.
+
+    The same name in another case first (``'HARSH'`` -> ``'harsh'``), then difflib's closest
+    match (ratio cut-off 0.6) compared without case: difflib's ratio alone is case-sensitive, so
+    an upper-case name matched nothing.
+    """
+    if not isinstance(name, str):
+        return None
+    folded: dict[str, str] = {}  # case-folded -> the first allowed name that folds to it
+    for choice in allowed:
+        if isinstance(choice, str):
+            folded.setdefault(choice.casefold(), choice)
+    key = name.casefold()
+    if key in folded:
+        return folded[key]
+    close = difflib.get_close_matches(key, list(folded), n=1)
+    return folded[close[0]] if close else None
+
+
+def did_you_mean(name: object, allowed: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` for the closest allowed name, or ``""`` when none is close.
+
+    Parameters
+    ----------
+    name : object
+        The value that is not allowed (only a string can have a close match).
+    allowed : iterable of str
+        The allowed names.
+    """
+    match = closest(name, allowed)
+    return f" (did you mean {match!r}?)" if match is not None else ""
 
 
 def choice_message(

@@ -28,10 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from koopman_envs.checks import check_choice, check_flag, check_int, check_number
+from koopman_envs.checks import check_choice, check_flag, check_int, check_number, did_you_mean
 from koopman_envs.layout import MoverEntry
 from koopman_envs.params import LIMITS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = ["MOVER_BEHAVIOURS", "MOVER_FEATURES", "MoverConfig", "parse_movers"]
 

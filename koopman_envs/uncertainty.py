@@ -18,9 +18,8 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Any
 
-from koopman_envs.checks import check_flag, check_int, check_number
+from koopman_envs.checks import check_flag, check_int, check_number, did_you_mean
 from koopman_envs.params import LIMITS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "CommConfig",

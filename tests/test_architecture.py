@@ -175,8 +175,8 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
 
 
 #: the moved module paths kept one release (koopman_envs.deprecation's one registry, which
-#: evaluation/__init__.py, baselines/__init__.py and controllers/__init__.py fill with their
-#: MOVED_PATHS): old -> MovedPath
+#: evaluation/__init__.py, baselines/__init__.py, controllers/__init__.py and
+#: koopman_envs/__init__.py fill with their MOVED_PATHS): old -> MovedPath
 MOVED = moved_paths()
 #: the moved paths users ran (docs/benchmark.md, docs/rl.md of the previous release)
 MOVED_COMMANDS = sorted(old for old, moved in MOVED.items() if moved.command)
@@ -185,7 +185,7 @@ MOVED_COMMANDS = sorted(old for old, moved in MOVED.items() if moved.command)
 def test_the_documented_commands_are_kept_and_no_moved_path_is_removed() -> None:
     """Each package registers its own paths, the commands the previous release's docs ran among
     them, and no path is both kept and removed."""
-    assert {old.split(".")[0] for old in MOVED} == {"evaluation", "baselines", "controllers"}
+    assert {old.split(".")[0] for old in MOVED} == {"evaluation", "baselines", "controllers", "koopman_envs"}
     assert MOVED_COMMANDS == [
         "baselines.benchmarl_train", "baselines.select", "baselines.train", "evaluation.seeds",
     ]  # fmt: skip
@@ -318,7 +318,7 @@ def test_the_engine_module_path_is_the_engine_folder_not_a_stub() -> None:
 ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "fronts")
 #: the modules of the base layer, at the package root
 ENV_BASE = {
-    "params", "checks", "suggest", "scenario", "observed", "uncertainty", "movers", "reset_options",
+    "params", "checks", "scenario", "observed", "uncertainty", "movers", "reset_options",
     "layout", "maps", "files", "deprecation",
 }  # fmt: skip
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
@@ -365,8 +365,7 @@ def test_the_environment_package_imports_only_downwards() -> None:
 PUBLIC_MODULES: dict[str, str] = {
     "koopman_envs": "the face: ids, env classes, episode runner, task table, maps, suites, plant, shared kernels",
     "koopman_envs.params": "the paper's defaults and the slip settings, defined once",
-    "koopman_envs.checks": "the number and choice checks, one wording for every package's errors",
-    "koopman_envs.suggest": "did-you-mean for every package's error messages",
+    "koopman_envs.checks": "the number and choice checks and did-you-mean, one wording for every package's errors",
     "koopman_envs.files": "the one bounded reader and the one atomic writer of every file KoopNav keeps",
     "koopman_envs.deprecation": "the removal release and the moved module paths' import hook, for every package",
     "koopman_envs.scenario": "what a model-based controller may know of an episode",

@@ -390,7 +390,7 @@ def test_a_name_in_another_case_gets_a_did_you_mean(kwargs: dict, message: str) 
 
 
 def test_the_suggestion_helper_prefers_the_same_name_in_another_case() -> None:
-    from koopman_envs.suggest import closest, did_you_mean
+    from koopman_envs.checks import closest, did_you_mean
 
     assert closest("HARSH", ["nominal", "realistic", "harsh"]) == "harsh"
     assert closest("MaP3", ["map1", "map3", "Map3x"]) == "map3"

@@ -17,9 +17,8 @@ from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from controllers.mpc.rti import check_rti_options
 from controllers.solvers.compiled import jit_options
 from controllers.tuning.search_space import Search
-from koopman_envs.checks import Range, check_choice
+from koopman_envs.checks import Range, check_choice, did_you_mean
 from koopman_envs.params import LIMITS, PARAMS
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "DEFAULT_SOLVER_OPTIONS",

@@ -31,9 +31,8 @@ from evaluation.reports.sections.blocks import level_text
 from evaluation.run.plan import safe_file_name, slip_value
 from evaluation.run.spec import RunSpec, with_env_setting
 from koopman_envs import ENV_KEYWORDS, EngineConfig, task_for_env
-from koopman_envs.checks import CLI_JSON_CHARS, parse_json
+from koopman_envs.checks import CLI_JSON_CHARS, did_you_mean, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "MANIFEST",

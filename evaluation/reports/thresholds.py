@@ -19,9 +19,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from evaluation.reports.results import Results
-from koopman_envs.checks import check_choice, check_number
+from koopman_envs.checks import check_choice, check_number, did_you_mean
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
-from koopman_envs.suggest import did_you_mean
 
 __all__ = ["READINGS", "ThresholdCheck", "Thresholds", "check_thresholds", "load_thresholds"]
 

@@ -27,7 +27,7 @@ from evaluation.run.configs import controller_configs, with_solver
 from evaluation.run.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.run.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
 from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, EngineConfig, task_for_env
-from koopman_envs.checks import check_choice, check_int, check_number
+from koopman_envs.checks import check_choice, check_int, check_number, did_you_mean
 from koopman_envs.params import (
     DRIFT_SLIP,
     MAX_EPISODES_PER_CELL,
@@ -37,7 +37,6 @@ from koopman_envs.params import (
     SLIP_SETTINGS,
     slip_lambdas,
 )
-from koopman_envs.suggest import did_you_mean
 
 __all__ = ["CELL_AXES", "MAX_WORKERS", "RECORDED_ENV_SETTINGS", "RunSpec", "with_env_setting"]
 

@@ -18,13 +18,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_int, choice_message, parse_json
+from koopman_envs.checks import check_int, choice_message, did_you_mean, parse_json
 from koopman_envs.files import read_text, write_atomic
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.zones import SlipZone, check_zone_robots
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "BUILTIN_MAPS",

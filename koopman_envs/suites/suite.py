@@ -27,10 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from koopman_envs.checks import check_choice
+from koopman_envs.checks import check_choice, did_you_mean
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.maps import MapSpec
-from koopman_envs.suggest import did_you_mean
 from koopman_envs.suites.families import FAMILIES
 from koopman_envs.suites.measures import TIER_THRESHOLDS, TIERS
 from koopman_envs.tasks.base import TASKS

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import did_you_mean
 from koopman_envs.params import FRICTION_MAX, SLIP_SURFACES, SURFACE_LAMBDA_BOUNDS, SURFACES
-from koopman_envs.suggest import did_you_mean
 
 __all__ = [
     "SurfaceSetting",
