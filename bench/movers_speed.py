@@ -40,8 +40,8 @@ from env_throughput import REPEATS, _timed_pair, vector_runner  # noqa: E402
 
 import koopman_envs  # noqa: E402
 from koopman_envs import load_map  # noqa: E402
-from koopman_envs.movers import MoverConfig  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
+from koopman_envs.settings import MoverConfig  # noqa: E402
 from koopman_envs.sim.movers.field import MoverField  # noqa: E402
 
 ENV = "KoopNav-TargetReaching-v0"

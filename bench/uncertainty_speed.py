@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling script's
 from env_throughput import REPEATS, _timed_pair, single_runner, vector_runner  # noqa: E402
 
 import koopman_envs  # noqa: E402
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS  # noqa: E402
+from koopman_envs.settings import UNCERTAINTY_PRESETS  # noqa: E402
 
 ENV = "KoopNav-TargetReaching-v0"
 LIDAR = {"sensing": "lidar", "lidar": {"beams": 32, "range": 5.0}}

@@ -11,9 +11,9 @@ The package is the face of the environments (docs/layout.md): what controllers, 
 evaluator and users need of the folders (``sim/``, ``tasks/``, ``suites/``, ``engine/``,
 ``fronts/``, all internal) is exported here, the fronts, the episode runners and the renderer
 imported on first use like the PettingZoo modules. The other public modules are the root's:
-``params``, ``checks``, ``files``, ``deprecation``, ``scenario``, ``observed``, ``layout``,
-``movers``, ``uncertainty``, ``reset_options`` and the two PettingZoo modules
-(tests/test_architecture.py::PUBLIC_MODULES).
+``params``, ``checks``, ``files``, ``deprecation``, ``scenario``, ``observed``, ``layout`` and the
+two PettingZoo modules, and the face of the settings' folder, :mod:`koopman_envs.settings`
+(uncertainty, moving obstacles, reset options; tests/test_architecture.py::PUBLIC_MODULES).
 """
 
 from __future__ import annotations
@@ -72,11 +72,15 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
 __version__ = "0.1.0"
 
 #: the previous release's root modules that docs/ named as public (docs/layout.md's public root
-#: modules, the API page docs/api/koopman_envs.md) and that moved by concept (issue 61), kept one
-#: release with a DeprecationWarning by koopman_envs.deprecation's import hook (no file at the old
-#: path; CHANGELOG.md, Deprecated)
+#: modules, the API page docs/api/koopman_envs.md, docs/uncertainty.md) and that moved by concept
+#: (issue 61: did-you-mean into the checks, the settings into settings/), kept one release with a
+#: DeprecationWarning by koopman_envs.deprecation's import hook (no file at the old path;
+#: CHANGELOG.md, Deprecated)
 MOVED_PATHS = {
     "koopman_envs.suggest": "koopman_envs.checks",
+    "koopman_envs.movers": "koopman_envs.settings.moving_obstacles",
+    "koopman_envs.uncertainty": "koopman_envs.settings.uncertainty",
+    "koopman_envs.reset_options": "koopman_envs.settings.reset_options",
 }
 register_moved_paths(MOVED_PATHS)
 

@@ -316,10 +316,10 @@ def test_the_engine_module_path_is_the_engine_folder_not_a_stub() -> None:
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
 #: layer or a lower one, never a higher one (type-only and function-level imports included)
 ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "fronts")
-#: the modules of the base layer, at the package root
+#: the modules and folders of the base layer, at the package root (settings/: what an env keyword or
+#: a reset option holds; maps/: the built-in maps' files)
 ENV_BASE = {
-    "params", "checks", "scenario", "observed", "uncertainty", "movers", "reset_options",
-    "layout", "maps", "files", "deprecation",
+    "params", "checks", "scenario", "observed", "layout", "files", "deprecation", "settings", "maps",
 }  # fmt: skip
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
 ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}
@@ -332,7 +332,7 @@ def _env_layer(module: str) -> int | None:
     parts = module.split(".")
     if parts[0] != "koopman_envs" or len(parts) == 1:
         return None
-    if len(parts) == 2 and parts[1] in ENV_BASE:
+    if parts[1] in ENV_BASE:
         return 0
     if (len(parts) == 2 and parts[1] in ENV_ROOT_FRONTS) or module in ENV_COMMANDS:
         return ENV_LAYERS.index("fronts")
@@ -371,9 +371,7 @@ PUBLIC_MODULES: dict[str, str] = {
     "koopman_envs.scenario": "what a model-based controller may know of an episode",
     "koopman_envs.observed": "what a controller may read of an info (the robots' beliefs)",
     "koopman_envs.layout": "one robot's observation block by name, the policies' seam",
-    "koopman_envs.movers": "the moving-obstacle settings and their presets",
-    "koopman_envs.uncertainty": "the runtime-uncertainty settings and their presets",
-    "koopman_envs.reset_options": "reset(options=...) of every front: the keys and their check",
+    "koopman_envs.settings": "the settings' face: uncertainty, moving obstacles, reset options (dataclasses, presets)",
     "koopman_envs.formation_v0": "a PettingZoo versioned module (PettingZoo's naming)",
     "koopman_envs.target_reaching_v0": "a PettingZoo versioned module (PettingZoo's naming)",
 }
@@ -537,6 +535,33 @@ def test_the_baselines_root_holds_the_shared_modules_only() -> None:
 
 #: the most modules a package root holds before its modules go into folders by concept (issue 61)
 ROOT_MODULES_AT_MOST = 12
+
+
+#: the most modules koopman_envs' root holds (issue 61): the face, the base layer's shared modules
+#: and the PettingZoo modules; what belongs to one concept goes into its folder (settings/)
+ENV_ROOT_MODULES_AT_MOST = 10
+
+
+def test_the_environments_root_holds_at_most_ten_modules() -> None:
+    """koopman_envs/ keeps its roots few: an eleventh root module (``__init__.py`` counted) belongs in
+    a folder of its concept (settings/, sim/, ...), not beside the face."""
+    root = sorted(p.stem for p in (ROOT / "koopman_envs").glob("*.py"))
+    assert len(root) <= ENV_ROOT_MODULES_AT_MOST, f"koopman_envs/ has {len(root)} root modules: {root}"
+
+
+def test_the_settings_folder_is_the_face_of_its_modules() -> None:
+    """``koopman_envs.settings`` exports the public names (``__all__``) of its modules, the same
+    objects, so that the other packages import the settings from the folder."""
+    import importlib
+    import pkgutil
+
+    package = importlib.import_module("koopman_envs.settings")
+    expected: dict[str, object] = {}
+    for found in pkgutil.iter_modules(package.__path__):
+        module = importlib.import_module(f"koopman_envs.settings.{found.name}")
+        expected.update({name: getattr(module, name) for name in module.__all__})
+    assert sorted(package.__all__) == sorted(expected)
+    assert [name for name in package.__all__ if getattr(package, name) is not expected[name]] == []
 
 
 def test_the_controllers_root_holds_at_most_twelve_modules() -> None:

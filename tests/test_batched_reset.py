@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.reset_options import ResetOptions
+from koopman_envs.settings import ResetOptions
 from koopman_envs.sim.movers.placement import PlacementError, place_movers, place_movers_batch
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"

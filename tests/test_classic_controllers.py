@@ -19,8 +19,8 @@ from controllers.classic.dwa import DWAController, DWASettings
 from controllers.classic.orca import ORCAController, ORCASettings, unicycle_tracking
 from controllers.option_spec import spec_of
 from koopman_envs.fronts.episode import run_episode
+from koopman_envs.settings import UNCERTAINTY_PRESETS
 from koopman_envs.sim.maps import MapSpec
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 #: ORCA runs through pyrvo (the [crowd] extra): without it its cases skip, as the board skips it
 HAVE_PYRVO = importlib.util.find_spec("pyrvo") is not None

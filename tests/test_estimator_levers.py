@@ -12,7 +12,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from controllers.estimation import ABLATIONS, LEVERS, PoseFrontEnd, front_end_for
 from controllers.mpc.controller import NMPCController
 from koopman_envs import Observed
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
+from koopman_envs.settings import UNCERTAINTY_PRESETS
 
 
 def _views(front_end, steps: int = 30, **env_kwargs):

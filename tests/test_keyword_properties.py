@@ -47,11 +47,10 @@ import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs.engine.keywords import ENV_KEYWORDS
 from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
-from koopman_envs.movers import MOVER_BEHAVIOURS
 from koopman_envs.params import LIMITS, SLIP_NAMES
+from koopman_envs.settings import MOVER_BEHAVIOURS, SENSING_MODES, UNCERTAINTY_PRESETS
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import MAP_NAMES
-from koopman_envs.uncertainty import SENSING_MODES, UNCERTAINTY_PRESETS
 
 #: examples per keyword
 EXAMPLES = int(os.environ.get("KOOPNAV_PROPERTY_EXAMPLES", "40"))

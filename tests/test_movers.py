@@ -17,7 +17,7 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
-from koopman_envs.movers import MoverConfig, parse_movers
+from koopman_envs.settings import MoverConfig, parse_movers
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.movers.field import MOVER_FEATURES, MoverField
 from koopman_envs.sim.movers.placement import PlacementError, mover_arena, place_movers_batch

@@ -26,7 +26,7 @@ from controllers.estimation import PoseFrontEnd
 from controllers.perception.front import LidarPerception
 from koopman_envs import MessageEntry, MoverEntry, Observed, ObstacleEntry, TeamEntry
 from koopman_envs.layout import ITEM_ENTRIES, PART_NAMES, PART_WIDTH
-from koopman_envs.movers import MoverConfig
+from koopman_envs.settings import MoverConfig
 from koopman_envs.tasks.observation import AGE_MAX, FAR, feature_bounds
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"

@@ -11,7 +11,7 @@ import pytest
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0
 from koopman_envs.layout import ObservationLayout
-from koopman_envs.movers import MoverConfig
+from koopman_envs.settings import MoverConfig
 from koopman_envs.tasks.observation import FAR
 
 TR, FM = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from koopman_envs.settings import CommConfig, PoseNoise
 from koopman_envs.sim.movers.tracking import MoverTracker
 from koopman_envs.sim.pcg64 import (
     Streams,
@@ -17,7 +18,6 @@ from koopman_envs.sim.pcg64 import (
     uniforms_f32,
 )
 from koopman_envs.sim.perception import Perception
-from koopman_envs.uncertainty import CommConfig, PoseNoise
 
 DT, WORKSPACE = 0.1, (-5.0, 5.0, -5.0, 5.0)
 

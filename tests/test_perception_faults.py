@@ -21,6 +21,7 @@ import math
 import numpy as np
 import pytest
 
+from koopman_envs.settings import CommConfig, LidarConfig, PoseNoise
 from koopman_envs.sim import perception as perception_module
 from koopman_envs.sim.dynamics import wrap_scalar
 from koopman_envs.sim.lidar import beam_angles, cast_beams
@@ -31,7 +32,6 @@ from koopman_envs.sim.perception import (
     child_generator,
     observed_info,
 )
-from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
 DT = 0.1
 #: the kernels compiled by numba, or run as Python (mutation testing strips @njit to mutate them): a

@@ -353,7 +353,7 @@ def test_make_pages_refuses_an_unknown_page_naming_the_known_ones(capsys, argv) 
 # tests/test_prose_intros.py); the numbers they state about the code (a preset's values, a
 # sensor's defaults, the protocol's start noise and mover speed) are checked here.
 def _realistic_preset(match: re.Match[str]) -> list[str]:
-    from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
+    from koopman_envs.settings import UNCERTAINTY_PRESETS
 
     preset = UNCERTAINTY_PRESETS["realistic"]
     period_ms = 100  # the control period, 0.1 s
@@ -375,7 +375,7 @@ def _realistic_preset(match: re.Match[str]) -> list[str]:
 
 
 def _lidar_defaults(match: re.Match[str]) -> list[str]:
-    from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, LidarConfig
+    from koopman_envs.settings import UNCERTAINTY_PRESETS, LidarConfig
 
     # the --lidar protocol names no lidar settings and no preset: the defaults, the nominal preset's noise
     actual = (LidarConfig().beams, UNCERTAINTY_PRESETS["nominal"].lidar.noise)
@@ -388,7 +388,7 @@ def _lidar_defaults(match: re.Match[str]) -> list[str]:
 
 
 def _tracker(match: re.Match[str]) -> list[str]:
-    from koopman_envs.movers import MoverConfig
+    from koopman_envs.settings import MoverConfig
 
     actual = (MoverConfig().detection_range, MoverConfig().detection_noise)
     stated = (float(match[1]), float(match[2]) / 100)

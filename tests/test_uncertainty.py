@@ -1,4 +1,4 @@
-"""Runtime uncertainty beyond slip (koopman_envs.uncertainty, sim.perception, sim.lidar): exact
+"""Runtime uncertainty beyond slip (koopman_envs.settings.uncertainty, sim.perception, sim.lidar): exact
 lidar ranges, noise and loss statistics within their intervals, latency and actuation delay to
 the period, determinism, every front through the official checkers, and bad input."""
 
@@ -17,8 +17,8 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import formation_v0, target_reaching_v0
+from koopman_envs.settings import UNCERTAINTY_PRESETS
 from koopman_envs.sim.lidar import beam_angles, cast_beams
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 #: half-width of the acceptance intervals in standard deviations (normal approximations of the

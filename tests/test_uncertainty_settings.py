@@ -1,4 +1,4 @@
-"""The uncertainty settings (koopman_envs/uncertainty.py) field by field at their bounds (issue 41,
+"""The uncertainty settings (koopman_envs/settings/uncertainty.py) field by field at their bounds (issue 41,
 mutation testing): what each dataclass accepts, the normal form it stores (0 and 0.0, NumPy and
 Python numbers are one setting), what it refuses with the field's name, and how ``parse_setting``
 reads an instance, a dict merged over a preset, one number, or None.
@@ -14,7 +14,7 @@ import pytest
 
 from koopman_envs.checks import MAX_NUMBER
 from koopman_envs.params import LIMITS
-from koopman_envs.uncertainty import MIN_LIDAR_FOV, CommConfig, LidarConfig, PoseNoise, parse_setting
+from koopman_envs.settings.uncertainty import MIN_LIDAR_FOV, CommConfig, LidarConfig, PoseNoise, parse_setting
 
 POSE_FIELDS = ["xy", "heading", "drift_xy", "drift_heading"]
 

@@ -20,8 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from koopman_envs import ENV_KEYWORDS, Observed, observation_from_beliefs
-from koopman_envs.movers import MoverConfig
 from koopman_envs.scenario import Scenario
+from koopman_envs.settings import MoverConfig
 
 __all__ = ["LISTED_MOVERS", "LISTED_OBSTACLES", "perceived_blocks"]
 

@@ -12,7 +12,7 @@ from baselines.sb3.vec_env import FEATURE_SETS, LAYOUTS
 from baselines.suite_training import add_suite_options
 from koopman_envs import TASKS
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
+from koopman_envs.settings import UNCERTAINTY_PRESETS
 
 __all__ = ["POLICIES", "TASK_OF", "TIMESTEPS", "TRAIN_MAPS", "build_parser", "env_options"]
 

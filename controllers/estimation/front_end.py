@@ -19,7 +19,7 @@ from controllers.estimation.options import AUTO, ESTIMATOR_OPTION_PREFIX, Estima
 from koopman_envs import Observed, rk4_pose, wrap_angle, wrap_scalar
 from koopman_envs.checks import check_choice
 from koopman_envs.scenario import Scenario
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
+from koopman_envs.settings import UNCERTAINTY_PRESETS
 
 __all__ = [
     "ABLATIONS",

@@ -14,8 +14,8 @@ from evaluation.experiments.ablation import ablation_configs
 from evaluation.run.configs import ControllerConfig, parse_controller
 from evaluation.run.spec import TASK_MAPS, RunSpec
 from koopman_envs.checks import check_choice
-from koopman_envs.movers import MOVER_BEHAVIOURS
 from koopman_envs.params import PARAMS, SLIP_SETTINGS
+from koopman_envs.settings import MOVER_BEHAVIOURS
 
 __all__ = [
     "CROWD_COUNTS",
@@ -165,7 +165,7 @@ def crowd_protocol(behaviour: str = "crowd") -> RunSpec:
     """Navigation among movers (``--crowd BEHAVIOUR``): both tasks on their paper maps and 20
     seeded random layouts, nominal slip, 20 trials per cell, every registered controller, the
     NMPCs on the real-time iteration; swept over ``movers.count`` = :data:`CROWD_COUNTS` of
-    ``behaviour`` movers (:data:`koopman_envs.movers.MOVER_BEHAVIOURS`) at :data:`CROWD_SPEED`
+    ``behaviour`` movers (:data:`koopman_envs.settings.moving_obstacles.MOVER_BEHAVIOURS`) at :data:`CROWD_SPEED`
     (the sweep is added by the command line: ``--sweep movers.count=0,4,8,16``)."""
     check_choice("--crowd", behaviour, MOVER_BEHAVIOURS, sep=" ")
     return _among_movers({"movers": {"behaviour": behaviour, "speed": CROWD_SPEED, "count": 0}})

@@ -25,7 +25,7 @@ from evaluation.stats.aggregate import pooled_rate
 from evaluation.stats.robustness import AxisProfile, LevelRow
 from evaluation.stats.run_data import RunData
 from koopman_envs.files import write_atomic
-from koopman_envs.movers import MoverConfig, parse_movers
+from koopman_envs.settings import MoverConfig, parse_movers
 
 __all__ = [
     "FAMILIES",

@@ -22,8 +22,15 @@ from numpy.typing import NDArray
 from koopman_envs.checks import check_choice
 from koopman_envs.engine.keywords import env_keywords, unknown_keywords
 from koopman_envs.layout import ObservationLayout
-from koopman_envs.movers import MoverConfig
 from koopman_envs.params import LIMITS, PARAMS, RANDOM_SLIP, slip_lambdas
+from koopman_envs.settings.moving_obstacles import MoverConfig
+from koopman_envs.settings.uncertainty import (
+    UNCERTAINTY_PRESETS,
+    CommConfig,
+    LidarConfig,
+    PoseNoise,
+    parse_setting,
+)
 from koopman_envs.sim.maps import MapSpec, load_map
 from koopman_envs.sim.movers.motion import DRAW_SIZE
 from koopman_envs.sim.perception import BLOCK_NUMBERS
@@ -33,7 +40,6 @@ from koopman_envs.sim.random_map_config import RandomMapConfig
 from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
 from koopman_envs.suites.suite import SUITE_PREFIX, Suite, load_suite, parse_suite_map
 from koopman_envs.tasks.base import TASKS, TaskSpec
-from koopman_envs.uncertainty import UNCERTAINTY_PRESETS, CommConfig, LidarConfig, PoseNoise, parse_setting
 
 __all__ = ["EngineConfig", "check_engine_memory", "engine_array_bytes"]
 

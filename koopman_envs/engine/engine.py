@@ -22,8 +22,8 @@ from koopman_envs.engine.config import EngineConfig, check_engine_memory, engine
 from koopman_envs.engine.episode import engine_scenario, reset_episodes
 from koopman_envs.engine.plant import advance_plant, make_physics
 from koopman_envs.params import PARAMS
-from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
+from koopman_envs.settings.reset_options import ResetOptions
 from koopman_envs.sim.collision import CollisionFault, collision_flags
 from koopman_envs.sim.geometry import TeamGeometry
 from koopman_envs.sim.maps import MapSpec, formation_offsets

@@ -8,7 +8,7 @@ one order a seed fixes: a new layout with ``map="random"``
 ``map="suite:<name>/<split>"`` (one ``rng.integers`` draw, made even when ``options["layout"]``
 picks the layout, so that every later draw is the same either way), then the ``start_noise``
 perturbation when it is asked for (:func:`~koopman_envs.sim.starts.perturbed_starts`), nothing
-else. ``reset(options=...)`` replacements (:class:`~koopman_envs.reset_options.ResetOptions`) are
+else. ``reset(options=...)`` replacements (:class:`~koopman_envs.settings.reset_options.ResetOptions`) are
 checked against the episode's map before anything changes.
 
 **The reset, one pass for many** (:func:`reset_episodes`). A vector env resets the environments
@@ -35,8 +35,8 @@ from numpy.typing import NDArray
 
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import PARAMS
-from koopman_envs.reset_options import ResetOptions
 from koopman_envs.scenario import Scenario
+from koopman_envs.settings.reset_options import ResetOptions
 from koopman_envs.sim.maps import MapSpec
 from koopman_envs.sim.random_maps import generate_random_map
 from koopman_envs.sim.rows import rows_index

@@ -14,13 +14,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from koopman_envs.checks import check_choice, check_int, check_number, closest, did_you_mean
-from koopman_envs.movers import MOVER_BEHAVIOURS, parse_movers
 from koopman_envs.params import LIMITS, PARAMS, PLANTS, SLIP_NAMES, SLIP_SURFACES, SURFACES
+from koopman_envs.settings.moving_obstacles import MOVER_BEHAVIOURS, parse_movers
+from koopman_envs.settings.uncertainty import SENSING_MODES, UNCERTAINTY_PRESETS
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.sim.maps import BUILTIN_MAPS
 from koopman_envs.sim.random_maps import RandomMapConfig
 from koopman_envs.tasks.base import TASKS
-from koopman_envs.uncertainty import SENSING_MODES, UNCERTAINTY_PRESETS
 
 __all__ = [
     "ENV_KEYWORDS",

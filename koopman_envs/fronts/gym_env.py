@@ -15,8 +15,8 @@ from koopman_envs.engine.engine import START_NOISE_ATTEMPTS, NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
-from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
+from koopman_envs.settings.reset_options import parse_reset_options
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import RewardWeights
 from koopman_envs.tasks.observation import feature_size
@@ -61,7 +61,7 @@ class KoopNavEnv(gym.Env):
             heading [rad] instead of the map's starts (no ``start_noise``), and ``targets``
             (N, 3) instead of the map's targets. Each is checked (shape, finite, inside the
             workspace, clear of obstacles and of each other) and an unknown key is a
-            ``ValueError``; see :func:`koopman_envs.reset_options.parse_reset_options` and
+            ``ValueError``; see :func:`koopman_envs.settings.reset_options.parse_reset_options` and
             docs/reset_options.md.
 
         Returns

@@ -22,8 +22,8 @@ from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS, takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import PARAMS
-from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
+from koopman_envs.settings.reset_options import parse_reset_options
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
     from koopman_envs.fronts.rendering import Renderer
@@ -120,7 +120,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         options : dict, optional
             As for the Gymnasium env: ``start_poses`` (N, 3) and/or ``targets`` (N, 3) replace
             the map's for this episode, robot i being ``robot_i``; an unknown key or an invalid
-            pose is a ``ValueError`` (:func:`koopman_envs.reset_options.parse_reset_options`,
+            pose is a ``ValueError`` (:func:`koopman_envs.settings.reset_options.parse_reset_options`,
             docs/reset_options.md). The key ``"options"`` is ignored: PettingZoo's API tests
             pass ``{"options": 1}`` to check that ``reset`` takes the keyword.
 

@@ -18,8 +18,8 @@ from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.engine.keywords import takes_env_keywords
 from koopman_envs.layout import ObservationLayout
 from koopman_envs.params import LIMITS
-from koopman_envs.reset_options import parse_reset_options
 from koopman_envs.scenario import Scenario
+from koopman_envs.settings.reset_options import parse_reset_options
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
     from koopman_envs.fronts.rendering import Renderer
@@ -122,7 +122,7 @@ class KoopNavVectorEnv(VectorEnv):
             ``start_poses`` and/or ``targets`` as for the single env, for this episode only
             (auto-resets use the map's): an (N, 3) array applies to every sub-env, a (K, N, 3)
             array gives sub-env i its row i. An unknown key or an invalid pose is a
-            ``ValueError`` (:func:`koopman_envs.reset_options.parse_reset_options`,
+            ``ValueError`` (:func:`koopman_envs.settings.reset_options.parse_reset_options`,
             docs/reset_options.md); a pose rejected on sub-env i's map leaves the sub-envs
             before i already reset, so reset again.
 

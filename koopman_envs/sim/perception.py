@@ -1,7 +1,7 @@
 """What every robot believes: noisy localization, team-mates heard over a lossy radio, lidar readings.
 
 :class:`Perception` runs beside the physics of :class:`~koopman_envs.engine.engine.NavigationEngine`
-when any uncertainty setting of :mod:`koopman_envs.uncertainty` is away from its perfect value.
+when any uncertainty setting of :mod:`koopman_envs.settings.uncertainty` is away from its perfect value.
 After each step (and at reset) one compiled pass updates, per environment:
 
 1. each robot's own pose estimate: truth + bias + white noise (the bias a random walk);
@@ -28,10 +28,10 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from koopman_envs.settings.uncertainty import CommConfig, LidarConfig, PoseNoise
 from koopman_envs.sim.dynamics import wrap_scalar
 from koopman_envs.sim.lidar import beam_angles, cast_beams
 from koopman_envs.sim.pcg64 import Streams, refill_f32
-from koopman_envs.uncertainty import CommConfig, LidarConfig, PoseNoise
 
 __all__ = ["SENSOR_MODEL", "Perception", "child_generator", "observed_info"]
 

@@ -1,4 +1,4 @@
-"""The movers of K environments, simulated: the setting is :mod:`koopman_envs.movers`'s.
+"""The movers of K environments, simulated: the setting is :mod:`koopman_envs.settings.moving_obstacles`'s.
 
 One module per concept (internal: the package exports nothing; import from its modules):
 

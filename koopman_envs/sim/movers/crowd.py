@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.movers import MoverConfig
+from koopman_envs.settings.moving_obstacles import MoverConfig
 
 __all__ = ["ORCA_KEEP_RIGHT", "ORCA_ROBOT_MARGIN", "orca_restore", "orca_simulator", "orca_step"]
 

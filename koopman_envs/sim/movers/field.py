@@ -2,7 +2,7 @@
 at reset, the motion per period, the robots' contacts with them and the observation's mover
 items (:func:`mover_features`).
 
-The behaviours and their parameters are defined in :mod:`koopman_envs.movers`; the arena and
+The behaviours and their parameters are defined in :mod:`koopman_envs.settings.moving_obstacles`; the arena and
 the placement are :mod:`~koopman_envs.sim.movers.placement`'s, the compiled motion
 :mod:`~koopman_envs.sim.movers.motion`'s and the crowd's ORCA :mod:`~koopman_envs.sim.movers.crowd`'s.
 What the field adds:
@@ -29,8 +29,8 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.layout import MoverEntry
-from koopman_envs.movers import MOVER_FEATURES, MoverConfig
 from koopman_envs.params import FAULT_STOPPED_SPEED
+from koopman_envs.settings.moving_obstacles import MOVER_FEATURES, MoverConfig
 from koopman_envs.sim.collision import CollisionFault, CollisionKind, mover_collisions
 from koopman_envs.sim.movers.crowd import orca_restore, orca_simulator, orca_step
 from koopman_envs.sim.movers.motion import (

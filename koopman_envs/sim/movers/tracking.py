@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.movers import MoverConfig
+from koopman_envs.settings.moving_obstacles import MoverConfig
 from koopman_envs.sim.movers.field import MoverField
 from koopman_envs.sim.pcg64 import Streams, refill_normals_f64
 from koopman_envs.sim.perception import child_generator
