@@ -31,7 +31,7 @@ __all__ = [
     "parse_setting",
 ]
 
-#: observation of obstacles: from the known map ("state") or through range beams only ("lidar")
+#: how the robots observe obstacles, from the known map ("state") or through range beams only ("lidar")
 SENSING_MODES = ("state", "lidar")
 #: narrowest lidar field of view [rad] (ours: a milliradian; the beam caster divides by the
 #: beams' spacing, which a denormal field of view rounds to 0)
