@@ -427,7 +427,7 @@ def test_an_installed_package_without_the_studies_applies_a_preset_on_its_own_re
 
 def test_the_shipped_presets_are_their_studies_best_and_v0_their_defaults() -> None:
     shipped = sorted(presets.TUNED_DIR.glob("*.json"))
-    assert [p.stem for p in shipped] == ["consensus", "dwa", "mpc-cbf"]
+    assert [p.stem for p in shipped] == ["consensus", "dwa", "mpc-cbf", "nominal-nmpc"]
     table = {p.name: p for p in presets.PRESETS}
     for path in shipped:
         assert presets.check_study(path).adopted
@@ -533,6 +533,7 @@ def test_the_installed_presets_are_what_the_rule_admits_of_every_finished_study(
         "consensus": (20, 12, True),
         "dwa": (29, 25, True),
         "mpc-cbf": (22, 7, True),
+        "nominal-nmpc": (17, 6, True),
         "orca": (22, 22, False),
     }
 
@@ -541,7 +542,7 @@ def test_default_runs_leave_the_v0_variants_out_but_they_run_by_name() -> None:
     from evaluation.execution.runner import usable_controllers
 
     variants = [n for n in controllers.available() if presets.is_comparison_variant(n)]
-    assert variants == ["consensus-v0", "dwa-v0", "mpc-cbf-v0"]
+    assert variants == ["consensus-v0", "dwa-v0", "mpc-cbf-v0", "nominal-nmpc-v0"]
     assert not set(variants) & set(controllers.available(variants=False))
     assert set(controllers.available()) - set(controllers.available(variants=False)) == set(variants)
     assert not set(variants) & set(usable_controllers(verbose=False))
