@@ -3,6 +3,7 @@ trial 0 the defaults, the expected-max curve, the tunable spaces and the tuned p
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import itertools
 import json
@@ -13,6 +14,7 @@ import numpy as np
 import pytest
 
 import controllers
+from controllers.mpc.controller import NMPCController
 from controllers.option_spec import Search, with_search
 from controllers.tuning import ADOPTION_RULE, STUDIES_DIR, adoption, presets, study_adoption
 from controllers.tuning.presets import (
@@ -442,6 +444,38 @@ def test_the_shipped_presets_are_their_studies_best_and_v0_their_defaults() -> N
         spec_v0 = controllers.options(name + "-v0")
         assert {k: json_safe(spec_v0.default(k)) for k in trials[0].options} == trials[0].options
         assert name + "-v0" in builtin_names()
+
+
+def test_the_presets_on_the_nmpc_class_keep_its_hand_set_defaults_not_nominal_nmpcs_preset() -> None:
+    """A preset names the controller it builds (its ``base``), which is the class with its declared
+    defaults: nominal-nmpc's tuned preset changes nominal-nmpc alone. nominal-nmpc-robust is
+    nominal-nmpc-v0 with the robust margin, mpc-cbf-v0 it with the barrier, and the distributed
+    NMPC (its own class) keeps the hand-set options too; none inherits horizon 34 or the need to
+    calibrate."""
+
+    def config(name: str) -> dict[str, Any]:
+        ctrl = controllers.make(name)
+        assert isinstance(ctrl, NMPCController)
+        return dataclasses.asdict(ctrl.config)
+
+    def changed(name: str) -> dict[str, Any]:
+        return {k: v for k, v in config(name).items() if v != hand_set[k]}
+
+    hand_set = config("nominal-nmpc-v0")
+    assert changed("nominal-nmpc-robust") == {"uncertainty_margin": 3.0}
+    assert changed("dmpc-nominal-robust") == {"uncertainty_margin": 3.0}
+    assert changed("mpc-cbf-v0") == {"cbf_gamma": 0.1}
+    assert changed("dmpc-nominal") == {}
+    tuned = json.loads((presets.TUNED_DIR / "nominal-nmpc.json").read_text())["options"]
+    assert changed("nominal-nmpc") == {k: tuple(v) if isinstance(v, list) else v for k, v in tuned.items()}
+    assert set(tuned) == {
+        "horizon",
+        "r_input",
+        "obstacle_offset",
+        "robot_offset",
+        "uncertainty_margin",
+        "unstall",
+    }
 
 
 # ------------------------------------------------------------------ the adoption rule
