@@ -15,6 +15,7 @@ import pytest
 
 import controllers
 from controllers.mpc.controller import NMPCController
+from controllers.mpc.distributed import DistributedNMPC
 from controllers.option_spec import Search, with_search
 from controllers.tuning import ADOPTION_RULE, STUDIES_DIR, adoption, presets, study_adoption
 from controllers.tuning.presets import (
@@ -455,7 +456,7 @@ def test_the_presets_on_the_nmpc_class_keep_its_hand_set_defaults_not_nominal_nm
 
     def config(name: str) -> dict[str, Any]:
         ctrl = controllers.make(name)
-        assert isinstance(ctrl, NMPCController)
+        assert isinstance(ctrl, (NMPCController, DistributedNMPC))
         return dataclasses.asdict(ctrl.config)
 
     def changed(name: str) -> dict[str, Any]:
