@@ -1,4 +1,8 @@
-"""Controllers: reaching targets, constraint satisfaction, failure handling, registry."""
+"""Controllers: reaching targets, constraint satisfaction, failure handling, registry.
+
+The shipped controllers are calibrated first, as the evaluator does (``run``); the tests of a
+mechanism that build the NMPC without a calibration build ``nominal-nmpc-v0``, the hand-set
+defaults (the tuned ``nominal-nmpc`` widens its margins by the calibrated residual)."""
 
 from __future__ import annotations
 
