@@ -15,7 +15,9 @@ __all__ = ["ParallelAdapter"]
 class ParallelAdapter:
     """Turns per-agent observations and infos into the controller's joint view and back.
 
-    >>> adapter = ParallelAdapter(controllers.make("nominal-nmpc"))
+    >>> ctrl = controllers.make("nominal-nmpc")
+    >>> calibrate_controller(ctrl, "KoopNav-Formation-v0")  # its tuned margins need it, as in the evaluator
+    >>> adapter = ParallelAdapter(ctrl)
     >>> observations, infos = env.reset(seed=0)       # env = formation_v0.parallel_env()
     >>> adapter.reset(env)
     >>> observations, rewards, terms, truncs, infos = env.step(adapter.act(observations, infos))

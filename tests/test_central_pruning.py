@@ -1,4 +1,7 @@
-"""The central NMPC's pair and obstacle slots (``pair_slots``, ``obstacle_slots``; default off)."""
+"""The central NMPC's pair and obstacle slots (``pair_slots``, ``obstacle_slots``; default off).
+
+The NMPC is ``nominal-nmpc-v0``, the hand-set defaults, built without a calibration: the tuned
+``nominal-nmpc`` widens its margins by the calibrated residual, so it needs ``calibrate`` first."""
 
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ from koopman_envs.fronts.episode import run_episode
 def _reset(n: int = 3, map_name: str = "map1", **options):
     env = gym.make("KoopNav-TargetReaching-v0", map=map_name, n_robots=n)
     obs, info = env.reset(seed=0)
-    ctrl = controllers.make("nominal-nmpc", **options)
+    ctrl = controllers.make("nominal-nmpc-v0", **options)
     ctrl.reset(env)
     return ctrl, env, obs, info
 
@@ -81,7 +84,7 @@ def test_slots_for_every_pair_and_obstacle_solve_the_same_problem() -> None:
 def test_pruned_central_nmpc_runs_a_whole_episode() -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
     result = run_episode(
-        env, controllers.make("nominal-nmpc", solver="rti", pair_slots=2, obstacle_slots=2), seed=0
+        env, controllers.make("nominal-nmpc-v0", solver="rti", pair_slots=2, obstacle_slots=2), seed=0
     )
     assert result.success, result.outcome
 
@@ -92,4 +95,4 @@ def test_pruned_central_nmpc_runs_a_whole_episode() -> None:
 )
 def test_bad_slot_counts_are_named(options: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message):
-        controllers.make("nominal-nmpc", **options)
+        controllers.make("nominal-nmpc-v0", **options)

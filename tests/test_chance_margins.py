@@ -1,6 +1,9 @@
 """Chance-constrained margins of the NMPCs (controllers/mpc/controller.py, ``chance_risk``): an
 estimator's pose covariance widens every collision margin by z sigma, more for a larger
-covariance, not at all without one."""
+covariance, not at all without one.
+
+The NMPC acting here is ``nominal-nmpc-v0``, the hand-set defaults: the tuned ``nominal-nmpc``
+also widens its margins by the calibrated residual, so it acts only after ``calibrate``."""
 
 from __future__ import annotations
 
@@ -61,7 +64,7 @@ def test_the_nmpc_keeps_farther_from_an_obstacle_the_less_certain_it_is() -> Non
     scenario = env.unwrapped.scenario
     plans = {}
     for label, covariance in (("none", None), ("small", 0.01**2), ("large", 0.08**2)):
-        ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+        ctrl = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver=None)
         ctrl.reset(env, seed=0)
         view = dict(info)
         if covariance is not None:
@@ -104,7 +107,7 @@ def test_a_robot_near_its_goal_under_an_uncertain_estimate_holds_still_and_moves
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
     obs, info = env.reset(seed=0)
     scenario = env.unwrapped.scenario
-    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver=None)
     ctrl.reset(env, seed=0)
     covariance = np.tile(np.diag([0.01**2, 0.01**2, 1e-4]), (scenario.n_robots, 1, 1))
     tolerance = scenario.goal_tolerance
@@ -126,7 +129,7 @@ def test_a_robot_near_its_goal_under_an_uncertain_estimate_holds_still_and_moves
     command = ctrl.act(obs, seen(poses, pose_covariance=covariance)).reshape(-1, 2)
     assert np.any(command[0] != 0)
     # without a covariance (the paper's setting) nothing settles
-    plain = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+    plain = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver=None)
     plain.reset(env, seed=0)
     poses[0, 0] = scenario.targets[0, 0] + 0.4 * tolerance
     assert np.any(plain.act(obs, seen(poses)).reshape(-1, 2)[0] != 0)

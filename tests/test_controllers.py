@@ -1,4 +1,8 @@
-"""Controllers: reaching targets, constraint satisfaction, failure handling, registry."""
+"""Controllers: reaching targets, constraint satisfaction, failure handling, registry.
+
+The shipped controllers are calibrated first, as the evaluator does (``run``); the tests of a
+mechanism that build the NMPC without a calibration build ``nominal-nmpc-v0``, the hand-set
+defaults (the tuned ``nominal-nmpc`` widens its margins by the calibrated residual)."""
 
 from __future__ import annotations
 
@@ -89,7 +93,7 @@ class _FailingSolver:
 
 def test_solver_failure_falls_back_and_is_counted() -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map=OPEN)
-    ctrl = controllers.make("nominal-nmpc", solver="ipopt")
+    ctrl = controllers.make("nominal-nmpc-v0", solver="ipopt")
     obs, info = env.reset(seed=0)
     ctrl.reset(env.unwrapped.scenario)
     first = ctrl.act(obs, info)  # a real solve: leaves a plan to fall back on
@@ -114,7 +118,7 @@ def test_infeasible_hard_problem_is_handled(solver: str, soft: bool) -> None:
         "tight", obstacles=[[0.0, 0.0, 0.5]], starts=[[0.705, 0.0, 0.0]], targets=[[3.0, 0.0, 0.0]]
     )
     env = gym.make("KoopNav-TargetReaching-v0", map=spec, n_robots=1, max_episode_steps=5)
-    ctrl = controllers.make("nominal-nmpc", solver=solver, soft_constraints=soft, obstacle_offset=0.2)
+    ctrl = controllers.make("nominal-nmpc-v0", solver=solver, soft_constraints=soft, obstacle_offset=0.2)
     obs, info = env.reset(seed=0)
     ctrl.reset(env.unwrapped.scenario)
     for _ in range(5):
@@ -214,7 +218,7 @@ def test_koopman_nmpc_uses_a_model_file(tmp_path) -> None:
 
 def test_pettingzoo_env_driven_through_the_adapter() -> None:
     env = formation_v0.parallel_env(map=OPEN)
-    adapter = ParallelAdapter(controllers.make("nominal-nmpc"))
+    adapter = ParallelAdapter(controllers.make("nominal-nmpc-v0"))
     observations, infos = env.reset(seed=0)
     adapter.reset(env)
     while env.agents:
@@ -236,7 +240,7 @@ def test_warm_start_shift_has_no_dynamics_gap_and_cold_starts_drop_warm_options(
     """The shifted guess ends in the model's prediction of its last command (not a repeated state),
     and a start without a previous solution uses the solver's own initialization."""
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc")
+    ctrl = controllers.make("nominal-nmpc-v0")
     obs, info = env.reset(seed=0)
     ctrl.reset(env.unwrapped.scenario)
     ctrl.act(obs, info)

@@ -1,6 +1,10 @@
 """The central NMPC's way out of a stall (controllers/mpc/detour.py, ``unstall``): Map 2's
 crossing, where the real-time iteration stopped two robots face to face and one behind the
-central obstacle, is solved; where nothing stalls the controller is unchanged, bit for bit."""
+central obstacle, is solved; where nothing stalls the controller is unchanged, bit for bit.
+
+The nominal NMPC here is ``nominal-nmpc-v0``, the hand-set defaults the stall resolution was
+designed with: the tuned ``nominal-nmpc`` turns it off (``unstall=False``) and widens its margins
+by the calibrated residual (controllers/tuned/nominal-nmpc.json)."""
 
 from __future__ import annotations
 
@@ -31,8 +35,8 @@ def _episode(name: str, map_name: str, slip: str = "nominal", seed: int = 0, **o
 
 
 # koopman-nmpc's crossing runs with -m slow: two whole Map 2 episodes of the central NMPC are the
-# check, and nominal-nmpc runs the same detour code on the same crossing in the default run
-@pytest.mark.parametrize("name", ["nominal-nmpc", pytest.param("koopman-nmpc", marks=pytest.mark.slow)])
+# check, and nominal-nmpc-v0 runs the same detour code on the same crossing in the default run
+@pytest.mark.parametrize("name", ["nominal-nmpc-v0", pytest.param("koopman-nmpc", marks=pytest.mark.slow)])
 def test_the_map2_crossing_deadlock_is_resolved(name: str) -> None:
     stuck, _, counts = _episode(name, "map2", unstall=False)
     assert not stuck["is_success"] and not stuck["collision"]
@@ -45,8 +49,8 @@ def test_the_map2_crossing_deadlock_is_resolved(name: str) -> None:
 
 def test_without_a_stall_nothing_changes() -> None:
     """Map 1 (no stall): the same commands, bit for bit, with and without ``unstall``."""
-    on, commands_on, counts = _episode("nominal-nmpc", "map1", slip="high")
-    off, commands_off, _ = _episode("nominal-nmpc", "map1", slip="high", unstall=False)
+    on, commands_on, counts = _episode("nominal-nmpc-v0", "map1", slip="high")
+    off, commands_off, _ = _episode("nominal-nmpc-v0", "map1", slip="high", unstall=False)
     assert on["is_success"] and not any(key.startswith("unstall") for key in counts)
     assert len(commands_on) == len(commands_off)
     for a, b in zip(commands_on, commands_off, strict=True):

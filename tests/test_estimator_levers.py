@@ -94,7 +94,10 @@ def test_the_nmpc_levers_switch_off_their_part_alone(lever: str, method: str, mo
     monkeypatch.setattr(NMPCController, method, counted)
     for ablate in ("none", lever):
         env = gym.make("KoopNav-TargetReaching-v0", uncertainty="realistic", max_episode_steps=20)
-        ctrl = controllers.make("nominal-nmpc", solver="rti", horizon=8, estimator="realistic", ablate=ablate)
+        # the hand-set NMPC, built without a calibration (the tuned nominal-nmpc's margins need one)
+        ctrl = controllers.make(
+            "nominal-nmpc-v0", solver="rti", horizon=8, estimator="realistic", ablate=ablate
+        )
         obs, info = env.reset(seed=0)
         ctrl.reset(env, seed=0)
         for _ in range(10):

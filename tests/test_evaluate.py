@@ -14,6 +14,7 @@ import pytest
 import controllers
 import evaluate as ev
 from controllers.base import BaseController
+from evaluation.episodes.distinct import outcome_fields
 
 SMALL = ev.RunSpec(
     envs=["KoopNav-TargetReaching-v0"],
@@ -72,15 +73,14 @@ def test_report_distances_equal_recomputed_ones(small_results: ev.Results) -> No
 
 def test_one_and_two_workers_give_identical_results(small_results: ev.Results) -> None:
     serial = ev.evaluate(SMALL, workers=1)
-    timing = ("wall_seconds", "solve_ms_median", "solve_ms_p95", "solve_ms")
 
-    def untimed(record: dict) -> dict:
-        # wall times are not results: the top-level ones and a controller's own (<part>_ms_*)
-        extra = {k: v for k, v in (record.get("controller_extra") or {}).items() if "_ms_" not in k}
-        return {**{k: v for k, v in record.items() if k not in timing}, "controller_extra": extra}
+    def outcomes(records: list[dict]) -> list[tuple]:
+        # every field but wall times (the top-level ones, a controller's own <part>_ms_*) and the
+        # calibration's time and source: the tuned nominal-nmpc's residual is measured by the
+        # first run and read from the cache by the second (evaluation.episodes.distinct says which)
+        return [(r["key"], r["trial"], outcome_fields(r)) for r in records]
 
-    strip = lambda recs: [untimed(r) for r in recs]  # noqa: E731
-    assert strip(serial.records) == strip(json.loads(json.dumps(small_results.records)))
+    assert outcomes(serial.records) == outcomes(json.loads(json.dumps(small_results.records)))
 
 
 def test_resume_log_from_another_configuration_is_refused(tmp_path) -> None:

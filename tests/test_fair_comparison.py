@@ -17,6 +17,7 @@ import pytest
 import controllers
 import evaluate as ev
 from controllers.base import BaseController
+from controllers.mpc.controller import NMPCController
 from evaluation.experiments.ablation import FACTORS, ablation_configs, ablation_markdown
 from evaluation.stats.aggregate import aggregate
 from koopman_envs import BudgetExceeded, make_plant
@@ -154,21 +155,29 @@ def test_a_failing_calibration_is_recorded_for_its_cell_only() -> None:
 
 
 def test_robust_variants_share_one_margin_rule() -> None:
-    """Both NMPCs widen margins by k x their own residual on the same calibration data."""
+    """Both NMPCs widen margins by k x their own residual on the same calibration data. The
+    robust presets widen the hand-set NMPCs (koopman-nmpc and nominal-nmpc-v0, k = 0); the tuned
+    nominal-nmpc follows the same rule with its own k and floor."""
     plant_args = dict(slip="high", budget=20_000, seed=0)
     scenario_env = __import__("gymnasium").make("KoopNav-Formation-v0", map="map3")
     scenario_env.reset(seed=0)
     scenario = scenario_env.unwrapped.scenario
-    margins = {}
-    for name in ("koopman-nmpc-robust", "nominal-nmpc-robust", "koopman-nmpc", "nominal-nmpc"):
+    margins, ks = {}, {}
+    names = ("koopman-nmpc-robust", "nominal-nmpc-robust", "koopman-nmpc", "nominal-nmpc-v0", "nominal-nmpc")
+    for name in names:
         ctrl = controllers.make(name)
+        assert isinstance(ctrl, NMPCController)
         ctrl.calibrate(make_plant("KoopNav-Formation-v0", **plant_args), seed=0)
         margins[name] = ctrl.safety_margins(scenario)[0]
+        k, floor = ctrl.config.uncertainty_margin, ctrl.config.obstacle_offset
+        ks[name] = k
         if name.endswith("robust"):
-            expected = np.maximum(0.015, 3.0 * ctrl.position_residual)
-            np.testing.assert_allclose(margins[name], expected)
+            assert (k, floor) == (3.0, 0.015)
+        if k > 0:
+            np.testing.assert_allclose(margins[name], np.maximum(floor, k * ctrl.position_residual))
     np.testing.assert_allclose(margins["koopman-nmpc"], 0.015)
-    np.testing.assert_allclose(margins["nominal-nmpc"], 0.015)
+    np.testing.assert_allclose(margins["nominal-nmpc-v0"], 0.015)
+    assert 0 < ks["nominal-nmpc"] < 3.0  # its preset's own k
     # high slip strays robot 3 several centimetres per period from either model's prediction
     assert margins["nominal-nmpc-robust"][2] > margins["koopman-nmpc-robust"][2] > 0.015
     with pytest.raises(ValueError, match="call calibrate"):
@@ -247,6 +256,9 @@ def test_paper_strict_builds_the_papers_controllers_exactly() -> None:
         ctrl = cfg.build()
         config = ctrl.config
         assert config.soft_constraints is False and config.uncertainty_margin == 0
+        # the paper's horizon and weights, whatever a tuned preset (nominal-nmpc's: 34) says
+        assert (config.horizon, config.r_input) == (20, (0.1, 0.1))
+        assert (config.q_leader, config.q_follower) == ((4.0, 4.0, 0.1, 0.1), (1.0, 1.0, 0.1, 0.1))
         assert config.solver == "ipopt" and config.fallback_solver is None and ctrl.solver_label == "ipopt"
         assert config.estimator == "none" and ctrl.front_end is None  # the measured poses as they are
         assert config.unstall is False
@@ -283,6 +295,15 @@ def test_ablation_configurations_and_bad_factor(tmp_path) -> None:
     )
     assert proc.returncode == 2 and "ablation factor 'slip'" in proc.stderr
     assert set(FACTORS) == {"model", "margins", "constraints"}
+
+
+def test_the_ablations_model_factor_changes_the_model_alone() -> None:
+    """Its two levels build NMPCs with the same options (a tuned preset on one level only would
+    make the factor a comparison of tunings: the tuned nominal-nmpc differs in six options)."""
+    learned, nominal = ablation_configs(["model"])
+    assert (learned.name, nominal.name) == ("koopman-nmpc", "nominal-nmpc-v0")
+    assert dataclasses.asdict(learned.build().config) == dataclasses.asdict(nominal.build().config)
+    assert type(learned.build()).__name__ == "KoopmanNMPC" and type(nominal.build()).__name__ == "NominalNMPC"
 
 
 def test_ablation_report_states_main_effects() -> None:

@@ -1,6 +1,10 @@
 """The controllers among moving obstacles (controllers.movers): what the NMPC predicts, the
 moving barrier of the safety filter, consensus's repulsion, that every one reads the movers from
-the observed view only, and that bad options are refused by name."""
+the observed view only, and that bad options are refused by name.
+
+The NMPC here is ``nominal-nmpc-v0``, the hand-set defaults, acting without a calibration: the
+tuned ``nominal-nmpc`` widens its margins by the calibrated residual, so it needs ``calibrate``
+first (as the evaluator does)."""
 
 from __future__ import annotations
 
@@ -24,7 +28,7 @@ TR = "KoopNav-TargetReaching-v0"
 
 def test_the_nmpc_s_prediction_is_the_path_of_a_constant_velocity_mover() -> None:
     env = gym.make(TR, movers=dict(count=1, speed=0.3, tracking=False))
-    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti")
     for seed in range(20):  # a seed whose mover meets no edge or obstacle within the horizon
         obs, info = env.reset(seed=seed)
         ctrl.reset(env, seed=seed)
@@ -62,7 +66,7 @@ def test_mover_slots_take_the_nearest_to_the_team_and_park_the_rest() -> None:
 
 
 def test_mover_slots_only_with_movers_tracked_or_seen_through_the_lidar() -> None:
-    ctrl = controllers.make("nominal-nmpc", solver="rti")
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti")
     env = gym.make(TR)
     env.reset(seed=0)
     ctrl.reset(env, seed=0)
@@ -88,7 +92,7 @@ def test_a_moving_barrier_makes_a_robot_give_way_to_an_approaching_mover() -> No
     assert not static.changed[0]  # a standing disc 0.6 m away asks nothing yet
 
 
-@pytest.mark.parametrize("name", ["nominal-nmpc", "dmpc-nominal", "consensus", "safe:consensus-free"])
+@pytest.mark.parametrize("name", ["nominal-nmpc-v0", "dmpc-nominal", "consensus", "safe:consensus-free"])
 def test_controllers_read_the_movers_from_the_observed_view_only(name: str) -> None:
     env = gym.make(TR, movers=dict(count=6, speed=0.3))
     options = {"solver": "rti"} if "nmpc" in name else {}
@@ -107,8 +111,8 @@ def test_controllers_read_the_movers_from_the_observed_view_only(name: str) -> N
 def test_prediction_changes_what_the_nmpc_does() -> None:
     env = gym.make(TR, movers=dict(count=8, speed=0.3, tracking=False))
     obs, info = env.reset(seed=0)
-    with_it = controllers.make("nominal-nmpc", solver="rti")
-    without = controllers.make("nominal-nmpc", solver="rti", mover_prediction="static")
+    with_it = controllers.make("nominal-nmpc-v0", solver="rti")
+    without = controllers.make("nominal-nmpc-v0", solver="rti", mover_prediction="static")
     with_it.reset(env, seed=0)
     without.reset(env, seed=0)
     # the NMPC plans around every mover in its slots, near or not: its first command differs

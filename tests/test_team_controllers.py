@@ -82,7 +82,8 @@ def test_ipopt_barrier_update_follows_the_team_size_unless_set(n_robots, options
         from controllers.mpc.config import IPOPT_OPTIONS
 
         solver_options = {**IPOPT_OPTIONS, **options}
-    ctrl = controllers.make("nominal-nmpc", solver="ipopt", solver_options=solver_options)
+    # the hand-set defaults: no calibration needed (the tuned nominal-nmpc's margins need one)
+    ctrl = controllers.make("nominal-nmpc-v0", solver="ipopt", solver_options=solver_options)
     run_episode(env, ctrl, seed=0)
     assert ctrl.problem.solver_options("ipopt")["ipopt.mu_strategy"] == expected
     assert ctrl.problem.solver_options("ipopt", cold=True)["ipopt.mu_strategy"] == expected

@@ -3,6 +3,7 @@ trial 0 the defaults, the expected-max curve, the tunable spaces and the tuned p
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import itertools
 import json
@@ -13,6 +14,8 @@ import numpy as np
 import pytest
 
 import controllers
+from controllers.mpc.controller import NMPCController
+from controllers.mpc.distributed import DistributedNMPC
 from controllers.option_spec import Search, with_search
 from controllers.tuning import ADOPTION_RULE, STUDIES_DIR, adoption, presets, study_adoption
 from controllers.tuning.presets import (
@@ -427,7 +430,7 @@ def test_an_installed_package_without_the_studies_applies_a_preset_on_its_own_re
 
 def test_the_shipped_presets_are_their_studies_best_and_v0_their_defaults() -> None:
     shipped = sorted(presets.TUNED_DIR.glob("*.json"))
-    assert [p.stem for p in shipped] == ["consensus", "dwa", "mpc-cbf"]
+    assert [p.stem for p in shipped] == ["consensus", "dwa", "mpc-cbf", "nominal-nmpc"]
     table = {p.name: p for p in presets.PRESETS}
     for path in shipped:
         assert presets.check_study(path).adopted
@@ -442,6 +445,38 @@ def test_the_shipped_presets_are_their_studies_best_and_v0_their_defaults() -> N
         spec_v0 = controllers.options(name + "-v0")
         assert {k: json_safe(spec_v0.default(k)) for k in trials[0].options} == trials[0].options
         assert name + "-v0" in builtin_names()
+
+
+def test_the_presets_on_the_nmpc_class_keep_its_hand_set_defaults_not_nominal_nmpcs_preset() -> None:
+    """A preset names the controller it builds (its ``base``), which is the class with its declared
+    defaults: nominal-nmpc's tuned preset changes nominal-nmpc alone. nominal-nmpc-robust is
+    nominal-nmpc-v0 with the robust margin, mpc-cbf-v0 it with the barrier, and the distributed
+    NMPC (its own class) keeps the hand-set options too; none inherits horizon 34 or the need to
+    calibrate."""
+
+    def config(name: str) -> dict[str, Any]:
+        ctrl = controllers.make(name)
+        assert isinstance(ctrl, (NMPCController, DistributedNMPC))
+        return dataclasses.asdict(ctrl.config)
+
+    def changed(name: str) -> dict[str, Any]:
+        return {k: v for k, v in config(name).items() if v != hand_set[k]}
+
+    hand_set = config("nominal-nmpc-v0")
+    assert changed("nominal-nmpc-robust") == {"uncertainty_margin": 3.0}
+    assert changed("dmpc-nominal-robust") == {"uncertainty_margin": 3.0}
+    assert changed("mpc-cbf-v0") == {"cbf_gamma": 0.1}
+    assert changed("dmpc-nominal") == {}
+    tuned = json.loads((presets.TUNED_DIR / "nominal-nmpc.json").read_text())["options"]
+    assert changed("nominal-nmpc") == {k: tuple(v) if isinstance(v, list) else v for k, v in tuned.items()}
+    assert set(tuned) == {
+        "horizon",
+        "r_input",
+        "obstacle_offset",
+        "robot_offset",
+        "uncertainty_margin",
+        "unstall",
+    }
 
 
 # ------------------------------------------------------------------ the adoption rule
@@ -533,6 +568,7 @@ def test_the_installed_presets_are_what_the_rule_admits_of_every_finished_study(
         "consensus": (20, 12, True),
         "dwa": (29, 25, True),
         "mpc-cbf": (22, 7, True),
+        "nominal-nmpc": (17, 6, True),
         "orca": (22, 22, False),
     }
 
@@ -541,7 +577,7 @@ def test_default_runs_leave_the_v0_variants_out_but_they_run_by_name() -> None:
     from evaluation.execution.runner import usable_controllers
 
     variants = [n for n in controllers.available() if presets.is_comparison_variant(n)]
-    assert variants == ["consensus-v0", "dwa-v0", "mpc-cbf-v0"]
+    assert variants == ["consensus-v0", "dwa-v0", "mpc-cbf-v0", "nominal-nmpc-v0"]
     assert not set(variants) & set(controllers.available(variants=False))
     assert set(controllers.available()) - set(controllers.available(variants=False)) == set(variants)
     assert not set(variants) & set(usable_controllers(verbose=False))
