@@ -166,6 +166,7 @@ def calibrated_model(
     memory: int = 0,
     velocity: bool = False,
     hold: int = 1,
+    random_hold: bool = False,
 ) -> tuple[KoopmanModel, dict[str, Any]]:
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached if the cache can be
     written: a failed write warns once and the fitted model is returned all the same).
@@ -190,6 +191,9 @@ def calibrated_model(
         Periods each identification input is held (:class:`~controllers.calibration.DataSpec`;
         1: the paper's inputs, drawn anew every period). Ignored when ``spec`` is given (its own
         ``hold`` counts). Part of the cache key through the data set.
+    random_hold : bool
+        Each input held for a number of periods drawn from 1..``hold`` (``hold`` >= 2) instead of
+        ``hold`` periods; ignored, as ``hold``, when ``spec`` is given.
 
     Returns
     -------
@@ -199,7 +203,7 @@ def calibrated_model(
         ``"fitted"``), ``seconds`` and the cache ``key``.
     """
     start = time.perf_counter()
-    spec = data_spec_for(plant.budget, seed, hold) if spec is None else spec
+    spec = data_spec_for(plant.budget, seed, hold, random_hold) if spec is None else spec
     memory, velocity = check_lift(memory, velocity, check_structure(structure))
     key = _model_key(plant, spec, dictionary, 0.0, structure, memory, velocity)
     summary = {"transitions": spec.transitions, "key": key}
@@ -235,6 +239,7 @@ def fit_for_env(
     memory: int = 0,
     velocity: bool = False,
     hold: int = 1,
+    random_hold: bool = False,
     **env_kwargs: Any,
 ) -> KoopmanModel:
     """Fit (or load from the cache) the Koopman model of an environment's robots.
@@ -256,6 +261,10 @@ def fit_for_env(
         The last period's move in the lift.
     hold : int
         Periods each identification input is held (1: the paper's inputs).
+    random_hold : bool
+        Each input held for 1..``hold`` periods, drawn per input (``hold`` >= 2).
     """
     plant = make_plant(env, budget=budget, seed=seed, **env_kwargs)
-    return calibrated_model(plant, seed, dictionary, memory=memory, velocity=velocity, hold=hold)[0]
+    return calibrated_model(
+        plant, seed, dictionary, memory=memory, velocity=velocity, hold=hold, random_hold=random_hold
+    )[0]

@@ -40,6 +40,7 @@ from controllers.calibration import (
     cache_path,
     check_hold,
     check_position_residual,
+    check_random_hold,
     collect_data,
     data_spec_for,
     position_residual,
@@ -163,6 +164,10 @@ class KoopmanNMPC(NMPCController):
         keeps the kinematic plant's results bit for bit). A robot with inertia and motor lag (the
         physics plant) reaches steady speeds only under held inputs (docs/physics.md). Part of
         the calibration's cache key.
+    random_hold : bool
+        False (default): every input held ``hold`` periods. True: each input held for a number of
+        periods drawn uniformly from 1..``hold`` (``hold`` >= 2), so the data mix fast changes
+        with steady speeds. Part of the calibration's cache key.
     config, **options
         NMPC options, see :class:`controllers.mpc.config.NMPCConfig` (``uncertainty_margin`` uses the
         model's RMS one-step position residual on its calibration data).
@@ -190,9 +195,11 @@ class KoopmanNMPC(NMPCController):
         memory: int = 0,
         velocity: bool = False,
         hold: int = 1,
+        random_hold: bool = False,
         **options: Any,
     ) -> None:
         self.hold = check_hold(hold)
+        self.random_hold = check_random_hold(random_hold, self.hold)
         if structure != "auto":
             check_structure(structure)
         self.memory, self.velocity = check_lift(
@@ -228,6 +235,7 @@ class KoopmanNMPC(NMPCController):
             memory=self.memory,
             velocity=self.velocity,
             hold=self.hold,
+            random_hold=self.random_hold,
         )
         summary["structure"] = structure
         self._use(model)
