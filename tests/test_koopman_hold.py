@@ -194,6 +194,9 @@ def held_rows(row: dict) -> list[str]:
         )
         # the unicycle fits nothing: one row per floor; random holds are drawn from 1..hold
         hold = "" if name == "unicycle" else f"1..{row['hold']}" if row.get("random_hold") else row["hold"]
+        refits = row.get("rollout_refits", 0)  # refits of the fit on its own rollouts
+        if refits and name != "unicycle":
+            label += f", {refits} refit" + ("s" if refits > 1 else "")
         out.append(
             f"| {row['level']} ({row['surface']}) | {hold} | {label} | {c:.1f} | {ratios[0]} | {w:.1f} "
             f"| {ratios[1]} | {one_step[name]:.2f} | {circle['speed'][name]:.3f} |"
