@@ -6,7 +6,7 @@ Usage::
     python bench/physics_model_error.py [--levels high low nominal] [--budget 1000000] [--seed 0]
         [--repetitions 30] [--episodes 3] [--controller nominal-nmpc] [--horizon 20]
         [--held-out-budget 20000] [--max-episode-steps 600] [--memory 1 2] [--velocity]
-        [--hold 1] [--json out.json]
+        [--hold 1] [--random-hold] [--rollout-refits 0] [--json out.json]
 
 For each slip setting (on the physics plant a floor: ``nominal`` carpet, ``low`` gravel, ``high``
 ice; docs/physics.md) the Koopman-NMPC is calibrated as the evaluator calibrates it: its
@@ -37,7 +37,12 @@ window from the true pose a period before it (the start's own at an episode's st
 random inputs are each held for K periods (:class:`~controllers.calibration.DataSpec`'s
 ``hold``; 1, the default: the paper's inputs, drawn anew every period). The held-out data, the
 circle, the closed-loop episodes and the nominal NMPC that drives them do not depend on it, so
-runs with different holds are compared on the same data.
+runs with different holds are compared on the same data. ``--random-hold`` (with ``--hold K``,
+K >= 2) holds each input for a number of periods drawn uniformly from 1..K per input and robot
+(``DataSpec``'s ``random_hold``), so the data mix fast changes with steady speeds.
+``--rollout-refits K`` refits every Koopman lift K times on its own open-loop rollouts of the
+identification data over the NMPC's horizon (:mod:`controllers.koopman.refit`; 0, the default:
+the least-squares fit alone).
 
 Also printed, to say why a model does what it does (:func:`identification_figures`): each
 model's one-step RMS position error on held-out identification data (the calibration's own kind
@@ -106,6 +111,8 @@ def lifts(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
         out.update({f"koopman-u{memory}v": {"memory": memory, "velocity": True} for memory in args.memory})
     for lift in out.values():
         lift["hold"] = args.hold
+        lift["random_hold"] = args.random_hold
+        lift["rollout_refits"] = args.rollout_refits
     return out
 
 
@@ -269,7 +276,9 @@ def identification_figures(level: str, models: dict[str, Any], budget: int, seed
 def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
     """Every figure of one friction level."""
     start = time.perf_counter()
-    koopman = controllers.make("koopman-nmpc", hold=args.hold)
+    koopman = controllers.make(
+        "koopman-nmpc", hold=args.hold, random_hold=args.random_hold, rollout_refits=args.rollout_refits
+    )
     assert isinstance(koopman, KoopmanNMPC)  # the registered name's class
     plant = make_plant(ENV, plant="mujoco", slip=level, budget=args.budget, seed=args.seed)
     calibration = calibrate_controller(koopman, plant, seed=args.seed) or {}
@@ -284,6 +293,8 @@ def measure(level: str, args: argparse.Namespace) -> dict[str, Any]:
     row: dict[str, Any] = {
         "level": level,
         "hold": args.hold,
+        "random_hold": args.random_hold,
+        "rollout_refits": args.rollout_refits,
         "surface": SLIP_SURFACES[level],
         "calibration": {
             name: {k: summary[k] for k in ("source", "transitions", "key") if k in summary}
@@ -374,6 +385,17 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         type=int,
         default=1,
         help="periods each identification input of every Koopman lift's data is held (1: the paper's)",
+    )
+    parser.add_argument(
+        "--random-hold",
+        action="store_true",
+        help="hold each identification input for 1..--hold periods, drawn per input (--hold >= 2)",
+    )
+    parser.add_argument(
+        "--rollout-refits",
+        type=int,
+        default=0,
+        help="refits of every Koopman lift on its own open-loop rollouts of the data (0: the least squares)",
     )
     parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)

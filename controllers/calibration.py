@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from controllers.base import Calibratable, calibratable
 from controllers.disk_cache import CacheWriteWarning, cache_root, write_atomic
 from koopman_envs import CalibrationPlant, make_plant
-from koopman_envs.checks import check_int
+from koopman_envs.checks import check_flag, check_int
 from koopman_envs.params import PARAMS
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "calibrate_controller",
     "check_hold",
     "check_position_residual",
+    "check_random_hold",
     "collect_data",
     "data_spec_for",
     "position_residual",
@@ -128,6 +129,18 @@ def check_hold(hold: object) -> int:
     )
 
 
+def check_random_hold(random_hold: object, hold: int) -> bool:
+    """``random_hold`` (each segment's hold drawn from 1..``hold``) as a bool, else ``ValueError``
+    naming it; True needs ``hold`` >= 2 (with ``hold=1`` every segment is one period: the paper's
+    inputs, which ``random_hold=False`` already names)."""
+    random_hold = check_flag("random_hold", random_hold)
+    if random_hold and hold < 2:
+        raise ValueError(
+            f"random_hold=True with hold={hold!r}: the holds are drawn from 1..hold, so hold must be >= 2"
+        )
+    return random_hold
+
+
 @dataclass(frozen=True)
 class DataSpec:
     """How an identification data set is drawn (the paper's protocol, SPEC section 2).
@@ -147,6 +160,10 @@ class DataSpec:
         hold, 2 hold, ...; the last hold cut at the trajectory's end). 1, the default, is the
         paper's protocol: a command drawn anew every period. Longer holds let robots with inertia
         and motor lag (the physics plant) reach steady speeds within the data.
+    random_hold : bool
+        False (the default): every hold is ``hold`` periods. True: every robot's command is held
+        for a number of periods drawn uniformly from 1..``hold`` anew for each command, so the
+        data mix fast changes with steady speeds (a multi-level pseudo-random input; ``hold`` >= 2).
     """
 
     trajectories: int
@@ -155,10 +172,12 @@ class DataSpec:
     state_bound: float = PARAMS.koopman_state_bound
     seed: int = 0
     hold: int = 1
+    random_hold: bool = False
 
     def __post_init__(self) -> None:
-        # frozen: the checked int replaces what was given (e.g. numpy's int64)
+        # frozen: the checked values replace what was given (e.g. numpy's int64)
         object.__setattr__(self, "hold", check_hold(self.hold))
+        object.__setattr__(self, "random_hold", check_random_hold(self.random_hold, self.hold))
 
     @property
     def transitions(self) -> int:
@@ -166,11 +185,13 @@ class DataSpec:
         return self.trajectories * self.steps
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form (``hold`` only when it is not 1, so that the paper's data sets keep the
-        cache keys and model files they had before holds existed)."""
+        """Plain-JSON form (``hold`` only when it is not 1 and ``random_hold`` only when True, so
+        that the data sets drawn before either existed keep their cache keys and model files)."""
         out = asdict(self)
         if self.hold == 1:
             del out["hold"]
+        if not self.random_hold:
+            del out["random_hold"]
         return out
 
 
@@ -180,10 +201,11 @@ class DataSpec:
 MAX_CALIBRATION_BUDGET = 10_000_000
 
 
-def data_spec_for(budget: int, seed: int = 0, hold: int = 1) -> DataSpec:
+def data_spec_for(budget: int, seed: int = 0, hold: int = 1, random_hold: bool = False) -> DataSpec:
     """The identification set a budget buys: trajectories of the paper's length (1000 periods),
     as many as fit (one shorter trajectory when the budget is below one paper trajectory), each
-    random input held for ``hold`` periods (:class:`DataSpec`)."""
+    random input held for ``hold`` periods, or with ``random_hold`` for 1..``hold`` periods drawn
+    per input (:class:`DataSpec`)."""
     check_int(
         "calibration budget",
         budget,
@@ -192,7 +214,9 @@ def data_spec_for(budget: int, seed: int = 0, hold: int = 1) -> DataSpec:
         note="team-transitions; the data take about 40 bytes per robot and transition",
     )
     steps = min(PARAMS.koopman_steps, int(budget))
-    return DataSpec(trajectories=int(budget) // steps, steps=steps, seed=seed, hold=hold)
+    return DataSpec(
+        trajectories=int(budget) // steps, steps=steps, seed=seed, hold=hold, random_hold=random_hold
+    )
 
 
 @dataclass(frozen=True)
@@ -219,17 +243,35 @@ def collect_data(plant: CalibrationPlant, spec: DataSpec) -> TrajectoryData:
 
     With ``spec.hold`` = K > 1 every robot's command is drawn once per K periods and held: the
     draws are those of ``ceil(steps / K)`` periods of ``hold=1`` data (the same stream), each
-    repeated K times, so ``hold=1`` draws exactly the paper's inputs."""
+    repeated K times, so ``hold=1`` draws exactly the paper's inputs. With ``spec.random_hold``
+    the k-th command of a robot is the ``hold=1`` stream's period k, held for a number of periods
+    drawn from 1..K (after the commands, from the same stream), independently per robot."""
     if spec.trajectories < 1 or spec.steps < 1:
         raise ValueError(f"trajectories={spec.trajectories} and steps={spec.steps} must be >= 1")
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(_INPUT_STREAM,)))
     n, b = plant.n_robots, spec.state_bound
     start = rng.uniform(-b, b, size=(spec.trajectories, n, 3))
-    draws = -(-spec.steps // spec.hold)
+    # a robot's holds are at least one period each, so it needs at most `steps` draws
+    draws = spec.steps if spec.random_hold else -(-spec.steps // spec.hold)
     commands = rng.uniform(-spec.input_bound, spec.input_bound, size=(draws, spec.trajectories, n, 2))
-    if spec.hold > 1:
+    if spec.random_hold:
+        commands = _held_randomly(commands, rng, spec.hold)
+    elif spec.hold > 1:
         commands = np.repeat(commands, spec.hold, axis=0)[: spec.steps]
     return TrajectoryData(plant.rollout(start, commands), commands, spec)
+
+
+def _held_randomly(draws: NDArray[np.float64], rng: np.random.Generator, hold: int) -> NDArray[np.float64]:
+    """Commands (T, B, N, 2) whose robot-wise k-th segment is ``draws[k]``, held for a number of
+    periods drawn uniformly from 1..``hold`` per segment and robot (the last one cut at T)."""
+    steps = draws.shape[0]
+    lengths = rng.integers(1, hold, endpoint=True, size=draws.shape[:-1])  # (T, B, N)
+    ends = np.cumsum(lengths, axis=0)  # the period each segment's successor starts at
+    switch = np.zeros(draws.shape[:-1], dtype=np.int64)
+    period, team, robot = np.nonzero(ends < steps)
+    switch[ends[period, team, robot], team, robot] = 1
+    segment = np.cumsum(switch, axis=0)  # (T, B, N): the segment each period belongs to
+    return np.take_along_axis(draws, segment[..., None], axis=0)
 
 
 def previous_commands(commands: NDArray, memory: int) -> NDArray[np.float64]:

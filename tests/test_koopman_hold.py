@@ -86,6 +86,82 @@ def test_koopman_nmpc_calibrates_on_held_inputs() -> None:
     assert controllers.options("koopman-nmpc").option("hold").default == 1
 
 
+# --------------------------------------------------------------------------- random holds
+@pytest.mark.parametrize(("hold", "random_hold"), [(30, 1), (30, "true"), (30, None), (1, True)])
+def test_bad_random_hold_is_refused_by_name(hold, random_hold) -> None:
+    import controllers
+
+    for make in (
+        lambda: DataSpec(2, 100, hold=hold, random_hold=random_hold),
+        lambda: data_spec_for(200, 0, hold=hold, random_hold=random_hold),
+        lambda: controllers.make("koopman-nmpc", hold=hold, random_hold=random_hold),
+        lambda: calibrated_model(_plant(200), 0, hold=hold, random_hold=random_hold),
+    ):
+        with pytest.raises(ValueError, match=r"random_hold="):
+            make()
+
+
+def _segments(commands: np.ndarray, team: int, robot: int) -> tuple[np.ndarray, np.ndarray]:
+    """The periods a robot's command changes at (0 first) and the lengths of its holds."""
+    changed = np.any(commands[1:, team, robot] != commands[:-1, team, robot], axis=-1)
+    starts = np.r_[0, np.nonzero(changed)[0] + 1]
+    return starts, np.diff(np.r_[starts, commands.shape[0]])
+
+
+def test_random_holds_are_drawn_from_one_to_hold_per_robot() -> None:
+    steps, teams, hold = 1000, 3, 30
+    spec = DataSpec(teams, steps, seed=4, hold=hold, random_hold=True)
+    commands = collect_data(_plant(spec.transitions), spec).commands
+    paper = collect_data(_plant(teams * steps), DataSpec(teams, steps, seed=4)).commands
+    assert commands.shape == paper.shape and np.abs(commands).max() <= spec.input_bound
+    lengths_of_all = []
+    for team in range(teams):
+        for robot in range(3):
+            starts, lengths = _segments(commands, team, robot)
+            # the robot's k-th command is the hold=1 stream's period k, held 1..hold periods
+            np.testing.assert_array_equal(commands[starts, team, robot], paper[: len(starts), team, robot])
+            assert lengths[:-1].min() >= 1 and lengths.max() <= hold  # the last one may be cut
+            lengths_of_all.append(lengths[:-1])
+    lengths = np.concatenate(lengths_of_all)
+    # short and long holds both (a fixed hold would give one length), mean near (1 + hold) / 2
+    assert lengths.min() <= 3 and lengths.max() >= hold - 2
+    assert abs(lengths.mean() - (1 + hold) / 2) < 2.0
+    # robots switch at their own periods, not together
+    assert not np.array_equal(_segments(commands, 0, 0)[0], _segments(commands, 0, 1)[0])
+
+
+def test_random_hold_is_part_of_the_key_and_leaves_the_fixed_holds_alone() -> None:
+    assert "random_hold" not in data_spec_for(2000, 0, hold=10).to_dict()
+    assert data_spec_for(2000, 0, hold=10, random_hold=True).to_dict()["random_hold"] is True
+    plant = _plant(2000)
+    fixed = _model_key(plant, data_spec_for(2000, 0, 10), "minimal", 0.0)
+    randomly = _model_key(plant, data_spec_for(2000, 0, 10, True), "minimal", 0.0)
+    assert fixed != randomly
+
+
+def test_calibration_with_random_holds_is_deterministic_to_the_bit() -> None:
+    spec = data_spec_for(2000, 0, hold=30, random_hold=True)
+    first, second = (fit_on_plant(_plant(2000), spec, velocity=True) for _ in range(2))
+    for name in ("A", "B", "N", "C"):
+        assert np.asarray(getattr(first, name)).tobytes() == np.asarray(getattr(second, name)).tobytes()
+    assert first.metadata == second.metadata and first.metadata["data"]["random_hold"] is True
+    fixed = fit_on_plant(_plant(2000), data_spec_for(2000, 0, hold=30), velocity=True)
+    assert not np.array_equal(fixed.A, first.A)  # other data than a fixed hold of 30
+
+
+def test_koopman_nmpc_calibrates_on_random_holds() -> None:
+    import controllers
+    from controllers.mpc.variants import KoopmanNMPC
+
+    ctrl = KoopmanNMPC(hold=20, random_hold=True, velocity=True)
+    summary = ctrl.calibrate(_plant(2000), seed=0)
+    assert ctrl.model is not None and ctrl.model.metadata["data"]["random_hold"] is True
+    assert summary["key"] == _model_key(
+        _plant(2000), data_spec_for(2000, 0, 20, True), "minimal", 0.0, velocity=True
+    )
+    assert controllers.options("koopman-nmpc").option("random_hold").default is False
+
+
 # --------------------------------------------------------------------------- docs/physics.md's figures
 ROOT = Path(__file__).resolve().parents[1]
 #: the committed outputs of ``bench/physics_model_error.py --json`` behind docs/physics.md's held-input table
@@ -116,7 +192,11 @@ def held_rows(row: dict) -> list[str]:
                 f"{w / windows['unicycle']:.2f}",
             )
         )
-        hold = "" if name == "unicycle" else row["hold"]  # the unicycle fits nothing: one row per floor
+        # the unicycle fits nothing: one row per floor; random holds are drawn from 1..hold
+        hold = "" if name == "unicycle" else f"1..{row['hold']}" if row.get("random_hold") else row["hold"]
+        refits = row.get("rollout_refits", 0)  # refits of the fit on its own rollouts
+        if refits and name != "unicycle":
+            label += f", {refits} refit" + ("s" if refits > 1 else "")
         out.append(
             f"| {row['level']} ({row['surface']}) | {hold} | {label} | {c:.1f} | {ratios[0]} | {w:.1f} "
             f"| {ratios[1]} | {one_step[name]:.2f} | {circle['speed'][name]:.3f} |"

@@ -27,7 +27,15 @@ from controllers.koopman.dictionary import (
     lifted_size,
 )
 
-__all__ = ["STRUCTURES", "BilinearFit", "MomentAccumulator", "fit_bilinear", "fit_lifted", "fit_per_robot"]
+__all__ = [
+    "STRUCTURES",
+    "BilinearFit",
+    "MomentAccumulator",
+    "accumulate_bilinear",
+    "fit_bilinear",
+    "fit_lifted",
+    "fit_per_robot",
+]
 
 #: how a team model couples its robots: ``"stacked"`` (the paper's: one regression over the whole
 #: team, every robot's next observables may depend on every robot's) or ``"per-robot"`` (each
@@ -230,6 +238,21 @@ def fit_bilinear(
     -------
     BilinearFit
     """
+    acc = accumulate_bilinear(states, commands, dictionary, chunk, memory, velocity)
+    n = commands.shape[2]
+    return BilinearFit(*acc.solve(dictionary.state_rows(n).reshape(-1), ridge, rcond))
+
+
+def accumulate_bilinear(
+    states: NDArray,
+    commands: NDArray,
+    dictionary: Dictionary,
+    chunk: int = 32_768,
+    memory: int = 0,
+    velocity: bool = False,
+) -> MomentAccumulator:
+    """The moments of :func:`fit_bilinear`'s regression on trajectories (arguments as there), to
+    solve or to add further samples to (:mod:`controllers.koopman.refit`)."""
     steps, batch, n = commands.shape[:3]
     if states.shape[:3] != (steps + 1, batch, n):
         raise ValueError(f"states {states.shape} and commands {commands.shape} do not match")
@@ -253,7 +276,7 @@ def fit_bilinear(
             poses_before(states, t0, t1 + 1) if velocity else None,
         )
         acc.add(z_all[:-1].reshape(-1, d), flat_u[t0 * batch : t1 * batch], z_all[1:].reshape(-1, d))
-    return BilinearFit(*acc.solve(dictionary.state_rows(n).reshape(-1), ridge, rcond))
+    return acc
 
 
 def fit_per_robot(

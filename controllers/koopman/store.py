@@ -36,8 +36,9 @@ from controllers.calibration import (
 )
 from controllers.disk_cache import entry_exists
 from controllers.koopman.dictionary import check_memory, check_velocity, get_dictionary
-from controllers.koopman.fit import STRUCTURES, fit_bilinear, fit_per_robot
+from controllers.koopman.fit import STRUCTURES, BilinearFit, fit_bilinear, fit_per_robot
 from controllers.koopman.model import KoopmanModel, ModelFileError
+from controllers.koopman.refit import check_rollout_refits, refit_on_rollouts
 from koopman_envs import CalibrationPlant, make_plant
 from koopman_envs import __version__ as envs_version
 from koopman_envs.checks import check_choice
@@ -69,19 +70,42 @@ def fit_on_plant(
     structure: str = "stacked",
     memory: int = 0,
     velocity: bool = False,
+    rollout_refits: int = 0,
 ) -> KoopmanModel:
     """Collect the data set ``spec`` on ``plant`` and fit a model; metadata records the provenance.
 
     ``structure``: ``"stacked"`` (the paper's) or ``"per-robot"``
     (:func:`controllers.koopman.fit.fit_per_robot`). ``memory``: previous commands in the lift
     (0: the paper's pose-only lift; stacked models only); ``velocity``: the last period's move
-    in the lift (stacked models only).
+    in the lift (stacked models only); ``rollout_refits``: refits on the model's own open-loop
+    rollouts (:func:`controllers.koopman.refit.refit_on_rollouts`; 0: the least-squares fit
+    alone; stacked models only).
     """
     dic = get_dictionary(dictionary)
     check_structure(structure)
     memory, velocity = check_lift(memory, velocity, structure)
+    rollout_refits = check_refits(rollout_refits, structure)
     data = collect_data(plant, spec)
-    if structure == "stacked":
+
+    def model_of(fit: BilinearFit, meta: dict[str, Any] | None = None) -> KoopmanModel:
+        return KoopmanModel(
+            fit.A,
+            fit.N,
+            fit.B,
+            fit.C,
+            dic,
+            plant.n_robots,
+            plant.dt,
+            meta or {},
+            memory=memory,
+            velocity=velocity,
+        )
+
+    if rollout_refits:
+        fit = refit_on_rollouts(
+            data.states, data.commands, dic, model_of, rollout_refits, memory, velocity, ridge
+        )
+    elif structure == "stacked":
         fit = fit_bilinear(data.states, data.commands, dic, ridge=ridge, memory=memory, velocity=velocity)
     else:
         fit = fit_per_robot(data.states, data.commands, dic, ridge=ridge)
@@ -98,15 +122,14 @@ def fit_on_plant(
         "position_residual": [float(v) for v in position_residual],
         "rank": fit.rank,
         "transitions": spec.transitions,
-        "cache_key": _model_key(plant, spec, dictionary, ridge, structure, memory, velocity),
+        "cache_key": _model_key(plant, spec, dictionary, ridge, structure, memory, velocity, rollout_refits),
         # only beyond the paper's stacked fit, as in the cache key: the documented command then
         # regenerates the shipped files bit for bit (tests/test_koopman.py)
         **({} if structure == "stacked" else {"structure": structure}),
+        **({"rollout_refits": rollout_refits} if rollout_refits else {}),
         "package_version": envs_version,
     }
-    return KoopmanModel(
-        fit.A, fit.N, fit.B, fit.C, dic, plant.n_robots, plant.dt, meta, memory=memory, velocity=velocity
-    )
+    return model_of(fit, meta)
 
 
 def check_lift(memory: object, velocity: object, structure: str) -> tuple[int, bool]:
@@ -122,6 +145,17 @@ def check_lift(memory: object, velocity: object, structure: str) -> tuple[int, b
     return memory, velocity
 
 
+def check_refits(rollout_refits: object, structure: str) -> int:
+    """``rollout_refits`` checked (:func:`~controllers.koopman.refit.check_rollout_refits`), and
+    refused with a ``ValueError`` beside the per-robot structure, which is fitted robot by robot."""
+    rollout_refits = check_rollout_refits(rollout_refits)
+    if rollout_refits and structure == "per-robot":
+        raise ValueError(
+            f"rollout_refits={rollout_refits} needs structure='stacked'; the per-robot fit refits nothing"
+        )
+    return rollout_refits
+
+
 def _model_key(
     plant: CalibrationPlant,
     spec: DataSpec,
@@ -130,14 +164,17 @@ def _model_key(
     structure: str = "stacked",
     memory: int = 0,
     velocity: bool = False,
+    rollout_refits: int = 0,
 ) -> str:
     # the stacked structure and the pose-only lift keep the key they had before structures,
-    # memory and velocity existed (shipped files, caches)
+    # memory, velocity and refits existed (shipped files, caches)
     extra: dict[str, Any] = {} if structure == "stacked" else {"structure": structure}
     if memory:
         extra["memory"] = memory
     if velocity:
         extra["velocity"] = True
+    if rollout_refits:
+        extra["rollout_refits"] = rollout_refits
     return cache_key("koopman", plant, spec, dictionary=dictionary, ridge=ridge, **extra)
 
 
@@ -166,6 +203,8 @@ def calibrated_model(
     memory: int = 0,
     velocity: bool = False,
     hold: int = 1,
+    random_hold: bool = False,
+    rollout_refits: int = 0,
 ) -> tuple[KoopmanModel, dict[str, Any]]:
     """The model of ``plant``'s robots: shipped, cached, or fitted now (and cached if the cache can be
     written: a failed write warns once and the fitted model is returned all the same).
@@ -190,6 +229,13 @@ def calibrated_model(
         Periods each identification input is held (:class:`~controllers.calibration.DataSpec`;
         1: the paper's inputs, drawn anew every period). Ignored when ``spec`` is given (its own
         ``hold`` counts). Part of the cache key through the data set.
+    random_hold : bool
+        Each input held for a number of periods drawn from 1..``hold`` (``hold`` >= 2) instead of
+        ``hold`` periods; ignored, as ``hold``, when ``spec`` is given.
+    rollout_refits : int
+        Refits of the model on its own open-loop rollouts of the data
+        (:func:`~controllers.koopman.refit.refit_on_rollouts`; 0: the least-squares fit alone;
+        stacked only). Part of the cache key.
 
     Returns
     -------
@@ -199,9 +245,10 @@ def calibrated_model(
         ``"fitted"``), ``seconds`` and the cache ``key``.
     """
     start = time.perf_counter()
-    spec = data_spec_for(plant.budget, seed, hold) if spec is None else spec
+    spec = data_spec_for(plant.budget, seed, hold, random_hold) if spec is None else spec
     memory, velocity = check_lift(memory, velocity, check_structure(structure))
-    key = _model_key(plant, spec, dictionary, 0.0, structure, memory, velocity)
+    rollout_refits = check_refits(rollout_refits, structure)
+    key = _model_key(plant, spec, dictionary, 0.0, structure, memory, velocity, rollout_refits)
     summary = {"transitions": spec.transitions, "key": key}
     shipped = _shipped_for(key)
     path = shipped if shipped is not None else cache_path("koopman", key, ".npz")
@@ -219,7 +266,15 @@ def calibrated_model(
                 raise
             warnings.warn(f"{exc}; fitting it again", CacheWarning, stacklevel=2)
         # a corrupt or stale cache entry is refitted and replaced, never used
-    model = fit_on_plant(plant, spec, dictionary, structure=structure, memory=memory, velocity=velocity)
+    model = fit_on_plant(
+        plant,
+        spec,
+        dictionary,
+        structure=structure,
+        memory=memory,
+        velocity=velocity,
+        rollout_refits=rollout_refits,
+    )
     if shipped is None:
         # best effort: a cache that cannot be written warns once and the fitted model is used
         write_atomic(path, model.save, ".npz")
@@ -235,6 +290,8 @@ def fit_for_env(
     memory: int = 0,
     velocity: bool = False,
     hold: int = 1,
+    random_hold: bool = False,
+    rollout_refits: int = 0,
     **env_kwargs: Any,
 ) -> KoopmanModel:
     """Fit (or load from the cache) the Koopman model of an environment's robots.
@@ -256,6 +313,19 @@ def fit_for_env(
         The last period's move in the lift.
     hold : int
         Periods each identification input is held (1: the paper's inputs).
+    random_hold : bool
+        Each input held for 1..``hold`` periods, drawn per input (``hold`` >= 2).
+    rollout_refits : int
+        Refits of the model on its own open-loop rollouts (0: the least-squares fit alone).
     """
     plant = make_plant(env, budget=budget, seed=seed, **env_kwargs)
-    return calibrated_model(plant, seed, dictionary, memory=memory, velocity=velocity, hold=hold)[0]
+    return calibrated_model(
+        plant,
+        seed,
+        dictionary,
+        memory=memory,
+        velocity=velocity,
+        hold=hold,
+        random_hold=random_hold,
+        rollout_refits=rollout_refits,
+    )[0]

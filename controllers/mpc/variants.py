@@ -40,6 +40,7 @@ from controllers.calibration import (
     cache_path,
     check_hold,
     check_position_residual,
+    check_random_hold,
     collect_data,
     data_spec_for,
     position_residual,
@@ -57,7 +58,8 @@ from controllers.koopman.online import (
     check_forgetting,
     check_prior_weight,
 )
-from controllers.koopman.store import check_lift, check_structure, default_structure
+from controllers.koopman.refit import MAX_ROLLOUT_REFITS
+from controllers.koopman.store import check_lift, check_refits, check_structure, default_structure
 from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
@@ -145,7 +147,8 @@ class KoopmanNMPC(NMPCController):
         How the fitted model couples the robots: ``"stacked"`` (the paper's one team
         regression), ``"per-robot"`` (each robot's own block; the fit and the NMPC problem grow
         linearly with N instead of quadratically) or ``"auto"`` (default: stacked up to the
-        paper's 3 robots, per-robot beyond; stacked with ``memory`` or ``velocity``).
+        paper's 3 robots, per-robot beyond; stacked with ``memory``, ``velocity`` or
+        ``rollout_refits``).
     memory : int
         Previous commands in the lift of the model that :meth:`calibrate` fits (0: the paper's
         pose-only lift). With L > 0 the model can carry the robots' lag (inertia, motor ramps:
@@ -163,6 +166,16 @@ class KoopmanNMPC(NMPCController):
         keeps the kinematic plant's results bit for bit). A robot with inertia and motor lag (the
         physics plant) reaches steady speeds only under held inputs (docs/physics.md). Part of
         the calibration's cache key.
+    random_hold : bool
+        False (default): every input held ``hold`` periods. True: each input held for a number of
+        periods drawn uniformly from 1..``hold`` (``hold`` >= 2), so the data mix fast changes
+        with steady speeds. Part of the calibration's cache key.
+    rollout_refits : int
+        Refits of the model that :meth:`calibrate` fits on its own open-loop rollouts of the
+        identification data over the NMPC's horizon (0, the default: the paper's one-step least
+        squares; :func:`controllers.koopman.refit.refit_on_rollouts`), so that it is fitted on
+        the predicted states it is fed in the horizon too. Stacked models only; part of the
+        calibration's cache key.
     config, **options
         NMPC options, see :class:`controllers.mpc.config.NMPCConfig` (``uncertainty_margin`` uses the
         model's RMS one-step position residual on its calibration data).
@@ -178,6 +191,7 @@ class KoopmanNMPC(NMPCController):
     OPTION_RANGES: ClassVar[dict[str, Range]] = {
         "memory": Range(0, MAX_MEMORY, integer=True, note="previous commands in the lift"),
         "hold": Range(1, MAX_HOLD, integer=True, note="periods per identification input"),
+        "rollout_refits": Range(0, MAX_ROLLOUT_REFITS, integer=True, note="refits on the model's rollouts"),
     }
     model: KoopmanModel | None  # only ever a KoopmanModel here (__init__, _use)
 
@@ -190,15 +204,19 @@ class KoopmanNMPC(NMPCController):
         memory: int = 0,
         velocity: bool = False,
         hold: int = 1,
+        random_hold: bool = False,
+        rollout_refits: int = 0,
         **options: Any,
     ) -> None:
         self.hold = check_hold(hold)
+        self.random_hold = check_random_hold(random_hold, self.hold)
         if structure != "auto":
             check_structure(structure)
         self.memory, self.velocity = check_lift(
             memory, velocity, "stacked" if structure == "auto" else structure
         )
         self.structure = structure
+        self.rollout_refits = check_refits(rollout_refits, "stacked" if structure == "auto" else structure)
         if model is not None and not isinstance(model, KoopmanModel):
             model = KoopmanModel.load(model)
         super().__init__(model, config, **options)
@@ -219,7 +237,11 @@ class KoopmanNMPC(NMPCController):
             return {"transitions": int(self.model.metadata.get("transitions", 0)), "source": "given model"}
         structure = self.structure
         if structure == "auto":  # a lift with memory or velocity is a stacked model's
-            structure = "stacked" if self.memory or self.velocity else default_structure(plant.n_robots)
+            structure = (
+                "stacked"
+                if self.memory or self.velocity or self.rollout_refits
+                else default_structure(plant.n_robots)
+            )
         model, summary = calibrated_model(
             plant,
             seed,
@@ -228,6 +250,8 @@ class KoopmanNMPC(NMPCController):
             memory=self.memory,
             velocity=self.velocity,
             hold=self.hold,
+            random_hold=self.random_hold,
+            rollout_refits=self.rollout_refits,
         )
         summary["structure"] = structure
         self._use(model)
