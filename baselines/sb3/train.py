@@ -22,6 +22,7 @@ in ``OUT/<task>/`` (a policy root: ``rl-ppo-set:policy_root=OUT``) with the sele
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
 import sys
 import time
@@ -102,6 +103,22 @@ class Trainer:
                 f"--suite {args.suite} cannot be combined with {', '.join(clashes)}: a suite run trains on "
                 "the suite's layouts under the benchmark's settings"
             )
+        # the curriculum draws kinematic slips ("random", "drift") that the physics plant has not
+        needs_suite = [f"--{o}" for o in ("plant", "slips") if getattr(args, o) is not None]
+        if suite is None and needs_suite:
+            parser.error(
+                f"{' and '.join(needs_suite)} need --suite NAME (the curriculum runs the kinematic plant)"
+            )
+        if suite is not None and needs_suite:
+            suite = dataclasses.replace(
+                suite, plant=args.plant or suite.plant, slips=tuple(args.slips or suite.slips)
+            )
+            try:
+                suite.check()
+            except ValueError as exc:
+                parser.error(str(exc))
+            if self.n_envs < len(suite.slip_levels):
+                parser.error(f"--n-envs {self.n_envs} is fewer than the {len(suite.slip_levels)} slip levels")
         return suite
 
     @property
@@ -126,11 +143,29 @@ class Trainer:
             **({"movers": args.movers} if args.movers else {}),
         }
         if self.suite is not None:
-            # the suite's layouts, slip and settings (its time limit: --max-episode-steps wins)
-            env = {**self.suite.env_kwargs(), **shared}
-            if self.set_config is None:
-                return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, features=args.features, **env)
-            return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, set_config=self.set_config, **env)
+            # the suite's layouts, plant, slip and settings (its time limit: --max-episode-steps wins)
+            levels = self.suite.slip_levels
+            observe = (
+                {"features": args.features} if self.set_config is None else {"set_config": self.set_config}
+            )
+            if len(levels) == 1:
+                env = {**self.suite.env_kwargs(), **shared}
+                return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, **observe, **env)
+            # one part per slip level, the envs split evenly; part i seeded from seed + 1_000 i
+            # (as the curriculum's parts): no two parts share a layout draw
+            sizes = [self.n_envs // len(levels) + (i < self.n_envs % len(levels)) for i in range(len(levels))]
+            return MixtureVecEnv(
+                [
+                    KoopNavSB3VecEnv(
+                        args.env,
+                        size,
+                        seed=args.seed + 1_000 * i,
+                        **observe,
+                        **{**self.suite.env_kwargs(slip), **shared},
+                    )
+                    for i, (slip, size) in enumerate(zip(levels, sizes, strict=True))
+                ]
+            )
         if self.set_config is None:
             return KoopNavSB3VecEnv(
                 args.env,
@@ -270,6 +305,8 @@ class Trainer:
             "task": self.task,
             "uncertainty": args.uncertainty,
         }
+        if self.suite is not None and self.suite.plant_kwargs():
+            identity["plant"] = self.suite.plant  # the kinematic plant: no key, as before it existed
         if args.movers:
             identity["movers"] = args.movers
         if self.set_config is not None:

@@ -10,7 +10,7 @@ from typing import Any
 
 from baselines.sb3.vec_env import FEATURE_SETS, LAYOUTS
 from baselines.suite_training import add_suite_options
-from koopman_envs import TASKS
+from koopman_envs import TASKS, keyword_argument
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
 from koopman_envs.uncertainty import UNCERTAINTY_PRESETS
 
@@ -180,6 +180,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="hidden layer widths of actor and critic, e.g. 128,128",
     )
     env_options(parser)
-    add_suite_options(parser, "no curriculum, every --eval-freq checkpoint scored on the validation layouts")
+    suite = add_suite_options(
+        parser, "no curriculum, every --eval-freq checkpoint scored on the validation layouts"
+    )
+    # None: the env's default (kinematic), and a resume file written before the option existed fits
+    plant = keyword_argument("plant")
+    plant.update(default=None, help="with --suite: " + plant["help"])
+    suite.add_argument("--plant", metavar="PLANT", **plant)
+    suite.add_argument(
+        "--slips",
+        nargs="+",
+        metavar="SLIP",
+        default=None,
+        help="with --suite: the slip levels trained and validated on (training envs split evenly "
+        "between them; every validation layout played at each), e.g. nominal high, the sim-to-sim "
+        "protocol's; default: the benchmark's (high)",
+    )
     parser.add_argument("--out", required=True)
     return parser
