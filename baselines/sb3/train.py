@@ -43,6 +43,7 @@ from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_pa
 from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
+from koopman_envs.params import PLANTS
 
 
 class Trainer:
@@ -119,6 +120,13 @@ class Trainer:
                 parser.error(str(exc))
             if self.n_envs < len(suite.slip_levels):
                 parser.error(f"--n-envs {self.n_envs} is fewer than the {len(suite.slip_levels)} slip levels")
+            if suite.plant != PLANTS[0] and args.algo == "ppo" and (args.resume_every or args.resume):
+                # the resume checkpoint pickles the vector env, and the MuJoCo worlds do not pickle
+                # (found when a 600k-step run ended at its first resume checkpoint, 491,520 steps)
+                parser.error(
+                    f"--plant {suite.plant} writes no resume checkpoint (its MuJoCo envs do not pickle): "
+                    f"give --resume-every 0{' and leave out --resume' if args.resume else ''}"
+                )
         return suite
 
     @property
