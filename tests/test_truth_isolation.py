@@ -220,7 +220,7 @@ def test_plausible_lies_and_nan_in_the_truth_change_no_action(
 
 
 #: the learned policies, each in a scene it was trained for
-POLICIES = {
+POLICIES: dict[str, tuple[str, dict[str, Any]]] = {
     "rl-ppo": (TR, {}),
     "rl-ppo-set": (TR, {"map": CROSSING}),
     "rl-ppo-set-realistic": (TR, {"map": CROSSING, "uncertainty": "realistic"}),
