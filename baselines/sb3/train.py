@@ -22,7 +22,6 @@ in ``OUT/<task>/`` (a policy root: ``rl-ppo-set:policy_root=OUT``) with the sele
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import platform
 import sys
 import time
@@ -39,11 +38,10 @@ from baselines.sb3 import resume_state
 from baselines.sb3.fine_tune import copy_weights, mismatches
 from baselines.sb3.policy import ObsNorm, norm_of, save_policy
 from baselines.sb3.select import evaluate_policy_on_maps
-from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
-from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
+from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser, plant_and_slips
+from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv, split_envs
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from koopman_envs.params import PLANTS
 
 
 class Trainer:
@@ -104,30 +102,7 @@ class Trainer:
                 f"--suite {args.suite} cannot be combined with {', '.join(clashes)}: a suite run trains on "
                 "the suite's layouts under the benchmark's settings"
             )
-        # the curriculum draws kinematic slips ("random", "drift") that the physics plant has not
-        needs_suite = [f"--{o}" for o in ("plant", "slips") if getattr(args, o) is not None]
-        if suite is None and needs_suite:
-            parser.error(
-                f"{' and '.join(needs_suite)} need --suite NAME (the curriculum runs the kinematic plant)"
-            )
-        if suite is not None and needs_suite:
-            suite = dataclasses.replace(
-                suite, plant=args.plant or suite.plant, slips=tuple(args.slips or suite.slips)
-            )
-            try:
-                suite.check()
-            except ValueError as exc:
-                parser.error(str(exc))
-            if self.n_envs < len(suite.slip_levels):
-                parser.error(f"--n-envs {self.n_envs} is fewer than the {len(suite.slip_levels)} slip levels")
-            if suite.plant != PLANTS[0] and args.algo == "ppo" and (args.resume_every or args.resume):
-                # the resume checkpoint pickles the vector env, and the MuJoCo worlds do not pickle
-                # (found when a 600k-step run ended at its first resume checkpoint, 491,520 steps)
-                parser.error(
-                    f"--plant {suite.plant} writes no resume checkpoint (its MuJoCo envs do not pickle): "
-                    f"give --resume-every 0{' and leave out --resume' if args.resume else ''}"
-                )
-        return suite
+        return plant_and_slips(args, suite, self.n_envs, parser)
 
     @property
     def controller(self) -> tuple[str, dict[str, Any]]:
@@ -150,30 +125,10 @@ class Trainer:
             "uncertainty": args.uncertainty,
             **({"movers": args.movers} if args.movers else {}),
         }
-        if self.suite is not None:
-            # the suite's layouts, plant, slip and settings (its time limit: --max-episode-steps wins)
-            levels = self.suite.slip_levels
-            observe = (
-                {"features": args.features} if self.set_config is None else {"set_config": self.set_config}
-            )
-            if len(levels) == 1:
-                env = {**self.suite.env_kwargs(), **shared}
-                return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, **observe, **env)
-            # one part per slip level, the envs split evenly; part i seeded from seed + 1_000 i
-            # (as the curriculum's parts): no two parts share a layout draw
-            sizes = [self.n_envs // len(levels) + (i < self.n_envs % len(levels)) for i in range(len(levels))]
-            return MixtureVecEnv(
-                [
-                    KoopNavSB3VecEnv(
-                        args.env,
-                        size,
-                        seed=args.seed + 1_000 * i,
-                        **observe,
-                        **{**self.suite.env_kwargs(slip), **shared},
-                    )
-                    for i, (slip, size) in enumerate(zip(levels, sizes, strict=True))
-                ]
-            )
+        if self.suite is not None:  # its layouts, plant, settings (--max-episode-steps wins); a part per slip
+            observe = {"set_config": self.set_config} if self.set_config else {"features": args.features}
+            parts = [{**self.suite.env_kwargs(slip), **shared} for slip in self.suite.slip_levels]
+            return split_envs(args.env, self.n_envs, args.seed, parts, **observe)
         if self.set_config is None:
             return KoopNavSB3VecEnv(
                 args.env,
@@ -313,16 +268,14 @@ class Trainer:
             "task": self.task,
             "uncertainty": args.uncertainty,
         }
-        if self.suite is not None and self.suite.plant_kwargs():
-            identity["plant"] = self.suite.plant  # the kinematic plant: no key, as before it existed
         if args.movers:
             identity["movers"] = args.movers
         if self.set_config is not None:
             identity["set_config"] = self.set_config.as_dict()
         elif self.suite is None:
             identity["random_map"] = self.random_map
-        if self.suite is not None:
-            identity["trained_on"] = self.suite.labels["train"]
+        if self.suite is not None:  # and the plant unless kinematic (no key, as before it existed)
+            identity.update(trained_on=self.suite.labels["train"], **self.suite.plant_kwargs())
         return identity
 
     def score(self, model: Any, policy_norm: ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:
