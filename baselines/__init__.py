@@ -23,7 +23,8 @@ The package is the face others import from: the controllers, the envs and encode
 use and the loader's names are exported here (``from baselines import RLSetPolicyController,
 KoopNavTask``), each imported when first read, so that ``import baselines`` loads neither torch
 nor stable-baselines3. The controllers are registered through the ``koopnav.controllers`` entry
-point (``rl-ppo``, ``rl-ppo-set``, ``rl-ppo-set-realistic``, ``rl-ppo-set-movers``, ``ippo``).
+point (``rl-ppo``, ``rl-ppo-set``, ``rl-ppo-set-realistic``,
+``rl-ppo-set-physics``, ``rl-ppo-set-movers``, ``ippo``).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
         SHIPPED,
         RLPolicyController,
         RLSetMoversPolicyController,
+        RLSetPhysicsPolicyController,
         RLSetPolicyController,
         RLSetRealisticPolicyController,
         load_policy,
@@ -73,6 +75,7 @@ register_moved_paths(
 _LAZY = {
     "RLPolicyController": "baselines.sb3.policy",
     "RLSetPolicyController": "baselines.sb3.policy",
+    "RLSetPhysicsPolicyController": "baselines.sb3.policy",
     "RLSetRealisticPolicyController": "baselines.sb3.policy",
     "RLSetMoversPolicyController": "baselines.sb3.policy",
     "load_policy": "baselines.sb3.policy",
@@ -119,6 +122,7 @@ __all__ = [
     "RLPolicyController",
     "RLSetMoversPolicyController",
     "RLSetPolicyController",
+    "RLSetPhysicsPolicyController",
     "RLSetRealisticPolicyController",
     "robot_features",
     "set_features",

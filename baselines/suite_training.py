@@ -35,9 +35,10 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from koopman_envs import SUITE_PREFIX, SUITES, check_split_allowed, load_suite, parse_suite_map
+from koopman_envs import SUITE_PREFIX, SUITES, check_split_allowed, env_keyword, load_suite, parse_suite_map
 from koopman_envs.checks import check_choice, check_int
 from koopman_envs.files import write_atomic
+from koopman_envs.params import PLANTS, SLIP_NAMES
 
 __all__ = [
     "DEFAULT_VALIDATION_LAYOUTS",
@@ -155,6 +156,13 @@ class SuiteTraining:
         Episodes per layout (episode j of layout l seeded ``seed + j * len(split) + l``).
     seed : int
         The first episode seed of the scoring run.
+    plant : str
+        What the robots are in training and scoring (:data:`koopman_envs.params.PLANTS`; default
+        the kinematic plant, the benchmark's).
+    slips : tuple of str
+        The slip levels trained and scored on: the training envs are split evenly between them
+        and a checkpoint plays every validation layout at each. Empty (default): the benchmark's
+        one slip.
     """
 
     suite: str
@@ -164,6 +172,8 @@ class SuiteTraining:
     layouts: int = DEFAULT_VALIDATION_LAYOUTS
     episodes: int = 1
     seed: int = 0
+    plant: str = PLANTS[0]
+    slips: tuple[str, ...] = ()
 
     def check(self) -> None:
         """``ValueError`` naming a bad setting: the test split first (the tuner's check, for
@@ -175,6 +185,11 @@ class SuiteTraining:
         check_int("validation layouts", self.layouts, 1, maximum=size)
         check_int("validation episodes", self.episodes, 1, maximum=100)
         check_int("seed", self.seed, 0)
+        env_keyword("plant").resolve(self.plant)
+        for slip in self.slips:
+            check_choice("slips", slip, SLIP_NAMES)
+        if len(set(self.slips)) != len(self.slips):
+            raise ValueError(f"slips={list(self.slips)!r} names a level twice; give each once")
 
     @property
     def labels(self) -> dict[str, str]:
@@ -184,19 +199,39 @@ class SuiteTraining:
             "selection": load_suite(self.suite, self.task, self.selection_split).label,
         }
 
-    def env_kwargs(self) -> dict[str, Any]:
-        """The training envs' keywords: the training split as the map, and the slip and env
-        settings of the benchmark's run (:func:`evaluation.experiments.protocols.suite_protocol`)."""
+    @property
+    def slip_levels(self) -> tuple[str, ...]:
+        """The slip levels trained and scored on: :attr:`slips`, or the benchmark's one."""
+        if self.slips:
+            return self.slips
         from evaluation.experiments.protocols import suite_protocol
-        from evaluation.run.suite_runs import suite_map
 
         protocol = suite_protocol(self.suite, self.split)
         if len(protocol.slips) != 1:  # the benchmark runs one slip; a mixture would need a choice
             raise ValueError(f"suite_protocol runs slips {list(protocol.slips)}; training takes one")
+        return tuple(protocol.slips)
+
+    def plant_kwargs(self) -> dict[str, Any]:
+        """The ``plant`` keyword when it is not the default (so that a kinematic run's keywords,
+        and the records and metadata that hold them, stay as they were before it existed)."""
+        return {} if self.plant == PLANTS[0] else {"plant": self.plant}
+
+    def env_kwargs(self, slip: str | None = None) -> dict[str, Any]:
+        """The training envs' keywords at slip level ``slip`` (default the first of
+        :attr:`slip_levels`): the training split as the map, the plant, and the env settings of
+        the benchmark's run (:func:`evaluation.experiments.protocols.suite_protocol`)."""
+        from evaluation.experiments.protocols import suite_protocol
+        from evaluation.run.suite_runs import suite_map
+
+        levels = self.slip_levels
+        if slip is not None:
+            check_choice("slip", slip, levels)
+        protocol = suite_protocol(self.suite, self.split)
         return {
             "map": suite_map(self.suite, self.split),
-            "slip": protocol.slips[0],
+            "slip": levels[0] if slip is None else slip,
             **protocol.env_settings(),
+            **self.plant_kwargs(),
         }
 
     def score(
@@ -206,18 +241,23 @@ class SuiteTraining:
         included) on the selection layouts through the evaluator; its :class:`CheckpointScore`."""
         from evaluation.tune.configuration import evaluate_configuration
 
-        records = evaluate_configuration(
-            controller,
-            options,
-            self.task,
-            self.selection_split,
-            range(self.layouts),
-            self.episodes,
-            self.seed,
-            suite=self.suite,
-            slip=self.env_kwargs()["slip"],
-            purpose="checkpoint selection",
-        )
+        records = [
+            record
+            for slip in self.slip_levels  # the same layouts and seeds at every level: paired
+            for record in evaluate_configuration(
+                controller,
+                options,
+                self.task,
+                self.selection_split,
+                range(self.layouts),
+                self.episodes,
+                self.seed,
+                suite=self.suite,
+                slip=slip,
+                env_kwargs=self.plant_kwargs(),
+                purpose="checkpoint selection",
+            )
+        ]
         return summarize(step, root, records)
 
     def as_dict(self) -> dict[str, Any]:
@@ -226,7 +266,7 @@ class SuiteTraining:
             **asdict(self),
             "labels": self.labels,
             "env": self.env_kwargs(),
-            "episodes_per_checkpoint": self.layouts * self.episodes,
+            "episodes_per_checkpoint": self.layouts * self.episodes * len(self.slip_levels),
         }
 
 

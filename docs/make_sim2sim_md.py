@@ -33,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.experiments.sweep import load_sweep  # noqa: E402
 from evaluation.reports.results import Results  # noqa: E402
+from evaluation.stats.statistics import PairedComparison, paired_comparison  # noqa: E402
 from evaluation.stats.transfer import (  # noqa: E402
     TRANSFER_ALPHA,
     Ordering,
@@ -52,6 +53,11 @@ INTRO = """The sim-to-sim protocol (issue 62; [The physics plant](physics.md)): 
 tuned or trained on the kinematic plant, run on the kinematic plant and on the MuJoCo robots
 (`--plant mujoco`), on the same layouts, starts and seeds, at every friction level
 (`--sweep slip=...`). Each pair of episodes differs by the plant only."""
+
+#: the controllers trained on the physics plant, each with the kinematic controller it was
+#: fine-tuned from: rows of their own (their kinematic column is the reverse direction), left out
+#: of the verdicts that transfer (tests/test_sim2sim.py holds this to the shipped metadata)
+FINE_TUNED = {"rl-ppo-set-physics": "rl-ppo-set"}
 
 #: what a verdict became on the physics plant, in the page's words
 _FATES = {
@@ -149,9 +155,10 @@ def summary_sentence(found: dict[Any, list[Ordering]]) -> str:
     """How many of the kinematic plant's verdicts hold on the physics plant, level by level."""
     counts = []
     for level, orderings_ in found.items():
-        verdicts = [o for o in orderings_ if o.first != 0]
+        kept = transfers(orderings_)
+        verdicts = [o for o in kept if o.first != 0]
         held = sum(o.verdict == "holds" for o in verdicts)
-        new = sum(o.verdict == "new" for o in orderings_)
+        new = sum(o.verdict == "new" for o in kept)
         surface = SLIP_SURFACES.get(str(level), str(level))
         counts.append(f"{surface} {held} of {len(verdicts)}" + (f" (and {new} new)" if new else ""))
     return (
@@ -161,17 +168,67 @@ def summary_sentence(found: dict[Any, list[Ordering]]) -> str:
     )
 
 
+def transfers(found: list[Ordering]) -> list[Ordering]:
+    """The orderings of controllers tuned or trained on the kinematic plant (no :data:`FINE_TUNED`)."""
+    return [o for o in found if o.a not in FINE_TUNED and o.b not in FINE_TUNED]
+
+
+def against_source(records: list[dict[str, Any]], name: str) -> PairedComparison | None:
+    """``name`` against the controller it was fine-tuned from on one run's episodes (both tasks),
+    paired on the (task, layout, map, seed) units both ran; None when they share none."""
+    outcomes: dict[str, dict[tuple, bool]] = {name: {}, FINE_TUNED[name]: {}}
+    for r in records:
+        if r.get("controller") in outcomes and r.get("status", "ok") == "ok":
+            unit = (r["env_id"], r.get("layout"), r["map"], r["seed"])
+            outcomes[r["controller"]][unit] = bool(r["success"])
+    shared = sorted(set(outcomes[name]) & set(outcomes[FINE_TUNED[name]]), key=repr)
+    if not shared:
+        return None
+    return paired_comparison(
+        [outcomes[name][u] for u in shared], [outcomes[FINE_TUNED[name]][u] for u in shared]
+    )
+
+
+def fine_tuned_table(rows: list[PlantRow], physics: Results) -> str:
+    """The :data:`FINE_TUNED` rows of one friction level: each against its source on the physics
+    plant (paired, McNemar), and its success on both plants."""
+    lines = [
+        "| controller | fine-tuned from | pairs | physics | its source on physics | difference [points] | p "
+        "| kinematic |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        test = against_source(physics.records, row.controller)
+        if test is None:
+            continue
+        lines.append(
+            f"| {row.controller} | {FINE_TUNED[row.controller]} | {test.n} | {_percent(test.rate_a)} | "
+            f"{_percent(test.rate_b)} | {_points(test.difference)} {_signed_interval(test.low, test.high)} | "
+            f"{_p(test.p_value)} | {_percent(row.first)} {_interval(*row.first_interval)} |"
+        )
+    return "\n".join(lines)
+
+
 def level_section(level: Any, kinematic: Results, physics: Results, found: list[Ordering]) -> str:
     """One friction level's part of the page (``found``: its :func:`orderings`)."""
     rows = plant_differences(kinematic, physics)
-    return "\n\n".join(
-        [
-            f"## {level_title(level)}",
-            plant_table(rows),
-            f"Holm's adjustment over this table's {len(rows)} tests. **Which verdicts transfer**: "
-            + transfer_sentence(found),
+    transferred = [row for row in rows if row.controller not in FINE_TUNED]
+    tuned = [row for row in rows if row.controller in FINE_TUNED]
+    parts = [
+        f"## {level_title(level)}",
+        plant_table(transferred),
+        f"Holm's adjustment over the level's {len(rows)} tests. **Which verdicts transfer**: "
+        + transfer_sentence(transfers(found)),
+    ]
+    if tuned:
+        parts += [
+            "**Fine-tuned on the physics plant** (a separate row, not a transfer: trained on the "
+            "physics plant's train layouts, so its kinematic column is the reverse direction): against "
+            "the policy it was fine-tuned from, paired on the physics plant's episodes (Newcombe's 95% "
+            "interval, exact McNemar p).",
+            fine_tuned_table(tuned, physics),
         ]
-    )
+    return "\n\n".join(parts)
 
 
 def _slip_levels(path: str) -> tuple[dict[Any, Results], dict[str, Any]]:

@@ -25,7 +25,7 @@ from gymnasium.envs.registration import register, registry
 
 from koopman_envs.deprecation import register_moved_paths
 from koopman_envs.engine.config import EngineConfig
-from koopman_envs.engine.keywords import ENV_KEYWORDS
+from koopman_envs.engine.keywords import ENV_KEYWORDS, env_keyword, keyword_argument
 from koopman_envs.engine.plant import BudgetExceeded, CalibrationPlant, make_plant
 from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
 from koopman_envs.observed import Observed
@@ -160,6 +160,7 @@ __all__ = [
     "env_id_for_map",
     "ENV_IDS",
     "ENV_KEYWORDS",
+    "env_keyword",
     "EpisodeResult",
     "FAMILIES",
     "FAR",
@@ -167,6 +168,7 @@ __all__ = [
     "generate_random_map",
     "KoopNavEnv",
     "KoopNavVectorEnv",
+    "keyword_argument",
     "load_map",
     "load_suite",
     "make_plant",

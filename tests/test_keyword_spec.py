@@ -175,3 +175,21 @@ def test_the_evaluator_takes_the_table_as_env_kwargs() -> None:
         ValueError, match=r"env_kwargs: 'colour' is not one the environments take; allowed: .*'formation'"
     ):
         spec.replace(env_kwargs={"colour": "red"}).validate()
+
+
+def test_a_command_line_option_checks_its_value_with_the_keywords_own_check() -> None:
+    """``keyword_argument`` (the trainers' ``--plant``): the row's default, doc and check; a bad
+    value ends the command naming the value, the allowed ones and a close match (argparse exits 2)."""
+    import argparse
+
+    from koopman_envs import env_keyword, keyword_argument
+
+    parser = argparse.ArgumentParser(prog="p", exit_on_error=False)
+    parser.add_argument("--plant", **keyword_argument("plant"))
+    assert parser.parse_args([]).plant == "kinematic" == env_keyword("plant").default
+    assert parser.parse_args(["--plant", "mujoco"]).plant == "mujoco"
+    with pytest.raises(argparse.ArgumentError, match=BAD["plant"][1]):
+        parser.parse_args(["--plant", BAD["plant"][0]])
+    assert "TurtleBot3-class robots in MuJoCo" in keyword_argument("plant")["help"]
+    with pytest.raises(ValueError, match=r"'plants' is not an env keyword \(did you mean 'plant'\?\)"):
+        env_keyword("plants")

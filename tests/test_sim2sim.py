@@ -20,7 +20,14 @@ from evaluation.stats.transfer import Ordering, ordering_verdict
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_sim2sim_md import level_title, summary_sentence, transfer_sentence  # noqa: E402  (docs/ is no package)
+from make_sim2sim_md import (  # noqa: E402  (docs/ is no package)
+    FINE_TUNED,
+    against_source,
+    level_title,
+    summary_sentence,
+    transfer_sentence,
+    transfers,
+)
 from make_sim2sim_md import main as make_page  # noqa: E402
 
 #: a small friction sweep: two cheap controllers, map1, two seeds, 40 periods
@@ -152,6 +159,49 @@ def test_the_sentence_names_each_verdict_by_its_fate() -> None:
     assert transfer_sentence(found[-1:]).startswith("No ordering of two controllers is significant")
     summary = summary_sentence({"nominal": found, "high": found[3:]})
     assert "at each friction level: carpet 1 of 3 (and 1 new); ice 0 of 0 (and 1 new)." in summary
+
+
+def test_the_fine_tuned_rows_are_the_policies_trained_on_the_physics_plant() -> None:
+    """Every row the page sets apart is a registered controller whose shipped policies say they
+    were fine-tuned on the physics plant from the controller named beside it."""
+    pytest.importorskip("stable_baselines3")
+    import controllers
+
+    for name, source in FINE_TUNED.items():
+        assert {name, source} <= set(controllers.available())
+        tuned, origin = controllers.make(name), controllers.make(source)
+        for task in ("target_reaching", "formation"):
+            metadata = json.loads((tuned.policy_root / task / "metadata.json").read_text())  # type: ignore[attr-defined]
+            assert metadata["plant"] == "mujoco"
+            shipped = origin.policy_root / task  # type: ignore[attr-defined]
+            assert (ROOT / metadata["initialized_from"]["path"]).resolve() == shipped.resolve()
+            assert "plant" not in json.loads((shipped / "metadata.json").read_text())  # kinematic
+
+
+def test_a_fine_tuned_row_is_no_transfer_and_is_paired_with_its_source() -> None:
+    env = "KoopNav-TargetReaching-v0"
+    [(tuned, source)] = FINE_TUNED.items()
+    found = [
+        Ordering(env, "a", "b", 1, 1),
+        Ordering(env, tuned, "a", 0, 1),
+        Ordering(env, source, tuned, 1, 0),
+    ]
+    assert transfers(found) == found[:1]
+    assert summary_sentence({"nominal": found}).endswith(
+        "carpet 1 of 1. Each level's section names them, and those lost, reversed or new."
+    )
+    records = [
+        {"controller": name, "env_id": env, "layout": layout, "map": "suite", "seed": layout, "success": ok}
+        for name, outcomes in ((tuned, [1, 1, 0, 1]), (source, [0, 1, 0, 0]), ("orca", [1, 1, 1, 1]))
+        for layout, ok in enumerate(outcomes)
+    ]
+    records.append(
+        {"controller": tuned, "env_id": env, "layout": 9, "map": "suite", "seed": 9, "success": True}
+    )
+    test = against_source(records, tuned)
+    assert test is not None and test.n == 4  # layout 9 has no twin of the source
+    assert (test.rate_a, test.rate_b, test.only_a, test.only_b) == (0.75, 0.25, 2, 0)
+    assert against_source([r for r in records if r["controller"] != source], tuned) is None
 
 
 def test_the_published_runs_differ_by_the_plant_only() -> None:

@@ -65,6 +65,27 @@ def test_a_file_of_another_trainer_or_other_settings_is_refused_naming_them(tmp_
     assert check_main([str(path), "sb3-ppo"]) == 0 and check_main([str(path), "benchmarl"]) == 2
 
 
+def test_a_checkpoint_from_before_the_plant_options_still_fits_and_a_physics_run_differs() -> None:
+    """``--plant`` and ``--slips`` came after resume checkpoints were written (seeds of
+    data/training/run.sh): left at their default they are not in the identity, given they are."""
+    pytest.importorskip("stable_baselines3")
+    import argparse
+
+    from baselines.sb3.resume_state import resume_identity
+    from baselines.sb3.train_options import build_parser
+
+    argv = ["--policy", "set", "--suite", SUITE, "--out", "o"]
+    now = vars(build_parser().parse_args(argv))
+    before = argparse.Namespace(**{k: v for k, v in now.items() if k not in ("plant", "slips")})
+    assert resume_identity(argparse.Namespace(**now)) == resume_identity(before)
+    physics = build_parser().parse_args([*argv, "--plant", "mujoco", "--slips", "nominal", "high"])
+    assert resume_identity(physics) == {
+        **resume_identity(before),
+        "plant": "mujoco",
+        "slips": ["nominal", "high"],
+    }
+
+
 def test_the_trainer_refuses_a_resume_without_a_checkpoint_by_name(tmp_path, capsys) -> None:
     pytest.importorskip("stable_baselines3")
     from baselines.sb3.train import main

@@ -222,11 +222,12 @@ def test_plausible_lies_and_nan_in_the_truth_change_no_action(
 
 
 #: the learned policies, each in a scene it was trained for
-POLICIES = {
+POLICIES: dict[str, tuple[str, dict[str, Any]]] = {
     "rl-ppo": (TR, {}),
     "rl-ppo-set": (TR, {"map": CROSSING}),
     "rl-ppo-set-realistic": (TR, {"map": CROSSING, "uncertainty": "realistic"}),
     "rl-ppo-set-movers": (TR, {"map": CROSSING, "movers": MOVERS}),
+    "rl-ppo-set-physics": (TR, {"map": CROSSING, "plant": "mujoco"}),
     "ippo": (TR, {}),
 }
 LAG = 5
@@ -237,6 +238,8 @@ def test_learned_policies_read_the_observation_and_nothing_else(name: str) -> No
     if name.startswith("rl-"):  # the PPO policies load through SB3; ippo plays with numpy alone
         pytest.importorskip("stable_baselines3")
     env_id, kwargs = POLICIES[name]
+    if kwargs.get("plant") == "mujoco":
+        pytest.importorskip("mujoco")  # the physics plant (the [physics] extra)
     env = gym.make(env_id, max_episode_steps=300, **kwargs)
     honest, fooled = controllers.make(name), controllers.make(name)
     periods, seed, changed, compared = 0, 0, 0, 0

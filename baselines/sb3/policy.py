@@ -34,6 +34,7 @@ __all__ = [
     "PolicyFiles",
     "RLPolicyController",
     "RLSetPolicyController",
+    "RLSetPhysicsPolicyController",
     "RLSetRealisticPolicyController",
     "RLSetMoversPolicyController",
     "load_policy",
@@ -427,6 +428,17 @@ class RLSetRealisticPolicyController(RLSetPolicyController):
 
     name = "rl-ppo-set-realistic"
     shipped = "set_realistic"
+
+
+class RLSetPhysicsPolicyController(RLSetPolicyController):
+    """``rl-ppo-set-physics``: the set policies fine-tuned on the physics plant
+    (``plant="mujoco"``) from ``rl-ppo-set``'s, on koopnav-bench-v1's train layouts at carpet and
+    ice (``slip`` nominal and high), the checkpoint chosen on its validation layouts on the same
+    plant and floors (``baselines/policies/set_physics``; docs/rl.md). The sim-to-sim protocol's
+    fine-tuned row (docs/physics.md): the others there run as trained on the kinematic plant."""
+
+    name = "rl-ppo-set-physics"
+    shipped = "set_physics"
 
 
 class RLSetMoversPolicyController(RLSetPolicyController):

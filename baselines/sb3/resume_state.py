@@ -58,6 +58,9 @@ MODEL_STATE = (
 #: options that may differ between the interrupted and the resumed session (they change where
 #: files go or when a resume checkpoint is written, not what is trained)
 FREE_OPTIONS = ("out", "resume", "resume_every")
+#: options added after resume checkpoints were written: left out of the identity at their default
+#: (None), so that a checkpoint of a run from before they existed still fits (they change nothing)
+LATER_OPTIONS = ("plant", "slips")
 #: a wrapper's attributes rebuilt by its constructor (``class_attributes`` holds the class's
 #: members, which do not pickle) or its link to the env below
 _REBUILT = ("venv", "class_attributes")
@@ -66,7 +69,11 @@ _REBUILT = ("venv", "class_attributes")
 def resume_identity(args: argparse.Namespace) -> dict[str, Any]:
     """The settings a run must share with the run that wrote its resume checkpoint: every option
     but :data:`FREE_OPTIONS` (the thread count too: a run is bit for bit at one thread count)."""
-    return {k: v for k, v in sorted(vars(args).items()) if k not in FREE_OPTIONS}
+    return {
+        k: v
+        for k, v in sorted(vars(args).items())
+        if k not in FREE_OPTIONS and not (k in LATER_OPTIONS and v is None)
+    }
 
 
 def chain_of(venv: Any) -> list[Any]:

@@ -38,8 +38,8 @@ from baselines.sb3 import resume_state
 from baselines.sb3.fine_tune import copy_weights, mismatches
 from baselines.sb3.policy import ObsNorm, norm_of, save_policy
 from baselines.sb3.select import evaluate_policy_on_maps
-from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser
-from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv
+from baselines.sb3.train_options import TASK_OF, TIMESTEPS, TRAIN_MAPS, build_parser, plant_and_slips
+from baselines.sb3.vec_env import KoopNavSB3VecEnv, MixtureVecEnv, split_envs
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, keep_chosen, suite_from_args
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 
@@ -102,7 +102,7 @@ class Trainer:
                 f"--suite {args.suite} cannot be combined with {', '.join(clashes)}: a suite run trains on "
                 "the suite's layouts under the benchmark's settings"
             )
-        return suite
+        return plant_and_slips(args, suite, self.n_envs, parser)
 
     @property
     def controller(self) -> tuple[str, dict[str, Any]]:
@@ -125,12 +125,10 @@ class Trainer:
             "uncertainty": args.uncertainty,
             **({"movers": args.movers} if args.movers else {}),
         }
-        if self.suite is not None:
-            # the suite's layouts, slip and settings (its time limit: --max-episode-steps wins)
-            env = {**self.suite.env_kwargs(), **shared}
-            if self.set_config is None:
-                return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, features=args.features, **env)
-            return KoopNavSB3VecEnv(args.env, self.n_envs, seed=args.seed, set_config=self.set_config, **env)
+        if self.suite is not None:  # its layouts, plant, settings (--max-episode-steps wins); a part per slip
+            observe = {"set_config": self.set_config} if self.set_config else {"features": args.features}
+            parts = [{**self.suite.env_kwargs(slip), **shared} for slip in self.suite.slip_levels]
+            return split_envs(args.env, self.n_envs, args.seed, parts, **observe)
         if self.set_config is None:
             return KoopNavSB3VecEnv(
                 args.env,
@@ -276,8 +274,8 @@ class Trainer:
             identity["set_config"] = self.set_config.as_dict()
         elif self.suite is None:
             identity["random_map"] = self.random_map
-        if self.suite is not None:
-            identity["trained_on"] = self.suite.labels["train"]
+        if self.suite is not None:  # and the plant unless kinematic (no key, as before it existed)
+            identity.update(trained_on=self.suite.labels["train"], **self.suite.plant_kwargs())
         return identity
 
     def score(self, model: Any, policy_norm: ObsNorm, episodes_per_map: int = 2) -> tuple[str, float]:

@@ -6,15 +6,26 @@ Kept apart from :mod:`baselines.sb3.train` (the training run) so that each modul
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from typing import Any
 
 from baselines.sb3.vec_env import FEATURE_SETS, LAYOUTS
-from baselines.suite_training import add_suite_options
-from koopman_envs import TASKS
+from baselines.suite_training import SuiteTraining, add_suite_options
+from koopman_envs import TASKS, keyword_argument
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
+from koopman_envs.params import PLANTS
 from koopman_envs.settings import UNCERTAINTY_PRESETS
 
-__all__ = ["POLICIES", "TASK_OF", "TIMESTEPS", "TRAIN_MAPS", "build_parser", "env_options"]
+__all__ = [
+    "POLICIES",
+    "TASK_OF",
+    "TIMESTEPS",
+    "TRAIN_MAPS",
+    "build_parser",
+    "env_options",
+    "plant_and_slips",
+    "suite_options",
+]
 
 DESCRIPTION = "Train a stable-baselines3 policy on a KoopNav task."
 TASK_OF = {spec.env_id: name for name, spec in TASKS.items()}  # the task table's names
@@ -180,6 +191,57 @@ def build_parser() -> argparse.ArgumentParser:
         help="hidden layer widths of actor and critic, e.g. 128,128",
     )
     env_options(parser)
-    add_suite_options(parser, "no curriculum, every --eval-freq checkpoint scored on the validation layouts")
+    suite_options(parser)
     parser.add_argument("--out", required=True)
     return parser
+
+
+def suite_options(parser: argparse.ArgumentParser) -> None:
+    """The options of a suite run: both trainers' (:func:`add_suite_options`), then this one's
+    ``--plant`` (the env keyword's own check) and ``--slips``."""
+    group = add_suite_options(
+        parser, "no curriculum, every --eval-freq checkpoint scored on the validation layouts"
+    )
+    # None: the env's default (kinematic), and a resume file written before the option existed fits
+    plant = keyword_argument("plant")
+    plant.update(default=None, help="with --suite: " + plant["help"])
+    group.add_argument("--plant", metavar="PLANT", **plant)
+    group.add_argument(
+        "--slips",
+        nargs="+",
+        metavar="SLIP",
+        default=None,
+        help="with --suite: the slip levels trained and validated on (training envs split evenly "
+        "between them; every validation layout played at each), e.g. nominal high, the sim-to-sim "
+        "protocol's; default: the benchmark's (high)",
+    )
+
+
+def plant_and_slips(
+    args: argparse.Namespace, suite: SuiteTraining | None, n_envs: int, parser: argparse.ArgumentParser
+) -> SuiteTraining | None:
+    """``suite`` with the plant and slip levels of :func:`plant_options`, checked before any work
+    (a bad setting ends the command through ``parser.error`` naming it)."""
+    # the curriculum draws kinematic slips ("random", "drift") that the physics plant has not
+    given = [f"--{o}" for o in ("plant", "slips") if getattr(args, o) is not None]
+    if not given:
+        return suite
+    if suite is None:
+        parser.error(f"{' and '.join(given)} need --suite NAME (the curriculum runs the kinematic plant)")
+    suite = dataclasses.replace(
+        suite, plant=args.plant or suite.plant, slips=tuple(args.slips or suite.slips)
+    )
+    try:
+        suite.check()
+    except ValueError as exc:
+        parser.error(str(exc))
+    if n_envs < len(suite.slip_levels):
+        parser.error(f"--n-envs {n_envs} is fewer than the {len(suite.slip_levels)} slip levels")
+    if suite.plant != PLANTS[0] and args.algo == "ppo" and (args.resume_every or args.resume):
+        # the resume checkpoint pickles the vector env, and the MuJoCo worlds do not pickle
+        # (found when a 600k-step run ended at its first resume checkpoint, 491,520 steps)
+        parser.error(
+            f"--plant {suite.plant} writes no resume checkpoint (its MuJoCo envs do not pickle): "
+            f"give --resume-every 0{' and leave out --resume' if args.resume else ''}"
+        )
+    return suite

@@ -46,6 +46,7 @@ __all__ = [
     "without_message_ages",
     "robot_features",
     "scale_action",
+    "split_envs",
 ]
 
 LAYOUTS = ("robot", "team")
@@ -318,3 +319,22 @@ class MixtureVecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False] * len(list(self._get_indices(indices)))
+
+
+def split_envs(
+    env_id: str, num_envs: int, seed: int, parts: Sequence[dict[str, Any]], **common: Any
+) -> KoopNavSB3VecEnv | MixtureVecEnv:
+    """``num_envs`` environments split evenly between ``parts`` (the first get one more when they
+    do not divide): part i a :class:`KoopNavSB3VecEnv` with ``parts[i]`` and ``common`` as keywords,
+    seeded from ``seed + 1000 i`` (as :meth:`MixtureVecEnv.seed` does: no two parts share a draw).
+    One part is that env itself; more are a :class:`MixtureVecEnv`."""
+    if not 1 <= len(parts) <= num_envs:
+        raise ValueError(
+            f"num_envs={num_envs} cannot be split between {len(parts)} parts; allowed: 1 to {num_envs} parts"
+        )
+    sizes = [num_envs // len(parts) + (i < num_envs % len(parts)) for i in range(len(parts))]
+    envs = [
+        KoopNavSB3VecEnv(env_id, size, seed=seed + 1000 * i, **common, **kwargs)
+        for i, (size, kwargs) in enumerate(zip(sizes, parts, strict=True))
+    ]
+    return envs[0] if len(envs) == 1 else MixtureVecEnv(envs)

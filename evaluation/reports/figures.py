@@ -84,6 +84,7 @@ _FIXED = (
     # slot 17: the colour mpc-cbf had from its name's checksum before it was listed
     "mpc-cbf",
     "ippo",
+    "rl-ppo-set-physics",
 )
 
 

@@ -26,7 +26,9 @@ __all__ = [
     "ENV_KEYWORDS",
     "EnvKeyword",
     "FRONTS",
+    "env_keyword",
     "env_keywords",
+    "keyword_argument",
     "keyword_table",
     "takes_env_keywords",
     "unknown_keywords",
@@ -286,6 +288,41 @@ def env_keywords(front: str | None = None) -> tuple[EnvKeyword, ...]:
     if front is not None:
         check_choice("front", front, FRONTS, " or None")
     return tuple(k for k in ENV_KEYWORDS if front is None or front in k.fronts)
+
+
+def env_keyword(name: str) -> EnvKeyword:
+    """The row of :data:`ENV_KEYWORDS` named ``name`` (``ValueError`` naming the allowed ones)."""
+    for row in ENV_KEYWORDS:
+        if row.name == name:
+            return row
+    names = [k.name for k in ENV_KEYWORDS]
+    raise ValueError(f"{name!r} is not an env keyword{did_you_mean(name, names)}; allowed: {names}")
+
+
+def keyword_argument(name: str) -> dict[str, Any]:
+    """``argparse`` settings of a command-line option that sets env keyword ``name``: its default,
+    its one-line doc as the help, and a ``type`` that is the keyword's own check, so that a command
+    line takes the values the envs take and refuses the others with the env's message (one check
+    per keyword, never a second parser's ``choices``).
+
+    Returns
+    -------
+    dict
+        ``default``, ``help`` and ``type`` for ``parser.add_argument("--<name>", **settings)``.
+    """
+    import argparse  # the command lines' module, not the envs'
+
+    row = env_keyword(name)
+
+    def parse(text: str) -> Any:
+        try:
+            return row.resolve(text)
+        except (ValueError, ModuleNotFoundError) as exc:  # argparse names the option before it
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = name  # argparse's "invalid <name> value" when a check raises something else
+    help_text = f"env keyword {name}: {row.doc}".replace("%", "%%")  # argparse formats help with %
+    return {"default": row.default, "help": help_text, "type": parse}
 
 
 def unknown_keywords(given: Any, allowed: Sequence[str], owner: str) -> TypeError | None:
