@@ -73,6 +73,15 @@ class AlwaysRaising(BaseController):
         raise RuntimeError("this controller always raises")
 
 
+class BatchedConsensus(ConsensusController):
+    """Consensus declared to act in batch (the base class's ``act_many``: each team's own
+    ``act``): an evaluation runs its episodes together, as it runs the learned policies', without
+    loading torch, so that worker processes that run batches start in seconds."""
+
+    name = "batched-consensus"
+    acts_in_batch = True
+
+
 def make_plain_timed() -> PlainTimed:
     """A factory function that declares the contract by its return annotation."""
     return PlainTimed()

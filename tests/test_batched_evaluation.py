@@ -15,6 +15,7 @@ from evaluation.execution.worker import runs_in_batch
 TIMING = {"solve_ms", "solve_ms_median", "solve_ms_p95", "wall_seconds"}
 #: trials per cell: a batch of 3 holds a first trial (its paths recorded) and two others
 EPISODES = 3
+MOVERS = {"movers": {"count": 3, "behaviour": "constant", "speed": 0.3}}
 
 
 def _untimed(record: dict) -> dict:
@@ -36,11 +37,15 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
 @pytest.mark.parametrize(
     ("controllers", "env_kwargs", "workers"),
     [
-        # the batches in 2 worker processes (each starts an interpreter and loads torch and the
-        # policies: most of a case's CPU); the other cases run the same batches in this process
-        (["rl-ppo", "rl-ppo-set-movers"], {"movers": {"count": 3, "behaviour": "constant", "speed": 0.3}}, 2),
+        # the learned policies' batches in this process: a worker process that runs them starts
+        # an interpreter and loads torch and the policies, about 9 CPU-s each
+        (["rl-ppo", "rl-ppo-set-movers"], MOVERS, 1),
         (["rl-ppo-set", "rl-ppo-set-realistic"], {"uncertainty": "realistic"}, 1),
-        # the lidar case takes a minute (20 episodes of a set policy reading beams): -m slow
+        # the same batches in 2 worker processes (spawned: a batch crosses to them and its records
+        # back), run by a controller that acts in batch without torch
+        (["plugin_controllers:BatchedConsensus"], MOVERS, 2),
+        # the learned policies in 2 worker processes: the lidar case, which takes a minute (20
+        # episodes of a set policy reading beams): -m slow
         pytest.param(
             ["rl-ppo-set-movers"],
             {"sensing": "lidar", "movers": {"count": 2, "behaviour": "constant"}},
@@ -48,12 +53,13 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
             marks=pytest.mark.slow,
         ),
     ],
-    ids=["movers", "realistic", "lidar"],
+    ids=["movers", "realistic", "workers", "lidar"],
 )
 def test_a_batched_evaluation_records_what_the_one_by_one_evaluation_records(
     controllers, env_kwargs, workers
 ) -> None:
-    pytest.importorskip("stable_baselines3")
+    if any(name.startswith("rl-") for name in controllers):
+        pytest.importorskip("stable_baselines3")
     spec = _spec(controllers, **env_kwargs)
     plan = spec.resolved().episodes_plan("")
     units = work_units(plan)
