@@ -80,6 +80,9 @@ def _synthetic(
         time_to_goal=float(rng.uniform(10, 50)) if success else None,
         min_clearance={"obstacle": close, "robot": float(rng.uniform(0.02, 0.5)), "mover": None},
         path_length=[float(d * rng.uniform(1.0, 1.6)) for d in template["straight_distance"]],
+        # an episode's own end (what tells two episodes of a cell apart: distinct_records)
+        final_distance=rng.uniform(0.0, 0.1 if success else 3.0, robots).tolist(),
+        steps=int(rng.integers(100, 600)) if success else 600,
         jerk_rms=rng.uniform(0.1, 4.0, robots).tolist(),
         near_obstacle_share=rng.uniform(0.0, 0.6, robots).tolist(),
     )
