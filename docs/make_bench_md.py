@@ -5,15 +5,21 @@ track after it).
 Usage (the published page's arguments are in ``data/pages.json``)::
 
     python docs/make_bench_md.py --charged data/bench_test_realtime --free data/bench_test \\
-        --paper data/paper.tar.xz --out docs/bench_results.md
+        --paper data/paper.tar.xz --reference koopman-nmpc --out docs/bench_results.md
 
 ``--charged`` and ``--free`` are the publications of ``bash data/publish.sh bench_test_realtime``
 (the decision time charged to the robots, ``--realtime``: the headline) and ``bench_test`` (free
-compute, the idealised case beside it), each packed by ``bash data/publish.sh pack``. Every number
-is the evaluator's own (:class:`~evaluation.stats.run_data.RunData`: ``layout_summary``,
-``suite_breakdown``, ``suite_tables``: intervals over layouts, the paired tables with their
-families and power statements); this script only lays them out. The tuning budget of each
-controller is its study in ``data/tuning/<name>/`` (:func:`controllers.tuning.studies.study_budget`).
+compute, the idealised case beside it), each packed by ``bash data/publish.sh pack``; the two
+runs may hold different controllers (a controller of one only is in that mode's tables only).
+Every number is the evaluator's own (:class:`~evaluation.stats.run_data.RunData`:
+``layout_summary``, ``suite_breakdown``; :func:`~evaluation.stats.suite_statistics.suite_tables`:
+intervals over layouts, the paired tables with their families and power statements); this script
+only lays them out. The page's paired tables test one family per table and mode, declared from the
+run's header (:func:`page_pairs`): every controller against ``--reference``, and each tuned
+controller against its ``-v0``; every pair of every table, each table corrected over every pair,
+goes to ``bench_pairs.csv`` beside the page (:data:`PAIRS_FILE`), whose SHA-256 the page states.
+The tuning budget of each controller is its study in ``data/tuning/<name>/``
+(:func:`controllers.tuning.studies.study_budget`).
 
 A run may be partial (published progressively): a (task, controller) whose episodes are not all
 in its publication is named as pending, with how many it has, and left out of every table and
@@ -26,6 +32,7 @@ against the page.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 from collections.abc import Mapping, Sequence
@@ -37,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 import controllers  # noqa: E402
-from controllers.tuning import STUDIES_DIR, study_budget  # noqa: E402
+from controllers.tuning import STUDIES_DIR, V0_SUFFIX, study_budget  # noqa: E402
 from evaluation.episodes.distinct import distinct_records, episode_identity  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
@@ -46,12 +53,22 @@ from evaluation.reports.results import Results  # noqa: E402
 from evaluation.reports.sections import markdown, markdown_table, suite_heading, task_label  # noqa: E402
 from evaluation.reports.sections.blocks import rate_cell  # noqa: E402
 from evaluation.reports.sections.runs import SUITE_NOTE, suite_rows  # noqa: E402
-from evaluation.reports.sections.suite_tables import suite_sections  # noqa: E402
-from evaluation.stats.suite_statistics import OUTCOMES  # noqa: E402
+from evaluation.reports.sections.suite_tables import paired_csv, paired_note, suite_sections  # noqa: E402
+from evaluation.stats.suite_statistics import OUTCOMES, reference_pairs, suite_tables  # noqa: E402
 from koopman_envs import TIERS  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
-__all__ = ["HEADLINE", "Mode", "Progress", "headline", "load_mode", "page"]
+__all__ = [
+    "HEADLINE",
+    "PAIRS_FILE",
+    "Mode",
+    "Progress",
+    "headline",
+    "load_mode",
+    "page",
+    "page_pairs",
+    "pairs_file",
+]
 
 #: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
 HEADLINE = "bench-headline"
@@ -60,6 +77,9 @@ RUNS = {
     "charged": ("bench_test_realtime", "Compute charged"),
     "free": ("bench_test", "Free compute"),
 }
+#: the file beside the page with every pair of every paired table (the page tests fewer): plain
+#: CSV in the repository, whose next version git stores as a delta of this one (docs/benchmark.md)
+PAIRS_FILE = "bench_pairs.csv"
 
 
 @dataclass(frozen=True)
@@ -90,6 +110,13 @@ class Mode:
     @property
     def run(self) -> str:
         return RUNS[self.name][0]
+
+    def declared(self) -> dict[str, list[str]]:
+        """Task -> the controllers the run's header declares for it, in its order."""
+        out: dict[str, list[str]] = {}
+        for env_id, label in self.progress:
+            out.setdefault(env_id, []).append(label)
+        return out
 
     def pending(self, env_id: str, controller: str) -> str | None:
         """Why (task, controller) has no row yet, or None when it has one."""
@@ -154,6 +181,33 @@ def check_same_suite(modes: Sequence[Mode]) -> None:
     }
     if len({json.dumps(suite, sort_keys=True) for suite in suites.values()}) > 1:
         raise ValueError(f"the publications ran different suites, so their rows do not compare: {suites}")
+
+
+def page_pairs(mode: Mode, reference: str) -> tuple[list[tuple[str, str, str]], str]:
+    """The page's design for ``mode``'s paired tables, read from its header before any outcome
+    (:func:`~evaluation.stats.suite_statistics.reference_pairs`): every controller against
+    ``reference``, and each tuned controller against its ``-v0`` (what tuning gained) where the
+    run has both; with the clause that names it. ``ValueError`` when the run lacks ``reference``."""
+    labels = list(dict.fromkeys(label for _, label in mode.progress))
+    tuned = [(label.removesuffix(V0_SUFFIX), label) for label in labels if label.endswith(V0_SUFFIX)]
+    tuned = [(a, b) for a, b in tuned if a in labels]
+    pairs = reference_pairs(mode.declared(), reference, tuned)
+    design = f"each controller against {reference} within each task"
+    if tuned:
+        design += (
+            ", and each tuned controller against its defaults before tuning ("
+            + ", ".join(f"{a} vs {b}" for a, b in tuned)
+            + ": what tuning gained)"
+        )
+    return pairs, design
+
+
+def pairs_file(modes: Sequence[Mode]) -> str | None:
+    """:data:`PAIRS_FILE`'s text: every published mode's paired tables over every pair of its
+    controllers, each table corrected over every pair (the evaluator's own,
+    ``RunData.suite_tables``); None when no mode has a row yet."""
+    runs = [(mode.run, mode.results.suite_tables) for mode in modes if mode.results is not None]
+    return paired_csv(runs) if runs else None
 
 
 def _summary(mode: Mode) -> dict[tuple[str, str], dict[str, Any]]:
@@ -236,12 +290,15 @@ def headline(modes: Sequence[Mode], paper: Results | None, paper_path: str = "da
     ]
     summaries = {mode.name: _summary(mode) for mode in modes}
     tiers = _tiers(charged)
+    # the headline's rows are the headline run's controllers (a controller of the free run only,
+    # a -v0, is on the page's leaderboard, not here); before it is published, the free run's
+    headline_run = charged if charged.progress else free
     for env_id in _tasks(modes):
         lines += [
             f"| {task_label(env_id)} | Compute charged | " + " | ".join(TIERS) + " | Free compute |",
             "|---|---|" + "---|" * len(TIERS) + "---|",
         ]
-        for label in _ranked(modes, env_id):
+        for label in [c for c in _ranked(modes, env_id) if (env_id, c) in headline_run.progress]:
             by_tier = [
                 rate_cell(*tiers[env_id, label, tier]) if (env_id, label, tier) in tiers else ""
                 for tier in TIERS
@@ -395,29 +452,52 @@ def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[st
     return lines + [""]
 
 
-def _tested_section(mode: Mode) -> list[str]:
+def _tested_section(mode: Mode, reference: str) -> list[str]:
     if mode.results is None:
         return []
     title = RUNS[mode.name][1]
-    text = markdown(suite_sections(mode.results)).replace("\n## ", "\n### ")
+    pairs, design = page_pairs(mode, reference)
+    tables = suite_tables(mode.results.records, pairs, design)
+    text = markdown(suite_sections(mode.results, tables, paired_note(design))).replace("\n## ", "\n### ")
     return [f"## {title}: outcomes, metrics and paired tests", "", "### " + text.removeprefix("## "), ""]
+
+
+def _pairs_section(pairs: str) -> list[str]:
+    rows = pairs.count("\n") - 1
+    digest = hashlib.sha256(pairs.encode()).hexdigest()
+    return [
+        "## Every pair",
+        "",
+        "The paired tables below test the pairs this page reads: per mode and per table one family, "
+        "declared from the run's header and corrected with Holm within it (named under each table). "
+        f"Every pair of each mode's controllers, for every table, is in [{PAIRS_FILE}]({PAIRS_FILE}) "
+        f"({rows:,} rows; SHA-256 `{digest}`), each table there one family over every pair within "
+        "each task (its size in the column `m`): a larger family, so a pair's Holm p there is no "
+        "smaller than on this page.",
+        "",
+    ]
 
 
 def page(
     modes: Sequence[Mode],
     paper: Results | None,
+    reference: str,
     studies: Path = STUDIES_DIR,
     paper_path: str = "data/paper.tar.xz",
+    pairs: str | None = None,
 ) -> str:
     """The page's Markdown: the headline block, the runs, the leaderboard, the breakdowns, the
-    tuning budget and each mode's tested tables."""
+    tuning budget, where every pair is (``pairs``: :data:`PAIRS_FILE`'s text, :func:`pairs_file`)
+    and each mode's tested tables against ``reference`` (:func:`page_pairs`)."""
     labels = list(dict.fromkeys(c for mode in modes for _, c in mode.progress))
     lines = [
         "# koopnav-bench-v1: results on the held-out test split",
         "",
-        "Every controller on the test split of koopnav-bench-v1 (docs/benchmark.md), which no "
+        "The primary controllers on the test split of koopnav-bench-v1 (docs/benchmark.md), which no "
         "controller was tuned or trained on, with the decision time charged to the robots (the "
-        "headline) and with free compute beside it. Written by `docs/make_bench_md.py` from the "
+        "headline) and with free compute beside it, where the hand-set defaults the tuned presets "
+        "replaced (`-v0`) run too; the variants are on their own pages (docs/benchmark.md, "
+        '"Running the benchmark", says which and why). Written by `docs/make_bench_md.py` from the '
         "committed publications; a (task, controller) still running is named as pending and left "
         "out of every table and test.",
         "",
@@ -428,8 +508,9 @@ def page(
     if any(mode.results is not None for mode in modes):
         lines += _leaderboard_section(modes) + _breakdown_section(modes)
     lines += tuning_budget(labels, studies) if labels else []
+    lines += _pairs_section(pairs) if pairs is not None else []
     for mode in modes:
-        lines += _tested_section(mode)
+        lines += _tested_section(mode, reference)
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
@@ -448,6 +529,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--free", required=True, help="the free-compute publication, data/bench_test")
     parser.add_argument("--paper", help="the paper track's publication, data/paper.tar.xz")
     parser.add_argument(
+        "--reference",
+        required=True,
+        help="the controller the page's paired tables compare every other one with (koopman-nmpc)",
+    )
+    parser.add_argument(
         "--studies", type=Path, default=STUDIES_DIR, help="the tuning studies (default data/tuning)"
     )
     parser.add_argument("--out", required=True, help="the page to write, e.g. docs/bench_results.md")
@@ -456,10 +542,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         modes = [load_mode("charged", args.charged), load_mode("free", args.free)]
         check_same_suite(modes)
-        text = page(modes, _paper(args.paper), args.studies, args.paper or "data/paper.tar.xz")
+        pairs = pairs_file(modes)
+        paper_path = args.paper or "data/paper.tar.xz"
+        text = page(modes, _paper(args.paper), args.reference, args.studies, paper_path, pairs)
     except ValueError as exc:  # a publication that is not as KoopNav packs it, or the wrong run
         print(f"error: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT
+    if pairs is not None:
+        write_atomic(Path(args.out).with_name(PAIRS_FILE), pairs)
     write_atomic(args.out, text)
     missing = [m.path.as_posix() for m in modes if m.results is None and not m.progress]
     print(f"wrote {args.out}" + (f" (pending: {', '.join(missing)} not published yet)" if missing else ""))

@@ -11,24 +11,31 @@ consensus, packed as data/publish.sh packs (12 episodes each)::
 
 from __future__ import annotations
 
+import csv
+import hashlib
+import io
 import json
 import sys
 from pathlib import Path
 
 import pytest
 
-from controllers.tuning import study_budget
+import controllers
+from controllers.tuning import is_comparison_variant, study_budget
 from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
 from evaluation.reports.sections.blocks import rate_cell
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_bench_md import HEADLINE, load_mode, main, page  # noqa: E402  (docs/ is no package)
+from make_bench_md import HEADLINE, PAIRS_FILE, load_mode, main, page  # noqa: E402  (docs/ is no package)
 from make_pages import block_of, with_block  # noqa: E402
+from test_results_page import _published_runs  # noqa: E402  (data/publish.sh's runs as bash expands them)
 
 FREE = ROOT / "tests" / "data" / "bench_test_layouts0-2.tar.xz"
 CHARGED = ROOT / "tests" / "data" / "bench_test_realtime_layouts0-2.tar.xz"
+#: the fixtures' reference (they ran --reference orca)
+REF = ["--reference", "orca"]
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +44,7 @@ def modes() -> list:
 
 
 def test_the_page_lays_out_the_evaluators_numbers(modes) -> None:
-    text = page(modes, None)
+    text = page(modes, None, "orca")
     block = block_of(text, HEADLINE)
     assert block is not None and text.count(block) == 1
     charged, free = modes
@@ -72,7 +79,10 @@ def test_a_partial_run_names_its_pending_rows(tmp_path) -> None:
         log.write_text("".join(lines[:-2]), encoding="utf-8")
         partial = pack_run(run, tmp_path / "bench_test_realtime.tar.xz")
     out = tmp_path / "page.md"
-    assert main(["--charged", str(partial), "--free", str(tmp_path / "bench_test"), "--out", str(out)]) == 0
+    assert (
+        main(["--charged", str(partial), "--free", str(tmp_path / "bench_test"), *REF, "--out", str(out)])
+        == 0
+    )
     text = out.read_text(encoding="utf-8")
     block = block_of(text, HEADLINE)
     assert block is not None
@@ -82,20 +92,22 @@ def test_a_partial_run_names_its_pending_rows(tmp_path) -> None:
     assert "**The paper track**: pending" in block
     # the pending row is in no tested table
     tested = text.split("## Compute charged: outcomes")[1]
-    assert "| formation | orca | consensus |" not in tested
-    assert "| target reaching | orca | consensus |" in tested
+    assert "| formation | consensus | orca |" not in tested
+    assert "| target reaching | consensus | orca |" in tested
 
 
 def test_nothing_published_gives_a_pending_headline(tmp_path) -> None:
     out = tmp_path / "page.md"
-    assert main(["--charged", str(tmp_path / "a"), "--free", str(tmp_path / "b"), "--out", str(out)]) == 0
+    assert (
+        main(["--charged", str(tmp_path / "a"), "--free", str(tmp_path / "b"), *REF, "--out", str(out)]) == 0
+    )
     block = block_of(out.read_text(encoding="utf-8"), HEADLINE)
     assert block is not None and ": pending, " in block and "|" not in block
 
 
 def test_the_modes_are_refused_swapped(tmp_path, capsys) -> None:
     out = tmp_path / "page.md"
-    assert main(["--charged", str(FREE), "--free", str(CHARGED), "--out", str(out)]) == 2
+    assert main(["--charged", str(FREE), "--free", str(CHARGED), *REF, "--out", str(out)]) == 2
     assert "its decision time is not charged; --charged needs compute charged" in capsys.readouterr().err
     assert not out.exists()
 
@@ -138,5 +150,128 @@ def test_runs_of_different_suites_are_refused(tmp_path, capsys) -> None:
         log.write_text(json.dumps(header) + "\n" + "".join(kept), encoding="utf-8")
         other = pack_run(run, tmp_path / "bench_test.tar.xz")
     out = tmp_path / "page.md"
-    assert main(["--charged", str(CHARGED), "--free", str(other), "--out", str(out)]) == 2
+    assert main(["--charged", str(CHARGED), "--free", str(other), *REF, "--out", str(out)]) == 2
     assert "the publications ran different suites" in capsys.readouterr().err
+
+
+def _with_v0(tmp_path: Path) -> Path:
+    """The free-compute fixture with consensus's records again under consensus-v0 (a controller of
+    the free run only, as the -v0 variants are), failing every episode (not a bit-identical twin,
+    whose tests would count once), packed as data/publish.sh packs."""
+    with extracted_archive(FREE) as run:
+        log = run / "episodes.jsonl"
+        lines = log.read_text(encoding="utf-8").splitlines()
+        header = json.loads(lines[0])
+        header["config"]["controller_configs"].append(
+            {"label": "consensus-v0", "name": "consensus-v0", "options": {}}
+        )
+        copies = []
+        for line in lines[1:]:
+            record = json.loads(line)
+            if record["controller"] == "consensus":
+                record["key"] = record["key"].replace("|consensus|", "|consensus-v0|")
+                record.update(controller="consensus-v0", controller_name="consensus-v0", time_to_goal=None)
+                record.update(success=False, strict_success=False, success_excusing_unavoidable=False)
+                copies.append(json.dumps(record))
+        log.write_text("\n".join([json.dumps(header), *lines[1:], *copies]) + "\n", encoding="utf-8")
+        return pack_run(run, tmp_path / "bench_test.tar.xz")
+
+
+def test_modes_with_different_controllers_and_the_pages_families(tmp_path) -> None:
+    """A controller of the free run only (a -v0) is in that mode's tables only, never pending in
+    the other; the page's paired tables test each controller against the reference and the tuned
+    controller against its -v0, each table its own family; every pair is in the file beside it."""
+    out = tmp_path / "docs" / "page.md"
+    out.parent.mkdir()
+    assert main(["--charged", str(CHARGED), "--free", str(_with_v0(tmp_path)), *REF, "--out", str(out)]) == 0
+    text = out.read_text(encoding="utf-8")
+    headline = block_of(text, HEADLINE)
+    assert headline is not None and "consensus-v0" not in headline  # the headline is the charged run's
+    assert "| consensus | " in headline
+    board = text.split("## Leaderboard")[1].split("## By layout tier")[0]
+    row = next(line for line in board.splitlines() if line.startswith("| consensus-v0 |"))
+    assert (
+        row.startswith("| consensus-v0 | not in this run | ")
+        and "pending" not in text.lower().split("## the runs")[1]
+    )
+    charged, free = text.split("## Free compute: outcomes")
+    charged = charged.split("## Compute charged: outcomes")[1]
+    assert "consensus-v0" not in charged
+    for section, design in (
+        (charged, "each controller against orca within each task"),
+        (
+            free,
+            "each controller against orca within each task, and each tuned controller against its "
+            "defaults before tuning (consensus vs consensus-v0: what tuning gained)",
+        ),
+    ):
+        assert f"declared from the run's design before any test ({design}; " in section
+        assert f"Family 'koopnav-bench-v1/test: success, {design}': m = " in section
+    # a - reference, and the tuned controller against its -v0; no other pair is tested
+    success = free.split("**Paired: Success**")[1].split("Over the units")[0]
+    lines = [line for line in success.splitlines() if line.startswith("| ")][2:]  # after the header
+    tested = {tuple(cell.strip() for cell in line.split("|")[2:4]) for line in lines}
+    assert tested == {("consensus", "orca"), ("consensus-v0", "orca"), ("consensus", "consensus-v0")}
+    assert "m = 6 tests" in free.split("**Paired: Success**")[1]  # 3 pairs x 2 tasks
+    # every pair of each mode beside the page, named with its digest
+    pairs = out.with_name(PAIRS_FILE).read_text(encoding="utf-8")
+    assert f"[{PAIRS_FILE}]({PAIRS_FILE}) ({pairs.count(chr(10)) - 1:,} rows; SHA-256 `" in text
+    assert hashlib.sha256(pairs.encode()).hexdigest() in text
+    rows = list(csv.DictReader(io.StringIO(pairs)))
+    success_pairs = {(r["run"], r["task"], r["a"], r["b"]) for r in rows if r["measure"] == "success"}
+    assert len(success_pairs) == 2 * (1 + 3)  # charged: 1 pair, free: 3 pairs; per task
+    assert ("bench_test", "formation", "orca", "consensus-v0") in success_pairs
+    assert {r["m"] for r in rows if r["measure"] == "success"} == {"2", "6"}
+
+
+def test_a_reference_a_run_lacks_is_refused(tmp_path, capsys) -> None:
+    out = tmp_path / "page.md"
+    assert (
+        main(["--charged", str(CHARGED), "--free", str(FREE), "--reference", "dwa", "--out", str(out)]) == 2
+    )
+    assert "reference='dwa' is not one of the controllers ['orca', 'consensus']" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def _controllers(arguments: str) -> list[str]:
+    words = arguments.split()
+    start = words.index("--controllers") + 1
+    return words[start : next((i for i in range(start, len(words)) if words[i].startswith("--")), len(words))]
+
+
+def test_the_published_runs_lists_are_sized_to_the_compute() -> None:
+    """data/publish.sh's two test-suite runs (issue 60, docs/benchmark.md "Compute per mode"): the
+    headline's the primary controllers on their shipped defaults; the free run's starts with the
+    run under way, in its order (a resume may only add controllers), and pairs each tuned
+    controller with its -v0; no variant; every label registered; one reference, in both. An
+    adopted preset registers a new -v0 (koopman-nmpc-v0, nominal-nmpc-v0): this fails until it is
+    added at the end of the free run's list."""
+    runs = _published_runs()
+    charged, free = (_controllers(runs[name]) for name in ("bench_test_realtime", "bench_test"))
+    primary = ["koopman-nmpc", "nominal-nmpc", "consensus", "consensus-free", "orca", "dwa", "mpc-cbf"]
+    assert charged == [*primary, "rl-ppo", "rl-ppo-set", "ippo"]
+    under_way = [
+        "orca",
+        "dwa",
+        "consensus",
+        "consensus-free",
+        "mpc-cbf",
+        "consensus-v0",
+        "dwa-v0",
+        "mpc-cbf-v0",
+    ]
+    assert free[: len(under_way)] == under_way
+    assert set(free) == set(charged) | {c for c in controllers.available() if is_comparison_variant(c)}
+    assert len(set(free)) == len(free) and set(charged) <= set(controllers.available())
+    assert (
+        "--realtime" in runs["bench_test_realtime"].split() and "--realtime" not in runs["bench_test"].split()
+    )
+    for name in ("bench_test_realtime", "bench_test"):
+        words = runs[name].split()
+        assert words[words.index("--reference") + 1] == "koopman-nmpc"
+    entry = next(
+        e
+        for e in json.loads((ROOT / "data" / "pages.json").read_text())
+        if e["page"] == "docs/bench_results.md"
+    )
+    assert entry["args"][entry["args"].index("--reference") + 1] == "koopman-nmpc"

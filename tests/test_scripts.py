@@ -112,6 +112,10 @@ SMOKE: dict[str, tuple[list[str], str]] = {
         ["--seconds", "0.05", "--repeats", "1", "--envs", "3"],
         r"(?s)^physics: 5 ms steps, 20 per env-step; 3 robots$.*^physics single env +[\d,]+ ",
     ),
+    "bench/bench_page_size.py": (  # the test suite's page on a synthetic publication of 3 layouts
+        ["--layouts", "3", "--controllers", "orca", "consensus", "--reference", "orca"],
+        r"(?s)^page: [\d.]+ KB, \d+ lines$.*^bench_pairs\.csv: [\d.]+ KB, \d+ lines$.*^generator CPU time: \d+ s$",
+    ),
     "bench/policy_speed.py": (
         ["--robots", "3", "--seeds", "1", "--controllers", "consensus"],
         r"^consensus +3 +[\d.]+ +[\d.]+ +[\d.]+ +[01]/1",
@@ -165,6 +169,7 @@ SMOKE: dict[str, tuple[list[str], str]] = {
 #: page rebuilt from the published archives) or fresh processes by design: run by `-m slow`
 SLOW = {
     "bench/batched_evaluation.py",
+    "bench/bench_page_size.py",
     "bench/benchmarl_speed.py",
     "bench/cold_start.py",
     "bench/env_throughput.py",

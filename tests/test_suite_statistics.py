@@ -29,6 +29,7 @@ from evaluation.stats.suite_statistics import (
     OUTCOMES,
     declared_pairs,
     measure_table,
+    reference_pairs,
     suite_tables,
 )
 
@@ -144,6 +145,33 @@ def test_each_table_is_a_family_of_the_runs_design_with_holm_within_it() -> None
             )
     # the success table is the report's paired comparisons
     assert paired_comparisons(records) == tables[0]["rows"]
+
+
+def test_a_narrower_family_is_declared_from_the_design_and_corrected_within_itself() -> None:
+    """Every controller against a reference plus a named pair (a page that tests fewer pairs than
+    every pair): the family holds exactly those, Holm runs over its own m, and its rows are the
+    every-pair table's, oriented a - reference, with a Holm p no larger."""
+    records = _run(controllers=(("a", 0.9), ("b", 0.5), ("c", 0.6), ("c-v0", 0.4)))
+    declared = {env: ["a", "b", "c", "c-v0"] for env in TASKS}
+    pairs = reference_pairs(declared, "b", also=[("c", "c-v0"), ("c", "c-v0")])
+    assert pairs == [
+        (env, a, b) for env in TASKS for a, b in (("a", "b"), ("c", "b"), ("c-v0", "b"), ("c", "c-v0"))
+    ]
+    narrow = measure_table(records, OUTCOMES[0], pairs, "each controller against b")
+    every = measure_table(records, OUTCOMES[0])
+    assert narrow["family"]["size"] == 8 and every["family"]["size"] == 12
+    assert narrow["family"]["family"].endswith("success, each controller against b")
+    raw = [t["p_value"] for t in narrow["family"]["tests"]]
+    assert [t["p_holm"] for t in narrow["family"]["tests"]] == pytest.approx(holm_adjusted(raw))
+    full = {(r["env_id"], r["a"], r["b"]): r for r in every["rows"]}
+    for row in narrow["rows"]:
+        twin = full.get((row["env_id"], row["a"], row["b"])) or full[row["env_id"], row["b"], row["a"]]
+        sign = 1 if twin["a"] == row["a"] else -1
+        assert row["difference"] == pytest.approx(sign * twin["difference"])
+        assert row["p_value"] == pytest.approx(twin["p_value"])
+        assert row["p_holm"] <= twin["p_holm"] + 1e-12
+    with pytest.raises(ValueError, match=r"reference='z' is not one of the controllers \['a', 'b'\]"):
+        reference_pairs({TASKS[0]: ["a", "b"]}, "z")
 
 
 def test_a_pairs_test_is_the_layout_sign_flip_on_its_shared_units() -> None:

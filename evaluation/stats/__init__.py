@@ -52,6 +52,7 @@ from evaluation.stats.statistics import (
 )
 from evaluation.stats.suite_statistics import (
     BREAKDOWNS,
+    EVERY_PAIR,
     MEASURES,
     METRICS,
     OUTCOMES,
@@ -61,6 +62,7 @@ from evaluation.stats.suite_statistics import (
     is_suite_run,
     layout_summary,
     measure_table,
+    reference_pairs,
     suite_mean_interval,
     suite_rate_interval,
     suite_tables,
@@ -102,6 +104,7 @@ __all__ = [
     "paired_power",
     "power_statement",
     "BREAKDOWNS",
+    "EVERY_PAIR",
     "METRICS",
     "MEASURES",
     "OUTCOMES",
@@ -114,6 +117,7 @@ __all__ = [
     "suite_rate_interval",
     "suite_tables",
     "measure_table",
+    "reference_pairs",
     "Cell",
     "DistanceSummary",
     "leaderboard",

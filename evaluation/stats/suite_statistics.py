@@ -18,8 +18,9 @@ stated with its power.
   :func:`~evaluation.stats.layout_tests.paired_means_by_layout`: the difference's two-stage bootstrap
   interval and the layout sign-flip test). Its family (:class:`~evaluation.stats.families.HypothesisFamily`)
   is the run's design, every pair of controllers of every task that ran, known before any outcome:
-  a pair without a shared unit counts in ``m`` as ``p = 1``. :func:`suite_tables`: every
-  measure's table.
+  a pair without a shared unit counts in ``m`` as ``p = 1``; or a narrower design declared the
+  same way (:func:`reference_pairs`: every controller against a reference, and named pairs).
+  :func:`suite_tables`: every measure's table.
 
 Records of runs without a suite (no ``layout``) have none of these.
 """
@@ -49,6 +50,7 @@ __all__ = [
     "OUTCOMES",
     "Measure",
     "breakdown",
+    "EVERY_PAIR",
     "declared_pairs",
     "is_suite_run",
     "layout_summary",
@@ -56,6 +58,7 @@ __all__ = [
     "suite_rate_interval",
     "suite_tables",
     "measure_table",
+    "reference_pairs",
 ]
 
 
@@ -225,6 +228,39 @@ def declared_pairs(records: Sequence[Mapping[str, Any]]) -> list[tuple[str, str,
     ]
 
 
+def reference_pairs(
+    controllers: Mapping[str, Sequence[str]], reference: str, also: Sequence[tuple[str, str]] = ()
+) -> list[tuple[str, str, str]]:
+    """A design narrower than :func:`declared_pairs`, read from a run's declared controllers (its
+    header), never from its outcomes: per task, (task, a, ``reference``) for every other
+    controller a, in their order, then (task, a, b) for each (a, b) of ``also`` that the task has
+    both of.
+
+    Parameters
+    ----------
+    controllers : mapping of str to sequence of str
+        Task (env id) -> the labels the run declares for it.
+    reference : str
+        The controller every other one is compared with (``b`` of its pairs).
+    also : sequence of (str, str)
+        Further pairs (a, b) the family holds, e.g. a tuned controller and its ``-v0``.
+
+    Raises
+    ------
+    ValueError
+        ``reference`` is not declared for some task (naming the task and its controllers).
+    """
+    pairs = []
+    for env_id, labels in controllers.items():
+        if reference not in labels:
+            raise ValueError(
+                f"reference={reference!r} is not one of the controllers {list(labels)} of {env_id}"
+            )
+        pairs += [(env_id, a, reference) for a in labels if a != reference]
+        pairs += [(env_id, a, b) for a, b in also if a in labels and b in labels]
+    return list(dict.fromkeys(pairs))
+
+
 def _scope(records: Sequence[Mapping[str, Any]]) -> str:
     """The suite splits the records ran on (``koopnav-bench-v1/test``), for a family's name."""
     maps = sorted({str(r.get("map", "")).removeprefix(SUITE_PREFIX) for r in records})
@@ -274,7 +310,16 @@ def _row(
     return row
 
 
-def measure_table(records: Sequence[Mapping[str, Any]], measure: Measure) -> dict[str, Any]:
+#: the design of :func:`declared_pairs`, as a family's name states it
+EVERY_PAIR = "every pair of controllers within each task"
+
+
+def measure_table(
+    records: Sequence[Mapping[str, Any]],
+    measure: Measure,
+    pairs: Sequence[tuple[str, str, str]] | None = None,
+    design: str = EVERY_PAIR,
+) -> dict[str, Any]:
     """One measure's paired table over a suite run's records, its family corrected and its power.
 
     Parameters
@@ -283,6 +328,12 @@ def measure_table(records: Sequence[Mapping[str, Any]], measure: Measure) -> dic
         A suite run's episode records (each read once: :func:`evaluation.episodes.distinct.read_once`).
     measure : Measure
         What the table compares (one of :data:`MEASURES`).
+    pairs : sequence of (task, a, b), optional
+        The family's comparisons, declared from the run's design before any test (default: every
+        pair, :func:`declared_pairs`; :func:`reference_pairs` for a page that tests fewer). Holm's
+        correction and the power statement run over exactly these.
+    design : str
+        What ``pairs`` are, for the family's name (default :data:`EVERY_PAIR`).
 
     Returns
     -------
@@ -294,11 +345,10 @@ def measure_table(records: Sequence[Mapping[str, Any]], measure: Measure) -> dic
         shares a unit); ``rows``: one per pair with shared units (units where both episodes have
         a value, repeats counted once), with ``p_holm`` and ``rejected`` from the family.
     """
-    pairs = declared_pairs(records)
+    pairs = declared_pairs(records) if pairs is None else list(pairs)
     # declared from the design before any p-value is computed
     family = HypothesisFamily(
-        f"{_scope(records)}: {measure.label}, every pair of controllers within each task",
-        tuple(pair_label(*p) for p in pairs),
+        f"{_scope(records)}: {measure.label}, {design}", tuple(pair_label(*p) for p in pairs)
     )
     units = _units(records)
     p_values: dict[str, float] = {}
@@ -345,11 +395,16 @@ def measure_table(records: Sequence[Mapping[str, Any]], measure: Measure) -> dic
     }
 
 
-def suite_tables(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Every measure's table (:func:`measure_table`), outcomes first; empty without a suite."""
+def suite_tables(
+    records: Sequence[Mapping[str, Any]],
+    pairs: Sequence[tuple[str, str, str]] | None = None,
+    design: str = EVERY_PAIR,
+) -> list[dict[str, Any]]:
+    """Every measure's table (:func:`measure_table`, each its own family of ``pairs``: default
+    every pair), outcomes first; empty without a suite."""
     if not is_suite_run(records):
         return []
-    return [measure_table(records, measure) for measure in MEASURES]
+    return [measure_table(records, measure, pairs, design) for measure in MEASURES]
 
 
 def layout_summary(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:

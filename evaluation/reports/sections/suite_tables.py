@@ -5,8 +5,10 @@ metric, each with its family and its power statement. Reports of runs without a 
 
 from __future__ import annotations
 
+import csv
+import io
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from evaluation.reports.sections.blocks import (
@@ -24,7 +26,16 @@ from evaluation.stats.suite_statistics import MEASURES, METRICS, OUTCOMES, Measu
 from koopman_envs import TASKS
 from koopman_envs.params import PATH_RATIO_MIN_DISTANCE, STRICT_CLEARANCE_MARGIN
 
-__all__ = ["SUITE_METRICS_NOTE", "SUITE_PAIRED_NOTE", "paired_table", "suite_sections", "summary_rows"]
+__all__ = [
+    "SUITE_METRICS_NOTE",
+    "PAIRED_CSV_COLUMNS",
+    "SUITE_PAIRED_NOTE",
+    "paired_csv",
+    "paired_note",
+    "paired_table",
+    "suite_sections",
+    "summary_rows",
+]
 
 _LABELS = {spec.env_id: spec.label for spec in TASKS.values()}
 
@@ -42,17 +53,25 @@ SUITE_METRICS_NOTE = (
     f"{100 * PATH_RATIO_MIN_DISTANCE:.0f} cm of it left out), mean over robots. Jerk: RMS second "
     "difference of the speed command over dt^2 (mean over robots). docs/benchmark.md defines them."
 )
-SUITE_PAIRED_NOTE = (
-    "Every table compares two controllers of a task on the (layout, seed) units both ran (a metric "
-    "defined on successes: the units both won), with the layout as the unit: a minus b with its 95% "
-    "two-stage bootstrap interval (layouts, then units within them), and the two-sided layout "
-    "sign-flip test (exact up to 16 layouts with a non-zero difference, else 20,000 random sign "
-    "patterns). Each table is one family of tests, declared from the run's design before any test "
-    "(every pair of controllers of each task; a pair without a shared unit counts as p = 1), and "
-    "Holm's adjustment runs within it. Below each table: the family, its size m and the smallest "
-    "paired difference it finds with 80% power at Holm's first step (alpha/m), from the measured "
-    "discordance (rates) or SD of the differences (metrics) and the between-layout correlation."
-)
+
+
+def paired_note(design: str) -> str:
+    """The note above a run's paired tables, whose families are ``design`` (what each table tests,
+    as a clause: ``"every pair of controllers of each task"``)."""
+    return (
+        "Every table compares two controllers of a task on the (layout, seed) units both ran (a metric "
+        "defined on successes: the units both won), with the layout as the unit: a minus b with its 95% "
+        "two-stage bootstrap interval (layouts, then units within them), and the two-sided layout "
+        "sign-flip test (exact up to 16 layouts with a non-zero difference, else 20,000 random sign "
+        "patterns). Each table is one family of tests, declared from the run's design before any test "
+        f"({design}; a pair without a shared unit counts as p = 1), and "
+        "Holm's adjustment runs within it. Below each table: the family, its size m and the smallest "
+        "paired difference it finds with 80% power at Holm's first step (alpha/m), from the measured "
+        "discordance (rates) or SD of the differences (metrics) and the between-layout correlation."
+    )
+
+
+SUITE_PAIRED_NOTE = paired_note("every pair of controllers of each task")
 
 
 def _task(env_id: str) -> str:
@@ -141,6 +160,59 @@ def paired_table(table: Mapping[str, Any], measure: Measure) -> Table:
     return header, rows
 
 
+#: the columns of :func:`paired_csv`: the run, the table's measure and its family's size ``m`` (the
+#: family is the table: its name is the run's and the measure's), then the row's
+#: fields (``mean_a``/``mean_b``: a rate or a metric's mean; ``only_a``/``only_b``: a rate's
+#: discordant units, empty for a metric)
+PAIRED_CSV_COLUMNS = (
+    "run",
+    "measure",
+    "m",
+    "task",
+    "a",
+    "b",
+    "layouts",
+    "pairs",
+    "mean_a",
+    "mean_b",
+    "difference",
+    "low",
+    "high",
+    "only_a",
+    "only_b",
+    "p",
+    "p_holm",
+    "rejected",
+)
+
+
+def _csv_number(value: Any) -> str:
+    # 6 significant digits: what a reader needs, and a file whose versions delta well in git
+    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.6g}"
+
+
+def paired_csv(runs: Sequence[tuple[str, Sequence[Mapping[str, Any]]]]) -> str:
+    """Paired tables as CSV text, one line per row (:data:`PAIRED_CSV_COLUMNS`): for each
+    ``(run, tables)`` of ``runs`` (a name and its tables,
+    :func:`evaluation.stats.suite_statistics.suite_tables`), every table's rows with its family's
+    size, in order. Holm's p is the one of that family."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(PAIRED_CSV_COLUMNS)
+    for run, tables in runs:
+        for table in tables:
+            family = table["family"]
+            for r in table["rows"]:
+                writer.writerow(
+                    [run, table["measure"], family["size"], _task(r["env_id"]), r["a"], r["b"]]
+                    + [r["layouts"], r["n"], _csv_number(r["mean_a"]), _csv_number(r["mean_b"])]
+                    + [_csv_number(r[k]) for k in ("difference", "low", "high")]
+                    + [r.get("only_a", ""), r.get("only_b", ""), _csv_number(r["p_value"])]
+                    + [_csv_number(r.get("p_holm")), int(bool(r.get("rejected")))]
+                )
+    return buffer.getvalue()
+
+
 def _family_note(table: Mapping[str, Any]) -> str:
     family = table["family"]
     if table["power"] is not None:
@@ -156,19 +228,25 @@ def _family_note(table: Mapping[str, Any]) -> str:
     return f"Over the {table['where']}. {text}{verdict}"
 
 
-def suite_sections(results: RunData) -> list[Section]:
+def suite_sections(
+    results: RunData, tables: Sequence[Mapping[str, Any]] | None = None, note: str = SUITE_PAIRED_NOTE
+) -> list[Section]:
     """A suite run's sections: outcomes and metrics per controller, then the paired tables, each
-    with its family and power; empty for a run without a suite."""
-    if not results.suite_tables:
+    with its family and power; empty for a run without a suite. ``tables``: the paired tables
+    (default the run's own, every pair: ``results.suite_tables``; a page that tests a narrower
+    family passes its own, :func:`evaluation.stats.suite_statistics.suite_tables` with ``pairs``),
+    and ``note`` the note above them that names their families (:func:`paired_note`)."""
+    tables = results.suite_tables if tables is None else tables
+    if not tables:
         return []
     summary = Section(
         "suite-metrics",
         "Outcomes and metrics over layouts",
         (Note(SUITE_METRICS_NOTE), TableBlock(summary_rows(results))),
     )
-    blocks: list[Block] = [Note(SUITE_PAIRED_NOTE)]
+    blocks: list[Block] = [Note(note)]
     by_key = {m.key: m for m in (*OUTCOMES, *METRICS)}
-    for table in results.suite_tables:
+    for table in tables:
         measure = by_key[table["measure"]]
         caption = f"Paired: {_heading(measure)}"
         if table["rows"]:
