@@ -328,10 +328,10 @@ def measure_table(
         A suite run's episode records (each read once: :func:`evaluation.episodes.distinct.read_once`).
     measure : Measure
         What the table compares (one of :data:`MEASURES`).
-    pairs : sequence of (task, a, b), optional
-        The family's comparisons, declared from the run's design before any test (default: every
-        pair, :func:`declared_pairs`; :func:`reference_pairs` for a page that tests fewer). Holm's
-        correction and the power statement run over exactly these.
+    pairs : sequence of tuple of str, optional
+        The family's comparisons, each (task, a, b), declared from the run's design before any
+        test (default: every pair, :func:`declared_pairs`; :func:`reference_pairs` for a page that
+        tests fewer). Holm's correction and the power statement run over exactly these.
     design : str
         What ``pairs`` are, for the family's name (default :data:`EVERY_PAIR`).
 
