@@ -42,6 +42,7 @@ from evaluation.stats.families import HypothesisFamily, power_statement
 from evaluation.stats.layout_tests import LayoutComparison, paired_means_by_layout, paired_rates_by_layout
 from evaluation.stats.statistics import wilson_interval
 from koopman_envs import FAMILIES, SUITE_PREFIX, TIERS, path_ratio, smallest_clearance
+from koopman_envs.checks import check_choice
 
 __all__ = [
     "BREAKDOWNS",
@@ -252,10 +253,7 @@ def reference_pairs(
     """
     pairs = []
     for env_id, labels in controllers.items():
-        if reference not in labels:
-            raise ValueError(
-                f"reference={reference!r} is not one of the controllers {list(labels)} of {env_id}"
-            )
+        check_choice("reference", reference, labels, f" of {env_id}", among="the controllers")
         pairs += [(env_id, a, reference) for a in labels if a != reference]
         pairs += [(env_id, a, b) for a, b in also if a in labels and b in labels]
     return list(dict.fromkeys(pairs))
