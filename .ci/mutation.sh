@@ -6,10 +6,8 @@
 # For each module: clones the committed HEAD of this repository into a temporary directory, or
 # WORKDIR/MODULE (the mutants/ folder never lands in the checkout), appends a [tool.mutmut]
 # section to the clone's pyproject.toml that mutates only that module and runs only the test files
-# that exercise it, runs `mutmut run`, and prints the score: detected / total (a mutant is detected
-# when the tests fail on it or run out of mutmut's CPU budget, as mutmut's own score counts it: a
-# timeout is a test run that did not pass), then every mutant not detected with its status
-# (survived, "no tests": no selected test reaches it) and the timeouts, and at the
+# that exercise it, runs `mutmut run`, and prints the score: killed / total, then every mutant not
+# killed with its status (survived, timeout, "no tests": no selected test reaches it), and at the
 # end every module's score line. Exit 1 when a module scores below MIN_SCORE, 2 on bad input or a WORKDIR that does not
 # match, 130 when stopped by a signal.
 #
@@ -25,7 +23,7 @@
 #                   DIR/MODULE/koopnav and a rerun of the same command continues where the last one
 #                   stopped (mutmut keeps every verdict in the clone's mutants/*.meta and tests only
 #                   the mutants without one). A module whose run finished writes DIR/MODULE/score
-#                   (detected / total and the survivors) and is not rerun; its score is printed again.
+#                   (killed / total and the survivors) and is not rerun; its score is printed again.
 #                   A clone made from another commit or with another test selection is refused by
 #                   name (remove DIR/MODULE to start it afresh). Ctrl-C, SIGTERM or SIGHUP stop the
 #                   run at the mutant under test (exit 130); a torn meta or score file is found and
@@ -98,7 +96,7 @@ export KOOPNAV_NMPC_JIT=0 # no test compiles an NMPC solver (tests/conftest.py s
 # TARGET), `resume TARGET [--dry]` (in a clone: the meta file checked whole, the verdicts an
 # interruption can leave reset), `score MODULE RESULTS MIN SECONDS KEY [FILE]` (the score of
 # `mutmut results`, kept in FILE when every mutant has a verdict), `show FILE KEY MIN` (a kept
-# score, refused when torn or made from another KEY). Exit 0: at least MIN percent detected, 1: below, 3: no whole score.
+# score, refused when torn or made from another KEY). Exit 0: at least MIN percent killed, 1: below, 3: no whole score.
 read -r -d '' STATE <<'EOF' || true
 import hashlib
 import json
@@ -165,18 +163,13 @@ def resume(target: str, dry: bool) -> None:
     print(f"  {decided} of {len(codes)} mutants have a verdict{again}")
 
 
-# the tests fail on the mutant, or their run exceeds mutmut's CPU budget (30 times the clean run's
-# estimate: a run that never passes); mutmut's own score counts both
-DETECTED = ("killed", "timeout")
-
-
-def score_line(detected: int, total: int, seconds: int, counts: dict[str, int]) -> str:
+def score_line(killed: int, total: int, seconds: int, counts: dict[str, int]) -> str:
     detail = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
-    return f"{detected}/{total} detected ({100.0 * detected / total:.1f}%) in {seconds} s; {detail}"
+    return f"{killed}/{total} killed ({100.0 * killed / total:.1f}%) in {seconds} s; {detail}"
 
 
-def passed(detected: int, total: int, minimum: float) -> int:
-    return 0 if total and 100.0 * detected / total >= minimum else 1
+def passed(killed: int, total: int, minimum: float) -> int:
+    return 0 if total and 100.0 * killed / total >= minimum else 1
 
 
 def score(module: str, results: str, minimum: float, seconds: int, key: str, keep: str) -> int:
@@ -188,20 +181,20 @@ def score(module: str, results: str, minimum: float, seconds: int, key: str, kee
             counts[state] = counts.get(state, 0) + 1
             if state != "killed":
                 others.append(f"  {state}: {name}")
-    total, detected = sum(counts.values()), sum(counts.get(state, 0) for state in DETECTED)
+    total, killed = sum(counts.values()), counts.get("killed", 0)
     if not total:
         print(f"{module}: no mutants listed (see the run's log)")
         return 1
     if counts.get("not checked"):
         print(f"{module}: {total - counts['not checked']} of {total} mutants have a verdict; rerun to finish")
         return 3
-    text = "\n".join([f"{module}: {score_line(detected, total, seconds, counts)}", *others]) + "\n"
+    text = "\n".join([f"{module}: {score_line(killed, total, seconds, counts)}", *others]) + "\n"
     print(text, end="")
     if keep:
         # the key names the clone's commit and test selection; the digest finds a torn file
         body = f"{text}key {key}\n"
         write_atomically(Path(keep), f"{body}sha256 {hashlib.sha256(body.encode()).hexdigest()}\n")
-    return passed(detected, total, minimum)
+    return passed(killed, total, minimum)
 
 
 def show(path: str, key: str, minimum: float) -> int:
@@ -217,7 +210,7 @@ def show(path: str, key: str, minimum: float) -> int:
     if lines[-1] != f"key {key}":
         print(f"  {path} was made from {lines[-1][4:]!r}, not {key!r}: the module is run again")
         return 3
-    found = re.match(r"\S+: (\d+)/(\d+) detected", lines[0])
+    found = re.match(r"\S+: (\d+)/(\d+) killed", lines[0])
     if found is None:
         print(f"  {path} holds no score line: the module is run again")
         return 3

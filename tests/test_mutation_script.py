@@ -87,7 +87,7 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     first = _run(source, workdir)
     assert first.returncode == 0, first.stdout + first.stderr
     score = _score_line(first)
-    assert score.startswith("records: 5/6 detected (83.3%)"), score
+    assert score.startswith("records: 5/6 killed (83.3%)"), score
     assert "survived: evaluation.episodes.records.x_grade__mutmut_" in first.stdout
     meta = json.loads(_meta(workdir).read_text())
     durations = meta["durations_by_key"]
