@@ -18,6 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.patches import Circle, Rectangle
 
+from koopman_envs.files import write_atomic
 from koopman_envs.suites import FAMILIES, load_suite
 from koopman_envs.suites.measures import ARENA
 from koopman_envs.suites.planner import shortest_path
@@ -69,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
         "koopnav-bench-v1 (validation): target reaching (left two), formation (right two)", fontsize=10
     )
     fig.tight_layout()
-    fig.savefig(args.out, dpi=110)
+    write_atomic(args.out, lambda temporary: fig.savefig(temporary, dpi=110))
     print(f"wrote {args.out}")
     return 0
 

@@ -17,7 +17,6 @@ raises when the data no longer support the prose).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +31,7 @@ from controllers.mpc.config import NMPCConfig  # noqa: E402
 from controllers.mpc.margins import chance_tightening  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
+from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.stats.statistics import PairedComparison, holm_adjusted, paired_comparison, wilson_interval  # noqa: E402
 from koopman_envs import ComputeCharge  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
@@ -135,11 +135,13 @@ def tightening() -> tuple[float, float]:
 
 
 def read_records(archive: Path, level: str) -> list[dict[str, Any]]:
-    """The episode records of ``archive``'s run (its sweep level ``level``, if given)."""
+    """The episode records of ``archive``'s run (its sweep level ``level``, if given), read as every
+    page reads a log (:func:`evaluation.reports.published.results_from_log`: each record checked, an
+    episode logged twice read once, two records of it that disagree refused by name)."""
     with extracted_archive(archive) as run:
         log = run / "sweep" / level / "episodes.jsonl" if level else run / "episodes.jsonl"
-        rows = [json.loads(line) for line in log.read_text(encoding="utf-8").splitlines() if line.strip()]
-    return [r for r in rows if "key" in r and r.get("status") == "ok"]
+        rows = results_from_log(log).records
+    return [r for r in rows if r.get("status") == "ok"]
 
 
 def key_of(record: dict[str, Any]) -> Key:
@@ -338,8 +340,7 @@ def save_figure(arms: dict[str, dict[Key, dict[str, Any]]], path: Path) -> None:
     ax.set_ylim(0, 100)
     ax.set_title("Koopman-NMPC, the paper protocol's 40 high-slip episodes, 95% Wilson intervals", fontsize=9)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, metadata={"Software": None})
+    write_atomic(path, lambda temporary: fig.savefig(temporary, dpi=110, metadata={"Software": None}))
     plt.close(fig)
 
 

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import argparse
 from importlib import metadata
-from pathlib import Path
 
 import controllers
 from controllers.registry import ENTRY_POINT_GROUP
 from controllers.tuning import builtin_names
+from koopman_envs.files import write_atomic
 
 HEADER = """# Controller options
 
@@ -56,7 +56,7 @@ def main() -> None:
     # no default: the page is a tracked file, written only when named
     parser.add_argument("--out", required=True, help="the page to write (docs/controller_options.md)")
     args = parser.parse_args()
-    Path(args.out).write_text(page(), encoding="utf-8")
+    write_atomic(args.out, page())
     print(f"wrote {args.out}")
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -360,3 +362,26 @@ def test_a_zip_with_a_foreign_pickle_is_refused_unless_trusted(tmp_path) -> None
     ):
         load_model(target, PPO)
     assert load_model(target, PPO, allow_pickle=True) is not None  # the user's explicit trust
+
+
+def test_select_reads_a_run_s_metadata_bounded_and_refuses_what_is_no_object(tmp_path) -> None:
+    """baselines.sb3.select read metadata.json with json.loads and no bound: nested past the bound
+    it raised RecursionError, a list or a FIFO got past it."""
+    from baselines.sb3.policy import PolicyFiles
+    from baselines.sb3.select import read_metadata
+
+    path = PolicyFiles(tmp_path).metadata
+    path.write_text('{"timesteps": 5}', encoding="utf-8")
+    assert read_metadata(tmp_path) == {"timesteps": 5}
+    path.write_text("[" * 50_000 + "]" * 50_000, encoding="utf-8")
+    with pytest.raises(ValueError, match=r"metadata.json: JSON nested 50000 levels deep"):
+        read_metadata(tmp_path)
+    path.write_text("[1, 2]", encoding="utf-8")
+    with pytest.raises(
+        ValueError, match=r"metadata.json: a training run's metadata is a JSON object, not list"
+    ):
+        read_metadata(tmp_path)
+    path.unlink()
+    os.mkfifo(path)
+    with pytest.raises(ValueError, match=r"training metadata"):
+        read_metadata(tmp_path)

@@ -336,3 +336,26 @@ def test_the_results_page_refuses_conflicting_duplicates_naming_the_files(noisy,
         in done.stderr
     )
     assert not (tmp_path / "results.md").exists()
+
+
+def test_the_compute_page_refuses_a_conflicting_duplicate_by_name(noisy, tmp_path) -> None:
+    """docs/make_compute_md.py read its archives' logs line by line and kept the last record of an
+    episode logged twice; it now reads them as every page does (results_from_log)."""
+    import importlib.util
+
+    from evaluation.reports.published import pack_run
+
+    spec = importlib.util.spec_from_file_location("make_compute_md", ROOT / "docs" / "make_compute_md.py")
+    assert spec is not None and spec.loader is not None
+    page = importlib.util.module_from_spec(spec)
+    sys.modules["make_compute_md"] = page
+    spec.loader.exec_module(page)
+    run = tmp_path / "run"
+    shutil.copytree(noisy, run)
+    lines = (run / "episodes.jsonl").read_bytes().splitlines()
+    assert len(page.read_records(pack_run(run, tmp_path / "same.tar.xz"), "")) == 10
+    (run / "episodes.jsonl").write_bytes(
+        b"\n".join([*lines, json.dumps(_flip(json.loads(lines[3]))).encode()]) + b"\n"
+    )
+    with pytest.raises(ConflictingRecords, match=r"is recorded twice with different outcomes"):
+        page.read_records(pack_run(run, tmp_path / "flipped.tar.xz"), "")

@@ -190,6 +190,41 @@ def test_bad_model_files(tmp_path, nominal_model: KoopmanModel) -> None:
         KoopmanModel.load(good, dt=0.2)
 
 
+def test_a_model_file_is_written_whole_and_its_metadata_parsed_bounded(
+    tmp_path, nominal_model: KoopmanModel, monkeypatch
+) -> None:
+    """A write cut short leaves the earlier file as it was (it wrote in place before), and
+    metadata nested past the JSON bound is a ModelFileError, not a RecursionError."""
+    import zipfile
+
+    import numpy as np
+
+    path = tmp_path / "model.npz"
+    nominal_model.save(path)
+    before = path.read_bytes()
+
+    def cut(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np.lib.format, "write_array", cut)
+    with pytest.raises(OSError, match="No space left"):
+        nominal_model.save(path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model.npz"]  # no temporary left
+    deep = tmp_path / "deep.npz"
+    with zipfile.ZipFile(path) as good, zipfile.ZipFile(deep, "w") as bad:
+        for name in good.namelist():
+            data = good.read(name)
+            if name == "metadata.npy":
+                buffer = __import__("io").BytesIO()
+                np.lib.format.write_array(buffer, np.array("[" * 50_000 + "]" * 50_000), allow_pickle=False)
+                data = buffer.getvalue()
+            bad.writestr(name, data)
+    with pytest.raises(ModelFileError, match="metadata: JSON nested 50000 levels deep"):
+        KoopmanModel.load(deep)
+
+
 def test_wrong_matrix_shapes_are_rejected(nominal_model: KoopmanModel) -> None:
     with pytest.raises(ModelFileError, match="A has shape"):
         KoopmanModel(

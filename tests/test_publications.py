@@ -141,6 +141,19 @@ def test_packing_refuses_what_cannot_be_split_and_writes_nothing(tmp_path) -> No
     assert not (tmp_path / "out").exists()
 
 
+def test_packing_refuses_a_record_nested_past_the_bound_by_its_line(tmp_path) -> None:
+    """A line nested 100,000 deep raised RecursionError (a traceback) from json.loads."""
+    log = _sweep(tmp_path / "made", ["a"]) / "sweep" / "lvl-0" / "episodes.jsonl"
+    with log.open("a") as handle:
+        handle.write("[" * 100_000 + "]" * 100_000 + "\n")
+    with pytest.raises(ValueError, match=r"lvl-0/episodes.jsonl, line 4: JSON nested 100000 levels deep"):
+        publications.pack_split(log.parents[2], tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    log.write_text(log.read_text().splitlines(keepends=True)[0] + "[1]\n")  # JSON, but no record
+    with pytest.raises(ValueError, match=r"lvl-0/episodes.jsonl, line 2: a JSON list, not an episode record"):
+        publications.pack_split(log.parents[2], tmp_path / "out")
+
+
 @pytest.fixture()
 def split(tmp_path) -> Path:
     return publications.pack_split(_sweep(tmp_path / "made"), tmp_path / "data" / "run")

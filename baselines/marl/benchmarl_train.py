@@ -412,7 +412,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{best.success_rate:.2f}) in {out / args.task}"
         )
         return SUCCESS_EXIT
-    np.savez(out / "policy.npz", **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
+    # whole or not at all: the policy is read back by the evaluator
+    write_atomic(out / "policy.npz", lambda temporary: np.savez(temporary, **arrays))  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
     write_atomic(out / "metadata.json", json.dumps(metadata, indent=1) + "\n")
     print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
     return SUCCESS_EXIT

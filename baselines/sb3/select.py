@@ -26,7 +26,8 @@ from baselines.features.set_features import SetFeatureConfig
 from baselines.sb3.policy import PolicyFiles, load_policy, success_rate
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from koopman_envs import TASKS
-from koopman_envs.files import write_atomic
+from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 
 __all__ = [
     "EVAL_MAPS",
@@ -112,13 +113,24 @@ def validation_success(directory: Path, metadata: dict, episodes: int, seed: int
     )
 
 
+def read_metadata(run: Path) -> dict[str, Any]:
+    """A training run's ``metadata.json``, read bounded (a regular file of at most
+    :data:`koopman_envs.files.MAX_TEXT_BYTES`) and parsed with its nesting bounded; anything but a
+    JSON object is refused by name."""
+    path = PolicyFiles(run).metadata
+    metadata = parse_json(read_text(path, MAX_TEXT_BYTES, what="training metadata"), str(path))
+    if not isinstance(metadata, dict):
+        raise ValueError(f"{path}: a training run's metadata is a JSON object, not {type(metadata).__name__}")
+    return metadata
+
+
 def candidates(run: Path) -> list[tuple[int, Path]]:
     """(timesteps, directory) of every checkpoint of a run and of its final policy, in order."""
     found = []
     for path in (run / "checkpoints").glob("step_*"):
         if PolicyFiles(path).model.exists():
             found.append((int(path.name.split("_")[1]), path))
-    final = json.loads(PolicyFiles(run).metadata.read_text(encoding="utf-8"))
+    final = read_metadata(run)
     found.append((int(final.get("trained_timesteps", final["timesteps"])), run))
     return sorted(found, key=lambda item: item[0])
 
@@ -135,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     if not PolicyFiles(run).metadata.exists():
         print(f"error: {run} holds no finished training run (metadata.json missing)", file=sys.stderr)
         return BAD_INPUT_EXIT
-    metadata = json.loads(PolicyFiles(run).metadata.read_text(encoding="utf-8"))
+    metadata = read_metadata(run)
     table = []
     for steps, directory in candidates(run):
         rate = validation_success(directory, metadata, args.episodes)

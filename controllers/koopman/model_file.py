@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 
 from controllers.calibration import check_position_residual
 from controllers.koopman.dictionary import check_memory, check_velocity, get_dictionary
-from koopman_envs.files import MAX_LOG_BYTES, FileRefused, read_bounded
+from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_LOG_BYTES, FileRefused, read_bounded, write_atomic
 
 __all__ = ["FORMAT_VERSION", "ModelFileError", "read_model_file", "write_model_file"]
 
@@ -42,14 +43,20 @@ def write_model_file(
     meta.update(metadata)
     meta.update({k: v for k, v in own.items() if k in ("memory", "velocity") and v})
     entries = {**arrays, "metadata": np.array(json.dumps(meta, sort_keys=True))}
+
     # np.savez stamps the current time into the archive; fixed timestamps make the file a
     # pure function of its content, so a refit can be compared byte for byte
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        for key, value in entries.items():
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            with archive.open(info, "w") as fh:
-                np.lib.format.write_array(fh, np.asarray(value), allow_pickle=False)
+    def write(temporary: str) -> None:
+        with zipfile.ZipFile(temporary, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+            for key, value in entries.items():
+                info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                with archive.open(info, "w") as fh:
+                    np.lib.format.write_array(fh, np.asarray(value), allow_pickle=False)
+
+    # whole or not at all (a temporary file renamed over the path): a model file is read back by
+    # every later run, and a kill mid-write would otherwise leave a truncated one in its place
+    write_atomic(path, write)
 
 
 def read_model_file(
@@ -72,7 +79,7 @@ def read_model_file(
         blob = io.BytesIO(read_bounded(path, MAX_LOG_BYTES, what="Koopman model file"))
         with np.load(blob, allow_pickle=False) as data:
             arrays = {key: data[key] for key in ("A", "N", "B", "C")}
-            meta = json.loads(str(data["metadata"]))
+            meta = parse_json(str(data["metadata"]), f"Koopman model file {path!r}, metadata")
     except FileRefused as exc:  # not a regular file, or over the cap: named by the reader
         raise ModelFileError(f"{exc}; {_HINT}") from None
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:

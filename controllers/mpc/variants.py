@@ -64,7 +64,7 @@ from controllers.mpc.config import ROBUST_UNCERTAINTY_MARGIN, NMPCConfig
 from controllers.mpc.controller import NMPCController
 from controllers.mpc.models import UnicycleModel
 from koopman_envs import CalibrationPlant, Observed
-from koopman_envs.checks import Range
+from koopman_envs.checks import Range, parse_json
 from koopman_envs.files import MAX_TEXT_BYTES, read_text
 from koopman_envs.scenario import Scenario
 
@@ -101,7 +101,7 @@ class NominalNMPC(NMPCController):
         summary = {"transitions": spec.transitions, "key": key}
         try:
             residual = check_position_residual(
-                json.loads(read_text(path, MAX_TEXT_BYTES, what="calibration cache entry"))[
+                parse_json(read_text(path, MAX_TEXT_BYTES, what="calibration cache entry"), str(path))[
                     "position_residual"
                 ],
                 plant.n_robots,

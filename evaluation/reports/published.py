@@ -389,14 +389,19 @@ def run_files(run_dir: Path, dest: Path) -> list[Path]:
     return members
 
 
-def packed_log(data: bytes) -> bytes:
+def packed_log(data: bytes, where: str = "episode log") -> bytes:
     """An episode log's bytes as published: its header line, then each record without
-    :data:`PACKED_OUT`, one per line."""
+    :data:`PACKED_OUT`, one per line; a line that is not a JSON object (or is nested past
+    :func:`koopman_envs.checks.parse_json`'s bound) is a ``ValueError`` naming ``where`` and its number."""
     lines = data.decode("utf-8").split("\n")
     kept = [lines[0]]
-    for line in lines[1:]:
+    for number, line in enumerate(lines[1:], start=2):
         if line:
-            record = json.loads(line)
+            record = parse_json(line, f"{where}, line {number}")
+            if not isinstance(record, dict):
+                raise ValueError(
+                    f"{where}, line {number}: a JSON {type(record).__name__}, not an episode record"
+                )
             kept.append(json.dumps({k: v for k, v in record.items() if k not in PACKED_OUT}))
     return ("\n".join(kept) + "\n").encode("utf-8")
 
@@ -406,7 +411,7 @@ def packed_member(path: Path, limit: int) -> bytes:
     sweep manifest as it is), read as :func:`koopman_envs.files.read_bounded` reads (a regular
     file of at most ``limit`` bytes)."""
     data = read_bounded(path, limit, what="episode log or sweep manifest")
-    return packed_log(data) if path.name == "episodes.jsonl" else data
+    return packed_log(data, str(path)) if path.name == "episodes.jsonl" else data
 
 
 def tar_xz(members: Iterable[tuple[str, bytes]]) -> bytes:
