@@ -9,6 +9,7 @@ code of highest priority is returned (:func:`worst`): ``130 > 103 > 102 > 101 > 
 
 from __future__ import annotations
 
+import re
 import sys
 import traceback
 
@@ -24,6 +25,7 @@ __all__ = [
     "SUCCESS_EXIT",
     "UNWRITABLE_OUT_EXIT",
     "exit_codes_help",
+    "exit_codes_markdown",
     "report_internal_error",
     "worst",
 ]
@@ -97,6 +99,17 @@ def exit_codes_help() -> str:
     order = " > ".join(str(code) for code in EXIT_PRECEDENCE)
     rows = "\n".join(f"  {code:<6} {meaning}" for code, meaning in EXIT_CODES)
     return f"exit codes:\n{rows}\n  when several apply, the highest-priority one: {order}"
+
+
+_OPTION = re.compile(r"--[a-z][a-z-]*")
+
+
+def exit_codes_markdown() -> str:
+    """The table as Markdown (docs/ci.md and docs/evaluator.md hold it verbatim, a test checks),
+    options set as code."""
+    as_code = r"`\g<0>`"
+    rows = "\n".join(f"| {code} | {_OPTION.sub(as_code, meaning)} |" for code, meaning in EXIT_CODES)
+    return f"| code | meaning |\n|---|---|\n{rows}\n"
 
 
 def report_internal_error(program: str) -> int:

@@ -387,3 +387,12 @@ def test_help_is_generated_from_the_table(capsys) -> None:
     for code, meaning in EXIT_CODES:
         assert f"  {code:<6} {meaning}\n" in text
     assert "130 > 103 > 102 > 101 > 3" in text
+
+
+@pytest.mark.parametrize("page", ["docs/ci.md", "docs/evaluator.md"])
+def test_the_docs_exit_code_tables_are_the_one_table(page: str) -> None:
+    """Both pages held a copy written by hand; they now hold exit_codes_markdown() verbatim."""
+    from evaluation.exit_codes import exit_codes_markdown
+
+    text = (Path(__file__).resolve().parents[1] / page).read_text(encoding="utf-8")
+    assert f"## Exit codes\n\n{exit_codes_markdown()}" in text
