@@ -33,10 +33,10 @@ from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, rk4_step, wrap_angle, wrap_scalar
 from koopman_envs.sim.formations import FORMATION_SHAPES
-from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
-from koopman_envs.sim.random_maps import generate_random_map
+from koopman_envs.sim.maps.generator import generate_random_map
+from koopman_envs.sim.maps.map_spec import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
 from koopman_envs.sim.rollout import rollout
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 from koopman_envs.suites import (
     FAMILIES,
     SPLITS,

@@ -581,3 +581,105 @@ def test_the_controllers_root_holds_at_most_twelve_modules() -> None:
     a thirteenth root module belongs in a folder."""
     root = sorted(p.stem for p in (ROOT / "controllers").glob("*.py"))
     assert len(root) <= ROOT_MODULES_AT_MOST, f"controllers/ has {len(root)} root modules: {root}"
+
+
+#: the most modules a folder of the packages holds (``__init__.py`` counted, as for the roots above)
+#: before its modules go into sub-folders by concept (issue 61: "roots of at most 10-12 modules")
+FOLDER_MODULES_AT_MOST = ROOT_MODULES_AT_MOST
+#: the folders allowed more, each with its reason and its count when listed (the list only shrinks)
+FOLDER_MODULES_EXCEPTIONS: dict[str, tuple[int, str]] = {
+    "controllers/mpc": (
+        15,
+        "the OCP's parts, one job per module as do-mpc and acados split them (config, layout, models, "
+        "problem, solve, rti, slots, margins, controller, hooks, variants) and the distributed NMPC "
+        "(distributed, detour, plan_exchange), which reuses the problem and the hooks",
+    ),
+}
+
+
+def _folder_module_counts() -> dict[str, int]:
+    """Every package folder (a folder with ``__init__.py``, the package roots included) -> its
+    modules, ``__init__.py`` counted, sub-folders not."""
+    counts = {}
+    for package in PACKAGES:
+        for init in (ROOT / package).rglob("__init__.py"):
+            counts[init.parent.relative_to(ROOT).as_posix()] = len(list(init.parent.glob("*.py")))
+    return counts
+
+
+def _crowded_folders(counts: dict[str, int], exceptions: dict[str, tuple[int, str]]) -> list[str]:
+    """The folders over the cap and not excepted, the excepted ones that grew past their listed
+    count, and the excepted ones now within the cap or gone (to be removed from the list)."""
+    crowded = [
+        f"{f}: {n}" for f, n in sorted(counts.items()) if n > FOLDER_MODULES_AT_MOST and f not in exceptions
+    ]
+    crowded += [
+        f"{f}: {counts[f]} > its listed {n}" for f, (n, _) in exceptions.items() if counts.get(f, 0) > n
+    ]
+    crowded += [
+        f"{f}: {counts.get(f, 0)}, within the cap: remove its exception"
+        for f in exceptions
+        if counts.get(f, 0) <= FOLDER_MODULES_AT_MOST
+    ]
+    return crowded
+
+
+def test_every_folder_holds_at_most_twelve_modules() -> None:
+    """A folder of thirteen modules or more is split into sub-folders by concept (koopman_envs/sim/:
+    maps/, slip/, movers/, physics/), unless FOLDER_MODULES_EXCEPTIONS names it with its reason."""
+    assert _crowded_folders(_folder_module_counts(), FOLDER_MODULES_EXCEPTIONS) == []
+
+
+def test_a_crowded_folder_fails_the_module_cap() -> None:
+    counts = {"koopman_envs/sim": 18, "controllers/mpc": 16, "baselines/sb3": 12, "evaluation/run": 3}
+    assert _crowded_folders(counts, {"controllers/mpc": (15, "why")}) == [
+        "koopman_envs/sim: 18",
+        "controllers/mpc: 16 > its listed 15",
+    ]
+    assert _crowded_folders({"controllers/mpc": 12}, {"controllers/mpc": (15, "why")}) == [
+        "controllers/mpc: 12, within the cap: remove its exception"
+    ]
+
+
+#: the most parameters a compiled kernel takes (issue 61: the obstacle set, the team state and a
+#: kernel's settings travel as one value each, named tuples or arrays, not as long positional lists)
+KERNEL_PARAMETERS_AT_MOST = 10
+
+
+def _kernel_parameters(source: str) -> dict[str, int]:
+    """Every numba-compiled function of ``source`` (a decorator naming ``jit``: ``njit``,
+    ``numba.njit(...)``, ``jit``) -> its number of parameters (positional, keyword-only, ``*args``,
+    ``**kwargs``)."""
+    found = {}
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and any(
+            "jit" in ast.unparse(d) for d in node.decorator_list
+        ):
+            a = node.args
+            starred = (a.vararg is not None) + (a.kwarg is not None)
+            found[node.name] = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + starred
+    return found
+
+
+def test_every_compiled_kernel_takes_at_most_ten_parameters() -> None:
+    """The longest argument lists (``reward._score`` 23, ``perception._perceive`` 22) were grouped
+    (issue 61); a kernel of eleven parameters or more groups its arguments the same way."""
+    long = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            long += [
+                f"{path.relative_to(ROOT)}:{name} {n}"
+                for name, n in _kernel_parameters(path.read_text()).items()
+                if n > KERNEL_PARAMETERS_AT_MOST
+            ]
+    assert long == [], f"kernels over {KERNEL_PARAMETERS_AT_MOST} parameters:\n" + "\n".join(long)
+
+
+def test_a_kernels_parameters_are_all_counted() -> None:
+    source = (
+        "import numba\nfrom numba import njit\n"
+        "@njit(cache=True)\ndef a(x, y, /, z, *rest, k=1, **more): pass\n"
+        "@numba.njit\ndef b(x): pass\n"
+        "def plain(a, b, c, d, e, f, g, h, i, j, k, l): pass\n"
+    )
+    assert _kernel_parameters(source) == {"a": 6, "b": 1}

@@ -12,7 +12,7 @@ import controllers  # noqa: E402
 from baselines.sb3.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
 from baselines.sb3.train import main as train_main  # noqa: E402
 from baselines.sb3.vec_env import KoopNavSB3VecEnv, robot_features  # noqa: E402
-from koopman_envs.sim.maps import MapSpec  # noqa: E402
+from koopman_envs.sim.maps.map_spec import MapSpec  # noqa: E402
 
 # robot 0 starts 5 cm from an obstacle's surface: driving forward hits it on the first step
 CRASH = MapSpec(

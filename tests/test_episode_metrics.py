@@ -14,7 +14,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from evaluation.stats.aggregate import episode_metrics
 from koopman_envs.episodes.runner import path_ratio, run_episode
 from koopman_envs.params import PARAMS, PATH_RATIO_MIN_DISTANCE, STRICT_CLEARANCE_MARGIN
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 #: one robot driving straight along the x axis past one obstacle, and a second parked far away
 LANE = MapSpec(

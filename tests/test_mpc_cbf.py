@@ -28,7 +28,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from controllers.tuning import TUNED_DIR, read_tuned
 from koopman_envs.episodes.runner import run_episode
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 TR = "KoopNav-TargetReaching-v0"

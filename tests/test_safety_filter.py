@@ -17,7 +17,7 @@ from koopman_envs.episodes.runner import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_step
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 OPTIONS = SafetyOptions()  # the defaults, checked below as the filter runs them
 

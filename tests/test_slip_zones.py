@@ -12,9 +12,9 @@ import pytest
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs.episodes.demo import naive_command
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.maps import MapSpec, load_map
-from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
-from koopman_envs.sim.zones import SlipZone, ZoneTable
+from koopman_envs.sim.maps.generator import RandomMapConfig, generate_random_map
+from koopman_envs.sim.maps.map_spec import MapSpec, load_map
+from koopman_envs.sim.slip.zones import SlipZone, ZoneTable
 from koopman_envs.tasks.base import task_for_env
 
 TR = "KoopNav-TargetReaching-v0"

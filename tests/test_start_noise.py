@@ -17,7 +17,7 @@ from koopman_envs.fronts import parallel_env as parallel_front
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.collision import check_collisions
 from koopman_envs.sim.dynamics import wrap_angle
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 TR, FO = koopman_envs.ENV_IDS
 FIXED = [(TR, "map1"), (TR, "map2"), (FO, "map3"), (FO, "map4")]

@@ -31,7 +31,7 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.lidar import beam_angles
 from koopman_envs.sim.movers.placement import mover_arena
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 __all__ = [
     "MOVER_TRAIL",

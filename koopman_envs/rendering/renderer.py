@@ -29,7 +29,7 @@ from koopman_envs.rendering.layers import (
 )
 from koopman_envs.rendering.scene import Scene, draw_scenario, static_key
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when first used)
     from matplotlib.axes import Axes

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.rendering.layers import MOVER_TRAIL, FrameLayers, Overlay, view_limits
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when first used)
     pass
