@@ -7,7 +7,7 @@ Usage::
 
 For each task and team size it makes the env with ``map="random"`` and the default settings, resets
 it once (compiles and caches), then times ``--seeds`` resets (seeds 0..S-1) and prints the formation
-shape of the layout (:meth:`koopman_envs.sim.random_maps.RandomMapConfig.shape_for`: the wedge while it
+shape of the layout (:meth:`koopman_envs.sim.maps.generator.RandomMapConfig.shape_for`: the wedge while it
 fits the workspace, the grid beyond), the share of the generator's draws that place that shape (the
 fit rule's measure: at least 0.2%) and the mean and slowest reset [ms]. Every reset must succeed; a
 failure is printed and the script exits 1.

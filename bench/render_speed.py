@@ -8,13 +8,13 @@ Usage::
 Records one episode (seed 0, the consensus controller with collision avoidance, at most 300
 steps) and then, in the same process, times drawing its frames in order (growing trails, ticking clock):
 
-* ``renderer (blit)``: :class:`koopman_envs.fronts.rendering.Renderer` as the envs use it: the static
+* ``renderer (blit)``: :class:`koopman_envs.rendering.renderer.Renderer` as the envs use it: the static
   background is drawn once and kept as a bitmap, each frame redraws only the robots, trails and
   the clock;
 * ``renderer (blit=False)``: the same artists, the whole figure drawn every frame (the reference
   the fast path is tested against in tests/test_rendering.py);
 * ``old: clear + redraw``: the renderer before, reproduced here: per frame, clear the axes,
-  create every artist again (:func:`~koopman_envs.fronts.rendering.draw_scenario`), ``tight_layout``
+  create every artist again (:func:`~koopman_envs.rendering.renderer.draw_scenario`), ``tight_layout``
   and a full Agg draw;
 * ``env.step + env.render``: the whole loop through ``gym.make`` with the new renderer.
 
@@ -38,8 +38,8 @@ from numpy.typing import NDArray
 
 import koopman_envs
 from controllers.consensus import ConsensusController
-from koopman_envs.fronts.rendering import Renderer, draw_scenario, frame_title, title_parts
 from koopman_envs.params import PARAMS
+from koopman_envs.rendering.renderer import Renderer, draw_scenario, frame_title, title_parts
 from koopman_envs.scenario import Scenario
 
 REPEATS = 3  # timing windows per figure; the best is reported

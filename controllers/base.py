@@ -273,7 +273,7 @@ class BaseController(ABC):
         A controller that can decide for many teams at once (one forward pass of a learned
         policy for all of them) overrides this and sets :attr:`acts_in_batch`, which tells an
         evaluation to run its episodes together
-        (:func:`koopman_envs.fronts.batch_episodes.run_episodes_in_batch`).
+        (:func:`koopman_envs.episodes.batch.run_episodes_in_batch`).
         """
         return [c.act(o, i) for c, o, i in zip(controllers, observations, infos, strict=True)]
 

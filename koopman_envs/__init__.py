@@ -9,8 +9,8 @@ reachable as attributes of the package (``koopman_envs.formation_v0.parallel_env
 
 The package is the face of the environments (docs/layout.md): what controllers, baselines, the
 evaluator and users need of the folders (``sim/``, ``tasks/``, ``suites/``, ``engine/``,
-``fronts/``, all internal) is exported here, the fronts, the episode runners and the renderer
-imported on first use like the PettingZoo modules. The other public modules are the root's:
+``rendering/``, ``fronts/``, ``episodes/``, all internal) is exported here, the fronts, the episode
+runners and the renderer imported on first use like the PettingZoo modules. The other public modules are the root's:
 ``params``, ``checks``, ``files``, ``deprecation``, ``scenario``, ``observed``, ``layout`` and the
 two PettingZoo modules, and the face of the settings' folder, :mod:`koopman_envs.settings`
 (uncertainty, moving obstacles, reset options; tests/test_architecture.py::PUBLIC_MODULES).
@@ -33,10 +33,10 @@ from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_pose, rk4_step, wrap_angle, wrap_scalar
 from koopman_envs.sim.formations import FORMATION_SHAPES
-from koopman_envs.sim.maps import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
-from koopman_envs.sim.random_maps import generate_random_map
+from koopman_envs.sim.maps.generator import generate_random_map
+from koopman_envs.sim.maps.map_spec import BUILTIN_MAPS, MAP_NAMES, MapSpec, load_map
 from koopman_envs.sim.rollout import rollout
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 from koopman_envs.suites import (
     FAMILIES,
     SPLITS,
@@ -51,18 +51,18 @@ from koopman_envs.suites.suite import SUITE_PREFIX, parse_suite_map
 from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, env_id_for_map, task_for_env
 
 if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use (_LAZY)
-    from koopman_envs.fronts.batch_episodes import run_episodes_in_batch
-    from koopman_envs.fronts.dict_observation import DictObservation
-    from koopman_envs.fronts.episode import (
+    from koopman_envs.episodes.batch import run_episodes_in_batch
+    from koopman_envs.episodes.runner import (
         ComputeCharge,
         EpisodeResult,
         path_ratio,
         run_episode,
         smallest_clearance,
     )
+    from koopman_envs.fronts.dict_observation import DictObservation
     from koopman_envs.fronts.gym_env import KoopNavEnv
-    from koopman_envs.fronts.rendering import Renderer, save_episode
     from koopman_envs.fronts.vector_env import KoopNavVectorEnv
+    from koopman_envs.rendering.renderer import Renderer, save_episode
     from koopman_envs.sim.collision import CollisionKind
     from koopman_envs.sim.lidar import beam_angles
     from koopman_envs.sim.movers.tracking import cv_model, cv_predict, cv_update
@@ -71,18 +71,22 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
 
 __version__ = "0.1.0"
 
-#: the previous release's root modules that docs/ named as public (docs/layout.md's public root
-#: modules, the API page docs/api/koopman_envs.md, docs/uncertainty.md) and that moved by concept
-#: (issue 61: did-you-mean into the checks, the settings into settings/), kept one release with a
-#: DeprecationWarning by koopman_envs.deprecation's import hook (no file at the old path;
-#: CHANGELOG.md, Deprecated)
+#: the previous release's module paths that docs/ named as public (docs/layout.md's public root
+#: modules, the API page docs/api/koopman_envs.md, docs/uncertainty.md, the demo's command in
+#: docs/getting_started.md) and that moved by concept (issue 61: did-you-mean into the checks, the
+#: settings into settings/, the renderer out of fronts/ into rendering/, the episode runner and the
+#: demo into episodes/), kept one release with a DeprecationWarning by koopman_envs.deprecation's
+#: import hook (no file at the old path; CHANGELOG.md, Deprecated)
 MOVED_PATHS = {
     "koopman_envs.suggest": "koopman_envs.checks",
     "koopman_envs.movers": "koopman_envs.settings.moving_obstacles",
     "koopman_envs.uncertainty": "koopman_envs.settings.uncertainty",
     "koopman_envs.reset_options": "koopman_envs.settings.reset_options",
+    "koopman_envs.fronts.episode": "koopman_envs.episodes.runner",
+    "koopman_envs.fronts.rendering": "koopman_envs.rendering.renderer",
+    "koopman_envs.fronts.demo": "koopman_envs.episodes.demo",
 }
-register_moved_paths(MOVED_PATHS)
+register_moved_paths(MOVED_PATHS, commands=("koopman_envs.fronts.demo",))
 
 # front classes per task; ids, labels and maps come from the one task table (tasks/base.py)
 _FRONTS = {
@@ -109,14 +113,14 @@ _LAZY = {
     "KoopNavEnv": "koopman_envs.fronts.gym_env",
     "KoopNavVectorEnv": "koopman_envs.fronts.vector_env",
     "DictObservation": "koopman_envs.fronts.dict_observation",
-    "run_episode": "koopman_envs.fronts.episode",
-    "EpisodeResult": "koopman_envs.fronts.episode",
-    "ComputeCharge": "koopman_envs.fronts.episode",
-    "smallest_clearance": "koopman_envs.fronts.episode",
-    "path_ratio": "koopman_envs.fronts.episode",
-    "run_episodes_in_batch": "koopman_envs.fronts.batch_episodes",
-    "Renderer": "koopman_envs.fronts.rendering",
-    "save_episode": "koopman_envs.fronts.rendering",
+    "run_episode": "koopman_envs.episodes.runner",
+    "EpisodeResult": "koopman_envs.episodes.runner",
+    "ComputeCharge": "koopman_envs.episodes.runner",
+    "smallest_clearance": "koopman_envs.episodes.runner",
+    "path_ratio": "koopman_envs.episodes.runner",
+    "run_episodes_in_batch": "koopman_envs.episodes.batch",
+    "Renderer": "koopman_envs.rendering.renderer",
+    "save_episode": "koopman_envs.rendering.renderer",
     "CollisionKind": "koopman_envs.sim.collision",
     "beam_angles": "koopman_envs.sim.lidar",
     "cv_model": "koopman_envs.sim.movers.tracking",

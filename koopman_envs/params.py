@@ -399,7 +399,7 @@ RANDOM_SLIP_MAX = 0.25
 #: [s], independent across robots. At each event (and at reset) the new level is uniform on
 #: [0, RANDOM_SLIP_MAX], independent of the old one. A change at time t applies from the first
 #: control period that starts at or after t, so the level of a period is the one drawn last up to
-#: the period's start. Exact draw order: koopman_envs.sim.slip_schedule.SlipClock.
+#: the period's start. Exact draw order: koopman_envs.sim.slip.schedule.SlipClock.
 DRIFT_MEAN_INTERVAL = 5.0
 
 #: Every named slip setting and what it means: the one table the env docs, the CLI help and the

@@ -73,7 +73,7 @@ def describe_change(
 
 _HOME_CACHE_BEFORE = tree_state(HOME_CACHE)
 
-from koopman_envs.sim.maps import MapSpec  # noqa: E402  (after the environment above is set)
+from koopman_envs.sim.maps.map_spec import MapSpec  # noqa: E402  (after the environment above is set)
 
 #: the thread pools of the numerical libraries (OpenBLAS, MKL, OpenMP: numpy, torch), one thread each
 #: in an xdist worker

@@ -136,11 +136,12 @@ def test_module_and_function_sizes() -> None:
 #: the previous releases' module paths, removed with their stubs once the other packages used the
 #: environments through their face (issue 61): nothing in docs/ or README.md named them, so none
 #: kept a release of deprecation (CHANGELOG.md, Unreleased); and koopman_envs.builder, the
-#: simulator core's folder, renamed engine/ (internal, so without a stub)
+#: simulator core's folder, renamed engine/ (internal, so without a stub); koopman_envs.rendering
+#: names the renderer's folder since the renderer left fronts/ (issue 61)
 REMOVED_PATHS = (
     *(f"koopman_envs.{name}" for name in (
         "animation", "builder", "config", "demo", "deprecated", "engine_memory", "episode",
-        "episode_layout", "keywords", "plant", "rendering", "rendering_layers", "tasks.layout",
+        "episode_layout", "keywords", "plant", "rendering_layers", "tasks.layout",
     )),
     # the engine's and the movers' satellites, cut off to fit the module size, merged back by
     # concept (issue 61): engine.episode, engine.config, engine.plant; the sim.movers folder
@@ -178,7 +179,8 @@ def test_the_removed_module_paths_are_gone(old: str) -> None:
 #: evaluation/__init__.py, baselines/__init__.py, controllers/__init__.py and
 #: koopman_envs/__init__.py fill with their MOVED_PATHS): old -> MovedPath
 MOVED = moved_paths()
-#: the moved paths users ran (docs/benchmark.md, docs/rl.md of the previous release)
+#: the moved paths users ran (docs/benchmark.md, docs/rl.md, docs/getting_started.md of the
+#: previous release)
 MOVED_COMMANDS = sorted(old for old, moved in MOVED.items() if moved.command)
 
 
@@ -188,6 +190,7 @@ def test_the_documented_commands_are_kept_and_no_moved_path_is_removed() -> None
     assert {old.split(".")[0] for old in MOVED} == {"evaluation", "baselines", "controllers", "koopman_envs"}
     assert MOVED_COMMANDS == [
         "baselines.benchmarl_train", "baselines.select", "baselines.train", "evaluation.seeds",
+        "koopman_envs.fronts.demo",
     ]  # fmt: skip
     assert set(MOVED).isdisjoint(REMOVED_PATHS)
 
@@ -301,21 +304,27 @@ def test_nothing_of_ours_imports_a_moved_path() -> None:
     assert found == [], "imports of moved paths:\n" + "\n".join(found)
 
 
-def test_the_engine_module_path_is_the_engine_folder_not_a_stub() -> None:
-    """``koopman_envs.engine``, the engine module's path until its stub went, names the simulator
-    core's folder now (builder/ renamed): a package that forwards none of the old module's names."""
+@pytest.mark.parametrize(
+    ("path", "old_name"),
+    [("koopman_envs.engine", "NavigationEngine"), ("koopman_envs.rendering", "Renderer")],
+)
+def test_a_removed_module_path_that_names_a_folder_now_is_no_stub(path: str, old_name: str) -> None:
+    """``koopman_envs.engine`` and ``koopman_envs.rendering``, module paths until their stubs went,
+    name folders now (the simulator core, builder/ renamed; the renderer, out of fronts/): packages
+    that forward none of the old modules' names."""
     import importlib
     import importlib.util
 
-    spec = importlib.util.find_spec("koopman_envs.engine")
-    assert spec is not None and spec.submodule_search_locations, "koopman_envs.engine is not the folder"
-    folder = importlib.import_module("koopman_envs.engine")
-    assert not hasattr(folder, "__getattr__") and not hasattr(folder, "NavigationEngine")
+    spec = importlib.util.find_spec(path)
+    assert spec is not None and spec.submodule_search_locations, f"{path} is not a folder"
+    folder = importlib.import_module(path)
+    assert not hasattr(folder, "__getattr__") and not hasattr(folder, old_name)
 
 
 #: the environment package's layers, lowest first (docs/layout.md): a module imports its own
-#: layer or a lower one, never a higher one (type-only and function-level imports included)
-ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "fronts")
+#: layer or a lower one, never a higher one (type-only and function-level imports included). The
+#: renderer draws the engine's state for the fronts' render(); the episode runners drive the fronts
+ENV_LAYERS = ("base", "sim", "tasks", "suites", "engine", "rendering", "fronts", "episodes")
 #: the modules and folders of the base layer, at the package root (settings/: what an env keyword or
 #: a reset option holds; maps/: the built-in maps' files)
 ENV_BASE = {
@@ -324,6 +333,7 @@ ENV_BASE = {
 #: the PettingZoo modules at the package root (PettingZoo's naming), fronts themselves
 ENV_ROOT_FRONTS = {"formation_v0", "target_reaching_v0"}
 #: commands that live beside the data they make but run episodes on the fronts: placed on top
+#: (the episodes' layer)
 ENV_COMMANDS = {"koopman_envs.suites.build"}
 
 
@@ -334,7 +344,9 @@ def _env_layer(module: str) -> int | None:
         return None
     if parts[1] in ENV_BASE:
         return 0
-    if (len(parts) == 2 and parts[1] in ENV_ROOT_FRONTS) or module in ENV_COMMANDS:
+    if module in ENV_COMMANDS:
+        return len(ENV_LAYERS) - 1
+    if len(parts) == 2 and parts[1] in ENV_ROOT_FRONTS:
         return ENV_LAYERS.index("fronts")
     if parts[1] in ENV_LAYERS:
         return ENV_LAYERS.index(parts[1])
@@ -360,7 +372,7 @@ def test_the_environment_package_imports_only_downwards() -> None:
 
 #: the environment package's public face (docs/layout.md): the modules controllers/, baselines/,
 #: evaluation/ and evaluate.py may import. Every other koopman_envs module (sim/, tasks/,
-#: suites/, engine/, fronts/) is internal: what the other packages need of it is exported by
+#: suites/, engine/, rendering/, fronts/, episodes/) is internal: what the other packages need of it is exported by
 #: the package itself (``from koopman_envs import run_episode``), lazily where it is heavy.
 PUBLIC_MODULES: dict[str, str] = {
     "koopman_envs": "the face: ids, env classes, episode runner, task table, maps, suites, plant, shared kernels",
@@ -569,3 +581,105 @@ def test_the_controllers_root_holds_at_most_twelve_modules() -> None:
     a thirteenth root module belongs in a folder."""
     root = sorted(p.stem for p in (ROOT / "controllers").glob("*.py"))
     assert len(root) <= ROOT_MODULES_AT_MOST, f"controllers/ has {len(root)} root modules: {root}"
+
+
+#: the most modules a folder of the packages holds (``__init__.py`` counted, as for the roots above)
+#: before its modules go into sub-folders by concept (issue 61: "roots of at most 10-12 modules")
+FOLDER_MODULES_AT_MOST = ROOT_MODULES_AT_MOST
+#: the folders allowed more, each with its reason and its count when listed (the list only shrinks)
+FOLDER_MODULES_EXCEPTIONS: dict[str, tuple[int, str]] = {
+    "controllers/mpc": (
+        15,
+        "the OCP's parts, one job per module as do-mpc and acados split them (config, layout, models, "
+        "problem, solve, rti, slots, margins, controller, hooks, variants) and the distributed NMPC "
+        "(distributed, detour, plan_exchange), which reuses the problem and the hooks",
+    ),
+}
+
+
+def _folder_module_counts() -> dict[str, int]:
+    """Every package folder (a folder with ``__init__.py``, the package roots included) -> its
+    modules, ``__init__.py`` counted, sub-folders not."""
+    counts = {}
+    for package in PACKAGES:
+        for init in (ROOT / package).rglob("__init__.py"):
+            counts[init.parent.relative_to(ROOT).as_posix()] = len(list(init.parent.glob("*.py")))
+    return counts
+
+
+def _crowded_folders(counts: dict[str, int], exceptions: dict[str, tuple[int, str]]) -> list[str]:
+    """The folders over the cap and not excepted, the excepted ones that grew past their listed
+    count, and the excepted ones now within the cap or gone (to be removed from the list)."""
+    crowded = [
+        f"{f}: {n}" for f, n in sorted(counts.items()) if n > FOLDER_MODULES_AT_MOST and f not in exceptions
+    ]
+    crowded += [
+        f"{f}: {counts[f]} > its listed {n}" for f, (n, _) in exceptions.items() if counts.get(f, 0) > n
+    ]
+    crowded += [
+        f"{f}: {counts.get(f, 0)}, within the cap: remove its exception"
+        for f in exceptions
+        if counts.get(f, 0) <= FOLDER_MODULES_AT_MOST
+    ]
+    return crowded
+
+
+def test_every_folder_holds_at_most_twelve_modules() -> None:
+    """A folder of thirteen modules or more is split into sub-folders by concept (koopman_envs/sim/:
+    maps/, slip/, movers/, physics/), unless FOLDER_MODULES_EXCEPTIONS names it with its reason."""
+    assert _crowded_folders(_folder_module_counts(), FOLDER_MODULES_EXCEPTIONS) == []
+
+
+def test_a_crowded_folder_fails_the_module_cap() -> None:
+    counts = {"koopman_envs/sim": 18, "controllers/mpc": 16, "baselines/sb3": 12, "evaluation/run": 3}
+    assert _crowded_folders(counts, {"controllers/mpc": (15, "why")}) == [
+        "koopman_envs/sim: 18",
+        "controllers/mpc: 16 > its listed 15",
+    ]
+    assert _crowded_folders({"controllers/mpc": 12}, {"controllers/mpc": (15, "why")}) == [
+        "controllers/mpc: 12, within the cap: remove its exception"
+    ]
+
+
+#: the most parameters a compiled kernel takes (issue 61: the obstacle set, the team state and a
+#: kernel's settings travel as one value each, named tuples or arrays, not as long positional lists)
+KERNEL_PARAMETERS_AT_MOST = 10
+
+
+def _kernel_parameters(source: str) -> dict[str, int]:
+    """Every numba-compiled function of ``source`` (a decorator naming ``jit``: ``njit``,
+    ``numba.njit(...)``, ``jit``) -> its number of parameters (positional, keyword-only, ``*args``,
+    ``**kwargs``)."""
+    found = {}
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and any(
+            "jit" in ast.unparse(d) for d in node.decorator_list
+        ):
+            a = node.args
+            starred = (a.vararg is not None) + (a.kwarg is not None)
+            found[node.name] = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + starred
+    return found
+
+
+def test_every_compiled_kernel_takes_at_most_ten_parameters() -> None:
+    """The longest argument lists (``reward._score`` 23, ``perception._perceive`` 22) were grouped
+    (issue 61); a kernel of eleven parameters or more groups its arguments the same way."""
+    long = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            long += [
+                f"{path.relative_to(ROOT)}:{name} {n}"
+                for name, n in _kernel_parameters(path.read_text()).items()
+                if n > KERNEL_PARAMETERS_AT_MOST
+            ]
+    assert long == [], f"kernels over {KERNEL_PARAMETERS_AT_MOST} parameters:\n" + "\n".join(long)
+
+
+def test_a_kernels_parameters_are_all_counted() -> None:
+    source = (
+        "import numba\nfrom numba import njit\n"
+        "@njit(cache=True)\ndef a(x, y, /, z, *rest, k=1, **more): pass\n"
+        "@numba.njit\ndef b(x): pass\n"
+        "def plain(a, b, c, d, e, f, g, h, i, j, k, l): pass\n"
+    )
+    assert _kernel_parameters(source) == {"a": 6, "b": 1}

@@ -14,7 +14,7 @@ import controllers  # noqa: E402
 from baselines.sb3.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
 from baselines.sb3.train import main as train_main  # noqa: E402
 from baselines.sb3.vec_env import KoopNavSB3VecEnv, robot_features  # noqa: E402
-from koopman_envs.sim.maps import MapSpec  # noqa: E402
+from koopman_envs.sim.maps.map_spec import MapSpec  # noqa: E402
 
 # robot 0 starts 5 cm from an obstacle's surface: driving forward hits it on the first step
 CRASH = MapSpec(
@@ -289,7 +289,7 @@ def test_a_three_robot_policy_sees_the_nearest_two_teammates_of_a_larger_team() 
 
 
 def test_shipped_policy_drives_a_six_robot_team() -> None:
-    from koopman_envs.fronts.episode import run_episode
+    from koopman_envs.episodes.runner import run_episode
 
     env = gym.make("KoopNav-Formation-v0", map="random", n_robots=6, max_episode_steps=20)
     actions: list[np.ndarray] = []

@@ -1,4 +1,4 @@
-"""koopman_envs.fronts.batch_episodes: one episode per sub-environment of the vector env equals
+"""koopman_envs.episodes.batch: one episode per sub-environment of the vector env equals
 the per-episode runner's episode on a lone env, result for result and bit for bit, with real
 controllers under the settings the protocols use (perturbed starts, `realistic` uncertainty,
 movers through the tracker, random layouts, both tasks)."""
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import controllers
-from koopman_envs.fronts.batch_episodes import info_row, run_episodes_in_batch
-from koopman_envs.fronts.episode import run_episode
+from koopman_envs.episodes.batch import info_row, run_episodes_in_batch
+from koopman_envs.episodes.runner import run_episode
 
 SETTINGS = [
     ("KoopNav-TargetReaching-v0", {"map": "map1", "start_noise": 0.05, "max_episode_steps": 120}),

@@ -16,7 +16,7 @@ import pytest
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.mpc.margins import chance_tightening
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 Z95 = statistics.NormalDist().inv_cdf(0.95)
 

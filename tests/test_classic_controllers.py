@@ -18,9 +18,9 @@ from controllers.classic.common import TeamView
 from controllers.classic.dwa import DWAController, DWASettings
 from controllers.classic.orca import ORCAController, ORCASettings, unicycle_tracking
 from controllers.option_spec import spec_of
-from koopman_envs.fronts.episode import run_episode
+from koopman_envs.episodes.runner import run_episode
 from koopman_envs.settings import UNCERTAINTY_PRESETS
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 #: ORCA runs through pyrvo (the [crowd] extra): without it its cases skip, as the board skips it
 HAVE_PYRVO = importlib.util.find_spec("pyrvo") is not None

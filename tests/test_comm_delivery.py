@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 TR = "KoopNav-TargetReaching-v0"
 STEP = 0.05  # metres per period at 0.5 m/s

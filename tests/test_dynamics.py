@@ -10,7 +10,7 @@ from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.sim.collision import CollisionKind, check_collisions
 from koopman_envs.sim.dynamics import rk4_step, slip_velocity
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 
 def circle(t: np.ndarray, v: float, w: float) -> np.ndarray:

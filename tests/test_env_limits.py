@@ -24,7 +24,7 @@ from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS
 from koopman_envs.fronts.gym_env import TargetReachingEnv
 from koopman_envs.params import LIMITS, MAX_EPISODES_PER_CELL, MAX_ROBOTS
-from koopman_envs.sim.random_maps import RandomMapConfig
+from koopman_envs.sim.maps.generator import RandomMapConfig
 
 ENV = "KoopNav-TargetReaching-v0"
 #: a refusal allocates nothing of the refused size: far below any of the sizes refused here

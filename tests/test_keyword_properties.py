@@ -50,7 +50,7 @@ from koopman_envs.fronts.parallel_env import KoopNavParallelEnv
 from koopman_envs.params import LIMITS, SLIP_NAMES
 from koopman_envs.settings import MOVER_BEHAVIOURS, SENSING_MODES, UNCERTAINTY_PRESETS
 from koopman_envs.sim.formations import FORMATION_SHAPES
-from koopman_envs.sim.maps import MAP_NAMES
+from koopman_envs.sim.maps.map_spec import MAP_NAMES
 
 #: examples per keyword
 EXAMPLES = int(os.environ.get("KOOPNAV_PROPERTY_EXAMPLES", "40"))

@@ -10,8 +10,8 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import target_reaching_v0
-from koopman_envs.sim.maps import BUILTIN_MAPS, MapSpec, load_map
-from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
+from koopman_envs.sim.maps.generator import RandomMapConfig, generate_random_map
+from koopman_envs.sim.maps.map_spec import BUILTIN_MAPS, MapSpec, load_map
 
 
 @pytest.mark.parametrize("name", BUILTIN_MAPS)
@@ -160,7 +160,7 @@ def test_random_layouts_are_the_documented_ones_for_their_seeds() -> None:
     import json
     from pathlib import Path
 
-    from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
+    from koopman_envs.sim.maps.generator import RandomMapConfig, generate_random_map
 
     reference = json.loads((Path(__file__).parent / "data" / "random_layouts.json").read_text())
     for case in reference:
@@ -236,7 +236,7 @@ def test_a_named_shape_that_does_not_fit_fails_at_construction() -> None:
 def test_placement_share_matches_the_generators_acceptance() -> None:
     """The fit rule's share equals the rejection loop's acceptance rate (within a binomial band)."""
     from koopman_envs.sim.formations import formation_shape
-    from koopman_envs.sim.random_maps import placement_share
+    from koopman_envs.sim.maps.generator import placement_share
 
     local = formation_shape("wedge", 16, 0.9)
     share = placement_share(local, (3.0, 6.5), 17.6, 17.6)
@@ -292,7 +292,7 @@ def test_the_compiled_layout_arithmetic_equals_numpys() -> None:
     bit against that formula in exact rationals on every machine; against NumPy bit for bit where
     OpenBLAS runs its Haswell kernels (whose order the kernel copies), within 1e-15 where
     it picks another kernel (SkylakeX's rounds a few products otherwise)."""
-    from koopman_envs.sim.random_maps import _rotate, _row_mean, _spread
+    from koopman_envs.sim.maps.generator import _rotate, _row_mean, _spread
 
     numpy_bit_for_bit = _openblas_core() == "Haswell"
     rng = np.random.default_rng(0)

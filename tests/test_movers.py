@@ -395,7 +395,7 @@ def test_a_count_is_that_many_constant_movers() -> None:
 
 # --------------------------------------------------------------------------- rendering
 def test_movers_are_drawn_with_trails_and_blitting_matches_a_full_redraw() -> None:
-    from koopman_envs.fronts.rendering import MOVER_TRAIL, Renderer, frame_title
+    from koopman_envs.rendering.renderer import MOVER_TRAIL, Renderer, frame_title
 
     env = gym.make(FO, movers=dict(count=4, behaviour="waypoints", speed=0.4), render_mode="rgb_array")
     env.reset(seed=2)

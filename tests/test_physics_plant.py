@@ -83,7 +83,7 @@ def test_the_surface_is_drawn_per_episode_within_its_stated_range() -> None:
 
 def test_a_zone_replaces_the_floor_under_the_robot() -> None:
     zone = {"rect": [-3.5, -2.0, -2.5, 2.0], "lambda": 0.0, "surface": 0.07}  # under map1's starts
-    from koopman_envs.sim.maps import MapSpec, load_map
+    from koopman_envs.sim.maps.map_spec import MapSpec, load_map
 
     spec = load_map("map1").to_dict()
     spec["slip_zones"] = [zone]

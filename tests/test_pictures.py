@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.fronts.rendering import Renderer, draw_engine_env, frame_title
-from koopman_envs.fronts.rendering_layers import Overlay, collision_marks, engine_frame, view_limits
+from koopman_envs.rendering.layers import Overlay, collision_marks, engine_frame, view_limits
+from koopman_envs.rendering.renderer import Renderer, draw_engine_env, frame_title
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.movers.placement import mover_arena
@@ -201,8 +201,8 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
     from evaluation.episodes.records import record_problem
     from evaluation.reports.figures import _trajectory_figure, save_figures
     from evaluation.stats.run_data import RunData
-    from koopman_envs.fronts.demo import NaiveGoToTarget
-    from koopman_envs.fronts.episode import run_episode
+    from koopman_envs.episodes.demo import NaiveGoToTarget
+    from koopman_envs.episodes.runner import run_episode
 
     env = gym.make(TR, movers=dict(count=3, behaviour="waypoints"), max_episode_steps=40)
     result = run_episode(env, NaiveGoToTarget(), seed=0)

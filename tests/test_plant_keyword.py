@@ -14,7 +14,7 @@ import pytest
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.sim.physics.surfaces import check_surface, floor_surface
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 #: the digest of :func:`_kinematic_digest` computed on main before the plant keyword existed
 #: (commit f920798): the default plant must stay the paper's, bit for bit

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from koopman_envs import formation_v0
-from koopman_envs.fronts.rendering import Renderer, frame_title, save_episode
+from koopman_envs.rendering.renderer import Renderer, frame_title, save_episode
 
 DATA = Path(__file__).parent / "data"
 

@@ -107,7 +107,7 @@ def test_random_maps_are_one_row_of_k_shared_layouts() -> None:
 
 
 def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> None:
-    from koopman_envs.sim.maps import load_map
+    from koopman_envs.sim.maps.map_spec import load_map
 
     path = tmp_path / "mine.json"
     load_map("map1").save(path)

@@ -14,7 +14,7 @@ from koopman_envs import make_plant
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 TR = "KoopNav-TargetReaching-v0"
 FO = "KoopNav-Formation-v0"

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.fronts.demo import naive_command
+from koopman_envs.episodes.demo import naive_command
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.maps import MapSpec, load_map
-from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
-from koopman_envs.sim.zones import SlipZone, ZoneTable
+from koopman_envs.sim.maps.generator import RandomMapConfig, generate_random_map
+from koopman_envs.sim.maps.map_spec import MapSpec, load_map
+from koopman_envs.sim.slip.zones import SlipZone, ZoneTable
 from koopman_envs.tasks.base import task_for_env
 
 TR = "KoopNav-TargetReaching-v0"
@@ -227,7 +227,7 @@ def test_map6_has_the_paper_formation_offsets() -> None:
 
 # ------------------------------------------------------------------ rendering
 def test_zones_are_shaded_beneath_the_obstacles_and_blitting_matches_a_full_redraw() -> None:
-    from koopman_envs.fronts.rendering import Renderer, frame_title
+    from koopman_envs.rendering.renderer import Renderer, frame_title
 
     env = gym.make(TR, map="map5", render_mode="rgb_array")
     env.reset(seed=0)

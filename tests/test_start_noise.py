@@ -17,7 +17,7 @@ from koopman_envs.fronts import parallel_env as parallel_front
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.collision import check_collisions
 from koopman_envs.sim.dynamics import wrap_angle
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 TR, FO = koopman_envs.ENV_IDS
 FIXED = [(TR, "map1"), (TR, "map2"), (FO, "map3"), (FO, "map4")]
@@ -165,7 +165,7 @@ def test_documented() -> None:
 def test_a_controller_is_handed_the_scenario_with_the_planned_starts_only() -> None:
     """run_episode resets a controller with the episode's Scenario (never the env), whose starts
     are the map's: where each robot truly starts it learns from its localization."""
-    from koopman_envs.fronts.episode import run_episode
+    from koopman_envs.episodes.runner import run_episode
     from koopman_envs.scenario import Scenario
 
     class Spy:

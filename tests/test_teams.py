@@ -13,8 +13,8 @@ import koopman_envs
 from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
-from koopman_envs.sim.maps import load_map
-from koopman_envs.sim.random_maps import RandomMapConfig, generate_random_map
+from koopman_envs.sim.maps.generator import RandomMapConfig, generate_random_map
+from koopman_envs.sim.maps.map_spec import load_map
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 SPACING = PARAMS.formation_spacing

@@ -35,7 +35,7 @@ import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
 from koopman_envs.engine.plant import make_plant
 from koopman_envs.observed import OBSERVED_KEYS
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 #: periods of every run (whole episodes, as many as it takes)

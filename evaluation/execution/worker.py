@@ -150,7 +150,7 @@ def runs_in_batch(spec: EpisodeSpec) -> bool:
 
 def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
     """The records of a cell's episodes run together in the vector env
-    (:func:`~koopman_envs.fronts.batch_episodes.run_episodes_in_batch`), equal to
+    (:func:`~koopman_envs.episodes.batch.run_episodes_in_batch`), equal to
     :func:`run_episode`'s but for the timing fields; never raises. If the batch fails anywhere
     (a controller or env error), every episode is run again alone, so that each episode's error is
     its own and the others keep their results."""

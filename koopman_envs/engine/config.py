@@ -31,13 +31,13 @@ from koopman_envs.settings.uncertainty import (
     PoseNoise,
     parse_setting,
 )
-from koopman_envs.sim.maps import MapSpec, load_map
+from koopman_envs.sim.maps.generator_config import RandomMapConfig
+from koopman_envs.sim.maps.map_spec import MapSpec, load_map
 from koopman_envs.sim.movers.motion import DRAW_SIZE
 from koopman_envs.sim.perception import BLOCK_NUMBERS
 from koopman_envs.sim.physics.model import world_bytes
 from koopman_envs.sim.physics.surfaces import SurfaceSetting, floor_surface
-from koopman_envs.sim.random_map_config import RandomMapConfig
-from koopman_envs.sim.slip_schedule import SlipSchedule, is_schedule
+from koopman_envs.sim.slip.schedule import SlipSchedule, is_schedule
 from koopman_envs.suites.suite import SUITE_PREFIX, Suite, load_suite, parse_suite_map
 from koopman_envs.tasks.base import TASKS, TaskSpec
 

@@ -26,14 +26,14 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.settings.reset_options import ResetOptions
 from koopman_envs.sim.collision import CollisionFault, collision_flags
 from koopman_envs.sim.geometry import TeamGeometry
-from koopman_envs.sim.maps import MapSpec, formation_offsets
+from koopman_envs.sim.maps.map_spec import MapSpec, formation_offsets
 from koopman_envs.sim.movers.field import MoverField
 from koopman_envs.sim.movers.tracking import MoverTracker, listed_movers, observed_movers
 from koopman_envs.sim.perception import Perception, observed_info
-from koopman_envs.sim.slip import SlipSampler
-from koopman_envs.sim.slip_schedule import SlipClock
+from koopman_envs.sim.slip.sampling import SlipSampler
+from koopman_envs.sim.slip.schedule import SlipClock
+from koopman_envs.sim.slip.zones import ZoneTable
 from koopman_envs.sim.starts import START_NOISE_ATTEMPTS
-from koopman_envs.sim.zones import ZoneTable
 from koopman_envs.tasks.observation import FeatureBuilder
 from koopman_envs.tasks.reward import (
     ELAPSED,
@@ -70,9 +70,9 @@ class NavigationEngine:
     :func:`~koopman_envs.sim.dynamics.advance_teams`, or MuJoCo's robots), collision flags,
     observation features, and rewards with episode ends (:mod:`koopman_envs.tasks.reward`).
     Maps with slip zones add a fifth before the physics
-    (:func:`~koopman_envs.sim.zones.zone_slip_means`: every robot's slip mean where it stands),
+    (:func:`~koopman_envs.sim.slip.zones.zone_slip_means`: every robot's slip mean where it stands),
     and a slip schedule updates the base levels after the step
-    (:class:`~koopman_envs.sim.slip_schedule.SlipClock`); without them neither runs.
+    (:class:`~koopman_envs.sim.slip.schedule.SlipClock`); without them neither runs.
 
     Parameters
     ----------

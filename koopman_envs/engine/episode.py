@@ -4,7 +4,7 @@ model-based controller is told of it.
 **The layout.** A reset of the engine first decides the episode's layout
 (:func:`episode_layout`), then installs it. The decision draws from the reset's generator in the
 one order a seed fixes: a new layout with ``map="random"``
-(:func:`~koopman_envs.sim.random_maps.generate_random_map`) or a layout index with
+(:func:`~koopman_envs.sim.maps.generator.generate_random_map`) or a layout index with
 ``map="suite:<name>/<split>"`` (one ``rng.integers`` draw, made even when ``options["layout"]``
 picks the layout, so that every later draw is the same either way), then the ``start_noise``
 perturbation when it is asked for (:func:`~koopman_envs.sim.starts.perturbed_starts`), nothing
@@ -37,10 +37,10 @@ from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.settings.reset_options import ResetOptions
-from koopman_envs.sim.maps import MapSpec
-from koopman_envs.sim.random_maps import generate_random_map
+from koopman_envs.sim.maps.generator import generate_random_map
+from koopman_envs.sim.maps.map_spec import MapSpec
 from koopman_envs.sim.rows import rows_index
-from koopman_envs.sim.slip import draw_random_lambdas
+from koopman_envs.sim.slip.sampling import draw_random_lambdas
 from koopman_envs.sim.starts import perturbed_starts
 
 __all__ = ["EpisodeLayout", "engine_scenario", "episode_layout", "reset_episodes"]

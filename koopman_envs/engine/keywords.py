@@ -18,8 +18,8 @@ from koopman_envs.params import LIMITS, PARAMS, PLANTS, SLIP_NAMES, SLIP_SURFACE
 from koopman_envs.settings.moving_obstacles import MOVER_BEHAVIOURS, parse_movers
 from koopman_envs.settings.uncertainty import SENSING_MODES, UNCERTAINTY_PRESETS
 from koopman_envs.sim.formations import FORMATION_SHAPES
-from koopman_envs.sim.maps import BUILTIN_MAPS
-from koopman_envs.sim.random_maps import RandomMapConfig
+from koopman_envs.sim.maps.generator import RandomMapConfig
+from koopman_envs.sim.maps.map_spec import BUILTIN_MAPS
 from koopman_envs.tasks.base import TASKS
 
 __all__ = [

@@ -47,7 +47,7 @@ from koopman_envs.engine.config import EngineConfig
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, PHYSICS, RANDOM_SLIP_MAX
 from koopman_envs.sim.dynamics import advance_teams
 from koopman_envs.sim.rollout import rollout
-from koopman_envs.sim.slip import draw_random_lambdas
+from koopman_envs.sim.slip.sampling import draw_random_lambdas
 from koopman_envs.tasks.base import task_for_env
 
 __all__ = [

@@ -22,7 +22,7 @@ from koopman_envs.tasks.base import RewardWeights
 from koopman_envs.tasks.observation import feature_size
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
-    from koopman_envs.fronts.rendering import Renderer
+    from koopman_envs.rendering.renderer import Renderer
 
 __all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
 
@@ -102,7 +102,7 @@ class KoopNavEnv(gym.Env):
                 "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gym.make"
             )
             return None
-        from koopman_envs.fronts.rendering import Renderer, draw_engine_env
+        from koopman_envs.rendering.renderer import Renderer, draw_engine_env
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")

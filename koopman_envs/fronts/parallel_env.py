@@ -26,7 +26,7 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.settings.reset_options import parse_reset_options
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
-    from koopman_envs.fronts.rendering import Renderer
+    from koopman_envs.rendering.renderer import Renderer
 
 __all__ = ["KoopNavParallelEnv", "make_call", "make_constructors"]
 
@@ -211,7 +211,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode")
             return None
-        from koopman_envs.fronts.rendering import Renderer, draw_engine_env
+        from koopman_envs.rendering.renderer import Renderer, draw_engine_env
 
         if self._renderer is None:
             self._renderer = Renderer(human=self.render_mode == "human")

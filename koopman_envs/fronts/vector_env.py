@@ -22,7 +22,7 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.settings.reset_options import parse_reset_options
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
-    from koopman_envs.fronts.rendering import Renderer
+    from koopman_envs.rendering.renderer import Renderer
 
 __all__ = ["KoopNavVectorEnv"]
 
@@ -264,7 +264,7 @@ class KoopNavVectorEnv(VectorEnv):
             return None
         if not self._trails:
             raise RuntimeError("call reset() before render()")
-        from koopman_envs.fronts.rendering import Renderer, draw_engine_env
+        from koopman_envs.rendering.renderer import Renderer, draw_engine_env
 
         while len(self._renderers) < self.num_envs:
             self._renderers.append(Renderer())

@@ -235,13 +235,13 @@ def advance_teams(
     commands : ndarray, shape (K, N, 2)
         Requested (v [m/s], omega [rad/s]); saturated here to ``command_low``/``command_high``.
     slip_unit : ndarray, shape (K, B, 3, N)
-        Unit-mean Exponential draws (:class:`~koopman_envs.sim.slip.SlipSampler`); environment k
+        Unit-mean Exponential draws (:class:`~koopman_envs.sim.slip.sampling.SlipSampler`); environment k
         uses row ``slip_cursor[k]`` (rows alpha, beta, gamma) scaled by ``lambdas[k]``.
     slip_cursor : ndarray of int, shape (K,)
         Next unread row per environment; advanced here for active environments.
     lambdas : ndarray, shape (K, N)
         Slip means per robot for this period (the base levels, or where slip zones apply, the
-        output of :func:`koopman_envs.sim.zones.zone_slip_means`).
+        output of :func:`koopman_envs.sim.slip.zones.zone_slip_means`).
     active : ndarray of bool, shape (K,)
         Inactive environments keep their state, consume no slip and report zero effort.
     limits : tuple of ndarray, shape (2,) each

@@ -7,7 +7,7 @@ from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.dynamics import wrap_angle
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 
 __all__ = ["START_NOISE_ATTEMPTS", "NoValidStarts", "perturbed_starts"]
 

@@ -10,7 +10,7 @@ suite): the family's walls, then open clutter up to that count.
 =========== =====================================================================================
 family      layout
 =========== =====================================================================================
-clutter     open clutter, as the random maps (:mod:`koopman_envs.sim.random_maps`): isolated discs
+clutter     open clutter, as the random maps (:mod:`koopman_envs.sim.maps.generator`): isolated discs
             of radius 0.25-0.5 m with at least 0.6 m between them, across the travel
 passages    a wall of touching discs across the travel (tilted up to 20 degrees) with one or two
             openings 0.7-1.2 m wide; for target reaching the targets are in reverse order, so that
@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from koopman_envs.checks import check_choice, check_int
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import formation_shape
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 from koopman_envs.tasks.base import TASKS
 
 __all__ = ["CLEARANCE", "FAMILIES", "TASK_CODES", "TRAVEL", "DrawnLayout", "draw_layout", "family_of_seed"]

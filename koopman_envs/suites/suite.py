@@ -29,7 +29,7 @@ import numpy as np
 
 from koopman_envs.checks import check_choice, did_you_mean
 from koopman_envs.params import PARAMS
-from koopman_envs.sim.maps import MapSpec
+from koopman_envs.sim.maps.map_spec import MapSpec
 from koopman_envs.suites.families import FAMILIES
 from koopman_envs.suites.measures import TIER_THRESHOLDS, TIERS
 from koopman_envs.tasks.base import TASKS

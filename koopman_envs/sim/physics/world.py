@@ -38,7 +38,7 @@ from koopman_envs.sim.dynamics import saturated_command, wrap_scalar
 from koopman_envs.sim.perception import child_generator
 from koopman_envs.sim.physics.model import OBSTACLE_HEIGHT, robot_mjcf
 from koopman_envs.sim.physics.surfaces import SurfaceSetting, draw_friction, surface_for_lambda
-from koopman_envs.sim.zones import SlipZone, ZoneTable
+from koopman_envs.sim.slip.zones import SlipZone, ZoneTable
 
 __all__ = [
     "INSTALL_HINT",

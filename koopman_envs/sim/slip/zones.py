@@ -14,7 +14,7 @@ A robot is inside a zone when its centre is (boundary included).
 
 The level of a control period is taken where the robot is at the **start** of the period, and
 only the scale changes: the unit-mean Exponential draws of
-:class:`~koopman_envs.sim.slip.SlipSampler` are the same stream with or without zones, so an
+:class:`~koopman_envs.sim.slip.sampling.SlipSampler` are the same stream with or without zones, so an
 environment with zones consumes its generator exactly as one without, and a robot outside every
 zone slips exactly (bit for bit) as it would on the map without zones.
 """

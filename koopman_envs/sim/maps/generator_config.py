@@ -1,10 +1,10 @@
 """The random-map generator's settings, and which team shapes fit its layouts.
 
-:class:`RandomMapConfig` holds the settings of :func:`~koopman_envs.sim.random_maps.generate_random_map`
+:class:`RandomMapConfig` holds the settings of :func:`~koopman_envs.sim.maps.generator.generate_random_map`
 (each checked when it is built, naming the field and what is allowed) and decides which formation
 shape a team of a given size takes (:meth:`RandomMapConfig.shape_for`: the wedge while it fits the
 workspace, the grid beyond, by the exact share of placements that fit, :func:`placement_share`).
-Nothing here draws: a layout is the generator's (:mod:`koopman_envs.sim.random_maps`, which
+Nothing here draws: a layout is the generator's (:mod:`koopman_envs.sim.maps.generator`, which
 re-exports these names).
 """
 
@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from koopman_envs.checks import check_choice, check_int, check_number, choice_message
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_shape
-from koopman_envs.sim.zones import SLIP_ZONE_MODES
+from koopman_envs.sim.slip.zones import SLIP_ZONE_MODES
 
 __all__ = [
     "AUTO_FORMATION",
@@ -125,7 +125,7 @@ class RandomMapConfig:
     n_slip_zones: int = 0
     slip_zone_radius: tuple[float, float] = (0.6, 1.5)  # zone radius range [m]
     slip_zone_lambda: tuple[float, float] = (0.2, 0.5)  # range of the zone's slip mean
-    slip_zone_mode: str = "replace"  # see koopman_envs.sim.zones
+    slip_zone_mode: str = "replace"  # see koopman_envs.sim.slip.zones
 
     def __post_init__(self) -> None:
         # NumPy scalars (np.int8(3), np.float32(0.5)) as the Python numbers they hold: the sizes

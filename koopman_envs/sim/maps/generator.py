@@ -2,7 +2,7 @@
 isolated circular obstacles (and, optionally, slip zones), the same layout for the same seed.
 
 :func:`generate_random_map` draws a layout from a generator, with the settings of
-:class:`RandomMapConfig` (:mod:`koopman_envs.sim.random_map_config`: the settings, their checks
+:class:`RandomMapConfig` (:mod:`koopman_envs.sim.maps.generator_config`: the settings, their checks
 and which formation shape a team takes, re-exported here).
 """
 
@@ -21,15 +21,15 @@ from numpy.typing import NDArray
 
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import formation_shape
-from koopman_envs.sim.maps import MapSpec
-from koopman_envs.sim.random_map_config import (
+from koopman_envs.sim.maps.generator_config import (
     AUTO_FORMATION,
     MIN_PLACEMENT_SHARE,
     RandomMapConfig,
     placement_share,
 )
-from koopman_envs.sim.random_map_config import MIN_TRAVEL as MIN_TRAVEL  # importable here as before
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.maps.generator_config import MIN_TRAVEL as MIN_TRAVEL  # importable here as before
+from koopman_envs.sim.maps.map_spec import MapSpec
+from koopman_envs.sim.slip.zones import SlipZone
 
 __all__ = [
     "AUTO_FORMATION",

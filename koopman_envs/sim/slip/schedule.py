@@ -3,7 +3,7 @@
 ``slip=[(0.0, [0, 0.1, 0.2]), (5.0, [0.3, 0.3, 0.3])]`` holds each listed level from its time
 [s] until the next; ``slip="drift"`` redraws every robot's level at random times (the law is
 documented at :data:`koopman_envs.params.DRIFT_MEAN_INTERVAL`). Both set the robots' **base**
-level; slip zones (:mod:`koopman_envs.sim.zones`) act on top of it.
+level; slip zones (:mod:`koopman_envs.sim.slip.zones`) act on top of it.
 
 A change at time t applies to every control period that starts at t or later: the level of the
 period starting at ``elapsed * dt`` is the one of the last change at or before that time (with

@@ -6,8 +6,8 @@ single environment uses exactly the same block logic, sub-environment ``i`` of a
 its generator exactly as a lone environment with the same seed does.
 
 The blocks hold unit-mean draws; the step scales them by each robot's slip mean of the period.
-That mean may come from slip zones (:mod:`koopman_envs.sim.zones`) or change with a schedule
-(:mod:`koopman_envs.sim.slip_schedule`), but the unit draws are the same stream whatever the
+That mean may come from slip zones (:mod:`koopman_envs.sim.slip.zones`) or change with a schedule
+(:mod:`koopman_envs.sim.slip.schedule`), but the unit draws are the same stream whatever the
 means are: zones never change what is drawn, only how it is scaled.
 """
 

@@ -1,7 +1,7 @@
 """One scenario on one matplotlib axes: the static background (slip zones, obstacles, targets,
 starts), built once per episode, and the dynamic artists (trails, robot bodies, headings, movers
-and the layers of :mod:`koopman_envs.fronts.rendering_layers`) that every frame moves. The
-renderer (:mod:`koopman_envs.fronts.rendering`) blits them; :func:`draw_scenario` draws a whole
+and the layers of :mod:`koopman_envs.rendering.layers`) that every frame moves. The
+renderer (:mod:`koopman_envs.rendering.renderer`) blits them; :func:`draw_scenario` draws a whole
 episode on an axes of the caller's."""
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.fronts.rendering_layers import MOVER_TRAIL, FrameLayers, Overlay, view_limits
+from koopman_envs.rendering.layers import MOVER_TRAIL, FrameLayers, Overlay, view_limits
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when first used)
     pass

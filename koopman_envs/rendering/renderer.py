@@ -6,7 +6,7 @@ off-screen through the Agg canvas, ``human`` opens a pyplot window.
 A frame is cheap because the figure is built once per episode: slip zones, obstacles, targets,
 start markers, axes and grid form a static background that is drawn once and kept as a bitmap, and
 each frame only restores that bitmap and draws the moving artists (trails, robot bodies,
-headings, the clock in the title, and the layers of :mod:`koopman_envs.fronts.rendering_layers`: lidar
+headings, the clock in the title, and the layers of :mod:`koopman_envs.rendering.layers`: lidar
 beams and collision marks) on top of it (blitting). The view holds the map and the area the movers
 roam; a robot or mover that leaves it widens it in 1 m steps, and a frame in which the axis limits
 change redraws the background.
@@ -20,16 +20,16 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.fronts.animation import save_episode
-from koopman_envs.fronts.rendering_layers import (
+from koopman_envs.rendering.animation import save_episode
+from koopman_envs.rendering.layers import (
     MOVER_TRAIL,
     Overlay,
     engine_frame,
     frame_title,
 )
-from koopman_envs.fronts.scene import Scene, draw_scenario, static_key
+from koopman_envs.rendering.scene import Scene, draw_scenario, static_key
 from koopman_envs.scenario import Scenario
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (matplotlib is imported when first used)
     from matplotlib.axes import Axes

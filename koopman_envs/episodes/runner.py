@@ -6,7 +6,7 @@ controller but ``act(observation, info)`` (and calls ``reset(scenario, seed=...)
 object has one: the episode's :class:`~koopman_envs.scenario.Scenario`, never the env, so that a
 controller learns nothing at reset that the observed info does not tell it), so it lives beside
 the environments and imports no controller. The per-episode metrics are measured by
-:class:`~koopman_envs.fronts.episode_metrics.EpisodeRecorder` (re-exported here with the result).
+:class:`~koopman_envs.episodes.metrics.EpisodeRecorder` (re-exported here with the result).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.fronts.episode_metrics import EpisodeRecorder, EpisodeResult, path_ratio, smallest_clearance
+from koopman_envs.episodes.metrics import EpisodeRecorder, EpisodeResult, path_ratio, smallest_clearance
 from koopman_envs.scenario import scenario_of
 
 __all__ = [

@@ -1,10 +1,10 @@
 """What a frame shows beyond the map and the robots: the lidar beams, the collision marks, and a
-view that keeps every mover in sight (used by :mod:`koopman_envs.fronts.rendering`).
+view that keeps every mover in sight (used by :mod:`koopman_envs.rendering.renderer`).
 
 * **Beams.** With ``sensing="lidar"`` every robot's beams of the current step are drawn from its
   centre (where the lidar measures from) to the reading, in the robot's colour and faint; a beam
   that met something ends in a dot, one that read the full range does not.
-  :attr:`Renderer.show_beams <koopman_envs.fronts.rendering.Renderer.show_beams>` hides them.
+  :attr:`Renderer.show_beams <koopman_envs.rendering.renderer.Renderer.show_beams>` hides them.
 * **Collisions.** A collision ends the episode, so the frame of its step is the one that shows it:
   a red cross where the bodies touch (on the robot's rim toward the obstacle, team-mate or mover;
   at the wall for a workspace exit) and a label with the kind
@@ -31,7 +31,7 @@ from koopman_envs.scenario import Scenario
 from koopman_envs.sim.collision import CollisionKind
 from koopman_envs.sim.lidar import beam_angles
 from koopman_envs.sim.movers.placement import mover_arena
-from koopman_envs.sim.zones import SlipZone
+from koopman_envs.sim.slip.zones import SlipZone
 
 __all__ = [
     "MOVER_TRAIL",
@@ -221,7 +221,7 @@ def frame_title(config: Any) -> str:
 def engine_frame(engine: Any, index: int, show_beams: bool = True) -> dict[str, Any]:
     """What a frame of environment ``index`` of a :class:`~koopman_envs.engine.engine.NavigationEngine`
     shows besides its scenario and trail: the keywords ``title``, ``elapsed``, ``slip_zones``,
-    ``movers`` and ``overlay`` of :meth:`Renderer.draw <koopman_envs.fronts.rendering.Renderer.draw>`."""
+    ``movers`` and ``overlay`` of :meth:`Renderer.draw <koopman_envs.rendering.renderer.Renderer.draw>`."""
     spec = engine.maps[index]
     assert spec is not None  # the env was reset, so a map is installed
     movers = None

@@ -1,6 +1,6 @@
 """Run one short episode and print what happened (a smoke test of an install).
 
-``python -m koopman_envs.fronts.demo [--env ID] [--map NAME] [--slip NAME] [--n-robots N] [--formation SHAPE] [--gif PATH]``
+``python -m koopman_envs.episodes.demo [--env ID] [--map NAME] [--slip NAME] [--n-robots N] [--formation SHAPE] [--gif PATH]``
 
 The robots are driven by a deliberately naive go-to-target rule (turn toward the target, drive
 when roughly facing it), which ignores obstacles and other robots: it shows the environment,
@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.fronts.episode import run_episode
+from koopman_envs.episodes.runner import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import ENV_IDS
@@ -43,7 +43,9 @@ class NaiveGoToTarget:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m koopman_envs.episodes.demo", description=__doc__.split("\n")[0]
+    )
     parser.add_argument("--env", default="KoopNav-TargetReaching-v0", choices=ENV_IDS)
     parser.add_argument("--map", default=None, help="map1..map8, random, or a .json file")
     parser.add_argument("--slip", default="nominal", help="nominal, low, high, random or drift")
@@ -74,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("  final distance to target [cm]: " + ", ".join(f"{100 * d:.1f}" for d in result.final_distance))
     if args.gif:
-        from koopman_envs.fronts.rendering import save_episode
+        from koopman_envs.rendering.renderer import save_episode
 
         print(f"  saved {save_episode(result.frames, args.gif)}")
     return 0

@@ -1,7 +1,7 @@
 """Obstacle maps: the shipped data files and user map files (the seeded random-map generator is
-:mod:`koopman_envs.sim.random_maps`).
+:mod:`koopman_envs.sim.maps.generator`).
 
-A map holds circular obstacles, optional slip zones (:mod:`koopman_envs.sim.zones`) and, per
+A map holds circular obstacles, optional slip zones (:mod:`koopman_envs.sim.slip.zones`) and, per
 robot, a start pose and a target pose. Formation maps are written as a leader target plus
 follower offsets; both forms load into the same :class:`MapSpec`, whose ``formation_offsets``
 are the targets relative to robot 0's target.
@@ -23,7 +23,7 @@ from koopman_envs.files import read_text, write_atomic
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_offsets_for
 from koopman_envs.sim.geometry import TeamGeometry
-from koopman_envs.sim.zones import SlipZone, check_zone_robots
+from koopman_envs.sim.slip.zones import SlipZone, check_zone_robots
 
 __all__ = [
     "BUILTIN_MAPS",
@@ -95,8 +95,8 @@ class MapSpec:
     metadata : dict
         Free JSON data kept with the map.
     slip_zones : tuple of SlipZone
-        Regions with their own slip mean (:mod:`koopman_envs.sim.zones`); a sequence of
-        :class:`~koopman_envs.sim.zones.SlipZone` or of their map-file dicts. A per-robot zone
+        Regions with their own slip mean (:mod:`koopman_envs.sim.slip.zones`); a sequence of
+        :class:`~koopman_envs.sim.slip.zones.SlipZone` or of their map-file dicts. A per-robot zone
         lambda lists one value per start of the map.
     """
 
@@ -140,7 +140,7 @@ class MapSpec:
     ) -> MapSpec:
         """A map from a generator that builds its arrays to the checked form itself (float64,
         (k, 3) rows, finite, radii > 0, as many starts as targets, zones of the right type), as
-        :func:`~koopman_envs.sim.random_maps.generate_random_map` does at every reset: the arrays
+        :func:`~koopman_envs.sim.maps.generator.generate_random_map` does at every reset: the arrays
         are taken as they are (made read-only) without :meth:`__post_init__`'s checks, which cost
         a quarter of a random-map reset. Everything else builds a map the checked way."""
         spec = object.__new__(cls)
