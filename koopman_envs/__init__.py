@@ -52,7 +52,7 @@ from koopman_envs.tasks.base import ENV_IDS, TASKS, TaskSpec, env_id_for_map, ta
 
 if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use (_LAZY)
     from koopman_envs.episodes.batch import run_episodes_in_batch
-    from koopman_envs.episodes.runner import (
+    from koopman_envs.episodes.single import (
         ComputeCharge,
         EpisodeResult,
         path_ratio,
@@ -82,7 +82,7 @@ MOVED_PATHS = {
     "koopman_envs.movers": "koopman_envs.settings.moving_obstacles",
     "koopman_envs.uncertainty": "koopman_envs.settings.uncertainty",
     "koopman_envs.reset_options": "koopman_envs.settings.reset_options",
-    "koopman_envs.fronts.episode": "koopman_envs.episodes.runner",
+    "koopman_envs.fronts.episode": "koopman_envs.episodes.single",
     "koopman_envs.fronts.rendering": "koopman_envs.rendering.renderer",
     "koopman_envs.fronts.demo": "koopman_envs.episodes.demo",
 }
@@ -113,11 +113,11 @@ _LAZY = {
     "KoopNavEnv": "koopman_envs.fronts.gym_env",
     "KoopNavVectorEnv": "koopman_envs.fronts.vector_env",
     "DictObservation": "koopman_envs.fronts.dict_observation",
-    "run_episode": "koopman_envs.episodes.runner",
-    "EpisodeResult": "koopman_envs.episodes.runner",
-    "ComputeCharge": "koopman_envs.episodes.runner",
-    "smallest_clearance": "koopman_envs.episodes.runner",
-    "path_ratio": "koopman_envs.episodes.runner",
+    "run_episode": "koopman_envs.episodes.single",
+    "EpisodeResult": "koopman_envs.episodes.single",
+    "ComputeCharge": "koopman_envs.episodes.single",
+    "smallest_clearance": "koopman_envs.episodes.single",
+    "path_ratio": "koopman_envs.episodes.single",
     "run_episodes_in_batch": "koopman_envs.episodes.batch",
     "Renderer": "koopman_envs.rendering.renderer",
     "save_episode": "koopman_envs.rendering.renderer",

@@ -14,7 +14,7 @@ from controllers.calibration import calibrate_controller
 from controllers.koopman import KoopmanModel
 from controllers.koopman.online import RecursiveBilinearFit
 from controllers.mpc.variants import AdaptiveKoopmanNMPC
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 SHIPPED = "controllers/koopman/models/nominal.npz"
 

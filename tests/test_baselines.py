@@ -289,7 +289,7 @@ def test_a_three_robot_policy_sees_the_nearest_two_teammates_of_a_larger_team() 
 
 
 def test_shipped_policy_drives_a_six_robot_team() -> None:
-    from koopman_envs.episodes.runner import run_episode
+    from koopman_envs.episodes.single import run_episode
 
     env = gym.make("KoopNav-Formation-v0", map="random", n_robots=6, max_episode_steps=20)
     actions: list[np.ndarray] = []

@@ -13,7 +13,7 @@ import pytest
 
 import controllers
 from koopman_envs.episodes.batch import info_row, run_episodes_in_batch
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 SETTINGS = [
     ("KoopNav-TargetReaching-v0", {"map": "map1", "start_noise": 0.05, "max_episode_steps": 120}),

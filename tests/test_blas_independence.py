@@ -34,7 +34,7 @@ import gymnasium as gym
 import numpy as np
 import controllers
 import koopman_envs  # noqa: F401
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 env = gym.make("KoopNav-TargetReaching-v0", map="map2", slip="high", goal_tolerance=0.1, max_episode_steps=100,
                start_noise=0.05)
 digest = hashlib.sha256()

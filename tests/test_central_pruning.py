@@ -11,7 +11,7 @@ import pytest
 
 import controllers
 from controllers.mpc.config import PARKED
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 
 def _reset(n: int = 3, map_name: str = "map1", **options):

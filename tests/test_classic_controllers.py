@@ -18,7 +18,7 @@ from controllers.classic.common import TeamView
 from controllers.classic.dwa import DWAController, DWASettings
 from controllers.classic.orca import ORCAController, ORCASettings, unicycle_tracking
 from controllers.option_spec import spec_of
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 from koopman_envs.settings import UNCERTAINTY_PRESETS
 from koopman_envs.sim.maps.map_spec import MapSpec
 

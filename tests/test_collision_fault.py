@@ -19,7 +19,7 @@ from controllers.base import ControllerStats
 from evaluation.episodes.records import json_safe, record_problem
 from evaluation.execution.worker import _result_fields
 from koopman_envs import target_reaching_v0
-from koopman_envs.episodes.runner import EpisodeRecorder, EpisodeResult
+from koopman_envs.episodes.single import EpisodeRecorder, EpisodeResult
 from koopman_envs.params import FAULT_STOPPED_SPEED, STRICT_CLEARANCE_MARGIN
 from koopman_envs.sim.collision import CollisionFault, CollisionKind
 from koopman_envs.sim.maps.map_spec import MapSpec

@@ -1,4 +1,4 @@
-"""Compute-aware episodes (koopman_envs/episodes/runner.py ComputeCharge, ``--realtime``): a controller's
+"""Compute-aware episodes (koopman_envs/episodes/single.py ComputeCharge, ``--realtime``): a controller's
 decision time is charged to its robots. Timed with a clock of the test's own, so nothing here
 depends on how busy the machine is."""
 
@@ -11,7 +11,7 @@ import pytest
 import controllers
 import evaluate as ev
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.episodes.runner import ComputeCharge, run_episode
+from koopman_envs.episodes.single import ComputeCharge, run_episode
 
 
 class _Clock:

@@ -23,7 +23,7 @@ from controllers.calibration import calibrate_controller
 from controllers.mpc.controller import NMPCController
 from controllers.pettingzoo_adapter import ParallelAdapter
 from koopman_envs import formation_v0
-from koopman_envs.episodes.runner import EpisodeResult, run_episode
+from koopman_envs.episodes.single import EpisodeResult, run_episode
 from koopman_envs.sim.maps.map_spec import MapSpec
 
 OPEN = MapSpec(

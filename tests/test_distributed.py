@@ -12,7 +12,7 @@ import pytest
 import controllers
 from controllers.mpc.config import PARKED
 from controllers.mpc.distributed import DistributedNMPC
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 
 def _reset(n: int = 3, map_name: str = "map1", **options) -> tuple[DistributedNMPC, gym.Env, dict]:

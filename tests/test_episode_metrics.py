@@ -1,4 +1,4 @@
-"""The per-episode metrics robotics papers report (koopman_envs/episodes/runner.py): clearance, path
+"""The per-episode metrics robotics papers report (koopman_envs/episodes/single.py): clearance, path
 ratio, smoothness (acceleration and jerk), the share of time near an obstacle, against values
 computed by hand on scripted episodes, and their fields in the evaluator's records."""
 
@@ -12,7 +12,7 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from evaluation.stats.aggregate import episode_metrics
-from koopman_envs.episodes.runner import path_ratio, run_episode
+from koopman_envs.episodes.single import path_ratio, run_episode
 from koopman_envs.params import PARAMS, PATH_RATIO_MIN_DISTANCE, STRICT_CLEARANCE_MARGIN
 from koopman_envs.sim.maps.map_spec import MapSpec
 

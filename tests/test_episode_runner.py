@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from evaluation.stats.aggregate import aggregate
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 
 class ScriptedEnv:

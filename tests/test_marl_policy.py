@@ -11,7 +11,7 @@ import pytest
 
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.marl.marl_policy import MappoController, actor_command
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 TR = "KoopNav-TargetReaching-v0"
 

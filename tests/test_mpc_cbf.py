@@ -26,7 +26,7 @@ import pytest
 import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.tuning import TUNED_DIR, read_tuned
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.maps.map_spec import MapSpec
 
@@ -123,7 +123,7 @@ def test_the_barrier_holds_at_every_step_where_the_plain_nmpcs_margin_is_crossed
 
 _EPISODE = """
 import gymnasium as gym, koopman_envs, controllers
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 env = gym.make('KoopNav-Formation-v0', map='map4', slip='high', start_noise=0.05{limit})
 result = run_episode(env, controllers.make('mpc-cbf-v0'), seed=1)
 print(result.trajectory.tobytes().hex(), result.steps)

@@ -13,7 +13,7 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.features.perceived import perceived_blocks
 from koopman_envs import Observed
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 from koopman_envs.scenario import scenario_of
 
 TR, FM = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"

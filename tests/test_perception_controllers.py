@@ -17,7 +17,7 @@ import controllers
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.calibration import calibrate_controller
 from koopman_envs.engine.plant import make_plant
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 ENV = "KoopNav-TargetReaching-v0"
 #: the controllers that complete Map 1 (seed 0) with exact state, and so must on beams
@@ -104,7 +104,7 @@ def test_the_perception_is_deterministic() -> None:
     np.testing.assert_array_equal(first.final_distance, again.final_distance)
     code = (
         "import gymnasium as gym, numpy as np, koopman_envs, controllers;"
-        "from koopman_envs.episodes.runner import run_episode;"
+        "from koopman_envs.episodes.single import run_episode;"
         f"env = gym.make({ENV!r}, map='map1', sensing='lidar', lidar={{'map_known': False}}, movers={{'count': 4}},"
         " max_episode_steps=30);"
         "r = run_episode(env, controllers.make('dwa'), seed=3);"

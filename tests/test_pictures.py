@@ -202,7 +202,7 @@ def test_the_worker_records_the_movers_paths_and_the_figure_draws_them(tmp_path:
     from evaluation.reports.figures import _trajectory_figure, save_figures
     from evaluation.stats.run_data import RunData
     from koopman_envs.episodes.demo import NaiveGoToTarget
-    from koopman_envs.episodes.runner import run_episode
+    from koopman_envs.episodes.single import run_episode
 
     env = gym.make(TR, movers=dict(count=3, behaviour="waypoints"), max_episode_steps=40)
     result = run_episode(env, NaiveGoToTarget(), seed=0)

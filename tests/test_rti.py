@@ -240,7 +240,7 @@ def test_every_qp_solver_of_the_table_gives_the_same_step(controller: str, name:
 
 _EPISODE = """
 import gymnasium as gym, koopman_envs, controllers, numpy as np
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 env = gym.make('KoopNav-Formation-v0', map='map3', slip='high', max_episode_steps=60)
 ctrl = controllers.make('nominal-nmpc-v0', solver='rti')
 result = run_episode(env, ctrl, seed=3)

@@ -13,7 +13,7 @@ from controllers.base import BaseController
 from controllers.safety import BarrierFilter, SafetyFilter, SafetyOptions
 from controllers.solvers.two_variable_qp import solve_qp2
 from evaluation.run.configs import parse_controller, split_controller_list
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.scenario import Scenario
 from koopman_envs.sim.dynamics import rk4_step

@@ -178,7 +178,7 @@ def test_compiled_and_uncompiled_solvers_give_the_same_closed_loop(tmp_path, mon
 
     import controllers
     import koopman_envs  # noqa: F401
-    from koopman_envs.episodes.runner import run_episode
+    from koopman_envs.episodes.single import run_episode
 
     monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path / "cache"))
     runs = []

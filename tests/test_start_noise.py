@@ -165,7 +165,7 @@ def test_documented() -> None:
 def test_a_controller_is_handed_the_scenario_with_the_planned_starts_only() -> None:
     """run_episode resets a controller with the episode's Scenario (never the env), whose starts
     are the map's: where each robot truly starts it learns from its localization."""
-    from koopman_envs.episodes.runner import run_episode
+    from koopman_envs.episodes.single import run_episode
     from koopman_envs.scenario import Scenario
 
     class Spy:

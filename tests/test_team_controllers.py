@@ -12,7 +12,7 @@ import pytest
 
 import controllers
 from controllers.calibration import calibrate_controller
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 
 MAPS = [("KoopNav-TargetReaching-v0", "map7"), ("KoopNav-Formation-v0", "map8")]
 NMPC = ["koopman-nmpc", "nominal-nmpc", "adaptive-koopman-nmpc"]

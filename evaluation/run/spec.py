@@ -122,7 +122,7 @@ class RunSpec:
     compute_scale : float, optional
         Compute-aware episodes (``--realtime``, ``--compute-scale``): every controller's decision
         time, times this factor, is charged to its robots
-        (:class:`koopman_envs.episodes.runner.ComputeCharge`); None (default): the env waits for the
+        (:class:`koopman_envs.episodes.single.ComputeCharge`); None (default): the env waits for the
         controller.
     solver : str, optional
         Optimizer (``rti``, ``ipopt``, ``fatrop``) of every NMPC configuration that names none

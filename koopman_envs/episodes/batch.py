@@ -1,5 +1,5 @@
 """Many episodes at once: one episode in every sub-environment of the native vector env, each
-measured as :func:`~koopman_envs.episodes.runner.run_episode` measures a lone one.
+measured as :func:`~koopman_envs.episodes.single.run_episode` measures a lone one.
 
 A sub-environment seeded ``s`` is the lone env seeded ``s`` (the vector env's per-environment
 generators; tests/test_determinism.py), and its row of the vector env's info is the lone env's
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from koopman_envs.episodes.runner import EpisodeRecorder, EpisodeResult, Policy
+from koopman_envs.episodes.single import EpisodeRecorder, EpisodeResult, Policy
 
 __all__ = ["info_row", "info_rows", "run_episodes_in_batch"]
 
@@ -66,7 +66,7 @@ def run_episodes_in_batch(
 ) -> list[EpisodeResult]:
     """Run one episode in every sub-environment of ``venv``, sub-environment ``i`` seeded
     ``seeds[i]`` and driven by ``policies[i]`` (reset with its scenario and seed first, as
-    :func:`~koopman_envs.episodes.runner.run_episode` does), and measure each.
+    :func:`~koopman_envs.episodes.single.run_episode` does), and measure each.
 
     Parameters
     ----------

@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.episodes.runner import run_episode
+from koopman_envs.episodes.single import run_episode
 from koopman_envs.params import PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import ENV_IDS

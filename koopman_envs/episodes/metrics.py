@@ -1,6 +1,6 @@
 """The per-episode metrics: :class:`EpisodeResult` (what one episode did) and
 :class:`EpisodeRecorder`, the one place they are computed, fed one step at a time by
-:func:`koopman_envs.episodes.runner.run_episode` and by any runner that steps episodes another way
+:func:`koopman_envs.episodes.single.run_episode` and by any runner that steps episodes another way
 (:mod:`koopman_envs.episodes.batch`). Its readers of records (:func:`path_ratio`,
 :func:`smallest_clearance`) take a result's fields or a record's lists alike, so that a report
 computes a metric the way the episode did.

@@ -173,7 +173,7 @@ def _compute_note(config: Mapping[str, Any]) -> str:
         f"Compute-aware run: every decision's wall time, times {compute.get('scale')}, was charged to "
         f"the robots (measured on {compute.get('machine')}): a command acts from the period boundary "
         "after its decision is ready, the last one holds meanwhile, and a decision longer than the "
-        "period is a deadline miss (koopman_envs.episodes.runner.ComputeCharge)."
+        "period is a deadline miss (koopman_envs.episodes.single.ComputeCharge)."
     )
 
 
