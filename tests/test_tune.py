@@ -103,6 +103,29 @@ def test_the_test_split_is_refused_by_name_before_any_work(tmp_path: Path) -> No
     assert code == BAD_INPUT_EXIT and not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--slip", "icy"], "slip='icy'"),
+        (["--max-episode-steps", "0"], "max_episode_steps=0"),
+        (["--workers", "0"], "workers=0"),
+        (["--layouts", "500"], "layouts=0:500"),
+        (["--task", "parking"], "task='parking'"),
+        (["--seed", "-1"], "seed=-1"),
+    ],
+)
+def test_a_bad_run_setting_exits_naming_it_and_leaves_no_file(
+    tmp_path: Path, capsys, args: list[str], named: str
+) -> None:
+    # checked by the evaluator's own checks before the study log is written: a log left behind
+    # would hold the bad setting in its header and block this --out
+    out = tmp_path / "study"
+    code = tune.main(["consensus", *args, "--out", str(out)])
+    assert code == BAD_INPUT_EXIT
+    assert named in capsys.readouterr().err
+    assert not out.exists()
+
+
 # ------------------------------------------------------------------ the real study (fast)
 @needs_optuna
 def test_a_real_study_is_seeded_and_starts_from_the_defaults(tmp_path: Path) -> None:

@@ -103,8 +103,8 @@ def run_study(
     KeyboardInterrupt
         Ctrl-C: the finished trials are in the log, ``resume=True`` continues.
     """
-    settings.check()
-    _optuna()  # before anything is written
+    settings.check(workers)  # the whole run, before anything is written
+    _optuna()
     search, defaults = _tuned(settings.controller)
     header = settings.header(search, defaults)
     log = ensure_output_dir(out) / STUDY_FILE
