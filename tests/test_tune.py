@@ -7,6 +7,7 @@ import dataclasses
 import importlib.util
 import itertools
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -313,6 +314,84 @@ def test_a_search_outside_its_range_is_refused_by_name() -> None:
         with_search(spec, {"nope": Search(0.0, 1.0)})
     with pytest.raises(ValueError, match="not in the searched"):
         Search(0.1, 1.0).point("hand", 2.0)
+
+
+# ------------------------------------------------------------------ tuning coverage
+#: the published test-suite runs (data/publish.sh): every controller in them with tunable options
+#: has a committed study, or is named here with the reason it has none yet
+PUBLISH = Path(__file__).resolve().parents[1] / "data" / "publish.sh"
+PENDING_STUDIES = {"koopman-nmpc": "its study (bash data/tuning/run.sh koopman-nmpc) is still running"}
+
+
+def _bench_controllers() -> set[str]:
+    """The controllers of the published bench runs, read from data/publish.sh where they are defined."""
+    text = PUBLISH.read_text(encoding="utf-8")
+    names: set[str] = set()
+    for variable in ("BENCH_CHARGED", "BENCH_FREE"):
+        found = re.search(rf'^{variable}="([^"]*)"$', text, flags=re.M)
+        assert found, f"{PUBLISH} no longer defines {variable}"
+        names.update(found.group(1).split())
+    return names
+
+
+def test_every_tunable_bench_controller_has_a_study_or_is_pending() -> None:
+    bench = _bench_controllers()
+    # the -v0 variants keep the defaults a study replaced, by design
+    tunable = {n for n in bench if not presets.is_comparison_variant(n) and controllers.options(n).tunable()}
+    studied = {path.parent.name for path in STUDIES_DIR.glob("*/study.jsonl")}
+    finished = {path.parent.name for path in STUDIES_DIR.glob("*/best.json")}
+    missing = sorted(tunable - studied - set(PENDING_STUDIES))
+    assert not missing, (
+        f"{missing} run in the published bench with tunable options but have no study in {STUDIES_DIR}: "
+        "add them to data/tuning/run.sh and run it, or declare them untuned (Preset.untuned) with the reason"
+    )
+    assert not set(PENDING_STUDIES) & finished, "a pending study has finished: take it off PENDING_STUDIES"
+    assert set(PENDING_STUDIES) <= tunable
+    # the studies' script runs exactly these by default
+    listed = re.search(r"\|\| controllers=\(([^)]*)\)", (STUDIES_DIR / "run.sh").read_text(encoding="utf-8"))
+    assert listed and sorted(listed.group(1).split()) == sorted(tunable)
+    assert "consensus-free" in bench and "consensus-free" not in tunable
+
+
+def test_consensus_free_is_an_untuned_ablation_on_consensus_v0s_gains(tmp_path: Path, capsys) -> None:
+    free, v0 = controllers.options("consensus-free"), controllers.options("consensus-v0")
+    assert free.tunable() == {}
+    # its behaviour is unchanged: consensus-v0's hand-set defaults, collision avoidance off
+    assert {o.name: o.default for o in free.options} == {
+        **{o.name: o.default for o in v0.options},
+        "collision_avoidance": False,
+    }
+    out = tmp_path / "study"
+    assert tune.main(["consensus-free", "--out", str(out)]) == BAD_INPUT_EXIT
+    assert (
+        "'consensus-free' declares no tunable options (a TUNABLE table): a mechanism ablation"
+        in capsys.readouterr().err
+    )
+    assert not out.exists()
+    with pytest.raises(ValueError, match=r"preset 'x': tunable=\['hand'\] with untuned="):
+        presets.Preset("x", "consensus", tunable={"hand": Search(0.01, 0.2)}, untuned="why")
+
+
+def test_every_committed_study_has_the_same_budget_layouts_seed_slip_and_objective() -> None:
+    headers = {
+        path.parent.name: read_study(path, repair=False)[0]
+        for path in sorted(STUDIES_DIR.glob("*/study.jsonl"))
+    }
+    assert len(headers) >= 2
+    shared = ("budget", "task", "split", "suites", "seed", "slip", "env_kwargs", "objective", "sampler")
+    first, reference = next(iter(headers.items()))
+    for name, header in headers.items():
+        differing = [key for key in shared if header[key] != reference[key]]
+        assert not differing, f"{name}'s study differs from {first}'s in {differing}"
+    # the budget the script states (TRIALS x LAYOUTS x EPISODES x both tasks)
+    script = (STUDIES_DIR / "run.sh").read_text(encoding="utf-8")
+    stated = {
+        k: int(v) for k, v in re.findall(r'^(TRIALS|LAYOUTS|EPISODES)="\$\{\w+:-(\d+)\}"', script, re.M)
+    }
+    assert reference["budget"]["configurations"] == stated["TRIALS"]
+    assert reference["budget"]["layouts_per_task"] == stated["LAYOUTS"]
+    assert reference["budget"]["episodes_per_layout"] == stated["EPISODES"]
+    assert (reference["task"], reference["split"], reference["seed"]) == ("both", "validation", 0)
 
 
 # ------------------------------------------------------------------ tuned presets
