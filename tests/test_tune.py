@@ -277,10 +277,21 @@ def test_the_report_draws_the_curves_and_tabulates_the_gain(tmp_path: Path) -> N
     )
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     table = figure.with_suffix(".md").read_text()
-    rows = {line.split("|")[1].strip(): line for line in table.splitlines()[2:]}
+    rows = {line.split("|")[1].strip(): line for line in table.splitlines() if line.startswith("| `")}
     assert set(rows) == {"`consensus`", "`orca`"}
     scores = [line["score"] for line in _lines(tmp_path / "orca")[1:]]
     assert f"{max(scores) - scores[0]:+.3f}" in rows["`orca`"] and "6 of 6 x 3 x 2" in rows["`orca`"]
+    # the suite tuned on, as every report prints it: name, version, each task's label with its hash
+    label = _lines(tmp_path / "orca")[0]["suites"][0]
+    assert table.splitlines()[0] == (
+        "Suite koopnav-bench-v1 (version 1), split validation, layouts 0-2 (3 of 100), 2 episodes per "
+        f"layout: target reaching {label}."
+    )
+    studies = [tune.load_summary(tmp_path / name) for name in ("consensus", "orca")]
+    assert tune.report.figure_title(studies).splitlines()[1:] == [
+        "koopnav-bench-v1 (version 1):",
+        label.split("/", 1)[1],
+    ]
 
 
 # ------------------------------------------------------------------ the tunable spaces
