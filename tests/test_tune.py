@@ -40,7 +40,7 @@ from evaluation.tune import (
     read_study,
     run_study,
 )
-from evaluation.tune.adopt import adopt
+from evaluation.tune.adopt import adopt, adopt_confirmed
 
 #: the studies need Optuna (the tune extra); the curves, objective and presets do not
 needs_optuna = pytest.mark.skipif(importlib.util.find_spec("optuna") is None, reason="needs the [tune] extra")
@@ -668,6 +668,57 @@ def test_adopt_on_the_command_line(tmp_path: Path, capsys) -> None:
     assert sorted(p.name for p in tuned.iterdir()) == ["dwa.json"]
     assert tune.main(["adopt", "nobody", *where]) == BAD_INPUT_EXIT
     assert "nobody: its study" in capsys.readouterr().err
+
+
+class PairedEvaluator:
+    """A stand-in for the evaluator in a confirmation: the best configuration (``best``)
+    succeeds on every unit when ``wins``, else as the defaults do (layouts divisible by 4)."""
+
+    def __init__(self, best: dict[str, Any], wins: bool) -> None:
+        self.best, self.wins = best, wins
+        self.calls: list[tuple[Any, ...]] = []
+
+    def __call__(
+        self, controller, options, task, split, layouts, episodes, seed, **kwargs
+    ) -> list[dict[str, Any]]:
+        self.calls.append((dict(options), list(layouts), split, kwargs["slip"]))
+        better = self.wins and dict(options) == self.best
+        return [
+            {"suite": label, "layout": layout, "seed": seed + layout, "success": better or layout % 4 == 0}
+            for label in ("a", "b")
+            for layout in layouts
+        ]
+
+
+def test_adopt_confirm_reruns_the_best_and_the_defaults_on_fresh_layouts(tmp_path: Path, capsys) -> None:
+    studies, tuned = tmp_path / "studies", tmp_path / "tuned"
+    _shipped(tmp_path, "dwa", {"goal_gain": 0.9}, slip="high", env_kwargs={})
+    (tuned / "dwa.json").unlink()
+    fake = PairedEvaluator({"goal_gain": 0.9}, wins=True)
+    decision, confirmation = adopt_confirmed("dwa", 20, studies, tuned, evaluator=fake)
+    # the study ran layout 0 of each task: the confirmation runs layouts 1-20, best then defaults
+    assert [call[1] for call in fake.calls] == [list(range(1, 21))] * 2
+    assert [call[0] for call in fake.calls] == [{"goal_gain": 0.9}, {}]
+    assert {call[2:] for call in fake.calls} == {("validation", "high")}
+    assert confirmation is not None and confirmation.confirmed and decision.adopted
+    assert (confirmation.units, confirmation.best_successes, confirmation.defaults_successes) == (40, 40, 10)
+    assert confirmation.p_value < 0.001  # 30 discordant layouts, all one way
+    assert (tuned / "dwa.json").read_bytes() == (studies / "dwa" / "dwa.json").read_bytes()
+    record = json.loads((studies / "dwa" / "confirmation.json").read_text())
+    assert record["confirmed"] is True and record["run"]["layouts"] == list(range(1, 21))
+    # no better on fresh layouts: not confirmed, the installed preset removed
+    same = PairedEvaluator({"goal_gain": 0.9}, wins=False)
+    decision, confirmation = adopt_confirmed("dwa", 20, studies, tuned, evaluator=same)
+    assert decision.adopted and confirmation is not None and not confirmation.confirmed
+    assert confirmation.p_value == 1.0 and not (tuned / "dwa.json").exists()
+    assert "not confirmed on validation layouts 1-20: trial 1 10/40" in str(confirmation)
+    # a study the rule keeps needs no confirmation; a bad N is named before any episode
+    _shipped(tmp_path, "orca", {"goal_gain": 0.9}, successes=1, slip="high", env_kwargs={})
+    unused = PairedEvaluator({}, wins=True)
+    assert adopt_confirmed("orca", 20, studies, tuned, evaluator=unused)[1] is None and unused.calls == []
+    where = ["--studies", str(studies), "--tuned", str(tuned)]
+    assert tune.main(["adopt", "dwa", "--confirm", "0", *where]) == BAD_INPUT_EXIT
+    assert "layouts=0 must be an integer >= 1" in capsys.readouterr().err
 
 
 def test_the_installed_presets_are_what_the_rule_admits_of_every_finished_study() -> None:
