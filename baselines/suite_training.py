@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import functools
 import json
-import math
 import os
 import shutil
 from collections.abc import Mapping, Sequence
@@ -93,9 +92,11 @@ class CheckpointScore:
         return self.successes / self.episodes if self.episodes else 0.0
 
     def order(self) -> tuple[float, float, int]:
-        """The sort key of :data:`SELECTION_RULE` (larger is better)."""
-        distance = math.inf if self.mean_final_distance is None else self.mean_final_distance
-        return (self.success_rate, -distance, self.step)
+        """The sort key of :data:`SELECTION_RULE` (larger is better):
+        :func:`~evaluation.episodes.records.selection_key`, the later checkpoint winning a tie."""
+        from evaluation.episodes.records import selection_key
+
+        return selection_key(self.success_rate, self.mean_final_distance, self.step)
 
     def as_dict(self) -> dict[str, Any]:
         return {**asdict(self), "success_rate": self.success_rate}

@@ -379,7 +379,12 @@ def options(name: str) -> ControllerSpec:
         # the preset's base as its class declares it (the preset's defaults alone stand over the
         # class's, as build_preset builds it: a tuned preset of the base is not inherited)
         spec = spec_of(preset.base, _resolve(CONTROLLERS[preset.base]))
-        return with_search(_with_defaults(spec, base, preset.defaults, preset.doc), preset.tunable)
+        spec = with_search(_with_defaults(spec, base, preset.defaults, preset.doc), preset.tunable)
+        if preset.untuned:  # no searches of its own, nor its base's (Preset.untuned says why)
+            spec = ControllerSpec(
+                spec.name, spec.doc, tuple(dataclasses.replace(o, search=None) for o in spec.options)
+            )
+        return spec
     if base in CONTROLLERS:
         return spec_of(base, _resolve(CONTROLLERS[base]))
     return spec_of(base, factory(base))

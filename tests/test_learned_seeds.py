@@ -10,9 +10,11 @@ import subprocess
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, refuse_held_out_map
+from evaluation.episodes.records import selection_key
 from evaluation.experiments.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
 
 pytest.importorskip("stable_baselines3")
@@ -313,3 +315,24 @@ def test_the_shipped_seed_is_chosen_on_validation_never_on_test() -> None:
     assert chosen_seed([run(0, 0.7, 0.2), run(1, 0.7, 0.2)]).seed == 0
     with pytest.raises(ValueError, match="no finished seed"):
         chosen_seed([])
+
+
+def test_the_checkpoint_and_the_seed_are_chosen_by_one_rule() -> None:
+    # one helper (evaluation.episodes.records.selection_key) orders both, with only the last
+    # tie-break their own: the later checkpoint, the lower seed
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n = int(rng.integers(1, 6))
+        successes = rng.integers(0, 4, size=n)  # few values: ties in success are common
+        distances = [None if rng.random() < 0.2 else float(rng.choice([0.1, 0.2, 0.3])) for _ in range(n)]
+        scores = [CheckpointScore(k, f"ck{k}", int(successes[k]), 10, 0, distances[k]) for k in range(n)]
+        runs = [
+            SeedRun("ippo", "formation", k, Path(f"seed{k}"), dict(scores[k].as_dict())) for k in range(n)
+        ]
+        for score in scores:
+            assert score.order() == selection_key(score.success_rate, score.mean_final_distance, score.step)
+        # the same validation records: the same pick, but where only the tie-break separates them
+        best = max(selection_key(s.success_rate, s.mean_final_distance, 0) for s in scores)
+        tied = [s.step for s in scores if selection_key(s.success_rate, s.mean_final_distance, 0) == best]
+        assert choose(scores).step == max(tied)
+        assert chosen_seed(runs).seed == min(tied)

@@ -6,10 +6,12 @@ the digest of reference rollouts that pins the test episodes."""
 from __future__ import annotations
 
 import gzip
+import json
 import re
 import shutil
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -19,7 +21,13 @@ import koopman_envs
 from koopman_envs import formation_v0, target_reaching_v0
 from koopman_envs.params import PARAMS
 from koopman_envs.suites import FAMILIES, SPLITS, SUITES, TIERS, check_split_allowed, load_suite
-from koopman_envs.suites.build import build_records, main, reference_rollout_digest
+from koopman_envs.suites.build import (
+    PROTOCOL_ROLLOUT_LAYOUTS,
+    build_records,
+    main,
+    protocol_rollout_digest,
+    reference_rollout_digest,
+)
 from koopman_envs.suites.measures import (
     ARENA,
     TIER_THRESHOLDS,
@@ -50,6 +58,12 @@ HASHES = {
 ROLLOUTS = {
     "target_reaching": "0a0c1fecc4323a132d798b3a3772c590ed0465d05390f6d520b77b6025ddaf17",
     "formation": "0b0078e47e95a354ca3ddf87669cbae74287c60746e1f85867def75a4a2f1935",
+}
+#: sha256 of rollouts under the benchmark's own keywords, to the episode's end
+#: (koopman_envs.suites.build.protocol_rollout_digest): pinned here, not in the suite's data
+PROTOCOL_ROLLOUTS = {
+    "target_reaching": "6c8d7e97bceff219d30b809c4218d49cc52621e6f7a55fbc58d9168afbc9cc64",
+    "formation": "6517756c99c726b8e18c5f0dd0e4b4cb458d4859c7dc49c8e098f5cd17eb25a2",
 }
 SIZES = {"train": 500, "validation": 100, "test": 200}
 
@@ -350,3 +364,45 @@ def test_the_reference_rollouts_of_the_test_split_are_unchanged(task: str) -> No
         "bump the suite version (koopman_envs.suites.suite.SUITES, e.g. koopnav-bench-v2) and build its data "
         "with python -m koopman_envs.suites.build --write (docs/benchmark.md)"
     )
+
+
+def _benchmark_episodes(task: str) -> list[Any]:
+    """The first episodes of the benchmark's test-suite run of ``task`` on layouts 0, 1, ...: the
+    run's own plan (evaluation.experiments.protocols.suite_protocol, where the protocol is
+    defined), so the digest below follows its slip, start noise and time limit."""
+    from evaluation.experiments.protocols import suite_protocol
+
+    spec = suite_protocol(NAME, "test").resolved(["consensus"])  # any controller: the env keywords
+    env_id = koopman_envs.TASKS[task].env_id
+    return [e for e in spec.episodes_plan() if e.env_id == env_id][:PROTOCOL_ROLLOUT_LAYOUTS]
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_the_rollouts_under_the_benchmarks_own_protocol_are_unchanged(task: str) -> None:
+    episodes = _benchmark_episodes(task)
+    # the digest's episode i is the benchmark's first episode on layout i: same seed, same layout,
+    # the same gym.make keywords
+    assert [(e.seed, e.reset_options()) for e in episodes] == [
+        (i, {"layout": i}) for i in range(len(episodes))
+    ]
+    assert len({json.dumps(e.make_kwargs(), sort_keys=True) for e in episodes}) == 1
+    digest = protocol_rollout_digest(episodes[0].env_id, episodes[0].make_kwargs())
+    assert digest == PROTOCOL_ROLLOUTS[task], (
+        f"the rollouts under the benchmark's protocol ({episodes[0].make_kwargs()}) on {NAME}'s {task} "
+        f"test layouts changed (sha256 {digest}): the slip draws, the start perturbation, the time "
+        "limit or the dynamics now give other test episodes. Bump the suite version "
+        "(koopman_envs.suites.suite.SUITES) as for the reference rollouts (docs/benchmark.md)"
+    )
+
+
+@pytest.mark.parametrize(
+    "change", [{"slip": "low"}, {"slip": "nominal"}, {"start_noise": 0.0}, {"max_episode_steps": 599}]
+)
+def test_the_protocol_digest_sees_the_slip_the_start_noise_and_the_time_limit(change: dict[str, Any]) -> None:
+    # what reference_rollout_digest (default keywords, 40 steps) cannot see; 599 steps: the
+    # open-loop episode runs to the time limit
+    episode = _benchmark_episodes("target_reaching")[0]
+    kwargs = episode.make_kwargs()
+    assert {**kwargs, **change} != kwargs
+    changed = protocol_rollout_digest(episode.env_id, {**kwargs, **change}, layouts=1)
+    assert changed != protocol_rollout_digest(episode.env_id, kwargs, layouts=1)

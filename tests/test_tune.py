@@ -7,6 +7,7 @@ import dataclasses
 import importlib.util
 import itertools
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,7 @@ from evaluation.tune import (
     read_study,
     run_study,
 )
-from evaluation.tune.adopt import adopt
+from evaluation.tune.adopt import adopt, adopt_confirmed
 
 #: the studies need Optuna (the tune extra); the curves, objective and presets do not
 needs_optuna = pytest.mark.skipif(importlib.util.find_spec("optuna") is None, reason="needs the [tune] extra")
@@ -101,6 +102,29 @@ def test_the_test_split_is_refused_by_name_before_any_work(tmp_path: Path) -> No
         evaluate_configuration("consensus", {}, "target_reaching", "test", [0], 1, 0)
     code = tune.main(["consensus", "--split", "test", "--out", str(out)])
     assert code == BAD_INPUT_EXIT and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--slip", "icy"], "slip='icy'"),
+        (["--max-episode-steps", "0"], "max_episode_steps=0"),
+        (["--workers", "0"], "workers=0"),
+        (["--layouts", "500"], "layouts=0:500"),
+        (["--task", "parking"], "task='parking'"),
+        (["--seed", "-1"], "seed=-1"),
+    ],
+)
+def test_a_bad_run_setting_exits_naming_it_and_leaves_no_file(
+    tmp_path: Path, capsys, args: list[str], named: str
+) -> None:
+    # checked by the evaluator's own checks before the study log is written: a log left behind
+    # would hold the bad setting in its header and block this --out
+    out = tmp_path / "study"
+    code = tune.main(["consensus", *args, "--out", str(out)])
+    assert code == BAD_INPUT_EXIT
+    assert named in capsys.readouterr().err
+    assert not out.exists()
 
 
 # ------------------------------------------------------------------ the real study (fast)
@@ -253,10 +277,21 @@ def test_the_report_draws_the_curves_and_tabulates_the_gain(tmp_path: Path) -> N
     )
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     table = figure.with_suffix(".md").read_text()
-    rows = {line.split("|")[1].strip(): line for line in table.splitlines()[2:]}
+    rows = {line.split("|")[1].strip(): line for line in table.splitlines() if line.startswith("| `")}
     assert set(rows) == {"`consensus`", "`orca`"}
     scores = [line["score"] for line in _lines(tmp_path / "orca")[1:]]
     assert f"{max(scores) - scores[0]:+.3f}" in rows["`orca`"] and "6 of 6 x 3 x 2" in rows["`orca`"]
+    # the suite tuned on, as every report prints it: name, version, each task's label with its hash
+    label = _lines(tmp_path / "orca")[0]["suites"][0]
+    assert table.splitlines()[0] == (
+        "Suite koopnav-bench-v1 (version 1), split validation, layouts 0-2 (3 of 100), 2 episodes per "
+        f"layout: target reaching {label}."
+    )
+    studies = [tune.load_summary(tmp_path / name) for name in ("consensus", "orca")]
+    assert tune.report.figure_title(studies).splitlines()[1:] == [
+        "koopnav-bench-v1 (version 1):",
+        label.split("/", 1)[1],
+    ]
 
 
 # ------------------------------------------------------------------ the tunable spaces
@@ -290,6 +325,84 @@ def test_a_search_outside_its_range_is_refused_by_name() -> None:
         with_search(spec, {"nope": Search(0.0, 1.0)})
     with pytest.raises(ValueError, match="not in the searched"):
         Search(0.1, 1.0).point("hand", 2.0)
+
+
+# ------------------------------------------------------------------ tuning coverage
+#: the published test-suite runs (data/publish.sh): every controller in them with tunable options
+#: has a committed study, or is named here with the reason it has none yet
+PUBLISH = Path(__file__).resolve().parents[1] / "data" / "publish.sh"
+PENDING_STUDIES = {"koopman-nmpc": "its study (bash data/tuning/run.sh koopman-nmpc) is still running"}
+
+
+def _bench_controllers() -> set[str]:
+    """The controllers of the published bench runs, read from data/publish.sh where they are defined."""
+    text = PUBLISH.read_text(encoding="utf-8")
+    names: set[str] = set()
+    for variable in ("BENCH_CHARGED", "BENCH_FREE"):
+        found = re.search(rf'^{variable}="([^"]*)"$', text, flags=re.M)
+        assert found, f"{PUBLISH} no longer defines {variable}"
+        names.update(found.group(1).split())
+    return names
+
+
+def test_every_tunable_bench_controller_has_a_study_or_is_pending() -> None:
+    bench = _bench_controllers()
+    # the -v0 variants keep the defaults a study replaced, by design
+    tunable = {n for n in bench if not presets.is_comparison_variant(n) and controllers.options(n).tunable()}
+    studied = {path.parent.name for path in STUDIES_DIR.glob("*/study.jsonl")}
+    finished = {path.parent.name for path in STUDIES_DIR.glob("*/best.json")}
+    missing = sorted(tunable - studied - set(PENDING_STUDIES))
+    assert not missing, (
+        f"{missing} run in the published bench with tunable options but have no study in {STUDIES_DIR}: "
+        "add them to data/tuning/run.sh and run it, or declare them untuned (Preset.untuned) with the reason"
+    )
+    assert not set(PENDING_STUDIES) & finished, "a pending study has finished: take it off PENDING_STUDIES"
+    assert set(PENDING_STUDIES) <= tunable
+    # the studies' script runs exactly these by default
+    listed = re.search(r"\|\| controllers=\(([^)]*)\)", (STUDIES_DIR / "run.sh").read_text(encoding="utf-8"))
+    assert listed and sorted(listed.group(1).split()) == sorted(tunable)
+    assert "consensus-free" in bench and "consensus-free" not in tunable
+
+
+def test_consensus_free_is_an_untuned_ablation_on_consensus_v0s_gains(tmp_path: Path, capsys) -> None:
+    free, v0 = controllers.options("consensus-free"), controllers.options("consensus-v0")
+    assert free.tunable() == {}
+    # its behaviour is unchanged: consensus-v0's hand-set defaults, collision avoidance off
+    assert {o.name: o.default for o in free.options} == {
+        **{o.name: o.default for o in v0.options},
+        "collision_avoidance": False,
+    }
+    out = tmp_path / "study"
+    assert tune.main(["consensus-free", "--out", str(out)]) == BAD_INPUT_EXIT
+    assert (
+        "'consensus-free' declares no tunable options (a TUNABLE table): a mechanism ablation"
+        in capsys.readouterr().err
+    )
+    assert not out.exists()
+    with pytest.raises(ValueError, match=r"preset 'x': tunable=\['hand'\] with untuned="):
+        presets.Preset("x", "consensus", tunable={"hand": Search(0.01, 0.2)}, untuned="why")
+
+
+def test_every_committed_study_has_the_same_budget_layouts_seed_slip_and_objective() -> None:
+    headers = {
+        path.parent.name: read_study(path, repair=False)[0]
+        for path in sorted(STUDIES_DIR.glob("*/study.jsonl"))
+    }
+    assert len(headers) >= 2
+    shared = ("budget", "task", "split", "suites", "seed", "slip", "env_kwargs", "objective", "sampler")
+    first, reference = next(iter(headers.items()))
+    for name, header in headers.items():
+        differing = [key for key in shared if header[key] != reference[key]]
+        assert not differing, f"{name}'s study differs from {first}'s in {differing}"
+    # the budget the script states (TRIALS x LAYOUTS x EPISODES x both tasks)
+    script = (STUDIES_DIR / "run.sh").read_text(encoding="utf-8")
+    stated = {
+        k: int(v) for k, v in re.findall(r'^(TRIALS|LAYOUTS|EPISODES)="\$\{\w+:-(\d+)\}"', script, re.M)
+    }
+    assert reference["budget"]["configurations"] == stated["TRIALS"]
+    assert reference["budget"]["layouts_per_task"] == stated["LAYOUTS"]
+    assert reference["budget"]["episodes_per_layout"] == stated["EPISODES"]
+    assert (reference["task"], reference["split"], reference["seed"]) == ("both", "validation", 0)
 
 
 # ------------------------------------------------------------------ tuned presets
@@ -555,6 +668,57 @@ def test_adopt_on_the_command_line(tmp_path: Path, capsys) -> None:
     assert sorted(p.name for p in tuned.iterdir()) == ["dwa.json"]
     assert tune.main(["adopt", "nobody", *where]) == BAD_INPUT_EXIT
     assert "nobody: its study" in capsys.readouterr().err
+
+
+class PairedEvaluator:
+    """A stand-in for the evaluator in a confirmation: the best configuration (``best``)
+    succeeds on every unit when ``wins``, else as the defaults do (layouts divisible by 4)."""
+
+    def __init__(self, best: dict[str, Any], wins: bool) -> None:
+        self.best, self.wins = best, wins
+        self.calls: list[tuple[Any, ...]] = []
+
+    def __call__(
+        self, controller, options, task, split, layouts, episodes, seed, **kwargs
+    ) -> list[dict[str, Any]]:
+        self.calls.append((dict(options), list(layouts), split, kwargs["slip"]))
+        better = self.wins and dict(options) == self.best
+        return [
+            {"suite": label, "layout": layout, "seed": seed + layout, "success": better or layout % 4 == 0}
+            for label in ("a", "b")
+            for layout in layouts
+        ]
+
+
+def test_adopt_confirm_reruns_the_best_and_the_defaults_on_fresh_layouts(tmp_path: Path, capsys) -> None:
+    studies, tuned = tmp_path / "studies", tmp_path / "tuned"
+    _shipped(tmp_path, "dwa", {"goal_gain": 0.9}, slip="high", env_kwargs={})
+    (tuned / "dwa.json").unlink()
+    fake = PairedEvaluator({"goal_gain": 0.9}, wins=True)
+    decision, confirmation = adopt_confirmed("dwa", 20, studies, tuned, evaluator=fake)
+    # the study ran layout 0 of each task: the confirmation runs layouts 1-20, best then defaults
+    assert [call[1] for call in fake.calls] == [list(range(1, 21))] * 2
+    assert [call[0] for call in fake.calls] == [{"goal_gain": 0.9}, {}]
+    assert {call[2:] for call in fake.calls} == {("validation", "high")}
+    assert confirmation is not None and confirmation.confirmed and decision.adopted
+    assert (confirmation.units, confirmation.best_successes, confirmation.defaults_successes) == (40, 40, 10)
+    assert confirmation.p_value < 0.001  # 30 discordant layouts, all one way
+    assert (tuned / "dwa.json").read_bytes() == (studies / "dwa" / "dwa.json").read_bytes()
+    record = json.loads((studies / "dwa" / "confirmation.json").read_text())
+    assert record["confirmed"] is True and record["run"]["layouts"] == list(range(1, 21))
+    # no better on fresh layouts: not confirmed, the installed preset removed
+    same = PairedEvaluator({"goal_gain": 0.9}, wins=False)
+    decision, confirmation = adopt_confirmed("dwa", 20, studies, tuned, evaluator=same)
+    assert decision.adopted and confirmation is not None and not confirmation.confirmed
+    assert confirmation.p_value == 1.0 and not (tuned / "dwa.json").exists()
+    assert "not confirmed on validation layouts 1-20: trial 1 10/40" in str(confirmation)
+    # a study the rule keeps needs no confirmation; a bad N is named before any episode
+    _shipped(tmp_path, "orca", {"goal_gain": 0.9}, successes=1, slip="high", env_kwargs={})
+    unused = PairedEvaluator({}, wins=True)
+    assert adopt_confirmed("orca", 20, studies, tuned, evaluator=unused)[1] is None and unused.calls == []
+    where = ["--studies", str(studies), "--tuned", str(tuned)]
+    assert tune.main(["adopt", "dwa", "--confirm", "0", *where]) == BAD_INPUT_EXIT
+    assert "layouts=0 must be an integer >= 1" in capsys.readouterr().err
 
 
 def test_the_installed_presets_are_what_the_rule_admits_of_every_finished_study() -> None:

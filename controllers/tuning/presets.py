@@ -93,6 +93,10 @@ class Preset:
     tunable : dict
         Options the tuner searches beyond the base's ``TUNABLE`` (name ->
         :class:`~controllers.option_spec.Search`), e.g. the barrier rate of ``mpc-cbf``.
+    untuned : str
+        Non-empty: the preset declares no tunable options (its base's searches dropped), and
+        this says why; the tuner refuses it with this reason. A mechanism ablation keeps its
+        base's hand-set gains so that it differs from them in the mechanism alone.
     """
 
     name: str
@@ -100,6 +104,14 @@ class Preset:
     defaults: dict[str, Any] = field(default_factory=dict)
     doc: str = ""
     tunable: dict[str, Search] = field(default_factory=dict)
+    untuned: str = ""
+
+    def __post_init__(self) -> None:
+        if self.untuned and self.tunable:
+            raise ValueError(
+                f"preset {self.name!r}: tunable={sorted(self.tunable)} with untuned={self.untuned!r}; "
+                "a preset either declares searches or says why it has none"
+            )
 
 
 #: the presets written by hand (before the tuned files are applied: :data:`PRESETS`)
@@ -148,6 +160,11 @@ HAND_PRESETS = (
         "consensus",
         {"collision_avoidance": False},
         "the consensus law with collision avoidance off (the paper's validation variant)",
+        untuned=(
+            "a mechanism ablation: consensus with collision avoidance off, on the hand-set gains "
+            "that consensus-v0 keeps, so that beside consensus-v0 it differs in that mechanism "
+            "alone (tuning it would confound the mechanism with its gains)"
+        ),
     ),
 )
 

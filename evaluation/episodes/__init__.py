@@ -31,6 +31,7 @@ from evaluation.episodes.records import (
     json_safe,
     ran,
     record_problem,
+    selection_key,
     shown_value,
 )
 from evaluation.episodes.runlog import (
@@ -60,6 +61,7 @@ __all__ = [
     "json_safe",
     "ran",
     "record_problem",
+    "selection_key",
     "shown_value",
     "NOT_OUTCOME",
     "ConflictingRecords",

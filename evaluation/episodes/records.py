@@ -27,6 +27,7 @@ __all__ = [
     "json_safe",
     "ran",
     "record_problem",
+    "selection_key",
     "shown_value",
 ]
 
@@ -270,3 +271,26 @@ def shown_value(value: Any) -> str:
     """A field's value for a message: its repr, cut to 60 characters."""
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+def selection_key(
+    success_rate: float, mean_final_distance: float | None, tie_break: int
+) -> tuple[float, float, int]:
+    """The sort key (larger is better) of the learned policies' one selection rule, by which a
+    trainer keeps a checkpoint (:func:`baselines.suite_training.choose`) and the seeds' driver
+    ships a seed (:func:`evaluation.experiments.seeds.chosen_seed`): the higher validation success
+    rate, then the lower mean final distance to the targets [m] (None, none measured: last), then
+    the larger ``tie_break``.
+
+    Parameters
+    ----------
+    success_rate : float
+        Share of the validation episodes that succeeded.
+    mean_final_distance : float or None
+        Mean over the episodes of the team's mean final distance to the targets [m].
+    tie_break : int
+        The caller's last word: the checkpoint's step (the later wins), or ``-seed`` (the lower
+        seed wins).
+    """
+    distance = math.inf if mean_final_distance is None else mean_final_distance
+    return (success_rate, -distance, tie_break)

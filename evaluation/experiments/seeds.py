@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 from collections.abc import Iterable, Mapping, Sequence
@@ -33,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from evaluation.episodes.records import selection_key
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from evaluation.stats.clustered import layout_iqm_interval, layout_rate_interval
 from koopman_envs import SPLITS, TASKS
@@ -113,13 +113,14 @@ def finished_seeds(root: str | os.PathLike[str], policy: str, task: str) -> list
 
 def chosen_seed(runs: Sequence[SeedRun]) -> SeedRun:
     """The seed that ships: the highest validation success of its kept checkpoint, ties broken by
-    the lower mean final distance, then the lower seed. Test results play no part."""
+    the lower mean final distance, then the lower seed (:func:`~evaluation.episodes.records.selection_key`,
+    the checkpoints' rule). Test results play no part."""
     if not runs:
         raise ValueError("no finished seed to choose from")
 
     def order(run: SeedRun) -> tuple[float, float, int]:
-        distance = run.validation.get("mean_final_distance")
-        return (run.validation["success_rate"], -(math.inf if distance is None else distance), -run.seed)
+        validation = run.validation
+        return selection_key(validation["success_rate"], validation.get("mean_final_distance"), -run.seed)
 
     return max(runs, key=order)
 

@@ -13,8 +13,9 @@ from evaluation.episodes.runlog import (
     OutputNotWritable,
 )
 from evaluation.exit_codes import BAD_INPUT_EXIT, INTERRUPTED_EXIT, SUCCESS_EXIT, UNWRITABLE_OUT_EXIT
-from evaluation.tune.adopt import adopt
+from evaluation.tune.adopt import adopt, adopt_confirmed
 from evaluation.tune.configuration import DEFAULT_SLIP, TASK_CHOICES
+from evaluation.tune.confirm import CONFIRMATION_RULE
 from evaluation.tune.log import StudySettings
 from evaluation.tune.report import load_summary, report_figure, report_markdown
 from evaluation.tune.study import best_of, run_study
@@ -62,6 +63,15 @@ def _adopt_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--tuned", default=str(TUNED_DIR), help="the installed presets' folder (default controllers/tuned)"
     )
+    parser.add_argument(
+        "--confirm",
+        type=int,
+        default=None,
+        metavar="N",
+        help="first rerun an adopted study's best and its defaults on the next N validation layouts per "
+        f"task, and install the preset only if {CONFIRMATION_RULE}",
+    )
+    parser.add_argument("--workers", type=int, default=1, help="worker processes of --confirm's runs")
     return parser
 
 
@@ -71,13 +81,20 @@ def _adopt_main(argv: Sequence[str]) -> int:
     code = SUCCESS_EXIT
     for name in args.names:
         try:
-            decision = adopt(name, args.studies, args.tuned)
+            if args.confirm is None:
+                decision, confirmation = adopt(name, args.studies, args.tuned), None
+            else:
+                decision, confirmation = adopt_confirmed(
+                    name, args.confirm, args.studies, args.tuned, workers=args.workers
+                )
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
             code = BAD_INPUT_EXIT
             continue
         installed = Path(args.tuned) / f"{name}.json"
-        print(f"{decision}; " + (f"installed {installed}" if decision.adopted else f"no {installed}"))
+        print(f"{decision}; " + (f"installed {installed}" if installed.is_file() else f"no {installed}"))
+        if confirmation is not None:
+            print(str(confirmation))
     return code
 
 

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from koopman_envs import TASKS, check_split_allowed
 from koopman_envs.checks import check_choice
+
+if TYPE_CHECKING:
+    from evaluation.run.spec import RunSpec
 
 #: the suite tuned on (its ``validation`` split)
 SUITE = "koopnav-bench-v1"
@@ -24,6 +27,56 @@ def tasks_of(task: str) -> tuple[str, ...]:
     """The tasks of ``--task`` (``"both"``: every task), ``ValueError`` naming the allowed ones."""
     check_choice("task", task, TASK_CHOICES)
     return tuple(TASKS) if task == "both" else (task,)
+
+
+def configuration_spec(
+    controller: str,
+    options: Mapping[str, Any],
+    task: str,
+    split: str,
+    layouts: Sequence[int],
+    episodes: int,
+    seed: int,
+    *,
+    suite: str = SUITE,
+    slip: str = DEFAULT_SLIP,
+    env_kwargs: Mapping[str, Any] | None = None,
+    purpose: str = "tuning",
+) -> RunSpec:
+    """The run of one configuration on layouts of a suite split, unvalidated: the benchmark's own
+    run (:func:`evaluation.experiments.protocols.suite_protocol`) narrowed to this configuration.
+
+    Every layout runs ``episodes`` episodes, episode j of layout l seeded
+    ``seed + j * len(split) + l`` as in any suite run (:mod:`evaluation.run.suite_runs`), so that a
+    tuning episode is the episode the evaluator would run. The parameters are
+    :func:`evaluate_configuration`'s; :meth:`~evaluation.run.spec.RunSpec.validate` checks the
+    rest of the run (slip, env keywords, controller, layouts), the evaluator's own checks.
+
+    Raises
+    ------
+    ValueError
+        The test split for ``purpose`` (:func:`check_split_allowed`), an unknown task, or layouts
+        that are not a contiguous range.
+    """
+    from evaluation.experiments.protocols import suite_protocol
+
+    check_split_allowed(split, purpose)
+    tasks = tasks_of(task)
+    selected = sorted(int(i) for i in layouts)
+    if not selected or selected != list(range(selected[0], selected[-1] + 1)):
+        raise ValueError(
+            f"layouts={list(layouts)!r}: the tuner runs a contiguous range of layouts, e.g. [0, 1, 2]"
+        )
+    protocol = suite_protocol(suite, split)
+    return protocol.replace(
+        envs=tuple(TASKS[name].env_id for name in tasks),
+        controllers={controller: (controller, dict(options))},
+        slips=(slip,),
+        episodes=episodes,
+        seed=seed,
+        layouts=(selected[0], selected[-1] + 1),
+        env_kwargs={**protocol.env_kwargs, **dict(env_kwargs or {})},
+    )
 
 
 def evaluate_configuration(
@@ -87,23 +140,18 @@ def evaluate_configuration(
         its hash included) and ``layout`` (the index) added.
     """
     from evaluation.execution.runner import evaluate
-    from evaluation.experiments.protocols import suite_protocol
 
-    check_split_allowed(split, purpose)
-    tasks = tasks_of(task)
-    selected = sorted(int(i) for i in layouts)
-    if not selected or selected != list(range(selected[0], selected[-1] + 1)):
-        raise ValueError(
-            f"layouts={list(layouts)!r}: the tuner runs a contiguous range of layouts, e.g. [0, 1, 2]"
-        )
-    protocol = suite_protocol(suite, split)
-    spec = protocol.replace(
-        envs=tuple(TASKS[name].env_id for name in tasks),
-        controllers={controller: (controller, dict(options))},
-        slips=(slip,),
-        episodes=episodes,
-        seed=seed,
-        layouts=(selected[0], selected[-1] + 1),
-        env_kwargs={**protocol.env_kwargs, **dict(env_kwargs or {})},
+    spec = configuration_spec(
+        controller,
+        options,
+        task,
+        split,
+        layouts,
+        episodes,
+        seed,
+        suite=suite,
+        slip=slip,
+        env_kwargs=env_kwargs,
+        purpose=purpose,
     )
     return list(evaluate(spec, workers=workers).records)

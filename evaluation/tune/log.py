@@ -15,7 +15,8 @@ from evaluation.episodes.runlog import (
     parse_lines,
     split_lines,
 )
-from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, tasks_of
+from evaluation.run.spec import RunSpec
+from evaluation.tune.configuration import DEFAULT_SLIP, SUITE, configuration_spec, tasks_of
 from evaluation.tune.scoring import OBJECTIVE
 from koopman_envs import check_split_allowed, load_suite
 from koopman_envs.checks import check_int, differing_settings, parse_json
@@ -58,14 +59,34 @@ class StudySettings:
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     suite: str = SUITE
 
-    def check(self) -> None:
-        """``ValueError`` naming a bad setting; the test split first, before anything is read."""
+    def check(self, workers: int = 1) -> None:
+        """``ValueError`` naming a bad setting, before anything is read or written: the test split
+        first, then the study's own bounds, then the whole run of a configuration (slip, env
+        keywords, controller, layouts, ``workers``) by the evaluator's own checks
+        (:meth:`~evaluation.run.spec.RunSpec.validate`), so that a study that would fail at its
+        first trial leaves no log behind."""
         check_split_allowed(self.split, "tuning")  # an unknown split too, naming the allowed ones
         tasks_of(self.task)
         check_int("trials", self.trials, 1, maximum=100_000)
         check_int("layouts", self.layouts, 1)
         check_int("episodes", self.episodes, 1, maximum=10_000)
-        check_int("seed", self.seed, 0)
+        self.run_spec().validate(workers)
+
+    def run_spec(self, options: Mapping[str, Any] | None = None) -> RunSpec:
+        """The run of one configuration (``options``; default the controller's defaults) of this
+        study: what every trial hands to the evaluator (:func:`configuration_spec`)."""
+        return configuration_spec(
+            self.controller,
+            dict(options or {}),
+            self.task,
+            self.split,
+            self.layout_indices,
+            self.episodes,
+            self.seed,
+            suite=self.suite,
+            slip=self.slip,
+            env_kwargs=self.env_kwargs,
+        )
 
     @property
     def layout_indices(self) -> list[int]:
@@ -80,14 +101,8 @@ class StudySettings:
 
     def header(self, search: Mapping[str, Search], defaults: Mapping[str, Any]) -> dict[str, Any]:
         """The study log's first line (plain JSON): everything a resume must match."""
-        suites = []
-        for name in tasks_of(self.task):
-            suite = load_suite(self.suite, name, self.split)
-            if self.layouts > len(suite):
-                raise ValueError(
-                    f"layouts={self.layouts} is more than {suite.label} holds; allowed: 1 to {len(suite)}"
-                )
-            suites.append(suite.label)
+        # check() has refused a selection larger than a split (the evaluator's check_suite_run)
+        suites = [load_suite(self.suite, name, self.split).label for name in tasks_of(self.task)]
         return json_safe(
             {
                 "kind": STUDY_KIND,

@@ -9,8 +9,12 @@ from pathlib import Path
 from typing import Any
 
 from controllers.tuning import STUDY_FILE
+from evaluation.reports.sections import suite_heading
+from evaluation.run.suite_runs import suite_config
+from evaluation.tune.configuration import tasks_of
 from evaluation.tune.log import read_study
 from evaluation.tune.scoring import expected_max_curve
+from koopman_envs import TASKS
 
 
 @dataclass(frozen=True)
@@ -21,6 +25,10 @@ class StudySummary:
     task: str
     budget: dict[str, Any]
     scores: list[float]
+    #: the suite tuned on, as every report prints it (:func:`~evaluation.reports.sections.suite_heading`)
+    suite: str = ""
+    #: its name, version and each task's split label with its hash, for the figure's title
+    suite_short: str = ""
 
     @property
     def defaults_score(self) -> float:
@@ -36,12 +44,40 @@ def load_summary(folder: str | os.PathLike[str]) -> StudySummary:
     header, trials, _ = read_study(Path(folder) / STUDY_FILE, repair=False)
     if not trials:
         raise ValueError(f"{folder}: the study has no finished trial yet")
-    return StudySummary(header["controller"], header["task"], header["budget"], [t.score for t in trials])
+    heading, short = _suite_text(folder, header)
+    return StudySummary(
+        header["controller"], header["task"], header["budget"], [t.score for t in trials], heading, short
+    )
+
+
+def _suite_text(folder: str | os.PathLike[str], header: dict[str, Any]) -> tuple[str, str]:
+    """A study's suite: the heading every report prints (name, version, split, layouts, each
+    task's label with its hash) and its short form; ``ValueError`` when the suite's data no
+    longer hashes to the labels the study recorded."""
+    labels = list(header["suites"])
+    name = labels[0].split("/")[0]
+    budget = header["budget"]
+    config = suite_config(
+        [TASKS[task].env_id for task in tasks_of(header["task"])],
+        name,
+        header["split"],
+        (0, budget["layouts_per_task"]),
+        budget["episodes_per_layout"],
+    )
+    now = [entry["label"] for entry in config["tasks"].values()]
+    if now != labels:
+        raise ValueError(f"{folder}: the study ran on {labels}, but the suite's data now is {now}")
+    short = f"{name} (version {config['version']}):\n" + ", ".join(label.split("/", 1)[1] for label in labels)
+    return suite_heading({"suite": config}), short
 
 
 def report_markdown(studies: Sequence[StudySummary]) -> str:
-    """The table of ``--report``: controller, budget, the defaults' score, the best, the gain."""
+    """The table of ``--report``: the suites tuned on (name, version, hash), then controller,
+    budget, the defaults' score, the best, the gain."""
+    suites = list(dict.fromkeys(s.suite for s in studies if s.suite))
     rows = [
+        *(f"{heading}." for heading in suites),
+        *([""] if suites else []),
         "| controller | task | budget (configurations x layouts x episodes) | defaults' score | best score | gain |",
         "|---|---|---|---|---|---|",
     ]
@@ -73,7 +109,13 @@ def report_figure(studies: Sequence[StudySummary], path: str | os.PathLike[str])
     ax.set_xscale("log")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title("Expected best of n configurations (Dodge et al. 2019)")
+    ax.set_title(figure_title(studies), fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
+
+
+def figure_title(studies: Sequence[StudySummary]) -> str:
+    """The curves' title: what they show, then each suite tuned on (name, version, hashes)."""
+    suites = dict.fromkeys(s.suite_short for s in studies if s.suite_short)
+    return "\n".join(["Expected best of n configurations (Dodge et al. 2019)", *suites])

@@ -47,11 +47,14 @@ def _distribution(search: Search) -> Any:
 
 def _tuned(controller: str) -> tuple[dict[str, Search], dict[str, Any]]:
     """The searches of ``controller`` and the point of its current defaults (trial 0)."""
+    from controllers.tuning.presets import PRESETS
+
     spec = controllers.options(controller)
     search = spec.tunable()
     if not search:
+        why = next((f": {p.untuned}" for p in PRESETS if p.name == controller and p.untuned), "")
         raise ValueError(
-            f"controller {controller!r} declares no tunable options (a TUNABLE table); allowed: a "
+            f"controller {controller!r} declares no tunable options (a TUNABLE table){why}; allowed: a "
             "controller or preset whose options show a 'tuned over' entry in `python evaluate.py --options NAME`"
         )
     return search, {name: s.point(name, spec.default(name)) for name, s in search.items()}
@@ -103,8 +106,8 @@ def run_study(
     KeyboardInterrupt
         Ctrl-C: the finished trials are in the log, ``resume=True`` continues.
     """
-    settings.check()
-    _optuna()  # before anything is written
+    settings.check(workers)  # the whole run, before anything is written
+    _optuna()
     search, defaults = _tuned(settings.controller)
     header = settings.header(search, defaults)
     log = ensure_output_dir(out) / STUDY_FILE

@@ -19,7 +19,7 @@ import gzip
 import hashlib
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +42,9 @@ __all__ = [
     "ROLLOUT_LAYOUTS",
     "ROLLOUT_STEPS",
     "build_records",
+    "PROTOCOL_ROLLOUT_LAYOUTS",
     "main",
+    "protocol_rollout_digest",
     "reference_rollout_digest",
     "split_document",
 ]
@@ -50,6 +52,9 @@ __all__ = [
 #: test layouts per task in the reference-rollout digest, and the steps rolled on each
 ROLLOUT_LAYOUTS = 4
 ROLLOUT_STEPS = 40
+#: layouts per task of the protocol digest (:func:`protocol_rollout_digest`): one per family, as
+#: a split's layouts cycle through the families
+PROTOCOL_ROLLOUT_LAYOUTS = 3
 _DATA = Path(__file__).resolve().parent / "data"
 
 
@@ -139,6 +144,39 @@ def _go_to_goal(observation: np.ndarray, target: slice, n_robots: int) -> np.nda
     return np.column_stack([v, omega]).reshape(-1).astype(np.float32)
 
 
+def _shuttle(step: int, n_robots: int) -> np.ndarray:
+    """A fixed open-loop action of period ``step``: every robot drives forward, then back, 10
+    periods at a time at a fifth of ``v_max`` while turning at half ``omega_max`` (the turn
+    reversing with the drive). Every slip component moves the robots (side and traction slip act
+    on the drive, turn slip on the turn) while they stay near their starts, clear of the
+    obstacles, so an episode runs to its time limit."""
+    sign = 1.0 if (step // 10) % 2 == 0 else -1.0
+    action = [sign * 0.2 * PARAMS.v_max, sign * 0.5 * PARAMS.omega_max]
+    return np.tile(np.asarray(action, dtype=np.float32), n_robots)
+
+
+def _rollouts_digest(
+    env: Any, layouts: int, action: Callable[[np.ndarray, int], np.ndarray], steps: int | None
+) -> str:
+    """sha256 of episode i = ``reset(seed=i, options={"layout": i})`` for i below ``layouts``,
+    each stepped with ``action(observation, step)`` for ``steps`` steps (None: no limit) or
+    until it ends: every pose, reward and end flag, rounded to 1e-9."""
+    digest = hashlib.sha256()
+    for index in range(layouts):
+        observation, info = env.reset(seed=index, options={"layout": index})
+        digest.update(np.round(info["poses"], 9).tobytes())
+        step = 0
+        while steps is None or step < steps:
+            observation, reward, terminated, truncated, info = env.step(action(observation, step))
+            digest.update(np.round(info["poses"], 9).tobytes())
+            digest.update(np.round([reward, float(terminated), float(truncated)], 9).tobytes())
+            step += 1
+            if terminated or truncated:
+                break
+    env.close()
+    return digest.hexdigest()
+
+
 def reference_rollout_digest(
     name: str, task: str, layouts: int = ROLLOUT_LAYOUTS, steps: int = ROLLOUT_STEPS
 ) -> str:
@@ -148,26 +186,39 @@ def reference_rollout_digest(
     ``map="suite:<name>/test"`` and default keywords, then ``steps`` steps of a go-to-goal rule
     computed from the observation (no controller), until the episode ends. The digest covers
     every pose, reward and end flag, rounded to 1e-9: any change to the dynamics, the tasks or
-    the layouts that changes a test episode changes it.
+    the layouts that changes a test episode changes it. The benchmark's own keywords (high
+    slip, start noise, the time limit) are :func:`protocol_rollout_digest`'s.
     """
     from koopman_envs.fronts.gym_env import FormationEnv, TargetReachingEnv
 
     env_class = FormationEnv if task == "formation" else TargetReachingEnv
     env = env_class(map=f"suite:{name}/test")
     target = env.observation_layout["target"]
-    digest = hashlib.sha256()
-    for index in range(layouts):
-        observation, info = env.reset(seed=index, options={"layout": index})
-        digest.update(np.round(info["poses"], 9).tobytes())
-        for _ in range(steps):
-            action = _go_to_goal(observation, target, env.config.n_robots)
-            observation, reward, terminated, truncated, info = env.step(action)
-            digest.update(np.round(info["poses"], 9).tobytes())
-            digest.update(np.round([reward, float(terminated), float(truncated)], 9).tobytes())
-            if terminated or truncated:
-                break
-    env.close()
-    return digest.hexdigest()
+    n_robots = env.config.n_robots
+    return _rollouts_digest(env, layouts, lambda obs, _: _go_to_goal(obs, target, n_robots), steps)
+
+
+def protocol_rollout_digest(
+    env_id: str, make_kwargs: Mapping[str, Any], layouts: int = PROTOCOL_ROLLOUT_LAYOUTS
+) -> str:
+    """sha256 of rollouts of the first ``layouts`` layouts of a suite split under a run's own
+    ``gym.make`` keywords, each to the episode's end.
+
+    Episode i: ``gym.make(env_id, **make_kwargs)`` (the keywords an evaluator's episode is made
+    with: its ``map="suite:<name>/<split>"``, slip, start noise and time limit), then
+    ``reset(seed=i, options={"layout": i})``, as a suite run's first episode on layout i, then a
+    fixed open-loop action sequence (:func:`_shuttle`, no controller) until the episode ends (the
+    time limit). The digest covers every pose, reward and end flag, rounded to 1e-9: a change to
+    the slip draws, the start perturbation or the time limit that changes the benchmark's
+    episodes changes it, where :func:`reference_rollout_digest` (default keywords, 40 steps)
+    does not see them. It is pinned by a test, not stored in the suite's data.
+    """
+    import gymnasium as gym
+
+    env = gym.make(env_id, **dict(make_kwargs))
+    core: Any = env.unwrapped  # the KoopNav env under gym.make's wrappers
+    n_robots = core.config.n_robots
+    return _rollouts_digest(env, layouts, lambda _, step: _shuttle(step, n_robots), None)
 
 
 def build_suite(definition: SuiteDefinition) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
