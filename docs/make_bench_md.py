@@ -343,6 +343,39 @@ def headline(modes: Sequence[Mode], paper: Results | None, paper_path: str = "da
     return "\n".join(lines) + "\n"
 
 
+def _paper_variants_note(config: Mapping[str, Any]) -> str:
+    """What the run's ``*-paper`` rows are (the paper's control logic, not its exact controller):
+    their options as the run recorded them, and whether they kept soft constraints (the option
+    left at its registered default, or set)."""
+    variants = [c for c in config.get("controller_configs", []) if c["label"].endswith("-paper")]
+    if not variants:
+        return ""
+    options = sorted(
+        {
+            f"{k}={v}".replace("False", "false")
+            for c in variants
+            for k, v in c["options"].items()
+            if k != "solver"
+        }
+    )
+    soft = [
+        c["label"]
+        for c in variants
+        if c["options"].get("soft_constraints", controllers.options(c["name"]).default("soft_constraints"))
+    ]
+    names = [f"`{c['label']}`" for c in variants]
+    text = f" The {' and '.join(names)} rows are the paper's control logic ({', '.join(options)})"
+    if soft:
+        kept = (
+            "they keep" if len(soft) == len(variants) else " and ".join(f"`{label}` keeps" for label in soft)
+        )
+        text += (
+            f", but {kept} our soft constraints (exact-penalty slacks), not the paper's hard ones: "
+            "`python evaluate.py --paper-strict` runs those (docs/hard_constraints.md)"
+        )
+    return text + "."
+
+
 def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[str]:
     """The paper track's lines: success per controller and task on the paper's protocol
     (``paper``, read from ``path``; None: not published)."""
@@ -355,7 +388,7 @@ def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[
         f"slip {slips}; {config['episodes']} episodes per cell; IPOPT; free compute), on which ORCA's "
         "and DWA's hand-set defaults were chosen. Each row ran with the defaults of the code it was "
         "published from: the hand-set ones (now `NAME-v0`) for a controller whose tuned preset came "
-        "later (docs/benchmark.md). Success with 95% intervals.",
+        "later (docs/benchmark.md). Success with 95% intervals." + _paper_variants_note(config),
         "",
     ]
     board = paper.leaderboard()

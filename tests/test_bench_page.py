@@ -18,6 +18,7 @@ import json
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -29,7 +30,7 @@ from evaluation.reports.sections.blocks import rate_cell
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_bench_md import HEADLINE, PAIRS_FILE, load_mode, main, page  # noqa: E402  (docs/ is no package)
+from make_bench_md import HEADLINE, PAIRS_FILE, _paper_variants_note, load_mode, main, page  # noqa: E402  (docs/ is no package)
 from make_pages import block_of, with_block  # noqa: E402
 from make_sizing import BLOCK as SIZING  # noqa: E402
 from make_sizing import CPU_SECONDS_PER_UNIT, sizing_block  # noqa: E402
@@ -341,3 +342,24 @@ def test_the_sizing_costs_are_the_compute_tables() -> None:
     for name, (low, high) in CPU_SECONDS_PER_UNIT.items():
         row = re.compile(rf"^\| `{name}`[^|]*\| {len(_controllers(runs[name]))} \| {low:g}-{high:g} \|", re.M)
         assert row.search(text), f"docs/benchmark.md's compute table has no row of {name} at {low:g}-{high:g}"
+
+
+def test_the_paper_tracks_paper_rows_say_they_keep_soft_constraints() -> None:
+    """The README's paper track names `*-paper` rows: the note says what they are from the run's own
+    options, and that they keep soft constraints unless the run turned them off."""
+    configs: list[dict[str, Any]] = [
+        {"label": "koopman-nmpc", "name": "koopman-nmpc", "options": {"solver": "ipopt"}},
+        {
+            "label": "koopman-nmpc-paper",
+            "name": "koopman-nmpc",
+            "options": {"estimator": "none", "unstall": False},
+        },
+    ]
+    note = _paper_variants_note({"controller_configs": configs})
+    assert note.startswith(
+        " The `koopman-nmpc-paper` rows are the paper's control logic (estimator=none, unstall=false)"
+    )
+    assert "they keep our soft constraints" in note and "--paper-strict" in note
+    configs[1]["options"]["soft_constraints"] = False
+    assert "soft constraints" not in _paper_variants_note({"controller_configs": configs})
+    assert _paper_variants_note({"controller_configs": configs[:1]}) == ""
