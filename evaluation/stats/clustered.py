@@ -200,6 +200,10 @@ def interquartile_mean(values: Iterable[float]) -> float:
     return float(_iqm(x[None], np.ones((1, x.size), dtype=bool))[0])
 
 
+#: replicates x runs x layouts per bootstrap chunk
+_CHUNK = 2**22
+
+
 def run_aggregate_interval(
     runs: Sequence[Iterable[Iterable[Any]]],
     strata: Sequence[Hashable] | None = None,
@@ -225,8 +229,8 @@ def run_aggregate_interval(
     Parameters
     ----------
     runs : sequence of sequences of sequences
-        ``runs[r][i]``: run r's episodes on layout i (bools or 0/1; with ``statistic`` set, any
-        finite numbers); every run on the same layouts, in the same order.
+        ``runs[r][i]``: run r's episodes on layout i (successes as bools or 0/1, or a metric's
+        finite values); every run on the same layouts, in the same order.
     strata : sequence of hashable, optional
         The stratum of each layout (``len(strata)`` layouts), e.g. its tier; default one stratum.
     statistic : {"iqm", "mean"}, optional
@@ -295,10 +299,6 @@ def run_aggregate_interval(
     tail = (1.0 - confidence) / 2.0
     low, high = np.quantile(out, [tail, 1.0 - tail])
     return float(aggregate(observed)[0]), float(low), float(high)
-
-
-#: replicates x runs x layouts per bootstrap chunk
-_CHUNK = 2**22
 
 
 def _run_layout_sums(
