@@ -1,6 +1,6 @@
 """The learned policies on the benchmark (issue 60): trained on the suite's train layouts, the
 checkpoint chosen on validation, the test split refused by the trainers by name, seeds trained by
-a resumable driver, and their test results aggregated (IQM with rliable's stratified bootstrap)."""
+a resumable driver, and their test results aggregated (IQM over seeds in rliable's unit, one score per seed)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, refuse_held_out_map
-from evaluation.experiments.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
+from evaluation.experiments.seeds import (
+    SeedRun,
+    aggregate,
+    chosen_seed,
+    evaluate_seeds,
+    outcomes_by_label,
+    report_markdown,
+)
 
 pytest.importorskip("stable_baselines3")
 
@@ -285,6 +292,21 @@ def test_the_aggregate_scores_each_seed_over_the_layouts_as_rliable_scores_each_
     for low_high in (result.iqm[1:], result.mean[1:], *(r[1:] for r in result.per_seed.values())):
         assert 0.0 <= low_high[0] <= low_high[1] <= 1.0
     assert aggregate(HAND_MADE, n_boot=500) == result  # a function of its arguments
+    runs = [SeedRun("ippo", "formation", s, Path("."), {"success_rate": 0.5, "step": 10}) for s in (0, 1, 2)]
+    table = report_markdown(
+        [
+            {
+                "policy": "ippo",
+                "task": "formation",
+                "suite": "s",
+                "runs": runs,
+                "aggregate": result,
+                "chosen": runs[0],
+            }
+        ]
+    )
+    assert "| `ippo` | formation | s | 3 | 4 | mean 58.3% [" in table
+    assert "(3 seeds: fewer than 4, the IQM trims nothing)" in table
     # by stratum: layouts 0, 1 "easy", 2, 3 "hard": scores (easy, hard) per seed (1, .5), (.75, .25),
     # (.25, .75); 6 scores sorted .25 .25 .5 .75 .75 1, 1 cut at each end: (.25 + .5 + .75 + .75) / 4
     by_tier = aggregate(HAND_MADE, strata={0: "easy", 1: "easy", 2: "hard", 3: "hard"}, n_boot=500)

@@ -315,16 +315,17 @@ def report_markdown(summaries: Sequence[Mapping[str, Any]]) -> str:
             )
     rows += [
         "",
-        "| policy | task | split | seeds | layouts | leads with | IQM over seeds [95% CI, layouts re-drawn] "
-        "| mean over seeds [95% CI] |",
+        "| policy | task | split | seeds | layouts | aggregate over seeds [95% CI, layouts re-drawn] "
+        "| IQM | mean |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for s in summaries:
         result = s["aggregate"]
         lead = (
-            "IQM"
+            f"IQM {_interval(result.iqm)}"
             if result.lead == "iqm"
-            else f"mean ({len(result.seeds)} seeds: fewer than {IQM_MIN_RUNS}, the IQM trims nothing)"
+            else f"mean {_interval(result.mean)} ({len(result.seeds)} seeds: fewer than {IQM_MIN_RUNS}, "
+            "the IQM trims nothing)"
         )
         rows.append(
             f"| `{s['policy']}` | {s['task']} | {s['suite']} | {len(result.seeds)} | {result.layouts} | "
