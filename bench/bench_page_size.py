@@ -33,6 +33,9 @@ from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "docs"))
+from make_bench_md import option_values, published_runs  # noqa: E402  (docs/ is no package)
+
 FIXTURES = {
     "bench_test_realtime": ROOT / "tests" / "data" / "bench_test_realtime_layouts0-2.tar.xz",
     "bench_test": ROOT / "tests" / "data" / "bench_test_layouts0-2.tar.xz",
@@ -43,17 +46,7 @@ _DROPPED = ("trajectory", "obstacles", "final_poses", "decisions")
 
 def published_controllers(run: str) -> list[str]:
     """The ``--controllers`` of data/publish.sh's run ``run``, as bash expands them."""
-    script = (ROOT / "data" / "publish.sh").read_text(encoding="utf-8")
-    definitions = script[: script.index("\nrun() {")]
-    words = subprocess.run(
-        ["bash", "-c", f'{definitions}\nprintf "%s\\n" ${{RUNS[{run}]}}', str(ROOT / "data" / "publish.sh")],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split()
-    start = words.index("--controllers") + 1
-    end = next((i for i in range(start, len(words)) if words[i].startswith("--")), len(words))
-    return words[start:end]
+    return option_values(published_runs()[run], "--controllers")
 
 
 def _synthetic(

@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import subprocess
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -66,8 +67,11 @@ __all__ = [
     "headline",
     "load_mode",
     "page",
+    "option_values",
     "page_pairs",
     "pairs_file",
+    "published_runs",
+    "tuned_pairs",
 ]
 
 #: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
@@ -183,14 +187,39 @@ def check_same_suite(modes: Sequence[Mode]) -> None:
         raise ValueError(f"the publications ran different suites, so their rows do not compare: {suites}")
 
 
+def tuned_pairs(labels: Sequence[str]) -> list[tuple[str, str]]:
+    """The (tuned controller, its ``-v0``) pairs of ``labels`` that hold both: what tuning gained,
+    a part of the page's design (:func:`page_pairs`)."""
+    tuned = [(label.removesuffix(V0_SUFFIX), label) for label in labels if label.endswith(V0_SUFFIX)]
+    return [(a, b) for a, b in tuned if a in labels]
+
+
+def published_runs(script: Path = ROOT / "data" / "publish.sh") -> dict[str, list[str]]:
+    """data/publish.sh's runs as bash expands them: NAME -> evaluate.py's arguments (the script's
+    definitions only; nothing is run)."""
+    text = script.read_text(encoding="utf-8")
+    definitions = text[: text.index("\nrun() {")]
+    show = 'for name in "${!RUNS[@]}"; do printf "%s\\t%s\\n" "$name" "${RUNS[$name]}"; done'
+    printed = subprocess.run(
+        ["bash", "-c", f"{definitions}\n{show}", str(script)], capture_output=True, text=True, check=True
+    ).stdout
+    return {name: words.split() for name, words in (line.split("\t", 1) for line in printed.splitlines())}
+
+
+def option_values(arguments: Sequence[str], option: str) -> list[str]:
+    """The words after ``option`` in ``arguments`` up to the next option (``--controllers``' labels)."""
+    start = list(arguments).index(option) + 1
+    end = next((i for i in range(start, len(arguments)) if arguments[i].startswith("--")), len(arguments))
+    return list(arguments[start:end])
+
+
 def page_pairs(mode: Mode, reference: str) -> tuple[list[tuple[str, str, str]], str]:
     """The page's design for ``mode``'s paired tables, read from its header before any outcome
     (:func:`~evaluation.stats.suite_statistics.reference_pairs`): every controller against
     ``reference``, and each tuned controller against its ``-v0`` (what tuning gained) where the
     run has both; with the clause that names it. ``ValueError`` when the run lacks ``reference``."""
     labels = list(dict.fromkeys(label for _, label in mode.progress))
-    tuned = [(label.removesuffix(V0_SUFFIX), label) for label in labels if label.endswith(V0_SUFFIX)]
-    tuned = [(a, b) for a, b in tuned if a in labels]
+    tuned = tuned_pairs(labels)
     pairs = reference_pairs(mode.declared(), reference, tuned)
     design = f"each controller against {reference} within each task"
     if tuned:
@@ -314,6 +343,39 @@ def headline(modes: Sequence[Mode], paper: Results | None, paper_path: str = "da
     return "\n".join(lines) + "\n"
 
 
+def _paper_variants_note(config: Mapping[str, Any]) -> str:
+    """What the run's ``*-paper`` rows are (the paper's control logic, not its exact controller):
+    their options as the run recorded them, and whether they kept soft constraints (the option
+    left at its registered default, or set)."""
+    variants = [c for c in config.get("controller_configs", []) if c["label"].endswith("-paper")]
+    if not variants:
+        return ""
+    options = sorted(
+        {
+            f"{k}={v}".replace("False", "false")
+            for c in variants
+            for k, v in c["options"].items()
+            if k != "solver"
+        }
+    )
+    soft = [
+        c["label"]
+        for c in variants
+        if c["options"].get("soft_constraints", controllers.options(c["name"]).default("soft_constraints"))
+    ]
+    names = [f"`{c['label']}`" for c in variants]
+    text = f" The {' and '.join(names)} rows are the paper's control logic ({', '.join(options)})"
+    if soft:
+        kept = (
+            "they keep" if len(soft) == len(variants) else " and ".join(f"`{label}` keeps" for label in soft)
+        )
+        text += (
+            f", but {kept} our soft constraints (exact-penalty slacks), not the paper's hard ones: "
+            "`python evaluate.py --paper-strict` runs those (docs/hard_constraints.md)"
+        )
+    return text + "."
+
+
 def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[str]:
     """The paper track's lines: success per controller and task on the paper's protocol
     (``paper``, read from ``path``; None: not published)."""
@@ -326,7 +388,7 @@ def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[
         f"slip {slips}; {config['episodes']} episodes per cell; IPOPT; free compute), on which ORCA's "
         "and DWA's hand-set defaults were chosen. Each row ran with the defaults of the code it was "
         "published from: the hand-set ones (now `NAME-v0`) for a controller whose tuned preset came "
-        "later (docs/benchmark.md). Success with 95% intervals.",
+        "later (docs/benchmark.md). Success with 95% intervals." + _paper_variants_note(config),
         "",
     ]
     board = paper.leaderboard()

@@ -19,9 +19,9 @@ from scipy import stats
 
 from evaluation.stats.clustered import (
     interquartile_mean,
-    layout_iqm_interval,
     layout_mean_interval,
     layout_rate_interval,
+    run_aggregate_interval,
 )
 from evaluation.stats.families import (
     HypothesisFamily,
@@ -140,15 +140,27 @@ def test_the_interquartile_mean_is_rliables(n: int) -> None:
     assert interquartile_mean(x) == pytest.approx(stats.trim_mean(x, 0.25), rel=1e-12)
 
 
-def test_the_iqm_interval_is_stratified_by_layout() -> None:
-    """rliable's stratified bootstrap re-draws runs within each layout and keeps the layouts: when
-    every run scores alike on a layout, its interval has no width; re-drawing layouts gives one."""
-    scores = np.repeat(np.linspace(0.0, 1.0, 30)[:, None], 3, axis=1)  # 30 layouts x 3 training seeds
-    iqm, low, high = layout_iqm_interval(scores)
-    assert iqm == pytest.approx(stats.trim_mean(scores.ravel(), 0.25))
-    assert low == pytest.approx(iqm) and high == pytest.approx(iqm)
-    _, low, high = layout_iqm_interval(scores, resample="layouts")
-    assert low < iqm - 0.05 and high > iqm + 0.05
+def test_the_run_aggregate_scores_each_run_and_redraws_layouts_within_strata() -> None:
+    """One score per (stratum, run), rliable's trim_mean over them; the layouts are re-drawn
+    within each stratum, one draw for every run; ``"runs"`` re-draws the runs (rliable's
+    stratified bootstrap), which has no width when every run scores alike."""
+    rng = np.random.default_rng(3)
+    runs = [[[bool(x)] for x in rng.random(40) < p] for p in (0.5, 0.6, 0.7, 0.8, 0.9)]  # 5 runs x 40 layouts
+    rates = np.array([np.mean([e[0] for e in run]) for run in runs])
+    iqm, low, high = run_aggregate_interval(runs, n_boot=1000)
+    assert iqm == pytest.approx(stats.trim_mean(rates, 0.25)) and low < iqm < high
+    assert run_aggregate_interval(runs, statistic="mean", n_boot=10)[0] == pytest.approx(rates.mean())
+    strata = ["easy"] * 20 + ["hard"] * 20
+    by_stratum = np.array(
+        [[np.mean([e[0] for e in run[a:b]]) for a, b in ((0, 20), (20, 40))] for run in runs]
+    )
+    assert run_aggregate_interval(runs, strata, n_boot=10)[0] == pytest.approx(
+        stats.trim_mean(by_stratum.ravel(), 0.25)
+    )
+    alike = [[[True], [False], [True]]] * 4
+    assert run_aggregate_interval(alike, resample="runs", n_boot=200) == pytest.approx((2 / 3, 2 / 3, 2 / 3))
+    _, low, high = run_aggregate_interval(alike, n_boot=200)
+    assert low < 2 / 3 < high  # the layouts differ, so re-drawing them moves every run's rate
 
 
 def test_the_sign_flip_test_on_hand_examples() -> None:
@@ -335,9 +347,17 @@ def test_a_paired_comparison_reports_its_design() -> None:
         (lambda: layout_rate_interval([[True]], n_boot=0), r"n_boot=0 must be an integer >= 1"),
         (lambda: layout_rate_interval([[True]], resample="seeds"), r"resample='seeds' is not one of"),
         (
-            lambda: layout_iqm_interval([[1.0]], resample="layouts+within"),
-            r"is not one of \['layouts', 'within'\]",
+            lambda: run_aggregate_interval([[[1.0]]], resample="layouts+within"),
+            r"resample='layouts\+within' is not one of \['layouts', 'runs'\]",
         ),
+        (lambda: run_aggregate_interval([]), r"runs is empty"),
+        (lambda: run_aggregate_interval([[[1]], [[1], [0]]]), r"runs played \[1, 2\] layouts"),
+        (lambda: run_aggregate_interval([[[1], []]]), r"runs\[0\]\[1\] holds no episode"),
+        (
+            lambda: run_aggregate_interval([[[1], [0]]], strata=["a"]),
+            r"strata has 1 entries; the runs played 2",
+        ),
+        (lambda: run_aggregate_interval([[[1]]], statistic="median"), r"statistic='median' is not one of"),
         (lambda: paired_rates_by_layout([], []), r"a and b are empty"),
         (lambda: paired_rates_by_layout([[True]], [[True], [False]]), r"1 layouts in a and 2 in b"),
         (

@@ -1,6 +1,6 @@
 """The learned policies on the benchmark (issue 60): trained on the suite's train layouts, the
 checkpoint chosen on validation, the test split refused by the trainers by name, seeds trained by
-a resumable driver, and their test results aggregated (IQM with rliable's stratified bootstrap)."""
+a resumable driver, and their test results aggregated (IQM over seeds in rliable's unit, one score per seed)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,14 @@ import pytest
 
 from baselines.suite_training import CheckpointScore, SuiteTraining, choose, refuse_held_out_map
 from evaluation.episodes.records import selection_key
-from evaluation.experiments.seeds import SeedRun, aggregate, chosen_seed, evaluate_seeds, outcomes_by_label
+from evaluation.experiments.seeds import (
+    SeedRun,
+    aggregate,
+    chosen_seed,
+    evaluate_seeds,
+    outcomes_by_label,
+    report_markdown,
+)
 
 pytest.importorskip("stable_baselines3")
 
@@ -275,20 +282,57 @@ HAND_MADE = {
 }
 
 
-def test_the_iqm_over_layouts_and_seeds_matches_the_hand_computation() -> None:
+def test_the_aggregate_scores_each_seed_over_the_layouts_as_rliable_scores_each_run() -> None:
     result = aggregate(HAND_MADE, n_boot=500)
-    # the 12 (layout, seed) scores: 1, .5, 0 | 1, 1, .5 | 0, 0, .5 | 1, .5, 1; sorted
-    # 0 0 0 .5 .5 .5 .5 1 1 1 1 1; n // 4 = 3 cut at each end: (.5 * 4 + 1 * 2) / 6 = 2/3
-    assert result.iqm[0] == pytest.approx(2 / 3)
-    assert result.iqm_layouts[0] == pytest.approx(2 / 3)
-    assert result.mean == pytest.approx(14 / 24)
+    # one score per seed (rliable's (task, run) score): 6/8, 4/8, 4/8; 3 scores, n // 4 = 0 cut:
+    # the IQM is their mean, 14/24, and the report leads with the mean
+    assert result.iqm[0] == pytest.approx(14 / 24) and result.mean[0] == pytest.approx(14 / 24)
+    assert result.lead == "mean" and result.strata == (None,)
     assert {s: r[0] for s, r in result.per_seed.items()} == {0: 0.75, 1: 0.5, 2: 0.5}
     assert result.seeds == (0, 1, 2) and result.layouts == 4
-    for low_high in (result.iqm[1:], result.iqm_layouts[1:], *(r[1:] for r in result.per_seed.values())):
+    for low_high in (result.iqm[1:], result.mean[1:], *(r[1:] for r in result.per_seed.values())):
         assert 0.0 <= low_high[0] <= low_high[1] <= 1.0
     assert aggregate(HAND_MADE, n_boot=500) == result  # a function of its arguments
+    runs = [SeedRun("ippo", "formation", s, Path("."), {"success_rate": 0.5, "step": 10}) for s in (0, 1, 2)]
+    table = report_markdown(
+        [
+            {
+                "policy": "ippo",
+                "task": "formation",
+                "suite": "s",
+                "runs": runs,
+                "aggregate": result,
+                "chosen": runs[0],
+            }
+        ]
+    )
+    assert "| `ippo` | formation | s | 3 | 4 | mean 58.3% [" in table
+    assert "(3 seeds: fewer than 4, the IQM trims nothing)" in table
+    # by stratum: layouts 0, 1 "easy", 2, 3 "hard": scores (easy, hard) per seed (1, .5), (.75, .25),
+    # (.25, .75); 6 scores sorted .25 .25 .5 .75 .75 1, 1 cut at each end: (.25 + .5 + .75 + .75) / 4
+    by_tier = aggregate(HAND_MADE, strata={0: "easy", 1: "easy", 2: "hard", 3: "hard"}, n_boot=500)
+    assert by_tier.iqm[0] == pytest.approx(0.5625) and by_tier.strata == ("easy", "hard")
     with pytest.raises(ValueError, match=r"seed 1 ran layouts \[0, 1\], seed 0 ran \[0, 1, 2, 3\]"):
         aggregate({0: HAND_MADE[0], 1: {0: [1], 1: [0]}})
+    with pytest.raises(ValueError, match=r"strata has no stratum for layouts \[3\]"):
+        aggregate(HAND_MADE, strata={0: "a", 1: "a", 2: "b"})
+
+
+def test_one_episode_per_layout_still_separates_a_78_from_a_97_percent_policy() -> None:
+    """The audit's case: at the default ``--episodes 1`` a (layout, seed) score is 0 or 1, and the
+    IQM of 0/1 scores was 1.0 for both policies. Scored per seed, the aggregates are distinct, in
+    order, near the true rates, and their intervals do not overlap."""
+    rng = np.random.default_rng(60)
+    results = {
+        p: aggregate(
+            {s: {lay: [bool(rng.random() < p)] for lay in range(200)} for s in range(5)}, n_boot=1000
+        )
+        for p in (0.78, 0.97)
+    }
+    weak, strong = results[0.78], results[0.97]
+    assert weak.iqm[0] == pytest.approx(0.78, abs=0.04) and strong.iqm[0] == pytest.approx(0.97, abs=0.02)
+    assert weak.iqm[2] < strong.iqm[1]
+    assert weak.lead == strong.lead == "iqm"  # 5 seeds: the IQM trims one at each end
 
 
 def test_records_group_by_variant_and_layout() -> None:

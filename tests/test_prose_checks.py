@@ -511,3 +511,103 @@ def test_the_tuning_table_is_the_studies_best_json() -> None:
     # orca's tie stated as adopted
     edited = text.replace("| +0.0003 | defaults kept (a tie) |", "| +0.0003 | adopted |", 1)
     assert edited != text and tuning_problems(edited) != []
+
+
+# --------------------------------------------------------------------------- the suite's own numbers
+def _seed_span(seeds: list[int]) -> str:
+    """``first-last``, then the seeds between them a split skipped (``without A and B``)."""
+    skipped = sorted(set(range(seeds[0], seeds[-1] + 1)) - set(seeds))
+    text = f"{seeds[0]:,}-{seeds[-1]:,}"
+    if skipped:
+        text += " without " + " and ".join(f"{s:,}" for s in skipped)
+    return text
+
+
+def suite_problems(text: str) -> list[str]:
+    """How docs/benchmark.md ``text`` states koopnav-bench-v1 differently from its data: the split
+    table (seed ranges, sizes), the seeds each split holds (read from the stored layouts), the
+    tier cuts (``TIER_THRESHOLDS``) and the hash table (``manifest.json``)."""
+    from koopman_envs import SPLITS, TASKS
+    from koopman_envs.suites import SUITES, load_suite
+    from koopman_envs.suites.measures import TIER_THRESHOLDS
+
+    definition = SUITES["koopnav-bench-v1"]
+    problems = []
+    spans, hashes = [], []
+    for split in SPLITS:
+        suites = [load_suite(definition.name, task, split) for task in TASKS]
+        seeds = {tuple(sorted(s.layout(i).seed for i in range(len(s)))) for s in suites}
+        if len(seeds) != 1:
+            problems.append(f"the tasks' {split} splits hold different seeds")
+        spans.append(_seed_span(list(seeds.pop())))
+        hashes.append(f"| {split} | " + " | ".join(f"`{s.sha256[:12]}`" for s in suites) + " |")
+        first, stop = definition.split(split).seeds
+        row = f"| `{split}` | [{first:,}, {stop:,}) | {definition.split(split).size} |"
+        if row not in text:
+            problems.append(f"the split table has no row {row!r}")
+    held = f"the splits hold seeds {spans[0]}, {spans[1]},\n  and {spans[2]} "
+    if held not in text:
+        problems.append(f"the page does not state {held!r}")
+    problems += [f"the hash table has no row {row!r}" for row in hashes if row not in text]
+    cuts = ", ".join(
+        f"{task.replace('_', ' ')} {low:g} and{chr(10) + '  ' if i == 0 else ' '}{high:g}"
+        for i, (task, (low, high)) in enumerate(TIER_THRESHOLDS.items())
+    )
+    if f"train split: {cuts}." not in text:
+        problems.append(f"the tier cuts are not stated as {cuts!r}")
+    return problems
+
+
+def test_the_suites_numbers_are_its_datas() -> None:
+    """docs/benchmark.md's split table, seeds held, tier cuts and hashes against the stored suite
+    (the page said 1,000,000-1,000,099 where validation runs to 1,000,101); an edit fails."""
+    text = (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8")
+    assert suite_problems(text) == []
+    for old, new in (
+        ("1,000,000-1,000,101 without", "1,000,000-1,000,099 without"),
+        ("without 2,000,198", "without 2,000,199"),
+        ("| validation | `2854d73a6beb`", "| validation | `2854d73a6bec`"),
+        ("formation 0.4745", "formation 0.4746"),
+        ("| `test` | [2,000,000, 3,000,000) | 200 |", "| `test` | [2,000,000, 3,000,000) | 100 |"),
+    ):
+        assert old in text, old
+        assert suite_problems(text.replace(old, new, 1)) != [], new
+
+
+def training_problems(text: str) -> list[str]:
+    """How docs/benchmark.md ``text`` states the committed seed runs differently from
+    ``data/training/``: how many of the driver's default plan are finished, and which, with each
+    kept checkpoint's step and validation successes."""
+    from evaluation.experiments.seeds import TRAINING_ROOT, finished_seeds
+    from koopman_envs import TASKS
+
+    script = (ROOT / "data" / "training" / "run.sh").read_text(encoding="utf-8")
+    seeds = int(re.search(r'SEEDS="\$\{SEEDS:-(\d+)\}"', script)[1])  # type: ignore[index]
+    policies = re.search(r"policies=\(([\w -]+)\)\n", script)[1].split()  # type: ignore[index]
+    planned = len(policies) * len(TASKS) * seeds
+    runs = [
+        r
+        for p in policies
+        for t in TASKS
+        for r in finished_seeds(ROOT / TRAINING_ROOT, p, t)
+        if r.seed < seeds
+    ]
+    named = "; ".join(
+        f"`{r.policy}` {r.task} seed {r.seed} (kept checkpoint step {r.validation['step']:,}, validation "
+        f"{r.validation['successes']}/{r.validation['episodes']})"
+        for r in runs
+    )
+    wanted = (
+        f"Of the {planned} seed runs the driver plans by default (`{'` and `'.join(policies)}`, both tasks, "
+        f"seeds 0-{seeds - 1}), {len(runs)} {'is' if len(runs) == 1 else 'are'} committed finished "
+        f"(a `finished.json` under `data/training/`): {named}."
+    )
+    flat = " ".join(text.split())
+    return [] if wanted in flat else [f"docs/benchmark.md does not state {wanted!r}"]
+
+
+def test_the_seed_runs_paragraph_is_what_data_training_holds() -> None:
+    text = (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8")
+    assert training_problems(text) == []
+    assert training_problems(text.replace("validation 22/50", "validation 23/50", 1)) != []
+    assert training_problems(text.replace("1 is committed finished", "2 are committed finished", 1)) != []

@@ -151,6 +151,7 @@ SMOKE: dict[str, tuple[list[str], str]] = {
     ),
     "docs/make_bench_figure.py": (["--out", "{tmp}/layouts.png"], r"^wrote .*/layouts\.png$"),
     "docs/make_options_md.py": (["--out", "{tmp}/options.md"], r"^wrote .*/options\.md$"),
+    "docs/make_sizing.py": (["--check"], r"^docs/benchmark\.md's bench-sizing block is up to date$"),
     "docs/make_pages.py": (["--check", "docs/lidar_results.md"], r"^every page checked is up to date$"),
     "docs/make_results_md.py": (
         ["{results}", "--out", "{tmp}/results.md", "--figures", "{tmp}/figures"],

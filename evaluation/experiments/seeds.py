@@ -12,11 +12,11 @@ seed folder), every variant on the same (layout, episode) units, and reports:
 
 - **per seed**: its success rate with the two-stage interval over layouts
   (:func:`evaluation.stats.clustered.layout_rate_interval`);
-- **aggregate**: the interquartile mean of the (layout, seed) scores (a seed's success rate on a
-  layout) with rliable's stratified bootstrap, seeds re-drawn within each layout
-  (:func:`evaluation.stats.clustered.layout_iqm_interval`, ``resample="within"``; Agarwal et al.
-  2021), and beside it the interval that re-draws whole layouts, for a statement about unseen
-  layouts;
+- **aggregate**: rliable's interquartile mean over runs, one score per (stratum, seed): a seed's
+  success rate over the split's layouts (one stratum by default), as rliable scores each (task,
+  run) (:func:`evaluation.stats.clustered.run_aggregate_interval`; Agarwal et al. 2021), with an
+  interval that re-draws the layouts within each stratum, and beside it the mean over seeds. With
+  fewer than 4 seeds the IQM trims nothing: the report leads with the mean and says so;
 - **the shipped seed**: :func:`chosen_seed`, the best by its validation record (never by test);
   ``--ship`` copies its policy into the controller's shipped folder.
 """
@@ -34,12 +34,14 @@ from typing import Any
 
 from evaluation.episodes.records import selection_key
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
-from evaluation.stats.clustered import layout_iqm_interval, layout_rate_interval
+from evaluation.stats.clustered import layout_rate_interval, run_aggregate_interval
 from koopman_envs import SPLITS, TASKS
+from koopman_envs.checks import check_choice
 from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 
 __all__ = [
     "FINISHED_FILE",
+    "IQM_MIN_RUNS",
     "POLICIES",
     "TRAINING_ROOT",
     "SeedAggregate",
@@ -61,6 +63,8 @@ FINISHED_FILE = "finished.json"
 POLICIES = ("rl-ppo-set", "rl-ppo", "ippo")
 #: the suite the seeds are trained and evaluated on
 SUITE = "koopnav-bench-v1"
+#: the layout fields of an episode record that can stratify the aggregate (``--strata``)
+STRATA = ("layout_tier", "layout_family")
 
 
 @dataclass(frozen=True)
@@ -125,6 +129,10 @@ def chosen_seed(runs: Sequence[SeedRun]) -> SeedRun:
     return max(runs, key=order)
 
 
+#: the fewest runs whose IQM trims anything (``trim_mean(x, 0.25)`` cuts ``int(n / 4)`` at each end)
+IQM_MIN_RUNS = 4
+
+
 @dataclass(frozen=True)
 class SeedAggregate:
     """A policy's result over seeds on one split (:func:`aggregate`).
@@ -135,47 +143,61 @@ class SeedAggregate:
         The seeds, in order.
     layouts : int
         Layouts every seed ran.
+    strata : tuple
+        The strata of the layouts that each hold one score per seed (``(None,)``: the whole split).
     per_seed : dict
         Seed -> (success rate, low, high), the interval over layouts.
     iqm : (float, float, float)
-        IQM of the (layout, seed) scores and its stratified bootstrap interval (seeds within layouts).
-    iqm_layouts : (float, float, float)
-        The same IQM with whole layouts re-drawn.
-    mean : float
-        The plain mean success over every episode.
+        rliable's IQM of the (stratum, seed) success rates, and its interval with the layouts
+        re-drawn within each stratum.
+    mean : (float, float, float)
+        The mean of the same scores, the same interval.
     """
 
     seeds: tuple[int, ...]
     layouts: int
+    strata: tuple[Any, ...]
     per_seed: dict[int, tuple[float, float, float]]
     iqm: tuple[float, float, float]
-    iqm_layouts: tuple[float, float, float]
-    mean: float
+    mean: tuple[float, float, float]
+
+    @property
+    def lead(self) -> str:
+        """``"mean"`` with fewer than :data:`IQM_MIN_RUNS` seeds (the IQM trims nothing and is the
+        mean), else ``"iqm"``."""
+        return "iqm" if len(self.seeds) >= IQM_MIN_RUNS else "mean"
 
 
 def aggregate(
-    outcomes: Mapping[int, Mapping[Any, Sequence[bool | int]]], *, n_boot: int = 4000, seed: int = 0
+    outcomes: Mapping[int, Mapping[Any, Sequence[bool | int]]],
+    *,
+    strata: Mapping[Any, Any] | None = None,
+    n_boot: int = 4000,
+    seed: int = 0,
 ) -> SeedAggregate:
-    """Per-seed success and the interquartile mean over (layout, seed) scores.
+    """Per-seed success and the aggregate over seeds, in rliable's unit.
 
     Parameters
     ----------
     outcomes : mapping
-        ``outcomes[s][l]``: the successes (bools or 0/1) of training seed s's episodes on layout l; every seed
-        on the same layouts.
+        ``outcomes[s][l]``: the successes (bools or 0/1) of training seed s's episodes on layout l;
+        every seed on the same layouts.
+    strata : mapping, optional
+        Layout -> its stratum (e.g. its tier): one score per (stratum, seed); default one stratum.
     n_boot, seed
         Bootstrap replicates and the bootstrap's seed (the result is a function of the arguments).
 
     Returns
     -------
     SeedAggregate
-        A layout's score for a seed is its success rate there; the IQM pools every (layout, seed)
-        score as rliable pools (task, run) scores.
+        A seed's score in a stratum is its success rate over the stratum's episodes (rliable's
+        (task, run) score); the IQM and the mean pool the (stratum, seed) scores
+        (:func:`evaluation.stats.clustered.run_aggregate_interval`, layouts re-drawn).
 
     Raises
     ------
     ValueError
-        No seed, or seeds that ran different layouts (naming them).
+        No seed, seeds that ran different layouts, or ``strata`` missing a layout (naming them).
     """
     seeds = sorted(outcomes)
     if not seeds:
@@ -187,19 +209,22 @@ def aggregate(
                 f"seed {s} ran layouts {sorted(outcomes[s])}, seed {seeds[0]} ran {layouts}: "
                 "the seeds are compared on the same layouts"
             )
+    missing = [] if strata is None else [lay for lay in layouts if lay not in strata]
+    if missing:
+        raise ValueError(f"strata has no stratum for layouts {missing}")
+    labels = None if strata is None else [strata[lay] for lay in layouts]
     per_seed = {
         s: layout_rate_interval([outcomes[s][lay] for lay in layouts], n_boot=n_boot, seed=seed)
         for s in seeds
     }
-    scores = [[sum(map(bool, outcomes[s][lay])) / len(outcomes[s][lay]) for s in seeds] for lay in layouts]
-    episodes = [bool(x) for s in seeds for lay in layouts for x in outcomes[s][lay]]
+    runs = [[outcomes[s][lay] for lay in layouts] for s in seeds]
     return SeedAggregate(
         seeds=tuple(seeds),
         layouts=len(layouts),
+        strata=(None,) if labels is None else tuple(dict.fromkeys(labels)),
         per_seed=per_seed,
-        iqm=layout_iqm_interval(scores, n_boot=n_boot, seed=seed, resample="within"),
-        iqm_layouts=layout_iqm_interval(scores, n_boot=n_boot, seed=seed, resample="layouts"),
-        mean=sum(episodes) / len(episodes),
+        iqm=run_aggregate_interval(runs, labels, "iqm", n_boot=n_boot, seed=seed),
+        mean=run_aggregate_interval(runs, labels, "mean", n_boot=n_boot, seed=seed),
     )
 
 
@@ -226,13 +251,18 @@ def evaluate_seeds(
     workers: int | None = None,
     out: str | os.PathLike[str] | None = None,
     n_boot: int = 4000,
+    strata: str | None = None,
 ) -> list[dict[str, Any]]:
     """Every finished seed of ``policies`` on ``tasks`` through the evaluator on ``split``, one
     run per task (every seed a controller variant; logged in ``out/<task>`` and resumed there);
-    one summary per (policy, task): its seeds' runs, :func:`aggregate` and :func:`chosen_seed`."""
+    one summary per (policy, task): its seeds' runs, :func:`aggregate` and :func:`chosen_seed`.
+    ``strata``: a layout field of the records (one of :data:`STRATA`) whose values each hold one
+    score per seed; default the whole split."""
     from evaluation.execution.runner import evaluate
     from evaluation.experiments.protocols import suite_protocol
 
+    if strata is not None:
+        strata = check_choice("strata", strata, STRATA)
     summaries = []
     for task in tasks:
         runs = {policy: finished_seeds(root, policy, task) for policy in policies}
@@ -246,9 +276,12 @@ def evaluate_seeds(
         resume = folder is not None and (folder / "episodes.jsonl").exists()
         records = list(evaluate(spec, workers=workers, out=folder, resume=resume).records)
         by_label = outcomes_by_label(records)
+        groups = None if strata is None else {int(r["layout"]): r[strata] for r in records}
         for policy, seed_runs in runs.items():
             if seed_runs:
-                result = aggregate({r.seed: by_label[r.label] for r in seed_runs}, n_boot=n_boot)
+                result = aggregate(
+                    {r.seed: by_label[r.label] for r in seed_runs}, strata=groups, n_boot=n_boot
+                )
                 suite = next(r["suite"] for r in records if r["controller"] == seed_runs[0].label)
                 summaries.append(
                     {
@@ -283,14 +316,21 @@ def report_markdown(summaries: Sequence[Mapping[str, Any]]) -> str:
             )
     rows += [
         "",
-        "| policy | task | split | seeds | layouts | IQM [stratified bootstrap] | IQM [layouts re-drawn] | mean |",
+        "| policy | task | split | seeds | layouts | aggregate over seeds [95% CI, layouts re-drawn] "
+        "| IQM | mean |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for s in summaries:
         result = s["aggregate"]
+        lead = (
+            f"IQM {_interval(result.iqm)}"
+            if result.lead == "iqm"
+            else f"mean {_interval(result.mean)} ({len(result.seeds)} seeds: fewer than {IQM_MIN_RUNS}, "
+            "the IQM trims nothing)"
+        )
         rows.append(
             f"| `{s['policy']}` | {s['task']} | {s['suite']} | {len(result.seeds)} | {result.layouts} | "
-            f"{_interval(result.iqm)} | {_interval(result.iqm_layouts)} | {100 * result.mean:.1f}% |"
+            f"{lead} | {_interval(result.iqm)} | {_interval(result.mean)} |"
         )
     return "\n".join(rows) + "\n"
 
@@ -323,6 +363,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--workers", type=int, default=None, help="evaluator processes (default: all cores)")
     parser.add_argument("--n-boot", type=int, default=4000, help="bootstrap replicates (default 4000)")
     parser.add_argument(
+        "--strata",
+        default=None,
+        choices=STRATA,
+        help="one score per (stratum, seed): the layouts' tier or family (default: the whole split)",
+    )
+    parser.add_argument(
         "--ship", action="store_true", help="copy each chosen seed's policy to the shipped folder"
     )
     parser.add_argument("--out", required=True, help="the run logs (OUT/<task>/) and seeds.md, seeds.json")
@@ -338,6 +384,7 @@ def main(argv: list[str] | None = None) -> int:
         summaries = evaluate_seeds(
             args.root, args.policies, args.tasks, split=args.split, layouts=layout_slice(args.layouts),
             episodes=args.episodes, workers=args.workers, out=args.out, n_boot=args.n_boot,
+            strata=args.strata,
         )  # fmt: skip
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -351,8 +398,8 @@ def main(argv: list[str] | None = None) -> int:
             "policy": s["policy"], "task": s["task"], "suite": s["suite"], "chosen_seed": s["chosen"].seed,
             "seeds": [{"seed": r.seed, "folder": str(r.folder), "validation": r.validation,
                        "test": list(s["aggregate"].per_seed[r.seed])} for r in s["runs"]],
-            "iqm": list(s["aggregate"].iqm), "iqm_layouts": list(s["aggregate"].iqm_layouts),
-            "mean": s["aggregate"].mean, "layouts": s["aggregate"].layouts,
+            "iqm": list(s["aggregate"].iqm), "mean": list(s["aggregate"].mean),
+            "leads_with": s["aggregate"].lead, "layouts": s["aggregate"].layouts,
         }
         for s in summaries
     ]  # fmt: skip

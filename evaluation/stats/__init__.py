@@ -17,9 +17,9 @@ from __future__ import annotations
 from evaluation.stats.aggregate import Cell, DistanceSummary, leaderboard, paired_comparisons, pooled_rate
 from evaluation.stats.clustered import (
     interquartile_mean,
-    layout_iqm_interval,
     layout_mean_interval,
     layout_rate_interval,
+    run_aggregate_interval,
 )
 from evaluation.stats.families import (
     CorrectedTest,
@@ -87,9 +87,9 @@ __all__ = [
     "tail_mean",
     "wilson_interval",
     "interquartile_mean",
-    "layout_iqm_interval",
     "layout_mean_interval",
     "layout_rate_interval",
+    "run_aggregate_interval",
     "EXACT_FLIPS",
     "LayoutComparison",
     "layout_sign_flip_test",

@@ -11,8 +11,9 @@ with, are in :mod:`evaluation.stats.statistics` (:func:`~evaluation.stats.statis
 
 - :func:`layout_rate_interval`, :func:`layout_mean_interval`: a rate or a metric's mean with a
   two-stage bootstrap (layouts, then episodes within each drawn layout), stages variance-matched.
-- :func:`layout_iqm_interval`: interquartile mean with rliable's stratified bootstrap (runs
-  re-drawn within each layout), or with whole layouts re-drawn.
+- :func:`run_aggregate_interval`: a learned policy's interquartile mean (or mean) over training
+  seeds, one score per (stratum, run) as rliable scores (task, run), its interval re-drawing the
+  layouts within each stratum (or the runs).
 
 Paired comparisons over layouts (intervals and the layout-level sign-flip test) are in
 :mod:`evaluation.stats.layout_tests`; named families of tests and the power statement in
@@ -22,7 +23,7 @@ Paired comparisons over layouts (intervals and the layout-level sign-flip test) 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Hashable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -41,9 +42,9 @@ from koopman_envs.checks import check_choice, check_int
 
 __all__ = [
     "interquartile_mean",
-    "layout_iqm_interval",
     "layout_mean_interval",
     "layout_rate_interval",
+    "run_aggregate_interval",
 ]
 
 #: what a bootstrap re-draws: whole layouts; layouts, then episodes within each drawn layout; or
@@ -199,35 +200,123 @@ def interquartile_mean(values: Iterable[float]) -> float:
     return float(_iqm(x[None], np.ones((1, x.size), dtype=bool))[0])
 
 
-def layout_iqm_interval(
-    scores: Iterable[Iterable[float]],
+#: replicates x runs x layouts per bootstrap chunk
+_CHUNK = 2**22
+
+
+def run_aggregate_interval(
+    runs: Sequence[Iterable[Iterable[Any]]],
+    strata: Sequence[Hashable] | None = None,
+    statistic: str = "iqm",
     confidence: float = 0.95,
     n_boot: int = 4000,
     seed: int = 0,
-    resample: str = "within",
+    resample: str = "layouts",
 ) -> tuple[float, float, float]:
-    """Interquartile mean of scores grouped by layout, with a stratified bootstrap interval.
+    """The IQM (or mean) over runs of a learned policy (training seeds), each run scored on a
+    suite's layouts, with a bootstrap interval stratified by layout group.
 
-    For a learned policy trained with several seeds, ``scores[i][r]`` is run r's score on layout
-    i (its success rate over the layout's episodes, or a metric's mean); the IQM pools every
-    (layout, run) score, as rliable pools (task, run) scores (Agarwal et al. 2021, NeurIPS).
+    rliable's unit is one score per (task, run): a run's mean score over its evaluation episodes,
+    ``scores[n][m]`` in ``rliable.metrics.aggregate_iqm``, whose IQM is
+    ``scipy.stats.trim_mean(scores, 0.25, axis=None)`` over the (run, task) matrix; its
+    ``library.StratifiedBootstrap`` re-draws runs within each task (Agarwal et al. 2021, NeurIPS,
+    google-research/rliable ``rliable/metrics.py`` and ``library.py``). Here a score is run r's
+    success rate (or metric mean) over the layouts of one stratum (the whole split by default, or a
+    tier or family per layout): one score per (stratum, run). Scoring each (layout, run) pair
+    instead makes every score 0 or 1 at one episode per layout, and the IQM of 0/1 scores is
+    about ``clip((p - 0.25) / 0.5, 0, 1)``: 1.0 for a policy at 78% and for one at 97%.
 
     Parameters
     ----------
-    scores : iterable of iterable of float
-        Finite scores, one sequence per layout.
+    runs : sequence of sequences of sequences
+        ``runs[r][i]``: run r's episodes on layout i (successes as bools or 0/1, or a metric's
+        finite values); every run on the same layouts, in the same order.
+    strata : sequence of hashable, optional
+        The stratum of each layout (``len(strata)`` layouts), e.g. its tier; default one stratum.
+    statistic : {"iqm", "mean"}, optional
+        rliable's interquartile mean of the (stratum, run) scores (default), or their mean. With
+        fewer than 4 scores ``trim_mean(x, 0.25)`` trims nothing and the two agree.
     confidence, n_boot, seed
         As in :func:`layout_rate_interval`.
-    resample : {"within", "layouts"}, optional
-        ``"within"`` (default): rliable's stratified bootstrap, runs re-drawn within each layout
-        (the layouts play rliable's tasks and are kept); ``"layouts"``: whole layouts re-drawn, for
-        a statement about unseen layouts.
+    resample : {"layouts", "runs"}, optional
+        ``"layouts"`` (default): within each stratum the layouts are re-drawn with replacement, one
+        draw for every run (the runs played the same layouts, so a hard layout is hard for each of
+        them): the uncertainty from the finite suite, the trained runs as they are.
+        ``"runs"``: rliable's stratified bootstrap, the runs re-drawn within each stratum, the
+        layouts kept: the uncertainty from the training seeds (coarse with 3-5 runs).
 
     Returns
     -------
-    (iqm, low, high) : tuple of float
+    (estimate, low, high) : tuple of float
+        The statistic and its percentile interval.
+
+    Raises
+    ------
+    ValueError
+        No run, runs on different numbers of layouts, a layout without episodes, ``strata`` of the
+        wrong length, or a bad ``statistic``, ``resample``, ``confidence``, ``n_boot`` or ``seed``.
     """
-    resample = check_choice("resample", resample, SCHEMES[1:])
-    table = _layout_table("scores", scores, binary=False)
-    _require_data("scores", table)
-    return _interval(table, "iqm", confidence, n_boot, seed, resample)
+    statistic = check_choice("statistic", statistic, ("iqm", "mean"))
+    resample = check_choice("resample", resample, ("layouts", "runs"))
+    confidence = _check_confidence(confidence)
+    n_boot = check_int("n_boot", n_boot, 1)
+    seed = check_int("seed", seed, 0)
+    sums, counts = _run_layout_sums(runs)
+    n_runs, n_layouts = sums.shape
+    labels = [0] * n_layouts if strata is None else list(strata)
+    if len(labels) != n_layouts:
+        raise ValueError(f"strata has {len(labels)} entries; the runs played {n_layouts} layouts")
+    groups = [np.flatnonzero([x == g for x in labels]) for g in dict.fromkeys(labels)]
+    kernel = _ratio if statistic == "mean" else _iqm
+
+    def aggregate(scores: NDArray[np.float64]) -> NDArray[np.float64]:
+        # scores (b, runs, strata) -> (b,): the statistic over every (stratum, run) score
+        flat = scores.reshape(scores.shape[0], -1)
+        return kernel(flat, np.ones(flat.shape, dtype=bool))
+
+    def scored(picks: NDArray[np.int64]) -> NDArray[np.float64]:
+        # picks (b, L): layout indices; each (run, stratum) score its successes over its episodes
+        return np.stack(
+            [sums[:, picks[:, g]].sum(axis=2).T / counts[:, picks[:, g]].sum(axis=2).T for g in groups],
+            axis=2,
+        )
+
+    everything = np.arange(n_layouts)[None]
+    observed = scored(everything)
+    rng = np.random.default_rng(seed)
+    out = np.empty(n_boot)
+    step = max(1, _CHUNK // max(1, n_runs * n_layouts))
+    for start in range(0, n_boot, step):
+        b = min(step, n_boot - start)
+        if resample == "layouts":
+            picks = np.broadcast_to(everything, (b, n_layouts)).copy()
+            for g in groups:
+                picks[:, g] = g[rng.integers(0, g.size, size=(b, g.size))]
+            out[start : start + b] = aggregate(scored(picks))
+        else:
+            drawn = rng.integers(0, n_runs, size=(b, n_runs, len(groups)))
+            out[start : start + b] = aggregate(np.take_along_axis(observed[0][None], drawn, axis=1))
+    tail = (1.0 - confidence) / 2.0
+    low, high = np.quantile(out, [tail, 1.0 - tail])
+    return float(aggregate(observed)[0]), float(low), float(high)
+
+
+def _run_layout_sums(
+    runs: Sequence[Iterable[Iterable[Any]]],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(sums, counts), shape (runs, layouts): each run's episode totals and episode counts per layout."""
+    if len(runs) == 0:
+        raise ValueError("runs is empty; an aggregate over runs needs at least one run")
+    sums, counts = [], []
+    for r, layouts in enumerate(runs):
+        rows = [_as_finite(f"runs[{r}][{i}]", episodes) for i, episodes in enumerate(layouts)]
+        for i, row in enumerate(rows):
+            if row.size == 0:
+                raise ValueError(f"runs[{r}][{i}] holds no episode; every run plays every layout")
+        sums.append([row.sum() for row in rows])
+        counts.append([row.size for row in rows])
+    if len({len(row) for row in sums}) != 1 or not sums[0]:
+        raise ValueError(
+            f"runs played {[len(row) for row in sums]} layouts; every run plays the same layouts (at least one)"
+        )
+    return np.asarray(sums, dtype=np.float64), np.asarray(counts, dtype=np.float64)
