@@ -19,6 +19,7 @@ __all__ = [
     "DRIFT_MEAN_INTERVAL",
     "FAULT_STOPPED_SPEED",
     "FRICTION_MAX",
+    "INSTALL_HINT",
     "LIMITS",
     "MAX_EPISODES_PER_CELL",
     "MAX_ROBOTS",
@@ -117,6 +118,8 @@ PARAMS = PaperParams()
 #: unicycle with drawn slip (the default), or the MuJoCo differential-drive robots of
 #: :mod:`koopman_envs.sim.physics` (extra ``[physics]``).
 PLANTS = ("kinematic", "mujoco")
+#: How to install the physics plant's dependency (``mujoco``): the one message every refusal names
+INSTALL_HINT = "pip install 'koopnav[physics]'"
 
 
 @dataclass(frozen=True)
