@@ -128,3 +128,22 @@ def test_every_row_records_what_it_was_measured_with() -> None:
         physics_model_error.build_parser().parse_args(["--controller", "nominal-nmpc"])
     )
     assert tuned["controller_options"]["horizon"] != 20  # the tuned preset: another controller
+
+
+def test_the_sim2sim_section_counts_every_registered_controller() -> None:
+    """The protocol's commands name no --controllers, so it runs every registered controller: the
+    page's count, its episodes (10 layouts x 2 tasks x 2 floors each) and the fine-tuned row's
+    "one of N" follow controllers.available()."""
+    import re
+
+    import controllers
+
+    page = (ROOT / "docs" / "physics.md").read_text(encoding="utf-8")
+    section = page[page.index("## The sim-to-sim protocol") : page.index("## Speed")]
+    n = len(controllers.available())
+    assert "--controllers" not in section.split("```bash")[1].split("```")[0]
+    assert re.findall(r"Every registered controller \((\d+)\)", section) == [str(n)]
+    assert re.findall(r"One of the (\d+) is not a transfer", section) == [str(n)]
+    episodes = re.findall(r"(\d+) physics episodes \((\d+) controllers", section)
+    assert episodes == [(str(n * 10 * 2 * 2), str(n))]
+    assert "--layouts 0:10" in section and "slip=nominal,high" in section
