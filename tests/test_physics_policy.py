@@ -134,11 +134,9 @@ def test_a_physics_run_resumed_mid_run_ends_bit_for_bit_as_the_uninterrupted_one
     ``PhysicsWorld.__getstate__``): a tiny run on carpet and ice stopped 6 steps into its third
     rollout, after the checkpoint at 768 robot-steps, and resumed ends as the run that never
     stopped (28 s on the shared machine)."""
-    from test_training_resume import TINY, Interrupted, _state
+    from test_training_resume import TINY, _state, stop_in_the_third_rollout_and_resume
 
-    from baselines.resume import RESUME_FILE, check_resume
     from baselines.sb3.train import main
-    from baselines.sb3.training_callbacks import PeriodicCheckpoints
 
     def run(out: Path, *extra: str) -> int:
         argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--suite", SUITE, "--seed", "3"]
@@ -147,23 +145,8 @@ def test_a_physics_run_resumed_mid_run_ends_bit_for_bit_as_the_uninterrupted_one
         return main([*argv, *TINY, "--out", str(out), *extra])
 
     assert run(tmp_path / "whole", "--resume-every", "0") == 0
-    on_step = PeriodicCheckpoints._on_step
-    steps_after_saving = {2: 0}
-
-    def stop_in_the_third_rollout(self: PeriodicCheckpoints) -> bool:
-        if self.saved_at in steps_after_saving:
-            steps_after_saving[self.saved_at] += 1
-            if steps_after_saving[self.saved_at] > 6:
-                raise Interrupted
-        return on_step(self)
-
     stopped = tmp_path / "stopped"
-    with monkeypatch.context() as patch:
-        patch.setattr(PeriodicCheckpoints, "_on_step", stop_in_the_third_rollout)
-        with pytest.raises(Interrupted):
-            run(stopped, "--resume-every", "1")
-    assert check_resume(stopped / RESUME_FILE)["kind"] == "sb3-ppo"
-    assert run(stopped, "--resume", "--resume-every", "1") == 0
+    stop_in_the_third_rollout_and_resume(run, stopped, monkeypatch)
     assert _state(stopped) == _state(tmp_path / "whole")
 
 
