@@ -12,6 +12,10 @@ either way). Actions are drawn before timing. Each figure is the best of ``--rep
 of ``--seconds``; on a machine shared with other work the wall-clock figures move with its load,
 so each is printed beside its rate per CPU-second of this process (``time.process_time``: the
 time the process ran, which other work slows far less; for two threads it counts both).
+
+Without MuJoCo it times nothing and exits 2 naming the install command; ``--repeats`` and
+``--envs`` below 1 (``--envs``: below 2, a batch) are refused by name. ``--json`` is written
+whole or not at all (:func:`~koopman_envs.files.write_atomic`).
 """
 
 from __future__ import annotations
@@ -22,13 +26,16 @@ import json
 import os
 import platform
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 
 import koopman_envs  # noqa: F401 - registers the ids
-from koopman_envs.params import PHYSICS
+from koopman_envs.checks import check_int
+from koopman_envs.files import write_atomic
+from koopman_envs.params import INSTALL_HINT, PHYSICS
 
 ENV_ID = "KoopNav-TargetReaching-v0"
 
@@ -53,7 +60,8 @@ def single(plant: str, seconds: float, repeats: int) -> tuple[float, float]:
     """env-steps/s of one ``gym.make`` env of ``plant``."""
     env = gym.make(ENV_ID, plant=plant)
     env.reset(seed=0)
-    actions = np.random.default_rng(0).uniform(env.action_space.low, env.action_space.high, (512, 6))
+    box: Any = env.action_space  # a Box
+    actions = np.random.default_rng(0).uniform(box.low, box.high, (512, 6))
     actions = actions.astype(np.float32)
 
     def step(i: int) -> int:
@@ -70,9 +78,9 @@ def single(plant: str, seconds: float, repeats: int) -> tuple[float, float]:
 def vector(num_envs: int, threads: int, seconds: float, repeats: int) -> tuple[float, float]:
     """env-steps/s of a physics vector env of ``num_envs`` on ``threads`` threads."""
     venv = gym.make_vec(ENV_ID, num_envs=num_envs, plant="mujoco")
-    venv.unwrapped.engine.physics.threads = threads
+    cast(Any, venv.unwrapped).engine.physics.threads = threads
     venv.reset(seed=0)
-    space = venv.action_space
+    space: Any = venv.action_space  # a Box
     actions = np.random.default_rng(0).uniform(space.low, space.high, (64, *space.shape)).astype(np.float32)
 
     def step(i: int) -> int:
@@ -84,6 +92,18 @@ def vector(num_envs: int, threads: int, seconds: float, repeats: int) -> tuple[f
     return rate
 
 
+def check_counts(
+    parser: argparse.ArgumentParser, args: argparse.Namespace, minimums: Mapping[str, int]
+) -> None:
+    """End the command (``parser.error``, exit 2) naming the first option of ``minimums`` (its
+    ``dest`` -> smallest allowed value) whose value is smaller, before any work."""
+    for dest, minimum in minimums.items():
+        try:
+            check_int(f"--{dest.replace('_', '-')}", getattr(args, dest), minimum)
+        except ValueError as exc:
+            parser.error(str(exc))
+
+
 def main(argv: list[str] | None = None) -> dict[str, tuple[float, float]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="length of a timing window [s]")
@@ -91,9 +111,15 @@ def main(argv: list[str] | None = None) -> dict[str, tuple[float, float]]:
     parser.add_argument("--envs", type=int, default=16, help="environments of the vector env")
     parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)
+    # one env per batch would take the lone-env path (mj_step), not the threads the figure is of
+    check_counts(parser, args, {"repeats": 1, "envs": 2})
+    if not args.seconds > 0:
+        parser.error(f"--seconds={args.seconds!r} must be a number > 0")
     if importlib.util.find_spec("mujoco") is None:
-        print("the physics plant needs mujoco: pip install 'koopnav[physics]' (nothing timed)")
-        return {}
+        # a speed run that timed nothing is a failure, not a success with an empty table
+        parser.error(
+            f"the physics plant needs mujoco, which is not installed: {INSTALL_HINT} (nothing timed)"
+        )
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, load {load:.1f}")
     print(f"physics: {PHYSICS.timestep * 1e3:g} ms steps, {PHYSICS.substeps} per env-step; 3 robots")
@@ -110,8 +136,7 @@ def main(argv: list[str] | None = None) -> dict[str, tuple[float, float]]:
         physics = f"{rate * PHYSICS.substeps:15,.0f}" if "physics" in name else ""
         print(f"{name:45s} {rate:12,.0f} {cpu_rate:10,.0f} {physics}")
     if args.json:
-        with open(args.json, "w") as out:
-            json.dump({"load": load, **figures}, out, indent=1)
+        write_atomic(args.json, json.dumps({"load": load, **figures}, indent=1))
     return figures
 
 

@@ -140,11 +140,11 @@ COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
 # tuned or trained on the kinematic plant, on the suite's first 10 test layouts of both tasks on
 # carpet and on ice (slip=nominal and high: the physics plant's extremes of friction), on the
 # kinematic plant and on the physics plant; the two runs differ by --plant only, so every episode
-# pairs with its twin (same layout, starts and seed). Estimated 2.0 CPU-hours with 1 worker, half
-# of it the physics run's calibrations: the Koopman models (stacked and per-robot) and the robust
+# pairs with its twin (same layout, starts and seed). Estimated 2.2 CPU-hours with 1 worker (24
+# controllers), 56 CPU-minutes of it the physics run's calibrations: the Koopman models (stacked and per-robot) and the robust
 # NMPCs' residual calibrate on the plant they run on, 1,000,000 team-transitions each per friction
 # level, about 28 CPU-minutes per level on the physics plant (docs/physics.md, "The sim-to-sim
-# protocol"); gravel (slip=low) would add about 58 CPU-minutes. rl-ppo-set-physics, fine-tuned on
+# protocol"); gravel (slip=low) would add about 1.1 CPU-hours. rl-ppo-set-physics, fine-tuned on
 # the physics plant (docs/rl.md), runs in both as a row of its own (docs/make_sim2sim_md.py FINE_TUNED).
 SIM2SIM="--suite koopnav-bench-v1 --split test --layouts 0:10 --sweep slip=nominal,high --reference koopman-nmpc"
 RUNS[sim2sim_kinematic]="$SIM2SIM"

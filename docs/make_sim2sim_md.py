@@ -5,8 +5,8 @@ Usage::
     python docs/make_sim2sim_md.py KINEMATIC PHYSICS --out PAGE.md [--intro FILE] [--title TEXT]
 
 KINEMATIC and PHYSICS are the same protocol run on the two plants, each swept over the friction
-level (``python evaluate.py ... --sweep slip=nominal,low,high`` and the same with ``--plant
-mujoco``; ``data/publish.sh`` runs ``sim2sim_kinematic`` and ``sim2sim_physics``): sweep
+level (``python evaluate.py ... --sweep slip=nominal,high``, carpet and ice, and the same with
+``--plant mujoco``; ``data/publish.sh`` runs ``sim2sim_kinematic`` and ``sim2sim_physics``): sweep
 directories or their publications (``data/NAME/``, ``data/NAME.tar.xz``). Their settings must
 differ by the plant only, else the page is refused naming what differs.
 

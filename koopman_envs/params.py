@@ -8,17 +8,18 @@ this module. Values the paper leaves open are marked ``(ours)``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_choice
+from koopman_envs.checks import check_choice, check_number
 
 __all__ = [
     "DRIFT_MEAN_INTERVAL",
     "FAULT_STOPPED_SPEED",
     "FRICTION_MAX",
+    "INSTALL_HINT",
     "LIMITS",
     "MAX_EPISODES_PER_CELL",
     "MAX_ROBOTS",
@@ -117,6 +118,8 @@ PARAMS = PaperParams()
 #: unicycle with drawn slip (the default), or the MuJoCo differential-drive robots of
 #: :mod:`koopman_envs.sim.physics` (extra ``[physics]``).
 PLANTS = ("kinematic", "mujoco")
+#: How to install the physics plant's dependency (``mujoco``): the one message every refusal names
+INSTALL_HINT = "pip install 'koopnav[physics]'"
 
 
 @dataclass(frozen=True)
@@ -183,6 +186,11 @@ class PhysicsParams:
     speed_ki : float
         Integral gain [N m/rad] (ours): removes the steady error of the rolling load, a slow
         zero well below the loop's bandwidth.
+
+    Raises ``ValueError`` naming a value that is not a finite number > 0 (>= 0: ``com_offset``,
+    ``speed_ki``) or a ``timestep`` that does not divide ``PARAMS.dt`` into whole steps. The
+    limits stay fields, not properties of ``gear_factor``: the calibration key hashes the fields
+    (``CalibrationPlant``); tests/test_physics_params.py checks their derivation instead.
     """
 
     timestep: float = 0.005
@@ -203,6 +211,22 @@ class PhysicsParams:
     motor_time_constant: float = 0.1
     speed_kp: float = 0.12
     speed_ki: float = 0.6
+
+    def __post_init__(self) -> None:
+        for f in fields(self):  # a centre of mass on the axle and a P-only loop are models too
+            low = (None, 0.0) if f.name in ("com_offset", "speed_ki") else (0.0, None)
+            check_number(f.name, getattr(self, f.name), above=low[0], at_least=low[1])
+        steps = PARAMS.dt / self.timestep  # 0.1 / 0.005 is 20.000000000000004: a tolerance
+        if steps < 1.0 or abs(steps - round(steps)) > 1e-9 * steps:
+            raise ValueError(
+                f"timestep={self.timestep!r} must divide the control period PARAMS.dt={PARAMS.dt!r} "
+                f"into whole physics steps (e.g. 0.005, 20 per period); it gives {steps!r}"
+            )
+
+    @property
+    def wheel_radial_inertia(self) -> float:
+        """A wheel's radial inertia [kg m^2]: the URDF wheel's 1.1175580e-5 per 2.0712558e-5 axial."""
+        return self.wheel_inertia * 1.1175580 / 2.0712558
 
     @property
     def substeps(self) -> int:

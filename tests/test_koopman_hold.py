@@ -214,6 +214,51 @@ def test_the_held_input_figures_of_the_physics_page_are_the_committed_measuremen
                 assert line in page, f"docs/physics.md lacks the row of {path.name}: {line}"
 
 
+def page_commands(page: str) -> list:
+    """Every ``python bench/physics_model_error.py ...`` command of ``page``, parsed by the
+    bench's own parser (so its defaults fill what a command leaves out)."""
+    import shlex
+    import sys
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    try:
+        from physics_model_error import build_parser
+    finally:
+        sys.path.remove(str(ROOT / "bench"))
+    prefix = "python bench/physics_model_error.py"
+    lines = [line.split("#")[0] for line in page.splitlines() if line.startswith(prefix)]
+    return [build_parser().parse_args(shlex.split(line)[2:]) for line in lines]
+
+
+def made_by(row: dict, command) -> bool:
+    """Whether ``command`` (parsed) measures ``row``: its level, hold, random hold, refits and lifts."""
+    lifts = {f"koopman-u{memory}" for memory in command.memory}
+    if command.velocity:
+        lifts |= {"koopman-v"} | {f"koopman-u{memory}v" for memory in command.memory}
+    return (
+        row["level"] in command.levels
+        and row["hold"] == command.hold
+        and bool(row.get("random_hold")) == command.random_hold
+        and row.get("rollout_refits", 0) == command.rollout_refits
+        and set(row["closed_loop"]) == {"koopman", "unicycle"} | lifts
+    )
+
+
+def test_the_physics_pages_commands_name_the_controller_the_committed_measurements_ran() -> None:
+    """Every committed row names its closed-loop controller, and the page's commands that make
+    the row (the bench's defaults filling what they leave out) drive the same one: the hand-set
+    ``nominal-nmpc-v0``, not the tuned ``nominal-nmpc`` (another closed loop)."""
+    commands = page_commands((ROOT / "docs" / "physics.md").read_text(encoding="utf-8"))
+    assert commands, "docs/physics.md shows no bench/physics_model_error.py command"
+    for path in sorted(MEASURED.glob("*.json")):
+        for row in json.loads(path.read_text(encoding="utf-8")):
+            controller = row["measured_with"]["controller"]
+            makers = [command for command in commands if made_by(row, command)]
+            assert makers, f"no command on docs/physics.md makes {path.name}'s {row['level']} row"
+            for command in makers:
+                assert command.controller == controller, (path.name, command.controller, controller)
+
+
 #: Map 1 closed-loop episodes on the physics plant behind the page's closed-loop table: the
 #: evaluator's records (episodes.jsonl) reduced to the fields the table uses (:data:`EPISODE_FIELDS`)
 EPISODES = ROOT / "data" / "physics_closed_loop"

@@ -1,6 +1,7 @@
 """The physics plant (``plant="mujoco"``): the robot's response, surfaces, collisions, and every
 front's contract (Gymnasium's checker, PettingZoo's API and seed tests, the vector env against
-single envs, determinism across processes)."""
+single envs, determinism across processes). Pickling, rendering, straight-line lag, friction zones
+and every controller on the plant: tests/test_physics_fronts.py."""
 
 from __future__ import annotations
 
@@ -165,15 +166,6 @@ def test_same_seed_same_result_in_this_and_other_processes() -> None:
     assert physics_digest(4) != here
     with mp.get_context("spawn").Pool(1) as pool:
         assert pool.apply(physics_digest, (3,)) == here
-
-
-def test_rendering_draws_the_physics_poses() -> None:
-    env = gym.make(TR, plant="mujoco", render_mode="rgb_array")
-    env.reset(seed=0)
-    env.step(env.action_space.high)
-    frame = env.render()
-    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
-    env.close()
 
 
 def test_the_threaded_period_equals_the_stepped_one_bit_for_bit() -> None:

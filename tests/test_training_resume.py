@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -132,22 +133,15 @@ def _state(root: Path) -> dict[str, object]:
     return found
 
 
-@pytest.mark.slow
-def test_an_interrupted_run_resumed_ends_bit_for_bit_as_the_uninterrupted_one(
-    tmp_path, monkeypatch, capsys
-) -> None:
-    """4 rollouts; resume checkpoints after each; the process stopped 6 steps into the third
-    rollout (after the checkpoint at 768 steps was scored), then resumed: the same bytes as a run
-    that never stopped and never wrote a resume checkpoint."""
-    pytest.importorskip("stable_baselines3")
+def stop_in_the_third_rollout_and_resume(
+    run: Callable[..., int], stopped: Path, monkeypatch: pytest.MonkeyPatch
+) -> bytes:
+    """``run(stopped, "--resume-every", "1")`` stopped 6 env steps into its third rollout (after
+    the resume checkpoint of rollout 2), then ``run(stopped, "--resume", ...)`` to its end;
+    returns the resume checkpoint's bytes as the stop left them."""
     from baselines.sb3.training_callbacks import PeriodicCheckpoints
 
-    assert _run(tmp_path / "whole", "--resume-every", "0") == 0
-    assert not (tmp_path / "whole" / RESUME_FILE).exists()
-
-    stopped = tmp_path / "stopped"
     on_step = PeriodicCheckpoints._on_step
-
     steps_after_saving = {2: 0}  # env steps since the resume checkpoint after rollout 2
 
     def stop_in_the_third_rollout(self: PeriodicCheckpoints) -> bool:
@@ -160,12 +154,27 @@ def test_an_interrupted_run_resumed_ends_bit_for_bit_as_the_uninterrupted_one(
     with monkeypatch.context() as patch:
         patch.setattr(PeriodicCheckpoints, "_on_step", stop_in_the_third_rollout)
         with pytest.raises(Interrupted):
-            _run(stopped, "--resume-every", "1")
+            run(stopped, "--resume-every", "1")
     assert check_resume(stopped / RESUME_FILE)["kind"] == "sb3-ppo"
     assert not (stopped / "selection.json").exists()  # stopped before the end
     saved = (stopped / RESUME_FILE).read_bytes()
+    assert run(stopped, "--resume", "--resume-every", "1") == 0
+    return saved
 
-    assert _run(stopped, "--resume", "--resume-every", "1") == 0
+
+@pytest.mark.slow
+def test_an_interrupted_run_resumed_ends_bit_for_bit_as_the_uninterrupted_one(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    """4 rollouts; resume checkpoints after each; the process stopped 6 steps into the third
+    rollout (after the checkpoint at 768 steps was scored), then resumed: the same bytes as a run
+    that never stopped and never wrote a resume checkpoint."""
+    pytest.importorskip("stable_baselines3")
+
+    assert _run(tmp_path / "whole", "--resume-every", "0") == 0
+    assert not (tmp_path / "whole" / RESUME_FILE).exists()
+    stopped = tmp_path / "stopped"
+    saved = stop_in_the_third_rollout_and_resume(_run, stopped, monkeypatch)
     assert _state(stopped) == _state(tmp_path / "whole")
     metadata = json.loads((stopped / "target_reaching" / "metadata.json").read_text())
     assert metadata["resumed_from_timesteps"] == [768]

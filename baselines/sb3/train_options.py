@@ -13,7 +13,6 @@ from baselines.sb3.vec_env import FEATURE_SETS, LAYOUTS
 from baselines.suite_training import SuiteTraining, add_suite_options
 from koopman_envs import TASKS, keyword_argument
 from koopman_envs.checks import CLI_JSON_CHARS, parse_json
-from koopman_envs.params import PLANTS
 from koopman_envs.settings import UNCERTAINTY_PRESETS
 
 __all__ = [
@@ -237,11 +236,4 @@ def plant_and_slips(
         parser.error(str(exc))
     if n_envs < len(suite.slip_levels):
         parser.error(f"--n-envs {n_envs} is fewer than the {len(suite.slip_levels)} slip levels")
-    if suite.plant != PLANTS[0] and args.algo == "ppo" and (args.resume_every or args.resume):
-        # the resume checkpoint pickles the vector env, and the MuJoCo worlds do not pickle
-        # (found when a 600k-step run ended at its first resume checkpoint, 491,520 steps)
-        parser.error(
-            f"--plant {suite.plant} writes no resume checkpoint (its MuJoCo envs do not pickle): "
-            f"give --resume-every 0{' and leave out --resume' if args.resume else ''}"
-        )
     return suite

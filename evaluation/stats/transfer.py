@@ -2,7 +2,8 @@
 
 The sim-to-sim protocol (issue 62, docs/sim2sim_results.md) runs the same controllers, cells and
 seeds on the kinematic plant and on the physics plant (``--plant mujoco``), each swept over the
-friction level (``--sweep slip=nominal,low,high``: carpet, gravel and ice on the physics plant).
+friction level (``--sweep slip=nominal,high``: carpet and ice on the physics plant; gravel,
+``low``, is left out for its calibration cost, docs/physics.md).
 Two runs are the same protocol when their settings differ by the plant only
 (:func:`check_same_protocol`); then per friction level:
 

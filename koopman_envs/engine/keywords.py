@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from koopman_envs.checks import check_choice, check_int, check_number, closest, did_you_mean
-from koopman_envs.params import LIMITS, PARAMS, PLANTS, SLIP_NAMES, SLIP_SURFACES, SURFACES
+from koopman_envs.params import INSTALL_HINT, LIMITS, PARAMS, PLANTS, SLIP_NAMES, SLIP_SURFACES, SURFACES
 from koopman_envs.settings.moving_obstacles import MOVER_BEHAVIOURS, parse_movers
 from koopman_envs.settings.uncertainty import SENSING_MODES, UNCERTAINTY_PRESETS
 from koopman_envs.sim.formations import FORMATION_SHAPES
@@ -73,7 +73,7 @@ def _plant(name: str, value: Any) -> str:
     plant = _choice(PLANTS)(name, value)
     if plant == "mujoco" and importlib.util.find_spec("mujoco") is None:
         raise ModuleNotFoundError(
-            f"{name}={plant!r} needs the mujoco package, which is not installed: pip install 'koopnav[physics]'"
+            f"{name}={plant!r} needs the mujoco package, which is not installed: {INSTALL_HINT}"
         )
     return plant
 

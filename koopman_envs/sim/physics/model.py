@@ -55,7 +55,7 @@ def world_bytes(n_robots: int, n_obstacles: int) -> int:
 def _robot(i: int, radius: float, p: PhysicsParams) -> str:
     r, half = p.wheel_radius, p.wheel_separation / 2.0
     wheel_axial = p.wheel_inertia
-    wheel_radial = p.wheel_inertia * 1.1175580 / 2.0712558  # the URDF's ratio of the two
+    wheel_radial = p.wheel_radial_inertia
     wheels = "".join(
         f"""
       <body name="wheel_{side}_{i}" pos="0 {y!r} 0">

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.params import PHYSICS, PhysicsParams
+from koopman_envs.params import INSTALL_HINT, PHYSICS, PhysicsParams
 from koopman_envs.sim.dynamics import saturated_command, wrap_scalar
 from koopman_envs.sim.perception import child_generator
 from koopman_envs.sim.physics.model import OBSTACLE_HEIGHT, robot_mjcf
@@ -41,7 +41,6 @@ from koopman_envs.sim.physics.surfaces import SurfaceSetting, draw_friction, sur
 from koopman_envs.sim.slip.zones import SlipZone, ZoneTable
 
 __all__ = [
-    "INSTALL_HINT",
     "PhysicsWorld",
     "drive_setpoints",
     "import_mujoco",
@@ -49,9 +48,6 @@ __all__ = [
     "wheel_setpoints",
     "zone_surface",
 ]
-
-#: how to get the physics plant's dependency
-INSTALL_HINT = "pip install 'koopnav[physics]'"
 
 
 def import_mujoco() -> Any:
@@ -210,10 +206,7 @@ class PhysicsWorld:
         # the wheels' friction as written into each model: a model is written only when its
         # robots' surfaces change (at a reset, or a robot crossing into another zone)
         self._applied = np.full((num_envs, n_robots), np.nan)
-        # views of each world's arrays, taken once (every access of a MuJoCo field makes a new one)
-        self._geom_friction = [m.geom_friction for m in self.models]
-        self._ctrl_views = [d.ctrl for d in self.datas]
-        self._qpos_views = [d.qpos for d in self.datas]
+        self._take_views()
         self._ctrl = np.zeros((num_envs, 4 * n_robots))
         self._every = np.arange(num_envs)
         self._zones = ZoneTable(num_envs, n_zones, n_robots) if n_zones else None
@@ -222,6 +215,30 @@ class PhysicsWorld:
         #: MuJoCo's thread pool and one scratch MjData per thread, made at the first threaded period
         self._pool: Any = None
         self._scratch: list[Any] = []
+
+    def _take_views(self) -> None:
+        """Views of each world's arrays, taken once (every access of a MuJoCo field makes a new
+        one); a pickled view would be a copy, no longer the world's, so a load takes them anew."""
+        self._geom_friction = [m.geom_friction for m in self.models]
+        self._ctrl_views = [d.ctrl for d in self.datas]
+        self._qpos_views = [d.qpos for d in self.datas]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What a pickle holds: the models, the data and the draws, without the ``mujoco``
+        module, the thread pool and its scratch data, or the views into the worlds' arrays
+        (made again on load: the views by :meth:`__setstate__`, the pool at the first threaded
+        period). ``MjModel`` and ``MjData`` pickle whole, so a loaded world steps on bit for bit."""
+        state = self.__dict__.copy()
+        for name in ("_mujoco", "_pool", "_scratch", "_geom_friction", "_ctrl_views", "_qpos_views"):
+            del state[name]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Load a pickled world: its state, the module imported again, the views taken again."""
+        self.__dict__.update(state)
+        self._mujoco = import_mujoco()
+        self._pool, self._scratch = None, []
+        self._take_views()
 
     def close(self) -> None:
         """Shut the thread pool down (a later threaded period makes a new one)."""
