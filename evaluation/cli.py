@@ -245,7 +245,8 @@ def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
         nargs="+",
         metavar="NAME[:KEY=VALUE,...]",
         help=f"controller configurations (default: every registered one: "
-        f"{' '.join(controllers.available())})",
+        f"{' '.join(controllers.available(variants=False))}; the -v0 variants of the tuned presets "
+        "run when named)",
     )
     ctrl.add_argument(
         "--solver",
