@@ -244,8 +244,8 @@ def _controller_options(ctrl: argparse._ArgumentGroup) -> None:
         "--controllers",
         nargs="+",
         metavar="NAME[:KEY=VALUE,...]",
-        help=f"controller configurations (default: every registered one: "
-        f"{' '.join(controllers.available())})",
+        help="controller configurations (default: every registered one but the tuned presets' -v0 "
+        f"variants, which run when named: {' '.join(controllers.available(variants=False))})",
     )
     ctrl.add_argument(
         "--solver",
