@@ -15,8 +15,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers import registry
-from controllers.base import ControllerStats, calibratable
+from controllers.base import Calibratable, ControllerStats
 from controllers.calibration import calibrate_controller
 from evaluation.episodes.records import finished_status
 from evaluation.run.plan import EpisodeSpec, slip_value
@@ -27,8 +26,6 @@ __all__ = ["CalibrationError", "batch_cell", "run_batch", "run_episode", "runs_i
 
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
 _COMMON_SUMMARY = frozenset(ControllerStats().summary())
-#: per controller configuration (label, name, options): whether its episodes run in batches
-_BATCHABLE: dict[tuple[str, str, str], bool] = {}
 
 
 class CalibrationError(RuntimeError):
@@ -129,23 +126,23 @@ def batch_cell(spec: EpisodeSpec) -> EpisodeSpec:
 
 
 def runs_in_batch(spec: EpisodeSpec) -> bool:
-    """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller
-    decides for many teams at once (``acts_in_batch``) and calibrates nothing, the compute is
-    free (no ``--realtime``: the one-env runner charges it), and it records no animation."""
+    """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller's
+    class decides for many teams at once (``acts_in_batch``, read from the class as
+    :func:`~koopman_envs.fronts.batch_episodes.run_episodes_in_batch` reads it, nothing built)
+    and calibrates nothing, the compute is free (no ``--realtime``: the one-env runner charges
+    it), and it records no animation. A controller whose class is not known without a call (a
+    factory function without a class annotation) runs alone."""
     if spec.animation or spec.compute_scale > 0:
         return False
-    key = (spec.controller, spec.controller_name, spec.controller_options)
-    if key not in _BATCHABLE:
-        try:
-            factory = spec.controller_factory or registry.factory(spec.controller_name or spec.controller)
-            if isinstance(factory, type) and not getattr(factory, "acts_in_batch", False):
-                _BATCHABLE[key] = False  # known from the class: nothing to build
-                return False
-            ctrl = spec.config.build()
-            _BATCHABLE[key] = bool(getattr(ctrl, "acts_in_batch", False)) and calibratable(ctrl) is None
-        except Exception:  # noqa: BLE001 - a controller that does not build runs alone (and records its error)
-            _BATCHABLE[key] = False
-    return _BATCHABLE[key]
+    try:
+        kind = spec.config.controller_class()
+    except Exception:  # noqa: BLE001 - a controller that cannot be found runs alone (and records its error)
+        return False
+    return (
+        kind is not None
+        and bool(getattr(kind, "acts_in_batch", False))
+        and not issubclass(kind, Calibratable)
+    )
 
 
 def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
