@@ -41,7 +41,15 @@ from pathlib import Path
 from typing import Any
 
 import controllers
-from evaluation.cli import build_parser, parse_env_kwargs, program_name, spec_from_args, split_words
+from evaluation.cli import (
+    CommandLineRun,
+    build_parser,
+    parse_env_kwargs,
+    program_name,
+    run_from_args,
+    spec_from_args,
+    split_words,
+)
 from evaluation.episodes import (
     DEFAULT_OUT,
     DEGRADED_FAILURE_SHARE,
@@ -270,15 +278,16 @@ def _print_summary(
         )
 
 
-def _run_sweep(args: argparse.Namespace, spec: RunSpec, words: list[str]) -> int:
+def _run_sweep(args: argparse.Namespace, run: CommandLineRun, words: list[str]) -> int:
     """``--sweep``: every level's run in its own directory, then the robustness profiles."""
     for option in ("baseline", "check", "badge", "ablation"):
         if getattr(args, option):
             raise ValueError(f"--sweep does not combine with --{option}; run them separately")
-    axes = [parse_sweep(text) for text in args.sweep]
+    spec, reference = run.spec, run.reference
+    axes = [parse_sweep(text) for text in run.sweep]
     labels = [c.label for c in spec.controllers] if spec.controllers is not None else None
-    if args.reference and labels is not None:
-        check_choice("--reference", args.reference, labels, sep=" ", among="the controllers")
+    if reference and labels is not None:
+        check_choice("--reference", reference, labels, sep=" ", among="the controllers")
     if len({axis.key for axis in axes}) < len(axes):
         raise ValueError(f"--sweep: an axis is given twice ({[a.key for a in axes]})")
     if not args.resume:
@@ -293,7 +302,7 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, words: list[str]) -> int
     ensure_output_dir(args.out)
     aliases = level_aliases(spec, axes)
     command = " ".join([program_name(), *(w for w in words if w != "--resume")])
-    write_manifest(args.out, axes, args.reference, command, aliases)
+    write_manifest(args.out, axes, reference, command, aliases)
     start = time.perf_counter()
     done = run_sweep(
         spec,
@@ -305,7 +314,7 @@ def _run_sweep(args: argparse.Namespace, spec: RunSpec, words: list[str]) -> int
         progress=not args.quiet,
         batch=args.batch,
     )
-    axes_profiles = profiles(done, args.reference)
+    axes_profiles = profiles(done, reference)
     paths = write_profiles(axes_profiles, args.out, command)
     if not args.quiet or args.full_report:
         print(terminal_overview(axes_profiles))
@@ -412,9 +421,10 @@ def _run(args: argparse.Namespace, argv: list[str] | None) -> int:
                 file=sys.stderr,
             )
             words += ["--out", args.out]  # so that a resume hint names this run's directory
-        spec = spec_from_args(args)
-        if args.sweep:
-            return _run_sweep(args, spec, words)
+        run = run_from_args(args)
+        if run.sweep:
+            return _run_sweep(args, run, words)
+        spec = run.spec
         # checked before any episode
         thresholds = load_thresholds(args.check) if args.check else None
         baseline = load_baseline(args.baseline) if args.baseline else None
