@@ -21,13 +21,13 @@ from evaluation.execution.backends import (
     work_units,
 )
 from evaluation.execution.runner import evaluate, schedule, usable_controllers
-from evaluation.execution.worker import CalibrationError, batch_cell, run_batch, run_episode, runs_in_batch
+from evaluation.execution.worker import CalibrationError, batch_cell, episode_record, run_batch, runs_in_batch
 
 __all__ = [
     "CalibrationError",
     "batch_cell",
+    "episode_record",
     "run_batch",
-    "run_episode",
     "runs_in_batch",
     "BACKENDS",
     "BATCH",
