@@ -220,6 +220,27 @@ def test_the_resume_hint_names_the_directory_a_repeated_run_chose(monkeypatch, t
     )
 
 
+@pytest.mark.parametrize("words", [["--controllers", "consensus"], ["--crowd", "crowd", "--episodes", "1"]])
+def test_the_command_reads_the_parsed_options_without_changing_them(monkeypatch, tmp_path, words) -> None:
+    """The output directory chosen, a protocol's own sweep axes and reference: derived values,
+    never written into the options (issue 61: spec_from_args edited args while reading it)."""
+    from evaluation.execution import runner
+    from evaluation.execution.backends import RunInterrupted
+
+    def interrupted(*_, **__):
+        raise RunInterrupted(0, 1)
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "episodes.jsonl").write_text("an earlier run\n")  # a new directory is chosen
+    monkeypatch.setattr(command, "evaluate", interrupted)
+    monkeypatch.setattr(runner, "evaluate", interrupted)  # a sweep's levels
+    args = build_parser().parse_args(words)
+    before = dict(vars(args))
+    assert command.run_command(args, words) == ev.INTERRUPTED_EXIT
+    assert vars(args) == before
+
+
 def test_no_option_defaults_to_a_path_in_the_checkout(monkeypatch, tmp_path) -> None:
     """Run from anywhere, no default of the evaluator names a file or directory of the checkout
     (the ablation report went to docs/ablation.md unless told otherwise)."""

@@ -67,7 +67,9 @@ def run_command(args: argparse.Namespace, argv: list[str] | None) -> int:
     """Everything after parsing: check the input, run, report, and return the exit code."""
     words = list(sys.argv[1:] if argv is None else argv)
     try:
-        given, args.out = args.out, output_directory(args.out, args.resume)
+        given = args.out
+        # the directory chosen, in a copy of the options: the caller's stay as parsed
+        args = argparse.Namespace(**{**vars(args), "out": output_directory(args.out, args.resume)})
         if given is None and args.out != DEFAULT_OUT:  # the same command run again: a new directory
             print(
                 f"note: {DEFAULT_OUT}/ holds an earlier run, so this one writes to {args.out}/ (--out DIR "
