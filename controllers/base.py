@@ -217,6 +217,11 @@ class BaseController(ABC):
     #: whether :meth:`act_many` decides for many teams at once (an evaluation then runs this
     #: controller's episodes together in the vector env rather than one by one)
     acts_in_batch = False
+    #: how long an episode of this controller takes beside the others, for scheduling only: the
+    #: evaluator hands the costliest controllers' episodes to its workers first, so that no
+    #: worker idles at the end of a run (0: the cheap ones; the Koopman-NMPC 2, the nominal NMPC
+    #: 1). Read from the class, never from a built controller; no record depends on it.
+    episode_cost = 0
 
     def __init__(self) -> None:
         self.scenario: Scenario | None = None

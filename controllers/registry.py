@@ -39,6 +39,8 @@ from koopman_envs.checks import choice_message
 __all__ = [
     "ENTRY_POINT_GROUP",
     "available",
+    "controller_class",
+    "declared_class",
     "factory",
     "is_import_path",
     "make",
@@ -50,16 +52,35 @@ __all__ = [
 ENTRY_POINT_GROUP = "koopnav.controllers"
 
 _REGISTRY: dict[str, Callable[..., Controller] | str] = {}
+#: name -> the controller class its factory builds, for a factory that does not say so itself
+#: (a preset's ``functools.partial``): a class or ``"module:Class"``
+_BUILDS: dict[str, type | str] = {}
 _WRAPPERS: dict[str, Callable[..., Controller] | str] = {}
 #: wrapper prefix -> (its option dataclass as "module:Class", the prefix of its options, what it does)
 _WRAPPER_OPTIONS: dict[str, tuple[str, str, str]] = {}
 
 
-def register(name: str, factory: Callable[..., Controller] | str, *, overwrite: bool = False) -> None:
-    """Register a controller factory (a callable or a ``"module:attribute"`` string)."""
+def register(
+    name: str,
+    factory: Callable[..., Controller] | str,
+    *,
+    overwrite: bool = False,
+    builds: type | str | None = None,
+) -> None:
+    """Register a controller factory (a callable or a ``"module:attribute"`` string).
+
+    ``builds``: the controller class the factory builds (or its ``"module:Class"``), for a factory
+    that is neither that class nor a function annotated to return it (a ``functools.partial``),
+    so that what the class declares (``acts_in_batch``, ``episode_cost``) can be read without
+    building a controller (:func:`controller_class`).
+    """
     if not overwrite and name in _REGISTRY:
         raise ValueError(f"controller {name!r} is already registered")
     _REGISTRY[name] = factory
+    if builds is not None:
+        _BUILDS[name] = builds
+    else:
+        _BUILDS.pop(name, None)
 
 
 def register_wrapper(
@@ -158,18 +179,31 @@ def _is_controller_class(target: Any) -> bool:
     return isinstance(target, type) and all(callable(getattr(target, m, None)) for m in _CONTROLLER_METHODS)
 
 
+def _return_annotation(target: Any) -> Any:
+    """What a callable's return annotation names (None without one, or when it cannot be resolved)."""
+    if isinstance(target, type) or not callable(target):
+        return None
+    try:
+        return typing.get_type_hints(target).get("return")
+    except Exception:  # noqa: BLE001 - an unresolvable annotation declares nothing
+        return None
+
+
+def declared_class(target: Any) -> type | None:
+    """The controller class a factory declares it builds, found without calling it: the
+    factory itself when it is a controller class, the class its return annotation names when it
+    is a function; None otherwise (a ``functools.partial``, a function annotated with the
+    :class:`Controller` protocol only, anything that is not a factory)."""
+    if isinstance(target, type):
+        return target if _is_controller_class(target) else None
+    returns = _return_annotation(target)
+    return returns if _is_controller_class(returns) else None
+
+
 def _declares_controller(target: Any) -> bool:
     """Whether ``target`` declares the controller contract without being called: a controller
     class, or a function whose return annotation is one (or the :class:`Controller` protocol)."""
-    if isinstance(target, type):
-        return _is_controller_class(target)
-    if not callable(target):
-        return False
-    try:
-        returns = typing.get_type_hints(target).get("return")
-    except Exception:  # noqa: BLE001 - an unresolvable annotation declares nothing
-        return False
-    return returns is Controller or _is_controller_class(returns)
+    return declared_class(target) is not None or _return_annotation(target) is Controller
 
 
 def _checked_import(name: str) -> Callable[..., Controller]:
@@ -213,6 +247,23 @@ def factory(name: str) -> Callable[..., Controller]:
         raise ValueError(choice_message("controller", name, available(), sep=" "))
     loaded: Callable[..., Controller] = points[name].load()
     return loaded
+
+
+def controller_class(name: str) -> type | None:
+    """The class controller ``name`` builds, found without building it: its factory's
+    :func:`declared_class`, or the class it was registered as building (``register(...,
+    builds=...)``: the presets). Behind wrapper prefixes, the outermost wrapper's class
+    (``safe:rl-ppo`` builds a safety filter); :func:`split_name` gives the wrapped name.
+
+    Returns None when only a call would tell (a factory function without a class annotation).
+    Raises ``ValueError`` for an unknown name, as :func:`factory` does.
+    """
+    prefixes, _ = split_name(name)
+    if prefixes:
+        return declared_class(_resolve(_WRAPPERS[prefixes[0]]))
+    if name in _BUILDS:
+        return declared_class(_resolve(_BUILDS[name]))
+    return declared_class(factory(name))
 
 
 def make(name: str, **options: Any) -> Controller:

@@ -9,7 +9,7 @@
 - :mod:`evaluation.execution`: workers, backends, :func:`evaluate`;
 - :mod:`evaluation.experiments`: the protocols, the ablation, ``--sweep``, the training seeds;
 - :mod:`evaluation.tune`: the tuner (``python -m evaluation.tune``);
-- the command lines at the root: :mod:`evaluation.cli` (``evaluate.py``'s options),
+- the command lines at the root: :mod:`evaluation.cli` (``evaluate.py``'s command line),
   :mod:`evaluation.exit_codes` (the one table of exit codes), ``python -m evaluation.forget``,
   ``python -m evaluation.archive``;
 - :data:`MOVED_PATHS`: the previous release's documented module paths, which warn and give the

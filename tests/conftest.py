@@ -160,7 +160,7 @@ def _restore_controller_registry():
     tests/test_prose_checks.py once read 15 controllers in CI and 14 locally)."""
     from controllers import registry
 
-    tables = (registry._REGISTRY, registry._WRAPPERS, registry._WRAPPER_OPTIONS)
+    tables = (registry._REGISTRY, registry._BUILDS, registry._WRAPPERS, registry._WRAPPER_OPTIONS)
     saved = [dict(table) for table in tables]
     yield
     for table, before in zip(tables, saved, strict=True):

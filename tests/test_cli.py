@@ -10,8 +10,14 @@ from pathlib import Path
 
 import pytest
 
+import controllers
 import evaluate as ev
-from evaluation.cli import EXAMPLES, build_parser, spec_from_args
+from evaluation.cli import (
+    EXAMPLES,
+    build_parser,
+    command,  # the command evaluate.py runs: what a test stubs
+    spec_from_args,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -73,7 +79,7 @@ def test_the_resume_hint_uses_the_program_name(monkeypatch, tmp_path, capsys) ->
     def interrupted(*_, **__):
         raise RunInterrupted(1, 4)
 
-    monkeypatch.setattr(ev, "evaluate", interrupted)
+    monkeypatch.setattr(command, "evaluate", interrupted)
     monkeypatch.setattr(sys, "argv", ["/venv/bin/koopnav-evaluate"])
     code = ev.main(["--controllers", "consensus", "--out", str(tmp_path)])
     assert code == ev.INTERRUPTED_EXIT
@@ -97,7 +103,7 @@ def test_every_example_of_the_help_parses_and_makes_a_run(options: str, what: st
     they describe; a file an example names exists in the checkout."""
     args = build_parser().parse_args(shlex.split(options))
     if args.options:
-        assert args.options in ev.controllers.available()
+        assert args.options in controllers.available()
         return
     spec = spec_from_args(args)
     assert spec.episodes >= 1 and spec.envs
@@ -206,12 +212,33 @@ def test_the_resume_hint_names_the_directory_a_repeated_run_chose(monkeypatch, t
     monkeypatch.chdir(tmp_path)
     (tmp_path / "results").mkdir()
     (tmp_path / "results" / "episodes.jsonl").write_text("an earlier run\n")
-    monkeypatch.setattr(ev, "evaluate", interrupted)
+    monkeypatch.setattr(command, "evaluate", interrupted)
     monkeypatch.setattr(sys, "argv", ["evaluate.py"])
     assert ev.main(["--controllers", "consensus"]) == ev.INTERRUPTED_EXIT
     assert "continue with: python evaluate.py --controllers consensus --out results-2 --resume" in (
         capsys.readouterr().err
     )
+
+
+@pytest.mark.parametrize("words", [["--controllers", "consensus"], ["--crowd", "crowd", "--episodes", "1"]])
+def test_the_command_reads_the_parsed_options_without_changing_them(monkeypatch, tmp_path, words) -> None:
+    """The output directory chosen, a protocol's own sweep axes and reference: derived values,
+    never written into the options (issue 61: spec_from_args edited args while reading it)."""
+    from evaluation.execution import runner
+    from evaluation.execution.backends import RunInterrupted
+
+    def interrupted(*_, **__):
+        raise RunInterrupted(0, 1)
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "episodes.jsonl").write_text("an earlier run\n")  # a new directory is chosen
+    monkeypatch.setattr(command, "evaluate", interrupted)
+    monkeypatch.setattr(runner, "evaluate", interrupted)  # a sweep's levels
+    args = build_parser().parse_args(words)
+    before = dict(vars(args))
+    assert command.run_command(args, words) == ev.INTERRUPTED_EXIT
+    assert vars(args) == before
 
 
 def test_no_option_defaults_to_a_path_in_the_checkout(monkeypatch, tmp_path) -> None:
@@ -244,5 +271,5 @@ def test_the_ablation_report_goes_under_out_unless_a_page_is_named(tmp_path) -> 
     args = build_parser().parse_args([*tiny, "--ablation-out", str(elsewhere)])
     results = results_from_log(tmp_path / "run" / "episodes.jsonl")
     results.config["workers"] = 1  # what the run adds to the log's settings
-    ev._write_ablation(args, results, 1.0)
+    command.write_ablation(args, results, 1.0)
     assert f"--episodes 1 --ablation-out {elsewhere}`." in elsewhere.read_text()

@@ -118,10 +118,11 @@ def test_the_evaluator_charges_the_scaled_decision_time_and_names_the_machine(
     import functools
     import json
 
-    import evaluation.execution.worker
+    import evaluation.run.spec
 
+    # the one place a run makes its charge, which reaches the episode runner as it is
     monkeypatch.setattr(
-        evaluation.execution.worker, "ComputeCharge", functools.partial(ComputeCharge, clock=_Ticks(0.05))
+        evaluation.run.spec, "ComputeCharge", functools.partial(ComputeCharge, clock=_Ticks(0.05))
     )
     code = ev.main(
         [

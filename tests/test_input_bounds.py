@@ -20,7 +20,10 @@ import controllers
 import evaluate as ev
 import koopman_envs  # noqa: F401 - registers the ids
 from controllers.option_spec import options
-from evaluation.cli import parse_env_kwargs
+from evaluation.cli import (
+    command,  # the command evaluate.py runs: what a test stubs
+    parse_env_kwargs,
+)
 from evaluation.execution.backends import RunInterrupted
 from evaluation.exit_codes import EXIT_CODES, EXIT_PRECEDENCE, worst
 from evaluation.experiments.sweep import MAX_SWEEP_LEVELS, load_sweep, parse_sweep, refuse_sweep_clash
@@ -305,7 +308,7 @@ def _verdict(failed: int, problems: list[str], worse: list[str], uncovered: list
     )
     results = SimpleNamespace(failed_episodes=[{}] * failed)
     check = SimpleNamespace(problems=problems, skipped=[], reading="interval") if problems else None
-    return ev._verdict(args, results, check, worse, uncovered)
+    return command.verdict(args, results, check, worse, uncovered)
 
 
 @pytest.mark.parametrize(
@@ -337,7 +340,7 @@ def test_exit_1_internal_error_prints_the_traceback_and_says_it_is_a_bug(
     def broken(*args: Any, **kwargs: Any) -> None:
         raise KeyError("a bug")
 
-    monkeypatch.setattr(ev, "evaluate", broken)
+    monkeypatch.setattr(command, "evaluate", broken)
     assert ev.main(_run(tmp_path, "--controllers", "consensus")) == ev.INTERNAL_ERROR_EXIT == 1
     err = capsys.readouterr().err
     assert "Traceback" in err and "KeyError: 'a bug'" in err and "internal error in python evaluate.py" in err
@@ -376,7 +379,7 @@ def test_exit_130_interrupted(tmp_path: Path, monkeypatch) -> None:
     def interrupted(*args: Any, **kwargs: Any) -> None:
         raise RunInterrupted(0, 1)
 
-    monkeypatch.setattr(ev, "evaluate", interrupted)
+    monkeypatch.setattr(command, "evaluate", interrupted)
     assert ev.main(_run(tmp_path, "--controllers", "consensus")) == ev.INTERRUPTED_EXIT == 130
 
 

@@ -272,17 +272,21 @@ def test_the_evaluator_counts_mover_collisions_apart(tmp_path) -> None:
 
 
 def test_the_crowd_protocol_sweeps_the_mover_count_of_one_behaviour() -> None:
-    from evaluation.cli import build_parser, spec_from_args
+    from evaluation.cli import build_parser, run_from_args
     from evaluation.experiments.protocols import CROWD_COUNTS, crowd_protocol
 
     args = build_parser().parse_args(["--crowd", "waypoints"])
-    spec = spec_from_args(args)
-    assert args.sweep == ["movers.count=" + ",".join(map(str, CROWD_COUNTS))]
-    assert args.reference == "koopman-nmpc"  # paired against the paper's method
+    run = run_from_args(args)
+    spec = run.spec
+    assert run.sweep == ("movers.count=" + ",".join(map(str, CROWD_COUNTS)),)
+    assert run.reference == "koopman-nmpc"  # paired against the paper's method
+    assert args.sweep is None and args.reference is None  # read, not changed
     # with a controller list of one's own, the default stays the first of them (it may lack koopman-nmpc)
     own = build_parser().parse_args(["--crowd", "crowd", "--controllers", "consensus", "nominal-nmpc"])
-    spec_from_args(own)
-    assert own.reference is None
+    assert run_from_args(own).reference is None
+    # a sweep of one's own replaces the protocol's
+    given = build_parser().parse_args(["--crowd", "crowd", "--sweep", "movers.speed=0.2,0.4"])
+    assert run_from_args(given).sweep == ("movers.speed=0.2,0.4",)
     assert (
         spec.episodes == 20
         and spec.random_maps == 20

@@ -143,15 +143,17 @@ def test_the_lidar_protocol_sweeps_state_beams_and_beams_only() -> None:
     """``--lidar``: every controller that perceives (the set policies too; rl-ppo refuses lidar),
     among movers, swept over exact state, the beams with the map, and the beams only; the
     level 'lidar with the map known' of both axes is one run (the same episodes)."""
-    from evaluation.cli import build_parser, spec_from_args
+    from evaluation.cli import build_parser, run_from_args
     from evaluation.experiments.protocols import LIDAR_AXES
     from evaluation.experiments.sweep import level_aliases, parse_sweep
 
     args = build_parser().parse_args(["--lidar"])
-    spec = spec_from_args(args)
-    assert args.sweep == list(LIDAR_AXES) and args.reference == "koopman-nmpc"
+    run = run_from_args(args)
+    spec = run.spec
+    assert run.sweep == LIDAR_AXES and run.reference == "koopman-nmpc"
+    assert args.sweep is None and args.reference is None  # read, not changed
     names = [c.name for c in spec.controllers]
     assert "koopman-nmpc" in names and "rl-ppo-set-movers" in names and "rl-ppo" not in names
     assert spec.env_kwargs["sensing"] == "lidar" and spec.env_kwargs["movers"]["count"] > 0
-    aliases = level_aliases(spec, [parse_sweep(a) for a in args.sweep])
+    aliases = level_aliases(spec, [parse_sweep(a) for a in run.sweep])
     assert aliases == {"lidar.map_known=true": "sensing=lidar"}

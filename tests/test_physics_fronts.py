@@ -84,7 +84,7 @@ def test_driving_straight_the_robot_lags_its_commanded_path_more_on_ice_than_on_
 def test_rendering_draws_the_bodies_poses_as_they_move() -> None:
     """The frame changes as the robots drive, and the robots drawn are the MuJoCo bodies' planar
     poses (not the kinematic plant's: the same seed and commands there draw another frame)."""
-    from koopman_envs.fronts.rendering import Renderer
+    from koopman_envs.rendering.renderer import Renderer
     from koopman_envs.sim.physics.world import planar_poses
 
     drawn: list[np.ndarray] = []

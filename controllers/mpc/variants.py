@@ -84,6 +84,7 @@ class NominalNMPC(NMPCController):
     """
 
     name = "nominal-nmpc"
+    episode_cost = 1  # an optimizer: after the Koopman-NMPC, before the cheap controllers
 
     def __init__(self, config: NMPCConfig | None = None, **options: Any) -> None:
         super().__init__(None, config, **options)
@@ -182,6 +183,7 @@ class KoopmanNMPC(NMPCController):
     """
 
     name = "koopman-nmpc"
+    episode_cost = 2  # the longest episodes: an optimizer over the learned model (its lifted state)
     #: allowed values of the text options (controllers.option_spec)
     OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "dictionary": tuple(DICTIONARIES),

@@ -366,13 +366,14 @@ def build_preset(preset: Preset, **options: Any) -> Any:
 
 
 def register_builtins(register: Any) -> None:
-    """Register every built-in controller and preset with ``register(name, factory)``."""
+    """Register every built-in controller and preset with ``register(name, factory)``; a preset
+    with ``builds=`` its base's class, which its partial does not name."""
     presets = {preset.name for preset in PRESETS}
     for name, path in CONTROLLERS.items():
         if name not in presets:  # a tuned controller is registered as its preset below
             register(name, path)
     for preset in PRESETS:
-        register(preset.name, functools.partial(build_preset, preset))
+        register(preset.name, functools.partial(build_preset, preset), builds=CONTROLLERS[preset.base])
 
 
 def builtin_names() -> list[str]:

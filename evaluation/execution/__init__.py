@@ -20,14 +20,14 @@ from evaluation.execution.backends import (
     stop_on_sigterm,
     work_units,
 )
-from evaluation.execution.runner import evaluate, usable_controllers
-from evaluation.execution.worker import CalibrationError, batch_cell, run_batch, run_episode, runs_in_batch
+from evaluation.execution.runner import evaluate, schedule, usable_controllers
+from evaluation.execution.worker import CalibrationError, batch_cell, episode_record, run_batch, runs_in_batch
 
 __all__ = [
     "CalibrationError",
     "batch_cell",
+    "episode_record",
     "run_batch",
-    "run_episode",
     "runs_in_batch",
     "BACKENDS",
     "BATCH",
@@ -38,5 +38,6 @@ __all__ = [
     "stop_on_sigterm",
     "work_units",
     "evaluate",
+    "schedule",
     "usable_controllers",
 ]

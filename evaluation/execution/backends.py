@@ -14,7 +14,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from evaluation.episodes.records import is_degraded, ran
-from evaluation.execution.worker import batch_cell, run_batch, run_episode, runs_in_batch
+from evaluation.execution.worker import batch_cell, episode_record, run_batch, runs_in_batch
 from evaluation.run.plan import EpisodeSpec
 from koopman_envs.checks import check_choice
 
@@ -132,7 +132,7 @@ def work_units(todo: Sequence[EpisodeSpec], batch: int = BATCH) -> list[tuple[Ep
 
 
 def _run_unit(unit: tuple[EpisodeSpec, ...]) -> list[dict[str, Any]]:
-    return run_batch(unit) if len(unit) > 1 else [run_episode(unit[0])]
+    return run_batch(unit) if len(unit) > 1 else [episode_record(unit[0])]
 
 
 def _run_ray(todo: Sequence[tuple[EpisodeSpec, ...]], workers: int) -> Iterator[dict[str, Any]]:

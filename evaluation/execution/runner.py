@@ -17,11 +17,25 @@ from evaluation.run.plan import EpisodeSpec
 from evaluation.run.spec import RunSpec
 from koopman_envs.checks import check_choice, check_int
 
-__all__ = ["evaluate", "usable_controllers"]
+__all__ = ["evaluate", "schedule", "usable_controllers"]
 
-#: longest episodes first (the learned-model NMPC, then the other optimizers, wrapped or not) so
-#: that no worker idles at the end of a run; records are put back in plan order
-_COST = {"koopman-nmpc": 0, "koopman-nmpc-robust": 0, "nominal-nmpc": 1, "nominal-nmpc-robust": 1}
+
+def schedule(episodes: Sequence[EpisodeSpec]) -> list[EpisodeSpec]:
+    """The episodes in the order the workers get them: the longest first, so that no worker
+    idles at the end of a run.
+
+    How long is what each controller's class declares,
+    :attr:`~controllers.base.BaseController.episode_cost` (a wrapped controller's, behind its
+    ``safe:`` or ``ekf:`` prefix: the wrapped one does the long work; 0 when the class is not
+    known without building); episodes of equal cost keep their order. Records are put back in
+    plan order, so that no record depends on this order.
+    """
+    costs: dict[str, int] = {}  # per configuration label (unique within a run)
+    for episode in episodes:
+        if episode.controller not in costs:
+            kind = episode.config.controller_class(wrapped=True)
+            costs[episode.controller] = int(getattr(kind, "episode_cost", 0))
+    return sorted(episodes, key=lambda episode: -costs[episode.controller])
 
 
 def usable_controllers(verbose: bool = True) -> list[str]:
@@ -129,10 +143,7 @@ def evaluate(
         plan_check(plan)
     expected = {episode.key: episode.record_fields() for episode in plan}
     log_file, done = open_log(out, config, resume, expected) if out is not None else (None, {})
-    todo = sorted(
-        (episode for episode in plan if episode.key not in done),
-        key=lambda s: _COST.get(registry.split_name(s.controller_name)[1], 2),
-    )
+    todo = schedule([episode for episode in plan if episode.key not in done])
     announce(
         f"{len(todo)} episodes to run"
         + (f" ({len(done)} already in the log)" if done else "")

@@ -15,20 +15,16 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers import registry
-from controllers.base import ControllerStats, calibratable
+from controllers.base import Calibratable, ControllerStats
 from controllers.calibration import calibrate_controller
 from evaluation.episodes.records import finished_status
 from evaluation.run.plan import EpisodeSpec, slip_value
-from koopman_envs import ComputeCharge, EpisodeResult, make_plant, run_episodes_in_batch
-from koopman_envs import run_episode as run_controller_episode
+from koopman_envs import EpisodeResult, make_plant, run_episode, run_episodes_in_batch
 
-__all__ = ["CalibrationError", "batch_cell", "run_batch", "run_episode", "runs_in_batch"]
+__all__ = ["CalibrationError", "batch_cell", "episode_record", "run_batch", "runs_in_batch"]
 
 _CONTROLLER_CACHE: dict[tuple, Any] = {}
 _COMMON_SUMMARY = frozenset(ControllerStats().summary())
-#: per controller configuration (label, name, options): whether its episodes run in batches
-_BATCHABLE: dict[tuple[str, str, str], bool] = {}
 
 
 class CalibrationError(RuntimeError):
@@ -129,33 +125,33 @@ def batch_cell(spec: EpisodeSpec) -> EpisodeSpec:
 
 
 def runs_in_batch(spec: EpisodeSpec) -> bool:
-    """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller
-    decides for many teams at once (``acts_in_batch``) and calibrates nothing, the compute is
-    free (no ``--realtime``: the one-env runner charges it), and it records no animation."""
-    if spec.animation or spec.compute_scale > 0:
+    """Whether an episode may run in a batch of its cell (:func:`run_batch`): its controller's
+    class decides for many teams at once (``acts_in_batch``, read from the class as
+    :func:`~koopman_envs.episodes.batch.run_episodes_in_batch` reads it, nothing built)
+    and calibrates nothing, the compute is free (no ``--realtime``: the one-env runner charges
+    it), and it records no animation. A controller whose class is not known without a call (a
+    factory function without a class annotation) runs alone."""
+    if spec.animation or spec.compute is not None:
         return False
-    key = (spec.controller, spec.controller_name, spec.controller_options)
-    if key not in _BATCHABLE:
-        try:
-            factory = spec.controller_factory or registry.factory(spec.controller_name or spec.controller)
-            if isinstance(factory, type) and not getattr(factory, "acts_in_batch", False):
-                _BATCHABLE[key] = False  # known from the class: nothing to build
-                return False
-            ctrl = spec.config.build()
-            _BATCHABLE[key] = bool(getattr(ctrl, "acts_in_batch", False)) and calibratable(ctrl) is None
-        except Exception:  # noqa: BLE001 - a controller that does not build runs alone (and records its error)
-            _BATCHABLE[key] = False
-    return _BATCHABLE[key]
+    try:
+        kind = spec.config.controller_class()
+    except Exception:  # noqa: BLE001 - a controller that cannot be found runs alone (and records its error)
+        return False
+    return (
+        kind is not None
+        and bool(getattr(kind, "acts_in_batch", False))
+        and not issubclass(kind, Calibratable)
+    )
 
 
 def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
     """The records of a cell's episodes run together in the vector env
     (:func:`~koopman_envs.episodes.batch.run_episodes_in_batch`), equal to
-    :func:`run_episode`'s but for the timing fields; never raises. If the batch fails anywhere
+    :func:`episode_record`'s but for the timing fields; never raises. If the batch fails anywhere
     (a controller or env error), every episode is run again alone, so that each episode's error is
     its own and the others keep their results."""
     if len(specs) == 1 or len({batch_cell(s) for s in specs}) != 1:
-        return [run_episode(spec) for spec in specs]
+        return [episode_record(spec) for spec in specs]
     start = time.perf_counter()
     try:
         first = specs[0]
@@ -171,7 +167,7 @@ def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
         finally:
             venv.close()
     except Exception:  # noqa: BLE001 - each episode again alone: its error is recorded as its own
-        return [run_episode(spec) for spec in specs]
+        return [episode_record(spec) for spec in specs]
     share = (time.perf_counter() - start) / len(specs)
     records = []
     for spec, ctrl, result in zip(specs, teams, results, strict=True):
@@ -183,22 +179,23 @@ def run_batch(specs: Sequence[EpisodeSpec]) -> list[dict[str, Any]]:
     return records
 
 
-def run_episode(spec: EpisodeSpec) -> dict[str, Any]:
-    """Run one episode and return its record (never raises: errors are recorded)."""
+def episode_record(spec: EpisodeSpec) -> dict[str, Any]:
+    """The record of one episode, run alone: the env and the cell's calibrated controller built,
+    the episode run by :func:`koopman_envs.run_episode`, its animation saved (never raises: an
+    error is recorded as the episode's)."""
     start = time.perf_counter()
     record: dict[str, Any] = spec.record_fields()
     try:
         env = gym.make(spec.env_id, render_mode="rgb_array" if spec.animation else None, **spec.make_kwargs())
         ctrl, calibration = _controller_for(spec)
         record["calibration"] = calibration
-        charge = ComputeCharge(scale=spec.compute_scale) if spec.compute_scale > 0 else None
-        result = run_controller_episode(
+        result = run_episode(
             env,
             ctrl,
             seed=spec.seed,
             options=spec.reset_options(),
             render=bool(spec.animation),
-            compute=charge,
+            compute=spec.compute,
         )
         record.update(_result_fields(spec, result, ctrl.stats()))
         if spec.animation:

@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import controllers
+from controllers.registry import controller_class, declared_class, is_import_path, split_name
 from controllers.registry import factory as registered_factory
-from controllers.registry import is_import_path, split_name
 from koopman_envs.checks import CLI_JSON_CHARS, check_choice, parse_json
 
 __all__ = [
@@ -76,6 +76,18 @@ class ControllerConfig:
         if self.factory is not None:
             return self.factory(**dict(self.options))
         return controllers.make(self.name, **dict(self.options))
+
+    def controller_class(self, *, wrapped: bool = False) -> type | None:
+        """The class this configuration builds, found without building it
+        (:func:`controllers.registry.controller_class`), so that the evaluator can read what the
+        class declares (``acts_in_batch``, ``episode_cost``); None when only a call would tell.
+
+        ``wrapped``: the class of the controller behind the wrapper prefixes (``safe:``,
+        ``ekf:``) rather than the outermost wrapper's.
+        """
+        if self.factory is not None:
+            return declared_class(self.factory)
+        return controller_class(split_name(self.name)[1] if wrapped else self.name)
 
     def validate(self, across_processes: bool = False) -> None:
         """Build once to reject unknown names and options before any episode starts.

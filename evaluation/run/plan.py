@@ -16,7 +16,7 @@ from typing import Any
 from evaluation.run.configs import ControllerConfig
 from evaluation.run.slip_text import is_lambda, slip_value
 from evaluation.run.suite_runs import LAYOUT_FIELDS
-from koopman_envs import BUILTIN_MAPS, SUITE_PREFIX
+from koopman_envs import BUILTIN_MAPS, SUITE_PREFIX, ComputeCharge
 from koopman_envs.params import PARAMS
 
 __all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
@@ -41,7 +41,9 @@ class EpisodeSpec:
     env_kwargs: str = "{}"  # JSON object of the run's env settings (goal_tolerance, n_robots, ...)
     animation: str = ""  # relative path of the GIF to record for this episode ("" = none)
     run_dir: str = ""  # the run's output directory (where ``animation`` goes)
-    compute_scale: float = 0.0  # > 0: compute-aware, the decision time times this charged (0: free)
+    # compute-aware: the charge for the controller's decision time (RunSpec.compute), handed as it
+    # is to the episode runner; None: free compute. Recorded as ``compute_scale`` (record_fields)
+    compute: ComputeCharge | None = None
     # a suite run's episode: the layout's index in the split (the env's reset option), its family
     # and tier, and the split's label (evaluation.run.suite_runs); None elsewhere, and then not recorded
     layout: int | None = None
@@ -83,11 +85,14 @@ class EpisodeSpec:
     def record_fields(self) -> dict[str, Any]:
         """The plain-JSON fields of the spec, as every episode record starts (the layout fields
         only in a suite run's records, so that every other record is as before)."""
-        fields = {
-            k: getattr(self, k)
-            for k in self.__dataclass_fields__
-            if k not in ("controller_factory", "run_dir") and not (k in LAYOUT_FIELDS and self.layout is None)
-        }
+        fields: dict[str, Any] = {}
+        for k in self.__dataclass_fields__:
+            if k in ("controller_factory", "run_dir") or (k in LAYOUT_FIELDS and self.layout is None):
+                continue
+            if k == "compute":  # as its scale, the field records have always had (0.0: free compute)
+                fields["compute_scale"] = 0.0 if self.compute is None else self.compute.scale
+            else:
+                fields[k] = getattr(self, k)
         # the recorded env settings also as fields of their own (results schema v2 readers)
         env = json.loads(self.env_kwargs)
         recorded = {

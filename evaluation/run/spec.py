@@ -26,7 +26,7 @@ from evaluation.episodes.runlog import run_signature
 from evaluation.run.configs import controller_configs, with_solver
 from evaluation.run.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
 from evaluation.run.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
-from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, EngineConfig, task_for_env
+from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, ComputeCharge, EngineConfig, task_for_env
 from koopman_envs.checks import check_choice, check_int, check_number, did_you_mean
 from koopman_envs.params import (
     DRIFT_SLIP,
@@ -122,8 +122,8 @@ class RunSpec:
     compute_scale : float, optional
         Compute-aware episodes (``--realtime``, ``--compute-scale``): every controller's decision
         time, times this factor, is charged to its robots
-        (:class:`koopman_envs.episodes.single.ComputeCharge`); None (default): the env waits for the
-        controller.
+        (:class:`koopman_envs.episodes.single.ComputeCharge`, which every episode receives as it is:
+        :attr:`compute`); None (default): the env waits for the controller.
     solver : str, optional
         Optimizer (``rti``, ``ipopt``, ``fatrop``) of every NMPC configuration that names none
         (default: each controller's own).
@@ -222,6 +222,12 @@ class RunSpec:
         settings.update(self.env_kwargs)
         plain: dict[str, Any] = json.loads(json.dumps(dict(sorted(settings.items()))))
         return plain
+
+    @property
+    def compute(self) -> ComputeCharge | None:
+        """What every episode charges for its controller's decision time (``compute_scale``), as
+        the episode runner takes it; None: free compute (the env waits for the controller)."""
+        return None if self.compute_scale is None else ComputeCharge(scale=self.compute_scale)
 
     @property
     def n_robots(self) -> int:
@@ -353,6 +359,7 @@ class RunSpec:
         if self.controllers is None:
             raise ValueError("RunSpec.episodes_plan() needs explicit controllers; call resolved() first")
         env_json = json.dumps(self.env_settings(), sort_keys=True)
+        compute = self.compute
         plan = []
         for env_id in self.envs:
             for cfg in self.controllers:
@@ -381,7 +388,7 @@ class RunSpec:
                                     env_kwargs=env_json,
                                     animation=animation,
                                     run_dir=run_dir,
-                                    compute_scale=self.compute_scale or 0.0,
+                                    compute=compute,
                                     controller_factory=cfg.factory,
                                     **layout,
                                 )
