@@ -399,3 +399,40 @@ def test_the_docs_exit_code_tables_are_the_one_table(page: str) -> None:
 
     text = (Path(__file__).resolve().parents[1] / page).read_text(encoding="utf-8")
     assert f"## Exit codes\n\n{exit_codes_markdown()}" in text
+
+
+@pytest.mark.parametrize(
+    "error", [ValueError("a bug after the run"), PermissionError(13, "a read after the run")]
+)
+def test_an_exception_after_the_run_is_koopnav_s_fault_not_bad_input_or_an_unwritable_out(
+    tmp_path, monkeypatch, capsys, error: Exception
+) -> None:
+    """A ValueError raised after the episodes ran exited 2 ("bad input, before any episode ran")
+    and any OSError 103 ("--out cannot be made or written"); both are now an internal error (1),
+    while a report that cannot be written stays 103 (tests/test_bounded_reads.py)."""
+    import evaluate as ev
+    from evaluation.cli import command
+
+    def raises(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(command, "check_thresholds", raises)
+    floors = tmp_path / "floors.toml"
+    floors.write_text('[[cell]]\ncontroller = "consensus"\nmin_success_rate = 0.0\n', encoding="utf-8")
+    argv = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
+    argv += [
+        "--episodes",
+        "1",
+        "--max-episode-steps",
+        "5",
+        "--workers",
+        "1",
+        "--quiet",
+        "--check",
+        str(floors),
+    ]
+    code = ev.main([*argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == ev.INTERNAL_ERROR_EXIT, err
+    assert "internal error" in err and type(error).__name__ in err
+    assert (tmp_path / "out" / "results.json").is_file()  # the reports were written before

@@ -45,9 +45,10 @@ __all__ = ["main", "print_options", "print_summary", "run_command", "verdict", "
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit code (:data:`evaluation.exit_codes.EXIT_CODES`).
 
-    An exception that is neither bad input (``ValueError``), an unwritable output (``OSError``)
-    nor an interruption is a fault of KoopNav: its traceback is printed with a line saying so,
-    and the code is 1, which no other outcome uses."""
+    An exception that is neither bad input (a ``ValueError`` before any episode ran), an unwritable
+    output (an ``OSError`` making ``--out`` or writing a report) nor an interruption is a fault of
+    KoopNav: its traceback is printed with a line saying so, and the code is 1, which no other
+    outcome uses (a ``ValueError`` raised after the run is one of those)."""
     args = build_parser().parse_args(argv)
     try:
         if args.options:
@@ -102,31 +103,37 @@ def run_command(args: argparse.Namespace, argv: list[str] | None) -> int:
             plan_check=plan_check(args, baseline, gate),
         )
         wall = time.perf_counter() - start
-        results.config["wall_seconds"] = wall
-        paths = results.write(args.out)
-        if args.badge:
-            paths["badge"] = write_badge(results, args.badge, Path(args.out) / "badge.svg")
-        if args.ablation is not None:
-            paths["ablation"] = write_ablation(args, results, wall)
-        threshold_check = check_thresholds(results, thresholds, strict=args.strict) if thresholds else None
-        comparison, worse = (
-            compare_with_baseline(args, results, baseline, gate) if baseline is not None else ("", [])
-        )
-        uncovered = (
-            uncovered_controllers(args, results, baseline, gate)
-            if baseline is not None and args.fail_if_worse
-            else []
-        )
-    except ValueError as exc:
+    except ValueError as exc:  # the input, refused before any episode ran (2 means that only)
         print(f"error: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT
-    except OSError as exc:  # --out unwritable up front (OutputNotWritable), or a report write that failed
+    except OSError as exc:  # --out unwritable up front (OutputNotWritable)
         print(f"error: {exc}", file=sys.stderr)
         return UNWRITABLE_OUT_EXIT
     except RunInterrupted as exc:
         again = " ".join([program_name(), *words, *([] if "--resume" in words else ["--resume"])])
         print(f"\n{exc}; continue with: {again}", file=sys.stderr)
         return INTERRUPTED_EXIT
+    # after the run: a report that cannot be written is 103; any other exception here is no input's
+    # fault but KoopNav's (main reports it as an internal error, 1), never "bad input" (2)
+    results.config["wall_seconds"] = wall
+    try:
+        paths = results.write(args.out)
+        if args.badge:
+            paths["badge"] = write_badge(results, args.badge, Path(args.out) / "badge.svg")
+        if args.ablation is not None:
+            paths["ablation"] = write_ablation(args, results, wall)
+    except OSError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return UNWRITABLE_OUT_EXIT
+    threshold_check = check_thresholds(results, thresholds, strict=args.strict) if thresholds else None
+    comparison, worse = (
+        compare_with_baseline(args, results, baseline, gate) if baseline is not None else ("", [])
+    )
+    uncovered = (
+        uncovered_controllers(args, results, baseline, gate)
+        if baseline is not None and args.fail_if_worse
+        else []
+    )
     print_summary(args, results, paths, comparison, wall)
     return verdict(args, results, threshold_check, worse, uncovered)
 
