@@ -26,6 +26,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 from evaluation.episodes.distinct import read_once  # noqa: E402
+from evaluation.exit_codes import BAD_INPUT_EXIT  # noqa: E402
 from evaluation.reports.baseline import load_baseline  # noqa: E402
 from evaluation.reports.figures import save_success_figures  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
@@ -527,4 +528,4 @@ if __name__ == "__main__":
         main()
     except ValueError as exc:  # a results file that is not as KoopNav writes it (the message names it)
         print(f"error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+        raise SystemExit(BAD_INPUT_EXIT) from None

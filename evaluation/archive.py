@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 
-from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT, UNWRITABLE_OUT_EXIT
 from evaluation.reports.publications import pack_split, unpack_run
 from evaluation.reports.published import is_archive, pack_run
 
@@ -20,7 +20,7 @@ __all__ = ["main"]
 def main(argv: list[str]) -> int:
     """``python -m evaluation.archive RUN_DIR data/NAME`` publishes a run split per controller
     (``RUN_DIR ARCHIVE.tar.xz``: in one archive);
-    ``python -m evaluation.archive unpack PUBLICATION DIR [--force]`` restores one (exit 2, named, if refused)."""
+    ``python -m evaluation.archive unpack PUBLICATION DIR [--force]`` restores one (exit 2, named, if refused; 103 when the file system refuses a write)."""
     # "unpack" is always the command: "unpack ARCHIVE" without DIR once packed a run named
     # "unpack" (none) over ARCHIVE
     unpack = argv[:1] == ["unpack"]
@@ -35,6 +35,9 @@ def main(argv: list[str]) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT
+    except OSError as exc:  # no space or no permission where the publication or the run is written
+        print(f"error: {exc}", file=sys.stderr)
+        return UNWRITABLE_OUT_EXIT
     return SUCCESS_EXIT
 
 

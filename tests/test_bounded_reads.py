@@ -368,3 +368,19 @@ def test_write_atomic_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monke
         files.write_atomic(target, '{"new": true}\n')
     assert raised.value.errno == errno.ENOSPC and raised.value.filename == str(target)
     assert target.read_text() == '{"old": true}\n' and list(tmp_path.iterdir()) == [target]
+
+
+def test_the_archive_command_exits_103_naming_the_file_when_the_disk_is_full(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    """evaluation.archive caught ValueError only: a full disk was a traceback (exit 1)."""
+    run = tmp_path / "run"
+    assert ev.main([*ARGS, "--out", str(run)]) == 0
+    capsys.readouterr()
+
+    def full(fd: int, data) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "write", full)  # the os.write koopman_envs.files calls
+    assert archive_command([str(run), str(tmp_path / "data" / "run")]) == ev.UNWRITABLE_OUT_EXIT
+    assert "No space left on device" in capsys.readouterr().err
