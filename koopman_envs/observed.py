@@ -20,7 +20,7 @@ import functools
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -102,7 +102,7 @@ def _fits(got: tuple[int, ...], want: tuple[int | None, ...]) -> bool:
     return len(got) == len(want) and all(w is None or g == w for g, w in zip(got, want, strict=True))
 
 
-def _refuse(name: str, value: Any, n: int) -> None:
+def _refuse(name: str, value: Any, n: int) -> NoReturn:
     """Raise the error that names what is wrong with field ``name`` (:meth:`Observed.__post_init__`)."""
     dtype, shape = _FIELDS[name]
     if not isinstance(value, np.ndarray):
