@@ -10,6 +10,11 @@
 # for bad input (evaluation/exit_codes.py: the highest-priority code when several apply).
 #
 #   bash .ci/leaderboard.sh [OUT]       run and gate (OUT: report directory, default a temp dir)
+#   bash .ci/leaderboard.sh --exact [OUT]
+#                                       run and gate, then check that every episode equals the
+#                                       baseline's field for field, timings aside (python -m
+#                                       evaluation.exact: exit 101 naming every episode missing, extra
+#                                       or different); for a change meant to keep outcomes
 #   bash .ci/leaderboard.sh --update    re-run without the gate and replace the committed baseline
 #                                       (after a change that is meant to change outcomes)
 # KOOPNAV_GATE_ARGS: further evaluator options for a subset run (e.g. "--controllers consensus
@@ -32,6 +37,11 @@ if [ "${1:-}" = "--update" ]; then
     echo "baseline updated: $baseline ($(python -c "import json,sys; print(len(json.load(open(sys.argv[1]))['episodes']))" "$baseline") episodes)"
     exit 0
 fi
+exact=false
+if [ "${1:-}" = "--exact" ]; then
+    exact=true
+    shift
+fi
 out="${1:-$(mktemp -d)}"
 floors=(--check .ci/thresholds.toml)
 # a subset run (KOOPNAV_GATE_ARGS) is gated against the baseline but not held to the floors, whose
@@ -39,3 +49,12 @@ floors=(--check .ci/thresholds.toml)
 [ ${#extra[@]} -eq 0 ] || floors=()
 python evaluate.py --episodes "$episodes" --out "$out" --quiet "${extra[@]}" \
     --baseline "$baseline" --fail-if-worse "${floors[@]}"
+if [ "$exact" = true ]; then
+    # a subset run (KOOPNAV_GATE_ARGS, KOOPNAV_GATE_EPISODES) is held to the baseline's episodes it
+    # planned; the whole gate to every episode of the baseline
+    subset=()
+    if [ ${#extra[@]} -gt 0 ] || [ -n "${KOOPNAV_GATE_EPISODES:-}" ]; then
+        subset=(--subset)
+    fi
+    python -m evaluation.exact "$out" "$baseline" "${subset[@]}"
+fi

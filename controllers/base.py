@@ -287,13 +287,12 @@ class BaseController(ABC):
         end and the perception."""
         if self.scenario is None:
             raise RuntimeError(f"{self.name}: call reset(scenario) before act()")
-        if isinstance(info, Observed):
-            # a wrapper in front (ekf:, safe:) hands on what it planned from; its radio's ages
-            # were for its own front end and stay with it, as the dict view of the earlier API
-            # (which had no key for them) left them
-            observed = info if info.pose_age is None else dataclasses.replace(info, pose_age=None)
-        else:
-            observed = Observed.from_info(info)
+        observed = info if isinstance(info, Observed) else Observed.from_info(info)
+        if observed.pose_age is not None:
+            # a wrapper in front (ekf:, safe:) hands on what it planned from (an Observed, or its
+            # dict for a controller of the earlier API); its radio's ages were for its own front
+            # end and stay with it, as the dict view of the earlier API (no key for them) left them
+            observed = dataclasses.replace(observed, pose_age=None)
         if self.radio_station is not None:
             observed = over_the_radio(observed, self.radio_station, self.scenario.starts)
         front_end = self.front_end

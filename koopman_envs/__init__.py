@@ -27,7 +27,7 @@ from koopman_envs.deprecation import register_moved_paths
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.keywords import ENV_KEYWORDS, env_keyword, keyword_argument
 from koopman_envs.engine.plant import BudgetExceeded, CalibrationPlant, make_plant
-from koopman_envs.layout import MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
+from koopman_envs.layout import FAR, MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
 from koopman_envs.observed import Observed
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
@@ -67,7 +67,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
     from koopman_envs.sim.lidar import beam_angles
     from koopman_envs.sim.movers.tracking import cv_model, cv_predict, cv_update
     from koopman_envs.sim.nearest import nearest_by_clearance, nearest_order
-    from koopman_envs.tasks.observation import FAR, observation_from_beliefs
+    from koopman_envs.tasks.observation import observation_from_beliefs
 
 __version__ = "0.1.0"
 
@@ -128,7 +128,6 @@ _LAZY = {
     "cv_update": "koopman_envs.sim.movers.tracking",
     "nearest_by_clearance": "koopman_envs.sim.nearest",
     "nearest_order": "koopman_envs.sim.nearest",
-    "FAR": "koopman_envs.tasks.observation",
     "observation_from_beliefs": "koopman_envs.tasks.observation",
 }
 

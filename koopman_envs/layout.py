@@ -49,7 +49,10 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import check_choice, check_flag, check_int
+
 __all__ = [
+    "FAR",
     "ITEM_ENTRIES",
     "MessageEntry",
     "MoverEntry",
@@ -59,6 +62,11 @@ __all__ = [
     "PartOffsets",
     "TeamEntry",
 ]
+
+
+#: What an absent item of a listing part reads as its clearance [m] (a team-mate out of sight, an
+#: obstacle or a mover not listed): farther than anything in a 20 m workspace.
+FAR = 30.0
 
 
 class TeamEntry(IntEnum):
@@ -165,6 +173,15 @@ class ObservationLayout:
     comm: bool = False
     movers: int = 0
 
+    def __post_init__(self) -> None:
+        """Refuse a team of no robot, a count that is no integer >= 0 and a flag that is no bool,
+        each by name (``ValueError``); numpy integers and bools are taken as Python's."""
+        object.__setattr__(self, "n_robots", check_int("n_robots", self.n_robots, 1))
+        for name in ("n_obstacle_obs", "beams", "movers"):
+            object.__setattr__(self, name, check_int(name, getattr(self, name), 0))
+        for name in ("formation", "comm"):
+            object.__setattr__(self, name, check_flag(name, getattr(self, name)))
+
     @classmethod
     def for_settings(
         cls,
@@ -213,9 +230,9 @@ class ObservationLayout:
         return PartOffsets(*starts)
 
     def count(self, name: str) -> int:
-        """How many items part ``name`` lists (0 when this layout has no such part)."""
-        if name not in PART_WIDTH:
-            raise KeyError(f"{name!r} is not a part that lists items; those are {sorted(PART_WIDTH)}")
+        """How many items part ``name`` lists (0 when this layout has no such part); ``ValueError``
+        naming ``name`` and the parts that list items for any other name."""
+        check_choice("part", name, sorted(PART_WIDTH), sep=" ", among="the parts that list items")
         return dict(self.parts).get(name, 0) // PART_WIDTH[name]
 
     def items(self, blocks: NDArray[np.float64], name: str) -> NDArray[np.float64]:

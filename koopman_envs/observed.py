@@ -16,10 +16,11 @@ derived fields; none edits the value it was given.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,33 +45,90 @@ SENSED_KEYS = (
     "mover_tracked",
 )
 #: The fields a controller's own front-ends fill and hand on to the controller they stand in
-#: front of, never an env: an estimator's ``pose_covariance`` (N, 3, 3) (``ekf:``), and the lidar
+#: front of, never an env: an estimator's ``pose_covariance`` (N, 3, 3) (``ekf:``), the lidar
 #: perception's ``mover_covariance``, ``mover_radii``, ``perceived_obstacles`` and
 #: ``obstacle_covariance`` (``controllers.perception.front``; under lidar it also writes
-#: ``observed_movers``, its tracks). An info written by hand may carry them too.
+#: ``observed_movers``, its tracks), and the radio's ``pose_age`` (N,) (a central controller's,
+#: :func:`controllers.base.over_the_radio`). An info written by hand may carry them too.
 DERIVED_KEYS = (
     "pose_covariance",
     "mover_covariance",
     "mover_radii",
     "perceived_obstacles",
     "obstacle_covariance",
+    "pose_age",
 )
 #: The info keys a controller may read (what :meth:`Observed.from_info` takes).
 OBSERVED_KEYS = SENSED_KEYS + DERIVED_KEYS
 
-#: the dtype each optional field is read as (every env writes these dtypes already, so reading an
-#: env's info converts nothing)
-_OPTIONAL_DTYPES: dict[str, type] = {
-    "targets": np.float64,
-    "lidar_ranges": np.float64,
-    "observed_movers": np.float64,
-    "mover_tracked": np.bool_,
-    "pose_covariance": np.float64,
-    "mover_covariance": np.float64,
-    "mover_radii": np.float64,
-    "perceived_obstacles": np.float64,
-    "obstacle_covariance": np.float64,
+#: every array field of :class:`Observed`: its dtype and its shape, each axis a length, ``"N"`` (the
+#: team size, the rows of ``observed_poses``) or None (any length). :meth:`Observed.from_info` reads
+#: an info's values as these dtypes (every env writes them already, so reading an env's info
+#: converts nothing); :meth:`Observed.__post_init__` refuses a value of another dtype or shape,
+#: however the value was built
+_FIELDS: dict[str, tuple[type, tuple[int | str | None, ...]]] = {
+    "observed_poses": (np.float64, ("N", 3)),
+    "known_poses": (np.float64, ("N", "N", 3)),
+    "message_age": (np.int64, ("N", "N")),
+    "targets": (np.float64, ("N", 3)),
+    "lidar_ranges": (np.float64, ("N", None)),
+    "observed_movers": (np.float64, (None, 4)),
+    "mover_tracked": (np.bool_, (None,)),
+    "pose_age": (np.int64, ("N",)),
+    "pose_covariance": (np.float64, ("N", 3, 3)),
+    "mover_covariance": (np.float64, (None, 4, 4)),
+    "mover_radii": (np.float64, (None,)),
+    "perceived_obstacles": (np.float64, (None, 3)),
+    "obstacle_covariance": (np.float64, (None, 2, 2)),
 }
+#: the ages, counted in whole control periods (read through :func:`_whole_periods`)
+_AGES = ("message_age", "pose_age")
+
+
+#: each field's dtype as NumPy's (compared by identity first), in :data:`_FIELDS`' order
+_DTYPES = tuple((name, np.dtype(dtype)) for name, (dtype, _) in _FIELDS.items())
+#: the fields every value has
+_REQUIRED = frozenset({"observed_poses", "known_poses", "message_age"})
+
+
+@functools.lru_cache(maxsize=256)
+def _shapes(n: int) -> dict[str, tuple[int | None, ...]]:
+    """Each field's shape for a team of ``n`` (None: any length), built once per team size."""
+    return {name: tuple(n if a == "N" else a for a in shape) for name, (_, shape) in _FIELDS.items()}  # type: ignore[misc]
+
+
+def _fits(got: tuple[int, ...], want: tuple[int | None, ...]) -> bool:
+    """Whether shape ``got`` is ``want``, a None in it any length."""
+    return len(got) == len(want) and all(w is None or g == w for g, w in zip(got, want, strict=True))
+
+
+def _refuse(name: str, value: Any, n: int) -> NoReturn:
+    """Raise the error that names what is wrong with field ``name`` (:meth:`Observed.__post_init__`)."""
+    dtype, shape = _FIELDS[name]
+    if not isinstance(value, np.ndarray):
+        raise TypeError(
+            f"Observed.{name} is a {type(value).__name__}; expected an ndarray of {np.dtype(dtype)} "
+            "(Observed.from_info reads an info's lists and numbers)"
+        )
+    if value.dtype != dtype:
+        raise TypeError(
+            f"Observed.{name} has dtype {value.dtype}; expected {np.dtype(dtype)} "
+            "(Observed.from_info converts an info's values)"
+        )
+    if name == "observed_poses":
+        raise ValueError(f"Observed.{name} has shape {value.shape}; expected (N, 3): x, y, theta per robot")
+    raise ValueError(
+        f"Observed.{name} has shape {value.shape}; expected {_shape_text(shape, n)} for {n} robots"
+    )
+
+
+def _shape_text(shape: tuple[int | str | None, ...], n: int) -> str:
+    """An expected shape for a message: ``(3, 3)``, ``(3, *)`` (``*``: any length)."""
+    return (
+        "("
+        + ", ".join(str(n) if a == "N" else "*" if a is None else str(a) for a in shape)
+        + (",)" if len(shape) == 1 else ")")
+    )
 
 
 def _whole_periods(key: str, given: Any) -> NDArray[np.int64]:
@@ -162,6 +220,28 @@ class Observed:
     obstacle_covariance: NDArray[np.float64] | None = None
     perceived: bool = False
 
+    def __post_init__(self) -> None:
+        """Refuse a field of another type, dtype or shape than :data:`_FIELDS` gives, whether the
+        value came from :meth:`from_info` or was built directly (a stage's
+        :func:`dataclasses.replace` included): ``TypeError`` for a type or dtype, ``ValueError``
+        for a shape, each naming the field."""
+        poses = self.observed_poses
+        n = poses.shape[0] if isinstance(poses, np.ndarray) and poses.ndim else -1  # checked first
+        shapes = _shapes(n)
+        for name, dtype in _DTYPES:
+            value = getattr(self, name)
+            if value is None and name not in _REQUIRED:
+                continue
+            # every value is checked on every stage's replace: the common case in a few compares
+            if (
+                not isinstance(value, np.ndarray)
+                or (value.dtype is not dtype and value.dtype != dtype)
+                or (value.shape != shapes[name] and not _fits(value.shape, shapes[name]))
+            ):
+                _refuse(name, value, n)
+        if not isinstance(self.perceived, bool):
+            raise TypeError(f"Observed.perceived={self.perceived!r}; expected True or False")
+
     @classmethod
     def from_info(cls, info: Mapping[str, Any]) -> Observed:
         """The observed part of ``info`` (the keys of :data:`OBSERVED_KEYS` it has), without the
@@ -192,26 +272,23 @@ class Observed:
                 f"written by hand, 'poses'; this one has {sorted(info)}"
             )
         poses = np.asarray(given, dtype=np.float64)
-        if poses.ndim != 2 or poses.shape[1] != 3:
-            raise ValueError(f"the poses have shape {poses.shape}; expected (N, 3): x, y, theta per robot")
-        n = poses.shape[0]
-        known, age = info.get("known_poses"), info.get("message_age")
-        known = (
-            np.broadcast_to(poses[None], (n, n, 3)) if known is None else np.asarray(known, dtype=np.float64)
-        )
-        age = np.zeros((n, n), dtype=np.int64) if age is None else _whole_periods("message_age", age)
-        if known.shape != (n, n, 3) or age.shape != (n, n):
-            raise ValueError(
-                f"known_poses has shape {known.shape} and message_age {age.shape}; for {n} robots "
-                f"expected {(n, n, 3)} and {(n, n)}"
+        values: dict[str, Any] = {"observed_poses": poses}
+        for key, (dtype, _) in _FIELDS.items():
+            if key == "observed_poses" or info.get(key) is None:
+                continue
+            values[key] = (
+                _whole_periods(key, info[key]) if key in _AGES else np.asarray(info[key], dtype=dtype)
             )
-        optional: dict[str, Any] = {
-            key: np.asarray(info[key], dtype=dtype)
-            for key, dtype in _OPTIONAL_DTYPES.items()
-            if info.get(key) is not None
-        }
-        perceived = info.get("mover_radii") is not None
-        return cls(poses, known, age, perceived=perceived, **optional)
+        # a team that hears every team-mate at once: each row of known_poses the team, of age 0
+        # (poses of another shape are refused by the constructor, which checks them first)
+        n = poses.shape[0] if poses.ndim else 0
+        if "known_poses" not in values:
+            values["known_poses"] = (
+                np.broadcast_to(poses[None], (n, n, 3)) if poses.shape == (n, 3) else np.zeros((n, n, 3))
+            )
+        if "message_age" not in values:
+            values["message_age"] = np.zeros((n, n), dtype=np.int64)
+        return cls(**values, perceived=info.get("mover_radii") is not None)
 
     @property
     def n_robots(self) -> int:
@@ -237,10 +314,10 @@ class Observed:
 
     def to_info(self) -> dict[str, Any]:
         """The fields that are set, as the dict of observed keys a controller of the earlier API
-        reads (:data:`OBSERVED_KEYS` in order, ``pose_age``, then ``poses`` and ``distances``):
-        what a wrapper hands a controller that takes no :class:`Observed`."""
-        keys = (*OBSERVED_KEYS, "pose_age")
-        out = {key: value for key in keys if (value := getattr(self, key)) is not None}
+        reads (:data:`OBSERVED_KEYS` in order, then ``poses`` and ``distances``): what a wrapper
+        hands a controller that takes no :class:`Observed`, read back whole by :meth:`from_info`
+        (``perceived`` from ``mover_radii``)."""
+        out = {key: value for key in OBSERVED_KEYS if (value := getattr(self, key)) is not None}
         out["poses"] = self.poses
         distances = self.distances
         if distances is not None:

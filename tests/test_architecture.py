@@ -436,7 +436,7 @@ EVAL_LAYERS = ("base", "episodes", "run", "stats", "reports", "execution", "expe
 #: and docs' too), whatever its floor
 EVAL_BASE = {"exit_codes"}
 #: the command lines, on top: evaluate.py's options, the commands at the root and the tuner
-EVAL_COMMANDS = {"cli", "forget", "archive", "tune"}
+EVAL_COMMANDS = {"cli", "forget", "archive", "exact", "tune"}
 
 
 def _eval_layer(module: str) -> int | None:

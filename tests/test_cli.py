@@ -113,6 +113,26 @@ def test_every_example_of_the_help_parses_and_makes_a_run(options: str, what: st
         assert (ROOT / args.ablation_out).is_file()
 
 
+def test_what_the_quick_start_and_the_examples_write_is_ignored_by_git() -> None:
+    """The default directory, the next ones a repeated quick start chooses and every example's
+    --out: a run leaves nothing for ``git status`` to list."""
+    import shutil
+    import subprocess
+
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    outs = ["results", "results-2", "results-17"]
+    for options, _ in EXAMPLES:
+        args = build_parser().parse_args(shlex.split(options))
+        if args.out:
+            outs.append(args.out)
+    paths = [f"{out}/results.json" for out in outs]
+    ignored = subprocess.run(
+        ["git", "check-ignore", "--no-index", *paths], cwd=ROOT, capture_output=True, text=True
+    ).stdout.split()
+    assert sorted(set(paths) - set(ignored)) == []
+
+
 # --------------------------------------------------------------------------- the quick start twice
 def _readme_quick_command() -> list[str]:
     """The options of README's first command, ``pip install -e . && python evaluate.py ...``."""

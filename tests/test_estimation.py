@@ -336,6 +336,29 @@ def test_the_central_controller_hears_the_team_over_the_radio_and_carries_late_p
     np.testing.assert_array_equal(heard[0].observed_poses[1:], env.unwrapped.scenario.starts[1:])
 
 
+def test_a_radios_ages_in_a_handed_on_dict_stay_with_the_wrapper_that_heard_them() -> None:
+    """A wrapper hands a controller of the earlier API its Observed as a dict (to_info), which
+    carries the wrapper's radio ages (pose_age) and reads back whole (Observed.from_info); the
+    controller behind drops them, as it drops those of an Observed handed on, so its own front
+    end does not carry the poses forward by another radio's ages."""
+    from koopman_envs import Observed
+
+    env = gym.make("KoopNav-TargetReaching-v0", map="map1", comm={"latency": 2}, max_episode_steps=20)
+    plain, handed = _Recorder(), _Recorder()
+    for ctrl in (plain, handed):
+        ctrl.front_end = PoseFrontEnd(delay=0, position_std="auto", heading_std="auto")
+    obs, info = env.reset(seed=0)
+    for ctrl in (plain, handed):
+        ctrl.reset(env, seed=0)
+    for _ in range(8):
+        heard = {**Observed.from_info(info).to_info(), "pose_age": np.array([0, 2, 2])}
+        assert Observed.from_info(heard).pose_age is heard["pose_age"]
+        plain.act(obs, info)
+        handed.act(obs, heard)
+        obs, *_, info = env.step(np.tile([0.3, 0.1], 3))
+    np.testing.assert_array_equal(np.array(handed.seen), np.array(plain.seen), strict=True)
+
+
 def test_a_wrapper_hears_over_its_inner_central_controllers_radio() -> None:
     for prefix in ("ekf", "safe"):
         wrapped = controllers.make(f"{prefix}:nominal-nmpc")

@@ -211,8 +211,42 @@ def test_items_reads_each_field_of_every_item_by_name() -> None:
             for entry in entries:
                 assert items[1, k, entry] == blocks[1, layout.entry(part, k * len(entries) + entry)]
     assert layout.count("beams") == 0
-    with pytest.raises(KeyError, match=r"'heading' is not a part that lists items"):
+    with pytest.raises(ValueError, match=r"part 'heading' is not one of the parts that list items"):
         layout.count("heading")
+
+
+def test_the_absent_clearance_and_the_mover_width_are_the_layouts() -> None:
+    """FAR and a mover's width are defined once, by the layout: the movers' field writes the
+    layout's FAR (it held a copy of its own), the set features' MOVER_SIZE is the layout's width."""
+    import koopman_envs
+    import koopman_envs.layout as layout_module
+    import koopman_envs.sim.movers.field as field
+    import koopman_envs.tasks.observation as observation
+    from baselines.features.set_features import MOVER_SIZE
+
+    assert not hasattr(field, "_FAR")
+    assert field.FAR is observation.FAR is koopman_envs.FAR is layout_module.FAR
+    assert MOVER_SIZE == PART_WIDTH["movers"] == len(MoverEntry)
+
+
+@pytest.mark.parametrize("beams", [0, 8])
+@pytest.mark.parametrize("comm", [False, True])
+@pytest.mark.parametrize("formation", [False, True])
+def test_split_movers_takes_the_layouts_movers_part(beams, comm, formation) -> None:
+    """baselines' split_movers cuts the movers off a block's end: the movers part is the last
+    of every layout, so the cut is the layout's ``movers`` slice and the rest its other parts."""
+    from baselines.features.set_features import split_movers
+    from koopman_envs.layout import ObservationLayout
+
+    assert PART_NAMES[-1] == "movers"
+    layout = ObservationLayout.for_settings(3, 2, formation, beams, comm, 0 if beams else 2)
+    blocks = np.arange(2 * 3 * layout.size, dtype=np.float64).reshape(2, 3, layout.size)
+    rest, movers = split_movers(blocks, layout.count("movers"))
+    if layout.has("movers"):
+        np.testing.assert_array_equal(movers, layout.items(blocks, "movers"), strict=True)
+    else:  # with lidar the beams hit the movers: none listed
+        assert movers.shape == (2, 3, 0, PART_WIDTH["movers"])
+    np.testing.assert_array_equal(rest, blocks[..., : layout.without_movers().size], strict=True)
 
 
 # --------------------------------------------------------------------------- the stages

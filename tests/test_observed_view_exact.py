@@ -26,8 +26,8 @@ TRUTH = {
     "slip": np.full(2, np.nan),
     "success": True,
 }
-#: the fields no info key fills: what the stages in front of a controller add
-STAGE_FIELDS = ("pose_age", "perceived")
+#: the field no info key fills: whether the perception ran (read from ``mover_radii``)
+STAGE_FIELDS = ("perceived",)
 
 
 def test_the_observed_keys_are_the_beliefs_the_targets_and_the_tracked_movers() -> None:
@@ -44,6 +44,7 @@ def test_the_observed_keys_are_the_beliefs_the_targets_and_the_tracked_movers() 
         "mover_radii",
         "perceived_obstacles",
         "obstacle_covariance",
+        "pose_age",
     )
     # every observed key is a field of the typed value, and every field is a key or a stage's
     fields = {f.name for f in dataclasses.fields(Observed)}
@@ -92,16 +93,98 @@ def test_a_partial_info_passes_only_what_it_has() -> None:
 
 
 def test_poses_messages_and_ages_of_the_wrong_shape_are_refused_by_name() -> None:
-    with pytest.raises(ValueError, match=r"the poses have shape \(3, 2\); expected \(N, 3\)"):
+    with pytest.raises(ValueError, match=r"observed_poses has shape \(3, 2\); expected \(N, 3\)"):
         Observed.from_info({"observed_poses": np.zeros((3, 2))})
     with pytest.raises(
-        ValueError, match=r"known_poses has shape \(3, 3\) and message_age \(3, 3\); for 3 robots"
+        ValueError, match=r"known_poses has shape \(3, 3\); expected \(3, 3, 3\) for 3 robots"
     ):
         Observed.from_info({"observed_poses": np.zeros((3, 3)), "known_poses": np.zeros((3, 3))})
-    with pytest.raises(
-        ValueError, match=r"message_age \(2, 2\); for 3 robots expected \(3, 3, 3\) and \(3, 3\)"
-    ):
+    with pytest.raises(ValueError, match=r"message_age has shape \(2, 2\); expected \(3, 3\) for 3 robots"):
         Observed.from_info({"poses": np.zeros((3, 3)), "message_age": np.zeros((2, 2))})
+
+
+def _team(n: int = 3) -> dict:
+    """The three fields every Observed has, for ``n`` robots, of the right dtypes."""
+    return {
+        "observed_poses": np.zeros((n, 3)),
+        "known_poses": np.zeros((n, n, 3)),
+        "message_age": np.zeros((n, n), dtype=np.int64),
+    }
+
+
+@pytest.mark.parametrize(
+    ("fields", "error", "message"),
+    [
+        (
+            {"observed_poses": np.zeros((3, 2))},
+            ValueError,
+            r"observed_poses has shape \(3, 2\); expected \(N, 3\)",
+        ),
+        (
+            {"observed_poses": [[0.0, 0.0, 0.0]] * 3},
+            TypeError,
+            r"observed_poses is a list; expected an ndarray",
+        ),
+        (
+            {"known_poses": np.zeros((3, 3, 2))},
+            ValueError,
+            r"known_poses has shape \(3, 3, 2\); expected \(3, 3, 3\)",
+        ),
+        ({"message_age": np.zeros((3, 3))}, TypeError, r"message_age has dtype float64; expected int64"),
+        (
+            {"targets": np.zeros((2, 3))},
+            ValueError,
+            r"targets has shape \(2, 3\); expected \(3, 3\) for 3 robots",
+        ),
+        ({"lidar_ranges": np.ones(3)}, ValueError, r"lidar_ranges has shape \(3,\); expected \(3, \*\)"),
+        (
+            {"observed_movers": np.zeros((2, 3))},
+            ValueError,
+            r"observed_movers has shape \(2, 3\); expected \(\*, 4\)",
+        ),
+        ({"mover_tracked": np.ones(2)}, TypeError, r"mover_tracked has dtype float64; expected bool"),
+        (
+            {"pose_age": np.zeros(2, dtype=np.int64)},
+            ValueError,
+            r"pose_age has shape \(2,\); expected \(3,\)",
+        ),
+        ({"pose_age": np.zeros(3, dtype=np.int32)}, TypeError, r"pose_age has dtype int32; expected int64"),
+        (
+            {"pose_covariance": np.zeros((3, 3))},
+            ValueError,
+            r"pose_covariance has shape \(3, 3\); expected \(3, 3, 3\)",
+        ),
+        (
+            {"mover_covariance": np.zeros((2, 4, 4), dtype=np.float32)},
+            TypeError,
+            r"mover_covariance has dtype float32",
+        ),
+        ({"mover_radii": np.zeros((2, 1))}, ValueError, r"mover_radii has shape \(2, 1\); expected \(\*,\)"),
+        ({"perceived_obstacles": np.zeros((4, 2))}, ValueError, r"perceived_obstacles has shape \(4, 2\)"),
+        ({"obstacle_covariance": np.zeros((4, 2))}, ValueError, r"obstacle_covariance has shape \(4, 2\)"),
+        ({"perceived": 1}, TypeError, r"perceived=1; expected True or False"),
+    ],
+)
+def test_a_value_built_directly_is_held_to_the_same_shapes_and_dtypes(fields, error, message) -> None:
+    """The one check of Observed.__post_init__, whether the value came from from_info, from the
+    constructor or from a stage's dataclasses.replace."""
+    with pytest.raises(error, match=message):
+        Observed(**{**_team(), **fields})
+    with pytest.raises(error, match=message):
+        dataclasses.replace(Observed(**_team()), **fields)
+
+
+def test_the_radios_pose_age_round_trips_through_the_dict_as_int64() -> None:
+    observed = Observed(**_team(), pose_age=np.array([0, 2, -1], dtype=np.int64))
+    info = observed.to_info()
+    assert list(info)[:4] == ["observed_poses", "known_poses", "message_age", "pose_age"]
+    back = Observed.from_info(info)
+    assert back.pose_age is observed.pose_age  # an int64 array passes as it is
+    # as an info written by hand, or read back from JSON: whole numbers become int64 ages
+    read = Observed.from_info({**info, "pose_age": [0.0, 2.0, -1.0]})
+    np.testing.assert_array_equal(read.pose_age, np.array([0, 2, -1], dtype=np.int64), strict=True)
+    with pytest.raises(ValueError, match=r"pose_age\[1\]=nan is not a whole number of periods"):
+        Observed.from_info({**info, "pose_age": [0.0, np.nan, -1.0]})
 
 
 def test_a_hand_written_info_of_poses_is_one_of_perfect_information() -> None:
@@ -142,15 +225,17 @@ def test_an_info_with_the_perceptions_radii_counts_as_perceived() -> None:
     np.testing.assert_array_equal(view.mover_radii, np.array([0.3]), strict=True)
 
 
-@pytest.mark.parametrize("batch", [(), (4,), (2, 3)])
-def test_batched_estimates_and_targets_give_batched_distances(batch) -> None:
+def test_distances_are_each_robots_from_its_estimate_and_a_batch_is_refused() -> None:
     rng = np.random.default_rng(0)
-    observed = rng.normal(size=(*batch, 5, 3))
-    targets = rng.normal(size=(*batch, 5, 3))
+    observed = rng.normal(size=(5, 3))
+    targets = rng.normal(size=(5, 3))
     view = Observed(observed, np.zeros((5, 5, 3)), np.zeros((5, 5), dtype=np.int64), targets=targets)
     dx, dy = targets[..., 0] - observed[..., 0], targets[..., 1] - observed[..., 1]
     np.testing.assert_array_equal(view.distances, np.sqrt(dx * dx + dy * dy), strict=True)
-    assert view.distances.shape == (*batch, 5)
+    assert view.distances.shape == (5,)
+    # one team per value: a batch of teams is refused as from_info refuses it
+    with pytest.raises(ValueError, match=r"observed_poses has shape \(4, 5, 3\); expected \(N, 3\)"):
+        Observed(rng.normal(size=(4, 5, 3)), np.zeros((5, 5, 3)), np.zeros((5, 5), dtype=np.int64))
 
 
 def test_the_dict_view_of_the_earlier_api_still_reads_with_a_deprecation_warning() -> None:

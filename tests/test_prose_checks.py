@@ -273,6 +273,18 @@ def test_getting_started_repeats_the_readmes_commands_and_times() -> None:
         assert stated is not None and stated[0] in guide, stated
 
 
+def test_getting_started_offers_the_shallow_clone_with_the_measured_sizes() -> None:
+    """docs/getting_started.md names ``git clone --depth 1`` with the sizes docs/layout.md's "What
+    a clone weighs" measured (bench/clone_size.py), so that a newcomer need not fetch the history."""
+    guide = (ROOT / "docs" / "getting_started.md").read_text(encoding="utf-8")
+    weighs = (ROOT / "docs" / "layout.md").read_text(encoding="utf-8")
+    whole = re.search(r"\*\*The clone\*\*: ([\d.]+) MB on disk", weighs)
+    shallow = re.search(r"`git clone --depth 1 [^`]*`, is ([\d.]+) MB on disk", weighs)
+    assert whole is not None and shallow is not None
+    assert "`git clone --depth 1" in guide
+    assert f"{shallow[1]} MB on disk, against {whole[1]} MB for a whole clone" in guide
+
+
 def test_a_new_measurement_that_disagrees_with_the_readme_fails(sources) -> None:
     slower = {**sources["times"], "python -m pytest -q": [(18 * 60.0, "-")]}
     assert any("not within 5.5-7 min" in p for p in readme_problems(README, {**sources, "times": slower}))

@@ -406,3 +406,39 @@ def test_the_protocol_digest_sees_the_slip_the_start_noise_and_the_time_limit(ch
     assert {**kwargs, **change} != kwargs
     changed = protocol_rollout_digest(episode.env_id, {**kwargs, **change}, layouts=1)
     assert changed != protocol_rollout_digest(episode.env_id, kwargs, layouts=1)
+
+
+def test_the_build_writes_every_file_whole_or_not_at_all(tmp_path, monkeypatch) -> None:
+    """--write writes its splits and the manifest through koopman_envs.files.write_atomic (the
+    manifest is read back between its two writes: a torn one would be read as a published
+    suite). The reference rollouts, which load the suite the build wrote, are stood in for."""
+    import json
+    from types import SimpleNamespace
+
+    from koopman_envs.files import write_atomic
+    from koopman_envs.suites import build
+
+    written: list[Path] = []
+
+    def recording(path, content, **options):
+        written.append(Path(path))
+        return write_atomic(path, content, **options)
+
+    monkeypatch.setattr(build, "write_atomic", recording)
+    monkeypatch.setattr(build, "_DATA", tmp_path)
+    monkeypatch.setattr(build, "reference_rollout_digest", lambda name, task: f"digest of {name}/{task}")
+    definition = SimpleNamespace(name="tiny", tasks=("target_reaching",))
+    documents: dict[str, dict[str, Any]] = {"test": {"layouts": [1, 2]}, "train": {"layouts": []}}
+    manifest: dict[str, Any] = {"splits": {}, "reference_rollouts": {"sha256": {}}}
+    build._write(definition, documents, manifest)  # type: ignore[arg-type]  # a stand-in definition
+    root = tmp_path / "tiny"
+    assert sorted(p.name for p in root.iterdir()) == ["manifest.json", "test.json.gz", "train.json.gz"]
+    assert written == [
+        root / "test.json.gz",
+        root / "train.json.gz",
+        root / "manifest.json",
+        root / "manifest.json",
+    ]
+    assert json.loads(gzip.decompress((root / "test.json.gz").read_bytes())) == {"layouts": [1, 2]}
+    stored = json.loads((root / "manifest.json").read_text())
+    assert stored["reference_rollouts"]["sha256"] == {"target_reaching": "digest of tiny/target_reaching"}

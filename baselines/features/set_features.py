@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from koopman_envs import FAR, MoverEntry, ObstacleEntry, TeamEntry, nearest_order
 from koopman_envs.checks import check_int, check_number
-from koopman_envs.layout import ObservationLayout
+from koopman_envs.layout import PART_WIDTH, ObservationLayout
 
 __all__ = [
     "EGO_SIZE",
@@ -56,7 +56,8 @@ __all__ = [
 EGO_SIZE = 11
 NEIGHBOUR_SIZE = 8
 OBSTACLE_SIZE = 3
-MOVER_SIZE = 5
+#: one feature per entry of a listed mover (:class:`koopman_envs.MoverEntry`, in its order)
+MOVER_SIZE = PART_WIDTH["movers"]
 #: largest team a set policy is run with (the evaluator's random maps place up to this many)
 MAX_TEAM = 64
 _TARGET_SCALE = 5.0  # [m]: target offsets enter as offset / 5, clipped to [-2, 2]
@@ -196,12 +197,12 @@ def split_movers(team_blocks: NDArray, mover_slots: int) -> tuple[NDArray, NDArr
     (..., N, S, 5), nearest first, their entries named by :class:`koopman_envs.MoverEntry` (dx,
     dy, vx, vy, clearance); ``mover_slots`` = S, the env's ``movers.observed`` (0: nothing listed)."""
     blocks = np.asarray(team_blocks, dtype=np.float64)
-    item = len(MoverEntry)  # the env's entries per listed mover
-    width = item * mover_slots
-    if width == 0:
-        return blocks, np.zeros(blocks.shape[:-1] + (0, item))
-    movers = blocks[..., -width:].reshape(blocks.shape[:-1] + (mover_slots, item))
-    return blocks[..., :-width], movers
+    item = PART_WIDTH["movers"]  # the env's entries per listed mover
+    # the movers are the last part of every layout (koopman_envs.layout.PART_NAMES), so a block's movers part
+    # begins where its other parts end: the block's width less the part's, whatever they hold
+    begins = blocks.shape[-1] - item * mover_slots
+    movers = blocks[..., begins:].reshape(blocks.shape[:-1] + (mover_slots, item))
+    return blocks[..., :begins], movers
 
 
 def _mover_slots(movers: NDArray | None, lead: tuple[int, ...], config: SetFeatureConfig) -> NDArray:

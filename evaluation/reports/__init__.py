@@ -4,7 +4,8 @@ formats), the report's sections that Markdown and HTML render alike
 (:mod:`~evaluation.reports.figures`), the badge (:mod:`~evaluation.reports.badge`); the published
 archives read back (:mod:`~evaluation.reports.published`; a run published whole or split per
 controller, :mod:`~evaluation.reports.publications`), the comparison with an earlier run and
-its gate (:mod:`~evaluation.reports.baseline`) and the floors of ``--check``
+its gate (:mod:`~evaluation.reports.baseline`; field for field,
+:mod:`~evaluation.reports.reproduced`) and the floors of ``--check``
 (:mod:`~evaluation.reports.thresholds`). Nothing here runs an episode.
 
 The package is their face: the public names of its modules and of :mod:`evaluation.reports.sections`
@@ -70,6 +71,13 @@ from evaluation.reports.published import (
     results_from_log,
     run_files,
     tar_xz,
+)
+from evaluation.reports.reproduced import (
+    ExactComparison,
+    FieldDifference,
+    episode_name,
+    exact_differences,
+    within_run,
 )
 from evaluation.reports.results import (
     PROFILES_TITLE,
@@ -195,6 +203,11 @@ __all__ = [
     "unpack_hint",
     "unpack_run",
     "ALL_TASKS",
+    "ExactComparison",
+    "FieldDifference",
+    "episode_name",
+    "exact_differences",
+    "within_run",
     "GateOptions",
     "PairKey",
     "pair_keys",

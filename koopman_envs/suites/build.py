@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from koopman_envs.files import write_atomic
 from koopman_envs.params import PARAMS
 from koopman_envs.suites.families import FAMILIES, draw_layout, family_of_seed
 from koopman_envs.suites.measures import measure_layout, tier_of
@@ -278,18 +279,19 @@ def _differences(
 def _write(
     definition: SuiteDefinition, documents: dict[str, dict[str, Any]], manifest: dict[str, Any]
 ) -> None:
-    """Write the split files and the manifest (digests of the written data)."""
+    """Write the split files and the manifest (digests of the written data), each whole or not at
+    all (:func:`koopman_envs.files.write_atomic`): the manifest is read back (the reference
+    rollouts load the suite through it) and then written again with their digests, and a torn
+    manifest or split would be read as a published suite."""
     root = _DATA / definition.name
     for key, document in documents.items():
-        path = root / f"{key}.json.gz"
-        path.parent.mkdir(parents=True, exist_ok=True)
         text = json.dumps(document, separators=(",", ":"), allow_nan=False)
-        path.write_bytes(gzip.compress(text.encode("utf-8"), compresslevel=9, mtime=0))
-    (root / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+        write_atomic(root / f"{key}.json.gz", gzip.compress(text.encode("utf-8"), compresslevel=9, mtime=0))
+    write_atomic(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     load_suite.cache_clear()
     for task in definition.tasks:
         manifest["reference_rollouts"]["sha256"][task] = reference_rollout_digest(definition.name, task)
-    (root / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+    write_atomic(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

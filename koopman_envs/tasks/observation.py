@@ -22,6 +22,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from koopman_envs.layout import (
+    FAR,
     PART_WIDTH,
     MessageEntry,
     MoverEntry,
@@ -37,8 +38,6 @@ from koopman_envs.sim.perception import Perception
 
 __all__ = ["AGE_MAX", "FAR", "FeatureBuilder", "feature_bounds", "feature_size", "observation_from_beliefs"]
 
-#: Clearance reported for an absent obstacle [m]: farther than anything in a 20 m workspace.
-FAR = 30.0
 _POS = 20.0  # position bound [m]: twice the workspace half-width
 _REL = 40.0  # relative offsets [m]
 _DIST = 60.0  # distances and clearances [m]

@@ -19,7 +19,7 @@ from numbers import Real
 import numpy as np
 from numpy.typing import NDArray
 
-from koopman_envs.checks import check_choice, check_int, check_number, choice_message
+from koopman_envs.checks import check_choice, check_int, check_number
 from koopman_envs.params import LIMITS, PARAMS
 from koopman_envs.sim.formations import FORMATION_SHAPES, formation_shape
 from koopman_envs.sim.slip.zones import SLIP_ZONE_MODES
@@ -159,17 +159,9 @@ class RandomMapConfig:
                 raise ValueError(
                     f"travel={pair!r} must have low >= {MIN_TRAVEL:g} [m] (a shorter trip is none)"
                 )
-        if self.formation != AUTO_FORMATION:
-            try:
-                formation_shape(self.formation, 1, self.spacing)  # the shape's own checks: name, spacing
-            except ValueError as exc:
-                if "is not one of" not in str(exc):
-                    raise
-                raise ValueError(
-                    choice_message("formation", self.formation, [AUTO_FORMATION, *FORMATION_SHAPES])
-                ) from None
-        else:
-            formation_shape("grid", 1, self.spacing)  # the spacing's check
+        # the name among the shapes and "auto", then the shape's own check of the spacing
+        check_choice("formation", self.formation, [AUTO_FORMATION, *FORMATION_SHAPES])
+        formation_shape("grid" if self.formation == AUTO_FORMATION else self.formation, 1, self.spacing)
         swap = self.swap_targets
         if isinstance(swap, bool) or not isinstance(swap, Real) or not 0.0 <= swap <= 1.0:
             raise ValueError(f"swap_targets={swap!r} must be a probability in [0, 1]")

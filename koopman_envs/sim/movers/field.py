@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from koopman_envs.layout import MoverEntry
+from koopman_envs.layout import FAR, MoverEntry
 from koopman_envs.params import FAULT_STOPPED_SPEED
 from koopman_envs.settings.moving_obstacles import MOVER_FEATURES, MoverConfig
 from koopman_envs.sim.collision import CollisionFault, CollisionKind, mover_collisions
@@ -55,8 +55,6 @@ __all__ = [
 #: free space between a mover and any start or target at reset [m] (ours; at least one second
 #: of the mover's travel, so none reaches a robot before the robot can move)
 START_CLEARANCE = 0.5
-#: clearance reported for an absent mover [m] (the observation's FAR)
-_FAR = 30.0
 
 
 class MoverField:
@@ -488,5 +486,5 @@ def mover_features(
             for _ in range(listed, slots):
                 for f in range(MOVER_FEATURES):
                     out[k, i, col + f] = 0.0
-                out[k, i, col + MoverEntry.CLEARANCE] = _FAR
+                out[k, i, col + MoverEntry.CLEARANCE] = FAR
                 col += MOVER_FEATURES
