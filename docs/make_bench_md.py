@@ -18,7 +18,9 @@ only lays them out. The page's paired tables test one family per table and mode,
 run's header (:func:`page_pairs`): every controller against ``--reference``, and each tuned
 controller against its ``-v0``; every pair of every table, each table corrected over every pair,
 goes to ``bench_pairs.csv`` beside the page (:data:`PAIRS_FILE`), whose SHA-256 the page states.
-The tuning budget of each controller is its study in ``data/tuning/<name>/``
+Beside the leaderboard, which verdicts changed: each controller against ``--reference`` on the test
+split and on the paper track, with a verdict by a stated rule (:func:`verdict_changes`,
+:data:`VERDICT_RULE`). The tuning budget of each controller is its study in ``data/tuning/<name>/``
 (:func:`controllers.tuning.studies.study_budget`).
 
 A run may be partial (published progressively): a (task, controller) whose episodes are not all
@@ -34,6 +36,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import math
 import subprocess
 import sys
 from collections.abc import Mapping, Sequence
@@ -52,7 +55,7 @@ from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.reports.results import Results  # noqa: E402
 from evaluation.reports.sections import markdown, markdown_table, suite_heading, task_label  # noqa: E402
-from evaluation.reports.sections.blocks import rate_cell  # noqa: E402
+from evaluation.reports.sections.blocks import p_cell, rate_cell  # noqa: E402
 from evaluation.reports.sections.runs import SUITE_NOTE, suite_rows  # noqa: E402
 from evaluation.reports.sections.suite_tables import paired_csv, paired_note, suite_sections  # noqa: E402
 from evaluation.stats.suite_statistics import OUTCOMES, reference_pairs, suite_tables  # noqa: E402
@@ -72,6 +75,8 @@ __all__ = [
     "pairs_file",
     "published_runs",
     "tuned_pairs",
+    "verdict",
+    "verdict_changes",
 ]
 
 #: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
@@ -84,6 +89,18 @@ RUNS = {
 #: the file beside the page with every pair of every paired table (the page tests fewer): plain
 #: CSV in the repository, whose next version git stores as a delta of this one (docs/benchmark.md)
 PAIRS_FILE = "bench_pairs.csv"
+#: the family-wise error rate a Holm-corrected p is read against on both sides of the verdict table
+ALPHA = 0.05
+#: the verdict table's rule (:func:`verdict`), stated on the page
+VERDICT_RULE = (
+    f"A difference is significant where its Holm-corrected p is below {ALPHA} within its own family "
+    "(the test split's: the page's design, named under its success table; the paper track's: every "
+    "pair of its controllers in every task as one family, exact McNemar). Verdict: *same* when both are "
+    "significant with the same sign; *sign flipped* when both are significant with opposite signs; "
+    "*significant only on the paper track* or *only on the test split* when one is; *neither "
+    "significant* when neither is (absence of evidence on both, whatever the signs); *not tested* "
+    "when a side has no corrected p."
+)
 
 
 @dataclass(frozen=True)
@@ -237,6 +254,90 @@ def pairs_file(modes: Sequence[Mode]) -> str | None:
     ``RunData.suite_tables``); None when no mode has a row yet."""
     runs = [(mode.run, mode.results.suite_tables) for mode in modes if mode.results is not None]
     return paired_csv(runs) if runs else None
+
+
+def verdict(test: tuple[float, float], paper: tuple[float, float], alpha: float = ALPHA) -> str:
+    """What became of one pair's verdict from the paper track to the test split (:data:`VERDICT_RULE`).
+
+    Parameters
+    ----------
+    test, paper : (float, float)
+        The pair's difference (a - reference, success share) and its Holm-corrected p on the test
+        split and on the paper track; a NaN p: not tested there.
+    alpha : float
+        Family-wise error rate, ``0 < alpha < 1``.
+
+    Returns
+    -------
+    str
+        ``same``, ``sign flipped``, ``significant only on the paper track``, ``significant only on
+        the test split``, ``neither significant`` or ``not tested``.
+    """
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha={alpha!r} is not within (0, 1)")
+    if math.isnan(test[1]) or math.isnan(paper[1]):
+        return "not tested"
+    on_test, on_paper = test[1] < alpha, paper[1] < alpha
+    if on_test and on_paper:
+        # a significant difference is never zero, so its sign is +1 or -1
+        return "same" if math.copysign(1.0, test[0]) == math.copysign(1.0, paper[0]) else "sign flipped"
+    if on_paper:
+        return "significant only on the paper track"
+    if on_test:
+        return "significant only on the test split"
+    return "neither significant"
+
+
+def _against(rows: Sequence[Mapping[str, Any]], reference: str) -> dict[tuple[str, str], tuple[float, float]]:
+    """(task, controller) -> (its difference to ``reference``, the corrected p) for every row that
+    pairs a controller with ``reference``, turned so the difference is always controller - reference."""
+    out = {}
+    for row in rows:
+        if row["b"] == reference:
+            out[row["env_id"], row["a"]] = (float(row["difference"]), float(row["p_holm"]))
+        elif row["a"] == reference:
+            out[row["env_id"], row["b"]] = (-float(row["difference"]), float(row["p_holm"]))
+    return out
+
+
+def verdict_changes(
+    test_rows: Sequence[Mapping[str, Any]],
+    paper_rows: Sequence[Mapping[str, Any]],
+    reference: str,
+    alpha: float = ALPHA,
+) -> list[dict[str, Any]]:
+    """Per (task, controller) paired with ``reference`` on both the test split and the paper track,
+    the two differences, their corrected p and the :func:`verdict`, in the test split's order.
+
+    Parameters
+    ----------
+    test_rows : sequence of mapping
+        The test split's success table rows (``env_id``, ``a``, ``b``, ``difference``, ``p_holm``:
+        :func:`~evaluation.stats.suite_statistics.measure_table`).
+    paper_rows : sequence of mapping
+        The paper track's paired rows, the same fields (:meth:`~evaluation.stats.run_data.RunData.paired`).
+    reference : str
+        The controller both sides compare with; a row with ``reference`` as ``a`` is turned round.
+    alpha : float
+        Family-wise error rate, ``0 < alpha < 1``.
+
+    Returns
+    -------
+    list of dict
+        ``env_id``, ``controller``, ``test`` and ``paper`` (each ``(difference, p_holm)``) and ``verdict``.
+    """
+    paper = _against(paper_rows, reference)
+    return [
+        {
+            "env_id": env_id,
+            "controller": label,
+            "test": test,
+            "paper": paper[env_id, label],
+            "verdict": verdict(test, paper[env_id, label], alpha),
+        }
+        for (env_id, label), test in _against(test_rows, reference).items()
+        if (env_id, label) in paper
+    ]
 
 
 def _summary(mode: Mode) -> dict[tuple[str, str], dict[str, Any]]:
@@ -514,12 +615,71 @@ def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[st
     return lines + [""]
 
 
-def _tested_section(mode: Mode, reference: str) -> list[str]:
+def _mode_tables(mode: Mode, reference: str) -> tuple[list[dict[str, Any]], str] | None:
+    """``mode``'s tested tables on the page's design and the design's clause (None: no rows yet);
+    computed once, the verdict table and the tested section both read them."""
     if mode.results is None:
+        return None
+    pairs, design = page_pairs(mode, reference)
+    return suite_tables(mode.results.records, pairs, design), design
+
+
+def _success_rows(tables: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of the success table among a mode's tested tables."""
+    return next(list(table["rows"]) for table in tables if table["measure"] == OUTCOMES[0].key)
+
+
+def _verdicts_section(
+    modes: Sequence[Mode], tested: Mapping[str, Any], paper: Results | None, reference: str
+) -> list[str]:
+    """Per published mode, every controller paired with ``reference`` on both the test split and the
+    paper track: the two differences, their corrected p and what became of the verdict."""
+    lines = [
+        "## Which verdicts changed: the test split against the paper track",
+        "",
+        f"Each controller against {reference}, success: its difference on the test split (the page's "
+        "success table) and on the paper track (free compute; its rows ran with the defaults they "
+        "were published with, the hand-set ones for a controller tuned later). " + VERDICT_RULE,
+        "",
+    ]
+    if paper is None:
+        return lines + ["The paper track is not published: nothing to compare with yet.", ""]
+    header = [
+        "Task",
+        "Controller",
+        "Test split a - ref",
+        "Holm p",
+        "Paper track a - ref",
+        "Holm p",
+        "Verdict",
+    ]
+    for mode in modes:
+        if tested.get(mode.name) is None:
+            continue
+        rows = [
+            [
+                task_label(row["env_id"]),
+                row["controller"],
+                f"{100 * row['test'][0]:+.0f}",
+                "-" if math.isnan(row["test"][1]) else p_cell(row["test"][1]),
+                f"{100 * row['paper'][0]:+.0f}",
+                "-" if math.isnan(row["paper"][1]) else p_cell(row["paper"][1]),
+                row["verdict"],
+            ]
+            for row in verdict_changes(_success_rows(tested[mode.name][0]), paper.paired(), reference)
+        ]
+        table = (
+            markdown_table((header, rows)) if rows else f"No controller is paired with {reference} on both."
+        )
+        lines += [f"**{RUNS[mode.name][1]}**", "", table, ""]
+    return lines
+
+
+def _tested_section(mode: Mode, tested: tuple[list[dict[str, Any]], str] | None) -> list[str]:
+    if mode.results is None or tested is None:
         return []
     title = RUNS[mode.name][1]
-    pairs, design = page_pairs(mode, reference)
-    tables = suite_tables(mode.results.records, pairs, design)
+    tables, design = tested
     text = markdown(suite_sections(mode.results, tables, paired_note(design))).replace("\n## ", "\n### ")
     return [f"## {title}: outcomes, metrics and paired tests", "", "### " + text.removeprefix("## "), ""]
 
@@ -548,7 +708,8 @@ def page(
     paper_path: str = "data/paper.tar.xz",
     pairs: str | None = None,
 ) -> str:
-    """The page's Markdown: the headline block, the runs, the leaderboard, the breakdowns, the
+    """The page's Markdown: the headline block, the runs, the leaderboard, which verdicts changed
+    from the paper track (:func:`verdict_changes`; once a mode has rows), the breakdowns, the
     tuning budget, where every pair is (``pairs``: :data:`PAIRS_FILE`'s text, :func:`pairs_file`)
     and each mode's tested tables against ``reference`` (:func:`page_pairs`)."""
     labels = list(dict.fromkeys(c for mode in modes for _, c in mode.progress))
@@ -567,12 +728,15 @@ def page(
         "",
         *_runs_section(modes),
     ]
+    tested = {mode.name: _mode_tables(mode, reference) for mode in modes}
     if any(mode.results is not None for mode in modes):
-        lines += _leaderboard_section(modes) + _breakdown_section(modes)
+        lines += _leaderboard_section(modes)
+        lines += _verdicts_section(modes, tested, paper, reference)
+        lines += _breakdown_section(modes)
     lines += tuning_budget(labels, studies) if labels else []
     lines += _pairs_section(pairs) if pairs is not None else []
     for mode in modes:
-        lines += _tested_section(mode, reference)
+        lines += _tested_section(mode, tested[mode.name])
     return "\n".join(lines).rstrip("\n") + "\n"
 
 

@@ -26,11 +26,24 @@ import controllers
 from controllers.tuning import is_comparison_variant, study_budget
 from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
-from evaluation.reports.sections.blocks import rate_cell
+from evaluation.reports.sections import task_label
+from evaluation.reports.sections.blocks import p_cell, rate_cell
+from evaluation.stats.suite_statistics import suite_tables
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
-from make_bench_md import HEADLINE, PAIRS_FILE, _paper_variants_note, load_mode, main, page  # noqa: E402  (docs/ is no package)
+from make_bench_md import (  # noqa: E402  (docs/ is no package)
+    HEADLINE,
+    PAIRS_FILE,
+    _paper,
+    _paper_variants_note,
+    load_mode,
+    main,
+    page,
+    page_pairs,
+    verdict,
+    verdict_changes,
+)
 from make_pages import block_of, with_block  # noqa: E402
 from make_sizing import BLOCK as SIZING  # noqa: E402
 from make_sizing import CPU_SECONDS_PER_UNIT, sizing_block  # noqa: E402
@@ -105,8 +118,11 @@ def test_nothing_published_gives_a_pending_headline(tmp_path) -> None:
     assert (
         main(["--charged", str(tmp_path / "a"), "--free", str(tmp_path / "b"), *REF, "--out", str(out)]) == 0
     )
-    block = block_of(out.read_text(encoding="utf-8"), HEADLINE)
+    text = out.read_text(encoding="utf-8")
+    block = block_of(text, HEADLINE)
     assert block is not None and ": pending, " in block and "|" not in block
+    # the verdict table waits for a published mode, as the leaderboard does
+    assert "## Which verdicts changed" not in text and "## Leaderboard" not in text
 
 
 def test_the_modes_are_refused_swapped(tmp_path, capsys) -> None:
@@ -363,3 +379,79 @@ def test_the_paper_tracks_paper_rows_say_they_keep_soft_constraints() -> None:
     configs[1]["options"]["soft_constraints"] = False
     assert "soft constraints" not in _paper_variants_note({"controller_configs": configs})
     assert _paper_variants_note({"controller_configs": configs[:1]}) == ""
+
+
+def _pair(env_id: str, a: str, b: str, difference: float, p_holm: float) -> dict[str, Any]:
+    return {"env_id": env_id, "a": a, "b": b, "difference": difference, "p_holm": p_holm}
+
+
+def test_the_verdict_of_each_pair_follows_the_stated_rule() -> None:
+    """A hand-made test split and paper track against ``ref``: both significant with the same sign,
+    one flipped, one significant on one side only (each side), neither, an untested pair, a pair
+    with the reference as ``a`` (turned round) and pairs that are on one side only (left out)."""
+    test = [
+        _pair("T", "same", "ref", 0.20, 0.001),
+        _pair("T", "flip", "ref", 0.15, 0.01),
+        _pair("T", "paper-only", "ref", -0.05, 0.40),
+        _pair("T", "ref", "test-only", 0.30, 0.002),  # test-only - ref = -0.30
+        _pair("T", "neither", "ref", 0.05, 0.50),
+        _pair("T", "untested", "ref", 0.0, float("nan")),
+        _pair("T", "test-split-only", "ref", 0.5, 0.001),
+        _pair("T", "same", "flip", 0.1, 0.001),  # no reference: not a verdict row
+    ]
+    paper = [
+        _pair("T", "ref", "same", -0.10, 0.03),  # same - ref = +0.10
+        _pair("T", "flip", "ref", -0.20, 0.001),
+        _pair("T", "paper-only", "ref", -0.40, 0.001),
+        _pair("T", "test-only", "ref", -0.02, 0.90),
+        _pair("T", "neither", "ref", -0.05, 0.06),
+        _pair("T", "untested", "ref", 0.10, 0.001),
+        _pair("U", "same", "ref", 0.3, 0.001),  # a task the test split lacks
+    ]
+    rows = verdict_changes(test, paper, "ref")
+    assert [(r["env_id"], r["controller"], r["verdict"]) for r in rows] == [
+        ("T", "same", "same"),
+        ("T", "flip", "sign flipped"),
+        ("T", "paper-only", "significant only on the paper track"),
+        ("T", "test-only", "significant only on the test split"),
+        ("T", "neither", "neither significant"),
+        ("T", "untested", "not tested"),
+    ]
+    turned = {r["controller"]: r for r in rows}
+    assert turned["test-only"]["test"] == (-0.30, 0.002)
+    assert turned["same"]["paper"] == (0.10, 0.03)
+    # the threshold is the rule's: a corrected p of 0.03 is not significant at 0.01
+    assert verdict((0.2, 0.001), (0.1, 0.03), alpha=0.01) == "significant only on the test split"
+    with pytest.raises(ValueError, match="alpha=1.5 is not within"):
+        verdict((0.2, 0.001), (0.1, 0.03), alpha=1.5)
+
+
+def test_the_page_says_which_verdicts_changed_from_the_paper_track(modes) -> None:
+    """Once a mode is published, the section after the leaderboard pairs each controller with the
+    reference on the test split (the page's success table) and on the committed paper track."""
+    paper = _paper(str(ROOT / "data" / "paper.tar.xz"))
+    assert paper is not None
+    text = page(modes, paper, "orca")
+    start = text.index("## Which verdicts changed")
+    assert text.index("## Leaderboard") < start < text.index("## By layout tier")
+    section = text[start : text.index("## By layout tier")]
+    assert "**Compute charged**" in section and "**Free compute**" in section
+    paper_rows = {(r["env_id"], r["a"], r["b"]): r for r in paper.paired()}
+    for mode in modes:
+        success = suite_tables(mode.results.records, *page_pairs(mode, "orca"))[0]
+        assert success["measure"] == "success"
+        for env_id in {r["env_id"] for r in success["rows"]}:
+            row = next(r for r in success["rows"] if r["env_id"] == env_id and r["b"] == "orca")
+            theirs = paper_rows.get((env_id, "consensus", "orca")) or paper_rows[env_id, "orca", "consensus"]
+            sign = 1 if theirs["a"] == "consensus" else -1
+            expected = verdict(
+                (row["difference"], row["p_holm"]), (sign * theirs["difference"], theirs["p_holm"])
+            )
+            line = (
+                f"| {task_label(env_id)} | consensus | {100 * row['difference']:+.0f} | "
+                f"{p_cell(row['p_holm'])} | {100 * sign * theirs['difference']:+.0f} | "
+                f"{p_cell(theirs['p_holm'])} | {expected} |"
+            )
+            assert line in section
+    # without the paper track the section says so
+    assert "The paper track is not published: nothing to compare with yet." in page(modes, None, "orca")
