@@ -96,9 +96,12 @@ def test_with_the_map_known_and_no_movers_the_beams_change_nothing() -> None:
 
 def test_the_perception_is_deterministic() -> None:
     """Same seed, same episode (movers tracked, map unknown), in one process and in another; 30
-    periods, the robots still driving among the movers (a whole episode, 102 periods, is 3x longer)."""
-    first, _ = _episode("dwa", map_known=False, movers=4, seed=3, max_episode_steps=30)
-    again, _ = _episode("dwa", map_known=False, movers=4, seed=3, max_episode_steps=30)
+    periods, the robots still driving among the movers (a whole episode, 102 periods, is 3x longer).
+    Consensus drives (core install, no extra): it sees through the same perception front as DWA
+    (the tracked movers in its repulsion) and decides in less than half of DWA's
+    CPU time (2.2 against 4.9 CPU-s for these 30 periods, fresh interpreter, numba cache warm)."""
+    first, _ = _episode("consensus", map_known=False, movers=4, seed=3, max_episode_steps=30)
+    again, _ = _episode("consensus", map_known=False, movers=4, seed=3, max_episode_steps=30)
     assert first.steps == 30 and first.truncated
     assert (first.outcome, first.steps) == (again.outcome, again.steps)
     np.testing.assert_array_equal(first.final_distance, again.final_distance)
@@ -107,7 +110,7 @@ def test_the_perception_is_deterministic() -> None:
         "from koopman_envs.episodes.single import run_episode;"
         f"env = gym.make({ENV!r}, map='map1', sensing='lidar', lidar={{'map_known': False}}, movers={{'count': 4}},"
         " max_episode_steps=30);"
-        "r = run_episode(env, controllers.make('dwa'), seed=3);"
+        "r = run_episode(env, controllers.make('consensus'), seed=3);"
         "print(r.steps, repr(np.asarray(r.final_distance).tolist()))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

@@ -40,8 +40,25 @@ def test_cheap_controllers_drive_six_robots(name: str, env_id: str, map_name: st
     run_short(name, env_id, map_name)
 
 
-@pytest.mark.parametrize("env_id, map_name", MAPS)
-@pytest.mark.parametrize("name", NMPC)
+def _nmpc_cases() -> list:
+    """Every NMPC on every six-robot map; by default each NMPC on one map and each map by an NMPC
+    (the same 6-robot problem structure per controller on either task; 3 CPU-s a case, most of it
+    the calibration), the other three with ``-m slow``."""
+    default = {("koopman-nmpc", "map7"), ("nominal-nmpc", "map8"), ("adaptive-koopman-nmpc", "map7")}
+    return [
+        pytest.param(
+            name,
+            env_id,
+            map_name,
+            marks=[] if (name, map_name) in default else [pytest.mark.slow],
+            id=f"{name}-{env_id}-{map_name}",
+        )
+        for name in NMPC
+        for env_id, map_name in MAPS
+    ]
+
+
+@pytest.mark.parametrize(("name", "env_id", "map_name"), _nmpc_cases())
 def test_nmpc_controllers_drive_six_robots(name: str, env_id: str, map_name: str) -> None:
     run_short(name, env_id, map_name)
 
