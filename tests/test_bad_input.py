@@ -116,7 +116,7 @@ def test_an_unknown_part_to_count_is_named_with_the_parts_that_list_items() -> N
 def test_a_random_maps_formation_and_spacing_are_checked_each_by_name() -> None:
     """The formation's name is checked as a choice, not recognised by the text of the shape's
     error: a bad spacing whose value reads "is not one of" was blamed on the formation."""
-    from koopman_envs.sim.random_map_config import RandomMapConfig
+    from koopman_envs.sim.maps.generator_config import RandomMapConfig
 
     with pytest.raises(ValueError, match=r"formation='star' is not one of \['auto', 'wedge'"):
         RandomMapConfig(formation="star")

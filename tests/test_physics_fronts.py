@@ -117,7 +117,7 @@ def test_rendering_draws_the_bodies_poses_as_they_move() -> None:
 
 def _zone_friction(zones: list[dict[str, Any]], seed: int = 0) -> np.ndarray:
     """Every robot's friction after one period on map1 with ``zones`` under its starts."""
-    from koopman_envs.sim.maps import MapSpec, load_map
+    from koopman_envs.sim.maps.map_spec import MapSpec, load_map
 
     spec = load_map("map1").to_dict()
     spec["slip_zones"] = zones
@@ -136,7 +136,7 @@ def test_a_zone_without_a_surface_takes_the_one_its_lambda_names(lam: float, sur
     from koopman_envs.params import SURFACES
     from koopman_envs.sim.physics.surfaces import surface_for_lambda
     from koopman_envs.sim.physics.world import zone_surface
-    from koopman_envs.sim.zones import SlipZone
+    from koopman_envs.sim.slip.zones import SlipZone
 
     assert surface_for_lambda(lam) == surface
     assert zone_surface(SlipZone("rect", tuple(UNDER_STARTS), lam)) == surface
