@@ -53,8 +53,7 @@ def _parser() -> argparse.ArgumentParser:
 def _adopt_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m evaluation.tune adopt",
-        description="Apply the adoption rule to finished studies and install what it admits: a "
-        f"study's preset ships only if {ADOPTION_RULE}.",
+        description=f"Apply the adoption rule to finished studies and install what it admits: {ADOPTION_RULE}.",
     )
     parser.add_argument("names", nargs="+", metavar="NAME", help="the tuned controllers (data/tuning/NAME/)")
     parser.add_argument(
@@ -69,7 +68,7 @@ def _adopt_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="first rerun an adopted study's best and its defaults on the next N validation layouts per "
-        f"task, and install the preset only if {CONFIRMATION_RULE}",
+        f"task, and install the preset only if it is confirmed: {CONFIRMATION_RULE}",
     )
     parser.add_argument("--workers", type=int, default=1, help="worker processes of --confirm's runs")
     return parser
