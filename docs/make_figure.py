@@ -21,6 +21,7 @@ import controllers
 import koopman_envs  # noqa: F401  (registers the ids)
 from controllers.calibration import calibrate_controller
 from evaluation.exit_codes import SUCCESS_EXIT
+from koopman_envs.files import write_atomic
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,7 +45,8 @@ def main(argv: list[str] | None = None) -> int:
         if terminated or truncated:
             break
     print(f"{args.controller}: {steps} steps, collision={info['collision']}, success={info['is_success']}")
-    matplotlib.image.imsave(args.out, env.render())
+    frame = env.render()
+    write_atomic(args.out, lambda temporary: matplotlib.image.imsave(temporary, frame))
     env.close()
     print(args.out)
     return SUCCESS_EXIT

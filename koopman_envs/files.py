@@ -20,9 +20,10 @@ the baselines, the evaluator) reads and writes through it.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import secrets
 import stat
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -183,11 +184,39 @@ def read_text(
         ) from None
 
 
-def _umask() -> int:
-    """The process's umask (read by setting it: there is no other way; set straight back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+#: the flags of a temporary file: made here or not at all (``O_EXCL``), never through a symbolic
+#: link, not inherited by child processes, binary on Windows (as :func:`tempfile.mkstemp`'s)
+_TEMP_FLAGS = (
+    os.O_RDWR
+    | os.O_CREAT
+    | os.O_EXCL
+    | getattr(os, "O_NOFOLLOW", 0)
+    | getattr(os, "O_CLOEXEC", 0)
+    | getattr(os, "O_NOINHERIT", 0)
+    | getattr(os, "O_BINARY", 0)
+)
+#: names tried for a temporary file before giving up (as :func:`tempfile.mkstemp`)
+_TEMP_TRIES = 100
+
+
+def _make_temporary(folder: Path, prefix: str, suffix: str) -> tuple[int, str]:
+    """A new file ``folder/prefix<random>suffix``, opened for writing: (its descriptor, its path).
+
+    Made with mode 0o666 for the kernel to take the umask off (and apply a folder's default
+    ACL), the mode a plain ``open(path, "w")`` gives. The umask is never read: the only way is to
+    set it (``os.umask``) and set it back, and a thread that makes a file in between would make
+    it with the wrong mode (:func:`tempfile.mkstemp` makes 0o600 files, which were then chmod'ed
+    to ``0o666 & ~umask`` read that way).
+    """
+    for _ in range(_TEMP_TRIES):
+        name = os.path.join(folder, f"{prefix}{secrets.token_hex(6)}{suffix}")
+        try:
+            return os.open(name, _TEMP_FLAGS, 0o666), name
+        except FileExistsError:
+            continue
+    raise FileExistsError(
+        errno.EEXIST, f"no free temporary file name in {_TEMP_TRIES} tries", os.fspath(folder)
+    )
 
 
 def write_atomic(
@@ -229,11 +258,8 @@ def write_atomic(
     fd: int | None = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(
-            dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix if suffix is None else suffix
-        )
-        # mkstemp makes the file private (0600); a report gets the mode a plain open would give it
-        os.chmod(tmp, 0o666 & ~_umask())
+        # the mode a plain open would give it (0o666 less the umask, applied by the kernel)
+        fd, tmp = _make_temporary(path.parent, f".{path.name}.", path.suffix if suffix is None else suffix)
         if callable(content):
             os.close(fd)
             fd = None

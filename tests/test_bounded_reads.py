@@ -370,6 +370,62 @@ def test_write_atomic_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monke
     assert target.read_text() == '{"old": true}\n' and list(tmp_path.iterdir()) == [target]
 
 
+def test_write_atomic_gives_the_mode_of_a_plain_open_under_the_umask_of_the_process(tmp_path) -> None:
+    """0o666 less the umask (here 0o027, set before anything is written), as ``open(path, "w")``
+    gives, for text and for a writer of its own; the umask left as it was."""
+    script = (
+        "import os, stat, sys\n"
+        "from pathlib import Path\n"
+        "os.umask(0o027)\n"
+        "from koopman_envs.files import write_atomic\n"
+        "folder = Path(sys.argv[1])\n"
+        "write_atomic(folder / 'a.json', '{}')\n"
+        "write_atomic(folder / 'b.txt', lambda tmp: Path(tmp).write_text('x'))\n"
+        "open(folder / 'plain.txt', 'w').close()\n"
+        "modes = [stat.S_IMODE((folder / n).stat().st_mode) for n in ('a.json', 'b.txt', 'plain.txt')]\n"
+        "print(*(oct(m) for m in modes), oct(os.umask(0)))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path)], capture_output=True, text=True, check=True, timeout=120
+    )
+    assert done.stdout.split() == ["0o640", "0o640", "0o640", "0o27"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.txt", "plain.txt"]
+
+
+@pytest.mark.skipif(not hasattr(os, "umask") or sys.platform == "win32", reason="POSIX file modes")
+def test_write_atomic_never_sets_the_umask(tmp_path, monkeypatch) -> None:
+    """Reading the umask means setting it and setting it back; another thread that makes a file in
+    between makes it with the wrong mode. write_atomic lets the kernel apply the umask instead."""
+    import stat
+
+    from koopman_envs import files
+
+    umask = os.umask(0o022)
+    os.umask(umask)
+
+    def refused(mask: int) -> int:
+        raise AssertionError(f"os.umask({mask:#o}) called: it changes the umask of every thread")
+
+    monkeypatch.setattr(os, "umask", refused)
+    target = files.write_atomic(tmp_path / "report.md", "# report\n")
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
+    assert target.read_text() == "# report\n" and list(tmp_path.iterdir()) == [target]
+
+
+def test_write_atomic_tries_another_temporary_name_when_one_is_taken(tmp_path, monkeypatch) -> None:
+    """The temporary file is made with O_EXCL: a name already taken (another writer's) is never
+    opened; the next random name is."""
+    from koopman_envs import files
+
+    names = iter(["taken", "taken", "free"])
+    monkeypatch.setattr(files.secrets, "token_hex", lambda n: next(names))
+    taken = tmp_path / ".out.txt.taken.txt"
+    taken.write_text("another writer's")
+    files.write_atomic(tmp_path / "out.txt", "mine")
+    assert (tmp_path / "out.txt").read_text() == "mine" and taken.read_text() == "another writer's"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.txt.taken.txt", "out.txt"]
+
+
 def test_the_archive_command_exits_103_naming_the_file_when_the_disk_is_full(
     tmp_path, monkeypatch, capsys
 ) -> None:

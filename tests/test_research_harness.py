@@ -130,6 +130,61 @@ def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> Non
         ev.evaluate(spec, workers=1, out=out, resume=True)
 
 
+@pytest.mark.parametrize("edit", ["obstacle moved", "not a map"])
+def test_a_map_file_edited_after_its_fingerprint_does_not_change_the_run(tmp_path, edit) -> None:
+    """The bytes fingerprinted are the bytes run: a map file replaced after the run read it (here
+    between the plan and the first episode) changes neither the recorded fingerprint nor the map
+    the episodes run on (they ran on the file read again, the edited one: other obstacles, or an
+    error record for every episode)."""
+    import hashlib
+
+    from koopman_envs.sim.maps.map_spec import load_map
+
+    path = tmp_path / "mine.json"
+    load_map("map1").save(path)
+    original = path.read_bytes()
+    layout = json.loads(original)
+
+    def replace_the_file(plan) -> None:
+        if edit == "obstacle moved":
+            edited = json.loads(original)
+            edited["obstacles"][0][0] += 0.5
+            path.write_text(json.dumps(edited))
+        else:
+            path.write_text("{not json")
+
+    spec = ev.RunSpec(
+        TARGET,
+        ["consensus"],
+        maps=[str(path)],
+        slips=["nominal"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": 5},
+    )
+    results = ev.evaluate(spec, workers=1, plan_check=replace_the_file)
+    (record,) = results.records
+    assert record["status"] == "ok", record.get("error")
+    assert record["obstacles"] == layout["obstacles"]
+    assert results.config["map_files"] == {str(path): hashlib.sha256(original).hexdigest()}
+
+
+def test_an_episode_of_a_map_file_builds_its_map_from_the_text_read(tmp_path) -> None:
+    """The plan's episodes carry the map file's text: the file itself is not read again."""
+    from evaluation.run.plan import read_map_files
+    from koopman_envs.sim.maps.map_spec import load_map
+
+    path = tmp_path / "mine.json"
+    load_map("map2").save(path)
+    spec = ev.RunSpec(TARGET, ["consensus"], maps=[str(path)], slips=["nominal"], episodes=2).resolved()
+    files = read_map_files(spec.maps)
+    path.unlink()
+    plan = spec.episodes_plan(map_files=files)
+    assert [episode.map for episode in plan] == [str(path)] * 2
+    built = plan[0].make_kwargs()["map"]
+    assert built.name == "map2" and built.obstacles.tolist() == load_map("map2").obstacles.tolist()
+    assert "map_text" not in plan[0].record_fields()
+
+
 def test_gifs_record_one_animation_per_cell(tmp_path) -> None:
     spec = ev.RunSpec(
         TARGET,

@@ -13,6 +13,7 @@ one) is written to ``--out`` with the run's metadata plus the whole validation t
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import shutil
 import sys
@@ -158,8 +159,9 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     source, target = PolicyFiles(chosen), PolicyFiles(out)
-    shutil.copyfile(source.model, target.model)
-    shutil.copyfile(source.norm, target.norm)
+    # each file whole or not at all: a later evaluation loads the selected policy
+    write_atomic(target.model, functools.partial(shutil.copyfile, source.model))
+    write_atomic(target.norm, functools.partial(shutil.copyfile, source.norm))
     selected = dict(metadata)
     selected["selection"] = {
         "command": "python -m baselines.sb3.select " + " ".join(argv if argv is not None else sys.argv[1:]),

@@ -13,7 +13,7 @@ from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import open_log
 from evaluation.execution.backends import BACKENDS, BATCH, Progress, RunInterrupted, announce, run_episodes
 from evaluation.reports.results import Results
-from evaluation.run.plan import EpisodeSpec
+from evaluation.run.plan import EpisodeSpec, read_map_files
 from evaluation.run.spec import RunSpec
 from koopman_envs.checks import check_choice, check_int
 
@@ -135,8 +135,10 @@ def evaluate(
         spec.validate(workers)  # the filled-in configurations too
     else:
         spec = spec.resolved()
-    config = spec.config(workers, backend)
-    plan = spec.episodes_plan(os.fspath(out) if out is not None else "")
+    # every user map file read once: the fingerprints recorded are of the texts the episodes run
+    map_files = read_map_files(spec.maps)
+    config = spec.config(workers, backend, map_files)
+    plan = spec.episodes_plan(os.fspath(out) if out is not None else "", map_files)
     if config_check is not None:
         config_check(config)
     if plan_check is not None:

@@ -35,16 +35,18 @@ temporary directory removed after use, a single archive or a publication split p
 
 from __future__ import annotations
 
+import functools
 import importlib
 import io
 import json
 import lzma
+import os
 import shutil
 import tarfile
 import warnings
 from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import IO, Any
 
 from evaluation.episodes.distinct import read_once
 from evaluation.episodes.records import record_problem
@@ -287,18 +289,22 @@ def _unpack(archive: Path, tar: tarfile.TarFile, target: Path) -> set[str]:
         dest.parent.mkdir(parents=True, exist_ok=True)
         source = tar.extractfile(member)
         assert source is not None  # a regular file's  # noqa: S101
-        written = 0
-        try:
-            handle = open(dest, "xb")  # noqa: SIM115 - closed below; "x": a member twice is refused
-        except FileExistsError:
-            raise ValueError(f"{archive}: member {member.name!r} appears twice") from None
-        with handle:
-            while chunk := source.read(_CHUNK):
-                written += len(chunk)
-                if written > member.size:  # tarfile stops at the declared size; counted anyway
-                    raise ValueError(f"{archive}: member {member.name!r} holds more than it declares")
-                handle.write(chunk)
+        if os.path.lexists(dest):
+            raise ValueError(f"{archive}: member {member.name!r} appears twice")
+        # whole or not at all: a kill mid-member leaves no shortened log that reads as a shorter run
+        write_atomic(dest, functools.partial(_copy_member, archive, member, source))
     return tops
+
+
+def _copy_member(archive: Path, member: tarfile.TarInfo, source: IO[bytes], path: str) -> None:
+    """Copy the bytes of ``member`` from ``source`` to ``path``, counted against its declared size."""
+    written = 0
+    with open(path, "wb") as handle:
+        while chunk := source.read(_CHUNK):
+            written += len(chunk)
+            if written > member.size:  # tarfile stops at the declared size; counted anyway
+                raise ValueError(f"{archive}: member {member.name!r} holds more than it declares")
+            handle.write(chunk)
 
 
 def _remove(paths: list[Path]) -> None:

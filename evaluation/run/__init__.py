@@ -18,7 +18,15 @@ from evaluation.run.configs import (
     split_controller_list,
     with_solver,
 )
-from evaluation.run.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name
+from evaluation.run.plan import (
+    RANDOM_MAP,
+    EpisodeSpec,
+    MapFile,
+    is_map_file,
+    map_fingerprints,
+    read_map_files,
+    safe_file_name,
+)
 from evaluation.run.slip_text import is_lambda, slip_value, split_slips
 from evaluation.run.spec import CELL_AXES, MAX_WORKERS, RECORDED_ENV_SETTINGS, RunSpec, with_env_setting
 from evaluation.run.suite_runs import (
@@ -59,8 +67,11 @@ __all__ = [
     "suite_units",
     "unit_trial",
     "EpisodeSpec",
+    "MapFile",
     "RANDOM_MAP",
+    "is_map_file",
     "map_fingerprints",
+    "read_map_files",
     "safe_file_name",
     "CELL_AXES",
     "MAX_WORKERS",

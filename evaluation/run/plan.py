@@ -16,10 +16,21 @@ from typing import Any
 from evaluation.run.configs import ControllerConfig
 from evaluation.run.slip_text import is_lambda, slip_value
 from evaluation.run.suite_runs import LAYOUT_FIELDS
-from koopman_envs import BUILTIN_MAPS, SUITE_PREFIX, ComputeCharge
-from koopman_envs.params import PARAMS
+from koopman_envs import BUILTIN_MAPS, SUITE_PREFIX, ComputeCharge, MapSpec
+from koopman_envs.files import read_text
+from koopman_envs.params import LIMITS, PARAMS
 
-__all__ = ["EpisodeSpec", "RANDOM_MAP", "is_lambda", "map_fingerprints", "safe_file_name", "slip_value"]
+__all__ = [
+    "EpisodeSpec",
+    "MapFile",
+    "RANDOM_MAP",
+    "is_lambda",
+    "is_map_file",
+    "map_fingerprints",
+    "read_map_files",
+    "safe_file_name",
+    "slip_value",
+]
 
 RANDOM_MAP = "random"
 
@@ -52,6 +63,10 @@ class EpisodeSpec:
     suite: str | None = None
     # a factory given as a callable (API only); sent to workers by reference, not recorded
     controller_factory: Callable[..., Any] | None = field(default=None, compare=False, repr=False)
+    # a user map file's text as the run read it once (read_map_files) and fingerprinted it: the
+    # episode's map is built from it, never from the file again; not recorded (the fingerprint is,
+    # in the run's config). None: the map is a name (a shipped map, random, a suite split)
+    map_text: str | None = field(default=None, compare=False, repr=False)
 
     @property
     def key(self) -> str:
@@ -76,7 +91,9 @@ class EpisodeSpec:
 
     def make_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``gym.make`` for this episode (without ``render_mode``)."""
-        return {**json.loads(self.env_kwargs), "map": self.map, "slip": slip_value(self.slip)}
+        # a user map from the text the run fingerprinted, not from the file (edited meanwhile?)
+        map_arg = self.map if self.map_text is None else MapSpec.from_file_text(self.map_text, self.map)
+        return {**json.loads(self.env_kwargs), "map": map_arg, "slip": slip_value(self.slip)}
 
     def reset_options(self) -> dict[str, Any] | None:
         """The env's reset options of this episode: its suite layout (None off a suite)."""
@@ -87,7 +104,9 @@ class EpisodeSpec:
         only in a suite run's records, so that every other record is as before)."""
         fields: dict[str, Any] = {}
         for k in self.__dataclass_fields__:
-            if k in ("controller_factory", "run_dir") or (k in LAYOUT_FIELDS and self.layout is None):
+            if k in ("controller_factory", "run_dir", "map_text") or (
+                k in LAYOUT_FIELDS and self.layout is None
+            ):
                 continue
             if k == "compute":  # as its scale, the field records have always had (0.0: free compute)
                 fields["compute_scale"] = 0.0 if self.compute is None else self.compute.scale
@@ -111,13 +130,45 @@ def safe_file_name(*parts: str) -> str:
     )
 
 
-def map_fingerprints(maps: Mapping[str, Sequence[str]]) -> dict[str, str]:
-    """SHA-256 of every user map file of the run (so a resume notices an edited file; a suite
-    split's hash is the run's ``suite`` record)."""
-    prints = {}
+def is_map_file(name: str) -> bool:
+    """Whether a map of a run is a user map file (not a shipped map, ``random`` or a suite split)."""
+    return name != RANDOM_MAP and name not in BUILTIN_MAPS and not name.startswith(SUITE_PREFIX)
+
+
+@dataclass(frozen=True)
+class MapFile:
+    """A user map file of a run, read once: its text and the SHA-256 of its bytes (its UTF-8)."""
+
+    path: str
+    text: str
+    sha256: str
+
+
+def read_map_files(maps: Mapping[str, Sequence[str]]) -> dict[str, MapFile]:
+    """Every user map file of the run, each read once (bounded, as :func:`koopman_envs.load_map`
+    reads it): the run records these fingerprints and builds its episodes' maps from these texts,
+    so that a file edited during the run changes neither.
+
+    Raises
+    ------
+    koopman_envs.files.FileRefused
+        A map file is missing, not a regular file, too large or not UTF-8 text; the message names it.
+    """
+    files = {}
     for names in maps.values():
         for name in names:
-            if name != RANDOM_MAP and name not in BUILTIN_MAPS and not name.startswith(SUITE_PREFIX):
-                with open(name, "rb") as fh:
-                    prints[name] = hashlib.sha256(fh.read()).hexdigest()
-    return prints
+            if is_map_file(name) and name not in files:
+                text = read_text(name, LIMITS.map_file_bytes, what="map file", expected="a JSON map file")
+                # strict UTF-8 decodes and encodes back to the very bytes read: the file's hash
+                files[name] = MapFile(name, text, hashlib.sha256(text.encode("utf-8")).hexdigest())
+    return files
+
+
+def map_fingerprints(
+    maps: Mapping[str, Sequence[str]], files: Mapping[str, MapFile] | None = None
+) -> dict[str, str]:
+    """SHA-256 of every user map file of the run (so a resume notices an edited file; a suite
+    split's hash is the run's ``suite`` record): of ``files`` when given (what the run read, see
+    :func:`read_map_files`), else of the files read now."""
+    files = read_map_files(maps) if files is None else files
+    return {name: files[name].sha256 for names in maps.values() for name in names if is_map_file(name)}

@@ -24,7 +24,15 @@ from typing import Any
 from controllers.calibration import data_spec_for
 from evaluation.episodes.runlog import run_signature
 from evaluation.run.configs import controller_configs, with_solver
-from evaluation.run.plan import RANDOM_MAP, EpisodeSpec, map_fingerprints, safe_file_name, slip_value
+from evaluation.run.plan import (
+    RANDOM_MAP,
+    EpisodeSpec,
+    MapFile,
+    map_fingerprints,
+    read_map_files,
+    safe_file_name,
+    slip_value,
+)
 from evaluation.run.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
 from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, ComputeCharge, EngineConfig, task_for_env
 from koopman_envs.checks import check_choice, check_int, check_number, did_you_mean
@@ -345,7 +353,9 @@ class RunSpec:
                 raise ValueError(f"env_kwargs: {exc}") from None
 
     # ------------------------------------------------------------------ the run
-    def episodes_plan(self, run_dir: str = "") -> list[EpisodeSpec]:
+    def episodes_plan(
+        self, run_dir: str = "", map_files: Mapping[str, MapFile] | None = None
+    ) -> list[EpisodeSpec]:
         """Every episode of the run, in a fixed order (needs explicit controllers: see :meth:`resolved`).
 
         Trial i of every cell uses seed ``seed + i``. The ``random`` map row runs
@@ -354,10 +364,13 @@ class RunSpec:
         split, episode j of layout l as trial ``j * len(split) + l``
         (:func:`evaluation.run.suite_runs.unit_trial`), its layout given to the env's reset. With
         ``gifs``, the first episode of every cell records an animation under ``animations/`` of
-        ``run_dir``.
+        ``run_dir``. A user map file's episodes carry its text as ``map_files`` holds it (what
+        :meth:`config` fingerprinted: :func:`evaluation.run.plan.read_map_files`; default: read
+        now) and build their map from it, never from the file again.
         """
         if self.controllers is None:
             raise ValueError("RunSpec.episodes_plan() needs explicit controllers; call resolved() first")
+        files = read_map_files(self.maps) if map_files is None else map_files
         env_json = json.dumps(self.env_settings(), sort_keys=True)
         compute = self.compute
         plan = []
@@ -390,6 +403,7 @@ class RunSpec:
                                     run_dir=run_dir,
                                     compute=compute,
                                     controller_factory=cfg.factory,
+                                    map_text=files[map_name].text if map_name in files else None,
                                     **layout,
                                 )
                             )
@@ -402,8 +416,13 @@ class RunSpec:
         trials = self.random_maps if (map_name == RANDOM_MAP and self.random_maps) else self.episodes
         return [(trial, {}) for trial in range(trials)]
 
-    def config(self, workers: int, backend: str) -> dict[str, Any]:
-        """The run's configuration as ``results.json`` records it (plain JSON; explicit controllers)."""
+    def config(
+        self, workers: int, backend: str, map_files: Mapping[str, MapFile] | None = None
+    ) -> dict[str, Any]:
+        """The run's configuration as ``results.json`` records it (plain JSON; explicit controllers).
+
+        ``map_files``: the user map files as the run read them (their fingerprints are recorded;
+        default: read now), the same that :meth:`episodes_plan` is given."""
         if self.controllers is None:
             raise ValueError("RunSpec.config() needs explicit controllers; call resolved() first")
         settings = self.env_settings()
@@ -417,7 +436,7 @@ class RunSpec:
                 "unit": "team-transitions, offered to every controller alike",
             },
             "maps": {e: list(m) for e, m in self.maps.items()},
-            "map_files": map_fingerprints(self.maps),
+            "map_files": map_fingerprints(self.maps, map_files),
             "slips": list(self.slips),
             "episodes": self.episodes,
             "random_maps": self.random_maps,

@@ -15,6 +15,7 @@ from evaluation.tune.configuration import tasks_of
 from evaluation.tune.log import read_study
 from evaluation.tune.scoring import expected_max_curve
 from koopman_envs import TASKS
+from koopman_envs.files import write_atomic
 
 
 @dataclass(frozen=True)
@@ -111,8 +112,10 @@ def report_figure(studies: Sequence[StudySummary], path: str | os.PathLike[str])
     ax.legend(fontsize=8)
     ax.set_title(figure_title(studies), fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    try:  # whole or not at all: the figure is published beside the report
+        write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=150))
+    finally:
+        plt.close(fig)
 
 
 def figure_title(studies: Sequence[StudySummary]) -> str:

@@ -9,6 +9,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.files import write_atomic
+
 __all__ = ["save_episode"]
 
 
@@ -37,7 +39,13 @@ def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike[st
         from PIL import Image
 
         images = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames]
-        images[0].save(path, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
+        # whole or not at all: a run's animation is published beside its report
+        write_atomic(
+            path,
+            lambda tmp: images[0].save(
+                tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0
+            ),
+        )
         return path
     if ext == ".mp4":
         if shutil.which("ffmpeg") is None:
@@ -50,10 +58,14 @@ def save_episode(frames: Sequence[NDArray[np.uint8]], path: str | os.PathLike[st
         ax = fig.add_axes((0, 0, 1, 1))
         ax.axis("off")
         image = ax.imshow(frames[0])
-        writer = animation.FFMpegWriter(fps=fps)
-        with writer.saving(fig, path, dpi=100):
-            for frame in frames:
-                image.set_data(frame)
-                writer.grab_frame()
+
+        def write(tmp: str) -> None:
+            writer = animation.FFMpegWriter(fps=fps)
+            with writer.saving(fig, tmp, dpi=100):
+                for frame in frames:
+                    image.set_data(frame)
+                    writer.grab_frame()
+
+        write_atomic(path, write)  # the temporary file keeps the .mp4 suffix ffmpeg picks the format by
         return path
     raise ValueError(f"path={path!r} must end in '.gif' or '.mp4'")

@@ -334,6 +334,27 @@ class MapSpec:
         write_atomic(path, json.dumps(self.to_dict(), indent=1))
 
     @classmethod
+    def from_file_text(cls, raw: str, path: str | os.PathLike[str]) -> MapSpec:
+        """Build a map from the text of the map file ``path``, already read (named by the file's
+        stem unless it names itself), as :func:`load_map` builds it from the file.
+
+        The evaluator reads a user map file once, fingerprints those bytes and builds every
+        episode's map from the same text, so that the recorded fingerprint is the map that ran.
+
+        Raises
+        ------
+        ValueError
+            The text is not a JSON map; the message names ``path``.
+        """
+        text = os.fspath(path)
+        try:
+            data = parse_json(raw, f"map file {text!r}")
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"map file {text!r} is not valid JSON: {exc}") from exc
+        stem = os.path.splitext(os.path.basename(text))[0]
+        return cls.from_dict(data, default_name=stem)
+
+    @classmethod
     def from_dict(cls, data: dict[str, Any], default_name: str = "custom") -> MapSpec:
         """Build a map from its JSON form.
 
@@ -400,10 +421,5 @@ def load_map(spec: str | os.PathLike[str] | MapSpec) -> MapSpec:
         if text.endswith(".json") or os.path.sep in text:
             # a regular file of bounded size before it is read whole (map="/dev/zero" read forever)
             raw = read_text(text, LIMITS.map_file_bytes, what="map file", expected="a JSON map file")
-            try:
-                data = parse_json(raw, f"map file {text!r}")
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"map file {text!r} is not valid JSON: {exc}") from exc
-            stem = os.path.splitext(os.path.basename(text))[0]
-            return MapSpec.from_dict(data, default_name=stem)
+            return MapSpec.from_file_text(raw, text)
     raise ValueError(choice_message("map", spec, MAP_NAMES, ", a path to a .json map file, or a MapSpec"))
