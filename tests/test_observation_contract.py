@@ -31,14 +31,21 @@ from koopman_envs.tasks.observation import AGE_MAX, FAR, feature_bounds
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 RADIO = {"latency": 2, "drop": 0.3}
+
+
+def _grid(mover_counts: tuple[int, ...]) -> list[tuple[str, str, bool, int]]:
+    """Both tasks x lidar or the state x a radio or none x each count of movers."""
+    return [
+        (task, sensing, radio, movers)
+        for task in (TR, FO)
+        for sensing in ("state", "lidar")
+        for radio in (False, True)
+        for movers in mover_counts
+    ]
+
+
 #: every combination of the settings that add or remove a part of the block
-GRID = [
-    (task, sensing, radio, movers)
-    for task in (TR, FO)
-    for sensing in ("state", "lidar")
-    for radio in (False, True)
-    for movers in (0, 3)
-]
+GRID = _grid((0, 3))
 STEPS = 8
 
 
@@ -258,13 +265,7 @@ def _split_movers_by_count(team_blocks: np.ndarray, mover_slots: int) -> tuple[n
 
 
 #: the settings of the split's check: both tasks, lidar or the state, a radio or none, 0 or 4 movers
-SPLIT_GRID = [
-    (task, sensing, radio, movers)
-    for task in (TR, FO)
-    for sensing in ("state", "lidar")
-    for radio in (False, True)
-    for movers in (0, 4)
-]
+SPLIT_GRID = _grid((0, 4))
 
 
 @pytest.mark.parametrize("case", SPLIT_GRID, ids=[_ids(c) for c in SPLIT_GRID])
