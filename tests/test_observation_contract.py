@@ -299,6 +299,12 @@ def test_split_movers_follows_the_env_layout_bit_for_bit(case: tuple) -> None:
         assert (movers[..., MoverEntry.CLEARANCE] < FAR).any()  # real movers listed, not only absent ones
     for name, _ in layout.without_movers().parts:  # every other part where the layout without movers has it
         np.testing.assert_array_equal(rest[..., layout.without_movers()[name]], blocks[..., layout[name]])
+    if layout.comm:  # the SB3 readers drop the messages next: the layout's messages part, the rest's last
+        from baselines.sb3.vec_env import without_message_ages
+
+        assert PART_NAMES[-2:] == ("messages", "movers")
+        kept = np.delete(rest, layout.without_movers()["messages"], axis=-1).reshape(len(seen), -1)
+        np.testing.assert_array_equal(without_message_ages(rest.reshape(len(seen), -1), n), kept, strict=True)
     if case[1] == "state":  # a policy handed the observations alone finds the env's layout from their width
         assert (
             state_layout(layout.size, n, formation=layout.formation, comm=layout.comm, movers=listed)

@@ -33,6 +33,7 @@ from baselines.features.robot_features import FEATURE_SETS, feature_bounds, feat
 from baselines.features.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
 from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
+from koopman_envs.layout import PART_WIDTH, ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs import KoopNavVectorEnv
@@ -54,8 +55,10 @@ LAYOUTS = ("robot", "team")
 
 def without_message_ages(team_obs: np.ndarray, n_robots: int) -> np.ndarray:
     """Team observations (..., N*F) without the message ages and arrival flags that end every
-    block of an env with a ``comm`` setting (2 (N - 1) entries per block)."""
-    tail = 2 * (n_robots - 1)
+    block of an env with a ``comm`` setting (2 (N - 1) entries per block) once its movers are
+    off (:func:`~baselines.features.set_features.split_movers`): the ``messages`` part, the last
+    of :class:`~koopman_envs.layout.ObservationLayout`'s parts before ``movers``."""
+    tail = ObservationLayout(n_robots, comm=True).count("messages") * PART_WIDTH["messages"]
     if tail == 0:
         return team_obs
     batch = team_obs.shape[:-1]
