@@ -31,14 +31,21 @@ from koopman_envs.tasks.observation import AGE_MAX, FAR, feature_bounds
 
 TR, FO = "KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"
 RADIO = {"latency": 2, "drop": 0.3}
+
+
+def _grid(mover_counts: tuple[int, ...]) -> list[tuple[str, str, bool, int]]:
+    """Both tasks x lidar or the state x a radio or none x each count of movers."""
+    return [
+        (task, sensing, radio, movers)
+        for task in (TR, FO)
+        for sensing in ("state", "lidar")
+        for radio in (False, True)
+        for movers in mover_counts
+    ]
+
+
 #: every combination of the settings that add or remove a part of the block
-GRID = [
-    (task, sensing, radio, movers)
-    for task in (TR, FO)
-    for sensing in ("state", "lidar")
-    for radio in (False, True)
-    for movers in (0, 3)
-]
+GRID = _grid((0, 3))
 STEPS = 8
 
 
@@ -241,12 +248,93 @@ def test_split_movers_takes_the_layouts_movers_part(beams, comm, formation) -> N
     assert PART_NAMES[-1] == "movers"
     layout = ObservationLayout.for_settings(3, 2, formation, beams, comm, 0 if beams else 2)
     blocks = np.arange(2 * 3 * layout.size, dtype=np.float64).reshape(2, 3, layout.size)
-    rest, movers = split_movers(blocks, layout.count("movers"))
+    rest, movers = split_movers(blocks, layout)
     if layout.has("movers"):
         np.testing.assert_array_equal(movers, layout.items(blocks, "movers"), strict=True)
     else:  # with lidar the beams hit the movers: none listed
         assert movers.shape == (2, 3, 0, PART_WIDTH["movers"])
     np.testing.assert_array_equal(rest, blocks[..., : layout.without_movers().size], strict=True)
+
+
+def _split_movers_by_count(team_blocks: np.ndarray, mover_slots: int) -> tuple[np.ndarray, np.ndarray]:
+    """split_movers as it was before issue 61's layout-driven split: cut by the count of listed
+    movers at the block's end (the reference the layout's split must equal bit for bit)."""
+    blocks = np.asarray(team_blocks, dtype=np.float64)
+    begins = blocks.shape[-1] - 5 * mover_slots
+    return blocks[..., :begins], blocks[..., begins:].reshape(blocks.shape[:-1] + (mover_slots, 5))
+
+
+#: the settings of the split's check: both tasks, lidar or the state, a radio or none, 0 or 4 movers
+SPLIT_GRID = _grid((0, 4))
+
+
+@pytest.mark.parametrize("case", SPLIT_GRID, ids=[_ids(c) for c in SPLIT_GRID])
+def test_split_movers_follows_the_env_layout_bit_for_bit(case: tuple) -> None:
+    """On real observations of every setting (gym.make, after a reset and some steps), the
+    layout-driven split_movers returns what the count-driven cut did, bit for bit, and what the
+    layout names: the movers are ``layout.items(blocks, "movers")``, the rest is every other part
+    in order, of ``layout.without_movers().size`` entries."""
+    from baselines.features.set_features import split_movers, state_layout
+
+    env = _env(*case)
+    obs, _ = env.reset(seed=3)
+    env.action_space.seed(3)
+    layout = env.unwrapped.scenario.observation_layout
+    n = layout.n_robots
+    listed = MoverConfig().observed if case[1] == "state" and case[3] else 0
+    assert layout.count("movers") == listed
+    seen = [obs]
+    for _ in range(3):
+        obs, *_ = env.step(env.action_space.sample())
+        seen.append(obs)
+    blocks = np.stack(seen).reshape(len(seen), n, -1)  # (steps, N, F), float32 as the env gives them
+    rest, movers = split_movers(blocks, layout)
+    old_rest, old_movers = _split_movers_by_count(blocks, listed)
+    np.testing.assert_array_equal(rest, old_rest, strict=True)
+    np.testing.assert_array_equal(movers, old_movers, strict=True)
+    assert rest.shape == (len(seen), n, layout.without_movers().size)
+    assert movers.shape == (len(seen), n, listed, PART_WIDTH["movers"])
+    if listed:
+        np.testing.assert_array_equal(movers, layout.items(blocks.astype(np.float64), "movers"), strict=True)
+        assert (movers[..., MoverEntry.CLEARANCE] < FAR).any()  # real movers listed, not only absent ones
+    for name, _ in layout.without_movers().parts:  # every other part where the layout without movers has it
+        np.testing.assert_array_equal(rest[..., layout.without_movers()[name]], blocks[..., layout[name]])
+    if layout.comm:  # the SB3 readers drop the messages next: the layout's messages part, the rest's last
+        from baselines.sb3.vec_env import without_message_ages
+
+        assert PART_NAMES[-2:] == ("messages", "movers")
+        kept = np.delete(rest, layout.without_movers()["messages"], axis=-1).reshape(len(seen), -1)
+        np.testing.assert_array_equal(without_message_ages(rest.reshape(len(seen), -1), n), kept, strict=True)
+    if case[1] == "state":  # a policy handed the observations alone finds the env's layout from their width
+        assert (
+            state_layout(layout.size, n, formation=layout.formation, comm=layout.comm, movers=listed)
+            == layout
+        )
+        assert (
+            state_layout(layout.size, n, comm=layout.comm, movers=listed) == layout
+        )  # the task told by the width
+    env.close()
+
+
+def test_split_movers_and_state_layout_refuse_what_fits_no_layout() -> None:
+    from baselines.features.set_features import split_movers, state_layout
+    from koopman_envs.layout import ObservationLayout
+
+    layout = ObservationLayout(3, 2, movers=2)
+    with pytest.raises(ValueError, match=f"do not hold .*{layout.size}"):
+        split_movers(np.zeros((3, layout.size + 1)), layout)
+    with pytest.raises(TypeError, match="ObservationLayout, not int"):
+        split_movers(np.zeros((3, layout.size)), 2)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="a block of 30 entries .* hold 25 \\+ 3 per listed obstacle"):
+        state_layout(30, 3, formation=False, movers=2)  # 15 + 10 + 5: no whole count of obstacles
+    with pytest.raises(ValueError, match="a block of 5 entries .* hold 15 or 17 \\+ 3"):
+        state_layout(5, 3)
+    with pytest.raises(ValueError, match="a block of 28 entries"):
+        state_layout(28, 3)  # 15 + 13, 17 + 11: neither task
+    assert state_layout(layout.size, 3, formation=False, movers=2) == layout
+    assert state_layout(layout.size + 2, 3, movers=2) == ObservationLayout(3, 2, True, movers=2)
+    with pytest.raises(ValueError, match="a block of 31 entries"):
+        state_layout(layout.size, 3, formation=True, movers=2)
 
 
 # --------------------------------------------------------------------------- the stages

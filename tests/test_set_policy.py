@@ -447,7 +447,7 @@ def test_the_movers_set_reads_the_listed_movers() -> None:
 
     env = gym.make("KoopNav-TargetReaching-v0", movers=dict(count=2, observed=3, tracking=False))
     obs, info = env.reset(seed=1)
-    blocks, movers = split_movers(obs.reshape(3, -1), 3)
+    blocks, movers = split_movers(obs.reshape(3, -1), env.unwrapped.scenario.observation_layout)
     assert movers.shape == (3, 3, MOVER_SIZE) and (movers[:, 2, 4] == 30).all()  # the third absent
     config = SetFeatureConfig(movers=3, sensing_radius=100.0)
     features = set_features(blocks, (blocks.shape[-1] - 15) // 3, False, config, movers)

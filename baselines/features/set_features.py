@@ -51,6 +51,7 @@ __all__ = [
     "set_feature_size",
     "set_features",
     "split_movers",
+    "state_layout",
 ]
 
 EGO_SIZE = 11
@@ -192,17 +193,44 @@ def set_features(
     return np.concatenate(parts, axis=-1).astype(np.float32)
 
 
-def split_movers(team_blocks: NDArray, mover_slots: int) -> tuple[NDArray, NDArray]:
-    """The blocks (..., N, F) without the movers they list at their end, and those movers
-    (..., N, S, 5), nearest first, their entries named by :class:`koopman_envs.MoverEntry` (dx,
-    dy, vx, vy, clearance); ``mover_slots`` = S, the env's ``movers.observed`` (0: nothing listed)."""
+def split_movers(team_blocks: NDArray, layout: ObservationLayout) -> tuple[NDArray, NDArray]:
+    """The blocks (..., N, ``layout.size``) without the movers they list, in the layout
+    ``layout.without_movers()``, and those movers (..., N, S, 5), nearest first, their entries named
+    by :class:`koopman_envs.MoverEntry` (dx, dy, vx, vy, clearance); S = ``layout.count("movers")``
+    (0 with lidar or without movers: nothing listed). Where the movers part lies is the layout's
+    (``layout["movers"]``), not counted here; ``ValueError`` for blocks of another width."""
     blocks = np.asarray(team_blocks, dtype=np.float64)
-    item = PART_WIDTH["movers"]  # the env's entries per listed mover
-    # the movers are the last part of every layout (koopman_envs.layout.PART_NAMES), so a block's movers part
-    # begins where its other parts end: the block's width less the part's, whatever they hold
-    begins = blocks.shape[-1] - item * mover_slots
-    movers = blocks[..., begins:].reshape(blocks.shape[:-1] + (mover_slots, item))
-    return blocks[..., :begins], movers
+    if not isinstance(layout, ObservationLayout):
+        raise TypeError(f"layout must be an ObservationLayout, not {type(layout).__name__}")
+    if blocks.ndim < 2 or blocks.shape[-1] != layout.size:
+        raise ValueError(
+            f"blocks of shape {blocks.shape} do not hold (..., N, {layout.size}) entries: the size of one "
+            f"block of {layout}"
+        )
+    if not layout.has("movers"):
+        return blocks, np.zeros(blocks.shape[:-1] + (0, PART_WIDTH["movers"]))
+    return np.delete(blocks, layout["movers"], axis=-1), layout.items(blocks, "movers")
+
+
+def state_layout(
+    width: int, n_robots: int, *, formation: bool | None = None, comm: bool = False, movers: int = 0
+) -> ObservationLayout:
+    """The layout of a state-sensing env's block of ``width`` entries for these settings: the one
+    count of listed obstacles (and, with ``formation`` None, the one task: the formation error's
+    two entries and an obstacle's three tell them apart) whose :class:`ObservationLayout` has that
+    size; what a policy reads when it is handed observations without their env
+    (:func:`baselines.sb3.inference.policy_inputs`). ``ValueError`` naming ``width`` when none has it."""
+    tasks = (False, True) if formation is None else (bool(formation),)
+    for task in tasks:
+        base = ObservationLayout(n_robots, 0, task, 0, comm, movers)
+        listed, left = divmod(width - base.size, PART_WIDTH["obstacles"])
+        if listed >= 0 and not left:
+            return ObservationLayout(n_robots, listed, task, 0, comm, movers)
+    sizes = " or ".join(str(ObservationLayout(n_robots, 0, task, 0, comm, movers).size) for task in tasks)
+    raise ValueError(
+        f"a block of {width} entries is no state-sensing block of n_robots={n_robots}, formation={formation}, "
+        f"comm={comm}, movers={movers}: those hold {sizes} + {PART_WIDTH['obstacles']} per listed obstacle"
+    )
 
 
 def _mover_slots(movers: NDArray | None, lead: tuple[int, ...], config: SetFeatureConfig) -> NDArray:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.features.set_features import SetFeatureConfig, set_features, split_movers
+from baselines.features.set_features import SetFeatureConfig, set_features, split_movers, state_layout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs import KoopNavVectorEnv
@@ -56,14 +56,16 @@ def policy_inputs(
 
     obs = np.asarray(observation, dtype=np.float64)
     batch_shape = obs.shape[:-1]
-    blocks, movers = split_movers(obs.reshape(batch_shape + (n_robots, -1)), mover_slots)
+    # the blocks' parts by name: the listed obstacles (and the task: ``formation`` is given for set
+    # policies only) are what the width leaves for them
+    observed = state_layout(obs.shape[-1] // n_robots, n_robots, comm=message_ages, movers=mover_slots)
+    blocks, movers = split_movers(obs.reshape(batch_shape + (n_robots, -1)), observed)
     obs = blocks.reshape(batch_shape + (-1,))
     if message_ages:
         obs = without_message_ages(obs, n_robots)
     if set_config is not None:
         blocks = obs.reshape(batch_shape + (n_robots, -1))
-        listed = obs.shape[-1] // n_robots - 9 - 3 * (n_robots - 1) - (2 if formation else 0)
-        obs = set_features(blocks, listed // 3, formation, set_config, movers).astype(np.float64)
+        obs = set_features(blocks, observed.n_obstacle_obs, formation, set_config, movers).astype(np.float64)
         obs = obs.reshape(-1, obs.shape[-1])
     elif layout == "robot":
         blocks = obs.reshape(batch_shape + (n_robots, -1))

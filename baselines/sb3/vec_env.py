@@ -33,6 +33,7 @@ from baselines.features.robot_features import FEATURE_SETS, feature_bounds, feat
 from baselines.features.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
 from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
+from koopman_envs.layout import PART_WIDTH, ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs import KoopNavVectorEnv
@@ -54,8 +55,10 @@ LAYOUTS = ("robot", "team")
 
 def without_message_ages(team_obs: np.ndarray, n_robots: int) -> np.ndarray:
     """Team observations (..., N*F) without the message ages and arrival flags that end every
-    block of an env with a ``comm`` setting (2 (N - 1) entries per block)."""
-    tail = 2 * (n_robots - 1)
+    block of an env with a ``comm`` setting (2 (N - 1) entries per block) once its movers are
+    off (:func:`~baselines.features.set_features.split_movers`): the ``messages`` part, the last
+    of :class:`~koopman_envs.layout.ObservationLayout`'s parts before ``movers``."""
+    tail = ObservationLayout(n_robots, comm=True).count("messages") * PART_WIDTH["messages"]
     if tail == 0:
         return team_obs
     batch = team_obs.shape[:-1]
@@ -131,13 +134,13 @@ class KoopNavSB3VecEnv(VecEnv):
         unwrapped = cast("KoopNavVectorEnv", self.venv.unwrapped)
         config = unwrapped.config  # the env's keywords resolved (koopman_envs.EngineConfig)
         self.n_envs, self.n_robots = num_envs, config.n_robots
-        self._n_obstacle_obs, self._formation = config.n_obstacle_obs, config.task.formation
+        self._formation = config.task.formation
         # one robot's block by name (koopman_envs.layout), the front's public seam
         observed = unwrapped.observation_layout
         # the policies read the robots' beliefs but not the message ages (a comm setting appends them)
         self._message_ages = observed.comm
-        self._mover_slots = observed.movers  # listed movers: a set policy may read them
-        if self._mover_slots and set_config is None:
+        self._observed = observed  # where split_movers finds the listed movers: a set policy may read them
+        if observed.movers and set_config is None:
             raise ValueError(
                 "an env with movers trains only set policies (--policy set: movers are their third set)"
             )
@@ -180,13 +183,15 @@ class KoopNavSB3VecEnv(VecEnv):
 
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
-        blocks, movers = split_movers(team_obs.reshape(self.n_envs, self.n_robots, -1), self._mover_slots)
+        blocks, movers = split_movers(team_obs.reshape(self.n_envs, self.n_robots, -1), self._observed)
         team_obs = blocks.reshape(self.n_envs, -1)
         if self._message_ages:
             team_obs = without_message_ages(team_obs, self.n_robots)
         if self.set_config is not None:
             blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)
-            observed = set_features(blocks, self._n_obstacle_obs, self._formation, self.set_config, movers)
+            observed = set_features(
+                blocks, self._observed.n_obstacle_obs, self._formation, self.set_config, movers
+            )
             return observed.reshape(self.n_envs * self.n_robots, -1)
         if self.layout == "robot":
             blocks = team_obs.reshape(self.n_envs, self.n_robots, -1)

@@ -19,7 +19,8 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.estimation import FRONT_END_LEVERS, check_estimator, estimator_choices
+from controllers.base import BaseController
+from controllers.estimation import FRONT_END_LEVERS, check_estimator, estimator_choices, front_end_option
 from controllers.movers import MOVER_PREDICTIONS, check_mover_prediction
 from koopman_envs.checks import Range, checked_options
 from koopman_envs.scenario import Scenario
@@ -27,6 +28,7 @@ from koopman_envs.scenario import Scenario
 __all__ = [
     "CLASSIC_CHOICES",
     "CLASSIC_LEVERS",
+    "ClassicController",
     "ClassicSettings",
     "TeamView",
     "goals",
@@ -70,6 +72,7 @@ class ClassicSettings:
 
     #: the allowed range of every numeric field (the controller's ``OPTION_RANGES``)
     RANGES: ClassVar[dict[str, Range]] = {}
+    velocity_window: int
     mover_prediction: str
     estimator: str
     ablate: str
@@ -98,6 +101,40 @@ def settings_from(
         raise TypeError(f"{owner}: config={config!r} is not a {kind.__name__}")
     built: _Settings = checked_options(kind, owner, "", options, lambda *_: None)
     return built if config is None else dataclasses.replace(config, **options)  # type: ignore[type-var]
+
+
+class ClassicController(BaseController):
+    """What DWA and ORCA share: their option tables read off their settings dataclass
+    (``SETTINGS``; ``OPTION_RANGES`` is its ``RANGES``, set per subclass), the settings built from
+    ``config`` and ``**options``, the estimator front-end, the team view and the last command sent
+    (a robot's own velocity)."""
+
+    #: the allowed values of the text options (:mod:`controllers.option_spec`)
+    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = CLASSIC_CHOICES
+    #: the options' names, types, defaults and docs (:mod:`controllers.option_spec`): a frozen
+    #: :class:`ClassicSettings` dataclass, set by every subclass
+    SETTINGS: ClassVar[type[ClassicSettings]] = ClassicSettings
+    #: the allowed range of every numeric option (:mod:`controllers.option_spec`): ``SETTINGS.RANGES``,
+    #: declared with the settings
+    OPTION_RANGES: ClassVar[dict[str, Range]] = {}
+    #: the settings (frozen), ``config`` with ``options`` in place
+    config: ClassicSettings
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.OPTION_RANGES = cls.SETTINGS.RANGES
+
+    def __init__(self, config: ClassicSettings | None, options: dict[str, Any]) -> None:
+        super().__init__()
+        self.config = settings_from(self.SETTINGS, config, options, self.name)
+        self.front_end = front_end_option(self.config.estimator, self.config.ablate)
+        self._team = TeamView(self.config.velocity_window)
+        self._last = np.zeros((0, 2))  # the command each robot sent last (v, omega)
+
+    def _reset_team(self, scenario: Scenario) -> None:
+        """A new episode: no messages kept, every robot at rest."""
+        self._team.reset(scenario.n_robots, scenario.dt)
+        self._last = np.zeros((scenario.n_robots, 2))
 
 
 class TeamView:

@@ -51,11 +51,9 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.base import BaseController
-from controllers.classic.common import CLASSIC_CHOICES, ClassicSettings, TeamView, goals, settings_from
+from controllers.classic.common import ClassicController, ClassicSettings, goals
 from controllers.classic.kernels import closest_approach, unicycle_arcs
 from controllers.classic.plan import Detour, GlobalPlanner, Plan
-from controllers.estimation import front_end_option
 from controllers.movers import (
     observed_mover_radii,
     observed_movers,
@@ -183,7 +181,7 @@ class DWASettings(ClassicSettings):
     }
 
 
-class DWAController(BaseController):
+class DWAController(ClassicController):
     """The dynamic window approach per robot, with ROS dwa_local_planner's scoring and defaults.
 
     Parameters
@@ -196,13 +194,9 @@ class DWAController(BaseController):
     """
 
     name = "dwa"
-    #: the allowed values of the text options (:mod:`controllers.option_spec`)
-    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = CLASSIC_CHOICES
-    #: the allowed range of every numeric option (:mod:`controllers.option_spec`), declared with
-    #: the settings
-    OPTION_RANGES: ClassVar[dict[str, Range]] = DWASettings.RANGES
-    #: the options' names, types, defaults and docs (:mod:`controllers.option_spec`)
-    SETTINGS: ClassVar[type] = DWASettings
+    #: the options (:class:`~controllers.classic.common.ClassicController`: their tables read off it)
+    SETTINGS: ClassVar[type[DWASettings]] = DWASettings
+    config: DWASettings
     #: what the tuner searches (:mod:`evaluation.tune`; ours): the rollout length and the three
     #: weights of the trajectory score (the ratios ROS users tune: plan against goal against
     #: obstacle cost), the hard clearance and the costmap's inflation. Sample counts and grid
@@ -217,24 +211,18 @@ class DWAController(BaseController):
     }
 
     def __init__(self, config: DWASettings | None = None, **options: Any) -> None:
-        super().__init__()
-        #: the settings (frozen), ``config`` with ``options`` in place
-        self.config = settings_from(DWASettings, config, options, "dwa")
-        self.front_end = front_end_option(self.config.estimator, self.config.ablate)
+        super().__init__(config, options)
         self._planner = GlobalPlanner(
             self.config.plan_resolution,
             self.config.safety_margin,
             self.config.inflation_radius,
             self.config.cost_scaling_factor,
         )
-        self._team = TeamView(self.config.velocity_window)
-        self._last = np.zeros((0, 2))
         self._times = np.zeros(0)
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
-        self._team.reset(scenario.n_robots, scenario.dt)
+        self._reset_team(scenario)
         self._planner.reset(scenario)
-        self._last = np.zeros((scenario.n_robots, 2))
         steps = max(1, int(np.ceil(scenario.v_max * self.config.sim_time / self.config.sim_granularity)))
         self._times = self.config.sim_time * np.arange(1, steps + 1) / steps
 

@@ -43,9 +43,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from controllers.base import BaseController
-from controllers.classic.common import CLASSIC_CHOICES, ClassicSettings, TeamView, goals, settings_from
-from controllers.estimation import front_end_option
+from controllers.classic.common import ClassicController, ClassicSettings, goals
 from controllers.movers import (
     observed_mover_radii,
     observed_movers,
@@ -163,7 +161,7 @@ class ORCASettings(ClassicSettings):
     }
 
 
-class ORCAController(BaseController):
+class ORCAController(ClassicController):
     """ORCA per robot through pyrvo (RVO2), unicycle commands by a heading controller.
 
     Parameters
@@ -176,13 +174,9 @@ class ORCAController(BaseController):
     """
 
     name = "orca"
-    #: the allowed values of the text options (:mod:`controllers.option_spec`)
-    OPTION_CHOICES: ClassVar[dict[str, tuple[str, ...]]] = CLASSIC_CHOICES
-    #: the allowed range of every numeric option (:mod:`controllers.option_spec`), declared with
-    #: the settings
-    OPTION_RANGES: ClassVar[dict[str, Range]] = ORCASettings.RANGES
-    #: the options' names, types, defaults and docs (:mod:`controllers.option_spec`)
-    SETTINGS: ClassVar[type] = ORCASettings
+    #: the options (:class:`~controllers.classic.common.ClassicController`: their tables read off it)
+    SETTINGS: ClassVar[type[ORCASettings]] = ORCASettings
+    config: ORCASettings
     #: what the tuner searches (:mod:`evaluation.tune`; ours): the two avoidance horizons (how
     #: early ORCA gives way to team-mates and to obstacles), the radius margin (clearance against
     #: room), the two gains of the unicycle's tracking of ORCA's holonomic velocity, and the
@@ -198,23 +192,17 @@ class ORCAController(BaseController):
     }
 
     def __init__(self, config: ORCASettings | None = None, **options: Any) -> None:
-        super().__init__()
         _import_pyrvo()  # refused here, with the extra to install, rather than at the first reset
-        #: the settings (frozen), ``config`` with ``options`` in place
-        self.config = settings_from(ORCASettings, config, options, "orca")
-        self.front_end = front_end_option(self.config.estimator, self.config.ablate)
-        self._team = TeamView(self.config.velocity_window)
+        super().__init__(config, options)
         self._sim: Any = None
         self._movers_held = 0
-        self._last = np.zeros((0, 2))
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickled without its RVO2 simulator (a C++ object), which the next period rebuilds."""
         return {**self.__dict__, "_sim": None, "_movers_held": 0}
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
-        self._team.reset(scenario.n_robots, scenario.dt)
-        self._last = np.zeros((scenario.n_robots, 2))
+        self._reset_team(scenario)
         self._build(scenario)
 
     def _build(self, scenario: Scenario) -> None:

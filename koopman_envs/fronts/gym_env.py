@@ -13,9 +13,8 @@ from koopman_envs.checks import check_choice
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import START_NOISE_ATTEMPTS, NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS, keyword_table, takes_env_keywords
-from koopman_envs.layout import ObservationLayout
+from koopman_envs.fronts.single_env import SingleEnvFront
 from koopman_envs.params import DRIFT_MEAN_INTERVAL, PARAMS, RANDOM_SLIP_MAX
-from koopman_envs.scenario import Scenario
 from koopman_envs.settings.reset_options import parse_reset_options
 from koopman_envs.sim.formations import FORMATION_SHAPES
 from koopman_envs.tasks.base import RewardWeights
@@ -27,7 +26,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotli
 __all__ = ["KoopNavEnv", "TargetReachingEnv", "FormationEnv"]
 
 
-class KoopNavEnv(gym.Env):
+class KoopNavEnv(SingleEnvFront, gym.Env):
     """Shared implementation of the two centralized tasks; use a subclass or ``gym.make``."""
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": int(round(1 / PARAMS.dt))}
@@ -72,8 +71,7 @@ class KoopNavEnv(gym.Env):
         overrides = parse_reset_options(options, self.config.n_robots)[0]  # before any change
         super().reset(seed=seed)
         self.engine.reset_env(0, self.np_random, overrides)
-        if self.render_mode is not None:
-            self._trail = [self.engine.poses[0].copy()]
+        self._start_trail()
         obs = self.engine.features()[0].reshape(-1).astype(np.float32)
         if self.render_mode == "human":
             self.render()
@@ -88,44 +86,13 @@ class KoopNavEnv(gym.Env):
         result = engine.step(engine.validate_commands(action))
         reward = float(result.reward[0])
         obs = result.features[0].reshape(-1).astype(np.float32)
-        if self.render_mode is not None:
-            self._trail.append(engine.poses[0].copy())
-            if self.render_mode == "human":
-                self.render()
+        self._extend_trail()
         # truncated only with max_episode_steps given to the class itself: gym.make keeps the limit
         # in its TimeLimit wrapper and gives the env none
         return obs, reward, bool(result.terminated[0]), bool(result.truncated[0]), engine.info(0)
 
-    def render(self) -> NDArray[np.uint8] | None:
-        if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gym.make"
-            )
-            return None
-        from koopman_envs.rendering.renderer import Renderer, draw_engine_env
-
-        if self._renderer is None:
-            self._renderer = Renderer(human=self.render_mode == "human")
-        self.scenario  # noqa: B018 - a RuntimeError before the first reset()
-        return draw_engine_env(self._renderer, self.engine, 0, self._trail)
-
-    def close(self) -> None:
-        self.engine.close()
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
     # ---------------------------------------------------------- for models
-    @property
-    def observation_layout(self) -> ObservationLayout:
-        """One robot's observation block by name (:class:`koopman_envs.layout.ObservationLayout`),
-        known before the first reset."""
-        return self.engine.observation_layout
-
-    @property
-    def scenario(self) -> Scenario:
-        """Obstacles, radii, starts, targets, formation offsets, limits and dt of this episode."""
-        return self.engine.scenario(0)
+    # render, close, observation_layout and scenario: SingleEnvFront's
 
     @property
     def lambdas(self) -> NDArray[np.float64]:

@@ -7,7 +7,6 @@ import textwrap
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-import gymnasium
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
@@ -20,9 +19,8 @@ from koopman_envs.checks import check_choice
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.engine import NavigationEngine
 from koopman_envs.engine.keywords import ENV_KEYWORDS, takes_env_keywords
-from koopman_envs.layout import ObservationLayout
+from koopman_envs.fronts.single_env import SingleEnvFront
 from koopman_envs.params import PARAMS
-from koopman_envs.scenario import Scenario
 from koopman_envs.settings.reset_options import parse_reset_options
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (rendering imports matplotlib when first used)
@@ -37,7 +35,7 @@ _API_TEST_OPTIONS = ("options",)
 
 
 # pettingzoo ships no type information (no py.typed), so to the type checker ParallelEnv is Any
-class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
+class KoopNavParallelEnv(SingleEnvFront, ParallelEnv):  # type: ignore[misc]
     """N robots as N agents ``robot_0 .. robot_{N-1}`` on the shared simulator core.
 
     Each agent observes its own block of :mod:`koopman_envs.tasks.observation` (own pose and
@@ -135,8 +133,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         self.engine.reset_env(0, self._rng, overrides)
         self.agents = list(self.possible_agents)
         self._features = self.engine.features()[0]
-        if self.render_mode is not None:
-            self._trail = [self.engine.poses[0].copy()]
+        self._start_trail()
         return self._observations(), self._infos()
 
     def step(
@@ -173,10 +170,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
         terminations = {a: term for a in self.agents}
         truncations = {a: trunc for a in self.agents}
         observations, infos = self._observations(), self._infos()
-        if self.render_mode is not None:
-            self._trail.append(self.engine.poses[0].copy())
-            if self.render_mode == "human":
-                self.render()
+        self._extend_trail()
         if term or trunc:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
@@ -196,34 +190,7 @@ class KoopNavParallelEnv(ParallelEnv):  # type: ignore[misc]
             raise RuntimeError("call reset() before state()")
         return self._features.reshape(-1).astype(np.float32)
 
-    @property
-    def observation_layout(self) -> ObservationLayout:
-        """One robot's observation block by name (:class:`koopman_envs.layout.ObservationLayout`),
-        known before the first reset."""
-        return self.engine.observation_layout
-
-    @property
-    def scenario(self) -> Scenario:
-        """Geometry and limits of this episode, as in the Gymnasium env."""
-        return self.engine.scenario(0)
-
-    def render(self) -> NDArray[np.uint8] | None:
-        if self.render_mode is None:
-            gymnasium.logger.warn("render() called without a render_mode")
-            return None
-        from koopman_envs.rendering.renderer import Renderer, draw_engine_env
-
-        if self._renderer is None:
-            self._renderer = Renderer(human=self.render_mode == "human")
-        self.scenario  # noqa: B018 - a RuntimeError before the first reset()
-        # the single env's frame: movers, lidar beams and a collision's mark included
-        return draw_engine_env(self._renderer, self.engine, 0, self._trail)
-
-    def close(self) -> None:
-        self.engine.close()
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+    # render, close, observation_layout and scenario: SingleEnvFront's (as the Gymnasium env's)
 
 
 def make_constructors(
