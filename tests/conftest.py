@@ -7,6 +7,7 @@ import os
 import shutil
 import sys
 import tempfile
+import warnings
 from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 
@@ -89,6 +90,46 @@ def pytest_configure(config: pytest.Config) -> None:
     if _owner and (getattr(config.option, "numprocesses", None) or 0) > 1:
         for variable in THREAD_VARIABLES:
             os.environ.setdefault(variable, "1")
+        if os.environ.get(WARM_VARIABLE, "1") != "0":
+            try:
+                warm_kernel_cache()
+            except Exception as exc:  # the tests that run the same code report it, one by one
+                warnings.warn(
+                    f"the numba warm-up failed, each worker compiles its kernels: {exc!r}", stacklevel=1
+                )
+
+
+#: "0": the process that starts the xdist workers leaves numba's kernel cache as it finds it
+WARM_VARIABLE = "KOOPNAV_TEST_WARM_KERNELS"
+#: the environments whose kernels the warm-up compiles (the settings of tests/test_batched_reset.py:
+#: fixed and random maps, slip zones, faults, constant, tracked and walking movers, lidar)
+WARM_SETTINGS: tuple[tuple[str, dict[str, object]], ...] = (
+    ("KoopNav-TargetReaching-v0", {"uncertainty": "harsh", "map": "random", "start_noise": 0.1}),
+    ("KoopNav-Formation-v0", {"map": "random", "slip": "random"}),
+    ("KoopNav-TargetReaching-v0", {"movers": {"count": 6}}),
+    ("KoopNav-Formation-v0", {"movers": {"count": 5, "behaviour": "waypoints"}, "map": "random"}),
+    ("KoopNav-TargetReaching-v0", {"sensing": "lidar", "movers": {"count": 4}, "map": "map5"}),
+)
+#: the controllers driving them: dwa's kernels, and the CBF filter's barriers and two-variable QP
+WARM_CONTROLLERS = ("dwa", "safe:consensus")
+
+
+def warm_kernel_cache() -> None:
+    """Compile the numba kernels most tests use, once, in the process that starts the xdist workers
+    and before it starts them, so that the workers load them from numba's cache (the checkout's
+    ``__pycache__``) instead of each compiling the same kernels at the same time. On a fresh clone
+    the kernels cost each process about 35 CPU-s to compile; with the cache written, the warm-up
+    loads them in about 1 CPU-s. A kernel compiled later for a signature not seen here is compiled
+    by the worker that needs it, as before. Set KOOPNAV_TEST_WARM_KERNELS=0 to skip it."""
+    import gymnasium as gym
+
+    import controllers
+    from koopman_envs.episodes.single import run_episode
+
+    for k, (env_id, kwargs) in enumerate(WARM_SETTINGS):
+        env = gym.make(env_id, max_episode_steps=3, **kwargs)
+        run_episode(env, controllers.make(WARM_CONTROLLERS[k % len(WARM_CONTROLLERS)]), seed=k)
+        env.close()
 
 
 @pytest.hookimpl(wrapper=True)
