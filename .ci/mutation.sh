@@ -37,6 +37,15 @@
 #   MIN_SCORE=P     percent of mutants to kill (default 85)
 #   DRY=1           print each module's [tool.mutmut] section and mutant count, and run nothing
 #                   (with WORKDIR, also how many of them have a verdict there)
+#   STORE=DIR       the committed store of verdicts (default SOURCE/data/mutation): DIR/MODULE.json
+#                   holds every final verdict with the digests it was decided against (the module's
+#                   source, each test file of its selection, mutmut's version, the [tool.mutmut]
+#                   section). Before `mutmut run` the verdicts that still match are restored into
+#                   the clone (a module whose every mutant has one is not run at all); the clone's
+#                   verdicts are written back every SAVE_EVERY seconds (default 120), at the end and
+#                   when stopped. Commit DIR to carry a run to the next machine. A stale verdict is
+#                   tested again; a torn or foreign store is refused by name (exit 2).
+#                   `python -m evaluation.mutation report` prints each stored module's score.
 # Needs mutmut 3 (pip install 'mutmut>=3'; measured with 3.8.1).
 set -euo pipefail
 
@@ -85,7 +94,17 @@ for m in "${wanted[@]}"; do
 done
 command -v mutmut >/dev/null || { echo "mutmut is not installed (pip install 'mutmut>=3')" >&2; exit 2; }
 
-SOURCE=${SOURCE:-$(git -C "$(dirname "$0")/.." rev-parse --show-toplevel)}
+HERE=$(cd "$(dirname "$0")/.." && pwd) # this repository: evaluation/mutation.py keeps the store
+SOURCE=${SOURCE:-$(git -C "$HERE" rev-parse --show-toplevel)}
+STORE=$(realpath -m "${STORE:-$SOURCE/data/mutation}")
+SAVE_EVERY=${SAVE_EVERY:-120}
+store() { # restore|save MODULE CLONE TARGET SETTINGS TEST...: in the clone (mutmut reads its
+    # configuration there), with this repository's evaluation/mutation.py (python -P: not the clone's)
+    local command=$1 module=$2 clone=$3
+    shift 3
+    (cd "$clone" && PYTHONPATH=$HERE exec python3 -P -m evaluation.mutation "$command" \
+        "$STORE/$module.json" "$module" . "$@")
+}
 JOBS=${JOBS:-1}
 MIN_SCORE=${MIN_SCORE:-85}
 WORKDIR=${WORKDIR:-}
@@ -328,6 +347,7 @@ for m in "${wanted[@]}"; do
         refuse_another_commit "$m"
     fi
     tests=""
+    testfiles=()
     copied=""
     where="$clone"
     [ "${COPY_TESTS:-0}" = 1 ] && where=$SOURCE
@@ -341,7 +361,7 @@ for m in "${wanted[@]}"; do
             copied+="$(sha256sum <"$SOURCE/$file" | cut -c1-64) $file"$'\n'
             [ $fresh = 0 ] || cp "$SOURCE/$file" "$clone/$file"
         fi
-        [ -f "$clone/$file" ] && tests+="\"$t\", "
+        [ -f "$clone/$file" ] && tests+="\"$t\", " && testfiles+=("$file")
     done
     tests=${tests%, }
     # -n 0: mutmut runs the tests in its own process (pyproject's addopts spread them over xdist
@@ -416,16 +436,45 @@ timeout_multiplier = 60.0"
         echo "resuming $clone"
         (cd "$clone" && python3 -c "$STATE" resume "$target")
     fi
-    start=$(date +%s)
-    (cd "$clone" && exec python3 -c "$RUN" run --max-children "$JOBS") >>"$base/run.log" 2>&1 &
-    pid=$!
+    printf '%s\nmodule %s\n' "$section" "$m" >"$base/settings"
+    stored=("$m" "$clone" "$target" "$base/settings" "${testfiles[@]}")
     rc=0
-    wait "$pid" || rc=$?
-    while kill -0 "$pid" 2>/dev/null; do # a signal ended the first wait: mutmut is still stopping
+    store restore "${stored[@]}" || rc=$?
+    if [ $rc != 0 ] && [ $rc != 10 ]; then # a torn or foreign store, named
+        [ -z "$scratch" ] || rm -rf "$scratch"
+        exit 2
+    fi
+    start=$(date +%s)
+    if [ $rc = 10 ]; then # every mutant has a trusted verdict: mutmut is not started
+        cp "$clone/mutants/results.txt" "$base/results.txt"
+        rc=0
+    else
+        (cd "$clone" && exec python3 -c "$RUN" run --max-children "$JOBS") >>"$base/run.log" 2>&1 &
+        pid=$!
+        # the verdicts go to the store as they come: a kill of the machine loses SAVE_EVERY seconds
+        (
+            n=0
+            while kill -0 "$pid" 2>/dev/null; do # ends within a second of mutmut
+                sleep 1
+                n=$((n + 1))
+                if [ $n -ge "$SAVE_EVERY" ]; then
+                    store save "${stored[@]}" || true
+                    n=0
+                fi
+            done
+        ) </dev/null >/dev/null 2>&1 &
+        saver=$!
         rc=0
         wait "$pid" || rc=$?
-    done
-    pid=""
+        while kill -0 "$pid" 2>/dev/null; do # a signal ended the first wait: mutmut is still stopping
+            rc=0
+            wait "$pid" || rc=$?
+        done
+        pid=""
+        wait "$saver" 2>/dev/null || true
+        store save "${stored[@]}" || status=2
+        (cd "$clone" && mutmut results --all true) >"$base/results.txt" 2>/dev/null || true
+    fi
     # seconds over every session of this clone
     seconds=$(($(cat "$base/seconds" 2>/dev/null || echo 0) + $(date +%s) - start))
     echo "$seconds" >"$base/seconds"
@@ -444,7 +493,6 @@ timeout_multiplier = 60.0"
         tail -c 3000 "$base/run.log"
         status=1
     fi
-    (cd "$clone" && mutmut results --all true) >"$base/results.txt" 2>/dev/null || true
     rc=0
     python3 -c "$STATE" score "$m" "$base/results.txt" "$MIN_SCORE" "$seconds" "$key" \
         "${WORKDIR:+$base/score}" >"$base/shown" || rc=$?

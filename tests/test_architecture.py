@@ -435,8 +435,9 @@ EVAL_LAYERS = ("base", "episodes", "run", "stats", "reports", "execution", "expe
 #: the root modules of the base layer: the exit codes, which every command line reads (baselines'
 #: and docs' too), whatever its floor
 EVAL_BASE = {"exit_codes"}
-#: the command lines, on top: evaluate.py's options, the commands at the root and the tuner
-EVAL_COMMANDS = {"cli", "forget", "archive", "exact", "tune"}
+#: the command lines, on top: evaluate.py's options, the commands at the root (the mutation store's
+#: included) and the tuner
+EVAL_COMMANDS = {"cli", "forget", "archive", "exact", "tune", "mutation"}
 
 
 def _eval_layer(module: str) -> int | None:

@@ -63,6 +63,7 @@ def _run(source: Path, workdir: Path, **extra: str) -> subprocess.CompletedProce
         "WORKDIR": str(workdir),
         "JOBS": "1",
         "MIN_SCORE": "50",
+        "STORE": str(workdir.parent / "store"),  # the committed store, tests/test_mutation_store.py
         **extra,
     }
     env.pop("PYTHONPATH", None)  # the tiny repository's package, not this checkout's
@@ -109,6 +110,7 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     _meta(workdir).write_text(json.dumps(meta))
     score_file = workdir / "records/score"
     score_file.write_text(score_file.read_text()[:-20])
+    (tmp_path / "store/records.json").unlink()  # the clone's verdicts alone
     resumed = _run(source, workdir)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     assert "torn score file" in resumed.stdout
@@ -122,6 +124,7 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     # a torn meta file: no verdict of it is trusted, every mutant is made and tested afresh
     _meta(workdir).write_text(_meta(workdir).read_text()[:40])
     score_file.unlink()
+    (tmp_path / "store/records.json").unlink()
     afresh = _run(source, workdir)
     assert afresh.returncode == 0, afresh.stdout + afresh.stderr
     assert "records.py.meta is torn: every mutant is made and tested afresh" in afresh.stdout
