@@ -35,8 +35,9 @@
 #                   tests not yet committed)
 #   WITHOUT="tests/a.py ..."   leave those test files out (a score before they were added)
 #   MIN_SCORE=P     percent of mutants to kill (default 85)
-#   DRY=1           print each module's [tool.mutmut] section and mutant count, and run nothing
-#                   (with WORKDIR, also how many of them have a verdict there)
+#   DRY=1           print each module's [tool.mutmut] section and mutant count, how many of them
+#                   the store would restore, and run nothing (with WORKDIR, also how many of them
+#                   have a verdict there)
 #   STORE=DIR       the committed store of verdicts (default SOURCE/data/mutation): DIR/MODULE.json
 #                   holds every final verdict with the digests it was decided against (the module's
 #                   source, each test file of its selection, mutmut's version, the [tool.mutmut]
@@ -404,9 +405,14 @@ timeout_multiplier = 60.0"
         exit 2
     fi
     echo "== $m: mutating $target, tests: $tests${deselect:+, left out: $deselect}"
+    # what the store's verdicts are checked against: the settings, the module and the test files
+    printf '%s\nmodule %s\n' "$section" "$m" >"$base/settings"
+    stored=("$m" "$clone" "$target" "$base/settings" "${testfiles[@]}")
     if [ "${DRY:-0}" = 1 ]; then
         sed -n '/^\[tool.mutmut\]/,$p' "$clone/pyproject.toml"
         echo "$m: $(cd "$clone" && python3 -c "$STATE" count "$target") mutants"
+        echo "$STORE/$m.json (in this fresh clone):"
+        store restore "${stored[@]}" || true # its lines say how many verdicts are trusted
         kept=${WORKDIR:+$WORKDIR/$m}
         if [ -n "$kept" ] && [ -f "$kept/key" ] && [ "$(tr '\n' ' ' <"$kept/key")" != "$key " ]; then
             echo "$kept was set up from another commit or test selection: a run would refuse it"
@@ -436,8 +442,6 @@ timeout_multiplier = 60.0"
         echo "resuming $clone"
         (cd "$clone" && python3 -c "$STATE" resume "$target")
     fi
-    printf '%s\nmodule %s\n' "$section" "$m" >"$base/settings"
-    stored=("$m" "$clone" "$target" "$base/settings" "${testfiles[@]}")
     rc=0
     store restore "${stored[@]}" || rc=$?
     if [ $rc != 0 ] && [ $rc != 10 ]; then # a torn or foreign store, named
@@ -482,10 +486,10 @@ timeout_multiplier = 60.0"
         if [ -n "$WORKDIR" ]; then
             echo "stopped; every verdict saved is kept in $clone: rerun the same command to continue" >&2
         elif [ "${KEEP:-0}" = 1 ]; then
-            echo "stopped; kept $clone (WORKDIR=DIR makes a run that can be continued)" >&2
+            echo "stopped; kept $clone; the verdicts so far are in $STORE/$m.json: rerun to continue" >&2
         else
             rm -rf "$base"
-            echo "stopped (WORKDIR=DIR makes a run that can be continued)" >&2
+            echo "stopped; the verdicts so far are in $STORE/$m.json: rerun to continue (WORKDIR=DIR keeps the clone too)" >&2
         fi
         exit 130
     fi
