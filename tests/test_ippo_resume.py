@@ -149,3 +149,77 @@ def test_an_interrupted_ippo_run_resumed_ends_bit_for_bit_as_the_uninterrupted_o
     assert not (stopped / RESUME_FILE).exists()  # finished: nothing left to resume
     # the resumed session logged into the interrupted session's BenchMARL folder
     assert len(list((stopped / "benchmarl").iterdir())) == 1
+
+
+# ----------------------------------------------------------------------------- the driver
+@pytest.mark.slow
+def test_the_driver_resumes_an_ippo_seed_with_a_sound_checkpoint_and_restarts_one_without(
+    tmp_path, monkeypatch
+) -> None:
+    """data/training/run.sh on an ippo seed folder left by an interrupted suite run (the trainer
+    with the driver's own settings, stopped after its checkpoint at 400 frames): resumed, the
+    validation table holding the stopped session's checkpoints too; with a torn checkpoint,
+    refused by name, removed and trained from the start."""
+    import os
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    seed_dir = tmp_path / "ippo" / "formation" / "seed0"
+    ippo_args = ["--frames-per-batch", "200", "--minibatch-size", "100", "--epochs", "1", "--envs", "2"]
+    ippo_args += ["--eval-freq", "200"]
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(root),
+        "TRAINING_ROOT": str(tmp_path),
+        "SEEDS": "1",
+        "TASKS": "formation",
+        "FRAMES": "600",
+        "VALIDATION_LAYOUTS": "1",
+        "RESUME_EVERY": "1",
+        "IPPO_ARGS": " ".join(ippo_args),
+    }
+
+    def driver() -> subprocess.CompletedProcess[str]:
+        command = ["bash", str(root / "data/training/run.sh"), "ippo"]
+        return subprocess.run(command, env=env, capture_output=True, text=True, timeout=1800, check=False)
+
+    # the trainer as the driver runs it (run.sh's train()), stopped after the checkpoint at 400 frames
+    argv = ["--task", "formation", "--algorithm", "ippo", "--suite", "koopnav-bench-v1", "--seed", "0"]
+    argv += ["--validation-layouts", "1", "--threads", "1", "--frames", "600", "--frames-per-batch", "12000"]
+    argv += ["--minibatch-size", "1000", "--epochs", "5", "--normalize-advantage", "--envs", "200"]
+    argv += ["--features", "bearing+headings", "--entropy-coef", "0.01", *ippo_args]
+    save = benchmarl_resume.save
+
+    def save_and_stop_at_400(out: Path, args: object, now: object, *rest: object) -> Path:
+        written = save(out, args, now, *rest)  # type: ignore[arg-type]
+        if int(now.total_frames) == 400:  # type: ignore[attr-defined]
+            raise Interrupted
+        return written
+
+    with monkeypatch.context() as patch:
+        patch.setattr(benchmarl_resume, "save", save_and_stop_at_400)
+        with pytest.raises(Interrupted):
+            benchmarl_train.main([*argv, "--resume-every", "1", "--out", str(seed_dir)])
+    resumed = driver()
+    assert resumed.returncode == 0, resumed.stderr
+    assert "seed 0: unfinished run in" in resumed.stdout and "resuming from its checkpoint" in resumed.stdout
+    assert json.loads((seed_dir / "finished.json").read_text())["sessions"] == 1  # the driver's one
+    metadata = json.loads((seed_dir / "formation" / "metadata.json").read_text())
+    assert metadata["resumed_from_frames"] == [400]
+    record = json.loads((seed_dir / "selection.json").read_text())
+    assert [c["step"] for c in record["checkpoints"]] == [200, 400, 600]  # 200 and 400: the stopped session's
+    assert not (seed_dir / RESUME_FILE).exists()
+
+    (seed_dir / "finished.json").unlink()
+    (seed_dir / RESUME_FILE).write_bytes(b"KOOPNAV-RESUME 1\n{}\n")  # torn
+    restarted = driver()
+    assert restarted.returncode == 0, restarted.stderr
+    assert "has no readable header" in restarted.stderr
+    assert "removed; training again" in restarted.stdout
+    metadata = json.loads((seed_dir / "formation" / "metadata.json").read_text())
+    assert metadata["resumed_from_frames"] == []
+    assert [c["step"] for c in json.loads((seed_dir / "selection.json").read_text())["checkpoints"]] == [
+        200,
+        400,
+        600,
+    ]

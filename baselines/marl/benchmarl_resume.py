@@ -36,7 +36,19 @@ from typing import Any
 
 from baselines.resume import RESUME_FILE, global_rng_states, read_resume, set_global_rng_states, write_resume
 
-__all__ = ["ENV_STATE", "FREE_OPTIONS", "KIND", "capture", "read", "resume_identity", "restore", "save"]
+__all__ = [
+    "ENV_STATE",
+    "FREE_OPTIONS",
+    "KIND",
+    "MARKER",
+    "capture",
+    "experiment_class",
+    "marker",
+    "read",
+    "restore",
+    "resume_identity",
+    "save",
+]
 
 #: the trainer named in the file's header
 KIND = "benchmarl-ppo"
@@ -45,9 +57,10 @@ KIND = "benchmarl-ppo"
 FREE_OPTIONS = ("out", "resume", "resume_every")
 #: the attributes of a :class:`baselines.marl.torchrl_env.KoopNavMultiAgentEnv` that stepping changes
 ENV_STATE = ("_venv", "shaping", "_seed", "_pending", "_ended")
-#: the path given to BenchMARL as ``restore_file`` of a resumed run: its folder's name is the run's
-#: (BenchMARL logs into it); :func:`experiment_class`'s experiment loads nothing from it
-_MARKER = "koopnav-resume"
+#: the name of the ``restore_file`` given to BenchMARL by a resumed run (:func:`marker`): its
+#: folder's name is the run's (BenchMARL logs into it); :func:`experiment_class`'s experiment loads
+#: nothing from it
+MARKER = "koopnav-resume"
 
 
 def resume_identity(args: argparse.Namespace) -> dict[str, Any]:
@@ -58,29 +71,16 @@ def resume_identity(args: argparse.Namespace) -> dict[str, Any]:
 
 def marker(folder: Path, name: str) -> Path:
     """The ``restore_file`` of a resumed run whose BenchMARL run folder is ``folder/name``."""
-    return folder / name / "checkpoints" / _MARKER
+    return folder / name / "checkpoints" / MARKER
 
 
 def experiment_class() -> Any:
-    """BenchMARL's ``Experiment`` with two changes: with ``on_checkpoint`` set, the checkpoints
-    BenchMARL takes every ``checkpoint_interval`` frames are resume checkpoints (``on_checkpoint(run)``;
-    the one at the end stays BenchMARL's), and a ``restore_file`` named :func:`marker` loads nothing
-    (:func:`restore` puts the state back once the experiment is built)."""
-    from benchmarl.experiment import Experiment
-
-    class ResumableExperiment(Experiment):  # type: ignore[misc]  # BenchMARL is untyped
-        on_checkpoint: Any = None
-
-        def _save_experiment(self) -> None:
-            if self.on_checkpoint is not None and self.total_frames < self.config.get_max_n_frames(True):
-                self.on_checkpoint(self)
-                return
-            super()._save_experiment()
-
-        def _load_experiment(self) -> Any:
-            if Path(self.config.restore_file).name == _MARKER:
-                return self
-            return super()._load_experiment()
+    """BenchMARL's ``Experiment`` with two changes (:class:`baselines.marl.benchmarl_resumable.ResumableExperiment`):
+    with ``on_checkpoint`` set, the checkpoints BenchMARL takes every ``checkpoint_interval``
+    frames are resume checkpoints (``on_checkpoint(run)``; the one at the end stays BenchMARL's),
+    and a ``restore_file`` named :func:`marker` loads nothing (:func:`restore` puts the state back
+    once the experiment is built)."""
+    from baselines.marl.benchmarl_resumable import ResumableExperiment
 
     return ResumableExperiment
 
