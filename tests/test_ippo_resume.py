@@ -102,7 +102,7 @@ class Interrupted(Exception):
 
 
 def test_an_interrupted_ippo_run_resumed_ends_bit_for_bit_as_the_uninterrupted_one(
-    tmp_path, monkeypatch
+    tmp_path, monkeypatch, capsys
 ) -> None:
     """Stopped 3 env steps into iteration 4 (after the resume checkpoint at 600 frames), resumed
     from it: the same exported weights as a run never stopped, and the resume recorded. Without
@@ -138,7 +138,9 @@ def test_an_interrupted_ippo_run_resumed_ends_bit_for_bit_as_the_uninterrupted_o
     assert saves == [600] and check_resume(stopped / RESUME_FILE)["kind"] == "benchmarl-ppo"
     assert not (stopped / "policy.npz").exists()  # stopped before the end
 
+    capsys.readouterr()
     assert run(stopped, "--resume", "--resume-every", "3") == 0
+    assert f"resumed from {stopped / RESUME_FILE} at 600 frames; 400 left" in capsys.readouterr().out
     whole, resumed = np.load(tmp_path / "whole" / "policy.npz"), np.load(stopped / "policy.npz")
     assert sorted(whole.files) == sorted(resumed.files) and "weight_0" in whole.files
     for key in whole.files:
@@ -206,6 +208,7 @@ def test_the_driver_resumes_an_ippo_seed_with_a_sound_checkpoint_and_restarts_on
     assert json.loads((seed_dir / "finished.json").read_text())["sessions"] == 1  # the driver's one
     metadata = json.loads((seed_dir / "formation" / "metadata.json").read_text())
     assert metadata["resumed_from_frames"] == [400]
+    assert "at 400 frames; 200 left" in (seed_dir / "train.log").read_text()
     record = json.loads((seed_dir / "selection.json").read_text())
     assert [c["step"] for c in record["checkpoints"]] == [200, 400, 600]  # 200 and 400: the stopped session's
     assert not (seed_dir / RESUME_FILE).exists()

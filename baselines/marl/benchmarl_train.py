@@ -286,6 +286,8 @@ def _train_one(
         run.run()
         return run
     benchmarl_resume.restore(run, resumed, callbacks)
+    left = int(run.config.get_max_n_frames(run.on_policy)) - int(run.total_frames)
+    print(f"resumed from {out / RESUME_FILE} at {int(run.total_frames):,} frames; {left:,} left", flush=True)
     try:  # Experiment.run without its seed_everything (the generators are the checkpoint's)
         run._collection_loop()
     except BaseException:
