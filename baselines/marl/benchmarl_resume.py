@@ -31,6 +31,7 @@ them again).
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +43,7 @@ __all__ = [
     "KIND",
     "MARKER",
     "capture",
-    "experiment_class",
+    "Session",
     "marker",
     "read",
     "restore",
@@ -58,8 +59,8 @@ FREE_OPTIONS = ("out", "resume", "resume_every")
 #: the attributes of a :class:`baselines.marl.torchrl_env.KoopNavMultiAgentEnv` that stepping changes
 ENV_STATE = ("_venv", "shaping", "_seed", "_pending", "_ended")
 #: the name of the ``restore_file`` given to BenchMARL by a resumed run (:func:`marker`): its
-#: folder's name is the run's (BenchMARL logs into it); :func:`experiment_class`'s experiment loads
-#: nothing from it
+#: folder's name is the run's (BenchMARL logs into it); :class:`baselines.marl.benchmarl_resumable.ResumableExperiment`
+#: loads nothing from it
 MARKER = "koopnav-resume"
 
 
@@ -74,15 +75,26 @@ def marker(folder: Path, name: str) -> Path:
     return folder / name / "checkpoints" / MARKER
 
 
-def experiment_class() -> Any:
-    """BenchMARL's ``Experiment`` with two changes (:class:`baselines.marl.benchmarl_resumable.ResumableExperiment`):
-    with ``on_checkpoint`` set, the checkpoints BenchMARL takes every ``checkpoint_interval``
-    frames are resume checkpoints (``on_checkpoint(run)``; the one at the end stays BenchMARL's),
-    and a ``restore_file`` named :func:`marker` loads nothing (:func:`restore` puts the state back
-    once the experiment is built)."""
-    from baselines.marl.benchmarl_resumable import ResumableExperiment
+class Session:
+    """A one-stage run's sessions: the resume checkpoint's extras (the frames every resumed
+    session began at, the earlier sessions' wall time) and this session's start."""
 
-    return ResumableExperiment
+    def __init__(self, resumed: dict[str, Any] | None) -> None:
+        self.start = time.perf_counter()
+        self.resumed_from: list[int] = []
+        self.wall_before = 0.0
+        if resumed is not None:
+            self.resumed_from = [
+                *resumed["resumed_from"],
+                int(resumed["experiment"]["state"]["total_frames"]),
+            ]
+            self.wall_before = float(resumed["wall_before"])
+
+    def extras(self) -> dict[str, Any]:
+        return {
+            "resumed_from": list(self.resumed_from),
+            "wall_before": self.wall_before + time.perf_counter() - self.start,
+        }
 
 
 def _base(env: Any) -> Any:

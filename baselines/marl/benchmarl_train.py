@@ -65,7 +65,7 @@ def experiment(
     every minibatch's advantages (SB3's PPO does; BenchMARL's losses do not); ``entropy_coef``: the
     entropy bonus's weight (BenchMARL's 0 when None); ``callbacks``: BenchMARL callbacks of the run;
     ``experiment_class``: a subclass of BenchMARL's ``Experiment`` to build (a resumable run's,
-    :func:`baselines.marl.benchmarl_resume.experiment_class`), ``Experiment`` when None."""
+    :class:`baselines.marl.benchmarl_resumable.ResumableExperiment`), ``Experiment`` when None."""
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
@@ -204,8 +204,14 @@ def _experiment(
         args.normalize_advantage,
         args.entropy_coef,
         callbacks,
-        benchmarl_resume.experiment_class() if resumable else None,
+        _resumable_class() if resumable else None,
     )
+
+
+def _resumable_class() -> Any:
+    from baselines.marl.benchmarl_resumable import ResumableExperiment
+
+    return ResumableExperiment
 
 
 def _last_checkpoint(folder: Path) -> Path:
@@ -244,35 +250,13 @@ def _final_env(args: argparse.Namespace) -> dict[str, Any]:
     return {**env_kwargs, **args.env_kwargs}
 
 
-class Session:
-    """A one-stage run's sessions: the resume checkpoint's extras (the frames every resumed
-    session began at, the earlier sessions' wall time) and this session's start."""
-
-    def __init__(self, resumed: dict[str, Any] | None) -> None:
-        self.start = time.perf_counter()
-        self.resumed_from: list[int] = []
-        self.wall_before = 0.0
-        if resumed is not None:
-            self.resumed_from = [
-                *resumed["resumed_from"],
-                int(resumed["experiment"]["state"]["total_frames"]),
-            ]
-            self.wall_before = float(resumed["wall_before"])
-
-    def extras(self) -> dict[str, Any]:
-        return {
-            "resumed_from": list(self.resumed_from),
-            "wall_before": self.wall_before + time.perf_counter() - self.start,
-        }
-
-
 def _train_one(
     args: argparse.Namespace,
     out: Path,
     stats: tuple[np.ndarray, np.ndarray] | None,
     callbacks: list[Any],
     resumed: dict[str, Any] | None,
-    session: Session,
+    session: benchmarl_resume.Session,
 ) -> Any:
     """A one-stage run, resumable (``--resume-every``) or resumed (``resumed``: the state of its
     resume checkpoint, :mod:`baselines.marl.benchmarl_resume`)."""
@@ -302,7 +286,7 @@ def _train(
     stats: tuple[np.ndarray, np.ndarray] | None,
     callbacks: list[Any] | None = None,
     resumed: dict[str, Any] | None = None,
-    session: Session | None = None,
+    session: benchmarl_resume.Session | None = None,
 ) -> tuple[Any, list[dict[str, Any]]]:
     """Run the training (stage by stage with ``--curriculum`` or ``--stages``) into
     ``out/benchmarl``; the last experiment and the stages run (name, frames at the end, env
@@ -311,7 +295,9 @@ def _train(
     plan = training_plan(args)
     folder = out / "benchmarl"
     if plan is None:
-        run = _train_one(args, out, stats, callbacks or [], resumed, session or Session(resumed))
+        run = _train_one(
+            args, out, stats, callbacks or [], resumed, session or benchmarl_resume.Session(resumed)
+        )
         return run, []
     stages, restore, run = [], None, None
     for name, frames, env_kwargs in plan:
@@ -466,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
         except ResumeRefused as exc:
             print(f"error: {exc}", file=sys.stderr)
             return BAD_INPUT_EXIT
-    session = Session(resumed)
+    session = benchmarl_resume.Session(resumed)
     out.mkdir(parents=True, exist_ok=True)
     (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
     command = "python -m baselines.marl.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv)
