@@ -191,5 +191,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     _add_suite_options(parser)
+    parser.add_argument(
+        "--resume-every",
+        type=int,
+        default=0,
+        metavar="N",
+        help="write the resume checkpoint OUT/resume.ckpt every N iterations (N x --frames-per-batch "
+        "frames; atomically; default 0: never); one-stage runs only (not --curriculum or --stages)",
+    )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted run in OUT from OUT/resume.ckpt, bit for bit as if it had never "
+        "stopped (the same options but --out, --resume-every; baselines.marl.benchmarl_resume)",
+    )
     parser.add_argument("--out", required=True)
     return parser

@@ -115,6 +115,14 @@ class SuiteCheckpoints(Callback):
                 self.next_at += self.every
             self.checkpoint(self.experiment.policy, frames)
 
+    def resume_state(self) -> dict[str, Any]:
+        """What a resume checkpoint keeps of this callback (:mod:`baselines.marl.benchmarl_resume`)."""
+        return {"next_at": self.next_at, "scores": list(self.scores)}
+
+    def set_resume_state(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`resume_state`."""
+        self.next_at, self.scores = int(state["next_at"]), list(state["scores"])
+
     def checkpoint(self, policy: Any, frames: int) -> CheckpointScore:
         """Export ``policy`` as checkpoint ``frames_<frames>`` and score it; printed on one line."""
         root = self.out / "checkpoints" / f"frames_{frames}"

@@ -32,9 +32,11 @@ from typing import Any
 
 import numpy as np
 
+from baselines.marl import benchmarl_resume
 from baselines.marl.benchmarl_options import ALGORITHMS, build_parser
+from baselines.resume import RESUME_FILE, ResumeRefused
 from baselines.suite_training import choose, keep_chosen
-from evaluation.exit_codes import SUCCESS_EXIT
+from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
 from koopman_envs.checks import check_choice
 from koopman_envs.files import write_atomic
 
@@ -53,6 +55,7 @@ def experiment(
     normalize_advantage: bool = False,
     entropy_coef: float | None = None,
     callbacks: list[Any] | None = None,
+    experiment_class: Any = None,
 ) -> Any:
     """A BenchMARL experiment of ``algorithm`` (``"mappo"`` or ``"ippo"``) on a KoopNav ``task``
     with BenchMARL's default networks (MLP for the actor and the critic) and ``config`` (an
@@ -60,7 +63,9 @@ def experiment(
     standard deviation before the tanh at the start (BenchMARL's default 1.0 when None);
     ``gae_lambda``: GAE's lambda (BenchMARL's 0.9 when None); ``normalize_advantage``: standardize
     every minibatch's advantages (SB3's PPO does; BenchMARL's losses do not); ``entropy_coef``: the
-    entropy bonus's weight (BenchMARL's 0 when None); ``callbacks``: BenchMARL callbacks of the run."""
+    entropy bonus's weight (BenchMARL's 0 when None); ``callbacks``: BenchMARL callbacks of the run;
+    ``experiment_class``: a subclass of BenchMARL's ``Experiment`` to build (a resumable run's,
+    :class:`baselines.marl.benchmarl_resumable.ResumableExperiment`), ``Experiment`` when None."""
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment
     from benchmarl.models.mlp import MlpConfig
@@ -79,7 +84,7 @@ def experiment(
         if not entropy_coef >= 0:
             raise ValueError(f"entropy_coef={entropy_coef!r} must be >= 0")
         algorithm_config.entropy_coef = entropy_coef
-    run = Experiment(
+    run = (Experiment if experiment_class is None else experiment_class)(
         task=task,
         algorithm_config=algorithm_config,
         model_config=MlpConfig.get_from_yaml(),
@@ -143,7 +148,12 @@ def _experiment(
     restore: Path | None = None,
     stats: tuple[np.ndarray, np.ndarray] | None = None,
     callbacks: list[Any] | None = None,
+    resumable: bool = False,
 ) -> Any:
+    """The BenchMARL experiment of ``args`` in ``folder``; ``restore``: BenchMARL's checkpoint to
+    start from (a stage's) or a resumed run's :func:`baselines.marl.benchmarl_resume.marker`;
+    ``resumable``: a resumable run's experiment, with a resume checkpoint every ``--resume-every``
+    iterations (:mod:`baselines.marl.benchmarl_resume`)."""
     import torch
     from benchmarl.experiment import ExperimentConfig
 
@@ -182,6 +192,8 @@ def _experiment(
     config.render, config.loggers, config.create_json = False, ["csv"], True
     config.save_folder, config.checkpoint_at_end = str(folder), True
     config.restore_file = None if restore is None else str(restore)
+    if resumable:
+        config.checkpoint_interval = args.resume_every * args.frames_per_batch
     return experiment(
         task,
         config,
@@ -192,7 +204,14 @@ def _experiment(
         args.normalize_advantage,
         args.entropy_coef,
         callbacks,
+        _resumable_class() if resumable else None,
     )
+
+
+def _resumable_class() -> Any:
+    from baselines.marl.benchmarl_resumable import ResumableExperiment
+
+    return ResumableExperiment
 
 
 def _last_checkpoint(folder: Path) -> Path:
@@ -231,19 +250,54 @@ def _final_env(args: argparse.Namespace) -> dict[str, Any]:
     return {**env_kwargs, **args.env_kwargs}
 
 
+def _train_one(
+    args: argparse.Namespace,
+    out: Path,
+    stats: tuple[np.ndarray, np.ndarray] | None,
+    callbacks: list[Any],
+    resumed: dict[str, Any] | None,
+    session: benchmarl_resume.Session,
+) -> Any:
+    """A one-stage run, resumable (``--resume-every``) or resumed (``resumed``: the state of its
+    resume checkpoint, :mod:`baselines.marl.benchmarl_resume`)."""
+    folder = out / "benchmarl"
+    resumable = args.resume_every > 0 or resumed is not None
+    restore = None if resumed is None else benchmarl_resume.marker(folder, resumed["name"])
+    run = _experiment(args, folder, restore=restore, stats=stats, callbacks=callbacks, resumable=resumable)
+    if args.resume_every > 0:
+        run.on_checkpoint = lambda now: benchmarl_resume.save(out, args, now, callbacks, session.extras())
+    if resumed is None:
+        run.run()
+        return run
+    benchmarl_resume.restore(run, resumed, callbacks)
+    left = int(run.config.get_max_n_frames(run.on_policy)) - int(run.total_frames)
+    print(f"resumed from {out / RESUME_FILE} at {int(run.total_frames):,} frames; {left:,} left", flush=True)
+    try:  # Experiment.run without its seed_everything (the generators are the checkpoint's)
+        run._collection_loop()
+    except BaseException:
+        run.close()
+        raise
+    return run
+
+
 def _train(
     args: argparse.Namespace,
-    folder: Path,
+    out: Path,
     stats: tuple[np.ndarray, np.ndarray] | None,
     callbacks: list[Any] | None = None,
+    resumed: dict[str, Any] | None = None,
+    session: benchmarl_resume.Session | None = None,
 ) -> tuple[Any, list[dict[str, Any]]]:
-    """Run the training (stage by stage with ``--curriculum`` or ``--stages``); the last
-    experiment and the stages run (name, frames at the end, env keywords). ``callbacks``: of a
-    one-stage run (a suite run's checkpoints)."""
+    """Run the training (stage by stage with ``--curriculum`` or ``--stages``) into
+    ``out/benchmarl``; the last experiment and the stages run (name, frames at the end, env
+    keywords). ``callbacks``: of a one-stage run (a suite run's checkpoints); ``resumed``: the
+    state of a one-stage run's resume checkpoint to continue from."""
     plan = training_plan(args)
+    folder = out / "benchmarl"
     if plan is None:
-        run = _experiment(args, folder, stats=stats, callbacks=callbacks)
-        run.run()
+        run = _train_one(
+            args, out, stats, callbacks or [], resumed, session or benchmarl_resume.Session(resumed)
+        )
         return run, []
     stages, restore, run = [], None, None
     for name, frames, env_kwargs in plan:
@@ -278,12 +332,15 @@ def export_actor(policy: Any, stats: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _curve(folder: Path) -> list[list[float]]:
-    """(frames, mean evaluation episode reward) from BenchMARL's CSV scalars."""
+    """(frames, mean evaluation episode reward) from BenchMARL's CSV scalars; of a resumed run,
+    an iteration logged by the interrupted session and again by the resumed one appears once (the
+    resumed session's figure, the same)."""
     files = list(folder.glob("*/*/scalars/eval_reward_episode_reward_mean.csv"))
     if not files:
         return []
     with files[0].open() as handle:
-        return [[float(row[0]), float(row[1])] for row in csv.reader(handle) if row]
+        rows = {float(row[0]): float(row[1]) for row in csv.reader(handle) if row}
+    return [[frames, reward] for frames, reward in sorted(rows.items())]
 
 
 def export_metadata(args: argparse.Namespace, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -316,9 +373,11 @@ def _metadata(
     wall: float,
     command: str,
     folder: Path,
+    resumed_from: list[int] | None = None,
 ) -> dict[str, Any]:
     """The final export's ``metadata.json``: the controller's fields, the settings, the command,
-    seed, frames, wall time, versions and BenchMARL's evaluation curve."""
+    seed, frames, wall time (every session's), versions and BenchMARL's evaluation curve;
+    ``resumed_from``: the frames each resumed session began at (``--resume``)."""
     import benchmarl
     import torch
     import torchrl
@@ -344,6 +403,7 @@ def _metadata(
         "seed": args.seed,
         "frames": int(experiment.total_frames),
         "wall_seconds": round(wall, 1),
+        "resumed_from_frames": list(resumed_from or []),
         "versions": {
             "benchmarl": benchmarl.__version__ if hasattr(benchmarl, "__version__") else "?",
             "torchrl": torchrl.__version__,
@@ -364,6 +424,7 @@ def _check_settings(args: argparse.Namespace, parser: argparse.ArgumentParser) -
         ("reward-scale", args.reward_scale > 0, "> 0"),
         ("gae-lambda", 0 <= args.gae_lambda <= 1, "in [0, 1]"),
         ("epochs", args.epochs > 0, "> 0"),
+        ("resume-every", args.resume_every >= 0, ">= 0 (0: no resume checkpoint)"),
         ("entropy-coef", args.entropy_coef >= 0, ">= 0"),
         ("frames-per-batch", args.frames_per_batch % args.envs == 0, "a multiple of --envs"),
         ("minibatch-size", 0 < args.minibatch_size <= args.frames_per_batch, "in [1, --frames-per-batch]"),
@@ -376,12 +437,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     _check_settings(args, parser)
+    if (args.resume or args.resume_every > 0) and (args.curriculum or args.stages):
+        parser.error("--resume and --resume-every: one-stage runs only, not --curriculum or --stages")
     from baselines.marl.benchmarl_suite import SuiteCheckpoints, suite_training
 
     training = suite_training(args, parser)  # the test split refused by name, before any work
     if args.max_cycles is None:
         args.max_cycles = 400
     out = Path(args.out)
+    resumed = None
+    if args.resume:  # refused by name before any work
+        try:
+            resumed = benchmarl_resume.read(out, args)
+        except ResumeRefused as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return BAD_INPUT_EXIT
+    session = benchmarl_resume.Session(resumed)
     out.mkdir(parents=True, exist_ok=True)
     (out / "benchmarl").mkdir(exist_ok=True)  # BenchMARL makes its run folder inside
     command = "python -m baselines.marl.benchmarl_train " + " ".join(sys.argv[1:] if argv is None else argv)
@@ -394,11 +465,13 @@ def main(argv: list[str] | None = None) -> int:
         None if training is None else SuiteCheckpoints(training, out, args.eval_freq, export, args.algorithm)
     )
     experiment, stages = _train(
-        args, out / "benchmarl", stats, None if checkpoints is None else [checkpoints]
+        args, out, stats, None if checkpoints is None else [checkpoints], resumed, session
     )
-    wall = time.perf_counter() - start
+    wall = session.wall_before + time.perf_counter() - start
     arrays = export_actor(experiment.policy, stats)
-    metadata = _metadata(args, arrays, experiment, stages, wall, command, out / "benchmarl")
+    metadata = _metadata(
+        args, arrays, experiment, stages, wall, command, out / "benchmarl", session.resumed_from
+    )
     if checkpoints is not None and training is not None:
         scores = checkpoints.finish(experiment.policy, int(experiment.total_frames))
         best = choose(scores)
@@ -406,6 +479,7 @@ def main(argv: list[str] | None = None) -> int:
             suite=training.as_dict(), selected_frames=best.step, validation_success_rate=best.success_rate
         )
         keep_chosen(out, training, scores, metadata, command)
+        (out / RESUME_FILE).unlink(missing_ok=True)  # finished: nothing is left to resume
         print(
             f"{args.algorithm} on {args.task} ({training.labels['train']}): {metadata['frames']} frames in "
             f"{wall:.0f} s; kept the export after {best.step:,} frames (validation success "
@@ -415,6 +489,7 @@ def main(argv: list[str] | None = None) -> int:
     # whole or not at all: the policy is read back by the evaluator
     write_atomic(out / "policy.npz", lambda temporary: np.savez(temporary, **arrays))  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
     write_atomic(out / "metadata.json", json.dumps(metadata, indent=1) + "\n")
+    (out / RESUME_FILE).unlink(missing_ok=True)  # finished: nothing is left to resume
     print(f"{args.algorithm} on {args.task}: {metadata['frames']} frames in {wall:.0f} s; exported to {out}")
     return SUCCESS_EXIT
 

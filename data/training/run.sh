@@ -8,11 +8,12 @@
 # Each seed trains in data/training/POLICY/TASK/seedK/ (a policy root: TASK/ holds the kept
 # policy, selection.json the validation table, train.log the trainer's output, every session's).
 # finished.json is written last, atomically (a rename); a seed that has it is skipped. A seed
-# folder without it is an interrupted run: an SB3 seed (rl-ppo-set, rl-ppo) whose folder holds a
-# sound resume checkpoint (resume.ckpt, written every RESUME_EVERY rollouts; checked with
-# python -m baselines.resume) continues from it (--resume), bit for bit as if it had never
-# stopped; any other (ippo, or no sound checkpoint) is removed and trained again from the start.
-# So the script can be stopped (Ctrl-C, kill) and run again, in this session or another.
+# folder without it is an interrupted run: one whose folder holds a sound resume checkpoint of its
+# trainer (resume.ckpt, written every RESUME_EVERY rollouts of an SB3 seed, rl-ppo-set and rl-ppo,
+# or iterations of an ippo seed; checked with python -m baselines.resume FILE sb3-ppo or
+# benchmarl-ppo) continues from it (--resume), bit for bit as if it had never stopped; one without
+# is removed and trained again from the start. So the script can be stopped (Ctrl-C, kill) and run
+# again, in this session or another.
 #
 # Settings (environment variables):
 #   SEEDS               seeds per policy and task (default 3: seeds 0, 1, 2)
@@ -23,8 +24,9 @@
 #   VALIDATION_LAYOUTS  validation layouts per checkpoint (default 50)
 #   THREADS             torch threads of a training run (default 1; a seed's weights are the
 #                       same bit for bit at the same thread count)
-#   RESUME_EVERY        rl-ppo-set / rl-ppo: rollouts between resume checkpoints (default 10: 491,520
-#                       robot-steps at the default 128 envs; 0: none, an interrupted seed starts again)
+#   RESUME_EVERY        rollouts (rl-ppo-set, rl-ppo) or iterations (ippo) between resume checkpoints
+#                       (default 10: 491,520 robot-steps at SB3's default 128 envs, 120,000 frames of
+#                       ippo; 0: none, an interrupted seed starts again)
 #   SB3_ARGS, IPPO_ARGS further options of baselines.sb3.train / baselines.marl.benchmarl_train (after
 #                       the defaults here, so they win), e.g. a tiny network for a smoke run
 #   TRAINING_ROOT       where the seed folders go (default data/training)
@@ -76,7 +78,7 @@ train() {  # train POLICY TASK SEED DIR [--resume]: one seed's run, its output i
             python -m baselines.marl.benchmarl_train --task "$task" --algorithm ippo "${common[@]}" \
                 --frames "$FRAMES" --frames-per-batch 12000 --minibatch-size 1000 --epochs 5 \
                 --normalize-advantage --envs 200 --features bearing+headings --entropy-coef 0.01 \
-                "${ippo_args[@]}" --out "$dir" ;;
+                "${ippo_args[@]}" "${resume[@]}" --out "$dir" ;;
     esac
 }
 
@@ -90,8 +92,10 @@ for policy in "${policies[@]}"; do
                 continue
             fi
             resume=()
-            if [ "$policy" != ippo ] && [ -f "$dir/resume.ckpt" ]; then
-                if check=$(python -m baselines.resume "$dir/resume.ckpt" sb3-ppo 2>&1); then
+            kind=sb3-ppo
+            [ "$policy" = ippo ] && kind=benchmarl-ppo
+            if [ -f "$dir/resume.ckpt" ]; then
+                if check=$(python -m baselines.resume "$dir/resume.ckpt" "$kind" 2>&1); then
                     resume=(--resume)
                     echo "$policy $task seed $seed: unfinished run in $dir; resuming from its checkpoint"
                 else
@@ -114,8 +118,8 @@ for policy in "${policies[@]}"; do
                 [ -f "$file" ] || { echo "$policy $task seed $seed: $file missing" >&2; exit 1; }
             done
             wall=$(( $(date +%s) - start ))
-            # sessions: 1 + the resumes (each resumed bit for bit: the policy's metadata.json lists the
-            # steps in resumed_from_timesteps); wall_seconds: this last session's
+            # sessions: 1 + the resumes (each resumed bit for bit: the policy's metadata.json lists where
+            # in resumed_from_timesteps, or resumed_from_frames for ippo); wall_seconds: this last session's
             sessions=$(wc -l < "$dir/sessions.txt")
             printf '{"policy": "%s", "task": "%s", "seed": %d, "wall_seconds": %d, "sessions": %d, "finished": "%s"}\n' \
                 "$policy" "$task" "$seed" "$wall" "$sessions" "$(date -u +%Y-%m-%dT%H:%M:%SZ)" > "$dir/finished.json.tmp"
