@@ -27,6 +27,7 @@ from controllers import disk_cache
 from controllers.calibration import CacheWarning, cache_path, calibrate_controller
 from controllers.koopman.model import KoopmanModel
 from controllers.solvers import compiled as solver_cache
+from koopman_envs import files as koopman_files
 from koopman_envs.engine.plant import make_plant
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -158,6 +159,14 @@ def test_both_calibrations_in_one_process_warn_once(blocked_cache) -> None:
     assert len(first) == 1 and second == []
 
 
+def _no_new_files(monkeypatch, refuse) -> None:
+    """Every way the cache creates a file raises as ``refuse`` does: the writability probe's
+    :func:`tempfile.mkstemp` and the atomic writer's temporary file
+    (:func:`koopman_envs.files._make_temporary`, an ``os.open`` with ``O_CREAT | O_EXCL``)."""
+    monkeypatch.setattr(disk_cache.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(koopman_files, "_make_temporary", refuse)
+
+
 def test_a_read_only_file_system_as_root(tmp_path, monkeypatch) -> None:
     """The directory exists and is readable, but creating a file in it raises EROFS."""
     monkeypatch.setenv("KOOPNAV_CACHE", str(tmp_path / "cache"))
@@ -166,7 +175,7 @@ def test_a_read_only_file_system_as_root(tmp_path, monkeypatch) -> None:
     def read_only(*args, **kwargs):
         raise OSError(errno.EROFS, "Read-only file system", str(tmp_path / "cache" / "calibration"))
 
-    monkeypatch.setattr(disk_cache.tempfile, "mkstemp", read_only)
+    _no_new_files(monkeypatch, read_only)
     ctrl, summary, caught = _calibrated("koopman-nmpc")
     assert summary["source"] == "fitted"
     assert [w.category for w in caught] == [_write_warning()] and "Read-only" in str(caught[0].message)
@@ -199,7 +208,7 @@ def test_reads_stay_checked_when_the_cache_cannot_be_repaired(tmp_path, monkeypa
     def read_only(*args, **kwargs):
         raise PermissionError(errno.EACCES, "Permission denied", str(path.parent))
 
-    monkeypatch.setattr(disk_cache.tempfile, "mkstemp", read_only)
+    _no_new_files(monkeypatch, read_only)
     ctrl, again, caught = _calibrated("koopman-nmpc")
     assert again["source"] == "fitted"
     (bad,) = _of(caught, CacheWarning)
@@ -219,7 +228,7 @@ def test_a_unicycle_residual_entry_stays_checked_in_a_read_only_cache(tmp_path, 
     def read_only(*args, **kwargs):
         raise PermissionError(errno.EACCES, "Permission denied", str(path.parent))
 
-    monkeypatch.setattr(disk_cache.tempfile, "mkstemp", read_only)
+    _no_new_files(monkeypatch, read_only)
     ctrl, again, caught = _calibrated("nominal-nmpc-robust")
     assert again["source"] == "measured" and ctrl.position_residual.tolist() == good
     assert len(_of(caught, CacheWarning)) == 1 and len(_of(caught, _write_warning())) == 1
