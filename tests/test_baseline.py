@@ -80,6 +80,9 @@ def rerun(base, tmp_path_factory) -> tuple[Path, int, str, Path]:
     return out, code, stdout.getvalue(), summary
 
 
+# slow: the rerun fixture, a second run of RUN's 8 NMPC episodes (issue 61); the gate still runs
+# by default in test_a_degraded_controller_fails_the_gate and the fails-closed tests
+@pytest.mark.slow
 def test_an_identical_rerun_passes_the_gate(rerun) -> None:
     out, code, stdout, _ = rerun
     assert code == 0
@@ -186,6 +189,9 @@ def test_cells_on_one_side_only_are_listed_not_dropped() -> None:
     ]
 
 
+# slow: the rerun fixture, a second run of RUN's 8 NMPC episodes (issue 61); the gate still runs
+# by default in test_a_degraded_controller_fails_the_gate and the fails-closed tests
+@pytest.mark.slow
 def test_the_github_step_summary_is_appended(rerun) -> None:
     _, code, _, summary = rerun
     assert code == 0
@@ -197,6 +203,9 @@ def test_the_github_step_summary_is_appended(rerun) -> None:
     )
 
 
+# slow: the rerun fixture, a second run of RUN's 8 NMPC episodes (issue 61); the gate still runs
+# by default in test_a_degraded_controller_fails_the_gate and the fails-closed tests
+@pytest.mark.slow
 def test_the_badge_is_valid_svg_with_the_rate_and_its_interval(rerun) -> None:
     import xml.etree.ElementTree as ET
 

@@ -39,11 +39,13 @@ def _spec(controllers: list[str], **env_kwargs) -> RunSpec:
     [
         # the learned policies' batches in this process: a worker process that runs them starts
         # an interpreter and loads torch and the policies, about 9 CPU-s each
-        (["rl-ppo", "rl-ppo-set-movers"], MOVERS, 1),
+        # slow: the movers' case and the 2 worker processes' case, 3-4 CPU-s each (issue 61); the
+        # realistic case keeps the batched evaluation's path in the default run
+        pytest.param(["rl-ppo", "rl-ppo-set-movers"], MOVERS, 1, marks=pytest.mark.slow),
         (["rl-ppo-set", "rl-ppo-set-realistic"], {"uncertainty": "realistic"}, 1),
         # the same batches in 2 worker processes (spawned: a batch crosses to them and its records
         # back), run by a controller that acts in batch without torch
-        (["plugin_controllers:BatchedConsensus"], MOVERS, 2),
+        pytest.param(["plugin_controllers:BatchedConsensus"], MOVERS, 2, marks=pytest.mark.slow),
         # the learned policies in 2 worker processes: the lidar case, which takes a minute (20
         # episodes of a set policy reading beams): -m slow
         pytest.param(

@@ -272,6 +272,9 @@ def test_a_solver_builds_without_its_cache(blocked_cache, tmp_path, mode) -> Non
 # ------------------------------------------------------------------------------------- evaluator
 
 
+# slow: a fitted calibration and two controllers' episodes through the CLI, about 6 CPU-s (issue
+# 61); the calibration and solver tests above keep the unwritable cache's paths in the default run
+@pytest.mark.slow
 def test_the_evaluator_runs_every_episode_with_an_unwritable_cache(blocked_cache, tmp_path) -> None:
     """The CLI as a user runs it, with a calibration that is fitted (not shipped) and written."""
     out = tmp_path / "run"

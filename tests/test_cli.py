@@ -272,6 +272,8 @@ def test_no_option_defaults_to_a_path_in_the_checkout(monkeypatch, tmp_path) -> 
     assert args.ablation_out is None and args.out is None
 
 
+# slow: two ablation runs with their calibrations, about 4 CPU-s (issue 61)
+@pytest.mark.slow
 def test_the_ablation_report_goes_under_out_unless_a_page_is_named(tmp_path) -> None:
     """--ablation writes OUT/ablation.md (it wrote the tracked docs/ablation.md before); with
     --ablation-out the report goes there and its regeneration command names the page."""

@@ -40,7 +40,12 @@ def run(env_id: str, controller: Controller, seed: int = 0, **env_kwargs) -> tup
     return run_episode(env, controller, seed=seed), controller
 
 
-@pytest.mark.parametrize("name", ["koopman-nmpc", "nominal-nmpc", "consensus", "consensus-free"])
+@pytest.mark.parametrize(
+    # slow: the Koopman NMPC's episodes, about 1 CPU-s each (issue 61); it drives by default in
+    # test_koopman_nmpc_holds_the_formation_under_high_slip, nominal-nmpc here
+    "name",
+    [pytest.param("koopman-nmpc", marks=pytest.mark.slow), "nominal-nmpc", "consensus", "consensus-free"],
+)
 @pytest.mark.parametrize("env_id", ["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"])
 def test_reaches_the_targets_of_an_obstacle_free_map(name: str, env_id: str) -> None:
     result, ctrl = run(env_id, controllers.make(name), map=OPEN, slip="nominal")

@@ -71,6 +71,8 @@ def test_report_distances_equal_recomputed_ones(small_results: ev.Results) -> No
             assert (math.isnan(mean) and math.isnan(expected)) or mean == pytest.approx(expected)
 
 
+# slow: SMALL's 8 episodes again, in this process, about 4 CPU-s (issue 61)
+@pytest.mark.slow
 def test_one_and_two_workers_give_identical_results(small_results: ev.Results) -> None:
     serial = ev.evaluate(SMALL, workers=1)
 

@@ -298,6 +298,8 @@ def test_data_collection_is_seeded() -> None:
     assert np.abs(a.commands).max() <= 1.0 and np.abs(a.states[0]).max() <= 10.0
 
 
+# slow: the CLI in a fresh interpreter with its plot, about 2 CPU-s (issue 61)
+@pytest.mark.slow
 def test_cli_accuracy_json_and_plot(tmp_path) -> None:
     plot = tmp_path / "circle.png"
     out = subprocess.run(

@@ -157,6 +157,9 @@ def test_a_file_with_a_bad_memory_is_a_model_file_error(tmp_path) -> None:
         KoopmanModel.load(tmp_path / "bad.npz")
 
 
+# slow: the memory model's NMPC built and solved, about 3 CPU-s (issue 61); the model's own tests
+# (save, load, CasADi step) stay in the default run
+@pytest.mark.slow
 def test_koopman_nmpc_carries_the_commands_it_sent_in_its_state() -> None:
     """The NMPC's measured state holds the last command it sent (the first predicted step's
     memory) and its plan follows the model with memory from there."""

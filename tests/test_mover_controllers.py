@@ -247,6 +247,8 @@ def test_bad_mover_options_are_refused_by_name(name: str, options: dict, message
         controllers.make(name, **options)
 
 
+# slow: the evaluator in a fresh interpreter, about 2 CPU-s (issue 61)
+@pytest.mark.slow
 def test_the_evaluator_counts_mover_collisions_apart(tmp_path) -> None:
     """An evaluation with movers (``--env-kwargs movers=...``): the leaderboard counts each
     collision kind, and the report gains its mover column."""

@@ -138,6 +138,8 @@ def _in_a_fresh_process(code: str) -> str:
     return run.stdout
 
 
+# slow: 40 periods here and in a fresh interpreter, about 2 CPU-s (issue 61)
+@pytest.mark.slow
 def test_same_seed_same_closed_loop_here_and_in_another_process() -> None:
     """The first 40 periods, in this process and in a fresh one (the whole episode, in two fresh
     processes, runs with -m slow)."""

@@ -152,6 +152,8 @@ def test_collision_marks_name_each_kind_at_the_contact() -> None:
     assert mark[2] == "mover"
 
 
+# slow: 150 rendered frames of an ORCA crowd, about 2 CPU-s (issue 61)
+@pytest.mark.slow
 def test_every_mover_stays_in_view_over_an_episode() -> None:
     pytest.importorskip("pyrvo", reason="the ORCA crowd needs the [crowd] extra")
     env = gym.make(

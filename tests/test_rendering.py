@@ -138,6 +138,9 @@ def test_a_frame_takes_at_most_10_ms() -> None:
     env.close()
 
 
+# slow: 130 frames drawn by the original and its copies, about 6 CPU-s (issue 61); the blitting
+# and full-redraw tests keep the frames' checks in the default run
+@pytest.mark.slow
 def test_a_copy_renders_what_the_original_renders_over_a_whole_episode() -> None:
     """A frame depends on the state only: copies made after the original has drawn (at several
     points, one just before the clock reaches 10 s and the title is laid out again) draw every

@@ -34,6 +34,9 @@ class StandStill(BaseController):
         return np.tile([self.speed, 0.0], self.scenario.n_robots)
 
 
+# slow: seven rows of episodes, about 3 CPU-s (issue 61); test_cli_runs_comma_lists_env_kwargs_and_random_maps
+# keeps a harness run in the default run
+@pytest.mark.slow
 def test_options_and_a_script_local_class_are_their_own_rows() -> None:
     spec = ev.RunSpec(
         TARGET,

@@ -177,6 +177,15 @@ SLOW = {
     "bench/evaluate_wall.py",
     "bench/nmpc_solve.py",
     "docs/make_pages.py",
+    # slow: seconds each on tiny arguments (issue 61: the default run's time); their siblings keep
+    # the benches' and the page generators' path in the default run
+    "bench/batched_resets.py",
+    "bench/movers_speed.py",
+    "bench/physics_model_error.py",
+    "bench/render_speed.py",
+    "bench/safety_filter.py",
+    "docs/make_bench_figure.py",
+    "docs/make_compute_md.py",
 }
 #: scripts run elsewhere, with the reason
 ELSEWHERE = {

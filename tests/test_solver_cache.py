@@ -91,6 +91,9 @@ def test_two_processes_building_at_once(counting_compiler) -> None:
     assert counting_compiler() == 1  # the second waited for the first one's object
 
 
+# slow: four fresh interpreters and two compiler runs, about 3 CPU-s (issue 61); two processes
+# building at once stay in the default run (test_two_processes_building_at_once)
+@pytest.mark.slow
 def test_two_problems_built_at_once_in_one_directory_stay_apart(counting_compiler, tmp_path) -> None:
     """Workers share a working directory: each build's generated source must stay its own."""
     procs = [_build_in_subprocess(target, cwd=tmp_path) for target in (1.0, 3.0)]

@@ -68,6 +68,9 @@ def test_a_bad_level_stops_the_sweep_before_any_episode(tmp_path, capsys) -> Non
     assert not (tmp_path / "o" / "sweep").exists()
 
 
+# slow: a sweep of three levels and the plain run beside it, about 3 CPU-s (issue 61); the other
+# sweep tests keep a sweep run in the default run
+@pytest.mark.slow
 def test_a_sweep_writes_paired_profiles_and_level_zero_is_the_plain_run(tmp_path) -> None:
     out = tmp_path / "sweep"
     code = ev.main(

@@ -12,8 +12,9 @@ movers to plan around) would pass it whenever nothing is near in those steps. He
   for the NMPCs), while a twin of it is handed *plausible lies* in every true field (each
   robot's pose moved by 0.3 m and turned, each mover moved by 0.3 m with its velocity turned,
   distances recomputed from the lies, flags flipped) and another twin NaN: their actions must
-  equal the honest one's bit for bit, every period. Two NMPCs (the central one with slots, the
-  adaptive Koopman one) run one scene by default; every NMPC runs all three with ``-m slow``;
+  equal the honest one's bit for bit, every period. Consensus, the cheapest family, runs its
+  three scenes by default; every other family runs with ``-m slow`` (issue 61: the default run's
+  time), each NMPC on the three scenes;
 * the learned policies read only the observation: their actions are unchanged with every key
   of the info lied about, or every real-valued key NaN (the observed keys too), and with a stale observation of
   5 periods before they give exactly the action they gave then, which differs from the current
@@ -79,11 +80,11 @@ FAMILIES = {
     "koopman-nmpc": ("koopman-nmpc", RTI),
     "adaptive-koopman-nmpc": ("adaptive-koopman-nmpc", RTI),
 }
-#: the NMPC families: slower (the one scene by default, all three with -m slow), and planning
+#: the NMPC families: slower (all three scenes with -m slow), and planning
 #: around every team-mate in reach, not only within consensus's influence
 NMPCS = {label for label, (name, _) in FAMILIES.items() if "nmpc" in name or "dmpc" in name}
-#: the NMPC families whose whole-episode case runs with -m slow only (see _cases)
-SLOW_NMPCS = {"koopman-nmpc", "nominal-nmpc-v0", "dmpc-nominal"}
+#: the families whose cases run by default (see _cases); every other one runs with -m slow
+DEFAULT_FAMILIES = {"consensus"}
 
 
 def _moved(xy: np.ndarray, t: int) -> np.ndarray:
@@ -171,13 +172,10 @@ def _cases() -> list[Any]:
     cases = []
     for label in FAMILIES:
         for scene in SCENES:
-            # the NMPCs on one scene by default, and only two of them: the central NMPC with its
-            # nearest-obstacle and nearest-pair slots (the plain nominal-nmpc-v0 runs the same
-            # solver and reads the same fields, minus the ranking) and adaptive-koopman-nmpc
-            # (koopman-nmpc's calibrated model, updated online from what it observes). The
-            # distributed NMPC's whole episode (12 CPU-s, the costliest case) runs with -m slow;
-            # tests/test_observed_view.py hands it NaN in every true field by default
-            slow = label in NMPCS and (scene != "crossing-realistic" or label in SLOW_NMPCS)
+            # consensus on its three scenes by default, every other family with -m slow (issue
+            # 61: 1-3 CPU-s per case); tests/test_observed_view.py hands every controller NaN in
+            # every true field by default
+            slow = label not in DEFAULT_FAMILIES
             marks = [pytest.mark.slow] if slow else []
             cases.append(pytest.param(label, scene, marks=marks, id=f"{label}-{scene}"))
     return cases
