@@ -252,7 +252,7 @@ def test_every_number_of_the_readme_is_checked_against_its_source(sources) -> No
         ("runs 112", "runs 113", "episodes; the quick plan gives"),
         ("adds 40", "adds 24", "episodes; the quick plan gives"),
         ("(under 2 min", "(under 1 min", "not under 1 min"),
-        ("(5.5-7 min", "(4-4.5 min", "not within 4-4.5 min"),
+        ("(2.5-4.5 min", "(5-6 min", "not within 5-6 min"),
         ("eight maps", "nine maps", "tasks and maps"),
         ("two episodes per cell", "three episodes per cell", "the quick protocol has"),
         ("What is in it", "What is in it (12 envs)", "'12' is checked by nothing"),
@@ -287,7 +287,7 @@ def test_getting_started_offers_the_shallow_clone_with_the_measured_sizes() -> N
 
 def test_a_new_measurement_that_disagrees_with_the_readme_fails(sources) -> None:
     slower = {**sources["times"], "python -m pytest -q": [(18 * 60.0, "-")]}
-    assert any("not within 5.5-7 min" in p for p in readme_problems(README, {**sources, "times": slower}))
+    assert any("not within 2.5-4.5 min" in p for p in readme_problems(README, {**sources, "times": slower}))
     fewer = {**sources["times"], "python evaluate.py": [(96.5, "104")]}
     assert any("re-measure" in p for p in readme_problems(README, {**sources, "times": fewer}))
 
