@@ -41,6 +41,7 @@ from evaluation.tune import (
     run_study,
 )
 from evaluation.tune.adopt import adopt, adopt_confirmed
+from evaluation.tune.confirm import confirm
 
 #: the studies need Optuna (the tune extra); the curves, objective and presets do not
 needs_optuna = pytest.mark.skipif(importlib.util.find_spec("optuna") is None, reason="needs the [tune] extra")
@@ -706,7 +707,9 @@ def test_adopt_confirm_reruns_the_best_and_the_defaults_on_fresh_layouts(tmp_pat
     assert (tuned / "dwa.json").read_bytes() == (studies / "dwa" / "dwa.json").read_bytes()
     record = json.loads((studies / "dwa" / "confirmation.json").read_text())
     assert record["confirmed"] is True and record["run"]["layouts"] == list(range(1, 21))
-    # no better on fresh layouts: not confirmed, the installed preset removed
+    # no better on fresh layouts: not confirmed, the installed preset removed (the record and
+    # logs of the first confirmation moved aside: a matching record is read, not rerun)
+    (studies / "dwa" / "confirmation.json").unlink()
     same = PairedEvaluator({"goal_gain": 0.9}, wins=False)
     decision, confirmation = adopt_confirmed("dwa", 20, studies, tuned, evaluator=same)
     assert decision.adopted and confirmation is not None and not confirmation.confirmed
@@ -719,6 +722,134 @@ def test_adopt_confirm_reruns_the_best_and_the_defaults_on_fresh_layouts(tmp_pat
     where = ["--studies", str(studies), "--tuned", str(tuned)]
     assert tune.main(["adopt", "dwa", "--confirm", "0", *where]) == BAD_INPUT_EXIT
     assert "layouts=0 must be an integer >= 1" in capsys.readouterr().err
+
+
+class LoggedEvaluator(PairedEvaluator):
+    """:class:`PairedEvaluator` resuming like the evaluator: a run whose ``out`` holds its log
+    returns the logged records and runs nothing (``ran`` counts the episodes run); the call
+    ``stop`` raises KeyboardInterrupt (a confirmation cut off)."""
+
+    def __init__(self, best: dict[str, Any], wins: bool, stop: int | None = None) -> None:
+        super().__init__(best, wins)
+        self.stop, self.ran, self.outs = stop, 0, []
+
+    def __call__(self, controller, options, task, split, layouts, episodes, seed, **kwargs):
+        if len(self.outs) == self.stop:
+            raise KeyboardInterrupt
+        log = Path(kwargs["out"]) / "episodes.jsonl"
+        self.outs.append(Path(kwargs["out"]).name)
+        if log.is_file():
+            return [json.loads(line) for line in log.read_text().splitlines()]
+        records = super().__call__(controller, options, task, split, layouts, episodes, seed, **kwargs)
+        self.ran += len(records)
+        log.parent.mkdir(parents=True)
+        log.write_text("".join(json.dumps(r) + "\n" for r in records))
+        return records
+
+
+def test_adopt_confirm_resumes_after_an_interruption_and_reads_a_recorded_confirmation(
+    tmp_path: Path, capsys
+) -> None:
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    for root in (whole, cut):
+        _shipped(root, "dwa", {"goal_gain": 0.9}, slip="high", env_kwargs={})
+    uninterrupted = LoggedEvaluator({"goal_gain": 0.9}, wins=True)
+    expected = adopt_confirmed("dwa", 20, whole / "studies", whole / "tuned", evaluator=uninterrupted)[1]
+    assert uninterrupted.outs == ["best", "defaults"] and uninterrupted.ran == 80
+    # cut off in the defaults' run: the best's episodes are logged, no record written
+    with pytest.raises(KeyboardInterrupt):
+        adopt_confirmed(
+            "dwa",
+            20,
+            cut / "studies",
+            cut / "tuned",
+            evaluator=LoggedEvaluator({"goal_gain": 0.9}, True, stop=1),
+        )
+    assert (cut / "studies/dwa/confirmation/best/episodes.jsonl").is_file()
+    assert not (cut / "studies/dwa/confirmation.json").exists()
+    # the same command again: only the defaults' 40 episodes run; the result is the uninterrupted one
+    rest = LoggedEvaluator({"goal_gain": 0.9}, wins=True)
+    resumed = adopt_confirmed("dwa", 20, cut / "studies", cut / "tuned", evaluator=rest)[1]
+    assert rest.ran == 40 and resumed == expected and resumed is not None and resumed.confirmed
+    assert (cut / "studies/dwa/confirmation.json").read_text() == (
+        whole / "studies/dwa/confirmation.json"
+    ).read_text()
+    assert (cut / "tuned/dwa.json").is_file()
+    # recorded: read, nothing run, and said so (the CLI runs the real evaluator: it is not called)
+    unused = LoggedEvaluator({}, False, stop=0)
+    again = adopt_confirmed("dwa", 20, cut / "studies", cut / "tuned", evaluator=unused)[1]
+    assert again == expected and again is not None and again.recorded and not expected.recorded
+    assert str(again).endswith("(read from its confirmation.json, not rerun)")
+    assert (
+        tune.main(
+            [
+                "adopt",
+                "dwa",
+                "--confirm",
+                "20",
+                "--studies",
+                str(cut / "studies"),
+                "--tuned",
+                str(cut / "tuned"),
+            ]
+        )
+        == 0
+    )
+    assert "not rerun" in capsys.readouterr().out
+    # another N is another confirmation: not read from the record, it runs
+    with pytest.raises(KeyboardInterrupt):
+        adopt_confirmed(
+            "dwa", 10, cut / "studies", cut / "tuned", evaluator=LoggedEvaluator({}, False, stop=0)
+        )
+
+
+def test_the_committed_confirmations_read_as_recorded() -> None:
+    def unused(*args: Any, **kwargs: Any) -> list[dict[str, Any]]:
+        raise AssertionError("a recorded confirmation was rerun")
+
+    consensus, dwa = (confirm(name, 75, evaluator=unused) for name in ("consensus", "dwa"))
+    assert (
+        consensus.recorded
+        and consensus.confirmed
+        and (consensus.best_successes, consensus.units) == (70, 150)
+    )
+    assert dwa.recorded and not dwa.confirmed and (dwa.best_successes, dwa.defaults_successes) == (88, 81)
+
+
+def test_a_real_confirmation_resumes_its_logs_and_refuses_another_runs(tmp_path: Path) -> None:
+    """consensus on validation layout 1 of both tasks, 10-step episodes: cut off after the best's
+    run, resumed without rerunning it; a log of another configuration is refused by name."""
+
+    settings = {"slip": "high", "env_kwargs": {"max_episode_steps": 10}}
+    for root in (tmp_path / "whole", tmp_path / "cut"):
+        _shipped(root, "consensus", {"goal_gain": 1.7}, **settings)
+    expected = confirm("consensus", 1, tmp_path / "whole/studies")
+    calls: list[str] = []
+
+    def cut_off(*args: Any, **kwargs: Any) -> list[dict[str, Any]]:
+        calls.append(Path(kwargs["out"]).name)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return evaluate_configuration(*args, **kwargs)
+
+    studies = tmp_path / "cut/studies"
+    logs = studies / "consensus/confirmation"
+    with pytest.raises(KeyboardInterrupt):
+        confirm("consensus", 1, studies, evaluator=cut_off)
+    best_log = (logs / "best/episodes.jsonl").read_bytes()
+    assert len(best_log.splitlines()) == 3  # the header and the 2 episodes
+    assert confirm("consensus", 1, studies) == expected
+    assert (logs / "best/episodes.jsonl").read_bytes() == best_log  # nothing rerun, nothing added
+    assert len((logs / "defaults/episodes.jsonl").read_bytes().splitlines()) == 3
+    # the best's log where the defaults' belongs: another configuration, refused by name
+    (studies / "consensus/confirmation.json").unlink()
+    (logs / "defaults/episodes.jsonl").write_bytes(best_log)
+    with pytest.raises(
+        LogError, match=r"consensus: the confirmation's defaults log is of another run.*defaults"
+    ):
+        confirm("consensus", 1, studies)
+    assert (logs / "defaults/episodes.jsonl").read_bytes() == best_log  # nothing mixed in
+    assert not (studies / "consensus/confirmation.json").exists()
 
 
 def test_the_installed_presets_are_what_the_rule_admits_of_every_finished_study() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -93,6 +94,7 @@ def evaluate_configuration(
     env_kwargs: Mapping[str, Any] | None = None,
     workers: int = 1,
     purpose: str = "tuning",
+    out: str | os.PathLike[str] | None = None,
 ) -> list[dict[str, Any]]:
     """The episode records of one configuration on layouts of a suite split: the tuner's one
     call into the evaluator (and the learned policies' trainers', which score their checkpoints
@@ -132,6 +134,11 @@ def evaluate_configuration(
         What the episodes are for, one of :data:`koopman_envs.suites.HELD_OUT_PURPOSES`
         (``"tuning"``, ``"checkpoint selection"``, ...): :func:`check_split_allowed` refuses the
         test split for it by name before any episode.
+    out : path, optional
+        A directory for the run's episode log (``out/episodes.jsonl``), resumed when it exists:
+        only the episodes missing from it run. A log of another run (its header differs: another
+        configuration, layouts, seed, ...) is refused by name
+        (:class:`~evaluation.episodes.runlog.LogError`), never mixed.
 
     Returns
     -------
@@ -154,4 +161,4 @@ def evaluate_configuration(
         env_kwargs=env_kwargs,
         purpose=purpose,
     )
-    return list(evaluate(spec, workers=workers).records)
+    return list(evaluate(spec, workers=workers, out=out, resume=out is not None).records)

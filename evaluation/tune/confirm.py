@@ -10,27 +10,47 @@ settings and episodes per layout, both on the same (layout, seed) units, and tes
 differences with the layout-level sign-flip test
 (:func:`evaluation.stats.layout_tests.layout_sign_flip_test`). :data:`CONFIRMATION_RULE` says
 when the adoption stands. The record is ``data/tuning/NAME/confirmation.json``.
+
+A confirmation resumes. Each of its two runs logs its episodes as it goes, into
+``data/tuning/NAME/confirmation/best/episodes.jsonl`` and ``.../defaults/episodes.jsonl`` (the
+evaluator's own run log, :func:`evaluation.episodes.runlog.open_log`), so that the same command
+rerun after an interruption (Ctrl-C, a machine that ends) runs only the episodes missing from the
+logs. A log of another run (another best configuration, layouts, seed or settings: its header
+differs) is refused by name, never mixed; move the folder aside to start afresh. The record is
+written atomically once both runs are complete; a record already there that matches the study's
+best trial, the layouts and the run settings is read instead of rerunning anything
+(:attr:`Confirmation.recorded`).
 """
 
 from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 from controllers.tuning import STUDIES_DIR, finished_study, trial_rank
 from evaluation.episodes.records import json_safe
+from evaluation.episodes.runlog import LogError
 from evaluation.stats.layout_tests import layout_sign_flip_test
 from evaluation.tune.configuration import Evaluator, evaluate_configuration
 from koopman_envs.checks import check_int
 from koopman_envs.files import write_atomic
 
-__all__ = ["CONFIRMATION_FILE", "CONFIRMATION_LEVEL", "CONFIRMATION_RULE", "Confirmation", "confirm"]
+__all__ = [
+    "CONFIRMATION_FILE",
+    "CONFIRMATION_LOGS",
+    "CONFIRMATION_LEVEL",
+    "CONFIRMATION_RULE",
+    "Confirmation",
+    "confirm",
+]
 
 #: the record of a study's confirmation, beside its log
 CONFIRMATION_FILE = "confirmation.json"
+#: the folder of the confirmation's two episode logs (``best/``, ``defaults/``), beside its log
+CONFIRMATION_LOGS = "confirmation"
 #: the sign-flip test's level (one test per adopted study: no correction)
 CONFIRMATION_LEVEL = 0.05
 CONFIRMATION_RULE = (
@@ -60,6 +80,8 @@ class Confirmation:
         The two-sided layout-level sign-flip test of the paired differences.
     exact : bool
         Whether every sign pattern was enumerated.
+    recorded : bool
+        Read from a record written before (nothing rerun); not part of the record.
     """
 
     controller: str
@@ -70,6 +92,7 @@ class Confirmation:
     defaults_successes: int
     p_value: float
     exact: bool
+    recorded: bool = field(default=False, compare=False)
 
     @property
     def confirmed(self) -> bool:
@@ -82,6 +105,7 @@ class Confirmation:
             f"{self.layouts[0]}-{self.layouts[1] - 1}: trial {self.best_trial} {self.best_successes}/"
             f"{self.units} against the defaults' {self.defaults_successes}/{self.units}, sign-flip "
             f"p = {self.p_value:.4g}"
+            + (f" (read from its {CONFIRMATION_FILE}, not rerun)" if self.recorded else "")
         )
 
 
@@ -102,12 +126,20 @@ def confirm(
     ``layouts`` validation layouts per task, test the paired differences, and write the record
     ``studies/NAME/confirmation.json``.
 
+    The two runs log their episodes into ``studies/NAME/confirmation/best/`` and
+    ``.../defaults/`` and resume from them: rerun after an interruption, only the missing episodes
+    run. A record already written for this best trial, these layouts and run settings is returned
+    as it is (``recorded=True``), nothing rerun.
+
     Raises
     ------
     ValueError
         A study that is missing, torn or unfinished (:func:`controllers.tuning.finished_study`),
         ``layouts`` not an integer >= 1, or more layouts than the split holds after the study's
         (the evaluator's check, naming the selection), before any episode.
+    LogError
+        A ``ValueError``: a confirmation log of another run (another best trial, layouts, seed or
+        settings), named with its file; nothing is mixed into it.
     """
     layouts = check_int("layouts", layouts, 1, note="fresh validation layouts per task")
     header, trials = finished_study(name, studies)
@@ -125,9 +157,15 @@ def confirm(
         "env_kwargs": dict(header.get("env_kwargs") or {}),
     }
 
-    def episodes(options: dict[str, Any]) -> dict[tuple[str, int, int], bool]:
-        return _outcomes(
-            evaluator(
+    folder = Path(studies) / name
+    recorded = _recorded(folder / CONFIRMATION_FILE, name, int(best["trial"]), run)
+    if recorded is not None:
+        return recorded
+
+    def episodes(options: dict[str, Any], which: str) -> dict[tuple[str, int, int], bool]:
+        logs = folder / CONFIRMATION_LOGS / which
+        try:
+            records = evaluator(
                 name,
                 options,
                 run["task"],
@@ -139,10 +177,18 @@ def confirm(
                 slip=run["slip"],
                 env_kwargs=run["env_kwargs"],
                 workers=workers,
+                out=logs,
             )
-        )
+        except LogError as exc:
+            raise LogError(
+                f"{name}: the confirmation's {which} log is of another run (another best trial, layouts, "
+                f"seed or settings), not trial {best['trial'] if which == 'best' else 0} on layouts "
+                f"{first}-{first + layouts - 1}: {exc}. Move {folder / CONFIRMATION_LOGS} aside to "
+                "start this confirmation afresh"
+            ) from exc
+        return _outcomes(records)
 
-    a, b = episodes(dict(best["options"])), episodes(dict(defaults["options"]))
+    a, b = episodes(dict(best["options"]), "best"), episodes(dict(defaults["options"]), "defaults")
     units = sorted(set(a) & set(b))
     by_layout: dict[tuple[str, int], list[float]] = {}
     for unit in units:
@@ -159,5 +205,36 @@ def confirm(
         exact,
     )
     record = {**asdict(result), "confirmed": result.confirmed, "rule": CONFIRMATION_RULE, "run": run}
-    write_atomic(Path(studies) / name / CONFIRMATION_FILE, json.dumps(json_safe(record), indent=2) + "\n")
+    del record["recorded"]
+    write_atomic(folder / CONFIRMATION_FILE, json.dumps(json_safe(record), indent=2) + "\n")
     return result
+
+
+def _recorded(path: Path, name: str, best_trial: int, run: dict[str, Any]) -> Confirmation | None:
+    """The confirmation recorded at ``path`` if it is of this study's best trial, layouts and run
+    settings (``run``), else None (no record, or one of another confirmation: it is rerun)."""
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+        result = Confirmation(
+            str(record["controller"]),
+            int(record["best_trial"]),
+            (int(record["layouts"][0]), int(record["layouts"][1])),
+            int(record["units"]),
+            int(record["best_successes"]),
+            int(record["defaults_successes"]),
+            float(record["p_value"]),
+            bool(record["exact"]),
+            recorded=True,
+        )
+    except (ValueError, KeyError, TypeError, IndexError):
+        return None  # torn or foreign: the confirmation runs (resuming its logs) and rewrites it
+    same = (
+        result.controller == name
+        and result.best_trial == best_trial
+        and list(result.layouts) == [run["layouts"][0], run["layouts"][-1] + 1]
+        and record.get("run") == json_safe(run)
+        and record.get("rule") == CONFIRMATION_RULE
+    )
+    return result if same else None
