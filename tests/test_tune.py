@@ -841,6 +841,10 @@ def test_a_real_confirmation_resumes_its_logs_and_refuses_another_runs(tmp_path:
     assert confirm("consensus", 1, studies) == expected
     assert (logs / "best/episodes.jsonl").read_bytes() == best_log  # nothing rerun, nothing added
     assert len((logs / "defaults/episodes.jsonl").read_bytes().splitlines()) == 3
+    # another N: the logs of layout 1 are another run's, refused by name before any episode
+    with pytest.raises(LogError, match=r"consensus: the confirmation's best log is of another run.*best"):
+        confirm("consensus", 2, studies)
+    assert (logs / "best/episodes.jsonl").read_bytes() == best_log
     # the best's log where the defaults' belongs: another configuration, refused by name
     (studies / "consensus/confirmation.json").unlink()
     (logs / "defaults/episodes.jsonl").write_bytes(best_log)
