@@ -4,6 +4,7 @@ trial 0 the defaults, the expected-max curve, the tunable spaces and the tuned p
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib.util
 import itertools
 import json
@@ -30,7 +31,7 @@ from controllers.tuning.presets import (
 from evaluation import tune
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import LogError
-from evaluation.exit_codes import BAD_INPUT_EXIT
+from evaluation.exit_codes import BAD_INPUT_EXIT, INTERRUPTED_EXIT
 from evaluation.tune import (
     STUDY_FILE,
     StudySettings,
@@ -40,6 +41,7 @@ from evaluation.tune import (
     read_study,
     run_study,
 )
+from evaluation.tune import cli as tune_cli
 from evaluation.tune.adopt import adopt, adopt_confirmed
 from evaluation.tune.confirm import confirm
 
@@ -748,7 +750,7 @@ class LoggedEvaluator(PairedEvaluator):
 
 
 def test_adopt_confirm_resumes_after_an_interruption_and_reads_a_recorded_confirmation(
-    tmp_path: Path, capsys
+    tmp_path: Path, capsys, monkeypatch
 ) -> None:
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     for root in (whole, cut):
@@ -780,22 +782,15 @@ def test_adopt_confirm_resumes_after_an_interruption_and_reads_a_recorded_confir
     again = adopt_confirmed("dwa", 20, cut / "studies", cut / "tuned", evaluator=unused)[1]
     assert again == expected and again is not None and again.recorded and not expected.recorded
     assert str(again).endswith("(read from its confirmation.json, not rerun)")
-    assert (
-        tune.main(
-            [
-                "adopt",
-                "dwa",
-                "--confirm",
-                "20",
-                "--studies",
-                str(cut / "studies"),
-                "--tuned",
-                str(cut / "tuned"),
-            ]
-        )
-        == 0
-    )
+    where = ["--studies", str(cut / "studies"), "--tuned", str(cut / "tuned")]
+    assert tune.main(["adopt", "dwa", "--confirm", "20", *where]) == 0
     assert "not rerun" in capsys.readouterr().out
+    # Ctrl-C in the CLI: exit 130, naming where the finished episodes are
+    stopped = functools.partial(adopt_confirmed, evaluator=LoggedEvaluator({}, False, stop=0))
+    monkeypatch.setattr(tune_cli, "adopt_confirmed", stopped)
+    (cut / "studies/dwa/confirmation.json").unlink()
+    assert tune.main(["adopt", "dwa", "--confirm", "20", *where]) == INTERRUPTED_EXIT
+    assert f"{cut / 'studies/dwa/confirmation'}; the same command continues" in capsys.readouterr().err
     # another N is another confirmation: not read from the record, it runs
     with pytest.raises(KeyboardInterrupt):
         adopt_confirmed(

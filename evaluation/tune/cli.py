@@ -15,7 +15,7 @@ from evaluation.episodes.runlog import (
 from evaluation.exit_codes import BAD_INPUT_EXIT, INTERRUPTED_EXIT, SUCCESS_EXIT, UNWRITABLE_OUT_EXIT
 from evaluation.tune.adopt import adopt, adopt_confirmed
 from evaluation.tune.configuration import DEFAULT_SLIP, TASK_CHOICES
-from evaluation.tune.confirm import CONFIRMATION_RULE
+from evaluation.tune.confirm import CONFIRMATION_LOGS, CONFIRMATION_RULE
 from evaluation.tune.log import StudySettings
 from evaluation.tune.report import load_summary, report_figure, report_markdown
 from evaluation.tune.study import best_of, run_study
@@ -86,6 +86,13 @@ def _adopt_main(argv: Sequence[str]) -> int:
                 decision, confirmation = adopt_confirmed(
                     name, args.confirm, args.studies, args.tuned, workers=args.workers
                 )
+        except KeyboardInterrupt:
+            logs = Path(args.studies) / name / CONFIRMATION_LOGS
+            print(
+                f"interrupted: {name}'s finished confirmation episodes are in {logs}; the same command continues",
+                file=sys.stderr,
+            )
+            return INTERRUPTED_EXIT
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
             code = BAD_INPUT_EXIT
