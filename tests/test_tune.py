@@ -913,3 +913,29 @@ def test_a_bigger_real_study_of_orca_on_both_tasks(tmp_path: Path) -> None:
     best = json.loads((tmp_path / "best.json").read_text())
     assert best["gain"] >= 0 and best["budget"]["episodes"] == 48
     assert len(_lines(tmp_path)[0]["suites"]) == 2
+
+
+def test_the_confirmation_table_of_the_docs_is_the_committed_records() -> None:
+    """docs/benchmark.md's table of confirmations repeats, row for row, every committed
+    ``data/tuning/NAME/confirmation.json`` (best trial, successes of each, p, the verdict)."""
+    page = (Path(__file__).resolve().parents[1] / "docs" / "benchmark.md").read_text(encoding="utf-8")
+    rows = re.findall(
+        r"^\| ([\w-]+) \| (\d+) \| (\d+)/(\d+) \| (\d+)/(\d+) \| ([\d.e-]+) \| (?:\*\*)?(yes|no)(?:\*\*)? \|$",
+        page,
+        flags=re.M,
+    )
+    records = {
+        path.parent.name: json.loads(path.read_text(encoding="utf-8"))
+        for path in sorted(STUDIES_DIR.glob("*/confirmation.json"))
+    }
+    assert records and sorted(row[0] for row in rows) == sorted(records)
+    for name, trial, best, units, defaults, units_again, p_value, verdict in rows:
+        record = records[name]
+        assert (int(trial), int(best), int(defaults)) == (
+            record["best_trial"],
+            record["best_successes"],
+            record["defaults_successes"],
+        )
+        assert int(units) == int(units_again) == record["units"]
+        assert float(f"{record['p_value']:.2g}") == float(p_value)
+        assert (verdict == "yes") == record["confirmed"]
