@@ -180,6 +180,7 @@ def test_the_evaluator_takes_the_table_as_env_kwargs() -> None:
 def test_a_command_line_option_checks_its_value_with_the_keywords_own_check() -> None:
     """``keyword_argument`` (the trainers' ``--plant``): the row's default, doc and check; a bad
     value ends the command naming the value, the allowed ones and a close match (argparse exits 2)."""
+    pytest.importorskip("mujoco", reason="the --plant row checks mujoco: the [physics] extra")
     import argparse
 
     from koopman_envs import env_keyword, keyword_argument

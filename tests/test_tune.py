@@ -367,6 +367,7 @@ def test_every_tunable_bench_controller_has_a_study_or_is_pending() -> None:
     assert "consensus-free" in bench and "consensus-free" not in tunable
 
 
+@needs_optuna  # its last check runs the tuner's command line
 def test_consensus_free_is_an_untuned_ablation_on_consensus_v0s_gains(tmp_path: Path, capsys) -> None:
     free, v0 = controllers.options("consensus-free"), controllers.options("consensus-v0")
     assert free.tunable() == {}
