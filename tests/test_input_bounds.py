@@ -185,6 +185,8 @@ def test_any_option_value_builds_a_controller_or_is_refused_naming_the_option(
     start = time.perf_counter()
     try:
         refused = exercise(f"{name}:{option}={value}", act=_cheap_to_act(name))
+    except ImportError as exc:  # a valid value of a controller whose extra is missing (orca: [crowd])
+        pytest.skip(f"{name} cannot be built here: {exc}")
     finally:
         _, peak = tracemalloc.get_traced_memory()
         tracemalloc.stop()
