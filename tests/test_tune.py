@@ -334,7 +334,7 @@ def test_a_search_outside_its_range_is_refused_by_name() -> None:
 #: the published test-suite runs (data/publish.sh): every controller in them with tunable options
 #: has a committed study, or is named here with the reason it has none yet
 PUBLISH = Path(__file__).resolve().parents[1] / "data" / "publish.sh"
-PENDING_STUDIES = {"koopman-nmpc": "its study (bash data/tuning/run.sh koopman-nmpc) is still running"}
+PENDING_STUDIES: dict[str, str] = {}
 
 
 def _bench_controllers() -> set[str]:
@@ -547,7 +547,7 @@ def test_an_installed_package_without_the_studies_applies_a_preset_on_its_own_re
 
 def test_the_shipped_presets_are_their_studies_best_and_v0_their_defaults() -> None:
     shipped = sorted(presets.TUNED_DIR.glob("*.json"))
-    assert [p.stem for p in shipped] == ["consensus", "dwa", "mpc-cbf", "nominal-nmpc"]
+    assert [p.stem for p in shipped] == ["consensus", "koopman-nmpc", "mpc-cbf", "nominal-nmpc"]
     table = {p.name: p for p in presets.PRESETS}
     for path in shipped:
         assert presets.check_study(path).adopted
@@ -853,30 +853,54 @@ def test_a_real_confirmation_resumes_its_logs_and_refuses_another_runs(tmp_path:
 
 
 def test_the_installed_presets_are_what_the_rule_admits_of_every_finished_study() -> None:
-    """Each committed finished study's decision matches controllers/tuned/: adopted ones
-    installed, the others (orca's tie, 22 vs 22) not; unfinished studies adopt nothing yet."""
-    decisions = {}
+    """Each committed finished study's decision matches controllers/tuned/: a study the rule
+    adopts is installed when its recorded confirmation (``adopt --confirm``) confirmed it, and
+    withdrawn when it did not (dwa: 29 vs 25 in the study, 88 vs 81 of 150 on fresh layouts,
+    p = 0.46); orca's tie (22 vs 22) is not installed."""
+    decisions, confirmed = {}, {}
     for folder in sorted(p for p in STUDIES_DIR.iterdir() if (p / "best.json").is_file()):
-        decisions[folder.name] = study_adoption(folder.name)
-        assert decisions[folder.name].adopted == (presets.TUNED_DIR / f"{folder.name}.json").is_file()
+        decision = decisions[folder.name] = study_adoption(folder.name)
+        record = folder / "confirmation.json"
+        # every adopted study was confirmed or not; a tie has nothing to confirm
+        assert record.is_file() == decision.adopted, folder.name
+        if record.is_file():
+            confirmation = json.loads(record.read_text(encoding="utf-8"))
+            assert confirmation["best_trial"] == decision.best_trial, folder.name
+            confirmed[folder.name] = confirmation["confirmed"]
+        installed = (presets.TUNED_DIR / f"{folder.name}.json").is_file()
+        assert installed == (decision.adopted and confirmed[folder.name]), folder.name
     assert {n: (d.best_successes, d.defaults_successes, d.adopted) for n, d in decisions.items()} == {
         "consensus": (20, 12, True),
         "dwa": (29, 25, True),
+        "koopman-nmpc": (24, 8, True),
         "mpc-cbf": (22, 7, True),
         "nominal-nmpc": (17, 6, True),
         "orca": (22, 22, False),
     }
+    assert confirmed == {
+        "consensus": True,
+        "dwa": False,
+        "koopman-nmpc": True,
+        "mpc-cbf": True,
+        "nominal-nmpc": True,
+    }
+    assert sorted(p.stem for p in presets.TUNED_DIR.glob("*.json")) == [
+        "consensus",
+        "koopman-nmpc",
+        "mpc-cbf",
+        "nominal-nmpc",
+    ]
 
 
 def test_default_runs_leave_the_v0_variants_out_but_they_run_by_name() -> None:
     from evaluation.execution.runner import usable_controllers
 
     variants = [n for n in controllers.available() if presets.is_comparison_variant(n)]
-    assert variants == ["consensus-v0", "dwa-v0", "mpc-cbf-v0", "nominal-nmpc-v0"]
+    assert variants == ["consensus-v0", "koopman-nmpc-v0", "mpc-cbf-v0", "nominal-nmpc-v0"]
     assert not set(variants) & set(controllers.available(variants=False))
     assert set(controllers.available()) - set(controllers.available(variants=False)) == set(variants)
     assert not set(variants) & set(usable_controllers(verbose=False))
-    assert controllers.make("dwa-v0").name == "dwa-v0"
+    assert controllers.make("mpc-cbf-v0").name == "mpc-cbf-v0"
 
 
 @needs_optuna
