@@ -156,14 +156,21 @@ def test_a_failing_calibration_is_recorded_for_its_cell_only() -> None:
 
 def test_robust_variants_share_one_margin_rule() -> None:
     """Both NMPCs widen margins by k x their own residual on the same calibration data. The
-    robust presets widen the hand-set NMPCs (koopman-nmpc and nominal-nmpc-v0, k = 0); the tuned
-    nominal-nmpc follows the same rule with its own k and floor."""
+    robust presets widen the hand-set NMPCs (koopman-nmpc-v0 and nominal-nmpc-v0, k = 0); the tuned
+    koopman-nmpc and nominal-nmpc follow the same rule with their own k and floor."""
     plant_args = dict(slip="high", budget=20_000, seed=0)
     scenario_env = __import__("gymnasium").make("KoopNav-Formation-v0", map="map3")
     scenario_env.reset(seed=0)
     scenario = scenario_env.unwrapped.scenario
     margins, ks = {}, {}
-    names = ("koopman-nmpc-robust", "nominal-nmpc-robust", "koopman-nmpc", "nominal-nmpc-v0", "nominal-nmpc")
+    names = (
+        "koopman-nmpc-robust",
+        "nominal-nmpc-robust",
+        "koopman-nmpc-v0",
+        "nominal-nmpc-v0",
+        "koopman-nmpc",
+        "nominal-nmpc",
+    )
     for name in names:
         ctrl = controllers.make(name)
         assert isinstance(ctrl, NMPCController)
@@ -175,9 +182,9 @@ def test_robust_variants_share_one_margin_rule() -> None:
             assert (k, floor) == (3.0, 0.015)
         if k > 0:
             np.testing.assert_allclose(margins[name], np.maximum(floor, k * ctrl.position_residual))
-    np.testing.assert_allclose(margins["koopman-nmpc"], 0.015)
+    np.testing.assert_allclose(margins["koopman-nmpc-v0"], 0.015)
     np.testing.assert_allclose(margins["nominal-nmpc-v0"], 0.015)
-    assert 0 < ks["nominal-nmpc"] < 3.0  # its preset's own k
+    assert 0 < ks["nominal-nmpc"] < 3.0 < ks["koopman-nmpc"]  # each preset's own k
     # high slip strays robot 3 several centimetres per period from either model's prediction
     assert margins["nominal-nmpc-robust"][2] > margins["koopman-nmpc-robust"][2] > 0.015
     with pytest.raises(ValueError, match="call calibrate"):
@@ -282,7 +289,7 @@ def test_ablation_configurations_and_bad_factor(tmp_path) -> None:
     assert len(configs) == 8 and len({c.label for c in configs}) == 8
     only_margins = ablation_configs(["margins"])
     assert [dict(c.options)["uncertainty_margin"] for c in only_margins] == [0.0, 3.0]
-    assert {c.name for c in only_margins} == {"koopman-nmpc"}
+    assert {c.name for c in only_margins} == {"koopman-nmpc-v0"}
     with pytest.raises(
         ValueError, match=r"ablation factor 'slip' is not one of \['model', 'margins', 'constraints'\]"
     ):
@@ -301,7 +308,7 @@ def test_the_ablations_model_factor_changes_the_model_alone() -> None:
     """Its two levels build NMPCs with the same options (a tuned preset on one level only would
     make the factor a comparison of tunings: the tuned nominal-nmpc differs in six options)."""
     learned, nominal = ablation_configs(["model"])
-    assert (learned.name, nominal.name) == ("koopman-nmpc", "nominal-nmpc-v0")
+    assert (learned.name, nominal.name) == ("koopman-nmpc-v0", "nominal-nmpc-v0")
     assert dataclasses.asdict(learned.build().config) == dataclasses.asdict(nominal.build().config)
     assert type(learned.build()).__name__ == "KoopmanNMPC" and type(nominal.build()).__name__ == "NominalNMPC"
 
