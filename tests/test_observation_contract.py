@@ -274,10 +274,7 @@ def test_split_movers_follows_the_env_layout_bit_for_bit(case: tuple) -> None:
     layout-driven split_movers returns what the count-driven cut did, bit for bit, and what the
     layout names: the movers are ``layout.items(blocks, "movers")``, the rest is every other part
     in order, of ``layout.without_movers().size`` entries."""
-    from baselines.features.set_features import split_movers, state_layout
-
-    if case[2]:  # the radio cut (without_message_ages) lives beside the SB3 vector env
-        pytest.importorskip("stable_baselines3", reason="needs the [rl] extra")
+    from baselines.features.set_features import split_movers, state_layout, without_message_ages
 
     env = _env(*case)
     obs, _ = env.reset(seed=3)
@@ -303,8 +300,6 @@ def test_split_movers_follows_the_env_layout_bit_for_bit(case: tuple) -> None:
     for name, _ in layout.without_movers().parts:  # every other part where the layout without movers has it
         np.testing.assert_array_equal(rest[..., layout.without_movers()[name]], blocks[..., layout[name]])
     if layout.comm:  # the SB3 readers drop the messages next: the layout's messages part, the rest's last
-        from baselines.sb3.vec_env import without_message_ages
-
         assert PART_NAMES[-2:] == ("messages", "movers")
         kept = np.delete(rest, layout.without_movers()["messages"], axis=-1).reshape(len(seen), -1)
         np.testing.assert_array_equal(without_message_ages(rest.reshape(len(seen), -1), n), kept, strict=True)

@@ -52,6 +52,7 @@ __all__ = [
     "set_features",
     "split_movers",
     "state_layout",
+    "without_message_ages",
 ]
 
 EGO_SIZE = 11
@@ -210,6 +211,19 @@ def split_movers(team_blocks: NDArray, layout: ObservationLayout) -> tuple[NDArr
     if not layout.has("movers"):
         return blocks, np.zeros(blocks.shape[:-1] + (0, PART_WIDTH["movers"]))
     return np.delete(blocks, layout["movers"], axis=-1), layout.items(blocks, "movers")
+
+
+def without_message_ages(team_obs: np.ndarray, n_robots: int) -> np.ndarray:
+    """Team observations (..., N*F) without the message ages and arrival flags that end every
+    block of an env with a ``comm`` setting (2 (N - 1) entries per block) once its movers are
+    off (:func:`split_movers`): the ``messages`` part, the last
+    of :class:`~koopman_envs.layout.ObservationLayout`'s parts before ``movers``."""
+    tail = ObservationLayout(n_robots, comm=True).count("messages") * PART_WIDTH["messages"]
+    if tail == 0:
+        return team_obs
+    batch = team_obs.shape[:-1]
+    blocks = team_obs.reshape(batch + (n_robots, -1))
+    return blocks[..., :-tail].reshape(batch + (-1,))
 
 
 def state_layout(

@@ -8,7 +8,14 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.features.set_features import SetFeatureConfig, set_features, split_movers, state_layout
+from baselines.features.robot_features import robot_features
+from baselines.features.set_features import (
+    SetFeatureConfig,
+    set_features,
+    split_movers,
+    state_layout,
+    without_message_ages,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs import KoopNavVectorEnv
@@ -52,8 +59,6 @@ def policy_inputs(
     """The normalized network inputs of (a batch of) observations: one row per robot for the
     ``"robot"`` layout, per team for ``"team"``; and the batch shape of ``observation``.
     Parameters as :func:`policy_command`."""
-    from baselines.sb3.vec_env import robot_features, without_message_ages
-
     obs = np.asarray(observation, dtype=np.float64)
     batch_shape = obs.shape[:-1]
     # the blocks' parts by name: the listed obstacles (and the task: ``formation`` is given for set

@@ -30,10 +30,15 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepRetu
 
 import koopman_envs  # noqa: F401 - registers the ids
 from baselines.features.robot_features import FEATURE_SETS, feature_bounds, feature_count, robot_features
-from baselines.features.set_features import SET_FEATURE_BOUND, SetFeatureConfig, set_features, split_movers
+from baselines.features.set_features import (
+    SET_FEATURE_BOUND,
+    SetFeatureConfig,
+    set_features,
+    split_movers,
+    without_message_ages,
+)
 from baselines.shaping import RewardShaping
 from koopman_envs.checks import check_choice
-from koopman_envs.layout import PART_WIDTH, ObservationLayout
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from koopman_envs import KoopNavVectorEnv
@@ -44,26 +49,12 @@ __all__ = [
     "KoopNavSB3VecEnv",
     "MixtureVecEnv",
     "feature_count",
-    "without_message_ages",
     "robot_features",
     "scale_action",
     "split_envs",
 ]
 
 LAYOUTS = ("robot", "team")
-
-
-def without_message_ages(team_obs: np.ndarray, n_robots: int) -> np.ndarray:
-    """Team observations (..., N*F) without the message ages and arrival flags that end every
-    block of an env with a ``comm`` setting (2 (N - 1) entries per block) once its movers are
-    off (:func:`~baselines.features.set_features.split_movers`): the ``messages`` part, the last
-    of :class:`~koopman_envs.layout.ObservationLayout`'s parts before ``movers``."""
-    tail = ObservationLayout(n_robots, comm=True).count("messages") * PART_WIDTH["messages"]
-    if tail == 0:
-        return team_obs
-    batch = team_obs.shape[:-1]
-    blocks = team_obs.reshape(batch + (n_robots, -1))
-    return blocks[..., :-tail].reshape(batch + (-1,))
 
 
 def scale_action(normalized: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
