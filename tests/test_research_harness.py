@@ -171,6 +171,45 @@ def test_a_map_file_edited_after_its_fingerprint_does_not_change_the_run(tmp_pat
     assert results.config["map_files"] == {str(path): hashlib.sha256(original).hexdigest()}
 
 
+def test_a_run_reads_each_map_file_once_its_checks_included(tmp_path, monkeypatch) -> None:
+    """The run's checks build every (env, map) from the text read for the run: a whole
+    evaluate() reads a user map file once (it read it twice when RunSpec.validate built the
+    map from the file), and validate given that text needs no file."""
+    import koopman_envs.files
+    import koopman_envs.sim.maps.map_spec as map_spec_module
+    from evaluation.run import plan as plan_module
+    from evaluation.run.plan import read_map_files
+    from koopman_envs.sim.maps.map_spec import load_map
+
+    path = tmp_path / "mine.json"
+    load_map("map2").save(path)
+    reads: list[str] = []
+    real = koopman_envs.files.read_text
+
+    def counting(name, *args, **kwargs):
+        reads.append(str(name))
+        return real(name, *args, **kwargs)
+
+    for module in (plan_module, map_spec_module):  # the run's reader and the loader's
+        monkeypatch.setattr(module, "read_text", counting)
+    spec = ev.RunSpec(
+        TARGET,
+        ["consensus"],
+        maps=[str(path)],
+        slips=["nominal"],
+        episodes=2,
+        env_kwargs={"max_episode_steps": 3},
+    )
+    results = ev.evaluate(spec, workers=1)
+    assert [r["status"] for r in results.records] == ["ok", "ok"]
+    assert reads == [str(path)]
+    files = read_map_files(spec.maps)
+    path.unlink()
+    spec.validate(1, files)  # built from the text: the file is gone
+    with pytest.raises(Exception, match="mine.json"):
+        spec.validate(1)
+
+
 def test_an_episode_of_a_map_file_builds_its_map_from_the_text_read(tmp_path) -> None:
     """The plan's episodes carry the map file's text: the file itself is not read again."""
     from evaluation.run.plan import read_map_files

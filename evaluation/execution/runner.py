@@ -128,15 +128,16 @@ def evaluate(
     check_int("batch", batch, minimum=1)
     if spec.gifs and out is None:
         raise ValueError("gifs=True needs an output directory (out=...) for the animations")
-    spec.validate(workers)  # before the registry builds every controller below
+    # every user map file read once: the checks, the fingerprints recorded and the episodes all
+    # use these texts (a file edited during the run changes none of them)
+    map_files = read_map_files(spec.maps)
+    spec.validate(workers, map_files)  # before the registry builds every controller below
     if spec.controllers is None:
         announce("checking which registered controllers can run here (the learned ones load torch)", progress)
         spec = spec.resolved(usable_controllers(progress))
-        spec.validate(workers)  # the filled-in configurations too
+        spec.validate(workers, map_files)  # the filled-in configurations too
     else:
         spec = spec.resolved()
-    # every user map file read once: the fingerprints recorded are of the texts the episodes run
-    map_files = read_map_files(spec.maps)
     config = spec.config(workers, backend, map_files)
     plan = spec.episodes_plan(os.fspath(out) if out is not None else "", map_files)
     if config_check is not None:

@@ -34,7 +34,16 @@ from evaluation.run.plan import (
     slip_value,
 )
 from evaluation.run.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
-from koopman_envs import BUILTIN_MAPS, ENV_IDS, ENV_KEYWORDS, TASKS, ComputeCharge, EngineConfig, task_for_env
+from koopman_envs import (
+    BUILTIN_MAPS,
+    ENV_IDS,
+    ENV_KEYWORDS,
+    TASKS,
+    ComputeCharge,
+    EngineConfig,
+    MapSpec,
+    task_for_env,
+)
 from koopman_envs.checks import check_choice, check_int, check_number, did_you_mean
 from koopman_envs.params import (
     DRIFT_SLIP,
@@ -256,12 +265,14 @@ class RunSpec:
         return dataclasses.replace(self, controllers=tuple(configs), solver=None, fallback_solver=None)
 
     # ------------------------------------------------------------------ checks
-    def validate(self, workers: int = 1) -> None:
+    def validate(self, workers: int = 1, map_files: Mapping[str, MapFile] | None = None) -> None:
         """Raise ``ValueError`` naming the bad field, its value and what is allowed.
 
         Called by :func:`~evaluation.execution.runner.evaluate` before any episode starts; every
         (env, map) is built with the run's env settings as the episodes will build it, so an
         env kwarg the env rejects (or a map with too few starts for ``n_robots``) fails here.
+        A user map file is built from ``map_files``, the texts the run read once
+        (:func:`~evaluation.run.plan.read_map_files`), when given; else from the file.
         """
         for env_id in self.envs:
             check_choice("envs:", env_id, ENV_IDS, sep=" ")
@@ -314,11 +325,14 @@ class RunSpec:
             except ValueError as exc:
                 raise ValueError(f"slips: {slip!r}: {exc}") from None
         settings = self.env_settings()
+        files = map_files or {}
         for env_id in self.envs:
             for map_name in self.maps[env_id]:
+                read = files.get(map_name)
+                map_arg = map_name if read is None else MapSpec.from_file_text(read.text, map_name)
                 try:
                     EngineConfig.create(
-                        task_for_env(env_id).name, map=map_name, slip=slip_value(self.slips[0]), **settings
+                        task_for_env(env_id).name, map=map_arg, slip=slip_value(self.slips[0]), **settings
                     )
                 except (TypeError, ValueError) as exc:
                     raise ValueError(
