@@ -74,6 +74,10 @@ def describe_change(
 
 _HOME_CACHE_BEFORE = tree_state(HOME_CACHE)
 
+# the asserts of the shared test code (tests/helpers/) report their values as a test file's do;
+# registered before any test module imports it
+pytest.register_assert_rewrite("helpers")
+
 from koopman_envs.sim.maps.map_spec import MapSpec  # noqa: E402  (after the environment above is set)
 
 #: the thread pools of the numerical libraries (OpenBLAS, MKL, OpenMP: numpy, torch), one thread each

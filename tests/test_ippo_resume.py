@@ -16,6 +16,8 @@ from baselines.marl import benchmarl_resume, benchmarl_train
 from baselines.marl.benchmarl_options import build_parser
 from baselines.resume import RESUME_FILE, ResumeRefused, check_resume, write_resume
 
+from helpers.training import TINY_IPPO_BATCHES, one_seed_driver, restart_after_a_torn_checkpoint
+
 pytest.importorskip("benchmarl")
 
 #: a tiny IPPO run: 2 envs, 5 iterations of 200 frames, one epoch of 2 minibatches each
@@ -26,14 +28,7 @@ TINY = [
     "ippo",
     "--frames",
     "1000",
-    "--envs",
-    "2",
-    "--frames-per-batch",
-    "200",
-    "--minibatch-size",
-    "100",
-    "--epochs",
-    "1",
+    *TINY_IPPO_BATCHES,
     "--max-cycles",
     "60",
     "--seed",
@@ -162,28 +157,11 @@ def test_the_driver_resumes_an_ippo_seed_with_a_sound_checkpoint_and_restarts_on
     with the driver's own settings, stopped after its checkpoint at 400 frames): resumed, the
     validation table holding the stopped session's checkpoints too; with a torn checkpoint,
     refused by name, removed and trained from the start."""
-    import os
-    import subprocess
-
-    root = Path(__file__).resolve().parents[1]
     seed_dir = tmp_path / "ippo" / "formation" / "seed0"
-    ippo_args = ["--frames-per-batch", "200", "--minibatch-size", "100", "--epochs", "1", "--envs", "2"]
-    ippo_args += ["--eval-freq", "200"]
-    env = {
-        **os.environ,
-        "PYTHONPATH": str(root),
-        "TRAINING_ROOT": str(tmp_path),
-        "SEEDS": "1",
-        "TASKS": "formation",
-        "FRAMES": "600",
-        "VALIDATION_LAYOUTS": "1",
-        "RESUME_EVERY": "1",
-        "IPPO_ARGS": " ".join(ippo_args),
-    }
-
-    def driver() -> subprocess.CompletedProcess[str]:
-        command = ["bash", str(root / "data/training/run.sh"), "ippo"]
-        return subprocess.run(command, env=env, capture_output=True, text=True, timeout=1800, check=False)
+    ippo_args = [*TINY_IPPO_BATCHES, "--eval-freq", "200"]
+    driver = one_seed_driver(
+        "ippo", "formation", tmp_path, 1800, FRAMES="600", RESUME_EVERY="1", IPPO_ARGS=" ".join(ippo_args)
+    )
 
     # the trainer as the driver runs it (run.sh's train()), stopped after the checkpoint at 400 frames
     argv = ["--task", "formation", "--algorithm", "ippo", "--suite", "koopnav-bench-v1", "--seed", "0"]
@@ -213,12 +191,7 @@ def test_the_driver_resumes_an_ippo_seed_with_a_sound_checkpoint_and_restarts_on
     assert [c["step"] for c in record["checkpoints"]] == [200, 400, 600]  # 200 and 400: the stopped session's
     assert not (seed_dir / RESUME_FILE).exists()
 
-    (seed_dir / "finished.json").unlink()
-    (seed_dir / RESUME_FILE).write_bytes(b"KOOPNAV-RESUME 1\n{}\n")  # torn
-    restarted = driver()
-    assert restarted.returncode == 0, restarted.stderr
-    assert "has no readable header" in restarted.stderr
-    assert "removed; training again" in restarted.stdout
+    restart_after_a_torn_checkpoint(seed_dir, driver)
     metadata = json.loads((seed_dir / "formation" / "metadata.json").read_text())
     assert metadata["resumed_from_frames"] == []
     assert [c["step"] for c in json.loads((seed_dir / "selection.json").read_text())["checkpoints"]] == [

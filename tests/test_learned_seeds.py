@@ -24,6 +24,8 @@ from evaluation.experiments.seeds import (
     report_markdown,
 )
 
+from helpers.training import TINY_IPPO_BATCHES, one_seed_driver
+
 pytest.importorskip("stable_baselines3")
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,18 +35,7 @@ HELD_OUT = r"split='test' is held out"
 TINY_SB3 = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
 
 #: a tiny IPPO run: 2 envs, 2 iterations of 200 frames
-TINY_IPPO = [
-    "--frames",
-    "400",
-    "--envs",
-    "2",
-    "--frames-per-batch",
-    "200",
-    "--minibatch-size",
-    "100",
-    "--epochs",
-    "1",
-]
+TINY_IPPO = ["--frames", "400", *TINY_IPPO_BATCHES]
 
 
 # ----------------------------------------------------------------------------- held out by name
@@ -210,24 +201,10 @@ def test_a_tiny_ippo_suite_run_exports_scores_and_keeps_a_checkpoint(tmp_path) -
 
 # ----------------------------------------------------------------------------- the driver
 def _driver(root: Path) -> subprocess.CompletedProcess[str]:
-    env = {
-        **os.environ,
-        "PYTHONPATH": str(ROOT),
-        "TRAINING_ROOT": str(root),
-        "SEEDS": "1",
-        "TASKS": "target_reaching",
-        "TIMESTEPS": "384",
-        "VALIDATION_LAYOUTS": "1",
-        "SB3_ARGS": " ".join([*TINY_SB3, "--eval-freq", "384"]),
-    }
-    return subprocess.run(
-        ["bash", str(ROOT / "data/training/run.sh"), "rl-ppo-set"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-        check=False,
-    )
+    sb3_args = [*TINY_SB3, "--eval-freq", "384"]
+    return one_seed_driver(
+        "rl-ppo-set", "target_reaching", root, 900, TIMESTEPS="384", SB3_ARGS=" ".join(sb3_args)
+    )()
 
 
 @pytest.mark.slow

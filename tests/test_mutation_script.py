@@ -10,84 +10,36 @@ the script at a chosen moment is left to a measurement (docs/ci.md), as it would
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / ".ci" / "mutation.sh"
+from helpers.mutation_repo import git, run_script, score_line, tiny_source
 
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(shutil.which("mutmut") is None, reason="mutmut is not installed"),
 ]
 
-# x > 2 as x >= 2 survives the test (both agree at 1 and 3); the other mutants are killed
-TINY = {
-    "pyproject.toml": "[project]\nname = 'tiny'\nversion = '0'\n",
-    "evaluation/__init__.py": "",
-    "evaluation/episodes/__init__.py": "",
-    "evaluation/episodes/records.py": (
-        "def grade(x):\n    if x > 2:\n        return x * 3\n    return x - 1\n"
-    ),
-    "tests/test_records.py": (
-        "from evaluation.episodes.records import grade\n\n\n"
-        "def test_grade():\n    assert grade(3) == 9\n    assert grade(1) == 0\n"
-    ),
-}
-
-
-def _git(repo: Path, *args: str) -> str:
-    command = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(repo), *args]
-    return subprocess.run(command, check=True, capture_output=True, text=True).stdout.strip()
-
-
-def _source(tmp_path: Path) -> Path:
-    source = tmp_path / "source"
-    for name, text in TINY.items():
-        (source / name).parent.mkdir(parents=True, exist_ok=True)
-        (source / name).write_text(text)
-    _git(source, "init", "-q")
-    _git(source, "add", ".")
-    _git(source, "commit", "-qm", "tiny")
-    return source
-
 
 def _run(source: Path, workdir: Path, **extra: str) -> subprocess.CompletedProcess[str]:
-    env = {
-        **os.environ,
-        "SOURCE": str(source),
-        "WORKDIR": str(workdir),
-        "JOBS": "1",
-        "MIN_SCORE": "50",
-        "STORE": str(workdir.parent / "store"),  # the committed store, tests/test_mutation_store.py
-        **extra,
-    }
-    env.pop("PYTHONPATH", None)  # the tiny repository's package, not this checkout's
-    return subprocess.run(
-        ["bash", str(SCRIPT), "records"], env=env, capture_output=True, text=True, timeout=900
-    )
+    # the committed store beside the clone, tests/test_mutation_store.py
+    return run_script(source, workdir.parent / "store", workdir, **extra)
 
 
 def _meta(workdir: Path) -> Path:
     return workdir / "records/koopnav/mutants/evaluation/episodes/records.py.meta"
 
 
-def _score_line(result: subprocess.CompletedProcess[str]) -> str:
-    lines = result.stdout.splitlines()
-    return lines[lines.index("== scores") + 1]
-
-
 def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_another_clone(
     tmp_path: Path,
 ) -> None:
-    source, workdir = _source(tmp_path), tmp_path / "work"
+    source, workdir = tiny_source(tmp_path / "source"), tmp_path / "work"
     first = _run(source, workdir)
     assert first.returncode == 0, first.stdout + first.stderr
-    score = _score_line(first)
+    score = score_line(first)
     assert score.startswith("records: 5/6 killed (83.3%)"), score
     assert "survived: evaluation.episodes.records.x_grade__mutmut_" in first.stdout
     meta = json.loads(_meta(workdir).read_text())
@@ -98,7 +50,7 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     log = (workdir / "records/run.log").read_text()
     again = _run(source, workdir)
     assert again.returncode == 0, again.stdout + again.stderr
-    assert _score_line(again) == f"{score} (finished in an earlier session)"
+    assert score_line(again) == f"{score} (finished in an earlier session)"
     assert (workdir / "records/run.log").read_text() == log
 
     # what an interruption leaves: two mutants without a verdict, one interrupted (pytest's 2),
@@ -117,7 +69,7 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     assert "3 of 6 mutants have a verdict, 1 interrupted or doubtful verdicts to test again" in (
         resumed.stdout
     )
-    assert _score_line(resumed).split(" in ")[0] == score.split(" in ")[0]
+    assert score_line(resumed).split(" in ")[0] == score.split(" in ")[0]
     after = json.loads(_meta(workdir).read_text())["durations_by_key"]
     assert [after[n] == durations[n] for n in names] == [False, False, False, True, True, True]
 
@@ -128,7 +80,7 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     afresh = _run(source, workdir)
     assert afresh.returncode == 0, afresh.stdout + afresh.stderr
     assert "records.py.meta is torn: every mutant is made and tested afresh" in afresh.stdout
-    assert _score_line(afresh).split(" in ")[0] == score.split(" in ")[0]
+    assert score_line(afresh).split(" in ")[0] == score.split(" in ")[0]
     renewed = json.loads(_meta(workdir).read_text())["durations_by_key"]
     assert not any(renewed[n] == after[n] for n in names)
 
@@ -136,12 +88,12 @@ def test_a_rerun_tests_only_the_mutants_without_a_trusted_verdict_and_refuses_an
     other = _run(source, workdir, WITHOUT="tests/test_records.py")
     assert other.returncode == 2
     assert f"{workdir}/records/koopnav was set up with another test selection" in other.stderr
-    cloned = _git(source, "rev-parse", "HEAD")
+    cloned = git(source, "rev-parse", "HEAD")
     (source / "README.md").write_text("moved on\n")
-    _git(source, "add", ".")
-    _git(source, "commit", "-qm", "later")
+    git(source, "add", ".")
+    git(source, "commit", "-qm", "later")
     later = _run(source, workdir)
     assert later.returncode == 2
-    head = _git(source, "rev-parse", "HEAD")
+    head = git(source, "rev-parse", "HEAD")
     assert f"{workdir}/records was cloned from commit {cloned}, not from" in later.stderr
     assert head in later.stderr and f"remove {workdir}/records" in later.stderr

@@ -9,7 +9,6 @@ run in a fresh clone as on a new machine, with only the store carried between th
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -19,8 +18,8 @@ import pytest
 from evaluation.mutation import Against, Store, main, read_store, status_of, write_store
 from koopman_envs.files import FileRefused
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / ".ci" / "mutation.sh"
+from helpers.mutation_repo import TINY, git, run_script, score_line, tiny_source
+
 TARGET = "evaluation/episodes/records.py"
 TESTS = ["tests/test_records.py", "tests/test_other.py::test_one", "tests/test_other.py::test_two"]
 
@@ -142,47 +141,17 @@ def test_report_prints_the_score_and_the_mutants_not_killed(
     assert status_of(2) == "not final (2)"
 
 
-# x > 2 as x >= 2 survives the test (both agree at 1 and 3); the other mutants are killed
-TINY = {
-    "pyproject.toml": "[project]\nname = 'tiny'\nversion = '0'\n",
-    "evaluation/__init__.py": "",
-    "evaluation/episodes/__init__.py": "",
-    TARGET: "def grade(x):\n    if x > 2:\n        return x * 3\n    return x - 1\n",
-    "tests/test_records.py": (
-        "from evaluation.episodes.records import grade\n\n\n"
-        "def test_grade():\n    assert grade(3) == 9\n    assert grade(1) == 0\n"
-    ),
-}
-
-
-def _git(repo: Path, *args: str) -> str:
-    command = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(repo), *args]
-    return subprocess.run(command, check=True, capture_output=True, text=True).stdout.strip()
-
-
 def _run(source: Path, store: Path) -> subprocess.CompletedProcess[str]:
-    env = {**os.environ, "SOURCE": str(source), "STORE": str(store), "JOBS": "1", "MIN_SCORE": "50"}
-    env.pop("PYTHONPATH", None)  # the tiny repository's package, not this checkout's
-    env.pop("WORKDIR", None)  # every run a fresh clone: a new machine
-    return subprocess.run(
-        ["bash", str(SCRIPT), "records"], env=env, capture_output=True, text=True, timeout=900
-    )
+    return run_script(source, store)  # every run a fresh clone: a new machine
 
 
 def _score(result: subprocess.CompletedProcess[str]) -> str:
-    lines = result.stdout.splitlines()
-    return lines[lines.index("== scores") + 1].split(" in ")[0]
+    return score_line(result).split(" in ")[0]
 
 
 @pytest.mark.skipif(shutil.which("mutmut") is None, reason="mutmut is not installed")
 def test_a_run_on_a_new_machine_reuses_the_stored_verdicts_until_a_test_file_changes(tmp_path: Path) -> None:
-    source, store = tmp_path / "source", tmp_path / "store"
-    for name, text in TINY.items():
-        (source / name).parent.mkdir(parents=True, exist_ok=True)
-        (source / name).write_text(text)
-    _git(source, "init", "-q")
-    _git(source, "add", ".")
-    _git(source, "commit", "-qm", "tiny")
+    source, store = tiny_source(tmp_path / "source"), tmp_path / "store"
 
     first = _run(source, store)
     assert first.returncode == 0, first.stdout + first.stderr
@@ -205,7 +174,7 @@ def test_a_run_on_a_new_machine_reuses_the_stored_verdicts_until_a_test_file_cha
     (source / "tests/test_records.py").write_text(
         TINY["tests/test_records.py"] + "    assert grade(2) == 1\n"
     )
-    _git(source, "commit", "-qam", "a stronger test")
+    git(source, "commit", "-qam", "a stronger test")
     edited = _run(source, store)
     assert edited.returncode == 0, edited.stdout + edited.stderr
     assert "0 verdicts restored from" in edited.stdout and "6 stale verdicts" in edited.stdout

@@ -34,6 +34,18 @@ class StandStill(BaseController):
         return np.tile([self.speed, 0.0], self.scenario.n_robots)
 
 
+def _one_consensus_episode_on(path: Path, steps: int) -> ev.RunSpec:
+    """The run of one consensus episode of ``steps`` steps on the map file at ``path``, nominal slip."""
+    return ev.RunSpec(
+        TARGET,
+        ["consensus"],
+        maps=[str(path)],
+        slips=["nominal"],
+        episodes=1,
+        env_kwargs={"max_episode_steps": steps},
+    )
+
+
 # slow: seven rows of episodes, about 3 CPU-s (issue 61); test_cli_runs_comma_lists_env_kwargs_and_random_maps
 # keeps a harness run in the default run
 @pytest.mark.slow
@@ -115,14 +127,7 @@ def test_a_user_map_file_is_fingerprinted_and_checked_on_resume(tmp_path) -> Non
     path = tmp_path / "mine.json"
     load_map("map1").save(path)
     out = tmp_path / "run"
-    spec = ev.RunSpec(
-        TARGET,
-        ["consensus"],
-        maps=[str(path)],
-        slips=["nominal"],
-        episodes=1,
-        env_kwargs={"max_episode_steps": 20},
-    )
+    spec = _one_consensus_episode_on(path, 20)
     results = ev.evaluate(spec, workers=1, out=out)
     assert results.records[0]["status"] == "ok" and results.records[0]["map"] == str(path)
     assert str(path) in results.config["map_files"]
@@ -156,14 +161,7 @@ def test_a_map_file_edited_after_its_fingerprint_does_not_change_the_run(tmp_pat
         else:
             path.write_text("{not json")
 
-    spec = ev.RunSpec(
-        TARGET,
-        ["consensus"],
-        maps=[str(path)],
-        slips=["nominal"],
-        episodes=1,
-        env_kwargs={"max_episode_steps": 5},
-    )
+    spec = _one_consensus_episode_on(path, 5)
     results = ev.evaluate(spec, workers=1, plan_check=replace_the_file)
     (record,) = results.records
     assert record["status"] == "ok", record.get("error")

@@ -6,8 +6,6 @@ table of the run that was never interrupted."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -17,7 +15,8 @@ import pytest
 from baselines.resume import RESUME_FILE, ResumeRefused, check_resume, read_resume, write_resume
 from baselines.resume import main as check_main
 
-ROOT = Path(__file__).resolve().parents[1]
+from helpers.training import one_seed_driver, restart_after_a_torn_checkpoint
+
 SUITE = "koopnav-bench-v1"
 #: a tiny set-policy run: 2 envs x 3 robots x 64 steps = 384 robot-steps per rollout
 TINY = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
@@ -248,21 +247,15 @@ def test_the_driver_resumes_a_seed_with_a_sound_checkpoint_and_restarts_one_with
 
     seed_dir = tmp_path / "rl-ppo-set" / "target_reaching" / "seed0"
     sb3_args = [*TINY, "--eval-freq", "768"]
-    env = {
-        **os.environ,
-        "PYTHONPATH": str(ROOT),
-        "TRAINING_ROOT": str(tmp_path),
-        "SEEDS": "1",
-        "TASKS": "target_reaching",
-        "TIMESTEPS": "1536",
-        "VALIDATION_LAYOUTS": "1",
-        "RESUME_EVERY": "1",
-        "SB3_ARGS": " ".join(sb3_args),
-    }
-
-    def driver() -> subprocess.CompletedProcess[str]:
-        command = ["bash", str(ROOT / "data/training/run.sh"), "rl-ppo-set"]
-        return subprocess.run(command, env=env, capture_output=True, text=True, timeout=900, check=False)
+    driver = one_seed_driver(
+        "rl-ppo-set",
+        "target_reaching",
+        tmp_path,
+        900,
+        TIMESTEPS="1536",
+        RESUME_EVERY="1",
+        SB3_ARGS=" ".join(sb3_args),
+    )
 
     # the trainer as the driver runs it (run.sh's train()), stopped after the checkpoint at 768 steps
     argv = ["--env", "KoopNav-TargetReaching-v0", "--policy", "set", "--suite", SUITE, "--seed", "0"]
@@ -287,11 +280,6 @@ def test_the_driver_resumes_a_seed_with_a_sound_checkpoint_and_restarts_one_with
     assert metadata["resumed_from_timesteps"] == [768]
     assert "resumed from" in (seed_dir / "train.log").read_text()
 
-    (seed_dir / "finished.json").unlink()
-    (seed_dir / RESUME_FILE).write_bytes(b"KOOPNAV-RESUME 1\n{}\n")  # torn
-    restarted = driver()
-    assert restarted.returncode == 0, restarted.stderr
-    assert "has no readable header" in restarted.stderr
-    assert "removed; training again" in restarted.stdout
+    restart_after_a_torn_checkpoint(seed_dir, driver)
     metadata = json.loads((seed_dir / "target_reaching" / "metadata.json").read_text())
     assert metadata["resumed_from_timesteps"] == []
