@@ -27,7 +27,15 @@ from koopman_envs.deprecation import register_moved_paths
 from koopman_envs.engine.config import EngineConfig
 from koopman_envs.engine.keywords import ENV_KEYWORDS, env_keyword, keyword_argument
 from koopman_envs.engine.plant import BudgetExceeded, CalibrationPlant, make_plant
-from koopman_envs.layout import FAR, MessageEntry, MoverEntry, ObstacleEntry, TeamEntry
+from koopman_envs.layout import (
+    FAR,
+    MessageEntry,
+    MoverEntry,
+    ObservationLayout,
+    ObstacleEntry,
+    PartOffsets,
+    TeamEntry,
+)
 from koopman_envs.observed import Observed
 from koopman_envs.params import PARAMS, SLIP_SETTINGS, PaperParams, slip_lambdas
 from koopman_envs.scenario import Scenario
@@ -182,10 +190,12 @@ __all__ = [
     "nearest_by_clearance",
     "nearest_order",
     "observation_from_beliefs",
+    "ObservationLayout",
     "Observed",
     "ObstacleEntry",
     "PaperParams",
     "PARAMS",
+    "PartOffsets",
     "Renderer",
     "rk4_pose",
     "rk4_step",

@@ -684,3 +684,33 @@ def test_a_kernels_parameters_are_all_counted() -> None:
         "def plain(a, b, c, d, e, f, g, h, i, j, k, l): pass\n"
     )
     assert _kernel_parameters(source) == {"a": 6, "b": 1}
+
+
+def _tree_modules_missing(tree: str) -> list[str]:
+    """The ``NAME.py`` that a line of docs/layout.md's tree names under a folder holding no such
+    file (at any depth: a line may name a subfolder's modules inline, ``maps/: map_spec.py``) nor
+    at the repository's root (``evaluate.py``)."""
+    import re
+
+    folders: list[tuple[int, str]] = []  # (indent, name) of the folder lines above
+    missing = []
+    for line in tree.splitlines():
+        head = re.match(r"^( *)(\S+)", line[:32])
+        if head:
+            while folders and folders[-1][0] >= len(head[1]):
+                folders.pop()
+            if head[2].endswith("/"):
+                folders.append((len(head[1]), head[2].rstrip("/")))
+        folder = ROOT.joinpath(*(name for _, name in folders))
+        for module in re.findall(r"(?<![\w./])(\w+\.py)\b", line):
+            if not (ROOT / module).exists() and not any(folder.rglob(module)):
+                missing.append(f"{folder.relative_to(ROOT)}/: {module} ({line.strip()[:60]})")
+    return missing
+
+
+def test_the_layout_pages_tree_names_modules_that_exist() -> None:
+    tree = (ROOT / "docs" / "layout.md").read_text(encoding="utf-8").split("```")[1]
+    assert _tree_modules_missing(tree) == []
+    assert _tree_modules_missing("koopman_envs/\n  episodes/  runner.py, the one runner\n") == [
+        "koopman_envs/episodes/: runner.py (episodes/  runner.py, the one runner)"
+    ]

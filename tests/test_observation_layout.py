@@ -82,6 +82,16 @@ def test_a_wrong_part_or_entry_is_refused_by_name() -> None:
     assert ObservationLayout.for_settings(3, 4, True, 16, False, 5).movers == 0  # lidar: no list
 
 
+def test_the_observation_contract_is_exported_by_the_package() -> None:
+    """The layout and what controllers receive are the package's face (issue 61), as the
+    item entries were: ``from koopman_envs import ObservationLayout, Observed``."""
+    from koopman_envs import layout, observed
+
+    for name, module in (("ObservationLayout", layout), ("PartOffsets", layout), ("Observed", observed)):
+        assert name in koopman_envs.__all__, name
+        assert getattr(koopman_envs, name) is getattr(module, name), name
+
+
 def test_the_pettingzoo_modules_are_attributes_of_the_package() -> None:
     import subprocess
     import sys
