@@ -124,7 +124,9 @@ def _zone_friction(zones: list[dict[str, Any]], seed: int = 0) -> np.ndarray:
     env = gym.make(TR, plant="mujoco", map=MapSpec.from_dict(spec), slip="nominal")
     env.reset(seed=seed)
     env.step(np.zeros(6, dtype=np.float32))
-    return cast(Any, env.unwrapped).engine.physics.friction[0].copy()
+    friction = cast(Any, env.unwrapped).friction
+    assert friction is not None and friction.shape == (3,)
+    return friction
 
 
 #: a rectangle under map1's three starts
@@ -199,3 +201,17 @@ def test_every_registered_controller_runs_on_the_physics_plant(name: str) -> Non
     for action in actions:
         flat = action.reshape(-1).astype(np.float32)
         assert np.all(np.isfinite(flat)) and env.action_space.contains(flat), (name, action)
+
+
+def test_the_friction_accessor_is_the_physics_worlds_last_period_and_none_on_the_kinematic_plant() -> None:
+    """``env.unwrapped.friction`` (the docs' way to read the ground truth, instead of the engine's
+    internals) is a copy of the world's row; the kinematic plant has none."""
+    assert cast(Any, gym.make(TR, slip="nominal").unwrapped).friction is None
+    friction = _zone_friction([{"rect": UNDER_STARTS, "lambda": 0.0, "surface": "ice"}])
+    env = gym.make(TR, plant="mujoco", map="map1", slip="nominal")
+    env.reset(seed=0)
+    env.step(np.zeros(6, dtype=np.float32))
+    seen = cast(Any, env.unwrapped).friction
+    seen[:] = -1.0  # a copy: the world's row is untouched
+    assert (cast(Any, env.unwrapped).friction > 0).all()
+    assert not np.array_equal(friction, cast(Any, env.unwrapped).friction)  # ice under the starts differs

@@ -101,6 +101,14 @@ class KoopNavEnv(SingleEnvFront, gym.Env):
         (ground truth; controllers must not read it)."""
         return cast("NDArray[np.float64]", self.engine.slip_means()[0])  # row 0 of (K, N)
 
+    @property
+    def friction(self) -> NDArray[np.float64] | None:
+        """Per-robot wheel-ground friction coefficient of the last period on the physics plant
+        (``plant="mujoco"``: the zone or surface each robot drove on; ground truth, not in
+        ``info``, and controllers must not read it); None on the kinematic plant, which has none."""
+        physics = self.engine.physics
+        return None if physics is None else physics.friction[0].copy()
+
 
 _W = RewardWeights()
 
