@@ -34,9 +34,10 @@ def _episode(name: str, map_name: str, slip: str = "nominal", seed: int = 0, **o
             return info, commands, ctrl.stats().counts
 
 
-# koopman-nmpc's crossing runs with -m slow: two whole Map 2 episodes of the central NMPC are the
-# check, and nominal-nmpc-v0 runs the same detour code on the same crossing in the default run
-@pytest.mark.parametrize("name", ["nominal-nmpc-v0", pytest.param("koopman-nmpc", marks=pytest.mark.slow)])
+# koopman-nmpc-v0's crossing runs with -m slow: two whole Map 2 episodes of the central NMPC are
+# the check, and nominal-nmpc-v0 runs the same detour code on the same crossing in the default run
+# (both hand-set: the tuned koopman-nmpc's margins pass the crossing without stalling)
+@pytest.mark.parametrize("name", ["nominal-nmpc-v0", pytest.param("koopman-nmpc-v0", marks=pytest.mark.slow)])
 def test_the_map2_crossing_deadlock_is_resolved(name: str) -> None:
     stuck, _, counts = _episode(name, "map2", unstall=False)
     assert not stuck["is_success"] and not stuck["collision"]

@@ -62,7 +62,7 @@ def _tight_ipopt(prob, params, guess):
     [
         ("nominal-nmpc", "KoopNav-TargetReaching-v0", "map1", 0),
         # slow: 30 periods of the formation's Koopman NMPC first, about 2 CPU-s (issue 61)
-        pytest.param("koopman-nmpc", "KoopNav-Formation-v0", "map4", 30, marks=pytest.mark.slow),
+        pytest.param("koopman-nmpc-v0", "KoopNav-Formation-v0", "map4", 30, marks=pytest.mark.slow),
     ],
 )
 def test_iterated_to_convergence_it_reaches_ipopts_kkt_point(name, env_id, map_name, steps) -> None:
