@@ -131,8 +131,12 @@ def safe_file_name(*parts: str) -> str:
 
 
 def is_map_file(name: str) -> bool:
-    """Whether a map of a run is a user map file (not a shipped map, ``random`` or a suite split)."""
-    return name != RANDOM_MAP and name not in BUILTIN_MAPS and not name.startswith(SUITE_PREFIX)
+    """Whether a map of a run is a user map file (not a shipped map, ``random`` or a suite split):
+    a path, as :func:`koopman_envs.load_map` tells one (a ``.json`` name or one with a directory);
+    any other name is an unknown map, which the run's checks refuse naming the shipped ones."""
+    if name == RANDOM_MAP or name in BUILTIN_MAPS or name.startswith(SUITE_PREFIX):
+        return False
+    return name.endswith(".json") or os.path.sep in name
 
 
 @dataclass(frozen=True)
