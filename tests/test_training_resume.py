@@ -283,3 +283,51 @@ def test_the_driver_resumes_a_seed_with_a_sound_checkpoint_and_restarts_one_with
     restart_after_a_torn_checkpoint(seed_dir, driver)
     metadata = json.loads((seed_dir / "target_reaching" / "metadata.json").read_text())
     assert metadata["resumed_from_timesteps"] == []
+
+
+# ----------------------------------------------------------------------------- old checkpoints
+def _as_written_before_the_layout(venv) -> object:
+    """``venv`` pickled as the adapter was before it kept the env's observation layout (d3391fd):
+    the movers' count and the obstacle slots in its place."""
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(venv))
+    layout = copy.__dict__.pop("_observed")
+    copy.__dict__.update(_mover_slots=layout.movers, _n_obstacle_obs=layout.n_obstacle_obs)
+    return pickle.dumps(copy)
+
+
+@pytest.mark.parametrize("movers", [0, 2])
+def test_a_vector_env_pickled_before_the_layout_resumes_and_steps_as_the_current_one(movers: int) -> None:
+    """A resume checkpoint written by the adapter of before d3391fd (seed 1 of rl-ppo-set, 8.4 M
+    steps in) unpickles into an adapter that steps as one pickled now, bit for bit; one whose
+    counts are not its env's is refused by name."""
+    import pickle
+
+    import numpy as np
+
+    from baselines.features.set_features import SetFeatureConfig
+    from baselines.sb3.vec_env import KoopNavSB3VecEnv
+
+    kwargs = {"movers": {"count": 2, "behaviour": "constant"}} if movers else {}
+    venv = KoopNavSB3VecEnv(
+        "KoopNav-TargetReaching-v0", 2, seed=0, set_config=SetFeatureConfig(movers=movers), **kwargs
+    )
+    venv.reset()
+    old, now = pickle.loads(_as_written_before_the_layout(venv)), pickle.loads(pickle.dumps(venv))
+    assert old._observed == now._observed and not hasattr(old, "_mover_slots")
+    actions = np.random.default_rng(0).uniform(-1, 1, size=(5, venv.num_envs, 2)).astype(np.float32)
+    for action in actions:
+        for env in (old, now):
+            env.step_async(action)
+        (obs_old, rew_old, done_old, _), (obs_now, rew_now, done_now, _) = old.step_wait(), now.step_wait()
+        np.testing.assert_array_equal(obs_old, obs_now, strict=True)
+        np.testing.assert_array_equal(rew_old, rew_now, strict=True)
+        np.testing.assert_array_equal(done_old, done_now, strict=True)
+    foreign = pickle.loads(pickle.dumps(venv))
+    layout = foreign.__dict__.pop("_observed")
+    foreign.__dict__.update(_mover_slots=layout.movers + 1, _n_obstacle_obs=layout.n_obstacle_obs)
+    with pytest.raises(
+        ValueError, match=r"lists \d+ movers and \d+ obstacles per robot where its env's layout"
+    ):
+        pickle.loads(pickle.dumps(foreign))

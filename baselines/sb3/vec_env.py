@@ -172,6 +172,25 @@ class KoopNavSB3VecEnv(VecEnv):
         self._seed = seed
         self._actions: np.ndarray | None = None
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickle (a resume checkpoint holds the adapter, :mod:`baselines.resume`), upgrading the
+        state of a checkpoint written before the adapter kept the env's observation layout: it
+        kept the listed movers' count and the obstacle slots (``_mover_slots``,
+        ``_n_obstacle_obs``), which the layout of its own env must repeat, or the checkpoint is
+        refused by name."""
+        state = dict(state)
+        if "_observed" not in state and "_mover_slots" in state:
+            observed = cast("KoopNavVectorEnv", state["venv"].unwrapped).observation_layout
+            kept = (state.pop("_mover_slots"), state.pop("_n_obstacle_obs"))
+            if kept != (observed.movers, observed.n_obstacle_obs):
+                raise ValueError(
+                    f"a resume checkpoint's vector env lists {kept[0]} movers and {kept[1]} obstacles "
+                    f"per robot where its env's layout has {observed.movers} and "
+                    f"{observed.n_obstacle_obs}: it is not this env's; start the seed afresh"
+                )
+            state["_observed"] = observed
+        self.__dict__.update(state)
+
     def _split(self, team_obs: np.ndarray) -> np.ndarray:
         """Team observations (K, N*F) in the adapter's layout."""
         blocks, movers = split_movers(team_obs.reshape(self.n_envs, self.n_robots, -1), self._observed)
