@@ -113,6 +113,28 @@ def test_a_partial_run_names_its_pending_rows(tmp_path) -> None:
     assert "| target reaching | consensus | orca |" in tested
 
 
+def test_a_run_with_only_the_reference_complete_writes_its_page(tmp_path) -> None:
+    """The start of a run: the reference (the costliest controller, first) has every episode and
+    every other controller at most one: no pair is complete, so no table is tested, and the page
+    names the pending rows instead of failing (it raised "family ... declares no comparison")."""
+    with extracted_archive(CHARGED) as run:
+        log = run / "episodes.jsonl"
+        header, *records = log.read_text(encoding="utf-8").splitlines(keepends=True)
+        kept = [line for line in records if json.loads(line)["controller"] == "orca"]
+        other = next(line for line in records if json.loads(line)["controller"] != "orca")
+        log.write_text("".join([header, *kept, other]), encoding="utf-8")
+        partial = pack_run(run, tmp_path / "bench_test_realtime.tar.xz")
+    out = tmp_path / "page.md"
+    assert (
+        main(["--charged", str(partial), "--free", str(tmp_path / "bench_test"), *REF, "--out", str(out)])
+        == 0
+    )
+    text = out.read_text(encoding="utf-8")
+    block = block_of(text, HEADLINE)
+    assert block is not None and "| orca |" in block and "pending: " in block
+    assert "| target reaching | consensus | orca |" not in text  # nothing tested
+
+
 def test_nothing_published_gives_a_pending_headline(tmp_path) -> None:
     out = tmp_path / "page.md"
     assert (

@@ -338,3 +338,14 @@ def test_bad_layout_fields_are_refused_by_both_schemas(field, value) -> None:
     jsonschema.validate(_record(0, 1, True), schema)
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(record, schema)
+
+
+def test_a_suite_run_of_one_controller_writes_its_reports_without_pairs(tmp_path) -> None:
+    """One controller has nothing to pair: the reports are written with no paired rows (the run
+    ended in "family ... declares no comparison" after every episode had run)."""
+    out = tmp_path / "one"
+    words = [w for w in ARGS if w != "nominal-nmpc"]
+    assert ev.main([*words, "--out", str(out)]) == ev.SUCCESS_EXIT
+    report = json.loads((out / "results.json").read_text())
+    assert report["paired_comparisons"] == [] and len(report["leaderboard"]) == 2  # one row per task
+    assert RunData(_log_records(out), report["config"]).suite_tables == []

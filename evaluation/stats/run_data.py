@@ -76,8 +76,8 @@ class RunData:
     def paired(self) -> list[dict[str, Any]]:
         """Paired comparisons of every two controllers of a task on their shared seeds
         (:func:`evaluation.stats.aggregate.paired_comparisons`; a suite run's: its success table's rows)."""
-        if is_suite_run(self.records):
-            return list(self.suite_tables[0]["rows"])
+        if is_suite_run(self.records):  # no tables: one controller, nothing to pair
+            return list(self.suite_tables[0]["rows"]) if self.suite_tables else []
         return paired_comparisons(self.records)
 
     @cached_property

@@ -399,8 +399,12 @@ def suite_tables(
     design: str = EVERY_PAIR,
 ) -> list[dict[str, Any]]:
     """Every measure's table (:func:`measure_table`, each its own family of ``pairs``: default
-    every pair), outcomes first; empty without a suite."""
+    every pair), outcomes first; empty without a suite, and without a pair to test (a run of one
+    controller, or a page whose other controllers are still running)."""
     if not is_suite_run(records):
+        return []
+    pairs = declared_pairs(records) if pairs is None else list(pairs)
+    if not pairs:
         return []
     return [measure_table(records, measure, pairs, design) for measure in MEASURES]
 
