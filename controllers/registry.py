@@ -157,7 +157,7 @@ def available(*, variants: bool = True) -> list[str]:
     variants : bool
         Include the ``<name>-v0`` variants of the tuned presets (the defaults before tuning,
         :func:`controllers.tuning.presets.is_comparison_variant`). Default runs pass ``False``: a variant
-        runs only when asked for by name (``--controllers dwa-v0``), and is always buildable.
+        runs only when asked for by name (``--controllers mpc-cbf-v0``), and is always buildable.
     """
     names = set(_REGISTRY) | set(_entry_points())
     return sorted(n for n in names if variants or not is_comparison_variant(n))

@@ -525,6 +525,40 @@ def test_the_tuning_table_is_the_studies_best_json() -> None:
     assert edited != text and tuning_problems(edited) != []
 
 
+def tuning_status_problems(text: str) -> list[str]:
+    """How docs/benchmark.md ``text`` states which tuning studies have finished, or which
+    controllers the ablation's ``model`` factor compares, differently from data/tuning/ and
+    :data:`evaluation.experiments.ablation.FACTORS`."""
+    from evaluation.experiments.ablation import FACTORS
+
+    problems = []
+    finished = sorted(p.name for p in STUDIES_DIR.iterdir() if (p / BEST_FILE).is_file())
+    said = re.search(r"The studies of (.+?) have\s+finished", text, re.S)
+    named = sorted(re.findall(r"`([\w-]+)`", said[1])) if said else []
+    if named != finished:
+        problems.append(f"the finished studies are stated as {named}; data/tuning/ has {finished}")
+    problems += [
+        f"{name}'s study is said to be in progress" for name in finished if f"`{name}` is in progress" in text
+    ]
+    levels = tuple(FACTORS["model"][level][0] for level in ("learned", "nominal"))
+    stated = re.findall(r"the ablation's `model` factor compares `([\w-]+)` with\s+`([\w-]+)`", text)
+    if stated != [levels]:
+        problems.append(f"the ablation's model factor is stated as {stated}; FACTORS has {levels}")
+    return problems
+
+
+def test_the_tuning_sections_status_is_the_studies_and_the_ablations() -> None:
+    """docs/benchmark.md names every finished study as finished and the ablation's model factor
+    as the code has it (it named koopman-nmpc's study in progress, and the factor's learned level
+    koopman-nmpc, after the study was adopted and the factor moved to koopman-nmpc-v0)."""
+    text = (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8")
+    assert tuning_status_problems(text) == []
+    edited = text.replace("`nominal-nmpc` and `koopman-nmpc` have", "`nominal-nmpc` have", 1)
+    assert edited != text and len(tuning_status_problems(edited)) == 1
+    edited = text.replace("compares `koopman-nmpc-v0` with", "compares `koopman-nmpc` with", 1)
+    assert edited != text and len(tuning_status_problems(edited)) == 1
+
+
 # --------------------------------------------------------------------------- the suite's own numbers
 def _seed_span(seeds: list[int]) -> str:
     """``first-last``, then the seeds between them a split skipped (``without A and B``)."""
