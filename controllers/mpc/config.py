@@ -252,7 +252,9 @@ class NMPCConfig:
         ``"static"`` (prediction off: each mover stays where it is seen);
         :mod:`controllers.movers`.
     mover_offset : float
-        (ours) Margin added to the radii toward a mover [m] (default: ``obstacle_offset``).
+        (ours) Margin added to the radii toward a mover [m] (default: the paper's obstacle
+        offset, 0.015 m, whatever ``obstacle_offset`` is set to: a tuned preset that widens the
+        obstacle margin leaves this one as it is).
     chance_risk : float
         (ours) Risk level of the chance constraints, in (0, 0.5): when an estimator in front
         (``ekf:``) hands on its pose covariance (``Observed.pose_covariance``), every collision
