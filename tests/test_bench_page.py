@@ -17,6 +17,7 @@ import io
 import json
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -86,21 +87,32 @@ def test_the_page_lays_out_the_evaluators_numbers(modes) -> None:
     assert "pending" not in text.split("## The runs")[1].split("## Leaderboard")[0]
 
 
-def test_a_partial_run_names_its_pending_rows(tmp_path) -> None:
-    """An interrupted run (formation consensus has 1 of its 3 episodes) and a run not published
-    yet: their rows are pending, the complete ones shown, nothing fails."""
+def _page_of_a_partial_charged_run(tmp_path: Path, cut: Callable[[list[str]], list[str]]) -> str:
+    """The page of the fixture's charged run with its log's lines (header first) cut by ``cut``
+    and the free run not published yet."""
     with extracted_archive(CHARGED) as run:
         log = run / "episodes.jsonl"
-        lines = log.read_text(encoding="utf-8").splitlines(keepends=True)
-        assert json.loads(lines[-1])["controller"] == "consensus"
-        log.write_text("".join(lines[:-2]), encoding="utf-8")
+        log.write_text(
+            "".join(cut(log.read_text(encoding="utf-8").splitlines(keepends=True))), encoding="utf-8"
+        )
         partial = pack_run(run, tmp_path / "bench_test_realtime.tar.xz")
     out = tmp_path / "page.md"
     assert (
         main(["--charged", str(partial), "--free", str(tmp_path / "bench_test"), *REF, "--out", str(out)])
         == 0
     )
-    text = out.read_text(encoding="utf-8")
+    return out.read_text(encoding="utf-8")
+
+
+def test_a_partial_run_names_its_pending_rows(tmp_path) -> None:
+    """An interrupted run (formation consensus has 1 of its 3 episodes) and a run not published
+    yet: their rows are pending, the complete ones shown, nothing fails."""
+
+    def last_two_off(lines: list[str]) -> list[str]:
+        assert json.loads(lines[-1])["controller"] == "consensus"
+        return lines[:-2]
+
+    text = _page_of_a_partial_charged_run(tmp_path, last_two_off)
     block = block_of(text, HEADLINE)
     assert block is not None
     assert "| consensus | pending: 1 of 3 episodes |" in block
@@ -117,19 +129,13 @@ def test_a_run_with_only_the_reference_complete_writes_its_page(tmp_path) -> Non
     """The start of a run: the reference (the costliest controller, first) has every episode and
     every other controller at most one: no pair is complete, so no table is tested, and the page
     names the pending rows instead of failing (it raised "family ... declares no comparison")."""
-    with extracted_archive(CHARGED) as run:
-        log = run / "episodes.jsonl"
-        header, *records = log.read_text(encoding="utf-8").splitlines(keepends=True)
+
+    def orca_and_one_more(lines: list[str]) -> list[str]:
+        header, *records = lines
         kept = [line for line in records if json.loads(line)["controller"] == "orca"]
-        other = next(line for line in records if json.loads(line)["controller"] != "orca")
-        log.write_text("".join([header, *kept, other]), encoding="utf-8")
-        partial = pack_run(run, tmp_path / "bench_test_realtime.tar.xz")
-    out = tmp_path / "page.md"
-    assert (
-        main(["--charged", str(partial), "--free", str(tmp_path / "bench_test"), *REF, "--out", str(out)])
-        == 0
-    )
-    text = out.read_text(encoding="utf-8")
+        return [header, *kept, next(line for line in records if json.loads(line)["controller"] != "orca")]
+
+    text = _page_of_a_partial_charged_run(tmp_path, orca_and_one_more)
     block = block_of(text, HEADLINE)
     assert block is not None and "| orca |" in block and "pending: " in block
     assert "| target reaching | consensus | orca |" not in text  # nothing tested

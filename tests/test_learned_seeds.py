@@ -24,7 +24,7 @@ from evaluation.experiments.seeds import (
     report_markdown,
 )
 
-from helpers.training import TINY_IPPO_BATCHES, one_seed_driver
+from helpers.training import TINY_IPPO_BATCHES, TINY_SB3, one_seed_driver
 
 pytest.importorskip("stable_baselines3")
 
@@ -32,7 +32,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SUITE = "koopnav-bench-v1"
 HELD_OUT = r"split='test' is held out"
 #: a tiny set-policy run: 2 envs x 3 robots x 64 steps per rollout, 2 validation layouts
-TINY_SB3 = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
 
 #: a tiny IPPO run: 2 envs, 2 iterations of 200 frames
 TINY_IPPO = ["--frames", "400", *TINY_IPPO_BATCHES]

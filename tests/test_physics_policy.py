@@ -15,6 +15,8 @@ import pytest
 import controllers
 from baselines.suite_training import SuiteTraining
 
+from helpers.training import TINY_SB3
+
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("mujoco")
 
@@ -22,8 +24,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SUITE = "koopnav-bench-v1"
 SHIPPED = ROOT / "baselines" / "policies" / "set_physics"
 TASK_ENVS = {"target_reaching": "KoopNav-TargetReaching-v0", "formation": "KoopNav-Formation-v0"}
-#: a tiny set-policy run (as tests/test_learned_seeds.py's)
-TINY_SB3 = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
 
 
 def _suite_argv(out: Path, *options: str) -> list[str]:

@@ -15,11 +15,10 @@ import pytest
 from baselines.resume import RESUME_FILE, ResumeRefused, check_resume, read_resume, write_resume
 from baselines.resume import main as check_main
 
-from helpers.training import one_seed_driver, restart_after_a_torn_checkpoint
+from helpers.training import TINY_SB3, one_seed_driver, restart_after_a_torn_checkpoint
 
 SUITE = "koopnav-bench-v1"
-#: a tiny set-policy run: 2 envs x 3 robots x 64 steps = 384 robot-steps per rollout
-TINY = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
+TINY = TINY_SB3  # the tiny set-policy run of tests/helpers/training.py
 IDENTITY = {"seed": 3, "net": [16, 16]}
 
 

@@ -1,5 +1,6 @@
 """The training driver, data/training/run.sh, as the tests run it, and the tiny training runs they
-share (tests/test_ippo_resume.py, tests/test_training_resume.py, tests/test_learned_seeds.py)."""
+share (tests/test_ippo_resume.py, tests/test_training_resume.py, tests/test_learned_seeds.py,
+tests/test_physics_policy.py)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from baselines.resume import RESUME_FILE
 
 ROOT = Path(__file__).resolve().parents[2]
 
+#: a tiny set-policy PPO run: 2 envs x 3 robots x 64 steps = 384 robot-steps per rollout
+TINY_SB3 = ["--n-envs", "2", "--n-steps", "64", "--batch-size", "128", "--set-width", "8", "--net", "16,16"]
 #: the batches of a tiny IPPO run: 2 envs, iterations of 200 frames, one epoch of 2 minibatches each
 TINY_IPPO_BATCHES = ["--envs", "2", "--frames-per-batch", "200", "--minibatch-size", "100", "--epochs", "1"]
 
