@@ -4,8 +4,13 @@
 mutmut's verdicts (its ``mutants/FILE.meta``) are carried in a committed file,
 ``data/mutation/MODULE.json``, one per module of the script. Each verdict names what it was decided
 against: the SHA-256 of the mutated module's source, of every test file of the module's selection,
-mutmut's version and the script's ``[tool.mutmut]`` settings. A verdict is reused only when all of
-them are unchanged; any other is stale and the mutant is tested again, never trusted. A store that
+mutmut's version and the script's ``[tool.mutmut]`` settings. A verdict is reused when all of
+them are unchanged, and a *killed* verdict also when tests were only added: the same module,
+mutmut and settings besides the test selection, and every entry of the old selection still
+selected with its file unchanged (each test that killed the mutant still runs, as it was; a test
+added can kill more mutants, never revive one). Any other verdict is stale and the mutant is
+tested again, never trusted. So a survivor can be answered by a test in a new file (or a new
+entry of the selection) without rerunning the module's killed mutants. A store that
 is torn (not whole JSON) or foreign (another format, another module, a malformed record) is
 refused by name.
 
@@ -28,6 +33,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -37,6 +43,8 @@ from koopman_envs.checks import parse_json
 from koopman_envs.files import FileRefused, read_bounded, write_atomic
 
 FORMAT = "koopnav-mutation-verdicts"
+#: the line of the script's ``[tool.mutmut]`` section that lists the test selection
+SELECTION_KEY = "pytest_add_cli_args_test_selection"
 VERSION = 1
 MAX_STORE_BYTES = 16 * 2**20
 # mutmut 3's exit codes of the verdicts a rerun would repeat (mutmut.stats.status_by_exit_code);
@@ -76,23 +84,61 @@ class Against:
     tests: dict[str, str]
     mutmut: str
     settings: str
+    #: the settings without the test selection's line (:data:`SELECTION_KEY`)
+    rest: str = ""
+    #: the selection's entries (test files or test ids), sorted
+    selection: tuple[str, ...] = ()
 
     @classmethod
     def of_tree(
         cls, root: Path, target: str, tests: list[str], settings: str, mutmut: str | None = None
     ) -> Against:
         """The digests of the tree at ``root``: ``target``, the files of ``tests`` (test ids and
-        repeats reduced to files), mutmut's version (default: the installed one) and the settings."""
+        repeats reduced to files), mutmut's version (default: the installed one) and the settings,
+        whole and without the selection's line; and the selection's entries."""
         files = sorted({t.split("::")[0] for t in tests})
+        rest = "\n".join(
+            line for line in settings.splitlines() if not line.lstrip().startswith(SELECTION_KEY)
+        )
         return cls(
             target={target: _sha256((root / target).read_bytes())},
             tests={f: _sha256((root / f).read_bytes()) for f in files},
             mutmut=mutmut or metadata.version("mutmut"),
             settings=_sha256(settings.encode("utf-8")),
+            rest=_sha256(rest.encode("utf-8")),
+            selection=tuple(sorted(set(tests))),
         )
 
     def as_json(self) -> dict[str, Any]:
-        return {"target": self.target, "tests": self.tests, "mutmut": self.mutmut, "settings": self.settings}
+        record = {
+            "target": self.target,
+            "tests": self.tests,
+            "mutmut": self.mutmut,
+            "settings": self.settings,
+        }
+        if self.rest:  # a record of before these fields keeps its digest
+            record.update(rest=self.rest, selection=list(self.selection))
+        return record
+
+    def keeps_killed(self, old: Mapping[str, Any]) -> bool:
+        """Whether a mutant killed against ``old`` (an :meth:`as_json` record) is killed against
+        this tree too: the same module, mutmut and settings besides the selection, and every entry
+        of ``old``'s selection still selected (as itself or by its whole file) with its file's
+        digest unchanged. A record without ``rest`` (of before the rule) keeps nothing."""
+        selection = old.get("selection")
+        if not self.rest or not old.get("rest") or not isinstance(selection, list):
+            return False
+        if (old.get("target"), old.get("mutmut"), old.get("rest")) != (self.target, self.mutmut, self.rest):
+            return False
+        tests = old.get("tests")
+        if not isinstance(tests, dict):
+            return False
+        mine = set(self.selection)
+        for entry in selection:
+            file = str(entry).split("::")[0]
+            if (entry not in mine and file not in mine) or tests.get(file) != self.tests.get(file):
+                return False
+        return True
 
     @property
     def digest(self) -> str:
@@ -110,8 +156,15 @@ class Store:
     against: dict[str, Any] = field(default_factory=dict)
 
     def trusted(self, against: Against) -> dict[str, int]:
-        """The exit codes decided against exactly ``against``."""
-        return {name: code for name, (code, made) in self.verdicts.items() if made == against.digest}
+        """The exit codes decided against exactly ``against``, and the kills decided against the
+        store's own record (:attr:`against`) where ``against`` keeps them (:meth:`Against.keeps_killed`)."""
+        kept = bool(self.against) and against.keeps_killed(self.against)
+        old = _sha256(json.dumps(self.against, sort_keys=True).encode("utf-8")) if kept else None
+        return {
+            name: code
+            for name, (code, made) in self.verdicts.items()
+            if made == against.digest or (made == old and status_of(code) == "killed")
+        }
 
     def to_json(self) -> str:
         records = [

@@ -84,6 +84,65 @@ def test_a_verdict_is_stale_when_what_it_was_decided_against_changes(tmp_path: P
     assert store.trusted(after) == {}
 
 
+def _section(selection: list[str], timeout: str = "60.0") -> str:
+    """A [tool.mutmut] section as the script writes it, with ``selection``."""
+    entries = ", ".join(f'"{entry}"' for entry in selection)
+    return f"[tool.mutmut]\npytest_add_cli_args_test_selection = [{entries}]\ntimeout_multiplier = {timeout}\nmodule records\n"
+
+
+@pytest.mark.parametrize(
+    ("change", "kills_kept"),
+    [
+        ("a test file added", True),
+        ("a test id added", True),
+        ("an old test file changed", False),
+        ("an old entry narrowed to one test", False),
+        ("another setting", False),
+        ("the module", False),
+        ("mutmut", False),
+        ("a store of before the rule", False),
+    ],
+)
+def test_a_kill_is_kept_when_tests_are_only_added(tmp_path: Path, change: str, kills_kept: bool) -> None:
+    """A killed verdict outlives a selection that only grew (each test that killed it still runs,
+    unchanged); a survivor never does, and any other change makes both stale."""
+    root = _tree(tmp_path)
+    (root / "tests/test_new.py").write_text("def test_new():\n    pass\n")
+    selection = ["tests/test_records.py", "tests/test_other.py::test_one"]
+    before = Against.of_tree(root, TARGET, selection, _section(selection), mutmut="3.8.1")
+    store = Store(
+        "records", {"m.x_grade__mutmut_1": (1, before.digest), "m.x_grade__mutmut_2": (0, before.digest)}, 2
+    )
+    store.against = before.as_json()
+    if change == "a store of before the rule":
+        old = {k: v for k, v in before.as_json().items() if k not in ("rest", "selection")}
+        digest = Against(**{**old, "tests": before.tests}).digest  # the old record's own digest
+        store = Store("records", {"m.x_grade__mutmut_1": (1, digest)}, 1, old)
+    after_selection, timeout, mutmut = [*selection, "tests/test_new.py"], "60.0", "3.8.1"
+    if change == "a test id added":
+        after_selection = [*selection, "tests/test_other.py::test_two"]
+    elif change == "an old test file changed":
+        (root / "tests/test_records.py").write_text("def test_grade():\n    assert 1\n")
+    elif change == "an old entry narrowed to one test":
+        after_selection = [
+            "tests/test_records.py::test_grade",
+            "tests/test_other.py::test_one",
+            "tests/test_new.py",
+        ]
+    elif change == "another setting":
+        timeout = "15.0"
+    elif change == "the module":
+        (root / TARGET).write_text((root / TARGET).read_text().replace("x > 2", "x > 3"))
+    elif change == "mutmut":
+        mutmut = "3.8.2"
+    after = Against.of_tree(root, TARGET, after_selection, _section(after_selection, timeout), mutmut=mutmut)
+    assert after.digest != before.digest
+    assert store.trusted(after) == ({"m.x_grade__mutmut_1": 1} if kills_kept else {})
+    assert store.trusted(before) == (  # the tree it was decided against trusts every verdict
+        {"m.x_grade__mutmut_1": 1, "m.x_grade__mutmut_2": 0} if change != "a store of before the rule" else {}
+    )
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
