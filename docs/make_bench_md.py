@@ -59,6 +59,7 @@ from evaluation.reports.sections.blocks import p_cell, rate_cell  # noqa: E402
 from evaluation.reports.sections.runs import SUITE_NOTE, suite_rows  # noqa: E402
 from evaluation.reports.sections.suite_tables import paired_csv, paired_note, suite_sections  # noqa: E402
 from evaluation.stats.suite_statistics import OUTCOMES, reference_pairs, suite_tables  # noqa: E402
+from evaluation.tune.confirm import CONFIRMATION_FILE  # noqa: E402
 from koopman_envs import TIERS  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
@@ -67,6 +68,7 @@ __all__ = [
     "PAIRS_FILE",
     "Mode",
     "Progress",
+    "decision",
     "headline",
     "load_mode",
     "page",
@@ -582,6 +584,24 @@ def _breakdown_section(modes: Sequence[Mode]) -> list[str]:
     return lines
 
 
+def decision(label: str, verdict: str, studies: Path = STUDIES_DIR) -> str:
+    """The study's decision (``verdict``) with what its recorded confirmation on fresh validation
+    layouts (``studies/<label>/confirmation.json``, ``python -m evaluation.tune adopt --confirm``)
+    made of an adoption: kept, or withdrawn, so that the controller ships its defaults. A decision
+    with no confirmation recorded is the study's as it is."""
+    record = studies / label / CONFIRMATION_FILE
+    if verdict != "adopted" or not record.is_file():
+        return verdict
+    confirmation = json.loads(record.read_text(encoding="utf-8"))
+    counts = (
+        f"{confirmation['best_successes']} against the defaults' {confirmation['defaults_successes']} "
+        f"of {confirmation['units']} fresh validation episodes, p = {float(confirmation['p_value']):.2g}"
+    )
+    if confirmation["confirmed"]:
+        return f"adopted, confirmed ({counts})"
+    return f"adopted by the study, withdrawn by the confirmation ({counts}): ships its defaults"
+
+
 def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[str]:
     """A table of each controller's tuning budget: its study (:func:`controllers.tuning.studies.study_budget`),
     or why it has none."""
@@ -599,7 +619,8 @@ def tuning_budget(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[st
         if budget is not None:
             lines.append(
                 f"| {label} | {budget.split} | {budget.configurations_run} of {budget.configurations} | "
-                f"{budget.episodes_per_configuration} | {budget.episodes_run:,} | {budget.verdict} |"
+                f"{budget.episodes_per_configuration} | {budget.episodes_run:,} | "
+                f"{decision(label, budget.verdict, studies)} |"
             )
             continue
         try:

@@ -24,7 +24,7 @@ from typing import Any
 import pytest
 
 import controllers
-from controllers.tuning import is_comparison_variant, study_budget
+from controllers.tuning import STUDIES_DIR, TUNED_DIR, is_comparison_variant, study_budget
 from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
 from evaluation.reports.sections import task_label
@@ -38,6 +38,7 @@ from make_bench_md import (  # noqa: E402  (docs/ is no package)
     PAIRS_FILE,
     _paper,
     _paper_variants_note,
+    decision,
     load_mode,
     main,
     page,
@@ -185,6 +186,34 @@ def test_a_study_gives_its_budget_finished_or_not(tmp_path) -> None:
     cut = study_budget("orca", tmp_path)
     assert cut is not None and not cut.finished
     assert (cut.configurations_run, cut.configurations, cut.verdict) == (5, 24, "unfinished")
+
+
+def test_the_tuning_budgets_decision_is_what_ships(tmp_path) -> None:
+    """The page's decision column says what the confirmation on fresh validation layouts made of
+    an adopted study: dwa's study adopted its best (29 vs 25 of 50), the confirmation withdrew it
+    (88 vs 81 of 150, p = 0.46), so dwa ships its defaults and the page must not say "adopted"."""
+    rows = {}
+    for name in ("consensus", "dwa", "koopman-nmpc", "mpc-cbf", "nominal-nmpc", "orca"):
+        budget = study_budget(name)
+        assert budget is not None
+        rows[name] = decision(name, budget.verdict)
+        installed = (TUNED_DIR / f"{name}.json").is_file()
+        assert rows[name].startswith("adopted, confirmed") == installed, (name, rows[name])
+    assert rows["dwa"] == (
+        "adopted by the study, withdrawn by the confirmation (88 against the defaults' 81 of 150 "
+        "fresh validation episodes, p = 0.46): ships its defaults"
+    )
+    assert rows["koopman-nmpc"] == (
+        "adopted, confirmed (75 against the defaults' 28 of 150 fresh validation episodes, p = 5e-05)"
+    )
+    assert rows["orca"] == "defaults kept (a tie)"
+    # an adopted study without a recorded confirmation keeps the study's word
+    (tmp_path / "dwa").mkdir()
+    (tmp_path / "dwa" / "study.jsonl").write_bytes((STUDIES_DIR / "dwa" / "study.jsonl").read_bytes())
+    assert decision("dwa", "adopted", tmp_path) == "adopted"
+    # the committed page says the same
+    text = (ROOT / "docs" / "bench_results.md").read_text(encoding="utf-8")
+    assert f"| dwa | validation | 24 of 24 | 50 | 1,200 | {rows['dwa']} |" in text
 
 
 def test_runs_of_different_suites_are_refused(tmp_path, capsys) -> None:
