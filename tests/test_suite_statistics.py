@@ -24,11 +24,13 @@ from evaluation.stats.layout_tests import (
 from evaluation.stats.run_data import RunData
 from evaluation.stats.statistics import holm_adjusted, wilson_interval
 from evaluation.stats.suite_statistics import (
+    ALL,
     MEASURES,
     METRICS,
     OUTCOMES,
     declared_pairs,
     measure_table,
+    pooled_reference_pairs,
     reference_pairs,
     suite_tables,
 )
@@ -172,6 +174,52 @@ def test_a_narrower_family_is_declared_from_the_design_and_corrected_within_itse
         assert row["p_holm"] <= twin["p_holm"] + 1e-12
     with pytest.raises(ValueError, match=r"reference='z' is not one of the controllers \['a', 'b'\]"):
         reference_pairs({TASKS[0]: ["a", "b"]}, "z")
+
+
+def test_a_pooled_comparison_keeps_each_tasks_layouts_apart() -> None:
+    """A comparison pooled over both tasks tests every (task, layout) as its own cluster: a wins
+    on layouts 0-5 of the first task and on 0-2 of the second, b on 3-5 of the second. Twelve
+    clusters (9 for a, 3 for b) give the sign-flip p 598/4096; merging each layout number of the
+    two tasks into one cluster would give six (3 for a, 3 ties) and p = 2/8, another interval."""
+    rng = np.random.default_rng(0)
+    records = []
+    for env_id in TASKS:
+        for layout in range(6):
+            for name in ("a", "b"):
+                record = _record(env_id, name, layout, 100 * layout, rng, 0.5)
+                won = name == "a" if env_id == TASKS[0] or layout < 3 else name == "b"
+                record.update(success=won, strict_success=won, success_excusing_unavoidable=won)
+                records.append(record)
+    pairs = pooled_reference_pairs({env: ["b", "a"] for env in TASKS}, "b")
+    assert pairs == [(ALL, "a", "b")]
+    table = measure_table(records, OUTCOMES[0], pairs, "a against b over both tasks")
+    (row,) = table["rows"]
+    assert (row["env_id"], row["layouts"], row["n"], row["only_a"], row["only_b"]) == (ALL, 12, 12, 9, 3)
+    assert table["family"]["size"] == 1
+    assert table["family"]["tests"][0]["comparison"] == "both tasks: a vs b"
+    assert row["p_value"] == pytest.approx(598 / 4096)
+    kept_apart = paired_rates_by_layout([[True]] * 9 + [[False]] * 3, [[False]] * 9 + [[True]] * 3)
+    merged = paired_rates_by_layout(
+        [[True, True]] * 3 + [[True, False]] * 3, [[False, False]] * 3 + [[False, True]] * 3
+    )
+    assert (row["p_value"], row["low"], row["high"]) == (kept_apart.p_value, kept_apart.low, kept_apart.high)
+    assert merged.p_value == pytest.approx(0.25) and (merged.low, merged.high) != (row["low"], row["high"])
+    # a controller missing from one task is no pooled comparison: counted in m, untested
+    partial = [r for r in records if not (r["env_id"] == TASKS[1] and r["controller"] == "a")]
+    cut = measure_table(partial, OUTCOMES[0], pairs, "a against b over both tasks")
+    assert cut["rows"] == [] and cut["family"]["size"] == 1
+    # pooled pairs need the reference in every task, and two tasks
+    with pytest.raises(ValueError, match=r"reference='z' is not one of the controllers"):
+        pooled_reference_pairs({env: ["a", "b"] for env in TASKS}, "z")
+    with pytest.raises(ValueError, match="a pooled comparison needs at least two"):
+        pooled_reference_pairs({TASKS[0]: ["a", "b"]}, "b")
+    # a controller of one task only is left out; named pairs join where both are everywhere
+    declared = {TASKS[0]: ["r", "a", "x", "a-v0"], TASKS[1]: ["r", "a", "a-v0"]}
+    assert pooled_reference_pairs(declared, "r", also=[("a", "a-v0"), ("x", "r")]) == [
+        (ALL, "a", "r"),
+        (ALL, "a-v0", "r"),
+        (ALL, "a", "a-v0"),
+    ]
 
 
 def test_a_pairs_test_is_the_layout_sign_flip_on_its_shared_units() -> None:

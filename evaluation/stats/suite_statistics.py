@@ -20,7 +20,9 @@ stated with its power.
   is the run's design, every pair of controllers of every task that ran, known before any outcome:
   a pair without a shared unit counts in ``m`` as ``p = 1``; or a narrower design declared the
   same way (:func:`reference_pairs`: every controller against a reference, and named pairs).
-  :func:`suite_tables`: every measure's table.
+  A comparison may pool the tasks (:func:`pooled_reference_pairs`, task :data:`ALL`): its units are
+  every task's, each (task, layout) its own cluster, so one layout number of two tasks is never
+  one cluster. :func:`suite_tables`: every measure's table.
 
 Records of runs without a suite (no ``layout``) have none of these.
 """
@@ -45,6 +47,7 @@ from koopman_envs import FAMILIES, SUITE_PREFIX, TIERS, path_ratio, smallest_cle
 from koopman_envs.checks import check_choice
 
 __all__ = [
+    "ALL",
     "BREAKDOWNS",
     "METRICS",
     "MEASURES",
@@ -59,8 +62,13 @@ __all__ = [
     "suite_rate_interval",
     "suite_tables",
     "measure_table",
+    "pooled_reference_pairs",
     "reference_pairs",
 ]
+
+#: the task of a comparison pooled over every task of the run (:func:`pooled_reference_pairs`), as
+#: its rows and its label in the family name it
+ALL = "both tasks"
 
 
 @dataclass(frozen=True)
@@ -259,6 +267,42 @@ def reference_pairs(
     return list(dict.fromkeys(pairs))
 
 
+def pooled_reference_pairs(
+    controllers: Mapping[str, Sequence[str]], reference: str, also: Sequence[tuple[str, str]] = ()
+) -> list[tuple[str, str, str]]:
+    """A design pooled over the tasks, read from a run's declared controllers (its header), never
+    from its outcomes: (:data:`ALL`, a, ``reference``) for every other controller a declared in
+    every task, in the first task's order, then (:data:`ALL`, a, b) for each (a, b) of ``also``
+    declared in every task. :func:`measure_table` compares such a pair on the units of every task,
+    each (task, layout) its own cluster.
+
+    Parameters
+    ----------
+    controllers : mapping of str to sequence of str
+        Task (env id) -> the labels the run declares for it (at least two tasks).
+    reference : str
+        The controller every other one is compared with (``b`` of its pairs).
+    also : sequence of (str, str)
+        Further pairs (a, b), e.g. a tuned controller and its ``-v0``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two tasks, or ``reference`` not declared for some task (naming the task and its
+        controllers).
+    """
+    if len(controllers) < 2:
+        raise ValueError(
+            f"controllers declares the tasks {sorted(controllers)}; a pooled comparison needs at least two"
+        )
+    for env_id, labels in controllers.items():
+        check_choice("reference", reference, labels, f" of {env_id}", among="the controllers")
+    everywhere = [a for a in next(iter(controllers.values())) if all(a in c for c in controllers.values())]
+    pairs = [(ALL, a, reference) for a in everywhere if a != reference]
+    pairs += [(ALL, a, b) for a, b in also if a in everywhere and b in everywhere]
+    return list(dict.fromkeys(pairs))
+
+
 def _scope(records: Sequence[Mapping[str, Any]]) -> str:
     """The suite splits the records ran on (``koopnav-bench-v1/test``), for a family's name."""
     maps = sorted({str(r.get("map", "")).removeprefix(SUITE_PREFIX) for r in records})
@@ -278,6 +322,22 @@ def _units(records: Sequence[Mapping[str, Any]]) -> dict[tuple[str, str], dict[t
             unit = (r["map"], r["slip"], int(r["layout"]), r["seed"])
             out.setdefault((r["env_id"], r["controller"]), {})[unit] = r
     return out
+
+
+def _pooled(
+    units: Mapping[tuple[str, str], Mapping[tuple, Mapping[str, Any]]], label: str, tasks: Sequence[str]
+) -> dict[tuple, Mapping[str, Any]]:
+    """``label``'s units of every task in ``tasks``, each key led by its task; empty unless it ran
+    in every one of them (a pooled comparison over some tasks only is no comparison of the design)."""
+    if not all(units.get((env_id, label)) for env_id in tasks):
+        return {}
+    return {(env_id, *key): r for env_id in tasks for key, r in units[env_id, label].items()}
+
+
+def _cluster(record: Mapping[str, Any], pooled: bool) -> Any:
+    """A unit's cluster: its layout (:func:`~evaluation.run.suite_runs.cluster_of`), and in a
+    pooled comparison its task with it (layout 3 of one task and of the other are two layouts)."""
+    return (record["env_id"], cluster_of(record)) if pooled else cluster_of(record)
 
 
 def _compare(measure: Measure, a: dict[Any, list], b: dict[Any, list]) -> LayoutComparison:
@@ -329,7 +389,10 @@ def measure_table(
     pairs : sequence of tuple of str, optional
         The family's comparisons, each (task, a, b), declared from the run's design before any
         test (default: every pair, :func:`declared_pairs`; :func:`reference_pairs` for a page that
-        tests fewer). Holm's correction and the power statement run over exactly these.
+        tests fewer). Holm's correction and the power statement run over exactly these. A pair
+        whose task is :data:`ALL` (:func:`pooled_reference_pairs`) is compared on the units of
+        every task of ``records``, each (task, layout) a cluster of its own, and only where both
+        controllers ran in every task (else it counts in ``m`` as ``p = 1``).
     design : str
         What ``pairs`` are, for the family's name (default :data:`EVERY_PAIR`).
 
@@ -349,13 +412,18 @@ def measure_table(
         f"{_scope(records)}: {measure.label}, {design}", tuple(pair_label(*p) for p in pairs)
     )
     units = _units(records)
+    tasks = list(dict.fromkeys(r["env_id"] for r in records))
     p_values: dict[str, float] = {}
     same: dict[str, Any] = {}
     rows: dict[str, dict[str, Any]] = {}
     comparisons = []
     for env_id, a, b in pairs:
         label = pair_label(env_id, a, b)
-        mine, theirs = units.get((env_id, a), {}), units.get((env_id, b), {})
+        pooled = env_id == ALL
+        if pooled:
+            mine, theirs = _pooled(units, a, tasks), _pooled(units, b, tasks)
+        else:
+            mine, theirs = units.get((env_id, a), {}), units.get((env_id, b), {})
         shared = distinct_units(sorted(set(mine) & set(theirs)), mine, theirs)
         by_layout_a: dict[Any, list] = {}
         by_layout_b: dict[Any, list] = {}
@@ -364,7 +432,7 @@ def measure_table(
             x, y = measure.read(mine[key]), measure.read(theirs[key])
             if x is None or y is None:
                 continue
-            layout = cluster_of(mine[key])
+            layout = _cluster(mine[key], pooled)
             by_layout_a.setdefault(layout, []).append(x)
             by_layout_b.setdefault(layout, []).append(y)
             kept.append(key)
