@@ -14,7 +14,11 @@ runs may hold different controllers (a controller of one only is in that mode's 
 Every number is the evaluator's own (:class:`~evaluation.stats.run_data.RunData`:
 ``layout_summary``, ``suite_breakdown``; :func:`~evaluation.stats.suite_statistics.suite_tables`:
 intervals over layouts, the paired tables with their families and power statements); this script
-only lays them out. The page's paired tables test one family per table and mode, declared from the
+only lays them out. The page's primary test is its headline family per mode
+(:func:`headline_families`), declared from the run's header: success of every controller against
+``--reference`` pooled over both tasks (each (task, layout) its own cluster), Holm within it, with
+what tuning gained (each tuned controller against its ``-v0``, pooled) as a family of its own. The
+per-task paired tables are secondary, one family per table and mode, declared from the
 run's header (:func:`page_pairs`): every controller against ``--reference``, and each tuned
 controller against its ``-v0``; every pair of every table, each table corrected over every pair,
 goes to ``bench_pairs.csv`` beside the page (:data:`PAIRS_FILE`), whose SHA-256 the page states.
@@ -57,8 +61,20 @@ from evaluation.reports.results import Results  # noqa: E402
 from evaluation.reports.sections import markdown, markdown_table, suite_heading, task_label  # noqa: E402
 from evaluation.reports.sections.blocks import p_cell, rate_cell  # noqa: E402
 from evaluation.reports.sections.runs import SUITE_NOTE, suite_rows  # noqa: E402
-from evaluation.reports.sections.suite_tables import paired_csv, paired_note, suite_sections  # noqa: E402
-from evaluation.stats.suite_statistics import OUTCOMES, reference_pairs, suite_tables  # noqa: E402
+from evaluation.reports.sections.suite_tables import (  # noqa: E402
+    paired_csv,
+    paired_note,
+    paired_table,  # noqa: E402
+    suite_sections,
+)
+from evaluation.stats.families import detectable_difference  # noqa: E402
+from evaluation.stats.suite_statistics import (  # noqa: E402
+    OUTCOMES,
+    measure_table,
+    pooled_reference_pairs,
+    reference_pairs,
+    suite_tables,
+)
 from evaluation.tune.confirm import CONFIRMATION_FILE  # noqa: E402
 from koopman_envs import TIERS  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
@@ -70,11 +86,13 @@ __all__ = [
     "Progress",
     "decision",
     "headline",
+    "headline_families",
     "load_mode",
     "page",
     "option_values",
     "page_pairs",
     "pairs_file",
+    "pooled_families",
     "published_runs",
     "tuned_pairs",
     "verdict",
@@ -91,6 +109,8 @@ RUNS = {
 #: the file beside the page with every pair of every paired table (the page tests fewer): plain
 #: CSV in the repository, whose next version git stores as a delta of this one (docs/benchmark.md)
 PAIRS_FILE = "bench_pairs.csv"
+#: the discordance the headline family's planned power is stated at (docs/benchmark.md's sizing)
+PLANNED_DISCORDANCE = 0.3
 #: the family-wise error rate a Holm-corrected p is read against on both sides of the verdict table
 ALPHA = 0.05
 #: the verdict table's rule (:func:`verdict`), stated on the page
@@ -248,6 +268,136 @@ def page_pairs(mode: Mode, reference: str) -> tuple[list[tuple[str, str, str]], 
             + ": what tuning gained)"
         )
     return pairs, design
+
+
+def pooled_families(
+    declared: Mapping[str, Sequence[str]], reference: str
+) -> list[tuple[list[tuple[str, str, str]], str]]:
+    """The headline families of a run declaring ``declared`` (task -> its controllers, from its
+    header), success pooled over both tasks
+    (:func:`~evaluation.stats.suite_statistics.pooled_reference_pairs`): first the headline, every
+    controller declared in both tasks against ``reference``; then, where the run has tuned
+    controllers and their ``-v0``, what tuning gained as a family of its own (another question,
+    kept out of the headline's m). Each is (pairs, the clause that names it); empty for fewer
+    than two tasks."""
+    if len(declared) < 2:
+        return []
+    labels = list(dict.fromkeys(label for labels in declared.values() for label in labels))
+    against = pooled_reference_pairs(declared, reference)
+    families = [(against, f"each controller against {reference} over both tasks")]
+    tuned = [p for p in pooled_reference_pairs(declared, reference, tuned_pairs(labels)) if p not in against]
+    if tuned:
+        clause = ", ".join(f"{a} vs {b}" for _, a, b in tuned)
+        families.append((tuned, f"each tuned controller against its defaults over both tasks ({clause})"))
+    return families
+
+
+def headline_families(mode: Mode, reference: str) -> list[tuple[list[tuple[str, str, str]], str]]:
+    """``mode``'s headline families (:func:`pooled_families`), read from its header before any
+    outcome; empty for a mode not published yet."""
+    return pooled_families(mode.declared(), reference)
+
+
+def _planned_power(mode: Mode, m: int) -> float:
+    """The detectable difference of a pooled family of ``m`` tests by the run's design: every task's
+    planned layouts, its episodes per layout, at :data:`PLANNED_DISCORDANCE` and 80% power after
+    Holm's first step."""
+    config = mode.results.config if mode.results is not None else {}
+    suite = config["suite"]
+    per_layout = int(suite["episodes_per_layout"]) * len(config["slips"])
+    layouts = sum(planned_episodes(config, env_id) // per_layout for env_id in config["env_ids"])
+    return detectable_difference(
+        layouts, per_layout, discordance=PLANNED_DISCORDANCE, family_size=m, alpha=ALPHA, power=0.8
+    )
+
+
+def _headline_family(mode: Mode, pairs: list[tuple[str, str, str]], design: str) -> list[str]:
+    """One pooled family's table: the pairs of controllers complete in both tasks tested, the
+    others named as pending (counted in m as p = 1), Holm within the family, its power."""
+    assert mode.results is not None
+    tasks = list(mode.declared())
+    complete = {label for _, label in mode.progress if all(mode.pending(t, label) is None for t in tasks)}
+    records = [r for r in mode.results.records if r["controller"] in complete]
+    m = len(pairs)
+    planned = _planned_power(mode, m)
+    found = (
+        f"it finds {100 * planned:.1f} points"
+        if not math.isnan(planned)
+        else "no difference is found with that power on so few layouts"
+    )
+    lines = [
+        f"m = {m} tests, declared from the run's header. By the run's design, at 80% power after "
+        f"Holm's first step and discordance psi = {PLANNED_DISCORDANCE}, {found} (docs/benchmark.md, "
+        "Statistics, the sizing).",
+        "",
+    ]
+    table = measure_table(records, OUTCOMES[0], pairs, design) if records else None
+    if table is not None and table["rows"]:
+        lines += [markdown_table(paired_table(table, OUTCOMES[0])), ""]
+        family = table["family"]
+        rejected = [t["comparison"] for t in family["tests"] if t["rejected"]]
+        power = table["power"]["sentence"] if table["power"] is not None else ""
+        lines += [
+            f"{power} "
+            + (
+                f"Rejected at alpha = {family['alpha']:g} after Holm: {', '.join(rejected)}."
+                if rejected
+                else f"None rejected at alpha = {family['alpha']:g} after Holm."
+            ),
+            "",
+        ]
+    pending = []
+    for _, a, b in pairs:
+        waiting = []
+        for label in (a, b):
+            states = {t: mode.progress.get((t, label)) for t in tasks}
+            if all(state is not None and state.complete for state in states.values()):
+                continue
+            counts = ", ".join(
+                f"{task_label(t)} {'not in this run' if state is None else f'{state.done:,} of {state.planned:,}'}"
+                for t, state in states.items()
+            )
+            waiting.append(f"{label}: {counts} episodes")
+        if waiting:
+            pending.append(f"{a} vs {b} ({'; '.join(waiting)})")
+    if pending:
+        lines += [
+            "Pending until both controllers are complete in both tasks (counted in m as p = 1): "
+            + "; ".join(pending)
+            + ".",
+            "",
+        ]
+    return lines
+
+
+def _headline_section(modes: Sequence[Mode], reference: str) -> list[str]:
+    """The headline families of every published mode, before the per-task tables."""
+    published = [mode for mode in modes if mode.results is not None]
+    if not published:
+        return []
+    lines = [
+        "## The headline family: success over both tasks",
+        "",
+        f"The page's primary test, per mode: success of each controller against {reference}, pooled "
+        "over both tasks (a comparison's units are the (task, layout) units of both tasks that both "
+        "controllers ran), declared from the run's header before any "
+        "outcome and corrected with Holm within its own family. Each (task, layout) is its own "
+        "cluster (layout 3 of one task and layout 3 of the other are two layouts): a minus "
+        f"{reference} with the two-stage bootstrap interval over those layouts and the layout "
+        "sign-flip test, as in every paired table. The tuned controllers against their `-v0` "
+        "(what tuning gained, free compute) are a family of their own after it: another question "
+        "than the headline's, so it does not spend the headline's power. The per-task tables of "
+        "each mode (its section below) are secondary families.",
+        "",
+    ]
+    for mode in modes:
+        if mode.results is None:
+            what = "not published yet" if not mode.progress else "no controller complete in both tasks yet"
+            lines += [f"**{RUNS[mode.name][1]}**: pending, {what}.", ""]
+            continue
+        for pairs, design in headline_families(mode, reference):
+            lines += [f"**{RUNS[mode.name][1]}: {design}**", "", *_headline_family(mode, pairs, design)]
+    return lines
 
 
 def pairs_file(modes: Sequence[Mode]) -> str | None:
@@ -702,7 +852,18 @@ def _tested_section(mode: Mode, tested: tuple[list[dict[str, Any]], str] | None)
     title = RUNS[mode.name][1]
     tables, design = tested
     text = markdown(suite_sections(mode.results, tables, paired_note(design))).replace("\n## ", "\n### ")
-    return [f"## {title}: outcomes, metrics and paired tests", "", "### " + text.removeprefix("## "), ""]
+    secondary = (
+        "The paired tables of this section are secondary families, within each task (the headline "
+        "family, over both tasks, is above)."
+    )
+    return [
+        f"## {title}: outcomes, metrics and paired tests",
+        "",
+        secondary,
+        "",
+        "### " + text.removeprefix("## "),
+        "",
+    ]
 
 
 def _pairs_section(pairs: str) -> list[str]:
@@ -750,6 +911,7 @@ def page(
         *_runs_section(modes),
     ]
     tested = {mode.name: _mode_tables(mode, reference) for mode in modes}
+    lines += _headline_section(modes, reference)
     if any(mode.results is not None for mode in modes):
         lines += _leaderboard_section(modes)
         lines += _verdicts_section(modes, tested, paper, reference)

@@ -29,7 +29,13 @@ from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
 from evaluation.reports.sections import task_label
 from evaluation.reports.sections.blocks import p_cell, rate_cell
-from evaluation.stats.suite_statistics import suite_tables
+from evaluation.stats.suite_statistics import (
+    ALL,
+    OUTCOMES,
+    measure_table,
+    pooled_reference_pairs,
+    suite_tables,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
@@ -39,6 +45,7 @@ from make_bench_md import (  # noqa: E402  (docs/ is no package)
     _paper,
     _paper_variants_note,
     decision,
+    headline_families,
     load_mode,
     main,
     page,
@@ -53,6 +60,8 @@ from test_results_page import _published_runs  # noqa: E402  (data/publish.sh's 
 
 FREE = ROOT / "tests" / "data" / "bench_test_layouts0-2.tar.xz"
 CHARGED = ROOT / "tests" / "data" / "bench_test_realtime_layouts0-2.tar.xz"
+#: the modes' titles on the page
+RUNS_TITLES = {"charged": "Compute charged", "free": "Free compute"}
 #: the fixtures' reference (they ran --reference orca)
 REF = ["--reference", "orca"]
 
@@ -83,7 +92,8 @@ def test_the_page_lays_out_the_evaluators_numbers(modes) -> None:
     assert "koopnav-bench-v1/target_reaching/test@7f6471b2138e" in block
     assert "**Paired: Success**" in text and "**Paired: Strict success" in text
     assert "**Paired: Success excusing unavoidable collisions**" in text
-    assert text.count("is found with 80% power") == 2 * 8  # 8 tables per mode
+    # 8 per-task tables per mode, and each mode's headline family over both tasks
+    assert text.count("is found with 80% power") == 2 * 8 + 2
     assert "## Tuning budget" in text and "| orca | validation | 24 of 24 | 50 | 1,200 |" in text
     assert "pending" not in text.split("## The runs")[1].split("## Leaderboard")[0]
 
@@ -299,6 +309,90 @@ def test_modes_with_different_controllers_and_the_pages_families(tmp_path) -> No
     assert len(success_pairs) == 2 * (1 + 3)  # charged: 1 pair, free: 3 pairs; per task
     assert ("bench_test", "formation", "orca", "consensus-v0") in success_pairs
     assert {r["m"] for r in rows if r["measure"] == "success"} == {"2", "6"}
+
+
+def test_the_page_shows_the_pooled_headline_family_first(tmp_path, modes) -> None:
+    """Per mode, success of each controller against the reference pooled over both tasks, its own
+    family (Holm within it), before the leaderboard and the per-task tables (secondary, their
+    numbers as before); in the free run with a -v0, what tuning gained is a family of its own."""
+    free = load_mode("free", _with_v0(tmp_path))
+    charged = modes[0]
+    text = page([charged, free], None, "orca")
+    start = text.index("## The headline family: success over both tasks")
+    assert start < text.index("## Leaderboard") < text.index("## Compute charged: outcomes")
+    section = text[start : text.index("## Leaderboard")]
+    for mode in (charged, free):
+        families = headline_families(mode, "orca")
+        pairs, design = families[0]
+        assert pairs == [(ALL, "consensus", "orca")] + (
+            [(ALL, "consensus-v0", "orca")] if mode is free else []
+        )
+        table = measure_table(mode.results.records, OUTCOMES[0], pairs, design)
+        assert table["family"]["size"] == len(pairs)
+        for row in table["rows"]:
+            assert row["layouts"] == 6  # 3 layouts x 2 tasks, each (task, layout) its own cluster
+            line = f"| both tasks | {row['a']} | {row['b']} | 6 | 6 | {100 * row['rate_a']:.0f}% |"
+            assert line in section.split(f"**{RUNS_TITLES[mode.name]}: {design}**")[1]
+            assert f"{p_cell(row['p_holm'])} |" in section
+    assert [d for _, d in headline_families(free, "orca")][1] == (
+        "each tuned controller against its defaults over both tasks (consensus vs consensus-v0)"
+    )
+    assert "m = 2 tests, declared from the run's header" in section  # the headline, free compute
+    assert "m = 1 tests, declared from the run's header" in section  # charged; and tuning's own
+    # the per-task tables are the secondary families, their numbers what they were
+    tested = text.split("## Compute charged: outcomes")[1].split("## Free compute: outcomes")[0]
+    assert "secondary families, within each task" in tested
+    for row in suite_tables(charged.results.records, *page_pairs(charged, "orca"))[0]["rows"]:
+        assert f"| {task_label(row['env_id'])} | {row['a']} | {row['b']} | {row['layouts']} |" in tested
+        assert row["layouts"] == 3
+
+
+def test_a_pooled_comparison_waits_for_both_tasks(tmp_path) -> None:
+    """consensus complete in target reaching but not in formation: its per-task row of target
+    reaching is tested, its pooled comparison is pending (never tested on one task's units)."""
+
+    def last_two_off(lines: list[str]) -> list[str]:
+        assert json.loads(lines[-1])["controller"] == "consensus"
+        return lines[:-2]
+
+    text = _page_of_a_partial_charged_run(tmp_path, last_two_off)
+    section = text[text.index("## The headline family") : text.index("## Leaderboard")]
+    assert "| both tasks |" not in section
+    assert (
+        "Pending until both controllers are complete in both tasks (counted in m as p = 1): consensus "
+        "vs orca (consensus: target reaching 3 of 3, formation 1 of 3 episodes)." in section
+    )
+    assert "**Free compute**: pending, not published yet." in section
+
+
+def test_the_headline_family_meets_the_target_with_compute_charged() -> None:
+    """The headline family of the published design (data/publish.sh's charged run, counted here):
+    9 controllers against koopman-nmpc pooled over both tasks, 400 (task, layout) units per
+    comparison at 1 episode: at psi = 0.3 it detects under 10 points (the per-task family of m = 18
+    on 200 layouts detects 14.6); the page's block states it."""
+    from evaluation.experiments.protocols import SUITE_EPISODES
+    from evaluation.stats.families import detectable_difference
+    from koopman_envs import TASKS
+    from koopman_envs.suites import SUITES
+
+    runs = _published_runs()
+    labels = _controllers(runs["bench_test_realtime"])
+    pairs = pooled_reference_pairs({task: labels for task in TASKS}, "koopman-nmpc")
+    assert len(pairs) == len(labels) - 1 == 9
+    units = len(TASKS) * SUITES["koopnav-bench-v1"].split("test").size
+    assert units == 400
+    found = detectable_difference(units, SUITE_EPISODES, discordance=0.3, family_size=len(pairs))
+    per_task = detectable_difference(units // 2, SUITE_EPISODES, discordance=0.3, family_size=2 * len(pairs))
+    assert found < 0.10 < per_task
+    text = BENCHMARK.read_text(encoding="utf-8")
+    assert (
+        f"**The headline family detects {100 * found:.1f} points in `bench_test_realtime` (m = 9: meets "
+        "the 10-point target)" in text
+    )
+    # the free run's headline holds its 13 controllers against the reference, not the 4 tuned pairs
+    free = _controllers(runs["bench_test"])
+    assert "m = 13 in `bench_test` (and what tuning gained apart, m = 4)" in text
+    assert len(free) - 1 == 13 and sum(label.endswith("-v0") for label in free) == 4
 
 
 def test_a_reference_a_run_lacks_is_refused(tmp_path, capsys) -> None:
