@@ -67,14 +67,9 @@ from evaluation.reports.sections.suite_tables import (  # noqa: E402
     paired_table,  # noqa: E402
     suite_sections,
 )
+from evaluation.stats.designs import pooled_reference_pairs, reference_pairs  # noqa: E402
 from evaluation.stats.families import detectable_difference  # noqa: E402
-from evaluation.stats.suite_statistics import (  # noqa: E402
-    OUTCOMES,
-    measure_table,
-    pooled_reference_pairs,
-    reference_pairs,
-    suite_tables,
-)
+from evaluation.stats.suite_statistics import OUTCOMES, measure_table, suite_tables  # noqa: E402
 from evaluation.tune.confirm import CONFIRMATION_FILE  # noqa: E402
 from koopman_envs import TIERS  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
@@ -254,7 +249,7 @@ def option_values(arguments: Sequence[str], option: str) -> list[str]:
 
 def page_pairs(mode: Mode, reference: str) -> tuple[list[tuple[str, str, str]], str]:
     """The page's design for ``mode``'s paired tables, read from its header before any outcome
-    (:func:`~evaluation.stats.suite_statistics.reference_pairs`): every controller against
+    (:func:`~evaluation.stats.designs.reference_pairs`): every controller against
     ``reference``, and each tuned controller against its ``-v0`` (what tuning gained) where the
     run has both; with the clause that names it. ``ValueError`` when the run lacks ``reference``."""
     labels = list(dict.fromkeys(label for _, label in mode.progress))
@@ -275,7 +270,7 @@ def pooled_families(
 ) -> list[tuple[list[tuple[str, str, str]], str]]:
     """The headline families of a run declaring ``declared`` (task -> its controllers, from its
     header), success pooled over both tasks
-    (:func:`~evaluation.stats.suite_statistics.pooled_reference_pairs`): first the headline, every
+    (:func:`~evaluation.stats.designs.pooled_reference_pairs`): first the headline, every
     controller declared in both tasks against ``reference``; then, where the run has tuned
     controllers and their ``-v0``, what tuning gained as a family of its own (another question,
     kept out of the headline's m). Each is (pairs, the clause that names it); empty for fewer

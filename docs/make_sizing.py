@@ -32,8 +32,8 @@ from make_pages import block_of, with_block  # noqa: E402
 
 from evaluation.exit_codes import FAILED_CHECK_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.experiments.protocols import SUITE_EPISODES  # noqa: E402
+from evaluation.stats.designs import reference_pairs  # noqa: E402
 from evaluation.stats.families import detectable_difference, layouts_needed  # noqa: E402
-from evaluation.stats.suite_statistics import reference_pairs  # noqa: E402
 from koopman_envs import TASKS  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 from koopman_envs.suites import SUITES  # noqa: E402

@@ -29,13 +29,8 @@ from evaluation.reports.publications import extracted_archive
 from evaluation.reports.published import pack_run
 from evaluation.reports.sections import task_label
 from evaluation.reports.sections.blocks import p_cell, rate_cell
-from evaluation.stats.suite_statistics import (
-    ALL,
-    OUTCOMES,
-    measure_table,
-    pooled_reference_pairs,
-    suite_tables,
-)
+from evaluation.stats.designs import ALL, pooled_reference_pairs
+from evaluation.stats.suite_statistics import OUTCOMES, measure_table, suite_tables
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))

@@ -130,19 +130,20 @@ def test_every_row_records_what_it_was_measured_with() -> None:
     assert tuned["controller_options"]["horizon"] != 20  # the tuned preset: another controller
 
 
-def test_the_sim2sim_section_counts_every_registered_controller() -> None:
-    """The protocol's commands name no --controllers, so it runs every registered controller: the
-    page's count, its episodes (10 layouts x 2 tasks x 2 floors each) and the fine-tuned row's
-    "one of N" follow controllers.available()."""
+def test_the_sim2sim_section_counts_every_controller_of_a_default_run() -> None:
+    """The protocol's commands name no --controllers, so it runs every controller a default run
+    takes (the registered ones but the -v0 variants, which run only when named): the page's count,
+    its episodes (10 layouts x 2 tasks x 2 floors each) and the fine-tuned row's "one of N" follow
+    controllers.available(variants=False)."""
     import re
 
     import controllers
 
     page = (ROOT / "docs" / "physics.md").read_text(encoding="utf-8")
     section = page[page.index("## The sim-to-sim protocol") : page.index("## Speed")]
-    n = len(controllers.available())
+    n = len(controllers.available(variants=False))
     assert "--controllers" not in section.split("```bash")[1].split("```")[0]
-    assert re.findall(r"Every registered controller \((\d+)\)", section) == [str(n)]
+    assert re.findall(r"Every controller a default run takes \((\d+):", section) == [str(n)]
     assert re.findall(r"One of the (\d+) is not a transfer", section) == [str(n)]
     episodes = re.findall(r"(\d+) physics episodes \((\d+) controllers", section)
     assert episodes == [(str(n * 10 * 2 * 2), str(n))]

@@ -15,6 +15,7 @@ from evaluation.reports.results import Results
 from evaluation.reports.sections import markdown, sections
 from evaluation.stats.aggregate import leaderboard, paired_comparisons
 from evaluation.stats.clustered import layout_mean_interval, layout_rate_interval
+from evaluation.stats.designs import ALL, declared_pairs, pooled_reference_pairs, reference_pairs
 from evaluation.stats.families import HypothesisFamily, power_statement
 from evaluation.stats.layout_tests import (
     layout_sign_flip_test,
@@ -23,17 +24,7 @@ from evaluation.stats.layout_tests import (
 )
 from evaluation.stats.run_data import RunData
 from evaluation.stats.statistics import holm_adjusted, wilson_interval
-from evaluation.stats.suite_statistics import (
-    ALL,
-    MEASURES,
-    METRICS,
-    OUTCOMES,
-    declared_pairs,
-    measure_table,
-    pooled_reference_pairs,
-    reference_pairs,
-    suite_tables,
-)
+from evaluation.stats.suite_statistics import MEASURES, METRICS, OUTCOMES, measure_table, suite_tables
 
 TASKS = ("KoopNav-TargetReaching-v0", "KoopNav-Formation-v0")
 #: the metric fields a record written before the suite's metric tables lacks

@@ -1,7 +1,8 @@
 """From episode records to numbers: intervals and tests (:mod:`~evaluation.stats.statistics`),
 the same with the layout as the unit (:mod:`~evaluation.stats.clustered`,
 :mod:`~evaluation.stats.layout_tests`), families of tests and their power
-(:mod:`~evaluation.stats.families`), a suite run's tables (:mod:`~evaluation.stats.suite_statistics`),
+(:mod:`~evaluation.stats.families`), a suite run's tables (:mod:`~evaluation.stats.suite_statistics`) and their designs
+(:mod:`~evaluation.stats.designs`),
 cells, leaderboard rows and paired comparisons (:mod:`~evaluation.stats.aggregate`), a run's data
 for the renderers (:class:`~evaluation.stats.run_data.RunData`) a sweep's robustness profiles
 (:mod:`~evaluation.stats.robustness`) and the sim-to-sim comparison of two plants
@@ -20,6 +21,14 @@ from evaluation.stats.clustered import (
     layout_mean_interval,
     layout_rate_interval,
     run_aggregate_interval,
+)
+from evaluation.stats.designs import (
+    ALL,
+    EVERY_PAIR,
+    declared_pairs,
+    pair_label,
+    pooled_reference_pairs,
+    reference_pairs,
 )
 from evaluation.stats.families import (
     CorrectedTest,
@@ -52,17 +61,14 @@ from evaluation.stats.statistics import (
 )
 from evaluation.stats.suite_statistics import (
     BREAKDOWNS,
-    EVERY_PAIR,
     MEASURES,
     METRICS,
     OUTCOMES,
     Measure,
     breakdown,
-    declared_pairs,
     is_suite_run,
     layout_summary,
     measure_table,
-    reference_pairs,
     suite_mean_interval,
     suite_rate_interval,
     suite_tables,
@@ -103,21 +109,24 @@ __all__ = [
     "layouts_needed",
     "paired_power",
     "power_statement",
-    "BREAKDOWNS",
+    "ALL",
     "EVERY_PAIR",
+    "declared_pairs",
+    "pair_label",
+    "pooled_reference_pairs",
+    "reference_pairs",
+    "BREAKDOWNS",
     "METRICS",
     "MEASURES",
     "OUTCOMES",
     "Measure",
     "breakdown",
-    "declared_pairs",
     "is_suite_run",
     "layout_summary",
     "suite_mean_interval",
     "suite_rate_interval",
     "suite_tables",
     "measure_table",
-    "reference_pairs",
     "Cell",
     "DistanceSummary",
     "leaderboard",

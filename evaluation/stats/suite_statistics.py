@@ -19,8 +19,8 @@ stated with its power.
   interval and the layout sign-flip test). Its family (:class:`~evaluation.stats.families.HypothesisFamily`)
   is the run's design, every pair of controllers of every task that ran, known before any outcome:
   a pair without a shared unit counts in ``m`` as ``p = 1``; or a narrower design declared the
-  same way (:func:`reference_pairs`: every controller against a reference, and named pairs).
-  A comparison may pool the tasks (:func:`pooled_reference_pairs`, task :data:`ALL`): its units are
+  same way (:mod:`evaluation.stats.designs`: every controller against a reference, and named
+  pairs). A comparison may pool the tasks (``pooled_reference_pairs``, task ``ALL``): its units are
   every task's, each (task, layout) its own cluster, so one layout number of two tasks is never
   one cluster. :func:`suite_tables`: every measure's table.
 
@@ -40,35 +40,26 @@ from evaluation.episodes.distinct import distinct_records, distinct_units, paire
 from evaluation.episodes.records import ran
 from evaluation.run.suite_runs import cluster_of
 from evaluation.stats.clustered import layout_mean_interval, layout_rate_interval
+from evaluation.stats.designs import ALL, EVERY_PAIR, declared_pairs, pair_label
 from evaluation.stats.families import HypothesisFamily, power_statement
 from evaluation.stats.layout_tests import LayoutComparison, paired_means_by_layout, paired_rates_by_layout
 from evaluation.stats.statistics import wilson_interval
 from koopman_envs import FAMILIES, SUITE_PREFIX, TIERS, path_ratio, smallest_clearance
-from koopman_envs.checks import check_choice
 
 __all__ = [
-    "ALL",
     "BREAKDOWNS",
     "METRICS",
     "MEASURES",
     "OUTCOMES",
     "Measure",
     "breakdown",
-    "EVERY_PAIR",
-    "declared_pairs",
     "is_suite_run",
     "layout_summary",
     "suite_mean_interval",
     "suite_rate_interval",
     "suite_tables",
     "measure_table",
-    "pooled_reference_pairs",
-    "reference_pairs",
 ]
-
-#: the task of a comparison pooled over every task of the run (:func:`pooled_reference_pairs`), as
-#: its rows and its label in the family name it
-ALL = "both tasks"
 
 
 @dataclass(frozen=True)
@@ -223,95 +214,10 @@ def suite_mean_interval(
     return mean, [low, high]
 
 
-def declared_pairs(records: Sequence[Mapping[str, Any]]) -> list[tuple[str, str, str]]:
-    """The run's design: (task, a, b) for every two controllers of every task, in the order they
-    first appear among the records (episodes that raised included: the design, not the outcomes)."""
-    names: dict[str, dict[str, None]] = {}
-    for record in records:
-        names.setdefault(record["env_id"], {})[record["controller"]] = None
-    return [
-        (env_id, a, b)
-        for env_id, labels in names.items()
-        for i, a in enumerate(labels)
-        for b in list(labels)[i + 1 :]
-    ]
-
-
-def reference_pairs(
-    controllers: Mapping[str, Sequence[str]], reference: str, also: Sequence[tuple[str, str]] = ()
-) -> list[tuple[str, str, str]]:
-    """A design narrower than :func:`declared_pairs`, read from a run's declared controllers (its
-    header), never from its outcomes: per task, (task, a, ``reference``) for every other
-    controller a, in their order, then (task, a, b) for each (a, b) of ``also`` that the task has
-    both of.
-
-    Parameters
-    ----------
-    controllers : mapping of str to sequence of str
-        Task (env id) -> the labels the run declares for it.
-    reference : str
-        The controller every other one is compared with (``b`` of its pairs).
-    also : sequence of (str, str)
-        Further pairs (a, b) the family holds, e.g. a tuned controller and its ``-v0``.
-
-    Raises
-    ------
-    ValueError
-        ``reference`` is not declared for some task (naming the task and its controllers).
-    """
-    pairs = []
-    for env_id, labels in controllers.items():
-        check_choice("reference", reference, labels, f" of {env_id}", among="the controllers")
-        pairs += [(env_id, a, reference) for a in labels if a != reference]
-        pairs += [(env_id, a, b) for a, b in also if a in labels and b in labels]
-    return list(dict.fromkeys(pairs))
-
-
-def pooled_reference_pairs(
-    controllers: Mapping[str, Sequence[str]], reference: str, also: Sequence[tuple[str, str]] = ()
-) -> list[tuple[str, str, str]]:
-    """A design pooled over the tasks, read from a run's declared controllers (its header), never
-    from its outcomes: (:data:`ALL`, a, ``reference``) for every other controller a declared in
-    every task, in the first task's order, then (:data:`ALL`, a, b) for each (a, b) of ``also``
-    declared in every task. :func:`measure_table` compares such a pair on the units of every task,
-    each (task, layout) its own cluster.
-
-    Parameters
-    ----------
-    controllers : mapping of str to sequence of str
-        Task (env id) -> the labels the run declares for it (at least two tasks).
-    reference : str
-        The controller every other one is compared with (``b`` of its pairs).
-    also : sequence of (str, str)
-        Further pairs (a, b), e.g. a tuned controller and its ``-v0``.
-
-    Raises
-    ------
-    ValueError
-        Fewer than two tasks, or ``reference`` not declared for some task (naming the task and its
-        controllers).
-    """
-    if len(controllers) < 2:
-        raise ValueError(
-            f"controllers declares the tasks {sorted(controllers)}; a pooled comparison needs at least two"
-        )
-    for env_id, labels in controllers.items():
-        check_choice("reference", reference, labels, f" of {env_id}", among="the controllers")
-    everywhere = [a for a in next(iter(controllers.values())) if all(a in c for c in controllers.values())]
-    pairs = [(ALL, a, reference) for a in everywhere if a != reference]
-    pairs += [(ALL, a, b) for a, b in also if a in everywhere and b in everywhere]
-    return list(dict.fromkeys(pairs))
-
-
 def _scope(records: Sequence[Mapping[str, Any]]) -> str:
     """The suite splits the records ran on (``koopnav-bench-v1/test``), for a family's name."""
     maps = sorted({str(r.get("map", "")).removeprefix(SUITE_PREFIX) for r in records})
     return ", ".join(maps) or "suite"
-
-
-def pair_label(env_id: str, a: str, b: str) -> str:
-    """A comparison's label in its family: ``<task id>: <a> vs <b>``."""
-    return f"{env_id}: {a} vs {b}"
 
 
 def _units(records: Sequence[Mapping[str, Any]]) -> dict[tuple[str, str], dict[tuple, Mapping[str, Any]]]:
@@ -368,10 +274,6 @@ def _row(
     return row
 
 
-#: the design of :func:`declared_pairs`, as a family's name states it
-EVERY_PAIR = "every pair of controllers within each task"
-
-
 def measure_table(
     records: Sequence[Mapping[str, Any]],
     measure: Measure,
@@ -388,9 +290,9 @@ def measure_table(
         What the table compares (one of :data:`MEASURES`).
     pairs : sequence of tuple of str, optional
         The family's comparisons, each (task, a, b), declared from the run's design before any
-        test (default: every pair, :func:`declared_pairs`; :func:`reference_pairs` for a page that
+        test (default: every pair, :func:`declared_pairs`; :func:`~evaluation.stats.designs.reference_pairs` for a page that
         tests fewer). Holm's correction and the power statement run over exactly these. A pair
-        whose task is :data:`ALL` (:func:`pooled_reference_pairs`) is compared on the units of
+        whose task is :data:`~evaluation.stats.designs.ALL` (:func:`~evaluation.stats.designs.pooled_reference_pairs`) is compared on the units of
         every task of ``records``, each (task, layout) a cluster of its own, and only where both
         controllers ran in every task (else it counts in ``m`` as ``p = 1``).
     design : str

@@ -1,0 +1,111 @@
+"""The designs of a suite run's paired tables: which comparisons a family holds, declared from the
+run's header or its records before any outcome is read (:mod:`evaluation.stats.suite_statistics`
+tests them).
+
+- :func:`declared_pairs`: every two controllers of every task (:data:`EVERY_PAIR`);
+- :func:`reference_pairs`: every controller against a reference within each task, and named pairs;
+- :func:`pooled_reference_pairs`: the same pooled over the tasks (task :data:`ALL`): a comparison
+  whose units are every task's, each (task, layout) a cluster of its own;
+- :func:`pair_label`: a comparison's label in its family.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from koopman_envs.checks import check_choice
+
+__all__ = ["ALL", "EVERY_PAIR", "declared_pairs", "pair_label", "pooled_reference_pairs", "reference_pairs"]
+
+#: the task of a comparison pooled over every task of the run (:func:`pooled_reference_pairs`), as
+#: its rows and its label in the family name it
+ALL = "both tasks"
+
+#: the design of :func:`declared_pairs`, as a family's name states it
+EVERY_PAIR = "every pair of controllers within each task"
+
+
+def declared_pairs(records: Sequence[Mapping[str, Any]]) -> list[tuple[str, str, str]]:
+    """The run's design: (task, a, b) for every two controllers of every task, in the order they
+    first appear among the records (episodes that raised included: the design, not the outcomes)."""
+    names: dict[str, dict[str, None]] = {}
+    for record in records:
+        names.setdefault(record["env_id"], {})[record["controller"]] = None
+    return [
+        (env_id, a, b)
+        for env_id, labels in names.items()
+        for i, a in enumerate(labels)
+        for b in list(labels)[i + 1 :]
+    ]
+
+
+def reference_pairs(
+    controllers: Mapping[str, Sequence[str]], reference: str, also: Sequence[tuple[str, str]] = ()
+) -> list[tuple[str, str, str]]:
+    """A design narrower than :func:`declared_pairs`, read from a run's declared controllers (its
+    header), never from its outcomes: per task, (task, a, ``reference``) for every other
+    controller a, in their order, then (task, a, b) for each (a, b) of ``also`` that the task has
+    both of.
+
+    Parameters
+    ----------
+    controllers : mapping of str to sequence of str
+        Task (env id) -> the labels the run declares for it.
+    reference : str
+        The controller every other one is compared with (``b`` of its pairs).
+    also : sequence of (str, str)
+        Further pairs (a, b) the family holds, e.g. a tuned controller and its ``-v0``.
+
+    Raises
+    ------
+    ValueError
+        ``reference`` is not declared for some task (naming the task and its controllers).
+    """
+    pairs = []
+    for env_id, labels in controllers.items():
+        check_choice("reference", reference, labels, f" of {env_id}", among="the controllers")
+        pairs += [(env_id, a, reference) for a in labels if a != reference]
+        pairs += [(env_id, a, b) for a, b in also if a in labels and b in labels]
+    return list(dict.fromkeys(pairs))
+
+
+def pooled_reference_pairs(
+    controllers: Mapping[str, Sequence[str]], reference: str, also: Sequence[tuple[str, str]] = ()
+) -> list[tuple[str, str, str]]:
+    """A design pooled over the tasks, read from a run's declared controllers (its header), never
+    from its outcomes: (:data:`ALL`, a, ``reference``) for every other controller a declared in
+    every task, in the first task's order, then (:data:`ALL`, a, b) for each (a, b) of ``also``
+    declared in every task. :func:`measure_table` compares such a pair on the units of every task,
+    each (task, layout) its own cluster.
+
+    Parameters
+    ----------
+    controllers : mapping of str to sequence of str
+        Task (env id) -> the labels the run declares for it (at least two tasks).
+    reference : str
+        The controller every other one is compared with (``b`` of its pairs).
+    also : sequence of (str, str)
+        Further pairs (a, b), e.g. a tuned controller and its ``-v0``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two tasks, or ``reference`` not declared for some task (naming the task and its
+        controllers).
+    """
+    if len(controllers) < 2:
+        raise ValueError(
+            f"controllers declares the tasks {sorted(controllers)}; a pooled comparison needs at least two"
+        )
+    for env_id, labels in controllers.items():
+        check_choice("reference", reference, labels, f" of {env_id}", among="the controllers")
+    everywhere = [a for a in next(iter(controllers.values())) if all(a in c for c in controllers.values())]
+    pairs = [(ALL, a, reference) for a in everywhere if a != reference]
+    pairs += [(ALL, a, b) for a, b in also if a in everywhere and b in everywhere]
+    return list(dict.fromkeys(pairs))
+
+
+def pair_label(env_id: str, a: str, b: str) -> str:
+    """A comparison's label in its family: ``<task id>: <a> vs <b>``."""
+    return f"{env_id}: {a} vs {b}"
