@@ -305,6 +305,7 @@ def test_a_vector_env_pickled_before_the_layout_resumes_and_steps_as_the_current
 
     import numpy as np
 
+    pytest.importorskip("stable_baselines3", reason="the SB3 adapter needs the [rl] extra")
     from baselines.features.set_features import SetFeatureConfig
     from baselines.sb3.vec_env import KoopNavSB3VecEnv
 
