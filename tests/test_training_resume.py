@@ -285,14 +285,15 @@ def test_the_driver_resumes_a_seed_with_a_sound_checkpoint_and_restarts_one_with
 
 
 # ----------------------------------------------------------------------------- old checkpoints
-def _as_written_before_the_layout(venv) -> object:
+def _as_written_before_the_layout(venv, extra_movers: int = 0) -> bytes:
     """``venv`` pickled as the adapter was before it kept the env's observation layout (d3391fd):
-    the movers' count and the obstacle slots in its place."""
+    the movers' count and the obstacle slots in its place; ``extra_movers`` miscounts the movers,
+    as a checkpoint of another env would."""
     import pickle
 
     copy = pickle.loads(pickle.dumps(venv))
     layout = copy.__dict__.pop("_observed")
-    copy.__dict__.update(_mover_slots=layout.movers, _n_obstacle_obs=layout.n_obstacle_obs)
+    copy.__dict__.update(_mover_slots=layout.movers + extra_movers, _n_obstacle_obs=layout.n_obstacle_obs)
     return pickle.dumps(copy)
 
 
@@ -324,10 +325,7 @@ def test_a_vector_env_pickled_before_the_layout_resumes_and_steps_as_the_current
         np.testing.assert_array_equal(obs_old, obs_now, strict=True)
         np.testing.assert_array_equal(rew_old, rew_now, strict=True)
         np.testing.assert_array_equal(done_old, done_now, strict=True)
-    foreign = pickle.loads(pickle.dumps(venv))
-    layout = foreign.__dict__.pop("_observed")
-    foreign.__dict__.update(_mover_slots=layout.movers + 1, _n_obstacle_obs=layout.n_obstacle_obs)
     with pytest.raises(
         ValueError, match=r"lists \d+ movers and \d+ obstacles per robot where its env's layout"
     ):
-        pickle.loads(pickle.dumps(foreign))
+        pickle.loads(_as_written_before_the_layout(venv, extra_movers=1))
