@@ -18,8 +18,8 @@ rerun after an interruption (Ctrl-C, a machine that ends) runs only the episodes
 logs. A log of another run (another best configuration, layouts, seed or settings: its header
 differs) is refused by name, never mixed; move the folder aside to start afresh. The record is
 written atomically once both runs are complete; a record already there that matches the study's
-best trial, the layouts and the run settings is read instead of rerunning anything
-(:attr:`Confirmation.recorded`).
+best trial and its options (``best_options``), the layouts and the run settings is read instead
+of rerunning anything (:attr:`Confirmation.recorded`).
 """
 
 from __future__ import annotations
@@ -128,8 +128,8 @@ def confirm(
 
     The two runs log their episodes into ``studies/NAME/confirmation/best/`` and
     ``.../defaults/`` and resume from them: rerun after an interruption, only the missing episodes
-    run. A record already written for this best trial, these layouts and run settings is returned
-    as it is (``recorded=True``), nothing rerun.
+    run. A record already written for this best trial and its options, these layouts and run
+    settings is returned as it is (``recorded=True``), nothing rerun.
 
     Raises
     ------
@@ -158,7 +158,8 @@ def confirm(
     }
 
     folder = Path(studies) / name
-    recorded = _recorded(folder / CONFIRMATION_FILE, name, int(best["trial"]), run)
+    best_options = json_safe(dict(best["options"]))
+    recorded = _recorded(folder / CONFIRMATION_FILE, name, int(best["trial"]), best_options, run)
     if recorded is not None:
         return recorded
 
@@ -204,15 +205,26 @@ def confirm(
         p_value,
         exact,
     )
-    record = {**asdict(result), "confirmed": result.confirmed, "rule": CONFIRMATION_RULE, "run": run}
+    record = {
+        **asdict(result),
+        "best_options": best_options,
+        "confirmed": result.confirmed,
+        "rule": CONFIRMATION_RULE,
+        "run": run,
+    }
     del record["recorded"]
     write_atomic(folder / CONFIRMATION_FILE, json.dumps(json_safe(record), indent=2) + "\n")
     return result
 
 
-def _recorded(path: Path, name: str, best_trial: int, run: dict[str, Any]) -> Confirmation | None:
-    """The confirmation recorded at ``path`` if it is of this study's best trial, layouts and run
-    settings (``run``), else None (no record, or one of another confirmation: it is rerun)."""
+def _recorded(
+    path: Path, name: str, best_trial: int, best_options: Any, run: dict[str, Any]
+) -> Confirmation | None:
+    """The confirmation recorded at ``path`` if it is of this study's best trial and its options,
+    layouts and run settings (``run``), else None (no record, or one of another confirmation: it
+    is rerun). A study redone can have its best at the same trial number with other options: the
+    record's ``best_options`` must be these. A record written before it carried them (consensus's
+    and dwa's committed ones) is matched without them."""
     if not path.is_file():
         return None
     try:
@@ -233,6 +245,7 @@ def _recorded(path: Path, name: str, best_trial: int, run: dict[str, Any]) -> Co
     same = (
         result.controller == name
         and result.best_trial == best_trial
+        and record.get("best_options", best_options) == best_options
         and list(result.layouts) == [run["layouts"][0], run["layouts"][-1] + 1]
         and record.get("run") == json_safe(run)
         and record.get("rule") == CONFIRMATION_RULE
