@@ -539,7 +539,38 @@ def _fewest_layouts(match: re.Match[str]) -> list[str]:
     return _same(stated, (fewest(float(alpha)), fewest(float(alpha2) / int(m))), "the fewest layouts")
 
 
+# ------------------------------------------------------------ the tuned presets' values
+def _option(name: str, option: str) -> float:
+    """``option`` of the controller or preset ``name`` as shipped: a tuned preset's file, else the
+    registered default (a ``-v0`` keeps the hand-set one); a pair of weights by its first entry."""
+    tuned = ROOT / "controllers" / "tuned" / f"{name}.json"
+    if tuned.is_file():
+        value = json.loads(tuned.read_text(encoding="utf-8"))["options"][option]
+    else:
+        import controllers
+
+        value = controllers.options(name).option(option).default
+    return float(value[0] if isinstance(value, list | tuple) else value)
+
+
+def _preset(*fields: tuple[str, str]) -> CheckFn:
+    """Each group of the match is ``fields[i]`` = (controller, option), to the places stated."""
+
+    def check(match: re.Match[str]) -> list[str]:
+        problems = []
+        for stated, (name, option) in zip(match.groups(), fields, strict=True):
+            places = len(stated.split(".")[1]) if "." in stated else 0
+            actual = round(_option(name, option), places)
+            problems += _same(float(stated), actual, f"{name}'s {option}")
+        return problems
+
+    return check
+
+
 # ------------------------------------------------------------ the claims of each page
+TUNED = "controllers/tuned/*.json and the -v0 presets' defaults"
+
+
 def _benchmark_claims() -> list[Claim]:
     studies = "data/tuning/*/{best,confirmation}.json and the adoption rule"
     publish = "data/publish.sh's runs (tests/test_bench_page.py parses them)"
@@ -652,6 +683,69 @@ def _benchmark_claims() -> list[Claim]:
             ),
             _both_modes,
             "the compute table's rows",
+        ),
+        Claim(
+            re.compile(
+                r"It plans over (\d+) steps \((\d+) before\), with a\s+lighter input weight \(([\d.]+)\), "
+                r"wider obstacle margins \(([\d.]+) m against the paper's ([\d.]+) m\), a\s+narrower robot "
+                r"margin \(([\d.]+) m\) and its calibrated residual widening them \(`uncertainty_margin`\s+"
+                r"([\d.]+)\)"
+            ),
+            _preset(
+                ("koopman-nmpc", "horizon"),
+                ("koopman-nmpc-v0", "horizon"),
+                ("koopman-nmpc", "r_input"),
+                ("koopman-nmpc", "obstacle_offset"),
+                ("koopman-nmpc-v0", "obstacle_offset"),
+                ("koopman-nmpc", "robot_offset"),
+                ("koopman-nmpc", "uncertainty_margin"),
+            ),
+            TUNED,
+        ),
+        Claim(
+            re.compile(
+                r"looks further ahead \(`horizon`\s+(\d+) against (\d+)\) and widens the obstacle margin "
+                r"\(([\d.]+) m against ([\d.]+)\) with an uncertainty\s+margin \(([\d.]+) against (0)\)"
+            ),
+            _preset(
+                ("koopman-nmpc", "horizon"),
+                ("koopman-nmpc-v0", "horizon"),
+                ("koopman-nmpc", "obstacle_offset"),
+                ("koopman-nmpc-v0", "obstacle_offset"),
+                ("koopman-nmpc", "uncertainty_margin"),
+                ("koopman-nmpc-v0", "uncertainty_margin"),
+            ),
+            TUNED,
+        ),
+        Claim(
+            re.compile(
+                r"\(`obstacle_offset` ([\d.]+) m, `robot_offset` ([\d.]+) m, `uncertainty_margin` ([\d.]+)\) "
+                r"and softens the\s+barrier \(`cbf_gamma` ([\d.]+)\); its hand-set rate, ([\d.]+),"
+            ),
+            _preset(
+                ("mpc-cbf", "obstacle_offset"),
+                ("mpc-cbf", "robot_offset"),
+                ("mpc-cbf", "uncertainty_margin"),
+                ("mpc-cbf", "cbf_gamma"),
+                ("mpc-cbf-v0", "cbf_gamma"),
+            ),
+            TUNED,
+        ),
+        Claim(
+            re.compile(
+                r"looks further ahead \(`horizon`\s+(\d+) periods against (\d+)\), widens the obstacle margin "
+                r"\(`obstacle_offset` ([\d.]+) m against ([\d.]+)\)\s+and adds an uncertainty margin "
+                r"\(([\d.]+) against (0)\)"
+            ),
+            _preset(
+                ("nominal-nmpc", "horizon"),
+                ("nominal-nmpc-v0", "horizon"),
+                ("nominal-nmpc", "obstacle_offset"),
+                ("nominal-nmpc-v0", "obstacle_offset"),
+                ("nominal-nmpc", "uncertainty_margin"),
+                ("nominal-nmpc-v0", "uncertainty_margin"),
+            ),
+            TUNED,
         ),
         Claim(STARTS[0], lambda m: STARTS[1](m), "evaluation.experiments.protocols.START_NOISE"),
         Claim(
@@ -1187,6 +1281,9 @@ def test_every_result_of_the_hand_written_page_is_checked_or_pinned(page: str) -
         # against the code and the files
         ("benchmark.md", "0.4 MB in all", "0.5 MB in all", "the suite's data [MB]"),
         ("benchmark.md", "(6 at 0.05, 8 at", "(5 at 0.05, 8 at", "the fewest layouts"),
+        ("benchmark.md", "input weight (0.060)", "input weight (0.070)", "koopman-nmpc's r_input"),
+        ("benchmark.md", "(`cbf_gamma` 0.28)", "(`cbf_gamma` 0.29)", "mpc-cbf's cbf_gamma"),
+        ("benchmark.md", "34 periods against 20", "36 periods against 20", "nominal-nmpc's horizon"),
         (
             "benchmark.md",
             "`STRICT_CLEARANCE_MARGIN` = 5 cm",
