@@ -1,0 +1,1383 @@
+"""Prose that cannot drift (issue 60) in the hand-written pages docs/benchmark.md and docs/physics.md
+(tests/test_prose_checks.py does README's; tests/test_prose_pages.py the generated docs/paper.md).
+
+Every result-like number of the two pages (a rate, a count "N of M" or "N/M", a p-value, a family
+size, points, episodes, seconds, speeds, sizes, distances, ratios, and every number of a table cell
+that holds numbers only: :func:`result_tokens`) is one of:
+
+- **checked against its source** by a claim of :func:`claims`: a pattern and what checks it,
+  either a check here (the committed data: data/tuning/, data/physics_*, data/publish.sh, the
+  suite, the tuned presets, the code) or the rows another test rebuilds from the data
+  (tests/test_prose_checks.py, tests/test_bench_page.py, tests/test_physics_map1.py,
+  tests/test_koopman_hold.py), matched here as that test writes them;
+- **a repeat** of a number of a table of its own section (:data:`REPEATS`: the prose restates a
+  table's figure, rounded or not), so an edit of the prose alone fails;
+- **a measurement with no committed record** (:data:`MEASURED`: the phrase as the page states it,
+  and the command that measured it), pinned word for word, so an edit fails too;
+- **no result** (:data:`NOT_RESULTS`: a definition, a setting or an input that reads like one).
+
+:func:`page_problems` names every token none of these covers (page, line and token), every claim
+or pinned phrase the page no longer states, and every check that fails; the tests below show it
+on edited copies of the pages (never on the files). The sim-to-sim protocol's section of
+docs/physics.md is left out (:data:`LEFT_OUT`): another change rewrites it, and
+tests/test_physics_benches.py checks its counts.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+from test_bench_page import SIZING, _controllers, _published_runs, sizing_problems  # noqa: E402
+from test_koopman_hold import EPISODES, episode_rows, held_rows  # noqa: E402
+from test_koopman_hold import MEASURED as MODEL_ERROR  # noqa: E402
+from test_physics_map1 import PROBES, counts, failures, load, probes, table  # noqa: E402
+from test_prose_checks import (  # noqa: E402
+    STARTS,
+    WORDS,
+    suite_problems,
+    training_problems,
+    tuning_problems,
+    tuning_rows,
+)
+
+PAGES = ("benchmark.md", "physics.md")
+
+# --------------------------------------------------------------------------- result-like tokens
+NUM = r"\d+(?:,\d{3})*(?:\.\d+)?(?:e-?\d+)?"
+RANGE = rf"{NUM}(?:\s?-\s?{NUM})?"
+UNITS = (
+    r"%|points|CPU-seconds|CPU-s|CPU-hours|CPU-minutes|seconds|s|ms|us|min|minutes|h|hours"
+    r"|robot-steps/s|frames/s|env-steps/s|m/s|KB|MB|MiB|bytes|lines|rows|episodes|controllers"
+    r"|cm|mm|times|-fold"
+)
+#: a result-like number in running text
+RESULT = re.compile(
+    r"(?<![\w.])(?:"
+    rf"{NUM}/{NUM}(?![\w/])"  # N/M
+    rf"|{NUM} of (?:the )?{NUM}"  # N of M
+    rf"|p\s?[=<>]\s?{NUM}"  # a p-value
+    rf"|\bm = {NUM}"  # a family's size
+    rf"|{RANGE}\s?(?:{UNITS})(?![\w/])"  # a quantity with its unit
+    r")"
+)
+#: a table cell that holds numbers only (every number in it is a result)
+CELL_CHARS = re.compile(r"(?:[\d.,/()+\-=\s*]|\bx\b|\bus\b|\bpoints\b|%|\babout\b|\bmore than\b)+")
+
+
+def prose(text: str) -> str:
+    """``text`` with what is not prose blanked (positions kept): python and bash blocks (run or
+    parsed by other tests), HTML comments, inline code and link targets."""
+
+    def blank(match: re.Match[str]) -> str:
+        return re.sub(r"[^\n]", " ", match[0])
+
+    text = re.sub(r"```(?:python|bash)\n.*?```", blank, text, flags=re.S)
+    text = re.sub(r"<!--.*?-->", blank, text, flags=re.S)
+    text = re.sub(r"`[^`\n]*`", blank, text)
+    return re.sub(r"\]\([^)]*\)", blank, text)
+
+
+def result_tokens(text: str) -> list[tuple[int, int]]:
+    """The spans of every result-like token of ``text``: :data:`RESULT` in running text, and
+    every number of a table cell that holds numbers only (a table's rule row left out)."""
+    text = prose(text)
+    spans = [m.span() for m in RESULT.finditer(text)]
+    for row in re.finditer(r"^\|.*\|$", text, re.M):
+        if re.fullmatch(r"[|\s:-]+", row[0]):
+            continue
+        start = row.start()
+        for cell in re.finditer(r"[^|]+", row[0]):
+            if re.search(r"\d", cell[0]) and CELL_CHARS.fullmatch(cell[0]):
+                base = start + cell.start()
+                spans += [(base + n.start(), base + n.end()) for n in re.finditer(NUM, cell[0])]
+    return sorted(set(spans))
+
+
+def numbers(token: str) -> list[str]:
+    """The numbers of a token, thousands separators dropped (``1,200`` -> ``1200``)."""
+    return [n.replace(",", "") for n in re.findall(NUM, token)]
+
+
+# --------------------------------------------------------------------------- the claims
+#: a check: the match of a claim's pattern (``match.string`` is the whole page) -> its problems
+CheckFn = Callable[[re.Match[str]], list[str]]
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A statement of a page: ``pattern`` finds it, ``check`` holds it to its source (``by``
+    names what does). It covers the tokens of its groups (a pattern without groups, or a
+    ``whole`` one: every token inside its match)."""
+
+    pattern: re.Pattern[str]
+    check: CheckFn
+    by: str
+    #: the check reads the whole match (else only its groups, and the tokens they fall in)
+    whole: bool = False
+
+
+def _exact(text: str) -> re.Pattern[str]:
+    """``text`` as a pattern, a line break or a run of spaces matching any whitespace."""
+    return re.compile(r"\s+".join(re.escape(word) for word in text.split()))
+
+
+def _rows(rows: list[str], by: str) -> list[Claim]:
+    """Rows another test (or a check here) writes from the data, each to be found whole."""
+    return [Claim(re.compile("^" + re.escape(row) + "$", re.M), lambda m: [], by, whole=True) for row in rows]
+
+
+def _whole_page(problems: Callable[[str], list[str]]) -> CheckFn:
+    """A check of the whole page by an existing function of the page's text."""
+    return lambda match: problems(match.string)
+
+
+def _same(stated: object, actual: object, what: str) -> list[str]:
+    return [] if stated == actual else [f"{what} is stated as {stated}; the source gives {actual}"]
+
+
+# ------------------------------------------------------------ docs/benchmark.md: the tuning studies
+@functools.cache
+def _studies() -> dict[str, dict]:
+    """Each finished study: its best.json, the adoption rule's decision and its confirmation."""
+    from controllers.tuning import BEST_FILE, STUDIES_DIR, study_adoption
+
+    out = {}
+    for folder in sorted(p for p in STUDIES_DIR.iterdir() if (p / BEST_FILE).is_file()):
+        record = folder / "confirmation.json"
+        out[folder.name] = {
+            "best": json.loads((folder / BEST_FILE).read_text(encoding="utf-8")),
+            "adoption": study_adoption(folder.name),
+            "confirmation": json.loads(record.read_text(encoding="utf-8")) if record.is_file() else None,
+        }
+    return out
+
+
+def confirmation_rows() -> list[str]:
+    """The confirmation table's rows, from each confirmed study's ``confirmation.json``."""
+    rows = []
+    for name, study in _studies().items():
+        c = study["confirmation"]
+        if c is None:
+            continue
+        units = c["units"]
+        rows.append(
+            f"| {name} | {c['best_trial']} | {c['best_successes']}/{units} | {c['defaults_successes']}/{units} "
+            f"| {c['p_value']:.2g} | {'yes' if c['confirmed'] else '**no**'} |"
+        )
+    return rows
+
+
+def _adopt_line(match: re.Match[str]) -> list[str]:
+    """A line of ``adopt``'s output as the page shows it, against the rule's decision."""
+    name = match[1]
+    if name not in _studies():
+        return [f"adopt's output names {name!r}, which has no finished study"]
+    decision = _studies()[name]["adoption"]
+    installed = "installed" if decision.adopted else "no"
+    wanted = f"{decision}; {installed} controllers/tuned/{name}.json"
+    return _same(match[0], wanted, f"adopt's line of {name}")
+
+
+def _budget(match: re.Match[str]) -> list[str]:
+    budgets = {json.dumps(s["best"]["budget"], sort_keys=True) for s in _studies().values()}
+    if len(budgets) != 1:
+        return [f"the studies' budgets differ: {budgets}"]
+    b = json.loads(budgets.pop())
+    stated = tuple(int(n.replace(",", "")) for n in match.groups())
+    actual = (b["configurations"], b["layouts_per_task"], b["episodes_per_layout"], b["episodes"])
+    return _same(stated, actual, "the studies' budget")
+
+
+def _confirm_span(match: re.Match[str]) -> list[str]:
+    spans = {
+        (c["layouts"][1] - c["layouts"][0], c["layouts"][0], c["layouts"][1] - 1, c["units"])
+        for s in _studies().values()
+        if (c := s["confirmation"])
+    }
+    stated = tuple(int(n) for n in match.groups())
+    return _same({stated}, spans, "the confirmations' layouts and units")
+
+
+def _gain(match: re.Match[str]) -> list[str]:
+    """ "`NAME` gains [most, ]N [successes ]of M[ (A -> B)][, the largest gain]": the study's
+    best against its defaults; "most" and "the largest" only for the largest gain."""
+    name, most, gain, of, before, after, largest = match.groups()
+    d = _studies()[name]["adoption"]
+    problems = _same(
+        (int(gain), int(of)), (d.best_successes - d.defaults_successes, d.episodes), f"{name}'s gain"
+    )
+    if before is not None:
+        problems += _same((int(before), int(after)), (d.defaults_successes, d.best_successes), name)
+    gains = {
+        n: s["adoption"].best_successes - s["adoption"].defaults_successes for n, s in _studies().items()
+    }
+    if (most or largest) and gains[name] != max(gains.values()):
+        problems.append(f"{name}'s gain is called the largest; the gains are {gains}")
+    return problems
+
+
+def _confirmed_counts(name: str, best: str, units: str, defaults: str) -> list[str]:
+    c = _studies()[name]["confirmation"]
+    return _same(
+        (int(best), int(units), int(defaults)),
+        (c["best_successes"], c["units"], c["defaults_successes"]),
+        f"{name}'s confirmation",
+    )
+
+
+def _dwa_confirmation(match: re.Match[str]) -> list[str]:
+    layouts, best, units, defaults, p = match.groups()
+    c = _studies()["dwa"]["confirmation"]
+    return (
+        _confirmed_counts("dwa", best, units, defaults)
+        + _same(int(layouts), c["layouts"][1] - c["layouts"][0], "dwa's fresh layouts")
+        + _same(p, f"{c['p_value']:.2g}", "dwa's confirmation p")
+    )
+
+
+def _study_margin(match: re.Match[str]) -> list[str]:
+    d = _studies()[match[1]]["adoption"]
+    stated = tuple(int(n) for n in match.groups()[1:])
+    return _same(stated, (d.best_successes, d.defaults_successes, d.episodes), f"{match[1]}'s study margin")
+
+
+def _tie(match: re.Match[str]) -> list[str]:
+    d = _studies()["orca"]["adoption"]
+    return _same((int(match[1]), int(match[2])), (d.best_successes, d.episodes), "orca's tie") + _same(
+        d.best_successes, d.defaults_successes, "orca's tie (best against defaults)"
+    )
+
+
+# ------------------------------------------------------------ docs/benchmark.md: the publication
+@functools.cache
+def _design() -> dict[str, list[str]]:
+    """data/publish.sh's two test-suite runs: mode -> its controllers, in order."""
+    runs = _published_runs()
+    return {name: _controllers(runs[name]) for name in ("bench_test_realtime", "bench_test")}
+
+
+def _tuned_pairs(labels: list[str]) -> int:
+    return sum(label.endswith("-v0") and label.removesuffix("-v0") in labels for label in labels)
+
+
+def _families(match: re.Match[str]) -> list[str]:
+    """The per-task families: every controller against the reference (and, free, each tuned one
+    against its -v0), times 2 tasks; the every-pair tables: every pair of a mode's controllers."""
+    charged, free = _design()["bench_test_realtime"], _design()["bench_test"]
+    stated = tuple(int(n) for n in match.groups())
+    actual = (
+        2 * (len(charged) - 1),
+        len(charged) - 1,
+        2 * (len(free) - 1 + _tuned_pairs(free)),
+        len(free) - 1,
+        _tuned_pairs(free),
+    )
+    return _same(stated, actual, "the per-task families (m, controllers, m, against, tuned)")
+
+
+def _every_pair(match: re.Match[str]) -> list[str]:
+    stated = (int(match[1]), int(match[2]))
+    actual = tuple(2 * math.comb(len(labels), 2) for labels in _design().values())
+    return _same(stated, actual, "the every-pair families' m (compute charged, free compute)")
+
+
+def _points(m: int) -> str:
+    """What a pooled family of ``m`` over both tasks' test layouts detects at psi = 0.3 [points]."""
+    from evaluation.experiments.protocols import SUITE_EPISODES
+    from evaluation.stats.families import detectable_difference
+    from koopman_envs import TASKS
+    from koopman_envs.suites import SUITES
+
+    units = len(TASKS) * SUITES["koopnav-bench-v1"].split("test").size
+    return f"{100 * detectable_difference(units, SUITE_EPISODES, discordance=0.3, family_size=m):.1f}"
+
+
+def _pooled(match: re.Match[str]) -> list[str]:
+    """The headline families: each mode's controllers against the reference, pooled over both
+    tasks; the tuned pairs apart (m = 4), and what joining them would cost."""
+    charged, free = _design()["bench_test_realtime"], _design()["bench_test"]
+    m_charged, m_free, tuned = len(charged) - 1, len(free) - 1, _tuned_pairs(free)
+    stated = match.groups()
+    actual = (
+        str(m_charged),
+        _points(m_charged),
+        str(m_free),
+        _points(m_free),
+        str(tuned),
+        str(m_free + tuned),
+        _points(m_free + tuned),
+    )
+    return _same(stated, actual, "the headline families (m, points at psi = 0.3)")
+
+
+def _units() -> int:
+    from koopman_envs import TASKS
+    from koopman_envs.suites import SUITES
+
+    return len(TASKS) * SUITES["koopnav-bench-v1"].split("test").size
+
+
+def _hours(seconds: float) -> float:
+    return _units() * seconds / 3600
+
+
+def _compute_row(match: re.Match[str]) -> list[str]:
+    """A row of the compute table: its CPU-hours are the test split's units x its CPU-seconds per
+    unit (each stated to the half second, so within that rounding), and the rows of the runs as
+    listed now count data/publish.sh's controllers."""
+    run, n, low, high, hours_low, hours_high, about = match.groups()
+    problems = []
+    for seconds, hours in ((low, hours_low), (high, hours_high)):
+        lowest, highest = _hours(float(seconds) - 0.5), _hours(float(seconds) + 0.5)
+        places = len(hours.split(".")[1]) if "." in hours else 0
+        if not round(lowest, places) <= float(hours) <= round(highest, places):
+            problems.append(
+                f"the compute row {run!r} states {hours} CPU-hours for {seconds} CPU-seconds per unit; "
+                f"{_units()} units give {_hours(float(seconds)):.2f}"
+            )
+    if about is not None and float(about) != (float(hours_low) + float(hours_high)) / 2:
+        problems.append(f"the compute row {run!r} says about {about} CPU-hours, not the middle of its range")
+    listed = {"`bench_test_realtime` (compute charged)": "bench_test_realtime"}
+    listed["`bench_test` with `nominal-nmpc-v0` (as listed now)"] = "bench_test"
+    if run in listed:
+        problems += _same(int(n), len(_design()[listed[run]]), f"the controllers of {run}")
+    return problems
+
+
+def _compute_rows(text: str) -> dict[str, tuple[float, float]]:
+    rows = re.finditer(r"^\| (.+?) \| \d+ \| [\d.]+-[\d.]+ \| ([\d.]+)-([\d.]+)[^|]*\|$", text, re.M)
+    return {row[1]: (float(row[2]), float(row[3])) for row in rows}
+
+
+def _both_modes(match: re.Match[str]) -> list[str]:
+    """ "Both modes now take about A CPU-hours (L-H) instead of about B": the sum of the two runs'
+    rows as listed now, against twice the row before."""
+    rows = _compute_rows(match.string)
+    charged = rows["`bench_test_realtime` (compute charged)"]
+    free = rows["`bench_test` with `nominal-nmpc-v0` (as listed now)"]
+    before = rows["before: every registered controller and the three `-v0`, per mode"]
+    low, high = charged[0] + free[0], charged[1] + free[1]
+    stated = (float(match[2]), float(match[3]), float(match[1]), float(match[4]))
+    actual = (round(low), round(high, 1), round((low + high) / 2), 2 * round(sum(before) / 2))
+    return _same(stated, actual, "both modes' CPU-hours (low, high, about; before)")
+
+
+# ------------------------------------------------------------ docs/physics.md
+@functools.cache
+def _map1() -> dict[str, list[str]]:
+    """The Map 1 section's blocks as tests/test_physics_map1.py writes them from the records."""
+    runs = load()
+    return {"table": table(runs), "failures": failures(runs), "probes": probes(load((PROBES,)))}
+
+
+def _failing() -> tuple[list[str], list[str]]:
+    """The controllers that miss a seed on the physics plant: on both plants, physics only."""
+    runs = load()
+    missed = {
+        plant: {name for name, cell in runs[plant].items() if not all(r["success"] for r in cell)}
+        for plant in runs
+    }
+    return sorted(missed["mujoco"] & missed["kinematic"]), sorted(missed["mujoco"] - missed["kinematic"])
+
+
+def _missed_by(match: re.Match[str]) -> list[str]:
+    both, physics_only = _failing()
+    n = len(both) + len(physics_only)
+    return _same((int(match[1]), int(match[2])), (n, n), "the controllers that miss a seed (below, those)")
+
+
+def _fail_alike(match: re.Match[str]) -> list[str]:
+    return _same(WORDS.get(match[1].lower()), len(_failing()[0]), "the controllers that fail on both plants")
+
+
+def _fail_physics(match: re.Match[str]) -> list[str]:
+    return _same(WORDS.get(match[1].lower(), match[1]), len(_failing()[1]), "those that fail on physics only")
+
+
+WORDS.setdefault("five", 5)
+WORDS.setdefault("nine", 9)
+
+
+def _nominal_margin(match: re.Match[str]) -> list[str]:
+    """nominal-nmpc's obstacle margin: the tuned preset's obstacle_offset and the hand-set one."""
+    import controllers
+
+    tuned = json.loads((ROOT / "controllers" / "tuned" / "nominal-nmpc.json").read_text(encoding="utf-8"))
+    v0 = controllers.options("nominal-nmpc-v0").option("obstacle_offset").default
+    stated = (float(match[1]), float(match[2]))
+    return _same(
+        stated, (round(100 * tuned["options"]["obstacle_offset"], 1), 100 * v0), "the obstacle offsets [cm]"
+    )
+
+
+def _tuned_offset(match: re.Match[str]) -> list[str]:
+    tuned = json.loads((ROOT / "controllers" / "tuned" / "nominal-nmpc.json").read_text(encoding="utf-8"))
+    stated = float(match[1] or match[2])
+    return _same(
+        stated,
+        round(100 * tuned["options"]["obstacle_offset"], 1),
+        "nominal-nmpc's tuned obstacle offset [cm]",
+    )
+
+
+def _physics_constant(field: str, scale: float) -> CheckFn:
+    def check(match: re.Match[str]) -> list[str]:
+        from koopman_envs.params import PhysicsParams
+
+        return _same(
+            float(match[1]), round(scale * getattr(PhysicsParams(), field), 6), f"PhysicsParams.{field}"
+        )
+
+    return check
+
+
+def _timestep(match: re.Match[str]) -> list[str]:
+    from koopman_envs.params import PARAMS, PhysicsParams
+
+    step, period = PhysicsParams().timestep, PARAMS.dt
+    stated = (float(match[1]), int(match[2]), float(match[3]))
+    return _same(
+        stated, (1000 * step, round(period / step), period), "the timestep, its steps per period, the period"
+    )
+
+
+def _lag_band(match: re.Match[str]) -> list[str]:
+    """tests/test_physics_plant.py's band: half the stated constant to 1.1 times it plus a step."""
+    from koopman_envs.params import PhysicsParams
+
+    constant = float(match[1])
+    band = (f"{constant / 2:.3f}", f"{1.1 * constant + PhysicsParams().timestep:.3f}")
+    return _same((match[2], match[3]), band, "the lag test's band [s]")
+
+
+# ------------------------------------------------------------ constants of the code
+def _constant(value: Callable[[], float], scale: float, what: str) -> CheckFn:
+    """A number stated in ``scale`` units of the code's ``value()`` (e.g. 100 for cm of metres)."""
+
+    def check(match: re.Match[str]) -> list[str]:
+        return _same(float(match[1]), round(scale * value(), 6), what)
+
+    return check
+
+
+def _params(name: str) -> Callable[[], float]:
+    def value() -> float:
+        import koopman_envs.params as params
+
+        return float(getattr(params, name))
+
+    return value
+
+
+def _dt() -> float:
+    from koopman_envs.params import PARAMS
+
+    return PARAMS.dt
+
+
+def _confirmation_level() -> float:
+    from evaluation.tune.confirm import CONFIRMATION_LEVEL
+
+    return CONFIRMATION_LEVEL
+
+
+def _power() -> float:
+    import inspect
+
+    from evaluation.stats.families import power_statement
+
+    return float(inspect.signature(power_statement).parameters["power"].default)
+
+
+def _per_configuration() -> float:
+    per = {s["best"]["budget"]["episodes_per_configuration"] for s in _studies().values()}
+    return float(per.pop()) if len(per) == 1 else math.nan
+
+
+def _suite_megabytes() -> float:
+    folder = ROOT / "koopman_envs" / "suites" / "data" / "koopnav-bench-v1"
+    return round(sum(p.stat().st_size for p in folder.glob("*/*.json.gz")) / 1e6, 1)
+
+
+def _surface(match: re.Match[str]) -> list[str]:
+    from koopman_envs.params import SLIP_SURFACES, SURFACES
+
+    low, high = SURFACES[SLIP_SURFACES[match[1]]]
+    return _same((match[2], float(match[3]), float(match[4])), (SLIP_SURFACES[match[1]], low, high), match[1])
+
+
+def _coverage_band(match: re.Match[str]) -> list[str]:
+    """The tests' band around 95% coverage: three binomial SDs over the samples [points]."""
+    stated = (match[1], match[4])
+    actual = tuple(f"{300 * math.sqrt(0.95 * 0.05 / int(n)):.1f}" for n in (match[2], match[3]))
+    return _same(stated, actual, "the coverage band (points)")
+
+
+def _learned_seeds_case(match: re.Match[str]) -> list[str]:
+    source = (ROOT / "tests" / "test_learned_seeds.py").read_text(encoding="utf-8")
+    case = f"for p in (0.{match[1]}, 0.{match[2]})"
+    return [] if case in source else [f"tests/test_learned_seeds.py holds no case {case!r}"]
+
+
+def _fewest_layouts(match: re.Match[str]) -> list[str]:
+    """The fewest layouts whose exact sign-flip test can give p <= alpha: 2 / 2^L <= alpha."""
+
+    def fewest(alpha: float) -> int:
+        return next(n for n in range(1, 64) if 2 / 2**n <= alpha)
+
+    first, alpha, second, alpha2, m = match.groups()
+    stated = (int(first), int(second))
+    return _same(stated, (fewest(float(alpha)), fewest(float(alpha2) / int(m))), "the fewest layouts")
+
+
+# ------------------------------------------------------------ the tuned presets' values
+def _option(name: str, option: str) -> float:
+    """``option`` of the controller or preset ``name`` as shipped: a tuned preset's file, else the
+    registered default (a ``-v0`` keeps the hand-set one); a pair of weights by its first entry."""
+    tuned = ROOT / "controllers" / "tuned" / f"{name}.json"
+    if tuned.is_file():
+        value = json.loads(tuned.read_text(encoding="utf-8"))["options"][option]
+    else:
+        import controllers
+
+        value = controllers.options(name).option(option).default
+    return float(value[0] if isinstance(value, list | tuple) else value)
+
+
+def _preset(*fields: tuple[str, str]) -> CheckFn:
+    """Each group of the match is ``fields[i]`` = (controller, option), to the places stated."""
+
+    def check(match: re.Match[str]) -> list[str]:
+        problems = []
+        for stated, (name, option) in zip(match.groups(), fields, strict=True):
+            places = len(stated.split(".")[1]) if "." in stated else 0
+            actual = round(_option(name, option), places)
+            problems += _same(float(stated), actual, f"{name}'s {option}")
+        return problems
+
+    return check
+
+
+# ------------------------------------------------------------ the claims of each page
+TUNED = "controllers/tuned/*.json and the -v0 presets' defaults"
+
+
+def _benchmark_claims() -> list[Claim]:
+    studies = "data/tuning/*/{best,confirmation}.json and the adoption rule"
+    publish = "data/publish.sh's runs (tests/test_bench_page.py parses them)"
+    claims = [
+        Claim(
+            re.compile(r"^\| `(?:train|validation|test)` \| \[[\d,]+, [\d,]+\) \| \d+ \|.*$", re.M),
+            _whole_page(suite_problems),
+            "suite_problems (tests/test_prose_checks.py)",
+        ),
+        *_rows(tuning_rows(), "tuning_problems (tests/test_prose_checks.py)"),
+        Claim(
+            re.compile(r"^<!-- the rows tests/test_prose_checks.py checks against data/tuning.*$", re.M),
+            _whole_page(tuning_problems),
+            "tuning_problems (tests/test_prose_checks.py)",
+        ),
+        Claim(
+            re.compile(r"Of the \d+ seed runs the driver plans by default.*?validation \d+/\d+\)\.", re.S),
+            _whole_page(training_problems),
+            "training_problems (tests/test_prose_checks.py)",
+        ),
+        Claim(
+            re.compile(rf"^<!-- begin {SIZING}\b.*?^<!-- end {SIZING} -->$", re.M | re.S),
+            _whole_page(sizing_problems),
+            "sizing_problems (tests/test_bench_page.py)",
+        ),
+        Claim(
+            re.compile(r"The design detects about [\d.]+-[\d.]+ points at psi = 0\.3"),
+            _whole_page(sizing_problems),
+            "sizing_problems (tests/test_bench_page.py)",
+        ),
+        *_rows(confirmation_rows(), "data/tuning/*/confirmation.json"),
+        Claim(
+            re.compile(r"^([\w-]+): (?:adopted|defaults kept \([^)]*\)): trial .*$", re.M),
+            _adopt_line,
+            studies,
+            whole=True,
+        ),
+        Claim(
+            re.compile(
+                r"(\d+) configurations x (\d+)\s+validation layouts per task x (\d+) episode x both "
+                r"tasks \(([\d,]+) episodes\)"
+            ),
+            _budget,
+            "data/tuning/*/best.json's budget",
+        ),
+        Claim(
+            re.compile(
+                r"`--confirm (\d+)`: validation layouts (\d+)-(\d+) of\s+both tasks, (\d+) paired units"
+            ),
+            _confirm_span,
+            "data/tuning/*/confirmation.json",
+        ),
+        Claim(
+            re.compile(
+                r"`([\w-]+)` gains (most, )?(\d+) (?:successes )?of (\d+)(?: \((\d+) -> (\d+)\))?"
+                r"(, the largest gain)?"
+            ),
+            _gain,
+            studies,
+        ),
+        Claim(
+            re.compile(
+                r"which did not hold on (\d+) fresh validation layouts per task \((\d+) of (\d+) "
+                r"against\s+(\d+),\s+p = ([\d.]+)\)"
+            ),
+            _dwa_confirmation,
+            studies,
+        ),
+        Claim(
+            re.compile(r"confirmed on fresh layouts \((\d+) of\s+(\d+) against (\d+)\)"),
+            lambda m: _confirmed_counts("koopman-nmpc", *m.groups()),
+            studies,
+        ),
+        Claim(re.compile(r"(dwa)'s study margin \((\d+) against (\d+) of (\d+)\)"), _study_margin, studies),
+        Claim(re.compile(r"`orca`'s best ties its defaults on successes \((\d+) of (\d+)\)"), _tie, studies),
+        Claim(
+            re.compile(
+                r"m = (\d+) \((\d+) controllers x 2 tasks\) with compute charged, (\d+) with free compute "
+                r"\((\d+)\s+against the reference and (\d+) tuned against their `-v0`, x 2 tasks\)"
+            ),
+            _families,
+            publish,
+        ),
+        Claim(
+            re.compile(r"The every-pair tables \(m = (\d+) and\s+(\d+), each corrected over every pair"),
+            _every_pair,
+            publish,
+        ),
+        Claim(
+            re.compile(
+                r"m = (\d+) with compute charged \(([\d.]+) points at psi =\s+0\.3: the issue's 10-point "
+                r"target met\) and (\d+) with free compute \(([\d.]+) points\)\. The (?:\d+) tuned\s+"
+                r"controllers against their `-v0` \(free compute\) do not join it: they form their own "
+                r"pooled family\s+\(m = (\d+)\), because .*? \(m = (\d+), ([\d.]+) points\)",
+                re.S,
+            ),
+            _pooled,
+            publish + " and detectable_difference",
+        ),
+        Claim(
+            re.compile(
+                r"^\| (.+?) \| (\d+) \| ([\d.]+)-([\d.]+) \| ([\d.]+)-([\d.]+)(?: \(about (\d+)\))? \|$", re.M
+            ),
+            _compute_row,
+            "the test split's units x CPU-seconds per unit; " + publish,
+        ),
+        Claim(
+            re.compile(
+                r"Both modes now take about (\d+) CPU-hours \(([\d.]+)-([\d.]+)\) instead of about (\d+)"
+            ),
+            _both_modes,
+            "the compute table's rows",
+        ),
+        Claim(
+            re.compile(
+                r"It plans over (\d+) steps \((\d+) before\), with a\s+lighter input weight \(([\d.]+)\), "
+                r"wider obstacle margins \(([\d.]+) m against the paper's ([\d.]+) m\), a\s+narrower robot "
+                r"margin \(([\d.]+) m\) and its calibrated residual widening them \(`uncertainty_margin`\s+"
+                r"([\d.]+)\)"
+            ),
+            _preset(
+                ("koopman-nmpc", "horizon"),
+                ("koopman-nmpc-v0", "horizon"),
+                ("koopman-nmpc", "r_input"),
+                ("koopman-nmpc", "obstacle_offset"),
+                ("koopman-nmpc-v0", "obstacle_offset"),
+                ("koopman-nmpc", "robot_offset"),
+                ("koopman-nmpc", "uncertainty_margin"),
+            ),
+            TUNED,
+        ),
+        Claim(
+            re.compile(
+                r"looks further ahead \(`horizon`\s+(\d+) against (\d+)\) and widens the obstacle margin "
+                r"\(([\d.]+) m against ([\d.]+)\) with an uncertainty\s+margin \(([\d.]+) against (0)\)"
+            ),
+            _preset(
+                ("koopman-nmpc", "horizon"),
+                ("koopman-nmpc-v0", "horizon"),
+                ("koopman-nmpc", "obstacle_offset"),
+                ("koopman-nmpc-v0", "obstacle_offset"),
+                ("koopman-nmpc", "uncertainty_margin"),
+                ("koopman-nmpc-v0", "uncertainty_margin"),
+            ),
+            TUNED,
+        ),
+        Claim(
+            re.compile(
+                r"\(`obstacle_offset` ([\d.]+) m, `robot_offset` ([\d.]+) m, `uncertainty_margin` ([\d.]+)\) "
+                r"and softens the\s+barrier \(`cbf_gamma` ([\d.]+)\); its hand-set rate, ([\d.]+),"
+            ),
+            _preset(
+                ("mpc-cbf", "obstacle_offset"),
+                ("mpc-cbf", "robot_offset"),
+                ("mpc-cbf", "uncertainty_margin"),
+                ("mpc-cbf", "cbf_gamma"),
+                ("mpc-cbf-v0", "cbf_gamma"),
+            ),
+            TUNED,
+        ),
+        Claim(
+            re.compile(
+                r"looks further ahead \(`horizon`\s+(\d+) periods against (\d+)\), widens the obstacle margin "
+                r"\(`obstacle_offset` ([\d.]+) m against ([\d.]+)\)\s+and adds an uncertainty margin "
+                r"\(([\d.]+) against (0)\)"
+            ),
+            _preset(
+                ("nominal-nmpc", "horizon"),
+                ("nominal-nmpc-v0", "horizon"),
+                ("nominal-nmpc", "obstacle_offset"),
+                ("nominal-nmpc-v0", "obstacle_offset"),
+                ("nominal-nmpc", "uncertainty_margin"),
+                ("nominal-nmpc-v0", "uncertainty_margin"),
+            ),
+            TUNED,
+        ),
+        Claim(STARTS[0], lambda m: STARTS[1](m), "evaluation.experiments.protocols.START_NOISE"),
+        Claim(
+            re.compile(r"`STRICT_CLEARANCE_MARGIN` = (\d+) cm"),
+            _constant(_params("STRICT_CLEARANCE_MARGIN"), 100, "STRICT_CLEARANCE_MARGIN [cm]"),
+            "koopman_envs.params",
+            whole=True,
+        ),
+        Claim(
+            re.compile(r"`STRICT_CLEARANCE_MARGIN` \((\d+) cm; a contact counts\)"),
+            _constant(_params("STRICT_CLEARANCE_MARGIN"), 100, "STRICT_CLEARANCE_MARGIN [cm]"),
+            "koopman_envs.params",
+        ),
+        Claim(
+            re.compile(r"`PATH_RATIO_MIN_DISTANCE` = (\d+) cm"),
+            _constant(_params("PATH_RATIO_MIN_DISTANCE"), 100, "PATH_RATIO_MIN_DISTANCE [cm]"),
+            "koopman_envs.params",
+        ),
+        Claim(
+            re.compile(r"`max_episode_steps` x ([\d.]+) s\)"),
+            _constant(_dt, 1, "the control period [s]"),
+            "koopman_envs.params.PARAMS.dt",
+        ),
+        Claim(
+            re.compile(r"has more successes there and p < ([\d.]+)"),
+            _constant(_confirmation_level, 1, "the confirmation's level"),
+            "evaluation.tune.confirm.CONFIRMATION_LEVEL",
+        ),
+        Claim(
+            re.compile(r"on the very (\d+) episodes it was picked on"),
+            _constant(_per_configuration, 1, "a study's episodes per configuration"),
+            "data/tuning/*/best.json's budget",
+        ),
+        Claim(
+            re.compile(r"more than ([\d,]+) episodes per cell"),
+            lambda m: _same(
+                int(m[1].replace(",", "")),
+                int(_params("MAX_EPISODES_PER_CELL")()),
+                "the episodes per cell's limit",
+            ),
+            "koopman_envs.params.MAX_EPISODES_PER_CELL",
+        ),
+        Claim(
+            re.compile(r"(\d+)% power"),
+            _constant(_power, 100, "power_statement's power [%]"),
+            "evaluation.stats.families.power_statement",
+        ),
+        Claim(
+            re.compile(r"95% \+- ([\d.]+) points over (\d+) samples \((\d+) and \+- ([\d.]+) points"),
+            _coverage_band,
+            "three binomial SDs of a 95% coverage",
+        ),
+        Claim(
+            re.compile(r"1\.0 for a\s+policy at (\d+)% and for one at (\d+)%"),
+            _learned_seeds_case,
+            "tests/test_learned_seeds.py's case",
+        ),
+        Claim(
+            re.compile(
+                r"With fewer layouts than reach alpha/m \((\d+) at ([\d.]+), (\d+) at ([\d.]+)/(\d+)\)"
+            ),
+            _fewest_layouts,
+            "the exact sign-flip test's smallest p, 2 / 2^L",
+        ),
+        Claim(
+            re.compile(r"<split>\.json\.gz`, ([\d.]+) MB in all"),
+            _constant(_suite_megabytes, 1, "the suite's data [MB]"),
+            "the files' sizes",
+        ),
+    ]
+    return claims
+
+
+def _physics_claims() -> list[Claim]:
+    map1 = "tests/test_physics_map1.py (data/physics_map1/)"
+    held = [
+        row
+        for path in sorted(MODEL_ERROR.glob("*.json"))
+        for r in json.loads(path.read_text(encoding="utf-8"))
+        for row in held_rows(r)
+    ]
+    episodes = [
+        row
+        for path in sorted(EPISODES.glob("*.jsonl"))
+        for row in episode_rows([json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()])
+    ]
+    return [
+        *_rows(_map1()["table"] + _map1()["failures"] + _map1()["probes"], map1),
+        *[Claim(_exact(phrase), lambda m: [], map1) for phrase in counts(load())],
+        Claim(
+            re.compile(r"is missed by the (\d+) below\. Every episode of those (\d+) on both plants"),
+            _missed_by,
+            "data/physics_map1/",
+        ),
+        Claim(re.compile(r"\b(\w+) fail on both plants alike"), _fail_alike, "data/physics_map1/"),
+        Claim(re.compile(r"\b(\w+) fail on the physics plant only"), _fail_physics, "data/physics_map1/"),
+        Claim(
+            re.compile(r"the margin grows from\s+([\d.]+) cm to|the ([\d.]+) cm offset left as tuned"),
+            _tuned_offset,
+            "controllers/tuned/nominal-nmpc.json",
+        ),
+        Claim(
+            re.compile(
+                r"never below `obstacle_offset` \(([\d.]+) cm; the defaults:\s+no uncertainty margin, "
+                r"([\d.]+) cm\)"
+            ),
+            _nominal_margin,
+            "controllers/tuned/nominal-nmpc.json, nominal-nmpc-v0",
+        ),
+        *_rows(held, "tests/test_koopman_hold.py (data/physics_model_error/)"),
+        *_rows(episodes, "tests/test_koopman_hold.py (data/physics_closed_loop/)"),
+        Claim(
+            re.compile(r"Timestep\*\*: ([\d.]+) ms, (\d+) physics steps per ([\d.]+) s control period"),
+            _timestep,
+            "PhysicsParams.timestep, RobotParams.dt",
+        ),
+        Claim(
+            re.compile(r'^\| `"(\w+)"` \| (\w+)[^|]* \| ([\d.]+)-([\d.]+) \|$', re.M),
+            _surface,
+            "koopman_envs.params.SURFACES, SLIP_SURFACES",
+        ),
+        Claim(
+            re.compile(r"lag of \*\*([\d.]+) s\*\*"),
+            _physics_constant("motor_time_constant", 1.0),
+            "PhysicsParams.motor_time_constant",
+        ),
+        Claim(
+            re.compile(
+                r"constant is the sum, ([\d.]+) s.*?between half the stated constant and 1\.1 times it "
+                r"plus one physics step \(([\d.]+)-([\d.]+) s",
+                re.S,
+            ),
+            _lag_band,
+            "the stated constant and PhysicsParams.timestep",
+        ),
+    ]
+
+
+@functools.cache
+def claims(page: str) -> tuple[Claim, ...]:
+    return tuple(_benchmark_claims() if page == "benchmark.md" else _physics_claims())
+
+
+# --------------------------------------------------------------------------- repeats of a table
+#: (page, first heading, the heading that ends the region): a token of the region's prose is a
+#: repeat when each of its numbers is a number of one of the region's table rows (rounded to the
+#: places the prose gives); those rows are checked or pinned themselves
+REPEATS = [
+    ("physics.md", "## What the model learns", "## Map 1: every controller on the physics plant"),
+    ("physics.md", "## Map 1: every controller on the physics plant", "## The sim-to-sim protocol"),
+    ("physics.md", "## Speed", "## What a real TurtleBot3 has that the model does not"),
+]
+
+#: (page, first heading, the heading that ends it, why): regions not audited here
+LEFT_OUT = [
+    (
+        "physics.md",
+        "## The sim-to-sim protocol",
+        "## Speed",
+        "another change rewrites it; tests/test_physics_benches.py checks its counts",
+    ),
+]
+
+
+def _region(text: str, start: str, end: str) -> tuple[int, int]:
+    first = text.index("\n" + start + "\n")
+    return first, text.index("\n" + end + "\n", first)
+
+
+def _table_numbers(text: str) -> list[str]:
+    numbers_ = []
+    for row in re.finditer(r"^\|.*\|$", prose(text), re.M):
+        numbers_ += [n.replace(",", "") for n in re.findall(NUM, row[0])]
+    return numbers_
+
+
+def _is_repeat(token: str, table: list[str]) -> bool:
+    def matches(number: str) -> bool:
+        if "." not in number:  # a count: the same number
+            return number in table
+        places, value = len(number.split(".")[1]), float(number)
+        return any("." in t and round(float(t), places) == value for t in table)
+
+    def percent(number: str) -> bool:  # 97 % of a table's 0.97
+        return any(t.startswith("0.") and round(100 * float(t), 6) == float(number) for t in table)
+
+    if token.rstrip().endswith("%"):
+        return all(percent(n) for n in numbers(token))
+    return all(matches(n) for n in numbers(token))
+
+
+# --------------------------------------------------------------------------- the audit
+def _covered_by_claims(page: str, text: str) -> tuple[set[int], list[str]]:
+    """The positions the claims of ``page`` cover in ``text`` (a group's: every token it falls
+    in), and the problems their checks find."""
+    covered: set[int] = set()
+    problems: list[str] = []
+    groups: list[tuple[int, int]] = []
+    for claim in claims(page):
+        found = list(claim.pattern.finditer(text))
+        if not found:
+            problems.append(
+                f"{page} no longer states {claim.pattern.pattern[:120]!r} (checked by {claim.by})"
+            )
+        for match in found:
+            problems += claim.check(match)
+            if claim.whole or not claim.pattern.groups:
+                covered.update(range(*match.span()))
+            else:
+                groups += [match.span(i) for i in range(1, claim.pattern.groups + 1) if match[i] is not None]
+    for start, end in result_tokens(text):
+        if any(a < end and start < b for a, b in groups):
+            covered.update(range(start, end))
+    return covered, problems
+
+
+def _covered_by_phrases(
+    page: str, text: str, phrases: dict[str, str], kind: str
+) -> tuple[set[int], list[str]]:
+    covered: set[int] = set()
+    problems = []
+    for phrase in phrases:
+        found = list(_exact(phrase).finditer(text))
+        if not found:
+            problems.append(f"{page} no longer states the {kind} {phrase!r}: update tests/test_hand_pages.py")
+        for match in found:
+            covered.update(range(*match.span()))
+    return covered, problems
+
+
+def page_problems(page: str, text: str) -> list[str]:
+    """Every way ``text`` (the page ``page``) breaks the audit: a claim gone or failing, a pinned
+    phrase gone, a result-like token that nothing covers (named with its line)."""
+    covered, problems = _covered_by_claims(page, text)
+    for phrases, kind in ((MEASURED[page], "measurement"), (NOT_RESULTS[page], "non-result")):
+        more, gone = _covered_by_phrases(page, text, phrases, kind)
+        covered |= more
+        problems += gone
+    left_out = [_region(text, a, b) for p, a, b, _ in LEFT_OUT if p == page]
+    repeats = [_region(text, a, b) for p, a, b in REPEATS if p == page]
+    tables = [_table_numbers(text[a:b]) for a, b in repeats]
+    is_row = {m.start() for m in re.finditer(r"^\|", text, re.M)}
+    for start, end in result_tokens(text):
+        if covered.issuperset(range(start, end)) or any(a <= start < b for a, b in left_out):
+            continue
+        token = text[start:end]
+        line_start = text.rfind("\n", 0, start) + 1
+        if line_start not in is_row and any(
+            a <= start < b and _is_repeat(token, table) for (a, b), table in zip(repeats, tables, strict=True)
+        ):
+            continue
+        line = text.count("\n", 0, start) + 1
+        problems.append(f"docs/{page} line {line}: {token!r} is checked by nothing")
+    return list(dict.fromkeys(problems))
+
+
+def read(page: str) -> str:
+    return (ROOT / "docs" / page).read_text(encoding="utf-8")
+
+
+# --------------------------------------------------------------------------- measured, unrecorded
+# What measured each (the page's words pinned; an edit fails as a phrase no longer stated).
+PAGE_SIZE = (
+    "python bench/bench_page_size.py (a synthetic full-size publication), run by hand; output not committed"
+)
+EPISODE_TIMES = (
+    "python evaluate.py --suite koopnav-bench-v1 --split test --layouts N --controllers NAME --workers 1, "
+    "wall time per episode timed by hand at about twice the machine's load (2026-11-29)"
+)
+CHEAP_RUN = (
+    "/usr/bin/time python evaluate.py --suite koopnav-bench-v1 --split test --layouts 3 --controllers consensus "
+    "consensus-free rl-ppo rl-ppo-set ippo orca --workers 1 (2026-11-29)"
+)
+GATE_CELLS = (
+    "bash .ci/leaderboard.sh's cells run with orca's study best (orca:OPTIONS), by hand; not committed"
+)
+SB3_RESUME = (
+    "python -m baselines.sb3.train --policy set --suite koopnav-bench-v1 (the real settings), one resume checkpoint "
+    "sized and timed by hand"
+)
+IPPO_RESUME = (
+    "python -m baselines.marl.benchmarl_train --task formation --algorithm ippo --suite koopnav-bench-v1 "
+    "(36,000 frames, stopped at 24,000), the checkpoint sized and its hash check timed by hand"
+)
+TINY_RUN = (
+    "TRAINING_ROOT=/tmp/tr SEEDS=2 TIMESTEPS=3000 FRAMES=400 VALIDATION_LAYOUTS=2 ... bash data/training/run.sh "
+    "rl-ppo-set ippo, then python -m evaluation.experiments.seeds --root /tmp/tr --layouts 4 (the page's commands), "
+    "timed by hand"
+)
+THROUGHPUT = (
+    "python -m baselines.sb3.train --suite koopnav-bench-v1 --threads 1 (196,608 steps) and python -m "
+    "baselines.marl.benchmarl_train --suite koopnav-bench-v1 (120,000 frames): rates read from their logs by hand"
+)
+ESTIMATE = (
+    "arithmetic on the throughput above and the shipped policies' training rates (an estimate, not run)"
+)
+SIMULATION = (
+    "the coverage and size simulations of tests/test_clustered_statistics.py, their figures printed by hand"
+)
+INTERVAL_TIME = "layout_rate_interval on 200 layouts x 5 episodes with 4000 resamples, timed by hand"
+STEP_RESPONSE = "a 0.5 m/s step on carpet, one 5 ms physics step at a time, by hand (tests/test_physics_plant.py holds the band)"
+TRAIL = "tests/test_physics_fronts.py's straight run at 0.6 m/s for 3 s, its values printed by hand (it holds 6.75 cm +-10 %)"
+TIMESTEP_CHECK = (
+    "5 s of full-speed driving and turning at 2.5, 5 and 10 ms physics steps, by hand; not committed"
+)
+TURN = "tests/test_physics_plant.py's turn at 0.6 m/s and pi/4 rad/s for 3 s, its values printed by hand"
+MODEL_ERROR_1M = (
+    "python bench/physics_model_error.py (its defaults: --levels high low nominal --budget 1000000 --seed 0); "
+    "output not committed"
+)
+HELD_ONE_OFF = (
+    "a one-off check, not shipped: held inputs of 5, 10 and 20 periods, 50,000 team-transitions per fit"
+)
+MODEL_ERROR_MEMORY = "python bench/physics_model_error.py --levels high nominal --budget 100000 --memory 1 2 3; output not committed"
+VELOCITY_PROTOTYPE = (
+    "a one-off prototype, not shipped: 30,000 team-transitions on ice, the circle on 10 teams"
+)
+MODEL_ERROR_VELOCITY = (
+    "python bench/physics_model_error.py --levels high / nominal low --budget 100000 --episodes 2 --memory 1|2|3 "
+    "--velocity (the section's four commands); output not committed"
+)
+CLOSED_LOOP_MEMORY = (
+    "python evaluate.py --env KoopNav-TargetReaching-v0 --maps map1 --slips nominal --episodes 3 --plant mujoco "
+    "--controllers koopman-nmpc-v0:memory=3 koopman-nmpc-v0 --calibration-budget 100000 (2026-11-29), and the solve "
+    "times of its NMPC timed by hand; records not committed"
+)
+BENCH_TIME = (
+    "/usr/bin/time of the section's python bench/physics_model_error.py commands on the shared machine"
+)
+REFIT_PROTOTYPE = "a one-off prototype, not shipped: a second refit on the same ice data"
+MAP1_TIME = "/usr/bin/time of the Map 1 section's two python evaluate.py runs and of the 2026-11-30 rerun"
+MAP1_PROBE = (
+    "an earlier run of the Map 1 table probing koopman-nmpc's model where seed 0 stops; not committed"
+)
+RESIDUAL = "the calibration cache's entry of nominal-nmpc's residual on the physics robots (13 cm = 2.56 x 5.2); not committed"
+STEP_TIMES = (
+    "per env-step CPU time, best of 5 windows of 2,000 steps (mj_step stubbed), at 8d7e200 and after, by hand"
+)
+SPEED_BEFORE_AFTER = "python bench/physics_speed.py --seconds 2 --repeats 3 --envs 16, at 8d7e200 and after"
+MUJOCO_ONE_OFF = (
+    "MuJoCo's step timed by solver and Jacobian, and a 20 s state comparison, by hand; not committed"
+)
+SPEED_LOADS = "python bench/physics_speed.py (its defaults) at 4a00b79, at loads 3.5 and 29.9"
+PY_SPY = "py-spy record -r 200 over 15 CPU-seconds of env.step with random actions on the default map"
+SPEED_IDLE = "python bench/physics_speed.py (its defaults) at 5134e6c on the idle machine (2026-11-30)"
+
+MEASURED: dict[str, dict[str, str]] = {
+    "benchmark.md": {
+        "the page was 743 KB (6,001 lines; the generator 602 CPU-seconds) with 19 controllers": PAGE_SIZE,
+        "it is 86 KB (791 lines)": PAGE_SIZE,
+        "258 KB (1,968 rows; the generator 255 CPU-seconds for both)": PAGE_SIZE,
+        "`orca` 5 s, `dwa` 17 s, `mpc-cbf` 33 s, the NMPCs about 15-30 s": EPISODE_TIMES,
+        "2.5, 8.5, 16.5 and 7.5-15 s": EPISODE_TIMES + " (halved: two runs per core)",
+        "(36 episodes) took 38 CPU-seconds": CHEAP_RUN,
+        "21 of 40 against 35 of 40": GATE_CELLS,
+        "about 3 h on a loaded core": THROUGHPUT,
+        "about 4 min at the shared machine's 2,046 robot-steps/s": THROUGHPUT,
+        "one checkpoint measured 2.8 MiB, written in 0.28 s and read back in 0.24 s": SB3_RESUME,
+        "that checkpoint was 19.0 MB (19,017,784 bytes;": IPPO_RESUME,
+        "its hash check 0.07 CPU-s": IPPO_RESUME,
+        "took 6 min 0 s": TINY_RUN,
+        "4 test layouts per task took 32 s": TINY_RUN,
+        "where a run got 44-48% of a core": THROUGHPUT,
+        "`rl-ppo-set` on the suite: 2,046 robot-steps/s": THROUGHPUT,
+        "`ippo`: 937 frames/s": THROUGHPUT,
+        "50 validation layouts: about 15-20 s": THROUGHPUT,
+        "would take about 20 h": ESTIMATE,
+        "adds about 10 min per seed": ESTIMATE,
+        "about 7-9 h one at a time": ESTIMATE,
+        "(5,870 robot-steps/s for `rl-ppo-set`, 3,444 frames/s for `ippo`) give 6.6 h": ESTIMATE,
+        "take about 4-5 h": ESTIMATE,
+        "covers about 76-81%": SIMULATION,
+        "covered 97-99% of beta-binomial samples (98.9% at rho = 0.1)": SIMULATION,
+        "an interval takes about 0.1-0.2 s": INTERVAL_TIME,
+        "rejects at 5% +- 3.3 points": SIMULATION,
+    },
+    "physics.md": {
+        "alone, it lags 0.0125 s": STEP_RESPONSE,
+        "reaches 63 % of it after 0.105 s (measured, one 5 ms step": STEP_RESPONSE,
+        "(6.7 cm on carpet against 6.75; 19.9 cm on ice": TRAIL,
+        "checked against a 2.5 ms run over 5 s of full-speed driving and turning: at most 4 mm apart on carpet and "
+        "10 mm on ice, where a 10 ms step is 12 and 29 mm apart": TIMESTEP_CHECK,
+        "in a turn at 0.6 m/s and pi/4 rad/s for 3 s it ends 7 cm": TURN,
+        "(the motor lag), 10 cm on gravel and 50 cm on ice": TURN,
+        "took 25-58 minutes": MODEL_ERROR_1M,
+        "| high (ice) | 140.0 / 16.9 | 8.31 | 62.1 / 13.0 | 4.79 | 1.51 / 5.81 |": MODEL_ERROR_1M,
+        "| low (gravel) | 142.2 / 2.8 | 50.31 | 58.1 / 3.3 | 17.38 | 2.74 / 5.62 |": MODEL_ERROR_1M,
+        "| nominal (carpet) | 146.5 / 4.0 | 36.89 | 52.0 / 3.0 | 17.14 | 2.82 / 5.18 |": MODEL_ERROR_1M,
+        "| high (ice) | 0.300 / 0.002 / 0.300 | 0.117 / 0.418 | 0.01 / 0.77 |": MODEL_ERROR_1M,
+        "| low (gravel) | 0.300 / 0.019 / 0.300 | 0.233 / 0.418 | 0.09 / 0.93 |": MODEL_ERROR_1M,
+        "| nominal (carpet) | 0.298 / 0.052 / 0.300 | 0.261 / 0.418 | 0.20 / 0.97 |": MODEL_ERROR_1M,
+        "circle errors of 126, 114 and 96 cm against the unicycle's 3.9; on ice to 0.04-0.14 m/s, 131-136 cm": HELD_ONE_OFF,
+        "| high (ice) | pose only | 141.3 | 8.39 | 61.9 | 4.78 | 1.51 | 0.004 |": MODEL_ERROR_MEMORY,
+        "| | memory 1 | 143.2 | 8.50 | 56.4 | 4.35 | 1.43 | 0.025 |": MODEL_ERROR_MEMORY,
+        "| | memory 2 | 142.1 | 8.43 | 50.0 | 3.86 | 1.32 | 0.052 |": MODEL_ERROR_MEMORY,
+        "| | memory 3 | 137.0 | 8.13 | 44.3 | 3.42 | 1.22 | 0.080 |": MODEL_ERROR_MEMORY,
+        "| | unicycle | 16.9 | | 13.0 | | 5.81 | 0.300 |": MODEL_ERROR_MEMORY,
+        "| nominal (carpet) | pose only | 146.2 | 36.81 | 51.7 | 17.05 | 2.82 | 0.053 |": MODEL_ERROR_MEMORY,
+        "| | memory 1 | 125.4 | 31.57 | 23.0 | 7.58 | 1.36 | 0.184 |": MODEL_ERROR_MEMORY,
+        "| | memory 2 | 90.5 | 22.80 | 9.5 | 3.14 | 0.74 | 0.244 |": MODEL_ERROR_MEMORY,
+        "| | memory 3 | 76.1 | 19.15 | 4.6 | 1.51 | 0.60 | 0.267 |": MODEL_ERROR_MEMORY,
+        "| | unicycle | 4.0 | | 3.0 | | 5.18 | 0.298 |": MODEL_ERROR_MEMORY,
+        "the circle's speed as 0.37 m/s with one remembered command and 0.33 m/s with two": VELOCITY_PROTOTYPE,
+        "circle errors of 129 and 95 cm": VELOCITY_PROTOTYPE,
+        "| high (ice) | pose only | 141.3 | 8.39 | 61.5 | 4.89 | 1.51 | 0.004 |": MODEL_ERROR_VELOCITY,
+        "| | memory 1 | 143.2 | 8.50 | 56.1 | 4.45 | 1.43 | 0.025 |": MODEL_ERROR_VELOCITY,
+        "| | memory 2 | 142.1 | 8.43 | 49.8 | 3.96 | 1.32 | 0.052 |": MODEL_ERROR_VELOCITY,
+        "| | velocity | 148.3 | 8.80 | 17.3 | 1.37 | 0.46 | 0.155 |": MODEL_ERROR_VELOCITY,
+        "| | memory 3 | 137.0 | 8.13 | 44.1 | 3.50 | 1.22 | 0.080 |": MODEL_ERROR_VELOCITY,
+        "| | memory 2 + velocity | 113.3 | 6.72 | 10.7 | **0.85** | 0.28 | 0.262 |": MODEL_ERROR_VELOCITY,
+        "| | memory 3 + velocity | 112.7 | 6.69 | 10.2 | **0.81** | 0.28 | 0.265 |": MODEL_ERROR_VELOCITY,
+        "| | unicycle | 16.9 | | 12.6 | | 5.81 | 0.300 |": MODEL_ERROR_VELOCITY,
+        "| low (gravel) | pose only | 139.7 | 49.40 | 58.6 | 17.65 | 2.75 | 0.022 |": MODEL_ERROR_VELOCITY,
+        "| | memory 1 | 131.7 | 46.58 | 36.1 | 10.86 | 1.91 | 0.126 |": MODEL_ERROR_VELOCITY,
+        "| | velocity | 107.9 | 38.16 | 11.3 | 3.41 | 1.48 | 0.219 |": MODEL_ERROR_VELOCITY,
+        "| | unicycle | 2.8 | | 3.3 | | 5.62 | 0.300 |": MODEL_ERROR_VELOCITY,
+        "| nominal (carpet) | pose only | 146.2 | 36.81 | 51.9 | 17.25 | 2.82 | 0.053 |": MODEL_ERROR_VELOCITY,
+        "| | memory 1 | 125.4 | 31.57 | 23.1 | 7.66 | 1.36 | 0.184 |": MODEL_ERROR_VELOCITY,
+        "| | velocity | 88.3 | 22.22 | 8.7 | 2.89 | 1.72 | 0.250 |": MODEL_ERROR_VELOCITY,
+        "| | unicycle | 4.0 | | 3.0 | | 5.18 | 0.300 |": MODEL_ERROR_VELOCITY,
+        "the closed-loop error on ice 3.6-fold": MODEL_ERROR_VELOCITY + " (61.5 / 17.3 of its table)",
+        "every lift is still 3-17 times worse": MODEL_ERROR_VELOCITY
+        + " (its table's gravel and carpet ratios)",
+        "(0/3, time limit, 17 cm short on average)": CLOSED_LOOP_MEMORY,
+        "settled 4.4 cm from the targets": CLOSED_LOOP_MEMORY,
+        "with one robot 14.5 cm short": CLOSED_LOOP_MEMORY,
+        "against 82 ms for the pose-only model": CLOSED_LOOP_MEMORY,
+        "with stage blocks of 33 rows": CLOSED_LOOP_MEMORY,
+        "cost 30-40 times the single-threaded time": CLOSED_LOOP_MEMORY,
+        "a solve took 269 ms of CPU with `memory=2` and 338 ms with `velocity=True` before, 14 and 16 ms": CLOSED_LOOP_MEMORY,
+        "0.35 s and 0.25 s after": CLOSED_LOOP_MEMORY,
+        "(one run, 19 minutes of wall clock and 295 CPU-seconds at load 18)": BENCH_TIME,
+        "(9.5 cm; circle 104.3 cm)": REFIT_PROTOTYPE,
+        "The bench took 245-339 CPU-seconds and 24-32 minutes of wall clock per floor": BENCH_TIME,
+        "(to the 0.1 mm kept)": MAP1_TIME + " (the records keep 0.1 mm)",
+        "The rerun took 659 s of wall time": MAP1_TIME,
+        "(9 episodes, one worker,": MAP1_TIME,
+        "and 15 s on the kinematic plant": MAP1_TIME,
+        "took 44 minutes of wall time and 635 CPU-seconds": MAP1_TIME,
+        "8 minutes and 72 CPU-seconds on the kinematic plant": MAP1_TIME,
+        "about 480 s (2,006 s of wall time)": MAP1_TIME,
+        "it predicts 0.5 cm of progress per period for 0.3 m/s": MAP1_PROBE,
+        "a drift of 0.2 cm per period backwards at rest": MAP1_PROBE,
+        "(to 0.03 cm per period at those poses)": MAP1_PROBE,
+        "5.2 cm per robot on the physics robots": RESIDUAL,
+        "to 13 cm on the physics plant": RESIDUAL,
+        "| the env-step without MuJoCo's step (`mj_step` a no-op) | 86, 93, 96 us | 62, 69, 71 us |": STEP_TIMES,
+        "| the whole env-step | 483, 529, 594 us | 433, 486, 576 us |": STEP_TIMES,
+        "| kinematic single env | 9,098, 17,065, 17,647 | 15,418, 17,297, 17,242 |": SPEED_BEFORE_AFTER,
+        "| physics single env (1 thread) | 1,708, 1,871, 1,918 | 1,792, 1,701, 2,051 |": SPEED_BEFORE_AFTER,
+        "| physics vector env, 16 envs, 1 thread | 2,131, 2,487, 2,626 | 2,422, 2,720, 2,365 |": SPEED_BEFORE_AFTER,
+        "The 25 us saved per env-step": STEP_TIMES + " (the first row's before and after)",
+        "27 constraint rows) at 18-25 us each": MUJOCO_ONE_OFF,
+        "(45, 65 and 68 against 36 us per step in one run)": MUJOCO_ONE_OFF,
+        "(by up to 1.7e-7 in the state after 20 s)": MUJOCO_ONE_OFF,
+        "A 10 ms step would double the rate at 12-29 mm of drift against a 2.5 ms reference over 5 s of "
+        "full-speed turning (5 ms: 4-10 mm)": TIMESTEP_CHECK,
+        "| kinematic single env | 7,486 | 29,051 | 3,908 | 32,556 |": SPEED_LOADS,
+        "| physics single env (1 thread) | 967 | 2,307 | 247 | 1,998 |": SPEED_LOADS,
+        "| physics vector env, 16 envs, 1 thread | 663 | 2,209 | 286 | 2,211 |": SPEED_LOADS,
+        "| physics vector env, 16 envs, 2 threads | 2,231 | 2,390 | 494 | 2,214 |": SPEED_LOADS,
+        "(`py-spy record -r 200`, 15 CPU-seconds": PY_SPY,
+        "76.6 % of the step's samples": PY_SPY,
+        "the observation and `info`) 15 %": PY_SPY,
+        "`PassiveEnvChecker`) 8 %. Cutting the Python to nothing would give at most 1.3 times": PY_SPY,
+        "| kinematic single env | 40,003 | 40,008 | |": SPEED_IDLE,
+        "| physics single env (1 thread) | 2,932 | 2,932 | 58,637 |": SPEED_IDLE,
+        "| physics vector env, 16 envs, 1 thread | 3,051 | 3,052 | 61,028 |": SPEED_IDLE,
+        "| physics vector env, 16 envs, 2 threads | 4,954 | 2,858 | 99,088 |": SPEED_IDLE,
+        "on one thread (1.6 times)": SPEED_IDLE + " (4,954 / 3,051 of its table)",
+    },
+}
+
+#: what reads like a result but is a setting, a definition or an input (and why)
+NOT_RESULTS: dict[str, dict[str, str]] = {
+    "benchmark.md": {
+        "on a 5 cm grid": "the density measure's grid, a setting",
+        "the 1/3 and 2/3 quantiles": "the definition of the tier cuts (suite_problems checks the cuts)",
+        "as p = 1": "the convention for a comparison that could not run",
+        "counted in m as p = 1": "the convention for a pending comparison",
+        "the IQM of 0/1 scores": "0/1 names binary scores",
+        "a 95% interval": "the intervals' level, a setting",
+        "A 95% interval drawn that way": "the intervals' level, a setting",
+        "At 5 episodes and rho = 0.3": "the design of the example",
+        "on 60 layouts x 5 episodes, 95%": "the simulation's design and level",
+        "For 200 layouts x 5 episodes": "the timed design",
+    },
+    "physics.md": {
+        "does not divide the 0.1 s control period": "the control period, a setting",
+        "a step to 0.5 m/s": "the test's input",
+        "1.1 times it": "the test's tolerance, whose band the lag claim checks",
+        "Driving straight at 0.6 m/s": "the test's input",
+        "limits are |v| <= 0.6 m/s": "the paper's speed limit",
+        "tops out at 0.26 m/s": "the datasheet's top speed",
+        "(24.2 rad/s no-load: 0.8 m/s at the rim, room for 0.6 m/s": "the model's motor limit and the paper's speed limit",
+        "the 281 x 306 mm footprint to within 4 %": "the datasheet's footprint against the model's disc",
+        "accelerating at the 0.1 s lag's 6 m/s": "the motor lag's acceleration (0.6 m/s over 0.1 s)",
+        "(the circle's 0.3 m/s, held for 21 s)": "the circle test's input (210 periods)",
+        "(20 of 5 ms per env-step)": "the physics substeps, a setting",
+    },
+}
+
+
+# --------------------------------------------------------------------------- the tests
+@pytest.mark.parametrize("page", PAGES)
+def test_every_result_of_the_hand_written_page_is_checked_or_pinned(page: str) -> None:
+    assert page_problems(page, read(page)) == []
+
+
+@pytest.mark.parametrize(
+    ("page", "old", "new", "complaint"),
+    [
+        # against data/tuning/
+        ("benchmark.md", "| dwa | 22 | 88/150 |", "| dwa | 22 | 89/150 |", "no longer states"),
+        (
+            "benchmark.md",
+            "`consensus` gains 8 successes",
+            "`consensus` gains 9 successes",
+            "consensus's gain",
+        ),
+        ("benchmark.md", "`mpc-cbf` gains 15 of 50", "`mpc-cbf` gains most, 15 of 50", "called the largest"),
+        ("benchmark.md", "(29 against 25 of 50)", "(29 against 24 of 50)", "dwa's study margin"),
+        ("benchmark.md", "81, p = 0.46)", "81, p = 0.04)", "dwa's confirmation p"),
+        ("benchmark.md", "(1,200 episodes)", "(1,250 episodes)", "the studies' budget"),
+        ("benchmark.md", "trial 19 24/50", "trial 19 25/50", "adopt's line of koopman-nmpc"),
+        # against data/publish.sh and the design
+        ("benchmark.md", "(m = 90 and\n182,", "(m = 90 and\n156,", "every-pair families"),
+        ("benchmark.md", "34 with free compute", "36 with free compute", "the per-task families"),
+        ("benchmark.md", "(10.1 points)", "(9.1 points)", "the headline families"),
+        ("benchmark.md", "| 10 | 48-63 | 5.3-6.9 |", "| 10 | 48-63 | 5.3-7.9 |", "states 7.9 CPU-hours"),
+        ("benchmark.md", "| 10 | 48-63 | 5.3-6.9 |", "| 11 | 48-63 | 5.3-6.9 |", "the controllers of"),
+        ("benchmark.md", "CPU-hours (14-18.5)", "CPU-hours (14-19.5)", "both modes' CPU-hours"),
+        # against the code and the files
+        ("benchmark.md", "0.4 MB in all", "0.5 MB in all", "the suite's data [MB]"),
+        ("benchmark.md", "(6 at 0.05, 8 at", "(5 at 0.05, 8 at", "the fewest layouts"),
+        ("benchmark.md", "input weight (0.060)", "input weight (0.070)", "koopman-nmpc's r_input"),
+        ("benchmark.md", "(`cbf_gamma` 0.28)", "(`cbf_gamma` 0.29)", "mpc-cbf's cbf_gamma"),
+        ("benchmark.md", "34 periods against 20", "36 periods against 20", "nominal-nmpc's horizon"),
+        (
+            "benchmark.md",
+            "`STRICT_CLEARANCE_MARGIN` = 5 cm",
+            "`STRICT_CLEARANCE_MARGIN` = 4 cm",
+            "STRICT_CLEARANCE",
+        ),
+        # a measurement without a record, pinned
+        ("benchmark.md", "took 38 CPU-seconds", "took 28 CPU-seconds", "no longer states the measurement"),
+        # docs/physics.md: data/physics_map1/, data/physics_model_error/, the code, the pinned tables
+        ("physics.md", "Every episode of those 9", "Every episode of those 8", "miss a seed (below, those)"),
+        (
+            "physics.md",
+            "Five fail on the physics plant only",
+            "Six fail on the physics plant only",
+            "physics only",
+        ),
+        ("physics.md", "(7.8 cm; the defaults:", "(7.5 cm; the defaults:", "the obstacle offsets"),
+        ("physics.md", "| 20 | velocity | 106.4 |", "| 20 | velocity | 106.5 |", "no longer states"),
+        ("physics.md", "**Timestep**: 5 ms", "**Timestep**: 4 ms", "the timestep"),
+        ("physics.md", '| `"high"` | ice | 0.05-0.15 |', '| `"high"` | ice | 0.05-0.2 |', "high is stated"),
+        (
+            "physics.md",
+            "| 2,932 | 2,932 | 58,637 |",
+            "| 2,933 | 2,932 | 58,637 |",
+            "no longer states the measurement",
+        ),
+        # a repeat of a table's figure
+        (
+            "physics.md",
+            "8.3 times the unicycle's on the circle",
+            "8.9 times the unicycle's on the circle",
+            "'8.9 times' is checked by nothing",
+        ),
+    ],
+)
+def test_a_number_edited_by_hand_is_named(page: str, old: str, new: str, complaint: str) -> None:
+    text = read(page)
+    assert text.count(old) == 1, old
+    problems = page_problems(page, text.replace(old, new))
+    assert any(complaint in problem for problem in problems), problems
+
+
+def _line_of(text: str, phrase: str) -> int:
+    return text[: text.index(phrase)].count("\n") + 1
+
+
+@pytest.mark.parametrize(
+    ("page", "after", "typed", "token"),
+    [
+        ("benchmark.md", "## Versioning\n", "A check takes 12 s on this machine.\n", "12 s"),
+        ("benchmark.md", "## Metrics\n", "Of the layouts, 7 of 9 are hard.\n", "7 of 9"),
+        ("benchmark.md", "## Statistics\n", "It rejects in 41% of the cases.\n", "41%"),
+        ("physics.md", "## Speed\n", "| a new row | 1,234 | 2.5 |\n", "1,234"),
+        ("physics.md", "## The robot\n", "It drives at 0.45 m/s.\n", "0.45 m/s"),
+        ("physics.md", "## What the model learns\n", "Its error is 9.99 cm.\n", "9.99 cm"),
+    ],
+)
+def test_a_new_number_typed_into_a_page_is_named_with_its_line(
+    page: str, after: str, typed: str, token: str
+) -> None:
+    text = read(page)
+    assert text.count(after) == 1, after
+    edited = text.replace(after, after + "\n" + typed)
+    line = _line_of(edited, typed)
+    assert f"docs/{page} line {line}: {token!r} is checked by nothing" in page_problems(page, edited)
+
+
+def test_the_tokens_are_the_result_like_numbers() -> None:
+    """What the audit reads as a result (a quantity with its unit anywhere, every number of a
+    cell of numbers), and what it leaves: a map's number, a setting without a unit, code, link
+    targets, the numbers of a cell of words."""
+    text = (
+        "Map 1 took 3.5 s and 12 CPU-seconds; 22/50 and 7 of 9 at p = 0.46 (m = 18), 9.8 points, 41%.\n"
+        "`a 12 s code span` and [a link](page.md#run-12-s), horizon 28.\n\n"
+        "| name | value | text |\n|---|---|---|\n| a | 1,234, 5.6 us | row 2 of the table, 7 cm |\n"
+    )
+    tokens = [text[a:b] for a, b in result_tokens(text)]
+    assert tokens == [
+        "3.5 s",
+        "12 CPU-seconds",
+        "22/50",
+        "7 of 9",
+        "p = 0.46",
+        "m = 18",
+        "9.8 points",
+        "41%",
+        "1,234",
+        "5.6",
+        "5.6 us",
+        "7 cm",
+    ]
+
+
+def test_every_pinned_measurement_names_what_measured_it() -> None:
+    for page, pinned in MEASURED.items():
+        assert pinned and all(len(how) > 20 for how in pinned.values()), page
+        assert all(result_tokens(phrase) for phrase in pinned), [p for p in pinned if not result_tokens(p)]
