@@ -305,11 +305,17 @@ def changes_sentence(level: Level) -> str:
     return f"On the physics plant {_listed(named)} ({family}); every other controller's difference is not significant."
 
 
+#: what a level with fewer than two complete controllers of one task says of the pairwise verdicts
+_NO_PAIR = "no pair of controllers of one task is complete on both plants, so no pairwise verdict is tested"
+
+
 def pairwise_sentence(level: Level) -> str:
     """The count of the kinematic plant's pairwise verdicts that hold on the physics plant."""
     kept = transfers(level.found)
     verdicts = [o for o in kept if o.first != 0]
     new = sum(o.verdict == "new" for o in kept)
+    if not kept:
+        return _NO_PAIR
     if not verdicts:
         text = (
             f"no ordering of two controllers of one task is significant on the kinematic plant (of {len(kept)} "
@@ -418,7 +424,12 @@ def level_section(level: Level) -> str:
         )
     parts += [
         f"**Does the ranking transfer?** {agreement_sentence(level)}",
-        "**Which verdicts transfer**: " + transfer_sentence(transfers(level.found)),
+        "**Which verdicts transfer**: "
+        + (
+            transfer_sentence(transfers(level.found))
+            if transfers(level.found)
+            else _NO_PAIR.capitalize() + "."
+        ),
     ]
     if tuned:
         parts += [
