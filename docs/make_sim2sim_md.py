@@ -17,14 +17,29 @@ exact McNemar p and its Holm adjustment over the level's controllers
 controllers of one task is a verdict on a plant when the run's own paired table (Holm over its
 pairs) says one succeeds more often than the other, and the page says which verdicts of the
 kinematic plant hold on the physics plant, which are lost or reversed, and which appear there
-only. The ``--intro`` file is a template as for the other pages (``docs/make_prose_md.py``),
-its runs named by their files (``sim2sim_physics@slip=high``).
+only. At this sample size the pairwise rule is mostly silent, so each level also says whether
+the ranking transfers: Kendall's tau-b between the controllers' success rates on the two plants,
+with a seeded bootstrap interval over (task, layout) clusters, and which controllers' own success
+changes significantly (:func:`evaluation.stats.transfer.rank_agreement`,
+:func:`~evaluation.stats.transfer.significant_changes`). The ``--intro`` file is a template as
+for the other pages (``docs/make_prose_md.py``), its runs named by their files
+(``sim2sim_physics@slip=high``).
+
+A run may be partial (published as it runs): a (level, controller) whose episodes are not all in
+both publications (the count each run's header plans: layouts x tasks x episodes) is named as
+pending, with how many it has on which plant, and left out of every table and test until it is
+complete; a level with nothing complete on both plants says so. The summary of every level (which
+verdicts transfer) is the block :data:`SUMMARY`, which ``python docs/make_pages.py`` copies into
+README.md (``"readme"`` in ``data/pages.json``); tests/test_prose_checks.py checks README's copy
+against the page.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,12 +50,20 @@ from evaluation.experiments.sweep import load_sweep  # noqa: E402
 from evaluation.reports.results import Results  # noqa: E402
 from evaluation.stats.statistics import PairedComparison, paired_comparison  # noqa: E402
 from evaluation.stats.transfer import (  # noqa: E402
+    RANK_RESAMPLES,
+    RANK_SEED,
     TRANSFER_ALPHA,
     Ordering,
     PlantRow,
+    Progress,
+    RankAgreement,
     check_same_protocol,
     orderings,
     plant_differences,
+    rank_agreement,
+    restricted,
+    run_progress,
+    significant_changes,
 )
 from koopman_envs import task_for_env  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
@@ -58,6 +81,11 @@ tuned or trained on the kinematic plant, run on the kinematic plant and on the M
 #: fine-tuned from: rows of their own (their kinematic column is the reverse direction), left out
 #: of the verdicts that transfer (tests/test_sim2sim.py holds this to the shipped metadata)
 FINE_TUNED = {"rl-ppo-set-physics": "rl-ppo-set"}
+
+#: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
+SUMMARY = "sim2sim-transfer"
+#: the two plants, in the order of the command line, as the page names them
+PLANTS = ("kinematic", "physics")
 
 #: what a verdict became on the physics plant, in the page's words
 _FATES = {
@@ -151,21 +179,187 @@ def transfer_sentence(found: list[Ordering]) -> str:
     return text + "."
 
 
-def summary_sentence(found: dict[Any, list[Ordering]]) -> str:
-    """How many of the kinematic plant's verdicts hold on the physics plant, level by level."""
-    counts = []
-    for level, orderings_ in found.items():
-        kept = transfers(orderings_)
-        verdicts = [o for o in kept if o.first != 0]
-        held = sum(o.verdict == "holds" for o in verdicts)
-        new = sum(o.verdict == "new" for o in kept)
-        surface = SLIP_SURFACES.get(str(level), str(level))
-        counts.append(f"{surface} {held} of {len(verdicts)}" + (f" (and {new} new)" if new else ""))
-    return (
-        "**Which verdicts transfer.** Of the orderings of two controllers significant on the kinematic "
-        "plant, these hold on the physics plant at each friction level: " + "; ".join(counts) + ". "
-        "Each level's section names them, and those lost, reversed or new."
+@dataclass(frozen=True)
+class Level:
+    """One friction level of the two runs: what is complete on both plants, and its statistics.
+
+    ``pending`` maps each controller left out to why (its episodes on each plant that is short);
+    ``kinematic`` and ``physics`` hold the complete controllers' records only (None: none is
+    complete). ``rows``, ``found`` and ``agreement`` are computed on those alone."""
+
+    level: Any
+    declared: int
+    pending: dict[str, str]
+    kinematic: Results | None
+    physics: Results | None
+    rows: list[PlantRow]
+    found: list[Ordering]
+    agreement: RankAgreement | None
+
+    @property
+    def transferred(self) -> list[PlantRow]:
+        """The rows of the controllers tuned or trained on the kinematic plant (no :data:`FINE_TUNED`)."""
+        return [row for row in self.rows if row.controller not in FINE_TUNED]
+
+
+def _shortfall(progress: dict[str, dict[str, Progress]], controller: str) -> str | None:
+    """Why ``controller`` is pending (``N of M episodes on the physics plant``), None when it is
+    complete on both plants."""
+    short = [
+        f"{p[controller].done:,} of {p[controller].planned:,} episodes on the {plant} plant"
+        for plant, p in progress.items()
+        if not p[controller].complete
+    ]
+    return "; ".join(short) or None
+
+
+def level_data(level: Any, kinematic: Results | None, physics: Results | None) -> Level:
+    """A level's :class:`Level` from its two runs (None: the level has no log yet on that plant)."""
+    if kinematic is None or physics is None:
+        known = kinematic if kinematic is not None else physics
+        declared = known.config["controllers"] if known is not None else []
+        missing = " and ".join(plant for plant, run in zip(PLANTS, (kinematic, physics)) if run is None)
+        return Level(
+            level,
+            len(declared),
+            {c: f"not started on the {missing} plant" for c in declared},
+            None,
+            None,
+            [],
+            [],
+            None,
+        )
+    check_same_protocol(kinematic.config, physics.config)
+    progress = {plant: run_progress(run) for plant, run in zip(PLANTS, (kinematic, physics))}
+    pending = {}
+    for controller in kinematic.config["controllers"]:
+        why = _shortfall(progress, controller)
+        if why is not None:
+            pending[controller] = why
+    complete = [c for c in kinematic.config["controllers"] if c not in pending]
+    if not complete:
+        return Level(level, len(kinematic.config["controllers"]), pending, None, None, [], [], None)
+    before, after = restricted(kinematic, complete), restricted(physics, complete)
+    assert isinstance(before, Results) and isinstance(after, Results)
+    ranked = [c for c in complete if c not in FINE_TUNED]
+    return Level(
+        level,
+        len(kinematic.config["controllers"]),
+        pending,
+        before,
+        after,
+        plant_differences(before, after),
+        orderings(before, after),
+        rank_agreement(before, after, ranked) if len(ranked) >= 2 else None,
     )
+
+
+def _tau(value: float) -> str:
+    return "undefined" if math.isnan(value) else f"{value:.2f}"
+
+
+def pending_sentence(pending: dict[str, str], declared: int) -> str:
+    """The controllers left out of a level, grouped by how far they are (``declared``: how many
+    the level has; when every one is pending alike they are counted, not named)."""
+    by_reason: dict[str, list[str]] = {}
+    for controller, why in pending.items():
+        by_reason.setdefault(why, []).append(f"`{controller}`")
+    return "; ".join(
+        f"every controller ({declared}) is pending: {why}"
+        if len(names) == declared
+        else f"{_listed(names)} (pending: {why})"
+        for why, names in by_reason.items()
+    )
+
+
+def agreement_sentence(level: Level) -> str:
+    """The rank agreement of a level with its interval, in words."""
+    found = level.agreement
+    if found is None:
+        return "Fewer than two controllers are complete: no ranking to compare."
+    assert level.kinematic is not None
+    clusters = "(task, layout)" if level.kinematic.config.get("suite") else "(task, map, seed)"
+    resamples = f"{RANK_RESAMPLES:,} resamples"
+    if found.resamples < RANK_RESAMPLES:  # a resample whose rates all tie on a plant has no tau
+        resamples = f"the {found.resamples:,} of {RANK_RESAMPLES:,} resamples with a tau"
+    return (
+        f"The ranking of the {found.controllers} controllers by success agrees between the plants with "
+        f"Kendall's tau-b = {_tau(found.tau)} (95% interval [{_tau(found.low)}, {_tau(found.high)}], "
+        f"a percentile bootstrap of {resamples} of the "
+        f"{found.clusters} {clusters} clusters, seed {RANK_SEED}; 1 is the same order, 0 none, "
+        "-1 reversed)."
+    )
+
+
+def changes_sentence(level: Level) -> str:
+    """The controllers whose own success differs significantly between the plants, with direction."""
+    changed = [row for row in significant_changes(level.rows) if row.controller not in FINE_TUNED]
+    family = f"Holm over the level's {len(level.rows)} controllers, p below {TRANSFER_ALPHA}"
+    if not changed:
+        return f"No controller's own success differs significantly between the plants ({family})."
+    named = [
+        f"`{row.controller}` {'gains' if row.difference > 0 else 'loses'} {abs(100 * row.difference):.0f} "
+        f"points {_signed_interval(row.low, row.high)}"
+        for row in changed
+    ]
+    return f"On the physics plant {_listed(named)} ({family}); every other controller's difference is not significant."
+
+
+#: what a level with fewer than two complete controllers of one task says of the pairwise verdicts
+_NO_PAIR = "no pair of controllers of one task is complete on both plants, so no pairwise verdict is tested"
+
+
+def pairwise_sentence(level: Level) -> str:
+    """The count of the kinematic plant's pairwise verdicts that hold on the physics plant."""
+    kept = transfers(level.found)
+    verdicts = [o for o in kept if o.first != 0]
+    new = sum(o.verdict == "new" for o in kept)
+    if not kept:
+        return _NO_PAIR
+    if not verdicts:
+        text = (
+            f"no ordering of two controllers of one task is significant on the kinematic plant (of {len(kept)} "
+            "pairs, Holm over the pairs), so no pairwise verdict is there to transfer"
+        )
+    else:
+        held = sum(o.verdict == "holds" for o in verdicts)
+        text = f"{held} of the {len(verdicts)} orderings significant on the kinematic plant (of {len(kept)} pairs) hold"
+    return text + (f"; {new} appear on the physics plant only" if new else "")
+
+
+def level_summary(level: Level) -> str:
+    """A level's item of the summary block."""
+    head = f"- **{level_title(level.level)}**"
+    if level.kinematic is None:
+        return (
+            f"{head}: no controller is complete on both plants yet, nothing is tested: "
+            f"{pending_sentence(level.pending, level.declared)}."
+        )
+    pairs = {row.pairs for row in level.transferred}
+    each = f"{pairs.pop()} paired episodes each" if len(pairs) == 1 else "paired episodes as tabled"
+    text = (
+        f"{head} ({len(level.transferred)} controllers, {each}): {pairwise_sentence(level)}. "
+        f"{agreement_sentence(level)} {changes_sentence(level)}"
+    )
+    if level.pending:
+        text += f" Left out until complete: {pending_sentence(level.pending, level.declared)}."
+    return text
+
+
+def summary_block(levels: list[Level]) -> str:
+    """The summary every level gives, between the lines README.md copies (:data:`SUMMARY`)."""
+    lines = [
+        f"<!-- begin {SUMMARY}: written by `python docs/make_pages.py docs/sim2sim_results.md` from the "
+        "committed data (docs/make_sim2sim_md.py); an edit by hand fails the tests -->",
+        "**Which verdicts transfer** from the kinematic plant to the physics plant (MuJoCo), per friction "
+        "level: the pairwise verdicts of the kinematic plant that hold on the physics plant, the rank "
+        "agreement of the controllers' success between the plants, and the controllers whose success "
+        "changes significantly.",
+        "",
+        *(level_summary(level) for level in levels),
+        f"<!-- end {SUMMARY} -->",
+    ]
+    return "\n".join(lines)
 
 
 def transfers(found: list[Ordering]) -> list[Ordering]:
@@ -209,16 +403,33 @@ def fine_tuned_table(rows: list[PlantRow], physics: Results) -> str:
     return "\n".join(lines)
 
 
-def level_section(level: Any, kinematic: Results, physics: Results, found: list[Ordering]) -> str:
-    """One friction level's part of the page (``found``: its :func:`orderings`)."""
-    rows = plant_differences(kinematic, physics)
-    transferred = [row for row in rows if row.controller not in FINE_TUNED]
-    tuned = [row for row in rows if row.controller in FINE_TUNED]
-    parts = [
-        f"## {level_title(level)}",
-        plant_table(transferred),
-        f"Holm's adjustment over the level's {len(rows)} tests. **Which verdicts transfer**: "
-        + transfer_sentence(transfers(found)),
+def level_section(level: Level) -> str:
+    """One friction level's part of the page."""
+    parts = [f"## {level_title(level.level)}"]
+    if level.kinematic is None or level.physics is None:
+        parts.append(
+            "No controller is complete on both plants yet, so this level has no table and no test: "
+            f"{pending_sentence(level.pending, level.declared)}."
+        )
+        return "\n\n".join(parts)
+    tuned = [row for row in level.rows if row.controller in FINE_TUNED]
+    parts += [
+        plant_table(level.transferred),
+        f"Holm's adjustment over the level's {len(level.rows)} tests. {changes_sentence(level)}",
+    ]
+    if level.pending:
+        parts.append(
+            "**Pending**, left out of every table and test of this level until complete: "
+            f"{pending_sentence(level.pending, level.declared)}."
+        )
+    parts += [
+        f"**Does the ranking transfer?** {agreement_sentence(level)}",
+        "**Which verdicts transfer**: "
+        + (
+            transfer_sentence(transfers(level.found))
+            if transfers(level.found)
+            else _NO_PAIR.capitalize() + "."
+        ),
     ]
     if tuned:
         parts += [
@@ -226,19 +437,19 @@ def level_section(level: Any, kinematic: Results, physics: Results, found: list[
             "physics plant's train layouts, so its kinematic column is the reverse direction): against "
             "the policy it was fine-tuned from, paired on the physics plant's episodes (Newcombe's 95% "
             "interval, exact McNemar p).",
-            fine_tuned_table(tuned, physics),
+            fine_tuned_table(tuned, level.physics),
         ]
     return "\n\n".join(parts)
 
 
-def _slip_levels(path: str) -> tuple[dict[Any, Results], dict[str, Any]]:
-    """A sim-to-sim run's finished friction levels and its manifest."""
-    done, missing, manifest = load_sweep(path)
+def _slip_levels(path: str) -> tuple[dict[Any, Results], list[Any], dict[str, Any]]:
+    """A sim-to-sim run's friction levels with a log, every level its manifest sweeps, and the
+    manifest."""
+    done, _, manifest = load_sweep(path)
     if "slip" not in done:
         raise ValueError(f"the run in {path!r} is not swept over the friction level (--sweep slip=...)")
-    if missing:
-        print(f"note: levels of {path!r} not finished yet, left out: {', '.join(missing)}", file=sys.stderr)
-    return dict(done["slip"]), manifest
+    [axis] = [entry for entry in manifest["axes"] if entry["key"] == "slip"]
+    return dict(done["slip"]), list(axis["levels"]), manifest
 
 
 def page(kinematic_path: str, physics_path: str, title: str, intro: str) -> str:
@@ -248,15 +459,18 @@ def page(kinematic_path: str, physics_path: str, title: str, intro: str) -> str:
     ------
     ValueError
         A run that is not a friction sweep, two runs that differ by more than the plant (named),
-        or no friction level finished in both.
+        or no friction level with a log in both.
     """
-    kinematic, kinematic_manifest = _slip_levels(kinematic_path)
-    physics, physics_manifest = _slip_levels(physics_path)
-    shared = [level for level in kinematic if level in physics]
-    if not shared:
-        raise ValueError(f"no friction level is finished in both runs ({list(kinematic)}; {list(physics)})")
-    for level in shared:
-        check_same_protocol(kinematic[level].config, physics[level].config)
+    kinematic, kinematic_levels, kinematic_manifest = _slip_levels(kinematic_path)
+    physics, physics_levels, physics_manifest = _slip_levels(physics_path)
+    if kinematic_levels != physics_levels:
+        raise ValueError(
+            f"the runs sweep different friction levels ({kinematic_levels}; {physics_levels}): "
+            "a sim-to-sim pair sweeps the same ones"
+        )
+    if not any(level in kinematic and level in physics for level in kinematic_levels):
+        raise ValueError(f"no friction level has a log in both runs ({list(kinematic)}; {list(physics)})")
+    levels = [level_data(level, kinematic.get(level), physics.get(level)) for level in kinematic_levels]
     parts = [
         f"# {title}",
         intro,
@@ -266,11 +480,14 @@ def page(kinematic_path: str, physics_path: str, title: str, intro: str) -> str:
         "plant with its 95% Wilson interval, the paired difference with Newcombe's 95% interval and "
         "the exact McNemar p, Holm-adjusted over the level's controllers. A verdict is a paired "
         "difference in success between two controllers of one task with a Holm-adjusted p below "
-        f"{TRANSFER_ALPHA} in that plant's own table of every pair (the run's report: Holm over its pairs).",
+        f"{TRANSFER_ALPHA} in that plant's own table of every pair (the run's report: Holm over its pairs). "
+        "The rank agreement is Kendall's tau-b between the controllers' success rates on the two plants "
+        "(both tasks pooled, the fine-tuned row left out), with a percentile bootstrap interval that "
+        "resamples whole clusters, the same resample on both plants. A controller whose episodes are "
+        "not all in both runs is pending: named, and left out of every table and test.",
+        summary_block(levels),
     ]
-    found = {level: orderings(kinematic[level], physics[level]) for level in shared}
-    parts.append(summary_sentence(found))
-    parts += [level_section(level, kinematic[level], physics[level], found[level]) for level in shared]
+    parts += [level_section(level) for level in levels]
     return "\n\n".join(parts) + "\n"
 
 

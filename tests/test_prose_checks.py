@@ -187,14 +187,33 @@ def _second_run(match: re.Match[str], sources: dict) -> list[str]:
     return [] if match[1] == "2" else [f"README names results-{match[1]}/; a second run writes results-2/"]
 
 
-def _headline(match: re.Match[str], sources: dict) -> list[str]:
-    # the block is the generated page's (whose bytes test_no_published_page_is_edited_by_hand checks)
-    stale = stale_readme_blocks(match.string)
-    return [f"README's {name} block is not docs/bench_results.md's: rebuild it" for name in stale]
+def _readme_block(entry: dict) -> Check:
+    """The check of README's copy of ``entry``'s block (an item of data/pages.json with a
+    ``"readme"``): the block is the generated page's, whose bytes
+    test_no_published_page_is_edited_by_hand checks, so its numbers have that source."""
+
+    def check(match: re.Match[str], sources: dict) -> list[str]:
+        stale = entry["readme"] in stale_readme_blocks(match.string)
+        return [f"README's {entry['readme']} block is not {entry['page']}'s: rebuild it"] if stale else []
+
+    return check
+
+
+#: every block a published page gives README.md (data/pages.json's ``"readme"``), each checked
+READMES: list[tuple[re.Pattern[str], Check]] = [
+    (
+        re.compile(
+            rf"^<!-- begin {re.escape(e['readme'])}\b.*?^<!-- end {re.escape(e['readme'])} -->$", re.M | re.S
+        ),
+        _readme_block(e),
+    )
+    for e in PAGES
+    if "readme" in e
+]
 
 
 CHECKS: list[tuple[re.Pattern[str], Check]] = [
-    (re.compile(r"^<!-- begin bench-headline\b.*?^<!-- end bench-headline -->$", re.M | re.S), _headline),
+    *READMES,
     (COUNTS, _counts),
     (QUICK, _quick),
     (TESTS, _tests),
@@ -301,27 +320,45 @@ def test_no_published_page_is_edited_by_hand() -> None:
     assert stale_readme_blocks() == []
 
 
-def test_readmes_headline_is_the_bench_pages_block() -> None:
-    """README's headline block is docs/bench_results.md's, copied by docs/make_pages.py; a README
-    without it, or with a number changed in it, is named."""
-    page = (ROOT / "docs" / "bench_results.md").read_text(encoding="utf-8")
-    block = block_of(page, "bench-headline")
+def _edited_number(block: str) -> str:
+    """``block`` with its first rate or estimate after the begin line changed (98% -> 198%,
+    0.37 -> 10.37)."""
+    head, _, body = block.partition("\n")
+    number = re.search(r"\d+(?:\.\d+)?%|\d+\.\d+", body)  # a rate or an estimate, not a name's digit
+    assert number is not None, body
+    return head + "\n" + body.replace(number[0], "1" + number[0], 1)
+
+
+#: the published pages that give README.md a block, and the block's name
+README_BLOCKS = [(e["page"], e["readme"]) for e in PAGES if "readme" in e]
+
+
+def test_every_readme_block_is_checked() -> None:
+    """The bench headline and the sim-to-sim summary are among README's blocks, each its page's."""
+    assert {
+        ("docs/bench_results.md", "bench-headline"),
+        ("docs/sim2sim_results.md", "sim2sim-transfer"),
+    } <= set(README_BLOCKS)
+
+
+@pytest.mark.parametrize(("page", "name"), README_BLOCKS)
+def test_readmes_block_is_the_pages_block(page: str, name: str) -> None:
+    """README's block is the page's, copied by docs/make_pages.py; a README without it, or with a
+    number changed in it, is named."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    block = block_of(text, name)
     assert block is not None and block in README
-    assert stale_readme_blocks(README.replace(block, "")) == ["bench-headline"]
-    number = re.search(r"\d+%", block)
-    assert number is not None
-    edited = README.replace(block, block.replace(number[0], "1" + number[0], 1))  # 98% -> 198%
-    assert stale_readme_blocks(edited) == ["bench-headline"]
+    assert stale_readme_blocks(README.replace(block, "")) == [name]
+    assert stale_readme_blocks(README.replace(block, _edited_number(block))) == [name]
 
 
-def test_a_number_edited_in_readmes_headline_fails(sources) -> None:
-    """README's check (every number has a source) names the headline block edited by hand."""
-    block = block_of(README, "bench-headline")
+@pytest.mark.parametrize(("page", "name"), README_BLOCKS)
+def test_a_number_edited_in_a_readme_block_fails(sources, page: str, name: str) -> None:
+    """README's check (every number has a source) names the block edited by hand, and its page."""
+    block = block_of(README, name)
     assert block is not None
-    number = re.search(r"\d+%", block)
-    assert number is not None
-    edited = README.replace(block, block.replace(number[0], "1" + number[0], 1))
-    assert any("block is not docs/bench_results.md's" in p for p in readme_problems(edited, sources))
+    problems = readme_problems(README.replace(block, _edited_number(block)), sources)
+    assert problems == [f"README's {name} block is not {page}'s: rebuild it"], problems
 
 
 def test_a_number_edited_by_hand_in_a_generated_page_fails() -> None:

@@ -16,15 +16,23 @@ import pytest
 import evaluate as ev
 from evaluation.reports.publications import pack_split
 from evaluation.stats.statistics import paired_comparison
-from evaluation.stats.transfer import Ordering, ordering_verdict
+from evaluation.stats.transfer import (
+    Ordering,
+    kendall_tau_b,
+    ordering_verdict,
+    planned_episodes,
+    rank_agreement,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
 from make_sim2sim_md import (  # noqa: E402  (docs/ is no package)
     FINE_TUNED,
+    SUMMARY,
+    Level,
     against_source,
     level_title,
-    summary_sentence,
+    pairwise_sentence,
     transfer_sentence,
     transfers,
 )
@@ -157,8 +165,19 @@ def test_the_sentence_names_each_verdict_by_its_fate() -> None:
         "appear on the physics plant only: `a` > `d` (target reaching)."
     )
     assert transfer_sentence(found[-1:]).startswith("No ordering of two controllers is significant")
-    summary = summary_sentence({"nominal": found, "high": found[3:]})
-    assert "at each friction level: carpet 1 of 3 (and 1 new); ice 0 of 0 (and 1 new)." in summary
+    assert pairwise_sentence(_level(found)) == (
+        "1 of the 3 orderings significant on the kinematic plant (of 5 pairs) hold; 1 appear on the "
+        "physics plant only"
+    )
+    assert pairwise_sentence(_level(found[3:])) == (
+        "no ordering of two controllers of one task is significant on the kinematic plant (of 2 pairs, "
+        "Holm over the pairs), so no pairwise verdict is there to transfer; 1 appear on the physics plant only"
+    )
+
+
+def _level(found: list[Ordering]) -> Level:
+    """A level with these orderings and nothing else (what :func:`pairwise_sentence` reads)."""
+    return Level("nominal", 0, {}, None, None, [], found, None)
 
 
 def test_the_fine_tuned_rows_are_the_policies_trained_on_the_physics_plant() -> None:
@@ -187,8 +206,8 @@ def test_a_fine_tuned_row_is_no_transfer_and_is_paired_with_its_source() -> None
         Ordering(env, source, tuned, 1, 0),
     ]
     assert transfers(found) == found[:1]
-    assert summary_sentence({"nominal": found}).endswith(
-        "carpet 1 of 1. Each level's section names them, and those lost, reversed or new."
+    assert pairwise_sentence(_level(found)).startswith(
+        "1 of the 1 orderings significant on the kinematic plant (of 1 pairs) hold"
     )
     records = [
         {"controller": name, "env_id": env, "layout": layout, "map": "suite", "seed": layout, "success": ok}
@@ -231,3 +250,149 @@ def test_the_difference_is_physics_minus_kinematic_on_the_twins(runs) -> None:
     assert (rows["orca"].first, rows["orca"].second, rows["orca"].difference) == (0.0, 1.0, 1.0)
     assert rows["orca"].second_interval[0] > 0.3 and rows["orca"].first_interval[1] < 0.7
     assert rows["consensus-free"].difference == 0.0 and rows["orca"].pairs == 2
+
+
+# --------------------------------------------------------------------------- partial runs
+def _trim(run: Path, out: Path, keep) -> Path:
+    """A copy of ``run`` whose episode logs keep the records ``keep(level, record)`` accepts."""
+    import shutil
+
+    shutil.copytree(run, out)
+    for log in out.glob("sweep/slip-*/episodes.jsonl"):
+        level = log.parent.name.removeprefix("slip-")
+        header, *lines = log.read_text().splitlines()
+        kept = [line for line in lines if keep(level, json.loads(line))]
+        log.write_text("\n".join([header, *kept]) + "\n")
+    return out
+
+
+def test_a_partial_level_is_named_pending_and_left_out(runs, published, tmp_path, capsys) -> None:
+    """The physics run published part way: carpet has no episode yet, and on ice orca has one of
+    its two. Carpet is named pending with nothing tested; orca is named pending on ice and has no
+    row, no test, no place in the ranking; consensus-free, complete on both, keeps its row."""
+    _, physics = runs
+    dropped = []
+
+    def keep(level: str, record: dict) -> bool:
+        if level == "nominal" or (record["controller"] == "orca" and not dropped):
+            dropped.append(record)
+            return False
+        return True
+
+    trimmed = _trim(physics, tmp_path / "run" / "sim2sim_physics", keep)
+    partial = pack_split(trimmed, tmp_path / "data" / "sim2sim_physics")
+    out = tmp_path / "page.md"
+    code, _, err = _make_page([str(published[0]), str(partial), "--out", str(out)], capsys)
+    assert code == 0, err
+    text = out.read_text()
+    carpet = text.split(f"## {level_title('nominal')}")[1].split("\n## ")[0]
+    ice = text.split(f"## {level_title('high')}")[1]
+    assert "| controller |" not in carpet and "No controller is complete on both plants yet" in carpet
+    assert "every controller (2) is pending: 0 of 2 episodes on the physics plant." in carpet
+    assert "`orca` (pending: 1 of 2 episodes on the physics plant)" in ice
+    assert re.search(r"^\| consensus-free \| 2 \|", ice, re.M) and not re.search(r"^\| orca \|", ice, re.M)
+    assert "Fewer than two controllers are complete" in ice  # orca is out of the ranking too
+    assert "No pair of controllers of one task is complete on both plants" in ice  # nor in a pair
+    block = text.split(f"<!-- begin {SUMMARY}")[1].split(f"<!-- end {SUMMARY} -->")[0]
+    assert f"**{level_title('nominal')}**: no controller is complete on both plants yet" in block
+    assert "every controller (2) is pending: 0 of 2 episodes on the physics plant." in block
+    assert "`orca` (pending: 1 of 2 episodes on the physics plant)" in block
+    assert "0 of 0" not in text
+
+
+def test_the_planned_count_is_the_runs_own() -> None:
+    """Episodes per (task, controller) from a header: a suite's selected layouts x episodes per
+    layout (or its whole split), a plain map's episodes, times the slips."""
+    env = "KoopNav-TargetReaching-v0"
+    suite = {"tasks": {env: {"size": 200}}, "layouts": [0, 10], "episodes_per_layout": 2}
+    config = {
+        "maps": {env: ["suite:koopnav-bench-v1/test"]},
+        "suite": suite,
+        "slips": ["high"],
+        "episodes": 2,
+    }
+    assert planned_episodes(config, env) == 20
+    assert planned_episodes({**config, "suite": {**suite, "layouts": None}}, env) == 400
+    plain = {"maps": {env: ["map1", "map2"]}, "suite": None, "slips": ["nominal", "high"], "episodes": 3}
+    assert planned_episodes(plain, env) == 12
+
+
+# --------------------------------------------------------------------------- rank agreement
+def test_kendalls_tau_b_is_one_for_one_order_and_minus_one_reversed() -> None:
+    scipy_stats = pytest.importorskip("scipy.stats")
+    import numpy as np
+
+    x = [0.1, 0.4, 0.2, 0.9]
+    assert kendall_tau_b(x, x) == 1.0 and kendall_tau_b(x, [0.2, 0.4, 0.1, 0.9]) == pytest.approx(2 / 3)
+    assert kendall_tau_b(x, [-v for v in x]) == -1.0
+    assert np.isnan(kendall_tau_b(x, [0.5] * 4))
+    rng = np.random.default_rng(3)
+    rows = rng.integers(0, 4, size=(50, 2, 7))  # ties, as success rates have them
+    for a, b in rows:
+        expected = scipy_stats.kendalltau(a, b).statistic
+        assert kendall_tau_b(a, b) == pytest.approx(expected, nan_ok=True)
+    assert kendall_tau_b(rows[:, 0], rows[:, 1]) == pytest.approx(
+        [scipy_stats.kendalltau(a, b).statistic for a, b in rows], nan_ok=True
+    )
+
+
+def _run(outcomes: dict[str, list[list[bool]]]):
+    """Records of a suite-like run: controller -> per layout, the successes of its episodes."""
+    from types import SimpleNamespace
+
+    records = [
+        {
+            "env_id": "KoopNav-TargetReaching-v0",
+            "controller": name,
+            "map": "suite:koopnav-bench-v1/test",
+            "layout": layout,
+            "trial": layout + 100 * episode,
+            "seed": layout + 100 * episode,
+            "status": "ok",
+            "success": ok,
+        }
+        for name, layouts in outcomes.items()
+        for layout, episodes in enumerate(layouts)
+        for episode, ok in enumerate(episodes)
+    ]
+    return SimpleNamespace(records=records)
+
+
+def test_the_rank_agreement_is_one_for_the_same_order_and_minus_one_reversed() -> None:
+    ranked = {  # a > b > c on every layout
+        "a": [[True, True], [True, True], [True, False]],
+        "b": [[True, False], [True, False], [False, False]],
+        "c": [[False, False], [False, False], [False, False]],
+    }
+    reversed_ = {"a": ranked["c"], "b": ranked["b"], "c": ranked["a"]}
+    same = rank_agreement(_run(ranked), _run(ranked), ["a", "b", "c"])
+    assert (same.tau, same.controllers, same.clusters) == (1.0, 3, 3)
+    assert same.low == same.high == 1.0  # every resample keeps the one order on both plants
+    flipped = rank_agreement(_run(ranked), _run(reversed_), ["a", "b", "c"])
+    assert flipped.tau == -1.0 and flipped.high <= 0
+    again = rank_agreement(_run(ranked), _run(reversed_), ["a", "b", "c"])
+    assert again == flipped  # seeded: the same data give the same interval
+    with pytest.raises(ValueError, match=r"two or more controllers; got \['a'\]"):
+        rank_agreement(_run(ranked), _run(ranked), ["a"])
+
+
+def test_the_rank_interval_resamples_layouts_not_episodes() -> None:
+    """All episodes on one layout are one cluster: a resample of one cluster is the data itself,
+    so the interval is the point, however the episodes within it disagree; a resample of episodes
+    would move it. With two layouts that rank the controllers oppositely it is wide."""
+    one_layout = {
+        "a": [[True, True, False, True, False, True]],
+        "b": [[True, False, False, False, True, False]],
+        "c": [[False, False, True, False, False, False]],
+    }
+    physics = {"a": one_layout["b"], "b": one_layout["a"], "c": one_layout["c"]}
+    found = rank_agreement(_run(one_layout), _run(physics), ["a", "b", "c"])
+    assert found.clusters == 1 and found.low == found.high == found.tau
+    kinematic = {"a": [[True] * 4] * 2, "b": [[False] * 4] * 2, "c": [[True, True, False, False]] * 2}
+    physics = {  # layout 0 ranks a > c > b as the kinematic plant does, layout 1 b > c > a
+        "a": [[True] * 4, [False] * 4],
+        "b": [[False] * 4, [True] * 4],
+        "c": [[True, True, False, False]] * 2,
+    }
+    found = rank_agreement(_run(kinematic), _run(physics), ["a", "b", "c"])
+    assert found.clusters == 2 and (found.low, found.high) == (-1.0, 1.0)

@@ -13,7 +13,16 @@ Two runs are the same protocol when their settings differ by the plant only
   (:func:`evaluation.stats.robustness.level_costs`, the axis being the plant);
 - :func:`orderings`: which controller beats which on each plant (the run's own paired table,
   :meth:`evaluation.stats.run_data.RunData.paired`, Holm-adjusted over its pairs) and whether the
-  verdict holds on the other plant.
+  verdict holds on the other plant;
+- :func:`rank_agreement`: whether the controllers' ranking by success transfers at all, the
+  pairwise rule being silent at small samples: Kendall's tau-b between the two plants' success
+  rates, with a percentile bootstrap interval that resamples (task, layout) clusters
+  (:func:`kendall_tau_b`); :func:`significant_changes`: the controllers whose own
+  difference between the plants is significant.
+
+A run may be partial (published as it runs): :func:`run_progress` counts each controller's
+episodes against what the run's header plans (:func:`planned_episodes`), and :func:`restricted`
+keeps the controllers complete on both plants, the only ones any of the above may see.
 
 Statistics only: docs/make_sim2sim_md.py writes the page.
 """
@@ -21,27 +30,48 @@ Statistics only: docs/make_sim2sim_md.py writes the page.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from evaluation.episodes.distinct import episode_identity
+from evaluation.episodes.records import ran
 from evaluation.episodes.runlog import run_signature
+from evaluation.run.plan import RANDOM_MAP
 from evaluation.stats.robustness import LevelCost, level_costs
 from evaluation.stats.run_data import RunData
 from evaluation.stats.statistics import wilson_interval
+from koopman_envs import SUITE_PREFIX
 
 __all__ = [
+    "RANK_RESAMPLES",
+    "RANK_SEED",
     "TRANSFER_ALPHA",
     "Ordering",
     "PlantRow",
+    "Progress",
+    "RankAgreement",
     "check_same_protocol",
+    "cluster_of",
+    "kendall_tau_b",
     "ordering_verdict",
     "orderings",
+    "planned_episodes",
     "plant_differences",
+    "rank_agreement",
+    "restricted",
+    "run_progress",
+    "significant_changes",
 ]
 
 #: the family-wise level at which an ordering counts as a verdict (Holm-adjusted p below it)
 TRANSFER_ALPHA = 0.05
+
+#: the bootstrap of :func:`rank_agreement`: resamples and seed (fixed, so a page is byte-stable)
+RANK_RESAMPLES = 2000
+RANK_SEED = 0
 
 #: the env settings that may differ between the two runs of one sim-to-sim comparison
 _MAY_DIFFER = ("plant",)
@@ -216,3 +246,170 @@ def orderings(first: RunData, second: RunData, alpha: float = TRANSFER_ALPHA) ->
     check_same_protocol(first.config, second.config)
     before, after = _verdicts(first, alpha), _verdicts(second, alpha)
     return [Ordering(*key, sign, after[key]) for key, sign in before.items() if key in after]
+
+
+# --------------------------------------------------------------------------- partial runs
+@dataclass(frozen=True)
+class Progress:
+    """How far one controller of one run (one friction level) is: ``done`` of ``planned``
+    episodes, over every task."""
+
+    done: int
+    planned: int
+
+    @property
+    def complete(self) -> bool:
+        return self.done >= self.planned
+
+
+def planned_episodes(config: Mapping[str, Any], env_id: str) -> int:
+    """The episodes a run plans per controller of task ``env_id``, from its header: per map, a
+    suite's selected layouts x episodes per layout (the whole split without a selection), the
+    ``random`` row's ``random_maps`` trials, any other map's ``episodes``; times the slips."""
+    suite = config.get("suite")
+    per_map = []
+    for name in (config.get("maps") or {}).get(env_id, []):
+        if suite and env_id in suite.get("tasks", {}) and str(name).startswith(SUITE_PREFIX):
+            selected = suite.get("layouts")
+            layouts = suite["tasks"][env_id]["size"] if selected is None else selected[1] - selected[0]
+            per_map.append(int(layouts) * int(suite["episodes_per_layout"]))
+        elif name == RANDOM_MAP and config.get("random_maps"):
+            per_map.append(int(config["random_maps"]))
+        else:
+            per_map.append(int(config["episodes"]))
+    return sum(per_map) * len(config.get("slips") or [None])
+
+
+def run_progress(run: RunData) -> dict[str, Progress]:
+    """Controller -> its episodes logged (each once, whatever its status: an error is an
+    outcome) of those the run's header plans over its tasks, for every controller it declares."""
+    config = run.config
+    done: dict[str, set[tuple]] = {}
+    for record in run.records:
+        done.setdefault(record["controller"], set()).add(episode_identity(record))
+    planned = sum(planned_episodes(config, env_id) for env_id in config["env_ids"])
+    return {label: Progress(len(done.get(label, ())), planned) for label in config["controllers"]}
+
+
+def restricted(run: RunData, controllers: Sequence[str]) -> RunData:
+    """``run`` with the records of ``controllers`` only (its header unchanged)."""
+    keep = set(controllers)
+    return type(run)([r for r in run.records if r["controller"] in keep], run.config)
+
+
+# --------------------------------------------------------------------------- rank agreement
+@dataclass(frozen=True)
+class RankAgreement:
+    """Kendall's tau-b between the controllers' success rates on two plants.
+
+    Attributes
+    ----------
+    tau : float
+        On the data (NaN when either plant's rates are all tied).
+    low, high : float
+        Its percentile bootstrap interval (:data:`RANK_RESAMPLES` resamples of the clusters with
+        replacement, each controller's rate recomputed on both plants from the same resample).
+    controllers, clusters : int
+        How many controllers were ranked, over how many clusters.
+    resamples : int
+        The resamples with a tau (a resample where a plant's rates all tie has none).
+    """
+
+    tau: float
+    low: float
+    high: float
+    controllers: int
+    clusters: int
+    resamples: int
+
+
+def kendall_tau_b(x: Any, y: Any) -> Any:
+    """Kendall's tau-b of ``x`` and ``y`` along their last axis (rows are separate samples):
+    ``(concordant - discordant) / sqrt((pairs - ties in x) (pairs - ties in y))``; NaN where
+    either is constant. As ``scipy.stats.kendalltau``'s default, vectorised over rows."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if x.shape != y.shape or x.shape[-1] < 2:
+        raise ValueError(f"kendall_tau_b needs two equal shapes of 2 or more items; got {x.shape}, {y.shape}")
+    i, j = np.triu_indices(x.shape[-1], 1)
+    dx, dy = np.sign(x[..., i] - x[..., j]), np.sign(y[..., i] - y[..., j])
+    denominator = np.sqrt((dx * dx).sum(-1) * (dy * dy).sum(-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(denominator > 0, (dx * dy).sum(-1) / denominator, np.nan)
+
+
+def cluster_of(record: Mapping[str, Any]) -> Hashable:
+    """An episode's cluster for :func:`rank_agreement`: its (task, map, layout) in a suite run
+    (every controller met the layout alike), else (task, map, seed): its own start."""
+    layout = record.get("layout")
+    return (record["env_id"], record["map"], layout if layout is not None else ("seed", record["seed"]))
+
+
+def rank_agreement(
+    first: RunData,
+    second: RunData,
+    controllers: Sequence[str],
+    resamples: int = RANK_RESAMPLES,
+    seed: int = RANK_SEED,
+    confidence: float = 0.95,
+) -> RankAgreement:
+    """How well ``controllers``' ranking by success on ``first``'s plant agrees with ``second``'s.
+
+    Each controller's success rate on each plant over the units both plants ran (env, map,
+    trial: the same episode on both), every task pooled; Kendall's tau-b of the two rates over
+    the controllers (1: the same order, -1: reversed; ties as tau-b counts them). Its interval
+    resamples the clusters (:func:`cluster_of`) with replacement, the same resample on both plants
+    and for every controller (a layout is hard for all), seeded: the same data give the same
+    interval.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two controllers, or ``resamples`` below 1.
+    """
+    labels = list(dict.fromkeys(controllers))
+    if len(labels) < 2:
+        raise ValueError(f"rank agreement needs two or more controllers; got {labels}")
+    if resamples < 1:
+        raise ValueError(f"resamples must be 1 or more; got {resamples}")
+    column = {label: k for k, label in enumerate(labels)}
+
+    def outcomes(run: RunData) -> dict[tuple, dict[str, Any]]:
+        return {
+            (r["controller"], r["env_id"], r["map"], int(r["trial"])): r
+            for r in run.records
+            if r["controller"] in column and ran(r)
+        }
+
+    before, after = outcomes(first), outcomes(second)
+    shared = sorted(set(before) & set(after), key=repr)
+    clusters = list(dict.fromkeys(sorted((cluster_of(before[u]) for u in shared), key=repr)))
+    row = {c: n for n, c in enumerate(clusters)}
+    # successes on each plant and episodes, per (cluster, controller): integers, so every sum is exact
+    wins = np.zeros((2, len(clusters), len(labels)))
+    counts = np.zeros((len(clusters), len(labels)))
+    for unit in shared:
+        at = row[cluster_of(before[unit])], column[unit[0]]
+        counts[at] += 1
+        wins[(0, *at)] += bool(before[unit]["success"])
+        wins[(1, *at)] += bool(after[unit]["success"])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tau = float(kendall_tau_b(wins[0].sum(0) / counts.sum(0), wins[1].sum(0) / counts.sum(0)))
+        rng = np.random.default_rng(seed)
+        drawn = rng.integers(0, len(clusters), size=(resamples, len(clusters))) if clusters else None
+        taus = np.empty(0)
+        if drawn is not None:
+            weights = np.stack([np.bincount(d, minlength=len(clusters)) for d in drawn]).astype(float)
+            n = weights @ counts
+            taus = kendall_tau_b((weights @ wins[0]) / n, (weights @ wins[1]) / n)
+            taus = taus[~np.isnan(taus)]
+    tail = 100 * (1 - confidence) / 2
+    low, high = math.nan, math.nan
+    if taus.size:
+        low, high = (float(v) for v in np.percentile(taus, [tail, 100 - tail]))
+    return RankAgreement(tau, low, high, len(labels), len(clusters), int(taus.size))
+
+
+def significant_changes(rows: Sequence[PlantRow], alpha: float = TRANSFER_ALPHA) -> list[PlantRow]:
+    """The rows whose own difference between the plants is significant: Holm-adjusted p (over
+    the level's controllers, :func:`plant_differences`) below ``alpha``."""
+    return [row for row in rows if not math.isnan(row.p_holm) and row.p_holm < alpha]
