@@ -165,6 +165,76 @@ def bench_mpe2(seconds: float, repeats: int = REPEATS) -> float | None:
     return None if runner is None else _timed(*runner, seconds, repeats)
 
 
+def measure_task(env_id: str, seconds: float, repeats: int) -> tuple[dict[str, float], float | None]:
+    """One task's figures (keyed as the JSON names them, without the task) and MPE2's rate timed
+    beside its single env (None without mpe2)."""
+    zoned = two_zone_map(env_id)
+    timing = (seconds, repeats)
+    # the single env's windows alternate with the same env on the zoned map and with MPE2's,
+    # so that their ratios hold however the machine's load changes during the run
+    runners = [single_runner(env_id), single_runner(env_id, map=zoned)]
+    mpe = mpe2_runner()
+    rates = _timed_together(*runners, *([] if mpe is None else [mpe]), seconds=seconds, repeats=repeats)
+    figures = {"single": rates[0], "single two slip zones": rates[1]}
+    for k in (1, 64):
+        figures[f"vector {k}"] = bench_vector(env_id, k, seconds, repeats)
+    # each comparison alternates its two contenders' windows (see _timed_pair)
+    pair = _timed_pair(vector_runner(env_id, 1024), vector_runner(env_id, 1024, map=zoned), *timing)
+    figures["vector 1024"], figures["vector 1024 two slip zones"] = (1024 * r for r in pair)
+    # the setting RL training uses: a new random layout at every reset, without and with zones
+    plain = vector_runner(env_id, 1024, map="random")
+    with_zones = vector_runner(env_id, 1024, map="random", random_map={"n_slip_zones": 2})
+    random_pair = _timed_pair(plain, with_zones, *timing)
+    figures["vector 1024 random maps"], figures["vector 1024 random maps two slip zones"] = (
+        1024 * r for r in random_pair
+    )
+    return figures, None if mpe is None else rates[2]
+
+
+def print_task(env_id: str, figures: dict[str, float]) -> None:
+    """One task's lines, from :func:`measure_task`'s figures."""
+    rate, zones = figures["single"], figures["single two slip zones"]
+    print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
+    print(f"{env_id:28s} single, two slip zones   {zones:12,.0f} steps/s ({zones / rate:.2f}x the fixed map)")
+    for k in (1, 64):
+        print(f"{env_id:28s} make_vec num_envs={k:<5d}   {figures[f'vector {k}']:12,.0f} env-steps/s")
+    fixed, zones = figures["vector 1024"], figures["vector 1024 two slip zones"]
+    print(f"{env_id:28s} make_vec num_envs=1024    {fixed:12,.0f} env-steps/s")
+    print(
+        f"{env_id:28s} make_vec 1024, two zones {zones:12,.0f} env-steps/s "
+        f"({zones / fixed:.2f}x the fixed map)"
+    )
+    rate, zones = figures["vector 1024 random maps"], figures["vector 1024 random maps two slip zones"]
+    print(
+        f"{env_id:28s} make_vec 1024, map=random {rate:12,.0f} env-steps/s "
+        f"({rate / fixed:.2f}x the fixed map)"
+    )
+    print(
+        f"{env_id:28s} 1024, random + 2 zones   {zones:12,.0f} env-steps/s "
+        f"({zones / rate:.2f}x random maps without zones)"
+    )
+
+
+def print_mpe(results: dict[str, float | None], mpe_rates: dict[str, float]) -> None:
+    """MPE2's simple_spread_v3 beside every task (or why not), its figures added to ``results``."""
+    if not mpe_rates:
+        results["mpe2 simple_spread_v3"] = None
+        print("mpe2 not installed: `pip install mpe2` to compare against simple_spread_v3")
+        return
+    first = koopman_envs.ENV_IDS[0]
+    results["mpe2 simple_spread_v3"] = mpe_rates[first]
+    for env_id, mpe_rate in mpe_rates.items():
+        results[f"mpe2 simple_spread_v3 beside {env_id}"] = mpe_rate
+        print(f"{env_id:28s} beside it: MPE2 simple_spread_v3 (3 agents) {mpe_rate:12,.0f} steps/s")
+    ratios = ", ".join(
+        f"{env_id} {results[f'{env_id} single'] / mpe_rate:.2f}x" for env_id, mpe_rate in mpe_rates.items()
+    )
+    ours = results[f"{first} single"]
+    print(
+        f"ratio KoopNav single / simple_spread: {ours / mpe_rates[first]:.2f}x ({ratios}; windows alternating)"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, default=1.0, help="length of one timing window")
@@ -186,70 +256,12 @@ def main() -> None:
     )
     mpe_rates: dict[str, float] = {}
     for env_id in koopman_envs.ENV_IDS:
-        zoned = two_zone_map(env_id)
-        timing = (args.seconds, args.repeats)
-        # the single env's windows alternate with the same env on the zoned map and with MPE2's,
-        # so that their ratios hold however the machine's load changes during the run
-        runners = [single_runner(env_id), single_runner(env_id, map=zoned)]
-        mpe = mpe2_runner()
-        rates = _timed_together(
-            *runners, *([] if mpe is None else [mpe]), seconds=args.seconds, repeats=args.repeats
-        )
-        rate, zones = rates[:2]
-        if mpe is not None:
-            mpe_rates[env_id] = rates[2]
-        results[f"{env_id} single"] = rate
-        results[f"{env_id} single two slip zones"] = zones
-        print(f"{env_id:28s} gym.make single env      {rate:12,.0f} steps/s")
-        print(
-            f"{env_id:28s} single, two slip zones   {zones:12,.0f} steps/s "
-            f"({zones / rate:.2f}x the fixed map)"
-        )
-        for k in (1, 64):
-            rate = bench_vector(env_id, k, args.seconds, args.repeats)
-            results[f"{env_id} vector {k}"] = rate
-            print(f"{env_id:28s} make_vec num_envs={k:<5d}   {rate:12,.0f} env-steps/s")
-        # each comparison alternates its two contenders' windows (see _timed_pair)
-        pair = _timed_pair(vector_runner(env_id, 1024), vector_runner(env_id, 1024, map=zoned), *timing)
-        fixed, zones = (1024 * r for r in pair)
-        results[f"{env_id} vector 1024"] = fixed
-        results[f"{env_id} vector 1024 two slip zones"] = zones
-        print(f"{env_id:28s} make_vec num_envs=1024    {fixed:12,.0f} env-steps/s")
-        print(
-            f"{env_id:28s} make_vec 1024, two zones {zones:12,.0f} env-steps/s "
-            f"({zones / fixed:.2f}x the fixed map)"
-        )
-        # the setting RL training uses: a new random layout at every reset, without and with zones
-        plain = vector_runner(env_id, 1024, map="random")
-        with_zones = vector_runner(env_id, 1024, map="random", random_map={"n_slip_zones": 2})
-        rate, zones = (1024 * r for r in _timed_pair(plain, with_zones, *timing))
-        results[f"{env_id} vector 1024 random maps"] = rate
-        results[f"{env_id} vector 1024 random maps two slip zones"] = zones
-        print(
-            f"{env_id:28s} make_vec 1024, map=random {rate:12,.0f} env-steps/s "
-            f"({rate / fixed:.2f}x the fixed map)"
-        )
-        print(
-            f"{env_id:28s} 1024, random + 2 zones   {zones:12,.0f} env-steps/s "
-            f"({zones / rate:.2f}x random maps without zones)"
-        )
-    if not mpe_rates:
-        results["mpe2 simple_spread_v3"] = None
-        print("mpe2 not installed: `pip install mpe2` to compare against simple_spread_v3")
-    else:
-        first = koopman_envs.ENV_IDS[0]
-        results["mpe2 simple_spread_v3"] = mpe_rates[first]
-        for env_id, mpe_rate in mpe_rates.items():
-            results[f"mpe2 simple_spread_v3 beside {env_id}"] = mpe_rate
-            print(f"{env_id:28s} beside it: MPE2 simple_spread_v3 (3 agents) {mpe_rate:12,.0f} steps/s")
-        ratios = ", ".join(
-            f"{env_id} {results[f'{env_id} single'] / mpe_rate:.2f}x"
-            for env_id, mpe_rate in mpe_rates.items()
-        )
-        ours = results[f"{first} single"]
-        print(
-            f"ratio KoopNav single / simple_spread: {ours / mpe_rates[first]:.2f}x ({ratios}; windows alternating)"
-        )
+        figures, mpe_rate = measure_task(env_id, args.seconds, args.repeats)
+        results.update({f"{env_id} {key}": value for key, value in figures.items()})
+        if mpe_rate is not None:
+            mpe_rates[env_id] = mpe_rate
+        print_task(env_id, figures)
+    print_mpe(results, mpe_rates)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(results, fh, indent=1)

@@ -25,6 +25,7 @@ import sys
 import tempfile
 import time
 import tracemalloc
+from typing import Any
 
 import numpy as np
 
@@ -84,6 +85,87 @@ print(json.dumps({"fit_seconds": fit_seconds, "rmse": rmse, "version": pk.__vers
 """
 
 
+def time_runs(plant, spec, dic, repeats: int) -> tuple[list[float], list[float]]:
+    """The data generation's and the fit's times of ``repeats`` runs, without tracemalloc (it hooks
+    every allocation and inflates the times); the best is printed, as timeit does, because shared
+    machines only ever add time."""
+    gen_times, fit_times = [], []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        data = collect_data(plant, spec)
+        gen_times.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        fit_bilinear(data.states, data.commands, dic)
+        fit_times.append(time.perf_counter() - start)
+    return gen_times, fit_times
+
+
+def measure_memory(plant, spec, dic) -> tuple[Any, Any, int, int]:
+    """A separate pass that measures the peak traced memory: the data, the fit and their peaks."""
+    tracemalloc.start()
+    data = collect_data(plant, spec)
+    gen_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.reset_peak()
+    fit = fit_bilinear(data.states, data.commands, dic)
+    fit_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return data, fit, gen_peak, fit_peak
+
+
+def print_fit(args, spec, dic, times: tuple[list[float], list[float]], peaks: tuple[int, int], rmse) -> None:
+    """The data set, the times and memory of generating it and fitting it, and the circle test."""
+    gen_times, fit_times = times
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB -> MiB on Linux
+    print(
+        f"{spec.transitions:,} transitions ({spec.trajectories} x {spec.steps}), slip {args.slip}, "
+        f"{args.dictionary} dictionary ({dic.size(3)} observables), {os.cpu_count()} cores"
+    )
+    print(
+        f"data generation   {min(gen_times):6.3f} s   peak traced memory {peaks[0] / 2**20:7.1f} MiB  "
+        f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in gen_times) + ")"
+    )
+    print(
+        f"bilinear fit      {min(fit_times):6.3f} s   peak traced memory {peaks[1] / 2**20:7.1f} MiB  "
+        f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in fit_times) + ") "
+        "(data included)"
+    )
+    print(f"process peak RSS  {rss:7.1f} MiB")
+    print("circle RMSE %     " + ", ".join(f"{v:.2f}" for v in rmse))
+
+
+def run_pykoopman(python: str, data, lambdas, repeats: int) -> subprocess.CompletedProcess:
+    """pykoopman's EDMDc fitted on the same data in ``python`` (a venv with pykoopman), with its
+    circle test: the finished process, its last line the JSON figures."""
+    start_poses = circle_starts(3)
+    commands = np.tile([CIRCLE_V, CIRCLE_OMEGA], (CIRCLE_STEPS, 3, 1))
+    truth = rollout(start_poses[None], commands[:, None], lambdas, np.random.default_rng(0))[:, 0]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "data.npz")
+        states = data.states
+        np.savez(
+            path,
+            X=states[:-1].reshape(-1, 9),
+            Y=states[1:].reshape(-1, 9),
+            U=data.commands.reshape(-1, 6),
+            circle_commands=commands.reshape(CIRCLE_STEPS, 6),
+            circle_truth=truth.reshape(-1, 9),
+        )
+        script = os.path.join(tmp, "run_pykoopman.py")
+        with open(script, "w") as fh:
+            fh.write(PYKOOPMAN_SCRIPT)
+        return subprocess.run([python, script, path, str(repeats)], capture_output=True, text=True)
+
+
+def print_comparison(other: dict, fit_seconds: float, rmse) -> None:
+    print(f"\n{'':24s} {'fit [s]':>8s}  circle RMSE % (robots 1..3)")
+    print(f"{'KoopNav bilinear EDMDc':24s} {fit_seconds:8.3f}  " + ", ".join(f"{v:.2f}" for v in rmse))
+    print(
+        f"{'pykoopman ' + other['version'] + ' EDMDc':24s} {other['fit_seconds']:8.3f}  "
+        + ", ".join(f"{v:.2f}" for v in other["rmse"])
+    )
+    print(f"fit-time ratio pykoopman / KoopNav: {other['fit_seconds'] / fit_seconds:.2f}x")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--slip", default="nominal")
@@ -102,80 +184,18 @@ def main() -> None:
     spec = data_spec_for(args.budget)
     dic = get_dictionary(args.dictionary)
     collect_data(plant, data_spec_for(100))  # warm-up (imports, compiled kernels)
-
-    # timing runs without tracemalloc (it hooks every allocation and inflates the times); the
-    # best of --repeats, as timeit does, because shared machines only ever add time
-    gen_times, fit_times = [], []
-    for _ in range(args.repeats):
-        start = time.perf_counter()
-        data = collect_data(plant, spec)
-        gen_times.append(time.perf_counter() - start)
-        start = time.perf_counter()
-        fit = fit_bilinear(data.states, data.commands, dic)
-        fit_times.append(time.perf_counter() - start)
-    gen_seconds, fit_seconds = min(gen_times), min(fit_times)
-    # a separate pass measures peak memory
-    tracemalloc.start()
-    data = collect_data(plant, spec)
-    gen_peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.reset_peak()
-    fit = fit_bilinear(data.states, data.commands, dic)
-    fit_peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB -> MiB on Linux
+    times = time_runs(plant, spec, dic, args.repeats)
+    data, fit, gen_peak, fit_peak = measure_memory(plant, spec, dic)
     model = KoopmanModel(fit.A, fit.N, fit.B, fit.C, dic, 3, plant.dt)
     report, _, _ = circle_test(model, lambdas, repetitions=30)
-    print(
-        f"{spec.transitions:,} transitions ({spec.trajectories} x {spec.steps}), slip {args.slip}, "
-        f"{args.dictionary} dictionary ({dic.size(3)} observables), {os.cpu_count()} cores"
-    )
-    print(
-        f"data generation   {gen_seconds:6.3f} s   peak traced memory {gen_peak / 2**20:7.1f} MiB  "
-        f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in gen_times) + ")"
-    )
-    print(
-        f"bilinear fit      {fit_seconds:6.3f} s   peak traced memory {fit_peak / 2**20:7.1f} MiB  "
-        f"(best of {args.repeats}: " + ", ".join(f"{t:.3f}" for t in fit_times) + ") "
-        "(data included)"
-    )
-    print(f"process peak RSS  {rss:7.1f} MiB")
-    print("circle RMSE %     " + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed))
-
+    print_fit(args, spec, dic, times, (gen_peak, fit_peak), report.rmse_fixed_seed)
     if args.pykoopman_python:
-        start_poses = circle_starts(3)
-        commands = np.tile([CIRCLE_V, CIRCLE_OMEGA], (CIRCLE_STEPS, 3, 1))
-        truth = rollout(start_poses[None], commands[:, None], lambdas, np.random.default_rng(0))[:, 0]
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, "data.npz")
-            states = data.states
-            np.savez(
-                path,
-                X=states[:-1].reshape(-1, 9),
-                Y=states[1:].reshape(-1, 9),
-                U=data.commands.reshape(-1, 6),
-                circle_commands=commands.reshape(CIRCLE_STEPS, 6),
-                circle_truth=truth.reshape(-1, 9),
-            )
-            script = os.path.join(tmp, "run_pykoopman.py")
-            with open(script, "w") as fh:
-                fh.write(PYKOOPMAN_SCRIPT)
-            out = subprocess.run(
-                [args.pykoopman_python, script, path, str(args.repeats)], capture_output=True, text=True
-            )
+        out = run_pykoopman(args.pykoopman_python, data, lambdas, args.repeats)
         if out.returncode != 0:
             print("pykoopman run failed:\n" + out.stderr[-2000:])
             return
         other = json.loads(out.stdout.strip().splitlines()[-1])
-        print(f"\n{'':24s} {'fit [s]':>8s}  circle RMSE % (robots 1..3)")
-        print(
-            f"{'KoopNav bilinear EDMDc':24s} {fit_seconds:8.3f}  "
-            + ", ".join(f"{v:.2f}" for v in report.rmse_fixed_seed)
-        )
-        print(
-            f"{'pykoopman ' + other['version'] + ' EDMDc':24s} {other['fit_seconds']:8.3f}  "
-            + ", ".join(f"{v:.2f}" for v in other["rmse"])
-        )
-        print(f"fit-time ratio pykoopman / KoopNav: {other['fit_seconds'] / fit_seconds:.2f}x")
+        print_comparison(other, min(times[1]), report.rmse_fixed_seed)
 
 
 if __name__ == "__main__":

@@ -49,10 +49,12 @@ real-time iteration (nothing compiled, nothing cached).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -67,6 +69,9 @@ from controllers.mpc.models import UnicycleModel
 from controllers.mpc.rti import QP_SOLVERS
 from controllers.solvers.compiled import solver_cache_dir
 from koopman_envs import EpisodeResult, env_id_for_map, run_episode
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the bench modules beside this one
+from nmpc_build_time import cache_timing  # noqa: E402
 
 #: QP solvers of the real-time iteration compared by default (``--qp-solvers`` picks others of
 #: :data:`controllers.mpc.rti.QP_SOLVERS`, e.g. DAQP or proxQP)
@@ -330,65 +335,6 @@ def line(label: str, row: Row) -> str:
     )
 
 
-BUILD = """
-import time, gymnasium as gym, koopman_envs, controllers
-env = gym.make("{env_id}", map="{map}")
-start = time.perf_counter()
-ctrl = controllers.make("{name}", **{options!r})
-controllers.calibration.calibrate_controller(ctrl, env)
-obs, info = env.reset(seed=0); ctrl.reset(env); ctrl.act(obs, info)
-print(time.perf_counter() - start)
-"""
-
-
-def build_seconds(
-    env_id: str, map_name: str, name: str, cache: str, options: dict[str, Any], jit: bool
-) -> float:
-    """Seconds from ``controllers.make(name, **options)`` to the first command, in a fresh process
-    with cache ``cache`` and compiled ``nlpsol`` solvers on (``jit``) or off."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    from controllers.mpc.config import JIT_ENV
-
-    root = Path(__file__).resolve().parents[1]
-    env = {**os.environ, "KOOPNAV_CACHE": cache, "PYTHONPATH": str(root), JIT_ENV: "1" if jit else "0"}
-    code = "import controllers.calibration\n" + BUILD.format(
-        env_id=env_id, map=map_name, name=name, options=options
-    )
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
-    ).stdout
-    return float(out.strip().splitlines()[-1])
-
-
-def cache_timing(env_id: str, map_name: str) -> None:
-    """Print the build time to the first command of compiled IPOPT (empty and filled cache) and of the RTI."""
-    import shutil
-    import tempfile
-    from pathlib import Path
-
-    for name in ("nominal-nmpc", "koopman-nmpc"):
-        cache = tempfile.mkdtemp(prefix="koopnav-bench-cache-")
-        try:
-            start = time.perf_counter()
-            # empty cache: the solver runs uncompiled while it compiles in the background
-            cold = build_seconds(env_id, map_name, name, cache, {"solver": "ipopt"}, jit=True)
-            while list(Path(cache, "solvers").glob("*.c")):
-                time.sleep(0.5)
-            compile_s = time.perf_counter() - start
-            warm = build_seconds(env_id, map_name, name, cache, {"solver": "ipopt"}, jit=True)
-            rti = build_seconds(env_id, map_name, name, cache, {"solver": "rti"}, jit=False)
-        finally:
-            shutil.rmtree(cache, ignore_errors=True)
-        print(
-            f"{name:14s} build to first command: IPOPT compiled, empty cache {cold:5.1f} s (uncompiled; the "
-            f"background compile took {compile_s:5.0f} s), filled cache {warm:5.1f} s; RTI {rti:5.1f} s"
-        )
-
-
 def mover_overhead(
     env_id: str, map_name: str, slip: str, count: int, qp: str, results: dict[tuple[str, str], Row]
 ) -> None:
@@ -412,7 +358,7 @@ def mover_overhead(
         )
 
 
-def main() -> None:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--map", default="map1")
     parser.add_argument("--slip", default="nominal")
@@ -448,56 +394,53 @@ def main() -> None:
         help=f"QP solvers of the RTI rows (default: {' '.join(QP_ROWS)}; the first is the one "
         "the speed-ups are given for)",
     )
-    args = parser.parse_args()
-    global EPISODE_STEPS
-    EPISODE_STEPS = args.steps
-    env_id = env_id_for_map(args.map)
-    print(
-        f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop "
-        f"episode per row; solve time per step [ms], building excluded\n"
-        f"cold: first step after a reset (median of {COLD_RESETS}); iter: per step, QPs (RTI) or interior-point "
-        f"iterations; fallbacks: RTI steps solved by IPOPT; final: mean distance to target"
-    )
-    if args.cache_timing:
-        cache_timing(env_id, args.map)
-    # (label, options, compiled, subject to the real-time limits)
-    setups: list[tuple[str, dict[str, Any], bool, bool]] = [
+    return parser
+
+
+def setups(args: argparse.Namespace) -> list[tuple[str, dict[str, Any], bool, bool]]:
+    """Every row's (label, options, compiled, subject to the real-time limits)."""
+    rows: list[tuple[str, dict[str, Any], bool, bool]] = [
         (f"RTI {qp}", {"solver": "rti", "qp_solver": qp}, False, True) for qp in args.qp_solvers
     ]
-    setups.append(("IPOPT uncompiled", {"solver": "ipopt", "jit": False}, False, False))
+    rows.append(("IPOPT uncompiled", {"solver": "ipopt", "jit": False}, False, False))
     if args.compiled:
-        setups += [
+        rows += [
             ("IPOPT compiled", {"solver": "ipopt", "jit": True}, True, False),
             ("fatrop compiled", {"solver": "fatrop", "jit": True}, True, False),
         ]
-    results: dict[tuple[str, str], Row] = {}
-    for name in ("nominal-nmpc", "koopman-nmpc"):
-        print(name)
-        for label, options, compiled, limit in setups:
-            try:
-                row = closed_loop(
-                    env_id,
-                    args.map,
-                    args.slip,
-                    lambda n=name, o=options: controllers.make(n, **o),
-                    limit=limit,
-                    compiled=compiled,
-                )
-            except TooSlow as exc:
-                print(f"  note: {label} dropped, stopped mid-episode: {exc}", flush=True)
-                continue
-            results[(name, label)] = row
-            print("  " + line(label, row), flush=True)
-        if name == "nominal-nmpc" and not args.no_do_mpc:
-            reference = do_mpc_closed_loop(env_id, args.map, args.slip, NMPCConfig().horizon)
-            if reference is None:
-                print("  do-mpc not installed: `pip install do-mpc` to compare on the same nominal problem")
-            else:
-                results[(name, "do-mpc")] = reference
-                print("  " + line("do-mpc (IPOPT)", reference), flush=True)
-    default = f"RTI {args.qp_solvers[0]}"
-    if args.movers:
-        mover_overhead(env_id, args.map, args.slip, args.movers, args.qp_solvers[0], results)
+    return rows
+
+
+def run_rows(args: argparse.Namespace, env_id: str, name: str, results: dict[tuple[str, str], Row]) -> None:
+    """``name``'s rows (each printed as it ends; a QP solver too slow dropped with a note), and for
+    the nominal NMPC do-mpc's, added to ``results``."""
+    print(name)
+    for label, options, compiled, limit in setups(args):
+        try:
+            row = closed_loop(
+                env_id,
+                args.map,
+                args.slip,
+                lambda n=name, o=options: controllers.make(n, **o),
+                limit=limit,
+                compiled=compiled,
+            )
+        except TooSlow as exc:
+            print(f"  note: {label} dropped, stopped mid-episode: {exc}", flush=True)
+            continue
+        results[(name, label)] = row
+        print("  " + line(label, row), flush=True)
+    if name == "nominal-nmpc" and not args.no_do_mpc:
+        reference = do_mpc_closed_loop(env_id, args.map, args.slip, NMPCConfig().horizon)
+        if reference is None:
+            print("  do-mpc not installed: `pip install do-mpc` to compare on the same nominal problem")
+        else:
+            results[(name, "do-mpc")] = reference
+            print("  " + line("do-mpc (IPOPT)", reference), flush=True)
+
+
+def print_speedups(results: dict[tuple[str, str], Row], default: str) -> None:
+    """The speed-up of the ``default`` rows over IPOPT and do-mpc, as ratios of medians."""
     print(f"speed-up of {default} (ratio of medians):")
     for name in ("nominal-nmpc", "koopman-nmpc"):
         if (name, default) not in results:
@@ -511,6 +454,27 @@ def main() -> None:
         ]
         ratios = ", ".join(f"{row.median / ours:.1f}x vs {label}" for label, row in others)
         print(f"  {name}: {ratios}")
+
+
+def main() -> None:
+    args = _parser().parse_args()
+    global EPISODE_STEPS
+    EPISODE_STEPS = args.steps
+    env_id = env_id_for_map(args.map)
+    print(
+        f"{env_id} {args.map} slip={args.slip}, 3 robots, horizon {NMPCConfig().horizon}, one closed-loop "
+        f"episode per row; solve time per step [ms], building excluded\n"
+        f"cold: first step after a reset (median of {COLD_RESETS}); iter: per step, QPs (RTI) or interior-point "
+        f"iterations; fallbacks: RTI steps solved by IPOPT; final: mean distance to target"
+    )
+    if args.cache_timing:
+        cache_timing(env_id, args.map)
+    results: dict[tuple[str, str], Row] = {}
+    for name in ("nominal-nmpc", "koopman-nmpc"):
+        run_rows(args, env_id, name, results)
+    if args.movers:
+        mover_overhead(env_id, args.map, args.slip, args.movers, args.qp_solvers[0], results)
+    print_speedups(results, f"RTI {args.qp_solvers[0]}")
 
 
 if __name__ == "__main__":

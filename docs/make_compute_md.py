@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -30,27 +30,21 @@ from controllers.estimation import EstimatorOptions  # noqa: E402
 from controllers.mpc.config import NMPCConfig  # noqa: E402
 from controllers.mpc.margins import chance_tightening  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.reports.publications import extracted_archive  # noqa: E402
-from evaluation.reports.published import results_from_log  # noqa: E402
-from evaluation.stats.statistics import PairedComparison, holm_adjusted, paired_comparison, wilson_interval  # noqa: E402
+from evaluation.reports.arms import (  # noqa: E402
+    Arm,
+    ArmKey,
+    TestedPair,
+    arm_stats,
+    ok_records,
+    replicated,
+    shared_comparison,
+    tested_family,
+)
+from evaluation.reports.arms import load_arms as _load_arms  # noqa: E402
+from evaluation.stats.statistics import wilson_interval  # noqa: E402
 from koopman_envs import ComputeCharge  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 from koopman_envs.params import PARAMS  # noqa: E402
-
-#: an episode's pairing key: task, map, slip, seed
-Key = tuple[str, str, str, int]
-
-
-@dataclass(frozen=True)
-class Arm:
-    """One set of Koopman-NMPC episodes: where its records are and what differs from free compute."""
-
-    name: str
-    archive: str  # the archive's stem (data/<archive>.tar.xz)
-    level: str  # the sweep level's folder, "" for a run without a sweep
-    label: str  # the controller label in that run
-    what: str
-
 
 ARMS = (
     Arm(
@@ -119,6 +113,12 @@ COMPARISONS = (
 )
 
 SLIP = "high"
+#: the family's significance level (Holm-adjusted)
+ALPHA = 0.05
+#: an episode's pairing key: task, map, slip, seed
+Key = ArmKey
+#: the names tests/test_compute_page.py and tests/test_duplicate_records.py read
+read_records, pair, Tested = ok_records, shared_comparison, TestedPair
 
 
 def tightening() -> tuple[float, float]:
@@ -134,44 +134,13 @@ def tightening() -> tuple[float, float]:
     return float(per_robot[0]), float(per_pair[0])
 
 
-def read_records(archive: Path, level: str) -> list[dict[str, Any]]:
-    """The episode records of ``archive``'s run (its sweep level ``level``, if given), read as every
-    page reads a log (:func:`evaluation.reports.published.results_from_log`: each record checked, an
-    episode logged twice read once, two records of it that disagree refused by name)."""
-    with extracted_archive(archive) as run:
-        log = run / "sweep" / level / "episodes.jsonl" if level else run / "episodes.jsonl"
-        rows = results_from_log(log).records
-    return [r for r in rows if r.get("status") == "ok"]
-
-
-def key_of(record: dict[str, Any]) -> Key:
-    return (record["env_id"], record["map"], record["slip"], int(record["seed"]))
-
-
-def load_arms(archives: dict[str, Path]) -> dict[str, dict[Key, dict[str, Any]]]:
-    """Every arm's records by episode key (all slips for the realistic pages' two runs)."""
-    cache: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    out = {}
-    for arm in ARMS:
-        if arm.archive not in archives:
-            raise ValueError(f"no archive {arm.archive}.tar.xz among {sorted(archives)}")
-        source = (arm.archive, arm.level)
-        if source not in cache:
-            cache[source] = read_records(archives[arm.archive], arm.level)
-        out[arm.name] = {key_of(r): r for r in cache[source] if r["controller"] == arm.label}
-    return out
-
-
 def high_slip(records: dict[Key, dict[str, Any]]) -> dict[Key, dict[str, Any]]:
     return {k: r for k, r in records.items() if k[2] == SLIP}
 
 
-def pair(a: dict[Key, dict[str, Any]], b: dict[Key, dict[str, Any]]) -> PairedComparison:
-    """Paired comparison of two arms on the episodes both ran (success, a minus b)."""
-    keys = sorted(set(a) & set(b))
-    if not keys:
-        raise ValueError("two arms share no episode")
-    return paired_comparison([a[k]["success"] for k in keys], [b[k]["success"] for k in keys])
+def load_arms(archives: dict[str, Path]) -> dict[str, dict[Key, dict[str, Any]]]:
+    """Every arm of :data:`ARMS` by episode key (all slips for the realistic pages' two runs)."""
+    return _load_arms(ARMS, archives)
 
 
 def pct(x: float) -> str:
@@ -182,71 +151,9 @@ def p_text(p: float) -> str:
     return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}"
 
 
-def arm_stats(records: dict[Key, dict[str, Any]]) -> dict[str, Any]:
-    """Success, failure kinds, clearance of the successes and how often the margins were widened."""
-    rows = list(records.values())
-    wins = [r for r in rows if r["success"]]
-    clearances = sorted(
-        r["min_clearance"]["obstacle"] for r in wins if r["min_clearance"]["obstacle"] is not None
-    )
-    tightened = sum(r.get("controller_extra", {}).get("tightened", 0) for r in rows)
-    decisions = sum(r.get("decisions") or r["steps"] for r in rows)
-    kinds = {"obstacle": 0, "robot": 0, "time limit": 0}
-    for r in rows:
-        if not r["success"]:  # a contact names its kinds, "obstacle+robot" for both at once
-            hit = r["collision"] or ""
-            kinds["obstacle" if "obstacle" in hit else "robot" if hit else "time limit"] += 1
-    return {
-        "n": len(rows),
-        "success": len(wins),
-        "kinds": kinds,
-        "median_clearance_cm": 100 * clearances[len(clearances) // 2] if clearances else float("nan"),
-        "skim": sum(c < 0.01 for c in clearances),
-        "tightened": tightened / decisions if decisions else 0.0,
-    }
-
-
-def replicated(a: dict[Key, dict[str, Any]], b: dict[Key, dict[str, Any]]) -> tuple[int, int, float]:
-    """How ``b`` repeats ``a`` on their shared episodes: how many end alike (outcome, collision and
-    step count), how many were shared, and the largest difference of a final pose coordinate."""
-    keys = sorted(set(a) & set(b))
-    same = sum(
-        1 for k in keys if all(a[k][f] == b[k][f] for f in ("success", "collision", "truncated", "steps"))
-    )
-    largest = max(
-        (float(np.max(np.abs(np.subtract(a[k]["final_poses"], b[k]["final_poses"])))) for k in keys),
-        default=0.0,
-    )
-    return same, len(keys), largest
-
-
-@dataclass(frozen=True)
-class Tested:
-    """One comparison of :data:`COMPARISONS` with its Holm-adjusted p-value."""
-
-    a: str
-    b: str
-    question: str
-    result: PairedComparison
-    holm: float
-
-    @property
-    def significant(self) -> bool:
-        return self.holm < ALPHA
-
-
-#: the family's significance level (Holm-adjusted)
-ALPHA = 0.05
-
-
 def run_tests(arms: dict[str, dict[Key, dict[str, Any]]]) -> dict[tuple[str, str], Tested]:
     """Every comparison of :data:`COMPARISONS` on the high-slip episodes, Holm over the family."""
-    results = [pair(high_slip(arms[a]), high_slip(arms[b])) for a, b, _ in COMPARISONS]
-    adjusted = holm_adjusted([r.p_value for r in results])
-    return {
-        (a, b): Tested(a, b, question, result, holm)
-        for (a, b, question), result, holm in zip(COMPARISONS, results, adjusted)
-    }
+    return tested_family({name: high_slip(records) for name, records in arms.items()}, COMPARISONS, ALPHA)
 
 
 def check_claims(tests: dict[tuple[str, str], Tested]) -> None:
@@ -347,79 +254,101 @@ def save_figure(arms: dict[str, dict[Key, dict[str, Any]]], path: Path) -> None:
 FIGURE = "compute_mechanism.png"
 
 
-def page(arms: dict[str, dict[Key, dict[str, Any]]], archives: list[str]) -> str:
-    """The page's Markdown, every number computed from ``arms``."""
+def _facts(arms: dict[str, dict[Key, dict[str, Any]]]) -> SimpleNamespace:
+    """Every number the page's prose states, computed from ``arms`` (its claims checked first)."""
     tests = run_tests(arms)
     check_claims(tests)
     to_obstacle, to_robot = tightening()
-    gain = pair(arms["charged"], arms["free"])
-    at_high = tests["charged", "free"].result
-    s = {arm.name: arm_stats(high_slip(arms[arm.name])) for arm in ARMS}
-    same, shared, largest = replicated(arms["free"], high_slip(arms["free again"]))
-
-    def rate(name: str) -> str:
-        return f"{s[name]['success']}/{s[name]['n']}"
-
-    def versus(a: str, b: str) -> str:
-        t = tests[a, b]
-        verdict = "" if t.significant else ", not significant"
-        return f"discordant pairs {t.result.only_a} to {t.result.only_b}, Holm p = {p_text(t.holm)}{verdict}"
-
-    margin = PARAMS.obstacle_offset
     busy, published = (
         float(np.median([r["solve_ms_median"] for r in high_slip(arms[name]).values()]))
         for name in ("delay", "charged")
     )
-    grace, period = 1e3 * ComputeCharge().grace, 1e3 * PARAMS.dt
-    unshared = tests["delay, no tightening", "free"].result
-    lines = [
+    same, shared, largest = replicated(arms["free"], high_slip(arms["free again"]))
+    return SimpleNamespace(
+        tests=tests,
+        to_obstacle=to_obstacle,
+        to_robot=to_robot,
+        gain=pair(arms["charged"], arms["free"]),
+        at_high=tests["charged", "free"].result,
+        s={arm.name: arm_stats(high_slip(arms[arm.name])) for arm in ARMS},
+        same=same,
+        shared=shared,
+        largest=largest,
+        margin=PARAMS.obstacle_offset,
+        busy=busy,
+        published=published,
+        grace=1e3 * ComputeCharge().grace,
+        period=1e3 * PARAMS.dt,
+        unshared=tests["delay, no tightening", "free"].result,
+    )
+
+
+def _rate(f: SimpleNamespace, name: str) -> str:
+    return f"{f.s[name]['success']}/{f.s[name]['n']}"
+
+
+def _versus(f: SimpleNamespace, a: str, b: str) -> str:
+    t = f.tests[a, b]
+    verdict = "" if t.significant else ", not significant"
+    return f"discordant pairs {t.result.only_a} to {t.result.only_b}, Holm p = {p_text(t.holm)}{verdict}"
+
+
+def _mechanism(f: SimpleNamespace) -> list[str]:
+    """The gain, the mechanism and the arms that separate the hypotheses."""
+    return [
         "# Why charged compute helps Koopman-NMPC",
         "",
         f"On the [realistic page](realistic_results.md) charging decision time (`--realtime`) raises "
-        f"Koopman-NMPC at nominal uncertainty from {pct(gain.rate_b)} to {pct(gain.rate_a)} "
-        f"({gain.only_a} discordant pairs against {gain.only_b}, McNemar p = {p_text(gain.p_value)}). "
-        f"{at_high.only_a} of the {gain.only_a} episodes it wins are high-slip ones, where Koopman-NMPC's "
+        f"Koopman-NMPC at nominal uncertainty from {pct(f.gain.rate_b)} to {pct(f.gain.rate_a)} "
+        f"({f.gain.only_a} discordant pairs against {f.gain.only_b}, McNemar p = {p_text(f.gain.p_value)}). "
+        f"{f.at_high.only_a} of the {f.gain.only_a} episodes it wins are high-slip ones, where Koopman-NMPC's "
         "failures are obstacle contacts. This page finds the mechanism by experiment: Koopman-NMPC on "
-        f"those {at_high.n} high-slip episodes (both tasks, Maps 1-4, 10 seeds per map, the same perturbed "
+        f"those {f.at_high.n} high-slip episodes (both tasks, Maps 1-4, 10 seeds per map, the same perturbed "
         "starts) with one thing changed at a time, every arm paired with the others on the same episodes.",
         "",
         "**The mechanism: wider collision margins, a side effect of the delay compensation.** A decision "
-        f"of the real-time iteration took a median {published:.1f} ms in the published compute-charged run "
-        f"(the median of its high-slip episodes' medians), past the actuator's {grace:.0f} ms grace, so "
+        f"of the real-time iteration took a median {f.published:.1f} ms in the published compute-charged run "
+        f"(the median of its high-slip episodes' medians), past the actuator's {f.grace:.0f} ms grace, so "
         'every command acted one period late. The estimator in front of the NMPC (`estimator="auto"`, '
         "the default) identifies that period of delay and compensates it: it predicts the pose through "
         "the command already sent and hands on the prediction's covariance, one period of the process "
         f"noise it assumes (`process_position_std`, {100 * EstimatorOptions().process_position_std:.0f} cm). "
         f"The chance constraints (`chance_risk` {NMPCConfig().chance_risk}) turn that covariance into wider "
-        f"margins: +{100 * to_obstacle:.2f} cm toward obstacles and +{100 * to_robot:.2f} cm between robots, "
-        f"on top of the paper's {100 * margin:.1f} cm. Without a delay there is no covariance and no "
+        f"margins: +{100 * f.to_obstacle:.2f} cm toward obstacles and +{100 * f.to_robot:.2f} cm between robots, "
+        f"on top of the paper's {100 * f.margin:.1f} cm. Without a delay there is no covariance and no "
         "widening. The arms separate the hypotheses of issue 60:",
         "",
         f"- (a) One period of actuation delay in the env, no compute charged, gains as much as compute "
-        f"charged: {rate('delay')} against {rate('free')} in free compute ({versus('delay', 'free')}); "
-        f"compute charged {rate('charged')} ({versus('delay', 'charged')}). The machine's timing adds "
+        f"charged: {_rate(f, 'delay')} against {_rate(f, 'free')} in free compute ({_versus(f, 'delay', 'free')}); "
+        f"compute charged {_rate(f, 'charged')} ({_versus(f, 'delay', 'charged')}). The machine's timing adds "
         "nothing beyond that one period.",
         f"- (b) Not the real-time iteration: with IPOPT solved to convergence one period of delay gives "
-        f"{rate('IPOPT, delay')} against {rate('IPOPT, free')} ({versus('IPOPT, delay', 'IPOPT, free')}).",
+        f"{_rate(f, 'IPOPT, delay')} against {_rate(f, 'IPOPT, free')} ({_versus(f, 'IPOPT, delay', 'IPOPT, free')}).",
         f"- (c) Not the held command: with the delay left uncompensated (no prediction, so no covariance "
         f"and no widening) the robots still hold each command a period longer, and reach "
-        f"{rate('delay, no compensation')} ({versus('delay, no compensation', 'free')}).",
+        f"{_rate(f, 'delay, no compensation')} ({_versus(f, 'delay, no compensation', 'free')}).",
         f"- (d) The margins: with the widening switched off under delay (`ablate=tightening`: the "
-        f"compensation and settling stay) {rate('delay, no tightening')} ({versus('delay', 'delay, no tightening')} "
-        f"for the widening; against free compute {versus('delay, no tightening', 'free')}). The same "
-        f"margins set as options (`obstacle_offset={margin + to_obstacle:.5f}`, "
-        f"`robot_offset={margin + to_robot:.5f}`) with no delay and free compute reach "
-        f"{rate('wide margins')} ({versus('wide margins', 'free')}; against the delay "
-        f"{versus('wide margins', 'delay')}).",
+        f"compensation and settling stay) {_rate(f, 'delay, no tightening')} ({_versus(f, 'delay', 'delay, no tightening')} "
+        f"for the widening; against free compute {_versus(f, 'delay, no tightening', 'free')}). The same "
+        f"margins set as options (`obstacle_offset={f.margin + f.to_obstacle:.5f}`, "
+        f"`robot_offset={f.margin + f.to_robot:.5f}`) with no delay and free compute reach "
+        f"{_rate(f, 'wide margins')} ({_versus(f, 'wide margins', 'free')}; against the delay "
+        f"{_versus(f, 'wide margins', 'delay')}).",
         "",
-        f"The compensation without the widening leaves {unshared.only_a - unshared.only_b:+d} episodes "
+    ]
+
+
+def _discussion(f: SimpleNamespace) -> list[str]:
+    """What the clearance and the default say, how far the runs replicate, and the figure."""
+    return [
+        f"The compensation without the widening leaves {f.unshared.only_a - f.unshared.only_b:+d} episodes "
         "over free compute, a difference this page's 40 pairs do not resolve. The widening shows in the "
         "clearance: the successes' median clearance to the nearest obstacle is "
-        f"{s['free']['median_clearance_cm']:.1f} cm in free compute, {s['delay']['median_clearance_cm']:.1f} cm "
-        f"under delay and {s['wide margins']['median_clearance_cm']:.1f} cm with the wide margins.",
+        f"{f.s['free']['median_clearance_cm']:.1f} cm in free compute, {f.s['delay']['median_clearance_cm']:.1f} cm "
+        f"under delay and {f.s['wide margins']['median_clearance_cm']:.1f} cm with the wide margins.",
         "",
         "**What it says about a default.** Koopman-NMPC's shipped margins (the paper's "
-        f"{100 * margin:.1f} cm toward obstacles and the same between robots) are too thin for high "
+        f"{100 * f.margin:.1f} cm toward obstacles and the same between robots) are too thin for high "
         "slip, and the NMPC only gets wider ones when an estimator's covariance happens to supply them: "
         "the free-compute rows understate the controller, and the compute-charged rows owe their lead to "
         "a constant of the filter (its process noise) entering the margins through the identified delay. "
@@ -428,16 +357,24 @@ def page(arms: dict[str, dict[Key, dict[str, Any]]], archives: list[str]) -> str
         "page measured the wider margins at high slip only, not what they cost in the narrow passages "
         "and formation slots of nominal and low slip, and it changes no default.",
         "",
-        f"Free compute run again on this code ends {same} of its {shared} episodes as published (outcome, "
-        f"collision and step count alike; final poses within {largest:.0e} m, not bit for bit: a "
+        f"Free compute run again on this code ends {f.same} of its {f.shared} episodes as published (outcome, "
+        f"collision and step count alike; final poses within {f.largest:.0e} m, not bit for bit: a "
         "floating-point difference whose source this page did not track). Compute-charged episodes "
         "depend on the machine's timing; this page runs none of its own: the machine was shared with other "
-        f"runs, and its decisions took a median {busy:.0f} ms here (the delay arm's episodes' medians) "
-        f"against {published:.1f} ms when the realistic page was published, near enough to the "
-        f"{period:.0f} ms period to charge two periods of latency, not one.",
+        f"runs, and its decisions took a median {f.busy:.0f} ms here (the delay arm's episodes' medians) "
+        f"against {f.published:.1f} ms when the realistic page was published, near enough to the "
+        f"{f.period:.0f} ms period to charge two periods of latency, not one.",
         "",
         f"![Success of every arm at high slip](_static/{FIGURE})",
         "",
+    ]
+
+
+def _tables(
+    arms: dict[str, dict[Key, dict[str, Any]]], tests: dict[tuple[str, str], TestedPair], archives: list[str]
+) -> list[str]:
+    """Where the gain sits, the arms, the tests and how to regenerate the page."""
+    return [
         "## Where the published gain sits",
         "",
         "Koopman-NMPC, the realistic page's part 1 (free compute) against part 6 (compute charged), "
@@ -473,7 +410,12 @@ def page(arms: dict[str, dict[Key, dict[str, Any]]], archives: list[str]) -> str
         f"from {', '.join(f'`{a}`' for a in archives)}.",
         "",
     ]
-    return "\n".join(lines)
+
+
+def page(arms: dict[str, dict[Key, dict[str, Any]]], archives: list[str]) -> str:
+    """The page's Markdown, every number computed from ``arms``."""
+    f = _facts(arms)
+    return "\n".join([*_mechanism(f), *_discussion(f), *_tables(arms, f.tests, archives)])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,16 +25,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from evaluation.episodes.distinct import read_once  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT  # noqa: E402
 from evaluation.reports.baseline import load_baseline  # noqa: E402
 from evaluation.reports.figures import save_success_figures  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
-from evaluation.reports.results import Results  # noqa: E402
+from evaluation.reports.results import Results, evaluate_command, pooled_results  # noqa: E402
 from evaluation.reports.sections import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
-from koopman_envs.params import PARAMS  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
 PAPER = {
@@ -103,6 +101,9 @@ EXTRA_TABLES = [
     ("multi-agent RL baseline, BenchMARL's IPPO (ippo)", "ippo"),
 ]
 TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0": "formation"}
+#: the regenerate command of a run, and the pool of several (tests/test_results_page.py reads the first)
+_command = evaluate_command
+pool = pooled_results
 
 
 def load_results(path: str) -> dict:
@@ -116,15 +117,6 @@ def load_results(path: str) -> dict:
     else:
         doc = load_baseline(path, what="results")
     return {**doc, "source": path}
-
-
-def pool(docs: list[dict]) -> Results:
-    """Every document's episodes in one :class:`Results` (the first one's configuration), each
-    episode once: one in two files alike counts once, one the files disagree about is refused
-    naming both files (:func:`evaluation.episodes.distinct.read_once`)."""
-    records = [r for d in docs for r in d["episodes"]]
-    places = [f"{d['source']} episodes[{i}]" for d in docs for i in range(len(d["episodes"]))]
-    return Results(read_once(records, "the pooled results", places), docs[0]["config"])
 
 
 def all_tables() -> list[tuple[str, str, str]]:
@@ -299,37 +291,6 @@ DISTRIBUTED_NOTE = (
     "15/20 (+25 points [+4, +47], McNemar p = 0.062). Table and commands: "
     "[Performance](performance.md#distributed-nmpc-3-to-32-robots)."
 )
-
-
-def _command(config: dict) -> str:
-    """The evaluate.py command line of a run, from its recorded configuration."""
-    maps = sorted({m for names in config["maps"].values() for m in names})
-    controllers = []
-    for c in config["controller_configs"]:
-        options = dict(c["options"])
-        if c["label"] != c["name"]:
-            options["label"] = c["label"]
-        # values as the CLI parses them (JSON scalars; text as is)
-        text = {k: v if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
-        controllers.append(
-            c["name"] + (":" + ",".join(f"{k}={v}" for k, v in text.items()) if options else "")
-        )
-    # env keywords beyond those with their own flags (goal tolerance, time limit, start noise)
-    own_flags = ("goal_tolerance", "max_episode_steps", "start_noise")
-    extra = {k: v for k, v in config.get("env_settings", {}).items() if k not in own_flags}
-    env_kwargs = (
-        (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
-    )
-    # the time limit as the run recorded it: env_settings always has it (a config rebuilt from
-    # an archive's episode log has no top-level copy)
-    steps = config.get("env_settings", {}).get("max_episode_steps", config.get("max_episode_steps"))
-    if steps not in (None, PARAMS.max_episode_steps):
-        env_kwargs += f" --max-episode-steps {steps}"
-    return (
-        f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
-        f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "
-        f"--controllers {' '.join(controllers)}"
-    )
 
 
 def _header(doc: dict) -> list[str]:

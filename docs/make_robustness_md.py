@@ -51,7 +51,7 @@ level and the curves are paired ([Robustness profiles](robustness.md),
 `python docs/make_robustness_md.py SWEEP_DIR ... --out PAGE.md`."""
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("sweeps", nargs="+", help="sweep output directories")
     # no default page: the published ones are tracked files (docs/make_pages.py names them)
@@ -76,57 +76,80 @@ def main(argv: list[str] | None = None) -> int:
         help="add per part what each level costs each controller against the axis's first level "
         "(paired, Holm-adjusted; the sensing protocol's 'what seeing through a lidar costs')",
     )
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _sweep(directory: str, reference: str | None) -> tuple[dict, list[str], dict, list[AxisProfile]]:
+    """A sweep's finished axes (those with two levels or more), its unfinished levels, its
+    manifest and its profiles; ``ValueError`` with the page's message when it has none."""
+    done, missing, manifest = load_sweep(directory)
+    # an axis with one finished level (its 0, which every axis shares) has no profile yet
+    shown = {key: levels for key, levels in done.items() if len(levels) >= 2}
+    if not shown:
+        raise ValueError(f"no axis of the sweep in {directory!r} has two finished levels")
+    try:
+        axes = profiles(shown, reference or manifest.get("reference"))
+    except ValueError as exc:
+        raise ValueError(f"{exc} (sweep {directory!r})") from exc
+    return shown, missing, manifest, axes
+
+
+def _part(
+    index: int, name: str, sweep: tuple[dict, list[str], dict, list[AxisProfile]], args: argparse.Namespace
+) -> tuple[list[str], list[AxisProfile]]:
+    """One sweep's part of the page (its figures saved) and its axes named by the part."""
+    done, missing, manifest, axes = sweep
+    figures = Path(args.figures) if args.figures else Path(args.out).parent / "_static"
+    parts = [f"## {name}\n\nCommand: `{manifest.get('command', '')}`"]
+    if missing:
+        parts.append(f"Levels not finished yet, left out: {', '.join(missing)}.")
+    paths = save_profile_figures(axes, figures)
+    for profile, path in zip(axes, paths):
+        target = path.with_name(f"{args.figure_prefix}{index + 1}_{path.name}")
+        path.replace(target)
+        link = os.path.relpath(target, Path(args.out).resolve().parent)
+        parts.append(f"![{name}: robustness to {profile.key}]({link})")
+    parts.append(markdown(robustness_sections(axes)).replace("## Robustness", "### Robustness"))
+    costs = level_cost_section(level_costs(done)) if args.level_costs else None
+    if costs is not None:
+        parts.append(markdown([costs]).replace("## What", "### What"))
+    return parts, [replace(profile, key=f"{name}: {profile.key}") for profile in axes]
+
+
+def _refused(args: argparse.Namespace) -> str | None:
+    """What is wrong with the arguments, or None."""
     if args.names is not None and len(args.names) != len(args.sweeps):
-        print(
-            f"error: --names gives {len(args.names)} name(s) for {len(args.sweeps)} sweep(s); give one per sweep",
-            file=sys.stderr,
-        )
-        return BAD_INPUT_EXIT
+        return f"--names gives {len(args.names)} name(s) for {len(args.sweeps)} sweep(s); give one per sweep"
     if args.intro is not None and not args.intro.is_file():
-        print(f"error: --intro {str(args.intro)!r} is not a file", file=sys.stderr)
+        return f"--intro {str(args.intro)!r} is not a file"
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    refused = _refused(args)
+    if refused is not None:
+        print(f"error: {refused}", file=sys.stderr)
         return BAD_INPUT_EXIT
     out = Path(args.out)
     figures = Path(args.figures) if args.figures else out.parent / "_static"
+    names = args.names or [f"Sweep {index + 1}" for index in range(len(args.sweeps))]
+    named_axes: list[AxisProfile] = []
     try:  # the intro's numbers are placeholders filled from these sweeps (docs/make_prose_md.py)
         intro = INTRO if args.intro is None else expand_template(args.intro, args.sweeps).strip()
     except ValueError as exc:  # the message names the template and the placeholder
         print(f"error: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT
-    names = args.names or [f"Sweep {index + 1}" for index in range(len(args.sweeps))]
     parts = [f"# {args.title}", intro]
-    named_axes: list[AxisProfile] = []
     for index, (directory, name) in enumerate(zip(args.sweeps, names)):
         try:
-            done, missing, manifest = load_sweep(directory)
-        except ValueError as exc:
+            sweep = _sweep(directory, args.reference)
+        except ValueError as exc:  # the message names the sweep
             print(f"error: {exc}", file=sys.stderr)
             return BAD_INPUT_EXIT
-        # an axis with one finished level (its 0, which every axis shares) has no profile yet
-        shown = {key: levels for key, levels in done.items() if len(levels) >= 2}
-        if not shown:
-            print(f"error: no axis of the sweep in {directory!r} has two finished levels", file=sys.stderr)
-            return BAD_INPUT_EXIT
-        done = shown
-        try:
-            axes = profiles(done, args.reference or manifest.get("reference"))
-        except ValueError as exc:
-            print(f"error: {exc} (sweep {directory!r})", file=sys.stderr)
-            return BAD_INPUT_EXIT
-        named_axes += [replace(profile, key=f"{name}: {profile.key}") for profile in axes]
-        parts.append(f"## {name}\n\nCommand: `{manifest.get('command', '')}`")
-        if missing:
-            parts.append(f"Levels not finished yet, left out: {', '.join(missing)}.")
-        paths = save_profile_figures(axes, figures)
-        for profile, path in zip(axes, paths):
-            target = path.with_name(f"{args.figure_prefix}{index + 1}_{path.name}")
-            path.replace(target)
-            link = os.path.relpath(target, out.resolve().parent)
-            parts.append(f"![{name}: robustness to {profile.key}]({link})")
-        parts.append(markdown(robustness_sections(axes)).replace("## Robustness", "### Robustness"))
-        costs = level_cost_section(level_costs(done)) if args.level_costs else None
-        if costs is not None:
-            parts.append(markdown([costs]).replace("## What", "### What"))
+        part, axes = _part(index, name, sweep, args)
+        parts += part
+        named_axes += axes
     if args.names is not None and len(args.sweeps) > 1:
         scope = (
             "Every part's axes side by side, named by part: each part is one sweep, its setting "

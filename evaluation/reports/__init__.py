@@ -6,7 +6,9 @@ archives read back (:mod:`~evaluation.reports.published`; a run published whole 
 controller, :mod:`~evaluation.reports.publications`), the comparison with an earlier run and
 its gate (:mod:`~evaluation.reports.baseline`; field for field,
 :mod:`~evaluation.reports.reproduced`) and the floors of ``--check``
-(:mod:`~evaluation.reports.thresholds`). Nothing here runs an episode.
+(:mod:`~evaluation.reports.thresholds`); what the test suite's page computes from its two
+publications (:mod:`~evaluation.reports.bench`); the arms of an experiment across published
+runs (:mod:`~evaluation.reports.arms`). Nothing here runs an episode.
 
 The package is their face: the public names of its modules and of :mod:`evaluation.reports.sections`
 (their ``__all__``), importable from here (tests/test_architecture.py checks the list), except
@@ -16,6 +18,18 @@ The package is their face: the public names of its modules and of :mod:`evaluati
 
 from __future__ import annotations
 
+from evaluation.reports.arms import (
+    Arm,
+    ArmKey,
+    TestedPair,
+    arm_stats,
+    episode_key,
+    load_arms,
+    ok_records,
+    replicated,
+    shared_comparison,
+    tested_family,
+)
 from evaluation.reports.badge import badge_svg, write_badge
 from evaluation.reports.baseline import (
     ALL_TASKS,
@@ -29,6 +43,27 @@ from evaluation.reports.baseline import (
     load_baseline,
     pair_keys,
     refuse_incomparable,
+)
+from evaluation.reports.bench import (
+    BENCH_RUNS,
+    VERDICT_RULE,
+    BenchMode,
+    BenchProgress,
+    check_same_suite,
+    declared_tasks,
+    family_pending,
+    headline_families,
+    headline_rows,
+    leaderboard_cells,
+    load_mode,
+    page_pairs,
+    pairs_file,
+    paper_track_rows,
+    paper_variants_note,
+    planned_power,
+    ranked_controllers,
+    verdict,
+    verdict_changes,
 )
 from evaluation.reports.figures import (
     FAMILIES,
@@ -83,7 +118,9 @@ from evaluation.reports.results import (
     PROFILES_TITLE,
     SCHEMA_VERSION,
     Results,
+    evaluate_command,
     json_safe,
+    pooled_results,
     profiles_json,
     write_profiles,
 )
@@ -166,6 +203,8 @@ __all__ = [
     "Results",
     "SCHEMA_VERSION",
     "json_safe",
+    "evaluate_command",
+    "pooled_results",
     "profiles_json",
     "write_profiles",
     "badge_svg",
@@ -218,4 +257,33 @@ __all__ = [
     "gate_failures",
     "load_baseline",
     "refuse_incomparable",
+    "BENCH_RUNS",
+    "BenchMode",
+    "BenchProgress",
+    "VERDICT_RULE",
+    "check_same_suite",
+    "declared_tasks",
+    "family_pending",
+    "headline_families",
+    "headline_rows",
+    "leaderboard_cells",
+    "load_mode",
+    "page_pairs",
+    "paper_track_rows",
+    "paper_variants_note",
+    "pairs_file",
+    "planned_power",
+    "ranked_controllers",
+    "verdict",
+    "verdict_changes",
+    "Arm",
+    "ArmKey",
+    "TestedPair",
+    "arm_stats",
+    "episode_key",
+    "load_arms",
+    "ok_records",
+    "replicated",
+    "shared_comparison",
+    "tested_family",
 ]

@@ -3,8 +3,10 @@
 (:mod:`evaluation.reports.sections`, :mod:`evaluation.reports.html`), JSON, CSV and figures
 (:mod:`evaluation.reports.figures`), and the files they are written to. A sweep's robustness profiles
 (:mod:`evaluation.stats.robustness`) are written the same way by :func:`write_profiles`: both go
-through one writer of a report's files. The renderers read the data classes, not this module, so
-nothing imports back here."""
+through one writer of a report's files; several runs' documents pool into one :class:`Results`
+(:func:`pooled_results`), and a run's evaluator command is rebuilt from its configuration
+(:func:`evaluate_command`). The renderers read the data classes, not this module, so nothing
+imports back here."""
 
 from __future__ import annotations
 
@@ -15,17 +17,29 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import evaluation.reports.sections as report
 import koopman_envs
+from evaluation.episodes.distinct import read_once
 from evaluation.episodes.records import json_safe
 from evaluation.reports.figures import save_figures, save_profile_figures
 from evaluation.reports.html import render_html, render_page, write_page
 from evaluation.stats.robustness import AxisProfile
 from evaluation.stats.run_data import RunData
 from koopman_envs.files import write_atomic
+from koopman_envs.params import PARAMS
 
-__all__ = ["PROFILES_TITLE", "Results", "SCHEMA_VERSION", "json_safe", "profiles_json", "write_profiles"]
+__all__ = [
+    "PROFILES_TITLE",
+    "Results",
+    "SCHEMA_VERSION",
+    "evaluate_command",
+    "json_safe",
+    "pooled_results",
+    "profiles_json",
+    "write_profiles",
+]
 
 SCHEMA_VERSION = 2
 
@@ -226,3 +240,74 @@ def _write_report(
     name, render = page
     paths["html"] = write_page(out / name, render(figures))
     return paths
+
+
+def pooled_results(docs: Sequence[Mapping[str, Any]]) -> Results:
+    """Every document's episodes in one :class:`Results`, each episode once.
+
+    Parameters
+    ----------
+    docs : sequence of mapping
+        Results documents (``episodes``, ``config``, and ``source``: where each was read, for the
+        messages); the first one's configuration is the pool's.
+
+    Returns
+    -------
+    Results
+        The pooled run: an episode in two documents alike counts once.
+
+    Raises
+    ------
+    ValueError
+        Two documents disagree about an episode (naming both places,
+        :func:`evaluation.episodes.distinct.read_once`).
+    """
+    records = [r for d in docs for r in d["episodes"]]
+    places = [f"{d['source']} episodes[{i}]" for d in docs for i in range(len(d["episodes"]))]
+    return Results(read_once(records, "the pooled results", places), docs[0]["config"])
+
+
+def evaluate_command(config: Mapping[str, Any]) -> str:
+    """The evaluate.py command line of a run, from its recorded configuration.
+
+    Parameters
+    ----------
+    config : mapping
+        A run's configuration (a results document's ``config``, or one rebuilt from an archive's
+        episode log).
+
+    Returns
+    -------
+    str
+        ``python evaluate.py --env ... --maps ... --slips ... --episodes N [--env-kwargs ...]
+        [--max-episode-steps N] --controllers ...``: each controller with its options and label,
+        the env keywords beyond those with their own flags, the time limit where it is not the
+        default.
+    """
+    maps = sorted({m for names in config["maps"].values() for m in names})
+    controllers = []
+    for c in config["controller_configs"]:
+        options = dict(c["options"])
+        if c["label"] != c["name"]:
+            options["label"] = c["label"]
+        # values as the CLI parses them (JSON scalars; text as is)
+        text = {k: v if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
+        controllers.append(
+            c["name"] + (":" + ",".join(f"{k}={v}" for k, v in text.items()) if options else "")
+        )
+    # env keywords beyond those with their own flags (goal tolerance, time limit, start noise)
+    own_flags = ("goal_tolerance", "max_episode_steps", "start_noise")
+    extra = {k: v for k, v in config.get("env_settings", {}).items() if k not in own_flags}
+    env_kwargs = (
+        (" --env-kwargs " + " ".join(f"{k}={json.dumps(v)}" for k, v in extra.items())) if extra else ""
+    )
+    # the time limit as the run recorded it: env_settings always has it (a config rebuilt from
+    # an archive's episode log has no top-level copy)
+    steps = config.get("env_settings", {}).get("max_episode_steps", config.get("max_episode_steps"))
+    if steps not in (None, PARAMS.max_episode_steps):
+        env_kwargs += f" --max-episode-steps {steps}"
+    return (
+        f"python evaluate.py --env {' '.join(config['env_ids'])} --maps {' '.join(maps)} "
+        f"--slips {' '.join(config['slips'])} --episodes {config['episodes']}{env_kwargs} "
+        f"--controllers {' '.join(controllers)}"
+    )

@@ -27,8 +27,11 @@ from evaluation.stats.designs import (
     EVERY_PAIR,
     declared_pairs,
     pair_label,
+    pooled_families,
     pooled_reference_pairs,
+    reference_design,
     reference_pairs,
+    tuned_pairs,
 )
 from evaluation.stats.families import (
     CorrectedTest,
@@ -113,7 +116,10 @@ __all__ = [
     "EVERY_PAIR",
     "declared_pairs",
     "pair_label",
+    "pooled_families",
     "pooled_reference_pairs",
+    "reference_design",
+    "tuned_pairs",
     "reference_pairs",
     "BREAKDOWNS",
     "METRICS",

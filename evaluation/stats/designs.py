@@ -6,6 +6,8 @@ tests them).
 - :func:`reference_pairs`: every controller against a reference within each task, and named pairs;
 - :func:`pooled_reference_pairs`: the same pooled over the tasks (task :data:`ALL`): a comparison
   whose units are every task's, each (task, layout) a cluster of its own;
+- :func:`tuned_pairs`, :func:`reference_design`, :func:`pooled_families`: the benchmark page's
+  designs (docs/bench_results.md): each controller against a reference, with what tuning gained;
 - :func:`pair_label`: a comparison's label in its family.
 """
 
@@ -14,9 +16,23 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from controllers.tuning import V0_SUFFIX
 from koopman_envs.checks import check_choice
 
-__all__ = ["ALL", "EVERY_PAIR", "declared_pairs", "pair_label", "pooled_reference_pairs", "reference_pairs"]
+__all__ = [
+    "ALL",
+    "EVERY_PAIR",
+    "declared_pairs",
+    "pair_label",
+    "pooled_families",
+    "pooled_reference_pairs",
+    "reference_design",
+    "reference_pairs",
+    "tuned_pairs",
+]
+
+#: a design: its pairs (task, a, b) and the clause that names it on a page
+Design = tuple[list[tuple[str, str, str]], str]
 
 #: the task of a comparison pooled over every task of the run (:func:`pooled_reference_pairs`), as
 #: its rows and its label in the family name it
@@ -109,3 +125,86 @@ def pooled_reference_pairs(
 def pair_label(env_id: str, a: str, b: str) -> str:
     """A comparison's label in its family: ``<task id>: <a> vs <b>``."""
     return f"{env_id}: {a} vs {b}"
+
+
+def tuned_pairs(labels: Sequence[str]) -> list[tuple[str, str]]:
+    """The (tuned controller, its ``-v0``) pairs of ``labels`` that hold both: what tuning gained.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        A run's controller labels.
+
+    Returns
+    -------
+    list of (str, str)
+        (``NAME``, ``NAME-v0``) for each ``NAME-v0`` of ``labels`` whose ``NAME`` is there too, in
+        the order of the ``-v0`` labels.
+    """
+    tuned = [(label.removesuffix(V0_SUFFIX), label) for label in labels if label.endswith(V0_SUFFIX)]
+    return [(a, b) for a, b in tuned if a in labels]
+
+
+def reference_design(declared: Mapping[str, Sequence[str]], reference: str) -> Design:
+    """The benchmark page's design for a run's per-task paired tables, read from its header before
+    any outcome (:func:`reference_pairs`): every controller against ``reference``, and each tuned
+    controller against its ``-v0`` (:func:`tuned_pairs`) where the run has both.
+
+    Parameters
+    ----------
+    declared : mapping of str to sequence of str
+        Task (env id) -> the labels the run declares for it.
+    reference : str
+        The controller every other one is compared with.
+
+    Returns
+    -------
+    (list of (str, str, str), str)
+        The pairs and the clause that names the design.
+
+    Raises
+    ------
+    ValueError
+        ``reference`` is not declared for some task.
+    """
+    labels = list(dict.fromkeys(label for names in declared.values() for label in names))
+    tuned = tuned_pairs(labels)
+    pairs = reference_pairs(declared, reference, tuned)
+    design = f"each controller against {reference} within each task"
+    if tuned:
+        design += (
+            ", and each tuned controller against its defaults before tuning ("
+            + ", ".join(f"{a} vs {b}" for a, b in tuned)
+            + ": what tuning gained)"
+        )
+    return pairs, design
+
+
+def pooled_families(declared: Mapping[str, Sequence[str]], reference: str) -> list[Design]:
+    """The headline families of a run declaring ``declared``, success pooled over both tasks
+    (:func:`pooled_reference_pairs`): first the headline, every controller declared in both tasks
+    against ``reference``; then, where the run has tuned controllers and their ``-v0``, what tuning
+    gained as a family of its own (another question, kept out of the headline's m).
+
+    Parameters
+    ----------
+    declared : mapping of str to sequence of str
+        Task (env id) -> the labels the run declares for it (its header).
+    reference : str
+        The controller every other one is compared with.
+
+    Returns
+    -------
+    list of (list of (str, str, str), str)
+        Each family's pairs and the clause that names it; empty for fewer than two tasks.
+    """
+    if len(declared) < 2:
+        return []
+    labels = list(dict.fromkeys(label for labels in declared.values() for label in labels))
+    against = pooled_reference_pairs(declared, reference)
+    families = [(against, f"each controller against {reference} over both tasks")]
+    tuned = [p for p in pooled_reference_pairs(declared, reference, tuned_pairs(labels)) if p not in against]
+    if tuned:
+        clause = ", ".join(f"{a} vs {b}" for _, a, b in tuned)
+        families.append((tuned, f"each tuned controller against its defaults over both tasks ({clause})"))
+    return families

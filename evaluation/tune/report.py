@@ -1,17 +1,22 @@
-"""``--report``: the expected-best curves of several studies and the table of what tuning gained."""
+"""``--report``: the expected-best curves of several studies and the table of what tuning gained;
+and each controller's tuning budget as docs/bench_results.md states it (:func:`tuning_budget_rows`,
+:func:`decision`)."""
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from controllers.tuning import STUDY_FILE
+import controllers
+from controllers.tuning import STUDIES_DIR, STUDY_FILE, study_budget
 from evaluation.reports.sections import suite_heading
 from evaluation.run.suite_runs import suite_config
 from evaluation.tune.configuration import tasks_of
+from evaluation.tune.confirm import CONFIRMATION_FILE
 from evaluation.tune.log import read_study
 from evaluation.tune.scoring import expected_max_curve
 from koopman_envs import TASKS
@@ -122,3 +127,81 @@ def figure_title(studies: Sequence[StudySummary]) -> str:
     """The curves' title: what they show, then each suite tuned on (name, version, hashes)."""
     suites = dict.fromkeys(s.suite_short for s in studies if s.suite_short)
     return "\n".join(["Expected best of n configurations (Dodge et al. 2019)", *suites])
+
+
+def decision(label: str, verdict: str, studies: Path = STUDIES_DIR) -> str:
+    """The study's decision with what its recorded confirmation made of an adoption.
+
+    Parameters
+    ----------
+    label : str
+        The controller whose study it is (``studies/<label>/``).
+    verdict : str
+        The study's decision (``adopted``, or why not).
+    studies : Path
+        The studies' folder (data/tuning).
+
+    Returns
+    -------
+    str
+        ``verdict`` as it is when it is no adoption or no confirmation on fresh validation layouts
+        is recorded (``studies/<label>/confirmation.json``, ``python -m evaluation.tune adopt
+        --confirm``); else the adoption kept, or withdrawn so that the controller ships its
+        defaults, with the confirmation's counts.
+    """
+    record = studies / label / CONFIRMATION_FILE
+    if verdict != "adopted" or not record.is_file():
+        return verdict
+    confirmation = json.loads(record.read_text(encoding="utf-8"))
+    counts = (
+        f"{confirmation['best_successes']} against the defaults' {confirmation['defaults_successes']} "
+        f"of {confirmation['units']} fresh validation episodes, p = {float(confirmation['p_value']):.2g}"
+    )
+    if confirmation["confirmed"]:
+        return f"adopted, confirmed ({counts})"
+    return f"adopted by the study, withdrawn by the confirmation ({counts}): ships its defaults"
+
+
+def tuning_budget_rows(labels: Sequence[str], studies: Path = STUDIES_DIR) -> list[list[str]]:
+    """Each controller's tuning budget: its study (:func:`controllers.tuning.studies.study_budget`),
+    or why it has none.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        The controllers, in the table's order.
+    studies : Path
+        The studies' folder (data/tuning).
+
+    Returns
+    -------
+    list of list of str
+        Per controller: its label, the split tuned on, the configurations run of those planned, the
+        validation episodes per configuration, the episodes run and the :func:`decision`.
+    """
+    rows = []
+    for label in labels:
+        budget = study_budget(label, studies)
+        if budget is not None:
+            rows.append(
+                [
+                    label,
+                    budget.split,
+                    f"{budget.configurations_run} of {budget.configurations}",
+                    f"{budget.episodes_per_configuration}",
+                    f"{budget.episodes_run:,}",
+                    decision(label, budget.verdict, studies),
+                ]
+            )
+            continue
+        try:
+            tunable = bool(controllers.options(label).tunable())
+        except ValueError:  # a label that is no registered controller (a variant of a run)
+            tunable = False
+        why = (
+            "no study: its hand-set defaults"
+            if tunable
+            else "no tunable options declared (nothing for the tuner to search)"
+        )
+        rows.append([label, "-", "0", "-", "0", why])
+    return rows
