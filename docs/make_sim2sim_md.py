@@ -39,30 +39,27 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
-from evaluation.experiments.sweep import load_sweep  # noqa: E402
+from evaluation.experiments.sim2sim import (  # noqa: E402
+    FINE_TUNED,
+    Level,
+    against_source,
+    level_data,
+    slip_levels,
+    transfers,
+)
 from evaluation.reports.results import Results  # noqa: E402
-from evaluation.stats.statistics import PairedComparison, paired_comparison  # noqa: E402
 from evaluation.stats.transfer import (  # noqa: E402
     RANK_RESAMPLES,
     RANK_SEED,
     TRANSFER_ALPHA,
     Ordering,
     PlantRow,
-    Progress,
-    RankAgreement,
-    check_same_protocol,
-    orderings,
-    plant_differences,
-    rank_agreement,
-    restricted,
-    run_progress,
     significant_changes,
 )
 from koopman_envs import task_for_env  # noqa: E402
@@ -77,16 +74,8 @@ tuned or trained on the kinematic plant, run on the kinematic plant and on the M
 (`--plant mujoco`), on the same layouts, starts and seeds, at every friction level
 (`--sweep slip=...`). Each pair of episodes differs by the plant only."""
 
-#: the controllers trained on the physics plant, each with the kinematic controller it was
-#: fine-tuned from: rows of their own (their kinematic column is the reverse direction), left out
-#: of the verdicts that transfer (tests/test_sim2sim.py holds this to the shipped metadata)
-FINE_TUNED = {"rl-ppo-set-physics": "rl-ppo-set"}
-
 #: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
 SUMMARY = "sim2sim-transfer"
-#: the two plants, in the order of the command line, as the page names them
-PLANTS = ("kinematic", "physics")
-
 #: what a verdict became on the physics plant, in the page's words
 _FATES = {
     "holds": "hold on the physics plant",
@@ -177,81 +166,6 @@ def transfer_sentence(found: list[Ordering]) -> str:
             [_named(o, o.second) for o in new]
         )
     return text + "."
-
-
-@dataclass(frozen=True)
-class Level:
-    """One friction level of the two runs: what is complete on both plants, and its statistics.
-
-    ``pending`` maps each controller left out to why (its episodes on each plant that is short);
-    ``kinematic`` and ``physics`` hold the complete controllers' records only (None: none is
-    complete). ``rows``, ``found`` and ``agreement`` are computed on those alone."""
-
-    level: Any
-    declared: int
-    pending: dict[str, str]
-    kinematic: Results | None
-    physics: Results | None
-    rows: list[PlantRow]
-    found: list[Ordering]
-    agreement: RankAgreement | None
-
-    @property
-    def transferred(self) -> list[PlantRow]:
-        """The rows of the controllers tuned or trained on the kinematic plant (no :data:`FINE_TUNED`)."""
-        return [row for row in self.rows if row.controller not in FINE_TUNED]
-
-
-def _shortfall(progress: dict[str, dict[str, Progress]], controller: str) -> str | None:
-    """Why ``controller`` is pending (``N of M episodes on the physics plant``), None when it is
-    complete on both plants."""
-    short = [
-        f"{p[controller].done:,} of {p[controller].planned:,} episodes on the {plant} plant"
-        for plant, p in progress.items()
-        if not p[controller].complete
-    ]
-    return "; ".join(short) or None
-
-
-def level_data(level: Any, kinematic: Results | None, physics: Results | None) -> Level:
-    """A level's :class:`Level` from its two runs (None: the level has no log yet on that plant)."""
-    if kinematic is None or physics is None:
-        known = kinematic if kinematic is not None else physics
-        declared = known.config["controllers"] if known is not None else []
-        missing = " and ".join(plant for plant, run in zip(PLANTS, (kinematic, physics)) if run is None)
-        return Level(
-            level,
-            len(declared),
-            {c: f"not started on the {missing} plant" for c in declared},
-            None,
-            None,
-            [],
-            [],
-            None,
-        )
-    check_same_protocol(kinematic.config, physics.config)
-    progress = {plant: run_progress(run) for plant, run in zip(PLANTS, (kinematic, physics))}
-    pending = {}
-    for controller in kinematic.config["controllers"]:
-        why = _shortfall(progress, controller)
-        if why is not None:
-            pending[controller] = why
-    complete = [c for c in kinematic.config["controllers"] if c not in pending]
-    if not complete:
-        return Level(level, len(kinematic.config["controllers"]), pending, None, None, [], [], None)
-    before, after = restricted(kinematic, complete), restricted(physics, complete)
-    assert isinstance(before, Results) and isinstance(after, Results)
-    ranked = [c for c in complete if c not in FINE_TUNED]
-    return Level(
-        level,
-        len(kinematic.config["controllers"]),
-        pending,
-        before,
-        after,
-        plant_differences(before, after),
-        orderings(before, after),
-        rank_agreement(before, after, ranked) if len(ranked) >= 2 else None,
-    )
 
 
 def _tau(value: float) -> str:
@@ -362,27 +276,6 @@ def summary_block(levels: list[Level]) -> str:
     return "\n".join(lines)
 
 
-def transfers(found: list[Ordering]) -> list[Ordering]:
-    """The orderings of controllers tuned or trained on the kinematic plant (no :data:`FINE_TUNED`)."""
-    return [o for o in found if o.a not in FINE_TUNED and o.b not in FINE_TUNED]
-
-
-def against_source(records: list[dict[str, Any]], name: str) -> PairedComparison | None:
-    """``name`` against the controller it was fine-tuned from on one run's episodes (both tasks),
-    paired on the (task, layout, map, seed) units both ran; None when they share none."""
-    outcomes: dict[str, dict[tuple, bool]] = {name: {}, FINE_TUNED[name]: {}}
-    for r in records:
-        if r.get("controller") in outcomes and r.get("status", "ok") == "ok":
-            unit = (r["env_id"], r.get("layout"), r["map"], r["seed"])
-            outcomes[r["controller"]][unit] = bool(r["success"])
-    shared = sorted(set(outcomes[name]) & set(outcomes[FINE_TUNED[name]]), key=repr)
-    if not shared:
-        return None
-    return paired_comparison(
-        [outcomes[name][u] for u in shared], [outcomes[FINE_TUNED[name]][u] for u in shared]
-    )
-
-
 def fine_tuned_table(rows: list[PlantRow], physics: Results) -> str:
     """The :data:`FINE_TUNED` rows of one friction level: each against its source on the physics
     plant (paired, McNemar), and its success on both plants."""
@@ -442,16 +335,6 @@ def level_section(level: Level) -> str:
     return "\n\n".join(parts)
 
 
-def _slip_levels(path: str) -> tuple[dict[Any, Results], list[Any], dict[str, Any]]:
-    """A sim-to-sim run's friction levels with a log, every level its manifest sweeps, and the
-    manifest."""
-    done, _, manifest = load_sweep(path)
-    if "slip" not in done:
-        raise ValueError(f"the run in {path!r} is not swept over the friction level (--sweep slip=...)")
-    [axis] = [entry for entry in manifest["axes"] if entry["key"] == "slip"]
-    return dict(done["slip"]), list(axis["levels"]), manifest
-
-
 def page(kinematic_path: str, physics_path: str, title: str, intro: str) -> str:
     """The page's Markdown from the two runs.
 
@@ -461,8 +344,8 @@ def page(kinematic_path: str, physics_path: str, title: str, intro: str) -> str:
         A run that is not a friction sweep, two runs that differ by more than the plant (named),
         or no friction level with a log in both.
     """
-    kinematic, kinematic_levels, kinematic_manifest = _slip_levels(kinematic_path)
-    physics, physics_levels, physics_manifest = _slip_levels(physics_path)
+    kinematic, kinematic_levels, kinematic_manifest = slip_levels(kinematic_path)
+    physics, physics_levels, physics_manifest = slip_levels(physics_path)
     if kinematic_levels != physics_levels:
         raise ValueError(
             f"the runs sweep different friction levels ({kinematic_levels}; {physics_levels}): "

@@ -1,7 +1,8 @@
 """Experiments made of runs: the named protocols, presets of :class:`~evaluation.run.spec.RunSpec`
 (:mod:`~evaluation.experiments.protocols`), the NMPC design-factor ablation and its report
 (:mod:`~evaluation.experiments.ablation`), ``--sweep``: one run per level of an env setting
-(:mod:`~evaluation.experiments.sweep`), and the learned policies' training seeds on the test split
+(:mod:`~evaluation.experiments.sweep`), the sim-to-sim protocol's two runs read back per friction level
+(:mod:`~evaluation.experiments.sim2sim`), and the learned policies' training seeds on the test split
 (:mod:`~evaluation.experiments.seeds`, a command: ``python -m evaluation.experiments.seeds``).
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
@@ -44,6 +45,16 @@ from evaluation.experiments.protocols import (
     quick_protocol,
     suite_protocol,
 )
+from evaluation.experiments.sim2sim import (
+    FINE_TUNED,
+    PLANTS,
+    Level,
+    against_source,
+    level_data,
+    shortfall,
+    slip_levels,
+    transfers,
+)
 from evaluation.experiments.sweep import (
     MANIFEST,
     MAX_SWEEP_LEVELS,
@@ -59,6 +70,14 @@ from evaluation.experiments.sweep import (
 )
 
 __all__ = [
+    "FINE_TUNED",
+    "PLANTS",
+    "Level",
+    "against_source",
+    "level_data",
+    "shortfall",
+    "slip_levels",
+    "transfers",
     "ABLATION_TITLE",
     "DEFAULT_LEVELS",
     "FACTORS",

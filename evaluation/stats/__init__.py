@@ -77,13 +77,23 @@ from evaluation.stats.suite_statistics import (
     suite_tables,
 )
 from evaluation.stats.transfer import (
+    RANK_RESAMPLES,
+    RANK_SEED,
     TRANSFER_ALPHA,
     Ordering,
     PlantRow,
+    Progress,
+    RankAgreement,
     check_same_protocol,
+    kendall_tau_b,
     ordering_verdict,
     orderings,
+    planned_episodes,
     plant_differences,
+    rank_agreement,
+    restricted,
+    run_progress,
+    significant_changes,
 )
 
 __all__ = [
@@ -152,4 +162,14 @@ __all__ = [
     "ordering_verdict",
     "orderings",
     "plant_differences",
+    "RANK_RESAMPLES",
+    "RANK_SEED",
+    "Progress",
+    "RankAgreement",
+    "kendall_tau_b",
+    "planned_episodes",
+    "rank_agreement",
+    "restricted",
+    "run_progress",
+    "significant_changes",
 ]

@@ -40,6 +40,7 @@ from evaluation.episodes.distinct import episode_identity
 from evaluation.episodes.records import ran
 from evaluation.episodes.runlog import run_signature
 from evaluation.run.plan import RANDOM_MAP
+from evaluation.run.suite_runs import cluster_of
 from evaluation.stats.robustness import LevelCost, level_costs
 from evaluation.stats.run_data import RunData
 from evaluation.stats.statistics import wilson_interval
@@ -54,7 +55,6 @@ __all__ = [
     "Progress",
     "RankAgreement",
     "check_same_protocol",
-    "cluster_of",
     "kendall_tau_b",
     "ordering_verdict",
     "orderings",
@@ -337,11 +337,11 @@ def kendall_tau_b(x: Any, y: Any) -> Any:
         return np.where(denominator > 0, (dx * dy).sum(-1) / denominator, np.nan)
 
 
-def cluster_of(record: Mapping[str, Any]) -> Hashable:
-    """An episode's cluster for :func:`rank_agreement`: its (task, map, layout) in a suite run
-    (every controller met the layout alike), else (task, map, seed): its own start."""
-    layout = record.get("layout")
-    return (record["env_id"], record["map"], layout if layout is not None else ("seed", record["seed"]))
+def _task_cluster(record: Mapping[str, Any]) -> Hashable:
+    """An episode's cluster for :func:`rank_agreement`: its task and its layout (or its trial's
+    seed outside a suite: :func:`~evaluation.run.suite_runs.cluster_of`), so that layout 3 of
+    one task and of the other are two clusters."""
+    return (record["env_id"], cluster_of(record))
 
 
 def rank_agreement(
@@ -357,7 +357,7 @@ def rank_agreement(
     Each controller's success rate on each plant over the units both plants ran (env, map,
     trial: the same episode on both), every task pooled; Kendall's tau-b of the two rates over
     the controllers (1: the same order, -1: reversed; ties as tau-b counts them). Its interval
-    resamples the clusters (:func:`cluster_of`) with replacement, the same resample on both plants
+    resamples the clusters (:func:`_task_cluster`) with replacement, the same resample on both plants
     and for every controller (a layout is hard for all), seeded: the same data give the same
     interval.
 
@@ -382,13 +382,13 @@ def rank_agreement(
 
     before, after = outcomes(first), outcomes(second)
     shared = sorted(set(before) & set(after), key=repr)
-    clusters = list(dict.fromkeys(sorted((cluster_of(before[u]) for u in shared), key=repr)))
+    clusters = list(dict.fromkeys(sorted((_task_cluster(before[u]) for u in shared), key=repr)))
     row = {c: n for n, c in enumerate(clusters)}
     # successes on each plant and episodes, per (cluster, controller): integers, so every sum is exact
     wins = np.zeros((2, len(clusters), len(labels)))
     counts = np.zeros((len(clusters), len(labels)))
     for unit in shared:
-        at = row[cluster_of(before[unit])], column[unit[0]]
+        at = row[_task_cluster(before[unit])], column[unit[0]]
         counts[at] += 1
         wins[(0, *at)] += bool(before[unit]["success"])
         wins[(1, *at)] += bool(after[unit]["success"])
