@@ -617,6 +617,55 @@ def _rl_ppo_range(match: re.Match[str]) -> list[str]:
     )
 
 
+def _set_inputs(match: re.Match[str]) -> list[str]:
+    stated = (int(match[1]), float(match[2]), int(match[3]))
+    configs = {
+        (c["neighbours"], c["sensing_radius"], c["obstacles"])
+        for task in ("target_reaching", "formation")
+        for c in (meta("set", task)["set_config"],)
+    }
+    return _same({stated}, configs, "the set policies' slots and radius (K, m, obstacles)")
+
+
+def _encoder(match: re.Match[str]) -> list[str]:
+    stated = (int(match[1]), [int(match[2]), int(match[3])])
+    actual = {
+        (meta("set", t)["set_width"], tuple(meta("set", t)["net_arch"]))
+        for t in ("target_reaching", "formation")
+    }
+    return _same({(stated[0], tuple(stated[1]))}, actual, "the set encoder's width and the heads")
+
+
+def _validation_cells(match: re.Match[str]) -> list[str]:
+    from baselines.curriculum import VALIDATION
+    from baselines.sb3.select import VALIDATION_SEED
+
+    def sizes(task: str) -> list[int]:
+        return [cell[0] for cell in VALIDATION[task]]
+
+    stated = ([int(n) for n in re.findall(r"\d+", match[1])], [int(n) for n in re.findall(r"\d+", match[2])])
+    episodes = {
+        meta("set", t)["selection"]["command"].rsplit("--episodes ", 1)[-1]
+        for t in ("target_reaching", "formation")
+    }
+    return (
+        _same(stated, (sizes("target_reaching"), sizes("formation")), "the validation cells' team sizes")
+        + _same(int(match[3].replace(",", "")), VALIDATION_SEED, "the validation seeds' start")
+        + _same({match[4]}, episodes, "the selection's validation layouts")
+    )
+
+
+def _physics_rates(match: re.Match[str]) -> list[str]:
+    return _same(
+        (int(match[1]), int(match[2])),
+        (
+            meta("set_physics", "target_reaching")["robot_steps_per_second"],
+            meta("set_physics", "formation")["robot_steps_per_second"],
+        ),
+        "the physics fine-tunes' robot-steps per second",
+    )
+
+
 def _claims() -> list[Claim]:
     meta_ = "baselines/policies/*/metadata.json"
     results = "docs/results.md (data/paper.tar.xz; the page's hash)"
@@ -653,6 +702,33 @@ def _claims() -> list[Claim]:
             safe,
         ),
         Claim(re.compile(r"streamed in (\d+) MiB chunks"), _chunk, safe),
+        Claim(
+            re.compile(
+                r"up to K = (\d+) team-mates within a sensing radius of ([\d.]+) m .*?- up to (\d+) obstacles within",
+                re.S,
+            ),
+            _set_inputs,
+            meta_ + " (set_config)",
+        ),
+        Claim(
+            re.compile(r"\(two layers, width (\d+)\).*?PPO's actor and critic heads \((\d+), (\d+)\)", re.S),
+            _encoder,
+            meta_ + " (set_width, net_arch)",
+        ),
+        Claim(
+            re.compile(
+                r"The validation cells are ([\d, and]+?)\s+robots \(target reaching\) and ([\d, and]+?) \(formation\), "
+                r"with seeds from ([\d,]+) up\s+\(`baselines.curriculum.VALIDATION`\)\. `baselines.sb3.select` then keeps "
+                r"the best checkpoint over (\d+)\s+validation layouts"
+            ),
+            _validation_cells,
+            "baselines.curriculum.VALIDATION, baselines.sb3.select.VALIDATION_SEED and " + meta_,
+        ),
+        Claim(
+            re.compile(r"(\d+) and (\d+) robot-steps per wall-clock second"),
+            _physics_rates,
+            meta_ + " (set_physics)",
+        ),
         Claim(
             re.compile(r"teams of ([\d, and]+?)\s+robots \(([\d, and]+?) envs, (\d+) robots per step\)"),
             _parts,
@@ -1016,6 +1092,18 @@ def test_every_result_of_rl_md_is_checked_or_pinned() -> None:
             "the preset's 3 cm of position noise",
             "the preset's 5 cm of position noise",
             "realistic pose noise",
+        ),
+        ("up to K = 6 team-mates", "up to K = 8 team-mates", "slots and radius"),
+        ("critic heads (128, 128)", "critic heads (256, 256)", "the set encoder's width"),
+        (
+            "robots (target reaching) and 3, 5 and 8 (formation)",
+            "robots (target reaching) and 3, 6 and 8 (formation)",
+            "team sizes",
+        ),
+        (
+            "416 and 404 robot-steps per wall-clock second",
+            "416 and 440 robot-steps per wall-clock second",
+            "robot-steps per second",
         ),
         # the generated pages
         (
