@@ -20,6 +20,7 @@ is the same loop over this file's tables.
 from __future__ import annotations
 
 import functools
+import json
 import math
 import re
 from collections.abc import Callable
@@ -210,6 +211,53 @@ def _wedge(match: re.Match[str]) -> list[str]:
     return _same(stated, actual, "the wedge's fit (largest team, spacing, shares)") + _same(
         int(first), largest + 1, "the first team that does not fit"
     )
+
+
+def _gate_episodes() -> int:
+    """The gate's episodes per controller: .ci/leaderboard.sh's episodes per cell x 2 tasks x 2
+    paper maps (high slip only)."""
+    return int(_script_default(".ci/leaderboard.sh", "episodes")()) * 2 * 2
+
+
+def _gate_runs(match: re.Match[str]) -> list[str]:
+    """docs/performance.md's gate runs: each count of controllers times the gate's episodes per
+    controller is the run's episodes."""
+    n1, per_cell, e1, n2, e2, n3, e3 = (int(g) for g in match.groups())
+    per = _gate_episodes()
+    return _same(
+        (per_cell, e1, e2, e3),
+        (per // 4, n1 * per, n2 * per, n3 * per),
+        "the gate runs' episodes (per cell, runs)",
+    )
+
+
+def _baseline_counts(match: re.Match[str]) -> list[str]:
+    """The committed baseline's episodes and controllers, none of them a ``-v0``."""
+    baseline = json.loads((ROOT / ".ci" / "baseline" / "results.json").read_text(encoding="utf-8"))
+    labels = {e["controller"] for e in baseline["episodes"]}
+    problems = _same(
+        (int(match[1]), int(match[2])),
+        (len(baseline["episodes"]), len(labels)),
+        ".ci/baseline's episodes, controllers",
+    )
+    problems += _same(
+        int(match[1]), len(labels) * _gate_episodes(), "the baseline's episodes (controllers x 40)"
+    )
+    v0 = sorted(label for label in labels if label.endswith("-v0"))
+    return problems + ([f"the baseline holds {v0}, said to hold no -v0"] if v0 else [])
+
+
+def _mutation_share(match: re.Match[str]) -> list[str]:
+    """A mutation score "K/N (P%)": P is 100 K / N to the places stated."""
+    killed, total, share = match.groups()
+    actual = f"{100 * int(killed) / int(total):.{_places(share)}f}"
+    return _same(share, actual, f"the share of {killed}/{total}")
+
+
+def _mutation_left(match: re.Match[str]) -> list[str]:
+    """The table's "left" column: the mutants neither killed nor timed out after the new tests."""
+    total, killed, timeouts, left = match[1], match[2], match[3] or "0", match[4]
+    return _same(int(left), int(total) - int(killed) - int(timeouts), f"the mutants left of {total}")
 
 
 _MIB = 2**20
@@ -466,6 +514,16 @@ def _claims(page: str) -> list[Claim]:
             ),
         ],
         "performance.md": [
+            Claim(
+                re.compile(
+                    r"leaderboard job: (\d+) registered controllers x 2 tasks\s+x 2 paper maps x high slip x (\d+) "
+                    r"episodes = (\d+) episodes.*?with (\d+) controllers\s+\((\d+) episodes, before the distributed "
+                    r"NMPCs\).*?with the (\d+)\s+registered then \((\d+) episodes",
+                    re.S,
+                ),
+                _gate_runs,
+                ".ci/leaderboard.sh's episodes per cell x 2 tasks x 2 maps",
+            ),
             _code(r"One\s+control period is (\d+) ms", _paper("dt", 1000), what="PARAMS.dt [ms]"),
         ],
         "movers.md": [
@@ -667,6 +725,24 @@ def _claims(page: str) -> list[Claim]:
             ),
         ],
         "ci.md": [
+            Claim(
+                re.compile(
+                    r"\((\d+)\s+episodes for the (\d+) controllers and presets a default run takes with every extra "
+                    r"installed;.*?the baseline holds none of them",
+                    re.S,
+                ),
+                _baseline_counts,
+                ".ci/baseline/results.json",
+            ),
+            Claim(re.compile(r"(\d+)/(\d+)(?: killed)? \((\d+(?:\.\d+)?)%\)"), _mutation_share, "K / N"),
+            Claim(
+                re.compile(
+                    r"^\| `[^`]+`[^|]* \| \d+/(\d+) \([^|]*\| (\d+)/\d+ killed \([\d.]+%\)(?:, (\d+) timeout)? \| (\d+) \|$",
+                    re.M,
+                ),
+                _mutation_left,
+                "the mutation run's total less the killed and the timeouts",
+            ),
             *exits,
             _code(
                 r"below `MIN_SCORE` \((\d+)%\)",
@@ -1099,7 +1175,7 @@ MEASURED: dict[str, dict[str, str]] = {
         "the floors) took 103.4 s": GATE_TIME,
         "episodes and 1 min 49 s in all on an idle 2-core machine (3 min 29 s of CPU); with 8 controllers": GATE_TIME,
         "(320 episodes, before the distributed NMPCs) it took 102.6 s": GATE_TIME,
-        "registered now (480 episodes, `--update`) took 137 s, and the gate against it 142.7 s": GATE_TIME,
+        "registered then (480 episodes, `--update`) took 137 s, and the gate against it 142.7 s": GATE_TIME,
         "episodes, 2 min 30 s": GATE_TIME,
         "label) exits 102: 78% -> 0%": GATE_TIME,
         "McNemar p = 9e-10": GATE_TIME,
@@ -1553,6 +1629,25 @@ OLD_CROWD_ROW = "| `dmpc-koopman` | 100% [97-100] | 78 [75, 82] | 49% [40-58] | 
         ("ci.md", "(default 0.10, i.e. 10 points)", "(default 0.10, i.e. 15 points)", "--delta's default"),
         ("ci.md", "(all 8 pairs lost, p = 0.008;", "(all 8 pairs lost, p = 0.004;", "exact p"),
         ("ci.md", "below `MIN_SCORE` (85%)", "below `MIN_SCORE` (80%)", "MIN_SCORE"),
+        ("ci.md", "297/372 (79.8%)", "297/372 (78.9%)", "the share of 297/372"),
+        (
+            "ci.md",
+            "killed (96.3%), 1 timeout | 28 |",
+            "killed (96.3%), 1 timeout | 27 |",
+            "the mutants left of 790",
+        ),
+        (
+            "performance.md",
+            "x 10 episodes = 360 episodes",
+            "x 10 episodes = 350 episodes",
+            "the gate runs' episodes",
+        ),
+        (
+            "ci.md",
+            "episodes for the 20 controllers",
+            "episodes for the 21 controllers",
+            ".ci/baseline's episodes",
+        ),
         # the committed data: the archives' sizes and the history, the generated crowd page
         (
             "layout.md",
