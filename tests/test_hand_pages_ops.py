@@ -14,7 +14,11 @@ edited copies of the pages (never on the files).
 
 This file reuses tests/test_hand_pages.py's machinery (its token finder, claims, phrase and repeat
 matching); that file's ``page_problems`` reads its own fixed tables, so :func:`page_problems` here
-is the same loop over this file's tables.
+is the same loop over this file's tables. Two differences: a ratio written with its "x" (``0.47x``,
+:data:`RATIO`) is a result-like token too (these pages state most of their findings so), and a
+number checked against the code must equal the code's value exactly (a "0.1" for 0.05 fails).
+A percentage repeats its section's table when the table holds the same number (``95%`` of a
+``95% [90-98]`` cell), not only its fraction.
 """
 
 from __future__ import annotations
