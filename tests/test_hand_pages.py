@@ -370,6 +370,118 @@ def _lag_band(match: re.Match[str]) -> list[str]:
     return same((match[2], match[3]), band, "the lag test's band [s]")
 
 
+# ------------------------------------------------------------ docs/physics.md: the sim-to-sim protocol
+SIM2SIM = ("data/sim2sim_kinematic", "data/sim2sim_physics")
+
+
+@functools.cache
+def _sim2sim() -> dict[str, dict]:
+    """Each sim-to-sim publication's design (controllers, layouts, tasks, episodes per layout,
+    friction levels) and its episodes so far."""
+    from evaluation.experiments.sim2sim import slip_levels
+
+    out = {}
+    for path in SIM2SIM:
+        done, levels, _ = slip_levels(str(ROOT / path))
+        config = next(iter(done.values())).config
+        suite = config["suite"]
+        out[path] = {
+            "controllers": len(config["controllers"]),
+            "layouts": suite["layouts"][1] - suite["layouts"][0],
+            "tasks": len(suite["tasks"]),
+            "episodes": suite["episodes_per_layout"],
+            "levels": levels,
+            "records": sum(len(results.records) for results in done.values()),
+        }
+    return out
+
+
+def _sim2sim_design() -> dict:
+    """The design both publications share (a sim-to-sim pair differs by the plant only)."""
+    designs = [{k: v for k, v in d.items() if k != "records"} for d in _sim2sim().values()]
+    return designs[0] if all(d == designs[0] for d in designs) else {"differ": designs}
+
+
+def _planned() -> int:
+    """The episodes a sim-to-sim run plans on one plant."""
+    d = _sim2sim_design()
+    return d["controllers"] * d["layouts"] * d["tasks"] * d["episodes"] * len(d["levels"])
+
+
+def _sim2sim_runs(match: re.Match[str]) -> list[str]:
+    """ "Every controller a default run takes (N: ...), the suite's first L test layouts of both
+    tasks (...), one episode each, on carpet and on ice": the publications' design."""
+    d = _sim2sim_design()
+    stated = (int(match[1]), int(match[2]), WORDS.get(match[3], match[3]))
+    return same(
+        stated, (d.get("controllers"), d.get("layouts"), d.get("episodes")), "the sim-to-sim design"
+    ) + same(d.get("levels"), ["nominal", "high"], "the sim-to-sim friction levels (carpet and ice)")
+
+
+def _fine_tune_cost(match: re.Match[str]) -> list[str]:
+    """The fine-tune's CPU and wall time: those docs/rl.md pins (tests/test_hand_pages_rl.py)."""
+    rl = re.search(
+        r"Each run took (\d+)-(\d+) min of wall time and (\d+) and (\d+) CPU-seconds", read("rl.md")
+    )
+    source = (rl[3], rl[4], rl[1], rl[2]) if rl else None
+    return same(match.groups(), source, "the physics fine-tune's CPU-seconds and wall minutes (docs/rl.md)")
+
+
+def _sim2sim_estimate(match: re.Match[str]) -> list[str]:
+    """What the protocol costs, from the measured rates the paragraph pins: the calibration per
+    friction level (kinds x rate x budget), the episodes of each plant (the publications' design)
+    at their CPU-seconds each, the whole in CPU-hours (each figure to the places stated)."""
+    (low, high, per, kinds, budget, level, calibration, physics, controllers, layouts, tasks, floors) = (
+        match.groups()[:12]
+    )
+    physics_minutes, physics_rate, kinematic, kinematic_minutes, kinematic_rate, hours = match.groups()[12:]
+    from evaluation.cli.options import build_parser
+
+    d = _sim2sim_design()
+    n = lambda s: float(s.replace(",", ""))  # noqa: E731
+    problems = code_value(
+        budget, build_parser().get_default("calibration_budget"), "the evaluator's calibration budget"
+    )
+    scale = WORDS.get(kinds, 0) * n(budget) / n(per) / 60
+    if not scale * n(low) <= n(level) <= scale * n(high):
+        problems.append(f"{level} CPU-minutes per level is outside {scale * n(low):g}-{scale * n(high):g}")
+    problems += same(n(calibration), len(d.get("levels", [])) * n(level), "the calibration's CPU-minutes")
+    problems += same(
+        (int(controllers), int(layouts), int(tasks), int(floors)),
+        (d.get("controllers"), d.get("layouts"), d.get("tasks"), len(d.get("levels", []))),
+        "the sim-to-sim design (controllers, layouts, tasks, floors)",
+    )
+    problems += same((int(physics), int(kinematic)), (_planned(), _planned()), "the episodes of each plant")
+    problems += same(
+        (int(physics_minutes), int(kinematic_minutes)),
+        (round(_planned() * n(physics_rate) / 60), round(_planned() * n(kinematic_rate) / 60)),
+        "the episodes' CPU-minutes (physics, kinematic)",
+    )
+    total = (n(calibration) + int(physics_minutes) + int(kinematic_minutes)) / 60
+    problems += same(int(hours), round(total), "the protocol's CPU-hours")
+    return problems
+
+
+def _sim2sim_more(match: re.Match[str]) -> list[str]:
+    """Gravel (one more friction level: its calibration and half the episodes again) and one more
+    layout (its episodes on both plants), at the paragraph's rates [CPU-minutes]."""
+    level = re.search(r"that is about (\d+) CPU-minutes per friction level", match.string)
+    rates = re.search(
+        r"at ([\d.]+)\s+CPU-seconds each\) and \d+ kinematic ones \(about \d+ at ([\d.]+)\)", match.string
+    )
+    if level is None or rates is None:
+        return ["the paragraph no longer states the calibration per level and the episodes' rates"]
+    per_episode = float(rates[1]) + float(rates[2])
+    d = _sim2sim_design()
+    per_level = _planned() // len(d["levels"])
+    per_layout = _planned() // d["layouts"]
+    return same(
+        (int(match[1]), int(match[2])),
+        (round(int(level[1]) + per_level * per_episode / 60), round(per_layout * per_episode / 60)),
+        "gravel's and a further layout's CPU-minutes",
+    )
+
+
 # ------------------------------------------------------------ constants of the code
 def _constant(value: Callable[[], float], scale: float, what: str) -> CheckFn:
     """A number stated in ``scale`` units of the code's ``value()`` (e.g. 100 for cm of metres)."""
@@ -796,6 +908,66 @@ def _physics_claims() -> list[Claim]:
             _lag_band,
             "the stated constant and PhysicsParams.timestep",
         ),
+        Claim(
+            re.compile(
+                r"Every controller a default run takes \((\d+): every registered one but the `-v0` variants of the\s+"
+                r"tuned presets, which run only when named\), the suite's first (\d+) test layouts of both tasks \(the\s+"
+                r"tuner never saw them\), (\w+) episode each, on carpet and on ice"
+            ),
+            _sim2sim_runs,
+            "the publications " + " and ".join(SIM2SIM),
+        ),
+        Claim(
+            re.compile(r"One of the (\d+) is not a transfer"),
+            lambda m: same(int(m[1]), _sim2sim_design().get("controllers"), "the sim-to-sim controllers"),
+            "the publications " + " and ".join(SIM2SIM),
+        ),
+        Claim(
+            re.compile(
+                r"each fine-tune is a training run of its own: (\d+)\s+and (\d+) CPU-seconds for the two tasks "
+                r"\((\d+)-(\d+) minutes of wall time each"
+            ),
+            _fine_tune_cost,
+            "docs/rl.md's pinned fine-tune times",
+        ),
+        Claim(
+            re.compile(
+                r"Calibrating on the physics plant took (\d+)-(\d+) CPU-seconds per ([\d,]+)\s+team-transitions for "
+                r"each of the (\w+) kinds that calibrate.*?At the evaluator's ([\d,]+) that is about (\d+) "
+                r"CPU-minutes per friction level.*?about (\d+) CPU-minutes of calibration, (\d+) physics episodes "
+                r"\((\d+) controllers,.*? x (\d+) layouts x (\d+) tasks x (\d+) floors; about (\d+) CPU-minutes at "
+                r"([\d.]+)\s+CPU-seconds each\) and (\d+) kinematic ones \(about (\d+) at ([\d.]+)\), \*\*about "
+                r"(\d+) CPU-hours with one\s+worker\*\*",
+                re.S,
+            ),
+            _sim2sim_estimate,
+            "the pinned rates, the evaluator's calibration budget and the publications' design",
+        ),
+        Claim(
+            re.compile(r"The kinematic run took [\d,]+ s of wall time for its (\d+) episodes"),
+            lambda m: same(
+                int(m[1]), _sim2sim()[SIM2SIM[0]]["records"], "the kinematic publication's episodes"
+            ),
+            "the publication " + SIM2SIM[0],
+        ),
+        Claim(
+            re.compile(
+                r"and [\d,]+ s for the (\d+) rerun after .*?`python -m evaluation\.forget ([\w -]+?) --", re.S
+            ),
+            lambda m: same(
+                int(m[1]),
+                len(m[2].split()) * _planned() // _sim2sim_design()["controllers"],
+                "the rerun's episodes",
+            ),
+            "the forgotten controllers x each one's episodes",
+        ),
+        Claim(
+            re.compile(
+                r"would add about (\d+) CPU-minutes; each further layout about (\d+) CPU-minutes on both"
+            ),
+            _sim2sim_more,
+            "the paragraph's rates and the publications' design",
+        ),
     ]
 
 
@@ -883,6 +1055,13 @@ MUJOCO_ONE_OFF = (
 )
 SPEED_LOADS = "python bench/physics_speed.py (its defaults) at 4a00b79, at loads 3.5 and 29.9"
 PY_SPY = "py-spy record -r 200 over 15 CPU-seconds of env.step with random actions on the default map"
+SIM2SIM_FIRST = (
+    "/usr/bin/time python evaluate.py --suite koopnav-bench-v1 --split test --layouts 0:2 --slips high "
+    "--calibration-budget 20000 (and --plant mujoco), the calibrations timed apart, by hand; not committed"
+)
+SIM2SIM_WALL = (
+    "the wall time the sim-to-sim kinematic run and its rerun logged (bash data/publish.sh sim2sim_kinematic)"
+)
 SPEED_IDLE = "python bench/physics_speed.py (its defaults) at 5134e6c on the idle machine (2026-11-30)"
 
 MEASURED: dict[str, dict[str, str]] = {
@@ -979,6 +1158,13 @@ MEASURED: dict[str, dict[str, str]] = {
         "and 15 s on the kinematic plant": MAP1_TIME,
         "took 44 minutes of wall time and 635 CPU-seconds": MAP1_TIME,
         "8 minutes and 72 CPU-seconds on the kinematic plant": MAP1_TIME,
+        "a first run of every controller on the suite's first 2 test layouts of both tasks on ice (76 episodes, "
+        "`--calibration-budget 20000`) took 244 CPU-seconds on the physics plant and 174 on the kinematic plant: "
+        "about 2.6 and 2.2 CPU-seconds per episode once the calibrations (34 s on the physics plant, about 1 s on "
+        "the kinematic)": SIM2SIM_FIRST,
+        "Calibrating on the physics plant took 27-30 CPU-seconds per 50,000": SIM2SIM_FIRST,
+        "The kinematic run took 7,144 s of wall time": SIM2SIM_WALL,
+        "and 799 s for the 80 rerun": SIM2SIM_WALL,
         "about 480 s (2,006 s of wall time)": MAP1_TIME,
         "it predicts 0.5 cm of progress per period for 0.3 m/s": MAP1_PROBE,
         "a drift of 0.2 cm per period backwards at rest": MAP1_PROBE,
@@ -1038,6 +1224,7 @@ NOT_RESULTS: dict[str, dict[str, str]] = {
         "accelerating at the 0.1 s lag's 6 m/s": "the motor lag's acceleration (0.6 m/s over 0.1 s)",
         "(the circle's 0.3 m/s, held for 21 s)": "the circle test's input (210 periods)",
         "(20 of 5 ms per env-step)": "the physics substeps, a setting",
+        "on both plants (95% Wilson": "the intervals' level, a setting of the page",
     },
 }
 
@@ -1061,13 +1248,6 @@ AUDITS = {
             ("## What the model learns", "## Map 1: every controller on the physics plant"),
             ("## Map 1: every controller on the physics plant", "## The sim-to-sim protocol"),
             ("## Speed", "## What a real TurtleBot3 has that the model does not"),
-        ],
-        left_out=[
-            (
-                "## The sim-to-sim protocol",
-                "## Speed",
-                "another change rewrites it; tests/test_physics_benches.py checks its counts",
-            )
         ],
     ),
 }
@@ -1137,6 +1317,26 @@ def test_every_result_of_the_hand_written_page_is_checked_or_pinned(page: str) -
             "| 2,933 | 2,932 | 58,637 |",
             "no longer states the measurement",
         ),
+        # docs/physics.md's sim-to-sim section: the publications' design, docs/rl.md, the estimates
+        ("physics.md", "takes (20: every registered", "takes (19: every registered", "the sim-to-sim design"),
+        (
+            "physics.md",
+            "for its 800 episodes",
+            "for its 700 episodes",
+            "the kinematic publication's episodes",
+        ),
+        ("physics.md", "for the 80 rerun", "for the 40 rerun", "the rerun's episodes"),
+        ("physics.md", "389\nand 400 CPU-seconds", "389\nand 410 CPU-seconds", "the physics fine-tune's"),
+        ("physics.md", "evaluator's 1,000,000", "evaluator's 2,000,000", "calibration budget"),
+        (
+            "physics.md",
+            "about 35 CPU-minutes at 2.6",
+            "about 45 CPU-minutes at 2.6",
+            "the episodes' CPU-minutes",
+        ),
+        ("physics.md", "**about 2 CPU-hours", "**about 3 CPU-hours", "the protocol's CPU-hours"),
+        ("physics.md", "about 60 CPU-minutes; each", "about 66 CPU-minutes; each", "gravel's"),
+        ("physics.md", "took 7,144 s of wall", "took 7,244 s of wall", "no longer states the measurement"),
         # a repeat of a table's figure
         (
             "physics.md",
