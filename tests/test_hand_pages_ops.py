@@ -3,7 +3,7 @@ movers.md, ci.md, uncertainty.md, evaluator.md, hard_constraints.md, environment
 perception.md, robustness.md and getting_started.md (docs/controller_options.md is written by
 docs/make_options_md.py from the option specs, not by hand).
 
-The audit is tests/test_hand_pages.py's (its docstring says what a result-like token is and the
+The audit is tests/helpers/hand_audit.py's (its docstring says what a result-like token is and the
 four ways one is covered): every token is **checked** by a claim (:func:`claims`: the code's
 constants and option defaults, the exit-code table, the uncertainty presets, the published data
 through the generated pages that tests/test_published_pages.py rebuilds from it), **a repeat** of
@@ -12,13 +12,9 @@ word for word with the command that measured it (:data:`MEASURED`), or **no resu
 (:data:`NOT_RESULTS`). :func:`page_problems` names what none covers; the tests below show it on
 edited copies of the pages (never on the files).
 
-This file reuses tests/test_hand_pages.py's machinery (its token finder, claims, phrase and repeat
-matching); that file's ``page_problems`` reads its own fixed tables, so :func:`page_problems` here
-is the same loop over this file's tables. Two differences: a ratio written with its "x" (``0.47x``,
-:data:`RATIO`) is a result-like token too (these pages state most of their findings so), and a
-number checked against the code must equal the code's value exactly (a "0.1" for 0.05 fails).
-A percentage repeats its section's table when the table holds the same number (``95%`` of a
-``95% [90-98]`` cell), not only its fraction.
+The machinery is tests/helpers/hand_audit.py's (ratios such as ``0.47x`` are tokens, a number
+checked against the code equals the code's value exactly, a percentage repeats its section's
+table when the table holds the same number); this file holds the eleven pages' claims and lists.
 """
 
 from __future__ import annotations
@@ -33,16 +29,17 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-from test_hand_pages import (  # noqa: E402
+
+from helpers.hand_audit import (  # noqa: E402
+    Audit,
     CheckFn,
     Claim,
-    _exact,
-    _is_repeat,
-    _region,
-    _rows,
-    _same,
-    _table_numbers,
-    result_tokens,
+    code_value,
+    page_problems,
+    pinned_problems,
+    read,
+    rows,
+    same,
 )
 
 PAGES = (
@@ -71,8 +68,7 @@ def _values(*expected: Callable[[], float], what: str) -> CheckFn:
     def check(match: re.Match[str]) -> list[str]:
         problems = []
         for i, (stated, value) in enumerate(zip(match.groups(), expected, strict=True)):
-            number = float(stated.replace(",", ""))  # exact: a rounded code value is no check
-            problems += _same(number, round(value(), 6), f"{what} ({i + 1})")
+            problems += code_value(stated, value(), f"{what} ({i + 1})")
         return problems
 
     return check
@@ -212,7 +208,7 @@ def _wedge(match: re.Match[str]) -> list[str]:
         f"{100 * config.placement_share('wedge', int(first)):.2f}",
         f"{config.placement_share('wedge', int(second)):.0e}".replace("e-0", "e-"),
     )
-    return _same(stated, actual, "the wedge's fit (largest team, spacing, shares)") + _same(
+    return same(stated, actual, "the wedge's fit (largest team, spacing, shares)") + same(
         int(first), largest + 1, "the first team that does not fit"
     )
 
@@ -228,7 +224,7 @@ def _gate_runs(match: re.Match[str]) -> list[str]:
     controller is the run's episodes."""
     n1, per_cell, e1, n2, e2, n3, e3 = (int(g) for g in match.groups())
     per = _gate_episodes()
-    return _same(
+    return same(
         (per_cell, e1, e2, e3),
         (per // 4, n1 * per, n2 * per, n3 * per),
         "the gate runs' episodes (per cell, runs)",
@@ -239,12 +235,12 @@ def _baseline_counts(match: re.Match[str]) -> list[str]:
     """The committed baseline's episodes and controllers, none of them a ``-v0``."""
     baseline = json.loads((ROOT / ".ci" / "baseline" / "results.json").read_text(encoding="utf-8"))
     labels = {e["controller"] for e in baseline["episodes"]}
-    problems = _same(
+    problems = same(
         (int(match[1]), int(match[2])),
         (len(baseline["episodes"]), len(labels)),
         ".ci/baseline's episodes, controllers",
     )
-    problems += _same(
+    problems += same(
         int(match[1]), len(labels) * _gate_episodes(), "the baseline's episodes (controllers x 40)"
     )
     v0 = sorted(label for label in labels if label.endswith("-v0"))
@@ -255,13 +251,13 @@ def _mutation_share(match: re.Match[str]) -> list[str]:
     """A mutation score "K/N (P%)": P is 100 K / N to the places stated."""
     killed, total, share = match.groups()
     actual = f"{100 * int(killed) / int(total):.{_places(share)}f}"
-    return _same(share, actual, f"the share of {killed}/{total}")
+    return same(share, actual, f"the share of {killed}/{total}")
 
 
 def _mutation_left(match: re.Match[str]) -> list[str]:
     """The table's "left" column: the mutants neither killed nor timed out after the new tests."""
     total, killed, timeouts, left = match[1], match[2], match[3] or "0", match[4]
-    return _same(int(left), int(total) - int(killed) - int(timeouts), f"the mutants left of {total}")
+    return same(int(left), int(total) - int(killed) - int(timeouts), f"the mutants left of {total}")
 
 
 def _baseline_failures() -> float:
@@ -295,12 +291,10 @@ def _map_costs(match: re.Match[str]) -> list[str]:
     costs = lidar_map_costs()
     drops = [-costs[name][0] for name in names]
     holm = max(costs[name][1] for name in names)
-    problems = _same(
-        (int(low), int(high)), (min(drops), max(drops)), f"the cost of losing the map to {names}"
-    )
+    problems = same((int(low), int(high)), (min(drops), max(drops)), f"the cost of losing the map to {names}")
     if not holm <= float(bound) < holm + 10 ** -_places(bound):
         problems.append(f"their largest Holm p is {holm:g}, stated as <= {bound}")
-    problems += _same(int(cost), -costs[other][0], f"{other}'s cost of losing the map")
+    problems += same(int(cost), -costs[other][0], f"{other}'s cost of losing the map")
     if not costs[other][1] < float(below):
         problems.append(f"{other}'s Holm p is {costs[other][1]:g}, stated as < {below}")
     return problems
@@ -451,13 +445,13 @@ def _archive_row(match: re.Match[str]) -> list[str]:
     problems = []
     if name not in _archives():
         return [f"the clone table lists data/{name}, which is not in data/"]
-    problems += _same(now, round(_archives()[name] / 1000), f"data/{name}'s size [KB]")
+    problems += same(now, round(_archives()[name] / 1000), f"data/{name}'s size [KB]")
     counted = _versions(name)
     if counted is not None:
-        problems += _same(versions, counted, f"data/{name}'s versions in the history")
+        problems += same(versions, counted, f"data/{name}'s versions in the history")
     listed = [m[1] for m in ARCHIVE_ROW.finditer(match.string)]
     if match.start() == ARCHIVE_ROW.search(match.string).start():  # type: ignore[union-attr]
-        problems += _same(sorted(listed), sorted(_archives()), "the archives the clone table lists")
+        problems += same(sorted(listed), sorted(_archives()), "the archives the clone table lists")
     return problems
 
 
@@ -487,7 +481,7 @@ def _clone_sums(match: re.Match[str]) -> list[str]:
         f"{sum(split) / 1000:.1f}",
         str(len(split)),
     )
-    return _same(stated, actual, "the clone table's sums, medians and ratios")
+    return same(stated, actual, "the clone table's sums, medians and ratios")
 
 
 CLONE_SUMS = re.compile(
@@ -501,12 +495,12 @@ CLONE_SUMS = re.compile(
 
 def _robustness_mb(match: re.Match[str]) -> list[str]:
     row = next(m for m in ARCHIVE_ROW.finditer(match.string) if m[1] == "robustness.tar.xz")
-    return _same(match[1], f"{_int(row[2]) / 1000:.1f}", "robustness's size [MB]")
+    return same(match[1], f"{_int(row[2]) / 1000:.1f}", "robustness's size [MB]")
 
 
 def _published_total(match: re.Match[str]) -> list[str]:
     sizes = _archives()
-    return _same(
+    return same(
         (match[1], int(match[2])),
         (f"{sum(sizes.values()) / 1e6:.1f}", len(sizes)),
         "data/*.tar.xz's size [MB] and count",
@@ -515,7 +509,7 @@ def _published_total(match: re.Match[str]) -> list[str]:
 
 # --------------------------------------------------------------------------- the claims of each page
 def _claims(page: str) -> list[Claim]:
-    exits = _rows(exit_code_rows(), "evaluation.exit_codes.EXIT_CODES")
+    exits = rows(exit_code_rows(), "evaluation.exit_codes.EXIT_CODES")
     by_page: dict[str, list[Claim]] = {
         "environments.md": [
             _code(
@@ -628,7 +622,7 @@ def _claims(page: str) -> list[Claim]:
                 _default("consensus", "mover_lookahead"),
                 what="consensus's mover_lookahead",
             ),
-            *_rows(crowd_rows(), "docs/crowd_results.md (rebuilt from data/crowd_*.tar.xz)"),
+            *rows(crowd_rows(), "docs/crowd_results.md (rebuilt from data/crowd_*.tar.xz)"),
         ],
         "perception.md": [
             Claim(
@@ -669,7 +663,7 @@ def _claims(page: str) -> list[Claim]:
             ),
         ],
         "uncertainty.md": [
-            *_rows(uncertainty_rows(), "koopman_envs.settings.uncertainty.UNCERTAINTY_PRESETS"),
+            *rows(uncertainty_rows(), "koopman_envs.settings.uncertainty.UNCERTAINTY_PRESETS"),
             _code(
                 r"under `harsh` \((\d+) cm of noise\)",
                 _preset("harsh", "pose_noise", "xy", 100),
@@ -815,7 +809,7 @@ def _claims(page: str) -> list[Claim]:
             ),
             Claim(
                 re.compile(r"fails it at (\d+) episodes \(all (\d+) pairs lost, p = ([\d.]+);"),
-                lambda m: _same(
+                lambda m: same(
                     (m[2], m[3]), (m[1], f"{_sign_flip_p(m[2]):.1g}"), "the all-lost gate's pairs and exact p"
                 ),
                 "McNemar's exact p, 2 / 2^n",
@@ -824,7 +818,7 @@ def _claims(page: str) -> list[Claim]:
                 re.compile(
                     r"McNemar's exact test needs at least (\d+) discordant pairs, all one way, to reach p < ([\d.]+)"
                 ),
-                lambda m: _same(
+                lambda m: same(
                     int(m[1]),
                     next(n for n in range(1, 64) if _sign_flip_p(str(n)) < float(m[2])),
                     "the fewest discordant pairs for p < alpha",
@@ -860,91 +854,6 @@ def _claims(page: str) -> list[Claim]:
         ],
     }
     return by_page.get(page, [])
-
-
-@functools.cache
-def claims(page: str) -> tuple[Claim, ...]:
-    return tuple(_claims(page))
-
-
-# --------------------------------------------------------------------------- the audit
-#: a ratio written with its "x" (``0.47x``, ``12.72x``, ``7x faster``): a result in these pages,
-#: which tests/test_hand_pages.py's token finder does not read as one
-RATIO = re.compile(r"(?<![\w.])\d+(?:\.\d+)?x(?![\w])")
-
-
-def tokens(text: str) -> list[tuple[int, int]]:
-    """tests/test_hand_pages.py's result-like tokens, and every ratio (:data:`RATIO`) of the prose
-    that none of them holds."""
-    from test_hand_pages import prose
-
-    spans = result_tokens(text)
-    ratios = [m.span() for m in RATIO.finditer(prose(text))]
-    spans += [(a, b) for a, b in ratios if not any(s <= a and b <= e for s, e in spans)]
-    return sorted(set(spans))
-
-
-def _matches(text: str, pattern: re.Pattern[str]) -> list[re.Match[str]]:
-    return list(pattern.finditer(text))
-
-
-def _in_table(token: str, table: list[str]) -> bool:
-    """A repeat as tests/test_hand_pages.py reads one, or (for a percentage) the same numbers as
-    the table's percentages."""
-    from test_hand_pages import numbers
-
-    return _is_repeat(token, table) or all(n in table for n in numbers(token))
-
-
-def page_problems(page: str, text: str) -> list[str]:
-    """tests/test_hand_pages.py's ``page_problems`` over this file's tables."""
-    covered: set[int] = set()
-    problems: list[str] = []
-    groups: list[tuple[int, int]] = []
-    for claim in claims(page):
-        found = _matches(text, claim.pattern)
-        if not found:
-            problems.append(
-                f"{page} no longer states {claim.pattern.pattern[:120]!r} (checked by {claim.by})"
-            )
-        for match in found:
-            problems += claim.check(match)
-            if claim.whole or not claim.pattern.groups:
-                covered.update(range(*match.span()))
-            else:
-                groups += [match.span(i) for i in range(1, claim.pattern.groups + 1) if match[i] is not None]
-    found_tokens = tokens(text)
-    for start, end in found_tokens:
-        if any(a < end and start < b for a, b in groups):
-            covered.update(range(start, end))
-    for phrases, kind in ((MEASURED.get(page, {}), "measurement"), (NOT_RESULTS.get(page, {}), "non-result")):
-        for phrase in phrases:
-            found = _matches(text, _exact(phrase))
-            if not found:
-                problems.append(
-                    f"{page} no longer states the {kind} {phrase!r}: update tests/test_hand_pages_ops.py"
-                )
-            for match in found:
-                covered.update(range(*match.span()))
-    repeats = [_region(text, a, b) for p, a, b in REPEATS if p == page]
-    tables = [_table_numbers(text[a:b]) for a, b in repeats]
-    is_row = {m.start() for m in re.finditer(r"^\|", text, re.M)}
-    for start, end in found_tokens:
-        if covered.issuperset(range(start, end)):
-            continue
-        token = text[start:end]
-        line_start = text.rfind("\n", 0, start) + 1
-        if line_start not in is_row and any(
-            a <= start < b and _in_table(token, table) for (a, b), table in zip(repeats, tables, strict=True)
-        ):
-            continue
-        line = text.count("\n", 0, start) + 1
-        problems.append(f"docs/{page} line {line}: {token!r} is checked by nothing")
-    return list(dict.fromkeys(problems))
-
-
-def read(page: str) -> str:
-    return (ROOT / "docs" / page).read_text(encoding="utf-8")
 
 
 #: (page, first heading, the heading that ends the region): a token of the region's prose is a
@@ -1663,10 +1572,24 @@ NOT_RESULTS: dict[str, dict[str, str]] = {
 }
 
 
+# --------------------------------------------------------------------------- the audits
+AUDITS = {
+    page: Audit(
+        page=page,
+        owner="tests/test_hand_pages_ops.py",
+        claims=functools.partial(_claims, page),
+        measured=MEASURED.get(page, {}),
+        not_results=NOT_RESULTS.get(page, {}),
+        repeats=[(a, b) for p, a, b in REPEATS if p == page],
+    )
+    for page in PAGES
+}
+
+
 # --------------------------------------------------------------------------- the tests
 @pytest.mark.parametrize("page", PAGES)
 def test_every_result_of_the_hand_written_page_is_checked_or_pinned(page: str) -> None:
-    assert page_problems(page, read(page)) == []
+    assert page_problems(read(page), AUDITS[page]) == []
 
 
 OLD_CROWD_ROW = "| `dmpc-koopman` | 100% [97-100] | 78 [75, 82] | 49% [40-58] | 82 [78, 85] | 59% [50-68] | 79 [75, 82] | 53% [44-62] |"
@@ -1805,7 +1728,7 @@ OLD_CROWD_ROW = "| `dmpc-koopman` | 100% [97-100] | 78 [75, 82] | 49% [40-58] | 
 def test_a_number_edited_by_hand_is_named(page: str, old: str, new: str, complaint: str) -> None:
     text = read(page)
     assert text.count(old) == 1, old
-    problems = page_problems(page, text.replace(old, new))
+    problems = page_problems(text.replace(old, new), AUDITS[page])
     assert any(complaint in problem for problem in problems), problems
 
 
@@ -1814,7 +1737,7 @@ def test_the_crowd_table_before_this_change_is_named() -> None:
     data holds any more) fails against docs/crowd_results.md."""
     text = read("movers.md")
     row = next(r for r in crowd_rows() if r.startswith("| `dmpc-koopman` |"))
-    problems = page_problems("movers.md", text.replace(row, OLD_CROWD_ROW))
+    problems = page_problems(text.replace(row, OLD_CROWD_ROW), AUDITS["movers.md"])
     assert any("no longer states" in p and "crowd_results.md" in p for p in problems), problems
 
 
@@ -1824,7 +1747,7 @@ def test_a_republished_archive_is_named() -> None:
     match = ARCHIVE_ROW.search(text)
     assert match is not None
     edited = text.replace(match[0], match[0].replace(f"| {match[2]} |", f"| {_int(match[2]) + 1:,} |", 1), 1)
-    assert any(f"data/{match[1]}'s size" in p for p in page_problems("layout.md", edited))
+    assert any(f"data/{match[1]}'s size" in p for p in page_problems(edited, AUDITS["layout.md"]))
 
 
 def _line_of(text: str, phrase: str) -> int:
@@ -1849,15 +1772,13 @@ def test_a_new_number_typed_into_a_page_is_named_with_its_line(
     assert text.count(after) == 1, after
     edited = text.replace(after, after + "\n" + typed)
     line = _line_of(edited, typed)
-    assert f"docs/{page} line {line}: {token!r} is checked by nothing" in page_problems(page, edited)
+    assert f"docs/{page} line {line}: {token!r} is checked by nothing" in page_problems(edited, AUDITS[page])
 
 
 def test_every_pinned_phrase_holds_a_result_and_names_why() -> None:
-    for table in (MEASURED, NOT_RESULTS):
-        for page, pinned in table.items():
-            assert page in PAGES, page
-            assert all(len(why) > 20 for why in pinned.values()), page
-            assert all(tokens(phrase) for phrase in pinned), [p for p in pinned if not tokens(p)]
+    assert MEASURED.keys() | NOT_RESULTS.keys() <= set(PAGES)
+    for page in PAGES:
+        assert pinned_problems(AUDITS[page]) == [], page
 
 
 def test_the_options_page_is_generated_not_hand_written() -> None:
