@@ -208,7 +208,7 @@ def agreement_sentence(level: Level) -> str:
 def changes_sentence(level: Level) -> str:
     """The controllers whose own success differs significantly between the plants, with direction."""
     changed = [row for row in significant_changes(level.rows) if row.controller not in FINE_TUNED]
-    family = f"Holm over the level's {len(level.rows)} controllers, p below {TRANSFER_ALPHA}"
+    family = f"Holm over the level's {len(level.transferred)} controllers, p below {TRANSFER_ALPHA}"
     if not changed:
         return f"No controller's own success differs significantly between the plants ({family})."
     named = [
@@ -308,7 +308,7 @@ def level_section(level: Level) -> str:
     tuned = [row for row in level.rows if row.controller in FINE_TUNED]
     parts += [
         plant_table(level.transferred),
-        f"Holm's adjustment over the level's {len(level.rows)} tests. {changes_sentence(level)}",
+        f"Holm's adjustment over the level's {len(level.transferred)} tests. {changes_sentence(level)}",
     ]
     if level.pending:
         parts.append(

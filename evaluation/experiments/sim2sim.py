@@ -52,7 +52,9 @@ class Level:
 
     ``pending`` maps each controller left out to why (its episodes on each plant that is short);
     ``kinematic`` and ``physics`` hold the complete controllers' records only (None: none is
-    complete). ``rows``, ``found`` and ``agreement`` are computed on those alone."""
+    complete). ``rows``, ``found`` and ``agreement`` are computed on those alone: ``found`` and the
+    Holm adjustment of ``rows`` on the :attr:`transferred` controllers only (a :data:`FINE_TUNED`
+    row is adjusted on its own)."""
 
     level: Any
     declared: int
@@ -109,14 +111,24 @@ def level_data(level: Any, kinematic: Results | None, physics: Results | None) -
     before, after = restricted(kinematic, complete), restricted(physics, complete)
     assert isinstance(before, Results) and isinstance(after, Results)
     ranked = [c for c in complete if c not in FINE_TUNED]
+    # the tests of transfer are the transferred controllers' alone, each family Holm-adjusted
+    # over them (the page counts and tables those): a fine-tuned row is no transfer, so it is
+    # neither in the plant differences' family nor in the pairwise one; its own row is compared
+    # on its own (its kinematic column, and its source on the physics plant)
+    moved = (restricted(before, ranked), restricted(after, ranked)) if ranked else None
+    rows = plant_differences(*moved) if moved else []
+    tuned = [c for c in complete if c in FINE_TUNED]
+    if tuned:
+        rows += plant_differences(restricted(before, tuned), restricted(after, tuned))
+    rows.sort(key=lambda row: complete.index(row.controller))
     return Level(
         level,
         len(kinematic.config["controllers"]),
         pending,
         before,
         after,
-        plant_differences(before, after),
-        orderings(before, after),
+        rows,
+        orderings(*moved) if moved else [],
         rank_agreement(before, after, ranked) if len(ranked) >= 2 else None,
     )
 
