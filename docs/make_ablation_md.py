@@ -9,7 +9,10 @@ what ``python evaluate.py --ablation`` writes beside its run: the main effects p
 episode unit, Holm within the table's family and its power statement), headed by where its data
 are. The publication is ``data/ablation/`` as ``bash data/publish.sh pack`` writes it (or one
 archive, ``NAME.tar.xz``); while it is missing the page says so (:func:`pending_page`) and how
-to publish it, and states no number.
+to publish it, and states no number. A publication packed while the run goes on (a checkpoint
+carried to the next session) holds some configurations only: the page then says how far the run
+is, configuration by configuration (:func:`progress_page`), and estimates no effect until every
+configuration has all the episodes the run's header plans.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.experiments.ablation import ABLATION_TITLE, ablation_configs, ablation_markdown  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
+from evaluation.stats import planned_episodes  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
 #: the run of data/publish.sh behind the page
@@ -55,11 +59,41 @@ def pending_page(archive: str | Path) -> str:
     )
 
 
+def shortfalls(config: dict, records: list[dict]) -> dict[str, tuple[int, int]]:
+    """Each configuration of the run's header (``config``) whose episodes are not all in
+    ``records``: its label -> (episodes there, episodes planned)."""
+    planned = sum(planned_episodes(config, env_id) for env_id in config["env_ids"])
+    done: dict[str, int] = {}
+    for record in records:
+        done[record["controller"]] = done.get(record["controller"], 0) + 1
+    labels = [entry["label"] for entry in config["controller_configs"]]
+    return {label: (done.get(label, 0), planned) for label in labels if done.get(label, 0) < planned}
+
+
+def progress_page(archive: Path, short: dict[str, tuple[int, int]], configurations: int) -> str:
+    """The page while the published run is incomplete: how far each configuration is, no effect."""
+    rows = "\n".join(f"| {label} | {done:,} of {planned:,} |" for label, (done, planned) in short.items())
+    return (
+        f"# {ABLATION_TITLE}\n\n"
+        f"**In progress: the ablation run is published partial** (`{archive.as_posix()}`): "
+        f"complete configurations (every episode their run plans) {configurations - len(short)} of "
+        f"{configurations}, and no main effect is estimated until all are (an effect over part of the "
+        f"configurations would not be the factor's). To finish it: {_regenerate(archive)}; then "
+        "`python docs/make_pages.py docs/ablation.md` rebuilds this page from it.\n\n"
+        "| configuration still running or not started | episodes published |\n|---|---|\n"
+        f"{rows}\n"
+    )
+
+
 def page(archive: str | Path) -> str:
-    """The ablation page of the published run in ``archive`` (``data/ablation``)."""
+    """The ablation page of the published run in ``archive`` (``data/ablation``): the evaluator's
+    report when every configuration is complete, else :func:`progress_page`."""
     archive = Path(archive)
     with extracted_archive(archive) as run:
         results = results_from_log(run / "episodes.jsonl")
+    short = shortfalls(results.config, results.records)
+    if short:
+        return progress_page(archive, short, len(results.config["controller_configs"]))
     report = ablation_markdown(results)  # how to regenerate: the paragraph below
     _, _, rest = report.partition("\n\n")
     episodes = len(results.records)

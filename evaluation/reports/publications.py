@@ -68,8 +68,12 @@ PART_KIND = "koopnav-part"
 #: Most parts (controllers) of one split publication: the largest run (robustness) has 26.
 MAX_PARTS = 256
 #: what a controller label must look like to name its part's file (every published label does);
-#: no path separator, no leading dot, the same file on every file system
-_LABEL_FILE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+=-]{0,99}")
+#: no path separator, no leading dot, the same file on every file system. A space (the ablation's
+#: labels, ``model=learned margins=paper constraints=soft``) is written ``%20`` in the file's name
+#: (:data:`_SPACE`): a label holds no ``%``, so the name reads back to the label unambiguously.
+_LABEL_FILE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+= -]{0,99}")
+#: a label's space in its part's file name
+_SPACE = "%20"
 
 
 def is_split(path: str | Path) -> bool:
@@ -119,7 +123,7 @@ def _part_name(label: str, dest: Path) -> str:
             f"controller label {label!r} cannot name its part's file (letters, digits and . _ + = -, "
             f"at most 100, not starting with a dot or a sign); {dest} was not written"
         )
-    return label + ARCHIVE_SUFFIX
+    return label.replace(" ", _SPACE) + ARCHIVE_SUFFIX
 
 
 def pack_split(run_dir: str | Path, dest: str | Path) -> Path:
@@ -199,9 +203,10 @@ def _part_files(directory: Path) -> dict[str, Path]:
         )
     parts: dict[str, Path] = {}
     for path in sorted(folder.iterdir()):
-        label = path.name.removesuffix(ARCHIVE_SUFFIX)
+        label = path.name.removesuffix(ARCHIVE_SUFFIX).replace(_SPACE, " ")
         if (
-            path.is_symlink()
+            " " in path.name
+            or path.is_symlink()
             or not path.is_file()
             or not is_archive(path)
             or not _LABEL_FILE.fullmatch(label)
