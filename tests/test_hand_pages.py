@@ -1353,32 +1353,6 @@ def test_a_number_edited_by_hand_is_named(page: str, old: str, new: str, complai
     assert any(complaint in problem for problem in problems), problems
 
 
-def _line_of(text: str, phrase: str) -> int:
-    return text[: text.index(phrase)].count("\n") + 1
-
-
-@pytest.mark.parametrize(
-    ("page", "after", "typed", "token"),
-    [
-        ("benchmark.md", "## Versioning\n", "A check takes 12 s on this machine.\n", "12 s"),
-        ("benchmark.md", "## Metrics\n", "Of the layouts, 7 of 9 are hard.\n", "7 of 9"),
-        ("benchmark.md", "## Statistics\n", "It rejects in 41% of the cases.\n", "41%"),
-        ("physics.md", "## Speed\n", "| a new row | 1,234 | 2.5 |\n", "1,234"),
-        ("physics.md", "## The robot\n", "It drives at 0.45 m/s.\n", "0.45 m/s"),
-        ("physics.md", "## Speed\n", "It steps 2.5x faster.\n", "2.5x"),
-        ("physics.md", "## What the model learns\n", "Its error is 9.99 cm.\n", "9.99 cm"),
-    ],
-)
-def test_a_new_number_typed_into_a_page_is_named_with_its_line(
-    page: str, after: str, typed: str, token: str
-) -> None:
-    text = read(page)
-    assert text.count(after) == 1, after
-    edited = text.replace(after, after + "\n" + typed)
-    line = _line_of(edited, typed)
-    assert f"docs/{page} line {line}: {token!r} is checked by nothing" in page_problems(edited, AUDITS[page])
-
-
 def test_the_tokens_are_the_result_like_numbers() -> None:
     """What the audit reads as a result (a quantity with its unit anywhere, a ratio with its "x",
     every number of a cell of numbers), and what it leaves: a map's number, a setting without a

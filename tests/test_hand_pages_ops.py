@@ -1750,31 +1750,6 @@ def test_a_republished_archive_is_named() -> None:
     assert any(f"data/{match[1]}'s size" in p for p in page_problems(edited, AUDITS["layout.md"]))
 
 
-def _line_of(text: str, phrase: str) -> int:
-    return text[: text.index(phrase)].count("\n") + 1
-
-
-@pytest.mark.parametrize(
-    ("page", "after", "typed", "token"),
-    [
-        ("performance.md", "## Rendering\n", "A frame takes 12 ms.\n", "12 ms"),
-        ("movers.md", "## Speed\n", "It runs at 9,999 env-steps/s.\n", "9,999 env-steps/s"),
-        ("ci.md", "## Exit codes\n", "The suite took 99 CPU-s.\n", "99 CPU-s"),
-        ("layout.md", "## What a clone weighs\n", "A clone is 300 MB.\n", "300 MB"),
-        ("environments.md", "## Maps\n", "Of the seeds, 7 of 9 fit.\n", "7 of 9"),
-        ("robustness.md", "# Robustness profiles\n", "It keeps 41% of them.\n", "41%"),
-    ],
-)
-def test_a_new_number_typed_into_a_page_is_named_with_its_line(
-    page: str, after: str, typed: str, token: str
-) -> None:
-    text = read(page)
-    assert text.count(after) == 1, after
-    edited = text.replace(after, after + "\n" + typed)
-    line = _line_of(edited, typed)
-    assert f"docs/{page} line {line}: {token!r} is checked by nothing" in page_problems(edited, AUDITS[page])
-
-
 def test_every_pinned_phrase_holds_a_result_and_names_why() -> None:
     assert MEASURED.keys() | NOT_RESULTS.keys() <= set(PAGES)
     for page in PAGES:

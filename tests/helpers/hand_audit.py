@@ -254,6 +254,20 @@ def page_problems(text: str, audit: Audit) -> list[str]:
     return list(dict.fromkeys(problems))
 
 
+def line_of(text: str, phrase: str) -> int:
+    """The line (1-based) of ``text`` on which ``phrase`` first starts."""
+    return text[: text.index(phrase)].count("\n") + 1
+
+
+def typed_into(audit: Audit, after: str, typed: str) -> tuple[str, int]:
+    """The page of ``audit`` with the line ``typed`` added after ``after`` (a line the page
+    states once), and the line ``typed`` is on."""
+    text = audit.read()
+    assert text.count(after) == 1, f"docs/{audit.page} states {after!r} {text.count(after)} times"
+    edited = text.replace(after, after + "\n" + typed)
+    return edited, line_of(edited, typed)
+
+
 def pinned_problems(audit: Audit) -> list[str]:
     """The pinned phrases of ``audit`` that hold no result-like token or do not say why."""
     problems = []
