@@ -8,7 +8,7 @@ Every result-like token of the page is one of:
   NMPCs), the tuning studies (data/tuning/, by tests/test_hand_pages.py's checks), the
   published ``data/cbf_gamma.tar.xz`` (the gamma table, rebuilt here with the evaluator's own
   paired statistics), or the generated docs/results.md (whose bytes are hashed);
-- **a repeat** of a number of a table of its own section;
+- **a repeat** of a number of a table of its own section, in a row its sentence names;
 - **a measurement with no committed record** (:data:`MEASURED`), pinned word for word with the
   command that measured it;
 - **no result** (:data:`NOT_RESULTS`).

@@ -1,6 +1,7 @@
 """A number typed into any audited page (tests/helpers/hand_audit.py) is named with its page, its
 line and its token: one test for every page of tests/test_hand_pages*.py, and a check that no
-audited page is left without a case."""
+audited page is left without a case; and a prose number is a repeat of a table only where its
+sentence names the row that holds it."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import test_hand_pages_controllers
 import test_hand_pages_ops
 import test_hand_pages_rl
 
-from helpers.hand_audit import Audit, page_problems, typed_into
+from helpers.hand_audit import Audit, named_rows, page_problems, sentence, table_rows, typed_into
 
 #: every audited page -> its audit, from the four files that hold the pages' claims
 AUDITS: dict[str, Audit] = {
@@ -57,3 +58,46 @@ def test_a_new_number_typed_into_a_page_is_named_with_its_line(
 
 def test_every_audited_page_has_a_typed_number() -> None:
     assert sorted({case[0] for case in TYPED}) == sorted(AUDITS)
+
+
+#: docs/physics.md's first region of model-error tables (up to "### A lift with memory"), the
+#: figures typed into it, and whether the audit takes each as a repeat: the same figure counts
+#: only where the sentence names its row
+MODEL = "## What the model learns\n"
+
+
+@pytest.mark.parametrize(
+    ("typed", "token", "repeat"),
+    [
+        # the section's first table: its ice row holds 8.31 (the circle's ratio)
+        ("On ice the model errs 8.31 times the unicycle's.\n", "8.31 times", True),
+        # 36.89 is the carpet row's ratio: a table figure, but not of a row the sentence names
+        ("On ice the model errs 36.89 times the unicycle's.\n", "36.89 times", False),
+        # a sentence that names no row repeats nothing, whatever the tables hold
+        ("The model errs 8.31 times the unicycle's.\n", "8.31 times", False),
+    ],
+)
+def test_a_repeat_names_its_row(typed: str, token: str, repeat: bool) -> None:
+    audit = AUDITS["physics.md"]
+    edited, line = typed_into(audit, MODEL, typed)
+    named = f"docs/physics.md line {line}: {token!r} is checked by nothing" in page_problems(edited, audit)
+    assert named is not repeat
+
+
+def test_the_rows_a_sentence_names() -> None:
+    table = (
+        "| floor | lift | error |\n|---|---|---|\n| high (ice) | pose only | 8.39 |\n"
+        "| | `memory 3` | 4.1 |\n| nominal (carpet) | pose only | 36.89 |\n| consensus | time limit, 600: 1, 202 | 2 |\n"
+    )
+    rows = table_rows(table)
+    assert [row.labels for row in rows[1:3]] == [
+        (("high (ice)", "high", "ice"), ("pose only",)),
+        (("high (ice)", "high", "ice"), ("memory 3",)),
+    ]
+    assert rows[4].labels == (("consensus",),)  # a cell that describes names nothing
+    text = "Intro. On ice, memory 3 errs 4.1 cm. On carpet the pose only lift errs more.\n"
+    at = text.index("4.1")
+    assert sentence(text, at, at + 3) == "on ice, memory 3 errs 4.1 cm"
+    assert [r.numbers for r in named_rows(rows, sentence(text, at, at + 3))] == [("4.1",)]  # code kept out
+    at = text.index("more")
+    assert [r.numbers for r in named_rows(rows, sentence(text, at, at + 4))] == [("36.89",)]
