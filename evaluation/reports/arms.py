@@ -194,6 +194,8 @@ class TestedPair:
 
     @property
     def significant(self) -> bool:
+        """Whether the difference is significant within its family: its Holm-adjusted p-value is
+        below ``alpha`` (strictly)."""
         return self.holm < self.alpha
 
 

@@ -28,6 +28,7 @@ from evaluation.reports.sections.runs import task_label
 from evaluation.reports.sections.suite_tables import paired_csv
 from evaluation.stats.designs import Design, pooled_families, reference_design
 from evaluation.stats.families import detectable_difference
+from evaluation.stats.progress import Progress, planned_episodes
 from koopman_envs import TIERS
 
 __all__ = [
@@ -74,17 +75,12 @@ VERDICT_RULE = (
 
 
 @dataclass(frozen=True)
-class BenchProgress:
-    """How far one (task, controller) of a run is: ``done`` of ``planned`` episodes."""
-
-    done: int
-    planned: int
-
-    @property
-    def complete(self) -> bool:
-        return self.done >= self.planned
+class BenchProgress(Progress):
+    """How far one (task, controller) of a run is: ``done`` of ``planned`` episodes of that task
+    (:class:`~evaluation.stats.progress.Progress`, counted per task), with the page's wording."""
 
     def text(self) -> str:
+        """The page's cell for a (task, controller) not complete yet: ``pending: N of M episodes``."""
         return f"pending: {self.done:,} of {self.planned:,} episodes"
 
 
@@ -100,6 +96,8 @@ class BenchMode:
 
     @property
     def run(self) -> str:
+        """The data/publish.sh run behind this mode (:data:`BENCH_RUNS`): ``bench_test_realtime``
+        for ``charged``, ``bench_test`` for ``free``."""
         return BENCH_RUNS[self.name][0]
 
     def declared(self) -> dict[str, list[str]]:
@@ -117,14 +115,6 @@ class BenchMode:
         if state is None:
             return "not in this run"
         return None if state.complete else state.text()
-
-
-def _planned_episodes(config: Mapping[str, Any], env_id: str) -> int:
-    """The episodes a suite run plans per (task, controller): its layouts x episodes per layout x slips."""
-    suite = config["suite"]
-    selected = suite.get("layouts")
-    layouts = suite["tasks"][env_id]["size"] if selected is None else selected[1] - selected[0]
-    return int(layouts) * int(suite["episodes_per_layout"]) * len(config["slips"])
 
 
 def load_mode(name: str, path: str | Path) -> BenchMode:
@@ -167,7 +157,7 @@ def load_mode(name: str, path: str | Path) -> BenchMode:
     for record in results.records:
         done.setdefault((record["env_id"], record["controller"]), set()).add(episode_identity(record))
     progress = {
-        (env_id, label): BenchProgress(len(done.get((env_id, label), ())), _planned_episodes(config, env_id))
+        (env_id, label): BenchProgress(len(done.get((env_id, label), ())), planned_episodes(config, env_id))
         for env_id in config["env_ids"]
         for label in config["controllers"]
     }
@@ -228,8 +218,8 @@ def planned_power(mode: BenchMode, m: int) -> float:
     """
     config = mode.results.config if mode.results is not None else {}
     suite = config["suite"]
-    per_layout = int(suite["episodes_per_layout"]) * len(config["slips"])
-    layouts = sum(_planned_episodes(config, env_id) // per_layout for env_id in config["env_ids"])
+    per_layout = int(suite["episodes_per_layout"]) * len(config.get("slips") or [None])
+    layouts = sum(planned_episodes(config, env_id) // per_layout for env_id in config["env_ids"])
     return detectable_difference(
         layouts, per_layout, discordance=PLANNED_DISCORDANCE, family_size=m, alpha=ALPHA, power=0.8
     )

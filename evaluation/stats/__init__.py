@@ -5,8 +5,8 @@ the same with the layout as the unit (:mod:`~evaluation.stats.clustered`,
 (:mod:`~evaluation.stats.designs`),
 cells, leaderboard rows and paired comparisons (:mod:`~evaluation.stats.aggregate`), a run's data
 for the renderers (:class:`~evaluation.stats.run_data.RunData`) a sweep's robustness profiles
-(:mod:`~evaluation.stats.robustness`) and the sim-to-sim comparison of two plants
-(:mod:`~evaluation.stats.transfer`). No output format is known here.
+(:mod:`~evaluation.stats.robustness`), the sim-to-sim comparison of two plants
+(:mod:`~evaluation.stats.transfer`) and how far a partial run is (:mod:`~evaluation.stats.progress`). No output format is known here.
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
 here (tests/test_architecture.py checks the list), except ``aggregate``, which names the module
@@ -50,6 +50,7 @@ from evaluation.stats.layout_tests import (
     paired_means_by_layout,
     paired_rates_by_layout,
 )
+from evaluation.stats.progress import Progress, planned_episodes
 from evaluation.stats.robustness import TAIL_SHARE, AxisProfile, LevelCost, LevelRow, level_costs, profiles
 from evaluation.stats.run_data import RunData
 from evaluation.stats.statistics import (
@@ -82,13 +83,11 @@ from evaluation.stats.transfer import (
     TRANSFER_ALPHA,
     Ordering,
     PlantRow,
-    Progress,
     RankAgreement,
     check_same_protocol,
     kendall_tau_b,
     ordering_verdict,
     orderings,
-    planned_episodes,
     plant_differences,
     rank_agreement,
     restricted,

@@ -21,7 +21,8 @@ Two runs are the same protocol when their settings differ by the plant only
   difference between the plants is significant.
 
 A run may be partial (published as it runs): :func:`run_progress` counts each controller's
-episodes against what the run's header plans (:func:`planned_episodes`), and :func:`restricted`
+episodes against what the run's header plans
+(:func:`evaluation.stats.progress.planned_episodes`), and :func:`restricted`
 keeps the controllers complete on both plants, the only ones any of the above may see.
 
 Statistics only: docs/make_sim2sim_md.py writes the page.
@@ -39,12 +40,11 @@ import numpy as np
 from evaluation.episodes.distinct import episode_identity
 from evaluation.episodes.records import ran
 from evaluation.episodes.runlog import run_signature
-from evaluation.run.plan import RANDOM_MAP
 from evaluation.run.suite_runs import cluster_of
+from evaluation.stats.progress import Progress, planned_episodes
 from evaluation.stats.robustness import LevelCost, level_costs
 from evaluation.stats.run_data import RunData
 from evaluation.stats.statistics import wilson_interval
-from koopman_envs import SUITE_PREFIX
 
 __all__ = [
     "RANK_RESAMPLES",
@@ -52,13 +52,11 @@ __all__ = [
     "TRANSFER_ALPHA",
     "Ordering",
     "PlantRow",
-    "Progress",
     "RankAgreement",
     "check_same_protocol",
     "kendall_tau_b",
     "ordering_verdict",
     "orderings",
-    "planned_episodes",
     "plant_differences",
     "rank_agreement",
     "restricted",
@@ -249,37 +247,6 @@ def orderings(first: RunData, second: RunData, alpha: float = TRANSFER_ALPHA) ->
 
 
 # --------------------------------------------------------------------------- partial runs
-@dataclass(frozen=True)
-class Progress:
-    """How far one controller of one run (one friction level) is: ``done`` of ``planned``
-    episodes, over every task."""
-
-    done: int
-    planned: int
-
-    @property
-    def complete(self) -> bool:
-        return self.done >= self.planned
-
-
-def planned_episodes(config: Mapping[str, Any], env_id: str) -> int:
-    """The episodes a run plans per controller of task ``env_id``, from its header: per map, a
-    suite's selected layouts x episodes per layout (the whole split without a selection), the
-    ``random`` row's ``random_maps`` trials, any other map's ``episodes``; times the slips."""
-    suite = config.get("suite")
-    per_map = []
-    for name in (config.get("maps") or {}).get(env_id, []):
-        if suite and env_id in suite.get("tasks", {}) and str(name).startswith(SUITE_PREFIX):
-            selected = suite.get("layouts")
-            layouts = suite["tasks"][env_id]["size"] if selected is None else selected[1] - selected[0]
-            per_map.append(int(layouts) * int(suite["episodes_per_layout"]))
-        elif name == RANDOM_MAP and config.get("random_maps"):
-            per_map.append(int(config["random_maps"]))
-        else:
-            per_map.append(int(config["episodes"]))
-    return sum(per_map) * len(config.get("slips") or [None])
-
-
 def run_progress(run: RunData) -> dict[str, Progress]:
     """Controller -> its episodes logged (each once, whatever its status: an error is an
     outcome) of those the run's header plans over its tasks, for every controller it declares."""

@@ -11,7 +11,8 @@ and every number of a table cell that holds numbers only) is one of:
   checked against the code equals the code's value exactly (:func:`code_value`); a claim that
   means a rounded figure says so with ``places``;
 - **a repeat** of a number of a table of its own section (:attr:`Audit.repeats`), so an edit of
-  the prose alone fails;
+  the prose alone fails: of a row its sentence names (the row's label, :func:`named_rows`: a
+  figure of any row of the tables would let about half of all edits through);
 - **a measurement with no committed record** (:attr:`Audit.measured`: the phrase as the page
   states it, and the command that measured it), pinned word for word, so an edit fails too;
 - **no result** (:attr:`Audit.not_results`: a definition, a setting or an input that reads like
@@ -28,6 +29,8 @@ import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from koopman_envs.params import SLIP_SURFACES
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -154,7 +157,8 @@ class Audit:
     #: a setting, a definition or an input that reads like a result -> why it is none
     not_results: dict[str, str] = field(default_factory=dict)
     #: (first heading, the heading that ends the region; "" the page's end): a token of the
-    #: region's prose is a repeat when each of its numbers is a number of the region's tables
+    #: region's prose is a repeat when each of its numbers is a number of a row of the region's
+    #: tables that its sentence names (the row's label: a controller, a floor, a lift)
     repeats: list[tuple[str, str]] = field(default_factory=list)
     #: (first heading, the heading that ends it, why): regions not audited
     left_out: list[tuple[str, str, str]] = field(default_factory=list)
@@ -177,17 +181,99 @@ def region(text: str, start: str, end: str) -> tuple[int, int]:
     return first, (text.index("\n" + end + "\n", first) if end else len(text))
 
 
-def table_numbers(text: str) -> list[str]:
-    found = []
-    for row in re.finditer(r"^\|.*\|$", prose(text), re.M):
-        found += [n.replace(",", "") for n in re.findall(NUM, row[0])]
+@dataclass(frozen=True)
+class Row:
+    """A table row of a repeats region: its labels (its first cell and every other cell that
+    names, :data:`NAME_CELL`, lower case, markup dropped: a controller, a floor, a lift, a plant;
+    an empty first cell takes the row above's), each as
+    the names that name it (:func:`_names`), and its numbers (thousands separators dropped)."""
+
+    labels: tuple[tuple[str, ...], ...]
+    numbers: tuple[str, ...]
+
+
+def _plain(text: str) -> str:
+    """``text`` lower case, without markdown's emphasis and code marks, its whitespace single."""
+    return " ".join(re.sub(r"[`*_]", "", text).lower().split())
+
+
+#: a table cell that names (a controller, a lift, a plant): it starts with a letter and holds no
+#: comma or colon (a cell such as ``time limit, 600: 1, 202, 1`` describes, it does not name)
+NAME_CELL = re.compile(r"[a-z][^,:]*")
+#: the plants as a table names them and as prose does
+PLANT_NAMES = {"mujoco": "physics"}
+
+
+def _names(label: str) -> list[str]:
+    """What names a row's label: itself, each of its parts around parentheses (``high (ice)``:
+    ``high``, ``ice``), a slip level's surface (``nominal``: ``carpet``, as the pages call it)
+    and a plant's name in prose (:data:`PLANT_NAMES`)."""
+    parts = [part.strip() for part in re.split(r"[()]", label) if part.strip()]
+    aliases = {**SLIP_SURFACES, **PLANT_NAMES}
+    return [label, *parts, *(aliases[part] for part in parts if part in aliases)]
+
+
+def table_rows(text: str) -> list[Row]:
+    """The rows of the tables of ``text`` (a rule row left out)."""
+    found: list[Row] = []
+    above = ""
+    for row in re.finditer(r"^\|.*\|$", text, re.M):
+        if re.fullmatch(r"[|\s:-]+", row[0]):
+            above = ""
+            continue
+        cells = [_plain(cell) for cell in row[0].strip().strip("|").split("|")]
+        first = cells[0] or above
+        above = first
+        words = [first] if first else []
+        words += [cell for cell in cells[1:] if NAME_CELL.fullmatch(cell) and not CELL_CHARS.fullmatch(cell)]
+        labels = tuple(tuple(dict.fromkeys(_names(word))) for word in dict.fromkeys(words))
+        found.append(Row(labels, tuple(n.replace(",", "") for n in re.findall(NUM, prose(row[0])))))
     return found
+
+
+def table_numbers(text: str) -> list[str]:
+    return [n for row in table_rows(text) for n in row.numbers]
+
+
+#: where a sentence ends: a full stop, "!" or "?" before a capital, a blank line, a list item
+SENTENCE_END = re.compile(r"[.!?]\)?\s+(?=[A-Z*(`\[])|\n\s*\n|\n\s*(?:[-*]|\d+\.)\s")
+
+
+def sentence(text: str, start: int, end: int) -> str:
+    """The sentence of ``text`` around the span ``start:end`` (:data:`SENTENCE_END`), plain."""
+    ends = [m.span() for m in SENTENCE_END.finditer(text)]
+    first = max((b for a, b in ends if b <= start), default=0)
+    last = min((a for a, b in ends if a >= end), default=len(text))
+    return _plain(text[first:last])
+
+
+def named_rows(rows: Iterable[Row], words: str) -> list[Row]:
+    """The rows ``words`` (a plain sentence) names: every label of the row by one of its names,
+    as whole words (a row of ``high (ice)`` and ``memory 3`` needs both: "memory 3 on ice"). A
+    name inside a longer one the sentence states does not count ("memory 3 + velocity" names
+    no ``velocity`` row)."""
+    rows = list(rows)
+    every = {name for row in rows for label in row.labels for name in label}
+
+    def spans(name: str) -> list[tuple[int, int]]:
+        return [m.span() for m in re.finditer(rf"(?<![\w-]){re.escape(name)}(?![\w-])", words)]
+
+    longer = [span for name in every for span in spans(name)]
+
+    def names(name: str) -> bool:
+        return any(
+            not any(a <= start and end <= b and (a, b) != (start, end) for a, b in longer)
+            for start, end in spans(name)
+        )
+
+    return [row for row in rows if row.labels and all(any(names(n) for n in label) for label in row.labels)]
 
 
 def is_repeat(token: str, table: list[str]) -> bool:
     """Each number of ``token`` is a number of ``table``: the same count, a decimal rounded to
     the places the token gives, or a percentage of a table's fraction (97 % of 0.97) or of its
-    percentages (95% of a ``95% [90-98]`` cell)."""
+    percentages (95% of a ``95% [90-98]`` cell). :func:`page_problems` passes the numbers of the
+    rows the token's sentence names only (:func:`named_rows`)."""
 
     def matches(number: str) -> bool:
         if "." not in number:  # a count: the same number
@@ -238,7 +324,7 @@ def page_problems(text: str, audit: Audit) -> list[str]:
                 covered.update(range(*match.span()))
     left_out = [region(text, a, b) for a, b, _ in audit.left_out]
     repeats = [region(text, a, b) for a, b in audit.repeats]
-    tables = [table_numbers(text[a:b]) for a, b in repeats]
+    tables = [table_rows(text[a:b]) for a, b in repeats]
     is_row = {m.start() for m in re.finditer(r"^\|", text, re.M)}
     for start, end in tokens:
         if covered.issuperset(range(start, end)) or any(a <= start < b for a, b in left_out):
@@ -246,12 +332,30 @@ def page_problems(text: str, audit: Audit) -> list[str]:
         token = text[start:end]
         line_start = text.rfind("\n", 0, start) + 1
         if line_start not in is_row and any(
-            a <= start < b and is_repeat(token, table) for (a, b), table in zip(repeats, tables, strict=True)
+            a <= start < b
+            and is_repeat(
+                token, [n for row in named_rows(table, sentence(text, start, end)) for n in row.numbers]
+            )
+            for (a, b), table in zip(repeats, tables, strict=True)
         ):
             continue
         line = text.count("\n", 0, start) + 1
         problems.append(f"docs/{page} line {line}: {token!r} is checked by nothing")
     return list(dict.fromkeys(problems))
+
+
+def line_of(text: str, phrase: str) -> int:
+    """The line (1-based) of ``text`` on which ``phrase`` first starts."""
+    return text[: text.index(phrase)].count("\n") + 1
+
+
+def typed_into(audit: Audit, after: str, typed: str) -> tuple[str, int]:
+    """The page of ``audit`` with the line ``typed`` added after ``after`` (a line the page
+    states once), and the line ``typed`` is on."""
+    text = audit.read()
+    assert text.count(after) == 1, f"docs/{audit.page} states {after!r} {text.count(after)} times"
+    edited = text.replace(after, after + "\n" + typed)
+    return edited, line_of(edited, typed)
 
 
 def pinned_problems(audit: Audit) -> list[str]:
