@@ -52,7 +52,7 @@ def counting_compiler(tmp_path, monkeypatch):
 
 
 def _build_in_subprocess(target: float = 1.0, cwd: Path | None = None) -> subprocess.Popen:
-    root = Path(solver_cache.__file__).resolve().parents[1]
+    root = Path(solver_cache.__file__).resolve().parents[2]  # the checkout: controllers/solvers/compiled.py
     env = {**os.environ, "PYTHONPATH": str(root)}
     return subprocess.Popen(
         [sys.executable, "-c", BUILD, str(target)],
@@ -149,7 +149,7 @@ def test_the_default_nmpc_is_compiled_once_per_machine(tmp_path) -> None:
         "c = controllers.make('nominal-nmpc-v0', solver='ipopt'); obs, info = env.reset(seed=0); c.reset(env)\n"
         "print(c.act(obs, info).tolist())\n"
     )
-    root = Path(solver_cache.__file__).resolve().parents[1]
+    root = Path(solver_cache.__file__).resolve().parents[2]  # the checkout: controllers/solvers/compiled.py
     env = {
         **os.environ,
         "CC": str(script),
@@ -197,7 +197,7 @@ def test_a_miss_in_background_mode_runs_uncompiled_and_fills_the_cache(counting_
     import time
 
     code = BUILD.replace("**jit_options()", "**jit_options(background=True)")
-    root = Path(solver_cache.__file__).resolve().parents[1]
+    root = Path(solver_cache.__file__).resolve().parents[2]  # the checkout: controllers/solvers/compiled.py
 
     def build() -> subprocess.CompletedProcess:
         return subprocess.run(
