@@ -20,9 +20,6 @@ PLACEHOLDER = re.compile(r"(?:^|/)[A-Z][A-Z_]*(?:[./]|$)")
 #: written by a run or a build, not committed
 OUTPUTS = {
     "docs/_build/html/index.html": "docs/build.sh's output",
-    "data/ablation": "the ablation's publication, written by data/publish.sh pack when the run ends",
-    "data/bench_test": "the free-compute run's publication, written when it is packed",
-    "data/bench_test/": "the same",
     "data/runs/": "the runs' working folder (untracked)",
 }
 #: named as what was: the page says the path is gone or moved
