@@ -192,6 +192,11 @@ def agreement_sentence(level: Level) -> str:
     if found is None:
         return "Fewer than two controllers are complete: no ranking to compare."
     assert level.kinematic is not None
+    if math.isnan(found.tau):  # every controller's success ties on a plant: no order to compare
+        return (
+            f"The ranking of the {found.controllers} controllers cannot be compared between the plants: "
+            "on one of them every controller succeeds equally often, so Kendall's tau-b is undefined."
+        )
     clusters = "(task, layout)" if level.kinematic.config.get("suite") else "(task, map, seed)"
     resamples = f"{RANK_RESAMPLES:,} resamples"
     if found.resamples < RANK_RESAMPLES:  # a resample whose rates all tie on a plant has no tau
