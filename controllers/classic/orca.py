@@ -68,7 +68,9 @@ INSTALL_HINT = (
 def _import_pyrvo() -> Any:
     try:
         import pyrvo
-    except ImportError:
+    except ModuleNotFoundError as missing:
+        if missing.name != "pyrvo":  # pyrvo is there but something it needs is not: say that
+            raise
         raise ImportError(INSTALL_HINT) from None
     return pyrvo
 

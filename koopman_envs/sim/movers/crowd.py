@@ -39,7 +39,9 @@ ORCA_POLYGON_SIDES = 16
 def _import_pyrvo() -> Any:
     try:
         import pyrvo
-    except ImportError:
+    except ModuleNotFoundError as missing:
+        if missing.name != "pyrvo":  # pyrvo is there but something it needs is not: say that
+            raise
         raise ValueError(
             "movers with behaviour='crowd' need pyrvo (ORCA): pip install -e '.[crowd]' (or pip install pyrvo)"
         ) from None
