@@ -87,6 +87,9 @@ def _adopt_main(argv: Sequence[str]) -> int:
                     name, args.confirm, args.studies, args.tuned, workers=args.workers
                 )
         except KeyboardInterrupt:
+            if args.confirm is None:  # no episode runs: the preset is written whole or not at all
+                print(f"interrupted: {name}: nothing adopted; the same command adopts it", file=sys.stderr)
+                return INTERRUPTED_EXIT
             logs = Path(args.studies) / name / CONFIRMATION_LOGS
             print(
                 f"interrupted: {name}'s finished confirmation episodes are in {logs}; the same command continues",
