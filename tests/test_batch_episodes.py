@@ -60,7 +60,7 @@ def test_a_batch_of_episodes_is_the_per_episode_runs(env_id: str, kwargs: dict, 
 def test_episodes_that_end_at_different_steps_are_each_kept_whole() -> None:
     """ORCA on Map 2 with perturbed starts: the episodes arrive at different periods (161-165),
     and every one ends where its lone run ends while the others go on."""
-    pytest.importorskip("pyrvo")
+    pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     batched = _check_batch(
         "KoopNav-TargetReaching-v0", {"map": "map2", "start_noise": 0.05}, "orca", seeds=[3, 11, 12, 40, 41]
     )
@@ -71,7 +71,7 @@ def _check_batch(env_id: str, kwargs: dict, name: str, seeds: list[int] | None =
     """Episodes of ``seeds`` (three by default: a batch of several, each checked against its lone
     run, for every controller and setting) in one vector env, against the lone runs."""
     if name == "orca":
-        pytest.importorskip("pyrvo")
+        pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     if name.startswith("rl-"):  # these decide for every running team in one call (act_many)
         pytest.importorskip("stable_baselines3")
         assert controllers.make(name).acts_in_batch

@@ -85,7 +85,7 @@ def test_a_batched_reset_equals_resetting_one_environment_at_a_time(setting: str
 
 
 def test_the_crowd_is_reset_in_a_batch_as_alone() -> None:
-    pytest.importorskip("pyrvo")
+    pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     kwargs = {"movers": {"count": 5, "behaviour": "crowd", "aware": True}, "map": "random"}
     batched, single = _engine(TR, kwargs, 3), _engine(TR, kwargs, 3)
     batched.reset_envs([0, 1, 2], [np.random.default_rng(s) for s in (3, 4, 5)])

@@ -18,7 +18,7 @@ import pytest
 import koopman_envs  # noqa: F401 - registers the ids
 from koopman_envs import target_reaching_v0
 
-pytest.importorskip("pyrvo")
+pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
 
 ID = "KoopNav-TargetReaching-v0"
 N = 3

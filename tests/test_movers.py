@@ -151,7 +151,7 @@ def test_too_many_movers_for_the_arena_are_refused_by_name() -> None:
 
 # --------------------------------------------------------------------------- the crowd
 def test_two_pedestrians_head_on_pass_without_contact() -> None:
-    pytest.importorskip("pyrvo")
+    pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     field = _field("crowd", 2, speed=0.4, radius=0.2, pause=0.0)
     _reset_open_field(field)
     # rebuild the simulators with the two walkers facing each other on one line
@@ -172,7 +172,7 @@ def test_two_pedestrians_head_on_pass_without_contact() -> None:
 
 
 def test_an_aware_crowd_avoids_a_standing_robot_and_an_oblivious_one_walks_into_it() -> None:
-    pytest.importorskip("pyrvo")
+    pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     hits = {}
     for aware in (False, True):
         env = gym.make(
@@ -325,14 +325,14 @@ def digests_of_another_process() -> dict[str, str]:
 @pytest.mark.parametrize("behaviour", list(SETTINGS))
 def test_same_seed_same_result_across_processes(behaviour: str, digests_of_another_process) -> None:
     if behaviour == "crowd":
-        pytest.importorskip("pyrvo")
+        pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     assert digests_of_another_process[behaviour] == _digest(behaviour)
 
 
 @pytest.mark.parametrize("behaviour", list(SETTINGS))
 def test_the_vector_env_matches_single_envs(behaviour: str) -> None:
     if behaviour == "crowd":
-        pytest.importorskip("pyrvo")
+        pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     kwargs = SETTINGS[behaviour]
     vec = gym.make_vec(FO, num_envs=3, vectorization_mode="vector_entry_point", **kwargs)
     singles = [gym.make(FO, **kwargs) for _ in range(3)]
@@ -352,7 +352,7 @@ def test_the_vector_env_matches_single_envs(behaviour: str) -> None:
 @pytest.mark.parametrize("behaviour", list(SETTINGS))
 def test_every_front_passes_the_official_checkers(behaviour: str) -> None:
     if behaviour == "crowd":
-        pytest.importorskip("pyrvo")
+        pytest.importorskip("pyrvo", reason="the crowd needs pyrvo: the [crowd] extra")
     kwargs = SETTINGS[behaviour]
     for env_id in (TR, FO):
         check_env(gym.make(env_id, **kwargs).unwrapped, skip_render_check=True)
