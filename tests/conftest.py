@@ -43,6 +43,10 @@ _home = SESSION_DIR / (_worker if not _owner and _worker else "main")
 os.environ["KOOPNAV_CACHE"] = str(_home / "koopnav")
 os.environ["MPLCONFIGDIR"] = str(_home / "matplotlib")
 os.environ["SE_CACHE_PATH"] = str(_home / "selenium")
+# the headless browser of the HTML report tests keeps its profile under XDG_CONFIG_HOME and dconf
+# its cache under XDG_CACHE_HOME: in the session folder, not the user's HOME
+os.environ["XDG_CONFIG_HOME"] = str(_home / "config")
+os.environ["XDG_CACHE_HOME"] = str(_home / "cache")
 
 
 def tree_state(root: Path) -> dict[str, tuple[bool, int, int]] | None:
