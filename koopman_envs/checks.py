@@ -10,6 +10,7 @@ message of the package that names an allowed set uses it.
 from __future__ import annotations
 
 import difflib
+import importlib
 import itertools
 import json
 import math
@@ -17,6 +18,7 @@ import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from numbers import Integral, Real
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -39,6 +41,7 @@ __all__ = [
     "closest",
     "did_you_mean",
     "differing_settings",
+    "import_optional",
     "parse_json",
 ]
 
@@ -350,6 +353,31 @@ def parse_json(text: str | bytes, what: str, *, max_chars: int = MAX_JSON_CHARS)
     if depth > MAX_JSON_DEPTH:
         raise ValueError(f"{what}: JSON nested {depth} levels deep; allowed: at most {MAX_JSON_DEPTH}")
     return json.loads(text)
+
+
+def import_optional(module: str, hint: str, refusal: type[Exception] = ImportError) -> ModuleType:
+    """``module`` imported, or ``refusal(hint)`` when it is not installed.
+
+    Parameters
+    ----------
+    module
+        The optional dependency's top-level module (``"pyrvo"``).
+    hint
+        The whole message: who needs it and the install command (its extra).
+    refusal
+        The exception to raise: ``ImportError`` for a controller's option, ``ValueError`` for an
+        env keyword (the env's documented refusal of a bad setting).
+
+    A module that is installed but fails to import something it needs (a shared library, a
+    dependency of its own) raises its own error: the hint would send the user to install what is
+    already there.
+    """
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as missing:
+        if missing.name != module:
+            raise
+        raise refusal(hint) from None
 
 
 def check_flag(name: str, value: Any) -> bool:

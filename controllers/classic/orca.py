@@ -50,7 +50,7 @@ from controllers.movers import (
 )
 from controllers.tuning.search_space import Search
 from koopman_envs import Observed
-from koopman_envs.checks import Range
+from koopman_envs.checks import Range, import_optional
 from koopman_envs.params import LIMITS
 from koopman_envs.scenario import Scenario
 
@@ -66,13 +66,7 @@ INSTALL_HINT = (
 
 
 def _import_pyrvo() -> Any:
-    try:
-        import pyrvo
-    except ModuleNotFoundError as missing:
-        if missing.name != "pyrvo":  # pyrvo is there but something it needs is not: say that
-            raise
-        raise ImportError(INSTALL_HINT) from None
-    return pyrvo
+    return import_optional("pyrvo", INSTALL_HINT)
 
 
 def unicycle_tracking(

@@ -16,7 +16,7 @@ from typing import Any
 from evaluation.episodes.records import is_degraded, ran
 from evaluation.execution.worker import batch_cell, episode_record, run_batch, runs_in_batch
 from evaluation.run.plan import EpisodeSpec
-from koopman_envs.checks import check_choice
+from koopman_envs.checks import check_choice, import_optional
 
 __all__ = [
     "BACKENDS",
@@ -137,10 +137,7 @@ def _run_unit(unit: tuple[EpisodeSpec, ...]) -> list[dict[str, Any]]:
 
 def _run_ray(todo: Sequence[tuple[EpisodeSpec, ...]], workers: int) -> Iterator[dict[str, Any]]:
     """Episodes as Ray tasks: on a local Ray instance, or on the cluster at ``RAY_ADDRESS``."""
-    try:
-        import ray
-    except ImportError:
-        raise ValueError("--backend ray needs Ray: pip install -e '.[ray]'") from None
+    ray = import_optional("ray", "--backend ray needs Ray: pip install -e '.[ray]'", ValueError)
     started_here = not ray.is_initialized()
     if started_here:
         address = os.environ.get("RAY_ADDRESS")

@@ -21,16 +21,13 @@ from evaluation.episodes.runlog import (
 from evaluation.tune.configuration import Evaluator, evaluate_configuration
 from evaluation.tune.log import StudySettings, Trial, read_study
 from evaluation.tune.scoring import OBJECTIVE, objective
+from koopman_envs.checks import import_optional
 from koopman_envs.files import write_atomic
 
 
 def _optuna() -> Any:
     """The ``optuna`` module, or ``ImportError`` naming the extra that installs it."""
-    try:
-        import optuna
-    except ImportError:
-        raise ImportError("the tuner needs Optuna: pip install -e '.[tune]'") from None
-    return optuna
+    return import_optional("optuna", "the tuner needs Optuna: pip install -e '.[tune]'")
 
 
 def _distribution(search: Search) -> Any:

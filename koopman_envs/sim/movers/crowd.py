@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from koopman_envs.checks import import_optional
 from koopman_envs.settings.moving_obstacles import MoverConfig
 
 __all__ = ["ORCA_KEEP_RIGHT", "ORCA_ROBOT_MARGIN", "orca_restore", "orca_simulator", "orca_step"]
@@ -36,16 +37,14 @@ ORCA_ROBOT_MARGIN = 0.1
 ORCA_POLYGON_SIDES = 16
 
 
+#: the refusal when pyrvo is missing: a ValueError, as every other bad env keyword gets
+INSTALL_HINT = (
+    "movers with behaviour='crowd' need pyrvo (ORCA): pip install -e '.[crowd]' (or pip install pyrvo)"
+)
+
+
 def _import_pyrvo() -> Any:
-    try:
-        import pyrvo
-    except ModuleNotFoundError as missing:
-        if missing.name != "pyrvo":  # pyrvo is there but something it needs is not: say that
-            raise
-        raise ValueError(
-            "movers with behaviour='crowd' need pyrvo (ORCA): pip install -e '.[crowd]' (or pip install pyrvo)"
-        ) from None
-    return pyrvo
+    return import_optional("pyrvo", INSTALL_HINT, ValueError)
 
 
 def orca_simulator(
