@@ -209,7 +209,7 @@ def test_the_tuning_budgets_decision_is_what_ships(tmp_path) -> None:
         "fresh validation episodes, p = 0.46): ships its defaults"
     )
     assert rows["koopman-nmpc"] == (
-        "adopted, confirmed (75 against the defaults' 28 of 150 fresh validation episodes, p = 5e-05)"
+        "adopted, confirmed (75 against the defaults' 28 of 150 fresh validation episodes, p <= 5e-05)"
     )
     assert rows["orca"] == "defaults kept (a tie)"
     # an adopted study without a recorded confirmation keeps the study's word

@@ -34,6 +34,7 @@ from evaluation.stats.layout_tests import (
     layout_sign_flip_test,
     paired_means_by_layout,
     paired_rates_by_layout,
+    sign_flip_p_text,
 )
 from evaluation.stats.statistics import bootstrap_mean_interval, paired_comparison
 
@@ -161,6 +162,19 @@ def test_the_run_aggregate_scores_each_run_and_redraws_layouts_within_strata() -
     assert run_aggregate_interval(alike, resample="runs", n_boot=200) == pytest.approx((2 / 3, 2 / 3, 2 / 3))
     _, low, high = run_aggregate_interval(alike, n_boot=200)
     assert low < 2 / 3 < high  # the layouts differ, so re-drawing them moves every run's rate
+
+
+def test_the_random_sign_flip_tests_floor_is_printed_as_a_bound() -> None:
+    # 30 layouts all +1: no random pattern is as extreme, p is the floor 1/(1 + permutations)
+    p, exact = layout_sign_flip_test([[1.0]] * 30, permutations=999)
+    assert (p, exact) == (1 / 1000, False)
+    assert sign_flip_p_text(p, exact, permutations=999) == "<= 0.001"
+    assert sign_flip_p_text(4.999750012499375e-05, False) == "<= 5e-05"  # the default 20,000
+    assert sign_flip_p_text(2 / 1000, False, permutations=999) == "= 0.002"  # above the floor: a value
+    assert sign_flip_p_text(1 / 1000, True, permutations=999) == "= 0.001"  # an exact test has no floor
+    assert sign_flip_p_text(0.456227188640568, False, digits=4) == "= 0.4562"
+    with pytest.raises(ValueError, match="permutations=0"):
+        sign_flip_p_text(0.5, False, permutations=0)
 
 
 def test_the_sign_flip_test_on_hand_examples() -> None:

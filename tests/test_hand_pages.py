@@ -35,6 +35,8 @@ from test_prose_checks import (  # noqa: E402
     tuning_rows,
 )
 
+from evaluation.stats.layout_tests import sign_flip_p_text  # noqa: E402
+
 from helpers.hand_audit import (  # noqa: E402
     Audit,
     CheckFn,
@@ -80,7 +82,8 @@ def confirmation_rows() -> list[str]:
         units = c["units"]
         rows.append(
             f"| {name} | {c['best_trial']} | {c['best_successes']}/{units} | {c['defaults_successes']}/{units} "
-            f"| {c['p_value']:.2g} | {'yes' if c['confirmed'] else '**no**'} |"
+            f"| {sign_flip_p_text(c['p_value'], c['exact']).removeprefix('= ')} "
+            f"| {'yes' if c['confirmed'] else '**no**'} |"
         )
     return rows
 

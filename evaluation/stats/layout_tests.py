@@ -30,6 +30,7 @@ __all__ = [
     "layout_sign_flip_test",
     "paired_means_by_layout",
     "paired_rates_by_layout",
+    "sign_flip_p_text",
 ]
 
 #: up to this many layouts with a non-zero difference, the sign-flip test enumerates all 2**n
@@ -92,6 +93,20 @@ def layout_sign_flip_test(
     return _sign_flip(
         _layout_totals(_layout_table("differences", differences, binary=False)), permutations, seed
     )
+
+
+def sign_flip_p_text(p_value: float, exact: bool, permutations: int = 20_000, digits: int = 2) -> str:
+    """The relation and value to print after "p" for :func:`layout_sign_flip_test`'s result.
+
+    A random (not exact) test's p-value is at least ``1 / (1 + permutations)``, reached when no
+    sign pattern was as extreme as the data: printed as ``"= 5e-05"`` it would read as a
+    measured value, so the floor is printed as a bound, ``"<= 5e-05"``; any other p as
+    ``"= 0.46"`` (``digits`` significant digits).
+    """
+    floor = 1.0 / (1 + check_int("permutations", permutations, 1))
+    if not exact and p_value <= floor * (1 + 1e-9):
+        return f"<= {floor:.{digits}g}"
+    return f"= {p_value:.{digits}g}"
 
 
 def _layout_totals(table: Table) -> NDArray[np.float64]:

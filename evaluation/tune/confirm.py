@@ -33,7 +33,7 @@ from typing import Any
 from controllers.tuning import STUDIES_DIR, finished_study, trial_rank
 from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import LogError
-from evaluation.stats.layout_tests import layout_sign_flip_test
+from evaluation.stats.layout_tests import layout_sign_flip_test, sign_flip_p_text
 from evaluation.tune.configuration import Evaluator, evaluate_configuration
 from koopman_envs.checks import check_int
 from koopman_envs.files import write_atomic
@@ -104,7 +104,7 @@ class Confirmation:
             f"{self.controller}: {'confirmed' if self.confirmed else 'not confirmed'} on validation layouts "
             f"{self.layouts[0]}-{self.layouts[1] - 1}: trial {self.best_trial} {self.best_successes}/"
             f"{self.units} against the defaults' {self.defaults_successes}/{self.units}, sign-flip "
-            f"p = {self.p_value:.4g}"
+            f"p {sign_flip_p_text(self.p_value, self.exact, digits=4)}"
             + (f" (read from its {CONFIRMATION_FILE}, not rerun)" if self.recorded else "")
         )
 

@@ -15,6 +15,7 @@ import controllers
 from controllers.tuning import STUDIES_DIR, STUDY_FILE, study_budget
 from evaluation.reports.sections import suite_heading
 from evaluation.run.suite_runs import suite_config
+from evaluation.stats.layout_tests import sign_flip_p_text
 from evaluation.tune.configuration import tasks_of
 from evaluation.tune.confirm import CONFIRMATION_FILE
 from evaluation.tune.log import read_study
@@ -155,7 +156,8 @@ def decision(label: str, verdict: str, studies: Path = STUDIES_DIR) -> str:
     confirmation = json.loads(record.read_text(encoding="utf-8"))
     counts = (
         f"{confirmation['best_successes']} against the defaults' {confirmation['defaults_successes']} "
-        f"of {confirmation['units']} fresh validation episodes, p = {float(confirmation['p_value']):.2g}"
+        f"of {confirmation['units']} fresh validation episodes, "
+        f"p {sign_flip_p_text(float(confirmation['p_value']), bool(confirmation['exact']))}"
     )
     if confirmation["confirmed"]:
         return f"adopted, confirmed ({counts})"
