@@ -49,6 +49,7 @@ from evaluation.stats.layout_tests import (
     layout_sign_flip_test,
     paired_means_by_layout,
     paired_rates_by_layout,
+    sign_flip_p_text,
 )
 from evaluation.stats.progress import Progress, planned_episodes
 from evaluation.stats.robustness import TAIL_SHARE, AxisProfile, LevelCost, LevelRow, level_costs, profiles
@@ -113,6 +114,7 @@ __all__ = [
     "layout_sign_flip_test",
     "paired_means_by_layout",
     "paired_rates_by_layout",
+    "sign_flip_p_text",
     "CorrectedTest",
     "FamilyResult",
     "HypothesisFamily",
