@@ -159,7 +159,8 @@ def sizing_block(d: Design | None = None) -> str:
         f"(`SUITE_EPISODES`), {d.tasks} tasks, and one family of paired tests per table and mode "
         f"({families}). At {POWER:.0%} power after Holm's first step (alpha / m, alpha = {ALPHA}), "
         "with the discordance psi (the share of units where the two controllers' outcomes differ) "
-        "not yet measured on the test split:",
+        "assumed before the run (each published table states its measured discordance and the difference "
+        "it detects at it, docs/bench_results.md):",
         "",
         f"| discordance psi | detectable now ({head}) | layouts per task for {_target()} points "
         f"at {d.episodes} episode ({head}) | episodes per layout for {_target()} points on "
