@@ -9,7 +9,11 @@ import sys
 from pathlib import Path
 
 import pytest
-import tomllib
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10 (requires-python >= 3.10): the core install's tomli backport
+    import tomli as tomllib  # type: ignore[no-redef]
 
 from evaluation.run.configs import parse_controller
 

@@ -35,8 +35,8 @@ from evaluation.episodes.records import json_safe
 from evaluation.episodes.runlog import LogError
 from evaluation.stats.layout_tests import layout_sign_flip_test, sign_flip_p_text
 from evaluation.tune.configuration import Evaluator, evaluate_configuration
-from koopman_envs.checks import check_int
-from koopman_envs.files import write_atomic
+from koopman_envs.checks import check_int, parse_json
+from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 
 __all__ = [
     "CONFIRMATION_FILE",
@@ -228,7 +228,9 @@ def _recorded(
     if not path.is_file():
         return None
     try:
-        record = json.loads(path.read_text())
+        record = parse_json(
+            read_text(path, MAX_TEXT_BYTES, what="confirmation record", expected="JSON"), str(path)
+        )
         result = Confirmation(
             str(record["controller"]),
             int(record["best_trial"]),

@@ -4,7 +4,6 @@ and each controller's tuning budget as docs/bench_results.md states it (:func:`t
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -21,7 +20,8 @@ from evaluation.tune.confirm import CONFIRMATION_FILE
 from evaluation.tune.log import read_study
 from evaluation.tune.scoring import expected_max_curve
 from koopman_envs import TASKS
-from koopman_envs.files import write_atomic
+from koopman_envs.checks import parse_json
+from koopman_envs.files import MAX_TEXT_BYTES, read_text, write_atomic
 
 
 @dataclass(frozen=True)
@@ -153,13 +153,25 @@ def decision(label: str, verdict: str, studies: Path = STUDIES_DIR) -> str:
     record = studies / label / CONFIRMATION_FILE
     if verdict != "adopted" or not record.is_file():
         return verdict
-    confirmation = json.loads(record.read_text(encoding="utf-8"))
-    counts = (
-        f"{confirmation['best_successes']} against the defaults' {confirmation['defaults_successes']} "
-        f"of {confirmation['units']} fresh validation episodes, "
-        f"p {sign_flip_p_text(float(confirmation['p_value']), bool(confirmation['exact']))}"
-    )
-    if confirmation["confirmed"]:
+    # bounded and depth-checked as every file KoopNav reads back: a torn or foreign record is
+    # refused by name (a nested one raised RecursionError)
+    text = read_text(record, MAX_TEXT_BYTES, what="confirmation record", expected="JSON")
+    try:
+        confirmation = parse_json(text, str(record))
+        counts = (
+            f"{int(confirmation['best_successes'])} against the defaults' "
+            f"{int(confirmation['defaults_successes'])} of {int(confirmation['units'])} fresh validation "
+            f"episodes, p {sign_flip_p_text(float(confirmation['p_value']), bool(confirmation['exact']))}"
+        )
+        confirmed = confirmation["confirmed"]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(
+            f"{record}: not a confirmation record ({type(exc).__name__}: {exc}); rerun "
+            f"python -m evaluation.tune adopt {label} --confirm N to write it again"
+        ) from None
+    if not isinstance(confirmed, bool):
+        raise ValueError(f"{record}: confirmed={confirmed!r}; allowed: true or false")
+    if confirmed:
         return f"adopted, confirmed ({counts})"
     return f"adopted by the study, withdrawn by the confirmation ({counts}): ships its defaults"
 
