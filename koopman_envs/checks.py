@@ -10,6 +10,7 @@ message of the package that names an allowed set uses it.
 from __future__ import annotations
 
 import difflib
+import functools
 import importlib
 import itertools
 import json
@@ -321,6 +322,18 @@ class Range:
         return ("an integer in " if self.integer else "") + text + (f" {self.note}" if self.note else "")
 
 
+def _unique_keys(what: str, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """An object of :func:`parse_json`'s text, refused when a key stands twice in it."""
+    found = dict(pairs)
+    if len(found) < len(pairs):  # the rare case: find the first key that repeats
+        seen: set[str] = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise ValueError(f"{what}: key {key!r} given twice in one JSON object; allowed: each key once")
+            seen.add(key)
+    return found
+
+
 def parse_json(text: str | bytes, what: str, *, max_chars: int = MAX_JSON_CHARS) -> Any:
     """``json.loads(text)`` with its size and nesting bounded first: the one JSON parser of
     command-line values and of files read back (maps, sweep manifests, run logs, baselines).
@@ -343,7 +356,9 @@ def parse_json(text: str | bytes, what: str, *, max_chars: int = MAX_JSON_CHARS)
     ValueError
         Longer than ``max_chars`` or nested deeper than :data:`MAX_JSON_DEPTH`, naming ``what``
         (a plain ``ValueError``); a syntax error is ``json.JSONDecodeError`` as from ``json.loads``
-        (callers that fall back to text catch that one only).
+        (callers that fall back to text catch that one only). A key given twice in one object is a
+    plain ``ValueError`` naming it: ``json.loads`` keeps the last one silently
+    (``movers={"count":1,"count":2}`` ran with 2).
     """
     if len(text) > max_chars:
         raise ValueError(f"{what}: {len(text):,} characters of JSON, more than the {max_chars:,} allowed")
@@ -352,7 +367,7 @@ def parse_json(text: str | bytes, what: str, *, max_chars: int = MAX_JSON_CHARS)
     depth = max(itertools.accumulate(1 if c in "[{" else -1 for c in brackets), default=0)
     if depth > MAX_JSON_DEPTH:
         raise ValueError(f"{what}: JSON nested {depth} levels deep; allowed: at most {MAX_JSON_DEPTH}")
-    return json.loads(text)
+    return json.loads(text, object_pairs_hook=functools.partial(_unique_keys, what))
 
 
 def import_optional(module: str, hint: str, refusal: type[Exception] = ImportError) -> ModuleType:
