@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import gymnasium as gym
 import pytest
+from gymnasium.envs.registration import load_env_creator
 from gymnasium.wrappers import TimeLimit
 
-from koopman_envs import TargetReachingEnv  # importing koopman_envs registers the ids
+import koopman_envs  # noqa: F401  # registers the ids
 from koopman_envs.params import LIMITS
 
 ENV = "KoopNav-TargetReaching-v0"
@@ -28,6 +29,10 @@ def test_gym_makes_time_limit_takes_a_huge_count_and_counts_in_python() -> None:
 
 
 def test_the_envs_own_keyword_is_bounded() -> None:
+    # the registered class itself: gym.make keeps max_episode_steps for its TimeLimit
+    entry_point = gym.spec(ENV).entry_point
+    assert isinstance(entry_point, str)
+    TargetReachingEnv = load_env_creator(entry_point)
     with pytest.raises(ValueError, match=rf"max_episode_steps={LIMITS.episode_steps + 1} must be an integer"):
         TargetReachingEnv(max_episode_steps=LIMITS.episode_steps + 1)
     TargetReachingEnv(max_episode_steps=LIMITS.episode_steps).close()  # the bound itself is allowed
