@@ -60,7 +60,10 @@ def progress_lines(
     training: Path, driver: Path, published: PublishedSeeds | None
 ) -> tuple[int, int, list[str]]:
     """The planned seeds (the driver's defaults), how many are on the page, and one line per
-    planned seed that is not: published partial, finished but not evaluated, or not finished."""
+    planned seed that is not: published partial, finished but not evaluated, or not finished.
+    Without a publication every planned seed is "not evaluated yet", whatever its training state:
+    the pending page does not change each time a seed finishes training (docs/benchmark.md's
+    seed paragraph states that, checked by tests/test_prose_checks.py)."""
     planned = planned_seeds(driver)
     progress = {} if published is None else published.progress
     lines, shown = [], 0
@@ -69,7 +72,9 @@ def progress_lines(
         if state is not None and state.complete:
             shown += 1
             continue
-        if state is not None:
+        if published is None:
+            why = 'not evaluated yet (which seeds finished training: docs/benchmark.md, "Learned policies")'
+        elif state is not None:
             why = f"evaluation in progress ({state.done:,} of {state.planned:,} episodes published), left out of the tables"
         elif seed in {r.seed for r in finished_seeds(training, policy, task)}:
             why = "finished training, not evaluated yet"

@@ -240,3 +240,16 @@ def test_a_seed_finished_later_joins_the_published_log(tmp_path) -> None:
     fewer = dict(config, controller_configs=config["controller_configs"][:1])
     with pytest.raises(LogError, match=r"belongs to a run with other settings"):
         read_log(log, fewer)
+
+
+def test_the_pending_page_does_not_change_when_a_seed_finishes_training(tmp_path) -> None:
+    """While data/seeds is missing, a training session that commits a finished seed leaves the
+    page as it is (docs/benchmark.md's seed paragraph states the training progress)."""
+    missing = tmp_path / "seeds"
+    before = _training_root(tmp_path / "a", [("rl-ppo-set", "target_reaching", 0)])
+    after = _training_root(tmp_path / "b", [("rl-ppo-set", "target_reaching", 0), ("ippo", "formation", 2)])
+    for root, out in ((before, "before.md"), (after, "after.md")):
+        assert _page(missing, tmp_path / out, "--training", str(root)).returncode == 0
+    text = (tmp_path / "before.md").read_text()
+    assert text == (tmp_path / "after.md").read_text()
+    assert "On this page: 0 of the 12 planned seed runs" in text and "Not on it yet (12):" in text
