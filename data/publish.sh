@@ -147,11 +147,23 @@ COMPUTE_RUNS=(compute_free compute_delay compute_ipopt_delay)
 SIM2SIM="--suite koopnav-bench-v1 --split test --layouts 0:10 --sweep slip=nominal,high --reference koopman-nmpc"
 RUNS[sim2sim_kinematic]="$SIM2SIM"
 RUNS[sim2sim_physics]="$SIM2SIM --plant mujoco"
+# issue 60: the learned policies over training seeds (docs/seeds_results.md): every finished seed
+# under data/training (data/training/run.sh; a controller <policy>@seed<k> each) on the suite's test
+# split, 200 layouts per task, one episode each, one run per task (data/runs/seeds/<task>/). Not
+# evaluate.py: `python -m evaluation.experiments.seeds` with these options (run() below). It
+# resumes each task's log by itself; a seed finished since joins it as a controller added (the
+# resume rule of evaluation/episodes/runlog.py), the logged seeds' records kept.
+RUNS[seeds]="--split test"
 RESULTS_RUNS=(paper zones_tr zones_tr_random zones_fm zones_fm_changing zones_paper_maps scale_n3 scale_n6 scale_n10 scale_n16)
-ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation bench_test_realtime bench_test sim2sim_kinematic sim2sim_physics)
+ORDER=(paper_realistic lab_day_ablation lab_day_sweep lab_day_misspecified "${RESULTS_RUNS[@]}" realistic_classic cbf_gamma realistic_realtime realistic_realtime5 "${COMPUTE_RUNS[@]}" robustness lidar lidar_policies crowd_constant crowd_waypoints crowd_crowd crowd_tracking crowd_realtime ablation bench_test_realtime bench_test sim2sim_kinematic sim2sim_physics seeds)
 
 run() {
     local name="$1" out="data/runs/$1"
+    if [ "$name" = seeds ]; then  # the seeds' own command; it resumes each task's log itself
+        # shellcheck disable=SC2086  # the option string is split on purpose
+        python -m evaluation.experiments.seeds ${RUNS[$name]} --out "$out" --workers "$workers"
+        return
+    fi
     local resume=()
     [ -e "$out" ] && resume=(--resume)
     # shellcheck disable=SC2086  # the option strings are split on purpose

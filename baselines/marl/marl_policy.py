@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +84,13 @@ class MappoController(BaseController):
                 "--task target_reaching --out DIR`"
             )
         self._loaded: dict[str, tuple[dict[str, NDArray[Any]], dict[str, Any]]] = {}
+
+    @classmethod
+    def weight_files(cls, options: Mapping[str, Any], task: str) -> list[Path]:
+        """The files a controller of this class built with ``options`` loads for ``task``, found
+        without building it: a run's header records their digest (:mod:`evaluation.run.weights`)."""
+        directory = Path(options.get("policy_root") or SHIPPED / cls.shipped) / task
+        return [directory / "policy.npz", directory / "metadata.json"]
 
     def _load(self, task: str) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         if task not in self._loaded:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar, TypedDict, cast
 
@@ -233,6 +233,9 @@ class RLPolicyController(BaseController):
     """
 
     name = "rl-ppo"
+    #: the folder under ``baselines/policies`` of the shipped policies this name loads ("": the
+    #: folder itself, rl-ppo's)
+    shipped = ""
     #: a policy reads its observation (the beams themselves under lidar), not the perception's tracks
     perceives = False
     #: one forward pass of the compiled actor serves many teams (:meth:`act_many`)
@@ -268,6 +271,15 @@ class RLPolicyController(BaseController):
                 f"`{REGENERATE.format(env_id=TASK_ENV['formation'], algo=algo, task='formation')}`"
             )
         self._loaded: dict[str, tuple[Any, dict, dict, Any]] = {}
+
+    @classmethod
+    def weight_files(cls, options: Mapping[str, Any], task: str) -> list[Path]:
+        """The files a controller of this class built with ``options`` loads for ``task`` (its
+        policy's :class:`PolicyFiles`), found without building it: a run's header records their
+        digest, so that a resume on other weights is refused (:mod:`evaluation.run.weights`)."""
+        root = options.get("policy_root") or (SHIPPED / cls.shipped if cls.shipped else SHIPPED)
+        files = PolicyFiles(policy_dir(task, root))
+        return [files.model, files.norm, files.metadata]
 
     def _reset(self, scenario: Scenario, seed: int | None) -> None:
         if self.threads is not None:

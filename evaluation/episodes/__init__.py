@@ -1,7 +1,8 @@
 """The episodes a run leaves behind, the lowest floor of the evaluator: what an episode record's
 status means and its plain-JSON form (:mod:`~evaluation.episodes.records`), which records are
 distinct episodes (:mod:`~evaluation.episodes.distinct`), and the resumable episode log of a run
-(:mod:`~evaluation.episodes.runlog`). Every other part of the evaluator reads records through
+(:mod:`~evaluation.episodes.runlog`, with the digests of the weights its learned controllers play:
+:mod:`~evaluation.episodes.log_weights`). Every other part of the evaluator reads records through
 these three.
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
@@ -21,6 +22,15 @@ from evaluation.episodes.distinct import (
     paired_identity,
     read_once,
     signature,
+)
+from evaluation.episodes.log_weights import (
+    WEIGHTS_KEY,
+    changed_weights,
+    check_weights,
+    signed_weights,
+    unchecked_notes,
+    weights_refusal,
+    without_weights,
 )
 from evaluation.episodes.records import (
     DEGRADED_FAILURE_SHARE,
@@ -75,6 +85,13 @@ __all__ = [
     "signature",
     "DEFAULT_OUT",
     "RESUME_KEYS",
+    "WEIGHTS_KEY",
+    "changed_weights",
+    "check_weights",
+    "signed_weights",
+    "unchecked_notes",
+    "weights_refusal",
+    "without_weights",
     "LogError",
     "OutputNotWritable",
     "RunLocked",

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from evaluation.episodes.distinct import ConflictingRecords, read_once
+from evaluation.episodes.log_weights import check_weights, signed_weights, without_weights
 from evaluation.episodes.records import json_safe, record_problem
 from koopman_envs.checks import differing_settings, parse_json
 from koopman_envs.files import MAX_LOG_BYTES, check_regular, read_bounded, write_atomic
@@ -151,6 +152,7 @@ def run_signature(config: dict[str, Any]) -> dict[str, Any]:
     # another suite version is another run (absent from other runs', as in logs written before)
     if config.get("suite"):
         signature["suite"] = config["suite"]
+    signature.update(signed_weights(config))  # the learned controllers' (evaluation.episodes.log_weights)
     return json.loads(json.dumps(json_safe(signature)))
 
 
@@ -173,24 +175,23 @@ def _adds_controllers(theirs: Any, ours: dict[str, Any]) -> list[str] | None:
     return [c["label"] for c in now if c not in logged]
 
 
-def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> list[str]:
+def _check_header(log: Path, first: bytes, config: dict[str, Any]) -> tuple[list[str], dict[str, Any]]:
     """Refuse a log whose first line is not this run's header; the labels this run adds to the
-    logged one (an empty list for the same run)."""
+    logged one (an empty list for the same run) and the logged signature (weights apart)."""
     try:
         header = parse_json(first, f"{log} line 1")
     except ValueError:  # not JSON, not UTF-8, or nested beyond any header
         raise LogError(
             f"{log} is not a KoopNav episode log (line 1 is not JSON); nothing was overwritten"
         ) from None
-    ours = run_signature(config)
-    theirs = (
-        header.get("config") if isinstance(header, dict) and header.get("kind") == "koopnav-run" else None
-    )
+    ours = without_weights(run_signature(config))
+    logged = isinstance(header, dict) and header.get("kind") == "koopnav-run" and header.get("config") or None
+    theirs = without_weights(logged)
     if theirs == ours:
-        return []
+        return [], logged  # type: ignore[return-value]
     added = _adds_controllers(theirs, ours)
     if added:
-        return added
+        return added, logged  # type: ignore[return-value]
     if isinstance(theirs, dict):
         what = differing_settings(theirs, ours)
     else:
@@ -338,7 +339,7 @@ def read_log(
         if repair:
             _replace_log(path, _header_line(config))
         return {}, [f"{path}: the header line was cut by the interruption; it was written again"]
-    added = _check_header(path, lines[0], config)
+    added, logged = _check_header(path, lines[0], config)
     records, places, bad = parse_lines(lines[1:], lambda rec: _record_problem(rec, expected))
     if not bad:
         try:
@@ -353,6 +354,7 @@ def read_log(
             + ". It is not this run's log as KoopNav wrote it; resume into another --out, or move "
             "the file aside to start afresh (nothing was changed)"
         )
+    kept = check_weights(path, logged, config, once, LogError, notes)  # other weights: refused
     # an episode logged twice alike is one episode (evaluation.episodes.distinct.read_once)
     done = {rec["key"]: rec for rec in once}
     if len(once) < len(records):
@@ -367,9 +369,9 @@ def read_log(
             f"{path}: dropped 1 incomplete record (line {len(lines) + 1}, {len(torn)} bytes cut by "
             "the interruption); it will be run again"
         )
+    if (added or run_signature(kept) != logged) and repair:  # added, or a new digest of one unplayed
+        _rewrite_header(path, kept)
     if added:
-        if repair:
-            _rewrite_header(path, config)
         notes.append(
             f"{path}: this run adds {', '.join(added)} to the logged run's controllers; their episodes "
             "run now, the logged ones are kept"

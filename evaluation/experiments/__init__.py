@@ -3,7 +3,8 @@
 (:mod:`~evaluation.experiments.ablation`), ``--sweep``: one run per level of an env setting
 (:mod:`~evaluation.experiments.sweep`), the sim-to-sim protocol's two runs read back per friction level
 (:mod:`~evaluation.experiments.sim2sim`), and the learned policies' training seeds on the test split
-(:mod:`~evaluation.experiments.seeds`, a command: ``python -m evaluation.experiments.seeds``).
+(:mod:`~evaluation.experiments.seeds`, a command: ``python -m evaluation.experiments.seeds``) and
+their publication read back (:mod:`~evaluation.experiments.seeds_published`).
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
 here (tests/test_architecture.py checks the list), except those of the seeds command, which are
@@ -45,6 +46,7 @@ from evaluation.experiments.protocols import (
     quick_protocol,
     suite_protocol,
 )
+from evaluation.experiments.seeds_published import DRIVER, PublishedSeeds, planned_seeds, read_publication
 from evaluation.experiments.sim2sim import (
     FINE_TUNED,
     PLANTS,
@@ -70,6 +72,10 @@ from evaluation.experiments.sweep import (
 )
 
 __all__ = [
+    "DRIVER",
+    "PublishedSeeds",
+    "planned_seeds",
+    "read_publication",
     "FINE_TUNED",
     "PLANTS",
     "Level",

@@ -19,6 +19,11 @@ seed folder), every variant on the same (layout, episode) units, and reports:
   fewer than 4 seeds the IQM trims nothing: the report leads with the mean and says so;
 - **the shipped seed**: :func:`chosen_seed`, the best by its validation record (never by test);
   ``--ship`` copies its policy into the controller's shipped folder.
+
+The published run is ``bash data/publish.sh seeds`` (``OUT`` = ``data/runs/seeds``, packed into
+``data/seeds/`` by ``bash data/publish.sh pack``); :func:`evaluation.experiments.seeds_published.read_publication` reads it back,
+with the seeds' validation records from their folders, and ``docs/make_seeds_md.py`` writes
+docs/seeds_results.md from it.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ __all__ = [
     "FINISHED_FILE",
     "IQM_MIN_RUNS",
     "POLICIES",
+    "REPORTS",
     "TRAINING_ROOT",
     "SeedAggregate",
     "SeedRun",
@@ -239,6 +245,10 @@ def outcomes_by_label(records: Iterable[Mapping[str, Any]]) -> dict[str, dict[in
     return out
 
 
+#: what the command writes beside its logs (``main``), left out of its publication
+REPORTS = ("seeds.md", "seeds.json")
+
+
 def evaluate_seeds(
     root: str | os.PathLike[str],
     policies: Sequence[str],
@@ -300,10 +310,12 @@ def _interval(value: tuple[float, float, float]) -> str:
     return f"{100 * value[0]:.1f}% [{100 * value[1]:.1f}, {100 * value[2]:.1f}]"
 
 
-def report_markdown(summaries: Sequence[Mapping[str, Any]]) -> str:
-    """The per-seed table and the aggregate table of :func:`evaluate_seeds`' summaries."""
+def report_markdown(summaries: Sequence[Mapping[str, Any]], split: str = "test") -> str:
+    """The per-seed table and the aggregate table of :func:`evaluate_seeds`' summaries, the seeds'
+    success on ``split`` (the split they ran on)."""
     rows = [
-        "| policy | task | seed | validation success (kept checkpoint) | test success [95% CI over layouts] | shipped |",
+        f"| policy | task | seed | validation success (kept checkpoint) | {split} success [95% CI over layouts] "
+        "| shipped |",
         "|---|---|---|---|---|---|",
     ]
     for s in summaries:
@@ -392,7 +404,7 @@ def main(argv: list[str] | None = None) -> int:
     if not summaries:
         print(f"error: no finished seed of {args.policies} under {args.root}", file=sys.stderr)
         return BAD_INPUT_EXIT
-    table = report_markdown(summaries)
+    table = report_markdown(summaries, args.split)
     data = [
         {
             "policy": s["policy"], "task": s["task"], "suite": s["suite"], "chosen_seed": s["chosen"].seed,
@@ -403,8 +415,9 @@ def main(argv: list[str] | None = None) -> int:
         }
         for s in summaries
     ]  # fmt: skip
-    write_atomic(Path(args.out) / "seeds.md", table)
-    write_atomic(Path(args.out) / "seeds.json", json.dumps(data, indent=1) + "\n")
+    markdown, summary = REPORTS
+    write_atomic(Path(args.out) / markdown, table)
+    write_atomic(Path(args.out) / summary, json.dumps(data, indent=1) + "\n")
     print(table)
     if args.ship:
         for s in summaries:

@@ -71,7 +71,8 @@ MAX_PARTS = 256
 #: no path separator, no leading dot, the same file on every file system. A space (the ablation's
 #: labels, ``model=learned margins=paper constraints=soft``) is written ``%20`` in the file's name
 #: (:data:`_SPACE`): a label holds no ``%``, so the name reads back to the label unambiguously.
-_LABEL_FILE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+= -]{0,99}")
+#: ``@`` names a training seed (``rl-ppo-set@seed0``, :mod:`evaluation.experiments.seeds`).
+_LABEL_FILE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+=@ -]{0,99}")
 #: a label's space in its part's file name
 _SPACE = "%20"
 

@@ -1,7 +1,8 @@
 """A run as data: controller configurations (:mod:`~evaluation.run.configs`), the slip settings
 as text (:mod:`~evaluation.run.slip_text`), a benchmark suite's layouts as the map axis
 (:mod:`~evaluation.run.suite_runs`), one episode of a run (:mod:`~evaluation.run.plan`) and the
-run itself, checked, planned and signed for ``--resume`` (:class:`~evaluation.run.spec.RunSpec`).
+run itself, checked, planned and signed for ``--resume`` (:class:`~evaluation.run.spec.RunSpec`), with
+the digests of the learned controllers' weights (:mod:`~evaluation.run.weights`).
 Nothing here runs an episode.
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
@@ -43,8 +44,11 @@ from evaluation.run.suite_runs import (
     suite_units,
     unit_trial,
 )
+from evaluation.run.weights import files_digest, run_weights
 
 __all__ = [
+    "files_digest",
+    "run_weights",
     "ControllerConfig",
     "check_label",
     "controller_configs",

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.episodes.distinct import episode_identity
+from evaluation.episodes.log_weights import WEIGHTS_KEY
 from evaluation.episodes.records import ran
 from evaluation.episodes.runlog import run_signature
 from evaluation.run.suite_runs import cluster_of
@@ -144,7 +145,12 @@ def _config_differences(first: Mapping[str, Any], second: Mapping[str, Any]) -> 
     episode does; the workers and the backend do not)."""
     first, second = run_signature(dict(first)), run_signature(dict(second))
     differ = []
-    for key in sorted(set(first) | set(second)):
+    # the learned controllers' weights are compared when both runs record them (a run logged before
+    # they were recorded has none: evaluation.run.weights)
+    keys = set(first) | set(second)
+    if WEIGHTS_KEY not in first or WEIGHTS_KEY not in second:
+        keys.discard(WEIGHTS_KEY)
+    for key in sorted(keys):
         a, b = first.get(key), second.get(key)
         if key == "env_settings":
             a = {k: v for k, v in (a or {}).items() if k not in _MAY_DIFFER}

@@ -1,0 +1,113 @@
+"""The weights a run's learned controllers play, as its log header records them (issue 60).
+
+A learned controller's options (``policy_root``) name a folder, not the weights in it: a policy
+shipped or retrained while a run is paused would be played, under the same row, for the rest of
+the run. So a run's configuration holds :data:`WEIGHTS_KEY`: per controller label that loads a
+policy, the SHA-256 of its policy files per task (:func:`evaluation.run.weights.run_weights`), and
+:func:`evaluation.episodes.runlog.read_log` refuses a resume whose controller would load other
+weights than its logged episodes did (:func:`changed_weights`, :func:`weights_refusal`). A
+controller with no logged episode takes the new digest (its episodes all run on it).
+
+A log written before the digests were recorded has none: its resume is not checked (nothing can
+be), says so (:func:`unchecked_notes`), and its header stays without digests, also when a
+controller is added to it (:func:`without_weights`): a digest there would claim weights for
+episodes nobody checked.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "WEIGHTS_KEY",
+    "changed_weights",
+    "check_weights",
+    "signed_weights",
+    "unchecked_notes",
+    "weights_refusal",
+    "without_weights",
+]
+
+#: the run configuration's (and header's) digests of the learned controllers' policy files,
+#: ``{label: {task: sha256}}``; absent from a run without one, and from every log written before
+#: they were recorded
+WEIGHTS_KEY = "weights"
+
+
+def without_weights(signature: Any) -> Any:
+    """``signature`` (a run's configuration or signature) without its digests; anything that is
+    not a mapping as it is (a log's line 1 that is no run header, refused by the caller)."""
+    if not isinstance(signature, Mapping):
+        return signature
+    return {k: v for k, v in signature.items() if k != WEIGHTS_KEY}
+
+
+def signed_weights(config: Mapping[str, Any]) -> dict[str, Any]:
+    """What a run's resume signature holds of ``config``'s digests: ``{WEIGHTS_KEY: ...}``, or
+    nothing when no controller loads a policy (as in the logs written before the digests were)."""
+    return {WEIGHTS_KEY: config[WEIGHTS_KEY]} if config.get(WEIGHTS_KEY) else {}
+
+
+def unchecked_notes(path: Path, ours: Mapping[str, Any]) -> list[str]:
+    """The note of a resume of a log without digests (``ours``: the digests the run has now)."""
+    if not ours:
+        return []
+    return [
+        f"{path} was written before run logs recorded the learned controllers' weights: whether "
+        f"{', '.join(sorted(ours))} play the weights of its logged episodes cannot be checked "
+        "(its header stays without digests)"
+    ]
+
+
+def changed_weights(theirs: Any, ours: Mapping[str, Any], played: Collection[Any]) -> list[str]:
+    """Each controller with logged episodes (its label in ``played``) whose digests ``ours`` are
+    not the logged ones ``theirs``, described with both digests of each task that differs."""
+    logged = theirs if isinstance(theirs, Mapping) else {}
+    changed = []
+    for label in sorted(set(logged) | set(ours)):
+        before, now = logged.get(label) or {}, ours.get(label) or {}
+        if before == now or label not in played:  # no episode of it logged: it runs on the new ones
+            continue
+        tasks = [task for task in sorted(set(before) | set(now)) if before.get(task) != now.get(task)]
+        described = "; ".join(
+            f"{task}: logged sha256 {before.get(task) or 'none'}, now {now.get(task) or 'none'}"
+            for task in tasks
+        )
+        changed.append(f"{label} ({described})")
+    return changed
+
+
+def weights_refusal(path: Path, changed: list[str]) -> str:
+    """The refusal of a resume on other weights: the controllers, their digests, what to do."""
+    return (
+        f"{path} cannot be resumed: {'; '.join(changed)} would play other weights than its logged "
+        "episodes did (its policy files changed since the run started: a policy shipped or retrained). "
+        "Put the files the run started with back to resume it; or drop that controller's episodes "
+        "(python -m evaluation.forget LABEL -- OUT) and resume to run them all on the new weights; "
+        "or run into another --out. Nothing was changed"
+    )
+
+
+def check_weights(
+    path: Path,
+    logged: Mapping[str, Any],
+    config: Mapping[str, Any],
+    records: Sequence[Mapping[str, Any]],
+    error: type[Exception] = ValueError,
+    notes: list[str] | None = None,
+) -> dict[str, Any]:
+    """A resume's check of the weights: the configuration whose header the log keeps (``config``,
+    or without its digests for a log written before they were recorded: ``logged``, its header's
+    signature, has none), its note appended to ``notes``; ``error`` (:class:`evaluation.episodes.runlog.LogError` for
+    a resume) with :func:`weights_refusal` when a controller with logged episodes would play other
+    weights than they did."""
+    ours = config.get(WEIGHTS_KEY) or {}
+    if WEIGHTS_KEY not in logged:
+        (notes if notes is not None else []).extend(unchecked_notes(path, ours))
+        return without_weights(config)
+    changed = changed_weights(logged[WEIGHTS_KEY], ours, {rec.get("controller") for rec in records})
+    if changed:
+        raise error(weights_refusal(path, changed))
+    return dict(config)

@@ -1,0 +1,209 @@
+"""A published seeds run read back, and the seeds the driver plans (issue 60, docs/seeds_results.md).
+
+``bash data/publish.sh seeds`` runs ``python -m evaluation.experiments.seeds --out data/runs/seeds``
+(one log per task, every finished training seed a controller ``<policy>@seed<k>``) and
+``bash data/publish.sh pack`` packs it into ``data/seeds/``. :func:`read_publication` reads such a
+run back, unpacked, with each seed's validation record from its seed folder, into the summaries
+:func:`evaluation.experiments.seeds.evaluate_seeds` returns (the same :func:`~evaluation.experiments.seeds.aggregate`,
+the same :func:`~evaluation.experiments.seeds.chosen_seed`), and :func:`planned_seeds` reads the
+driver's default plan (``data/training/run.sh``), for the seeds not published yet.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from evaluation.experiments.seeds import (
+    FINISHED_FILE,
+    POLICIES,
+    REPORTS,
+    SUITE,
+    TRAINING_ROOT,
+    SeedRun,
+    aggregate,
+    chosen_seed,
+    finished_seeds,
+    outcomes_by_label,
+)
+from evaluation.stats.progress import Progress, planned_episodes
+from koopman_envs import TASKS
+from koopman_envs.checks import check_choice
+from koopman_envs.files import MAX_TEXT_BYTES, read_text
+
+__all__ = ["DRIVER", "PublishedSeeds", "planned_seeds", "read_publication"]
+
+#: the seed driver, whose defaults are the planned seeds (:func:`planned_seeds`)
+DRIVER = TRAINING_ROOT / "run.sh"
+
+
+def planned_seeds(script: str | os.PathLike[str] = DRIVER) -> list[tuple[str, str, int]]:
+    """The seed runs the driver ``script`` (``data/training/run.sh``) plans by default, as
+    ``(policy, task, seed)`` in its order: its default policies, each on its default tasks, seeds
+    0 to its default ``SEEDS`` - 1.
+
+    Raises
+    ------
+    ValueError
+        The script does not state a default (naming which), or names a policy or task that is not
+        one (naming it and the allowed ones).
+    """
+    text = read_text(script, MAX_TEXT_BYTES, what="seed driver", expected="data/training/run.sh")
+    found = {
+        "SEEDS": re.search(r'^SEEDS="\$\{SEEDS:-(\d+)\}"$', text, re.M),
+        "policies": re.search(r"\|\| policies=\(([\w -]+)\)$", text, re.M),
+        "TASKS": re.search(r'"\$\{TASKS:-([\w ]+)\}"', text),
+    }
+    missing = [name for name, match in found.items() if match is None]
+    if missing:
+        raise ValueError(f"{script} states no default {', '.join(missing)} (as data/training/run.sh does)")
+    policies = found["policies"][1].split()  # type: ignore[index]
+    tasks = found["TASKS"][1].split()  # type: ignore[index]
+    for policy in policies:
+        check_choice(f"{script}: default policy", policy, POLICIES)
+    for task in tasks:
+        check_choice(f"{script}: default task", task, list(TASKS))
+    seeds = int(found["SEEDS"][1])  # type: ignore[index]
+    return [(p, t, k) for p in policies for t in tasks for k in range(seeds)]
+
+
+@dataclass(frozen=True)
+class PublishedSeeds:
+    """A published seeds run read back (:func:`read_publication`).
+
+    Attributes
+    ----------
+    split : str
+        The suite split the seeds ran on (``test`` for the publication).
+    summaries : list of dict
+        One per (policy, task), as :func:`evaluate_seeds` returns them, over the seeds whose every
+        planned episode is published (a partial seed is in ``progress`` only).
+    progress : dict
+        ``(policy, task, seed)`` -> its :class:`~evaluation.stats.progress.Progress`, for every
+        seed the publication holds.
+    episodes : int
+        The records published.
+    suites : dict
+        Task -> the suite split's label (name, split and content hash).
+    """
+
+    split: str
+    summaries: list[dict[str, Any]]
+    progress: dict[tuple[str, str, int], Progress]
+    episodes: int
+    suites: dict[str, str]
+
+
+#: a seed's controller label: ``<policy>@seed<k>`` (:attr:`SeedRun.label`)
+_LABEL = re.compile(r"(?P<policy>[a-z][a-z0-9-]*)@seed(?P<seed>\d+)")
+
+
+def _published_seed(where: str, entry: Any, task: str) -> tuple[str, int]:
+    """The (policy, seed) of one controller of a seeds run's header; ``ValueError`` naming it when
+    it is not a training seed's (its label, controller and ``policy_root`` as
+    :func:`evaluate_seeds` writes them)."""
+    label = entry.get("label") if isinstance(entry, dict) else None
+    match = _LABEL.fullmatch(label) if isinstance(label, str) else None
+    if match is None or match["policy"] not in POLICIES or entry.get("name") != match["policy"]:
+        raise ValueError(
+            f"{where}: controller {label!r} is not a training seed's (a label <policy>@seed<k>, the "
+            f"controller <policy>, one of {list(POLICIES)}); not a seeds publication "
+            "(python -m evaluation.experiments.seeds)"
+        )
+    policy, seed = match["policy"], int(match["seed"])
+    root = (entry.get("options") or {}).get("policy_root")
+    if not isinstance(root, str) or Path(root).parts[-3:] != (policy, task, f"seed{seed}"):
+        raise ValueError(
+            f"{where}: {label} plays policy_root {root!r}, not the seed folder "
+            f"<root>/{policy}/{task}/seed{seed}; not a seeds publication (python -m evaluation.experiments.seeds)"
+        )
+    return policy, seed
+
+
+def read_publication(
+    run_dir: str | os.PathLike[str], root: str | os.PathLike[str] = TRAINING_ROOT, *, n_boot: int = 4000
+) -> PublishedSeeds:
+    """A seeds run (``python -m evaluation.experiments.seeds --out RUN_DIR``: one log per task,
+    ``RUN_DIR/<task>/episodes.jsonl``; a publication unpacked by
+    :func:`evaluation.reports.publications.extracted_archive`) read back: per (policy, task) the
+    seeds whose every planned episode is logged, with their validation records from their seed
+    folders under ``root`` (``selection.json``), :func:`aggregate` (the same ``n_boot`` and seed
+    as the command's) and :func:`chosen_seed`; the other seeds' progress.
+
+    Raises
+    ------
+    ValueError
+        Naming the file: anything else than one folder per task, a log of another task, suite or
+        controllers than a seeds run's (:func:`evaluate_seeds`), a torn or foreign record
+        (:func:`evaluation.reports.published.results_from_log`), splits that differ between the
+        tasks, or a published seed whose folder under ``root`` is not a finished seed.
+    """
+    from evaluation.reports.published import results_from_log
+
+    run_dir = Path(run_dir)
+    # the command's own reports beside the logs (not published: a packed run has the logs only)
+    entries = sorted(p for p in run_dir.iterdir() if p.name not in REPORTS) if run_dir.is_dir() else []
+    foreign = [p.name for p in entries if p.name not in TASKS or not (p / "episodes.jsonl").is_file()]
+    if not entries or foreign:
+        raise ValueError(
+            f"{run_dir}: holds {foreign or 'nothing'}; a seeds publication holds one run per task "
+            f"({', '.join(TASKS)}), each <task>/episodes.jsonl (python -m evaluation.experiments.seeds)"
+        )
+    splits: dict[str, str] = {}
+    summaries: list[dict[str, Any]] = []
+    progress: dict[tuple[str, str, int], Progress] = {}
+    suites: dict[str, str] = {}
+    episodes = 0
+    for folder in entries:
+        task, log = folder.name, folder / "episodes.jsonl"
+        results = results_from_log(log)
+        config, records = results.config, results.records
+        suite = config.get("suite") or {}
+        if config.get("env_ids") != [TASKS[task].env_id] or suite.get("name") != SUITE:
+            raise ValueError(
+                f"{log}: a run of {config.get('env_ids')} on suite {suite.get('name')!r}, not of "
+                f"{TASKS[task].env_id} on {SUITE} (its folder's task); not a seeds publication"
+            )
+        splits[task] = str(suite.get("split"))
+        seeds = [_published_seed(str(log), c, task) for c in config.get("controller_configs") or []]
+        planned = planned_episodes(config, TASKS[task].env_id)
+        by_label = outcomes_by_label(records)
+        episodes += len(records)
+        complete: dict[str, list[SeedRun]] = {}
+        for policy, seed in seeds:
+            label = f"{policy}@seed{seed}"
+            done = sum(len(v) for v in by_label.get(label, {}).values())
+            progress[(policy, task, seed)] = Progress(done, planned)
+            if done < planned:
+                continue
+            finished = {r.seed: r for r in finished_seeds(root, policy, task)}
+            if seed not in finished:
+                raise ValueError(
+                    f"{log}: {label} is published, but {Path(root) / policy / task / f'seed{seed}'} is not a "
+                    f"finished seed ({FINISHED_FILE} and selection.json): its validation record is read there"
+                )
+            complete.setdefault(policy, []).append(finished[seed])
+        for policy, runs in complete.items():
+            result = aggregate({r.seed: by_label[r.label] for r in runs}, n_boot=n_boot)
+            label = next(r["suite"] for r in records if r["controller"] == runs[0].label)
+            suites[task] = label
+            summaries.append(
+                {
+                    "policy": policy,
+                    "task": task,
+                    "suite": label,
+                    "runs": runs,
+                    "aggregate": result,
+                    "chosen": chosen_seed(runs),
+                }  # fmt: skip
+            )
+    if len(set(splits.values())) > 1:
+        raise ValueError(
+            f"{run_dir}: its tasks ran on different splits {splits}; one publication is one split"
+        )
+    order = {policy: i for i, policy in enumerate(POLICIES)}
+    summaries.sort(key=lambda s: (order[s["policy"]], list(TASKS).index(s["task"])))
+    return PublishedSeeds(next(iter(splits.values())), summaries, progress, episodes, suites)
