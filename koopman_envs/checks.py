@@ -329,7 +329,9 @@ def _unique_keys(what: str, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
         seen: set[str] = set()
         for key, _ in pairs:
             if key in seen:
-                raise ValueError(f"{what}: key {key!r} given twice in one JSON object; allowed: each key once")
+                raise ValueError(
+                    f"{what}: key {key!r} given twice in one JSON object; allowed: each key once"
+                )
             seen.add(key)
     return found
 
