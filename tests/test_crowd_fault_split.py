@@ -152,6 +152,25 @@ def test_the_section_rebuilds_byte_for_byte(tiny_run, tmp_path) -> None:
     assert first == second and "## Collisions by fault" in first
 
 
+def test_the_packed_publication_gives_the_run_directorys_section(tiny_run, tmp_path) -> None:
+    """What `bash data/publish.sh pack` makes of the run (data/NAME/, split per controller) is
+    read alike: the section from the publication is the run directory's, command included."""
+    publication = tmp_path / "crowd_faults"
+    subprocess.run(
+        [sys.executable, "-m", "evaluation.archive", str(tiny_run), str(publication)],
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+    )
+    assert (publication / "controllers" / "orca.tar.xz").is_file()
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    _, from_run = _page(tiny_run, tmp_path / "a" / "page.md", str(tiny_run))
+    _, packed = _page(tiny_run, tmp_path / "b" / "page.md", str(publication))
+    section = from_run[from_run.index("## Collisions by fault") :]
+    assert HEADER in section and packed.endswith(section)
+
+
 def test_the_committed_page_names_the_pending_publication() -> None:
     """docs/crowd_results.md reads --fault-split data/crowd_faults (data/pages.json), and while
     that publication is absent the committed page says so; its digest is the generator's."""
