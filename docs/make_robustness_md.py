@@ -5,6 +5,7 @@ Usage::
     python docs/make_robustness_md.py SWEEP_DIR [SWEEP_DIR ...] --out PAGE.md
         [--figures DIR] [--title TEXT] [--intro FILE] [--names NAME ...]
         [--figure-prefix sweep] [--reference CONTROLLER] [--level-costs]
+        [--fault-split PUBLICATION]
 
 Each sweep directory (holding the sweep.json manifest) becomes one part: its command, the levels
 not finished yet (if any), and per axis the summary (area under the success curve, worst-10%
@@ -20,6 +21,12 @@ With ``--names`` (one per sweep) the parts are titled by them, and when the page
 parts, it opens with one overview of every controller over every part's axes: the same
 axis swept under different settings (e.g. ``movers.count`` for each mover behaviour of
 ``--crowd``) side by side.
+
+With ``--fault-split`` (a sweep among movers whose records carry the fault rule's fields, e.g.
+``data/crowd_faults``), the page ends with its collisions split by fault and its success with and
+without the collisions no robot could avoid (:mod:`evaluation.reports.fault_split`); while that
+publication is absent, the section says it is pending and names the command that makes it, and a
+publication whose records predate the fields is refused by name.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.experiments.sweep import load_sweep  # noqa: E402
+from evaluation.reports.fault_split import fault_rows, fault_section, pending_section  # noqa: E402
 from evaluation.reports.figures import save_profile_figures  # noqa: E402
 from evaluation.reports.sections import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
 from evaluation.stats.robustness import AxisProfile, level_costs, profiles  # noqa: E402
@@ -76,6 +84,12 @@ def _parser() -> argparse.ArgumentParser:
         help="add per part what each level costs each controller against the axis's first level "
         "(paired, Holm-adjusted; the sensing protocol's 'what seeing through a lidar costs')",
     )
+    parser.add_argument(
+        "--fault-split",
+        metavar="PUBLICATION",
+        help="end the page with the collisions of this sweep among movers split by fault "
+        "(e.g. data/crowd_faults; while it is absent, a section saying it is pending)",
+    )
     return parser
 
 
@@ -114,6 +128,21 @@ def _part(
     if costs is not None:
         parts.append(markdown([costs]).replace("## What", "### What"))
     return parts, [replace(profile, key=f"{name}: {profile.key}") for profile in axes]
+
+
+def _fault_split(publication: str) -> str:
+    """The page's section of collisions by fault from ``publication`` (a sweep of one axis among
+    movers: a publication or a run's directory), or the pending section while it is absent;
+    ``ValueError`` naming a publication that cannot be split."""
+    if not Path(publication).exists():
+        return markdown([pending_section(publication, Path(publication).name.removesuffix(".tar.xz"))])
+    done, missing, manifest = load_sweep(publication, from_logs=True)
+    if len(done) != 1:
+        raise ValueError(f"--fault-split {publication!r} sweeps {len(done)} axes; give a sweep of one axis")
+    ((key, levels),) = done.items()
+    return markdown(
+        [fault_section(fault_rows(levels, publication), key, manifest.get("command", ""), missing)]
+    )
 
 
 def _refused(args: argparse.Namespace) -> str | None:
@@ -158,6 +187,12 @@ def main(argv: list[str] | None = None) -> int:
         overview = overview_section(named_axes, scope, "Overview of every part")
         if overview is not None:
             parts.insert(2, markdown([overview]))
+    if args.fault_split is not None:
+        try:
+            parts.append(_fault_split(args.fault_split))
+        except ValueError as exc:  # the message names the publication (and the episode and field)
+            print(f"error: {exc}", file=sys.stderr)
+            return BAD_INPUT_EXIT
     write_atomic(out, "\n\n".join(parts) + "\n")
     print(f"wrote {out} and {len(args.sweeps)} sweep(s) of figures in {figures}")
     return SUCCESS_EXIT
