@@ -24,7 +24,7 @@ axis swept under different settings (e.g. ``movers.count`` for each mover behavi
 
 With ``--fault-split`` (a sweep among movers whose records carry the fault rule's fields, e.g.
 ``data/crowd_faults``), the page ends with its collisions split by fault and its success with and
-without the collisions no robot could avoid (:mod:`evaluation.reports.fault_split`); while that
+without the collisions no robot could avoid (:mod:`evaluation.reports.sections.fault_split`); while that
 publication is absent, the section says it is pending and names the command that makes it, and a
 publication whose records predate the fields is refused by name.
 """
@@ -41,9 +41,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.experiments.sweep import load_sweep  # noqa: E402
-from evaluation.reports.fault_split import fault_rows, fault_section, pending_section  # noqa: E402
 from evaluation.reports.figures import save_profile_figures  # noqa: E402
 from evaluation.reports.sections import level_cost_section, markdown, overview_section, robustness_sections  # noqa: E402
+from evaluation.reports.sections.fault_split import fault_rows, fault_section, pending_section  # noqa: E402
 from evaluation.stats.robustness import AxisProfile, level_costs, profiles  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 

@@ -1,4 +1,4 @@
-"""docs/crowd_results.md's collisions split by fault (issue 60; evaluation/reports/fault_split.py,
+"""docs/crowd_results.md's collisions split by fault (issue 60; evaluation/reports/sections/fault_split.py,
 docs/make_robustness_md.py ``--fault-split``): on a tiny real run among an oblivious ORCA crowd the
 section shows the split and its counts add up to the records' own; a record written before the
 fault rule is refused by name; an absent publication is said to be pending with the command that
@@ -19,7 +19,7 @@ import pytest
 
 from evaluation.cli.options import build_parser
 from evaluation.cli.run_args import run_from_args
-from evaluation.reports.fault_split import FAULT_FIELDS, MissingFaultFields, fault_rows
+from evaluation.reports.sections.fault_split import FAULT_FIELDS, MissingFaultFields, fault_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
