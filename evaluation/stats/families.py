@@ -570,8 +570,9 @@ def table_power(
     discordant : sequence of int
         Each comparison's discordant pairs, ``only_a + only_b`` (within [0, n]).
     family_size : int
-        ``m``, the distinct tests Holm's adjustment runs over (``>= len(pairs)`` is not required:
-        twins counted once can make it smaller).
+        ``m``, the distinct tests Holm's adjustment runs over, ``>= 1``: more than the table's
+        comparisons when the family spans other tables (a sweep's every axis), fewer when a
+        bit-identical twin's test is counted once.
     unit : str
         What one pair is, in words, for the sentence.
     alpha : float, optional
