@@ -2,7 +2,10 @@
 
 Usage (the published page's arguments are in ``data/pages.json``)::
 
-    python docs/make_tuning_md.py data/tuning/orca data/tuning/dwa ... --out docs/tuning.md [--figures DIR]
+    python docs/make_tuning_md.py orca dwa ... --out docs/tuning.md [--figures DIR] [--studies DIR]
+
+Each controller's study is ``DIR/NAME`` (default ``data/tuning``, as ``bash data/tuning/run.sh``
+writes it).
 
 What ``python -m evaluation.tune --report STUDY ... --out FIG.png`` draws and tabulates, as a
 page: the figure of each study's expected best validation score against the configurations tried
@@ -20,8 +23,10 @@ import os
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
+from controllers.tuning import STUDIES_DIR  # noqa: E402
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
 from evaluation.tune.report import (  # noqa: E402
     expected_best_markdown,
@@ -37,7 +42,13 @@ FIGURE = "tuning.png"
 TITLE = "Tuning studies: the expected best score against the configurations tried"
 
 
-def page(folders: list[str], out: Path, figures: Path) -> str:
+def _shown(folder: Path) -> str:
+    """A study folder as the page names it: relative to the checkout when inside it."""
+    folder = folder.resolve()
+    return folder.relative_to(ROOT).as_posix() if folder.is_relative_to(ROOT) else folder.as_posix()
+
+
+def page(folders: list[Path], out: Path, figures: Path) -> str:
     """The page's Markdown, the figure drawn into ``figures`` (``ValueError`` from a study that
     is not whole or whose suite changed, naming it)."""
     studies = [load_summary(folder) for folder in folders]
@@ -45,7 +56,11 @@ def page(folders: list[str], out: Path, figures: Path) -> str:
     report_figure(studies, figure)
     link = Path(os.path.relpath(figure.resolve(), out.resolve().parent)).as_posix()
     names = ", ".join(f"`{s.controller}`" for s in studies)
-    command = "python -m evaluation.tune --report " + " ".join(folders) + " --out docs/_static/tuning.png"
+    command = (
+        "python -m evaluation.tune --report "
+        + " ".join(map(_shown, folders))
+        + " --out docs/_static/tuning.png"
+    )
     return "\n\n".join(
         [
             f"# {TITLE}",
@@ -69,20 +84,29 @@ def page(folders: list[str], out: Path, figures: Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("studies", nargs="+", help="study folders (data/tuning/NAME)")
+    parser.add_argument(
+        "controllers", nargs="+", help="the controllers whose studies the page shows, in order"
+    )
+    parser.add_argument(
+        "--studies", type=Path, default=STUDIES_DIR, help="the folder of the studies (default: data/tuning)"
+    )
     # no default page: the published one is a tracked file (docs/make_pages.py names it)
     parser.add_argument("--out", required=True, help="the page to write, e.g. docs/tuning.md")
     parser.add_argument("--figures", help="where the figure goes (default: _static beside --out)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     figures = Path(args.figures) if args.figures else out.parent / "_static"
-    missing = [folder for folder in args.studies if not Path(folder).is_dir()]
+    folders = [args.studies / name for name in args.controllers]
+    missing = [folder.as_posix() for folder in folders if not folder.is_dir()]
     if missing:
-        print(f"error: {missing} not a study folder (data/tuning/NAME)", file=sys.stderr)
+        print(
+            f"error: no study folder {missing}; allowed: the controllers with a study in {args.studies.as_posix()}",
+            file=sys.stderr,
+        )
         return BAD_INPUT_EXIT
     figures.mkdir(parents=True, exist_ok=True)
     try:
-        text = page(args.studies, out, figures)
+        text = page(folders, out, figures)
     except ValueError as exc:  # a study not whole, or whose suite changed (the message names it)
         print(f"error: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT

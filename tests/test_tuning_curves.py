@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
 import make_tuning_md  # noqa: E402
 
+from controllers.tuning import STUDIES_DIR  # noqa: E402
 from evaluation.tune.report import CURVE_POINTS, expected_best_markdown, load_summary  # noqa: E402
 
 PAGE = ROOT / "docs" / "tuning.md"
@@ -35,6 +36,11 @@ def _entry() -> dict:
         e for e in json.loads((ROOT / "data" / "pages.json").read_text()) if e["page"] == "docs/tuning.md"
     ]
     return entry
+
+
+def _folders() -> list[Path]:
+    """The studies the page shows: its registry entry's controllers, each data/tuning/NAME."""
+    return [STUDIES_DIR / name for name in _entry()["args"]]
 
 
 def _scores(folder: Path) -> list[float]:
@@ -68,7 +74,7 @@ def curve_problems(text: str) -> list[str]:
     study of the page's registry entry the table leaves out."""
     rows = _page_rows(text)
     problems = []
-    for folder in (ROOT / arg for arg in _entry()["args"]):
+    for folder in _folders():
         scores = _scores(folder)
         name = json.loads((folder / "study.jsonl").read_text(encoding="utf-8").splitlines()[0])["controller"]
         if name not in rows:
@@ -104,7 +110,7 @@ def test_an_edited_curve_fails() -> None:
 
 def test_the_table_is_the_reports_own() -> None:
     """The page's table is evaluation.tune.report's own (:func:`expected_best_markdown`)."""
-    studies = [load_summary(ROOT / arg) for arg in _entry()["args"]]
+    studies = [load_summary(folder) for folder in _folders()]
     table = expected_best_markdown(studies)
     assert table.rstrip("\n") in PAGE.read_text(encoding="utf-8")
     # the curve at n = 1 is the mean score, and it never falls with n
@@ -120,13 +126,13 @@ def test_the_table_is_the_reports_own() -> None:
     [((), "points is empty"), ((0, 2), "holds 0"), ((2, 2), "names a count twice"), ((1.5,), "holds 1.5")],
 )
 def test_the_table_refuses_bad_counts(points: tuple, named: str) -> None:
-    study = load_summary(ROOT / _entry()["args"][0])
+    study = load_summary(_folders()[0])
     with pytest.raises(ValueError, match=re.escape(named)):
         expected_best_markdown([study], points)
 
 
 def test_a_study_shorter_than_a_column_shows_a_dash() -> None:
-    study = load_summary(ROOT / _entry()["args"][0])
+    study = load_summary(_folders()[0])
     short = type(study)(study.controller, study.task, study.budget, study.scores[:3])
     (row,) = [line for line in expected_best_markdown([short]).splitlines() if line.startswith("| `")]
     assert row.split(" | ")[2:] == [
@@ -158,24 +164,21 @@ def _png_facts(data: bytes) -> tuple[tuple[int, int], str | None]:
 def test_the_figure_is_what_its_generator_draws(tmp_path: Path) -> None:
     """docs/make_tuning_md.py, as docs/make_pages.py runs it, draws the committed figure: the same
     bytes when the committed one was drawn by the installed matplotlib, else the same size."""
-    entry = _entry()
     out, figures = tmp_path / "tuning.md", tmp_path / "_static"
-    argv = [str(ROOT / arg) for arg in entry["args"]]
-    assert make_tuning_md.main([*argv, "--out", str(out), "--figures", str(figures)]) == 0
+    assert make_tuning_md.main([*_entry()["args"], "--out", str(out), "--figures", str(figures)]) == 0
     drawn, committed = (figures / make_tuning_md.FIGURE).read_bytes(), FIGURE.read_bytes()
     (size, _), (committed_size, software) = _png_facts(drawn), _png_facts(committed)
     assert size == committed_size
     assert software is not None and "Matplotlib version" in software
     if software.split("version", 1)[1].split(",", 1)[0] == matplotlib.__version__:
         assert drawn == committed, "docs/_static/tuning.png is not what docs/make_tuning_md.py draws"
-    # the page it wrote is the committed one, but for the studies' paths (absolute here)
-    assert out.read_text(encoding="utf-8").replace(str(ROOT) + "/", "") == PAGE.read_text(encoding="utf-8")
+    assert out.read_text(encoding="utf-8") == PAGE.read_text(encoding="utf-8")
 
 
-def test_the_generator_refuses_a_folder_that_is_no_study(
+def test_the_generator_refuses_a_controller_without_a_study(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    missing = tmp_path / "nowhere"
-    code = make_tuning_md.main([str(missing), "--out", str(tmp_path / "t.md")])
-    assert code == 2 and str(missing) in capsys.readouterr().err
+    code = make_tuning_md.main(["orca", "no-such-controller", "--out", str(tmp_path / "t.md")])
+    err = capsys.readouterr().err
+    assert code == 2 and "data/tuning/no-such-controller" in err and "data/tuning/orca'" not in err
     assert not (tmp_path / "t.md").exists()
