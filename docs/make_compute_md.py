@@ -41,6 +41,7 @@ from evaluation.reports.arms import (  # noqa: E402
     tested_family,
 )
 from evaluation.reports.arms import load_arms as _load_arms  # noqa: E402
+from evaluation.stats.families import table_power  # noqa: E402
 from evaluation.stats.statistics import wilson_interval  # noqa: E402
 from koopman_envs import ComputeCharge  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
@@ -223,6 +224,19 @@ def tests_table(tests: dict[tuple[str, str], Tested]) -> list[str]:
     return lines
 
 
+def power_note(tests: dict[tuple[str, str], Tested]) -> str:
+    """The power statement below the table of tests (:func:`evaluation.stats.families.table_power`):
+    the family is every comparison of :data:`COMPARISONS`, Holm over all of them."""
+    results = [t.result for t in tests.values()]
+    return table_power(
+        [c.n for c in results],
+        [c.only_a + c.only_b for c in results],
+        len(tests),
+        "one high-slip episode (task, map, seed) of both arms",
+        alpha=ALPHA,
+    ).sentence()
+
+
 def save_figure(arms: dict[str, dict[Key, dict[str, Any]]], path: Path) -> None:
     """Success of every arm at high slip with its Wilson interval, as a bar chart."""
     import matplotlib
@@ -395,6 +409,8 @@ def _tables(
         "the hypotheses of issue 60 (delay itself, the solver, the held command, something else).",
         "",
         *tests_table(tests),
+        "",
+        power_note(tests),
         "",
         "## Regenerate",
         "",

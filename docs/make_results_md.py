@@ -31,7 +31,13 @@ from evaluation.reports.figures import save_success_figures  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.reports.results import Results, evaluate_command, pooled_results  # noqa: E402
-from evaluation.reports.sections import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
+from evaluation.reports.sections import (  # noqa: E402
+    controller_tables,
+    markdown_table,
+    paired_power_note,
+    paired_rows,
+    task_label,
+)
 from koopman_envs.files import write_atomic  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
@@ -181,6 +187,12 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
     return lines
 
 
+def _power_lines(pooled: Results) -> list[str]:
+    """The power statement below a paired table (:func:`evaluation.reports.sections.paired_power_note`)."""
+    note = paired_power_note(pooled)
+    return [] if note is None else [note, ""]
+
+
 def uncertainty_section(docs: list[dict]) -> list[str]:
     """The changing-uncertainty results (not in the paper): per group of runs over the same cells
     (a run and its ablation run, say), a leaderboard, paired comparisons and per-cell tables."""
@@ -217,6 +229,7 @@ def uncertainty_section(docs: list[dict]) -> list[str]:
             "",
             markdown_table(paired_rows(pooled)),
             "",
+            *_power_lines(pooled),
         ]
         for caption, table in controller_tables(pooled):
             lines += [f"**{caption}**", "", markdown_table(table), ""]
@@ -382,6 +395,7 @@ def _pooled_sections(pooled: Results, figures: Path, out: Path) -> list[str]:
         "",
         markdown_table(paired_rows(pooled)),
         "",
+        *_power_lines(pooled),
     ]
     return lines
 

@@ -54,6 +54,7 @@ from evaluation.experiments.sim2sim import (  # noqa: E402
     transfers,
 )
 from evaluation.reports.results import Results  # noqa: E402
+from evaluation.stats.families import table_power  # noqa: E402
 from evaluation.stats.transfer import (  # noqa: E402
     RANK_RESAMPLES,
     RANK_SEED,
@@ -123,6 +124,18 @@ def plant_table(rows: list[PlantRow]) -> str:
             f"{_signed_interval(row.low, row.high)} | {_p(row.p_value)} | {_p(row.p_holm)} |"
         )
     return "\n".join(lines)
+
+
+#: what one pair of the page's tables is
+PLANT_UNIT = "one episode unit (task, layout, seed) on both plants"
+
+
+def plant_power(rows: list[PlantRow]) -> str:
+    """The power statement below :func:`plant_table` (:func:`evaluation.stats.families.table_power`):
+    the level's family, the pairs per controller and their pooled discordance."""
+    return table_power(
+        [row.pairs for row in rows], [row.discordant for row in rows], rows[0].family_size, PLANT_UNIT
+    ).sentence()
 
 
 def _named(ordering: Ordering, sign: int) -> str:
@@ -289,16 +302,22 @@ def fine_tuned_table(rows: list[PlantRow], physics: Results) -> str:
         "| kinematic |",
         "|---|---|---|---|---|---|---|---|",
     ]
+    tests = []
     for row in rows:
         test = against_source(physics.records, row.controller)
         if test is None:
             continue
+        tests.append(test)
         lines.append(
             f"| {row.controller} | {FINE_TUNED[row.controller]} | {test.n} | {_percent(test.rate_a)} | "
             f"{_percent(test.rate_b)} | {_points(test.difference)} {_signed_interval(test.low, test.high)} | "
             f"{_p(test.p_value)} | {_percent(row.first)} {_interval(*row.first_interval)} |"
         )
-    return "\n".join(lines)
+    if not tests:
+        return "\n".join(lines)
+    # each fine-tuned row is its own test (no Holm): a family of one per row, as the table reports it
+    power = table_power([t.n for t in tests], [t.only_a + t.only_b for t in tests], 1, PLANT_UNIT)
+    return "\n".join(lines) + "\n\n" + power.sentence()
 
 
 def level_section(level: Level) -> str:
@@ -314,6 +333,7 @@ def level_section(level: Level) -> str:
     parts += [
         plant_table(level.transferred),
         f"Holm's adjustment over the level's {len(level.transferred)} tests. {changes_sentence(level)}",
+        *([plant_power(level.transferred)] if level.transferred else []),
     ]
     if level.pending:
         parts.append(

@@ -412,7 +412,8 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     earlier seed's of the same cell counts once (:func:`evaluation.episodes.distinct.distinct_units`).
     Returns one plain-JSON row per pair with ``a``, ``b``, the cells they share and
     :class:`~evaluation.stats.statistics.PairedComparison` fields (Newcombe's interval, McNemar's exact
-    test), Holm's adjustment over the rows in ``p_holm``.
+    test), Holm's adjustment over the rows in ``p_holm`` and the family's size ``m`` (its distinct
+    tests) in ``family_size``.
 
     A suite run's records (they carry ``layout``) pair on (layout, seed) units with the layout as
     the unit: the rows of its success table (:func:`evaluation.stats.suite_statistics.measure_table`: the
@@ -460,4 +461,5 @@ def paired_comparisons(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     # twin's, counted once): Holm's adjustment beside the raw p
     for row, adjusted in zip(rows, holm_adjusted((r["p_value"] for r in rows), same=identities), strict=True):
         row["p_holm"] = adjusted
+        row["family_size"] = len(set(identities))  # m: the distinct tests Holm ran over
     return rows

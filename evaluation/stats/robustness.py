@@ -78,6 +78,8 @@ class AxisProfile:
     rows: list[LevelRow] = field(default_factory=list)
     #: controller -> {auc, auc_low, auc_high, tail, tail_low, tail_high, units}
     summary: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: ``m``: the distinct paired tests of the sweep (every axis) that Holm's adjustment ran over
+    family_size: int = 0
 
     def curve(self, controller: str) -> list[LevelRow]:
         """The rows of ``controller`` in level order."""
@@ -138,6 +140,7 @@ def _level_row(
                 "success_low": test.low,
                 "success_high": test.high,
                 "p_value": test.p_value,
+                "discordant": test.only_a + test.only_b,
                 "distance_difference": float(np.mean(gaps)),
                 "distance_low": g_low,
                 "distance_high": g_high,
@@ -211,6 +214,8 @@ def profiles(
     adjusted_p = holm_adjusted((t["p_value"] for t in tests), same=tests_identities)
     for test, adjusted in zip(tests, adjusted_p, strict=True):
         test["p_holm"] = adjusted
+    for profile in out:
+        profile.family_size = len(set(tests_identities))
     return out
 
 
@@ -245,6 +250,10 @@ class LevelCost:
     p_value: float
     #: Holm's adjustment over every distinct level cost of the sweep (a twin's test counted once)
     p_holm: float = math.nan
+    #: the discordant pairs (one level succeeded alone)
+    discordant: int = 0
+    #: ``m``: the distinct level costs of the sweep that Holm's adjustment ran over
+    family_size: int = 0
 
 
 def level_costs(sweep: Mapping[str, Sequence[tuple[Any, RunData]]]) -> list[LevelCost]:
@@ -282,9 +291,11 @@ def level_costs(sweep: Mapping[str, Sequence[tuple[Any, RunData]]]) -> list[Leve
                         test.low,
                         test.high,
                         test.p_value,
+                        discordant=test.only_a + test.only_b,
                     )
                 )
     # a test on the same data as another (a bit-identical twin's) is one test of the family
     for cost, adjusted in zip(out, holm_adjusted((c.p_value for c in out), same=identities), strict=True):
         cost.p_holm = adjusted
+        cost.family_size = len(set(identities))
     return out

@@ -94,6 +94,10 @@ class PlantRow:
         ``second - first`` and its 95% Newcombe interval.
     p_value, p_holm : float
         Exact McNemar p and its Holm adjustment over the level's controllers.
+    discordant : int
+        The discordant pairs (the controller succeeded on one plant alone).
+    family_size : int
+        ``m``, the distinct tests the Holm adjustment ran over (0: not known).
     """
 
     controller: str
@@ -107,6 +111,8 @@ class PlantRow:
     high: float
     p_value: float
     p_holm: float
+    discordant: int = 0
+    family_size: int = 0
 
 
 @dataclass(frozen=True)
@@ -200,6 +206,8 @@ def _row(cost: LevelCost) -> PlantRow:
         cost.high,
         cost.p_value,
         cost.p_holm,
+        cost.discordant,
+        cost.family_size,
     )
 
 

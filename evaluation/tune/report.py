@@ -100,6 +100,44 @@ def report_markdown(studies: Sequence[StudySummary]) -> str:
     return "\n".join(rows) + "\n"
 
 
+#: the configuration counts the expected-best table shows (beside each study's own N)
+CURVE_POINTS = (1, 2, 4, 8, 16)
+
+
+def expected_best_markdown(studies: Sequence[StudySummary], points: Sequence[int] = CURVE_POINTS) -> str:
+    """The curves of :func:`report_figure` as a table: per study, the expected best validation
+    score of n configurations (:func:`~evaluation.tune.scoring.expected_max_curve`) at each of
+    ``points`` and at its own N (the number of trials it ran; below its best score, which a draw
+    of N with replacement misses); ``-`` where the study ran fewer than n trials.
+
+    Raises
+    ------
+    ValueError
+        ``points`` empty, or holding a count below 1 or twice (named).
+    """
+    counts = list(points)
+    if not counts:
+        raise ValueError("points is empty; allowed: configuration counts of at least 1")
+    for n in counts:
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ValueError(f"points holds {n!r}; allowed: whole configuration counts of at least 1")
+    if len(set(counts)) != len(counts):
+        raise ValueError(f"points={counts} names a count twice; allowed: distinct counts")
+    rows = [
+        "| controller | task | " + " | ".join(f"n = {n}" for n in counts) + " | n = N (its trials) |",
+        "|---|---|" + "---|" * (len(counts) + 1),
+    ]
+    for s in studies:
+        curve = expected_max_curve(s.scores)
+        cells = [f"{curve[n - 1]:.3f}" if n <= len(curve) else "-" for n in counts]
+        rows.append(
+            f"| `{s.controller}` | {s.task} | "
+            + " | ".join(cells)
+            + f" | {curve[-1]:.3f} (N = {len(curve)}) |"
+        )
+    return "\n".join(rows) + "\n"
+
+
 def report_figure(studies: Sequence[StudySummary], path: str | os.PathLike[str]) -> None:
     """The expected best validation score against the configurations tried, one curve per study."""
     import matplotlib

@@ -19,9 +19,18 @@ from evaluation.reports.sections.blocks import (
     level_text,
     markdown_table,
 )
+from evaluation.stats.families import table_power
 from evaluation.stats.robustness import TAIL_SHARE, AxisProfile, LevelCost
 
-__all__ = ["level_cost_section", "overview_section", "robustness_sections", "terminal_overview"]
+__all__ = [
+    "SWEEP_UNIT",
+    "level_cost_power_note",
+    "level_cost_section",
+    "level_power_note",
+    "overview_section",
+    "robustness_sections",
+    "terminal_overview",
+]
 
 
 def terminal_overview(axes: Sequence[AxisProfile]) -> str:
@@ -110,6 +119,34 @@ def overview_section(
         "level to its last."
     )
     return Section("sweep-overview", title, (Note(note), TableBlock((header, rows))))
+
+
+#: what one pair of a sweep's paired tables is
+SWEEP_UNIT = "one episode unit (env, map, slip, trial) of both sides"
+
+
+def level_power_note(profile: AxisProfile) -> str | None:
+    """The power statement below an axis's table of every level
+    (:func:`evaluation.stats.families.table_power`): the sweep's family ``m``, the pairs of each
+    test against the reference, their pooled discordance; None without a paired test."""
+    tested = [row.paired for row in profile.rows if row.paired]
+    if not tested or profile.family_size < 1:
+        return None
+    return table_power(
+        [int(t["pairs"]) for t in tested],
+        [int(t["discordant"]) for t in tested],
+        profile.family_size,
+        SWEEP_UNIT,
+    ).sentence()
+
+
+def level_cost_power_note(costs: Sequence[LevelCost]) -> str | None:
+    """The power statement below the level-cost table, as :func:`level_power_note`."""
+    if not costs or costs[0].family_size < 1:
+        return None
+    return table_power(
+        [c.pairs for c in costs], [c.discordant for c in costs], costs[0].family_size, SWEEP_UNIT
+    ).sentence()
 
 
 def _level_table(profile: AxisProfile) -> tuple[list[str], list[list[str]]]:
@@ -218,6 +255,9 @@ def robustness_sections(axes: Sequence[AxisProfile], command: str = "") -> list[
             TableBlock(summary, "Summary over the sweep"),
             TableBlock((header, rows), "Every level"),
         ]
+        power = level_power_note(profile)
+        if power is not None:
+            blocks.append(Note(power))
         out.append(Section(f"sweep-{profile.key}", f"Robustness: {profile.key}", tuple(blocks)))
     if command and out:
         out[0] = Section(out[0].anchor, out[0].title, (Note(f"Command: `{command}`"), *out[0].blocks))
@@ -260,4 +300,8 @@ def level_cost_section(costs: Sequence[LevelCost], title: str = "What each level
         "nominal slip, is its base's and counted once)."
     )
     anchor = "level-costs"
-    return Section(anchor, title, (Note(note), TableBlock((header, rows))))
+    blocks: list[Block] = [Note(note), TableBlock((header, rows))]
+    power = level_cost_power_note(costs)
+    if power is not None:
+        blocks.append(Note(power))
+    return Section(anchor, title, tuple(blocks))

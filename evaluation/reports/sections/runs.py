@@ -27,6 +27,7 @@ from evaluation.reports.sections.blocks import (
     rate_cell,
 )
 from evaluation.reports.sections.suite_tables import suite_sections
+from evaluation.stats.families import table_power
 from evaluation.stats.run_data import RunData
 from evaluation.stats.suite_statistics import BREAKDOWNS
 from koopman_envs import TASKS
@@ -38,6 +39,7 @@ __all__ = [
     "TABLES_NOTE",
     "controller_tables",
     "leaderboard_rows",
+    "paired_power_note",
     "paired_rows",
     "paper_rows",
     "sections",
@@ -210,6 +212,26 @@ def paired_rows(results: RunData) -> Table:
             ]
         )
     return header, rows
+
+
+#: what one pair of a run's paired table is (the paper protocol and the slip-zone runs pair on it)
+SEED_UNIT = "one (map, slip level, seed) episode of both controllers"
+
+
+def paired_power_note(results: RunData, unit: str = SEED_UNIT) -> str | None:
+    """The power statement below :func:`paired_rows` (:func:`evaluation.stats.families.table_power`):
+    the family's ``m`` and Holm's first step, the pairs per comparison, the discordance pooled over
+    the table's comparisons and the smallest difference found with 80% power. None for a suite run
+    (its tables carry their own, clustered by layout) or a run without pairs."""
+    rows = results.paired()
+    if not rows or "family_size" not in rows[0]:
+        return None
+    return table_power(
+        [int(r["n"]) for r in rows],
+        [int(r["only_a"]) + int(r["only_b"]) for r in rows],
+        int(rows[0]["family_size"]),
+        unit,
+    ).sentence()
 
 
 def paper_rows(results: RunData, env_id: str, controller: str) -> Table:
