@@ -41,7 +41,7 @@ from evaluation.reports.arms import (  # noqa: E402
     tested_family,
 )
 from evaluation.reports.arms import load_arms as _load_arms  # noqa: E402
-from evaluation.stats.families import table_power  # noqa: E402
+from evaluation.stats.designs import table_power  # noqa: E402
 from evaluation.stats.statistics import wilson_interval  # noqa: E402
 from koopman_envs import ComputeCharge  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402

@@ -31,13 +31,8 @@ from evaluation.reports.figures import save_success_figures  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.reports.results import Results, evaluate_command, pooled_results  # noqa: E402
-from evaluation.reports.sections import (  # noqa: E402
-    controller_tables,
-    markdown_table,
-    paired_power_note,
-    paired_rows,
-    task_label,
-)
+from evaluation.reports.sections import controller_tables, markdown_table, paired_rows, task_label  # noqa: E402
+from evaluation.reports.sections import paired_power_note as power_note  # noqa: E402
 from koopman_envs.files import write_atomic  # noqa: E402
 
 # The paper's numbers (SPEC section 5): SR and final distances [cm], robots 1-3.
@@ -189,8 +184,7 @@ def table(cells: dict, env_id: str, controller: str) -> list[str]:
 
 def _power_lines(pooled: Results) -> list[str]:
     """The power statement below a paired table (:func:`evaluation.reports.sections.paired_power_note`)."""
-    note = paired_power_note(pooled)
-    return [] if note is None else [note, ""]
+    return [] if (note := power_note(pooled)) is None else [note, ""]
 
 
 def uncertainty_section(docs: list[dict]) -> list[str]:

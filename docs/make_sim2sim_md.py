@@ -54,7 +54,7 @@ from evaluation.experiments.sim2sim import (  # noqa: E402
     transfers,
 )
 from evaluation.reports.results import Results  # noqa: E402
-from evaluation.stats.families import table_power  # noqa: E402
+from evaluation.stats.designs import table_power  # noqa: E402
 from evaluation.stats.transfer import (  # noqa: E402
     RANK_RESAMPLES,
     RANK_SEED,

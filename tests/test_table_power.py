@@ -20,7 +20,8 @@ from pathlib import Path
 import pytest
 
 from evaluation.stats.aggregate import paired_comparisons
-from evaluation.stats.families import detectable_difference, paired_power, table_power
+from evaluation.stats.designs import table_power
+from evaluation.stats.families import detectable_difference, paired_power
 from evaluation.stats.robustness import level_costs, profiles
 from evaluation.stats.run_data import RunData
 

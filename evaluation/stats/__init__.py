@@ -25,12 +25,14 @@ from evaluation.stats.clustered import (
 from evaluation.stats.designs import (
     ALL,
     EVERY_PAIR,
+    TablePower,
     declared_pairs,
     pair_label,
     pooled_families,
     pooled_reference_pairs,
     reference_design,
     reference_pairs,
+    table_power,
     tuned_pairs,
 )
 from evaluation.stats.families import (
@@ -38,12 +40,10 @@ from evaluation.stats.families import (
     FamilyResult,
     HypothesisFamily,
     PowerStatement,
-    TablePower,
     detectable_difference,
     layouts_needed,
     paired_power,
     power_statement,
-    table_power,
 )
 from evaluation.stats.layout_tests import (
     EXACT_FLIPS,

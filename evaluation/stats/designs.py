@@ -8,16 +8,22 @@ tests them).
   whose units are every task's, each (task, layout) a cluster of its own;
 - :func:`tuned_pairs`, :func:`reference_design`, :func:`pooled_families`: the benchmark page's
   designs (docs/bench_results.md): each controller against a reference, with what tuning gained;
-- :func:`pair_label`: a comparison's label in its family.
+- :func:`pair_label`: a comparison's label in its family;
+- :func:`table_power`: the power statement under a table of paired tests whose pairs are each a
+  cluster of their own (the paper protocol's episodes, a sweep's units).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from controllers.tuning import V0_SUFFIX
-from koopman_envs.checks import check_choice
+from evaluation.stats.families import _check_power, _fewest_layouts, detectable_difference
+from evaluation.stats.statistics import _check_confidence
+from koopman_envs.checks import check_choice, check_int
 
 __all__ = [
     "ALL",
@@ -29,6 +35,8 @@ __all__ = [
     "reference_design",
     "reference_pairs",
     "tuned_pairs",
+    "TablePower",
+    "table_power",
 ]
 
 #: a design: its pairs (task, a, b) and the clause that names it on a page
@@ -208,3 +216,140 @@ def pooled_families(declared: Mapping[str, Sequence[str]], reference: str) -> li
         clause = ", ".join(f"{a} vs {b}" for _, a, b in tuned)
         families.append((tuned, f"each tuned controller against its defaults over both tasks ({clause})"))
     return families
+
+
+@dataclass(frozen=True)
+class TablePower:
+    """What a table of paired success tests on independent units can detect (units that are
+    their own clusters: the paper protocol's (map, slip, seed) episodes, a sweep's episode units),
+    stated below the table as :class:`PowerStatement` states a clustered table's.
+
+    Attributes
+    ----------
+    family_size : int
+        ``m``, the distinct tests of the family the table's Holm adjustment runs over (it may
+        span more tables than this one: a sweep's every paired test).
+    alpha, alpha_per_test : float
+        The family-wise level and Holm's first step, ``alpha / m``.
+    comparisons : int
+        The table's comparisons the discordance is pooled over.
+    pairs, most_pairs : int
+        The fewest pairs (units) any of them has (the design the power is computed for) and the most.
+    total_pairs, discordant : int
+        The pairs of all of them and the discordant ones among those (one side succeeded alone).
+    unit : str
+        What one pair is, in words (e.g. ``"one map, slip level and seed of the paper protocol"``).
+    power, difference : float
+        The smallest paired success difference found with probability ``power`` after Holm's
+        first step at the pooled discordance (NaN: none).
+    """
+
+    family_size: int
+    alpha: float
+    alpha_per_test: float
+    comparisons: int
+    pairs: int
+    most_pairs: int
+    total_pairs: int
+    discordant: int
+    unit: str
+    power: float
+    difference: float
+
+    @property
+    def discordance(self) -> float:
+        """The pooled discordance, discordant pairs over all pairs of the table's comparisons."""
+        return self.discordant / self.total_pairs
+
+    def sentence(self) -> str:
+        """The statement in words, in the bench page's wording (:meth:`PowerStatement.sentence`)."""
+        if not math.isnan(self.difference):
+            found = f"a paired difference of {100 * self.difference:.1f} points"
+        elif self.pairs < _fewest_layouts(self.alpha_per_test):
+            found = (
+                f"no paired difference (the exact test's smallest p-value over {self.pairs} pairs, "
+                f"2/2^{self.pairs} = {2.0 ** (1 - self.pairs):.3g}, is above alpha/m)"
+            )
+        elif self.discordant == 0:
+            found = "no paired difference (no discordant pair to compute a power from)"
+        else:
+            found = "no paired difference (not even the largest the discordance allows)"
+        per = "pairs per comparison" + (
+            " (the fewest of the table's)" if self.most_pairs > self.pairs else ""
+        )
+        return (
+            f"Power: m = {self.family_size} test{'s' if self.family_size != 1 else ''}, Holm at alpha = {self.alpha:g} "
+            f"(first step alpha/m = {self.alpha_per_test:.3g}). With {self.pairs} {per}, a pair being "
+            f"{self.unit}, and discordance {self.discordance:.2f} pooled over the table's "
+            f"{self.comparisons} comparison{'s' if self.comparisons != 1 else ''} "
+            f"({self.discordant:,} discordant of {self.total_pairs:,} pairs), "
+            f"{found} is found with {100 * self.power:.0f}% power."
+        )
+
+
+def table_power(
+    pairs: Sequence[int],
+    discordant: Sequence[int],
+    family_size: int,
+    unit: str,
+    *,
+    alpha: float = 0.05,
+    power: float = 0.8,
+) -> TablePower:
+    """The power statement of a table of paired success tests on unclustered units.
+
+    Each pair is its own cluster (:func:`detectable_difference` with ``layouts`` the pairs and one
+    unit per layout: the sign-flip test on the pairs' differences, i.e. the exact McNemar test's
+    normal approximation). The design is the table's least favourable comparison's (the fewest
+    pairs); the discordance is pooled over the table's comparisons (their discordant pairs over
+    all their pairs), so a comparison with more pairs weighs more.
+
+    Parameters
+    ----------
+    pairs : sequence of int
+        Each comparison's pairs ``n`` (``>= 1``).
+    discordant : sequence of int
+        Each comparison's discordant pairs, ``only_a + only_b`` (within [0, n]).
+    family_size : int
+        ``m``, the distinct tests Holm's adjustment runs over, ``>= 1``: more than the table's
+        comparisons when the family spans other tables (a sweep's every axis), fewer when a
+        bit-identical twin's test is counted once.
+    unit : str
+        What one pair is, in words, for the sentence.
+    alpha : float, optional
+        Family-wise level, ``0 < alpha < 1``.
+    power : float, optional
+        Within [0.5, 1).
+
+    Raises
+    ------
+    ValueError
+        No comparison, lengths that differ, a count out of range, or an empty ``unit``.
+    """
+    power = _check_power(power)
+    alpha = _check_confidence(alpha, "alpha")
+    m = check_int("family_size", family_size, 1)
+    ns, ds = list(pairs), list(discordant)
+    if not ns:
+        raise ValueError("pairs is empty; a table's power statement needs its comparisons")
+    if len(ns) != len(ds):
+        raise ValueError(
+            f"pairs has {len(ns)} comparison(s) and discordant {len(ds)}; give one of each per comparison"
+        )
+    for index, (n, d) in enumerate(zip(ns, ds, strict=True)):
+        check_int(f"pairs[{index}]", n, 1)
+        check_int(f"discordant[{index}]", d, 0)
+        if d > n:
+            raise ValueError(
+                f"discordant[{index}]={d} is more than pairs[{index}]={n}; it is at most the pairs"
+            )
+    if not isinstance(unit, str) or not unit:
+        raise ValueError(f"unit={unit!r} must say what one pair is (a non-empty string)")
+    total, discord = sum(ns), sum(ds)
+    fewest = min(ns)
+    difference = math.nan
+    if discord > 0:
+        difference = detectable_difference(
+            fewest, 1, discordance=discord / total, family_size=m, alpha=alpha, power=power
+        )
+    return TablePower(m, alpha, alpha / m, len(ns), fewest, max(ns), total, discord, unit, power, difference)

@@ -19,7 +19,7 @@ from evaluation.reports.sections.blocks import (
     level_text,
     markdown_table,
 )
-from evaluation.stats.families import table_power
+from evaluation.stats.designs import table_power
 from evaluation.stats.robustness import TAIL_SHARE, AxisProfile, LevelCost
 
 __all__ = [

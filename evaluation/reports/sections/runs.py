@@ -27,7 +27,7 @@ from evaluation.reports.sections.blocks import (
     rate_cell,
 )
 from evaluation.reports.sections.suite_tables import suite_sections
-from evaluation.stats.families import table_power
+from evaluation.stats.designs import table_power
 from evaluation.stats.run_data import RunData
 from evaluation.stats.suite_statistics import BREAKDOWNS
 from koopman_envs import TASKS
