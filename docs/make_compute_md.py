@@ -225,7 +225,7 @@ def tests_table(tests: dict[tuple[str, str], Tested]) -> list[str]:
 
 
 def power_note(tests: dict[tuple[str, str], Tested]) -> str:
-    """The power statement below the table of tests (:func:`evaluation.stats.families.table_power`):
+    """The power statement below the table of tests (:func:`evaluation.stats.designs.table_power`):
     the family is every comparison of :data:`COMPARISONS`, Holm over all of them."""
     results = [t.result for t in tests.values()]
     return table_power(

@@ -131,7 +131,7 @@ PLANT_UNIT = "one episode unit (task, layout, seed) on both plants"
 
 
 def plant_power(rows: list[PlantRow]) -> str:
-    """The power statement below :func:`plant_table` (:func:`evaluation.stats.families.table_power`):
+    """The power statement below :func:`plant_table` (:func:`evaluation.stats.designs.table_power`):
     the level's family, the pairs per controller and their pooled discordance."""
     return table_power(
         [row.pairs for row in rows], [row.discordant for row in rows], rows[0].family_size, PLANT_UNIT

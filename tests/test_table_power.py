@@ -2,7 +2,7 @@
 per table: the smallest paired difference it detects with 80% power after the correction, from
 the measured discordance").
 
-evaluation.stats.families.table_power states it for a table of paired success tests on units
+evaluation.stats.designs.table_power states it for a table of paired success tests on units
 that are their own clusters (the paper protocol's (map, slip, seed) episodes, a sweep's episode
 units, the sim-to-sim pages' units), in the bench page's wording; every generator calls it
 (docs/make_results_md.py through evaluation.reports.sections.paired_power_note, the sweep pages

@@ -127,7 +127,7 @@ SWEEP_UNIT = "one episode unit (env, map, slip, trial) of both sides"
 
 def level_power_note(profile: AxisProfile) -> str | None:
     """The power statement below an axis's table of every level
-    (:func:`evaluation.stats.families.table_power`): the sweep's family ``m``, the pairs of each
+    (:func:`evaluation.stats.designs.table_power`): the sweep's family ``m``, the pairs of each
     test against the reference, their pooled discordance; None without a paired test."""
     tested = [row.paired for row in profile.rows if row.paired]
     if not tested or profile.family_size < 1:

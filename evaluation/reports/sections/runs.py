@@ -219,7 +219,7 @@ SEED_UNIT = "one (map, slip level, seed) episode of both controllers"
 
 
 def paired_power_note(results: RunData, unit: str = SEED_UNIT) -> str | None:
-    """The power statement below :func:`paired_rows` (:func:`evaluation.stats.families.table_power`):
+    """The power statement below :func:`paired_rows` (:func:`evaluation.stats.designs.table_power`):
     the family's ``m`` and Holm's first step, the pairs per comparison, the discordance pooled over
     the table's comparisons and the smallest difference found with 80% power. None for a suite run
     (its tables carry their own, clustered by layout) or a run without pairs."""
