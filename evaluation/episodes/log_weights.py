@@ -11,7 +11,9 @@ controller with no logged episode takes the new digest (its episodes all run on 
 A log written before the digests were recorded has none: its resume is not checked (nothing can
 be), says so (:func:`unchecked_notes`), and its header stays without digests, also when a
 controller is added to it (:func:`without_weights`): a digest there would claim weights for
-episodes nobody checked.
+episodes nobody checked. A log without digests none of whose logged episodes is a learned
+controller's (a run of model-based controllers only, as the current code writes it too) has
+nothing unchecked: a learned controller added to it takes its digests, checked from then on.
 """
 
 from __future__ import annotations
@@ -51,7 +53,8 @@ def signed_weights(config: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def unchecked_notes(path: Path, ours: Mapping[str, Any]) -> list[str]:
-    """The note of a resume of a log without digests (``ours``: the digests the run has now)."""
+    """The note of a resume of a log without digests (``ours``: the digests the run has now of
+    the learned controllers with logged episodes, which nothing can check)."""
     if not ours:
         return []
     return [
@@ -104,10 +107,18 @@ def check_weights(
     a resume) with :func:`weights_refusal` when a controller with logged episodes would play other
     weights than they did."""
     ours = config.get(WEIGHTS_KEY) or {}
+    played = {rec.get("controller") for rec in records}
     if WEIGHTS_KEY not in logged:
-        (notes if notes is not None else []).extend(unchecked_notes(path, ours))
+        # a log without digests: written before they were recorded, or of a run whose logged
+        # controllers load no policy (its header has none to record). Only a learned controller
+        # with logged episodes is unchecked; with none, the controllers this run adds have no
+        # logged episode and the header takes their digests (as changed_weights does)
+        unchecked = {label: digests for label, digests in ours.items() if label in played}
+        if not unchecked:
+            return dict(config)
+        (notes if notes is not None else []).extend(unchecked_notes(path, unchecked))
         return without_weights(config)
-    changed = changed_weights(logged[WEIGHTS_KEY], ours, {rec.get("controller") for rec in records})
+    changed = changed_weights(logged[WEIGHTS_KEY], ours, played)
     if changed:
         raise error(weights_refusal(path, changed))
     return dict(config)
