@@ -359,8 +359,8 @@ def parse_json(text: str | bytes, what: str, *, max_chars: int = MAX_JSON_CHARS)
         Longer than ``max_chars`` or nested deeper than :data:`MAX_JSON_DEPTH`, naming ``what``
         (a plain ``ValueError``); a syntax error is ``json.JSONDecodeError`` as from ``json.loads``
         (callers that fall back to text catch that one only). A key given twice in one object is a
-    plain ``ValueError`` naming it: ``json.loads`` keeps the last one silently
-    (``movers={"count":1,"count":2}`` ran with 2).
+        plain ``ValueError`` naming it: ``json.loads`` keeps the last one silently
+        (``movers={"count":1,"count":2}`` ran with 2).
     """
     if len(text) > max_chars:
         raise ValueError(f"{what}: {len(text):,} characters of JSON, more than the {max_chars:,} allowed")

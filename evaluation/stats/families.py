@@ -8,8 +8,9 @@
   family's correction, the smallest paired difference it finds with a given power, and the
   layouts a suite needs for a given difference.
 - :func:`power_statement`: the statement a table prints, from its measured comparisons.
-- :func:`table_power`: the same for a table of paired success tests on unclustered units (the
-  paper protocol's seeds, a sweep's episode units), from its pooled discordance.
+- :func:`evaluation.stats.designs.table_power` (in designs.py: this module is at its size limit):
+  the same for a table of paired success tests on unclustered units (the paper protocol's seeds, a
+  sweep's episode units), from its pooled discordance.
 
 The convention for the correction (stated in every power statement): Holm's first step is
 Bonferroni's, ``alpha / m``; a difference found at that level is found by Holm whatever the other
