@@ -315,16 +315,17 @@ def report_markdown(summaries: Sequence[Mapping[str, Any]], split: str = "test")
     success on ``split`` (the split they ran on)."""
     rows = [
         f"| policy | task | seed | validation success (kept checkpoint) | {split} success [95% CI over layouts] "
-        "| shipped |",
+        "| chosen (what --ship ships) |",
         "|---|---|---|---|---|---|",
     ]
     for s in summaries:
         result: SeedAggregate = s["aggregate"]
         for run in s["runs"]:
-            shipped = "yes (chosen on validation)" if run.seed == s["chosen"].seed else ""
+            # chosen, not shipped: the table is written before --ship copies it (and without it)
+            chosen = "chosen on validation" if run.seed == s["chosen"].seed else ""
             rows.append(
                 f"| `{s['policy']}` | {s['task']} | {run.seed} | {100 * run.validation['success_rate']:.1f}% "
-                f"(step {run.validation['step']:,}) | {_interval(result.per_seed[run.seed])} | {shipped} |"
+                f"(step {run.validation['step']:,}) | {_interval(result.per_seed[run.seed])} | {chosen} |"
             )
     rows += [
         "",
