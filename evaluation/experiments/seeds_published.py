@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from evaluation.episodes.log_weights import WEIGHTS_KEY
 from evaluation.experiments.seeds import (
     FINISHED_FILE,
     POLICIES,
@@ -29,6 +30,8 @@ from evaluation.experiments.seeds import (
     finished_seeds,
     outcomes_by_label,
 )
+from evaluation.run.configs import ControllerConfig
+from evaluation.run.weights import run_weights
 from evaluation.stats.progress import Progress, planned_episodes
 from koopman_envs import TASKS
 from koopman_envs.checks import check_choice
@@ -123,6 +126,25 @@ def _published_seed(where: str, entry: Any, task: str) -> tuple[str, int]:
     return policy, seed
 
 
+def _check_weights(log: Path, config: dict[str, Any], run: SeedRun) -> None:
+    """Refuse a published seed whose folder now holds other weights than its logged episodes
+    played (the run's header records them: :mod:`evaluation.run.weights`): its validation record,
+    read from that folder, is of a retrained seed and would stand beside the old seed's success.
+    A log written before the digests were recorded has none and is not checked."""
+    logged = ((config.get(WEIGHTS_KEY) or {}).get(run.label) or {}).get(run.task)
+    if logged is None:
+        return
+    seed = ControllerConfig(run.label, run.policy, (("policy_root", str(run.folder)),))
+    now = run_weights([seed], [TASKS[run.task].env_id]).get(run.label, {}).get(run.task)
+    if now != logged:
+        raise ValueError(
+            f"{log}: {run.label} played policy files of sha256 {logged}, but its seed folder "
+            f"{run.folder} now holds sha256 {now or 'none'} (retrained or replaced since the run): its "
+            "validation record is not of the weights published. Rerun its episodes (python -m "
+            f"evaluation.forget {run.label} -- RUN_DIR, then bash data/publish.sh seeds) or restore the folder"
+        )
+
+
 def read_publication(
     run_dir: str | os.PathLike[str], root: str | os.PathLike[str] = TRAINING_ROOT, *, n_boot: int = 4000
 ) -> PublishedSeeds:
@@ -185,6 +207,7 @@ def read_publication(
                     f"{log}: {label} is published, but {Path(root) / policy / task / f'seed{seed}'} is not a "
                     f"finished seed ({FINISHED_FILE} and selection.json): its validation record is read there"
                 )
+            _check_weights(log, config, finished[seed])
             complete.setdefault(policy, []).append(finished[seed])
         for policy, runs in complete.items():
             result = aggregate({r.seed: by_label[r.label] for r in runs}, n_boot=n_boot)
