@@ -52,7 +52,9 @@ class FaultRow:
     moving away): ``collisions == at_fault + not_at_fault``. ``excused`` counts the successes
     excusing the unavoidable collisions (a success, or an episode ended by a collision that was
     no robot's fault with the team arrived). ``difference``, ``low`` and ``high``: excusing
-    minus success, paired on the same episodes, with its 95% Newcombe interval."""
+    minus success, paired on the same episodes, with its 95% Newcombe interval. ``unhit_ci``:
+    the Wilson interval of the success rate among the episodes no unavoidable collision ended
+    (``successes`` of ``episodes - not_at_fault``; None when a mover ended every one)."""
 
     controller: str
     level: Any
@@ -67,6 +69,12 @@ class FaultRow:
     difference: float
     low: float
     high: float
+    unhit_ci: tuple[float, float] | None = None
+
+    @property
+    def unhit(self) -> int:
+        """The episodes no unavoidable collision ended: the denominator of success without them."""
+        return self.episodes - self.not_at_fault
 
 
 def _checked(record: Mapping[str, Any], source: str) -> Mapping[str, Any]:
@@ -82,12 +90,13 @@ def _checked(record: Mapping[str, Any], source: str) -> Mapping[str, Any]:
     return record
 
 
-def _row(controller: str, level: Any, records: list[Mapping[str, Any]]) -> FaultRow:
+def _row(controller: str, level: Any, records: Sequence[Mapping[str, Any]]) -> FaultRow:
     success = [bool(r["success"]) for r in records]
     excused = [bool(r["success_excusing_unavoidable"]) for r in records]
     collisions = sum(r["collision"] is not None for r in records)
     at_fault = sum(r["collision"] is not None and bool(r["collision_at_fault"]) for r in records)
     test = paired_comparison(excused, success)
+    unhit = len(records) - (collisions - at_fault)
     return FaultRow(
         controller,
         level,
@@ -102,6 +111,7 @@ def _row(controller: str, level: Any, records: list[Mapping[str, Any]]) -> Fault
         test.difference,
         test.low,
         test.high,
+        wilson_interval(sum(success), unhit) if unhit else None,
     )
 
 
@@ -135,6 +145,10 @@ NOTE = (
     "no robot's fault with every robot within its goal tolerance (the team had arrived and was "
     "settling), so it counts only those of the collisions not at fault that came after arriving. "
     "Excusing - success: the two rates paired on the same episodes, with a 95% Newcombe interval. "
+    "Success without the unavoidable: success among the episodes that no collision not at the "
+    "robot's fault ended (those episodes left out of the denominator; n/a when a mover ended every "
+    "one), with its 95% Wilson interval: the rate had the crowd never run into the team, on the "
+    "episodes it did not. "
     "Distinct episodes that ran only."
 )
 
@@ -152,6 +166,7 @@ def fault_section(rows: Sequence[FaultRow], key: str, command: str, missing: Seq
         "Collisions",
         "At the robot's fault",
         "Not at its fault",
+        "Success without the unavoidable [%]",
     ]
     table = [
         [
@@ -164,6 +179,7 @@ def fault_section(rows: Sequence[FaultRow], key: str, command: str, missing: Seq
             str(row.collisions),
             str(row.at_fault),
             str(row.not_at_fault),
+            "n/a" if row.unhit_ci is None else _percent(row.successes, row.unhit, row.unhit_ci),
         ]
         for row in rows
     ]
