@@ -33,7 +33,7 @@ from evaluation.reports.results import Results
 from evaluation.reports.sections import task_label
 from evaluation.run.configs import ControllerConfig
 from evaluation.stats.families import FamilyResult, HypothesisFamily, PowerStatement, power_statement
-from evaluation.stats.layout_tests import paired_means_by_layout
+from evaluation.stats.layout_tests import paired_means_by_layout, sign_flip_p_text
 from evaluation.stats.statistics import wilson_interval
 from koopman_envs.checks import check_choice
 
@@ -193,6 +193,8 @@ def main_effects_table(results: Results, factors: Sequence[str] | None = None) -
                 "units_a": sum(x[0] > y[0] for x, y in zip(a_means, b_means, strict=True)),
                 "units_b": sum(x[0] < y[0] for x, y in zip(a_means, b_means, strict=True)),
                 "p_value": test.p_value,
+                # the p-value as printed: a bound at the random test's floor (sign_flip_p_text)
+                "p_text": sign_flip_p_text(test.p_value, test.exact, test.permutations, digits=3),
             }
         )
     tested = {e["factor"]: float(e["p_value"]) for e in effects}
@@ -293,7 +295,7 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
                 f"| {e['factor']} | {e['a']} vs {e['b']} | {e['units']} | {e['episodes']} | "
                 f"{100 * e['rate_a']:.0f}% | {100 * e['rate_b']:.0f}% | "
                 f"{100 * e['difference']:+.0f} pp [{100 * e['low']:+.0f}, {100 * e['high']:+.0f}] | "
-                f"{e['units_a']} / {e['units_b']} | {e['p_value']:.3g} | {e['p_holm']:.3g} |"
+                f"{e['units_a']} / {e['units_b']} | {_p_cell(e['p_text'])} | {_holm_text(e).removeprefix('= ')} |"
             )
         lines += ["", power_note(table), "", "## What the numbers say", ""]
         for e in sorted(effects, key=lambda e: -abs(e["difference"])):
@@ -303,12 +305,23 @@ def ablation_markdown(results: Results, factors: Sequence[str] | None = None, co
     return "\n".join(lines) + "\n"
 
 
+def _p_cell(text: str) -> str:
+    return text.removeprefix("= ")
+
+
+def _holm_text(effect: dict[str, Any]) -> str:
+    """Holm's adjusted p of ``effect`` as printed: a bound (``<=``) when its raw p is one (the
+    random sign-flip test's floor): the adjustment is monotone in each raw p."""
+    relation = "<=" if effect["p_text"].startswith("<=") else "="
+    return f"{relation} {effect['p_holm']:.3g}"
+
+
 def effect_verdict(effect: dict[str, Any]) -> str:
     """What a main effect of :func:`main_effects` says, in words: its direction and size when
     its Holm-adjusted p is below 0.05, else that it cannot be told from chance."""
     size = f"{100 * abs(effect['difference']):.0f} percentage points"
     interval = f"95% CI {100 * effect['low']:+.0f} to {100 * effect['high']:+.0f}"
-    tests = f"sign-flip p = {effect['p_value']:.3g}, Holm p = {effect['p_holm']:.3g}"
+    tests = f"sign-flip p {effect['p_text']}, Holm p {_holm_text(effect)}"
     if effect["p_holm"] < 0.05:
         direction = "raises" if effect["difference"] > 0 else "lowers"
         return f"{direction} success by {size} ({interval}; {tests})"
