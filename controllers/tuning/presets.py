@@ -51,6 +51,7 @@ __all__ = [
     "is_comparison_variant",
     "read_tuned",
     "register_builtins",
+    "tuned_file",
     "with_tuned",
 ]
 
@@ -350,6 +351,16 @@ def is_comparison_variant(name: str) -> bool:
 
 
 _VARIANTS = frozenset(p.name for p in PRESETS if p.name.endswith(V0_SUFFIX))
+
+
+def tuned_file(name: str) -> Path | None:
+    """The tuned preset file that sets the defaults of the registered controller ``name``
+    (``<name>.json`` of :data:`TUNED_DIR`, read when this module was imported), None for a name
+    whose defaults no tuned preset sets (its ``-v0`` variant, a hand-set preset, a controller
+    never tuned, a name that is not built in). A run records its digest, so that a resume after
+    the file changed (``python -m evaluation.tune adopt``, a pull) is refused
+    (:func:`evaluation.run.weights.run_presets`)."""
+    return Path(TUNED_DIR) / f"{name}.json" if name + V0_SUFFIX in _VARIANTS else None
 
 
 def _resolve(path: str) -> Any:

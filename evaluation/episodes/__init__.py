@@ -24,6 +24,7 @@ from evaluation.episodes.distinct import (
     signature,
 )
 from evaluation.episodes.log_weights import (
+    PRESETS_KEY,
     WEIGHTS_KEY,
     changed_weights,
     check_weights,
@@ -85,6 +86,7 @@ __all__ = [
     "signature",
     "DEFAULT_OUT",
     "RESUME_KEYS",
+    "PRESETS_KEY",
     "WEIGHTS_KEY",
     "changed_weights",
     "check_weights",

@@ -44,10 +44,11 @@ from evaluation.run.suite_runs import (
     suite_units,
     unit_trial,
 )
-from evaluation.run.weights import files_digest, run_weights
+from evaluation.run.weights import files_digest, run_presets, run_weights
 
 __all__ = [
     "files_digest",
+    "run_presets",
     "run_weights",
     "ControllerConfig",
     "check_label",

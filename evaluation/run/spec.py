@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controllers.calibration import data_spec_for
-from evaluation.episodes.log_weights import WEIGHTS_KEY
+from evaluation.episodes.log_weights import PRESETS_KEY, WEIGHTS_KEY
 from evaluation.episodes.runlog import run_signature
 from evaluation.run.configs import controller_configs, with_solver
 from evaluation.run.plan import (
@@ -35,7 +35,7 @@ from evaluation.run.plan import (
     slip_value,
 )
 from evaluation.run.suite_runs import check_suite_run, layout_slice, suite_config, suite_map, suite_units
-from evaluation.run.weights import run_weights
+from evaluation.run.weights import run_presets, run_weights
 from koopman_envs import (
     BUILTIN_MAPS,
     ENV_IDS,
@@ -444,6 +444,8 @@ class RunSpec:
         settings = self.env_settings()
         # which weights the learned controllers play (checked on --resume; absent without one)
         weights = run_weights(self.controllers, self.envs)
+        # which tuned preset files set the controllers' defaults (checked on --resume alike)
+        presets = run_presets(self.controllers)
         return {
             "env_ids": list(self.envs),
             "controllers": [c.label for c in self.controllers],
@@ -476,6 +478,7 @@ class RunSpec:
             "workers": workers,
             "backend": backend,
             **({WEIGHTS_KEY: weights} if weights else {}),
+            **({PRESETS_KEY: presets} if presets else {}),
         }
 
     def signature(self) -> dict[str, Any]:

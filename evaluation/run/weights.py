@@ -9,6 +9,14 @@ loads (``weight_files(options, task)``: ``rl-ppo``, ``rl-ppo-set`` and its varia
 keeps it (:data:`evaluation.episodes.log_weights.WEIGHTS_KEY`); :func:`evaluation.episodes.runlog.read_log` refuses a resume whose controller would load
 other weights than its logged episodes did, naming it.
 
+A tuned controller's defaults are the same kind of hole: ``koopman-nmpc``, ``nominal-nmpc``,
+``consensus``, ``mpc-cbf`` take theirs from ``controllers/tuned/NAME.json``
+(:func:`controllers.tuning.presets.tuned_file`), which ``python -m evaluation.tune adopt`` or a
+pull may replace while a run is paused. So the configuration also records, per controller whose
+defaults come from such a file (its ``-v0`` variant has none), the SHA-256 of that file
+(:func:`run_presets`, the key :data:`evaluation.episodes.log_weights.PRESETS_KEY`), checked on a
+resume the same way as the weights.
+
 A log written before the digests were recorded has none: it still resumes (nothing can be
 checked for it, and its header stays without digests) and every page still reads it.
 """
@@ -20,10 +28,12 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from controllers.registry import split_name
+from controllers.tuning.presets import tuned_file
 from evaluation.run.configs import ControllerConfig
 from koopman_envs import TASKS
 
-__all__ = ["files_digest", "run_weights"]
+__all__ = ["files_digest", "run_presets", "run_weights"]
 
 #: bytes read at a time
 _CHUNK = 1 << 20
@@ -67,3 +77,17 @@ def run_weights(controllers: Sequence[ControllerConfig], env_ids: Sequence[str])
         if found:
             weights[config.label] = found
     return weights
+
+
+def run_presets(controllers: Sequence[ControllerConfig]) -> dict[str, dict[str, str]]:
+    """Per controller label whose defaults a tuned preset file sets (its registered name, behind
+    any wrapper prefix: :func:`controllers.tuning.presets.tuned_file`), the digest of that file
+    (:func:`files_digest`) under its name in the package, ``{"tuned/NAME.json": sha256}``; a
+    controller given as a factory, and a preset file that is missing, are left out."""
+    presets: dict[str, dict[str, str]] = {}
+    for config in controllers:
+        path = None if config.factory is not None else tuned_file(split_name(config.name)[1])
+        digest = None if path is None else files_digest([path])
+        if path is not None and digest is not None:
+            presets[config.label] = {f"{path.parent.name}/{path.name}": digest}
+    return presets

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.episodes.distinct import episode_identity
-from evaluation.episodes.log_weights import WEIGHTS_KEY
+from evaluation.episodes.log_weights import PRESETS_KEY, WEIGHTS_KEY
 from evaluation.episodes.records import ran
 from evaluation.episodes.runlog import run_signature
 from evaluation.run.suite_runs import cluster_of
@@ -151,11 +151,12 @@ def _config_differences(first: Mapping[str, Any], second: Mapping[str, Any]) -> 
     episode does; the workers and the backend do not)."""
     first, second = run_signature(dict(first)), run_signature(dict(second))
     differ = []
-    # the learned controllers' weights are compared when both runs record them (a run logged before
-    # they were recorded has none: evaluation.run.weights)
+    # the learned controllers' weights and the tuned presets are compared when both runs record
+    # them (a run logged before they were recorded has none: evaluation.run.weights)
     keys = set(first) | set(second)
-    if WEIGHTS_KEY not in first or WEIGHTS_KEY not in second:
-        keys.discard(WEIGHTS_KEY)
+    for digests in (WEIGHTS_KEY, PRESETS_KEY):
+        if digests not in first or digests not in second:
+            keys.discard(digests)
     for key in sorted(keys):
         a, b = first.get(key), second.get(key)
         if key == "env_settings":
