@@ -442,10 +442,9 @@ class RunSpec:
         if self.controllers is None:
             raise ValueError("RunSpec.config() needs explicit controllers; call resolved() first")
         settings = self.env_settings()
-        # which weights the learned controllers play (checked on --resume; absent without one)
-        weights = run_weights(self.controllers, self.envs)
-        # which tuned preset files set the controllers' defaults (checked on --resume alike)
-        presets = run_presets(self.controllers)
+        # which weights the learned controllers play, which tuned preset files set the controllers'
+        # defaults (each checked on --resume; absent without one: evaluation.run.weights)
+        weights, presets = run_weights(self.controllers, self.envs), run_presets(self.controllers)
         return {
             "env_ids": list(self.envs),
             "controllers": [c.label for c in self.controllers],
@@ -477,8 +476,7 @@ class RunSpec:
             "seed": self.seed,
             "workers": workers,
             "backend": backend,
-            **({WEIGHTS_KEY: weights} if weights else {}),
-            **({PRESETS_KEY: presets} if presets else {}),
+            **{key: value for key, value in ((WEIGHTS_KEY, weights), (PRESETS_KEY, presets)) if value},
         }
 
     def signature(self) -> dict[str, Any]:
