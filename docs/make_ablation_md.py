@@ -22,13 +22,14 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts beside this one
 
-from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
+from page_writer import write_publication_page  # noqa: E402
+
 from evaluation.experiments.ablation import ABLATION_TITLE, ablation_configs, ablation_markdown  # noqa: E402
 from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.reports.published import results_from_log  # noqa: E402
 from evaluation.stats import planned_episodes  # noqa: E402
-from koopman_envs.files import write_atomic  # noqa: E402
 
 #: the run of data/publish.sh behind the page
 RUN = "ablation"
@@ -112,18 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="the page to write, e.g. docs/ablation.md")
     parser.add_argument("--figures", help="accepted for docs/make_pages.py; the page has no figures")
     args = parser.parse_args(argv)
-    if not Path(args.archive).exists():  # not published yet: a page that says so, not a failure
-        write_atomic(args.out, pending_page(args.archive))
-        print(f"wrote {args.out} (pending: {args.archive} is not published yet; bash data/publish.sh {RUN})")
-        return SUCCESS_EXIT
-    try:
-        text = page(args.archive)
-    except ValueError as exc:  # an archive that is not as KoopNav packs it (the message names it)
-        print(f"error: {exc}", file=sys.stderr)
-        return BAD_INPUT_EXIT
-    write_atomic(args.out, text)
-    print(f"wrote {args.out}")
-    return SUCCESS_EXIT
+    return write_publication_page(
+        args.out, Path(args.archive), lambda: page(args.archive), lambda: pending_page(args.archive), RUN
+    )
 
 
 if __name__ == "__main__":

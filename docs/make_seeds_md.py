@@ -26,8 +26,10 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the page scripts beside this one
 
-from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT  # noqa: E402
+from page_writer import write_publication_page  # noqa: E402
+
 from evaluation.experiments.seeds import TRAINING_ROOT, finished_seeds, report_markdown  # noqa: E402
 from evaluation.experiments.seeds_published import (  # noqa: E402
     DRIVER,
@@ -36,7 +38,6 @@ from evaluation.experiments.seeds_published import (  # noqa: E402
     read_publication,
 )
 from evaluation.reports.publications import extracted_archive  # noqa: E402
-from koopman_envs.files import write_atomic  # noqa: E402
 
 TITLE = "Learned policies over training seeds"
 #: the run of data/publish.sh behind the page, and the page
@@ -199,20 +200,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--figures", help="accepted for docs/make_pages.py; the page has no figures")
     args = parser.parse_args(argv)
     publication, training, driver = Path(args.publication), Path(args.training), Path(args.driver)
-    try:
-        if not publication.exists():  # not published yet: a page that says so, not a failure
-            write_atomic(args.out, pending_page(publication, training, driver))
-            print(
-                f"wrote {args.out} (pending: {publication} is not published yet; bash data/publish.sh {RUN})"
-            )
-            return SUCCESS_EXIT
-        text = page(publication, training, driver)
-    except ValueError as exc:  # a publication that is not a seeds run as KoopNav packs it (named)
-        print(f"error: {exc}", file=sys.stderr)
-        return BAD_INPUT_EXIT
-    write_atomic(args.out, text)
-    print(f"wrote {args.out}")
-    return SUCCESS_EXIT
+    return write_publication_page(
+        args.out,
+        publication,
+        lambda: page(publication, training, driver),
+        lambda: pending_page(publication, training, driver),
+        RUN,
+    )
 
 
 if __name__ == "__main__":

@@ -194,6 +194,7 @@ ELSEWHERE = {
     "docs/make_sim2sim_md.py": "its page's generator, run by docs/make_pages.py (tests/test_sim2sim.py runs it on two small real runs)",
     "docs/make_tuning_md.py": "its page's generator, run by docs/make_pages.py (tests/test_tuning_curves.py runs it on the committed studies)",
     "docs/make_seeds_md.py": "its page's generator, run by docs/make_pages.py (tests/test_seeds_page.py runs it on a real 9-episode validation publication)",
+    "docs/page_writer.py": "a module of docs/make_ablation_md.py and docs/make_seeds_md.py, not a script (tests/test_prose_pages.py, tests/test_seeds_page.py)",
     "docs/bench_headline.py": "a module of docs/make_bench_md.py (README's headline block), not a script (tests/test_bench_page.py)",
     "bench/nmpc_build_time.py": "a module of bench/nmpc_solve.py (its --cache-timing), not a script",
     "docs/make_prose_md.py": "docs/paper.md's generator, run by docs/make_pages.py (tests/test_prose_pages.py)",

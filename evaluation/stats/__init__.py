@@ -48,6 +48,8 @@ from evaluation.stats.families import (
 from evaluation.stats.layout_tests import (
     EXACT_FLIPS,
     LayoutComparison,
+    found_clause,
+    holm_clause,
     layout_sign_flip_test,
     paired_means_by_layout,
     paired_rates_by_layout,
@@ -170,6 +172,8 @@ __all__ = [
     "RANK_RESAMPLES",
     "RANK_SEED",
     "Progress",
+    "found_clause",
+    "holm_clause",
     "RankAgreement",
     "kendall_tau_b",
     "planned_episodes",

@@ -22,6 +22,7 @@ from typing import Any
 
 from controllers.tuning import V0_SUFFIX
 from evaluation.stats.families import _check_power, _fewest_layouts, detectable_difference
+from evaluation.stats.layout_tests import found_clause, holm_clause
 from evaluation.stats.statistics import _check_confidence
 from koopman_envs.checks import check_choice, check_int
 
@@ -263,23 +264,19 @@ class TablePower:
 
     def sentence(self) -> str:
         """The statement in words, in the bench page's wording (:meth:`PowerStatement.sentence`)."""
-        if not math.isnan(self.difference):
-            found = f"a paired difference of {100 * self.difference:.1f} points"
-        elif self.pairs < _fewest_layouts(self.alpha_per_test):
-            found = (
-                f"no paired difference (the exact test's smallest p-value over {self.pairs} pairs, "
-                f"2/2^{self.pairs} = {2.0 ** (1 - self.pairs):.3g}, is above alpha/m)"
-            )
-        elif self.discordant == 0:
-            found = "no paired difference (no discordant pair to compute a power from)"
-        else:
-            found = "no paired difference (not even the largest the discordance allows)"
+        found = found_clause(
+            self.difference,
+            self.pairs,
+            "pairs",
+            _fewest_layouts(self.alpha_per_test),
+            spread_is_zero=self.discordant == 0,
+        )
         per = "pairs per comparison" + (
             " (the fewest of the table's)" if self.most_pairs > self.pairs else ""
         )
         return (
-            f"Power: m = {self.family_size} test{'s' if self.family_size != 1 else ''}, Holm at alpha = {self.alpha:g} "
-            f"(first step alpha/m = {self.alpha_per_test:.3g}). With {self.pairs} {per}, a pair being "
+            f"Power: m = {self.family_size} test{'s' if self.family_size != 1 else ''}, "
+            f"{holm_clause(self.alpha, self.alpha_per_test)}. With {self.pairs} {per}, a pair being "
             f"{self.unit}, and discordance {self.discordance:.2f} pooled over the table's "
             f"{self.comparisons} comparison{'s' if self.comparisons != 1 else ''} "
             f"({self.discordant:,} discordant of {self.total_pairs:,} pairs), "

@@ -26,7 +26,7 @@ from numbers import Real
 from statistics import NormalDist, median
 from typing import Any
 
-from evaluation.stats.layout_tests import LayoutComparison
+from evaluation.stats.layout_tests import LayoutComparison, found_clause, holm_clause
 from evaluation.stats.statistics import _check_confidence, _z, holm_adjusted
 from koopman_envs.checks import MAX_NUMBER, check_int, check_number
 
@@ -392,21 +392,17 @@ class PowerStatement:
         binary = not math.isnan(self.discordance)
         spread = f"discordance {self.discordance:.2f}" if binary else f"SD of the differences {self.sd:.3g}"
         value = self.discordance if binary else self.sd
-        if not math.isnan(self.difference):
-            found = f"a paired difference of {f'{100 * self.difference:.1f} points' if binary else f'{self.difference:.3g}'}"
-        elif self.layouts < _fewest_layouts(self.alpha_per_test):
-            found = (
-                f"no paired difference (the sign-flip test's smallest p-value over {self.layouts} layouts, "
-                f"2/2^{self.layouts} = {2.0 ** (1 - self.layouts):.3g}, is above alpha/m)"
-            )
-        elif math.isnan(value) or value == 0:
-            # nothing to compute the power from: no discordant pair, or differences all alike
-            found = "no paired difference (the comparisons show no spread to compute a power from)"
-        else:
-            found = f"no paired difference ({'not even the largest the discordance allows' if binary else 'none reaches it'})"
+        found = found_clause(
+            self.difference,
+            self.layouts,
+            "layouts",
+            _fewest_layouts(self.alpha_per_test),
+            spread_is_zero=math.isnan(value) or value == 0,
+            binary=binary,
+        )
         return (
-            f"Family {self.family!r}: m = {self.family_size} tests, Holm at alpha = {self.alpha:g} "
-            f"(first step alpha/m = {self.alpha_per_test:.3g}). With {self.layouts} layouts x "
+            f"Family {self.family!r}: m = {self.family_size} tests, {holm_clause(self.alpha, self.alpha_per_test)}. "
+            f"With {self.layouts} layouts x "
             f"{self.per_layout:g} pairs, {spread} and a between-layout correlation of {self.icc:.2f}, "
             f"{found} is found with {100 * self.power:.0f}% power."
         )

@@ -5,6 +5,9 @@
 - :func:`paired_rates_by_layout`, :func:`paired_means_by_layout`: the difference with its
   two-stage bootstrap interval (:mod:`evaluation.stats.clustered`), the test, and the discordance and
   between-layout correlation the power statement reads (:mod:`evaluation.stats.families`).
+- :func:`sign_flip_p_text`, :func:`holm_clause`, :func:`found_clause`: the tests' and power
+  statements' words, one wording for every page (the layout-clustered statement of
+  :mod:`evaluation.stats.families` and the per-pair one of :mod:`evaluation.stats.designs`).
 
 Data come as one sequence per layout: ``a[i][j]`` and ``b[i][j]`` are the two controllers'
 episodes on layout i with the j-th seed.
@@ -27,6 +30,8 @@ from koopman_envs.checks import check_int
 __all__ = [
     "EXACT_FLIPS",
     "LayoutComparison",
+    "found_clause",
+    "holm_clause",
     "layout_sign_flip_test",
     "paired_means_by_layout",
     "paired_rates_by_layout",
@@ -303,3 +308,54 @@ def paired_means_by_layout(
     """Two controllers' metric (clearance, time to goal, jerk) on shared (layout, seed) units:
     :func:`paired_rates_by_layout` for finite numbers (``discordance`` is NaN)."""
     return _compare(a, b, False, confidence, n_boot, permutations, seed)
+
+
+def holm_clause(alpha: float, alpha_per_test: float) -> str:
+    """The words every power statement names its correction with: ``Holm at alpha = ... (...)``."""
+    return f"Holm at alpha = {alpha:g} (first step alpha/m = {alpha_per_test:.3g})"
+
+
+def found_clause(
+    difference: float,
+    units: int,
+    unit_word: str,
+    fewest_units: int,
+    *,
+    spread_is_zero: bool,
+    binary: bool = True,
+) -> str:
+    """What a power statement says is found: the detectable difference, or why there is none.
+
+    One wording for :meth:`evaluation.stats.families.PowerStatement.sentence` (clustered on layouts, the sign-flip test) and
+    :meth:`evaluation.stats.designs.TablePower.sentence` (unclustered pairs, the exact McNemar test).
+
+    Parameters
+    ----------
+    difference
+        The smallest detectable difference, NaN when none is.
+    units
+        How many independent units the test sees (layouts, or pairs).
+    unit_word
+        Their name in the sentence: ``"layouts"`` or ``"pairs"``.
+    fewest_units
+        The fewest units at which the exact test can reach Holm's first-step level alpha/m
+        (:func:`evaluation.stats.families.fewest_units`).
+    spread_is_zero
+        Whether the comparisons show no spread (no discordant pair, or alike differences).
+    binary
+        Whether the outcome is success (a difference in points) rather than a metric.
+    """
+    if not math.isnan(difference):
+        return f"a paired difference of {f'{100 * difference:.1f} points' if binary else f'{difference:.3g}'}"
+    if units < fewest_units:
+        test = "sign-flip test" if unit_word == "layouts" else "exact test"
+        return (
+            f"no paired difference (the {test}'s smallest p-value over {units} {unit_word}, "
+            f"2/2^{units} = {2.0 ** (1 - units):.3g}, is above alpha/m)"
+        )
+    if spread_is_zero:
+        # nothing to compute the power from: no discordant pair, or differences all alike
+        if unit_word == "layouts":
+            return "no paired difference (the comparisons show no spread to compute a power from)"
+        return "no paired difference (no discordant pair to compute a power from)"
+    return f"no paired difference ({'not even the largest the discordance allows' if binary else 'none reaches it'})"
