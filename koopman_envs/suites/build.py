@@ -1,7 +1,7 @@
 """Build the suites' data from the generator, or check that the stored data is what it builds.
 
 ``python -m koopman_envs.suites.build --check`` (the default) regenerates every split of every
-suite, the tier thresholds from the train splits and the reference-rollout digests, and exits 1
+suite, the tier thresholds from the train splits and the reference-rollout digests, and exits 101
 naming each difference from the stored files, the manifest and the declared thresholds;
 ``--write`` writes the split files and the manifest of a suite that has no data yet (a new
 version: it refuses, exit 2, to change a published suite, whose layouts never change); it prints
@@ -294,6 +294,13 @@ def _write(
     write_atomic(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
 
 
+#: the exit codes of ``evaluation.exit_codes`` this command uses (the environments import nothing
+#: from the evaluator; tests/test_suites_build_exit.py checks that they agree): 2 bad input,
+#: 101 a check that found differences
+BAD_INPUT_EXIT = 2
+CHECK_DIFFERS_EXIT = 101
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """The command line (module docstring); returns the exit code."""
     parser = argparse.ArgumentParser(
@@ -312,7 +319,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "add a new version to koopman_envs.suites.suite.SUITES (e.g. koopnav-bench-v2) and write that",
             file=sys.stderr,
         )
-        return 2
+        return BAD_INPUT_EXIT
     failed = False
     for name in names:
         definition = SUITES[name]
@@ -324,7 +331,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         found = _differences(definition, documents, manifest)
         failed = failed or bool(found)
         print("\n".join(found) if found else f"{name}: the stored data is what the generator builds")
-    return 1 if failed else 0
+    return CHECK_DIFFERS_EXIT if failed else 0
 
 
 if __name__ == "__main__":  # pragma: no cover - the command line
