@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 import controllers  # noqa: E402
-from baselines.sb3.policy import SHIPPED, RLPolicyController, load_policy  # noqa: E402
+from baselines.sb3.policy import SHIPPED, TASK_ENV, RLPolicyController, load_policy  # noqa: E402
 from baselines.sb3.train import main as train_main  # noqa: E402
 from baselines.sb3.vec_env import KoopNavSB3VecEnv, robot_features  # noqa: E402
 from koopman_envs.sim.maps.map_spec import MapSpec  # noqa: E402
@@ -129,10 +129,12 @@ def test_inference_is_deterministic(trained_root) -> None:
 
 
 def test_missing_and_corrupt_policy_files(tmp_path, trained_root) -> None:
-    with pytest.raises(
-        ValueError, match="holds no trained policy; train one with `python -m baselines.sb3.train"
-    ):
+    with pytest.raises(ValueError, match="holds no trained policy; train one per task with ") as refused:
         RLPolicyController(policy_root=tmp_path / "empty")
+    for task, env_id in TASK_ENV.items():  # each task's command, not one task's for both
+        assert f"{task}: `python -m baselines.sb3.train --env {env_id} --algo ppo --out runs/{task}`" in str(
+            refused.value
+        )
     broken = tmp_path / "broken" / "formation"
     broken.mkdir(parents=True)
     for name in ("policy.zip", "obs_norm.npz", "metadata.json"):

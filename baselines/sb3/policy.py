@@ -266,9 +266,13 @@ class RLPolicyController(BaseController):
                 "rl-ppo needs stable-baselines3: pip install torch==2.13.0 && pip install -e '.[rl]'"
             )
         if not any(policy_dir(task, self.policy_root).exists() for task in TASK_ENV):
+            # no task is known yet (the scenario comes at reset): each task's command
+            commands = "; ".join(
+                f"{task}: `{REGENERATE.format(env_id=env_id, algo=algo, task=task)}`"
+                for task, env_id in TASK_ENV.items()
+            )
             raise ValueError(
-                f"policy_root={str(self.policy_root)!r} holds no trained policy; train one with "
-                f"`{REGENERATE.format(env_id=TASK_ENV['formation'], algo=algo, task='formation')}`"
+                f"policy_root={str(self.policy_root)!r} holds no trained policy; train one per task with {commands}"
             )
         self._loaded: dict[str, tuple[Any, dict, dict, Any]] = {}
 
