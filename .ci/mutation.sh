@@ -102,6 +102,11 @@ for m in "${wanted[@]}"; do
     [ -n "${MODULES[$m]:-}" ] || { echo "unknown module '$m'; one of: ${!MODULES[*]} all" >&2; exit 2; }
 done
 command -v mutmut >/dev/null || { echo "mutmut is not installed (pip install 'mutmut>=3')" >&2; exit 2; }
+# the verdicts are read with python3's mutmut (its version keys the store): the same install as the command's
+python3 -c "import mutmut" 2>/dev/null || {
+    echo "mutmut is on PATH ($(command -v mutmut)) but python3 ($(command -v python3)) cannot import it: pip install 'mutmut>=3' into the environment of python3" >&2
+    exit 2
+}
 
 HERE=$(cd "$(dirname "$0")/.." && pwd) # this repository: evaluation/mutation.py keeps the store
 SOURCE=${SOURCE:-$(git -C "$HERE" rev-parse --show-toplevel)}

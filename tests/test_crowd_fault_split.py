@@ -26,6 +26,8 @@ sys.path.insert(0, str(ROOT / "docs"))
 import make_robustness_md  # noqa: E402  (docs/ is no package)
 from make_pages import PAGES, page_command, page_digest, read_digests  # noqa: E402
 
+from helpers.extras import skip_without_extra  # noqa: E402
+
 LEVELS = (8, 16)
 #: 2 episodes per controller and level (map1's trial 0 and one random layout) among 8 and 16 ORCA
 #: pedestrians that do not see the robots: 8 episodes, 6 ended by a collision, 3 of them not at
@@ -39,6 +41,7 @@ HEADER = "| Controller | movers.count | Episodes | Success [%] | Success excusin
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory) -> Path:
+    skip_without_extra("pyrvo")  # the oblivious ORCA crowd and orca
     out = tmp_path_factory.mktemp("crowd") / "run"
     subprocess.run(
         [sys.executable, "evaluate.py", *shlex.split(TINY_RUN), "--out", str(out), "--quiet"],

@@ -10,17 +10,16 @@ the script at a chosen moment is left to a measurement (docs/ci.md), as it would
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
-from helpers.mutation_repo import git, run_script, score_line, tiny_source
+from helpers.mutation_repo import MUTMUT_MISSING, git, run_script, score_line, tiny_source
 
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.skipif(shutil.which("mutmut") is None, reason="mutmut is not installed"),
+    pytest.mark.skipif(MUTMUT_MISSING is not None, reason=str(MUTMUT_MISSING)),
 ]
 
 

@@ -9,7 +9,6 @@ run in a fresh clone as on a new machine, with only the store carried between th
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import pytest
 from evaluation.mutation import Against, Store, main, read_store, status_of, write_store
 from koopman_envs.files import FileRefused
 
-from helpers.mutation_repo import TINY, git, run_script, score_line, tiny_source
+from helpers.mutation_repo import MUTMUT_MISSING, TINY, git, run_script, score_line, tiny_source
 
 TARGET = "evaluation/episodes/records.py"
 TESTS = ["tests/test_records.py", "tests/test_other.py::test_one", "tests/test_other.py::test_two"]
@@ -208,7 +207,7 @@ def _score(result: subprocess.CompletedProcess[str]) -> str:
     return score_line(result).split(" in ")[0]
 
 
-@pytest.mark.skipif(shutil.which("mutmut") is None, reason="mutmut is not installed")
+@pytest.mark.skipif(MUTMUT_MISSING is not None, reason=str(MUTMUT_MISSING))
 def test_a_run_on_a_new_machine_reuses_the_stored_verdicts_until_a_test_file_changes(tmp_path: Path) -> None:
     source, store = tiny_source(tmp_path / "source"), tmp_path / "store"
 

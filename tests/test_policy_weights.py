@@ -17,6 +17,8 @@ from evaluation.episodes.runlog import LogError, forget_controllers, read_log
 from evaluation.reports.published import results_from_log
 from evaluation.run import controller_configs, files_digest, run_weights
 
+from helpers.extras import needs_extra
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "baselines" / "policies"
 POLICY_FILES = ("policy.zip", "obs_norm.npz", "metadata.json")
@@ -69,6 +71,7 @@ def test_every_learned_controller_has_the_digest_of_the_files_it_loads() -> None
     assert len(set(weights["rl-ppo-set"].values()) | set(weights["rl-ppo"].values())) == 4
 
 
+@needs_extra("stable_baselines3")  # rl-ppo's episodes
 def test_a_resume_on_other_weights_is_refused_by_name(tmp_path) -> None:
     root = _policy(tmp_path)
     out = tmp_path / "run"
@@ -96,6 +99,7 @@ def test_a_resume_on_other_weights_is_refused_by_name(tmp_path) -> None:
     assert _header(out)["config"][WEIGHTS_KEY]["mine"]["formation"] == second
 
 
+@needs_extra("stable_baselines3")  # rl-ppo's episodes
 def test_a_log_without_digests_resumes_unchecked_and_keeps_none(tmp_path) -> None:
     """A log written before the digests were recorded (the bench's free-compute run) resumes, with a
     note; its header stays as it was, and a controller added to it does not give it digests."""

@@ -17,6 +17,10 @@ from evaluation.episodes.log_weights import WEIGHTS_KEY
 from evaluation.episodes.runlog import LogError, read_log
 from evaluation.run import files_digest
 
+from helpers.extras import needs_extra
+
+pytestmark = needs_extra("stable_baselines3")  # rl-ppo's episodes need stable-baselines3
+
 SHIPPED = Path(__file__).resolve().parents[1] / "baselines" / "policies"
 POLICY_FILES = ("policy.zip", "obs_norm.npz", "metadata.json")
 

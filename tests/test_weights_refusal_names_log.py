@@ -15,6 +15,10 @@ from evaluation import RunSpec, evaluate
 from evaluation.episodes.log_weights import WEIGHTS_KEY
 from evaluation.episodes.runlog import LogError, read_log
 
+from helpers.extras import needs_extra
+
+pytestmark = needs_extra("stable_baselines3")  # rl-ppo's episodes need stable-baselines3
+
 SHIPPED = Path(__file__).resolve().parents[1] / "baselines" / "policies"
 
 

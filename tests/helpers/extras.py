@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import importlib.util
 
+import pytest
+
 #: the optional extras' top-level import names -> the extra that installs each
 #: (pyproject.toml's [project.optional-dependencies])
 EXTRA_MODULES = {
@@ -38,3 +40,25 @@ def missing_extra(exc: BaseException) -> str | None:
             return None
         seen = seen.__cause__ or seen.__context__
     return None
+
+
+def _without(module: str) -> str | None:
+    """Why a test cannot run here without ``module`` (a key of :data:`EXTRA_MODULES`), or None."""
+    if importlib.util.find_spec(module) is None:
+        return f"needs {module}: the [{EXTRA_MODULES[module]}] extra"
+    return None
+
+
+def needs_extra(module: str) -> pytest.MarkDecorator:
+    """A skip mark for a test that cannot run without an extra's ``module`` (a key of
+    :data:`EXTRA_MODULES`), naming the extra: for a test that needs the module to set up at all
+    (it runs the controller), where :func:`missing_extra` judges an error raised."""
+    reason = _without(module)
+    return pytest.mark.skipif(reason is not None, reason=str(reason))
+
+
+def skip_without_extra(module: str) -> None:
+    """:func:`needs_extra` inside a fixture: skips the tests that use it, not the whole module."""
+    reason = _without(module)
+    if reason is not None:
+        pytest.skip(reason)

@@ -3,11 +3,23 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import shutil
 import subprocess
 from pathlib import Path
 
 #: the checkout's script, run on the tiny repository
+#: why a test of the script cannot run here, or None: the script runs mutmut from PATH and reads its
+#: verdicts with python3's mutmut, so both must be installed (a venv without mutmut beside a
+#: mutmut on PATH skips, where it failed)
+MUTMUT_MISSING = (
+    "mutmut is not on PATH"
+    if shutil.which("mutmut") is None
+    else "mutmut is not installed in this environment"
+    if importlib.util.find_spec("mutmut") is None
+    else None
+)
 SCRIPT = Path(__file__).resolve().parents[2] / ".ci" / "mutation.sh"
 
 # x > 2 as x >= 2 survives the test (both agree at 1 and 3); the other mutants are killed
