@@ -24,9 +24,6 @@ OUTPUTS = {
     # docs/seeds_results.md names its publication while pending (tests/test_published_pages.py
     # wants it named); remove this line when `bash data/publish.sh seeds` and `pack` commit it
     "data/seeds": "the seeds' publication, pending until the training seeds finish",
-    # docs/crowd_results.md's fault section names its publication while pending; remove this line
-    # when `bash data/publish.sh crowd_faults` and `pack` commit it
-    "data/crowd_faults": "the crowd fault split's publication, pending until its run is packed",
 }
 #: outputs that stay local (a working copy may hold them): never committed
 LOCAL = ("data/runs/", "docs/_build/")
