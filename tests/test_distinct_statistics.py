@@ -19,37 +19,14 @@ from evaluation.stats.statistics import (
     wilson_interval,
 )
 
-
-def _record(controller: str, seed: int, success: bool, pose: float, map_name: str = "map1") -> dict:
-    return {
-        "key": f"{controller}-{map_name}-{seed}",
-        "env_id": "KoopNav-TargetReaching-v0",
-        "controller": controller,
-        "map": map_name,
-        "slip": "nominal",
-        "trial": seed,
-        "seed": seed,
-        "status": "ok",
-        "success": success,
-        "collision": None if success else "obstacle",
-        "steps": 100,
-        "time_to_goal": 9.0 if success else None,
-        "final_poses": [[pose, 0.0, 0.0]],
-        "final_distance": [0.01 if success else 1.0],
-        "path_length": [2.0],
-        "control_effort": [1.0],
-        "formation_rms": None,
-        "solve_ms_median": 1.0,
-        "solve_ms_p95": 1.0,
-        "solver_failures": 0,
-    }
+from helpers.records import episode_record
 
 
 def test_identical_episodes_are_counted_once() -> None:
     """Ten trials of exact starts at nominal slip: one episode, ten times. The cell, the
     leaderboard and the paired test each count it once; a real difference counts again."""
-    records = [_record("a", s, True, 1.0) for s in range(10)]  # one episode, ten times
-    records += [_record("b", s, s < 5, 2.0 + (s < 5)) for s in range(10)]  # two distinct episodes
+    records = [episode_record("a", s, True, 1.0) for s in range(10)]  # one episode, ten times
+    records += [episode_record("b", s, s < 5, 2.0 + (s < 5)) for s in range(10)]  # two distinct episodes
     assert duplicates(records) == 9 + 8
     assert len(distinct_records(records)) == 1 + 2
     cells = {c.controller: c for c in aggregate(records)}
@@ -65,8 +42,8 @@ def test_identical_episodes_are_counted_once() -> None:
 
 
 def test_distinct_units_keep_a_seed_whose_episodes_differ_on_either_side() -> None:
-    a = {(m, s): _record("a", s, True, 1.0, m) for m in ("map1", "map2") for s in range(3)}
-    b = {(m, s): _record("b", s, True, 1.0 + s, m) for m in ("map1", "map2") for s in range(3)}
+    a = {(m, s): episode_record("a", s, True, 1.0, m) for m in ("map1", "map2") for s in range(3)}
+    b = {(m, s): episode_record("b", s, True, 1.0 + s, m) for m in ("map1", "map2") for s in range(3)}
     keys = sorted(a)
     assert distinct_units(keys, a, b) == keys  # b differs on every seed: every unit is distinct
     assert distinct_units(keys, a, a) == [("map1", 0), ("map2", 0)]  # one per cell
@@ -93,7 +70,7 @@ def test_holm_counts_a_test_on_the_same_data_once() -> None:
 def test_a_bit_identical_twin_adds_no_test_to_the_paired_family() -> None:
     records = []
     for name, rate in (("a", 0.9), ("b", 0.5), ("c", 0.2)):
-        records += [_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
+        records += [episode_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
     # c's twin: every episode bit for bit c's (a -robust variant at nominal slip)
     records += [{**r, "controller": "c-twin"} for r in records if r["controller"] == "c"]
     rows = {(r["a"], r["b"]): r for r in paired_comparisons(records)}
@@ -113,7 +90,7 @@ def test_a_bit_identical_twin_adds_no_test_to_the_paired_family() -> None:
 def test_the_paired_table_carries_holm_and_the_probability_of_improvement() -> None:
     records = []
     for name, rate in (("a", 0.9), ("b", 0.5), ("c", 0.2)):
-        records += [_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
+        records += [episode_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
     rows = paired_comparisons(records)
     assert len(rows) == 3
     raw = [r["p_value"] for r in rows]
@@ -158,7 +135,7 @@ def test_the_cluster_bootstrap_names_bad_input() -> None:
 
 
 def test_a_record_without_final_poses_is_judged_by_its_distances() -> None:
-    one = _record("a", 0, True, 1.0)
+    one = episode_record("a", 0, True, 1.0)
     other = copy.deepcopy(one)
     del one["final_poses"], other["final_poses"]
     other["seed"] = 1
@@ -170,8 +147,8 @@ def test_a_record_without_final_poses_is_judged_by_its_distances() -> None:
 def test_a_controller_that_never_moves_does_not_outrank_one_that_tries() -> None:
     """Both fail every episode; the one that ends closer ranks first (the settled distance, NaN
     for both, cannot tell them apart), whatever order they come in."""
-    still = [{**_record("still", s, False, 10.0 + s), "final_distance": [5.0]} for s in range(4)]
-    tries = [{**_record("tries", s, False, 20.0 + s), "final_distance": [1.0]} for s in range(4)]
+    still = [{**episode_record("still", s, False, 10.0 + s), "final_distance": [5.0]} for s in range(4)]
+    tries = [{**episode_record("tries", s, False, 20.0 + s), "final_distance": [1.0]} for s in range(4)]
     for records in (still + tries, tries + still):
         rows = leaderboard(aggregate(records), records)
         assert [r["controller"] for r in rows] == ["tries", "still"]

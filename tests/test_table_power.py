@@ -25,6 +25,8 @@ from evaluation.stats.families import detectable_difference, paired_power
 from evaluation.stats.robustness import level_costs, profiles
 from evaluation.stats.run_data import RunData
 
+from helpers.records import episode_record
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 
@@ -100,35 +102,12 @@ def test_bad_input_is_named(args: tuple, named: str) -> None:
 
 
 # --------------------------------------------------------------------------- the family's m
-def _record(controller: str, seed: int, success: bool, pose: float) -> dict:
-    return {
-        "key": f"{controller}-{seed}",
-        "env_id": "KoopNav-TargetReaching-v0",
-        "controller": controller,
-        "map": "map1",
-        "slip": "nominal",
-        "trial": seed,
-        "seed": seed,
-        "status": "ok",
-        "success": success,
-        "collision": None if success else "obstacle",
-        "steps": 100,
-        "time_to_goal": 9.0 if success else None,
-        "final_poses": [[pose, 0.0, 0.0]],
-        "final_distance": [0.01 if success else 1.0],
-        "path_length": [2.0],
-        "control_effort": [1.0],
-        "formation_rms": None,
-        "solve_ms_median": 1.0,
-        "solve_ms_p95": 1.0,
-        "solver_failures": 0,
-    }
 
 
 def _team() -> list[dict]:
     records = []
     for name, rate in (("a", 0.9), ("b", 0.5), ("c", 0.2)):
-        records += [_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
+        records += [episode_record(name, s, s < rate * 20, s + ord(name)) for s in range(20)]
     return records
 
 
@@ -164,7 +143,10 @@ def _sweep() -> dict:
             for s in range(20):
                 success = True if name == "ref" else s < cut
                 records.append(
-                    {**_record(name, s, success, s + ord(name[0]) + level), "key": f"{name}-{level}-{s}"}
+                    {
+                        **episode_record(name, s, success, s + ord(name[0]) + level),
+                        "key": f"{name}-{level}-{s}",
+                    }
                 )
         levels.append((level, RunData(records, {"controllers": ["ref", "x"]})))
     return {"noise": levels}
