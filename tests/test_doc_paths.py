@@ -21,9 +21,6 @@ PLACEHOLDER = re.compile(r"(?:^|/)[A-Z][A-Z_]*(?:[./]|$)")
 OUTPUTS = {
     "docs/_build/html/index.html": "docs/build.sh's output",
     "data/runs/": "the runs' working folder (untracked)",
-    # docs/seeds_results.md names its publication while pending (tests/test_published_pages.py
-    # wants it named); remove this line when `bash data/publish.sh seeds` and `pack` commit it
-    "data/seeds": "the seeds' publication, pending until the training seeds finish",
 }
 #: outputs that stay local (a working copy may hold them): never committed
 LOCAL = ("data/runs/", "docs/_build/")
