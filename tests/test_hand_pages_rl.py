@@ -706,11 +706,45 @@ def _unarrived(match: re.Match[str]) -> list[str]:
     return same(int(match[1]), layouts - arrived, "the episodes without the bearing that did not arrive")
 
 
+def _shipped_row(match: re.Match[str]) -> list[str]:
+    """A row of "What ships as rl-ppo-set": the shipped seed's metadata.json (its seed, the kept
+    checkpoint's validation record, its step and the budget)."""
+    task = match[1].replace(" ", "_")
+    m = meta("set", task)
+    chosen = m["selection"]["chosen"]
+    stated = [
+        int(match[2]),
+        int(match[3]),
+        int(match[4]),
+        match[5],
+        *(int(g.replace(",", "")) for g in match.groups()[5:]),
+    ]
+    actual = [
+        m["seed"],
+        chosen["successes"],
+        chosen["episodes"],
+        f"{chosen['mean_final_distance']:.2f}",
+        chosen["step"],
+        m["trained_timesteps"],
+        m["timesteps"],
+    ]
+    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
+
+
 def _claims() -> list[Claim]:
     meta_ = "baselines/policies/*/metadata.json"
     results = "docs/results.md (data/paper.tar.xz; the page's hash)"
     safe = "baselines.safe_load's limits and the shipped policy files"
     return [
+        Claim(
+            re.compile(
+                r"^\| (target reaching|formation) \| (\d+) \| (\d+)/(\d+) \| ([\d.]+) \| ([\d,]+) \| "
+                r"([\d,]+) \(([\d,]+)\) \|$",
+                re.M,
+            ),
+            _shipped_row,
+            "baselines/policies/set/<task>/metadata.json (the shipped seed)",
+        ),
         Claim(
             re.compile(r"`rl-ppo-set` loses only (\d+)-(\d+) points under `realistic`"),
             _realistic_loss,

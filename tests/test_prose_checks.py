@@ -224,6 +224,11 @@ CHECKS: list[tuple[re.Pattern[str], Check]] = [
     (re.compile(r"leaderboard with (\d+)% intervals"), _intervals),
     (re.compile(r"goes to `results-(\d+)/`"), _second_run),
     (re.compile(r"koopnav-bench-v(\d+)"), lambda m, s: [] if m[1] == "1" else [f"suite v{m[1]}"]),
+    # a comparison variant's name (rl-ppo-set-v0): a registered controller
+    (
+        re.compile(r"`([a-z-]+-v(\d+))`"),
+        lambda m, s: [] if m[1] in registry.available() else [f"{m[1]} is no registered controller"],
+    ),
 ]
 
 

@@ -416,12 +416,14 @@ class RLSetPolicyController(RLPolicyController):
     """The set-encoder PPO policies (``rl-ppo-set``): one network for any team size and layout.
 
     Each robot reads its own state and goal and the sets of its nearest team-mates and obstacles
-    (:mod:`baselines.features.set_features`), encoded by :class:`baselines.sb3.set_encoder.SetEncoder`;
-    the policies were trained on the random-layout curriculum of :mod:`baselines.curriculum`, the
-    ones ``rl-ppo-set-v0`` (:class:`RLSetV0PolicyController`) keeps for comparison when the training
-    seeds chosen on validation ship here (``python -m evaluation.experiments.seeds --ship``).
-    Parameters as :class:`RLPolicyController`; the default ``policy_root`` is
-    ``baselines/policies/set``.
+    (:mod:`baselines.features.set_features`), encoded by :class:`baselines.sb3.set_encoder.SetEncoder`.
+    Each task's shipped policy is the training seed chosen on validation: every seed the driver
+    plans (``data/training/run.sh``) trained on koopnav-bench-v1's train layouts, its checkpoint
+    chosen on the validation layouts, the seed picked by
+    :func:`evaluation.experiments.seeds.chosen_seed` and shipped by ``--ship`` (docs/rl.md). The
+    curriculum-trained policies shipped before are ``rl-ppo-set-v0``
+    (:class:`RLSetV0PolicyController`). Parameters as :class:`RLPolicyController`; the default
+    ``policy_root`` is ``baselines/policies/set``.
     """
 
     name = "rl-ppo-set"
