@@ -8,8 +8,9 @@ One folder per family and one for what both read (docs/layout.md):
   random-layout curriculum of :mod:`baselines.curriculum` (teams of 2 to 12); ``--policy mlp``
   (the default) trains the first, 3-robot MLP. ``python -m baselines.sb3.select`` keeps the best
   checkpoint on held-out random layouts. The ``rl-ppo*`` controllers play the shipped policies:
-  ``rl-ppo-set`` (``baselines/policies/set/``, any team size) and ``rl-ppo``
-  (``baselines/policies/``).
+  ``rl-ppo-set`` (``baselines/policies/set/``, any team size: the training seed chosen on
+  validation), ``rl-ppo-set-v0`` (``baselines/policies/set_v0/``, the curriculum-trained policies
+  shipped before, kept for comparison) and ``rl-ppo`` (``baselines/policies/``).
 - :mod:`baselines.marl` (extras ``[benchmarl]``, ``[torchrl]``): both tasks as BenchMARL tasks on
   a batched TorchRL env, ``python -m baselines.marl.benchmarl_train``, and the ``mappo`` /
   ``ippo`` controllers (numpy alone).
@@ -23,7 +24,7 @@ The package is the face others import from: the controllers, the envs and encode
 use and the loader's names are exported here (``from baselines import RLSetPolicyController,
 KoopNavTask``), each imported when first read, so that ``import baselines`` loads neither torch
 nor stable-baselines3. The controllers are registered through the ``koopnav.controllers`` entry
-point (``rl-ppo``, ``rl-ppo-set``, ``rl-ppo-set-realistic``,
+point (``rl-ppo``, ``rl-ppo-set``, ``rl-ppo-set-v0``, ``rl-ppo-set-realistic``,
 ``rl-ppo-set-physics``, ``rl-ppo-set-movers``, ``ippo``).
 """
 
@@ -49,6 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
         RLSetPhysicsPolicyController,
         RLSetPolicyController,
         RLSetRealisticPolicyController,
+        RLSetV0PolicyController,
         load_policy,
     )
     from baselines.sb3.set_encoder import SetEncoder
@@ -75,6 +77,7 @@ register_moved_paths(
 _LAZY = {
     "RLPolicyController": "baselines.sb3.policy",
     "RLSetPolicyController": "baselines.sb3.policy",
+    "RLSetV0PolicyController": "baselines.sb3.policy",
     "RLSetPhysicsPolicyController": "baselines.sb3.policy",
     "RLSetRealisticPolicyController": "baselines.sb3.policy",
     "RLSetMoversPolicyController": "baselines.sb3.policy",
@@ -124,6 +127,7 @@ __all__ = [
     "RLSetPolicyController",
     "RLSetPhysicsPolicyController",
     "RLSetRealisticPolicyController",
+    "RLSetV0PolicyController",
     "robot_features",
     "set_features",
     "SetEncoder",

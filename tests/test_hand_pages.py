@@ -596,6 +596,30 @@ def _preset(*fields: tuple[str, str] | tuple[str, str, int]) -> CheckFn:
 TUNED = "controllers/tuned/*.json and the -v0 presets' defaults"
 
 
+def _shipped_seed(match: re.Match[str]) -> list[str]:
+    """ "target reaching seed K (validation S/E, mean final distance D m, kept checkpoint step C of
+    T robot-steps trained)": the shipped rl-ppo-set policy's metadata.json (docs/rl.md's table)."""
+    task = match[1].replace(" ", "_")
+    m = json.loads((ROOT / "baselines" / "policies" / "set" / task / "metadata.json").read_text())
+    chosen = m["selection"]["chosen"]
+    stated = [
+        int(match[2]),
+        int(match[3]),
+        int(match[4]),
+        match[5],
+        *(int(g.replace(",", "")) for g in match.groups()[5:]),
+    ]
+    actual = [
+        m["seed"],
+        chosen["successes"],
+        chosen["episodes"],
+        f"{chosen['mean_final_distance']:.2f}",
+        chosen["step"],
+        m["trained_timesteps"],
+    ]
+    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
+
+
 def _benchmark_claims() -> list[Claim]:
     studies = "data/tuning/*/{best,confirmation}.json and the adoption rule"
     publish = "data/publish.sh's runs (tests/test_bench_page.py parses them)"
@@ -610,6 +634,14 @@ def _benchmark_claims() -> list[Claim]:
             re.compile(r"^<!-- the rows tests/test_prose_checks.py checks against data/tuning.*$", re.M),
             whole_page(tuning_problems),
             "tuning_problems (tests/test_prose_checks.py)",
+        ),
+        Claim(
+            re.compile(
+                r"(target reaching|formation)\s+seed (\d+) \(validation (\d+)/(\d+),\s+mean\s+final\s+distance\s+"
+                r"([\d.]+) m,\s+kept\s+checkpoint\s+step ([\d,]+) of ([\d,]+) robot-steps\s+trained\)"
+            ),
+            _shipped_seed,
+            "baselines/policies/set/<task>/metadata.json (the shipped seed)",
         ),
         Claim(
             re.compile(r"Of the \d+ seed runs the driver plans by default.*?validation \d+/\d+\)\.", re.S),

@@ -36,7 +36,8 @@ MIB = 2**20
 # --------------------------------------------------------------------------- the sources
 @functools.cache
 def meta(kind: str, task: str) -> dict:
-    """A shipped policy's metadata.json (``kind`` "" for rl-ppo's, "set", "ippo", ...)."""
+    """A shipped policy's metadata.json (``kind`` "" for rl-ppo's, "set_v0" for the curriculum-trained
+    set policies the page describes, "set" for the shipped seeds, "ippo", ...)."""
     folder = POLICIES / kind / task if kind else POLICIES / task
     return json.loads((folder / "metadata.json").read_text(encoding="utf-8"))
 
@@ -238,7 +239,7 @@ def _parts(match: re.Match[str]) -> list[str]:
     )
 
 
-def _set_training(task: str, kind: str = "set") -> CheckFn:
+def _set_training(task: str, kind: str = "set_v0") -> CheckFn:
     """ "N.NM robot-steps in M min (S s, R robot-steps/s": the run's metadata."""
 
     def check(match: re.Match[str]) -> list[str]:
@@ -258,9 +259,9 @@ def _set_training(task: str, kind: str = "set") -> CheckFn:
 
 def _set_tr_curve(match: re.Match[str]) -> list[str]:
     """The target-reaching selection: first, kept and last checkpoints and their validation."""
-    table = _validation("set", "target_reaching")
+    table = _validation("set_v0", "target_reaching")
     steps = sorted(table)
-    kept = meta("set", "target_reaching")["selection"]["selected_timesteps"]
+    kept = meta("set_v0", "target_reaching")["selection"]["selected_timesteps"]
     first, first_at, best, best_at, last, last_at = match.groups()
     return (
         _places(first, table[steps[0]], "the first checkpoint's validation")
@@ -274,8 +275,8 @@ def _set_tr_curve(match: re.Match[str]) -> list[str]:
 
 
 def _set_fm_kept(match: re.Match[str]) -> list[str]:
-    table = _validation("set", "formation")
-    kept = meta("set", "formation")["selection"]["selected_timesteps"]
+    table = _validation("set_v0", "formation")
+    kept = meta("set_v0", "formation")["selection"]["selected_timesteps"]
     return same(kept, max(table), "formation keeps the last checkpoint") + _places(
         match[1], table[kept], "formation's kept validation"
     )
@@ -320,7 +321,9 @@ def _noise(match: re.Match[str]) -> list[str]:
 
 
 def _sensing(match: re.Match[str]) -> list[str]:
-    radii = {meta("set", task)["set_config"]["sensing_radius"] for task in ("target_reaching", "formation")}
+    radii = {
+        meta("set_v0", task)["set_config"]["sensing_radius"] for task in ("target_reaching", "formation")
+    }
     return same({float(match[1])}, radii, "the set policies' sensing radius [m]")
 
 
@@ -637,7 +640,7 @@ def _set_inputs(match: re.Match[str]) -> list[str]:
     configs = {
         (c["neighbours"], c["sensing_radius"], c["obstacles"])
         for task in ("target_reaching", "formation")
-        for c in (meta("set", task)["set_config"],)
+        for c in (meta("set_v0", task)["set_config"],)
     }
     return same({stated}, configs, "the set policies' slots and radius (K, m, obstacles)")
 
@@ -645,7 +648,7 @@ def _set_inputs(match: re.Match[str]) -> list[str]:
 def _encoder(match: re.Match[str]) -> list[str]:
     stated = (int(match[1]), [int(match[2]), int(match[3])])
     actual = {
-        (meta("set", t)["set_width"], tuple(meta("set", t)["net_arch"]))
+        (meta("set_v0", t)["set_width"], tuple(meta("set_v0", t)["net_arch"]))
         for t in ("target_reaching", "formation")
     }
     return same({(stated[0], tuple(stated[1]))}, actual, "the set encoder's width and the heads")
@@ -660,7 +663,7 @@ def _validation_cells(match: re.Match[str]) -> list[str]:
 
     stated = ([int(n) for n in re.findall(r"\d+", match[1])], [int(n) for n in re.findall(r"\d+", match[2])])
     episodes = {
-        meta("set", t)["selection"]["command"].rsplit("--episodes ", 1)[-1]
+        meta("set_v0", t)["selection"]["command"].rsplit("--episodes ", 1)[-1]
         for t in ("target_reaching", "formation")
     }
     return (
@@ -703,11 +706,45 @@ def _unarrived(match: re.Match[str]) -> list[str]:
     return same(int(match[1]), layouts - arrived, "the episodes without the bearing that did not arrive")
 
 
+def _shipped_row(match: re.Match[str]) -> list[str]:
+    """A row of "What ships as rl-ppo-set": the shipped seed's metadata.json (its seed, the kept
+    checkpoint's validation record, its step and the budget)."""
+    task = match[1].replace(" ", "_")
+    m = meta("set", task)
+    chosen = m["selection"]["chosen"]
+    stated = [
+        int(match[2]),
+        int(match[3]),
+        int(match[4]),
+        match[5],
+        *(int(g.replace(",", "")) for g in match.groups()[5:]),
+    ]
+    actual = [
+        m["seed"],
+        chosen["successes"],
+        chosen["episodes"],
+        f"{chosen['mean_final_distance']:.2f}",
+        chosen["step"],
+        m["trained_timesteps"],
+        m["timesteps"],
+    ]
+    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
+
+
 def _claims() -> list[Claim]:
     meta_ = "baselines/policies/*/metadata.json"
     results = "docs/results.md (data/paper.tar.xz; the page's hash)"
     safe = "baselines.safe_load's limits and the shipped policy files"
     return [
+        Claim(
+            re.compile(
+                r"^\| (target reaching|formation) \| (\d+) \| (\d+)/(\d+) \| ([\d.]+) \| ([\d,]+) \| "
+                r"([\d,]+) \(([\d,]+)\) \|$",
+                re.M,
+            ),
+            _shipped_row,
+            "baselines/policies/set/<task>/metadata.json (the shipped seed)",
+        ),
         Claim(
             re.compile(r"`rl-ppo-set` loses only (\d+)-(\d+) points under `realistic`"),
             _realistic_loss,

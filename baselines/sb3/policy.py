@@ -34,6 +34,7 @@ __all__ = [
     "PolicyFiles",
     "RLPolicyController",
     "RLSetPolicyController",
+    "RLSetV0PolicyController",
     "RLSetPhysicsPolicyController",
     "RLSetRealisticPolicyController",
     "RLSetMoversPolicyController",
@@ -415,10 +416,14 @@ class RLSetPolicyController(RLPolicyController):
     """The set-encoder PPO policies (``rl-ppo-set``): one network for any team size and layout.
 
     Each robot reads its own state and goal and the sets of its nearest team-mates and obstacles
-    (:mod:`baselines.features.set_features`), encoded by :class:`baselines.sb3.set_encoder.SetEncoder`; the
-    policies were trained on the random-layout curriculum of :mod:`baselines.curriculum`.
-    Parameters as :class:`RLPolicyController`; the default ``policy_root`` is
-    ``baselines/policies/set``.
+    (:mod:`baselines.features.set_features`), encoded by :class:`baselines.sb3.set_encoder.SetEncoder`.
+    Each task's shipped policy is the training seed chosen on validation: every seed the driver
+    plans (``data/training/run.sh``) trained on koopnav-bench-v1's train layouts, its checkpoint
+    chosen on the validation layouts, the seed picked by
+    :func:`evaluation.experiments.seeds.chosen_seed` and shipped by ``--ship`` (docs/rl.md). The
+    curriculum-trained policies shipped before are ``rl-ppo-set-v0``
+    (:class:`RLSetV0PolicyController`). Parameters as :class:`RLPolicyController`; the default
+    ``policy_root`` is ``baselines/policies/set``.
     """
 
     name = "rl-ppo-set"
@@ -437,10 +442,23 @@ class RLSetPolicyController(RLPolicyController):
         super().__init__(policy_root or SHIPPED / self.shipped, algo, threads, allow_pickle)
 
 
+class RLSetV0PolicyController(RLSetPolicyController):
+    """``rl-ppo-set-v0``: the curriculum-trained set policies rl-ppo-set shipped before its seeds.
+
+    The policies trained on the random-layout curriculum of :mod:`baselines.curriculum`
+    (``baselines/policies/set_v0``), which ``rl-ppo-set`` shipped before its training seeds chosen
+    on validation; kept for comparison, and run only when asked for by name (a comparison variant,
+    as the tuned presets' ``<name>-v0``). The rows of ``rl-ppo-set`` in results published before
+    that change were measured with these policies."""
+
+    name = "rl-ppo-set-v0"
+    shipped = "set_v0"
+
+
 class RLSetRealisticPolicyController(RLSetPolicyController):
     """``rl-ppo-set-realistic``: the set policies fine-tuned under ``uncertainty="realistic"``
-    (pose noise, lossy and late messages, a period of actuation delay) from ``rl-ppo-set``'s
-    (``baselines/policies/set_realistic``; docs/rl.md)."""
+    (pose noise, lossy and late messages, a period of actuation delay) from ``rl-ppo-set-v0``'s
+    (the curriculum-trained ones; ``baselines/policies/set_realistic``; docs/rl.md)."""
 
     name = "rl-ppo-set-realistic"
     shipped = "set_realistic"
@@ -448,7 +466,7 @@ class RLSetRealisticPolicyController(RLSetPolicyController):
 
 class RLSetPhysicsPolicyController(RLSetPolicyController):
     """``rl-ppo-set-physics``: the set policies fine-tuned on the physics plant
-    (``plant="mujoco"``) from ``rl-ppo-set``'s, on koopnav-bench-v1's train layouts at carpet and
+    (``plant="mujoco"``) from ``rl-ppo-set-v0``'s, on koopnav-bench-v1's train layouts at carpet and
     ice (``slip`` nominal and high), the checkpoint chosen on its validation layouts on the same
     plant and floors (``baselines/policies/set_physics``; docs/rl.md). The sim-to-sim protocol's
     fine-tuned row (docs/physics.md): the others there run as trained on the kinematic plant."""
@@ -459,7 +477,7 @@ class RLSetPhysicsPolicyController(RLSetPolicyController):
 
 class RLSetMoversPolicyController(RLSetPolicyController):
     """``rl-ppo-set-movers``: set policies trained from scratch with 4 constant-velocity movers
-    (0.3 m/s) in every stage of the curriculum, which they see as a third set (each mover's
+    (0.3 m/s) in every stage of ``rl-ppo-set-v0``'s curriculum, which they see as a third set (each mover's
     body-frame offset, velocity and clearance), and a proximity cost within 0.5 m of a mover
     (``baselines.sb3.train --movers ... --mover-shaping 0.3``; ``baselines/policies/set_movers``;
     docs/rl.md). In an env without movers the mover set is empty (masked)."""

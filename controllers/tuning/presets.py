@@ -44,6 +44,7 @@ __all__ = [
     "TUNED_DIR",
     "TUNED_KIND",
     "V0_SUFFIX",
+    "WEIGHT_VARIANTS",
     "Preset",
     "build_preset",
     "builtin_names",
@@ -344,13 +345,18 @@ PRESETS = with_tuned(HAND_PRESETS)
 
 
 def is_comparison_variant(name: str) -> bool:
-    """Whether ``name`` is a ``<name>-v0`` variant :func:`with_tuned` registered: the defaults a
-    tuned controller had before, kept for comparison, run only when asked for by name (default
+    """Whether ``name`` is a ``<name>-v0`` variant: one :func:`with_tuned` registered (the defaults a
+    tuned controller had before) or one of :data:`WEIGHT_VARIANTS` (the policies a learned
+    controller shipped before), kept for comparison, run only when asked for by name (default
     runs leave them out: :func:`controllers.registry.available`)."""
-    return name.endswith(V0_SUFFIX) and name in _VARIANTS
+    return name.endswith(V0_SUFFIX) and (name in _VARIANTS or name in WEIGHT_VARIANTS)
 
 
 _VARIANTS = frozenset(p.name for p in PRESETS if p.name.endswith(V0_SUFFIX))
+#: the ``-v0`` variants of learned controllers: the policies ``<name>`` shipped before its training
+#: seed chosen on validation (``baselines/policies/<folder>_v0``; ``rl-ppo-set-v0``,
+#: baselines/sb3/policy.py; evaluation.experiments.seeds.ship moves them there)
+WEIGHT_VARIANTS = frozenset({"rl-ppo-set-v0"})
 
 
 def tuned_file(name: str) -> Path | None:

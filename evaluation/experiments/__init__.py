@@ -4,7 +4,8 @@
 (:mod:`~evaluation.experiments.sweep`), the sim-to-sim protocol's two runs read back per friction level
 (:mod:`~evaluation.experiments.sim2sim`), and the learned policies' training seeds on the test split
 (:mod:`~evaluation.experiments.seeds`, a command: ``python -m evaluation.experiments.seeds``) and
-their publication read back (:mod:`~evaluation.experiments.seeds_published`).
+their publication read back (:mod:`~evaluation.experiments.seeds_published`), and where ``--ship``
+ships a chosen seed (:mod:`~evaluation.experiments.seeds_shipping`).
 
 The package is their face: the public names of its modules (their ``__all__``), importable from
 here (tests/test_architecture.py checks the list), except those of the seeds command, which are
@@ -47,6 +48,12 @@ from evaluation.experiments.protocols import (
     suite_protocol,
 )
 from evaluation.experiments.seeds_published import DRIVER, PublishedSeeds, planned_seeds, read_publication
+from evaluation.experiments.seeds_shipping import (
+    V0_FOLDER_SUFFIX,
+    check_shippable,
+    keep_former,
+    shipped_folder,
+)
 from evaluation.experiments.sim2sim import (
     FINE_TUNED,
     PLANTS,
@@ -75,6 +82,10 @@ __all__ = [
     "DRIVER",
     "PublishedSeeds",
     "planned_seeds",
+    "V0_FOLDER_SUFFIX",
+    "check_shippable",
+    "keep_former",
+    "shipped_folder",
     "read_publication",
     "FINE_TUNED",
     "PLANTS",

@@ -18,7 +18,9 @@ seed folder), every variant on the same (layout, episode) units, and reports:
   interval that re-draws the layouts within each stratum, and beside it the mean over seeds. With
   fewer than 4 seeds the IQM trims nothing: the report leads with the mean and says so;
 - **the shipped seed**: :func:`chosen_seed`, the best by its validation record (never by test);
-  ``--ship`` copies its policy into the controller's shipped folder.
+  ``--ship`` copies its policy into the controller's shipped folder (:func:`ship`: the first time,
+  the former policies move to ``<folder>_v0``, which ``<policy>-v0`` plays; refused by name while
+  a seed the driver plans is unfinished, or without a ``<policy>-v0``).
 
 The published run is ``bash data/publish.sh seeds`` (``OUT`` = ``data/runs/seeds``, packed into
 ``data/seeds/`` by ``bash data/publish.sh pack``); :func:`evaluation.experiments.seeds_published.read_publication` reads it back,
@@ -31,6 +33,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -39,6 +42,7 @@ from typing import Any
 
 from evaluation.episodes.records import selection_key
 from evaluation.exit_codes import BAD_INPUT_EXIT, SUCCESS_EXIT
+from evaluation.experiments.seeds_shipping import check_shippable, keep_former, shipped_folder
 from evaluation.stats.clustered import layout_rate_interval, run_aggregate_interval
 from koopman_envs import SPLITS, TASKS
 from koopman_envs.checks import check_choice
@@ -50,6 +54,7 @@ __all__ = [
     "POLICIES",
     "REPORTS",
     "TRAINING_ROOT",
+    "DRIVER",
     "SeedAggregate",
     "SeedRun",
     "aggregate",
@@ -59,6 +64,7 @@ __all__ = [
     "main",
     "outcomes_by_label",
     "report_markdown",
+    "planned_seeds",
     "ship",
 ]
 
@@ -101,6 +107,40 @@ class SeedRun:
     def label(self) -> str:
         """Its row in the evaluator's reports: ``<policy>@seed<k>``."""
         return f"{self.policy}@seed{self.seed}"
+
+
+#: the seed driver (the seeds it trains; read back by ``evaluation.experiments.seeds_published``), whose defaults are the planned seeds (:func:`planned_seeds`)
+DRIVER = TRAINING_ROOT / "run.sh"
+
+
+def planned_seeds(script: str | os.PathLike[str] = DRIVER) -> list[tuple[str, str, int]]:
+    """The seed runs the driver ``script`` (``data/training/run.sh``) plans by default, as
+    ``(policy, task, seed)`` in its order: its default policies, each on its default tasks, seeds
+    0 to its default ``SEEDS`` - 1.
+
+    Raises
+    ------
+    ValueError
+        The script does not state a default (naming which), or names a policy or task that is not
+        one (naming it and the allowed ones).
+    """
+    text = read_text(script, MAX_TEXT_BYTES, what="seed driver", expected="data/training/run.sh")
+    found = {
+        "SEEDS": re.search(r'^SEEDS="\$\{SEEDS:-(\d+)\}"$', text, re.M),
+        "policies": re.search(r"\|\| policies=\(([\w -]+)\)$", text, re.M),
+        "TASKS": re.search(r'"\$\{TASKS:-([\w ]+)\}"', text),
+    }
+    missing = [name for name, match in found.items() if match is None]
+    if missing:
+        raise ValueError(f"{script} states no default {', '.join(missing)} (as data/training/run.sh does)")
+    policies = found["policies"][1].split()  # type: ignore[index]
+    tasks = found["TASKS"][1].split()  # type: ignore[index]
+    for policy in policies:
+        check_choice(f"{script}: default policy", policy, POLICIES)
+    for task in tasks:
+        check_choice(f"{script}: default task", task, list(TASKS))
+    seeds = int(found["SEEDS"][1])  # type: ignore[index]
+    return [(p, t, k) for p in policies for t in tasks for k in range(seeds)]
 
 
 def _read_json(path: Path) -> Any:
@@ -348,14 +388,25 @@ def report_markdown(summaries: Sequence[Mapping[str, Any]], split: str = "test")
     return "\n".join(rows) + "\n"
 
 
-def ship(run: SeedRun) -> Path:
+def ship(
+    run: SeedRun,
+    *,
+    policies: str | os.PathLike[str] | None = None,
+    plan: Sequence[tuple[str, str, int]] | None = None,
+) -> Path:
     """Copy the kept policy of ``run`` (the seed :func:`chosen_seed` picks) into its
-    controller's shipped folder (``baselines/policies/<folder>/<task>/``); the folder written."""
-    import controllers
+    controller's shipped folder (``baselines/policies/<folder>/<task>/``; ``policies``: another
+    directory of shipped folders); the folder written.
 
-    # the controller's own default root: the folder its shipped policies load from
-    controller: Any = controllers.make(run.policy)  # an RL controller: it has a policy_root
-    target = Path(controller.policy_root) / run.task
+    The first time (no ``<folder>_v0`` yet) the folder is first renamed ``<folder>_v0``, every
+    task's former policies with it, which ``<policy>-v0`` plays (``rl-ppo-set-v0``); an existing
+    ``<folder>_v0`` is never written to. Refused (``ValueError``, by name, before anything is moved
+    or written: :func:`~evaluation.experiments.seeds_shipping.check_shippable`) while a seed the
+    driver plans for the policy and task (``plan``, default :func:`planned_seeds`) is unfinished,
+    or when no ``<policy>-v0`` is registered.
+    """
+    check_shippable(run.policy, run.task, run.folder.parent, planned_seeds() if plan is None else plan)
+    target = keep_former(shipped_folder(run.policy, policies)) / run.task
     source = run.folder / run.task
     for path in sorted(source.iterdir()):
         if path.is_file():
@@ -382,7 +433,10 @@ def _parser() -> argparse.ArgumentParser:
         help="one score per (stratum, seed): the layouts' tier or family (default: the whole split)",
     )
     parser.add_argument(
-        "--ship", action="store_true", help="copy each chosen seed's policy to the shipped folder"
+        "--ship",
+        action="store_true",
+        help="copy each chosen seed's policy to the shipped folder (the former policies, the first "
+        "time, to <folder>_v0 for <policy>-v0); refused while a planned seed is unfinished",
     )
     parser.add_argument("--out", required=True, help="the run logs (OUT/<task>/) and seeds.md, seeds.json")
     return parser
@@ -393,6 +447,15 @@ def main(argv: list[str] | None = None) -> int:
     from evaluation.run.suite_runs import layout_slice
 
     args = _parser().parse_args(argv)
+    if args.ship:  # refused before any episode runs, by name (check_shippable)
+        try:
+            for policy in args.policies:
+                for task in args.tasks:
+                    for run in finished_seeds(args.root, policy, task)[:1]:
+                        check_shippable(policy, task, run.folder.parent, planned_seeds())
+        except ValueError as exc:
+            print(f"error: --ship: {exc}", file=sys.stderr)
+            return BAD_INPUT_EXIT
     try:
         summaries = evaluate_seeds(
             args.root, args.policies, args.tasks, split=args.split, layouts=layout_slice(args.layouts),
@@ -421,6 +484,8 @@ def main(argv: list[str] | None = None) -> int:
     write_atomic(Path(args.out) / summary, json.dumps(data, indent=1) + "\n")
     print(table)
     if args.ship:
+        for s in summaries:  # every one checked before the first is moved or written
+            check_shippable(s["policy"], s["task"], s["chosen"].folder.parent, planned_seeds())
         for s in summaries:
             print(f"shipped {s['chosen'].label} ({s['task']}) to {ship(s['chosen'])}")
     return SUCCESS_EXIT

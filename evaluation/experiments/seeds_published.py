@@ -19,6 +19,7 @@ from typing import Any
 
 from evaluation.episodes.log_weights import WEIGHTS_KEY
 from evaluation.experiments.seeds import (
+    DRIVER,
     FINISHED_FILE,
     POLICIES,
     REPORTS,
@@ -29,48 +30,14 @@ from evaluation.experiments.seeds import (
     chosen_seed,
     finished_seeds,
     outcomes_by_label,
+    planned_seeds,
 )
 from evaluation.run.configs import ControllerConfig
 from evaluation.run.weights import run_weights
 from evaluation.stats.progress import Progress, planned_episodes
 from koopman_envs import TASKS
-from koopman_envs.checks import check_choice
-from koopman_envs.files import MAX_TEXT_BYTES, read_text
 
 __all__ = ["DRIVER", "PublishedSeeds", "planned_seeds", "read_publication"]
-
-#: the seed driver, whose defaults are the planned seeds (:func:`planned_seeds`)
-DRIVER = TRAINING_ROOT / "run.sh"
-
-
-def planned_seeds(script: str | os.PathLike[str] = DRIVER) -> list[tuple[str, str, int]]:
-    """The seed runs the driver ``script`` (``data/training/run.sh``) plans by default, as
-    ``(policy, task, seed)`` in its order: its default policies, each on its default tasks, seeds
-    0 to its default ``SEEDS`` - 1.
-
-    Raises
-    ------
-    ValueError
-        The script does not state a default (naming which), or names a policy or task that is not
-        one (naming it and the allowed ones).
-    """
-    text = read_text(script, MAX_TEXT_BYTES, what="seed driver", expected="data/training/run.sh")
-    found = {
-        "SEEDS": re.search(r'^SEEDS="\$\{SEEDS:-(\d+)\}"$', text, re.M),
-        "policies": re.search(r"\|\| policies=\(([\w -]+)\)$", text, re.M),
-        "TASKS": re.search(r'"\$\{TASKS:-([\w ]+)\}"', text),
-    }
-    missing = [name for name, match in found.items() if match is None]
-    if missing:
-        raise ValueError(f"{script} states no default {', '.join(missing)} (as data/training/run.sh does)")
-    policies = found["policies"][1].split()  # type: ignore[index]
-    tasks = found["TASKS"][1].split()  # type: ignore[index]
-    for policy in policies:
-        check_choice(f"{script}: default policy", policy, POLICIES)
-    for task in tasks:
-        check_choice(f"{script}: default task", task, list(TASKS))
-    seeds = int(found["SEEDS"][1])  # type: ignore[index]
-    return [(p, t, k) for p in policies for t in tasks for k in range(seeds)]
 
 
 @dataclass(frozen=True)
