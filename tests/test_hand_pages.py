@@ -49,6 +49,7 @@ from helpers.hand_audit import (  # noqa: E402
     result_tokens,
     rows,
     same,
+    shipped_seed_problems,
     whole_page,
 )
 
@@ -599,25 +600,7 @@ TUNED = "controllers/tuned/*.json and the -v0 presets' defaults"
 def _shipped_seed(match: re.Match[str]) -> list[str]:
     """ "target reaching seed K (validation S/E, mean final distance D m, kept checkpoint step C of
     T robot-steps trained)": the shipped rl-ppo-set policy's metadata.json (docs/rl.md's table)."""
-    task = match[1].replace(" ", "_")
-    m = json.loads((ROOT / "baselines" / "policies" / "set" / task / "metadata.json").read_text())
-    chosen = m["selection"]["chosen"]
-    stated = [
-        int(match[2]),
-        int(match[3]),
-        int(match[4]),
-        match[5],
-        *(int(g.replace(",", "")) for g in match.groups()[5:]),
-    ]
-    actual = [
-        m["seed"],
-        chosen["successes"],
-        chosen["episodes"],
-        f"{chosen['mean_final_distance']:.2f}",
-        chosen["step"],
-        m["trained_timesteps"],
-    ]
-    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
+    return shipped_seed_problems(match)
 
 
 def _benchmark_claims() -> list[Claim]:

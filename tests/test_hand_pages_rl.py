@@ -25,7 +25,17 @@ from pathlib import Path
 
 import pytest
 
-from helpers.hand_audit import Audit, CheckFn, Claim, code_value, page_problems, pinned_problems, read, same
+from helpers.hand_audit import (
+    Audit,
+    CheckFn,
+    Claim,
+    code_value,
+    page_problems,
+    pinned_problems,
+    read,
+    same,
+    shipped_seed_problems,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 POLICIES = ROOT / "baselines" / "policies"
@@ -709,26 +719,7 @@ def _unarrived(match: re.Match[str]) -> list[str]:
 def _shipped_row(match: re.Match[str]) -> list[str]:
     """A row of "What ships as rl-ppo-set": the shipped seed's metadata.json (its seed, the kept
     checkpoint's validation record, its step and the budget)."""
-    task = match[1].replace(" ", "_")
-    m = meta("set", task)
-    chosen = m["selection"]["chosen"]
-    stated = [
-        int(match[2]),
-        int(match[3]),
-        int(match[4]),
-        match[5],
-        *(int(g.replace(",", "")) for g in match.groups()[5:]),
-    ]
-    actual = [
-        m["seed"],
-        chosen["successes"],
-        chosen["episodes"],
-        f"{chosen['mean_final_distance']:.2f}",
-        chosen["step"],
-        m["trained_timesteps"],
-        m["timesteps"],
-    ]
-    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
+    return shipped_seed_problems(match, budget=True)
 
 
 def _claims() -> list[Claim]:

@@ -25,6 +25,7 @@ or pinned phrase the page no longer states, and every check that fails.
 from __future__ import annotations
 
 import functools
+import json
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -369,3 +370,25 @@ def pinned_problems(audit: Audit) -> list[str]:
             f"{phrase!r}: {why!r} says too little" for phrase, why in phrases.items() if len(why) <= 20
         ]
     return problems
+
+
+def shipped_seed_problems(match: re.Match[str], *, budget: bool = False) -> list[str]:
+    """A claim "TASK seed K (validation S/E, mean final distance D m, kept checkpoint step C of T
+    robot-steps trained[, budget B])" (groups: task, K, S, E, D, then C, T[, B]) against the shipped
+    rl-ppo-set policy's ``metadata.json`` for the task: docs/benchmark.md's sentence and docs/rl.md's
+    table (``budget``: its last column, the run's planned robot-steps)."""
+    task = match[1].replace(" ", "_")
+    m = json.loads((ROOT / "baselines" / "policies" / "set" / task / "metadata.json").read_text())
+    chosen = m["selection"]["chosen"]
+    stated = [int(match[2]), int(match[3]), int(match[4]), match[5]]
+    stated += [int(g.replace(",", "")) for g in match.groups()[5:]]
+    actual = [
+        m["seed"],
+        chosen["successes"],
+        chosen["episodes"],
+        f"{chosen['mean_final_distance']:.2f}",
+        chosen["step"],
+        m["trained_timesteps"],
+        *([m["timesteps"]] if budget else []),
+    ]
+    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
