@@ -378,7 +378,7 @@ def report_markdown(summaries: Sequence[Mapping[str, Any]], split: str = "test")
         lead = (
             f"IQM {_interval(result.iqm)}"
             if result.lead == "iqm"
-            else f"mean {_interval(result.mean)} ({len(result.seeds)} seeds: fewer than {IQM_MIN_RUNS}, "
+            else f"mean {_interval(result.mean)} ({len(result.seeds)} seed{'s' if len(result.seeds) != 1 else ''}: fewer than {IQM_MIN_RUNS}, "
             "the IQM trims nothing)"
         )
         rows.append(
