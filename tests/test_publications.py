@@ -334,6 +334,11 @@ def test_a_parts_line_that_is_torn_or_not_an_object_is_refused_by_its_number(spl
     log = "sweep/lvl-0/episodes.jsonl"
     part = _part(split, "a", _line("a") + b'{"key": "E|a|m\n')
     assert _message(split, tmp_path) == f"{part}: {log}, line 3 is not a JSON record (torn?)"
+    _part(split, "a", _line("a") + b"[" * 100 + b"]" * 100 + b"\n")  # past the nesting bound, not torn
+    assert (
+        _message(split, tmp_path)
+        == f"{part}: {log}, line 3: JSON nested 100 levels deep; allowed: at most 64"
+    )
     _part(split, "a", b"[1, 2]\n")  # JSON, but no record: it has no controller
     assert _message(split, tmp_path) == (
         f"{part}: {log}, line 2 is a record of None, not of its part's controller 'a' among the log's ['a', 'b']"
@@ -538,3 +543,18 @@ def test_logs_of_other_controllers_and_several_sweeps_read_back_whole(tmp_path) 
     back = publications.extract_split(split, tmp_path / "into")
     assert _logs(back) == _logs(run) and len(_logs(back)) == 4
     assert (back / "second" / "sweep.json").read_bytes() == (run / "second" / "sweep.json").read_bytes()
+
+
+def test_an_unpacked_member_past_the_bound_is_refused_by_what_it_is(split, tmp_path, monkeypatch) -> None:
+    """Each file unpacked is read again under the member bound before it is joined or written out
+    (a file grown or swapped between the extraction and the read): the refusal names it an
+    unpacked member, with the bound, and nothing is left in ``into``."""
+    monkeypatch.setattr(publications, "MAX_MEMBER_BYTES", 16)
+    refused = r"^unpacked member '[^']+' cannot be read: it is \d+ bytes; at most 16 bytes are allowed$"
+    into = tmp_path / "into"
+    with pytest.raises(ValueError, match=refused):
+        publications.extract_split(split, into)
+    assert not into.exists() or list(into.iterdir()) == []
+    with pytest.raises(ValueError, match=refused):
+        publications.unpack_run(split, tmp_path / "runs")
+    assert not (tmp_path / "runs").exists() or list((tmp_path / "runs").rglob("*.jsonl")) == []

@@ -242,7 +242,9 @@ def _read_part(part: Path, label: str, logs: dict[str, list[str]], run: Path) ->
                 continue
             try:
                 record = parse_json(line, f"{part}: {name}, line {number}")
-            except ValueError:
+            except json.JSONDecodeError:
+                # a syntax error is a torn line; parse_json's own refusal of a line past its size
+                # or nesting bound names the line itself and goes out as it is
                 raise ValueError(f"{part}: {name}, line {number} is not a JSON record (torn?)") from None
             owner = record.get("controller") if isinstance(record, dict) else None
             if owner != label or label not in logs[name]:
