@@ -35,10 +35,12 @@ def _seed(root: Path, seed: int, *, finished: bool = True, policy: str = "rl-ppo
 
 
 def _former(policies: Path) -> None:
-    """The policies shipped before the seeds, both tasks."""
+    """The policies shipped before the seeds, both tasks (the shipped task's with a file its
+    seeds do not have)."""
     for task in ("target_reaching", TASK):
         (policies / "set" / task).mkdir(parents=True)
         (policies / "set" / task / "policy.zip").write_text(f"former {task}")
+    (policies / "set" / TASK / "vecnormalize.pkl").write_text("former statistics")
 
 
 def test_rl_ppo_set_v0_plays_the_former_folder() -> None:
@@ -61,11 +63,16 @@ def test_ship_moves_the_former_policies_once_and_copies_the_chosen_seed(tmp_path
     target = ship(runs[2], policies=policies, plan=PLAN)
     assert target == policies / "set" / TASK
     assert (target / "policy.zip").read_text() == "policy.zip of seed 2"
+    # the seed's files only: a former file it has not would be read with the seed's weights
     assert sorted(p.name for p in target.iterdir()) == ["metadata.json", "obs_norm.npz", "policy.zip"]
-    # every task's former policies kept in set_v0, and set holds the shipped task only
+    assert (policies / "set_v0" / TASK / "vecnormalize.pkl").is_file()
+    # every task's former policies kept in set_v0; the task not shipped yet keeps its former
+    # policy under the controller's own name (a copy, not a move: it is never left without one)
     assert (policies / "set_v0" / TASK / "policy.zip").read_text() == f"former {TASK}"
     assert (policies / "set_v0" / "target_reaching" / "policy.zip").read_text() == "former target_reaching"
-    assert sorted(p.name for p in (policies / "set").iterdir()) == [TASK]
+    assert (policies / "set" / "target_reaching" / "policy.zip").read_text() == "former target_reaching"
+    assert sorted(p.name for p in (policies / "set").iterdir()) == ["formation", "target_reaching"]
+    assert not list(policies.glob("*.partial"))
     # a second ship never writes to the existing set_v0
     ship(runs[0], policies=policies, plan=PLAN)
     assert (policies / "set" / TASK / "policy.zip").read_text() == "policy.zip of seed 0"

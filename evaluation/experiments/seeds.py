@@ -398,9 +398,10 @@ def ship(
     controller's shipped folder (``baselines/policies/<folder>/<task>/``; ``policies``: another
     directory of shipped folders); the folder written.
 
-    The first time (no ``<folder>_v0`` yet) the folder is first renamed ``<folder>_v0``, every
+    The first time (no ``<folder>_v0`` yet) the folder is first copied to ``<folder>_v0``, every
     task's former policies with it, which ``<policy>-v0`` plays (``rl-ppo-set-v0``); an existing
-    ``<folder>_v0`` is never written to. Refused (``ValueError``, by name, before anything is moved
+    ``<folder>_v0`` is never written to. The task's folder then holds the seed's files only; a
+    task not shipped yet keeps its former policy. Refused (``ValueError``, by name, before anything is moved
     or written: :func:`~evaluation.experiments.seeds_shipping.check_shippable`) while a seed the
     driver plans for the policy and task (``plan``, default :func:`planned_seeds`) is unfinished,
     or when no ``<policy>-v0`` is registered.
@@ -408,9 +409,13 @@ def ship(
     check_shippable(run.policy, run.task, run.folder.parent, planned_seeds() if plan is None else plan)
     target = keep_former(shipped_folder(run.policy, policies)) / run.task
     source = run.folder / run.task
-    for path in sorted(source.iterdir()):
-        if path.is_file():
-            write_atomic(target / path.name, path.read_bytes())
+    files = sorted(path for path in source.iterdir() if path.is_file())
+    for path in files:
+        write_atomic(target / path.name, path.read_bytes())
+    for path in sorted(target.iterdir()):
+        # a former policy's file the seed has not (an obs_norm.npz) would be read with its weights
+        if path.is_file() and path.name not in {f.name for f in files}:
+            path.unlink()
     return target
 
 

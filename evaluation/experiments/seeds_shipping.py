@@ -3,7 +3,7 @@
 A learned controller loads its shipped policies from ``baselines/policies/<folder>/<task>/``
 (its class's ``shipped``). Shipping a training seed chosen on validation
 (:func:`evaluation.experiments.seeds.ship`) keeps the policies shipped before: the first time, the
-folder becomes ``<folder>_v0`` (:func:`keep_former`, never written again), which the registered
+folder is copied to ``<folder>_v0`` (:func:`keep_former`, never written again), which the registered
 ``<policy>-v0`` plays (``rl-ppo-set-v0``, as the tuned presets keep their defaults as
 ``<name>-v0``). :func:`check_shippable` refuses, by name and before anything moves, while a seed
 the driver plans for the policy and task is unfinished (the chosen seed is chosen among every
@@ -13,6 +13,7 @@ planned one), or when no ``<policy>-v0`` plays ``<folder>_v0``.
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -91,10 +92,16 @@ def check_shippable(
 
 
 def keep_former(shipped: Path) -> Path:
-    """Rename ``shipped`` (a controller's shipped folder) to ``<shipped>_v0`` unless that exists
+    """Copy ``shipped`` (a controller's shipped folder) to ``<shipped>_v0`` unless that exists
     (once: the policies shipped before the seeds, every task's, kept for ``<policy>-v0``; an
-    existing ``_v0`` is never written to); ``shipped``."""
+    existing ``_v0`` is never written to); ``shipped``.
+
+    A copy, not a move: a task not shipped yet keeps playing its former policy under the
+    controller's own name (shipping one task must not leave the other without a policy)."""
     former = shipped.with_name(shipped.name + V0_FOLDER_SUFFIX)
     if not former.exists() and shipped.exists():
-        shipped.rename(former)
+        scratch = former.with_name(former.name + ".partial")
+        shutil.rmtree(scratch, ignore_errors=True)
+        shutil.copytree(shipped, scratch)
+        scratch.rename(former)  # whole or absent: a copy cut short is never read as the former policies
     return shipped
