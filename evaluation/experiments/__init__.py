@@ -10,9 +10,15 @@ ships a chosen seed (:mod:`~evaluation.experiments.seeds_shipping`).
 The package is their face: the public names of its modules (their ``__all__``), importable from
 here (tests/test_architecture.py checks the list), except those of the seeds command, which are
 read from :mod:`evaluation.experiments.seeds` (its ``main`` and ``aggregate`` would be ambiguous here).
+The names of :mod:`~evaluation.experiments.seeds_published` are imported when first read
+(:func:`__getattr__`): that module imports the seeds command's, and a package that imported it
+would make ``python -m evaluation.experiments.seeds`` run a module already imported (runpy's
+RuntimeWarning, and two copies of its globals).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from evaluation.experiments.ablation import (
     ABLATION_TITLE,
@@ -47,7 +53,6 @@ from evaluation.experiments.protocols import (
     quick_protocol,
     suite_protocol,
 )
-from evaluation.experiments.seeds_published import DRIVER, PublishedSeeds, planned_seeds, read_publication
 from evaluation.experiments.seeds_shipping import (
     V0_FOLDER_SUFFIX,
     check_shippable,
@@ -136,3 +141,16 @@ __all__ = [
     "run_sweep",
     "write_manifest",
 ]
+
+#: the names read from :mod:`~evaluation.experiments.seeds_published` on first use
+_SEEDS_PUBLISHED = frozenset({"DRIVER", "PublishedSeeds", "planned_seeds", "read_publication"})
+
+
+def __getattr__(name: str) -> Any:
+    """The names of :mod:`~evaluation.experiments.seeds_published`, imported on first use (the
+    module docstring says why)."""
+    if name in _SEEDS_PUBLISHED:
+        from evaluation.experiments import seeds_published
+
+        return getattr(seeds_published, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
