@@ -13,7 +13,8 @@ One folder per family and one for what both read (docs/layout.md):
   shipped before, kept for comparison) and ``rl-ppo`` (``baselines/policies/``).
 - :mod:`baselines.marl` (extras ``[benchmarl]``, ``[torchrl]``): both tasks as BenchMARL tasks on
   a batched TorchRL env, ``python -m baselines.marl.benchmarl_train``, and the ``mappo`` /
-  ``ippo`` controllers (numpy alone).
+  ``ippo`` / ``ippo-v0`` controllers (numpy alone; ``ippo-v0``, ``baselines/policies/ippo_v0/``,
+  the random-layout policies ``ippo`` shipped before its seeds chosen on validation).
 - :mod:`baselines.features`: what a policy reads beside the env's block, its set observation,
   and under lidar the perceived obstacles and movers (numpy only).
 - at the root, what both families share: the training terms (:mod:`baselines.shaping`), the
@@ -25,7 +26,7 @@ use and the loader's names are exported here (``from baselines import RLSetPolic
 KoopNavTask``), each imported when first read, so that ``import baselines`` loads neither torch
 nor stable-baselines3. The controllers are registered through the ``koopnav.controllers`` entry
 point (``rl-ppo``, ``rl-ppo-set``, ``rl-ppo-set-v0``, ``rl-ppo-set-realistic``,
-``rl-ppo-set-physics``, ``rl-ppo-set-movers``, ``ippo``).
+``rl-ppo-set-physics``, ``rl-ppo-set-movers``, ``ippo``, ``ippo-v0``).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only: these are read on first use
     from baselines.features.robot_features import robot_features
     from baselines.features.set_features import SetFeatureConfig, set_features
     from baselines.marl.benchmarl_task import KoopNavTask
-    from baselines.marl.marl_policy import IppoController, MappoController
+    from baselines.marl.marl_policy import IppoController, IppoV0Controller, MappoController
     from baselines.marl.torchrl_env import KoopNavMultiAgentEnv
     from baselines.safe_load import PolicyLoadError, UnsafePolicyFile, load_model
     from baselines.sb3.actor import compile_actor
@@ -89,6 +90,7 @@ _LAZY = {
     "MixtureVecEnv": "baselines.sb3.vec_env",
     "MappoController": "baselines.marl.marl_policy",
     "IppoController": "baselines.marl.marl_policy",
+    "IppoV0Controller": "baselines.marl.marl_policy",
     "KoopNavTask": "baselines.marl.benchmarl_task",
     "KoopNavMultiAgentEnv": "baselines.marl.torchrl_env",
     "SetFeatureConfig": "baselines.features.set_features",
@@ -114,6 +116,7 @@ def __dir__() -> list[str]:
 __all__ = [
     "compile_actor",
     "IppoController",
+    "IppoV0Controller",
     "KoopNavMultiAgentEnv",
     "KoopNavSB3VecEnv",
     "KoopNavTask",

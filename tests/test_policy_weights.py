@@ -50,7 +50,7 @@ def _header(out: Path) -> dict:
 def test_every_learned_controller_has_the_digest_of_the_files_it_loads() -> None:
     configs = controller_configs(
         ["rl-ppo", "rl-ppo-set", "rl-ppo-set-v0", "rl-ppo-set-realistic", "rl-ppo-set-movers"]
-        + ["rl-ppo-set-physics", "ippo"]
+        + ["rl-ppo-set-physics", "ippo", "ippo-v0"]
         + ["consensus", "orca", "safe:rl-ppo-set"]
     )
     weights = run_weights(configs, ["KoopNav-TargetReaching-v0", "KoopNav-Formation-v0"])
@@ -63,13 +63,14 @@ def test_every_learned_controller_has_the_digest_of_the_files_it_loads() -> None
         "rl-ppo-set-physics": SHIPPED / "set_physics",
         "safe:rl-ppo-set": SHIPPED / "set",
     }
-    assert sorted(weights) == sorted([*folders, "ippo"])  # the model-based ones load no policy
+    assert sorted(weights) == sorted([*folders, "ippo", "ippo-v0"])  # the model-based ones load no policy
     for label, folder in folders.items():
         for task in ("target_reaching", "formation"):
             assert weights[label][task] == files_digest([folder / task / name for name in POLICY_FILES])
-    for task in ("target_reaching", "formation"):
-        ippo = SHIPPED / "ippo" / task
-        assert weights["ippo"][task] == files_digest([ippo / "policy.npz", ippo / "metadata.json"])
+    for label, folder in (("ippo", "ippo"), ("ippo-v0", "ippo_v0")):
+        for task in ("target_reaching", "formation"):
+            ippo = SHIPPED / folder / task
+            assert weights[label][task] == files_digest([ippo / "policy.npz", ippo / "metadata.json"])
     assert len(set(weights["rl-ppo-set"].values()) | set(weights["rl-ppo"].values())) == 4
 
 

@@ -43,6 +43,17 @@ def _former(policies: Path) -> None:
     (policies / "set" / TASK / "vecnormalize.pkl").write_text("former statistics")
 
 
+def test_ippo_v0_plays_the_former_folder() -> None:
+    cls = controller_class("ippo-v0")
+    assert cls is not None and cls.shipped == "ippo_v0"
+    assert issubclass(cls, controller_class("ippo"))  # type: ignore[arg-type]
+    assert shipped_folder("ippo") == ROOT / "baselines" / "policies" / "ippo"
+    for task in ("target_reaching", TASK):
+        assert (ROOT / "baselines" / "policies" / "ippo_v0" / task / "policy.npz").is_file()
+    assert "ippo-v0" in controllers.available() and "ippo-v0" not in controllers.available(variants=False)
+    check_shippable("ippo", TASK, ROOT / "nowhere", [])  # nothing planned, a -v0 to keep the former
+
+
 def test_rl_ppo_set_v0_plays_the_former_folder() -> None:
     cls = controller_class("rl-ppo-set-v0")
     assert cls is not None and cls.shipped == "set_v0"
@@ -95,11 +106,15 @@ def test_ship_refuses_while_a_planned_seed_is_unfinished_naming_it(tmp_path: Pat
     check_shippable("rl-ppo-set", TASK, run.folder.parent, [("rl-ppo-set", TASK, 0), ("rl-ppo-set", "x", 5)])
 
 
-def test_ship_refuses_a_policy_without_a_v0_controller_by_name(tmp_path: Path) -> None:
+def test_ship_refuses_a_policy_without_a_v0_controller_by_name(tmp_path: Path, monkeypatch) -> None:
     training = tmp_path / "training"
     _seed(training, 0, policy="ippo")
     (run,) = finished_seeds(training, "ippo", TASK)
-    with pytest.raises(ValueError, match=r"no registered controller 'ippo-v0' plays ippo_v0/"):
+    # ippo-v0 plays ippo_v0/; were it to play another folder, ippo's former policies would be
+    # left reachable by no name
+    monkeypatch.setattr(controller_class("ippo-v0"), "shipped", "elsewhere")
+    refused = r"no registered controller 'ippo-v0' plays ippo_v0/ \(its shipped folder: 'elsewhere'\)"
+    with pytest.raises(ValueError, match=refused):
         ship(run, policies=tmp_path / "policies", plan=[("ippo", TASK, 0)])
     assert not (tmp_path / "policies").exists()
     with pytest.raises(ValueError, match=r"rl-ppo has no shipped folder of its own"):

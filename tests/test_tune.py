@@ -897,8 +897,9 @@ def test_default_runs_leave_the_v0_variants_out_but_they_run_by_name() -> None:
     from evaluation.execution.runner import usable_controllers
 
     variants = [n for n in controllers.available() if presets.is_comparison_variant(n)]
-    # the tuned presets' -v0 and the learned policy shipped before its seeds (rl-ppo-set-v0)
-    assert variants == ["consensus-v0", "koopman-nmpc-v0", "mpc-cbf-v0", "nominal-nmpc-v0", "rl-ppo-set-v0"]
+    # the tuned presets' -v0 and the learned policies shipped before their seeds (rl-ppo-set-v0, ippo-v0)
+    tuned = ["consensus-v0", "koopman-nmpc-v0", "mpc-cbf-v0", "nominal-nmpc-v0"]
+    assert variants == sorted([*tuned, "rl-ppo-set-v0", "ippo-v0"])
     assert not set(variants) & set(controllers.available(variants=False))
     assert set(controllers.available()) - set(controllers.available(variants=False)) == set(variants)
     assert not set(variants) & set(usable_controllers(verbose=False))

@@ -164,7 +164,21 @@ class MappoController(BaseController):
 
 
 class IppoController(MappoController):
-    """Plays the shipped BenchMARL IPPO policy (``baselines/policies/ippo/<task>``)."""
+    """Plays the shipped BenchMARL IPPO policy (``baselines/policies/ippo/<task>``): per task, the
+    training seed chosen on validation once its seeds have finished and ``--ship`` shipped it
+    (docs/rl.md), the policy trained on random layouts before that."""
 
     name = "ippo"
     shipped = "ippo"
+
+
+class IppoV0Controller(IppoController):
+    """``ippo-v0``: the random-layout IPPO policies ippo shipped before its seeds.
+
+    The policies trained on random layouts that ``ippo`` shipped before its training seeds
+    chosen on validation (``baselines/policies/ippo_v0``), kept for comparison as
+    ``rl-ppo-set-v0`` keeps rl-ppo-set's; run only when named. The ``ippo`` rows of results
+    published before a task's seed shipped are this policy."""
+
+    name = "ippo-v0"
+    shipped = "ippo_v0"

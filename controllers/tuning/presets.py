@@ -355,8 +355,9 @@ def is_comparison_variant(name: str) -> bool:
 _VARIANTS = frozenset(p.name for p in PRESETS if p.name.endswith(V0_SUFFIX))
 #: the ``-v0`` variants of learned controllers: the policies ``<name>`` shipped before its training
 #: seed chosen on validation (``baselines/policies/<folder>_v0``; ``rl-ppo-set-v0``,
-#: baselines/sb3/policy.py; evaluation.experiments.seeds.ship moves them there)
-WEIGHT_VARIANTS = frozenset({"rl-ppo-set-v0"})
+#: baselines/sb3/policy.py, and ``ippo-v0``, baselines/marl/marl_policy.py;
+#: evaluation.experiments.seeds.ship copies them there)
+WEIGHT_VARIANTS = frozenset({"rl-ppo-set-v0", "ippo-v0"})
 
 
 def tuned_file(name: str) -> Path | None:
