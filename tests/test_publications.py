@@ -288,8 +288,10 @@ def test_the_moved_names_warn_at_their_old_path_for_one_release(name) -> None:
     with pytest.warns(
         DeprecationWarning,
         match=rf"published\.{name} is deprecated and will be removed in KoopNav 0\.2\.0; import it from evaluation\.reports\.publications",
-    ):
+    ) as caught:
         assert getattr(published, name) is getattr(publications, name)
+    # the warning points at the line that read the old name (here), not at the module's __getattr__
+    assert [Path(w.filename) for w in caught] == [Path(__file__)]
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         published.nothing  # noqa: B018
 

@@ -237,7 +237,7 @@ def _member_parts(archive: Path, member: tarfile.TarInfo) -> tuple[str, ...]:
     is not a directory or a regular file, would land outside (absolute, ``..``), or is a file
     outside a run's directory."""
     name = PurePosixPath(member.name)
-    parts = tuple(part for part in name.parts if part not in ("", "."))
+    parts = name.parts  # pathlib has dropped the empty and "." parts ("a//./b" is ("a", "b"))
     if name.is_absolute() or ".." in parts or not parts or "\\" in member.name:
         raise ValueError(
             f"{archive}: member {member.name!r} would land outside the extraction directory (an absolute "
@@ -395,7 +395,7 @@ def run_files(run_dir: Path, dest: Path) -> list[Path]:
     return members
 
 
-def packed_log(data: bytes, where: str = "episode log") -> bytes:
+def packed_log(data: bytes, where: str) -> bytes:
     """An episode log's bytes as published: its header line, then each record without
     :data:`PACKED_OUT`, one per line; a line that is not a JSON object (or is nested past
     :func:`koopman_envs.checks.parse_json`'s bound) is a ``ValueError`` naming ``where`` and its number."""
