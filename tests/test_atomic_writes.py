@@ -56,10 +56,6 @@ ALLOWED: dict[tuple[str, str], str] = {
     ("controllers/koopman/__main__.py", "cmd_fit"): (
         "KoopmanModel.save writes through write_atomic (controllers.koopman.model_file.write_model_file)"
     ),
-    ("evaluation/experiments/seeds_shipping.py", "keep_former"): (
-        "the former policies copied into <folder>_v0.partial, which nothing reads, then renamed to "
-        "<folder>_v0 whole; a copy cut short is removed by the next ship before it copies again"
-    ),
     ("evaluation/episodes/runlog.py", "_open_append"): (
         "the append-only episode log, one whole line per record under a lock; its reader validates "
         "every line and drops a torn last one (--resume reruns that episode)"

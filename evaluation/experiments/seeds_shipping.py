@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from koopman_envs import TASKS
+from koopman_envs.files import write_atomic
 
 __all__ = ["V0_FOLDER_SUFFIX", "check_shippable", "keep_former", "shipped_folder"]
 
@@ -102,6 +103,8 @@ def keep_former(shipped: Path) -> Path:
     if not former.exists() and shipped.exists():
         scratch = former.with_name(former.name + ".partial")
         shutil.rmtree(scratch, ignore_errors=True)
-        shutil.copytree(shipped, scratch)
+        for path in sorted(shipped.rglob("*")):
+            if path.is_file():
+                write_atomic(scratch / path.relative_to(shipped), path.read_bytes())
         scratch.rename(former)  # whole or absent: a copy cut short is never read as the former policies
     return shipped
