@@ -102,6 +102,8 @@ EXTRA_TABLES = [
     ("multi-agent RL baseline, BenchMARL's IPPO (ippo)", "ippo"),
 ]
 TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0": "formation"}
+#: the shipped policies' folders
+POLICIES = Path(__file__).resolve().parents[1] / "baselines" / "policies"
 #: the regenerate command of a run, and the pool of several (tests/test_results_page.py reads the first)
 _command = evaluate_command
 pool = pooled_results
@@ -342,11 +344,23 @@ def _header(doc: dict) -> list[str]:
     ]
 
 
+def _robot_steps(folder: str) -> str:
+    """The training budget of the shipped policies ``baselines/policies/FOLDER/<task>`` as their
+    metadata record it, in millions of robot-steps (SB3's set policies count robot-steps, BenchMARL
+    frames of the whole team): ``18 M per task`` or ``24 M and 16 M`` (target reaching, formation)."""
+    budgets = []
+    for task in ("target_reaching", "formation"):
+        meta = json.loads((POLICIES / folder / task / "metadata.json").read_text(encoding="utf-8"))
+        budget = meta["timesteps"] if "timesteps" in meta else meta["frames"] * meta["n_robots"]
+        budgets.append(f"{budget / 1e6:.0f} M")
+    return f"{budgets[0]} per task" if len(set(budgets)) == 1 else " and ".join(budgets)
+
+
 def _unequal_data(doc: dict) -> list[str]:
     budget = doc["config"]["calibration"]["budget"]
     budgets, steps = [], []
     for task in ("target_reaching", "formation"):
-        meta = Path(__file__).resolve().parents[1] / "baselines" / "policies" / task / "metadata.json"
+        meta = POLICIES / task / "metadata.json"
         if meta.exists():
             steps.append(json.loads(meta.read_text())["timesteps"])
             budgets.append(f"{task.replace('_', ' ')} {steps[-1]:,}")
@@ -357,8 +371,11 @@ def _unequal_data(doc: dict) -> list[str]:
         "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
         "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
         f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions "
-        "the calibrating controllers may use; `rl-ppo-set` and `ippo` (18 M robot-steps per task) likewise "
-        "([RL baselines](rl.md)). Their rows "
+        "the calibrating controllers may use; `rl-ppo-set` and `ippo` likewise ([RL baselines](rl.md)), in "
+        f"robot-steps: `ippo` {_robot_steps('ippo')}, `rl-ppo-set` {_robot_steps('set')} (target reaching, "
+        "formation: its training seeds) and, before they shipped, `rl-ppo-set-v0` "
+        f"{_robot_steps('set_v0')} on random layouts (the policies of the `rl-ppo-set` rows published "
+        "before the seeds). Their rows "
         "compare trained policies with model-based controllers; they are not an equal-data comparison. "
         "`orca` and `dwa` use no data; their settings were chosen on seeds 0-2 of the paper maps, which "
         "are also trials 0-2 here ([controllers](controllers.md#classic-baselines-orca-and-dwa)).",
