@@ -23,7 +23,10 @@ import os
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+# run from a checkout without installing; docs/ for its sibling modules when imported from elsewhere
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
+
+from policy_budgets import POLICIES, robot_steps  # noqa: E402
 
 from evaluation.exit_codes import BAD_INPUT_EXIT  # noqa: E402
 from evaluation.reports.baseline import load_baseline  # noqa: E402
@@ -102,8 +105,6 @@ EXTRA_TABLES = [
     ("multi-agent RL baseline, BenchMARL's IPPO (ippo)", "ippo"),
 ]
 TASKS = {"KoopNav-TargetReaching-v0": "target reaching", "KoopNav-Formation-v0": "formation"}
-#: the shipped policies' folders
-POLICIES = Path(__file__).resolve().parents[1] / "baselines" / "policies"
 #: the regenerate command of a run, and the pool of several (tests/test_results_page.py reads the first)
 _command = evaluate_command
 pool = pooled_results
@@ -344,41 +345,23 @@ def _header(doc: dict) -> list[str]:
     ]
 
 
-def _robot_steps(folder: str) -> str:
-    """The training budget of the shipped policies ``baselines/policies/FOLDER/<task>`` as their
-    metadata record it, in millions of robot-steps (SB3's set policies count robot-steps, BenchMARL
-    frames of the whole team): ``18 M per task`` or ``24 M and 16 M`` (target reaching, formation)."""
-    budgets = []
-    for task in ("target_reaching", "formation"):
-        meta = json.loads((POLICIES / folder / task / "metadata.json").read_text(encoding="utf-8"))
-        budget = meta["timesteps"] if "timesteps" in meta else meta["frames"] * meta["n_robots"]
-        budgets.append(f"{budget / 1e6:.0f} M")
-    return f"{budgets[0]} per task" if len(set(budgets)) == 1 else " and ".join(budgets)
-
-
 def _unequal_data(doc: dict) -> list[str]:
     budget = doc["config"]["calibration"]["budget"]
-    budgets, steps = [], []
-    for task in ("target_reaching", "formation"):
-        meta = POLICIES / task / "metadata.json"
-        if meta.exists():
-            steps.append(json.loads(meta.read_text())["timesteps"])
-            budgets.append(f"{task.replace('_', ' ')} {steps[-1]:,}")
+    metas = {task: POLICIES / task / "metadata.json" for task in ("target_reaching", "formation")}
+    steps = {task: json.loads(meta.read_text())["timesteps"] for task, meta in metas.items() if meta.exists()}
+    budgets = [f"{task.replace('_', ' ')} {n:,}" for task, n in steps.items()]
     if not steps:
         return []
     return [
-        "**Unequal data, disclosed.** `rl-ppo` does not calibrate: its policies were trained beforehand on "
-        "random maps with random slip levels, never on the paper maps (checkpoints chosen on held-out "
-        "random layouts), with " + " and ".join(budgets) + " team-transitions in the task itself, "
-        f"{min(steps) / budget:.0f}-{max(steps) / budget:.0f} times the {budget:,} open-field transitions "
-        "the calibrating controllers may use; `rl-ppo-set` and `ippo` likewise ([RL baselines](rl.md)), in "
-        f"robot-steps: `ippo` {_robot_steps('ippo')}, `rl-ppo-set` {_robot_steps('set')} (target reaching, "
-        "formation: its training seeds) and, before they shipped, `rl-ppo-set-v0` "
-        f"{_robot_steps('set_v0')} on random layouts (the policies of the `rl-ppo-set` rows published "
-        "before the seeds). Their rows "
-        "compare trained policies with model-based controllers; they are not an equal-data comparison. "
-        "`orca` and `dwa` use no data; their settings were chosen on seeds 0-2 of the paper maps, which "
-        "are also trials 0-2 here ([controllers](controllers.md#classic-baselines-orca-and-dwa)).",
+        "**Unequal data, disclosed.** `rl-ppo` does not calibrate: its policies were trained beforehand on random "
+        "maps with random slip levels, never on the paper maps (checkpoints chosen on held-out random layouts), "
+        "with " + " and ".join(budgets) + " team-transitions in the task itself, "
+        f"{min(steps.values()) / budget:.0f}-{max(steps.values()) / budget:.0f} times the {budget:,} open-field transitions the "
+        "calibrating controllers may use; `rl-ppo-set` and `ippo` likewise ([RL baselines](rl.md)): the policies "
+        f"of their rows, now `rl-ppo-set-v0` ({robot_steps('set_v0')}) and `ippo-v0` ({robot_steps('ippo_v0')}), "
+        "robot-steps on random layouts. Their rows compare trained policies with model-based controllers; they "
+        "are not an equal-data comparison. `orca` and `dwa` use no data; their settings were chosen on seeds 0-2 "
+        "of the paper maps, which are also trials 0-2 here ([controllers](controllers.md#classic-baselines-orca-and-dwa)).",
         "",
     ]
 

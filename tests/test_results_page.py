@@ -116,14 +116,15 @@ def test_scaling_table_has_a_row_per_team_size_and_names_what_was_not_run(page):
 
 
 def test_the_unequal_data_note_gives_each_learned_policys_budget_from_its_metadata(page):
-    """The note gives `ippo`, `rl-ppo-set` and `rl-ppo-set-v0` the budgets their shipped metadata
-    record (it once gave `rl-ppo-set` ippo's 18 M robot-steps per task)."""
+    """The note gives the policies of the page's `rl-ppo-set` and `ippo` rows, now `rl-ppo-set-v0`
+    and `ippo-v0`, the budgets their metadata record (it once gave `rl-ppo-set` ippo's 18 M
+    robot-steps per task)."""
     note = " ".join(page._unequal_data({"config": {"calibration": {"budget": 1_000_000}}}))
-    for folder, label in (("ippo", "`ippo`"), ("set", "`rl-ppo-set`"), ("set_v0", "`rl-ppo-set-v0`")):
+    for folder, label in (("ippo_v0", "`ippo-v0`"), ("set_v0", "`rl-ppo-set-v0`")):
         budgets = []
         for task in ("target_reaching", "formation"):
             meta = json.loads((ROOT / "baselines" / "policies" / folder / task / "metadata.json").read_text())
             steps = meta["timesteps"] if "timesteps" in meta else meta["frames"] * meta["n_robots"]
             budgets.append(f"{round(steps / 1e6)} M")
         said = f"{budgets[0]} per task" if budgets[0] == budgets[1] else " and ".join(budgets)
-        assert f"{label} {said}" in note, (label, said, note)
+        assert f"{label} ({said})" in note, (label, said, note)

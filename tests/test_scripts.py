@@ -199,6 +199,7 @@ ELSEWHERE = {
     "bench/nmpc_build_time.py": "a module of bench/nmpc_solve.py (its --cache-timing), not a script",
     "docs/make_prose_md.py": "docs/paper.md's generator, run by docs/make_pages.py (tests/test_prose_pages.py)",
     "docs/prose_numbers.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
+    "docs/policy_budgets.py": "a module of docs/make_results_md.py, not a script (tests/test_results_page.py)",
     "docs/prose_tables.py": "a module of docs/make_prose_md.py, not a script (tests/test_prose_pages.py)",
     "docs/prose_span.py": "a module of docs/prose_numbers.py, not a script (tests/test_prose_intros.py)",
     "docs/prose_sweeps.py": "a module of docs/prose_numbers.py, not a script (tests/test_prose_intros.py)",

@@ -120,9 +120,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         default="mlp",
         choices=POLICIES,
-        help="mlp: the 3-robot MLP over a fixed team (rl-ppo); set: the set encoder for any team "
-        "size, trained on the curriculum of baselines.curriculum (rl-ppo-set-v0) or, with --suite, on "
-        "the suite's train layouts (rl-ppo-set)",
+        help="mlp: the 3-robot MLP over a fixed team (rl-ppo); set: the set encoder for any team size, on "
+        "the curriculum of baselines.curriculum (rl-ppo-set-v0) or --suite's train layouts (rl-ppo-set)",
     )
     parser.add_argument("--neighbours", type=int, default=6, help="set policy: team-mate slots")
     parser.add_argument("--obstacles", type=int, default=6, help="set policy: obstacle slots")
