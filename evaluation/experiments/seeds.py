@@ -409,12 +409,12 @@ def ship(
     check_shippable(run.policy, run.task, run.folder.parent, planned_seeds() if plan is None else plan)
     target = keep_former(shipped_folder(run.policy, policies)) / run.task
     source = run.folder / run.task
-    files = sorted(path for path in source.iterdir() if path.is_file())
-    for path in files:
-        write_atomic(target / path.name, path.read_bytes())
+    names = sorted(path.name for path in source.iterdir() if path.is_file())
+    for name in names:
+        write_atomic(target / name, (source / name).read_bytes())
     for path in sorted(target.iterdir()):
         # a former policy's file the seed has not (an obs_norm.npz) would be read with its weights
-        if path.is_file() and path.name not in {f.name for f in files}:
+        if path.is_file() and path.name not in names:
             path.unlink()
     return target
 
