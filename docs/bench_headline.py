@@ -13,6 +13,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from controllers.tuning import WEIGHT_VARIANTS  # noqa: E402
 from evaluation.reports.bench import (  # noqa: E402
     BenchMode,
     declared_tasks,
@@ -24,7 +25,7 @@ from evaluation.reports.results import Results  # noqa: E402
 from evaluation.reports.sections import suite_heading, task_label  # noqa: E402
 from koopman_envs import TIERS  # noqa: E402
 
-__all__ = ["HEADLINE", "headline", "paper_track"]
+__all__ = ["HEADLINE", "headline", "paper_track", "shipped_before_clause"]
 
 #: the name of the block README.md copies from the page (docs/make_pages.py, ``"readme"``)
 HEADLINE = "bench-headline"
@@ -76,6 +77,17 @@ def headline(modes: Sequence[BenchMode], paper: Results | None, paper_path: str 
     return "\n".join(lines) + "\n"
 
 
+def shipped_before_clause() -> str:
+    """``", and for `ippo`, ... the policies ... (now `ippo-v0`, ...)"``: the learned controllers
+    whose training seeds chosen on validation shipped after the paper track was published, whose
+    paper-track rows are therefore the policies now named ``<name>-v0``
+    (:data:`controllers.tuning.WEIGHT_VARIANTS`)."""
+    variants = sorted(WEIGHT_VARIANTS)
+    learned = ", ".join(f"`{v.removesuffix('-v0')}`" for v in variants)
+    now = ", ".join(f"`{v}`" for v in variants)
+    return f", and for {learned} the policies shipped before their training seeds chosen on validation (now {now})"
+
+
 def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[str]:
     """The paper track's lines: success per controller and task on the paper's protocol
     (``paper``, read from ``path``; None: not published)."""
@@ -88,7 +100,8 @@ def paper_track(paper: Results | None, path: str = "data/paper.tar.xz") -> list[
         f"slip {slips}; {config['episodes']} episodes per cell; IPOPT; free compute), on which ORCA's "
         "and DWA's hand-set defaults were chosen. Each row ran with the defaults of the code it was "
         "published from: the hand-set ones (now `NAME-v0`) for a controller whose tuned preset came "
-        "later (docs/benchmark.md). Success with 95% intervals." + paper_variants_note(config),
+        f"later{shipped_before_clause()} (docs/benchmark.md). Success with 95% intervals."
+        + paper_variants_note(config),
         "",
     ]
     tasks, rows = paper_track_rows(paper)

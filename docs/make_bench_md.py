@@ -50,7 +50,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 sys.path.insert(0, str(ROOT / "docs"))  # the README headline's module beside this one
 
-from bench_headline import HEADLINE, headline  # noqa: E402
+from bench_headline import HEADLINE, headline, shipped_before_clause  # noqa: E402
 
 from controllers.tuning import STUDIES_DIR  # noqa: E402
 from evaluation.episodes.distinct import distinct_records  # noqa: E402
@@ -308,7 +308,8 @@ def _verdicts_section(
         "",
         f"Each controller against {reference}, success: its difference on the test split (the page's "
         "success table) and on the paper track (free compute; its rows ran with the defaults they "
-        "were published with, the hand-set ones for a controller tuned later). " + VERDICT_RULE,
+        f"were published with, the hand-set ones for a controller tuned later{shipped_before_clause()}). "
+        + VERDICT_RULE,
         "",
     ]
     if paper is None:

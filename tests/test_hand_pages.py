@@ -603,6 +603,12 @@ def _shipped_seed(match: re.Match[str]) -> list[str]:
     return shipped_seed_problems(match)
 
 
+def _shipped_ippo_seed(match: re.Match[str]) -> list[str]:
+    """ "target reaching seed K (validation S/E, mean final distance D m, kept checkpoint frame C
+    of T frames trained)": the shipped ippo policy's metadata.json (docs/rl.md's table)."""
+    return shipped_seed_problems(match, policy="ippo")
+
+
 def _benchmark_claims() -> list[Claim]:
     studies = "data/tuning/*/{best,confirmation}.json and the adoption rule"
     publish = "data/publish.sh's runs (tests/test_bench_page.py parses them)"
@@ -625,6 +631,14 @@ def _benchmark_claims() -> list[Claim]:
             ),
             _shipped_seed,
             "baselines/policies/set/<task>/metadata.json (the shipped seed)",
+        ),
+        Claim(
+            re.compile(
+                r"(target reaching|formation)\s+seed (\d+) \(validation (\d+)/(\d+),\s+mean\s+final\s+distance\s+"
+                r"([\d.]+) m,\s+kept\s+checkpoint\s+frame\s+([\d,]+) of ([\d,]+) frames\s+trained\)"
+            ),
+            _shipped_ippo_seed,
+            "baselines/policies/ippo/<task>/metadata.json (the shipped seed)",
         ),
         Claim(
             re.compile(r"Of the \d+ seed runs the driver plans by default.*?validation \d+/\d+\)\.", re.S),

@@ -477,7 +477,7 @@ def _rl_ppo_early(match: re.Match[str]) -> list[str]:
 def _ippo_row(match: re.Match[str]) -> list[str]:
     """The shipped ippo run's wall time and its evaluation returns at the stated iterations."""
     task = match[1].replace(" ", "_")
-    m = meta("ippo", task)
+    m = meta("ippo_v0", task)
     curve = dict(m["eval_curve"])
     iterations = [
         int(n)
@@ -498,7 +498,7 @@ def _ippo_row(match: re.Match[str]) -> list[str]:
 def _ippo_stages(match: re.Match[str]) -> list[str]:
     problems = []
     for task in ("target_reaching", "formation"):
-        m = meta("ippo", task)
+        m = meta("ippo_v0", task)
         batch = m["ppo"]["frames_per_batch"]
         ends = [s["frames_end"] // batch for s in m["curriculum"]["stages"]]
         problems += same(
@@ -722,6 +722,12 @@ def _shipped_row(match: re.Match[str]) -> list[str]:
     return shipped_seed_problems(match, budget=True)
 
 
+def _shipped_ippo_row(match: re.Match[str]) -> list[str]:
+    """A row of "What ships as ippo": the shipped seed's metadata.json (its seed, the kept
+    checkpoint's validation record, its frame and the frames trained)."""
+    return shipped_seed_problems(match, policy="ippo")
+
+
 def _claims() -> list[Claim]:
     meta_ = "baselines/policies/*/metadata.json"
     results = "docs/results.md (data/paper.tar.xz; the page's hash)"
@@ -735,6 +741,15 @@ def _claims() -> list[Claim]:
             ),
             _shipped_row,
             "baselines/policies/set/<task>/metadata.json (the shipped seed)",
+        ),
+        Claim(
+            re.compile(
+                r"^\| (target reaching|formation) \| (\d+) \| (\d+)/(\d+) \| ([\d.]+) \| ([\d,]+) frames \| "
+                r"([\d,]+) frames \|$",
+                re.M,
+            ),
+            _shipped_ippo_row,
+            "baselines/policies/ippo/<task>/metadata.json (the shipped seed)",
         ),
         Claim(
             re.compile(r"`rl-ppo-set` loses only (\d+)-(\d+) points under `realistic`"),

@@ -162,16 +162,23 @@ def test_the_shipped_ippo_policies_load_without_pickle_and_arrive(
     import controllers
     from baselines.marl.marl_policy import SHIPPED
 
-    directory = SHIPPED / "ippo" / task
-    metadata = json.loads((directory / "metadata.json").read_text())
-    assert metadata["algorithm"] == "ippo" and metadata["task"] == task and metadata["n_robots"] == 3
-    # the command as it was run (the module path of that release)
-    assert metadata["command"].startswith("python -m baselines.benchmarl_train --task " + task)
-    with np.load(directory / "policy.npz", allow_pickle=False) as arrays:  # arrays only, no objects
-        assert sorted(arrays.files) == metadata["arrays"]
-    assert "ippo" in controllers.available()
-    result = run_episode(gym.make(env_id, map=map_name), controllers.make("ippo"), seed=0)
-    assert result.success, (result.outcome, result.final_distance)
+    # ippo ships the seed chosen on the benchmark's validation layouts; ippo-v0 the random-layout
+    # policies it shipped before (their command as it was run: the module path of that release)
+    commands = {
+        "ippo": f"python -m baselines.marl.benchmarl_train --task {task} --algorithm ippo --suite koopnav-bench-v1 ",
+        "ippo_v0": f"python -m baselines.benchmarl_train --task {task} ",
+    }
+    for folder, command in commands.items():
+        directory = SHIPPED / folder / task
+        metadata = json.loads((directory / "metadata.json").read_text())
+        assert metadata["algorithm"] == "ippo" and metadata["task"] == task and metadata["n_robots"] == 3
+        assert metadata["command"].startswith(command), (folder, metadata["command"])
+        with np.load(directory / "policy.npz", allow_pickle=False) as arrays:  # arrays only, no objects
+            assert sorted(arrays.files) == metadata["arrays"]
+    assert {"ippo", "ippo-v0"} <= set(controllers.available())
+    for name in ("ippo", "ippo-v0"):
+        result = run_episode(gym.make(env_id, map=map_name), controllers.make(name), seed=0)
+        assert result.success, (name, result.outcome, result.final_distance)
 
 
 # slow: the evaluator twice, once with two worker processes loading the policies, about 4 CPU-s

@@ -165,8 +165,8 @@ class MappoController(BaseController):
 
 class IppoController(MappoController):
     """Plays the shipped BenchMARL IPPO policy (``baselines/policies/ippo/<task>``): per task, the
-    training seed chosen on validation once its seeds have finished and ``--ship`` shipped it
-    (docs/rl.md), the policy trained on random layouts before that."""
+    training seed chosen on koopnav-bench-v1's validation layouts among the seeds trained on its
+    train layouts (docs/rl.md, "What ships as ippo")."""
 
     name = "ippo"
     shipped = "ippo"
@@ -178,7 +178,7 @@ class IppoV0Controller(IppoController):
     The policies trained on random layouts that ``ippo`` shipped before its training seeds
     chosen on validation (``baselines/policies/ippo_v0``), kept for comparison as
     ``rl-ppo-set-v0`` keeps rl-ppo-set's; run only when named. The ``ippo`` rows of results
-    published before a task's seed shipped are this policy."""
+    published before the seeds shipped are this policy."""
 
     name = "ippo-v0"
     shipped = "ippo_v0"

@@ -372,23 +372,28 @@ def pinned_problems(audit: Audit) -> list[str]:
     return problems
 
 
-def shipped_seed_problems(match: re.Match[str], *, budget: bool = False) -> list[str]:
+def shipped_seed_problems(
+    match: re.Match[str], *, budget: bool = False, policy: str = "rl-ppo-set"
+) -> list[str]:
     """A claim "TASK seed K (validation S/E, mean final distance D m, kept checkpoint step C of T
-    robot-steps trained[, budget B])" (groups: task, K, S, E, D, then C, T[, B]) against the shipped
-    rl-ppo-set policy's ``metadata.json`` for the task: docs/benchmark.md's sentence and docs/rl.md's
-    table (``budget``: its last column, the run's planned robot-steps)."""
+    trained[, budget B])" (groups: task, K, S, E, D, then C, T[, B]) against the shipped policy's
+    ``metadata.json`` for the task: docs/benchmark.md's sentence and docs/rl.md's tables.
+    ``rl-ppo-set`` counts robot-steps (``budget``: its last column, the run's planned robot-steps);
+    ``ippo`` counts BenchMARL's frames (its runs train exactly their budget)."""
     task = match[1].replace(" ", "_")
-    m = json.loads((ROOT / "baselines" / "policies" / "set" / task / "metadata.json").read_text())
+    folder = {"rl-ppo-set": "set", "ippo": "ippo"}[policy]
+    m = json.loads((ROOT / "baselines" / "policies" / folder / task / "metadata.json").read_text())
     chosen = m["selection"]["chosen"]
     stated = [int(match[2]), int(match[3]), int(match[4]), match[5]]
     stated += [int(g.replace(",", "")) for g in match.groups()[5:]]
+    trained = m["trained_timesteps"] if policy == "rl-ppo-set" else m["frames"]
     actual = [
         m["seed"],
         chosen["successes"],
         chosen["episodes"],
         f"{chosen['mean_final_distance']:.2f}",
         chosen["step"],
-        m["trained_timesteps"],
+        trained,
         *([m["timesteps"]] if budget else []),
     ]
-    return same(stated, actual, f"rl-ppo-set's shipped {task} seed")
+    return same(stated, actual, f"{policy}'s shipped {task} seed")
