@@ -39,7 +39,10 @@ __all__ = [
 
 #: the controllers trained on the physics plant, each with the kinematic controller it was
 #: fine-tuned from: rows of their own (their kinematic column is the reverse direction), left out
-#: of the verdicts that transfer (tests/test_sim2sim.py holds this to the shipped metadata)
+#: of the verdicts that transfer (tests/test_sim2sim.py holds this to the shipped metadata). The
+#: source is named by the label the published rows carry: they were run before rl-ppo-set shipped
+#: its training seeds, so that label's policy is the one now named rl-ppo-set-v0, the policy
+#: rl-ppo-set-physics was fine-tuned from (docs/rl.md)
 FINE_TUNED = {"rl-ppo-set-physics": "rl-ppo-set"}
 
 #: the two plants, in the order of the command line, as the page names them
