@@ -260,6 +260,30 @@ def _mutation_left(match: re.Match[str]) -> list[str]:
     return same(int(left), int(total) - int(killed) - int(timeouts), f"the mutants left of {total}")
 
 
+def _mutation_store_row(match: re.Match[str]) -> list[str]:
+    """A row of the committed stores' table: the module's file, its store's killed / mutants, share
+    and the count not killed, as ``python -m evaluation.mutation report`` reads
+    ``data/mutation/MODULE.json``."""
+    from evaluation.mutation import read_store, status_of
+
+    target, module, killed, total, share, left = match.groups()
+    store = read_store(ROOT / "data" / "mutation" / f"{module}.json", module)
+    statuses = [status_of(code) for code, _ in store.verdicts.values()]
+    actual_killed = statuses.count("killed")
+    actual_total = max(store.mutants, len(statuses))
+    return same(
+        (target, int(killed), int(total), share, 0 if left == "none" else int(left)),
+        (
+            next(iter(store.against.get("target", {})), None),
+            actual_killed,
+            actual_total,
+            f"{100 * actual_killed / actual_total:.1f}",
+            actual_total - actual_killed,
+        ),
+        f"data/mutation/{module}.json",
+    )
+
+
 def _baseline_failures() -> float:
     """The committed CI baseline's highest share of failed decisions in an episode [%], rounded."""
     baseline = json.loads((ROOT / ".ci" / "baseline" / "results.json").read_text(encoding="utf-8"))
@@ -815,6 +839,13 @@ def _claims(page: str) -> list[Claim]:
                 ".ci/baseline/results.json",
             ),
             Claim(re.compile(r"(\d+)/(\d+)(?: killed)? \((\d+(?:\.\d+)?)%\)"), _mutation_share, "K / N"),
+            Claim(
+                re.compile(
+                    r"^\| `([^`]+)` \| `(\w+)` \| (\d+)/(\d+) killed \(([\d.]+)%\) \| (\d+|none) \|$", re.M
+                ),
+                _mutation_store_row,
+                "data/mutation/MODULE.json (python -m evaluation.mutation report)",
+            ),
             Claim(
                 re.compile(
                     r"^\| `[^`]+`[^|]* \| \d+/(\d+) \([^|]*\| (\d+)/\d+ killed \([\d.]+%\)(?:, (\d+) timeout)? \| (\d+) \|$",
