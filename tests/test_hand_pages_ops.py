@@ -944,6 +944,10 @@ BATCHED_EVALUATION = (
     "python evaluate.py with and without batching, as the section states; output not committed"
 )
 README_COMMANDS = "README's two commands timed with /usr/bin/time on the dates the table gives (tests/test_prose_checks.py holds README's times to these rows)"
+README_COMMANDS_WALL = (
+    "README's two commands timed by the wall clock (date before and after) in a fresh venv, and .ci/run's "
+    "test step by its step log, on 2026-12-01 (tests/test_prose_checks.py holds README's times to these rows)"
+)
 EVALUATOR_WALL = "README's first command in a fresh venv from a clean clone (pip install -e ., python evaluate.py) and python bench/evaluate_wall.py, timed by hand on the dates given"
 GATE_TIME = "/usr/bin/time bash .ci/leaderboard.sh on an idle 2-core machine, by hand"
 CROWD_ONE_OFF = (
@@ -1196,6 +1200,9 @@ MEASURED: dict[str, dict[str, str]] = {
         "| `python -m pytest -q` | 4 min 11 s | - | 2 idle cores, both used, a fresh worktree (numba's kernels compiled once by the warm-up): 3,778 passed, 2 xfailed; 411.4 s user + 32.9 s system CPU | 2026-11-30 | commit 9e41ecc |": README_COMMANDS,
         "| `python -m pytest -q` | 4 min 11 s | - | 2 idle cores (the background runs paused), a fresh worktree: 3,822 passed, 2 xfailed; 409.4 s user + 31.4 s system CPU | 2026-11-30 | commit fd28e85 |": README_COMMANDS,
         "| `python -m pytest -q` | 3 min 39 s | - | the same worktree again, numba's kernel cache warm: 3,822 passed, 2 xfailed; 386.3 s user + 30.1 s system CPU | 2026-11-30 | commit fd28e85 |": README_COMMANDS,
+        "| `python evaluate.py` | 51.1 s | 112 | this stop's machine (a fresh one), idle, fresh venv from a clean clone, `HOME` and `KOOPNAV_CACHE` empty; `pip install -e .` 19.2 s before it, not counted; 44.7 s of episodes | 2026-12-01 | commit 3f8f7a4 |": README_COMMANDS_WALL,
+        "| `python -m pytest -q` | 4 min 5 s | - | a fresh machine, every extra `.ci/run` installs, idle: 4,173 passed, 1 skipped, 2 xfailed (CI's first test step, timed by the step's wall clock) | 2026-12-01 | commit 431c74d |": README_COMMANDS_WALL,
+        "| `python -m pytest -q` | 3 min 17 s | - | the fresh venv of the 51.1 s row after `pip install -e '.[test]'` (9 s, not counted), idle: 3,877 passed, 116 skipped (extras not installed), 2 xfailed | 2026-12-01 | commit 3f8f7a4 |": README_COMMANDS_WALL,
         "clean clone, `HOME` and `KOOPNAV_CACHE` empty: `pip install -e .` 42.5 s, then `python evaluate.py`": EVALUATOR_WALL,
         "106.9 s wall for 112 episodes (92.0 s of episodes). The day before, the same command took 185.9 s": EVALUATOR_WALL,
         "`nice 19`, and 88.1 s": EVALUATOR_WALL,
