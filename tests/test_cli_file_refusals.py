@@ -2,38 +2,18 @@
 ``--baseline`` are refused by ``evaluate.py`` itself, exit 2 with the file named, before any
 episode runs (tests/test_bounded_reads.py holds the readers to the same rule in-process).
 
-The command runs in a subprocess with a timeout: only a guard against the hang a FIFO used to be,
-never a measure of speed. This file imports no module that .ci/mutation.sh mutates, so the
-mutation stores' verdicts stay decided against the test files they name."""
+The command runs in a subprocess with a timeout (tests/test_bounded_reads.py's ``_cli``): only a
+guard against the hang a FIFO used to be, never a measure of speed. A file of its own, which
+names no module that .ci/mutation.sh mutates, so that the committed mutation stores stay decided
+against the test files they name."""
 
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-#: a command that used to hang on a FIFO is stopped after this [s] (a hang guard, not a timing)
-HANG_GUARD = 120
-ARGS = ["--env", "KoopNav-TargetReaching-v0", "--controllers", "consensus", "--maps", "map1"]
-ARGS += ["--episodes", "1", "--max-episode-steps", "5", "--workers", "1", "--quiet"]
-
-
-def _cli(*argv: str) -> subprocess.CompletedProcess[str]:
-    """``python evaluate.py ARGV`` from the repository root; a hang fails the test."""
-    try:
-        return subprocess.run(
-            [sys.executable, str(ROOT / "evaluate.py"), *argv],
-            capture_output=True,
-            text=True,
-            cwd=ROOT,
-            timeout=HANG_GUARD,
-        )
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"evaluate.py {' '.join(argv)} hung (killed after {HANG_GUARD} s)")
+from test_bounded_reads import ARGS, _cli  # the same command line and hang guard
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this system")
