@@ -2,8 +2,8 @@
 docs/make_robustness_md.py ``--fault-split``): on a tiny real run among an oblivious ORCA crowd the
 section shows the split and its counts add up to the records' own; a record written before the
 fault rule is refused by name; an absent publication is said to be pending with the command that
-makes it; the section rebuilds byte for byte; and data/publish.sh's crowd_faults run plans
-crowd_crowd's episodes."""
+makes it; and data/publish.sh's crowd_faults run plans crowd_crowd's episodes. The whole page,
+this section included, is rebuilt byte for byte by tests/test_published_pages.py (-m slow)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from evaluation.reports.sections.fault_split import FAULT_FIELDS, MissingFaultFi
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "docs"))
 import make_robustness_md  # noqa: E402  (docs/ is no package)
-from make_pages import PAGES, page_command, page_digest, read_digests  # noqa: E402
+from make_pages import PAGES, page_digest, read_digests  # noqa: E402
 
 from helpers.extras import skip_without_extra  # noqa: E402
 
@@ -186,14 +186,6 @@ def test_the_committed_page_names_the_pending_publication() -> None:
         assert "Pending: the publication `data/crowd_faults`" in page
         assert "`bash data/publish.sh crowd_faults`" in page
     assert read_digests()[entry["page"]] == page_digest((ROOT / entry["page"]).read_bytes())
-
-
-@pytest.mark.slow
-def test_the_committed_page_rebuilds_byte_for_byte(tmp_path) -> None:
-    entry = next(e for e in PAGES if e["page"] == "docs/crowd_results.md")
-    page = tmp_path / "crowd_results.md"
-    subprocess.run(page_command(entry, page, tmp_path / "_static"), cwd=ROOT, check=True, capture_output=True)
-    assert page.read_bytes() == (ROOT / entry["page"]).read_bytes()
 
 
 def _published_runs() -> dict[str, str]:
