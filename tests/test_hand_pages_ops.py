@@ -1203,6 +1203,8 @@ MEASURED: dict[str, dict[str, str]] = {
         "| `python evaluate.py` | 51.1 s | 112 | this stop's machine (a fresh one), idle, fresh venv from a clean clone, `HOME` and `KOOPNAV_CACHE` empty; `pip install -e .` 19.2 s before it, not counted; 44.7 s of episodes | 2026-12-01 | commit 3f8f7a4 |": README_COMMANDS_WALL,
         "| `python -m pytest -q` | 4 min 5 s | - | a fresh machine, every extra `.ci/run` installs, idle: 4,173 passed, 1 skipped, 2 xfailed (CI's first test step, timed by the step's wall clock) | 2026-12-01 | commit 431c74d |": README_COMMANDS_WALL,
         "| `python -m pytest -q` | 3 min 17 s | - | the fresh venv of the 51.1 s row after `pip install -e '.[test]'` (9 s, not counted), idle: 3,877 passed, 116 skipped (extras not installed), 2 xfailed | 2026-12-01 | commit 3f8f7a4 |": README_COMMANDS_WALL,
+        "| `python -m pytest -q` | 4 min 21 s | - | this stop's machine (a fresh one), 2 idle cores, both used, a fresh worktree: 4,176 passed, 2 xfailed; 434.6 s user + 36.8 s system CPU | 2026-12-01 | commit ee6554e |": README_COMMANDS,
+        "| `python -m pytest -q` | 3 min 29 s | - | the same worktree again, numba's kernel cache warm: 4,176 passed, 2 xfailed; 373.5 s user + 30.6 s system CPU | 2026-12-01 | commit ee6554e |": README_COMMANDS,
         "clean clone, `HOME` and `KOOPNAV_CACHE` empty: `pip install -e .` 42.5 s, then `python evaluate.py`": EVALUATOR_WALL,
         "106.9 s wall for 112 episodes (92.0 s of episodes). The day before, the same command took 185.9 s": EVALUATOR_WALL,
         "`nice 19`, and 88.1 s": EVALUATOR_WALL,
