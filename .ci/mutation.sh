@@ -87,6 +87,7 @@ declare -A MODULES=(
 )
 # not selected: records tests/test_mutation_script.py: it runs this script itself (mutmut in mutmut)
 # not selected: uncertainty tests/test_classic_controllers.py: reads the presets through 4 whole episodes per controller
+# not selected: publications tests/test_hand_pages.py: it reads data/bench_test's wall times through extracted_archive for one claim; the reader's own tests are selected
 # not selected: layout_tests tests/test_tune.py tests/test_hand_pages.py: they read sign_flip_p_text through whole pages (the confirmation table); tests/test_clustered_statistics.py tests it directly
 MODULES[perception-kernels]=${MODULES[perception]}
 ORDER=(perception uncertainty observed baseline statistics clustered layout_tests families runlog records published publications)

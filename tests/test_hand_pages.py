@@ -16,7 +16,6 @@ import functools
 import json
 import math
 import re
-import tarfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -36,6 +35,7 @@ from test_prose_checks import (  # noqa: E402
     tuning_rows,
 )
 
+from evaluation.reports.publications import extracted_archive  # noqa: E402
 from evaluation.stats.layout_tests import sign_flip_p_text  # noqa: E402
 
 from helpers.hand_audit import (  # noqa: E402
@@ -285,22 +285,25 @@ def _both_modes(match: re.Match[str]) -> list[str]:
     return same(stated, actual, "both modes' CPU-hours (low, high, about; before)")
 
 
-def _logged_wall(label: str) -> tuple[int, int]:
-    """(episodes, summed wall_seconds rounded) of ``label``'s records in the published free-compute
-    bench run (data/bench_test/controllers/LABEL.tar.xz: a header line, then one record a line)."""
-    with tarfile.open(ROOT / "data" / "bench_test" / "controllers" / f"{label}.tar.xz") as archive:
-        member = next(m for m in archive.getmembers() if m.name.endswith("episodes.jsonl"))
-        handle = archive.extractfile(member)
-        assert handle is not None
-        lines = handle.read().decode("utf-8").splitlines()[1:]
-    records = [json.loads(line) for line in lines]
-    return len(records), round(sum(r["wall_seconds"] for r in records))
+@functools.cache
+def _logged_wall() -> dict[str, tuple[int, int]]:
+    """Per controller, (episodes, summed wall_seconds rounded) of the published free-compute bench
+    run (data/bench_test), read through the publications' bounded reader."""
+    episodes: dict[str, int] = {}
+    seconds: dict[str, float] = {}
+    with extracted_archive(ROOT / "data" / "bench_test") as run:
+        for line in (run / "episodes.jsonl").read_text(encoding="utf-8").splitlines()[1:]:
+            record = json.loads(line)
+            label = record["controller"]
+            episodes[label] = episodes.get(label, 0) + 1
+            seconds[label] = seconds.get(label, 0.0) + record["wall_seconds"]
+    return {label: (episodes[label], round(seconds[label])) for label in episodes}
 
 
 def _tuned_nmpc_wall(match: re.Match[str]) -> list[str]:
     """ "its N episodes logged A s of wall time against B s for `koopman-nmpc-v0`": the published
     free-compute run's records of koopman-nmpc and koopman-nmpc-v0."""
-    tuned, hand_set = _logged_wall("koopman-nmpc"), _logged_wall("koopman-nmpc-v0")
+    tuned, hand_set = _logged_wall()["koopman-nmpc"], _logged_wall()["koopman-nmpc-v0"]
     stated = (int(match[1]), int(match[2].replace(",", "")), int(match[3].replace(",", "")))
     return same(
         stated, (tuned[0], tuned[1], hand_set[1]), "koopman-nmpc's and koopman-nmpc-v0's logged wall time"
